@@ -1,0 +1,60 @@
+"""Shared test helpers: one tolerance helper and seeded goodness-of-fit checks.
+
+Statistical tests state their false-failure rate: with a fixed seed the outcome is
+deterministic, and ``ALPHA`` is the probability that a correct implementation would fail
+the test for a random seed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+ALPHA = 1e-3  # false-failure rate of every seeded goodness-of-fit test
+
+
+def assert_allclose(actual, desired, rtol: float = 1e-7, atol: float = 0.0, err_msg: str = ""):
+    """The one tolerance helper for array comparisons."""
+    np.testing.assert_allclose(
+        np.asarray(actual), np.asarray(desired), rtol=rtol, atol=atol, err_msg=err_msg
+    )
+
+
+def chisquare_gof(samples, pmf, min_expected: float = 5.0, alpha: float = ALPHA) -> float:
+    """Chi-square test of integer ``samples`` against ``pmf(k)``.
+
+    Bins with expected count below ``min_expected`` are pooled into the tails so the
+    chi-square approximation holds. Returns the p-value and asserts ``p > alpha``.
+    """
+    samples = np.asarray(samples).ravel().astype(np.int64)
+    n = samples.size
+    kmax = int(max(samples.max(), 1))
+    # extend support until the remaining tail mass is negligible
+    while pmf(np.arange(kmax + 1)).sum() < 1 - 1e-12 and kmax < 10**6:
+        kmax *= 2
+    ks = np.arange(kmax + 1)
+    expected = n * pmf(ks)
+    observed = np.bincount(samples, minlength=kmax + 1)[: kmax + 1].astype(float)
+    # pool low bins from the left and right
+    edges = []
+    acc = 0.0
+    for k in ks:
+        acc += expected[k]
+        if acc >= min_expected:
+            edges.append(k)
+            acc = 0.0
+    if not edges:
+        raise AssertionError("too few samples for a chi-square test")
+    edges[-1] = kmax
+    obs_b, exp_b, lo = [], [], 0
+    for e in edges:
+        obs_b.append(observed[lo : e + 1].sum())
+        exp_b.append(expected[lo : e + 1].sum())
+        lo = e + 1
+    exp_b = np.asarray(exp_b)
+    exp_b[-1] += n - exp_b.sum()  # tail mass beyond kmax
+    obs_b = np.asarray(obs_b)
+    stat = float(((obs_b - exp_b) ** 2 / exp_b).sum())
+    p = float(stats.chi2.sf(stat, df=len(exp_b) - 1))
+    assert p > alpha, f"chi-square goodness of fit failed: stat={stat:.2f}, p={p:.2e}"
+    return p
