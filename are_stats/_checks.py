@@ -57,7 +57,7 @@ def check_array(name: str, x: Any, dtype: Any = float, ndim: int | None = None) 
 def _first_bad(a: np.ndarray, bad: np.ndarray) -> str:
     idx = np.argwhere(bad)[0]
     where = "" if a.ndim == 0 else f" at index {tuple(int(i) for i in idx)}"
-    return f"{a[tuple(idx)]!r}{where}"
+    return f"{a[tuple(idx)].item()!r}{where}"
 
 
 def check_finite(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
