@@ -1,0 +1,539 @@
+"""Life-cycle logs: one row per observed artefact, with its observation window and area.
+
+A life-cycle log is the field record the arrival/leaving model of Sect. 3.2 is fitted to:
+each artefact's arrival time ``t_arrive`` and leaving time ``t_leave`` inside the
+observation window ``[t0, t1]`` (DECISIONS 3), its mark X (eq. 1), optional class label and
+its pose at arrival. An empty ``t_arrive`` means the artefact was already present at ``t0``
+(left-truncated: its arrival is unknown); an empty ``t_leave`` means it was still present at
+``t1`` (right-censored). The area ``nu(M2D)`` (DECISIONS 4) comes from the manifest.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from are_stats.logs._table import RawTable, read_raw_table
+
+__all__ = [
+    "LIFECYCLE_COLUMNS",
+    "LifecycleLog",
+    "lifecycle_log_from_frame",
+    "read_lifecycle_log",
+    "read_manifest",
+]
+
+#: Columns of a life-cycle log, in canonical order (``id, t_arrive, t_leave`` required).
+LIFECYCLE_COLUMNS = ("id", "t_arrive", "t_leave", "label", "mark", "x", "y", "yaw")
+_REQUIRED = ["id", "t_arrive", "t_leave"]
+
+#: Multipliers to seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
+#: Multipliers to square metres.
+AREA_UNITS = {"m^2": 1.0, "m2": 1.0, "cm^2": 1e-4, "km^2": 1e6, "ha": 1e4}
+_MANIFEST_KEYS = ("window", "area", "map", "time_unit", "area_unit", "min_lifetime", "description")
+
+
+@dataclass(frozen=True, eq=False)
+class LifecycleLog:
+    """A validated life-cycle log.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per artefact, columns ``id`` (str), ``t_arrive``, ``t_leave`` (float64
+        seconds, NaN when left-truncated / right-censored), ``label`` (str, ``""`` when
+        absent), ``mark`` (int64, -1 when absent), ``x``, ``y``, ``yaw`` (float64, NaN when
+        absent), ``truncated`` and ``censored`` (bool).
+    window : (float, float)
+        Observation window ``(t0, t1)`` in seconds.
+    area : float or None
+        Free area ``nu(M2D)`` in m^2 (None when neither manifest nor caller gave one).
+    source : str
+        The file the log was read from (or ``"<frame>"``).
+    excluded : dict of str to int
+        Rows left out on purpose, by reason (``blank_row``, ``shorter_than_min_lifetime``).
+    manifest : dict
+        The manifest as read (after overrides), with units.
+    """
+
+    table: pd.DataFrame
+    window: tuple[float, float]
+    area: float | None
+    source: str
+    excluded: dict[str, int] = field(default_factory=dict)
+    manifest: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_artefacts(self) -> int:
+        """Number of artefacts (rows kept)."""
+        return len(self.table)
+
+    def report(self) -> dict[str, Any]:
+        """Counts for a fit report: rows kept, excluded by reason, truncated, censored."""
+        t = self.table
+        return {
+            "source": self.source,
+            "window": list(self.window),
+            "area": self.area,
+            "rows_read": int(len(t) + sum(self.excluded.values())),
+            "rows_used": int(len(t)),
+            "excluded": dict(self.excluded),
+            "left_truncated": int(t["truncated"].sum()),
+            "right_censored": int(t["censored"].sum()),
+            "with_mark": int((t["mark"] >= 0).sum()),
+            "with_label": int((t["label"] != "").sum()),
+        }
+
+    def to_arrays(self) -> dict[str, Any]:
+        """Arrays for the life-cycle likelihoods.
+
+        Returns
+        -------
+        dict
+            ``t_arrive`` (n,) float64 (NaN when truncated), ``t_leave`` (n,) float64 (NaN
+            when censored), ``truncated`` (n,) bool, ``censored`` (n,) bool, ``marks`` (n,)
+            int64 (-1 when missing), ``labels`` (n,) object str (``""`` when missing),
+            ``label_codes`` (n,) int64 (index into ``label_names``, -1 when missing),
+            ``label_names`` list of str (sorted), ``x``, ``y``, ``yaw`` (n,) float64,
+            ``ids`` (n,) object str, ``window`` (t0, t1), ``area`` float or None.
+        """
+        t = self.table
+        labels = t["label"].to_numpy(dtype=object)
+        names = sorted({s for s in labels if s != ""})
+        lookup = {s: i for i, s in enumerate(names)}
+        codes = np.array([lookup.get(s, -1) for s in labels], dtype=np.int64)
+        return {
+            "ids": t["id"].to_numpy(dtype=object),
+            "t_arrive": t["t_arrive"].to_numpy(dtype=np.float64),
+            "t_leave": t["t_leave"].to_numpy(dtype=np.float64),
+            "truncated": t["truncated"].to_numpy(dtype=bool),
+            "censored": t["censored"].to_numpy(dtype=bool),
+            "marks": t["mark"].to_numpy(dtype=np.int64),
+            "labels": labels,
+            "label_codes": codes,
+            "label_names": names,
+            "x": t["x"].to_numpy(dtype=np.float64),
+            "y": t["y"].to_numpy(dtype=np.float64),
+            "yaw": t["yaw"].to_numpy(dtype=np.float64),
+            "window": self.window,
+            "area": self.area,
+        }
+
+    def to_lifecycle_data(self, label_names: Sequence[str] | None = None) -> Any:
+        """Build the life-cycle model's container :class:`are_stats.traffic.LifecycleData`.
+
+        Parameters
+        ----------
+        label_names : sequence of str, optional
+            Class order: label ``label_names[c]`` becomes class ``c`` (mixture component c,
+            DECISIONS 5). Default: the sorted distinct labels.
+
+        Returns
+        -------
+        LifecycleData
+            ``marks`` when every row has one (None when no row has), ``labels`` (class
+            indices) when every row has a label and marks are present, ``x``, ``y``, ``yaw``
+            when every row has them.
+
+        Raises
+        ------
+        ValueError
+            If the log has no area, marks or labels are given on some rows only, or a label
+            is not in ``label_names``.
+        """
+        from are_stats.traffic import LifecycleData
+
+        a = self.to_arrays()
+        if self.area is None:
+            raise ValueError(
+                f"{self.source}: area: expected the free area (manifest 'area' or "
+                "'map', or area=...), got none"
+            )
+        ids = a["ids"]
+        marks = a["marks"]
+        has = marks >= 0
+        if has.any() and not has.all():
+            i = int(np.argmax(~has))
+            raise ValueError(
+                f"{self.source}: artefact {ids[i]!r}, column 'mark': expected a "
+                "mark on every row or on none (the mixture needs all), got an "
+                "empty cell"
+            )
+        labels = a["labels"]
+        lab = labels != ""
+        codes = None
+        if has.all() and lab.any():
+            if not lab.all():
+                i = int(np.argmax(~lab))
+                raise ValueError(
+                    f"{self.source}: artefact {ids[i]!r}, column 'label': "
+                    "expected a label on every row or on none, got an empty cell"
+                )
+            names = list(label_names) if label_names is not None else a["label_names"]
+            lookup = {n: c for c, n in enumerate(names)}
+            unknown = [v for v in labels if v not in lookup]
+            if unknown:
+                raise ValueError(
+                    f"{self.source}: column 'label': expected one of {names}, got {unknown[0]!r}"
+                )
+            codes = np.array([lookup[v] for v in labels], dtype=np.int64)
+        pose = {k: a[k] if np.isfinite(a[k]).all() else None for k in ("x", "y", "yaw")}
+        return LifecycleData(
+            t_arrive=a["t_arrive"],
+            t_leave=a["t_leave"],
+            window=self.window,
+            area=self.area,
+            marks=marks if has.all() else None,
+            labels=codes,
+            **pose,
+        )
+
+
+def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
+    """Read and check a life-cycle-log manifest (YAML).
+
+    Keys: ``window: [t0, t1]`` (in ``time_unit``), ``area`` (in ``area_unit``) or ``map``
+    (path to a ROS map YAML, relative to the manifest), ``time_unit`` (``s``, ``ms``,
+    ``min``, ``h``; default ``s``), ``area_unit`` (``m^2``, ``cm^2``, ``km^2``, ``ha``;
+    default ``m^2``), ``min_lifetime`` (default 0), ``description`` (free text).
+
+    Raises
+    ------
+    FileNotFoundError
+        If the manifest does not exist.
+    ValueError
+        On invalid YAML, unknown keys or malformed values.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such manifest file")
+    try:
+        meta = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as err:
+        raise ValueError(f"{p}: expected a YAML manifest, got invalid YAML: {err}") from None
+    if meta is None:
+        meta = {}
+    if not isinstance(meta, dict):
+        raise ValueError(
+            f"{p}: expected a YAML mapping of manifest keys, got {type(meta).__name__}"
+        )
+    unknown = [k for k in meta if k not in _MANIFEST_KEYS]
+    if unknown:
+        raise ValueError(
+            f"{p}: key {unknown[0]!r}: expected one of "
+            f"{', '.join(_MANIFEST_KEYS)}, got an unknown key"
+        )
+    if "area" in meta and "map" in meta:
+        raise ValueError(f"{p}: keys 'area' and 'map': expected one of them, got both")
+    out = dict(meta)
+    if "map" in out:
+        mp = Path(str(out["map"]))
+        out["map"] = str(mp if mp.is_absolute() else p.parent / mp)
+    return out
+
+
+def _window(where: str, value: Any, scale: float) -> tuple[float, float]:
+    try:
+        t0, t1 = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{where}: expected a window [t0, t1] of two numbers, got {value!r}"
+        ) from None
+    if not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0:
+        raise ValueError(
+            f"{where}: expected a window [t0, t1] of finite numbers with "
+            f"t0 < t1, got [{t0!r}, {t1!r}]"
+        )
+    return t0 * scale, t1 * scale
+
+
+def _positive(where: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: expected a number > 0, got {value!r}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise ValueError(f"{where}: expected a number > 0, got {value!r}")
+    return v
+
+
+def _resolve_settings(
+    manifest: Mapping[str, Any], mpath: str, window: Any, area: Any
+) -> tuple[tuple[float, float], float | None, float, dict[str, Any]]:
+    tu = str(manifest.get("time_unit", "s"))
+    if tu not in TIME_UNITS:
+        raise ValueError(
+            f"{mpath}: key 'time_unit': expected one of {', '.join(TIME_UNITS)}, got {tu!r}"
+        )
+    au = str(manifest.get("area_unit", "m^2"))
+    if au not in AREA_UNITS:
+        raise ValueError(
+            f"{mpath}: key 'area_unit': expected one of {', '.join(AREA_UNITS)}, got {au!r}"
+        )
+    scale = TIME_UNITS[tu]
+    if window is not None:
+        win = _window("window", window, scale)
+    elif "window" in manifest:
+        win = _window(f"{mpath}: key 'window'", manifest["window"], scale)
+    else:
+        raise ValueError(
+            f"{mpath}: key 'window': expected the observation window [t0, t1] "
+            "in the manifest or as window=(t0, t1), got nothing"
+        )
+    if area is not None:
+        a: float | None = _positive("area", area)
+    elif "area" in manifest:
+        a = _positive(f"{mpath}: key 'area'", manifest["area"]) * AREA_UNITS[au]
+    elif "map" in manifest:
+        from are_stats.environment import OccupancyGrid
+
+        a = OccupancyGrid.from_ros_yaml(manifest["map"]).free_area
+        if a <= 0:
+            raise ValueError(f"{manifest['map']}: expected a map with free cells, got none")
+    else:
+        a = None
+    min_life = manifest.get("min_lifetime", 0.0)
+    try:
+        min_life = float(min_life) * scale
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{mpath}: key 'min_lifetime': expected a number >= 0, got {min_life!r}"
+        ) from None
+    if not math.isfinite(min_life) or min_life < 0:
+        raise ValueError(
+            f"{mpath}: key 'min_lifetime': expected a number >= 0, got "
+            f"{manifest.get('min_lifetime')!r}"
+        )
+    resolved = dict(manifest)
+    resolved.update(
+        {
+            "window": list(win),
+            "area": a,
+            "time_unit": "s",
+            "area_unit": "m^2",
+            "min_lifetime": min_life,
+            "source_time_unit": tu,
+            "source_area_unit": au,
+        }
+    )
+    return win, a, min_life, resolved
+
+
+def read_lifecycle_log(
+    path: str | os.PathLike,
+    manifest: str | os.PathLike | None = None,
+    window: tuple[float, float] | None = None,
+    area: float | None = None,
+) -> LifecycleLog:
+    """Read and validate a life-cycle log (CSV or Parquet) and its manifest.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The table: ``.csv`` / ``.tsv`` / ``.txt`` or ``.parquet`` / ``.pq``, one row per
+        artefact with columns ``id``, ``t_arrive``, ``t_leave`` and optional ``label``,
+        ``mark``, ``x``, ``y``, ``yaw``.
+    manifest : str or PathLike, optional
+        The YAML manifest; by default ``<stem>.yaml`` (or ``.yml``) beside the table, if any.
+    window : (float, float), optional
+        Observation window ``(t0, t1)`` in the table's time unit; overrides the manifest.
+    area : float, optional
+        Free area in m^2; overrides the manifest's ``area`` / ``map``.
+
+    Returns
+    -------
+    LifecycleLog
+        Times converted to seconds, area to m^2.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the table, an explicit manifest or the manifest's map is missing.
+    ValueError
+        ``"<file>: row <r> (line <l>), column '<col>': expected ..., got ..."`` for every
+        malformed cell (rows are 1-based data rows, lines 1-based physical CSV lines), and
+        for missing columns, empty files, duplicate ids, ``t_leave < t_arrive`` and times
+        outside the window.
+
+    Examples
+    --------
+    >>> log = read_lifecycle_log("field/courtyard.csv", window=(0, 3600), area=450.0)
+    ... # doctest: +SKIP
+    >>> arrays = log.to_arrays()  # doctest: +SKIP
+    """
+    p = Path(path)
+    if manifest is None:
+        cands = [p.with_suffix(".yaml"), p.with_suffix(".yml")]
+        found = next((c for c in cands if c.exists()), None)
+        meta = read_manifest(found) if found is not None else {}
+        mpath = str(found) if found is not None else f"{p.with_suffix('.yaml')} (not found)"
+    else:
+        meta = read_manifest(manifest)
+        mpath = str(manifest)
+    raw = read_raw_table(p, "life-cycle log")
+    win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area)
+    scale = TIME_UNITS[resolved["source_time_unit"]]
+    return _validate(raw, win, a, min_life, scale, str(p), resolved)
+
+
+def lifecycle_log_from_frame(
+    frame: pd.DataFrame,
+    window: tuple[float, float],
+    area: float | None = None,
+    source: str = "<frame>",
+    min_lifetime: float = 0.0,
+) -> LifecycleLog:
+    """Validate an in-memory life-cycle table (e.g. from :func:`tracks_to_lifecycle`).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Columns as in :func:`read_lifecycle_log`; NaN / None cells are empty cells.
+    window : (float, float)
+        Observation window in seconds.
+    area : float, optional
+        Free area in m^2.
+    source : str
+        Name used in error messages.
+    min_lifetime : float
+        Complete lifetimes shorter than this are excluded (and counted).
+
+    Returns
+    -------
+    LifecycleLog
+    """
+    strings: dict[str, np.ndarray] = {}
+    numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for c in frame.columns:
+        col = frame[c]
+        if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
+            v = col.to_numpy(dtype=np.float64, na_value=np.nan)
+            numbers[str(c)] = (np.where(np.isnan(v), 0.0, v), np.isnan(v))
+        else:
+            strings[str(c)] = np.array(
+                [
+                    ""
+                    if (x is None or (isinstance(x, float) and math.isnan(x)) or x is pd.NA)
+                    else str(x).strip()
+                    for x in col.to_numpy(dtype=object)
+                ],
+                dtype=object,
+            )
+    raw = RawTable(Path(source), "frame", len(frame), strings, numbers)
+    if raw.n_rows == 0:
+        raise ValueError(f"{source}: empty life-cycle log: expected at least one row, got none")
+    win = _window("window", window, 1.0)
+    a = None if area is None else _positive("area", area)
+    resolved = {
+        "window": list(win),
+        "area": a,
+        "time_unit": "s",
+        "area_unit": "m^2",
+        "min_lifetime": float(min_lifetime),
+    }
+    return _validate(raw, win, a, float(min_lifetime), 1.0, source, resolved)
+
+
+def _blank_rows(raw: RawTable) -> np.ndarray:
+    blank = np.ones(raw.n_rows, dtype=bool)
+    for s in raw.strings.values():
+        blank &= s == ""
+    for _, null in raw.numbers.values():
+        blank &= null
+    return blank
+
+
+def _validate(
+    raw: RawTable,
+    win: tuple[float, float],
+    area: float | None,
+    min_life: float,
+    scale: float,
+    source: str,
+    manifest: dict[str, Any],
+) -> LifecycleLog:
+    raw.require(_REQUIRED, "life-cycle log")
+    n = raw.n_rows
+    blank = _blank_rows(raw)
+    keep = ~blank
+    if not keep.any():
+        raise ValueError(
+            f"{raw.path}: empty life-cycle log: expected at least one data row, "
+            f"got {n} blank row(s)"
+        )
+    sub = raw.subset(keep)
+    err = sub.error
+
+    ids = sub.ids("id")
+    ta, trunc = sub.floats("t_arrive", allow_empty=True)
+    tl, cens = sub.floats("t_leave", allow_empty=True)
+    ta = ta * scale
+    tl = tl * scale
+    m = len(ids)
+    label = sub.labels("label") if "label" in sub.columns else np.full(m, "", dtype=object)
+    if "mark" in sub.columns:
+        mark, _ = sub.nonneg_ints("mark", allow_empty=True)
+    else:
+        mark = np.full(m, -1, dtype=np.int64)
+    pose = {}
+    for c in ("x", "y", "yaw"):
+        pose[c] = sub.floats(c, allow_empty=True)[0] if c in sub.columns else np.full(m, np.nan)
+    t0, t1 = win
+    wtxt = f"the window [{t0 / scale:g}, {t1 / scale:g}]"
+    for name, vals, empty in (("t_arrive", ta, trunc), ("t_leave", tl, cens)):
+        bad = ~empty & ((vals < t0) | (vals > t1))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise err(
+                i, name, f"a time inside {wtxt}", f"{float(vals[i] / scale)!r} (outside the window)"
+            )
+    order = ~trunc & ~cens & (tl < ta)
+    if order.any():
+        i = int(np.argmax(order))
+        raise err(
+            i,
+            "t_leave",
+            f"t_leave >= t_arrive ({float(ta[i] / scale)!r})",
+            f"{float(tl[i] / scale)!r} (t_leave < t_arrive)",
+        )
+    seen: dict[str, int] = {}
+    for i, v in enumerate(ids):
+        if v in seen:
+            raise err(
+                i,
+                "id",
+                f"a unique id (already used in {sub.where(seen[v])})",
+                f"duplicate id {v!r}",
+            )
+        seen[v] = i
+    short = ~trunc & ~cens & ((tl - ta) < min_life)
+    excluded = {"blank_row": int(blank.sum()), "shorter_than_min_lifetime": int(short.sum())}
+    k = ~short
+    table = pd.DataFrame(
+        {
+            "id": pd.array(ids[k].astype(str), dtype="str"),
+            "t_arrive": ta[k],
+            "t_leave": tl[k],
+            "label": pd.array(label[k].astype(str), dtype="str"),
+            "mark": mark[k],
+            "x": pose["x"][k],
+            "y": pose["y"][k],
+            "yaw": pose["yaw"][k],
+            "truncated": trunc[k],
+            "censored": cens[k],
+        }
+    )
+    if table.empty:
+        raise ValueError(
+            f"{raw.path}: expected at least one artefact after exclusions, got none ({excluded})"
+        )
+    return LifecycleLog(table, (float(t0), float(t1)), area, source, excluded, manifest)

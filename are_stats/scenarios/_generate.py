@@ -1,0 +1,563 @@
+"""Posterior-predictive scenarios: whole artefact populations drawn from fitted parameters.
+
+Each scenario takes one posterior draw ``(lambda, mu, pi, lambda_mix)`` and simulates, on
+``[0, horizon]``, the marked Poisson process of Sect. 3.2:
+
+* the population present at time 0: ``Poisson(lambda * nu / mu)`` artefacts (the
+  stationary law of N(t) under linear death, DECISIONS 1), or none with ``start="empty"``;
+  by memorylessness their residual lifetimes are again ``Exp(mu)``;
+* arrivals: ``Poisson(lambda * nu * horizon)`` times uniform on ``[0, horizon]``;
+* lifetimes ``Exp(mu)``; a leaving time beyond the horizon is kept (not clipped) and
+  flagged ``censored``;
+* marks X from the Poisson mixture of eq. (1); the component is the artefact's ``class``
+  (DECISIONS 5);
+* positions uniform over the free cells of the map (a uniformly chosen free cell, then
+  uniform inside it, DECISIONS 4); headings uniform over ``{0, pi/2, pi, 3pi/2}``
+  (DECISIONS 6) or over ``[0, 2pi)``.
+
+Everything is drawn for all scenarios at once with one NumPy ``Generator`` (no Python loop
+per scenario or artefact), so the same seed gives the same table on every machine with the
+same NumPy version, and :func:`write_scenarios` writes it byte for byte identically.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from are_stats._atomic import atomic_path, check_writable
+from are_stats._checks import check_in, check_positive, describe
+
+__all__ = [
+    "PARAMETER_NAMES",
+    "SCENARIO_COLUMNS",
+    "generate_scenarios",
+    "posterior_draws",
+    "read_scenarios",
+    "scenario_counts",
+    "write_scenarios",
+]
+
+#: Posterior variables used (names of the fit's NetCDF variables).
+PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
+
+#: Columns of a scenarios table and their meaning (also written into the manifest).
+SCENARIO_COLUMNS: dict[str, str] = {
+    "scenario": "int32, scenario index 0..n_scenarios-1",
+    "artefact": "int32, artefact index within its scenario, in order of arrival",
+    "class": "int32, mixture component that drew the mark (-1 without a mixture)",
+    "mark": "int64, mark X of eq. (1) (-1 without a mixture)",
+    "t_arrive": "float64, arrival time in [0, horizon] (0 for the initial population)",
+    "t_leave": "float64, leaving time (may exceed the horizon: see censored)",
+    "x": "float64, arrival position x in the map frame (m)",
+    "y": "float64, arrival position y in the map frame (m)",
+    "yaw": "float64, arrival heading in [0, 2 pi) (rad)",
+    "truncated": "bool, present at time 0 (initial population)",
+    "censored": "bool, t_leave > horizon (still present at the end)",
+}
+
+
+def _seed_sequence(key: Any) -> tuple[np.random.SeedSequence, Any]:
+    """A NumPy SeedSequence from an int seed or a JAX PRNG key (and a YAML-able record)."""
+    if isinstance(key, bool):
+        raise ValueError(f"key: expected an int seed >= 0 or a JAX PRNG key, got {key!r}")
+    if isinstance(key, int | np.integer):
+        if int(key) < 0:
+            raise ValueError(f"key: expected an int seed >= 0 or a JAX PRNG key, got {key!r}")
+        return np.random.SeedSequence(int(key)), int(key)
+    try:
+        import jax
+
+        if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+            key = jax.random.key_data(key)
+        words = np.asarray(key)
+    except (AttributeError, TypeError):
+        raise ValueError(
+            f"key: expected an int seed >= 0 or a JAX PRNG key, got {describe(key)}"
+        ) from None
+    if words.dtype != np.uint32 or words.ndim != 1 or words.size == 0:
+        raise ValueError(f"key: expected an int seed >= 0 or a JAX PRNG key, got {describe(key)}")
+    vals = [int(w) for w in words]
+    return np.random.SeedSequence(vals), vals
+
+
+def _sorted_uniforms(rng: np.random.Generator, sizes: np.ndarray) -> np.ndarray:
+    """Concatenated blocks of ``sizes[i]`` sorted Uniform(0, 1) draws, without sorting.
+
+    The order statistics of m uniforms are ``S_k / S_{m+1}`` with ``S_k`` the partial sums of
+    m + 1 standard exponentials (Devroye 1986, V.2), so each block comes out sorted.
+    """
+    seg = sizes + 1
+    e = rng.standard_exponential(int(seg.sum()))
+    cs = np.cumsum(e)
+    ends = np.cumsum(seg) - 1
+    before = np.concatenate([[0.0], cs[ends[:-1]]])
+    local = cs - np.repeat(before, seg)
+    u = local / np.repeat(local[ends], seg)
+    keep = np.ones(u.size, dtype=bool)
+    keep[ends] = False
+    return u[keep]
+
+
+def _draws(params: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    if not isinstance(params, Mapping):
+        raise ValueError(f"params: expected a dict of posterior draws, got {type(params).__name__}")
+    for name in ("arrival_rate", "leave_rate"):
+        if name not in params:
+            raise ValueError(
+                f"params: expected a key {name!r} (posterior draws), got keys {sorted(params)}"
+            )
+    lam = np.atleast_1d(check_positive("params['arrival_rate']", params["arrival_rate"]))
+    mu = np.atleast_1d(check_positive("params['leave_rate']", params["leave_rate"]))
+    if lam.ndim != 1 or mu.ndim != 1:
+        raise ValueError(
+            f"params['arrival_rate'], params['leave_rate']: expected (S,) draws, "
+            f"got shapes {lam.shape} and {mu.shape}"
+        )
+    s = lam.shape[0]
+    if mu.shape[0] != s:
+        raise ValueError(
+            f"params['leave_rate']: expected {s} draws (as arrival_rate), got {mu.shape[0]}"
+        )
+    out = {"arrival_rate": lam, "leave_rate": mu}
+    has_w, has_r = "mix_weights" in params, "mix_rates" in params
+    if has_w != has_r:
+        raise ValueError(
+            "params: expected both 'mix_weights' and 'mix_rates' or neither, got "
+            f"keys {sorted(params)}"
+        )
+    if has_w:
+        w = check_positive("params['mix_weights']", np.asarray(params["mix_weights"]) + 0.0)
+        r = check_positive("params['mix_rates']", params["mix_rates"])
+        w = w[None, :] if w.ndim == 1 else w
+        r = r[None, :] if r.ndim == 1 else r
+        if w.ndim != 2 or w.shape != r.shape or w.shape[0] != s:
+            raise ValueError(
+                f"params['mix_weights'], params['mix_rates']: expected shapes "
+                f"({s}, K), got {w.shape} and {r.shape}"
+            )
+        sums = w.sum(axis=1)
+        bad = np.abs(sums - 1.0) > 1e-6
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(
+                f"params['mix_weights']: expected rows summing to 1, got sum "
+                f"{float(sums[i])!r} in draw {i}"
+            )
+        out["mix_weights"] = w / sums[:, None]
+        out["mix_rates"] = r
+    return out
+
+
+def _grid(free_mask: Any, resolution: float, origin: Any) -> tuple[np.ndarray, float, tuple]:
+    """Free mask, resolution and origin (x, y, yaw) from an array or an OccupancyGrid."""
+    if hasattr(free_mask, "free") and hasattr(free_mask, "resolution"):
+        ox, oy, oyaw = (float(v) for v in free_mask.origin)
+        return np.asarray(free_mask.free, dtype=bool), float(free_mask.resolution), (ox, oy, oyaw)
+    m = np.asarray(free_mask)
+    if m.ndim != 2 or m.dtype != bool:
+        raise ValueError(
+            f"free_mask: expected a 2-d bool array (ny, nx) or an OccupancyGrid, "
+            f"got {describe(free_mask)} of dtype {m.dtype}"
+        )
+    res = float(check_positive("resolution", resolution))
+    o = np.asarray(origin, dtype=float).ravel()
+    if o.size not in (2, 3) or not np.isfinite(o).all():
+        raise ValueError(f"origin: expected (x, y) or (x, y, yaw), got {describe(origin)}")
+    return m, res, (float(o[0]), float(o[1]), float(o[2]) if o.size == 3 else 0.0)
+
+
+def generate_scenarios(
+    key: Any,
+    params: Mapping[str, Any],
+    n_scenarios: int,
+    horizon: float,
+    free_mask: Any = None,
+    resolution: float = 1.0,
+    origin: Any = (0.0, 0.0),
+    area: float | None = None,
+    start: str = "stationary",
+    draw: str = "cycle",
+    headings: int = 4,
+) -> pd.DataFrame:
+    """Draw ``n_scenarios`` artefact populations on ``[0, horizon]`` from posterior draws.
+
+    Parameters
+    ----------
+    key : int or jax.Array
+        An int seed >= 0 or a JAX PRNG key; it seeds one NumPy ``Generator`` (PCG64).
+    params : dict of str to array
+        Posterior draws: ``arrival_rate`` (S,) (lambda, per m^2 per time unit),
+        ``leave_rate`` (S,) (mu), optional ``mix_weights`` (S, K) and ``mix_rates`` (S, K)
+        (eq. 1). Scalars / (K,) vectors are one draw. See :func:`posterior_draws`.
+    n_scenarios : int
+        Number of scenarios.
+    horizon : float
+        Length of each scenario, in the time unit of the rates.
+    free_mask : (ny, nx) bool or OccupancyGrid, optional
+        Free cells, ``free_mask[iy, ix]`` with ``iy = 0`` at the origin (ROS
+        OccupancyGrid order); an ``OccupancyGrid`` brings its own
+        resolution and origin (yaw included). Without a map, positions are uniform over the
+        square ``[ox, ox + sqrt(area)] x [oy, oy + sqrt(area)]``.
+    resolution : float
+        Cell side (m) of ``free_mask`` given as an array.
+    origin : (2,) or (3,) float
+        World pose of the lower-left corner of cell (0, 0) for an array ``free_mask``.
+    area : float, optional
+        ``nu(M2D)`` in m^2 for the intensity ``lambda * nu``; default: free cells x
+        resolution^2 (required without ``free_mask``).
+    start : {"stationary", "empty"}
+        Initial population ``Poisson(lambda * nu / mu)`` or none.
+    draw : {"cycle", "random"}
+        Scenario ``i`` uses draw ``i mod S``, or a draw chosen uniformly at random.
+    headings : int
+        4: yaw uniform over ``{0, pi/2, pi, 3pi/2}`` (plus the map's yaw); 0: uniform on
+        ``[0, 2 pi)``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per artefact, columns :data:`SCENARIO_COLUMNS`, sorted by scenario then
+        arrival time. ``attrs["generation"]`` records seed, settings and a summary of the
+        parameters (written into the manifest by :func:`write_scenarios`);
+        ``attrs["draws"]`` is the (n_scenarios,) draw index used by each scenario.
+
+    Raises
+    ------
+    ValueError
+        On malformed parameters, arguments or an empty map.
+
+    Examples
+    --------
+    >>> df = generate_scenarios(0, {"arrival_rate": 0.001, "leave_rate": 1 / 600},
+    ...                         n_scenarios=3, horizon=3600.0, area=100.0)
+    >>> sorted(df["scenario"].unique().tolist())
+    [0, 1, 2]
+    """
+    seq, seed_record = _seed_sequence(key)
+    p = _draws(params)
+    if int(n_scenarios) != n_scenarios or n_scenarios < 1:
+        raise ValueError(f"n_scenarios: expected an integer >= 1, got {n_scenarios!r}")
+    n_sc = int(n_scenarios)
+    h = float(check_positive("horizon", horizon))
+    check_in("start", start, ("stationary", "empty"))
+    check_in("draw", draw, ("cycle", "random"))
+    check_in("headings", headings, (0, 4))
+    if free_mask is not None:
+        mask, res, (ox, oy, oyaw) = _grid(free_mask, resolution, origin)
+        iy_free, ix_free = np.nonzero(mask)
+        if iy_free.size == 0:
+            raise ValueError("free_mask: expected at least one free cell, got none")
+        nu = float(iy_free.size) * res * res
+    else:
+        if area is None:
+            raise ValueError(
+                "area: expected the free area (m^2) when no free_mask is given, got None"
+            )
+        _, _, (ox, oy, oyaw) = _grid(np.ones((1, 1), bool), 1.0, origin)
+        nu = float(check_positive("area", area))
+    if area is not None:
+        nu = float(check_positive("area", area))
+    rng = np.random.Generator(np.random.PCG64(seq))
+    s = p["arrival_rate"].shape[0]
+    d = np.arange(n_sc) % s if draw == "cycle" else rng.integers(0, s, size=n_sc)
+    lam_nu = p["arrival_rate"][d] * nu
+    mu = p["leave_rate"][d]
+    n0 = rng.poisson(lam_nu / mu) if start == "stationary" else np.zeros(n_sc, np.int64)
+    n_arr = rng.poisson(lam_nu * h)
+    per = n0 + n_arr
+    total = int(per.sum())
+    scen = np.repeat(np.arange(n_sc, dtype=np.int32), per)
+    first = np.cumsum(per) - per
+    j = np.arange(total, dtype=np.int64) - np.repeat(first, per)
+    initial = j < np.repeat(n0, per)
+    t_arr = np.zeros(total)
+    t_arr[~initial] = _sorted_uniforms(rng, n_arr) * h
+    t_leave = t_arr + rng.standard_exponential(total) / mu[scen]
+    if "mix_weights" in p:
+        w = p["mix_weights"][d]
+        cw = np.cumsum(w, axis=1)
+        u = rng.random(total)
+        cls = np.zeros(total, dtype=np.int32)
+        for k in range(w.shape[1] - 1):
+            cls += u >= cw[scen, k]
+        rates = p["mix_rates"][d]
+        mark = rng.poisson(rates[scen, cls])
+    else:
+        cls = np.full(total, -1, dtype=np.int32)
+        mark = np.full(total, -1, dtype=np.int64)
+    if free_mask is not None:
+        cell = rng.integers(0, iy_free.size, size=total)
+        u_loc = ix_free[cell] + rng.random(total)
+        v_loc = iy_free[cell] + rng.random(total)
+        q_u, q_v = u_loc * res, v_loc * res
+    else:
+        side = math.sqrt(nu)
+        q_u, q_v = rng.random(total) * side, rng.random(total) * side
+    c, sn = math.cos(oyaw), math.sin(oyaw)
+    x = ox + c * q_u - sn * q_v
+    y = oy + sn * q_u + c * q_v
+    if headings == 4:
+        yaw = np.mod(rng.integers(0, 4, size=total) * (np.pi / 2) + oyaw, 2 * np.pi)
+    else:
+        yaw = rng.random(total) * (2 * np.pi)
+    df = pd.DataFrame(
+        {
+            "scenario": scen,
+            "artefact": j.astype(np.int32),
+            "class": cls.astype(np.int32),
+            "mark": mark.astype(np.int64),
+            "t_arrive": t_arr,
+            "t_leave": t_leave,
+            "x": x,
+            "y": y,
+            "yaw": yaw,
+            "truncated": initial,
+            "censored": t_leave > h,
+        }
+    )
+    df.attrs["draws"] = d.tolist()
+    df.attrs["generation"] = {
+        "seed": seed_record,
+        "n_scenarios": n_sc,
+        "horizon": h,
+        "start": start,
+        "draw": draw,
+        "headings": headings,
+        "area": nu,
+        "map": None
+        if free_mask is None
+        else {
+            "shape": list(mask.shape),
+            "resolution": res,
+            "origin": [ox, oy, oyaw],
+            "free_cells": int(iy_free.size),
+        },
+        "n_draws": s,
+        "parameters": _summary(p),
+    }
+    return df
+
+
+def _summary(p: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for name, a in p.items():
+        a = np.asarray(a, dtype=float)
+        out[name] = {
+            "mean": [float(f"{v:.12g}") for v in np.ravel(a.mean(axis=0))],
+            "sd": [float(f"{v:.12g}") for v in np.ravel(a.std(axis=0))],
+        }
+    return out
+
+
+def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
+    """Flatten the ``posterior`` group of an ArviZ InferenceData (or a NetCDF path) to draws.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData or str or PathLike
+        A fit (as written by ``are-stats fit``).
+    names : tuple of str
+        Variables to take when present (:data:`PARAMETER_NAMES`).
+
+    Returns
+    -------
+    dict of str to array
+        ``(chain * draw, ...)`` arrays for each variable found.
+
+    Raises
+    ------
+    ValueError
+        If the posterior lacks ``arrival_rate`` or ``leave_rate``.
+    """
+    if isinstance(idata, str | os.PathLike):
+        import arviz as az
+
+        p = Path(idata)
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such fit file")
+        idata = az.from_netcdf(p)
+    post = idata.posterior
+    out = {}
+    for name in names:
+        if name in post:
+            a = np.asarray(post[name].values)
+            out[name] = a.reshape(-1, *a.shape[2:])
+    for name in ("arrival_rate", "leave_rate"):
+        if name not in out:
+            raise ValueError(
+                f"posterior: expected a variable {name!r}, got {sorted(post.data_vars)}"
+            )
+    return out
+
+
+def scenario_counts(df: pd.DataFrame, times: Any, n_scenarios: int | None = None) -> np.ndarray:
+    """N(t) of every scenario: artefacts with ``t_arrive <= t < t_leave``.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A scenarios table (:func:`generate_scenarios`).
+    times : (m,) float
+        Query times.
+    n_scenarios : int, optional
+        Number of scenarios (default ``attrs["generation"]["n_scenarios"]`` or the largest
+        scenario index + 1); scenarios without artefacts count 0.
+
+    Returns
+    -------
+    (n_scenarios, m) int64
+    """
+    t = np.atleast_1d(np.asarray(times, dtype=float))
+    if t.ndim != 1 or not np.isfinite(t).all():
+        raise ValueError(f"times: expected a 1-d array of finite times, got {describe(times)}")
+    for c in ("scenario", "t_arrive", "t_leave"):
+        if c not in df.columns:
+            raise ValueError(
+                f"df: expected a scenarios table with column {c!r}, got columns {list(df.columns)}"
+            )
+    sc = df["scenario"].to_numpy(dtype=np.int64)
+    if n_scenarios is None:
+        gen = df.attrs.get("generation", {})
+        n_scenarios = int(gen.get("n_scenarios", sc.max() + 1 if sc.size else 0))
+    ta = df["t_arrive"].to_numpy(dtype=float)
+    tl = df["t_leave"].to_numpy(dtype=float)
+    out = np.empty((int(n_scenarios), t.size), dtype=np.int64)
+    for k, tk in enumerate(t):
+        alive = (ta <= tk) & (tl > tk)
+        out[:, k] = np.bincount(sc[alive], minlength=int(n_scenarios))
+    return out
+
+
+def _plain(x: Any) -> Any:
+    """YAML-safe plain Python values."""
+    if isinstance(x, Mapping):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, Path):
+        return str(x)
+    return x
+
+
+def write_scenarios(
+    df: pd.DataFrame,
+    out_dir: str | os.PathLike,
+    manifest: Mapping[str, Any] | None = None,
+    force: bool = False,
+) -> tuple[Path, Path]:
+    """Write ``artefacts.parquet`` and ``manifest.yaml`` into ``out_dir``, atomically.
+
+    The Parquet file is written with pinned options (zstd level 3, no dictionary, no pandas
+    or Arrow schema metadata, one row group per 2^20 rows), so the same table gives the
+    same bytes. The manifest holds the format, the are_stats version, the columns, the
+    generation settings (``df.attrs["generation"]``: seed, parameters summary, ...) and
+    every key of ``manifest`` (e.g. ``fit``: the fit file used).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A scenarios table.
+    out_dir : str or PathLike
+        Output folder (created if missing).
+    manifest : dict, optional
+        Extra manifest entries (they win over the generated ones).
+    force : bool
+        Overwrite existing files.
+
+    Returns
+    -------
+    (Path, Path)
+        The Parquet and YAML paths.
+
+    Raises
+    ------
+    OutputExistsError
+        If a file exists and ``force`` is false (nothing is written then).
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from are_stats import __version__
+
+    missing = [c for c in SCENARIO_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(
+            f"df: expected a scenarios table with columns {list(SCENARIO_COLUMNS)}, "
+            f"got {list(df.columns)} (missing {missing})"
+        )
+    out = Path(out_dir)
+    pq_path, yml_path = out / "artefacts.parquet", out / "manifest.yaml"
+    check_writable(pq_path, force)
+    check_writable(yml_path, force)
+    plain = pd.DataFrame({c: df[c].to_numpy() for c in SCENARIO_COLUMNS})
+    table = pa.Table.from_pandas(plain, preserve_index=False)
+    table = table.replace_schema_metadata(None)
+    n_sc = int(
+        df.attrs.get("generation", {}).get(
+            "n_scenarios", int(df["scenario"].max()) + 1 if len(df) else 0
+        )
+    )
+    meta: dict[str, Any] = {
+        "format": "are_stats scenarios 1",
+        "version": __version__,
+        "n_scenarios": n_sc,
+        "n_artefacts": len(df),
+        "files": {"artefacts": pq_path.name},
+        "columns": dict(SCENARIO_COLUMNS),
+        "generation": df.attrs.get("generation", {}),
+    }
+    meta.update(dict(manifest or {}))
+    text = yaml.safe_dump(_plain(meta), sort_keys=False, default_flow_style=None)
+    with atomic_path(pq_path, force=force) as tmp:
+        pq.write_table(
+            table,
+            tmp,
+            compression="zstd",
+            compression_level=3,
+            use_dictionary=False,
+            write_statistics=True,
+            version="2.6",
+            data_page_version="1.0",
+            row_group_size=1 << 20,
+            store_schema=False,
+        )
+    with atomic_path(yml_path, force=force) as tmp:
+        tmp.write_text(text)
+    return pq_path, yml_path
+
+
+def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Read a scenarios folder written by :func:`write_scenarios`.
+
+    Returns
+    -------
+    (pandas.DataFrame, dict)
+        The artefacts table and the manifest.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``artefacts.parquet`` or ``manifest.yaml`` is missing.
+    """
+    import pyarrow.parquet as pq
+
+    d = Path(out_dir)
+    for name in ("artefacts.parquet", "manifest.yaml"):
+        if not (d / name).exists():
+            raise FileNotFoundError(f"{d / name}: no such file (expected a scenarios folder)")
+    df = pq.read_table(d / "artefacts.parquet").to_pandas()
+    meta = yaml.safe_load((d / "manifest.yaml").read_text())
+    df.attrs["generation"] = meta.get("generation", {})
+    return df, meta

@@ -1,0 +1,212 @@
+"""ROS 1 / ROS 2 (sqlite3, MCAP) bags written with rosbags' writers and read back as tracks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+
+from are_stats.logs import read_tracks_bag, tracks_to_lifecycle, vision_msgs_typestore
+
+
+def _stamp(ts, t):
+    sec = int(math.floor(t))
+    return ts.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t - sec) * 1e9)))
+
+
+def _header(ts, t, ros1):
+    h = ts.types["std_msgs/msg/Header"]
+    kw = {"seq": 0} if ros1 else {}
+    return h(**kw, stamp=_stamp(ts, t), frame_id="map")
+
+
+def _pose(ts, x, y, yaw):
+    P = ts.types["geometry_msgs/msg/Pose"]
+    Pt = ts.types["geometry_msgs/msg/Point"]
+    Q = ts.types["geometry_msgs/msg/Quaternion"]
+    return P(
+        position=Pt(x=x, y=y, z=0.0),
+        orientation=Q(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
+    )
+
+
+def _marker(ts, t, ns, mid, x, y, yaw, action, ros1):
+    M = ts.types["visualization_msgs/msg/Marker"]
+    V = ts.types["geometry_msgs/msg/Vector3"]
+    C = ts.types["std_msgs/msg/ColorRGBA"]
+    D = ts.types["builtin_interfaces/msg/Duration"]
+    kw = dict(
+        header=_header(ts, t, ros1),
+        ns=ns,
+        id=mid,
+        type=1,
+        action=action,
+        pose=_pose(ts, x, y, yaw),
+        scale=V(x=1.0, y=1.0, z=1.0),
+        color=C(r=1.0, g=0.0, b=0.0, a=1.0),
+        lifetime=D(sec=0, nanosec=0),
+        frame_locked=False,
+        points=[],
+        colors=[],
+        text="",
+        mesh_resource="",
+        mesh_use_embedded_materials=False,
+    )
+    if not ros1:
+        kw.update(
+            texture_resource="",
+            uv_coordinates=[],
+            mesh_file=ts.types["visualization_msgs/msg/MeshFile"](
+                filename="", data=np.zeros(0, np.uint8)
+            ),
+            texture=ts.types["sensor_msgs/msg/CompressedImage"](
+                header=_header(ts, t, ros1), format="", data=np.zeros(0, np.uint8)
+            ),
+        )
+    return M(**kw)
+
+
+# (t, [(ns, id, x, y, yaw, action)])  action 0 ADD, 2 DELETE, 3 DELETEALL
+MARKER_FRAMES = [
+    (1.0, [("people", 1, 0.0, 0.0, 0.0, 0), ("carts", 4, 5.0, 5.0, math.pi / 2, 0)]),
+    (2.0, [("people", 1, 1.0, 0.0, 0.0, 0), ("carts", 4, 5.0, 6.0, math.pi / 2, 0)]),
+    (3.0, [("people", 1, 0.0, 0.0, 0.0, 2)]),  # person 1 leaves
+    (4.0, [("people", 1, 9.0, 9.0, math.pi, 0), ("carts", 4, 5.0, 7.0, math.pi / 2, 0)]),
+    (5.0, [("carts", 0, 0.0, 0.0, 0.0, 3)]),  # DELETEALL of the carts namespace
+    (6.0, [("people", 1, 9.5, 9.0, math.pi, 0), ("carts", 4, 1.0, 1.0, 0.0, 0)]),
+]
+
+# (t, [(det_id, class_id, x, y, yaw)])
+DET_FRAMES = [
+    (1.5, [("trk7", "forklift", 2.0, 3.0, 0.25), ("", "pallet", 4.0, 4.0, 0.0)]),
+    (2.5, [("trk7", "forklift", 2.5, 3.0, 0.25)]),
+]
+
+
+def _marker_array(ts, t, items, ros1):
+    MA = ts.types["visualization_msgs/msg/MarkerArray"]
+    return MA(markers=[_marker(ts, t, ns, i, x, y, yaw, a, ros1) for ns, i, x, y, yaw, a in items])
+
+
+def _detections(ts, t, items, ros1):
+    T = ts.types
+    dets = []
+    for did, cls, x, y, yaw in items:
+        hyp = T["vision_msgs/msg/ObjectHypothesisWithPose"](
+            hypothesis=T["vision_msgs/msg/ObjectHypothesis"](class_id=cls, score=0.9),
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                pose=_pose(ts, x, y, yaw), covariance=np.zeros(36)
+            ),
+        )
+        bbox = T["vision_msgs/msg/BoundingBox3D"](
+            center=_pose(ts, x, y, yaw), size=T["geometry_msgs/msg/Vector3"](x=1.0, y=1.0, z=1.0)
+        )
+        # detection headers left at zero: the array's stamp is used
+        zero = T["std_msgs/msg/Header"](
+            **({"seq": 0} if ros1 else {}), stamp=_stamp(ts, 0.0), frame_id=""
+        )
+        dets.append(T["vision_msgs/msg/Detection3D"](header=zero, results=[hyp], bbox=bbox, id=did))
+    return T["vision_msgs/msg/Detection3DArray"](header=_header(ts, t, ros1), detections=dets)
+
+
+def _write(path, kind):
+    ros1 = kind == "ros1"
+    ts = vision_msgs_typestore(1 if ros1 else 2)
+    ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    if ros1:
+        w = Writer1(path)
+    else:
+        plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
+        w = Writer2(path, version=9, storage_plugin=plugin)
+    with w:
+        cm = w.add_connection("/markers", "visualization_msgs/msg/MarkerArray", typestore=ts)
+        cd = w.add_connection("/detections", "vision_msgs/msg/Detection3DArray", typestore=ts)
+        cs = w.add_connection("/chatter", "std_msgs/msg/String", typestore=ts)
+        w.write(cs, 10, ser(ts.types["std_msgs/msg/String"](data="hi"), "std_msgs/msg/String"))
+        msgs = [
+            (t, cm, _marker_array(ts, t, it, ros1), "visualization_msgs/msg/MarkerArray")
+            for t, it in MARKER_FRAMES
+        ]
+        msgs += [
+            (t, cd, _detections(ts, t, it, ros1), "vision_msgs/msg/Detection3DArray")
+            for t, it in DET_FRAMES
+        ]
+        for t, conn, msg, typ in sorted(msgs, key=lambda m: m[0]):
+            w.write(conn, int(t * 1e9), ser(msg, typ))
+
+
+@pytest.fixture(scope="module", params=["ros1", "ros2-sqlite3", "mcap"])
+def bag(request, tmp_path_factory):
+    d = tmp_path_factory.mktemp(request.param)
+    path = d / ("field.bag" if request.param == "ros1" else "field")
+    _write(path, request.param)
+    return request.param, path
+
+
+def test_marker_array_tracks(bag):
+    _, path = bag
+    df = read_tracks_bag(path, topics=["/markers"])
+    got = {tid: g["t"].tolist() for tid, g in df.groupby("id")}
+    assert got == {
+        "people/1": [1.0, 2.0],
+        "people/1@2": [4.0, 6.0],
+        "carts/4": [1.0, 2.0, 4.0],
+        "carts/4@2": [6.0],
+    }
+    row = df[(df["id"] == "carts/4") & (df["t"] == 2.0)].iloc[0]
+    assert (row.x, row.y) == (5.0, 6.0)
+    assert row.yaw == pytest.approx(math.pi / 2)
+    assert row.label == "carts" and row.frame_id == "map" and row.topic == "/markers"
+
+
+def test_detection3d_tracks(bag):
+    _, path = bag
+    df = read_tracks_bag(path, topics=["/detections"])
+    assert df["id"].tolist() == ["trk7", "pallet/1", "trk7"]
+    assert df["t"].tolist() == [1.5, 1.5, 2.5]
+    assert df["label"].tolist() == ["forklift", "pallet", "forklift"]
+    assert df["yaw"].iloc[0] == pytest.approx(0.25)
+    assert df["x"].tolist() == [2.0, 4.0, 2.5]
+
+
+def test_all_supported_topics_and_lifecycle(bag):
+    _, path = bag
+    df = read_tracks_bag(path)
+    assert set(df["topic"]) == {"/markers", "/detections"}
+    assert np.all(np.diff(df["t"].to_numpy()) >= 0)
+    life = tracks_to_lifecycle(df, window=(0.0, 7.0), gap_tolerance=2.5, edge_tolerance=0.5)
+    r = {x.id: x for x in life.itertuples()}
+    assert (r["people/1"].t_arrive, r["people/1"].t_leave) == (1.0, 2.0)
+    assert (r["trk7"].t_arrive, r["trk7"].t_leave) == (1.5, 2.5)
+
+
+def test_standalone_mcap_file(tmp_path):
+    _write(tmp_path / "b", "mcap")
+    (mcap,) = sorted((tmp_path / "b").glob("*.mcap"))
+    df = read_tracks_bag(mcap, topics=["/markers"])
+    assert len(df) == 8  # every ADD marker
+
+
+def test_bag_errors(bag, tmp_path):
+    _, path = bag
+    with pytest.raises(ValueError, match=r"topic '/nope': expected a topic of the bag"):
+        read_tracks_bag(path, topics=["/nope"])
+    with pytest.raises(
+        ValueError,
+        match=r"topic '/chatter': expected a message type in "
+        r"visualization_msgs/msg/MarkerArray.*got std_msgs/msg/String",
+    ):
+        read_tracks_bag(path, topics=["/chatter"])
+    with pytest.raises(FileNotFoundError, match=r"missing\.bag: no such bag file"):
+        read_tracks_bag(tmp_path / "missing.bag")
+
+
+def test_unreadable_bag(tmp_path):
+    p = tmp_path / "junk.bag"
+    p.write_bytes(b"not a bag at all")
+    with pytest.raises(ValueError, match=r"junk\.bag: expected a readable ROS 1 / ROS 2 bag"):
+        read_tracks_bag(p)
