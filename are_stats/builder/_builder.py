@@ -1,0 +1,630 @@
+"""The AR-builder server (paper Sect. 3.3, Fig. 4): registration, collisions, resolution.
+
+Artefacts are upright boxes ``b`` (from the catalogue Q) at planar poses ``(x, y, yaw)`` of
+their frame F_A in F_E. Registration projects the box footprint on M_2D (exact coverage:
+every cell that shares positive area with the footprint) and concatenates the vertices of
+the artefact mesh S_A to the voxels of M_3D; the augmented grid and voxel map are views over
+the base maps that :meth:`ARBuilder.reset` restores.
+
+Collisions (DECISIONS 9): pairwise oriented-box hit tests between artefacts (spatial-hash
+broad phase, separating-axis narrow phase) and embedding tests of each box against the
+environment: occupied cells of M_2D (and unknown cells when ``unknown_blocks``), the map
+border, and the triangles of S_E when a mesh is given. A colliding move is resolved by
+``rule="revert"`` (back to the artefact's last safe pose, the default) or
+``rule="advance"`` (along the move only up to the largest collision-free fraction, less
+``safe_distance`` metres); every resolution is recorded in :attr:`ARBuilder.log`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
+from are_stats.builder._broadphase import SpatialHash, aabb_pairs
+from are_stats.builder._geometry import (
+    box_corners,
+    box_runs,
+    obb_overlap_3d,
+    runs_to_cells,
+    triangle_box_overlap,
+)
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from are_stats.environment import ArtefactCatalogue, OccupancyGrid, VoxelMap
+
+__all__ = ["ARBuilder", "Resolution", "Placement"]
+
+_HEADINGS = np.array([0.0, np.pi / 2, np.pi, 3 * np.pi / 2])
+
+
+class Resolution(NamedTuple):
+    """One resolved collision.
+
+    Attributes
+    ----------
+    time : float
+        Time (or epoch) of the step.
+    artefact : int
+        Id of the artefact whose move was changed.
+    rule : str
+        ``"revert"`` or ``"advance"``.
+    cause : str
+        ``"environment"`` (occupied / blocked cells), ``"bounds"`` (left the map),
+        ``"mesh"`` (hit S_E) or ``"artefact"``.
+    other : int
+        Id of the other artefact for ``cause == "artefact"``, else ``-1``.
+    fraction : float
+        Fraction of the proposed move that was kept (0 for a revert).
+    """
+
+    time: float
+    artefact: int
+    rule: str
+    cause: str
+    other: int
+    fraction: float
+
+
+class Placement(NamedTuple):
+    """Outcome of :meth:`ARBuilder.place`.
+
+    Attributes
+    ----------
+    ok : bool
+        ``False`` when no collision-free pose was found in ``max_tries`` ("area full").
+    artefact : int
+        Id of the registered artefact (``-1`` when not ok).
+    pose : (3,) float
+        Its pose ``(x, y, yaw)`` (NaN when not ok).
+    tries : int
+        Candidate poses drawn.
+    """
+
+    ok: bool
+    artefact: int
+    pose: np.ndarray
+    tries: int
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+class ARBuilder:
+    """Registers artefacts on M_2D / M_3D, detects and resolves their collisions.
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+        The base map M_2D.
+    catalogue : ArtefactCatalogue, optional
+        The table Q (needed to register artefacts by label).
+    voxels : VoxelMap, optional
+        The base map M_3D; default an empty map at ``voxel_resolution``.
+    env_mesh : trimesh.Trimesh, optional
+        The environment mesh S_E for embedding tests.
+    rule : {"revert", "advance"}
+        Collision resolution rule (DECISIONS 9).
+    safe_distance : float
+        For ``"advance"``: metres kept back from the first contact.
+    unknown_blocks : bool
+        Whether unknown cells block artefacts like occupied ones.
+    voxel_resolution : float
+        Resolution of the default M_3D.
+    eps : float
+        Contacts shallower than ``eps`` metres do not count as collisions.
+
+    Examples
+    --------
+    >>> from are_stats import OccupancyGrid
+    >>> g = OccupancyGrid(np.zeros((100, 100)), 0.1)
+    >>> b = ARBuilder(g)
+    >>> a = b.register(None, [2.0, 2.0, 0.0], size=[1.0, 0.5, 1.0])
+    >>> c = b.register(None, [5.0, 5.0, 0.0], size=[1.0, 0.5, 1.0])
+    >>> b.step([[2.0, 2.0, 0.0], [2.5, 2.0, 0.0]], time=1.0).tolist()  # c would hit a
+    [[2.0, 2.0, 0.0], [5.0, 5.0, 0.0]]
+    >>> b.log[0].cause, b.log[0].other
+    ('artefact', 0)
+    """
+
+    def __init__(
+        self,
+        grid: OccupancyGrid,
+        catalogue: ArtefactCatalogue | None = None,
+        *,
+        voxels: VoxelMap | None = None,
+        env_mesh: trimesh.Trimesh | None = None,
+        rule: str = "revert",
+        safe_distance: float = 0.0,
+        unknown_blocks: bool = False,
+        voxel_resolution: float = 0.1,
+        eps: float = 1e-9,
+        advance_iters: int = 12,
+    ) -> None:
+        from are_stats.environment import OccupancyGrid, VoxelMap
+
+        if not isinstance(grid, OccupancyGrid):
+            raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
+        self.grid = grid
+        self.catalogue = catalogue
+        self.rule = check_in("rule", rule, ("revert", "advance"))
+        self.safe_distance = float(check_nonnegative("safe_distance", safe_distance))
+        self.eps = float(check_nonnegative("eps", eps))
+        self.advance_iters = int(advance_iters)
+        self.unknown_blocks = bool(unknown_blocks)
+        self.base_voxels = (
+            voxels
+            if voxels is not None
+            else VoxelMap(check_positive("voxel_resolution", voxel_resolution))
+        )
+        blocked = grid.occupied | (grid.unknown if unknown_blocks else False)
+        self._blocked = blocked
+        prefix = np.zeros((grid.height, grid.width + 1), dtype=np.int32)
+        np.cumsum(blocked, axis=1, out=prefix[:, 1:])
+        self._prefix = prefix
+        self._free_flat = np.flatnonzero(grid.free.ravel() & ~blocked.ravel())
+        self._mesh_tris: np.ndarray | None = None
+        self._mesh_hash: SpatialHash | None = None
+        if env_mesh is not None:
+            tris = np.asarray(env_mesh.triangles, dtype=float)
+            if tris.size:
+                lo, hi = tris[..., :2].min(axis=1), tris[..., :2].max(axis=1)
+                cell = max(1.0, 4 * grid.resolution)
+                self._mesh_tris = tris
+                self._mesh_hash = SpatialHash(lo, hi, cell)
+        self._surface_cache: dict[str, np.ndarray] = {}
+        self.reset()
+
+    # ------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Remove every artefact and clear the resolution log (the base maps are kept)."""
+        self.ids = np.zeros(0, np.int64)
+        self.labels: list[str] = []
+        self.poses = np.zeros((0, 3))
+        self._half = np.zeros((0, 3))
+        self._offset = np.zeros((0, 3))
+        self._next_id = 0
+        self._runs: tuple[np.ndarray, ...] | None = None
+        self.log: list[Resolution] = []
+        self._epoch = 0
+
+    def __len__(self) -> int:
+        return int(self.ids.size)
+
+    def index_of(self, artefact_id: int) -> int:
+        """Row of ``artefact_id`` in :attr:`ids` / :attr:`poses`."""
+        hit = np.flatnonzero(self.ids == int(artefact_id))
+        if hit.size == 0:
+            raise ValueError(f"artefact_id: no live artefact with id {artefact_id!r}")
+        return int(hit[0])
+
+    def _dims(self, label: str | None, size: Any) -> tuple[np.ndarray, np.ndarray]:
+        if size is not None:
+            s = check_positive("size", size, ndim=1)
+            if s.shape != (3,):
+                raise ValueError(f"size: expected [length, width, height], got {s.tolist()}")
+            return s / 2.0, np.array([0.0, 0.0, s[2] / 2.0])
+        if self.catalogue is None:
+            raise ValueError("label: registering by label needs a catalogue (or pass size=)")
+        cls = self.catalogue[label]  # raises a clear error for unknown labels
+        return cls.half_extents.copy(), cls.box_centre.copy()
+
+    def boxes(self, poses: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Box centres ``(n, 3)``, half sizes ``(n, 3)`` and yaws ``(n,)`` at ``poses``
+        (default the current poses)."""
+        P = self.poses if poses is None else np.asarray(poses, float)
+        return self._boxes_for(P, self._half, self._offset)
+
+    @staticmethod
+    def _boxes_for(P: np.ndarray, half: np.ndarray, offset: np.ndarray):
+        c, s = np.cos(P[:, 2]), np.sin(P[:, 2])
+        cx = P[:, 0] + c * offset[:, 0] - s * offset[:, 1]
+        cy = P[:, 1] + s * offset[:, 0] + c * offset[:, 1]
+        return np.stack([cx, cy, offset[:, 2]], 1), half, P[:, 2]
+
+    # ------------------------------------------------------------ collision tests
+    def _footprints(self, centre, half, yaw):
+        g = self.grid
+        uv = g.world_to_local(centre[:, :2])
+        return box_runs(uv, half[:, :2] / g.resolution, yaw - g.origin[2], g.shape)
+
+    def _env_hits(self, centre, half, yaw) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+        """Per box: blocked cells hit, outside the map, mesh hit; and the runs."""
+        runs = self._footprints(centre, half, yaw)
+        owner, rows, jlo, jhi, outside = runs
+        cnt = self._prefix[rows, jhi + 1] - self._prefix[rows, jlo]
+        env = np.bincount(owner[cnt > 0], minlength=centre.shape[0]) > 0
+        mesh = np.zeros(centre.shape[0], bool)
+        if self._mesh_hash is not None and centre.shape[0]:
+            corners = box_corners(centre[:, :2], half[:, :2], yaw)
+            qa, tb = self._mesh_hash.query(corners.min(axis=1), corners.max(axis=1))
+            if qa.size:
+                hit = triangle_box_overlap(
+                    self._mesh_tris[tb], centre[qa], half[qa], yaw[qa], self.eps
+                )
+                mesh[qa[hit]] = True
+        return env, outside, mesh, runs
+
+    def _pair_hits(self, centre, half, yaw) -> np.ndarray:
+        """``(m, 2)`` index pairs of colliding boxes."""
+        if centre.shape[0] < 2:
+            return np.zeros((0, 2), np.int64)
+        corners = box_corners(centre[:, :2], half[:, :2], yaw)
+        pairs = aabb_pairs(corners.min(axis=1), corners.max(axis=1))
+        if pairs.size == 0:
+            return pairs
+        a, b = pairs[:, 0], pairs[:, 1]
+        hit = obb_overlap_3d(centre[a], half[a], yaw[a], centre[b], half[b], yaw[b], self.eps)
+        return pairs[hit]
+
+    def _hits_against(self, idx, centre, half, yaw, o_centre, o_half, o_yaw) -> np.ndarray:
+        """Boxes ``idx`` (at ``centre``...) vs all others (``o_*``), skipping themselves."""
+        out = np.zeros(idx.size, bool)
+        if idx.size == 0 or o_centre.shape[0] == 0:
+            return out
+        oc = box_corners(o_centre[:, :2], o_half[:, :2], o_yaw)
+        qc = box_corners(centre[:, :2], half[:, :2], yaw)
+        h = SpatialHash(oc.min(axis=1), oc.max(axis=1), float((oc.max(1) - oc.min(1)).max()))
+        qa, sb = h.query(qc.min(axis=1), qc.max(axis=1))
+        keep = sb != idx[qa]
+        qa, sb = qa[keep], sb[keep]
+        hit = obb_overlap_3d(
+            centre[qa], half[qa], yaw[qa], o_centre[sb], o_half[sb], o_yaw[sb], self.eps
+        )
+        out[qa[hit]] = True
+        return out
+
+    def collisions(self, poses: Any = None) -> dict[str, np.ndarray]:
+        """Collision report for ``(n, 3)`` poses (default: the current ones).
+
+        Returns
+        -------
+        dict
+            ``environment``, ``bounds``, ``mesh``: ``(n,)`` bool; ``pairs``: ``(m, 2)``
+            artefact ids of colliding pairs.
+        """
+        P = self._check_poses(poses) if poses is not None else self.poses
+        centre, half, yaw = self.boxes(P)
+        env, outside, mesh, _ = self._env_hits(centre, half, yaw)
+        pairs = self._pair_hits(centre, half, yaw)
+        return {
+            "environment": env,
+            "bounds": outside,
+            "mesh": mesh,
+            "pairs": self.ids[pairs] if pairs.size else np.zeros((0, 2), np.int64),
+        }
+
+    # ------------------------------------------------------------ registration
+    def register(
+        self,
+        label: str | None,
+        pose: Any,
+        *,
+        size: Any = None,
+        artefact_id: int | None = None,
+        check: bool = True,
+    ) -> int:
+        """Register an artefact at ``pose = (x, y, yaw)`` of F_A in F_E.
+
+        Parameters
+        ----------
+        label : str or None
+            Catalogue class (its mesh bounding box is ``b``); ``None`` with ``size``.
+        pose : (3,) float
+        size : (3,) float, optional
+            Box length, width, height (F_A at the centre of the box base) instead of a
+            catalogue class.
+        artefact_id : int, optional
+            Id to use (default: the next free one).
+        check : bool
+            Refuse a pose that collides with the environment or another artefact.
+
+        Returns
+        -------
+        int
+            The artefact id.
+        """
+        p = check_finite("pose", pose, ndim=1)
+        if p.shape != (3,):
+            raise ValueError(f"pose: expected (x, y, yaw), got {p.tolist()}")
+        half, offset = self._dims(label, size)
+        aid = self._next_id if artefact_id is None else int(artefact_id)
+        if aid in set(self.ids.tolist()):
+            raise ValueError(f"artefact_id: id {aid} is already registered")
+        if check:
+            c, h, y = self._boxes_for(p[None], half[None], offset[None])
+            env, outside, mesh, _ = self._env_hits(c, h, y)
+            if env[0] or outside[0] or mesh[0]:
+                what = "the map border" if outside[0] else "the environment"
+                raise ValueError(f"pose: artefact box at {p.tolist()} collides with {what}")
+            oc, oh, oy = self.boxes()
+            if self._hits_against(np.array([-1]), c, h, y, oc, oh, oy)[0]:
+                raise ValueError(f"pose: artefact box at {p.tolist()} collides with an artefact")
+        self.ids = np.r_[self.ids, aid]
+        self.labels.append(label if label is not None else "box")
+        self.poses = np.vstack([self.poses, p])
+        self._half = np.vstack([self._half, half])
+        self._offset = np.vstack([self._offset, offset])
+        self._next_id = max(self._next_id, aid + 1)
+        self._runs = None
+        return aid
+
+    def remove(self, artefact_id: int) -> None:
+        """Remove an artefact (it leaves the scene; its cells and voxels are released)."""
+        k = self.index_of(artefact_id)
+        keep = np.arange(self.ids.size) != k
+        self.ids = self.ids[keep]
+        del self.labels[k]
+        self.poses = self.poses[keep]
+        self._half = self._half[keep]
+        self._offset = self._offset[keep]
+        self._runs = None
+
+    def place(
+        self,
+        label: str | None,
+        seed: int | np.random.Generator,
+        *,
+        size: Any = None,
+        yaw: float | None = None,
+        max_tries: int = 1000,
+        batch: int = 64,
+    ) -> Placement:
+        """Register a new arrival uniformly over the free cells where its footprint fits.
+
+        A free cell is drawn uniformly, the position uniformly inside it and the yaw
+        uniformly among the 4 headings (DECISIONS 4, 6) unless ``yaw`` is given; poses that
+        collide are rejected. After ``max_tries`` candidates the outcome is "area full"
+        (``Placement.ok`` false): never an endless loop.
+        """
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        if int(max_tries) < 1:
+            raise ValueError(f"max_tries: expected an integer >= 1, got {max_tries!r}")
+        half, offset = self._dims(label, size)
+        tries = 0
+        nan = np.full(3, np.nan)
+        if self._free_flat.size == 0:
+            return Placement(False, -1, nan, 0)
+        oc, oh, oy = self.boxes()
+        while tries < max_tries:
+            m = min(int(batch), int(max_tries) - tries)
+            cells = rng.choice(self._free_flat, size=m)
+            i, j = np.divmod(cells, self.grid.width)
+            uv = np.stack([j + rng.random(m), i + rng.random(m)], axis=1)
+            xy = self.grid.local_to_world(uv)
+            th = rng.choice(_HEADINGS, size=m) if yaw is None else np.full(m, float(yaw))
+            P = np.column_stack([xy, th])
+            c, h, y = self._boxes_for(P, np.tile(half, (m, 1)), np.tile(offset, (m, 1)))
+            env, outside, mesh, _ = self._env_hits(c, h, y)
+            bad = env | outside | mesh
+            bad |= self._hits_against(np.full(m, -1), c, h, y, oc, oh, oy)
+            good = np.flatnonzero(~bad)
+            if good.size:
+                k = int(good[0])
+                tries += k + 1
+                aid = self.register(label, P[k], size=size, check=False)
+                return Placement(True, aid, P[k].copy(), tries)
+            tries += m
+        return Placement(False, -1, nan, tries)
+
+    # ------------------------------------------------------------ the epoch hook
+    def _check_poses(self, poses: Any) -> np.ndarray:
+        if isinstance(poses, Mapping):
+            P = self.poses.copy()
+            for aid, pose in poses.items():
+                P[self.index_of(aid)] = check_finite(f"poses[{aid}]", pose, ndim=1)
+            return P
+        P = check_finite("poses", poses)
+        if P.shape != (self.ids.size, 3):
+            raise ValueError(
+                f"poses: expected an ({self.ids.size}, 3) array aligned with ids, got {P.shape}"
+            )
+        return P
+
+    def step(self, poses: Any, time: float | None = None) -> np.ndarray:
+        """Move every artefact to its proposed pose, resolving collisions by the rule.
+
+        Parameters
+        ----------
+        poses : (n, 3) float or mapping of id to (3,) pose
+            Proposed poses ``(x, y, yaw)`` aligned with :attr:`ids` (or a dict; missing
+            artefacts stay where they are).
+        time : float, optional
+            Time stamp recorded in the log (default: an epoch counter).
+
+        Returns
+        -------
+        (n, 3) float
+            Resolved poses, aligned with :attr:`ids`; they become the new safe poses and
+            are collision-free if the previous poses were.
+        """
+        P = self._check_poses(poses).copy()
+        t = float(self._epoch if time is None else check_finite("time", time))
+        self._epoch += 1
+        S = self.poses
+        n = S.shape[0]
+        if n == 0:
+            return P
+        at_safe = ~(P != S).any(axis=1)
+        # 1. embedding in the environment
+        idx = np.flatnonzero(~at_safe)
+        bad, causes = self._env_bad(idx, P)
+        if bad.any():
+            bi = idx[bad]
+            frac = self._advance(bi, S, P) if self.rule == "advance" else np.zeros(bi.size)
+            P[bi] = self._interp(S[bi], P[bi], frac)
+            for k, f, cause in zip(bi, frac, causes[bad], strict=True):
+                self._record(t, k, -1, str(cause), float(f))
+            at_safe[bi[frac == 0]] = True
+        # 2. artefact pairs: with "advance", movers in a colliding pair first advance as
+        # far as they safely can against everything else
+        if self.rule == "advance":
+            pairs = self._live_pairs(P, at_safe)
+            if pairs.size:
+                a, b = pairs[:, 0], pairs[:, 1]
+                movers = np.unique(np.r_[a[~at_safe[a]], b[~at_safe[b]]])
+                frac = self._advance(movers, S, P)
+                P[movers] = self._interp(S[movers], P[movers], frac)
+                other = self._partner(movers, a, b)
+                for k, f, o in zip(movers, frac, other, strict=True):
+                    self._record(t, k, o, "artefact", float(f))
+                at_safe[movers[frac == 0]] = True
+                adv = movers[frac > 0]
+                env_bad, _ = self._env_bad(adv, P)
+                P[adv[env_bad]] = S[adv[env_bad]]
+                at_safe[adv[env_bad]] = True
+        # 3. revert until no colliding pair involves a box away from its safe pose; each
+        # round reverts at least one artefact, so this ends within n rounds
+        for _ in range(n + 1):
+            pairs = self._live_pairs(P, at_safe)
+            if pairs.size == 0:
+                break
+            for aa, bb in pairs:
+                for k, o in ((aa, bb), (bb, aa)):
+                    if not at_safe[k]:
+                        P[k] = S[k]
+                        at_safe[k] = True
+                        self._record(t, k, o, "artefact", 0.0, rule="revert")
+        self.poses = P
+        self._runs = None
+        return P.copy()
+
+    def _record(
+        self, t: float, k: int, other: int, cause: str, frac: float, rule: str | None = None
+    ) -> None:
+        oid = int(self.ids[other]) if other >= 0 else -1
+        rule = rule or ("advance" if frac > 0 else "revert")
+        self.log.append(Resolution(t, int(self.ids[k]), rule, cause, oid, frac))
+
+    def _env_bad(self, idx: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        c, h, y = self._boxes_for(P[idx], self._half[idx], self._offset[idx])
+        env, outside, mesh, _ = self._env_hits(c, h, y)
+        causes = np.where(outside, "bounds", np.where(env, "environment", "mesh"))
+        return env | outside | mesh, causes
+
+    def _live_pairs(self, P: np.ndarray, at_safe: np.ndarray) -> np.ndarray:
+        centre, half, yaw = self.boxes(P)
+        pairs = self._pair_hits(centre, half, yaw)
+        if pairs.size == 0:
+            return pairs
+        return pairs[~(at_safe[pairs[:, 0]] & at_safe[pairs[:, 1]])]
+
+    @staticmethod
+    def _partner(movers: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        out = np.empty(movers.size, np.int64)
+        for i, k in enumerate(movers):
+            hit = np.flatnonzero(a == k)
+            out[i] = b[hit[0]] if hit.size else a[np.flatnonzero(b == k)[0]]
+        return out
+
+    @staticmethod
+    def _interp(S: np.ndarray, P: np.ndarray, f: np.ndarray) -> np.ndarray:
+        out = S + f[:, None] * (P - S)
+        out[:, 2] = S[:, 2] + f * _wrap(P[:, 2] - S[:, 2])
+        return out
+
+    def _advance(self, bi: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """Largest collision-free fraction of the move of artefacts ``bi`` (bisection),
+        less ``safe_distance``; others are held at their current candidate poses, the
+        artefacts in ``bi`` at their safe poses."""
+        lo = np.zeros(bi.size)
+        hi = np.ones(bi.size)
+        others = P.copy()
+        others[bi] = S[bi]
+        oc, oh, oy = self.boxes(others)
+        for _ in range(self.advance_iters):
+            mid = 0.5 * (lo + hi)
+            Q = self._interp(S[bi], P[bi], mid)
+            c, h, y = self._boxes_for(Q, self._half[bi], self._offset[bi])
+            env, outside, mesh, _ = self._env_hits(c, h, y)
+            bad = env | outside | mesh
+            bad |= self._hits_against(bi, c, h, y, oc, oh, oy)
+            lo = np.where(bad, lo, mid)
+            hi = np.where(bad, mid, hi)
+        dist = np.hypot(*(P[bi, :2] - S[bi, :2]).T)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            back = np.where(dist > 0, self.safe_distance / dist, 1.0)
+        return np.clip(lo - back, 0.0, 1.0)
+
+    # ------------------------------------------------------------ augmented views
+    def _current_runs(self):
+        if self._runs is None:
+            c, h, y = self.boxes()
+            owner, rows, jlo, jhi, _ = self._footprints(c, h, y)
+            self._runs = (owner, rows, jlo, jhi)
+        return self._runs
+
+    def artefact_cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(owner_row, flat_cell)`` of every grid cell covered by a live artefact."""
+        owner, rows, jlo, jhi = self._current_runs()
+        return runs_to_cells(rows, jlo, jhi, self.grid.width, owner)
+
+    @property
+    def n_artefact_cells(self) -> int:
+        """n_A: number of distinct cells of M_2D covered by live artefacts."""
+        return int(np.unique(self.artefact_cells()[1]).size)
+
+    def augmented_grid(self) -> OccupancyGrid:
+        """The augmented M_2D (Fig. 4b): the base grid with artefact cells set to 100."""
+        g = self.grid.copy()
+        g.data.ravel()[self.artefact_cells()[1]] = 100
+        return g
+
+    def _surface(self, k: int) -> np.ndarray:
+        import trimesh
+
+        from are_stats.environment._voxels import surface_points
+
+        label = self.labels[k]
+        key = label if label != "box" else f"box{self._half[k].tolist()}"
+        if key not in self._surface_cache:
+            if label != "box" and self.catalogue is not None and label in self.catalogue:
+                mesh = self.catalogue[label].mesh()
+            else:
+                mesh = trimesh.creation.box(extents=2 * self._half[k])
+                mesh.apply_translation(self._offset[k])
+            self._surface_cache[key] = surface_points(mesh, self.base_voxels.resolution)
+        return self._surface_cache[key]
+
+    def augmented_voxels(self) -> VoxelMap:
+        """The augmented M_3D (Fig. 4b): base voxels plus the mesh vertices of every
+        artefact (surface points at the voxel resolution) at its current pose."""
+        out = self.base_voxels.copy()
+        pts = []
+        for k in range(self.ids.size):
+            v = self._surface(k)
+            x, y, th = self.poses[k]
+            c, s = np.cos(th), np.sin(th)
+            pts.append(
+                np.column_stack(
+                    [x + c * v[:, 0] - s * v[:, 1], y + s * v[:, 0] + c * v[:, 1], v[:, 2]]
+                )
+            )
+        if pts:
+            out.insert_points(np.concatenate(pts))
+        return out
+
+    def sync_frames(self, tree: Any, env_frame: str = "F_E", prefix: str = "F_A/") -> None:
+        """Publish every live artefact's frame F_A (``prefix + id``) in a
+        :class:`~are_stats.environment.TransformTree` under ``env_frame`` at its current
+        pose, and drop the frames of artefacts that left."""
+        from are_stats.environment import planar_pose_matrix
+
+        live = {f"{prefix}{int(a)}" for a in self.ids}
+        for f in tree.frames:
+            if f.startswith(prefix) and f not in live and tree.parent(f) == env_frame:
+                tree.remove(f)
+        for aid, (x, y, th) in zip(self.ids, self.poses, strict=True):
+            tree.set_static(f"{prefix}{int(aid)}", env_frame, planar_pose_matrix(x, y, th))
+
+    def log_table(self) -> dict[str, np.ndarray]:
+        """The resolution log as columns (``time, artefact, rule, cause, other, fraction``)."""
+        cols = Resolution._fields
+        if not self.log:
+            return {c: np.zeros(0) for c in cols}
+        return {c: np.array([getattr(r, c) for r in self.log]) for c in cols}

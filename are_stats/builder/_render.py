@@ -1,0 +1,132 @@
+"""Pictures of M_2D: grid, inflation and registered artefacts (``are-stats show``)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from are_stats._atomic import atomic_path, check_writable
+
+if TYPE_CHECKING:
+    from are_stats.builder._builder import ARBuilder
+    from are_stats.environment import OccupancyGrid
+
+__all__ = ["render_map", "show_map"]
+
+
+def render_map(
+    grid: OccupancyGrid,
+    out: str | os.PathLike,
+    *,
+    inflate: float | None = None,
+    builder: ARBuilder | None = None,
+    force: bool = False,
+    title: str | None = None,
+) -> Path:
+    """Render the grid (free white, occupied black, unknown grey), the inflated band and
+    the artefact footprints to a PNG.
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+    out : str or PathLike
+        PNG to write.
+    inflate : float, optional
+        Inflation radius (m) drawn as an orange band around occupied cells.
+    builder : ARBuilder, optional
+        Artefacts to draw (footprint outlines, coloured by class).
+    force : bool
+        Overwrite ``out``.
+
+    Returns
+    -------
+    Path
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch, Polygon
+
+    from are_stats.builder._geometry import box_corners
+
+    target = check_writable(out, force)
+    rgb = np.full(grid.shape + (3,), 0.55)
+    rgb[grid.free] = 1.0
+    rgb[grid.occupied] = 0.0
+    if inflate is not None and inflate > 0:
+        band = grid.inflate(inflate) & ~grid.occupied
+        rgb[band] = 0.65 * rgb[band] + 0.35 * np.array([1.0, 0.55, 0.0])
+    x0, y0, yaw = grid.origin
+    w, h = grid.width * grid.resolution, grid.height * grid.resolution
+    fig, ax = plt.subplots(figsize=(8, 8 * h / w + 0.8), dpi=120)
+    tr = matplotlib.transforms.Affine2D().rotate(yaw).translate(x0, y0) + ax.transData
+    ax.imshow(rgb, origin="lower", extent=(0, w, 0, h), interpolation="nearest", transform=tr)
+    handles = [
+        Patch(facecolor="white", edgecolor="k", label="free"),
+        Patch(facecolor="black", label="occupied"),
+        Patch(facecolor=(0.55,) * 3, label="unknown"),
+    ]
+    if inflate is not None and inflate > 0:
+        handles.append(Patch(facecolor=(1.0, 0.72, 0.36), label=f"inflated {inflate:g} m"))
+    if builder is not None and len(builder):
+        centre, half, yaw_a = builder.boxes()
+        corners = box_corners(centre[:, :2], half[:, :2], yaw_a)
+        cmap = plt.get_cmap("tab10")
+        labels = sorted(set(builder.labels))
+        for k, poly in enumerate(corners):
+            col = cmap(labels.index(builder.labels[k]) % 10)
+            ax.add_patch(Polygon(poly, closed=True, facecolor=col, edgecolor="k", lw=0.4))
+        handles += [Patch(facecolor=cmap(i % 10), label=lab) for i, lab in enumerate(labels)]
+    cx = grid.corners_world
+    ax.set_xlim(cx[:, 0].min(), cx[:, 0].max())
+    ax.set_ylim(cx[:, 1].min(), cx[:, 1].max())
+    ax.set_aspect("equal")
+    ax.set_xlabel("x in F_E (m)")
+    ax.set_ylabel("y in F_E (m)")
+    ax.set_title(
+        title
+        or f"M_2D {grid.width}x{grid.height} cells @ {grid.resolution:g} m, "
+        f"free area {grid.free_area:.1f} m$^2$"
+    )
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    fig.tight_layout()
+    with atomic_path(target, force=force) as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+    plt.close(fig)
+    return target
+
+
+def show_map(
+    map_path: str | os.PathLike,
+    out: str | os.PathLike | None = None,
+    *,
+    inflate: float | None = None,
+    artefacts: int = 0,
+    seed: int = 0,
+    force: bool = False,
+) -> Path:
+    """Read a ROS map (a YAML path, or the name of a map shipped in ``models/``), place
+    ``artefacts`` random catalogue artefacts on it and render it (``are-stats show``)."""
+    from are_stats.builder._builder import ARBuilder
+    from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
+
+    p = Path(map_path)
+    if not p.exists() and (DEFAULT_MODELS / f"{p.name}.yaml").is_file():
+        p = DEFAULT_MODELS / f"{p.name}.yaml"
+    grid = OccupancyGrid.from_ros_yaml(p)
+    target = Path(out) if out is not None else Path(f"{p.stem}.png")
+    check_writable(target, force)
+    if int(artefacts) < 0:
+        raise ValueError(f"artefacts: expected an integer >= 0, got {artefacts!r}")
+    builder = None
+    if artefacts:
+        cat = load_catalogue()
+        builder = ARBuilder(grid, cat)
+        rng = np.random.default_rng(seed)
+        for _ in range(int(artefacts)):
+            builder.place(cat.row(int(rng.integers(len(cat)))).label, rng, max_tries=200)
+    return render_map(grid, target, inflate=inflate, builder=builder, force=force)

@@ -1,0 +1,39 @@
+"""The real environment (paper Sect. 3.1): occupancy grid M_2D, voxel map M_3D, mesh S_E,
+frames F_E/F_R/F_L/F_C/F_A and the artefact catalogue Q."""
+
+from are_stats.environment._catalogue import (
+    BEHAVIOURS,
+    DEFAULT_MODELS,
+    ArtefactCatalogue,
+    ArtefactClass,
+    load_catalogue,
+)
+from are_stats.environment._frames import (
+    OPTICAL_IN_BODY,
+    TransformTree,
+    planar_pose_matrix,
+    pose_matrix,
+)
+from are_stats.environment._grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from are_stats.environment._mesh import extrude_grid, load_mesh, occupied_polygons
+from are_stats.environment._voxels import VoxelMap
+
+__all__ = [
+    "BEHAVIOURS",
+    "DEFAULT_MODELS",
+    "FREE",
+    "OCCUPIED",
+    "OPTICAL_IN_BODY",
+    "UNKNOWN",
+    "ArtefactCatalogue",
+    "ArtefactClass",
+    "OccupancyGrid",
+    "TransformTree",
+    "VoxelMap",
+    "extrude_grid",
+    "load_catalogue",
+    "load_mesh",
+    "occupied_polygons",
+    "planar_pose_matrix",
+    "pose_matrix",
+]

@@ -1,0 +1,506 @@
+"""The 2D occupancy grid M_2D (paper Sect. 3.1) with ROS ``map_server`` IO and inflation.
+
+Cell values follow ``nav_msgs/OccupancyGrid``: ``0`` free, ``100`` occupied, ``-1`` unknown,
+``1..99`` intermediate occupancy (``scale`` mode). ``data[i, j]`` is the cell in row ``i``
+(along the map's local y axis) and column ``j`` (along its local x axis); row 0 is the row
+at the origin, i.e. the *bottom* of the map image. The origin ``(x, y, yaw)`` is the pose of
+the lower-left corner of cell ``(0, 0)`` in the environment frame F_E.
+
+Reading follows ``map_server``'s ``image_loader`` exactly (mean of the colour channels, alpha
+averaged in for ``trinary``, ``negate``, strict thresholds, ``99 * ratio`` truncated in
+``scale`` mode, transparent pixels unknown in ``scale`` mode, pixel value in ``raw`` mode).
+Writing follows ``map_saver`` (free 254, occupied 0, unknown 205 for ``trinary``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from are_stats._atomic import atomic_path, check_writable
+from are_stats._checks import check_finite, check_in, check_positive, describe
+
+__all__ = ["OccupancyGrid", "FREE", "OCCUPIED", "UNKNOWN"]
+
+FREE = 0
+OCCUPIED = 100
+UNKNOWN = -1
+_MODES = ("trinary", "scale", "raw")
+
+
+def _read_table(mode: str, negate: bool, occ_th: float, free_th: float) -> np.ndarray:
+    """Cell value for every mean pixel value 0..255 (alpha opaque), as map_server computes it."""
+    p = np.arange(256, dtype=float)
+    return _pixels_to_values(p, np.full(256, 255.0), mode, negate, occ_th, free_th)
+
+
+def _pixels_to_values(
+    avg: np.ndarray,
+    alpha: np.ndarray,
+    mode: str,
+    negate: bool,
+    occ_th: float,
+    free_th: float,
+) -> np.ndarray:
+    if negate:
+        avg = 255.0 - avg
+    if mode == "raw":
+        return np.trunc(avg).astype(np.int64).astype(np.uint8).view(np.int8)
+    occ = (255.0 - avg) / 255.0
+    out = np.full(avg.shape, UNKNOWN, dtype=np.int8)
+    if mode == "scale":
+        ratio = (occ - free_th) / (occ_th - free_th)
+        mid = np.trunc(99.0 * ratio).astype(np.int64)
+        inner = alpha >= 1.0
+        out[inner] = np.clip(mid[inner], 0, 99).astype(np.int8)
+    out[occ < free_th] = FREE
+    out[occ > occ_th] = OCCUPIED
+    return out
+
+
+class OccupancyGrid:
+    """Occupancy grid M_2D: a ``(height, width)`` int8 array with resolution and origin.
+
+    Parameters
+    ----------
+    data : (height, width) int
+        Cell values: ``0`` free, ``100`` occupied, ``-1`` unknown, ``1..99`` intermediate.
+        Row 0 is the bottom row (at the origin), as in ``nav_msgs/OccupancyGrid``.
+    resolution : float
+        Cell side in metres.
+    origin : (3,) float
+        Pose ``(x, y, yaw)`` of the lower-left corner of cell ``(0, 0)`` in F_E.
+    negate, occupied_thresh, free_thresh, mode
+        The ``map_server`` metadata, kept for writing the map back.
+
+    Examples
+    --------
+    >>> g = OccupancyGrid(np.zeros((4, 5)), 0.5)
+    >>> g.free_area
+    5.0
+    >>> g.world_to_cell([1.2, 0.3]).tolist()
+    [0, 2]
+    """
+
+    def __init__(
+        self,
+        data: Any,
+        resolution: float,
+        origin: Any = (0.0, 0.0, 0.0),
+        *,
+        negate: bool = False,
+        occupied_thresh: float = 0.65,
+        free_thresh: float = 0.196,
+        mode: str = "trinary",
+    ) -> None:
+        a = check_finite("data", data, ndim=2)
+        if a.shape[0] == 0 or a.shape[1] == 0:
+            raise ValueError(f"data: expected a non-empty 2-d array, got shape {a.shape}")
+        if mode != "raw" and ((a < -1) | (a > 100) | (a != np.round(a))).any():
+            raise ValueError(
+                f"data: expected integers in -1..100 (mode {mode!r}), got {describe(a)}"
+            )
+        self.data = np.round(a).astype(np.int64).astype(np.int8)
+        self.resolution = float(check_positive("resolution", resolution))
+        o = check_finite("origin", origin, ndim=1)
+        if o.shape != (3,):
+            raise ValueError(f"origin: expected [x, y, yaw], got {describe(origin)}")
+        self.origin = (float(o[0]), float(o[1]), float(o[2]))
+        self.mode = check_in("mode", mode, _MODES)
+        self.negate = bool(negate)
+        _check_thresholds(occupied_thresh, free_thresh, "OccupancyGrid")
+        self.occupied_thresh = float(occupied_thresh)
+        self.free_thresh = float(free_thresh)
+
+    # ------------------------------------------------------------------ basic views
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(height, width)`` in cells."""
+        return self.data.shape  # type: ignore[return-value]
+
+    @property
+    def height(self) -> int:
+        """Number of rows."""
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        """Number of columns."""
+        return int(self.data.shape[1])
+
+    @property
+    def free(self) -> np.ndarray:
+        """``(height, width)`` bool: free cells (value 0)."""
+        return self.data == FREE
+
+    @property
+    def occupied(self) -> np.ndarray:
+        """``(height, width)`` bool: occupied cells (value 100)."""
+        return self.data == OCCUPIED
+
+    @property
+    def unknown(self) -> np.ndarray:
+        """``(height, width)`` bool: neither free nor occupied (-1 or intermediate 1..99)."""
+        return (self.data != FREE) & (self.data != OCCUPIED)
+
+    @property
+    def n_free(self) -> int:
+        """Number of free cells."""
+        return int(np.count_nonzero(self.data == FREE))
+
+    @property
+    def free_area(self) -> float:
+        """nu(M_2D) in m^2: free cells times resolution^2; unknown is not free (DECISIONS 4)."""
+        return self.n_free * self.resolution**2
+
+    def copy(self) -> OccupancyGrid:
+        """A deep copy (same metadata)."""
+        out = OccupancyGrid.__new__(OccupancyGrid)
+        out.__dict__.update(self.__dict__)
+        out.data = self.data.copy()
+        return out
+
+    def __repr__(self) -> str:
+        return (
+            f"OccupancyGrid({self.height}x{self.width}, resolution={self.resolution}, "
+            f"origin={self.origin}, free_area={self.free_area:.2f} m^2)"
+        )
+
+    # ------------------------------------------------------------------ transforms
+    def world_to_local(self, xy: Any) -> np.ndarray:
+        """Continuous grid coordinates ``(u, v)`` in cell units of world points.
+
+        Parameters
+        ----------
+        xy : (..., 2) float
+            Points in F_E.
+
+        Returns
+        -------
+        (..., 2) float
+            ``u`` along columns, ``v`` along rows; cell ``(i, j)`` covers
+            ``[j, j + 1] x [i, i + 1]``.
+        """
+        p = check_finite("xy", xy)
+        if p.ndim == 0 or p.shape[-1] != 2:
+            raise ValueError(f"xy: expected points of shape (..., 2), got shape {p.shape}")
+        x0, y0, yaw = self.origin
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = p[..., 0] - x0, p[..., 1] - y0
+        return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1) / self.resolution
+
+    def local_to_world(self, uv: Any) -> np.ndarray:
+        """Inverse of :meth:`world_to_local`: ``(..., 2)`` cell units to F_E points."""
+        q = check_finite("uv", uv) * self.resolution
+        x0, y0, yaw = self.origin
+        c, s = math.cos(yaw), math.sin(yaw)
+        return np.stack(
+            [x0 + c * q[..., 0] - s * q[..., 1], y0 + s * q[..., 0] + c * q[..., 1]], axis=-1
+        )
+
+    def world_to_cell(self, xy: Any) -> np.ndarray:
+        """Cell ``(row, col)`` containing each world point (origin yaw respected).
+
+        Parameters
+        ----------
+        xy : (..., 2) float
+            Points in F_E.
+
+        Returns
+        -------
+        (..., 2) int64
+            ``(i, j)`` such that ``data[i, j]`` is the cell; not bounds-checked (see
+            :meth:`in_bounds`).
+        """
+        uv = np.floor(self.world_to_local(xy)).astype(np.int64)
+        return uv[..., ::-1].copy()
+
+    def cell_to_world(self, ij: Any) -> np.ndarray:
+        """World coordinates ``(..., 2)`` of the centres of cells ``ij = (row, col)``."""
+        a = check_finite("ij", ij)
+        if a.ndim == 0 or a.shape[-1] != 2:
+            raise ValueError(f"ij: expected cells of shape (..., 2), got shape {a.shape}")
+        return self.local_to_world(a[..., ::-1] + 0.5)
+
+    def in_bounds(self, ij: Any) -> np.ndarray:
+        """``(...)`` bool: whether cells ``(row, col)`` lie inside the grid."""
+        a = np.asarray(ij)
+        return (
+            (a[..., 0] >= 0)
+            & (a[..., 0] < self.height)
+            & (a[..., 1] >= 0)
+            & (a[..., 1] < self.width)
+        )
+
+    @property
+    def corners_world(self) -> np.ndarray:
+        """``(4, 2)`` world coordinates of the map's corners (counter-clockwise)."""
+        w, h = self.width, self.height
+        return self.local_to_world(np.array([[0, 0], [w, 0], [w, h], [0, h]], float))
+
+    # ------------------------------------------------------------------ inflation
+    def distance_to_occupied(self) -> np.ndarray:
+        """``(height, width)`` Euclidean distance (m) from each cell centre to the nearest
+        occupied cell centre (0 on occupied cells, +inf when nothing is occupied)."""
+        from scipy import ndimage
+
+        occ = self.occupied
+        if not occ.any():
+            return np.full(self.shape, np.inf)
+        return ndimage.distance_transform_edt(~occ) * self.resolution
+
+    def inflate(self, radius: float) -> np.ndarray:
+        """``(height, width)`` bool: cells within ``radius`` metres of an occupied cell."""
+        r = float(check_finite("radius", radius))
+        if r < 0:
+            raise ValueError(f"radius: expected a number >= 0, got {r!r}")
+        return self.distance_to_occupied() <= r
+
+    def inflation_costmap(
+        self,
+        inscribed_radius: float,
+        inflation_radius: float,
+        cost_scaling_factor: float = 10.0,
+        track_unknown: bool = False,
+    ) -> np.ndarray:
+        """costmap_2d's inflation layer: ``(height, width)`` uint8 costs.
+
+        ``254`` on occupied cells, ``253`` within ``inscribed_radius``,
+        ``252 * exp(-cost_scaling_factor * (d - inscribed_radius))`` up to
+        ``inflation_radius``, else ``0``; unknown cells are ``255`` when ``track_unknown``.
+        """
+        ri = float(check_finite("inscribed_radius", inscribed_radius))
+        ro = float(check_finite("inflation_radius", inflation_radius))
+        k = float(check_finite("cost_scaling_factor", cost_scaling_factor))
+        if ri < 0 or ro < ri:
+            raise ValueError(
+                "inflation_radius: expected 0 <= inscribed_radius <= inflation_radius, "
+                f"got {ri!r} and {ro!r}"
+            )
+        d = self.distance_to_occupied()
+        cost = np.zeros(self.shape, dtype=np.uint8)
+        band = (d > ri) & (d <= ro)
+        cost[band] = (252.0 * np.exp(-k * (d[band] - ri))).astype(np.uint8)
+        cost[(d <= ri)] = 253
+        cost[self.occupied] = 254
+        if track_unknown:
+            cost[self.data == UNKNOWN] = 255
+        return cost
+
+    # ------------------------------------------------------------------ ROS IO
+    @classmethod
+    def from_ros_yaml(cls, path: str | os.PathLike) -> OccupancyGrid:
+        """Read a ROS ``map_server`` map (YAML + PGM/PNG image).
+
+        Parameters
+        ----------
+        path : str or PathLike
+            The map YAML (fields ``image``, ``resolution``, ``origin``, ``negate``,
+            ``occupied_thresh``, ``free_thresh``, optional ``mode``).
+
+        Returns
+        -------
+        OccupancyGrid
+
+        Raises
+        ------
+        FileNotFoundError
+            If the YAML or its image does not exist.
+        ValueError
+            If a field is missing or malformed, or the image cannot be decoded.
+        """
+        import yaml
+
+        p = Path(path)
+        if not p.is_file():
+            raise FileNotFoundError(f"{p}: map YAML not found")
+        try:
+            meta = yaml.safe_load(p.read_text())
+        except yaml.YAMLError as err:
+            raise ValueError(f"{p}: not valid YAML ({err})") from err
+        if not isinstance(meta, dict):
+            raise ValueError(f"{p}: expected a mapping of map fields, got {type(meta).__name__}")
+        for key in ("image", "resolution", "origin"):
+            if key not in meta:
+                raise ValueError(f"{p}: missing field {key!r}")
+        res = _field(p, "resolution", meta["resolution"])
+        if not res > 0:
+            raise ValueError(f"{p}: field 'resolution': expected a number > 0, got {res!r}")
+        origin = meta["origin"]
+        if not isinstance(origin, list | tuple) or len(origin) != 3:
+            raise ValueError(f"{p}: field 'origin': expected [x, y, yaw], got {origin!r}")
+        origin = [_field(p, "origin", v) for v in origin]
+        negate = meta.get("negate", 0)
+        if negate not in (0, 1, True, False):
+            raise ValueError(f"{p}: field 'negate': expected 0 or 1, got {negate!r}")
+        occ_th = _field(p, "occupied_thresh", meta.get("occupied_thresh", 0.65))
+        free_th = _field(p, "free_thresh", meta.get("free_thresh", 0.196))
+        _check_thresholds(occ_th, free_th, str(p))
+        mode = meta.get("mode", "trinary")
+        if mode not in _MODES:
+            raise ValueError(f"{p}: field 'mode': expected one of {_MODES}, got {mode!r}")
+        img_path = Path(str(meta["image"]))
+        if not img_path.is_absolute():
+            img_path = p.parent / img_path
+        data = _read_image(img_path, mode, bool(negate), occ_th, free_th)
+        for key, n in (("width", data.shape[1]), ("height", data.shape[0])):
+            if key in meta and _field(p, key, meta[key]) != n:
+                raise ValueError(
+                    f"{p}: field {key!r} says {meta[key]!r} but image {img_path.name} has {n}"
+                )
+        grid = cls.__new__(cls)
+        grid.data = data
+        grid.resolution = res
+        grid.origin = (origin[0], origin[1], origin[2])
+        grid.negate = bool(negate)
+        grid.occupied_thresh = occ_th
+        grid.free_thresh = free_th
+        grid.mode = mode
+        return grid
+
+    def to_ros_yaml(
+        self,
+        path: str | os.PathLike,
+        image: str | None = None,
+        force: bool = False,
+    ) -> Path:
+        """Write the map as ROS ``map_saver`` does: a YAML and an image beside it.
+
+        Parameters
+        ----------
+        path : str or PathLike
+            The YAML to write.
+        image : str, optional
+            Image file name (relative to the YAML folder); default ``<stem>.pgm``
+            (``<stem>.png`` in ``scale`` mode, whose unknown cells need an alpha channel).
+        force : bool
+            Overwrite existing files.
+
+        Returns
+        -------
+        Path
+            The YAML path. The image is written with ``negate: 0``; the pixel of each value
+            is chosen so that reading it back with the grid's thresholds and mode returns the
+            same value (map_saver's 254 / 0 / 205 for ``trinary``).
+        """
+        import yaml
+        from PIL import Image
+
+        yp = Path(path)
+        if image is None:
+            image = yp.stem + (".png" if self.mode == "scale" else ".pgm")
+        ip = yp.parent / image
+        check_writable(yp, force)
+        check_writable(ip, force)
+        pixels, alpha = self._pixels_for_values()
+        img = pixels[::-1]  # image row 0 is the top of the map
+        fmt = "PNG" if ip.suffix.lower() == ".png" else "PPM"
+        if ip.suffix.lower() not in (".png", ".pgm"):
+            raise ValueError(f"image: expected a .pgm or .png file name, got {image!r}")
+        if alpha is not None:
+            if fmt != "PNG":
+                raise ValueError(
+                    "image: scale-mode maps with unknown cells need a .png (alpha channel), "
+                    f"got {image!r}"
+                )
+            pil = Image.fromarray(np.stack([img, alpha[::-1]], axis=-1), mode="LA")
+        else:
+            pil = Image.fromarray(img, mode="L")
+        with atomic_path(ip, force=force) as tmp:
+            pil.save(tmp, format=fmt)
+        meta = {
+            "image": image,
+            "mode": self.mode,
+            "resolution": self.resolution,
+            "origin": [float(v) for v in self.origin],
+            "negate": 0,
+            "occupied_thresh": self.occupied_thresh,
+            "free_thresh": self.free_thresh,
+        }
+        with atomic_path(yp, force=force) as tmp:
+            tmp.write_text(yaml.safe_dump(meta, sort_keys=False, default_flow_style=None))
+        return yp
+
+    def _pixels_for_values(self) -> tuple[np.ndarray, np.ndarray | None]:
+        table = _read_table(self.mode, False, self.occupied_thresh, self.free_thresh)
+        values = np.unique(self.data)
+        preferred = {FREE: 254, OCCUPIED: 0, UNKNOWN: 205}
+        lut = np.zeros(256, dtype=np.uint8)
+        need_alpha = False
+        for v in values.tolist():
+            pref = preferred.get(v)
+            if self.mode == "raw":
+                lut[v % 256] = v % 256
+                continue
+            if pref is not None and table[pref] == v:
+                lut[v % 256] = pref
+                continue
+            hits = np.flatnonzero(table == v)
+            if hits.size:
+                lut[v % 256] = hits[len(hits) // 2]
+            elif v == UNKNOWN and self.mode == "scale":
+                need_alpha = True
+                lut[v % 256] = 205
+            else:
+                # nearest representable intermediate value (8-bit images cannot hold all 99)
+                cand = np.flatnonzero((table > 0) & (table < 100))
+                k = cand[np.argmin(np.abs(table[cand].astype(int) - v))]
+                lut[v % 256] = k
+        pixels = lut[self.data.view(np.uint8)]
+        alpha = None
+        if need_alpha:
+            alpha = np.where(self.data == UNKNOWN, 0, 255).astype(np.uint8)
+        return pixels, alpha
+
+
+def _field(path: Path, name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{path}: field {name!r}: expected a number, got {value!r}") from err
+    if not math.isfinite(v):
+        raise ValueError(f"{path}: field {name!r}: expected a finite number, got {value!r}")
+    return v
+
+
+def _check_thresholds(occ_th: float, free_th: float, where: str) -> None:
+    if not (0.0 <= free_th < occ_th <= 1.0):
+        raise ValueError(
+            f"{where}: expected 0 <= free_thresh < occupied_thresh <= 1, got "
+            f"free_thresh={free_th!r}, occupied_thresh={occ_th!r}"
+        )
+
+
+def _read_image(path: Path, mode: str, negate: bool, occ_th: float, free_th: float) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: map image not found")
+    try:
+        with Image.open(path) as im:
+            im.load()
+            if im.mode == "P":
+                im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+            elif im.mode not in ("L", "LA", "RGB", "RGBA"):
+                im = im.convert("L")
+            has_alpha = im.mode in ("LA", "RGBA")
+            arr = np.asarray(im, dtype=float)
+    except (UnidentifiedImageError, OSError) as err:
+        raise ValueError(f"{path}: cannot decode the map image ({err})") from err
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise ValueError(f"{path}: map image is empty (shape {arr.shape[:2]})")
+    n_ch = arr.shape[-1]
+    if mode == "trinary" or not has_alpha:
+        avg = arr.mean(axis=-1)
+    else:
+        avg = arr[..., :-1].mean(axis=-1)
+    # map_server reads "alpha" as the last channel of any multi-channel image (even RGB)
+    alpha = arr[..., -1] if n_ch > 1 else np.full(avg.shape, 255.0)
+    values = _pixels_to_values(avg, alpha, mode, negate, occ_th, free_th)
+    return np.ascontiguousarray(values[::-1])

@@ -1,0 +1,231 @@
+"""ARBuilder: registration, collisions, resolution and placement against brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+import trimesh
+from scipy import stats
+
+from are_stats import ARBuilder, OccupancyGrid, VoxelMap, load_catalogue
+from are_stats.builder import box_corners
+from tests.helpers import ALPHA
+
+
+def _walled_grid(h=60, w=80, res=0.1, origin=(0.0, 0.0, 0.0), pillars=True):
+    d = np.zeros((h, w))
+    d[0, :] = d[-1, :] = d[:, 0] = d[:, -1] = 100
+    if pillars:
+        d[20:26, 30:34] = 100
+        d[40:44, 55:70] = 100
+    return OccupancyGrid(d, res, origin)
+
+
+def _shapely_boxes(b: ARBuilder, poses):
+    c, h, y = b.boxes(poses)
+    return [shapely.Polygon(p) for p in box_corners(c[:, :2], h[:, :2], y)]
+
+
+def _brute_force_ok(b: ARBuilder, poses) -> bool:
+    """No pair of footprints shares area, and no footprint covers an occupied cell."""
+    polys = _shapely_boxes(b, poses)
+    for i in range(len(polys)):
+        for j in range(i + 1, len(polys)):
+            if polys[i].intersection(polys[j]).area > 1e-9:
+                return False
+    g = b.grid
+    occ = np.argwhere(g.occupied)
+    cells = shapely.MultiPolygon(
+        [
+            shapely.Polygon(
+                g.local_to_world(np.array([[j, i], [j + 1, i], [j + 1, i + 1], [j, i + 1]], float))
+            )
+            for i, j in occ
+        ]
+    )
+    border = shapely.Polygon(g.corners_world)
+    for p in polys:
+        if p.intersection(cells).area > 1e-9 or p.difference(border).area > 1e-9:
+            return False
+    return True
+
+
+def test_registration_projects_the_exact_footprint():
+    g = _walled_grid(origin=(1.0, -2.0, 0.4), pillars=False)
+    b = ARBuilder(g, voxel_resolution=0.05)
+    pose = g.cell_to_world([30, 40]).tolist() + [0.7]
+    aid = b.register(None, pose, size=[1.1, 0.45, 0.8])
+    aug = b.augmented_grid()
+    poly = _shapely_boxes(b, None)[0]
+    ij = np.argwhere(np.ones(g.shape, bool))
+    sq = [
+        shapely.Polygon(
+            g.local_to_world(np.array([[j, i], [j + 1, i], [j + 1, i + 1], [j, i + 1]], float))
+        )
+        for i, j in ij
+    ]
+    area = shapely.area(shapely.intersection(sq, poly)).reshape(g.shape)
+    expect = (area > 1e-9) | g.occupied
+    assert ((aug.data == 100) == expect).all()
+    assert b.n_artefact_cells == int((area > 1e-9).sum())
+    assert g.data[area > 1e-9].max() == 0  # the base grid is untouched
+    vox = b.augmented_voxels()
+    assert len(vox) > 0 and len(b.base_voxels) == 0
+    b.remove(aid)
+    assert (b.augmented_grid().data == g.data).all()
+    assert len(b.augmented_voxels()) == 0
+
+
+def test_catalogue_registration_and_voxels():
+    q = load_catalogue()
+    g = _walled_grid()
+    base = VoxelMap(0.1)
+    base.insert_points([[0.05, 0.05, 0.05]])
+    b = ARBuilder(g, q, voxels=base)
+    b.register("person", [2.0, 2.0, 0.0])
+    b.register("cart", [5.0, 2.0, np.pi / 2])
+    vox = b.augmented_voxels()
+    assert vox.query([[0.05, 0.05, 0.05]])[0]
+    # the voxels of the person's head are present at about 1.6 m
+    assert vox.query([[2.0, 2.0, 1.6]])[0] or vox.query([[2.0, 2.0, 1.69]])[0]
+    assert len(vox) > 50
+    b.reset()
+    assert len(b) == 0 and len(b.augmented_voxels()) == 1
+
+
+def test_revert_rule_and_log():
+    b = ARBuilder(_walled_grid(pillars=False))
+    b.register(None, [2.0, 2.0, 0.0], size=[1.0, 0.5, 1.0])
+    b.register(None, [5.0, 4.0, 0.0], size=[1.0, 0.5, 1.0])
+    b.register(None, [6.5, 2.0, 0.0], size=[0.5, 0.5, 1.0])
+    out = b.step([[2.0, 2.0, 0.0], [2.6, 2.1, 0.3], [7.0, 2.0, 0.0]], time=4.0)
+    assert out.tolist() == [[2.0, 2.0, 0.0], [5.0, 4.0, 0.0], [7.0, 2.0, 0.0]]
+    assert b.log == [(4.0, 1, "revert", "artefact", 0, 0.0)]
+    out = b.step({2: [7.7, 2.0, 0.0]}, time=5.0)  # into the border wall (x 7.9..8)
+    assert out[2].tolist() == [7.0, 2.0, 0.0]
+    assert b.log[-1].cause == "environment"
+    out = b.step({2: [8.5, 2.0, 0.0]}, time=6.0)  # off the map
+    assert b.log[-1].cause == "bounds"
+    # two movers swapping into each other both revert; a chain reverts in rounds
+    out = b.step({0: [4.0, 3.0, 0.0], 1: [4.2, 3.1, 0.0]}, time=7.0)
+    assert out[:2].tolist() == [[2.0, 2.0, 0.0], [5.0, 4.0, 0.0]]
+    assert {r.artefact for r in b.log if r.time == 7.0} == {0, 1}
+    table = b.log_table()
+    assert table["cause"].tolist()[0] == "artefact"
+
+
+def test_advance_rule_moves_up_to_a_safe_distance():
+    b = ARBuilder(_walled_grid(pillars=False), rule="advance", safe_distance=0.05)
+    b.register(None, [2.0, 2.0, 0.0], size=[1.0, 1.0, 1.0])
+    b.register(None, [5.0, 2.0, 0.0], size=[1.0, 1.0, 1.0])
+    out = b.step({1: [2.5, 2.0, 0.0]}, time=1.0)
+    # contact at x = 3.0; stop 0.05 before it (bisection accuracy 2.5 / 2^12)
+    assert 3.05 - 1e-12 <= out[1, 0] <= 3.05 + 2.5 / 2**12 + 1e-12
+    r = b.log[-1]
+    assert r.rule == "advance" and r.cause == "artefact" and 0 < r.fraction < 1
+    out = b.step({1: [7.45, 2.0, 0.0]}, time=2.0)  # into the wall at x = 7.9..8.0
+    # the wall starts at x = 7.9: contact at centre 7.4, minus the safe distance
+    assert abs(out[1, 0] - 7.35) <= 4.4 / 2**12 and b.log[-1].cause == "environment"
+    assert _brute_force_ok(b, None)
+
+
+@pytest.mark.parametrize("rule", ["revert", "advance"])
+def test_random_walks_stay_collision_free(rule):
+    rng = np.random.default_rng(3)
+    g = _walled_grid(origin=(0.0, 0.0, 0.2))
+    q = load_catalogue()
+    b = ARBuilder(g, q, rule=rule)
+    labels = ["person", "child", "cart", "pallet"]
+    for k in range(25):
+        assert b.place(labels[k % 4], rng).ok
+    for _ in range(6):
+        P = b.poses + np.column_stack([rng.normal(0, 0.4, (len(b), 2)), rng.normal(0, 0.3, len(b))])
+        out = b.step(P)
+        assert _brute_force_ok(b, out)
+        c = b.collisions()
+        assert not c["environment"].any() and c["pairs"].size == 0
+    assert len(b.log) > 0
+
+
+def test_mesh_embedding():
+    g = OccupancyGrid(np.zeros((50, 50)), 0.1)
+    mesh = trimesh.creation.box(extents=[0.4, 0.4, 2.0])
+    mesh.apply_translation([2.5, 2.5, 1.0])
+    high = trimesh.creation.box(extents=[1.0, 1.0, 0.2])
+    high.apply_translation([1.0, 4.0, 3.0])  # above the artefacts: no collision
+    b = ARBuilder(g, env_mesh=trimesh.util.concatenate([mesh, high]))
+    b.register(None, [1.0, 1.0, 0.0], size=[0.5, 0.5, 1.0])
+    with pytest.raises(ValueError, match="collides"):
+        b.register(None, [2.5, 2.8, 0.0], size=[0.5, 0.5, 1.0])
+    b.step([[2.3, 2.3, 0.0]], time=1.0)
+    assert b.log[-1].cause == "mesh"
+    out = b.step([[1.0, 4.0, 0.0]], time=2.0)
+    assert out[0].tolist() == [1.0, 4.0, 0.0]
+
+
+def test_placement_uniform_over_free_cells():
+    # 6 x 6 free interior; a tiny artefact fits in every free cell
+    g = _walled_grid(8, 8, 1.0, pillars=False)
+    b = ARBuilder(g)
+    rng = np.random.default_rng(11)
+    n = 1800
+    counts = np.zeros(g.shape, int)
+    for _ in range(n):
+        pl = b.place(None, rng, size=[1e-6, 1e-6, 1.0], yaw=0.0)
+        i, j = g.world_to_cell(pl.pose[:2])
+        counts[i, j] += 1
+        b.reset()
+    assert counts[g.occupied].sum() == 0
+    p = stats.chisquare(counts[g.free]).pvalue
+    assert p > ALPHA
+
+
+def test_area_full_is_reported_not_looped():
+    g = _walled_grid(8, 8, 0.5, pillars=False)  # 3 m x 3 m free interior
+    b = ARBuilder(g)
+    rng = np.random.default_rng(0)
+    out = [b.place(None, rng, size=[1.2, 1.2, 1.0], max_tries=300) for _ in range(12)]
+    assert any(o.ok for o in out)
+    full = [o for o in out if not o.ok]
+    assert full and all(o.tries == 300 and o.artefact == -1 for o in full)
+    big = b.place(None, rng, size=[10.0, 10.0, 1.0], max_tries=50)
+    assert not big.ok and big.tries == 50
+
+
+def test_bad_inputs():
+    q = load_catalogue()
+    b = ARBuilder(_walled_grid(), q)
+    with pytest.raises(ValueError, match="unknown artefact class"):
+        b.register("dragon", [1.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match="collides"):
+        b.register("person", [0.05, 1.0, 0.0])
+    a = b.register("person", [1.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match="already registered"):
+        b.register("child", [3.0, 1.0, 0.0], artefact_id=a)
+    with pytest.raises(ValueError, match=r"\(1, 3\)"):
+        b.step(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="no live artefact"):
+        b.step({7: [1.0, 1.0, 0.0]})
+    with pytest.raises(ValueError, match="rule"):
+        ARBuilder(_walled_grid(), rule="teleport")
+    with pytest.raises(ValueError, match="catalogue"):
+        ARBuilder(_walled_grid()).register("person", [1.0, 1.0, 0.0])
+
+
+def test_sync_frames_publishes_artefact_frames():
+    from are_stats import TransformTree
+
+    b = ARBuilder(_walled_grid(pillars=False))
+    a = b.register(None, [2.0, 3.0, 0.5], size=[0.5, 0.5, 1.0])
+    c = b.register(None, [5.0, 3.0, 0.0], size=[0.5, 0.5, 1.0])
+    tree = TransformTree()
+    tree.set_static("F_R", "F_E", [1.0, 1.0, 0.0])
+    b.sync_frames(tree)
+    p = tree.transform_points("F_R", f"F_A/{a}", [[0.0, 0.0, 0.0]])
+    assert np.allclose(p, [[1.0, 2.0, 0.0]])
+    b.remove(c)
+    b.step([[2.5, 3.0, 0.5]])
+    b.sync_frames(tree)
+    assert f"F_A/{c}" not in tree.frames
+    assert np.allclose(tree.lookup("F_E", f"F_A/{a}")[:2, 3], [2.5, 3.0])

@@ -1,0 +1,185 @@
+"""OccupancyGrid: ROS map_server semantics against hand-made fixtures with known cells."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from PIL import Image
+
+from are_stats import OccupancyGrid
+from tests.helpers import assert_allclose
+
+# image rows top to bottom (image row 0 is the top of the map)
+PIX = np.array([[0, 254, 205], [100, 50, 255]], dtype=np.uint8)
+
+
+def _write(tmp_path, pixels, pil_mode="L", name="m", **meta):
+    img = tmp_path / f"{name}.png" if pil_mode != "L" else tmp_path / f"{name}.pgm"
+    Image.fromarray(pixels, mode=pil_mode).save(img, format="PNG" if pil_mode != "L" else "PPM")
+    doc = {
+        "image": img.name,
+        "resolution": 0.5,
+        "origin": [1.0, 2.0, 0.0],
+        "negate": 0,
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+    }
+    doc.update(meta)
+    y = tmp_path / f"{name}.yaml"
+    y.write_text(yaml.safe_dump(doc))
+    return y
+
+
+def test_trinary_known_cells(tmp_path):
+    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX))
+    # occ = (255 - p) / 255: 0->1.0 occ, 254->0.004 free, 205->0.196078 unknown,
+    # 100->0.608 unknown, 50->0.804 occ, 255->0 free; the bottom image row is row 0
+    assert g.data.tolist() == [[-1, 100, 0], [100, 0, -1]]
+    assert g.shape == (2, 3)
+    assert g.free_area == pytest.approx(2 * 0.25)
+
+
+def test_trinary_negate(tmp_path):
+    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, negate=1))
+    # occ = p / 255: 0 free, 254 occ, 205 (0.804) occ, 100 (0.392) unknown,
+    # 50 (0.19608 > 0.196) unknown, 255 occ
+    assert g.data.tolist() == [[-1, -1, 100], [0, 100, 100]]
+
+
+def test_scale_mode_with_alpha(tmp_path):
+    la = np.stack([PIX, np.array([[255, 255, 255], [255, 0, 255]], np.uint8)], -1)
+    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, la, pil_mode="LA", mode="scale"))
+    # 100: ratio (0.60784 - 0.196) / 0.454 = 0.90714 -> int(99 * r) = 89
+    # 205: occ 0.196078 -> ratio 1.7e-4 -> 0 ; 50 with alpha 0 -> occ 0.804 > 0.65 -> 100
+    assert g.data.tolist() == [[89, 100, 0], [100, 0, 0]]
+    la2 = la.copy()
+    la2[0, 0] = [100, 0]  # an in-between pixel that is transparent is unknown
+    g2 = OccupancyGrid.from_ros_yaml(_write(tmp_path, la2, pil_mode="LA", name="b", mode="scale"))
+    assert g2.data[1, 0] == -1
+
+
+def test_raw_mode(tmp_path):
+    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, mode="raw"))
+    assert g.data.view(np.uint8).tolist() == [[100, 50, 255], [0, 254, 205]]
+
+
+def test_rgb_mean_of_channels(tmp_path):
+    rgb = np.zeros((1, 2, 3), np.uint8)
+    rgb[0, 0] = [254, 254, 254]
+    rgb[0, 1] = [255, 0, 0]  # mean 85 -> occ 0.667 > 0.65
+    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, rgb, pil_mode="RGB"))
+    assert g.data.tolist() == [[0, 100]]
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+def test_round_trip_all_modes(tmp_path, mode):
+    la = np.stack([PIX, np.array([[255, 255, 255], [255, 0, 255]], np.uint8)], -1)
+    src = (
+        _write(tmp_path, la, pil_mode="LA", name="src", mode=mode)
+        if mode == "scale"
+        else _write(tmp_path, PIX, name="src", mode=mode)
+    )
+    g = OccupancyGrid.from_ros_yaml(src)
+    g.origin = (1.0, -2.0, 0.7)
+    out = g.to_ros_yaml(tmp_path / "out.yaml")
+    back = OccupancyGrid.from_ros_yaml(out)
+    assert back.data.tolist() == g.data.tolist()
+    assert back.mode == mode
+    assert back.origin == pytest.approx(g.origin)
+    assert back.resolution == g.resolution
+
+
+def test_map_saver_pixels(tmp_path):
+    g = OccupancyGrid(np.array([[0, 100, -1]]), 0.05)
+    g.to_ros_yaml(tmp_path / "s.yaml")
+    pix = np.asarray(Image.open(tmp_path / "s.pgm"))
+    assert pix.tolist() == [[254, 0, 205]]
+    meta = yaml.safe_load((tmp_path / "s.yaml").read_text())
+    assert meta["negate"] == 0 and meta["image"] == "s.pgm"
+
+
+def test_round_trip_random_grid(tmp_path, rng):
+    data = rng.choice([-1, 0, 100], size=(37, 53))
+    g = OccupancyGrid(data, 0.1, (3.0, -1.0, -0.4))
+    back = OccupancyGrid.from_ros_yaml(g.to_ros_yaml(tmp_path / "r.yaml"))
+    assert (back.data == g.data).all()
+
+
+def test_write_refuses_to_clobber(tmp_path):
+    g = OccupancyGrid(np.zeros((2, 2)), 0.1)
+    g.to_ros_yaml(tmp_path / "a.yaml")
+    with pytest.raises(FileExistsError, match="already exists"):
+        g.to_ros_yaml(tmp_path / "a.yaml")
+    g.to_ros_yaml(tmp_path / "a.yaml", force=True)
+
+
+def test_world_cell_transforms_with_yaw():
+    g = OccupancyGrid(np.zeros((4, 4)), 0.5, (1.0, 2.0, np.pi / 2))
+    # local axes: u along world +y, v along world -x
+    # world (0.25, 2.25) -> dx=-0.75, dy=0.25 -> u=0.25/0.5=0.5, v=0.75/0.5=1.5 -> row 1, col 0
+    assert g.world_to_cell([0.25, 2.25]).tolist() == [1, 0]
+    assert_allclose(g.cell_to_world([1, 0]), [1.0 - 0.75, 2.0 + 0.25], atol=1e-12)
+    pts = np.random.default_rng(0).uniform(-1, 1, (50, 2)) + [0.0, 3.0]
+    assert_allclose(g.local_to_world(g.world_to_local(pts)), pts, atol=1e-12)
+    ij = g.world_to_cell(pts)
+    back = g.cell_to_world(ij)
+    assert (np.abs(g.world_to_local(back) - g.world_to_local(pts)) <= 0.5 + 1e-12).all()
+
+
+def test_world_to_cell_no_yaw():
+    g = OccupancyGrid(np.zeros((4, 5)), 0.5, (-1.0, -1.0, 0.0))
+    assert g.world_to_cell([[-0.9, -0.9], [1.4, 0.6]]).tolist() == [[0, 0], [3, 4]]
+    assert g.in_bounds([[3, 4], [4, 0], [-1, 2]]).tolist() == [True, False, False]
+
+
+def test_masks_and_free_area():
+    g = OccupancyGrid(np.array([[0, 0, 100], [-1, 50, 0]]), 0.2)
+    assert g.free.sum() == 3 and g.occupied.sum() == 1 and g.unknown.sum() == 2
+    assert g.free_area == pytest.approx(3 * 0.04)
+
+
+def test_inflation_against_brute_force(rng):
+    data = np.where(rng.random((30, 40)) < 0.05, 100, 0)
+    g = OccupancyGrid(data, 0.1)
+    occ = np.argwhere(g.occupied)
+    cells = np.argwhere(np.ones(g.shape, bool))
+    d = np.sqrt(((cells[:, None, :] - occ[None, :, :]) ** 2).sum(-1)).min(1) * 0.1
+    assert_allclose(g.distance_to_occupied().ravel(), d, atol=1e-12)
+    assert (g.inflate(0.25).ravel() == (d <= 0.25)).all()
+    cost = g.inflation_costmap(0.15, 0.5, 3.0).ravel()
+    expect = np.where(d <= 0.15, 253, np.where(d <= 0.5, (252 * np.exp(-3 * (d - 0.15))), 0))
+    expect = np.where(d == 0, 254, expect).astype(np.uint8)
+    assert (cost == expect).all()
+
+
+def test_malformed_maps(tmp_path):
+    y = _write(tmp_path, PIX)
+    (tmp_path / "m.pgm").unlink()
+    with pytest.raises(FileNotFoundError, match="map image not found"):
+        OccupancyGrid.from_ros_yaml(y)
+    with pytest.raises(FileNotFoundError, match="map YAML not found"):
+        OccupancyGrid.from_ros_yaml(tmp_path / "nothing.yaml")
+    with pytest.raises(ValueError, match="free_thresh < occupied_thresh"):
+        OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="t", free_thresh=0.7))
+    with pytest.raises(ValueError, match="'resolution'"):
+        OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="r", resolution=-1))
+    with pytest.raises(ValueError, match="'origin'"):
+        OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="o", origin=[1, 2]))
+    with pytest.raises(ValueError, match="'mode'"):
+        OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="d", mode="bogus"))
+    with pytest.raises(ValueError, match="'width' says 7"):
+        OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="w", width=7))
+    bad = tmp_path / "g.yaml"
+    bad.write_text(yaml.safe_dump({"image": "junk.pgm", "resolution": 0.1, "origin": [0, 0, 0]}))
+    (tmp_path / "junk.pgm").write_bytes(b"not an image at all")
+    with pytest.raises(ValueError, match="cannot decode"):
+        OccupancyGrid.from_ros_yaml(bad)
+    miss = tmp_path / "f.yaml"
+    miss.write_text(yaml.safe_dump({"resolution": 0.1, "origin": [0, 0, 0]}))
+    with pytest.raises(ValueError, match="missing field 'image'"):
+        OccupancyGrid.from_ros_yaml(miss)
+    with pytest.raises(ValueError, match="data"):
+        OccupancyGrid(np.array([[0, 101]]), 0.1)
+    with pytest.raises(ValueError, match="resolution"):
+        OccupancyGrid(np.zeros((2, 2)), 0.0)
