@@ -1,0 +1,32 @@
+"""Perception: camera model, Warp occlusion kernels and the perceived set A_f (section 3.3)."""
+
+from are_stats.perception._camera import PinholeCamera, optical_from_base
+from are_stats.perception._perceive import (
+    PerceptionResult,
+    box_rois,
+    clear_mesh_cache,
+    perceive_frames,
+    perceived_counts,
+    perceived_counts_batch,
+    sample_perceived,
+)
+from are_stats.perception._plots import plot_camera_view, plot_top_view, save_figure
+from are_stats.perception._scenario import perceive_scenario, perceived_grid, yaw_rotations
+
+__all__ = [
+    "PerceptionResult",
+    "PinholeCamera",
+    "box_rois",
+    "clear_mesh_cache",
+    "optical_from_base",
+    "perceive_frames",
+    "perceived_counts",
+    "perceived_counts_batch",
+    "perceive_scenario",
+    "perceived_grid",
+    "plot_camera_view",
+    "plot_top_view",
+    "sample_perceived",
+    "save_figure",
+    "yaw_rotations",
+]

@@ -1,0 +1,300 @@
+"""NVIDIA Warp kernels for the occlusion test of paper section 3.3 (eq. 2 and A_f).
+
+Kernels live at module level with typed arguments; the host functions below are thin
+launchers that take ``device=`` (``"cpu"`` by default, ``"cuda"`` where present) and a
+``base`` offset so that a CPU launch can be split across host threads (a Warp CPU launch
+runs on one thread and releases the GIL, so two threads use two cores). Warp's CPU atomics
+are plain read-modify-writes, so each host thread scatters into its own buffers.
+
+Work items
+----------
+The pixels an artefact can cover are enumerated as *segments*: one segment per
+(frame, artefact) pair, holding the artefact's projected pixel rectangle
+``[x0, x0 + w) x [y0, y0 + h)``. Item ``i`` of a pair launch belongs to the segment ``s``
+with ``offsets[s] <= i < offsets[s + 1]`` (binary search), and to pixel
+``(x0 + k % w, y0 + k // w)`` with ``k = i - offsets[s]``.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import warp as wp
+
+__all__ = [
+    "launch_env_depths",
+    "launch_pair_counts",
+    "launch_pair_depths",
+    "launch_split",
+    "split_bounds",
+]
+
+# Warp's greeting on first use would clutter every CLI run and test log.
+if wp.config.log_level <= wp.LOG_INFO:
+    wp.config.log_level = wp.LOG_WARNING
+
+_INF = wp.constant(wp.float32(np.inf))
+
+
+@wp.func
+def _pixel_dir_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
+    """Unit optical-frame direction of the ray through the centre of pixel (px, py)."""
+    return wp.normalize(
+        wp.vec3((wp.float32(px) + 0.5 - cx) / fx, (wp.float32(py) + 0.5 - cy) / fy, 1.0)
+    )
+
+
+@wp.func
+def _slab_axis(o: float, d: float, h: float, span: wp.vec2) -> wp.vec2:
+    """Intersect the parameter interval ``span`` with one slab ``-h <= o + t d <= h``."""
+    if wp.abs(d) < 1.0e-30:
+        if o < -h or o > h:
+            return wp.vec2(1.0, -1.0)  # empty for good
+        return span
+    inv = 1.0 / d
+    t1 = (-h - o) * inv
+    t2 = (h - o) * inv
+    return wp.vec2(wp.max(span[0], wp.min(t1, t2)), wp.min(span[1], wp.max(t1, t2)))
+
+
+@wp.func
+def _slab(o: wp.vec3, d: wp.vec3, h: wp.vec3, d_max: float) -> float:
+    """First root t = max(t_near, 0) of a ray (box frame) with the box [-h, h]; inf if none."""
+    span = wp.vec2(-_INF, _INF)
+    span = _slab_axis(o[0], d[0], h[0], span)
+    span = _slab_axis(o[1], d[1], h[1], span)
+    span = _slab_axis(o[2], d[2], h[2], span)
+    result = float(_INF)
+    if span[0] <= span[1] and span[1] >= 0.0:
+        t = wp.max(span[0], 0.0)
+        if t <= d_max:
+            result = t
+    return result
+
+
+@wp.func
+def _find_segment(offsets: wp.array(dtype=wp.int64), n_seg: int, i: wp.int64) -> int:
+    lo = wp.int32(0)
+    hi = wp.int32(n_seg)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if offsets[mid] <= i:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@wp.kernel
+def pair_depth_kernel(
+    offsets: wp.array(dtype=wp.int64),
+    seg_frame: wp.array(dtype=wp.int32),
+    seg_rect: wp.array(dtype=wp.vec3i),
+    seg_origin: wp.array(dtype=wp.vec3),
+    seg_rot: wp.array(dtype=wp.mat33),
+    seg_half: wp.array(dtype=wp.vec3),
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    width: int,
+    npix: int,
+    d_max: float,
+    n_seg: int,
+    base: wp.int64,
+    pair_z: wp.array(dtype=wp.float32),
+    z_max: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
+):
+    """Z_a of every (artefact, pixel-in-rectangle) item; scatter its max and min per pixel.
+
+    ``seg_origin`` is the camera centre in the box frame and ``seg_rot`` the rotation from
+    the optical frame to the box frame, per segment (computed on the host).
+    """
+    i = wp.int64(wp.tid()) + base
+    s = _find_segment(offsets, n_seg, i)
+    k = int(i - offsets[s])
+    rect = seg_rect[s]
+    px = rect[0] + k % rect[2]
+    py = rect[1] + k // rect[2]
+    d = seg_rot[s] * _pixel_dir_cam(px, py, fx, fy, cx, cy)
+    z = _slab(seg_origin[s], d, seg_half[s], d_max)
+    pair_z[i] = z
+    if z < _INF:
+        g = seg_frame[s] * npix + py * width + px
+        wp.atomic_max(z_max, g, z)
+        wp.atomic_min(z_min, g, z)
+
+
+@wp.kernel
+def env_depth_kernel(
+    mesh: wp.uint64,
+    pixels: wp.array(dtype=wp.int64),
+    max_t: wp.array(dtype=wp.float32),
+    min_t: wp.array(dtype=wp.float32),
+    cam_pos: wp.array(dtype=wp.vec3),
+    cam_rot: wp.array(dtype=wp.mat33),
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    width: int,
+    npix: int,
+    base: wp.int64,
+    stride: int,
+    any_hit: int,
+    z_env: wp.array(dtype=wp.float32),
+):
+    """Z_env (eq. 2) of the listed pixels: first mesh hit in [0, max_t[g]), else +inf.
+
+    Both Warp ray queries accept a triangle hit at ``t`` when ``0 <= t < max_t``. With
+    ``any_hit == 1``, a pixel whose finite box depths are all equal (``min_t[g] ==
+    max_t[g]``, typically a single box) only needs to know whether anything is hit before
+    that depth, which the cheaper any-hit query answers exactly: occluded pixels get
+    ``Z_env = -1`` (below every box depth), the others +inf.
+    """
+    i = wp.int64(wp.tid()) * wp.int64(stride) + base
+    g = pixels[i]
+    f = int(g // wp.int64(npix))
+    p = int(g - wp.int64(f) * wp.int64(npix))
+    px = p % width
+    py = p // width
+    d = cam_rot[f] * _pixel_dir_cam(px, py, fx, fy, cx, cy)
+    t_max = max_t[g]
+    if any_hit == 1 and min_t[g] == t_max:
+        if wp.mesh_query_ray_anyhit(mesh, cam_pos[f], d, t_max):
+            z_env[g] = -1.0
+        else:
+            z_env[g] = _INF
+    else:
+        q = wp.mesh_query_ray(mesh, cam_pos[f], d, t_max)
+        if q.result and q.t >= 0.0 and q.t < t_max:
+            z_env[g] = q.t
+        else:
+            z_env[g] = _INF
+
+
+@wp.kernel
+def pair_count_kernel(
+    offsets: wp.array(dtype=wp.int64),
+    seg_frame: wp.array(dtype=wp.int32),
+    seg_box: wp.array(dtype=wp.int32),
+    seg_rect: wp.array(dtype=wp.vec3i),
+    pair_z: wp.array(dtype=wp.float32),
+    z_env: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
+    width: int,
+    npix: int,
+    n_box: int,
+    n_seg: int,
+    base: wp.int64,
+    use_min: int,
+    counts: wp.array(dtype=wp.int32),
+):
+    """count((Z_a - Z_env)_ij <= 0) per (frame, artefact): the left side of A_f."""
+    i = wp.int64(wp.tid()) + base
+    z = pair_z[i]
+    if z < _INF:
+        s = _find_segment(offsets, n_seg, i)
+        k = int(i - offsets[s])
+        rect = seg_rect[s]
+        px = rect[0] + k % rect[2]
+        py = rect[1] + k // rect[2]
+        f = seg_frame[s]
+        g = f * npix + py * width + px
+        ok = z <= z_env[g]
+        if use_min == 1:
+            ok = ok and z <= z_min[g]
+        if ok:
+            wp.atomic_add(counts, f * n_box + seg_box[s], 1)
+
+
+# ---------------------------------------------------------------------- host launchers
+
+
+def split_bounds(n: int, device: str, threads: int) -> list[tuple[int, int]]:
+    """Contiguous item ranges, one per host thread (one range on CUDA or for small n)."""
+    if threads <= 1 or not str(device).startswith("cpu") or n < 8192:
+        return [(0, n)]
+    b = np.linspace(0, n, threads + 1).astype(np.int64)
+    return [(int(lo), int(hi)) for lo, hi in zip(b[:-1], b[1:], strict=True) if hi > lo]
+
+
+def launch_split(kernel, bounds, make_inputs, device: str = "cpu") -> None:
+    """Launch ``kernel`` once per range in ``bounds``, each range on its own host thread.
+
+    ``make_inputs(base, j)`` returns the kernel inputs for range ``j`` starting at item
+    ``base``. Warp's CPU atomics are plain read-modify-writes, so every range that scatters
+    must write to its own output buffers (index ``j``); the caller combines them.
+    """
+    bounds = [(lo, hi) for lo, hi in bounds if hi > lo]
+    if not bounds:
+        return
+    if len(bounds) == 1:
+        lo, hi = bounds[0]
+        wp.launch(kernel, dim=hi - lo, inputs=make_inputs(lo, 0), device=device)
+        return
+    errors: list[BaseException] = []
+
+    def run(j: int, lo: int, hi: int) -> None:
+        try:
+            wp.launch(kernel, dim=hi - lo, inputs=make_inputs(lo, j), device=device)
+        except BaseException as err:  # re-raised in the calling thread
+            errors.append(err)
+
+    workers = [threading.Thread(target=run, args=(j, lo, hi)) for j, (lo, hi) in enumerate(bounds)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    if errors:
+        raise errors[0]
+
+
+def launch_pair_depths(seg, intr, d_max, out, bounds, device):
+    """Host side of :func:`pair_depth_kernel`; ``out["z_max"][j]`` is range j's buffer."""
+    fx, fy, cx, cy, width, npix = intr
+
+    def inputs(base, j):
+        return [
+            seg["offsets"], seg["frame"], seg["rect"], seg["origin"], seg["rot"], seg["half"],
+            fx, fy, cx, cy, width, npix, float(d_max), seg["n"], base,
+            out["pair_z"], out["z_max"][j], out["z_min"][j],
+        ]  # fmt: skip
+
+    launch_split(pair_depth_kernel, bounds, inputs, device)
+
+
+def launch_env_depths(mesh_id, pixels, max_t, min_t, any_hit, cams, intr, z_env, device, threads):
+    """Host side of :func:`env_depth_kernel` over ``pixels`` (unique global pixel indices).
+
+    Ray costs vary across the image (sky, ground, far walls), so the threads take the
+    pixels interleaved (thread j casts items j, j + threads, ...) rather than in blocks.
+    """
+    fx, fy, cx, cy, width, npix = intr
+    n = pixels.shape[0]
+    k = len(split_bounds(n, device, threads))
+    bounds = [(j, j + (n - j + k - 1) // k) for j in range(min(k, n))]
+
+    def inputs(base, j):
+        return [
+            mesh_id, pixels, max_t, min_t, cams["pos"], cams["rot"],
+            fx, fy, cx, cy, width, npix, base, k, any_hit, z_env,
+        ]  # fmt: skip
+
+    launch_split(env_depth_kernel, bounds, inputs, device)
+
+
+def launch_pair_counts(seg, intr, n_box, use_min, out, counts, bounds, device):
+    """Host side of :func:`pair_count_kernel`; ``counts[j]`` is range j's buffer."""
+    _, _, _, _, width, npix = intr
+
+    def inputs(base, j):
+        return [
+            seg["offsets"], seg["frame"], seg["box"], seg["rect"],
+            out["pair_z"], out["z_env"], out["z_min"],
+            width, npix, n_box, seg["n"], base, use_min, counts[j],
+        ]  # fmt: skip
+
+    launch_split(pair_count_kernel, bounds, inputs, device)

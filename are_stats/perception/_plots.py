@@ -1,0 +1,225 @@
+"""Pictures of a frame: the camera view with boxes coloured perceived/occluded over the
+depth image, and the top view with the view cone W (paper section 3.3, Fig. 4)."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from are_stats._atomic import atomic_path
+from are_stats.perception._perceive import _EDGES, _SIGNS
+
+__all__ = ["plot_camera_view", "plot_top_view", "save_figure"]
+
+_COLOURS = {"perceived": "#1a9850", "occluded": "#d73027", "outside": "#969696"}
+
+
+def _status(counts: np.ndarray, perceived: np.ndarray) -> list[str]:
+    return [
+        "perceived" if p else ("occluded" if c > 0 else "outside")
+        for c, p in zip(counts, perceived, strict=True)
+    ]
+
+
+def _legend(ax, used: set[str]) -> None:
+    from matplotlib.lines import Line2D
+
+    labels = {
+        "perceived": "perceived (count > tau)",
+        "occluded": "occluded (0 < count <= tau)",
+        "outside": "hidden or out of view (count 0)",
+    }
+    handles = [
+        Line2D([], [], color=_COLOURS[k], lw=2, label=labels[k])
+        for k in ("perceived", "occluded", "outside")
+        if k in used
+    ]
+    if handles:
+        ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.85)
+
+
+def plot_camera_view(
+    camera: Any,
+    depth: Any,
+    centers: Any,
+    half_extents: Any,
+    rotations: Any,
+    counts: Any,
+    perceived: Any,
+    *,
+    d_max: float | None = None,
+    ax: Any = None,
+) -> Any:
+    """Camera view: depth image with every box's wireframe coloured by its A_f status.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+        The camera (its ``pose`` is the frame's pose).
+    depth : (height, width) float
+        A depth image, e.g. ``PerceptionResult.depth[t]`` (+inf where nothing is hit).
+    centers, half_extents : (n, 3) float
+    rotations : (n, 3, 3) float
+    counts : (n,) int
+        Pixel counts of the frame.
+    perceived : (n,) bool
+        Membership in A_f.
+    d_max : float, optional
+        Upper end of the colour scale (default: the largest finite depth).
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    z = np.asarray(depth, float)
+    if z.shape != (camera.height, camera.width):
+        raise ValueError(f"depth: expected shape ({camera.height}, {camera.width}), got {z.shape}")
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7.5, 7.5 * camera.height / camera.width + 0.6))
+    fin = np.isfinite(z)
+    vmax = float(d_max) if d_max is not None else (float(z[fin].max()) if fin.any() else 1.0)
+    im = ax.imshow(
+        np.where(fin, z, np.nan), cmap="viridis", vmin=0.0, vmax=vmax,
+        extent=(0, camera.width, camera.height, 0), interpolation="nearest",
+    )  # fmt: skip
+    ax.set_facecolor("#f0f0f0")
+    ax.figure.colorbar(
+        im, ax=ax, fraction=0.035, pad=0.02, label="depth (m); blank: nothing within d_max"
+    )
+    c = np.asarray(centers, float)
+    h = np.asarray(half_extents, float)
+    r = np.asarray(rotations, float)
+    status = _status(np.asarray(counts), np.asarray(perceived, bool))
+    used = set()
+    r_cam, c_cam = camera.pose[:3, :3], camera.pose[:3, 3]
+    z_near = 1e-3
+    for a in range(len(c)):
+        corners = c[a] + (_SIGNS * h[a]) @ r[a].T
+        pc = (corners - c_cam) @ r_cam
+        colour = _COLOURS[status[a]]
+        drawn = False
+        for i, j in _EDGES:
+            p, q = pc[i], pc[j]
+            if p[2] < z_near and q[2] < z_near:
+                continue
+            if p[2] < z_near or q[2] < z_near:  # clip the edge at the near plane
+                s = (z_near - p[2]) / (q[2] - p[2])
+                m = p + s * (q - p)
+                p, q = (m, q) if p[2] < z_near else (p, m)
+            e = np.stack([p, q])
+            uv = np.column_stack(
+                [
+                    camera.fx * e[:, 0] / e[:, 2] + camera.cx,
+                    camera.fy * e[:, 1] / e[:, 2] + camera.cy,
+                ]
+            )
+            ax.plot(uv[:, 0], uv[:, 1], color=colour, lw=1.4)
+            drawn = True
+        if drawn:
+            used.add(status[a])
+    ax.set_xlim(0, camera.width)
+    ax.set_ylim(camera.height, 0)
+    ax.set_xlabel("u (pixels)")
+    ax.set_ylabel("v (pixels)")
+    n_p = int(np.sum(np.asarray(perceived, bool)))
+    ax.set_title(f"Camera view: {n_p} of {len(c)} artefacts perceived")
+    _legend(ax, used)
+    return ax.figure
+
+
+def plot_top_view(
+    camera: Any,
+    d_max: float,
+    centers: Any,
+    half_extents: Any,
+    yaws: Any,
+    counts: Any,
+    perceived: Any,
+    *,
+    grid: Any = None,
+    ax: Any = None,
+) -> Any:
+    """Top view: the occupancy grid, the view cone W cut at ``d_max`` and the footprints.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+    d_max : float
+        Range of the view cone.
+    centers, half_extents : (n, 2|3) float
+    yaws : (n,) float
+    counts : (n,) int
+    perceived : (n,) bool
+    grid : OccupancyGrid, optional
+        Drawn underneath (free white, occupied black, unknown grey).
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7.5, 6.5))
+    if grid is not None:
+        img = np.full(grid.shape, 0.75)
+        img[grid.data == 0] = 1.0
+        img[grid.data >= 65] = 0.1
+        ox, oy, _ = grid.origin
+        ax.imshow(
+            img, cmap="gray", vmin=0, vmax=1, origin="lower", interpolation="nearest",
+            extent=(ox, ox + grid.width * grid.resolution, oy, oy + grid.height * grid.resolution),
+        )  # fmt: skip
+    cone = camera.fov_cone(d_max)
+    # horizontal footprint of the cone: hull of the apex and the far corners
+    from scipy.spatial import ConvexHull
+
+    pts = cone[:, :2]
+    try:
+        hull = pts[ConvexHull(pts).vertices]
+    except Exception:  # degenerate (camera looking straight up/down)
+        hull = pts
+    ax.add_patch(Polygon(hull, closed=True, fc="#fee08b", ec="#f46d43", alpha=0.45,
+                         lw=1.5, label=f"view cone W (d_max = {d_max:g} m)"))  # fmt: skip
+    ax.plot(*camera.center[:2], marker="o", color="#f46d43", ms=6)
+    c = np.asarray(centers, float)
+    h = np.asarray(half_extents, float)
+    y = np.asarray(yaws, float)
+    status = _status(np.asarray(counts), np.asarray(perceived, bool))
+    used = set()
+    for a in range(len(c)):
+        cs, sn = np.cos(y[a]), np.sin(y[a])
+        loc = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * h[a, :2]
+        xy = c[a, :2] + loc @ np.array([[cs, sn], [-sn, cs]])
+        ax.add_patch(Polygon(xy, closed=True, fc=_COLOURS[status[a]], ec="k", lw=0.5, alpha=0.9))
+        used.add(status[a])
+    lim = np.vstack([hull, c[:, :2]]) if len(c) else hull
+    if grid is None:
+        pad = 1.0
+        ax.set_xlim(lim[:, 0].min() - pad, lim[:, 0].max() + pad)
+        ax.set_ylim(lim[:, 1].min() - pad, lim[:, 1].max() + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title("Top view: view cone and artefacts")
+    _legend(ax, used)
+    handles, labels = ax.get_legend_handles_labels()
+    leg = ax.get_legend()
+    if leg is not None:
+        handles = leg.legend_handles + handles
+        labels = [t.get_text() for t in leg.get_texts()] + labels
+    ax.legend(handles, labels, loc="upper right", fontsize=8, framealpha=0.85)
+    return ax.figure
+
+
+def save_figure(fig: Any, path: str | os.PathLike, force: bool = False, dpi: int = 120) -> None:
+    """Write a figure atomically (PNG/PDF/SVG by suffix); refuse to overwrite unless forced."""
+    with atomic_path(path, force=force) as tmp:
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=str(path).rsplit(".", 1)[-1])

@@ -1,0 +1,135 @@
+"""Scenario hook, augmented grid of perceived artefacts, sampled sets and pictures."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+import trimesh
+from scipy import stats
+
+from are_stats.environment import OccupancyGrid
+from are_stats.perception import (
+    PinholeCamera,
+    optical_from_base,
+    perceive_frames,
+    perceive_scenario,
+    perceived_counts_batch,
+    perceived_grid,
+    plot_camera_view,
+    plot_top_view,
+    sample_perceived,
+    save_figure,
+    yaw_rotations,
+)
+from tests.helpers import ALPHA
+
+
+def _camera():
+    return PinholeCamera(60.0, 60.0, 40.0, 30.0, 80, 60, optical_from_base([0.0, 0.0, 0.5]))
+
+
+def test_perceive_scenario_matches_direct_batch():
+    wall = trimesh.creation.box([0.2, 3.0, 2.0])
+    wall.apply_translation([4.0, 0.0, 1.0])  # hides x > 4 near y = 0
+    art = pd.DataFrame(
+        {
+            "scenario": [0, 0, 0, 1],
+            "artefact": [0, 1, 2, 0],
+            "class": [0, 1, 0, 1],
+            "t_arrive": [0.0, 0.0, 5.0, 0.0],
+            "t_leave": [10.0, 10.0, 6.0, 1.0],
+            "x": [2.0, 6.0, 2.0, 2.5],
+            "y": [0.0, 0.0, 0.5, -0.5],
+            "yaw": [0.0, 0.3, 1.0, 0.0],
+        }
+    )
+    classes = pd.DataFrame({"class": [0, 1], "length": [0.6, 0.8], "width": [0.4, 0.8],
+                            "height": [1.0, 1.6]})  # fmt: skip
+    path = pd.DataFrame({"t": [0.0, 2.0, 4.0], "x": [0.0, 0.0, 0.0], "y": [0.0, 0.0, 0.0],
+                         "yaw": [0.0, 0.0, 0.0]})  # fmt: skip
+    cam = _camera()
+    out = perceive_scenario(art, path, classes, wall, cam, 20.0, 5)
+    assert list(out.columns[: len(art.columns)]) == list(art.columns)
+    # scenario 0 by hand
+    sizes = np.array([[0.6, 0.4, 1.0], [0.8, 0.8, 1.6], [0.6, 0.4, 1.0]])
+    centers = np.column_stack([[2.0, 6.0, 2.0], [0.0, 0.0, 0.5], sizes[:, 2] / 2])
+    poses = np.stack([cam.pose] * 3)
+    active = np.array([[True, True, False]] * 3)
+    counts, seen = perceived_counts_batch(
+        wall, centers, sizes / 2, yaw_rotations([0.0, 0.3, 1.0]), cam, poses, 20.0, 5,
+        active=active,
+    )  # fmt: skip
+    s0 = out[out["scenario"] == 0]
+    np.testing.assert_array_equal(s0["perceived"], seen.any(axis=0))
+    np.testing.assert_array_equal(s0["max_count"], counts.max(axis=0))
+    assert s0["perceived"].tolist() == [True, False, False]  # behind the wall / not yet there
+    assert out["first_perceived_t"].iloc[0] == 0.0 and np.isnan(out["first_perceived_t"].iloc[1])
+    # scenario 1: present only at t = 0
+    assert out["n_frames_perceived"].iloc[3] == 1
+    with pytest.raises(ValueError, match="classes: no size for class 1"):
+        perceive_scenario(art, path, {0: (1.0, 1.0, 1.0)}, wall, cam, 20.0, 5)
+    with pytest.raises(ValueError, match="artefacts: expected columns"):
+        perceive_scenario(art.drop(columns="yaw"), path, classes, wall, cam, 20.0, 5)
+    with pytest.raises(ValueError, match="robot_path: expected columns"):
+        perceive_scenario(art, path.drop(columns="t"), classes, wall, cam, 20.0, 5)
+
+
+def test_perceived_grid_marks_only_perceived_footprints():
+    grid = OccupancyGrid(np.zeros((20, 30)), 0.1, (-1.0, -1.0, 0.0))
+    centers = np.array([[0.0, 0.0, 0.5], [0.5, 0.3, 0.5]])
+    half = np.array([[0.2, 0.1, 0.5], [0.15, 0.15, 0.5]])
+    out = perceived_grid(grid, centers, half, [0.0, 0.4], np.array([True, False]))
+    assert (grid.data == 0).all()  # input untouched
+    occ = np.argwhere(out.data == 100)
+    # the axis-aligned 0.4 x 0.2 box centred at (0, 0) covers x in [-0.2, 0.2], y in [-0.1, 0.1]:
+    # columns 8..11 and rows 9..10 of a grid whose cell (0, 0) starts at (-1, -1)
+    assert sorted({int(j) for j in occ[:, 1]}) == [8, 9, 10, 11]
+    assert sorted({int(i) for i in occ[:, 0]}) == [9, 10]
+    with pytest.raises(ValueError, match="perceived: expected a \\(2,\\) bool array"):
+        perceived_grid(grid, centers, half, [0.0, 0.4], [1, 0])
+
+
+def test_sample_perceived_is_seeded_and_has_the_right_law():
+    per = np.ones((400, 50), bool)
+    per[:, 0] = False
+    key = jax.random.PRNGKey(3)
+    a = sample_perceived(key, per, detection_prob=0.3, existence_prob=0.8)
+    b = sample_perceived(key, per, detection_prob=0.3, existence_prob=0.8)
+    np.testing.assert_array_equal(a, b)
+    assert not a[:, 0].any()  # never more than the deterministic set
+    exists = a.any(axis=0)[1:]
+    # existence: one draw per artefact; detection per frame among existing artefacts
+    p_exist = stats.binomtest(int(exists.sum()), exists.size, 0.8).pvalue
+    det = a[:, 1:][:, exists]
+    p_det = stats.binomtest(int(det.sum()), det.size, 0.3).pvalue
+    assert p_exist > ALPHA and p_det > ALPHA  # false-failure rate ALPHA each
+    one = sample_perceived(key, np.array([True, True]), detection_prob=[1.0, 0.0])
+    assert one.tolist() == [True, False]
+    with pytest.raises(ValueError, match="detection_prob: expected values in"):
+        sample_perceived(key, per, detection_prob=1.5)
+
+
+def test_pictures(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    wall = trimesh.creation.box([0.2, 3.0, 2.0])
+    wall.apply_translation([4.0, 0.0, 1.0])
+    cam = _camera()
+    c = np.array([[2.0, 0.0, 0.5], [6.0, 0.0, 0.5], [0.2, 0.0, 0.5]])
+    h = np.full((3, 3), 0.3)
+    r = yaw_rotations([0.0, 0.5, 0.0])
+    res = perceive_frames(wall, c, h, r, cam, None, 20.0, 5, return_depth=True)
+    fig = plot_camera_view(cam, res.depth[0], c, h, r, res.counts[0], res.perceived[0])
+    save_figure(fig, tmp_path / "cam.png")
+    grid = OccupancyGrid(np.zeros((40, 100)), 0.1, (-1.0, -2.0, 0.0))
+    fig2 = plot_top_view(cam, 8.0, c, h, [0.0, 0.5, 0.0], res.counts[0], res.perceived[0],
+                         grid=grid)  # fmt: skip
+    save_figure(fig2, tmp_path / "top.png")
+    assert (tmp_path / "cam.png").stat().st_size > 1000
+    with pytest.raises(FileExistsError):
+        save_figure(fig2, tmp_path / "top.png")
+    with pytest.raises(ValueError, match="depth: expected shape"):
+        plot_camera_view(cam, res.depth[0][:5], c, h, r, res.counts[0], res.perceived[0])
