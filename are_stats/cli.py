@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
-import typer
+import os
 
-from are_stats import __version__
+# Two XLA host devices so that NUTS chains run in parallel on the two cores; must be set
+# before JAX is imported (by are_stats).
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+
+from pathlib import Path  # noqa: E402
+
+import typer  # noqa: E402
+
+from are_stats import __version__  # noqa: E402
 
 app = typer.Typer(
     name="are-stats",
@@ -23,6 +31,156 @@ app = typer.Typer(
 def version() -> None:
     """Print the are_stats version."""
     typer.echo(__version__)
+
+
+@app.command()
+def show(
+    map_path: str = typer.Argument(
+        ..., metavar="MAP", help="ROS map YAML, or the name of a shipped map (courtyard)."
+    ),
+    out: str = typer.Option(None, "--out", help="PNG to write (default: <map name>.png)."),
+    inflate: float = typer.Option(None, "--inflate", help="Inflation radius to draw (m)."),
+    artefacts: int = typer.Option(0, "--artefacts", help="Random catalogue artefacts to place."),
+    seed: int = typer.Option(0, "--seed", help="Seed for the artefact placement."),
+    force: bool = typer.Option(False, "--force", help="Overwrite the PNG."),
+) -> None:
+    """Render an occupancy grid, its inflation and artefacts to a PNG."""
+    from are_stats._atomic import OutputExistsError
+    from are_stats.builder import show_map
+
+    try:
+        path = show_map(map_path, out, inflate=inflate, artefacts=artefacts, seed=seed, force=force)
+    except (ValueError, FileNotFoundError, OutputExistsError) as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(str(path))
+
+
+_ERRORS = (ValueError, FileNotFoundError, FileExistsError)
+
+
+def _fail(err: Exception) -> typer.Exit:
+    typer.echo(f"error: {err}", err=True)
+    return typer.Exit(2)
+
+
+@app.command()
+def fit(
+    log: Path = typer.Argument(..., metavar="LOG", help="Life-cycle log (CSV or Parquet)."),
+    out: Path = typer.Option(..., "--out", help="Fit to write, e.g. fits/NAME.nc (NetCDF)."),
+    method: str = typer.Option(
+        "nuts", "--method", help="nuts: joint posterior by NUTS; em: conjugate rates + EM."
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seed of the fit (same seed, same fit)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
+    window: tuple[float, float] | None = typer.Option(
+        None, "--window", help="Observation window T0 T1 (log's time unit)."
+    ),
+    area: float = typer.Option(None, "--area", help="Free area in m^2 (overrides the manifest)."),
+    manifest: Path = typer.Option(None, "--manifest", help="Manifest YAML (default: beside LOG)."),
+    counts: Path = typer.Option(
+        None, "--counts", help="Count panel CSV/Parquet (t, count) for the birth-death MLE."
+    ),
+    components: int = typer.Option(
+        None, "--components", help="Mixture components (default: labels, else BIC)."
+    ),
+    warmup: int = typer.Option(1000, "--warmup", help="NUTS warm-up draws per chain."),
+    samples: int = typer.Option(1000, "--samples", help="NUTS draws per chain."),
+    chains: int = typer.Option(4, "--chains", help="NUTS chains."),
+    figures: Path = typer.Option(
+        None, "--figures", help="Folder for criticism figures (default: OUT without .nc)."
+    ),
+    no_figures: bool = typer.Option(False, "--no-figures", help="Skip the criticism figures."),
+    alternatives: bool = typer.Option(
+        False, "--alternatives", help="Also compare richer arrival/lifetime models by LOO."
+    ),
+    stationary_start: bool = typer.Option(
+        True,
+        "--stationary-start/--no-stationary-start",
+        help="NUTS: use the Poisson(lambda*area/mu) count present at T0 (couples the rates).",
+    ),
+) -> None:
+    """Fit arrival rate, leave rate and mark mixture of a field log; write NetCDF + figures."""
+    from are_stats._cli_jobs import run_fit
+
+    try:
+        run_fit(
+            log,
+            out,
+            method=method,
+            seed=seed,
+            force=force,
+            window=window,
+            area=area,
+            manifest=manifest,
+            counts=counts,
+            components=components,
+            warmup=warmup,
+            samples=samples,
+            chains=chains,
+            figures=None if no_figures else (figures or out.with_suffix("")),
+            alternatives=alternatives,
+            stationary_start=stationary_start,
+        )
+    except _ERRORS as err:
+        raise _fail(err) from None
+
+
+@app.command()
+def report(
+    fit_path: Path = typer.Argument(..., metavar="FIT", help="A fit written by are-stats fit."),
+    out: Path = typer.Option(None, "--out", help="Folder for figures (default: FIT without .nc)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the replicated windows."),
+    replicates: int = typer.Option(200, "--replicates", help="Replicated windows for the PPC."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing figures."),
+) -> None:
+    """Re-draw the summary table and the posterior-predictive figures of a saved fit."""
+    from are_stats._cli_jobs import run_report
+
+    try:
+        run_report(fit_path, out or fit_path.with_suffix(""), seed, replicates, force)
+    except _ERRORS as err:
+        raise _fail(err) from None
+
+
+@app.command()
+def generate(
+    fit_path: Path = typer.Argument(..., metavar="FIT", help="A fit written by are-stats fit."),
+    scenarios: int = typer.Option(..., "--scenarios", help="Number of scenarios."),
+    horizon: float = typer.Option(..., "--horizon", help="Scenario length (fit's time unit, s)."),
+    seed: int = typer.Option(..., "--seed", help="Seed (same seed, same bytes)."),
+    out: Path = typer.Option(..., "--out", help="Output folder (artefacts.parquet + manifest)."),
+    map_path: Path = typer.Option(
+        None, "--map", help="ROS map YAML: positions uniform over its free cells."
+    ),
+    area: float = typer.Option(None, "--area", help="Area in m^2 (default: the fit's or map's)."),
+    behaviours: bool = typer.Option(
+        False, "--behaviours", help="Add MDP trajectories (tracks.parquet); needs --map."
+    ),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
+) -> None:
+    """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
+    from are_stats._cli_jobs import run_generate
+
+    try:
+        run_generate(fit_path, scenarios, horizon, seed, out, map_path, area, behaviours, force)
+    except _ERRORS as err:
+        raise _fail(err) from None
+
+
+@app.command()
+def demo(
+    out: Path = typer.Option(Path("demo-output"), "--out", help="Folder for the demo outputs."),
+    force: bool = typer.Option(False, "--force", help="Overwrite earlier demo outputs."),
+    quick: bool = typer.Option(False, "--quick", help="Fewer draws (for tests)."),
+) -> None:
+    """The main job on the shipped defaults: log -> fit -> criticism -> scenarios -> summary."""
+    from are_stats._cli_jobs import run_demo
+
+    try:
+        run_demo(out, force=force, quick=quick)
+    except _ERRORS as err:
+        raise _fail(err) from None
 
 
 def main() -> None:  # pragma: no cover - console entry

@@ -1,0 +1,322 @@
+"""The jobs behind ``are-stats fit / report / generate / demo`` (the CLI only parses options).
+
+Each job validates its inputs, refuses to overwrite outputs without ``force`` *before* doing
+any work, writes every file atomically and prints a short rich summary.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+import yaml
+from rich.console import Console
+from rich.table import Table
+
+from are_stats import __version__
+from are_stats._atomic import atomic_path, check_writable
+
+console = Console(highlight=False, width=None if Console().is_terminal else 100)
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE_LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
+EXAMPLE_MAP = ROOT / "models" / "courtyard.yaml"
+DEMO_FIT = ROOT / "fits" / "courtyard_traffic.nc"
+
+
+def _summary_table(summary: Any, title: str) -> Table:
+    table = Table(title=title, title_justify="left")
+    for col in ("parameter", "mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "r_hat"):
+        table.add_column(col, justify="left" if col == "parameter" else "right", no_wrap=True)
+    for name, row in summary.iterrows():
+        r_hat = row.get("r_hat", np.nan)
+        table.add_row(
+            str(name),
+            f"{row['mean']:.4g}",
+            f"{row['sd']:.3g}",
+            f"{row['hdi_3%']:.4g}",
+            f"{row['hdi_97%']:.4g}",
+            f"{row['ess_bulk']:.0f}",
+            "-" if not np.isfinite(r_hat) else f"{r_hat:.3f}",
+        )
+    return table
+
+
+def _warnings(idata: Any, summary: Any) -> list[str]:
+    out = []
+    if "sample_stats" in idata.groups() and "diverging" in idata.sample_stats:
+        n_div = int(idata.sample_stats["diverging"].sum())
+        if n_div:
+            out.append(f"{n_div} divergent transitions: the posterior may be biased")
+    r_hat = summary["r_hat"].to_numpy(dtype=float) if "r_hat" in summary else np.array([])
+    bad = summary.index[np.isfinite(r_hat) & (r_hat > 1.01)].tolist()
+    if bad:
+        out.append(f"r_hat > 1.01 for {', '.join(bad)}: run longer chains (--samples)")
+    return out
+
+
+def run_fit(
+    log: Path,
+    out: Path,
+    *,
+    method: str = "nuts",
+    seed: int = 0,
+    force: bool = False,
+    window: Sequence[float] | None = None,
+    area: float | None = None,
+    manifest: Path | None = None,
+    counts: Path | None = None,
+    components: int | None = None,
+    warmup: int = 1000,
+    samples: int = 1000,
+    chains: int = 4,
+    figures: Path | None = None,
+    alternatives: bool = False,
+    n_replicates: int = 200,
+    stationary_start: bool = True,
+) -> Any:
+    """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures."""
+    from are_stats.fitting._fit_log import FitSettings, fit_log, write_fit
+    from are_stats.fitting._report import fit_summary, write_report
+    from are_stats.logs import read_count_panel, read_lifecycle_log
+
+    out = Path(out)
+    if out.suffix != ".nc":
+        raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
+    check_writable(out, force)
+    settings = FitSettings(
+        method=method,
+        n_components=components,
+        num_warmup=warmup,
+        num_samples=samples,
+        num_chains=chains,
+        stationary_start=stationary_start,
+    )
+    lifecycle = read_lifecycle_log(
+        log, manifest=manifest, window=tuple(window) if window else None, area=area
+    )
+    data = lifecycle.to_lifecycle_data()
+    rep = lifecycle.report()
+    console.print(
+        f"[bold]{log}[/]: {rep['rows_used']} artefacts ({rep['left_truncated']} present at "
+        f"start, {rep['right_censored']} still present at end, excluded: "
+        f"{sum(rep['excluded'].values())}); window {rep['window']} s, area {rep['area']:.1f} m^2"
+    )
+    panel = read_count_panel(counts) if counts is not None else None
+    t_start = time.perf_counter()
+    with console.status("fitting ...") as status:
+        idata = fit_log(
+            jax.random.key(seed),
+            data,
+            settings,
+            counts_panel=panel,
+            progress=lambda msg: status.update(f"fitting: {msg} ..."),
+        )
+    idata.posterior.attrs.update(
+        {"seed": int(seed), "log": str(log), "log_report": yaml.safe_dump(rep, sort_keys=False)}
+    )
+    if data.labels is not None:  # class c of the mixture is label_names[c] (DECISIONS 5)
+        idata.posterior.attrs["class_labels"] = ",".join(lifecycle.to_arrays()["label_names"])
+    write_fit(idata, out, force=force)
+    summary = fit_summary(idata)
+    console.print(_summary_table(summary, f"{method} fit in {time.perf_counter() - t_start:.1f} s"))
+    for w in _warnings(idata, summary):
+        console.print(f"[yellow]warning:[/] {w}")
+    if panel is not None:
+        a = idata.posterior.attrs
+        se = a["birth_death_stderr"]
+        console.print(
+            f"birth-death MLE of {counts}: birth rate {a['birth_death_birth_rate']:.4g} "
+            f"+- {se[0]:.2g}, death rate {a['birth_death_death_rate']:.4g} +- {se[1]:.2g}"
+        )
+    console.print(f"wrote {out}")
+    if figures is not None:
+        with console.status("posterior-predictive checks ..."):
+            written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
+        console.print(f"wrote {len(written)} criticism files to {figures}/")
+    if alternatives:
+        _alternatives(seed, data, figures or out.with_suffix(""), force)
+    return idata
+
+
+def _alternatives(seed: int, data: Any, folder: Path, force: bool) -> None:
+    from are_stats.fitting._alternatives import (
+        compare_models,
+        fit_arrival_models,
+        fit_lifetime_models,
+    )
+
+    t0, t1 = data.window
+    arrived = ~data.truncated
+    with console.status("richer models (time-of-day, Gamma-Poisson, Weibull, Gamma) ..."):
+        arr = fit_arrival_models(
+            jax.random.key(seed + 1),
+            data.t_arrive[arrived],
+            data.window,
+            data.area,
+            bin_width=(t1 - t0) / 48,
+            period=86400.0,
+            n_periods=24,
+        )
+        dwell = np.where(data.censored, t1, data.t_leave) - data.t_arrive
+        life = fit_lifetime_models(jax.random.key(seed + 2), dwell[arrived], data.censored[arrived])
+    for name, fits in (("arrivals", arr), ("lifetimes", life)):
+        table = compare_models(fits)
+        path = Path(folder) / f"loo_{name}.csv"
+        with atomic_path(path, force=force) as tmp:
+            table.to_csv(tmp)
+        rich = Table(title=f"{name}: models ranked by PSIS-LOO", title_justify="left")
+        for col in ("model", "elpd_loo", "se", "elpd_diff", "weight"):
+            rich.add_column(col, justify="left" if col == "model" else "right")
+        for model, row in table.iterrows():
+            rich.add_row(
+                str(model),
+                f"{row['elpd_loo']:.1f}",
+                f"{row['se']:.1f}",
+                f"{row['elpd_diff']:.1f}",
+                f"{row['weight']:.2f}",
+            )
+        console.print(rich)
+    console.print(
+        f"left-truncated artefacts left out of the lifetime comparison: {int((~arrived).sum())}"
+    )
+
+
+def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, force=False):
+    """Summary table and posterior-predictive figures of a saved fit."""
+    from are_stats.fitting._fit_log import read_fit
+    from are_stats.fitting._report import fit_summary, write_report
+
+    idata = read_fit(fit_path)
+    summary = fit_summary(idata)
+    console.print(_summary_table(summary, f"{fit_path} ({idata.posterior.attrs.get('method')})"))
+    for w in _warnings(idata, summary):
+        console.print(f"[yellow]warning:[/] {w}")
+    with console.status("posterior-predictive checks ..."):
+        written = write_report(idata, out, key=seed, n_replicates=replicates, force=force)
+    console.print(f"wrote {len(written)} files to {out}/")
+    return written
+
+
+def run_generate(
+    fit_path: Path,
+    n_scenarios: int,
+    horizon: float,
+    seed: int,
+    out: Path,
+    map_path: Path | None = None,
+    area: float | None = None,
+    behaviours: bool = False,
+    force: bool = False,
+) -> Any:
+    """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest)."""
+    from are_stats.fitting._fit_log import read_fit
+    from are_stats.scenarios import generate_scenarios, posterior_draws, write_scenarios
+
+    out = Path(out)
+    for name in ("artefacts.parquet", "manifest.yaml"):
+        check_writable(out / name, force)
+    idata = read_fit(fit_path)
+    grid = None
+    if map_path is not None:
+        from are_stats.environment import OccupancyGrid
+
+        grid = OccupancyGrid.from_ros_yaml(map_path)
+    if area is None and grid is None:
+        area = float(idata.posterior.attrs["area"])
+    t = time.perf_counter()
+    df = generate_scenarios(
+        seed, posterior_draws(idata), n_scenarios, horizon, free_mask=grid, area=area
+    )
+    labels = _class_labels(idata)
+    manifest = {
+        "fit": str(fit_path),
+        "map": None if map_path is None else str(map_path),
+        "seed": int(seed),
+        "class_labels": labels,
+    }
+    if behaviours:
+        manifest["tracks"] = _behaviour_tracks(seed, df, grid, labels, out, force)
+    paths = write_scenarios(df, out, manifest=manifest, force=force)
+    console.print(
+        f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
+        f"wrote {paths[0]} and {paths[1]}"
+    )
+    return df
+
+
+def _class_labels(idata: Any) -> list[str] | None:
+    """Class names of the fit's mixture components when the log had labels."""
+    names = idata.posterior.attrs.get("class_labels")
+    return str(names).split(",") if names else None
+
+
+def _behaviour_tracks(seed, df, grid, labels, out, force):
+    from are_stats.behaviour import scenario_tracks
+
+    if grid is None:
+        raise ValueError("--behaviours: expected --map (trajectories need the grid)")
+    tracks = scenario_tracks(jax.random.key(seed), df, grid, class_labels=labels)
+    path = Path(out) / "tracks.parquet"
+    with atomic_path(path, force=force) as tmp:
+        tracks.to_parquet(tmp, index=False)
+    return str(path.name)
+
+
+def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
+    """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
+    out = Path(out)
+    fit_file = out / "courtyard_traffic.nc" if quick else DEMO_FIT
+    summary_file = out / "summary.yaml"
+    check_writable(summary_file, force)
+    check_writable(fit_file, force)
+    t0 = time.perf_counter()
+    console.rule("[bold]are_stats demo: from a field log to scenarios")
+    idata = run_fit(
+        EXAMPLE_LOG,
+        fit_file,
+        method="nuts",
+        seed=0,
+        force=force,
+        warmup=200 if quick else 500,
+        samples=200 if quick else 500,
+        chains=2 if quick else 4,
+        figures=out / "criticism",
+        n_replicates=50 if quick else 200,
+    )
+    df = run_generate(fit_file, 100, 3600.0, 1, out / "scenarios", EXAMPLE_MAP, None, False, force)
+    from are_stats.scenarios import scenario_counts
+
+    n_t = scenario_counts(df, np.array([1800.0]), 100)[:, 0]
+    post = idata.posterior
+    desc = yaml.safe_load((EXAMPLE_LOG.with_suffix(".yaml")).read_text())["description"]
+    summary = {
+        "are_stats_version": __version__,
+        "log": str(EXAMPLE_LOG.relative_to(ROOT)),
+        "truth": desc,
+        "fit": str(fit_file),
+        "posterior_mean": {
+            "arrival_rate": float(post["arrival_rate"].mean()),
+            "leave_rate": float(post["leave_rate"].mean()),
+            "mix_weights": np.asarray(post["mix_weights"].mean(("chain", "draw"))).tolist(),
+            "mix_rates": np.asarray(post["mix_rates"].mean(("chain", "draw"))).tolist(),
+        },
+        "scenarios": {
+            "n": 100,
+            "horizon_s": 3600.0,
+            "artefacts": len(df),
+            "mean_present_at_30min": float(n_t.mean()),
+            "var_present_at_30min": float(n_t.var(ddof=1)),
+        },
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
+    with atomic_path(summary_file, force=force) as tmp:
+        tmp.write_text(yaml.safe_dump(summary, sort_keys=False))
+    console.rule("[bold]summary")
+    console.print(yaml.safe_dump(summary, sort_keys=False))
+    console.print(f"outputs in {out}/ (figures in {out / 'criticism'}/), fit in {fit_file}")
+    return summary

@@ -1,0 +1,430 @@
+"""Summary table and posterior-predictive checks of a life-cycle fit (``are-stats report``).
+
+Real traffic is rarely Poisson, so every fit is criticised against replicated windows drawn
+from its own posterior: the same window and area, a stationary start, one posterior draw
+per replicate (:func:`are_stats.scenarios.generate_scenarios`). The checks compare
+
+* ``N(t)``, the artefacts present over the window, with the predictive 50% / 90% bands;
+* inter-arrival times (ECDF against the predictive ECDF band);
+* dwell times: the Kaplan-Meier curve of the observed stays (right-censored at ``t1``)
+  against the fitted exponential survival band;
+* arrivals per hour of the day (the paper's homogeneous rate predicts a flat profile);
+* the dispersion index of arrival counts per bin (1 for Poisson) against its predictive
+  distribution, with the posterior-predictive p-value;
+* the histogram of marks against the fitted mixture of eq. (1).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from are_stats._atomic import atomic_path
+from are_stats.fitting._criticism import count_path, hour_of_day_counts, kaplan_meier
+from are_stats.scenarios import generate_scenarios, posterior_draws
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", FutureWarning)  # arviz 0.23 announces its 1.0 refactor
+    import arviz as az
+
+__all__ = [
+    "PARAMETERS",
+    "fit_summary",
+    "predictive_windows",
+    "PredictiveChecks",
+    "predictive_checks",
+    "plot_checks",
+    "write_report",
+]
+
+PARAMETERS = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
+
+
+def fit_summary(idata: az.InferenceData) -> pd.DataFrame:
+    """Posterior summary: mean, sd, 94% HDI, MCSE, bulk/tail ESS and r_hat per parameter.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A fit written by :func:`are_stats.fitting.fit_log` / ``are-stats fit``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ArviZ's summary, one row per scalar parameter. For single-chain fits (the ``em``
+        method) r_hat is undefined (NaN).
+    """
+    names = [n for n in PARAMETERS if n in idata.posterior]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # r_hat of a single chain / bootstrap draws
+        return az.summary(idata, var_names=names, round_to="none")
+
+
+def _observed(idata: az.InferenceData) -> dict[str, Any]:
+    obs = idata.observed_data
+    out = {n: np.asarray(obs[n].values) for n in ("t_arrive", "t_leave", "censored", "truncated")}
+    out["marks"] = np.asarray(obs["marks"].values) if "marks" in obs else None
+    window = np.asarray(idata.posterior.attrs["window"], dtype=float)
+    out["window"] = (float(window[0]), float(window[1]))
+    out["area"] = float(idata.posterior.attrs["area"])
+    return out
+
+
+def predictive_windows(key: Any, idata: az.InferenceData, n_replicates: int = 200) -> pd.DataFrame:
+    """Replicated observation windows from the posterior (stationary start).
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        Seed of the replicates.
+    idata : arviz.InferenceData
+        The fit.
+    n_replicates : int
+        Number of replicated windows (posterior draws taken at random).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The scenario table of :func:`are_stats.scenarios.generate_scenarios` with times
+        shifted to the fit's window ``[t0, t1]``.
+    """
+    obs = _observed(idata)
+    t0, t1 = obs["window"]
+    df = generate_scenarios(
+        key,
+        posterior_draws(idata),
+        n_scenarios=n_replicates,
+        horizon=t1 - t0,
+        area=obs["area"],
+        start="stationary",
+        draw="random",
+        headings=0,
+    )
+    df["t_arrive"] = df["t_arrive"] + t0
+    df["t_leave"] = df["t_leave"] + t0
+    return df
+
+
+class PredictiveChecks:
+    """Observed summaries and their posterior-predictive replicates.
+
+    Attributes
+    ----------
+    times : (m,) float
+        Grid of the ``N(t)`` check.
+    counts_obs : (m,) int
+        Observed ``N(t)``.
+    counts_rep : (R, m) int
+        Replicated ``N(t)``.
+    gaps_obs : (g,) float
+        Observed inter-arrival times.
+    gaps_rep : list of arrays
+        Replicated inter-arrival times.
+    km : KaplanMeier
+        Kaplan-Meier curve of the observed stays (arrival observed).
+    leave_rate : (S,) float
+        Posterior draws of ``mu`` for the survival band.
+    hours_obs : (24,) int
+        Observed arrivals per hour of the day.
+    hours_rep : (R, 24) int
+        Replicated arrivals per hour of the day.
+    dispersion_obs : float
+        Observed dispersion index of arrivals per bin.
+    dispersion_rep : (R,) float
+        Replicated dispersion indices.
+    dispersion_pvalue : float
+        Two-sided posterior-predictive p-value of the dispersion index.
+    bin_width : float
+        Width of the count bins of the dispersion check (seconds).
+    marks_obs : (n,) int or None
+        Observed marks.
+    mix_weights, mix_rates : (S, K) float or None
+        Posterior draws of the mixture.
+    """
+
+    def __init__(self, **kw: Any) -> None:
+        self.__dict__.update(kw)
+
+
+def _dispersion(t: np.ndarray, t0: float, t1: float, width: float) -> float:
+    n_bins = int((t1 - t0) // width)
+    c = np.bincount(((t - t0) // width).astype(np.int64), minlength=n_bins)[:n_bins]
+    return float(c.var(ddof=1) / c.mean()) if c.mean() > 0 else float("nan")
+
+
+def predictive_checks(
+    key: Any,
+    idata: az.InferenceData,
+    n_replicates: int = 200,
+    clock_offset: float = 0.0,
+    n_bins: int = 60,
+) -> PredictiveChecks:
+    """Compute every posterior-predictive check of the module docstring.
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        Seed of the replicates.
+    idata : arviz.InferenceData
+        The fit.
+    n_replicates : int
+        Replicated windows.
+    clock_offset : float
+        Time of day (seconds after midnight) at ``t = 0`` of the log.
+    n_bins : int
+        Number of equal bins of the window for the dispersion index.
+
+    Returns
+    -------
+    PredictiveChecks
+    """
+    obs = _observed(idata)
+    t0, t1 = obs["window"]
+    rep = predictive_windows(key, idata, n_replicates)
+    times = np.linspace(t0, t1, 201)
+    counts_obs = count_path(obs["t_arrive"], obs["t_leave"], times)
+    arrive_rep = np.where(rep["truncated"].to_numpy(), np.nan, rep["t_arrive"].to_numpy())
+    leave_rep = rep["t_leave"].to_numpy()
+    sid = rep["scenario"].to_numpy()
+    groups = np.split(np.arange(sid.size), np.flatnonzero(np.diff(sid)) + 1)
+    present = np.unique(sid)
+    counts_rep = np.zeros((n_replicates, times.size), dtype=np.int64)
+    gaps_rep, hours_rep, disp_rep = [], np.zeros((n_replicates, 24), np.int64), []
+    width = (t1 - t0) / n_bins
+    for s, idx in zip(present, groups, strict=True):
+        counts_rep[s] = count_path(arrive_rep[idx], leave_rep[idx], times)
+        a = arrive_rep[idx]
+        a = np.sort(a[np.isfinite(a)])
+        gaps_rep.append(np.diff(a))
+        hours_rep[s] = hour_of_day_counts(a, 86400.0, 24, clock_offset)
+        disp_rep.append(_dispersion(a, t0, t1, width))
+    for _ in np.setdiff1d(np.arange(n_replicates), present):  # empty replicate windows
+        gaps_rep.append(np.array([]))
+        disp_rep.append(float("nan"))
+    arrived = np.sort(obs["t_arrive"][~obs["truncated"]])
+    stays = ~obs["truncated"]
+    dwell = np.where(obs["censored"], t1, obs["t_leave"]) - obs["t_arrive"]
+    km = kaplan_meier(dwell[stays], obs["censored"][stays]) if stays.any() else None
+    disp_obs = _dispersion(arrived, t0, t1, width)
+    d = np.asarray(disp_rep)
+    d = d[np.isfinite(d)]
+    p = 2 * min((d >= disp_obs).mean(), (d <= disp_obs).mean()) if d.size else float("nan")
+    draws = posterior_draws(idata)
+    return PredictiveChecks(
+        times=times,
+        counts_obs=counts_obs,
+        counts_rep=counts_rep,
+        gaps_obs=np.diff(arrived),
+        gaps_rep=gaps_rep,
+        km=km,
+        leave_rate=draws["leave_rate"],
+        hours_obs=hour_of_day_counts(arrived, 86400.0, 24, clock_offset),
+        hours_rep=hours_rep,
+        dispersion_obs=disp_obs,
+        dispersion_rep=np.asarray(disp_rep),
+        dispersion_pvalue=float(min(p, 1.0)),
+        bin_width=width,
+        marks_obs=obs["marks"],
+        mix_weights=draws.get("mix_weights"),
+        mix_rates=draws.get("mix_rates"),
+        window=(t0, t1),
+    )
+
+
+def _band(ax, x, reps, color, label, step=False):
+    q = np.nanquantile(reps, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
+    kw = {"step": "post"} if step else {}
+    ax.fill_between(x, q[0], q[4], color=color, alpha=0.18, lw=0, label=f"{label} 90%", **kw)
+    ax.fill_between(x, q[1], q[3], color=color, alpha=0.35, lw=0, label=f"{label} 50%", **kw)
+
+
+def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
+    """Draw the six posterior-predictive checks, one matplotlib figure each.
+
+    Parameters
+    ----------
+    checks : PredictiveChecks
+        Output of :func:`predictive_checks`.
+
+    Returns
+    -------
+    dict
+        ``{name: matplotlib.figure.Figure}`` with names ``ppc_counts``,
+        ``ppc_interarrival``, ``ppc_dwell``, ``ppc_hour_of_day``, ``ppc_dispersion`` and,
+        for logs with marks, ``ppc_marks``; plus ``criticism`` with all panels.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    c = checks
+    t0 = c.window[0]
+    panels = ["counts", "interarrival", "dwell", "hour_of_day", "dispersion"]
+    if c.marks_obs is not None and c.mix_rates is not None:
+        panels.append("marks")
+    figs: dict[str, Any] = {}
+    overview, axes = plt.subplots(2, 3, figsize=(15, 8))
+    for name, big_ax in zip(panels, axes.ravel(), strict=False):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for a in (ax, big_ax):
+            _draw_panel(name, a, c, t0)
+        fig.tight_layout()
+        figs[f"ppc_{name}"] = fig
+    for a in axes.ravel()[len(panels) :]:
+        a.set_axis_off()
+    overview.suptitle("Posterior-predictive checks of the life-cycle fit")
+    overview.tight_layout()
+    figs["criticism"] = overview
+    return figs
+
+
+def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
+    from scipy import stats
+
+    if name == "counts":
+        x = (c.times - t0) / 60.0
+        _band(ax, x, c.counts_rep, "C0", "predictive", step=True)
+        ax.step(x, c.counts_obs, where="post", color="k", lw=1.2, label="observed")
+        ax.set(xlabel="time in window [min]", ylabel="N(t) artefacts present")
+        ax.set_title("Artefacts present N(t)")
+    elif name == "interarrival":
+        grid = np.quantile(c.gaps_obs, np.linspace(0, 0.995, 100)) if c.gaps_obs.size else []
+        grid = np.asarray(grid)
+        reps = np.array(
+            [np.searchsorted(np.sort(g), grid, "right") / max(g.size, 1) for g in c.gaps_rep]
+        )
+        _band(ax, grid, reps, "C0", "predictive")
+        ecdf = np.searchsorted(np.sort(c.gaps_obs), grid, "right") / max(c.gaps_obs.size, 1)
+        ax.plot(grid, ecdf, "k", lw=1.2, label="observed")
+        ax.set(xlabel="inter-arrival time [s]", ylabel="ECDF")
+        ax.set_title("Inter-arrival times")
+    elif name == "dwell":
+        if c.km is not None:
+            tmax = c.km.time.max() if c.km.time.size else 1.0
+            grid = np.linspace(0, tmax, 200)
+            surv = np.exp(-np.outer(c.leave_rate, grid))
+            _band(ax, grid / 60.0, surv, "C1", "fitted exponential")
+            x = np.concatenate([[0.0], c.km.time]) / 60.0
+            ax.step(
+                x,
+                np.concatenate([[1.0], c.km.survival]),
+                where="post",
+                color="k",
+                lw=1.2,
+                label="Kaplan-Meier (observed)",
+            )
+            ax.fill_between(
+                x,
+                np.concatenate([[1.0], c.km.lower]),
+                np.concatenate([[1.0], c.km.upper]),
+                step="post",
+                color="k",
+                alpha=0.12,
+                lw=0,
+                label="KM 95% band",
+            )
+        ax.set(xlabel="dwell time [min]", ylabel="survival S(t)", ylim=(0, 1.02))
+        ax.set_title("Dwell times (censored at window end)")
+    elif name == "hour_of_day":
+        hours = np.arange(24)
+        q = np.quantile(c.hours_rep, [0.05, 0.5, 0.95], axis=0)
+        ax.bar(hours, c.hours_obs, color="0.6", width=0.8, label="observed arrivals")
+        ax.errorbar(
+            hours,
+            q[1],
+            yerr=[q[1] - q[0], q[2] - q[1]],
+            fmt="o",
+            color="C0",
+            ms=3,
+            capsize=2,
+            label="predictive median, 90%",
+        )
+        ax.set(xlabel="hour of day", ylabel="arrivals", xticks=range(0, 24, 3))
+        covered = np.flatnonzero((c.hours_rep.sum(0) > 0) | (c.hours_obs > 0))
+        if covered.size:  # a window shorter than a day: show only the hours it covers
+            ax.set_xlim(covered.min() - 0.6, covered.max() + 0.6)
+            ax.set_xticks(covered)
+        ax.set_title("Arrivals per hour of day")
+    elif name == "dispersion":
+        d = c.dispersion_rep[np.isfinite(c.dispersion_rep)]
+        ax.hist(d, bins=30, color="C0", alpha=0.5, label="predictive")
+        ax.axvline(c.dispersion_obs, color="k", lw=1.5, label="observed")
+        ax.axvline(1.0, color="C3", ls=":", lw=1, label="Poisson (1)")
+        ax.set(
+            xlabel=f"variance / mean of arrivals per {c.bin_width / 60:.3g} min",
+            ylabel="replicates",
+        )
+        ax.set_title(f"Dispersion index (pp p-value {c.dispersion_pvalue:.2f})")
+    elif name == "marks":
+        k = np.arange(int(c.marks_obs.max()) + 6)
+        sub = np.linspace(0, c.mix_rates.shape[0] - 1, min(200, c.mix_rates.shape[0]))
+        sub = sub.astype(int)
+        pmf = np.einsum(
+            "sk,skn->sn",
+            c.mix_weights[sub],
+            stats.poisson.pmf(k[None, None, :], c.mix_rates[sub][:, :, None]),
+        )
+        ax.bar(
+            k,
+            np.bincount(c.marks_obs, minlength=k.size)[: k.size] / c.marks_obs.size,
+            color="0.6",
+            width=0.85,
+            label="observed marks",
+        )
+        _band(ax, k, pmf, "C3", "posterior mixture")
+        ax.set(xlabel="mark X", ylabel="Pr(X = k)")
+        ax.set_title("Marks vs Poisson mixture (eq. 1)")
+    ax.legend(fontsize=7, loc="best")
+
+
+def write_report(
+    idata: az.InferenceData,
+    out_dir: str | Path,
+    key: Any = 0,
+    n_replicates: int = 200,
+    clock_offset: float = 0.0,
+    force: bool = False,
+) -> dict[str, Path]:
+    """Write the summary table (CSV) and every check figure (PNG) of a fit.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        The fit.
+    out_dir : str or Path
+        Folder for ``summary.csv`` and ``ppc_*.png`` / ``criticism.png``.
+    key : int or jax PRNG key
+        Seed of the replicated windows.
+    n_replicates : int
+        Replicated windows.
+    clock_offset : float
+        Time of day (s) at ``t = 0`` of the log.
+    force : bool
+        Overwrite existing files.
+
+    Returns
+    -------
+    dict
+        ``{name: path}`` of everything written.
+    """
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    written: dict[str, Path] = {}
+    summary = fit_summary(idata)
+    with atomic_path(out / "summary.csv", force=force) as tmp:
+        summary.to_csv(tmp)
+    written["summary"] = out / "summary.csv"
+    checks = predictive_checks(key, idata, n_replicates, clock_offset)
+    for name, fig in plot_checks(checks).items():
+        path = out / f"{name}.png"
+        with atomic_path(path, force=force) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+        plt.close(fig)
+        written[name] = path
+    return written

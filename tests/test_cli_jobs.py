@@ -1,0 +1,267 @@
+"""End to end: are-stats fit -> report -> generate on small synthetic logs (issue 3).
+
+Statistical checks state their false-failure rate: the conjugate comparison uses a
+4-MCSE bound on the mean (about 6e-5 per parameter for a correct sampler) and a 10% bound
+on the sd; the chi-square uses ALPHA from tests.helpers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import arviz as az
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from scipy import stats
+from typer.testing import CliRunner
+
+from are_stats.cli import app
+from are_stats.traffic import (
+    LifecyclePriors,
+    conjugate_arrival_rate,
+    conjugate_leave_rate,
+    simulate_lifecycle,
+)
+from tests.helpers import chisquare_gof
+
+runner = CliRunner()
+AREA = 400.0
+
+
+def _write_log(folder: Path, labels: bool = False, seed: int = 0) -> tuple[Path, object]:
+    """A 2-hour log with censoring and truncation: lambda*A = 1/20 per s, mean stay 5 min."""
+    data = simulate_lifecycle(
+        jax.random.key(seed),
+        1 / 20 / AREA,
+        1 / 300,
+        [0.6, 0.4],
+        [3.0, 20.0],
+        (0.0, 7200.0),
+        area=AREA,
+    )
+    df = pd.DataFrame(
+        {
+            "id": [f"x{i}" for i in range(data.n)],
+            "t_arrive": data.t_arrive,
+            "t_leave": data.t_leave,
+            "mark": data.marks,
+        }
+    )
+    if labels:
+        df["label"] = np.asarray(["small", "large"])[data.labels]
+    path = folder / "log.csv"
+    df.to_csv(path, index=False, na_rep="")
+    (folder / "log.yaml").write_text(yaml.safe_dump({"window": [0.0, 7200.0], "area": AREA}))
+    return path, data
+
+
+def _invoke(args):
+    res = runner.invoke(app, [str(a) for a in args])
+    return res
+
+
+def test_fit_report_generate_em(tmp_path):
+    log, data = _write_log(tmp_path, labels=False)
+    fit = tmp_path / "fits" / "small.nc"
+    res = _invoke(
+        [
+            "fit",
+            log,
+            "--out",
+            fit,
+            "--method",
+            "em",
+            "--samples",
+            "200",
+            "--chains",
+            "2",
+            "--seed",
+            "3",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    assert "arrival_rate" in res.output and "mix_rates[1]" in res.output
+    idata = az.from_netcdf(fit)
+    for group in ("posterior", "log_likelihood", "observed_data", "prior"):
+        assert group in idata.groups()
+    post = idata.posterior
+    assert set(post.data_vars) >= {"arrival_rate", "leave_rate", "mix_weights", "mix_rates"}
+    assert post.attrs["method"] == "em" and post.attrs["seed"] == 3
+    assert np.allclose(post.attrs["window"], [0.0, 7200.0]) and post.attrs["area"] == AREA
+    # two well separated components, found by BIC, rates near the truth (3, 20)
+    rates = post["mix_rates"].mean(("chain", "draw")).values
+    assert rates.shape == (2,) and abs(rates[0] - 3) < 0.6 and abs(rates[1] - 20) < 2
+    figures = fit.with_suffix("")
+    for name in (
+        "summary.csv",
+        "criticism.png",
+        "ppc_counts.png",
+        "ppc_dwell.png",
+        "ppc_marks.png",
+        "ppc_hour_of_day.png",
+        "ppc_interarrival.png",
+        "ppc_dispersion.png",
+    ):
+        assert (figures / name).stat().st_size > 0, name
+    # no overwrite without --force, then report and generate
+    res = _invoke(["fit", log, "--out", fit, "--method", "em"])
+    assert res.exit_code == 2 and "already exists" in res.output
+    res = _invoke(["report", fit, "--out", tmp_path / "rep", "--replicates", "20"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "rep" / "ppc_counts.png").exists()
+    out = tmp_path / "scen"
+    res = _invoke(
+        ["generate", fit, "--scenarios", "50", "--horizon", "600", "--seed", "7", "--out", out]
+    )
+    assert res.exit_code == 0, res.output
+    df = pd.read_parquet(out / "artefacts.parquet")
+    assert df["scenario"].nunique() == 50 and set(df["class"]) <= {0, 1}
+    manifest = yaml.safe_load((out / "manifest.yaml").read_text())
+    assert manifest["seed"] == 7 and manifest["fit"] == str(fit)
+    first = (out / "artefacts.parquet").read_bytes()
+    res = _invoke(
+        [
+            "generate",
+            fit,
+            "--scenarios",
+            "50",
+            "--horizon",
+            "600",
+            "--seed",
+            "7",
+            "--out",
+            out,
+            "--force",
+        ]
+    )
+    assert res.exit_code == 0 and (out / "artefacts.parquet").read_bytes() == first
+
+
+def test_nuts_fit_matches_conjugate_posterior(tmp_path):
+    log, data = _write_log(tmp_path, labels=True, seed=1)
+    assert data.truncated.any() and data.censored.any()
+    fit = tmp_path / "nuts.nc"
+    res = _invoke(
+        [
+            "fit",
+            log,
+            "--out",
+            fit,
+            "--no-figures",
+            "--no-stationary-start",
+            "--warmup",
+            "400",
+            "--samples",
+            "600",
+            "--chains",
+            "2",
+            "--seed",
+            "1",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    idata = az.from_netcdf(fit)
+    assert idata.posterior.attrs["class_labels"] == "large,small"
+    summary = az.summary(idata, var_names=["arrival_rate", "leave_rate"], round_to="none")
+    assert (summary["ess_bulk"] > 400).all(), summary
+    priors = LifecyclePriors()
+    for name, law in (
+        ("arrival_rate", conjugate_arrival_rate(data, priors)),
+        ("leave_rate", conjugate_leave_rate(data, priors)),
+    ):
+        row = summary.loc[name]
+        assert abs(row["mean"] - law.mean) < 4 * row["mcse_mean"], (name, row, law)
+        assert abs(row["sd"] / law.sd - 1) < 0.10, (name, row["sd"], law.sd)
+
+
+def test_scenarios_reproduce_fitted_stationary_law(tmp_path):
+    log, _ = _write_log(tmp_path)
+    fit = tmp_path / "f.nc"
+    assert (
+        _invoke(
+            [
+                "fit",
+                log,
+                "--out",
+                fit,
+                "--method",
+                "em",
+                "--no-figures",
+                "--samples",
+                "250",
+                "--chains",
+                "2",
+            ]
+        ).exit_code
+        == 0
+    )
+    out = tmp_path / "s"
+    assert (
+        _invoke(
+            [
+                "generate",
+                fit,
+                "--scenarios",
+                "3000",
+                "--horizon",
+                "900",
+                "--seed",
+                "2",
+                "--out",
+                out,
+            ]
+        ).exit_code
+        == 0
+    )
+    df = pd.read_parquet(out / "artefacts.parquet")
+    t = 450.0
+    alive = df[(df.t_arrive <= t) & (df.t_leave > t)].groupby("scenario").size()
+    n_t = alive.reindex(range(3000), fill_value=0).to_numpy()
+    post = az.from_netcdf(fit).posterior
+    lam = post["arrival_rate"].values.ravel()
+    mu = post["leave_rate"].values.ravel()
+    draws = np.arange(3000) % lam.size  # scenario i uses draw i mod S
+    means = lam[draws] * AREA / mu[draws]
+
+    def pmf(k):
+        return stats.poisson.pmf(np.asarray(k)[:, None], means[None, :]).mean(axis=1)
+
+    chisquare_gof(n_t, pmf)
+
+
+@pytest.mark.parametrize(
+    "content, match",
+    [
+        ("id,t_arrive,t_leave\na,1,x\n", r"row 1 \(line 2\), column 't_leave'"),
+        ("id,t_arrive,t_leave\na,5,2\n", "t_leave"),
+        ("id,t_arrive\na,1\n", "t_leave"),
+        ("", "empty"),
+    ],
+)
+def test_fit_bad_log_gives_clear_error(tmp_path, content, match):
+    log = tmp_path / "bad.csv"
+    log.write_text(content)
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"window": [0.0, 10.0], "area": 5.0}))
+    res = _invoke(["fit", log, "--out", tmp_path / "x.nc", "--method", "em"])
+    assert res.exit_code == 2
+    assert "error:" in res.output and str(log) in res.output
+    assert pytest.importorskip("re").search(match, res.output), res.output
+    assert "Traceback" not in res.output
+
+
+def test_report_missing_fit(tmp_path):
+    res = _invoke(["report", tmp_path / "nope.nc"])
+    assert res.exit_code == 2 and "no such fit file" in res.output
+
+
+def test_demo_quick(tmp_path):
+    res = _invoke(["demo", "--out", tmp_path / "demo", "--quick"])
+    assert res.exit_code == 0, res.output
+    summary = yaml.safe_load((tmp_path / "demo" / "summary.yaml").read_text())
+    assert summary["scenarios"]["n"] == 100
+    # the example log's truth: lambda * area = 1/30 per s, mu = 1/600 per s
+    assert abs(summary["posterior_mean"]["leave_rate"] * 600 - 1) < 0.15
+    assert (tmp_path / "demo" / "criticism" / "criticism.png").exists()
