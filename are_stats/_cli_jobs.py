@@ -320,3 +320,90 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     console.print(yaml.safe_dump(summary, sort_keys=False))
     console.print(f"outputs in {out}/ (figures in {out / 'criticism'}/), fit in {fit_file}")
     return summary
+
+
+def _class_sizes(labels: list[str] | None, classes_present: np.ndarray) -> dict[int, tuple]:
+    """Box size (length, width, height) per class index from the artefact catalogue.
+
+    Class ``c`` is ``labels[c]`` when the fit had labels, else row ``c`` of the catalogue
+    (clipped to its last row, DECISIONS 5).
+    """
+    from are_stats.environment import load_catalogue
+
+    cat = load_catalogue()
+    sizes = {}
+    for c in np.unique(classes_present).tolist():
+        if labels is not None and 0 <= c < len(labels) and labels[c] in cat.labels:
+            cls = cat[labels[c]]
+        else:
+            cls = cat.row(max(int(c), 0))
+        sizes[c] = tuple(float(v) for v in 2.0 * cls.half_extents)
+    return sizes
+
+
+def run_perceive(
+    scenario: Path,
+    camera_path: Path,
+    robot_path: Path,
+    *,
+    mesh: Path | None = None,
+    wall_height: float = 2.5,
+    d_max: float = 30.0,
+    tau: float = 50.0,
+    camera_height: float = 1.0,
+    occlusion_between_artefacts: bool = False,
+    out: Path | None = None,
+    force: bool = False,
+) -> Any:
+    """Add perceived flags (A_f, eq. 2) to a scenario folder for a robot path."""
+    import pandas as pd
+
+    from are_stats.environment import OccupancyGrid, extrude_grid, load_mesh
+    from are_stats.perception import PinholeCamera, optical_from_base, perceive_scenario
+    from are_stats.scenarios import read_scenarios
+
+    scenario = Path(scenario)
+    target = Path(out) if out is not None else scenario / "perceived.parquet"
+    check_writable(target, force)
+    df, manifest = read_scenarios(scenario)
+    camera = PinholeCamera.from_yaml(camera_path)
+    path = Path(robot_path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: robot path file not found")
+    robot = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+    missing = [c for c in ("t", "x", "y", "yaw") if c not in robot.columns]
+    if missing:
+        raise ValueError(f"{path}: expected columns t, x, y, yaw; missing {missing}")
+    if mesh is not None:
+        env = load_mesh(mesh)
+    elif manifest.get("map"):
+        env = extrude_grid(OccupancyGrid.from_ros_yaml(manifest["map"]), wall_height)
+    else:
+        raise ValueError(
+            f"{scenario}: the scenarios have no map in their manifest; pass --mesh MESH"
+        )
+    mount = None
+    if np.allclose(camera.pose, np.eye(4)):  # no mount in the camera file: forward-looking
+        mount = optical_from_base((0.0, 0.0, camera_height))
+    sizes = _class_sizes(manifest.get("class_labels"), df["class"].to_numpy())
+    t = time.perf_counter()
+    with console.status(f"perceiving {len(df)} artefacts over {len(robot)} robot poses ..."):
+        res = perceive_scenario(
+            df,
+            robot,
+            sizes,
+            env,
+            camera,
+            d_max,
+            tau,
+            mount=mount,
+            occlusion_between_artefacts=occlusion_between_artefacts,
+        )
+    with atomic_path(target, force=force) as tmp:
+        res.to_parquet(tmp, index=False)
+    n_p = int(res["perceived"].sum())
+    console.print(
+        f"{n_p} of {len(res)} artefacts perceived (tau={tau}, d_max={d_max} m) in "
+        f"{time.perf_counter() - t:.1f} s; wrote {target}"
+    )
+    return res

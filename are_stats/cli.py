@@ -183,5 +183,46 @@ def demo(
         raise _fail(err) from None
 
 
+@app.command()
+def perceive(
+    scenario: Path = typer.Argument(
+        ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
+    ),
+    camera: Path = typer.Option(..., "--camera", help="Camera YAML (ROS camera_info fields)."),
+    robot_path: Path = typer.Option(
+        ..., "--robot-path", help="Robot base poses over time: CSV/Parquet with t, x, y, yaw."
+    ),
+    mesh: Path = typer.Option(
+        None, "--mesh", help="Environment mesh (default: walls extruded from the map)."
+    ),
+    d_max: float = typer.Option(30.0, "--d-max", help="Maximum viewing distance d_max (m)."),
+    tau: float = typer.Option(50.0, "--tau", help="Pixels needed to perceive (count > tau)."),
+    camera_height: float = typer.Option(
+        1.0, "--camera-height", help="Camera height (m) when the camera file has no pose."
+    ),
+    mutual: bool = typer.Option(False, "--mutual", help="Artefacts also occlude each other."),
+    out: Path = typer.Option(None, "--out", help="Output (default SCENARIO/perceived.parquet)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
+) -> None:
+    """Add perceived flags (A_f: count of unoccluded box pixels > tau) to scenarios."""
+    from are_stats._cli_jobs import run_perceive
+
+    try:
+        run_perceive(
+            scenario,
+            camera,
+            robot_path,
+            mesh=mesh,
+            d_max=d_max,
+            tau=tau,
+            camera_height=camera_height,
+            occlusion_between_artefacts=mutual,
+            out=out,
+            force=force,
+        )
+    except _ERRORS as err:
+        raise _fail(err) from None
+
+
 def main() -> None:  # pragma: no cover - console entry
     app()

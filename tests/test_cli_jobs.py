@@ -265,3 +265,67 @@ def test_demo_quick(tmp_path):
     # the example log's truth: lambda * area = 1/30 per s, mu = 1/600 per s
     assert abs(summary["posterior_mean"]["leave_rate"] * 600 - 1) < 0.15
     assert (tmp_path / "demo" / "criticism" / "criticism.png").exists()
+
+
+def test_perceive_adds_flags(tmp_path):
+    log, _ = _write_log(tmp_path)
+    fit = tmp_path / "f.nc"
+    assert (
+        _invoke(
+            [
+                "fit",
+                log,
+                "--out",
+                fit,
+                "--method",
+                "em",
+                "--no-figures",
+                "--samples",
+                "50",
+                "--chains",
+                "2",
+            ]
+        ).exit_code
+        == 0
+    )
+    scen = tmp_path / "scen"
+    res = _invoke(
+        [
+            "generate",
+            fit,
+            "--scenarios",
+            "2",
+            "--horizon",
+            "300",
+            "--seed",
+            "0",
+            "--out",
+            scen,
+            "--map",
+            "models/courtyard.yaml",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    robot = tmp_path / "robot.csv"
+    robot.write_text("t,x,y,yaw\n0,-15,-10,0.6\n100,-10,-5,0.6\n200,-5,0,0.6\n")
+    res = _invoke(
+        [
+            "perceive",
+            scen,
+            "--camera",
+            "models/cameras/front_camera.yaml",
+            "--robot-path",
+            robot,
+            "--tau",
+            "20",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    df = pd.read_parquet(scen / "perceived.parquet")
+    assert {"perceived", "n_frames_perceived", "max_count"} <= set(df.columns)
+    # perceived exactly when the largest unoccluded pixel count exceeds tau
+    assert (df["perceived"] == (df["max_count"] > 20)).all()
+    res = _invoke(
+        ["perceive", scen, "--camera", tmp_path / "none.yaml", "--robot-path", robot, "--force"]
+    )
+    assert res.exit_code == 2 and "camera file not found" in res.output
