@@ -115,12 +115,11 @@ def run_fit(
             settings,
             counts_panel=panel,
             progress=lambda msg: status.update(f"fitting: {msg} ..."),
+            class_labels=lifecycle.to_arrays()["label_names"] if data.labels is not None else None,
         )
     idata.posterior.attrs.update(
         {"seed": int(seed), "log": str(log), "log_report": yaml.safe_dump(rep, sort_keys=False)}
     )
-    if data.labels is not None:  # class c of the mixture is label_names[c] (DECISIONS 5)
-        idata.posterior.attrs["class_labels"] = ",".join(lifecycle.to_arrays()["label_names"])
     write_fit(idata, out, force=force)
     summary = fit_summary(idata)
     console.print(_summary_table(summary, f"{method} fit in {time.perf_counter() - t_start:.1f} s"))

@@ -45,10 +45,8 @@ def render_map(
     -------
     Path
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.transforms
     from matplotlib.patches import Patch, Polygon
 
     from are_stats.builder._geometry import box_corners

@@ -179,6 +179,7 @@ def fit_log(
     priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
     counts_panel: tuple[np.ndarray, np.ndarray] | None = None,
     progress: Any = None,
+    class_labels: Any = None,
 ) -> az.InferenceData:
     """Fit arrival rate, leave rate and mark mixture of a life-cycle log.
 
@@ -197,6 +198,9 @@ def fit_log(
         ``birth_death_*``).
     progress : callable, optional
         ``progress(message)`` is called at each stage (the CLI shows it).
+    class_labels : sequence of str, optional
+        Names of the classes ``0..K-1`` of a labelled log (stored as the comma-separated
+        attribute ``class_labels``; see ``LifecycleLog.to_arrays()["label_names"]``).
 
     Returns
     -------
@@ -287,6 +291,11 @@ def fit_log(
     attrs = {n: (int(v) if isinstance(v, bool) else v) for n, v in attrs.items()}
     if bics:
         attrs["bic_by_k"] = np.asarray(bics)
+    if class_labels is not None:
+        labels = [str(v) for v in class_labels]
+        if any("," in v for v in labels):
+            raise ValueError(f"class_labels: expected names without commas, got {labels}")
+        attrs["class_labels"] = ",".join(labels)
     if counts_panel is not None:
         say("exact birth-death MLE of the count panel")
         times, counts = counts_panel

@@ -257,9 +257,6 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
         ``ppc_interarrival``, ``ppc_dwell``, ``ppc_hour_of_day``, ``ppc_dispersion`` and,
         for logs with marks, ``ppc_marks``; plus ``criticism`` with all panels.
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     c = checks
