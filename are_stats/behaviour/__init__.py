@@ -1,0 +1,39 @@
+"""behaviour: the finite-horizon MDP H_A(t) of the ARE paper (Sec. 3.2) and its rollouts."""
+
+from __future__ import annotations
+
+__all__: list[str] = []
+
+from are_stats.behaviour._rewards import (  # noqa: E402
+    ACTIONS,
+    BEHAVIOURS,
+    HEADINGS,
+    allowed_actions,
+    follow_rewards,
+)
+
+__all__ += ["ACTIONS", "BEHAVIOURS", "HEADINGS", "allowed_actions", "follow_rewards"]
+
+from are_stats.behaviour._mdp import GridMDP, MDPSolution, backward_induction  # noqa: E402
+
+__all__ += ["GridMDP", "MDPSolution", "backward_induction"]
+
+from are_stats.behaviour._rollout import (  # noqa: E402
+    builder_resolver,
+    cells_to_tracks,
+    revert_collisions,
+    rollout,
+    scenario_tracks,
+)
+
+__all__ += [
+    "builder_resolver",
+    "cells_to_tracks",
+    "revert_collisions",
+    "rollout",
+    "scenario_tracks",
+]
+
+from are_stats.behaviour._plots import plot_tracks, plot_values  # noqa: E402
+
+__all__ += ["plot_tracks", "plot_values"]

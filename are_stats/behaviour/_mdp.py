@@ -1,0 +1,810 @@
+"""The finite-horizon MDP H_A(t) = {D, S, A_s, p_t, r_t} of the ARE paper (Sec. 3.2).
+
+Dynamics (DECISIONS.md items 6 and 7)
+-------------------------------------
+* **Grid axes.** ``occupied[row, col]`` with ``row`` along +y (north) and ``col`` along +x
+  (east), as in a ROS ``nav_msgs/OccupancyGrid`` (cell ``(0, 0)`` at the map origin).
+* **States** ``s = (row, col, h)`` with heading ``h`` in ``{0: east (+x, yaw 0),
+  1: north (+y, pi/2), 2: west (pi), 3: south (3 pi/2)}``. Dense exports order them as
+  ``s = (row * W + col) * 4 + h`` over *all* cells; occupied cells are absorbing with zero
+  reward (they are never entered).
+* **Actions** (in this order, which also breaks ties): ``0 stay``, ``1 forward`` (one cell
+  along the heading), ``2 run`` (two cells), ``3 left`` (``h -> h + 1``), ``4 right``
+  (``h -> h - 1``). Turns and stay are deterministic.
+* **Slip.** A move of ``k`` cells (forward ``k = 1``, run ``k = 2``) goes ``k`` cells along
+  the heading with probability ``1 - slip`` and ``k`` cells along the adjacent heading
+  ``h + 1`` or ``h - 1`` (sideways, heading kept) with probability ``slip / 2`` each.
+* **Blocking.** An outcome whose path leaves the map or crosses an occupied cell (for a run,
+  either of the two cells) is replaced by staying where the artefact is.
+* **Goal.** For walk and run, the goal cell (all four headings) is absorbing: entering it
+  earns ``goal_reward``, and nothing is earned after. Every action except ``stay`` costs
+  ``step_cost``. The terminal value is ``V_d = 0``.
+
+Because staying is always allowed and free, every value is ``>= 0``; an artefact that cannot
+reach its goal keeps the value of stopping (0), and values grow with the horizon.
+
+Backward induction
+------------------
+``V_d = 0`` and, for ``t = d - 1, ..., 0``,
+
+.. math::
+
+    Q_t(s, a) = r_t(s, a) + \\sum_{s'} p(s' | s, a) V_{t+1}(s'), \\quad
+    V_t(s) = \\max_a Q_t(s, a), \\quad \\pi_t(s) = \\arg\\max_a Q_t(s, a).
+
+The sum is a stencil: shifted copies of ``V_{t+1}`` (``jnp.pad`` + static slices) selected
+by precomputed "path is free" masks, never a dense ``S x S`` matrix. The epochs run in one
+``lax.scan``; a batch of artefacts with different goals, behaviours and horizons runs under
+``vmap`` (horizons are padded to the largest; epochs beyond an item's horizon keep the
+terminal value and the policy ``stay``).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.sparse as sp
+
+from are_stats._checks import check_array, check_nonnegative, check_probability, describe
+from are_stats.behaviour._rewards import (
+    ACTIONS,
+    FORWARD,
+    HEADINGS,
+    LEFT,
+    RIGHT,
+    RUN,
+    STAY,
+    allowed_actions,
+)
+
+__all__ = ["GridMDP", "MDPSolution", "backward_induction"]
+
+_DROW = np.array([d[0] for d in HEADINGS])
+_DCOL = np.array([d[1] for d in HEADINGS])
+#: Store every V_t in solve() when it takes at most this many bytes; else recompute on demand.
+_VALUES_BYTES = 64 * 2**20
+_DENSE_MAX_STATES = 20_000
+#: Tie-breaking order of the moves; ``stay`` wins only when strictly better (by ``tie_tol``).
+_MOVE_ORDER = (RUN, FORWARD, LEFT, RIGHT)
+#: Relative tolerance of that comparison per dtype (a few ulps of the largest value).
+_TIE_RTOL = {"float32": 1e-5, "float64": 1e-12}
+
+
+def _occupancy(occupied: Any) -> np.ndarray:
+    """The boolean occupancy array of ``occupied`` (an array or an OccupancyGrid-like object)."""
+    if hasattr(occupied, "free"):  # OccupancyGrid: unknown cells are not free (DECISIONS 4)
+        occupied = ~np.asarray(occupied.free, dtype=bool)
+    elif hasattr(occupied, "occupied"):
+        occupied = occupied.occupied
+    a = np.asarray(occupied)
+    if a.ndim != 2 or a.size == 0:
+        raise ValueError(f"occupied: expected a non-empty 2-d (H, W) array, got {describe(a)}")
+    if a.dtype != bool:
+        if not np.isin(a, (0, 1)).all():
+            raise ValueError(f"occupied: expected a boolean (H, W) array, got {describe(a)}")
+        a = a.astype(bool)
+    return a
+
+
+def _path_free(occupied: np.ndarray) -> np.ndarray:
+    """``ok[j, k - 1, r, c]``: moving ``k`` in {1, 2} cells along heading ``j`` stays free."""
+    h, w = occupied.shape
+    free = np.zeros((h + 4, w + 4), dtype=bool)
+    free[2:-2, 2:-2] = ~occupied
+    ok = np.ones((4, 2, h, w), dtype=bool)
+    for j in range(4):
+        for k in (1, 2):
+            for m in range(1, k + 1):
+                r0, c0 = 2 + m * _DROW[j], 2 + m * _DCOL[j]
+                ok[j, k - 1] &= free[r0 : r0 + h, c0 : c0 + w]
+    return ok
+
+
+def _solve_one(
+    ok: jax.Array,
+    occupied: jax.Array,
+    goal: jax.Array,
+    allow: jax.Array,
+    horizon: jax.Array,
+    follow: jax.Array | None,
+    slip: jax.Array,
+    step_cost: jax.Array,
+    goal_reward: jax.Array,
+    tie_tol: jax.Array,
+    n_epochs: int,
+    store_values: bool,
+    use_run: bool,
+    with_policy: bool,
+) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
+    """Backward induction for one artefact, returning heading-major ``(4, H, W)`` arrays.
+
+    Inside the scan each heading is one flat plane of the grid padded by two cells on every
+    side (``N = (H + 4)(W + 4)`` values, zero border). A shift by ``(dr, dc)`` cells is then a
+    contiguous slice at offset ``dr (W + 4) + dc``, and every epoch is a few vectorised loops
+    over the index range ``[m, N - m)``, ``m = 2 (W + 4)``: the grid's rows at full padded
+    width (the carry holds only that range). Masks enter as arithmetic where possible
+    (``+ penalty``, ``* keep``), which XLA's CPU backend vectorises better than selects.
+    Policy and values come back "wide", ``(..., H, W + 4)`` with the grid in columns
+    ``2 .. W + 1``, so that the caller can crop them without a copy.
+    """
+    dtype = slip.dtype
+    h_, w_ = goal.shape
+    wp_ = w_ + 4
+    n = (h_ + 4) * wp_
+    m = 2 * wp_
+
+    def flat(x: jax.Array, fill: Any) -> jax.Array:
+        """``(..., H, W)`` -> ``(..., N)`` padded with ``fill``."""
+        pad = [(0, 0)] * (x.ndim - 2) + [(2, 2), (2, 2)]
+        x = jnp.pad(x, pad, constant_values=fill)
+        return x.reshape(*x.shape[:-2], n)
+
+    def unflat(x: jax.Array) -> jax.Array:
+        """``(..., N - 2m)`` interior -> wide ``(..., H, W + 4)``."""
+        return x.reshape(*x.shape[:-1], h_, wp_)
+
+    ok_f = flat(ok, False)[..., m : n - m]  # (4, 2, L)
+    keep = flat(~(occupied | goal), False)[m : n - m]
+    bonus = flat(jnp.where(goal, goal_reward, jnp.zeros((), dtype)), 0.0)
+    # rewards can only be collected on free cells; with W = 0 on every blocked cell (and on
+    # the zero border), a one-cell move needs no mask: sum_j p_j W(s + d_j) plus the
+    # blocked probability mass times W(s)
+    free = ~occupied
+    follow_f = None if follow is None else flat(jnp.where(free, follow, 0.0), 0.0)
+    # per-action additive term: -cost when allowed, -inf when not (stay is always allowed)
+    cost = jnp.stack([jnp.zeros((), dtype)] + [step_cost] * 4)
+    penalty = jnp.where(allow, -cost, jnp.asarray(-jnp.inf, dtype))
+    p_main, p_side = 1 - slip, slip / 2
+    offsets = [(int(_DROW[j]) * wp_ + int(_DCOL[j])) for j in range(4)]
+    blocked = 1 - ok_f.astype(dtype)  # (4, 2, L)
+    p_blocked = [
+        [
+            p_main * blocked[h, k] + p_side * (blocked[(h + 1) % 4, k] + blocked[(h - 1) % 4, k])
+            for k in range(2)
+        ]
+        for h in range(4)
+    ]
+
+    def step(v: tuple[jax.Array, ...], xs: tuple[jax.Array, jax.Array | None]):
+        t, reward_t = xs
+        extra = bonus if reward_t is None else bonus + reward_t
+        wn = [jnp.pad(x, (m, m)) + extra for x in v]
+        inner = [x[m : n - m] for x in wn]
+        keep_t = keep & (t < horizon)
+        keep_v = keep_t.astype(dtype)
+        keep_p = keep_t.astype(jnp.int8)
+
+        def move(h: int, k: int) -> jax.Array:
+            if k == 1:
+
+                def shifted(j: int) -> jax.Array:
+                    return wn[h][m + offsets[j] : n - m + offsets[j]]
+
+                stay_part = p_blocked[h][0] * inner[h]
+            else:
+
+                def shifted(j: int) -> jax.Array:
+                    o = 2 * offsets[j]
+                    return jnp.where(ok_f[j, 1], wn[h][m + o : n - m + o], jnp.zeros((), dtype))
+
+                stay_part = p_blocked[h][1] * inner[h]
+            return (
+                p_main * shifted(h)
+                + p_side * (shifted((h + 1) % 4) + shifted((h - 1) % 4))
+                + stay_part
+            )
+
+        v_new, pols = [], []
+        for h in range(4):
+            qs = [
+                inner[h],
+                move(h, 1) + penalty[1],
+                move(h, 2) + penalty[2] if use_run else None,
+                inner[(h + 1) % 4] + penalty[3],  # left: h -> h + 1
+                inner[(h - 1) % 4] + penalty[4],  # right: h -> h - 1
+            ]
+            # best move, ties to the first of run, forward, left, right
+            order = [a for a in _MOVE_ORDER if qs[a] is not None]
+            best = qs[order[0]]
+            arg = jnp.full(best.shape, order[0], jnp.int8)
+            for a in order[1:]:
+                better = qs[a] > best
+                best = jnp.where(better, qs[a], best)
+                arg = jnp.where(better, jnp.int8(a), arg)
+            # stay only when strictly better than every move by more than tie_tol
+            stay = qs[STAY] > best + tie_tol
+            arg = jnp.where(stay, jnp.int8(STAY), arg)
+            best = jnp.maximum(best, qs[STAY])
+            v_new.append(best * keep_v)
+            pols.append(arg * keep_p)
+        return tuple(v_new), (
+            tuple(pols) if with_policy else None,
+            tuple(v_new) if store_values else None,
+        )
+
+    v_terminal = tuple(jnp.zeros(n - 2 * m, dtype) for _ in range(4))
+    xs = (jnp.arange(n_epochs), follow_f)
+    v0, (pols, values) = jax.lax.scan(step, v_terminal, xs, reverse=True)
+    v0 = unflat(jnp.stack(v0))[..., 2:-2]
+    # per heading (D, H, W + 4): no stacking copies of the largest arrays
+    policy = tuple(unflat(p) for p in pols) if with_policy else None
+    if store_values:
+        last = jnp.zeros((1, h_, wp_), dtype)
+        values = tuple(jnp.concatenate([unflat(x), last], axis=0) for x in values)
+    return v0, policy, values
+
+
+def backward_induction(
+    ok: jax.Array,
+    occupied: jax.Array,
+    goals: jax.Array,
+    allow: jax.Array,
+    horizons: jax.Array,
+    follow: jax.Array | None,
+    slip: jax.Array,
+    step_cost: jax.Array,
+    goal_reward: jax.Array,
+    tie_tol: jax.Array,
+    *,
+    n_epochs: int,
+    store_values: bool = False,
+    use_run: bool = True,
+    with_policy: bool = True,
+) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
+    """Batched backward induction on the grid MDP (pure; the caller jits).
+
+    Parameters
+    ----------
+    ok : (4, 2, H, W) bool
+        ``ok[j, k - 1]``: a move of ``k`` cells along heading ``j`` stays on free cells.
+    occupied : (H, W) bool
+        Occupied cells (absorbing, value 0).
+    goals : (B, H, W) bool
+        Goal cells of each artefact (absorbing; entering them earns ``goal_reward``).
+    allow : (B, 5) bool
+        Allowed actions of each artefact's behaviour.
+    horizons : (B,) int
+        Horizons ``d_b <= n_epochs``.
+    follow : (B, n_epochs, H, W) float or None
+        Time-varying rewards ``r_t`` for arriving at a cell at epoch ``t + 1``.
+    slip, step_cost, goal_reward : scalar float
+        Slip probability, cost of every non-stay action, goal reward; their dtype
+        (float32 or float64) is the dtype of the computation.
+    tie_tol : scalar float
+        The policy stays only where ``stay`` beats every move by more than ``tie_tol``
+        (values are exact maxima either way). Without discounting, waiting is free once
+        the horizon is long enough, so exact ties between ``stay`` and the best move are
+        common; they are broken towards moving (then run, forward, left, right).
+    n_epochs : int
+        Number of epochs ``D = max_b d_b`` (static).
+    store_values : bool
+        Also return every ``V_t`` (static).
+    use_run : bool
+        Compute the run action (static; false when no behaviour allows it).
+    with_policy : bool
+        Also return the policy (static). The values alone take about half the time.
+
+    Returns
+    -------
+    v0 : (B, 4, H, W)
+        ``V_0``, the value with the whole horizon to go.
+    policy : (B, n_epochs, 4, H, W) int8 or None
+        ``pi_t`` (action indices) when ``with_policy``.
+    values : (B, n_epochs + 1, 4, H, W) or None
+        ``V_t`` for ``t = 0 .. n_epochs`` when ``store_values``.
+    """
+    v0, policy, values = _backward_induction_wide(
+        ok, occupied, goals, allow, horizons, follow, slip, step_cost, goal_reward, tie_tol,
+        n_epochs=n_epochs, store_values=store_values, use_run=use_run, with_policy=with_policy,
+    )  # fmt: skip
+
+    def crop(x: tuple[jax.Array, ...] | None) -> jax.Array | None:
+        if x is None:
+            return None
+        return jnp.moveaxis(jnp.stack(x, axis=2), 1, 0)[..., 2:-2]
+
+    return v0, crop(policy), crop(values)
+
+
+def _backward_induction_wide(
+    ok: jax.Array,
+    occupied: jax.Array,
+    goals: jax.Array,
+    allow: jax.Array,
+    horizons: jax.Array,
+    follow: jax.Array | None,
+    slip: jax.Array,
+    step_cost: jax.Array,
+    goal_reward: jax.Array,
+    tie_tol: jax.Array,
+    *,
+    n_epochs: int,
+    store_values: bool = False,
+    use_run: bool = True,
+    with_policy: bool = True,
+) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
+    """:func:`backward_induction` returning policy and values per heading, epoch-major and wide.
+
+    ``policy[h]`` is ``(D, B, H, W + 4)`` and ``values[h]`` ``(D + 1, B, H, W + 4)``, with the
+    grid in columns ``2 .. W + 1``: the layout the scan produces, so nothing is copied.
+    """
+    fn = functools.partial(
+        _solve_one,
+        n_epochs=n_epochs,
+        store_values=store_values,
+        use_run=use_run,
+        with_policy=with_policy,
+    )
+    in_axes = (None, None, 0, 0, 0, None if follow is None else 0, None, None, None, None)
+    return jax.vmap(fn, in_axes=in_axes, out_axes=(0, 1, 1))(
+        ok, occupied, goals, allow, horizons, follow, slip, step_cost, goal_reward, tie_tol
+    )
+
+
+_backward_induction_jit = jax.jit(
+    _backward_induction_wide,
+    static_argnames=("n_epochs", "store_values", "use_run", "with_policy"),
+)
+
+
+class MDPSolution:
+    """The result of :meth:`GridMDP.solve` for a batch of ``B`` artefacts.
+
+    The policy is stored compactly as int8 per epoch and state (or, with
+    ``solve(..., with_policy=False)``, computed on first access). ``V_0`` is always stored;
+    the full ``V_t`` array is stored when it takes at most 64 MiB and otherwise recomputed
+    (and cached) on the first access to :attr:`values`.
+
+    Attributes
+    ----------
+    mdp : GridMDP
+        The model that was solved.
+    goals : (B, 2) int
+        Goal cells ``(row, col)`` (``-1`` for behaviours without a goal).
+    behaviours : tuple of str
+        Behaviour of each artefact.
+    horizons : (B,) int
+        Horizon ``d_b`` of each artefact (epochs ``0 .. d_b``).
+    v0 : (B, H, W, 4)
+        ``V_0``, the value with the whole horizon to go.
+    """
+
+    def __init__(
+        self,
+        mdp: GridMDP,
+        goals: np.ndarray,
+        behaviours: tuple[str, ...],
+        horizons: np.ndarray,
+        v0: np.ndarray,
+        policy: tuple[np.ndarray, ...] | None,
+        values: tuple[np.ndarray, ...] | None,
+        inputs: dict[str, Any],
+    ) -> None:
+        self.mdp = mdp
+        self.goals = goals
+        self.behaviours = behaviours
+        self.horizons = horizons
+        self.v0 = np.moveaxis(v0, 1, -1)
+        self._policy = policy
+        self._values = values
+        self._policy_full: np.ndarray | None = None
+        self._values_full: np.ndarray | None = None
+        self._inputs = inputs
+
+    @property
+    def n_epochs(self) -> int:
+        """Padded horizon ``D`` (``max_b d_b`` unless ``solve(..., n_epochs=...)``)."""
+        return int(self._inputs["n_epochs"])
+
+    def _policy_planes(self) -> tuple[np.ndarray, ...]:
+        """Per heading ``(D, B, H, W)`` int8 views of the policy (computed on first use)."""
+        if self._policy is None:
+            _, policy, _ = _backward_induction_jit(
+                **self._inputs, store_values=False, with_policy=True
+            )
+            self._policy = _crop_planes(policy)
+        return self._policy
+
+    def action(self, items: Any, t: Any, states: Any) -> np.ndarray:
+        """Actions ``pi_t(s)`` of batch items at their epochs and states ``(row, col, h)``.
+
+        Parameters
+        ----------
+        items : (n,) int
+            Batch items.
+        t : (n,) int
+            Epochs (``0 <= t < D``).
+        states : (n, 3) int
+            States ``(row, col, heading)``.
+
+        Returns
+        -------
+        (n,) int8
+            Action indices (see ``ACTIONS``).
+        """
+        planes = self._policy_planes()
+        items, t = np.asarray(items), np.asarray(t)
+        states = np.asarray(states)
+        out = np.zeros(len(items), np.int8)
+        for h, plane in enumerate(planes):
+            sel = states[:, 2] == h
+            out[sel] = plane[t[sel], items[sel], states[sel, 0], states[sel, 1]]
+        return out
+
+    @property
+    def policy(self) -> np.ndarray:
+        """``(B, D, H, W, 4) int8``: ``policy[b, t, row, col, h]`` is the action at epoch t.
+
+        Epochs ``t >= d_b`` (beyond an artefact's horizon) hold ``stay``. This is a view of
+        the heading-major ``(B, D, 4, H, W)`` array the solver stores.
+        """
+        if self._policy_full is None:
+            planes = self._policy_planes()
+            self._policy_full = np.stack([np.moveaxis(p, 1, 0) for p in planes], axis=-1)
+        return self._policy_full
+
+    @property
+    def values(self) -> np.ndarray:
+        """``(B, D + 1, H, W, 4)``: ``values[b, t]`` is ``V_t`` (index 0: whole horizon to go).
+
+        Epochs ``t >= d_b`` hold the terminal value 0. For large problems the array is
+        recomputed on first access (it takes ``B (D + 1) H W 4`` floats).
+        """
+        if self._values is None:
+            _, _, values = _backward_induction_jit(
+                **self._inputs, store_values=True, with_policy=False
+            )
+            self._values = _crop_planes(values)
+        if self._values_full is None:
+            self._values_full = np.stack([np.moveaxis(v, 1, 0) for v in self._values], axis=-1)
+        return self._values_full
+
+    def __repr__(self) -> str:
+        b = len(self.behaviours)
+        h, w = self.mdp.shape
+        return f"MDPSolution(batch={b}, n_epochs={self.n_epochs}, grid=({h}, {w}))"
+
+
+class GridMDP:
+    """The finite-horizon MDP H_A(t) of the ARE paper (Sec. 3.2) on an occupancy grid.
+
+    See the module documentation (and ``docs/src/behaviour.md``) for the exact dynamics:
+    headings, actions, slip and blocking rules.
+
+    Parameters
+    ----------
+    occupied : (H, W) bool array or OccupancyGrid-like
+        Occupied cells, ``occupied[row, col]`` with ``row`` along +y and ``col`` along +x.
+        An object with a ``free`` (or ``occupied``) attribute, such as
+        ``are_stats.OccupancyGrid``, is accepted: every cell that is not free (occupied or
+        unknown) blocks. It is kept as :attr:`grid`.
+    slip : float
+        Probability in ``[0, 1)`` that a move goes sideways (``slip / 2`` to each side).
+    step_cost : float
+        Cost (>= 0) of every action except ``stay``.
+    goal_reward : float
+        Reward (>= 0) for entering the goal cell (walk and run).
+    dtype : str
+        ``"float32"`` (default, faster) or ``"float64"``.
+
+    Raises
+    ------
+    ValueError
+        On a malformed grid or parameters out of range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> mdp = GridMDP(np.zeros((5, 6), bool), slip=0.0)
+    >>> sol = mdp.solve(goals=[[2, 5]], behaviours="walk", horizons=20)
+    >>> sol.values.shape
+    (1, 21, 5, 6, 4)
+    """
+
+    def __init__(
+        self,
+        occupied: Any,
+        slip: float = 0.1,
+        *,
+        step_cost: float = 1e-3,
+        goal_reward: float = 1.0,
+        dtype: str = "float32",
+    ) -> None:
+        self.grid = occupied if not isinstance(occupied, np.ndarray | list) else None
+        self.occupied = _occupancy(occupied)
+        self.slip = float(check_probability("slip", slip, closed_right=False))
+        self.step_cost = float(check_nonnegative("step_cost", step_cost))
+        self.goal_reward = float(check_nonnegative("goal_reward", goal_reward))
+        if dtype not in ("float32", "float64"):
+            raise ValueError(f"dtype: expected 'float32' or 'float64', got {dtype!r}")
+        self.dtype = dtype
+        self._ok = _path_free(self.occupied)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Grid shape ``(H, W)``."""
+        return self.occupied.shape  # type: ignore[return-value]
+
+    @property
+    def n_states(self) -> int:
+        """Number of states ``H * W * 4`` (all cells, occupied ones included)."""
+        h, w = self.shape
+        return h * w * 4
+
+    # ------------------------------------------------------------------ validation
+    def _check_goal(self, name: str, goal: Any) -> tuple[int, int]:
+        g = check_array(name, goal, dtype=float)
+        h, w = self.shape
+        if g.shape != (2,) or not np.all(g == np.round(g)):
+            raise ValueError(f"{name}: expected an integer cell (row, col), got {describe(g)}")
+        r, c = int(g[0]), int(g[1])
+        if not (0 <= r < h and 0 <= c < w):
+            raise ValueError(f"{name}: expected a cell inside the {h} x {w} grid, got ({r}, {c})")
+        if self.occupied[r, c]:
+            raise ValueError(f"{name}: expected a free cell, got ({r}, {c}) which is an obstacle")
+        return r, c
+
+    # ------------------------------------------------------------------ solve
+    def solve(
+        self,
+        goals: Any,
+        behaviours: str | Sequence[str] = "walk",
+        horizons: Any = 100,
+        *,
+        follow: Sequence[Any] | None = None,
+        store_values: bool | None = None,
+        n_epochs: int | None = None,
+        with_policy: bool = True,
+    ) -> MDPSolution:
+        """Backward induction for a batch of artefacts (one ``jit`` per grid shape and ``D``).
+
+        Parameters
+        ----------
+        goals : (B, 2) int or (2,) int
+            Goal cell ``(row, col)`` of each artefact; ignored (may be ``None`` or ``-1``)
+            for the ``follow`` and ``stop`` behaviours.
+        behaviours : str or sequence of B str
+            ``"walk"``, ``"run"``, ``"follow"`` or ``"stop"``.
+        horizons : int or (B,) int
+            Horizon ``d_b >= 0`` of each artefact in decision epochs.
+        follow : sequence of B arrays or None
+            For ``follow`` artefacts, the rewards ``r_t``, an ``(n, H, W)`` array with
+            ``n >= d_b`` (see :func:`follow_rewards`); ``None`` for the others.
+        store_values : bool or None
+            Store every ``V_t`` now (``True``), never (``False``: recomputed on access), or
+            when they take at most 64 MiB (``None``).
+        n_epochs : int or None
+            Pad the epochs to ``D = n_epochs >= max(horizons)`` (default ``max(horizons)``);
+            one compilation serves every call with the same grid shape, batch size and ``D``.
+        with_policy : bool
+            Compute the policy now (default) or on first access to ``.policy`` (the values
+            alone take about half the time).
+
+        Returns
+        -------
+        MDPSolution
+            ``.values (B, D + 1, H, W, 4)``, ``.policy (B, D, H, W, 4) int8``, ``.v0``.
+
+        Raises
+        ------
+        ValueError
+            On a goal outside the grid or in an obstacle, a negative horizon, an unknown
+            behaviour, or missing / malformed follow rewards.
+        """
+        h, w = self.shape
+        if isinstance(behaviours, str):
+            behaviours = [behaviours]
+        behaviours = list(behaviours)
+        hz = check_array("horizons", horizons, dtype=float)
+        if hz.ndim > 1:
+            raise ValueError(f"horizons: expected an int or a 1-d array, got {describe(hz)}")
+        if (hz < 0).any() or (hz != np.round(hz)).any():
+            raise ValueError(f"horizons: expected integers >= 0, got {describe(hz)}")
+        goal_list = _goal_rows(goals)
+        n = max(len(behaviours), len(goal_list), hz.size if hz.ndim else 1)
+        behaviours = _broadcast("behaviours", behaviours, n)
+        goal_list = _broadcast("goals", goal_list, n)
+        hz = np.broadcast_to(hz, (n,)) if hz.ndim == 0 or hz.size == 1 else hz
+        if hz.size != n:
+            raise ValueError(f"horizons: expected {n} values, got {hz.size}")
+        hz = hz.reshape(n).astype(np.int64)
+        if follow is not None and len(follow) != n:
+            raise ValueError(
+                f"follow: expected {n} entries (None for non-followers), got {len(follow)}"
+            )
+        d = int(hz.max()) if n else 0
+        if n_epochs is not None:
+            if int(n_epochs) != n_epochs or n_epochs < d:
+                raise ValueError(
+                    f"n_epochs: expected an integer >= the largest horizon {d}, got {n_epochs!r}"
+                )
+            d = int(n_epochs)
+
+        goal_cells = np.full((n, 2), -1, dtype=np.int64)
+        goal_masks = np.zeros((n, h, w), dtype=bool)
+        allow = np.zeros((n, len(ACTIONS)), dtype=bool)
+        rewards = None
+        for b, beh in enumerate(behaviours):
+            allow[b] = allowed_actions(beh)
+            if beh in ("walk", "run"):
+                r, c = self._check_goal(f"goals[{b}]", goal_list[b])
+                goal_cells[b] = r, c
+                goal_masks[b, r, c] = True
+            if beh == "follow":
+                if follow is None or follow[b] is None:
+                    raise ValueError(
+                        f"follow[{b}]: expected rewards (n >= {hz[b]}, {h}, {w}) for a follow "
+                        "behaviour, got None"
+                    )
+                if rewards is None:
+                    rewards = np.zeros((n, max(d, 1), h, w))
+                fr = check_array(f"follow[{b}]", follow[b], dtype=float, ndim=3)
+                if fr.shape[1:] != (h, w) or fr.shape[0] < hz[b] or not np.isfinite(fr).all():
+                    raise ValueError(
+                        f"follow[{b}]: expected finite rewards of shape (n >= {hz[b]}, {h}, {w}), "
+                        f"got {describe(fr)}"
+                    )
+                rewards[b, : hz[b]] = fr[: hz[b]]
+        dt = jnp.dtype(self.dtype)
+        scale = self.goal_reward + self.step_cost
+        if rewards is not None:
+            scale += float(np.abs(rewards).sum(axis=(2, 3)).max(initial=0.0)) if d else 0.0
+        if store_values is None:
+            store_values = n * (d + 1) * h * w * 4 * dt.itemsize <= _VALUES_BYTES
+        inputs = dict(
+            ok=jnp.asarray(self._ok),
+            occupied=jnp.asarray(self.occupied),
+            goals=jnp.asarray(goal_masks),
+            allow=jnp.asarray(allow),
+            horizons=jnp.asarray(hz),
+            follow=None if rewards is None else jnp.asarray(rewards[:, :d], dtype=dt),
+            slip=jnp.asarray(self.slip, dt),
+            step_cost=jnp.asarray(self.step_cost, dt),
+            goal_reward=jnp.asarray(self.goal_reward, dt),
+            tie_tol=jnp.asarray(_TIE_RTOL[self.dtype] * scale, dt),
+            n_epochs=d,
+            use_run=bool(allow[:, RUN].any()),
+        )
+        v0, policy, values = _backward_induction_jit(
+            **inputs, store_values=bool(store_values), with_policy=bool(with_policy)
+        )
+        return MDPSolution(
+            self,
+            goal_cells,
+            tuple(behaviours),
+            hz,
+            np.asarray(v0),
+            None if policy is None else _crop_planes(policy),
+            None if values is None else _crop_planes(values),
+            inputs,
+        )
+
+    # ------------------------------------------------------------------ dense export
+    def to_dense(
+        self, goal: Any = None, behaviour: str = "walk", *, sparse: bool = False
+    ) -> tuple[Any, np.ndarray, np.ndarray]:
+        """Export the (time-homogeneous) MDP as arrays for an independent solver.
+
+        States are ordered ``s = (row * W + col) * 4 + heading`` over all cells; occupied
+        cells and the goal cell are absorbing with zero reward. Disallowed actions of the
+        behaviour have reward ``-inf``. Any finite-horizon backward induction
+        ``V = v_terminal; V = max_a (R[:, a] + P[a] @ V)`` reproduces :attr:`MDPSolution.values`.
+
+        Parameters
+        ----------
+        goal : (2,) int or None
+            Goal cell for ``walk`` and ``run``; ignored for ``stop``.
+        behaviour : str
+            ``"walk"``, ``"run"`` or ``"stop"`` (follow rewards vary with time).
+        sparse : bool
+            Return ``P`` as a list of 5 ``scipy.sparse.csr_array`` (for large grids).
+
+        Returns
+        -------
+        P : (5, S, S) float64 or list of 5 csr_array
+            ``P[a, s, s']``.
+        R : (S, 5) float64
+            Expected reward ``R[s, a]``.
+        v_terminal : (S,) float64
+            Terminal values (zeros).
+
+        Raises
+        ------
+        ValueError
+            On a bad goal or behaviour, or a dense export of more than 20,000 states.
+        """
+        if behaviour == "follow":
+            raise ValueError(
+                "behaviour: expected 'walk', 'run' or 'stop' (follow rewards vary with time), "
+                "got 'follow'"
+            )
+        allow = allowed_actions(behaviour)
+        h, w = self.shape
+        n = self.n_states
+        if not sparse and n > _DENSE_MAX_STATES:
+            raise ValueError(
+                f"to_dense: expected at most {_DENSE_MAX_STATES} states for a dense export, "
+                f"got {n}; pass sparse=True"
+            )
+        goal_mask = np.zeros((h, w), dtype=bool)
+        if behaviour in ("walk", "run"):
+            r, c = self._check_goal("goal", goal)
+            goal_mask[r, c] = True
+        rows, cols, heads = np.meshgrid(np.arange(h), np.arange(w), np.arange(4), indexing="ij")
+        rows, cols, heads = rows.ravel(), cols.ravel(), heads.ravel()
+        s = np.arange(n)
+        absorbing = (self.occupied | goal_mask)[rows, cols]
+        bonus = np.where(goal_mask[rows, cols], self.goal_reward, 0.0)
+
+        def move(direction: np.ndarray, k: int) -> np.ndarray:
+            """Next state of moving k cells along ``direction`` (blocked -> same state)."""
+            blocked = np.zeros(n, dtype=bool)
+            for m in range(1, k + 1):
+                rr = rows + m * _DROW[direction]
+                cc = cols + m * _DCOL[direction]
+                inside = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+                blocked |= ~inside
+                blocked[inside] |= self.occupied[rr[inside], cc[inside]]
+            rr = rows + k * _DROW[direction]
+            cc = cols + k * _DCOL[direction]
+            return np.where(blocked, s, (rr * w + cc) * 4 + heads)
+
+        outcomes: list[list[tuple[np.ndarray, float]]] = [
+            [(s, 1.0)],
+            [],
+            [],
+            [((rows * w + cols) * 4 + (heads + 1) % 4, 1.0)],
+            [((rows * w + cols) * 4 + (heads - 1) % 4, 1.0)],
+        ]
+        for a, k in ((1, 1), (2, 2)):
+            outcomes[a] = [
+                (move(heads, k), 1.0 - self.slip),
+                (move((heads + 1) % 4, k), self.slip / 2),
+                (move((heads - 1) % 4, k), self.slip / 2),
+            ]
+        cost = np.array([0.0] + [self.step_cost] * 4)
+        mats = []
+        reward = np.zeros((n, len(ACTIONS)))
+        for a, outs in enumerate(outcomes):
+            src = np.concatenate([s for _ in outs])
+            dst = np.concatenate([np.where(absorbing, s, nxt) for nxt, _ in outs])
+            prob = np.concatenate([np.full(n, p) for _, p in outs])
+            m = sp.csr_array((prob, (src, dst)), shape=(n, n))
+            m.sum_duplicates()
+            mats.append(m)
+            reward[:, a] = np.where(absorbing, 0.0, m @ bonus - cost[a])
+            if not allow[a]:
+                reward[:, a] = -np.inf
+        p_out: Any = mats if sparse else np.stack([m.toarray() for m in mats])
+        return p_out, reward, np.zeros(n)
+
+
+def _crop_planes(planes: tuple[jax.Array, ...]) -> tuple[np.ndarray, ...]:
+    """Wide ``(..., H, W + 4)`` device arrays -> ``(..., H, W)`` NumPy views."""
+    return tuple(np.asarray(p)[..., 2:-2] for p in planes)
+
+
+def _goal_rows(goals: Any) -> list[Any]:
+    """Split ``goals`` into per-artefact rows (a single (2,) goal gives one row)."""
+    if goals is None:
+        return [None]
+    if isinstance(goals, np.ndarray | jax.Array):
+        g = np.asarray(goals)
+        return [g] if g.ndim == 1 else list(g)
+    goals = list(goals)
+    if len(goals) == 2 and all(np.ndim(x) == 0 and x is not None for x in goals):
+        return [np.asarray(goals)]
+    return goals
+
+
+def _broadcast(name: str, items: list[Any], n: int) -> list[Any]:
+    if len(items) == n:
+        return items
+    if len(items) == 1:
+        return items * n
+    raise ValueError(f"{name}: expected 1 or {n} entries, got {len(items)}")
