@@ -211,6 +211,8 @@ def run_generate(
     area: float | None = None,
     behaviours: bool = False,
     force: bool = False,
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
 ) -> Any:
     """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest)."""
     from are_stats.fitting._fit_log import read_fit
@@ -239,7 +241,9 @@ def run_generate(
         "class_labels": labels,
     }
     if behaviours:
-        manifest["tracks"] = _behaviour_tracks(seed, df, grid, labels, out, force)
+        manifest["tracks"] = _behaviour_tracks(
+            seed, df, grid, labels, out, force, behaviour_cell, behaviour_dt
+        )
     paths = write_scenarios(df, out, manifest=manifest, force=force)
     console.print(
         f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
@@ -254,16 +258,74 @@ def _class_labels(idata: Any) -> list[str] | None:
     return str(names).split(",") if names else None
 
 
-def _behaviour_tracks(seed, df, grid, labels, out, force):
+def coarse_occupancy(grid: Any, cell: float) -> tuple[np.ndarray, float]:
+    """Occupancy of ``grid`` on square cells of about ``cell`` metres (majority vote).
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+        The map (yaw of its origin must be 0).
+    cell : float
+        Target cell size in metres (rounded to a whole number of map cells).
+
+    Returns
+    -------
+    occupied : (h, w) bool
+        True where most of the map cells are not free (occupied or unknown).
+    resolution : float
+        The coarse cell size.
+    """
+    if abs(float(grid.origin[2])) > 1e-9:
+        raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
+    f = max(1, int(round(cell / grid.resolution)))
+    h, w = grid.shape[0] // f, grid.shape[1] // f
+    if h < 2 or w < 2:
+        raise ValueError(f"--behaviour-cell: expected a cell much smaller than the map, got {cell}")
+    blocked = ~grid.free[: h * f, : w * f]
+    frac = blocked.reshape(h, f, w, f).mean(axis=(1, 3))
+    return frac > 0.5, grid.resolution * f
+
+
+def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
+    """MDP trajectories for generated scenarios on a coarse copy of the map."""
+    import pandas as pd
+    from scipy import ndimage
+
     from are_stats.behaviour import scenario_tracks
+    from are_stats.environment import load_catalogue
 
     if grid is None:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    tracks = scenario_tracks(jax.random.key(seed), df, grid, class_labels=labels)
+    occ, res = coarse_occupancy(grid, cell)
+    x0, y0 = float(grid.origin[0]), float(grid.origin[1])
+    table = df.rename(columns={"artefact": "id"}).copy()
+    # starts on a coarse obstacle move to the nearest free coarse cell
+    col = np.clip(((table["x"].to_numpy() - x0) // res).astype(int), 0, occ.shape[1] - 1)
+    row = np.clip(((table["y"].to_numpy() - y0) // res).astype(int), 0, occ.shape[0] - 1)
+    _, (ri, ci) = ndimage.distance_transform_edt(occ, return_indices=True)
+    row, col = ri[row, col], ci[row, col]
+    table["x"] = x0 + (col + 0.5) * res
+    table["y"] = y0 + (row + 0.5) * res
+    cat = load_catalogue()
+
+    def behaviour_of(r: Any) -> str:
+        allowed = list(_catalogue_class(cat, labels, int(r["class"])).behaviours)
+        return allowed[int(r["mark"]) % len(allowed)] if int(r["mark"]) >= 0 else allowed[0]
+
+    tracks = scenario_tracks(
+        jax.random.key(seed),
+        table,
+        occ,
+        dt=dt,
+        resolution=res,
+        origin=(x0, y0),
+        behaviour_of=behaviour_of,
+    )
+    tracks = pd.DataFrame(tracks)
     path = Path(out) / "tracks.parquet"
     with atomic_path(path, force=force) as tmp:
         tracks.to_parquet(tmp, index=False)
-    return str(path.name)
+    return {"file": path.name, "cell_m": res, "dt_s": dt, "rows": len(tracks)}
 
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
@@ -332,12 +394,17 @@ def _class_sizes(labels: list[str] | None, classes_present: np.ndarray) -> dict[
     cat = load_catalogue()
     sizes = {}
     for c in np.unique(classes_present).tolist():
-        if labels is not None and 0 <= c < len(labels) and labels[c] in cat.labels:
-            cls = cat[labels[c]]
-        else:
-            cls = cat.row(max(int(c), 0))
+        cls = _catalogue_class(cat, labels, int(c))
         sizes[c] = tuple(float(v) for v in 2.0 * cls.half_extents)
     return sizes
+
+
+def _catalogue_class(cat: Any, labels: list[str] | None, c: int) -> Any:
+    """Catalogue class of mixture component ``c``: by its label when the catalogue knows it,
+    else the catalogue's class in the same position (the last one beyond the table)."""
+    if labels is not None and 0 <= c < len(labels) and labels[c] in cat.labels:
+        return cat[labels[c]]
+    return cat.classes[int(np.clip(c, 0, len(cat.classes) - 1))]
 
 
 def run_perceive(

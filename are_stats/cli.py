@@ -157,13 +157,29 @@ def generate(
     behaviours: bool = typer.Option(
         False, "--behaviours", help="Add MDP trajectories (tracks.parquet); needs --map."
     ),
+    behaviour_cell: float = typer.Option(
+        1.0, "--behaviour-cell", help="MDP grid cell (m): the map is coarsened to it."
+    ),
+    behaviour_dt: float = typer.Option(2.0, "--behaviour-dt", help="Seconds per MDP epoch."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
 ) -> None:
     """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
     from are_stats._cli_jobs import run_generate
 
     try:
-        run_generate(fit_path, scenarios, horizon, seed, out, map_path, area, behaviours, force)
+        run_generate(
+            fit_path,
+            scenarios,
+            horizon,
+            seed,
+            out,
+            map_path,
+            area,
+            behaviours,
+            force,
+            behaviour_cell=behaviour_cell,
+            behaviour_dt=behaviour_dt,
+        )
     except _ERRORS as err:
         raise _fail(err) from None
 

@@ -329,3 +329,56 @@ def test_perceive_adds_flags(tmp_path):
         ["perceive", scen, "--camera", tmp_path / "none.yaml", "--robot-path", robot, "--force"]
     )
     assert res.exit_code == 2 and "camera file not found" in res.output
+
+
+def test_generate_with_behaviours(tmp_path):
+    log, _ = _write_log(tmp_path, labels=True)
+    fit = tmp_path / "f.nc"
+    assert (
+        _invoke(
+            [
+                "fit",
+                log,
+                "--out",
+                fit,
+                "--method",
+                "em",
+                "--no-figures",
+                "--samples",
+                "50",
+                "--chains",
+                "2",
+            ]
+        ).exit_code
+        == 0
+    )
+    out = tmp_path / "s"
+    res = _invoke(
+        [
+            "generate",
+            fit,
+            "--scenarios",
+            "1",
+            "--horizon",
+            "120",
+            "--seed",
+            "0",
+            "--out",
+            out,
+            "--map",
+            "models/courtyard.yaml",
+            "--behaviours",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    arte = pd.read_parquet(out / "artefacts.parquet")
+    tracks = pd.read_parquet(out / "tracks.parquet")
+    assert list(tracks.columns[:6]) == ["scenario", "id", "t", "x", "y", "yaw"]
+    # every artefact has a track that starts at its arrival and stays inside the map
+    assert set(tracks["id"]) == set(arte["artefact"])
+    first = tracks.groupby("id")["t"].min()
+    arrive = arte.set_index("artefact")["t_arrive"]
+    assert (first.sort_index() - arrive.sort_index()).abs().max() <= 2.0
+    assert tracks["x"].between(-20, 20).all() and tracks["y"].between(-15, 15).all()
+    manifest = yaml.safe_load((out / "manifest.yaml").read_text())
+    assert manifest["tracks"]["file"] == "tracks.parquet"
