@@ -6,6 +6,7 @@ from are_stats.environment._catalogue import (
     DEFAULT_MODELS,
     ArtefactCatalogue,
     ArtefactClass,
+    PropertyRow,
     load_catalogue,
 )
 from are_stats.environment._frames import (
@@ -28,6 +29,7 @@ __all__ = [
     "ArtefactCatalogue",
     "ArtefactClass",
     "OccupancyGrid",
+    "PropertyRow",
     "TransformTree",
     "VoxelMap",
     "extrude_grid",

@@ -71,3 +71,40 @@ def test_missing_and_unreadable_meshes(tmp_path):
     q = load_catalogue(_copy(tmp_path / "x"))
     with pytest.raises(ValueError, match="unknown artefact class 'dragon'"):
         q["dragon"]
+
+
+def test_marks_select_rows_within_the_class():
+    """DECISIONS 5: the component is the class, the mark selects the class's row (clipped)."""
+    q = load_catalogue()
+    person = q["person"]
+    assert person.n_rows == 31
+    first, last = q.select(0, 0), q.select(0, 10**6)
+    assert first.label == last.label == "person" and last.row == 30
+    # the compact form scales the box linearly from 0.85 to 1.15, about the base centre
+    np.testing.assert_allclose(first.half_extents, 0.85 * person.half_extents, rtol=1e-12)
+    np.testing.assert_allclose(q.select(0, 15).half_extents, person.half_extents, rtol=1e-12)
+    assert first.bounds[0, 2] == person.bounds[0, 2]  # stays on the ground
+    van = q.select(q.labels.index("car"), 3)
+    assert van.features["body"] == "van" and van.features["kind"] == "vehicle"
+    assert q.select(q.labels.index("pallet"), -4).row == 0
+    with pytest.raises(ValueError, match="component: expected a class position"):
+        q.select(len(q), 0)
+
+
+@pytest.mark.parametrize(
+    "variants, match",
+    [
+        ("{rows: 0, scale: [1, 2]}", "variants.rows"),
+        ("{rows: 3, scale: [1]}", "variants.scale"),
+        ("[{scale: -1}]", r"variants\[0\].scale"),
+        ("[]", "field 'variants'"),
+    ],
+)
+def test_bad_variants(tmp_path, variants, match):
+    shutil.copy(DEFAULT_MODELS / "artefacts" / "pallet.obj", tmp_path / "pallet.obj")
+    (tmp_path / "q.yaml").write_text(
+        "classes:\n  - label: pallet\n    mesh: pallet.obj\n    speeds: {walk: 0.1}\n"
+        f"    behaviours: [stop]\n    variants: {variants}\n"
+    )
+    with pytest.raises(ValueError, match=match):
+        load_catalogue(tmp_path / "q.yaml")
