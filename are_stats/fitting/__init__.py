@@ -1,0 +1,115 @@
+"""fitting: estimating the ARE models from field logs (EM, NUTS, model selection).
+
+The Poisson mixture of eq. (1) is fitted by EM (``fit_mixture_em``) or by NUTS with the
+class assignment marginalised (``fit_mixture_nuts``); ``select_n_components`` chooses the
+number of components by BIC, WAIC and PSIS-LOO.
+"""
+
+from __future__ import annotations
+
+__all__: list[str] = []
+
+# --- Poisson mixture (eq. 1): EM, NUTS, model selection ---
+from are_stats.fitting._em import (  # noqa: E402
+    EMInfo,
+    EMState,
+    MarksHistogram,
+    MixtureEMResult,
+    em_init,
+    em_step,
+    fit_mixture_em,
+    marks_histogram,
+    squarem_step,
+)
+from are_stats.fitting._mixture_mcmc import fit_mixture_nuts, mixture_model  # noqa: E402
+from are_stats.fitting._select import (  # noqa: E402
+    InformationCriterion,
+    mixture_loo,
+    mixture_waic,
+    select_n_components,
+)
+
+__all__ += [
+    "EMInfo",
+    "EMState",
+    "MarksHistogram",
+    "MixtureEMResult",
+    "em_init",
+    "em_step",
+    "fit_mixture_em",
+    "marks_histogram",
+    "squarem_step",
+    "fit_mixture_nuts",
+    "mixture_model",
+    "InformationCriterion",
+    "mixture_waic",
+    "mixture_loo",
+    "select_n_components",
+]
+
+# --- life-cycle posterior by NUTS ---
+from are_stats.fitting._lifecycle_mcmc import (  # noqa: E402
+    fit_lifecycle_nuts,
+    resolve_chain_method,
+)
+
+__all__ += ["fit_lifecycle_nuts", "resolve_chain_method"]
+
+# --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
+from are_stats.fitting._alternatives import (  # noqa: E402
+    ARRIVAL_MODELS,
+    LIFETIME_MODELS,
+    arrival_counts,
+    compare_models,
+    fit_arrival_models,
+    fit_lifetime_models,
+)
+from are_stats.fitting._criticism import (  # noqa: E402
+    DispersionTest,
+    KaplanMeier,
+    count_path,
+    dispersion_index,
+    hour_of_day_counts,
+    kaplan_meier,
+)
+from are_stats.fitting._fit_log import (  # noqa: E402
+    FitSettings,
+    choose_n_components,
+    fit_log,
+    read_fit,
+    write_fit,
+)
+from are_stats.fitting._report import (  # noqa: E402
+    PredictiveChecks,
+    fit_summary,
+    plot_checks,
+    predictive_checks,
+    predictive_windows,
+    write_report,
+)
+
+__all__ += [
+    "ARRIVAL_MODELS",
+    "LIFETIME_MODELS",
+    "arrival_counts",
+    "compare_models",
+    "fit_arrival_models",
+    "fit_lifetime_models",
+    "DispersionTest",
+    "KaplanMeier",
+    "count_path",
+    "dispersion_index",
+    "hour_of_day_counts",
+    "kaplan_meier",
+    "FitSettings",
+    "choose_n_components",
+    "fit_log",
+    "read_fit",
+    "write_fit",
+    "PredictiveChecks",
+    "fit_summary",
+    "plot_checks",
+    "predictive_checks",
+    "predictive_windows",
+    "write_report",
+]

@@ -1,0 +1,64 @@
+"""traffic: the artefact life-cycle models of the ARE paper (Sec. 3.2).
+
+Birth-death N(t), marked Poisson arrivals and the Poisson mixture of eq. (1).
+"""
+
+from __future__ import annotations
+
+__all__: list[str] = []
+
+# --- Poisson mixture (eq. 1) ---
+from are_stats.traffic._mixture import PoissonMixture  # noqa: E402
+
+__all__ += ["PoissonMixture"]
+
+# --- marked Poisson process (life-cycle) ---
+from are_stats.traffic._lifecycle import (  # noqa: E402
+    LifecycleData,
+    LifecyclePriors,
+    lifecycle_model,
+    prior_predictive,
+    simulate_lifecycle,
+)
+
+__all__ += [
+    "LifecycleData",
+    "LifecyclePriors",
+    "lifecycle_model",
+    "prior_predictive",
+    "simulate_lifecycle",
+]
+
+# --- conjugate closed forms (life-cycle) ---
+from are_stats.traffic._conjugate import (  # noqa: E402
+    GammaPosterior,
+    MixturePosterior,
+    conjugate_arrival_rate,
+    conjugate_leave_rate,
+    conjugate_mixture,
+)
+
+__all__ += [
+    "GammaPosterior",
+    "MixturePosterior",
+    "conjugate_arrival_rate",
+    "conjugate_leave_rate",
+    "conjugate_mixture",
+]
+
+# --- birth-death process N(t) ---
+from are_stats.traffic._birth_death import (  # noqa: E402
+    BirthDeath,
+    BirthDeathEvents,
+    BirthDeathFit,
+    birth_death_loglik,
+    fit_birth_death,
+)
+
+__all__ += [
+    "BirthDeath",
+    "BirthDeathEvents",
+    "BirthDeathFit",
+    "birth_death_loglik",
+    "fit_birth_death",
+]
