@@ -383,20 +383,22 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     return summary
 
 
-def _class_sizes(labels: list[str] | None, classes_present: np.ndarray) -> dict[int, tuple]:
-    """Box size (length, width, height) per class index from the artefact catalogue.
+def _row_sizes(labels: list[str] | None, df: Any) -> tuple[np.ndarray, dict[int, tuple]]:
+    """Box size of each artefact's row of Q: its class by component, its row by mark.
 
-    Class ``c`` is ``labels[c]`` when the fit had labels, else row ``c`` of the catalogue
-    (clipped to its last row, DECISIONS 5).
+    Returns a key per artefact and ``{key: (length, width, height)}`` (DECISIONS 5).
     """
     from are_stats.environment import load_catalogue
 
     cat = load_catalogue()
+    classes = df["class"].to_numpy()
+    marks = df["mark"].to_numpy() if "mark" in df else np.zeros(len(df), np.int64)
+    pairs, keys = np.unique(np.stack([classes, marks], axis=1), axis=0, return_inverse=True)
     sizes = {}
-    for c in np.unique(classes_present).tolist():
+    for k, (c, x) in enumerate(pairs.tolist()):
         cls = _catalogue_class(cat, labels, int(c))
-        sizes[c] = tuple(float(v) for v in 2.0 * cls.half_extents)
-    return sizes
+        sizes[k] = tuple(float(v) for v in 2.0 * cls.property_row(int(x)).half_extents)
+    return keys.ravel(), sizes
 
 
 def _catalogue_class(cat: Any, labels: list[str] | None, c: int) -> Any:
@@ -451,11 +453,12 @@ def run_perceive(
     mount = None
     if np.allclose(camera.pose, np.eye(4)):  # no mount in the camera file: forward-looking
         mount = optical_from_base((0.0, 0.0, camera_height))
-    sizes = _class_sizes(manifest.get("class_labels"), df["class"].to_numpy())
+    keys, sizes = _row_sizes(manifest.get("class_labels"), df)
+    keyed = df.assign(**{"class": keys})  # perceive_scenario sizes boxes by this key
     t = time.perf_counter()
     with console.status(f"perceiving {len(df)} artefacts over {len(robot)} robot poses ..."):
         res = perceive_scenario(
-            df,
+            keyed,
             robot,
             sizes,
             env,
@@ -465,6 +468,7 @@ def run_perceive(
             mount=mount,
             occlusion_between_artefacts=occlusion_between_artefacts,
         )
+    res["class"] = df["class"].to_numpy()
     with atomic_path(target, force=force) as tmp:
         res.to_parquet(tmp, index=False)
     n_p = int(res["perceived"].sum())
