@@ -344,7 +344,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         seed=0,
         force=force,
         warmup=200 if quick else 500,
-        samples=200 if quick else 500,
+        samples=200 if quick else 250,  # 1000 draws: enough ESS, a fit file of a few MB
         chains=2 if quick else 4,
         figures=out / "criticism",
         n_replicates=50 if quick else 200,
