@@ -344,7 +344,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         seed=0,
         force=force,
         warmup=200 if quick else 500,
-        samples=200 if quick else 250,  # 1000 draws: enough ESS, a fit file of a few MB
+        samples=200 if quick else 500,
         chains=2 if quick else 4,
         figures=out / "criticism",
         n_replicates=50 if quick else 200,
@@ -354,6 +354,9 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
 
     n_t = scenario_counts(df, np.array([1800.0]), 100)[:, 0]
     post = idata.posterior
+    area = float(post.attrs["area"])
+    weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
+    rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
     desc = yaml.safe_load((EXAMPLE_LOG.with_suffix(".yaml")).read_text())["description"]
     summary = {
         "are_stats_version": __version__,
@@ -363,8 +366,14 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         "posterior_mean": {
             "arrival_rate": float(post["arrival_rate"].mean()),
             "leave_rate": float(post["leave_rate"].mean()),
-            "mix_weights": np.asarray(post["mix_weights"].mean(("chain", "draw"))).tolist(),
-            "mix_rates": np.asarray(post["mix_rates"].mean(("chain", "draw"))).tolist(),
+            "arrivals_per_s (lambda * area)": float((post["arrival_rate"] * area).mean()),
+            "mean_stay_s (1 / mu)": float((1.0 / post["leave_rate"]).mean()),
+            "classes": {
+                str(label): {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
+                for label, w, r in zip(
+                    _class_labels(idata) or range(len(weights)), weights, rates, strict=True
+                )
+            },
         },
         "scenarios": {
             "n": 100,
