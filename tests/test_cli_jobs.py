@@ -382,3 +382,40 @@ def test_generate_with_behaviours(tmp_path):
     assert tracks["x"].between(-20, 20).all() and tracks["y"].between(-15, 15).all()
     manifest = yaml.safe_load((out / "manifest.yaml").read_text())
     assert manifest["tracks"]["file"] == "tracks.parquet"
+
+
+def test_fit_with_count_panel_adds_birth_death_mle(tmp_path):
+    log, _ = _write_log(tmp_path)
+    import are_stats as ar
+
+    times = np.arange(0.0, 7201.0, 60.0)
+    counts = np.asarray(
+        ar.BirthDeath(1 / 20, 1 / 300).simulate(jax.random.key(5), 15, 7200.0, 1, times)
+    )[0]
+    panel = tmp_path / "panel.csv"
+    pd.DataFrame({"t": times, "count": counts}).to_csv(panel, index=False)
+    fit = tmp_path / "f.nc"
+    res = _invoke(
+        [
+            "fit",
+            log,
+            "--out",
+            fit,
+            "--method",
+            "em",
+            "--no-figures",
+            "--samples",
+            "50",
+            "--chains",
+            "2",
+            "--counts",
+            panel,
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    assert "birth-death MLE" in res.output
+    attrs = az.from_netcdf(fit).posterior.attrs
+    mle = ar.fit_birth_death(times, counts)
+    assert attrs["birth_death_birth_rate"] == pytest.approx(mle.birth_rate, rel=1e-9)
+    assert attrs["birth_death_death_rate"] == pytest.approx(mle.death_rate, rel=1e-9)
+    assert np.allclose(attrs["birth_death_stderr"], mle.stderr)
