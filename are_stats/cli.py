@@ -240,5 +240,48 @@ def perceive(
         raise _fail(err) from None
 
 
+@app.command()
+def experiment(
+    config: str = typer.Argument(..., metavar="CONFIG.yaml", help="Sweep config (YAML)."),
+    out: str = typer.Option(None, "--out", help="Results folder (default: results/<name>)."),
+    workers: int = typer.Option(1, "--workers", help="Local Dask workers."),
+    scheduler: str = typer.Option(
+        None, "--scheduler", help="Existing Dask scheduler address (tcp://host:port)."
+    ),
+    force: bool = typer.Option(False, "--force", help="Redo every task and overwrite results."),
+) -> None:
+    """Run a navigation-experiment sweep (Fig. 7) on Dask; resumes unfinished sweeps."""
+    from are_stats._atomic import OutputExistsError
+    from are_stats.experiments import load_sweep_config, run_sweep
+
+    try:
+        cfg = load_sweep_config(config)
+        target = out if out is not None else f"results/{cfg['name']}"
+        path = run_sweep(cfg, target, workers=workers, scheduler=scheduler, force=force)
+    except (ValueError, FileNotFoundError, OutputExistsError) as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(str(path))
+
+
+@app.command()
+def plot(
+    results: str = typer.Argument(..., metavar="RESULTS", help="Sweep results folder."),
+    out: str = typer.Option(None, "--out", help="Folder for the PNGs (default: RESULTS)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing PNGs."),
+) -> None:
+    """Draw the Fig. 7a (rho) and Fig. 7b (goals reached) plots of a sweep."""
+    from are_stats._atomic import OutputExistsError
+    from are_stats.experiments import plot_results
+
+    try:
+        paths = plot_results(results, out, force=force)
+    except (ValueError, FileNotFoundError, OutputExistsError) as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(2) from None
+    for p in paths:
+        typer.echo(str(p))
+
+
 def main() -> None:  # pragma: no cover - console entry
     app()

@@ -1,0 +1,413 @@
+"""Path planners on the augmented, inflated occupancy grid (paper Sect. 4, Fig. 6).
+
+A planner is any callable ``planner(free, start, goal, params) -> path | None``:
+
+* ``free : (H, W) bool``: cells the robot centre may occupy (the augmented grid with only
+  the perceived artefacts, inflated by the robot radius); ``free[i, j]`` is row ``i``
+  (grid y) and column ``j`` (grid x), row 0 at the map origin as in ROS;
+* ``start, goal : (2,) float``: positions in metres in the grid's local frame (the lower-left
+  corner of cell ``(0, 0)`` is the origin, x along columns, y along rows);
+* ``params : dict``: planner settings; the experiment loop always adds ``resolution`` (m per
+  cell) and ``seed`` (int);
+* returns a ``(k, 2)`` float path from ``start`` to ``goal`` in the same frame, or ``None``
+  when no path was found.
+
+Users plug their own planner by passing such a callable. :func:`timed_plan` measures the
+wall-clock time ``rho_t`` of a call (eq. 3). Two planners ship:
+
+* :class:`OMPLPlanner`: OMPL's sampling-based planners (RRT, RRT-Connect, RRT*, PRM) over an
+  R^2 state space with a grid validity checker; ``range`` and ``goal_bias`` are the paper's
+  parameters (Fig. 6);
+* :class:`AStarPlanner`: a deterministic 8-connected grid A* baseline.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
+
+import numpy as np
+
+from are_stats._checks import check_finite, check_in, check_positive, describe
+
+__all__ = [
+    "OMPL_ALGORITHMS",
+    "AStarPlanner",
+    "OMPLPlanner",
+    "Planner",
+    "check_free_mask",
+    "make_planner",
+    "timed_plan",
+]
+
+#: OMPL geometric planners offered by :class:`OMPLPlanner`.
+OMPL_ALGORITHMS = ("RRT", "RRTConnect", "RRTstar", "PRM")
+
+
+class Planner(Protocol):
+    """A path planner: ``(free, start, goal, params) -> (k, 2) path | None`` (see module)."""
+
+    def __call__(
+        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+    ) -> np.ndarray | None: ...
+
+
+def check_free_mask(free: Any) -> np.ndarray:
+    """Validate a ``(H, W)`` bool free mask."""
+    m = np.asarray(free)
+    if m.dtype != bool or m.ndim != 2 or 0 in m.shape:
+        raise ValueError(f"free: expected a non-empty (H, W) bool array, got {describe(free)}")
+    return m
+
+
+def _point(name: str, p: Any) -> np.ndarray:
+    a = check_finite(name, p, ndim=1)
+    if a.shape != (2,):
+        raise ValueError(f"{name}: expected (x, y), got {a.tolist()}")
+    return a
+
+
+def _resolution(params: Mapping[str, Any]) -> float:
+    if "resolution" not in params:
+        raise ValueError(f"params: expected a 'resolution' key (m per cell), got {sorted(params)}")
+    return float(check_positive("params['resolution']", params["resolution"]))
+
+
+def _cell(free: np.ndarray, p: np.ndarray, res: float) -> tuple[int, int] | None:
+    i, j = int(math.floor(p[1] / res)), int(math.floor(p[0] / res))
+    if 0 <= i < free.shape[0] and 0 <= j < free.shape[1]:
+        return i, j
+    return None
+
+
+def timed_plan(
+    planner: Callable[..., Any],
+    free: Any,
+    start: Any,
+    goal: Any,
+    params: Mapping[str, Any],
+) -> tuple[np.ndarray | None, float]:
+    """Call ``planner`` and measure its wall-clock time ``rho_t`` (eq. 3).
+
+    Returns
+    -------
+    path : (k, 2) float or None
+        The planner's path, validated (``None`` when it found none).
+    seconds : float
+        Wall-clock planning time (``time.perf_counter``).
+
+    Raises
+    ------
+    ValueError
+        If the planner returns something other than ``None`` or a finite ``(k, 2)`` array.
+    """
+    f = check_free_mask(free)
+    s, g = _point("start", start), _point("goal", goal)
+    t0 = time.perf_counter()
+    path = planner(f, s, g, params)
+    dt = time.perf_counter() - t0
+    if path is None:
+        return None, dt
+    p = np.asarray(path, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 1 or not np.isfinite(p).all():
+        raise ValueError(
+            f"planner: expected a finite (k, 2) path or None, got {describe(path)} "
+            f"from {getattr(planner, '__name__', type(planner).__name__)}"
+        )
+    return p, dt
+
+
+class AStarPlanner:
+    """Grid A* on the 8-connected free cells (a deterministic, fast baseline).
+
+    Moves between cell centres cost their Euclidean length; diagonal moves may not cut a
+    blocked corner. The heuristic is the octile distance (admissible and consistent), so
+    the path is a shortest 8-connected path. The returned path starts at ``start``, runs
+    through the centres of the cells on the way (collinear runs merged) and ends at ``goal``.
+
+    Examples
+    --------
+    >>> free = np.ones((5, 5), bool); free[1:4, 2] = False
+    >>> path = AStarPlanner()(free, np.array([0.5, 2.5]), np.array([4.5, 2.5]),
+    ...                       {"resolution": 1.0})
+    >>> path[0].tolist(), path[-1].tolist()
+    ([0.5, 2.5], [4.5, 2.5])
+    """
+
+    name = "astar"
+
+    def __call__(
+        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+    ) -> np.ndarray | None:
+        free = check_free_mask(free)
+        res = _resolution(params)
+        start, goal = _point("start", start), _point("goal", goal)
+        s, g = _cell(free, start, res), _cell(free, goal, res)
+        if s is None or g is None or not free[s] or not free[g]:
+            return None
+        cells = astar_cells(free, s, g)
+        if cells is None:
+            return None
+        pts = (cells[:, ::-1] + 0.5) * res
+        pts = _merge_collinear(pts)
+        return np.vstack([start, pts[1:-1], goal]) if len(pts) > 2 else np.vstack([start, goal])
+
+
+def _merge_collinear(pts: np.ndarray) -> np.ndarray:
+    if len(pts) <= 2:
+        return pts
+    d = np.diff(pts, axis=0)
+    turn = np.abs(d[1:, 0] * d[:-1, 1] - d[1:, 1] * d[:-1, 0]) > 1e-12
+    keep = np.r_[True, turn, True]
+    return pts[keep]
+
+
+_MOVES = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+def astar_cells(
+    free: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
+) -> np.ndarray | None:
+    """Shortest 8-connected cell path ``(k, 2)`` (rows, cols) from ``start`` to ``goal``.
+
+    Diagonal moves need both adjacent orthogonal cells free (no corner cutting). ``None``
+    when the goal cannot be reached.
+    """
+    h, w = free.shape
+    fr = free.ravel()
+    n = h * w
+    si, gi = start[0] * w + start[1], goal[0] * w + goal[1]
+    gr, gc = goal
+    cost = np.full(n, np.inf)
+    parent = np.full(n, -1, dtype=np.int64)
+    closed = np.zeros(n, bool)
+    cost[si] = 0.0
+    sq2 = math.sqrt(2.0)
+    c2 = sq2 - 2.0
+
+    def heur(r: int, c: int) -> float:
+        dr, dc = abs(r - gr), abs(c - gc)
+        return dr + dc + c2 * min(dr, dc)
+
+    heap = [(heur(*start), 0.0, si)]
+    moves = [(dr, dc, sq2 if dr and dc else 1.0) for dr, dc in _MOVES]
+    while heap:
+        _, g_cost, u = heapq.heappop(heap)
+        if closed[u]:
+            continue
+        if u == gi:
+            break
+        closed[u] = True
+        r, c = divmod(u, w)
+        for dr, dc, step in moves:
+            rr, cc = r + dr, c + dc
+            if rr < 0 or rr >= h or cc < 0 or cc >= w:
+                continue
+            v = rr * w + cc
+            if not fr[v] or closed[v]:
+                continue
+            if dr and dc and not (fr[r * w + cc] and fr[rr * w + c]):
+                continue
+            nc = g_cost + step
+            if nc < cost[v]:
+                cost[v] = nc
+                parent[v] = u
+                heapq.heappush(heap, (nc + heur(rr, cc), nc, v))
+    if not np.isfinite(cost[gi]):
+        return None
+    out = [gi]
+    while out[-1] != si:
+        out.append(int(parent[out[-1]]))
+    idx = np.array(out[::-1])
+    return np.stack(np.divmod(idx, w), axis=1)
+
+
+class OMPLPlanner:
+    """OMPL's sampling-based planners on the grid (RRT, RRT-Connect, RRT*, PRM).
+
+    The state space is R^2 bounded by the grid; a state is valid when its cell is free.
+    Motions are checked every ``motion_resolution`` cells, so a segment may clip an
+    obstacle corner by less than that step (the experiment loop's inflation margin of half
+    a cell diagonal absorbs it). ``range`` (m) and ``goal_bias``
+    (probability) are the paper's parameters (Fig. 6); they apply to the algorithms that
+    have them (``range``: RRT, RRT-Connect, RRT*; ``goal_bias``: RRT, RRT*), and giving them
+    to an algorithm without them is an error.
+
+    Termination: RRT and RRT-Connect stop at the first exact solution; the anytime planners
+    (RRT*, PRM) use the whole budget. The budget is ``time_limit`` seconds and, when given,
+    ``max_iterations`` termination-condition checks (deterministic, machine-independent;
+    not for PRM, which grows its roadmap in a second thread and runs on time only).
+    OMPL's random generator is seeded with ``params["seed"]`` before each plan, so
+    planners that end on the iteration budget or at their first solution give the same
+    path for the same seed.
+
+    Parameters
+    ----------
+    algorithm : {"RRT", "RRTConnect", "RRTstar", "PRM"}
+    range : float, optional
+        Maximum motion length added to the tree (m).
+    goal_bias : float, optional
+        Probability of sampling the goal, in [0, 1].
+    time_limit : float
+        Planning time budget (s).
+    max_iterations : int, optional
+        Budget of termination-condition checks.
+    simplify : bool
+        Shortcut and smooth the solution with OMPL's path simplifier (its time counts in
+        ``rho_t``).
+    motion_resolution : float
+        Motion-check step, in cells.
+
+    Examples
+    --------
+    >>> free = np.ones((50, 50), bool)
+    >>> plan = OMPLPlanner("RRTConnect", range=1.0)
+    >>> path = plan(free, np.array([0.5, 0.5]), np.array([4.0, 4.0]),
+    ...             {"resolution": 0.1, "seed": 1})
+    >>> path[0].tolist(), path[-1].tolist()
+    ([0.5, 0.5], [4.0, 4.0])
+    """
+
+    def __init__(
+        self,
+        algorithm: str = "RRTConnect",
+        *,
+        range: float | None = None,  # noqa: A002 (OMPL's name)
+        goal_bias: float | None = None,
+        time_limit: float = 1.0,
+        max_iterations: int | None = None,
+        simplify: bool = True,
+        motion_resolution: float = 0.25,
+    ) -> None:
+        self.algorithm = check_in("algorithm", algorithm, OMPL_ALGORITHMS)
+        if range is not None:
+            range = float(check_positive("range", range))
+            if self.algorithm == "PRM":
+                raise ValueError("range: OMPL's PRM has no range parameter (use RRT*, RRT...)")
+        if goal_bias is not None:
+            goal_bias = float(check_finite("goal_bias", goal_bias, ndim=0))
+            if not 0.0 <= goal_bias <= 1.0:
+                raise ValueError(f"goal_bias: expected a probability in [0, 1], got {goal_bias}")
+            if self.algorithm in ("RRTConnect", "PRM"):
+                raise ValueError(f"goal_bias: OMPL's {self.algorithm} has no goal bias")
+        self.range = range
+        self.goal_bias = goal_bias
+        self.time_limit = float(check_positive("time_limit", time_limit))
+        if max_iterations is not None and (
+            isinstance(max_iterations, bool)
+            or int(max_iterations) != max_iterations
+            or max_iterations < 1
+        ):
+            raise ValueError(f"max_iterations: expected an integer >= 1, got {max_iterations!r}")
+        self.max_iterations = None if max_iterations is None else int(max_iterations)
+        if self.max_iterations is not None and self.algorithm == "PRM":
+            raise ValueError("max_iterations: OMPL's PRM runs on a time budget only")
+        self.simplify = bool(simplify)
+        self.motion_resolution = float(check_positive("motion_resolution", motion_resolution))
+
+    @property
+    def name(self) -> str:
+        """Short label, e.g. ``RRTConnect(range=2.0)``."""
+        opts = [f"range={self.range:g}"] if self.range is not None else []
+        if self.goal_bias is not None:
+            opts.append(f"goal_bias={self.goal_bias:g}")
+        return f"{self.algorithm}({', '.join(opts)})"
+
+    def __repr__(self) -> str:
+        return f"OMPLPlanner({self.name}, time_limit={self.time_limit:g})"
+
+    def __call__(
+        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+    ) -> np.ndarray | None:
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+
+        free = check_free_mask(free)
+        res = _resolution(params)
+        start, goal = _point("start", start), _point("goal", goal)
+        s, g = _cell(free, start, res), _cell(free, goal, res)
+        if s is None or g is None or not free[s] or not free[g]:
+            return None
+        h, w = free.shape
+        ou.setLogLevel(ou.LOG_NONE)
+        ou.RNG.setSeed(int(params.get("seed", 0)) % (2**31 - 1) + 1)
+        space = ob.RealVectorStateSpace(2)
+        bounds = ob.RealVectorBounds(2)
+        bounds.setLow(0, 0.0)
+        bounds.setHigh(0, w * res)
+        bounds.setLow(1, 0.0)
+        bounds.setHigh(1, h * res)
+        space.setBounds(bounds)
+        setup = og.SimpleSetup(space)
+        inv = 1.0 / res
+
+        def valid(state: Any) -> bool:
+            j, i = int(state[0] * inv), int(state[1] * inv)
+            return 0 <= i < h and 0 <= j < w and bool(free[i, j])
+
+        setup.setStateValidityChecker(valid)
+        si = setup.getSpaceInformation()
+        # fraction of the space's maximum extent (its diagonal)
+        si.setStateValidityCheckingResolution(min(1.0, self.motion_resolution / math.hypot(h, w)))
+        a, b = space.allocState(), space.allocState()
+        a[0], a[1] = float(start[0]), float(start[1])
+        b[0], b[1] = float(goal[0]), float(goal[1])
+        setup.setStartAndGoalStates(a, b)
+        planner = getattr(og, self.algorithm)(si)
+        if self.range is not None:
+            planner.setRange(self.range)
+        if self.goal_bias is not None:
+            planner.setGoalBias(self.goal_bias)
+        setup.setPlanner(planner)
+        deadline = time.perf_counter() + self.time_limit
+        budget = self.max_iterations
+        count = [0]
+
+        def stop() -> bool:
+            count[0] += 1
+            return (budget is not None and count[0] > budget) or time.perf_counter() > deadline
+
+        if self.algorithm == "PRM":
+            # PRM grows its roadmap in a second thread: a Python termination callback would
+            # deadlock with it on the GIL, so PRM runs on OMPL's own timed condition.
+            setup.solve(self.time_limit)
+        else:
+            setup.solve(ob.PlannerTerminationCondition(stop))
+        if not setup.haveExactSolutionPath():
+            return None
+        if self.simplify:
+            setup.simplifySolution()
+        path = setup.getSolutionPath()
+        out = np.array([[st[0], st[1]] for st in path.getStates()], dtype=float)
+        out[0], out[-1] = start, goal
+        return out
+
+
+def make_planner(spec: Mapping[str, Any] | Callable[..., Any]) -> Callable[..., Any]:
+    """A planner from a spec dict (as in a sweep YAML) or a callable (returned unchanged).
+
+    ``{"algorithm": "astar"}`` gives :class:`AStarPlanner`; any of :data:`OMPL_ALGORITHMS`
+    gives :class:`OMPLPlanner` with the remaining keys (``range``, ``goal_bias``,
+    ``time_limit``, ``max_iterations``, ``simplify``, ``motion_resolution``). A ``name``
+    key (a label for tables and plots) is ignored here.
+    """
+    if callable(spec):
+        return spec
+    if not isinstance(spec, Mapping):
+        raise ValueError(f"planner: expected a dict or a callable, got {describe(spec)}")
+    opts = {k: v for k, v in spec.items() if k != "name"}
+    algorithm = opts.pop("algorithm", "RRTConnect")
+    if algorithm == "astar":
+        if opts:
+            raise ValueError(f"planner: astar takes no options, got {sorted(opts)}")
+        return AStarPlanner()
+    check_in("planner['algorithm']", algorithm, (*OMPL_ALGORITHMS, "astar"))
+    known = {"range", "goal_bias", "time_limit", "max_iterations", "simplify", "motion_resolution"}
+    extra = sorted(set(opts) - known)
+    if extra:
+        raise ValueError(f"planner: unknown option(s) {extra} (known: {sorted(known)})")
+    return OMPLPlanner(algorithm, **opts)

@@ -1,0 +1,107 @@
+"""Benchmark: navigation-experiment sweeps on Dask, and the planners of one replan.
+
+1. Sweep throughput: the same sweep (courtyard map, A* planner, 30 s missions with 2
+   goals) on a local Dask cluster with 1 and with 2 worker processes (one thread each),
+   started once; timed from submission to the last Parquet file written (``force=True`` so
+   every repeat reruns every task). Reports tasks/s and the 2-vs-1 speed-up. The machine
+   has 2 cores shared with other jobs: the speed-up is bounded by 2 and by the load.
+2. One replan on the courtyard grid (inflated, 300 x 400 cells): OMPL RRT-Connect
+   (``range`` 2 m, simplified) against the grid A* baseline, start and goal across the map.
+
+Median of the repeats after one warm-up. Run ``python -m tests.benchmarks.bench_experiments``
+(``--quick``: fewer tasks and repeats).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
+from are_stats.experiments import AStarPlanner, OMPLPlanner, expand_tasks, path_length, run_sweep
+
+
+def _config(replicates: int) -> dict:
+    return {
+        "name": "bench",
+        "map": "courtyard",
+        "seed": 11,
+        "replicates": replicates,
+        "scenario": {"arrival_rate": 0.0005, "leave_rate": 0.05},
+        "mission": {"n_goals": 2, "time_limit": 30.0},
+        "planner": {"algorithm": "astar"},
+        "factors": {"scenario.arrival_rate": [0.0002, 0.001]},
+    }
+
+
+def _sweep_rate(workers: int, cfg: dict, repeats: int) -> float:
+    from distributed import Client, LocalCluster
+
+    n = len(expand_tasks(cfg))
+    tmp = Path(tempfile.mkdtemp(prefix="bench-exp-"))
+    cluster = LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+    )
+    try:
+        addr = cluster.scheduler_address
+        with Client(addr) as c:  # warm-up: import are_stats on every worker
+            c.run(lambda: __import__("are_stats.experiments"))
+        run_sweep(cfg, tmp, scheduler=addr, force=True, progress=False)  # warm-up
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            run_sweep(cfg, tmp, scheduler=addr, force=True, progress=False)
+            times.append(time.perf_counter() - t0)
+    finally:
+        cluster.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+    return n / float(np.median(times))
+
+
+def _plan_times(repeats: int) -> dict:
+    grid = OccupancyGrid.from_ros_yaml(DEFAULT_MODELS / "courtyard.yaml")
+    free = grid.free & ~grid.inflate(0.3 + grid.resolution * np.sqrt(0.5))
+    res = grid.resolution
+    cells = np.argwhere(free)
+    a, b = cells[np.argmin(cells.sum(1))], cells[np.argmax(cells.sum(1))]
+    start, goal = (a[::-1] + 0.5) * res, (b[::-1] + 0.5) * res
+    out = {}
+    for name, pl in (("OMPL RRT-Connect", OMPLPlanner("RRTConnect", range=2.0)),
+                     ("grid A*", AStarPlanner())):  # fmt: skip
+        params = {"resolution": res, "seed": 0}
+        path = pl(free, start, goal, params)  # warm-up
+        times, lengths = [], []
+        for k in range(repeats):
+            params["seed"] = k
+            t0 = time.perf_counter()
+            path = pl(free, start, goal, params)
+            times.append(time.perf_counter() - t0)
+            lengths.append(path_length(path))
+        out[name] = (float(np.median(times)), float(np.median(lengths)))
+    return out
+
+
+def main(quick: bool = False) -> None:
+    repeats = 2 if quick else 5
+    cfg = _config(replicates=2 if quick else 4)
+    n = len(expand_tasks(cfg))
+    print(f"sweep: {n} tasks (courtyard, A*, 30 s missions, 2 goals), median of {repeats}")
+    r1 = _sweep_rate(1, cfg, repeats)
+    r2 = _sweep_rate(2, cfg, repeats)
+    print(f"  1 worker : {r1:7.2f} tasks/s")
+    print(f"  2 workers: {r2:7.2f} tasks/s   speed-up x{r2 / r1:.2f}")
+    print(f"one replan across the courtyard (300 x 400 cells), median of {5 * repeats}")
+    times = _plan_times(5 * repeats)
+    for name, (t, length) in times.items():
+        print(f"  {name:17s}: {1e3 * t:8.2f} ms   path {length:6.2f} m")
+    ta, tb = times["OMPL RRT-Connect"][0], times["grid A*"][0]
+    print(f"  ratio A* / RRT-Connect time: x{tb / ta:.1f}")
+
+
+if __name__ == "__main__":
+    main(quick="--quick" in sys.argv)

@@ -1,0 +1,176 @@
+"""The experiment loop on toy cases computed by hand (rho per replan, nu over time,
+collisions, goals) and the robot model."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.environment import OccupancyGrid
+from are_stats.experiments import Robot, circle_box_overlap, run_mission
+from tests.helpers import assert_allclose
+
+
+class _BoxCatalogue:
+    """One class whose every row is a 2 m x 2 m x 1 m box (duck-typed catalogue)."""
+
+    def __len__(self):
+        return 1
+
+    def select(self, component, mark):
+        return SimpleNamespace(
+            label="box",
+            half_extents=np.array([1.0, 1.0, 0.5]),
+            bounds=np.array([[-1.0, -1.0, 0.0], [1.0, 1.0, 1.0]]),
+        )
+
+
+GRID = OccupancyGrid(np.zeros((20, 20)), 1.0)
+ROBOT = Robot(radius=0.3, speed=1.0)
+
+
+def _art(rows):
+    return pd.DataFrame(rows, columns=["t_arrive", "t_leave", "x", "y", "yaw", "mark"])
+
+
+def test_toy_rho_nu_by_hand():
+    # one 2x2 box at (10, 5) from t=2 to t=4: off the straight path y = 10
+    art = _art([[2.0, 4.0, 10.0, 5.0, 0.0, 0]])
+    res = run_mission(
+        GRID, art, [[18.0, 10.0]], "astar", robot=ROBOT, start=[2.0, 10.0, 0.0],
+        catalogue=_BoxCatalogue(), time_limit=100.0,
+    )  # fmt: skip
+    rp = res.replans
+    assert rp["reason"].tolist() == ["goal", "arrival", "leave"]
+    assert_allclose(rp["t"], [0.0, 2.0, 4.0])
+    # g_t = remaining straight-line length / speed
+    assert_allclose(rp["g_t"], [16.0, 14.0, 12.0], rtol=1e-12)
+    assert_allclose(rp["rho"], rp["rho_t"] / (rp["rho_t"] + rp["g_t"]), rtol=1e-12)
+    # nu = n_A / n_free: the box covers exactly 4 cells of the 400 free ones
+    assert rp["n_A"].tolist() == [0, 4, 0]
+    assert_allclose(rp["nu"], [0.0, 0.01, 0.0])
+    s = res.summary
+    assert s["goals_reached"] == 1 and s["collisions"] == 0
+    assert_allclose(s["mission_time"], 16.0, rtol=1e-12)
+    assert_allclose(s["nu_mean"], 0.01 * 2.0 / 16.0, rtol=1e-12)
+    assert_allclose(s["distance"], 16.0, rtol=1e-12)
+    assert_allclose(res.goals["t_reached"], [16.0], rtol=1e-12)
+    assert s["n_updates"] == 2 and s["update_rate"] == 2 / 16.0
+
+
+def test_planner_avoids_perceived_but_blind_planner_collides():
+    art = _art([[1.0, 50.0, 10.0, 10.0, 0.0, 0]])  # a box arrives on the straight path
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=100.0)
+    seen = run_mission(GRID, art, [[18.0, 10.0]], "astar", **kw)
+    assert seen.summary["goals_reached"] == 1 and seen.summary["collisions"] == 0
+    assert seen.summary["distance"] > 16.0  # a detour
+
+    def blind(free, start, goal, params):  # a user planner that ignores the map
+        return np.vstack([start, goal])
+
+    hit = run_mission(GRID, art, [[18.0, 10.0]], blind, **kw)
+    assert hit.summary["collisions"] == 1 and hit.summary["goals_reached"] == 1
+    assert_allclose(hit.summary["distance"], 16.0, rtol=1e-12)
+
+
+def test_blocked_goal_waits_for_leave_and_time_limit():
+    # the goal is covered until t = 30; the robot replans when the box leaves
+    art = _art([[0.0, 30.0, 18.0, 10.0, 0.0, 0]])
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue())
+    res = run_mission(GRID, art, [[18.0, 10.0]], "astar", time_limit=100.0, **kw)
+    assert res.replans["success"].tolist() == [False, True]
+    assert_allclose(res.goals["t_reached"], [46.0], rtol=1e-12)
+    short = run_mission(GRID, art, [[18.0, 10.0]], "astar", time_limit=20.0, **kw)
+    assert short.summary["goals_reached"] == 0 and short.summary["mission_time"] == 20.0
+
+
+def test_goals_sequence_and_determinism():
+    rng = np.random.default_rng(0)
+    n = 12
+    art = _art(np.column_stack([
+        np.sort(rng.uniform(0, 40, n)), rng.uniform(40, 80, n), rng.uniform(3, 17, n),
+        rng.uniform(3, 17, n), np.zeros(n), np.zeros(n),
+    ]))  # fmt: skip
+    goals = [[2.0, 2.0], [18.0, 18.0], [2.0, 18.0], [18.0, 2.0]]
+    kw = dict(robot=ROBOT, catalogue=_BoxCatalogue(), time_limit=200.0)
+    a = run_mission(GRID, art, goals, "astar", **kw)
+    b = run_mission(GRID, art, goals, "astar", **kw)
+    assert a.summary["goals_total"] == 3
+    drop = ["rho_t", "rho"]
+    pd.testing.assert_frame_equal(a.replans.drop(columns=drop), b.replans.drop(columns=drop))
+    pd.testing.assert_frame_equal(a.goals, b.goals)
+    reached = a.goals["t_reached"].to_numpy()
+    assert np.all(np.diff(reached[np.isfinite(reached)]) > 0)
+
+
+def test_camera_perception_sees_only_what_is_in_view():
+    import trimesh
+
+    wall = trimesh.creation.box([0.2, 0.2, 0.2])
+    wall.apply_translation([0.5, 0.5, 5.0])  # far above: occludes nothing
+    # robot at (4, 10) looking along +x: a box ahead at (9, 10), one behind at (1, 14)
+    art = _art([[0.0, 100.0, 9.0, 13.0, 0.0, 0], [0.0, 100.0, 1.0, 14.0, 0.0, 0]])
+    res = run_mission(
+        GRID, art, [[16.0, 10.0]], "astar", robot=ROBOT, start=[4.0, 10.0, 0.0],
+        catalogue=_BoxCatalogue(), time_limit=30.0, perception="camera", env_mesh=wall,
+        d_max=20.0, tau=5.0,
+    )  # fmt: skip
+    first = res.replans.iloc[0]
+    assert first["n_live"] == 2 and first["n_perceived"] == 1
+    assert res.summary["goals_reached"] == 1
+
+
+def test_circle_box_overlap_against_sampling():
+    rng = np.random.default_rng(1)
+    n = 300
+    box = rng.uniform(-2, 2, (n, 2))
+    half = rng.uniform(0.1, 1.0, (n, 2))
+    yaw = rng.uniform(0, 2 * np.pi, n)
+    got = circle_box_overlap([0.0, 0.0], 0.5, box, half, yaw)
+    # reference: dense samples of the disc inside each rectangle
+    r = 0.5 * np.sqrt(rng.random(20000))
+    th = rng.uniform(0, 2 * np.pi, 20000)
+    pts = np.column_stack([r * np.cos(th), r * np.sin(th)])
+    for k in range(n):
+        d = pts - box[k]
+        c, s = np.cos(yaw[k]), np.sin(yaw[k])
+        loc = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+        inside = (np.abs(loc) <= half[k]).all(axis=1).any()
+        if inside:
+            assert got[k]
+
+
+def test_robot_camera_frames():
+    r = Robot(radius=0.3, speed=0.5, camera_xyz=(0.2, 0.0, 0.5))
+    cam = r.camera([1.0, 2.0, np.pi / 2])
+    assert_allclose(cam.center, [1.0, 2.2, 0.5], atol=1e-12)
+    assert_allclose(cam.principal_axis, [0.0, 1.0, 0.0], atol=1e-12)  # looks along +y
+    with pytest.raises(ValueError, match="radius"):
+        Robot(radius=0.0)
+    with pytest.raises(ValueError, match="camera_fov"):
+        Robot(camera_fov=4.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"goals": [[1.0, 2.0, 3.0]]}, "goals"),
+        ({"goals": [[1.0, 2.0]]}, "goals"),
+        ({"perception": "lidar"}, "perception"),
+        ({"perception": "camera"}, "env_mesh"),
+        ({"time_limit": 0.0}, "time_limit"),
+        ({"grid": np.zeros((3, 3))}, "grid"),
+        ({"artefacts": pd.DataFrame({"x": [1.0]})}, "artefacts"),
+        ({"start": [1.0, 2.0]}, "start"),
+    ],
+)
+def test_bad_input(kwargs, match):
+    args = dict(grid=GRID, artefacts=_art([]), goals=[[2.0, 2.0], [5.0, 5.0]])
+    args.update(kwargs)
+    if "start" in kwargs:
+        args["goals"] = [[5.0, 5.0]]
+    with pytest.raises(ValueError, match=match):
+        run_mission(args.pop("grid"), args.pop("artefacts"), args.pop("goals"), **args)
