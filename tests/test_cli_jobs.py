@@ -63,6 +63,13 @@ def _invoke(args):
     return res
 
 
+def _quick_em_fit(log: Path, fit: Path) -> None:
+    """A small conjugate + EM fit without figures (the setup of the downstream tests)."""
+    res = _invoke(["fit", log, "--out", fit, "--method", "em", "--no-figures",
+                   "--samples", "50", "--chains", "2"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+
+
 def test_fit_report_generate_em(tmp_path):
     log, data = _write_log(tmp_path, labels=False)
     fit = tmp_path / "fits" / "small.nc"
@@ -270,24 +277,7 @@ def test_demo_quick(tmp_path):
 def test_perceive_adds_flags(tmp_path):
     log, _ = _write_log(tmp_path)
     fit = tmp_path / "f.nc"
-    assert (
-        _invoke(
-            [
-                "fit",
-                log,
-                "--out",
-                fit,
-                "--method",
-                "em",
-                "--no-figures",
-                "--samples",
-                "50",
-                "--chains",
-                "2",
-            ]
-        ).exit_code
-        == 0
-    )
+    _quick_em_fit(log, fit)
     scen = tmp_path / "scen"
     res = _invoke(
         [
@@ -334,24 +324,7 @@ def test_perceive_adds_flags(tmp_path):
 def test_generate_with_behaviours(tmp_path):
     log, _ = _write_log(tmp_path, labels=True)
     fit = tmp_path / "f.nc"
-    assert (
-        _invoke(
-            [
-                "fit",
-                log,
-                "--out",
-                fit,
-                "--method",
-                "em",
-                "--no-figures",
-                "--samples",
-                "50",
-                "--chains",
-                "2",
-            ]
-        ).exit_code
-        == 0
-    )
+    _quick_em_fit(log, fit)
     out = tmp_path / "s"
     res = _invoke(
         [

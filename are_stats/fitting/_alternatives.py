@@ -213,6 +213,21 @@ def lifetime_model(
         numpyro.sample("durations", _RightCensored(kind, params, censored), obs=durations)
 
 
+def _fit_each(key, model, data, kinds, num_warmup, num_samples, num_chains):
+    """One NUTS fit of ``model(**data, kind=kind)`` per kind, keyed by kind."""
+    return {
+        kind: _run_nuts(
+            jax.random.fold_in(key, i),
+            model,
+            {**data, "kind": kind},
+            num_warmup,
+            num_samples,
+            num_chains,
+        )
+        for i, kind in enumerate(kinds)
+    }
+
+
 def _run_nuts(key, model, kwargs, num_warmup, num_samples, num_chains):
     chain_method = "parallel" if jax.local_device_count() >= num_chains else "vectorized"
     mcmc = MCMC(
@@ -279,25 +294,14 @@ def fit_arrival_models(
     period_index = np.minimum((phase / (period / n_periods)).astype(np.int64), n_periods - 1)
     exposure = area * bin_width
     r_hat = max(counts.mean(), 0.5) / exposure
-    out = {}
-    for i, kind in enumerate(models):
-        kwargs = dict(
-            counts=jnp.asarray(counts),
-            exposure=exposure,
-            period_index=jnp.asarray(period_index),
-            n_periods=n_periods,
-            r_hat=r_hat,
-            kind=kind,
-        )
-        out[kind] = _run_nuts(
-            jax.random.fold_in(key, i),
-            arrival_model,
-            kwargs,
-            num_warmup,
-            num_samples,
-            num_chains,
-        )
-    return out
+    data = dict(
+        counts=jnp.asarray(counts),
+        exposure=exposure,
+        period_index=jnp.asarray(period_index),
+        n_periods=n_periods,
+        r_hat=r_hat,
+    )
+    return _fit_each(key, arrival_model, data, models, num_warmup, num_samples, num_chains)
 
 
 def fit_lifetime_models(
@@ -339,18 +343,8 @@ def fit_lifetime_models(
     if events == 0:
         raise ValueError("censored: expected at least one observed (uncensored) stay, got none")
     r_hat = events / d.sum()
-    out = {}
-    for i, kind in enumerate(models):
-        kwargs = dict(durations=jnp.asarray(d), censored=jnp.asarray(c), r_hat=r_hat, kind=kind)
-        out[kind] = _run_nuts(
-            jax.random.fold_in(key, i),
-            lifetime_model,
-            kwargs,
-            num_warmup,
-            num_samples,
-            num_chains,
-        )
-    return out
+    data = dict(durations=jnp.asarray(d), censored=jnp.asarray(c), r_hat=r_hat)
+    return _fit_each(key, lifetime_model, data, models, num_warmup, num_samples, num_chains)
 
 
 def compare_models(idatas: dict[str, az.InferenceData]):
