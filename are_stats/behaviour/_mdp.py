@@ -35,8 +35,8 @@ Backward induction
 The sum is a stencil: shifted copies of ``V_{t+1}`` (``jnp.pad`` + static slices) selected
 by precomputed "path is free" masks, never a dense ``S x S`` matrix. The epochs run in one
 ``lax.scan``; a batch of artefacts with different goals, behaviours and horizons runs under
-``vmap`` (horizons are padded to the largest; epochs beyond an item's horizon keep the
-terminal value and the policy ``stay``).
+``vmap`` in chunks of 8 (horizons are padded to the largest; epochs beyond an item's horizon
+keep the terminal value and the policy ``stay``).
 """
 
 from __future__ import annotations
@@ -69,6 +69,9 @@ _DCOL = np.array([d[1] for d in HEADINGS])
 #: Store every V_t in solve() when it takes at most this many bytes; else recompute on demand.
 _VALUES_BYTES = 64 * 2**20
 _DENSE_MAX_STATES = 20_000
+#: Batch items solved together (vmap); larger batches run in chunks of this many (lax.map),
+#: which keeps an epoch's working set in cache and is ~1.7x faster for 64 goals than one vmap.
+_CHUNK = 8
 #: Tie-breaking order of the moves; ``stay`` wins only when strictly better (by ``tie_tol``).
 _MOVE_ORDER = (RUN, FORWARD, LEFT, RIGHT)
 #: Relative tolerance of that comparison per dtype (a few ulps of the largest value).
@@ -287,7 +290,7 @@ def backward_induction(
     use_run : bool
         Compute the run action (static; false when no behaviour allows it).
     with_policy : bool
-        Also return the policy (static). The values alone take about half the time.
+        Also return the policy (static). The values alone take about 60 % of the time.
 
     Returns
     -------
@@ -306,7 +309,7 @@ def backward_induction(
     def crop(x: tuple[jax.Array, ...] | None) -> jax.Array | None:
         if x is None:
             return None
-        return jnp.moveaxis(jnp.stack(x, axis=2), 1, 0)[..., 2:-2]
+        return jnp.stack(x, axis=2)[..., 2:-2]
 
     return v0, crop(policy), crop(values)
 
@@ -328,10 +331,11 @@ def _backward_induction_wide(
     use_run: bool = True,
     with_policy: bool = True,
 ) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
-    """:func:`backward_induction` returning policy and values per heading, epoch-major and wide.
+    """:func:`backward_induction` returning policy and values per heading, batch-major and wide.
 
-    ``policy[h]`` is ``(D, B, H, W + 4)`` and ``values[h]`` ``(D + 1, B, H, W + 4)``, with the
-    grid in columns ``2 .. W + 1``: the layout the scan produces, so nothing is copied.
+    ``policy[h]`` is ``(B, D, H, W + 4)`` and ``values[h]`` ``(B, D + 1, H, W + 4)``, with the
+    grid in columns ``2 .. W + 1``: the layout the scan produces, so nothing is copied. Up to
+    ``_CHUNK`` items are solved together under ``vmap``; more run in chunks under ``lax.map``.
     """
     fn = functools.partial(
         _solve_one,
@@ -340,15 +344,26 @@ def _backward_induction_wide(
         use_run=use_run,
         with_policy=with_policy,
     )
-    in_axes = (None, None, 0, 0, 0, None if follow is None else 0, None, None, None, None)
-    return jax.vmap(fn, in_axes=in_axes, out_axes=(0, 1, 1))(
-        ok, occupied, goals, allow, horizons, follow, slip, step_cost, goal_reward, tie_tol
-    )
+    batched = (goals, allow, horizons, follow)
 
+    def one(items: tuple[jax.Array, ...]) -> Any:
+        g, a, hz, f = items
+        return fn(ok, occupied, g, a, hz, f, slip, step_cost, goal_reward, tie_tol)
+
+    if goals.shape[0] <= _CHUNK:
+        return jax.vmap(one)(batched)
+    return jax.lax.map(one, batched, batch_size=_CHUNK)
+
+
+#: XLA's CPU backend vectorises for 256-bit registers by default; where the CPU has 512-bit
+#: ones (AVX-512) the stencil loops run about 1.5x faster with them (results are identical:
+#: no fast-math). Elsewhere LLVM keeps the widest width the CPU has.
+_COMPILER_OPTIONS = {"xla_cpu_prefer_vector_width": 512}
 
 _backward_induction_jit = jax.jit(
     _backward_induction_wide,
     static_argnames=("n_epochs", "store_values", "use_run", "with_policy"),
+    compiler_options=_COMPILER_OPTIONS,
 )
 
 
@@ -402,7 +417,7 @@ class MDPSolution:
         return int(self._inputs["n_epochs"])
 
     def _policy_planes(self) -> tuple[np.ndarray, ...]:
-        """Per heading ``(D, B, H, W)`` int8 views of the policy (computed on first use)."""
+        """Per heading ``(B, D, H, W)`` int8 views of the policy (computed on first use)."""
         if self._policy is None:
             _, policy, _ = _backward_induction_jit(
                 **self._inputs, store_values=False, with_policy=True
@@ -433,19 +448,19 @@ class MDPSolution:
         out = np.zeros(len(items), np.int8)
         for h, plane in enumerate(planes):
             sel = states[:, 2] == h
-            out[sel] = plane[t[sel], items[sel], states[sel, 0], states[sel, 1]]
+            out[sel] = plane[items[sel], t[sel], states[sel, 0], states[sel, 1]]
         return out
 
     @property
     def policy(self) -> np.ndarray:
         """``(B, D, H, W, 4) int8``: ``policy[b, t, row, col, h]`` is the action at epoch t.
 
-        Epochs ``t >= d_b`` (beyond an artefact's horizon) hold ``stay``. This is a view of
-        the heading-major ``(B, D, 4, H, W)`` array the solver stores.
+        Epochs ``t >= d_b`` (beyond an artefact's horizon) hold ``stay``. Stacked on first
+        access from the per-heading ``(B, D, H, W)`` planes the solver stores.
         """
         if self._policy_full is None:
             planes = self._policy_planes()
-            self._policy_full = np.stack([np.moveaxis(p, 1, 0) for p in planes], axis=-1)
+            self._policy_full = np.stack(planes, axis=-1)
         return self._policy_full
 
     @property
@@ -461,7 +476,7 @@ class MDPSolution:
             )
             self._values = _crop_planes(values)
         if self._values_full is None:
-            self._values_full = np.stack([np.moveaxis(v, 1, 0) for v in self._values], axis=-1)
+            self._values_full = np.stack(self._values, axis=-1)
         return self._values_full
 
     def __repr__(self) -> str:
@@ -583,7 +598,7 @@ class GridMDP:
             one compilation serves every call with the same grid shape, batch size and ``D``.
         with_policy : bool
             Compute the policy now (default) or on first access to ``.policy`` (the values
-            alone take about half the time).
+            alone take about 60 % of the time).
 
         Returns
         -------
@@ -650,23 +665,24 @@ class GridMDP:
                         f"got {describe(fr)}"
                     )
                 rewards[b, : hz[b]] = fr[: hz[b]]
-        dt = jnp.dtype(self.dtype)
+        dt = np.dtype(self.dtype)
         scale = self.goal_reward + self.step_cost
         if rewards is not None:
             scale += float(np.abs(rewards).sum(axis=(2, 3)).max(initial=0.0)) if d else 0.0
         if store_values is None:
             store_values = n * (d + 1) * h * w * 4 * dt.itemsize <= _VALUES_BYTES
+        # NumPy inputs: the jitted call transfers them (jnp.asarray would cost ~0.1 ms each)
         inputs = dict(
-            ok=jnp.asarray(self._ok),
-            occupied=jnp.asarray(self.occupied),
-            goals=jnp.asarray(goal_masks),
-            allow=jnp.asarray(allow),
-            horizons=jnp.asarray(hz),
-            follow=None if rewards is None else jnp.asarray(rewards[:, :d], dtype=dt),
-            slip=jnp.asarray(self.slip, dt),
-            step_cost=jnp.asarray(self.step_cost, dt),
-            goal_reward=jnp.asarray(self.goal_reward, dt),
-            tie_tol=jnp.asarray(_TIE_RTOL[self.dtype] * scale, dt),
+            ok=self._ok,
+            occupied=self.occupied,
+            goals=goal_masks,
+            allow=allow,
+            horizons=hz,
+            follow=None if rewards is None else np.asarray(rewards[:, :d], dtype=dt),
+            slip=np.asarray(self.slip, dt),
+            step_cost=np.asarray(self.step_cost, dt),
+            goal_reward=np.asarray(self.goal_reward, dt),
+            tie_tol=np.asarray(_TIE_RTOL[self.dtype] * scale, dt),
             n_epochs=d,
             use_run=bool(allow[:, RUN].any()),
         )

@@ -107,7 +107,7 @@ def main(quick: bool = False) -> None:
         lambda: mdp.solve(goals, "run", d, store_values=False), max(3, repeats // 2)
     )
     print(
-        f"batch of {batch} goals (vmap)     {t_batch:9.3f} s ({t_batch / batch * 1e3:.1f} ms/goal)"
+        f"batch of {batch} goals (chunks)   {t_batch:9.3f} s ({t_batch / batch * 1e3:.1f} ms/goal)"
     )
     t_bvals = _median_time(
         lambda: mdp.solve(goals, "run", d, store_values=False, with_policy=False),
