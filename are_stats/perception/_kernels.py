@@ -12,17 +12,22 @@ The pixels an artefact can cover are enumerated as *segments*: one segment per
 (frame, artefact) pair, holding the artefact's projected pixel rectangle
 ``[x0, x0 + w) x [y0, y0 + h)``. Item ``i`` of a pair launch belongs to the segment ``s``
 with ``offsets[s] <= i < offsets[s + 1]`` (binary search), and to pixel
-``(x0 + k % w, y0 + k // w)`` with ``k = i - offsets[s]``.
+``(x0 + k % w, y0 + k // w)`` with ``k = i - offsets[s]``. CPU launches take one
+rectangle row per work item instead (``row_seg``, ``row_y``): its items are consecutive.
 """
 
 from __future__ import annotations
 
+import itertools
 import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import warp as wp
 
 __all__ = [
+    "launch_block_clear",
+    "launch_dynamic",
     "launch_env_depths",
     "launch_pair_counts",
     "launch_pair_depths",
@@ -33,6 +38,10 @@ __all__ = [
 # Warp's greeting on first use would clutter every CLI run and test log.
 if wp.config.log_level <= wp.LOG_INFO:
     wp.config.log_level = wp.LOG_WARNING
+
+# No gradients are taken through these kernels; skipping the adjoint code halves the
+# first-use compile time.
+wp.set_module_options({"enable_backward": False})
 
 _INF = wp.constant(wp.float32(np.inf))
 
@@ -128,6 +137,54 @@ def pair_depth_kernel(
 
 
 @wp.kernel
+def pair_depth_row_kernel(
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
+    offsets: wp.array(dtype=wp.int64),
+    seg_frame: wp.array(dtype=wp.int32),
+    seg_rect: wp.array(dtype=wp.vec3i),
+    seg_origin: wp.array(dtype=wp.vec3),
+    seg_rot: wp.array(dtype=wp.mat33),
+    seg_half: wp.array(dtype=wp.vec3),
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    width: int,
+    npix: int,
+    d_max: float,
+    base: wp.int64,
+    pair_z: wp.array(dtype=wp.float32),
+    z_max: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
+):
+    """:func:`pair_depth_kernel` with one work item per rectangle row (CPU launches).
+
+    Row ``r`` is row ``row_y[r]`` of segment ``row_seg[r]``; its items are consecutive,
+    so a host thread walks them without a per-item segment search.
+    """
+    r = wp.int64(wp.tid()) + base
+    s = row_seg[r]
+    yy = row_y[r]
+    rect = seg_rect[s]
+    py = rect[1] + yy
+    i0 = offsets[s] + wp.int64(yy) * wp.int64(rect[2])
+    o = seg_origin[s]
+    rot = seg_rot[s]
+    h = seg_half[s]
+    g0 = seg_frame[s] * npix + py * width
+    for j in range(rect[2]):
+        px = rect[0] + j
+        d = rot * _pixel_dir_cam(px, py, fx, fy, cx, cy)
+        z = _slab(o, d, h, d_max)
+        pair_z[i0 + wp.int64(j)] = z
+        if z < _INF:
+            g = g0 + px
+            wp.atomic_max(z_max, g, z)
+            wp.atomic_min(z_min, g, z)
+
+
+@wp.kernel
 def env_depth_kernel(
     mesh: wp.uint64,
     pixels: wp.array(dtype=wp.int64),
@@ -142,8 +199,11 @@ def env_depth_kernel(
     width: int,
     npix: int,
     base: wp.int64,
-    stride: int,
     any_hit: int,
+    clear: wp.array(dtype=wp.int32),
+    block: int,
+    bw: int,
+    bh: int,
     z_env: wp.array(dtype=wp.float32),
 ):
     """Z_env (eq. 2) of the listed pixels: first mesh hit in [0, max_t[g]), else +inf.
@@ -152,14 +212,18 @@ def env_depth_kernel(
     ``any_hit == 1``, a pixel whose finite box depths are all equal (``min_t[g] ==
     max_t[g]``, typically a single box) only needs to know whether anything is hit before
     that depth, which the cheaper any-hit query answers exactly: occluded pixels get
-    ``Z_env = -1`` (below every box depth), the others +inf.
+    ``Z_env = -1`` (below every box depth), the others +inf. Pixels of blocks cleared by
+    :func:`block_clear_kernel` (``clear[block] != 0``) get +inf without a ray.
     """
-    i = wp.int64(wp.tid()) * wp.int64(stride) + base
+    i = wp.int64(wp.tid()) + base
     g = pixels[i]
     f = int(g // wp.int64(npix))
     p = int(g - wp.int64(f) * wp.int64(npix))
     px = p % width
     py = p // width
+    if clear[(f * bh + py // block) * bw + px // block] != 0:
+        z_env[g] = _INF
+        return
     d = cam_rot[f] * _pixel_dir_cam(px, py, fx, fy, cx, cy)
     t_max = max_t[g]
     if any_hit == 1 and min_t[g] == t_max:
@@ -173,6 +237,75 @@ def env_depth_kernel(
             z_env[g] = q.t
         else:
             z_env[g] = _INF
+
+
+@wp.kernel
+def block_clear_kernel(
+    mesh: wp.uint64,
+    blocks: wp.array(dtype=wp.int64),
+    block_t: wp.array(dtype=wp.float32),
+    cam_pos: wp.array(dtype=wp.vec3),
+    cam_rot: wp.array(dtype=wp.mat33),
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    width: int,
+    height: int,
+    block: int,
+    bw: int,
+    bh: int,
+    base: wp.int64,
+    clear: wp.array(dtype=wp.int32),
+):
+    """Whether no mesh triangle can meet any ray of a pixel block before ``block_t``.
+
+    Block ``b`` of frame ``f`` (``blocks[i] = f * bw * bh + b``) covers the pixels
+    ``[bx * block, bx * block + block) x [by * block, by * block + block)`` and
+    ``block_t[i]`` bounds the ``max_t`` of its pixels. Every ray segment
+    ``{c + t d : 0 <= t < max_t}`` of its pixels lies in the pyramid with apex at the
+    camera centre spanned by the block's pixel-centre directions up to optical depth
+    ``block_t[i]`` (a unit ray's optical depth is at most its length). When no
+    triangle's bounding box meets the pyramid's bounding box (widened well beyond
+    float32 rounding), no ray query of the block can hit anything: ``Z_env = +inf``.
+    """
+    i = wp.int64(wp.tid()) + base
+    key = blocks[i]
+    nb = wp.int64(bw * bh)
+    f = int(key // nb)
+    b = int(key - wp.int64(f) * nb)
+    x0 = (b % bw) * block
+    y0 = (b // bw) * block
+    x1 = wp.min(x0 + block, width)
+    y1 = wp.min(y0 + block, height)
+    t_top = block_t[i]
+    u0 = (wp.float32(x0) + 0.5 - cx) / fx
+    u1 = (wp.float32(x1) - 0.5 - cx) / fx
+    v0 = (wp.float32(y0) + 0.5 - cy) / fy
+    v1 = (wp.float32(y1) - 0.5 - cy) / fy
+    rot = cam_rot[f]
+    c = cam_pos[f]
+    lo = c
+    hi = c
+    for k in range(4):
+        u = u0
+        if k % 2 == 1:
+            u = u1
+        v = v0
+        if k >= 2:
+            v = v1
+        q = c + rot * wp.vec3(u * t_top, v * t_top, t_top)
+        lo = wp.min(lo, q)
+        hi = wp.max(hi, q)
+    scale = wp.max(wp.max(wp.abs(c[0]), wp.abs(c[1])), wp.abs(c[2])) + t_top
+    pad = 1.0e-3 + 1.0e-4 * scale
+    padv = wp.vec3(pad, pad, pad)
+    query = wp.mesh_query_aabb(mesh, lo - padv, hi + padv)
+    face = wp.int32(0)
+    if wp.mesh_query_aabb_next(query, face):
+        clear[i] = 0
+    else:
+        clear[i] = 1
 
 
 @wp.kernel
@@ -210,7 +343,54 @@ def pair_count_kernel(
             wp.atomic_add(counts, f * n_box + seg_box[s], 1)
 
 
+@wp.kernel
+def pair_count_row_kernel(
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
+    offsets: wp.array(dtype=wp.int64),
+    seg_frame: wp.array(dtype=wp.int32),
+    seg_box: wp.array(dtype=wp.int32),
+    seg_rect: wp.array(dtype=wp.vec3i),
+    pair_z: wp.array(dtype=wp.float32),
+    z_env: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
+    width: int,
+    npix: int,
+    n_box: int,
+    base: wp.int64,
+    use_min: int,
+    counts: wp.array(dtype=wp.int32),
+):
+    """:func:`pair_count_kernel` with one work item per rectangle row (CPU launches)."""
+    r = wp.int64(wp.tid()) + base
+    s = row_seg[r]
+    yy = row_y[r]
+    rect = seg_rect[s]
+    py = rect[1] + yy
+    i0 = offsets[s] + wp.int64(yy) * wp.int64(rect[2])
+    f = seg_frame[s]
+    g0 = f * npix + py * width + rect[0]
+    n = wp.int32(0)
+    for j in range(rect[2]):
+        z = pair_z[i0 + wp.int64(j)]
+        if z < _INF:
+            g = g0 + j
+            ok = z <= z_env[g]
+            if use_min == 1:
+                ok = ok and z <= z_min[g]
+            if ok:
+                n += 1
+    if n > 0:
+        wp.atomic_add(counts, f * n_box + seg_box[s], n)
+
+
 # ---------------------------------------------------------------------- host launchers
+
+_CHUNKS_PER_THREAD = 4
+# Every multi-threaded launch ends in a barrier; when another process holds a core, the
+# barrier waits for a descheduled helper (milliseconds). Launches cheaper than that stay on
+# the calling thread: block culling and counting always, box depths below this many items.
+_MIN_SPLIT_ITEMS = 1 << 16
 
 
 def split_bounds(n: int, device: str, threads: int) -> list[tuple[int, int]]:
@@ -252,9 +432,77 @@ def launch_split(kernel, bounds, make_inputs, device: str = "cpu") -> None:
         raise errors[0]
 
 
+_POOL: ThreadPoolExecutor | None = None
+_POOL_SIZE = 0
+_POOL_LOCK = threading.Lock()
+
+
+def _pool(n: int) -> ThreadPoolExecutor:
+    """A process-wide pool of at least ``n`` helper threads (spawning costs ~60 us each)."""
+    global _POOL, _POOL_SIZE
+    with _POOL_LOCK:
+        if _POOL is None or _POOL_SIZE < n:
+            _POOL = ThreadPoolExecutor(max_workers=n, thread_name_prefix="are-stats-warp")
+            _POOL_SIZE = n
+        return _POOL
+
+
+def launch_dynamic(kernel, n: int, workers: int, make_inputs, device: str = "cpu") -> None:
+    """Launch ``kernel`` over items ``[0, n)`` in chunks pulled by ``workers`` host threads.
+
+    ``make_inputs(base, j)`` returns the inputs of a launch over the chunk starting at
+    item ``base`` by worker ``j`` (which scatters into its own buffers ``j``). The items
+    are cut into ``_CHUNKS_PER_THREAD`` contiguous chunks per worker and each worker
+    takes the next free chunk, so a worker slowed down by a busy core (or by costly rays)
+    simply takes fewer chunks; contiguous chunks keep the threads off each other's cache
+    lines. The calling thread is worker 0; the others come from a persistent pool.
+    """
+    if n <= 0:
+        return
+    if workers <= 1:
+        wp.launch(kernel, dim=n, inputs=make_inputs(0, 0), device=device)
+        return
+    edges = np.linspace(0, n, workers * _CHUNKS_PER_THREAD + 1).astype(np.int64)
+    chunks = [(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:], strict=True) if hi > lo]
+    ticket = itertools.count()  # next() is atomic under the GIL
+
+    def run(j: int) -> None:
+        while (c := next(ticket)) < len(chunks):
+            lo, hi = chunks[c]
+            wp.launch(kernel, dim=hi - lo, inputs=make_inputs(lo, j), device=device)
+
+    futures = [_pool(workers - 1).submit(run, j) for j in range(1, workers)]
+    try:
+        run(0)
+    finally:
+        for f in futures:
+            f.result()
+
+
+def _is_cpu(device) -> bool:
+    return str(device).startswith("cpu")
+
+
 def launch_pair_depths(seg, intr, d_max, out, bounds, device):
-    """Host side of :func:`pair_depth_kernel`; ``out["z_max"][j]`` is range j's buffer."""
+    """Host side of the box-depth kernels; ``out["z_max"][j]`` is worker/range j's buffer.
+
+    On the CPU the rectangle rows go to :func:`pair_depth_row_kernel` with
+    ``len(bounds)`` workers (:func:`launch_dynamic`); elsewhere :func:`pair_depth_kernel`
+    takes one item per work item over ``bounds``.
+    """
     fx, fy, cx, cy, width, npix = intr
+    if _is_cpu(device):
+
+        def row_inputs(base, j):
+            return [
+                seg["row_seg"], seg["row_y"], seg["offsets"], seg["frame"], seg["rect"],
+                seg["origin"], seg["rot"], seg["half"], fx, fy, cx, cy, width, npix,
+                float(d_max), base, out["pair_z"], out["z_max"][j], out["z_min"][j],
+            ]  # fmt: skip
+
+        workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
+        launch_dynamic(pair_depth_row_kernel, seg["n_rows"], workers, row_inputs, device)
+        return
 
     def inputs(base, j):
         return [
@@ -266,29 +514,62 @@ def launch_pair_depths(seg, intr, d_max, out, bounds, device):
     launch_split(pair_depth_kernel, bounds, inputs, device)
 
 
-def launch_env_depths(mesh_id, pixels, max_t, min_t, any_hit, cams, intr, z_env, device, threads):
+def launch_env_depths(
+    mesh_id, pixels, max_t, min_t, any_hit, clear, block, cams, intr, z_env, device, threads
+):
     """Host side of :func:`env_depth_kernel` over ``pixels`` (unique global pixel indices).
 
-    Ray costs vary across the image (sky, ground, far walls), so the threads take the
-    pixels interleaved (thread j casts items j, j + threads, ...) rather than in blocks.
+    Ray costs vary across the image (sky, ground, far walls), so the pixels are handed to
+    the threads in chunks on demand (:func:`launch_dynamic`).
     """
     fx, fy, cx, cy, width, npix = intr
+    height = npix // width
+    bw, bh = -(-width // block), -(-height // block)
     n = pixels.shape[0]
     k = len(split_bounds(n, device, threads))
-    bounds = [(j, j + (n - j + k - 1) // k) for j in range(min(k, n))]
 
     def inputs(base, j):
         return [
             mesh_id, pixels, max_t, min_t, cams["pos"], cams["rot"],
-            fx, fy, cx, cy, width, npix, base, k, any_hit, z_env,
+            fx, fy, cx, cy, width, npix, base, any_hit, clear, block, bw, bh, z_env,
         ]  # fmt: skip
 
-    launch_split(env_depth_kernel, bounds, inputs, device)
+    launch_dynamic(env_depth_kernel, n, k, inputs, device)
+
+
+def launch_block_clear(mesh_id, blocks, block_t, cams, intr, height, block, clear, device):
+    """Host side of :func:`block_clear_kernel` (one thread: a fraction of a millisecond)."""
+    fx, fy, cx, cy, width, _ = intr
+    bw, bh = -(-width // block), -(-height // block)
+    n = blocks.shape[0]
+
+    def inputs(base, j):
+        return [
+            mesh_id, blocks, block_t, cams["pos"], cams["rot"],
+            fx, fy, cx, cy, width, height, block, bw, bh, base, clear,
+        ]  # fmt: skip
+
+    launch_dynamic(block_clear_kernel, n, 1, inputs, device)
 
 
 def launch_pair_counts(seg, intr, n_box, use_min, out, counts, bounds, device):
-    """Host side of :func:`pair_count_kernel`; ``counts[j]`` is range j's buffer."""
+    """Host side of the count kernels; ``counts[j]`` is range j's buffer.
+
+    On the CPU, :func:`pair_count_row_kernel` runs on the calling thread (about 3 ns per
+    item) and fills ``counts[0]``.
+    """
     _, _, _, _, width, npix = intr
+    if _is_cpu(device):
+
+        def row_inputs(base, j):
+            return [
+                seg["row_seg"], seg["row_y"], seg["offsets"], seg["frame"], seg["box"],
+                seg["rect"], out["pair_z"], out["z_env"], out["z_min"],
+                width, npix, n_box, base, use_min, counts[j],
+            ]  # fmt: skip
+
+        launch_dynamic(pair_count_row_kernel, seg["n_rows"], 1, row_inputs, device)
+        return
 
     def inputs(base, j):
         return [

@@ -17,8 +17,9 @@ kernel computes ``Z_a`` over the (artefact, pixel-in-rectangle) items and keeps,
 the largest and smallest finite ``Z_a``; the environment ray of a pixel is cast only where
 some ``Z_a`` is finite, and only up to that largest ``Z_a`` (a farther environment hit
 occludes nothing). Where all box depths of a pixel are equal (usually one box), Warp's
-any-hit query answers "is anything hit before Z_a" exactly and more cheaply than the
-closest-hit query.
+any-hit query answers "is anything hit before Z_a" exactly. Before any ray is cast, 8x8
+pixel blocks whose ray pyramid meets no triangle bounding box are cleared (their rays
+could hit nothing), which removes most rays to near boxes.
 """
 
 from __future__ import annotations
@@ -316,6 +317,47 @@ def _default_threads() -> int:
     return max(1, min(n, 8))
 
 
+_BLOCK = 8  # pixel block side of the environment-ray culling
+
+
+def _block_clear(mesh_id, max_t, cams, wintr, tc, height, device):
+    """Per pixel block, whether no environment ray of its pixels can hit the mesh.
+
+    The image is tiled into ``_BLOCK`` x ``_BLOCK`` pixel blocks; a block whose ray
+    pyramid (up to its largest ``max_t``) meets no triangle bounding box is cleared
+    (:func:`~are_stats.perception._kernels.block_clear_kernel`): its pixels keep
+    ``Z_env = +inf`` without casting a ray. Returns a (tc * bh * bw,) int32 Warp array.
+    """
+    width, b = wintr[4], _BLOCK
+    bw, bh = -(-width // b), -(-height // b)
+    grid = max_t.reshape(tc, height, width)
+    if bh * b != height or bw * b != width:
+        padded = np.full((tc, bh * b, bw * b), -1.0, np.float32)
+        padded[:, :height, :width] = grid
+    else:
+        padded = grid
+    top = padded.reshape(tc * bh, b, bw * b).max(axis=1).reshape(-1, b).max(axis=1)
+    blocks = np.flatnonzero(top >= 0.0)
+    flags = wp.zeros(tc * bh * bw, dtype=wp.int32, device=device)
+    if blocks.size:
+        clear = wp.empty(blocks.shape[0], dtype=wp.int32, device=device)
+        kern.launch_block_clear(
+            mesh_id,
+            wp.array(blocks, dtype=wp.int64, device=device),
+            wp.array(top[blocks], dtype=wp.float32, device=device),
+            cams,
+            wintr,
+            height,
+            b,
+            clear,
+            device,
+        )
+        out = np.zeros(tc * bh * bw, dtype=np.int32)
+        out[blocks] = clear.numpy()
+        flags = wp.array(out, dtype=wp.int32, device=device)
+    return flags
+
+
 def _run(
     mesh_id: int,
     centers: np.ndarray,
@@ -380,6 +422,12 @@ def _run(
         cam_c, cam_r = poses[g0:g1, :3, 3][fr], poses[g0:g1, :3, :3][fr]
         seg_origin = np.einsum("sji,sj->si", rots[bx], cam_c - centers[bx])
         seg_rot = np.einsum("sji,sjk->sik", rots[bx], cam_r)
+        # the rows of every rectangle: (segment, row within the rectangle)
+        h_seg = rect[:, 3]
+        row_seg = np.repeat(np.arange(len(fr), dtype=np.int32), h_seg)
+        row_y = (np.arange(row_seg.shape[0]) - np.repeat(np.cumsum(h_seg) - h_seg, h_seg)).astype(
+            np.int32
+        )
         seg = {
             "offsets": wp.array(offsets, dtype=wp.int64, device=device),
             "frame": wp.array(fr.astype(np.int32), dtype=wp.int32, device=device),
@@ -390,6 +438,9 @@ def _run(
             "half": wp.array(half[bx].astype(np.float32), dtype=wp.vec3, device=device),
             "n": len(fr),
             "n_items": n_items,
+            "n_rows": int(row_seg.shape[0]),
+            "row_seg": wp.array(row_seg, dtype=wp.int32, device=device),
+            "row_y": wp.array(row_y, dtype=wp.int32, device=device),
         }
         if n_items:
             kern.launch_pair_depths(seg, wintr, d_max, out, item_bounds, device)
@@ -416,6 +467,8 @@ def _run(
                 wp.array(max_t, dtype=wp.float32, device=device),
                 out["z_min"],
                 0 if return_depth else 1,
+                _block_clear(mesh_id, max_t, cams, wintr, tc, height, device),
+                _BLOCK,
                 cams,
                 wintr,
                 z_env,

@@ -1,10 +1,11 @@
 """Benchmark: the perceived set A_f per frame (640x480, ~100k-triangle mesh, 200 boxes).
 
 Ours: ``are_stats.perceived_counts`` (Warp CPU kernels, ROI culling, environment rays cast
-only under a box and only up to the farthest box depth, launches split over the host's
-cores). Peer: the strongest simple pipeline a user would write: Open3D's RaycastingScene
-(Embree, all threads) for the full-frame environment depth, then a NumPy float32 slab test
-per box over only the pixels of its projected rectangle.
+only under a box, only up to the farthest box depth and only in 8x8 pixel blocks whose ray
+pyramid meets a triangle's bounding box, launches split over the host's cores). Peer: the
+strongest simple pipeline a user would write: Open3D's RaycastingScene (Embree, all
+threads) for the full-frame environment depth, then a NumPy float32 slab test per box over
+only the pixels of its projected rectangle.
 
 Run ``python -m tests.benchmarks.bench_perception`` (``--quick`` for a smoke run).
 """
@@ -106,13 +107,22 @@ def peer_counts(scene, cam, centers, half, rots):
     return counts
 
 
+_SETTLE_S = 0.02
+
+
 def _paired_times(fns, repeats: int) -> list[float]:
-    """Median times of several functions run alternately (fair under a fluctuating load)."""
+    """Median times of several functions run alternately (fair under a fluctuating load).
+
+    Each timed call starts after a short pause: Open3D's worker threads keep spinning for
+    a few milliseconds after a parallel call and would otherwise take the cores from
+    whichever function runs next.
+    """
     for fn in fns:
         fn()  # warm-up (compiles Warp kernels, builds the BVH)
     times = [[] for _ in fns]
     for _ in range(repeats):
         for k, fn in enumerate(fns):
+            time.sleep(_SETTLE_S)
             t0 = time.perf_counter()
             fn()
             times[k].append(time.perf_counter() - t0)

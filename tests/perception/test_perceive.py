@@ -152,6 +152,33 @@ def test_threads_give_same_counts():
     assert one.sum() > 10000  # large enough that the launches are really split
 
 
+@pytest.mark.parametrize("block", [1, 5, 8, 64])
+def test_block_culling_is_exact(monkeypatch, block):
+    """Pixel blocks cleared without casting rays change no count (W, H not multiples)."""
+    from are_stats.perception import _perceive
+
+    rng = np.random.default_rng(3)
+    env = make_env(rng)
+    c, h, r = make_boxes(rng, 25)
+    cam = make_camera(pitch=0.1, yaw=0.2)
+    flags = []
+    inner = _perceive._block_clear
+
+    def spy(*args):
+        out = inner(*args)
+        flags.append(out.numpy().copy())
+        return out
+
+    monkeypatch.setattr(_perceive, "_BLOCK", block)
+    monkeypatch.setattr(_perceive, "_block_clear", spy)
+    counts = perceived_counts(env, c, h, r, cam, 9.0, 0)[0]
+    ref = reference(cam, env, c, h, r, 9.0)[0]
+    np.testing.assert_array_equal(counts, ref)
+    assert ref.sum() > 500
+    if block <= 8:  # small blocks: some are cleared, some need rays
+        assert flags and flags[0].any() and not flags[0].all()
+
+
 # ---------------------------------------------------------------------- edge cases
 
 
