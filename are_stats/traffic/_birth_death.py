@@ -640,7 +640,7 @@ class _Pairs:
             self._lin = (c1, c2, c3, const)
         return self._lin
 
-    def lin_eval(self, theta: np.ndarray, order: int = 2):
+    def loglik_derivatives(self, theta: np.ndarray, order: int = 2):
         """Log-likelihood (and gradient, Hessian) of the linear law at log-rates ``theta``.
 
         ``L = sum_g w_g [logsumexp_k(C_gk + c_gk . psi_g) - m_g]`` with
@@ -990,7 +990,7 @@ def fit_birth_death(
     theta0 = _start(pairs, death)
     with np.errstate(over="ignore", under="ignore"):
         if death == "linear":
-            theta, value, _, hess, conv, it = _newton(pairs.lin_eval, theta0, int(mi))
+            theta, value, _, hess, conv, it = _newton(pairs.loglik_derivatives, theta0, int(mi))
             lam, mu = np.exp(theta)
             jac = np.diag([lam, mu])  # d(lam, mu) / d(log lam, log mu)
             log_jac = np.eye(2)
