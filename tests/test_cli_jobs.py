@@ -63,11 +63,12 @@ def _invoke(args):
     return res
 
 
-def _quick_em_fit(log: Path, fit: Path) -> None:
+def _quick_em_fit(log: Path, fit: Path, *extra, samples: int = 50):
     """A small conjugate + EM fit without figures (the setup of the downstream tests)."""
     res = _invoke(["fit", log, "--out", fit, "--method", "em", "--no-figures",
-                   "--samples", "50", "--chains", "2"])  # fmt: skip
+                   "--samples", str(samples), "--chains", "2", *extra])  # fmt: skip
     assert res.exit_code == 0, res.output
+    return res
 
 
 def test_fit_report_generate_em(tmp_path):
@@ -187,24 +188,7 @@ def test_nuts_fit_matches_conjugate_posterior(tmp_path):
 def test_scenarios_reproduce_fitted_stationary_law(tmp_path):
     log, _ = _write_log(tmp_path)
     fit = tmp_path / "f.nc"
-    assert (
-        _invoke(
-            [
-                "fit",
-                log,
-                "--out",
-                fit,
-                "--method",
-                "em",
-                "--no-figures",
-                "--samples",
-                "250",
-                "--chains",
-                "2",
-            ]
-        ).exit_code
-        == 0
-    )
+    _quick_em_fit(log, fit, samples=250)
     out = tmp_path / "s"
     assert (
         _invoke(
@@ -368,24 +352,7 @@ def test_fit_with_count_panel_adds_birth_death_mle(tmp_path):
     panel = tmp_path / "panel.csv"
     pd.DataFrame({"t": times, "count": counts}).to_csv(panel, index=False)
     fit = tmp_path / "f.nc"
-    res = _invoke(
-        [
-            "fit",
-            log,
-            "--out",
-            fit,
-            "--method",
-            "em",
-            "--no-figures",
-            "--samples",
-            "50",
-            "--chains",
-            "2",
-            "--counts",
-            panel,
-        ]
-    )
-    assert res.exit_code == 0, res.output
+    res = _quick_em_fit(log, fit, "--counts", panel)
     assert "birth-death MLE" in res.output
     attrs = az.from_netcdf(fit).posterior.attrs
     mle = ar.fit_birth_death(times, counts)
