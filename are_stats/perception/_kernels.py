@@ -26,9 +26,9 @@ import numpy as np
 import warp as wp
 
 __all__ = [
-    "launch_block_clear",
+    "block_stride",
     "launch_dynamic",
-    "launch_env_depths",
+    "launch_env_blocks",
     "launch_pair_counts",
     "launch_pair_depths",
     "launch_split",
@@ -69,17 +69,43 @@ def _slab_axis(o: float, d: float, h: float, span: wp.vec2) -> wp.vec2:
 
 @wp.func
 def _slab(o: wp.vec3, d: wp.vec3, h: wp.vec3, d_max: float) -> float:
-    """First root t = max(t_near, 0) of a ray (box frame) with the box [-h, h]; inf if none."""
+    """First root of a ray with the box [-h, h] (box frame), as a distance; inf if none.
+
+    ``d`` need not be a unit vector: the slab parameters are in units of ``|d|`` and the
+    root ``max(t_near, 0)`` is scaled by ``|d|`` only for a hit (one square root per hit
+    instead of a normalisation per ray).
+    """
     span = wp.vec2(-_INF, _INF)
     span = _slab_axis(o[0], d[0], h[0], span)
     span = _slab_axis(o[1], d[1], h[1], span)
     span = _slab_axis(o[2], d[2], h[2], span)
     result = float(_INF)
     if span[0] <= span[1] and span[1] >= 0.0:
-        t = wp.max(span[0], 0.0)
+        t = wp.max(span[0], 0.0) * wp.length(d)
         if t <= d_max:
             result = t
     return result
+
+
+@wp.func
+def _pixel_ray_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
+    """Optical-frame direction (not normalised, z = 1) through the centre of pixel (px, py)."""
+    return wp.vec3((wp.float32(px) + 0.5 - cx) / fx, (wp.float32(py) + 0.5 - cy) / fy, 1.0)
+
+
+@wp.func
+def _counts_for(z: float, z_env: float, z_min: float, use_min: int) -> int:
+    """1 when the box depth ``z`` of a pixel counts towards its artefact (A_f), else 0.
+
+    The pixel counts when ``Z_a <= Z_env`` and, with ``use_min == 1`` (artefacts occluding
+    each other), when no other box of the pixel is nearer (ties count for both).
+    """
+    ok = z <= z_env
+    if use_min == 1:
+        ok = ok and z <= z_min
+    if ok:
+        return 1
+    return 0
 
 
 @wp.func
@@ -127,7 +153,7 @@ def pair_depth_kernel(
     rect = seg_rect[s]
     px = rect[0] + k % rect[2]
     py = rect[1] + k // rect[2]
-    d = seg_rot[s] * _pixel_dir_cam(px, py, fx, fy, cx, cy)
+    d = seg_rot[s] * _pixel_ray_cam(px, py, fx, fy, cx, cy)
     z = _slab(seg_origin[s], d, seg_half[s], d_max)
     pair_z[i] = z
     if z < _INF:
@@ -175,7 +201,7 @@ def pair_depth_row_kernel(
     g0 = seg_frame[s] * npix + py * width
     for j in range(rect[2]):
         px = rect[0] + j
-        d = rot * _pixel_dir_cam(px, py, fx, fy, cx, cy)
+        d = rot * _pixel_ray_cam(px, py, fx, fy, cx, cy)
         z = _slab(o, d, h, d_max)
         pair_z[i0 + wp.int64(j)] = z
         if z < _INF:
@@ -184,107 +210,33 @@ def pair_depth_row_kernel(
             wp.atomic_min(z_min, g, z)
 
 
-@wp.kernel
-def env_depth_kernel(
+@wp.func
+def _block_is_clear(
     mesh: wp.uint64,
-    pixels: wp.array(dtype=wp.int64),
-    max_t: wp.array(dtype=wp.float32),
-    min_t: wp.array(dtype=wp.float32),
-    cam_pos: wp.array(dtype=wp.vec3),
-    cam_rot: wp.array(dtype=wp.mat33),
+    c: wp.vec3,
+    rot: wp.mat33,
+    x0: int,
+    x1: int,
+    y0: int,
+    y1: int,
+    t_top: float,
     fx: float,
     fy: float,
     cx: float,
     cy: float,
-    width: int,
-    npix: int,
-    base: wp.int64,
-    any_hit: int,
-    clear: wp.array(dtype=wp.int32),
-    block: int,
-    bw: int,
-    bh: int,
-    z_env: wp.array(dtype=wp.float32),
-):
-    """Z_env (eq. 2) of the listed pixels: first mesh hit in [0, max_t[g]), else +inf.
+) -> bool:
+    """Whether no mesh triangle can meet a ray of pixels ``[x0, x1) x [y0, y1)`` before ``t_top``.
 
-    Both Warp ray queries accept a triangle hit at ``t`` when ``0 <= t < max_t``. With
-    ``any_hit == 1``, a pixel whose finite box depths are all equal (``min_t[g] ==
-    max_t[g]``, typically a single box) only needs to know whether anything is hit before
-    that depth, which the cheaper any-hit query answers exactly: occluded pixels get
-    ``Z_env = -1`` (below every box depth), the others +inf. Pixels of blocks cleared by
-    :func:`block_clear_kernel` (``clear[block] != 0``) get +inf without a ray.
+    Every ray segment ``{c + t d : 0 <= t < t_top}`` of the block's pixels lies in the
+    pyramid with apex at the camera centre ``c`` spanned by the block's pixel-centre
+    directions up to optical depth ``t_top`` (a unit ray's optical depth is at most its
+    length). When no triangle's bounding box meets the pyramid's bounding box (widened
+    well beyond float32 rounding), no ray query of the block can hit anything.
     """
-    i = wp.int64(wp.tid()) + base
-    g = pixels[i]
-    f = int(g // wp.int64(npix))
-    p = int(g - wp.int64(f) * wp.int64(npix))
-    px = p % width
-    py = p // width
-    if clear[(f * bh + py // block) * bw + px // block] != 0:
-        z_env[g] = _INF
-        return
-    d = cam_rot[f] * _pixel_dir_cam(px, py, fx, fy, cx, cy)
-    t_max = max_t[g]
-    if any_hit == 1 and min_t[g] == t_max:
-        if wp.mesh_query_ray_anyhit(mesh, cam_pos[f], d, t_max):
-            z_env[g] = -1.0
-        else:
-            z_env[g] = _INF
-    else:
-        q = wp.mesh_query_ray(mesh, cam_pos[f], d, t_max)
-        if q.result and q.t >= 0.0 and q.t < t_max:
-            z_env[g] = q.t
-        else:
-            z_env[g] = _INF
-
-
-@wp.kernel
-def block_clear_kernel(
-    mesh: wp.uint64,
-    blocks: wp.array(dtype=wp.int64),
-    block_t: wp.array(dtype=wp.float32),
-    cam_pos: wp.array(dtype=wp.vec3),
-    cam_rot: wp.array(dtype=wp.mat33),
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    width: int,
-    height: int,
-    block: int,
-    bw: int,
-    bh: int,
-    base: wp.int64,
-    clear: wp.array(dtype=wp.int32),
-):
-    """Whether no mesh triangle can meet any ray of a pixel block before ``block_t``.
-
-    Block ``b`` of frame ``f`` (``blocks[i] = f * bw * bh + b``) covers the pixels
-    ``[bx * block, bx * block + block) x [by * block, by * block + block)`` and
-    ``block_t[i]`` bounds the ``max_t`` of its pixels. Every ray segment
-    ``{c + t d : 0 <= t < max_t}`` of its pixels lies in the pyramid with apex at the
-    camera centre spanned by the block's pixel-centre directions up to optical depth
-    ``block_t[i]`` (a unit ray's optical depth is at most its length). When no
-    triangle's bounding box meets the pyramid's bounding box (widened well beyond
-    float32 rounding), no ray query of the block can hit anything: ``Z_env = +inf``.
-    """
-    i = wp.int64(wp.tid()) + base
-    key = blocks[i]
-    nb = wp.int64(bw * bh)
-    f = int(key // nb)
-    b = int(key - wp.int64(f) * nb)
-    x0 = (b % bw) * block
-    y0 = (b // bw) * block
-    x1 = wp.min(x0 + block, width)
-    y1 = wp.min(y0 + block, height)
-    t_top = block_t[i]
     u0 = (wp.float32(x0) + 0.5 - cx) / fx
     u1 = (wp.float32(x1) - 0.5 - cx) / fx
     v0 = (wp.float32(y0) + 0.5 - cy) / fy
     v1 = (wp.float32(y1) - 0.5 - cy) / fy
-    rot = cam_rot[f]
-    c = cam_pos[f]
     lo = c
     hi = c
     for k in range(4):
@@ -302,10 +254,164 @@ def block_clear_kernel(
     padv = wp.vec3(pad, pad, pad)
     query = wp.mesh_query_aabb(mesh, lo - padv, hi + padv)
     face = wp.int32(0)
-    if wp.mesh_query_aabb_next(query, face):
-        clear[i] = 0
-    else:
-        clear[i] = 1
+    return not wp.mesh_query_aabb_next(query, face)
+
+
+@wp.func
+def _tri_hit_interior(mesh: wp.uint64, face: int, o: wp.vec3, d: wp.vec3) -> float:
+    """Distance along ``d`` (unit) from ``o`` to triangle ``face``, or +inf.
+
+    Moeller-Trumbore, accepting only clear interior hits (every barycentric coordinate
+    above ``1e-3``) at ``t > 0``: a ray near an edge reports +inf, so callers may use a
+    finite answer as a certain hit and fall back to the BVH query otherwise.
+    """
+    p0 = wp.mesh_get_point(mesh, 3 * face)
+    e1 = wp.mesh_get_point(mesh, 3 * face + 1) - p0
+    e2 = wp.mesh_get_point(mesh, 3 * face + 2) - p0
+    pv = wp.cross(d, e2)
+    det = wp.dot(e1, pv)
+    result = float(_INF)
+    if wp.abs(det) > 1.0e-20:
+        inv = 1.0 / det
+        tv = o - p0
+        u = wp.dot(tv, pv) * inv
+        qv = wp.cross(tv, e1)
+        v = wp.dot(d, qv) * inv
+        eps = 1.0e-3
+        if u > eps and v > eps and u + v < 1.0 - eps:
+            t = wp.dot(e2, qv) * inv
+            if t > 0.0:
+                result = t
+    return result
+
+
+@wp.kernel
+def env_block_kernel(
+    mesh: wp.uint64,
+    has_mesh: int,
+    z_max: wp.array2d(dtype=wp.float32),
+    z_min: wp.array2d(dtype=wp.float32),
+    cam_pos: wp.array(dtype=wp.vec3),
+    cam_rot: wp.array(dtype=wp.mat33),
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    width: int,
+    height: int,
+    npix: int,
+    block: int,
+    bw: int,
+    bh: int,
+    n_blocks: wp.int64,
+    stride: wp.int64,
+    all_pixels: int,
+    t_all: float,
+    any_hit: int,
+    coherent: int,
+    base: wp.int64,
+    z_env: wp.array(dtype=wp.float32),
+    status: wp.array(dtype=wp.int32),
+):
+    """Z_env (eq. 2) of one ``block`` x ``block`` pixel block, cast only where needed.
+
+    Work items run along rows of blocks, and row ``r`` of items takes the block row
+    ``(r * stride) % n_rows`` (``stride`` coprime with the ``n_rows`` block rows of all
+    frames): any run of consecutive items is spread over the image, so the host threads
+    get similar ray loads, while neighbouring items stay neighbouring blocks. For each
+    pixel ``g`` of the block the kernel
+
+    1. combines the per-worker box-depth buffers into row 0: ``z_max[0, g]`` (largest
+       finite ``Z_a``, -1 when no box covers the pixel) and ``z_min[0, g]`` (smallest);
+    2. sets ``Z_env = +inf``; unless a ray is cast below, that is the answer.
+
+    A ray is then cast for every pixel under a box (``z_max >= 0``), or for every pixel
+    when ``all_pixels == 1`` (a depth image, up to ``t_all``), accepting triangle hits at
+    ``0 <= t < max_t`` (a hit beyond the farthest box depth occludes nothing). Where all
+    box depths of a pixel are equal (usually one box) and ``any_hit == 1``, Warp's
+    any-hit query answers "is anything hit before Z_a" exactly: occluded pixels get
+    ``Z_env = -1`` (below every box depth). No ray is cast in a block whose ray pyramid
+    meets no triangle bounding box (:func:`_block_is_clear`).
+
+    Occluders are coherent: the triangle hit by the block's last cast ray is tried first
+    (``coherent == 1``). A clear interior hit nearer than every box depth of the pixel
+    settles it (``Z_env = -1``) without a BVH query; a hit at ``t_c`` otherwise bounds the
+    query to ``t_c`` (plus a margin far above float32 rounding).
+
+    ``status[key]``: 0 no pixel needs a ray, 1 cleared by the pyramid test, 2 rays cast.
+    """
+    i = wp.int64(wp.tid()) + base
+    row = i // wp.int64(bw)
+    key = ((row * stride) % (n_blocks // wp.int64(bw))) * wp.int64(bw) + (i - row * wp.int64(bw))
+    nb = wp.int64(bw * bh)
+    f = int(key // nb)
+    b = int(key - wp.int64(f) * nb)
+    x0 = (b % bw) * block
+    y0 = (b // bw) * block
+    x1 = wp.min(x0 + block, width)
+    y1 = wp.min(y0 + block, height)
+    n_buf = z_max.shape[0]
+    top = float(-1.0)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
+    for y in range(y0, y1):
+        g0 = f * npix + y * width
+        for x in range(x0, x1):
+            g = g0 + x
+            hi = z_max[0, g]
+            lo = z_min[0, g]
+            for j in range(1, n_buf):
+                hi = wp.max(hi, z_max[j, g])
+                lo = wp.min(lo, z_min[j, g])
+            z_max[0, g] = hi
+            z_min[0, g] = lo
+            z_env[g] = _INF
+            top = wp.max(top, hi)
+    if all_pixels == 1:
+        top = t_all
+    if top < 0.0 or has_mesh == 0:
+        status[key] = 0
+        return
+    c = cam_pos[f]
+    rot = cam_rot[f]
+    if _block_is_clear(mesh, c, rot, x0, x1, y0, y1, top, fx, fy, cx, cy):
+        status[key] = 1
+        return
+    status[key] = 2
+    # triangle hit by the block's last cast ray (occluders are coherent)
+    face = int(-1)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
+    for y in range(y0, y1):
+        g0 = f * npix + y * width
+        for x in range(x0, x1):
+            g = g0 + x
+            t_max = t_all
+            z_lo = t_all
+            if all_pixels == 0:
+                t_max = z_max[0, g]
+                z_lo = z_min[0, g]
+            if t_max >= 0.0:
+                d = rot * _pixel_dir_cam(x, y, fx, fy, cx, cy)
+                done = False
+                if coherent == 1 and face >= 0:
+                    t_c = _tri_hit_interior(mesh, face, c, d)
+                    if t_c < t_max:
+                        slack = 1.0e-4 * t_c + 1.0e-5  # far above float32 rounding of t
+                        if all_pixels == 0 and t_c + slack < z_lo:
+                            z_env[g] = -1.0  # occluded before every box depth
+                            done = True
+                        else:
+                            q = wp.mesh_query_ray(mesh, c, d, wp.min(t_max, t_c + slack))
+                            if q.result and q.t >= 0.0:
+                                z_env[g] = q.t
+                                face = q.face
+                                done = True
+                if not done:
+                    if all_pixels == 0 and any_hit == 1 and z_lo == t_max and face < 0:
+                        if wp.mesh_query_ray_anyhit(mesh, c, d, t_max):
+                            z_env[g] = -1.0
+                    else:
+                        q = wp.mesh_query_ray(mesh, c, d, t_max)
+                        if q.result and q.t >= 0.0 and q.t < t_max:
+                            z_env[g] = q.t
+                            face = q.face
 
 
 @wp.kernel
@@ -336,10 +442,7 @@ def pair_count_kernel(
         py = rect[1] + k // rect[2]
         f = seg_frame[s]
         g = f * npix + py * width + px
-        ok = z <= z_env[g]
-        if use_min == 1:
-            ok = ok and z <= z_min[g]
-        if ok:
+        if _counts_for(z, z_env[g], z_min[g], use_min) == 1:
             wp.atomic_add(counts, f * n_box + seg_box[s], 1)
 
 
@@ -375,11 +478,7 @@ def pair_count_row_kernel(
         z = pair_z[i0 + wp.int64(j)]
         if z < _INF:
             g = g0 + j
-            ok = z <= z_env[g]
-            if use_min == 1:
-                ok = ok and z <= z_min[g]
-            if ok:
-                n += 1
+            n += _counts_for(z, z_env[g], z_min[g], use_min)
     if n > 0:
         wp.atomic_add(counts, f * n_box + seg_box[s], n)
 
@@ -514,42 +613,44 @@ def launch_pair_depths(seg, intr, d_max, out, bounds, device):
     launch_split(pair_depth_kernel, bounds, inputs, device)
 
 
-def launch_env_depths(
-    mesh_id, pixels, max_t, min_t, any_hit, clear, block, cams, intr, z_env, device, threads
-):
-    """Host side of :func:`env_depth_kernel` over ``pixels`` (unique global pixel indices).
+# Try the block's last-hit triangle before a BVH query (env_block_kernel); 0 turns it off.
+COHERENT = 1
 
-    Ray costs vary across the image (sky, ground, far walls), so the pixels are handed to
-    the threads in chunks on demand (:func:`launch_dynamic`).
+
+def block_stride(n_rows: int) -> int:
+    """A prime near ``0.618 n_rows`` that does not divide ``n_rows`` (1 for tiny n)."""
+    if n_rows < 4:
+        return 1
+    p = max(2, int(n_rows * 0.6180339887))
+    while True:
+        if n_rows % p and all(p % q for q in range(2, int(p**0.5) + 1)):
+            return p
+        p += 1
+
+
+def launch_env_blocks(
+    mesh_id, z_max, z_min, cams, intr, height, block, n_frames, all_pixels, t_all, any_hit,
+    z_env, status, device, threads,
+):  # fmt: skip
+    """Host side of :func:`env_block_kernel` over every pixel block of ``n_frames`` frames.
+
+    Ray costs vary across the image (sky, ground, far walls); the blocks are visited in a
+    scattered order and handed to the threads in chunks on demand (:func:`launch_dynamic`).
     """
     fx, fy, cx, cy, width, npix = intr
-    height = npix // width
     bw, bh = -(-width // block), -(-height // block)
-    n = pixels.shape[0]
-    k = len(split_bounds(n, device, threads))
+    n = n_frames * bw * bh
+    stride = block_stride(n_frames * bh)
+    k = len(split_bounds(n * block * block, device, threads))
 
     def inputs(base, j):
         return [
-            mesh_id, pixels, max_t, min_t, cams["pos"], cams["rot"],
-            fx, fy, cx, cy, width, npix, base, any_hit, clear, block, bw, bh, z_env,
+            mesh_id, 0 if mesh_id == 0 else 1, z_max, z_min, cams["pos"], cams["rot"],
+            fx, fy, cx, cy, width, height, npix, block, bw, bh, n, stride,
+            all_pixels, float(t_all), any_hit, COHERENT, base, z_env, status,
         ]  # fmt: skip
 
-    launch_dynamic(env_depth_kernel, n, k, inputs, device)
-
-
-def launch_block_clear(mesh_id, blocks, block_t, cams, intr, height, block, clear, device):
-    """Host side of :func:`block_clear_kernel` (one thread: a fraction of a millisecond)."""
-    fx, fy, cx, cy, width, _ = intr
-    bw, bh = -(-width // block), -(-height // block)
-    n = blocks.shape[0]
-
-    def inputs(base, j):
-        return [
-            mesh_id, blocks, block_t, cams["pos"], cams["rot"],
-            fx, fy, cx, cy, width, height, block, bw, bh, base, clear,
-        ]  # fmt: skip
-
-    launch_dynamic(block_clear_kernel, n, 1, inputs, device)
+    launch_dynamic(env_block_kernel, n, k, inputs, device)
 
 
 def launch_pair_counts(seg, intr, n_box, use_min, out, counts, bounds, device):

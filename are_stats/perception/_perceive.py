@@ -73,6 +73,19 @@ class PerceptionResult(NamedTuple):
 # ---------------------------------------------------------------------- validation
 
 
+def _det3(m: np.ndarray) -> np.ndarray:
+    """Determinants of (..., 3, 3) matrices by cofactors.
+
+    ``np.linalg.det`` would go through LAPACK, whose OpenBLAS threads then spin for a while
+    and take the cores from the Warp launches that follow.
+    """
+    return (
+        m[..., 0, 0] * (m[..., 1, 1] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 1])
+        - m[..., 0, 1] * (m[..., 1, 0] * m[..., 2, 2] - m[..., 1, 2] * m[..., 2, 0])
+        + m[..., 0, 2] * (m[..., 1, 0] * m[..., 2, 1] - m[..., 1, 1] * m[..., 2, 0])
+    )
+
+
 def _check_boxes(centers: Any, half_extents: Any, rotations: Any):
     c = check_finite("centers", centers)
     if c.ndim != 2 or c.shape[1] != 3:
@@ -86,7 +99,7 @@ def _check_boxes(centers: Any, half_extents: Any, rotations: Any):
         raise ValueError(f"rotations: expected shape ({n}, 3, 3) like centers, got {r.shape}")
     if n:
         err = np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max(axis=(1, 2))
-        det = np.linalg.det(r)
+        det = _det3(r)
         bad = (err > 1e-5) | (det < 0)
         if bad.any():
             i = int(np.argmax(bad))
@@ -133,7 +146,7 @@ def _check_poses(name: str, poses: Any) -> np.ndarray:
         raise ValueError(f"{name}: expected (T, 4, 4) camera-to-world transforms, got {p.shape}")
     r = p[:, :3, :3]
     err = np.abs(np.einsum("tji,tjk->tik", r, r) - np.eye(3)).max(axis=(1, 2))
-    bad = (err > 1e-5) | (np.linalg.det(r) < 0) | (np.abs(p[:, 3] - [0, 0, 0, 1]).max(1) > 1e-9)
+    bad = (err > 1e-5) | (_det3(r) < 0) | (np.abs(p[:, 3] - [0, 0, 0, 1]).max(1) > 1e-9)
     if bad.any():
         i = int(np.argmax(bad))
         raise ValueError(
@@ -317,45 +330,7 @@ def _default_threads() -> int:
     return max(1, min(n, 8))
 
 
-_BLOCK = 8  # pixel block side of the environment-ray culling
-
-
-def _block_clear(mesh_id, max_t, cams, wintr, tc, height, device):
-    """Per pixel block, whether no environment ray of its pixels can hit the mesh.
-
-    The image is tiled into ``_BLOCK`` x ``_BLOCK`` pixel blocks; a block whose ray
-    pyramid (up to its largest ``max_t``) meets no triangle bounding box is cleared
-    (:func:`~are_stats.perception._kernels.block_clear_kernel`): its pixels keep
-    ``Z_env = +inf`` without casting a ray. Returns a (tc * bh * bw,) int32 Warp array.
-    """
-    width, b = wintr[4], _BLOCK
-    bw, bh = -(-width // b), -(-height // b)
-    grid = max_t.reshape(tc, height, width)
-    if bh * b != height or bw * b != width:
-        padded = np.full((tc, bh * b, bw * b), -1.0, np.float32)
-        padded[:, :height, :width] = grid
-    else:
-        padded = grid
-    top = padded.reshape(tc * bh, b, bw * b).max(axis=1).reshape(-1, b).max(axis=1)
-    blocks = np.flatnonzero(top >= 0.0)
-    flags = wp.zeros(tc * bh * bw, dtype=wp.int32, device=device)
-    if blocks.size:
-        clear = wp.empty(blocks.shape[0], dtype=wp.int32, device=device)
-        kern.launch_block_clear(
-            mesh_id,
-            wp.array(blocks, dtype=wp.int64, device=device),
-            wp.array(top[blocks], dtype=wp.float32, device=device),
-            cams,
-            wintr,
-            height,
-            b,
-            clear,
-            device,
-        )
-        out = np.zeros(tc * bh * bw, dtype=np.int32)
-        out[blocks] = clear.numpy()
-        flags = wp.array(out, dtype=wp.int32, device=device)
-    return flags
+_BLOCK = 8  # pixel block side of the environment-ray kernel (and its culling)
 
 
 def _run(
@@ -411,12 +386,14 @@ def _run(
         }
         item_bounds = kern.split_bounds(n_items, device, threads)
         n_buf = len(item_bounds)
-        z_max = [wp.full(tc * npix, -1.0, dtype=wp.float32, device=device) for _ in range(n_buf)]
-        z_min = [wp.full(tc * npix, np.inf, dtype=wp.float32, device=device) for _ in range(n_buf)]
+        # per host thread: largest and smallest finite Z_a per pixel (combined in the
+        # environment kernel into row 0)
+        z_max = wp.full((n_buf, tc * npix), -1.0, dtype=wp.float32, device=device)
+        z_min = wp.full((n_buf, tc * npix), np.inf, dtype=wp.float32, device=device)
         out = {
             "pair_z": wp.empty(max(n_items, 1), dtype=wp.float32, device=device),
-            "z_max": z_max,
-            "z_min": z_min,
+            "z_max": [z_max[j] for j in range(n_buf)],
+            "z_min": [z_min[j] for j in range(n_buf)],
         }
         # per segment: camera centre in the box frame, optical-to-box rotation, half extents
         cam_c, cam_r = poses[g0:g1, :3, 3][fr], poses[g0:g1, :3, :3][fr]
@@ -444,37 +421,17 @@ def _run(
         }
         if n_items:
             kern.launch_pair_depths(seg, wintr, d_max, out, item_bounds, device)
-        zmax = z_max[0].numpy()
-        for extra in z_max[1:]:
-            np.maximum(zmax, extra.numpy(), out=zmax)
-        zmin = z_min[0].numpy()
-        for extra in z_min[1:]:
-            np.minimum(zmin, extra.numpy(), out=zmin)
-        out["z_min"] = wp.array(zmin, dtype=wp.float32, device=device)
         # environment rays: every pixel for a depth image, else only under a finite Z_a
-        if return_depth:
-            pixels = np.arange(tc * npix, dtype=np.int64)
+        z_env = wp.empty(tc * npix, dtype=wp.float32, device=device)
+        status = wp.empty(tc * (-(-width // _BLOCK)) * (-(-height // _BLOCK)), dtype=wp.int32,
+                          device=device)  # fmt: skip
+        kern.launch_env_blocks(
+            mesh_id, z_max, z_min, cams, wintr, height, _BLOCK, tc, 1 if return_depth else 0,
             # Warp accepts hits with t < max_t; eq. 2 keeps t == d_max
-            max_t = np.full(tc * npix, np.nextafter(np.float32(d_max), np.float32(np.inf)))
-        else:
-            pixels = np.flatnonzero(zmax >= 0.0).astype(np.int64)
-            max_t = zmax
-        z_env = wp.full(tc * npix, np.inf, dtype=wp.float32, device=device)
-        if mesh_id != 0 and pixels.size:
-            kern.launch_env_depths(
-                mesh_id,
-                wp.array(pixels, dtype=wp.int64, device=device),
-                wp.array(max_t, dtype=wp.float32, device=device),
-                out["z_min"],
-                0 if return_depth else 1,
-                _block_clear(mesh_id, max_t, cams, wintr, tc, height, device),
-                _BLOCK,
-                cams,
-                wintr,
-                z_env,
-                device,
-                threads,
-            )
+            np.nextafter(np.float32(d_max), np.float32(np.inf)), 0 if return_depth else 1,
+            z_env, status, device, threads,
+        )  # fmt: skip
+        out["z_min"] = z_min[0]
         out["z_env"] = z_env
         if n_items:
             cnt = [wp.zeros(tc * max(n, 1), dtype=wp.int32, device=device) for _ in range(n_buf)]
@@ -484,7 +441,7 @@ def _run(
         if return_depth:
             ze = z_env.numpy().reshape(tc, height, width)
             depth_env[g0:g1] = ze
-            depth[g0:g1] = np.minimum(ze, out["z_min"].numpy().reshape(tc, height, width))
+            depth[g0:g1] = np.minimum(ze, z_min[0].numpy().reshape(tc, height, width))
     return counts, depth_env, depth
 
 

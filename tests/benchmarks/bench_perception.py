@@ -115,17 +115,23 @@ def _paired_times(fns, repeats: int) -> list[float]:
 
     Each timed call starts after a short pause: Open3D's worker threads keep spinning for
     a few milliseconds after a parallel call and would otherwise take the cores from
-    whichever function runs next.
+    whichever function runs next. For the same reason BLAS is held to one thread: the
+    peer's 3x3 matrix products wake OpenBLAS's pool, whose idle threads then spin for
+    tens of milliseconds (measured: our next frame 27 ms instead of 16 ms); no function
+    timed here gains anything from BLAS threads.
     """
-    for fn in fns:
-        fn()  # warm-up (compiles Warp kernels, builds the BVH)
-    times = [[] for _ in fns]
-    for _ in range(repeats):
-        for k, fn in enumerate(fns):
-            time.sleep(_SETTLE_S)
-            t0 = time.perf_counter()
-            fn()
-            times[k].append(time.perf_counter() - t0)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        for fn in fns:
+            fn()  # warm-up (compiles Warp kernels, builds the BVH)
+        times = [[] for _ in fns]
+        for _ in range(repeats):
+            for k, fn in enumerate(fns):
+                time.sleep(_SETTLE_S)
+                t0 = time.perf_counter()
+                fn()
+                times[k].append(time.perf_counter() - t0)
     return [float(np.median(t)) for t in times]
 
 

@@ -162,21 +162,39 @@ def test_block_culling_is_exact(monkeypatch, block):
     c, h, r = make_boxes(rng, 25)
     cam = make_camera(pitch=0.1, yaw=0.2)
     flags = []
-    inner = _perceive._block_clear
+    inner = _perceive.kern.launch_env_blocks
 
     def spy(*args):
-        out = inner(*args)
-        flags.append(out.numpy().copy())
-        return out
+        inner(*args)
+        flags.append(args[12].numpy().copy())  # per-block status: 0 idle, 1 cleared, 2 rays
 
     monkeypatch.setattr(_perceive, "_BLOCK", block)
-    monkeypatch.setattr(_perceive, "_block_clear", spy)
+    monkeypatch.setattr(_perceive.kern, "launch_env_blocks", spy)
     counts = perceived_counts(env, c, h, r, cam, 9.0, 0)[0]
     ref = reference(cam, env, c, h, r, 9.0)[0]
     np.testing.assert_array_equal(counts, ref)
     assert ref.sum() > 500
     if block <= 8:  # small blocks: some are cleared, some need rays
-        assert flags and flags[0].any() and not flags[0].all()
+        assert flags and (flags[0] == 1).any() and (flags[0] == 2).any()
+
+
+def test_last_hit_triangle_shortcut_is_exact(monkeypatch):
+    """Trying the block's last-hit triangle first changes no count and no depth."""
+    from are_stats.perception import _kernels
+
+    rng = np.random.default_rng(11)
+    env = make_env(rng)
+    c, h, r = make_boxes(rng, 30)
+    cam = make_camera(pitch=0.1, yaw=-0.2)
+    runs = {}
+    for flag in (0, 1):
+        monkeypatch.setattr(_kernels, "COHERENT", flag)
+        runs[flag] = perceive_frames(env, c, h, r, cam, None, 9.0, 0, return_depth=True)
+        runs[flag, "counts"] = perceived_counts(env, c, h, r, cam, 9.0, 0)[0]
+    np.testing.assert_array_equal(runs[0, "counts"], runs[1, "counts"])
+    np.testing.assert_array_equal(runs[1, "counts"], reference(cam, env, c, h, r, 9.0)[0])
+    np.testing.assert_array_equal(runs[0].depth_env, runs[1].depth_env)
+    assert runs[1, "counts"].sum() > 500
 
 
 # ---------------------------------------------------------------------- edge cases
