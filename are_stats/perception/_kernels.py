@@ -47,11 +47,15 @@ _INF = wp.constant(wp.float32(np.inf))
 
 
 @wp.func
+def _pixel_ray_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
+    """Optical-frame direction (not normalised, z = 1) through the centre of pixel (px, py)."""
+    return wp.vec3((wp.float32(px) + 0.5 - cx) / fx, (wp.float32(py) + 0.5 - cy) / fy, 1.0)
+
+
+@wp.func
 def _pixel_dir_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
     """Unit optical-frame direction of the ray through the centre of pixel (px, py)."""
-    return wp.normalize(
-        wp.vec3((wp.float32(px) + 0.5 - cx) / fx, (wp.float32(py) + 0.5 - cy) / fy, 1.0)
-    )
+    return wp.normalize(_pixel_ray_cam(px, py, fx, fy, cx, cy))
 
 
 @wp.func
@@ -85,12 +89,6 @@ def _slab(o: wp.vec3, d: wp.vec3, h: wp.vec3, d_max: float) -> float:
         if t <= d_max:
             result = t
     return result
-
-
-@wp.func
-def _pixel_ray_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
-    """Optical-frame direction (not normalised, z = 1) through the centre of pixel (px, py)."""
-    return wp.vec3((wp.float32(px) + 0.5 - cx) / fx, (wp.float32(py) + 0.5 - cy) / fy, 1.0)
 
 
 @wp.func
