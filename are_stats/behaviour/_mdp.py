@@ -202,12 +202,25 @@ def _solve_one(
                 + stay_part
             )
 
+        def runs(_: None) -> list[jax.Array | None]:
+            return [move(h, 2) + penalty[2] if use_run else None for h in range(4)]
+
+        q_fwd = [move(h, 1) + penalty[1] for h in range(4)]
+        if with_policy and use_run:
+            # XLA's CPU backend writes the values and the policy in two loops that would both
+            # recompute every action value. The run values (masked two-cell shifts, the
+            # dearest) are materialised once instead: fusion does not cross a conditional
+            # (whose predicate is always true). Materialising the forward values too costs
+            # more in memory traffic than it saves.
+            q_run = jax.lax.cond(t >= 0, runs, runs, None)
+        else:
+            q_run = runs(None)
         v_new, pols = [], []
         for h in range(4):
             qs = [
                 inner[h],
-                move(h, 1) + penalty[1],
-                move(h, 2) + penalty[2] if use_run else None,
+                q_fwd[h],
+                q_run[h],
                 inner[(h + 1) % 4] + penalty[3],  # left: h -> h + 1
                 inner[(h - 1) % 4] + penalty[4],  # right: h -> h - 1
             ]
