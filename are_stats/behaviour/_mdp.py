@@ -206,12 +206,13 @@ def _solve_one(
             return [move(h, 2) + penalty[2] if use_run else None for h in range(4)]
 
         q_fwd = [move(h, 1) + penalty[1] for h in range(4)]
-        if with_policy and use_run:
-            # XLA's CPU backend writes the values and the policy in two loops that would both
-            # recompute every action value. The run values (masked two-cell shifts, the
-            # dearest) are materialised once instead: fusion does not cross a conditional
-            # (whose predicate is always true). Materialising the forward values too costs
-            # more in memory traffic than it saves.
+        if use_run:
+            # The run values (three masked two-cell shifts, the dearest action) are computed
+            # in their own loops and written to memory: fusion does not cross a conditional
+            # (whose predicate is always true). XLA's CPU backend writes the values and the
+            # policy in two loops that would otherwise both recompute them, and even the
+            # values alone run faster as two simpler loops than as one that does everything.
+            # Materialising the forward values too costs more in memory traffic than it saves.
             q_run = jax.lax.cond(t >= 0, runs, runs, None)
         else:
             q_run = runs(None)
@@ -238,16 +239,15 @@ def _solve_one(
             best = jnp.maximum(best, qs[STAY])
             v_new.append(best * keep_v)
             pols.append(arg * keep_p)
-        return tuple(v_new), (
-            tuple(pols) if with_policy else None,
-            tuple(v_new) if store_values else None,
-        )
+        # two headings per byte (actions < 16): half the memory a fresh output has to touch
+        packed = (pols[0] | (pols[1] << 4), pols[2] | (pols[3] << 4)) if with_policy else None
+        return tuple(v_new), (packed, tuple(v_new) if store_values else None)
 
     v_terminal = tuple(jnp.zeros(n - 2 * m, dtype) for _ in range(4))
     xs = (jnp.arange(n_epochs), follow_f)
     v0, (pols, values) = jax.lax.scan(step, v_terminal, xs, reverse=True)
     v0 = unflat(jnp.stack(v0))[..., 2:-2]
-    # per heading (D, H, W + 4): no stacking copies of the largest arrays
+    # per pair of headings (D, H, W + 4): no stacking copies of the largest arrays
     policy = tuple(unflat(p) for p in pols) if with_policy else None
     if store_values:
         last = jnp.zeros((1, h_, wp_), dtype)
@@ -324,7 +324,14 @@ def backward_induction(
             return None
         return jnp.stack(x, axis=2)[..., 2:-2]
 
+    if policy is not None:
+        policy = _unpack_policy(policy)
     return v0, crop(policy), crop(values)
+
+
+def _unpack_policy(packed: Any) -> tuple[Any, ...]:
+    """Per heading action planes from the two packed ones (low nibble: heading 0 or 2)."""
+    return tuple((packed[h // 2] >> (4 * (h % 2))) & 15 for h in range(4))
 
 
 def _backward_induction_wide(
@@ -346,7 +353,8 @@ def _backward_induction_wide(
 ) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
     """:func:`backward_induction` returning policy and values per heading, batch-major and wide.
 
-    ``policy[h]`` is ``(B, D, H, W + 4)`` and ``values[h]`` ``(B, D + 1, H, W + 4)``, with the
+    ``policy[k]`` is ``(B, D, H, W + 4)``, the actions of headings ``2k`` (low four bits) and
+    ``2k + 1`` (high four bits) in one byte, and ``values[h]`` ``(B, D + 1, H, W + 4)``, with the
     grid in columns ``2 .. W + 1``: the layout the scan produces, so nothing is copied. Up to
     ``_CHUNK`` items are solved together under ``vmap``; more run in chunks under ``lax.map``.
     """
@@ -383,7 +391,7 @@ _backward_induction_jit = jax.jit(
 class MDPSolution:
     """The result of :meth:`GridMDP.solve` for a batch of ``B`` artefacts.
 
-    The policy is stored compactly as int8 per epoch and state (or, with
+    The policy is stored compactly, four bits per epoch and state (or, with
     ``solve(..., with_policy=False)``, computed on first access). ``V_0`` is always stored;
     the full ``V_t`` array is stored when it takes at most 64 MiB and otherwise recomputed
     (and cached) on the first access to :attr:`values`.
@@ -430,7 +438,11 @@ class MDPSolution:
         return int(self._inputs["n_epochs"])
 
     def _policy_planes(self) -> tuple[np.ndarray, ...]:
-        """Per heading ``(B, D, H, W)`` int8 views of the policy (computed on first use)."""
+        """The two packed ``(B, D, H, W)`` int8 policy planes (computed on first use).
+
+        Plane ``k`` holds the actions of heading ``2k`` in its low four bits and of heading
+        ``2k + 1`` in its high four bits.
+        """
         if self._policy is None:
             _, policy, _ = _backward_induction_jit(
                 **self._inputs, store_values=False, with_policy=True
@@ -459,20 +471,21 @@ class MDPSolution:
         items, t = np.asarray(items), np.asarray(t)
         states = np.asarray(states)
         out = np.zeros(len(items), np.int8)
-        for h, plane in enumerate(planes):
+        for h in range(4):
             sel = states[:, 2] == h
-            out[sel] = plane[items[sel], t[sel], states[sel, 0], states[sel, 1]]
+            packed = planes[h // 2][items[sel], t[sel], states[sel, 0], states[sel, 1]]
+            out[sel] = (packed >> (4 * (h % 2))) & 15
         return out
 
     @property
     def policy(self) -> np.ndarray:
         """``(B, D, H, W, 4) int8``: ``policy[b, t, row, col, h]`` is the action at epoch t.
 
-        Epochs ``t >= d_b`` (beyond an artefact's horizon) hold ``stay``. Stacked on first
-        access from the per-heading ``(B, D, H, W)`` planes the solver stores.
+        Epochs ``t >= d_b`` (beyond an artefact's horizon) hold ``stay``. Unpacked on first
+        access from the solver's two ``(B, D, H, W)`` planes (two headings per byte).
         """
         if self._policy_full is None:
-            planes = self._policy_planes()
+            planes = _unpack_policy(self._policy_planes())
             self._policy_full = np.stack(planes, axis=-1)
         return self._policy_full
 
