@@ -303,7 +303,7 @@ def backward_induction(
     use_run : bool
         Compute the run action (static; false when no behaviour allows it).
     with_policy : bool
-        Also return the policy (static). The values alone take about 60 % of the time.
+        Also return the policy (static). The values alone take about two thirds of the time.
 
     Returns
     -------
@@ -624,7 +624,7 @@ class GridMDP:
             one compilation serves every call with the same grid shape, batch size and ``D``.
         with_policy : bool
             Compute the policy now (default) or on first access to ``.policy`` (the values
-            alone take about 60 % of the time).
+            alone take about two thirds of the time).
 
         Returns
         -------
