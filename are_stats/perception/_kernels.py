@@ -287,8 +287,8 @@ def _tri_hit_interior(mesh: wp.uint64, face: int, o: wp.vec3, d: wp.vec3) -> flo
 def env_block_kernel(
     mesh: wp.uint64,
     has_mesh: int,
-    z_max: wp.array2d(dtype=wp.float32),
-    z_min: wp.array2d(dtype=wp.float32),
+    z_max: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
     cam_pos: wp.array(dtype=wp.vec3),
     cam_rot: wp.array(dtype=wp.mat33),
     fx: float,
@@ -316,12 +316,10 @@ def env_block_kernel(
     Work items run along rows of blocks, and row ``r`` of items takes the block row
     ``(r * stride) % n_rows`` (``stride`` coprime with the ``n_rows`` block rows of all
     frames): any run of consecutive items is spread over the image, so the host threads
-    get similar ray loads, while neighbouring items stay neighbouring blocks. For each
-    pixel ``g`` of the block the kernel
-
-    1. combines the per-worker box-depth buffers into row 0: ``z_max[0, g]`` (largest
-       finite ``Z_a``, -1 when no box covers the pixel) and ``z_min[0, g]`` (smallest);
-    2. sets ``Z_env = +inf``; unless a ray is cast below, that is the answer.
+    get similar ray loads, while neighbouring items stay neighbouring blocks. Every pixel
+    ``g`` of the block starts at ``Z_env = +inf``; unless a ray is cast below, that is the
+    answer. ``z_max[g]`` is the largest finite ``Z_a`` of the pixel (-1 when no box covers
+    it) and ``z_min[g]`` the smallest.
 
     A ray is then cast for every pixel under a box (``z_max >= 0``), or for every pixel
     when ``all_pixels == 1`` (a depth image, up to ``t_all``), accepting triangle hits at
@@ -348,21 +346,13 @@ def env_block_kernel(
     y0 = (b // bw) * block
     x1 = wp.min(x0 + block, width)
     y1 = wp.min(y0 + block, height)
-    n_buf = z_max.shape[0]
     top = float(-1.0)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
     for y in range(y0, y1):
         g0 = f * npix + y * width
         for x in range(x0, x1):
             g = g0 + x
-            hi = z_max[0, g]
-            lo = z_min[0, g]
-            for j in range(1, n_buf):
-                hi = wp.max(hi, z_max[j, g])
-                lo = wp.min(lo, z_min[j, g])
-            z_max[0, g] = hi
-            z_min[0, g] = lo
             z_env[g] = _INF
-            top = wp.max(top, hi)
+            top = wp.max(top, z_max[g])
     if all_pixels == 1:
         top = t_all
     if top < 0.0 or has_mesh == 0:
@@ -383,8 +373,8 @@ def env_block_kernel(
             t_max = t_all
             z_lo = t_all
             if all_pixels == 0:
-                t_max = z_max[0, g]
-                z_lo = z_min[0, g]
+                t_max = z_max[g]
+                z_lo = z_min[g]
             if t_max >= 0.0:
                 d = rot * _pixel_dir_cam(x, y, fx, fy, cx, cy)
                 done = False
@@ -544,22 +534,26 @@ def _pool(n: int) -> ThreadPoolExecutor:
         return _POOL
 
 
-def launch_dynamic(kernel, n: int, workers: int, make_inputs, device: str = "cpu") -> None:
+def launch_dynamic(
+    kernel, n: int, workers: int, make_inputs, device: str = "cpu", edges=None
+) -> None:
     """Launch ``kernel`` over items ``[0, n)`` in chunks pulled by ``workers`` host threads.
 
     ``make_inputs(base, j)`` returns the inputs of a launch over the chunk starting at
-    item ``base`` by worker ``j`` (which scatters into its own buffers ``j``). The items
-    are cut into ``_CHUNKS_PER_THREAD`` contiguous chunks per worker and each worker
-    takes the next free chunk, so a worker slowed down by a busy core (or by costly rays)
-    simply takes fewer chunks; contiguous chunks keep the threads off each other's cache
-    lines. The calling thread is worker 0; the others come from a persistent pool.
+    item ``base`` by worker ``j`` (which scatters into its own buffers ``j``, if any). The
+    items are cut into ``_CHUNKS_PER_THREAD`` contiguous chunks per worker (or at the
+    increasing item indices ``edges``, from 0 to ``n``) and each worker takes the next free
+    chunk, so a worker slowed down by a busy core (or by costly rays) simply takes fewer
+    chunks; contiguous chunks keep the threads off each other's cache lines. The calling
+    thread is worker 0; the others come from a persistent pool.
     """
     if n <= 0:
         return
     if workers <= 1:
         wp.launch(kernel, dim=n, inputs=make_inputs(0, 0), device=device)
         return
-    edges = np.linspace(0, n, workers * _CHUNKS_PER_THREAD + 1).astype(np.int64)
+    if edges is None:
+        edges = np.linspace(0, n, workers * _CHUNKS_PER_THREAD + 1).astype(np.int64)
     chunks = [(int(lo), int(hi)) for lo, hi in zip(edges[:-1], edges[1:], strict=True) if hi > lo]
     ticket = itertools.count()  # next() is atomic under the GIL
 
@@ -580,12 +574,31 @@ def _is_cpu(device) -> bool:
     return str(device).startswith("cpu")
 
 
-def launch_pair_depths(seg, intr, d_max, out, bounds, device):
-    """Host side of the box-depth kernels; ``out["z_max"][j]`` is worker/range j's buffer.
+def row_chunk_edges(row_key: np.ndarray, row_work: np.ndarray, n_chunks: int) -> np.ndarray:
+    """Chunk edges over rows sorted by ``row_key`` that never split a run of equal keys.
 
-    On the CPU the rectangle rows go to :func:`pair_depth_row_kernel` with
-    ``len(bounds)`` workers (:func:`launch_dynamic`); elsewhere :func:`pair_depth_kernel`
-    takes one item per work item over ``bounds``.
+    The edges aim at equal ``row_work`` per chunk and are then moved to the next change of
+    key, so two chunks never hold rows of the same image row: chunks running at once on
+    different host threads write disjoint pixels.
+    """
+    n = len(row_key)
+    if n == 0:
+        return np.zeros(1, np.int64)
+    cum = np.cumsum(row_work)
+    targets = np.linspace(0, cum[-1], n_chunks + 1)[1:-1]
+    idx = np.minimum(np.searchsorted(cum, targets, side="left"), n - 1)
+    cut = np.searchsorted(row_key, row_key[idx], side="right")
+    return np.unique(np.concatenate([[0], cut, [n]])).astype(np.int64)
+
+
+def launch_pair_depths(seg, intr, d_max, out, bounds, device):
+    """Host side of the box-depth kernels, writing one ``z_max`` / ``z_min`` buffer.
+
+    On the CPU the rectangle rows, sorted by frame and image row, go to
+    :func:`pair_depth_row_kernel` with ``len(bounds)`` workers (:func:`launch_dynamic`) in
+    chunks that never share an image row (:func:`row_chunk_edges`): Warp's CPU atomics are
+    plain read-modify-writes, and this way no two threads touch the same pixel. Elsewhere
+    :func:`pair_depth_kernel` takes one item per work item.
     """
     fx, fy, cx, cy, width, npix = intr
     if _is_cpu(device):
@@ -594,21 +607,23 @@ def launch_pair_depths(seg, intr, d_max, out, bounds, device):
             return [
                 seg["row_seg"], seg["row_y"], seg["offsets"], seg["frame"], seg["rect"],
                 seg["origin"], seg["rot"], seg["half"], fx, fy, cx, cy, width, npix,
-                float(d_max), base, out["pair_z"], out["z_max"][j], out["z_min"][j],
+                float(d_max), base, out["pair_z"], out["z_max"], out["z_min"],
             ]  # fmt: skip
 
         workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
-        launch_dynamic(pair_depth_row_kernel, seg["n_rows"], workers, row_inputs, device)
+        edges = None
+        if workers > 1:
+            n_chunks = workers * _CHUNKS_PER_THREAD
+            edges = row_chunk_edges(seg["row_key"], seg["row_work"], n_chunks)
+        launch_dynamic(pair_depth_row_kernel, seg["n_rows"], workers, row_inputs, device, edges)
         return
 
-    def inputs(base, j):
-        return [
-            seg["offsets"], seg["frame"], seg["rect"], seg["origin"], seg["rot"], seg["half"],
-            fx, fy, cx, cy, width, npix, float(d_max), seg["n"], base,
-            out["pair_z"], out["z_max"][j], out["z_min"][j],
-        ]  # fmt: skip
-
-    launch_split(pair_depth_kernel, bounds, inputs, device)
+    inputs = [
+        seg["offsets"], seg["frame"], seg["rect"], seg["origin"], seg["rot"], seg["half"],
+        fx, fy, cx, cy, width, npix, float(d_max), seg["n"], 0,
+        out["pair_z"], out["z_max"], out["z_min"],
+    ]  # fmt: skip
+    wp.launch(pair_depth_kernel, dim=seg["n_items"], inputs=inputs, device=device)
 
 
 # Try the block's last-hit triangle before a BVH query (env_block_kernel); 0 turns it off.

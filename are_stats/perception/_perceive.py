@@ -45,7 +45,7 @@ __all__ = [
 ]
 
 _ITEMS_PER_CHUNK = 1 << 24  # (artefact, pixel) items per launch group
-_PIXELS_PER_CHUNK = 1 << 23  # frame pixels per launch group (bounds the per-thread buffers)
+_PIXELS_PER_CHUNK = 1 << 23  # frame pixels per launch group (bounds the per-pixel buffers)
 
 
 class PerceptionResult(NamedTuple):
@@ -386,14 +386,13 @@ def _run(
         }
         item_bounds = kern.split_bounds(n_items, device, threads)
         n_buf = len(item_bounds)
-        # per host thread: largest and smallest finite Z_a per pixel (combined in the
-        # environment kernel into row 0)
-        z_max = wp.full((n_buf, tc * npix), -1.0, dtype=wp.float32, device=device)
-        z_min = wp.full((n_buf, tc * npix), np.inf, dtype=wp.float32, device=device)
+        # largest and smallest finite Z_a per pixel (host threads write disjoint image rows)
+        z_max = wp.full(tc * npix, -1.0, dtype=wp.float32, device=device)
+        z_min = wp.full(tc * npix, np.inf, dtype=wp.float32, device=device)
         out = {
             "pair_z": wp.empty(max(n_items, 1), dtype=wp.float32, device=device),
-            "z_max": [z_max[j] for j in range(n_buf)],
-            "z_min": [z_min[j] for j in range(n_buf)],
+            "z_max": z_max,
+            "z_min": z_min,
         }
         # per segment: camera centre in the box frame, optical-to-box rotation, half extents
         cam_c, cam_r = poses[g0:g1, :3, 3][fr], poses[g0:g1, :3, :3][fr]
@@ -405,6 +404,11 @@ def _run(
         row_y = (np.arange(row_seg.shape[0]) - np.repeat(np.cumsum(h_seg) - h_seg, h_seg)).astype(
             np.int32
         )
+        # rows in image-row order (frame, y): host threads then take chunks of whole
+        # image rows and never write the same pixel (kern.launch_pair_depths)
+        row_key = fr[row_seg] * np.int64(height) + rect[row_seg, 1] + row_y
+        order = np.argsort(row_key, kind="stable")
+        row_seg, row_y, row_key = row_seg[order], row_y[order], row_key[order]
         seg = {
             "offsets": wp.array(offsets, dtype=wp.int64, device=device),
             "frame": wp.array(fr.astype(np.int32), dtype=wp.int32, device=device),
@@ -418,6 +422,8 @@ def _run(
             "n_rows": int(row_seg.shape[0]),
             "row_seg": wp.array(row_seg, dtype=wp.int32, device=device),
             "row_y": wp.array(row_y, dtype=wp.int32, device=device),
+            "row_key": row_key,
+            "row_work": rect[row_seg, 2],
         }
         if n_items:
             kern.launch_pair_depths(seg, wintr, d_max, out, item_bounds, device)
@@ -431,7 +437,6 @@ def _run(
             np.nextafter(np.float32(d_max), np.float32(np.inf)), 0 if return_depth else 1,
             z_env, status, device, threads,
         )  # fmt: skip
-        out["z_min"] = z_min[0]
         out["z_env"] = z_env
         if n_items:
             cnt = [wp.zeros(tc * max(n, 1), dtype=wp.int32, device=device) for _ in range(n_buf)]
@@ -441,7 +446,7 @@ def _run(
         if return_depth:
             ze = z_env.numpy().reshape(tc, height, width)
             depth_env[g0:g1] = ze
-            depth[g0:g1] = np.minimum(ze, z_min[0].numpy().reshape(tc, height, width))
+            depth[g0:g1] = np.minimum(ze, z_min.numpy().reshape(tc, height, width))
     return counts, depth_env, depth
 
 

@@ -152,6 +152,50 @@ def test_threads_give_same_counts():
     assert one.sum() > 10000  # large enough that the launches are really split
 
 
+def test_split_box_depths_are_exact(monkeypatch):
+    """Host threads that take chunks of whole image rows give the exact counts and depths."""
+    from are_stats.perception import _kernels
+
+    rng = np.random.default_rng(8)
+    env = make_env(rng)
+    c, h, r = make_boxes(rng, 30)
+    cam = make_camera(pitch=0.1, yaw=-0.2, w=96, h=72, f=80.0)
+    seen = []
+    inner = _kernels.launch_dynamic
+
+    def spy(kernel, n, workers, make_inputs, device="cpu", edges=None):
+        if kernel is _kernels.pair_depth_row_kernel:
+            seen.append((workers, edges))
+        inner(kernel, n, workers, make_inputs, device, edges)
+
+    monkeypatch.setattr(_kernels, "_MIN_SPLIT_ITEMS", 0)
+    monkeypatch.setattr(_kernels, "launch_dynamic", spy)
+    monkeypatch.setattr(_kernels, "split_bounds", lambda n, device, threads: [(0, 1), (1, n)])
+    ref, z_env, za = reference(cam, env, c, h, r, 9.0)
+    res = perceive_frames(env, c, h, r, cam, None, 9.0, 0, return_depth=True, threads=2)
+    np.testing.assert_array_equal(res.counts[0], ref)
+    assert seen and seen[0][0] == 2 and len(seen[0][1]) > 3  # really split into chunks
+    aug = np.minimum(z_env, za.min(axis=0))
+    fin = np.isfinite(aug)
+    np.testing.assert_array_equal(np.isfinite(res.depth[0].ravel()), fin)
+    assert_allclose(res.depth[0].ravel()[fin], aug[fin], rtol=1e-5)
+
+
+def test_row_chunk_edges_never_split_an_image_row():
+    from are_stats.perception._kernels import row_chunk_edges
+
+    rng = np.random.default_rng(2)
+    key = np.sort(rng.integers(0, 40, 500))
+    work = rng.integers(1, 50, 500)
+    edges = row_chunk_edges(key, work, 8)
+    assert edges[0] == 0 and edges[-1] == 500 and np.all(np.diff(edges) > 0)
+    for e in edges[1:-1]:
+        assert key[e - 1] != key[e]  # a chunk boundary is a change of image row
+    assert len(edges) >= 6  # 40 rows are enough for most of the 8 chunks
+    np.testing.assert_array_equal(row_chunk_edges(np.zeros(0, int), np.zeros(0, int), 4), [0])
+    np.testing.assert_array_equal(row_chunk_edges(np.zeros(9, int), np.ones(9, int), 4), [0, 9])
+
+
 @pytest.mark.parametrize("block", [1, 5, 8, 64])
 def test_block_culling_is_exact(monkeypatch, block):
     """Pixel blocks cleared without casting rays change no count (W, H not multiples)."""
