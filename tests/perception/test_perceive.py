@@ -181,6 +181,24 @@ def test_split_box_depths_are_exact(monkeypatch):
     assert_allclose(res.depth[0].ravel()[fin], aug[fin], rtol=1e-5)
 
 
+def test_first_call_split_over_threads_in_a_fresh_process():
+    """The first launch of the kernels may be a multi-threaded one (it loads the module)."""
+    import subprocess
+    import sys
+
+    code = (
+        "from tests.benchmarks.bench_perception import build_scene, camera_pose\n"
+        "from are_stats.perception import perceived_counts\n"
+        "env, c, h, r, cam = build_scene(grid=60)\n"
+        "cam = cam.with_pose(camera_pose(-8.0, 0.0))\n"
+        "a = perceived_counts(env, c, h, r, cam, 40.0, 20, threads=2)[0]\n"
+        "b = perceived_counts(env, c, h, r, cam, 40.0, 20, threads=1)[0]\n"
+        "assert (a == b).all() and a.sum() > 40000, a.sum()  # 120k box pixels: split\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+
+
 def test_row_chunk_edges_never_split_an_image_row():
     from are_stats.perception._kernels import row_chunk_edges
 
