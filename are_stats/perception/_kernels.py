@@ -25,6 +25,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import warp as wp
 
+from are_stats.perception._frustum_bvh import BRANCH, LEAF
+
 __all__ = [
     "block_stride",
     "launch_dynamic",
@@ -283,6 +285,242 @@ def _tri_hit_interior(mesh: wp.uint64, face: int, o: wp.vec3, d: wp.vec3) -> flo
     return result
 
 
+_LEAF = wp.constant(LEAF)
+_BRANCH = wp.constant(BRANCH)
+
+
+@wp.func
+def _box_outside(lo: wp.vec3, hi: wp.vec3, pl: wp.vec4) -> bool:
+    """Whether the box ``[lo, hi]`` lies wholly on the outer side ``n . p < off`` of ``pl``."""
+    x = wp.where(pl[0] >= 0.0, hi[0], lo[0])
+    y = wp.where(pl[1] >= 0.0, hi[1], lo[1])
+    z = wp.where(pl[2] >= 0.0, hi[2], lo[2])
+    return pl[0] * x + pl[1] * y + pl[2] * z < pl[3]
+
+
+@wp.func
+def _tri_outside(a: wp.vec3, b: wp.vec3, c: wp.vec3, pl: wp.vec4) -> bool:
+    """Whether the triangle ``abc`` lies wholly on the outer side of ``pl``."""
+    n = wp.vec3(pl[0], pl[1], pl[2])
+    return wp.max(wp.max(wp.dot(n, a), wp.dot(n, b)), wp.dot(n, c)) < pl[3]
+
+
+@wp.func
+def _plane(n: wp.vec3, c: wp.vec3, pad: float) -> wp.vec4:
+    """Inner side ``m . p >= m . c - pad`` of the plane through ``c`` with normal ``n``."""
+    m = wp.normalize(n)
+    return wp.vec4(m[0], m[1], m[2], wp.dot(m, c) - pad)
+
+
+@wp.func
+def _tri_rect(
+    a: wp.vec3,
+    b: wp.vec3,
+    c: wp.vec3,
+    cam: wp.vec3,
+    rot: wp.mat33,
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    x0: int,
+    x1: int,
+    y0: int,
+    y1: int,
+) -> int:
+    """Pixels of the block ``[x0, x1) x [y0, y1)`` whose centre rays can meet triangle ``abc``.
+
+    The rectangle ``[xa, xb] x [ya, yb]`` (relative to ``x0, y0``) of pixel centres inside
+    the triangle's projected bounding box, widened by 0.05 px (far above the rounding of
+    the projection), packed as ``xa | xb << 8 | ya << 16 | yb << 24``; the whole block when
+    a vertex lies less than 1 mm in front of the camera. Empty (``xa > xb`` or ``ya > yb``)
+    when no pixel centre of the block can see the triangle.
+    """
+    rt = wp.transpose(rot)
+    qa = rt * (a - cam)
+    qb = rt * (b - cam)
+    qc = rt * (c - cam)
+    xa = int(0)  # noqa: UP018 (Warp: mutable variables, not constants)
+    xb = x1 - x0 - 1
+    ya = int(0)  # noqa: UP018
+    yb = y1 - y0 - 1
+    if wp.min(wp.min(qa[2], qb[2]), qc[2]) > 1.0e-3:
+        ua = fx * qa[0] / qa[2]
+        ub = fx * qb[0] / qb[2]
+        uc = fx * qc[0] / qc[2]
+        va = fy * qa[1] / qa[2]
+        vb = fy * qb[1] / qb[2]
+        vc = fy * qc[1] / qc[2]
+        # pixel x sees u = x + 0.5 - cx; clamp before converting to int
+        lo = wp.clamp(wp.min(wp.min(ua, ub), uc) + cx - 0.55, float(x0 - 1), float(x1 + 1))
+        hi = wp.clamp(wp.max(wp.max(ua, ub), uc) + cx - 0.45, float(x0 - 1), float(x1 + 1))
+        xa = wp.max(xa, int(wp.ceil(lo)) - x0)
+        xb = wp.min(xb, int(wp.floor(hi)) - x0)
+        lo = wp.clamp(wp.min(wp.min(va, vb), vc) + cy - 0.55, float(y0 - 1), float(y1 + 1))
+        hi = wp.clamp(wp.max(wp.max(va, vb), vc) + cy - 0.45, float(y0 - 1), float(y1 + 1))
+        ya = wp.max(ya, int(wp.ceil(lo)) - y0)
+        yb = wp.min(yb, int(wp.floor(hi)) - y0)
+    if xa > xb or ya > yb:
+        return -1
+    return xa | (xb << 8) | (ya << 16) | (yb << 24)
+
+
+@wp.func
+def _gather(
+    lower: wp.array(dtype=wp.vec3),
+    upper: wp.array(dtype=wp.vec3),
+    level_start: wp.array(dtype=wp.int32),
+    n_levels: int,
+    p0: wp.array(dtype=wp.vec3),
+    e1: wp.array(dtype=wp.vec3),
+    e2: wp.array(dtype=wp.vec3),
+    n_tri: int,
+    cand: wp.array(dtype=wp.int32),
+    start: wp.int64,
+    cap: int,
+    pl0: wp.vec4,
+    pl1: wp.vec4,
+    pl2: wp.vec4,
+    pl3: wp.vec4,
+    pl4: wp.vec4,
+    pl5: wp.vec4,
+    cam: wp.vec3,
+    rot: wp.mat33,
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    x0: int,
+    x1: int,
+    y0: int,
+    y1: int,
+) -> int:
+    """Triangles of the implicit tree (:mod:`._frustum_bvh`) not wholly outside a plane.
+
+    Walks the tree depth first without a stack (node ``j`` of level ``k`` has the children
+    ``BRANCH j + i`` of level ``k - 1``), skipping every node whose box lies outside one of
+    the six planes, and writes the sorted index of each surviving triangle that some pixel
+    centre of the block can see, and its pixel rectangle (:func:`_tri_rect`), to
+    ``cand[start + 2 i]`` and ``cand[start + 2 i + 1]``. Returns the number ``n`` of
+    triangles, or -1 as soon as more than ``cap`` survive.
+    """
+    k = int(n_levels - 1)
+    j = int(0)  # noqa: UP018 (Warp: mutable loop variables, not constants)
+    n = int(0)  # noqa: UP018
+    done = bool(False)  # noqa: UP018
+    while not done:
+        node = level_start[k] + j
+        lo = lower[node]
+        hi = upper[node]
+        inside = not (
+            _box_outside(lo, hi, pl0) or _box_outside(lo, hi, pl1) or _box_outside(lo, hi, pl2)
+            or _box_outside(lo, hi, pl3) or _box_outside(lo, hi, pl4) or _box_outside(lo, hi, pl5)
+        )  # fmt: skip
+        if inside and k > 0:
+            k -= 1
+            j = j * _BRANCH
+        else:
+            if inside:
+                for ti in range(j * _LEAF, wp.min(j * _LEAF + _LEAF, n_tri)):
+                    a = p0[ti]
+                    b = a + e1[ti]
+                    c = a + e2[ti]
+                    keep = not (
+                        _tri_outside(a, b, c, pl0) or _tri_outside(a, b, c, pl1)
+                        or _tri_outside(a, b, c, pl2) or _tri_outside(a, b, c, pl3)
+                        or _tri_outside(a, b, c, pl4) or _tri_outside(a, b, c, pl5)
+                    )  # fmt: skip
+                    rect = int(-1)  # noqa: UP018 (Warp: a mutable variable, not a constant)
+                    if keep and n >= 0:
+                        rect = _tri_rect(a, b, c, cam, rot, fx, fy, cx, cy, x0, x1, y0, y1)
+                    if rect >= 0:
+                        if n == cap:
+                            n = -1
+                        else:
+                            cand[start + wp.int64(2 * n)] = ti
+                            cand[start + wp.int64(2 * n + 1)] = rect
+                            n += 1
+            if n < 0:
+                done = True
+            # next sibling, climbing while this node is its parent's last child
+            while (not done) and k < n_levels - 1:
+                size = level_start[k + 1] - level_start[k]
+                if j % _BRANCH == _BRANCH - 1 or j == size - 1:
+                    j = j // _BRANCH
+                    k += 1
+                else:
+                    break
+            if k == n_levels - 1:
+                done = True
+            j += 1
+    return n
+
+
+@wp.func
+def _cast_candidates(
+    p0: wp.array(dtype=wp.vec3),
+    e1: wp.array(dtype=wp.vec3),
+    e2: wp.array(dtype=wp.vec3),
+    cand: wp.array(dtype=wp.int32),
+    start: wp.int64,
+    n: int,
+    o: wp.vec3,
+    d: wp.vec3,
+    t_max: float,
+    z_lo: float,
+    px: int,
+    py: int,
+) -> float:
+    """Nearest hit in ``[0, t_max)`` of the ray ``o + t d`` with the gathered triangles.
+
+    Moeller-Trumbore against the gathered triangles whose pixel rectangle holds the ray's
+    pixel ``(px, py)`` (relative to the block). Returns the hit distance, +inf for
+    no hit, -1 as soon as a hit below ``z_lo`` is found (it hides every box depth of the
+    pixel), or -2 when a hit within ``1e-3`` (barycentric) of a triangle edge is nearer than
+    every clear hit: there the caller asks Warp's watertight query instead.
+    """
+    best = t_max
+    amb = t_max
+    eps = 1.0e-3
+    result = float(0.0)  # noqa: UP018 (Warp: a mutable variable, not a constant)
+    for k in range(n):
+        rect = cand[start + wp.int64(2 * k + 1)]
+        if px < (rect & 255) or px > ((rect >> 8) & 255):
+            continue
+        if py < ((rect >> 16) & 255) or py > (rect >> 24):
+            continue
+        ti = cand[start + wp.int64(2 * k)]
+        a = e1[ti]
+        b = e2[ti]
+        pv = wp.cross(d, b)
+        det = wp.dot(a, pv)
+        if wp.abs(det) > 1.0e-20:
+            inv = 1.0 / det
+            tv = o - p0[ti]
+            u = wp.dot(tv, pv) * inv
+            if u >= -eps and u <= 1.0 + eps:
+                qv = wp.cross(tv, a)
+                v = wp.dot(d, qv) * inv
+                if v >= -eps and u + v <= 1.0 + eps:
+                    t = wp.dot(b, qv) * inv
+                    if t >= 0.0 and t < best:
+                        if u > eps and v > eps and u + v < 1.0 - eps:
+                            best = t
+                            if t < z_lo:
+                                result = -1.0
+                                break
+                        else:
+                            amb = wp.min(amb, t)
+    if result == 0.0:
+        if amb < best:
+            result = -2.0
+        elif best < t_max:
+            result = best
+        else:
+            result = _INF
+    return result
+
+
 @wp.kernel
 def env_block_kernel(
     mesh: wp.uint64,
@@ -307,6 +545,17 @@ def env_block_kernel(
     t_all: float,
     any_hit: int,
     coherent: int,
+    gather: int,
+    cap: int,
+    p0: wp.array(dtype=wp.vec3),
+    e1: wp.array(dtype=wp.vec3),
+    e2: wp.array(dtype=wp.vec3),
+    lower: wp.array(dtype=wp.vec3),
+    upper: wp.array(dtype=wp.vec3),
+    level_start: wp.array(dtype=wp.int32),
+    n_levels: int,
+    n_tri: int,
+    cand: wp.array(dtype=wp.int32),
     base: wp.int64,
     z_env: wp.array(dtype=wp.float32),
     status: wp.array(dtype=wp.int32),
@@ -364,6 +613,54 @@ def env_block_kernel(
         status[key] = 1
         return
     status[key] = 2
+    n_cand = int(-1)  # noqa: UP018 (Warp: a mutable variable, not a constant)
+    start = key * wp.int64(2 * cap)
+    if gather == 1:
+        u0 = (wp.float32(x0) + 0.5 - cx) / fx
+        u1 = (wp.float32(x1) - 0.5 - cx) / fx
+        v0 = (wp.float32(y0) + 0.5 - cy) / fy
+        v1 = (wp.float32(y1) - 0.5 - cy) / fy
+        scale = wp.max(wp.max(wp.abs(c[0]), wp.abs(c[1])), wp.abs(c[2])) + top
+        pad = 1.0e-3 + 1.0e-4 * scale
+        axis = rot * wp.vec3(0.0, 0.0, 1.0)
+        far = _plane(-axis, c, pad)
+        n_cand = _gather(
+            lower, upper, level_start, n_levels, p0, e1, e2, n_tri, cand, start, cap,
+            _plane(rot * wp.vec3(1.0, 0.0, -u0), c, pad),
+            _plane(rot * wp.vec3(-1.0, 0.0, u1), c, pad),
+            _plane(rot * wp.vec3(0.0, 1.0, -v0), c, pad),
+            _plane(rot * wp.vec3(0.0, -1.0, v1), c, pad),
+            _plane(axis, c, pad),
+            wp.vec4(far[0], far[1], far[2], far[3] - top),
+            c, rot, fx, fy, cx, cy, x0, x1, y0, y1,
+        )  # fmt: skip
+        if n_cand == 0:
+            status[key] = 1
+            return
+    if n_cand > 0:
+        for y in range(y0, y1):
+            g0 = f * npix + y * width
+            for x in range(x0, x1):
+                g = g0 + x
+                t_max = t_all
+                z_lo = t_all
+                if all_pixels == 0:
+                    t_max = z_max[g]
+                    z_lo = z_min[g]
+                if t_max >= 0.0:
+                    d = rot * _pixel_dir_cam(x, y, fx, fy, cx, cy)
+                    if all_pixels == 1:
+                        z_lo = -1.0  # a depth image needs the nearest hit itself
+                    r = _cast_candidates(
+                        p0, e1, e2, cand, start, n_cand, c, d, t_max, z_lo, x - x0, y - y0
+                    )
+                    if r == -2.0:
+                        q = wp.mesh_query_ray(mesh, c, d, t_max)
+                        if q.result and q.t >= 0.0 and q.t < t_max:
+                            z_env[g] = q.t
+                    else:
+                        z_env[g] = r
+        return
     # triangle hit by the block's last cast ray (occluders are coherent)
     face = int(-1)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
     for y in range(y0, y1):
@@ -653,13 +950,29 @@ def block_stride(n_rows: int) -> int:
         p += 1
 
 
+# Most triangles gathered per pixel block (env_block_kernel); 0 turns gathering off.
+GATHER_CAP = 32
+
+_EMPTY: dict = {}
+
+
+def _empty_tree(device) -> tuple:
+    """Placeholder tree arrays for launches without a mesh or without gathering."""
+    key = str(device)
+    if key not in _EMPTY:
+        v = wp.zeros(1, dtype=wp.vec3, device=device)
+        _EMPTY[key] = (v, v, v, v, v, wp.zeros(2, dtype=wp.int32, device=device), 1, 0)
+    return _EMPTY[key]
+
+
 def launch_env_blocks(
-    mesh_id, z_max, z_min, cams, intr, height, block, n_frames, all_pixels, t_all, any_hit,
-    z_env, status, device, threads,
+    mesh_id, tree, z_max, z_min, cams, intr, height, block, n_frames, all_pixels, t_all,
+    any_hit, z_env, status, device, threads,
 ):  # fmt: skip
     """Host side of :func:`env_block_kernel` over every pixel block of ``n_frames`` frames.
 
-    Ray costs vary across the image (sky, ground, far walls); the blocks are visited in a
+    ``tree`` is the mesh's :class:`~._frustum_bvh.FrustumBVH` (None: no gathering). Ray
+    costs vary across the image (sky, ground, far walls); the blocks are visited in a
     scattered order and handed to the threads in chunks on demand (:func:`launch_dynamic`).
     """
     fx, fy, cx, cy, width, npix = intr
@@ -667,12 +980,21 @@ def launch_env_blocks(
     n = n_frames * bw * bh
     stride = block_stride(n_frames * bh)
     k = len(split_bounds(n * block * block, device, threads))
+    cap = GATHER_CAP if tree is not None and mesh_id != 0 else 0
+    if cap > 0:
+        arrays = (tree.p0, tree.e1, tree.e2, tree.lower, tree.upper, tree.level_start,
+                  tree.n_levels, tree.n_tri)  # fmt: skip
+        cand = wp.empty(2 * n * cap, dtype=wp.int32, device=device)
+    else:
+        arrays = _empty_tree(device)
+        cand = wp.empty(1, dtype=wp.int32, device=device)
 
     def inputs(base, j):
         return [
             mesh_id, 0 if mesh_id == 0 else 1, z_max, z_min, cams["pos"], cams["rot"],
             fx, fy, cx, cy, width, height, npix, block, bw, bh, n, stride,
-            all_pixels, float(t_all), any_hit, COHERENT, base, z_env, status,
+            all_pixels, float(t_all), any_hit, COHERENT, 1 if cap > 0 else 0, cap, *arrays,
+            cand, base, z_env, status,
         ]  # fmt: skip
 
     launch_dynamic(env_block_kernel, n, k, inputs, device)

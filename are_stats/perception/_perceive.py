@@ -33,6 +33,7 @@ import warp as wp
 
 from are_stats._checks import check_finite, check_nonnegative, check_probability, describe
 from are_stats.perception import _kernels as kern
+from are_stats.perception._frustum_bvh import FrustumBVH, build_frustum_bvh
 
 __all__ = [
     "PerceptionResult",
@@ -197,6 +198,7 @@ def _warp_mesh(env_mesh: Any, device: str) -> int:
                 raise ValueError("env_mesh: expected finite vertex coordinates")
             entry["points"].assign(wp.array(v, dtype=wp.vec3, device=device))
             entry["mesh"].refit()
+            entry["tree"] = build_frustum_bvh(v, entry["faces_i32"], device)
             entry["verts"] = vh
         return entry["mesh"].id
     v = np.ascontiguousarray(env_mesh.vertices, dtype=np.float32)
@@ -207,10 +209,21 @@ def _warp_mesh(env_mesh: Any, device: str) -> int:
         raise ValueError("env_mesh: expected triangle faces indexing its vertices")
     points = wp.array(v, dtype=wp.vec3, device=device)
     mesh = wp.Mesh(points=points, indices=wp.array(f.ravel(), dtype=wp.int32, device=device))
-    entry = {"ref": weakref.ref(env_mesh), "faces": fh, "verts": vh, "points": points, "mesh": mesh}
+    entry = {
+        "ref": weakref.ref(env_mesh), "faces": fh, "verts": vh, "points": points, "mesh": mesh,
+        "faces_i32": f, "tree": build_frustum_bvh(v, f, device),
+    }  # fmt: skip
     _MESH_CACHE[key] = entry
     weakref.finalize(env_mesh, _MESH_CACHE.pop, key, None)
     return mesh.id
+
+
+def _mesh_and_tree(env_mesh: Any, device: str) -> tuple[int, FrustumBVH | None]:
+    """:func:`_warp_mesh` and the mesh's frustum-gathering tree (None for an empty mesh)."""
+    mesh_id = _warp_mesh(env_mesh, device)
+    if mesh_id == 0:
+        return 0, None
+    return mesh_id, _MESH_CACHE[(id(env_mesh), str(device))]["tree"]
 
 
 # ---------------------------------------------------------------------- ROI culling
@@ -335,6 +348,7 @@ _BLOCK = 8  # pixel block side of the environment-ray kernel (and its culling)
 
 def _run(
     mesh_id: int,
+    tree: FrustumBVH | None,
     centers: np.ndarray,
     half: np.ndarray,
     rots: np.ndarray,
@@ -432,7 +446,7 @@ def _run(
         status = wp.empty(tc * (-(-width // _BLOCK)) * (-(-height // _BLOCK)), dtype=wp.int32,
                           device=device)  # fmt: skip
         kern.launch_env_blocks(
-            mesh_id, z_max, z_min, cams, wintr, height, _BLOCK, tc, 1 if return_depth else 0,
+            mesh_id, tree, z_max, z_min, cams, wintr, height, _BLOCK, tc, 1 if return_depth else 0,
             # Warp accepts hits with t < max_t; eq. 2 keeps t == d_max
             np.nextafter(np.float32(d_max), np.float32(np.inf)), 0 if return_depth else 1,
             z_env, status, device, threads,
@@ -538,9 +552,9 @@ def perceive_frames(
         threads = _default_threads()
     elif isinstance(threads, bool) or not float(threads).is_integer() or threads < 1:
         raise ValueError(f"threads: expected a positive integer, got {threads!r}")
-    mesh_id = _warp_mesh(env_mesh, device)
+    mesh_id, tree = _mesh_and_tree(env_mesh, device)
     counts, depth_env, depth = _run(
-        mesh_id, c, h, r, intr, p, d_max, act, bool(occlusion_between_artefacts),
+        mesh_id, tree, c, h, r, intr, p, d_max, act, bool(occlusion_between_artefacts),
         bool(return_depth), device, int(threads),
     )  # fmt: skip
     return PerceptionResult(counts, counts > tau, depth_env, depth)
