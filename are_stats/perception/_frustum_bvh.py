@@ -59,9 +59,14 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
 
 
 def morton_codes(points: np.ndarray) -> np.ndarray:
-    """30-bit Morton codes of ``points (n, 3)`` quantised to 1024 cells per axis of their box."""
+    """30-bit Morton codes of ``points (n, 3)`` on a grid of 1024^3 cubic cells.
+
+    The cells are cubes (the longest side of the points' box over 1024), so that a run of
+    consecutive codes is compact in space even for a flat terrain: cells scaled per axis
+    would split the thin axis first.
+    """
     lo = points.min(axis=0)
-    span = np.maximum(points.max(axis=0) - lo, 1e-30)
+    span = max(float((points.max(axis=0) - lo).max()), 1e-30)
     q = np.clip((points - lo) / span * 1024.0, 0, 1023).astype(np.uint64)
     return (_spread_bits(q[:, 0]) << 2) | (_spread_bits(q[:, 1]) << 1) | _spread_bits(q[:, 2])
 

@@ -19,7 +19,10 @@ some ``Z_a`` is finite, and only up to that largest ``Z_a`` (a farther environme
 occludes nothing). Where all box depths of a pixel are equal (usually one box), Warp's
 any-hit query answers "is anything hit before Z_a" exactly. Before any ray is cast, 8x8
 pixel blocks whose ray pyramid meets no triangle bounding box are cleared (their rays
-could hit nothing), which removes most rays to near boxes.
+could hit nothing), which removes most rays to near boxes. The rays of the other blocks
+are traced together: the nearest triangles of the block's ray pyramid are gathered from a
+second, implicit tree over the mesh (:mod:`._frustum_bvh`) and each ray tests only those,
+with Warp's watertight BVH query wherever that short list cannot settle a ray exactly.
 """
 
 from __future__ import annotations
