@@ -2,7 +2,8 @@
 
 Ours: ``are_stats.perceived_counts`` (Warp CPU kernels, ROI culling, environment rays cast
 only under a box, only up to the farthest box depth and only in 8x8 pixel blocks whose ray
-pyramid meets a triangle's bounding box, launches split over the host's cores). Peer: the
+pyramid meets a triangle's bounding box, each block's rays traced against the few
+triangles gathered for its pyramid, launches split over the host's cores). Peer: the
 strongest simple pipeline a user would write: Open3D's RaycastingScene (Embree, all
 threads) for the full-frame environment depth, then a NumPy float32 slab test per box over
 only the pixels of its projected rectangle.
