@@ -1034,7 +1034,8 @@ def launch_env_blocks(
     n = n_frames * bw * bh
     stride = block_stride(n_frames * bh)
     k = len(split_bounds(n * block * block, device, threads))
-    cap = GATHER_CAP if tree is not None and mesh_id != 0 else 0
+    # _tri_rect packs a block's pixel rectangle into 8-bit fields of a signed int32
+    cap = GATHER_CAP if tree is not None and mesh_id != 0 and block < 128 else 0
     if cap > 0:
         arrays = (tree.p0, tree.e1, tree.e2, tree.lower, tree.upper, tree.level_start,
                   tree.n_levels, tree.n_tri)  # fmt: skip
