@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import functools
 import os
+from collections.abc import Callable
+from typing import Any
 
 # Two XLA host devices so that NUTS chains run in parallel on the two cores; must be set
 # before JAX is imported (by are_stats).
@@ -26,6 +29,84 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+# Errors that mean "bad input or environment": one line on stderr, exit status 2.
+# (ValueError covers are_stats.inputs.InputError/LimitError; OSError covers missing files,
+# directories where files belong, permissions and full disks.)
+_USER_ERRORS = (ValueError, OSError)
+
+
+def _fail(err: BaseException) -> typer.Exit:
+    typer.echo(f"error: {err}", err=True)
+    return typer.Exit(2)
+
+
+def _cli_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Run a command so that users see one clear line, never a traceback.
+
+    Bad input exits with status 2 and ``error: <file>: <where>: expected ..., got ...``.
+    Anything else is a bug in are_stats: it exits with status 1 and says so (the traceback
+    is printed only with ``ARE_STATS_DEBUG=1``).
+    """
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (typer.Exit, typer.Abort, KeyboardInterrupt):
+            raise
+        except _USER_ERRORS as err:
+            raise _fail(err) from None
+        except MemoryError:
+            typer.echo(
+                "error: out of memory; lower the input's sizes or the limits "
+                "(are-stats --max-memory SIZE)",
+                err=True,
+            )
+            raise typer.Exit(2) from None
+        except Exception as err:  # a bug: say so plainly instead of a traceback
+            if os.environ.get("ARE_STATS_DEBUG"):
+                raise
+            typer.echo(
+                f"internal error in are-stats ({type(err).__name__}: {err}); please report it "
+                "with the command line (ARE_STATS_DEBUG=1 shows the traceback)",
+                err=True,
+            )
+            raise typer.Exit(1) from None
+
+    return wrapper
+
+
+def _seed(seed: int) -> int:
+    from are_stats.inputs import get_seed
+
+    return get_seed(seed, "--seed")
+
+
+@app.callback()
+def _limits(
+    max_memory: str = typer.Option(
+        None,
+        "--max-memory",
+        help="Largest input-sized allocation, e.g. 16G (default 4G; ARE_STATS_MAX_MEMORY).",
+    ),
+    max_work: str = typer.Option(
+        None,
+        "--max-work",
+        help="Most elementary steps one computation may take (default 5e10; ARE_STATS_MAX_WORK).",
+    ),
+) -> None:
+    """Limits that refuse runaway inputs before anything is allocated."""
+    from are_stats.inputs import parse_size
+
+    try:
+        # Environment variables, so that Dask workers and subprocesses inherit them.
+        if max_memory is not None:
+            os.environ["ARE_STATS_MAX_MEMORY"] = str(parse_size(max_memory, "--max-memory"))
+        if max_work is not None:
+            os.environ["ARE_STATS_MAX_WORK"] = str(parse_size(max_work, "--max-work"))
+    except ValueError as err:
+        raise _fail(err) from None
+
 
 @app.command()
 def version() -> None:
@@ -34,6 +115,7 @@ def version() -> None:
 
 
 @app.command()
+@_cli_errors
 def show(
     map_path: str = typer.Argument(
         ..., metavar="MAP", help="ROS map YAML, or the name of a shipped map (courtyard)."
@@ -45,26 +127,16 @@ def show(
     force: bool = typer.Option(False, "--force", help="Overwrite the PNG."),
 ) -> None:
     """Render an occupancy grid, its inflation and artefacts to a PNG."""
-    from are_stats._atomic import OutputExistsError
     from are_stats.builder import show_map
 
-    try:
-        path = show_map(map_path, out, inflate=inflate, artefacts=artefacts, seed=seed, force=force)
-    except (ValueError, FileNotFoundError, OutputExistsError) as e:
-        typer.echo(f"error: {e}", err=True)
-        raise typer.Exit(2) from None
+    path = show_map(
+        map_path, out, inflate=inflate, artefacts=artefacts, seed=_seed(seed), force=force
+    )
     typer.echo(str(path))
 
 
-_ERRORS = (ValueError, FileNotFoundError, FileExistsError)
-
-
-def _fail(err: Exception) -> typer.Exit:
-    typer.echo(f"error: {err}", err=True)
-    return typer.Exit(2)
-
-
 @app.command()
+@_cli_errors
 def fit(
     log: Path = typer.Argument(..., metavar="LOG", help="Life-cycle log (CSV or Parquet)."),
     out: Path = typer.Option(..., "--out", help="Fit to write, e.g. fits/NAME.nc (NetCDF)."),
@@ -103,30 +175,28 @@ def fit(
     """Fit arrival rate, leave rate and mark mixture of a field log; write NetCDF + figures."""
     from are_stats._cli_jobs import run_fit
 
-    try:
-        run_fit(
-            log,
-            out,
-            method=method,
-            seed=seed,
-            force=force,
-            window=window,
-            area=area,
-            manifest=manifest,
-            counts=counts,
-            components=components,
-            warmup=warmup,
-            samples=samples,
-            chains=chains,
-            figures=None if no_figures else (figures or out.with_suffix("")),
-            alternatives=alternatives,
-            stationary_start=stationary_start,
-        )
-    except _ERRORS as err:
-        raise _fail(err) from None
+    run_fit(
+        log,
+        out,
+        method=method,
+        seed=_seed(seed),
+        force=force,
+        window=window,
+        area=area,
+        manifest=manifest,
+        counts=counts,
+        components=components,
+        warmup=warmup,
+        samples=samples,
+        chains=chains,
+        figures=None if no_figures else (figures or out.with_suffix("")),
+        alternatives=alternatives,
+        stationary_start=stationary_start,
+    )
 
 
 @app.command()
+@_cli_errors
 def report(
     fit_path: Path = typer.Argument(..., metavar="FIT", help="A fit written by are-stats fit."),
     out: Path = typer.Option(None, "--out", help="Folder for figures (default: FIT without .nc)."),
@@ -137,13 +207,11 @@ def report(
     """Re-draw the summary table and the posterior-predictive figures of a saved fit."""
     from are_stats._cli_jobs import run_report
 
-    try:
-        run_report(fit_path, out or fit_path.with_suffix(""), seed, replicates, force)
-    except _ERRORS as err:
-        raise _fail(err) from None
+    run_report(fit_path, out or fit_path.with_suffix(""), _seed(seed), replicates, force)
 
 
 @app.command()
+@_cli_errors
 def generate(
     fit_path: Path = typer.Argument(..., metavar="FIT", help="A fit written by are-stats fit."),
     scenarios: int = typer.Option(..., "--scenarios", help="Number of scenarios."),
@@ -166,25 +234,23 @@ def generate(
     """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
     from are_stats._cli_jobs import run_generate
 
-    try:
-        run_generate(
-            fit_path,
-            scenarios,
-            horizon,
-            seed,
-            out,
-            map_path,
-            area,
-            behaviours,
-            force,
-            behaviour_cell=behaviour_cell,
-            behaviour_dt=behaviour_dt,
-        )
-    except _ERRORS as err:
-        raise _fail(err) from None
+    run_generate(
+        fit_path,
+        scenarios,
+        horizon,
+        _seed(seed),
+        out,
+        map_path,
+        area,
+        behaviours,
+        force,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+    )
 
 
 @app.command()
+@_cli_errors
 def demo(
     out: Path = typer.Option(Path("demo-output"), "--out", help="Folder for the demo outputs."),
     force: bool = typer.Option(False, "--force", help="Overwrite earlier demo outputs."),
@@ -193,13 +259,11 @@ def demo(
     """The main job on the shipped defaults: log -> fit -> criticism -> scenarios -> summary."""
     from are_stats._cli_jobs import run_demo
 
-    try:
-        run_demo(out, force=force, quick=quick)
-    except _ERRORS as err:
-        raise _fail(err) from None
+    run_demo(out, force=force, quick=quick)
 
 
 @app.command()
+@_cli_errors
 def perceive(
     scenario: Path = typer.Argument(
         ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
@@ -223,62 +287,51 @@ def perceive(
     """Add perceived flags (A_f: count of unoccluded box pixels > tau) to scenarios."""
     from are_stats._cli_jobs import run_perceive
 
-    try:
-        run_perceive(
-            scenario,
-            camera,
-            robot_path,
-            mesh=mesh,
-            d_max=d_max,
-            tau=tau,
-            camera_height=camera_height,
-            occlusion_between_artefacts=mutual,
-            out=out,
-            force=force,
-        )
-    except _ERRORS as err:
-        raise _fail(err) from None
+    run_perceive(
+        scenario,
+        camera,
+        robot_path,
+        mesh=mesh,
+        d_max=d_max,
+        tau=tau,
+        camera_height=camera_height,
+        occlusion_between_artefacts=mutual,
+        out=out,
+        force=force,
+    )
 
 
 @app.command()
+@_cli_errors
 def experiment(
     config: str = typer.Argument(..., metavar="CONFIG.yaml", help="Sweep config (YAML)."),
     out: str = typer.Option(None, "--out", help="Results folder (default: results/<name>)."),
-    workers: int = typer.Option(1, "--workers", help="Local Dask workers."),
+    workers: int = typer.Option(1, "--workers", min=1, max=64, help="Local Dask workers."),
     scheduler: str = typer.Option(
         None, "--scheduler", help="Existing Dask scheduler address (tcp://host:port)."
     ),
     force: bool = typer.Option(False, "--force", help="Redo every task and overwrite results."),
 ) -> None:
     """Run a navigation-experiment sweep (Fig. 7) on Dask; resumes unfinished sweeps."""
-    from are_stats._atomic import OutputExistsError
     from are_stats.experiments import load_sweep_config, run_sweep
 
-    try:
-        cfg = load_sweep_config(config)
-        target = out if out is not None else f"results/{cfg['name']}"
-        path = run_sweep(cfg, target, workers=workers, scheduler=scheduler, force=force)
-    except (ValueError, FileNotFoundError, OutputExistsError) as e:
-        typer.echo(f"error: {e}", err=True)
-        raise typer.Exit(2) from None
+    cfg = load_sweep_config(config)
+    target = out if out is not None else f"results/{cfg['name']}"
+    path = run_sweep(cfg, target, workers=workers, scheduler=scheduler, force=force)
     typer.echo(str(path))
 
 
 @app.command()
+@_cli_errors
 def plot(
     results: str = typer.Argument(..., metavar="RESULTS", help="Sweep results folder."),
     out: str = typer.Option(None, "--out", help="Folder for the PNGs (default: RESULTS)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing PNGs."),
 ) -> None:
     """Draw the Fig. 7a (rho) and Fig. 7b (goals reached) plots of a sweep."""
-    from are_stats._atomic import OutputExistsError
     from are_stats.experiments import plot_results
 
-    try:
-        paths = plot_results(results, out, force=force)
-    except (ValueError, FileNotFoundError, OutputExistsError) as e:
-        typer.echo(f"error: {e}", err=True)
-        raise typer.Exit(2) from None
+    paths = plot_results(results, out, force=force)
     for p in paths:
         typer.echo(str(p))
 
