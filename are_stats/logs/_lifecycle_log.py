@@ -19,9 +19,17 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
-from are_stats.logs._table import RawTable, read_raw_table
+from are_stats.inputs import (
+    InputError,
+    _Text,
+    check_keys,
+    get_float,
+    get_list,
+    get_str,
+    load_yaml,
+)
+from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
 __all__ = [
     "LIFECYCLE_COLUMNS",
@@ -206,112 +214,113 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     ``min``, ``h``; default ``s``), ``area_unit`` (``m^2``, ``cm^2``, ``km^2``, ``ha``;
     default ``m^2``), ``min_lifetime`` (default 0), ``description`` (free text).
 
+    The file is read with :func:`are_stats.inputs.load_yaml` (duplicate keys, alias bombs
+    and over-deep nesting rejected) and every value is type-checked strictly: numbers are
+    YAML numbers (not booleans, strings or lists), finite, in range.
+
+    Returns
+    -------
+    dict
+        The keys present, with values as written (numbers as floats) and ``map`` resolved
+        against the manifest's folder.
+
     Raises
     ------
     FileNotFoundError
         If the manifest does not exist.
-    ValueError
-        On invalid YAML, unknown keys or malformed values.
+    InputError
+        On invalid YAML, unknown keys or malformed values, naming the file and the key.
     """
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such manifest file")
-    try:
-        meta = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as err:
-        raise ValueError(f"{p}: expected a YAML manifest, got invalid YAML: {err}") from None
+    meta = load_yaml(p, "life-cycle log manifest")
     if meta is None:
         meta = {}
-    if not isinstance(meta, dict):
-        raise ValueError(
-            f"{p}: expected a YAML mapping of manifest keys, got {type(meta).__name__}"
-        )
-    unknown = [k for k in meta if k not in _MANIFEST_KEYS]
-    if unknown:
-        raise ValueError(
-            f"{p}: key {unknown[0]!r}: expected one of "
-            f"{', '.join(_MANIFEST_KEYS)}, got an unknown key"
-        )
+    if not isinstance(meta, Mapping):
+        raise InputError(p, "", "a YAML mapping of manifest keys", meta)
+    meta = check_keys(meta, p, "", _MANIFEST_KEYS)
     if "area" in meta and "map" in meta:
-        raise ValueError(f"{p}: keys 'area' and 'map': expected one of them, got both")
-    out = dict(meta)
-    if "map" in out:
-        mp = Path(str(out["map"]))
+        raise InputError(p, "keys 'area' and 'map'", "one of them", _Text("both"))
+    out: dict[str, Any] = {}
+    if "window" in meta:
+        out["window"] = list(_window(p, "window", meta["window"], 1.0))
+    if "area" in meta:
+        out["area"] = get_float(meta["area"], p, "area", lo=0.0, lo_open=True)
+    if "map" in meta:
+        mp = Path(get_str(meta["map"], p, "map"))
         out["map"] = str(mp if mp.is_absolute() else p.parent / mp)
+    if "time_unit" in meta:
+        out["time_unit"] = get_str(meta["time_unit"], p, "time_unit", choices=TIME_UNITS)
+    if "area_unit" in meta:
+        out["area_unit"] = get_str(meta["area_unit"], p, "area_unit", choices=AREA_UNITS)
+    if "min_lifetime" in meta:
+        out["min_lifetime"] = get_float(meta["min_lifetime"], p, "min_lifetime", lo=0.0)
+    if "description" in meta:
+        out["description"] = get_str(meta["description"], p, "description")
     return out
 
 
-def _window(where: str, value: Any, scale: float) -> tuple[float, float]:
-    try:
-        t0, t1 = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{where}: expected a window [t0, t1] of two numbers, got {value!r}"
-        ) from None
-    if not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0:
-        raise ValueError(
-            f"{where}: expected a window [t0, t1] of finite numbers with "
-            f"t0 < t1, got [{t0!r}, {t1!r}]"
+def _window(source: Any, where: str, value: Any, scale: float) -> tuple[float, float]:
+    """A window ``[t0, t1]`` of two finite numbers with ``t0 < t1``, times ``scale``."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    pair = get_list(value, source, where, min_len=2, max_len=2)
+    t0 = get_float(pair[0], source, f"{where}[0]")
+    t1 = get_float(pair[1], source, f"{where}[1]")
+    if not t1 > t0:
+        raise InputError(
+            source,
+            where,
+            "a window [t0, t1] of finite numbers with t0 < t1",
+            _Text(f"[{t0!r}, {t1!r}]"),
         )
-    return t0 * scale, t1 * scale
-
-
-def _positive(where: str, value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: expected a number > 0, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0:
-        raise ValueError(f"{where}: expected a number > 0, got {value!r}")
-    return v
+    lo, hi = t0 * scale, t1 * scale
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise InputError(
+            source, where, "a window that stays finite in seconds", _Text(f"[{t0!r}, {t1!r}]")
+        )
+    return lo, hi
 
 
 def _resolve_settings(
     manifest: Mapping[str, Any], mpath: str, window: Any, area: Any
 ) -> tuple[tuple[float, float], float | None, float, dict[str, Any]]:
     tu = str(manifest.get("time_unit", "s"))
-    if tu not in TIME_UNITS:
-        raise ValueError(
-            f"{mpath}: key 'time_unit': expected one of {', '.join(TIME_UNITS)}, got {tu!r}"
-        )
     au = str(manifest.get("area_unit", "m^2"))
-    if au not in AREA_UNITS:
-        raise ValueError(
-            f"{mpath}: key 'area_unit': expected one of {', '.join(AREA_UNITS)}, got {au!r}"
-        )
     scale = TIME_UNITS[tu]
     if window is not None:
-        win = _window("window", window, scale)
+        win = _window("window", "", window, scale)
     elif "window" in manifest:
-        win = _window(f"{mpath}: key 'window'", manifest["window"], scale)
+        win = _window(mpath, "window", manifest["window"], scale)
     else:
-        raise ValueError(
-            f"{mpath}: key 'window': expected the observation window [t0, t1] "
-            "in the manifest or as window=(t0, t1), got nothing"
+        raise InputError(
+            mpath,
+            "window",
+            "the observation window [t0, t1] in the manifest or as window=(t0, t1)",
+            _Text("nothing"),
         )
     if area is not None:
-        a: float | None = _positive("area", area)
+        a: float | None = get_float(area, "area", "", lo=0.0, lo_open=True)
     elif "area" in manifest:
-        a = _positive(f"{mpath}: key 'area'", manifest["area"]) * AREA_UNITS[au]
+        a = manifest["area"] * AREA_UNITS[au]
+        if not math.isfinite(a):
+            raise InputError(mpath, "area", "an area that stays finite in m^2", manifest["area"])
     elif "map" in manifest:
         from are_stats.environment import OccupancyGrid
 
         a = OccupancyGrid.from_ros_yaml(manifest["map"]).free_area
         if a <= 0:
-            raise ValueError(f"{manifest['map']}: expected a map with free cells, got none")
+            raise InputError(manifest["map"], "", "a map with free cells", _Text("none"))
     else:
         a = None
-    min_life = manifest.get("min_lifetime", 0.0)
-    try:
-        min_life = float(min_life) * scale
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{mpath}: key 'min_lifetime': expected a number >= 0, got {min_life!r}"
-        ) from None
-    if not math.isfinite(min_life) or min_life < 0:
-        raise ValueError(
-            f"{mpath}: key 'min_lifetime': expected a number >= 0, got "
-            f"{manifest.get('min_lifetime')!r}"
+    min_life = float(manifest.get("min_lifetime", 0.0)) * scale
+    if not math.isfinite(min_life):
+        raise InputError(
+            mpath,
+            "min_lifetime",
+            "a lifetime that stays finite in seconds",
+            manifest["min_lifetime"],
         )
     resolved = dict(manifest)
     resolved.update(
@@ -411,36 +420,32 @@ def lifecycle_log_from_frame(
     -------
     LifecycleLog
     """
-    strings: dict[str, np.ndarray] = {}
-    numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for c in frame.columns:
-        col = frame[c]
-        if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
-            v = col.to_numpy(dtype=np.float64, na_value=np.nan)
-            numbers[str(c)] = (np.where(np.isnan(v), 0.0, v), np.isnan(v))
-        else:
-            strings[str(c)] = np.array(
-                [
-                    ""
-                    if (x is None or (isinstance(x, float) and math.isnan(x)) or x is pd.NA)
-                    else str(x).strip()
-                    for x in col.to_numpy(dtype=object)
-                ],
-                dtype=object,
-            )
-    raw = RawTable(Path(source), "frame", len(frame), strings, numbers)
+    raw = frame_table(frame, source, "life-cycle log")
     if raw.n_rows == 0:
-        raise ValueError(f"{source}: empty life-cycle log: expected at least one row, got none")
-    win = _window("window", window, 1.0)
-    a = None if area is None else _positive("area", area)
+        raise InputError(source, "empty life-cycle log", "at least one row", _Text("none"))
+    win = _window("window", "", window, 1.0)
+    a = None if area is None else get_float(area, "area", "", lo=0.0, lo_open=True)
+    min_life = get_float(min_lifetime, "min_lifetime", "", lo=0.0)
     resolved = {
         "window": list(win),
         "area": a,
         "time_unit": "s",
         "area_unit": "m^2",
-        "min_lifetime": float(min_lifetime),
+        "min_lifetime": min_life,
     }
-    return _validate(raw, win, a, float(min_lifetime), 1.0, source, resolved)
+    return _validate(raw, win, a, min_life, 1.0, source, resolved)
+
+
+#: Relative tolerance of the window check: times within ``WINDOW_RTOL * max(|t0|, |t1|,
+#: t1 - t0)`` outside the window are rounding errors (``215.60000000000002`` for a window
+#: ending at ``215.6``) and are clipped onto its edge; times further out are errors.
+WINDOW_RTOL = 1e-9
+
+
+def window_tolerance(win: tuple[float, float]) -> float:
+    """Absolute tolerance of the window check for window ``win`` (see :data:`WINDOW_RTOL`)."""
+    t0, t1 = win
+    return WINDOW_RTOL * max(abs(t0), abs(t1), t1 - t0)
 
 
 def _blank_rows(raw: RawTable) -> np.ndarray:
@@ -489,13 +494,16 @@ def _validate(
         pose[c] = sub.floats(c, allow_empty=True)[0] if c in sub.columns else np.full(m, np.nan)
     t0, t1 = win
     wtxt = f"the window [{t0 / scale:g}, {t1 / scale:g}]"
+    tol = window_tolerance(win)
     for name, vals, empty in (("t_arrive", ta, trunc), ("t_leave", tl, cens)):
-        bad = ~empty & ((vals < t0) | (vals > t1))
+        bad = ~empty & ((vals < t0 - tol) | (vals > t1 + tol))
         if bad.any():
             i = int(np.argmax(bad))
             raise err(
                 i, name, f"a time inside {wtxt}", f"{float(vals[i] / scale)!r} (outside the window)"
             )
+        # times a rounding error outside the window are on its edge
+        np.clip(vals, t0, t1, out=vals, where=~empty)
     order = ~trunc & ~cens & (tl < ta)
     if order.any():
         i = int(np.argmax(order))

@@ -1,12 +1,25 @@
 """Reading CSV / Parquet tables cell by cell with errors that name file, row and column.
 
 Row numbers in every message are **1-based data rows** (the header is not counted); for
-CSV files the message also gives the physical line (``line = row + 1``).
+CSV files the message also gives the physical line where the row starts.
+
+What a table may hold (checked here, before any cell is interpreted):
+
+* CSV: UTF-8 text (a leading byte-order mark is ignored), no NUL bytes, every non-blank
+  row with exactly as many fields as the header, every field at most
+  :data:`MAX_FIELD_CHARS` characters, unique non-empty column names.
+* Parquet: columns of integers, floats, booleans or text (other types are read as their
+  text and rejected where a number is expected); boolean columns are never numbers.
+* Memory: the parsed table is estimated from the file (CSV: its size; Parquet: its
+  declared uncompressed size and row count) and refused past
+  :func:`are_stats.inputs.memory_limit` before it is read.
 """
 
 from __future__ import annotations
 
 import csv
+import io
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,18 +27,37 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["RawTable", "read_raw_table", "table_error"]
+from are_stats.inputs import InputError, _Text, check_memory
+
+__all__ = [
+    "MAX_EXACT_INT",
+    "MAX_FIELD_CHARS",
+    "RawTable",
+    "frame_table",
+    "read_raw_table",
+    "table_error",
+]
 
 _NAN_WORDS = frozenset({"nan", "+nan", "-nan", "na", "n/a", "null", "none", "<na>"})
+#: Longest CSV field accepted (characters): Python's ``csv`` default of 128 KiB.
+MAX_FIELD_CHARS = csv.field_size_limit()
+#: Largest integer cell accepted (2**53: integers above it are not exact in float64).
+MAX_EXACT_INT = 2**53
+# Bytes of memory per byte of CSV file while parsing (Python strings + object arrays).
+_CSV_BYTES_PER_BYTE = 12
+# Bytes of memory per Parquet cell after reading (float64 + mask, or an object pointer).
+_PARQUET_BYTES_PER_CELL = 16
 
 
 @dataclass(frozen=True)
 class RawTable:
     """A table as read from disk, before any parsing of its cells.
 
-    Each column is either an object array of stripped strings (CSV, or Parquet string
-    columns; ``""`` is an empty cell) or a float array with a null mask (Parquet numeric
-    columns).
+    Each column is either an object array of stripped strings (CSV, or Parquet text,
+    integer and boolean columns; ``""`` is an empty cell) or a float array with a null
+    mask (Parquet floating-point columns). ``bools`` names the columns that were boolean
+    in the file (their strings are ``"True"`` / ``"False"``): they are never read as
+    numbers or identifiers.
     """
 
     path: Path
@@ -34,6 +66,8 @@ class RawTable:
     strings: dict[str, np.ndarray]
     numbers: dict[str, tuple[np.ndarray, np.ndarray]]
     rows: np.ndarray | None = None  # original 0-based row of each row (after a subset)
+    lines: np.ndarray | None = None  # physical 1-based line where each row starts (CSV)
+    bools: frozenset[str] = frozenset()
 
     @property
     def columns(self) -> list[str]:
@@ -42,7 +76,10 @@ class RawTable:
     def where(self, row0: int) -> str:
         """Human position of 0-based data row ``row0``."""
         r = (row0 if self.rows is None else int(self.rows[row0])) + 1
-        return f"row {r} (line {r + 1})" if self.kind == "csv" else f"row {r}"
+        if self.kind != "csv":
+            return f"row {r}"
+        line = r + 1 if self.lines is None else int(self.lines[r - 1])
+        return f"row {r} (line {line})"
 
     def subset(self, keep: np.ndarray) -> RawTable:
         """Rows ``keep`` (bool mask); messages still name the original rows."""
@@ -54,6 +91,8 @@ class RawTable:
             {c: s[keep] for c, s in self.strings.items()},
             {c: (v[keep], nl[keep]) for c, (v, nl) in self.numbers.items()},
             rows,
+            self.lines,
+            self.bools,
         )
 
     def error(self, row0: int, column: str, expected: str, got: object) -> ValueError:
@@ -68,10 +107,18 @@ class RawTable:
                 f"got columns {', '.join(repr(c) for c in self.columns) or '(none)'}"
             )
 
+    def _no_bools(self, column: str, expected: str) -> None:
+        if column in self.bools:
+            s = self.strings[column]
+            hit = np.isin(s, ["True", "False"])
+            i = int(np.argmax(hit)) if hit.any() else 0
+            raise self.error(i, column, expected, f"a boolean ({s[i] or 'null'}, boolean column)")
+
     # ---- cell parsers -------------------------------------------------------------------
 
     def ids(self, column: str) -> np.ndarray:
         """Non-empty identifiers as strings (numbers are formatted without a trailing .0)."""
+        self._no_bools(column, "a non-empty identifier (text or integer)")
         if column in self.strings:
             out = self.strings[column]
             bad = out == ""
@@ -108,6 +155,7 @@ class RawTable:
 
     def floats(self, column: str, *, allow_empty: bool) -> tuple[np.ndarray, np.ndarray]:
         """Finite numbers; returns ``(values, empty)`` with NaN where the cell is empty."""
+        self._no_bools(column, "a number")
         if column in self.strings:
             s = self.strings[column]
             empty = s == ""
@@ -119,7 +167,7 @@ class RawTable:
             bad = np.isnan(vals) & ~nan_word
             if bad.any():
                 i = int(np.argmax(bad))
-                raise self.error(i, column, "a number", repr(s[i]))
+                raise self.error(i, column, "a number", _short(s[i]))
             if nan_word.any():
                 i = int(np.argmax(nan_word))
                 raise self.error(
@@ -147,13 +195,25 @@ class RawTable:
         vals[empty] = np.nan
         return vals, empty
 
-    def nonneg_ints(self, column: str, *, allow_empty: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Non-negative integers; returns ``(values, empty)`` with -1 where empty."""
+    def nonneg_ints(
+        self, column: str, *, allow_empty: bool, hi: int = MAX_EXACT_INT
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Non-negative integers up to ``hi``; returns ``(values, empty)`` with -1 where empty.
+
+        The range is checked on the parsed number *before* the cast to int64, so a cell
+        like ``1e30`` is an error, never a wrapped-around integer.
+        """
         vals, empty = self.floats(column, allow_empty=allow_empty)
         neg = (vals < 0) & ~empty
         if neg.any():
             i = int(np.argmax(neg))
             raise self.error(i, column, "a non-negative integer", _num(vals[i]))
+        big = (vals > hi) & ~empty
+        if big.any():
+            i = int(np.argmax(big))
+            raise self.error(
+                i, column, f"a non-negative integer <= {hi}", f"{_num(vals[i])} (too large)"
+            )
         frac = (vals != np.round(vals)) & ~empty
         if frac.any():
             i = int(np.argmax(frac))
@@ -162,15 +222,71 @@ class RawTable:
         return out, empty
 
 
+def frame_table(frame: object, source: str, what: str) -> RawTable:
+    """A :class:`RawTable` of an in-memory DataFrame (NaN / None / NA cells are empty).
+
+    Numeric columns become numbers, boolean columns are marked boolean (never numbers),
+    everything else becomes text.
+    """
+    if not isinstance(frame, pd.DataFrame):
+        raise InputError(source, "", f"a {what} as a pandas DataFrame", _Text(type(frame).__name__))
+    names = [str(c) for c in frame.columns]
+    dup = sorted({c for c in names if names.count(c) > 1})
+    if dup:
+        raise InputError(source, "columns", "unique column names", _Text(f"{dup} repeated"))
+    strings: dict[str, np.ndarray] = {}
+    numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    bools: set[str] = set()
+    for j, c in enumerate(names):
+        col = frame.iloc[:, j]
+        if pd.api.types.is_bool_dtype(col):
+            bools.add(c)
+        if (
+            pd.api.types.is_numeric_dtype(col)
+            and not pd.api.types.is_bool_dtype(col)
+            and not pd.api.types.is_complex_dtype(col)
+        ):
+            v = col.to_numpy(dtype=np.float64, na_value=np.nan)
+            numbers[c] = (np.where(np.isnan(v), 0.0, v), np.isnan(v))
+        else:
+            cells = col.to_numpy(dtype=object)
+            if any(isinstance(x, bool | np.bool_) for x in cells):
+                bools.add(c)
+            strings[c] = np.array(
+                ["" if _is_missing(x) else str(x).strip() for x in cells],
+                dtype=object,
+            )
+    return RawTable(Path(source), "frame", len(frame), strings, numbers, bools=frozenset(bools))
+
+
+def _is_missing(x: object) -> bool:
+    return x is None or x is pd.NA or x is pd.NaT or (isinstance(x, float) and math.isnan(x))
+
+
 def _num(v: float) -> str:
-    return repr(int(v)) if float(v) == round(float(v)) else repr(float(v))
+    v = float(v)
+    return repr(int(v)) if v == round(v) and abs(v) < 1e16 else repr(v)
+
+
+def _short(text: str, limit: int = 60) -> str:
+    """``repr`` of a cell, shortened so a huge cell cannot flood the message."""
+    if len(text) <= limit:
+        return repr(text)
+    return f"{text[:limit]!r}... ({len(text)} characters)"
 
 
 def table_error(
     path: Path | str, where: str, column: str, expected: str, got: object
 ) -> ValueError:
-    """``ValueError("<file>: <where>, column '<col>': expected ..., got ...")``."""
-    return ValueError(f"{path}: {where}, column {column!r}: expected {expected}, got {got}")
+    """``InputError("<file>: <where>, column '<col>': expected ..., got ...")``.
+
+    ``got`` is printed as given (callers pass a description such as ``"'abc'"``).
+    """
+    return InputError(path, f"{where}, column {column!r}", expected, _Text(str(got)))
+
+
+def _check_memory(n_bytes: int, what: str, p: Path) -> None:
+    check_memory(int(n_bytes), what, str(p))
 
 
 def read_raw_table(path: str | os.PathLike, what: str) -> RawTable:
@@ -181,13 +297,16 @@ def read_raw_table(path: str | os.PathLike, what: str) -> RawTable:
     FileNotFoundError
         If ``path`` does not exist.
     ValueError
-        If the file is empty, has no data rows, or cannot be parsed.
+        If the file is empty, has no data rows, cannot be parsed, or would need more
+        memory than :func:`are_stats.inputs.memory_limit` (``LimitError``).
     """
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such {what} file")
     if p.is_dir():
         raise ValueError(f"{p}: expected a {what} file (CSV or Parquet), got a directory")
+    if not p.is_file():
+        raise ValueError(f"{p}: expected a {what} file (CSV or Parquet), got a special file")
     suffix = p.suffix.lower()
     if suffix in (".parquet", ".pq"):
         table = _read_parquet(p, what)
@@ -205,45 +324,93 @@ def read_raw_table(path: str | os.PathLike, what: str) -> RawTable:
     return table
 
 
+def _decode(p: Path, what: str, data: bytes) -> str:
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        raise ValueError(
+            f"{p}: line {line}: expected a {what} in UTF-8 text, got byte "
+            f"0x{data[err.start]:02x} at byte offset {err.start} (not UTF-8)"
+        ) from None
+    nul = text.find("\x00")
+    if nul >= 0:
+        line = text.count("\n", 0, nul) + 1
+        raise ValueError(
+            f"{p}: line {line}: expected a {what} in CSV text, got a NUL byte (binary data)"
+        )
+    return text
+
+
 def _read_csv(p: Path, what: str, sep: str) -> RawTable:
-    if p.stat().st_size == 0 or not p.read_bytes().strip():
+    size = p.stat().st_size
+    _check_memory(size * _CSV_BYTES_PER_BYTE, f"parsing the {what}", p)
+    data = p.read_bytes()
+    if not data.strip() or data.strip() == b"\xef\xbb\xbf":
         raise ValueError(
             f"{p}: empty file: expected a {what} with a header row and at least "
             "one data row, got no content"
         )
+    text = _decode(p, what, data)
+    del data
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
+    records: list[list[str]] = []
+    lines: list[int] = []
+    header: list[str] | None = None
+    start = 1
     try:
-        df = pd.read_csv(
-            p,
-            sep=sep,
-            dtype=str,
-            keep_default_na=False,
-            na_filter=False,
-            skip_blank_lines=False,
-            comment=None,
-        )
-    except (pd.errors.ParserError, UnicodeDecodeError) as err:
+        for rec in reader:
+            if header is None:
+                header = [h.strip() for h in rec]
+                start = reader.line_num + 1
+                continue
+            records.append(rec)
+            lines.append(start)
+            start = reader.line_num + 1
+    except csv.Error as err:
+        line = reader.line_num
+        msg = str(err)
+        if "field larger than field limit" in msg:
+            raise ValueError(
+                f"{p}: line {line}: expected fields of at most {MAX_FIELD_CHARS} characters, "
+                "got a longer field (an unbalanced quote can also cause this)"
+            ) from None
         raise ValueError(
-            f"{p}: expected a {what} in CSV format, got a parse error: {str(err).strip()}"
+            f"{p}: line {line}: expected a {what} in CSV format, got a parse error: {msg}"
         ) from None
-    with p.open(newline="", encoding="utf-8", errors="replace") as fh:
-        reader = csv.reader(fh, delimiter=sep)
-        header = [h.strip() for h in next(reader, [])]
-        for r, rec in enumerate(reader, start=1):
-            if 0 < len(rec) < len(header) and any(f.strip() for f in rec):
-                raise ValueError(
-                    f"{p}: row {r} (line {reader.line_num}): expected {len(header)} fields "
-                    f"({', '.join(header)}), got {len(rec)}"
-                )
+    del text
+    if header is None or not any(header):
+        raise ValueError(f"{p}: line 1: expected a header row of column names, got an empty line")
+    empty_names = [j + 1 for j, h in enumerate(header) if not h]
+    if empty_names:
+        raise ValueError(
+            f"{p}: header: expected a non-empty name for every column, got an empty name "
+            f"for field {empty_names[0]} of {len(header)} (a trailing {sep!r}?)"
+        )
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
         raise ValueError(f"{p}: header: expected unique column names, got {dup} repeated")
-    cols = header if len(header) == df.shape[1] else [str(c).strip() for c in df.columns]
-    strings = {
-        c: np.asarray(df.iloc[:, j].to_numpy(dtype=object), dtype=object)
-        for j, c in enumerate(cols)
-    }
-    strings = {c: np.array([str(v).strip() for v in a], dtype=object) for c, a in strings.items()}
-    return RawTable(p, "csv", len(df), strings, {})
+    k = len(header)
+    cols: list[list[str]] = [[] for _ in range(k)]
+    for r, rec in enumerate(records, start=1):
+        fields = [f.strip() for f in rec]
+        if len(fields) != k:
+            if not any(fields):  # a blank line or a line of separators only: a blank row
+                fields = [""] * k
+            else:
+                extra = ""
+                if len(fields) > k:
+                    extra = " (more fields than the header: an unquoted separator?)"
+                raise ValueError(
+                    f"{p}: row {r} (line {lines[r - 1]}): expected {k} fields "
+                    f"({', '.join(header)}), got {len(fields)}{extra}"
+                )
+        for j in range(k):
+            cols[j].append(fields[j])
+    strings = {c: np.array(cols[j], dtype=object) for j, c in enumerate(header)}
+    return RawTable(p, "csv", len(records), strings, {}, lines=np.asarray(lines, np.int64))
 
 
 def _read_parquet(p: Path, what: str) -> RawTable:
@@ -254,23 +421,39 @@ def _read_parquet(p: Path, what: str) -> RawTable:
     if p.stat().st_size == 0:
         raise ValueError(f"{p}: empty file: expected a {what} in Parquet format, got 0 bytes")
     try:
+        meta = pq.ParquetFile(p).metadata
+        declared = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+        _check_memory(
+            max(declared, meta.num_rows * max(meta.num_columns, 1) * _PARQUET_BYTES_PER_CELL),
+            f"reading the {what} ({meta.num_rows} rows x {meta.num_columns} columns)",
+            p,
+        )
         t = pq.read_table(p)
-    except (pa.ArrowInvalid, OSError) as err:
+    except (pa.ArrowException, OSError) as err:
         raise ValueError(
             f"{p}: expected a {what} in Parquet format, got an unreadable file: {err}"
         ) from None
     strings: dict[str, np.ndarray] = {}
     numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for name in t.column_names:
-        col = t.column(name).combine_chunks() if t.num_rows else t.column(name)
-        typ = t.schema.field(name).type
-        if pa.types.is_integer(typ) or pa.types.is_floating(typ) or pa.types.is_boolean(typ):
+    bools: set[str] = set()
+    names = [str(n) for n in t.column_names]
+    dup = sorted({c for c in names if names.count(c) > 1})
+    if dup:
+        raise ValueError(f"{p}: schema: expected unique column names, got {dup} repeated")
+    for j, name in enumerate(names):
+        col = t.column(j).combine_chunks() if t.num_rows else t.column(j)
+        typ = t.schema.field(j).type
+        if pa.types.is_floating(typ):
             null = np.asarray(col.is_null().to_numpy(zero_copy_only=False), dtype=bool)
             filled = pc.fill_null(pc.cast(col, pa.float64()), 0.0)
             numbers[name] = (np.asarray(filled.to_numpy(zero_copy_only=False), float), null)
         else:
+            # integers as exact decimal text (no rounding through float64), booleans and
+            # everything else as text; cells are interpreted by the RawTable parsers
+            if pa.types.is_boolean(typ):
+                bools.add(name)
             vals = col.to_pylist()
             strings[name] = np.array(
                 ["" if v is None else str(v).strip() for v in vals], dtype=object
             )
-    return RawTable(p, "parquet", t.num_rows, strings, numbers)
+    return RawTable(p, "parquet", t.num_rows, strings, numbers, bools=frozenset(bools))

@@ -11,15 +11,14 @@ means already present (left-truncated, empty ``t_arrive``), last seen within
 
 from __future__ import annotations
 
-import math
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from are_stats.logs._table import RawTable, read_raw_table
+from are_stats.inputs import InputError, _Text, get_float, get_int, get_list
+from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
 __all__ = ["TRACK_COLUMNS", "read_tracks", "tracks_to_lifecycle", "validate_tracks"]
 
@@ -80,28 +79,9 @@ def validate_tracks(tracks: pd.DataFrame, name: str = "tracks") -> pd.DataFrame:
     ValueError
         As :func:`read_tracks`, with ``name`` in place of the file.
     """
-    if not isinstance(tracks, pd.DataFrame):
-        raise ValueError(f"{name}: expected a pandas DataFrame, got {type(tracks).__name__}")
-    strings: dict[str, np.ndarray] = {}
-    numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for c in tracks.columns:
-        col = tracks[c]
-        if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
-            v = col.to_numpy(dtype=np.float64, na_value=np.nan)
-            numbers[str(c)] = (np.where(np.isnan(v), 0.0, v), np.isnan(v))
-        else:
-            strings[str(c)] = np.array(
-                [
-                    ""
-                    if (x is None or x is pd.NA or (isinstance(x, float) and math.isnan(x)))
-                    else str(x).strip()
-                    for x in col.to_numpy(dtype=object)
-                ],
-                dtype=object,
-            )
-    raw = RawTable(Path(name), "frame", len(tracks), strings, numbers)
+    raw = frame_table(tracks, name, "tracks table")
     if raw.n_rows == 0:
-        raise ValueError(f"{name}: empty tracks table: expected at least one sighting, got none")
+        raise InputError(name, "empty tracks table", "at least one sighting", _Text("none"))
     df = _from_raw(raw)
     extra = [c for c in tracks.columns if c not in df.columns]
     for c in extra:
@@ -161,24 +141,22 @@ def tracks_to_lifecycle(
     (['a#1', 'a#2'], [nan, 9.0], [1.0, 9.0])
     """
     df = validate_tracks(tracks)
-    gap = float(gap_tolerance)
-    if not math.isfinite(gap) or gap < 0:
-        raise ValueError(f"gap_tolerance: expected a finite number >= 0, got {gap_tolerance!r}")
-    edge = gap if edge_tolerance is None else float(edge_tolerance)
-    if not math.isfinite(edge) or edge < 0:
-        raise ValueError(f"edge_tolerance: expected a finite number >= 0, got {edge_tolerance!r}")
-    if int(min_sightings) != min_sightings or min_sightings < 1:
-        raise ValueError(f"min_sightings: expected an integer >= 1, got {min_sightings!r}")
+    gap = get_float(gap_tolerance, "gap_tolerance", "", lo=0.0)
+    edge = (
+        gap if edge_tolerance is None else get_float(edge_tolerance, "edge_tolerance", "", lo=0.0)
+    )
+    min_sightings = get_int(min_sightings, "min_sightings", "", lo=1)
     t_all = df["t"].to_numpy()
     if window is None:
         t0, t1 = float(t_all.min()), float(t_all.max())
     else:
-        try:
-            t0, t1 = (float(v) for v in window)
-        except (TypeError, ValueError):
-            raise ValueError(f"window: expected (t0, t1), got {window!r}") from None
-        if not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0:
-            raise ValueError(f"window: expected finite t0 < t1, got {window!r}")
+        if isinstance(window, np.ndarray):
+            window = window.tolist()
+        pair = get_list(window, "window", "", min_len=2, max_len=2)
+        t0 = get_float(pair[0], "window", "[0]")
+        t1 = get_float(pair[1], "window", "[1]")
+        if not t1 > t0:
+            raise InputError("window", "", "(t0, t1) with t0 < t1", _Text(f"({t0!r}, {t1!r})"))
     inside = (t_all >= t0) & (t_all <= t1)
     excluded = {"outside_window": int((~inside).sum()), "too_few_sightings": 0}
     df = df[inside]
