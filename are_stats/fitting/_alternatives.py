@@ -10,6 +10,12 @@ fits, side by side with the paper's assumptions,
 * **lifetimes** (dwell times with right-censoring at the window end):
   ``"exponential"`` (the paper), ``"weibull"`` and ``"gamma"``.
 
+A stay recorded as zero long (left at the very time it arrived: a single sighting) is not a
+stay of length zero, which has density 0 or infinity under the Weibull and Gamma laws, but a
+stay shorter than the log's time resolution: it is interval-censored on ``(0, resolution]``
+and contributes ``log F(resolution)`` (see :func:`time_resolution`). A right-censored stay
+of length zero (arrived at the window end) carries no information (``log S(0) = 0``).
+
 Each model is a numpyro model whose observed site gives one pointwise log-likelihood per
 unit (a time bin, or an artefact), so that :func:`compare_models` can rank them with
 ArviZ's PSIS-LOO. Left-truncated artefacts (arrival unknown) carry no information about the
@@ -41,7 +47,13 @@ from jax.scipy.special import gammaincc
 from numpyro.distributions import constraints
 from numpyro.infer import MCMC, NUTS
 
-from are_stats._checks import check_finite, check_in, check_nonempty, check_positive
+from are_stats._checks import (
+    check_finite,
+    check_in,
+    check_nonempty,
+    check_nonnegative,
+    check_positive,
+)
 
 __all__ = [
     "ARRIVAL_MODELS",
@@ -52,6 +64,7 @@ __all__ = [
     "fit_arrival_models",
     "fit_lifetime_models",
     "compare_models",
+    "time_resolution",
 ]
 
 ARRIVAL_MODELS = ("poisson", "time_of_day", "gamma_poisson")
@@ -145,12 +158,17 @@ def arrival_model(
 
 
 class _RightCensored(dist.Distribution):
-    """A lifetime law observed with right-censoring: density if observed, survival if not."""
+    """A lifetime law observed with censoring.
+
+    Density where observed, survival where right-censored, and the probability of a stay
+    at most ``resolution`` long where the recorded stay is zero (interval-censored).
+    """
 
     support = constraints.nonnegative
 
-    def __init__(self, kind: str, params: tuple, censored: jnp.ndarray):
+    def __init__(self, kind: str, params: tuple, censored: jnp.ndarray, resolution: float = 1.0):
         self.kind, self.params, self.censored = kind, params, censored
+        self.resolution = resolution
         super().__init__(batch_shape=jnp.shape(censored))
 
     def _log_pdf_surv(self, t):
@@ -167,8 +185,16 @@ class _RightCensored(dist.Distribution):
         return logpdf, jnp.log(gammaincc(shape, rate * t))
 
     def log_prob(self, value):
-        logpdf, logsurv = self._log_pdf_surv(value)
-        return jnp.where(self.censored, logsurv, logpdf)
+        zero = value <= 0
+        # zero stays are evaluated at the resolution (a safe point: no log(0), no NaN
+        # gradients); their exact-time terms are never used
+        t = jnp.where(zero, self.resolution, value)
+        logpdf, logsurv = self._log_pdf_surv(t)
+        # log F(resolution) = log(1 - S(resolution)), stable for small and large S
+        log_cdf = jnp.log(-jnp.expm1(jnp.minimum(logsurv, -1e-300)))
+        observed = jnp.where(zero, log_cdf, logpdf)
+        censored = jnp.where(zero, 0.0, logsurv)
+        return jnp.where(self.censored, censored, observed)
 
     def sample(self, key, sample_shape=()):
         shape = sample_shape + self.batch_shape
@@ -187,6 +213,7 @@ def lifetime_model(
     censored: jnp.ndarray,
     r_hat: float,
     kind: str = "exponential",
+    resolution: float = 1.0,
 ) -> None:
     """Numpyro model of dwell times with right-censoring.
 
@@ -201,6 +228,9 @@ def lifetime_model(
     kind : {"exponential", "weibull", "gamma"}
         Which lifetime law. For Weibull the rate is the inverse scale; for Gamma the rate is
         the usual rate, so the mean stay is ``shape / rate``.
+    resolution : float
+        Time resolution of the log: an observed stay of length zero is a stay in
+        ``(0, resolution]`` (interval-censored).
     """
     if kind == "exponential":
         rate = numpyro.sample("leave_rate", _rate_prior(r_hat))
@@ -210,7 +240,9 @@ def lifetime_model(
         rate = numpyro.sample("leave_rate", _rate_prior(r_hat))
         params = (shape, rate)
     with numpyro.plate("artefacts", censored.shape[0]):
-        numpyro.sample("durations", _RightCensored(kind, params, censored), obs=durations)
+        numpyro.sample(
+            "durations", _RightCensored(kind, params, censored, resolution), obs=durations
+        )
 
 
 def _fit_each(key, model, data, kinds, num_warmup, num_samples, num_chains):
@@ -304,6 +336,35 @@ def fit_arrival_models(
     return _fit_each(key, arrival_model, data, models, num_warmup, num_samples, num_chains)
 
 
+def time_resolution(*times: Any) -> float:
+    """The time resolution of a log: the smallest gap between distinct recorded times.
+
+    Parameters
+    ----------
+    *times : array_like of float
+        Recorded times (NaN entries, for unknown times, are ignored).
+
+    Returns
+    -------
+    float
+        The smallest positive difference between two distinct finite times.
+
+    Raises
+    ------
+    ValueError
+        If fewer than two distinct finite times are given.
+    """
+    parts = [np.asarray(t, dtype=np.float64).ravel() for t in times]
+    allt = np.concatenate(parts) if parts else np.zeros(0)
+    u = np.unique(allt[np.isfinite(allt)])
+    if u.size < 2:
+        raise ValueError(
+            f"times: expected at least two distinct recorded times to tell the log's time "
+            f"resolution, got {u.size}"
+        )
+    return float(np.diff(u).min())
+
+
 def fit_lifetime_models(
     key: jax.Array,
     durations: Any,
@@ -312,6 +373,7 @@ def fit_lifetime_models(
     num_warmup: int = 500,
     num_samples: int = 500,
     num_chains: int = 2,
+    resolution: float | None = None,
 ) -> dict[str, az.InferenceData]:
     """Fit the lifetime models (right-censored) by NUTS; one InferenceData per model.
 
@@ -320,13 +382,17 @@ def fit_lifetime_models(
     key : jax.Array
         PRNG key.
     durations : (n,) float
-        Stays of the artefacts whose arrival was observed (> 0).
+        Stays of the artefacts whose arrival was observed (>= 0; a zero stay is a stay
+        shorter than ``resolution``, interval-censored).
     censored : (n,) bool
         True where the stay was cut by the window end.
     models : sequence of str
         Subset of :data:`LIFETIME_MODELS`.
     num_warmup, num_samples, num_chains : int
         NUTS settings.
+    resolution : float, optional
+        Time resolution of the log (see :func:`time_resolution`); needed only when some
+        observed stay is zero. Default: the smallest positive stay.
 
     Returns
     -------
@@ -335,15 +401,29 @@ def fit_lifetime_models(
     """
     for m in models:
         check_in("models", m, LIFETIME_MODELS)
-    d = check_positive("durations", check_nonempty("durations", durations), ndim=1)
-    c = np.asarray(censored, dtype=bool)
+    d = check_nonnegative("durations", check_nonempty("durations", durations), ndim=1)
+    c = np.asarray(censored)
+    if c.dtype != bool:
+        raise ValueError(f"censored: expected booleans, got dtype {c.dtype}")
     if c.shape != d.shape:
         raise ValueError(f"censored: expected shape {d.shape} like durations, got {c.shape}")
     events = int((~c).sum())
     if events == 0:
         raise ValueError("censored: expected at least one observed (uncensored) stay, got none")
-    r_hat = events / d.sum()
-    data = dict(durations=jnp.asarray(d), censored=jnp.asarray(c), r_hat=r_hat)
+    zero = (d == 0) & ~c
+    if resolution is None:
+        positive = d[d > 0]
+        if zero.any() and positive.size == 0:
+            raise ValueError(
+                "resolution: expected the log's time resolution (every observed stay is "
+                "zero long), got None"
+            )
+        res = float(positive.min()) if positive.size else 1.0
+    else:
+        res = float(check_positive("resolution", resolution))
+    # a zero stay counts as half the resolution in the empirical rate
+    r_hat = events / float(np.where(d > 0, d, 0.5 * res).sum())
+    data = dict(durations=jnp.asarray(d), censored=jnp.asarray(c), r_hat=r_hat, resolution=res)
     return _fit_each(key, lifetime_model, data, models, num_warmup, num_samples, num_chains)
 
 
