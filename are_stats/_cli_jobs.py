@@ -147,10 +147,20 @@ def _alternatives(seed: int, data: Any, folder: Path, force: bool) -> None:
         compare_models,
         fit_arrival_models,
         fit_lifetime_models,
+        time_resolution,
     )
 
     t0, t1 = data.window
     arrived = ~data.truncated
+    # stays of artefacts seen arriving; a zero stay (left when it arrived, e.g. a single
+    # sighting) is interval-censored at the log's time resolution by the lifetime models
+    dwell = (np.where(data.censored, t1, data.t_leave) - data.t_arrive)[arrived]
+    cens = data.censored[arrived]
+    skipped = None
+    if not (~cens).any():
+        skipped = "no artefact was seen both arriving and leaving"
+    elif not (dwell > 0).any():
+        skipped = "every stay seen arriving and leaving is zero long (no time resolution)"
     with console.status("richer models (time-of-day, Gamma-Poisson, Weibull, Gamma) ..."):
         arr = fit_arrival_models(
             jax.random.key(seed + 1),
@@ -161,9 +171,14 @@ def _alternatives(seed: int, data: Any, folder: Path, force: bool) -> None:
             period=86400.0,
             n_periods=24,
         )
-        dwell = np.where(data.censored, t1, data.t_leave) - data.t_arrive
-        life = fit_lifetime_models(jax.random.key(seed + 2), dwell[arrived], data.censored[arrived])
-    for name, fits in (("arrivals", arr), ("lifetimes", life)):
+        fitted = [("arrivals", arr)]
+        if skipped is None:
+            res = time_resolution(data.t_arrive, data.t_leave, [t0, t1])
+            life = fit_lifetime_models(jax.random.key(seed + 2), dwell, cens, resolution=res)
+            fitted.append(("lifetimes", life))
+    if skipped is not None:
+        console.print(f"[yellow]warning:[/] lifetime comparison skipped: {skipped}")
+    for name, fits in fitted:
         table = compare_models(fits)
         path = Path(folder) / f"loo_{name}.csv"
         with atomic_path(path, force=force) as tmp:
