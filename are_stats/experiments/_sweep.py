@@ -1,11 +1,11 @@
 """Sweeps of navigation experiments (paper Sect. 4, Fig. 7) defined in YAML, run on Dask.
 
 A sweep config is a base experiment plus ``factors``: each factor is a dotted key of the
-config (``scenario.arrival_rate``, ``planner``, ``mission.time_limit`` ...) with a list of
-levels; a dict level is merged into the dict it replaces (its optional ``name`` labels it).
-Tasks are the full factor grid times ``replicates``. Replicate ``r`` draws its scenario and
-goals from ``SeedSequence([seed, r])`` whatever the factor levels (common random numbers),
-so planner settings are compared on the same scenarios.
+config (``scenario.arrival_rate``, ``planner``, ``planner.range``, ``mission.time_limit`` ...)
+with a list of levels; a ``planner`` level is a whole planner (its optional ``name`` labels
+it). Tasks are the full factor grid times ``replicates``. Replicate ``r`` draws its scenario
+and goals from ``SeedSequence([seed, r])`` whatever the factor levels (common random
+numbers), so planner settings are compared on the same scenarios.
 
 Example (``models/experiments/fig7.yaml``)::
 
@@ -24,20 +24,55 @@ Example (``models/experiments/fig7.yaml``)::
         - {name: RRT*, algorithm: RRTstar, range: 2.0, goal_bias: 0.05, max_iterations: 300}
         - {name: A*, algorithm: astar}
 
-Every task writes ``runs/<task>.parquet`` (one summary row), ``replans/<task>.parquet`` and
-``goals/<task>.parquet`` atomically, ``runs`` last, as soon as it finishes: an interrupted
-sweep resumes and skips every task whose ``runs`` file exists.
+Schema (every key optional; unknown keys are errors that list the known ones):
+
+* ``name``: letters, digits, ``.``, ``_``, ``-`` (the default results folder
+  ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path (relative to the
+  working directory); ``seed``: integer in ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
+* ``scenario``: ``arrival_rate`` (> 0, per m^2 per s), ``leave_rate`` (> 0, per s),
+  ``mix_weights`` (1 to 64 numbers > 0 summing to 1), ``mix_rates`` (as many numbers in
+  ``(0, 1e6]``), ``start`` (``stationary`` or ``empty``).
+* ``robot``: ``radius``, ``speed`` (> 0), ``camera_xyz``, ``camera_rpy`` (3 numbers),
+  ``camera_fov`` (in ``(0, pi)``), ``image_size`` (2 integers in ``[1, 10000]``).
+* ``mission``: ``n_goals`` (integer in ``[1, 100000]``), ``time_limit``,
+  ``perception_period``, ``d_max`` (> 0), ``tau``, ``min_goal_separation`` (>= 0),
+  ``perception`` (``all`` or ``camera``; ``camera`` needs the map's mesh ``<map>.ply``).
+* ``planner``: ``name`` (a label), ``algorithm`` (``astar`` or one of
+  :data:`~are_stats.experiments.OMPL_ALGORITHMS`), ``range`` (> 0), ``goal_bias``
+  (``[0, 1]``), ``time_limit`` (``(0, 3600]`` s), ``max_iterations`` (integer >= 1),
+  ``simplify`` (true/false), ``motion_resolution`` (``[0.01, 1000]`` cells); options an
+  algorithm lacks are errors (A* takes none).
+* ``factors``: ``planner``, ``planner.<option>`` or ``<section>.<key>`` -> a non-empty list
+  of distinct levels, each checked as the key it replaces.
+
+Before anything runs, the expected work of the sweep (artefacts drawn, replans, grid passes,
+motion steps, camera rays) and the memory of its largest task are estimated and refused past
+:func:`are_stats.inputs.work_limit` / :func:`~are_stats.inputs.memory_limit` (raise them
+with ``are-stats --max-work/--max-memory`` or ``ARE_STATS_MAX_WORK/ARE_STATS_MAX_MEMORY``).
+
+Every task writes ``runs/<task>.parquet`` (one summary row, with the ``sweep`` digest of the
+config), ``replans/<task>.parquet`` and ``goals/<task>.parquet`` atomically, ``runs`` last,
+as soon as it finishes: an interrupted sweep resumes and skips every task whose ``runs``
+file exists. With ``force`` the sweep runs into a hidden sibling folder that replaces the
+results folder as a whole only once every task is done.
 """
 
 from __future__ import annotations
 
 import copy
+import ctypes
+import ctypes.util
+import errno
 import functools
 import hashlib
 import itertools
 import json
+import math
 import os
-from collections.abc import Mapping
+import re
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +81,21 @@ import pandas as pd
 import yaml
 
 from are_stats._atomic import OutputExistsError, atomic_path
-from are_stats._checks import describe
+from are_stats.experiments._planners import OMPL_ALGORITHMS
+from are_stats.inputs import (  # _Text: a ``got`` already worded, shown as is
+    MAX_SEED,
+    InputError,
+    _Text,
+    check_keys,
+    check_memory,
+    check_work,
+    get_bool,
+    get_float,
+    get_int,
+    get_list,
+    get_str,
+    load_yaml,
+)
 
 __all__ = [
     "expand_tasks",
@@ -82,76 +131,144 @@ _DEFAULTS: dict[str, Any] = {
     "factors": {},
 }
 _SECTIONS = ("scenario", "robot", "mission", "planner")
+_TOP = ("name", "map", "seed", "replicates", *_SECTIONS, "factors")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
+#: Most mixture components of a scenario.
+MAX_COMPONENTS = 64
+
+# ---- the schema: one checker per key ------------------------------------------------------
+
+_Checker = Callable[[Any, str, str], Any]
 
 
-def _merge(base: dict, new: Mapping, where: str) -> dict:
-    out = copy.deepcopy(base)
-    for k, v in new.items():
-        if k not in base:
-            raise ValueError(f"{where}: unknown key {k!r} (known: {sorted(base)})")
-        if isinstance(base[k], dict) and k != "planner":
-            if not isinstance(v, Mapping):
-                raise ValueError(f"{where}.{k}: expected a mapping, got {describe(v)}")
-            out[k] = {**base[k], **v}
-        else:
-            out[k] = copy.deepcopy(v)
-    return out
+def _number(**bounds: Any) -> _Checker:
+    return lambda v, s, w: get_float(v, s, w, **bounds)
 
 
-def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str, Any]:
-    """Read and validate a sweep config (a YAML path or a dict), with defaults filled in.
+def _integer(lo: int, hi: int) -> _Checker:
+    return lambda v, s, w: get_int(v, s, w, lo=lo, hi=hi)
 
-    Raises
-    ------
-    FileNotFoundError
-        If the YAML file does not exist.
-    ValueError
-        On unknown keys, bad factors (not a dotted key with a non-empty list of levels) or
-        bad ``replicates`` / ``seed``.
-    """
-    if isinstance(config, Mapping):
-        raw, where = dict(config), "config"
-    else:
-        p = Path(config)
-        if not p.is_file():
-            raise FileNotFoundError(f"{p}: sweep config not found")
-        try:
-            raw = yaml.safe_load(p.read_text())
-        except yaml.YAMLError as err:
-            raise ValueError(f"{p}: not valid YAML ({err})") from None
-        where = str(p)
-        if not isinstance(raw, Mapping):
-            raise ValueError(f"{p}: expected a mapping at the top level, got {describe(raw)}")
-    cfg = _merge(_DEFAULTS, raw, where)
-    for name in ("replicates", "seed"):
-        v = cfg[name]
-        low = 1 if name == "replicates" else 0
-        if isinstance(v, bool) or not isinstance(v, int) or v < low:
-            raise ValueError(f"{where}: {name}: expected an integer >= {low}, got {v!r}")
-    factors = cfg["factors"]
-    if not isinstance(factors, Mapping):
-        raise ValueError(
-            f"{where}: factors: expected a mapping key -> levels, got {describe(factors)}"
-        )
-    for key, levels in factors.items():
-        parts = str(key).split(".")
-        if (
-            parts[0] not in _SECTIONS
-            or (len(parts) == 1 and parts[0] != "planner")
-            or len(parts) > 2
-        ):
-            raise ValueError(
-                f"{where}: factors: {key!r}: expected 'planner' or '<section>.<key>' with "
-                f"section in {list(_SECTIONS)}"
-            )
-        if len(parts) == 2 and parts[1] not in _DEFAULTS[parts[0]] and parts[0] != "planner":
-            raise ValueError(
-                f"{where}: factors: {key!r}: unknown key {parts[1]!r} "
-                f"(known: {sorted(_DEFAULTS[parts[0]])})"
-            )
-        if not isinstance(levels, list) or not levels:
-            raise ValueError(f"{where}: factors: {key!r}: expected a non-empty list of levels")
-    return cfg
+
+def _choice(*choices: str) -> _Checker:
+    return lambda v, s, w: get_str(v, s, w, choices=choices)
+
+
+def _numbers(n_min: int, n_max: int, item: _Checker) -> _Checker:
+    def check(v: Any, s: str, w: str) -> list:
+        return [
+            item(x, s, f"{w}[{i}]")
+            for i, x in enumerate(get_list(v, s, w, min_len=n_min, max_len=n_max))
+        ]
+
+    return check
+
+
+def _ints(n: int, lo: int, hi: int) -> _Checker:
+    return _numbers(n, n, _integer(lo, hi))
+
+
+_POSITIVE = _number(lo=0.0, lo_open=True)
+_NONNEG = _number(lo=0.0)
+_SCHEMA: dict[str, dict[str, _Checker]] = {
+    "scenario": {
+        "arrival_rate": _POSITIVE,
+        "leave_rate": _POSITIVE,
+        "mix_weights": _numbers(1, MAX_COMPONENTS, _POSITIVE),
+        "mix_rates": _numbers(1, MAX_COMPONENTS, _number(lo=0.0, lo_open=True, hi=1e6)),
+        "start": _choice("stationary", "empty"),
+    },
+    "robot": {
+        "radius": _POSITIVE,
+        "speed": _POSITIVE,
+        "camera_xyz": _numbers(3, 3, _number()),
+        "camera_rpy": _numbers(3, 3, _number()),
+        "camera_fov": _number(lo=0.0, hi=math.pi, lo_open=True, hi_open=True),
+        "image_size": _ints(2, 1, 10_000),
+    },
+    "mission": {
+        "n_goals": _integer(1, 100_000),
+        "time_limit": _POSITIVE,
+        "perception": _choice("all", "camera"),
+        "perception_period": _POSITIVE,
+        "d_max": _POSITIVE,
+        "tau": _NONNEG,
+        "min_goal_separation": _NONNEG,
+    },
+    "planner": {
+        "name": lambda v, s, w: get_str(v, s, w),
+        "algorithm": _choice("astar", *OMPL_ALGORITHMS),
+        "range": _POSITIVE,
+        "goal_bias": _number(lo=0.0, hi=1.0),
+        "time_limit": _number(lo=0.0, lo_open=True, hi=3600.0),
+        "max_iterations": _integer(1, 2**62),
+        "simplify": lambda v, s, w: get_bool(v, s, w),
+        "motion_resolution": _number(lo=0.01, hi=1000.0),
+    },
+}
+# options each planner algorithm takes besides name and algorithm
+_PLANNER_OPTIONS = {
+    "astar": (),
+    "RRT": ("range", "goal_bias", "time_limit", "max_iterations", "simplify", "motion_resolution"),
+    "RRTConnect": ("range", "time_limit", "max_iterations", "simplify", "motion_resolution"),
+    "RRTstar": (
+        "range", "goal_bias", "time_limit", "max_iterations", "simplify", "motion_resolution"
+    ),
+    "PRM": ("time_limit", "simplify", "motion_resolution"),
+}  # fmt: skip
+
+
+def _section(sec: str, value: Any, src: str, where: str) -> dict[str, Any]:
+    """Check every key of one section (a mapping); values normalised to plain types."""
+    schema = _SCHEMA[sec]
+    raw = check_keys(value, src, where, schema)
+    return {k: schema[k](v, src, f"{where}.{k}") for k, v in raw.items()}
+
+
+def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> None:
+    """Constraints between keys of the resolved sections (``where`` names the task)."""
+    pre = f"{where}: " if where else ""
+    sc = sections["scenario"]
+    w, r = sc["mix_weights"], sc["mix_rates"]
+    if len(w) != len(r):
+        raise InputError(
+            src, f"{pre}scenario.mix_rates",
+            f"as many rates as scenario.mix_weights has weights ({len(w)})", r,
+        )  # fmt: skip
+    if abs(math.fsum(w) - 1.0) > 1e-6:
+        raise InputError(src, f"{pre}scenario.mix_weights", "weights summing to 1", w)
+    pl = sections["planner"]
+    algo = pl.get("algorithm", "RRTConnect")
+    allowed = _PLANNER_OPTIONS[algo]
+    for key in pl:
+        if key not in ("name", "algorithm") and key not in allowed:
+            takes = ", ".join(allowed) if allowed else "no option"
+            raise InputError(
+                src, f"{pre}planner.{key}",
+                f"only options that planner {algo!r} takes ({takes})",
+                _Text(f"{key}: {pl[key]!r}"),
+            )  # fmt: skip
+
+
+def _factor_checker(key: Any, src: str) -> tuple[str, str, _Checker | None]:
+    """``(section, option, checker)`` of a factor key; ``checker`` None for ``planner``."""
+    where = f"factors.{key}"
+    expected = (
+        "a factor key 'planner', 'planner.<option>' or '<section>.<key>' with a section in "
+        + ", ".join(_SECTIONS[:3])
+    )
+    if not isinstance(key, str):
+        raise InputError(src, "factors", expected, _Text(f"the key {key!r}"))
+    sec, dot, sub = key.partition(".")
+    if key == "planner":
+        return "planner", "", None
+    if sec not in _SCHEMA or not dot:
+        raise InputError(src, where, expected, _Text(f"the key {key!r}"))
+    if sub not in _SCHEMA[sec]:
+        raise InputError(
+            src, where, f"a key of {sec}: one of " + ", ".join(_SCHEMA[sec]),
+            _Text(f"an unknown key {sub!r}"),
+        )  # fmt: skip
+    return sec, sub, _SCHEMA[sec][sub]
 
 
 def _label(level: Any) -> str:
@@ -162,57 +279,266 @@ def _label(level: Any) -> str:
     return str(level)
 
 
-def _digest(obj: Any) -> str:
-    return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:10]
+def _validate(raw: Any, src: str) -> dict[str, Any]:
+    """The schema check of a whole config (no file other than the config is read)."""
+    top = check_keys(raw, src, "", _TOP)
+    cfg: dict[str, Any] = {}
+    name = top.get("name", _DEFAULTS["name"])
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise InputError(
+            src, "name",
+            "a name of 1 to 100 letters, digits, '.', '_' or '-' (not starting with '.', '_' "
+            "or '-')", name,
+        )  # fmt: skip
+    cfg["name"] = name
+    cfg["map"] = get_str(top.get("map", _DEFAULTS["map"]), src, "map")
+    if not cfg["map"] or "\x00" in cfg["map"]:
+        raise InputError(src, "map", "a shipped map name or a ROS map YAML path", cfg["map"])
+    cfg["seed"] = get_int(top.get("seed", _DEFAULTS["seed"]), src, "seed", lo=0, hi=MAX_SEED)
+    cfg["replicates"] = get_int(
+        top.get("replicates", _DEFAULTS["replicates"]), src, "replicates", lo=1, hi=2**62
+    )
+    for sec in _SECTIONS:
+        given = _section(sec, top[sec], src, sec) if sec in top else {}
+        # the planner is replaced as a whole; the other sections are merged over defaults
+        base = {} if sec == "planner" and sec in top else copy.deepcopy(_DEFAULTS[sec])
+        cfg[sec] = {**base, **given}
+    _cross(cfg, src, "")
+    factors = top.get("factors", {})
+    if not isinstance(factors, Mapping):
+        raise InputError(src, "factors", "a mapping of factor key -> list of levels", factors)
+    cfg["factors"] = {}
+    for key, levels in factors.items():
+        sec, sub, checker = _factor_checker(key, src)
+        where = f"factors.{key}"
+        if not isinstance(levels, list | tuple) or not levels:
+            raise InputError(src, where, "a non-empty list of levels", levels)
+        clean, labels = [], {}
+        for i, level in enumerate(levels):
+            if checker is None:
+                level = _section("planner", level, src, f"{where}[{i}]")
+            else:
+                level = checker(level, src, f"{where}[{i}]")
+            label = _label(level)
+            if label in labels:
+                raise InputError(
+                    src, f"{where}[{i}]",
+                    f"levels with distinct labels (level {labels[label]} is labelled the same)",
+                    _Text(repr(label)),
+                )  # fmt: skip
+            labels[label] = i
+            clean.append(level)
+        cfg["factors"][key] = clean
+    return cfg
 
 
-def expand_tasks(config: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """The tasks of a sweep: factor grid x replicates, each a self-contained dict.
-
-    Each task has ``task`` (a file-name stem: index and a digest of its settings),
-    ``replicate``, ``seed`` (the replicate's integer seed), ``levels`` (factor ->
-    label) and the resolved ``scenario``, ``robot``, ``mission``, ``planner``, ``map``.
-    """
-    cfg = load_sweep_config(config)
+def _combos(cfg: Mapping[str, Any]) -> Iterator[tuple[dict[str, Any], dict[str, str]]]:
+    """Sections and level labels of each point of the factor grid (replicates aside)."""
     factors = cfg["factors"]
     keys = list(factors)
-    tasks = []
-    combos = list(itertools.product(*[factors[k] for k in keys])) if keys else [()]
-    idx = 0
-    for combo in combos:
+    for combo in itertools.product(*[factors[k] for k in keys]):
         base = {k: copy.deepcopy(cfg[k]) for k in _SECTIONS}
         levels = {}
         for key, level in zip(keys, combo, strict=True):
             sec, _, sub = key.partition(".")
-            if not sub:
-                if isinstance(level, Mapping):
-                    base[sec] = dict(level)
-                else:
-                    raise ValueError(
-                        f"factors: {key!r}: expected dict levels, got {describe(level)}"
-                    )
-            elif isinstance(base[sec].get(sub), Mapping) and isinstance(level, Mapping):
-                base[sec][sub] = {**base[sec][sub], **level}
+            if sub:
+                base[sec][sub] = copy.deepcopy(level)
             else:
-                base[sec][sub] = level
+                base[sec] = copy.deepcopy(level)
             levels[key] = _label(level)
+        yield base, levels
+
+
+def _n_combos(cfg: Mapping[str, Any]) -> int:
+    return math.prod(len(v) for v in cfg["factors"].values())
+
+
+# ---- cost estimates -----------------------------------------------------------------------
+
+# Rough per-unit costs, in the elementary steps of are_stats.inputs.work_limit and bytes.
+_STEPS_PER_ARTEFACT = 3_000  # drawing it and building its box (Python per artefact)
+_STEPS_PER_LIVE = 3_000  # re-registering a live artefact on the AR grid at each update
+_STEPS_PER_CELL = 100  # grid passes of one replan (distance transform, masks, A*)
+_STEPS_PER_MOTION = 200  # one footprint test along the path
+_STEPS_PER_RAY = 2_000  # one camera ray against the mesh and the boxes
+_STEPS_PER_TASK = 1_000_000  # fixed cost of a task (map, catalogue, goals, tables)
+_BYTES_PER_ARTEFACT = 1_000
+_BYTES_PER_CELL = 200
+_BYTES_PER_MOTION = 200
+_BYTES_PER_RAY = 500
+_BYTES_PER_TASK = 8_192  # a task dict of the task list
+
+
+def _map_file(name: str) -> Path | None:
+    from are_stats.environment import DEFAULT_MODELS
+
+    p = Path(name)
+    if p.is_file():
+        return p
+    shipped = DEFAULT_MODELS / f"{p.name}.yaml"
+    if p.name == name and shipped.is_file():
+        return shipped
+    return None
+
+
+def _shipped_maps() -> list[str]:
+    from are_stats.environment import DEFAULT_MODELS
+
+    return sorted(p.stem for p in DEFAULT_MODELS.glob("*.yaml") if p.with_suffix(".pgm").is_file())
+
+
+@functools.lru_cache(maxsize=4)
+def _grid(path: str) -> Any:
+    from are_stats.environment import OccupancyGrid
+
+    return OccupancyGrid.from_ros_yaml(path)
+
+
+def _task_cost(sections: Mapping[str, Mapping[str, Any]], grid: Any) -> tuple[float, float, float]:
+    """``(bytes, steps, artefacts)`` of one task, from its expected artefact and event
+    counts."""
+    sc, ms, rb = sections["scenario"], sections["mission"], sections["robot"]
+    lam_nu = sc["arrival_rate"] * grid.n_free * grid.resolution**2
+    mu, horizon = sc["leave_rate"], ms["time_limit"]
+    stationary = sc["start"] == "stationary"
+    n_art = lam_nu / mu * stationary + lam_nu * horizon
+    n_live = lam_nu / mu if stationary else lam_nu * min(horizon, 1.0 / mu)
+    camera = ms["perception"] == "camera"
+    n_checks = horizon / ms["perception_period"] if camera else 0.0
+    n_plans = 2.0 * lam_nu * horizon + n_checks + ms["n_goals"] + 1.0
+    step = min(grid.resolution, rb["radius"] / 2.0)
+    n_motion = rb["speed"] * horizon / step + n_plans
+    w, h = rb.get("image_size", (64, 48))
+    rays = float(w) * float(h) if camera else 0.0
+    cells = float(grid.data.size)
+    n_bytes = (
+        n_art * _BYTES_PER_ARTEFACT
+        + cells * _BYTES_PER_CELL
+        + n_motion * _BYTES_PER_MOTION
+        + rays * _BYTES_PER_RAY
+    )
+    steps = (
+        _STEPS_PER_TASK
+        + n_art * _STEPS_PER_ARTEFACT
+        + n_plans * (cells * _STEPS_PER_CELL + n_live * _STEPS_PER_LIVE)
+        + n_motion * _STEPS_PER_MOTION
+        + n_checks * rays * _STEPS_PER_RAY
+    )
+    return n_bytes, steps, n_art
+
+
+def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
+    """Refuse a sweep whose task list, largest task (times ``concurrent`` tasks at once) or
+    total work is past the limits; also checks every grid point's cross-key constraints."""
+    n_combos = _n_combos(cfg)
+    n_tasks = n_combos * cfg["replicates"]
+    check_memory(n_tasks * _BYTES_PER_TASK, f"the task list of {n_tasks} tasks", src)
+    check_work(n_tasks * _STEPS_PER_TASK, f"a sweep of {n_tasks} tasks", src)
+    path = _map_file(cfg["map"])
+    if path is None:
+        raise InputError(
+            src, "map",
+            "a shipped map name (" + ", ".join(_shipped_maps()) + ") or the path of a ROS map "
+            "YAML", cfg["map"],
+        )  # fmt: skip
+    grid = _grid(str(path))
+    has_mesh = path.with_suffix(".ply").is_file()
+    worst_bytes, total, worst = 0.0, 0.0, ""
+    for sections, levels in _combos(cfg):
+        where = "factors " + ", ".join(f"{k}={v}" for k, v in levels.items()) if levels else ""
+        _cross(sections, src, where)
+        if sections["mission"]["perception"] == "camera" and not has_mesh:
+            raise InputError(
+                src, (f"{where}: " if where else "") + "mission.perception",
+                f"'all', or 'camera' with the map's mesh {path.with_suffix('.ply')}",
+                _Text("'camera' and no such mesh"),
+            )  # fmt: skip
+        n_bytes, steps, n_art = _task_cost(sections, grid)
+        if n_bytes > worst_bytes:
+            worst_bytes = n_bytes
+            worst = f"{where}: " if where else ""
+            worst += f"about {n_art:.3g} artefacts on {grid.data.size} map cells"
+        total += steps * cfg["replicates"]
+    what = f"one task ({worst})"
+    if concurrent > 1:
+        what = f"{concurrent} tasks at once like {what}"
+    check_memory(worst_bytes * concurrent, what, src)
+    check_work(total, f"the {n_tasks} tasks of the sweep", src)
+
+
+def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str, Any]:
+    """Read and validate a sweep config (a YAML path or a dict), with defaults filled in.
+
+    The whole config is checked against the schema of the module docstring (known keys per
+    section, types, ranges, every factor level), the map is read, and the sweep's memory
+    and work are estimated and checked against the limits of :mod:`are_stats.inputs`.
+
+    Returns
+    -------
+    dict
+        The config with defaults filled in and values as plain Python types.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the YAML file or the map does not exist.
+    are_stats.inputs.InputError
+        (a ``ValueError``) naming the config and the key path, on any bad key or value.
+    are_stats.inputs.LimitError
+        If the sweep needs more memory or work than the limits.
+    """
+    if isinstance(config, Mapping):
+        raw, src = config, "config"
+    elif isinstance(config, str | os.PathLike):
+        p = Path(config)
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: sweep config not found")
+        raw, src = load_yaml(p, "sweep config"), str(p)
+    else:
+        raise InputError("config", "", "a sweep config path or mapping", config)
+    cfg = _validate(raw, src)
+    _check_cost(cfg, src)
+    return cfg
+
+
+def _digest(obj: Any) -> str:
+    return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:10]
+
+
+def _expand(cfg: Mapping[str, Any]) -> list[dict[str, Any]]:
+    sweep = _digest(cfg)
+    tasks = []
+    idx = 0
+    for base, levels in _combos(cfg):
         for r in range(cfg["replicates"]):
             seed = int(np.random.SeedSequence([cfg["seed"], r]).generate_state(1)[0])
             task = {"map": cfg["map"], "replicate": r, "seed": seed, "levels": levels, **base}
             task["task"] = f"{idx:05d}-{_digest(task)}"
+            task["sweep"] = sweep
             tasks.append(task)
             idx += 1
     return tasks
 
 
+def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The tasks of a sweep: factor grid x replicates, each a self-contained dict.
+
+    Each task has ``task`` (a file-name stem: index and a digest of its settings),
+    ``sweep`` (a digest of the whole config), ``replicate``, ``seed`` (the replicate's
+    integer seed), ``levels`` (factor -> label) and the resolved ``scenario``, ``robot``,
+    ``mission``, ``planner``, ``map``.
+    """
+    return _expand(load_sweep_config(config))
+
+
 @functools.lru_cache(maxsize=4)
 def _load_map(name: str) -> tuple[Any, Any]:
-    from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_mesh
+    from are_stats.environment import load_mesh
 
-    p = Path(name)
-    if not p.exists() and (DEFAULT_MODELS / f"{p.name}.yaml").is_file():
-        p = DEFAULT_MODELS / f"{p.name}.yaml"
-    grid = OccupancyGrid.from_ros_yaml(p)
+    p = _map_file(name)
+    if p is None:
+        raise InputError("map", "", "a shipped map name or the path of a ROS map YAML", name)
+    grid = _grid(str(p))
     mesh_path = p.with_suffix(".ply")
     mesh = load_mesh(mesh_path) if mesh_path.is_file() else None
     return grid, mesh
@@ -224,9 +550,9 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
     Returns
     -------
     dict
-        ``runs`` (one row: task, replicate, seed, factor levels as ``level:<factor>``
-        columns, the planner label and the mission summary), ``replans`` and ``goals``
-        (the mission tables with the task's identifying columns).
+        ``runs`` (one row: task, sweep digest, replicate, seed, factor levels as
+        ``level:<factor>`` columns, the planner label and the mission summary), ``replans``
+        and ``goals`` (the mission tables with the task's identifying columns).
     """
     from are_stats.experiments._loop import random_goals, run_mission
     from are_stats.experiments._robot import Robot
@@ -258,7 +584,12 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
         perception_period=float(ms.get("perception_period", 1.0)),
         d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,
     )  # fmt: skip
-    ident = {"task": task["task"], "replicate": int(task["replicate"]), "seed": seed}
+    ident = {
+        "task": task["task"],
+        "sweep": str(task.get("sweep", "")),
+        "replicate": int(task["replicate"]),
+        "seed": seed,
+    }
     ident.update({f"level:{k}": v for k, v in task["levels"].items()})
     ident["planner"] = label
     ident["arrival_rate"] = float(sc["arrival_rate"])
@@ -281,6 +612,75 @@ def _write(out: Path, name: str, tables: Mapping[str, pd.DataFrame], force: bool
             tables[t].to_parquet(tmp, index=False)
 
 
+def _folder_state(out: Path) -> str:
+    """``"missing"``, ``"empty"`` or ``"sweep"`` (holds ``sweep.yaml``); anything else is an
+    error, so that a sweep never writes into, or replaces, a folder of other files."""
+    if not out.exists():
+        return "missing"
+    if not out.is_dir():
+        raise InputError(out, "", "a results folder", _Text("a file"))
+    if (out / "sweep.yaml").is_file():
+        return "sweep"
+    entries = sorted(p.name for p in out.iterdir())
+    if not entries:
+        return "empty"
+    raise InputError(
+        out, "",
+        "a new or empty folder, or a sweep's results folder (with sweep.yaml); a sweep does "
+        "not write into or replace other folders",
+        _Text(f"{len(entries)} other entries such as {entries[0]!r}"),
+    )  # fmt: skip
+
+
+_RENAME_EXCHANGE = 2
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically swap two folders (Linux ``renameat2``); False where unsupported."""
+    name = ctypes.util.find_library("c")
+    if name is None:
+        return False
+    libc = ctypes.CDLL(name, use_errno=True)
+    fn = getattr(libc, "renameat2", None)
+    if fn is None:
+        return False
+    at_fdcwd = -100
+    rc = fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), _RENAME_EXCHANGE)
+    if rc == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.EPERM, errno.EOPNOTSUPP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def _replace_folder(new: Path, out: Path) -> None:
+    """Put the finished folder ``new`` in place of ``out``; the old content is removed only
+    after the swap (atomic where the OS can exchange folders)."""
+    if _exchange(new, out):
+        shutil.rmtree(new)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+    os.replace(out, old / out.name)
+    os.replace(new, out)
+    shutil.rmtree(old)
+
+
+def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, Any]:
+    """Keyword arguments of the local Dask cluster: the scheduler and workers (processes)
+    and the dashboard all listen on ``host`` (loopback by default), never on every
+    interface; thread workers talk in-process and listen on no network interface."""
+    kwargs: dict[str, Any] = {
+        "n_workers": int(workers),
+        "threads_per_worker": 1,
+        "processes": processes,
+        "dashboard_address": f"[{host}]:0" if ":" in host else f"{host}:0",
+    }
+    if processes:
+        kwargs["host"] = host
+    return kwargs
+
+
 def run_sweep(
     config: str | os.PathLike | Mapping[str, Any],
     out: str | os.PathLike,
@@ -290,6 +690,7 @@ def run_sweep(
     processes: bool = True,
     force: bool = False,
     progress: bool = True,
+    host: str = "127.0.0.1",
 ) -> Path:
     """Run a sweep on Dask, writing one set of Parquet files per task as it finishes.
 
@@ -299,7 +700,7 @@ def run_sweep(
         The sweep config (see module docstring).
     out : path
         Results folder: ``sweep.yaml`` (the resolved config), ``runs/``, ``replans/``,
-        ``goals/``.
+        ``goals/``. It must be new, empty or a sweep's results folder.
     workers : int
         Local Dask workers (one thread each) when no ``scheduler`` is given.
     scheduler : str, optional
@@ -308,10 +709,15 @@ def run_sweep(
     processes : bool
         Local workers as processes (default) or threads of this process.
     force : bool
-        Redo every task and overwrite the results; otherwise finished tasks are skipped
-        (resume), and a folder holding a different sweep is an error.
+        Redo every task: the sweep runs into a hidden sibling folder that replaces ``out``
+        as a whole once it is complete (an interrupted forced run leaves ``out`` as it
+        was). Otherwise finished tasks are skipped (resume), and a folder holding a
+        different sweep is an error.
     progress : bool
         Show a progress bar over tasks.
+    host : str
+        Interface the local cluster's scheduler, workers and dashboard listen on
+        (default loopback only).
 
     Returns
     -------
@@ -322,45 +728,73 @@ def run_sweep(
     ------
     OutputExistsError
         If ``out`` holds results of a different sweep config and ``force`` is false.
+    are_stats.inputs.InputError
+        On a bad config or argument, or an ``out`` that is not a results folder.
     """
     cfg = load_sweep_config(config)
-    tasks = expand_tasks(cfg)
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-        raise ValueError(f"workers: expected an integer >= 1, got {workers!r}")
+    workers = get_int(workers, "workers", "", lo=1, hi=1024)
+    host = get_str(host, "host", "")
+    if not host or any(c in host for c in "/ \x00"):
+        raise InputError("host", "", "a host name or IP address such as 127.0.0.1", host)
+    if scheduler is None and workers > 1:
+        src = str(config) if not isinstance(config, Mapping) else "config"
+        _check_cost(cfg, src, concurrent=workers)
+    tasks = _expand(cfg)
     out = Path(out)
-    meta = out / "sweep.yaml"
-    text = yaml.safe_dump(cfg, sort_keys=False)
-    if meta.exists() and not force and meta.read_text() != text:
-        raise OutputExistsError(
-            f"{out}: holds results of a different sweep config; pass --force (force=True) "
-            "to overwrite them, or choose another folder"
-        )
-    out.mkdir(parents=True, exist_ok=True)
-    with atomic_path(meta, force=True) as tmp:
-        tmp.write_text(text)
-    todo = [t for t in tasks if force or not (out / "runs" / f"{t['task']}.parquet").exists()]
-    if not todo:
-        return out
+    text = yaml.safe_dump(cfg, sort_keys=False).encode()
+    state = _folder_state(out)
+    if state == "sweep" and not force:
+        if (out / "sweep.yaml").read_bytes() != text:
+            raise OutputExistsError(
+                f"{out}: holds results of a different sweep config; pass --force (force=True) "
+                "to replace them, or choose another folder"
+            )
+        target = out
+    elif state == "sweep":
+        target = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        target = out
+    with atomic_path(target / "sweep.yaml", force=True) as tmp:
+        tmp.write_bytes(text)
+    todo = [t for t in tasks if not (target / "runs" / f"{t['task']}.parquet").exists()]
+    if todo:
+        _run(todo, target, len(tasks), workers, scheduler, processes, progress, host)
+    if target != out:
+        _replace_folder(target, out)
+    return out
+
+
+def _run(
+    todo: list[dict[str, Any]],
+    target: Path,
+    n_tasks: int,
+    workers: int,
+    scheduler: str | None,
+    processes: bool,
+    progress: bool,
+    host: str,
+) -> None:
     from distributed import Client, LocalCluster, as_completed
 
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
-            raise ValueError(f"scheduler: cannot connect to {scheduler!r} ({err})") from None
+        except (OSError, TimeoutError, ValueError) as err:
+            raise InputError(
+                "scheduler", "", "the address of a running Dask scheduler (tcp://host:port)",
+                _Text(f"{scheduler!r} ({err})"),
+            ) from None  # fmt: skip
         cluster = None
     else:
-        cluster = LocalCluster(
-            n_workers=int(workers), threads_per_worker=1, processes=processes,
-            dashboard_address=":0",
-        )  # fmt: skip
+        cluster = LocalCluster(**_cluster_kwargs(workers, processes, host))
         client = Client(cluster)
     try:
         futures = {client.submit(run_task, t, pure=False): t["task"] for t in todo}
-        bar = _progress(progress, len(tasks), len(tasks) - len(todo))
+        bar = _progress(progress, n_tasks, n_tasks - len(todo))
         try:
             for fut in as_completed(futures):
-                _write(out, futures[fut], fut.result(), force=True)
+                _write(target, futures[fut], fut.result(), force=True)
                 bar.advance()
         finally:
             bar.close()
@@ -368,7 +802,6 @@ def run_sweep(
         client.close()
         if cluster is not None:
             cluster.close()
-    return out
 
 
 class _progress:
@@ -392,22 +825,85 @@ class _progress:
             self._p.stop()
 
 
+# columns the plots and tables need, by table: numeric ones are checked as numbers
+_COLUMNS = {
+    "runs": {"task": False, "sweep": False, "planner": False, "arrival_rate": True,
+             "update_rate": True, "rho_mean": True, "nu_mean": True, "mission_time": True,
+             "goals_total": True},
+    "replans": {"task": False},
+    "goals": {"task": False, "t_reached": True},
+}  # fmt: skip
+
+
+def _read_table(path: Path, table: str, task: str) -> pd.DataFrame:
+    import pyarrow
+
+    if not path.is_file():
+        raise InputError(
+            path, "", f"the {table} table of finished task {task} (written before its runs file)",
+            _Text("no such file"),
+        )  # fmt: skip
+    try:
+        df = pd.read_parquet(path)
+    except (OSError, ValueError, pyarrow.ArrowException) as err:
+        problem = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
+        raise InputError(path, "", "a Parquet table written by run_sweep", _Text(problem)) from None
+    for col, numeric in _COLUMNS[table].items():
+        if col not in df.columns:
+            raise InputError(path, f"column {col!r}", "this column", _Text("no such column"))
+        if numeric and not pd.api.types.is_numeric_dtype(df[col]):
+            raise InputError(path, f"column {col!r}", "numbers", _Text(f"dtype {df[col].dtype}"))
+    bad = df["task"] != task
+    if bad.any():
+        row = int(np.flatnonzero(bad.to_numpy())[0])
+        raise InputError(path, f"row {row}, column 'task'", repr(task), df["task"].iloc[row])
+    return df
+
+
 def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
     """Read a sweep's results folder: ``runs``, ``replans`` and ``goals`` tables (finished
     tasks only), concatenated and sorted by task.
+
+    The folder must hold one sweep: every ``runs`` file must be a task of the config in
+    ``sweep.yaml``, with its digest, and every table well formed.
 
     Raises
     ------
     FileNotFoundError
         If ``out`` has no finished task.
+    are_stats.inputs.InputError
+        Naming the file, on a missing or malformed ``sweep.yaml`` or table, or a task of
+        another sweep.
     """
     out = Path(out)
-    done = sorted((out / "runs").glob("*.parquet")) if (out / "runs").is_dir() else []
+    runs_dir = out / "runs"
+    done = sorted(runs_dir.glob("*.parquet")) if runs_dir.is_dir() else []
     if not done:
         raise FileNotFoundError(f"{out}: no finished sweep tasks (runs/*.parquet)")
-    names = [p.stem for p in done]
+    meta = out / "sweep.yaml"
+    if not meta.is_file():
+        raise InputError(meta, "", "the sweep config of the results folder", _Text("no such file"))
+    cfg = _validate(load_yaml(meta, "sweep config"), str(meta))
+    tasks = {t["task"]: t for t in _expand(cfg)}
+    sweep = _digest(cfg)
+    for p in done:
+        if p.stem not in tasks:
+            raise InputError(
+                p, "", f"a task of the sweep in {meta} (a results folder holds one sweep)",
+                _Text("a file of another sweep"),
+            )  # fmt: skip
     res = {}
     for t in _TABLES:
-        parts = [pd.read_parquet(out / t / f"{n}.parquet") for n in names]
+        parts = []
+        for p in done:
+            df = _read_table(out / t / p.name, t, p.stem)
+            if t == "runs" and len(df) != 1:
+                raise InputError(p, "", "one row (the task's summary)", _Text(f"{len(df)} rows"))
+            if t == "runs" and df["sweep"].iloc[0] != sweep:
+                raise InputError(
+                    p, "row 0, column 'sweep'", f"the digest {sweep!r} of {meta}",
+                    df["sweep"].iloc[0],
+                )  # fmt: skip
+            parts.append(df)
         res[t] = pd.concat(parts, ignore_index=True)
     return res
