@@ -50,7 +50,15 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore", FutureWarning)  # arviz 0.23 announces its 1.0 refactor
     import arviz as az
 
-__all__ = ["FitSettings", "fit_log", "choose_n_components"]
+__all__ = [
+    "FitSettings",
+    "fit_log",
+    "choose_n_components",
+    "fit_loo",
+    "pointwise_log_likelihood",
+    "read_fit",
+    "write_fit",
+]
 
 
 @dataclass(frozen=True)
@@ -172,6 +180,19 @@ def _em_posterior(
     return shaped, {name: v[None] for name, v in stats.items()}, attrs
 
 
+def _without_stays(summary: Any) -> Any:
+    """The sufficient statistics with the stays left out (the model then skips them)."""
+    return summary._replace(dwell=np.zeros(0), departed=np.zeros(0, dtype=bool))
+
+
+def _stays_total(data: LifecycleData, leave_rate: np.ndarray) -> np.ndarray:
+    """Sum over artefacts of the stays log-likelihood, for every draw of ``leave_rate``."""
+    n_departed = float(np.sum(~data.censored))
+    exposure = float(np.sum(data.dwell))
+    mu = np.asarray(leave_rate, dtype=float)
+    return n_departed * np.log(mu) - mu * exposure
+
+
 def fit_log(
     key: Any,
     data: LifecycleData,
@@ -242,7 +263,16 @@ def fit_log(
     else:
         say("conjugate rate posteriors and EM mixture with bootstrap")
         post, stats, mix_attrs = _em_posterior(k_fit, data, priors, k, settings)
-        model_kwargs = dict(data=data, priors=priors, n_components=k, stationary_start=False)
+        # the likelihood without its per-artefact stays: what is stored scales with the
+        # distinct data (window counts, distinct marks), not draws x rows; the stays are
+        # recomputed on demand from leave_rate and the observed dwell times (fit_loo)
+        model_kwargs = dict(
+            data=_without_stays(data._summary),
+            priors=priors,
+            n_components=k,
+            stationary_start=False,
+            labelled=data.labels is not None,
+        )
         gen_kwargs = dict(
             data=None,
             priors=priors,
@@ -254,13 +284,15 @@ def fit_log(
         flat = {name: v[0] for name, v in post.items()}
         loglik = log_likelihood(lifecycle_model, flat, **model_kwargs)
         loglik = {name: np.asarray(v)[None] for name, v in loglik.items()}
-        # total log-likelihood of each draw (a diagnostic; these draws are not MCMC)
-        stats["log_likelihood_total"] = sum(
+        # total log-likelihood of each draw (a diagnostic; these draws are not MCMC); the
+        # stays add n_departed log(mu) - mu sum(dwell), never expanded per artefact
+        stays = _stays_total(data, post["leave_rate"])
+        stats["log_likelihood_total"] = stays + sum(
             v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
         )
         kp, kq = jax.random.split(k_post)
-        latent = {n: flat[n] for n in ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")}
-        latent = {n: v for n, v in latent.items() if n in flat}
+        names = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
+        latent = {n: flat[n] for n in names if n in flat}  # no mixture for logs without marks
         pred = Predictive(lifecycle_model, posterior_samples=latent, return_sites=["n_arrivals"])
         post_pred = {n: np.asarray(v)[None] for n, v in pred(kp, **gen_kwargs).items()}
         prior = Predictive(lifecycle_model, num_samples=1000)(kq, **gen_kwargs)
@@ -311,8 +343,30 @@ def fit_log(
     return idata
 
 
+#: Attributes that record when or how fast a fit ran, not what it is: :func:`write_fit`
+#: leaves them out so that the same seed gives the same bytes (``created_at`` of every
+#: group, ArviZ's; ``*_time`` of ``sample_stats``, the NUTS timings kept in memory).
+VOLATILE_ATTRS = ("created_at", "*_time")
+
+
+def _stable(idata: az.InferenceData) -> az.InferenceData:
+    """A shallow copy of ``idata`` without :data:`VOLATILE_ATTRS`."""
+    groups = {}
+    for name in idata.groups():
+        ds = getattr(idata, name).copy(deep=False)
+        ds.attrs = {
+            k: v for k, v in ds.attrs.items() if k != "created_at" and not k.endswith("_time")
+        }
+        groups[name] = ds
+    return az.InferenceData(**groups)
+
+
 def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> Any:
     """Write a fit as NetCDF atomically (temporary file + rename); refuse to overwrite.
+
+    The file holds no wall-clock attribute (:data:`VOLATILE_ATTRS` are left out), so the
+    same fit gives the same bytes. An interrupted or failed write (a full disk) leaves no
+    file under the final name and an existing one intact.
 
     Parameters
     ----------
@@ -334,12 +388,166 @@ def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> A
 
     path = Path(out)
     with atomic_path(path, force=force) as tmp:
-        idata.to_netcdf(str(tmp))
+        _stable(idata).to_netcdf(str(tmp))
     return path
 
 
+def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
+    """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
+    from are_stats.inputs import InputError
+
+    if name not in ds.data_vars:
+        raise InputError(
+            source, f"{group}.{name}", "this variable (a fit written by are-stats fit)",
+            f"variables {sorted(ds.data_vars)}",
+        )  # fmt: skip
+    var = ds[name]
+    if dims is not None and tuple(var.dims) != dims:
+        raise InputError(
+            source, f"{group}.{name}", f"dimensions {dims}", f"dimensions {tuple(var.dims)}"
+        )
+    return np.asarray(var.values)
+
+
+def _check_real(a: np.ndarray, source: str, where: str, *, lo: float, lo_open: bool) -> None:
+    from are_stats._checks import describe
+    from are_stats.inputs import InputError
+
+    word = ">" if lo_open else ">="
+    if a.dtype.kind not in "fiu" or a.dtype.kind == "b":
+        raise InputError(source, where, f"finite numbers {word} {lo:g}", f"dtype {a.dtype}")
+    bad = ~np.isfinite(a) | (a <= lo if lo_open else a < lo)
+    if bad.any():
+        idx = np.unravel_index(int(np.argmax(bad)), a.shape)
+        raise InputError(
+            source, f"{where}{list(idx)}", f"finite numbers {word} {lo:g}",
+            f"{a[idx]!r} (in {describe(a)})",
+        )  # fmt: skip
+
+
+def _check_fit(idata: az.InferenceData, source: str) -> None:
+    """Validate a fit read from ``source`` (groups, variables, attributes)."""
+    from are_stats.inputs import InputError, get_float, get_int, get_list, get_str
+
+    for group in ("posterior", "observed_data"):
+        if group not in idata.groups():
+            raise InputError(
+                source, group, "this group (a fit written by are-stats fit)",
+                f"groups {list(idata.groups())}",
+            )  # fmt: skip
+    post = idata.posterior
+    rates = {}
+    for name in ("arrival_rate", "leave_rate"):
+        rates[name] = _var(post, name, source, "posterior", ("chain", "draw"))
+        _check_real(rates[name], source, f"posterior.{name}", lo=0.0, lo_open=True)
+    if rates["arrival_rate"].size == 0:
+        raise InputError(source, "posterior.arrival_rate", "at least one draw", "none")
+    has_w, has_r = "mix_weights" in post.data_vars, "mix_rates" in post.data_vars
+    if has_w != has_r:
+        raise InputError(
+            source, "posterior", "both mix_weights and mix_rates or neither",
+            f"variables {sorted(post.data_vars)}",
+        )  # fmt: skip
+    k = None
+    if has_w:
+        dims = ("chain", "draw", "component")
+        w = _var(post, "mix_weights", source, "posterior", dims)
+        r = _var(post, "mix_rates", source, "posterior", dims)
+        _check_real(w, source, "posterior.mix_weights", lo=0.0, lo_open=False)
+        _check_real(r, source, "posterior.mix_rates", lo=0.0, lo_open=True)
+        k = w.shape[-1]
+        if k < 1 or r.shape[-1] != k:
+            raise InputError(
+                source, "posterior.mix_rates", f"{k} components (as mix_weights)", r.shape[-1]
+            )
+        sums = w.sum(axis=-1)
+        bad = np.abs(sums - 1.0) > 1e-6
+        if bad.any():
+            c, d = np.unravel_index(int(np.argmax(bad)), bad.shape)
+            raise InputError(
+                source, f"posterior.mix_weights[{c}, {d}]", "weights summing to 1",
+                f"a sum of {float(sums[c, d])!r}",
+            )  # fmt: skip
+    attrs = post.attrs
+    for name in ("window", "area"):
+        if name not in attrs:
+            raise InputError(
+                source, f"posterior.attrs.{name}", "this attribute (a fit written by "
+                "are-stats fit)", f"attributes {sorted(attrs)}",
+            )  # fmt: skip
+    win = np.asarray(attrs["window"]).ravel().tolist()
+    win = get_list(win, source, "posterior.attrs.window", min_len=2, max_len=2)
+    t0 = get_float(win[0], source, "posterior.attrs.window[0]")
+    get_float(win[1], source, "posterior.attrs.window[1]", lo=t0, lo_open=True)
+    area = attrs["area"]
+    area = area.item() if isinstance(area, np.ndarray) and area.size == 1 else area
+    get_float(area, source, "posterior.attrs.area", lo=0.0, lo_open=True)
+    if "method" in attrs:
+        get_str(attrs["method"], source, "posterior.attrs.method", choices=("nuts", "em"))
+    if "n_components" in attrs:
+        get_int(attrs["n_components"], source, "posterior.attrs.n_components", lo=-1)
+    if "class_labels" in attrs:
+        labels = get_str(attrs["class_labels"], source, "posterior.attrs.class_labels")
+        if k is not None and len(labels.split(",")) != k:
+            raise InputError(
+                source, "posterior.attrs.class_labels",
+                f"{k} comma-separated names (one per mixture component)", labels,
+            )  # fmt: skip
+    obs = idata.observed_data
+    cols = {
+        name: _var(obs, name, source, "observed_data", ("artefact",))
+        for name in ("t_arrive", "t_leave", "censored", "truncated")
+    }
+    if "marks" in obs.data_vars:
+        cols["marks"] = _var(obs, "marks", source, "observed_data", ("artefact",))
+    for name in ("censored", "truncated"):
+        if cols[name].dtype.kind != "b":
+            raise InputError(
+                source, f"observed_data.{name}", "booleans", f"dtype {cols[name].dtype}"
+            )
+    for name in ("t_arrive", "t_leave"):
+        if cols[name].dtype.kind != "f":
+            raise InputError(
+                source, f"observed_data.{name}", "floats (NaN where unobserved)",
+                f"dtype {cols[name].dtype}",
+            )  # fmt: skip
+    if "marks" in cols:
+        _check_real(cols["marks"], source, "observed_data.marks", lo=0.0, lo_open=False)
+        if cols["marks"].dtype.kind not in "iu":
+            raise InputError(
+                source, "observed_data.marks", "integers", f"dtype {cols['marks'].dtype}"
+            )
+    for name, flag in (("t_arrive", "truncated"), ("t_leave", "censored")):
+        mismatch = np.isnan(cols[name]) != cols[flag]
+        if mismatch.any():
+            i = int(np.argmax(mismatch))
+            raise InputError(
+                source, f"observed_data.{flag}[{i}]",
+                f"{flag} exactly where {name} is NaN", f"{bool(cols[flag][i])} with "
+                f"{name} {float(cols[name][i])!r}",
+            )  # fmt: skip
+    try:  # the value checks of a log (times inside the window, leave after arrival)
+        LifecycleData(
+            t_arrive=cols["t_arrive"],
+            t_leave=cols["t_leave"],
+            window=(float(win[0]), float(win[1])),
+            area=float(area),
+            marks=cols.get("marks"),
+        )
+    except ValueError as err:
+        raise InputError(source, "observed_data", f"a valid life-cycle log ({err})") from None
+
+
 def read_fit(path: str | Any) -> az.InferenceData:
-    """Read a fit written by :func:`write_fit` / ``are-stats fit``.
+    """Read and validate a fit written by :func:`write_fit` / ``are-stats fit``.
+
+    Everything ``are-stats report`` and ``generate`` use is checked where the file enters:
+    the ``posterior`` (positive finite ``arrival_rate`` / ``leave_rate`` over ``(chain,
+    draw)``, and ``mix_weights`` summing to 1 with positive ``mix_rates`` over ``(chain,
+    draw, component)`` when there is a mixture), its attributes ``window`` (``t0 < t1``)
+    and ``area`` (> 0), ``method``, ``n_components``, ``class_labels`` when present, and
+    the ``observed_data`` log (``t_arrive``, ``t_leave``, ``censored``, ``truncated``,
+    ``marks``).
 
     Parameters
     ----------
@@ -354,18 +562,146 @@ def read_fit(path: str | Any) -> az.InferenceData:
     ------
     FileNotFoundError
         If the file does not exist.
-    ValueError
-        If it is not a life-cycle fit (no ``arrival_rate`` / ``leave_rate`` posterior).
+    are_stats.inputs.InputError
+        (a ValueError) naming the file, the group/variable/attribute and what was expected,
+        if it is not a readable NetCDF fit or any of the above is missing or bad.
     """
     from pathlib import Path
+
+    from are_stats.inputs import InputError
 
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such fit file")
+    if p.is_dir():
+        raise InputError(p, "", "an ArviZ NetCDF fit file, not a directory")
     try:
         idata = az.from_netcdf(str(p))
     except Exception as err:  # netCDF/HDF5 raise many types for a non-NetCDF file
-        raise ValueError(f"{p}: expected an ArviZ NetCDF fit, could not read it ({err})") from err
-    if "posterior" not in idata.groups() or "arrival_rate" not in idata.posterior:
-        raise ValueError(f"{p}: expected a life-cycle fit with an 'arrival_rate' posterior")
+        raise InputError(
+            p, "", f"an ArviZ NetCDF fit written by are-stats fit (could not read it: {err})"
+        ) from err
+    _check_fit(idata, str(p))
     return idata
+
+
+def _stays_columns(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distinct ``(departed, dwell)`` pairs of the observed log, their counts and inverse."""
+    obs = idata.observed_data
+    dwell = np.asarray(obs["dwell"].values, dtype=np.float64)
+    departed = ~np.asarray(obs["censored"].values, dtype=bool)
+    pairs, inverse, counts = np.unique(
+        np.stack([departed.astype(np.float64), dwell], axis=1),
+        axis=0,
+        return_inverse=True,
+        return_counts=True,
+    )
+    return pairs, counts.astype(np.float64), inverse.ravel()
+
+
+def _distinct_loglik(
+    idata: az.InferenceData, var_name: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(chain, draw, m) log-likelihood of the m distinct observations, counts and inverse."""
+    from are_stats.inputs import check_memory
+
+    if var_name == "stays":
+        pairs, counts, inverse = _stays_columns(idata)
+        mu = np.asarray(idata.posterior["leave_rate"].values, dtype=np.float64)
+        check_memory(mu.size * pairs.shape[0] * 8.0 * 3, "the stays log-likelihood per draw")
+        ll = pairs[:, 0] * np.log(mu)[..., None] - mu[..., None] * pairs[:, 1]
+        return ll, counts, inverse
+    if var_name == "marks":
+        if "log_likelihood" not in idata.groups() or "mark_histogram" not in idata.log_likelihood:
+            raise ValueError("idata: expected log_likelihood.mark_histogram (a fit with marks)")
+        hist = np.asarray(idata.log_likelihood["mark_histogram"].values, dtype=np.float64)
+        counts = np.asarray(idata.observed_data["mark_histogram"].values, dtype=np.float64)
+        obs = idata.observed_data
+        if "pair_class" in obs:
+            keys = np.stack([obs["labels"].values, obs["marks"].values], axis=1)
+            ref = np.stack([obs["pair_class"].values, obs["pair_mark"].values], axis=1)
+        else:
+            keys = np.asarray(obs["marks"].values)[:, None]
+            ref = np.asarray(obs["mark_value"].values)[:, None]
+        _, inverse = np.unique(np.concatenate([ref, keys]), axis=0, return_inverse=True)
+        inverse = inverse.ravel()
+        order = np.empty(ref.shape[0], np.int64)
+        order[inverse[: ref.shape[0]]] = np.arange(ref.shape[0])
+        return hist / counts, counts, order[inverse[ref.shape[0] :]]
+    raise ValueError(f"var_name: expected 'stays' or 'marks', got {var_name!r}")
+
+
+def pointwise_log_likelihood(idata: az.InferenceData, var_name: str = "stays") -> Any:
+    """The per-artefact log-likelihood of a fit, recomputed from its posterior and its log.
+
+    Fits store only what scales with the distinct data; this expands one term to
+    ``(chain, draw, artefact)`` (memory checked against :func:`are_stats.inputs.memory_limit`),
+    e.g. for ``arviz.loo``. :func:`fit_loo` gives the same PSIS-LOO without expanding.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A fit of :func:`fit_log` / :func:`~are_stats.fitting.fit_lifecycle_nuts`.
+    var_name : {"stays", "marks"}
+        ``stays``: ``log mu - mu * dwell`` (departed) or ``- mu * dwell`` (censored) per
+        artefact; ``marks``: the log-probability of each artefact's mark (with labels, of its
+        (class, mark) pair).
+
+    Returns
+    -------
+    xarray.DataArray
+        Dims ``(chain, draw, artefact)``.
+    """
+    import xarray as xr
+
+    from are_stats.inputs import check_memory
+
+    ll, _, inverse = _distinct_loglik(idata, var_name)
+    check_memory(ll.shape[0] * ll.shape[1] * inverse.size * 8.0, f"the {var_name} log-likelihood")
+    return xr.DataArray(ll[..., inverse], dims=("chain", "draw", "artefact"), name=var_name)
+
+
+def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> Any:
+    """PSIS-LOO of one likelihood term of a fit, over artefacts, without expanding it.
+
+    Artefacts with the same observation (same dwell and departure flag; same mark) have the
+    same leave-one-out density, so Pareto-smoothed importance sampling runs once per
+    DISTINCT observation and the sums weight each by its count: the result equals
+    ``arviz.loo`` of :func:`pointwise_log_likelihood` (same relative efficiency), at a cost
+    of draws x distinct observations.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A fit.
+    var_name : {"stays", "marks"}
+        The term (see :func:`pointwise_log_likelihood`).
+
+    Returns
+    -------
+    are_stats.fitting.InformationCriterion
+        ``elpd``, ``se``, ``p_eff`` (p_loo), ``deviance``, the pointwise elpd of each
+        distinct observation, their counts and Pareto k.
+    """
+    from scipy.special import logsumexp
+
+    from are_stats.fitting._select import InformationCriterion, _weighted_total
+
+    ll, counts, _ = _distinct_loglik(idata, var_name)
+    n_chains, n_draws, m = ll.shape
+    s = n_chains * n_draws
+    flat = ll.reshape(s, m)
+    reff = 1.0
+    if n_chains > 1:  # as arviz.loo: mean ESS of the posterior over the number of draws
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ess = az.ess(idata.posterior, method="mean")
+        reff = float(np.hstack([ess[v].values.ravel() for v in ess.data_vars]).mean()) / s
+    log_w, k_hat = az.psislw(-flat.T, reff)
+    e = logsumexp(log_w + flat.T, axis=1)
+    lppd = logsumexp(flat, axis=0) - np.log(s)
+    elpd, se = _weighted_total(e, counts)
+    p_loo = float(np.sum(counts * (lppd - e)))
+    return InformationCriterion(
+        elpd, se, p_loo, -2.0 * elpd, e, counts, np.asarray(k_hat, dtype=np.float64)
+    )

@@ -264,7 +264,11 @@ def _post_process(
         samples = jax.vmap(
             lambda u: constrain_fn(lifecycle_model, (), kwargs, u, return_deterministic=True)
         )(flat)
-        return samples, log_likelihood(lifecycle_model, samples, **kwargs)
+        loglik = log_likelihood(lifecycle_model, samples, **kwargs)
+        # the per-artefact stays would be draws x rows: left out (XLA then never computes
+        # them); :func:`are_stats.fitting.fit_loo` recomputes them on demand
+        loglik.pop("stays", None)
+        return samples, loglik
 
     shape = next(iter(zs.values())).shape[:2]
     flat = {name: v.reshape((-1,) + v.shape[2:]) for name, v in zs.items()}
@@ -363,8 +367,10 @@ def fit_lifecycle_nuts(
     arviz.InferenceData
         Groups ``posterior``, ``sample_stats`` (``diverging``, ``n_steps``,
         ``acceptance_rate``, ``energy``, ``lp``, ``step_size``), ``log_likelihood``
-        (``n_arrivals``, ``n_present``, ``stays`` per artefact, ``mark_histogram`` per
-        distinct mark or (class, mark) pair), ``posterior_predictive`` (window counts),
+        (``n_arrivals``, ``n_present``, ``mark_histogram`` per distinct mark or (class,
+        mark) pair: sizes that scale with the distinct data; the per-artefact ``stays``
+        terms are recomputed on demand by :func:`are_stats.fitting.pointwise_log_likelihood`
+        and :func:`are_stats.fitting.fit_loo`), ``posterior_predictive`` (window counts),
         ``prior``, ``prior_predictive`` and ``observed_data`` (the log's columns, counts and
         mark histogram). Posterior attributes record the chain method, priors and settings.
 
@@ -430,7 +436,6 @@ def fit_lifecycle_nuts(
     )
     posterior, loglik = _post_process(zs, obs, static, timing)
     s = data._summary
-    loglik["stays"] = loglik["stays"][..., : data.n]
     if "mark_histogram" in loglik:
         m = s.mark_values.size if data.labels is None else s.pair_counts.size
         loglik["mark_histogram"] = loglik["mark_histogram"][..., :m]

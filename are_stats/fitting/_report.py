@@ -33,6 +33,7 @@ with warnings.catch_warnings():
 
 __all__ = [
     "PARAMETERS",
+    "check_report_size",
     "fit_summary",
     "predictive_windows",
     "PredictiveChecks",
@@ -72,6 +73,55 @@ def _observed(idata: az.InferenceData) -> dict[str, Any]:
     out["window"] = (float(window[0]), float(window[1]))
     out["area"] = float(idata.posterior.attrs["area"])
     return out
+
+
+#: Mark values drawn at most in the marks panel's mixture band (draws x components x marks).
+_MARK_PANEL_DRAWS = 200
+
+
+def check_report_size(idata: az.InferenceData, n_replicates: int, source: Any = "fit") -> None:
+    """Refuse, before drawing anything, a report past the memory or work limit.
+
+    The replicated windows hold about ``n_replicates x lambda x area x (t1 - t0 + 1/mu)``
+    artefacts; the marks panel evaluates the mixture at every mark up to the largest
+    observed one for up to 200 draws; the dwell panel the survival of every draw at 200
+    times.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A fit (validated by :func:`are_stats.fitting.read_fit`).
+    n_replicates : int
+        Replicated windows.
+    source : str
+        What the user gave (the fit file and option), named in the error.
+
+    Raises
+    ------
+    are_stats.inputs.LimitError
+        If the report would need more memory or work than the limits.
+    """
+    from are_stats.inputs import check_memory, get_int
+    from are_stats.scenarios._generate import _check_size, _draws
+
+    n_replicates = get_int(n_replicates, "n_replicates", "", lo=1)
+    obs = _observed(idata)
+    t0, t1 = obs["window"]
+    draws = posterior_draws(idata)
+    _check_size(_draws(draws), n_replicates, t1 - t0, obs["area"], "stationary", str(source))
+    n_draws = draws["leave_rate"].shape[0]
+    check_memory(n_draws * 200 * 8.0 * 3, f"the dwell panel of {n_draws} draws", source)
+    check_memory(n_replicates * 201 * 8.0 * 4, "the N(t) replicates", source)
+    marks = obs["marks"]
+    if marks is not None and marks.size and "mix_rates" in draws:
+        k = draws["mix_rates"].shape[-1]
+        n_k = float(np.max(marks)) + 6.0
+        sub = min(_MARK_PANEL_DRAWS, n_draws)
+        check_memory(
+            sub * k * n_k * 8.0 * 3,
+            f"the marks panel (marks up to {int(np.max(marks))}, {k} components)",
+            source,
+        )
 
 
 def predictive_windows(key: Any, idata: az.InferenceData, n_replicates: int = 200) -> pd.DataFrame:
@@ -235,6 +285,11 @@ def predictive_checks(
     )
 
 
+def _no_data(ax: Any, why: str) -> None:
+    ax.text(0.5, 0.5, why, ha="center", va="center", transform=ax.transAxes, color="0.4")
+    ax.plot([], [], " ", label="no data")
+
+
 def _band(ax, x, reps, color, label, step=False):
     q = np.nanquantile(reps, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
     kw = {"step": "post"} if step else {}
@@ -290,18 +345,22 @@ def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
         ax.set(xlabel="time in window [min]", ylabel="N(t) artefacts present")
         ax.set_title("Artefacts present N(t)")
     elif name == "interarrival":
-        grid = np.quantile(c.gaps_obs, np.linspace(0, 0.995, 100)) if c.gaps_obs.size else []
-        grid = np.asarray(grid)
-        reps = np.array(
-            [np.searchsorted(np.sort(g), grid, "right") / max(g.size, 1) for g in c.gaps_rep]
-        )
-        _band(ax, grid, reps, "C0", "predictive")
-        ecdf = np.searchsorted(np.sort(c.gaps_obs), grid, "right") / max(c.gaps_obs.size, 1)
-        ax.plot(grid, ecdf, "k", lw=1.2, label="observed")
+        if c.gaps_obs.size:
+            grid = np.quantile(c.gaps_obs, np.linspace(0, 0.995, 100))
+            reps = np.array(
+                [np.searchsorted(np.sort(g), grid, "right") / max(g.size, 1) for g in c.gaps_rep]
+            )
+            _band(ax, grid, reps, "C0", "predictive")
+            ecdf = np.searchsorted(np.sort(c.gaps_obs), grid, "right") / c.gaps_obs.size
+            ax.plot(grid, ecdf, "k", lw=1.2, label="observed")
+        else:  # fewer than two arrivals inside the window: nothing to compare
+            _no_data(ax, "fewer than two arrivals observed")
         ax.set(xlabel="inter-arrival time [s]", ylabel="ECDF")
         ax.set_title("Inter-arrival times")
     elif name == "dwell":
-        if c.km is not None:
+        if c.km is None:
+            _no_data(ax, "no stay observed from its arrival")
+        else:
             tmax = c.km.time.max() if c.km.time.size else 1.0
             grid = np.linspace(0, tmax, 200)
             surv = np.exp(-np.outer(c.leave_rate, grid))
@@ -359,7 +418,7 @@ def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
         ax.set_title(f"Dispersion index (pp p-value {c.dispersion_pvalue:.2f})")
     elif name == "marks":
         k = np.arange(int(c.marks_obs.max()) + 6)
-        sub = np.linspace(0, c.mix_rates.shape[0] - 1, min(200, c.mix_rates.shape[0]))
+        sub = np.linspace(0, c.mix_rates.shape[0] - 1, min(_MARK_PANEL_DRAWS, c.mix_rates.shape[0]))
         sub = sub.astype(int)
         pmf = np.einsum(
             "sk,skn->sn",
@@ -386,6 +445,7 @@ def write_report(
     n_replicates: int = 200,
     clock_offset: float = 0.0,
     force: bool = False,
+    source: Any = "fit",
 ) -> dict[str, Path]:
     """Write the summary table (CSV) and every check figure (PNG) of a fit.
 
@@ -403,6 +463,8 @@ def write_report(
         Time of day (s) at ``t = 0`` of the log.
     force : bool
         Overwrite existing files.
+    source : str
+        The fit's name in errors (see :func:`check_report_size`, run first).
 
     Returns
     -------
@@ -411,6 +473,7 @@ def write_report(
     """
     import matplotlib.pyplot as plt
 
+    check_report_size(idata, n_replicates, source)
     out = Path(out_dir)
     written: dict[str, Path] = {}
     summary = fit_summary(idata)

@@ -3,6 +3,9 @@
 from are_stats.scenarios._generate import (
     PARAMETER_NAMES,
     SCENARIO_COLUMNS,
+    atomic_folder,
+    check_folder,
+    expected_artefacts,
     generate_scenarios,
     posterior_draws,
     read_scenarios,
@@ -13,6 +16,9 @@ from are_stats.scenarios._generate import (
 __all__ = [
     "PARAMETER_NAMES",
     "SCENARIO_COLUMNS",
+    "atomic_folder",
+    "check_folder",
+    "expected_artefacts",
     "generate_scenarios",
     "posterior_draws",
     "read_scenarios",

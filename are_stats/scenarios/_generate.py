@@ -22,9 +22,13 @@ same NumPy version, and :func:`write_scenarios` writes it byte for byte identica
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import math
 import os
-from collections.abc import Mapping
+import shutil
+import tempfile
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -32,12 +36,16 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from are_stats._atomic import atomic_path, check_writable
-from are_stats._checks import check_in, check_positive, describe
+from are_stats._atomic import OutputExistsError
+from are_stats._checks import check_in, check_nonnegative, check_positive, describe
+from are_stats.inputs import check_memory, check_work, get_float, get_int
 
 __all__ = [
     "PARAMETER_NAMES",
     "SCENARIO_COLUMNS",
+    "atomic_folder",
+    "check_folder",
+    "expected_artefacts",
     "generate_scenarios",
     "posterior_draws",
     "read_scenarios",
@@ -134,7 +142,7 @@ def _draws(params: Mapping[str, Any]) -> dict[str, np.ndarray]:
             f"keys {sorted(params)}"
         )
     if has_w:
-        w = check_positive("params['mix_weights']", np.asarray(params["mix_weights"]) + 0.0)
+        w = check_nonnegative("params['mix_weights']", np.asarray(params["mix_weights"]) + 0.0)
         r = check_positive("params['mix_rates']", params["mix_rates"])
         w = w[None, :] if w.ndim == 1 else w
         r = r[None, :] if r.ndim == 1 else r
@@ -243,10 +251,8 @@ def generate_scenarios(
     """
     seq, seed_record = _seed_sequence(key)
     p = _draws(params)
-    if int(n_scenarios) != n_scenarios or n_scenarios < 1:
-        raise ValueError(f"n_scenarios: expected an integer >= 1, got {n_scenarios!r}")
-    n_sc = int(n_scenarios)
-    h = float(check_positive("horizon", horizon))
+    n_sc = get_int(n_scenarios, "n_scenarios", "", lo=1)
+    h = get_float(horizon, "horizon", "", lo=0.0, lo_open=True)
     check_in("start", start, ("stationary", "empty"))
     check_in("draw", draw, ("cycle", "random"))
     check_in("headings", headings, (0, 4))
@@ -265,6 +271,7 @@ def generate_scenarios(
         nu = float(check_positive("area", area))
     if area is not None:
         nu = float(check_positive("area", area))
+    _check_size(p, n_sc, h, nu, start)
     rng = np.random.Generator(np.random.PCG64(seq))
     s = p["arrival_rate"].shape[0]
     d = np.arange(n_sc) % s if draw == "cycle" else rng.integers(0, s, size=n_sc)
@@ -344,6 +351,66 @@ def generate_scenarios(
         "parameters": _summary(p),
     }
     return df
+
+
+#: Bytes per generated artefact while drawing a table (its 11 columns and the temporaries).
+BYTES_PER_ARTEFACT = 256
+#: Bytes per scenario (draw index, counts, offsets).
+BYTES_PER_SCENARIO = 64
+
+
+def expected_artefacts(
+    params: Mapping[str, Any], n_scenarios: int, horizon: float, area: float,
+    start: str = "stationary",
+) -> float:  # fmt: skip
+    """Expected number of artefacts of :func:`generate_scenarios` (before drawing anything).
+
+    Each scenario holds ``Poisson(lambda nu / mu)`` initial artefacts (stationary start) and
+    ``Poisson(lambda nu horizon)`` arrivals; the expectation averages over the draws.
+
+    Parameters
+    ----------
+    params : dict
+        Posterior draws (``arrival_rate``, ``leave_rate``; see :func:`generate_scenarios`).
+    n_scenarios : int
+        Number of scenarios.
+    horizon : float
+        Scenario length.
+    area : float
+        Free area ``nu`` in m^2.
+    start : {"stationary", "empty"}
+        Initial population.
+
+    Returns
+    -------
+    float
+        Expected total artefacts (may be ``inf`` for absurd inputs).
+    """
+    p = _draws(params)
+    lam_nu = p["arrival_rate"] * float(area)
+    per = lam_nu * float(horizon)
+    if start == "stationary":
+        per = per + lam_nu / p["leave_rate"]
+    with np.errstate(over="ignore", invalid="ignore"):
+        mean = float(np.mean(per)) if np.all(np.isfinite(per)) else math.inf
+        return mean * float(n_scenarios)
+
+
+def _check_size(
+    p: Mapping[str, np.ndarray], n_sc: int, h: float, nu: float, start: str,
+    source: str = "n_scenarios, horizon",
+) -> None:  # fmt: skip
+    """Refuse, before drawing, tables past the memory or work limit."""
+    check_memory(float(n_sc) * BYTES_PER_SCENARIO, f"{n_sc} scenarios", source)
+    expected = expected_artefacts(p, n_sc, h, nu, start)
+    # the count is Poisson around its mean: allow 6 standard deviations
+    high = expected + 6.0 * math.sqrt(expected) + 64.0 if math.isfinite(expected) else math.inf
+    what = (
+        f"about {expected:.3g} artefacts ({n_sc} scenarios of horizon {h:g} over {nu:g} m^2 at "
+        "the fitted rates)"
+    )
+    check_memory(high * BYTES_PER_ARTEFACT, what, source)
+    check_work(high * 20.0, what, source)
 
 
 def _summary(p: Mapping[str, np.ndarray]) -> dict[str, Any]:
@@ -451,56 +518,92 @@ def _plain(x: Any) -> Any:
     return x
 
 
-def write_scenarios(
-    df: pd.DataFrame,
-    out_dir: str | os.PathLike,
-    manifest: Mapping[str, Any] | None = None,
-    force: bool = False,
-) -> tuple[Path, Path]:
-    """Write ``artefacts.parquet`` and ``manifest.yaml`` into ``out_dir``, atomically.
+_RENAME_EXCHANGE = 2  # renameat2 flag (Linux >= 3.15)
+_AT_FDCWD = -100
 
-    The Parquet file is written with pinned options (zstd level 3, no dictionary, no pandas
-    or Arrow schema metadata, one row group per 2^20 rows), so the same table gives the
-    same bytes. The manifest holds the format, the are_stats version, the columns, the
-    generation settings (``df.attrs["generation"]``: seed, parameters summary, ...) and
-    every key of ``manifest`` (e.g. ``fit``: the fit file used).
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths atomically with Linux ``renameat2(RENAME_EXCHANGE)``; False if unsupported."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    rc = fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    return rc == 0
+
+
+def check_folder(path: str | os.PathLike, force: bool) -> Path:
+    """Raise :class:`OutputExistsError` unless ``path`` may become a new output folder.
+
+    It may when it does not exist, is an empty folder, or is a folder and ``force`` is true.
+    """
+    target = Path(path)
+    if target.exists() and not target.is_dir():
+        raise OutputExistsError(f"{target}: exists and is not a folder")
+    if target.exists() and not force and any(target.iterdir()):
+        raise OutputExistsError(
+            f"{target}: already exists; pass --force (force=True) to replace the folder"
+        )
+    return target
+
+
+@contextlib.contextmanager
+def atomic_folder(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary sibling folder; put it in place of ``path`` as a whole on success.
+
+    Everything of an output folder is written into the temporary folder, which then
+    replaces ``path`` in one step (an atomic exchange on Linux, else two renames), so a
+    reader never sees files of two runs side by side and an interrupted run leaves the old
+    folder intact (and at most a hidden ``.<name>.*.tmp`` sibling). An existing folder is
+    replaced only with ``force``; an existing empty folder is replaced without it.
 
     Parameters
     ----------
-    df : pandas.DataFrame
-        A scenarios table.
-    out_dir : str or PathLike
-        Output folder (created if missing).
-    manifest : dict, optional
-        Extra manifest entries (they win over the generated ones).
+    path : str or PathLike
+        The output folder.
     force : bool
-        Overwrite existing files.
-
-    Returns
-    -------
-    (Path, Path)
-        The Parquet and YAML paths.
+        Replace an existing non-empty folder (all its files: nothing of the old run stays).
 
     Raises
     ------
     OutputExistsError
-        If a file exists and ``force`` is false (nothing is written then).
+        If ``path`` exists, is not an empty folder, and ``force`` is false (nothing is
+        written then).
     """
+    target = check_folder(path, force)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    try:
+        yield tmp
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700: the usual folder permissions
+        if target.exists():
+            if not _exchange(tmp, target):
+                old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old",
+                                            dir=target.parent))  # fmt: skip
+                os.replace(target, old / target.name)
+                os.replace(tmp, target)
+                shutil.rmtree(old)
+        else:
+            os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+
+
+def _write_files(
+    df: pd.DataFrame, out: Path, manifest: Mapping[str, Any] | None
+) -> tuple[Path, Path]:
+    """Write ``artefacts.parquet`` and ``manifest.yaml`` into the (new, private) folder ``out``."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     from are_stats import __version__
 
-    missing = [c for c in SCENARIO_COLUMNS if c not in df.columns]
-    if missing:
-        raise ValueError(
-            f"df: expected a scenarios table with columns {list(SCENARIO_COLUMNS)}, "
-            f"got {list(df.columns)} (missing {missing})"
-        )
-    out = Path(out_dir)
     pq_path, yml_path = out / "artefacts.parquet", out / "manifest.yaml"
-    check_writable(pq_path, force)
-    check_writable(yml_path, force)
     plain = pd.DataFrame({c: df[c].to_numpy() for c in SCENARIO_COLUMNS})
     table = pa.Table.from_pandas(plain, preserve_index=False)
     table = table.replace_schema_metadata(None)
@@ -520,22 +623,74 @@ def write_scenarios(
     }
     meta.update(dict(manifest or {}))
     text = yaml.safe_dump(_plain(meta), sort_keys=False, default_flow_style=None)
-    with atomic_path(pq_path, force=force) as tmp:
-        pq.write_table(
-            table,
-            tmp,
-            compression="zstd",
-            compression_level=3,
-            use_dictionary=False,
-            write_statistics=True,
-            version="2.6",
-            data_page_version="1.0",
-            row_group_size=1 << 20,
-            store_schema=False,
-        )
-    with atomic_path(yml_path, force=force) as tmp:
-        tmp.write_text(text)
+    pq.write_table(
+        table,
+        pq_path,
+        compression="zstd",
+        compression_level=3,
+        use_dictionary=False,
+        write_statistics=True,
+        version="2.6",
+        data_page_version="1.0",
+        row_group_size=1 << 20,
+        store_schema=False,
+    )
+    yml_path.write_text(text)
     return pq_path, yml_path
+
+
+def _check_table(df: pd.DataFrame) -> None:
+    missing = [c for c in SCENARIO_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(
+            f"df: expected a scenarios table with columns {list(SCENARIO_COLUMNS)}, "
+            f"got {list(df.columns)} (missing {missing})"
+        )
+
+
+def write_scenarios(
+    df: pd.DataFrame,
+    out_dir: str | os.PathLike,
+    manifest: Mapping[str, Any] | None = None,
+    force: bool = False,
+) -> tuple[Path, Path]:
+    """Write ``artefacts.parquet`` and ``manifest.yaml`` as a whole new folder ``out_dir``.
+
+    The Parquet file is written with pinned options (zstd level 3, no dictionary, no pandas
+    or Arrow schema metadata, one row group per 2^20 rows), so the same table gives the
+    same bytes. The manifest holds the format, the are_stats version, the columns, the
+    generation settings (``df.attrs["generation"]``: seed, parameters summary, ...) and
+    every key of ``manifest`` (e.g. ``fit``: the fit file used). The folder is written
+    beside ``out_dir`` and put in its place as a whole (:func:`atomic_folder`): with
+    ``force`` an existing folder is replaced entirely (no file of an earlier run stays).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A scenarios table.
+    out_dir : str or PathLike
+        Output folder.
+    manifest : dict, optional
+        Extra manifest entries (they win over the generated ones).
+    force : bool
+        Replace an existing folder.
+
+    Returns
+    -------
+    (Path, Path)
+        The Parquet and YAML paths.
+
+    Raises
+    ------
+    OutputExistsError
+        If the folder exists (and is not empty) and ``force`` is false (nothing is written
+        then).
+    """
+    _check_table(df)
+    out = Path(out_dir)
+    with atomic_folder(out, force=force) as tmp:
+        _write_files(df, tmp, manifest)
+    return out / "artefacts.parquet", out / "manifest.yaml"
 
 
 def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
