@@ -395,8 +395,8 @@ def _grid(path: str) -> Any:
 
 
 def _task_cost(sections: Mapping[str, Mapping[str, Any]], grid: Any) -> tuple[float, float, float]:
-    """``(bytes, steps, artefacts)`` of one task, from its expected artefact and event
-    counts."""
+    """``(bytes, steps, description)`` of one task, from its expected artefact, event,
+    motion-step and camera-ray counts."""
     sc, ms, rb = sections["scenario"], sections["mission"], sections["robot"]
     lam_nu = sc["arrival_rate"] * grid.n_free * grid.resolution**2
     mu, horizon = sc["leave_rate"], ms["time_limit"]
@@ -424,7 +424,10 @@ def _task_cost(sections: Mapping[str, Mapping[str, Any]], grid: Any) -> tuple[fl
         + n_motion * _STEPS_PER_MOTION
         + n_checks * rays * _STEPS_PER_RAY
     )
-    return n_bytes, steps, n_art
+    what = f"about {n_art:.3g} artefacts, {n_motion:.3g} motion steps, {cells:.3g} map cells"
+    if camera:
+        what += f", {n_checks * rays:.3g} camera rays"
+    return n_bytes, steps, what
 
 
 def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
@@ -453,11 +456,9 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
                 f"'all', or 'camera' with the map's mesh {path.with_suffix('.ply')}",
                 _Text("'camera' and no such mesh"),
             )  # fmt: skip
-        n_bytes, steps, n_art = _task_cost(sections, grid)
+        n_bytes, steps, what = _task_cost(sections, grid)
         if n_bytes > worst_bytes:
-            worst_bytes = n_bytes
-            worst = f"{where}: " if where else ""
-            worst += f"about {n_art:.3g} artefacts on {grid.data.size} map cells"
+            worst_bytes, worst = n_bytes, (f"{where}: " if where else "") + what
         total += steps * cfg["replicates"]
     what = f"one task ({worst})"
     if concurrent > 1:
@@ -670,11 +671,14 @@ def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, Any]:
     """Keyword arguments of the local Dask cluster: the scheduler and workers (processes)
     and the dashboard all listen on ``host`` (loopback by default), never on every
     interface; thread workers talk in-process and listen on no network interface."""
+    address = f"[{host}]:0" if ":" in host else f"{host}:0"
     kwargs: dict[str, Any] = {
         "n_workers": int(workers),
         "threads_per_worker": 1,
         "processes": processes,
-        "dashboard_address": f"[{host}]:0" if ":" in host else f"{host}:0",
+        "dashboard_address": address,
+        # workers serve /metrics and /health too; left alone they bind every interface
+        "worker_dashboard_address": address,
     }
     if processes:
         kwargs["host"] = host
