@@ -12,8 +12,11 @@ import pytest
 from scipy import stats
 
 from are_stats._atomic import OutputExistsError
+from are_stats.inputs import LimitError, limits
 from are_stats.scenarios import (
     SCENARIO_COLUMNS,
+    atomic_folder,
+    expected_artefacts,
     generate_scenarios,
     posterior_draws,
     read_scenarios,
@@ -156,12 +159,65 @@ def test_same_seed_same_bytes(tmp_path):
     assert meta["generation"]["seed"] == 123 and "version" in meta
 
 
-def test_refuses_overwrite(tmp_path):
+def test_refuses_overwrite_and_replaces_the_folder_as_a_whole(tmp_path):
     df = generate_scenarios(1, params(), 5, 100.0, area=AREA)
-    write_scenarios(df, tmp_path, {})
-    with pytest.raises(OutputExistsError, match=r"artefacts\.parquet: already exists"):
-        write_scenarios(df, tmp_path, {})
-    write_scenarios(df, tmp_path, {}, force=True)
+    out = tmp_path / "sc"
+    write_scenarios(df, out, {})
+    (out / "perceived.parquet").write_text("from an earlier run")
+    before = sorted(p.name for p in out.iterdir())
+    with pytest.raises(OutputExistsError, match=r"sc: already exists; pass --force"):
+        write_scenarios(df, out, {})
+    assert sorted(p.name for p in out.iterdir()) == before  # nothing touched
+    write_scenarios(generate_scenarios(2, params(), 5, 100.0, area=AREA), out, {}, force=True)
+    # replaced as a whole: no file of the earlier run stays, no temporary folder is left
+    assert sorted(p.name for p in out.iterdir()) == ["artefacts.parquet", "manifest.yaml"]
+    assert [p.name for p in tmp_path.iterdir()] == ["sc"]
+    assert read_scenarios(out)[1]["generation"]["seed"] == 2
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    write_scenarios(df, empty, {})  # an empty folder is not an earlier output
+
+
+def test_interrupted_folder_write_keeps_the_old_folder(tmp_path):
+    out = tmp_path / "sc"
+    write_scenarios(generate_scenarios(7, params(), 5, 100.0, area=AREA), out, {})
+    old = {p.name: p.read_bytes() for p in out.iterdir()}
+    with pytest.raises(RuntimeError, match="killed"):
+        with atomic_folder(out, force=True) as tmp:
+            (tmp / "artefacts.parquet").write_text("half of seed 8")
+            raise RuntimeError("killed between two files")
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == old
+    assert [p.name for p in tmp_path.iterdir()] == ["sc"]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"n_scenarios": 0}, r"n_scenarios: expected an integer >= 1, got 0"),
+        ({"n_scenarios": True}, r"n_scenarios: expected an integer >= 1, got True \(a bool\)"),
+        ({"n_scenarios": 2.5}, r"n_scenarios: expected an integer >= 1, got 2\.5"),
+        ({"horizon": float("nan")}, r"horizon: expected a finite number > 0, got nan"),
+        ({"horizon": float("inf")}, r"horizon: expected a finite number > 0"),
+        ({"horizon": 0.0}, r"horizon: expected a finite number > 0, got 0\.0"),
+    ],
+)
+def test_bad_sizes_are_named(kwargs, match):
+    args = {"n_scenarios": 3, "horizon": 100.0} | kwargs
+    with pytest.raises(ValueError, match=match):
+        generate_scenarios(0, params(), area=AREA, **args)
+
+
+def test_refuses_tables_past_the_limits_before_drawing():
+    # 1e12 s at 12 artefacts per 10 min: about 2e10 artefacts, terabytes
+    with pytest.raises(LimitError, match=r"n_scenarios, horizon: expected about 2e\+10 artefacts"):
+        generate_scenarios(0, params(), 1, 1e12, area=AREA)
+    with pytest.raises(LimitError, match=r"expected 1000000000000 scenarios to fit in the memo"):
+        generate_scenarios(0, params(), 10**12, 1.0, area=AREA)
+    assert expected_artefacts(params(), 10, 3600.0, AREA) == pytest.approx(10 * (12 + 72))
+    with limits(memory="1M"):  # the limit can be lowered (and raised) by the user
+        with pytest.raises(LimitError, match=r"memory limit of 1\.0 MiB .*--max-memory"):
+            generate_scenarios(0, params(), 100, 3600.0, area=AREA)
+    assert len(generate_scenarios(0, params(), 2, 60.0, area=AREA)) > 0
 
 
 def test_jax_key_is_deterministic():
@@ -217,7 +273,7 @@ ERROR_CASES = [
         r"params\['mix_weights'\], params\['mix_rates'\]: expected shapes \(1, K\)",
     ),
     (dict(n_scenarios=0), r"n_scenarios: expected an integer >= 1"),
-    (dict(horizon=0.0), r"horizon: expected finite numbers > 0"),
+    (dict(horizon=0.0), r"horizon: expected a finite number > 0"),
     (dict(start="full"), r"start: expected one of 'stationary', 'empty'"),
     (dict(area=None), r"area: expected the free area"),
     (dict(free_mask=np.zeros((3, 3), bool), area=None), r"free_mask: expected at least one free"),
