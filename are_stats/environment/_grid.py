@@ -16,20 +16,57 @@ from __future__ import annotations
 
 import math
 import os
+import struct
+import threading
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from are_stats._atomic import atomic_path, check_writable
-from are_stats._checks import check_finite, check_in, check_positive, describe
+from are_stats._checks import check_finite, check_in, describe
+from are_stats.inputs import (
+    InputError,
+    _Text,
+    check_keys,
+    check_memory,
+    get_float,
+    get_int,
+    get_list,
+    get_str,
+    load_yaml,
+)
 
-__all__ = ["OccupancyGrid", "FREE", "OCCUPIED", "UNKNOWN"]
+__all__ = [
+    "OccupancyGrid",
+    "FREE",
+    "OCCUPIED",
+    "UNKNOWN",
+    "MIN_RESOLUTION",
+    "MAX_RESOLUTION",
+    "MAX_ORIGIN",
+]
 
 FREE = 0
 OCCUPIED = 100
 UNKNOWN = -1
 _MODES = ("trinary", "scale", "raw")
+#: Smallest and largest map resolution accepted (metres per cell).
+MIN_RESOLUTION = 1e-6
+MAX_RESOLUTION = 1e4
+#: Largest ``|x|``, ``|y|`` of a map origin accepted (metres).
+MAX_ORIGIN = 1e7
+_MAP_KEYS = (
+    "image",
+    "resolution",
+    "origin",
+    "negate",
+    "occupied_thresh",
+    "free_thresh",
+    "mode",
+    "width",
+    "height",
+)
 
 
 def _read_table(mode: str, negate: bool, occ_th: float, free_th: float) -> np.ndarray:
@@ -105,11 +142,12 @@ class OccupancyGrid:
                 f"data: expected integers in -1..100 (mode {mode!r}), got {describe(a)}"
             )
         self.data = np.round(a).astype(np.int64).astype(np.int8)
-        self.resolution = float(check_positive("resolution", resolution))
-        o = check_finite("origin", origin, ndim=1)
-        if o.shape != (3,):
-            raise ValueError(f"origin: expected [x, y, yaw], got {describe(origin)}")
-        self.origin = (float(o[0]), float(o[1]), float(o[2]))
+        o = np.asarray(origin).tolist() if isinstance(origin, np.ndarray) else origin
+        self.resolution, self.origin = _check_geometry(
+            resolution.item() if isinstance(resolution, np.ndarray) else resolution,
+            o,
+            "OccupancyGrid",
+        )
         self.mode = check_in("mode", mode, _MODES)
         self.negate = bool(negate)
         _check_thresholds(occupied_thresh, free_thresh, "OccupancyGrid")
@@ -299,8 +337,12 @@ class OccupancyGrid:
         Parameters
         ----------
         path : str or PathLike
-            The map YAML (fields ``image``, ``resolution``, ``origin``, ``negate``,
-            ``occupied_thresh``, ``free_thresh``, optional ``mode``).
+            The map YAML: ``image``, ``resolution`` and ``origin`` required; ``negate``
+            (0/1), ``occupied_thresh``, ``free_thresh``, ``mode`` and the (checked)
+            ``width``/``height`` optional; any other key is an error. Numbers must be
+            numbers (no booleans or strings); ``resolution`` lies in
+            ``[MIN_RESOLUTION, MAX_RESOLUTION]`` metres, the origin's ``x, y`` within
+            ``MAX_ORIGIN`` metres of zero and its yaw within ``[-2 pi, 2 pi]``.
 
         Returns
         -------
@@ -309,53 +351,42 @@ class OccupancyGrid:
         Raises
         ------
         FileNotFoundError
-            If the YAML or its image does not exist.
-        ValueError
-            If a field is missing or malformed, or the image cannot be decoded.
+            If the YAML does not exist.
+        are_stats.inputs.InputError
+            (a ``ValueError``) if a field is missing, unknown or malformed, the image is
+            missing or cannot be decoded, or it is larger than the memory limit allows
+            (:class:`are_stats.inputs.LimitError`, checked from its header before any
+            pixel is read).
         """
-        import yaml
-
         p = Path(path)
-        if not p.is_file():
-            raise FileNotFoundError(f"{p}: map YAML not found")
-        try:
-            meta = yaml.safe_load(p.read_text())
-        except yaml.YAMLError as err:
-            raise ValueError(f"{p}: not valid YAML ({err})") from err
-        if not isinstance(meta, dict):
-            raise ValueError(f"{p}: expected a mapping of map fields, got {type(meta).__name__}")
-        for key in ("image", "resolution", "origin"):
-            if key not in meta:
-                raise ValueError(f"{p}: missing field {key!r}")
-        res = _field(p, "resolution", meta["resolution"])
-        if not res > 0:
-            raise ValueError(f"{p}: field 'resolution': expected a number > 0, got {res!r}")
-        origin = meta["origin"]
-        if not isinstance(origin, list | tuple) or len(origin) != 3:
-            raise ValueError(f"{p}: field 'origin': expected [x, y, yaw], got {origin!r}")
-        origin = [_field(p, "origin", v) for v in origin]
+        meta = check_keys(
+            load_yaml(p, "ROS map YAML"), p, "", _MAP_KEYS, ("image", "resolution", "origin")
+        )
+        image = get_str(meta["image"], p, "image")
+        if not image.strip():
+            raise InputError(p, "image", "an image file name", image)
+        res, origin = _check_geometry(meta["resolution"], meta["origin"], p)
         negate = meta.get("negate", 0)
-        if negate not in (0, 1, True, False):
-            raise ValueError(f"{p}: field 'negate': expected 0 or 1, got {negate!r}")
-        occ_th = _field(p, "occupied_thresh", meta.get("occupied_thresh", 0.65))
-        free_th = _field(p, "free_thresh", meta.get("free_thresh", 0.196))
+        if not (isinstance(negate, bool) or (type(negate) is int and negate in (0, 1))):
+            raise InputError(p, "negate", "0 or 1", negate)
+        occ_th = get_float(meta.get("occupied_thresh", 0.65), p, "occupied_thresh", lo=0, hi=1)
+        free_th = get_float(meta.get("free_thresh", 0.196), p, "free_thresh", lo=0, hi=1)
         _check_thresholds(occ_th, free_th, str(p))
-        mode = meta.get("mode", "trinary")
-        if mode not in _MODES:
-            raise ValueError(f"{p}: field 'mode': expected one of {_MODES}, got {mode!r}")
-        img_path = Path(str(meta["image"]))
+        mode = get_str(meta.get("mode", "trinary"), p, "mode", choices=_MODES)
+        sizes = {k: get_int(meta[k], p, k, lo=1) for k in ("width", "height") if k in meta}
+        img_path = Path(image)
         if not img_path.is_absolute():
             img_path = p.parent / img_path
-        data = _read_image(img_path, mode, bool(negate), occ_th, free_th)
+        data = _read_image(img_path, mode, bool(negate), occ_th, free_th, p)
         for key, n in (("width", data.shape[1]), ("height", data.shape[0])):
-            if key in meta and _field(p, key, meta[key]) != n:
-                raise ValueError(
-                    f"{p}: field {key!r} says {meta[key]!r} but image {img_path.name} has {n}"
+            if key in sizes and sizes[key] != n:
+                raise InputError(
+                    p, key, f"the image's {key} ({n} pixels of {img_path.name})", sizes[key]
                 )
         grid = cls.__new__(cls)
         grid.data = data
         grid.resolution = res
-        grid.origin = (origin[0], origin[1], origin[2])
+        grid.origin = origin
         grid.negate = bool(negate)
         grid.occupied_thresh = occ_th
         grid.free_thresh = free_th
@@ -457,14 +488,16 @@ class OccupancyGrid:
         return pixels, alpha
 
 
-def _field(path: Path, name: str, value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{path}: field {name!r}: expected a number, got {value!r}") from err
-    if not math.isfinite(v):
-        raise ValueError(f"{path}: field {name!r}: expected a finite number, got {value!r}")
-    return v
+def _check_geometry(resolution: Any, origin: Any, source: Any) -> tuple[float, tuple]:
+    """Resolution and origin of a map, checked strictly (see :meth:`from_ros_yaml`)."""
+    res = get_float(resolution, source, "resolution", lo=MIN_RESOLUTION, hi=MAX_RESOLUTION)
+    o = get_list(origin, source, "origin", min_len=3, max_len=3)
+    x, y = (
+        get_float(v, source, f"origin[{k}]", lo=-MAX_ORIGIN, hi=MAX_ORIGIN)
+        for k, v in enumerate(o[:2])
+    )
+    yaw = get_float(o[2], source, "origin[2] (yaw)", lo=-2 * math.pi, hi=2 * math.pi)
+    return res, (x, y, yaw)
 
 
 def _check_thresholds(occ_th: float, free_th: float, where: str) -> None:
@@ -475,26 +508,82 @@ def _check_thresholds(occ_th: float, free_th: float, where: str) -> None:
         )
 
 
-def _read_image(path: Path, mode: str, negate: bool, occ_th: float, free_th: float) -> np.ndarray:
+_IMAGE_LOCK = threading.Lock()
+# Pillow modes decoded as map_server does; 16-bit and float images are refused (Pillow
+# would clip them to 8 bits and turn every grey above 255 white, i.e. free).
+_IMAGE_MODES = ("1", "L", "LA", "La", "P", "PA", "RGB", "RGBA", "RGBa", "RGBX", "CMYK", "YCbCr")
+# Bytes per pixel while decoding: the float copy of up to 4 channels, the mean, the alpha,
+# the occupancy and ratio arrays and the int8 result.
+_BYTES_PER_PIXEL = 8 * 4 + 8 * 5 + 2
+
+
+def _open_image(path: Path, source: Path) -> Any:
+    """Open the image lazily (header only), without Pillow's decompression-bomb refusal:
+    the size is checked against :func:`are_stats.inputs.memory_limit` instead."""
     from PIL import Image, UnidentifiedImageError
 
+    with _IMAGE_LOCK:
+        old = Image.MAX_IMAGE_PIXELS
+        Image.MAX_IMAGE_PIXELS = None
+        try:
+            return Image.open(path)
+        except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError) as err:
+            raise InputError(
+                source, "image", "a PGM or PNG image", _Text(f"{path}: {err or type(err).__name__}")
+            ) from None
+        finally:
+            Image.MAX_IMAGE_PIXELS = old
+
+
+def _read_image(
+    path: Path,
+    mode: str,
+    negate: bool,
+    occ_th: float,
+    free_th: float,
+    source: Path | None = None,
+) -> np.ndarray:
+    src = path if source is None else source
+    if not path.exists():
+        raise InputError(src, "image", "an existing image file", _Text(f"{path}: no such file"))
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: map image not found")
+        raise InputError(src, "image", "an image file", _Text(f"{path}: not a file"))
+    im = _open_image(path, src)
     try:
-        with Image.open(path) as im:
+        width, height = im.size
+        if width <= 0 or height <= 0:
+            raise InputError(src, "image", "a non-empty image", _Text(f"{width} x {height}"))
+        if im.mode not in _IMAGE_MODES:
+            raise InputError(
+                src,
+                "image",
+                "an 8-bit greyscale or colour image (as map_server reads)",
+                _Text(f"{path.name} in Pillow mode {im.mode!r}"),
+            )
+        check_memory(
+            float(width) * float(height) * _BYTES_PER_PIXEL,
+            f"the {width} x {height} map image {path.name}",
+            src,
+        )
+        try:
             im.load()
             if im.mode == "P":
                 im = im.convert("RGBA" if "transparency" in im.info else "RGB")
             elif im.mode not in ("L", "LA", "RGB", "RGBA"):
-                im = im.convert("L")
+                im = im.convert("RGBA" if "A" in im.mode or "a" in im.mode else "L")
             has_alpha = im.mode in ("LA", "RGBA")
             arr = np.asarray(im, dtype=float)
-    except (UnidentifiedImageError, OSError) as err:
-        raise ValueError(f"{path}: cannot decode the map image ({err})") from err
+        except (OSError, ValueError, SyntaxError, EOFError, struct.error) as err:
+            raise InputError(
+                src,
+                "image",
+                "a decodable PGM or PNG image",
+                _Text(f"{path}: {err or type(err).__name__}"),
+            ) from None
+    finally:
+        im.close()
     if arr.ndim == 2:
         arr = arr[..., None]
-    if arr.shape[0] == 0 or arr.shape[1] == 0:
-        raise ValueError(f"{path}: map image is empty (shape {arr.shape[:2]})")
     n_ch = arr.shape[-1]
     if mode == "trinary" or not has_alpha:
         avg = arr.mean(axis=-1)

@@ -8,6 +8,7 @@ import yaml
 from PIL import Image
 
 from are_stats import OccupancyGrid
+from are_stats.inputs import InputError, LimitError, limits
 from tests.helpers import assert_allclose
 
 # image rows top to bottom (image row 0 is the top of the map)
@@ -156,30 +157,100 @@ def test_inflation_against_brute_force(rng):
 def test_malformed_maps(tmp_path):
     y = _write(tmp_path, PIX)
     (tmp_path / "m.pgm").unlink()
-    with pytest.raises(FileNotFoundError, match="map image not found"):
+    with pytest.raises(InputError, match=r"m\.yaml: image: expected an existing image file"):
         OccupancyGrid.from_ros_yaml(y)
-    with pytest.raises(FileNotFoundError, match="map YAML not found"):
+    with pytest.raises(FileNotFoundError, match="no such file"):
         OccupancyGrid.from_ros_yaml(tmp_path / "nothing.yaml")
     with pytest.raises(ValueError, match="free_thresh < occupied_thresh"):
         OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="t", free_thresh=0.7))
-    with pytest.raises(ValueError, match="'resolution'"):
+    with pytest.raises(InputError, match="r.yaml: resolution: expected a finite number >= 1e-06"):
         OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="r", resolution=-1))
-    with pytest.raises(ValueError, match="'origin'"):
+    with pytest.raises(InputError, match="o.yaml: origin: expected a list of 3 values"):
         OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="o", origin=[1, 2]))
-    with pytest.raises(ValueError, match="'mode'"):
+    with pytest.raises(InputError, match="d.yaml: mode: expected one of 'trinary'"):
         OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="d", mode="bogus"))
-    with pytest.raises(ValueError, match="'width' says 7"):
+    with pytest.raises(InputError, match=r"w.yaml: width: expected the image's width \(3 pixels"):
         OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, name="w", width=7))
     bad = tmp_path / "g.yaml"
     bad.write_text(yaml.safe_dump({"image": "junk.pgm", "resolution": 0.1, "origin": [0, 0, 0]}))
     (tmp_path / "junk.pgm").write_bytes(b"not an image at all")
-    with pytest.raises(ValueError, match="cannot decode"):
+    with pytest.raises(InputError, match="g.yaml: image: expected a PGM or PNG image"):
         OccupancyGrid.from_ros_yaml(bad)
     miss = tmp_path / "f.yaml"
     miss.write_text(yaml.safe_dump({"resolution": 0.1, "origin": [0, 0, 0]}))
-    with pytest.raises(ValueError, match="missing field 'image'"):
+    with pytest.raises(InputError, match="f.yaml: image: expected this key to be present"):
         OccupancyGrid.from_ros_yaml(miss)
     with pytest.raises(ValueError, match="data"):
         OccupancyGrid(np.array([[0, 101]]), 0.1)
     with pytest.raises(ValueError, match="resolution"):
         OccupancyGrid(np.zeros((2, 2)), 0.0)
+    with pytest.raises(ValueError, match="resolution"):
+        OccupancyGrid(np.zeros((2, 2)), 1e200)
+    with pytest.raises(ValueError, match="origin"):
+        OccupancyGrid(np.zeros((2, 2)), 0.1, (True, 0.0, 0.0))
+
+
+_OK_META = "image: m.pgm\nresolution: 0.1\norigin: [0.0, 0.0, 0.0]\n"
+_BOMB = (
+    "image: m.pgm\nresolution: 0.1\norigin: [0.0, 0.0, 0.0]\n"
+    "x: &a [a, a, a, a, a, a, a, a, a, a]\n"
+    + "".join(f"x{k}: &{chr(98 + k)} [{', '.join([f'*{chr(97 + k)}'] * 10)}]\n" for k in range(6))
+)
+
+
+@pytest.mark.parametrize(
+    ("meta", "image", "match"),
+    [
+        # a 100000 x 100000 PGM header: refused from its header, before any pixel is read
+        (
+            _OK_META,
+            b"P5\n100000 100000\n255\n" + bytes(64),
+            r"m\.yaml: expected the 100000 x "
+            r"100000 map image m\.pgm to fit in the memory limit",
+        ),
+        (_OK_META.replace("0.1", "1e200"), None, r"resolution: expected a finite number .*1e\+200"),
+        (_OK_META.replace("0.1", "true"), None, r"resolution: expected .*True \(a bool\)"),
+        (_OK_META.replace("0.1", "'0.1'"), None, r"resolution: expected .*'0\.1' \(a string\)"),
+        (_OK_META.replace("[0.0, 0.0", "[true, 0.0"), None, r"origin\[0\]: expected .*True"),
+        (_OK_META.replace("0.0]", "1e9]"), None, r"origin\[2\] \(yaw\): expected"),
+        (_OK_META.replace("[0.0, 0.0", "[1e308, 0.0"), None, r"origin\[0\]: expected"),
+        (_OK_META + "resolutoin: 2\n", None, r"resolutoin: expected one of the known keys image,"),
+        (_OK_META + "negate: 2\n", None, r"negate: expected 0 or 1, got 2"),
+        (_OK_META + "negate: 1.0\n", None, r"negate: expected 0 or 1, got 1\.0"),
+        (_OK_META + "width: true\n", None, r"width: expected an integer >= 1, got True"),
+        (_OK_META + "occupied_thresh: .nan\n", None, r"occupied_thresh: expected a finite"),
+        (_OK_META + "resolution: 0.2\n", None, r"line 4: expected each key once"),
+        (_BOMB, None, r"expected YAML that expands to at most"),
+        ("- 1\n- 2\n", None, r"expected a mapping of image, resolution"),
+        ("", None, r"expected a mapping of image, resolution"),
+        ("image: [\n", None, r"expected a ROS map YAML in valid YAML"),
+        (_OK_META.replace("m.pgm", "[1]"), None, r"image: expected a string, got a list"),
+        (_OK_META.replace("m.pgm", "."), None, r"image: expected an image file, got .*not a file"),
+        (_OK_META, b"garbage", r"image: expected a PGM or PNG image"),
+        (_OK_META, b"P5\n20 20\n255\n" + bytes(10), r"image: expected a decodable PGM"),
+        (_OK_META, b"P5\n2 2\n65535\n" + bytes(8), r"image: expected an 8-bit greyscale"),
+    ],
+)
+def test_bad_map_inputs_name_file_and_key(tmp_path, meta, image, match):
+    (tmp_path / "m.pgm").write_bytes(image or b"P5\n2 2\n255\n" + bytes(4))
+    y = tmp_path / "m.yaml"
+    y.write_text(meta)
+    with pytest.raises(InputError, match=match):
+        OccupancyGrid.from_ros_yaml(y)
+
+
+def test_map_yaml_that_is_a_directory_or_not_utf8(tmp_path):
+    with pytest.raises(InputError, match="expected a ROS map YAML, got a directory"):
+        OccupancyGrid.from_ros_yaml(tmp_path)
+    y = tmp_path / "m.yaml"
+    y.write_bytes(b"image: \xff\xfe\n")
+    with pytest.raises(InputError, match="m.yaml: byte 7: expected a ROS map YAML in UTF-8"):
+        OccupancyGrid.from_ros_yaml(y)
+
+
+def test_map_memory_limit_can_be_raised(tmp_path):
+    y = _write(tmp_path, np.zeros((40, 50), np.uint8))
+    with limits(memory="10K"), pytest.raises(LimitError, match="40 map image"):
+        OccupancyGrid.from_ros_yaml(y)
+    with limits(memory="1M"):
+        assert OccupancyGrid.from_ros_yaml(y).shape == (40, 50)
