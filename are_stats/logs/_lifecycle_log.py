@@ -266,8 +266,8 @@ def _window(source: Any, where: str, value: Any, scale: float) -> tuple[float, f
     if isinstance(value, np.ndarray):
         value = value.tolist()
     pair = get_list(value, source, where, min_len=2, max_len=2)
-    t0 = get_float(pair[0], source, f"{where}[0]")
-    t1 = get_float(pair[1], source, f"{where}[1]")
+    t0 = get_float(pair[0], source, f"{where}[0]" if where else "t0")
+    t1 = get_float(pair[1], source, f"{where}[1]" if where else "t1")
     if not t1 > t0:
         raise InputError(
             source,

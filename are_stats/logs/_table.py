@@ -21,6 +21,7 @@ import csv
 import io
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +39,7 @@ __all__ = [
     "table_error",
 ]
 
+_INT_TEXT = re.compile(r"^[+-]?[0-9]+$")
 _NAN_WORDS = frozenset({"nan", "+nan", "-nan", "na", "n/a", "null", "none", "<na>"})
 #: Longest CSV field accepted (characters): Python's ``csv`` default of 128 KiB.
 MAX_FIELD_CHARS = csv.field_size_limit()
@@ -146,11 +148,7 @@ class RawTable:
             return self.strings[column].astype(object)
         vals, null = self.numbers[column]
         return np.array(
-            [
-                "" if n else (str(int(v)) if v == np.round(v) else repr(float(v)))
-                for v, n in zip(vals, null, strict=True)
-            ],
-            dtype=object,
+            ["" if n else _num(v) for v, n in zip(vals, null, strict=True)], dtype=object
         )
 
     def floats(self, column: str, *, allow_empty: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -204,6 +202,16 @@ class RawTable:
         like ``1e30`` is an error, never a wrapped-around integer.
         """
         vals, empty = self.floats(column, allow_empty=allow_empty)
+        if column in self.strings:
+            # integer text near or above 2**53 is compared exactly, not through float64
+            # (9007199254740993 parses to the float 2**53)
+            s = self.strings[column]
+            for i in np.flatnonzero(~empty & (np.abs(vals) >= 2.0**52)):
+                text = s[i].replace("_", "")
+                if _INT_TEXT.match(text) and int(text) > hi:
+                    raise self.error(
+                        i, column, f"a non-negative integer <= {hi}", f"{_short(s[i])} (too large)"
+                    )
         neg = (vals < 0) & ~empty
         if neg.any():
             i = int(np.argmax(neg))
@@ -264,8 +272,9 @@ def _is_missing(x: object) -> bool:
 
 
 def _num(v: float) -> str:
+    """``3.0 -> '3'``, ``2.5 -> '2.5'``, ``inf -> 'inf'``, ``1e30 -> '1e+30'``."""
     v = float(v)
-    return repr(int(v)) if v == round(v) and abs(v) < 1e16 else repr(v)
+    return repr(int(v)) if math.isfinite(v) and v == round(v) and abs(v) < 1e16 else repr(v)
 
 
 def _short(text: str, limit: int = 60) -> str:
