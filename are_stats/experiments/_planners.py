@@ -32,6 +32,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from are_stats._checks import check_finite, check_in, check_positive, describe
+from are_stats.inputs import get_bool, get_float, get_int, get_str
 
 __all__ = [
     "OMPL_ALGORITHMS",
@@ -252,14 +253,14 @@ class OMPLPlanner:
     goal_bias : float, optional
         Probability of sampling the goal, in [0, 1].
     time_limit : float
-        Planning time budget (s).
+        Planning time budget (s), in ``(0, 3600]``.
     max_iterations : int, optional
         Budget of termination-condition checks.
     simplify : bool
         Shortcut and smooth the solution with OMPL's path simplifier (its time counts in
         ``rho_t``).
     motion_resolution : float
-        Motion-check step, in cells.
+        Motion-check step, in cells, in ``[0.01, 1000]``.
 
     Examples
     --------
@@ -282,31 +283,30 @@ class OMPLPlanner:
         simplify: bool = True,
         motion_resolution: float = 0.25,
     ) -> None:
-        self.algorithm = check_in("algorithm", algorithm, OMPL_ALGORITHMS)
+        src = "planner"
+        self.algorithm = get_str(algorithm, src, "algorithm", choices=OMPL_ALGORITHMS)
         if range is not None:
-            range = float(check_positive("range", range))
+            range = get_float(range, src, "range", lo=0.0, lo_open=True)
             if self.algorithm == "PRM":
                 raise ValueError("range: OMPL's PRM has no range parameter (use RRT*, RRT...)")
         if goal_bias is not None:
-            goal_bias = float(check_finite("goal_bias", goal_bias, ndim=0))
-            if not 0.0 <= goal_bias <= 1.0:
-                raise ValueError(f"goal_bias: expected a probability in [0, 1], got {goal_bias}")
+            goal_bias = get_float(goal_bias, src, "goal_bias", lo=0.0, hi=1.0)
             if self.algorithm in ("RRTConnect", "PRM"):
                 raise ValueError(f"goal_bias: OMPL's {self.algorithm} has no goal bias")
         self.range = range
         self.goal_bias = goal_bias
-        self.time_limit = float(check_positive("time_limit", time_limit))
-        if max_iterations is not None and (
-            isinstance(max_iterations, bool)
-            or int(max_iterations) != max_iterations
-            or max_iterations < 1
-        ):
-            raise ValueError(f"max_iterations: expected an integer >= 1, got {max_iterations!r}")
-        self.max_iterations = None if max_iterations is None else int(max_iterations)
+        self.time_limit = get_float(time_limit, src, "time_limit", lo=0.0, lo_open=True, hi=3600.0)
+        self.max_iterations = (
+            None if max_iterations is None
+            else get_int(max_iterations, src, "max_iterations", lo=1, hi=2**62)
+        )  # fmt: skip
         if self.max_iterations is not None and self.algorithm == "PRM":
             raise ValueError("max_iterations: OMPL's PRM runs on a time budget only")
-        self.simplify = bool(simplify)
-        self.motion_resolution = float(check_positive("motion_resolution", motion_resolution))
+        self.simplify = get_bool(simplify, src, "simplify")
+        # finer than 1/100 cell, a motion check could take longer than any time budget
+        self.motion_resolution = get_float(
+            motion_resolution, src, "motion_resolution", lo=0.01, hi=1000.0
+        )
 
     @property
     def name(self) -> str:

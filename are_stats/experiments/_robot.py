@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from are_stats._checks import check_finite, check_positive
+from are_stats._checks import check_finite
+from are_stats.inputs import InputError, get_float, get_int, get_list
 
 __all__ = ["Robot", "circle_box_overlap"]
 
@@ -36,7 +37,13 @@ class Robot:
     camera_fov : float
         Horizontal field of view (rad).
     image_size : (2,) int
-        Image ``(width, height)`` in pixels.
+        Image ``(width, height)`` in pixels, each in ``[1, 10000]``.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        (a ``ValueError``) on a bad field: bools, strings or non-finite values as numbers,
+        non-integral image sizes.
 
     Examples
     --------
@@ -53,21 +60,21 @@ class Robot:
     image_size: tuple[int, int] = field(default=(64, 48))
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "radius", float(check_positive("radius", self.radius)))
-        object.__setattr__(self, "speed", float(check_positive("speed", self.speed)))
-        fov = float(check_positive("camera_fov", self.camera_fov))
-        if fov >= np.pi:
-            raise ValueError(f"camera_fov: expected a field of view in (0, pi) rad, got {fov}")
+        src = "Robot"
+        pos = {"lo": 0.0, "lo_open": True}
+        object.__setattr__(self, "radius", get_float(self.radius, src, "radius", **pos))
+        object.__setattr__(self, "speed", get_float(self.speed, src, "speed", **pos))
+        fov = get_float(self.camera_fov, src, "camera_fov", hi=float(np.pi), hi_open=True, **pos)
         object.__setattr__(self, "camera_fov", fov)
         for name in ("camera_xyz", "camera_rpy"):
-            v = check_finite(name, getattr(self, name), ndim=1)
-            if v.shape != (3,):
-                raise ValueError(f"{name}: expected 3 numbers, got {v.tolist()}")
-            object.__setattr__(self, name, tuple(float(x) for x in v))
-        size = np.asarray(self.image_size)
-        if size.shape != (2,) or (size < 1).any() or (size != np.round(size)).any():
-            raise ValueError(f"image_size: expected (width, height) >= 1, got {self.image_size}")
-        object.__setattr__(self, "image_size", (int(size[0]), int(size[1])))
+            v = _items(getattr(self, name), src, name, 3)
+            object.__setattr__(self, name, tuple(get_float(x, src, f"{name}[{i}]")
+                                                 for i, x in enumerate(v)))  # fmt: skip
+        size = _items(self.image_size, src, "image_size", 2)
+        object.__setattr__(
+            self, "image_size",
+            tuple(get_int(x, src, f"image_size[{i}]", lo=1, hi=10_000) for i, x in enumerate(size)),
+        )  # fmt: skip
 
     def frames(self, pose: Any = (0.0, 0.0, 0.0)) -> Any:
         """A :class:`~are_stats.environment.TransformTree` ``F_E -> F_R -> F_C`` at ``pose``."""
@@ -90,6 +97,15 @@ class Robot:
         f = (w / 2.0) / np.tan(self.camera_fov / 2.0)
         T = self.frames(pose).lookup("F_E", "F_C")
         return PinholeCamera(f, f, w / 2.0, h / 2.0, w, h, T)
+
+
+def _items(value: Any, source: str, where: str, n: int) -> list:
+    """``n`` values of a list, tuple or 1-d array."""
+    if isinstance(value, np.ndarray):
+        if value.ndim != 1:
+            raise InputError(source, where, f"{n} numbers", value)
+        value = value.tolist()
+    return get_list(value, source, where, min_len=n, max_len=n)
 
 
 def circle_box_overlap(
