@@ -36,6 +36,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from are_stats.inputs import (
+    InputError,
+    _Text,
+    check_keys,
+    check_memory,
+    get_float,
+    get_int,
+    get_list,
+    get_str,
+    load_yaml,
+)
+
 if TYPE_CHECKING:
     import trimesh
 
@@ -50,6 +62,14 @@ __all__ = [
 
 #: Behaviours an artefact may be allowed (DECISIONS 7).
 BEHAVIOURS = ("walk", "run", "follow", "stop")
+
+#: Largest speed accepted in a catalogue (m/s).
+MAX_SPEED = 1000.0
+#: Largest box scale factor accepted in a catalogue's variants.
+MAX_SCALE = 1000.0
+#: Memory estimate of one row of Q (bytes), for the memory limit on ``variants.rows``.
+ROW_BYTES = 512
+_CLASS_KEYS = ("label", "mesh", "speeds", "behaviours", "features", "variants")
 
 #: The repository's ``models/`` folder (default courtyard map, mesh and catalogue).
 DEFAULT_MODELS = Path(__file__).resolve().parents[2] / "models"
@@ -250,80 +270,90 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
     Parameters
     ----------
     path : str or PathLike, optional
-        The catalogue YAML; default ``models/artefacts/catalogue.yaml``.
+        The catalogue YAML; default ``models/artefacts/catalogue.yaml``. Top-level keys
+        ``version`` (optional, 1) and ``classes``; class keys ``label``, ``mesh``,
+        ``speeds`` (``walk``, optional ``run``; m/s in ``(0, MAX_SPEED]``), ``behaviours``,
+        ``features`` (free-form mapping) and ``variants``; any other key is an error.
+        Numbers must be numbers (no booleans or strings).
 
     Raises
     ------
     FileNotFoundError
-        If the YAML or a mesh file is missing.
-    ValueError
-        If a field is missing or invalid (the message names the class and field), or a
-        mesh cannot be read.
+        If the YAML does not exist.
+    are_stats.inputs.InputError
+        (a ``ValueError``) if a field is missing, unknown or invalid (the message names the
+        file and the key path, e.g. ``classes[2].speeds.walk``), a mesh is missing or
+        cannot be read, or the ``variants`` ask for more rows than the memory limit allows
+        (:class:`are_stats.inputs.LimitError`, :data:`ROW_BYTES` bytes per row).
     """
-    import yaml
-
     from are_stats.environment._mesh import load_mesh
 
     p = Path(path) if path is not None else DEFAULT_MODELS / "artefacts" / "catalogue.yaml"
-    if not p.is_file():
-        raise FileNotFoundError(f"{p}: artefact catalogue not found")
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as err:
-        raise ValueError(f"{p}: not valid YAML ({err})") from err
-    if not isinstance(doc, dict) or not isinstance(doc.get("classes"), list):
-        raise ValueError(f"{p}: expected a mapping with a 'classes' list")
+    doc = check_keys(load_yaml(p, "catalogue YAML"), p, "", ("version", "classes"), ("classes",))
+    if "version" in doc and get_int(doc["version"], p, "version") != 1:
+        raise InputError(p, "version", "1", doc["version"])
+    entries = get_list(doc["classes"], p, "classes", min_len=1)
     out: list[ArtefactClass] = []
-    seen: set[str] = set()
-    for k, entry in enumerate(doc["classes"]):
-        where = f"{p}: classes[{k}]"
-        if not isinstance(entry, dict):
-            raise ValueError(f"{where}: expected a mapping, got {entry!r}")
-        label = entry.get("label")
-        if not isinstance(label, str) or not label:
-            raise ValueError(f"{where}: field 'label': expected a non-empty string, got {label!r}")
-        where = f"{p}: class {label!r}"
+    seen: dict[str, int] = {}
+    for k, raw in enumerate(entries):
+        where = f"classes[{k}]"
+        entry = check_keys(raw, p, where, _CLASS_KEYS, ("label", "mesh", "speeds", "behaviours"))
+        label = get_str(entry["label"], p, f"{where}.label")
+        if not label.strip():
+            raise InputError(p, f"{where}.label", "a non-empty label", label)
         if label in seen:
-            raise ValueError(f"{where}: duplicate label")
-        seen.add(label)
-        for key in ("mesh", "speeds", "behaviours"):
-            if key not in entry:
-                raise ValueError(f"{where}: missing field {key!r}")
-        speeds = entry["speeds"]
-        if not isinstance(speeds, dict) or "walk" not in speeds:
-            raise ValueError(f"{where}: field 'speeds': expected a mapping with 'walk' (m/s)")
-        sp: dict[str, float] = {}
-        for name, v in speeds.items():
-            try:
-                fv = float(v)
-            except (TypeError, ValueError):
-                fv = float("nan")
-            if not np.isfinite(fv) or fv <= 0:
-                raise ValueError(
-                    f"{where}: field 'speeds.{name}': expected a number > 0, got {v!r}"
-                )
-            sp[str(name)] = fv
-        if "run" in sp and sp["run"] < sp["walk"]:
-            raise ValueError(f"{where}: field 'speeds': expected run >= walk, got {sp}")
-        beh = entry["behaviours"]
-        if not isinstance(beh, list) or not beh or any(b not in BEHAVIOURS for b in beh):
-            raise ValueError(
-                f"{where}: field 'behaviours': expected a non-empty subset of {BEHAVIOURS}, "
-                f"got {beh!r}"
+            raise InputError(
+                p,
+                f"{where}.label",
+                "a label used once",
+                _Text(f"{label!r}, a duplicate label of classes[{seen[label]}]"),
             )
+        seen[label] = k
+        speeds = check_keys(entry["speeds"], p, f"{where}.speeds", ("walk", "run"), ("walk",))
+        sp = {
+            name: get_float(v, p, f"{where}.speeds.{name}", lo=0, lo_open=True, hi=MAX_SPEED)
+            for name, v in speeds.items()
+        }
+        if "run" in sp and sp["run"] < sp["walk"]:
+            raise InputError(
+                p, f"{where}.speeds.run", f"run >= walk ({sp['walk']:g} m/s)", speeds["run"]
+            )
+        beh = get_list(entry["behaviours"], p, f"{where}.behaviours", min_len=1)
+        for j, b in enumerate(beh):
+            get_str(b, p, f"{where}.behaviours[{j}]", choices=BEHAVIOURS)
+            if b in beh[:j]:
+                raise InputError(p, f"{where}.behaviours[{j}]", "each behaviour once", b)
         if "run" in beh and "run" not in sp:
-            raise ValueError(f"{where}: behaviour 'run' needs a 'run' speed")
-        feats = entry.get("features", {}) or {}
+            raise InputError(
+                p, f"{where}.speeds.run", "a 'run' speed (behaviour 'run' needs it)", _Text("none")
+            )
+        feats = entry.get("features") or {}
         if not isinstance(feats, dict):
-            raise ValueError(f"{where}: field 'features': expected a mapping, got {feats!r}")
-        variants = _variants(where, entry.get("variants"))
-        mesh_path = Path(str(entry["mesh"]))
+            raise InputError(p, f"{where}.features", "a mapping of features", feats)
+        variants = _variants(p, where, entry.get("variants"))
+        mesh_name = get_str(entry["mesh"], p, f"{where}.mesh")
+        mesh_path = Path(mesh_name)
         if not mesh_path.is_absolute():
             mesh_path = p.parent / mesh_path
-        mesh = load_mesh(mesh_path)
+        if not mesh_path.is_file():
+            raise InputError(
+                p,
+                f"{where}.mesh",
+                "an existing mesh file",
+                _Text(f"{mesh_path}: {'not a file' if mesh_path.exists() else 'no such file'}"),
+            )
+        try:
+            mesh = load_mesh(mesh_path)
+        except InputError as err:
+            raise InputError(p, f"{where}.mesh", "a readable mesh", _Text(str(err))) from None
         bounds = np.asarray(mesh.bounds, dtype=float)
         if not (bounds[1] > bounds[0]).all():
-            raise ValueError(f"{where}: mesh {mesh_path.name} has a degenerate bounding box")
+            raise InputError(
+                p,
+                f"{where}.mesh",
+                "a mesh with a non-degenerate bounding box",
+                _Text(f"{mesh_path.name} with bounds {bounds.tolist()}"),
+            )
         out.append(
             ArtefactClass(
                 label=label,
@@ -339,51 +369,41 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
     return ArtefactCatalogue(out)
 
 
-def _variants(where: str, spec: Any) -> tuple[tuple[np.ndarray, dict[str, Any]], ...]:
+def _variants(source: Path, where: str, spec: Any) -> tuple[tuple[np.ndarray, dict[str, Any]], ...]:
     """Parse a class's ``variants`` field (see the module docstring)."""
     if spec is None:
         return ((np.ones(3), {}),)
+    key = f"{where}.variants"
 
-    def scale_of(value: Any, field_name: str) -> np.ndarray:
-        try:
-            a = np.broadcast_to(np.asarray(value, dtype=float), (3,)).copy()
-        except (TypeError, ValueError):
-            a = np.full(3, np.nan)
-        if not np.isfinite(a).all() or (a <= 0).any():
-            raise ValueError(
-                f"{where}: field '{field_name}': expected a scale > 0 or 3 scales > 0, "
-                f"got {value!r}"
+    def scale_of(value: Any, at: str) -> np.ndarray:
+        if isinstance(value, list | tuple):
+            vals = get_list(value, source, at, min_len=3, max_len=3)
+            return np.array(
+                [
+                    get_float(v, source, f"{at}[{i}]", lo=0, lo_open=True, hi=MAX_SCALE)
+                    for i, v in enumerate(vals)
+                ]
             )
-        return a
+        return np.full(3, get_float(value, source, at, lo=0, lo_open=True, hi=MAX_SCALE))
 
     if isinstance(spec, dict):
-        rows, scale = spec.get("rows"), spec.get("scale")
-        if not isinstance(rows, int) or rows < 1:
-            raise ValueError(
-                f"{where}: field 'variants.rows': expected an integer >= 1, got {rows!r}"
-            )
-        if not isinstance(scale, list) or len(scale) != 2:
-            raise ValueError(
-                f"{where}: field 'variants.scale': expected [first, last], got {scale!r}"
-            )
-        a, b = (scale_of(v, "variants.scale") for v in scale)
+        spec = check_keys(spec, source, key, ("rows", "scale"), ("rows", "scale"))
+        rows = get_int(spec["rows"], source, f"{key}.rows", lo=1)
+        check_memory(rows * ROW_BYTES, f"the {rows} rows of {key}", source)
+        ends = get_list(spec["scale"], source, f"{key}.scale", min_len=2, max_len=2)
+        a, b = (scale_of(v, f"{key}.scale[{i}]") for i, v in enumerate(ends))
         steps = np.linspace(0.0, 1.0, rows) if rows > 1 else np.zeros(1)
         return tuple((a + (b - a) * t, {}) for t in steps)
-    if isinstance(spec, list) and spec:
+    if isinstance(spec, list):
+        items = get_list(spec, source, key, min_len=1)
+        check_memory(len(items) * ROW_BYTES, f"the {len(items)} rows of {key}", source)
         out = []
-        for r, item in enumerate(spec):
-            if not isinstance(item, dict):
-                raise ValueError(
-                    f"{where}: field 'variants[{r}]': expected a mapping, got {item!r}"
-                )
-            feats = item.get("features", {}) or {}
+        for r, raw in enumerate(items):
+            at = f"{key}[{r}]"
+            item = check_keys(raw, source, at, ("scale", "features"))
+            feats = item.get("features") or {}
             if not isinstance(feats, dict):
-                raise ValueError(
-                    f"{where}: field 'variants[{r}].features': expected a mapping, got {feats!r}"
-                )
-            out.append((scale_of(item.get("scale", 1.0), f"variants[{r}].scale"), dict(feats)))
+                raise InputError(source, f"{at}.features", "a mapping of features", feats)
+            out.append((scale_of(item.get("scale", 1.0), f"{at}.scale"), dict(feats)))
         return tuple(out)
-    raise ValueError(
-        f"{where}: field 'variants': expected {{rows: N, scale: [a, b]}} or a non-empty list, "
-        f"got {spec!r}"
-    )
+    raise InputError(source, key, "{rows: N, scale: [a, b]} or a non-empty list", spec)

@@ -15,40 +15,79 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from are_stats._checks import check_positive
+from are_stats.inputs import InputError, _Text, check_memory, format_bytes
 
 if TYPE_CHECKING:
     import trimesh
 
     from are_stats.environment._grid import OccupancyGrid
 
-__all__ = ["load_mesh", "extrude_grid", "occupied_polygons"]
+__all__ = ["load_mesh", "extrude_grid", "occupied_polygons", "MAX_COORDINATE"]
+
+#: Largest ``|coordinate|`` of a mesh vertex accepted (metres).
+MAX_COORDINATE = 1e9
+#: Memory estimate of parsing a mesh file: bytes per byte of file.
+MESH_BYTES_PER_BYTE = 32
 
 
 def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     """Load any mesh trimesh reads (OBJ, PLY, STL, GLB, ...) as one ``Trimesh``.
 
-    Scenes are flattened (their transforms applied) into a single mesh.
+    Scenes are flattened (their transforms applied) into a single mesh. Before parsing, the
+    memory the parser needs is estimated from the file size (:data:`MESH_BYTES_PER_BYTE`)
+    and checked against :func:`are_stats.inputs.memory_limit`.
 
     Raises
     ------
     FileNotFoundError
         If ``path`` does not exist.
-    ValueError
-        If the file cannot be parsed or holds no triangles.
+    are_stats.inputs.InputError
+        (a ``ValueError``) if it is not a file, cannot be parsed, holds no triangles, has
+        face indices outside its vertices, or vertex coordinates that are not finite or
+        beyond :data:`MAX_COORDINATE` metres; :class:`are_stats.inputs.LimitError` if it
+        is too large for the memory limit.
     """
     import trimesh
 
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise FileNotFoundError(f"{p}: mesh file not found")
+    if not p.is_file():
+        raise InputError(p, "", "a mesh file (OBJ, PLY, STL, GLB, ...)", _Text("not a file"))
+    size = p.stat().st_size
+    if size == 0:
+        raise InputError(p, "", "a mesh with triangles", _Text("an empty file"))
+    check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", p)
     try:
         obj = trimesh.load(p, force="mesh", process=False)
+    except MemoryError:
+        raise
     except Exception as err:  # trimesh raises many exception types for bad files
-        raise ValueError(f"{p}: cannot read a mesh ({type(err).__name__}: {err})") from err
+        raise InputError(
+            p, "", "a mesh file trimesh can read", _Text(f"{type(err).__name__}: {err}")
+        ) from None
     if not isinstance(obj, trimesh.Trimesh) or len(obj.faces) == 0:
-        raise ValueError(f"{p}: expected a mesh with triangles, got none")
-    if not np.isfinite(obj.vertices).all():
-        raise ValueError(f"{p}: mesh has non-finite vertex coordinates")
+        raise InputError(p, "", "a mesh with triangles", _Text("none"))
+    faces = np.asarray(obj.faces)
+    n_v = len(obj.vertices)
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise InputError(p, "faces", "triangles", _Text(f"faces of shape {faces.shape}"))
+    bad = (faces < 0) | (faces >= n_v)
+    if bad.any():
+        f = int(np.argwhere(bad)[0, 0])
+        raise InputError(
+            p, f"face {f}", f"vertex indices in [0, {n_v - 1}]", _Text(str(faces[f].tolist()))
+        )
+    v = np.asarray(obj.vertices, dtype=float)
+    bad_v = ~np.isfinite(v) | (np.abs(v) > MAX_COORDINATE)
+    if bad_v.any():
+        i = int(np.argwhere(bad_v)[0, 0])
+        raise InputError(
+            p,
+            f"vertex {i}",
+            f"finite coordinates within {MAX_COORDINATE:g} m of the origin",
+            _Text(str(v[i].tolist())),
+        )
     return obj
 
 

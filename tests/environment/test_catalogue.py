@@ -10,6 +10,7 @@ import yaml
 
 from are_stats import load_catalogue
 from are_stats.environment import DEFAULT_MODELS, load_mesh
+from are_stats.inputs import InputError, limits
 
 
 def test_shipped_catalogue():
@@ -44,12 +45,27 @@ def _edit(path, fn):
 @pytest.mark.parametrize(
     ("edit", "match"),
     [
-        (lambda d: d["classes"][0].pop("mesh"), "class 'person': missing field 'mesh'"),
-        (lambda d: d["classes"][1]["speeds"].update(walk=-1), "'speeds.walk'"),
-        (lambda d: d["classes"][2].update(behaviours=["fly"]), "'behaviours'"),
-        (lambda d: d["classes"][3].update(label="person"), "duplicate label"),
+        (lambda d: d["classes"][0].pop("mesh"), r"classes\[0\]\.mesh: expected this key"),
+        (lambda d: d["classes"][1]["speeds"].update(walk=-1), r"classes\[1\]\.speeds\.walk"),
+        (lambda d: d["classes"][2].update(behaviours=["fly"]), r"\[2\]\.behaviours\[0\]"),
+        (lambda d: d["classes"][3].update(label="person"), "duplicate label of classes.0."),
         (lambda d: d["classes"][0]["speeds"].update(run=0.5), "run >= walk"),
-        (lambda d: d.pop("classes"), "'classes' list"),
+        (lambda d: d.pop("classes"), "classes: expected this key to be present"),
+        # strict types: no bool or string as a number, unknown keys listed
+        (lambda d: d["classes"][0]["speeds"].update(walk=True), r"walk: .*True \(a bool\)"),
+        (lambda d: d["classes"][0]["speeds"].update(walk="1"), r"walk: .*'1' \(a string\)"),
+        (lambda d: d["classes"][0]["speeds"].update(walk=1e300), r"speeds\.walk: .*<= 1000"),
+        (lambda d: d["classes"][0]["speeds"].update(jog=2.0), r"speeds\.jog: .*known keys walk"),
+        (lambda d: d["classes"][0].update(colour=3), r"\[0\]\.colour: expected one of the known"),
+        (lambda d: d.update(extra=1), r"extra: expected one of the known keys version, classes"),
+        (lambda d: d.update(version=2), r"version: expected 1, got 2"),
+        (lambda d: d.update(version=True), r"version: expected an integer"),
+        (lambda d: d["classes"][0].update(label=3), r"classes\[0\]\.label: expected a string"),
+        (lambda d: d["classes"][0].update(mesh=[1]), r"classes\[0\]\.mesh: expected a string"),
+        (lambda d: d["classes"][0].update(behaviours=["walk", "walk"]), "each behaviour once"),
+        (lambda d: d["classes"][0].update(features=[1]), r"features: expected a mapping"),
+        (lambda d: d.update(classes=[]), r"classes: expected a list of at least 1"),
+        (lambda d: d.update(classes={"a": 1}), r"classes: expected a list"),
     ],
 )
 def test_catalogue_errors(tmp_path, edit, match):
@@ -61,13 +77,15 @@ def test_catalogue_errors(tmp_path, edit, match):
 def test_missing_and_unreadable_meshes(tmp_path):
     p = _copy(tmp_path)
     (p.parent / "cart.obj").unlink()
-    with pytest.raises(FileNotFoundError, match="cart.obj"):
+    with pytest.raises(InputError, match=r"classes\[4\]\.mesh: expected an existing .*cart.obj"):
         load_catalogue(p)
     (p.parent / "cart.obj").write_text("this is not a mesh\n")
-    with pytest.raises(ValueError, match="cart.obj"):
+    with pytest.raises(InputError, match=r"classes\[4\]\.mesh: expected a readable .*cart.obj"):
         load_catalogue(p)
     with pytest.raises(FileNotFoundError):
         load_catalogue(tmp_path / "none.yaml")
+    with pytest.raises(InputError, match="expected a catalogue YAML, got a directory"):
+        load_catalogue(tmp_path)
     q = load_catalogue(_copy(tmp_path / "x"))
     with pytest.raises(ValueError, match="unknown artefact class 'dragon'"):
         q["dragon"]
@@ -97,7 +115,18 @@ def test_marks_select_rows_within_the_class():
         ("{rows: 0, scale: [1, 2]}", "variants.rows"),
         ("{rows: 3, scale: [1]}", "variants.scale"),
         ("[{scale: -1}]", r"variants\[0\].scale"),
-        ("[]", "field 'variants'"),
+        ("[]", r"variants: expected a list of at least 1"),
+        ("{rows: true, scale: [1, 2]}", r"variants\.rows: expected an integer >= 1, got True"),
+        ("{rows: 2.5, scale: [1, 2]}", r"variants\.rows: expected an integer"),
+        ("{rows: 3, scale: [1, 0]}", r"variants\.scale\[1\]: expected a finite number > 0"),
+        ("{rows: 3, scale: [1, 2], step: 1}", r"variants\.step: expected one of the known"),
+        ("[{scale: true}]", r"variants\[0\]\.scale: .*True \(a bool\)"),
+        ("[{scale: [1, 2, 3, 4]}]", r"variants\[0\]\.scale: expected a list of 3 values"),
+        ("[{scal: 2}]", r"variants\[0\]\.scal: expected one of the known keys scale"),
+        ("[{scale: .nan}]", r"variants\[0\]\.scale: expected a finite number"),
+        ("3", r"variants: expected \{rows: N"),
+        # a catalogue asking for 1e8 rows of Q is refused before anything is allocated
+        ("{rows: 100000000, scale: [1, 2]}", r"expected the 100000000 rows of classes\[0\]"),
     ],
 )
 def test_bad_variants(tmp_path, variants, match):
@@ -107,4 +136,28 @@ def test_bad_variants(tmp_path, variants, match):
         f"    behaviours: [stop]\n    variants: {variants}\n"
     )
     with pytest.raises(ValueError, match=match):
+        load_catalogue(tmp_path / "q.yaml")
+
+
+def test_catalogue_row_limit_follows_the_memory_limit(tmp_path):
+    shutil.copy(DEFAULT_MODELS / "artefacts" / "pallet.obj", tmp_path / "pallet.obj")
+    (tmp_path / "q.yaml").write_text(
+        "classes:\n  - label: pallet\n    mesh: pallet.obj\n    speeds: {walk: 0.1}\n"
+        "    behaviours: [stop]\n    variants: {rows: 1000, scale: [1, 2]}\n"
+    )
+    with limits(memory="100K"), pytest.raises(ValueError, match="memory limit of 100.0 KiB"):
+        load_catalogue(tmp_path / "q.yaml")
+    assert load_catalogue(tmp_path / "q.yaml")["pallet"].n_rows == 1000
+
+
+def test_catalogue_alias_bomb_is_refused(tmp_path):
+    shutil.copy(DEFAULT_MODELS / "artefacts" / "pallet.obj", tmp_path / "pallet.obj")
+    bomb = "".join(
+        f"      x{k}: &{chr(98 + k)} [{', '.join([f'*{chr(97 + k)}'] * 10)}]\n" for k in range(6)
+    )
+    (tmp_path / "q.yaml").write_text(
+        "classes:\n  - label: pallet\n    mesh: pallet.obj\n    speeds: {walk: 0.1}\n"
+        "    behaviours: [stop]\n    features:\n      x: &a [a, a, a, a, a, a, a, a, a, a]\n" + bomb
+    )
+    with pytest.raises(InputError, match="expands to at most"):
         load_catalogue(tmp_path / "q.yaml")

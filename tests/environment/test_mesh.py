@@ -9,6 +9,7 @@ import trimesh
 
 from are_stats import OccupancyGrid, extrude_grid, load_mesh
 from are_stats.environment import DEFAULT_MODELS
+from are_stats.inputs import InputError, LimitError, limits
 
 
 @pytest.mark.parametrize("yaw", [0.0, 0.6])
@@ -76,3 +77,45 @@ def test_shipped_courtyard_matches_its_map():
     cx = g.corners_world
     assert (m.bounds[0, :2] >= cx.min(0) - 1e-9).all()
     assert (m.bounds[1, :2] <= cx.max(0) + 1e-9).all()
+
+
+_PLY_HEAD = (
+    b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+    b"property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+)
+
+
+@pytest.mark.parametrize(
+    ("name", "data", "match"),
+    [
+        ("e.obj", b"", "expected a mesh with triangles, got an empty file"),
+        ("g.obj", b"\x00\xff garbage", "expected a mesh with triangles, got none"),
+        ("p.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "expected a mesh with triangles, got none"),
+        ("n.obj", b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"vertex 0: expected finite"),
+        ("h.obj", b"v 1e300 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"vertex 0: .*within 1e\+09 m"),
+        ("i.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "expected a mesh file trimesh can"),
+        ("i.ply", _PLY_HEAD + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", r"face 0: expected vertex"),
+        ("u.xyz", b"v 0 0 0\n", "expected a mesh file trimesh can read"),
+        (
+            "big.ply",
+            _PLY_HEAD.replace(b"face 1", b"face 4000000000").replace(
+                b"ascii", b"binary_little_endian"
+            )
+            + bytes(64),
+            "expected a mesh file trimesh can read",
+        ),
+    ],
+)
+def test_bad_meshes_name_the_file(tmp_path, name, data, match):
+    p = tmp_path / name
+    p.write_bytes(data)
+    with pytest.raises(InputError, match=match) as err:
+        load_mesh(p)
+    assert str(p) in str(err.value)
+
+
+def test_mesh_directory_and_memory_limit(tmp_path):
+    with pytest.raises(InputError, match="expected a mesh file .*, got not a file"):
+        load_mesh(tmp_path)
+    with limits(memory="1K"), pytest.raises(LimitError, match="courtyard.ply"):
+        load_mesh(DEFAULT_MODELS / "courtyard.ply")
