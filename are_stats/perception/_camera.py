@@ -15,8 +15,37 @@ from typing import Any
 import numpy as np
 
 from are_stats._checks import check_finite, describe
+from are_stats.inputs import (
+    InputError,
+    _Text,
+    check_keys,
+    check_memory,
+    get_float,
+    get_int,
+    get_list,
+    get_str,
+    load_yaml,
+)
 
-__all__ = ["PinholeCamera", "check_pose", "optical_from_base"]
+__all__ = [
+    "PinholeCamera",
+    "check_pose",
+    "optical_from_base",
+    "MIN_FOCAL",
+    "MAX_FOCAL",
+    "MAX_SIDE",
+    "PIXEL_BYTES",
+]
+
+#: Focal lengths accepted (pixels): below, ray directions overflow; above, nothing is seen.
+MIN_FOCAL = 1e-3
+MAX_FOCAL = 1e9
+#: Largest image side accepted (pixels).
+MAX_SIDE = 1 << 20
+#: Memory estimate of perception per image pixel and frame (bytes): ray origins and
+#: directions in float64, depth buffers and per-pixel artefact ids.
+PIXEL_BYTES = 128
+_MAX_VECTOR = 64
 
 # Rotation taking optical-frame axes (z forward, x right, y down) to a body frame
 # (x forward, y left, z up): the columns are the optical x, y, z axes in body coordinates.
@@ -113,23 +142,42 @@ class PinholeCamera:
 
     def __post_init__(self) -> None:
         for name in ("fx", "fy"):
-            v = float(check_finite(name, getattr(self, name), ndim=0))
-            if v <= 0:
-                raise ValueError(f"{name}: expected a focal length > 0 pixels, got {v!r}")
-            object.__setattr__(self, name, v)
+            v = getattr(self, name)
+            v = v.item() if isinstance(v, np.ndarray) and v.ndim == 0 else v
+            if not _is_real(v) or not MIN_FOCAL <= float(v) <= MAX_FOCAL:
+                raise ValueError(
+                    f"{name}: expected a focal length > 0 pixels (in [{MIN_FOCAL:g}, "
+                    f"{MAX_FOCAL:g}]), got {_show(v)}"
+                )
+            object.__setattr__(self, name, float(v))
         for name in ("width", "height"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not float(v).is_integer() or v <= 0:
-                raise ValueError(f"{name}: expected a positive integer number of pixels, got {v!r}")
+            v = v.item() if isinstance(v, np.ndarray) and v.ndim == 0 else v
+            if not _is_real(v) or not float(v).is_integer() or not 1 <= v <= MAX_SIDE:
+                raise ValueError(
+                    f"{name}: expected a positive integer number of pixels (at most "
+                    f"{MAX_SIDE}), got {_show(v)}"
+                )
             object.__setattr__(self, name, int(v))
         for name, size in (("cx", self.width), ("cy", self.height)):
-            v = float(check_finite(name, getattr(self, name), ndim=0))
-            if not 0.0 <= v <= size:
+            v = getattr(self, name)
+            v = v.item() if isinstance(v, np.ndarray) and v.ndim == 0 else v
+            if not _is_real(v) or not 0.0 <= float(v) <= size:
                 raise ValueError(
-                    f"{name}: expected a principal point inside the image [0, {size}], got {v!r}"
+                    f"{name}: expected a principal point inside the image [0, {size}], "
+                    f"got {_show(v)}"
                 )
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, float(v))
         object.__setattr__(self, "pose", check_pose("pose", self.pose))
+
+    def check_memory(self, source: Any = "") -> None:
+        """Refuse a camera whose per-frame ray buffers (:data:`PIXEL_BYTES` bytes a pixel)
+        exceed :func:`are_stats.inputs.memory_limit` (``LimitError``)."""
+        check_memory(
+            float(self.width) * float(self.height) * PIXEL_BYTES,
+            f"the rays of a {self.width} x {self.height} camera image",
+            source or "camera",
+        )
 
     # ------------------------------------------------------------------ matrices
     @property
@@ -169,6 +217,7 @@ class PinholeCamera:
     # ------------------------------------------------------------------ rays
     def directions_camera(self) -> np.ndarray:
         """Unit ray directions in the optical frame, (height, width, 3) float64."""
+        self.check_memory()
         u = (np.arange(self.width) + 0.5 - self.cx) / self.fx
         v = (np.arange(self.height) + 0.5 - self.cy) / self.fy
         d = np.empty((self.height, self.width, 3))
@@ -228,56 +277,95 @@ class PinholeCamera:
 
     # ------------------------------------------------------------------ YAML
     @classmethod
-    def from_dict(cls, data: dict, source: str = "camera") -> PinholeCamera:
+    def from_dict(cls, data: Any, source: str = "camera") -> PinholeCamera:
         """Build a camera from a mapping (plain fields or ROS ``camera_info`` fields).
 
-        Accepted keys: ``fx, fy, cx, cy`` or ``K`` / ``k`` (9 numbers, row-major, as in ROS
-        ``sensor_msgs/CameraInfo``) or ``camera_matrix: {data: [9 numbers]}`` (the
-        ``camera_calibration`` YAML); ``width``/``image_width`` and
-        ``height``/``image_height``; optional ``pose`` (4x4 nested list or 16 numbers,
-        camera-to-world of the optical frame).
+        Accepted keys: exactly one of ``fx, fy, cx, cy`` / ``K`` / ``k`` (9 numbers,
+        row-major, as in ROS ``sensor_msgs/CameraInfo``) / ``camera_matrix:
+        {rows: 3, cols: 3, data: [9 numbers]}`` (the ``camera_calibration`` YAML); one of
+        ``width``/``image_width`` and one of ``height``/``image_height``; optional ``pose``
+        (4x4 nested list or 16 numbers, camera-to-world of the optical frame). The ROS
+        calibration fields ``camera_name``, ``distortion_model``,
+        ``distortion_coefficients``/``D``/``d``, ``rectification_matrix``/``R``/``r``,
+        ``projection_matrix``/``P``/``p`` and ``binning_x``/``binning_y`` are accepted when
+        they describe an ideal pinhole camera (all distortion coefficients 0, identity
+        rectification, ``P = [K | 0]``, no binning); anything else would be silently ignored
+        by the pinhole model and is an error, as are unknown keys, a non-zero skew
+        ``K[0][1]`` or a bottom row of ``K`` other than ``[0, 0, 1]``.
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            (a ``ValueError``) naming ``source`` and the key; ``LimitError`` if the image
+            is too large for the memory limit (:meth:`check_memory`).
         """
-        if not isinstance(data, dict):
-            raise ValueError(f"{source}: expected a mapping of camera fields, got {describe(data)}")
-        k = None
-        for key in ("K", "k"):
-            if key in data:
-                k = data[key]
-        if "camera_matrix" in data:
-            cm = data["camera_matrix"]
-            k = cm.get("data") if isinstance(cm, dict) else cm
-        if k is not None:
-            k = check_finite(f"{source}: field K", k).ravel()
-            if k.size != 9:
-                raise ValueError(f"{source}: field K: expected 9 numbers, got {k.size}")
-            fx, fy, cx, cy = k[0], k[4], k[2], k[5]
-        else:
-            missing = [f for f in ("fx", "fy", "cx", "cy") if f not in data]
+        d = check_keys(data, source, "", _CAMERA_KEYS)
+        groups = (("fx", "fy", "cx", "cy"), ("K",), ("k",), ("camera_matrix",))
+        given = [g for g in groups if any(k in d for k in g)]
+        if len(given) != 1:
+            raise InputError(
+                source,
+                "",
+                "the intrinsics as exactly one of fx/fy/cx/cy, K, k or camera_matrix",
+                _Text(f"{len(given)} of them" if given else "none"),
+            )
+        (group,) = given
+        if group[0] == "fx":
+            missing = [k for k in group if k not in d]
             if missing:
-                raise ValueError(
-                    f"{source}: expected fields fx, fy, cx, cy or K, missing {missing}"
+                raise InputError(source, missing[0], "this key to be present", _Text("no such key"))
+            fx, fy, cx, cy = (get_float(d[k], source, k) for k in group)
+        else:
+            k = _matrix(d[group[0]], source, group[0], 3, 3)
+            fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
+            if abs(k[0, 1]) > 1e-12 * max(abs(fx), 1.0):
+                raise InputError(
+                    source,
+                    f"{group[0]}[0][1] (skew)",
+                    "0 (the pinhole model has no skew)",
+                    float(k[0, 1]),
                 )
-            fx, fy, cx, cy = (data[f] for f in ("fx", "fy", "cx", "cy"))
+            if k[1, 0] != 0.0 or not np.array_equal(k[2], [0.0, 0.0, 1.0]):
+                raise InputError(
+                    source,
+                    group[0],
+                    "an intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]",
+                    _Text(f"rows 2-3 {k[1:].tolist()}"),
+                )
         size = {}
         for name, alts in (
             ("width", ("width", "image_width")),
             ("height", ("height", "image_height")),
         ):
-            for a in alts:
-                if a in data:
-                    size[name] = data[a]
-            if name not in size:
-                raise ValueError(f"{source}: expected field {alts[0]} (or {alts[1]}), missing")
+            present = [a for a in alts if a in d]
+            if not present:
+                raise InputError(source, alts[0], f"this key (or {alts[1]})", _Text("no such key"))
+            if len(present) > 1:
+                raise InputError(source, alts[1], f"only one of {alts[0]}, {alts[1]}", d[alts[1]])
+            size[name] = get_int(d[present[0]], source, present[0], lo=1, hi=MAX_SIDE)
+        for key, lo, hi in (("fx", MIN_FOCAL, MAX_FOCAL), ("fy", MIN_FOCAL, MAX_FOCAL)):
+            v = fx if key == "fx" else fy
+            get_float(float(v), source, f"{key} (focal length in pixels)", lo=lo, hi=hi)
+        get_float(float(cx), source, "cx (principal point)", lo=0, hi=size["width"])
+        get_float(float(cy), source, "cy (principal point)", lo=0, hi=size["height"])
+        _check_ideal(d, source, np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]))
         pose = np.eye(4)
-        if data.get("pose") is not None:
-            pose = check_finite(f"{source}: field pose", data["pose"]).reshape(-1)
-            if pose.size != 16:
-                raise ValueError(f"{source}: field pose: expected 16 numbers, got {pose.size}")
-            pose = pose.reshape(4, 4)
+        if d.get("pose") is not None:
+            pose = _matrix(d["pose"], source, "pose", 4, 4)
         try:
-            return cls(fx, fy, cx, cy, size["width"], size["height"], pose)
+            pose = check_pose("pose", pose)
         except ValueError as err:
-            raise ValueError(f"{source}: {err}") from err
+            detail = str(err).partition(", got ")[2] or str(err)
+            raise InputError(
+                source,
+                "pose",
+                "a rigid camera-to-world transform (orthonormal right-handed rotation, last "
+                "row [0, 0, 0, 1])",
+                _Text(detail),
+            ) from None
+        cam = cls(float(fx), float(fy), float(cx), float(cy), size["width"], size["height"], pose)
+        cam.check_memory(source)
+        return cam
 
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> PinholeCamera:
@@ -287,19 +375,14 @@ class PinholeCamera:
         ------
         FileNotFoundError
             If ``path`` does not exist.
-        ValueError
-            If the YAML cannot be parsed or the fields are missing or invalid.
+        are_stats.inputs.InputError
+            (a ``ValueError``) if the YAML cannot be parsed or the fields are missing,
+            unknown or invalid.
         """
-        import yaml
-
         p = Path(path)
-        if not p.is_file():
+        if not p.exists():
             raise FileNotFoundError(f"{p}: camera file not found")
-        try:
-            data = yaml.safe_load(p.read_text())
-        except yaml.YAMLError as err:
-            raise ValueError(f"{p}: not valid YAML ({err})") from err
-        return cls.from_dict(data, source=str(p))
+        return cls.from_dict(load_yaml(p, "camera YAML"), source=str(p))
 
     def to_dict(self) -> dict:
         """Plain fields (the inverse of :meth:`from_dict`), suitable for YAML."""
@@ -312,3 +395,116 @@ class PinholeCamera:
             "height": self.height,
             "pose": self.pose.tolist(),
         }
+
+
+_CAMERA_KEYS = (
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "K",
+    "k",
+    "camera_matrix",
+    "width",
+    "image_width",
+    "height",
+    "image_height",
+    "pose",
+    "camera_name",
+    "distortion_model",
+    "distortion_coefficients",
+    "D",
+    "d",
+    "rectification_matrix",
+    "R",
+    "r",
+    "projection_matrix",
+    "P",
+    "p",
+    "binning_x",
+    "binning_y",
+)
+
+
+def _is_real(v: Any) -> bool:
+    return (
+        isinstance(v, int | float | np.integer | np.floating)
+        and not isinstance(v, bool | np.bool_)
+        and bool(np.isfinite(v))
+    )
+
+
+def _show(v: Any) -> str:
+    return f"{v!r} (a {type(v).__name__})" if isinstance(v, bool | str) else describe(v)
+
+
+def _matrix(value: Any, source: Any, key: str, rows: int, cols: int | None) -> np.ndarray:
+    """A ``rows x cols`` matrix given flat, nested or as ``{rows, cols, data}``; ``cols``
+    ``None`` means a vector of any length up to :data:`_MAX_VECTOR`."""
+    if isinstance(value, dict):
+        m = check_keys(value, source, key, ("rows", "cols", "data"), ("data",))
+        for name, want in (("rows", rows), ("cols", cols)):
+            if name in m and want is not None:
+                if get_int(m[name], source, f"{key}.{name}") != want:
+                    raise InputError(source, f"{key}.{name}", str(want), m[name])
+        value, key = m["data"], f"{key}.data"
+    n = rows * cols if cols is not None else None
+    if not isinstance(value, list | tuple):
+        what = f"{n} numbers" if n is not None else f"a list of at most {_MAX_VECTOR} numbers"
+        raise InputError(source, key, what, value)
+    items = get_list(value, source, key, max_len=_MAX_VECTOR if n is None else None)
+    if n is not None and len(items) == rows and all(isinstance(r, list | tuple) for r in items):
+        flat = []
+        for i, r in enumerate(items):
+            flat += get_list(r, source, f"{key}[{i}]", min_len=cols, max_len=cols)
+        items = flat
+    if n is not None and len(items) != n:
+        raise InputError(
+            source,
+            key,
+            f"{n} numbers ({rows} x {cols}, row-major or nested)",
+            _Text(f"{len(items)} values"),
+        )
+    out = np.array([get_float(v, source, f"{key}[{i}]") for i, v in enumerate(items)])
+    return out if cols is None else out.reshape(rows, cols)
+
+
+def _check_ideal(d: dict, source: Any, k: np.ndarray) -> None:
+    """The ROS calibration fields must describe the ideal pinhole camera ``k``."""
+    if "camera_name" in d:
+        get_str(d["camera_name"], source, "camera_name")
+    if "distortion_model" in d:
+        get_str(d["distortion_model"], source, "distortion_model")
+    for key in ("distortion_coefficients", "D", "d"):
+        if key in d:
+            c = _matrix(d[key], source, key, 1, None)
+            if (c != 0).any():
+                i = int(np.flatnonzero(c)[0])
+                raise InputError(
+                    source,
+                    f"{key}[{i}]",
+                    "0 (the pinhole model has no lens distortion: rectify the images and give "
+                    "the rectified intrinsics)",
+                    float(c[i]),
+                )
+    for key in ("rectification_matrix", "R", "r"):
+        if key in d:
+            r = _matrix(d[key], source, key, 3, 3)
+            if not np.allclose(r, np.eye(3), rtol=0, atol=1e-9):
+                raise InputError(
+                    source, key, "the identity (a monocular, unrectified camera)", r.tolist()
+                )
+    for key in ("projection_matrix", "P", "p"):
+        if key in d:
+            pm = _matrix(d[key], source, key, 3, 4)
+            want = np.hstack([k, np.zeros((3, 1))])
+            if not np.allclose(pm, want, rtol=1e-9, atol=1e-9):
+                raise InputError(
+                    source,
+                    key,
+                    f"[K | 0] = {want.tolist()} (the pinhole model projects with K)",
+                    pm.tolist(),
+                )
+    for key in ("binning_x", "binning_y"):
+        if key in d and get_int(d[key], source, key, lo=0) > 1:
+            raise InputError(source, key, "0 or 1 (no binning)", d[key])

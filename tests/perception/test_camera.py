@@ -7,6 +7,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
+from are_stats.inputs import InputError, LimitError, limits
 from are_stats.perception import PinholeCamera, optical_from_base
 from tests.helpers import assert_allclose
 
@@ -82,23 +83,92 @@ def test_bad_cameras(tmp_path):
         PinholeCamera(100.0, 100.0, 700.0, 24.0, 640, 48)
     with pytest.raises(ValueError, match="fx: expected a focal length > 0"):
         PinholeCamera(0.0, 100.0, 32.0, 24.0, 64, 48)
+    with pytest.raises(ValueError, match=r"fx: expected a focal length > 0 .*True \(a bool\)"):
+        PinholeCamera(True, 100.0, 32.0, 24.0, 64, 48)
     with pytest.raises(ValueError, match="width: expected a positive integer"):
         PinholeCamera(100.0, 100.0, 32.0, 24.0, 64.5, 48)
     with pytest.raises(ValueError, match="pose: expected an orthonormal"):
         PinholeCamera(100.0, 100.0, 32.0, 24.0, 64, 48, np.diag([1.0, 1.0, 2.0, 1.0]))
     with pytest.raises(FileNotFoundError, match="camera file not found"):
         PinholeCamera.from_yaml(tmp_path / "missing.yaml")
+    with pytest.raises(InputError, match="expected a camera YAML, got a directory"):
+        PinholeCamera.from_yaml(tmp_path)
     bad = tmp_path / "bad.yaml"
-    bad.write_text(yaml.safe_dump({"K": [1, 2, 3], "width": 10, "height": 10}))
-    with pytest.raises(ValueError, match="field K: expected 9 numbers"):
-        PinholeCamera.from_yaml(bad)
-    bad.write_text(yaml.safe_dump({"fx": 10.0, "fy": 10.0, "cx": 5.0, "cy": 5.0, "width": 10}))
-    with pytest.raises(ValueError, match="expected field height"):
-        PinholeCamera.from_yaml(bad)
-    bad.write_text(yaml.safe_dump({"fx": 10.0, "fy": 10.0, "cx": 50.0, "cy": 5.0,
-                                   "width": 10, "height": 10}))  # fmt: skip
-    with pytest.raises(ValueError, match=r"bad.yaml: cx: expected a principal point"):
-        PinholeCamera.from_yaml(bad)
     bad.write_text("fx: [1, 2\n")
-    with pytest.raises(ValueError, match="not valid YAML"):
+    with pytest.raises(ValueError, match="bad.yaml: expected a camera YAML in valid YAML"):
         PinholeCamera.from_yaml(bad)
+
+
+_K = "[525, 0, 320, 0, 525, 240, 0, 0, 1]"
+_SIZE = "image_width: 640\nimage_height: 480\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        # a negative fy was accepted and flipped the image
+        (_SIZE + "K: [525, 0, 320, 0, -525, 240, 0, 0, 1]\n", r"fy .*: expected .* got -525"),
+        # skew and the bottom row of K were silently ignored
+        (_SIZE + "K: [525, 3, 320, 0, 525, 240, 0, 0, 1]\n", r"K\[0\]\[1\] \(skew\): expected 0"),
+        (_SIZE + "K: [525, 0, 320, 0, 525, 240, 0, 0, 2]\n", r"K: expected an intrinsic matrix"),
+        (_SIZE + "K: [525, 0, 320, 1, 525, 240, 0, 0, 1]\n", r"K: expected an intrinsic matrix"),
+        (_SIZE + "K: [true, 0, 320, 0, 525, 240, 0, 0, 1]\n", r"K\[0\]: .*True \(a bool\)"),
+        (_SIZE + "K: [1, 2, 3]\n", r"K: expected 9 numbers \(3 x 3, row-major or nested\), got 3"),
+        (_SIZE + "K: abc\n", r"K: expected 9 numbers, got 'abc' \(a string\)"),
+        (_SIZE + "K: [1e-300, 0, 320, 0, 525, 240, 0, 0, 1]\n", r"fx \(focal length in pixels\)"),
+        (_SIZE + f"K: {_K}\nfx: 3\n", r"exactly one of fx/fy/cx/cy, K, k or camera_matrix, got 2"),
+        (_SIZE, r"exactly one of fx/fy/cx/cy, K, k or camera_matrix, got none"),
+        (_SIZE + "fx: 1\nfy: 1\ncx: 1\n", r"cy: expected this key to be present"),
+        (
+            _SIZE + "camera_matrix: {rows: 3, cols: 4, data: [1]}\n",
+            r"camera_matrix.cols: expected 3",
+        ),
+        (_SIZE + "camera_matrix: {data: " + _K + ", extra: 1}\n", r"camera_matrix.extra: expected"),
+        (_SIZE + f"K: {_K}\nfoo: 1\n", r"foo: expected one of the known keys fx, fy"),
+        (_SIZE + f"K: {_K}\nD: [0.1, 0, 0, 0, 0]\n", r"D\[0\]: expected 0 \(the pinhole model"),
+        (_SIZE + f"K: {_K}\nR: [1, 0, 0, 0, 0, 1, 0, 1, 0]\n", r"R: expected the identity"),
+        (_SIZE + f"K: {_K}\nP: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]\n", r"P: expected \[K \| 0\]"),
+        (_SIZE + f"K: {_K}\nbinning_x: 2\n", r"binning_x: expected 0 or 1"),
+        (f"K: {_K}\nimage_width: 0\nimage_height: 480\n", r"image_width: expected an integer >= 1"),
+        (f"K: {_K}\nimage_width: true\nimage_height: 480\n", r"image_width: .*True \(a bool\)"),
+        (f"K: {_K}\nimage_width: 640.5\nimage_height: 480\n", r"image_width: expected an integer"),
+        (f"K: {_K}\nwidth: 640\nimage_width: 640\nimage_height: 480\n", r"only one of width"),
+        (f"K: {_K}\nimage_width: 640\n", r"height: expected this key \(or image_height\)"),
+        (f"K: {_K}\nimage_width: 100\nimage_height: 480\n", r"cx \(principal point\): expected"),
+        (_SIZE + f"K: {_K}\npose: [[1, 0], [0]]\n", r"pose: expected 16 numbers"),
+        (
+            _SIZE + f"K: {_K}\npose: [2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n",
+            r"pose: expected a rigid",
+        ),
+        (
+            _SIZE + f"K: {_K}\npose: [.nan, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n",
+            r"pose\[0\]",
+        ),
+        # a huge image is refused before any ray buffer is allocated
+        (f"K: {_K}\nimage_width: 1000000\nimage_height: 1000000\n", r"memory limit"),
+        ("- 1\n", r"expected a mapping of fx, fy"),
+        ("", r"expected a mapping of fx, fy"),
+    ],
+)
+def test_bad_camera_files_name_file_and_key(tmp_path, text, match):
+    path = tmp_path / "cam.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError, match=match) as err:
+        PinholeCamera.from_yaml(path)
+    assert str(err.value).startswith(str(path))
+
+
+def test_ideal_ros_calibration_fields_are_accepted(tmp_path):
+    path = tmp_path / "cam.yaml"
+    path.write_text(
+        _SIZE + "camera_name: front\ncamera_matrix: {rows: 3, cols: 3, data: " + _K + "}\n"
+        "distortion_model: plumb_bob\n"
+        "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
+        "rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"
+        "projection_matrix: {rows: 3, cols: 4, "
+        "data: [525, 0, 320, 0, 0, 525, 240, 0, 0, 0, 1, 0]}\n"
+    )
+    cam = PinholeCamera.from_yaml(path)
+    assert (cam.fx, cam.cy, cam.width) == (525.0, 240.0, 640)
+    with limits(memory="1M"), pytest.raises(LimitError, match="640 x 480 camera image"):
+        cam.directions_camera()
