@@ -59,6 +59,7 @@ results folder as a whole only once every task is done.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import ctypes
 import ctypes.util
@@ -736,10 +737,10 @@ def run_sweep(
         On a bad config or argument, or an ``out`` that is not a results folder.
     """
     cfg = load_sweep_config(config)
-    workers = get_int(workers, "workers", "", lo=1, hi=1024)
-    host = get_str(host, "host", "")
+    workers = get_int(workers, "--workers", "", lo=1, hi=1024)
+    host = get_str(host, "--host", "")
     if not host or any(c in host for c in "/ \x00"):
-        raise InputError("host", "", "a host name or IP address such as 127.0.0.1", host)
+        raise InputError("--host", "", "a host name or IP address such as 127.0.0.1", host)
     if scheduler is None and workers > 1:
         src = str(config) if not isinstance(config, Mapping) else "config"
         _check_cost(cfg, src, concurrent=workers)
@@ -747,46 +748,52 @@ def run_sweep(
     out = Path(out)
     text = yaml.safe_dump(cfg, sort_keys=False).encode()
     state = _folder_state(out)
-    if state == "sweep" and not force:
-        if (out / "sweep.yaml").read_bytes() != text:
-            raise OutputExistsError(
-                f"{out}: holds results of a different sweep config; pass --force (force=True) "
-                "to replace them, or choose another folder"
-            )
-        target = out
-    elif state == "sweep":
-        target = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    else:
-        out.mkdir(parents=True, exist_ok=True)
-        target = out
-    with atomic_path(target / "sweep.yaml", force=True) as tmp:
-        tmp.write_bytes(text)
-    todo = [t for t in tasks if not (target / "runs" / f"{t['task']}.parquet").exists()]
-    if todo:
-        _run(todo, target, len(tasks), workers, scheduler, processes, progress, host)
+    resume = state == "sweep" and not force
+    if resume and (out / "sweep.yaml").read_bytes() != text:
+        raise OutputExistsError(
+            f"{out}: holds results of a different sweep config; pass --force (force=True) "
+            "to replace them, or choose another folder"
+        )
+    todo = [t for t in tasks if not (resume and (out / "runs" / f"{t['task']}.parquet").exists())]
+    if not todo:
+        return out
+    with _client(workers, scheduler, processes, host) as client:
+        try:
+            if state == "sweep" and force:
+                target = Path(
+                    tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+                )
+            else:
+                out.mkdir(parents=True, exist_ok=True)
+                target = out
+        except OSError as err:
+            raise InputError(
+                out, "", "a results folder that can be created", _Text(err.strerror or str(err))
+            ) from None
+        try:
+            with atomic_path(target / "sweep.yaml", force=True) as tmp:
+                tmp.write_bytes(text)
+            _run(client, todo, target, len(tasks), progress)
+        except BaseException:
+            if target != out:  # a forced run that did not finish: out stays as it was
+                shutil.rmtree(target, ignore_errors=True)
+            raise
     if target != out:
         _replace_folder(target, out)
     return out
 
 
-def _run(
-    todo: list[dict[str, Any]],
-    target: Path,
-    n_tasks: int,
-    workers: int,
-    scheduler: str | None,
-    processes: bool,
-    progress: bool,
-    host: str,
-) -> None:
-    from distributed import Client, LocalCluster, as_completed
+@contextlib.contextmanager
+def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> Iterator[Any]:
+    """A Dask client of the given scheduler, or of a local cluster listening on ``host``."""
+    from distributed import Client, LocalCluster
 
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(
-                "scheduler", "", "the address of a running Dask scheduler (tcp://host:port)",
+                "--scheduler", "", "the address of a running Dask scheduler (tcp://host:port)",
                 _Text(f"{scheduler!r} ({err})"),
             ) from None  # fmt: skip
         cluster = None
@@ -794,18 +801,27 @@ def _run(
         cluster = LocalCluster(**_cluster_kwargs(workers, processes, host))
         client = Client(cluster)
     try:
-        futures = {client.submit(run_task, t, pure=False): t["task"] for t in todo}
-        bar = _progress(progress, n_tasks, n_tasks - len(todo))
-        try:
-            for fut in as_completed(futures):
-                _write(target, futures[fut], fut.result(), force=True)
-                bar.advance()
-        finally:
-            bar.close()
+        yield client
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _run(
+    client: Any, todo: list[dict[str, Any]], target: Path, n_tasks: int, progress: bool
+) -> None:
+    """Run ``todo`` on ``client``, writing each task's tables into ``target`` as it ends."""
+    from distributed import as_completed
+
+    futures = {client.submit(run_task, t, pure=False): t["task"] for t in todo}
+    bar = _progress(progress, n_tasks, n_tasks - len(todo))
+    try:
+        for fut in as_completed(futures):
+            _write(target, futures[fut], fut.result(), force=True)
+            bar.advance()
+    finally:
+        bar.close()
 
 
 class _progress:

@@ -194,7 +194,7 @@ def test_interrupted_forced_run_leaves_the_old_results(results, tmp_path, monkey
     shutil.copytree(results, out)
     before = _snapshot(out)
 
-    def killed(todo, target, *args):
+    def killed(client, todo, target, *args):
         run = _sweep.run_task(todo[0])
         _sweep._write(target, todo[0]["task"], run, force=True)
         raise KeyboardInterrupt
@@ -203,6 +203,7 @@ def test_interrupted_forced_run_leaves_the_old_results(results, tmp_path, monkey
     with pytest.raises(KeyboardInterrupt):
         run_sweep({**TINY, "seed": 2}, out, processes=False, progress=False, force=True)
     assert _snapshot(out) == before
+    assert [p.name for p in tmp_path.iterdir()] == ["res"]  # the unfinished copy is removed
 
 
 def test_results_folder_must_hold_one_sweep(results, tmp_path):
@@ -258,7 +259,7 @@ def test_out_must_be_a_results_folder(tmp_path):
     assert (tmp_path / "notes.txt").read_text() == "mine"
     with pytest.raises(InputError, match="a file"):
         run_sweep(TINY, tmp_path / "notes.txt", processes=False, progress=False)
-    with pytest.raises(InputError, match="workers"):
+    with pytest.raises(InputError, match="--workers"):
         run_sweep(TINY, tmp_path / "r", workers=0, processes=False, progress=False)
 
 
