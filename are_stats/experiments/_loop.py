@@ -34,6 +34,7 @@ from are_stats._checks import check_finite, check_in, check_nonnegative, check_p
 from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
 from are_stats.experiments._robot import Robot, circle_box_overlap
+from are_stats.inputs import check_memory, check_work
 
 __all__ = ["MissionResult", "MissionTrace", "random_goals", "run_mission"]
 
@@ -358,6 +359,15 @@ def run_mission(
     scenes_log: list = []
     n_updates = 0
     step = min(res, robot.radius / 2.0)
+    # refuse before looping: footprint tests along the path, and grid passes per replan
+    n_motion = robot.speed * T / step + 1.0
+    n_plans = events.size + G.shape[0] + (T / period if perception == "camera" else 0.0) + 1.0
+    check_memory(n_motion * 64.0, f"the robot's {n_motion:.3g} motion steps", "run_mission")
+    check_work(
+        n_motion * 200.0 + n_plans * (grid.data.size * 100.0 + scene.live.size * 3000.0),
+        f"{n_plans:.3g} replans on {grid.data.size} cells and {n_motion:.3g} motion steps",
+        "run_mission",
+    )
 
     def log_scene(kind: str, aug: Any = None) -> None:
         n_a = builder.n_artefact_cells

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._atomic import atomic_path, check_writable
+from are_stats.inputs import InputError, _Text
 
 __all__ = ["plot_goals", "plot_results", "plot_rho"]
 
@@ -126,6 +127,16 @@ def plot_results(
     Returns
     -------
     list of Path
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``results`` holds no finished task.
+    are_stats.inputs.InputError
+        Naming the file, on a results folder that is malformed or mixes sweeps (see
+        :func:`~are_stats.experiments.load_results`), or an ``out`` that is a file.
+    are_stats._atomic.OutputExistsError
+        If a PNG exists and ``force`` is false.
     """
     import matplotlib
 
@@ -136,6 +147,8 @@ def plot_results(
 
     res = load_results(results)
     out = Path(results if out is None else out)
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "", "a folder for the PNGs", _Text("a file"))
     paths = [out / "fig7a_rho.png", out / "fig7b_goals.png"]
     for p in paths:
         check_writable(p, force)

@@ -3,6 +3,7 @@ address, whole-folder replacement with --force and results folders holding one s
 
 from __future__ import annotations
 
+import re
 import shutil
 
 import pandas as pd
@@ -286,3 +287,61 @@ def test_resolved_config_round_trips():
     cfg = load_sweep_config({**TINY, "factors": {"planner.algorithm": ["astar"]}})
     again = load_sweep_config(yaml.safe_load(yaml.safe_dump(cfg)))
     assert again == cfg
+
+
+def test_run_mission_refuses_runaway_motion_before_driving():
+    import numpy as np
+
+    from are_stats.environment import OccupancyGrid
+    from are_stats.experiments import Robot, run_mission
+
+    grid = OccupancyGrid(np.zeros((20, 20)), 1.0)
+    art = pd.DataFrame(columns=["t_arrive", "t_leave", "x", "y", "yaw"], dtype=float)
+    goals = [[2.0, 10.0], [18.0, 10.0]]
+    with pytest.raises(LimitError, match="run_mission: expected the robot's"):
+        run_mission(grid, art, goals, "astar", robot=Robot(radius=1e-12), time_limit=1e9)
+    res = run_mission(grid, art, goals, "astar", robot=Robot(radius=0.3), time_limit=60.0)
+    assert res.summary["goals_reached"] == 1
+
+
+def test_plot_out_must_be_a_folder(results, tmp_path):
+    from are_stats.experiments import plot_results
+
+    (tmp_path / "png").write_text("a file")
+    with pytest.raises(InputError, match="expected a folder for the PNGs"):
+        plot_results(results, tmp_path / "png")
+
+
+@pytest.mark.parametrize(
+    ("kw", "where"),
+    [
+        ({"radius": True}, "radius"),
+        ({"speed": "fast"}, "speed"),
+        ({"camera_xyz": [0.0, 0.0]}, "camera_xyz"),
+        ({"camera_rpy": [0.0, float("inf"), 0.0]}, "camera_rpy[1]"),
+        ({"image_size": (64, 48.5)}, "image_size[1]"),
+        ({"camera_fov": 4.0}, "camera_fov"),
+    ],
+)
+def test_robot_fields_are_strict(kw, where):
+    from are_stats.experiments import Robot
+
+    with pytest.raises(InputError, match=rf"^Robot: {re.escape(where)}: expected"):
+        Robot(**kw)
+
+
+@pytest.mark.parametrize(
+    ("spec", "where"),
+    [
+        ({"algorithm": "RRT", "range": True}, "range"),
+        ({"algorithm": "RRT", "simplify": "no"}, "simplify"),
+        ({"algorithm": "RRT", "time_limit": 1e9}, "time_limit"),
+        ({"algorithm": "RRT", "motion_resolution": 1e-300}, "motion_resolution"),
+        ({"algorithm": "RRT", "max_iterations": 2.5}, "max_iterations"),
+    ],
+)
+def test_planner_options_are_strict(spec, where):
+    from are_stats.experiments import make_planner
+
+    with pytest.raises(InputError, match=rf"^planner: {where}: expected"):
+        make_planner(spec)
