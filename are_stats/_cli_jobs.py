@@ -447,32 +447,66 @@ def run_perceive(
     out: Path | None = None,
     force: bool = False,
 ) -> Any:
-    """Add perceived flags (A_f, eq. 2) to a scenario folder for a robot path."""
-    import pandas as pd
+    """Add perceived flags (A_f, eq. 2) to a scenario folder for a robot path.
 
+    Every input is checked before any tracing: the options (``--d-max`` > 0, ``--tau``
+    >= 0, ``--camera-height`` and ``--wall-height`` within 1 km), the scenario folder
+    (:func:`are_stats.perception.read_scenario_folder`), the camera, the robot path
+    (:func:`are_stats.perception.read_robot_path`: sorted times, finite poses) and the
+    mesh or map. A robot path whose times miss every artefact's presence is an error
+    naming both time ranges; poses outside the map are reported as a warning.
+    """
     from are_stats.environment import OccupancyGrid, extrude_grid, load_mesh
+    from are_stats.inputs import InputError, _Text, get_float
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scenario
-    from are_stats.scenarios import read_scenarios
+    from are_stats.perception._scenario import read_robot_path, read_scenario_folder
 
+    d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
+    tau = get_float(tau, "--tau", "", lo=0)
+    camera_height = get_float(camera_height, "--camera-height", "", lo=-1e3, hi=1e3)
+    wall_height = get_float(wall_height, "--wall-height", "", lo=0, lo_open=True, hi=1e3)
     scenario = Path(scenario)
     target = Path(out) if out is not None else scenario / "perceived.parquet"
     check_writable(target, force)
-    df, manifest = read_scenarios(scenario)
+    df, manifest = read_scenario_folder(scenario)
     camera = PinholeCamera.from_yaml(camera_path)
     path = Path(robot_path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: robot path file not found")
-    robot = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
-    missing = [c for c in ("t", "x", "y", "yaw") if c not in robot.columns]
-    if missing:
-        raise ValueError(f"{path}: expected columns t, x, y, yaw; missing {missing}")
+    robot = read_robot_path(path)
+    grid = None
     if mesh is not None:
         env = load_mesh(mesh)
+        lo, hi = np.asarray(env.bounds)[:, :2]
+        area = f"the mesh's x-y bounds {lo.tolist()} to {hi.tolist()}"
     elif manifest.get("map"):
-        env = extrude_grid(OccupancyGrid.from_ros_yaml(manifest["map"]), wall_height)
+        grid = OccupancyGrid.from_ros_yaml(manifest["map"])
+        env = extrude_grid(grid, wall_height)
+        area = f"the map {manifest['map']}"
     else:
-        raise ValueError(
-            f"{scenario}: the scenarios have no map in their manifest; pass --mesh MESH"
+        raise InputError(
+            scenario / "manifest.yaml",
+            "map",
+            "a map for the environment mesh (or pass --mesh MESH)",
+            _Text("none"),
+        )
+    t = robot["t"].to_numpy()
+    ta, tl = df["t_arrive"].to_numpy(), df["t_leave"].to_numpy()
+    if len(df) and not ((t[:, None] >= ta.min()) & (t[:, None] < tl.max())).any():
+        raise InputError(
+            path,
+            "column 't'",
+            f"times within the scenarios' artefact presence [{ta.min():g}, {tl.max():g}) "
+            f"of {scenario}",
+            _Text(f"times {t.min():g} to {t.max():g}: no artefact would be seen"),
+        )
+    xy = robot[["x", "y"]].to_numpy()
+    if grid is not None:
+        outside = ~grid.in_bounds(grid.world_to_cell(xy))
+    else:
+        outside = ((xy < lo) | (xy > hi)).any(axis=1)
+    if outside.any():
+        console.print(
+            f"[yellow]warning:[/] {int(outside.sum())} of {len(xy)} robot poses of {path} lie "
+            f"outside {area} (first: row {int(np.argmax(outside)) + 1})"
         )
     mount = None
     if np.allclose(camera.pose, np.eye(4)):  # no mount in the camera file: forward-looking

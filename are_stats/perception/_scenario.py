@@ -9,17 +9,171 @@ marks on M_2D the footprints of the perceived artefacts only, and
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
+from are_stats.inputs import InputError, _Text, check_memory, check_work, get_list, get_str
 from are_stats.perception._camera import check_pose
 from are_stats.perception._perceive import perceived_counts_batch
 
-__all__ = ["perceive_scenario", "perceived_grid", "yaw_rotations"]
+__all__ = [
+    "perceive_scenario",
+    "perceived_grid",
+    "read_robot_path",
+    "read_scenario_folder",
+    "yaw_rotations",
+    "MAX_POSITION",
+]
+
+#: Largest ``|x|``, ``|y|`` of a robot pose or an artefact accepted (metres).
+MAX_POSITION = 1e7
+#: Memory per (robot pose, artefact of one scenario) pair while perceiving (bytes): the
+#: active mask, the counts and the perceived flags.
+PAIR_BYTES = 24
+_SCENARIO_FLOATS = ("t_arrive", "t_leave", "x", "y", "yaw")
+
+
+def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
+    """Read a robot path: a CSV or Parquet table with columns ``t, x, y, yaw``.
+
+    Every cell must be a finite number (no booleans, no empty cells), ``|x|, |y|`` at most
+    :data:`MAX_POSITION` metres and the times in non-decreasing order (a path out of order
+    would silently change which frame first perceives an artefact).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file (``.csv``, ``.tsv``, ``.txt``, ``.parquet`` or ``.pq``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``t, x, y, yaw`` (float64), one row per pose, in file order.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    are_stats.inputs.InputError
+        (a ``ValueError``) naming the file, the row and the column of the first bad cell
+        (``LimitError`` when the table is too large for the memory limit).
+    """
+    from are_stats.logs._table import read_raw_table
+
+    table = read_raw_table(path, "robot path")
+    table.require(["t", "x", "y", "yaw"], "robot path")
+    cols = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
+    for c in ("x", "y"):
+        big = np.abs(cols[c]) > MAX_POSITION
+        if big.any():
+            i = int(np.argmax(big))
+            raise table.error(
+                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(cols[c][i]))
+            )
+    t = cols["t"]
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise table.error(
+            i,
+            "t",
+            f"times in non-decreasing order (the row before has t = {float(t[i - 1])!r})",
+            repr(float(t[i])),
+        )
+    return pd.DataFrame(cols)
+
+
+def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Read and check a scenarios folder for perception (``are-stats perceive SCENARIO``).
+
+    The folder must hold ``manifest.yaml`` (a mapping; ``map`` a string or null,
+    ``class_labels`` a list of strings or null) and ``artefacts.parquet`` with integer
+    columns ``scenario`` (>= 0), ``class`` and ``mark`` (>= -1; ``mark`` optional) and
+    finite ``t_arrive <= t_leave``, ``x``, ``y``, ``yaw`` (other columns are kept as
+    they are).
+
+    Returns
+    -------
+    (pandas.DataFrame, dict)
+        The artefacts table and the manifest.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the folder does not exist.
+    are_stats.inputs.InputError
+        (a ``ValueError``) naming the file, and the key or the row and column.
+    """
+    import pyarrow.parquet as pq
+
+    from are_stats.inputs import load_yaml
+    from are_stats.logs._table import read_raw_table
+
+    d = Path(folder)
+    if not d.exists():
+        raise FileNotFoundError(f"{d}: no such scenarios folder")
+    if not d.is_dir():
+        raise InputError(d, "", "a scenarios folder written by are-stats generate", _Text("a file"))
+    for name in ("manifest.yaml", "artefacts.parquet"):
+        if not (d / name).is_file():
+            raise InputError(
+                d, name, "a scenarios folder with manifest.yaml and artefacts.parquet",
+                _Text(f"no file {name}"),
+            )  # fmt: skip
+    mpath = d / "manifest.yaml"
+    manifest = load_yaml(mpath, "scenarios manifest")
+    if not isinstance(manifest, dict):
+        raise InputError(mpath, "", "a mapping (a scenarios manifest)", manifest)
+    if manifest.get("map") is not None:
+        get_str(manifest["map"], mpath, "map")
+    if manifest.get("class_labels") is not None:
+        labels = get_list(manifest["class_labels"], mpath, "class_labels")
+        for i, lab in enumerate(labels):
+            get_str(lab, mpath, f"class_labels[{i}]")
+    table = read_raw_table(d / "artefacts.parquet", "scenarios table")
+    table.require(["scenario", "class", *_SCENARIO_FLOATS], "scenarios table")
+    num = {c: table.floats(c, allow_empty=False)[0] for c in _SCENARIO_FLOATS}
+    for c in ("x", "y"):
+        big = np.abs(num[c]) > MAX_POSITION
+        if big.any():
+            i = int(np.argmax(big))
+            raise table.error(
+                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(num[c][i]))
+            )
+    early = num["t_leave"] < num["t_arrive"]
+    if early.any():
+        i = int(np.argmax(early))
+        raise table.error(
+            i,
+            "t_leave",
+            f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})",
+            repr(float(num["t_leave"][i])),
+        )
+    ints = {"scenario": table.nonneg_ints("scenario", allow_empty=False)[0]}
+    for c in ("class", "mark"):
+        if c not in table.columns:
+            continue
+        v = table.floats(c, allow_empty=False)[0]
+        bad = (v < -1) | (v != np.round(v)) | (v > 2**53)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise table.error(i, c, "an integer >= -1", repr(float(v[i])))
+        ints[c] = v.astype(np.int64)
+    try:
+        df = pq.read_table(d / "artefacts.parquet").to_pandas()
+    except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
+        raise InputError(
+            d / "artefacts.parquet", "", "a readable Parquet table", _Text(str(err))
+        ) from None
+    for c, v in {**num, **ints}.items():
+        df[c] = v
+    return df, manifest
 
 
 def yaw_rotations(yaw: Any) -> np.ndarray:
@@ -173,6 +327,13 @@ def perceive_scenario(
     m = check_pose("mount", camera.pose if mount is None else mount)
     path = check_finite("robot_path", robot_path[["t", "x", "y", "yaw"]].to_numpy(float))
     t = path[:, 0]
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise ValueError(
+            f"robot_path: row {i}: expected times in non-decreasing order, got t = {t[i]!r} "
+            f"after t = {t[i - 1]!r}"
+        )
     base = np.zeros((len(path), 4, 4))
     base[:, :3, :3] = yaw_rotations(path[:, 3])
     base[:, 0, 3], base[:, 1, 3], base[:, 3, 3] = path[:, 1], path[:, 2], 1.0
@@ -186,6 +347,7 @@ def perceive_scenario(
     max_count = np.zeros(len(out), np.int64)
     first = np.full(len(out), np.nan)
     scen = artefacts["scenario"].to_numpy()
+    _check_size(scen, num, t, camera)
     for s in pd.unique(scen):
         rows = np.flatnonzero(scen == s)
         ta, tl, x, y, yaw = num[rows].T
@@ -207,3 +369,34 @@ def perceive_scenario(
     out["max_count"] = max_count
     out["first_perceived_t"] = first
     return out
+
+
+def _check_size(scen: np.ndarray, num: np.ndarray, t: np.ndarray, camera: Any) -> None:
+    """Refuse, before tracing, work past the work limit (a ray per pixel of every frame in
+    which an artefact of the scenario is present) or pair buffers past the memory limit."""
+    if len(scen) == 0 or len(t) == 0:
+        return
+    _, n_per = np.unique(scen, return_counts=True)
+    check_memory(
+        float(len(t)) * float(n_per.max()) * PAIR_BYTES,
+        f"the {len(t)} robot poses x {int(n_per.max())} artefacts of a scenario",
+        "robot_path",
+    )
+    order = np.argsort(scen, kind="stable")
+    bounds = np.flatnonzero(np.diff(scen[order])) + 1
+    frames = 0
+    for rows in np.split(order, bounds):
+        ta, tl = num[rows, 0], num[rows, 1]
+        # frames with at least one artefact present: t in the union of [t_arrive, t_leave)
+        i0 = np.searchsorted(t, ta, side="left")
+        i1 = np.maximum(np.searchsorted(t, tl, side="left"), i0)
+        cover = np.zeros(len(t) + 1, np.int64)
+        np.add.at(cover, i0, 1)
+        np.add.at(cover, i1, -1)
+        frames += int(np.count_nonzero(np.cumsum(cover)[:-1] > 0))
+    pixels = float(camera.width) * float(camera.height)
+    check_work(
+        frames * pixels,
+        f"tracing {frames} frames of {int(pixels)} pixels",
+        "robot_path",
+    )

@@ -10,6 +10,7 @@ import trimesh
 from scipy import stats
 
 from are_stats.environment import OccupancyGrid
+from are_stats.inputs import InputError, LimitError, limits
 from are_stats.perception import (
     PinholeCamera,
     optical_from_base,
@@ -23,6 +24,7 @@ from are_stats.perception import (
     save_figure,
     yaw_rotations,
 )
+from are_stats.perception._scenario import read_robot_path
 from tests.helpers import ALPHA
 
 
@@ -133,3 +135,32 @@ def test_pictures(tmp_path):
         save_figure(fig2, tmp_path / "top.png")
     with pytest.raises(ValueError, match="depth: expected shape"):
         plot_camera_view(cam, res.depth[0][:5], c, h, r, res.counts[0], res.perceived[0])
+
+
+def test_perceive_scenario_refuses_unsorted_paths_and_runaway_work():
+    wall = trimesh.creation.box([0.2, 3.0, 2.0])
+    art = pd.DataFrame({"scenario": [0, 1], "class": [0, 0], "t_arrive": [0.0, 0.0],
+                        "t_leave": [10.0, 3.0], "x": [2.0, 2.0], "y": [0.0, 0.0],
+                        "yaw": [0.0, 0.0]})  # fmt: skip
+    classes = {0: (0.5, 0.5, 1.0)}
+    path = pd.DataFrame({"t": [0.0, 4.0, 2.0], "x": 0.0, "y": 0.0, "yaw": 0.0})
+    with pytest.raises(ValueError, match=r"robot_path: row 2: expected times in non-decreasing"):
+        perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)
+    path = pd.DataFrame({"t": [0.0, 2.0, 4.0], "x": 0.0, "y": 0.0, "yaw": 0.0})
+    # frames with an artefact present: 3 in scenario 0, 2 in scenario 1; 80 x 60 pixels each
+    with limits(work=5 * 4800 - 1), pytest.raises(LimitError, match="tracing 5 frames of 4800"):
+        perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)
+    with limits(work=5 * 4800):
+        assert len(perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)) == 2
+
+
+def test_read_robot_path(tmp_path):
+    p = tmp_path / "r.csv"
+    p.write_text("t,x,y,yaw,extra\n0,1,2,0.5,a\n1,1.5,2,0.5,b\n1,2,2,0.5,c\n")
+    df = read_robot_path(p)
+    assert list(df.columns) == ["t", "x", "y", "yaw"] and df["x"].tolist() == [1.0, 1.5, 2.0]
+    p.write_text("t,x,y,yaw\n0,1,2,0.5\n-1,1,2,0.5\n")
+    with pytest.raises(InputError, match=r"r.csv: row 2 \(line 3\), column 't': expected times"):
+        read_robot_path(p)
+    with pytest.raises(FileNotFoundError):
+        read_robot_path(tmp_path / "none.csv")
