@@ -18,6 +18,40 @@ def pytest_configure(config: pytest.Config) -> None:
     )
 
 
+#: Limits the fuzz run sets for the package: a case may ask for at most this much before the
+#: package must refuse it; :func:`tests.fuzz.strategies.bounded` allows a few GiB more, so a
+#: missing check shows up as ``MemoryError`` / a timeout, not as a machine out of memory.
+FUZZ_MEMORY_LIMIT = "512M"
+FUZZ_WORK_LIMIT = "2e9"
+
+
+@pytest.fixture(autouse=True)
+def _fuzz_limits(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ARE_STATS_MAX_MEMORY", FUZZ_MEMORY_LIMIT)
+    monkeypatch.setenv("ARE_STATS_MAX_WORK", FUZZ_WORK_LIMIT)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _warm() -> None:
+    """Load the heavy libraries before any bounded case.
+
+    JAX, XLA and Warp reserve gigabytes of address space when they start; loaded inside a
+    case that reservation would count against the case's ``RLIMIT_AS`` headroom (and XLA
+    aborts the process when a reservation fails).
+    """
+    import arviz  # noqa: F401
+    import jax.numpy as jnp
+    import matplotlib.pyplot  # noqa: F401
+    import pyarrow.parquet  # noqa: F401
+    import warp
+
+    import are_stats.cli  # noqa: F401
+    import are_stats.perception._perceive  # noqa: F401
+
+    jnp.zeros(3).block_until_ready()
+    warp.init()
+
+
 @pytest.fixture(scope="session")
 def fuzz_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("fuzz")

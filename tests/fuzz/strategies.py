@@ -82,7 +82,7 @@ def _vm_bytes() -> int:
 
 
 @contextlib.contextmanager
-def bounded(seconds: float = 20.0, memory: int = 2 * 2**30) -> Iterator[None]:
+def bounded(seconds: float = 20.0, memory: int = 3 * 2**30) -> Iterator[None]:
     """Run a case with a time limit and a memory limit.
 
     Time: ``setitimer`` raises :class:`CaseTimeout` (a ``BaseException``, so no
