@@ -9,12 +9,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from are_stats._atomic import atomic_path, check_writable
+from are_stats.inputs import InputError, get_float, get_int, get_seed
 
 if TYPE_CHECKING:
     from are_stats.builder._builder import ARBuilder
     from are_stats.environment import OccupancyGrid
 
-__all__ = ["render_map", "show_map"]
+__all__ = ["render_map", "show_map", "MAX_INFLATE", "MAX_SHOW_ARTEFACTS"]
+
+#: Largest inflation radius ``are-stats show --inflate`` draws (metres).
+MAX_INFLATE = 1000.0
+#: Most artefacts ``are-stats show --artefacts`` places (each is a polygon in the picture).
+MAX_SHOW_ARTEFACTS = 1000
+_TRIES = 200
 
 
 def render_map(
@@ -51,6 +58,8 @@ def render_map(
 
     from are_stats.builder._geometry import box_corners
 
+    if inflate is not None:
+        inflate = get_float(inflate, "inflate", "", lo=0, hi=MAX_INFLATE)
     target = check_writable(out, force)
     rgb = np.full(grid.shape + (3,), 0.55)
     rgb[grid.free] = 1.0
@@ -60,7 +69,8 @@ def render_map(
         rgb[band] = 0.65 * rgb[band] + 0.35 * np.array([1.0, 0.55, 0.0])
     x0, y0, yaw = grid.origin
     w, h = grid.width * grid.resolution, grid.height * grid.resolution
-    fig, ax = plt.subplots(figsize=(8, 8 * h / w + 0.8), dpi=120)
+    # a very long and thin map must not ask for a figure thousands of inches tall
+    fig, ax = plt.subplots(figsize=(8, float(np.clip(8 * h / w + 0.8, 2.0, 40.0))), dpi=120)
     tr = matplotlib.transforms.Affine2D().rotate(yaw).translate(x0, y0) + ax.transData
     ax.imshow(rgb, origin="lower", extent=(0, w, 0, h), interpolation="nearest", transform=tr)
     handles = [
@@ -108,23 +118,66 @@ def show_map(
     force: bool = False,
 ) -> Path:
     """Read a ROS map (a YAML path, or the name of a map shipped in ``models/``), place
-    ``artefacts`` random catalogue artefacts on it and render it (``are-stats show``)."""
+    ``artefacts`` random catalogue artefacts on it and render it (``are-stats show``).
+
+    Parameters
+    ----------
+    map_path : str or PathLike
+        The map YAML or the name of a shipped map (``courtyard``).
+    out : str or PathLike, optional
+        The PNG (default ``<map name>.png``).
+    inflate : float, optional
+        Inflation radius to draw, in ``[0, MAX_INFLATE]`` metres.
+    artefacts : int
+        Random artefacts to place, in ``[0, MAX_SHOW_ARTEFACTS]`` and no more than fit on
+        the free area (its area over the smallest catalogue footprint).
+    seed : int
+        Seed of the placement (``0 .. 2**32 - 1``).
+    force : bool
+        Overwrite ``out``.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        (a ``ValueError``) naming the option or the map file, also when the artefacts do
+        not all find room (200 tries each).
+    """
     from are_stats.builder._builder import ARBuilder
     from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 
+    if inflate is not None:
+        inflate = get_float(inflate, "--inflate", "", lo=0, hi=MAX_INFLATE)
+    n_art = get_int(artefacts, "--artefacts", "", lo=0, hi=MAX_SHOW_ARTEFACTS)
+    seed = get_seed(seed, "--seed")
     p = Path(map_path)
     if not p.exists() and (DEFAULT_MODELS / f"{p.name}.yaml").is_file():
         p = DEFAULT_MODELS / f"{p.name}.yaml"
     grid = OccupancyGrid.from_ros_yaml(p)
     target = Path(out) if out is not None else Path(f"{p.stem}.png")
     check_writable(target, force)
-    if int(artefacts) < 0:
-        raise ValueError(f"artefacts: expected an integer >= 0, got {artefacts!r}")
     builder = None
-    if artefacts:
+    if n_art:
         cat = load_catalogue()
+        smallest = min(float(np.prod(2 * c.half_extents[:2])) for c in cat.classes)
+        room = int(grid.free_area / smallest)
+        if n_art > room:
+            raise InputError(
+                "--artefacts",
+                "",
+                f"at most {room} artefacts (the {grid.free_area:.1f} m^2 free in {p.name} over "
+                f"the smallest footprint, {smallest:.2f} m^2)",
+                n_art,
+            )
         builder = ARBuilder(grid, cat)
         rng = np.random.default_rng(seed)
-        for _ in range(int(artefacts)):
-            builder.place(cat.row(int(rng.integers(len(cat)))).label, rng, max_tries=200)
+        for k in range(n_art):
+            label = cat.row(int(rng.integers(len(cat)))).label
+            if not builder.place(label, rng, max_tries=_TRIES).ok:
+                raise InputError(
+                    "--artefacts",
+                    "",
+                    f"artefacts that fit on {p.name} ({k} placed, no room for a {label!r} "
+                    f"in {_TRIES} random tries)",
+                    n_art,
+                )
     return render_map(grid, target, inflate=inflate, builder=builder, force=force)
