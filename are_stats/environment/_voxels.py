@@ -19,6 +19,7 @@ expanded.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,6 +28,7 @@ import numpy as np
 
 from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
+from are_stats.inputs import InputError, _Text, check_memory, check_work, format_bytes
 
 if TYPE_CHECKING:
     import trimesh
@@ -39,6 +41,11 @@ _MASK = (1 << _BITS) - 1
 _BT_HEADER = "# Octomap OcTree binary file"
 _TREE_DEPTH = 16
 _TREE_MAX = 32768
+_MIN_RES, _MAX_RES = 1e-6, 1e4
+# Memory per expanded voxel while reading: (n, 3) int64 keys, their grid copy and the packed
+# int64 key, plus np.unique's sort buffers.
+_BYTES_PER_VOXEL = 96
+_BT_STEPS_PER_BYTE = 64
 
 
 def _pack(keys: np.ndarray) -> np.ndarray:
@@ -188,8 +195,14 @@ class VoxelMap:
             If the header or the tree data are malformed.
         """
         p = Path(path)
-        if not p.is_file():
+        if not p.exists():
             raise FileNotFoundError(f"{p}: OctoMap file not found")
+        if not p.is_file():
+            raise InputError(p, "", "an OctoMap .bt file", _Text("not a file"))
+        size_b = p.stat().st_size
+        check_memory(size_b * 2, f"reading the {format_bytes(size_b)} OctoMap file", p)
+        # the tree is walked one inner node (2 bytes) at a time
+        check_work(size_b * _BT_STEPS_PER_BYTE, "walking the OctoMap tree", p)
         raw = p.read_bytes()
         pos = 0
 
@@ -215,11 +228,22 @@ class VoxelMap:
             meta[key] = val.strip()
         if meta.get("id", "OcTree") != "OcTree":
             raise ValueError(f"{p}: expected an OcTree, got id {meta.get('id')!r}")
+        if "res" not in meta:
+            raise InputError(p, "header", "a line 'res R' (the resolution)", _Text("none"))
         try:
             res = float(meta["res"])
+        except ValueError:
+            res = math.nan
+        if not _MIN_RES <= res <= _MAX_RES:
+            raise InputError(
+                p, "header 'res'", f"a resolution in [{_MIN_RES:g}, {_MAX_RES:g}] m", meta["res"]
+            )
+        try:
             size = int(meta.get("size", "1"))
-        except (KeyError, ValueError) as err:
-            raise ValueError(f"{p}: header needs numeric 'res' and 'size' ({err})") from err
+        except ValueError:
+            size = -1
+        if size < 0:
+            raise InputError(p, "header 'size'", "a node count >= 0", meta.get("size"))
         out = cls(res)
         if size == 0:
             return out
@@ -256,11 +280,12 @@ def _read_bt_tree(raw: bytes, pos: int, p: Path) -> np.ndarray:
     out: list[np.ndarray] = []
     # stack of (depth, key) of inner nodes whose two flag bytes are next in the stream
     cursor = 0
+    n_voxels = 0
     stack = [(0, (0, 0, 0))]
     while stack:
         depth, key = stack.pop()
         if cursor + 2 > data.size:
-            raise ValueError(f"{p}: truncated OctoMap tree data")
+            raise InputError(p, f"byte {pos + cursor}", "more tree data", _Text("end of file"))
         flags = int(data[cursor]) | (int(data[cursor + 1]) << 8)
         cursor += 2
         inner = []
@@ -280,10 +305,12 @@ def _read_bt_tree(raw: bytes, pos: int, p: Path) -> np.ndarray:
                 inner.append((depth + 1, ck))
             elif b == 2:  # bit 2i set, 2i+1 clear: occupied leaf
                 span = half
-                if span**3 > 10_000_000:
-                    raise ValueError(
-                        f"{p}: a pruned occupied block of {span}^3 voxels is too large to expand"
-                    )
+                n_voxels += span**3
+                check_memory(
+                    n_voxels * _BYTES_PER_VOXEL,
+                    f"the {n_voxels} occupied voxels of the pruned OctoMap tree",
+                    p,
+                )
                 r = np.arange(span)
                 g = np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
                 out.append(g + np.array(ck))

@@ -7,6 +7,7 @@ import pytest
 import trimesh
 
 from are_stats import VoxelMap
+from are_stats.inputs import InputError, LimitError, limits
 
 
 def test_insert_remove_query_against_python_set(rng):
@@ -70,10 +71,37 @@ def test_bt_errors(tmp_path):
     with pytest.raises(ValueError, match="not an OctoMap"):
         VoxelMap.from_octomap_bt(p)
     p.write_bytes(_bt(0.1, [0x00, 0xC0, 0x03]))
-    with pytest.raises(ValueError, match="truncated"):
+    with pytest.raises(InputError, match="x.bt: byte .*: expected more tree data"):
         VoxelMap.from_octomap_bt(p)
     p.write_bytes(b"# Octomap OcTree binary file\nid OcTree\nsize 1\ndata\n\x00\x00")
-    with pytest.raises(ValueError, match="res"):
+    with pytest.raises(InputError, match="x.bt: header: expected a line 'res R'"):
+        VoxelMap.from_octomap_bt(p)
+    with pytest.raises(InputError, match="expected an OctoMap .bt file, got not a file"):
+        VoxelMap.from_octomap_bt(tmp_path)
+
+
+@pytest.mark.parametrize(
+    ("header", "match"),
+    [
+        (b"res 1e300\nsize 1\n", r"header 'res': expected a resolution in \[1e-06, 10000\] m"),
+        (b"res nan\nsize 1\n", r"header 'res': expected a resolution"),
+        (b"res -0.1\nsize 1\n", r"header 'res': expected a resolution"),
+        (b"res 0.1\nsize -4\n", r"header 'size': expected a node count >= 0"),
+        (b"res 0.1\nsize many\n", r"header 'size': expected a node count >= 0"),
+    ],
+)
+def test_bt_header_values(tmp_path, header, match):
+    p = tmp_path / "h.bt"
+    p.write_bytes(b"# Octomap OcTree binary file\nid OcTree\n" + header + b"data\n\x00\x00")
+    with pytest.raises(InputError, match=match):
+        VoxelMap.from_octomap_bt(p)
+
+
+def test_bt_pruned_blocks_are_checked_against_the_memory_limit(tmp_path):
+    p = tmp_path / "big.bt"
+    # child 0 of the root an occupied leaf: a pruned block of 32768^3 voxels
+    p.write_bytes(b"# Octomap OcTree binary file\nid OcTree\nsize 1\nres 0.1\ndata\n\x02\x00")
+    with pytest.raises(LimitError, match=r"big.bt: expected the 35184372088832 occupied voxels"):
         VoxelMap.from_octomap_bt(p)
 
 
@@ -101,3 +129,11 @@ def test_voxel_errors():
         VoxelMap(-1.0)
     with pytest.raises(ValueError, match="points"):
         VoxelMap(0.1).insert_points([[1.0, 2.0]])
+
+
+def test_bt_voxel_count_is_checked_cumulatively(tmp_path):
+    vm = VoxelMap(0.1, np.stack(np.meshgrid(*[np.arange(8)] * 3, indexing="ij"), -1).reshape(-1, 3))
+    p = vm.to_octomap_bt(tmp_path / "cube.bt")
+    with limits(memory=f"{96 * 300}"), pytest.raises(LimitError, match="occupied voxels"):
+        VoxelMap.from_octomap_bt(p)
+    assert len(VoxelMap.from_octomap_bt(p)) == 512
