@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from are_stats.inputs import InputError, get_str
 
 __all__ = [
     "DETECTION3D_MSGS",
@@ -178,6 +180,75 @@ def _detections(msg: Any, topic: str, ts: int, rows: list[tuple]) -> None:
         )
 
 
+def _bag_errors() -> tuple[type[BaseException], ...]:
+    """What rosbags raises on a corrupt or truncated bag (its own errors, and the plain
+    ones its parsers let through on damaged bytes)."""
+    import sqlite3
+    import struct
+
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Ros1ReaderError
+    from rosbags.rosbag2 import ReaderError as Ros2ReaderError
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import TypesysError
+
+    extra: tuple[type[BaseException], ...] = ()
+    try:  # rosbags reads ROS 2 sqlite3 bags with apsw when it is installed
+        import apsw
+
+        extra = (apsw.Error,)
+    except ImportError:  # pragma: no cover - depends on the environment
+        pass
+    return (
+        *extra,
+        # a damaged size field makes the parser ask for a huge read
+        MemoryError,
+        AnyReaderError,
+        Ros1ReaderError,
+        Ros2ReaderError,
+        SerdeError,
+        TypesysError,
+        sqlite3.DatabaseError,
+        struct.error,
+        KeyError,
+        IndexError,
+        AssertionError,
+        UnicodeDecodeError,
+        OverflowError,
+        EOFError,
+    )
+
+
+def _messages(
+    reader: Any, conns: list[Any], p: Path, errors: tuple[type[BaseException], ...]
+) -> Iterator[tuple[Any, int, Any]]:
+    """``(connection, receive time ns, message)``; a damaged record or message is a
+    ``ValueError`` naming the bag (and the topic and time when known)."""
+    it = reader.messages(connections=conns)
+    n = 0
+    while True:
+        try:
+            item = next(it)
+        except StopIteration:
+            return
+        except errors as err:
+            raise ValueError(
+                f"{p}: record after message {n}: expected a readable bag record, got a "
+                f"damaged one ({type(err).__name__}: {err})"
+            ) from None
+        conn, ts, raw = item
+        n += 1
+        try:
+            msg = reader.deserialize(raw, conn.msgtype)
+        except errors as err:
+            raise ValueError(
+                f"{p}: topic {conn.topic!r}, message {n} (received at {ts * 1e-9:.9f} s): "
+                f"expected a valid {conn.msgtype}, got undecodable bytes "
+                f"({type(err).__name__}: {err})"
+            ) from None
+        yield conn, ts, msg
+
+
 def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None) -> pd.DataFrame:
     """Read tracked objects from a ROS 1 ``.bag``, a ROS 2 bag directory or an ``.mcap`` file.
 
@@ -210,13 +281,19 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
     >>> tracks = read_tracks_bag("field/courtyard.mcap", topics=["/people"])  # doctest: +SKIP
     >>> log = tracks_to_lifecycle(tracks, gap_tolerance=1.0)  # doctest: +SKIP
     """
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
 
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such bag file or directory")
+    if topics is not None:
+        if isinstance(topics, str) or not isinstance(topics, Sequence):
+            raise InputError("topics", "", "a list of topic names", topics)
+        for k, t in enumerate(topics):
+            get_str(t, "topics", f"[{k}]")
     ros1 = p.suffix == ".bag"
     rows: list[tuple] = []
+    bag_errors = _bag_errors()
     try:
         with AnyReader([p], default_typestore=vision_msgs_typestore(1 if ros1 else 2)) as reader:
             by_topic: dict[str, str] = {}
@@ -247,17 +324,26 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
                         )
             conns = [c for c in reader.connections if c.topic in chosen]
             states = {t: _MarkerState() for t in chosen}
-            for conn, ts, raw in reader.messages(connections=conns):
-                msg = reader.deserialize(raw, conn.msgtype)
-                if conn.msgtype == _MARKER_ARRAY:
-                    _markers(msg.markers, states[conn.topic], conn.topic, ts, rows)
-                elif conn.msgtype == _MARKER:
-                    _markers([msg], states[conn.topic], conn.topic, ts, rows)
-                else:
-                    _detections(msg, conn.topic, ts, rows)
-    except AnyReaderError as err:
+            for conn, ts, msg in _messages(reader, conns, p, bag_errors):
+                try:
+                    if conn.msgtype == _MARKER_ARRAY:
+                        _markers(msg.markers, states[conn.topic], conn.topic, ts, rows)
+                    elif conn.msgtype == _MARKER:
+                        _markers([msg], states[conn.topic], conn.topic, ts, rows)
+                    else:
+                        _detections(msg, conn.topic, ts, rows)
+                except (AttributeError, TypeError) as err:
+                    # the bag's own definition of the type lacks a standard field
+                    raise ValueError(
+                        f"{p}: topic {conn.topic!r} (received at {ts * 1e-9:.9f} s): expected "
+                        f"a {conn.msgtype} with its standard fields, got a message whose "
+                        f"definition differs ({err})"
+                    ) from None
+    except bag_errors as err:
+        # opening the bag (its index, connections and schemas) failed
         raise ValueError(
-            f"{p}: expected a readable ROS 1 / ROS 2 bag or MCAP file, got: {err}"
+            f"{p}: expected a readable ROS 1 / ROS 2 bag or MCAP file, got: "
+            f"{type(err).__name__}: {err}"
         ) from None
     if not rows:
         raise ValueError(
@@ -265,6 +351,18 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
             "(ADD marker or detection), got none"
         )
     df = pd.DataFrame(rows, columns=["id", "t", "x", "y", "yaw", "label", "topic", "frame_id"])
+    for c in ("t", "x", "y"):
+        v = df[c].to_numpy(dtype=np.float64)
+        bad = ~np.isfinite(v)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                p,
+                f"topic {df['topic'].iloc[i]!r}, track {df['id'].iloc[i]!r}, message "
+                f"{i + 1} of the topics read, {c}",
+                "a finite number",
+                float(v[i]),
+            )
     for c in ("id", "label", "topic", "frame_id"):
         df[c] = df[c].astype("str")
     order = np.argsort(df["t"].to_numpy(), kind="stable")

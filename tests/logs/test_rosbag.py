@@ -210,3 +210,60 @@ def test_unreadable_bag(tmp_path):
     p.write_bytes(b"not a bag at all")
     with pytest.raises(ValueError, match=r"junk\.bag: expected a readable ROS 1 / ROS 2 bag"):
         read_tracks_bag(p)
+
+
+def _damaged(data: bytes, rnd) -> bytes:
+    b = bytearray(data)
+    op = rnd.randrange(3)
+    if op == 0:
+        for _ in range(rnd.randrange(1, 6)):
+            b[rnd.randrange(len(b))] = rnd.randrange(256)
+    elif op == 1:
+        b = b[: rnd.randrange(len(b))]
+    else:
+        i = rnd.randrange(len(b) - 8)
+        b[i : i + 4] = rnd.choice([b"\xff\xff\xff\x7f", b"\x00\x00\x00\x80", b"\xff\xff\xff\xff"])
+    return bytes(b)
+
+
+def test_damaged_bags_give_clean_errors(bag, tmp_path):
+    # byte flips, truncations and absurd size fields: every read either succeeds or raises
+    # a ValueError naming the file (rosbags' own KeyError / AssertionError / MemoryError /
+    # apsw errors on damaged bytes no longer escape)
+    import random
+
+    kind, path = bag
+    if kind == "ros1":
+        src, suffix = path, ".bag"
+    else:
+        (src,) = sorted(path.glob("*.mcap" if kind == "mcap" else "*.db3"))
+        suffix = src.suffix
+    data = src.read_bytes()
+    rnd = random.Random(13)
+    target = tmp_path / f"damaged{suffix}"
+    for _ in range(60):
+        target.write_bytes(_damaged(data, rnd))
+        try:
+            df = read_tracks_bag(target)
+        except ValueError as err:
+            assert str(target) in str(err)
+        else:
+            assert np.isfinite(df[["t", "x", "y"]].to_numpy()).all()
+
+
+def test_non_finite_position_and_bad_topics(tmp_path):
+    ts = vision_msgs_typestore(1)
+    p = tmp_path / "nan.bag"
+    with Writer1(p) as w:
+        cm = w.add_connection("/markers", "visualization_msgs/msg/MarkerArray", typestore=ts)
+        for t, x in ((1.0, 0.0), (2.0, float("nan"))):
+            msg = _marker_array(ts, t, [("people", 1, x, 0.0, 0.0, 0)], True)
+            w.write(cm, int(t * 1e9), ts.serialize_ros1(msg, "visualization_msgs/msg/MarkerArray"))
+    with pytest.raises(
+        ValueError, match=r"nan\.bag: topic '/markers', track 'people/1', .*x: expected a finite"
+    ):
+        read_tracks_bag(p)
+    with pytest.raises(ValueError, match=r"^topics: expected a list of topic names"):
+        read_tracks_bag(p, topics="/markers")
+    with pytest.raises(ValueError, match=r"^topics: \[0\]: expected a string, got 3"):
+        read_tracks_bag(p, topics=[3])
