@@ -478,6 +478,14 @@ def run_perceive(
         lo, hi = np.asarray(env.bounds)[:, :2]
         area = f"the mesh's x-y bounds {lo.tolist()} to {hi.tolist()}"
     elif manifest.get("map"):
+        if not Path(manifest["map"]).exists():
+            raise InputError(
+                scenario / "manifest.yaml",
+                "map",
+                "an existing ROS map YAML (a relative path is read from the current folder), "
+                "or pass --mesh MESH",
+                _Text(f"{manifest['map']}: no such file"),
+            )
         grid = OccupancyGrid.from_ros_yaml(manifest["map"])
         env = extrude_grid(grid, wall_height)
         area = f"the map {manifest['map']}"
@@ -490,7 +498,8 @@ def run_perceive(
         )
     t = robot["t"].to_numpy()
     ta, tl = df["t_arrive"].to_numpy(), df["t_leave"].to_numpy()
-    if len(df) and not ((t[:, None] >= ta.min()) & (t[:, None] < tl.max())).any():
+    seen_by = np.searchsorted(t, tl, side="left") - np.searchsorted(t, ta, side="left")
+    if len(df) and not (seen_by > 0).any():  # no pose with t_arrive <= t < t_leave
         raise InputError(
             path,
             "column 't'",

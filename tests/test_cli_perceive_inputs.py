@@ -123,7 +123,7 @@ def test_poses_outside_the_map_are_reported(tmp_path):
         ("map: [\n", None, r"manifest.yaml: expected a scenarios manifest in valid YAML"),
         ("map: 3\n", None, r"manifest.yaml: map: expected a string, got 3"),
         ("map: null\n", None, r"manifest.yaml: map: expected a map for the environment mesh"),
-        ("map: nowhere.yaml\n", None, r"nowhere.yaml: no such file"),
+        ("map: nowhere.yaml\n", None, r"manifest.yaml: map: expected an existing ROS map YAML"),
         ("map: m.yaml\nclass_labels: [1]\n", None, r"class_labels\[0\]: expected a string"),
         (None, _artefacts().drop(columns="class"), r"missing column\(s\) 'class'"),
         (
@@ -176,3 +176,11 @@ def test_missing_values_in_the_scenarios_table(tmp_path):
     scen, robot = _folder(tmp_path, df=_artefacts(x=[np.nan, 0.0, 0.0]))
     res = _perceive(scen, robot)
     assert res.exit_code == 2 and "row 1, column 'x': expected a number, got an empty" in res.output
+
+
+def test_path_between_the_artefacts_is_an_error(tmp_path):
+    # inside [min t_arrive, max t_leave) but no artefact present at any pose time
+    df = _artefacts(t_arrive=[0.0, 200.0, 0.0], t_leave=[10.0, 250.0, 5.0])
+    scen, robot = _folder(tmp_path, df=df, robot="t,x,y,yaw\n50,-15,-10,0\n60,-14,-10,0\n")
+    res = _perceive(scen, robot)
+    assert res.exit_code == 2 and "no artefact would be seen" in res.output, res.output
