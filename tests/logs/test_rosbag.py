@@ -241,7 +241,7 @@ def test_damaged_bags_give_clean_errors(bag, tmp_path):
     data = src.read_bytes()
     rnd = random.Random(13)
     target = tmp_path / f"damaged{suffix}"
-    for _ in range(60):
+    for _ in range(25):
         target.write_bytes(_damaged(data, rnd))
         try:
             df = read_tracks_bag(target)
