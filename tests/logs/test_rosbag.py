@@ -267,3 +267,21 @@ def test_non_finite_position_and_bad_topics(tmp_path):
         read_tracks_bag(p, topics="/markers")
     with pytest.raises(ValueError, match=r"^topics: \[0\]: expected a string, got 3"):
         read_tracks_bag(p, topics=[3])
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (b"Header header", b"Header headxr", r"with its standard fields, got a message whose"),
+        (b"Pose pose", b"PoAe pose", r"message 1 .*expected a valid .*got undecodable bytes"),
+    ],
+)
+def test_mcap_with_damaged_type_definitions(tmp_path, old, new, message):
+    # an MCAP file carries its own message definitions: a damaged one must not leak a
+    # KeyError / AttributeError from rosbags or from the track extraction
+    _write(tmp_path / "b", "mcap")
+    (mcap,) = sorted((tmp_path / "b").glob("*.mcap"))
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(mcap.read_bytes().replace(old, new))
+    with pytest.raises(ValueError, match=r"damaged\.mcap: topic '/markers'.*" + message):
+        read_tracks_bag(damaged, topics=["/markers"])
