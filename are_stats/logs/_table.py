@@ -24,6 +24,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -452,13 +453,14 @@ def _read_parquet(p: Path, what: str) -> RawTable:
     for j, name in enumerate(names):
         col = t.column(j).combine_chunks() if t.num_rows else t.column(j)
         typ = t.schema.field(j).type
-        if pa.types.is_floating(typ):
+        exact = pa.types.is_integer(typ) and _within_float_exact(col, pc)
+        if pa.types.is_floating(typ) or exact:
             null = np.asarray(col.is_null().to_numpy(zero_copy_only=False), dtype=bool)
             filled = pc.fill_null(pc.cast(col, pa.float64()), 0.0)
             numbers[name] = (np.asarray(filled.to_numpy(zero_copy_only=False), float), null)
         else:
-            # integers as exact decimal text (no rounding through float64), booleans and
-            # everything else as text; cells are interpreted by the RawTable parsers
+            # integers past 2**53 as exact decimal text (no rounding through float64),
+            # booleans and everything else as text; the RawTable parsers interpret them
             if pa.types.is_boolean(typ):
                 bools.add(name)
             vals = col.to_pylist()
@@ -466,3 +468,11 @@ def _read_parquet(p: Path, what: str) -> RawTable:
                 ["" if v is None else str(v).strip() for v in vals], dtype=object
             )
     return RawTable(p, "parquet", t.num_rows, strings, numbers, bools=frozenset(bools))
+
+
+def _within_float_exact(col: Any, pc: Any) -> bool:
+    """Whether every integer of the Arrow column is exact in float64 (|v| <= 2**53)."""
+    if col.null_count == len(col):
+        return True
+    mm = pc.min_max(col)
+    return -MAX_EXACT_INT <= mm["min"].as_py() and mm["max"].as_py() <= MAX_EXACT_INT
