@@ -234,6 +234,8 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such manifest file")
+    if not (p.is_file() or p.is_dir()):  # a FIFO or device would block or never end
+        raise InputError(p, "", "a life-cycle log manifest file", _Text("a special file"))
     meta = load_yaml(p, "life-cycle log manifest")
     if meta is None:
         meta = {}

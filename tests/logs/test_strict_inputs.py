@@ -427,3 +427,17 @@ def test_fuzz_count_panel(tmp_path, text):
         return
     assert np.isfinite(t).all() and (np.diff(t) > 0).all()
     assert n.dtype == np.int64 and (n >= 0).all()
+
+
+def test_special_files_are_refused_not_read(tmp_path):
+    import os
+
+    fifo = tmp_path / "log.yaml"
+    os.mkfifo(fifo)  # reading it would block forever
+    p = write(tmp_path, H + "a,1,2,3\n", manifest=None)
+    with pytest.raises(InputError, match=r"log\.yaml: expected a life-cycle log manifest file"):
+        read_lifecycle_log(p)
+    table = tmp_path / "fifo.csv"
+    os.mkfifo(table)
+    with pytest.raises(ValueError, match=r"fifo\.csv: expected a life-cycle log file .*special"):
+        read_lifecycle_log(table, window=(0, 5))
