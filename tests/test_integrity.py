@@ -1,0 +1,302 @@
+"""Integrity of outputs: killed runs lose nothing, and the same seed gives the same bytes.
+
+(a) ``are-stats fit``, ``generate`` and ``experiment`` run in a subprocess over the complete
+outputs of an earlier run (``--force``) and are killed (SIGKILL, whole process group) after
+a delay drawn from a seeded RNG. Afterwards every file under a final name is either the
+earlier file, byte for byte, or a complete output that its reader accepts; a scenario
+folder is replaced as a whole (never the old manifest beside new artefacts).
+
+(b) Two runs with the same seed into two places write the same bytes.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
+
+#: Kill moments per command (fractions of an uninterrupted run's time, seeded).
+N_KILLS = 2
+RNG_SEED = 20261123
+
+pytestmark = pytest.mark.slow
+
+SWEEP = {
+    "name": "tiny",
+    "map": "courtyard",
+    "seed": 0,
+    "replicates": 1,
+    "scenario": {
+        "arrival_rate": 0.0005,
+        "leave_rate": 0.02,
+        "mix_weights": [0.6, 0.4],
+        "mix_rates": [0.5, 3.0],
+        "start": "stationary",
+    },
+    "robot": {"radius": 0.3, "speed": 0.5},
+    "mission": {"n_goals": 1, "time_limit": 10.0, "perception": "all"},
+    "planner": {"algorithm": "RRTConnect", "range": 2.0},
+    "factors": {"scenario.arrival_rate": [0.0002, 0.0008]},
+}
+
+
+def _are_stats() -> list[str]:
+    exe = Path(sys.executable).with_name("are-stats")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "are_stats.cli"]
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "JAX_PLATFORMS": "cpu", "MPLBACKEND": "Agg", "COLUMNS": "200"}
+
+
+def run(args: list[str], cwd: Path) -> float:
+    """Run ``are-stats ARGS`` to completion; returns its wall time."""
+    t = time.perf_counter()
+    res = subprocess.run(
+        [*_are_stats(), *args], cwd=cwd, env=_env(), capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, f"are-stats {' '.join(args)}\n{res.stdout[-2000:]}\n{res.stderr}"
+    return time.perf_counter() - t
+
+
+def run_killed(args: list[str], cwd: Path, delay: float) -> int | None:
+    """Start ``are-stats ARGS`` in its own process group; SIGKILL the group after ``delay``.
+
+    Returns the exit code when the run ended before the kill, else ``None``.
+    """
+    proc = subprocess.Popen(
+        [*_are_stats(), *args],
+        cwd=cwd,
+        env=_env(),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    try:
+        return proc.wait(timeout=delay)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        return None
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every regular file under ``folder`` (relative path -> bytes)."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+def delays(total: float, n: int = N_KILLS, salt: int = 0) -> list[float]:
+    """Seeded kill moments between 30 % and 100 % of an uninterrupted run's time."""
+    rng = np.random.default_rng([RNG_SEED, salt])
+    return sorted(float(u) * total for u in rng.uniform(0.3, 1.0, n))
+
+
+def _tiny_log(d: Path) -> Path:
+    d.mkdir(parents=True, exist_ok=True)
+    lines = LOG.read_text().splitlines()[:61]
+    (d / "log.csv").write_text("\n".join(lines) + "\n")
+    (d / "log.yaml").write_text(yaml.safe_dump({"window": [0.0, 14400.0], "area": 900.0}))
+    return d / "log.csv"
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """Two same-seed fits, generations and sweeps (shared by (a) and (b))."""
+    d = tmp_path_factory.mktemp("integrity")
+    log = _tiny_log(d)
+    fit = ["fit", str(log), "--method", "em", "--no-figures", "--seed", "1"]
+    t_fit = run([*fit, "--out", str(d / "a.nc")], d)
+    run([*fit, "--out", str(d / "b.nc")], d)
+    gen = ["generate", str(d / "a.nc"), "--scenarios", "4", "--horizon", "600", "--seed", "7"]
+    t_gen = run([*gen, "--out", str(d / "gen_a")], d)
+    run([*gen, "--out", str(d / "gen_b")], d)
+    (d / "sweep.yaml").write_text(yaml.safe_dump(SWEEP))
+    t_exp = run(["experiment", str(d / "sweep.yaml"), "--out", str(d / "exp_a")], d)
+    run(["experiment", str(d / "sweep.yaml"), "--out", str(d / "exp_b")], d)
+    return {"dir": d, "log": log, "t_fit": t_fit, "t_gen": t_gen, "t_exp": t_exp}
+
+
+# ----------------------------------------------------------------------------- (b) same bytes
+
+
+def _diff(a: dict[str, bytes], b: dict[str, bytes]) -> list[str]:
+    names = sorted(set(a) | set(b))
+    return [n for n in names if a.get(n) != b.get(n)]
+
+
+def test_generate_same_seed_same_bytes(work) -> None:
+    d = work["dir"]
+    a, b = snapshot(d / "gen_a"), snapshot(d / "gen_b")
+    assert set(a) >= {"artefacts.parquet", "manifest.yaml"}
+    assert not _diff(a, b), f"generate, same seed: files differ: {_diff(a, b)}"
+
+
+def test_fit_same_seed_same_bytes(work) -> None:
+    d = work["dir"]
+    a, b = (d / "a.nc").read_bytes(), (d / "b.nc").read_bytes()
+    if a != b:
+        import arviz as az
+
+        ia, ib = az.from_netcdf(str(d / "a.nc")), az.from_netcdf(str(d / "b.nc"))
+        diffs = [
+            f"{g}.attrs[{k!r}]"
+            for g in ia.groups()
+            for k in set(ia[g].attrs) | set(ib[g].attrs)
+            if str(ia[g].attrs.get(k)) != str(ib[g].attrs.get(k))
+        ]
+        diffs += [
+            f"{g}.{v}"
+            for g in ia.groups()
+            for v in ia[g].data_vars
+            if not ia[g][v].equals(ib[g][v])
+        ]
+        raise AssertionError(f"fit --method em, same seed: the .nc bytes differ; fields: {diffs}")
+
+
+#: Sweep result columns measured on the wall clock (the replanning time and the paper's
+#: rho, its share of the mission time): they differ between runs by nature.
+WALL_CLOCK = {"rho_t", "rho", "rho_mean", "rho_t_mean"}
+
+
+def _sweep_diff(a: Path, b: Path) -> list[str]:
+    """Files of two sweep folders that differ, beyond the :data:`WALL_CLOCK` columns."""
+    import pandas as pd
+
+    sa, sb = snapshot(a), snapshot(b)
+    out = []
+    for name in _diff(sa, sb):
+        if name.endswith(".parquet") and name in sa and name in sb:
+            fa, fb = pd.read_parquet(a / name), pd.read_parquet(b / name)
+            keep = [c for c in fa.columns if c not in WALL_CLOCK]
+            if list(fa.columns) == list(fb.columns) and fa[keep].equals(fb[keep]):
+                continue
+        out.append(name)
+    return out
+
+
+def test_experiment_same_seed_same_results(work) -> None:
+    """Same config, same results: bytes of every file, values beyond wall-clock columns."""
+    d = work["dir"]
+    assert snapshot(d / "exp_a"), "the sweep wrote nothing"
+    diff = _sweep_diff(d / "exp_a", d / "exp_b")
+    assert not diff, f"experiment, same config: files differ: {diff}"
+
+
+# ----------------------------------------------------------------------------- (a) kills
+
+
+def _complete_fit(path: Path) -> bool:
+    from are_stats import read_fit
+
+    try:
+        read_fit(path)
+    except ValueError:
+        return False
+    return True
+
+
+def test_fit_killed(work, tmp_path: Path) -> None:
+    """``fit --force`` killed over an existing fit: the old fit, or a complete new one."""
+    d = work["dir"]
+    old = (d / "a.nc").read_bytes()
+    for i, delay in enumerate(delays(work["t_fit"], salt=1)):
+        w = tmp_path / f"k{i}"
+        w.mkdir()
+        (w / "keep.txt").write_text("an unrelated earlier output")
+        (w / "fit.nc").write_bytes(old)
+        args = ["fit", str(work["log"]), "--method", "em", "--no-figures", "--seed", "2",
+                "--force", "--out", str(w / "fit.nc")]
+        run_killed(args, w, delay)
+        now = (w / "fit.nc").read_bytes()
+        assert now == old or _complete_fit(w / "fit.nc"), f"killed after {delay:.2f} s: fit.nc"
+        assert (w / "keep.txt").read_text() == "an unrelated earlier output"
+        if i == 0:  # a fresh run killed: nothing, or a complete fit, under the final name
+            fresh = w / "fresh.nc"
+            run_killed([*args[:-1], str(fresh)], w, delay)
+            assert not fresh.exists() or _complete_fit(fresh), f"killed at {delay:.2f} s: fresh"
+
+
+def _scenarios_whole(folder: Path, old: dict[str, bytes], seed: int) -> str | None:
+    """None when ``folder`` is the old folder byte for byte or a complete new one."""
+    from are_stats import read_scenarios
+
+    now = snapshot(folder)
+    if now == old:
+        return None
+    try:
+        df, manifest = read_scenarios(folder)
+    except (ValueError, FileNotFoundError) as err:
+        return f"neither the old folder nor a readable new one: {err}"
+    if int(manifest.get("seed", -1)) != seed:
+        return f"a mix of the old and the new run: manifest seed {manifest.get('seed')}"
+    if int(manifest.get("n_artefacts", len(df))) != len(df):
+        return "manifest and artefacts disagree"
+    return None
+
+
+def test_generate_killed(work, tmp_path: Path) -> None:
+    """``generate --force`` killed over an existing scenario folder: replaced as a whole."""
+    d = work["dir"]
+    old = snapshot(d / "gen_a")
+    for i, delay in enumerate(delays(work["t_gen"], salt=2)):
+        w = tmp_path / f"k{i}"
+        shutil.copytree(d / "gen_a", w / "scen")
+        args = ["generate", str(d / "a.nc"), "--scenarios", "6", "--horizon", "600", "--seed",
+                "8", "--force", "--out", str(w / "scen")]
+        run_killed(args, w, delay)
+        problem = _scenarios_whole(w / "scen", old, 8)
+        assert problem is None, f"killed after {delay:.2f} s: {problem}"
+
+
+def _readable(path: Path) -> bool:
+    if path.stat().st_size == 0:
+        return False
+    if path.suffix == ".parquet":
+        import pyarrow.parquet as pq
+
+        try:
+            pq.read_table(path)
+        except Exception:  # noqa: BLE001 (pyarrow raises several types for a damaged file)
+            return False
+    elif path.suffix in (".yaml", ".yml"):
+        try:
+            yaml.safe_load(path.read_text())
+        except (yaml.YAMLError, UnicodeDecodeError):
+            return False
+    return True
+
+
+def test_experiment_killed(work, tmp_path: Path) -> None:
+    """``experiment --force`` killed over existing results: each file old or complete."""
+    d = work["dir"]
+    old = snapshot(d / "exp_a")
+    for i, delay in enumerate(delays(work["t_exp"], salt=3)):
+        w = tmp_path / f"k{i}"
+        shutil.copytree(d / "exp_a", w / "exp")
+        args = ["experiment", str(d / "sweep.yaml"), "--force", "--out", str(w / "exp")]
+        run_killed(args, w, delay)
+        bad = [
+            name
+            for name, data in snapshot(w / "exp").items()
+            if old.get(name) != data and not _readable(w / "exp" / name)
+        ]
+        assert not bad, f"killed after {delay:.2f} s: damaged files {bad}"
+        lost = [n for n in old if not (w / "exp" / n).exists()]
+        assert not lost, f"killed after {delay:.2f} s: earlier results lost: {lost}"
+        # the killed sweep resumes to the same results as an uninterrupted one
+        run(["experiment", str(d / "sweep.yaml"), "--out", str(w / "exp")], w)
+        diff = _sweep_diff(w / "exp", d / "exp_a")
+        assert not diff, f"resumed after a kill at {delay:.2f} s: {diff} differ"
