@@ -62,3 +62,53 @@ __all__ += [
     "birth_death_loglik",
     "fit_birth_death",
 ]
+
+# --- stay laws (exponential, gamma, weibull, lognormal) with censoring and truncation ---
+from are_stats.traffic._stays import (  # noqa: E402
+    STAY_LAWS,
+    stay_cv,
+    stay_log_excess,
+    stay_logcdf,
+    stay_loglik,
+    stay_logpdf,
+    stay_logsf,
+    stay_sample,
+    stay_shape_from_cv,
+)
+
+__all__ += [
+    "STAY_LAWS",
+    "stay_cv",
+    "stay_log_excess",
+    "stay_logcdf",
+    "stay_loglik",
+    "stay_logpdf",
+    "stay_logsf",
+    "stay_sample",
+    "stay_shape_from_cv",
+]
+
+# --- arrival laws (poisson, negbin, time-of-day, groups) ---
+from are_stats.traffic._arrivals import (  # noqa: E402
+    ARRIVAL_MODELS,
+    DAY,
+    ArrivalDraw,
+    arrival_loglik,
+    clock_offset,
+    period_exposure,
+    period_of,
+    sample_arrivals,
+    stationary_count_moments,
+)
+
+__all__ += [
+    "ARRIVAL_MODELS",
+    "DAY",
+    "ArrivalDraw",
+    "arrival_loglik",
+    "clock_offset",
+    "period_exposure",
+    "period_of",
+    "sample_arrivals",
+    "stationary_count_moments",
+]
