@@ -422,6 +422,15 @@ def _row_sizes(labels: list[str] | None, df: Any) -> tuple[np.ndarray, dict[int,
     for k, (c, x) in enumerate(pairs.tolist()):
         cls = _catalogue_class(cat, labels, int(c))
         sizes[k] = tuple(float(v) for v in 2.0 * cls.property_row(int(x)).half_extents)
+    unknown = sorted(
+        {labels[c] for c in pairs[:, 0].tolist() if labels and 0 <= c < len(labels)}
+        - set(cat.labels)
+    )
+    if unknown:
+        console.print(
+            f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the catalogue "
+            f"({', '.join(cat.labels)}): they are sized as the catalogue class in their position"
+        )
     return keys.ravel(), sizes
 
 

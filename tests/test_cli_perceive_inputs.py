@@ -184,3 +184,15 @@ def test_path_between_the_artefacts_is_an_error(tmp_path):
     scen, robot = _folder(tmp_path, df=df, robot="t,x,y,yaw\n50,-15,-10,0\n60,-14,-10,0\n")
     res = _perceive(scen, robot)
     assert res.exit_code == 2 and "no artefact would be seen" in res.output, res.output
+
+
+def test_classes_missing_from_the_catalogue_are_reported(tmp_path):
+    manifest = yaml.safe_dump(
+        {"map": str(DEFAULT_MODELS / "courtyard.yaml"), "class_labels": ["forklift", "person"]}
+    )
+    scen, robot = _folder(tmp_path, manifest=manifest)
+    res = _perceive(scen, robot)
+    assert res.exit_code == 0, res.output
+    assert "classes ['forklift'] of the scenarios are not in the catalogue" in res.output.replace(
+        "\n", " "
+    )
