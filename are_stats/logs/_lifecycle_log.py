@@ -186,7 +186,7 @@ class LifecycleLog:
                     f"{self.source}: artefact {ids[i]!r}, column 'label': "
                     "expected a label on every row or on none, got an empty cell"
                 )
-            names = list(label_names) if label_names is not None else a["label_names"]
+            names = a["label_names"] if label_names is None else _label_names(label_names)
             lookup = {n: c for c, n in enumerate(names)}
             unknown = [v for v in labels if v not in lookup]
             if unknown:
@@ -204,6 +204,20 @@ class LifecycleLog:
             labels=codes,
             **pose,
         )
+
+
+def _label_names(value: Any) -> list[str]:
+    """``label_names``: a list of distinct strings."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    names = [
+        get_str(v, "label_names", f"[{k}]")
+        for k, v in enumerate(get_list(value, "label_names", ""))
+    ]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError("label_names", "", "distinct class labels", _Text(f"{dup} repeated"))
+    return names
 
 
 def read_manifest(path: str | os.PathLike) -> dict[str, Any]:

@@ -441,3 +441,41 @@ def test_special_files_are_refused_not_read(tmp_path):
     os.mkfifo(table)
     with pytest.raises(ValueError, match=r"fifo\.csv: expected a life-cycle log file .*special"):
         read_lifecycle_log(table, window=(0, 5))
+
+
+def test_label_names_checked(tmp_path):
+    text = "id,t_arrive,t_leave,label,mark\na,1,2,car,3\nb,1,2,person,4\n"
+    log = read_lifecycle_log(write(tmp_path, text))
+    assert log.to_lifecycle_data(np.array(["person", "car"])).labels.tolist() == [1, 0]
+    with pytest.raises(InputError, match=r"^label_names: \[1\]: expected a string, got 3"):
+        log.to_lifecycle_data(["car", 3])
+    with pytest.raises(InputError, match=r"^label_names: expected distinct class labels"):
+        log.to_lifecycle_data(["car", "car", "person"])
+    with pytest.raises(InputError, match=r"^label_names: expected a list"):
+        log.to_lifecycle_data("car")
+
+
+@pytest.mark.parametrize(
+    "column",
+    [
+        pa.array([1, 2], pa.timestamp("s")),
+        pa.array([[1.0], [2.0]], pa.list_(pa.float64())),
+        pa.array([{"a": 1.0}, {"a": 2.0}]),
+        pa.array([b"\x00\xff", b"1"], pa.binary()),
+        pa.nulls(2),
+        pa.array(["1", "2"]).dictionary_encode(),
+        pa.array(np.array([1, 2], np.float16)),
+        pa.array([1, 2**64 - 1], pa.uint64()),
+    ],
+    ids=["timestamp", "list", "struct", "binary", "null", "dictionary", "float16", "uint64"],
+)
+def test_parquet_column_types(tmp_path, column):
+    p = tmp_path / "log.parquet"
+    pq.write_table(pa.table({"id": ["a", "b"], "t_arrive": column, "t_leave": [3.0, 4.0]}), p)
+    try:
+        log = read_lifecycle_log(p, window=(0, 5))
+    except ValueError as err:
+        assert str(err).startswith(f"{p}: ")
+    else:
+        v = log.table["t_arrive"].to_numpy()
+        assert np.all(np.isnan(v) | ((v >= 0) & (v <= 5)))
