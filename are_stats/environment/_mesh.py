@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from are_stats._checks import check_positive
-from are_stats.inputs import InputError, _Text, check_memory, format_bytes
+from are_stats.inputs import InputError, _Text, check_memory, check_work, format_bytes
 
 if TYPE_CHECKING:
     import trimesh
@@ -28,6 +28,8 @@ __all__ = ["load_mesh", "extrude_grid", "occupied_polygons", "MAX_COORDINATE"]
 MAX_COORDINATE = 1e9
 #: Memory estimate of parsing a mesh file: bytes per byte of file.
 MESH_BYTES_PER_BYTE = 32
+# Work of merging one occupied rectangle into the wall polygons (a shapely union: ~20 us).
+_STEPS_PER_RECT = 2000
 
 
 def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
@@ -109,6 +111,11 @@ def occupied_polygons(grid: OccupancyGrid, cells: np.ndarray | None = None) -> l
     rects = _row_runs_merged(mask)
     if len(rects) == 0:
         return []
+    check_work(
+        len(rects) * _STEPS_PER_RECT,
+        f"merging {len(rects)} occupied rectangles of the map into wall polygons",
+        "map",
+    )
     boxes = shapely.box(rects[:, 0], rects[:, 1], rects[:, 2], rects[:, 3])
     union = shapely.union_all(boxes)
     union = shapely.simplify(union, 0.0)

@@ -119,3 +119,10 @@ def test_mesh_directory_and_memory_limit(tmp_path):
         load_mesh(tmp_path)
     with limits(memory="1K"), pytest.raises(LimitError, match="courtyard.ply"):
         load_mesh(DEFAULT_MODELS / "courtyard.ply")
+
+
+def test_extrusion_work_is_bounded():
+    checker = np.indices((60, 60)).sum(axis=0) % 2 * 100  # 1800 separate occupied cells
+    g = OccupancyGrid(checker, 0.1)
+    with limits(work=1800 * 2000 - 1), pytest.raises(LimitError, match="1800 occupied rect"):
+        extrude_grid(g, 2.0)
