@@ -112,3 +112,20 @@ __all__ += [
     "sample_arrivals",
     "stationary_count_moments",
 ]
+
+# --- entry and exit positions (uniform, learned) ---
+from are_stats.traffic._positions import (  # noqa: E402
+    POSITION_MODELS,
+    PositionDensity,
+    boundary_distance,
+    fit_position_density,
+    uniform_position_density,
+)
+
+__all__ += [
+    "POSITION_MODELS",
+    "PositionDensity",
+    "boundary_distance",
+    "fit_position_density",
+    "uniform_position_density",
+]
