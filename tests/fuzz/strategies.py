@@ -456,6 +456,68 @@ def obj_case(draw: st.DrawFn, text: str) -> bytes:
     return draw(_byte_edit("\n".join(lines).encode("utf-8", "surrogatepass")))
 
 
+# ----------------------------------------------------------------------------- fit files
+
+_FIT_EDITS = [
+    ("attr", "area", float("nan")),
+    ("attr", "area", -1.0),
+    ("attr", "area", 1e300),
+    ("attr", "area", "big"),
+    ("attr", "class_labels", ""),
+    ("attr", "class_labels", "a,b"),
+    ("attr", "class_labels", "," * 40),
+    ("attr", "method", "??"),
+    ("var", "arrival_rate", float("nan")),
+    ("var", "arrival_rate", -1.0),
+    ("var", "arrival_rate", float("inf")),
+    ("var", "arrival_rate", 1e30),
+    ("var", "leave_rate", 0.0),
+    ("var", "leave_rate", -1.0),
+    ("var", "mix_weights", float("nan")),
+    ("var", "mix_weights", -0.5),
+    ("var", "mix_rates", 1e30),
+    ("var", "mix_rates", -1.0),
+    ("drop", "leave_rate", None),
+    ("drop", "mix_weights", None),
+    ("drop", "mix_rates", None),
+    ("drop", "arrival_rate", None),
+]
+
+
+@st.composite
+def fit_case(draw: st.DrawFn) -> tuple[str, tuple]:
+    """A fit file edit: attributes / posterior values / dropped variables, or bytes."""
+    kind = draw(st.sampled_from(["semantic", "semantic", "bytes"]))
+    if kind == "bytes":
+        return "bytes", (draw(st.integers(0, 10**7)), draw(st.binary(min_size=0, max_size=32)))
+    return "semantic", tuple(draw(st.lists(st.sampled_from(_FIT_EDITS), min_size=1, max_size=2)))
+
+
+def write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
+    """Write ``src`` with the edit ``case`` (from :func:`fit_case`) applied to ``dst``."""
+    kind, spec = case
+    if kind == "bytes":
+        data = src.read_bytes()
+        at, junk = spec
+        at = at % len(data)
+        dst.write_bytes(data[:at] + junk if junk else data[:at])
+        return
+    import arviz as az
+
+    idata = az.from_netcdf(str(src))
+    post = idata.posterior
+    for what, name, value in spec:
+        if what == "attr":
+            post.attrs[name] = value
+        elif what == "var" and name in post:
+            post[name] = post[name] * 0 + value
+        elif what == "drop" and name in post:
+            post = post.drop_vars(name)
+    idata.posterior = post
+    idata.to_netcdf(str(dst))
+
+
+
 # ----------------------------------------------------------------------------- writing cases
 
 

@@ -33,9 +33,11 @@ from tests.fuzz.strategies import (
     bounded,
     csv_case,
     file_cases,
+    fit_case,
     fuzz_settings,
     load_base_yaml,
     write_case,
+    write_fit_case,
     yaml_case,
 )
 
@@ -233,8 +235,12 @@ BAD_OPTIONS = [
     (["plot", "{dir}", "--out", "{out}/pl"], ["folder"]),
     (["plot", "{out}/missing", "--out", "{out}/pl"], ["missing"]),
     (["plot", "{garbage}", "--out", "{out}/pl"], ["garbage.nc"]),
-    # version
+    # version, root options
     (["version", "extra"], ["extra"]),
+    (["--max-memory", "abc", "version"], ["--max-memory"]),
+    (["--max-memory", "0", "version"], ["--max-memory"]),
+    (["--max-memory", "-5G", "version"], ["--max-memory"]),
+    (["--max-work", "nan", "version"], ["--max-work"]),
 ]
 
 
@@ -280,6 +286,15 @@ def test_fit_damaged_manifest(case, case_dir, tiny_log) -> None:
     args = ["fit", str(tiny_log), "--manifest", str(path), "--out", str(d / "f.nc"),
             "--method", "em", "--no-figures"]
     invoke(args, [path.name], seconds=60.0)
+
+
+@fuzz_settings(8)
+@given(case=fit_case())
+def test_report_damaged_fit(case, case_dir, tiny_fit) -> None:
+    d = case_dir()
+    path = d / "fit.nc"
+    write_fit_case(tiny_fit, path, case)
+    invoke(["report", str(path), "--out", str(d / "r"), "--replicates", "5"], [path.name])
 
 
 @fuzz_settings(25)

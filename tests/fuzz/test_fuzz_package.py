@@ -37,11 +37,13 @@ from tests.fuzz.strategies import (
     deep_nesting,
     expect_clean,
     file_cases,
+    fit_case,
     fuzz_settings,
     load_base_yaml,
     obj_case,
     pgm_case,
     write_case,
+    write_fit_case,
     yaml_case,
 )
 
@@ -304,72 +306,15 @@ def test_yaml_bombs_are_refused(case_dir) -> None:
 
 # ----------------------------------------------------------------------------- fits, scenarios
 
-_FIT_EDITS = [
-    ("attr", "area", float("nan")),
-    ("attr", "area", -1.0),
-    ("attr", "area", 1e300),
-    ("attr", "area", "big"),
-    ("attr", "class_labels", ""),
-    ("attr", "class_labels", "a,b"),
-    ("attr", "class_labels", "," * 40),
-    ("attr", "method", "??"),
-    ("var", "arrival_rate", float("nan")),
-    ("var", "arrival_rate", -1.0),
-    ("var", "arrival_rate", float("inf")),
-    ("var", "arrival_rate", 1e30),
-    ("var", "leave_rate", 0.0),
-    ("var", "leave_rate", -1.0),
-    ("var", "mix_weights", float("nan")),
-    ("var", "mix_weights", -0.5),
-    ("var", "mix_rates", 1e30),
-    ("var", "mix_rates", -1.0),
-    ("drop", "leave_rate", None),
-    ("drop", "mix_weights", None),
-    ("drop", "mix_rates", None),
-    ("drop", "arrival_rate", None),
-]
-
-
-@st.composite
-def _fit_case(draw) -> tuple[str, tuple]:
-    kind = draw(st.sampled_from(["semantic", "semantic", "bytes"]))
-    if kind == "bytes":
-        return "bytes", (draw(st.integers(0, 10**7)), draw(st.binary(min_size=0, max_size=32)))
-    return "semantic", tuple(draw(st.lists(st.sampled_from(_FIT_EDITS), min_size=1, max_size=2)))
-
-
-def _write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
-    kind, spec = case
-    if kind == "bytes":
-        data = src.read_bytes()
-        at, junk = spec
-        at = at % len(data)
-        dst.write_bytes(data[:at] + junk if junk else data[:at])
-        return
-    import arviz as az
-
-    idata = az.from_netcdf(str(src))
-    post = idata.posterior
-    for what, name, value in spec:
-        if what == "attr":
-            post.attrs[name] = value
-        elif what == "var" and name in post:
-            post[name] = post[name] * 0 + value
-        elif what == "drop" and name in post:
-            post = post.drop_vars(name)
-    idata.posterior = post
-    idata.to_netcdf(str(dst))
-
-
 @fuzz_settings(40)
-@given(case=_fit_case())
+@given(case=fit_case())
 def test_fit_file_to_scenarios(case, case_dir, tiny_fit) -> None:
     """``are-stats generate``'s path: read the fit, draw scenarios from it."""
     from are_stats._cli_jobs import run_generate
 
     d = case_dir()
     path = d / "fit.nc"
-    _write_fit_case(tiny_fit, path, case)
+    write_fit_case(tiny_fit, path, case)
     df = expect_clean(lambda: run_generate(path, 2, 60.0, 0, d / "out"), _names(path))
     if df is not None:
         cols = ["t_arrive", "t_leave", "x", "y", "yaw"]
