@@ -29,13 +29,15 @@ from typing import Any
 import jax
 import numpy as np
 import numpyro
-from numpyro.infer import Predictive
-from numpyro.infer.util import log_likelihood
 
 from are_stats import __version__
 from are_stats._checks import check_in, check_nonneg_int, describe
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
-from are_stats.fitting._lifecycle_mcmc import _inference_data, fit_lifecycle_nuts
+from are_stats.fitting._lifecycle_mcmc import (
+    _inference_data,
+    _predictive_counts,
+    fit_lifecycle_nuts,
+)
 from are_stats.traffic import (
     LifecycleData,
     LifecyclePriors,
@@ -43,8 +45,8 @@ from are_stats.traffic import (
     conjugate_leave_rate,
     conjugate_mixture,
     fit_birth_death,
-    lifecycle_model,
 )
+from are_stats.traffic._lifecycle import _numpy_rng, prior_predictive
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", FutureWarning)  # arviz 0.23 announces its 1.0 refactor
@@ -180,9 +182,43 @@ def _em_posterior(
     return shaped, {name: v[None] for name, v in stats.items()}, attrs
 
 
-def _without_stays(summary: Any) -> Any:
-    """The sufficient statistics with the stays left out (the model then skips them)."""
-    return summary._replace(dwell=np.zeros(0), departed=np.zeros(0, dtype=bool))
+def _em_log_likelihood(data: LifecycleData, post: dict, k: int | None) -> dict[str, np.ndarray]:
+    """Log-likelihood terms of :func:`~are_stats.traffic.lifecycle_model` without the stays.
+
+    ``n_arrivals``: Poisson(lambda * area * T) of the observed count, per draw;
+    ``mark_histogram``: count x log-probability of each distinct mark (mixture of eq. 1) or,
+    with labels, of each distinct (class, mark) pair (complete data), per draw.
+    """
+    from scipy.special import gammaln, logsumexp, xlogy
+
+    from are_stats.inputs import check_memory
+
+    s = data._summary
+    lam = np.asarray(post["arrival_rate"], dtype=float)
+    rate = lam * (s.area * s.duration)
+    n = float(s.n_arrivals)
+    out = {"n_arrivals": xlogy(n, rate) - rate - gammaln(n + 1.0)}
+    if k is None or not s.mark_values.size:
+        return out
+    w = np.asarray(post["mix_weights"], dtype=float)
+    r = np.asarray(post["mix_rates"], dtype=float)
+    if data.labels is not None:
+        lab, x = np.asarray(s.pair_labels), np.asarray(s.pair_marks, dtype=float)
+        check_memory(w.shape[0] * w.shape[1] * x.size * 8.0 * 4, "the mark log-likelihood")
+        rl = r[..., lab]
+        logp = np.log(w[..., lab]) + xlogy(x, rl) - rl - gammaln(x + 1.0)
+        out["mark_histogram"] = np.asarray(s.pair_counts, dtype=float) * logp
+    else:
+        x = np.asarray(s.mark_values, dtype=float)
+        check_memory(r.size * x.size * 8.0 * 4, "the mark log-likelihood")
+        joint = (
+            np.log(w)[..., None, :]
+            + xlogy(x[:, None], r[..., None, :])
+            - r[..., None, :]
+            - gammaln(x + 1.0)[:, None]
+        )
+        out["mark_histogram"] = np.asarray(s.mark_counts, dtype=float) * logsumexp(joint, -1)
+    return out
 
 
 def _stays_total(data: LifecycleData, leave_rate: np.ndarray) -> np.ndarray:
@@ -265,25 +301,10 @@ def fit_log(
         post, stats, mix_attrs = _em_posterior(k_fit, data, priors, k, settings)
         # the likelihood without its per-artefact stays: what is stored scales with the
         # distinct data (window counts, distinct marks), not draws x rows; the stays are
-        # recomputed on demand from leave_rate and the observed dwell times (fit_loo)
-        model_kwargs = dict(
-            data=_without_stays(data._summary),
-            priors=priors,
-            n_components=k,
-            stationary_start=False,
-            labelled=data.labels is not None,
-        )
-        gen_kwargs = dict(
-            data=None,
-            priors=priors,
-            n_components=k,
-            window=data.window,
-            area=data.area,
-            stationary_start=False,
-        )
-        flat = {name: v[0] for name, v in post.items()}
-        loglik = log_likelihood(lifecycle_model, flat, **model_kwargs)
-        loglik = {name: np.asarray(v)[None] for name, v in loglik.items()}
+        # recomputed on demand from leave_rate and the observed dwell times (fit_loo). The
+        # terms and the predictive counts are closed forms in NumPy: numpyro's Predictive
+        # and log_likelihood would compile an XLA program per fit for microseconds of work.
+        loglik = _em_log_likelihood(data, post, k)
         # total log-likelihood of each draw (a diagnostic; these draws are not MCMC); the
         # stays add n_departed log(mu) - mu sum(dwell), never expanded per artefact
         stays = _stays_total(data, post["leave_rate"])
@@ -291,12 +312,11 @@ def fit_log(
             v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
         )
         kp, kq = jax.random.split(k_post)
-        names = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
-        latent = {n: flat[n] for n in names if n in flat}  # no mixture for logs without marks
-        pred = Predictive(lifecycle_model, posterior_samples=latent, return_sites=["n_arrivals"])
-        post_pred = {n: np.asarray(v)[None] for n, v in pred(kp, **gen_kwargs).items()}
-        prior = Predictive(lifecycle_model, num_samples=1000)(kq, **gen_kwargs)
-        prior = {n: np.asarray(v) for n, v in prior.items()}
+        post_pred = _predictive_counts(_numpy_rng(kp), post, data, False)
+        prior = prior_predictive(
+            kq, priors, data.window, data.area, 1000, n_components=k, stationary_start=False,
+            labelled=data.labels is not None,
+        )  # fmt: skip
         arviz_log = logging.getLogger("arviz")
         level = arviz_log.level
         arviz_log.setLevel(logging.ERROR)  # one "chain" of draws is expected here
@@ -394,46 +414,46 @@ def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> A
 
 def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
     """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
-    from are_stats.inputs import InputError
+    from are_stats.inputs import InputError, _Text
 
     if name not in ds.data_vars:
         raise InputError(
             source, f"{group}.{name}", "this variable (a fit written by are-stats fit)",
-            f"variables {sorted(ds.data_vars)}",
+            _Text(f"variables {sorted(ds.data_vars)}"),
         )  # fmt: skip
     var = ds[name]
     if dims is not None and tuple(var.dims) != dims:
         raise InputError(
-            source, f"{group}.{name}", f"dimensions {dims}", f"dimensions {tuple(var.dims)}"
+            source, f"{group}.{name}", f"dimensions {dims}", _Text(f"dimensions {tuple(var.dims)}")
         )
     return np.asarray(var.values)
 
 
 def _check_real(a: np.ndarray, source: str, where: str, *, lo: float, lo_open: bool) -> None:
     from are_stats._checks import describe
-    from are_stats.inputs import InputError
+    from are_stats.inputs import InputError, _Text
 
     word = ">" if lo_open else ">="
     if a.dtype.kind not in "fiu" or a.dtype.kind == "b":
-        raise InputError(source, where, f"finite numbers {word} {lo:g}", f"dtype {a.dtype}")
+        raise InputError(source, where, f"finite numbers {word} {lo:g}", _Text(f"dtype {a.dtype}"))
     bad = ~np.isfinite(a) | (a <= lo if lo_open else a < lo)
     if bad.any():
         idx = np.unravel_index(int(np.argmax(bad)), a.shape)
         raise InputError(
-            source, f"{where}{list(idx)}", f"finite numbers {word} {lo:g}",
-            f"{a[idx]!r} (in {describe(a)})",
+            source, f"{where}{[int(i) for i in idx]}", f"finite numbers {word} {lo:g}",
+            _Text(f"{a[idx].item()!r} (in {describe(a)})"),
         )  # fmt: skip
 
 
 def _check_fit(idata: az.InferenceData, source: str) -> None:
     """Validate a fit read from ``source`` (groups, variables, attributes)."""
-    from are_stats.inputs import InputError, get_float, get_int, get_list, get_str
+    from are_stats.inputs import InputError, _Text, get_float, get_int, get_list, get_str
 
     for group in ("posterior", "observed_data"):
         if group not in idata.groups():
             raise InputError(
                 source, group, "this group (a fit written by are-stats fit)",
-                f"groups {list(idata.groups())}",
+                _Text(f"groups {list(idata.groups())}"),
             )  # fmt: skip
     post = idata.posterior
     rates = {}
@@ -441,12 +461,12 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         rates[name] = _var(post, name, source, "posterior", ("chain", "draw"))
         _check_real(rates[name], source, f"posterior.{name}", lo=0.0, lo_open=True)
     if rates["arrival_rate"].size == 0:
-        raise InputError(source, "posterior.arrival_rate", "at least one draw", "none")
+        raise InputError(source, "posterior.arrival_rate", "at least one draw", _Text("none"))
     has_w, has_r = "mix_weights" in post.data_vars, "mix_rates" in post.data_vars
     if has_w != has_r:
         raise InputError(
             source, "posterior", "both mix_weights and mix_rates or neither",
-            f"variables {sorted(post.data_vars)}",
+            _Text(f"variables {sorted(post.data_vars)}"),
         )  # fmt: skip
     k = None
     if has_w:
@@ -466,14 +486,14 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
             c, d = np.unravel_index(int(np.argmax(bad)), bad.shape)
             raise InputError(
                 source, f"posterior.mix_weights[{c}, {d}]", "weights summing to 1",
-                f"a sum of {float(sums[c, d])!r}",
+                _Text(f"a sum of {float(sums[c, d])!r}"),
             )  # fmt: skip
     attrs = post.attrs
     for name in ("window", "area"):
         if name not in attrs:
             raise InputError(
                 source, f"posterior.attrs.{name}", "this attribute (a fit written by "
-                "are-stats fit)", f"attributes {sorted(attrs)}",
+                "are-stats fit)", _Text(f"attributes {sorted(attrs)}"),
             )  # fmt: skip
     win = np.asarray(attrs["window"]).ravel().tolist()
     win = get_list(win, source, "posterior.attrs.window", min_len=2, max_len=2)
@@ -503,19 +523,19 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
     for name in ("censored", "truncated"):
         if cols[name].dtype.kind != "b":
             raise InputError(
-                source, f"observed_data.{name}", "booleans", f"dtype {cols[name].dtype}"
+                source, f"observed_data.{name}", "booleans", _Text(f"dtype {cols[name].dtype}")
             )
     for name in ("t_arrive", "t_leave"):
         if cols[name].dtype.kind != "f":
             raise InputError(
                 source, f"observed_data.{name}", "floats (NaN where unobserved)",
-                f"dtype {cols[name].dtype}",
+                _Text(f"dtype {cols[name].dtype}"),
             )  # fmt: skip
     if "marks" in cols:
         _check_real(cols["marks"], source, "observed_data.marks", lo=0.0, lo_open=False)
         if cols["marks"].dtype.kind not in "iu":
             raise InputError(
-                source, "observed_data.marks", "integers", f"dtype {cols['marks'].dtype}"
+                source, "observed_data.marks", "integers", _Text(f"dtype {cols['marks'].dtype}")
             )
     for name, flag in (("t_arrive", "truncated"), ("t_leave", "censored")):
         mismatch = np.isnan(cols[name]) != cols[flag]
@@ -523,8 +543,8 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
             i = int(np.argmax(mismatch))
             raise InputError(
                 source, f"observed_data.{flag}[{i}]",
-                f"{flag} exactly where {name} is NaN", f"{bool(cols[flag][i])} with "
-                f"{name} {float(cols[name][i])!r}",
+                f"{flag} exactly where {name} is NaN",
+                _Text(f"{bool(cols[flag][i])} with {name} {float(cols[name][i])!r}"),
             )  # fmt: skip
     try:  # the value checks of a log (times inside the window, leave after arrival)
         LifecycleData(

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from are_stats.fitting import fit_lifecycle_nuts, resolve_chain_method
+from are_stats.fitting import fit_lifecycle_nuts, pointwise_log_likelihood, resolve_chain_method
 from are_stats.traffic import (
     LifecycleData,
     LifecyclePriors,
@@ -77,7 +77,13 @@ def test_nuts_matches_conjugate_posteriors(data):
         "posterior", "sample_stats", "log_likelihood", "prior", "prior_predictive",
         "posterior_predictive", "observed_data",
     }  # fmt: skip
-    assert idata.log_likelihood["stays"].shape == (4, 500, data.n)
+    # the per-artefact stays are not stored (draws x rows): recomputed on demand, equal to
+    # the model's own pointwise terms
+    assert "stays" not in idata.log_likelihood
+    stays = pointwise_log_likelihood(idata).values
+    assert stays.shape == (4, 500, data.n)
+    mu = post["leave_rate"].values[..., None]
+    np.testing.assert_allclose(stays, np.where(data.censored, 0.0, np.log(mu)) - mu * data.dwell)
     assert "n_present" not in idata.log_likelihood
     assert idata.prior["arrival_rate"].shape == (1, 200)
     assert int(idata.observed_data["n_arrivals"]) == int((~data.truncated).sum())
