@@ -55,6 +55,11 @@ config), ``replans/<task>.parquet`` and ``goals/<task>.parquet`` atomically, ``r
 as soon as it finishes: an interrupted sweep resumes and skips every task whose ``runs``
 file exists. With ``force`` the sweep runs into a hidden sibling folder that replaces the
 results folder as a whole only once every task is done.
+
+Same config, same bytes: ``sweep.yaml`` and every table are reproduced exactly, except the
+wall-clock columns ``rho_t`` and ``rho`` (``replans``) and ``rho_mean`` and ``rho_t_mean``
+(``runs``), and except the paths of OMPL planners that stop on their time budget rather
+than at a first solution or ``max_iterations`` (PRM, or RRT* without ``max_iterations``).
 """
 
 from __future__ import annotations
