@@ -79,11 +79,43 @@ def run_fit(
     n_replicates: int = 200,
     stationary_start: bool = True,
 ) -> Any:
-    """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures."""
+    """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures.
+
+    The options are checked first, named as on the command line (``--samples``,
+    ``--chains``, ``--warmup``, ``--components``, ``--replicates`` integers in range,
+    ``--seed`` in ``[0, 2**32 - 1]``, ``--window`` two finite times ``t0 < t1``, ``--area``
+    finite and > 0), then the draws and the sampler's work against the limits of
+    :mod:`are_stats.inputs`.
+    """
     from are_stats.fitting._fit_log import FitSettings, fit_log, write_fit
     from are_stats.fitting._report import fit_summary, write_report
+    from are_stats.inputs import (
+        check_memory,
+        check_work,
+        get_float,
+        get_int,
+        get_list,
+        get_seed,
+        get_str,
+    )
     from are_stats.logs import read_count_panel, read_lifecycle_log
 
+    method = get_str(method, "--method", "", choices=("nuts", "em"))
+    seed = get_seed(seed)
+    warmup = get_int(warmup, "--warmup", "", lo=0)
+    samples = get_int(samples, "--samples", "", lo=1)
+    chains = get_int(chains, "--chains", "", lo=1)
+    n_replicates = get_int(n_replicates, "--replicates", "", lo=1)
+    if components is not None:
+        components = get_int(components, "--components", "", lo=1, hi=1000)
+    if window is not None:
+        window = get_list(list(window), "--window", "", min_len=2, max_len=2)
+        w0 = get_float(window[0], "--window", "t0")
+        window = [w0, get_float(window[1], "--window", "t1", lo=w0, lo_open=True)]
+    if area is not None:
+        area = get_float(area, "--area", "", lo=0.0, lo_open=True)
+    draws = float(samples) * float(chains)
+    check_memory(draws * 8.0 * 64, f"{draws:.3g} posterior draws", "--samples, --chains")
     out = Path(out)
     if out.suffix != ".nc":
         raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
@@ -100,6 +132,9 @@ def run_fit(
         log, manifest=manifest, window=tuple(window) if window else None, area=area
     )
     data = lifecycle.to_lifecycle_data()
+    if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
+        steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
+        check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
     rep = lifecycle.report()
     console.print(
         f"[bold]{log}[/]: {rep['rows_used']} artefacts ({rep['left_truncated']} present at "
@@ -201,11 +236,20 @@ def _alternatives(seed: int, data: Any, folder: Path, force: bool) -> None:
 
 
 def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, force=False):
-    """Summary table and posterior-predictive figures of a saved fit."""
-    from are_stats.fitting._fit_log import read_fit
-    from are_stats.fitting._report import fit_summary, write_report
+    """Summary table and posterior-predictive figures of a saved fit.
 
+    ``--replicates`` (an integer >= 1) and ``--seed`` are checked, then the fit file
+    (:func:`are_stats.fitting.read_fit`) and the size of the replicates against the limits
+    of :mod:`are_stats.inputs`, before anything is drawn.
+    """
+    from are_stats.fitting._fit_log import read_fit
+    from are_stats.fitting._report import check_report_size, fit_summary, write_report
+    from are_stats.inputs import get_int, get_seed
+
+    seed = get_seed(seed)
+    replicates = get_int(replicates, "--replicates", "", lo=1)
     idata = read_fit(fit_path)
+    check_report_size(idata, replicates, f"{fit_path} with --replicates {replicates}")
     summary = fit_summary(idata)
     console.print(_summary_table(summary, f"{fit_path} ({idata.posterior.attrs.get('method')})"))
     for w in _warnings(idata, summary):
@@ -229,25 +273,44 @@ def run_generate(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
 ) -> Any:
-    """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest)."""
-    from are_stats.fitting._fit_log import read_fit
-    from are_stats.scenarios import generate_scenarios, posterior_draws, write_scenarios
+    """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest).
 
+    The options are checked first (``--scenarios`` an integer >= 1, ``--horizon``,
+    ``--area``, ``--behaviour-cell``, ``--behaviour-dt`` finite and > 0, ``--seed`` in
+    ``[0, 2**32 - 1]``), then the size of the output against the memory and work limits
+    (:mod:`are_stats.inputs`), before anything is drawn. The folder ``out`` (scenarios,
+    manifest and tracks) is written beside it and put in place as a whole.
+    """
+    from are_stats.fitting._fit_log import read_fit
+    from are_stats.inputs import get_float, get_int, get_seed
+    from are_stats.scenarios import atomic_folder, check_folder, generate_scenarios, posterior_draws
+    from are_stats.scenarios._generate import _check_size, _draws, _write_files
+
+    n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
+    horizon = get_float(horizon, "--horizon", "", lo=0.0, lo_open=True)
+    seed = get_seed(seed)
+    if area is not None:
+        area = get_float(area, "--area", "", lo=0.0, lo_open=True)
+    if behaviours:
+        behaviour_cell = get_float(behaviour_cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
+        behaviour_dt = get_float(behaviour_dt, "--behaviour-dt", "", lo=0.0, lo_open=True)
     out = Path(out)
-    for name in ("artefacts.parquet", "manifest.yaml"):
-        check_writable(out / name, force)
+    check_folder(out, force)
     idata = read_fit(fit_path)
     grid = None
     if map_path is not None:
         from are_stats.environment import OccupancyGrid
 
         grid = OccupancyGrid.from_ros_yaml(map_path)
+    if behaviours and grid is None:
+        raise ValueError("--behaviours: expected --map (trajectories need the grid)")
     if area is None and grid is None:
         area = float(idata.posterior.attrs["area"])
+    draws = posterior_draws(idata)
+    nu = area if area is not None else float(np.count_nonzero(grid.free)) * grid.resolution**2
+    _check_size(_draws(draws), n_scenarios, horizon, nu, "stationary", "--scenarios, --horizon")
     t = time.perf_counter()
-    df = generate_scenarios(
-        seed, posterior_draws(idata), n_scenarios, horizon, free_mask=grid, area=area
-    )
+    df = generate_scenarios(seed, draws, n_scenarios, horizon, free_mask=grid, area=area)
     labels = _class_labels(idata)
     manifest = {
         "fit": str(fit_path),
@@ -255,14 +318,15 @@ def run_generate(
         "seed": int(seed),
         "class_labels": labels,
     }
-    if behaviours:
-        manifest["tracks"] = _behaviour_tracks(
-            seed, df, grid, labels, out, force, behaviour_cell, behaviour_dt
-        )
-    paths = write_scenarios(df, out, manifest=manifest, force=force)
+    with atomic_folder(out, force=force) as tmp:
+        if behaviours:
+            manifest["tracks"] = _behaviour_tracks(
+                seed, df, grid, labels, tmp, False, behaviour_cell, behaviour_dt
+            )
+        _write_files(df, tmp, manifest)
     console.print(
         f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
-        f"wrote {paths[0]} and {paths[1]}"
+        f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
     )
     return df
 
@@ -290,15 +354,46 @@ def coarse_occupancy(grid: Any, cell: float) -> tuple[np.ndarray, float]:
     resolution : float
         The coarse cell size.
     """
+    from are_stats.inputs import get_float
+
     if abs(float(grid.origin[2])) > 1e-9:
         raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
-    f = max(1, int(round(cell / grid.resolution)))
+    cell = get_float(cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
+    f = max(1, int(round(min(cell / grid.resolution, 2.0**62))))
     h, w = grid.shape[0] // f, grid.shape[1] // f
     if h < 2 or w < 2:
         raise ValueError(f"--behaviour-cell: expected a cell much smaller than the map, got {cell}")
     blocked = ~grid.free[: h * f, : w * f]
     frac = blocked.reshape(h, f, w, f).mean(axis=(1, 3))
     return frac > 0.5, grid.resolution * f
+
+
+def _check_tracks_size(table: Any, shape: tuple[int, int], dt: float) -> None:
+    """Refuse MDP rollouts past the memory or work limit, before solving anything.
+
+    Per scenario the MDP is solved for its artefacts at once over the longest stay
+    (epochs padded to 64): a policy of ``artefacts x epochs x cells x 4`` bytes and about
+    ten times as many steps; the tracks hold one row per artefact and epoch.
+    """
+    from are_stats.inputs import check_memory, check_work
+
+    source = "--behaviour-dt, --behaviour-cell, --horizon"
+    cells = float(shape[0]) * float(shape[1])
+    with np.errstate(over="ignore", invalid="ignore"):
+        epochs = (table["t_leave"].to_numpy(float) - table["t_arrive"].to_numpy(float)) / dt
+    epochs = np.where(np.isfinite(epochs), np.maximum(epochs, 0.0), np.inf)
+    sc = table["scenario"].to_numpy()
+    n_sc = int(sc.max()) + 1 if sc.size else 0
+    longest = np.zeros(n_sc)
+    np.maximum.at(longest, sc, epochs)
+    per = np.bincount(sc, minlength=n_sc).astype(float)
+    bucket = 64.0 * np.ceil(np.maximum(longest, 1.0) / 64.0)
+    policy = per * bucket * cells * 4.0
+    rows = float(np.sum(epochs + 1.0))
+    what = f"MDP tracks of {len(table)} artefacts on a {shape[0]} x {shape[1]} grid, dt {dt:g} s"
+    check_memory(float(policy.max(initial=0.0)), f"the MDP policy of one scenario ({what})", source)
+    check_memory(rows * 64.0, f"the tracks table ({what})", source)
+    check_work(float(policy.sum()) * 10.0 + rows * 50.0, what, source)
 
 
 def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
@@ -321,6 +416,7 @@ def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
     row, col = ri[row, col], ci[row, col]
     table["x"] = x0 + (col + 0.5) * res
     table["y"] = y0 + (row + 0.5) * res
+    _check_tracks_size(table, occ.shape, dt)
     cat = load_catalogue()
 
     def behaviour_of(r: Any) -> str:
