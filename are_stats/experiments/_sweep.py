@@ -909,6 +909,9 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
     if not meta.is_file():
         raise InputError(meta, "", "the sweep config of the results folder", _Text("no such file"))
     cfg = _validate(load_yaml(meta, "sweep config"), str(meta))
+    n_tasks = _n_combos(cfg) * cfg["replicates"]
+    check_memory(n_tasks * _BYTES_PER_TASK, f"the task list of {n_tasks} tasks", meta)
+    check_work(n_tasks * _STEPS_PER_TASK, f"a sweep of {n_tasks} tasks", meta)
     tasks = {t["task"]: t for t in _expand(cfg)}
     sweep = _digest(cfg)
     for p in done:

@@ -225,7 +225,9 @@ def test_results_folder_must_hold_one_sweep(results, tmp_path):
         load_results(out)
 
 
-@pytest.mark.parametrize("damage", ["garbage", "no_goals", "no_column", "no_meta", "bad_meta"])
+@pytest.mark.parametrize(
+    "damage", ["garbage", "no_goals", "no_column", "no_meta", "bad_meta", "huge_meta"]
+)
 def test_malformed_results_are_named(results, tmp_path, damage):
     out = tmp_path / "res"
     shutil.copytree(results, out)
@@ -242,9 +244,12 @@ def test_malformed_results_are_named(results, tmp_path, damage):
     elif damage == "no_meta":
         bad = out / "sweep.yaml"
         bad.unlink()
-    else:
+    elif damage == "bad_meta":
         bad = out / "sweep.yaml"
         bad.write_text("seed: [1]\n")
+    else:
+        bad = out / "sweep.yaml"
+        bad.write_text("replicates: 1000000000000000\n")
     with pytest.raises(InputError) as info:
         load_results(out)
     assert str(info.value).startswith(str(bad)), str(info.value)
