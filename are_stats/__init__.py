@@ -19,10 +19,47 @@ import os
 import sys
 from typing import Any
 
-if "jax" in sys.modules:  # JAX already imported by the caller: switch it now
-    sys.modules["jax"].config.update("jax_enable_x64", True)
-else:  # JAX reads this when it is first imported (by whichever part needs it)
-    os.environ["JAX_ENABLE_X64"] = "1"
+
+def configure_jax(cache: bool | None = None) -> None:
+    """Settings JAX needs for are_stats: 64-bit floats and the persistent compile cache.
+
+    The compiled XLA programs are kept in ``$XDG_CACHE_HOME/are_stats/jax`` (default
+    ``~/.cache/are_stats/jax``), small programs included, so a second process skips most
+    compiling. ``ARE_STATS_NO_CACHE=1`` (or ``are-stats --no-cache``, or ``cache=False``)
+    turns the cache off; a ``JAX_COMPILATION_CACHE_DIR`` set by the user is kept.
+
+    Called on import; JAX reads the settings when it is first imported (by whichever part
+    of are_stats needs it), or they are applied at once when JAX is already loaded.
+    """
+    if cache is None:
+        cache = os.environ.get("ARE_STATS_NO_CACHE", "") in ("", "0")
+    settings: dict[str, Any] = {"jax_enable_x64": True}
+    # the cache directory is ours to manage unless the user chose one
+    ours = os.environ.get("ARE_STATS_JAX_CACHE", "") == os.environ.get(
+        "JAX_COMPILATION_CACHE_DIR", ""
+    )
+    folder = ""
+    if ours:
+        if cache:
+            base = os.environ.get("XDG_CACHE_HOME") or os.path.join(
+                os.path.expanduser("~"), ".cache"
+            )
+            folder = os.path.join(base, "are_stats", "jax")
+        settings["jax_compilation_cache_dir"] = folder or None
+        settings["jax_persistent_cache_min_compile_time_secs"] = 0.0 if cache else 1.0
+        settings["jax_persistent_cache_min_entry_size_bytes"] = -1 if cache else 0
+        os.environ["ARE_STATS_JAX_CACHE"] = folder
+    jax = sys.modules.get("jax")
+    for name, value in settings.items():
+        if jax is not None:
+            jax.config.update(name, value)
+        elif value is None:
+            os.environ.pop(name.upper(), None)
+        else:
+            os.environ[name.upper()] = "1" if value is True else str(value)
+
+
+configure_jax()
 
 __version__ = "0.1.0"
 
@@ -167,7 +204,7 @@ _LAZY.update(
     )
 )
 
-__all__ = ["__version__", *_LAZY]
+__all__ = ["__version__", "configure_jax", *_LAZY]
 
 
 def __getattr__(name: str) -> Any:

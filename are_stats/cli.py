@@ -94,9 +94,19 @@ def _limits(
         "--max-work",
         help="Most elementary steps one computation may take (default 5e10; ARE_STATS_MAX_WORK).",
     ),
+    no_cache: bool = typer.Option(
+        False,
+        "--no-cache",
+        help="Keep no compiled JAX programs in $XDG_CACHE_HOME/are_stats (ARE_STATS_NO_CACHE=1).",
+    ),
 ) -> None:
-    """Limits that refuse runaway inputs before anything is allocated."""
+    """Limits that refuse runaway inputs before anything is allocated; the compile cache."""
+    from are_stats import configure_jax
     from are_stats.inputs import parse_size
+
+    if no_cache:
+        os.environ["ARE_STATS_NO_CACHE"] = "1"
+        configure_jax(cache=False)
 
     try:
         # Environment variables, so that Dask workers and subprocesses inherit them.

@@ -357,7 +357,10 @@ def _expanded_size(root: yaml.Node, source: str) -> None:
 def parse_yaml(text: str, source: Any, what: str = "YAML document") -> Any:
     """Parse YAML text safely (see :func:`load_yaml`); ``source`` names it in errors."""
     src = str(source)
-    loader = _Loader(text)
+    try:
+        loader = _Loader(text)
+    except yaml.YAMLError as err:  # e.g. NUL or control characters
+        raise InputError(src, "", f"a {what} in valid YAML", _Text(_yaml_problem(err))) from None
     try:
         try:
             node = loader.get_single_node()
@@ -434,6 +437,8 @@ def load_yaml(path: str | os.PathLike, what: str = "YAML file") -> Any:
         raise FileNotFoundError(f"{p}: no such file: expected a {what}")
     if p.is_dir():
         raise InputError(p, "", f"a {what}", _Text("a directory"))
+    if not p.is_file():  # a FIFO or a device would block or never end
+        raise InputError(p, "", f"a {what} in a regular file", _Text("not a regular file"))
     size = p.stat().st_size
     if size > MAX_YAML_BYTES:
         raise InputError(

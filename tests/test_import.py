@@ -44,3 +44,37 @@ def test_x64_is_switched_on_when_jax_came_first():
         "import jax, jax.numpy as jnp\nimport are_stats\nassert jnp.zeros(1).dtype == jnp.float64\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_second_process_hits_the_compile_cache(tmp_path):
+    """JAX's persistent cache is on by default (small programs too) and really hit."""
+    import os
+
+    code = (
+        "import are_stats, jax, jax.numpy as jnp\n"
+        "ev = []\n"
+        "jax.monitoring.register_event_listener(lambda e, **k: ev.append(e))\n"
+        "jax.jit(lambda x: jnp.sin(x) * 2 + 1)(jnp.arange(3.0)).block_until_ready()\n"
+        "n = lambda tail: sum(e.endswith(tail) for e in ev)\n"
+        "print(n('cache_hits'), n('cache_misses'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "ARE_STATS_"))}
+    env["XDG_CACHE_HOME"] = str(tmp_path)
+
+    def run(extra=()):
+        out = subprocess.run(
+            [sys.executable, "-c", code],
+            env={**env, **dict(extra)},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        return [int(v) for v in out.stdout.split()]
+
+    hits, misses = run()
+    assert hits == 0 and misses > 0
+    assert any((tmp_path / "are_stats" / "jax").iterdir())
+    hits, misses = run()
+    assert hits > 0 and misses == 0
+    hits, misses = run({"ARE_STATS_NO_CACHE": "1"})
+    assert hits == 0

@@ -198,3 +198,14 @@ def test_cli_turns_errors_into_one_line(monkeypatch, tmp_path):
     res = runner.invoke(cli.app, ["report", str(tmp_path / "none.nc")])
     assert res.exit_code == 1
     assert "internal error in are-stats (KeyError" in res.output and "Traceback" not in res.output
+
+
+def test_yaml_control_characters_and_fifos_are_errors(tmp_path):
+    import os
+
+    with pytest.raises(InputError, match=r"x.yaml: expected a map in valid YAML, got .*#x0000"):
+        parse_yaml("a: \x00b\n", "x.yaml", "map")
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="pipe.yaml: expected a map in a regular file"):
+        load_yaml(fifo, "map")  # would block forever if opened
