@@ -7,6 +7,7 @@ on the sd; the chi-square uses ALPHA from tests.helpers.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import arviz as az
@@ -69,6 +70,16 @@ def _quick_em_fit(log: Path, fit: Path, *extra, samples: int = 50):
                    "--samples", str(samples), "--chains", "2", *extra])  # fmt: skip
     assert res.exit_code == 0, res.output
     return res
+
+
+@pytest.fixture(scope="module")
+def em_fit_file(tmp_path_factory):
+    """A small EM fit shared by the option and damaged-fit tests."""
+    folder = tmp_path_factory.mktemp("emfit")
+    log, _ = _write_log(folder)
+    fit = folder / "small.nc"
+    _quick_em_fit(log, fit, samples=20)
+    return fit
 
 
 def test_fit_report_generate_em(tmp_path):
@@ -359,3 +370,79 @@ def test_fit_with_count_panel_adds_birth_death_mle(tmp_path):
     assert attrs["birth_death_birth_rate"] == pytest.approx(mle.birth_rate, rel=1e-9)
     assert attrs["birth_death_death_rate"] == pytest.approx(mle.death_rate, rel=1e-9)
     assert np.allclose(attrs["birth_death_stderr"], mle.stderr)
+
+
+def test_em_fit_without_marks_then_report_and_generate(tmp_path):
+    """Issue 13: a log without a mark column fits by EM (no mixture) end to end."""
+    log, _ = _write_log(tmp_path)
+    df = pd.read_csv(log).drop(columns="mark")
+    df.to_csv(log, index=False, na_rep="")
+    fit = tmp_path / "nomarks.nc"
+    res = _quick_em_fit(log, fit, samples=20)
+    assert "mix_weights" not in res.output
+    res = _invoke(["report", fit, "--out", tmp_path / "rep", "--replicates", "5"])
+    assert res.exit_code == 0, res.output
+    assert not (tmp_path / "rep" / "ppc_marks.png").exists()
+    digests = []
+    for _ in range(2):  # same seed, same bytes: every file of the folder
+        out = tmp_path / "scen"
+        args = ["generate", fit, "--scenarios", "4", "--horizon", "300", "--seed", "5"]
+        res = _invoke([*args, "--out", out, "--force"])
+        assert res.exit_code == 0, res.output
+        digests.append({p.name: p.read_bytes() for p in out.iterdir()})
+    assert digests[0] == digests[1] and set(digests[0]) == {"artefacts.parquet", "manifest.yaml"}
+    assert (pd.read_parquet(out / "artefacts.parquet")["mark"] == -1).all()
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--horizon", "1e12"], r"--scenarios, --horizon: expected about .* artefacts .* memory"),
+        (["--horizon", "nan"], r"--horizon: expected a finite number > 0, got nan"),
+        (["--scenarios", "0"], r"--scenarios: expected an integer >= 1, got 0"),
+        (["--scenarios", "100000000000"], r"expected 100000000000 scenarios to fit in the memory"),
+        (["--area", "-1"], r"--area: expected a finite number > 0, got -1\.0"),
+        (["--seed", "-3"], r"--seed: expected an integer >= 0"),
+        (["--behaviours", "--behaviour-cell", "0"], r"--behaviour-cell: expected a finite number"),
+        (["--behaviours", "--behaviour-dt", "inf"], r"--behaviour-dt: expected a finite number"),
+    ],
+)
+def test_generate_options_are_checked_before_any_work(tmp_path, em_fit_file, extra, match):
+    args = {"--scenarios": "3", "--horizon": "60", "--seed": "1"}
+    for flag, value in zip(extra[::2], extra[1::2], strict=False):
+        if flag in args:
+            args[flag] = value
+    rest = [a for a in extra if a not in args and a not in args.values()]
+    flat = [x for kv in args.items() for x in kv]
+    res = _invoke(["generate", em_fit_file, *flat, *rest, "--out", tmp_path / "o"])
+    assert res.exit_code == 2, res.output
+    assert re.search(match, " ".join(res.output.split())), res.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_generate_needs_force_for_an_existing_folder(tmp_path, em_fit_file):
+    out = tmp_path / "scen"
+    args = ["generate", em_fit_file, "--scenarios", "2", "--horizon", "60", "--out", out]
+    assert _invoke([*args, "--seed", "7"]).exit_code == 0
+    (out / "stale.txt").write_text("from another run")
+    res = _invoke([*args, "--seed", "8"])
+    assert res.exit_code == 2 and "already exists" in res.output
+    assert yaml.safe_load((out / "manifest.yaml").read_text())["seed"] == 7
+    assert _invoke([*args, "--seed", "8", "--force"]).exit_code == 0
+    assert sorted(p.name for p in out.iterdir()) == ["artefacts.parquet", "manifest.yaml"]
+    assert yaml.safe_load((out / "manifest.yaml").read_text())["seed"] == 8
+
+
+def test_report_of_a_damaged_fit_names_the_file_and_field(tmp_path, em_fit_file):
+    idata = az.from_netcdf(em_fit_file)
+    idata.load()
+    del idata.posterior.attrs["area"]
+    bad = tmp_path / "bad.nc"
+    idata.to_netcdf(str(bad))
+    for cmd in (["report", bad, "--out", tmp_path / "r"], ["generate", bad, "--scenarios", "2",
+                "--horizon", "60", "--seed", "0", "--out", tmp_path / "g"]):  # fmt: skip
+        res = _invoke(cmd)
+        assert res.exit_code == 2, res.output
+        assert "posterior.attrs.area: expected this attribute" in " ".join(res.output.split())
+    res = _invoke(["report", em_fit_file, "--out", tmp_path / "r", "--replicates", "0"])
+    assert res.exit_code == 2 and "--replicates: expected an integer >= 1" in res.output
