@@ -705,14 +705,37 @@ def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, 
     ------
     FileNotFoundError
         If ``artefacts.parquet`` or ``manifest.yaml`` is missing.
+    are_stats.inputs.InputError
+        Naming the file: a manifest that is not a YAML mapping (duplicate keys, alias bombs
+        refused by :func:`are_stats.inputs.load_yaml`), a table that is not Parquet or lacks
+        a column of :data:`SCENARIO_COLUMNS`.
     """
+    import pyarrow as pa
     import pyarrow.parquet as pq
+
+    from are_stats.inputs import InputError, _Text, load_yaml
 
     d = Path(out_dir)
     for name in ("artefacts.parquet", "manifest.yaml"):
         if not (d / name).exists():
             raise FileNotFoundError(f"{d / name}: no such file (expected a scenarios folder)")
-    df = pq.read_table(d / "artefacts.parquet").to_pandas()
-    meta = yaml.safe_load((d / "manifest.yaml").read_text())
-    df.attrs["generation"] = meta.get("generation", {})
-    return df, meta
+    meta = load_yaml(d / "manifest.yaml", "scenarios manifest")
+    if not isinstance(meta, Mapping):
+        raise InputError(d / "manifest.yaml", "", "a mapping (the scenarios manifest)", meta)
+    generation = meta.get("generation", {})
+    if not isinstance(generation, Mapping):
+        raise InputError(d / "manifest.yaml", "generation", "a mapping", generation)
+    path = d / "artefacts.parquet"
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowException, OSError) as err:
+        raise InputError(path, "", "a Parquet scenarios table", _Text(str(err))) from None
+    missing = [c for c in SCENARIO_COLUMNS if c not in table.column_names]
+    if missing:
+        raise InputError(
+            path, f"column {missing[0]!r}", "every column of " + ", ".join(SCENARIO_COLUMNS),
+            _Text(f"columns {table.column_names}"),
+        )  # fmt: skip
+    df = table.to_pandas()
+    df.attrs["generation"] = dict(generation)
+    return df, dict(meta)

@@ -12,7 +12,7 @@ import pytest
 from scipy import stats
 
 from are_stats._atomic import OutputExistsError
-from are_stats.inputs import LimitError, limits
+from are_stats.inputs import InputError, LimitError, limits
 from are_stats.scenarios import (
     SCENARIO_COLUMNS,
     atomic_folder,
@@ -288,3 +288,21 @@ def test_argument_errors(kw, message):
     args.update(kw)
     with pytest.raises(ValueError, match=message):
         generate_scenarios(**args)
+
+
+def test_read_scenarios_names_the_bad_file(tmp_path):
+    out = tmp_path / "sc"
+    write_scenarios(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
+    (out / "manifest.yaml").write_text("- a list\n")
+    with pytest.raises(InputError, match=r"manifest\.yaml: expected a mapping"):
+        read_scenarios(out)
+    (out / "manifest.yaml").write_text("seed: 1\nseed: 2\n")
+    with pytest.raises(InputError, match=r"manifest\.yaml: line 2: expected each key once"):
+        read_scenarios(out)
+    (out / "manifest.yaml").write_text("seed: 1\n")
+    (out / "artefacts.parquet").write_text("not parquet")
+    with pytest.raises(InputError, match=r"artefacts\.parquet: expected a Parquet scenarios"):
+        read_scenarios(out)
+    pd.DataFrame({"scenario": [0]}).to_parquet(out / "artefacts.parquet")
+    with pytest.raises(InputError, match=r"artefacts\.parquet: column 'artefact': expected every"):
+        read_scenarios(out)
