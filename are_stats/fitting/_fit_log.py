@@ -619,6 +619,11 @@ def _stays_columns(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray, np.
     return pairs, counts.astype(np.float64), inverse.ravel()
 
 
+def _stays_loglik(mu: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """``departed log(mu) - mu dwell`` for (chain, draw) ``mu`` and (m, 2) pairs."""
+    return pairs[:, 0] * np.log(mu)[..., None] - mu[..., None] * pairs[:, 1]
+
+
 def _distinct_loglik(
     idata: az.InferenceData, var_name: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -629,8 +634,7 @@ def _distinct_loglik(
         pairs, counts, inverse = _stays_columns(idata)
         mu = np.asarray(idata.posterior["leave_rate"].values, dtype=np.float64)
         check_memory(mu.size * pairs.shape[0] * 8.0 * 3, "the stays log-likelihood per draw")
-        ll = pairs[:, 0] * np.log(mu)[..., None] - mu[..., None] * pairs[:, 1]
-        return ll, counts, inverse
+        return _stays_loglik(mu, pairs), counts, inverse
     if var_name == "marks":
         if "log_likelihood" not in idata.groups() or "mark_histogram" not in idata.log_likelihood:
             raise ValueError("idata: expected log_likelihood.mark_histogram (a fit with marks)")
@@ -681,6 +685,10 @@ def pointwise_log_likelihood(idata: az.InferenceData, var_name: str = "stays") -
     return xr.DataArray(ll[..., inverse], dims=("chain", "draw", "artefact"), name=var_name)
 
 
+#: Log-likelihood values :func:`fit_loo` holds at a time (2**24 float64: 128 MiB).
+_LOO_BLOCK = 2**24
+
+
 def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> Any:
     """PSIS-LOO of one likelihood term of a fit, over artefacts, without expanding it.
 
@@ -706,20 +714,42 @@ def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> Any:
     from scipy.special import logsumexp
 
     from are_stats.fitting._select import InformationCriterion, _weighted_total
+    from are_stats.inputs import check_work
 
-    ll, counts, _ = _distinct_loglik(idata, var_name)
-    n_chains, n_draws, m = ll.shape
+    if var_name == "stays":  # distinct stays may be as many as rows: computed in blocks
+        pairs, counts, _ = _stays_columns(idata)
+        mu = np.asarray(idata.posterior["leave_rate"].values, dtype=np.float64)
+        n_chains, n_draws = mu.shape
+        m = pairs.shape[0]
+    else:
+        ll, counts, _ = _distinct_loglik(idata, var_name)
+        n_chains, n_draws, m = ll.shape
     s = n_chains * n_draws
-    flat = ll.reshape(s, m)
+    check_work(float(s) * m * 60.0, f"PSIS-LOO over {m} distinct observations and {s} draws")
     reff = 1.0
     if n_chains > 1:  # as arviz.loo: mean ESS of the posterior over the number of draws
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             ess = az.ess(idata.posterior, method="mean")
         reff = float(np.hstack([ess[v].values.ravel() for v in ess.data_vars]).mean()) / s
-    log_w, k_hat = az.psislw(-flat.T, reff)
-    e = logsumexp(log_w + flat.T, axis=1)
-    lppd = logsumexp(flat, axis=0) - np.log(s)
+    if m == 0:
+        raise ValueError(f"idata: expected at least one observation for {var_name!r}, got none")
+    block = max(1, _LOO_BLOCK // s)  # about 128 MiB of log-likelihood at a time
+    parts = []
+    for j in range(0, m, block):
+        if var_name == "stays":
+            flat = _stays_loglik(mu, pairs[j : j + block]).reshape(s, -1)
+        else:
+            flat = ll.reshape(s, m)[:, j : j + block]
+        log_w, k_block = az.psislw(-flat.T, reff)
+        parts.append(
+            (
+                logsumexp(log_w + flat.T, axis=1),
+                logsumexp(flat, axis=0) - np.log(s),
+                np.atleast_1d(np.asarray(k_block, dtype=np.float64)),
+            )
+        )
+    e, lppd, k_hat = (np.concatenate(x) for x in zip(*parts, strict=True))
     elpd, se = _weighted_total(e, counts)
     p_loo = float(np.sum(counts * (lppd - e)))
     return InformationCriterion(
