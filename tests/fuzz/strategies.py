@@ -381,7 +381,7 @@ def yaml_case(draw: st.DrawFn, base: Any, max_edits: int = 3) -> bytes:
         p = draw(st.sampled_from(paths))
         parent = _parent(doc, p)
         if kind == "replace":
-            parent[p[-1]] = draw(st.sampled_from(NASTY_VALUES))
+            parent[p[-1]] = copy.deepcopy(draw(st.sampled_from(NASTY_VALUES)))
         elif kind == "delete":
             del parent[p[-1]]
         else:
@@ -395,7 +395,7 @@ def yaml_case(draw: st.DrawFn, base: Any, max_edits: int = 3) -> bytes:
     )
     if kind == "duplicate_key" and isinstance(doc, dict) and doc:
         k = draw(st.sampled_from(list(doc)))
-        text += _dump({k: draw(st.sampled_from(NASTY_VALUES))})
+        text += _dump({k: copy.deepcopy(draw(st.sampled_from(NASTY_VALUES)))})
     elif kind == "alias_bomb":
         text = alias_bomb() + text if draw(st.booleans()) else alias_bomb()
     elif kind == "deep":
