@@ -321,13 +321,16 @@ def experiment(
         None, "--scheduler", help="Existing Dask scheduler address (tcp://host:port)."
     ),
     force: bool = typer.Option(False, "--force", help="Redo every task and overwrite results."),
+    host: str = typer.Option(
+        "127.0.0.1", "--host", help="Address the local Dask cluster and dashboard listen on."
+    ),
 ) -> None:
     """Run a navigation-experiment sweep (Fig. 7) on Dask; resumes unfinished sweeps."""
     from are_stats.experiments import load_sweep_config, run_sweep
 
     cfg = load_sweep_config(config)
     target = out if out is not None else f"results/{cfg['name']}"
-    path = run_sweep(cfg, target, workers=workers, scheduler=scheduler, force=force)
+    path = run_sweep(cfg, target, workers=workers, scheduler=scheduler, force=force, host=host)
     typer.echo(str(path))
 
 

@@ -44,6 +44,7 @@ import yaml
 __all__ = [
     "DEFAULT_MEMORY",
     "DEFAULT_WORK",
+    "Described",
     "MAX_YAML_BYTES",
     "MAX_YAML_DEPTH",
     "MAX_SEED",
@@ -133,12 +134,18 @@ class InputError(ValueError):
         self.got = None if got is _MISSING else got
         text = f"{self.source}: " + (f"{where}: " if where else "") + f"expected {expected}"
         if got is not _MISSING:
-            text += f", got {got if isinstance(got, _Text) else _show(got)}"
+            text += f", got {got if isinstance(got, Described) else _show(got)}"
         super().__init__(text)
 
 
-class _Text(str):
-    """A ``got`` that is already a description (printed as is)."""
+class Described(str):
+    """A ``got`` that is already worded (printed as is, not quoted as a string).
+
+    Examples
+    --------
+    >>> str(InputError("m.obj", "", "a mesh with triangles", Described("an empty file")))
+    'm.obj: expected a mesh with triangles, got an empty file'
+    """
 
 
 class LimitError(InputError):
@@ -212,7 +219,9 @@ def limits(memory: int | str | None = None, work: int | str | None = None) -> It
 
 
 def format_bytes(n: float) -> str:
-    """``1536 -> '1.5 KiB'``."""
+    """``1536 -> '1.5 KiB'``; past 1024 PiB in scientific notation (``'1e+300 B'``)."""
+    if not abs(n) < 2**60:
+        return f"{n:.3g} B"
     for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
         if abs(n) < 1024 or unit == "PiB":
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
@@ -239,7 +248,7 @@ def check_memory(n_bytes: float, what: str, source: Any = "") -> None:
             "",
             f"{what} to fit in the memory limit of {format_bytes(limit)} "
             "(raise it with are-stats --max-memory SIZE or ARE_STATS_MAX_MEMORY)",
-            _Text(f"about {format_bytes(float(n_bytes))}"),
+            Described(f"about {format_bytes(float(n_bytes))}"),
         )
 
 
@@ -252,7 +261,7 @@ def check_work(n_ops: float, what: str, source: Any = "") -> None:
             "",
             f"{what} to fit in the work limit of {limit:.3g} steps "
             "(raise it with are-stats --max-work N or ARE_STATS_MAX_WORK)",
-            _Text(f"about {float(n_ops):.3g} steps"),
+            Described(f"about {float(n_ops):.3g} steps"),
         )
 
 
@@ -316,7 +325,7 @@ def _expanded_size(root: yaml.Node, source: str) -> None:
             return memo[key]
         if key in on_stack:
             raise InputError(
-                source, "", "YAML without recursive aliases", _Text("a recursive alias")
+                source, "", "YAML without recursive aliases", Described("a recursive alias")
             )
         if isinstance(node, yaml.ScalarNode):
             return (1, 0)
@@ -340,14 +349,14 @@ def _expanded_size(root: yaml.Node, source: str) -> None:
                 "",
                 f"YAML that expands to at most {MAX_YAML_NODES} values once its aliases are "
                 "followed",
-                _Text(f"more than {MAX_YAML_NODES} (an alias bomb?)"),
+                Described(f"more than {MAX_YAML_NODES} (an alias bomb?)"),
             )
         if depth + 1 > MAX_YAML_DEPTH:
             raise InputError(
                 source,
                 "",
                 f"YAML nested at most {MAX_YAML_DEPTH} levels deep",
-                _Text(f"{depth + 1} levels"),
+                Described(f"{depth + 1} levels"),
             )
         return memo[key]
 
@@ -360,7 +369,9 @@ def parse_yaml(text: str, source: Any, what: str = "YAML document") -> Any:
     try:
         loader = _Loader(text)
     except yaml.YAMLError as err:  # e.g. NUL or control characters
-        raise InputError(src, "", f"a {what} in valid YAML", _Text(_yaml_problem(err))) from None
+        raise InputError(
+            src, "", f"a {what} in valid YAML", Described(_yaml_problem(err))
+        ) from None
     try:
         try:
             node = loader.get_single_node()
@@ -369,11 +380,11 @@ def parse_yaml(text: str, source: Any, what: str = "YAML document") -> Any:
                 src,
                 "",
                 f"a {what} nested at most {MAX_YAML_DEPTH} levels deep",
-                _Text("deeper nesting"),
+                Described("deeper nesting"),
             ) from None
         except yaml.YAMLError as err:
             raise InputError(
-                src, "", f"a {what} in valid YAML", _Text(_yaml_problem(err))
+                src, "", f"a {what} in valid YAML", Described(_yaml_problem(err))
             ) from None
         if node is None:
             return None
@@ -382,18 +393,21 @@ def parse_yaml(text: str, source: Any, what: str = "YAML document") -> Any:
             return loader.construct_document(node)
         except _DuplicateKey as dup:
             raise InputError(
-                src, f"line {dup.line}", "each key once per mapping", _Text(f"{dup.key!r} again")
+                src,
+                f"line {dup.line}",
+                "each key once per mapping",
+                Described(f"{dup.key!r} again"),
             ) from None
         except yaml.YAMLError as err:
             raise InputError(
-                src, "", f"a {what} in valid YAML", _Text(_yaml_problem(err))
+                src, "", f"a {what} in valid YAML", Described(_yaml_problem(err))
             ) from None
         except RecursionError:
             raise InputError(
                 src,
                 "",
                 f"a {what} nested at most {MAX_YAML_DEPTH} levels deep",
-                _Text("deeper nesting"),
+                Described("deeper nesting"),
             ) from None
     finally:
         loader.dispose()
@@ -436,25 +450,25 @@ def load_yaml(path: str | os.PathLike, what: str = "YAML file") -> Any:
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file: expected a {what}")
     if p.is_dir():
-        raise InputError(p, "", f"a {what}", _Text("a directory"))
+        raise InputError(p, "", f"a {what}", Described("a directory"))
     if not p.is_file():  # a FIFO or a device would block or never end
-        raise InputError(p, "", f"a {what} in a regular file", _Text("not a regular file"))
+        raise InputError(p, "", f"a {what} in a regular file", Described("not a regular file"))
     size = p.stat().st_size
     if size > MAX_YAML_BYTES:
         raise InputError(
             p,
             "",
             f"a {what} of at most {format_bytes(MAX_YAML_BYTES)}",
-            _Text(format_bytes(size)),
+            Described(format_bytes(size)),
         )
     try:
         text = p.read_bytes().decode("utf-8-sig")
     except UnicodeDecodeError as err:
         raise InputError(
-            p, f"byte {err.start}", f"a {what} in UTF-8 text", _Text("undecodable bytes")
+            p, f"byte {err.start}", f"a {what} in UTF-8 text", Described("undecodable bytes")
         ) from None
     except OSError as err:
-        raise InputError(p, "", f"a readable {what}", _Text(err.strerror or str(err))) from None
+        raise InputError(p, "", f"a readable {what}", Described(err.strerror or str(err))) from None
     return parse_yaml(text, p, what)
 
 
@@ -499,12 +513,12 @@ def check_keys(
             source,
             _join(where, unknown[0]),
             "one of the known keys " + ", ".join(known),
-            _Text(f"an unknown key {unknown[0]!r}"),
+            Described(f"an unknown key {unknown[0]!r}"),
         )
     missing = [k for k in required if k not in mapping]
     if missing:
         raise InputError(
-            source, _join(where, missing[0]), "this key to be present", _Text("no such key")
+            source, _join(where, missing[0]), "this key to be present", Described("no such key")
         )
     return dict(mapping)
 
@@ -626,7 +640,7 @@ def get_list(
     if not isinstance(value, list | tuple):
         raise InputError(source, where, expected, value)
     if len(value) < min_len or (max_len is not None and len(value) > max_len):
-        raise InputError(source, where, expected, _Text(f"{len(value)} values"))
+        raise InputError(source, where, expected, Described(f"{len(value)} values"))
     return list(value)
 
 

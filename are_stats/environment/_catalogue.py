@@ -37,8 +37,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from are_stats.inputs import (
+    Described,
     InputError,
-    _Text,
     check_keys,
     check_memory,
     get_float,
@@ -306,7 +306,7 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
                 p,
                 f"{where}.label",
                 "a label used once",
-                _Text(f"{label!r}, a duplicate label of classes[{seen[label]}]"),
+                Described(f"{label!r}, a duplicate label of classes[{seen[label]}]"),
             )
         seen[label] = k
         speeds = check_keys(entry["speeds"], p, f"{where}.speeds", ("walk", "run"), ("walk",))
@@ -325,7 +325,10 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
                 raise InputError(p, f"{where}.behaviours[{j}]", "each behaviour once", b)
         if "run" in beh and "run" not in sp:
             raise InputError(
-                p, f"{where}.speeds.run", "a 'run' speed (behaviour 'run' needs it)", _Text("none")
+                p,
+                f"{where}.speeds.run",
+                "a 'run' speed (behaviour 'run' needs it)",
+                Described("none"),
             )
         feats = entry.get("features") or {}
         if not isinstance(feats, dict):
@@ -340,19 +343,19 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
                 p,
                 f"{where}.mesh",
                 "an existing mesh file",
-                _Text(f"{mesh_path}: {'not a file' if mesh_path.exists() else 'no such file'}"),
+                Described(f"{mesh_path}: {'not a file' if mesh_path.exists() else 'no such file'}"),
             )
         try:
             mesh = load_mesh(mesh_path)
         except InputError as err:
-            raise InputError(p, f"{where}.mesh", "a readable mesh", _Text(str(err))) from None
+            raise InputError(p, f"{where}.mesh", "a readable mesh", Described(str(err))) from None
         bounds = np.asarray(mesh.bounds, dtype=float)
         if not (bounds[1] > bounds[0]).all():
             raise InputError(
                 p,
                 f"{where}.mesh",
                 "a mesh with a non-degenerate bounding box",
-                _Text(f"{mesh_path.name} with bounds {bounds.tolist()}"),
+                Described(f"{mesh_path.name} with bounds {bounds.tolist()}"),
             )
         out.append(
             ArtefactClass(

@@ -28,7 +28,7 @@ import numpy as np
 
 from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
-from are_stats.inputs import InputError, _Text, check_memory, check_work, format_bytes
+from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
 
 if TYPE_CHECKING:
     import trimesh
@@ -198,7 +198,7 @@ class VoxelMap:
         if not p.exists():
             raise FileNotFoundError(f"{p}: OctoMap file not found")
         if not p.is_file():
-            raise InputError(p, "", "an OctoMap .bt file", _Text("not a file"))
+            raise InputError(p, "", "an OctoMap .bt file", Described("not a file"))
         size_b = p.stat().st_size
         check_memory(size_b * 2, f"reading the {format_bytes(size_b)} OctoMap file", p)
         # the tree is walked one inner node (2 bytes) at a time
@@ -229,7 +229,7 @@ class VoxelMap:
         if meta.get("id", "OcTree") != "OcTree":
             raise ValueError(f"{p}: expected an OcTree, got id {meta.get('id')!r}")
         if "res" not in meta:
-            raise InputError(p, "header", "a line 'res R' (the resolution)", _Text("none"))
+            raise InputError(p, "header", "a line 'res R' (the resolution)", Described("none"))
         try:
             res = float(meta["res"])
         except ValueError:
@@ -285,7 +285,7 @@ def _read_bt_tree(raw: bytes, pos: int, p: Path) -> np.ndarray:
     while stack:
         depth, key = stack.pop()
         if cursor + 2 > data.size:
-            raise InputError(p, f"byte {pos + cursor}", "more tree data", _Text("end of file"))
+            raise InputError(p, f"byte {pos + cursor}", "more tree data", Described("end of file"))
         flags = int(data[cursor]) | (int(data[cursor + 1]) << 8)
         cursor += 2
         inner = []

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._atomic import atomic_path, check_writable
-from are_stats.inputs import InputError, _Text
+from are_stats.inputs import Described, InputError
 
 __all__ = ["plot_goals", "plot_results", "plot_rho"]
 
@@ -148,7 +148,7 @@ def plot_results(
     res = load_results(results)
     out = Path(results if out is None else out)
     if out.exists() and not out.is_dir():
-        raise InputError(out, "", "a folder for the PNGs", _Text("a file"))
+        raise InputError(out, "", "a folder for the PNGs", Described("a file"))
     paths = [out / "fig7a_rho.png", out / "fig7b_goals.png"]
     for p in paths:
         check_writable(p, force)

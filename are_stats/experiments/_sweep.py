@@ -88,10 +88,10 @@ import yaml
 
 from are_stats._atomic import OutputExistsError, atomic_path
 from are_stats.experiments._planners import OMPL_ALGORITHMS
-from are_stats.inputs import (  # _Text: a ``got`` already worded, shown as is
+from are_stats.inputs import (  # Described: a ``got`` already worded, shown as is
     MAX_SEED,
+    Described,
     InputError,
-    _Text,
     check_keys,
     check_memory,
     check_work,
@@ -251,7 +251,7 @@ def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> N
             raise InputError(
                 src, f"{pre}planner.{key}",
                 f"only options that planner {algo!r} takes ({takes})",
-                _Text(f"{key}: {pl[key]!r}"),
+                Described(f"{key}: {pl[key]!r}"),
             )  # fmt: skip
 
 
@@ -263,16 +263,16 @@ def _factor_checker(key: Any, src: str) -> tuple[str, str, _Checker | None]:
         + ", ".join(_SECTIONS[:3])
     )
     if not isinstance(key, str):
-        raise InputError(src, "factors", expected, _Text(f"the key {key!r}"))
+        raise InputError(src, "factors", expected, Described(f"the key {key!r}"))
     sec, dot, sub = key.partition(".")
     if key == "planner":
         return "planner", "", None
     if sec not in _SCHEMA or not dot:
-        raise InputError(src, where, expected, _Text(f"the key {key!r}"))
+        raise InputError(src, where, expected, Described(f"the key {key!r}"))
     if sub not in _SCHEMA[sec]:
         raise InputError(
             src, where, f"a key of {sec}: one of " + ", ".join(_SCHEMA[sec]),
-            _Text(f"an unknown key {sub!r}"),
+            Described(f"an unknown key {sub!r}"),
         )  # fmt: skip
     return sec, sub, _SCHEMA[sec][sub]
 
@@ -330,7 +330,7 @@ def _validate(raw: Any, src: str) -> dict[str, Any]:
                 raise InputError(
                     src, f"{where}[{i}]",
                     f"levels with distinct labels (level {labels[label]} is labelled the same)",
-                    _Text(repr(label)),
+                    Described(repr(label)),
                 )  # fmt: skip
             labels[label] = i
             clean.append(level)
@@ -460,7 +460,7 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
             raise InputError(
                 src, (f"{where}: " if where else "") + "mission.perception",
                 f"'all', or 'camera' with the map's mesh {path.with_suffix('.ply')}",
-                _Text("'camera' and no such mesh"),
+                Described("'camera' and no such mesh"),
             )  # fmt: skip
         n_bytes, steps, what = _task_cost(sections, grid)
         if n_bytes > worst_bytes:
@@ -625,7 +625,7 @@ def _folder_state(out: Path) -> str:
     if not out.exists():
         return "missing"
     if not out.is_dir():
-        raise InputError(out, "", "a results folder", _Text("a file"))
+        raise InputError(out, "", "a results folder", Described("a file"))
     if (out / "sweep.yaml").is_file():
         return "sweep"
     entries = sorted(p.name for p in out.iterdir())
@@ -635,7 +635,7 @@ def _folder_state(out: Path) -> str:
         out, "",
         "a new or empty folder, or a sweep's results folder (with sweep.yaml); a sweep does "
         "not write into or replace other folders",
-        _Text(f"{len(entries)} other entries such as {entries[0]!r}"),
+        Described(f"{len(entries)} other entries such as {entries[0]!r}"),
     )  # fmt: skip
 
 
@@ -773,7 +773,7 @@ def run_sweep(
                 target = out
         except OSError as err:
             raise InputError(
-                out, "", "a results folder that can be created", _Text(err.strerror or str(err))
+                out, "", "a results folder that can be created", Described(err.strerror or str(err))
             ) from None
         try:
             with atomic_path(target / "sweep.yaml", force=True) as tmp:
@@ -799,7 +799,7 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(
                 "--scheduler", "", "the address of a running Dask scheduler (tcp://host:port)",
-                _Text(f"{scheduler!r} ({err})"),
+                Described(f"{scheduler!r} ({err})"),
             ) from None  # fmt: skip
         cluster = None
     else:
@@ -866,18 +866,22 @@ def _read_table(path: Path, table: str, task: str) -> pd.DataFrame:
     if not path.is_file():
         raise InputError(
             path, "", f"the {table} table of finished task {task} (written before its runs file)",
-            _Text("no such file"),
+            Described("no such file"),
         )  # fmt: skip
     try:
         df = pd.read_parquet(path)
     except (OSError, ValueError, pyarrow.ArrowException) as err:
         problem = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
-        raise InputError(path, "", "a Parquet table written by run_sweep", _Text(problem)) from None
+        raise InputError(
+            path, "", "a Parquet table written by run_sweep", Described(problem)
+        ) from None
     for col, numeric in _COLUMNS[table].items():
         if col not in df.columns:
-            raise InputError(path, f"column {col!r}", "this column", _Text("no such column"))
+            raise InputError(path, f"column {col!r}", "this column", Described("no such column"))
         if numeric and not pd.api.types.is_numeric_dtype(df[col]):
-            raise InputError(path, f"column {col!r}", "numbers", _Text(f"dtype {df[col].dtype}"))
+            raise InputError(
+                path, f"column {col!r}", "numbers", Described(f"dtype {df[col].dtype}")
+            )
     bad = df["task"] != task
     if bad.any():
         row = int(np.flatnonzero(bad.to_numpy())[0])
@@ -907,7 +911,9 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
         raise FileNotFoundError(f"{out}: no finished sweep tasks (runs/*.parquet)")
     meta = out / "sweep.yaml"
     if not meta.is_file():
-        raise InputError(meta, "", "the sweep config of the results folder", _Text("no such file"))
+        raise InputError(
+            meta, "", "the sweep config of the results folder", Described("no such file")
+        )
     cfg = _validate(load_yaml(meta, "sweep config"), str(meta))
     n_tasks = _n_combos(cfg) * cfg["replicates"]
     check_memory(n_tasks * _BYTES_PER_TASK, f"the task list of {n_tasks} tasks", meta)
@@ -918,7 +924,7 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
         if p.stem not in tasks:
             raise InputError(
                 p, "", f"a task of the sweep in {meta} (a results folder holds one sweep)",
-                _Text("a file of another sweep"),
+                Described("a file of another sweep"),
             )  # fmt: skip
     res = {}
     for t in _TABLES:
@@ -926,7 +932,9 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
         for p in done:
             df = _read_table(out / t / p.name, t, p.stem)
             if t == "runs" and len(df) != 1:
-                raise InputError(p, "", "one row (the task's summary)", _Text(f"{len(df)} rows"))
+                raise InputError(
+                    p, "", "one row (the task's summary)", Described(f"{len(df)} rows")
+                )
             if t == "runs" and df["sweep"].iloc[0] != sweep:
                 raise InputError(
                     p, "row 0, column 'sweep'", f"the digest {sweep!r} of {meta}",

@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 
 from are_stats.inputs import (
+    Described,
     InputError,
-    _Text,
     check_keys,
     get_float,
     get_list,
@@ -216,7 +216,7 @@ def _label_names(value: Any) -> list[str]:
     ]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise InputError("label_names", "", "distinct class labels", _Text(f"{dup} repeated"))
+        raise InputError("label_names", "", "distinct class labels", Described(f"{dup} repeated"))
     return names
 
 
@@ -249,7 +249,7 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such manifest file")
     if not (p.is_file() or p.is_dir()):  # a FIFO or device would block or never end
-        raise InputError(p, "", "a life-cycle log manifest file", _Text("a special file"))
+        raise InputError(p, "", "a life-cycle log manifest file", Described("a special file"))
     meta = load_yaml(p, "life-cycle log manifest")
     if meta is None:
         meta = {}
@@ -257,7 +257,7 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
         raise InputError(p, "", "a YAML mapping of manifest keys", meta)
     meta = check_keys(meta, p, "", _MANIFEST_KEYS)
     if "area" in meta and "map" in meta:
-        raise InputError(p, "keys 'area' and 'map'", "one of them", _Text("both"))
+        raise InputError(p, "keys 'area' and 'map'", "one of them", Described("both"))
     out: dict[str, Any] = {}
     if "window" in meta:
         out["window"] = list(_window(p, "window", meta["window"], 1.0))
@@ -289,12 +289,12 @@ def _window(source: Any, where: str, value: Any, scale: float) -> tuple[float, f
             source,
             where,
             "a window [t0, t1] of finite numbers with t0 < t1",
-            _Text(f"[{t0!r}, {t1!r}]"),
+            Described(f"[{t0!r}, {t1!r}]"),
         )
     lo, hi = t0 * scale, t1 * scale
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise InputError(
-            source, where, "a window that stays finite in seconds", _Text(f"[{t0!r}, {t1!r}]")
+            source, where, "a window that stays finite in seconds", Described(f"[{t0!r}, {t1!r}]")
         )
     return lo, hi
 
@@ -314,7 +314,7 @@ def _resolve_settings(
             mpath,
             "window",
             "the observation window [t0, t1] in the manifest or as window=(t0, t1)",
-            _Text("nothing"),
+            Described("nothing"),
         )
     if area is not None:
         a: float | None = get_float(area, "area", "", lo=0.0, lo_open=True)
@@ -327,7 +327,7 @@ def _resolve_settings(
 
         a = OccupancyGrid.from_ros_yaml(manifest["map"]).free_area
         if a <= 0:
-            raise InputError(manifest["map"], "", "a map with free cells", _Text("none"))
+            raise InputError(manifest["map"], "", "a map with free cells", Described("none"))
     else:
         a = None
     min_life = float(manifest.get("min_lifetime", 0.0)) * scale
@@ -438,7 +438,7 @@ def lifecycle_log_from_frame(
     """
     raw = frame_table(frame, source, "life-cycle log")
     if raw.n_rows == 0:
-        raise InputError(source, "empty life-cycle log", "at least one row", _Text("none"))
+        raise InputError(source, "empty life-cycle log", "at least one row", Described("none"))
     win = _window("window", "", window, 1.0)
     a = None if area is None else get_float(area, "area", "", lo=0.0, lo_open=True)
     min_life = get_float(min_lifetime, "min_lifetime", "", lo=0.0)

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.inputs import InputError, _Text, check_memory
+from are_stats.inputs import Described, InputError, check_memory
 
 __all__ = [
     "MAX_EXACT_INT",
@@ -238,11 +238,13 @@ def frame_table(frame: object, source: str, what: str) -> RawTable:
     everything else becomes text.
     """
     if not isinstance(frame, pd.DataFrame):
-        raise InputError(source, "", f"a {what} as a pandas DataFrame", _Text(type(frame).__name__))
+        raise InputError(
+            source, "", f"a {what} as a pandas DataFrame", Described(type(frame).__name__)
+        )
     names = [str(c) for c in frame.columns]
     dup = sorted({c for c in names if names.count(c) > 1})
     if dup:
-        raise InputError(source, "columns", "unique column names", _Text(f"{dup} repeated"))
+        raise InputError(source, "columns", "unique column names", Described(f"{dup} repeated"))
     strings: dict[str, np.ndarray] = {}
     numbers: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     bools: set[str] = set()
@@ -292,7 +294,7 @@ def table_error(
 
     ``got`` is printed as given (callers pass a description such as ``"'abc'"``).
     """
-    return InputError(path, f"{where}, column {column!r}", expected, _Text(str(got)))
+    return InputError(path, f"{where}, column {column!r}", expected, Described(str(got)))
 
 
 def _check_memory(n_bytes: int, what: str, p: Path) -> None:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.inputs import InputError, _Text, get_float, get_int, get_list
+from are_stats.inputs import Described, InputError, get_float, get_int, get_list
 from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
 __all__ = ["TRACK_COLUMNS", "read_tracks", "tracks_to_lifecycle", "validate_tracks"]
@@ -81,7 +81,7 @@ def validate_tracks(tracks: pd.DataFrame, name: str = "tracks") -> pd.DataFrame:
     """
     raw = frame_table(tracks, name, "tracks table")
     if raw.n_rows == 0:
-        raise InputError(name, "empty tracks table", "at least one sighting", _Text("none"))
+        raise InputError(name, "empty tracks table", "at least one sighting", Described("none"))
     df = _from_raw(raw)
     extra = [c for c in tracks.columns if c not in df.columns]
     for c in extra:
@@ -156,7 +156,7 @@ def tracks_to_lifecycle(
         t0 = get_float(pair[0], "window", "[0]")
         t1 = get_float(pair[1], "window", "[1]")
         if not t1 > t0:
-            raise InputError("window", "", "(t0, t1) with t0 < t1", _Text(f"({t0!r}, {t1!r})"))
+            raise InputError("window", "", "(t0, t1) with t0 < t1", Described(f"({t0!r}, {t1!r})"))
     inside = (t_all >= t0) & (t_all <= t1)
     excluded = {"outside_window": int((~inside).sum()), "too_few_sightings": 0}
     df = df[inside]

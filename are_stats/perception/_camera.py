@@ -16,8 +16,8 @@ import numpy as np
 
 from are_stats._checks import check_finite, describe
 from are_stats.inputs import (
+    Described,
     InputError,
-    _Text,
     check_keys,
     check_memory,
     get_float,
@@ -307,13 +307,15 @@ class PinholeCamera:
                 source,
                 "",
                 "the intrinsics as exactly one of fx/fy/cx/cy, K, k or camera_matrix",
-                _Text(f"{len(given)} of them" if given else "none"),
+                Described(f"{len(given)} of them" if given else "none"),
             )
         (group,) = given
         if group[0] == "fx":
             missing = [k for k in group if k not in d]
             if missing:
-                raise InputError(source, missing[0], "this key to be present", _Text("no such key"))
+                raise InputError(
+                    source, missing[0], "this key to be present", Described("no such key")
+                )
             fx, fy, cx, cy = (get_float(d[k], source, k) for k in group)
         else:
             k = _matrix(d[group[0]], source, group[0], 3, 3)
@@ -330,7 +332,7 @@ class PinholeCamera:
                     source,
                     group[0],
                     "an intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]",
-                    _Text(f"rows 2-3 {k[1:].tolist()}"),
+                    Described(f"rows 2-3 {k[1:].tolist()}"),
                 )
         size = {}
         for name, alts in (
@@ -339,7 +341,9 @@ class PinholeCamera:
         ):
             present = [a for a in alts if a in d]
             if not present:
-                raise InputError(source, alts[0], f"this key (or {alts[1]})", _Text("no such key"))
+                raise InputError(
+                    source, alts[0], f"this key (or {alts[1]})", Described("no such key")
+                )
             if len(present) > 1:
                 raise InputError(source, alts[1], f"only one of {alts[0]}, {alts[1]}", d[alts[1]])
             size[name] = get_int(d[present[0]], source, present[0], lo=1, hi=MAX_SIDE)
@@ -361,7 +365,7 @@ class PinholeCamera:
                 "pose",
                 "a rigid camera-to-world transform (orthonormal right-handed rotation, last "
                 "row [0, 0, 0, 1])",
-                _Text(detail),
+                Described(detail),
             ) from None
         cam = cls(float(fx), float(fy), float(cx), float(cy), size["width"], size["height"], pose)
         cam.check_memory(source)
@@ -463,7 +467,7 @@ def _matrix(value: Any, source: Any, key: str, rows: int, cols: int | None) -> n
             source,
             key,
             f"{n} numbers ({rows} x {cols}, row-major or nested)",
-            _Text(f"{len(items)} values"),
+            Described(f"{len(items)} values"),
         )
     out = np.array([get_float(v, source, f"{key}[{i}]") for i, v in enumerate(items)])
     return out if cols is None else out.reshape(rows, cols)

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
-from are_stats.inputs import InputError, _Text, check_memory, check_work, get_list, get_str
+from are_stats.inputs import Described, InputError, check_memory, check_work, get_list, get_str
 from are_stats.perception._camera import check_pose
 from are_stats.perception._perceive import perceived_counts_batch
 
@@ -119,12 +119,14 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
     if not d.exists():
         raise FileNotFoundError(f"{d}: no such scenarios folder")
     if not d.is_dir():
-        raise InputError(d, "", "a scenarios folder written by are-stats generate", _Text("a file"))
+        raise InputError(
+            d, "", "a scenarios folder written by are-stats generate", Described("a file")
+        )
     for name in ("manifest.yaml", "artefacts.parquet"):
         if not (d / name).is_file():
             raise InputError(
                 d, name, "a scenarios folder with manifest.yaml and artefacts.parquet",
-                _Text(f"no file {name}"),
+                Described(f"no file {name}"),
             )  # fmt: skip
     mpath = d / "manifest.yaml"
     manifest = load_yaml(mpath, "scenarios manifest")
@@ -169,7 +171,7 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
         df = pq.read_table(d / "artefacts.parquet").to_pandas()
     except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
         raise InputError(
-            d / "artefacts.parquet", "", "a readable Parquet table", _Text(str(err))
+            d / "artefacts.parquet", "", "a readable Parquet table", Described(str(err))
         ) from None
     for c, v in {**num, **ints}.items():
         df[c] = v
