@@ -1,0 +1,349 @@
+"""The Scene: where a scenario's artefacts become boxes that live and move.
+
+A scenario table (one row per artefact: class, mark, arrival and leaving times, arrival pose)
+and, when behaviours were generated, a tracks table (poses at the MDP's epochs) describe
+what happens; the builder, perception, the robot's planner and the exports all need the
+same thing from them: **which boxes are where at time t**. :class:`Scene` is the one place
+that answers it.
+
+* **Boxes from Q (DECISIONS 5).** The mixture component is the artefact's class, the mark
+  selects the class's row of the property table ``Q``; the row gives the label ``l`` and
+  the bounding box ``b``. With class labels (the fit's), a class is found in the catalogue
+  by its label, else by its position (the catalogue's last class beyond the table).
+* **Poses at time t.** Before its first track epoch (or without a track) an artefact stands
+  at its arrival pose; between epochs its position is interpolated linearly and its heading
+  the short way round; after its last epoch it keeps its last pose. The box centre is the
+  row's box centre in F_A carried by the pose (the artefact stands on the ground).
+* **Alive** means ``t_arrive <= t < t_leave``.
+
+Examples
+--------
+>>> import pandas as pd
+>>> from are_stats import Scene, load_catalogue
+>>> table = pd.DataFrame({"class": [0], "mark": [0], "t_arrive": [0.0], "t_leave": [9.0],
+...                       "x": [1.0], "y": [2.0], "yaw": [0.0]})
+>>> boxes = Scene.from_scenarios(table, load_catalogue()).at(3.0)
+>>> boxes.labels.tolist(), boxes.centres[0, :2].tolist()
+(['person'], [1.0, 2.0])
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["Boxes", "Scene"]
+
+_NEED = ("t_arrive", "t_leave", "x", "y", "yaw")
+_TRACK_NEED = ("id", "t", "x", "y", "yaw")
+
+
+@dataclass(frozen=True)
+class Boxes:
+    """The artefact boxes alive at one time.
+
+    Attributes
+    ----------
+    ids : (n,) int64
+        Artefact ids (the scenario table's ``artefact`` column, else the row order).
+    centres : (n, 3) float64
+        Box centres in the environment frame F_E (m).
+    half_extents : (n, 3) float64
+        Half sizes of the boxes along the artefact's axes (m).
+    yaws : (n,) float64
+        Headings (rad, in ``[0, 2 pi)``).
+    labels : (n,) object
+        Class labels ``l``.
+    """
+
+    ids: np.ndarray
+    centres: np.ndarray
+    half_extents: np.ndarray
+    yaws: np.ndarray
+    labels: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.ids.size)
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return np.mod(a, 2.0 * np.pi)
+
+
+class Scene:
+    """The artefacts of one scenario as boxes over time (see the module docstring).
+
+    Build it with :meth:`from_scenarios`. Arrays are per artefact, in table order.
+
+    Attributes
+    ----------
+    ids : (N,) int64
+    labels : (N,) object
+    classes, rows : (N,) int64
+        Catalogue class position and row of ``Q`` of each artefact.
+    half_extents : (N, 3) float64
+    offsets : (N, 3) float64
+        Box centre in the artefact frame F_A (x forward, z up; the base on the ground).
+    t_arrive, t_leave : (N,) float64
+    """
+
+    def __init__(
+        self,
+        ids: np.ndarray,
+        labels: np.ndarray,
+        classes: np.ndarray,
+        rows: np.ndarray,
+        half_extents: np.ndarray,
+        offsets: np.ndarray,
+        t_arrive: np.ndarray,
+        t_leave: np.ndarray,
+        pose0: np.ndarray,
+        track_start: np.ndarray,
+        track_t: np.ndarray,
+        track_pose: np.ndarray,
+    ) -> None:
+        self.ids, self.labels, self.classes, self.rows = ids, labels, classes, rows
+        self.half_extents, self.offsets = half_extents, offsets
+        self.t_arrive, self.t_leave = t_arrive, t_leave
+        self._pose0 = pose0  # (N, 3) arrival x, y, yaw
+        self._start = track_start  # (N + 1,) CSR offsets into the track arrays
+        self._t = track_t  # (M,) epoch times, sorted within each artefact
+        self._pose = track_pose  # (M, 3) x, y, yaw at the epochs
+        # one sorted key for every epoch: artefact index * span + (t - t_min)
+        owner = np.repeat(np.arange(ids.size), np.diff(track_start))
+        self._t_min = float(track_t.min()) if track_t.size else 0.0
+        self._span = (float(np.ptp(track_t)) if track_t.size else 0.0) * 2.0 + 1.0
+        self._key = owner * self._span + (track_t - self._t_min)
+
+    def __len__(self) -> int:
+        return int(self.ids.size)
+
+    def __repr__(self) -> str:
+        moving = int(np.count_nonzero(np.diff(self._start)))
+        return f"Scene({len(self)} artefacts, {moving} with tracks)"
+
+    @property
+    def has_tracks(self) -> np.ndarray:
+        """(N,) bool: the artefact moves along a behaviour track."""
+        return np.diff(self._start) > 0
+
+    @classmethod
+    def from_scenarios(
+        cls,
+        artefacts: pd.DataFrame,
+        catalogue: Any,
+        tracks: pd.DataFrame | None = None,
+        *,
+        class_labels: Any = None,
+    ) -> Scene:
+        """Build the scene of one scenario.
+
+        Parameters
+        ----------
+        artefacts : pandas.DataFrame
+            One scenario of a scenarios table (:func:`~are_stats.generate_scenarios`):
+            columns ``t_arrive, t_leave, x, y, yaw`` and optionally ``class`` (mixture
+            component, default 0), ``mark`` (default 0; -1 means none), ``artefact`` (id,
+            default the row order), ``scenario`` (a single value).
+        catalogue : ArtefactCatalogue
+            The property table ``Q`` (:func:`~are_stats.load_catalogue`).
+        tracks : pandas.DataFrame, optional
+            Behaviour tracks ``id, t, x, y, yaw`` (and ``scenario``): poses at epochs;
+            ``id`` matches the artefact ids.
+        class_labels : sequence of str, optional
+            Label of each mixture component (the fit's ``class_labels``); a class whose
+            label the catalogue knows is looked up by label, otherwise by position.
+
+        Returns
+        -------
+        Scene
+        """
+        if not isinstance(artefacts, pd.DataFrame):
+            raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
+        missing = [c for c in _NEED if c not in artefacts.columns]
+        if missing:
+            raise ValueError(f"artefacts: expected columns {list(_NEED)}, missing {missing}")
+        if "scenario" in artefacts.columns and artefacts["scenario"].nunique() > 1:
+            raise ValueError("artefacts: expected one scenario, got several (filter by 'scenario')")
+        num = artefacts[list(_NEED)].to_numpy(float)
+        if not np.isfinite(num).all():
+            r = int(np.argwhere(~np.isfinite(num))[0, 0])
+            raise ValueError(f"artefacts: row {r}: expected finite times and poses")
+        n = len(artefacts)
+        ids = (
+            artefacts["artefact"].to_numpy(np.int64)
+            if "artefact" in artefacts.columns
+            else np.arange(n, dtype=np.int64)
+        )
+        if np.unique(ids).size != n:
+            raise ValueError("artefacts: expected unique 'artefact' ids in one scenario")
+        comp = (
+            artefacts["class"].to_numpy(np.int64)
+            if "class" in artefacts.columns
+            else np.zeros(n, np.int64)
+        )
+        marks = (
+            artefacts["mark"].to_numpy(np.int64)
+            if "mark" in artefacts.columns
+            else np.zeros(n, np.int64)
+        )
+        labels, classes, rows, half, off = _boxes(catalogue, comp, marks, class_labels)
+        start, t, pose = _tracks(tracks, ids)
+        return cls(
+            ids, labels, classes, rows, half, off, num[:, 0], num[:, 1], num[:, 2:5],
+            start, t, pose,
+        )  # fmt: skip
+
+    # ---- poses ------------------------------------------------------------------------------
+
+    def poses(self, t: float, which: Any = None) -> np.ndarray:
+        """``(k, 3)`` poses ``x, y, yaw`` of artefacts ``which`` (indices; default all) at ``t``."""
+        idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64)
+        out = self._pose0[idx].copy()
+        n_ep = self._start[idx + 1] - self._start[idx]
+        moving = n_ep > 0
+        if not moving.any():
+            return out
+        i = idx[moving]
+        lo, hi = self._start[i], self._start[i + 1] - 1
+        q = i * self._span + (float(t) - self._t_min)
+        k = np.searchsorted(self._key, q, side="right") - 1  # last epoch <= t
+        before = k < lo
+        k = np.clip(k, lo, hi)
+        k1 = np.minimum(k + 1, hi)
+        t0, t1 = self._t[k], self._t[k1]
+        f = np.where(t1 > t0, np.clip((float(t) - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0, 1), 0)
+        p0, p1 = self._pose[k], self._pose[k1]
+        xy = p0[:, :2] + f[:, None] * (p1[:, :2] - p0[:, :2])
+        dyaw = np.mod(p1[:, 2] - p0[:, 2] + np.pi, 2 * np.pi) - np.pi  # the short way round
+        yaw = _wrap(p0[:, 2] + f * dyaw)
+        track = np.column_stack([xy, yaw])
+        out[moving] = np.where(before[:, None], self._pose0[i], track)
+        return out
+
+    def alive(self, t: float) -> np.ndarray:
+        """(N,) bool: ``t_arrive <= t < t_leave``."""
+        return (self.t_arrive <= t) & (t < self.t_leave)
+
+    def at(self, t: float) -> Boxes:
+        """The boxes alive at time ``t`` (vectorised over artefacts).
+
+        Returns
+        -------
+        Boxes
+        """
+        idx = np.flatnonzero(self.alive(float(t)))
+        pose = self.poses(float(t), idx)
+        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+        off = self.offsets[idx]
+        centres = np.column_stack(
+            [
+                pose[:, 0] + c * off[:, 0] - s * off[:, 1],
+                pose[:, 1] + s * off[:, 0] + c * off[:, 1],
+                off[:, 2],
+            ]
+        )
+        return Boxes(
+            self.ids[idx], centres, self.half_extents[idx].copy(), _wrap(pose[:, 2]),
+            self.labels[idx],
+        )  # fmt: skip
+
+    def events(self, t0: float, t1: float) -> pd.DataFrame:
+        """Arrivals, leavings and moves (track epochs of live artefacts) in ``(t0, t1]``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``t, kind ("arrive" | "leave" | "move"), id``, sorted by time (leaves
+            before arrivals before moves at equal times).
+        """
+        a = (self.t_arrive > t0) & (self.t_arrive <= t1)
+        lv = (self.t_leave > t0) & (self.t_leave <= t1)
+        owner = np.repeat(np.arange(len(self)), np.diff(self._start))
+        mv = (
+            (self._t > t0)
+            & (self._t <= t1)
+            & (self._t >= self.t_arrive[owner])
+            & (self._t < self.t_leave[owner])
+        )
+        frame = pd.DataFrame(
+            {
+                "t": np.concatenate([self.t_leave[lv], self.t_arrive[a], self._t[mv]]),
+                "kind": ["leave"] * int(lv.sum())
+                + ["arrive"] * int(a.sum())
+                + ["move"] * int(mv.sum()),
+                "id": np.concatenate([self.ids[lv], self.ids[a], self.ids[owner[mv]]]),
+            }
+        )
+        order = {"leave": 0, "arrive": 1, "move": 2}
+        rank = frame["kind"].map(order).to_numpy()
+        keys = np.lexsort((frame["id"].to_numpy(), rank, frame["t"].to_numpy()))
+        return frame.iloc[keys].reset_index(drop=True)
+
+
+def _boxes(
+    catalogue: Any, comp: np.ndarray, marks: np.ndarray, class_labels: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Label, class position, row of Q, half extents and F_A box centre per artefact."""
+    n_cls = len(catalogue)
+    names = list(class_labels) if class_labels is not None else None
+    pairs, inv = np.unique(
+        np.stack([comp, np.maximum(marks, 0)], axis=1), axis=0, return_inverse=True
+    )
+    inv = inv.ravel()
+    table = []
+    for c, x in pairs.tolist():
+        if names is not None and 0 <= c < len(names) and names[c] in catalogue:
+            cls = catalogue[names[c]]
+        else:
+            cls = catalogue.row(int(np.clip(c, 0, n_cls - 1)))
+        row = cls.property_row(int(x))
+        table.append((row.label, row.class_row, row.row, row.half_extents,
+                      (row.bounds[0] + row.bounds[1]) / 2.0))  # fmt: skip
+    labels = np.array([table[k][0] for k in inv], dtype=object)
+    classes = np.array([table[k][1] for k in inv], dtype=np.int64).reshape(-1)
+    rows = np.array([table[k][2] for k in inv], dtype=np.int64).reshape(-1)
+    half = np.array([table[k][3] for k in inv], dtype=float).reshape(-1, 3)
+    off = np.array([table[k][4] for k in inv], dtype=float).reshape(-1, 3)
+    return labels, classes, rows, half, off
+
+
+def _tracks(
+    tracks: pd.DataFrame | None, ids: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """CSR arrays (start (N+1,), t (M,), pose (M, 3)) of the tracks, in artefact order."""
+    n = ids.size
+    if tracks is None or len(tracks) == 0:
+        return np.zeros(n + 1, np.int64), np.zeros(0), np.zeros((0, 3))
+    if not isinstance(tracks, pd.DataFrame):
+        raise ValueError(f"tracks: expected a DataFrame, got {type(tracks).__name__}")
+    missing = [c for c in _TRACK_NEED if c not in tracks.columns]
+    if missing:
+        raise ValueError(f"tracks: expected columns {list(_TRACK_NEED)}, missing {missing}")
+    if "scenario" in tracks.columns and tracks["scenario"].nunique() > 1:
+        raise ValueError("tracks: expected one scenario, got several (filter by 'scenario')")
+    tid = tracks["id"].to_numpy(np.int64)
+    num = tracks[["t", "x", "y", "yaw"]].to_numpy(float)
+    if not np.isfinite(num).all():
+        r = int(np.argwhere(~np.isfinite(num))[0, 0])
+        raise ValueError(f"tracks: row {r}: expected finite t, x, y, yaw")
+    order_ids = np.argsort(ids, kind="stable")
+    pos = np.searchsorted(ids[order_ids], tid)
+    pos = np.clip(pos, 0, n - 1)
+    known = ids[order_ids][pos] == tid
+    if not known.all():
+        bad = int(tid[~known][0])
+        raise ValueError(f"tracks: id {bad} is not an artefact of the scenario")
+    owner = order_ids[pos]
+    keys = np.lexsort((num[:, 0], owner))
+    owner, num = owner[keys], num[keys]
+    dup = (np.diff(owner) == 0) & (np.diff(num[:, 0]) == 0)
+    if dup.any():
+        r = int(np.flatnonzero(dup)[0])
+        raise ValueError(f"tracks: artefact {int(ids[owner[r]])} has two poses at t={float(num[r, 0])!r}")
+    start = np.zeros(n + 1, np.int64)
+    np.add.at(start, owner + 1, 1)
+    return np.cumsum(start), num[:, 0].copy(), num[:, 1:4].copy()
