@@ -201,7 +201,7 @@ def _check_grid(grid) -> None:
     assert np.isfinite(grid.free_area) and grid.free_area >= 0
 
 
-@fuzz_settings(300)
+@fuzz_settings(200)
 @given(case=file_cases(yaml_case(MAP_YAML)))
 def test_map_yaml(case, case_dir) -> None:
     from are_stats import OccupancyGrid
@@ -229,7 +229,7 @@ def test_map_image(case, case_dir) -> None:
         _check_grid(grid)
 
 
-@fuzz_settings(250)
+@fuzz_settings(150)
 @given(case=file_cases(yaml_case(CATALOGUE_YAML)))
 def test_catalogue(case, case_dir) -> None:
     from are_stats import load_catalogue
