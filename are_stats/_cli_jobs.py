@@ -294,6 +294,7 @@ def run_generate(
     if behaviours:
         behaviour_cell = get_float(behaviour_cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
         behaviour_dt = get_float(behaviour_dt, "--behaviour-dt", "", lo=0.0, lo_open=True)
+    area_given = area is not None
     out = Path(out)
     check_folder(out, force)
     idata = read_fit(fit_path)
@@ -308,7 +309,10 @@ def run_generate(
         area = float(idata.posterior.attrs["area"])
     draws = posterior_draws(idata)
     nu = area if area is not None else float(np.count_nonzero(grid.free)) * grid.resolution**2
-    _check_size(_draws(draws), n_scenarios, horizon, nu, "stationary", "--scenarios, --horizon")
+    # the size follows from the options and from the fit's rates (and its area or the map's)
+    named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
+    source = ", ".join(x for x in [*named, str(map_path or "")] if x)
+    _check_size(_draws(draws), n_scenarios, horizon, nu, "stationary", source)
     t = time.perf_counter()
     df = generate_scenarios(seed, draws, n_scenarios, horizon, free_mask=grid, area=area)
     labels = _class_labels(idata)
