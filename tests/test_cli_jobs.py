@@ -397,7 +397,10 @@ def test_em_fit_without_marks_then_report_and_generate(tmp_path):
 @pytest.mark.parametrize(
     ("extra", "match"),
     [
-        (["--horizon", "1e12"], r"--scenarios, --horizon: expected about .* artefacts .* memory"),
+        (
+            ["--horizon", "1e12"],
+            r"small\.nc, --scenarios, --horizon: expected about .* artefacts .* memory",
+        ),
         (["--horizon", "nan"], r"--horizon: expected a finite number > 0, got nan"),
         (["--scenarios", "0"], r"--scenarios: expected an integer >= 1, got 0"),
         (["--scenarios", "100000000000"], r"expected 100000000000 scenarios to fit in the memory"),

@@ -414,46 +414,58 @@ def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> A
 
 def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
     """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
-    from are_stats.inputs import InputError, _Text
+    from are_stats.inputs import Described, InputError
 
     if name not in ds.data_vars:
         raise InputError(
             source, f"{group}.{name}", "this variable (a fit written by are-stats fit)",
-            _Text(f"variables {sorted(ds.data_vars)}"),
+            Described(f"variables {sorted(ds.data_vars)}"),
         )  # fmt: skip
     var = ds[name]
     if dims is not None and tuple(var.dims) != dims:
         raise InputError(
-            source, f"{group}.{name}", f"dimensions {dims}", _Text(f"dimensions {tuple(var.dims)}")
+            source,
+            f"{group}.{name}",
+            f"dimensions {dims}",
+            Described(f"dimensions {tuple(var.dims)}"),
         )
     return np.asarray(var.values)
 
 
-def _check_real(a: np.ndarray, source: str, where: str, *, lo: float, lo_open: bool) -> None:
+#: Largest Poisson rate NumPy draws from (marks beyond would overflow int64).
+MAX_MARK_RATE = 1e18
+
+
+def _check_real(
+    a: np.ndarray, source: str, where: str, *, lo: float, lo_open: bool, hi: float = np.inf
+) -> None:
     from are_stats._checks import describe
-    from are_stats.inputs import InputError, _Text
+    from are_stats.inputs import Described, InputError
 
     word = ">" if lo_open else ">="
+    word_hi = f" and <= {hi:g}" if np.isfinite(hi) else ""
     if a.dtype.kind not in "fiu" or a.dtype.kind == "b":
-        raise InputError(source, where, f"finite numbers {word} {lo:g}", _Text(f"dtype {a.dtype}"))
-    bad = ~np.isfinite(a) | (a <= lo if lo_open else a < lo)
+        raise InputError(
+            source, where, f"finite numbers {word} {lo:g}{word_hi}", Described(f"dtype {a.dtype}")
+        )
+    bad = ~np.isfinite(a) | (a <= lo if lo_open else a < lo) | (a > hi)
     if bad.any():
         idx = np.unravel_index(int(np.argmax(bad)), a.shape)
         raise InputError(
-            source, f"{where}{[int(i) for i in idx]}", f"finite numbers {word} {lo:g}",
-            _Text(f"{a[idx].item()!r} (in {describe(a)})"),
+            source, f"{where}{[int(i) for i in idx]}", f"finite numbers {word} {lo:g}{word_hi}",
+            Described(f"{a[idx].item()!r} (in {describe(a)})"),
         )  # fmt: skip
 
 
 def _check_fit(idata: az.InferenceData, source: str) -> None:
     """Validate a fit read from ``source`` (groups, variables, attributes)."""
-    from are_stats.inputs import InputError, _Text, get_float, get_int, get_list, get_str
+    from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str
 
     for group in ("posterior", "observed_data"):
         if group not in idata.groups():
             raise InputError(
                 source, group, "this group (a fit written by are-stats fit)",
-                _Text(f"groups {list(idata.groups())}"),
+                Described(f"groups {list(idata.groups())}"),
             )  # fmt: skip
     post = idata.posterior
     rates = {}
@@ -461,12 +473,12 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         rates[name] = _var(post, name, source, "posterior", ("chain", "draw"))
         _check_real(rates[name], source, f"posterior.{name}", lo=0.0, lo_open=True)
     if rates["arrival_rate"].size == 0:
-        raise InputError(source, "posterior.arrival_rate", "at least one draw", _Text("none"))
+        raise InputError(source, "posterior.arrival_rate", "at least one draw", Described("none"))
     has_w, has_r = "mix_weights" in post.data_vars, "mix_rates" in post.data_vars
     if has_w != has_r:
         raise InputError(
             source, "posterior", "both mix_weights and mix_rates or neither",
-            _Text(f"variables {sorted(post.data_vars)}"),
+            Described(f"variables {sorted(post.data_vars)}"),
         )  # fmt: skip
     k = None
     if has_w:
@@ -474,7 +486,7 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         w = _var(post, "mix_weights", source, "posterior", dims)
         r = _var(post, "mix_rates", source, "posterior", dims)
         _check_real(w, source, "posterior.mix_weights", lo=0.0, lo_open=False)
-        _check_real(r, source, "posterior.mix_rates", lo=0.0, lo_open=True)
+        _check_real(r, source, "posterior.mix_rates", lo=0.0, lo_open=True, hi=MAX_MARK_RATE)
         k = w.shape[-1]
         if k < 1 or r.shape[-1] != k:
             raise InputError(
@@ -486,14 +498,14 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
             c, d = np.unravel_index(int(np.argmax(bad)), bad.shape)
             raise InputError(
                 source, f"posterior.mix_weights[{c}, {d}]", "weights summing to 1",
-                _Text(f"a sum of {float(sums[c, d])!r}"),
+                Described(f"a sum of {float(sums[c, d])!r}"),
             )  # fmt: skip
     attrs = post.attrs
     for name in ("window", "area"):
         if name not in attrs:
             raise InputError(
                 source, f"posterior.attrs.{name}", "this attribute (a fit written by "
-                "are-stats fit)", _Text(f"attributes {sorted(attrs)}"),
+                "are-stats fit)", Described(f"attributes {sorted(attrs)}"),
             )  # fmt: skip
     win = np.asarray(attrs["window"]).ravel().tolist()
     win = get_list(win, source, "posterior.attrs.window", min_len=2, max_len=2)
@@ -523,19 +535,19 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
     for name in ("censored", "truncated"):
         if cols[name].dtype.kind != "b":
             raise InputError(
-                source, f"observed_data.{name}", "booleans", _Text(f"dtype {cols[name].dtype}")
+                source, f"observed_data.{name}", "booleans", Described(f"dtype {cols[name].dtype}")
             )
     for name in ("t_arrive", "t_leave"):
         if cols[name].dtype.kind != "f":
             raise InputError(
                 source, f"observed_data.{name}", "floats (NaN where unobserved)",
-                _Text(f"dtype {cols[name].dtype}"),
+                Described(f"dtype {cols[name].dtype}"),
             )  # fmt: skip
     if "marks" in cols:
         _check_real(cols["marks"], source, "observed_data.marks", lo=0.0, lo_open=False)
         if cols["marks"].dtype.kind not in "iu":
             raise InputError(
-                source, "observed_data.marks", "integers", _Text(f"dtype {cols['marks'].dtype}")
+                source, "observed_data.marks", "integers", Described(f"dtype {cols['marks'].dtype}")
             )
     for name, flag in (("t_arrive", "truncated"), ("t_leave", "censored")):
         mismatch = np.isnan(cols[name]) != cols[flag]
@@ -544,7 +556,7 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
             raise InputError(
                 source, f"observed_data.{flag}[{i}]",
                 f"{flag} exactly where {name} is NaN",
-                _Text(f"{bool(cols[flag][i])} with {name} {float(cols[name][i])!r}"),
+                Described(f"{bool(cols[flag][i])} with {name} {float(cols[name][i])!r}"),
             )  # fmt: skip
     try:  # the value checks of a log (times inside the window, leave after arrival)
         LifecycleData(

@@ -144,6 +144,10 @@ def _draws(params: Mapping[str, Any]) -> dict[str, np.ndarray]:
     if has_w:
         w = check_nonnegative("params['mix_weights']", np.asarray(params["mix_weights"]) + 0.0)
         r = check_positive("params['mix_rates']", params["mix_rates"])
+        if np.any(r > 1e18):  # NumPy's Poisson sampler refuses larger rates; marks are int64
+            raise ValueError(
+                f"params['mix_rates']: expected rates <= 1e18, got {float(np.max(r))!r}"
+            )
         w = w[None, :] if w.ndim == 1 else w
         r = r[None, :] if r.ndim == 1 else r
         if w.ndim != 2 or w.shape != r.shape or w.shape[0] != s:
@@ -713,7 +717,7 @@ def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from are_stats.inputs import InputError, _Text, load_yaml
+    from are_stats.inputs import Described, InputError, load_yaml
 
     d = Path(out_dir)
     for name in ("artefacts.parquet", "manifest.yaml"):
@@ -729,12 +733,12 @@ def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, 
     try:
         table = pq.read_table(path)
     except (pa.ArrowException, OSError) as err:
-        raise InputError(path, "", "a Parquet scenarios table", _Text(str(err))) from None
+        raise InputError(path, "", "a Parquet scenarios table", Described(str(err))) from None
     missing = [c for c in SCENARIO_COLUMNS if c not in table.column_names]
     if missing:
         raise InputError(
             path, f"column {missing[0]!r}", "every column of " + ", ".join(SCENARIO_COLUMNS),
-            _Text(f"columns {table.column_names}"),
+            Described(f"columns {table.column_names}"),
         )  # fmt: skip
     df = table.to_pandas()
     df.attrs["generation"] = dict(generation)

@@ -219,6 +219,10 @@ BAD_FITS = [
         r"posterior\.arrival_rate\[0, 0\]: expected finite numbers > 0, got inf",
     ),
     (
+        _set("posterior", "mix_rates", _at((0, 1, 1), 1e30)),
+        r"posterior\.mix_rates\[0, 1, 1\]: expected finite numbers > 0 and <= 1e\+18, got 1e\+30",
+    ),
+    (
         lambda i: i.posterior.__delitem__("mix_rates"),
         r"posterior: expected both mix_weights and mix_rates or neither",
     ),
