@@ -741,5 +741,37 @@ def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, 
             Described(f"columns {table.column_names}"),
         )  # fmt: skip
     df = table.to_pandas()
+    _check_columns(df, path, meta.get("n_scenarios"))
     df.attrs["generation"] = dict(generation)
     return df, dict(meta)
+
+
+def _check_columns(df: pd.DataFrame, path: Path, n_scenarios: Any) -> None:
+    """Column types and values of a scenarios table read from ``path`` (first bad row named)."""
+    from are_stats.inputs import Described, InputError
+
+    def bad_row(column: str, mask: np.ndarray, expected: str) -> None:
+        if mask.any():
+            i = int(np.argmax(mask))
+            raise InputError(path, f"row {i}, column {column!r}", expected, df[column].iloc[i])
+
+    n_sc = (
+        n_scenarios if isinstance(n_scenarios, int) and not isinstance(n_scenarios, bool) else None
+    )
+    for column, lo in (("scenario", 0), ("artefact", 0), ("class", -1), ("mark", -1)):
+        a = df[column].to_numpy()
+        if a.dtype.kind not in "iu":
+            raise InputError(path, f"column {column!r}", "integers", Described(f"dtype {a.dtype}"))
+        hi = n_sc - 1 if column == "scenario" and n_sc is not None else np.iinfo(np.int64).max
+        bad = (a < lo) | (a > hi)
+        bad_row(column, bad, f"an integer in [{lo}, {hi}]")
+    for column in ("t_arrive", "t_leave", "x", "y", "yaw"):
+        a = df[column].to_numpy()
+        if a.dtype.kind != "f":
+            raise InputError(path, f"column {column!r}", "floats", Described(f"dtype {a.dtype}"))
+        bad_row(column, ~np.isfinite(a), "a finite number")
+    bad_row("t_leave", df["t_leave"].to_numpy() < df["t_arrive"].to_numpy(), "t_leave >= t_arrive")
+    for column in ("truncated", "censored"):
+        a = df[column].to_numpy()
+        if a.dtype.kind != "b":
+            raise InputError(path, f"column {column!r}", "booleans", Described(f"dtype {a.dtype}"))

@@ -306,3 +306,23 @@ def test_read_scenarios_names_the_bad_file(tmp_path):
     pd.DataFrame({"scenario": [0]}).to_parquet(out / "artefacts.parquet")
     with pytest.raises(InputError, match=r"artefacts\.parquet: column 'artefact': expected every"):
         read_scenarios(out)
+
+
+@pytest.mark.parametrize(
+    ("column", "value", "match"),
+    [
+        ("t_arrive", np.nan, r"row 0, column 't_arrive': expected a finite number, got nan"),
+        ("scenario", 2**62, r"row 0, column 'scenario': expected an integer in \[0, 2\]"),
+        ("mark", 1.5, r"column 'mark': expected integers, got dtype float64"),
+        ("censored", 1, r"column 'censored': expected booleans, got dtype int64"),
+        ("t_leave", -1.0, r"row 0, column 't_leave': expected t_leave >= t_arrive"),
+    ],
+)
+def test_read_scenarios_checks_every_column(tmp_path, column, value, match):
+    out = tmp_path / "sc"
+    write_scenarios(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
+    df = pd.read_parquet(out / "artefacts.parquet")
+    df[column] = value
+    df.to_parquet(out / "artefacts.parquet")
+    with pytest.raises(InputError, match=r"artefacts\.parquet: " + match):
+        read_scenarios(out)
