@@ -6,9 +6,9 @@ Cell values follow ``nav_msgs/OccupancyGrid``: ``0`` free, ``100`` occupied, ``-
 at the origin, i.e. the *bottom* of the map image. The origin ``(x, y, yaw)`` is the pose of
 the lower-left corner of cell ``(0, 0)`` in the environment frame F_E.
 
-Reading follows ``map_server``'s ``image_loader`` exactly (mean of the colour channels, alpha
-averaged in for ``trinary``, ``negate``, strict thresholds, ``99 * ratio`` truncated in
-``scale`` mode, transparent pixels unknown in ``scale`` mode, pixel value in ``raw`` mode).
+Reading follows ROS 2 Nav2's ``map_server`` (``loadMapFromFile`` in ``map_io.cpp``) bit
+for bit: GraphicsMagick 16-bit quanta, doubles, strict thresholds, ``rint(100 * ratio)`` in
+``scale`` mode, ``-1`` above 100 in ``raw`` mode (see :meth:`OccupancyGrid.from_ros_yaml`).
 Writing follows ``map_saver`` (free 254, occupied 0, unknown 205 for ``trinary``).
 """
 
@@ -26,8 +26,8 @@ import numpy as np
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._checks import check_finite, check_in, describe
 from are_stats.inputs import (
+    Described,
     InputError,
-    _Text,
     check_keys,
     check_memory,
     get_float,
@@ -69,33 +69,57 @@ _MAP_KEYS = (
 )
 
 
+#: GraphicsMagick (Q16, as Nav2 links it) stores an 8-bit sample ``v`` as ``257 v``
+#: out of ``65535``.
+_QUANTUM_PER_LEVEL = 257.0
+_MAX_RGB = 65535.0
+
+
 def _read_table(mode: str, negate: bool, occ_th: float, free_th: float) -> np.ndarray:
-    """Cell value for every mean pixel value 0..255 (alpha opaque), as map_server computes it."""
-    p = np.arange(256, dtype=float)
-    return _pixels_to_values(p, np.full(256, 255.0), mode, negate, occ_th, free_th)
+    """Cell value of each opaque grey level 0..255, as Nav2's map_server reads it."""
+    grey = np.arange(256, dtype=float)
+    shade = _shade(3.0 * _QUANTUM_PER_LEVEL * grey, 3)
+    return _shade_to_values(shade, np.ones(256, bool), mode, negate, occ_th, free_th)
 
 
-def _pixels_to_values(
-    avg: np.ndarray,
-    alpha: np.ndarray,
+def _shade(quantum_sum: np.ndarray, n_channels: int) -> np.ndarray:
+    """``scaleQuantumToDouble(sum / channels.size())``: the brightness in ``[0, 1]``."""
+    return (quantum_sum / float(n_channels)) / _MAX_RGB
+
+
+def _round_half_away(x: np.ndarray) -> np.ndarray:
+    """``std::round`` of non-negative doubles (halves away from zero, no ``x + 0.5`` error)."""
+    t = np.trunc(x)
+    return t + ((x - t) >= 0.5)
+
+
+def _shade_to_values(
+    shade: np.ndarray,
+    opaque: np.ndarray,
     mode: str,
     negate: bool,
     occ_th: float,
     free_th: float,
 ) -> np.ndarray:
-    if negate:
-        avg = 255.0 - avg
+    """Cell values from pixel brightness, line for line as Nav2's ``loadMapFromFile``.
+
+    ``opaque`` is whether the pixel's alpha is 255 (always true for images without alpha);
+    only ``scale`` mode looks at it.
+    """
     if mode == "raw":
-        return np.trunc(avg).astype(np.int64).astype(np.uint8).view(np.int8)
-    occ = (255.0 - avg) / 255.0
-    out = np.full(avg.shape, UNKNOWN, dtype=np.int8)
+        pct = _round_half_away(shade * 255)
+        ok = (pct >= FREE) & (pct <= OCCUPIED)
+        return np.where(ok, pct, UNKNOWN).astype(np.int8)
+    occ = shade if negate else 1.0 - shade
+    out = np.full(shade.shape, UNKNOWN, dtype=np.int8)
     if mode == "scale":
-        ratio = (occ - free_th) / (occ_th - free_th)
-        mid = np.trunc(99.0 * ratio).astype(np.int64)
-        inner = alpha >= 1.0
-        out[inner] = np.clip(mid[inner], 0, 99).astype(np.int8)
+        between = (occ >= free_th) & (occ <= occ_th)
+        mid = np.rint((occ[between] - free_th) / (occ_th - free_th) * 100.0)
+        out[between] = mid.astype(np.int8)
     out[occ < free_th] = FREE
-    out[occ > occ_th] = OCCUPIED
+    out[occ_th < occ] = OCCUPIED
+    if mode == "scale":
+        out[~opaque] = UNKNOWN
     return out
 
 
@@ -105,14 +129,24 @@ class OccupancyGrid:
     Parameters
     ----------
     data : (height, width) int
-        Cell values: ``0`` free, ``100`` occupied, ``-1`` unknown, ``1..99`` intermediate.
-        Row 0 is the bottom row (at the origin), as in ``nav_msgs/OccupancyGrid``.
+        Cell values: ``0`` free, ``100`` occupied, ``-1`` unknown, ``1..99`` intermediate
+        (the only values Nav2's map_server produces, in every mode). Row 0 is the bottom row
+        (at the origin), as in ``nav_msgs/OccupancyGrid``.
     resolution : float
         Cell side in metres.
     origin : (3,) float
         Pose ``(x, y, yaw)`` of the lower-left corner of cell ``(0, 0)`` in F_E.
     negate, occupied_thresh, free_thresh, mode
         The ``map_server`` metadata, kept for writing the map back.
+
+    Notes
+    -----
+    The toolkit reads the values the same way whichever ``mode`` produced them:
+    :attr:`free` is exactly ``0`` and :attr:`occupied` exactly ``100`` (so a ``scale``
+    pixel whose occupancy equals ``occupied_thresh``, which Nav2 reads as ``rint(100) =
+    100``, is an occupied cell, and one at ``free_thresh`` a free cell); :attr:`unknown` is
+    everything else, ``-1`` and the intermediate ``1..99``. Only free cells count towards
+    :attr:`free_area`, and only occupied cells become walls (:func:`extrude_grid`).
 
     Examples
     --------
@@ -137,7 +171,7 @@ class OccupancyGrid:
         a = check_finite("data", data, ndim=2)
         if a.shape[0] == 0 or a.shape[1] == 0:
             raise ValueError(f"data: expected a non-empty 2-d array, got shape {a.shape}")
-        if mode != "raw" and ((a < -1) | (a > 100) | (a != np.round(a))).any():
+        if ((a < -1) | (a > 100) | (a != np.round(a))).any():
             raise ValueError(
                 f"data: expected integers in -1..100 (mode {mode!r}), got {describe(a)}"
             )
@@ -357,6 +391,26 @@ class OccupancyGrid:
             missing or cannot be decoded, or it is larger than the memory limit allows
             (:class:`are_stats.inputs.LimitError`, checked from its header before any
             pixel is read).
+
+        Notes
+        -----
+        Pixels become cells as in Nav2's ``loadMapFromFile`` (``nav2_map_server/src/
+        map_io.cpp``), in doubles: ``shade`` is the mean of the red, green and blue quanta
+        (plus ``alpha`` in ``trinary`` mode when the image has an alpha channel) over
+        ``65535``, with an 8-bit sample ``v`` as the quantum ``257 v``; ``occ = 1 - shade``,
+        or ``shade`` with ``negate``.
+
+        - ``trinary``: ``occupied_thresh < occ`` gives ``100``, ``occ < free_thresh``
+          ``0``, anything else ``-1``.
+        - ``scale``: a pixel whose alpha is not 255 gives ``-1``; else as ``trinary``, but
+          in between ``rint((occ - free_thresh) / (occupied_thresh - free_thresh) * 100)``
+          (halves to even), so a speed mask with ``free_thresh: 0``, ``occupied_thresh: 1``
+          reads grey ``204`` as ``20`` and black as ``100``.
+        - ``raw``: ``round(255 shade)`` (halves away from zero) if it lies in ``0..100``,
+          else ``-1``; ``negate`` and alpha are ignored.
+
+        A tRNS chunk counts as an alpha channel, palettes are looked up, and ``1``-bit,
+        CMYK and YCbCr images are read as their RGB.
         """
         p = Path(path)
         meta = check_keys(
@@ -479,6 +533,12 @@ class OccupancyGrid:
             else:
                 # nearest representable intermediate value (8-bit images cannot hold all 99)
                 cand = np.flatnonzero((table > 0) & (table < 100))
+                if cand.size == 0:
+                    raise ValueError(
+                        f"data: no 8-bit pixel reads back as {v} in mode {self.mode!r} with "
+                        f"occupied_thresh={self.occupied_thresh!r}, "
+                        f"free_thresh={self.free_thresh!r}"
+                    )
                 k = cand[np.argmin(np.abs(table[cand].astype(int) - v))]
                 lut[v % 256] = k
         pixels = lut[self.data.view(np.uint8)]
@@ -512,9 +572,21 @@ _IMAGE_LOCK = threading.Lock()
 # Pillow modes decoded as map_server does; 16-bit and float images are refused (Pillow
 # would clip them to 8 bits and turn every grey above 255 white, i.e. free).
 _IMAGE_MODES = ("1", "L", "LA", "La", "P", "PA", "RGB", "RGBA", "RGBa", "RGBX", "CMYK", "YCbCr")
-# Bytes per pixel while decoding: the float copy of up to 4 channels, the mean, the alpha,
-# the occupancy and ratio arrays and the int8 result.
-_BYTES_PER_PIXEL = 8 * 4 + 8 * 5 + 2
+# What other Pillow modes are decoded as: the red, green and blue (and alpha) GraphicsMagick's
+# pixelColor would give (a palette is looked up; a grey is equal red, green and blue).
+_CONVERT = {
+    "1": "L",
+    "La": "LA",
+    "P": "RGB",
+    "PA": "RGBA",
+    "RGBa": "RGBA",
+    "RGBX": "RGB",
+    "CMYK": "RGB",
+    "YCbCr": "RGB",
+}
+# Bytes per pixel while decoding: up to 4 8-bit channels, their float copy (3 x 8), the
+# quanta, alpha, shade, occupancy, ratio and temporaries (6 x 8), masks and int8 results.
+_BYTES_PER_PIXEL = 4 + 8 * 3 + 8 * 6 + 6
 
 
 def _open_image(path: Path, source: Path) -> Any:
@@ -529,7 +601,10 @@ def _open_image(path: Path, source: Path) -> Any:
             return Image.open(path)
         except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError) as err:
             raise InputError(
-                source, "image", "a PGM or PNG image", _Text(f"{path}: {err or type(err).__name__}")
+                source,
+                "image",
+                "a PGM or PNG image",
+                Described(f"{path}: {err or type(err).__name__}"),
             ) from None
         finally:
             Image.MAX_IMAGE_PIXELS = old
@@ -545,20 +620,20 @@ def _read_image(
 ) -> np.ndarray:
     src = path if source is None else source
     if not path.exists():
-        raise InputError(src, "image", "an existing image file", _Text(f"{path}: no such file"))
+        raise InputError(src, "image", "an existing image file", Described(f"{path}: no such file"))
     if not path.is_file():
-        raise InputError(src, "image", "an image file", _Text(f"{path}: not a file"))
+        raise InputError(src, "image", "an image file", Described(f"{path}: not a file"))
     im = _open_image(path, src)
     try:
         width, height = im.size
         if width <= 0 or height <= 0:
-            raise InputError(src, "image", "a non-empty image", _Text(f"{width} x {height}"))
+            raise InputError(src, "image", "a non-empty image", Described(f"{width} x {height}"))
         if im.mode not in _IMAGE_MODES:
             raise InputError(
                 src,
                 "image",
                 "an 8-bit greyscale or colour image (as map_server reads)",
-                _Text(f"{path.name} in Pillow mode {im.mode!r}"),
+                Described(f"{path.name} in Pillow mode {im.mode!r}"),
             )
         check_memory(
             float(width) * float(height) * _BYTES_PER_PIXEL,
@@ -567,29 +642,49 @@ def _read_image(
         )
         try:
             im.load()
-            if im.mode == "P":
-                im = im.convert("RGBA" if "transparency" in im.info else "RGB")
-            elif im.mode not in ("L", "LA", "RGB", "RGBA"):
-                im = im.convert("RGBA" if "A" in im.mode or "a" in im.mode else "L")
+            if "transparency" in im.info and im.mode in ("L", "P", "RGB"):
+                im = im.convert("LA" if im.mode == "L" else "RGBA")  # tRNS: alpha, as Magick
+            elif im.mode in _CONVERT:
+                im = im.convert(_CONVERT[im.mode])
             has_alpha = im.mode in ("LA", "RGBA")
-            arr = np.asarray(im, dtype=float)
+            arr = np.asarray(im)
         except (OSError, ValueError, SyntaxError, EOFError, struct.error) as err:
             raise InputError(
                 src,
                 "image",
                 "a decodable PGM or PNG image",
-                _Text(f"{path}: {err or type(err).__name__}"),
+                Described(f"{path}: {err or type(err).__name__}"),
             ) from None
     finally:
         im.close()
+    values = _pixels_to_values(arr, has_alpha, mode, negate, occ_th, free_th)
+    return np.ascontiguousarray(values[::-1])
+
+
+def _pixels_to_values(
+    arr: np.ndarray, has_alpha: bool, mode: str, negate: bool, occ_th: float, free_th: float
+) -> np.ndarray:
+    """Cell values of decoded 8-bit pixels (``L``, ``LA``, ``RGB`` or ``RGBA``, image rows
+    top to bottom), as Nav2 reads them.
+
+    Nav2 averages ``pixelColor``'s red, green and blue (a grey pixel has all three equal to
+    the grey) and, in ``trinary`` mode of an image with alpha only, the alpha too; quanta are
+    summed in doubles (exact) and divided by the channel count, then by ``MaxRGB``.
+    """
     if arr.ndim == 2:
         arr = arr[..., None]
-    n_ch = arr.shape[-1]
-    if mode == "trinary" or not has_alpha:
-        avg = arr.mean(axis=-1)
+    colour = arr[..., :-1] if has_alpha else arr
+    if colour.shape[-1] == 1:
+        quanta = colour[..., 0].astype(float) * (3.0 * _QUANTUM_PER_LEVEL)
     else:
-        avg = arr[..., :-1].mean(axis=-1)
-    # map_server reads "alpha" as the last channel of any multi-channel image (even RGB)
-    alpha = arr[..., -1] if n_ch > 1 else np.full(avg.shape, 255.0)
-    values = _pixels_to_values(avg, alpha, mode, negate, occ_th, free_th)
-    return np.ascontiguousarray(values[::-1])
+        quanta = colour.astype(float).sum(axis=-1) * _QUANTUM_PER_LEVEL
+    n = 3
+    if has_alpha:
+        alpha = arr[..., -1]
+        opaque = alpha == 255
+        if mode == "trinary":
+            quanta += alpha.astype(float) * _QUANTUM_PER_LEVEL
+            n = 4
+    else:
+        opaque = np.ones(arr.shape[:-1], bool)
+    return _shade_to_values(_shade(quanta, n), opaque, mode, negate, occ_th, free_th)

@@ -8,6 +8,7 @@ import yaml
 from PIL import Image
 
 from are_stats import OccupancyGrid
+from are_stats.environment import DEFAULT_MODELS
 from are_stats.inputs import InputError, LimitError, limits
 from tests.helpers import assert_allclose
 
@@ -51,18 +52,20 @@ def test_trinary_negate(tmp_path):
 def test_scale_mode_with_alpha(tmp_path):
     la = np.stack([PIX, np.array([[255, 255, 255], [255, 0, 255]], np.uint8)], -1)
     g = OccupancyGrid.from_ros_yaml(_write(tmp_path, la, pil_mode="LA", mode="scale"))
-    # 100: ratio (0.60784 - 0.196) / 0.454 = 0.90714 -> int(99 * r) = 89
-    # 205: occ 0.196078 -> ratio 1.7e-4 -> 0 ; 50 with alpha 0 -> occ 0.804 > 0.65 -> 100
-    assert g.data.tolist() == [[89, 100, 0], [100, 0, 0]]
+    # 100: ratio (0.60784 - 0.196) / 0.454 = 0.90714 -> rint(100 * r) = 91
+    # 205: occ 0.196078 -> ratio 1.7e-4 -> 0 ; 50 with alpha 0 -> not opaque -> -1
+    assert g.data.tolist() == [[91, -1, 0], [100, 0, 0]]
     la2 = la.copy()
-    la2[0, 0] = [100, 0]  # an in-between pixel that is transparent is unknown
+    la2[0, 0] = [100, 254]  # any pixel that is not fully opaque is unknown (Nav2)
     g2 = OccupancyGrid.from_ros_yaml(_write(tmp_path, la2, pil_mode="LA", name="b", mode="scale"))
     assert g2.data[1, 0] == -1
 
 
 def test_raw_mode(tmp_path):
-    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, mode="raw"))
-    assert g.data.view(np.uint8).tolist() == [[100, 50, 255], [0, 254, 205]]
+    # Nav2: round(255 * shade) kept in 0..100, anything above is unknown; negate ignored
+    for negate in (0, 1):
+        g = OccupancyGrid.from_ros_yaml(_write(tmp_path, PIX, mode="raw", negate=negate))
+        assert g.data.tolist() == [[100, 50, -1], [0, -1, -1]]
 
 
 def test_rgb_mean_of_channels(tmp_path):
@@ -254,3 +257,163 @@ def test_map_memory_limit_can_be_raised(tmp_path):
         OccupancyGrid.from_ros_yaml(y)
     with limits(memory="1M"):
         assert OccupancyGrid.from_ros_yaml(y).shape == (40, 50)
+
+
+# ---------------------------------------------------------------- Nav2 map_server, bit for bit
+# The reference below transcribes nav2_map_server/src/map_io.cpp (loadMapFromFile) pixel by
+# pixel, with GraphicsMagick Q16 quanta (8-bit v -> 257 v, MaxRGB 65535), doubles, and
+# std::rint / std::round done exactly on the double's decimal value.
+def _nav2_cell(rgb, alpha, matte, mode, negate, occ_th, free_th):
+    from decimal import ROUND_HALF_EVEN, ROUND_HALF_UP, Decimal
+
+    channels = [float(c * 257) for c in rgb]
+    if mode == "trinary" and matte:
+        channels.append(65535.0 - float((255 - alpha) * 257))  # MaxRGB - opacity
+    total = 0.0
+    for c in channels:
+        total += c
+    shade = (total / len(channels)) / 65535.0  # scaleQuantumToDouble(sum / size)
+    occ = shade if negate else 1.0 - shade
+    if mode == "trinary":
+        return 100 if occ_th < occ else 0 if occ < free_th else -1
+    if mode == "scale":
+        if alpha != 255:  # pixel.alphaQuantum() != OpaqueOpacity
+            return -1
+        if occ_th < occ:
+            return 100
+        if occ < free_th:
+            return 0
+        x = (occ - free_th) / (occ_th - free_th) * 100.0
+        return int(Decimal(x).quantize(Decimal(1), ROUND_HALF_EVEN))  # std::rint
+    pct = int(Decimal(shade * 255).quantize(Decimal(1), ROUND_HALF_UP))  # std::round
+    return pct if 0 <= pct <= 100 else -1
+
+
+# (occupied_thresh, free_thresh): shipped models/*.yaml and Nav2's example maps, map_saver's
+# defaults, and Nav2's filter masks (speed / keepout)
+_THRESHOLDS = [(0.65, 0.196), (0.65, 0.25), (1.0, 0.0)]
+
+
+def test_shipped_map_thresholds_are_covered():
+    for y in sorted(DEFAULT_MODELS.glob("*.yaml")):
+        meta = yaml.safe_load(y.read_text())
+        assert (meta["occupied_thresh"], meta["free_thresh"]) in _THRESHOLDS, y.name
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+@pytest.mark.parametrize("negate", [0, 1])
+@pytest.mark.parametrize(("occ_th", "free_th"), _THRESHOLDS)
+def test_all_grey_levels_read_as_nav2(tmp_path, mode, negate, occ_th, free_th):
+    grey = np.arange(256, dtype=np.uint8).reshape(16, 16)
+    y = _write(
+        tmp_path, grey, mode=mode, negate=negate, occupied_thresh=occ_th, free_thresh=free_th
+    )
+    g = OccupancyGrid.from_ros_yaml(y)
+    expect = [
+        [_nav2_cell((v, v, v), 255, False, mode, negate, occ_th, free_th) for v in row]
+        for row in grey.tolist()[::-1]
+    ]
+    assert g.data.tolist() == expect
+    # the same levels with an alpha channel (opaque, then half transparent)
+    for a in (255, 128):
+        la = np.stack([grey, np.full_like(grey, a)], -1)
+        name = f"la{a}"
+        y = _write(
+            tmp_path,
+            la,
+            pil_mode="LA",
+            name=name,
+            mode=mode,
+            negate=negate,
+            occupied_thresh=occ_th,
+            free_thresh=free_th,
+        )
+        expect = [
+            [_nav2_cell((v, v, v), a, True, mode, negate, occ_th, free_th) for v in row]
+            for row in grey.tolist()[::-1]
+        ]
+        assert OccupancyGrid.from_ros_yaml(y).data.tolist() == expect
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+@pytest.mark.parametrize("negate", [0, 1])
+def test_colour_pixels_read_as_nav2(tmp_path, rng, mode, negate):
+    # colour means that are not whole quanta (sum / 3 rounds) and random alpha
+    rgba = rng.integers(0, 256, size=(24, 24, 4), dtype=np.uint8)
+    rgba[..., 3] = np.where(rng.random((24, 24)) < 0.7, 255, rgba[..., 3])
+    for pil_mode, img in (("RGB", rgba[..., :3]), ("RGBA", rgba)):
+        y = _write(
+            tmp_path,
+            np.ascontiguousarray(img),
+            pil_mode=pil_mode,
+            name=pil_mode,
+            mode=mode,
+            negate=negate,
+        )
+        matte = pil_mode == "RGBA"
+        expect = [
+            [
+                _nav2_cell(px[:3], px[3] if matte else 255, matte, mode, negate, 0.65, 0.196)
+                for px in row
+            ]
+            for row in rgba.tolist()[::-1]
+        ]
+        assert OccupancyGrid.from_ros_yaml(y).data.tolist() == expect
+
+
+def test_speed_mask_reads_0_20_25_50_100(tmp_path):
+    # issue 17: a Nav2 speed mask in scale mode; the old 99 * ratio truncation read 0/19/24/49/99
+    pix = np.array([[255, 204, 191, 127, 0]], np.uint8)
+    y = _write(tmp_path, pix, mode="scale", occupied_thresh=1.0, free_thresh=0.0)
+    assert OccupancyGrid.from_ros_yaml(y).data.tolist() == [[0, 20, 25, 50, 100]]
+    y = _write(
+        tmp_path, 255 - pix, name="n", mode="scale", negate=1, occupied_thresh=1.0, free_thresh=0.0
+    )
+    assert OccupancyGrid.from_ros_yaml(y).data.tolist() == [[0, 20, 25, 50, 100]]
+
+
+def test_trinary_alpha_is_averaged_with_three_colour_channels(tmp_path):
+    # Nav2 averages R, G, B and alpha: grey 0 with alpha 0 -> shade 0 -> occupied; grey 255
+    # with alpha 0 -> shade 0.75 -> occ 0.25 -> unknown (map_server 1 averaged 2 channels)
+    la = np.array([[[0, 0], [255, 0], [255, 255], [200, 100]]], np.uint8)
+    g = OccupancyGrid.from_ros_yaml(_write(tmp_path, la, pil_mode="LA"))
+    # 200/100: (600 + 100) / 1020 = 0.686 -> occ 0.314 -> unknown
+    assert g.data.tolist() == [[100, -1, 0, -1]]
+
+
+def test_transparency_chunk_counts_as_alpha(tmp_path):
+    img = tmp_path / "t.png"
+    Image.fromarray(np.array([[254, 100, 0]], np.uint8), mode="L").save(img, transparency=100)
+    y = tmp_path / "t.yaml"
+    doc = {"image": "t.png", "resolution": 0.1, "origin": [0, 0, 0], "mode": "scale"}
+    y.write_text(yaml.safe_dump(doc))
+    assert OccupancyGrid.from_ros_yaml(y).data.tolist() == [[0, -1, 100]]
+
+
+def test_values_outside_nav_msgs_range_are_refused():
+    with pytest.raises(ValueError, match="data: expected integers in -1..100"):
+        OccupancyGrid(np.array([[0, 150]]), 0.1, mode="raw")
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale", "raw"])
+def test_round_trip_every_value_nav2_can_read(tmp_path, mode):
+    table = {"trinary": [-1, 0, 100], "scale": [-1, *range(0, 101)], "raw": [-1, *range(101)]}
+    vals = np.array(table[mode])
+    th = (1.0, 0.0) if mode == "scale" else (0.65, 0.196)
+    g = OccupancyGrid(vals[None, :], 0.1, mode=mode, occupied_thresh=th[0], free_thresh=th[1])
+    back = OccupancyGrid.from_ros_yaml(g.to_ros_yaml(tmp_path / "v.yaml"))
+    if mode == "scale":  # 8-bit greys hold only some of 1..99: each comes back within 1
+        assert back.data[0, 0] == -1
+        assert np.abs(back.data[0, 1:].astype(int) - vals[1:]).max() <= 1
+        assert back.data[0, 1] == 0 and back.data[0, -1] == 100
+    else:
+        assert back.data.tolist() == g.data.tolist()
+
+
+def test_values_no_pixel_can_hold_are_refused_on_writing(tmp_path):
+    # trinary with occupied_thresh 1: occ > 1 never happens, so no pixel reads as 100
+    g = OccupancyGrid(np.array([[0, 100]]), 0.1, occupied_thresh=1.0, free_thresh=0.196)
+    with pytest.raises(ValueError, match="no 8-bit pixel reads back as 100 in mode 'trinary'"):
+        g.to_ros_yaml(tmp_path / "x.yaml")
+    with pytest.raises(ValueError, match="no 8-bit pixel reads back as 50"):
+        OccupancyGrid(np.array([[50]]), 0.1).to_ros_yaml(tmp_path / "y.yaml")
