@@ -566,7 +566,7 @@ def run_perceive(
     naming both time ranges; poses outside the map are reported as a warning.
     """
     from are_stats.environment import OccupancyGrid, extrude_grid, load_mesh
-    from are_stats.inputs import InputError, _Text, get_float
+    from are_stats.inputs import Described, InputError, get_float
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scenario
     from are_stats.perception._scenario import read_robot_path, read_scenario_folder
 
@@ -593,7 +593,7 @@ def run_perceive(
                 "map",
                 "an existing ROS map YAML (a relative path is read from the current folder), "
                 "or pass --mesh MESH",
-                _Text(f"{manifest['map']}: no such file"),
+                Described(f"{manifest['map']}: no such file"),
             )
         grid = OccupancyGrid.from_ros_yaml(manifest["map"])
         env = extrude_grid(grid, wall_height)
@@ -603,7 +603,7 @@ def run_perceive(
             scenario / "manifest.yaml",
             "map",
             "a map for the environment mesh (or pass --mesh MESH)",
-            _Text("none"),
+            Described("none"),
         )
     t = robot["t"].to_numpy()
     ta, tl = df["t_arrive"].to_numpy(), df["t_leave"].to_numpy()
@@ -614,7 +614,7 @@ def run_perceive(
             "column 't'",
             f"times within the scenarios' artefact presence [{ta.min():g}, {tl.max():g}) "
             f"of {scenario}",
-            _Text(f"times {t.min():g} to {t.max():g}: no artefact would be seen"),
+            Described(f"times {t.min():g} to {t.max():g}: no artefact would be seen"),
         )
     xy = robot[["x", "y"]].to_numpy()
     if grid is not None:
