@@ -343,7 +343,9 @@ def _tracks(
     dup = (np.diff(owner) == 0) & (np.diff(num[:, 0]) == 0)
     if dup.any():
         r = int(np.flatnonzero(dup)[0])
-        raise ValueError(f"tracks: artefact {int(ids[owner[r]])} has two poses at t={float(num[r, 0])!r}")
+        raise ValueError(
+            f"tracks: artefact {int(ids[owner[r]])} has two poses at t={float(num[r, 0])!r}"
+        )
     start = np.zeros(n + 1, np.int64)
     np.add.at(start, owner + 1, 1)
     return np.cumsum(start), num[:, 0].copy(), num[:, 1:4].copy()
