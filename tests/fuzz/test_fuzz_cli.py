@@ -8,15 +8,19 @@ file or the option); never a traceback (an uncaught exception is exit 1 under
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 import yaml
 from hypothesis import given
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from tests.fuzz.conftest import FUZZ_MEMORY_LIMIT
@@ -27,6 +31,7 @@ from tests.fuzz.strategies import (
     MODELS,
     ROBOT_HEADER,
     ROBOT_ROWS,
+    _byte_edit,
     _csv_text,
     _dump,
     alias_bomb,
@@ -333,6 +338,49 @@ def test_experiment_damaged_config(case, case_dir) -> None:
     d = case_dir()
     path = write_case(d / "sweep.yaml", case)
     invoke(["experiment", str(path), "--out", str(d / "e")], [path.name], seconds=120.0)
+
+
+@pytest.fixture(scope="session")
+def tiny_results(fuzz_root: Path, tiny_sweep: str) -> Path:
+    """The results folder of the tiny sweep (``are-stats experiment``)."""
+    out = fuzz_root / "results"
+    assert invoke(["experiment", tiny_sweep, "--out", str(out)], [], seconds=300.0) == 0
+    return out
+
+
+@st.composite
+def _results_case(draw: st.DrawFn, folder: Path) -> tuple[str, bytes | str]:
+    """One file of a results folder, damaged: its table's columns or its bytes."""
+    files = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+    name = draw(st.sampled_from(files))
+    data = (folder / name).read_bytes()
+    if name.endswith(".yaml"):
+        return name, draw(file_cases(yaml_case(yaml.safe_load(data))))
+    df = pd.read_parquet(folder / name)
+    col = draw(st.sampled_from(list(df.columns)))
+    edit = draw(st.sampled_from(["drop", "nan", "bool", "huge", "str", "bytes", "empty"]))
+    if edit == "bytes":
+        return name, draw(file_cases(_byte_edit(data)))
+    if edit == "drop":
+        df = df.drop(columns=[col])
+    elif edit == "empty":
+        df = df.iloc[:0]
+    else:
+        df[col] = {"nan": np.nan, "bool": True, "huge": 2**62, "str": "x"}[edit]
+    buf = io.BytesIO()
+    df.to_parquet(buf, index=False)
+    return name, buf.getvalue()
+
+
+@fuzz_settings(15)
+@given(data=st.data())
+def test_plot_damaged_results(data, case_dir, tiny_results) -> None:
+    d = case_dir() / "results"
+    shutil.copytree(tiny_results, d)
+    name, case = data.draw(_results_case(tiny_results))
+    (d / name).unlink()
+    path = write_case(d / name, case)
+    invoke(["plot", str(d), "--out", str(d.parent / "png")], [path.name, d.name])
 
 
 # ----------------------------------------------------------------------------- fresh processes
