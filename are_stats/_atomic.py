@@ -1,20 +1,33 @@
-"""Atomic, non-clobbering file output.
+"""Atomic, non-clobbering file and folder output.
 
-Everything the toolkit writes goes through :func:`atomic_path`: the content is written to
+Every file the toolkit writes goes through :func:`atomic_path`: the content is written to
 a temporary file in the destination folder and renamed over the target only when complete,
 so an interrupted run never leaves a half-written file, and an existing file is kept
-unless ``force=True``.
+unless ``force=True``. Output *folders* (scenario sets, sweep results) go through
+:func:`atomic_folder` / :func:`replace_folder`: they are written beside the target and
+put in its place as a whole, so files of two runs never stand side by side.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
+import errno
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["OutputExistsError", "atomic_path", "check_writable"]
+__all__ = [
+    "OutputExistsError",
+    "atomic_folder",
+    "atomic_path",
+    "check_folder",
+    "check_writable",
+    "replace_folder",
+]
 
 
 class OutputExistsError(FileExistsError):
@@ -53,3 +66,97 @@ def atomic_path(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+_RENAME_EXCHANGE = 2  # renameat2 flag (Linux >= 3.15)
+_AT_FDCWD = -100
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths atomically (Linux ``renameat2(RENAME_EXCHANGE)``); False where unsupported."""
+    name = ctypes.util.find_library("c")
+    if name is None:
+        return False
+    libc = ctypes.CDLL(name, use_errno=True)
+    fn = getattr(libc, "renameat2", None)
+    if fn is None:
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    rc = fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    if rc == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.EPERM, errno.EOPNOTSUPP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def replace_folder(new: str | os.PathLike, out: str | os.PathLike) -> None:
+    """Put the finished folder ``new`` in place of the existing folder ``out`` as a whole.
+
+    An atomic exchange where the OS has one (Linux), else two renames; the old content is
+    removed only after ``new`` is in place.
+    """
+    new, out = Path(new), Path(out)
+    if _exchange(new, out):
+        shutil.rmtree(new)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+    os.replace(out, old / out.name)
+    os.replace(new, out)
+    shutil.rmtree(old)
+
+
+def check_folder(path: str | os.PathLike, force: bool) -> Path:
+    """Raise :class:`OutputExistsError` unless ``path`` may become a new output folder.
+
+    It may when it does not exist, is an empty folder, or is a folder and ``force`` is true.
+    """
+    target = Path(path)
+    if target.exists() and not target.is_dir():
+        raise OutputExistsError(f"{target}: exists and is not a folder")
+    if target.exists() and not force and any(target.iterdir()):
+        raise OutputExistsError(
+            f"{target}: already exists; pass --force (force=True) to replace the folder"
+        )
+    return target
+
+
+@contextlib.contextmanager
+def atomic_folder(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary sibling folder; put it in place of ``path`` as a whole on success.
+
+    Everything of an output folder is written into the temporary folder, which then
+    replaces ``path`` in one step (:func:`replace_folder`), so a reader never sees files of
+    two runs side by side and an interrupted run leaves the old folder intact (and at most
+    a hidden ``.<name>.*.tmp`` sibling). An existing folder is replaced only with
+    ``force``; an existing empty folder is replaced without it.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The output folder.
+    force : bool
+        Replace an existing non-empty folder (all its files: nothing of the old run stays).
+
+    Raises
+    ------
+    OutputExistsError
+        If ``path`` exists, is not an empty folder, and ``force`` is false (nothing is
+        written then).
+    """
+    target = check_folder(path, force)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    try:
+        yield tmp
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700: the usual folder permissions
+        if target.exists():
+            replace_folder(tmp, target)
+        else:
+            os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)

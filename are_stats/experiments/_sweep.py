@@ -66,9 +66,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import ctypes
-import ctypes.util
-import errno
 import functools
 import hashlib
 import itertools
@@ -86,7 +83,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from are_stats._atomic import OutputExistsError, atomic_path
+from are_stats._atomic import OutputExistsError, atomic_path, replace_folder
 from are_stats.experiments._planners import OMPL_ALGORITHMS
 from are_stats.inputs import (  # Described: a ``got`` already worded, shown as is
     MAX_SEED,
@@ -639,40 +636,6 @@ def _folder_state(out: Path) -> str:
     )  # fmt: skip
 
 
-_RENAME_EXCHANGE = 2
-
-
-def _exchange(a: Path, b: Path) -> bool:
-    """Atomically swap two folders (Linux ``renameat2``); False where unsupported."""
-    name = ctypes.util.find_library("c")
-    if name is None:
-        return False
-    libc = ctypes.CDLL(name, use_errno=True)
-    fn = getattr(libc, "renameat2", None)
-    if fn is None:
-        return False
-    at_fdcwd = -100
-    rc = fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), _RENAME_EXCHANGE)
-    if rc == 0:
-        return True
-    err = ctypes.get_errno()
-    if err in (errno.ENOSYS, errno.EINVAL, errno.EPERM, errno.EOPNOTSUPP):
-        return False
-    raise OSError(err, os.strerror(err), str(b))
-
-
-def _replace_folder(new: Path, out: Path) -> None:
-    """Put the finished folder ``new`` in place of ``out``; the old content is removed only
-    after the swap (atomic where the OS can exchange folders)."""
-    if _exchange(new, out):
-        shutil.rmtree(new)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
-    os.replace(out, old / out.name)
-    os.replace(new, out)
-    shutil.rmtree(old)
-
-
 def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, Any]:
     """Keyword arguments of the local Dask cluster: the scheduler and workers (processes)
     and the dashboard all listen on ``host`` (loopback by default), never on every
@@ -784,7 +747,7 @@ def run_sweep(
                 shutil.rmtree(target, ignore_errors=True)
             raise
     if target != out:
-        _replace_folder(target, out)
+        replace_folder(target, out)
     return out
 
 

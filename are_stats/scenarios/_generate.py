@@ -22,13 +22,9 @@ same NumPy version, and :func:`write_scenarios` writes it byte for byte identica
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
 import math
 import os
-import shutil
-import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +32,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from are_stats._atomic import OutputExistsError
+from are_stats._atomic import atomic_folder, check_folder
 from are_stats._checks import check_in, check_nonnegative, check_positive, describe
 from are_stats.inputs import check_memory, check_work, get_float, get_int
 
@@ -520,82 +516,6 @@ def _plain(x: Any) -> Any:
     if isinstance(x, Path):
         return str(x)
     return x
-
-
-_RENAME_EXCHANGE = 2  # renameat2 flag (Linux >= 3.15)
-_AT_FDCWD = -100
-
-
-def _exchange(a: Path, b: Path) -> bool:
-    """Swap two paths atomically with Linux ``renameat2(RENAME_EXCHANGE)``; False if unsupported."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        fn = libc.renameat2
-    except (OSError, AttributeError):
-        return False
-    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
-    rc = fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
-    return rc == 0
-
-
-def check_folder(path: str | os.PathLike, force: bool) -> Path:
-    """Raise :class:`OutputExistsError` unless ``path`` may become a new output folder.
-
-    It may when it does not exist, is an empty folder, or is a folder and ``force`` is true.
-    """
-    target = Path(path)
-    if target.exists() and not target.is_dir():
-        raise OutputExistsError(f"{target}: exists and is not a folder")
-    if target.exists() and not force and any(target.iterdir()):
-        raise OutputExistsError(
-            f"{target}: already exists; pass --force (force=True) to replace the folder"
-        )
-    return target
-
-
-@contextlib.contextmanager
-def atomic_folder(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
-    """Yield a temporary sibling folder; put it in place of ``path`` as a whole on success.
-
-    Everything of an output folder is written into the temporary folder, which then
-    replaces ``path`` in one step (an atomic exchange on Linux, else two renames), so a
-    reader never sees files of two runs side by side and an interrupted run leaves the old
-    folder intact (and at most a hidden ``.<name>.*.tmp`` sibling). An existing folder is
-    replaced only with ``force``; an existing empty folder is replaced without it.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        The output folder.
-    force : bool
-        Replace an existing non-empty folder (all its files: nothing of the old run stays).
-
-    Raises
-    ------
-    OutputExistsError
-        If ``path`` exists, is not an empty folder, and ``force`` is false (nothing is
-        written then).
-    """
-    target = check_folder(path, force)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
-    try:
-        yield tmp
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700: the usual folder permissions
-        if target.exists():
-            if not _exchange(tmp, target):
-                old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old",
-                                            dir=target.parent))  # fmt: skip
-                os.replace(target, old / target.name)
-                os.replace(tmp, target)
-                shutil.rmtree(old)
-        else:
-            os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp)
 
 
 def _write_files(
