@@ -108,6 +108,8 @@ _LAZY.update(
             "read_fit",
             "write_fit",
             "write_report",
+            "fit_loo",
+            "pointwise_log_likelihood",
         ],
         "are_stats.fitting",
     )
@@ -137,6 +139,8 @@ _LAZY.update(
             "read_scenarios",
             "scenario_counts",
             "write_scenarios",
+            "Boxes",
+            "Scene",
         ],
         "are_stats.scenarios",
     )

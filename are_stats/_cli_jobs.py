@@ -120,6 +120,9 @@ def run_fit(
     if out.suffix != ".nc":
         raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
     check_writable(out, force)
+    if alternatives:  # refuse before fitting, not after the fit is written
+        for name in ("loo_arrivals.csv", "loo_lifetimes.csv"):
+            check_writable((figures or out.with_suffix("")) / name, force)
     settings = FitSettings(
         method=method,
         n_components=components,

@@ -1,4 +1,5 @@
-"""Posterior-predictive scenario generation: artefact populations from fitted priors."""
+"""Posterior-predictive scenario generation: artefact populations from fitted priors, and
+the Scene that turns one scenario into boxes over time."""
 
 from are_stats.scenarios._generate import (
     PARAMETER_NAMES,
@@ -12,8 +13,11 @@ from are_stats.scenarios._generate import (
     scenario_counts,
     write_scenarios,
 )
+from are_stats.scenarios._scene import Boxes, Scene
 
 __all__ = [
+    "Boxes",
+    "Scene",
     "PARAMETER_NAMES",
     "SCENARIO_COLUMNS",
     "atomic_folder",
