@@ -73,6 +73,7 @@ from are_stats.traffic._stays import (  # noqa: E402
     stay_logpdf,
     stay_logsf,
     stay_sample,
+    stay_sample_residual,
     stay_shape_from_cv,
 )
 
@@ -85,6 +86,7 @@ __all__ += [
     "stay_logpdf",
     "stay_logsf",
     "stay_sample",
+    "stay_sample_residual",
     "stay_shape_from_cv",
 ]
 

@@ -53,6 +53,7 @@ __all__ = [
     "stay_logpdf",
     "stay_logsf",
     "stay_sample",
+    "stay_sample_residual",
     "stay_shape_from_cv",
 ]
 
@@ -249,6 +250,45 @@ def stay_sample(key: Any, law: str, mean: Any, shape: Any = 1.0, size: Any = ())
         return _weibull_scale(mean, shape) * e ** (1.0 / shape)
     z = jax.random.normal(key, size)
     return jnp.exp(_lognormal_mu(mean, shape) + shape * z)
+
+
+def stay_sample_residual(
+    key: Any, law: str, mean: Any, shape: Any = 1.0, size: Any = ()
+) -> jnp.ndarray:
+    """Draw residual stays of artefacts present at a fixed time of a stationary process.
+
+    The residual has the equilibrium density ``S(r) / m`` (see :func:`stay_log_excess`); it
+    is ``U * T*`` with ``U`` uniform and ``T*`` the length-biased stay (density
+    ``t f(t) / m``), which is again in the family: ``Gamma(k + 1, k/m)`` for the gamma law,
+    ``(T*/b)^k ~ Gamma(1 + 1/k)`` for the Weibull, ``LogNormal(mu + s^2, s)`` for the
+    lognormal and ``Gamma(2, 1/m)`` for the exponential (so the residual is exponential,
+    the memoryless case). Use it for the initial population of a scenario.
+
+    Parameters
+    ----------
+    key : jax.random.key
+    law : {"exponential", "gamma", "weibull", "lognormal"}
+    mean, shape : float or array
+    size : tuple of int
+
+    Returns
+    -------
+    size float
+    """
+    law = _law(law)
+    size = tuple(np.broadcast_shapes(tuple(size), np.shape(mean), np.shape(shape)))
+    k_len, k_u = jax.random.split(key)
+    if law == "exponential":
+        biased = jax.random.gamma(k_len, 2.0, size) * mean
+    elif law == "gamma":
+        biased = jax.random.gamma(k_len, jnp.broadcast_to(shape + 1.0, size)) * (mean / shape)
+    elif law == "weibull":
+        y = jax.random.gamma(k_len, jnp.broadcast_to(1.0 + 1.0 / shape, size))
+        biased = _weibull_scale(mean, shape) * y ** (1.0 / shape)
+    else:
+        z = jax.random.normal(k_len, size)
+        biased = jnp.exp(_lognormal_mu(mean, shape) + shape * shape + shape * z)
+    return jax.random.uniform(k_u, size) * biased
 
 
 def stay_cv(law: str, shape: Any) -> Any:

@@ -17,6 +17,7 @@ from are_stats.traffic._stays import (
     stay_logpdf,
     stay_logsf,
     stay_sample,
+    stay_sample_residual,
     stay_shape_from_cv,
 )
 
@@ -167,3 +168,14 @@ def test_window_likelihood_recovers_the_truth(law):
     se = np.sqrt(np.diag(np.linalg.inv(hessian(res.x)[free, free])))
     truth = np.log([m, k])[free]
     assert np.all(np.abs(res.x[free] - truth) < 4 * se), (np.exp(res.x), se)
+
+
+@pytest.mark.parametrize("law, m, k", CASES)
+def test_residual_sampler_follows_the_equilibrium_law(law, m, k):
+    """Residual stays against the equilibrium cdf 1 - E[(T - r)^+] / m (KS, alpha 1e-4)."""
+    x = np.asarray(stay_sample_residual(jax.random.key(9), law, m, k, (3000,)))
+
+    def cdf(r):
+        return 1.0 - np.exp(np.asarray(stay_log_excess(law, r, m, k))) / m
+
+    assert stats.kstest(x, cdf).pvalue > 1e-4
