@@ -3,7 +3,9 @@
 Every ROS map yields a mesh for occlusion tests: the occupied cells are merged into polygons
 (row runs, then a polygon union), collinear vertices are dropped, and each polygon is
 extruded to a prism of the given height. The result is compact (vertices only at polygon
-corners) and watertight (every edge is shared by exactly two faces).
+corners) and watertight with consistent winding (every edge is shared by exactly two faces),
+also where occupied cells touch only at a corner: each solid gets its own copy of the
+corner's vertices there.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from are_stats._checks import check_positive
-from are_stats.inputs import InputError, _Text, check_memory, check_work, format_bytes
+from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
 
 if TYPE_CHECKING:
     import trimesh
@@ -55,10 +57,10 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     if not p.exists():
         raise FileNotFoundError(f"{p}: mesh file not found")
     if not p.is_file():
-        raise InputError(p, "", "a mesh file (OBJ, PLY, STL, GLB, ...)", _Text("not a file"))
+        raise InputError(p, "", "a mesh file (OBJ, PLY, STL, GLB, ...)", Described("not a file"))
     size = p.stat().st_size
     if size == 0:
-        raise InputError(p, "", "a mesh with triangles", _Text("an empty file"))
+        raise InputError(p, "", "a mesh with triangles", Described("an empty file"))
     check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", p)
     try:
         obj = trimesh.load(p, force="mesh", process=False)
@@ -66,19 +68,19 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
         raise
     except Exception as err:  # trimesh raises many exception types for bad files
         raise InputError(
-            p, "", "a mesh file trimesh can read", _Text(f"{type(err).__name__}: {err}")
+            p, "", "a mesh file trimesh can read", Described(f"{type(err).__name__}: {err}")
         ) from None
     if not isinstance(obj, trimesh.Trimesh) or len(obj.faces) == 0:
-        raise InputError(p, "", "a mesh with triangles", _Text("none"))
+        raise InputError(p, "", "a mesh with triangles", Described("none"))
     faces = np.asarray(obj.faces)
     n_v = len(obj.vertices)
     if faces.ndim != 2 or faces.shape[1] != 3:
-        raise InputError(p, "faces", "triangles", _Text(f"faces of shape {faces.shape}"))
+        raise InputError(p, "faces", "triangles", Described(f"faces of shape {faces.shape}"))
     bad = (faces < 0) | (faces >= n_v)
     if bad.any():
         f = int(np.argwhere(bad)[0, 0])
         raise InputError(
-            p, f"face {f}", f"vertex indices in [0, {n_v - 1}]", _Text(str(faces[f].tolist()))
+            p, f"face {f}", f"vertex indices in [0, {n_v - 1}]", Described(str(faces[f].tolist()))
         )
     v = np.asarray(obj.vertices, dtype=float)
     bad_v = ~np.isfinite(v) | (np.abs(v) > MAX_COORDINATE)
@@ -88,7 +90,7 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
             p,
             f"vertex {i}",
             f"finite coordinates within {MAX_COORDINATE:g} m of the origin",
-            _Text(str(v[i].tolist())),
+            Described(str(v[i].tolist())),
         )
     return obj
 
@@ -101,13 +103,32 @@ def occupied_polygons(grid: OccupancyGrid, cells: np.ndarray | None = None) -> l
     grid : OccupancyGrid
     cells : (height, width) bool, optional
         Which cells to cover; default ``grid.occupied``.
+
+    Returns
+    -------
+    list of shapely.Polygon
+        Valid polygons, exteriors counter-clockwise and holes clockwise. Cells that touch
+        only at a corner meet at a single point: as two polygons, or as a hole touching its
+        shell (or another hole) there.
     """
-    import shapely
     from shapely import affinity
 
     mask = grid.occupied if cells is None else np.asarray(cells, bool)
     if mask.shape != grid.shape:
         raise ValueError(f"cells: expected a mask of shape {grid.shape}, got {mask.shape}")
+    x0, y0, yaw = grid.origin
+    r = grid.resolution
+    c, s = np.cos(yaw), np.sin(yaw)
+    return [
+        affinity.affine_transform(poly, [r * c, -r * s, r * s, r * c, x0, y0])
+        for poly in _cell_polygons(mask)
+    ]
+
+
+def _cell_polygons(mask: np.ndarray) -> list[Any]:
+    """Oriented polygons covering ``mask`` in cell units (integer corner coordinates)."""
+    import shapely
+
     rects = _row_runs_merged(mask)
     if len(rects) == 0:
         return []
@@ -117,18 +138,10 @@ def occupied_polygons(grid: OccupancyGrid, cells: np.ndarray | None = None) -> l
         "map",
     )
     boxes = shapely.box(rects[:, 0], rects[:, 1], rects[:, 2], rects[:, 3])
-    union = shapely.union_all(boxes)
-    union = shapely.simplify(union, 0.0)
-    polys = list(union.geoms) if hasattr(union, "geoms") else [union]
-    x0, y0, yaw = grid.origin
-    r = grid.resolution
-    c, s = np.cos(yaw), np.sin(yaw)
-    out = []
-    for poly in polys:
-        if poly.is_empty or poly.area <= 0:
-            continue
-        out.append(affinity.affine_transform(poly, [r * c, -r * s, r * s, r * c, x0, y0]))
-    return out
+    union = shapely.simplify(shapely.union_all(boxes), 0.0)
+    polys = shapely.get_parts(union)
+    polys = polys[~shapely.is_empty(polys) & (shapely.area(polys) > 0)]
+    return list(shapely.orient_polygons(polys, exterior_cw=False))
 
 
 def _row_runs_merged(mask: np.ndarray) -> np.ndarray:
@@ -175,9 +188,22 @@ def extrude_grid(grid: OccupancyGrid, height: float) -> trimesh.Trimesh:
     Returns
     -------
     trimesh.Trimesh
-        A compact, watertight mesh S_E (each connected wall block is a closed prism; blocks
-        that touch only at a corner keep separate vertices there). Empty when no cell is
-        occupied.
+        A compact mesh S_E (vertices only at the corners of the wall polygons, unprocessed),
+        watertight with consistent outward winding: every edge lies in exactly two faces,
+        once in each direction, and its volume is the occupied area times ``height``. Where
+        occupied cells touch only at a corner (a diagonal pinch), each of the two solids
+        gets its own copy of the corner's vertices, so the mesh stays a closed 2-manifold
+        there (merging vertices by position, e.g. ``merge_vertices``, undoes this). Empty
+        when no cell is occupied.
+
+    Notes
+    -----
+    Each polygon of :func:`occupied_polygons` gets a cap at ``z = 0`` and at ``z = height``
+    (GEOS's constrained Delaunay triangulation, which is conforming: no vertex lies inside a
+    triangle's edge) and one quad (two triangles) per boundary edge. Vertices are identified
+    by their integer cell-corner position, plus, at a pinch, by which of the two diagonal
+    solid quadrants around it the face lies in (a cap triangle by its centroid, a wall quad
+    by the side of its edge the solid is on).
 
     Examples
     --------
@@ -186,17 +212,85 @@ def extrude_grid(grid: OccupancyGrid, height: float) -> trimesh.Trimesh:
     >>> m = extrude_grid(g, 2.0)
     >>> bool(m.is_watertight), round(float(m.volume), 6)
     (True, 3.0)
+    >>> diagonal = OccupancyGrid([[100, 0], [0, 100]], 1.0)
+    >>> m = extrude_grid(diagonal, 1.0)
+    >>> bool(m.is_watertight), bool(m.is_winding_consistent), round(float(m.volume), 6)
+    (True, True, 2.0)
     """
     import trimesh
 
     h = float(check_positive("height", height))
-    polys = occupied_polygons(grid)
-    verts, faces, offset = [], [], 0
-    for poly in polys:
-        m = trimesh.creation.extrude_polygon(poly, h, engine="earcut")
-        verts.append(np.asarray(m.vertices))
-        faces.append(np.asarray(m.faces) + offset)
-        offset += len(m.vertices)
-    if not verts:
+    mask = grid.occupied
+    polys = _cell_polygons(mask)
+    if not polys:
         return trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), process=False)
-    return trimesh.Trimesh(np.concatenate(verts), np.concatenate(faces), process=False)
+    tri, wall_a, wall_b = _caps_and_walls(polys)
+    # cell-corner keys: 2 * (v * (width + 1) + u) + (solid quadrant east of u, at pinches)
+    stride = mask.shape[1] + 1
+    pinch = _diagonal_pinches(mask)
+
+    def keys(pts: np.ndarray, east: np.ndarray) -> np.ndarray:
+        u, v = pts[..., 0], pts[..., 1]
+        return 2 * (v * stride + u) + (pinch[v, u] & east)
+
+    centroid_x3 = tri[..., 0].sum(axis=1, keepdims=True)  # 3 x the centroid's u
+    k_tri = keys(tri, centroid_x3 > 3 * tri[..., 0])
+    d = np.sign(wall_b - wall_a)  # solid on the left of a -> b: quadrant d + n at a, -d + n at b
+    k_a = keys(wall_a, d[:, 0] - d[:, 1] > 0)
+    k_b = keys(wall_b, -d[:, 0] - d[:, 1] > 0)
+    uniq, inv = np.unique(np.concatenate([k_tri.ravel(), k_a, k_b]), return_inverse=True)
+    n_t = k_tri.size
+    t = inv[:n_t].reshape(-1, 3)
+    a, b = inv[n_t : n_t + len(k_a)], inv[n_t + len(k_a) :]
+    n = len(uniq)
+    faces = np.concatenate(
+        [
+            t + n,  # top, counter-clockwise seen from above
+            t[:, ::-1],  # bottom, facing down
+            np.stack([a, b, b + n], axis=1),  # walls, facing right of a -> b (outwards)
+            np.stack([a, b + n, a + n], axis=1),
+        ]
+    )
+    corner = uniq // 2
+    uv = np.stack([corner % stride, corner // stride], axis=1).astype(float)
+    xy = grid.local_to_world(uv)
+    verts = np.concatenate(
+        [np.column_stack([xy, np.zeros(n)]), np.column_stack([xy, np.full(n, h)])]
+    )
+    return trimesh.Trimesh(verts, faces.astype(np.int64), process=False)
+
+
+def _diagonal_pinches(mask: np.ndarray) -> np.ndarray:
+    """``(height + 1, width + 1)`` bool: cell corners where exactly two diagonally opposite
+    cells of the four around them are occupied (indexed ``[v, u]``)."""
+    m = np.pad(np.asarray(mask, bool), 1)
+    sw, se, nw, ne = m[:-1, :-1], m[:-1, 1:], m[1:, :-1], m[1:, 1:]
+    return (sw == ne) & (se == nw) & (sw != se)
+
+
+def _caps_and_walls(polys: list[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cap triangles ``(T, 3, 2)`` (counter-clockwise) and boundary edges ``a -> b``
+    (``(E, 2)`` each, solid on the left) of oriented cell-unit polygons, as int64."""
+    import shapely
+
+    rings = shapely.get_rings(np.asarray(polys, dtype=object))
+    coords, ring_of = shapely.get_coordinates(rings, return_index=True)
+    pts = np.rint(coords).astype(np.int64)
+    # drop each ring's closing point
+    last = np.r_[ring_of[1:] != ring_of[:-1], True]
+    pts, ring_of = pts[~last], ring_of[~last]
+    ring_start = np.r_[0, np.flatnonzero(ring_of[1:] != ring_of[:-1]) + 1]
+    ring_end = np.r_[ring_start[1:], len(pts)]
+    nxt = np.arange(1, len(pts) + 1)
+    nxt[ring_end - 1] = ring_start
+    wall_a, wall_b = pts, pts[nxt]
+    # caps: GEOS's constrained Delaunay triangulation uses every polygon vertex and puts
+    # none inside a triangle's edge (earcut does, which leaves T-junctions between holes)
+    tris = shapely.get_parts(
+        shapely.constrained_delaunay_triangles(np.asarray(polys, dtype=object))
+    )
+    tri = np.rint(shapely.get_coordinates(tris)).astype(np.int64).reshape(-1, 4, 2)[:, :3]
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    tri[cw] = tri[cw][:, ::-1]
+    return tri, wall_a, wall_b

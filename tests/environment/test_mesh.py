@@ -126,3 +126,72 @@ def test_extrusion_work_is_bounded():
     g = OccupancyGrid(checker, 0.1)
     with limits(work=1800 * 2000 - 1), pytest.raises(LimitError, match="1800 occupied rect"):
         extrude_grid(g, 2.0)
+
+
+# ------------------------------------------------------------- watertight at diagonal pinches
+def _assert_closed_walls(g, height, m):
+    """Watertight, consistently wound outwards, no degenerate face, volume = area x height."""
+    assert m.is_watertight and m.is_winding_consistent
+    assert m.volume == pytest.approx(g.occupied.sum() * g.resolution**2 * height, rel=1e-9)
+    tri = m.vertices[m.faces]
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) / 2
+    assert area.min() > 1e-9 * g.resolution**2
+    # every edge in exactly two faces, once in each direction
+    e = np.concatenate([m.faces[:, [0, 1]], m.faces[:, [1, 2]], m.faces[:, [2, 0]]])
+    _, counts = np.unique(np.sort(e, axis=1), axis=0, return_counts=True)
+    assert (counts == 2).all()
+    assert len(np.unique(e, axis=0)) == len(e)
+
+
+_RING = np.pad(np.zeros((3, 3), int), 1, constant_values=1)
+_ISLAND = _RING.copy()
+_ISLAND[2, 2] = _ISLAND[3, 3] = 1  # an island touching the ring's inner corner diagonally
+_TWO_HOLES = np.array(
+    [[1, 1, 1, 0, 0], [1, 0, 1, 0, 0], [1, 1, 1, 1, 1], [0, 0, 1, 0, 1], [0, 0, 1, 1, 1]]
+)  # two holes whose corners line up (an earcut cap left T-junctions there)
+
+
+@pytest.mark.parametrize(
+    ("name", "cells"),
+    [
+        ("single cell", [[1]]),
+        ("two diagonal cells", [[1, 0], [0, 1]]),
+        ("the other diagonal", [[0, 1], [1, 0]]),
+        ("checkerboard 4x4", np.indices((4, 4)).sum(axis=0) % 2),
+        ("ring with a hole", _RING),
+        ("island pinched to a ring", _ISLAND),
+        ("two Ls touching twice", [[1, 1, 0], [1, 0, 1], [0, 1, 1]]),
+        ("two holes", _TWO_HOLES),
+    ],
+)
+@pytest.mark.parametrize("yaw", [0.0, 2.2])
+def test_extrusion_watertight_where_cells_touch_diagonally(name, cells, yaw):
+    g = OccupancyGrid(np.asarray(cells) * 100, 0.25, (1.5, -2.0, yaw))
+    m = extrude_grid(g, 3.0)
+    _assert_closed_walls(g, 3.0, m)
+
+
+def test_diagonal_pinch_gets_a_vertex_per_solid():
+    m = extrude_grid(OccupancyGrid([[100, 0], [0, 100]], 1.0), 1.0)
+    # two separate cubes: 8 vertices each, the shared corner (1, 1) at both heights twice
+    assert len(m.vertices) == 16
+    at_pinch = np.all(np.isclose(m.vertices[:, :2], [1.0, 1.0]), axis=1)
+    assert at_pinch.sum() == 4
+    assert len(m.split(only_watertight=True)) == 2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+@pytest.mark.parametrize("density", [0.2, 0.5, 0.8])
+def test_extrusion_of_random_maps_is_watertight(seed, density):
+    rng = np.random.default_rng(seed)
+    g = OccupancyGrid(
+        np.where(rng.random((30, 30)) < density, 100, 0), 0.1, (0.0, 0.0, rng.uniform(-3, 3))
+    )
+    _assert_closed_walls(g, 2.0, extrude_grid(g, 2.0))
+
+
+def test_shipped_courtyard_extrudes_watertight():
+    g = OccupancyGrid.from_ros_yaml(DEFAULT_MODELS / "courtyard.yaml")
+    _assert_closed_walls(g, 2.5, extrude_grid(g, 2.5))
+    shipped = load_mesh(DEFAULT_MODELS / "courtyard.ply")
+    assert shipped.is_watertight and shipped.is_winding_consistent
