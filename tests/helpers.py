@@ -58,3 +58,23 @@ def chisquare_gof(samples, pmf, min_expected: float = 5.0, alpha: float = ALPHA)
     p = float(stats.chi2.sf(stat, df=len(exp_b) - 1))
     assert p > alpha, f"chi-square goodness of fit failed: stat={stat:.2f}, p={p:.2e}"
     return p
+
+
+#: A sweep small enough to run in seconds: two tasks of one short mission.
+TINY_SWEEP = {
+    "name": "tiny",
+    "map": "courtyard",
+    "seed": 0,
+    "replicates": 1,
+    "scenario": {
+        "arrival_rate": 0.0005,
+        "leave_rate": 0.02,
+        "mix_weights": [0.6, 0.4],
+        "mix_rates": [0.5, 3.0],
+        "start": "stationary",
+    },
+    "robot": {"radius": 0.3, "speed": 0.5},
+    "mission": {"n_goals": 1, "time_limit": 10.0, "perception": "all"},
+    "planner": {"algorithm": "RRTConnect", "range": 2.0},
+    "factors": {"scenario.arrival_rate": [0.0002, 0.0008]},
+}

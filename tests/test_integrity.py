@@ -23,6 +23,8 @@ import numpy as np
 import pytest
 import yaml
 
+from tests.helpers import TINY_SWEEP
+
 ROOT = Path(__file__).resolve().parents[1]
 LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
 
@@ -32,23 +34,7 @@ RNG_SEED = 20261123
 
 pytestmark = pytest.mark.slow
 
-SWEEP = {
-    "name": "tiny",
-    "map": "courtyard",
-    "seed": 0,
-    "replicates": 1,
-    "scenario": {
-        "arrival_rate": 0.0005,
-        "leave_rate": 0.02,
-        "mix_weights": [0.6, 0.4],
-        "mix_rates": [0.5, 3.0],
-        "start": "stationary",
-    },
-    "robot": {"radius": 0.3, "speed": 0.5},
-    "mission": {"n_goals": 1, "time_limit": 10.0, "perception": "all"},
-    "planner": {"algorithm": "RRTConnect", "range": 2.0},
-    "factors": {"scenario.arrival_rate": [0.0002, 0.0008]},
-}
+SWEEP = TINY_SWEEP
 
 
 def _are_stats() -> list[str]:
@@ -222,8 +208,18 @@ def test_fit_killed(work, tmp_path: Path) -> None:
         w.mkdir()
         (w / "keep.txt").write_text("an unrelated earlier output")
         (w / "fit.nc").write_bytes(old)
-        args = ["fit", str(work["log"]), "--method", "em", "--no-figures", "--seed", "2",
-                "--force", "--out", str(w / "fit.nc")]
+        args = [
+            "fit",
+            str(work["log"]),
+            "--method",
+            "em",
+            "--no-figures",
+            "--seed",
+            "2",
+            "--force",
+            "--out",
+            str(w / "fit.nc"),
+        ]
         killed += run_killed(args, w, delay) is None
         now = (w / "fit.nc").read_bytes()
         assert now == old or _complete_fit(w / "fit.nc"), f"killed after {delay:.2f} s: fit.nc"
@@ -261,8 +257,19 @@ def test_generate_killed(work, tmp_path: Path) -> None:
     for i, delay in enumerate(delays(work["t_gen"], salt=2)):
         w = tmp_path / f"k{i}"
         shutil.copytree(d / "gen_a", w / "scen")
-        args = ["generate", str(d / "a.nc"), "--scenarios", "6", "--horizon", "600", "--seed",
-                "8", "--force", "--out", str(w / "scen")]
+        args = [
+            "generate",
+            str(d / "a.nc"),
+            "--scenarios",
+            "6",
+            "--horizon",
+            "600",
+            "--seed",
+            "8",
+            "--force",
+            "--out",
+            str(w / "scen"),
+        ]
         killed += run_killed(args, w, delay) is None
         problem = _scenarios_whole(w / "scen", old, 8)
         assert problem is None, f"killed after {delay:.2f} s: {problem}"
