@@ -500,7 +500,7 @@ def _validate(
     ta = ta * scale
     tl = tl * scale
     m = len(ids)
-    label = sub.labels("label") if "label" in sub.columns else np.full(m, "", dtype=object)
+    label = sub.class_labels("label") if "label" in sub.columns else np.full(m, "", dtype=object)
     if "mark" in sub.columns:
         mark, _ = sub.nonneg_ints("mark", allow_empty=True)
     else:

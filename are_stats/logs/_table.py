@@ -152,6 +152,15 @@ class RawTable:
             ["" if n else _num(v) for v, n in zip(vals, null, strict=True)], dtype=object
         )
 
+    def class_labels(self, column: str) -> np.ndarray:
+        """Class labels: free text without commas (fit files list them comma-separated)."""
+        out = self.labels(column)
+        comma = np.array([("," in v) for v in out], dtype=bool)
+        if comma.any():
+            i = int(np.argmax(comma))
+            raise self.error(i, column, "a class label without commas", out[i])
+        return out
+
     def floats(self, column: str, *, allow_empty: bool) -> tuple[np.ndarray, np.ndarray]:
         """Finite numbers; returns ``(values, empty)`` with NaN where the cell is empty."""
         self._no_bools(column, "a number")

@@ -32,7 +32,9 @@ def _from_raw(raw: RawTable) -> pd.DataFrame:
     for c in ("t", "x", "y"):
         out[c] = raw.floats(c, allow_empty=False)[0]
     out["label"] = (
-        raw.labels("label") if "label" in raw.columns else np.full(raw.n_rows, "", dtype=object)
+        raw.class_labels("label")
+        if "label" in raw.columns
+        else np.full(raw.n_rows, "", dtype=object)
     )
     out["yaw"] = (
         raw.floats("yaw", allow_empty=True)[0]

@@ -479,3 +479,17 @@ def test_parquet_column_types(tmp_path, column):
     else:
         v = log.table["t_arrive"].to_numpy()
         assert np.all(np.isnan(v) | ((v >= 0) & (v <= 5)))
+
+
+def test_labels_with_commas_are_refused_at_the_row(tmp_path):
+    """Fit files list class labels comma-separated: a comma in a label is refused where
+    the log enters (it used to fail late, inside the fit)."""
+    from pathlib import Path
+
+    models = Path(__file__).resolve().parents[2] / "models"
+    src = (models / "logs" / "courtyard_traffic.csv").read_text().splitlines()
+    src[3] = src[3].replace(",pallet,", ',"a,b",')
+    (tmp_path / "log.csv").write_text("\n".join(src) + "\n")
+    (tmp_path / "log.yaml").write_text("window: [0, 3600]\narea: 400\n")
+    with pytest.raises(ValueError, match=r"log.csv: row 3 \(line 4\).*'label'.*without commas"):
+        read_lifecycle_log(tmp_path / "log.csv")
