@@ -27,6 +27,8 @@ from tests.helpers import TINY_SWEEP
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
+MAP = str(ROOT / "models" / "courtyard.yaml")
+CAMERA = str(ROOT / "models" / "cameras" / "front_camera.yaml")
 
 #: Kill moments per command (fractions of an uninterrupted run's time, seeded).
 N_KILLS = 2
@@ -183,6 +185,41 @@ def test_experiment_same_seed_same_results(work) -> None:
     assert snapshot(d / "exp_a"), "the sweep wrote nothing"
     diff = _sweep_diff(d / "exp_a", d / "exp_b")
     assert not diff, f"experiment, same config: files differ: {diff}"
+
+
+def test_report_show_perceive_plot_same_bytes(work) -> None:
+    """The other commands' outputs (figures, tables) are the same bytes for the same inputs."""
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from are_stats.cli import app
+
+    d = work["dir"]
+    runner = CliRunner()
+    gen = ["generate", str(d / "a.nc"), "--scenarios", "2", "--horizon", "600", "--seed", "3"]
+    assert runner.invoke(app, [*gen, "--out", str(d / "gm"), "--map", MAP]).exit_code == 0
+    path = d / "path.csv"
+    pd.DataFrame(
+        {"t": np.linspace(0, 600, 7), "x": np.linspace(-5, 5, 7), "y": 0.0, "yaw": 0.0}
+    ).to_csv(path, index=False)
+    runs = {
+        "report": lambda k: ["report", str(d / "a.nc"), "--out", str(d / f"rep{k}"),
+                             "--seed", "3", "--replicates", "20"],
+        "show": lambda k: ["show", "courtyard", "--artefacts", "5", "--seed", "2",
+                           "--out", str(d / f"show{k}.png")],
+        "perceive": lambda k: ["perceive", str(d / "gm"), "--camera", CAMERA, "--robot-path",
+                               str(path), "--out", str(d / f"perc{k}.parquet")],
+        "plot": lambda k: ["plot", str(d / "exp_a"), "--out", str(d / f"plot{k}")],
+    }  # fmt: skip
+    for name, args in runs.items():
+        for k in (1, 2):
+            res = runner.invoke(app, args(k))
+            assert res.exit_code == 0, (name, res.output)
+    for a, b in [("rep1", "rep2"), ("plot1", "plot2")]:
+        sa, sb = snapshot(d / a), snapshot(d / b)
+        assert sa and not _diff(sa, sb), f"{a}: files differ: {_diff(sa, sb)}"
+    for a, b in [("show1.png", "show2.png"), ("perc1.parquet", "perc2.parquet")]:
+        assert (d / a).read_bytes() == (d / b).read_bytes(), a
 
 
 # ----------------------------------------------------------------------------- (a) kills
