@@ -162,9 +162,12 @@ class LifecycleLog:
 
         a = self.to_arrays()
         if self.area is None:
-            raise ValueError(
-                f"{self.source}: area: expected the free area (manifest 'area' or "
-                "'map', or area=...), got none"
+            raise InputError(
+                self.manifest.get("area_missing_in", self.source),
+                "area",
+                f"the free area of {self.source}'s scene (manifest key 'area' or 'map', "
+                "or area=... / --area)",
+                Described("none"),
             )
         ids = a["ids"]
         marks = a["marks"]
@@ -350,6 +353,8 @@ def _resolve_settings(
             "source_area_unit": au,
         }
     )
+    if a is None:  # where an area would have come from, for the error when one is needed
+        resolved["area_missing_in"] = mpath
     return win, a, min_life, resolved
 
 
