@@ -607,6 +607,8 @@ def read_fit(path: str | Any) -> az.InferenceData:
         raise FileNotFoundError(f"{p}: no such fit file")
     if p.is_dir():
         raise InputError(p, "", "an ArviZ NetCDF fit file, not a directory")
+    if not p.is_file():  # a FIFO or a device would block the NetCDF reader
+        raise InputError(p, "", "an ArviZ NetCDF fit in a regular file, not a special file")
     try:
         idata = az.from_netcdf(str(p))
     except Exception as err:  # netCDF/HDF5 raise many types for a non-NetCDF file
