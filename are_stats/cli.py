@@ -351,3 +351,7 @@ def plot(
 
 def main() -> None:  # pragma: no cover - console entry
     app()
+
+
+if __name__ == "__main__":  # python -m are_stats.cli
+    main()
