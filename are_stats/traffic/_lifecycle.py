@@ -216,6 +216,13 @@ class LifecycleData:
         Arrival positions in metres (map frame).
     yaw : (n,) float, optional
         Arrival headings in radians.
+    group : (n,) int, optional
+        Group of each artefact (integers >= 0): artefacts with the same value arrived
+        together (they share the group's arrival time and entry point). Artefacts alone have
+        a group of their own. None: every artefact is alone.
+    x_exit, y_exit : (n,) float, optional
+        Leaving positions in metres (map frame; last sighting); NaN where unknown (still
+        present at ``t1``).
 
     Raises
     ------
@@ -246,6 +253,9 @@ class LifecycleData:
     x: np.ndarray | None = None
     y: np.ndarray | None = None
     yaw: np.ndarray | None = None
+    group: np.ndarray | None = None
+    x_exit: np.ndarray | None = None
+    y_exit: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         w = check_finite("window", self.window, ndim=1)
@@ -282,7 +292,26 @@ class LifecycleData:
         x = _optional_column("x", self.x, n, "float")
         y = _optional_column("y", self.y, n, "float")
         yaw = _optional_column("yaw", self.yaw, n, "float")
+        group = _optional_column("group", self.group, n, "int")
+        exits = {}
+        for name in ("x_exit", "y_exit"):
+            v = self.__dict__[name]
+            if v is None:
+                exits[name] = None
+                continue
+            a = check_array(name, v, float, ndim=1)
+            if a.shape[0] != n:
+                raise ValueError(f"{name}: expected {n} rows (one per artefact), got {a.shape[0]}")
+            if np.isinf(a).any():
+                i = int(np.argmax(np.isinf(a)))
+                raise ValueError(
+                    f"{name}: expected a finite position or NaN, got {a[i]!r} at row {i}"
+                )
+            exits[name] = a
         for name, value in (
+            ("group", group),
+            ("x_exit", exits["x_exit"]),
+            ("y_exit", exits["y_exit"]),
             ("window", (t0, t1)),
             ("area", area),
             ("t_arrive", ta),
