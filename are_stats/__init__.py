@@ -85,6 +85,9 @@ _LAZY.update(
             "lifecycle_model",
             "prior_predictive",
             "simulate_lifecycle",
+            "TrafficLaws",
+            "sample_population",
+            "simulate_traffic_log",
         ],
         "are_stats.traffic",
     )
@@ -110,6 +113,9 @@ _LAZY.update(
             "write_report",
             "fit_loo",
             "pointwise_log_likelihood",
+            "TrafficFit",
+            "fit_traffic",
+            "run_nuts",
         ],
         "are_stats.fitting",
     )
@@ -138,6 +144,7 @@ _LAZY.update(
             "posterior_draws",
             "read_scenarios",
             "scenario_counts",
+            "traffic_draws",
             "write_scenarios",
             "Boxes",
             "Scene",

@@ -74,6 +74,7 @@ from are_stats.fitting._criticism import (  # noqa: E402
 )
 from are_stats.fitting._fit_log import (  # noqa: E402
     FitSettings,
+    attach_traffic,
     choose_n_components,
     fit_log,
     fit_loo,
@@ -81,6 +82,7 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     read_fit,
     write_fit,
 )
+from are_stats.fitting._nuts import NutsRun, nuts_warnings, run_nuts  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
     PredictiveChecks,
     check_report_size,
@@ -90,8 +92,28 @@ from are_stats.fitting._report import (  # noqa: E402
     predictive_windows,
     write_report,
 )
+from are_stats.fitting._traffic import (  # noqa: E402
+    ARRIVAL_CHOICES,
+    LIFETIME_CHOICES,
+    POSITION_CHOICES,
+    TrafficFit,
+    choose_simplest,
+    fit_traffic,
+    loo_pointwise,
+)
 
 __all__ += [
+    "ARRIVAL_CHOICES",
+    "LIFETIME_CHOICES",
+    "POSITION_CHOICES",
+    "NutsRun",
+    "TrafficFit",
+    "attach_traffic",
+    "choose_simplest",
+    "fit_traffic",
+    "loo_pointwise",
+    "nuts_warnings",
+    "run_nuts",
     "ARRIVAL_MODELS",
     "LIFETIME_MODELS",
     "arrival_counts",

@@ -54,6 +54,7 @@ with warnings.catch_warnings():
 
 __all__ = [
     "FitSettings",
+    "attach_traffic",
     "fit_log",
     "choose_n_components",
     "fit_loo",
@@ -83,6 +84,11 @@ class FitSettings:
         Bootstrap replicates of the EM mixture fit.
     stationary_start : bool
         NUTS only: include the Poisson(lambda * area / mu) count present at ``t0``.
+    arrivals, lifetimes, positions : str
+        Traffic models beside the paper's (:func:`~are_stats.fitting.fit_traffic`):
+        ``"auto"`` compares the candidates by PSIS-LOO and keeps the simplest within two
+        standard errors of the best; a name fits that model. ``poisson``, ``exponential``
+        and ``uniform`` together are the paper's model alone (nothing more is fitted).
     """
 
     method: str = "nuts"
@@ -93,9 +99,21 @@ class FitSettings:
     num_chains: int = 4
     n_bootstrap: int = 200
     stationary_start: bool = True
+    arrivals: str = "auto"
+    lifetimes: str = "auto"
+    positions: str = "auto"
 
     def __post_init__(self) -> None:
+        from are_stats.fitting._traffic import (
+            ARRIVAL_CHOICES,
+            LIFETIME_CHOICES,
+            POSITION_CHOICES,
+        )
+
         check_in("method", self.method, ("nuts", "em"))
+        check_in("arrivals", self.arrivals, ARRIVAL_CHOICES)
+        check_in("lifetimes", self.lifetimes, LIFETIME_CHOICES)
+        check_in("positions", self.positions, POSITION_CHOICES)
         for name in ("k_max", "num_samples", "num_chains", "n_bootstrap"):
             if int(check_nonneg_int(name, getattr(self, name), ndim=0)) < 1:
                 raise ValueError(f"{name}: expected an integer >= 1, got {getattr(self, name)!r}")
@@ -237,6 +255,8 @@ def fit_log(
     counts_panel: tuple[np.ndarray, np.ndarray] | None = None,
     progress: Any = None,
     class_labels: Any = None,
+    grid: Any = None,
+    clock_start: str | None = None,
 ) -> az.InferenceData:
     """Fit arrival rate, leave rate and mark mixture of a life-cycle log.
 
@@ -258,6 +278,10 @@ def fit_log(
     class_labels : sequence of str, optional
         Names of the classes ``0..K-1`` of a labelled log (stored as the comma-separated
         attribute ``class_labels``; see ``LifecycleLog.to_arrays()["label_names"]``).
+    grid : OccupancyGrid, optional
+        The scene's map: the learned entry/exit densities live on its free cells.
+    clock_start : str, optional
+        ISO 8601 wall-clock time of ``t = 0`` (time-of-day models need it).
 
     Returns
     -------
@@ -265,7 +289,11 @@ def fit_log(
         Groups ``posterior`` (``arrival_rate``, ``leave_rate``, ``mix_weights``,
         ``mix_rates``), ``sample_stats``, ``log_likelihood``, ``observed_data``, ``prior``
         (and ``posterior_predictive`` / ``prior_predictive`` window counts); attributes
-        ``model``, ``method``, ``window``, ``area``, ``are_stats_version``, ``n_components``.
+        ``model``, ``method``, ``window``, ``area``, ``are_stats_version``, ``n_components``,
+        and the chosen traffic models ``arrival_model``, ``lifetime_model``,
+        ``position_model`` with their comparison tables (``loo_arrivals``, ...: CSV text);
+        the chosen models' parameters sit beside the paper's in ``posterior``, the entry
+        and exit densities in ``constant_data`` (see :func:`attach_traffic`).
     """
     if not isinstance(data, LifecycleData):
         raise ValueError(f"data: expected a LifecycleData, got {describe(data)}")
@@ -360,6 +388,82 @@ def fit_log(
             birth_death_n_obs=int(bd.n_obs),
         )
     idata.posterior.attrs.update(attrs)
+    paper_only = (settings.arrivals, settings.lifetimes, settings.positions) == (
+        "poisson",
+        "exponential",
+        "uniform",
+    )
+    if paper_only:
+        idata.posterior.attrs.update(
+            arrival_model="poisson", lifetime_model="exponential", position_model="uniform"
+        )
+    else:
+        from are_stats.fitting._traffic import fit_traffic
+
+        post = idata.posterior
+        traffic = fit_traffic(
+            jax.random.fold_in(key, 14),
+            data,
+            paper={n: np.asarray(post[n].values) for n in ("arrival_rate", "leave_rate")},
+            arrivals=settings.arrivals,
+            lifetimes=settings.lifetimes,
+            positions=settings.positions,
+            grid=grid,
+            clock_start=clock_start,
+            num_warmup=settings.num_warmup,
+            num_samples=settings.num_samples,
+            num_chains=settings.num_chains,
+            progress=say,
+        )
+        idata = attach_traffic(idata, traffic)
+    return idata
+
+
+def attach_traffic(idata: az.InferenceData, traffic: Any) -> az.InferenceData:
+    """Store a :class:`~are_stats.fitting.TrafficFit` in a fit.
+
+    ``posterior`` gains the chosen models' variables (``event_rate``, ``arrival_phi``,
+    ``arrival_tod`` over ``period``, ``group_size_probs`` over ``group_size``,
+    ``stay_mean``, ``stay_shape``) and the attributes ``arrival_model``,
+    ``lifetime_model``, ``position_model``, the generator's settings (``traffic_*``) and
+    the comparison tables ``loo_arrivals``, ``loo_lifetimes``, ``loo_positions`` (CSV
+    text) and ``traffic_warnings``; ``constant_data`` gains ``entry_density`` and
+    ``exit_density`` over ``(pos_y, pos_x)`` with their ``position_resolution`` and
+    ``position_origin``.
+    """
+    import xarray as xr
+
+    post = idata.posterior
+    for name, v in traffic.posterior.items():
+        dims = ("chain", "draw", *traffic.dims.get(name, []))
+        post[name] = xr.DataArray(np.asarray(v, dtype=np.float64), dims=dims)
+    a = post.attrs
+    a["arrival_model"] = traffic.arrival_model
+    a["lifetime_model"] = traffic.lifetime_model
+    a["position_model"] = traffic.position_model
+    for k, v in traffic.attrs.items():
+        a[f"traffic_{k}"] = v
+    for k, table in traffic.tables.items():
+        a[f"loo_{k}"] = table.to_csv(float_format="%.6g")
+    a["traffic_warnings"] = "\n".join(traffic.warnings)
+    dens = {}
+    for name, d in (("entry_density", traffic.entry), ("exit_density", traffic.exit)):
+        if d is not None:
+            dens[name] = xr.DataArray(np.asarray(d.prob, np.float64), dims=("pos_y", "pos_x"))
+    if dens:
+        ref = traffic.entry if traffic.entry is not None else traffic.exit
+        ds = xr.Dataset(dens)
+        ds.attrs.update(
+            position_resolution=float(ref.resolution),
+            position_origin=np.asarray(ref.origin, np.float64),
+            position_bandwidth=float(traffic.entry.bandwidth) if traffic.entry else 0.0,
+        )
+        if "constant_data" in idata.groups():
+            merged = idata.constant_data.merge(ds)
+            merged.attrs.update(idata.constant_data.attrs | ds.attrs)
+            idata.constant_data = merged
+        else:
+            idata.add_groups({"constant_data": ds})
     return idata
 
 
@@ -525,6 +629,7 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
                 source, "posterior.attrs.class_labels",
                 f"{k} comma-separated names (one per mixture component)", labels,
             )  # fmt: skip
+    _check_traffic(idata, source)
     obs = idata.observed_data
     cols = {
         name: _var(obs, name, source, "observed_data", ("artefact",))
@@ -568,6 +673,91 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         )
     except ValueError as err:
         raise InputError(source, "observed_data", f"a valid life-cycle log ({err})") from None
+
+
+def _check_traffic(idata: az.InferenceData, source: str) -> None:
+    """The chosen traffic models of a fit and the variables they need (when recorded)."""
+    from are_stats.inputs import Described, InputError, get_str
+    from are_stats.traffic import ARRIVAL_SPECS, STAY_LAWS, ArrivalSpec
+
+    post = idata.posterior
+    attrs = post.attrs
+    arr = get_str(attrs.get("arrival_model", "poisson"), source, "posterior.attrs.arrival_model",
+                  choices=ARRIVAL_SPECS)  # fmt: skip
+    life = get_str(attrs.get("lifetime_model", "exponential"), source,
+                   "posterior.attrs.lifetime_model", choices=STAY_LAWS)  # fmt: skip
+    pos = get_str(attrs.get("position_model", "uniform"), source,
+                  "posterior.attrs.position_model", choices=("uniform", "learned"))  # fmt: skip
+    spec = ArrivalSpec.from_name(arr)
+    need: dict[str, tuple[str, ...]] = {}
+    if arr != "poisson":
+        need["event_rate"] = ("chain", "draw")
+    if spec.negbin:
+        need["arrival_phi"] = ("chain", "draw")
+    if spec.tod:
+        need["arrival_tod"] = ("chain", "draw", "period")
+    if spec.groups:
+        need["group_size_probs"] = ("chain", "draw", "group_size")
+    if life != "exponential":
+        need["stay_mean"] = ("chain", "draw")
+        need["stay_shape"] = ("chain", "draw")
+    for name, dims in need.items():
+        v = _var(post, name, source, "posterior", dims)
+        _check_real(v, source, f"posterior.{name}", lo=0.0, lo_open=name != "group_size_probs")
+    if spec.groups:
+        v = np.asarray(post["group_size_probs"].values)
+        sums = v.sum(axis=-1)
+        if v.shape[-1] < 1 or np.any(np.abs(sums - 1.0) > 1e-6):
+            raise InputError(source, "posterior.group_size_probs", "probabilities summing to 1",
+                             Described(f"sums from {sums.min()!r} to {sums.max()!r}"))  # fmt: skip
+    if spec.negbin:
+        get_float_attr(attrs, "traffic_arrival_bin_width", source)
+    if spec.tod:
+        from are_stats.traffic import clock_offset
+
+        try:
+            clock_offset(str(attrs.get("traffic_clock_start", "")))
+        except ValueError as err:
+            raise InputError(
+                source,
+                "posterior.attrs.traffic_clock_start",
+                "an ISO 8601 time (the log's clock)",
+                Described(str(err)),
+            ) from None
+    if pos == "learned":
+        if "constant_data" not in idata.groups() or "entry_density" not in idata.constant_data:
+            raise InputError(source, "constant_data.entry_density",
+                             "the learned entry density (position_model is 'learned')",
+                             Described("none"))  # fmt: skip
+    if "constant_data" in idata.groups():
+        cd = idata.constant_data
+        for name in ("entry_density", "exit_density"):
+            if name in cd:
+                v = _var(cd, name, source, "constant_data", ("pos_y", "pos_x"))
+                _check_real(v, source, f"constant_data.{name}", lo=0.0, lo_open=False)
+                if not abs(float(v.sum()) - 1.0) < 1e-6:
+                    raise InputError(source, f"constant_data.{name}", "cell masses summing to 1",
+                                     Described(f"a sum of {float(v.sum())!r}"))  # fmt: skip
+        if "entry_density" in cd or "exit_density" in cd:
+            get_float_attr(cd.attrs, "position_resolution", source, "constant_data")
+            o = np.asarray(cd.attrs.get("position_origin", [np.nan])).ravel()
+            if o.size != 2 or not np.isfinite(o).all():
+                where = "constant_data.attrs.position_origin"
+                raise InputError(
+                    source, where, "two finite numbers (x, y)", Described(repr(o.tolist()))
+                )
+
+
+def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:
+    """A finite attribute > 0 of a fit group, named in the error when missing or bad."""
+    from are_stats.inputs import Described, InputError, get_float
+
+    if name not in attrs:
+        raise InputError(source, f"{group}.attrs.{name}", "this attribute",
+                         Described(f"attributes {sorted(attrs)}"))  # fmt: skip
+    v = attrs[name]
+    v = v.item() if isinstance(v, np.ndarray) and v.size == 1 else v
+    return get_float(v, source, f"{group}.attrs.{name}", lo=0.0, lo_open=True)
 
 
 def read_fit(path: str | Any) -> az.InferenceData:

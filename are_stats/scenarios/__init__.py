@@ -4,6 +4,7 @@ the Scene that turns one scenario into boxes over time."""
 from are_stats.scenarios._generate import (
     PARAMETER_NAMES,
     SCENARIO_COLUMNS,
+    TRAFFIC_NAMES,
     atomic_folder,
     check_folder,
     expected_artefacts,
@@ -11,6 +12,7 @@ from are_stats.scenarios._generate import (
     posterior_draws,
     read_scenarios,
     scenario_counts,
+    traffic_draws,
     write_scenarios,
 )
 from are_stats.scenarios._scene import Boxes, Scene
@@ -20,6 +22,7 @@ __all__ = [
     "Scene",
     "PARAMETER_NAMES",
     "SCENARIO_COLUMNS",
+    "TRAFFIC_NAMES",
     "atomic_folder",
     "check_folder",
     "expected_artefacts",
@@ -27,5 +30,6 @@ __all__ = [
     "posterior_draws",
     "read_scenarios",
     "scenario_counts",
+    "traffic_draws",
     "write_scenarios",
 ]

@@ -38,6 +38,7 @@ from are_stats.inputs import check_memory, check_work, get_float, get_int
 
 __all__ = [
     "PARAMETER_NAMES",
+    "TRAFFIC_NAMES",
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
@@ -46,6 +47,7 @@ __all__ = [
     "posterior_draws",
     "read_scenarios",
     "scenario_counts",
+    "traffic_draws",
     "write_scenarios",
 ]
 
@@ -65,6 +67,8 @@ SCENARIO_COLUMNS: dict[str, str] = {
     "yaw": "float64, arrival heading in [0, 2 pi) (rad)",
     "truncated": "bool, present at time 0 (initial population)",
     "censored": "bool, t_leave > horizon (still present at the end)",
+    "group": "int32, group within the scenario (members arrived together; a lone artefact "
+    "has a group of its own)",
 }
 
 
@@ -194,6 +198,7 @@ def generate_scenarios(
     start: str = "stationary",
     draw: str = "cycle",
     headings: int = 4,
+    laws: Any = None,
 ) -> pd.DataFrame:
     """Draw ``n_scenarios`` artefact populations on ``[0, horizon]`` from posterior draws.
 
@@ -228,6 +233,11 @@ def generate_scenarios(
     headings : int
         4: yaw uniform over ``{0, pi/2, pi, 3pi/2}`` (plus the map's yaw); 0: uniform on
         ``[0, 2 pi)``.
+    laws : are_stats.traffic.TrafficLaws, optional
+        The arrival, stay and position laws (:func:`traffic_draws` reads them from a fit).
+        None or the paper's laws: the vectorised paper sampler; otherwise each scenario is
+        drawn by :func:`are_stats.traffic.sample_population` and ``params`` must also hold
+        the laws' draws (``event_rate``, ``stay_mean``, ...).
 
     Returns
     -------
@@ -275,19 +285,18 @@ def generate_scenarios(
     rng = np.random.Generator(np.random.PCG64(seq))
     s = p["arrival_rate"].shape[0]
     d = np.arange(n_sc) % s if draw == "cycle" else rng.integers(0, s, size=n_sc)
-    lam_nu = p["arrival_rate"][d] * nu
-    mu = p["leave_rate"][d]
-    n0 = rng.poisson(lam_nu / mu) if start == "stationary" else np.zeros(n_sc, np.int64)
-    n_arr = rng.poisson(lam_nu * h)
-    per = n0 + n_arr
-    total = int(per.sum())
-    scen = np.repeat(np.arange(n_sc, dtype=np.int32), per)
-    first = np.cumsum(per) - per
-    j = np.arange(total, dtype=np.int64) - np.repeat(first, per)
-    initial = j < np.repeat(n0, per)
-    t_arr = np.zeros(total)
-    t_arr[~initial] = _sorted_uniforms(rng, n_arr) * h
-    t_leave = t_arr + rng.standard_exponential(total) / mu[scen]
+    rich = laws is not None and not laws.is_paper
+    if rich:
+        scen, j, t_arr, t_leave, initial, group, xy_map = _rich_populations(
+            rng, params, laws, d, h, nu, start,
+            (mask, res, (ox, oy, oyaw)) if free_mask is not None else None,
+            (ox, oy, oyaw),
+        )  # fmt: skip
+        total = scen.size
+    else:
+        scen, j, t_arr, t_leave, initial, total = _paper_populations(rng, p, d, h, nu, start)
+        group = j.copy()
+        xy_map = None
     if "mix_weights" in p:
         w = p["mix_weights"][d]
         cw = np.cumsum(w, axis=1)
@@ -300,17 +309,20 @@ def generate_scenarios(
     else:
         cls = np.full(total, -1, dtype=np.int32)
         mark = np.full(total, -1, dtype=np.int64)
-    if free_mask is not None:
-        cell = rng.integers(0, iy_free.size, size=total)
-        u_loc = ix_free[cell] + rng.random(total)
-        v_loc = iy_free[cell] + rng.random(total)
-        q_u, q_v = u_loc * res, v_loc * res
+    if xy_map is not None:
+        x, y = xy_map
     else:
-        side = math.sqrt(nu)
-        q_u, q_v = rng.random(total) * side, rng.random(total) * side
-    c, sn = math.cos(oyaw), math.sin(oyaw)
-    x = ox + c * q_u - sn * q_v
-    y = oy + sn * q_u + c * q_v
+        if free_mask is not None:
+            cell = rng.integers(0, iy_free.size, size=total)
+            u_loc = ix_free[cell] + rng.random(total)
+            v_loc = iy_free[cell] + rng.random(total)
+            q_u, q_v = u_loc * res, v_loc * res
+        else:
+            side = math.sqrt(nu)
+            q_u, q_v = rng.random(total) * side, rng.random(total) * side
+        c, sn = math.cos(oyaw), math.sin(oyaw)
+        x = ox + c * q_u - sn * q_v
+        y = oy + sn * q_u + c * q_v
     if headings == 4:
         yaw = np.mod(rng.integers(0, 4, size=total) * (np.pi / 2) + oyaw, 2 * np.pi)
     else:
@@ -328,6 +340,7 @@ def generate_scenarios(
             "yaw": yaw,
             "truncated": initial,
             "censored": t_leave > h,
+            "group": group.astype(np.int32),
         }
     )
     df.attrs["draws"] = d.tolist()
@@ -349,8 +362,90 @@ def generate_scenarios(
         },
         "n_draws": s,
         "parameters": _summary(p),
+        "laws": None if laws is None else _laws_record(laws),
     }
     return df
+
+
+def _laws_record(laws: Any) -> dict[str, Any]:
+    """The laws of a generation, for the manifest."""
+    return {
+        "arrivals": laws.arrivals,
+        "lifetimes": laws.lifetimes,
+        "positions": laws.positions,
+        "bin_width": laws.bin_width,
+        "clock_offset": laws.clock_offset,
+        "group_stay_sd": laws.group_stay_sd,
+        "group_spread": laws.group_spread,
+    }
+
+
+def _paper_populations(
+    rng: np.random.Generator, p: Mapping[str, np.ndarray], d: np.ndarray, h: float, nu: float,
+    start: str,
+) -> tuple:  # fmt: skip
+    """The paper's model for all scenarios at once (vectorised: no loop per scenario)."""
+    n_sc = d.size
+    lam_nu = p["arrival_rate"][d] * nu
+    mu = p["leave_rate"][d]
+    n0 = rng.poisson(lam_nu / mu) if start == "stationary" else np.zeros(n_sc, np.int64)
+    n_arr = rng.poisson(lam_nu * h)
+    per = n0 + n_arr
+    total = int(per.sum())
+    scen = np.repeat(np.arange(n_sc, dtype=np.int32), per)
+    first = np.cumsum(per) - per
+    j = np.arange(total, dtype=np.int64) - np.repeat(first, per)
+    initial = j < np.repeat(n0, per)
+    t_arr = np.zeros(total)
+    t_arr[~initial] = _sorted_uniforms(rng, n_arr) * h
+    t_leave = t_arr + rng.standard_exponential(total) / mu[scen]
+    return scen, j, t_arr, t_leave, initial, total
+
+
+def _rich_populations(
+    rng: np.random.Generator, params: Mapping[str, Any], laws: Any, d: np.ndarray, h: float,
+    nu: float, start: str, grid: tuple | None, origin: tuple[float, float, float],
+) -> tuple:  # fmt: skip
+    """Each scenario by :func:`are_stats.traffic.sample_population` (positions in the map)."""
+    from are_stats.traffic import sample_population, uniform_position_density
+
+    ox, oy, oyaw = origin
+    rotated = abs(oyaw) > 1e-12
+    if laws.positions == "learned" and rotated:
+        raise ValueError(f"map: expected an origin yaw of 0 for learned positions, got {oyaw}")
+    if grid is not None:
+        mask, res, _ = grid
+        free = uniform_position_density(mask, res, (0.0, 0.0) if rotated else (ox, oy))
+    else:
+        side = math.sqrt(nu)
+        free = uniform_position_density(np.ones((1, 1), bool), side, (ox, oy))
+    flat = {k: np.asarray(v) for k, v in params.items()}
+    if "event_rate" not in flat:
+        flat["event_rate"] = np.atleast_1d(flat["arrival_rate"])
+    if "stay_mean" not in flat:
+        flat["stay_mean"] = 1.0 / np.atleast_1d(flat["leave_rate"])
+    cols: dict[str, list] = {k: [] for k in ("scen", "j", "ta", "tl", "tr", "g", "x", "y")}
+    for i, di in enumerate(d.tolist()):
+        one = {k: v[di] if v.ndim >= 1 and v.shape[0] > di else v for k, v in flat.items()}
+        pop = sample_population(rng, one, laws, h, nu, start=start, free=free)
+        n = pop["t_arrive"].size
+        cols["scen"].append(np.full(n, i, np.int32))
+        cols["j"].append(np.arange(n, dtype=np.int64))
+        cols["ta"].append(pop["t_arrive"])
+        cols["tl"].append(pop["t_leave"])
+        cols["tr"].append(pop["truncated"])
+        cols["g"].append(pop["group"])
+        cols["x"].append(pop["x"])
+        cols["y"].append(pop["y"])
+    cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in cols.items()}
+    x, y = cat["x"], cat["y"]
+    if rotated:
+        c, sn = math.cos(oyaw), math.sin(oyaw)
+        x, y = ox + c * cat["x"] - sn * cat["y"], oy + sn * cat["x"] + c * cat["y"]
+    return (
+        cat["scen"].astype(np.int32), cat["j"].astype(np.int64), cat["ta"].astype(float),
+        cat["tl"].astype(float), cat["tr"].astype(bool), cat["g"].astype(np.int64), (x, y),
+    )  # fmt: skip
 
 
 #: Bytes per generated artefact while drawing a table (its 11 columns and the temporaries).
@@ -463,6 +558,75 @@ def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dic
                 f"posterior: expected a variable {name!r}, got {sorted(post.data_vars)}"
             )
     return out
+
+
+#: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
+TRAFFIC_NAMES = (
+    "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
+)  # fmt: skip
+
+
+def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarray], Any]:
+    """Posterior draws and laws to generate from: the fit's chosen models or the paper's.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+        A fit (:func:`are_stats.fitting.read_fit`).
+    model : {"chosen", "paper"}
+        ``chosen``: the arrival, stay and position models recorded by ``are-stats fit``
+        (attributes ``arrival_model``, ``lifetime_model``, ``position_model``); ``paper``:
+        Poisson arrivals, exponential stays, uniform positions.
+
+    Returns
+    -------
+    draws : dict of str to (S, ...) ndarray
+        :data:`PARAMETER_NAMES` and, for chosen models, :data:`TRAFFIC_NAMES` present.
+    laws : are_stats.traffic.TrafficLaws
+    """
+    from are_stats.traffic import PositionDensity, TrafficLaws, clock_offset
+
+    check_in("model", model, ("chosen", "paper"))
+    draws = posterior_draws(idata)
+    if model == "paper":
+        return draws, TrafficLaws()
+    post = idata.posterior
+    a = post.attrs
+    arrivals = str(a.get("arrival_model", "poisson"))
+    lifetimes = str(a.get("lifetime_model", "exponential"))
+    positions = str(a.get("position_model", "uniform"))
+    for name in TRAFFIC_NAMES:
+        if name in post:
+            v = np.asarray(post[name].values)
+            draws[name] = v.reshape(-1, *v.shape[2:])
+    entry = None
+    if positions == "learned":
+        cd = idata.constant_data
+        o = np.asarray(cd.attrs["position_origin"], float).ravel()
+        entry = PositionDensity(
+            np.asarray(cd["entry_density"].values, float),
+            float(np.asarray(cd.attrs["position_resolution"]).ravel()[0]),
+            (float(o[0]), float(o[1])),
+            float(np.asarray(cd.attrs.get("position_bandwidth", 0.0)).ravel()[0]),
+            float("nan"),
+        )
+    clock = a.get("traffic_clock_start")
+
+    def num(name: str, default: float) -> float:
+        v = a.get(name, default)
+        return float(np.asarray(v).ravel()[0])
+
+    laws = TrafficLaws(
+        arrivals=arrivals,
+        lifetimes=lifetimes,
+        positions=positions,
+        bin_width=num("traffic_arrival_bin_width", 0.0) or None,
+        clock_offset=None if clock is None else clock_offset(str(clock)),
+        group_stay_sd=num("traffic_group_stay_sd", 0.0),
+        group_spread=num("traffic_group_spread", 0.0),
+        entry=entry,
+    )
+    return draws, laws
 
 
 def scenario_counts(df: pd.DataFrame, times: Any, n_scenarios: int | None = None) -> np.ndarray:
@@ -654,6 +818,9 @@ def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, 
         table = pq.read_table(path)
     except (pa.ArrowException, OSError) as err:
         raise InputError(path, "", "a Parquet scenarios table", Described(str(err))) from None
+    if "group" not in table.column_names and "artefact" in table.column_names:
+        # folders written before groups: every artefact alone
+        table = table.append_column("group", table.column("artefact"))
     missing = [c for c in SCENARIO_COLUMNS if c not in table.column_names]
     if missing:
         raise InputError(
@@ -678,7 +845,9 @@ def _check_columns(df: pd.DataFrame, path: Path, n_scenarios: Any) -> None:
     n_sc = (
         n_scenarios if isinstance(n_scenarios, int) and not isinstance(n_scenarios, bool) else None
     )
-    for column, lo in (("scenario", 0), ("artefact", 0), ("class", -1), ("mark", -1)):
+    for column, lo in (
+        ("scenario", 0), ("artefact", 0), ("class", -1), ("mark", -1), ("group", 0),
+    ):  # fmt: skip
         a = df[column].to_numpy()
         if a.dtype.kind not in "iu":
             raise InputError(path, f"column {column!r}", "integers", Described(f"dtype {a.dtype}"))

@@ -131,3 +131,40 @@ __all__ += [
     "fit_position_density",
     "uniform_position_density",
 ]
+
+# --- richer traffic models (numpyro, data-scaled) and the one sampler ---
+from are_stats.traffic._models import (  # noqa: E402
+    ARRIVAL_SPECS,
+    ArrivalSpec,
+    ArrivalUnits,
+    StayUnits,
+    arrival_model,
+    arrival_unit_loglik,
+    arrival_units,
+    stay_model,
+    stay_unit_loglik,
+    stay_units,
+)
+from are_stats.traffic._sampler import (  # noqa: E402
+    TrafficLaws,
+    sample_population,
+    simulate_traffic_log,
+)
+from are_stats.traffic._stays import stay_draws  # noqa: E402
+
+__all__ += [
+    "ARRIVAL_SPECS",
+    "ArrivalSpec",
+    "ArrivalUnits",
+    "StayUnits",
+    "TrafficLaws",
+    "arrival_model",
+    "arrival_unit_loglik",
+    "arrival_units",
+    "sample_population",
+    "simulate_traffic_log",
+    "stay_draws",
+    "stay_model",
+    "stay_unit_loglik",
+    "stay_units",
+]

@@ -56,6 +56,10 @@ class PositionDensity(NamedTuple):
         Kernel bandwidth (m); 0 for the uniform density.
     alpha : float
         Dirichlet prior mass (inf for the uniform density).
+    loo_logpdf : (n,) float or None
+        Leave-one-out log density (per m^2) of each point the density was learned from
+        (None for the uniform density): the pointwise units of the PSIS-LOO comparison
+        with the uniform density.
     """
 
     prob: np.ndarray
@@ -63,6 +67,7 @@ class PositionDensity(NamedTuple):
     origin: tuple[float, float]
     bandwidth: float
     alpha: float
+    loo_logpdf: np.ndarray | None = None
 
     def cell_of(self, xy: Any) -> tuple[np.ndarray, np.ndarray]:
         """Row and column of points ``xy (n, 2)``; ``-1`` off the map."""
@@ -189,11 +194,13 @@ def fit_position_density(
             loo = (a / n_free + smooth[row, col] - own) / (a + n - 1)
             score = float(np.sum(np.log(np.maximum(loo, 1e-300))))
             if best is None or score > best[0]:
-                best = (score, float(bw), float(a), smooth)
+                best = (score, float(bw), float(a), smooth, loo)
     assert best is not None
-    _, bw, a, smooth = best
+    _, bw, a, smooth, loo = best
     prob = np.where(free, (a / n_free + smooth) / (a + n), 0.0)
-    return PositionDensity(prob / prob.sum(), res, uni.origin, bw, a)
+    with np.errstate(divide="ignore"):
+        loo_logpdf = np.log(np.maximum(loo, 1e-300)) - 2.0 * np.log(res)
+    return PositionDensity(prob / prob.sum(), res, uni.origin, bw, a, loo_logpdf)
 
 
 def boundary_distance(xy: Any, free_mask: Any, resolution: float, origin: Any) -> np.ndarray:

@@ -47,6 +47,7 @@ from are_stats._checks import check_in
 __all__ = [
     "STAY_LAWS",
     "stay_cv",
+    "stay_draws",
     "stay_log_excess",
     "stay_logcdf",
     "stay_loglik",
@@ -321,3 +322,59 @@ def stay_shape_from_cv(law: str, cv: Any) -> Any:
 
     flat = [brentq(lambda k, v=v: float(stay_cv("weibull", k)) - v, 0.05, 200.0) for v in c.ravel()]
     return np.reshape(flat, c.shape)
+
+
+def stay_draws(
+    rng: np.random.Generator,
+    law: str,
+    mean: Any,
+    shape: Any = 1.0,
+    size: Any = (),
+    residual: bool = False,
+) -> np.ndarray:
+    """NumPy twin of :func:`stay_sample` / :func:`stay_sample_residual` (same laws).
+
+    The scenario sampler draws populations of every size one after another; NumPy draws
+    them without compiling a program per size.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    law : {"exponential", "gamma", "weibull", "lognormal"}
+    mean, shape : float or array
+        Broadcast against ``size``.
+    size : tuple of int
+    residual : bool
+        Draw the equilibrium residual stay (of artefacts present at a fixed time of a
+        stationary process) instead of a whole stay.
+
+    Returns
+    -------
+    size float64
+    """
+    law = _law(law)
+    size = (int(size),) if isinstance(size, int | np.integer) else tuple(size)
+    size = tuple(np.broadcast_shapes(size, np.shape(mean), np.shape(shape)))
+    m = np.broadcast_to(np.asarray(mean, float), size)
+    k = np.broadcast_to(np.asarray(shape, float), size)
+    if law == "exponential":
+        t = rng.gamma(2.0, 1.0, size) * m if residual else rng.exponential(1.0, size) * m
+    elif law == "gamma":
+        t = rng.gamma(k + 1.0 if residual else k, 1.0, size) * (m / k)
+    elif law == "weibull":
+        scale = m / np.exp(_gammaln_np(1.0 + 1.0 / k))
+        y = rng.gamma(1.0 + 1.0 / k, 1.0, size) if residual else rng.exponential(1.0, size)
+        t = scale * y ** (1.0 / k)
+    else:
+        mu = np.log(m) - 0.5 * k * k
+        t = np.exp(mu + (k * k if residual else 0.0) + k * rng.standard_normal(size))
+    if residual:
+        t = t * rng.random(size)
+    return np.asarray(t, float)
+
+
+def _gammaln_np(x: Any) -> np.ndarray:
+    """``log Gamma(x)`` in NumPy (scipy)."""
+    from scipy.special import gammaln as sgammaln
+
+    return sgammaln(x)

@@ -1,0 +1,578 @@
+"""Fit and choose the traffic models the data support (``are-stats fit --arrivals ...``).
+
+Beside the paper's model (homogeneous Poisson arrivals, exponential stays, uniform
+positions: its posterior is the fit's ``arrival_rate`` / ``leave_rate``), the toolkit fits
+
+* arrival models (:data:`are_stats.traffic.ARRIVAL_SPECS`) on the log's quantised arrivals;
+* stay laws (:data:`are_stats.traffic.STAY_LAWS`) through the observation window;
+* the entry (and exit) density over the map's free cells (uniform or learned),
+
+each by the one NUTS driver (:func:`~are_stats.fitting.run_nuts`; the Poisson and
+exponential candidates reuse the paper's posterior draws, and the learned density is a
+closed-form Dirichlet posterior mean), and compares the candidates of each factor by
+PSIS-LOO over the same pointwise units (time bins, artefacts, entry points).
+
+**The choice.** Candidates are ordered from simple to complex. The candidate with the
+highest ``elpd`` is the best; the chosen one is the *simplest* candidate whose ``elpd`` is
+within two standard errors of the difference from the best (a richer model must earn its
+place). The table reports every candidate with ``elpd``, its standard error, the
+difference from the best and its standard error, ``p_loo``, Pareto-k counts and the
+sampler's divergences and ``r_hat``; it presents no stacking weights (they are not model
+probabilities).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import numpy as np
+import pandas as pd
+
+from are_stats._checks import check_in
+from are_stats.fitting._nuts import NutsRun, nuts_warnings, run_nuts
+from are_stats.traffic import DAY, LifecycleData, clock_offset
+from are_stats.traffic._models import (
+    ARRIVAL_SPECS,
+    ArrivalSpec,
+    arrival_model,
+    arrival_unit_loglik,
+    arrival_units,
+    stay_model,
+    stay_unit_loglik,
+    stay_units,
+)
+from are_stats.traffic._positions import (
+    PositionDensity,
+    fit_position_density,
+    uniform_position_density,
+)
+from are_stats.traffic._stays import STAY_LAWS
+
+__all__ = [
+    "ARRIVAL_CHOICES",
+    "LIFETIME_CHOICES",
+    "POSITION_CHOICES",
+    "TrafficFit",
+    "choose_simplest",
+    "fit_traffic",
+    "loo_pointwise",
+    "time_resolution",
+]
+
+#: ``--arrivals`` choices (``auto`` compares the candidates the log supports).
+ARRIVAL_CHOICES = ("auto", *ARRIVAL_SPECS)
+#: ``--lifetimes`` choices.
+LIFETIME_CHOICES = ("auto", *STAY_LAWS)
+#: ``--positions`` choices.
+POSITION_CHOICES = ("auto", "uniform", "learned")
+
+#: Cell side (m) of the grid the entry/exit densities live on (the map is coarsened to it).
+POSITION_CELL = 0.5
+
+
+@dataclass
+class TrafficFit:
+    """The chosen traffic models of a log and what led to them.
+
+    Attributes
+    ----------
+    arrival_model, lifetime_model, position_model : str
+        The chosen models.
+    tables : dict of str to pandas.DataFrame
+        ``arrivals``, ``lifetimes``, ``positions``: one row per candidate (see the module
+        docstring), the chosen one flagged.
+    posterior : dict of str to (chains, draws, ...) ndarray
+        Posterior draws of the chosen models' parameters that the paper's posterior does
+        not hold (``event_rate``, ``arrival_phi``, ``arrival_tod``, ``group_size_probs``,
+        ``stay_mean``, ``stay_shape``).
+    dims : dict of str to list of str
+        Extra dimensions of those variables.
+    attrs : dict
+        Settings the generator needs (``arrival_bin_width``, ``time_resolution``,
+        ``clock_start``, ``group_stay_sd``, ``group_spread``, ...).
+    entry, exit : PositionDensity or None
+        The chosen entry density and the exit density (learned when there are exits and
+        ``position_model == "learned"``).
+    warnings : list of str
+        Sampler diagnostics and choices worth a word.
+    """
+
+    arrival_model: str
+    lifetime_model: str
+    position_model: str
+    tables: dict = field(default_factory=dict)
+    posterior: dict = field(default_factory=dict)
+    dims: dict = field(default_factory=dict)
+    attrs: dict = field(default_factory=dict)
+    entry: PositionDensity | None = None
+    exit: PositionDensity | None = None
+    warnings: list = field(default_factory=list)
+
+
+def time_resolution(*times: Any) -> float:
+    """Smallest positive gap between distinct recorded times (NaN ignored); 0 if none."""
+    allt = np.concatenate([np.asarray(t, float).ravel() for t in times] or [np.zeros(0)])
+    u = np.unique(allt[np.isfinite(allt)])
+    if u.size < 2:
+        return 0.0
+    d = np.diff(u)
+    # gaps from float rounding of one time (1e-12 s) are not a resolution
+    scale = max(float(np.max(np.abs(u))), 1.0)
+    d = d[d > 1e-9 * scale]
+    return float(d.min()) if d.size else 0.0
+
+
+def loo_pointwise(loglik: np.ndarray, reff: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """PSIS-LOO pointwise ``elpd_i`` and Pareto ``k_i`` of a ``(chains, draws, n)`` log-lik."""
+    import arviz as az
+    from scipy.special import logsumexp
+
+    c, d, n = loglik.shape
+    flat = loglik.reshape(c * d, n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        log_w, k = az.psislw(-flat.T, reff)
+    elpd = logsumexp(np.asarray(log_w) + flat.T, axis=1)
+    return np.asarray(elpd, float), np.atleast_1d(np.asarray(k, float))
+
+
+def _reff(run: NutsRun | None) -> float:
+    """Relative efficiency for PSIS (mean bulk ESS of the latent scalars over the draws)."""
+    if run is None:
+        return 1.0
+    from numpyro.diagnostics import effective_sample_size
+
+    c, d = run.diverging.shape
+    if c < 2:
+        return 1.0
+    vals = []
+    for name, v in run.samples.items():
+        if name.endswith("_z") or name.endswith("_eta") or v.ndim == 2:
+            flat = v.reshape(c, d, -1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ess = np.asarray(effective_sample_size(flat))
+            vals.extend(ess[np.isfinite(ess)].tolist())
+    return float(np.clip(np.mean(vals) / (c * d), 0.05, 1.0)) if vals else 1.0
+
+
+def choose_simplest(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str, pd.DataFrame]:
+    """The simplest candidate within two standard errors of the best (see the module doc).
+
+    Parameters
+    ----------
+    elpd : dict of str to (n,) float
+        Pointwise ``elpd_i`` of each candidate over the same units.
+    order : list of str
+        Candidates from simplest to most complex.
+
+    Returns
+    -------
+    chosen : str
+    table : pandas.DataFrame
+        Indexed by candidate: ``elpd``, ``se``, ``elpd_diff`` (best minus this), ``dse``.
+    """
+    names = [n for n in order if n in elpd]
+    tot = {n: float(np.sum(elpd[n])) for n in names}
+    best = max(names, key=lambda n: tot[n])
+    rows = []
+    chosen = None
+    for n in names:
+        e = elpd[n]
+        diff = elpd[best] - e
+        dse = float(np.sqrt(e.size * np.var(diff))) if e.size > 1 else 0.0
+        se = float(np.sqrt(e.size * np.var(e))) if e.size > 1 else 0.0
+        rows.append((n, tot[n], se, tot[best] - tot[n], dse))
+        if chosen is None and tot[best] - tot[n] <= 2.0 * dse:
+            chosen = n
+    table = pd.DataFrame(rows, columns=["model", "elpd", "se", "elpd_diff", "dse"])
+    table = table.set_index("model")
+    table["chosen"] = table.index == chosen
+    return str(chosen), table
+
+
+def _pareto_cols(table: pd.DataFrame, ks: dict[str, np.ndarray]) -> None:
+    table["k>0.7"] = [int(np.sum(ks[n] > 0.7)) if n in ks else 0 for n in table.index]
+    table["k_max"] = [
+        float(np.max(ks[n])) if n in ks and ks[n].size else np.nan for n in table.index
+    ]
+
+
+def _diag_cols(table: pd.DataFrame, runs: dict[str, NutsRun | None]) -> None:
+    table["divergent"] = [
+        runs[n].n_divergent if runs.get(n) is not None else 0 for n in table.index
+    ]
+    table["r_hat"] = [runs[n].max_r_hat if runs.get(n) is not None else np.nan for n in table.index]
+
+
+def _arrival_pointwise(units: Any, spec: ArrivalSpec, log_area: float) -> Any:
+    """``draw -> (B,)`` pointwise arrival log-likelihood for one draw."""
+
+    def f(p: dict) -> Any:
+        return arrival_unit_loglik({**p, "log_area": log_area}, units, spec)
+
+    return f
+
+
+def _bin_width(data: LifecycleData) -> float:
+    """Pointwise units of the arrivals: bins about a median stay long, 10 to 500 per window."""
+    t0, t1 = data.window
+    dur = t1 - t0
+    seen = ~data.truncated & ~data.censored
+    stays = (data.t_leave - data.t_arrive)[seen]
+    stays = stays[stays > 0]
+    w = float(np.median(stays)) if stays.size else dur / 48.0
+    return float(np.clip(w, dur / 500.0, dur / 10.0))
+
+
+def _group_stats(data: LifecycleData) -> dict[str, float]:
+    """Spread of members' stays (sd of log stay) and entry points (m) around their group's."""
+    out = {"group_stay_sd": 0.0, "group_spread": 0.0}
+    if data.group is None:
+        return out
+    g = np.asarray(data.group)
+    seen = ~data.truncated & ~data.censored
+    stay = np.where(seen, data.t_leave - data.t_arrive, np.nan)
+    # pooled within-group variances (each group of n members gives n - 1 degrees of freedom)
+    ss_stay = df_stay = ss_xy = df_xy = 0.0
+    for gid in np.unique(g):
+        idx = np.flatnonzero(g == gid)
+        if idx.size < 2:
+            continue
+        s = stay[idx]
+        s = s[np.isfinite(s) & (s > 0)]
+        if s.size >= 2:
+            ls = np.log(s)
+            ss_stay += float(np.sum((ls - ls.mean()) ** 2))
+            df_stay += s.size - 1
+        if data.x is not None and data.y is not None:
+            xy = np.column_stack([data.x[idx], data.y[idx]])
+            ss_xy += float(np.sum((xy - xy.mean(axis=0)) ** 2))
+            df_xy += 2 * (idx.size - 1)
+    if df_stay:
+        out["group_stay_sd"] = float(np.sqrt(ss_stay / df_stay))
+    if df_xy:
+        out["group_spread"] = float(np.sqrt(ss_xy / df_xy))
+    return out
+
+
+def _arrival_candidates(
+    arrivals: str, max_tick: int, clock: float | None, duration: float
+) -> tuple[list[str], list[str]]:
+    """Candidates to fit, and notes on those not offered."""
+    notes = []
+    if arrivals != "auto":
+        spec = ArrivalSpec.from_name(arrivals)
+        if spec.tod and clock is None:
+            raise ValueError(
+                f"--arrivals {arrivals}: expected the log's clock (manifest key clock_start "
+                "or --clock-start: the wall-clock time of t = 0), got none"
+            )
+        if spec.groups and max_tick < 2:
+            raise ValueError(
+                f"--arrivals {arrivals}: expected artefacts arriving together (a group column "
+                "or equal arrival times), got none"
+            )
+        return sorted({"poisson", arrivals}, key=ARRIVAL_SPECS.index), notes
+    out = ["poisson", "negbin"]
+    if max_tick >= 2:
+        out.append("groups")
+    else:
+        notes.append("groups not offered: no two artefacts arrived together")
+    if clock is None:
+        notes.append("time-of-day not offered: the log has no clock_start")
+    elif duration < 2.0 * DAY:
+        notes.append(
+            f"time-of-day not offered: the window ({duration:g} s) is shorter than two days"
+        )
+    else:
+        out += ["time-of-day", "negbin+time-of-day"]
+        if max_tick >= 2:
+            out.append("groups+time-of-day")
+    return out, notes
+
+
+def _empirical_rate(units_count: float, data: LifecycleData, groups: bool, n_events: int) -> float:
+    t0, t1 = data.window
+    n = max(float(n_events if groups else units_count), 0.5)
+    return n / (data.area * (t1 - t0))
+
+
+def fit_traffic(
+    key: Any,
+    data: LifecycleData,
+    *,
+    paper: dict[str, np.ndarray],
+    arrivals: str = "auto",
+    lifetimes: str = "auto",
+    positions: str = "auto",
+    grid: Any = None,
+    clock_start: str | None = None,
+    num_warmup: int = 500,
+    num_samples: int = 1000,
+    num_chains: int = 4,
+    progress: Any = None,
+) -> TrafficFit:
+    """Fit the candidate traffic models of a log and choose one per factor by PSIS-LOO.
+
+    Parameters
+    ----------
+    key : jax PRNG key
+    data : LifecycleData
+        The log (``group``, ``x``/``y`` and ``x_exit``/``y_exit`` used when present).
+    paper : dict
+        The paper's posterior, ``arrival_rate`` and ``leave_rate`` as ``(chains, draws)``:
+        the draws of the ``poisson`` and ``exponential`` candidates (same layout is used
+        for every candidate, so that the chosen draws sit beside them in one posterior).
+    arrivals : {"auto", "poisson", "negbin", "groups", "time-of-day", ...}
+    lifetimes : {"auto", "exponential", "gamma", "weibull", "lognormal"}
+    positions : {"auto", "uniform", "learned"}
+    grid : OccupancyGrid, optional
+        The scene's map (needed for the learned densities).
+    clock_start : str, optional
+        ISO 8601 wall-clock time of ``t = 0`` (time-of-day models need it).
+    num_warmup, num_samples, num_chains : int
+        NUTS settings; the draws are reshaped to the paper posterior's ``(chains, draws)``.
+    progress : callable, optional
+        ``progress(message)`` at each stage.
+
+    Returns
+    -------
+    TrafficFit
+    """
+    check_in("arrivals", arrivals, ARRIVAL_CHOICES)
+    check_in("lifetimes", lifetimes, LIFETIME_CHOICES)
+    check_in("positions", positions, POSITION_CHOICES)
+    say = progress or (lambda _m: None)
+    lam = np.asarray(paper["arrival_rate"], float)
+    mu = np.asarray(paper["leave_rate"], float)
+    shape = lam.shape
+    n_draws = lam.size
+    out = TrafficFit("poisson", "exponential", "uniform")
+    t0, t1 = data.window
+    res = time_resolution(data.t_arrive, data.t_leave, [t0, t1])
+    if res <= 0:
+        res = (t1 - t0) * 1e-6
+    out.attrs["time_resolution"] = res
+    k_arr, k_life = jax.random.split(key)
+
+    def reshape(v: np.ndarray) -> np.ndarray:
+        flat = v.reshape((-1,) + v.shape[2:])
+        if flat.shape[0] != n_draws:  # thin or repeat to the paper posterior's draws
+            idx = np.linspace(0, flat.shape[0] - 1, n_draws).round().astype(int)
+            flat = flat[idx]
+        return flat.reshape(shape + flat.shape[1:])
+
+    nuts = {"num_warmup": num_warmup, "num_samples": num_samples, "num_chains": num_chains}
+
+    # ---------------- arrivals ----------------
+    clock = None if clock_start is None else clock_offset(clock_start)
+    if clock_start is not None:
+        out.attrs["clock_start"] = str(clock_start)
+    width = _bin_width(data)
+    out.attrs["arrival_bin_width"] = width
+    plain = arrival_units(data.t_arrive, data.window, data.area, res, width, group=data.group)
+    max_tick = int(np.max(plain.tick_count)) if plain.tick_count.size else 0
+    cands, notes = _arrival_candidates(arrivals, max_tick, clock, t1 - t0)
+    out.attrs["arrival_notes"] = "; ".join(notes)
+    n_real_bins = int(np.sum(plain.bin_weight))
+    n_ticks = int(np.sum(plain.tick_weight))
+    elpd, ks, runs, draws = {}, {}, {}, {}
+    log_area = float(np.log(data.area))
+    for i, name in enumerate(cands):
+        spec = ArrivalSpec.from_name(name)
+        units = (
+            arrival_units(
+                data.t_arrive, data.window, data.area, res, width, group=data.group,
+                clock_offset=clock,
+            )
+            if spec.tod
+            else plain
+        )  # fmt: skip
+        if name == "poisson":
+            flat = {"event_rate": lam.ravel()}
+            ll = jax.vmap(_arrival_pointwise(units, spec, log_area))(flat)
+            ll = np.asarray(ll).reshape(shape + (-1,))
+            runs[name] = None
+        else:
+            say(f"arrivals: NUTS for {name}")
+            centre = _empirical_rate(np.sum(units.tick_count), data, spec.groups, n_ticks)
+            init: dict[str, Any] = {"event_rate_z": 0.0}
+            if spec.negbin:
+                init["arrival_phi"] = 5.0
+            if spec.tod:
+                init["tod_eta"] = np.zeros(units.bin_exposure.shape[1])
+            if spec.groups:
+                init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
+            run = run_nuts(
+                jax.random.fold_in(k_arr, i),
+                arrival_model,
+                {"units": units, "spec": spec, "rate_centre": centre, "log_area": log_area,
+                 "max_group": max(max_tick, 1)},
+                init,
+                pointwise=_arrival_pointwise(units, spec, log_area),
+                name=f"arrivals {name}",
+                **nuts,
+            )  # fmt: skip
+            runs[name] = run
+            ll = run.loglik
+            draws[name] = run.samples
+            out.warnings.extend(nuts_warnings(run))
+        ll = ll[..., :n_real_bins]
+        elpd[name], ks[name] = loo_pointwise(ll, _reff(runs[name]))
+    order = sorted(cands, key=lambda n: (ArrivalSpec.from_name(n).n_params, ARRIVAL_SPECS.index(n)))
+    if arrivals == "auto":
+        chosen, table = choose_simplest(elpd, order)
+    else:
+        _, table = choose_simplest(elpd, order)
+        chosen = arrivals
+        table["chosen"] = table.index == chosen
+    _pareto_cols(table, ks)
+    _diag_cols(table, runs)
+    out.tables["arrivals"] = table
+    out.arrival_model = chosen
+    spec = ArrivalSpec.from_name(chosen)
+    if chosen != "poisson":
+        s = draws[chosen]
+        out.posterior["event_rate"] = reshape(s["event_rate"])
+        if spec.negbin:
+            out.posterior["arrival_phi"] = reshape(s["arrival_phi"])
+        if spec.tod:
+            out.posterior["arrival_tod"] = reshape(s["arrival_tod"])
+            out.dims["arrival_tod"] = ["period"]
+        if spec.groups:
+            out.posterior["group_size_probs"] = reshape(s["group_size_probs"])
+            out.dims["group_size_probs"] = ["group_size"]
+    out.attrs.update(_group_stats(data))
+
+    # ---------------- stays ----------------
+    units = stay_units(data.dwell, data.censored, data.truncated)
+    n = data.n
+    departed = int(np.sum(~data.censored))
+    mean_centre = float(np.sum(data.dwell)) / max(departed, 1) if n else 1.0
+    mean_centre = mean_centre if mean_centre > 0 else res
+    laws = list(STAY_LAWS) if lifetimes == "auto" else sorted({"exponential", lifetimes},
+                                                              key=STAY_LAWS.index)  # fmt: skip
+    elpd, ks, runs, draws = {}, {}, {}, {}
+    if n == 0 or departed == 0:
+        out.warnings.append("lifetimes: no departure seen; the exponential law is kept")
+        laws = ["exponential"]
+    for i, law in enumerate(laws):
+        if law == "exponential":
+            flat = {"stay_mean": 1.0 / mu.ravel()}
+            ll = jax.vmap(lambda p: stay_unit_loglik(p, units, "exponential", res))(flat)
+            ll = np.asarray(ll).reshape(shape + (-1,))
+            runs[law] = None
+        else:
+            say(f"stays: NUTS for {law}")
+            run = run_nuts(
+                jax.random.fold_in(k_life, i),
+                stay_model,
+                {"units": units, "law": law, "mean_centre": mean_centre, "resolution": res},
+                {"stay_mean_z": 0.0, "stay_shape_eta": 0.0},
+                pointwise=lambda p, law=law: stay_unit_loglik(p, units, law, res),
+                name=f"stays {law}",
+                **nuts,
+            )
+            runs[law] = run
+            ll = run.loglik
+            draws[law] = run.samples
+            out.warnings.extend(nuts_warnings(run))
+        ll = ll[..., :n]
+        if n:
+            elpd[law], ks[law] = loo_pointwise(ll, _reff(runs[law]))
+        else:
+            elpd[law], ks[law] = np.zeros(0), np.zeros(0)
+    if lifetimes == "auto":
+        chosen, table = choose_simplest(elpd, laws)
+    else:
+        _, table = choose_simplest(elpd, laws)
+        chosen = lifetimes if lifetimes in laws else "exponential"
+        table["chosen"] = table.index == chosen
+    _pareto_cols(table, ks)
+    _diag_cols(table, runs)
+    out.tables["lifetimes"] = table
+    out.lifetime_model = chosen
+    if chosen != "exponential":
+        out.posterior["stay_mean"] = reshape(draws[chosen]["stay_mean"])
+        out.posterior["stay_shape"] = reshape(draws[chosen]["stay_shape"])
+
+    # ---------------- positions ----------------
+    out.position_model, out.entry, out.exit, table = _fit_positions(data, positions, grid)
+    out.tables["positions"] = table
+    if table is None:
+        out.tables.pop("positions")
+    return out
+
+
+def coarse_free(grid: Any, cell: float = POSITION_CELL) -> tuple[np.ndarray, float, tuple]:
+    """Free mask of ``grid`` on cells of about ``cell`` metres (free where most map cells are).
+
+    Returns
+    -------
+    free : (h, w) bool
+    resolution : float
+    origin : (x, y)
+    """
+    free = np.asarray(grid.free, bool)
+    f = max(1, int(round(cell / float(grid.resolution))))
+    h, w = free.shape[0] // f, free.shape[1] // f
+    if h < 2 or w < 2:
+        f, h, w = 1, free.shape[0], free.shape[1]
+    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+    return frac > 0.5, float(grid.resolution) * f, (float(grid.origin[0]), float(grid.origin[1]))
+
+
+def _fit_positions(
+    data: LifecycleData, positions: str, grid: Any
+) -> tuple[str, PositionDensity | None, PositionDensity | None, pd.DataFrame | None]:
+    """Uniform or learned entry density (LOO over entry points), and the exit density."""
+    if grid is None:
+        if positions == "learned":
+            raise ValueError(
+                "--positions learned: expected the scene's map (manifest key 'map'), got none"
+            )
+        return "uniform", None, None, None
+    if abs(float(grid.origin[2])) > 1e-9:
+        if positions == "learned":
+            raise ValueError(
+                f"--positions learned: expected a map origin yaw of 0, got {grid.origin[2]}"
+            )
+        return "uniform", None, None, None
+    free, res, origin = coarse_free(grid)
+    uni = uniform_position_density(free, res, origin)
+    entered = ~data.truncated
+    if data.x is None or data.y is None or entered.sum() < 2:
+        if positions == "learned":
+            raise ValueError(
+                "--positions learned: expected entry positions (columns x, y) of at least two "
+                "artefacts seen arriving"
+            )
+        return "uniform", uni, None, None
+    xy = np.column_stack([data.x, data.y])[entered]
+    if data.group is not None:  # one entry point per group: members are not independent
+        _, first = np.unique(np.asarray(data.group)[entered], return_index=True)
+        xy = xy[np.sort(first)]
+    learned = fit_position_density(xy, free, res, origin)
+    loo = learned.loo_logpdf
+    on = np.isfinite(loo)
+    base = np.full(loo.size, -np.log(free.sum()) - 2.0 * np.log(res))  # every cell alike
+    elpd = {"uniform": base[on], "learned": loo[on]}
+    if positions == "auto":
+        chosen, table = choose_simplest(elpd, ["uniform", "learned"])
+    else:
+        _, table = choose_simplest(elpd, ["uniform", "learned"])
+        chosen = positions
+        table["chosen"] = table.index == chosen
+    table["bandwidth_m"] = [0.0, learned.bandwidth]
+    exit_density = None
+    if data.x_exit is not None and data.y_exit is not None:
+        ok = np.isfinite(data.x_exit) & np.isfinite(data.y_exit)
+        if ok.sum() >= 2:
+            exy = np.column_stack([data.x_exit, data.y_exit])[ok]
+            exit_density = (
+                fit_position_density(exy, free, res, origin) if chosen == "learned" else uni
+            )
+    return chosen, learned if chosen == "learned" else uni, exit_density, table

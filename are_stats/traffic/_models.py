@@ -1,0 +1,410 @@
+"""The traffic models beside the paper's, as numpyro models on data-scaled parameters.
+
+Two factors of the life-cycle likelihood are modelled separately (they share no
+parameter once the stationary count at ``t0`` is left out):
+
+**Arrivals** (:func:`arrival_model`). The log's arrival times are quantised by its time
+resolution ``delta`` (a tracker's frame period; the smallest gap between recorded times).
+The observation is the number of artefacts ``c_j`` arriving in each tick ``j`` of width
+``delta``; members of a recorded group are put at the group's first arrival. Events
+arrive at intensity ``rho(t) = r * area * tod[period(t)] (* f_b)`` and each event brings a
+group of ``S`` artefacts (``S = 1`` without groups):
+
+* ``poisson``: ``c_j ~ Poisson(rho_j delta)`` (the paper's homogeneous process);
+* ``negbin``: a ``Gamma(phi, phi)`` frailty ``f_b`` per bin of width ``w``: the bin total
+  is negative binomial, its allocation to ticks multinomial;
+* ``time-of-day``: ``tod`` piecewise constant over ``P`` periods of the day (mean 1);
+* ``groups``: ``c_j`` compound Poisson, ``P(c) = e^{-rho delta} sum_k (rho delta)^k / k!
+  p^{*k}(c)`` with ``p`` the group-size law on ``1..K`` (a Dirichlet prior);
+* ``groups+time-of-day``, ``negbin+time-of-day``: the combinations.
+
+All of them are probabilities of the same quantised data, so their pointwise
+log-likelihoods (one per time bin, :func:`arrival_unit_loglik`) can be compared by
+PSIS-LOO. Without groups and time of day the Poisson tick likelihood is the paper's
+``n log(lambda area) - lambda area T`` up to a constant that every model shares.
+
+**Stays** (:func:`stay_model`): the four laws of :mod:`are_stats.traffic._stays` through the
+observation window (censoring, truncation by the equilibrium residual law, zero stays
+interval-censored at the resolution), one pointwise term per artefact.
+
+**Scale.** Every positive parameter is ``empirical value * exp(z)`` with ``z ~ Normal(0,
+3)`` (a factor of 20 either way at one standard deviation): the posterior is found from
+``z = 0`` whether the log is in seconds or in days, and the prior is nearly flat on the
+log scale. Shapes are ``exp(eta)``, ``eta ~ Normal(0, 1.5)`` (``eta = 0``: the exponential
+for the gamma and Weibull laws); the negative-binomial concentration is
+``LogNormal(log 5, 2)``; time-of-day factors are ``P * softmax(eta)`` with
+``eta ~ Normal(0, 1)``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import numpyro
+import numpyro.distributions as dist
+from jax.scipy.special import gammaln, logsumexp
+
+from are_stats._checks import check_in
+from are_stats.traffic._arrivals import DAY, period_exposure, period_of
+from are_stats.traffic._stays import STAY_LAWS, stay_loglik
+
+__all__ = [
+    "ARRIVAL_SPECS",
+    "ArrivalSpec",
+    "ArrivalUnits",
+    "StayUnits",
+    "arrival_model",
+    "arrival_unit_loglik",
+    "arrival_units",
+    "stay_model",
+    "stay_unit_loglik",
+    "stay_units",
+]
+
+
+class ArrivalSpec(NamedTuple):
+    """Which factors an arrival model has (see the module docstring)."""
+
+    negbin: bool = False
+    tod: bool = False
+    groups: bool = False
+
+    @property
+    def name(self) -> str:
+        """``poisson``, ``negbin``, ``time-of-day``, ``groups`` or a ``+`` combination."""
+        parts = [n for n, on in (("groups", self.groups), ("negbin", self.negbin)) if on]
+        if self.tod:
+            parts.append("time-of-day")
+        return "+".join(parts) or "poisson"
+
+    @property
+    def n_params(self) -> int:
+        """A complexity order (fewer first) used to break ties towards simpler models."""
+        return 1 + int(self.negbin) + 23 * int(self.tod) + 4 * int(self.groups)
+
+    @classmethod
+    def from_name(cls, name: str) -> ArrivalSpec:
+        """The spec of a model name (inverse of :attr:`name`)."""
+        check_in("arrivals", name, ARRIVAL_SPECS)
+        parts = set(name.split("+"))
+        return cls("negbin" in parts, "time-of-day" in parts, "groups" in parts)
+
+
+#: Arrival models the fit can choose from, simplest first.
+ARRIVAL_SPECS = (
+    "poisson",
+    "negbin",
+    "groups",
+    "time-of-day",
+    "negbin+time-of-day",
+    "groups+time-of-day",
+)
+
+
+class ArrivalUnits(NamedTuple):
+    """Quantised arrivals of a window, as the arrival models score them (a pytree).
+
+    Attributes
+    ----------
+    tick_count : (m,) float
+        Artefacts arriving in each non-empty tick (zero on padding).
+    tick_bin : (m,) int
+        Bin of each tick.
+    tick_period : (m,) int
+        Period of the day of each tick (0 without a clock).
+    tick_weight : (m,) float
+        1 for real ticks, 0 for padding.
+    bin_exposure : (B, P) float
+        ``area x time`` each bin spends in each period of the day.
+    bin_count : (B,) float
+        Artefacts arriving in each bin.
+    bin_weight : (B,) float
+        1 for real bins, 0 for padding.
+    log_delta : float
+        ``log`` of the tick width (the log's time resolution).
+    """
+
+    tick_count: Any
+    tick_bin: Any
+    tick_period: Any
+    tick_weight: Any
+    bin_exposure: Any
+    bin_count: Any
+    bin_weight: Any
+    log_delta: Any
+
+
+def _bucket(n: int, least: int = 16) -> int:
+    """Padded size: the next power of two (so logs of similar size share compiled programs)."""
+    return max(least, 1 << int(np.ceil(np.log2(max(n, 1)))))
+
+
+def arrival_units(
+    t_arrive: Any,
+    window: tuple[float, float],
+    area: float,
+    resolution: float,
+    bin_width: float,
+    *,
+    group: Any = None,
+    clock_offset: float | None = None,
+    n_periods: int = 24,
+    period: float = DAY,
+) -> ArrivalUnits:
+    """Quantise the arrivals of a window into ticks and bins (see :class:`ArrivalUnits`).
+
+    Parameters
+    ----------
+    t_arrive : (n,) float
+        Arrival times inside the window (NaN entries, left-truncated artefacts, are left out).
+    window : (t0, t1)
+    area : float
+        Free area (m^2).
+    resolution : float
+        Tick width ``delta`` (the log's time resolution).
+    bin_width : float
+        Width of the pointwise units (and of the negative-binomial frailty bins).
+    group : (n,) int, optional
+        Recorded groups: members are put at their group's first arrival.
+    clock_offset : float, optional
+        Time of day of ``t = 0``; None: no time-of-day periods (``P = 1``).
+    n_periods, period : int, float
+        Periods per day and the day's length in the log's time unit.
+
+    Returns
+    -------
+    ArrivalUnits
+        Padded to power-of-two sizes.
+    """
+    t0, t1 = float(window[0]), float(window[1])
+    t = np.asarray(t_arrive, float)
+    keep = np.isfinite(t)
+    if group is not None:
+        g = np.asarray(group)[keep]
+        tk = t[keep]
+        first = {}
+        for gi, ti in zip(g.tolist(), tk.tolist(), strict=True):
+            first[gi] = min(first.get(gi, ti), ti)
+        tk = np.array([first[gi] for gi in g.tolist()], float)
+    else:
+        tk = t[keep]
+    delta = float(resolution)
+    tick = np.floor((tk - t0) / delta + 1e-9).astype(np.int64)
+    ticks, counts = np.unique(tick, return_counts=True)
+    mid = t0 + (ticks + 0.5) * delta
+    n_bins = max(1, int(np.ceil((t1 - t0) / bin_width - 1e-9)))
+    tbin = np.minimum(np.floor((mid - t0) / bin_width).astype(np.int64), n_bins - 1)
+    if clock_offset is None:
+        periods = np.zeros(ticks.size, np.int64)
+        p = 1
+    else:
+        periods = period_of(mid, clock_offset, n_periods, period)
+        p = n_periods
+    edges = np.minimum(t0 + bin_width * np.arange(n_bins + 1), t1)
+    expo = np.zeros((n_bins, p))
+    for b in range(n_bins):
+        if clock_offset is None:
+            expo[b, 0] = edges[b + 1] - edges[b]
+        else:
+            expo[b] = period_exposure((edges[b], edges[b + 1]), clock_offset, n_periods, period)
+    expo *= float(area)
+    bin_count = np.bincount(tbin, weights=counts, minlength=n_bins)
+    m, bb = _bucket(ticks.size), _bucket(n_bins)
+
+    def pad(a: np.ndarray, size: int, dtype: Any) -> np.ndarray:
+        out = np.zeros((size,) + a.shape[1:], dtype)
+        out[: a.shape[0]] = a
+        return out
+
+    return ArrivalUnits(
+        tick_count=pad(counts.astype(float), m, float),
+        tick_bin=pad(tbin, m, np.int64),
+        tick_period=pad(periods, m, np.int64),
+        tick_weight=pad(np.ones(ticks.size), m, float),
+        bin_exposure=pad(expo, bb, float),
+        bin_count=pad(bin_count, bb, float),
+        bin_weight=pad(np.ones(n_bins), bb, float),
+        log_delta=float(np.log(delta)),
+    )
+
+
+def _log_convolution_powers(log_p: jnp.ndarray, c_max: int) -> jnp.ndarray:
+    """``log p^{*k}(c)`` for ``k = 1..c_max`` (rows) and ``c = 0..c_max`` (columns)."""
+    p = jnp.exp(log_p)
+
+    def body(prev, _):
+        nxt = jnp.convolve(prev, p)[: c_max + 1]
+        return nxt, nxt
+
+    _, rows = jax.lax.scan(body, jnp.zeros(c_max + 1).at[0].set(1.0), None, length=c_max)
+    return jnp.log(jnp.maximum(rows, 1e-300))
+
+
+def arrival_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) -> jnp.ndarray:
+    """Log-likelihood of each bin of quantised arrivals (the pointwise units of LOO).
+
+    Parameters
+    ----------
+    params : dict
+        ``event_rate`` (events per m^2 per time), and as the spec needs ``arrival_phi``,
+        ``arrival_tod`` (P,), ``group_size_probs`` (K,) (sizes ``1..K``).
+    units : ArrivalUnits
+    spec : ArrivalSpec
+
+    Returns
+    -------
+    (B,) float
+        Zero on padded bins.
+    """
+    rate = params["event_rate"]
+    n_bins = units.bin_weight.shape[0]
+    tod = params["arrival_tod"] if spec.tod else jnp.ones(units.bin_exposure.shape[1])
+    log_tod_tick = jnp.log(tod)[units.tick_period]
+    log_rho_delta = jnp.log(rate) + log_tod_tick + units.log_delta  # log(rho delta / area)
+    mu_bin = rate * (units.bin_exposure @ tod)  # expected events per bin
+    c = units.tick_count
+    if spec.groups:
+        probs = params["group_size_probs"]
+        c_max = probs.shape[0]
+        log_p = jnp.concatenate([jnp.array([-jnp.inf]), jnp.log(probs)])
+        conv = _log_convolution_powers(log_p, c_max)  # (c_max, c_max + 1)
+        k = jnp.arange(1, c_max + 1)
+        ci = jnp.clip(c.astype(jnp.int32), 0, c_max)
+        lam = log_rho_delta + params["log_area"]
+        terms = k[None, :] * lam[:, None] - gammaln(k + 1.0)[None, :] + conv[:, ci].T
+        tick_ll = logsumexp(terms, axis=1)
+    else:
+        lam = log_rho_delta + params["log_area"]
+        tick_ll = c * lam - gammaln(c + 1.0)
+    tick_ll = jnp.where(units.tick_weight > 0, tick_ll, 0.0)
+    per_bin = jax.ops.segment_sum(tick_ll, units.tick_bin, num_segments=n_bins)
+    if spec.negbin:
+        phi = params["arrival_phi"]
+        n = units.bin_count
+        mu = jnp.maximum(mu_bin, 1e-300)
+        nb = (
+            gammaln(n + phi)
+            - gammaln(phi)
+            - gammaln(n + 1.0)
+            + phi * jnp.log(phi / (phi + mu))
+            + n * jnp.log(mu / (phi + mu))
+        )
+        # Poisson ticks given the total are multinomial: replace Poisson(total) by NB(total)
+        pois = n * jnp.log(mu) - mu - gammaln(n + 1.0)
+        out = per_bin + nb - pois - mu_bin
+    else:
+        out = per_bin - mu_bin
+    return jnp.where(units.bin_weight > 0, out, 0.0)
+
+
+def _positive(name: str, centre: float, sd: float = 3.0) -> jnp.ndarray:
+    z = numpyro.sample(f"{name}_z", dist.Normal(0.0, sd))
+    return numpyro.deterministic(name, centre * jnp.exp(z))
+
+
+def arrival_model(
+    units: ArrivalUnits,
+    spec: ArrivalSpec,
+    rate_centre: float,
+    log_area: float,
+    max_group: int = 1,
+) -> None:
+    """numpyro model of quantised arrivals under ``spec`` (see the module docstring).
+
+    Latent sites: ``event_rate_z`` (deterministic ``event_rate``), and as the spec needs
+    ``arrival_phi``, ``tod_eta`` (deterministic ``arrival_tod``), ``group_size_probs``.
+    The likelihood is one factor, ``arrival_units``, the sum of
+    :func:`arrival_unit_loglik`.
+
+    Parameters
+    ----------
+    units : ArrivalUnits
+    spec : ArrivalSpec
+    rate_centre : float
+        Empirical event rate per m^2 per time (the centre of the rate's prior).
+    log_area : float
+        ``log`` of the free area.
+    max_group : int
+        Largest group size ``K`` (``groups`` only).
+    """
+    params: dict[str, Any] = {"log_area": log_area}
+    params["event_rate"] = _positive("event_rate", rate_centre)
+    if spec.negbin:
+        params["arrival_phi"] = numpyro.sample("arrival_phi", dist.LogNormal(np.log(5.0), 2.0))
+    if spec.tod:
+        p = units.bin_exposure.shape[1]
+        eta = numpyro.sample("tod_eta", dist.Normal(0.0, 1.0).expand([p]).to_event(1))
+        params["arrival_tod"] = numpyro.deterministic("arrival_tod", p * jax.nn.softmax(eta))
+    if spec.groups:
+        params["group_size_probs"] = numpyro.sample(
+            "group_size_probs", dist.Dirichlet(jnp.ones(int(max_group)))
+        )
+    numpyro.factor("arrival_units", jnp.sum(arrival_unit_loglik(params, units, spec)))
+
+
+class StayUnits(NamedTuple):
+    """Stays seen through a window (a pytree; see :func:`~are_stats.traffic.stay_loglik`).
+
+    Attributes
+    ----------
+    stay : (n,) float
+        Time seen inside the window (residual from ``t0`` when truncated).
+    censored, truncated : (n,) bool
+    weight : (n,) float
+        1 for real artefacts, 0 for padding.
+    """
+
+    stay: Any
+    censored: Any
+    truncated: Any
+    weight: Any
+
+
+def stay_units(stay: Any, censored: Any, truncated: Any) -> StayUnits:
+    """Pad the stays of a log to a power-of-two size (see :class:`StayUnits`)."""
+    s = np.asarray(stay, float)
+    n = s.size
+    m = _bucket(n)
+    out = np.ones(m)
+    out[:n] = s
+    cen = np.zeros(m, bool)
+    cen[:n] = np.asarray(censored, bool)
+    tru = np.zeros(m, bool)
+    tru[:n] = np.asarray(truncated, bool)
+    w = np.zeros(m)
+    w[:n] = 1.0
+    return StayUnits(out, cen, tru, w)
+
+
+def stay_unit_loglik(
+    params: dict, units: StayUnits, law: str, resolution: float = 0.0
+) -> jnp.ndarray:
+    """Pointwise log-likelihood of each artefact's stay under ``law`` (zero on padding)."""
+    shape = params.get("stay_shape", 1.0)
+    ll = stay_loglik(
+        law,
+        units.stay,
+        units.censored,
+        units.truncated,
+        params["stay_mean"],
+        shape,
+        resolution=resolution,
+    )
+    return jnp.where(units.weight > 0, ll, 0.0)
+
+
+def stay_model(units: StayUnits, law: str, mean_centre: float, resolution: float = 0.0) -> None:
+    """numpyro model of the stays under ``law`` (mean and shape parameterisation).
+
+    Latent sites: ``stay_mean_z`` (deterministic ``stay_mean``) and, except for the
+    exponential law, ``stay_shape_eta`` (deterministic ``stay_shape``).
+    """
+    check_in("law", law, STAY_LAWS)
+    params = {"stay_mean": _positive("stay_mean", mean_centre)}
+    if law != "exponential":
+        eta = numpyro.sample("stay_shape_eta", dist.Normal(0.0, 1.5))
+        params["stay_shape"] = numpyro.deterministic("stay_shape", jnp.exp(eta))
+    numpyro.factor("stays", jnp.sum(stay_unit_loglik(params, units, law, resolution)))

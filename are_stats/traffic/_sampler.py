@@ -1,0 +1,271 @@
+"""The one sampler of the life-cycle process, for every arrival, stay and position law.
+
+:func:`sample_population` draws the artefacts of one window ``[0, horizon]`` from one
+posterior draw: the population present at ``t = 0`` (stationary start) and the arrivals,
+each with its group, stay and entry point. Scenario generation
+(:func:`are_stats.scenarios.generate_scenarios`), the posterior-predictive checks and the
+synthetic logs of the tests (:func:`simulate_traffic_log`) all draw through it.
+
+* **Arrivals**: :func:`~are_stats.traffic.sample_arrivals` (events at ``event_rate * area``,
+  times of day, negative-binomial frailty, group sizes).
+* **Initial population** (``start="stationary"``): ``Poisson(event_rate * area * m)``
+  groups (times the time-of-day factor at ``t = 0`` and, for the negative binomial, one
+  frailty draw), each with the equilibrium residual stay of its law
+  (:func:`~are_stats.traffic.stay_draws` with ``residual=True``).
+* **Stays**: one stay per group from the stay law; members keep the group's stay times
+  ``exp(s * e - s^2 / 2)`` with ``e`` standard normal and ``s = group_stay_sd`` (0: they
+  leave together).
+* **Positions**: a group's entry point from the entry density (uniform over free cells, or
+  learned); members within ``group_spread`` metres of it (Gaussian, kept on free cells).
+  The initial population stands anywhere (uniform over the free cells).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from are_stats._checks import check_in
+from are_stats.traffic._arrivals import DAY, period_of, sample_arrivals
+from are_stats.traffic._models import ARRIVAL_SPECS, ArrivalSpec
+from are_stats.traffic._positions import POSITION_MODELS, PositionDensity
+from are_stats.traffic._stays import STAY_LAWS, stay_draws
+
+__all__ = ["TrafficLaws", "sample_population", "simulate_traffic_log"]
+
+
+@dataclass(frozen=True)
+class TrafficLaws:
+    """Which laws a population is drawn from, and their fixed settings.
+
+    Parameters
+    ----------
+    arrivals : str
+        One of :data:`~are_stats.traffic.ARRIVAL_SPECS` (``"poisson"`` is the paper's).
+    lifetimes : str
+        One of :data:`~are_stats.traffic.STAY_LAWS`.
+    positions : {"uniform", "learned"}
+    bin_width : float, optional
+        Frailty bins of the negative binomial.
+    clock_offset : float, optional
+        Time of day of ``t = 0`` (time-of-day models).
+    period : float
+        Length of a day in the time unit.
+    group_stay_sd, group_spread : float
+        Members' log-stay deviation and entry spread (m) around their group's.
+    entry : PositionDensity, optional
+        Entry density (``learned``; also the free cells for ``uniform``).
+    """
+
+    arrivals: str = "poisson"
+    lifetimes: str = "exponential"
+    positions: str = "uniform"
+    bin_width: float | None = None
+    clock_offset: float | None = None
+    period: float = DAY
+    group_stay_sd: float = 0.0
+    group_spread: float = 0.0
+    entry: PositionDensity | None = None
+
+    def __post_init__(self) -> None:
+        check_in("arrivals", self.arrivals, ARRIVAL_SPECS)
+        check_in("lifetimes", self.lifetimes, STAY_LAWS)
+        check_in("positions", self.positions, POSITION_MODELS)
+        spec = self.spec
+        if spec.negbin and not (self.bin_width and self.bin_width > 0):
+            raise ValueError(f"bin_width: expected a width > 0 for {self.arrivals}, got None")
+        if spec.tod and self.clock_offset is None:
+            raise ValueError(f"clock_offset: expected the clock of {self.arrivals}, got None")
+        if self.positions == "learned" and self.entry is None:
+            raise ValueError("entry: expected a learned entry density, got None")
+
+    @property
+    def spec(self) -> ArrivalSpec:
+        """The arrival factors."""
+        return ArrivalSpec.from_name(self.arrivals)
+
+    @property
+    def is_paper(self) -> bool:
+        """Poisson arrivals, exponential stays, uniform positions: the paper's model."""
+        return (self.arrivals, self.lifetimes, self.positions) == (
+            "poisson",
+            "exponential",
+            "uniform",
+        )
+
+
+def _one(draw: Mapping[str, Any], name: str, default: Any = None) -> Any:
+    if name in draw:
+        return np.asarray(draw[name], float)
+    if default is None:
+        raise ValueError(f"draw: expected {name!r}, got keys {sorted(draw)}")
+    return default
+
+
+def sample_population(
+    rng: np.random.Generator,
+    draw: Mapping[str, Any],
+    laws: TrafficLaws,
+    horizon: float,
+    area: float,
+    *,
+    start: str = "stationary",
+    free: PositionDensity | None = None,
+) -> dict[str, np.ndarray]:
+    """Draw the artefacts of one window ``[0, horizon]`` (see the module docstring).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    draw : mapping
+        One posterior draw: ``event_rate`` (events per m^2 per time; the paper's
+        ``arrival_rate``), ``stay_mean`` (the paper's ``1 / leave_rate``), and as the laws
+        need ``arrival_phi``, ``arrival_tod`` (P,), ``group_size_probs`` (K,),
+        ``stay_shape``.
+    laws : TrafficLaws
+    horizon : float
+    area : float
+        Free area ``nu(M2D)`` (m^2).
+    start : {"stationary", "empty"}
+    free : PositionDensity, optional
+        Uniform density over the free cells (positions are drawn only when given, or when
+        the laws carry a learned entry density).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``t_arrive``, ``t_leave`` (n,) float (0 for the initial population, whose leaving
+        time is its residual stay), ``truncated`` (n,) bool, ``group`` (n,) int64
+        (``0..G-1``, initial groups first), and with positions ``x``, ``y`` (n,) float.
+        Initial population first, then arrivals in time order.
+    """
+    check_in("start", start, ("stationary", "empty"))
+    spec = laws.spec
+    rate = float(_one(draw, "event_rate"))
+    mean = float(_one(draw, "stay_mean"))
+    shape = float(_one(draw, "stay_shape", 1.0)) if laws.lifetimes != "exponential" else 1.0
+    phi = float(_one(draw, "arrival_phi")) if spec.negbin else None
+    tod = _one(draw, "arrival_tod") if spec.tod else None
+    probs = _one(draw, "group_size_probs") if spec.groups else None
+    offset = 0.0 if laws.clock_offset is None else float(laws.clock_offset)
+    arr = sample_arrivals(
+        rng,
+        rate,
+        area,
+        (0.0, float(horizon)),
+        phi=phi,
+        bin_width=laws.bin_width if spec.negbin else None,
+        tod=tod,
+        offset=offset,
+        period=laws.period,
+        size_probs=None if probs is None else probs / probs.sum(),
+    )
+    # initial population: groups present at t = 0
+    n0_groups = 0
+    if start == "stationary":
+        c = rate * area * mean
+        if tod is not None:
+            c *= float(tod[period_of(np.array([0.0]), offset, tod.size, laws.period)[0]])
+        if phi is not None:
+            c *= rng.gamma(phi, 1.0 / phi)
+        n0_groups = int(rng.poisson(c))
+    if probs is not None and n0_groups:
+        p = probs / probs.sum()
+        size0 = rng.choice(np.arange(1, p.size + 1), size=n0_groups, p=p).astype(np.int64)
+    else:
+        size0 = np.ones(n0_groups, np.int64)
+    n_arr_groups = int(arr.group.max()) + 1 if arr.group.size else 0
+    g_stay = np.concatenate(
+        [
+            stay_draws(rng, laws.lifetimes, mean, shape, (n0_groups,), residual=True),
+            stay_draws(rng, laws.lifetimes, mean, shape, (n_arr_groups,)),
+        ]
+    )
+    group = np.concatenate([np.repeat(np.arange(n0_groups), size0), n0_groups + arr.group])
+    t_arr = np.concatenate([np.zeros(int(size0.sum())), arr.t])
+    truncated = np.zeros(group.size, bool)
+    truncated[: int(size0.sum())] = True
+    stay = g_stay[group]
+    sizes = np.bincount(group, minlength=g_stay.size)[group] if group.size else group
+    if laws.group_stay_sd > 0 and group.size:
+        s = float(laws.group_stay_sd)
+        jitter = np.exp(s * rng.standard_normal(group.size) - 0.5 * s * s)
+        stay = np.where(sizes > 1, stay * jitter, stay)
+    out = {
+        "t_arrive": t_arr,
+        "t_leave": t_arr + stay,
+        "truncated": truncated,
+        "group": group.astype(np.int64),
+    }
+    entry = laws.entry if laws.positions == "learned" else free
+    if entry is not None:
+        base = free if free is not None else entry
+        n_groups = g_stay.size
+        g_xy = np.empty((n_groups, 2))
+        g_xy[:n0_groups] = base.sample(rng, n0_groups)
+        g_xy[n0_groups:] = entry.sample(rng, n_groups - n0_groups)
+        xy = g_xy[group]
+        if laws.group_spread > 0 and group.size:
+            moved = xy + rng.normal(0.0, laws.group_spread, xy.shape)
+            row, _ = base.cell_of(moved)
+            ok = row >= 0
+            r, c = base.cell_of(moved[ok])
+            good = np.zeros(xy.shape[0], bool)
+            good[np.flatnonzero(ok)] = base.prob[r, c] > 0
+            xy = np.where(((sizes > 1) & good)[:, None], moved, xy)
+        out["x"], out["y"] = xy[:, 0], xy[:, 1]
+    return out
+
+
+def simulate_traffic_log(
+    rng: np.random.Generator,
+    draw: Mapping[str, Any],
+    laws: TrafficLaws,
+    window: tuple[float, float],
+    area: float,
+    *,
+    free: PositionDensity | None = None,
+    resolution: float = 0.0,
+) -> Any:
+    """A synthetic field log of one window, drawn by :func:`sample_population`.
+
+    Parameters
+    ----------
+    rng, draw, laws, area, free
+        As :func:`sample_population`.
+    window : (t0, t1)
+        The log's window; the population starts stationary at ``t0``.
+    resolution : float
+        Times are rounded up to multiples of it (a tracker's frame period); 0: exact.
+
+    Returns
+    -------
+    LifecycleData
+        Left-truncated rows (present at ``t0``) first; ``group`` always; ``x``, ``y`` with
+        positions.
+    """
+    from are_stats.traffic._lifecycle import LifecycleData
+
+    t0, t1 = float(window[0]), float(window[1])
+    pop = sample_population(rng, draw, laws, t1 - t0, area, free=free)
+    ta = pop["t_arrive"] + t0
+    tl = pop["t_leave"] + t0
+    if resolution > 0:
+        ta = t0 + np.ceil((ta - t0) / resolution - 1e-9) * resolution
+        tl = t0 + np.ceil((tl - t0) / resolution - 1e-9) * resolution
+        tl = np.maximum(tl, ta)
+    ta = np.where(pop["truncated"], np.nan, np.minimum(ta, t1))
+    tl = np.where(tl >= t1, np.nan, tl)
+    kept = ~(np.isfinite(ta) & (ta >= t1))
+    return LifecycleData(
+        t_arrive=ta[kept],
+        t_leave=tl[kept],
+        window=(t0, t1),
+        area=float(area),
+        group=pop["group"][kept],
+        x=pop["x"][kept] if "x" in pop else None,
+        y=pop["y"][kept] if "y" in pop else None,
+    )
