@@ -75,9 +75,12 @@ def run_fit(
     samples: int = 1000,
     chains: int = 4,
     figures: Path | None = None,
-    alternatives: bool = False,
     n_replicates: int = 200,
     stationary_start: bool = True,
+    arrivals: str = "auto",
+    lifetimes: str = "auto",
+    positions: str = "auto",
+    clock_start: str | None = None,
 ) -> Any:
     """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures.
 
@@ -87,6 +90,7 @@ def run_fit(
     finite and > 0), then the draws and the sampler's work against the limits of
     :mod:`are_stats.inputs`.
     """
+    from are_stats.fitting import ARRIVAL_CHOICES, LIFETIME_CHOICES, POSITION_CHOICES
     from are_stats.fitting._fit_log import FitSettings, fit_log, write_fit
     from are_stats.fitting._report import fit_summary, write_report
     from are_stats.inputs import (
@@ -101,6 +105,20 @@ def run_fit(
     from are_stats.logs import read_count_panel, read_lifecycle_log
 
     method = get_str(method, "--method", "", choices=("nuts", "em"))
+    arrivals = get_str(arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES)
+    lifetimes = get_str(lifetimes, "--lifetimes", "", choices=LIFETIME_CHOICES)
+    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
+    if clock_start is not None:
+        from are_stats.traffic import clock_offset
+
+        clock_start = get_str(clock_start, "--clock-start", "")
+        try:
+            clock_offset(clock_start)
+        except ValueError:
+            raise ValueError(
+                f"--clock-start: expected an ISO 8601 time such as 2024-05-02T07:30:00, "
+                f"got {clock_start!r}"
+            ) from None
     seed = get_seed(seed)
     warmup = get_int(warmup, "--warmup", "", lo=0)
     samples = get_int(samples, "--samples", "", lo=1)
@@ -120,9 +138,6 @@ def run_fit(
     if out.suffix != ".nc":
         raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
     check_writable(out, force)
-    if alternatives:  # refuse before fitting, not after the fit is written
-        for name in ("loo_arrivals.csv", "loo_lifetimes.csv"):
-            check_writable((figures or out.with_suffix("")) / name, force)
     settings = FitSettings(
         method=method,
         n_components=components,
@@ -130,6 +145,9 @@ def run_fit(
         num_samples=samples,
         num_chains=chains,
         stationary_start=stationary_start,
+        arrivals=arrivals,
+        lifetimes=lifetimes,
+        positions=positions,
     )
     lifecycle = read_lifecycle_log(
         log, manifest=manifest, window=tuple(window) if window else None, area=area
@@ -145,6 +163,12 @@ def run_fit(
         f"{sum(rep['excluded'].values())}); window {rep['window']} s, area {rep['area']:.1f} m^2"
     )
     panel = read_count_panel(counts) if counts is not None else None
+    clock_start = clock_start or lifecycle.manifest.get("clock_start")
+    grid = None
+    if positions != "uniform" and lifecycle.manifest.get("map"):
+        from are_stats.environment import OccupancyGrid
+
+        grid = OccupancyGrid.from_ros_yaml(lifecycle.manifest["map"])
     t_start = time.perf_counter()
     with console.status("fitting ...") as status:
         idata = fit_log(
@@ -154,6 +178,8 @@ def run_fit(
             counts_panel=panel,
             progress=lambda msg: status.update(f"fitting: {msg} ..."),
             class_labels=lifecycle.to_arrays()["label_names"] if data.labels is not None else None,
+            grid=grid,
+            clock_start=clock_start,
         )
     idata.posterior.attrs.update(
         {"seed": int(seed), "log": str(log), "log_report": yaml.safe_dump(rep, sort_keys=False)}
@@ -163,6 +189,7 @@ def run_fit(
     console.print(_summary_table(summary, f"{method} fit in {time.perf_counter() - t_start:.1f} s"))
     for w in _warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
+    _print_traffic(idata)
     if panel is not None:
         a = idata.posterior.attrs
         se = a["birth_death_stderr"]
@@ -175,67 +202,48 @@ def run_fit(
         with console.status("posterior-predictive checks ..."):
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
         console.print(f"wrote {len(written)} criticism files to {figures}/")
-    if alternatives:
-        _alternatives(seed, data, figures or out.with_suffix(""), force)
     return idata
 
 
-def _alternatives(seed: int, data: Any, folder: Path, force: bool) -> None:
-    from are_stats.fitting._alternatives import (
-        compare_models,
-        fit_arrival_models,
-        fit_lifetime_models,
-        time_resolution,
-    )
+def _print_traffic(idata: Any) -> None:
+    """The model comparison tables and the chosen models of a fit, with sampler warnings."""
+    import io
 
-    t0, t1 = data.window
-    arrived = ~data.truncated
-    # stays of artefacts seen arriving; a zero stay (left when it arrived, e.g. a single
-    # sighting) is interval-censored at the log's time resolution by the lifetime models
-    dwell = (np.where(data.censored, t1, data.t_leave) - data.t_arrive)[arrived]
-    cens = data.censored[arrived]
-    skipped = None
-    if not (~cens).any():
-        skipped = "no artefact was seen both arriving and leaving"
-    elif not (dwell > 0).any():
-        skipped = "every stay seen arriving and leaving is zero long (no time resolution)"
-    with console.status("richer models (time-of-day, Gamma-Poisson, Weibull, Gamma) ..."):
-        arr = fit_arrival_models(
-            jax.random.key(seed + 1),
-            data.t_arrive[arrived],
-            data.window,
-            data.area,
-            bin_width=(t1 - t0) / 48,
-            period=86400.0,
-            n_periods=24,
-        )
-        fitted = [("arrivals", arr)]
-        if skipped is None:
-            res = time_resolution(data.t_arrive, data.t_leave, [t0, t1])
-            life = fit_lifetime_models(jax.random.key(seed + 2), dwell, cens, resolution=res)
-            fitted.append(("lifetimes", life))
-    if skipped is not None:
-        console.print(f"[yellow]warning:[/] lifetime comparison skipped: {skipped}")
-    for name, fits in fitted:
-        table = compare_models(fits)
-        path = Path(folder) / f"loo_{name}.csv"
-        with atomic_path(path, force=force) as tmp:
-            table.to_csv(tmp)
-        rich = Table(title=f"{name}: models ranked by PSIS-LOO", title_justify="left")
-        for col in ("model", "elpd_loo", "se", "elpd_diff", "weight"):
-            rich.add_column(col, justify="left" if col == "model" else "right")
+    import pandas as pd
+
+    a = idata.posterior.attrs
+    for factor in ("arrivals", "lifetimes", "positions"):
+        text = a.get(f"loo_{factor}")
+        if not text:
+            continue
+        table = pd.read_csv(io.StringIO(str(text)), index_col=0)
+        rich = Table(title=f"{factor}: candidates by PSIS-LOO (chosen: simplest within 2 SE of "
+                     "the best)", title_justify="left")  # fmt: skip
+        cols = [c for c in ("elpd", "se", "elpd_diff", "dse", "k>0.7", "divergent", "r_hat")
+                if c in table.columns]  # fmt: skip
+        rich.add_column("model")
+        for c in cols:
+            rich.add_column(c, justify="right")
+        rich.add_column("chosen")
         for model, row in table.iterrows():
-            rich.add_row(
-                str(model),
-                f"{row['elpd_loo']:.1f}",
-                f"{row['se']:.1f}",
-                f"{row['elpd_diff']:.1f}",
-                f"{row['weight']:.2f}",
-            )
+            cells = []
+            for c in cols:
+                v = row[c]
+                cells.append("-" if not np.isfinite(v) else (f"{v:.3f}" if c == "r_hat" else
+                             f"{v:.1f}" if isinstance(v, float) else str(v)))  # fmt: skip
+            rich.add_row(str(model), *cells, "yes" if bool(row["chosen"]) else "")
         console.print(rich)
     console.print(
-        f"left-truncated artefacts left out of the lifetime comparison: {int((~arrived).sum())}"
+        f"chosen models: arrivals [bold]{a.get('arrival_model', 'poisson')}[/], stays "
+        f"[bold]{a.get('lifetime_model', 'exponential')}[/], positions "
+        f"[bold]{a.get('position_model', 'uniform')}[/]"
     )
+    notes = str(a.get("traffic_arrival_notes", "") or "")
+    if notes:
+        console.print(f"note: {notes}")
+    for w in str(a.get("traffic_warnings", "") or "").splitlines():
+        if w.strip():
+            console.print(f"[yellow]warning:[/] {w}")
 
 
 def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, force=False):
@@ -275,8 +283,13 @@ def run_generate(
     force: bool = False,
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
+    model: str = "chosen",
 ) -> Any:
     """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest).
+
+    ``model="chosen"`` draws from the arrival, stay and position models the fit chose
+    (``arrival_model``, ``lifetime_model``, ``position_model``), ``"paper"`` from the
+    paper's Poisson / exponential / uniform model.
 
     The options are checked first (``--scenarios`` an integer >= 1, ``--horizon``,
     ``--area``, ``--behaviour-cell``, ``--behaviour-dt`` finite and > 0, ``--seed`` in
@@ -285,10 +298,11 @@ def run_generate(
     manifest and tracks) is written beside it and put in place as a whole.
     """
     from are_stats.fitting._fit_log import read_fit
-    from are_stats.inputs import get_float, get_int, get_seed
-    from are_stats.scenarios import atomic_folder, check_folder, generate_scenarios, posterior_draws
+    from are_stats.inputs import get_float, get_int, get_seed, get_str
+    from are_stats.scenarios import atomic_folder, check_folder, generate_scenarios, traffic_draws
     from are_stats.scenarios._generate import _check_size, _draws, _write_files
 
+    model = get_str(model, "--model", "", choices=("chosen", "paper"))
     n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
     horizon = get_float(horizon, "--horizon", "", lo=0.0, lo_open=True)
     seed = get_seed(seed)
@@ -310,17 +324,23 @@ def run_generate(
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
     if area is None and grid is None:
         area = float(idata.posterior.attrs["area"])
-    draws = posterior_draws(idata)
+    draws, laws = traffic_draws(idata, model)
+    if laws.positions == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
+        raise ValueError(
+            f"--map: expected an origin yaw of 0 with the fit's learned entry density, got "
+            f"{grid.origin[2]} (or use --model paper)"
+        )
     nu = area if area is not None else float(np.count_nonzero(grid.free)) * grid.resolution**2
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
     _check_size(_draws(draws), n_scenarios, horizon, nu, "stationary", source)
     t = time.perf_counter()
-    df = generate_scenarios(seed, draws, n_scenarios, horizon, free_mask=grid, area=area)
+    df = generate_scenarios(seed, draws, n_scenarios, horizon, free_mask=grid, area=area, laws=laws)
     labels = _class_labels(idata)
     manifest = {
         "fit": str(fit_path),
+        "model": model,
         "map": None if map_path is None else str(map_path),
         "seed": int(seed),
         "class_labels": labels,
@@ -331,6 +351,9 @@ def run_generate(
                 seed, df, grid, labels, tmp, False, behaviour_cell, behaviour_dt
             )
         _write_files(df, tmp, manifest)
+    console.print(
+        f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
+    )
     console.print(
         f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"

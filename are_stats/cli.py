@@ -173,8 +173,22 @@ def fit(
         None, "--figures", help="Folder for criticism figures (default: OUT without .nc)."
     ),
     no_figures: bool = typer.Option(False, "--no-figures", help="Skip the criticism figures."),
-    alternatives: bool = typer.Option(
-        False, "--alternatives", help="Also compare richer arrival/lifetime models by LOO."
+    arrivals: str = typer.Option(
+        "auto",
+        "--arrivals",
+        help="auto (compare by PSIS-LOO) | poisson | negbin | groups | time-of-day | "
+        "negbin+time-of-day | groups+time-of-day.",
+    ),
+    lifetimes: str = typer.Option(
+        "auto", "--lifetimes", help="auto | exponential | gamma | weibull | lognormal."
+    ),
+    positions: str = typer.Option(
+        "auto", "--positions", help="auto | uniform | learned (entry density; needs a map)."
+    ),
+    clock_start: str = typer.Option(
+        None,
+        "--clock-start",
+        help="ISO 8601 wall-clock time of t = 0 (overrides the manifest's clock_start).",
     ),
     stationary_start: bool = typer.Option(
         True,
@@ -182,7 +196,10 @@ def fit(
         help="NUTS: use the Poisson(lambda*area/mu) count present at T0 (couples the rates).",
     ),
 ) -> None:
-    """Fit arrival rate, leave rate and mark mixture of a field log; write NetCDF + figures."""
+    """Fit a field log: the paper's rates and mixture, and the traffic models the data choose.
+
+    Writes the NetCDF fit (posteriors, chosen models, comparison tables) and its figures.
+    """
     from are_stats._cli_jobs import run_fit
 
     run_fit(
@@ -200,8 +217,11 @@ def fit(
         samples=samples,
         chains=chains,
         figures=None if no_figures else (figures or out.with_suffix("")),
-        alternatives=alternatives,
         stationary_start=stationary_start,
+        arrivals=arrivals,
+        lifetimes=lifetimes,
+        positions=positions,
+        clock_start=clock_start,
     )
 
 
@@ -240,6 +260,11 @@ def generate(
     ),
     behaviour_dt: float = typer.Option(2.0, "--behaviour-dt", help="Seconds per MDP epoch."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
+    model: str = typer.Option(
+        "chosen",
+        "--model",
+        help="chosen: the models the fit chose (groups, stays, entries); paper: the paper's.",
+    ),
 ) -> None:
     """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
     from are_stats._cli_jobs import run_generate
@@ -256,6 +281,7 @@ def generate(
         force,
         behaviour_cell=behaviour_cell,
         behaviour_dt=behaviour_dt,
+        model=model,
     )
 
 

@@ -56,14 +56,6 @@ from are_stats.fitting._lifecycle_mcmc import (  # noqa: E402
 __all__ += ["fit_lifecycle_nuts", "resolve_chain_method"]
 
 # --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
-from are_stats.fitting._alternatives import (  # noqa: E402
-    ARRIVAL_MODELS,
-    LIFETIME_MODELS,
-    arrival_counts,
-    compare_models,
-    fit_arrival_models,
-    fit_lifetime_models,
-)
 from are_stats.fitting._criticism import (  # noqa: E402
     DispersionTest,
     KaplanMeier,
@@ -114,12 +106,6 @@ __all__ += [
     "loo_pointwise",
     "nuts_warnings",
     "run_nuts",
-    "ARRIVAL_MODELS",
-    "LIFETIME_MODELS",
-    "arrival_counts",
-    "compare_models",
-    "fit_arrival_models",
-    "fit_lifetime_models",
     "DispersionTest",
     "KaplanMeier",
     "count_path",

@@ -46,6 +46,7 @@ from are_stats.traffic._models import (
 )
 from are_stats.traffic._positions import (
     PositionDensity,
+    coarse_free_mask,
     fit_position_density,
     uniform_position_density,
 )
@@ -507,24 +508,6 @@ def fit_traffic(
     return out
 
 
-def coarse_free(grid: Any, cell: float = POSITION_CELL) -> tuple[np.ndarray, float, tuple]:
-    """Free mask of ``grid`` on cells of about ``cell`` metres (free where most map cells are).
-
-    Returns
-    -------
-    free : (h, w) bool
-    resolution : float
-    origin : (x, y)
-    """
-    free = np.asarray(grid.free, bool)
-    f = max(1, int(round(cell / float(grid.resolution))))
-    h, w = free.shape[0] // f, free.shape[1] // f
-    if h < 2 or w < 2:
-        f, h, w = 1, free.shape[0], free.shape[1]
-    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
-    return frac > 0.5, float(grid.resolution) * f, (float(grid.origin[0]), float(grid.origin[1]))
-
-
 def _fit_positions(
     data: LifecycleData, positions: str, grid: Any
 ) -> tuple[str, PositionDensity | None, PositionDensity | None, pd.DataFrame | None]:
@@ -541,7 +524,7 @@ def _fit_positions(
                 f"--positions learned: expected a map origin yaw of 0, got {grid.origin[2]}"
             )
         return "uniform", None, None, None
-    free, res, origin = coarse_free(grid)
+    free, res, origin = coarse_free_mask(grid.free, grid.resolution, grid.origin[:2], POSITION_CELL)
     uni = uniform_position_density(free, res, origin)
     entered = ~data.truncated
     if data.x is None or data.y is None or entered.sum() < 2:

@@ -120,6 +120,7 @@ from are_stats.traffic._positions import (  # noqa: E402
     POSITION_MODELS,
     PositionDensity,
     boundary_distance,
+    coarse_free_mask,
     fit_position_density,
     uniform_position_density,
 )
@@ -128,6 +129,7 @@ __all__ += [
     "POSITION_MODELS",
     "PositionDensity",
     "boundary_distance",
+    "coarse_free_mask",
     "fit_position_density",
     "uniform_position_density",
 ]

@@ -32,6 +32,7 @@ __all__ = [
     "POSITION_MODELS",
     "PositionDensity",
     "boundary_distance",
+    "coarse_free_mask",
     "fit_position_density",
     "uniform_position_density",
 ]
@@ -226,3 +227,40 @@ def boundary_distance(xy: Any, free_mask: Any, resolution: float, origin: Any) -
     ok = row >= 0
     out[ok] = dist[row[ok] + 1, col[ok] + 1]
     return out
+
+
+def coarse_free_mask(
+    free_mask: Any, resolution: float, origin: Any, cell: float
+) -> tuple[np.ndarray, float, tuple[float, float]]:
+    """A free mask on cells of about ``cell`` metres (free where most fine cells are free).
+
+    Position densities live on such a grid (a kernel narrower than a person is noise).
+
+    Parameters
+    ----------
+    free_mask : (H, W) bool
+    resolution : float
+        Fine cell side (m).
+    origin : (2,) float
+        Map-frame corner of cell (0, 0).
+    cell : float
+        Target cell side (m), rounded to a whole number of fine cells.
+
+    Returns
+    -------
+    free : (h, w) bool
+    resolution : float
+        The coarse cell side.
+    origin : (x, y)
+        Unchanged (the coarse grid starts at the same corner; trailing fine cells that do
+        not fill a coarse cell are dropped).
+    """
+    free = np.asarray(free_mask, bool)
+    res = float(check_positive("resolution", resolution))
+    o = check_finite("origin", origin, ndim=1)
+    f = max(1, int(round(float(check_positive("cell", cell)) / res)))
+    h, w = free.shape[0] // f, free.shape[1] // f
+    if h < 2 or w < 2:
+        f, h, w = 1, free.shape[0], free.shape[1]
+    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+    return frac > 0.5, res * f, (float(o[0]), float(o[1]))
