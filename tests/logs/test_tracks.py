@@ -42,13 +42,16 @@ def test_gap_merge_split_and_censoring():
         ]
     )
     # gaps of a: 1.0, 1.5, 3.5 -> tolerance 4 keeps a whole; b's gap of 5 splits it
-    out = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=4.0, edge_tolerance=0.5)
+    with pytest.warns(UserWarning, match=r"3 track ids became 4 artefacts"):
+        out = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=4.0, edge_tolerance=0.5)
     r = by_id(out)
     assert set(r) == {"a", "b#1", "b#2", "c"}
     assert math.isnan(r["a"].t_arrive) and r["a"].t_leave == 6.0
     assert r["b#1"].t_arrive == 3.0 and r["b#1"].t_leave == 4.0
     assert r["b#2"].t_arrive == 9.0 and math.isnan(r["b#2"].t_leave)
-    assert r["c"].t_arrive == 5.0 and r["c"].t_leave == 5.0
+    # a single sighting stays one sampling step (the median step within tracks: 1 s)
+    assert r["c"].t_arrive == 5.0 and r["c"].t_leave == 6.0
+    assert out.attrs["tracks"]["sampling_step"] == 1.0
     assert r["a"].n_sightings == 4 and r["b#1"].n_sightings == 2
     assert r["b#1"].label == "car" and r["c"].label == ""
     # headings from the first displacement; a single sighting has none
@@ -59,7 +62,8 @@ def test_gap_merge_split_and_censoring():
     # sorted by first sighting
     assert out["id"].tolist() == ["a", "b#1", "c", "b#2"]
     # a smaller tolerance splits a at its 3.5 gap too
-    out2 = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=1.2, edge_tolerance=0.5)
+    with pytest.warns(UserWarning, match=r"3 track ids became 6 artefacts"):
+        out2 = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=1.2, edge_tolerance=0.5)
     assert {"a#1", "a#2", "a#3"} <= set(out2["id"])
     # the output is a valid life-cycle log
     log = lifecycle_log_from_frame(out, window=(0.0, 10.0), area=10.0)
@@ -100,7 +104,8 @@ def test_default_window_and_yaw_column():
     r = by_id(out)
     assert math.isnan(r["7"].t_arrive) and math.isnan(r["7"].t_leave)  # spans the window
     assert r["7"].yaw == 1.0  # the yaw column wins over the heading of motion
-    assert r["8"].t_arrive == 0.5 and r["8"].t_leave == 0.5
+    # one sighting: a stay of one step (1 s) would reach past t1 = 1, so it is censored
+    assert r["8"].t_arrive == 0.5 and math.isnan(r["8"].t_leave)
 
 
 def test_tracks_argument_errors():
