@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -103,7 +104,8 @@ def read_field_log(
     Warns
     -----
     UserWarning
-        When gaps split a tracks table's tracks into many more artefacts than track ids.
+        When gaps split a tracks table's tracks into many more artefacts than track ids
+        (the message names the file and the numbers).
 
     Examples
     --------
@@ -161,7 +163,11 @@ def read_field_log(
     tracks["t"] = tracks["t"] * scale
     if "time_step" in resolved:
         options.setdefault("time_step", resolved["time_step"])
-    out = tracks_to_lifecycle(tracks, window=win, **options)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = tracks_to_lifecycle(tracks, window=win, **options)
+    for w in caught:  # said again naming the file, at the caller
+        warnings.warn(f"{p}: {w.message}", w.category, stacklevel=2)
     info = dict(out.attrs["tracks"])
     info["excluded"] = dict(out.attrs["excluded"])
     resolved["input"] = "tracks table"

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.inputs import Described, InputError, get_float, get_int, get_list
+from are_stats.inputs import Described, InputError, check_work, get_float, get_int, get_list
 from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
 __all__ = [
@@ -51,6 +51,8 @@ GROUP_HORIZON_STEPS = 10
 #: track id, or split more than :data:`_SPLIT_FRACTION` of the track ids.
 _SPLIT_RATIO = 1.5
 _SPLIT_FRACTION = 0.1
+# candidate pairs of group inference handled at once
+_PAIR_CHUNK = 1 << 20
 
 
 def _from_raw(raw: RawTable) -> pd.DataFrame:
@@ -124,7 +126,7 @@ def sampling_step(tracks: pd.DataFrame, gap_tolerance: float | None = None) -> f
     Parameters
     ----------
     tracks : pandas.DataFrame
-        Sightings with columns ``id`` and ``t`` (canonical form, :func:`validate_tracks`).
+        Sightings with columns ``id``, ``t``, ``x``, ``y`` (see :func:`read_tracks`).
     gap_tolerance : float, optional
         Differences longer than this are gaps, not steps, and are left out (unless every
         difference is one).
@@ -133,13 +135,27 @@ def sampling_step(tracks: pd.DataFrame, gap_tolerance: float | None = None) -> f
     -------
     float or None
         The step in seconds; None when no track has two sightings at different times.
+
+    Examples
+    --------
+    >>> tr = pd.DataFrame({"id": ["a", "a", "a", "b", "b"], "t": [0.0, 0.4, 0.8, 5.0, 5.4],
+    ...                    "x": 0.0, "y": 0.0})
+    >>> round(sampling_step(tr), 9)
+    0.4
     """
+    df = validate_tracks(tracks)
+    if gap_tolerance is not None:
+        gap_tolerance = get_float(gap_tolerance, "gap_tolerance", "", lo=0.0)
+    return _sampling_step(df, gap_tolerance)
+
+
+def _sampling_step(tracks: pd.DataFrame, gap_tolerance: float | None) -> float | None:
     codes, _ = pd.factorize(tracks["id"].to_numpy(dtype=object))
     t = tracks["t"].to_numpy(dtype=np.float64)
     order = np.lexsort((t, codes))
     codes, t = codes[order], t[order]
     d = np.diff(t)
-    d = d[(codes[1:] == codes[:-1]) & (d > 0)]
+    d = d[(codes[1:] == codes[:-1]) & (d > 0) & np.isfinite(d)]
     if gap_tolerance is not None and (d <= gap_tolerance).any():
         d = d[d <= gap_tolerance]
     return float(np.median(d)) if d.size else None
@@ -241,9 +257,10 @@ def tracks_to_lifecycle(
     )
     min_sightings = get_int(min_sightings, "min_sightings", "", lo=1)
     if time_step is None:
-        step = sampling_step(df, gap)
+        step = _sampling_step(df, gap)
         if step is None:  # no track seen twice: the table's own time resolution, else 1 s
             u = np.diff(np.unique(df["t"].to_numpy()))
+            u = u[np.isfinite(u)]
             step = float(np.median(u)) if u.size else 1.0
     else:
         step = get_float(time_step, "time_step", "", lo=0.0, lo_open=True)
@@ -418,14 +435,26 @@ def _infer_groups(
     order = np.argsort(tf, kind="stable")
     segs, tf = segs[order], tf[order]
     fx, fy = x[first[segs]], y[first[segs]]
-    # candidate pairs (i < j in first-sighting order) within group_time ...
+    # candidate pairs (i < j in first-sighting order) within group_time and group_distance
+    # at their first sightings, in chunks of about _PAIR_CHUNK pairs (bounded memory)
     hi = np.searchsorted(tf, tf + g_time, side="right")
     n_after = hi - np.arange(len(segs)) - 1
-    ii = np.repeat(np.arange(len(segs)), n_after)
-    jj = ii + 1 + (np.arange(ii.size) - np.repeat(np.cumsum(n_after) - n_after, n_after))
-    # ... and group_distance at their first sightings
-    close = np.hypot(fx[jj] - fx[ii], fy[jj] - fy[ii]) <= g_dist
-    ii, jj = ii[close], jj[close]
+    check_work(
+        float(n_after.sum()), "group inference (pairs first seen within group_time)", "group_time"
+    )
+    ends = np.cumsum(n_after)
+    found_i, found_j = [], []
+    lo_i = 0
+    while lo_i < len(segs):
+        hi_i = max(lo_i + 1, int(np.searchsorted(ends, ends[lo_i] - n_after[lo_i] + _PAIR_CHUNK)))
+        na = n_after[lo_i:hi_i]
+        ii = np.repeat(np.arange(lo_i, hi_i), na)
+        jj = ii + 1 + (np.arange(ii.size) - np.repeat(np.cumsum(na) - na, na))
+        close = np.hypot(fx[jj] - fx[ii], fy[jj] - fy[ii]) <= g_dist
+        found_i.append(ii[close])
+        found_j.append(jj[close])
+        lo_i = hi_i
+    ii, jj = np.concatenate(found_i), np.concatenate(found_j)
     horizon = GROUP_HORIZON_STEPS * step
     linked = [
         (i, j)

@@ -128,3 +128,13 @@ def test_option_errors(tmp_path):
     one_time.write_text("id,t,x,y\na,1,0,0\nb,1,5,5\n")
     with pytest.raises(InputError, match=r"flash\.yaml \(not found\): window: expected"):
         read_field_log(one_time, area=1.0)
+
+
+def test_split_tracks_warn_naming_the_file(tmp_path):
+    rows = [("v", 6.0 * b + 0.5 * k, 0.0, 0.0) for b in range(5) for k in range(3)]
+    p = tmp_path / "vessels.csv"
+    pd.DataFrame(rows, columns=["id", "t", "x", "y"]).to_csv(p, index=False)
+    with pytest.warns(UserWarning, match=r"vessels\.csv: 1 track ids became 5 artefacts"):
+        log = read_field_log(p, area=1.0)
+    assert log.report()["tracks"]["artefacts"] == 5
+    assert log.report()["tracks"]["split_track_ids"] == 1
