@@ -124,6 +124,7 @@ _LAZY.update(
             "LifecycleLog",
             "lifecycle_log_from_frame",
             "read_count_panel",
+            "read_field_log",
             "read_lifecycle_log",
             "read_tracks",
             "read_tracks_bag",

@@ -1,9 +1,17 @@
 """Field-log formats: life-cycle logs, tracks tables, ROS bags / MCAP, count panels.
 
+:func:`read_field_log` reads a life-cycle log or a tracks table, told apart by columns.
+
 Every reader validates cell by cell and raises ``ValueError("<file>: row <r>, column
 '<col>': expected ..., got ...")``; nothing is dropped silently (see ``docs/src/logs.md``).
 """
 
+from are_stats.logs._field_log import (
+    LIFECYCLE_KIND_COLUMNS,
+    TRACK_OPTIONS,
+    TRACKS_KIND_COLUMNS,
+    read_field_log,
+)
 from are_stats.logs._lifecycle_log import (
     LIFECYCLE_COLUMNS,
     LifecycleLog,
@@ -19,24 +27,36 @@ from are_stats.logs._rosbag import (
     vision_msgs_typestore,
 )
 from are_stats.logs._tracks import (
+    GROUP_DISTANCE,
+    GROUP_HORIZON_STEPS,
+    GROUP_TIME_STEPS,
     TRACK_COLUMNS,
     read_tracks,
+    sampling_step,
     tracks_to_lifecycle,
     validate_tracks,
 )
 
 __all__ = [
     "DETECTION3D_MSGS",
+    "GROUP_DISTANCE",
+    "GROUP_HORIZON_STEPS",
+    "GROUP_TIME_STEPS",
     "LIFECYCLE_COLUMNS",
+    "LIFECYCLE_KIND_COLUMNS",
     "SUPPORTED_TRACK_TYPES",
+    "TRACKS_KIND_COLUMNS",
     "TRACK_COLUMNS",
+    "TRACK_OPTIONS",
     "LifecycleLog",
     "lifecycle_log_from_frame",
     "read_count_panel",
+    "read_field_log",
     "read_lifecycle_log",
     "read_manifest",
     "read_tracks",
     "read_tracks_bag",
+    "sampling_step",
     "tracks_to_lifecycle",
     "validate_tracks",
     "vision_msgs_typestore",

@@ -10,6 +10,7 @@ its pose at arrival. An empty ``t_arrive`` means the artefact was already presen
 
 from __future__ import annotations
 
+import datetime
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -40,14 +41,36 @@ __all__ = [
 ]
 
 #: Columns of a life-cycle log, in canonical order (``id, t_arrive, t_leave`` required).
-LIFECYCLE_COLUMNS = ("id", "t_arrive", "t_leave", "label", "mark", "x", "y", "yaw")
+LIFECYCLE_COLUMNS = (
+    "id",
+    "t_arrive",
+    "t_leave",
+    "label",
+    "mark",
+    "x",
+    "y",
+    "yaw",
+    "group",
+    "x_exit",
+    "y_exit",
+)
 _REQUIRED = ["id", "t_arrive", "t_leave"]
 
 #: Multipliers to seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
 #: Multipliers to square metres.
 AREA_UNITS = {"m^2": 1.0, "m2": 1.0, "cm^2": 1e-4, "km^2": 1e6, "ha": 1e4}
-_MANIFEST_KEYS = ("window", "area", "map", "time_unit", "area_unit", "min_lifetime", "description")
+_MANIFEST_KEYS = (
+    "window",
+    "area",
+    "map",
+    "time_unit",
+    "area_unit",
+    "min_lifetime",
+    "time_step",
+    "clock_start",
+    "description",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +83,8 @@ class LifecycleLog:
         One row per artefact, columns ``id`` (str), ``t_arrive``, ``t_leave`` (float64
         seconds, NaN when left-truncated / right-censored), ``label`` (str, ``""`` when
         absent), ``mark`` (int64, -1 when absent), ``x``, ``y``, ``yaw`` (float64, NaN when
-        absent), ``truncated`` and ``censored`` (bool).
+        absent), ``group`` (str, the group id as written, ``""`` when alone), ``x_exit``,
+        ``y_exit`` (float64, NaN when unknown), ``truncated`` and ``censored`` (bool).
     window : (float, float)
         Observation window ``(t0, t1)`` in seconds.
     area : float or None
@@ -71,6 +95,13 @@ class LifecycleLog:
         Rows left out on purpose, by reason (``blank_row``, ``shorter_than_min_lifetime``).
     manifest : dict
         The manifest as read (after overrides), with units.
+    columns : tuple of str
+        The optional columns of :data:`LIFECYCLE_COLUMNS` the source table had (``group``,
+        ``x_exit``, ... ): a column absent from the source is all-empty in ``table``.
+    conversion : dict
+        How the log was made from a tracks table (:func:`read_field_log`): sightings,
+        track ids, artefacts, split track ids, the sampling step and the group tolerances;
+        empty for a life-cycle log read as such.
     """
 
     table: pd.DataFrame
@@ -79,19 +110,34 @@ class LifecycleLog:
     source: str
     excluded: dict[str, int] = field(default_factory=dict)
     manifest: dict[str, Any] = field(default_factory=dict)
+    columns: tuple[str, ...] = ()
+    conversion: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n_artefacts(self) -> int:
         """Number of artefacts (rows kept)."""
         return len(self.table)
 
+    @property
+    def clock_start(self) -> str | None:
+        """Wall-clock time of ``t = 0`` (ISO 8601, manifest key ``clock_start``), or None."""
+        value = self.manifest.get("clock_start")
+        return None if value is None else str(value)
+
     def report(self) -> dict[str, Any]:
-        """Counts for a fit report: rows kept, excluded by reason, truncated, censored."""
+        """Counts for a fit report.
+
+        Rows kept, excluded by reason, truncated, censored, with mark / label, ``groups``
+        (groups of two or more artefacts) and ``artefacts_in_groups``, ``clock_start``, and
+        for a log made from tracks the conversion counts under ``tracks``.
+        """
         t = self.table
-        return {
+        sizes = self._group_sizes()
+        out = {
             "source": self.source,
             "window": list(self.window),
             "area": self.area,
+            "clock_start": self.clock_start,
             "rows_read": int(len(t) + sum(self.excluded.values())),
             "rows_used": int(len(t)),
             "excluded": dict(self.excluded),
@@ -99,7 +145,25 @@ class LifecycleLog:
             "right_censored": int(t["censored"].sum()),
             "with_mark": int((t["mark"] >= 0).sum()),
             "with_label": int((t["label"] != "").sum()),
+            "groups": int((sizes > 1).sum()),
+            "artefacts_in_groups": int(sizes[sizes > 1].sum()),
         }
+        if self.conversion:
+            out["tracks"] = dict(self.conversion)
+        return out
+
+    def _group_sizes(self) -> np.ndarray:
+        """(G,) int64: artefacts per group (lone artefacts are groups of one)."""
+        codes = self._group_codes()
+        return np.bincount(codes) if codes.size else np.zeros(0, dtype=np.int64)
+
+    def _group_codes(self) -> np.ndarray:
+        """(n,) int64 group codes 0..G-1 in order of first appearance; alone = own code."""
+        ids = self.table["group"].to_numpy(dtype=object)
+        # a lone artefact's key cannot collide with a group id (ids are non-empty text)
+        keys = [("", i) if g == "" else (g, -1) for i, g in enumerate(ids)]
+        codes, _ = pd.factorize(pd.Series(keys, dtype=object), sort=False)
+        return np.asarray(codes, dtype=np.int64)
 
     def to_arrays(self) -> dict[str, Any]:
         """Arrays for the life-cycle likelihoods.
@@ -112,7 +176,10 @@ class LifecycleLog:
             int64 (-1 when missing), ``labels`` (n,) object str (``""`` when missing),
             ``label_codes`` (n,) int64 (index into ``label_names``, -1 when missing),
             ``label_names`` list of str (sorted), ``x``, ``y``, ``yaw`` (n,) float64,
-            ``ids`` (n,) object str, ``window`` (t0, t1), ``area`` float or None.
+            ``group`` (n,) int64 (group codes 0..G-1 in order of first appearance, each
+            lone artefact its own code), ``x_exit``, ``y_exit`` (n,) float64 (NaN when
+            unknown), ``ids`` (n,) object str, ``window`` (t0, t1), ``area`` float or None,
+            ``clock_start`` str or None.
         """
         t = self.table
         labels = t["label"].to_numpy(dtype=object)
@@ -132,8 +199,12 @@ class LifecycleLog:
             "x": t["x"].to_numpy(dtype=np.float64),
             "y": t["y"].to_numpy(dtype=np.float64),
             "yaw": t["yaw"].to_numpy(dtype=np.float64),
+            "group": self._group_codes(),
+            "x_exit": t["x_exit"].to_numpy(dtype=np.float64),
+            "y_exit": t["y_exit"].to_numpy(dtype=np.float64),
             "window": self.window,
             "area": self.area,
+            "clock_start": self.clock_start,
         }
 
     def to_lifecycle_data(self, label_names: Sequence[str] | None = None) -> Any:
@@ -150,7 +221,9 @@ class LifecycleLog:
         LifecycleData
             ``marks`` when every row has one (None when no row has), ``labels`` (class
             indices) when every row has a label and marks are present, ``x``, ``y``, ``yaw``
-            when every row has them.
+            when every row has them, ``group`` (int codes 0..G-1 in order of first
+            appearance, each lone artefact its own code) when the log has a ``group``
+            column, ``x_exit``, ``y_exit`` (NaN where unknown) when it has those columns.
 
         Raises
         ------
@@ -198,6 +271,7 @@ class LifecycleLog:
                 )
             codes = np.array([lookup[v] for v in labels], dtype=np.int64)
         pose = {k: a[k] if np.isfinite(a[k]).all() else None for k in ("x", "y", "yaw")}
+        cols = set(self.columns)
         return LifecycleData(
             t_arrive=a["t_arrive"],
             t_leave=a["t_leave"],
@@ -205,6 +279,9 @@ class LifecycleLog:
             area=self.area,
             marks=marks if has.all() else None,
             labels=codes,
+            group=a["group"] if "group" in cols else None,
+            x_exit=a["x_exit"] if "x_exit" in cols else None,
+            y_exit=a["y_exit"] if "y_exit" in cols else None,
             **pose,
         )
 
@@ -229,7 +306,11 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     Keys: ``window: [t0, t1]`` (in ``time_unit``), ``area`` (in ``area_unit``) or ``map``
     (path to a ROS map YAML, relative to the manifest), ``time_unit`` (``s``, ``ms``,
     ``min``, ``h``; default ``s``), ``area_unit`` (``m^2``, ``cm^2``, ``km^2``, ``ha``;
-    default ``m^2``), ``min_lifetime`` (default 0), ``description`` (free text).
+    default ``m^2``), ``min_lifetime`` (default 0), ``time_step`` (the sampling step of the
+    times, e.g. the tracker's period, in ``time_unit``: times up to one step outside the
+    window are clipped onto its edge; default: only rounding errors are), ``clock_start``
+    (the wall-clock time of ``t = 0``, ISO 8601 text such as ``2024-05-02T07:30:00``, read
+    with :meth:`datetime.datetime.fromisoformat`), ``description`` (free text).
 
     The file is read with :func:`are_stats.inputs.load_yaml` (duplicate keys, alias bombs
     and over-deep nesting rejected) and every value is type-checked strictly: numbers are
@@ -275,9 +356,32 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
         out["area_unit"] = get_str(meta["area_unit"], p, "area_unit", choices=AREA_UNITS)
     if "min_lifetime" in meta:
         out["min_lifetime"] = get_float(meta["min_lifetime"], p, "min_lifetime", lo=0.0)
+    if "time_step" in meta:
+        out["time_step"] = get_float(meta["time_step"], p, "time_step", lo=0.0, lo_open=True)
+    if "clock_start" in meta:
+        out["clock_start"] = _clock_start(p, "clock_start", meta["clock_start"])
     if "description" in meta:
         out["description"] = get_str(meta["description"], p, "description")
     return out
+
+
+def _clock_start(source: Any, where: str, value: Any) -> str:
+    """``clock_start``: ISO 8601 date-time text (:meth:`datetime.datetime.fromisoformat`).
+
+    YAML reads an unquoted ``2024-05-02T07:30:00`` as a timestamp: it is accepted and
+    written back in ISO form.
+    """
+    if isinstance(value, datetime.datetime):
+        return value.isoformat()
+    expected = "an ISO 8601 date and time such as '2024-05-02T07:30:00'"
+    if isinstance(value, datetime.date):
+        raise InputError(source, where, expected, Described(f"the date {value.isoformat()!r}"))
+    text = get_str(value, source, where)
+    try:
+        datetime.datetime.fromisoformat(text)
+    except ValueError:
+        raise InputError(source, where, expected, text) from None
+    return text
 
 
 def _window(source: Any, where: str, value: Any, scale: float) -> tuple[float, float]:
@@ -303,7 +407,11 @@ def _window(source: Any, where: str, value: Any, scale: float) -> tuple[float, f
 
 
 def _resolve_settings(
-    manifest: Mapping[str, Any], mpath: str, window: Any, area: Any
+    manifest: Mapping[str, Any],
+    mpath: str,
+    window: Any,
+    area: Any,
+    clock_start: Any = None,
 ) -> tuple[tuple[float, float], float | None, float, dict[str, Any]]:
     tu = str(manifest.get("time_unit", "s"))
     au = str(manifest.get("area_unit", "m^2"))
@@ -342,6 +450,15 @@ def _resolve_settings(
             manifest["min_lifetime"],
         )
     resolved = dict(manifest)
+    if clock_start is not None:
+        resolved["clock_start"] = _clock_start("clock_start", "", clock_start)
+    if "time_step" in manifest:
+        step = float(manifest["time_step"]) * scale
+        if not (math.isfinite(step) and step > 0):
+            raise InputError(
+                mpath, "time_step", "a step that stays finite in seconds", manifest["time_step"]
+            )
+        resolved["time_step"] = step
     resolved.update(
         {
             "window": list(win),
@@ -363,6 +480,7 @@ def read_lifecycle_log(
     manifest: str | os.PathLike | None = None,
     window: tuple[float, float] | None = None,
     area: float | None = None,
+    clock_start: str | None = None,
 ) -> LifecycleLog:
     """Read and validate a life-cycle log (CSV or Parquet) and its manifest.
 
@@ -371,18 +489,24 @@ def read_lifecycle_log(
     path : str or PathLike
         The table: ``.csv`` / ``.tsv`` / ``.txt`` or ``.parquet`` / ``.pq``, one row per
         artefact with columns ``id``, ``t_arrive``, ``t_leave`` and optional ``label``,
-        ``mark``, ``x``, ``y``, ``yaw``.
+        ``mark``, ``x``, ``y``, ``yaw``, ``group`` (an id shared by artefacts that arrived
+        together; empty = alone), ``x_exit``, ``y_exit`` (leaving position; empty =
+        unknown; both or neither).
     manifest : str or PathLike, optional
         The YAML manifest; by default ``<stem>.yaml`` (or ``.yml``) beside the table, if any.
     window : (float, float), optional
         Observation window ``(t0, t1)`` in the table's time unit; overrides the manifest.
     area : float, optional
         Free area in m^2; overrides the manifest's ``area`` / ``map``.
+    clock_start : str, optional
+        Wall-clock time of ``t = 0`` (ISO 8601); overrides the manifest's ``clock_start``.
 
     Returns
     -------
     LifecycleLog
-        Times converted to seconds, area to m^2.
+        Times converted to seconds, area to m^2. Times outside the window by at most the
+        tolerance (one ``time_step`` when the manifest gives one, else a rounding error,
+        see :data:`WINDOW_RTOL`) are clipped onto the window's edge.
 
     Raises
     ------
@@ -401,18 +525,26 @@ def read_lifecycle_log(
     >>> arrays = log.to_arrays()  # doctest: +SKIP
     """
     p = Path(path)
+    meta, mpath = find_manifest(p, manifest)
+    raw = read_raw_table(p, "life-cycle log")
+    win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area, clock_start)
+    scale = TIME_UNITS[resolved["source_time_unit"]]
+    tol = max(window_tolerance(win), float(resolved.get("time_step", 0.0)))
+    return _validate(raw, win, a, min_life, scale, str(p), resolved, tol)
+
+
+def find_manifest(path: Path, manifest: str | os.PathLike | None) -> tuple[dict[str, Any], str]:
+    """The manifest of table ``path``: ``manifest`` if given, else ``<stem>.yaml`` / ``.yml``.
+
+    Returns the checked manifest (empty when there is none) and its path for messages.
+    """
     if manifest is None:
-        cands = [p.with_suffix(".yaml"), p.with_suffix(".yml")]
+        cands = [path.with_suffix(".yaml"), path.with_suffix(".yml")]
         found = next((c for c in cands if c.exists()), None)
         meta = read_manifest(found) if found is not None else {}
-        mpath = str(found) if found is not None else f"{p.with_suffix('.yaml')} (not found)"
-    else:
-        meta = read_manifest(manifest)
-        mpath = str(manifest)
-    raw = read_raw_table(p, "life-cycle log")
-    win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area)
-    scale = TIME_UNITS[resolved["source_time_unit"]]
-    return _validate(raw, win, a, min_life, scale, str(p), resolved)
+        mpath = str(found) if found is not None else f"{path.with_suffix('.yaml')} (not found)"
+        return meta, mpath
+    return read_manifest(manifest), str(manifest)
 
 
 def lifecycle_log_from_frame(
@@ -421,6 +553,9 @@ def lifecycle_log_from_frame(
     area: float | None = None,
     source: str = "<frame>",
     min_lifetime: float = 0.0,
+    *,
+    time_step: float | None = None,
+    clock_start: str | None = None,
 ) -> LifecycleLog:
     """Validate an in-memory life-cycle table (e.g. from :func:`tracks_to_lifecycle`).
 
@@ -436,6 +571,11 @@ def lifecycle_log_from_frame(
         Name used in error messages.
     min_lifetime : float
         Complete lifetimes shorter than this are excluded (and counted).
+    time_step : float, optional
+        Sampling step of the times in seconds: times up to one step outside the window are
+        clipped onto its edge (default: only rounding errors, :data:`WINDOW_RTOL`).
+    clock_start : str, optional
+        Wall-clock time of ``t = 0`` (ISO 8601).
 
     Returns
     -------
@@ -447,19 +587,27 @@ def lifecycle_log_from_frame(
     win = _window("window", "", window, 1.0)
     a = None if area is None else get_float(area, "area", "", lo=0.0, lo_open=True)
     min_life = get_float(min_lifetime, "min_lifetime", "", lo=0.0)
-    resolved = {
+    resolved: dict[str, Any] = {
         "window": list(win),
         "area": a,
         "time_unit": "s",
         "area_unit": "m^2",
         "min_lifetime": min_life,
     }
-    return _validate(raw, win, a, min_life, 1.0, source, resolved)
+    tol = window_tolerance(win)
+    if time_step is not None:
+        resolved["time_step"] = get_float(time_step, "time_step", "", lo=0.0, lo_open=True)
+        tol = max(tol, resolved["time_step"])
+    if clock_start is not None:
+        resolved["clock_start"] = _clock_start("clock_start", "", clock_start)
+    return _validate(raw, win, a, min_life, 1.0, source, resolved, tol)
 
 
 #: Relative tolerance of the window check: times within ``WINDOW_RTOL * max(|t0|, |t1|,
 #: t1 - t0)`` outside the window are rounding errors (``215.60000000000002`` for a window
-#: ending at ``215.6``) and are clipped onto its edge; times further out are errors.
+#: ending at ``215.6``) and are clipped onto its edge; times further out are errors. When the
+#: sampling step of the times is known (manifest ``time_step``, or the tracker's step for a
+#: log made from tracks) the tolerance is one step.
 WINDOW_RTOL = 1e-9
 
 
@@ -486,8 +634,11 @@ def _validate(
     scale: float,
     source: str,
     manifest: dict[str, Any],
+    tol: float,
 ) -> LifecycleLog:
     raw.require(_REQUIRED, "life-cycle log")
+    if ("x_exit" in raw.columns) != ("y_exit" in raw.columns):
+        raw.require(["x_exit", "y_exit"], "life-cycle log with exit positions")
     n = raw.n_rows
     blank = _blank_rows(raw)
     keep = ~blank
@@ -511,11 +662,14 @@ def _validate(
     else:
         mark = np.full(m, -1, dtype=np.int64)
     pose = {}
-    for c in ("x", "y", "yaw"):
+    for c in ("x", "y", "yaw", "x_exit", "y_exit"):
         pose[c] = sub.floats(c, allow_empty=True)[0] if c in sub.columns else np.full(m, np.nan)
+    if "group" in sub.columns:
+        group = sub.ids("group", allow_empty=True)
+    else:
+        group = np.full(m, "", dtype=object)
     t0, t1 = win
     wtxt = f"the window [{t0 / scale:g}, {t1 / scale:g}]"
-    tol = window_tolerance(win)
     for name, vals, empty in (("t_arrive", ta, trunc), ("t_leave", tl, cens)):
         bad = ~empty & ((vals < t0 - tol) | (vals > t1 + tol))
         if bad.any():
@@ -557,6 +711,9 @@ def _validate(
             "x": pose["x"][k],
             "y": pose["y"][k],
             "yaw": pose["yaw"][k],
+            "group": pd.array(group[k].astype(str), dtype="str"),
+            "x_exit": pose["x_exit"][k],
+            "y_exit": pose["y_exit"][k],
             "truncated": trunc[k],
             "censored": cens[k],
         }
@@ -565,4 +722,7 @@ def _validate(
         raise ValueError(
             f"{raw.path}: expected at least one artefact after exclusions, got none ({excluded})"
         )
-    return LifecycleLog(table, (float(t0), float(t1)), area, source, excluded, manifest)
+    columns = tuple(c for c in LIFECYCLE_COLUMNS if c in sub.columns)
+    return LifecycleLog(
+        table, (float(t0), float(t1)), area, source, excluded, manifest, columns=columns
+    )

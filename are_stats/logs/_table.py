@@ -119,27 +119,33 @@ class RawTable:
 
     # ---- cell parsers -------------------------------------------------------------------
 
-    def ids(self, column: str) -> np.ndarray:
-        """Non-empty identifiers as strings (numbers are formatted without a trailing .0)."""
-        self._no_bools(column, "a non-empty identifier (text or integer)")
+    def ids(self, column: str, *, allow_empty: bool = False) -> np.ndarray:
+        """Identifiers as strings (numbers are formatted without a trailing .0).
+
+        With ``allow_empty`` an empty cell is ``""``; otherwise it is an error.
+        """
+        expected = "a non-empty identifier" + (" or an empty cell" if allow_empty else "")
+        self._no_bools(column, f"{expected} (text or integer)")
         if column in self.strings:
             out = self.strings[column]
             bad = out == ""
-            if bad.any():
+            if bad.any() and not allow_empty:
                 i = int(np.argmax(bad))
-                raise self.error(i, column, "a non-empty identifier", "an empty cell")
+                raise self.error(i, column, expected, "an empty cell")
             return out.astype(object)
         vals, null = self.numbers[column]
-        if null.any():
-            raise self.error(
-                int(np.argmax(null)), column, "a non-empty identifier", "an empty cell"
-            )
-        if not np.isfinite(vals).all():
-            i = int(np.argmax(~np.isfinite(vals)))
-            raise self.error(i, column, "a non-empty identifier", repr(float(vals[i])))
+        if null.any() and not allow_empty:
+            raise self.error(int(np.argmax(null)), column, expected, "an empty cell")
+        bad = ~np.isfinite(vals) & ~null
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise self.error(i, column, expected, repr(float(vals[i])))
         integral = vals == np.round(vals)
         return np.array(
-            [str(int(v)) if ok else repr(float(v)) for v, ok in zip(vals, integral, strict=True)],
+            [
+                "" if n else str(int(v)) if ok else repr(float(v))
+                for v, ok, n in zip(vals, integral, null, strict=True)
+            ],
             dtype=object,
         )
 

@@ -1,29 +1,58 @@
 """Tracker output (``id, t, x, y``) to a life-cycle log: first/last sighting per artefact.
 
 A tracker reports sightings of tracked objects. An artefact's life cycle (Sect. 3.2) is
-read off its track: it arrives at its first sighting and leaves at its last one. Gaps in a
-track shorter than ``gap_tolerance`` are occlusions and are merged; longer gaps split the
-track into separate artefacts (ids suffixed ``#1``, ``#2``, ...). Tracks that touch the
-window edges are censored (DECISIONS 3): first seen within ``edge_tolerance`` of ``t0``
-means already present (left-truncated, empty ``t_arrive``), last seen within
-``edge_tolerance`` of ``t1`` means still present (right-censored, empty ``t_leave``).
+read off its track: it arrives at its first sighting (its entry point) and leaves at its
+last one (its exit point). Gaps in a track shorter than ``gap_tolerance`` are occlusions
+and are merged; longer gaps split the track into separate artefacts (ids suffixed ``#1``,
+``#2``, ...; a warning says so when many tracks split). Tracks that touch the window edges
+are censored (DECISIONS 3): first seen within ``edge_tolerance`` of ``t0`` means already
+present (left-truncated, empty ``t_arrive``), last seen within ``edge_tolerance`` of ``t1``
+means still present (right-censored, empty ``t_leave``).
+
+Artefacts that arrive together (people walking in a group) are found as connected
+components of the relation "first seen within ``group_time`` and ``group_distance`` of each
+other and moving together" (see :func:`tracks_to_lifecycle`).
 """
 
 from __future__ import annotations
 
 import os
+import warnings
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from are_stats.inputs import Described, InputError, get_float, get_int, get_list
+from are_stats.inputs import Described, InputError, check_work, get_float, get_int, get_list
 from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
-__all__ = ["TRACK_COLUMNS", "read_tracks", "tracks_to_lifecycle", "validate_tracks"]
+__all__ = [
+    "GROUP_DISTANCE",
+    "GROUP_HORIZON_STEPS",
+    "GROUP_TIME_STEPS",
+    "TRACK_COLUMNS",
+    "read_tracks",
+    "sampling_step",
+    "tracks_to_lifecycle",
+    "validate_tracks",
+]
 
 #: Columns of a tracks table (``id, t, x, y`` required; ``label``, ``yaw`` optional).
 TRACK_COLUMNS = ("id", "t", "x", "y", "label", "yaw")
+
+#: Default ``group_time`` of :func:`tracks_to_lifecycle`, in sampling steps.
+GROUP_TIME_STEPS = 1.5
+#: Default ``group_distance`` of :func:`tracks_to_lifecycle`, in metres.
+GROUP_DISTANCE = 1.5
+#: Candidate group members must move together over this many sampling steps after the
+#: later of their first sightings (at most 2 x ``group_distance`` apart at common times).
+GROUP_HORIZON_STEPS = 10
+#: A warning is given when gaps split the tracks into more than this many artefacts per
+#: track id, or split more than :data:`_SPLIT_FRACTION` of the track ids.
+_SPLIT_RATIO = 1.5
+_SPLIT_FRACTION = 0.1
+# candidate pairs of group inference handled at once
+_PAIR_CHUNK = 1 << 20
 
 
 def _from_raw(raw: RawTable) -> pd.DataFrame:
@@ -91,14 +120,59 @@ def validate_tracks(tracks: pd.DataFrame, name: str = "tracks") -> pd.DataFrame:
     return df
 
 
+def sampling_step(tracks: pd.DataFrame, gap_tolerance: float | None = None) -> float | None:
+    """The tracker's sampling step: the median positive time difference within tracks.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        Sightings with columns ``id``, ``t``, ``x``, ``y`` (see :func:`read_tracks`).
+    gap_tolerance : float, optional
+        Differences longer than this are gaps, not steps, and are left out (unless every
+        difference is one).
+
+    Returns
+    -------
+    float or None
+        The step in seconds; None when no track has two sightings at different times.
+
+    Examples
+    --------
+    >>> tr = pd.DataFrame({"id": ["a", "a", "a", "b", "b"], "t": [0.0, 0.4, 0.8, 5.0, 5.4],
+    ...                    "x": 0.0, "y": 0.0})
+    >>> round(sampling_step(tr), 9)
+    0.4
+    """
+    df = validate_tracks(tracks)
+    if gap_tolerance is not None:
+        gap_tolerance = get_float(gap_tolerance, "gap_tolerance", "", lo=0.0)
+    return _sampling_step(df, gap_tolerance)
+
+
+def _sampling_step(tracks: pd.DataFrame, gap_tolerance: float | None) -> float | None:
+    codes, _ = pd.factorize(tracks["id"].to_numpy(dtype=object))
+    t = tracks["t"].to_numpy(dtype=np.float64)
+    order = np.lexsort((t, codes))
+    codes, t = codes[order], t[order]
+    d = np.diff(t)
+    d = d[(codes[1:] == codes[:-1]) & (d > 0) & np.isfinite(d)]
+    if gap_tolerance is not None and (d <= gap_tolerance).any():
+        d = d[d <= gap_tolerance]
+    return float(np.median(d)) if d.size else None
+
+
 def tracks_to_lifecycle(
     tracks: pd.DataFrame,
     window: tuple[float, float] | None = None,
     gap_tolerance: float = 2.0,
     edge_tolerance: float | None = None,
     min_sightings: int = 1,
+    *,
+    group_time: float | None = None,
+    group_distance: float | None = None,
+    time_step: float | None = None,
 ) -> pd.DataFrame:
-    """Convert sightings to a life-cycle log (first/last sighting per artefact).
+    """Convert sightings to a life-cycle log (first/last sighting per artefact, groups).
 
     Parameters
     ----------
@@ -107,27 +181,58 @@ def tracks_to_lifecycle(
         (as returned by :func:`read_tracks` or :func:`read_tracks_bag`).
     window : (float, float), optional
         Observation window ``(t0, t1)``; default: first to last sighting of the table.
-        Sightings outside the window are left out and counted.
+        Sightings up to one sampling step outside the window are clipped onto its edge
+        (``215.60000000000002`` is on a window ending at ``215.6``); sightings further out
+        are left out and counted.
     gap_tolerance : float
         Gaps between consecutive sightings of one track up to this long are merged; longer
-        gaps split the track into artefacts ``<id>#1``, ``<id>#2``, ...
+        gaps split the track into artefacts ``<id>#1``, ``<id>#2``, ... When that makes
+        more than 1.5 artefacts per track id, or splits more than 10% of the ids, a
+        ``UserWarning`` names the numbers (raise ``gap_tolerance`` if the gaps are
+        occlusions).
     edge_tolerance : float, optional
         A segment first seen at or before ``t0 + edge_tolerance`` is left-truncated (empty
         ``t_arrive``); last seen at or after ``t1 - edge_tolerance`` right-censored (empty
         ``t_leave``). Default: ``gap_tolerance``.
     min_sightings : int
         Segments with fewer sightings are left out (tracker flicker) and counted.
+    group_time : float, optional
+        Artefacts first seen at most this long apart (seconds) may be one group. Default:
+        1.5 sampling steps (:data:`GROUP_TIME_STEPS`), so members first seen in the same or
+        the next frame qualify.
+    group_distance : float, optional
+        ... and at most this far apart (metres) at their first sightings. Default 1.5 m
+        (:data:`GROUP_DISTANCE`). They are one group when they also move together: at the
+        times both are seen during the :data:`GROUP_HORIZON_STEPS` sampling steps after
+        the later first sighting (times matched within half a step), they stay within
+        ``2 * group_distance`` of each other; with fewer than two such common times the
+        first-sighting proximity suffices. Groups are the connected components of this
+        relation. ``group_distance=0`` turns group inference off.
+    time_step : float, optional
+        The tracker's sampling step in seconds. Default: :func:`sampling_step`, the median
+        positive time difference within tracks (gaps left out).
 
     Returns
     -------
     pandas.DataFrame
         Life-cycle log columns ``id``, ``t_arrive``, ``t_leave`` (NaN when truncated /
         censored), ``label`` (most frequent label of the segment, ties to the first),
-        ``x``, ``y`` (first sighting), ``yaw`` (the ``yaw`` column at the first sighting if
-        given, else the heading from the first to the second sighting, NaN when it did not
-        move), ``n_sightings``; sorted by first sighting. ``attrs["excluded"]`` counts
-        ``outside_window`` sightings and ``too_few_sightings`` segments; ``attrs["window"]``
-        holds the window used.
+        ``x``, ``y`` (first sighting: the entry point), ``yaw`` (the ``yaw`` column at the
+        first sighting if given, else the heading from the first to the second sighting,
+        NaN when it did not move), ``x_exit``, ``y_exit`` (last sighting: the exit point;
+        NaN when censored), ``group`` (the id of the group's first member, ``""`` when
+        alone), ``n_sightings``; sorted by first sighting.
+
+        A segment observed for less than one sampling step (a single sighting, or
+        sightings at one time) gets a stay of one step, ``t_leave = t_first + step``: the
+        tracker saw it in one frame, so it was there for about one frame; when that would
+        reach past ``t1`` it is right-censored instead. No stay is ever zero.
+
+        ``attrs["excluded"]`` counts ``outside_window`` sightings and ``too_few_sightings``
+        segments; ``attrs["window"]`` holds the window used; ``attrs["tracks"]`` the
+        conversion counts (``sightings``, ``track_ids``, ``artefacts``, ``split_track_ids``,
+        ``groups``, ``artefacts_in_groups``) and settings (``sampling_step``,
+        ``gap_tolerance``, ``group_time``, ``group_distance``).
 
     Raises
     ------
@@ -136,11 +241,14 @@ def tracks_to_lifecycle(
 
     Examples
     --------
-    >>> tr = pd.DataFrame({"id": ["a", "a", "a"], "t": [0.0, 1.0, 9.0],
-    ...                    "x": [0.0, 1.0, 1.0], "y": [0.0, 0.0, 0.0]})
-    >>> out = tracks_to_lifecycle(tr, window=(0, 20), gap_tolerance=2.0)
+    >>> tr = pd.DataFrame({"id": ["a", "a", "a", "a"], "t": [0.0, 1.0, 2.0, 9.0],
+    ...                    "x": [0.0, 1.0, 2.0, 2.0], "y": [0.0, 0.0, 0.0, 0.0]})
+    >>> import warnings
+    >>> with warnings.catch_warnings():  # 1 track id became 2 artefacts
+    ...     warnings.simplefilter("ignore")
+    ...     out = tracks_to_lifecycle(tr, window=(0, 20), gap_tolerance=2.0)
     >>> out["id"].tolist(), out["t_arrive"].tolist(), out["t_leave"].tolist()
-    (['a#1', 'a#2'], [nan, 9.0], [1.0, 9.0])
+    (['a#1', 'a#2'], [nan, 9.0], [2.0, 10.0])
     """
     df = validate_tracks(tracks)
     gap = get_float(gap_tolerance, "gap_tolerance", "", lo=0.0)
@@ -148,7 +256,25 @@ def tracks_to_lifecycle(
         gap if edge_tolerance is None else get_float(edge_tolerance, "edge_tolerance", "", lo=0.0)
     )
     min_sightings = get_int(min_sightings, "min_sightings", "", lo=1)
-    t_all = df["t"].to_numpy()
+    if time_step is None:
+        step = _sampling_step(df, gap)
+        if step is None:  # no track seen twice: the table's own time resolution, else 1 s
+            u = np.diff(np.unique(df["t"].to_numpy()))
+            u = u[np.isfinite(u)]
+            step = float(np.median(u)) if u.size else 1.0
+    else:
+        step = get_float(time_step, "time_step", "", lo=0.0, lo_open=True)
+    g_time = (
+        GROUP_TIME_STEPS * step
+        if group_time is None
+        else get_float(group_time, "group_time", "", lo=0.0)
+    )
+    g_dist = (
+        GROUP_DISTANCE
+        if group_distance is None
+        else get_float(group_distance, "group_distance", "", lo=0.0)
+    )
+    t_all = df["t"].to_numpy().copy()
     if window is None:
         t0, t1 = float(t_all.min()), float(t_all.max())
     else:
@@ -159,13 +285,40 @@ def tracks_to_lifecycle(
         t1 = get_float(pair[1], "window", "[1]")
         if not t1 > t0:
             raise InputError("window", "", "(t0, t1) with t0 < t1", Described(f"({t0!r}, {t1!r})"))
-    inside = (t_all >= t0) & (t_all <= t1)
+    # one sampling step of tolerance at the edges (and never less than a rounding error)
+    tol = max(step, 1e-9 * max(abs(t0), abs(t1), t1 - t0))
+    inside = (t_all >= t0 - tol) & (t_all <= t1 + tol)
+    df = df.assign(t=np.clip(t_all, t0, t1))
     excluded = {"outside_window": int((~inside).sum()), "too_few_sightings": 0}
     df = df[inside]
-    cols = ["id", "t_arrive", "t_leave", "label", "x", "y", "yaw", "n_sightings"]
+    info: dict[str, Any] = {
+        "sightings": int(len(df)),
+        "track_ids": 0,
+        "artefacts": 0,
+        "split_track_ids": 0,
+        "groups": 0,
+        "artefacts_in_groups": 0,
+        "sampling_step": float(step),
+        "gap_tolerance": float(gap),
+        "group_time": float(g_time),
+        "group_distance": float(g_dist),
+    }
+    cols = [
+        "id",
+        "t_arrive",
+        "t_leave",
+        "label",
+        "x",
+        "y",
+        "yaw",
+        "x_exit",
+        "y_exit",
+        "group",
+        "n_sightings",
+    ]
     if df.empty:
         out = pd.DataFrame({c: [] for c in cols})
-        out.attrs.update(excluded=excluded, window=(t0, t1))
+        out.attrs.update(excluded=excluded, window=(t0, t1), tracks=info)
         return out
 
     ids = df["id"].to_numpy(dtype=object)
@@ -196,6 +349,16 @@ def tracks_to_lifecycle(
         ],
         dtype=object,
     )
+    n_ids, n_art, n_split = len(uniq), len(first), int((n_segs > 1).sum())
+    info.update(track_ids=int(n_ids), artefacts=int(n_art), split_track_ids=n_split)
+    if n_art > _SPLIT_RATIO * n_ids or n_split > _SPLIT_FRACTION * n_ids:
+        warnings.warn(
+            f"{n_ids} track ids became {n_art} artefacts: gaps longer than "
+            f"gap_tolerance={gap:g} s split {n_split} of the tracks (the sampling step is "
+            f"{step:.3g} s); if the gaps are occlusions, raise gap_tolerance",
+            UserWarning,
+            stacklevel=2,
+        )
     # majority label per segment (ties: the label seen first)
     lab_codes, lab_uniq = pd.factorize(labels)
     counts = pd.DataFrame({"seg": seg, "lab": lab_codes, "pos": np.arange(n)})
@@ -212,8 +375,19 @@ def tracks_to_lifecycle(
     fill = np.isnan(yaw) & moved
     yaw[fill] = np.arctan2(dy[fill], dx[fill])
     t_first, t_last = t[first], t[last]
+    # a segment seen for less than a step stayed about one step (never a zero stay)
+    brief = t_last - t_first < step
+    t_end = np.where(brief, t_first + step, t_last)
     t_arr = np.where(t_first <= t0 + edge, np.nan, t_first)
-    t_lea = np.where(t_last >= t1 - edge, np.nan, t_last)
+    censored = (t_last >= t1 - edge) | (t_end > t1)
+    t_lea = np.where(censored, np.nan, t_end)
+    x_exit = np.where(censored, np.nan, x[last])
+    y_exit = np.where(censored, np.nan, y[last])
+    keep = n_sight >= int(min_sightings)
+    excluded["too_few_sightings"] = int((~keep).sum())
+    group = _infer_groups(np.flatnonzero(keep), first, last, t, x, y, seg_ids, g_time, g_dist, step)
+    sizes = pd.Series(group[group != ""]).value_counts()
+    info.update(groups=int(len(sizes)), artefacts_in_groups=int(sizes.sum()))
     out = pd.DataFrame(
         {
             "id": pd.array(seg_ids.astype(str), dtype="str"),
@@ -223,14 +397,120 @@ def tracks_to_lifecycle(
             "x": x[first],
             "y": y[first],
             "yaw": yaw,
+            "x_exit": x_exit,
+            "y_exit": y_exit,
+            "group": pd.array(group.astype(str), dtype="str"),
             "n_sightings": n_sight.astype(np.int64),
         }
     )
-    keep = n_sight >= int(min_sightings)
-    excluded["too_few_sightings"] = int((~keep).sum())
     out = out[keep]
     out = out.iloc[
         np.lexsort((out["id"].to_numpy(dtype=object).astype(str), t_first[keep]))
     ].reset_index(drop=True)
-    out.attrs.update(excluded=excluded, window=(t0, t1))
+    out.attrs.update(excluded=excluded, window=(t0, t1), tracks=info)
     return out
+
+
+def _infer_groups(
+    segs: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    seg_ids: np.ndarray,
+    g_time: float,
+    g_dist: float,
+    step: float,
+) -> np.ndarray:
+    """Group id of every segment (the first member's id, ``""`` when alone).
+
+    ``segs`` are the segments taking part (indices into ``first`` / ``last``, whose
+    sightings ``first[k]..last[k]`` of ``t``, ``x``, ``y`` are sorted by time).
+    """
+    out = np.full(len(first), "", dtype=object)
+    if len(segs) < 2 or g_dist <= 0:
+        return out
+    tf = t[first[segs]]
+    order = np.argsort(tf, kind="stable")
+    segs, tf = segs[order], tf[order]
+    fx, fy = x[first[segs]], y[first[segs]]
+    # candidate pairs (i < j in first-sighting order) within group_time and group_distance
+    # at their first sightings, in chunks of about _PAIR_CHUNK pairs (bounded memory)
+    hi = np.searchsorted(tf, tf + g_time, side="right")
+    n_after = hi - np.arange(len(segs)) - 1
+    check_work(
+        float(n_after.sum()), "group inference (pairs first seen within group_time)", "group_time"
+    )
+    ends = np.cumsum(n_after)
+    found_i, found_j = [], []
+    lo_i = 0
+    while lo_i < len(segs):
+        hi_i = max(lo_i + 1, int(np.searchsorted(ends, ends[lo_i] - n_after[lo_i] + _PAIR_CHUNK)))
+        na = n_after[lo_i:hi_i]
+        ii = np.repeat(np.arange(lo_i, hi_i), na)
+        jj = ii + 1 + (np.arange(ii.size) - np.repeat(np.cumsum(na) - na, na))
+        close = np.hypot(fx[jj] - fx[ii], fy[jj] - fy[ii]) <= g_dist
+        found_i.append(ii[close])
+        found_j.append(jj[close])
+        lo_i = hi_i
+    ii, jj = np.concatenate(found_i), np.concatenate(found_j)
+    horizon = GROUP_HORIZON_STEPS * step
+    linked = [
+        (i, j)
+        for i, j in zip(ii.tolist(), jj.tolist(), strict=True)
+        if _move_together(segs[i], segs[j], first, last, t, x, y, horizon, step, 2 * g_dist)
+    ]
+    if not linked:
+        return out
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    a, b = np.array(linked, dtype=np.int64).T
+    graph = coo_matrix((np.ones(a.size), (a, b)), shape=(len(segs), len(segs)))
+    _, comp = connected_components(graph, directed=False)
+    sizes = np.bincount(comp)
+    # the group's id: its first member's (segments are in first-sighting order)
+    first_member = np.full(sizes.size, -1)
+    for k in range(len(segs) - 1, -1, -1):
+        first_member[comp[k]] = k
+    in_group = sizes[comp] > 1
+    out[segs[in_group]] = seg_ids[segs[first_member[comp[in_group]]]]
+    return out
+
+
+def _move_together(
+    a: int,
+    b: int,
+    first: np.ndarray,
+    last: np.ndarray,
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    horizon: float,
+    step: float,
+    max_dist: float,
+) -> bool:
+    """Whether segments ``a`` and ``b`` stay within ``max_dist`` at their common times.
+
+    Common times: sightings of both within half a step of each other, during ``horizon``
+    after the later first sighting. Fewer than two common times: True (first-sighting
+    proximity, checked by the caller, suffices).
+    """
+    start = max(t[first[a]], t[first[b]])
+    sa = slice(first[a], last[a] + 1)
+    sb = slice(first[b], last[b] + 1)
+    ta, tb = t[sa], t[sb]
+    ka = np.flatnonzero((ta >= start - 0.5 * step) & (ta <= start + horizon))
+    if ka.size == 0 or tb.size == 0:
+        return True
+    pos = np.clip(np.searchsorted(tb, ta[ka]), 1, max(tb.size - 1, 1))
+    lo = np.clip(pos - 1, 0, tb.size - 1)
+    hi = np.clip(pos, 0, tb.size - 1)
+    near = np.where(np.abs(tb[lo] - ta[ka]) <= np.abs(tb[hi] - ta[ka]), lo, hi)
+    match = np.abs(tb[near] - ta[ka]) < 0.5 * step
+    if match.sum() < 2:
+        return True
+    ia = ka[match] + first[a]
+    ib = near[match] + first[b]
+    return bool((np.hypot(x[ia] - x[ib], y[ia] - y[ib]) <= max_dist).all())

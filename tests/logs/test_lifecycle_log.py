@@ -342,3 +342,171 @@ def test_to_lifecycle_data(tmp_path):
     no_area = write(tmp_path, "id,t_arrive,t_leave\na,1,2\n", manifest="window: [0, 5]\n")
     with pytest.raises(ValueError, match=r"area: expected the free area"):
         read_lifecycle_log(no_area).to_lifecycle_data()
+
+
+# ---- group and exit columns ------------------------------------------------------------
+
+GROUPS = (
+    "id,t_arrive,t_leave,group,x_exit,y_exit\n"
+    "a,1,5,g7,1.5,2\n"  # group g7: a, c
+    "b,1,6,,,\n"  # alone
+    "c,1.1,,g7,,\n"  # still present: no exit
+    "d,2,3,3,0,0\n"  # group 3: d, e (integer ids are ids)
+    "e,2,4,3,0.5,0\n"
+    "f,4,8,,4,4\n"  # alone
+)
+
+
+def test_group_and_exit_columns(tmp_path):
+    log = read_lifecycle_log(write(tmp_path, GROUPS))
+    t = log.table
+    assert t["group"].tolist() == ["g7", "", "g7", "3", "3", ""]
+    assert_allclose(t["x_exit"].to_numpy()[[0, 3, 4, 5]], [1.5, 0.0, 0.5, 4.0])
+    assert np.isnan(t["x_exit"][1]) and np.isnan(t["y_exit"][2])
+    assert set(log.columns) == {"id", "t_arrive", "t_leave", "group", "x_exit", "y_exit"}
+    a = log.to_arrays()
+    # codes in order of first appearance; every lone artefact its own code
+    assert a["group"].tolist() == [0, 1, 0, 2, 2, 3]
+    assert a["group"].dtype == np.int64
+    rep = log.report()
+    assert rep["groups"] == 2 and rep["artefacts_in_groups"] == 4
+    data = log.to_lifecycle_data()
+    assert data.group.tolist() == [0, 1, 0, 2, 2, 3]
+    assert_allclose(data.x_exit[[0, 3]], [1.5, 0.0])
+    assert np.isnan(data.y_exit[1])
+
+
+def test_without_group_column_lifecycle_data_has_none(tmp_path):
+    log = read_lifecycle_log(write(tmp_path, "id,t_arrive,t_leave\na,1,2\nb,2,3\n"))
+    assert log.table["group"].tolist() == ["", ""]
+    assert log.to_arrays()["group"].tolist() == [0, 1]
+    data = log.to_lifecycle_data()
+    assert data.group is None and data.x_exit is None and data.y_exit is None
+    assert log.report()["groups"] == 0 and log.report()["artefacts_in_groups"] == 0
+
+
+def test_group_column_in_parquet_and_frames(tmp_path):
+    p = tmp_path / "log.parquet"
+    table = pa.table(
+        {
+            "id": ["a", "b", "c"],
+            "t_arrive": [1.0, 1.0, 2.0],
+            "t_leave": [2.0, 3.0, None],
+            "group": pa.array([4, None, 4], pa.int64()),
+            "x_exit": [1.0, None, None],
+            "y_exit": [2.0, None, None],
+        }
+    )
+    pq.write_table(table, p)
+    log = read_lifecycle_log(p, window=(0, 10), area=3.0)
+    assert log.table["group"].tolist() == ["4", "", "4"]
+    assert log.to_lifecycle_data().group.tolist() == [0, 1, 0]
+    df = pd.DataFrame(
+        {"id": ["a", "b"], "t_arrive": [1.0, 2.0], "t_leave": [2.0, 3.0], "group": [None, "x"]}
+    )
+    assert lifecycle_log_from_frame(df, (0, 5), 1.0).table["group"].tolist() == ["", "x"]
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "id,t_arrive,t_leave,x_exit,y_exit\na,1,2,1,2\nb,1,2,abc,2\n",
+            r"log\.csv: row 2 \(line 3\), column 'x_exit': expected a number, got 'abc'",
+        ),
+        (
+            "id,t_arrive,t_leave,x_exit,y_exit\na,1,2,1,NaN\n",
+            r"log\.csv: row 1 \(line 2\), column 'y_exit': expected a finite number",
+        ),
+        (
+            "id,t_arrive,t_leave,x_exit,y_exit\na,1,2,1,inf\n",
+            r"log\.csv: row 1 \(line 2\), column 'y_exit': expected a finite number, got inf",
+        ),
+        (
+            "id,t_arrive,t_leave,x_exit\na,1,2,1\n",
+            r"log\.csv: missing column\(s\) 'y_exit': expected a life-cycle log with exit",
+        ),
+    ],
+)
+def test_exit_column_errors(tmp_path, text, message):
+    with pytest.raises(ValueError, match=message):
+        read_lifecycle_log(write(tmp_path, text))
+
+
+def test_group_column_errors(tmp_path):
+    p = tmp_path / "log.parquet"
+    pq.write_table(pa.table({"id": ["a"], "t_arrive": [1.0], "t_leave": [2.0], "group": [True]}), p)
+    with pytest.raises(
+        ValueError, match=r"log\.parquet: row 1, column 'group': expected a non-empty identifier"
+    ):
+        read_lifecycle_log(p, window=(0, 5))
+    q = tmp_path / "inf.parquet"
+    pq.write_table(
+        pa.table({"id": ["a"], "t_arrive": [1.0], "t_leave": [2.0], "group": [np.inf]}), q
+    )
+    with pytest.raises(ValueError, match=r"inf\.parquet: row 1, column 'group': .*got inf"):
+        read_lifecycle_log(q, window=(0, 5))
+
+
+# ---- clock_start -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        ("'2024-05-02T07:30:00'", "2024-05-02T07:30:00"),
+        ("2024-05-02T07:30:00", "2024-05-02T07:30:00"),  # a YAML timestamp
+        ("'2024-05-02T07:30:00+02:00'", "2024-05-02T07:30:00+02:00"),
+    ],
+)
+def test_clock_start_in_manifest(tmp_path, value, expected):
+    m = f"window: [0, 100]\narea: 50\nclock_start: {value}\n"
+    log = read_lifecycle_log(write(tmp_path, GOOD, manifest=m))
+    assert log.clock_start == expected
+    assert log.manifest["clock_start"] == expected
+    assert log.report()["clock_start"] == expected
+    assert log.to_arrays()["clock_start"] == expected
+
+
+def test_clock_start_override_and_absent(tmp_path):
+    p = write(tmp_path, GOOD)
+    assert read_lifecycle_log(p).clock_start is None
+    log = read_lifecycle_log(p, clock_start="2024-05-02T00:00:00")
+    assert log.clock_start == "2024-05-02T00:00:00"
+    assert log.manifest["clock_start"] == "2024-05-02T00:00:00"
+    with pytest.raises(ValueError, match=r"^clock_start: expected an ISO 8601 date and time"):
+        read_lifecycle_log(p, clock_start="half past seven")
+
+
+@pytest.mark.parametrize("value", ["'07:30 on Monday'", "'2024-13-02T07:30:00'", "3", "[1]"])
+def test_clock_start_invalid_names_manifest_and_key(tmp_path, value):
+    m = f"window: [0, 100]\narea: 50\nclock_start: {value}\n"
+    with pytest.raises(ValueError, match=r"log\.yaml: clock_start: expected"):
+        read_lifecycle_log(write(tmp_path, GOOD, manifest=m))
+
+
+# ---- window tolerance: one sampling step ---------------------------------------------------
+
+
+def test_window_tolerance_215_6(tmp_path):
+    m = "window: [0, 215.6]\narea: 5\n"
+    log = read_lifecycle_log(
+        write(tmp_path, "id,t_arrive,t_leave\na,1,215.60000000000002\n", manifest=m)
+    )
+    assert log.table["t_leave"].tolist() == [215.6]
+    data = log.to_lifecycle_data()
+    assert data.t_leave.tolist() == [215.6]
+    # one time_step of tolerance: 0.3 past the end is clipped, 0.5 past it is refused
+    m_step = m + "time_step: 0.4\n"
+    log = read_lifecycle_log(write(tmp_path, "id,t_arrive,t_leave\na,1,215.9\n", manifest=m_step))
+    assert log.table["t_leave"].tolist() == [215.6]
+    with pytest.raises(ValueError, match=r"row 1 \(line 2\), column 't_leave': expected a time"):
+        read_lifecycle_log(write(tmp_path, "id,t_arrive,t_leave\na,1,216.1\n", manifest=m_step))
+    # without a step, only rounding errors are tolerated
+    with pytest.raises(ValueError, match=r"column 't_leave': expected a time inside"):
+        read_lifecycle_log(write(tmp_path, "id,t_arrive,t_leave\na,1,215.9\n", manifest=m))
+    with pytest.raises(ValueError, match=r"log\.yaml: time_step: expected a finite number > 0"):
+        read_lifecycle_log(write(tmp_path, GOOD, manifest=m + "time_step: 0\n"))
+    df = pd.DataFrame({"id": ["a"], "t_arrive": [-0.1], "t_leave": [215.60000000000002]})
+    log = lifecycle_log_from_frame(df, (0, 215.6), 1.0, time_step=0.4)
+    assert log.table["t_arrive"].tolist() == [0.0] and log.table["t_leave"].tolist() == [215.6]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -42,13 +43,16 @@ def test_gap_merge_split_and_censoring():
         ]
     )
     # gaps of a: 1.0, 1.5, 3.5 -> tolerance 4 keeps a whole; b's gap of 5 splits it
-    out = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=4.0, edge_tolerance=0.5)
+    with pytest.warns(UserWarning, match=r"3 track ids became 4 artefacts"):
+        out = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=4.0, edge_tolerance=0.5)
     r = by_id(out)
     assert set(r) == {"a", "b#1", "b#2", "c"}
     assert math.isnan(r["a"].t_arrive) and r["a"].t_leave == 6.0
     assert r["b#1"].t_arrive == 3.0 and r["b#1"].t_leave == 4.0
     assert r["b#2"].t_arrive == 9.0 and math.isnan(r["b#2"].t_leave)
-    assert r["c"].t_arrive == 5.0 and r["c"].t_leave == 5.0
+    # a single sighting stays one sampling step (the median step within tracks: 1 s)
+    assert r["c"].t_arrive == 5.0 and r["c"].t_leave == 6.0
+    assert out.attrs["tracks"]["sampling_step"] == 1.0
     assert r["a"].n_sightings == 4 and r["b#1"].n_sightings == 2
     assert r["b#1"].label == "car" and r["c"].label == ""
     # headings from the first displacement; a single sighting has none
@@ -59,7 +63,8 @@ def test_gap_merge_split_and_censoring():
     # sorted by first sighting
     assert out["id"].tolist() == ["a", "b#1", "c", "b#2"]
     # a smaller tolerance splits a at its 3.5 gap too
-    out2 = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=1.2, edge_tolerance=0.5)
+    with pytest.warns(UserWarning, match=r"3 track ids became 6 artefacts"):
+        out2 = tracks_to_lifecycle(tr, window=(0.0, 10.0), gap_tolerance=1.2, edge_tolerance=0.5)
     assert {"a#1", "a#2", "a#3"} <= set(out2["id"])
     # the output is a valid life-cycle log
     log = lifecycle_log_from_frame(out, window=(0.0, 10.0), area=10.0)
@@ -100,7 +105,8 @@ def test_default_window_and_yaw_column():
     r = by_id(out)
     assert math.isnan(r["7"].t_arrive) and math.isnan(r["7"].t_leave)  # spans the window
     assert r["7"].yaw == 1.0  # the yaw column wins over the heading of motion
-    assert r["8"].t_arrive == 0.5 and r["8"].t_leave == 0.5
+    # one sighting: a stay of one step (1 s) would reach past t1 = 1, so it is censored
+    assert r["8"].t_arrive == 0.5 and math.isnan(r["8"].t_leave)
 
 
 def test_tracks_argument_errors():
@@ -210,3 +216,157 @@ def test_count_panel_errors(tmp_path, text, message):
     p.write_text(text)
     with pytest.raises(ValueError, match=message):
         read_count_panel(p)
+
+
+# ---- groups, exits, splits, single sightings ----------------------------------------------
+
+STEP = 0.4  # a 2.5 Hz tracker
+
+
+def walk(track_id, t_start, start, velocity, duration, rng, noise=0.03):
+    """Sightings of one walker every STEP seconds (times on the tracker's frame grid)."""
+    k0 = round(t_start / STEP)
+    k = np.arange(k0, k0 + round(duration / STEP) + 1)
+    t = k * STEP
+    pos = np.asarray(start) + np.outer(t - t[0], velocity)
+    pos = pos + rng.normal(0.0, noise, pos.shape)
+    return pd.DataFrame({"id": track_id, "t": t, "x": pos[:, 0], "y": pos[:, 1]})
+
+
+def synthetic_groups(rng):
+    """3 pairs walking together, 4 people alone, 2 people passing each other."""
+    parts = []
+    for p, (t_start, start, v, lag) in enumerate(
+        [
+            (4.0, (0.0, 5.0), (1.3, 0.0), 0),
+            (20.0, (10.0, 0.0), (0.0, 1.1), 1),  # the partner is first seen a frame later
+            (36.0, (20.0, 15.0), (-0.9, -0.9), 0),
+        ]
+    ):
+        parts.append(walk(f"p{p}a", t_start, start, v, 12.0, rng))
+        off = np.array([-v[1], v[0]]) / np.hypot(*v) * 0.7  # side by side, 0.7 m apart
+        s2 = np.asarray(start) + off + np.asarray(v) * lag * STEP
+        parts.append(walk(f"p{p}b", t_start + lag * STEP, s2, v, 12.0 - lag * STEP, rng))
+    # alone: far in time or space from everyone
+    parts.append(walk("s0", 12.0, (0.0, 0.0), (1.0, 0.5), 10.0, rng))
+    parts.append(walk("s1", 4.0, (18.0, 18.0), (-1.2, 0.0), 10.0, rng))  # same time, far
+    parts.append(walk("s2", 9.0, (0.0, 5.0), (1.3, 0.0), 8.0, rng))  # p0's door, later
+    parts.append(walk("s3", 28.0, (5.0, 10.0), (0.0, -1.0), 9.0, rng))
+    # two people first seen 0.8 m apart in the same frame, walking in opposite directions
+    parts.append(walk("x0", 44.0, (10.0, 10.0), (1.3, 0.0), 8.0, rng))
+    parts.append(walk("x1", 44.0, (10.8, 10.0), (-1.3, 0.0), 8.0, rng))
+    return pd.concat(parts, ignore_index=True).sample(frac=1.0, random_state=1)
+
+
+def groups_of(out):
+    g = {}
+    for i, grp in zip(out["id"], out["group"], strict=True):
+        if grp:
+            g.setdefault(grp, set()).add(i)
+    return sorted(sorted(v) for v in g.values())
+
+
+def test_groups_inferred_exactly(rng):
+    tr = synthetic_groups(rng)
+    out = tracks_to_lifecycle(tr, window=(0.0, 60.0), gap_tolerance=2.0)
+    assert groups_of(out) == [["p0a", "p0b"], ["p1a", "p1b"], ["p2a", "p2b"]]
+    r = out.set_index("id")
+    assert r.loc["p0b", "group"] == r.loc["p0a", "group"] == "p0a"  # first member's id
+    assert r.loc["x0", "group"] == r.loc["x1", "group"] == ""
+    info = out.attrs["tracks"]
+    assert info["sampling_step"] == pytest.approx(STEP)
+    assert info["group_time"] == pytest.approx(1.5 * STEP)
+    assert info["group_distance"] == 1.5
+    assert info["groups"] == 3 and info["artefacts_in_groups"] == 6
+    assert info["track_ids"] == info["artefacts"] == 12 and info["split_track_ids"] == 0
+    # the log keeps them: group codes in order of first appearance
+    log = lifecycle_log_from_frame(out, window=(0.0, 60.0), area=400.0)
+    assert log.report()["groups"] == 3 and log.report()["artefacts_in_groups"] == 6
+    data = log.to_lifecycle_data()
+    codes = dict(zip(out["id"], data.group.tolist(), strict=True))
+    assert codes["p0a"] == codes["p0b"] != codes["s1"]
+    assert len(set(data.group.tolist())) == 9
+    # tolerances: a group_time under one frame loses the lagging pair; 0 m turns it off
+    late = tracks_to_lifecycle(tr, window=(0.0, 60.0), group_time=0.1)
+    assert groups_of(late) == [["p0a", "p0b"], ["p2a", "p2b"]]
+    off = tracks_to_lifecycle(tr, window=(0.0, 60.0), group_distance=0.0)
+    assert (off["group"] == "").all()
+    # first-sighting proximity suffices when they share fewer than two common times
+    brief = pd.DataFrame(
+        {"id": ["u", "v", "v", "w"], "t": [2.0, 2.0, 4.0, 2.0], "x": [0, 1, 9, 9], "y": 0.0}
+    )
+    out = tracks_to_lifecycle(brief, window=(0.0, 10.0), time_step=0.5)
+    assert groups_of(out) == [["u", "v"]]
+
+
+def test_entry_and_exit_points(rng):
+    tr = synthetic_groups(rng)
+    out = tracks_to_lifecycle(tr, window=(0.0, 50.0), gap_tolerance=2.0).set_index("id")
+    s0 = tr[tr["id"] == "s0"].sort_values("t")
+    assert (out.loc["s0", "x"], out.loc["s0", "y"]) == (s0["x"].iloc[0], s0["y"].iloc[0])
+    assert (out.loc["s0", "x_exit"], out.loc["s0", "y_exit"]) == (
+        s0["x"].iloc[-1],
+        s0["y"].iloc[-1],
+    )
+    # x0, x1 are still walking at t1 = 50: censored, exit unknown
+    assert np.isnan(out.loc["x0", "t_leave"]) and np.isnan(out.loc["x0", "x_exit"])
+    assert np.isnan(out.loc["x1", "y_exit"])
+
+
+def test_split_warning_names_the_numbers():
+    rows = []
+    for i in range(4):  # 4 tracks seen in bursts separated by 5 s gaps
+        for burst in range(5):
+            for k in range(3):
+                rows.append((f"v{i}", 20.0 * i + 6.0 * burst + k * 0.5, float(i), 0.0))
+    tr = pd.DataFrame(rows, columns=["id", "t", "x", "y"])
+    with pytest.warns(
+        UserWarning,
+        match=r"4 track ids became 20 artefacts: gaps longer than gap_tolerance=2 s split 4 "
+        r"of the tracks .*raise gap_tolerance",
+    ):
+        out = tracks_to_lifecycle(tr, window=(0.0, 100.0), gap_tolerance=2.0)
+    assert out.attrs["tracks"]["track_ids"] == 4
+    assert out.attrs["tracks"]["artefacts"] == 20 and out.attrs["tracks"]["split_track_ids"] == 4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = tracks_to_lifecycle(tr, window=(0.0, 100.0), gap_tolerance=6.0)
+    assert len(out) == 4
+
+
+def test_single_sightings_never_give_zero_stays(rng):
+    t = np.round(rng.uniform(0.0, 100.0, 40) / STEP) * STEP
+    singles = pd.DataFrame({"id": [f"s{i}" for i in range(40)], "t": t, "x": 0.0, "y": 0.0})
+    tr = pd.concat([singles, walk("w", 0.0, (50.0, 50.0), (1.0, 0.0), 100.0, rng)])
+    out = tracks_to_lifecycle(tr, window=(0.0, 100.0), gap_tolerance=1.0, edge_tolerance=0.0)
+    data = lifecycle_log_from_frame(out, window=(0.0, 100.0), area=5.0).to_lifecycle_data()
+    assert data.n == 41
+    stays = data.dwell[~data.censored]
+    assert (stays > 0).all()
+    one = ~data.censored & ~data.truncated & (out["n_sightings"].to_numpy() == 1)
+    assert_allclose = np.testing.assert_allclose
+    assert_allclose(data.t_leave[one] - data.t_arrive[one], STEP, rtol=1e-9)
+    # a single sighting within one step of t1 is censored (its step would pass t1)
+    last = out[np.isclose(out["x"], 0.0) & (out["t_arrive"] > 100.0 - STEP)]
+    assert last["t_leave"].isna().all()
+
+
+def test_window_tolerance_is_one_sampling_step():
+    t = np.arange(0, 540) * STEP  # ends at 215.60000000000002
+    assert t[-1] == 215.60000000000002
+    tr = pd.DataFrame({"id": "a", "t": np.r_[t, 216.4], "x": 0.0, "y": 0.0})
+    out = tracks_to_lifecycle(tr, window=(0.0, 215.6), gap_tolerance=1.0)
+    assert out.attrs["excluded"]["outside_window"] == 1  # 216.4 is two steps out
+    assert len(out) == 1 and out.attrs["tracks"]["sightings"] == 540
+    log = lifecycle_log_from_frame(out, window=(0.0, 215.6), area=1.0)
+    assert log.to_lifecycle_data().window == (0.0, 215.6)
+
+
+def test_group_argument_errors():
+    tr = tracks([("a", 0.0, 0.0, 0.0, "")])
+    with pytest.raises(ValueError, match=r"^group_time: expected a finite number >= 0"):
+        tracks_to_lifecycle(tr, group_time=-1)
+    with pytest.raises(ValueError, match=r"^group_distance: expected a finite number >= 0"):
+        tracks_to_lifecycle(tr, group_distance=float("nan"))
+    with pytest.raises(ValueError, match=r"^time_step: expected a finite number > 0"):
+        tracks_to_lifecycle(tr, time_step=0)
