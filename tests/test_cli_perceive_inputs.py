@@ -229,21 +229,31 @@ def test_behaviour_tracks_move_the_artefacts(tmp_path):
     ("tracks", "spec", "match"),
     [
         (
-            pd.DataFrame({"scenario": [0], "id": [7], "t": [0.0], "x": [0.0], "y": [0.0],
-                          "yaw": [0.0]}),  # fmt: skip
+            pd.DataFrame(
+                {"scenario": [0], "id": [7], "t": [0.0], "x": [0.0], "y": [0.0], "yaw": [0.0]}
+            ),
             None,
             r"tracks.parquet: row 1, column 'id': expected an artefact of scenario 0 in "
             r"artefacts.parquet, got 7",
         ),
         (
-            pd.DataFrame({"scenario": [0, 0], "id": [1, 1], "t": [60.0, 60.0], "x": [0.0, 1.0],
-                          "y": [0.0, 0.0], "yaw": [0.0, 0.0]}),  # fmt: skip
+            pd.DataFrame(
+                {
+                    "scenario": [0, 0],
+                    "id": [1, 1],
+                    "t": [60.0, 60.0],
+                    "x": [0.0, 1.0],
+                    "y": [0.0, 0.0],
+                    "yaw": [0.0, 0.0],
+                }
+            ),
             None,
             r"row 2, column 't': expected one pose per artefact and time",
         ),
         (
-            pd.DataFrame({"scenario": [0], "id": [0], "t": [0.0], "x": [np.nan], "y": [0.0],
-                          "yaw": [0.0]}),  # fmt: skip
+            pd.DataFrame(
+                {"scenario": [0], "id": [0], "t": [0.0], "x": [np.nan], "y": [0.0], "yaw": [0.0]}
+            ),
             None,
             r"tracks.parquet: row 1, column 'x'",
         ),
