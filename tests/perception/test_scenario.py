@@ -163,6 +163,21 @@ def test_moving_boxes_equal_static_frames(catalogue):
         np.testing.assert_array_equal(out["max_count"], counts.max(axis=0))
 
 
+def test_moving_boxes_shapes_are_checked():
+    cam = _camera()
+    poses = np.stack([cam.pose] * 2)
+    c = np.zeros((3, 1, 3))  # three frames of boxes for two poses
+    r = np.broadcast_to(np.eye(3), (3, 1, 3, 3))
+    with pytest.raises(ValueError, match=r"centers: expected one box pose per frame, \(T=2"):
+        perceived_counts_batch(None, c, [[0.5] * 3], r, cam, poses, 9.0, 4)
+    with pytest.raises(ValueError, match=r"rotations: expected shape \(2, 1, 3, 3\)"):
+        perceived_counts_batch(None, c[:2], [[0.5] * 3], np.eye(3)[None], cam, poses, 9.0, 4)
+    bad = np.array(r[:2])
+    bad[1, 0] *= 2.0
+    with pytest.raises(ValueError, match="got frame 1, box 0"):
+        perceived_counts_batch(None, c[:2], [[0.5] * 3], bad, cam, poses, 9.0, 4)
+
+
 def test_perceived_grid_marks_only_perceived_footprints():
     grid = OccupancyGrid(np.zeros((20, 30)), 0.1, (-1.0, -1.0, 0.0))
     centers = np.array([[0.0, 0.0, 0.5], [0.5, 0.3, 0.5]])
