@@ -135,6 +135,8 @@ def test_poses_outside_the_map_are_reported(tmp_path):
         (None, _artefacts(x=[np.inf, 0.0, 0.0]), r"row 1, column 'x': expected a finite number"),
         (None, _artefacts(mark=[0, -5, 1]), r"row 2, column 'mark': expected an integer >= -1"),
         (None, _artefacts(scenario=[0.5, 0.0, 1.0]), r"column 'scenario': expected a non-negative"),
+        # the ids that behaviour tracks name: a float id reached the Scene as a bare error
+        (None, _artefacts(artefact=[0.5, 1.0, 0.0]), r"column 'artefact': expected a non-negative"),
     ],
 )
 def test_bad_scenario_folders(tmp_path, manifest, df, match):

@@ -100,9 +100,9 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
 
     The folder must hold ``manifest.yaml`` (a mapping; ``map`` a string or null,
     ``class_labels`` a list of strings or null) and ``artefacts.parquet`` with integer
-    columns ``scenario`` (>= 0), ``class`` and ``mark`` (>= -1; ``mark`` optional) and
-    finite ``t_arrive <= t_leave``, ``x``, ``y``, ``yaw`` (other columns are kept as
-    they are).
+    columns ``scenario`` (>= 0), ``class`` and ``mark`` (>= -1; ``mark`` optional),
+    ``artefact`` (optional: ids >= 0, unique within a scenario) and finite
+    ``t_arrive <= t_leave``, ``x``, ``y``, ``yaw`` (other columns are kept as they are).
 
     Returns
     -------
@@ -164,6 +164,8 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
             repr(float(num["t_leave"][i])),
         )
     ints = {"scenario": table.nonneg_ints("scenario", allow_empty=False)[0]}
+    if "artefact" in table.columns:  # the ids the behaviour tracks name
+        ints["artefact"] = table.nonneg_ints("artefact", allow_empty=False)[0]
     for c in ("class", "mark"):
         if c not in table.columns:
             continue
@@ -185,9 +187,8 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
         dup = df.duplicated(["scenario", "artefact"]).to_numpy()
         if dup.any():
             i = int(np.argmax(dup))
-            raise table.error(
-                i, "artefact", "artefact ids unique within a scenario", repr(df["artefact"].iloc[i])
-            )
+            got = repr(int(ints["artefact"][i]))
+            raise table.error(i, "artefact", "artefact ids unique within a scenario", got)
     return df, manifest
 
 
