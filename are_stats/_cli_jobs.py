@@ -589,9 +589,10 @@ def run_perceive(
             "a map for the environment mesh (or pass --mesh MESH)",
             Described("none"),
         )
-    horizon = (manifest.get("generation") or {}).get("horizon")
+    generation = manifest.get("generation")
+    horizon = generation.get("horizon") if isinstance(generation, dict) else None
     window = None
-    if isinstance(horizon, (int, float)) and not isinstance(horizon, bool):
+    if horizon is not None:  # written by are-stats generate
         window = (0.0, get_float(horizon, scenario / "manifest.yaml", "generation.horizon", lo=0))
     check_path_times(
         path, robot["t"].to_numpy(), df["t_arrive"].to_numpy(), df["t_leave"].to_numpy(),

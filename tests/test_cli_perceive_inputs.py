@@ -125,6 +125,11 @@ def test_poses_outside_the_map_are_reported(tmp_path):
         ("map: null\n", None, r"manifest.yaml: map: expected a map for the environment mesh"),
         ("map: nowhere.yaml\n", None, r"manifest.yaml: map: expected an existing ROS map YAML"),
         ("map: m.yaml\nclass_labels: [1]\n", None, r"class_labels\[0\]: expected a string"),
+        (
+            f"map: {DEFAULT_MODELS / 'courtyard.yaml'}\ngeneration: {{horizon: .nan}}\n",
+            None,
+            r"manifest.yaml: generation.horizon: expected a finite number",
+        ),
         (None, _artefacts().drop(columns="class"), r"missing column\(s\) 'class'"),
         (
             None,
