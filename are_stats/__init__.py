@@ -185,6 +185,7 @@ _LAZY.update(
             "PinholeCamera",
             "perceive_frames",
             "perceive_scenario",
+            "perceive_scene",
             "perceived_counts",
             "perceived_counts_batch",
             "perceived_grid",

@@ -533,33 +533,6 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     return summary
 
 
-def _row_sizes(labels: list[str] | None, df: Any) -> tuple[np.ndarray, dict[int, tuple]]:
-    """Box size of each artefact's row of Q: its class by component, its row by mark.
-
-    Returns a key per artefact and ``{key: (length, width, height)}`` (DECISIONS 5).
-    """
-    from are_stats.environment import load_catalogue
-
-    cat = load_catalogue()
-    classes = df["class"].to_numpy()
-    marks = df["mark"].to_numpy() if "mark" in df else np.zeros(len(df), np.int64)
-    pairs, keys = np.unique(np.stack([classes, marks], axis=1), axis=0, return_inverse=True)
-    sizes = {}
-    for k, (c, x) in enumerate(pairs.tolist()):
-        cls = _catalogue_class(cat, labels, int(c))
-        sizes[k] = tuple(float(v) for v in 2.0 * cls.property_row(int(x)).half_extents)
-    unknown = sorted(
-        {labels[c] for c in pairs[:, 0].tolist() if labels and 0 <= c < len(labels)}
-        - set(cat.labels)
-    )
-    if unknown:
-        console.print(
-            f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the catalogue "
-            f"({', '.join(cat.labels)}): they are sized as the catalogue class in their position"
-        )
-    return keys.ravel(), sizes
-
-
 def _catalogue_class(cat: Any, labels: list[str] | None, c: int) -> Any:
     """Catalogue class of mixture component ``c``: by its label when the catalogue knows it,
     else the catalogue's class in the same position (the last one beyond the table)."""
@@ -586,15 +559,23 @@ def run_perceive(
 
     Every input is checked before any tracing: the options (``--d-max`` > 0, ``--tau``
     >= 0, ``--camera-height`` and ``--wall-height`` within 1 km), the scenario folder
-    (:func:`are_stats.perception.read_scenario_folder`), the camera, the robot path
-    (:func:`are_stats.perception.read_robot_path`: sorted times, finite poses) and the
-    mesh or map. A robot path whose times miss every artefact's presence is an error
-    naming both time ranges; poses outside the map are reported as a warning.
+    (:func:`are_stats.perception.read_scenario_folder`) and its behaviour tracks, the
+    camera, the robot path (:func:`are_stats.perception.read_robot_path`: sorted times,
+    finite poses) and the mesh or map. A robot path whose times miss the scenario window
+    ``[0, horizon]`` or every artefact's presence is an error naming both time ranges;
+    poses outside the map are reported as a warning. With behaviour tracks the artefacts
+    move: each robot pose sees them where they are at its time.
     """
-    from are_stats.environment import OccupancyGrid, extrude_grid, load_mesh
+    from are_stats.environment import OccupancyGrid, extrude_grid, load_catalogue, load_mesh
     from are_stats.inputs import Described, InputError, get_float
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scenario
-    from are_stats.perception._scenario import read_robot_path, read_scenario_folder
+    from are_stats.perception._scenario import (
+        check_path_times,
+        poses_outside,
+        read_robot_path,
+        read_scenario_folder,
+        read_scenario_tracks,
+    )
 
     d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0)
@@ -604,26 +585,26 @@ def run_perceive(
     target = Path(out) if out is not None else scenario / "perceived.parquet"
     check_writable(target, force)
     df, manifest = read_scenario_folder(scenario)
+    tracks = read_scenario_tracks(scenario, manifest, df)
     camera = PinholeCamera.from_yaml(camera_path)
     path = Path(robot_path)
     robot = read_robot_path(path)
-    grid = None
+    map_file = manifest.get("map")
+    if map_file and not Path(map_file).exists() and mesh is None:
+        raise InputError(
+            scenario / "manifest.yaml",
+            "map",
+            "an existing ROS map YAML (a relative path is read from the current folder), "
+            "or pass --mesh MESH",
+            Described(f"{map_file}: no such file"),
+        )
+    grid = OccupancyGrid.from_ros_yaml(map_file) if map_file and Path(map_file).exists() else None
+    bounds = None
     if mesh is not None:
         env = load_mesh(mesh)
-        lo, hi = np.asarray(env.bounds)[:, :2]
-        area = f"the mesh's x-y bounds {lo.tolist()} to {hi.tolist()}"
-    elif manifest.get("map"):
-        if not Path(manifest["map"]).exists():
-            raise InputError(
-                scenario / "manifest.yaml",
-                "map",
-                "an existing ROS map YAML (a relative path is read from the current folder), "
-                "or pass --mesh MESH",
-                Described(f"{manifest['map']}: no such file"),
-            )
-        grid = OccupancyGrid.from_ros_yaml(manifest["map"])
+        bounds = np.asarray(env.bounds)[:, :2]
+    elif grid is not None:
         env = extrude_grid(grid, wall_height)
-        area = f"the map {manifest['map']}"
     else:
         raise InputError(
             scenario / "manifest.yaml",
@@ -631,51 +612,64 @@ def run_perceive(
             "a map for the environment mesh (or pass --mesh MESH)",
             Described("none"),
         )
-    t = robot["t"].to_numpy()
-    ta, tl = df["t_arrive"].to_numpy(), df["t_leave"].to_numpy()
-    seen_by = np.searchsorted(t, tl, side="left") - np.searchsorted(t, ta, side="left")
-    if len(df) and not (seen_by > 0).any():  # no pose with t_arrive <= t < t_leave
-        raise InputError(
-            path,
-            "column 't'",
-            f"times within the scenarios' artefact presence [{ta.min():g}, {tl.max():g}) "
-            f"of {scenario}",
-            Described(f"times {t.min():g} to {t.max():g}: no artefact would be seen"),
-        )
-    xy = robot[["x", "y"]].to_numpy()
-    if grid is not None:
-        outside = ~grid.in_bounds(grid.world_to_cell(xy))
-    else:
-        outside = ((xy < lo) | (xy > hi)).any(axis=1)
+    generation = manifest.get("generation")
+    horizon = generation.get("horizon") if isinstance(generation, dict) else None
+    window = None
+    if horizon is not None:  # written by are-stats generate
+        window = (0.0, get_float(horizon, scenario / "manifest.yaml", "generation.horizon", lo=0))
+    check_path_times(
+        path, robot["t"].to_numpy(), df["t_arrive"].to_numpy(), df["t_leave"].to_numpy(),
+        window, scenario,
+    )  # fmt: skip
+    outside = poses_outside(robot[["x", "y"]].to_numpy(), grid=grid, bounds=bounds)
     if outside.any():
-        console.print(
-            f"[yellow]warning:[/] {int(outside.sum())} of {len(xy)} robot poses of {path} lie "
-            f"outside {area} (first: row {int(np.argmax(outside)) + 1})"
+        area = (
+            f"the map {map_file}"
+            if grid is not None
+            else f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
         )
+        console.print(
+            f"[yellow]warning:[/] {int(outside.sum())} of {len(outside)} robot poses of {path} "
+            f"lie outside {area} (first: row {int(np.argmax(outside)) + 1})"
+        )
+    labels = manifest.get("class_labels")
+    cat = load_catalogue()
+    if labels:
+        used = {labels[c] for c in np.unique(df["class"]).tolist() if 0 <= c < len(labels)}
+        unknown = sorted(used - set(cat.labels))
+        if unknown:
+            console.print(
+                f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the "
+                f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
+                "in their position"
+            )
     mount = None
     if np.allclose(camera.pose, np.eye(4)):  # no mount in the camera file: forward-looking
         mount = optical_from_base((0.0, 0.0, camera_height))
-    keys, sizes = _row_sizes(manifest.get("class_labels"), df)
-    keyed = df.assign(**{"class": keys})  # perceive_scenario sizes boxes by this key
+    n_moving = 0 if tracks is None else len(tracks[["scenario", "id"]].drop_duplicates())
+    moving = f" ({n_moving} moving)" if n_moving else ""
     t = time.perf_counter()
-    with console.status(f"perceiving {len(df)} artefacts over {len(robot)} robot poses ..."):
+    with console.status(
+        f"perceiving {len(df)} artefacts{moving} over {len(robot)} robot poses ..."
+    ):
         res = perceive_scenario(
-            keyed,
+            df,
             robot,
-            sizes,
+            cat,
             env,
             camera,
             d_max,
             tau,
+            tracks=tracks,
+            class_labels=labels,
             mount=mount,
             occlusion_between_artefacts=occlusion_between_artefacts,
         )
-    res["class"] = df["class"].to_numpy()
     with atomic_path(target, force=force) as tmp:
         res.to_parquet(tmp, index=False)
     n_p = int(res["perceived"].sum())
     console.print(
-        f"{n_p} of {len(res)} artefacts perceived (tau={tau}, d_max={d_max} m) in "
+        f"{n_p} of {len(res)} artefacts{moving} perceived (tau={tau}, d_max={d_max} m) in "
         f"{time.perf_counter() - t:.1f} s; wrote {target}"
     )
     return res

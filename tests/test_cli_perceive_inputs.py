@@ -125,6 +125,11 @@ def test_poses_outside_the_map_are_reported(tmp_path):
         ("map: null\n", None, r"manifest.yaml: map: expected a map for the environment mesh"),
         ("map: nowhere.yaml\n", None, r"manifest.yaml: map: expected an existing ROS map YAML"),
         ("map: m.yaml\nclass_labels: [1]\n", None, r"class_labels\[0\]: expected a string"),
+        (
+            f"map: {DEFAULT_MODELS / 'courtyard.yaml'}\ngeneration: {{horizon: .nan}}\n",
+            None,
+            r"manifest.yaml: generation.horizon: expected a finite number",
+        ),
         (None, _artefacts().drop(columns="class"), r"missing column\(s\) 'class'"),
         (
             None,
@@ -135,6 +140,8 @@ def test_poses_outside_the_map_are_reported(tmp_path):
         (None, _artefacts(x=[np.inf, 0.0, 0.0]), r"row 1, column 'x': expected a finite number"),
         (None, _artefacts(mark=[0, -5, 1]), r"row 2, column 'mark': expected an integer >= -1"),
         (None, _artefacts(scenario=[0.5, 0.0, 1.0]), r"column 'scenario': expected a non-negative"),
+        # the ids that behaviour tracks name: a float id reached the Scene as a bare error
+        (None, _artefacts(artefact=[0.5, 1.0, 0.0]), r"column 'artefact': expected a non-negative"),
     ],
 )
 def test_bad_scenario_folders(tmp_path, manifest, df, match):
@@ -196,3 +203,99 @@ def test_classes_missing_from_the_catalogue_are_reported(tmp_path):
     assert "classes ['forklift'] of the scenarios are not in the catalogue" in res.output.replace(
         "\n", " "
     )
+
+
+def _tracks_folder(tmp_path, tracks, spec=None, **manifest):
+    manifest = {"map": str(DEFAULT_MODELS / "courtyard.yaml"), **manifest}
+    manifest["tracks"] = {"file": "tracks.parquet"} if spec is None else spec
+    scen, robot = _folder(tmp_path, manifest=yaml.safe_dump(manifest))
+    tracks.to_parquet(scen / "tracks.parquet", index=False)
+    return scen, robot
+
+
+def test_behaviour_tracks_move_the_artefacts(tmp_path):
+    scen, robot = _folder(tmp_path)
+    res = _perceive(scen, robot, "--tau", "20")
+    assert res.exit_code == 0, res.output
+    still = pd.read_parquet(scen / "perceived.parquet")
+    assert still["perceived"].iloc[0]  # in view where it arrived
+    # with a track, artefact 0 of scenario 0 walks off behind the robot before the first pose
+    far = pd.DataFrame({"scenario": [0, 0], "id": [0, 0], "t": [-1.0, 300.0],
+                        "x": [-40.0, -40.0], "y": [-35.0, -35.0], "yaw": [0.0, 0.0]})  # fmt: skip
+    scen, robot = _tracks_folder(tmp_path, far)
+    res = _perceive(scen, robot, "--tau", "20")
+    assert res.exit_code == 0, res.output
+    assert "(1 moving)" in res.output
+    moved = pd.read_parquet(scen / "perceived.parquet")
+    assert not moved["perceived"].iloc[0] and moved["max_count"].iloc[0] == 0
+    # the others stand where they arrived: the same flags as without tracks
+    np.testing.assert_array_equal(moved["max_count"].iloc[1:], still["max_count"].iloc[1:])
+
+
+@pytest.mark.parametrize(
+    ("tracks", "spec", "match"),
+    [
+        (
+            pd.DataFrame(
+                {"scenario": [0], "id": [7], "t": [0.0], "x": [0.0], "y": [0.0], "yaw": [0.0]}
+            ),
+            None,
+            r"tracks.parquet: row 1, column 'id': expected an artefact of scenario 0 in "
+            r"artefacts.parquet, got 7",
+        ),
+        (
+            pd.DataFrame(
+                {
+                    "scenario": [0, 0],
+                    "id": [1, 1],
+                    "t": [60.0, 60.0],
+                    "x": [0.0, 1.0],
+                    "y": [0.0, 0.0],
+                    "yaw": [0.0, 0.0],
+                }
+            ),
+            None,
+            r"row 2, column 't': expected one pose per artefact and time",
+        ),
+        (
+            pd.DataFrame(
+                {"scenario": [0], "id": [0], "t": [0.0], "x": [np.nan], "y": [0.0], "yaw": [0.0]}
+            ),
+            None,
+            r"tracks.parquet: row 1, column 'x'",
+        ),
+        (pd.DataFrame({"scenario": [0]}), "tracks.parquet", r"tracks: expected a mapping"),
+        (pd.DataFrame({"scenario": [0]}), {"file": "none.parquet"}, r"no file none.parquet"),
+        (pd.DataFrame({"scenario": [0]}), {"file": "../x.parquet"}, r"a file name inside"),
+    ],
+)
+def test_bad_behaviour_tracks(tmp_path, tracks, spec, match):
+    scen, robot = _tracks_folder(tmp_path, tracks, spec)
+    res = _perceive(scen, robot)
+    assert res.exit_code == 2, res.output
+    assert "Traceback" not in res.output
+    assert re.search(match, res.output.replace("\n", "")), res.output
+
+
+def test_path_outside_the_scenario_window_is_an_error(tmp_path):
+    # an artefact still present after the horizon used to be "perceived" by a path that
+    # starts after the scenario ended
+    df = _artefacts(t_leave=[150.0, 250.0, 5000.0])
+    manifest = yaml.safe_dump(
+        {"map": str(DEFAULT_MODELS / "courtyard.yaml"), "generation": {"horizon": 300.0}}
+    )
+    robot = "t,x,y,yaw\n400,-15,-10,0.6\n500,-10,-5,0.6\n"
+    scen, path = _folder(tmp_path, df=df, manifest=manifest, robot=robot)
+    res = _perceive(scen, path)
+    assert res.exit_code == 2, res.output
+    text = res.output.replace("\n", "")
+    assert str(path) in text
+    assert re.search(r"expected times overlapping the scenario window \[0, 300\].*got times "
+                     r"400 to 500: no artefact would be seen", text), res.output  # fmt: skip
+
+
+def test_duplicate_artefact_ids_are_named(tmp_path):
+    scen, robot = _folder(tmp_path, df=_artefacts(artefact=np.array([0, 0, 0], np.int32)))
+    res = _perceive(scen, robot)
+    assert res.exit_code == 2
+    assert "row 2, column 'artefact': expected artefact ids unique" in res.output.replace("\n", "")

@@ -354,6 +354,73 @@ class ARBuilder:
         self._runs = None
         return aid
 
+    def register_scene(self, scene: Any, t: float, *, check: bool = False) -> np.ndarray:
+        """Hold exactly the artefacts of ``scene`` alive at time ``t``, where they are then.
+
+        The builder's boxes become those of ``scene.at(t)``: artefacts that are not alive
+        at ``t`` are removed, the live ones are registered (or moved, when already
+        registered) under their scene ids and labels at their scene pose, each with the
+        box of its row of Q (:class:`~are_stats.Scene`, DECISIONS 5). The poses are taken
+        as they are: to resolve collisions of a move, pass the scene's poses to
+        :meth:`step` instead. The resolution log is kept.
+
+        Parameters
+        ----------
+        scene : Scene
+            One scenario's artefacts (:meth:`Scene.from_scenarios`).
+        t : float
+            Time on the scenario's clock.
+        check : bool
+            Refuse (``ValueError``, nothing changed) a scene whose live boxes collide with
+            the environment or with each other.
+
+        Returns
+        -------
+        (n,) int64
+            The registered ids, in scene order (aligned with :attr:`ids`).
+
+        Examples
+        --------
+        >>> import pandas as pd
+        >>> from are_stats import OccupancyGrid, Scene, load_catalogue
+        >>> table = pd.DataFrame({"t_arrive": [0.0, 5.0], "t_leave": [9.0, 9.0],
+        ...                       "x": [2.0, 6.0], "y": [2.0, 6.0], "yaw": [0.0, 0.0]})
+        >>> scene = Scene.from_scenarios(table, load_catalogue())
+        >>> b = ARBuilder(OccupancyGrid(np.zeros((100, 100)), 0.1), load_catalogue())
+        >>> b.register_scene(scene, 1.0).tolist(), b.register_scene(scene, 6.0).tolist()
+        ([0], [0, 1])
+        """
+        from are_stats.scenarios import Scene
+
+        if not isinstance(scene, Scene):
+            raise ValueError(f"scene: expected a Scene, got {type(scene).__name__}")
+        t = float(check_finite("t", t, ndim=0))
+        idx = np.flatnonzero(scene.alive(t))
+        poses = scene.poses(t, idx)
+        half, offset = scene.half_extents[idx], scene.offsets[idx]
+        if check and idx.size:
+            c, h, y = self._boxes_for(poses, half, offset)
+            env, outside, mesh, _ = self._env_hits(c, h, y)
+            bad = env | outside | mesh
+            if bad.any():
+                k = int(np.argmax(bad))
+                what = "the map border" if outside[k] else "the environment"
+                raise ValueError(
+                    f"scene: artefact {int(scene.ids[idx[k]])} at t={t!r} collides with {what}"
+                )
+            pairs = self._pair_hits(c, h, y)
+            if pairs.size:
+                a, b = scene.ids[idx[pairs[0]]].tolist()
+                raise ValueError(f"scene: artefacts {a} and {b} collide at t={t!r}")
+        self.ids = scene.ids[idx].astype(np.int64)
+        self.labels = [str(lab) for lab in scene.labels[idx]]
+        self.poses = poses.astype(float)
+        self._half, self._offset = half.astype(float), offset.astype(float)
+        if idx.size:
+            self._next_id = max(self._next_id, int(self.ids.max()) + 1)
+        self._runs = None
+        return self.ids.copy()
+
     def remove(self, artefact_id: int) -> None:
         """Remove an artefact (it leaves the scene; its cells and voxels are released)."""
         k = self.index_of(artefact_id)

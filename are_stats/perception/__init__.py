@@ -11,7 +11,13 @@ from are_stats.perception._perceive import (
     sample_perceived,
 )
 from are_stats.perception._plots import plot_camera_view, plot_top_view, save_figure
-from are_stats.perception._scenario import perceive_scenario, perceived_grid, yaw_rotations
+from are_stats.perception._scenario import (
+    perceive_scenario,
+    perceive_scene,
+    perceived_grid,
+    scenario_scenes,
+    yaw_rotations,
+)
 
 __all__ = [
     "PerceptionResult",
@@ -23,10 +29,12 @@ __all__ = [
     "perceived_counts",
     "perceived_counts_batch",
     "perceive_scenario",
+    "perceive_scene",
     "perceived_grid",
     "plot_camera_view",
     "plot_top_view",
     "sample_perceived",
     "save_figure",
+    "scenario_scenes",
     "yaw_rotations",
 ]

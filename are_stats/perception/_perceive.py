@@ -91,25 +91,31 @@ def _det3(m: np.ndarray) -> np.ndarray:
 
 
 def _check_boxes(centers: Any, half_extents: Any, rotations: Any):
+    """Checked boxes: ``(n, 3)`` centres and ``(n, 3, 3)`` rotations, or per-frame
+    ``(T, n, 3)`` and ``(T, n, 3, 3)`` for boxes that move; ``(n, 3)`` half extents."""
     c = check_finite("centers", centers)
-    if c.ndim != 2 or c.shape[1] != 3:
-        raise ValueError(f"centers: expected shape (n, 3), got {c.shape}")
-    n = c.shape[0]
+    if c.ndim not in (2, 3) or c.shape[-1] != 3:
+        raise ValueError(f"centers: expected shape (n, 3) or (T, n, 3), got {c.shape}")
+    n = c.shape[-2]
     h = check_nonnegative("half_extents", half_extents)
     if h.shape != (n, 3):
         raise ValueError(f"half_extents: expected shape ({n}, 3) like centers, got {h.shape}")
     r = check_finite("rotations", rotations)
-    if r.shape != (n, 3, 3):
-        raise ValueError(f"rotations: expected shape ({n}, 3, 3) like centers, got {r.shape}")
-    if n:
-        err = np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max(axis=(1, 2))
-        det = _det3(r)
+    if r.shape != (*c.shape[:-1], 3, 3):
+        raise ValueError(
+            f"rotations: expected shape {(*c.shape[:-1], 3, 3)} like centers, got {r.shape}"
+        )
+    if r.size:
+        flat = r.reshape(-1, 3, 3)
+        err = np.abs(np.einsum("nji,njk->nik", flat, flat) - np.eye(3)).max(axis=(1, 2))
+        det = _det3(flat)
         bad = (err > 1e-5) | (det < 0)
         if bad.any():
             i = int(np.argmax(bad))
+            at = f"row {i}" if r.ndim == 3 else f"frame {i // n}, box {i % n}"
             raise ValueError(
-                f"rotations: expected orthonormal right-handed (n, 3, 3) box-to-world "
-                f"rotations, got row {i} with max |R^T R - I| = {err[i]:.3g}, det = {det[i]:.3g}"
+                f"rotations: expected orthonormal right-handed box-to-world "
+                f"rotations, got {at} with max |R^T R - I| = {err[i]:.3g}, det = {det[i]:.3g}"
             )
     return c, h, r
 
@@ -257,8 +263,9 @@ def box_rois(
 
     Parameters
     ----------
-    centers, half_extents : (n, 3) float64
-    rotations : (n, 3, 3) float64
+    centers : (n, 3) float64, or (T, n, 3) for boxes that move (one pose per frame)
+    half_extents : (n, 3) float64
+    rotations : (n, 3, 3) float64, or (T, n, 3, 3)
         Box-to-world rotations.
     intrinsics : tuple
         ``(fx, fy, cx, cy, width, height)``.
@@ -272,17 +279,25 @@ def box_rois(
         ``x0, y0, w, h`` per frame and box; ``w == 0`` or ``h == 0`` when culled.
     """
     fx, fy, cx, cy, width, height = intrinsics
-    t_frames, n = poses.shape[0], centers.shape[0]
+    moving = centers.ndim == 3
+    t_frames, n = poses.shape[0], centers.shape[-2]
     out = np.zeros((t_frames, n, 4), dtype=np.int64)
     if n == 0 or t_frames == 0:
         return out
-    corners = centers[:, None, :] + np.einsum(
-        "nij,nkj->nki", rotations, _SIGNS[None] * half_extents[:, None, :]
-    )
     cam_c = poses[:, :3, 3]
     cam_r = poses[:, :3, :3]
-    # distance from each camera centre to each box
-    q = np.einsum("nji,tnj->tni", rotations, cam_c[:, None, :] - centers[None])
+    if moving:  # (T, n, 8, 3) corners and (T, n, 3) camera centres in the box frames
+        corners = centers[:, :, None, :] + np.einsum(
+            "tnij,nkj->tnki", rotations, _SIGNS[None] * half_extents[:, None, :]
+        )
+        q = np.einsum("tnji,tnj->tni", rotations, cam_c[:, None, :] - centers)
+    else:
+        corners = (
+            centers[:, None, :]
+            + np.einsum("nij,nkj->nki", rotations, _SIGNS[None] * half_extents[:, None, :])
+        )[None]
+        # distance from each camera centre to each box
+        q = np.einsum("nji,tnj->tni", rotations, cam_c[:, None, :] - centers[None])
     dist = np.linalg.norm(np.maximum(np.abs(q) - half_extents[None], 0.0), axis=-1)
     img = np.array([[0.0, 0.0], [width, 0.0], [width, height], [0.0, height]])
     dz = 1.0 / np.linalg.norm(
@@ -290,7 +305,7 @@ def box_rois(
     )
     z_near = np.maximum(dist * dz.min() * (1.0 - 1e-9), 1e-12)  # (T, n)
     # corners in the optical frame: (T, n, 8, 3)
-    pc = np.einsum("tji,tnkj->tnki", cam_r, corners[None] - cam_c[:, None, None, :])
+    pc = np.einsum("tji,tnkj->tnki", cam_r, corners - cam_c[:, None, None, :])
     z = pc[..., 2]
     cand = [pc]
     valid = [(z >= z_near[..., None]) & (z <= d_max)]
@@ -366,7 +381,7 @@ def _run(
 ):
     fx, fy, cx, cy, width, height = intr
     npix = width * height
-    t_frames, n = poses.shape[0], centers.shape[0]
+    t_frames, n = poses.shape[0], centers.shape[-2]
     counts = np.zeros((t_frames, n), dtype=np.int64)
     depth_env = np.full((t_frames, height, width), np.inf, np.float32) if return_depth else None
     depth = np.full((t_frames, height, width), np.inf, np.float32) if return_depth else None
@@ -413,8 +428,12 @@ def _run(
         }
         # per segment: camera centre in the box frame, optical-to-box rotation, half extents
         cam_c, cam_r = poses[g0:g1, :3, 3][fr], poses[g0:g1, :3, :3][fr]
-        seg_origin = np.einsum("sji,sj->si", rots[bx], cam_c - centers[bx])
-        seg_rot = np.einsum("sji,sjk->sik", rots[bx], cam_r)
+        if centers.ndim == 3:  # boxes that move: their pose in the segment's frame
+            box_c, box_r = centers[g0 + fr, bx], rots[g0 + fr, bx]
+        else:
+            box_c, box_r = centers[bx], rots[bx]
+        seg_origin = np.einsum("sji,sj->si", box_r, cam_c - box_c)
+        seg_rot = np.einsum("sji,sjk->sik", box_r, cam_r)
         # the rows of every rectangle: (segment, row within the rectangle)
         h_seg = rect[:, 3]
         row_seg = np.repeat(np.arange(len(fr), dtype=np.int32), h_seg)
@@ -493,12 +512,13 @@ def perceive_frames(
     env_mesh : trimesh.Trimesh or None
         Environment mesh S_3D (world frame). An empty mesh (or None) hides nothing. Its
         BVH is built once and reused across calls; it is refitted when the vertices change.
-    centers : (n, 3) float
-        Box centres (world frame).
+    centers : (n, 3) float, or (T, n, 3)
+        Box centres (world frame); per frame for boxes that move (see
+        :func:`~are_stats.perception.perceive_scene`, which takes them from a Scene).
     half_extents : (n, 3) float
         Box half extents along the box axes (>= 0).
-    rotations : (n, 3, 3) float
-        Box-to-world rotations (orthonormal, det +1).
+    rotations : (n, 3, 3) float, or (T, n, 3, 3)
+        Box-to-world rotations (orthonormal, det +1), per frame when ``centers`` is.
     camera : PinholeCamera or object with ``K``, ``width``, ``height`` and ``pose``
         Intrinsics; its ``pose`` is used when ``poses`` is None.
     poses : (T, 4, 4) float or None
@@ -542,7 +562,11 @@ def perceive_frames(
     p = _check_poses(name, poses)
     d_max = _check_scalar("d_max", d_max, positive=True)
     tau = _check_scalar("tau", tau, positive=False)
-    t_frames, n = p.shape[0], c.shape[0]
+    t_frames, n = p.shape[0], c.shape[-2]
+    if c.ndim == 3 and c.shape[0] != t_frames:
+        raise ValueError(
+            f"centers: expected one box pose per frame, (T={t_frames}, n, 3), got {c.shape}"
+        )
     if active is None:
         act = np.ones((t_frames, n), dtype=bool)
     else:
@@ -579,6 +603,11 @@ def perceived_counts_batch(
     threads: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`perceived_counts` over a trajectory of camera poses (T, 4, 4).
+
+    The boxes stand still (``centers (n, 3)``, ``rotations (n, 3, 3)``) or move, one pose
+    per frame (``centers (T, n, 3)``, ``rotations (T, n, 3, 3)``); ``active (T, n)`` says
+    which exist in each frame. The boxes of a :class:`~are_stats.Scene` along a robot path
+    are perceived by :func:`~are_stats.perception.perceive_scene`.
 
     Returns
     -------

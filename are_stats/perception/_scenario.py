@@ -10,7 +10,6 @@ marks on M_2D the footprints of the perceived artefacts only, and
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +22,12 @@ from are_stats.perception._camera import check_pose
 from are_stats.perception._perceive import perceived_counts_batch
 
 __all__ = [
+    "check_path_times",
+    "perceive_scene",
     "perceive_scenario",
+    "poses_outside",
+    "read_scenario_tracks",
+    "scenario_scenes",
     "perceived_grid",
     "read_robot_path",
     "read_scenario_folder",
@@ -36,6 +40,8 @@ MAX_POSITION = 1e7
 #: Memory per (robot pose, artefact of one scenario) pair while perceiving (bytes): the
 #: active mask, the counts and the perceived flags.
 PAIR_BYTES = 24
+#: More memory per pair when boxes move: a centre, a yaw and a rotation per frame.
+MOVING_PAIR_BYTES = 104
 _SCENARIO_FLOATS = ("t_arrive", "t_leave", "x", "y", "yaw")
 
 
@@ -94,9 +100,9 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
 
     The folder must hold ``manifest.yaml`` (a mapping; ``map`` a string or null,
     ``class_labels`` a list of strings or null) and ``artefacts.parquet`` with integer
-    columns ``scenario`` (>= 0), ``class`` and ``mark`` (>= -1; ``mark`` optional) and
-    finite ``t_arrive <= t_leave``, ``x``, ``y``, ``yaw`` (other columns are kept as
-    they are).
+    columns ``scenario`` (>= 0), ``class`` and ``mark`` (>= -1; ``mark`` optional),
+    ``artefact`` (optional: ids >= 0, unique within a scenario) and finite
+    ``t_arrive <= t_leave``, ``x``, ``y``, ``yaw`` (other columns are kept as they are).
 
     Returns
     -------
@@ -158,6 +164,8 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
             repr(float(num["t_leave"][i])),
         )
     ints = {"scenario": table.nonneg_ints("scenario", allow_empty=False)[0]}
+    if "artefact" in table.columns:  # the ids the behaviour tracks name
+        ints["artefact"] = table.nonneg_ints("artefact", allow_empty=False)[0]
     for c in ("class", "mark"):
         if c not in table.columns:
             continue
@@ -175,7 +183,89 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
         ) from None
     for c, v in {**num, **ints}.items():
         df[c] = v
+    if "artefact" in df.columns:
+        dup = df.duplicated(["scenario", "artefact"]).to_numpy()
+        if dup.any():
+            i = int(np.argmax(dup))
+            got = repr(int(ints["artefact"][i]))
+            raise table.error(i, "artefact", "artefact ids unique within a scenario", got)
     return df, manifest
+
+
+def read_scenario_tracks(
+    folder: str | os.PathLike, manifest: dict[str, Any], artefacts: pd.DataFrame
+) -> pd.DataFrame | None:
+    """Read and check the behaviour tracks of a scenarios folder, if it has any.
+
+    ``are-stats generate --behaviours`` writes them beside the artefacts and names the file
+    in the manifest (``tracks: {file: tracks.parquet, ...}``). Every row must hold finite
+    ``t, x, y, yaw``, a ``scenario`` and ``id`` naming an artefact of ``artefacts``
+    (its ``artefact`` column, else its position in its scenario), and no artefact may have
+    two poses at one time.
+
+    Returns
+    -------
+    pandas.DataFrame or None
+        Columns ``scenario, id`` (int64) and ``t, x, y, yaw`` (float64); None when the
+        manifest names no tracks.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming the manifest key, or the tracks file with the row and column.
+    """
+    from are_stats.logs._table import read_raw_table
+
+    spec = manifest.get("tracks")
+    if spec is None:
+        return None
+    d = Path(folder)
+    mpath = d / "manifest.yaml"
+    if not isinstance(spec, dict):
+        raise InputError(mpath, "tracks", "a mapping naming the tracks file (file: NAME)", spec)
+    name = get_str(spec.get("file"), mpath, "tracks.file")
+    if Path(name).name != name or name in ("", ".", ".."):
+        raise InputError(mpath, "tracks.file", "a file name inside the scenarios folder", name)
+    if not (d / name).is_file():
+        raise InputError(
+            mpath, "tracks.file", "a tracks file in the scenarios folder",
+            Described(f"no file {name}"),
+        )  # fmt: skip
+    table = read_raw_table(d / name, "behaviour tracks")
+    cols = ["scenario", "id", "t", "x", "y", "yaw"]
+    table.require(cols, "behaviour tracks")
+    num = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
+    for c in ("x", "y"):
+        big = np.abs(num[c]) > MAX_POSITION
+        if big.any():
+            i = int(np.argmax(big))
+            raise table.error(
+                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(num[c][i]))
+            )
+    scen = table.nonneg_ints("scenario", allow_empty=False)[0]
+    ids = table.nonneg_ints("id", allow_empty=False)[0]
+    a_scen = artefacts["scenario"].to_numpy(np.int64)
+    a_ids = (
+        artefacts["artefact"].to_numpy(np.int64)
+        if "artefact" in artefacts.columns
+        else artefacts.groupby("scenario").cumcount().to_numpy(np.int64)
+    )
+    known = pd.MultiIndex.from_arrays([a_scen, a_ids])
+    bad = ~pd.MultiIndex.from_arrays([scen, ids]).isin(known)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise table.error(
+            i, "id", f"an artefact of scenario {int(scen[i])} in artefacts.parquet",
+            repr(int(ids[i])),
+        )  # fmt: skip
+    dup = pd.DataFrame({"s": scen, "a": ids, "t": num["t"]}).duplicated().to_numpy()
+    if dup.any():
+        i = int(np.argmax(dup))
+        raise table.error(
+            i, "t", f"one pose per artefact and time (artefact {int(ids[i])} has two)",
+            repr(float(num["t"][i])),
+        )  # fmt: skip
+    return pd.DataFrame({"scenario": scen, "id": ids, **num})
 
 
 def yaw_rotations(yaw: Any) -> np.ndarray:
@@ -237,70 +327,228 @@ def perceived_grid(grid: Any, centers: Any, half_extents: Any, yaws: Any, percei
     return out
 
 
-def _sizes(classes: Any, labels: np.ndarray) -> np.ndarray:
-    """(n, 3) full sizes (length, width, height) per artefact from a class table."""
-    if isinstance(classes, pd.DataFrame):
-        need = ["class", "length", "width", "height"]
-        missing = [k for k in need if k not in classes.columns]
-        if missing:
-            raise ValueError(f"classes: expected columns {need}, missing {missing}")
-        table = {r["class"]: (r["length"], r["width"], r["height"]) for _, r in classes.iterrows()}
-    elif isinstance(classes, Mapping):
-        table = dict(classes)
-    else:
-        raise ValueError(
-            "classes: expected a DataFrame (class, length, width, height) or a mapping "
-            f"class -> (length, width, height), got {type(classes).__name__}"
-        )
-    out = np.empty((labels.size, 3))
-    for i, lab in enumerate(labels.tolist()):
-        if lab not in table:
-            raise ValueError(f"classes: no size for class {lab!r} (artefact row {i})")
-        size = check_finite(f"classes[{lab!r}]", table[lab]).reshape(-1)
-        if size.shape != (3,) or (size <= 0).any():
-            raise ValueError(
-                f"classes[{lab!r}]: expected (length, width, height) > 0, got {describe(size)}"
-            )
-        out[i] = size
-    return out
+def _scene_frames(
+    scene: Any, times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The boxes of ``scene`` in frames at ``times`` (T,), all taken from :meth:`Scene.at`.
+
+    Returns
+    -------
+    centres : (N, 3) float, or (T, N, 3) when an artefact has a behaviour track
+    half_extents : (N, 3) float
+    rotations : (N, 3, 3) float, or (T, N, 3, 3)
+    active : (T, N) bool
+        The artefact is alive in the frame (``t_arrive <= t < t_leave``).
+    """
+    n, n_t = len(scene), times.size
+    active = scene.alive(times[:, None]) if n_t else np.zeros((0, n), bool)
+    order = np.argsort(scene.ids, kind="stable")
+
+    def rows(ids: np.ndarray) -> np.ndarray:  # scene positions of artefact ids
+        return order[np.searchsorted(scene.ids[order], ids)]
+
+    if not scene.has_tracks.any():  # every box stands at its arrival pose: one box each
+        centres, yaws = np.zeros((n, 3)), np.zeros(n)
+        for ta in np.unique(scene.t_arrive[active.any(axis=0)]):
+            b = scene.at(float(ta))
+            k = rows(b.ids)
+            centres[k], yaws[k] = b.centres, b.yaws
+        return centres, scene.half_extents, yaw_rotations(yaws), active
+    centres, yaws = np.zeros((n_t, n, 3)), np.zeros((n_t, n))
+    for i in np.flatnonzero(active.any(axis=1)):
+        b = scene.at(float(times[i]))
+        k = rows(b.ids)
+        centres[i, k], yaws[i, k] = b.centres, b.yaws
+    rots = yaw_rotations(yaws.reshape(-1)).reshape(n_t, n, 3, 3)
+    return centres, scene.half_extents, rots, active
 
 
-def perceive_scenario(
-    artefacts: pd.DataFrame,
-    robot_path: pd.DataFrame,
-    classes: Any,
+def perceive_scene(
+    scene: Any,
+    times: Any,
+    poses: Any,
     env_mesh: Any,
     camera: Any,
     d_max: float,
     tau: float,
     *,
-    mount: Any | None = None,
     occlusion_between_artefacts: bool = False,
+    device: str = "cpu",
     threads: int | None = None,
-) -> pd.DataFrame:
-    """Add perceived flags to a scenarios table, for a robot following ``robot_path``.
+) -> tuple[np.ndarray, np.ndarray]:
+    """A_f of a :class:`~are_stats.Scene`'s artefacts along a camera trajectory.
 
-    Every row of ``robot_path`` is a frame: the camera pose is
-    ``T_world_base(x, y, yaw) @ mount``. An artefact takes part in a frame when
-    ``t_arrive <= t < t_leave``; it stands upright at its ``(x, y, yaw)`` on the ground
-    (box centre at half its height). A(t) is computed per scenario with
-    :func:`perceived_counts_batch`.
+    Frame ``i`` shows the boxes ``scene.at(times[i])``: the artefacts alive at that time,
+    where they are then (moving along their behaviour tracks, else at their arrival pose),
+    each with the box of its row of Q (DECISIONS 5). The counts are those of
+    :func:`~are_stats.perception.perceived_counts_batch` with one box pose per frame (or
+    one box per artefact when nothing moves): the same as perceiving each frame's boxes on
+    their own.
+
+    Parameters
+    ----------
+    scene : Scene
+        One scenario's artefacts (:meth:`Scene.from_scenarios`).
+    times : (T,) float
+        Frame times on the scenario's clock (s).
+    poses : (T, 4, 4) float
+        Camera-to-world transforms of the optical frame, one per frame.
+    env_mesh : trimesh.Trimesh
+        Environment mesh S_3D.
+    camera : PinholeCamera
+        Intrinsics.
+    d_max, tau : float
+        Range and partial-occlusion threshold of A_f.
+    occlusion_between_artefacts : bool
+        Nearer artefacts hide farther ones (beyond the paper).
+    device : str
+        Warp device.
+    threads : int, optional
+        Host threads for the Warp CPU launches.
+
+    Returns
+    -------
+    counts : (T, N) int64
+        Unoccluded box pixels per frame and artefact, in scene order (``scene.ids``); 0
+        where the artefact is not alive.
+    perceived : (T, N) bool
+        ``counts > tau``.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd, trimesh
+    >>> from are_stats import Scene, load_catalogue
+    >>> from are_stats.perception import PinholeCamera, optical_from_base
+    >>> table = pd.DataFrame({"t_arrive": [0.0], "t_leave": [5.0], "x": [4.0], "y": [0.0],
+    ...                       "yaw": [0.0]})
+    >>> tracks = pd.DataFrame({"id": [0, 0], "t": [0.0, 4.0], "x": [4.0, 4.0],
+    ...                        "y": [0.0, 40.0], "yaw": [0.0, 0.0]})  # walks out of view
+    >>> scene = Scene.from_scenarios(table, load_catalogue(), tracks)
+    >>> cam = PinholeCamera(60.0, 60.0, 40.0, 30.0, 80, 60)
+    >>> poses = np.stack([optical_from_base([0.0, 0.0, 1.0])] * 3)
+    >>> counts, seen = perceive_scene(scene, [0.0, 2.0, 4.0], poses, None, cam, 30.0, 5)
+    >>> seen[:, 0].tolist()
+    [True, False, False]
+    """
+    from are_stats.scenarios import Scene
+
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene: expected a Scene, got {type(scene).__name__}")
+    t = check_finite("times", times, ndim=1)
+    p = np.asarray(poses, dtype=float)
+    if p.ndim != 3 or p.shape[0] != t.size:
+        raise ValueError(
+            f"poses: expected ({t.size}, 4, 4) camera poses, one per time, got {p.shape}"
+        )
+    centres, half, rots, active = _scene_frames(scene, t)
+    return perceived_counts_batch(
+        env_mesh, centres, half, rots, camera, p, d_max, tau, active=active,
+        occlusion_between_artefacts=occlusion_between_artefacts, device=device,
+        threads=threads,
+    )  # fmt: skip
+
+
+def scenario_scenes(
+    artefacts: pd.DataFrame,
+    catalogue: Any = None,
+    tracks: pd.DataFrame | None = None,
+    class_labels: Any = None,
+) -> list[tuple[np.ndarray, Any]]:
+    """The :class:`~are_stats.Scene` of every scenario of a scenarios table.
 
     Parameters
     ----------
     artefacts : pandas.DataFrame
-        Columns ``scenario, class, t_arrive, t_leave, x, y, yaw`` (other columns kept).
+        A scenarios table (columns ``t_arrive, t_leave, x, y, yaw``; optionally
+        ``scenario``, ``artefact``, ``class``, ``mark``).
+    catalogue : ArtefactCatalogue, optional
+        The property table Q (default: the shipped catalogue).
+    tracks : pandas.DataFrame, optional
+        Behaviour tracks ``scenario, id, t, x, y, yaw`` (``scenario`` may be left out
+        when the table holds one scenario).
+    class_labels : sequence of str, optional
+        The fit's class labels.
+
+    Returns
+    -------
+    list of (rows, Scene)
+        Per scenario, in order of first appearance: its rows of ``artefacts`` ``(n,) int64``
+        and its Scene (artefacts in the same order).
+    """
+    from are_stats.environment import load_catalogue
+    from are_stats.scenarios import Scene
+
+    if not isinstance(artefacts, pd.DataFrame):
+        raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
+    missing = [k for k in _SCENARIO_FLOATS if k not in artefacts.columns]
+    if missing:
+        raise ValueError(f"artefacts: expected columns {list(_SCENARIO_FLOATS)}, missing {missing}")
+    cat = load_catalogue() if catalogue is None else catalogue
+    scen = (
+        artefacts["scenario"].to_numpy()
+        if "scenario" in artefacts.columns
+        else np.zeros(len(artefacts), np.int64)
+    )
+    several = pd.unique(scen).size > 1
+    if tracks is not None and several and "scenario" not in tracks.columns:
+        raise ValueError("tracks: expected a 'scenario' column for a table of several scenarios")
+    out = []
+    for s in pd.unique(scen):
+        rows = np.flatnonzero(scen == s)
+        tr = tracks
+        if tracks is not None and "scenario" in tracks.columns:
+            tr = tracks[tracks["scenario"].to_numpy() == s]
+        table = artefacts.iloc[rows].drop(columns="scenario", errors="ignore")
+        out.append((rows, Scene.from_scenarios(table, cat, tr, class_labels=class_labels)))
+    return out
+
+
+def perceive_scenario(
+    artefacts: Any,
+    robot_path: pd.DataFrame,
+    catalogue: Any,
+    env_mesh: Any,
+    camera: Any,
+    d_max: float,
+    tau: float,
+    *,
+    tracks: pd.DataFrame | None = None,
+    class_labels: Any = None,
+    mount: Any | None = None,
+    occlusion_between_artefacts: bool = False,
+    threads: int | None = None,
+) -> pd.DataFrame:
+    """Add perceived flags to a scenarios table (or a Scene), for a robot following a path.
+
+    Every row of ``robot_path`` is a frame at its time ``t``: the camera pose is
+    ``T_world_base(x, y, yaw) @ mount``. The artefacts of each scenario become boxes in
+    its :class:`~are_stats.Scene` (:func:`scenario_scenes`: the box of each artefact's row
+    of Q, DECISIONS 5); a frame shows the boxes alive at ``t`` where they are at ``t``
+    (moving along their behaviour ``tracks`` when given, else standing at their arrival
+    pose), as :func:`perceive_scene` computes.
+
+    Parameters
+    ----------
+    artefacts : pandas.DataFrame or Scene
+        A scenarios table: columns ``t_arrive, t_leave, x, y, yaw`` and optionally
+        ``scenario``, ``artefact`` (ids, matched by the tracks' ``id``), ``class``,
+        ``mark`` (other columns kept); or the Scene of one scenario.
     robot_path : pandas.DataFrame
         Columns ``t, x, y, yaw``: the robot base pose over time.
-    classes : DataFrame or mapping
-        Box sizes per class: columns ``class, length, width, height`` or a mapping
-        ``class -> (length, width, height)`` (metres).
+    catalogue : ArtefactCatalogue or None
+        The property table Q that sizes the boxes (None: the shipped catalogue). Not used
+        for a Scene.
     env_mesh : trimesh.Trimesh
         Environment mesh S_3D.
     camera : PinholeCamera
         Intrinsics; its ``pose`` is the base-to-optical mount unless ``mount`` is given.
     d_max, tau : float
         Range and partial-occlusion threshold of A_f.
+    tracks : pandas.DataFrame, optional
+        Behaviour tracks ``scenario, id, t, x, y, yaw`` (``are-stats generate
+        --behaviours``). Not used for a Scene (it has its own).
+    class_labels : sequence of str, optional
+        The fit's class labels (see :meth:`Scene.from_scenarios`). Not used for a Scene.
     mount : (4, 4) float, optional
         ``T_base_optical`` (see :func:`optical_from_base`).
     occlusion_between_artefacts : bool
@@ -311,16 +559,26 @@ def perceive_scenario(
     Returns
     -------
     pandas.DataFrame
-        ``artefacts`` with columns ``perceived`` (bool: in A_f in at least one frame),
-        ``n_frames_perceived`` (int64), ``max_count`` (int64: largest pixel count) and
-        ``first_perceived_t`` (float64, NaN if never).
+        ``artefacts`` (for a Scene: columns ``artefact, label, t_arrive, t_leave``) with
+        columns ``perceived`` (bool: in A_f in at least one frame), ``n_frames_perceived``
+        (int64), ``max_count`` (int64: largest pixel count) and ``first_perceived_t``
+        (float64, NaN if never).
     """
-    need = ["scenario", "class", "t_arrive", "t_leave", "x", "y", "yaw"]
-    if not isinstance(artefacts, pd.DataFrame):
-        raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
-    missing = [k for k in need if k not in artefacts.columns]
-    if missing:
-        raise ValueError(f"artefacts: expected columns {need}, missing {missing}")
+    from are_stats.scenarios import Scene
+
+    if isinstance(artefacts, Scene):
+        scenes = [(np.arange(len(artefacts)), artefacts)]
+        out = pd.DataFrame(
+            {
+                "artefact": artefacts.ids,
+                "label": artefacts.labels,
+                "t_arrive": artefacts.t_arrive,
+                "t_leave": artefacts.t_leave,
+            }
+        )
+    else:
+        scenes = scenario_scenes(artefacts, catalogue, tracks, class_labels)
+        out = artefacts.copy()
     if not isinstance(robot_path, pd.DataFrame):
         raise ValueError(f"robot_path: expected a DataFrame, got {type(robot_path).__name__}")
     missing = [k for k in ("t", "x", "y", "yaw") if k not in robot_path.columns]
@@ -340,26 +598,16 @@ def perceive_scenario(
     base[:, :3, :3] = yaw_rotations(path[:, 3])
     base[:, 0, 3], base[:, 1, 3], base[:, 3, 3] = path[:, 1], path[:, 2], 1.0
     poses = base @ m
-    cols = artefacts[["t_arrive", "t_leave", "x", "y", "yaw"]]
-    num = check_finite("artefacts", cols.to_numpy(float))
-    sizes = _sizes(classes, artefacts["class"].to_numpy())
-    out = artefacts.copy()
-    perceived = np.zeros(len(out), bool)
-    n_frames = np.zeros(len(out), np.int64)
-    max_count = np.zeros(len(out), np.int64)
-    first = np.full(len(out), np.nan)
-    scen = artefacts["scenario"].to_numpy()
-    _check_size(scen, num, t, camera)
-    for s in pd.unique(scen):
-        rows = np.flatnonzero(scen == s)
-        ta, tl, x, y, yaw = num[rows].T
-        half = sizes[rows] / 2.0
-        centers = np.column_stack([x, y, half[:, 2]])
-        active = (t[:, None] >= ta[None]) & (t[:, None] < tl[None])
-        counts, seen = perceived_counts_batch(
-            env_mesh, centers, half, yaw_rotations(yaw), camera, poses, d_max, tau,
-            active=active, occlusion_between_artefacts=occlusion_between_artefacts,
-            threads=threads,
+    _check_size([sc for _, sc in scenes], t, camera)
+    n_out = len(out)
+    perceived = np.zeros(n_out, bool)
+    n_frames = np.zeros(n_out, np.int64)
+    max_count = np.zeros(n_out, np.int64)
+    first = np.full(n_out, np.nan)
+    for rows, scene in scenes:
+        counts, seen = perceive_scene(
+            scene, t, poses, env_mesh, camera, d_max, tau,
+            occlusion_between_artefacts=occlusion_between_artefacts, threads=threads,
         )  # fmt: skip
         perceived[rows] = seen.any(axis=0)
         n_frames[rows] = seen.sum(axis=0)
@@ -373,22 +621,22 @@ def perceive_scenario(
     return out
 
 
-def _check_size(scen: np.ndarray, num: np.ndarray, t: np.ndarray, camera: Any) -> None:
+def _check_size(scenes: list[Any], t: np.ndarray, camera: Any) -> None:
     """Refuse, before tracing, work past the work limit (a ray per pixel of every frame in
     which an artefact of the scenario is present) or pair buffers past the memory limit."""
-    if len(scen) == 0 or len(t) == 0:
+    if not scenes or len(t) == 0:
         return
-    _, n_per = np.unique(scen, return_counts=True)
+    n_max = max(len(sc) for sc in scenes)
+    moving = any(bool(sc.has_tracks.any()) for sc in scenes)
     check_memory(
-        float(len(t)) * float(n_per.max()) * PAIR_BYTES,
-        f"the {len(t)} robot poses x {int(n_per.max())} artefacts of a scenario",
+        float(len(t)) * float(n_max) * (PAIR_BYTES + (MOVING_PAIR_BYTES if moving else 0)),
+        f"the {len(t)} robot poses x {n_max} artefacts of a scenario"
+        + (" (boxes that move: a pose per frame)" if moving else ""),
         "robot_path",
     )
-    order = np.argsort(scen, kind="stable")
-    bounds = np.flatnonzero(np.diff(scen[order])) + 1
     frames = 0
-    for rows in np.split(order, bounds):
-        ta, tl = num[rows, 0], num[rows, 1]
+    for sc in scenes:
+        ta, tl = sc.t_arrive, sc.t_leave
         # frames with at least one artefact present: t in the union of [t_arrive, t_leave)
         i0 = np.searchsorted(t, ta, side="left")
         i1 = np.maximum(np.searchsorted(t, tl, side="left"), i0)
@@ -402,3 +650,68 @@ def _check_size(scen: np.ndarray, num: np.ndarray, t: np.ndarray, camera: Any) -
         f"tracing {frames} frames of {int(pixels)} pixels",
         "robot_path",
     )
+
+
+def check_path_times(
+    source: Any,
+    t: np.ndarray,
+    t_arrive: np.ndarray,
+    t_leave: np.ndarray,
+    window: tuple[float, float] | None = None,
+    scenarios: Any = "",
+) -> None:
+    """Refuse a robot path on which no artefact could be seen.
+
+    Parameters
+    ----------
+    source : str or PathLike
+        The robot-path file (named in the error).
+    t : (T,) float
+        The path's times, sorted.
+    t_arrive, t_leave : (n,) float
+        The artefacts' presence.
+    window : (2,) float, optional
+        The scenarios' time window ``[0, horizon]``.
+    scenarios : str or PathLike
+        The scenarios folder (named in the error).
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        When the path's times ``[t_min, t_max]`` miss the window, or no time of the path
+        falls in an artefact's presence ``[t_arrive, t_leave)``; the message names both
+        time ranges.
+    """
+    t = np.asarray(t, float)
+    if t.size == 0 or t_arrive.size == 0:
+        return
+    got = f"times {t.min():g} to {t.max():g}"
+    of = f" of {scenarios}" if str(scenarios) else ""
+    if window is not None and (t.max() < window[0] or t.min() > window[1]):
+        raise InputError(
+            source,
+            "column 't'",
+            f"times overlapping the scenario window [{window[0]:g}, {window[1]:g}]{of}",
+            Described(f"{got}: no artefact would be seen"),
+        )
+    seen_by = np.searchsorted(t, t_leave, side="left") - np.searchsorted(t, t_arrive, side="left")
+    if not (seen_by > 0).any():  # no pose with t_arrive <= t < t_leave
+        raise InputError(
+            source,
+            "column 't'",
+            f"times within the scenarios' artefact presence [{t_arrive.min():g}, "
+            f"{t_leave.max():g}){of}",
+            Described(f"{got}: no artefact would be seen"),
+        )
+
+
+def poses_outside(xy: Any, grid: Any = None, bounds: Any = None) -> np.ndarray:
+    """(n,) bool: robot positions ``xy (n, 2)`` outside the map ``grid`` (an
+    OccupancyGrid), else outside ``bounds`` ``((x0, y0), (x1, y1))``; none without either."""
+    p = check_finite("xy", xy, ndim=2)
+    if grid is not None:
+        return ~grid.in_bounds(grid.world_to_cell(p))
+    if bounds is not None:
+        lo, hi = np.asarray(bounds, float)
+        return ((p < lo) | (p > hi)).any(axis=1)
+    return np.zeros(p.shape[0], bool)

@@ -229,3 +229,74 @@ def test_sync_frames_publishes_artefact_frames():
     b.sync_frames(tree)
     assert f"F_A/{c}" not in tree.frames
     assert np.allclose(tree.lookup("F_E", f"F_A/{a}")[:2, 3], [2.5, 3.0])
+
+
+def _scene():
+    import pandas as pd
+
+    from are_stats import Scene
+
+    rng = np.random.default_rng(5)
+    n = 6
+    table = pd.DataFrame(
+        {
+            "artefact": np.arange(20, 20 + n),
+            "class": rng.integers(0, 5, n),
+            "mark": rng.integers(0, 8, n),
+            "t_arrive": [0.0, 0.0, 1.0, 2.0, 3.0, 9.0],
+            "t_leave": [5.0, 10.0, 10.0, 4.0, 10.0, 10.0],
+            "x": [1.5, 3.0, 5.0, 6.5, 2.0, 6.0],
+            "y": [1.5, 4.5, 1.5, 4.5, 3.0, 2.0],
+            "yaw": rng.uniform(0, 2 * np.pi, n),
+        }
+    )
+    tracks = pd.DataFrame({"id": [21, 21], "t": [0.0, 8.0], "x": [3.0, 4.0],
+                           "y": [4.5, 4.0], "yaw": [0.3, 2.0]})  # fmt: skip
+    return Scene.from_scenarios(table, load_catalogue(), tracks)
+
+
+def test_register_scene_equals_registering_its_boxes():
+    grid = _walled_grid(pillars=False)
+    scene = _scene()
+    b = ARBuilder(grid, load_catalogue())
+    for t in (0.5, 3.5, 4.5, 9.5):
+        ids = b.register_scene(scene, t)
+        boxes = scene.at(t)
+        # the same boxes registered one by one, by size, at their box centres
+        d = ARBuilder(grid)
+        for k in range(len(boxes)):
+            pose = [boxes.centres[k, 0], boxes.centres[k, 1], boxes.yaws[k]]
+            d.register(None, pose, size=2 * boxes.half_extents[k], artefact_id=boxes.ids[k],
+                       check=False)  # fmt: skip
+        assert ids.tolist() == boxes.ids.tolist() == b.ids.tolist() == d.ids.tolist()
+        assert b.labels == boxes.labels.tolist()
+        (cb, hb, yb), (cd, hd, yd) = b.boxes(), d.boxes()
+        np.testing.assert_allclose(cb, boxes.centres, atol=1e-12)
+        # (register(size=) stands a box on the ground; a row's box may float a little)
+        np.testing.assert_allclose(cb[:, :2], cd[:, :2], atol=1e-12)
+        np.testing.assert_allclose(hb, hd)
+        np.testing.assert_allclose(np.mod(yb, 2 * np.pi), np.mod(yd, 2 * np.pi), atol=1e-12)
+        np.testing.assert_array_equal(b.augmented_grid().data, d.augmented_grid().data)
+        assert b.n_artefact_cells == d.n_artefact_cells > 0
+        cb_, cd_ = b.collisions(), d.collisions()
+        for key in ("environment", "bounds", "mesh", "pairs"):
+            np.testing.assert_array_equal(cb_[key], cd_[key])
+    assert len(b.register_scene(scene, 50.0)) == 0 and len(b) == 0  # all left
+
+
+def test_register_scene_check_refuses_collisions():
+    import pandas as pd
+
+    from are_stats import Scene
+
+    grid = _walled_grid(pillars=False)
+    table = pd.DataFrame({"t_arrive": [0.0, 0.0], "t_leave": [9.0, 9.0], "x": [3.0, 3.1],
+                          "y": [3.0, 3.0], "yaw": [0.0, 0.0]})  # fmt: skip
+    b = ARBuilder(grid, load_catalogue())
+    scene = Scene.from_scenarios(table, load_catalogue())
+    with pytest.raises(ValueError, match="scene: artefacts 0 and 1 collide at t=1.0"):
+        b.register_scene(scene, 1.0, check=True)
+    assert len(b) == 0  # nothing changed
+    assert b.register_scene(scene, 1.0).tolist() == [0, 1]
+    with pytest.raises(ValueError, match="scene: expected a Scene"):
+        b.register_scene(table, 1.0)

@@ -9,22 +9,26 @@ import pytest
 import trimesh
 from scipy import stats
 
-from are_stats.environment import OccupancyGrid
+from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.inputs import InputError, LimitError, limits
 from are_stats.perception import (
     PinholeCamera,
     optical_from_base,
     perceive_frames,
     perceive_scenario,
+    perceive_scene,
+    perceived_counts,
     perceived_counts_batch,
     perceived_grid,
     plot_camera_view,
     plot_top_view,
     sample_perceived,
     save_figure,
+    scenario_scenes,
     yaw_rotations,
 )
 from are_stats.perception._scenario import read_robot_path
+from are_stats.scenarios import Scene
 from tests.helpers import ALPHA
 
 
@@ -32,14 +36,33 @@ def _camera():
     return PinholeCamera(60.0, 60.0, 40.0, 30.0, 80, 60, optical_from_base([0.0, 0.0, 0.5]))
 
 
-def test_perceive_scenario_matches_direct_batch():
+@pytest.fixture(scope="module")
+def catalogue():
+    return load_catalogue()
+
+
+def _by_hand(cat, table):
+    """Boxes of a scenarios table straight from the catalogue rows (DECISIONS 5)."""
+    half, centres = [], []
+    for _, r in table.iterrows():
+        row = cat.select(int(r["class"]), int(r["mark"]))
+        off = (row.bounds[0] + row.bounds[1]) / 2
+        c, s = np.cos(r["yaw"]), np.sin(r["yaw"])
+        half.append(row.half_extents)
+        centres.append([r["x"] + c * off[0] - s * off[1], r["y"] + s * off[0] + c * off[1],
+                        off[2]])  # fmt: skip
+    return np.array(centres), np.array(half)
+
+
+def test_perceive_scenario_matches_direct_batch(catalogue):
     wall = trimesh.creation.box([0.2, 3.0, 2.0])
     wall.apply_translation([4.0, 0.0, 1.0])  # hides x > 4 near y = 0
     art = pd.DataFrame(
         {
             "scenario": [0, 0, 0, 1],
             "artefact": [0, 1, 2, 0],
-            "class": [0, 1, 0, 1],
+            "class": [0, 0, 0, 2],
+            "mark": [0, 1, 5, 0],
             "t_arrive": [0.0, 0.0, 5.0, 0.0],
             "t_leave": [10.0, 10.0, 6.0, 1.0],
             "x": [2.0, 6.0, 2.0, 2.5],
@@ -47,21 +70,17 @@ def test_perceive_scenario_matches_direct_batch():
             "yaw": [0.0, 0.3, 1.0, 0.0],
         }
     )
-    classes = pd.DataFrame({"class": [0, 1], "length": [0.6, 0.8], "width": [0.4, 0.8],
-                            "height": [1.0, 1.6]})  # fmt: skip
     path = pd.DataFrame({"t": [0.0, 2.0, 4.0], "x": [0.0, 0.0, 0.0], "y": [0.0, 0.0, 0.0],
                          "yaw": [0.0, 0.0, 0.0]})  # fmt: skip
     cam = _camera()
-    out = perceive_scenario(art, path, classes, wall, cam, 20.0, 5)
+    out = perceive_scenario(art, path, catalogue, wall, cam, 20.0, 5)
     assert list(out.columns[: len(art.columns)]) == list(art.columns)
-    # scenario 0 by hand
-    sizes = np.array([[0.6, 0.4, 1.0], [0.8, 0.8, 1.6], [0.6, 0.4, 1.0]])
-    centers = np.column_stack([[2.0, 6.0, 2.0], [0.0, 0.0, 0.5], sizes[:, 2] / 2])
+    # scenario 0 by hand, boxes from the catalogue rows
+    centers, half = _by_hand(catalogue, art.iloc[:3])
     poses = np.stack([cam.pose] * 3)
     active = np.array([[True, True, False]] * 3)
     counts, seen = perceived_counts_batch(
-        wall, centers, sizes / 2, yaw_rotations([0.0, 0.3, 1.0]), cam, poses, 20.0, 5,
-        active=active,
+        wall, centers, half, yaw_rotations([0.0, 0.3, 1.0]), cam, poses, 20.0, 5, active=active,
     )  # fmt: skip
     s0 = out[out["scenario"] == 0]
     np.testing.assert_array_equal(s0["perceived"], seen.any(axis=0))
@@ -70,12 +89,93 @@ def test_perceive_scenario_matches_direct_batch():
     assert out["first_perceived_t"].iloc[0] == 0.0 and np.isnan(out["first_perceived_t"].iloc[1])
     # scenario 1: present only at t = 0
     assert out["n_frames_perceived"].iloc[3] == 1
-    with pytest.raises(ValueError, match="classes: no size for class 1"):
-        perceive_scenario(art, path, {0: (1.0, 1.0, 1.0)}, wall, cam, 20.0, 5)
+    # the Scene of scenario 0 gives the same flags
+    (rows, scene), _ = scenario_scenes(art, catalogue)
+    one = perceive_scenario(scene, path, None, wall, cam, 20.0, 5)
+    assert rows.tolist() == [0, 1, 2] and one["artefact"].tolist() == [0, 1, 2]
+    np.testing.assert_array_equal(one["max_count"], s0["max_count"])
     with pytest.raises(ValueError, match="artefacts: expected columns"):
-        perceive_scenario(art.drop(columns="yaw"), path, classes, wall, cam, 20.0, 5)
+        perceive_scenario(art.drop(columns="yaw"), path, catalogue, wall, cam, 20.0, 5)
     with pytest.raises(ValueError, match="robot_path: expected columns"):
-        perceive_scenario(art, path.drop(columns="t"), classes, wall, cam, 20.0, 5)
+        perceive_scenario(art, path.drop(columns="t"), catalogue, wall, cam, 20.0, 5)
+    with pytest.raises(ValueError, match="tracks: expected a 'scenario' column"):
+        tracks = pd.DataFrame({"id": [0], "t": [0.0], "x": [0.0], "y": [0.0], "yaw": [0.0]})
+        perceive_scenario(art, path, catalogue, wall, cam, 20.0, 5, tracks=tracks)
+
+
+def _walkers(catalogue):
+    """Three artefacts: 0 walks across the view behind a wall's edge, 1 turns on the spot,
+    2 stands; the robot drives forward meanwhile."""
+    table = pd.DataFrame(
+        {
+            "artefact": [0, 1, 2],
+            "class": [0, 2, 3],
+            "mark": [0, 0, 0],
+            "t_arrive": [0.0, 1.0, 0.0],
+            "t_leave": [20.0, 20.0, 7.0],
+            "x": [6.0, 5.0, 7.0],
+            "y": [-4.0, 1.5, 2.5],
+            "yaw": [1.0, 0.0, 0.0],
+        }
+    )
+    tracks = pd.DataFrame(
+        {
+            "id": [0, 0, 0, 1, 1],
+            "t": [0.0, 4.0, 8.0, 2.0, 6.0],
+            "x": [6.0, 6.0, 6.0, 5.0, 5.0],
+            "y": [-4.0, 0.0, 4.0, 1.5, 1.5],
+            "yaw": [1.0, 1.5, 1.6, 6.0, 0.5],  # 1 turns the short way through 0
+        }
+    )
+    return table, tracks
+
+
+def test_moving_boxes_equal_static_frames(catalogue):
+    wall = trimesh.creation.box([0.2, 2.0, 2.0])
+    wall.apply_translation([4.0, -0.5, 1.0])
+    table, tracks = _walkers(catalogue)
+    scene = Scene.from_scenarios(table, catalogue, tracks)
+    cam = _camera()
+    times = np.array([0.0, 1.5, 3.0, 4.5, 6.0, 7.5, 9.0])
+    base = np.stack([np.eye(4)] * times.size)
+    base[:, 0, 3] = 0.1 * times  # the robot drives forward
+    poses = base @ cam.pose
+    counts, seen = perceive_scene(scene, times, poses, wall, cam, 20.0, 5)
+    assert counts.shape == (times.size, 3) and (seen == (counts > 5)).all()
+    for i, t in enumerate(times):
+        b = scene.at(t)  # the same boxes, perceived as a static scene in this one frame
+        still = PinholeCamera(60.0, 60.0, 40.0, 30.0, 80, 60, poses[i])
+        c_i, _ = perceived_counts(wall, b.centres, b.half_extents, yaw_rotations(b.yaws), still,
+                                  20.0, 5)  # fmt: skip
+        want = np.zeros(3, np.int64)
+        want[np.searchsorted(scene.ids, b.ids)] = c_i
+        np.testing.assert_array_equal(counts[i], want)
+    # not vacuous: the walker is hidden, then seen, and the standing box leaves at 7
+    assert seen[:, 0].any() and not seen[:, 0].all()
+    assert counts[times >= 7.0, 2].sum() == 0 and counts[times < 7.0, 2].any()
+    # the table with its tracks, and the Scene, give the same flags
+    path = pd.DataFrame({"t": times, "x": 0.1 * times, "y": 0.0, "yaw": 0.0})
+    for out in (
+        perceive_scenario(scene, path, None, wall, cam, 20.0, 5),
+        perceive_scenario(table, path, catalogue, wall, cam, 20.0, 5, tracks=tracks),
+    ):
+        np.testing.assert_array_equal(out["n_frames_perceived"], seen.sum(axis=0))
+        np.testing.assert_array_equal(out["max_count"], counts.max(axis=0))
+
+
+def test_moving_boxes_shapes_are_checked():
+    cam = _camera()
+    poses = np.stack([cam.pose] * 2)
+    c = np.zeros((3, 1, 3))  # three frames of boxes for two poses
+    r = np.broadcast_to(np.eye(3), (3, 1, 3, 3))
+    with pytest.raises(ValueError, match=r"centers: expected one box pose per frame, \(T=2"):
+        perceived_counts_batch(None, c, [[0.5] * 3], r, cam, poses, 9.0, 4)
+    with pytest.raises(ValueError, match=r"rotations: expected shape \(2, 1, 3, 3\)"):
+        perceived_counts_batch(None, c[:2], [[0.5] * 3], np.eye(3)[None], cam, poses, 9.0, 4)
+    bad = np.array(r[:2])
+    bad[1, 0] *= 2.0
+    with pytest.raises(ValueError, match="got frame 1, box 0"):
+        perceived_counts_batch(None, c[:2], [[0.5] * 3], bad, cam, poses, 9.0, 4)
 
 
 def test_perceived_grid_marks_only_perceived_footprints():
@@ -142,7 +242,7 @@ def test_perceive_scenario_refuses_unsorted_paths_and_runaway_work():
     art = pd.DataFrame({"scenario": [0, 1], "class": [0, 0], "t_arrive": [0.0, 0.0],
                         "t_leave": [10.0, 3.0], "x": [2.0, 2.0], "y": [0.0, 0.0],
                         "yaw": [0.0, 0.0]})  # fmt: skip
-    classes = {0: (0.5, 0.5, 1.0)}
+    classes = load_catalogue()
     path = pd.DataFrame({"t": [0.0, 4.0, 2.0], "x": 0.0, "y": 0.0, "yaw": 0.0})
     with pytest.raises(ValueError, match=r"robot_path: row 2: expected times in non-decreasing"):
         perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)
