@@ -7,6 +7,7 @@ any work, writes every file atomically and prints a short rich summary.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -102,7 +103,7 @@ def run_fit(
         get_seed,
         get_str,
     )
-    from are_stats.logs import read_count_panel, read_lifecycle_log
+    from are_stats.logs import read_count_panel, read_field_log
 
     method = get_str(method, "--method", "", choices=("nuts", "em"))
     arrivals = get_str(arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES)
@@ -149,9 +150,17 @@ def run_fit(
         lifetimes=lifetimes,
         positions=positions,
     )
-    lifecycle = read_lifecycle_log(
-        log, manifest=manifest, window=tuple(window) if window else None, area=area
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        lifecycle = read_field_log(
+            log,
+            manifest=manifest,
+            window=tuple(window) if window else None,
+            area=area,
+            clock_start=clock_start,
+        )
+    for w in caught:
+        console.print(f"[yellow]warning:[/] {w.message}")
     data = lifecycle.to_lifecycle_data()
     if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
         steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
@@ -162,8 +171,10 @@ def run_fit(
         f"start, {rep['right_censored']} still present at end, excluded: "
         f"{sum(rep['excluded'].values())}); window {rep['window']} s, area {rep['area']:.1f} m^2"
     )
+    if rep.get("groups"):
+        console.print(f"{rep['artefacts_in_groups']} artefacts arrived in {rep['groups']} groups")
     panel = read_count_panel(counts) if counts is not None else None
-    clock_start = clock_start or lifecycle.manifest.get("clock_start")
+    clock_start = lifecycle.clock_start
     grid = None
     if positions != "uniform" and lifecycle.manifest.get("map"):
         from are_stats.environment import OccupancyGrid
