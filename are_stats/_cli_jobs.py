@@ -212,6 +212,7 @@ def run_fit(
     if figures is not None:
         with console.status("posterior-predictive checks ..."):
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
+        _print_checks(written)
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
 
@@ -257,6 +258,35 @@ def _print_traffic(idata: Any) -> None:
             console.print(f"[yellow]warning:[/] {w}")
 
 
+def _print_checks(written: dict) -> None:
+    """The posterior-predictive statistics table (observed vs 90% bands, misfits flagged)."""
+    import pandas as pd
+
+    path = written.get("traffic_checks_table")
+    if path is None:
+        return
+    table = pd.read_csv(path, index_col=0)
+    models = [m for m in ("paper", "chosen") if f"{m}_5%" in table.columns]
+    rich = Table(title="posterior-predictive checks (90% bands; ! = observed outside)",
+                 title_justify="left")  # fmt: skip
+    rich.add_column("statistic")
+    rich.add_column("observed", justify="right")
+    for m in models:
+        rich.add_column(m, justify="right")
+
+    def fmt(v: float) -> str:
+        return "-" if not np.isfinite(v) else f"{v:.3g}"
+
+    for stat, row in table.iterrows():
+        cells = []
+        for m in models:
+            band = f"{fmt(row[f'{m}_5%'])} - {fmt(row[f'{m}_95%'])}"
+            cells.append(("[red]! " if bool(row[f"{m}_flag"]) else "  ") + band
+                         + ("[/]" if bool(row[f"{m}_flag"]) else ""))  # fmt: skip
+        rich.add_row(str(stat), fmt(row["observed"]), *cells)
+    console.print(rich)
+
+
 def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, force=False):
     """Summary table and posterior-predictive figures of a saved fit.
 
@@ -278,6 +308,8 @@ def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, 
         console.print(f"[yellow]warning:[/] {w}")
     with console.status("posterior-predictive checks ..."):
         written = write_report(idata, out, key=seed, n_replicates=replicates, force=force)
+    _print_traffic(idata)
+    _print_checks(written)
     console.print(f"wrote {len(written)} files to {out}/")
     return written
 
@@ -501,20 +533,46 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         figures=out / "criticism",
         n_replicates=50 if quick else 200,
     )
+    # the same scenarios from the chosen models and from the paper's, side by side
     df = run_generate(fit_file, 100, 3600.0, 1, out / "scenarios", EXAMPLE_MAP, None, False, force)
-    from are_stats.scenarios import scenario_counts
+    df_paper = run_generate(
+        fit_file, 100, 3600.0, 1, out / "scenarios_paper", EXAMPLE_MAP, None, False, force,
+        model="paper",
+    )  # fmt: skip
+    import pandas as pd
 
-    n_t = scenario_counts(df, np.array([1800.0]), 100)[:, 0]
+    from are_stats.fitting import window_statistics
+
     post = idata.posterior
     area = float(post.attrs["area"])
     weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
     rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
     desc = yaml.safe_load((EXAMPLE_LOG.with_suffix(".yaml")).read_text())["description"]
+    res = float(np.asarray(post.attrs.get("traffic_time_resolution", 0.1)).ravel()[0])
+
+    def crowding(table: Any) -> dict[str, float]:
+        """Median over scenarios of the crowding statistics (as the checks compute them)."""
+        stats = []
+        for _, sc in table.groupby("scenario"):
+            st = window_statistics(sc["t_arrive"].to_numpy(), sc["t_leave"].to_numpy(),
+                                   sc["truncated"].to_numpy(), (0.0, 3600.0), res)  # fmt: skip
+            stats.append(st)
+        frame = pd.DataFrame(stats)
+        return {k: round(float(frame[k].median()), 3) for k in
+                ("N(t) var/mean", "N(t) peak", "zero gaps", "stay cv")}  # fmt: skip
+
+    checks_file = out / "criticism" / "traffic_checks.csv"
+    checks = pd.read_csv(checks_file, index_col=0) if checks_file.exists() else None
     summary = {
         "are_stats_version": __version__,
         "log": str(EXAMPLE_LOG.relative_to(ROOT)),
         "truth": desc,
         "fit": str(fit_file),
+        "chosen_models": {
+            "arrivals": str(post.attrs.get("arrival_model")),
+            "lifetimes": str(post.attrs.get("lifetime_model")),
+            "positions": str(post.attrs.get("position_model")),
+        },
         "posterior_mean": {
             "arrival_rate": float(post["arrival_rate"].mean()),
             "leave_rate": float(post["leave_rate"].mean()),
@@ -527,12 +585,19 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
                 )
             },
         },
-        "scenarios": {
-            "n": 100,
-            "horizon_s": 3600.0,
-            "artefacts": len(df),
-            "mean_present_at_30min": float(n_t.mean()),
-            "var_present_at_30min": float(n_t.var(ddof=1)),
+        "checks (observed; outside the 90% band of)": None
+        if checks is None
+        else {
+            str(stat): {
+                "observed": round(float(row["observed"]), 3),
+                "paper misfit": bool(row.get("paper_flag", False)),
+                "chosen misfit": bool(row.get("chosen_flag", False)),
+            }
+            for stat, row in checks.iterrows()
+        },
+        "scenarios (100 of 1 h; medians)": {
+            "chosen": {"artefacts": len(df), **crowding(df)},
+            "paper": {"artefacts": len(df_paper), **crowding(df_paper)},
         },
         "seconds": round(time.perf_counter() - t0, 1),
     }

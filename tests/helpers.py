@@ -78,3 +78,8 @@ TINY_SWEEP = {
     "planner": {"algorithm": "RRTConnect", "range": 2.0},
     "factors": {"scenario.arrival_rate": [0.0002, 0.0008]},
 }
+
+
+#: ``are-stats fit`` options that fit the paper's model alone (no candidate NUTS runs): for
+#: tests whose subject is not the choice of traffic models.
+PAPER_MODELS = ["--arrivals", "poisson", "--lifetimes", "exponential", "--positions", "uniform"]

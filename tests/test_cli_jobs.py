@@ -26,7 +26,7 @@ from are_stats.traffic import (
     conjugate_leave_rate,
     simulate_lifecycle,
 )
-from tests.helpers import chisquare_gof
+from tests.helpers import PAPER_MODELS, chisquare_gof
 
 runner = CliRunner()
 AREA = 400.0
@@ -67,7 +67,7 @@ def _invoke(args):
 def _quick_em_fit(log: Path, fit: Path, *extra, samples: int = 50):
     """A small conjugate + EM fit without figures (the setup of the downstream tests)."""
     res = _invoke(["fit", log, "--out", fit, "--method", "em", "--no-figures",
-                   "--samples", str(samples), "--chains", "2", *extra])  # fmt: skip
+                   "--samples", str(samples), "--chains", "2", *PAPER_MODELS, *extra])  # fmt: skip
     assert res.exit_code == 0, res.output
     return res
 
@@ -120,11 +120,21 @@ def test_fit_report_generate_em(tmp_path):
         "ppc_counts.png",
         "ppc_dwell.png",
         "ppc_marks.png",
-        "ppc_hour_of_day.png",
         "ppc_interarrival.png",
         "ppc_dispersion.png",
+        "traffic_checks.png",
+        "traffic_checks.csv",
+        "loo_arrivals.csv",
+        "loo_lifetimes.csv",
     ):
         assert (figures / name).stat().st_size > 0, name
+    # no clock_start in the manifest: no hour-of-day panel (t = 0 is not midnight)
+    assert not (figures / "ppc_hour_of_day.png").exists()
+    # the paper's model is the truth here: auto keeps it
+    assert post.attrs["arrival_model"] == "poisson"
+    assert post.attrs["lifetime_model"] == "exponential"
+    checks = pd.read_csv(figures / "traffic_checks.csv", index_col=0)
+    assert {"observed", "paper_5%", "paper_95%", "paper_flag"} <= set(checks.columns)
     # no overwrite without --force, then report and generate
     res = _invoke(["fit", log, "--out", fit, "--method", "em"])
     assert res.exit_code == 2 and "already exists" in res.output
@@ -171,6 +181,7 @@ def test_nuts_fit_matches_conjugate_posterior(tmp_path):
             fit,
             "--no-figures",
             "--no-stationary-start",
+            *PAPER_MODELS,
             "--warmup",
             "400",
             "--samples",
@@ -263,10 +274,22 @@ def test_demo_quick(tmp_path):
     res = _invoke(["demo", "--out", tmp_path / "demo", "--quick"])
     assert res.exit_code == 0, res.output
     summary = yaml.safe_load((tmp_path / "demo" / "summary.yaml").read_text())
-    assert summary["scenarios"]["n"] == 100
-    # the example log's truth: lambda * area = 1/30 per s, mu = 1/600 per s
+    # the example log's truth (models/make_example_log.py): groups, gamma stays of mean
+    # 600 s, door entries; 1/30 artefacts per s
+    assert summary["chosen_models"] == {
+        "arrivals": "groups", "lifetimes": "gamma", "positions": "learned",
+    }  # fmt: skip
     assert abs(summary["posterior_mean"]["leave_rate"] * 600 - 1) < 0.15
-    assert (tmp_path / "demo" / "criticism" / "criticism.png").exists()
+    scen = summary["scenarios (100 of 1 h; medians)"]
+    # the chosen model's world is as crowded as the log's; the paper's is calmer
+    assert scen["chosen"]["N(t) var/mean"] > 1.3 > scen["paper"]["N(t) var/mean"]
+    assert scen["chosen"]["zero gaps"] > 0.2 > scen["paper"]["zero gaps"]
+    assert scen["chosen"]["stay cv"] < 0.7 < scen["paper"]["stay cv"]
+    checks = summary["checks (observed; outside the 90% band of)"]
+    assert all(c["paper misfit"] for c in checks.values())
+    assert not any(c["chosen misfit"] for c in checks.values())
+    for name in ("criticism.png", "traffic_checks.png", "loo_arrivals.csv"):
+        assert (tmp_path / "demo" / "criticism" / name).exists()
 
 
 def test_perceive_adds_flags(tmp_path):

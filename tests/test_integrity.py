@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tests.helpers import TINY_SWEEP
+from tests.helpers import PAPER_MODELS, TINY_SWEEP
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
@@ -109,7 +109,7 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     """Two same-seed fits, generations and sweeps (shared by (a) and (b))."""
     d = tmp_path_factory.mktemp("integrity")
     log = _tiny_log(d)
-    fit = ["fit", str(log), "--method", "em", "--no-figures", "--seed", "1"]
+    fit = ["fit", str(log), "--method", "em", "--no-figures", "--seed", "1", *PAPER_MODELS]
     t_fit = run([*fit, "--out", str(d / "a.nc")], d)
     run([*fit, "--out", str(d / "b.nc")], d)
     gen = ["generate", str(d / "a.nc"), "--scenarios", "4", "--horizon", "600", "--seed", "7"]
@@ -256,6 +256,7 @@ def test_fit_killed(work, tmp_path: Path) -> None:
             "--force",
             "--out",
             str(w / "fit.nc"),
+            *PAPER_MODELS,
         ]
         killed += run_killed(args, w, delay) is None
         now = (w / "fit.nc").read_bytes()

@@ -93,8 +93,18 @@ from are_stats.fitting._traffic import (  # noqa: E402
     fit_traffic,
     loo_pointwise,
 )
+from are_stats.fitting._traffic_checks import (  # noqa: E402
+    TRAFFIC_STATISTICS,
+    plot_traffic_checks,
+    traffic_checks,
+    window_statistics,
+)
 
 __all__ += [
+    "TRAFFIC_STATISTICS",
+    "plot_traffic_checks",
+    "traffic_checks",
+    "window_statistics",
     "ARRIVAL_CHOICES",
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",

@@ -393,6 +393,8 @@ def fit_log(
         "exponential",
         "uniform",
     )
+    if clock_start is not None:
+        idata.posterior.attrs["traffic_clock_start"] = str(clock_start)
     if paper_only:
         idata.posterior.attrs.update(
             arrival_model="poisson", lifetime_model="exponential", position_model="uniform"

@@ -483,13 +483,13 @@ def _inference_data(
         censored=data.censored,
         truncated=data.truncated,
     )
-    for name in ("marks", "labels", "x", "y", "yaw"):
+    for name in ("marks", "labels", "x", "y", "yaw", "group", "x_exit", "y_exit"):
         value = getattr(data, name)
         if value is not None:
             observed[name] = value
     dims = {name: ["artefact"] for name in ("stays", "t_arrive", "t_leave", "dwell")}
     dims.update({name: ["artefact"] for name in ("censored", "truncated", "marks", "labels")})
-    dims.update({name: ["artefact"] for name in ("x", "y", "yaw")})
+    dims.update({name: ["artefact"] for name in ("x", "y", "yaw", "group", "x_exit", "y_exit")})
     dims.update(mix_weights=["component"], mix_rates=["component"])
     coords: dict[str, Any] = {}
     if data.marks is not None and data.n:

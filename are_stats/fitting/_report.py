@@ -25,6 +25,7 @@ import pandas as pd
 
 from are_stats._atomic import atomic_path
 from are_stats.fitting._criticism import count_path, hour_of_day_counts, kaplan_meier
+from are_stats.fitting._traffic_checks import plot_traffic_checks, traffic_checks
 from are_stats.scenarios import generate_scenarios, posterior_draws
 
 with warnings.catch_warnings():
@@ -200,6 +201,14 @@ class PredictiveChecks:
         self.__dict__.update(kw)
 
 
+def fit_clock_offset(idata: az.InferenceData) -> float | None:
+    """Time of day (s) of ``t = 0`` from the fit's ``traffic_clock_start``; None without."""
+    from are_stats.traffic import clock_offset
+
+    clock = idata.posterior.attrs.get("traffic_clock_start")
+    return None if clock is None else clock_offset(str(clock))
+
+
 def _dispersion(t: np.ndarray, t0: float, t1: float, width: float) -> float:
     n_bins = int((t1 - t0) // width)
     c = np.bincount(((t - t0) // width).astype(np.int64), minlength=n_bins)[:n_bins]
@@ -210,7 +219,7 @@ def predictive_checks(
     key: Any,
     idata: az.InferenceData,
     n_replicates: int = 200,
-    clock_offset: float = 0.0,
+    clock_offset: float | None = None,
     n_bins: int = 60,
 ) -> PredictiveChecks:
     """Compute every posterior-predictive check of the module docstring.
@@ -223,8 +232,10 @@ def predictive_checks(
         The fit.
     n_replicates : int
         Replicated windows.
-    clock_offset : float
-        Time of day (seconds after midnight) at ``t = 0`` of the log.
+    clock_offset : float, optional
+        Time of day (seconds after midnight) at ``t = 0`` of the log; None: the fit's
+        ``clock_start`` when it has one, else no hour-of-day check (a log without a clock
+        says nothing about the time of day).
     n_bins : int
         Number of equal bins of the window for the dispersion index.
 
@@ -234,6 +245,9 @@ def predictive_checks(
     """
     obs = _observed(idata)
     t0, t1 = obs["window"]
+    if clock_offset is None:
+        clock_offset = fit_clock_offset(idata)
+    hour_clock = 0.0 if clock_offset is None else float(clock_offset)
     rep = predictive_windows(key, idata, n_replicates)
     times = np.linspace(t0, t1, 201)
     counts_obs = count_path(obs["t_arrive"], obs["t_leave"], times)
@@ -250,7 +264,7 @@ def predictive_checks(
         a = arrive_rep[idx]
         a = np.sort(a[np.isfinite(a)])
         gaps_rep.append(np.diff(a))
-        hours_rep[s] = hour_of_day_counts(a, 86400.0, 24, clock_offset)
+        hours_rep[s] = hour_of_day_counts(a, 86400.0, 24, hour_clock)
         disp_rep.append(_dispersion(a, t0, t1, width))
     for _ in np.setdiff1d(np.arange(n_replicates), present):  # empty replicate windows
         gaps_rep.append(np.array([]))
@@ -272,7 +286,8 @@ def predictive_checks(
         gaps_rep=gaps_rep,
         km=km,
         leave_rate=draws["leave_rate"],
-        hours_obs=hour_of_day_counts(arrived, 86400.0, 24, clock_offset),
+        hours_obs=hour_of_day_counts(arrived, 86400.0, 24, hour_clock),
+        clock_offset=clock_offset,
         hours_rep=hours_rep,
         dispersion_obs=disp_obs,
         dispersion_rep=np.asarray(disp_rep),
@@ -317,6 +332,8 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
     c = checks
     t0 = c.window[0]
     panels = ["counts", "interarrival", "dwell", "hour_of_day", "dispersion"]
+    if getattr(c, "clock_offset", 0.0) is None:  # no clock: the time of day is unknown
+        panels.remove("hour_of_day")
     if c.marks_obs is not None and c.mix_rates is not None:
         panels.append("marks")
     figs: dict[str, Any] = {}
@@ -443,7 +460,7 @@ def write_report(
     out_dir: str | Path,
     key: Any = 0,
     n_replicates: int = 200,
-    clock_offset: float = 0.0,
+    clock_offset: float | None = None,
     force: bool = False,
     source: Any = "fit",
 ) -> dict[str, Path]:
@@ -459,8 +476,9 @@ def write_report(
         Seed of the replicated windows.
     n_replicates : int
         Replicated windows.
-    clock_offset : float
-        Time of day (s) at ``t = 0`` of the log.
+    clock_offset : float, optional
+        Time of day (s) at ``t = 0`` of the log (default: from the fit's ``clock_start``;
+        without one there is no hour-of-day figure).
     force : bool
         Overwrite existing files.
     source : str
@@ -469,7 +487,9 @@ def write_report(
     Returns
     -------
     dict
-        ``{name: path}`` of everything written.
+        ``{name: path}`` of everything written: also ``traffic_checks.csv`` / ``.png`` (the
+        chosen models beside the paper's, :func:`~are_stats.fitting.traffic_checks`) and the
+        model comparison tables ``loo_*.csv``.
     """
     import matplotlib.pyplot as plt
 
@@ -481,7 +501,20 @@ def write_report(
         summary.to_csv(tmp)
     written["summary"] = out / "summary.csv"
     checks = predictive_checks(key, idata, n_replicates, clock_offset)
-    for name, fig in plot_checks(checks).items():
+    figures = plot_checks(checks)
+    table, reps = traffic_checks(key, idata, n_replicates)
+    with atomic_path(out / "traffic_checks.csv", force=force) as tmp:
+        table.to_csv(tmp, float_format="%.6g")
+    written["traffic_checks_table"] = out / "traffic_checks.csv"
+    figures["traffic_checks"] = plot_traffic_checks(table, reps)
+    for factor in ("arrivals", "lifetimes", "positions"):
+        text = idata.posterior.attrs.get(f"loo_{factor}")
+        if text:
+            path = out / f"loo_{factor}.csv"
+            with atomic_path(path, force=force) as tmp:
+                Path(tmp).write_text(str(text))
+            written[f"loo_{factor}"] = path
+    for name, fig in figures.items():
         path = out / f"{name}.png"
         with atomic_path(path, force=force) as tmp:
             fig.savefig(tmp, dpi=110, format="png")

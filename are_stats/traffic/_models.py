@@ -249,8 +249,10 @@ def arrival_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) ->
     Parameters
     ----------
     params : dict
-        ``event_rate`` (events per m^2 per time), and as the spec needs ``arrival_phi``,
-        ``arrival_tod`` (P,), ``group_size_probs`` (K,) (sizes ``1..K``).
+        ``event_rate`` (events per m^2 per time), ``log_area`` (log of the free area), and
+        as the spec needs ``arrival_phi``, ``arrival_tod`` (P,), ``group_size_probs`` (K,)
+        (sizes ``1..K``; ``K`` must be at least the largest count of a tick, the
+        ``max_group`` of :func:`arrival_model`).
     units : ArrivalUnits
     spec : ArrivalSpec
 

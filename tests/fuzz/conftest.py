@@ -88,7 +88,8 @@ def tiny_fit(tiny_log: Path, fuzz_root: Path) -> Path:
 
     out = fuzz_root / "fit" / "tiny.nc"
     out.parent.mkdir()
-    run_fit(tiny_log, out, method="em", seed=3, figures=None)
+    run_fit(tiny_log, out, method="em", seed=3, figures=None, arrivals="poisson",
+            lifetimes="exponential", positions="uniform")  # fmt: skip
     return out
 
 

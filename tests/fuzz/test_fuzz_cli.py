@@ -45,7 +45,7 @@ from tests.fuzz.strategies import (
     write_fit_case,
     yaml_case,
 )
-from tests.helpers import TINY_SWEEP
+from tests.helpers import PAPER_MODELS, TINY_SWEEP
 
 pytestmark = pytest.mark.fuzz
 
@@ -264,7 +264,8 @@ def test_fit_damaged_log(case, case_dir) -> None:
     d = case_dir()
     (d / "log.yaml").write_text(_dump(MANIFEST))
     path = write_case(d / "log.csv", case)
-    args = ["fit", str(path), "--out", str(d / "f.nc"), "--method", "em", "--no-figures"]
+    args = ["fit", str(path), "--out", str(d / "f.nc"), "--method", "em", "--no-figures",
+            *PAPER_MODELS]
     invoke(args, [path.name], seconds=60.0)
 
 
@@ -274,7 +275,8 @@ def test_fit_damaged_manifest(case, case_dir, tiny_log) -> None:
     d = case_dir()
     path = write_case(d / "manifest.yaml", case)
     args = ["fit", str(tiny_log), "--manifest", str(path), "--out", str(d / "f.nc"),
-            "--method", "em", "--no-figures"]
+            "--method", "em", "--no-figures",
+            *PAPER_MODELS]
     invoke(args, [path.name], seconds=60.0)
 
 

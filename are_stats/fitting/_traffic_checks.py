@@ -1,0 +1,265 @@
+"""Posterior-predictive checks with numbers: does the chosen model look like the log?
+
+The paper's model fits a log's averages; the checks here ask whether the world it
+generates looks like the one it was fitted on. For the fit's chosen traffic models and for
+the paper's, replicated windows (same window, area and map; a stationary start; one
+posterior draw each, drawn by the one sampler) are summarised by
+
+* ``N(t) var/mean``: the variance-to-mean ratio of the number present over the window
+  (1 for the paper's Poisson; groups and bursts make it larger);
+* ``N(t) peak``: the most artefacts present at once;
+* ``zero gaps``: the fraction of gaps between consecutive arrivals that are zero at the
+  log's time resolution (artefacts first seen in the same frame);
+* ``stay cv``: the coefficient of variation of the stays seen from arrival to departure
+  inside the window (1 for the exponential);
+* ``entry to boundary (m)``: the mean distance of entry points to the nearest non-free
+  cell or map edge (small when people enter through doors).
+
+Each row holds the observed value, the 5%, 50% and 95% predictive quantiles of each model
+and a flag where the observed value falls outside the 90% band.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from are_stats.fitting._criticism import count_path
+
+__all__ = ["TRAFFIC_STATISTICS", "plot_traffic_checks", "traffic_checks", "window_statistics"]
+
+#: The statistics of :func:`window_statistics`, in table order.
+TRAFFIC_STATISTICS = (
+    "N(t) var/mean",
+    "N(t) peak",
+    "zero gaps",
+    "stay cv",
+    "entry to boundary (m)",
+)
+
+
+def window_statistics(
+    t_arrive: np.ndarray,
+    t_leave: np.ndarray,
+    truncated: np.ndarray,
+    window: tuple[float, float],
+    resolution: float,
+    entry_xy: np.ndarray | None = None,
+    free: Any = None,
+) -> dict[str, float]:
+    """The statistics of the module docstring for one window.
+
+    Parameters
+    ----------
+    t_arrive : (n,) float
+        Arrival times (any value where ``truncated``).
+    t_leave : (n,) float
+        Leaving times (NaN or beyond ``t1`` when still present at the end).
+    truncated : (n,) bool
+        Present at ``t0``.
+    window : (t0, t1)
+    resolution : float
+        The log's time resolution (zero gaps are gaps below it).
+    entry_xy : (n, 2) float, optional
+        Entry points (rows of truncated artefacts are ignored).
+    free : (mask, resolution, origin), optional
+        The free cells the boundary distance is measured on.
+
+    Returns
+    -------
+    dict of str to float
+        NaN where a statistic is undefined (no arrivals, no complete stay, no positions).
+    """
+    from are_stats.traffic import boundary_distance
+
+    t0, t1 = window
+    ta = np.where(truncated, t0, t_arrive)
+    tl = np.where(np.isfinite(t_leave), t_leave, np.inf)
+    times = np.linspace(t0, t1, 241)[1:-1]
+    n = count_path(ta, tl, times).astype(float)
+    out = {s: float("nan") for s in TRAFFIC_STATISTICS}
+    if n.mean() > 0:
+        out["N(t) var/mean"] = float(n.var(ddof=1) / n.mean())
+    out["N(t) peak"] = float(n.max()) if n.size else float("nan")
+    arrived = np.sort(ta[~truncated & (ta < t1)])
+    if arrived.size >= 2:
+        ticks = np.floor((arrived - t0) / max(resolution, 1e-12) + 1e-9)
+        out["zero gaps"] = float(np.mean(np.diff(ticks) == 0))
+    whole = ~truncated & (tl < t1)
+    stays = (tl - ta)[whole]
+    if stays.size >= 3 and stays.mean() > 0:
+        out["stay cv"] = float(stays.std(ddof=1) / stays.mean())
+    if entry_xy is not None and free is not None and (~truncated).any():
+        mask, res, origin = free
+        xy = np.asarray(entry_xy, float)[~truncated]
+        ok = np.isfinite(xy).all(axis=1)
+        if ok.any():
+            out["entry to boundary (m)"] = float(
+                np.mean(boundary_distance(xy[ok], mask, res, origin))
+            )
+    return out
+
+
+def _free_of(idata: Any) -> tuple[np.ndarray, float, tuple[float, float]] | None:
+    """The free cells the fit's position densities live on (None without a map)."""
+    if "constant_data" not in idata.groups() or "entry_density" not in idata.constant_data:
+        return None
+    cd = idata.constant_data
+    mask = np.asarray(cd["entry_density"].values) > 0
+    res = float(np.asarray(cd.attrs["position_resolution"]).ravel()[0])
+    o = np.asarray(cd.attrs["position_origin"], float).ravel()
+    return mask, res, (float(o[0]), float(o[1]))
+
+
+def traffic_checks(
+    key: Any, idata: Any, n_replicates: int = 200
+) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
+    """Observed statistics against the chosen and the paper's predictive bands.
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        Seed of the replicated windows.
+    idata : arviz.InferenceData
+        A fit written by ``are-stats fit`` (:func:`~are_stats.fitting.read_fit`).
+    n_replicates : int
+        Replicated windows per model.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        Indexed by statistic: ``observed``, and per model (``paper``, ``chosen``) the
+        ``*_5%``, ``*_50%``, ``*_95%`` quantiles and ``*_flag`` (observed outside the band).
+    replicates : dict of str to (R, 5) ndarray
+        The replicated statistics of each model (columns in table order).
+    """
+    from are_stats.scenarios import generate_scenarios, traffic_draws
+
+    post = idata.posterior
+    obs = idata.observed_data
+    w = np.asarray(post.attrs["window"], float)
+    t0, t1 = float(w[0]), float(w[1])
+    area = float(post.attrs["area"])
+    res = float(np.asarray(post.attrs.get("traffic_time_resolution", 0.0)).ravel()[0])
+    if not res > 0:
+        from are_stats.fitting._traffic import time_resolution
+
+        res = time_resolution(obs["t_arrive"].values, obs["t_leave"].values, [t0, t1]) or 1e-6
+    free = _free_of(idata)
+    xy = None
+    if "x" in obs and "y" in obs:
+        xy = np.column_stack([obs["x"].values, obs["y"].values])
+    observed = window_statistics(
+        np.asarray(obs["t_arrive"].values, float),
+        np.asarray(obs["t_leave"].values, float),
+        np.asarray(obs["truncated"].values, bool),
+        (t0, t1),
+        res,
+        xy,
+        free,
+    )
+    import jax
+
+    base_key = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
+    reps: dict[str, np.ndarray] = {}
+    models = ["paper"]
+    if any(
+        str(post.attrs.get(a, d)) != d
+        for a, d in (
+            ("arrival_model", "poisson"),
+            ("lifetime_model", "exponential"),
+            ("position_model", "uniform"),
+        )
+    ):
+        models.append("chosen")
+    for i, model in enumerate(models):
+        draws, laws = traffic_draws(idata, model)
+        grid = None if free is None else free[0]
+        kw = {} if free is None else {"resolution": free[1], "origin": free[2]}
+        df = generate_scenarios(
+            jax.random.fold_in(base_key, i),
+            draws,
+            n_replicates,
+            t1 - t0,
+            free_mask=grid,
+            area=area,
+            draw="random",
+            headings=0,
+            laws=laws,
+            **kw,
+        )
+        sc = df["scenario"].to_numpy()
+        order = np.argsort(sc, kind="stable")
+        bounds = np.searchsorted(sc[order], np.arange(n_replicates + 1))
+        ta = df["t_arrive"].to_numpy()[order] + t0
+        tl = df["t_leave"].to_numpy()[order] + t0
+        tr = df["truncated"].to_numpy()[order]
+        pts = np.column_stack([df["x"].to_numpy(), df["y"].to_numpy()])[order]
+        rows = []
+        for r in range(n_replicates):
+            a, b = bounds[r], bounds[r + 1]
+            ta_r = np.ceil((ta[a:b] - t0) / res - 1e-9) * res + t0  # the log's quantisation
+            st = window_statistics(ta_r, tl[a:b], tr[a:b], (t0, t1), res,
+                                   pts[a:b] if xy is not None else None, free)  # fmt: skip
+            rows.append([st[s] for s in TRAFFIC_STATISTICS])
+        reps[model] = np.asarray(rows, float)
+    table = pd.DataFrame(index=pd.Index(TRAFFIC_STATISTICS, name="statistic"))
+    table["observed"] = [observed[s] for s in TRAFFIC_STATISTICS]
+    for model, r in reps.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a statistic undefined everywhere
+            q = np.nanquantile(np.where(np.isfinite(r), r, np.nan), [0.05, 0.5, 0.95], axis=0)
+        table[f"{model}_5%"], table[f"{model}_50%"], table[f"{model}_95%"] = q
+        o = table["observed"].to_numpy()
+        table[f"{model}_flag"] = np.isfinite(o) & ((o < q[0]) | (o > q[2]))
+    return table, reps
+
+
+def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any:
+    """One panel per statistic: each model's replicated distribution and the observed value.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    colours = {"paper": "tab:grey", "chosen": "tab:blue"}
+    n = len(TRAFFIC_STATISTICS)
+    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.2), constrained_layout=True)
+    for j, (ax, stat) in enumerate(zip(axes, TRAFFIC_STATISTICS, strict=True)):
+        o = table.loc[stat, "observed"]
+        values = [r[:, j][np.isfinite(r[:, j])] for r in reps.values()]
+        allv = np.concatenate([v for v in values if v.size] + [np.array([o])])
+        allv = allv[np.isfinite(allv)]
+        if allv.size == 0:
+            ax.text(0.5, 0.5, "not defined\nfor this log", ha="center", va="center",
+                    transform=ax.transAxes, color="0.4")  # fmt: skip
+            ax.set_title(stat, fontsize=10)
+            ax.set_yticks([])
+            continue
+        lo, hi = float(allv.min()), float(allv.max())
+        pad = 0.05 * (hi - lo) if hi > lo else 0.5
+        bins = np.linspace(lo - pad, hi + pad, 30)
+        for model, v in zip(reps, values, strict=True):
+            if v.size:
+                ax.hist(v, bins=bins, color=colours.get(model, "tab:orange"), alpha=0.55,
+                        label=model)  # fmt: skip
+        if np.isfinite(o):
+            ax.axvline(o, color="black", lw=2, label="observed")
+        misfit = [m for m in reps if bool(table.loc[stat, f"{m}_flag"])]
+        if misfit:
+            ax.text(0.98, 0.97, "outside 90%:\n" + ", ".join(misfit), ha="right", va="top",
+                    transform=ax.transAxes, fontsize=8, color="tab:red")  # fmt: skip
+        ax.set_title(stat, fontsize=10)
+        ax.set_yticks([])
+        if j == 0:
+            ax.legend(fontsize=8, frameon=False)
+    fig.suptitle("Posterior-predictive checks: replicated windows of each model vs the log")
+    return fig

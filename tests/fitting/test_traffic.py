@@ -1,0 +1,225 @@
+"""Fitting and choosing traffic models on logs simulated from stated truths.
+
+Recovery tests: one seeded log per truth; the choice is right unless the log is an
+unusually unlucky draw (with these sizes the LOO differences are tens of standard errors:
+the false-failure rate is far below 1e-3). Parameter checks are 5-posterior-sd bounds.
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.fitting import (
+    FitSettings,
+    choose_simplest,
+    fit_log,
+    fit_traffic,
+    read_fit,
+    traffic_checks,
+    write_fit,
+)
+from are_stats.inputs import InputError
+from are_stats.scenarios import generate_scenarios, scenario_counts, traffic_draws
+from are_stats.traffic import (
+    LifecyclePriors,
+    TrafficLaws,
+    conjugate_arrival_rate,
+    conjugate_leave_rate,
+    fit_position_density,
+    simulate_traffic_log,
+    stationary_count_moments,
+    uniform_position_density,
+)
+
+NUTS = {"num_warmup": 250, "num_samples": 300, "num_chains": 2}
+FREE = np.ones((30, 40), bool)
+FREE[:, 0] = False
+RES, ORIGIN = 0.5, (0.0, 0.0)
+AREA = float(FREE.sum()) * RES * RES
+
+
+class _Grid:
+    """The smallest map object fit_traffic needs (free cells, resolution, origin)."""
+
+    free = FREE
+    resolution = RES
+    origin = (0.0, 0.0, 0.0)
+
+
+def _paper(data, shape=(1, 600), seed=0):
+    """Conjugate draws of the paper's rates, laid out as an EM fit's ``(1, S)`` posterior."""
+    rng = np.random.default_rng(seed)
+    a = conjugate_arrival_rate(data, LifecyclePriors())
+    m = conjugate_leave_rate(data, LifecyclePriors())
+    return {
+        "arrival_rate": rng.gamma(a.shape, 1 / a.rate, shape),
+        "leave_rate": rng.gamma(m.shape, 1 / m.rate, shape),
+    }
+
+
+def _doors() -> object:
+    rng = np.random.default_rng(11)
+    pts = np.vstack([rng.normal([1.0, 7.5], 0.4, (300, 2)), rng.normal([19.0, 1.0], 0.4, (300, 2))])
+    return fit_position_density(np.clip(pts, 0.6, 19.9), FREE, RES, ORIGIN)
+
+
+@pytest.fixture(scope="module")
+def rich_log():
+    """Truth: groups (sizes 1-3), gamma stays (mean 60 s, shape 6), door entries."""
+    laws = TrafficLaws(arrivals="groups", lifetimes="gamma", positions="learned",
+                       group_stay_sd=0.1, group_spread=0.3, entry=_doors())  # fmt: skip
+    draw = {"event_rate": 1e-3, "stay_mean": 60.0, "stay_shape": 6.0,
+            "group_size_probs": np.array([0.5, 0.3, 0.2])}  # fmt: skip
+    uni = uniform_position_density(FREE, RES, ORIGIN)
+    data = simulate_traffic_log(np.random.default_rng(1), draw, laws, (0.0, 1800.0), AREA,
+                                free=uni, resolution=0.4)  # fmt: skip
+    return data, draw
+
+
+@pytest.fixture(scope="module")
+def rich_fit(rich_log):
+    data, _ = rich_log
+    return fit_traffic(jax.random.key(0), data, paper=_paper(data), grid=_Grid(), **NUTS)
+
+
+def test_auto_picks_the_true_models(rich_fit):
+    assert rich_fit.arrival_model == "groups"
+    assert rich_fit.lifetime_model == "gamma"
+    assert rich_fit.position_model == "learned"
+    for table in rich_fit.tables.values():
+        assert table["chosen"].sum() == 1
+        assert "weight" not in table.columns  # no stacking weights posing as probabilities
+
+
+def test_parameters_are_recovered(rich_fit, rich_log):
+    _, truth = rich_log
+    post = rich_fit.posterior
+    for name in ("event_rate", "stay_mean", "stay_shape"):
+        v = post[name].ravel()
+        assert abs(v.mean() - truth[name]) < 5 * v.std(), name
+    p = post["group_size_probs"].reshape(-1, post["group_size_probs"].shape[-1])
+    k = truth["group_size_probs"].size
+    assert np.all(np.abs(p[:, :k].mean(0) - truth["group_size_probs"]) < 5 * p[:, :k].std(0))
+    assert rich_fit.attrs["group_stay_sd"] == pytest.approx(0.1, abs=0.05)
+
+
+def test_generated_scenarios_reproduce_the_crowding(rich_fit, rich_log):
+    """N(t) variance/mean of the truth (closed form) inside the fit's predictive interval."""
+    data, truth = rich_log
+    idata = _idata_with(rich_fit, data)
+    draws, laws = traffic_draws(idata, "chosen")
+    df = generate_scenarios(1, draws, 200, 1800.0, area=AREA, laws=laws, draw="random")
+    n = scenario_counts(df, np.linspace(100.0, 1700.0, 30))
+    ratio = n.var(axis=1, ddof=1) / np.maximum(n.mean(axis=1), 1e-9)
+    mean, var = stationary_count_moments(truth["event_rate"], AREA, truth["stay_mean"],
+                                         truth["group_size_probs"])  # fmt: skip
+    lo, hi = np.quantile(ratio, [0.05, 0.95])
+    assert lo < var / mean < hi
+    # the paper's model cannot: its ratio is about 1
+    p_draws, p_laws = traffic_draws(idata, "paper")
+    df_p = generate_scenarios(1, p_draws, 200, 1800.0, area=AREA, laws=p_laws, draw="random")
+    n_p = scenario_counts(df_p, np.linspace(100.0, 1700.0, 30))
+    assert np.median(n_p.var(axis=1, ddof=1) / np.maximum(n_p.mean(axis=1), 1e-9)) < var / mean
+    assert set(df["group"]) and df.groupby(["scenario", "group"]).size().max() > 1
+
+
+def _idata_with(traffic, data):
+    """A small fit file holding the paper's conjugate draws and the traffic choice."""
+    idata = fit_log(jax.random.key(3), data,
+                    FitSettings(method="em", num_samples=300, num_chains=2, arrivals="poisson",
+                                lifetimes="exponential", positions="uniform"))  # fmt: skip
+    from are_stats.fitting import attach_traffic
+
+    return attach_traffic(idata, traffic)
+
+
+def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
+    data, _ = rich_log
+    idata = _idata_with(rich_fit, data)
+    write_fit(idata, tmp_path / "f.nc")
+    back = read_fit(tmp_path / "f.nc")
+    assert back.posterior.attrs["arrival_model"] == "groups"
+    assert "entry_density" in back.constant_data
+    table, reps = traffic_checks(0, back, 100)
+    assert not table["chosen_flag"].any(), table
+    assert table.loc["zero gaps", "paper_flag"] and table.loc["stay cv", "paper_flag"]
+    assert reps["chosen"].shape == (100, len(table))
+
+
+def test_read_fit_names_a_missing_variable(rich_fit, rich_log, tmp_path):
+    data, _ = rich_log
+    idata = _idata_with(rich_fit, data)
+    del idata.posterior["group_size_probs"]
+    write_fit(idata, tmp_path / "bad.nc")
+    with pytest.raises(InputError, match="group_size_probs"):
+        read_fit(tmp_path / "bad.nc")
+
+
+def test_paper_truth_keeps_the_paper_model():
+    laws = TrafficLaws()
+    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
+    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
+                                free=uniform_position_density(FREE, RES, ORIGIN),
+                                resolution=0.4)  # fmt: skip
+    fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(), **NUTS)
+    assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
+        "poisson", "exponential", "uniform",
+    )  # fmt: skip
+    assert (
+        "groups not offered" in fit.attrs["arrival_notes"]
+        or "groups" in fit.tables["arrivals"].index
+    )
+
+
+def test_stays_in_days_fit_like_stays_in_seconds():
+    """Gamma stays of about 8 h: the same log in seconds and in days gives the same shape."""
+    laws = TrafficLaws(lifetimes="gamma")
+    draw = {"event_rate": 2e-6, "stay_mean": 8 * 3600.0, "stay_shape": 3.0}
+    data = simulate_traffic_log(np.random.default_rng(3), draw, laws, (0.0, 30 * 86400.0),
+                                AREA, resolution=60.0)  # fmt: skip
+    day = 86400.0
+    from are_stats.traffic import LifecycleData
+
+    in_days = LifecycleData(t_arrive=data.t_arrive / day, t_leave=data.t_leave / day,
+                            window=(0.0, 30.0), area=AREA)  # fmt: skip
+    fits = []
+    for d in (data, in_days):
+        f = fit_traffic(jax.random.key(2), d, paper=_paper(d), lifetimes="gamma",
+                        arrivals="poisson", positions="uniform", **NUTS)  # fmt: skip
+        fits.append(f)
+        assert f.tables["lifetimes"].loc["gamma", "divergent"] == 0
+        assert f.tables["lifetimes"].loc["gamma", "r_hat"] < 1.05
+    shape_s = fits[0].posterior["stay_shape"].mean()
+    shape_d = fits[1].posterior["stay_shape"].mean()
+    assert shape_s == pytest.approx(shape_d, rel=0.05)
+    assert fits[0].posterior["stay_mean"].mean() / day == pytest.approx(
+        fits[1].posterior["stay_mean"].mean(), rel=0.05
+    )
+    assert abs(shape_s - 3.0) < 5 * fits[0].posterior["stay_shape"].std()
+
+
+def test_choose_simplest_prefers_simple_within_two_se():
+    rng = np.random.default_rng(0)
+    base = rng.normal(-1.0, 0.3, 400)
+    close = base + rng.normal(0.001, 0.02, 400)  # a hair better, well within 2 SE
+    far = base + 0.2  # much better everywhere
+    chosen, table = choose_simplest({"a": base, "b": close}, ["a", "b"])
+    assert chosen == "a" and isinstance(table, pd.DataFrame)
+    chosen, _ = choose_simplest({"a": base, "b": far}, ["a", "b"])
+    assert chosen == "b"
+
+
+def test_time_of_day_needs_a_clock_and_two_days():
+    from are_stats.fitting._traffic import _arrival_candidates
+
+    cands, notes = _arrival_candidates("auto", 1, None, 3 * 86400.0)
+    assert "time-of-day" not in cands and "clock_start" in notes[-1]
+    cands, notes = _arrival_candidates("auto", 1, 0.0, 13 * 60.0)
+    assert "time-of-day" not in cands and "two days" in notes[-1]
+    cands, _ = _arrival_candidates("auto", 2, 0.0, 3 * 86400.0)
+    assert {"time-of-day", "groups+time-of-day"} <= set(cands)
+    with pytest.raises(ValueError, match="clock_start"):
+        _arrival_candidates("time-of-day", 1, None, 3 * 86400.0)

@@ -1,0 +1,158 @@
+"""The arrival models' tick likelihoods against brute-force probabilities of the same data.
+
+Every model scores the counts of artefacts per tick of the log's resolution; the truth here
+is a direct computation over every tick of the window (empty ones included) with scipy.
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+from scipy import stats
+from scipy.special import gammaln
+
+from are_stats.traffic import (
+    ArrivalSpec,
+    arrival_unit_loglik,
+    arrival_units,
+    stay_loglik,
+    stay_unit_loglik,
+    stay_units,
+)
+
+AREA = 50.0
+WINDOW = (0.0, 100.0)
+DELTA = 0.5
+WIDTH = 10.0
+
+
+def _ticks(t: np.ndarray) -> np.ndarray:
+    """Counts per tick over the whole window (the data every model scores)."""
+    n = int(round((WINDOW[1] - WINDOW[0]) / DELTA))
+    idx = np.floor((t - WINDOW[0]) / DELTA + 1e-9).astype(int)
+    return np.bincount(idx, minlength=n)
+
+
+@pytest.fixture(scope="module")
+def times() -> np.ndarray:
+    rng = np.random.default_rng(5)
+    t = np.sort(rng.uniform(*WINDOW, 40))
+    # a few artefacts arriving in the same tick (a group)
+    t = np.floor(np.concatenate([t, t[:6], t[:2]]) / DELTA) * DELTA + 0.1
+    assert t.max() < WINDOW[1]
+    return t
+
+
+def _total(params, units, spec) -> float:
+    p = {**params, "log_area": np.log(AREA)}
+    return float(np.sum(arrival_unit_loglik(p, units, spec)))
+
+
+def test_poisson_is_the_product_of_tick_poissons(times):
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH)
+    rate = 0.004
+    c = _ticks(times)
+    truth = stats.poisson.logpmf(c, rate * AREA * DELTA).sum()
+    got = _total({"event_rate": rate}, units, ArrivalSpec())
+    assert got == pytest.approx(truth, rel=1e-10)
+
+
+def test_negbin_is_nb_totals_times_multinomial(times):
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH)
+    rate, phi = 0.004, 2.5
+    c = _ticks(times).reshape(-1, int(WIDTH / DELTA))  # ticks of each bin
+    mu = rate * AREA * WIDTH
+    n = c.sum(axis=1)
+    nb = stats.nbinom.logpmf(n, phi, phi / (phi + mu))
+    k = c.shape[1]
+    multi = gammaln(n + 1) - gammaln(c + 1).sum(axis=1) - n * np.log(k)
+    got = _total({"event_rate": rate, "arrival_phi": phi}, units, ArrivalSpec(negbin=True))
+    assert got == pytest.approx(float((nb + multi).sum()), rel=1e-10)
+
+
+def _compound_logpmf(c: int, lam: float, probs: np.ndarray) -> float:
+    """log P(C = c) of a compound Poisson(lam) sum of sizes ~ probs on 1..K, by brute force."""
+    p = np.concatenate([[0.0], probs])
+    conv = np.zeros(c + 1)
+    conv[0] = 1.0
+    total = stats.poisson.pmf(0, lam) * (c == 0)
+    for k in range(1, c + 1):
+        conv = np.convolve(conv, p)[: c + 1]
+        total += stats.poisson.pmf(k, lam) * conv[c]
+    return float(np.log(total))
+
+
+def test_groups_is_the_compound_poisson_of_every_tick(times):
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH)
+    c = _ticks(times)
+    # the size law must cover the largest count of a tick (fit_traffic takes K = that count)
+    probs = np.zeros(max(3, int(c.max())))
+    probs[:3] = [0.5, 0.3, 0.2]
+    rate = 0.002
+    lam = rate * AREA * DELTA
+    truth = sum(_compound_logpmf(int(ci), lam, probs) for ci in c)
+    got = _total({"event_rate": rate, "group_size_probs": probs}, units, ArrivalSpec(groups=True))
+    assert got == pytest.approx(truth, rel=1e-9)
+
+
+def test_groups_of_one_are_the_poisson_model(times):
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH)
+    one = np.zeros(int(_ticks(times).max()))
+    one[0] = 1.0
+    a = _total({"event_rate": 0.004, "group_size_probs": one}, units, ArrivalSpec(groups=True))
+    b = _total({"event_rate": 0.004}, units, ArrivalSpec())
+    assert a == pytest.approx(b, rel=1e-9)
+
+
+def test_time_of_day_is_the_piecewise_poisson_process(times):
+    # a 100 s window cut into periods of 25 s (4 periods per 100 s "day")
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH, clock_offset=0.0, n_periods=4,
+                          period=100.0)  # fmt: skip
+    tod = np.array([0.5, 1.5, 1.0, 1.0])
+    rate = 0.004
+    c = _ticks(times)
+    mid = (np.arange(c.size) + 0.5) * DELTA
+    lam = rate * AREA * DELTA * tod[(mid // 25).astype(int)]
+    truth = stats.poisson.logpmf(c, lam).sum()
+    got = _total({"event_rate": rate, "arrival_tod": tod}, units, ArrivalSpec(tod=True))
+    assert got == pytest.approx(truth, rel=1e-10)
+
+
+def test_recorded_groups_arrive_at_their_first_member():
+    t = np.array([1.2, 3.7, 3.9, 8.1])
+    g = np.array([0, 1, 1, 2])
+    units = arrival_units(t, WINDOW, AREA, DELTA, WIDTH, group=g)
+    counts = np.asarray(units.tick_count)[np.asarray(units.tick_weight) > 0]
+    assert sorted(counts.tolist()) == [1.0, 1.0, 2.0]
+
+
+def test_units_are_padded_and_differentiable(times):
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH)
+    assert units.tick_count.shape[0] & (units.tick_count.shape[0] - 1) == 0  # power of two
+    spec = ArrivalSpec(negbin=True)
+
+    def f(log_rate):
+        return _total_jax(jax.numpy.exp(log_rate), units, spec)
+
+    g = jax.grad(f)(np.log(0.004))
+    eps = 1e-6
+    fd = (f(np.log(0.004) + eps) - f(np.log(0.004) - eps)) / (2 * eps)
+    assert float(g) == pytest.approx(float(fd), rel=1e-5)
+
+
+def _total_jax(rate, units, spec):
+    p = {"event_rate": rate, "arrival_phi": 3.0, "log_area": np.log(AREA)}
+    return jax.numpy.sum(arrival_unit_loglik(p, units, spec))
+
+
+def test_stay_units_match_stay_loglik():
+    rng = np.random.default_rng(2)
+    stay = rng.exponential(10.0, 37)
+    cen = rng.random(37) < 0.2
+    tru = rng.random(37) < 0.2
+    u = stay_units(stay, cen, tru)
+    got = np.asarray(stay_unit_loglik({"stay_mean": 9.0, "stay_shape": 2.0}, u, "gamma", 0.1))
+    want = np.asarray(stay_loglik("gamma", stay, cen, tru, 9.0, 2.0, resolution=0.1))
+    np.testing.assert_allclose(got[:37], want, rtol=1e-12)
+    assert np.all(got[37:] == 0)
