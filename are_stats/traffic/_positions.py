@@ -157,7 +157,7 @@ def fit_position_density(
     origin : (2,) float
         Map-frame corner of cell (0, 0).
     bandwidths : sequence of float, optional
-        Candidate kernel bandwidths (m); default ``resolution * [1, 2, 4, 8, 16]`` capped
+        Candidate kernel bandwidths (m); default ``resolution * [0.5, 1, 2, 4, 8, 16]`` capped
         at a quarter of the map's smaller side.
     alphas : sequence of float
         Candidate Dirichlet prior masses.
@@ -185,7 +185,7 @@ def fit_position_density(
     n, n_free = pts.shape[0], int(free.sum())
     if bandwidths is None:
         top = max(min(h, w) * res / 4.0, res)
-        bandwidths = [b for b in res * np.array([1.0, 2, 4, 8, 16]) if b <= top] or [res]
+        bandwidths = [b for b in res * np.array([0.5, 1.0, 2, 4, 8, 16]) if b <= top] or [res]
     best: tuple[float, float, float, np.ndarray] | None = None
     for bw in check_positive("bandwidths", bandwidths, ndim=1):
         smooth, z = _smooth(counts, free, bw / res)

@@ -144,8 +144,15 @@ def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
     assert back.posterior.attrs["arrival_model"] == "groups"
     assert "entry_density" in back.constant_data
     table, reps = traffic_checks(0, back, 100)
-    assert not table["chosen_flag"].any(), table
+    # each 90% band misses a correct model's statistic one time in ten: the chosen model
+    # may miss one of five; the paper's misses the groups, the stays and the doors
+    assert table["chosen_flag"].sum() <= 1, table
     assert table.loc["zero gaps", "paper_flag"] and table.loc["stay cv", "paper_flag"]
+    assert table.loc["entry to boundary (m)", "paper_flag"]
+    closer = (table["chosen_50%"] - table["observed"]).abs() <= (
+        table["paper_50%"] - table["observed"]
+    ).abs()
+    assert closer.all(), table
     assert reps["chosen"].shape == (100, len(table))
 
 
