@@ -1,20 +1,28 @@
 """The navigation experiment loop (paper Sect. 4): a robot drives to a sequence of goals on
 the augmented map of one scenario, replanning at every scene update.
 
-The loop is event-driven on simulated time:
+The loop is event-driven on simulated time, an explicit state machine: ``_init`` builds the
+state at t = 0 and ``_step`` makes one transition (plan if needed, drive to the next event,
+apply it), both pure functions of the mission's fixed settings (``_Mission``) and the state
+(``_State``, a NamedTuple), as the EM code does with ``em_init`` / ``em_step``:
 
-* **scene updates** are artefact arrivals and leaves of the scenario table (artefacts stand
-  at their arrival pose until they leave) and, with ``perception="camera"``, changes of the
-  perceived set A_f checked every ``perception_period`` seconds of driving;
-* at each update (and when a new goal becomes current) the planner replans from the robot's
-  position to the current goal on the augmented grid that holds **only the perceived
-  artefacts**, inflated by the robot radius plus half a cell diagonal (cells around the
-  robot's own position that are inflated but not occupied are released, so a robot
-  brushing an obstacle can still leave);
+* the artefacts are an :class:`~are_stats.Scene` (the one place where an artefact becomes a
+  box); **scene updates** are its events: arrivals, leaves and, with behaviour tracks,
+  **moves** at the artefacts' epochs (timeline ``kind == "move"``); with
+  ``perception="camera"``, changes of the perceived set A_f checked every
+  ``perception_period`` seconds on the boxes at their current pose;
+* at an arrival or leave (and when a new goal becomes current) the planner replans from the
+  robot's position to the current goal on the augmented grid that holds **only the
+  perceived artefacts**, inflated by the robot radius plus half a cell diagonal (cells
+  around the robot's own position that are inflated but not occupied are released, so a
+  robot brushing an obstacle can still leave); a moving perceived artefact is on that grid
+  at its pose now and at the next event's, and a move replans when it blocks the rest of
+  the path (or the robot is waiting);
 * between updates the robot moves along its path at its speed; its footprint is tested
-  against every live artefact (perceived or not) and each new contact made while driving
-  counts as a collision (an artefact that *arrives* on the robot's footprint is counted
-  apart, as an arrival contact); when the plan fails the robot waits for the next update.
+  against every live artefact (perceived or not) at its pose at that instant and each new
+  contact made while driving counts as a collision (an artefact that *arrives* on the
+  robot's footprint is counted apart, as an arrival contact, and one that walks into it at
+  an epoch as an artefact contact); when the plan fails the robot waits for the next update.
 
 The replanning time ``rho_t`` is measured on the wall clock (DECISIONS 10) and recorded, but
 it does not advance simulated time, so everything except ``rho_t`` and ``rho`` is

@@ -27,16 +27,24 @@ Example (``models/experiments/fig7.yaml``)::
 Schema (every key optional; unknown keys are errors that list the known ones):
 
 * ``name``: letters, digits, ``.``, ``_``, ``-`` (the default results folder
-  ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path (relative to the
-  working directory); ``seed``: integer in ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
-* ``scenario``: ``arrival_rate`` (> 0, per m^2 per s), ``leave_rate`` (> 0, per s),
-  ``mix_weights`` (1 to 64 numbers > 0 summing to 1), ``mix_rates`` (as many numbers in
-  ``(0, 1e6]``), ``start`` (``stationary`` or ``empty``).
+  ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path; ``catalogue``:
+  an artefact catalogue YAML (default the shipped one, :func:`~are_stats.load_catalogue`);
+  ``behaviours``: true/false (artefacts move along behaviour tracks); ``seed``: integer in
+  ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
+* ``scenario``: one source of artefacts. Hand-set rates: ``arrival_rate`` (> 0, per m^2
+  per s), ``leave_rate`` (> 0, per s), ``mix_weights`` (1 to 64 numbers > 0 summing to 1),
+  ``mix_rates`` (as many numbers in ``(0, 1e6]``), ``start`` (``stationary`` or
+  ``empty``). Or ``fit`` (a fit file of ``are-stats fit``; optional ``start``): replicate
+  ``r`` generates its scenario from one posterior draw chosen by its seed. Or
+  ``scenarios`` (a folder of ``are-stats generate``): replicate ``r`` uses scenario
+  ``r mod n`` (and the folder's tracks with ``behaviours``). The source is not a factor.
 * ``robot``: ``radius``, ``speed`` (> 0), ``camera_xyz``, ``camera_rpy`` (3 numbers),
   ``camera_fov`` (in ``(0, pi)``), ``image_size`` (2 integers in ``[1, 10000]``).
 * ``mission``: ``n_goals`` (integer in ``[1, 100000]``), ``time_limit``,
   ``perception_period``, ``d_max`` (> 0), ``tau``, ``min_goal_separation`` (>= 0),
-  ``perception`` (``all`` or ``camera``; ``camera`` needs the map's mesh ``<map>.ply``).
+  ``perception`` (``all`` or ``camera``; ``camera`` needs the map's mesh ``<map>.ply``),
+  ``behaviour_cell`` (m, > 0: the coarse grid behaviours move on), ``behaviour_dt`` (s per
+  behaviour epoch, > 0).
 * ``planner``: ``name`` (a label), ``algorithm`` (``astar`` or one of
   :data:`~are_stats.experiments.OMPL_ALGORITHMS`), ``range`` (> 0), ``goal_bias``
   (``[0, 1]``), ``time_limit`` (``(0, 3600]`` s), ``max_iterations`` (integer >= 1),
@@ -44,6 +52,10 @@ Schema (every key optional; unknown keys are errors that list the known ones):
   algorithm lacks are errors (A* takes none).
 * ``factors``: ``planner``, ``planner.<option>`` or ``<section>.<key>`` -> a non-empty list
   of distinct levels, each checked as the key it replaces.
+
+Paths (``map``, ``catalogue``, ``scenario.fit``, ``scenario.scenarios``) relative to a config
+file are taken from its folder (from the working directory for a dict), made absolute, and
+the files are read and checked on the client before any Dask worker starts.
 
 Before anything runs, the expected work of the sweep (artefacts drawn, replans, grid passes,
 motion steps, camera rays) and the memory of its largest task are estimated and refused past

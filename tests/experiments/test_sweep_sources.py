@@ -172,3 +172,13 @@ def test_behaviours_move_the_artefacts(files):
     assert still["n_move_updates"] == 0
     # the same artefacts, standing or moving
     assert still["n_artefacts"] == runs["n_artefacts"]
+
+
+def test_shipped_fit_config_is_valid():
+    from are_stats.experiments._sweep import _validate
+    from are_stats.inputs import load_yaml
+
+    path = DEFAULT_MODELS / "experiments" / "fig7_fit.yaml"
+    cfg = _validate(load_yaml(path, "sweep config"), str(path), path.parent)
+    assert cfg["behaviours"] is True
+    assert cfg["scenario"]["fit"] == str(DEFAULT_MODELS.parent / "fits" / "courtyard_traffic.nc")
