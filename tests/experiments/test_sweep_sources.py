@@ -182,3 +182,40 @@ def test_shipped_fit_config_is_valid():
     cfg = _validate(load_yaml(path, "sweep config"), str(path), path.parent)
     assert cfg["behaviours"] is True
     assert cfg["scenario"]["fit"] == str(DEFAULT_MODELS.parent / "fits" / "courtyard_traffic.nc")
+
+
+def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():
+    from are_stats import Scene, load_catalogue
+    from are_stats.experiments._sweep import _behaviour_tracks
+
+    data = np.zeros((12, 12))
+    data[3:8, 3:8] = 100  # a block of walls ...
+    data[5, 5] = 0  # ... with a one-cell pocket at (5.5, 5.5)
+    grid = OccupancyGrid(data, 1.0)
+    art = pd.DataFrame({
+        "scenario": 0, "artefact": [0, 1], "class": 0, "mark": 0, "t_arrive": [0.0, 0.0],
+        "t_leave": [30.0, 30.0], "x": [5.5, 1.5], "y": [5.5, 1.5], "yaw": 0.0,
+    })  # fmt: skip
+    cat = load_catalogue()
+    scene = Scene.from_scenarios(art, cat)
+    tracks = _behaviour_tracks(3, art, scene, grid, cat, 1.0, 1.0, 30.0)
+    pocket, walker = tracks[tracks["id"] == 0], tracks[tracks["id"] == 1]
+    assert len(pocket) > 1 and (pocket["x"] == 5.5).all() and (pocket["y"] == 5.5).all()
+    xy = walker[["x", "y"]].to_numpy()
+    assert (np.abs(np.diff(xy, axis=0)).sum() > 0) and len(walker) > 1
+    ij = grid.world_to_cell(xy)
+    assert grid.free[ij[:, 0], ij[:, 1]].all()
+    # steps of at most two cells per epoch (walk one, run two): no jump through a wall
+    assert np.abs(np.diff(xy, axis=0)).max() <= 2.0
+    # in the mission, the moving one makes move updates at its epochs
+    res = run_mission_on(grid, Scene.from_scenarios(art, cat, tracks))
+    assert (res.timeline["kind"] == "move").any()
+
+
+def run_mission_on(grid, scene):
+    from are_stats.experiments import Robot, run_mission
+
+    return run_mission(
+        grid, scene, [[10.5, 1.5], [10.5, 10.5]], "astar", robot=Robot(radius=0.3, speed=1.0),
+        time_limit=30.0,
+    )  # fmt: skip
