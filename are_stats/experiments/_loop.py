@@ -483,13 +483,22 @@ def _scene_record(m: _Mission, s: _State) -> dict:
     }  # fmt: skip
 
 
-def _event_table(scene: Scene, T: float) -> tuple[np.ndarray, np.ndarray, tuple]:
+def _event_table(
+    scene: Scene, T: float, move_period: float | None
+) -> tuple[np.ndarray, np.ndarray, tuple]:
     """Distinct event times in ``(0, T)``, whether an artefact arrives or leaves at each, and
-    the indices of the artefacts that move at each."""
+    the indices of the artefacts that move at each (moves put on the next tick of
+    ``move_period`` when given)."""
     ev = scene.events(0.0, T)
-    ev = ev[ev["t"].to_numpy() < T]
-    times, inv = np.unique(ev["t"].to_numpy(float), return_inverse=True)
     kind = ev["kind"].to_numpy()
+    t = ev["t"].to_numpy(float)
+    if move_period is not None:
+        tick = np.ceil(t / move_period) * move_period
+        t = np.where(kind == "move", tick, t)
+    ev = ev.assign(t=t).sort_values("t", kind="stable")
+    ev = ev[ev["t"].to_numpy() < T]
+    kind = ev["kind"].to_numpy()
+    times, inv = np.unique(ev["t"].to_numpy(float), return_inverse=True)
     lifecycle = np.zeros(times.size, bool)
     lifecycle[inv[kind != "move"]] = True
     order = np.argsort(scene.ids, kind="stable")
@@ -521,6 +530,7 @@ def run_mission(
     d_max: float = 10.0,
     tau: float = 10.0,
     perception_memory: bool = True,
+    move_period: float | None = None,
     seed: int = 0,
     record: bool = False,
 ) -> MissionResult:
@@ -564,6 +574,11 @@ def run_mission(
     perception_memory : bool
         Keep an artefact on the planner's map once perceived (at its current pose), until
         it leaves.
+    move_period : float, optional
+        Apply the artefacts' moves on a clock of this period (s): the builder registers the
+        new poses at its ticks (the boxes still slide continuously between them). Default:
+        at every track epoch of every artefact (their epochs start at their own arrival
+        times, so with many artefacts this makes many updates).
     seed : int
         Passed to the planner as ``params["seed"]`` (plus the replan index).
     record : bool
@@ -595,6 +610,8 @@ def run_mission(
     period = float(check_positive("perception_period", perception_period))
     d_max = float(check_positive("d_max", d_max))
     tau = float(check_nonnegative("tau", tau))
+    if move_period is not None:
+        move_period = float(check_positive("move_period", move_period))
     G = check_finite("goals", goals, ndim=2)
     if G.shape[1] != 2 or G.shape[0] < 1:
         raise ValueError(f"goals: expected shape (g, 2) with g >= 1, got {G.shape}")
@@ -616,7 +633,7 @@ def run_mission(
     )
     if grid.n_free == 0:
         raise ValueError("grid: expected free cells, got none")
-    event_t, event_lifecycle, event_moved = _event_table(scene, T)
+    event_t, event_lifecycle, event_moved = _event_table(scene, T, move_period)
     m = _Mission(
         grid=grid, scene=scene, builder=ARBuilder(grid, catalogue), robot=robot,
         plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,

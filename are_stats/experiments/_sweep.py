@@ -888,6 +888,7 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
         perception=ms.get("perception", "all"), env_mesh=mesh,
         perception_period=float(ms.get("perception_period", 1.0)),
         d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,
+        move_period=float(ms.get("behaviour_dt", 2.0)),
     )  # fmt: skip
     ident = {
         "task": task["task"],
