@@ -202,6 +202,11 @@ def test_walking_artefact_triggers_a_replan_and_is_not_driven_through():
         + np.maximum(np.abs(p[:, 2] - by) - 1.0, 0.0) ** 2
     )
     assert np.sqrt(gap).min() > ROBOT.radius
+    # moves applied on a 2 s clock: one update per tick, and still no contact
+    tick = run_mission(GRID, art, [[18.0, 10.0]], "astar", tracks=tracks, move_period=2.0, **kw)
+    moves = tick.timeline.loc[tick.timeline["kind"] == "move", "t"].to_numpy()
+    assert moves.size == tick.summary["n_move_updates"] > 0
+    assert_allclose(moves % 2.0, 0.0) and tick.summary["collisions"] == 0
     # the same walker without its track stands still at its first pose, off the path
     still = run_mission(GRID, art, [[18.0, 10.0]], "astar", **kw)
     assert still.summary["n_move_updates"] == 0 and not (still.timeline["kind"] == "move").any()

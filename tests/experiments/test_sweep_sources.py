@@ -219,3 +219,22 @@ def run_mission_on(grid, scene):
         grid, scene, [[10.5, 1.5], [10.5, 10.5]], "astar", robot=Robot(radius=0.3, speed=1.0),
         time_limit=30.0,
     )  # fmt: skip
+
+
+def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
+    root, grid, _, df = files
+    folder = tmp_path / "scen"
+    write_scenarios(df, folder, {"tracks": {"file": "tracks.parquet"}})
+    # every artefact steps 0.5 m along x one and two seconds after it arrives
+    rows = [
+        {"scenario": r.scenario, "id": r.artefact, "t": r.t_arrive + k, "x": r.x + 0.5 * k,
+         "y": r.y, "yaw": r.yaw}
+        for r in df.itertuples() for k in (1.0, 2.0)
+    ]  # fmt: skip
+    pd.DataFrame(rows).to_parquet(folder / "tracks.parquet", index=False)
+    cfg = _config(root, replicates=1, scenario={"scenarios": str(folder)})
+    task = expand_tasks({**cfg, "behaviours": True})[0]
+    moving = run_task(task)["runs"].iloc[0]
+    assert moving["n_move_updates"] > 0
+    still = run_task({**task, "behaviours": False})["runs"].iloc[0]
+    assert still["n_move_updates"] == 0
