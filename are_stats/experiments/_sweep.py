@@ -724,7 +724,8 @@ def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str
     Each task has ``task`` (a file-name stem: index and a digest of its settings),
     ``sweep`` (a digest of the whole config), ``replicate``, ``seed`` (the replicate's
     integer seed), ``levels`` (factor -> label) and the resolved ``scenario``, ``robot``,
-    ``mission``, ``planner``, ``map``.
+    ``mission``, ``planner``, ``map``, ``catalogue`` (an absolute path or None) and
+    ``behaviours``.
     """
     return _expand(load_sweep_config(config))
 
