@@ -80,6 +80,12 @@ def test_sweep_from_a_fit_matches_its_posterior_and_resumes(files, tmp_path):
     se = np.sqrt((expected + lam.var() * at**2) / n_rep)
     got = one["n_arrivals"].mean()
     assert abs(got - expected) < 4 * se, (got, expected, se)
+    # Fig. 7: every run has its own drawn rate, so the plots group by the speed factor
+    from are_stats.experiments import plot_goals
+
+    fig = plot_goals(runs, load_results(out)["goals"])
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert len(labels) == 2 and all("clutter" in t for t in labels)
     # resume: lost results are redone identically, the others are kept
     lost = sorted((out / "runs").glob("*.parquet"))[:3]
     for p in lost:
@@ -100,6 +106,10 @@ def test_sweep_from_a_scenarios_folder(files, tmp_path):
     sizes = df.groupby("scenario").size()
     assert runs["n_artefacts"].tolist() == [sizes[0], sizes[1], sizes[0]]
     assert runs["arrival_rate"].isna().all()
+    # the Fig. 7 plots group such runs by their factor levels (here: all runs together)
+    from are_stats.experiments import plot_results
+
+    assert all(p.is_file() for p in plot_results(out))
     # a mission longer than the scenarios is refused, naming the key
     long = _config(
         root, scenario={"scenarios": str(root / "scen")},
