@@ -298,23 +298,42 @@ def _path_blocked(m: _Mission, s: _State, free: np.ndarray) -> bool:
     return bool((~inside).any() or (~free[ij[inside, 0], ij[inside, 1]]).any())
 
 
-def _contacts(m: _Mission, pts: np.ndarray, times: np.ndarray, s: _State) -> tuple[np.ndarray, int]:
+def _contacts(
+    m: _Mission, pts: np.ndarray, times: np.ndarray, s: _State
+) -> tuple[np.ndarray, int, int]:
     """Footprint tests at robot positions ``pts`` (k, 2) at ``times`` (k,) against the live
-    boxes there; returns the contact flags after the last one and the new contacts made."""
+    boxes there, starting from ``s.pose`` at ``s.t``.
+
+    Returns the contact flags (N,) after the last test and the new contacts, split by who
+    closed the gap over the last step: the robot (it drove into the box: a collision) or
+    the artefact (it walked into the robot faster than the robot came).
+    """
     idx = np.flatnonzero(s.live)
     moving = bool(m.scene.has_tracks[idx].any())
-    in_contact, new = s.in_contact, 0
+    in_contact, by_robot, by_artefact = s.in_contact, 0, 0
     half = m.scene.half_extents[idx, :2]
-    xy, yaw = _footprints(m.scene, times[0], idx)
+    xy, yaw = _footprints(m.scene, s.t, idx)
+    q_prev = s.pose[:2]
     for q, tq in zip(pts, times, strict=True):
         now = np.zeros(s.live.size, bool)
         if idx.size:
+            xy_prev = xy
             if moving:
                 xy, yaw = _footprints(m.scene, tq, idx)
-            now[idx] = circle_box_overlap(q, m.robot.radius, xy, half, yaw)
-        new += int((now & ~in_contact).sum())
+            hit = circle_box_overlap(q, m.robot.radius, xy, half, yaw)
+            now[idx] = hit
+            fresh = hit & ~in_contact[idx]
+            if fresh.any():
+                d = q - xy[fresh]
+                d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+                robot_gain = -(d @ (q - q_prev))
+                artefact_gain = np.einsum("ij,ij->i", d, xy[fresh] - xy_prev[fresh])
+                walked_in = int((artefact_gain > robot_gain).sum())
+                by_artefact += walked_in
+                by_robot += int(fresh.sum()) - walked_in
         in_contact = now
-    return in_contact, new
+        q_prev = q
+    return in_contact, by_robot, by_artefact
 
 
 def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
@@ -352,11 +371,12 @@ def _drive(m: _Mission, s: _State, s_new: float, t_new: float) -> tuple[_State, 
     frac = np.arange(1, k + 1) / k
     pts, hd = _point_at(s.path, s.cum, s.s_along + ds * frac)
     tt = s.t + (t_new - s.t) * frac
-    in_contact, new = _contacts(m, pts, tt, s)
+    in_contact, by_robot, by_artefact = _contacts(m, pts, tt, s)
     poses = np.column_stack([tt, pts, hd]).tolist() if m.record else []
     s = s._replace(
         t=t_new, pose=np.array([pts[-1, 0], pts[-1, 1], hd[-1]]), s_along=s_new,
-        distance=s.distance + ds, in_contact=in_contact, collisions=s.collisions + new,
+        distance=s.distance + ds, in_contact=in_contact, collisions=s.collisions + by_robot,
+        artefact_contacts=s.artefact_contacts + by_artefact,
     )  # fmt: skip
     return s, poses
 
@@ -392,7 +412,7 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
             # was waiting for a way through)
             if s.path is None or _path_blocked(m, s, _planning_grid(m, s, idx, boxes)[1]):
                 s = s._replace(need_plan=True)
-    in_contact, new = _contacts(m, s.pose[None, :2], np.array([s.t]), s)
+    in_contact, _, _ = _contacts(m, s.pose[None, :2], np.array([s.t]), s)
     fresh = in_contact & ~s.in_contact
     s = s._replace(
         in_contact=in_contact,
@@ -416,8 +436,8 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         artefact_contacts=0, distance=0.0,
     )  # fmt: skip
     s = s._replace(seen=_perceive(m, s, idx, boxes))
-    in_contact, new = _contacts(m, pose[None, :2], np.array([0.0]), s)
-    return s._replace(in_contact=in_contact, arrival_contacts=new)
+    in_contact, _, _ = _contacts(m, pose[None, :2], np.array([0.0]), s)
+    return s._replace(in_contact=in_contact, arrival_contacts=int(in_contact.sum()))
 
 
 def _done(m: _Mission, s: _State) -> bool:

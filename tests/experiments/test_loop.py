@@ -217,3 +217,23 @@ def test_walking_artefact_triggers_a_replan_and_is_not_driven_through():
 
     hit = run_mission(GRID, art, [[18.0, 10.0]], blind, tracks=tracks, **kw)
     assert hit.summary["collisions"] + hit.summary["artefact_contacts"] >= 1
+
+
+def _blind(free, start, goal, params):  # a user planner that ignores the map
+    return np.vstack([start, goal])
+
+
+def test_contacts_are_blamed_on_whoever_closed_the_gap():
+    slow = Robot(radius=0.3, speed=0.25)
+    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0)
+    # a walker catches up with the robot from behind along its path (1 m/s against 0.25)
+    t = np.arange(0.0, 40.0)  # it walks on past the goal and off the map
+    behind = pd.DataFrame({"id": 0, "t": t, "x": 0.5 + t, "y": 10.0, "yaw": 0.0})
+    art = _art([[0.0, 60.0, 0.5, 10.0, 0.0, 0]])
+    res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=behind, **kw)
+    assert res.summary["artefact_contacts"] == 1 and res.summary["collisions"] == 0
+    # the robot drives into the side of a walker crossing its path slowly (0.1 m/s)
+    across = pd.DataFrame({"id": 0, "t": t, "x": 8.0, "y": 9.5 + 0.1 * t, "yaw": np.pi / 2})
+    art = _art([[0.0, 60.0, 8.0, 9.5, np.pi / 2, 0]])
+    res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=across, **kw)
+    assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
