@@ -20,9 +20,10 @@ apply it), both pure functions of the mission's fixed settings (``_Mission``) an
   the path (or the robot is waiting);
 * between updates the robot moves along its path at its speed; its footprint is tested
   against every live artefact (perceived or not) at its pose at that instant and each new
-  contact made while driving counts as a collision (an artefact that *arrives* on the
-  robot's footprint is counted apart, as an arrival contact, and one that walks into it at
-  an epoch as an artefact contact); when the plan fails the robot waits for the next update.
+  contact the robot drives into counts as a collision (an artefact that *arrives* on the
+  robot's footprint is counted apart, as an arrival contact, and one that walks into the
+  robot, closing the gap faster than the robot did, as an artefact contact: artefacts do
+  not see the robot); when the plan fails the robot waits for the next update.
 
 The replanning time ``rho_t`` is measured on the wall clock (DECISIONS 10) and recorded, but
 it does not advance simulated time, so everything except ``rho_t`` and ``rho`` is
@@ -79,8 +80,10 @@ class MissionResult(NamedTuple):
         ``goals_total``, ``goals_reached``, ``mission_time`` (s: when the last goal was
         reached, else the time limit), ``time_per_goal`` (s, mean over reached goals),
         ``collisions`` (contacts the robot drove into), ``arrival_contacts`` (artefacts
-        that appeared on the robot's footprint), ``n_replans``, ``n_failed_plans``,
-        ``n_updates``,
+        that appeared on the robot's footprint), ``artefact_contacts`` (moving artefacts
+        that walked into the robot: they closed the gap faster than the robot),
+        ``n_replans``, ``n_failed_plans``, ``n_updates``, ``n_move_updates`` (updates with
+        moves),
         ``update_rate`` (scene updates per s), ``rho_mean``, ``rho_t_mean``, ``nu_mean``
         (time average), ``nu_max``, ``distance`` (m driven).
     replans : pandas.DataFrame
