@@ -154,7 +154,9 @@ def _point_at(path: np.ndarray, cum: np.ndarray, s: Any) -> tuple[np.ndarray, np
 class _Mission:
     """What does not change during a mission (the step functions' first argument).
 
-    ``event_t`` (e,) are the distinct times of the scene's events in ``(0, T)``;
+    ``builder`` is the AR-builder used as a workspace: its content is a function of the
+    scene at the state's time, rewritten at every update. ``event_t`` (e,) are the distinct
+    times of the scene's events in ``(0, T)``;
     ``event_lifecycle`` (e,) bool says whether an artefact arrives or leaves then and
     ``event_moved`` holds the (k,) indices of the artefacts that move then.
     """

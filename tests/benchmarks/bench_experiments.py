@@ -16,7 +16,8 @@
    than about 10 minutes are refused by the memory limit of the MDP rollouts (one policy
    per artefact over the whole mission). Measured on the 2 shared cores: 600 s with 144
    artefacts in 30 s of mission (20x real time) plus 2 s of rollouts; perception 17 s,
-   planning grids 6 s, planning 1.7 s, builder 1 s, the rest 4 s.
+   planning grids 6 s, planning 1.7 s, builder 1 s, the rest 4 s. With the cores busy
+   with other jobs the same run took 53 s (11x), every stage about 1.8x slower.
 
 Median of the repeats after one warm-up. Run ``python -m tests.benchmarks.bench_experiments``
 (``--quick``: fewer tasks and repeats).
