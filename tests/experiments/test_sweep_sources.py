@@ -135,6 +135,7 @@ def test_relative_paths_resolve_against_the_config_file(files, tmp_path, monkeyp
     tasks = expand_tasks(path)
     assert tasks[0]["map"] == str((cfg_dir / "maps" / "square.yaml").resolve())
     assert tasks[0]["scenario"]["fit"] == str((root / "fits" / "fit.nc").resolve())
+    # the workers run in this other working directory: they read the resolved files
     out = run_sweep(path, "res", workers=1, processes=False, progress=False)
     assert len(load_results(out)["runs"]) == 2
     # a missing relative file is named with the config and its key, before any worker
