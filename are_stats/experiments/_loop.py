@@ -669,11 +669,18 @@ def run_mission(
     )  # fmt: skip
     # refuse before looping: footprint tests along the path, and grid passes per replan
     n_motion = robot.speed * T / m.step + 1.0
-    n_plans = event_t.size + G.shape[0] + (T / period if perception == "camera" else 0.0) + 1.0
+    # a camera tick casts the image's rays; it replans only when A_f changes, which each
+    # artefact does about twice (into view, out of it)
+    n_ticks = T / period if perception == "camera" else 0.0
+    rays = float(np.prod(robot.image_size)) if perception == "camera" else 0.0
+    n_plans = event_t.size + G.shape[0] + min(n_ticks, 2.0 * len(scene)) + 1.0
     check_memory(n_motion * 64.0, f"the robot's {n_motion:.3g} motion steps", "run_mission")
     check_work(
-        n_motion * 200.0 + n_plans * (grid.data.size * 100.0 + len(scene) * 3000.0),
-        f"{n_plans:.3g} replans on {grid.data.size} cells and {n_motion:.3g} motion steps",
+        n_motion * 200.0
+        + n_plans * (grid.data.size * 100.0 + len(scene) * 3000.0)
+        + n_ticks * rays * 2000.0,
+        f"{n_plans:.3g} replans on {grid.data.size} cells, {n_motion:.3g} motion steps and "
+        f"{n_ticks * rays:.3g} camera rays",
         "run_mission",
     )
 

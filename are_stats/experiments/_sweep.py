@@ -578,7 +578,8 @@ def _task_cost(
     camera = ms["perception"] == "camera"
     n_checks = horizon / ms["perception_period"] if camera else 0.0
     n_epochs = horizon / ms["behaviour_dt"] if behaviours else 0.0
-    n_plans = n_events + n_checks + n_epochs + ms["n_goals"] + 1.0
+    # a camera check replans only when A_f changes: about twice per artefact
+    n_plans = n_events + min(n_checks, 2.0 * n_art) + n_epochs + ms["n_goals"] + 1.0
     step = min(grid.resolution, rb["radius"] / 2.0)
     n_motion = rb["speed"] * horizon / step + n_plans
     w, h = rb.get("image_size", (64, 48))
