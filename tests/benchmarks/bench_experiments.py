@@ -167,7 +167,7 @@ def main(quick: bool = False) -> None:
     from are_stats.inputs import limits
 
     horizon = 60.0 if quick else 600.0
-    with limits(work=10**12):  # run_mission counts every camera tick as a possible replan
+    with limits(work=10**12):  # 10 minutes of 10 Hz camera rays are near the default limit
         m = _moving_mission(horizon)
     s = m["summary"]
     print(
