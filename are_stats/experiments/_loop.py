@@ -1,20 +1,29 @@
 """The navigation experiment loop (paper Sect. 4): a robot drives to a sequence of goals on
 the augmented map of one scenario, replanning at every scene update.
 
-The loop is event-driven on simulated time:
+The loop is event-driven on simulated time, an explicit state machine: ``_init`` builds the
+state at t = 0 and ``_step`` makes one transition (plan if needed, drive to the next event,
+apply it), both pure functions of the mission's fixed settings (``_Mission``) and the state
+(``_State``, a NamedTuple), as the EM code does with ``em_init`` / ``em_step``:
 
-* **scene updates** are artefact arrivals and leaves of the scenario table (artefacts stand
-  at their arrival pose until they leave) and, with ``perception="camera"``, changes of the
-  perceived set A_f checked every ``perception_period`` seconds of driving;
-* at each update (and when a new goal becomes current) the planner replans from the robot's
-  position to the current goal on the augmented grid that holds **only the perceived
-  artefacts**, inflated by the robot radius plus half a cell diagonal (cells around the
-  robot's own position that are inflated but not occupied are released, so a robot
-  brushing an obstacle can still leave);
+* the artefacts are an :class:`~are_stats.Scene` (the one place where an artefact becomes a
+  box); **scene updates** are its events: arrivals, leaves and, with behaviour tracks,
+  **moves** at the artefacts' epochs (timeline ``kind == "move"``); with
+  ``perception="camera"``, changes of the perceived set A_f checked every
+  ``perception_period`` seconds on the boxes at their current pose;
+* at an arrival or leave (and when a new goal becomes current) the planner replans from the
+  robot's position to the current goal on the augmented grid that holds **only the
+  perceived artefacts**, inflated by the robot radius plus half a cell diagonal (cells
+  around the robot's own position that are inflated but not occupied are released, so a
+  robot brushing an obstacle can still leave); a moving perceived artefact is on that grid
+  at its pose now and at the next event's, and a move replans when it blocks the rest of
+  the path (or the robot is waiting);
 * between updates the robot moves along its path at its speed; its footprint is tested
-  against every live artefact (perceived or not) and each new contact made while driving
-  counts as a collision (an artefact that *arrives* on the robot's footprint is counted
-  apart, as an arrival contact); when the plan fails the robot waits for the next update.
+  against every live artefact (perceived or not) at its pose at that instant and each new
+  contact the robot drives into counts as a collision (an artefact that *arrives* on the
+  robot's footprint is counted apart, as an arrival contact, and one that walks into the
+  robot, closing the gap faster than the robot did, as an artefact contact: artefacts do
+  not see the robot); when the plan fails the robot waits for the next update.
 
 The replanning time ``rho_t`` is measured on the wall clock (DECISIONS 10) and recorded, but
 it does not advance simulated time, so everything except ``rho_t`` and ``rho`` is
@@ -24,7 +33,7 @@ deterministic given the seed (for OMPL planners: given the seed and an iteration
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -35,6 +44,7 @@ from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
 from are_stats.experiments._robot import Robot, circle_box_overlap
 from are_stats.inputs import check_memory, check_work
+from are_stats.scenarios import Scene
 
 __all__ = ["MissionResult", "MissionTrace", "random_goals", "run_mission"]
 
@@ -70,8 +80,10 @@ class MissionResult(NamedTuple):
         ``goals_total``, ``goals_reached``, ``mission_time`` (s: when the last goal was
         reached, else the time limit), ``time_per_goal`` (s, mean over reached goals),
         ``collisions`` (contacts the robot drove into), ``arrival_contacts`` (artefacts
-        that appeared on the robot's footprint), ``n_replans``, ``n_failed_plans``,
-        ``n_updates``,
+        that appeared on the robot's footprint), ``artefact_contacts`` (moving artefacts
+        that walked into the robot: they closed the gap faster than the robot),
+        ``n_replans``, ``n_failed_plans``, ``n_updates``, ``n_move_updates`` (updates with
+        moves),
         ``update_rate`` (scene updates per s), ``rho_mean``, ``rho_t_mean``, ``nu_mean``
         (time average), ``nu_max``, ``distance`` (m driven).
     replans : pandas.DataFrame
@@ -121,55 +133,6 @@ def random_goals(grid: Any, n: int, radius: float, seed: int, min_separation: fl
     return np.array(out)
 
 
-@dataclass
-class _Scene:
-    """Artefact boxes of one scenario (static at their arrival pose)."""
-
-    ids: np.ndarray
-    labels: list
-    t_arrive: np.ndarray
-    t_leave: np.ndarray
-    centres: np.ndarray  # (n, 3)
-    half: np.ndarray  # (n, 3)
-    yaws: np.ndarray
-    live: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    seen: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-
-
-def _scene(artefacts: pd.DataFrame, catalogue: Any) -> _Scene:
-    need = ["t_arrive", "t_leave", "x", "y", "yaw"]
-    if not isinstance(artefacts, pd.DataFrame):
-        raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
-    missing = [c for c in need if c not in artefacts.columns]
-    if missing:
-        raise ValueError(f"artefacts: expected columns {need}, missing {missing}")
-    if "scenario" in artefacts.columns and artefacts["scenario"].nunique() > 1:
-        raise ValueError("artefacts: expected one scenario, got several (filter by 'scenario')")
-    num = check_finite("artefacts", artefacts[need].to_numpy(float), ndim=2)
-    n = len(artefacts)
-    marks = artefacts["mark"].to_numpy() if "mark" in artefacts.columns else np.zeros(n, int)
-    classes = artefacts["class"].to_numpy() if "class" in artefacts.columns else np.zeros(n, int)
-    labels, half, off = [], np.zeros((n, 3)), np.zeros((n, 3))
-    for k in range(n):
-        # DECISIONS 5: the component is the class, the mark selects the class's row of Q
-        c = int(np.clip(int(classes[k]), 0, len(catalogue) - 1))
-        row = catalogue.select(c, max(int(marks[k]), 0))
-        labels.append(row.label)
-        half[k] = row.half_extents
-        off[k] = (row.bounds[0] + row.bounds[1]) / 2.0
-    ta, tl, x, y, yaw = num.T
-    c, s = np.cos(yaw), np.sin(yaw)
-    centres = np.column_stack(
-        [x + c * off[:, 0] - s * off[:, 1], y + s * off[:, 0] + c * off[:, 1], off[:, 2]]
-    )
-    ids = (
-        artefacts["artefact"].to_numpy(np.int64)
-        if "artefact" in artefacts.columns
-        else np.arange(n, dtype=np.int64)
-    )
-    return _Scene(ids, labels, ta, tl, centres, half, yaw, np.zeros(n, bool), np.zeros(n, bool))
-
-
 def _arc(path: np.ndarray) -> np.ndarray:
     return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
 
@@ -184,15 +147,407 @@ def _point_at(path: np.ndarray, cum: np.ndarray, s: Any) -> tuple[np.ndarray, np
     return path[k] + f * seg, np.arctan2(seg[:, 1], seg[:, 0])
 
 
+# ---- the mission as a state machine ---------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Mission:
+    """What does not change during a mission (the step functions' first argument).
+
+    ``builder`` is the AR-builder used as a workspace: its content is a function of the
+    scene at the state's time, rewritten at every update. ``event_t`` (e,) are the distinct
+    times of the scene's events in ``(0, T)``;
+    ``event_lifecycle`` (e,) bool says whether an artefact arrives or leaves then and
+    ``event_moved`` holds the (k,) indices of the artefacts that move then.
+    """
+
+    grid: Any
+    scene: Scene
+    builder: Any
+    robot: Robot
+    plan_fn: Callable[..., Any]
+    goals: np.ndarray  # (g, 2)
+    T: float
+    perception: str
+    env_mesh: Any
+    period: float
+    d_max: float
+    tau: float
+    memory: bool
+    seed: int
+    record: bool
+    step: float  # footprint test spacing along the path (m)
+    n_free: int
+    event_t: np.ndarray
+    event_lifecycle: np.ndarray
+    event_moved: tuple
+
+
+class _State(NamedTuple):
+    """The mission between two steps: the robot, its plan, what it perceives, the counters.
+
+    Arrays over artefacts are (N,) in the scene's order.
+    """
+
+    t: float
+    pose: np.ndarray  # (3,) x, y, yaw
+    goal: int  # index of the current goal
+    reached: np.ndarray  # (g,) time each goal was reached, NaN if not (yet)
+    path: np.ndarray | None  # (k, 2) current plan, None while waiting
+    cum: np.ndarray  # (k,) arc length along the plan
+    s_along: float  # arc length driven on the plan
+    need_plan: bool
+    reason: str
+    live: np.ndarray  # (N,) bool
+    seen: np.ndarray  # (N,) bool, on the planner's map
+    in_contact: np.ndarray  # (N,) bool
+    n_A: int  # artefact cells of the augmented map
+    event: int  # index of the next event time in _Mission.event_t
+    next_percept: float
+    n_replans: int
+    n_updates: int
+    n_moves: int
+    collisions: int
+    arrival_contacts: int
+    artefact_contacts: int
+    distance: float
+
+
+class _Info(NamedTuple):
+    """What one step reports (rows of the result tables and trace entries)."""
+
+    replan: dict | None = None
+    update: dict | None = None
+    poses: list | None = None
+    plan: tuple | None = None
+    scene: dict | None = None
+
+
+def _boxes(m: _Mission, t: float) -> tuple[np.ndarray, Any]:
+    """Indices (n,) of the live artefacts and their boxes at ``t``."""
+    return np.flatnonzero(m.scene.alive(t)), m.scene.at(t)
+
+
+def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Box centres (k, 2) and headings (k,) of artefacts ``idx`` at ``t``, alive or not (the
+    robot's footprint tests run up to an event time, where some of them leave)."""
+    pose = scene.poses(t, idx)
+    off = scene.offsets[idx]
+    c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    xy = pose[:, :2] + np.column_stack(
+        [c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]]
+    )
+    return xy, pose[:, 2]
+
+
+def _register(m: _Mission, boxes: Any) -> int:
+    """Register the live boxes on the AR-builder (M_2D); returns n_A."""
+    m.builder.reset()
+    for c, h, y in zip(boxes.centres, boxes.half_extents, boxes.yaws, strict=True):
+        m.builder.register(None, [c[0], c[1], y], size=2 * h, check=False)
+    return m.builder.n_artefact_cells
+
+
+def _perceive(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> np.ndarray:
+    """(N,) bool: the artefacts on the planner's map after a perception at ``s.pose``."""
+    now = np.zeros(s.live.size, bool)
+    if m.perception == "all":
+        now[idx] = True
+    elif idx.size:
+        from are_stats.perception import perceived_counts, yaw_rotations
+
+        _, seen = perceived_counts(
+            m.env_mesh, boxes.centres, boxes.half_extents, yaw_rotations(boxes.yaws),
+            m.robot.camera(s.pose), m.d_max, m.tau,
+        )  # fmt: skip
+        now[idx] = seen
+    return (now | (s.seen & s.live)) if m.memory else now
+
+
+def _planning_grid(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> tuple[Any, np.ndarray]:
+    """The augmented grid with the perceived artefacts, and the robot's free cells."""
+    from scipy import ndimage
+
+    from are_stats.perception import perceived_grid
+
+    on = s.seen[idx]
+    centres, half, yaws = boxes.centres[on, :2], boxes.half_extents[on], boxes.yaws[on]
+    ahead = idx[on & m.scene.has_tracks[idx]]
+    if ahead.size and s.event < m.event_t.size:
+        # a moving artefact is on the map over the interval to the next event: at its pose
+        # now and at its next pose (the AR-builder knows where its artefacts go next)
+        xy, yaw = _footprints(m.scene, float(m.event_t[s.event]), ahead)
+        centres = np.vstack([centres, xy])
+        half = np.vstack([half, m.scene.half_extents[ahead]])
+        yaws = np.r_[yaws, yaw]
+    aug = perceived_grid(m.grid, centres, half, yaws, np.ones(len(yaws), bool))
+    res, radius = m.grid.resolution, m.robot.radius
+    occ = ~aug.free
+    dist = ndimage.distance_transform_edt(~occ) * res if occ.any() else np.full(occ.shape, np.inf)
+    # cell-centre distances: add half a cell diagonal so the disc clears box edges
+    free = (dist > radius + res * np.sqrt(0.5)) & ~occ
+    ij = np.indices(occ.shape).reshape(2, -1).T
+    near = np.linalg.norm(m.grid.cell_to_world(ij) - s.pose[:2], axis=1).reshape(occ.shape)
+    free |= (near <= radius + res) & ~occ
+    return aug, free
+
+
+def _path_blocked(m: _Mission, s: _State, free: np.ndarray) -> bool:
+    """Whether the rest of the plan crosses a cell the planner may not use."""
+    assert s.path is not None
+    ss = np.arange(s.s_along, s.cum[-1] + m.step, m.step)
+    pts, _ = _point_at(s.path, s.cum, ss)
+    pts = pts[np.linalg.norm(pts - s.pose[:2], axis=1) > m.robot.radius + m.grid.resolution]
+    ij = m.grid.world_to_cell(pts)
+    inside = m.grid.in_bounds(ij)
+    return bool((~inside).any() or (~free[ij[inside, 0], ij[inside, 1]]).any())
+
+
+def _contacts(
+    m: _Mission, pts: np.ndarray, times: np.ndarray, s: _State
+) -> tuple[np.ndarray, int, int]:
+    """Footprint tests at robot positions ``pts`` (k, 2) at ``times`` (k,) against the live
+    boxes there, starting from ``s.pose`` at ``s.t``.
+
+    Returns the contact flags (N,) after the last test and the new contacts, split by who
+    closed the gap over the last step: the robot (it drove into the box: a collision) or
+    the artefact (it walked into the robot faster than the robot came).
+    """
+    idx = np.flatnonzero(s.live)
+    moving = bool(m.scene.has_tracks[idx].any())
+    in_contact, by_robot, by_artefact = s.in_contact, 0, 0
+    half = m.scene.half_extents[idx, :2]
+    xy, yaw = _footprints(m.scene, s.t, idx)
+    q_prev = s.pose[:2]
+    for q, tq in zip(pts, times, strict=True):
+        now = np.zeros(s.live.size, bool)
+        if idx.size:
+            xy_prev = xy
+            if moving:
+                xy, yaw = _footprints(m.scene, tq, idx)
+            hit = circle_box_overlap(q, m.robot.radius, xy, half, yaw)
+            now[idx] = hit
+            fresh = hit & ~in_contact[idx]
+            if fresh.any():
+                d = q - xy[fresh]
+                d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+                robot_gain = -(d @ (q - q_prev))
+                artefact_gain = np.einsum("ij,ij->i", d, xy[fresh] - xy_prev[fresh])
+                walked_in = int((artefact_gain > robot_gain).sum())
+                by_artefact += walked_in
+                by_robot += int(fresh.sum()) - walked_in
+        in_contact = now
+        q_prev = q
+    return in_contact, by_robot, by_artefact
+
+
+def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
+    """Plan from the robot's pose to the current goal on the perceived grid."""
+    idx, boxes = _boxes(m, s.t)
+    _, free = _planning_grid(m, s, idx, boxes)
+    res = m.grid.resolution
+    start_l = m.grid.world_to_local(s.pose[:2]) * res
+    goal_l = m.grid.world_to_local(m.goals[s.goal]) * res
+    params = {"resolution": res, "seed": int(m.seed) * 100003 + s.n_replans}
+    p_local, rho_t = timed_plan(m.plan_fn, free, start_l, goal_l, params)
+    path, cum, g_t, plan = None, np.zeros(1), np.inf, None
+    if p_local is not None:
+        path = m.grid.local_to_world(p_local / res)
+        path[0], path[-1] = s.pose[:2], m.goals[s.goal]
+        cum = _arc(path)
+        g_t = cum[-1] / m.robot.speed
+        plan = (s.t, path.copy()) if m.record else None
+    ok = p_local is not None
+    row = {
+        "t": s.t, "goal": s.goal, "reason": s.reason, "rho_t": rho_t, "g_t": g_t,
+        "rho": float(replanning_ratio([rho_t], [g_t])[0]) if ok else np.nan, "success": ok,
+        "path_length": float(cum[-1]) if ok else np.nan, "n_live": int(s.live.sum()),
+        "n_perceived": int(s.seen.sum()), "n_A": s.n_A, "nu": s.n_A / m.n_free,
+    }  # fmt: skip
+    s = s._replace(path=path, cum=cum, s_along=0.0, need_plan=False, n_replans=s.n_replans + 1)
+    return s, row, plan
+
+
+def _drive(m: _Mission, s: _State, s_new: float, t_new: float) -> tuple[_State, list]:
+    """Drive along the plan to arc length ``s_new``, reached at ``t_new``."""
+    assert s.path is not None
+    ds = s_new - s.s_along
+    k = max(int(np.ceil(ds / m.step)), 1)
+    frac = np.arange(1, k + 1) / k
+    pts, hd = _point_at(s.path, s.cum, s.s_along + ds * frac)
+    tt = s.t + (t_new - s.t) * frac
+    in_contact, by_robot, by_artefact = _contacts(m, pts, tt, s)
+    poses = np.column_stack([tt, pts, hd]).tolist() if m.record else []
+    s = s._replace(
+        t=t_new, pose=np.array([pts[-1, 0], pts[-1, 1], hd[-1]]), s_along=s_new,
+        distance=s.distance + ds, in_contact=in_contact, collisions=s.collisions + by_robot,
+        artefact_contacts=s.artefact_contacts + by_artefact,
+    )  # fmt: skip
+    return s, poses
+
+
+def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
+    """Apply the scene's events at ``s.t`` (arrivals, leaves, moves); returns the update's
+    kinds."""
+    e = s.event
+    idx, boxes = _boxes(m, s.t)
+    live = m.scene.alive(s.t)
+    arrived, left = live & ~s.live, s.live & ~live
+    s = s._replace(live=live, seen=s.seen & live, n_A=_register(m, boxes), event=e + 1)
+    kinds = []
+    if m.event_lifecycle[e]:
+        old = s.seen
+        s = s._replace(seen=_perceive(m, s, idx, boxes))
+        if arrived.any():
+            kinds.append("arrival")
+        if left.any():
+            kinds.append("leave")
+        if not kinds and not np.array_equal(old, s.seen):
+            kinds.append("perceived")
+        if kinds:
+            s = s._replace(need_plan=True)
+    moved = np.zeros(live.size, bool)
+    moved[m.event_moved[e]] = True
+    moved &= live
+    if moved.any():
+        kinds.append("move")
+        s = s._replace(n_moves=s.n_moves + 1)
+        if not s.need_plan and (moved & s.seen).any():
+            # a perceived artefact moved: replan when it now blocks the plan (or the robot
+            # was waiting for a way through)
+            if s.path is None or _path_blocked(m, s, _planning_grid(m, s, idx, boxes)[1]):
+                s = s._replace(need_plan=True)
+    in_contact, _, _ = _contacts(m, s.pose[None, :2], np.array([s.t]), s)
+    fresh = in_contact & ~s.in_contact
+    s = s._replace(
+        in_contact=in_contact,
+        arrival_contacts=s.arrival_contacts + int((fresh & arrived).sum()),
+        artefact_contacts=s.artefact_contacts + int((fresh & ~arrived).sum()),
+    )
+    return s, kinds
+
+
+def _init(m: _Mission, pose: np.ndarray) -> _State:
+    """The state at t = 0: the live artefacts registered and perceived from ``pose``."""
+    n = len(m.scene)
+    idx, boxes = _boxes(m, 0.0)
+    live = m.scene.alive(0.0)
+    s = _State(
+        t=0.0, pose=pose, goal=0, reached=np.full(m.goals.shape[0], np.nan), path=None,
+        cum=np.zeros(1), s_along=0.0, need_plan=True, reason="goal", live=live,
+        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=_register(m, boxes),
+        event=0, next_percept=m.period if m.perception == "camera" else np.inf,
+        n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
+        artefact_contacts=0, distance=0.0,
+    )  # fmt: skip
+    s = s._replace(seen=_perceive(m, s, idx, boxes))
+    in_contact, _, _ = _contacts(m, pose[None, :2], np.array([0.0]), s)
+    return s._replace(in_contact=in_contact, arrival_contacts=int(in_contact.sum()))
+
+
+def _done(m: _Mission, s: _State) -> bool:
+    return s.goal >= m.goals.shape[0] or s.t >= m.T
+
+
+def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
+    """One transition: plan if needed, then drive to the next event (goal reached, scene
+    event, perception tick or time limit) and apply it."""
+    replan = plan = None
+    if s.need_plan:
+        s, replan, plan = _plan(m, s)
+    t_event = m.event_t[s.event] if s.event < m.event_t.size else np.inf
+    t_next = min(t_event, s.next_percept, m.T)
+    poses: list = []
+    if s.path is not None:
+        t_goal = s.t + (s.cum[-1] - s.s_along) / m.robot.speed
+        if t_goal <= t_next:
+            s, poses = _drive(m, s, float(s.cum[-1]), t_goal)
+            reached = s.reached.copy()
+            reached[s.goal] = s.t
+            s = s._replace(
+                goal=s.goal + 1, reached=reached, path=None, need_plan=True, reason="goal"
+            )
+            return s, _Info(replan=replan, poses=poses, plan=plan)
+        s, poses = _drive(m, s, s.s_along + (t_next - s.t) * m.robot.speed, t_next)
+    s = s._replace(t=t_next)
+    if t_next >= m.T:
+        return s, _Info(replan=replan, poses=poses, plan=plan)
+    kinds: list[str] = []
+    if t_next == t_event:
+        s, kinds = _scene_update(m, s)
+    if t_next == s.next_percept:
+        old = s.seen
+        idx, boxes = _boxes(m, s.t)
+        s = s._replace(seen=_perceive(m, s, idx, boxes), next_percept=t_next + m.period)
+        if not np.array_equal(old, s.seen):
+            s = s._replace(need_plan=True)
+            if not kinds:
+                kinds.append("perceived")
+    update = scene = None
+    if kinds:
+        reason = "+".join(kinds)
+        s = s._replace(n_updates=s.n_updates + 1, reason=reason if s.need_plan else s.reason)
+        update = _timeline_row(m, s, reason)
+        scene = _scene_record(m, s) if m.record else None
+    return s, _Info(replan=replan, update=update, poses=poses, plan=plan, scene=scene)
+
+
+def _timeline_row(m: _Mission, s: _State, kind: str) -> dict:
+    return {
+        "t": s.t, "kind": kind, "n_live": int(s.live.sum()), "n_perceived": int(s.seen.sum()),
+        "n_A": s.n_A, "nu": s.n_A / m.n_free,
+    }  # fmt: skip
+
+
+def _scene_record(m: _Mission, s: _State) -> dict:
+    idx, boxes = _boxes(m, s.t)
+    return {
+        "t": s.t, "ids": boxes.ids, "centres": boxes.centres, "half": boxes.half_extents,
+        "yaws": boxes.yaws, "labels": list(boxes.labels), "perceived": s.seen[idx],
+        "grid": _planning_grid(m, s, idx, boxes)[0],
+    }  # fmt: skip
+
+
+def _event_table(
+    scene: Scene, T: float, move_period: float | None
+) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Distinct event times in ``(0, T)``, whether an artefact arrives or leaves at each, and
+    the indices of the artefacts that move at each (moves put on the next tick of
+    ``move_period`` when given)."""
+    ev = scene.events(0.0, T)
+    kind = ev["kind"].to_numpy()
+    t = ev["t"].to_numpy(float)
+    if move_period is not None:
+        tick = np.ceil(t / move_period) * move_period
+        t = np.where(kind == "move", tick, t)
+    ev = ev.assign(t=t).sort_values("t", kind="stable")
+    ev = ev[ev["t"].to_numpy() < T]
+    kind = ev["kind"].to_numpy()
+    times, inv = np.unique(ev["t"].to_numpy(float), return_inverse=True)
+    lifecycle = np.zeros(times.size, bool)
+    lifecycle[inv[kind != "move"]] = True
+    order = np.argsort(scene.ids, kind="stable")
+    is_move = kind == "move"
+    pos = order[np.searchsorted(scene.ids[order], ev["id"].to_numpy(np.int64)[is_move])]
+    moved = [np.zeros(0, np.int64)] * times.size
+    if is_move.any():
+        t_of = inv[is_move]
+        cut = np.flatnonzero(np.diff(t_of)) + 1
+        for grp_t, grp in zip(np.split(t_of, cut), np.split(pos, cut), strict=True):
+            moved[int(grp_t[0])] = grp
+    return times, lifecycle, tuple(moved)
+
+
 def run_mission(
     grid: Any,
-    artefacts: pd.DataFrame,
+    artefacts: pd.DataFrame | Scene,
     goals: Any,
     planner: Mapping[str, Any] | Callable[..., Any] = "astar",  # type: ignore[assignment]
     *,
     robot: Robot | None = None,
     start: Any = None,
     catalogue: Any = None,
+    tracks: pd.DataFrame | None = None,
     time_limit: float = 300.0,
     perception: str = "all",
     env_mesh: Any = None,
@@ -200,6 +555,7 @@ def run_mission(
     d_max: float = 10.0,
     tau: float = 10.0,
     perception_memory: bool = True,
+    move_period: float | None = None,
     seed: int = 0,
     record: bool = False,
 ) -> MissionResult:
@@ -209,9 +565,11 @@ def run_mission(
     ----------
     grid : OccupancyGrid
         The real map M_2D.
-    artefacts : pandas.DataFrame
+    artefacts : pandas.DataFrame or Scene
         One scenario of :func:`are_stats.scenarios.generate_scenarios` (columns
-        ``t_arrive, t_leave, x, y, yaw`` and ``mark`` or ``class``).
+        ``t_arrive, t_leave, x, y, yaw`` and ``mark`` or ``class``), turned into boxes by
+        :meth:`are_stats.Scene.from_scenarios` with ``catalogue`` and ``tracks``; or a
+        :class:`~are_stats.Scene` built already (``catalogue`` and ``tracks`` unused).
     goals : (g, 2) float
         Goal positions (m, map frame), visited in order.
     planner : callable, dict or "astar"
@@ -223,7 +581,10 @@ def run_mission(
         Initial pose ``(x, y, yaw)``; default the first goal's position (which then counts
         as reached at time 0 and is dropped from the goals).
     catalogue : ArtefactCatalogue, optional
-        Box sizes by mark (default :func:`~are_stats.environment.load_catalogue`).
+        The property table Q (default :func:`~are_stats.load_catalogue`).
+    tracks : pandas.DataFrame, optional
+        Behaviour tracks ``id, t, x, y, yaw`` of the artefacts
+        (:func:`~are_stats.behaviour.scenario_tracks`): the artefacts move along them.
     time_limit : float
         Mission time limit (s).
     perception : {"all", "camera"}
@@ -232,11 +593,17 @@ def run_mission(
     env_mesh : trimesh.Trimesh, optional
         Environment mesh S_3D (required for ``"camera"``).
     perception_period : float
-        Seconds of driving between perception checks (``"camera"``).
+        Seconds between perception checks (``"camera"``).
     d_max, tau : float
         Range and occlusion threshold of A_f.
     perception_memory : bool
-        Keep an artefact on the planner's map once perceived, until it leaves.
+        Keep an artefact on the planner's map once perceived (at its current pose), until
+        it leaves.
+    move_period : float, optional
+        Apply the artefacts' moves on a clock of this period (s): the builder registers the
+        new poses at its ticks (the boxes still slide continuously between them). Default:
+        at every track epoch of every artefact (their epochs start at their own arrival
+        times, so with many artefacts this makes many updates).
     seed : int
         Passed to the planner as ``params["seed"]`` (plus the replan index).
     record : bool
@@ -251,8 +618,8 @@ def run_mission(
     ValueError
         On malformed input (named argument and what was expected).
     """
+    from are_stats.builder import ARBuilder
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.perception import perceived_grid
 
     if not isinstance(grid, OccupancyGrid):
         raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
@@ -268,6 +635,8 @@ def run_mission(
     period = float(check_positive("perception_period", perception_period))
     d_max = float(check_positive("d_max", d_max))
     tau = float(check_nonnegative("tau", tau))
+    if move_period is not None:
+        move_period = float(check_positive("move_period", move_period))
     G = check_finite("goals", goals, ndim=2)
     if G.shape[1] != 2 or G.shape[0] < 1:
         raise ValueError(f"goals: expected shape (g, 2) with g >= 1, got {G.shape}")
@@ -282,211 +651,60 @@ def run_mission(
         pose = check_finite("start", start, ndim=1).copy()
         if pose.shape != (3,):
             raise ValueError(f"start: expected (x, y, yaw), got {pose.tolist()}")
-    scene = _scene(artefacts, catalogue)
-    res = grid.resolution
-    n_free = grid.n_free
-    if n_free == 0:
+    scene = (
+        artefacts
+        if isinstance(artefacts, Scene)
+        else Scene.from_scenarios(artefacts, catalogue, tracks)
+    )
+    if grid.n_free == 0:
         raise ValueError("grid: expected free cells, got none")
-    from are_stats.builder import ARBuilder
-
-    builder = ARBuilder(grid, catalogue)
-
-    # ----------------------------------------------------------------- scene helpers
-    def set_live(t: float) -> None:
-        scene.live = (scene.t_arrive <= t) & (scene.t_leave > t)
-        scene.seen &= scene.live
-        builder.reset()
-        for k in np.flatnonzero(scene.live):
-            c = scene.centres[k]
-            builder.register(None, [c[0], c[1], scene.yaws[k]], size=2 * scene.half[k], check=False)
-
-    def perceive(p: np.ndarray) -> np.ndarray:
-        live = np.flatnonzero(scene.live)
-        now = np.zeros(scene.live.size, bool)
-        if perception == "all":
-            now[live] = True
-        elif live.size:
-            from are_stats.perception import perceived_counts, yaw_rotations
-
-            cam = robot.camera(p)
-            _, seen = perceived_counts(
-                env_mesh, scene.centres[live], scene.half[live],
-                yaw_rotations(scene.yaws[live]), cam, d_max, tau,
-            )  # fmt: skip
-            now[live] = seen
-        return (now | scene.seen) if perception_memory else now
-
-    def planning_grid(p: np.ndarray) -> tuple[Any, np.ndarray]:
-        idx = np.flatnonzero(scene.seen)
-        aug = perceived_grid(
-            grid, scene.centres[idx], scene.half[idx], scene.yaws[idx], np.ones(idx.size, bool)
-        )
-        from scipy import ndimage
-
-        occ = ~aug.free
-        dist = (
-            ndimage.distance_transform_edt(~occ) * res if occ.any() else np.full(occ.shape, np.inf)
-        )
-        # cell-centre distances: add half a cell diagonal so the disc clears box edges
-        free = (dist > robot.radius + res * np.sqrt(0.5)) & ~occ
-        ij = np.indices(occ.shape).reshape(2, -1).T
-        near = np.linalg.norm(grid.cell_to_world(ij) - p[:2], axis=1).reshape(occ.shape)
-        free |= (near <= robot.radius + res) & ~occ
-        return aug, free
-
-    # ----------------------------------------------------------------- state
-    t = 0.0
-    set_live(t)
-    scene.seen = perceive(pose)
-    in_contact = np.zeros(scene.live.size, bool)
-    collisions = 0
-    arrival_contacts = 0
-    distance = 0.0
-    events = np.unique(np.r_[scene.t_arrive, scene.t_leave])
-    events = events[(events > 0) & (events < T)]
-    ev_i = 0
-    next_percept = period if perception == "camera" else np.inf
-    goal_i = 0
-    reached = np.full(G.shape[0], np.nan)
-    path: np.ndarray | None = None
-    cum = np.zeros(1)
-    s_along = 0.0
-    need_plan, reason = True, "goal"
-    replans: list[dict] = []
-    timeline: list[dict] = []
-    poses_log: list[list[float]] = [[0.0, *pose]]
-    plans_log: list = []
-    scenes_log: list = []
-    n_updates = 0
-    step = min(res, robot.radius / 2.0)
+    event_t, event_lifecycle, event_moved = _event_table(scene, T, move_period)
+    m = _Mission(
+        grid=grid, scene=scene, builder=ARBuilder(grid, catalogue), robot=robot,
+        plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,
+        period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
+        record=bool(record), step=min(grid.resolution, robot.radius / 2.0),
+        n_free=grid.n_free, event_t=event_t, event_lifecycle=event_lifecycle,
+        event_moved=event_moved,
+    )  # fmt: skip
     # refuse before looping: footprint tests along the path, and grid passes per replan
-    n_motion = robot.speed * T / step + 1.0
-    n_plans = events.size + G.shape[0] + (T / period if perception == "camera" else 0.0) + 1.0
+    n_motion = robot.speed * T / m.step + 1.0
+    # a camera tick casts the image's rays; it replans only when A_f changes, which each
+    # artefact does about twice (into view, out of it)
+    n_ticks = T / period if perception == "camera" else 0.0
+    rays = float(np.prod(robot.image_size)) if perception == "camera" else 0.0
+    n_plans = event_t.size + G.shape[0] + min(n_ticks, 2.0 * len(scene)) + 1.0
     check_memory(n_motion * 64.0, f"the robot's {n_motion:.3g} motion steps", "run_mission")
     check_work(
-        n_motion * 200.0 + n_plans * (grid.data.size * 100.0 + scene.live.size * 3000.0),
-        f"{n_plans:.3g} replans on {grid.data.size} cells and {n_motion:.3g} motion steps",
+        n_motion * 200.0
+        + n_plans * (grid.data.size * 100.0 + len(scene) * 3000.0)
+        + n_ticks * rays * 2000.0,
+        f"{n_plans:.3g} replans on {grid.data.size} cells, {n_motion:.3g} motion steps and "
+        f"{n_ticks * rays:.3g} camera rays",
         "run_mission",
     )
 
-    def log_scene(kind: str, aug: Any = None) -> None:
-        n_a = builder.n_artefact_cells
-        timeline.append(
-            {"t": t, "kind": kind, "n_live": int(scene.live.sum()),
-             "n_perceived": int(scene.seen.sum()), "n_A": n_a, "nu": n_a / n_free}
-        )  # fmt: skip
+    s = _init(m, pose)
+    replans: list[dict] = []
+    timeline: list[dict] = [_timeline_row(m, s, "start")]
+    poses_log: list[list[float]] = [[0.0, *pose]]
+    plans_log: list = []
+    scenes_log: list = [_scene_record(m, s)] if record else []
+    while not _done(m, s):
+        s, info = _step(m, s)
+        if info.replan is not None:
+            replans.append(info.replan)
+        if info.update is not None:
+            timeline.append(info.update)
         if record:
-            idx = np.flatnonzero(scene.live)
-            scenes_log.append(
-                {"t": t, "ids": scene.ids[idx], "centres": scene.centres[idx],
-                 "half": scene.half[idx], "yaws": scene.yaws[idx],
-                 "labels": [scene.labels[k] for k in idx], "perceived": scene.seen[idx],
-                 "grid": aug if aug is not None else planning_grid(pose)[0]}
-            )  # fmt: skip
+            poses_log.extend(info.poses or [])
+            if info.plan is not None:
+                plans_log.append(info.plan)
+            if info.scene is not None:
+                scenes_log.append(info.scene)
 
-    def check_contacts(pts: np.ndarray, moving: bool = True) -> None:
-        nonlocal collisions, arrival_contacts, in_contact
-        idx = np.flatnonzero(scene.live)
-        for q in pts:
-            now = np.zeros(scene.live.size, bool)
-            if idx.size:
-                now[idx] = circle_box_overlap(
-                    q, robot.radius, scene.centres[idx, :2], scene.half[idx, :2], scene.yaws[idx]
-                )
-            new = int((now & ~in_contact).sum())
-            if moving:
-                collisions += new
-            else:
-                arrival_contacts += new
-            in_contact = now
-
-    def move_to(s_new: float, t_new: float) -> None:
-        nonlocal s_along, distance, pose
-        assert path is not None
-        ds = s_new - s_along
-        m = max(int(np.ceil(ds / step)), 1)
-        ss = s_along + ds * np.arange(1, m + 1) / m
-        pts, hd = _point_at(path, cum, ss)
-        check_contacts(pts)
-        distance += ds
-        s_along = s_new
-        pose = np.array([pts[-1, 0], pts[-1, 1], hd[-1]])
-        if record:
-            tt = t + (t_new - t) * np.arange(1, m + 1) / m
-            poses_log.extend(np.column_stack([tt, pts, hd]).tolist())
-
-    log_scene("start")
-    check_contacts(pose[None, :2], moving=False)
-    while goal_i < G.shape[0] and t < T:
-        if need_plan:
-            aug, free = planning_grid(pose)
-            start_l = grid.world_to_local(pose[:2]) * res
-            goal_l = grid.world_to_local(G[goal_i]) * res
-            params = {"resolution": res, "seed": int(seed) * 100003 + len(replans)}
-            p_local, rho_t = timed_plan(plan_fn, free, start_l, goal_l, params)
-            if p_local is not None:
-                path = grid.local_to_world(p_local / res)
-                path[0], path[-1] = pose[:2], G[goal_i]
-                cum = _arc(path)
-                s_along = 0.0
-                g_t = cum[-1] / robot.speed
-                if record:
-                    plans_log.append((t, path.copy()))
-            else:
-                path, g_t = None, np.inf
-            n_a = builder.n_artefact_cells
-            replans.append(
-                {"t": t, "goal": goal_i, "reason": reason, "rho_t": rho_t, "g_t": g_t,
-                 "rho": float(replanning_ratio([rho_t], [g_t])[0]) if p_local is not None
-                 else np.nan, "success": p_local is not None,
-                 "path_length": float(cum[-1]) if p_local is not None else np.nan,
-                 "n_live": int(scene.live.sum()), "n_perceived": int(scene.seen.sum()),
-                 "n_A": n_a, "nu": n_a / n_free}
-            )  # fmt: skip
-            need_plan = False
-        t_event = events[ev_i] if ev_i < events.size else np.inf
-        t_next = min(t_event, next_percept, T)
-        if path is not None:
-            t_goal = t + (cum[-1] - s_along) / robot.speed
-            if t_goal <= t_next:
-                move_to(cum[-1], t_goal)
-                t = t_goal
-                reached[goal_i] = t
-                goal_i += 1
-                path, need_plan, reason = None, True, "goal"
-                continue
-            move_to(s_along + (t_next - t) * robot.speed, t_next)
-        t = t_next
-        if t >= T:
-            break
-        kinds = []
-        if t == t_event:
-            before = scene.live.copy()
-            set_live(t)
-            arrived, left = scene.live & ~before, before & ~scene.live
-            while ev_i < events.size and events[ev_i] <= t:
-                ev_i += 1
-            old_seen = scene.seen.copy()
-            scene.seen = perceive(pose)
-            if arrived.any():
-                kinds.append("arrival")
-            if left.any():
-                kinds.append("leave")
-            if not kinds and not np.array_equal(old_seen, scene.seen):
-                kinds.append("perceived")
-            check_contacts(pose[None, :2], moving=False)
-        if t == next_percept:
-            next_percept = t + period
-            old_seen = scene.seen.copy()
-            scene.seen = perceive(pose)
-            if not np.array_equal(old_seen, scene.seen) and not kinds:
-                kinds.append("perceived")
-        if kinds:
-            n_updates += 1
-            need_plan, reason = True, "+".join(kinds)
-            log_scene(reason)
-
-    end = float(t if goal_i == G.shape[0] else T)
+    reached = s.reached
+    end = float(s.t if s.goal == G.shape[0] else T)
     rp = pd.DataFrame(
         replans,
         columns=["t", "goal", "reason", "rho_t", "g_t", "rho", "success", "path_length",
@@ -503,19 +721,21 @@ def run_mission(
         "goals_reached": n_reached,
         "mission_time": end,
         "time_per_goal": float(t_goals.mean()) if n_reached else np.nan,
-        "collisions": int(collisions),
-        "arrival_contacts": int(arrival_contacts),
+        "collisions": int(s.collisions),
+        "arrival_contacts": int(s.arrival_contacts),
+        "artefact_contacts": int(s.artefact_contacts),
         "n_replans": len(rp),
         "n_failed_plans": int((~rp["success"]).sum()) if len(rp) else 0,
-        "n_updates": n_updates,
-        "update_rate": n_updates / end if end > 0 else np.nan,
+        "n_updates": s.n_updates,
+        "n_move_updates": s.n_moves,
+        "update_rate": s.n_updates / end if end > 0 else np.nan,
         "rho_mean": float(rp["rho"].mean()) if rp["rho"].notna().any() else np.nan,
         "rho_t_mean": float(rp["rho_t"].mean()) if len(rp) else np.nan,
         "nu_mean": time_average(
             tl["t"].to_numpy(), tl["nu"].to_numpy(), max(end, tl["t"].iloc[-1])
         ),
         "nu_max": float(tl["nu"].max()),
-        "distance": float(distance),
+        "distance": float(s.distance),
     }
     trace = MissionTrace(np.array(poses_log), plans_log, scenes_log, G.copy()) if record else None
     return MissionResult(summary, rp, gl, tl, trace)

@@ -28,10 +28,26 @@ def _band(values: np.ndarray) -> tuple[float, float]:
     return float(v.mean()), float(stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / np.sqrt(v.size))
 
 
+def _clutter(runs: pd.DataFrame, hue: str) -> tuple[pd.DataFrame, str]:
+    """The runs and the column that groups them by clutter level: ``arrival_rate`` for
+    hand-set rates; for scenarios drawn from a fit or read from a folder (every run its own
+    rate, or none), the levels of the factors other than ``hue`` (one group without)."""
+    if "draw" not in runs.columns or (runs["draw"].to_numpy() < 0).all():
+        return runs, "arrival_rate"
+    cols = [c for c in runs.columns if c.startswith("level:") and c not in (hue, f"level:{hue}")]
+    label = (
+        runs[cols].astype(str).agg(", ".join, axis=1)
+        if cols
+        else pd.Series("all runs", index=runs.index)
+    )
+    return runs.assign(clutter=label), "clutter"
+
+
 def plot_rho(runs: pd.DataFrame, hue: str = "planner", ax: Any = None) -> Any:
     """Fig. 7a: mean rho per run (eq. 3) against the scene-update frequency.
 
-    Runs are grouped by ``hue`` (planner settings) and by arrival rate; x is the mean
+    Runs are grouped by ``hue`` (planner settings) and by arrival rate (for scenarios from
+    a fit or a folder: by the levels of the other factors); x is the mean
     measured update frequency (updates per minute) of the group, y the geometric mean of
     the runs' ``rho_mean`` with a 95% t band over replicates computed on ``log10(rho)``
     (rho spans decades: the axis is logarithmic).
@@ -45,10 +61,11 @@ def plot_rho(runs: pd.DataFrame, hue: str = "planner", ax: Any = None) -> Any:
     for c in (hue, "arrival_rate", "update_rate", "rho_mean"):
         if c not in runs.columns:
             raise ValueError(f"runs: expected a column {c!r}, got {list(runs.columns)}")
+    runs, key = _clutter(runs, hue)
     fig, ax = plt.subplots(figsize=(6, 4)) if ax is None else (ax.figure, ax)
     for name, grp in runs.groupby(hue, sort=True):
         rows = []
-        for _, g in grp.groupby("arrival_rate", sort=True):
+        for _, g in grp.groupby(key, sort=True):
             r = g["rho_mean"].to_numpy(float)
             m, h = _band(np.log10(r[r > 0]))
             rows.append((60.0 * g["update_rate"].mean(), m, h))
@@ -67,9 +84,12 @@ def plot_rho(runs: pd.DataFrame, hue: str = "planner", ax: Any = None) -> Any:
 
 
 def plot_goals(
-    runs: pd.DataFrame, goals: pd.DataFrame, by: str = "arrival_rate", ax: Any = None
+    runs: pd.DataFrame, goals: pd.DataFrame, by: str | None = None, ax: Any = None
 ) -> Any:
     """Fig. 7b: goals reached against mission time, one line per level of ``by``.
+
+    ``by`` defaults to ``arrival_rate`` for hand-set rates and, for scenarios from a fit or
+    a folder, to the levels of the factors other than the planner.
 
     For a mission time ``T`` a run has reached ``count(t_reached <= T)`` goals; lines show
     the mean over the runs of a level (95% t band), labelled by the level's mean nu (eq. 4).
@@ -80,6 +100,8 @@ def plot_goals(
     """
     import matplotlib.pyplot as plt
 
+    if by is None:
+        runs, by = _clutter(runs, "planner")
     for c in (by, "task", "nu_mean", "mission_time"):
         if c not in runs.columns:
             raise ValueError(f"runs: expected a column {c!r}, got {list(runs.columns)}")

@@ -27,16 +27,24 @@ Example (``models/experiments/fig7.yaml``)::
 Schema (every key optional; unknown keys are errors that list the known ones):
 
 * ``name``: letters, digits, ``.``, ``_``, ``-`` (the default results folder
-  ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path (relative to the
-  working directory); ``seed``: integer in ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
-* ``scenario``: ``arrival_rate`` (> 0, per m^2 per s), ``leave_rate`` (> 0, per s),
-  ``mix_weights`` (1 to 64 numbers > 0 summing to 1), ``mix_rates`` (as many numbers in
-  ``(0, 1e6]``), ``start`` (``stationary`` or ``empty``).
+  ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path; ``catalogue``:
+  an artefact catalogue YAML (default the shipped one, :func:`~are_stats.load_catalogue`);
+  ``behaviours``: true/false (artefacts move along behaviour tracks); ``seed``: integer in
+  ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
+* ``scenario``: one source of artefacts. Hand-set rates: ``arrival_rate`` (> 0, per m^2
+  per s), ``leave_rate`` (> 0, per s), ``mix_weights`` (1 to 64 numbers > 0 summing to 1),
+  ``mix_rates`` (as many numbers in ``(0, 1e6]``), ``start`` (``stationary`` or
+  ``empty``). Or ``fit`` (a fit file of ``are-stats fit``; optional ``start``): replicate
+  ``r`` generates its scenario from one posterior draw chosen by its seed. Or
+  ``scenarios`` (a folder of ``are-stats generate``): replicate ``r`` uses scenario
+  ``r mod n`` (and the folder's tracks with ``behaviours``). The source is not a factor.
 * ``robot``: ``radius``, ``speed`` (> 0), ``camera_xyz``, ``camera_rpy`` (3 numbers),
   ``camera_fov`` (in ``(0, pi)``), ``image_size`` (2 integers in ``[1, 10000]``).
 * ``mission``: ``n_goals`` (integer in ``[1, 100000]``), ``time_limit``,
   ``perception_period``, ``d_max`` (> 0), ``tau``, ``min_goal_separation`` (>= 0),
-  ``perception`` (``all`` or ``camera``; ``camera`` needs the map's mesh ``<map>.ply``).
+  ``perception`` (``all`` or ``camera``; ``camera`` needs the map's mesh ``<map>.ply``),
+  ``behaviour_cell`` (m, > 0: the coarse grid behaviours move on), ``behaviour_dt`` (s per
+  behaviour epoch, > 0).
 * ``planner``: ``name`` (a label), ``algorithm`` (``astar`` or one of
   :data:`~are_stats.experiments.OMPL_ALGORITHMS`), ``range`` (> 0), ``goal_bias``
   (``[0, 1]``), ``time_limit`` (``(0, 3600]`` s), ``max_iterations`` (integer >= 1),
@@ -44,6 +52,10 @@ Schema (every key optional; unknown keys are errors that list the known ones):
   algorithm lacks are errors (A* takes none).
 * ``factors``: ``planner``, ``planner.<option>`` or ``<section>.<key>`` -> a non-empty list
   of distinct levels, each checked as the key it replaces.
+
+Paths (``map``, ``catalogue``, ``scenario.fit``, ``scenario.scenarios``) relative to a config
+file are taken from its folder (from the working directory for a dict), made absolute, and
+the files are read and checked on the client before any Dask worker starts.
 
 Before anything runs, the expected work of the sweep (artefacts drawn, replans, grid passes,
 motion steps, camera rays) and the memory of its largest task are estimated and refused past
@@ -111,6 +123,8 @@ __all__ = [
 _DEFAULTS: dict[str, Any] = {
     "name": "sweep",
     "map": "courtyard",
+    "catalogue": None,
+    "behaviours": False,
     "seed": 0,
     "replicates": 1,
     "scenario": {
@@ -129,12 +143,17 @@ _DEFAULTS: dict[str, Any] = {
         "d_max": 10.0,
         "tau": 10.0,
         "min_goal_separation": 5.0,
+        "behaviour_cell": 1.0,
+        "behaviour_dt": 2.0,
     },
     "planner": {"algorithm": "RRTConnect", "range": 2.0},
     "factors": {},
 }
 _SECTIONS = ("scenario", "robot", "mission", "planner")
-_TOP = ("name", "map", "seed", "replicates", *_SECTIONS, "factors")
+_TOP = ("name", "map", "catalogue", "behaviours", "seed", "replicates", *_SECTIONS, "factors")
+#: Scenario keys that name where the artefacts come from instead of hand-set rates.
+_SOURCES = ("fit", "scenarios")
+_RATES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 #: Most mixture components of a scenario.
 MAX_COMPONENTS = 64
@@ -179,6 +198,8 @@ _SCHEMA: dict[str, dict[str, _Checker]] = {
         "mix_weights": _numbers(1, MAX_COMPONENTS, _POSITIVE),
         "mix_rates": _numbers(1, MAX_COMPONENTS, _number(lo=0.0, lo_open=True, hi=1e6)),
         "start": _choice("stationary", "empty"),
+        "fit": lambda v, s, w: _path_string(v, s, w),
+        "scenarios": lambda v, s, w: _path_string(v, s, w),
     },
     "robot": {
         "radius": _POSITIVE,
@@ -196,6 +217,8 @@ _SCHEMA: dict[str, dict[str, _Checker]] = {
         "d_max": _POSITIVE,
         "tau": _NONNEG,
         "min_goal_separation": _NONNEG,
+        "behaviour_cell": _POSITIVE,
+        "behaviour_dt": _POSITIVE,
     },
     "planner": {
         "name": lambda v, s, w: get_str(v, s, w),
@@ -220,6 +243,56 @@ _PLANNER_OPTIONS = {
 }  # fmt: skip
 
 
+def _path_string(value: Any, src: str, where: str) -> str:
+    v = get_str(value, src, where)
+    if not v or "\x00" in v:
+        raise InputError(src, where, "a file or folder path", v)
+    return v
+
+
+def _resolve(value: str, base: Path) -> str:
+    """``value`` as an absolute path, a relative one taken from the folder ``base`` (the
+    config file's)."""
+    return str((base / Path(value).expanduser()).resolve())
+
+
+def _resolve_map(name: str, base: Path) -> str:
+    """A map path relative to ``base`` made absolute; a shipped map name kept as is."""
+    from are_stats.environment import DEFAULT_MODELS
+
+    p = base / Path(name).expanduser()
+    if not p.is_file() and name == Path(name).name and (DEFAULT_MODELS / f"{name}.yaml").is_file():
+        return name
+    return str(p.resolve())
+
+
+def _scenario(given: Mapping[str, Any], src: str, base: Path) -> dict[str, Any]:
+    """The scenario section: hand-set rates merged over the defaults, or one source (a fit
+    or a scenarios folder, its path resolved against ``base``) with nothing it replaces."""
+    sources = [k for k in _SOURCES if k in given]
+    if not sources:
+        return {**copy.deepcopy(_DEFAULTS["scenario"]), **given}
+    if len(sources) > 1:
+        raise InputError(
+            src, "scenario.scenarios", "either scenario.fit or scenario.scenarios, not both",
+            Described(f"scenarios: {given['scenarios']!r}"),
+        )  # fmt: skip
+    key = sources[0]
+    allowed = ("fit", "start") if key == "fit" else ("scenarios",)
+    for k in given:
+        if k not in allowed:
+            gives = "the rates and mixture" if key == "fit" else "the artefacts"
+            raise InputError(
+                src, f"scenario.{k}",
+                f"no {k} beside scenario.{key} (it gives {gives}; keys: {', '.join(allowed)})",
+                Described(f"{k}: {given[k]!r}"),
+            )  # fmt: skip
+    out = {key: _resolve(given[key], base)}
+    if key == "fit":
+        out["start"] = given.get("start", _DEFAULTS["scenario"]["start"])
+    return out
+
+
 def _section(sec: str, value: Any, src: str, where: str) -> dict[str, Any]:
     """Check every key of one section (a mapping); values normalised to plain types."""
     schema = _SCHEMA[sec]
@@ -231,13 +304,13 @@ def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> N
     """Constraints between keys of the resolved sections (``where`` names the task)."""
     pre = f"{where}: " if where else ""
     sc = sections["scenario"]
-    w, r = sc["mix_weights"], sc["mix_rates"]
+    w, r = sc.get("mix_weights", ()), sc.get("mix_rates", ())
     if len(w) != len(r):
         raise InputError(
             src, f"{pre}scenario.mix_rates",
             f"as many rates as scenario.mix_weights has weights ({len(w)})", r,
         )  # fmt: skip
-    if abs(math.fsum(w) - 1.0) > 1e-6:
+    if w and abs(math.fsum(w) - 1.0) > 1e-6:
         raise InputError(src, f"{pre}scenario.mix_weights", "weights summing to 1", w)
     pl = sections["planner"]
     algo = pl.get("algorithm", "RRTConnect")
@@ -282,8 +355,11 @@ def _label(level: Any) -> str:
     return str(level)
 
 
-def _validate(raw: Any, src: str) -> dict[str, Any]:
-    """The schema check of a whole config (no file other than the config is read)."""
+def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
+    """The schema check of a whole config (no file other than the config is read); relative
+    paths (map, catalogue, scenario.fit, scenario.scenarios) are made absolute from the
+    folder ``base`` (default: the working directory)."""
+    base = Path.cwd() if base is None else Path(base)
     top = check_keys(raw, src, "", _TOP)
     cfg: dict[str, Any] = {}
     name = top.get("name", _DEFAULTS["name"])
@@ -297,15 +373,22 @@ def _validate(raw: Any, src: str) -> dict[str, Any]:
     cfg["map"] = get_str(top.get("map", _DEFAULTS["map"]), src, "map")
     if not cfg["map"] or "\x00" in cfg["map"]:
         raise InputError(src, "map", "a shipped map name or a ROS map YAML path", cfg["map"])
+    cfg["map"] = _resolve_map(cfg["map"], base)
+    cat = top.get("catalogue")
+    cfg["catalogue"] = None if cat is None else _resolve(_path_string(cat, src, "catalogue"), base)
+    cfg["behaviours"] = get_bool(top.get("behaviours", False), src, "behaviours")
     cfg["seed"] = get_int(top.get("seed", _DEFAULTS["seed"]), src, "seed", lo=0, hi=MAX_SEED)
     cfg["replicates"] = get_int(
         top.get("replicates", _DEFAULTS["replicates"]), src, "replicates", lo=1, hi=2**62
     )
     for sec in _SECTIONS:
         given = _section(sec, top[sec], src, sec) if sec in top else {}
+        if sec == "scenario":
+            cfg[sec] = _scenario(given, src, base)
+            continue
         # the planner is replaced as a whole; the other sections are merged over defaults
-        base = {} if sec == "planner" and sec in top else copy.deepcopy(_DEFAULTS[sec])
-        cfg[sec] = {**base, **given}
+        merged = {} if sec == "planner" and sec in top else copy.deepcopy(_DEFAULTS[sec])
+        cfg[sec] = {**merged, **given}
     _cross(cfg, src, "")
     factors = top.get("factors", {})
     if not isinstance(factors, Mapping):
@@ -314,6 +397,17 @@ def _validate(raw: Any, src: str) -> dict[str, Any]:
     for key, levels in factors.items():
         sec, sub, checker = _factor_checker(key, src)
         where = f"factors.{key}"
+        if sec == "scenario" and sub in _SOURCES:
+            raise InputError(
+                src, where, "a factor other than the scenario source (one sweep, one source)",
+                Described(f"the key {key!r}"),
+            )  # fmt: skip
+        source = next((k for k in _SOURCES if k in cfg["scenario"]), None)
+        if sec == "scenario" and source is not None and sub not in cfg["scenario"]:
+            raise InputError(
+                src, where, f"no scenario rate factor beside scenario.{source} (it gives them)",
+                Described(f"the key {key!r}"),
+            )  # fmt: skip
         if not isinstance(levels, list | tuple) or not levels:
             raise InputError(src, where, "a non-empty list of levels", levels)
         clean, labels = [], {}
@@ -397,28 +491,110 @@ def _grid(path: str) -> Any:
     return OccupancyGrid.from_ros_yaml(path)
 
 
-def _task_cost(sections: Mapping[str, Mapping[str, Any]], grid: Any) -> tuple[float, float, float]:
-    """``(bytes, steps, description)`` of one task, from its expected artefact, event,
-    motion-step and camera-ray counts."""
-    sc, ms, rb = sections["scenario"], sections["mission"], sections["robot"]
-    lam_nu = sc["arrival_rate"] * grid.n_free * grid.resolution**2
-    mu, horizon = sc["leave_rate"], ms["time_limit"]
+@functools.lru_cache(maxsize=4)
+def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    """Posterior draws (:func:`~are_stats.scenarios.posterior_draws`) and class labels of a
+    fit file."""
+    from are_stats.fitting import read_fit
+    from are_stats.scenarios import posterior_draws
+
+    idata = read_fit(path)
+    names = idata.posterior.attrs.get("class_labels")
+    return posterior_draws(idata), (str(names).split(",") if names else None)
+
+
+@functools.lru_cache(maxsize=4)
+def _scenario_folder(path: str) -> tuple[pd.DataFrame, dict[str, Any], pd.DataFrame | None]:
+    """Artefacts, manifest and behaviour tracks (None without) of a scenarios folder."""
+    from are_stats.scenarios import read_scenarios
+
+    df, meta = read_scenarios(path)
+    info = meta.get("tracks")
+    tracks = None
+    if isinstance(info, Mapping) and isinstance(info.get("file"), str):
+        tracks = pd.read_parquet(Path(path) / Path(info["file"]).name)
+    return df, meta, tracks
+
+
+@functools.lru_cache(maxsize=4)
+def _load_catalogue(path: str | None) -> Any:
+    from are_stats.environment import load_catalogue
+
+    return load_catalogue(path)
+
+
+def _scenario_size(
+    sections: Mapping[str, Mapping[str, Any]], grid: Any, src: str, pre: str
+) -> tuple[float, float, float]:
+    """``(artefacts, live at once, arrivals and leaves)`` expected in one task; reads (and
+    so checks) the scenario source, naming its key in errors."""
+    sc, horizon = sections["scenario"], float(sections["mission"]["time_limit"])
+    if "scenarios" in sc:
+        p = Path(sc["scenarios"])
+        if not p.is_dir():
+            raise InputError(
+                src, f"{pre}scenario.scenarios", "a scenarios folder written by are-stats generate",
+                Described(f"no such folder {p}"),
+            )  # fmt: skip
+        df, meta, _ = _scenario_folder(str(p))
+        gen = meta.get("generation")
+        h = gen.get("horizon") if isinstance(gen, Mapping) else None
+        if isinstance(h, int | float) and horizon > float(h) * (1 + 1e-9):
+            raise InputError(
+                src, f"{pre}mission.time_limit", f"at most the horizon {h} of the scenarios {p}",
+                horizon,
+            )  # fmt: skip
+        n = float(df.groupby("scenario").size().max()) if len(df) else 0.0
+        return n, n, 2.0 * n
+    if "fit" in sc:
+        p = Path(sc["fit"])
+        if not p.is_file():
+            raise InputError(
+                src, f"{pre}scenario.fit", "a fit file written by are-stats fit",
+                Described(f"no such file {p}"),
+            )  # fmt: skip
+        draws, _ = _fit_draws(str(p))
+        lam, mu = float(np.mean(draws["arrival_rate"])), float(np.mean(draws["leave_rate"]))
+    else:
+        lam, mu = float(sc["arrival_rate"]), float(sc["leave_rate"])
+    lam_nu = lam * grid.n_free * grid.resolution**2
     stationary = sc["start"] == "stationary"
     n_art = lam_nu / mu * stationary + lam_nu * horizon
     n_live = lam_nu / mu if stationary else lam_nu * min(horizon, 1.0 / mu)
+    return n_art, n_live, 2.0 * lam_nu * horizon
+
+
+def _task_cost(
+    sections: Mapping[str, Mapping[str, Any]],
+    grid: Any,
+    size: tuple[float, float, float],
+    behaviours: bool,
+) -> tuple[float, float, str]:
+    """``(bytes, steps, description)`` of one task, from its expected artefact, event,
+    motion-step, camera-ray and behaviour-policy counts."""
+    ms, rb = sections["mission"], sections["robot"]
+    n_art, n_live, n_events = size
+    horizon = ms["time_limit"]
     camera = ms["perception"] == "camera"
     n_checks = horizon / ms["perception_period"] if camera else 0.0
-    n_plans = 2.0 * lam_nu * horizon + n_checks + ms["n_goals"] + 1.0
+    n_epochs = horizon / ms["behaviour_dt"] if behaviours else 0.0
+    # a camera check replans only when A_f changes: about twice per artefact
+    n_plans = n_events + min(n_checks, 2.0 * n_art) + n_epochs + ms["n_goals"] + 1.0
     step = min(grid.resolution, rb["radius"] / 2.0)
     n_motion = rb["speed"] * horizon / step + n_plans
     w, h = rb.get("image_size", (64, 48))
     rays = float(w) * float(h) if camera else 0.0
     cells = float(grid.data.size)
+    # the MDP policy of the artefacts' behaviours: artefacts x epochs (padded to 64) x cells
+    f = max(1.0, round(ms["behaviour_cell"] / grid.resolution))
+    policy = n_art * 64.0 * math.ceil(max(n_epochs, 1.0) / 64.0) * cells / f**2 * 4.0
+    policy *= behaviours
     n_bytes = (
         n_art * _BYTES_PER_ARTEFACT
         + cells * _BYTES_PER_CELL
         + n_motion * _BYTES_PER_MOTION
         + rays * _BYTES_PER_RAY
+        + policy
     )
     steps = (
         _STEPS_PER_TASK
@@ -426,10 +602,13 @@ def _task_cost(sections: Mapping[str, Mapping[str, Any]], grid: Any) -> tuple[fl
         + n_plans * (cells * _STEPS_PER_CELL + n_live * _STEPS_PER_LIVE)
         + n_motion * _STEPS_PER_MOTION
         + n_checks * rays * _STEPS_PER_RAY
+        + policy * 10.0
     )
     what = f"about {n_art:.3g} artefacts, {n_motion:.3g} motion steps, {cells:.3g} map cells"
     if camera:
         what += f", {n_checks * rays:.3g} camera rays"
+    if behaviours:
+        what += f", {n_epochs:.3g} behaviour epochs"
     return n_bytes, steps, what
 
 
@@ -449,6 +628,18 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
         )  # fmt: skip
     grid = _grid(str(path))
     has_mesh = path.with_suffix(".ply").is_file()
+    if cfg["catalogue"] is not None:
+        if not Path(cfg["catalogue"]).is_file():
+            raise InputError(
+                src, "catalogue", "an artefact catalogue YAML",
+                Described(f"no such file {cfg['catalogue']}"),
+            )  # fmt: skip
+        _load_catalogue(cfg["catalogue"])
+    if cfg["behaviours"] and abs(float(grid.origin[2])) > 1e-9:
+        raise InputError(
+            src, "behaviours", "a map whose origin yaw is 0 (behaviours move on its cells)",
+            Described(f"true, with the map's origin yaw {grid.origin[2]}"),
+        )  # fmt: skip
     worst_bytes, total, worst = 0.0, 0.0, ""
     for sections, levels in _combos(cfg):
         where = "factors " + ", ".join(f"{k}={v}" for k, v in levels.items()) if levels else ""
@@ -459,7 +650,8 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
                 f"'all', or 'camera' with the map's mesh {path.with_suffix('.ply')}",
                 Described("'camera' and no such mesh"),
             )  # fmt: skip
-        n_bytes, steps, what = _task_cost(sections, grid)
+        size = _scenario_size(sections, grid, src, f"{where}: " if where else "")
+        n_bytes, steps, what = _task_cost(sections, grid, size, cfg["behaviours"])
         if n_bytes > worst_bytes:
             worst_bytes, worst = n_bytes, (f"{where}: " if where else "") + what
         total += steps * cfg["replicates"]
@@ -492,15 +684,15 @@ def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str
         If the sweep needs more memory or work than the limits.
     """
     if isinstance(config, Mapping):
-        raw, src = config, "config"
+        raw, src, base = config, "config", Path.cwd()
     elif isinstance(config, str | os.PathLike):
         p = Path(config)
         if not p.exists():
             raise FileNotFoundError(f"{p}: sweep config not found")
-        raw, src = load_yaml(p, "sweep config"), str(p)
+        raw, src, base = load_yaml(p, "sweep config"), str(p), p.resolve().parent
     else:
         raise InputError("config", "", "a sweep config path or mapping", config)
-    cfg = _validate(raw, src)
+    cfg = _validate(raw, src, base)
     _check_cost(cfg, src)
     return cfg
 
@@ -516,7 +708,10 @@ def _expand(cfg: Mapping[str, Any]) -> list[dict[str, Any]]:
     for base, levels in _combos(cfg):
         for r in range(cfg["replicates"]):
             seed = int(np.random.SeedSequence([cfg["seed"], r]).generate_state(1)[0])
-            task = {"map": cfg["map"], "replicate": r, "seed": seed, "levels": levels, **base}
+            task = {
+                "map": cfg["map"], "catalogue": cfg["catalogue"], "behaviours": cfg["behaviours"],
+                "replicate": r, "seed": seed, "levels": levels, **base,
+            }  # fmt: skip
             task["task"] = f"{idx:05d}-{_digest(task)}"
             task["sweep"] = sweep
             tasks.append(task)
@@ -530,7 +725,8 @@ def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str
     Each task has ``task`` (a file-name stem: index and a digest of its settings),
     ``sweep`` (a digest of the whole config), ``replicate``, ``seed`` (the replicate's
     integer seed), ``levels`` (factor -> label) and the resolved ``scenario``, ``robot``,
-    ``mission``, ``planner``, ``map``.
+    ``mission``, ``planner``, ``map``, ``catalogue`` (an absolute path or None) and
+    ``behaviours``.
     """
     return _expand(load_sweep_config(config))
 
@@ -548,33 +744,140 @@ def _load_map(name: str) -> tuple[Any, Any]:
     return grid, mesh
 
 
+def _coarse_occupancy(grid: Any, cell: float) -> tuple[np.ndarray, float]:
+    """Occupancy ``(h, w)`` of ``grid`` on square cells of about ``cell`` m (majority of
+    non-free map cells), and the coarse cell size: the grid the behaviours move on."""
+    f = max(1, int(round(min(cell / grid.resolution, 2.0**31))))
+    h, w = grid.shape[0] // f, grid.shape[1] // f
+    if h < 2 or w < 2:
+        raise ValueError(
+            f"mission.behaviour_cell: expected a cell much smaller than the map, got {cell}"
+        )
+    blocked = ~grid.free[: h * f, : w * f]
+    return blocked.reshape(h, f, w, f).mean(axis=(1, 3)) > 0.5, grid.resolution * f
+
+
+def _behaviour_tracks(
+    seed: int, art: pd.DataFrame, scene: Any, grid: Any, catalogue: Any, cell: float,
+    dt: float, horizon: float,
+) -> pd.DataFrame:  # fmt: skip
+    """Behaviour tracks (:func:`~are_stats.behaviour.scenario_tracks`) of one scenario's
+    artefacts over the mission, on the coarse grid: each artefact's behaviour is the one of
+    its catalogue class that its mark selects (``mark mod`` the allowed ones); starts on a
+    coarse obstacle move to the nearest free coarse cell."""
+    import jax
+    from scipy import ndimage
+
+    from are_stats.behaviour import scenario_tracks
+
+    occ, res = _coarse_occupancy(grid, cell)
+    if occ.all():
+        raise ValueError("mission.behaviour_cell: the coarse behaviour grid has no free cell")
+    x0, y0 = float(grid.origin[0]), float(grid.origin[1])
+    keep = scene.t_arrive < horizon
+    marks = art["mark"].to_numpy(np.int64) if "mark" in art.columns else np.zeros(len(art), int)
+    behaviours = []
+    for c, x in zip(scene.classes[keep], marks[keep], strict=True):
+        allowed = catalogue.row(int(c)).behaviours
+        behaviours.append(allowed[int(x) % len(allowed)] if x >= 0 else allowed[0])
+    xy = art[["x", "y"]].to_numpy(float)[keep]
+    col = np.clip(((xy[:, 0] - x0) // res).astype(int), 0, occ.shape[1] - 1)
+    row = np.clip(((xy[:, 1] - y0) // res).astype(int), 0, occ.shape[0] - 1)
+    _, (ri, ci) = ndimage.distance_transform_edt(occ, return_indices=True)
+    row, col = ri[row, col], ci[row, col]
+    table = pd.DataFrame({
+        "scenario": 0, "id": scene.ids[keep], "t_arrive": scene.t_arrive[keep],
+        "t_leave": np.minimum(scene.t_leave[keep], horizon), "x": x0 + (col + 0.5) * res,
+        "y": y0 + (row + 0.5) * res, "yaw": art["yaw"].to_numpy(float)[keep],
+        "behaviour": behaviours,
+    })  # fmt: skip
+    if table.empty:
+        return pd.DataFrame(columns=["scenario", "id", "t", "x", "y", "yaw"])
+    return pd.DataFrame(
+        scenario_tracks(jax.random.key(seed), table, occ, dt=dt, resolution=res, origin=(x0, y0))
+    )
+
+
+def _task_scenario(
+    task: Mapping[str, Any], grid: Any, catalogue: Any
+) -> tuple[Any, dict[str, Any]]:
+    """The task's Scene (with behaviour tracks when asked) and the columns that describe
+    where it came from: ``draw`` (posterior draw, scenario of the folder, or -1),
+    ``arrival_rate``, ``n_artefacts`` and ``n_arrivals`` (arrivals in ``(0, time_limit]``)."""
+    from are_stats.scenarios import Scene, generate_scenarios
+
+    sc, ms = task["scenario"], task["mission"]
+    seed, horizon = int(task["seed"]), float(ms["time_limit"])
+    labels, tracks, draw = None, None, -1
+    if "scenarios" in sc:
+        table, meta, all_tracks = _scenario_folder(str(sc["scenarios"]))
+        n = int(table["scenario"].max()) + 1 if len(table) else 1
+        n = max(n, int(meta.get("n_scenarios", n) or n))
+        draw = int(task["replicate"]) % n
+        art = table[table["scenario"] == draw].reset_index(drop=True)
+        labels = meta.get("class_labels")
+        rate = float("nan")
+        if task.get("behaviours") and all_tracks is not None:
+            tracks = all_tracks[all_tracks["scenario"] == draw].reset_index(drop=True)
+    else:
+        if "fit" in sc:
+            draws, labels = _fit_draws(str(sc["fit"]))
+            # one posterior draw per replicate, chosen by the replicate's seed alone
+            draw = int(np.random.default_rng([seed, 1]).integers(draws["arrival_rate"].shape[0]))
+            params = {k: v[draw : draw + 1] for k, v in draws.items()}
+        else:
+            params = {
+                "arrival_rate": np.atleast_1d(float(sc["arrival_rate"])),
+                "leave_rate": np.atleast_1d(float(sc["leave_rate"])),
+                "mix_weights": np.asarray(sc["mix_weights"], float)[None, :],
+                "mix_rates": np.asarray(sc["mix_rates"], float)[None, :],
+            }
+        rate = float(params["arrival_rate"][0])
+        art = generate_scenarios(
+            seed, params, 1, horizon, free_mask=grid, start=sc.get("start", "stationary")
+        )
+    scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    if task.get("behaviours") and tracks is None:
+        tracks = _behaviour_tracks(
+            seed, art, scene, grid, catalogue, float(ms.get("behaviour_cell", 1.0)),
+            float(ms.get("behaviour_dt", 2.0)), horizon,
+        )  # fmt: skip
+        scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    t_arr = art["t_arrive"].to_numpy(float)
+    info = {
+        "draw": draw,
+        "arrival_rate": rate,
+        "n_artefacts": len(art),
+        "n_arrivals": int(((t_arr > 0) & (t_arr <= horizon)).sum()),
+    }
+    return scene, info
+
+
 def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
-    """Run one task of :func:`expand_tasks`: generate its scenario, run the mission.
+    """Run one task of :func:`expand_tasks`: build its scenario, run the mission.
+
+    The scenario is drawn from the hand-set rates, or from one posterior draw of the fit
+    (chosen by the replicate's seed), or is scenario ``replicate mod n`` of the scenarios
+    folder; with ``behaviours`` its artefacts move along behaviour tracks (the folder's, else
+    rolled out on the map coarsened to ``mission.behaviour_cell``).
 
     Returns
     -------
     dict
         ``runs`` (one row: task, sweep digest, replicate, seed, factor levels as
-        ``level:<factor>`` columns, the planner label and the mission summary), ``replans``
-        and ``goals`` (the mission tables with the task's identifying columns).
+        ``level:<factor>`` columns, the planner label, ``arrival_rate`` (NaN for a scenarios
+        folder), ``draw``, ``n_artefacts``, ``n_arrivals`` and the mission summary),
+        ``replans`` and ``goals`` (the mission tables with the task's identifying columns).
     """
     from are_stats.experiments._loop import random_goals, run_mission
     from are_stats.experiments._robot import Robot
-    from are_stats.scenarios import generate_scenarios
 
     grid, mesh = _load_map(str(task["map"]))
-    sc, ms = dict(task["scenario"]), dict(task["mission"])
-    params = {
-        "arrival_rate": np.atleast_1d(float(sc["arrival_rate"])),
-        "leave_rate": np.atleast_1d(float(sc["leave_rate"])),
-        "mix_weights": np.asarray(sc["mix_weights"], float)[None, :],
-        "mix_rates": np.asarray(sc["mix_rates"], float)[None, :],
-    }
+    catalogue = _load_catalogue(task.get("catalogue"))
+    ms = dict(task["mission"])
     seed = int(task["seed"])
     horizon = float(ms["time_limit"])
-    art = generate_scenarios(
-        seed, params, 1, horizon, free_mask=grid, start=sc.get("start", "stationary")
-    )
+    scene, source = _task_scenario(task, grid, catalogue)
     robot = Robot(**task["robot"])
     goals = random_goals(
         grid, int(ms["n_goals"]) + 1, robot.radius + grid.resolution, seed,
@@ -583,10 +886,11 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
     planner = dict(task["planner"])
     label = str(planner.get("name", _label({k: v for k, v in planner.items() if k != "name"})))
     res = run_mission(
-        grid, art, goals, planner, robot=robot, time_limit=horizon,
+        grid, scene, goals, planner, robot=robot, catalogue=catalogue, time_limit=horizon,
         perception=ms.get("perception", "all"), env_mesh=mesh,
         perception_period=float(ms.get("perception_period", 1.0)),
         d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,
+        move_period=float(ms.get("behaviour_dt", 2.0)),
     )  # fmt: skip
     ident = {
         "task": task["task"],
@@ -596,8 +900,10 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
     }
     ident.update({f"level:{k}": v for k, v in task["levels"].items()})
     ident["planner"] = label
-    ident["arrival_rate"] = float(sc["arrival_rate"])
-    runs = pd.DataFrame([{**ident, **res.summary}])
+    ident["arrival_rate"] = source["arrival_rate"]
+    ident["draw"] = source["draw"]
+    runs = pd.DataFrame([{**ident, **res.summary, "n_artefacts": source["n_artefacts"],
+                          "n_arrivals": source["n_arrivals"]}])  # fmt: skip
     out = {"runs": runs}
     for name, df in (("replans", res.replans), ("goals", res.goals)):
         df = df.copy()
@@ -877,7 +1183,7 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
         raise InputError(
             meta, "", "the sweep config of the results folder", Described("no such file")
         )
-    cfg = _validate(load_yaml(meta, "sweep config"), str(meta))
+    cfg = _validate(load_yaml(meta, "sweep config"), str(meta), out)
     n_tasks = _n_combos(cfg) * cfg["replicates"]
     check_memory(n_tasks * _BYTES_PER_TASK, f"the task list of {n_tasks} tasks", meta)
     check_work(n_tasks * _STEPS_PER_TASK, f"a sweep of {n_tasks} tasks", meta)

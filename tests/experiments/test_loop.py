@@ -3,29 +3,26 @@ collisions, goals) and the robot model."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from are_stats.environment import OccupancyGrid
+from are_stats.environment import ArtefactCatalogue, ArtefactClass, OccupancyGrid
 from are_stats.experiments import Robot, circle_box_overlap, run_mission
 from tests.helpers import assert_allclose
 
 
-class _BoxCatalogue:
-    """One class whose every row is a 2 m x 2 m x 1 m box (duck-typed catalogue)."""
-
-    def __len__(self):
-        return 1
-
-    def select(self, component, mark):
-        return SimpleNamespace(
-            label="box",
-            half_extents=np.array([1.0, 1.0, 0.5]),
-            bounds=np.array([[-1.0, -1.0, 0.0], [1.0, 1.0, 1.0]]),
+def _BoxCatalogue():
+    """One class whose every row is a 2 m x 2 m x 1 m box, centred on the artefact's pose."""
+    return ArtefactCatalogue([
+        ArtefactClass(
+            label="box", row=0, mesh_path=Path("box.ply"),
+            bounds=np.array([[-1.0, -1.0, 0.0], [1.0, 1.0, 1.0]]), speeds={"walk": 0.5},
+            behaviours=("walk", "stop"),
         )
+    ])  # fmt: skip
 
 
 GRID = OccupancyGrid(np.zeros((20, 20)), 1.0)
@@ -174,3 +171,69 @@ def test_bad_input(kwargs, match):
         args["goals"] = [[5.0, 5.0]]
     with pytest.raises(ValueError, match=match):
         run_mission(args.pop("grid"), args.pop("artefacts"), args.pop("goals"), **args)
+
+
+def _walker(t_cross):
+    """A 2 m box walking north along x = 10 from y = 1 to y = 19 at 1 m/s (one epoch per
+    second), passing y = 10 (the robot's straight path) at ``t_cross``."""
+    t = np.arange(0.0, 19.0)
+    y = 10.0 + (t - t_cross)
+    keep = (y >= 1.0) & (y <= 19.0)
+    tracks = pd.DataFrame({"id": 0, "t": t[keep], "x": 10.0, "y": y[keep], "yaw": np.pi / 2})
+    art = _art([[0.0, 60.0, 10.0, float(y[keep][0]), np.pi / 2, 0]])
+    return art, tracks
+
+
+def test_walking_artefact_triggers_a_replan_and_is_not_driven_through():
+    art, tracks = _walker(t_cross=8.0)
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0)
+    res = run_mission(GRID, art, [[18.0, 10.0]], "astar", tracks=tracks, record=True, **kw)
+    s = res.summary
+    assert s["goals_reached"] == 1
+    assert (res.timeline["kind"] == "move").any() and s["n_move_updates"] > 0
+    assert res.replans["reason"].str.contains("move").any()
+    assert s["collisions"] == 0 and s["artefact_contacts"] == 0
+    # independent truth: the box interpolated by hand along its track, against every
+    # recorded robot pose (disc of radius 0.3 vs the 2 m square)
+    p = res.trace.poses
+    by = np.interp(p[:, 0], tracks["t"], tracks["y"])
+    gap = (
+        np.maximum(np.abs(p[:, 1] - 10.0) - 1.0, 0.0) ** 2
+        + np.maximum(np.abs(p[:, 2] - by) - 1.0, 0.0) ** 2
+    )
+    assert np.sqrt(gap).min() > ROBOT.radius
+    # moves applied on a 2 s clock: one update per tick, and still no contact
+    tick = run_mission(GRID, art, [[18.0, 10.0]], "astar", tracks=tracks, move_period=2.0, **kw)
+    moves = tick.timeline.loc[tick.timeline["kind"] == "move", "t"].to_numpy()
+    assert moves.size == tick.summary["n_move_updates"] > 0
+    assert_allclose(moves % 2.0, 0.0) and tick.summary["collisions"] == 0
+    # the same walker without its track stands still at its first pose, off the path
+    still = run_mission(GRID, art, [[18.0, 10.0]], "astar", **kw)
+    assert still.summary["n_move_updates"] == 0 and not (still.timeline["kind"] == "move").any()
+
+    # a planner blind to the map drives straight into the walker
+    def blind(free, start, goal, params):
+        return np.vstack([start, goal])
+
+    hit = run_mission(GRID, art, [[18.0, 10.0]], blind, tracks=tracks, **kw)
+    assert hit.summary["collisions"] + hit.summary["artefact_contacts"] >= 1
+
+
+def _blind(free, start, goal, params):  # a user planner that ignores the map
+    return np.vstack([start, goal])
+
+
+def test_contacts_are_blamed_on_whoever_closed_the_gap():
+    slow = Robot(radius=0.3, speed=0.25)
+    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0)
+    # a walker catches up with the robot from behind along its path (1 m/s against 0.25)
+    t = np.arange(0.0, 40.0)  # it walks on past the goal and off the map
+    behind = pd.DataFrame({"id": 0, "t": t, "x": 0.5 + t, "y": 10.0, "yaw": 0.0})
+    art = _art([[0.0, 60.0, 0.5, 10.0, 0.0, 0]])
+    res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=behind, **kw)
+    assert res.summary["artefact_contacts"] == 1 and res.summary["collisions"] == 0
+    # the robot drives into the side of a walker crossing its path slowly (0.1 m/s)
+    across = pd.DataFrame({"id": 0, "t": t, "x": 8.0, "y": 9.5 + 0.1 * t, "yaw": np.pi / 2})
+    art = _art([[0.0, 60.0, 8.0, 9.5, np.pi / 2, 0]])
+    res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=across, **kw)
+    assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
