@@ -410,37 +410,6 @@ def _class_labels(idata: Any) -> list[str] | None:
     return str(names).split(",") if names else None
 
 
-def coarse_occupancy(grid: Any, cell: float) -> tuple[np.ndarray, float]:
-    """Occupancy of ``grid`` on square cells of about ``cell`` metres (majority vote).
-
-    Parameters
-    ----------
-    grid : OccupancyGrid
-        The map (yaw of its origin must be 0).
-    cell : float
-        Target cell size in metres (rounded to a whole number of map cells).
-
-    Returns
-    -------
-    occupied : (h, w) bool
-        True where most of the map cells are not free (occupied or unknown).
-    resolution : float
-        The coarse cell size.
-    """
-    from are_stats.inputs import get_float
-
-    if abs(float(grid.origin[2])) > 1e-9:
-        raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
-    cell = get_float(cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
-    f = max(1, int(round(min(cell / grid.resolution, 2.0**62))))
-    h, w = grid.shape[0] // f, grid.shape[1] // f
-    if h < 2 or w < 2:
-        raise ValueError(f"--behaviour-cell: expected a cell much smaller than the map, got {cell}")
-    blocked = ~grid.free[: h * f, : w * f]
-    frac = blocked.reshape(h, f, w, f).mean(axis=(1, 3))
-    return frac > 0.5, grid.resolution * f
-
-
 def _check_tracks_size(table: Any, shape: tuple[int, int], dt: float) -> None:
     """Refuse MDP rollouts past the memory or work limit, before solving anything.
 
@@ -470,42 +439,36 @@ def _check_tracks_size(table: Any, shape: tuple[int, int], dt: float) -> None:
 
 
 def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
-    """MDP trajectories for generated scenarios on a coarse copy of the map."""
+    """MDP trajectories of generated scenarios (:func:`are_stats.behaviour.behaviour_tracks`)."""
     import pandas as pd
-    from scipy import ndimage
 
-    from are_stats.behaviour import scenario_tracks
-    from are_stats.environment import load_catalogue
+    from are_stats.behaviour import behaviour_tracks
+    from are_stats.environment import coarse_occupancy, load_catalogue
+    from are_stats.scenarios import Scene
 
     if grid is None:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    occ, res = coarse_occupancy(grid, cell)
-    x0, y0 = float(grid.origin[0]), float(grid.origin[1])
-    table = df.rename(columns={"artefact": "id"}).copy()
-    # starts on a coarse obstacle move to the nearest free coarse cell
-    col = np.clip(((table["x"].to_numpy() - x0) // res).astype(int), 0, occ.shape[1] - 1)
-    row = np.clip(((table["y"].to_numpy() - y0) // res).astype(int), 0, occ.shape[0] - 1)
-    _, (ri, ci) = ndimage.distance_transform_edt(occ, return_indices=True)
-    row, col = ri[row, col], ci[row, col]
-    table["x"] = x0 + (col + 0.5) * res
-    table["y"] = y0 + (row + 0.5) * res
-    _check_tracks_size(table, occ.shape, dt)
+    occ, _ = coarse_occupancy(grid, cell, "--behaviour-cell")
+    _check_tracks_size(df, occ.shape, dt)
     cat = load_catalogue()
-
-    def behaviour_of(r: Any) -> str:
-        allowed = list(_catalogue_class(cat, labels, int(r["class"])).behaviours)
-        return allowed[int(r["mark"]) % len(allowed)] if int(r["mark"]) >= 0 else allowed[0]
-
-    tracks = scenario_tracks(
-        jax.random.key(seed),
-        table,
-        occ,
-        dt=dt,
-        resolution=res,
-        origin=(x0, y0),
-        behaviour_of=behaviour_of,
+    classes = np.zeros(len(df), np.int64)
+    sc = df["scenario"].to_numpy()
+    for s in np.unique(sc):
+        idx = np.flatnonzero(sc == s)
+        classes[idx] = Scene.from_scenarios(df.iloc[idx], cat, class_labels=labels).classes
+    tracks = pd.DataFrame(
+        behaviour_tracks(
+            jax.random.key(seed),
+            df,
+            classes,
+            grid,
+            cat,
+            cell=cell,
+            dt=dt,
+            source="--behaviour-cell",
+        )  # fmt: skip
     )
-    tracks = pd.DataFrame(tracks)
+    res = float(grid.resolution) * max(1, int(round(cell / float(grid.resolution))))
     path = Path(out) / "tracks.parquet"
     with atomic_path(path, force=force) as tmp:
         tracks.to_parquet(tmp, index=False)
@@ -607,14 +570,6 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     console.print(yaml.safe_dump(summary, sort_keys=False))
     console.print(f"outputs in {out}/ (figures in {out / 'criticism'}/), fit in {fit_file}")
     return summary
-
-
-def _catalogue_class(cat: Any, labels: list[str] | None, c: int) -> Any:
-    """Catalogue class of mixture component ``c``: by its label when the catalogue knows it,
-    else the catalogue's class in the same position (the last one beyond the table)."""
-    if labels is not None and 0 <= c < len(labels) and labels[c] in cat.labels:
-        return cat[labels[c]]
-    return cat.classes[int(np.clip(c, 0, len(cat.classes) - 1))]
 
 
 def run_perceive(

@@ -37,3 +37,11 @@ __all__ += [
 from are_stats.behaviour._plots import plot_tracks, plot_values  # noqa: E402
 
 __all__ += ["plot_tracks", "plot_values"]
+
+from are_stats.behaviour._choice import (  # noqa: E402
+    TRACK_COLUMNS,
+    behaviour_tracks,
+    choose_behaviours,
+)
+
+__all__ += ["TRACK_COLUMNS", "behaviour_tracks", "choose_behaviours"]

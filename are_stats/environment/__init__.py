@@ -15,7 +15,13 @@ from are_stats.environment._frames import (
     planar_pose_matrix,
     pose_matrix,
 )
-from are_stats.environment._grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from are_stats.environment._grid import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    OccupancyGrid,
+    coarse_occupancy,
+)
 from are_stats.environment._mesh import extrude_grid, load_mesh, occupied_polygons
 from are_stats.environment._voxels import VoxelMap
 
@@ -28,6 +34,7 @@ __all__ = [
     "UNKNOWN",
     "ArtefactCatalogue",
     "ArtefactClass",
+    "coarse_occupancy",
     "OccupancyGrid",
     "PropertyRow",
     "TransformTree",

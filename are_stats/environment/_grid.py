@@ -688,3 +688,43 @@ def _pixels_to_values(
     else:
         opaque = np.ones(arr.shape[:-1], bool)
     return _shade_to_values(_shade(quanta, n), opaque, mode, negate, occ_th, free_th)
+
+
+def coarse_occupancy(grid: Any, cell: float, source: str = "cell") -> tuple[np.ndarray, float]:
+    """Occupancy of ``grid`` on square cells of about ``cell`` metres (majority vote).
+
+    The grid the behaviours move on: a coarse cell is occupied where most of its map cells
+    are not free (occupied or unknown).
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+        The map (the yaw of its origin must be 0).
+    cell : float
+        Target cell size in metres (rounded to a whole number of map cells).
+    source : str
+        The option or key the cell came from, named in errors.
+
+    Returns
+    -------
+    occupied : (h, w) bool
+    resolution : float
+        The coarse cell size.
+
+    Raises
+    ------
+    ValueError
+        If the origin is rotated, the cell is not a finite number > 0, or the coarse grid
+        would have fewer than 2 x 2 cells.
+    """
+    from are_stats.inputs import get_float
+
+    if abs(float(grid.origin[2])) > 1e-9:
+        raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
+    cell = get_float(cell, source, "", lo=0.0, lo_open=True)
+    f = max(1, int(round(min(cell / grid.resolution, 2.0**31))))
+    h, w = grid.shape[0] // f, grid.shape[1] // f
+    if h < 2 or w < 2:
+        raise ValueError(f"{source}: expected a cell much smaller than the map, got {cell}")
+    blocked = ~grid.free[: h * f, : w * f]
+    return blocked.reshape(h, f, w, f).mean(axis=(1, 3)) > 0.5, grid.resolution * f

@@ -744,58 +744,20 @@ def _load_map(name: str) -> tuple[Any, Any]:
     return grid, mesh
 
 
-def _coarse_occupancy(grid: Any, cell: float) -> tuple[np.ndarray, float]:
-    """Occupancy ``(h, w)`` of ``grid`` on square cells of about ``cell`` m (majority of
-    non-free map cells), and the coarse cell size: the grid the behaviours move on."""
-    f = max(1, int(round(min(cell / grid.resolution, 2.0**31))))
-    h, w = grid.shape[0] // f, grid.shape[1] // f
-    if h < 2 or w < 2:
-        raise ValueError(
-            f"mission.behaviour_cell: expected a cell much smaller than the map, got {cell}"
-        )
-    blocked = ~grid.free[: h * f, : w * f]
-    return blocked.reshape(h, f, w, f).mean(axis=(1, 3)) > 0.5, grid.resolution * f
-
-
 def _behaviour_tracks(
     seed: int, art: pd.DataFrame, scene: Any, grid: Any, catalogue: Any, cell: float,
     dt: float, horizon: float,
 ) -> pd.DataFrame:  # fmt: skip
-    """Behaviour tracks (:func:`~are_stats.behaviour.scenario_tracks`) of one scenario's
-    artefacts over the mission, on the coarse grid: each artefact's behaviour is the one of
-    its catalogue class that its mark selects (``mark mod`` the allowed ones); starts on a
-    coarse obstacle move to the nearest free coarse cell."""
+    """Behaviour tracks of one scenario's artefacts over the mission
+    (:func:`are_stats.behaviour.behaviour_tracks` on the map coarsened to ``cell``)."""
     import jax
-    from scipy import ndimage
 
-    from are_stats.behaviour import scenario_tracks
+    from are_stats.behaviour import behaviour_tracks
 
-    occ, res = _coarse_occupancy(grid, cell)
-    if occ.all():
-        raise ValueError("mission.behaviour_cell: the coarse behaviour grid has no free cell")
-    x0, y0 = float(grid.origin[0]), float(grid.origin[1])
-    keep = scene.t_arrive < horizon
-    marks = art["mark"].to_numpy(np.int64) if "mark" in art.columns else np.zeros(len(art), int)
-    behaviours = []
-    for c, x in zip(scene.classes[keep], marks[keep], strict=True):
-        allowed = catalogue.row(int(c)).behaviours
-        behaviours.append(allowed[int(x) % len(allowed)] if x >= 0 else allowed[0])
-    xy = art[["x", "y"]].to_numpy(float)[keep]
-    col = np.clip(((xy[:, 0] - x0) // res).astype(int), 0, occ.shape[1] - 1)
-    row = np.clip(((xy[:, 1] - y0) // res).astype(int), 0, occ.shape[0] - 1)
-    _, (ri, ci) = ndimage.distance_transform_edt(occ, return_indices=True)
-    row, col = ri[row, col], ci[row, col]
-    table = pd.DataFrame({
-        "scenario": 0, "id": scene.ids[keep], "t_arrive": scene.t_arrive[keep],
-        "t_leave": np.minimum(scene.t_leave[keep], horizon), "x": x0 + (col + 0.5) * res,
-        "y": y0 + (row + 0.5) * res, "yaw": art["yaw"].to_numpy(float)[keep],
-        "behaviour": behaviours,
-    })  # fmt: skip
-    if table.empty:
-        return pd.DataFrame(columns=["scenario", "id", "t", "x", "y", "yaw"])
-    return pd.DataFrame(
-        scenario_tracks(jax.random.key(seed), table, occ, dt=dt, resolution=res, origin=(x0, y0))
-    )
+    return behaviour_tracks(
+        jax.random.key(seed), art, scene.classes, grid, catalogue, cell=cell, dt=dt,
+        horizon=horizon, source="mission.behaviour_cell",
+    )  # fmt: skip
 
 
 def _task_scenario(

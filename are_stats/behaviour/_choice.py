@@ -1,0 +1,122 @@
+"""Which behaviour each artefact gets, and its tracks over a scenario on the coarse grid.
+
+The catalogue row of an artefact (its class, DECISIONS 5) lists the behaviours the class
+allows (walk, run, follow, stop); its mark picks one (``mark mod`` the number allowed; the
+first without a mark). :func:`behaviour_tracks` is the one path from a scenario's
+artefacts to behaviour tracks, used by ``are-stats generate --behaviours`` and by the
+experiment sweeps: the map is coarsened to the behaviour cell
+(:func:`are_stats.environment.coarse_occupancy`), starts on a coarse obstacle move to the
+nearest free coarse cell, and :func:`~are_stats.behaviour.scenario_tracks` rolls every
+scenario's artefacts out together.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["TRACK_COLUMNS", "behaviour_tracks", "choose_behaviours"]
+
+#: Columns of a behaviour tracks table.
+TRACK_COLUMNS = ("scenario", "id", "t", "x", "y", "yaw")
+
+
+def choose_behaviours(classes: Any, marks: Any, catalogue: Any) -> list[str]:
+    """The behaviour of each artefact from its catalogue class and its mark.
+
+    Parameters
+    ----------
+    classes : (n,) int
+        Catalogue class position of each artefact (``Scene.classes``).
+    marks : (n,) int
+        Marks (negative: none).
+    catalogue : ArtefactCatalogue
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for c, x in zip(np.asarray(classes, np.int64), np.asarray(marks, np.int64), strict=True):
+        allowed = list(catalogue.row(int(c)).behaviours)
+        out.append(allowed[int(x) % len(allowed)] if x >= 0 else allowed[0])
+    return out
+
+
+def behaviour_tracks(
+    key: Any,
+    artefacts: pd.DataFrame,
+    classes: Any,
+    grid: Any,
+    catalogue: Any,
+    *,
+    cell: float = 1.0,
+    dt: float = 2.0,
+    horizon: float | None = None,
+    source: str = "cell",
+) -> pd.DataFrame:
+    """Behaviour tracks of scenario artefacts on ``grid`` coarsened to ``cell`` metres.
+
+    Parameters
+    ----------
+    key : jax.Array
+        PRNG key.
+    artefacts : pandas.DataFrame
+        ``scenario`` (optional, default 0), ``artefact`` or ``id``, ``t_arrive``,
+        ``t_leave``, ``x``, ``y``, ``yaw``, ``mark`` (optional).
+    classes : (n,) int
+        Catalogue class position of each row (from the scenario's ``Scene``).
+    grid : OccupancyGrid
+        The map.
+    catalogue : ArtefactCatalogue
+    cell : float
+        Behaviour grid cell (m).
+    dt : float
+        Seconds per decision epoch.
+    horizon : float, optional
+        Leaving times are cut at it (artefacts arriving after it are left out).
+    source : str
+        The option or key of ``cell``, named in errors.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`TRACK_COLUMNS`.
+    """
+    from scipy import ndimage
+
+    from are_stats.behaviour._rollout import scenario_tracks
+    from are_stats.environment import coarse_occupancy
+
+    occ, res = coarse_occupancy(grid, cell, source)
+    if occ.all():
+        raise ValueError(f"{source}: the coarse behaviour grid has no free cell")
+    x0, y0 = float(grid.origin[0]), float(grid.origin[1])
+    art = artefacts.reset_index(drop=True)
+    n = len(art)
+    classes = np.asarray(classes, np.int64)
+    if classes.shape != (n,):
+        raise ValueError(f"classes: expected one class per artefact ({n}), got {classes.shape}")
+    keep = np.ones(n, bool) if horizon is None else art["t_arrive"].to_numpy(float) < horizon
+    marks = art["mark"].to_numpy(np.int64) if "mark" in art.columns else np.zeros(n, np.int64)
+    ids = art["artefact"] if "artefact" in art.columns else art["id"]
+    xy = art[["x", "y"]].to_numpy(float)
+    col = np.clip(((xy[:, 0] - x0) // res).astype(int), 0, occ.shape[1] - 1)
+    row = np.clip(((xy[:, 1] - y0) // res).astype(int), 0, occ.shape[0] - 1)
+    _, (ri, ci) = ndimage.distance_transform_edt(occ, return_indices=True)
+    row, col = ri[row, col], ci[row, col]
+    t_leave = art["t_leave"].to_numpy(float)
+    if horizon is not None:
+        t_leave = np.minimum(t_leave, horizon)
+    table = pd.DataFrame({
+        "scenario": art["scenario"].to_numpy() if "scenario" in art.columns else 0,
+        "id": ids.to_numpy(), "t_arrive": art["t_arrive"].to_numpy(float), "t_leave": t_leave,
+        "x": x0 + (col + 0.5) * res, "y": y0 + (row + 0.5) * res,
+        "yaw": art["yaw"].to_numpy(float),
+        "behaviour": choose_behaviours(classes, marks, catalogue),
+    })[keep]  # fmt: skip
+    if table.empty:
+        return pd.DataFrame(columns=list(TRACK_COLUMNS))
+    return pd.DataFrame(scenario_tracks(key, table, occ, dt=dt, resolution=res, origin=(x0, y0)))
