@@ -402,6 +402,27 @@ def _paper_populations(
     return scen, j, t_arr, t_leave, initial, total
 
 
+def _check_entries_on_map(entry: Any, free: Any) -> None:
+    """Refuse a learned entry density that mostly lies off the given map's free cells."""
+    h, w = entry.prob.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    centres = np.column_stack([
+        entry.origin[0] + (xx.ravel() + 0.5) * entry.resolution,
+        entry.origin[1] + (yy.ravel() + 0.5) * entry.resolution,
+    ])  # fmt: skip
+    row, col = free.cell_of(centres)
+    on = row >= 0
+    ok = np.zeros(row.size, bool)
+    ok[on] = free.prob[row[on], col[on]] > 0
+    mass = float(entry.prob.ravel()[ok].sum())
+    if mass < 0.5:
+        raise ValueError(
+            f"map: expected the map the fit learned its entry points on, got one whose free "
+            f"cells hold {mass:.0%} of the entry density (use the fit's map, or the paper's "
+            "uniform positions: --model paper)"
+        )
+
+
 def _rich_populations(
     rng: np.random.Generator, params: Mapping[str, Any], laws: Any, d: np.ndarray, h: float,
     nu: float, start: str, grid: tuple | None, origin: tuple[float, float, float],
@@ -416,6 +437,8 @@ def _rich_populations(
     if grid is not None:
         mask, res, _ = grid
         free = uniform_position_density(mask, res, (0.0, 0.0) if rotated else (ox, oy))
+        if laws.positions == "learned":
+            _check_entries_on_map(laws.entry, free)
     else:
         side = math.sqrt(nu)
         free = uniform_position_density(np.ones((1, 1), bool), side, (ox, oy))

@@ -230,3 +230,19 @@ def test_time_of_day_needs_a_clock_and_two_days():
     assert {"time-of-day", "groups+time-of-day"} <= set(cands)
     with pytest.raises(ValueError, match="clock_start"):
         _arrival_candidates("time-of-day", 1, None, 3 * 86400.0)
+
+
+def test_diurnal_truth_picks_time_of_day():
+    """Three days with a strong daily profile and a clock: auto picks the time of day."""
+    hours = np.arange(24)
+    tod = 1.0 + 0.9 * np.sin(2 * np.pi * (hours - 6) / 24)  # peak at noon, trough at midnight
+    tod = tod / tod.mean()
+    laws = TrafficLaws(arrivals="time-of-day", clock_offset=0.0)
+    draw = {"event_rate": 6e-6, "stay_mean": 60.0, "arrival_tod": tod}
+    data = simulate_traffic_log(np.random.default_rng(7), draw, laws, (0.0, 3 * 86400.0),
+                                AREA, resolution=1.0)  # fmt: skip
+    fit = fit_traffic(jax.random.key(4), data, paper=_paper(data), lifetimes="exponential",
+                      positions="uniform", clock_start="2026-01-05T00:00:00", **NUTS)  # fmt: skip
+    assert fit.arrival_model == "time-of-day", fit.tables["arrivals"]
+    got = fit.posterior["arrival_tod"].reshape(-1, 24)
+    assert np.all(np.abs(got.mean(0) - tod) < 5 * got.std(0) + 0.05)
