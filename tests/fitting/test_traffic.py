@@ -34,7 +34,7 @@ from are_stats.traffic import (
     uniform_position_density,
 )
 
-NUTS = {"num_warmup": 250, "num_samples": 300, "num_chains": 2}
+NUTS = {"num_warmup": 150, "num_samples": 200, "num_chains": 2}
 FREE = np.ones((30, 40), bool)
 FREE[:, 0] = False
 RES, ORIGIN = 0.5, (0.0, 0.0)
@@ -49,7 +49,7 @@ class _Grid:
     origin = (0.0, 0.0, 0.0)
 
 
-def _paper(data, shape=(1, 600), seed=0):
+def _paper(data, shape=(1, 400), seed=0):
     """Conjugate draws of the paper's rates, laid out as an EM fit's ``(1, S)`` posterior."""
     rng = np.random.default_rng(seed)
     a = conjugate_arrival_rate(data, LifecyclePriors())
