@@ -842,7 +842,7 @@ class BirthDeathFit:
         **Robust** standard errors of ``(birth_rate, death_rate)`` that stay honest when the
         counts are overdispersed (group arrivals, a drifting rate) and autocorrelated beyond
         what the model explains; see ``stderr_method``. Near ``stderr`` on the model's own
-        data (median ratio 0.97 in the tests), 1.2-2.9 times larger on group and
+        data (median ratio 0.97-1.0 in the tests), 1.2-2.9 times larger on group and
         drifting-rate data. ``None`` only for fits built by hand.
     cov_robust, log_cov_robust : (2, 2) ndarray of float64
         Robust covariance matrices of the rates and of the log-rates.
@@ -1002,7 +1002,7 @@ def hac_bandwidth(counts: Any) -> int:
     ``alpha = 4 rho^2 / ((1 - rho)^2 (1 + rho)^2)`` and ``T`` the transitions per series,
     ``S = 1.1447 (alpha T)^{1/3}`` and the lags kept are ``L = ceil(S) - 1`` (weights
     ``1 - l / (L + 1)``), at most ``T - 1``. For ``rho = e^{-0.1}`` (one count per tenth
-    of a mean stay) and ``T = 1000``, ``L = 52``.
+    of a mean stay) and ``T = 1000``, ``L = 53``.
 
     Parameters
     ----------
@@ -1141,13 +1141,14 @@ def fit_birth_death(
 
     Measured coverage of 95% intervals (200 seeded replicates of 1000 transitions, one count
     per tenth of a mean stay; ``tests/traffic/test_birth_death.py``): on the model's own data
-    model-based 0.945-0.965, robust 0.935; with groups of 1-4 sharing their stay
+    model-based 0.945-0.965, robust 0.945; with groups of 1-4 sharing their stay
     (:func:`~are_stats.traffic.sample_population`), about the panel model's best
-    approximation, model-based 0.80-0.82, robust 0.91-0.935, and for the stationary mean
-    ``birth/death``, which the panel estimates without bias, model-based 0.53, robust 0.905.
-    Group arrivals **bias the rates themselves** (both by about 2.4x in that case: the panel
-    explains group jumps by faster turnover); no standard error can fix that, and
-    :func:`are_stats.fitting.compare_panel` flags it against a life-cycle fit.
+    approximation, model-based 0.77-0.82, robust 0.90-0.935, and for the stationary mean
+    ``birth/death``, which the panel estimates without bias, model-based 0.53-0.58, robust
+    0.905-0.925. Group arrivals **bias the rates themselves** (both by about 2.5x in that
+    case: the panel explains jumps of whole groups by faster turnover); no standard error
+    can fix that, and :func:`are_stats.fitting.compare_panel` flags it against a life-cycle
+    fit.
 
     Parameters
     ----------
