@@ -850,8 +850,8 @@ class BirthDeathFit:
         ``"hac"``: the sandwich ``H^-1 S H^-1`` (Godambe / Huber-White) with ``H`` the
         Hessian and ``S`` the Newey-West (Bartlett-kernel) long-run covariance of the
         per-transition scores within each series, with ``bandwidth`` lags, divided by the
-        fixed-b mean ``1 - b + b^2/3``, ``b = (bandwidth + 1) / T`` (Kiefer and Vogelsang
-        2005). ``"block-bootstrap"``: the covariance of the log-rates refitted on
+        fixed-b mean ``1 - b + b^2/3``, ``b = (bandwidth + 1) / n_transitions`` (Kiefer and
+        Vogelsang 2005). ``"block-bootstrap"``: the covariance of the log-rates refitted on
         ``n_boot`` moving-block resamples of the transitions with blocks of ``bandwidth``
         consecutive transitions (Kunsch 1989).
     bandwidth : int
@@ -1275,8 +1275,10 @@ def fit_birth_death(
     if robust == "hac":
         width = hac_bandwidth(c) if lags is None else lags
         # the scores sum to zero at the MLE, which biases the Bartlett estimate down by the
-        # factor 1 - b + b^2 / 3, b = (L + 1) / T (Kiefer and Vogelsang 2005): undone here
-        b = (width + 1.0) / n_trans
+        # factor 1 - b + b^2 / 3, b = (L + 1) / T (Kiefer and Vogelsang 2005): undone here.
+        # Only the pooled sum is zero, so with several series T counts all their
+        # transitions (the first-order bias is then -(L + 1) / T, as for one series).
+        b = (width + 1.0) / pairs.n_transitions
         meat = _hac_meat(per, width) / (1.0 - b + b * b / 3.0)
         cov_theta_r = cov_theta @ meat @ cov_theta
         log_cov_r = log_jac @ cov_theta_r @ log_jac.T

@@ -376,7 +376,7 @@ def test_hac_within_series_only():
     for lag in (1, 2):
         g = np.einsum("sta,stb->ab", s[:, lag:], s[:, :-lag])
         meat += (1 - lag / 3) * (g + g.T)
-    b = 3 / 40
+    b = 3 / 80  # all transitions of both series: only their pooled score sum is zero
     meat /= 1 - b + b * b / 3
     assert np.allclose(x0, np.log([fit.birth_rate, fit.death_rate]))
     assert_allclose(fit.log_cov_robust, fit.log_cov @ meat @ fit.log_cov, rtol=1e-5)
@@ -510,6 +510,12 @@ def test_constant_law_robust_errors():
     assert_allclose(fit.log_cov_robust, ref, rtol=1e-3)
     auto = fit_birth_death(t, n, death="constant")
     assert np.all(np.abs(auto.stderr_robust / auto.stderr - 1) < 0.3)
+    boot = fit_birth_death(
+        t, n, death="constant", robust="block-bootstrap", key=jax.random.key(1), n_boot=20
+    )
+    assert boot.n_boot == 20 and boot.bandwidth == auto.bandwidth + 1
+    # 20 resamples: a loose check that the refits of the constant law are sane
+    assert np.all(np.abs(np.log(boot.stderr_robust / auto.stderr_robust)) < np.log(2.0))
 
 
 # ---------------------------------------------------------------------------------------
