@@ -985,6 +985,7 @@ def _fd(fun, x, h=1e-4):
 # standard errors that survive overdispersion and autocorrelation
 # ----------------------------------------------------------------------------------------
 
+RobustMethod = Literal["hac", "block-bootstrap"]
 ROBUST_METHODS = ("hac", "block-bootstrap")
 
 
@@ -1099,7 +1100,7 @@ def fit_birth_death(
     death: DeathLaw = "linear",
     *,
     max_iter: int = 100,
-    robust: str = "hac",
+    robust: RobustMethod = "hac",
     bandwidth: int | None = None,
     key: Any = None,
     n_boot: int = 200,
