@@ -137,3 +137,8 @@ __all__ += [
     "predictive_windows",
     "write_report",
 ]
+
+# --- count panel against the life-cycle fit (issue 14, count panels) ---
+from are_stats.fitting._panel import PanelComparison, compare_panel  # noqa: E402
+
+__all__ += ["PanelComparison", "compare_panel"]

@@ -272,7 +272,10 @@ def fit_log(
         Priors of the life-cycle model.
     counts_panel : (times, counts), optional
         A panel of counts for the birth-death MLE (stored in the posterior attributes as
-        ``birth_death_*``).
+        ``birth_death_*``: model-based ``birth_death_stderr``, robust
+        ``birth_death_stderr_robust`` with ``birth_death_log_cov_robust`` (4,) and
+        ``birth_death_stderr_method``; :func:`~are_stats.fitting.compare_panel` compares
+        them with the life-cycle posterior).
     progress : callable, optional
         ``progress(message)`` is called at each stage (the CLI shows it).
     class_labels : sequence of str, optional
@@ -384,6 +387,10 @@ def fit_log(
             birth_death_birth_rate=bd.birth_rate,
             birth_death_death_rate=bd.death_rate,
             birth_death_stderr=np.asarray(bd.stderr, dtype=float),
+            # robust (HAC) errors and the log-rate covariance: see compare_panel
+            birth_death_stderr_robust=np.asarray(bd.stderr_robust, dtype=float),
+            birth_death_log_cov_robust=np.asarray(bd.log_cov_robust, dtype=float).ravel(),
+            birth_death_stderr_method=f"{bd.stderr_method}, {bd.bandwidth} lags",
             birth_death_loglik=bd.loglik,
             birth_death_n_obs=int(bd.n_obs),
         )

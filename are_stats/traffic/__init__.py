@@ -53,6 +53,7 @@ from are_stats.traffic._birth_death import (  # noqa: E402
     BirthDeathFit,
     birth_death_loglik,
     fit_birth_death,
+    hac_bandwidth,
 )
 
 __all__ += [
@@ -61,6 +62,7 @@ __all__ += [
     "BirthDeathFit",
     "birth_death_loglik",
     "fit_birth_death",
+    "hac_bandwidth",
 ]
 
 # --- stay laws (exponential, gamma, weibull, lognormal) with censoring and truncation ---

@@ -17,6 +17,7 @@ at rate ``death_rate = mu``. Two death laws are offered (DECISIONS.md, item 1):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Literal
 
 import jax
@@ -40,6 +41,7 @@ __all__ = [
     "BirthDeathEvents",
     "birth_death_loglik",
     "fit_birth_death",
+    "hac_bandwidth",
 ]
 
 BirthDeathEvents = _gillespie.BirthDeathEvents
@@ -604,10 +606,16 @@ class _Pairs:
         top = int(max(prev.max(), nxt.max())) + 1
         if top * top * dt_u.size < 2**62:
             code = (dt_i.astype(np.int64) * top + prev) * top + nxt
-            _, first, mult = np.unique(code, return_index=True, return_counts=True)
+            _, first, inverse, mult = np.unique(
+                code, return_index=True, return_inverse=True, return_counts=True
+            )
         else:
             rows = np.stack([dt_i, prev, nxt], axis=1)
-            _, first, mult = np.unique(rows, axis=0, return_index=True, return_counts=True)
+            _, first, inverse, mult = np.unique(
+                rows, axis=0, return_index=True, return_inverse=True, return_counts=True
+            )
+        #: (n_series, n_times - 1) index of each transition's distinct triple
+        self.inverse = np.asarray(inverse).reshape(counts[:, 1:].shape)
         self.n0 = prev[first]
         self.n = nxt[first]
         self.dt = dts[first]
@@ -640,14 +648,35 @@ class _Pairs:
             self._lin = (c1, c2, c3, const)
         return self._lin
 
-    def loglik_derivatives(self, theta: np.ndarray, order: int = 2):
+    def loglik_derivatives(
+        self, theta: np.ndarray, order: int = 2, weights: np.ndarray | None = None
+    ):
         """Log-likelihood (and gradient, Hessian) of the linear law at log-rates ``theta``.
 
         ``L = sum_g w_g [logsumexp_k(C_gk + c_gk . psi_g) - m_g]`` with
         ``psi = (log p, log(1-p), log m)`` and ``c = (k, n0-k, n-k)``; the gradient is
         ``J^T E_q[c] - grad m`` and the Hessian ``J^T Cov_q[c] J + sum_i E_q[c_i] hess psi_i -
         hess m`` with ``q`` the softmax weights over ``k``: exact derivatives, no autodiff.
+        ``weights`` (default: the multiplicities) replace ``w_g`` (the block bootstrap).
         """
+        w = self.w if weights is None else weights
+        value, ga, gb, hess_terms = self._lin_terms(theta, order)
+        if order == 0:
+            return float(w @ value)
+        grad = np.array([w @ ga, w @ gb])
+        if order == 1:
+            return float(w @ value), grad
+        Haa, Hab, Hbb = hess_terms
+        hess = np.array([[w @ Haa, w @ Hab], [w @ Hab, w @ Hbb]])
+        return float(w @ value), grad, hess
+
+    def lin_scores(self, theta: np.ndarray) -> np.ndarray:
+        """(n_distinct, 2) gradient of each distinct triple's log-probability in ``theta``."""
+        _, ga, gb, _ = self._lin_terms(theta, 1)
+        return np.stack([ga, gb], axis=1)
+
+    def _lin_terms(self, theta: np.ndarray, order: int):
+        """Per-triple log-probability, gradient (a, b) and Hessian (aa, ab, bb) terms."""
         c1, c2, c3, const = self._lin_setup()
         a, b = float(theta[0]), float(theta[1])
         lam, mu = np.exp(a), np.exp(b)
@@ -660,11 +689,9 @@ class _Pairs:
         zmax = z.max(axis=1, keepdims=True)
         e = np.exp(z - zmax)
         tot = e.sum(axis=1, keepdims=True)
-        lse = (zmax + np.log(tot))[:, 0]
-        w = self.w
-        value = float(w @ (lse - m))
+        value = (zmax + np.log(tot))[:, 0] - m
         if order == 0:
-            return value
+            return value, None, None, None
         q = e / tot
         E1, E2, E3 = (q * c1).sum(1), (q * c2).sum(1), (q * c3).sum(1)
         h = s / np.expm1(s)  # d log(1-p) / d b
@@ -673,9 +700,8 @@ class _Pairs:
         # gradient: psi_1 = log p depends on b (-s); psi_2 on b (h); psi_3 on a (1) and b
         ga = E3 - m
         gb = -s * E1 + h * E2 + dlm_b * E3 - m * dlm_b
-        grad = np.array([w @ ga, w @ gb])
         if order == 1:
-            return value, grad
+            return value, ga, gb, None
         V11 = (q * c1 * c1).sum(1) - E1 * E1
         V22 = (q * c2 * c2).sum(1) - E2 * E2
         V33 = (q * c3 * c3).sum(1) - E3 * E3
@@ -696,14 +722,16 @@ class _Pairs:
             + g2 * E3
             - m * (dlm_b**2 + g2)
         )
-        hess = np.array([[w @ Haa, w @ Hab], [w @ Hab, w @ Hbb]])
-        return value, grad, hess
+        return value, ga, gb, (Haa, Hab, Hbb)
 
     # -- constant death: uniformisation ------------------------------------------------------
 
-    def const_loglik(self, lam: float, mu: float, trunc: dict | None = None) -> float:
-        """Log-likelihood of the constant law; ``trunc`` fixes the truncation per lag."""
-        total = 0.0
+    def const_logp(self, lam: float, mu: float, trunc: dict | None = None) -> np.ndarray:
+        """(n_distinct,) log-probability of each distinct triple under the constant law.
+
+        ``trunc`` fixes the state-space truncation per lag (see :func:`_const_truncation`).
+        """
+        out = np.empty(self.w.size)
         for d in np.unique(self.dt):
             sel = np.flatnonzero(self.dt == d)
             starts, inv = np.unique(self.n0[sel], return_inverse=True)
@@ -712,10 +740,22 @@ class _Pairs:
                 trunc[float(d)] if trunc is not None else _const_truncation(lam, mu, d, top)
             )
             rows = _const_rows(lam, mu, float(d), starts, n_top, n_terms)
-            p = rows[inv, self.n[sel]]
             with np.errstate(divide="ignore"):
-                total += float(self.w[sel] @ np.log(p))
-        return total
+                out[sel] = np.log(rows[inv, self.n[sel]])
+        return out
+
+    def const_loglik(
+        self,
+        lam: float,
+        mu: float,
+        trunc: dict | None = None,
+        weights: np.ndarray | None = None,
+    ) -> float:
+        """Log-likelihood of the constant law; ``trunc`` fixes the truncation per lag."""
+        w = self.w if weights is None else weights
+        logp = self.const_logp(lam, mu, trunc)
+        keep = w > 0  # a triple left out of a bootstrap resample may be impossible there
+        return float(w[keep] @ logp[keep])
 
     def const_trunc(self, lam: float, mu: float) -> dict:
         out = {}
@@ -788,27 +828,36 @@ class BirthDeathFit:
     death_rate : float
         MLE of ``mu``.
     stderr : (2,) ndarray of float64
-        Standard errors of ``(birth_rate, death_rate)`` from the observed Fisher information
-        (inverse Hessian of the negative log-likelihood at the optimum, delta method from the
-        log-rates).
+        **Model-based** standard errors of ``(birth_rate, death_rate)`` from the observed
+        Fisher information (inverse Hessian of the negative log-likelihood at the optimum,
+        delta method from the log-rates). Correct only when the counts follow the model:
+        Poisson arrivals one at a time and independent exponential stays.
     cov : (2, 2) ndarray of float64
-        Covariance matrix of ``(birth_rate, death_rate)``.
+        Model-based covariance matrix of ``(birth_rate, death_rate)``.
     log_cov : (2, 2) ndarray of float64
-        Covariance matrix of ``(log birth_rate, log death_rate)``.
-    loglik : float
-        Maximised log-likelihood (conditional on the first count of each series).
-    n_obs : int
-        Number of counts used.
-    n_transitions : int
-        Number of consecutive pairs (``n_obs`` minus the number of series).
-    n_distinct : int
-        Number of distinct ``(n_prev, n_next, dt)`` triples the likelihood was evaluated on.
-    converged : bool
-        Whether Newton's method met its tolerance (Newton decrement below ``1e-10``).
-    n_iter : int
-        Newton iterations.
+        Model-based covariance matrix of ``(log birth_rate, log death_rate)``.
     death : str
         Death law.
+    stderr_robust : (2,) ndarray of float64
+        **Robust** standard errors of ``(birth_rate, death_rate)`` that stay honest when the
+        counts are overdispersed (group arrivals, a drifting rate) and autocorrelated beyond
+        what the model explains; see ``stderr_method``. Near ``stderr`` on the model's own
+        data (median ratio 0.97-1.0 in the tests), 1.2-2.9 times larger on group and
+        drifting-rate data. ``None`` only for fits built by hand.
+    cov_robust, log_cov_robust : (2, 2) ndarray of float64
+        Robust covariance matrices of the rates and of the log-rates.
+    stderr_method : {"hac", "block-bootstrap"}
+        ``"hac"``: the sandwich ``H^-1 S H^-1`` (Godambe / Huber-White) with ``H`` the
+        Hessian and ``S`` the Newey-West (Bartlett-kernel) long-run covariance of the
+        per-transition scores within each series, with ``bandwidth`` lags, divided by the
+        fixed-b mean ``1 - b + b^2/3``, ``b = (bandwidth + 1) / n_transitions`` (Kiefer and
+        Vogelsang 2005). ``"block-bootstrap"``: the covariance of the log-rates refitted on
+        ``n_boot`` moving-block resamples of the transitions with blocks of ``bandwidth``
+        consecutive transitions (Kunsch 1989).
+    bandwidth : int
+        HAC lags, or the bootstrap block length (in transitions).
+    n_boot : int
+        Bootstrap resamples whose refit converged (0 for ``"hac"``).
     """
 
     birth_rate: float
@@ -823,14 +872,23 @@ class BirthDeathFit:
     converged: bool
     n_iter: int
     death: str = "linear"
+    stderr_robust: np.ndarray | None = None
+    cov_robust: np.ndarray | None = None
+    log_cov_robust: np.ndarray | None = None
+    stderr_method: str = "hac"
+    bandwidth: int = 0
+    n_boot: int = 0
 
-    def confint(self, level: float = 0.95) -> np.ndarray:
+    def confint(self, level: float = 0.95, kind: str = "model") -> np.ndarray:
         """Wald confidence intervals on the log scale, back-transformed (always positive).
 
         Parameters
         ----------
         level : float
             Coverage in ``(0, 1)``.
+        kind : {"model", "robust"}
+            Model-based (``log_cov``, the default, unchanged) or robust
+            (``log_cov_robust``) standard errors.
 
         Returns
         -------
@@ -840,9 +898,13 @@ class BirthDeathFit:
         lv = check_finite("level", level)
         if lv.ndim or not 0 < float(lv) < 1:
             raise ValueError(f"level: expected a number in (0, 1), got {describe(level)}")
+        check_in("kind", kind, ("model", "robust"))
+        log_cov = self.log_cov if kind == "model" else self.log_cov_robust
+        if log_cov is None:
+            raise ValueError("kind: expected 'model' for a fit without robust errors, got 'robust'")
         z = stats.norm.isf((1 - float(lv)) / 2)
         est = np.log([self.birth_rate, self.death_rate])
-        se = np.sqrt(np.diag(self.log_cov))
+        se = np.sqrt(np.diag(log_cov))
         return np.exp(np.stack([est - z * se, est + z * se], axis=1))
 
     def process(self) -> BirthDeath:
@@ -919,12 +981,130 @@ def _fd(fun, x, h=1e-4):
     return f0, g, H
 
 
+# ----------------------------------------------------------------------------------------
+# standard errors that survive overdispersion and autocorrelation
+# ----------------------------------------------------------------------------------------
+
+RobustMethod = Literal["hac", "block-bootstrap"]
+ROBUST_METHODS = ("hac", "block-bootstrap")
+
+
+def hac_bandwidth(counts: Any) -> int:
+    """Bartlett-kernel bandwidth (lags) for the HAC sandwich of :func:`fit_birth_death`.
+
+    Andrews' (1991) AR(1) plug-in rule for the Bartlett kernel, with the AR(1) coefficient
+    ``rho`` taken from the **counts** (their lag-1 autocorrelation, pooled over series and
+    clipped to ``[0, 0.995]``) rather than from the scores. Under a misspecified arrival law
+    (groups, a drifting rate) the per-transition scores are a martingale difference plus a
+    function of the state ``N(t_i)``, and that function inherits the persistence of ``N``:
+    the scores themselves look almost white, so the same rule fitted to them kept too few
+    lags (1-7 where ``N`` relaxes over about 10 transitions; with groups of 1-4 its 95%
+    intervals of the stationary mean covered 73-80%). With
+    ``alpha = 4 rho^2 / ((1 - rho)^2 (1 + rho)^2)`` and ``T`` the transitions per series,
+    ``S = 1.1447 (alpha T)^{1/3}`` and the lags kept are ``L = ceil(S) - 1`` (weights
+    ``1 - l / (L + 1)``), at most ``T - 1``. For ``rho = e^{-0.1}`` (one count per tenth
+    of a mean stay) and ``T = 1000``, ``L = 53``.
+
+    Parameters
+    ----------
+    counts : (n_times,) or (n_series, n_times) array of int
+        The panel (``n_times >= 2``).
+
+    Returns
+    -------
+    int
+        ``L >= 0``.
+
+    Examples
+    --------
+    >>> import numpy as np, are_stats
+    >>> are_stats.traffic.hac_bandwidth(np.tile([3, 3, 4, 4], 50))
+    0
+    """
+    c = check_nonneg_int("counts", counts)
+    c = np.atleast_2d(c).astype(float)
+    if c.ndim != 2 or c.shape[1] < 2:
+        raise ValueError(f"counts: expected shape (n_series, n_times >= 2), got {c.shape}")
+    x = c - c.mean(axis=1, keepdims=True)
+    den = float((x * x).sum())
+    num = float((x[:, 1:] * x[:, :-1]).sum())
+    rho = min(max(num / den, 0.0), 0.995) if den > 0 else 0.0
+    n_t = c.shape[1] - 1
+    alpha = 4 * rho**2 / ((1 - rho) ** 2 * (1 + rho) ** 2)
+    s_t = 1.1447 * (alpha * n_t) ** (1 / 3)
+    return int(min(max(np.ceil(s_t) - 1, 0), n_t - 1))
+
+
+def _hac_meat(scores: np.ndarray, bandwidth: int) -> np.ndarray:
+    """Bartlett-weighted sum of score auto-covariances within series (Newey-West)."""
+    meat = np.einsum("sta,stb->ab", scores, scores)
+    for lag in range(1, bandwidth + 1):
+        g = np.einsum("sta,stb->ab", scores[:, lag:], scores[:, :-lag])
+        meat += (1.0 - lag / (bandwidth + 1.0)) * (g + g.T)
+    return meat
+
+
+def _check_lags(name: str, value: Any, low: int, high: int) -> int | None:
+    if value is None:
+        return None
+    v = check_nonneg_int(name, value)
+    if v.ndim or not low <= int(v) <= high:
+        raise ValueError(
+            f"{name}: expected an integer in [{low}, {high}] (transitions per series), "
+            f"got {describe(value)}"
+        )
+    return int(v)
+
+
+def _rng_from_key(key: Any) -> np.random.Generator:
+    """A NumPy generator seeded from a JAX key (variable-size draws without recompiling)."""
+    bits = jax.random.bits(_check_key(key), (4,), dtype=np.uint32)
+    return np.random.default_rng(np.asarray(bits).tolist())
+
+
+def _const_scores(pairs: _Pairs, rates, phi: np.ndarray, h: float = 1e-4) -> np.ndarray:
+    """(n_distinct, 2) central-difference scores of the constant law in ``phi``."""
+    lam, mu = rates(phi)
+    trunc = pairs.const_trunc(lam * 1.01, mu * 1.01)
+    out = np.empty((pairs.w.size, 2))
+    for i in range(2):
+        e = np.zeros(2)
+        e[i] = h
+        up = pairs.const_logp(*rates(phi + e), trunc)
+        down = pairs.const_logp(*rates(phi - e), trunc)
+        out[:, i] = (up - down) / (2 * h)
+    return out
+
+
+def _block_weights(
+    rng: np.random.Generator, inverse: np.ndarray, n_distinct: int, block: int, n_boot: int
+) -> np.ndarray:
+    """(n_boot, n_distinct) multiplicities of the distinct triples in moving-block resamples.
+
+    Each series' ``T`` transitions are rebuilt from ``ceil(T / block)`` blocks of ``block``
+    consecutive transitions with uniform start in ``0 .. T - block``, cut to length ``T``
+    (Kunsch 1989); series are resampled independently.
+    """
+    n_series, n_t = inverse.shape
+    k = -(-n_t // block)
+    starts = rng.integers(0, n_t - block + 1, size=(n_boot, n_series, k))
+    idx = (starts[..., None] + np.arange(block)).reshape(n_boot, n_series, k * block)[..., :n_t]
+    picked = inverse[np.arange(n_series)[None, :, None], idx]  # (n_boot, n_series, n_t)
+    flat = (np.arange(n_boot)[:, None, None] * n_distinct + picked).ravel()
+    return np.bincount(flat, minlength=n_boot * n_distinct).reshape(n_boot, n_distinct)
+
+
 def fit_birth_death(
     times: Any,
     counts: Any,
     death: DeathLaw = "linear",
     *,
     max_iter: int = 100,
+    robust: RobustMethod = "hac",
+    bandwidth: int | None = None,
+    key: Any = None,
+    n_boot: int = 200,
+    block_length: int | None = None,
 ) -> BirthDeathFit:
     """Maximum-likelihood estimate of (birth rate, death rate) from a panel of counts.
 
@@ -941,8 +1121,35 @@ def fit_birth_death(
       ``(log mu, logit r)``) using central finite differences (step ``1e-4``) of the
       uniformisation likelihood at a fixed truncation.
 
-    Standard errors come from the observed Fisher information (the inverse of minus the
-    Hessian at the optimum), mapped to the rates by the delta method.
+    Two kinds of standard errors are returned (DECISIONS.md, items 1-2 define the model):
+
+    * ``stderr`` (model-based): the observed Fisher information (the inverse of minus the
+      Hessian at the optimum), mapped to the rates by the delta method. Right on the
+      model's own data; 1.2-3 times too small when arrivals come in groups or the rate
+      drifts, because the counts are then overdispersed and the per-transition scores
+      autocorrelated.
+    * ``stderr_robust``: ``robust="hac"`` (default, costs one pass over the transitions)
+      is the sandwich ``H^-1 S H^-1`` with ``S`` the Newey-West long-run covariance of the
+      per-transition scores (Bartlett kernel, lags from :func:`hac_bandwidth` unless
+      ``bandwidth`` is given, within series only, fixed-b bias correction);
+      ``robust="block-bootstrap"`` refits the MLE on ``n_boot`` moving-block resamples of
+      the transitions (blocks of ``block_length`` transitions, default
+      ``hac_bandwidth + 1``, the block length whose bootstrap variance is the Bartlett
+      estimate with that many lags; seeded by ``key``; about 0.5 s for 200 resamples of
+      1000 transitions). Each resample only reweights the distinct triples, so a refit is a
+      few Newton steps from the MLE; resamples whose refit fails are dropped (``n_boot``
+      counts the kept ones).
+
+    Measured coverage of 95% intervals (200 seeded replicates of 1000 transitions, one count
+    per tenth of a mean stay; ``tests/traffic/test_birth_death.py``): on the model's own data
+    model-based 0.945-0.965, robust 0.945; with groups of 1-4 sharing their stay
+    (:func:`~are_stats.traffic.sample_population`), about the panel model's best
+    approximation, model-based 0.77-0.82, robust 0.90-0.935, and for the stationary mean
+    ``birth/death``, which the panel estimates without bias, model-based 0.53-0.58, robust
+    0.905-0.925. Group arrivals **bias the rates themselves** (both by about 2.5x in that
+    case: the panel explains jumps of whole groups by faster turnover); no standard error
+    can fix that, and :func:`are_stats.fitting.compare_panel` flags it against a life-cycle
+    fit.
 
     Parameters
     ----------
@@ -954,6 +1161,16 @@ def fit_birth_death(
         Death law (see :class:`BirthDeath`).
     max_iter : int
         Maximum Newton iterations.
+    robust : {"hac", "block-bootstrap"}
+        How ``stderr_robust`` is computed (see above).
+    bandwidth : int, optional
+        HAC lags in ``[0, n_times - 2]``; default :func:`hac_bandwidth` of the counts.
+    key : jax.Array, optional
+        PRNG key of the block bootstrap (required for ``robust="block-bootstrap"``).
+    n_boot : int
+        Bootstrap resamples (``>= 2``).
+    block_length : int, optional
+        Bootstrap block length in ``[1, n_times - 1]`` transitions.
 
     Returns
     -------
@@ -963,8 +1180,9 @@ def fit_birth_death(
     ------
     ValueError
         Unsorted or duplicate times, negative or non-integer counts, mismatched lengths,
-        fewer than two observations, or counts that are all zero (the birth-rate MLE is then
-        0, on the boundary).
+        fewer than two observations, counts that are all zero (the birth-rate MLE is then
+        0, on the boundary), an unknown ``robust``, a ``bandwidth`` or ``block_length`` out
+        of range, or a missing ``key`` for the bootstrap.
 
     Examples
     --------
@@ -975,17 +1193,28 @@ def fit_birth_death(
     >>> fit = are_stats.fit_birth_death(t, n)
     >>> fit.converged
     True
+    >>> fit.stderr_method, fit.stderr_robust.shape
+    ('hac', (2,))
     """
     check_in("death", death, _DEATH_LAWS)
     mi = check_nonneg_int("max_iter", max_iter)
     if mi.ndim or int(mi) < 1:
         raise ValueError(f"max_iter: expected a positive integer, got {describe(max_iter)}")
+    check_in("robust", robust, ROBUST_METHODS)
     t, c = _check_panel(times, counts)
     if not c.any():
         raise ValueError(
             "counts: expected at least one positive count, got all zeros (the birth-rate MLE "
             "would be 0, on the boundary of the parameter space)"
         )
+    n_trans = t.size - 1
+    lags = _check_lags("bandwidth", bandwidth, 0, n_trans - 1)
+    block = _check_lags("block_length", block_length, 1, n_trans)
+    if robust == "block-bootstrap":
+        _check_key(key)
+        nb = check_nonneg_int("n_boot", n_boot)
+        if nb.ndim or int(nb) < 2:
+            raise ValueError(f"n_boot: expected an integer >= 2, got {describe(n_boot)}")
     pairs = _Pairs(t, c)
     theta0 = _start(pairs, death)
     with np.errstate(over="ignore", under="ignore"):
@@ -994,25 +1223,44 @@ def fit_birth_death(
             lam, mu = np.exp(theta)
             jac = np.diag([lam, mu])  # d(lam, mu) / d(log lam, log mu)
             log_jac = np.eye(2)
+            scores = pairs.lin_scores(theta)
+
+            def refit(w):
+                return _newton(partial(pairs.loglik_derivatives, weights=w), theta, int(mi))
+
+            def log_rates(th):
+                return th
+
         else:
 
             def rates(phi):
                 mu_ = np.exp(phi[0])
                 return mu_ * special.expit(phi[1]), mu_
 
-            def f(phi, order):
-                lam_, mu_ = rates(phi)
-                if order == 0:
-                    return pairs.const_loglik(lam_, mu_)
-                trunc = pairs.const_trunc(lam_ * 1.01, mu_ * 1.01)
-                return _fd(lambda x: pairs.const_loglik(*rates(x), trunc), phi)
+            def make_f(w):
+                def f(phi, order):
+                    lam_, mu_ = rates(phi)
+                    if order == 0:
+                        return pairs.const_loglik(lam_, mu_, weights=w)
+                    trunc = pairs.const_trunc(lam_ * 1.01, mu_ * 1.01)
+                    return _fd(lambda x: pairs.const_loglik(*rates(x), trunc, w), phi)
 
-            theta, value, _, hess, conv, it = _newton(f, theta0, int(mi))
+                return f
+
+            theta, value, _, hess, conv, it = _newton(make_f(None), theta0, int(mi))
             lam, mu = rates(theta)
             r = lam / mu
             # d(lam, mu) / d(log mu, logit r): lam = mu * r
             jac = np.array([[lam, lam * (1 - r)], [mu, 0.0]])
             log_jac = np.diag([1 / lam, 1 / mu]) @ jac
+            scores = _const_scores(pairs, rates, theta)
+
+            def refit(w):
+                return _newton(make_f(w), theta, int(mi))
+
+            def log_rates(th):
+                return np.log(rates(th))
+
     info = -np.asarray(hess)
     try:
         cov_theta = np.linalg.inv(info)
@@ -1023,6 +1271,34 @@ def fit_birth_death(
         conv = False
     cov = jac @ cov_theta @ jac.T
     log_cov = log_jac @ cov_theta @ log_jac.T
+    per = scores[pairs.inverse]  # (n_series, n_times - 1, 2): transitions in time order
+    n_boot_used = 0
+    if robust == "hac":
+        width = hac_bandwidth(c) if lags is None else lags
+        # the scores sum to zero at the MLE, which biases the Bartlett estimate down by the
+        # factor 1 - b + b^2 / 3, b = (L + 1) / T (Kiefer and Vogelsang 2005): undone here.
+        # Only the pooled sum is zero, so with several series T counts all their
+        # transitions (the first-order bias is then -(L + 1) / T, as for one series).
+        b = (width + 1.0) / pairs.n_transitions
+        meat = _hac_meat(per, width) / (1.0 - b + b * b / 3.0)
+        cov_theta_r = cov_theta @ meat @ cov_theta
+        log_cov_r = log_jac @ cov_theta_r @ log_jac.T
+    else:
+        width = hac_bandwidth(c) + 1 if block is None else block
+        weights = _block_weights(_rng_from_key(key), pairs.inverse, pairs.w.size, width, int(nb))
+        reps = []
+        with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
+            for w in weights:
+                th_b, *_, ok, _ = refit(w)
+                if ok:
+                    reps.append(log_rates(th_b))
+        n_boot_used = len(reps)
+        if n_boot_used < 2:
+            log_cov_r = np.full((2, 2), np.nan)
+        else:
+            log_cov_r = np.cov(np.asarray(reps), rowvar=False)
+    rates_diag = np.diag([lam, mu])
+    cov_r = rates_diag @ log_cov_r @ rates_diag
     return BirthDeathFit(
         birth_rate=float(lam),
         death_rate=float(mu),
@@ -1036,4 +1312,10 @@ def fit_birth_death(
         converged=bool(conv),
         n_iter=int(it),
         death=death,
+        stderr_robust=np.sqrt(np.diag(cov_r)),
+        cov_robust=cov_r,
+        log_cov_robust=log_cov_r,
+        stderr_method=robust,
+        bandwidth=int(width),
+        n_boot=n_boot_used,
     )
