@@ -202,12 +202,19 @@ def run_fit(
         console.print(f"[yellow]warning:[/] {w}")
     _print_traffic(idata)
     if panel is not None:
+        from are_stats.fitting import compare_panel
+
         a = idata.posterior.attrs
         se = a["birth_death_stderr"]
+        se_r = a.get("birth_death_stderr_robust", se)
         console.print(
             f"birth-death MLE of {counts}: birth rate {a['birth_death_birth_rate']:.4g} "
-            f"+- {se[0]:.2g}, death rate {a['birth_death_death_rate']:.4g} +- {se[1]:.2g}"
+            f"+- {se[0]:.2g} (robust {se_r[0]:.2g}), death rate "
+            f"{a['birth_death_death_rate']:.4g} +- {se[1]:.2g} (robust {se_r[1]:.2g})"
         )
+        cmp = compare_panel(idata)
+        if cmp.warning:
+            console.print(f"[yellow]warning:[/] {cmp.warning}")
     console.print(f"wrote {out}")
     if figures is not None:
         with console.status("posterior-predictive checks ..."):

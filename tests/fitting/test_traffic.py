@@ -129,7 +129,7 @@ def test_generated_scenarios_reproduce_the_crowding(rich_fit, rich_log):
 def _idata_with(traffic, data):
     """A small fit file holding the paper's conjugate draws and the traffic choice."""
     idata = fit_log(jax.random.key(3), data,
-                    FitSettings(method="em", num_samples=300, num_chains=2, arrivals="poisson",
+                    FitSettings(method="em", num_samples=200, num_chains=2, arrivals="poisson",
                                 lifetimes="exponential", positions="uniform"))  # fmt: skip
     from are_stats.fitting import attach_traffic
 
