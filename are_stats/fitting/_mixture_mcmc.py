@@ -28,10 +28,10 @@ import numpyro.distributions as dist
 from jax import random
 from numpyro.distributions import constraints
 from numpyro.distributions.transforms import biject_to
-from numpyro.infer import MCMC, NUTS
 
 from are_stats._checks import check_in, check_positive
 from are_stats.fitting._em import _check_positive_int, fit_mixture_em, marks_histogram
+from are_stats.fitting._nuts import run_nuts
 from are_stats.traffic._mixture import PoissonMixture
 
 __all__ = ["fit_mixture_nuts", "mixture_model"]
@@ -189,10 +189,6 @@ def fit_mixture_nuts(
         raise ValueError(f"rate_prior: expected (shape, rate), got {len(prior)} numbers")
     rate_prior = (float(prior[0]), float(prior[1]))
 
-    method = chain_method
-    if method == "parallel" and num_chains > 1 and jax.local_device_count() < num_chains:
-        method = "vectorized"
-
     values = jnp.asarray(hist.values)
     cnts = jnp.asarray(hist.counts)
     key_init, key_run = random.split(key)
@@ -221,27 +217,26 @@ def fit_mixture_nuts(
         weight_concentration=alpha,
         rate_prior=rate_prior,
     )
-    kernel = NUTS(model, target_accept_prob=target_accept_prob)
-    mcmc = MCMC(
-        kernel,
+    run = run_nuts(
+        key_run,
+        model,
+        {"values": values, "counts": cnts},
+        None,
         num_warmup=num_warmup,
         num_samples=num_samples,
         num_chains=num_chains,
-        chain_method=method,
-        progress_bar=False,
-    )
-    mcmc.run(
-        key_run,
-        values,
-        cnts,
+        target_accept_prob=target_accept_prob,
         init_params=init_params,
-        extra_fields=("num_steps", "diverging", "energy", "accept_prob"),
+        chain_method=chain_method,
+        extra_fields=("num_steps", "energy", "accept_prob"),
+        name="mixture",
     )
-    samples = mcmc.get_samples(group_by_chain=True)
+    method = run.chain_method
+    samples = run.samples
     weights = samples["mix_weights"]
     rates = samples["mix_rates"]
     loglik = np.asarray(_pointwise_loglik(weights, rates, values))
-    extra = mcmc.get_extra_fields(group_by_chain=True)
+    extra = {**run.extra, "diverging": run.diverging}
     coords = {
         "component": np.arange(n_components),
         "mark_value": hist.values.astype(np.int64),

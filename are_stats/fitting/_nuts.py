@@ -38,6 +38,10 @@ class NutsRun(NamedTuple):
         Pointwise log-likelihood.
     name : str
         The model's name (in warnings).
+    extra : dict of str to (chains, draws) ndarray
+        The sampler's extra fields asked for (``num_steps``, ``energy``, ...).
+    chain_method : str
+        How the chains ran (``parallel``, ``vectorized`` or ``sequential``).
     """
 
     samples: dict
@@ -45,6 +49,8 @@ class NutsRun(NamedTuple):
     r_hat: dict
     loglik: np.ndarray | None
     name: str
+    extra: dict = {}  # noqa: RUF012 (NamedTuple default, never mutated)
+    chain_method: str = "sequential"
 
     @property
     def n_divergent(self) -> int:
@@ -62,7 +68,7 @@ def run_nuts(
     key: Any,
     model: Callable[..., None],
     model_kwargs: dict,
-    init: dict,
+    init: dict | None,
     *,
     num_warmup: int = 1000,
     num_samples: int = 1000,
@@ -70,6 +76,9 @@ def run_nuts(
     pointwise: Callable[[dict], Any] | None = None,
     name: str = "",
     target_accept_prob: float = 0.85,
+    init_params: dict | None = None,
+    chain_method: str | None = None,
+    extra_fields: tuple[str, ...] = (),
 ) -> NutsRun:
     """Sample ``model(**model_kwargs)`` by NUTS from ``init``.
 
@@ -80,9 +89,9 @@ def run_nuts(
         A numpyro model.
     model_kwargs : dict
         Its arguments.
-    init : dict
-        Starting values of the latent sites (unconstrained scale choices are the model's:
-        the traffic models start at ``z = 0``, the empirical estimate).
+    init : dict or None
+        Starting values of the latent sites, on their constrained scale (the traffic
+        models start at ``z = 0``, the empirical estimate); None: numpyro's default.
     num_warmup, num_samples, num_chains : int
     pointwise : callable, optional
         ``pointwise(sample_dict) -> (units,)`` for ONE draw (vmapped over draws).
@@ -90,27 +99,37 @@ def run_nuts(
         Model name for the warnings.
     target_accept_prob : float
         NUTS step-size adaptation target.
+    init_params : dict, optional
+        Starting values on the unconstrained scale, with a leading chain axis (e.g. an EM
+        fit jittered per chain); they win over ``init``.
+    chain_method : {"parallel", "vectorized", "sequential"}, optional
+        Default: parallel when there is a device per chain
+        (:func:`~are_stats.fitting.resolve_chain_method`).
+    extra_fields : tuple of str
+        numpyro extra fields to keep (``diverging`` is always kept).
 
     Returns
     -------
     NutsRun
     """
-    kernel = NUTS(
-        model,
-        init_strategy=init_to_value(values=init),
-        target_accept_prob=target_accept_prob,
-    )
+    kw = {} if init is None else {"init_strategy": init_to_value(values=init)}
+    kernel = NUTS(model, target_accept_prob=target_accept_prob, **kw)
+    method = resolve_chain_method(chain_method, int(num_chains))
+    if method == "parallel" and jax.local_device_count() < int(num_chains):
+        method = "vectorized"  # numpyro would run "parallel" chains one after another
     mcmc = MCMC(
         kernel,
         num_warmup=int(num_warmup),
         num_samples=int(num_samples),
         num_chains=int(num_chains),
-        chain_method=resolve_chain_method(None, int(num_chains)),
+        chain_method=method,
         progress_bar=False,
     )
-    mcmc.run(key, extra_fields=("diverging",), **model_kwargs)
+    fields = tuple(dict.fromkeys(("diverging", *extra_fields)))
+    mcmc.run(key, init_params=init_params, extra_fields=fields, **model_kwargs)
     samples = {k: np.asarray(v) for k, v in mcmc.get_samples(group_by_chain=True).items()}
-    diverging = np.asarray(mcmc.get_extra_fields(group_by_chain=True)["diverging"], bool)
+    got = {k: np.asarray(v) for k, v in mcmc.get_extra_fields(group_by_chain=True).items()}
+    diverging = got.pop("diverging").astype(bool)
     r_hat = {}
     for site, v in samples.items():
         if v.shape[0] < 2 or v.shape[1] < 4:
@@ -125,7 +144,7 @@ def run_nuts(
         flat = {k: jnp.asarray(v.reshape((c * d,) + v.shape[2:])) for k, v in samples.items()}
         ll = jax.jit(jax.vmap(pointwise))(flat)
         loglik = np.asarray(ll).reshape(c, d, -1)
-    return NutsRun(samples, diverging, r_hat, loglik, name)
+    return NutsRun(samples, diverging, r_hat, loglik, name, got, method)
 
 
 def nuts_warnings(run: NutsRun, r_hat_limit: float = 1.01) -> list[str]:
