@@ -429,9 +429,12 @@ def simulate_lifecycle(
 ) -> LifecycleData:
     """Simulate one observed window of the marked Poisson life-cycle exactly.
 
-    Arrivals in ``[t0, t1]``: a Poisson(``arrival_rate * area * (t1 - t0)``) number of
-    uniform times (sorted); exponential(``leave_rate``) lifetimes; departures at or after
-    ``t1`` are censored (NaN). With ``stationary_start`` the window opens on the stationary
+    The population is drawn by the one sampler of the life-cycle process
+    (:func:`are_stats.traffic.sample_population` with the paper's laws) and seen through
+    the window as a field log records it. Arrivals in ``[t0, t1]``: a
+    Poisson(``arrival_rate * area * (t1 - t0)``) number of uniform times (sorted);
+    exponential(``leave_rate``) lifetimes; departures at or after ``t1`` are censored
+    (NaN). With ``stationary_start`` the window opens on the stationary
     population of the immigration-death process: a Poisson(``arrival_rate * area /
     leave_rate``) number of artefacts already present (arrival NaN) with exponential residual
     lifetimes. Every artefact draws a mark from the Poisson mixture of eq. (1) and its class
@@ -516,23 +519,33 @@ def simulate_lifecycle(
         raise ValueError("area: expected the free area in m^2 (or a free_mask), got None")
     area = float(check_positive("area", area, ndim=0))
 
+    from are_stats.traffic._positions import uniform_position_density
+    from are_stats.traffic._sampler import TrafficLaws, sample_population
+
     rng = _numpy_rng(key)
-    n_arr = int(rng.poisson(lam * area * (t1 - t0)))
-    n_pre = int(rng.poisson(lam * area / mu)) if stationary_start else 0
-    n = n_pre + n_arr
-    arrive = np.sort(rng.uniform(t0, t1, size=n_arr))
-    life = rng.exponential(1.0 / mu, size=n)
-    leave = np.concatenate([np.full(n_pre, t0), arrive]) + life
-    t_arrive = np.concatenate([np.full(n_pre, np.nan), arrive])
+    free = None
+    if cells is not None:
+        free = uniform_position_density(free_mask, res, (float(orig[0]), float(orig[1])))
+    # the one sampler of the life-cycle process (the paper's laws), seen through the window
+    pop = sample_population(
+        rng,
+        {"event_rate": lam, "stay_mean": 1.0 / mu},
+        TrafficLaws(),
+        t1 - t0,
+        area,
+        start="stationary" if stationary_start else "empty",
+        free=free,
+    )
+    n = pop["t_arrive"].size
+    initial = pop["truncated"]
+    t_arrive = np.where(initial, np.nan, pop["t_arrive"] + t0)
+    leave = pop["t_leave"] + t0
     t_leave = np.where(leave < t1, leave, np.nan)
     labels = rng.choice(weights.shape[0], size=n, p=weights)
     marks = rng.poisson(rates[labels])
     x = y = yaw = None
     if cells is not None:
-        pick = cells[rng.integers(0, cells.shape[0], size=n)]
-        offset = rng.uniform(0.0, 1.0, size=(n, 2))
-        x = orig[0] + (pick[:, 1] + offset[:, 0]) * res
-        y = orig[1] + (pick[:, 0] + offset[:, 1]) * res
+        x, y = pop["x"], pop["y"]
         yaw = rng.uniform(0.0, 2.0 * np.pi, size=n)
     return LifecycleData(
         t_arrive=t_arrive,
