@@ -216,10 +216,13 @@ def stay_loglik(
     if resolution > 0:
         short = stay < resolution
         full = jnp.where(short & ~censored, stay_logcdf(law, resolution, mean, shape), full)
-    surv = stay_logsf(law, stay, mean, shape)
+    # survival terms at a stay of exactly 0 (an artefact that arrived at t1) have NaN
+    # gradients in the shape (the incomplete gamma at 0): 1e-12 mean is the same survival
+    s_pos = jnp.maximum(stay, 1e-12 * mean)
+    surv = stay_logsf(law, s_pos, mean, shape)
     return jnp.where(
         truncated,
-        jnp.where(censored, stay_log_excess(law, stay, mean, shape), surv) - log_m,
+        jnp.where(censored, stay_log_excess(law, s_pos, mean, shape), surv) - log_m,
         jnp.where(censored, surv, full),
     )
 
