@@ -311,7 +311,7 @@ def test_perceive_adds_flags(tmp_path):
             "--out",
             scen,
             "--map",
-            "models/courtyard.yaml",
+            "courtyard",  # a shipped map, by name
         ]
     )
     assert res.exit_code == 0, res.output
@@ -322,7 +322,7 @@ def test_perceive_adds_flags(tmp_path):
             "perceive",
             scen,
             "--camera",
-            "models/cameras/front_camera.yaml",
+            "front_camera",  # a shipped camera, by name
             "--robot-path",
             robot,
             "--tau",
@@ -358,7 +358,7 @@ def test_generate_with_behaviours(tmp_path):
             "--out",
             out,
             "--map",
-            "models/courtyard.yaml",
+            "courtyard",  # a shipped map, by name
             "--behaviours",
         ]
     )
