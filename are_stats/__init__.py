@@ -162,6 +162,9 @@ _LAZY.update(
             "extrude_grid",
             "load_catalogue",
             "load_mesh",
+            "resolve_shipped",
+            "shipped_names",
+            "shipped_path",
         ],
         "are_stats.environment",
     )

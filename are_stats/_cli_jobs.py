@@ -20,13 +20,15 @@ from rich.table import Table
 
 from are_stats import __version__
 from are_stats._atomic import atomic_path, check_writable
+from are_stats.environment import resolve_shipped, shipped_path
 
 console = Console(highlight=False, width=None if Console().is_terminal else 100)
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE_LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
-EXAMPLE_MAP = ROOT / "models" / "courtyard.yaml"
-DEMO_FIT = ROOT / "fits" / "courtyard_traffic.nc"
+# The demo's inputs, shipped inside the package (are_stats.environment.shipped_path); its
+# outputs, the fit included, go under --out: nothing is written into the install.
+EXAMPLE_LOG_NAME = "courtyard_traffic"
+EXAMPLE_LOG = shipped_path(EXAMPLE_LOG_NAME, "log")
+EXAMPLE_MAP = shipped_path("courtyard", "map")
 
 
 def _summary_table(summary: Any, title: str) -> Table:
@@ -150,6 +152,7 @@ def run_fit(
         lifetimes=lifetimes,
         positions=positions,
     )
+    log = resolve_shipped(log, "log", source="LOG")  # a file, or a shipped log's name
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         lifecycle = read_field_log(
@@ -369,6 +372,7 @@ def run_generate(
     if map_path is not None:
         from are_stats.environment import OccupancyGrid
 
+        map_path = resolve_shipped(map_path, "map", source="--map")  # or a shipped map's name
         grid = OccupancyGrid.from_ros_yaml(map_path)
     if behaviours and grid is None:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
@@ -485,7 +489,7 @@ def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
     out = Path(out)
-    fit_file = out / "courtyard_traffic.nc" if quick else DEMO_FIT
+    fit_file = out / f"{EXAMPLE_LOG_NAME}.nc"
     summary_file = out / "summary.yaml"
     check_writable(summary_file, force)
     check_writable(fit_file, force)
@@ -535,7 +539,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     checks = pd.read_csv(checks_file, index_col=0) if checks_file.exists() else None
     summary = {
         "are_stats_version": __version__,
-        "log": str(EXAMPLE_LOG.relative_to(ROOT)),
+        "log": f"{EXAMPLE_LOG_NAME} (shipped)",
         "truth": desc,
         "fit": str(fit_file),
         "chosen_models": {
@@ -624,7 +628,7 @@ def run_perceive(
     check_writable(target, force)
     df, manifest = read_scenario_folder(scenario)
     tracks = read_scenario_tracks(scenario, manifest, df)
-    camera = PinholeCamera.from_yaml(camera_path)
+    camera = PinholeCamera.from_yaml(resolve_shipped(camera_path, "camera", source="--camera"))
     path = Path(robot_path)
     robot = read_robot_path(path)
     map_file = manifest.get("map")

@@ -148,7 +148,11 @@ def show(
 @app.command()
 @_cli_errors
 def fit(
-    log: Path = typer.Argument(..., metavar="LOG", help="Life-cycle log (CSV or Parquet)."),
+    log: Path = typer.Argument(
+        ...,
+        metavar="LOG",
+        help="Life-cycle log (CSV or Parquet) or a shipped one (courtyard_traffic).",
+    ),
     out: Path = typer.Option(..., "--out", help="Fit to write, e.g. fits/NAME.nc (NetCDF)."),
     method: str = typer.Option(
         "nuts", "--method", help="nuts: joint posterior by NUTS; em: conjugate rates + EM."
@@ -249,7 +253,7 @@ def generate(
     seed: int = typer.Option(..., "--seed", help="Seed (same seed, same bytes)."),
     out: Path = typer.Option(..., "--out", help="Output folder (artefacts.parquet + manifest)."),
     map_path: Path = typer.Option(
-        None, "--map", help="ROS map YAML: positions uniform over its free cells."
+        None, "--map", help="ROS map YAML or a shipped map (courtyard): positions on free cells."
     ),
     area: float = typer.Option(None, "--area", help="Area in m^2 (default: the fit's or map's)."),
     behaviours: bool = typer.Option(
@@ -288,7 +292,9 @@ def generate(
 @app.command()
 @_cli_errors
 def demo(
-    out: Path = typer.Option(Path("demo-output"), "--out", help="Folder for the demo outputs."),
+    out: Path = typer.Option(
+        Path("demo-output"), "--out", help="Folder for the demo outputs, the fit included."
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite earlier demo outputs."),
     quick: bool = typer.Option(False, "--quick", help="Fewer draws (for tests)."),
 ) -> None:
@@ -304,7 +310,11 @@ def perceive(
     scenario: Path = typer.Argument(
         ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
     ),
-    camera: Path = typer.Option(..., "--camera", help="Camera YAML (ROS camera_info fields)."),
+    camera: Path = typer.Option(
+        ...,
+        "--camera",
+        help="Camera YAML (ROS camera_info) or a shipped camera (front_camera).",
+    ),
     robot_path: Path = typer.Option(
         ..., "--robot-path", help="Robot base poses over time: CSV/Parquet with t, x, y, yaw."
     ),
@@ -340,7 +350,9 @@ def perceive(
 @app.command()
 @_cli_errors
 def experiment(
-    config: str = typer.Argument(..., metavar="CONFIG.yaml", help="Sweep config (YAML)."),
+    config: str = typer.Argument(
+        ..., metavar="CONFIG.yaml", help="Sweep config (YAML), or a shipped one (fig7, fig7_fit)."
+    ),
     out: str = typer.Option(None, "--out", help="Results folder (default: results/<name>)."),
     workers: int = typer.Option(1, "--workers", min=1, max=64, help="Local Dask workers."),
     scheduler: str = typer.Option(

@@ -3,8 +3,9 @@
 Truth (stated here and in the manifest's description), chosen so that the paper's model
 fits the averages but not the world, and the toolkit's choice matters:
 
-* a 4-hour window [0, 14400] s on the courtyard map (free area from models/courtyard.yaml),
-  opening on the stationary population and closing with right-censored rows;
+* a 4-hour window [0, 14400] s on the shipped courtyard map (free area from its
+  ``courtyard.yaml``), opening on the stationary population and closing with right-censored
+  rows;
 * **groups**: groups arrive at a rate such that ``1/30`` artefacts per second arrive on
   average (480 expected arrivals); sizes 1, 2, 3, 4 with probabilities (0.6, 0.25, 0.1,
   0.05); members share the arrival time, the entry point (within 0.5 m) and the class,
@@ -17,7 +18,9 @@ fits the averages but not the world, and the toolkit's choice matters:
   classes (person, child, car, pallet, cart) with weights (0.35, 0.2, 0.1, 0.2, 0.15),
   one class per group.
 
-Run: ``python models/make_example_log.py``.
+Run: ``python models/make_example_log.py``; it writes ``logs/courtyard_traffic.csv`` and its
+manifest into the package data folder ``are_stats/data/`` (the shipped log
+``courtyard_traffic``).
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ from are_stats.traffic import (
     uniform_position_density,
 )
 
-HERE = Path(__file__).resolve().parent
+#: The package data folder (the shipped map is read from it, the log written into it).
+HERE = Path(__file__).resolve().parents[1] / "are_stats" / "data"
 CLASSES = ["person", "child", "car", "pallet", "cart"]
 WEIGHTS = [0.35, 0.2, 0.1, 0.2, 0.15]
 RATES = [15.0, 7.0, 3.0, 21.0, 5.0]

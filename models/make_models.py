@@ -1,5 +1,8 @@
 """Generate the shipped models (seeded, deterministic): run ``python models/make_models.py``.
 
+They are written into the package's data folder ``are_stats/data/`` (shipped in the wheel and
+read with :func:`are_stats.environment.shipped_path`); this script is the only source of:
+
 * ``courtyard.yaml`` + ``courtyard.pgm``: a 40 m x 30 m outdoor courtyard at 0.1 m (ROS
   ``map_server`` trinary map): perimeter walls, three building blocks, a few pillars and
   planters, unknown space outside the walls.
@@ -15,8 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+#: The package data folder the files are written into (one copy, inside the package).
+HERE = REPO / "are_stats" / "data"
 
 RES = 0.1
 WIDTH_M, HEIGHT_M = 40.0, 30.0

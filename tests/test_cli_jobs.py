@@ -274,6 +274,9 @@ def test_demo_quick(tmp_path):
     res = _invoke(["demo", "--out", tmp_path / "demo", "--quick"])
     assert res.exit_code == 0, res.output
     summary = yaml.safe_load((tmp_path / "demo" / "summary.yaml").read_text())
+    # the fit goes under --out (never into the package); the log is the shipped one
+    assert summary["fit"] == str(tmp_path / "demo" / "courtyard_traffic.nc")
+    assert (tmp_path / "demo" / "courtyard_traffic.nc").is_file()
     # the example log's truth (models/make_example_log.py): groups, gamma stays of mean
     # 600 s, door entries; 1/30 artefacts per s
     assert summary["chosen_models"] == {
@@ -312,7 +315,7 @@ def test_perceive_adds_flags(tmp_path):
             "--out",
             scen,
             "--map",
-            "models/courtyard.yaml",
+            "courtyard",  # a shipped map, by name
         ]
     )
     assert res.exit_code == 0, res.output
@@ -323,7 +326,7 @@ def test_perceive_adds_flags(tmp_path):
             "perceive",
             scen,
             "--camera",
-            "models/cameras/front_camera.yaml",
+            "front_camera",  # a shipped camera, by name
             "--robot-path",
             robot,
             "--tau",
@@ -359,7 +362,7 @@ def test_generate_with_behaviours(tmp_path):
             "--out",
             out,
             "--map",
-            "models/courtyard.yaml",
+            "courtyard",  # a shipped map, by name
             "--behaviours",
         ]
     )

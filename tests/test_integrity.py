@@ -23,12 +23,12 @@ import numpy as np
 import pytest
 import yaml
 
+from are_stats.environment import shipped_path
 from tests.helpers import PAPER_MODELS, TINY_SWEEP
 
-ROOT = Path(__file__).resolve().parents[1]
-LOG = ROOT / "models" / "logs" / "courtyard_traffic.csv"
-MAP = str(ROOT / "models" / "courtyard.yaml")
-CAMERA = str(ROOT / "models" / "cameras" / "front_camera.yaml")
+LOG = shipped_path("courtyard_traffic", "log")
+MAP = str(shipped_path("courtyard", "map"))
+CAMERA = str(shipped_path("front_camera", "camera"))
 
 #: Kill moments per command (fractions of an uninterrupted run's time, seeded).
 N_KILLS = 2

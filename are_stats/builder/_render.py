@@ -117,15 +117,16 @@ def show_map(
     seed: int = 0,
     force: bool = False,
 ) -> Path:
-    """Read a ROS map (a YAML path, or the name of a map shipped in ``models/``), place
-    ``artefacts`` random catalogue artefacts on it and render it (``are-stats show``).
+    """Read a ROS map (a YAML path, or the name of a shipped map), place ``artefacts``
+    random catalogue artefacts on it and render it (``are-stats show``).
 
     Parameters
     ----------
     map_path : str or PathLike
-        The map YAML or the name of a shipped map (``courtyard``).
+        The map YAML or the name of a shipped map (``courtyard``;
+        :func:`~are_stats.environment.resolve_shipped`).
     out : str or PathLike, optional
-        The PNG (default ``<map name>.png``).
+        The PNG (default ``<map name>.png`` in the working directory).
     inflate : float, optional
         Inflation radius to draw, in ``[0, MAX_INFLATE]`` metres.
     artefacts : int
@@ -143,15 +144,13 @@ def show_map(
         not all find room (200 tries each).
     """
     from are_stats.builder._builder import ARBuilder
-    from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
+    from are_stats.environment import OccupancyGrid, load_catalogue, resolve_shipped
 
     if inflate is not None:
         inflate = get_float(inflate, "--inflate", "", lo=0, hi=MAX_INFLATE)
     n_art = get_int(artefacts, "--artefacts", "", lo=0, hi=MAX_SHOW_ARTEFACTS)
     seed = get_seed(seed, "--seed")
-    p = Path(map_path)
-    if not p.exists() and (DEFAULT_MODELS / f"{p.name}.yaml").is_file():
-        p = DEFAULT_MODELS / f"{p.name}.yaml"
+    p = resolve_shipped(map_path, "map", source="MAP")  # a map file, or a shipped map's name
     grid = OccupancyGrid.from_ros_yaml(p)
     target = Path(out) if out is not None else Path(f"{p.stem}.png")
     check_writable(target, force)

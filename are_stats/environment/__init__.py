@@ -1,5 +1,5 @@
 """The real environment (paper Sect. 3.1): occupancy grid M_2D, voxel map M_3D, mesh S_E,
-frames F_E/F_R/F_L/F_C/F_A and the artefact catalogue Q."""
+frames F_E/F_R/F_L/F_C/F_A, the artefact catalogue Q and the data shipped in the package."""
 
 from are_stats.environment._catalogue import (
     BEHAVIOURS,
@@ -23,6 +23,13 @@ from are_stats.environment._grid import (
     coarse_occupancy,
 )
 from are_stats.environment._mesh import extrude_grid, load_mesh, occupied_polygons
+from are_stats.environment._shipped import (
+    SHIPPED_DATA,
+    SHIPPED_KINDS,
+    resolve_shipped,
+    shipped_names,
+    shipped_path,
+)
 from are_stats.environment._voxels import VoxelMap
 
 __all__ = [
@@ -31,6 +38,8 @@ __all__ = [
     "FREE",
     "OCCUPIED",
     "OPTICAL_IN_BODY",
+    "SHIPPED_DATA",
+    "SHIPPED_KINDS",
     "UNKNOWN",
     "ArtefactCatalogue",
     "ArtefactClass",
@@ -45,4 +54,7 @@ __all__ = [
     "occupied_polygons",
     "planar_pose_matrix",
     "pose_matrix",
+    "resolve_shipped",
+    "shipped_names",
+    "shipped_path",
 ]

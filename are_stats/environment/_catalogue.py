@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from are_stats.environment._shipped import SHIPPED_DATA
 from are_stats.inputs import (
     Described,
     InputError,
@@ -71,8 +72,9 @@ MAX_SCALE = 1000.0
 ROW_BYTES = 512
 _CLASS_KEYS = ("label", "mesh", "speeds", "behaviours", "features", "variants")
 
-#: The repository's ``models/`` folder (default courtyard map, mesh and catalogue).
-DEFAULT_MODELS = Path(__file__).resolve().parents[2] / "models"
+#: The shipped data folder inside the package (default courtyard map, mesh and catalogue);
+#: the same folder as :data:`~are_stats.environment.SHIPPED_DATA` (read-only: never written).
+DEFAULT_MODELS = SHIPPED_DATA
 
 
 @dataclass(frozen=True)
@@ -188,7 +190,7 @@ class ArtefactCatalogue:
 
     Examples
     --------
-    >>> q = load_catalogue()  # the catalogue shipped in models/artefacts
+    >>> q = load_catalogue()  # the shipped catalogue (are_stats/data/artefacts)
     >>> q.labels[:2]
     ('person', 'child')
     >>> q.row(99).label == q.labels[-1]  # class positions clip to the last class
@@ -270,7 +272,7 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
     Parameters
     ----------
     path : str or PathLike, optional
-        The catalogue YAML; default ``models/artefacts/catalogue.yaml``. Top-level keys
+        The catalogue YAML; default the shipped ``artefacts/catalogue.yaml``. Top-level keys
         ``version`` (optional, 1) and ``classes``; class keys ``label``, ``mesh``,
         ``speeds`` (``walk``, optional ``run``; m/s in ``(0, MAX_SPEED]``), ``behaviours``,
         ``features`` (free-form mapping) and ``variants``; any other key is an error.

@@ -7,7 +7,7 @@ it). Tasks are the full factor grid times ``replicates``. Replicate ``r`` draws 
 and goals from ``SeedSequence([seed, r])`` whatever the factor levels (common random
 numbers), so planner settings are compared on the same scenarios.
 
-Example (``models/experiments/fig7.yaml``)::
+Example (the shipped ``fig7``: ``are-stats experiment fig7``)::
 
     name: fig7
     map: courtyard
@@ -28,7 +28,8 @@ Schema (every key optional; unknown keys are errors that list the known ones):
 
 * ``name``: letters, digits, ``.``, ``_``, ``-`` (the default results folder
   ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path; ``catalogue``:
-  an artefact catalogue YAML (default the shipped one, :func:`~are_stats.load_catalogue`);
+  an artefact catalogue YAML or a shipped catalogue name (default the shipped one,
+  :func:`~are_stats.load_catalogue`);
   ``behaviours``: true/false (artefacts move along behaviour tracks); ``seed``: integer in
   ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
 * ``scenario``: one source of artefacts. Hand-set rates: ``arrival_rate`` (> 0, per m^2
@@ -54,8 +55,11 @@ Schema (every key optional; unknown keys are errors that list the known ones):
   of distinct levels, each checked as the key it replaces.
 
 Paths (``map``, ``catalogue``, ``scenario.fit``, ``scenario.scenarios``) relative to a config
-file are taken from its folder (from the working directory for a dict), made absolute, and
-the files are read and checked on the client before any Dask worker starts.
+file are taken from its folder (from the working directory for a dict, and for a shipped
+config such as ``fig7_fit``, whose folder is inside the install), made absolute, and the
+files are read and checked on the client before any Dask worker starts. ``map`` and
+``catalogue`` may also name shipped files (:func:`~are_stats.environment.resolve_shipped`:
+an existing file wins), and the config itself may be a shipped name (``fig7``).
 
 Before anything runs, the expected work of the sweep (artefacts drawn, replans, grid passes,
 motion steps, camera rays) and the memory of its largest task are estimated and refused past
@@ -258,12 +262,19 @@ def _resolve(value: str, base: Path) -> str:
 
 def _resolve_map(name: str, base: Path) -> str:
     """A map path relative to ``base`` made absolute; a shipped map name kept as is."""
-    from are_stats.environment import DEFAULT_MODELS
+    from are_stats.environment import shipped_names
 
     p = base / Path(name).expanduser()
-    if not p.is_file() and name == Path(name).name and (DEFAULT_MODELS / f"{name}.yaml").is_file():
+    if not p.is_file() and name == Path(name).name and name in shipped_names("map"):
         return name
     return str(p.resolve())
+
+
+def _resolve_catalogue(value: str, base: Path, src: str) -> str:
+    """A catalogue path relative to ``base`` made absolute, or a shipped catalogue's file."""
+    from are_stats.environment import resolve_shipped
+
+    return str(resolve_shipped(value, "catalogue", base=base, source=src, where="catalogue"))
 
 
 def _scenario(given: Mapping[str, Any], src: str, base: Path) -> dict[str, Any]:
@@ -375,7 +386,9 @@ def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
         raise InputError(src, "map", "a shipped map name or a ROS map YAML path", cfg["map"])
     cfg["map"] = _resolve_map(cfg["map"], base)
     cat = top.get("catalogue")
-    cfg["catalogue"] = None if cat is None else _resolve(_path_string(cat, src, "catalogue"), base)
+    cfg["catalogue"] = (
+        None if cat is None else _resolve_catalogue(_path_string(cat, src, "catalogue"), base, src)
+    )
     cfg["behaviours"] = get_bool(top.get("behaviours", False), src, "behaviours")
     cfg["seed"] = get_int(top.get("seed", _DEFAULTS["seed"]), src, "seed", lo=0, hi=MAX_SEED)
     cfg["replicates"] = get_int(
@@ -467,21 +480,20 @@ _BYTES_PER_TASK = 8_192  # a task dict of the task list
 
 
 def _map_file(name: str) -> Path | None:
-    from are_stats.environment import DEFAULT_MODELS
+    from are_stats.environment import shipped_names, shipped_path
 
     p = Path(name)
     if p.is_file():
         return p
-    shipped = DEFAULT_MODELS / f"{p.name}.yaml"
-    if p.name == name and shipped.is_file():
-        return shipped
+    if p.name == name and name in shipped_names("map"):
+        return shipped_path(name, "map")
     return None
 
 
 def _shipped_maps() -> list[str]:
-    from are_stats.environment import DEFAULT_MODELS
+    from are_stats.environment import shipped_names
 
-    return sorted(p.stem for p in DEFAULT_MODELS.glob("*.yaml") if p.with_suffix(".pgm").is_file())
+    return shipped_names("map")
 
 
 @functools.lru_cache(maxsize=4)
@@ -663,7 +675,8 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
 
 
 def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str, Any]:
-    """Read and validate a sweep config (a YAML path or a dict), with defaults filled in.
+    """Read and validate a sweep config (a YAML path, a shipped config's name such as
+    ``fig7``, or a dict), with defaults filled in.
 
     The whole config is checked against the schema of the module docstring (known keys per
     section, types, ranges, every factor level), the map is read, and the sweep's memory
@@ -686,10 +699,16 @@ def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str
     if isinstance(config, Mapping):
         raw, src, base = config, "config", Path.cwd()
     elif isinstance(config, str | os.PathLike):
-        p = Path(config)
+        from are_stats.environment import SHIPPED_DATA, resolve_shipped
+
+        p = resolve_shipped(config, "experiment", source="sweep config")  # or a shipped name
         if not p.exists():
             raise FileNotFoundError(f"{p}: sweep config not found")
-        raw, src, base = load_yaml(p, "sweep config"), str(p), p.resolve().parent
+        # a shipped config's folder is inside the install: its relative paths (a fit to
+        # make first) are taken from the working directory
+        shipped = p.resolve().is_relative_to(SHIPPED_DATA.resolve())
+        raw, src = load_yaml(p, "sweep config"), str(p)
+        base = Path.cwd() if shipped else p.resolve().parent
     else:
         raise InputError("config", "", "a sweep config path or mapping", config)
     cfg = _validate(raw, src, base)

@@ -289,7 +289,7 @@ def _nav2_cell(rgb, alpha, matte, mode, negate, occ_th, free_th):
     return pct if 0 <= pct <= 100 else -1
 
 
-# (occupied_thresh, free_thresh): shipped models/*.yaml and Nav2's example maps, map_saver's
+# (occupied_thresh, free_thresh): the shipped maps and Nav2's example maps, map_saver's
 # defaults, and Nav2's filter masks (speed / keepout)
 _THRESHOLDS = [(0.65, 0.196), (0.65, 0.25), (1.0, 0.0)]
 

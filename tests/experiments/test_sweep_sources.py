@@ -185,14 +185,21 @@ def test_behaviours_move_the_artefacts(files):
     assert still["n_artefacts"] == runs["n_artefacts"]
 
 
-def test_shipped_fit_config_is_valid():
+def test_shipped_fit_config_is_valid(tmp_path, monkeypatch):
+    from are_stats.environment import shipped_path
+    from are_stats.experiments import load_sweep_config
     from are_stats.experiments._sweep import _validate
     from are_stats.inputs import load_yaml
 
-    path = DEFAULT_MODELS / "experiments" / "fig7_fit.yaml"
-    cfg = _validate(load_yaml(path, "sweep config"), str(path), path.parent)
-    assert cfg["behaviours"] is True
-    assert cfg["scenario"]["fit"] == str(DEFAULT_MODELS.parent / "fits" / "courtyard_traffic.nc")
+    path = shipped_path("fig7_fit", "experiment")
+    cfg = _validate(load_yaml(path, "sweep config"), str(path), tmp_path)
+    assert cfg["behaviours"] is True and cfg["map"] == "courtyard"
+    # a shipped config's relative paths are taken from the working directory (its own
+    # folder is inside the install): the fit to make first is named there
+    monkeypatch.chdir(tmp_path)
+    fit = tmp_path / "fits" / "courtyard_traffic.nc"
+    with pytest.raises(InputError, match=f"scenario.fit.*no such file {fit}"):
+        load_sweep_config("fig7_fit")
 
 
 def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():

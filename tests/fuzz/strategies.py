@@ -1,6 +1,6 @@
 """Seeded hypothesis strategies of malformed-but-fair inputs, and the per-case guard.
 
-Every strategy starts from a *valid* input (a shipped file under ``models/`` or a small
+Every strategy starts from a *valid* input (a file shipped in ``are_stats/data`` or a small
 table written here) and applies one to three edits of the kinds a hostile-but-fair user
 could produce: dropped or extra fields, swapped types, bools, huge / negative / NaN / inf
 numbers, empty cells, a BOM, unicode, very long fields, truncated files, garbage bytes,
@@ -31,8 +31,10 @@ import yaml
 from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
 
-ROOT = Path(__file__).resolve().parents[2]
-MODELS = ROOT / "models"
+from are_stats.environment import SHIPPED_DATA
+
+#: The package data folder (:data:`are_stats.environment.SHIPPED_DATA`).
+MODELS = SHIPPED_DATA
 
 #: A case that puts a directory where the file belongs.
 DIRECTORY = "<directory>"
