@@ -236,12 +236,12 @@ def read_trajectory(
     """
     from rosbags.highlevel import AnyReader
 
-    from are_stats.logs._rosbag import _bag_errors, _messages, vision_msgs_typestore
+    from are_stats.logs import bag_messages, bag_read_errors, vision_msgs_typestore
 
     p = Path(bag)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such bag file or directory")
-    errors = _bag_errors()
+    errors = bag_read_errors()
     edges: dict[tuple[str, str], _Edge] = {}
     static: set[tuple[str, str]] = set()
     parents: dict[str, str] = {}
@@ -290,7 +290,7 @@ def read_trajectory(
                     Described(f"topics: {_topics_text(by_topic)}"),
                 )
             conns = [c for c in reader.connections if c.topic in (*wanted, *tf_topics)]
-            for conn, ts, msg in _messages(reader, conns, p, errors):
+            for conn, ts, msg in bag_messages(reader, conns, p):
                 if conn.msgtype == _TF:
                     for tr in msg.transforms:
                         parent = str(tr.header.frame_id).lstrip("/")
@@ -306,6 +306,14 @@ def read_trajectory(
                             static.add(key)
                 elif conn.topic == pose_topic:
                     pose = msg.pose.pose if conn.msgtype in (_POSE_COV, _ODOM) else msg.pose
+                    frame = str(msg.header.frame_id).lstrip("/")
+                    if frame and frame != map_frame:
+                        raise InputError(
+                            p,
+                            f"topic {pose_topic}, header.frame_id",
+                            f"poses in the map frame {map_frame!r} (or read /tf with --base-frame)",
+                            frame,
+                        )
                     pose_t.append(_stamp(msg.header, ts))
                     pose_m.append(_matrix(pose.position, pose.orientation))
                 else:  # camera info

@@ -23,6 +23,8 @@ from are_stats.logs._panel import read_count_panel
 from are_stats.logs._rosbag import (
     DETECTION3D_MSGS,
     SUPPORTED_TRACK_TYPES,
+    bag_messages,
+    bag_read_errors,
     read_tracks_bag,
     vision_msgs_typestore,
 )
@@ -49,6 +51,8 @@ __all__ = [
     "TRACK_COLUMNS",
     "TRACK_OPTIONS",
     "LifecycleLog",
+    "bag_messages",
+    "bag_read_errors",
     "lifecycle_log_from_frame",
     "read_count_panel",
     "read_field_log",

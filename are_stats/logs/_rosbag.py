@@ -35,6 +35,8 @@ from are_stats.inputs import InputError, get_str
 __all__ = [
     "DETECTION3D_MSGS",
     "SUPPORTED_TRACK_TYPES",
+    "bag_messages",
+    "bag_read_errors",
     "read_tracks_bag",
     "vision_msgs_typestore",
 ]
@@ -247,6 +249,21 @@ def _messages(
                 f"({type(err).__name__}: {err})"
             ) from None
         yield conn, ts, msg
+
+
+def bag_read_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions rosbags raises on a corrupt or truncated bag (to catch around a
+    reader and report as a ``ValueError`` naming the bag)."""
+    return _bag_errors()
+
+
+def bag_messages(
+    reader: Any, connections: list[Any], path: str | os.PathLike
+) -> Iterator[tuple[Any, int, Any]]:
+    """``(connection, receive time ns, message)`` of an open rosbags ``AnyReader``; a damaged
+    record or message is a ``ValueError`` naming the bag (and the topic and time when
+    known)."""
+    return _messages(reader, connections, Path(path), _bag_errors())
 
 
 def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None) -> pd.DataFrame:

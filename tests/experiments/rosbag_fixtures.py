@@ -59,7 +59,14 @@ def _pose(T, x, y, yaw):
     )
 
 
-def bag_messages(T, ros1: bool = False, tf: bool = True, poses: bool = True, camera: bool = True):
+def bag_messages(
+    T,
+    ros1: bool = False,
+    tf: bool = True,
+    poses: bool = True,
+    camera: bool = True,
+    pose_frame: str = "map",
+):
     """``(t, topic, msgtype, message)`` of the test bag, in time order."""
     out = []
     odom = (1.0, -0.5, 0.0)  # map -> odom offset: the composition must undo it
@@ -104,7 +111,7 @@ def bag_messages(T, ros1: bool = False, tf: bool = True, poses: bool = True, cam
                     "/robot_pose",
                     "geometry_msgs/msg/PoseStamped",
                     T["geometry_msgs/msg/PoseStamped"](
-                        header=_header(T, t, "map", ros1), pose=_pose(T, x, y, yaw)
+                        header=_header(T, t, pose_frame, ros1), pose=_pose(T, x, y, yaw)
                     ),
                 )
             )
@@ -117,7 +124,7 @@ def bag_messages(T, ros1: bool = False, tf: bool = True, poses: bool = True, cam
                     "/amcl_pose",
                     "geometry_msgs/msg/PoseWithCovarianceStamped",
                     T["geometry_msgs/msg/PoseWithCovarianceStamped"](
-                        header=_header(T, t, "map", ros1), pose=cov
+                        header=_header(T, t, pose_frame, ros1), pose=cov
                     ),
                 )
             )

@@ -263,6 +263,9 @@ def test_augment_errors(files, tmp_path):
     assert res.exit_code == 2 and "/nope" in res.output and "/amcl_pose" in res.output
     res = run("--pose-topic", "/camera/camera_info")
     assert res.exit_code == 2 and "sensor_msgs/msg/CameraInfo" in res.output
+    odom = write_bag(tmp_path / "odom", "ros2", tf=False, camera=False, pose_frame="odom")
+    res = run("--pose-topic", "/robot_pose", bag=odom)
+    assert res.exit_code == 2 and "'map'" in res.output and "got 'odom'" in res.output
     res = run("--base-frame", "robot")
     assert res.exit_code == 2 and "map -> ... -> robot" in res.output
     res = run("--pose-topic", "/amcl_pose", "--base-frame", "base_link")
