@@ -42,7 +42,7 @@ __all__ = [
 _POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 _POSE_COV = "geometry_msgs/msg/PoseWithCovarianceStamped"
 _ODOM = "nav_msgs/msg/Odometry"
-_TF = "tf2_msgs/msg/TFMessage"
+_TF = "tf2_msgs/msg/TFMessage"  # are_stats.logs.TF_TYPE
 _CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 #: Message types a ``pose_topic`` may have.
 POSE_TYPES = (_POSE_STAMPED, _POSE_COV, _ODOM)
@@ -131,68 +131,10 @@ class AugmentResult(NamedTuple):
 # ---- reading ------------------------------------------------------------------------------
 
 
-def _matrix(tr: Any, rot: Any) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    m = np.eye(4)
-    q = np.array([rot.x, rot.y, rot.z, rot.w], float)
-    n = np.linalg.norm(q)
-    m[:3, :3] = Rotation.from_quat(q / n if n > 0 else [0, 0, 0, 1]).as_matrix()
-    m[:3, 3] = [tr.x, tr.y, tr.z]
-    return m
-
-
 def _stamp(header: Any, fallback_ns: int) -> float:
     st = header.stamp
     sec, nsec = int(st.sec), int(st.nanosec)
     return fallback_ns * 1e-9 if sec == 0 and nsec == 0 else sec + nsec * 1e-9
-
-
-class _Edge:
-    """One tf link parent -> child: its stamps and transforms (interpolated on lookup)."""
-
-    def __init__(self) -> None:
-        self.t: list[float] = []
-        self.m: list[np.ndarray] = []
-
-    def at(self, times: np.ndarray) -> np.ndarray:
-        from scipy.spatial.transform import Rotation, Slerp
-
-        order = np.argsort(self.t, kind="stable")
-        t = np.asarray(self.t, float)[order]
-        m = np.stack(self.m)[order]
-        t, first = np.unique(t, return_index=True)
-        m = m[first]
-        out = np.broadcast_to(np.eye(4), (times.size, 4, 4)).copy()
-        if t.size == 1:
-            out[:] = m[0]
-            return out
-        tc = np.clip(times, t[0], t[-1])
-        for j in range(3):
-            out[:, j, 3] = np.interp(tc, t, m[:, j, 3])
-        out[:, :3, :3] = Slerp(t, Rotation.from_matrix(m[:, :3, :3]))(tc).as_matrix()
-        return out
-
-
-def _chain(parents: dict[str, str], src: str, dst: str) -> list[tuple[str, str]] | None:
-    """Links ``(parent, child)`` from ``dst`` down to ``src`` (``dst`` an ancestor)."""
-    links = []
-    f = src
-    seen = set()
-    while f != dst:
-        if f not in parents or f in seen:
-            return None
-        seen.add(f)
-        links.append((parents[f], f))
-        f = parents[f]
-    return links[::-1]
-
-
-def _compose(edges: dict, links: list[tuple[str, str]], times: np.ndarray) -> np.ndarray:
-    out = np.broadcast_to(np.eye(4), (times.size, 4, 4)).copy()
-    for key in links:
-        out = out @ edges[key].at(times)
-    return out
 
 
 def _topics_text(by_topic: dict[str, str]) -> str:
@@ -236,15 +178,19 @@ def read_trajectory(
     """
     from rosbags.highlevel import AnyReader
 
-    from are_stats.logs import bag_messages, bag_read_errors, vision_msgs_typestore
+    from are_stats.logs import (
+        TfBuffer,
+        bag_messages,
+        bag_read_errors,
+        transform_matrix,
+        vision_msgs_typestore,
+    )
 
     p = Path(bag)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such bag file or directory")
     errors = bag_read_errors()
-    edges: dict[tuple[str, str], _Edge] = {}
-    static: set[tuple[str, str]] = set()
-    parents: dict[str, str] = {}
+    tf = TfBuffer()
     pose_t: list[float] = []
     pose_m: list[np.ndarray] = []
     cam_t: list[float] = []
@@ -292,18 +238,7 @@ def read_trajectory(
             conns = [c for c in reader.connections if c.topic in (*wanted, *tf_topics)]
             for conn, ts, msg in bag_messages(reader, conns, p):
                 if conn.msgtype == _TF:
-                    for tr in msg.transforms:
-                        parent = str(tr.header.frame_id).lstrip("/")
-                        child = str(tr.child_frame_id).lstrip("/")
-                        key = (parent, child)
-                        parents.setdefault(child, parent)
-                        if parents[child] != parent:
-                            continue  # a second parent: tf2 would reject it too
-                        e = edges.setdefault(key, _Edge())
-                        e.t.append(_stamp(tr.header, ts))
-                        e.m.append(_matrix(tr.transform.translation, tr.transform.rotation))
-                        if conn.topic == "/tf_static":
-                            static.add(key)
+                    tf.add_message(msg, ts * 1e-9, static=conn.topic == "/tf_static")
                 elif conn.topic == pose_topic:
                     pose = msg.pose.pose if conn.msgtype in (_POSE_COV, _ODOM) else msg.pose
                     frame = str(msg.header.frame_id).lstrip("/")
@@ -315,7 +250,7 @@ def read_trajectory(
                             frame,
                         )
                     pose_t.append(_stamp(msg.header, ts))
-                    pose_m.append(_matrix(pose.position, pose.orientation))
+                    pose_m.append(transform_matrix(pose.position, pose.orientation))
                 else:  # camera info
                     cam_t.append(_stamp(msg.header, ts))
                     if cam_info is None:
@@ -346,29 +281,28 @@ def read_trajectory(
         poses = np.stack(pose_m)[order]
         source = pose_topic
     else:
-        links = _chain(parents, base_frame, map_frame)
+        links = tf.chain(map_frame, base_frame)
         if links is None:
-            frames = sorted({f for k in edges for f in k})
             raise InputError(
                 p,
                 "topic /tf",
                 f"a chain of transforms {map_frame} -> ... -> {base_frame} "
                 "(or pass --pose-topic / --base-frame)",
-                Described(f"frames {', '.join(frames) or 'none'}"),
+                Described(f"frames {', '.join(tf.frames) or 'none'}"),
             )
-        moving = [k for k in links if k not in static]
+        moving = [k for k in links if k not in tf.static]
         # the stamps of the moving link nearest the base (odom -> base_link, usually)
-        t = np.unique(np.asarray(edges[moving[-1]].t if moving else edges[links[-1]].t, float))
-        poses = _compose(edges, links, t)
+        t = tf.stamps(moving[-1] if moving else links[-1])
+        poses = tf.lookup(map_frame, base_frame, t)
         source = f"/tf {map_frame} -> {base_frame}"
     keep = np.r_[True, np.diff(t) > 0]
     t, poses = t[keep], poses[keep]
     mount = None
-    candidates = [cam_frame] if cam_frame else sorted(f for f in parents if "optical" in f)
+    candidates = [cam_frame] if cam_frame else [f for f in tf.frames if "optical" in f]
     for f in candidates:
-        links = _chain(parents, f, base_frame)
-        if links is not None and links and all(k in static for k in links):
-            mount = _compose(edges, links, np.zeros(1))[0]
+        links = tf.chain(base_frame, f)
+        if links and tf.is_static(links):
+            mount = tf.lookup(base_frame, f, 0.0)[0]
             cam_frame = f
             break
     return BagTrajectory(
@@ -385,16 +319,6 @@ def read_trajectory(
 
 
 # ---- the loop -----------------------------------------------------------------------------
-
-
-def _interp_poses(t: np.ndarray, poses: np.ndarray, times: np.ndarray) -> np.ndarray:
-    e = _Edge()
-    e.t, e.m = list(t), list(poses)
-    return e.at(times)
-
-
-def _yaw(m: np.ndarray) -> np.ndarray:
-    return np.arctan2(m[..., 1, 0], m[..., 0, 0])
 
 
 def augment_bag(
@@ -479,6 +403,7 @@ def augment_bag(
     from are_stats.environment import OccupancyGrid, extrude_grid, load_catalogue
     from are_stats.experiments._robot import circle_box_overlap
     from are_stats.fitting import read_fit
+    from are_stats.logs import interpolate_poses
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
     from are_stats.scenarios import Scene, generate_scenarios, traffic_draws
 
@@ -573,7 +498,7 @@ def augment_bag(
             source="--behaviour-cell",
         )
         scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
-    base_at = _interp_poses(traj.t, traj.poses, frames)
+    base_at = interpolate_poses(traj.t, traj.poses, frames)
     cam_poses = base_at @ mount
     env = extrude_grid(grid, wall_height)
     n = len(scene)

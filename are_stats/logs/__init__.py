@@ -28,6 +28,7 @@ from are_stats.logs._rosbag import (
     read_tracks_bag,
     vision_msgs_typestore,
 )
+from are_stats.logs._tf import TF_TYPE, TfBuffer, interpolate_poses, transform_matrix
 from are_stats.logs._tracks import (
     GROUP_DISTANCE,
     GROUP_HORIZON_STEPS,
@@ -50,9 +51,12 @@ __all__ = [
     "TRACKS_KIND_COLUMNS",
     "TRACK_COLUMNS",
     "TRACK_OPTIONS",
+    "TF_TYPE",
     "LifecycleLog",
+    "TfBuffer",
     "bag_messages",
     "bag_read_errors",
+    "interpolate_poses",
     "lifecycle_log_from_frame",
     "read_count_panel",
     "read_field_log",
@@ -62,6 +66,7 @@ __all__ = [
     "read_tracks_bag",
     "sampling_step",
     "tracks_to_lifecycle",
+    "transform_matrix",
     "validate_tracks",
     "vision_msgs_typestore",
 ]
