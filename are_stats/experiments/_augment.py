@@ -79,6 +79,8 @@ class BagTrajectory(NamedTuple):
         ``k``, ``width``, ``height`` of the first ``CameraInfo`` message.
     source : str
         Where the poses came from (``/tf map -> base_link`` or the topic).
+    start_ns : int
+        ``start`` in nanoseconds, exact.
     """
 
     t: np.ndarray
@@ -90,6 +92,7 @@ class BagTrajectory(NamedTuple):
     camera_times: np.ndarray | None
     camera_info: dict | None
     source: str
+    start_ns: int = 0
 
 
 class AugmentResult(NamedTuple):
@@ -203,7 +206,8 @@ def read_trajectory(
             by_topic: dict[str, str] = {}
             for c in reader.connections:
                 by_topic.setdefault(c.topic, c.msgtype)
-            start, end = reader.start_time * 1e-9, reader.end_time * 1e-9
+            start_ns = int(reader.start_time)
+            start, end = start_ns * 1e-9, reader.end_time * 1e-9
             wanted: list[str] = []
             for topic, types, what in (
                 (pose_topic, POSE_TYPES, "--pose-topic"),
@@ -315,6 +319,7 @@ def read_trajectory(
         np.asarray(sorted(cam_t), float) if cam_t else None,
         cam_info,
         source,
+        start_ns,
     )
 
 
@@ -508,7 +513,7 @@ def augment_bag(
         counts, seen = np.zeros((times.size, 0), np.int64), np.zeros((times.size, 0), bool)
     contacts = np.zeros((times.size, n), bool)
 
-    R = RosMessages(start, map_frame)
+    R = RosMessages(start, map_frame, start_ns=traj.start_ns)
     base, camf = ROS_FRAMES["F_R"], traj.camera_frame or ROS_FRAMES["F_C"]
     R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
     R.add(0.0, "/tf_static", _TF, R.tf([R.transform(0.0, base, camf, mount)]), latched=True)

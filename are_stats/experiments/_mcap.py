@@ -77,8 +77,9 @@ def export_mcap(
         Wall-clock time of the mission's t = 0, seconds since the epoch or ISO 8601
         (:func:`~are_stats.experiments.parse_start_time`); default 0 (1970).
     mount : (4, 4) float, optional
-        ``T_base_optical`` of the camera on ``/tf_static`` (default: the robot's default
-        camera, :func:`~are_stats.perception.optical_from_base` at 1 m).
+        ``T_base_optical`` of the camera on ``/tf_static`` (default: the default
+        :class:`~are_stats.experiments.Robot`'s camera,
+        ``optical_from_base(Robot().camera_xyz, Robot().camera_rpy)``).
 
     Returns
     -------
@@ -98,7 +99,11 @@ def export_mcap(
             f"got {type(trace).__name__}"
         )
     base, cam = ROS_FRAMES["F_R"], ROS_FRAMES["F_C"]
-    mount = optical_from_base((0.0, 0.0, 1.0)) if mount is None else np.asarray(mount, float)
+    from are_stats.experiments._robot import Robot
+
+    if mount is None:
+        mount = optical_from_base(Robot().camera_xyz, Robot().camera_rpy)
+    mount = np.asarray(mount, float)
     R = RosMessages(parse_start_time(start_time, "start_time"), frame)
     T = R.T
     R.add(0.0, "/map", MCAP_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)

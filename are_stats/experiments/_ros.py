@@ -122,12 +122,16 @@ class RosMessages:
         and log time is ``start + t``.
     frame : str
         Fixed frame (``header.frame_id`` of maps and markers).
+    start_ns : int, optional
+        ``start`` in integer nanoseconds, exact (a bag's start time); default
+        ``round(start * 1e9)``.
     """
 
-    def __init__(self, start: float = 0.0, frame: str = "map") -> None:
+    def __init__(self, start: float = 0.0, frame: str = "map", start_ns: int | None = None) -> None:
         from rosbags.typesys import Stores, get_typestore
 
         self.start = float(start)
+        self.start_ns = int(round(self.start * 1e9)) if start_ns is None else int(start_ns)
         self.frame = frame
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
         self.T = self.ts.types
@@ -138,7 +142,7 @@ class RosMessages:
     # ---- building blocks --------------------------------------------------------------
     def ns(self, t: float) -> int:
         """Nanoseconds since the epoch of scenario time ``t``."""
-        return int(round((self.start + float(t)) * 1e9))
+        return self.start_ns + int(round(float(t) * 1e9))
 
     def stamp(self, t: float) -> Any:
         n = self.ns(t)

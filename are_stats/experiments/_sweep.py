@@ -1073,9 +1073,16 @@ def _run(
             task = futures[fut]
             res = fut.result()
             if record:
+                from are_stats.experiments._robot import Robot
+                from are_stats.perception import optical_from_base
+
                 grid = _load_map(str(task["map"]))[0]
-                export_mcap(Path(mcap) / f"{task['task']}.mcap", grid, res.pop("trace"),
-                            force=True, start_time=start_time)  # fmt: skip
+                robot = Robot(**task["robot"])
+                export_mcap(
+                    Path(mcap) / f"{task['task']}.mcap", grid, res.pop("trace"), force=True,
+                    start_time=start_time,
+                    mount=optical_from_base(robot.camera_xyz, robot.camera_rpy),
+                )  # fmt: skip
             _write(target, task["task"], res, force=True)
             bar.advance()
     finally:
