@@ -736,8 +736,6 @@ def run_augment(
 
     if pose_topic is not None and base_frame is not None:
         raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
-    if camera is not None and camera_info_topic is not None:
-        raise InputError("--camera", "", "either --camera or --camera-info-topic", "both")
     t = time.perf_counter()
     with console.status(f"augmenting {bag} ..."):
         res = augment_bag(

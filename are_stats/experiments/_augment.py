@@ -28,7 +28,14 @@ import numpy as np
 
 from are_stats._atomic import check_writable
 from are_stats.experiments._ros import ROS_FRAMES, RosMessages, artefact_frame
-from are_stats.inputs import Described, InputError, get_float, get_seed
+from are_stats.inputs import (
+    Described,
+    InputError,
+    check_memory,
+    check_work,
+    get_float,
+    get_seed,
+)
 
 __all__ = [
     "AUGMENT_TOPICS",
@@ -407,6 +414,7 @@ def augment_bag(
     from are_stats.builder import ARBuilder
     from are_stats.environment import OccupancyGrid, extrude_grid, load_catalogue
     from are_stats.experiments._robot import circle_box_overlap
+    from are_stats.experiments._sweep import _map_file
     from are_stats.fitting import read_fit
     from are_stats.logs import interpolate_poses
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
@@ -416,8 +424,8 @@ def augment_bag(
     period = get_float(period, "--period", "", lo=0.0, lo_open=True)
     d_max = get_float(d_max, "--d-max", "", lo=0.0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0.0)
-    from are_stats.experiments._sweep import _map_file
-
+    if camera is not None and camera_info_topic is not None:
+        raise InputError("--camera", "", "either --camera or --camera-info-topic", "both")
     out = check_writable(out, force)
     map_file = _map_file(str(map_path))
     if map_file is None:
@@ -503,6 +511,16 @@ def augment_bag(
             source="--behaviour-cell",
         )
         scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    # refuse runaway sizes before tracing: a ray per pixel of every frame, and the output
+    # held in memory (a grid per frame at most, markers and a pose per artefact and frame)
+    pixels = float(cam.width) * float(cam.height)
+    what = f"{times.size} camera frames of {int(pixels)} pixels and {len(scene)} artefacts"
+    check_work(float(times.size) * pixels * (1.0 + len(scene) / 8.0), f"tracing {what}", bag)
+    check_memory(
+        float(times.size) * (grid.data.size + 2000.0 * len(scene)) + traj.t.size * 400.0,
+        f"the MCAP messages of {what}",
+        bag,
+    )
     base_at = interpolate_poses(traj.t, traj.poses, frames)
     cam_poses = base_at @ mount
     env = extrude_grid(grid, wall_height)

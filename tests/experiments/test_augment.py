@@ -236,7 +236,7 @@ def test_augment_cli_ros1_mcap_reproducible(files, tmp_path):
     assert res.exit_code == 0, res.output
 
 
-def test_augment_errors(files, tmp_path):
+def test_augment_errors(files, tmp_path, monkeypatch):
     import arviz as az
 
     def run(*extra, bag=files["ros2"]):
@@ -270,6 +270,8 @@ def test_augment_errors(files, tmp_path):
     assert res.exit_code == 2 and "map -> ... -> robot" in res.output
     res = run("--pose-topic", "/amcl_pose", "--base-frame", "base_link")
     assert res.exit_code == 2 and "either --pose-topic or --base-frame" in res.output
+    res = run("--camera", files["camera"], "--camera-info-topic", "/camera/camera_info")
+    assert res.exit_code == 2 and "either --camera or --camera-info-topic" in res.output
     far = tmp_path / "far.yaml"
     far.write_text(
         MAP.read_text()
@@ -298,6 +300,9 @@ def test_augment_errors(files, tmp_path):
     args[5] = MAP
     res = runner.invoke(app, [str(a) for a in args])
     assert res.exit_code == 2 and "area" in res.output
+    monkeypatch.setenv("ARE_STATS_MAX_WORK", "1e6")  # what --max-work 1e6 sets
+    res = run()
+    assert res.exit_code == 2 and "tracing 25 camera frames of 307200 pixels" in res.output
     assert not (tmp_path / "o.mcap").exists()
 
 
