@@ -189,6 +189,7 @@ def read_trajectory(
     from rosbags.highlevel import AnyReader
 
     from are_stats.logs import (
+        TF_TYPES,
         TfBuffer,
         bag_messages,
         bag_read_errors,
@@ -237,7 +238,7 @@ def read_trajectory(
                         by_topic[topic],
                     )
                 wanted.append(topic)
-            tf_topics = [t for t in ("/tf", "/tf_static") if by_topic.get(t) == _TF]
+            tf_topics = [t for t in ("/tf", "/tf_static") if by_topic.get(t) in TF_TYPES]
             if pose_topic is None and "/tf" not in tf_topics:
                 raise InputError(
                     p,
@@ -248,7 +249,7 @@ def read_trajectory(
                 )
             conns = [c for c in reader.connections if c.topic in (*wanted, *tf_topics)]
             for conn, ts, msg in bag_messages(reader, conns, p):
-                if conn.msgtype == _TF:
+                if conn.topic in tf_topics:
                     tf.add_message(msg, ts * 1e-9, static=conn.topic == "/tf_static")
                 elif conn.topic == pose_topic:
                     pose = msg.pose.pose if conn.msgtype in (_POSE_COV, _ODOM) else msg.pose

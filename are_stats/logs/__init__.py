@@ -28,7 +28,13 @@ from are_stats.logs._rosbag import (
     read_tracks_bag,
     vision_msgs_typestore,
 )
-from are_stats.logs._tf import TF_TYPE, TfBuffer, interpolate_poses, transform_matrix
+from are_stats.logs._tf import (
+    TF_TYPE,
+    TF_TYPES,
+    TfBuffer,
+    interpolate_poses,
+    transform_matrix,
+)
 from are_stats.logs._tracks import (
     GROUP_DISTANCE,
     GROUP_HORIZON_STEPS,
@@ -52,6 +58,7 @@ __all__ = [
     "TRACK_COLUMNS",
     "TRACK_OPTIONS",
     "TF_TYPE",
+    "TF_TYPES",
     "LifecycleLog",
     "TfBuffer",
     "bag_messages",

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats.inputs import InputError, get_str
-from are_stats.logs._tf import TF_TYPE, TfBuffer
+from are_stats.logs._tf import TF_TYPES, TfBuffer
 
 __all__ = [
     "DETECTION3D_MSGS",
@@ -374,7 +374,7 @@ def read_tracks_bag(
                             f"{', '.join(SUPPORTED_TRACK_TYPES)}, got "
                             f"{by_topic[t]}"
                         )
-            tf_topics = [t for t in ("/tf", "/tf_static") if by_topic.get(t) == TF_TYPE]
+            tf_topics = [t for t in ("/tf", "/tf_static") if by_topic.get(t) in TF_TYPES]
             tf = TfBuffer()
             conns = [c for c in reader.connections if c.topic in (*chosen, *tf_topics)]
             states = {t: _MarkerState() for t in chosen}

@@ -13,10 +13,12 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["TF_TYPE", "TfBuffer", "interpolate_poses", "transform_matrix"]
+__all__ = ["TF_TYPE", "TF_TYPES", "TfBuffer", "interpolate_poses", "transform_matrix"]
 
 #: Message type of ``/tf`` and ``/tf_static``.
 TF_TYPE = "tf2_msgs/msg/TFMessage"
+#: Types read as tf messages: tf2's and the old ROS 1 ``tf/tfMessage`` (same fields).
+TF_TYPES = (TF_TYPE, "tf/msg/tfMessage")
 
 
 def transform_matrix(translation: Any, rotation: Any) -> np.ndarray:
