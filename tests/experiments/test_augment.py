@@ -148,7 +148,10 @@ def test_augment_reads_back_and_matches_perceive_scene(files, tmp_path):
         ("base_link", "camera_optical_frame")
     ]
     qos = {c.topic: c.metadata["offered_qos_profiles"] for c in channels}
-    assert "durability: 1" in qos["/tf_static"] and "durability: 2" in qos["/tf"]
+    (latched,) = yaml.safe_load(qos["/tf_static"])  # the profile list ros2 bag play reads
+    (volatile,) = yaml.safe_load(qos["/tf"])
+    assert (latched["durability"], volatile["durability"]) == (1, 2)  # transient local, volatile
+    assert latched["reliability"] == volatile["reliability"] == 1  # reliable
     # markers: a box and a class-label text per live artefact, coloured by A_f
     labels = set(res.scene.at(0.0).labels)
     _, arr = msgs["/artefacts"][0]
