@@ -715,3 +715,45 @@ def run_perceive(
         f"{time.perf_counter() - t:.1f} s; wrote {target}"
     )
     return res
+
+
+def run_augment(
+    bag: Path,
+    fit_path: Path,
+    map_path: str,
+    out: Path,
+    seed: int,
+    *,
+    pose_topic: str | None = None,
+    base_frame: str | None = None,
+    camera: Path | None = None,
+    camera_info_topic: str | None = None,
+    period: float = 0.5,
+    d_max: float = 10.0,
+    tau: float = 10.0,
+    force: bool = False,
+) -> Any:
+    """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
+    (:func:`are_stats.experiments.augment_bag`)."""
+    from are_stats.experiments import augment_bag
+    from are_stats.inputs import InputError
+
+    if pose_topic is not None and base_frame is not None:
+        raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
+    t = time.perf_counter()
+    with console.status(f"augmenting {bag} ..."):
+        res = augment_bag(
+            bag, fit_path, map_path, out, seed, pose_topic=pose_topic,
+            base_frame=base_frame or "base_link", camera=camera,
+            camera_info_topic=camera_info_topic, period=period, d_max=d_max, tau=tau,
+            force=force,
+        )  # fmt: skip
+    n_seen = int(res.perceived.any(axis=0).sum())
+    console.print(
+        f"{len(res.scene)} artefacts over {res.times[-1] - res.times[0]:.1f} s of the bag, "
+        f"{n_seen} perceived in {len(res.times)} camera frames, "
+        f"{int(res.contacts.any(axis=0).sum())} touched by the robot "
+        f"({time.perf_counter() - t:.1f} s); wrote {res.path} "
+        f"({', '.join(f'{k} {v}' for k, v in res.topics.items())})"
+    )
+    return res

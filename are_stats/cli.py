@@ -362,13 +362,23 @@ def experiment(
     host: str = typer.Option(
         "127.0.0.1", "--host", help="Address the local Dask cluster and dashboard listen on."
     ),
+    mcap: str = typer.Option(
+        None, "--mcap", help="Folder for one ROS 2 MCAP per mission (/tf, markers, maps)."
+    ),
+    start_time: str = typer.Option(
+        None, "--start-time", help="Wall-clock time of t = 0 in the MCAPs: ISO 8601 or seconds."
+    ),
 ) -> None:
     """Run a navigation-experiment sweep (Fig. 7) on Dask; resumes unfinished sweeps."""
-    from are_stats.experiments import load_sweep_config, run_sweep
+    from are_stats.experiments import load_sweep_config, parse_start_time, run_sweep
 
     cfg = load_sweep_config(config)
     target = out if out is not None else f"results/{cfg['name']}"
-    path = run_sweep(cfg, target, workers=workers, scheduler=scheduler, force=force, host=host)
+    start = 0.0 if start_time is None else parse_start_time(start_time)
+    path = run_sweep(
+        cfg, target, workers=workers, scheduler=scheduler, force=force, host=host, mcap=mcap,
+        start_time=start,
+    )  # fmt: skip
     typer.echo(str(path))
 
 
@@ -385,6 +395,47 @@ def plot(
     paths = plot_results(results, out, force=force)
     for p in paths:
         typer.echo(str(p))
+
+
+@app.command()
+@_cli_errors
+def augment(
+    bag: Path = typer.Argument(
+        ..., metavar="BAG", help="Robot bag: ROS 1 .bag, ROS 2 bag folder or .mcap."
+    ),
+    fit_path: Path = typer.Option(..., "--fit", help="A fit written by are-stats fit."),
+    map_path: str = typer.Option(
+        ..., "--map", help="ROS map YAML of the run (or a shipped map name: courtyard)."
+    ),
+    out: Path = typer.Option(..., "--out", help="The augmented MCAP to write (OUT.mcap)."),
+    seed: int = typer.Option(..., "--seed", help="Seed of the scenario (same seed, same file)."),
+    pose_topic: str = typer.Option(
+        None,
+        "--pose-topic",
+        help="Robot poses from this topic (PoseStamped, PoseWithCovarianceStamped, Odometry).",
+    ),
+    base_frame: str = typer.Option(
+        None, "--base-frame", help="Robot poses from /tf: map -> ... -> this frame (base_link)."
+    ),
+    camera: Path = typer.Option(None, "--camera", help="Camera YAML (ROS camera_info fields)."),
+    camera_info_topic: str = typer.Option(
+        None, "--camera-info-topic", help="sensor_msgs/CameraInfo topic: intrinsics and frames."
+    ),
+    period: float = typer.Option(
+        0.5, "--period", help="Seconds between camera frames with --camera."
+    ),
+    d_max: float = typer.Option(10.0, "--d-max", help="Maximum viewing distance d_max (m)."),
+    tau: float = typer.Option(10.0, "--tau", help="Pixels needed to perceive (count > tau)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite OUT."),
+) -> None:
+    """Augment a robot's recorded bag with artefacts generated from a fit (ROS 2 MCAP out)."""
+    from are_stats._cli_jobs import run_augment
+
+    run_augment(
+        bag, fit_path, map_path, out, _seed(seed), pose_topic=pose_topic,
+        base_frame=base_frame, camera=camera, camera_info_topic=camera_info_topic,
+        period=period, d_max=d_max, tau=tau, force=force,
+    )  # fmt: skip
 
 
 def main() -> None:  # pragma: no cover - console entry

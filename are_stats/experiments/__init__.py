@@ -1,7 +1,15 @@
 """Navigation experiments (paper Sect. 4, Fig. 6-7): robot, planners, the metrics rho
-(eq. 3) and nu (eq. 4), the event-driven experiment loop, Dask sweeps, plots and MCAP
-export."""
+(eq. 3) and nu (eq. 4), the event-driven experiment loop, Dask sweeps, plots, MCAP
+export with ROS conventions and the augmentation of a robot's recorded bag."""
 
+from are_stats.experiments._augment import (
+    AUGMENT_TOPICS,
+    POSE_TYPES,
+    AugmentResult,
+    BagTrajectory,
+    augment_bag,
+    read_trajectory,
+)
 from are_stats.experiments._loop import MissionResult, MissionTrace, random_goals, run_mission
 from are_stats.experiments._mcap import MCAP_TOPICS, export_mcap
 from are_stats.experiments._metrics import (
@@ -21,6 +29,7 @@ from are_stats.experiments._planners import (
 )
 from are_stats.experiments._plots import plot_goals, plot_results, plot_rho
 from are_stats.experiments._robot import Robot, circle_box_overlap
+from are_stats.experiments._ros import ROS_FRAMES, artefact_frame, parse_start_time
 from are_stats.experiments._sweep import (
     expand_tasks,
     load_results,
@@ -30,7 +39,12 @@ from are_stats.experiments._sweep import (
 )
 
 __all__ = [
+    "AUGMENT_TOPICS",
     "MCAP_TOPICS",
+    "POSE_TYPES",
+    "ROS_FRAMES",
+    "AugmentResult",
+    "BagTrajectory",
     "OMPL_ALGORITHMS",
     "AStarPlanner",
     "MissionResult",
@@ -38,18 +52,22 @@ __all__ = [
     "OMPLPlanner",
     "Planner",
     "Robot",
+    "artefact_frame",
     "astar_cells",
+    "augment_bag",
     "circle_box_overlap",
     "expand_tasks",
     "export_mcap",
     "load_results",
     "load_sweep_config",
     "make_planner",
+    "parse_start_time",
     "path_length",
     "plot_goals",
     "plot_results",
     "plot_rho",
     "random_goals",
+    "read_trajectory",
     "replanning_ratio",
     "run_mission",
     "run_sweep",

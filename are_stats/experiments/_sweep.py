@@ -834,7 +834,7 @@ def _task_scenario(
     return scene, info
 
 
-def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
+def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
     """Run one task of :func:`expand_tasks`: build its scenario, run the mission.
 
     The scenario is drawn from the hand-set rates, or from one posterior draw of the fit
@@ -848,7 +848,8 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
         ``runs`` (one row: task, sweep digest, replicate, seed, factor levels as
         ``level:<factor>`` columns, the planner label, ``arrival_rate`` (NaN for a scenarios
         folder), ``draw``, ``n_artefacts``, ``n_arrivals`` and the mission summary),
-        ``replans`` and ``goals`` (the mission tables with the task's identifying columns).
+        ``replans`` and ``goals`` (the mission tables with the task's identifying columns);
+        with ``record``, also ``trace`` (the :class:`~are_stats.experiments.MissionTrace`).
     """
     from are_stats.experiments._loop import random_goals, run_mission
     from are_stats.experiments._robot import Robot
@@ -871,7 +872,7 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
         perception=ms.get("perception", "all"), env_mesh=mesh,
         perception_period=float(ms.get("perception_period", 1.0)),
         d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,
-        move_period=float(ms.get("behaviour_dt", 2.0)),
+        move_period=float(ms.get("behaviour_dt", 2.0)), record=record,
     )  # fmt: skip
     ident = {
         "task": task["task"],
@@ -885,12 +886,14 @@ def run_task(task: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
     ident["draw"] = source["draw"]
     runs = pd.DataFrame([{**ident, **res.summary, "n_artefacts": source["n_artefacts"],
                           "n_arrivals": source["n_arrivals"]}])  # fmt: skip
-    out = {"runs": runs}
+    out: dict[str, Any] = {"runs": runs}
     for name, df in (("replans", res.replans), ("goals", res.goals)):
         df = df.copy()
         for k, v in reversed(list(ident.items())):
             df.insert(0, k, v)
         out[name] = df
+    if record:
+        out["trace"] = res.trace
     return out
 
 
@@ -951,6 +954,8 @@ def run_sweep(
     force: bool = False,
     progress: bool = True,
     host: str = "127.0.0.1",
+    mcap: str | os.PathLike | None = None,
+    start_time: float = 0.0,
 ) -> Path:
     """Run a sweep on Dask, writing one set of Parquet files per task as it finishes.
 
@@ -978,6 +983,12 @@ def run_sweep(
     host : str
         Interface the local cluster's scheduler, workers and dashboard listen on
         (default loopback only).
+    mcap : path, optional
+        Folder for one MCAP per mission run, ``<task>.mcap``
+        (:func:`~are_stats.experiments.export_mcap`: REP-105 ``/tf``, class-labelled markers,
+        maps); tasks skipped on resume write none.
+    start_time : float
+        Wall-clock time (s since the epoch) of each mission's t = 0 in the MCAPs.
 
     Returns
     -------
@@ -1028,7 +1039,7 @@ def run_sweep(
         try:
             with atomic_path(target / "sweep.yaml", force=True) as tmp:
                 tmp.write_bytes(text)
-            _run(client, todo, target, len(tasks), progress)
+            _run(client, todo, target, len(tasks), progress, mcap, float(start_time))
         except BaseException:
             if target != out:  # a forced run that did not finish: out stays as it was
                 shutil.rmtree(target, ignore_errors=True)
@@ -1064,16 +1075,34 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
 
 
 def _run(
-    client: Any, todo: list[dict[str, Any]], target: Path, n_tasks: int, progress: bool
-) -> None:
-    """Run ``todo`` on ``client``, writing each task's tables into ``target`` as it ends."""
+    client: Any, todo: list[dict[str, Any]], target: Path, n_tasks: int, progress: bool,
+    mcap: str | os.PathLike | None = None, start_time: float = 0.0,
+) -> None:  # fmt: skip
+    """Run ``todo`` on ``client``, writing each task's tables into ``target`` as it ends
+    (and its MCAP into ``mcap`` when given)."""
     from distributed import as_completed
 
-    futures = {client.submit(run_task, t, pure=False): t["task"] for t in todo}
+    from are_stats.experiments._mcap import export_mcap
+
+    record = mcap is not None
+    futures = {client.submit(run_task, t, record, pure=False): t for t in todo}
     bar = _progress(progress, n_tasks, n_tasks - len(todo))
     try:
         for fut in as_completed(futures):
-            _write(target, futures[fut], fut.result(), force=True)
+            task = futures[fut]
+            res = fut.result()
+            if record:
+                from are_stats.experiments._robot import Robot
+                from are_stats.perception import optical_from_base
+
+                grid = _load_map(str(task["map"]))[0]
+                robot = Robot(**task["robot"])
+                export_mcap(
+                    Path(mcap) / f"{task['task']}.mcap", grid, res.pop("trace"), force=True,
+                    start_time=start_time,
+                    mount=optical_from_base(robot.camera_xyz, robot.camera_rpy),
+                )  # fmt: skip
+            _write(target, task["task"], res, force=True)
             bar.advance()
     finally:
         bar.close()

@@ -23,8 +23,17 @@ from are_stats.logs._panel import read_count_panel
 from are_stats.logs._rosbag import (
     DETECTION3D_MSGS,
     SUPPORTED_TRACK_TYPES,
+    bag_messages,
+    bag_read_errors,
     read_tracks_bag,
     vision_msgs_typestore,
+)
+from are_stats.logs._tf import (
+    TF_TYPE,
+    TF_TYPES,
+    TfBuffer,
+    interpolate_poses,
+    transform_matrix,
 )
 from are_stats.logs._tracks import (
     GROUP_DISTANCE,
@@ -48,7 +57,13 @@ __all__ = [
     "TRACKS_KIND_COLUMNS",
     "TRACK_COLUMNS",
     "TRACK_OPTIONS",
+    "TF_TYPE",
+    "TF_TYPES",
     "LifecycleLog",
+    "TfBuffer",
+    "bag_messages",
+    "bag_read_errors",
+    "interpolate_poses",
     "lifecycle_log_from_frame",
     "read_count_panel",
     "read_field_log",
@@ -58,6 +73,7 @@ __all__ = [
     "read_tracks_bag",
     "sampling_step",
     "tracks_to_lifecycle",
+    "transform_matrix",
     "validate_tracks",
     "vision_msgs_typestore",
 ]

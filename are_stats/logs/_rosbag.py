@@ -15,8 +15,11 @@ Two kinds of topics become sightings (rows ``id, t, x, y, yaw, label``) that
   ``bbox.center``; label ``results[0].hypothesis.class_id``.
 
 Times are the message header stamps in seconds (the bag's receive time when the stamp is
-zero); positions are taken as published, in the header's ``frame_id`` (expected: the map
-frame), which is kept in a ``frame_id`` column.
+zero). Positions published in another frame than the map frame are transformed into it
+through the bag's ``/tf`` and ``/tf_static`` (:class:`~are_stats.logs.TfBuffer`, at each
+sighting's stamp; the yaw turns with the frame) and their ``frame_id`` becomes the map
+frame; in a bag without ``/tf`` they are taken as published. The ``frame_id`` column says
+which frame the positions are in.
 """
 
 from __future__ import annotations
@@ -31,10 +34,13 @@ import numpy as np
 import pandas as pd
 
 from are_stats.inputs import InputError, get_str
+from are_stats.logs._tf import TF_TYPES, TfBuffer
 
 __all__ = [
     "DETECTION3D_MSGS",
     "SUPPORTED_TRACK_TYPES",
+    "bag_messages",
+    "bag_read_errors",
     "read_tracks_bag",
     "vision_msgs_typestore",
 ]
@@ -249,7 +255,49 @@ def _messages(
         yield conn, ts, msg
 
 
-def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None) -> pd.DataFrame:
+def _to_map_frame(df: pd.DataFrame, tf: TfBuffer, map_frame: str, p: Path) -> pd.DataFrame:
+    """Sightings in other frames moved into ``map_frame`` through the bag's tf tree."""
+    frames = df["frame_id"].astype(str).str.lstrip("/")
+    df = df.assign(frame_id=frames)
+    for frame in sorted(set(frames) - {"", map_frame}):
+        rows = np.flatnonzero((frames == frame).to_numpy())
+        try:
+            m = tf.lookup(map_frame, frame, df["t"].to_numpy(float)[rows])
+        except KeyError:
+            raise ValueError(
+                f"{p}: topic {df['topic'].iloc[rows[0]]!r}, frame {frame!r}: expected a /tf "
+                f"chain {map_frame} -> ... -> {frame}, got frames "
+                f"{', '.join(tf.frames) or 'none'}"
+            ) from None
+        xy = df[["x", "y"]].to_numpy(float)[rows]
+        pts = np.einsum("nij,nj->ni", m[:, :3, :3], np.c_[xy, np.zeros(len(rows))]) + m[:, :3, 3]
+        turn = np.arctan2(m[:, 1, 0], m[:, 0, 0])
+        yaw = np.angle(np.exp(1j * (df["yaw"].to_numpy(float)[rows] + turn)))
+        df.iloc[rows, df.columns.get_loc("x")] = pts[:, 0]
+        df.iloc[rows, df.columns.get_loc("y")] = pts[:, 1]
+        df.iloc[rows, df.columns.get_loc("yaw")] = yaw
+        df.iloc[rows, df.columns.get_loc("frame_id")] = map_frame
+    return df
+
+
+def bag_read_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions rosbags raises on a corrupt or truncated bag (to catch around a
+    reader and report as a ``ValueError`` naming the bag)."""
+    return _bag_errors()
+
+
+def bag_messages(
+    reader: Any, connections: list[Any], path: str | os.PathLike
+) -> Iterator[tuple[Any, int, Any]]:
+    """``(connection, receive time ns, message)`` of an open rosbags ``AnyReader``; a damaged
+    record or message is a ``ValueError`` naming the bag (and the topic and time when
+    known)."""
+    return _messages(reader, connections, Path(path), _bag_errors())
+
+
+def read_tracks_bag(
+    path: str | os.PathLike, topics: Sequence[str] | None = None, map_frame: str = "map"
+) -> pd.DataFrame:
     """Read tracked objects from a ROS 1 ``.bag``, a ROS 2 bag directory or an ``.mcap`` file.
 
     Parameters
@@ -260,13 +308,16 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
     topics : sequence of str, optional
         Topics to read; default: every topic of a supported type
         (:data:`SUPPORTED_TRACK_TYPES`).
+    map_frame : str
+        The frame positions are returned in when the bag has ``/tf`` (sightings in other
+        frames are transformed).
 
     Returns
     -------
     pandas.DataFrame
         One row per sighting: ``id`` (str), ``t`` (s), ``x``, ``y`` (m), ``yaw`` (rad),
         ``label`` (str: the marker namespace, or the detection's class id), ``topic``,
-        ``frame_id``; sorted by ``t`` (stable).
+        ``frame_id`` (the map frame once transformed); sorted by ``t`` (stable).
 
     Raises
     ------
@@ -274,7 +325,8 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
         If ``path`` does not exist.
     ValueError
         If the bag cannot be read, a requested topic is missing or of an unsupported type,
-        no supported topic exists, or the topics hold no sightings.
+        no supported topic exists, the topics hold no sightings, or a sighting's frame has
+        no ``/tf`` chain to ``map_frame`` in a bag with ``/tf``.
 
     Examples
     --------
@@ -322,9 +374,14 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
                             f"{', '.join(SUPPORTED_TRACK_TYPES)}, got "
                             f"{by_topic[t]}"
                         )
-            conns = [c for c in reader.connections if c.topic in chosen]
+            tf_topics = [t for t in ("/tf", "/tf_static") if by_topic.get(t) in TF_TYPES]
+            tf = TfBuffer()
+            conns = [c for c in reader.connections if c.topic in (*chosen, *tf_topics)]
             states = {t: _MarkerState() for t in chosen}
             for conn, ts, msg in _messages(reader, conns, p, bag_errors):
+                if conn.topic in tf_topics and conn.topic not in chosen:
+                    tf.add_message(msg, ts * 1e-9, static=conn.topic == "/tf_static")
+                    continue
                 try:
                     if conn.msgtype == _MARKER_ARRAY:
                         _markers(msg.markers, states[conn.topic], conn.topic, ts, rows)
@@ -351,6 +408,8 @@ def read_tracks_bag(path: str | os.PathLike, topics: Sequence[str] | None = None
             "(ADD marker or detection), got none"
         )
     df = pd.DataFrame(rows, columns=["id", "t", "x", "y", "yaw", "label", "topic", "frame_id"])
+    if tf_topics:
+        df = _to_map_frame(df, tf, map_frame.lstrip("/"), p)
     for c in ("t", "x", "y"):
         v = df[c].to_numpy(dtype=np.float64)
         bad = ~np.isfinite(v)

@@ -171,8 +171,11 @@ def test_mcap_export_reads_back(tmp_path):
     assert counts["/robot_pose"] == len(res.trace.poses)
     assert last["/map"].info.width == 20 and len(last["/map"].data) == 400
     # the last scene: one box live (the one at t 2..4 has left), drawn perceived (green)
-    boxes = [m for m in last["/artefacts"].markers if m.action == 0]
+    boxes = [m for m in last["/artefacts"].markers if m.action == 0 and m.ns == "artefacts"]
     assert len(boxes) == 1 and boxes[0].color.g > boxes[0].color.r
+    texts = [m for m in last["/artefacts"].markers if m.ns == "labels"]
+    assert [m.type for m in texts] == [9] and texts[0].text.startswith(boxes[0].text or "")
+    assert counts["/tf_static"] == 1 and counts["/tf"] >= len(res.trace.poses)
     with pytest.raises(OutputExistsError):
         export_mcap(path, grid, res.trace)
     with pytest.raises(ValueError, match="trace"):

@@ -285,3 +285,59 @@ def test_mcap_with_damaged_type_definitions(tmp_path, old, new, message):
     damaged.write_bytes(mcap.read_bytes().replace(old, new))
     with pytest.raises(ValueError, match=r"damaged\.mcap: topic '/markers'.*" + message):
         read_tracks_bag(damaged, topics=["/markers"])
+
+
+def test_tracks_in_other_frames_are_moved_into_map_through_tf(tmp_path):
+    """Markers published in ``odom`` while ``map -> odom`` drifts and turns (on /tf), and in
+    ``lidar`` (``odom -> lidar`` on /tf_static): positions come back in ``map``."""
+    import dataclasses
+
+    ts = vision_msgs_typestore(2)
+    T = ts.types
+
+    def tf(t, parent, child, x, y, yaw):
+        return T["geometry_msgs/msg/TransformStamped"](
+            header=T["std_msgs/msg/Header"](stamp=_stamp(ts, t), frame_id=parent),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.0),
+                rotation=_pose(ts, 0, 0, yaw).orientation,
+            ),
+        )
+
+    def markers(t, frame, x, y, yaw):
+        m = _marker(ts, t, "people", 1, x, y, yaw, 0, False)
+        m = dataclasses.replace(m, header=dataclasses.replace(m.header, frame_id=frame))
+        return T["visualization_msgs/msg/MarkerArray"](markers=[m])
+
+    def map_odom(t):  # drifts 0.2 m/s along x, turned a quarter turn
+        return 1.0 + 0.2 * t, 2.0, math.pi / 2
+
+    path = tmp_path / "tf_bag"
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c_tf = w.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=ts)
+        c_st = w.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=ts)
+        c_m = w.add_connection("/markers", "visualization_msgs/msg/MarkerArray", typestore=ts)
+        st = T["tf2_msgs/msg/TFMessage"](transforms=[tf(0.0, "odom", "lidar", 0.5, 0.0, 0.0)])
+        w.write(c_st, 0, ts.serialize_cdr(st, "tf2_msgs/msg/TFMessage"))
+        for k in range(11):
+            msg = T["tf2_msgs/msg/TFMessage"](transforms=[tf(k, "map", "odom", *map_odom(k))])
+            w.write(c_tf, int(k * 1e9) + 1, ts.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
+        for t, frame in ((2.5, "odom"), (5.0, "lidar"), (7.0, "map")):
+            msg = markers(t, frame, 1.0, 0.0, 0.1)
+            w.write(
+                c_m, int(t * 1e9) + 2, ts.serialize_cdr(msg, "visualization_msgs/msg/MarkerArray")
+            )
+    df = read_tracks_bag(path)
+    assert df["frame_id"].tolist() == ["map"] * 3
+    # odom (1, 0) turned a quarter: (0, 1) + map_odom(2.5) = (1.5, 3.0)
+    x0, y0, _ = map_odom(2.5)
+    np.testing.assert_allclose(df[["x", "y"]].iloc[0], [x0, y0 + 1.0], atol=1e-9)
+    x1, y1, _ = map_odom(5.0)
+    np.testing.assert_allclose(df[["x", "y"]].iloc[1], [x1, y1 + 1.5], atol=1e-9)
+    np.testing.assert_allclose(df[["x", "y", "yaw"]].iloc[2], [1.0, 0.0, 0.1], atol=1e-12)
+    np.testing.assert_allclose(df["yaw"].iloc[:2], [0.1 + math.pi / 2] * 2, atol=1e-9)
+    with pytest.raises(
+        ValueError, match=r"frame 'lidar': expected a /tf chain world -> ... -> lidar, got frames"
+    ):
+        read_tracks_bag(path, map_frame="world")

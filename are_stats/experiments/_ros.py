@@ -1,0 +1,350 @@
+"""ROS 2 conventions shared by the MCAP exports: REP-105 frame names, start times, messages.
+
+The paper's frames keep their names in the Python API (``F_E``, ``F_R``, ``F_C``,
+``F_A/<id>``); files meant for ROS tools use REP-105 names instead (:data:`ROS_FRAMES`):
+
+===============  =========================  ============================================
+paper            ROS (exports)              transform published on
+===============  =========================  ============================================
+``F_E``          ``map``                    (the fixed frame)
+``F_R``          ``base_link``              ``/tf``: ``map -> base_link`` (moving)
+``F_C``          ``camera_optical_frame``   ``/tf_static``: ``base_link -> camera``
+``F_A/<id>``     ``artefact_<id>``          ``/tf``: ``map -> artefact_<id>`` (moving)
+===============  =========================  ============================================
+
+Messages are built with the ``rosbags`` ROS 2 Humble typestore, CDR-serialised and written
+with the ``mcap`` writer, one ``ros2msg`` schema per type (the full definition with its
+dependencies, as ``ros2 bag record`` writes it) and the ``offered_qos_profiles`` channel
+metadata that ``ros2 bag play`` reads (transient local for ``/tf_static`` and maps, so
+late subscribers such as rviz still get them).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from are_stats._atomic import atomic_path
+from are_stats.inputs import InputError
+
+__all__ = ["ROS_FRAMES", "RosMessages", "artefact_frame", "parse_start_time"]
+
+#: Paper frame -> REP-105 frame name used in exports (``F_A/<id>`` -> :func:`artefact_frame`).
+ROS_FRAMES: dict[str, str] = {
+    "F_E": "map",
+    "F_R": "base_link",
+    "F_C": "camera_optical_frame",
+}
+
+#: Marker colours (r, g, b, a): perceived artefacts green, the others grey.
+PERCEIVED_RGBA = (0.2, 0.8, 0.2, 0.8)
+OCCLUDED_RGBA = (0.5, 0.5, 0.5, 0.5)
+
+_QOS_VOLATILE = (
+    "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n"
+    "  deadline: {sec: 2147483647, nsec: 4294967295}\n"
+    "  lifespan: {sec: 2147483647, nsec: 4294967295}\n  liveliness: 1\n"
+    "  liveliness_lease_duration: {sec: 2147483647, nsec: 4294967295}\n"
+    "  avoid_ros_namespace_conventions: false\n"
+)
+_QOS_LATCHED = _QOS_VOLATILE.replace("durability: 2", "durability: 1")
+
+
+def artefact_frame(artefact_id: int) -> str:
+    """REP-105-style frame name of artefact ``F_A/<id>``: ``artefact_<id>``."""
+    return f"artefact_{int(artefact_id)}"
+
+
+def parse_start_time(value: Any, source: str = "--start-time") -> float:
+    """A start time in seconds since the Unix epoch, from seconds or ISO 8601.
+
+    Parameters
+    ----------
+    value : float, int or str
+        Seconds (``1732480000.5``) or an ISO 8601 date-time (``2026-11-24T20:00:00Z``;
+        without a zone it is read as UTC).
+    source : str
+        The option named in errors.
+
+    Returns
+    -------
+    float
+        Seconds since 1970-01-01 UTC (>= 0).
+
+    Examples
+    --------
+    >>> parse_start_time("1970-01-01T00:01:00Z"), parse_start_time("12.5")
+    (60.0, 12.5)
+    """
+    if isinstance(value, bool):
+        raise InputError(source, "", "seconds or an ISO 8601 date-time", value)
+    t: float | None = None
+    if isinstance(value, int | float | np.integer | np.floating):
+        t = float(value)
+    elif isinstance(value, str):
+        try:
+            t = float(value)
+        except ValueError:
+            try:
+                d = _dt.datetime.fromisoformat(value.strip().replace("Z", "+00:00"))
+            except ValueError:
+                raise InputError(
+                    source, "", "seconds or an ISO 8601 date-time (2026-11-24T20:00:00Z)", value
+                ) from None
+            if d.tzinfo is None:
+                d = d.replace(tzinfo=_dt.UTC)
+            t = d.timestamp()
+    if t is None or not math.isfinite(t) or t < 0 or t > 2**32:
+        raise InputError(source, "", "a time between 1970 and 2106 (seconds or ISO 8601)", value)
+    return t
+
+
+def _quat(rot: np.ndarray) -> tuple[float, float, float, float]:
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(np.asarray(rot, float)).as_quat()
+    return float(x), float(y), float(z), float(w)
+
+
+class RosMessages:
+    """Collects ROS 2 messages by topic and time, then writes them to one MCAP file.
+
+    Parameters
+    ----------
+    start : float
+        Wall-clock time (s since the epoch) of the scenario clock's ``t = 0``: every stamp
+        and log time is ``start + t``.
+    frame : str
+        Fixed frame (``header.frame_id`` of maps and markers).
+    start_ns : int, optional
+        ``start`` in integer nanoseconds, exact (a bag's start time); default
+        ``round(start * 1e9)``.
+    """
+
+    def __init__(self, start: float = 0.0, frame: str = "map", start_ns: int | None = None) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        self.start = float(start)
+        self.start_ns = int(round(self.start * 1e9)) if start_ns is None else int(start_ns)
+        self.frame = frame
+        self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        self.T = self.ts.types
+        self.topics: dict[str, str] = {}
+        self.latched: set[str] = set()
+        self._msgs: list[tuple[int, int, str, Any]] = []
+
+    # ---- building blocks --------------------------------------------------------------
+    def ns(self, t: float) -> int:
+        """Nanoseconds since the epoch of scenario time ``t``."""
+        return self.start_ns + int(round(float(t) * 1e9))
+
+    def stamp(self, t: float) -> Any:
+        n = self.ns(t)
+        return self.T["builtin_interfaces/msg/Time"](sec=n // 10**9, nanosec=n % 10**9)
+
+    def header(self, t: float, frame: str | None = None) -> Any:
+        return self.T["std_msgs/msg/Header"](
+            stamp=self.stamp(t), frame_id=self.frame if frame is None else frame
+        )
+
+    def pose(self, x: float, y: float, yaw: float, z: float = 0.0) -> Any:
+        T = self.T
+        return T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=float(z)),
+            orientation=T["geometry_msgs/msg/Quaternion"](
+                x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+            ),
+        )
+
+    def transform(self, t: float, parent: str, child: str, matrix: Any) -> Any:
+        """``geometry_msgs/TransformStamped`` of a (4, 4) parent-from-child transform."""
+        T = self.T
+        m = np.asarray(matrix, float)
+        qx, qy, qz, qw = _quat(m[:3, :3])
+        return T["geometry_msgs/msg/TransformStamped"](
+            header=self.header(t, parent),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](
+                    x=float(m[0, 3]), y=float(m[1, 3]), z=float(m[2, 3])
+                ),
+                rotation=T["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
+            ),
+        )
+
+    def planar(
+        self, t: float, parent: str, child: str, x: float, y: float, yaw: float, z: float = 0.0
+    ) -> Any:
+        """``TransformStamped`` of a planar pose ``(x, y, yaw)`` at height ``z``."""
+        m = np.eye(4)
+        c, s = math.cos(yaw), math.sin(yaw)
+        m[:2, :2] = [[c, -s], [s, c]]
+        m[:3, 3] = [x, y, z]
+        return self.transform(t, parent, child, m)
+
+    def occupancy_grid(self, t: float, grid: Any) -> Any:
+        T = self.T
+        info = T["nav_msgs/msg/MapMetaData"](
+            map_load_time=self.stamp(t),
+            resolution=float(grid.resolution),
+            width=grid.width,
+            height=grid.height,
+            origin=self.pose(grid.origin[0], grid.origin[1], grid.origin[2]),
+        )
+        return T["nav_msgs/msg/OccupancyGrid"](
+            header=self.header(t), info=info, data=np.asarray(grid.data).ravel().astype(np.int8)
+        )
+
+    def marker(
+        self,
+        t: float,
+        ns: str,
+        mid: int,
+        mtype: int,
+        pose: Any,
+        scale: Any,
+        rgba: Any,
+        *,
+        action: int = 0,
+        text: str = "",
+        frame: str | None = None,
+    ) -> Any:
+        """``visualization_msgs/Marker`` (type 1 cube, 2 sphere, 9 text; action 3 deletes
+        all)."""
+        T = self.T
+        empty = np.zeros(0, np.uint8)
+        return T["visualization_msgs/msg/Marker"](
+            header=self.header(t, frame),
+            ns=ns,
+            id=int(mid),
+            type=int(mtype),
+            action=action,
+            pose=pose,
+            scale=T["geometry_msgs/msg/Vector3"](
+                x=float(scale[0]), y=float(scale[1]), z=float(scale[2])
+            ),
+            color=T["std_msgs/msg/ColorRGBA"](
+                r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3])
+            ),
+            lifetime=T["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+            frame_locked=False,
+            points=[],
+            colors=[],
+            texture_resource="",
+            texture=T["sensor_msgs/msg/CompressedImage"](
+                header=self.header(t, frame), format="", data=empty
+            ),
+            uv_coordinates=[],
+            text=str(text),
+            mesh_resource="",
+            mesh_file=T["visualization_msgs/msg/MeshFile"](filename="", data=empty),
+            mesh_use_embedded_materials=False,
+        )
+
+    def artefact_markers(
+        self,
+        t: float,
+        ids: Any,
+        centres: Any,
+        half: Any,
+        yaws: Any,
+        labels: Any,
+        perceived: Any,
+    ) -> Any:
+        """``MarkerArray``: a DELETEALL, then per artefact a cube (ns ``artefacts``; green
+        perceived, grey otherwise) and its class label as text above it (ns ``labels``).
+
+        Parameters
+        ----------
+        ids : (n,) int
+        centres : (n, 3) float
+        half : (n, 3) float
+            Half extents.
+        yaws : (n,) float
+        labels : (n,) str
+        perceived : (n,) bool
+        """
+        ms = [self.marker(t, "", 0, 0, self.pose(0, 0, 0), (1, 1, 1), (0, 0, 0, 0), action=3)]
+        for k in range(len(ids)):
+            c, h = np.asarray(centres[k], float), np.asarray(half[k], float)
+            seen = bool(perceived[k])
+            rgba = PERCEIVED_RGBA if seen else OCCLUDED_RGBA
+            aid = int(ids[k])
+            ms.append(
+                self.marker(
+                    t, "artefacts", aid, 1, self.pose(c[0], c[1], yaws[k], c[2]), 2 * h, rgba
+                )
+            )
+            label = f"{labels[k]} {aid}" + ("" if seen else " (occluded)")
+            ms.append(
+                self.marker(
+                    t,
+                    "labels",
+                    aid,
+                    9,
+                    self.pose(c[0], c[1], 0.0, c[2] + h[2] + 0.3),
+                    (0.0, 0.0, 0.4),
+                    (1.0, 1.0, 1.0, 1.0),
+                    text=label,
+                )
+            )
+        return self.T["visualization_msgs/msg/MarkerArray"](markers=ms)
+
+    def tf(self, transforms: list[Any]) -> Any:
+        return self.T["tf2_msgs/msg/TFMessage"](transforms=transforms)
+
+    # ---- collecting and writing -------------------------------------------------------
+    def add(self, t: float, topic: str, msgtype: str, msg: Any, *, latched: bool = False) -> None:
+        """Queue ``msg`` on ``topic`` at scenario time ``t`` (log time ``start + t``)."""
+        if self.topics.setdefault(topic, msgtype) != msgtype:
+            raise ValueError(f"topic {topic}: expected {self.topics[topic]}, got {msgtype}")
+        if latched:
+            self.latched.add(topic)
+        self._msgs.append((self.ns(t), len(self._msgs), topic, msg))
+
+    def counts(self) -> Mapping[str, int]:
+        out: dict[str, int] = {}
+        for _, _, topic, _ in self._msgs:
+            out[topic] = out.get(topic, 0) + 1
+        return out
+
+    def write(self, path: str | os.PathLike, *, force: bool = False) -> Path:
+        """Write the queued messages, sorted by time, to ``path`` (atomically)."""
+        from mcap.writer import Writer
+
+        target = Path(path)
+        with atomic_path(target, force=force) as tmp, open(tmp, "wb") as fh:
+            w = Writer(fh)
+            w.start(profile="ros2", library="are_stats")
+            schemas: dict[str, int] = {}
+            channels: dict[str, int] = {}
+            for topic, typ in self.topics.items():
+                if typ not in schemas:
+                    schemas[typ] = w.register_schema(
+                        name=typ,
+                        encoding="ros2msg",
+                        data=self.ts.generate_msgdef(typ, ros_version=2)[0].encode(),
+                    )
+                qos = _QOS_LATCHED if topic in self.latched else _QOS_VOLATILE
+                channels[topic] = w.register_channel(
+                    topic=topic,
+                    message_encoding="cdr",
+                    schema_id=schemas[typ],
+                    metadata={"offered_qos_profiles": qos},
+                )
+            for seq, (ns, _, topic, msg) in enumerate(sorted(self._msgs, key=lambda m: m[:2])):
+                w.add_message(
+                    channel_id=channels[topic],
+                    log_time=ns,
+                    publish_time=ns,
+                    sequence=seq,
+                    data=bytes(self.ts.serialize_cdr(msg, self.topics[topic])),
+                )
+            w.finish()
+        return target

@@ -1,0 +1,199 @@
+"""Small robot bags written with rosbags (ROS 1 ``.bag``, ROS 2 folder, MCAP) for the
+augmentation tests: a robot driving along the courtyard's free corridor, as ``/tf``
+(``map -> odom -> base_link``), as pose topics and with a camera on ``/tf_static``."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+#: Wall-clock time of the bags' first message (s since the epoch).
+START = 1_732_480_000.0
+#: Seconds of driving.
+DURATION = 12.0
+#: Camera intrinsics of the ``/camera/camera_info`` topic (small, for fast tests).
+CAMERA = {"k": [60.0, 0.0, 40.0, 0.0, 60.0, 30.0, 0.0, 0.0, 1.0], "width": 80, "height": 60}
+#: The camera mount of ``/tf_static``: base_link -> camera_link -> camera_optical_frame.
+CAMERA_XYZ = (0.2, 0.0, 1.2)
+
+
+def robot_pose(t: float) -> tuple[float, float, float]:
+    """Map pose ``(x, y, yaw)`` of the robot ``t`` seconds after :data:`START`."""
+    return -15.0 + 0.5 * t, -10.0 + 0.05 * t, 0.1
+
+
+def _time(T, t: float):
+    n = int(round((START + t) * 1e9))
+    return T["builtin_interfaces/msg/Time"](sec=n // 10**9, nanosec=n % 10**9)
+
+
+def _header(T, t: float, frame: str, ros1: bool):
+    if ros1:
+        return T["std_msgs/msg/Header"](seq=0, stamp=_time(T, t), frame_id=frame)
+    return T["std_msgs/msg/Header"](stamp=_time(T, t), frame_id=frame)
+
+
+def _quat(T, yaw: float, pitch: float = 0.0, roll: float = 0.0):
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_euler("xyz", [roll, pitch, yaw]).as_quat()
+    return T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
+
+
+def _tf(T, t, parent, child, xyz, yaw=0.0, pitch=0.0, roll=0.0, ros1=False):
+    return T["geometry_msgs/msg/TransformStamped"](
+        header=_header(T, t, parent, ros1),
+        child_frame_id=child,
+        transform=T["geometry_msgs/msg/Transform"](
+            translation=T["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2]),
+            rotation=_quat(T, yaw, pitch, roll),
+        ),
+    )
+
+
+def _pose(T, x, y, yaw):
+    return T["geometry_msgs/msg/Pose"](
+        position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=_quat(T, yaw)
+    )
+
+
+def bag_messages(
+    T,
+    ros1: bool = False,
+    tf: bool = True,
+    poses: bool = True,
+    camera: bool = True,
+    pose_frame: str = "map",
+):
+    """``(t, topic, msgtype, message)`` of the test bag, in time order."""
+    out = []
+    odom = (1.0, -0.5, 0.0)  # map -> odom offset: the composition must undo it
+    if tf:
+        out.append(
+            (
+                0.0,
+                "/tf_static",
+                "tf2_msgs/msg/TFMessage",
+                T["tf2_msgs/msg/TFMessage"](
+                    transforms=[
+                        _tf(T, 0.0, "base_link", "camera_link", CAMERA_XYZ, ros1=ros1),
+                        _tf(
+                            T,
+                            0.0,
+                            "camera_link",
+                            "camera_optical_frame",
+                            (0, 0, 0),
+                            -math.pi / 2,
+                            0,
+                            -math.pi / 2,
+                            ros1=ros1,
+                        ),
+                    ]
+                ),
+            )
+        )
+    for k in range(int(DURATION * 10) + 1):
+        t = k / 10.0
+        x, y, yaw = robot_pose(t)
+        if tf:
+            tfs = [_tf(T, t, "odom", "base_link", (x - odom[0], y - odom[1], 0.0), yaw, ros1=ros1)]
+            if k % 10 == 0:
+                tfs.append(_tf(T, t, "map", "odom", odom, ros1=ros1))
+            out.append(
+                (t, "/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=tfs))
+            )
+        if poses:
+            out.append(
+                (
+                    t,
+                    "/robot_pose",
+                    "geometry_msgs/msg/PoseStamped",
+                    T["geometry_msgs/msg/PoseStamped"](
+                        header=_header(T, t, pose_frame, ros1), pose=_pose(T, x, y, yaw)
+                    ),
+                )
+            )
+            cov = T["geometry_msgs/msg/PoseWithCovariance"](
+                pose=_pose(T, x, y, yaw), covariance=np.zeros(36)
+            )
+            out.append(
+                (
+                    t,
+                    "/amcl_pose",
+                    "geometry_msgs/msg/PoseWithCovarianceStamped",
+                    T["geometry_msgs/msg/PoseWithCovarianceStamped"](
+                        header=_header(T, t, pose_frame, ros1), pose=cov
+                    ),
+                )
+            )
+        if camera and k % 5 == 0:
+            out.append(
+                (t, "/camera/camera_info", "sensor_msgs/msg/CameraInfo", _camera_info(T, t, ros1))
+            )
+    return out
+
+
+def _camera_info(T, t: float, ros1: bool):
+    roi = T["sensor_msgs/msg/RegionOfInterest"](
+        x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+    )
+    k = np.asarray(CAMERA["k"], float)
+    p = np.zeros(12)
+    p[[0, 1, 2, 4, 5, 6, 8, 9, 10]] = k
+    common = dict(
+        header=_header(T, t, "camera_optical_frame", ros1),
+        height=CAMERA["height"],
+        width=CAMERA["width"],
+        distortion_model="plumb_bob",
+        binning_x=0,
+        binning_y=0,
+        roi=roi,
+    )
+    if ros1:
+        return T["sensor_msgs/msg/CameraInfo"](
+            **common, D=np.zeros(5), K=k, R=np.eye(3).ravel(), P=p
+        )
+    return T["sensor_msgs/msg/CameraInfo"](**common, d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=p)
+
+
+def write_bag(path: Path, kind: str, **which) -> Path:
+    """Write the test bag as ``kind`` ``"ros1"`` (``path`` a ``.bag``), ``"ros2"`` (a folder,
+    sqlite3) or ``"mcap"`` (a ROS 2 folder with MCAP storage; its ``.mcap`` file is
+    returned)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    ros1 = kind == "ros1"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if ros1:  # the Noetic store has no tf2_msgs: register it as a ROS 1 robot bag has it
+        from rosbags.typesys import get_types_from_msg
+
+        ts.register(
+            get_types_from_msg(
+                "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
+            )
+        )
+    msgs = bag_messages(ts.types, ros1=ros1, **which)
+    if ros1:
+        from rosbags.rosbag1 import Writer
+
+        with Writer(path) as w:
+            conns = {}
+            for t, topic, typ, msg in msgs:
+                if topic not in conns:
+                    conns[topic] = w.add_connection(topic, typ, typestore=ts)
+                w.write(conns[topic], int(round((START + t) * 1e9)), ts.serialize_ros1(msg, typ))
+        return path
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        conns = {}
+        for t, topic, typ, msg in msgs:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, typ, typestore=ts)
+            w.write(conns[topic], int(round((START + t) * 1e9)), ts.serialize_cdr(msg, typ))
+    if kind == "mcap":
+        return next(Path(path).glob("*.mcap"))
+    return path

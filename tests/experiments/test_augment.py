@@ -1,0 +1,360 @@
+"""Robot bag in, augmented bag out (issue 17): bags written with rosbags (ROS 1, ROS 2,
+MCAP) on the courtyard map, ``augment`` through Python and the CLI, the output read back
+with the ``mcap`` reader and rosbags; exports of ``experiment --mcap`` follow REP-105."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from are_stats.cli import app
+from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, extrude_grid
+from are_stats.experiments import (
+    AUGMENT_TOPICS,
+    MCAP_TOPICS,
+    augment_bag,
+    parse_start_time,
+    read_trajectory,
+)
+from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
+from tests.experiments.rosbag_fixtures import (
+    CAMERA,
+    CAMERA_XYZ,
+    DURATION,
+    START,
+    robot_pose,
+    write_bag,
+)
+
+runner = CliRunner()
+MAP = DEFAULT_MODELS / "courtyard.yaml"
+START_NS = int(START * 1e9)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A small EM fit (labelled classes), the bags in three formats and a small camera."""
+    from tests.test_cli_jobs import _quick_em_fit, _write_log
+
+    d = tmp_path_factory.mktemp("augment")
+    log, _ = _write_log(d, labels=True)
+    fit = d / "small.nc"
+    _quick_em_fit(log, fit, samples=20)
+    cam = d / "cam.yaml"
+    cam.write_text(
+        yaml.safe_dump(
+            {"image_width": CAMERA["width"], "image_height": CAMERA["height"], "K": CAMERA["k"]}
+        )
+    )
+    return {
+        "dir": d,
+        "fit": fit,
+        "camera": cam,
+        "ros1": write_bag(d / "robot.bag", "ros1"),
+        "ros2": write_bag(d / "robot_ros2", "ros2"),
+        "mcap": write_bag(d / "robot_mcap", "mcap"),
+    }
+
+
+def _read_mcap(path: Path) -> tuple[dict, dict, list]:
+    """``{topic: [(log_time, message)]}``, ``{topic: schema name}`` and the channels."""
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    msgs: dict = defaultdict(list)
+    types: dict = {}
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        channels = list(reader.get_summary().channels.values())
+        for schema, channel, msg in reader.iter_messages():
+            assert schema.encoding == "ros2msg" and channel.message_encoding == "cdr"
+            types[channel.topic] = schema.name
+            msgs[channel.topic].append((msg.log_time, ts.deserialize_cdr(msg.data, schema.name)))
+    return msgs, types, channels
+
+
+def _truth(times: np.ndarray) -> np.ndarray:
+    """``T_map_base`` (T, 4, 4) of the fixture's robot at scenario times."""
+    out = np.tile(np.eye(4), (len(times), 1, 1))
+    for k, t in enumerate(times):
+        x, y, yaw = robot_pose(float(t))
+        out[k, :2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
+        out[k, :2, 3] = [x, y]
+    return out
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2", "mcap"])
+@pytest.mark.parametrize("topic", [None, "/robot_pose", "/amcl_pose"])
+def test_read_trajectory_from_tf_and_pose_topics(files, kind, topic):
+    tr = read_trajectory(files[kind], pose_topic=topic, camera_info_topic="/camera/camera_info")
+    assert tr.start == pytest.approx(START) and tr.end == pytest.approx(START + DURATION)
+    assert tr.t.size == int(DURATION * 10) + 1
+    # map -> odom -> base_link composed (the odom offset undone), or the topic's poses
+    np.testing.assert_allclose(tr.poses, _truth(tr.t - START), atol=1e-9)
+    assert tr.camera_frame == "camera_optical_frame"
+    np.testing.assert_allclose(tr.mount, optical_from_base(CAMERA_XYZ), atol=1e-12)
+    assert tr.camera_info == {**CAMERA, "k": CAMERA["k"]}
+    np.testing.assert_allclose(tr.camera_times - START, np.arange(0, DURATION + 0.01, 0.5))
+
+
+def test_augment_reads_back_and_matches_perceive_scene(files, tmp_path):
+    out = tmp_path / "aug.mcap"
+    res = augment_bag(
+        files["ros2"],
+        files["fit"],
+        MAP,
+        out,
+        5,
+        camera_info_topic="/camera/camera_info",
+        d_max=15.0,
+        tau=5.0,
+    )
+    msgs, types, channels = _read_mcap(out)
+    assert types == AUGMENT_TOPICS
+    # times start at the bag's start and line up with its camera frames
+    first = min(m[0][0] for m in msgs.values())
+    assert first == START_NS
+    stamps = [m.header.stamp for _, m in msgs["/augmented_map"]]
+    assert stamps[0].sec * 10**9 + stamps[0].nanosec == START_NS
+    n_frames = int(DURATION / 0.5) + 1
+    np.testing.assert_allclose(res.times, np.arange(n_frames) * 0.5)
+    assert len(msgs["/perceived"]) == len(msgs["/artefacts"]) == n_frames
+    assert 1 <= len(msgs["/augmented_map"]) <= n_frames and len(msgs["/map"]) == 1
+    # the grids have the map's size
+    grid = OccupancyGrid.from_ros_yaml(MAP)
+    for _, g in msgs["/map"] + msgs["/augmented_map"]:
+        assert (g.info.width, g.info.height) == (grid.width, grid.height)
+        assert len(g.data) == grid.width * grid.height
+    assert (msgs["/augmented_map"][0][1].data == 100).sum() > (grid.data == 100).sum()
+    # REP-105 frames: map -> base_link at every bag pose, map -> artefact_<id>, static camera
+    parents = Counter()
+    children = set()
+    for _, m in msgs["/tf"]:
+        for tr in m.transforms:
+            parents[(tr.header.frame_id, tr.child_frame_id.split("_")[0])] += 1
+            children.add(tr.child_frame_id)
+    assert parents[("map", "base")] == int(DURATION * 10) + 1
+    assert {f"artefact_{int(a)}" for a in res.scene.ids} >= children - {"base_link"}
+    assert parents[("map", "artefact")] > 0
+    ((_, static),) = msgs["/tf_static"]
+    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [
+        ("base_link", "camera_optical_frame")
+    ]
+    qos = {c.topic: c.metadata["offered_qos_profiles"] for c in channels}
+    (latched,) = yaml.safe_load(qos["/tf_static"])  # the profile list ros2 bag play reads
+    (volatile,) = yaml.safe_load(qos["/tf"])
+    assert (latched["durability"], volatile["durability"]) == (1, 2)  # transient local, volatile
+    assert latched["reliability"] == volatile["reliability"] == 1  # reliable
+    # markers: a box and a class-label text per live artefact, coloured by A_f
+    labels = set(res.scene.at(0.0).labels)
+    _, arr = msgs["/artefacts"][0]
+    text = [m.text for m in arr.markers if m.ns == "labels" and m.type == 9]
+    cubes = [m for m in arr.markers if m.ns == "artefacts"]
+    assert len(text) == len(cubes) == len(res.scene.at(0.0).ids) > 0
+    assert {t.split()[0] for t in text} == labels
+    # the perceived set equals a direct perceive_scene at the same times, from the truth
+    cam = PinholeCamera.from_dict(CAMERA)
+    poses = _truth(res.times) @ optical_from_base(CAMERA_XYZ)
+    counts, seen = perceive_scene(
+        res.scene, res.times, poses, extrude_grid(grid, 2.5), cam, 15.0, 5.0
+    )
+    assert seen.any(), "the test scenario should show the camera some artefacts"
+    ids = res.scene.ids
+    for f, (t_ns, m) in enumerate(msgs["/perceived"]):
+        doc = json.loads(m.data)
+        assert t_ns == START_NS + round(res.times[f] * 1e9)
+        assert doc["perceived"] == [int(a) for a in ids[seen[f]] if a in doc["live"]]
+        for a, c in doc["counts"].items():
+            assert c == counts[f, list(ids).index(int(a))]
+        assert set(doc["labels"].values()) <= set(res.scene.labels)
+    for (_, arr), row in zip(msgs["/artefacts"], seen, strict=True):
+        green = {m.id for m in arr.markers if m.ns == "artefacts" and m.color.g > m.color.r}
+        assert green == {int(a) for a in ids[row]}
+
+
+def test_augment_cli_ros1_mcap_reproducible(files, tmp_path):
+    from rosbags.highlevel import AnyReader
+
+    out = tmp_path / "a.mcap"
+    args = [
+        "augment",
+        files["ros1"],
+        "--fit",
+        files["fit"],
+        "--map",
+        "courtyard",
+        "--out",
+        out,
+        "--seed",
+        "2",
+        "--pose-topic",
+        "/amcl_pose",
+        "--camera",
+        files["camera"],
+        "--period",
+        "1.0",
+    ]
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    assert "wrote" in res.output
+    first = out.read_bytes()
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 2 and "already exists" in res.output and "--force" in res.output
+    res = runner.invoke(app, [str(a) for a in [*args, "--force"]])
+    assert res.exit_code == 0, res.output
+    assert out.read_bytes() == first  # same seed, same bytes
+    # rosbags (as ros2 bag play would) reads it as a ROS 2 bag
+    with AnyReader([out]) as reader:
+        assert reader.start_time == START_NS
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        assert topics == AUGMENT_TOPICS
+        n = Counter(c.topic for c, _, _ in reader.messages())
+    assert n["/perceived"] == int(DURATION) + 1 and n["/map"] == 1
+    # from the MCAP bag's /tf with a named base frame, camera frames every 0.5 s
+    out2 = tmp_path / "b.mcap"
+    args2 = [
+        "augment",
+        files["mcap"],
+        "--fit",
+        files["fit"],
+        "--map",
+        MAP,
+        "--out",
+        out2,
+        "--seed",
+        "2",
+        "--base-frame",
+        "base_link",
+        "--camera",
+        files["camera"],
+    ]
+    res = runner.invoke(app, [str(a) for a in args2])
+    assert res.exit_code == 0, res.output
+
+
+def test_augment_errors(files, tmp_path, monkeypatch):
+    import arviz as az
+
+    def run(*extra, bag=files["ros2"]):
+        args = [
+            "augment",
+            bag,
+            "--fit",
+            files["fit"],
+            "--map",
+            MAP,
+            "--out",
+            tmp_path / "o.mcap",
+            "--seed",
+            "1",
+            *extra,
+        ]
+        return runner.invoke(app, [str(a) for a in args])
+
+    bare = write_bag(tmp_path / "bare", "ros2", tf=False, poses=False)
+    res = run(bag=bare)
+    assert res.exit_code == 2
+    assert "robot poses" in res.output and "/camera/camera_info" in res.output
+    res = run("--pose-topic", "/nope")
+    assert res.exit_code == 2 and "/nope" in res.output and "/amcl_pose" in res.output
+    res = run("--pose-topic", "/camera/camera_info")
+    assert res.exit_code == 2 and "sensor_msgs/msg/CameraInfo" in res.output
+    odom = write_bag(tmp_path / "odom", "ros2", tf=False, camera=False, pose_frame="odom")
+    res = run("--pose-topic", "/robot_pose", bag=odom)
+    assert res.exit_code == 2 and "'map'" in res.output and "got 'odom'" in res.output
+    res = run("--base-frame", "robot")
+    assert res.exit_code == 2 and "map -> ... -> robot" in res.output
+    res = run("--pose-topic", "/amcl_pose", "--base-frame", "base_link")
+    assert res.exit_code == 2 and "either --pose-topic or --base-frame" in res.output
+    res = run("--camera", files["camera"], "--camera-info-topic", "/camera/camera_info")
+    assert res.exit_code == 2 and "either --camera or --camera-info-topic" in res.output
+    far = tmp_path / "far.yaml"
+    far.write_text(
+        MAP.read_text()
+        .replace("image: courtyard.pgm", f"image: {MAP.with_suffix('.pgm')}")
+        .replace("[-20.0, -15.0, 0.0]", "[100.0, 100.0, 0.0]")
+    )
+    args = [
+        "augment",
+        files["ros2"],
+        "--fit",
+        files["fit"],
+        "--map",
+        far,
+        "--out",
+        tmp_path / "o.mcap",
+        "--seed",
+        "1",
+    ]
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 2 and "inside the map" in res.output and "121 poses" in res.output
+    idata = az.from_netcdf(files["fit"])
+    del idata.posterior.attrs["area"]
+    nofit = tmp_path / "noarea.nc"
+    idata.to_netcdf(str(nofit))
+    args[3] = nofit
+    args[5] = MAP
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 2 and "area" in res.output
+    monkeypatch.setenv("ARE_STATS_MAX_WORK", "1e6")  # what --max-work 1e6 sets
+    res = run()
+    assert res.exit_code == 2 and "tracing 25 camera frames of 307200 pixels" in res.output
+    assert not (tmp_path / "o.mcap").exists()
+
+
+def test_parse_start_time():
+    assert parse_start_time("2024-11-24T20:26:40Z") == START
+    assert parse_start_time("2024-11-24T21:26:40+01:00") == START
+    assert parse_start_time(str(START)) == START
+    for bad in ("yesterday", "-1", True, "nan"):
+        with pytest.raises(ValueError, match="--start-time"):
+            parse_start_time(bad)
+
+
+def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
+    cfg = {
+        "name": "tiny",
+        "map": "courtyard",
+        "seed": 3,
+        "replicates": 1,
+        "scenario": {
+            "arrival_rate": 0.001,
+            "leave_rate": 0.05,
+            "mix_weights": [1.0],
+            "mix_rates": [0.5],
+        },
+        "mission": {"n_goals": 1, "time_limit": 15.0},
+        "planner": {"algorithm": "astar"},
+    }
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump(cfg))
+    res = runner.invoke(
+        app,
+        [
+            "experiment",
+            str(config),
+            "--out",
+            str(tmp_path / "res"),
+            "--mcap",
+            str(tmp_path / "mcap"),
+            "--start-time",
+            "2024-11-24T20:26:40Z",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    (path,) = sorted((tmp_path / "mcap").glob("*.mcap"))
+    msgs, types, _ = _read_mcap(path)
+    assert set(types) <= set(MCAP_TOPICS) and {"/tf", "/tf_static", "/artefacts"} <= set(types)
+    assert min(m[0][0] for m in msgs.values()) == START_NS
+    frames = {(t.header.frame_id, t.child_frame_id) for _, m in msgs["/tf"] for t in m.transforms}
+    assert ("map", "base_link") in frames
+    assert any(c.startswith("artefact_") for _, c in frames)
+    texts = [m for _, a in msgs["/artefacts"] for m in a.markers if m.type == 9]
+    assert texts and all(m.text for m in texts)
