@@ -127,3 +127,12 @@ __all__ += [
     "predictive_windows",
     "write_report",
 ]
+
+# --- behaviour fitted from tracks (issue 16) ---
+from are_stats.fitting._behaviour import (  # noqa: E402
+    behaviour_log_likelihood,
+    discretise_tracks,
+    fit_behaviour,
+)
+
+__all__ += ["behaviour_log_likelihood", "discretise_tracks", "fit_behaviour"]
