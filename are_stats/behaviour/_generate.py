@@ -258,7 +258,8 @@ def simulate_behaviour_tracks(
             k = int(math.ceil(10 * longest)) + 20
             sol = soft_policy(
                 occ, goals[gsel], float(fit.beta[c]), float(fit.slip[c]), n_epochs=k,
-                goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost, tol=1e-4,
+                goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost,
+                tol=1e-4,
             )  # fmt: skip
             pol = np.asarray(sol.policy)
             v = np.asarray(sol.values)

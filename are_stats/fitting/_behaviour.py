@@ -149,11 +149,15 @@ def _lognormal(v: np.ndarray) -> tuple[float, float]:
 
 
 def _bandwidth(xy: np.ndarray, floor: float) -> float:
-    """Scott's rule on the pooled coordinates, at least ``floor``."""
+    """Median distance to the ``k``-th nearest other point (``k ~ sqrt(n) / 2``), at least
+    ``floor``: local, so that entries at different doors do not mix."""
     n = len(xy)
     if n < 2:
         return floor
-    return max(floor, float(np.mean(np.std(xy, axis=0))) * n ** (-1.0 / 6.0))
+    k = max(1, round(math.sqrt(n) / 2))
+    d = np.sqrt(((xy[:, None] - xy[None]) ** 2).sum(axis=-1))
+    kth = np.sort(d, axis=1)[:, min(k, n - 1)]
+    return max(floor, float(np.median(kth)))
 
 
 def _loglik(
@@ -432,7 +436,7 @@ def fit_behaviour(
             "beta": mle["beta"], "beta_se": mle["beta_se"], "slip": mle["slip"],
             "slip_se": mle["slip_se"], "loglik": mle["loglik"], "n_moves": mle["n_moves"],
             "n_tracks": n_all, "n_fit_tracks": len(paths), "n_epochs": mle["n_epochs"],
-            "bandwidth_entry": _bandwidth(ent_a, cell), "bandwidth_exit": _bandwidth(ext_a, cell),
+            "bandwidth_entry": _bandwidth(ent_a, 2 * cell), "bandwidth_exit": _bandwidth(ext_a, cell),
             "fit_seconds": time.perf_counter() - t0,
         }  # fmt: skip
         for k, v in vals.items():
