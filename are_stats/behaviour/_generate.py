@@ -259,7 +259,7 @@ def simulate_behaviour_tracks(
             sol = soft_policy(
                 occ, goals[gsel], float(fit.beta[c]), float(fit.slip[c]), n_epochs=k,
                 goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost,
-                tol=1e-4,
+                tol=1e-2,
             )  # fmt: skip
             pol = np.asarray(sol.policy)
             v = np.asarray(sol.values)

@@ -161,6 +161,7 @@ def soft_backward_induction(
     store_values: bool = False,
     relative: bool = True,
     tol: float | None = None,
+    tol_mask: jax.Array | None = None,
 ) -> SoftSolution:
     """Soft backward induction over ``K = n_epochs`` epochs (pure; the caller jits).
 
@@ -230,7 +231,10 @@ def soft_backward_induction(
 
         def body(c: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[Any, ...]:
             v_new, _ = step(c[1], None)
-            return c[0] + 1, v_new, jnp.max(jnp.abs(v_new - c[1]))
+            change = jnp.abs(v_new - c[1])
+            if tol_mask is not None:
+                change = jnp.where(tol_mask[None], change, 0.0)
+            return c[0] + 1, v_new, jnp.max(change)
 
         start = (jnp.asarray(0), v0, jnp.asarray(jnp.inf, dtype))
         _, v_prev, _ = jax.lax.while_loop(cond, body, start)
