@@ -457,7 +457,8 @@ def fit_behaviour(
             "beta": mle["beta"], "beta_se": mle["beta_se"], "slip": mle["slip"],
             "slip_se": mle["slip_se"], "loglik": mle["loglik"], "n_moves": mle["n_moves"],
             "n_tracks": n_all, "n_fit_tracks": len(paths), "n_epochs": mle["n_epochs"],
-            "bandwidth_entry": _bandwidth(ent_a, 2 * cell), "bandwidth_exit": _bandwidth(ext_a, cell),
+            "bandwidth_entry": _bandwidth(ent_a, 2 * cell),
+            "bandwidth_exit": _bandwidth(ext_a, cell),
             "fit_seconds": time.perf_counter() - t0,
         }  # fmt: skip
         for k, v in vals.items():
