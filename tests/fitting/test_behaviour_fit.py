@@ -148,3 +148,17 @@ def test_fit_round_trips_through_xarray(crossing) -> None:
     for name in ("beta", "slip", "dt", "speed_mu", "entry_xy", "exit_xy", "free", "track_class"):
         np.testing.assert_array_equal(getattr(back, name), getattr(fit, name))
     assert back.cell == fit.cell and back.classes == fit.classes
+
+
+def test_drawn_exits_are_reachable_within_the_stay(crossing) -> None:
+    _, fit = crossing
+    rng = np.random.default_rng(5)
+    entries = fit.world_to_cell(fit.entry_xy[:20])
+    reach = np.r_[np.full(10, 6.0), np.full(10, 200.0)]
+    exits = fit.draw_exits(rng, np.zeros(20, int), entries, reach)
+    dist = fit.geodesic(entries)[np.arange(20), exits[:, 0], exits[:, 1]]
+    assert (exits[:, 0] >= 0).all()
+    assert (dist <= reach).all() and (dist >= 1).all()
+    # with the whole stay, exits are at the other door (the tracks cross the room)
+    far = np.abs(fit.cell_to_world(exits[10:])[:, 0] - fit.entry_xy[10:20, 0]) > 15.0
+    assert far.mean() >= 0.9
