@@ -369,7 +369,10 @@ def fit_behaviour(
         Tracks whose median speed exceeds this (m/s) are runners.
     max_fit_tracks : int or None
         Largest number of tracks per class in the likelihood of ``beta`` and ``slip`` (a
-        random subset drawn with ``seed``; ``None``: all).
+        random subset drawn with ``seed``; ``None``: all). Each track's goal costs a soft
+        solve over the whole grid per likelihood evaluation.
+    max_side : int
+        Largest side (cells) of the default MDP grid.
     time_cost, goal_reward, step_cost : float
         Rewards of the soft MDP.
     beta0, slip0 : float
