@@ -45,3 +45,34 @@ from are_stats.behaviour._choice import (  # noqa: E402
 )
 
 __all__ += ["TRACK_COLUMNS", "behaviour_tracks", "choose_behaviours"]
+from are_stats.behaviour._soft import (  # noqa: E402
+    MoveObservations,
+    SoftSolution,
+    move_observations,
+    moves_log_likelihood,
+    soft_backward_induction,
+    soft_policy,
+    wall_distance_feature,
+)
+
+__all__ += [
+    "MoveObservations",
+    "SoftSolution",
+    "move_observations",
+    "moves_log_likelihood",
+    "soft_backward_induction",
+    "soft_policy",
+    "wall_distance_feature",
+]
+
+from are_stats.behaviour._model import BehaviourFit, grid_geodesic  # noqa: E402
+
+__all__ += ["BehaviourFit", "grid_geodesic"]
+
+from are_stats.behaviour._generate import (  # noqa: E402
+    sample_soft_paths,
+    simulate_behaviour_tracks,
+    smooth_path,
+)
+
+__all__ += ["sample_soft_paths", "simulate_behaviour_tracks", "smooth_path"]

@@ -142,3 +142,11 @@ __all__ += [
 from are_stats.fitting._panel import PanelComparison, compare_panel  # noqa: E402
 
 __all__ += ["PanelComparison", "compare_panel"]
+# --- behaviour fitted from tracks (issue 16) ---
+from are_stats.fitting._behaviour import (  # noqa: E402
+    behaviour_log_likelihood,
+    discretise_tracks,
+    fit_behaviour,
+)
+
+__all__ += ["behaviour_log_likelihood", "discretise_tracks", "fit_behaviour"]

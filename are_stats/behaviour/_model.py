@@ -1,0 +1,272 @@
+"""The fitted behaviour model: speeds, rationality, slip and exits per class (issue 16).
+
+:class:`BehaviourFit` holds what :func:`~are_stats.fitting.fit_behaviour` estimates and what
+:func:`~are_stats.behaviour.simulate_behaviour_tracks` needs: the MDP grid (a coarse free
+mask of cells of ``cell`` metres), per class a lognormal law of walking speeds (and of run
+speeds), the decision epoch ``dt = cell / median speed``, the soft-policy rationality
+``beta`` and the slip probability with standard errors, and the observed (entry, exit) pairs
+that define the exit density given an entry: a Gaussian kernel over the entries picks a
+track, a Gaussian kernel around its exit gives the exit cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["BehaviourFit", "grid_geodesic"]
+
+_PER_CLASS = (
+    "dt", "speed_mu", "speed_sigma", "run_fraction", "run_mu", "run_sigma", "beta", "beta_se",
+    "slip", "slip_se", "loglik", "n_moves", "n_tracks", "n_fit_tracks", "n_epochs",
+    "bandwidth_entry", "bandwidth_exit", "fit_seconds",
+)  # fmt: skip
+
+
+def grid_geodesic(free: Any, cells: Any) -> np.ndarray:
+    """4-connected path lengths (in cells) over free cells from each of ``cells``.
+
+    Parameters
+    ----------
+    free : (H, W) bool
+    cells : (n, 2) int
+        Sources ``(row, col)``.
+
+    Returns
+    -------
+    dist : (n, H, W) float64
+        ``inf`` where unreachable.
+    """
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import dijkstra
+
+    free = np.asarray(free, bool)
+    h, w = free.shape
+    idx = np.arange(h * w).reshape(h, w)
+    src, dst = [], []
+    for a, b in ((idx[:, :-1], idx[:, 1:]), (idx[:-1], idx[1:])):
+        both = free.ravel()[a.ravel()] & free.ravel()[b.ravel()]
+        src.append(a.ravel()[both])
+        dst.append(b.ravel()[both])
+    s, d = np.concatenate(src), np.concatenate(dst)
+    graph = csr_array((np.ones(s.size), (s, d)), shape=(h * w, h * w))
+    c = np.asarray(cells, np.int64).reshape(-1, 2)
+    out = dijkstra(graph, directed=False, indices=c[:, 0] * w + c[:, 1], unweighted=True)
+    return np.asarray(out).reshape(len(c), h, w)
+
+
+@dataclass
+class BehaviourFit:
+    """Behaviour of each class of artefacts, fitted from tracks.
+
+    Attributes
+    ----------
+    classes : tuple of str
+        Class labels (``C`` of them).
+    cell : float
+        MDP cell side (m).
+    origin : (2,) float
+        World ``(x, y)`` of the corner of cell ``(0, 0)``.
+    free : (H, W) bool
+        Free cells of the MDP grid (row along +y, column along +x).
+    dt : (C,) float
+        Decision epoch (s): ``cell`` over the class's median walking speed.
+    speed_mu, speed_sigma : (C,) float
+        Lognormal law of walking speeds (m/s): ``log v ~ N(mu, sigma^2)``.
+    run_fraction, run_mu, run_sigma : (C,) float
+        Fraction of runners and the lognormal law of their speeds (NaN without runners).
+    beta, beta_se, slip, slip_se : (C,) float
+        Maximum-likelihood rationality and slip with standard errors (inverse Hessian).
+    loglik, n_moves : (C,) float, (C,) int
+        Log-likelihood at the optimum and the number of observed steps it covers.
+    n_tracks, n_fit_tracks : (C,) int
+        Tracks of the class, and those used for ``beta`` and ``slip``.
+    n_epochs : (C,) int
+        Cap on the epochs of the stationary soft policy used in the fit.
+    bandwidth_entry, bandwidth_exit : (C,) float
+        Kernel widths (m) of the exit density given an entry.
+    fit_seconds : (C,) float
+        Wall time of the class's maximum-likelihood fit.
+    track_class : (M,) int
+        Class of each observed track.
+    entry_xy, exit_xy : (M, 2) float
+        First and last position of each observed track (m).
+    time_cost, goal_reward, step_cost : float
+        Rewards of the soft MDP (``time_cost`` sets the scale of ``beta``).
+    """
+
+    classes: tuple
+    cell: float
+    origin: np.ndarray
+    free: np.ndarray
+    dt: np.ndarray
+    speed_mu: np.ndarray
+    speed_sigma: np.ndarray
+    run_fraction: np.ndarray
+    run_mu: np.ndarray
+    run_sigma: np.ndarray
+    beta: np.ndarray
+    beta_se: np.ndarray
+    slip: np.ndarray
+    slip_se: np.ndarray
+    loglik: np.ndarray
+    n_moves: np.ndarray
+    n_tracks: np.ndarray
+    n_fit_tracks: np.ndarray
+    n_epochs: np.ndarray
+    bandwidth_entry: np.ndarray
+    bandwidth_exit: np.ndarray
+    fit_seconds: np.ndarray
+    track_class: np.ndarray
+    entry_xy: np.ndarray
+    exit_xy: np.ndarray
+    time_cost: float = 1.0
+    goal_reward: float = 1.0
+    step_cost: float = 1e-3
+    warnings: list = field(default_factory=list)
+
+    # ------------------------------------------------------------------ grid helpers
+    def world_to_cell(self, xy: Any) -> np.ndarray:
+        """``(n, 2)`` world points -> ``(n, 2)`` cells ``(row, col)`` snapped to free cells."""
+        from scipy import ndimage
+
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        h, w = self.free.shape
+        col = np.clip(np.floor((xy[:, 0] - self.origin[0]) / self.cell), 0, w - 1).astype(int)
+        row = np.clip(np.floor((xy[:, 1] - self.origin[1]) / self.cell), 0, h - 1).astype(int)
+        _, (ri, ci) = ndimage.distance_transform_edt(~self.free, return_indices=True)
+        return np.column_stack([ri[row, col], ci[row, col]])
+
+    def cell_to_world(self, cells: Any) -> np.ndarray:
+        """``(n, 2)`` cells -> ``(n, 2)`` world centres."""
+        c = np.asarray(cells, float).reshape(-1, 2)
+        return np.column_stack(
+            [
+                self.origin[0] + (c[:, 1] + 0.5) * self.cell,
+                self.origin[1] + (c[:, 0] + 0.5) * self.cell,
+            ]
+        )
+
+    def geodesic(self, cells: Any) -> np.ndarray:
+        """``(n, H, W)`` path lengths from ``cells`` (see :func:`grid_geodesic`)."""
+        return grid_geodesic(self.free, cells)
+
+    # ------------------------------------------------------------------ exits
+    def draw_exits(
+        self,
+        rng: np.random.Generator,
+        class_index: Any,
+        entries: Any,
+        reach: Any,
+        *,
+        tries: int = 20,
+    ) -> np.ndarray:
+        """Exit cells given entry cells, reachable within ``reach`` cells.
+
+        A track of the class is drawn with weight ``N(entry_m - entry; 0, h_entry^2)``, its
+        exit jittered by ``N(0, h_exit^2)``; a draw that is not free or not reachable within
+        ``reach`` moves (4-connected) is retried; after ``tries`` the reachable cell nearest
+        to the last drawn exit is taken.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        class_index : (n,) int
+        entries : (n, 2) int
+            Entry cells ``(row, col)`` (free).
+        reach : (n,) float
+            Largest path length in cells.
+
+        Returns
+        -------
+        exits : (n, 2) int
+            ``(-1, -1)`` where no other cell is reachable (the artefact stays).
+        """
+        ent = np.asarray(entries, np.int64).reshape(-1, 2)
+        cls = np.broadcast_to(np.asarray(class_index, np.int64), (len(ent),))
+        reach = np.broadcast_to(np.asarray(reach, float), (len(ent),))
+        out = np.full((len(ent), 2), -1, np.int64)
+        if not len(ent):
+            return out
+        uniq, inv = np.unique(ent, axis=0, return_inverse=True)
+        dist = self.geodesic(uniq)
+        ent_xy = self.cell_to_world(ent)
+        h, w = self.free.shape
+        for i in range(len(ent)):
+            ok = (dist[inv.ravel()[i]] <= reach[i]) & (dist[inv.ravel()[i]] >= 1)
+            if not ok.any():
+                continue
+            m_of = np.flatnonzero(self.track_class == cls[i])
+            if not m_of.size:
+                cand = np.argwhere(ok)
+                out[i] = cand[rng.integers(len(cand))]
+                continue
+            he, hx = self.bandwidth_entry[cls[i]], self.bandwidth_exit[cls[i]]
+            d2 = ((self.entry_xy[m_of] - ent_xy[i]) ** 2).sum(axis=1)
+            logw = -0.5 * d2 / he**2
+            p = np.exp(logw - logw.max())
+            p /= p.sum()
+            xy = None
+            for _ in range(tries):
+                m = m_of[rng.choice(len(m_of), p=p)]
+                xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
+                c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
+                if 0 <= c[0] < h and 0 <= c[1] < w and ok[c[0], c[1]]:
+                    out[i] = c
+                    break
+            else:
+                cand = np.argwhere(ok)
+                cxy = self.cell_to_world(cand)
+                out[i] = cand[np.argmin(((cxy - xy) ** 2).sum(axis=1))]
+        return out
+
+    # ------------------------------------------------------------------ xarray
+    def to_dataset(self) -> Any:
+        """The fit as an ``xarray.Dataset`` (the fit file's ``behaviour`` group).
+
+        Returns
+        -------
+        xarray.Dataset
+            Per-class variables on dimension ``class``, tracks on ``track``, the grid on
+            ``row, col``; scalars and settings in ``attrs``.
+        """
+        import xarray as xr
+
+        data = {k: (("class",), np.asarray(getattr(self, k))) for k in _PER_CLASS}
+        data["free"] = (("row", "col"), np.asarray(self.free, np.int8))
+        data["track_class"] = (("track",), np.asarray(self.track_class, np.int64))
+        data["entry_xy"] = (("track", "xy"), np.asarray(self.entry_xy, float))
+        data["exit_xy"] = (("track", "xy"), np.asarray(self.exit_xy, float))
+        attrs = {
+            "cell": float(self.cell),
+            "origin_x": float(self.origin[0]),
+            "origin_y": float(self.origin[1]),
+            "time_cost": float(self.time_cost),
+            "goal_reward": float(self.goal_reward),
+            "step_cost": float(self.step_cost),
+            "warnings": "\n".join(self.warnings),
+        }
+        return xr.Dataset(data, coords={"class": list(self.classes), "xy": ["x", "y"]}, attrs=attrs)
+
+    @classmethod
+    def from_dataset(cls, ds: Any) -> BehaviourFit:
+        """Inverse of :meth:`to_dataset`."""
+        a = ds.attrs
+        kw = {k: np.asarray(ds[k].values) for k in _PER_CLASS}
+        w = str(a.get("warnings", ""))
+        return cls(
+            classes=tuple(str(c) for c in ds["class"].values),
+            cell=float(a["cell"]),
+            origin=np.array([float(a["origin_x"]), float(a["origin_y"])]),
+            free=np.asarray(ds["free"].values).astype(bool),
+            track_class=np.asarray(ds["track_class"].values, np.int64),
+            entry_xy=np.asarray(ds["entry_xy"].values, float),
+            exit_xy=np.asarray(ds["exit_xy"].values, float),
+            time_cost=float(a["time_cost"]),
+            goal_reward=float(a["goal_reward"]),
+            step_cost=float(a["step_cost"]),
+            warnings=w.split("\n") if w else [],
+            **kw,
+        )

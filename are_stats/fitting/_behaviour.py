@@ -1,0 +1,488 @@
+"""Behaviour fitted from tracks (issue 16): speeds, exits, and a soft policy's beta and slip.
+
+Per class (the ``label`` column; one class ``"all"`` without it):
+
+* **Speeds.** Each track's median step speed; tracks faster than ``run_speed`` are runners.
+  Walking (and running) speeds get a lognormal law fitted by maximum likelihood.
+* **Scale.** The MDP cell is ``cell`` (default: about 0.5 m, coarser when the map would
+  exceed ``max_side`` cells a side); the decision epoch is ``dt = cell / median walking
+  speed``, so that an artefact at walking speed moves one cell per epoch.
+* **Discretisation** (:func:`discretise_tracks`): positions interpolated at epoch times ->
+  cells (snapped to free cells) -> gaps of more than one cell filled with the 4-connected
+  cells along the straight line (one move per epoch). The goal is the last cell; a path is
+  cut at its first visit of its goal (goals are absorbing).
+* **Rationality and slip.** Maximum likelihood of the observed steps under the stationary
+  soft policy (:func:`~are_stats.behaviour.moves_log_likelihood`, headings marginalised),
+  with rewards ``time_cost = 1`` per epoch off the goal (so ``beta`` is per epoch lost), by
+  L-BFGS-B on ``(log beta, logit slip)`` with forward-mode JAX gradients; standard errors
+  from the inverse Hessian (delta method). At most ``max_fit_tracks`` tracks per class enter
+  this likelihood (a random subset; each track's goal costs one soft solve per evaluation).
+* **Exits.** Each track's first and last positions: the exit density given an entry is a
+  kernel mixture over them (:meth:`~are_stats.behaviour.BehaviourFit.draw_exits`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from functools import partial
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from are_stats._checks import check_positive, describe
+from are_stats.behaviour import (
+    BehaviourFit,
+    grid_geodesic,
+    move_observations,
+    moves_log_likelihood,
+    soft_backward_induction,
+)
+from are_stats.behaviour._mdp import _path_free
+from are_stats.traffic import coarse_free_mask
+
+__all__ = ["discretise_tracks", "fit_behaviour", "behaviour_log_likelihood"]
+
+_MAX_SIDE = 128
+
+
+def _step_speeds(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    dt = np.diff(t)
+    ok = dt > 0
+    return np.hypot(np.diff(x), np.diff(y))[ok] / dt[ok]
+
+
+def _line_cells(a: np.ndarray, b: np.ndarray) -> list[tuple[int, int]]:
+    """4-connected cells from ``a`` (excluded) to ``b`` (included) along the straight line."""
+    out = []
+    r, c = int(a[0]), int(a[1])
+    dr, dc = int(b[0]) - r, int(b[1]) - c
+    nr, nc = abs(dr), abs(dc)
+    sr, sc = int(np.sign(dr)), int(np.sign(dc))
+    i = j = 0
+    while i < nr or j < nc:
+        # step along the axis that lags the line most
+        if j >= nc or (i < nr and (i + 0.5) / nr <= (j + 0.5) / nc):
+            r += sr
+            i += 1
+        else:
+            c += sc
+            j += 1
+        out.append((r, c))
+    return out
+
+
+def discretise_tracks(
+    tracks: pd.DataFrame,
+    free: Any,
+    cell: float,
+    origin: Any,
+    dt: float,
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """Continuous tracks -> cell paths with one move (or none) per epoch.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        Columns ``id, t, x, y`` (world metres, seconds).
+    free : (H, W) bool
+        Free cells of the MDP grid (cells of ``cell`` metres from ``origin``).
+    cell : float
+        Cell side (m).
+    origin : (2,) float
+        World ``(x, y)`` of the corner of cell ``(0, 0)``.
+    dt : float
+        Epoch (s): positions are interpolated at ``t_0 + k dt`` and at the track's end.
+
+    Returns
+    -------
+    paths : list of (T_n + 1, 2) int
+        Cells ``(row, col)`` per epoch, consecutive cells equal or 4-adjacent; the goal is
+        the last cell, visited only there. Tracks of fewer than two distinct cells give
+        one-cell paths.
+    ids : (N,) array
+        Track ids in the order of ``paths``.
+    """
+    from scipy import ndimage
+
+    free = np.asarray(free, bool)
+    h, w = free.shape
+    cell = float(check_positive("cell", cell))
+    dt = float(check_positive("dt", dt))
+    o = np.asarray(origin, float)
+    _, (ri, ci) = ndimage.distance_transform_edt(~free, return_indices=True)
+    paths, ids = [], []
+    for tid, g in tracks.groupby("id", sort=True):
+        g = g.sort_values("t", kind="stable")
+        t = g["t"].to_numpy(float)
+        xy = g[["x", "y"]].to_numpy(float)
+        n_ep = int(np.floor((t[-1] - t[0]) / dt + 1e-9))
+        te = t[0] + dt * np.arange(n_ep + 1)
+        if t[-1] - te[-1] > 1e-9 * max(1.0, abs(t[-1])):
+            te = np.append(te, t[-1])
+        x = np.interp(te, t, xy[:, 0])
+        y = np.interp(te, t, xy[:, 1])
+        col = np.clip(np.floor((x - o[0]) / cell), 0, w - 1).astype(np.int64)
+        row = np.clip(np.floor((y - o[1]) / cell), 0, h - 1).astype(np.int64)
+        row, col = ri[row, col], ci[row, col]
+        path = [(int(row[0]), int(col[0]))]
+        for r, c in zip(row[1:].tolist(), col[1:].tolist(), strict=True):
+            if (r, c) == path[-1]:
+                path.append((r, c))
+            else:
+                path.extend(_line_cells(np.array(path[-1]), np.array((r, c))))
+        p = np.asarray(path, np.int64)
+        first = int(np.flatnonzero((p == p[-1]).all(axis=1))[0])
+        paths.append(p[: first + 1])
+        ids.append(tid)
+    return paths, np.asarray(ids)
+
+
+def _lognormal(v: np.ndarray) -> tuple[float, float]:
+    lv = np.log(v[v > 0])
+    if lv.size == 0:
+        return math.nan, math.nan
+    return float(lv.mean()), float(lv.std()) if lv.size > 1 else 0.0
+
+
+def _bandwidth(xy: np.ndarray, floor: float) -> float:
+    """Median distance to the ``k``-th nearest other point (``k ~ sqrt(n) / 2``), at least
+    ``floor``: local, so that entries at different doors do not mix."""
+    n = len(xy)
+    if n < 2:
+        return floor
+    k = max(1, round(math.sqrt(n) / 2))
+    d = np.sqrt(((xy[:, None] - xy[None]) ** 2).sum(axis=-1))
+    kth = np.sort(d, axis=1)[:, min(k, n - 1)]
+    return max(floor, float(np.median(kth)))
+
+
+def _loglik(
+    theta: jax.Array,
+    ok: jax.Array,
+    keep: jax.Array,
+    bonus: jax.Array,
+    obs: tuple[jax.Array, ...],
+    step_cost: float,
+    time_cost: float,
+    n_epochs: int,
+    tol: float | None,
+    tol_mask: jax.Array | None = None,
+) -> jax.Array:
+    beta = jnp.exp(theta[0])
+    slip = jax.nn.sigmoid(theta[1])
+    sol = soft_backward_induction(
+        ok, keep, bonus, beta, slip, n_epochs=n_epochs, step_cost=step_cost,
+        time_cost=time_cost, tol=tol, tol_mask=tol_mask,
+    )  # fmt: skip
+    return moves_log_likelihood(sol.policy, ok, slip, obs)
+
+
+def behaviour_log_likelihood(
+    paths: list[np.ndarray],
+    free: Any,
+    beta: Any,
+    slip: Any,
+    *,
+    n_epochs: int | None = None,
+    goal_reward: float = 1.0,
+    step_cost: float = 1e-3,
+    time_cost: float = 1.0,
+) -> tuple[Any, int]:
+    """Log-likelihood of cell paths under the stationary soft policy (differentiable).
+
+    Parameters
+    ----------
+    paths : list of (T_n + 1, 2) int
+        Cell paths (:func:`discretise_tracks`); the goal of each is its last cell.
+    free : (H, W) bool
+        Free cells.
+    beta, slip : scalar (float or JAX tracer)
+        Rationality and slip; the dtype of ``beta`` is the computation's.
+    n_epochs : int or None
+        Time-to-go ``K`` of the policy (default: 3 times the longest shortest path from a
+        start to its goal, plus 20).
+
+    Returns
+    -------
+    loglik : scalar
+    n_epochs : int
+    """
+    free = np.asarray(free, bool)
+    obs = move_observations(paths)
+    if n_epochs is None:
+        n_epochs = _n_epochs(free, paths, obs.goals)
+    ok = jnp.asarray(_path_free(~free))
+    keep, bonus = _goal_masks(free, obs.goals, goal_reward)
+    dtype = jnp.result_type(beta)
+    sol = soft_backward_induction(
+        ok, keep, jnp.asarray(bonus, dtype), beta, jnp.asarray(slip, dtype),
+        n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost,
+    )  # fmt: skip
+    return moves_log_likelihood(sol.policy, ok, slip, obs), n_epochs
+
+
+def _goal_masks(free: np.ndarray, goals: np.ndarray, goal_reward: float):
+    g = len(goals)
+    mask = np.zeros((g,) + free.shape, bool)
+    mask[np.arange(g), goals[:, 0], goals[:, 1]] = True
+    return jnp.asarray(free[None] & ~mask), np.where(mask, goal_reward, 0.0)
+
+
+def _n_epochs(
+    free: np.ndarray, paths: list[np.ndarray], goals: np.ndarray, factor: float = 3.0
+) -> int:
+    dist = grid_geodesic(free, goals)
+    longest = 0.0
+    index = {tuple(g): i for i, g in enumerate(goals.tolist())}
+    for p in paths:
+        if len(p) < 2:
+            continue
+        d = dist[index[tuple(p[-1].tolist())], p[0, 0], p[0, 1]]
+        longest = max(longest, float(d) if np.isfinite(d) else len(p))
+    return int(math.ceil(factor * longest)) + 20
+
+
+def _mle(
+    paths: list[np.ndarray],
+    free: np.ndarray,
+    *,
+    goal_reward: float,
+    step_cost: float,
+    time_cost: float,
+    beta0: float,
+    slip0: float,
+    dtype: Any,
+    tol: float,
+) -> dict[str, Any]:
+    """Maximum likelihood of ``(beta, slip)`` with inverse-Hessian standard errors."""
+    from scipy.optimize import minimize
+
+    obs = move_observations(paths)
+    k = _n_epochs(free, paths, obs.goals, factor=10.0)
+    ok = jnp.asarray(_path_free(~free))
+    keep, bonus = _goal_masks(free, obs.goals, goal_reward)
+    obs_j = tuple(jnp.asarray(x) for x in obs[:4])
+    # convergence is measured on the visited cells and their neighbours
+    from scipy import ndimage
+
+    seen = np.zeros((len(obs.goals),) + free.shape, bool)
+    valid = obs.move >= 0
+    seen[
+        np.broadcast_to(obs.goal_index[:, None], obs.move.shape)[valid],
+        obs.rows[valid],
+        obs.cols[valid],
+    ] = True
+    seen = ndimage.binary_dilation(seen, np.ones((1, 5, 5), bool))
+    f = partial(
+        _loglik, ok=ok, keep=keep, bonus=jnp.asarray(bonus, dtype), obs=obs_j,
+        step_cost=step_cost, time_cost=time_cost, n_epochs=k, tol=tol,
+        tol_mask=jnp.asarray(seen),
+    )  # fmt: skip
+    scale = 1.0 / max(obs.n_moves, 1)
+
+    def twice(th: jax.Array) -> tuple[jax.Array, jax.Array]:
+        v = f(th)
+        return v, v
+
+    grad = jax.jit(jax.jacfwd(twice, has_aux=True))
+
+    def fun(th: np.ndarray) -> tuple[float, np.ndarray]:
+        g, v = grad(jnp.asarray(th, dtype))
+        return -float(v) * scale, -np.asarray(g, float) * scale
+
+    th0 = np.array([math.log(beta0), math.log(slip0 / (1 - slip0))])
+    # float32 values carry ~1e-7 relative noise (and the early stop of the soft solve more):
+    # tolerances below that make the line search fail
+    single = jnp.dtype(dtype) == jnp.float32
+    res = minimize(
+        fun, th0, jac=True, method="L-BFGS-B", bounds=[(-6.0, 8.0), (-10.0, 6.0)],
+        options={
+            "maxiter": 60, "maxfun": 80, "ftol": 1e-6 if single else 1e-10,
+            "gtol": 1e-4 if single else 1e-7,
+        },
+    )  # fmt: skip
+    converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
+    th = jnp.asarray(res.x, dtype)
+    hess = np.asarray(jax.jit(jax.jacfwd(jax.jacfwd(f)))(th), float)
+    try:
+        cov = np.linalg.inv(-hess)
+        se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
+    except np.linalg.LinAlgError:
+        se = np.full(2, np.nan)
+    beta = math.exp(res.x[0])
+    slip = 1.0 / (1.0 + math.exp(-res.x[1]))
+    return {
+        "beta": beta,
+        "beta_se": beta * se[0],
+        "slip": slip,
+        "slip_se": slip * (1 - slip) * se[1],
+        "loglik": -res.fun / scale,
+        "n_moves": obs.n_moves,
+        "n_epochs": k,
+        "converged": converged,
+    }
+
+
+def fit_behaviour(
+    tracks: pd.DataFrame,
+    free_mask: Any,
+    resolution: float,
+    origin: Any,
+    *,
+    cell: float | None = None,
+    dt: float | None = None,
+    run_speed: float = 2.5,
+    max_fit_tracks: int | None = 16,
+    max_side: int = _MAX_SIDE,
+    time_cost: float = 1.0,
+    goal_reward: float = 1.0,
+    step_cost: float = 1e-3,
+    beta0: float = 2.0,
+    slip0: float = 0.1,
+    seed: int = 0,
+    dtype: str = "float32",
+    tol: float = 1e-3,
+) -> BehaviourFit:
+    """Fit speeds, exits, rationality and slip per class from a tracks table.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` [, ``label``]: positions (m) of each track at times (s).
+    free_mask : (H, W) bool
+        Free cells of the map (row along +y, column along +x).
+    resolution : float
+        Map cell side (m).
+    origin : (2,) float
+        World ``(x, y)`` of the map's corner.
+    cell : float or None
+        MDP cell side (m), rounded to whole map cells (default: about 0.5 m, coarser so that
+        the grid has at most ``max_side`` cells a side).
+    dt : float or None
+        Decision epoch (s) for every class (default per class: ``cell`` over its median
+        walking speed).
+    run_speed : float
+        Tracks whose median speed exceeds this (m/s) are runners.
+    max_fit_tracks : int or None
+        Largest number of tracks per class in the likelihood of ``beta`` and ``slip`` (a
+        random subset drawn with ``seed``; ``None``: all). Each track's goal costs a soft
+        solve over the whole grid per likelihood evaluation.
+    max_side : int
+        Largest side (cells) of the default MDP grid.
+    time_cost, goal_reward, step_cost : float
+        Rewards of the soft MDP.
+    beta0, slip0 : float
+        Starting values.
+    seed : int
+        Seed of the subset.
+    dtype : str
+        ``"float32"`` (default, faster) or ``"float64"`` for the soft solves.
+    tol : float
+        The soft values are iterated until they change by at most ``tol`` per epoch on the
+        cells the tracks visit (and their 2-cell neighbourhoods): the stationary policy, with
+        at most 10 times the longest start-goal path plus 20 epochs.
+
+    Returns
+    -------
+    BehaviourFit
+
+    Raises
+    ------
+    ValueError
+        On missing columns or a class without a track of two distinct positions.
+    """
+    if not isinstance(tracks, pd.DataFrame):
+        raise ValueError(f"tracks: expected a pandas DataFrame, got {type(tracks).__name__}")
+    missing = [c for c in ("id", "t", "x", "y") if c not in tracks.columns]
+    if missing:
+        raise ValueError(f"tracks: expected columns id, t, x, y, missing {missing}")
+    free_fine = np.asarray(free_mask, bool)
+    if free_fine.ndim != 2:
+        raise ValueError(f"free_mask: expected a 2-d bool array, got {describe(free_fine)}")
+    res = float(check_positive("resolution", resolution))
+    if cell is None:
+        f = max(1, round(0.5 / res), math.ceil(max(free_fine.shape) / max_side))
+        cell = f * res
+    free, cell, org = coarse_free_mask(free_fine, res, origin, cell)
+    origin_a = np.asarray(org, float)
+    rng = np.random.default_rng(seed)
+    labels = (
+        tracks["label"].astype(str) if "label" in tracks.columns else pd.Series("all", tracks.index)
+    )
+    classes = tuple(sorted(labels.unique()))
+    per: dict[str, list[float]] = {k: [] for k in (
+        "dt", "speed_mu", "speed_sigma", "run_fraction", "run_mu", "run_sigma", "beta",
+        "beta_se", "slip", "slip_se", "loglik", "n_moves", "n_tracks", "n_fit_tracks",
+        "n_epochs", "bandwidth_entry", "bandwidth_exit", "fit_seconds",
+    )}  # fmt: skip
+    track_class, entry_xy, exit_xy = [], [], []
+    warnings: list[str] = []
+    for ci, name in enumerate(classes):
+        tab = tracks[labels == name]
+        speeds, ent, ext = [], [], []
+        for _, g in tab.groupby("id", sort=True):
+            g = g.sort_values("t", kind="stable")
+            s = _step_speeds(g["t"].to_numpy(float), g["x"].to_numpy(float), g["y"].to_numpy(float))
+            speeds.append(float(np.median(s)) if s.size else math.nan)
+            ent.append(g[["x", "y"]].to_numpy(float)[0])
+            ext.append(g[["x", "y"]].to_numpy(float)[-1])
+        speeds_a = np.asarray(speeds)
+        runner = speeds_a > run_speed
+        walk = np.isfinite(speeds_a) & (speeds_a > 0) & ~runner
+        if not walk.any():
+            raise ValueError(f"tracks: expected moving walkers in class {name!r}, got none")
+        mu, sigma = _lognormal(speeds_a[walk])
+        rmu, rsig = _lognormal(speeds_a[runner]) if runner.sum() >= 2 else (math.nan, math.nan)
+        dt_c = float(dt) if dt is not None else cell / math.exp(mu)
+        paths, _ = discretise_tracks(tab, free, cell, origin_a, dt_c)
+        paths = [p for p in paths if len(p) >= 2]
+        if not paths:
+            raise ValueError(f"tracks: expected tracks that move in class {name!r}, got none")
+        n_all = len(paths)
+        if max_fit_tracks is not None and len(paths) > max_fit_tracks:
+            pick = rng.choice(len(paths), max_fit_tracks, replace=False)
+            paths = [paths[i] for i in np.sort(pick)]
+        t0 = time.perf_counter()
+        mle = _mle(
+            paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
+            beta0=beta0, slip0=slip0, dtype=jnp.dtype(dtype), tol=tol,
+        )  # fmt: skip
+        if not mle["converged"]:
+            warnings.append(f"class {name!r}: the beta/slip optimiser did not report convergence")
+        ent_a, ext_a = np.asarray(ent), np.asarray(ext)
+        vals = {
+            "dt": dt_c, "speed_mu": mu, "speed_sigma": sigma,
+            "run_fraction": float(runner.mean()), "run_mu": rmu, "run_sigma": rsig,
+            "beta": mle["beta"], "beta_se": mle["beta_se"], "slip": mle["slip"],
+            "slip_se": mle["slip_se"], "loglik": mle["loglik"], "n_moves": mle["n_moves"],
+            "n_tracks": n_all, "n_fit_tracks": len(paths), "n_epochs": mle["n_epochs"],
+            "bandwidth_entry": _bandwidth(ent_a, 2 * cell),
+            "bandwidth_exit": _bandwidth(ext_a, cell),
+            "fit_seconds": time.perf_counter() - t0,
+        }  # fmt: skip
+        for k, v in vals.items():
+            per[k].append(v)
+        track_class.extend([ci] * len(ent_a))
+        entry_xy.append(ent_a)
+        exit_xy.append(ext_a)
+    arrays = {k: np.asarray(v) for k, v in per.items()}
+    for k in ("n_moves", "n_tracks", "n_fit_tracks", "n_epochs"):
+        arrays[k] = arrays[k].astype(np.int64)
+    return BehaviourFit(
+        classes=classes,
+        cell=float(cell),
+        origin=origin_a,
+        free=free,
+        track_class=np.asarray(track_class, np.int64),
+        entry_xy=np.concatenate(entry_xy),
+        exit_xy=np.concatenate(exit_xy),
+        time_cost=float(time_cost),
+        goal_reward=float(goal_reward),
+        step_cost=float(step_cost),
+        warnings=warnings,
+        **arrays,
+    )

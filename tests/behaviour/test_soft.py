@@ -1,0 +1,150 @@
+"""Soft backward induction: the hard limit, the likelihood's gradients, observations."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from are_stats.behaviour import (
+    GridMDP,
+    move_observations,
+    sample_soft_paths,
+    smooth_path,
+    soft_policy,
+)
+from are_stats.fitting import behaviour_log_likelihood
+from tests.helpers import assert_allclose
+
+
+def _grid() -> np.ndarray:
+    occ = np.zeros((8, 9), bool)
+    occ[3, 2:6] = True
+    occ[5:7, 6] = True
+    return occ
+
+
+@pytest.mark.parametrize("relative", [True, False])
+def test_soft_values_tend_to_hard_values(relative: bool) -> None:
+    occ, goal, k = _grid(), (6, 7), 15
+    hard = GridMDP(occ, slip=0.1, dtype="float64").solve([goal], "walk", k)
+    v_hard = np.moveaxis(hard.values[0, 0], -1, 0)  # time-to-go k, (4, H, W)
+    errs = []
+    for beta in (10.0, 100.0, 1e3, 1e4):
+        sol = soft_policy(occ, [goal], beta, 0.1, n_epochs=k, relative=relative)
+        err = np.abs(np.asarray(sol.values[0]) - v_hard).max()
+        assert err <= k * np.log(4) / beta + 1e-9  # the log-sum-exp gap, k epochs
+        errs.append(err)
+    assert errs[-1] < 1e-2 * errs[0]
+
+
+def test_soft_argmax_is_the_hard_policy_where_unique() -> None:
+    occ, goal, k = _grid(), (6, 7), 15
+    mdp = GridMDP(occ, slip=0.1, dtype="float64")
+    hard = mdp.solve([goal], "walk", k)
+    p, r, _ = mdp.to_dense(goal, "walk")
+    v_next = hard.values[0, 1].reshape(-1)  # time-to-go k - 1, s = (row W + col) 4 + h
+    q = r + np.einsum("ast,t->sa", p, v_next)
+    top = np.sort(q, axis=1)
+    unique = top[:, -1] - top[:, -2] > 1e-6
+    free = ~mdp.occupied.ravel().repeat(4)
+    not_goal = np.ones(mdp.n_states, bool)
+    not_goal[
+        (goal[0] * occ.shape[1] + goal[1]) * 4 : (goal[0] * occ.shape[1] + goal[1]) * 4 + 4
+    ] = 0
+    sel = unique & free & not_goal
+    sol = soft_policy(occ, [goal], 1e4, 0.1, n_epochs=k)
+    pol = np.asarray(sol.policy[0])  # (4, 5, H, W)
+    soft_arg = np.moveaxis(pol.argmax(axis=1), 0, -1).reshape(-1)
+    assert sel.sum() > 100
+    np.testing.assert_array_equal(soft_arg[sel], np.argmax(q, axis=1)[sel])
+
+
+def test_policy_is_a_distribution_and_run_is_optional() -> None:
+    occ = _grid()
+    walk = np.asarray(soft_policy(occ, [[0, 0], [7, 8]], 2.0, 0.2, n_epochs=30).policy)
+    assert_allclose(walk.sum(axis=2), 1.0, rtol=1e-12)
+    assert (walk[:, :, 2] == 0).all()
+    run = np.asarray(soft_policy(occ, [[0, 0]], 2.0, 0.2, n_epochs=30, use_run=True).policy)
+    assert_allclose(run.sum(axis=2), 1.0, rtol=1e-12)
+    assert (run[:, :, 2] > 0).any()
+
+
+def _paths(seed: int, occ: np.ndarray, beta: float, slip: float, n: int = 12) -> list:
+    rng = np.random.default_rng(seed)
+    free = np.argwhere(~occ)
+    goals = free[rng.choice(len(free), 3, replace=False)]
+    gi = rng.integers(0, 3, n)
+    starts = np.column_stack([free[rng.choice(len(free), n)], rng.integers(0, 4, n)])
+    sol = soft_policy(occ, goals, beta, slip, n_epochs=200, time_cost=1.0, tol=1e-8)
+    st, _ = sample_soft_paths(
+        rng, np.asarray(sol.policy), occ, slip, starts, gi, goals, np.full(n, 80)
+    )
+    out = []
+    for i in range(n):
+        at = np.flatnonzero((st[i, :, :2] == goals[gi[i]]).all(axis=1))
+        if at.size and at[0] > 0:
+            out.append(st[i, : at[0] + 1, :2])
+    return out
+
+
+def test_log_likelihood_gradient_matches_finite_differences() -> None:
+    occ = _grid()
+    paths = _paths(1, occ, 2.0, 0.15)
+
+    @jax.jit
+    def ll(theta: jax.Array) -> jax.Array:
+        return behaviour_log_likelihood(paths, ~occ, theta[0], theta[1], n_epochs=40)[0]
+
+    th = jnp.array([1.7, 0.12])
+    grad = np.asarray(jax.jit(jax.grad(ll))(th))
+    h = 1e-5
+    fd = [(float(ll(th + h * e)) - float(ll(th - h * e))) / (2 * h) for e in np.eye(2, dtype=float)]
+    assert_allclose(grad, fd, rtol=1e-6, atol=1e-6)
+    assert np.abs(grad).min() > 1e-3  # not a trivially flat point
+
+
+def test_forward_mode_gradient_of_the_stationary_policy() -> None:
+    """The early-stopped (while_loop) solve used by the fit: jacfwd against differences."""
+    occ = _grid()
+    paths = _paths(2, occ, 2.0, 0.15)
+
+    @jax.jit
+    def ll(theta: jax.Array) -> jax.Array:
+        from are_stats.behaviour import moves_log_likelihood
+        from are_stats.behaviour._mdp import _path_free
+        from are_stats.behaviour._soft import soft_backward_induction
+
+        obs = move_observations(paths)
+        g = len(obs.goals)
+        mask = np.zeros((g,) + occ.shape, bool)
+        mask[np.arange(g), obs.goals[:, 0], obs.goals[:, 1]] = True
+        ok = jnp.asarray(_path_free(occ))
+        sol = soft_backward_induction(
+            ok, ~occ[None] & ~mask, jnp.asarray(mask, float), theta[0], theta[1],
+            n_epochs=500, time_cost=1.0, tol=1e-12,
+        )  # fmt: skip
+        return moves_log_likelihood(sol.policy, ok, theta[1], obs)
+
+    th = jnp.array([2.1, 0.1])
+    grad = np.asarray(jax.jit(jax.jacfwd(ll))(th))
+    h = 1e-5
+    fd = [(float(ll(th + h * e)) - float(ll(th - h * e))) / (2 * h) for e in np.eye(2, dtype=float)]
+    assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
+
+
+def test_move_observations_codes_steps() -> None:
+    obs = move_observations([np.array([[0, 0], [0, 0], [0, 1], [1, 1], [3, 1]])])
+    np.testing.assert_array_equal(obs.move[0], [0, 1, 2, 5])  # stay, east, north, forbidden
+    np.testing.assert_array_equal(obs.goals, [[3, 1]])
+    assert obs.n_moves == 4
+
+
+def test_smooth_path_keeps_ends_and_straightens_a_staircase() -> None:
+    stairs = np.array([[i // 2 + (i % 2), i // 2] for i in range(21)], float)
+    s = smooth_path(stairs, 5)
+    assert_allclose(s[[0, -1]], stairs[[0, -1]])
+    length = np.hypot(*np.diff(s, axis=0).T).sum()
+    net = np.hypot(*(s[-1] - s[0]))
+    assert net / length > 0.95
