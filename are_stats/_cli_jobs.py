@@ -84,8 +84,13 @@ def run_fit(
     lifetimes: str = "auto",
     positions: str = "auto",
     clock_start: str | None = None,
+    behaviour: bool = True,
 ) -> Any:
     """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures.
+
+    A tracks table with a map also gets its behaviour fitted (speeds, exits, rationality:
+    :func:`are_stats.fitting.fit_behaviour`, stored as the ``behaviour`` group) unless
+    ``behaviour`` is false.
 
     The options are checked first, named as on the command line (``--samples``,
     ``--chains``, ``--warmup``, ``--components``, ``--replicates`` integers in range,
@@ -179,7 +184,12 @@ def run_fit(
     panel = read_count_panel(counts) if counts is not None else None
     clock_start = lifecycle.clock_start
     grid = None
-    if positions != "uniform" and lifecycle.manifest.get("map"):
+    tracks = None
+    if lifecycle.conversion and behaviour:
+        from are_stats.logs import read_field_tracks
+
+        tracks = read_field_tracks(log, manifest=manifest)
+    if (positions != "uniform" or tracks is not None) and lifecycle.manifest.get("map"):
         from are_stats.environment import OccupancyGrid
 
         grid = OccupancyGrid.from_ros_yaml(lifecycle.manifest["map"])
@@ -192,9 +202,17 @@ def run_fit(
             counts_panel=panel,
             progress=lambda msg: status.update(f"fitting: {msg} ..."),
             class_labels=lifecycle.to_arrays()["label_names"] if data.labels is not None else None,
-            grid=grid,
+            grid=None if positions == "uniform" else grid,
             clock_start=clock_start,
         )
+        if tracks is not None and grid is not None:
+            from are_stats.fitting import attach_behaviour, fit_behaviour
+
+            status.update("fitting: behaviour from the tracks (speeds, exits, rationality) ...")
+            bfit = fit_behaviour(tracks, grid.free, grid.resolution, grid.origin[:2], seed=seed)
+            idata = attach_behaviour(idata, bfit)
+    if tracks is not None and grid is None:
+        console.print("[yellow]warning:[/] no map in the manifest: behaviour not fitted")
     idata.posterior.attrs.update(
         {"seed": int(seed), "log": str(log), "log_report": yaml.safe_dump(rep, sort_keys=False)}
     )
@@ -400,7 +418,9 @@ def run_generate(
         "class_labels": labels,
     }
     with atomic_folder(out, force=force) as tmp:
-        if behaviours:
+        if behaviours and "behaviour" in idata.groups():
+            manifest["tracks"] = _fitted_behaviour_tracks(seed, df, idata, labels, tmp, fit_path)
+        elif behaviours:
             manifest["tracks"] = _behaviour_tracks(
                 seed, df, grid, labels, tmp, False, behaviour_cell, behaviour_dt
             )
@@ -447,6 +467,35 @@ def _check_tracks_size(table: Any, shape: tuple[int, int], dt: float) -> None:
     check_memory(float(policy.max(initial=0.0)), f"the MDP policy of one scenario ({what})", source)
     check_memory(rows * 64.0, f"the tracks table ({what})", source)
     check_work(float(policy.sum()) * 10.0 + rows * 50.0, what, source)
+
+
+def _fitted_behaviour_tracks(
+    seed: int, df: Any, idata: Any, labels: Any, out: Path, fit_path: Path
+) -> dict:
+    """Tracks of generated artefacts walking as the fit's behaviour says (issue 16)."""
+    import pandas as pd
+
+    from are_stats.behaviour import BehaviourFit, simulate_behaviour_tracks
+    from are_stats.inputs import Described, InputError
+
+    try:
+        bfit = BehaviourFit.from_dataset(idata.behaviour)
+    except (KeyError, ValueError, TypeError, IndexError) as err:
+        raise InputError(
+            fit_path, "behaviour", "the behaviour group written by are-stats fit",
+            Described(f"a damaged group ({type(err).__name__}: {err})"),
+        ) from None  # fmt: skip
+    table = df.rename(columns={"artefact": "id"})[
+        ["scenario", "id", "t_arrive", "t_leave", "x", "y"]
+    ].copy()
+    if labels is not None:
+        cls = df["class"].to_numpy()
+        table["label"] = [labels[c] if 0 <= c < len(labels) else "" for c in cls]
+    tracks = pd.DataFrame(simulate_behaviour_tracks(jax.random.key(seed), bfit, table))
+    path = Path(out) / "tracks.parquet"
+    with atomic_path(path, force=False) as tmp:
+        tracks.to_parquet(tmp, index=False)
+    return {"file": path.name, "source": "fitted behaviour", "rows": len(tracks)}
 
 
 def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):

@@ -194,6 +194,11 @@ def fit(
         "--clock-start",
         help="ISO 8601 wall-clock time of t = 0 (overrides the manifest's clock_start).",
     ),
+    behaviour: bool = typer.Option(
+        True,
+        "--behaviour/--no-behaviour",
+        help="Tracks tables: also fit the behaviour (speeds, exits, rationality).",
+    ),
     stationary_start: bool = typer.Option(
         True,
         "--stationary-start/--no-stationary-start",
@@ -226,6 +231,7 @@ def fit(
         lifetimes=lifetimes,
         positions=positions,
         clock_start=clock_start,
+        behaviour=behaviour,
     )
 
 

@@ -254,7 +254,10 @@ class BehaviourFit:
     def from_dataset(cls, ds: Any) -> BehaviourFit:
         """Inverse of :meth:`to_dataset`."""
         a = ds.attrs
-        kw = {k: np.asarray(ds[k].values) for k in _PER_CLASS}
+        n_class = int(ds.sizes["class"])
+        kw = {
+            k: np.asarray(ds[k].values) if k in ds else np.full(n_class, np.nan) for k in _PER_CLASS
+        }  # fit files leave out the wall-clock fit_seconds (same seed, same bytes)
         w = str(a.get("warnings", ""))
         return cls(
             classes=tuple(str(c) for c in ds["class"].values),

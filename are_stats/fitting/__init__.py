@@ -66,6 +66,7 @@ from are_stats.fitting._criticism import (  # noqa: E402
 )
 from are_stats.fitting._fit_log import (  # noqa: E402
     FitSettings,
+    attach_behaviour,
     attach_traffic,
     choose_n_components,
     fit_log,
@@ -110,6 +111,7 @@ __all__ += [
     "POSITION_CHOICES",
     "NutsRun",
     "TrafficFit",
+    "attach_behaviour",
     "attach_traffic",
     "choose_simplest",
     "fit_traffic",

@@ -54,6 +54,7 @@ with warnings.catch_warnings():
 
 __all__ = [
     "FitSettings",
+    "attach_behaviour",
     "attach_traffic",
     "fit_log",
     "choose_n_components",
@@ -425,6 +426,21 @@ def fit_log(
             progress=say,
         )
         idata = attach_traffic(idata, traffic)
+    return idata
+
+
+def attach_behaviour(idata: az.InferenceData, behaviour: Any) -> az.InferenceData:
+    """Store a :class:`~are_stats.behaviour.BehaviourFit` as the fit's ``behaviour`` group.
+
+    ``are-stats generate --behaviours`` reads it back
+    (:meth:`~are_stats.behaviour.BehaviourFit.from_dataset`) and walks the artefacts with
+    the fitted speeds, exits and soft policy.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # a group beyond ArviZ's schema
+        # the fit's wall-clock seconds would make the same seed give other bytes
+        ds = behaviour.to_dataset().drop_vars("fit_seconds", errors="ignore")
+        idata.add_groups({"behaviour": ds})
     return idata
 
 

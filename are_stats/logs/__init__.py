@@ -11,6 +11,7 @@ from are_stats.logs._field_log import (
     TRACK_OPTIONS,
     TRACKS_KIND_COLUMNS,
     read_field_log,
+    read_field_tracks,
 )
 from are_stats.logs._lifecycle_log import (
     LIFECYCLE_COLUMNS,
@@ -67,6 +68,7 @@ __all__ = [
     "lifecycle_log_from_frame",
     "read_count_panel",
     "read_field_log",
+    "read_field_tracks",
     "read_lifecycle_log",
     "read_manifest",
     "read_tracks",

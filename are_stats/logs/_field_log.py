@@ -15,6 +15,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from are_stats.inputs import Described, InputError
 from are_stats.logs._lifecycle_log import (
     TIME_UNITS,
@@ -27,7 +29,13 @@ from are_stats.logs._lifecycle_log import (
 from are_stats.logs._table import frame_table, read_raw_table
 from are_stats.logs._tracks import _from_raw, tracks_to_lifecycle
 
-__all__ = ["LIFECYCLE_KIND_COLUMNS", "TRACK_OPTIONS", "TRACKS_KIND_COLUMNS", "read_field_log"]
+__all__ = [
+    "LIFECYCLE_KIND_COLUMNS",
+    "TRACK_OPTIONS",
+    "TRACKS_KIND_COLUMNS",
+    "read_field_log",
+    "read_field_tracks",
+]
 
 #: Columns that make a table a life-cycle log.
 LIFECYCLE_KIND_COLUMNS = ("id", "t_arrive", "t_leave")
@@ -184,3 +192,35 @@ def read_field_log(
         frame_table(out, str(p), "life-cycle log"), win, a, min_life, 1.0, str(p), resolved, tol
     )
     return dataclasses.replace(log, conversion=info)
+
+
+def read_field_tracks(
+    path: str | os.PathLike, *, manifest: str | os.PathLike | None = None
+) -> pd.DataFrame | None:
+    """The tracks of a field log that is a tracks table (None for a life-cycle log).
+
+    The behaviour fit reads the motion of the tracks that :func:`read_field_log` turned
+    into life-cycles: the same table, validated the same way, with ``t`` in seconds (the
+    manifest's ``time_unit``).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The field log.
+    manifest : str or PathLike, optional
+        As :func:`read_field_log`.
+
+    Returns
+    -------
+    pandas.DataFrame or None
+        ``id, t, x, y, label, yaw`` (see :func:`are_stats.logs.read_tracks`).
+    """
+    p = Path(path)
+    meta, _ = find_manifest(p, manifest)
+    raw = read_raw_table(p, "field log (life-cycle log or tracks table)")
+    cols = set(raw.columns)
+    if not set(TRACKS_KIND_COLUMNS) <= cols or set(LIFECYCLE_KIND_COLUMNS) <= cols:
+        return None
+    tracks = _from_raw(raw)
+    tracks["t"] = tracks["t"] * TIME_UNITS[str(meta.get("time_unit", "s"))]
+    return tracks

@@ -1,0 +1,99 @@
+"""End to end from a tracker's output: tracks -> fit (traffic + behaviour) -> generate.
+
+Synthetic tracks only (public pedestrian datasets are held out): people walk in groups of
+1-3 across a 20 x 10 m room, door to door, at about 1.2 m/s, seen at 2.5 Hz. The fit must
+find the groups, the regular stays and the doors, and the generated people must walk.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from are_stats.cli import app
+
+runner = CliRunner()
+
+
+def _room(folder: Path) -> Path:
+    """A 20 x 10 m room at 0.1 m, walls around, a door in the left and right walls."""
+    h, w = 100, 200
+    img = np.full((h, w), 254, np.uint8)
+    img[:3, :] = img[-3:, :] = 0
+    img[:, :3] = img[:, -3:] = 0
+    img[40:60, :3] = img[40:60, -3:] = 254
+    with open(folder / "room.pgm", "wb") as f:
+        f.write(f"P5\n{w} {h}\n255\n".encode())
+        f.write(img.tobytes())
+    meta = {"image": "room.pgm", "resolution": 0.1, "origin": [0.0, 0.0, 0.0], "negate": 0,
+            "occupied_thresh": 0.65, "free_thresh": 0.196, "mode": "trinary"}  # fmt: skip
+    (folder / "room.yaml").write_text(yaml.safe_dump(meta))
+    return folder / "room.yaml"
+
+
+def _tracks(folder: Path, horizon: float = 400.0) -> Path:
+    rng = np.random.default_rng(0)
+    rows, t, k = [], 0.0, 0
+    while True:
+        t += rng.exponential(8.0)
+        if t > horizon - 30:
+            break
+        size = rng.choice([1, 2, 3], p=[0.5, 0.3, 0.2])
+        speed = rng.lognormal(np.log(1.2), 0.1)
+        x0, x1 = (0.4, 19.6) if rng.random() < 0.5 else (19.6, 0.4)
+        y0, y1 = rng.uniform(4.3, 5.7, 2)
+        n = int(abs(x1 - x0) / speed * 2.5)
+        for m in range(size):
+            tt = t + np.arange(n) / 2.5
+            xs = np.linspace(x0, x1, n) + rng.normal(0, 0.05, n)
+            ys = np.linspace(y0, y1, n) + 0.2 * m + rng.normal(0, 0.05, n)
+            rows += [(f"p{k}", round(a, 1), round(b, 3), round(c, 3))
+                     for a, b, c in zip(tt, xs, ys, strict=True) if a < horizon]  # fmt: skip
+            k += 1
+    path = folder / "tracks.csv"
+    pd.DataFrame(rows, columns=["id", "t", "x", "y"]).to_csv(path, index=False)
+    meta = {"window": [0.0, horizon], "map": "room.yaml", "time_unit": "s"}
+    (folder / "tracks.yaml").write_text(yaml.safe_dump(meta))
+    return path
+
+
+@pytest.mark.slow
+def test_tracks_fit_and_generated_people_walk(tmp_path):
+    room = _room(tmp_path)
+    log = _tracks(tmp_path)
+    fit = tmp_path / "f.nc"
+    args = ["fit", str(log), "--out", str(fit), "--method", "em", "--samples", "150",
+            "--chains", "2", "--warmup", "150", "--no-figures"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    import arviz as az
+
+    idata = az.from_netcdf(fit)
+    a = idata.posterior.attrs
+    assert (a["arrival_model"], a["position_model"]) == ("groups", "learned")
+    assert a["lifetime_model"] != "exponential"  # crossing times are regular
+    assert "behaviour" in idata.groups()
+    out = tmp_path / "scen"
+    res = runner.invoke(app, ["generate", str(fit), "--scenarios", "2", "--horizon", "200",
+                              "--seed", "1", "--out", str(out), "--map", str(room),
+                              "--behaviours"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    tracks = pd.read_parquet(out / "tracks.parquet")
+    speeds, net = [], []
+    for _, g in tracks.groupby(["scenario", "id"]):
+        g = g.sort_values("t")
+        if len(g) < 3 or g["t"].iloc[-1] <= g["t"].iloc[0]:
+            continue
+        step = np.hypot(np.diff(g["x"]), np.diff(g["y"])).sum()
+        speeds.append(step / (g["t"].iloc[-1] - g["t"].iloc[0]))
+        net.append(np.hypot(g["x"].iloc[-1] - g["x"].iloc[0], g["y"].iloc[-1] - g["y"].iloc[0]))
+    assert len(speeds) > 10
+    assert 0.7 < np.median(speeds) < 1.6  # they walk (the log's people: about 1.2 m/s)
+    assert np.mean(np.asarray(net) < 1.0) < 0.1  # almost nobody stands still
+    artefacts = pd.read_parquet(out / "artefacts.parquet")
+    assert artefacts.groupby(["scenario", "group"]).size().max() > 1
