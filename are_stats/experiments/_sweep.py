@@ -504,15 +504,21 @@ def _grid(path: str) -> Any:
 
 
 @functools.lru_cache(maxsize=4)
-def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None]:
-    """Posterior draws (:func:`~are_stats.scenarios.posterior_draws`) and class labels of a
-    fit file."""
+def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any, Any]:
+    """Posterior draws and laws of the fit's chosen traffic models
+    (:func:`~are_stats.scenarios.traffic_draws`), its class labels and its fitted behaviour
+    (None without a ``behaviour`` group)."""
+    from are_stats.behaviour import BehaviourFit
     from are_stats.fitting import read_fit
-    from are_stats.scenarios import posterior_draws
+    from are_stats.scenarios import traffic_draws
 
     idata = read_fit(path)
     names = idata.posterior.attrs.get("class_labels")
-    return posterior_draws(idata), (str(names).split(",") if names else None)
+    draws, laws = traffic_draws(idata, "chosen")
+    behaviour = None
+    if "behaviour" in idata.groups():
+        behaviour = BehaviourFit.from_dataset(idata.behaviour)
+    return draws, (str(names).split(",") if names else None), laws, behaviour
 
 
 @functools.lru_cache(maxsize=4)
@@ -565,7 +571,7 @@ def _scenario_size(
                 src, f"{pre}scenario.fit", "a fit file written by are-stats fit",
                 Described(f"no such file {p}"),
             )  # fmt: skip
-        draws, _ = _fit_draws(str(p))
+        draws = _fit_draws(str(p))[0]
         lam, mu = float(np.mean(draws["arrival_rate"])), float(np.mean(draws["leave_rate"]))
     else:
         lam, mu = float(sc["arrival_rate"]), float(sc["leave_rate"])
@@ -789,7 +795,7 @@ def _task_scenario(
 
     sc, ms = task["scenario"], task["mission"]
     seed, horizon = int(task["seed"]), float(ms["time_limit"])
-    labels, tracks, draw = None, None, -1
+    labels, tracks, draw, laws, fitted = None, None, -1, None, None
     if "scenarios" in sc:
         table, meta, all_tracks = _scenario_folder(str(sc["scenarios"]))
         n = int(table["scenario"].max()) + 1 if len(table) else 1
@@ -802,7 +808,7 @@ def _task_scenario(
             tracks = all_tracks[all_tracks["scenario"] == draw].reset_index(drop=True)
     else:
         if "fit" in sc:
-            draws, labels = _fit_draws(str(sc["fit"]))
+            draws, labels, laws, fitted = _fit_draws(str(sc["fit"]))
             # one posterior draw per replicate, chosen by the replicate's seed alone
             draw = int(np.random.default_rng([seed, 1]).integers(draws["arrival_rate"].shape[0]))
             params = {k: v[draw : draw + 1] for k, v in draws.items()}
@@ -815,10 +821,25 @@ def _task_scenario(
             }
         rate = float(params["arrival_rate"][0])
         art = generate_scenarios(
-            seed, params, 1, horizon, free_mask=grid, start=sc.get("start", "stationary")
-        )
+            seed, params, 1, horizon, free_mask=grid, start=sc.get("start", "stationary"),
+            laws=laws,
+        )  # fmt: skip
     scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
-    if task.get("behaviours") and tracks is None:
+    if task.get("behaviours") and tracks is None and fitted is not None:
+        # the fit's behaviour: speeds, exits and rationality learned from the log's tracks
+        import jax
+
+        from are_stats.behaviour import simulate_behaviour_tracks
+
+        table = art.rename(columns={"artefact": "id"})[
+            ["scenario", "id", "t_arrive", "t_leave", "x", "y"]
+        ].copy()
+        table["t_leave"] = np.minimum(table["t_leave"].to_numpy(float), horizon)
+        if labels is not None:
+            table["label"] = [labels[c] if 0 <= c < len(labels) else "" for c in art["class"]]
+        tracks = simulate_behaviour_tracks(jax.random.key(seed), fitted, table)
+        scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    elif task.get("behaviours") and tracks is None:
         tracks = _behaviour_tracks(
             seed, art, scene, grid, catalogue, float(ms.get("behaviour_cell", 1.0)),
             float(ms.get("behaviour_dt", 2.0)), horizon,

@@ -33,7 +33,10 @@ def files(tmp_path_factory):
     data = simulate_lifecycle(
         jax.random.key(0), LAMBDA, MU, [0.6, 0.4], [1.0, 4.0], (0.0, 600.0), area=AREA
     )
-    settings = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2)
+    paper = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
+    settings = FitSettings(
+        method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2, **paper
+    )
     idata = fit_log(jax.random.key(1), data, settings)
     write_fit(idata, root / "fits" / "fit.nc")
     draws = posterior_draws(idata)

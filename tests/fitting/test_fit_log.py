@@ -35,7 +35,9 @@ with warnings.catch_warnings():
     import arviz as az
 
 AREA = 200.0
-EM = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2)
+# the paper's model alone: these tests are not about the choice of traffic models
+PAPER = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
+EM = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2, **PAPER)
 
 
 def _data(marks: bool = True, labels: bool = False, seed: int = 0) -> LifecycleData:
