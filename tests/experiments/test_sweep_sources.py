@@ -259,3 +259,32 @@ def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
     assert moving["n_move_updates"] > 0
     still = run_task({**task, "behaviours": False})["runs"].iloc[0]
     assert still["n_move_updates"] == 0
+
+
+def test_a_fit_with_groups_sends_groups_through_the_mission(files, tmp_path):
+    """A fit whose chosen arrival model is groups: the mission's artefacts arrive in groups."""
+    import arviz as az
+    import xarray as xr
+
+    root, grid, _, _ = files
+    idata = az.from_netcdf(root / "fits" / "fit.nc")
+    post = idata.posterior
+    shape = post["arrival_rate"].shape
+    # groups of exactly three at a third of the artefact rate (a stated truth, not a fit)
+    post["event_rate"] = xr.DataArray(post["arrival_rate"].values / 3.0, dims=("chain", "draw"))
+    probs = np.zeros(shape + (3,))
+    probs[..., 2] = 1.0
+    post["group_size_probs"] = xr.DataArray(probs, dims=("chain", "draw", "group_size"))
+    post.attrs["arrival_model"] = "groups"
+    fit = tmp_path / "groups.nc"
+    write_fit(idata, fit)
+    cfg = _config(root, replicates=1, scenario={"fit": str(fit)})
+    task = expand_tasks(cfg)[0]
+    from are_stats import load_catalogue
+    from are_stats.experiments._sweep import _task_scenario
+
+    scene, _ = _task_scenario(task, grid, load_catalogue())
+    # arrivals come three at a time: arrival times repeat in threes
+    arrived = scene.t_arrive[scene.t_arrive > 0]
+    _, counts = np.unique(arrived, return_counts=True)
+    assert arrived.size > 0 and set(counts.tolist()) == {3}
