@@ -49,7 +49,9 @@ from jax.scipy.special import gammaln, logsumexp
 
 from are_stats._checks import check_in
 from are_stats.traffic._arrivals import DAY, period_exposure, period_of
-from are_stats.traffic._stays import STAY_LAWS, stay_loglik
+from are_stats.traffic._stays import STAY_LAWS
+
+_TINY = float(np.finfo(np.float64).tiny)
 
 __all__ = [
     "ARRIVAL_SPECS",
@@ -350,6 +352,12 @@ def arrival_model(
 class StayUnits(NamedTuple):
     """Stays seen through a window (a pytree; see :func:`~are_stats.traffic.stay_loglik`).
 
+    The artefacts are split by the term they contribute, so that each law's costly
+    functions (the incomplete gamma and its gradient in the shape) run only where they are
+    needed: the density for stays seen from arrival to departure (most of a log), the
+    survival for censored or truncated ones, the mean excess for those present the whole
+    window.
+
     Attributes
     ----------
     stay : (n,) float
@@ -357,12 +365,24 @@ class StayUnits(NamedTuple):
     censored, truncated : (n,) bool
     weight : (n,) float
         1 for real artefacts, 0 for padding.
+    idx_full, idx_surv, idx_excess : (k,) int
+        Rows whose term is the density (or, below the resolution, the interval
+        probability), the survival, or the mean excess; padded with ``n`` (a dummy row).
     """
 
     stay: Any
     censored: Any
     truncated: Any
     weight: Any
+    idx_full: Any
+    idx_surv: Any
+    idx_excess: Any
+
+
+def _padded_index(idx: np.ndarray, dummy: int) -> np.ndarray:
+    out = np.full(_bucket(idx.size, least=8), dummy, np.int64)
+    out[: idx.size] = idx
+    return out
 
 
 def stay_units(stay: Any, censored: Any, truncated: Any) -> StayUnits:
@@ -378,24 +398,53 @@ def stay_units(stay: Any, censored: Any, truncated: Any) -> StayUnits:
     tru[:n] = np.asarray(truncated, bool)
     w = np.zeros(m)
     w[:n] = 1.0
-    return StayUnits(out, cen, tru, w)
+    real = np.arange(m) < n
+    full = np.flatnonzero(real & ~cen & ~tru)
+    surv = np.flatnonzero(real & (cen ^ tru))
+    excess = np.flatnonzero(real & cen & tru)
+    return StayUnits(out, cen, tru, w, *(_padded_index(i, m) for i in (full, surv, excess)))
 
 
 def stay_unit_loglik(
     params: dict, units: StayUnits, law: str, resolution: float = 0.0
 ) -> jnp.ndarray:
-    """Pointwise log-likelihood of each artefact's stay under ``law`` (zero on padding)."""
-    shape = params.get("stay_shape", 1.0)
-    ll = stay_loglik(
-        law,
-        units.stay,
-        units.censored,
-        units.truncated,
-        params["stay_mean"],
-        shape,
-        resolution=resolution,
+    """Pointwise log-likelihood of each artefact's stay under ``law`` (zero on padding).
+
+    Equal to :func:`~are_stats.traffic.stay_loglik`, each term computed on its own rows.
+    """
+    from are_stats.traffic._stays import (
+        stay_log_excess,
+        stay_logcdf,
+        stay_logpdf,
+        stay_logsf,
     )
-    return jnp.where(units.weight > 0, ll, 0.0)
+
+    mean = params["stay_mean"]
+    shape = params.get("stay_shape", 1.0)
+    m = units.stay.shape[0]
+    stay = jnp.concatenate([jnp.asarray(units.stay, float), jnp.ones(1)])  # row m: dummy
+    trunc = jnp.concatenate([jnp.asarray(units.truncated, bool), jnp.zeros(1, bool)])
+    log_m = jnp.log(mean)
+    floor = 1e-12 * mean  # survival terms at a zero stay: NaN gradients at exactly 0
+    sa = stay[units.idx_full]
+    la = stay_logpdf(law, jnp.maximum(sa, _TINY), mean, shape)
+    if resolution > 0:
+        la = jnp.where(sa < resolution, stay_logcdf(law, resolution, mean, shape), la)
+    ss = stay[units.idx_surv]
+    ls = stay_logsf(law, jnp.maximum(ss, floor), mean, shape)
+    ls = ls - jnp.where(trunc[units.idx_surv], log_m, 0.0)
+    se = stay[units.idx_excess]
+    le = stay_log_excess(law, jnp.maximum(se, floor), mean, shape) - log_m
+    out = (
+        jnp.zeros(m + 1)
+        .at[units.idx_full]
+        .set(la)
+        .at[units.idx_surv]
+        .set(ls)
+        .at[units.idx_excess]
+        .set(le)
+    )[:m]
+    return jnp.where(jnp.asarray(units.weight) > 0, out, 0.0)
 
 
 def stay_model(units: StayUnits, law: str, mean_centre: float, resolution: float = 0.0) -> None:
