@@ -35,14 +35,18 @@ Both sample 2 chains in parallel (ours: ``pmap`` over 2 XLA host devices; PyMC:
 0.85, started from the empirical centre (``z = 0``, ``eta = 0``, uniform size law; PyMC
 with ``init="adapt_diag"``, no jitter). ESS/s = min bulk ESS over the parameters (ArviZ,
 the same function for both) / wall time of the call (model building and compilation
-included; Python imports excluded, the process column has them). Each implementation and
-model runs in fresh processes (``subprocess``), so compilation counts:
+included; the process start-up, interpreter and imports, is printed apart). Each
+implementation and model runs in fresh processes (``subprocess``), so compilation counts:
 
 * **cold**: first call in a fresh process with an empty compile cache (JAX persistent
-  cache dir / PyTensor ``compiledir``, both in a temporary folder);
-* **warm, same process**: a second call in that process;
-* **warm, new process**: first call in a second fresh process that finds the first one's
-  compile cache (for ours, the JAX persistent cache as the CLI configures it:
+  cache dir / PyTensor ``base_compiledir``, both in a temporary folder): the first run
+  after installing;
+* **cold model**: first call in a fresh process whose cache holds only an unrelated
+  one-parameter model's programs (for PyTensor: its own C modules, compiled once per
+  installation): a model met for the first time;
+* **warm, same process**: a second call in the cold run's process;
+* **warm, new process**: first call in a fresh process that finds the cold run's cache
+  (for ours, the JAX persistent cache as the CLI configures it:
   :func:`are_stats.configure_jax`, ``$XDG_CACHE_HOME/are_stats/jax``).
 
 Last, ``are-stats fit models/logs/courtyard_traffic.csv --method em --no-figures`` (the
@@ -457,11 +461,34 @@ def _pymc_call(name: str, data: Any, seed: int, warmup: int, samples: int) -> di
     return out
 
 
+def _trivial(impl: str) -> None:
+    """Sample ``x ~ Normal(0, 1)`` briefly: fills a compile cache with the generic parts."""
+    if impl == "ours":
+        import jax
+        import numpyro
+        import numpyro.distributions as dist
+
+        from are_stats.fitting import run_nuts
+
+        def model() -> None:
+            numpyro.sample("x", dist.Normal(0.0, 1.0))
+
+        run_nuts(jax.random.key(0), model, {}, {"x": 0.0}, num_warmup=20, num_samples=20,
+                 num_chains=2)  # fmt: skip
+    else:
+        import pymc as pm
+
+        with pm.Model():
+            pm.Normal("x", 0.0, 1.0)
+            pm.sample(draws=20, tune=20, chains=2, cores=2, random_seed=0, progressbar=False,
+                      compute_convergence_checks=False)  # fmt: skip
+
+
 def _worker(argv: list[str]) -> None:
-    """``--worker ours|pymc --model arrivals|stays --calls N ...``: print one RESULT line."""
+    """``--worker ours|pymc --model arrivals|stays|trivial --calls N ...``: one RESULT line."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--worker", choices=("ours", "pymc"), required=True)
-    ap.add_argument("--model", choices=MODELS, required=True)
+    ap.add_argument("--model", choices=(*MODELS, "trivial"), required=True)
     ap.add_argument("--calls", type=int, default=2)
     ap.add_argument("--warmup", type=int, default=1000)
     ap.add_argument("--samples", type=int, default=1000)
@@ -471,6 +498,10 @@ def _worker(argv: list[str]) -> None:
 
     logging.getLogger("pymc").setLevel(logging.ERROR)
     warnings.simplefilter("ignore")
+    if a.model == "trivial":
+        _trivial(a.worker)
+        print("RESULT " + json.dumps({"n": 0, "calls": []}), flush=True)
+        return
     data = make_log(a.duration)
     call = _ours_call if a.worker == "ours" else _pymc_call
     calls = [call(a.model, data, seed, a.warmup, a.samples) for seed in range(1, a.calls + 1)]
@@ -492,7 +523,8 @@ def _env(cache_home: Path) -> dict[str, str]:
     """A child environment whose JAX and PyTensor caches live under ``cache_home``."""
     env = {k: v for k, v in os.environ.items() if k not in _CACHE_ENV}
     env["XDG_CACHE_HOME"] = str(cache_home)
-    env["PYTENSORFLAGS"] = f"compiledir={cache_home / 'pytensor'}"
+    flags = [f for f in env.get("PYTENSOR_FLAGS", "").split(",") if f]
+    env["PYTENSOR_FLAGS"] = ",".join(flags + [f"base_compiledir={cache_home / 'pytensor'}"])
     env["PYTHONPATH"] = os.pathsep.join(
         [str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
     )
@@ -530,57 +562,75 @@ def _cache_entries(cache_home: Path) -> int:
     return sum(1 for _ in folder.rglob("*") if _.is_file()) if folder.is_dir() else 0
 
 
-def _bench_model(name: str, impls: list[str], opts: list[str], tmp: Path) -> dict:
-    """Cold / warm-same-process / warm-new-process rows of one model for each impl.
+#: The conditions of a call, in the table's order.
+RUNS = ("cold", "cold model", "warm, same process", "warm, new process")
 
-    Each row is ``(call result, start-up seconds)``: the start-up is the process's wall
-    time less its calls (interpreter, imports, the log), shown on a process's first call.
+
+def _bench_model(name: str, impls: list[str], opts: list[str], tmp: Path) -> dict:
+    """The four conditions (:data:`RUNS`) of one model for each implementation.
+
+    Four fresh processes per implementation: (1) an empty compile cache, two calls (cold,
+    then warm in the same process); (2) a new process on (1)'s cache (warm, new process);
+    (3) an unrelated one-parameter model sampled into a second empty cache, then (4) a new
+    process on that cache (cold model: the library's generic compiled parts are cached,
+    this model's are not). Returns ``{(impl, run): call result}`` and
+    ``{(impl, "start-up"): seconds}`` (process (2)'s wall time less its call: interpreter,
+    imports, the log).
     """
-    rows = {}
+    rows: dict[Any, Any] = {}
     for impl in impls:
-        print(f"  {name}: {impl} (two fresh processes)", flush=True)
+        print(f"  {name}: {impl} (four fresh processes)", flush=True)
         home = tmp / f"{impl}-{name}"
         home.mkdir()
         env = _env(home)
-        first, wall1 = _run_worker(impl, name, 2, env, opts)
+        first, _ = _run_worker(impl, name, 2, env, opts)
         entries = _cache_entries(home) if impl == "ours" else None
         second, wall2 = _run_worker(impl, name, 1, env, opts)
-        start1 = wall1 - sum(c["wall"] for c in first["calls"])
-        rows[(impl, "cold")] = (first["calls"][0], start1)
-        rows[(impl, "warm, same process")] = (first["calls"][1], None)
-        rows[(impl, "warm, new process")] = (second["calls"][0], wall2 - second["calls"][0]["wall"])
-        rows[(impl, "n")] = first["n"]
+        home2 = tmp / f"{impl}-{name}-generic"
+        home2.mkdir()
+        env2 = _env(home2)
+        _run_worker(impl, "trivial", 0, env2, [])
+        third, _ = _run_worker(impl, name, 1, env2, opts)
+        rows[(impl, "cold")] = first["calls"][0]
+        rows[(impl, "warm, same process")] = first["calls"][1]
+        rows[(impl, "warm, new process")] = second["calls"][0]
+        rows[(impl, "cold model")] = third["calls"][0]
+        rows[(impl, "start-up")] = wall2 - second["calls"][0]["wall"]
+        rows["n"] = first["n"]
         if entries is not None:
             print(f"  {name}: JAX persistent cache after the first process: {entries} files")
     return rows
 
 
 def _print_table(name: str, rows: dict, impls: list[str]) -> None:
+    """One line per condition: wall, min ESS and ESS/s of each implementation, and the ratio."""
+    labels = {"ours": "ours", "pymc": "PyMC"}
+    head = f"{name:<20}"
+    for impl in impls:
+        lab = labels[impl]
+        head += f"{lab + ' wall s':>14}{'min ESS':>9}{'ESS/s':>8}{'div':>5}"
+    if len(impls) > 1:
+        head += f"{'ours/PyMC':>11}"
+    print("\n" + head)
+    for run in RUNS:
+        line = f"  {run:<18}"
+        eps = {}
+        for impl in impls:
+            r = rows[(impl, run)]
+            eps[impl] = r["min_ess"] / r["wall"]
+            line += f"{r['wall']:14.1f}{r['min_ess']:9.0f}{eps[impl]:8.1f}{r['divergent']:5d}"
+        if len(impls) > 1:
+            line += f"{eps['ours'] / eps['pymc']:11.2f}"
+        print(line)
     print(
-        f"\n{name}: {'impl':<8}{'run':<22}{'wall s':>8}{'start-up s':>12}"
-        f"{'min ESS':>9}{'ESS/s':>9}{'diverg.':>9}{'ours/PyMC':>11}"
+        "  start-up s (fresh process: interpreter, imports, the log): "
+        + ", ".join(f"{labels[i]} {rows[(i, 'start-up')]:.1f}" for i in impls)
     )
+    print("  posterior mean (sd), warm same-process runs:")
     for impl in impls:
-        for run in ("cold", "warm, same process", "warm, new process"):
-            res, proc = rows[(impl, run)]
-            eps = res["min_ess"] / res["wall"]
-            ratio = "-"
-            if impl == "ours" and ("pymc", run) in rows:
-                peer = rows[("pymc", run)][0]
-                ratio = f"{eps / (peer['min_ess'] / peer['wall']):.2f}"
-            proc_s = f"{proc:12.1f}" if proc is not None else f"{'-':>12}"
-            label = "ours" if impl == "ours" else "PyMC"
-            print(
-                f"{'':>{len(name) + 2}}{label:<8}{run:<22}{res['wall']:8.1f}{proc_s}"
-                f"{res['min_ess']:9.0f}{eps:9.1f}{res['divergent']:9d}{ratio:>11}"
-            )
-    # the same posterior? (means +- sd of every parameter, warm same-process runs)
-    print(f"{'':>{len(name) + 2}}posterior mean (sd), warm same-process runs:")
-    for impl in impls:
-        res = rows[(impl, "warm, same process")][0]
-        label = "ours" if impl == "ours" else "PyMC"
+        res = rows[(impl, "warm, same process")]
         cells = "  ".join(f"{k} {res['mean'][k]:.4g} ({res['sd'][k]:.2g})" for k in res["mean"])
-        print(f"{'':>{len(name) + 4}}{label:<6}{cells}")
+        print(f"    {labels[impl]:<6}{cells}")
 
 
 def _bench_fit(tmp: Path, extra: list[str]) -> None:
@@ -625,7 +675,7 @@ def main(quick: bool = False) -> None:
         results = {}
         for name in MODELS:
             results[name] = _bench_model(name, impls, opts, tmp)
-        n = results["arrivals"][("ours", "n")]
+        n = results["arrivals"]["n"]
         print(
             f"\ntraffic NUTS on a synthetic log of {n} artefacts ({duration:g} s window; truth "
             f"event_rate {_event_rate():.4g} /m^2/s, group sizes {TRUTH['group_size_probs']}, "
@@ -635,11 +685,12 @@ def main(quick: bool = False) -> None:
         for name in MODELS:
             _print_table(name, results[name], impls)
         print(
-            "\nwall: the call (model building, compilation, sampling); start-up: the rest of "
-            "that fresh process (interpreter, imports, the log). ESS/s = min bulk ESS over the "
-            "parameters / wall. cold: empty compile cache; warm, same process: second call; "
-            "warm, new process: a second process on the first one's cache. ours/PyMC: ratio "
-            "of ESS/s in the same condition."
+            "\nwall: the call (model building, compilation, sampling). ESS/s = min bulk ESS "
+            "over the parameters / wall. cold: fresh process, empty compile cache (JAX "
+            "persistent cache / PyTensor compiledir); cold model: fresh process, the cache "
+            "holds an unrelated model's programs (for PyTensor: its own C modules); warm, "
+            "same process: a second call; warm, new process: a fresh process on the cold "
+            "run's cache. ours/PyMC: ratio of ESS/s in the same condition."
         )
         _bench_fit(tmp, ["--warmup", "200", "--samples", "200", "--chains", "2"] if quick else [])
     finally:
