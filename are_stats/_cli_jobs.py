@@ -806,3 +806,41 @@ def run_augment(
         f"({', '.join(f'{k} {v}' for k, v in res.topics.items())})"
     )
     return res
+
+
+def run_serve(
+    folder: Path,
+    *,
+    scenario: int | None = None,
+    speed: float = 1.0,
+    host: str = "127.0.0.1",
+    port: int = 8765,
+    loop: bool = False,
+    duration: float | None = None,
+) -> dict[str, Any]:
+    """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
+    (:func:`are_stats.experiments._live.serve_scenario`)."""
+    from are_stats.experiments._live import serve_scenario
+
+    def ready(info: dict[str, Any]) -> None:
+        moving = f" ({info['moving']} moving)" if info["moving"] else ""
+        until = f", for {duration:g} s" if duration is not None else ""
+        console.print(
+            f"serving scenario {info['scenario']} of {folder}: {info['artefacts']} artefacts"
+            f"{moving} over {info['horizon']:g} s at x{speed:g}{' (looping)' if loop else ''}"
+            f"{until} on {info['url']} (Foxglove: Open connection -> {info['url']}; "
+            "Ctrl-C stops)"
+        )
+
+    try:
+        info = serve_scenario(
+            folder, scenario=scenario, speed=speed, host=host, port=port, loop=loop,
+            duration=duration, on_ready=ready,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        console.print("stopped")
+        return {}
+    console.print(
+        f"sent {info['messages']} messages in {info['frames']} frames ({info['wall']:.1f} s)"
+    )
+    return info

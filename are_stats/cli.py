@@ -444,6 +444,32 @@ def augment(
     )  # fmt: skip
 
 
+@app.command()
+@_cli_errors
+def serve(
+    scenarios: Path = typer.Argument(
+        ..., metavar="SCENARIOS_DIR", help="Scenarios folder written by are-stats generate."
+    ),
+    scenario: int = typer.Option(
+        None, "--scenario", help="Which scenario of the folder (default: the first)."
+    ),
+    speed: float = typer.Option(1.0, "--speed", help="Replay speed-up (1 = real time)."),
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on."),
+    port: int = typer.Option(8765, "--port", help="Port to listen on (0: any free port)."),
+    loop: bool = typer.Option(False, "--loop", help="Start again after the horizon, forever."),
+    duration: float = typer.Option(
+        None, "--duration", help="Stop after this many wall-clock seconds."
+    ),
+) -> None:
+    """Stream a scenario replay live to Foxglove (WebSocket): boxes, map, /tf."""
+    from are_stats._cli_jobs import run_serve
+
+    run_serve(
+        scenarios, scenario=scenario, speed=speed, host=host, port=port, loop=loop,
+        duration=duration,
+    )  # fmt: skip
+
+
 def main() -> None:  # pragma: no cover - console entry
     app()
 

@@ -1,6 +1,7 @@
 """Navigation experiments (paper Sect. 4, Fig. 6-7): robot, planners, the metrics rho
 (eq. 3) and nu (eq. 4), the event-driven experiment loop, Dask sweeps, plots, MCAP
-export with ROS conventions and the augmentation of a robot's recorded bag."""
+export with ROS conventions, the augmentation of a robot's recorded bag and the live view
+(a scenario replay streamed to Foxglove)."""
 
 from are_stats.experiments._augment import (
     AUGMENT_TOPICS,
@@ -9,6 +10,13 @@ from are_stats.experiments._augment import (
     BagTrajectory,
     augment_bag,
     read_trajectory,
+)
+from are_stats.experiments._live import (
+    LIVE_TOPICS,
+    LiveMessage,
+    load_replay,
+    replay_messages,
+    serve_scenario,
 )
 from are_stats.experiments._loop import MissionResult, MissionTrace, random_goals, run_mission
 from are_stats.experiments._mcap import MCAP_TOPICS, export_mcap
@@ -40,11 +48,13 @@ from are_stats.experiments._sweep import (
 
 __all__ = [
     "AUGMENT_TOPICS",
+    "LIVE_TOPICS",
     "MCAP_TOPICS",
     "POSE_TYPES",
     "ROS_FRAMES",
     "AugmentResult",
     "BagTrajectory",
+    "LiveMessage",
     "OMPL_ALGORITHMS",
     "AStarPlanner",
     "MissionResult",
@@ -58,6 +68,7 @@ __all__ = [
     "circle_box_overlap",
     "expand_tasks",
     "export_mcap",
+    "load_replay",
     "load_results",
     "load_sweep_config",
     "make_planner",
@@ -69,9 +80,11 @@ __all__ = [
     "random_goals",
     "read_trajectory",
     "replanning_ratio",
+    "replay_messages",
     "run_mission",
     "run_sweep",
     "run_task",
+    "serve_scenario",
     "space_complexity",
     "time_average",
     "timed_plan",

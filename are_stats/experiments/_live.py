@@ -1,0 +1,485 @@
+"""Live view: stream a scenario replay over Foxglove's WebSocket protocol (``are-stats serve``).
+
+A scenario (one ``scenario`` of a folder written by ``are-stats generate``, with its
+behaviour tracks when the folder has them) is replayed on a clock that runs ``speed`` times
+faster than the wall clock and published with ``foxglove-sdk`` (the optional ``live``
+extra: ``pip install are_stats[live]``) to any Foxglove viewer (app or desktop: *Open
+connection* -> ``ws://127.0.0.1:8765``). Frames are sent ``fps`` times per wall-clock second:
+
+===========  ==========================  ====================================================
+topic        Foxglove schema             content
+===========  ==========================  ====================================================
+``/scene``   ``foxglove.SceneUpdate``    each frame: one entity ``artefact_<id>`` per live
+                                         artefact (its box, coloured by class, and a
+                                         ``label id`` text above it) in frame ``map``;
+                                         deletions of the artefacts that left
+``/tf``      ``foxglove.FrameTransforms``  each frame: ``map -> artefact_<id>`` (box centre
+                                         and heading, as in the MCAP exports' ``/tf``)
+``/map``     ``foxglove.Grid``           the occupancy map (one ``uint8`` field
+                                         ``occupancy``: 0-100, 255 unknown), at the start
+                                         and again every second, so late viewers get it
+===========  ==========================  ====================================================
+
+Frame names are the REP-105 names of :mod:`are_stats.experiments._ros`. Stamps and log
+times follow the replay clock: ``start + tau`` where ``tau`` is replay time since the start
+(it keeps growing across ``--loop`` rounds, the scene time being ``tau`` modulo the
+horizon); the server also advertises the ``time`` capability and broadcasts that clock.
+
+:func:`replay_messages` is the pure part (the timed messages, no server);
+:func:`serve_scenario` reads the folder, starts the server and plays them in real time.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from are_stats.experiments._ros import ROS_FRAMES, artefact_frame
+from are_stats.inputs import Described, InputError, get_float
+
+__all__ = ["LIVE_TOPICS", "LiveMessage", "replay_messages", "serve_scenario"]
+
+#: Topic -> Foxglove schema name published by :func:`serve_scenario`.
+LIVE_TOPICS = {
+    "/scene": "foxglove.SceneUpdate",
+    "/tf": "foxglove.FrameTransforms",
+    "/map": "foxglove.Grid",
+}
+
+#: Box colours (r, g, b, a) by catalogue class position (cycled).
+CLASS_RGBA = (
+    (0.95, 0.55, 0.1, 0.8),
+    (0.2, 0.55, 0.95, 0.8),
+    (0.3, 0.8, 0.3, 0.8),
+    (0.85, 0.3, 0.75, 0.8),
+    (0.9, 0.85, 0.2, 0.8),
+)
+
+
+@dataclass(frozen=True)
+class LiveMessage:
+    """One timed message of a replay.
+
+    Attributes
+    ----------
+    wall : float
+        Wall-clock seconds after the start of the replay at which it is sent.
+    t : float
+        Scene time (s) it shows.
+    stamp_ns : int
+        Its stamp and log time: ``start_ns`` + replay time, in ns.
+    topic : str
+        A key of :data:`LIVE_TOPICS`.
+    message : Any
+        The ``foxglove.messages`` object.
+    """
+
+    wall: float
+    t: float
+    stamp_ns: int
+    topic: str
+    message: Any
+
+
+def _fm() -> Any:
+    try:
+        import foxglove.messages as fm
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise InputError(
+            "are-stats serve",
+            "",
+            "foxglove-sdk installed (pip install 'are_stats[live]')",
+            Described("no module foxglove"),
+        ) from None
+    return fm
+
+
+def _ts(fm: Any, ns: int) -> Any:
+    return fm.Timestamp(sec=ns // 10**9, nsec=ns % 10**9)
+
+
+def _yaw_quat(fm: Any, yaw: float) -> Any:
+    return fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def grid_message(grid: Any, stamp_ns: int, frame: str = "map") -> Any:
+    """``foxglove.Grid`` of an :class:`~are_stats.environment.OccupancyGrid` (row 0 at the
+    origin, one ``uint8`` field ``occupancy``: 0-100 and 255 for unknown)."""
+    fm = _fm()
+    data = np.ascontiguousarray(np.asarray(grid.data).astype(np.int8)).view(np.uint8)
+    ox, oy, oyaw = (float(v) for v in grid.origin[:3])
+    res = float(grid.resolution)
+    return fm.Grid(
+        timestamp=_ts(fm, stamp_ns),
+        frame_id=frame,
+        pose=fm.Pose(position=fm.Vector3(x=ox, y=oy, z=0.0), orientation=_yaw_quat(fm, oyaw)),
+        column_count=int(grid.width),
+        cell_size=fm.Vector2(x=res, y=res),
+        row_stride=int(grid.width),
+        cell_stride=1,
+        fields=[
+            fm.PackedElementField(
+                name="occupancy", offset=0, type=fm.PackedElementFieldNumericType.Uint8
+            )
+        ],
+        data=data.tobytes(),
+    )
+
+
+def _frame(
+    fm: Any, scene: Any, t: float, ns: int, gone: list[int], frame: str
+) -> tuple[Any, Any, list[int]]:
+    """(SceneUpdate, FrameTransforms, alive ids) of the scene at time ``t``."""
+    boxes = scene.at(t)
+    stamp = _ts(fm, ns)
+    cls_of = dict(zip(scene.ids.tolist(), scene.classes.tolist(), strict=True))
+    entities, tfs = [], []
+    for aid, c, h, yaw, lab in zip(
+        boxes.ids.tolist(), boxes.centres, boxes.half_extents, boxes.yaws.tolist(),
+        boxes.labels.tolist(), strict=True,
+    ):  # fmt: skip
+        q = _yaw_quat(fm, yaw)
+        r, g, b, a = CLASS_RGBA[int(cls_of[aid]) % len(CLASS_RGBA)]
+        cx, cy, cz = (float(v) for v in c)
+        entities.append(
+            fm.SceneEntity(
+                timestamp=stamp,
+                frame_id=frame,
+                id=artefact_frame(aid),
+                cubes=[
+                    fm.CubePrimitive(
+                        pose=fm.Pose(position=fm.Vector3(x=cx, y=cy, z=cz), orientation=q),
+                        size=fm.Vector3(x=2 * float(h[0]), y=2 * float(h[1]), z=2 * float(h[2])),
+                        color=fm.Color(r=r, g=g, b=b, a=a),
+                    )
+                ],
+                texts=[
+                    fm.TextPrimitive(
+                        pose=fm.Pose(
+                            position=fm.Vector3(x=cx, y=cy, z=cz + float(h[2]) + 0.3),
+                            orientation=fm.Quaternion(w=1.0),
+                        ),
+                        billboard=True,
+                        font_size=14.0,
+                        scale_invariant=True,
+                        color=fm.Color(r=1.0, g=1.0, b=1.0, a=1.0),
+                        text=f"{lab} {aid}",
+                    )
+                ],
+            )
+        )
+        tfs.append(
+            fm.FrameTransform(
+                timestamp=stamp,
+                parent_frame_id=frame,
+                child_frame_id=artefact_frame(aid),
+                translation=fm.Vector3(x=cx, y=cy, z=cz),
+                rotation=q,
+            )
+        )
+    deletions = [
+        fm.SceneEntityDeletion(
+            timestamp=stamp, type=fm.SceneEntityDeletionType.MatchingId, id=artefact_frame(a)
+        )
+        for a in gone
+    ]
+    return (
+        fm.SceneUpdate(deletions=deletions, entities=entities),
+        fm.FrameTransforms(transforms=tfs),
+        boxes.ids.tolist(),
+    )
+
+
+def replay_messages(
+    scene: Any,
+    grid: Any = None,
+    *,
+    horizon: float,
+    speed: float = 1.0,
+    fps: float = 10.0,
+    loop: bool = False,
+    start_ns: int = 0,
+    map_period: float = 1.0,
+    frame: str = ROS_FRAMES["F_E"],
+) -> Iterator[LiveMessage]:
+    """The timed messages of a replay of ``scene`` (pure: no server, no clock).
+
+    Frame ``k`` is sent at wall time ``k / fps`` and shows replay time
+    ``tau = speed * k / fps``; without ``loop`` the last frame shows ``horizon`` and the
+    iterator ends, with ``loop`` it never ends (scene time ``tau mod horizon``). Each frame
+    gives ``/tf`` (when artefacts are alive) and ``/scene``; ``/map`` comes first and again
+    every ``map_period`` wall seconds.
+
+    Parameters
+    ----------
+    scene : Scene
+        :meth:`~are_stats.Scene.from_scenarios` of one scenario.
+    grid : OccupancyGrid, optional
+        The map (no ``/map`` without it).
+    horizon : float
+        Length of the scenario (s, > 0).
+    speed : float
+        Replay seconds per wall-clock second (> 0).
+    fps : float
+        Frames per wall-clock second (> 0).
+    loop : bool
+        Start again at t = 0 after the horizon, forever.
+    start_ns : int
+        Stamp of replay time 0 (ns since the epoch).
+    map_period : float
+        Wall seconds between two ``/map`` messages.
+    frame : str
+        The fixed frame.
+
+    Yields
+    ------
+    LiveMessage
+        In order of ``wall``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from are_stats import Scene, load_catalogue
+    >>> table = pd.DataFrame({"t_arrive": [0.0], "t_leave": [5.0], "x": [1.0], "y": [2.0],
+    ...                       "yaw": [0.0]})
+    >>> scene = Scene.from_scenarios(table, load_catalogue())
+    >>> msgs = list(replay_messages(scene, horizon=10.0, speed=20.0, fps=4.0))
+    >>> [(m.t, m.topic) for m in msgs[:3]], len(msgs)
+    ([(0.0, '/tf'), (0.0, '/scene'), (5.0, '/scene')], 4)
+    """
+    fm = _fm()
+    if not (horizon > 0 and math.isfinite(horizon)):
+        raise ValueError(f"horizon: expected a finite time > 0, got {horizon!r}")
+    if not (speed > 0 and math.isfinite(speed)) or not (fps > 0 and math.isfinite(fps)):
+        raise ValueError(f"speed, fps: expected finite values > 0, got {speed!r}, {fps!r}")
+    dt = speed / fps
+    last_map = -math.inf
+    alive: list[int] = []
+    k = 0
+    while True:
+        wall = k / fps
+        tau = min(k * dt, horizon) if not loop else k * dt
+        t = math.fmod(tau, horizon) if loop else tau
+        ns = int(start_ns) + int(round(tau * 1e9))
+        if grid is not None and wall - last_map >= map_period - 1e-9:
+            last_map = wall
+            yield LiveMessage(wall, t, ns, "/map", grid_message(grid, ns, frame))
+        now = set(scene.ids[scene.alive(t)].tolist())
+        gone = [a for a in alive if a not in now]
+        upd, tfs, alive = _frame(fm, scene, t, ns, gone, frame)
+        if alive:
+            yield LiveMessage(wall, t, ns, "/tf", tfs)
+        yield LiveMessage(wall, t, ns, "/scene", upd)
+        if not loop and tau >= horizon:
+            return
+        k += 1
+
+
+def _port_error(host: str, port: int, err: BaseException) -> InputError:
+    return InputError(
+        "--port", "", f"a free TCP port on {host} (or 0 for any free port)",
+        Described(f"{port}: {err}"),
+    )  # fmt: skip
+
+
+def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[str, Any]:
+    """Read a scenarios folder for :func:`serve_scenario`: the scene of one scenario, the
+    map (when the manifest names one) and the horizon.
+
+    Returns
+    -------
+    dict
+        ``scene``, ``grid`` (or None), ``horizon``, ``scenario`` (its index), ``moving``
+        (artefacts with tracks), ``map`` (the map file or None).
+    """
+    from are_stats.environment import OccupancyGrid, load_catalogue
+    from are_stats.perception._scenario import read_scenario_folder, read_scenario_tracks
+    from are_stats.scenarios import Scene
+
+    d = Path(folder)
+    df, manifest = read_scenario_folder(d)
+    tracks = read_scenario_tracks(d, manifest, df)
+    present = sorted(set(df["scenario"].astype(np.int64).tolist()))
+    if scenario is None:
+        k = present[0]
+    else:
+        if isinstance(scenario, bool) or int(scenario) != scenario or scenario not in present:
+            lo, hi = present[0], present[-1]
+            within = f"{lo}" if lo == hi else f"{lo} to {hi}"
+            raise InputError(
+                "--scenario", "", f"a scenario of {d / 'artefacts.parquet'} ({within})", scenario
+            )
+        k = int(scenario)
+    part = df[df["scenario"] == k]
+    tr = None if tracks is None else tracks[tracks["scenario"] == k]
+    scene = Scene.from_scenarios(
+        part, load_catalogue(), tr, class_labels=manifest.get("class_labels")
+    )
+    map_file = manifest.get("map")
+    grid = None
+    if map_file:
+        if not Path(map_file).exists():
+            raise InputError(
+                d / "manifest.yaml",
+                "map",
+                "an existing ROS map YAML (a relative path is read from the current folder)",
+                Described(f"{map_file}: no such file"),
+            )
+        grid = OccupancyGrid.from_ros_yaml(map_file)
+    generation = manifest.get("generation")
+    horizon = generation.get("horizon") if isinstance(generation, dict) else None
+    if horizon is not None:
+        horizon = get_float(horizon, d / "manifest.yaml", "generation.horizon", lo=0, lo_open=True)
+    else:  # a hand-made folder: until the last leaving (or the last track epoch)
+        ends = [part["t_leave"].to_numpy(float)]
+        if tr is not None and len(tr):
+            ends.append(tr["t"].to_numpy(float))
+        ends_all = np.concatenate(ends)
+        horizon = float(ends_all.max()) if ends_all.size else 0.0
+        if not horizon > 0:
+            raise InputError(
+                d / "artefacts.parquet", f"scenario {k}", "artefacts leaving after t = 0",
+                Described(f"horizon {horizon:g} s"),
+            )  # fmt: skip
+    return {
+        "scene": scene,
+        "grid": grid,
+        "horizon": float(horizon),
+        "scenario": k,
+        "moving": int(np.count_nonzero(scene.has_tracks)),
+        "map": map_file,
+    }
+
+
+def serve_scenario(
+    folder: str | os.PathLike,
+    *,
+    scenario: int | None = None,
+    speed: float = 1.0,
+    host: str = "127.0.0.1",
+    port: int = 8765,
+    loop: bool = False,
+    duration: float | None = None,
+    fps: float = 10.0,
+    on_ready: Callable[[dict[str, Any]], None] | None = None,
+    stop: Any = None,
+) -> dict[str, Any]:
+    """Stream a scenario replay live over Foxglove's WebSocket protocol.
+
+    Reads the folder (:func:`load_replay`), starts a ``foxglove-sdk`` WebSocket server on
+    ``host:port`` with its own logging context, and sends :func:`replay_messages` at their
+    wall times until the replay ends (never with ``loop``), ``duration`` wall seconds
+    have passed or ``stop`` (a ``threading.Event``) is set; then stops the server.
+
+    Parameters
+    ----------
+    folder : path
+        Scenarios folder written by ``are-stats generate``.
+    scenario : int, optional
+        Which scenario (the ``scenario`` column); default the first.
+    speed : float
+        Replay seconds per wall-clock second (> 0, at most 1e6).
+    host, port : str, int
+        Address to listen on (default loopback only); port 0 picks a free port.
+    loop : bool
+        Replay again from t = 0 after the horizon.
+    duration : float, optional
+        Stop after this many wall-clock seconds.
+    fps : float
+        Frames per wall-clock second.
+    on_ready : callable, optional
+        Called with the summary (``port`` filled in) once the server listens.
+
+    Returns
+    -------
+    dict
+        ``host``, ``port``, ``url``, ``scenario``, ``artefacts``, ``moving``, ``horizon``,
+        ``frames`` and ``messages`` (counts sent), ``wall`` (seconds served).
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        For a bad folder, scenario, speed, duration or port (one in use included).
+    """
+    speed = get_float(speed, "--speed", "", lo=0, lo_open=True, hi=1e6)
+    fps = get_float(fps, "fps", "", lo=0, lo_open=True, hi=1000)
+    if duration is not None:
+        duration = get_float(duration, "--duration", "", lo=0, lo_open=True)
+    if isinstance(port, bool) or not isinstance(port, int | np.integer) or not 0 <= port < 65536:
+        raise InputError("--port", "", "a TCP port 0 to 65535", port)
+    if not isinstance(host, str) or not host:
+        raise InputError("--host", "", "an address to listen on (127.0.0.1)", host)
+    replay = load_replay(folder, scenario)
+    _fm()
+    import foxglove
+    from foxglove.channels import FrameTransformsChannel, GridChannel, SceneUpdateChannel
+    from foxglove.websocket import Capability
+
+    ctx = foxglove.Context()
+    channels = {
+        "/scene": SceneUpdateChannel("/scene", context=ctx),
+        "/tf": FrameTransformsChannel("/tf", context=ctx),
+    }
+    if replay["grid"] is not None:
+        channels["/map"] = GridChannel("/map", context=ctx)
+    try:
+        server = foxglove.start_server(
+            name="are-stats serve",
+            host=host,
+            port=int(port),
+            context=ctx,
+            capabilities=[Capability.Time],
+        )
+    except Exception as err:  # the SDK raises its own error types for bind failures
+        raise _port_error(host, int(port), err) from None
+    info: dict[str, Any] = {
+        "host": host,
+        "port": int(server.port),
+        "url": f"ws://{host}:{int(server.port)}",
+        "scenario": replay["scenario"],
+        "artefacts": len(replay["scene"]),
+        "moving": replay["moving"],
+        "horizon": replay["horizon"],
+        "frames": 0,
+        "messages": 0,
+        "wall": 0.0,
+    }
+    start_ns = time.time_ns()
+    t0 = time.monotonic()
+    try:
+        if on_ready is not None:
+            on_ready(dict(info))
+        msgs = replay_messages(
+            replay["scene"], replay["grid"], horizon=replay["horizon"], speed=speed, fps=fps,
+            loop=loop, start_ns=start_ns,
+        )  # fmt: skip
+        last_stamp = None
+        for m in msgs:
+            if duration is not None and m.wall > duration:
+                break
+            wait = t0 + m.wall - time.monotonic()
+            if wait > 0:
+                if stop is not None:
+                    if stop.wait(wait):
+                        break
+                else:
+                    time.sleep(wait)
+            elif stop is not None and stop.is_set():
+                break
+            if m.stamp_ns != last_stamp:
+                server.broadcast_time(m.stamp_ns)
+                last_stamp = m.stamp_ns
+                info["frames"] += 1
+            channels[m.topic].log(m.message, log_time=m.stamp_ns)
+            info["messages"] += 1
+    finally:
+        info["wall"] = time.monotonic() - t0
+        server.stop()
+    return info

@@ -1,0 +1,286 @@
+"""Live view (are-stats serve): the timed messages, a WebSocket client on loopback, errors."""
+
+from __future__ import annotations
+
+import base64
+import json
+import socket
+import struct
+import threading
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+pytest.importorskip("foxglove")
+pytest.importorskip("google.protobuf")
+
+from are_stats import Scene, load_catalogue  # noqa: E402
+from are_stats.cli import app  # noqa: E402
+from are_stats.environment import DEFAULT_MODELS  # noqa: E402
+from are_stats.experiments._live import (  # noqa: E402
+    LIVE_TOPICS,
+    replay_messages,
+    serve_scenario,
+)
+
+runner = CliRunner()
+# foxglove-sdk 0.30 speaks the protocol under the name foxglove.sdk.v1 (the Foxglove
+# WebSocket protocol formerly named foxglove.websocket.v1); offer both, as the app does.
+SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+
+
+def _artefacts():
+    return pd.DataFrame(
+        {
+            "scenario": np.array([0, 0, 1], np.int64),
+            "artefact": np.array([0, 1, 0], np.int64),
+            "class": np.array([0, 1, 0], np.int64),
+            "mark": np.array([0, 0, 0], np.int64),
+            "t_arrive": [0.0, 10.0, 0.0],
+            "t_leave": [40.0, 60.0, 20.0],
+            "x": [-12.0, -8.0, -11.0],
+            "y": [-8.0, -4.0, -6.0],
+            "yaw": [0.0, 1.0, 2.0],
+        }
+    )
+
+
+def _tracks():  # artefact 0 of scenario 0 walks 10 m along x in 20 s
+    return pd.DataFrame(
+        {
+            "scenario": [0, 0, 0],
+            "id": [0, 0, 0],
+            "t": [0.0, 10.0, 20.0],
+            "x": [-12.0, -7.0, -2.0],
+            "y": [-8.0, -8.0, -8.0],
+            "yaw": [0.0, 0.0, 0.0],
+        }
+    )
+
+
+@pytest.fixture
+def folder(tmp_path):
+    d = tmp_path / "scen"
+    d.mkdir()
+    _artefacts().to_parquet(d / "artefacts.parquet", index=False)
+    _tracks().to_parquet(d / "tracks.parquet", index=False)
+    manifest = {
+        "map": str(DEFAULT_MODELS / "courtyard.yaml"),
+        "generation": {"horizon": 60.0},
+        "tracks": {"file": "tracks.parquet"},
+    }
+    (d / "manifest.yaml").write_text(yaml.safe_dump(manifest))
+    return d
+
+
+def _decoder(schema_name: str, schema: bytes):
+    """A protobuf message class from a FileDescriptorSet (as advertised by the server)."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    fds = descriptor_pb2.FileDescriptorSet.FromString(schema)
+    pool = descriptor_pool.DescriptorPool()
+    pending = list(fds.file)
+    while pending:  # add files after their dependencies
+        left = []
+        for f in pending:
+            try:
+                pool.Add(f)
+            except TypeError:
+                left.append(f)
+        assert len(left) < len(pending), "unresolvable schema"
+        pending = left
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName(schema_name))
+
+
+def _decode(msg):
+    s = type(msg).get_schema()
+    return _decoder(s.name, s.data).FromString(msg.encode())
+
+
+def _scene():
+    df = _artefacts()
+    part = df[df["scenario"] == 0]
+    return Scene.from_scenarios(part, load_catalogue(), _tracks().drop(columns="scenario"))
+
+
+def test_replay_messages_follow_the_scene():
+    msgs = list(replay_messages(_scene(), horizon=60.0, speed=50.0, fps=10.0, start_ns=10**9))
+    scene_msgs = [m for m in msgs if m.topic == "/scene"]
+    assert [m.t for m in scene_msgs] == pytest.approx(np.minimum(np.arange(13) * 5.0, 60.0))
+    assert [m.wall for m in scene_msgs] == pytest.approx(np.arange(13) / 10.0)
+    assert {m.topic for m in msgs} == {"/scene", "/tf"}  # no grid given
+    by_t = {m.t: _decode(m.message) for m in scene_msgs}
+    # t = 5: artefact 0 only, walked 2.5 m along x from -12
+    ents = by_t[5.0].entities
+    assert [e.id for e in ents] == ["artefact_0"]
+    assert ents[0].frame_id == "map" and ents[0].cubes[0].pose.position.x == pytest.approx(-9.5)
+    assert ents[0].texts[0].text.startswith(load_catalogue().labels[0])
+    # t = 15: both; t = 40: artefact 0 left (deleted), artefact 1 stays
+    assert sorted(e.id for e in by_t[15.0].entities) == ["artefact_0", "artefact_1"]
+    assert [d.id for d in by_t[40.0].deletions] == ["artefact_0"]
+    assert [e.id for e in by_t[40.0].entities] == ["artefact_1"]
+    assert not by_t[35.0].deletions
+    tf = _decode(next(m for m in msgs if m.topic == "/tf" and m.t == 15.0).message)
+    assert sorted(t.child_frame_id for t in tf.transforms) == ["artefact_0", "artefact_1"]
+    assert {t.parent_frame_id for t in tf.transforms} == {"map"}
+    t0 = next(t for t in tf.transforms if t.child_frame_id == "artefact_0")
+    assert t0.translation.x == pytest.approx(-4.5)
+    assert t0.timestamp.seconds == 16 and t0.timestamp.nanos == 0  # start 1 s + 15 s
+
+
+def test_replay_messages_loop_keeps_the_clock_growing():
+    from are_stats.environment import OccupancyGrid
+
+    grid = OccupancyGrid.from_ros_yaml(DEFAULT_MODELS / "courtyard.yaml")
+    it = replay_messages(_scene(), grid, horizon=60.0, speed=100.0, fps=4.0, loop=True)
+    msgs = [next(it) for _ in range(80)]
+    stamps = [m.stamp_ns for m in msgs]
+    assert stamps == sorted(stamps) and max(m.t for m in msgs) < 60.0
+    assert stamps[-1] > 60 * 10**9  # past one round
+    maps = [m for m in msgs if m.topic == "/map"]
+    assert [m.wall for m in maps][:3] == pytest.approx([0.0, 1.0, 2.0])
+    g = _decode(maps[0].message)
+    assert g.column_count == grid.width and len(g.data) == grid.width * grid.height
+    assert g.cell_size.x == pytest.approx(grid.resolution)
+    assert g.pose.position.x == pytest.approx(grid.origin[0])
+    assert g.fields[0].name == "occupancy"
+
+
+def _recv_json(ws, deadline, op):
+    while True:
+        left = deadline - time.monotonic()
+        assert left > 0, f"no {op} message from the server in time"
+        raw = ws.recv(timeout=left)
+        if isinstance(raw, str):
+            msg = json.loads(raw)
+            if msg.get("op") == op:
+                return msg
+
+
+def test_serve_streams_to_a_websocket_client(folder):
+    ws_client = pytest.importorskip("websockets.sync.client")
+    ready, stop, box = threading.Event(), threading.Event(), {}
+
+    def run():
+        try:
+            box["info"] = serve_scenario(
+                folder, scenario=0, speed=40.0, port=0, loop=True, duration=15.0,
+                on_ready=lambda info: (box.update(ready=info), ready.set()), stop=stop,
+            )  # fmt: skip
+        except BaseException as err:  # pragma: no cover - reported below
+            box["error"] = err
+            ready.set()
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    try:
+        assert ready.wait(10), "the server did not start"
+        assert "error" not in box, box.get("error")
+        info = box["ready"]
+        assert info["host"] == "127.0.0.1" and info["port"] > 0 and info["moving"] == 1
+        deadline = time.monotonic() + 10
+        with ws_client.connect(
+            f"ws://127.0.0.1:{info['port']}", subprotocols=SUBPROTOCOLS, open_timeout=5,
+            max_size=None,
+        ) as ws:  # fmt: skip
+            assert ws.subprotocol in SUBPROTOCOLS
+            server_info = _recv_json(ws, deadline, "serverInfo")
+            assert "time" in server_info["capabilities"]
+            adv = _recv_json(ws, deadline, "advertise")
+            chans = {c["topic"]: c for c in adv["channels"]}
+            assert {t: chans[t]["schemaName"] for t in chans} == LIVE_TOPICS
+            assert all(c["encoding"] == "protobuf" for c in chans.values())
+            subs = [{"id": k, "channelId": c["id"]} for k, c in enumerate(chans.values())]
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            topic_of = {k: t for k, t in enumerate(chans)}
+            decoders = {
+                t: _decoder(c["schemaName"], base64.b64decode(c["schema"]))
+                for t, c in chans.items()
+            }
+            got: dict[str, list] = {t: [] for t in chans}
+            clock = []
+            while min(len(v) - (t == "/map") for t, v in got.items()) < 2:  # one map
+                left = deadline - time.monotonic()
+                assert left > 0, f"messages so far: { {t: len(v) for t, v in got.items()} }"
+                raw = ws.recv(timeout=left)
+                if isinstance(raw, str):
+                    continue
+                if raw[0] == 1:  # messageData: sub id, log time, payload
+                    _, sub, log_time = struct.unpack_from("<BIQ", raw)
+                    t = topic_of[sub]
+                    got[t].append((log_time, decoders[t].FromString(raw[13:])))
+                elif raw[0] == 2:  # time
+                    clock.append(struct.unpack_from("<BQ", raw)[1])
+    finally:
+        stop.set()
+        th.join(10)
+    assert not th.is_alive() and "error" not in box, box.get("error")
+    assert box["info"]["messages"] > 0 and clock
+    grid = got["/map"][0][1]
+    assert grid.frame_id == "map" and grid.column_count > 0 and len(grid.data) > 0
+    scenes = [m for _, m in got["/scene"]]
+    ids = {e.id for m in scenes for e in m.entities}
+    assert ids <= {"artefact_0", "artefact_1"}
+    assert all(e.frame_id == "map" and len(e.cubes) == 1 for m in scenes for e in m.entities)
+    for log_time, tf in got["/tf"]:
+        assert {t.parent_frame_id for t in tf.transforms} == {"map"}
+        assert {t.child_frame_id for t in tf.transforms} <= ids | {"artefact_0", "artefact_1"}
+        ts = tf.transforms[0].timestamp
+        assert ts.seconds * 10**9 + ts.nanos == log_time
+    log_times = [lt for lt, _ in got["/scene"]]
+    assert log_times == sorted(log_times)
+
+
+def test_serve_stops_after_duration(folder):
+    t = time.monotonic()
+    info = serve_scenario(folder, speed=1000.0, port=0, loop=True, duration=0.5)
+    assert 0.3 < time.monotonic() - t < 5
+    assert info["frames"] >= 3 and info["messages"] > info["frames"]
+
+
+def test_cli_serve_runs_and_reports(folder):
+    res = runner.invoke(
+        app, ["serve", str(folder), "--port", "0", "--speed", "100", "--duration", "0.3"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "serving scenario 0" in res.output and "ws://127.0.0.1:" in res.output
+    assert "1 moving" in res.output and "sent " in res.output
+
+
+@pytest.mark.parametrize(
+    ("args", "pattern"),
+    [
+        (["--scenario", "7"], r"--scenario: expected a scenario of .*\(0 to 1\), got 7"),
+        (["--speed", "0"], r"--speed: expected"),
+        (["--duration", "-1"], r"--duration: expected"),
+    ],
+)
+def test_cli_serve_bad_options(folder, args, pattern):
+    import re
+
+    res = runner.invoke(app, ["serve", str(folder), "--port", "0", "--duration", "0.1", *args])
+    assert res.exit_code == 2, res.output
+    assert re.search(pattern, res.output), res.output
+
+
+def test_cli_serve_bad_folder(tmp_path, folder):
+    res = runner.invoke(app, ["serve", str(tmp_path / "nope")])
+    assert res.exit_code == 2 and "no such scenarios folder" in res.output, res.output
+    (folder / "artefacts.parquet").unlink()
+    res = runner.invoke(app, ["serve", str(folder)])
+    assert res.exit_code == 2 and "artefacts.parquet" in res.output, res.output
+
+
+def test_cli_serve_port_in_use(folder):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        res = runner.invoke(app, ["serve", str(folder), "--port", str(port), "--duration", "1"])
+    assert res.exit_code == 2, res.output
+    assert "--port: expected a free TCP port on 127.0.0.1" in res.output, res.output
+    assert str(port) in res.output
