@@ -130,7 +130,10 @@ def track_statistics(
             }
         )
     index = tab.iloc[start][keys]
-    out.index = pd.MultiIndex.from_frame(index) if len(keys) > 1 else pd.Index(index["id"], name="id")
+    if len(keys) > 1:
+        out.index = pd.MultiIndex.from_frame(index)
+    else:
+        out.index = pd.Index(index["id"], name="id")
     return out
 
 
@@ -298,9 +301,7 @@ def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFra
         uniform[:, :, [0, 1, 3, 4]] = 0.25
         slip = float(fit.slip[c])
         ll_p = np.asarray(moves_log_likelihood(jnp.asarray(pol), ok, slip, obs, per_track=True))
-        ll_u = np.asarray(
-            moves_log_likelihood(jnp.asarray(uniform), ok, slip, obs, per_track=True)
-        )
+        ll_u = np.asarray(moves_log_likelihood(jnp.asarray(uniform), ok, slip, obs, per_track=True))
         n_mv = (obs.move >= 0).sum(axis=1)
         rows.append(
             pd.DataFrame(
@@ -452,7 +453,7 @@ def _model_predictions(
     chunk: int = 16,
 ) -> np.ndarray:
     """``(B, K, n_pred, 2)`` continuations sampled from the soft policy."""
-    from are_stats.behaviour import sample_soft_paths, soft_policy
+    from are_stats.behaviour import sample_soft_paths
     from are_stats.behaviour._generate import _continuous
 
     b, n_obs, _ = observed.shape
@@ -672,7 +673,8 @@ def plot_motion_checks(
     lines = ["statistic: observed [model 5%, 95%]"]
     for stat, r in table.iterrows():
         mark = "  <-- outside" if r["model_flag"] else ""
-        lines.append(f"{stat}: {r['observed']:.3g} [{r['model_5%']:.3g}, {r['model_95%']:.3g}]{mark}")
+        band = f"[{r['model_5%']:.3g}, {r['model_95%']:.3g}]"
+        lines.append(f"{stat}: {r['observed']:.3g} {band}{mark}")
     if heldout is not None:
         lines += [
             "",
@@ -680,14 +682,13 @@ def plot_motion_checks(
             f"{int(heldout['n_tracks'])} tracks):",
             f"  policy {heldout['policy_per_move']:.3f}, "
             f"random walk {heldout['random_walk_per_move']:.3f}",
-            f"  difference {heldout['difference_per_move']:.3f} "
-            f"+/- {heldout['difference_se']:.3f}",
+            f"  difference {heldout['difference_per_move']:.3f} +/- {heldout['difference_se']:.3f}",
         ]
     if displacement is not None:
         lines += ["", f"ADE / FDE (m), {int(displacement['n_windows'].iloc[0])} windows 8 + 12:"]
         for m, r in displacement.iterrows():
-            lines.append(f"  {m}{' (K=%d)' % r['K'] if r['K'] > 1 else ''}: "
-                         f"{r['ADE']:.2f} / {r['FDE']:.2f}")  # fmt: skip
+            k = f" (K={int(r['K'])})" if r["K"] > 1 else ""
+            lines.append(f"  {m}{k}: {r['ADE']:.2f} / {r['FDE']:.2f}")
     ax.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=8, family="monospace",
             transform=ax.transAxes)  # fmt: skip
     n_rep = len(summary)

@@ -116,7 +116,7 @@ def test_checks_pass_on_model_tracks_and_flag_a_random_walk(crossing, tmp_path) 
     assert flags["median straightness"] and flags["fraction still"], table_w
     de = displacement_errors(3, fit, tracks.iloc[:600], n_samples=8)
     assert list(de.index) == ["constant velocity", "model mean of K", "model best of K"]
-    assert (de.loc["model best of K", "ADE"] <= de.loc["model mean of K", "ADE"] + 1e-9)
+    assert de.loc["model best of K", "ADE"] <= de.loc["model mean of K", "ADE"] + 1e-9
     fig = plot_motion_checks(table_w, reps_w, heldout=res, displacement=de)
     fig.savefig(tmp_path / "motion.png", dpi=60)
     assert (tmp_path / "motion.png").stat().st_size > 10_000
