@@ -616,8 +616,8 @@ def plot_motion_checks(
 
     def flag(ax: Any, stat: str) -> None:
         if bool(table.loc[stat, "model_flag"]):
-            ax.text(0.98, 0.97, "observed outside\nthe 90% band", ha="right", va="top",
-                    transform=ax.transAxes, fontsize=8, color="tab:red")  # fmt: skip
+            ax.set_title(ax.get_title() + "\nobserved outside the 90% band", fontsize=10,
+                         color="tab:red")  # fmt: skip
 
     def dist(ax: Any, col: str, title: str, stat: str, moving_only: bool) -> None:
         o, r = obs, rep
@@ -631,7 +631,8 @@ def plot_motion_checks(
             ax.text(0.5, 0.5, "not defined", ha="center", va="center", transform=ax.transAxes)
             ax.set_title(title, fontsize=10)
             return
-        lo, hi = np.quantile(allv, [0.0, 0.995])
+        lo, hi = np.quantile(allv, [0.002, 0.998])
+        lo, hi = min(lo, ov.min(initial=lo)), max(hi, ov.max(initial=hi))
         pad = 0.05 * (hi - lo) if hi > lo else 0.5
         bins = np.linspace(lo - pad, hi + pad, 30)
         ax.hist(rv, bins=bins, density=True, color="tab:blue", alpha=0.5, label="model (pooled)")
@@ -672,7 +673,7 @@ def plot_motion_checks(
     ax.axis("off")
     lines = ["statistic: observed [model 5%, 95%]"]
     for stat, r in table.iterrows():
-        mark = "  <-- outside" if r["model_flag"] else ""
+        mark = "  outside" if r["model_flag"] else ""
         band = f"[{r['model_5%']:.3g}, {r['model_95%']:.3g}]"
         lines.append(f"{stat}: {r['observed']:.3g} {band}{mark}")
     if heldout is not None:
@@ -689,7 +690,7 @@ def plot_motion_checks(
         for m, r in displacement.iterrows():
             k = f" (K={int(r['K'])})" if r["K"] > 1 else ""
             lines.append(f"  {m}{k}: {r['ADE']:.2f} / {r['FDE']:.2f}")
-    ax.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=8, family="monospace",
+    ax.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=7.5, family="monospace",
             transform=ax.transAxes)  # fmt: skip
     n_rep = len(summary)
     fig.suptitle(f"Motion checks: observed tracks vs {n_rep} replicates of the fitted behaviour")
