@@ -21,11 +21,13 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
 * **Displacement errors** (:func:`displacement_errors`). Tracks resampled at ``rate`` (2.5 Hz)
   are cut into windows of ``n_obs + n_pred`` (8 + 12) samples. From the ``n_obs`` observed
   positions, a **constant-velocity** prediction (the mean velocity of the observed window)
-  and the fitted model's prediction (``n_samples`` continuations: exits drawn from the exit
-  density given the window's first position, the soft policy walked from the last observed
-  cell with the observed heading, at the observed speed, smoothed as in the generator) are
-  scored by the same code: ADE (mean distance over the predicted steps) and FDE (distance at
-  the last one), for the mean of the samples and for the best of them.
+  and the fitted model's prediction are scored by the same code: ADE (mean distance over the
+  predicted steps) and FDE (distance at the last one). The model draws ``n_samples``
+  continuations: a goal from the posterior over the class's observed exit cells (their
+  frequencies times the soft policy's likelihood of the window's observed moves,
+  discretised as in the fit: Bayesian goal inference), then the soft policy walked from the
+  last observed cell with the observed heading at the observed speed, smoothed and timed as
+  in the generator. It is scored as the mean of the samples and as the best of them.
 """
 
 from __future__ import annotations
@@ -441,6 +443,49 @@ def constant_velocity(observed: np.ndarray, n_pred: int) -> np.ndarray:
     return obs[:, -1:, :] + k * v[:, None, :]
 
 
+def _goal_posterior(
+    fit: BehaviourFit, c: int, observed: np.ndarray, rate: float, chunk: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate exits ``(G, 2)`` of class ``c`` (the observed exit cells) and the log
+    posterior ``(B, G)`` of each window's goal: the empirical exit frequencies times the soft
+    policy's likelihood of the window's observed moves (discretised as in the fit)."""
+    import jax.numpy as jnp
+
+    from are_stats.fitting._behaviour import discretise_tracks
+
+    ends = fit.world_to_cell(fit.exit_xy[fit.track_class == c])
+    if not len(ends):
+        ends = fit.world_to_cell(fit.exit_xy)
+    goals, counts = np.unique(ends, axis=0, return_counts=True)
+    b, n_obs, _ = observed.shape
+    logp = np.tile(np.log(counts / counts.sum()), (b, 1))
+    df = pd.DataFrame(
+        {
+            "id": np.repeat(np.arange(b), n_obs),
+            "t": np.tile(np.arange(n_obs) / rate, b),
+            "x": observed[..., 0].ravel(),
+            "y": observed[..., 1].ravel(),
+        }
+    )
+    paths, ids = discretise_tracks(df, fit.free, fit.cell, fit.origin, float(fit.dt[c]))
+    moved = np.array([len(p) >= 2 for p in paths])
+    if not moved.any():
+        return goals, logp
+    rows_of = ids[moved].astype(np.int64)
+    obs = move_observations([p for p, m in zip(paths, moved, strict=True) if m])
+    n = len(rows_of)
+    ok = jnp.asarray(_path_free(~fit.free))
+    slip = float(fit.slip[c])
+    for g0 in range(0, len(goals), chunk):
+        gsel = np.arange(g0, min(g0 + chunk, len(goals)))
+        pol = jnp.asarray(_policies(fit, c, goals[gsel]))
+        gi = np.repeat(np.arange(len(gsel)), n)
+        tiled = (gi, *(np.tile(x, (len(gsel), 1)) for x in (obs.rows, obs.cols, obs.move)))
+        ll = np.asarray(moves_log_likelihood(pol, ok, slip, tiled, per_track=True), float)
+        logp[rows_of[:, None], gsel[None, :]] += ll.reshape(len(gsel), n).T
+    return goals, logp
+
+
 def _model_predictions(
     rng: np.random.Generator,
     fit: BehaviourFit,
@@ -464,12 +509,17 @@ def _model_predictions(
     horizon_s = n_pred / rate
     last = observed[:, -1]
     cur = fit.world_to_cell(last)
-    entry = fit.world_to_cell(observed[:, 0])
     d = observed[:, -1] - observed[:, 0]
     head = np.mod(np.round(np.arctan2(d[:, 1], d[:, 0]) / (np.pi / 2)), 4).astype(np.int64)
-    # K exits per window from the exit density given the window's first position
+    # K exits per window from the posterior over the observed exits given the window's moves
     rep = np.repeat(np.arange(b), n_samples)
-    exits = fit.draw_exits(rng, cls[rep], entry[rep], np.full(rep.size, 1e9))
+    exits = np.zeros((b * n_samples, 2), np.int64)
+    for c in np.unique(cls):
+        w = np.flatnonzero(cls == c)
+        goals, logp = _goal_posterior(fit, int(c), observed[w], rate, chunk)
+        u = rng.gumbel(size=(len(w), n_samples, len(goals)))
+        pick = np.argmax(logp[:, None, :] + u, axis=2)  # (n_w, K)
+        exits[(w[:, None] * n_samples + np.arange(n_samples)).ravel()] = goals[pick.ravel()]
     n_ep = np.ceil(2 * horizon_s * speed / fit.cell).astype(np.int64) + 4
     out = np.repeat(last[:, None, None, :], n_samples, axis=1).repeat(n_pred, axis=2)
     ts = np.arange(1, n_pred + 1) / rate
