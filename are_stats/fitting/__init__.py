@@ -152,3 +152,25 @@ from are_stats.fitting._behaviour import (  # noqa: E402
 )
 
 __all__ += ["behaviour_log_likelihood", "discretise_tracks", "fit_behaviour"]
+# --- criticism for motion (issue 16) ---
+from are_stats.fitting._motion_checks import (  # noqa: E402
+    MOTION_STATISTICS,
+    constant_velocity,
+    displacement_errors,
+    heldout_log_likelihood,
+    motion_checks,
+    plot_motion_checks,
+    score_moves,
+    track_statistics,
+)
+
+__all__ += [
+    "MOTION_STATISTICS",
+    "constant_velocity",
+    "displacement_errors",
+    "heldout_log_likelihood",
+    "motion_checks",
+    "plot_motion_checks",
+    "score_moves",
+    "track_statistics",
+]

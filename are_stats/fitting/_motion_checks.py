@@ -1,0 +1,747 @@
+"""Criticism for motion (issue 16): does the fitted behaviour walk like the people in the log?
+
+Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traffic_checks`):
+
+* **Posterior-predictive statistics** (:func:`motion_checks`). The observed tracks' artefacts
+  (same entries, same stays, same classes) are walked again ``n_replicates`` times by
+  :func:`~are_stats.behaviour.simulate_behaviour_tracks`, sampled at the log's rate; per
+  track (:func:`track_statistics`) the speed (path length / duration), the straightness
+  (net displacement / path length), whether it stays still (net displacement below
+  ``still_distance``) and the time from entry to exit over the stay (first time within
+  ``exit_radius`` of the last position, over the duration) are summarised per replicate by
+  :data:`MOTION_STATISTICS`; each row holds the observed value, the 5/50/95% predictive
+  quantiles and a flag where the observed value is outside the 90% band.
+* **Held-out log-likelihood** (:func:`heldout_log_likelihood`, :func:`score_moves`). Tracks
+  are split by id (``train_fraction`` fitted, the rest scored); the held-out tracks are
+  discretised as in the fit and their moves scored under the fitted soft policy and under a
+  **random walk**: the same hidden-Markov likelihood with the policy uniform over the allowed
+  actions (``stay, forward, left, right``; the ``beta -> 0`` limit of the soft policy) and
+  the same slip. Both are reported per move with their difference and its standard error
+  (a ratio estimator over held-out tracks).
+* **Displacement errors** (:func:`displacement_errors`). Tracks resampled at ``rate`` (2.5 Hz)
+  are cut into windows of ``n_obs + n_pred`` (8 + 12) samples. From the ``n_obs`` observed
+  positions, a **constant-velocity** prediction (the mean velocity of the observed window)
+  and the fitted model's prediction are scored by the same code: ADE (mean distance over the
+  predicted steps) and FDE (distance at the last one). The model draws ``n_samples``
+  continuations: a goal from the posterior over the class's observed exit cells (their
+  frequencies times the soft policy's likelihood of the window's observed moves,
+  discretised as in the fit: Bayesian goal inference), then the soft policy walked from the
+  last observed cell with the observed heading at the observed speed, smoothed and timed as
+  in the generator. It is scored as the mean of the samples and as the best of them.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+import jax
+import numpy as np
+import pandas as pd
+
+from are_stats._checks import check_positive
+from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood
+from are_stats.behaviour._mdp import _path_free
+
+__all__ = [
+    "MOTION_STATISTICS",
+    "constant_velocity",
+    "displacement_errors",
+    "heldout_log_likelihood",
+    "motion_checks",
+    "plot_motion_checks",
+    "score_moves",
+    "track_statistics",
+]
+
+#: The statistics of :func:`motion_checks`, in table order.
+MOTION_STATISTICS = (
+    "median speed (m/s)",
+    "speed spread (m/s)",
+    "median straightness",
+    "fraction still",
+    "median time to exit / stay",
+)
+
+
+def _rng(key: Any) -> np.random.Generator:
+    if isinstance(key, int | np.integer):
+        return np.random.default_rng(int(key))
+    return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel().tolist())
+
+
+def _key(key: Any) -> jax.Array:
+    return jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
+
+
+def track_statistics(
+    tracks: pd.DataFrame, *, still_distance: float = 1.0, exit_radius: float = 0.5
+) -> pd.DataFrame:
+    """Per-track motion statistics.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` (m, s); with a ``scenario`` column, tracks are ``(scenario, id)``.
+    still_distance : float
+        A track whose net displacement is below this (m) is still.
+    exit_radius : float
+        The time to exit is the first time the track is within this (m) of its last position.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per track (indexed by ``id``, or ``(scenario, id)``): ``duration`` (s),
+        ``path`` and ``net`` (m), ``speed`` (path / duration, m/s; NaN for a zero duration),
+        ``straightness`` (net / path; NaN for a zero path), ``still`` (bool) and
+        ``exit_fraction`` (time to exit / duration).
+    """
+    keys = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
+    tab = tracks.sort_values(keys + ["t"], kind="stable")
+    kid = tab.groupby(keys, sort=False).ngroup().to_numpy()
+    t = tab["t"].to_numpy(float)
+    xy = tab[["x", "y"]].to_numpy(float)
+    n = int(kid.max()) + 1 if kid.size else 0
+    first = np.r_[True, kid[1:] != kid[:-1]] if kid.size else np.zeros(0, bool)
+    start = np.flatnonzero(first)
+    stop = np.r_[start[1:], kid.size] - 1
+    seg = np.hypot(*np.diff(xy, axis=0).T) if kid.size > 1 else np.zeros(0)
+    seg = np.where(first[1:], 0.0, seg)
+    csum = np.r_[0.0, np.cumsum(seg)]
+    path = csum[stop] - csum[start]
+    net = np.hypot(*(xy[stop] - xy[start]).T)
+    dur = t[stop] - t[start]
+    d_end = np.hypot(*(xy - xy[stop][kid]).T)
+    near = d_end <= exit_radius
+    # first index of each track that is near its end
+    idx = np.where(near, np.arange(kid.size), kid.size)
+    first_near = np.minimum.reduceat(idx, start) if n else np.zeros(0, int)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = pd.DataFrame(
+            {
+                "duration": dur,
+                "path": path,
+                "net": net,
+                "speed": np.where(dur > 0, path / np.where(dur > 0, dur, 1.0), np.nan),
+                "straightness": np.where(path > 0, net / np.where(path > 0, path, 1.0), np.nan),
+                "still": net < still_distance,
+                "exit_fraction": np.where(
+                    dur > 0, (t[first_near] - t[start]) / np.where(dur > 0, dur, 1.0), np.nan
+                ),
+            }
+        )
+    index = tab.iloc[start][keys]
+    if len(keys) > 1:
+        out.index = pd.MultiIndex.from_frame(index)
+    else:
+        out.index = pd.Index(index["id"], name="id")
+    return out
+
+
+def _summary(st: pd.DataFrame) -> list[float]:
+    """The :data:`MOTION_STATISTICS` of one set of tracks (NaN where undefined)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sp = st["speed"].to_numpy(float)
+        sp = sp[np.isfinite(sp)]
+        moving = ~st["still"].to_numpy(bool)
+        s = st["straightness"].to_numpy(float)[moving]
+        e = st["exit_fraction"].to_numpy(float)[moving]
+        q = np.quantile(sp, [0.25, 0.75]) if sp.size else [np.nan, np.nan]
+        return [
+            float(np.median(sp)) if sp.size else math.nan,
+            float(q[1] - q[0]),
+            float(np.nanmedian(s)) if np.isfinite(s).any() else math.nan,
+            float(np.mean(st["still"])) if len(st) else math.nan,
+            float(np.nanmedian(e)) if np.isfinite(e).any() else math.nan,
+        ]
+
+
+def _sampling_period(tracks: pd.DataFrame) -> float:
+    g = tracks.sort_values(["id", "t"], kind="stable")
+    same = g["id"].to_numpy()[1:] == g["id"].to_numpy()[:-1]
+    d = np.diff(g["t"].to_numpy(float))[same]
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else 1.0
+
+
+def motion_checks(
+    key: Any,
+    behaviour_fit: BehaviourFit,
+    observed_tracks: pd.DataFrame,
+    n_replicates: int = 50,
+    *,
+    dt_out: float | None = None,
+    still_distance: float = 1.0,
+    exit_radius: float = 0.5,
+) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Observed motion statistics against their posterior-predictive bands.
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        Seed of the replicated tracks.
+    behaviour_fit : BehaviourFit
+        The fitted behaviour (:func:`~are_stats.fitting.fit_behaviour`).
+    observed_tracks : pandas.DataFrame
+        ``id, t, x, y`` [, ``label``]: the tracks (``M`` of them) the fit is criticised on.
+    n_replicates : int
+        Replicated sets of ``M`` tracks.
+    dt_out : float or None
+        Sampling period of the replicated tracks (default: the observed median period).
+    still_distance, exit_radius : float
+        See :func:`track_statistics`.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        Indexed by statistic (:data:`MOTION_STATISTICS`): ``observed``, ``model_5%``,
+        ``model_50%``, ``model_95%`` and ``model_flag`` (observed outside the 90% band).
+    replicates : dict
+        ``"summary"``: ``(R, 5)`` replicated statistics (columns in table order);
+        ``"tracks"``: per-track statistics of every replicate (:func:`track_statistics`, the
+        ``scenario`` level is the replicate); ``"observed"``: those of the observed tracks.
+    """
+    from are_stats.behaviour import simulate_behaviour_tracks
+
+    n_replicates = int(n_replicates)
+    if n_replicates < 1:
+        raise ValueError(f"n_replicates: expected an integer >= 1, got {n_replicates!r}")
+    kw = {"still_distance": still_distance, "exit_radius": exit_radius}
+    obs_st = track_statistics(observed_tracks, **kw)
+    observed = _summary(obs_st)
+    g = observed_tracks.sort_values(["id", "t"], kind="stable").groupby("id", sort=True)
+    first, last = g.first(), g.last()
+    base = pd.DataFrame(
+        {
+            "id": first.index.to_numpy(),
+            "t_arrive": first["t"].to_numpy(float),
+            "t_leave": last["t"].to_numpy(float),
+            "x": first["x"].to_numpy(float),
+            "y": first["y"].to_numpy(float),
+        }
+    )
+    if "label" in observed_tracks.columns:
+        base["label"] = first["label"].astype(str).to_numpy()
+    arts = pd.concat([base.assign(scenario=r) for r in range(n_replicates)], ignore_index=True)
+    step = float(dt_out) if dt_out is not None else _sampling_period(observed_tracks)
+    sim = simulate_behaviour_tracks(_key(key), behaviour_fit, arts, dt_out=step)
+    rep_st = track_statistics(sim, **kw)
+    summary = np.asarray(
+        [_summary(rep_st.xs(r, level="scenario")) for r in range(n_replicates)], float
+    )
+    table = pd.DataFrame(index=pd.Index(MOTION_STATISTICS, name="statistic"))
+    table["observed"] = observed
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        q = np.nanquantile(summary, [0.05, 0.5, 0.95], axis=0)
+    table["model_5%"], table["model_50%"], table["model_95%"] = q
+    o = table["observed"].to_numpy()
+    table["model_flag"] = np.isfinite(o) & ((o < q[0]) | (o > q[2]))
+    return table, {"summary": summary, "tracks": rep_st, "observed": obs_st}
+
+
+# ---------------------------------------------------------------------- held-out likelihood
+def _policies(fit: BehaviourFit, c: int, goals: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    from are_stats.behaviour import soft_policy
+
+    dist = fit.geodesic(goals)
+    finite = dist[np.isfinite(dist)]
+    k = int(math.ceil(10 * (finite.max() if finite.size else 1.0))) + 20
+    sol = soft_policy(
+        ~fit.free, goals, float(fit.beta[c]), float(fit.slip[c]), n_epochs=k,
+        goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost, tol=tol,
+    )  # fmt: skip
+    return np.asarray(sol.policy)
+
+
+def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFrame:
+    """Log-likelihood of each track's moves under the fitted policy and a random walk.
+
+    Tracks are discretised as in the fit (:func:`~are_stats.fitting.discretise_tracks` on
+    the fit's grid at its class epoch ``dt``); the goal of a track is its last cell. The
+    random walk is the same hidden-Markov likelihood with the policy uniform over ``stay,
+    forward, left, right`` and the fitted slip.
+
+    Parameters
+    ----------
+    behaviour_fit : BehaviourFit
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` [, ``label``]; labels the fit does not know use its first class.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per track with at least one move: ``id``, ``label``, ``n_moves``,
+        ``loglik_policy``, ``loglik_random_walk``.
+    """
+    import jax.numpy as jnp
+
+    from are_stats.fitting._behaviour import discretise_tracks
+
+    fit = behaviour_fit
+    names = {c: i for i, c in enumerate(fit.classes)}
+    labels = (
+        tracks["label"].astype(str) if "label" in tracks.columns else pd.Series(fit.classes[0],
+                                                                                tracks.index)
+    )  # fmt: skip
+    cls = labels.map(lambda v: names.get(v, 0)).to_numpy()
+    ok = jnp.asarray(_path_free(~fit.free))
+    rows = []
+    for c in np.unique(cls):
+        tab = tracks[cls == c]
+        paths, ids = discretise_tracks(tab, fit.free, fit.cell, fit.origin, float(fit.dt[c]))
+        keep = [i for i, p in enumerate(paths) if len(p) >= 2]
+        if not keep:
+            continue
+        paths = [paths[i] for i in keep]
+        ids = ids[keep]
+        obs = move_observations(paths)
+        pol = _policies(fit, int(c), obs.goals)
+        uniform = np.zeros_like(pol)
+        uniform[:, :, [0, 1, 3, 4]] = 0.25
+        slip = float(fit.slip[c])
+        ll_p = np.asarray(moves_log_likelihood(jnp.asarray(pol), ok, slip, obs, per_track=True))
+        ll_u = np.asarray(moves_log_likelihood(jnp.asarray(uniform), ok, slip, obs, per_track=True))
+        n_mv = (obs.move >= 0).sum(axis=1)
+        rows.append(
+            pd.DataFrame(
+                {
+                    "id": ids,
+                    "label": fit.classes[c],
+                    "n_moves": n_mv,
+                    "loglik_policy": ll_p.astype(float),
+                    "loglik_random_walk": ll_u.astype(float),
+                }
+            )
+        )
+    cols = ["id", "label", "n_moves", "loglik_policy", "loglik_random_walk"]
+    return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)
+
+
+def _per_move(scores: pd.DataFrame) -> dict[str, float]:
+    m = scores["n_moves"].to_numpy(float)
+    lp = scores["loglik_policy"].to_numpy(float)
+    lu = scores["loglik_random_walk"].to_numpy(float)
+    d = lp - lu
+    n, tot = len(m), m.sum()
+    r = d.sum() / tot if tot > 0 else math.nan
+    se = (
+        math.sqrt(n / (n - 1) * float(((d - r * m) ** 2).sum())) / tot
+        if n > 1 and tot > 0
+        else math.nan
+    )
+    return {
+        "n_tracks": float(n),
+        "n_moves": float(tot),
+        "policy_per_move": float(lp.sum() / tot) if tot > 0 else math.nan,
+        "random_walk_per_move": float(lu.sum() / tot) if tot > 0 else math.nan,
+        "difference_per_move": float(r),
+        "difference_se": float(se),
+    }
+
+
+def heldout_log_likelihood(
+    key: Any,
+    tracks: pd.DataFrame,
+    free_mask: Any,
+    resolution: float,
+    origin: Any,
+    *,
+    train_fraction: float = 0.7,
+    **fit_kwargs: Any,
+) -> tuple[dict[str, float], BehaviourFit]:
+    """Held-out log-likelihood per move of the fitted policy beside a random walk.
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        Seed of the split by track id.
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` [, ``label``].
+    free_mask : (H, W) bool
+        Free cells of the map.
+    resolution : float
+        Map cell side (m).
+    origin : (2,) float
+        World ``(x, y)`` of the map's corner.
+    train_fraction : float
+        Fraction of the track ids fitted (the rest is scored).
+    **fit_kwargs
+        Passed to :func:`~are_stats.fitting.fit_behaviour`.
+
+    Returns
+    -------
+    result : dict of str to float
+        ``n_tracks``, ``n_moves`` (held out), ``policy_per_move``, ``random_walk_per_move``,
+        ``difference_per_move`` (policy minus random walk; positive: the policy predicts the
+        held-out moves better) and ``difference_se`` (standard error over held-out tracks).
+    fit : BehaviourFit
+        The fit of the training tracks.
+    """
+    from are_stats.fitting._behaviour import fit_behaviour
+
+    if not 0.0 < train_fraction < 1.0:
+        raise ValueError(f"train_fraction: expected a float in (0, 1), got {train_fraction!r}")
+    ids = np.unique(tracks["id"].to_numpy())
+    rng = _rng(key)
+    n_train = min(max(1, round(train_fraction * len(ids))), len(ids) - 1)
+    train = rng.permutation(len(ids))[:n_train]
+    is_train = tracks["id"].isin(ids[train])
+    fit = fit_behaviour(tracks[is_train], free_mask, resolution, origin, **fit_kwargs)
+    scores = score_moves(fit, tracks[~is_train])
+    return _per_move(scores), fit
+
+
+# ---------------------------------------------------------------------- ADE / FDE
+def _windows(
+    tracks: pd.DataFrame, n_obs: int, n_pred: int, rate: float, stride: int | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Windows ``(B, n_obs + n_pred, 2)`` of tracks resampled at ``rate``, their track ids and
+    labels."""
+    n = n_obs + n_pred
+    stride = n if stride is None else int(stride)
+    out, tid, lab = [], [], []
+    has_label = "label" in tracks.columns
+    for i, g in tracks.sort_values(["id", "t"], kind="stable").groupby("id", sort=True):
+        t = g["t"].to_numpy(float)
+        ts = np.arange(t[0], t[-1] + 1e-9, 1.0 / rate)
+        if ts.size < n:
+            continue
+        xy = np.column_stack([np.interp(ts, t, g["x"]), np.interp(ts, t, g["y"])])
+        for s in range(0, ts.size - n + 1, stride):
+            out.append(xy[s : s + n])
+            tid.append(i)
+            lab.append(str(g["label"].iloc[0]) if has_label else "")
+    return np.asarray(out, float).reshape(-1, n, 2), np.asarray(tid), np.asarray(lab)
+
+
+def _errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ADE and FDE of predictions ``(B, n_pred, 2)`` against ``(B, n_pred, 2)``."""
+    d = np.hypot(*np.moveaxis(pred - truth, -1, 0))
+    return d.mean(axis=1), d[:, -1]
+
+
+def constant_velocity(observed: np.ndarray, n_pred: int) -> np.ndarray:
+    """Constant-velocity continuation of observed windows.
+
+    Parameters
+    ----------
+    observed : (B, n_obs, 2) float
+        Positions at a fixed rate.
+    n_pred : int
+
+    Returns
+    -------
+    (B, n_pred, 2) float
+        ``p_last + k v`` with ``v`` the mean step of the observed window, ``k = 1..n_pred``.
+    """
+    obs = np.asarray(observed, float)
+    v = (obs[:, -1] - obs[:, 0]) / max(obs.shape[1] - 1, 1)
+    k = np.arange(1, n_pred + 1)[None, :, None]
+    return obs[:, -1:, :] + k * v[:, None, :]
+
+
+def _goal_posterior(
+    fit: BehaviourFit, c: int, observed: np.ndarray, rate: float, chunk: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate exits ``(G, 2)`` of class ``c`` (the observed exit cells) and the log
+    posterior ``(B, G)`` of each window's goal: the empirical exit frequencies times the soft
+    policy's likelihood of the window's observed moves (discretised as in the fit)."""
+    import jax.numpy as jnp
+
+    from are_stats.fitting._behaviour import discretise_tracks
+
+    ends = fit.world_to_cell(fit.exit_xy[fit.track_class == c])
+    if not len(ends):
+        ends = fit.world_to_cell(fit.exit_xy)
+    goals, counts = np.unique(ends, axis=0, return_counts=True)
+    b, n_obs, _ = observed.shape
+    logp = np.tile(np.log(counts / counts.sum()), (b, 1))
+    df = pd.DataFrame(
+        {
+            "id": np.repeat(np.arange(b), n_obs),
+            "t": np.tile(np.arange(n_obs) / rate, b),
+            "x": observed[..., 0].ravel(),
+            "y": observed[..., 1].ravel(),
+        }
+    )
+    paths, ids = discretise_tracks(df, fit.free, fit.cell, fit.origin, float(fit.dt[c]))
+    moved = np.array([len(p) >= 2 for p in paths])
+    if not moved.any():
+        return goals, logp
+    rows_of = ids[moved].astype(np.int64)
+    obs = move_observations([p for p, m in zip(paths, moved, strict=True) if m])
+    n = len(rows_of)
+    ok = jnp.asarray(_path_free(~fit.free))
+    slip = float(fit.slip[c])
+    for g0 in range(0, len(goals), chunk):
+        gsel = np.arange(g0, min(g0 + chunk, len(goals)))
+        pol = jnp.asarray(_policies(fit, c, goals[gsel]))
+        gi = np.repeat(np.arange(len(gsel)), n)
+        tiled = (gi, *(np.tile(x, (len(gsel), 1)) for x in (obs.rows, obs.cols, obs.move)))
+        ll = np.asarray(moves_log_likelihood(pol, ok, slip, tiled, per_track=True), float)
+        logp[rows_of[:, None], gsel[None, :]] += ll.reshape(len(gsel), n).T
+    return goals, logp
+
+
+def _model_predictions(
+    rng: np.random.Generator,
+    fit: BehaviourFit,
+    observed: np.ndarray,
+    labels: np.ndarray,
+    n_pred: int,
+    rate: float,
+    n_samples: int,
+    smooth: int,
+    chunk: int = 16,
+) -> np.ndarray:
+    """``(B, K, n_pred, 2)`` continuations sampled from the soft policy."""
+    from are_stats.behaviour import sample_soft_paths
+    from are_stats.behaviour._generate import _continuous
+
+    b, n_obs, _ = observed.shape
+    names = {c: i for i, c in enumerate(fit.classes)}
+    cls = np.array([names.get(str(v), 0) for v in labels], np.int64)
+    step = np.hypot(*np.diff(observed, axis=1).transpose(2, 0, 1)).sum(axis=1)
+    speed = np.clip(step * rate / max(n_obs - 1, 1), 0.05, 10.0)  # (B,)
+    horizon_s = n_pred / rate
+    last = observed[:, -1]
+    cur = fit.world_to_cell(last)
+    d = observed[:, -1] - observed[:, 0]
+    head = np.mod(np.round(np.arctan2(d[:, 1], d[:, 0]) / (np.pi / 2)), 4).astype(np.int64)
+    # K exits per window from the posterior over the observed exits given the window's moves
+    rep = np.repeat(np.arange(b), n_samples)
+    exits = np.zeros((b * n_samples, 2), np.int64)
+    for c in np.unique(cls):
+        w = np.flatnonzero(cls == c)
+        goals, logp = _goal_posterior(fit, int(c), observed[w], rate, chunk)
+        u = rng.gumbel(size=(len(w), n_samples, len(goals)))
+        pick = np.argmax(logp[:, None, :] + u, axis=2)  # (n_w, K)
+        exits[(w[:, None] * n_samples + np.arange(n_samples)).ravel()] = goals[pick.ravel()]
+    n_ep = np.ceil(2 * horizon_s * speed / fit.cell).astype(np.int64) + 4
+    out = np.repeat(last[:, None, None, :], n_samples, axis=1).repeat(n_pred, axis=2)
+    ts = np.arange(1, n_pred + 1) / rate
+    occ = ~fit.free
+    moving = (exits[:, 0] >= 0) & ~(exits == cur[rep]).all(axis=1)
+    for c in np.unique(cls):
+        idx = np.flatnonzero(moving & (cls[rep] == c))
+        if not idx.size:
+            continue
+        goals, ginv = np.unique(exits[idx], axis=0, return_inverse=True)
+        ginv = ginv.ravel()
+        for g0 in range(0, len(goals), chunk):
+            gsel = np.arange(g0, min(g0 + chunk, len(goals)))
+            sel = np.isin(ginv, gsel)
+            members, local = idx[sel], ginv[sel] - g0
+            pol = _policies(fit, int(c), goals[gsel], tol=1e-2)
+            w = rep[members]
+            starts = np.column_stack([cur[w], head[w]])
+            st, ac = sample_soft_paths(
+                rng, pol, occ, float(fit.slip[c]), starts, local, goals[gsel], n_ep[w]
+            )
+            for j, m in enumerate(members):
+                i = rep[m]
+                tv, pv = _continuous(st[j], ac[j], fit, float(speed[i]), last[i], None, smooth)
+                out[i, m - i * n_samples, :, 0] = np.interp(ts, tv, pv[:, 0])
+                out[i, m - i * n_samples, :, 1] = np.interp(ts, tv, pv[:, 1])
+    return out
+
+
+def displacement_errors(
+    key: Any,
+    behaviour_fit: BehaviourFit | None,
+    tracks: pd.DataFrame,
+    *,
+    n_obs: int = 8,
+    n_pred: int = 12,
+    rate: float = 2.5,
+    n_samples: int = 20,
+    stride: int | None = None,
+    smooth: int = 5,
+    max_windows: int | None = 500,
+) -> pd.DataFrame:
+    """Average and final displacement errors of the fitted model and of constant velocity.
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        Seed of the model's samples (and of the subset of windows).
+    behaviour_fit : BehaviourFit or None
+        The fitted behaviour (``None``: constant velocity only).
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` [, ``label``], resampled at ``rate`` by linear interpolation.
+    n_obs, n_pred : int
+        Observed and predicted samples of each window.
+    rate : float
+        Samples per second.
+    n_samples : int
+        Continuations ``K`` sampled from the model per window.
+    stride : int or None
+        Samples between window starts (default: ``n_obs + n_pred``, disjoint windows).
+    smooth : int
+        Moving-average window (cells) of the sampled paths, as in the generator.
+    max_windows : int or None
+        At most this many windows (a random subset).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by ``method``: ``constant velocity``, ``model mean of K`` (the mean of the
+        ``K`` continuations), ``model best of K`` (the sample of least ADE; its FDE is that
+        sample's); columns ``ADE``, ``FDE`` (m), ``ADE_se``, ``FDE_se`` (over windows),
+        ``n_windows`` and ``K``.
+    """
+    rate = float(check_positive("rate", rate))
+    win, _, lab = _windows(tracks, int(n_obs), int(n_pred), rate, stride)
+    rng = _rng(key)
+    if max_windows is not None and len(win) > max_windows:
+        pick = np.sort(rng.choice(len(win), int(max_windows), replace=False))
+        win, lab = win[pick], lab[pick]
+    obs, truth = win[:, :n_obs], win[:, n_obs:]
+    rows = {}
+
+    def add(name: str, ade: np.ndarray, fde: np.ndarray, k: int) -> None:
+        n = len(ade)
+        sq = math.sqrt(n) if n > 1 else math.nan
+        rows[name] = {
+            "ADE": float(ade.mean()) if n else math.nan,
+            "FDE": float(fde.mean()) if n else math.nan,
+            "ADE_se": float(ade.std(ddof=1) / sq) if n > 1 else math.nan,
+            "FDE_se": float(fde.std(ddof=1) / sq) if n > 1 else math.nan,
+            "n_windows": n,
+            "K": k,
+        }
+
+    add("constant velocity", *_errors(constant_velocity(obs, n_pred), truth), 1)
+    if behaviour_fit is not None and len(win):
+        samples = _model_predictions(
+            rng, behaviour_fit, obs, lab, int(n_pred), rate, int(n_samples), smooth
+        )
+        add("model mean of K", *_errors(samples.mean(axis=1), truth), int(n_samples))
+        d = np.hypot(*np.moveaxis(samples - truth[:, None], -1, 0))  # (B, K, n_pred)
+        best = np.argmin(d.mean(axis=2), axis=1)
+        db = d[np.arange(len(d)), best]
+        add("model best of K", db.mean(axis=1), db[:, -1], int(n_samples))
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index.name = "method"
+    return out
+
+
+# ---------------------------------------------------------------------- figure
+def plot_motion_checks(
+    table: pd.DataFrame,
+    replicates: dict[str, Any],
+    *,
+    heldout: dict[str, float] | None = None,
+    displacement: pd.DataFrame | None = None,
+) -> Any:
+    """Observed vs replicated motion: speeds, straightness, still fraction, time to exit.
+
+    Parameters
+    ----------
+    table, replicates
+        From :func:`motion_checks`.
+    heldout : dict, optional
+        From :func:`heldout_log_likelihood` (shown as text).
+    displacement : pandas.DataFrame, optional
+        From :func:`displacement_errors` (shown as text).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Six panels: per-track speed, straightness and time-to-exit/stay distributions
+        (observed histogram vs the pooled replicates), the replicated still fraction and
+        median speed with the observed value, and the numbers.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    obs, rep = replicates["observed"], replicates["tracks"]
+    summary = replicates["summary"]
+    fig, axes = plt.subplots(2, 3, figsize=(12.5, 7.0), constrained_layout=True)
+
+    def flag(ax: Any, stat: str) -> None:
+        if bool(table.loc[stat, "model_flag"]):
+            ax.set_title(ax.get_title() + "\nobserved outside the 90% band", fontsize=10,
+                         color="tab:red")  # fmt: skip
+
+    def dist(ax: Any, col: str, title: str, stat: str, moving_only: bool) -> None:
+        o, r = obs, rep
+        if moving_only:
+            o, r = o[~o["still"]], r[~r["still"]]
+        ov = o[col].to_numpy(float)
+        rv = r[col].to_numpy(float)
+        ov, rv = ov[np.isfinite(ov)], rv[np.isfinite(rv)]
+        allv = np.concatenate([ov, rv])
+        if not allv.size:
+            ax.text(0.5, 0.5, "not defined", ha="center", va="center", transform=ax.transAxes)
+            ax.set_title(title, fontsize=10)
+            return
+        lo, hi = np.quantile(allv, [0.002, 0.998])
+        lo, hi = min(lo, ov.min(initial=lo)), max(hi, ov.max(initial=hi))
+        pad = 0.05 * (hi - lo) if hi > lo else 0.5
+        bins = np.linspace(lo - pad, hi + pad, 30)
+        ax.hist(rv, bins=bins, density=True, color="tab:blue", alpha=0.5, label="model (pooled)")
+        ax.hist(ov, bins=bins, density=True, histtype="step", color="black", lw=2,
+                label="observed")  # fmt: skip
+        ax.axvline(table.loc[stat, "observed"], color="black", ls="--", lw=1)
+        ax.axvspan(table.loc[stat, "model_5%"], table.loc[stat, "model_95%"], color="tab:blue",
+                   alpha=0.12, label="90% band of median")  # fmt: skip
+        ax.set_title(title, fontsize=10)
+        ax.set_yticks([])
+        flag(ax, stat)
+
+    dist(axes[0, 0], "speed", "speed per track (m/s)", MOTION_STATISTICS[0], False)
+    axes[0, 0].legend(fontsize=7, frameon=False, loc="upper left")
+    dist(axes[0, 1], "straightness", "straightness (net / path), moving tracks",
+         MOTION_STATISTICS[2], True)  # fmt: skip
+    dist(axes[0, 2], "exit_fraction", "time from entry to exit / stay, moving tracks",
+         MOTION_STATISTICS[4], True)  # fmt: skip
+    for ax, j, title in (
+        (axes[1, 0], 3, "fraction still (net < 1 m) per replicate"),
+        (axes[1, 1], 1, "speed spread (IQR, m/s) per replicate"),
+    ):
+        stat = MOTION_STATISTICS[j]
+        v = summary[:, j][np.isfinite(summary[:, j])]
+        o = table.loc[stat, "observed"]
+        if v.size:
+            lo, hi = min(v.min(), o), max(v.max(), o)
+            pad = 0.05 * (hi - lo) if hi > lo else 0.05
+            ax.hist(v, bins=np.linspace(lo - pad, hi + pad, 25), color="tab:blue", alpha=0.55,
+                    label="model")  # fmt: skip
+        if np.isfinite(o):
+            ax.axvline(o, color="black", lw=2, label="observed")
+        ax.set_title(title, fontsize=10)
+        ax.set_yticks([])
+        flag(ax, stat)
+    axes[1, 0].legend(fontsize=7, frameon=False)
+    ax = axes[1, 2]
+    ax.axis("off")
+    lines = ["statistic: observed [model 5%, 95%]"]
+    for stat, r in table.iterrows():
+        mark = "  outside" if r["model_flag"] else ""
+        band = f"[{r['model_5%']:.3g}, {r['model_95%']:.3g}]"
+        lines.append(f"{stat}: {r['observed']:.3g} {band}{mark}")
+    if heldout is not None:
+        lines += [
+            "",
+            f"held-out log-lik per move ({int(heldout['n_moves'])} moves, "
+            f"{int(heldout['n_tracks'])} tracks):",
+            f"  policy {heldout['policy_per_move']:.3f}, "
+            f"random walk {heldout['random_walk_per_move']:.3f}",
+            f"  difference {heldout['difference_per_move']:.3f} +/- {heldout['difference_se']:.3f}",
+        ]
+    if displacement is not None:
+        lines += ["", f"ADE / FDE (m), {int(displacement['n_windows'].iloc[0])} windows 8 + 12:"]
+        for m, r in displacement.iterrows():
+            k = f" (K={int(r['K'])})" if r["K"] > 1 else ""
+            lines.append(f"  {m}{k}: {r['ADE']:.2f} / {r['FDE']:.2f}")
+    ax.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=7.5, family="monospace",
+            transform=ax.transAxes)  # fmt: skip
+    n_rep = len(summary)
+    fig.suptitle(f"Motion checks: observed tracks vs {n_rep} replicates of the fitted behaviour")
+    return fig

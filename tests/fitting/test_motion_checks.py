@@ -1,0 +1,122 @@
+"""Criticism for motion (issue 16): statistics, predictive bands, held-out likelihood, ADE/FDE.
+
+Synthetic tracks only. The band checks are 90% bands on 5 statistics with fixed seeds (so
+deterministic); "at most one flag" on tracks of the model itself allows one 10% miss.
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.behaviour import simulate_behaviour_tracks
+from are_stats.fitting import (
+    MOTION_STATISTICS,
+    displacement_errors,
+    heldout_log_likelihood,
+    motion_checks,
+    plot_motion_checks,
+    track_statistics,
+)
+from tests.fitting.test_behaviour_fit import _crossing_world
+from tests.helpers import assert_allclose
+
+
+def _straight(n: int = 6, rate: float = 2.5, seconds: float = 12.0) -> pd.DataFrame:
+    """Straight tracks at constant speeds ``0.8 .. 1.6`` m/s in various directions."""
+    rows = []
+    t = np.arange(0.0, seconds + 1e-9, 1.0 / rate)
+    for i in range(n):
+        v = 0.8 + 0.8 * i / max(n - 1, 1)
+        a = 0.7 * i
+        x = 3.0 + v * t * np.cos(a)
+        y = -2.0 + v * t * np.sin(a)
+        rows.append(pd.DataFrame({"id": i, "t": 50.0 * i + t, "x": x, "y": y}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_statistics_of_straight_constant_speed_tracks_are_exact() -> None:
+    tracks = _straight()
+    standing = pd.DataFrame({"id": 99, "t": [0.0, 1.0, 2.0], "x": 1.0, "y": 2.0})
+    st = track_statistics(pd.concat([tracks, standing], ignore_index=True))
+    moving = st.loc[range(6)]
+    assert_allclose(moving["speed"], 0.8 + 0.8 * np.arange(6) / 5, rtol=1e-12)
+    assert_allclose(moving["straightness"], 1.0, rtol=1e-12)
+    assert_allclose(moving["duration"], 12.0, rtol=1e-12)
+    assert not moving["still"].any()
+    # first sample within 0.5 m of the end: 0.5 / v seconds before it, rounded up to 0.4 s
+    v = moving["speed"].to_numpy()
+    expect = np.floor((12.0 - 0.5 / v) / 0.4 + 1 - 1e-9) * 0.4 / 12.0
+    assert_allclose(moving["exit_fraction"], expect, rtol=1e-12)
+    assert st.loc[99, "still"] and st.loc[99, "speed"] == 0.0
+    assert np.isnan(st.loc[99, "straightness"])
+
+
+def test_constant_velocity_ade_is_exact_on_straight_tracks() -> None:
+    de = displacement_errors(0, None, _straight(), stride=3)
+    row = de.loc["constant velocity"]
+    assert row["n_windows"] >= 6 * 3
+    assert row["ADE"] < 1e-9 and row["FDE"] < 1e-9
+
+
+@pytest.fixture(scope="module")
+def crossing():
+    """Door-to-door tracks; the behaviour fitted on 70% of them, the rest scored."""
+    tracks, free = _crossing_world(3, n=40)
+    res, fit = heldout_log_likelihood(0, tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
+    return tracks, free, res, fit
+
+
+def test_policy_beats_the_random_walk_on_held_out_tracks(crossing) -> None:
+    _, _, res, fit = crossing
+    assert res["n_tracks"] == 12 and fit.n_tracks[0] == 28
+    assert res["n_moves"] > 200
+    assert res["policy_per_move"] > res["random_walk_per_move"]
+    assert res["difference_per_move"] > 5 * res["difference_se"] > 0
+
+
+def _artefacts(tracks: pd.DataFrame) -> pd.DataFrame:
+    g = tracks.groupby("id", sort=True)
+    first, last = g.first(), g.last()
+    return pd.DataFrame(
+        {
+            "scenario": 0,
+            "id": first.index,
+            "t_arrive": first["t"].to_numpy(),
+            "t_leave": last["t"].to_numpy(),
+            "x": first["x"].to_numpy(),
+            "y": first["y"].to_numpy(),
+        }
+    )
+
+
+def test_checks_pass_on_model_tracks_and_flag_a_random_walk(crossing, tmp_path) -> None:
+    tracks, _, res, fit = crossing
+    arts = _artefacts(tracks)
+    own = simulate_behaviour_tracks(jax.random.key(7), fit, arts, dt_out=0.4)
+    table, reps = motion_checks(jax.random.key(1), fit, own.drop(columns="scenario"), 40)
+    assert list(table.index) == list(MOTION_STATISTICS)
+    assert list(table.columns) == ["observed", "model_5%", "model_50%", "model_95%",
+                                   "model_flag"]  # fmt: skip
+    assert reps["summary"].shape == (40, 5)
+    assert int(table["model_flag"].sum()) <= 1, table
+    # a slow random walk from the same entries for the same stays
+    rng = np.random.default_rng(4)
+    rows = []
+    for _, a in arts.iterrows():
+        t = np.arange(a["t_arrive"], a["t_leave"] + 1e-9, 0.4)
+        xy = np.array([a["x"], a["y"]]) + np.cumsum(rng.normal(0, 0.12, (t.size, 2)), axis=0)
+        xy[0] = a["x"], a["y"]
+        rows.append(pd.DataFrame({"id": a["id"], "t": t, "x": xy[:, 0], "y": xy[:, 1]}))
+    walk = pd.concat(rows, ignore_index=True)
+    table_w, reps_w = motion_checks(jax.random.key(1), fit, walk, 40)
+    flags = table_w["model_flag"]
+    assert flags["median straightness"] and flags["fraction still"], table_w
+    de = displacement_errors(3, fit, tracks.iloc[:600], n_samples=8)
+    assert list(de.index) == ["constant velocity", "model mean of K", "model best of K"]
+    assert de.loc["model best of K", "ADE"] <= de.loc["model mean of K", "ADE"] + 1e-9
+    fig = plot_motion_checks(table_w, reps_w, heldout=res, displacement=de)
+    fig.savefig(tmp_path / "motion.png", dpi=60)
+    assert (tmp_path / "motion.png").stat().st_size > 10_000
