@@ -11,9 +11,12 @@ with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
    ``beta`` and ``slip`` fitted), sampled epoch by epoch (:func:`sample_soft_paths`);
 4. becomes a continuous track: the distinct cells of its path, smoothed by a centred moving
    average of ``smooth`` cells (ends fixed), walked at speed ``v``; turning in place takes no
-   time, a ``stay`` or a blocked move a pause of one epoch ``cell / v``. Positions are sampled
-   every ``dt_out`` seconds from ``t_arrive`` to ``t_leave``; after reaching its exit the
-   artefact stands there. ``yaw`` follows the direction of motion (any angle).
+   time, a ``stay`` or a blocked move a pause of one epoch ``cell / v``. People leave when
+   they reach their exit, so a path that would end before ``t_leave`` is walked slower to
+   end at it (down to the class's slow walkers, ``exp(mu - 2 sigma)``; below that the
+   artefact reaches its exit early and stands there). Positions are sampled every
+   ``dt_out`` seconds from ``t_arrive`` to ``t_leave``. ``yaw`` follows the direction of
+   motion (any angle).
 
 Artefacts do not see each other (no collision resolution).
 """
@@ -284,6 +287,11 @@ def simulate_behaviour_tracks(
             yaw = np.zeros(ts.size)
         else:
             tv, pv = _continuous(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
+            # people leave when they reach their exit: an artefact that would arrive early
+            # walks slower, down to its class's slow walkers (2 sd below the median speed)
+            if 0.0 < tv[-1] < stay[i]:
+                slowest = float(np.exp(mu[i] - 2.0 * np.nan_to_num(sg[i])))
+                tv = tv * min(stay[i] / tv[-1], max(float(speed[i]) / slowest, 1.0))
             x = np.interp(ts, tv, pv[:, 0])
             y = np.interp(ts, tv, pv[:, 1])
             dx, dy = np.gradient(x), np.gradient(y)
