@@ -537,7 +537,11 @@ def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
+    from are_stats.inputs import Described, InputError
+
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "", "a folder for the demo's outputs (--out)", Described("a file"))
     fit_file = out / f"{EXAMPLE_LOG_NAME}.nc"
     summary_file = out / "summary.yaml"
     check_writable(summary_file, force)

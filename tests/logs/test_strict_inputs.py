@@ -491,11 +491,14 @@ def test_parquet_column_types(tmp_path, column):
 def test_labels_with_commas_are_refused_at_the_row(tmp_path):
     """Fit files list class labels comma-separated: a comma in a label is refused where
     the log enters (it used to fail late, inside the fit)."""
-    from pathlib import Path
 
-    models = Path(__file__).resolve().parents[2] / "models"
-    src = (models / "logs" / "courtyard_traffic.csv").read_text().splitlines()
-    src[3] = src[3].replace(",pallet,", ',"a,b",')
+    from are_stats.environment import shipped_path
+
+    src = shipped_path("courtyard_traffic", "log").read_text().splitlines()
+    label = src[0].split(",").index("label")
+    cells = src[3].split(",")
+    cells[label] = '"a,b"'
+    src[3] = ",".join(cells)
     (tmp_path / "log.csv").write_text("\n".join(src) + "\n")
     (tmp_path / "log.yaml").write_text("window: [0, 3600]\narea: 400\n")
     with pytest.raises(ValueError, match=r"log.csv: row 3 \(line 4\).*'label'.*without commas"):
