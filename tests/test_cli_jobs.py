@@ -95,6 +95,8 @@ def test_fit_report_generate_em(tmp_path):
             "em",
             "--samples",
             "200",
+            "--warmup",
+            "200",
             "--chains",
             "2",
             "--seed",
