@@ -241,8 +241,59 @@ def run_fit(
         with console.status("posterior-predictive checks ..."):
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
         _print_checks(written)
+        if tracks is not None and "behaviour" in idata.groups():
+            with console.status("motion checks (speeds, straightness, held-out moves) ..."):
+                written.update(_motion_report(seed, idata, tracks, grid, figures, force))
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
+
+
+def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool):
+    """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure."""
+    import matplotlib.pyplot as plt
+
+    from are_stats.behaviour import BehaviourFit
+    from are_stats.fitting import (
+        displacement_errors,
+        heldout_log_likelihood,
+        motion_checks,
+        plot_motion_checks,
+    )
+
+    bfit = BehaviourFit.from_dataset(idata.behaviour)
+    key = jax.random.key(seed)
+    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    held, _ = heldout_log_likelihood(
+        jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
+        max_fit_tracks=16,
+    )  # fmt: skip
+    errors = displacement_errors(jax.random.fold_in(key, 3), bfit, tracks, n_samples=20)
+    fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)
+    out = {}
+    for name, write in (
+        ("motion_checks.csv", lambda p: table.to_csv(p, float_format="%.6g")),
+        ("displacement_errors.csv", lambda p: errors.to_csv(p, float_format="%.6g")),
+        ("motion_checks.png", lambda p: fig.savefig(p, dpi=110, format="png")),
+    ):
+        with atomic_path(Path(folder) / name, force=force) as tmp:
+            write(tmp)
+        out[name] = Path(folder) / name
+    plt.close(fig)
+    rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
+    for col in ("statistic", "observed", "model 5% - 95%"):
+        rich.add_column(col, justify="left" if col == "statistic" else "right")
+    for stat, row in table.iterrows():
+        flag = bool(row["model_flag"])
+        band = f"{row['model_5%']:.3g} - {row['model_95%']:.3g}"
+        rich.add_row(
+            str(stat), f"{row['observed']:.3g}", ("[red]! " + band + "[/]") if flag else band
+        )
+    console.print(rich)
+    console.print(
+        f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
+        f"{held['random_walk_per_move']:.3f} nats per move"
+    )
+    return out
 
 
 def _print_traffic(idata: Any) -> None:
