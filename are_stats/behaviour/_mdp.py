@@ -381,7 +381,7 @@ def _backward_induction_wide(
 #: XLA's CPU backend vectorises for 256-bit registers by default; where the CPU has 512-bit
 #: ones (AVX-512) the stencil loops run about 1.5x faster with them (results are identical:
 #: no fast-math). Elsewhere LLVM keeps the widest width the CPU has.
-_COMPILER_OPTIONS = {"xla_cpu_prefer_vector_width": 512, "xla_cpu_enable_fast_min_max": True}
+_COMPILER_OPTIONS = {"xla_cpu_prefer_vector_width": 512}
 
 _backward_induction_jit = jax.jit(
     _backward_induction_wide,
