@@ -313,3 +313,26 @@ def test_backward_induction_pure_function_under_jit():
     assert_allclose(np.moveaxis(np.asarray(values), 2, -1), sol.values, atol=0)
     assert np.array_equal(np.moveaxis(np.asarray(policy), 2, -1), sol.policy)
     assert_allclose(np.moveaxis(np.asarray(v0), 1, -1), sol.v0, atol=0)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_batched_solve_equals_per_goal_solves(dtype):
+    # a batch (odd size: padded when split across devices) gives each item's own solve
+    rng = np.random.default_rng(11)
+    occ = random_grid(rng, 9, 11, 0.15)
+    free = np.argwhere(~occ)
+    mdp = GridMDP(occ, slip=0.2, dtype=dtype)
+    goals = free[rng.choice(len(free), 5, replace=False)]
+    behaviours = ["run", "walk", "run", "stop", "run"]
+    horizons = [12, 7, 12, 5, 9]
+    batch = mdp.solve(goals, behaviours, horizons, store_values=True)
+    # a lone walk compiles without the run action: its sums may round differently (1 ulp)
+    atol = 1e-6 if dtype == "float32" else 1e-14
+    for b in range(len(goals)):
+        one = mdp.solve(goals[b], behaviours[b], horizons[b], n_epochs=12, store_values=True)
+        assert_allclose(batch.v0[b], one.v0[0], rtol=0, atol=atol)
+        assert_allclose(batch.values[b], one.values[0], rtol=0, atol=atol)
+        assert np.array_equal(batch.policy[b], one.policy[0])
+    lazy = mdp.solve(goals, behaviours, horizons, store_values=False, with_policy=False)
+    assert np.array_equal(lazy.policy, batch.policy)
+    assert np.array_equal(lazy.values, batch.values)
