@@ -346,7 +346,9 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
         figs[f"ppc_{name}"] = fig
     for a in axes.ravel()[len(panels) :]:
         a.set_axis_off()
-    overview.suptitle("Posterior-predictive checks of the life-cycle fit")
+    overview.suptitle(
+        "Posterior-predictive checks of the paper's model (the chosen models: traffic_checks.png)"
+    )
     overview.tight_layout()
     figs["criticism"] = overview
     return figs
