@@ -49,7 +49,7 @@ implementation and model runs in fresh processes (``subprocess``), so compilatio
   (for ours, the JAX persistent cache as the CLI configures it:
   :func:`are_stats.configure_jax`, ``$XDG_CACHE_HOME/are_stats/jax``).
 
-Last, ``are-stats fit models/logs/courtyard_traffic.csv --method em --no-figures`` (the
+Last, ``are-stats fit courtyard_traffic --method em --no-figures`` (the
 shipped log) end to end in a subprocess, twice on one fresh cache: first run, then second
 run with the cache warm.
 
@@ -642,7 +642,7 @@ def _bench_fit(tmp: Path, extra: list[str]) -> None:
     home = tmp / "fit"
     home.mkdir()
     env = _env(home)
-    log = "models/logs/courtyard_traffic.csv"
+    log = "courtyard_traffic"  # the shipped example log (resolved from anywhere)
     walls = []
     cmd = " ".join(["are-stats fit", log, "--method em --no-figures", *extra])
     print(f"\n{cmd}: first and second run", flush=True)
