@@ -536,13 +536,9 @@ def _fitted_behaviour_tracks(
             fit_path, "behaviour", "the behaviour group written by are-stats fit",
             Described(f"a damaged group ({type(err).__name__}: {err})"),
         ) from None  # fmt: skip
-    table = df.rename(columns={"artefact": "id"})[
-        ["scenario", "id", "t_arrive", "t_leave", "x", "y"]
-    ].copy()
-    if labels is not None:
-        cls = df["class"].to_numpy()
-        table["label"] = [labels[c] if 0 <= c < len(labels) else "" for c in cls]
-    tracks = pd.DataFrame(simulate_behaviour_tracks(jax.random.key(seed), bfit, table))
+    tracks = pd.DataFrame(
+        simulate_behaviour_tracks(jax.random.key(seed), bfit, df, class_labels=labels)
+    )
     path = Path(out) / "tracks.parquet"
     with atomic_path(path, force=False) as tmp:
         tracks.to_parquet(tmp, index=False)
@@ -559,7 +555,7 @@ def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
 
     if grid is None:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    occ, _ = coarse_occupancy(grid, cell, "--behaviour-cell")
+    occ, res = coarse_occupancy(grid, cell, "--behaviour-cell")
     _check_tracks_size(df, occ.shape, dt)
     cat = load_catalogue()
     classes = np.zeros(len(df), np.int64)
@@ -579,7 +575,6 @@ def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
             source="--behaviour-cell",
         )  # fmt: skip
     )
-    res = float(grid.resolution) * max(1, int(round(cell / float(grid.resolution))))
     path = Path(out) / "tracks.parquet"
     with atomic_path(path, force=force) as tmp:
         tracks.to_parquet(tmp, index=False)

@@ -24,6 +24,7 @@ Artefacts do not see each other (no collision resolution).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import jax
 import numpy as np
@@ -183,6 +184,8 @@ def simulate_behaviour_tracks(
     dt_out: float | None = None,
     smooth: int = 5,
     chunk: int = 16,
+    class_labels: Any = None,
+    horizon: float | None = None,
 ) -> pd.DataFrame:
     """Tracks of scenario artefacts from a fitted behaviour (see the module docstring).
 
@@ -195,13 +198,20 @@ def simulate_behaviour_tracks(
     artefacts : pandas.DataFrame
         One row per artefact: ``scenario, id, t_arrive, t_leave, x, y`` (entry, world m),
         optionally ``label`` (a class of ``fit``; other labels and a missing column use the
-        first class).
+        first class). A scenarios table (:func:`~are_stats.generate_scenarios`) is taken as
+        it is: ``artefact`` serves as ``id``, and with ``class_labels`` its ``class``
+        column gives the labels.
     dt_out : float or None
         Sampling period of the output (default: the artefact's class epoch ``fit.dt``).
     smooth : int
         Moving-average window (cells) of the continuous path.
     chunk : int
         Goals solved together.
+    class_labels : sequence of str, optional
+        Label of each mixture component (the fit's ``class_labels``), for tables with a
+        ``class`` column and no ``label``.
+    horizon : float, optional
+        Leaving times are cut at it (the end of a mission).
 
     Returns
     -------
@@ -213,6 +223,13 @@ def simulate_behaviour_tracks(
     ValueError
         On missing columns or ``t_leave < t_arrive``.
     """
+    if "id" not in artefacts.columns and "artefact" in artefacts.columns:
+        artefacts = artefacts.rename(columns={"artefact": "id"})
+    if "label" not in artefacts.columns and class_labels is not None and "class" in artefacts:
+        labels = list(class_labels)
+        artefacts = artefacts.assign(
+            label=[labels[c] if 0 <= c < len(labels) else "" for c in artefacts["class"]]
+        )
     need = ("scenario", "id", "t_arrive", "t_leave", "x", "y")
     missing = [c for c in need if c not in artefacts.columns]
     if missing:
@@ -224,6 +241,8 @@ def simulate_behaviour_tracks(
         return pd.DataFrame({c: [] for c in _COLUMNS})
     t_arr = artefacts["t_arrive"].to_numpy(float)
     t_lv = artefacts["t_leave"].to_numpy(float)
+    if horizon is not None:
+        t_lv = np.minimum(t_lv, float(horizon))
     if not (np.isfinite(t_arr) & np.isfinite(t_lv) & (t_lv >= t_arr)).all():
         raise ValueError("artefacts: expected finite t_arrive <= t_leave in every row")
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel().tolist())

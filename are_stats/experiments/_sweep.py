@@ -824,22 +824,17 @@ def _task_scenario(
             seed, params, 1, horizon, free_mask=grid, start=sc.get("start", "stationary"),
             laws=laws,
         )  # fmt: skip
-    scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
     if task.get("behaviours") and tracks is None and fitted is not None:
         # the fit's behaviour: speeds, exits and rationality learned from the log's tracks
         import jax
 
         from are_stats.behaviour import simulate_behaviour_tracks
 
-        table = art.rename(columns={"artefact": "id"})[
-            ["scenario", "id", "t_arrive", "t_leave", "x", "y"]
-        ].copy()
-        table["t_leave"] = np.minimum(table["t_leave"].to_numpy(float), horizon)
-        if labels is not None:
-            table["label"] = [labels[c] if 0 <= c < len(labels) else "" for c in art["class"]]
-        tracks = simulate_behaviour_tracks(jax.random.key(seed), fitted, table)
-        scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
-    elif task.get("behaviours") and tracks is None:
+        tracks = simulate_behaviour_tracks(
+            jax.random.key(seed), fitted, art, class_labels=labels, horizon=horizon
+        )
+    scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    if task.get("behaviours") and tracks is None:
         tracks = _behaviour_tracks(
             seed, art, scene, grid, catalogue, float(ms.get("behaviour_cell", 1.0)),
             float(ms.get("behaviour_dt", 2.0)), horizon,

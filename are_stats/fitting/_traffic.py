@@ -382,16 +382,13 @@ def fit_traffic(
     n_ticks = int(np.sum(plain.tick_weight))
     elpd, ks, runs, draws = {}, {}, {}, {}
     log_area = float(np.log(data.area))
+    by_clock = None  # the same ticks with their periods of the day, for time-of-day models
+    if any(ArrivalSpec.from_name(n).tod for n in cands):
+        by_clock = arrival_units(data.t_arrive, data.window, data.area, res, width,
+                                 group=data.group, clock_offset=clock)  # fmt: skip
     for i, name in enumerate(cands):
         spec = ArrivalSpec.from_name(name)
-        units = (
-            arrival_units(
-                data.t_arrive, data.window, data.area, res, width, group=data.group,
-                clock_offset=clock,
-            )
-            if spec.tod
-            else plain
-        )  # fmt: skip
+        units = by_clock if spec.tod else plain
         if name == "poisson":
             flat = {"event_rate": lam.ravel()}
             ll = jax.vmap(_arrival_pointwise(units, spec, log_area))(flat)

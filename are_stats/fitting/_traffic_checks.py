@@ -165,18 +165,11 @@ def traffic_checks(
 
     base_key = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
     reps: dict[str, np.ndarray] = {}
-    models = ["paper"]
-    if any(
-        str(post.attrs.get(a, d)) != d
-        for a, d in (
-            ("arrival_model", "poisson"),
-            ("lifetime_model", "exponential"),
-            ("position_model", "uniform"),
-        )
-    ):
-        models.append("chosen")
-    for i, model in enumerate(models):
-        draws, laws = traffic_draws(idata, model)
+    sources = {"paper": traffic_draws(idata, "paper")}
+    chosen = traffic_draws(idata, "chosen")
+    if not chosen[1].is_paper:
+        sources["chosen"] = chosen
+    for i, (model, (draws, laws)) in enumerate(sources.items()):
         grid = None if free is None else free[0]
         kw = {} if free is None else {"resolution": free[1], "origin": free[2]}
         df = generate_scenarios(

@@ -52,6 +52,15 @@ TRACK_OPTIONS = (
 )
 
 
+def _open(p: Path, manifest: Any) -> tuple[dict, Any, Any, bool, bool]:
+    """Manifest (and its path), raw table, and which kind of field log the columns say."""
+    meta, mpath = find_manifest(p, manifest)
+    raw = read_raw_table(p, "field log (life-cycle log or tracks table)")
+    cols = set(raw.columns)
+    return (meta, mpath, raw, set(LIFECYCLE_KIND_COLUMNS) <= cols,
+            set(TRACKS_KIND_COLUMNS) <= cols)  # fmt: skip
+
+
 def read_field_log(
     path: str | os.PathLike,
     *,
@@ -130,11 +139,7 @@ def read_field_log(
             Described("an unknown option"),
         )
     options = {k: v for k, v in track_options.items() if v is not None}
-    meta, mpath = find_manifest(p, manifest)
-    raw = read_raw_table(p, "field log (life-cycle log or tracks table)")
-    cols = set(raw.columns)
-    is_life = set(LIFECYCLE_KIND_COLUMNS) <= cols
-    is_tracks = set(TRACKS_KIND_COLUMNS) <= cols
+    meta, mpath, raw, is_life, is_tracks = _open(p, manifest)
     kinds = (
         f"a life-cycle log (columns {', '.join(LIFECYCLE_KIND_COLUMNS)}, ...) or a tracks "
         f"table (columns {', '.join(TRACKS_KIND_COLUMNS)} [, label])"
@@ -215,11 +220,8 @@ def read_field_tracks(
     pandas.DataFrame or None
         ``id, t, x, y, label, yaw`` (see :func:`are_stats.logs.read_tracks`).
     """
-    p = Path(path)
-    meta, _ = find_manifest(p, manifest)
-    raw = read_raw_table(p, "field log (life-cycle log or tracks table)")
-    cols = set(raw.columns)
-    if not set(TRACKS_KIND_COLUMNS) <= cols or set(LIFECYCLE_KIND_COLUMNS) <= cols:
+    meta, _, raw, is_life, is_tracks = _open(Path(path), manifest)
+    if is_life or not is_tracks:
         return None
     tracks = _from_raw(raw)
     tracks["t"] = tracks["t"] * TIME_UNITS[str(meta.get("time_unit", "s"))]
