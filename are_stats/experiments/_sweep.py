@@ -1070,9 +1070,12 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
     """A Dask client of the given scheduler, or of a local cluster listening on ``host``."""
     from distributed import Client, LocalCluster
 
+    # set_as_default=False: a client (or a failed attempt at one) must not switch the whole
+    # process's dask config to "dask.distributed" -- xarray then takes distributed locks for
+    # every later netCDF write, which fail once the client is gone.
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout="20s")
+            client = Client(scheduler, timeout="20s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(
                 "--scheduler", "", "the address of a running Dask scheduler (tcp://host:port)",
@@ -1081,7 +1084,7 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
         cluster = None
     else:
         cluster = LocalCluster(**_cluster_kwargs(workers, processes, host))
-        client = Client(cluster)
+        client = Client(cluster, set_as_default=False)
     try:
         yield client
     finally:
@@ -1104,7 +1107,7 @@ def _run(
     futures = {client.submit(run_task, t, record, pure=False): t for t in todo}
     bar = _progress(progress, n_tasks, n_tasks - len(todo))
     try:
-        for fut in as_completed(futures):
+        for fut in as_completed(futures, loop=client.loop):
             task = futures[fut]
             res = fut.result()
             if record:

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dask
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 from typer.testing import CliRunner
 
 from are_stats._atomic import OutputExistsError
 from are_stats.cli import app
+from are_stats.inputs import InputError
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
 from are_stats.experiments import (
     MCAP_TOPICS,
@@ -191,3 +194,14 @@ def test_sweep_on_an_existing_scheduler(tmp_path):
     ) as cluster:
         out = run_sweep(cfg, tmp_path / "r", scheduler=cluster.scheduler_address, progress=False)
     assert len(load_results(out)["runs"]) == 1
+    assert dask.config.get("scheduler", None) is None  # the client did not become the default
+
+
+def test_bad_scheduler_leaves_dask_config_alone(tmp_path):
+    """A refused ``--scheduler`` must not leave dask set to "dask.distributed": xarray would
+    then take a distributed lock for every later netCDF write, and fail (the CI failure)."""
+    cfg = {**CONFIG, "replicates": 1, "factors": {"scenario.arrival_rate": [0.0002]}}
+    with pytest.raises(InputError, match="--scheduler"):
+        run_sweep(cfg, tmp_path / "r", scheduler="not-an-address", progress=False)
+    assert dask.config.get("scheduler", None) is None
+    xr.Dataset({"a": ("x", np.arange(3.0))}).to_netcdf(tmp_path / "after.nc")
