@@ -11,7 +11,6 @@ from typer.testing import CliRunner
 
 from are_stats._atomic import OutputExistsError
 from are_stats.cli import app
-from are_stats.inputs import InputError
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
 from are_stats.experiments import (
     MCAP_TOPICS,
@@ -23,6 +22,7 @@ from are_stats.experiments import (
     run_sweep,
     run_task,
 )
+from are_stats.inputs import InputError
 
 CONFIG = {
     "name": "tiny",
