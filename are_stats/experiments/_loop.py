@@ -33,7 +33,7 @@ deterministic given the seed (for OMPL planners: given the seed and an iteration
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -181,6 +181,13 @@ class _Mission:
     event_t: np.ndarray
     event_lifecycle: np.ndarray
     event_moved: tuple
+    # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
+    # batch: {tick time: (robot pose (3,), perceived (N,))}. A memo, not state: an entry is
+    # used only when the robot is where it was predicted to be at that tick.
+    percepts: dict = field(default_factory=dict, compare=False)
+    # the map's own occupied cells (H, W) and every cell's distance to them (m)
+    static_occ: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]
+    static_dist: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]
 
 
 class _State(NamedTuple):
@@ -248,26 +255,65 @@ def _register(m: _Mission, boxes: Any) -> int:
     return m.builder.n_artefact_cells
 
 
-def _perceive(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> np.ndarray:
-    """(N,) bool: the artefacts on the planner's map after a perception at ``s.pose``."""
+def _perceive(
+    m: _Mission, s: _State, idx: np.ndarray, boxes: Any, tick: bool = False
+) -> np.ndarray:
+    """(N,) bool: the artefacts on the planner's map after a perception at ``s.pose``
+    (``tick``: at a camera tick, which perceives the ticks ahead in the same batch)."""
     now = np.zeros(s.live.size, bool)
     if m.perception == "all":
         now[idx] = True
     elif idx.size:
-        from are_stats.perception import perceived_counts, yaw_rotations
-
-        _, seen = perceived_counts(
-            m.env_mesh, boxes.centres, boxes.half_extents, yaw_rotations(boxes.yaws),
-            m.robot.camera(s.pose), m.d_max, m.tau,
-        )  # fmt: skip
-        now[idx] = seen
+        now = _camera_percept(m, s, tick)
     return (now | (s.seen & s.live)) if m.memory else now
+
+
+#: Camera ticks perceived together in one batch (the robot's poses at them predicted along
+#: its plan): one Warp launch sequence instead of one per 0.1 s tick.
+_PERCEPT_BATCH = 32
+
+
+def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
+    """(N,) bool: the artefacts in A_f at ``s.t`` seen from ``s.pose`` (no memory).
+
+    The same A_f as perceiving ``m.scene.at(s.t)`` on its own (:func:`perceive_scene`'s
+    frames are independent): the ticks ahead are perceived in the same batch, at the poses
+    the robot will have if it keeps driving its plan (or keeps waiting), and reused when
+    it is there (to 1e-9 m and rad); a replan, a goal or a wait that changes the robot's
+    motion makes the prediction miss and the tick is perceived anew.
+    """
+    from are_stats.perception import perceive_scene
+
+    hit = m.percepts.get(s.t)
+    if hit is not None and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9):
+        return hit[1].copy()
+    times, t = [s.t], s.t
+    if tick and not s.need_plan:  # (an arrival, a leave or a replan changes the motion)
+        while len(times) < _PERCEPT_BATCH:
+            t = t + m.period  # as _step accumulates next_percept
+            if t >= m.T:
+                break
+            times.append(t)
+    tt = np.asarray(times)
+    poses = np.repeat(s.pose[None, :], tt.size, axis=0)
+    if s.path is not None and not s.need_plan and tt.size > 1:
+        along = s.s_along + (tt - s.t) * m.robot.speed
+        ahead = along <= s.cum[-1]  # past the goal the robot replans: no prediction
+        tt, along = tt[ahead], along[ahead]
+        pts, hd = _point_at(s.path, s.cum, along)
+        poses = np.column_stack([pts, hd])
+        poses[0] = s.pose
+    _, seen = perceive_scene(
+        m.scene, tt, m.robot.camera_poses(poses), m.env_mesh, m.robot.camera(s.pose),
+        m.d_max, m.tau,
+    )  # fmt: skip
+    m.percepts.clear()
+    m.percepts.update({float(t): (p, row) for t, p, row in zip(tt, poses, seen, strict=True)})
+    return seen[0]
 
 
 def _planning_grid(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> tuple[Any, np.ndarray]:
     """The augmented grid with the perceived artefacts, and the robot's free cells."""
-    from scipy import ndimage
-
     from are_stats.perception import perceived_grid
 
     on = s.seen[idx]
@@ -281,15 +327,42 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> tuple
         half = np.vstack([half, m.scene.half_extents[ahead]])
         yaws = np.r_[yaws, yaw]
     aug = perceived_grid(m.grid, centres, half, yaws, np.ones(len(yaws), bool))
+    return aug, _free_cells(m, ~aug.free, s.pose)
+
+
+def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the cells where the robot's centre may go on the augmented grid whose
+    occupied cells are ``occ``: farther than the robot radius plus half a cell diagonal
+    from every occupied cell, or free and within reach of the robot's own ``pose``."""
+    from scipy import ndimage
+
     res, radius = m.grid.resolution, m.robot.radius
-    occ = ~aug.free
-    dist = ndimage.distance_transform_edt(~occ) * res if occ.any() else np.full(occ.shape, np.inf)
     # cell-centre distances: add half a cell diagonal so the disc clears box edges
-    free = (dist > radius + res * np.sqrt(0.5)) & ~occ
-    ij = np.indices(occ.shape).reshape(2, -1).T
-    near = np.linalg.norm(m.grid.cell_to_world(ij) - s.pose[:2], axis=1).reshape(occ.shape)
-    free |= (near <= radius + res) & ~occ
-    return aug, free
+    clear = radius + res * np.sqrt(0.5)
+    # distance to the nearest occupied cell: the map's own (once per mission) or the
+    # artefacts', computed in a window around them that reaches past the clearance (the
+    # same distances as one transform of the whole augmented grid, at a fraction of it)
+    dist = m.static_dist.copy()
+    art = np.argwhere(occ & ~m.static_occ)
+    if art.size:
+        pad = int(np.ceil(clear / res)) + 2
+        (r0, c0), (r1, c1) = np.maximum(art.min(0) - pad, 0), art.max(0) + pad + 1
+        win = occ[r0:r1, c0:c1] & ~m.static_occ[r0:r1, c0:c1]
+        d_art = ndimage.distance_transform_edt(~win) * res
+        np.minimum(dist[r0:r1, c0:c1], d_art, out=dist[r0:r1, c0:c1])
+    free = (dist > clear) & ~occ
+    # cells around the robot that are inflated but not occupied are released
+    reach = radius + res
+    r_c = np.asarray(m.grid.world_to_cell(pose[None, :2]), np.int64).reshape(2)
+    pad = int(np.ceil(reach / res)) + 2
+    lo = np.clip(r_c - pad, 0, occ.shape)
+    hi = np.clip(r_c + pad + 1, 0, occ.shape)
+    ij = np.indices(tuple(hi - lo)).reshape(2, -1).T + lo
+    if ij.size:
+        near = np.linalg.norm(m.grid.cell_to_world(ij) - pose[:2], axis=1)
+        ij = ij[near <= reach]
+        free[ij[:, 0], ij[:, 1]] |= ~occ[ij[:, 0], ij[:, 1]]
+    return free
 
 
 def _path_blocked(m: _Mission, s: _State, free: np.ndarray) -> bool:
@@ -478,7 +551,9 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     if t_next == s.next_percept:
         old = s.seen
         idx, boxes = _boxes(m, s.t)
-        s = s._replace(seen=_perceive(m, s, idx, boxes), next_percept=t_next + m.period)
+        s = s._replace(
+            seen=_perceive(m, s, idx, boxes, tick=True), next_percept=t_next + m.period
+        )
         if not np.array_equal(old, s.seen):
             s = s._replace(need_plan=True)
             if not kinds:
@@ -659,13 +734,21 @@ def run_mission(
     if grid.n_free == 0:
         raise ValueError("grid: expected free cells, got none")
     event_t, event_lifecycle, event_moved = _event_table(scene, T, move_period)
+    from scipy import ndimage
+
+    static_occ = ~grid.free
+    static_dist = (
+        ndimage.distance_transform_edt(~static_occ) * grid.resolution
+        if static_occ.any()
+        else np.full(static_occ.shape, np.inf)
+    )
     m = _Mission(
         grid=grid, scene=scene, builder=ARBuilder(grid, catalogue), robot=robot,
         plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,
         period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
         record=bool(record), step=min(grid.resolution, robot.radius / 2.0),
         n_free=grid.n_free, event_t=event_t, event_lifecycle=event_lifecycle,
-        event_moved=event_moved,
+        event_moved=event_moved, static_occ=static_occ, static_dist=static_dist,
     )  # fmt: skip
     # refuse before looping: footprint tests along the path, and grid passes per replan
     n_motion = robot.speed * T / m.step + 1.0

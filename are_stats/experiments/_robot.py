@@ -89,14 +89,49 @@ class Robot:
         tree.set_static("F_C", "F_R", optical_from_base(self.camera_xyz, self.camera_rpy))
         return tree
 
+    def camera_poses(self, poses: Any) -> np.ndarray:
+        """Camera-to-world transforms ``T_E_C = T_E_R(pose) @ T_R_C`` of many base poses.
+
+        The same chain as :meth:`frames` (``F_E -> F_R -> F_C``), composed directly: the
+        experiment loop asks for a camera at 10 Hz, where building a transform tree per
+        frame cost more than the perception itself.
+
+        Parameters
+        ----------
+        poses : (T, 3) or (3,) float
+            Planar base poses ``(x, y, yaw)`` in F_E.
+
+        Returns
+        -------
+        (T, 4, 4) float64
+            Optical-frame-to-world transforms (one per pose).
+        """
+        from are_stats.perception import optical_from_base
+
+        p = check_finite("poses", poses).reshape(-1, 3) if np.size(poses) else np.zeros((0, 3))
+        mount = optical_from_base(self.camera_xyz, self.camera_rpy)
+        c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+        base = np.zeros((p.shape[0], 4, 4))
+        base[:, 0, 0], base[:, 0, 1], base[:, 1, 0], base[:, 1, 1] = c, -s, s, c
+        base[:, 2, 2] = base[:, 3, 3] = 1.0
+        base[:, 0, 3], base[:, 1, 3] = p[:, 0], p[:, 1]
+        return base @ mount
+
+    def intrinsics(self) -> tuple[float, float, float, float, int, int]:
+        """``(fx, fy, cx, cy, width, height)`` of the camera (square pixels, ``camera_fov``
+        across the width)."""
+        w, h = self.image_size
+        f = (w / 2.0) / np.tan(self.camera_fov / 2.0)
+        return f, f, w / 2.0, h / 2.0, w, h
+
     def camera(self, pose: Any) -> Any:
         """The :class:`~are_stats.perception.PinholeCamera` seen from base pose ``(x, y, yaw)``."""
         from are_stats.perception import PinholeCamera
 
-        w, h = self.image_size
-        f = (w / 2.0) / np.tan(self.camera_fov / 2.0)
-        T = self.frames(pose).lookup("F_E", "F_C")
-        return PinholeCamera(f, f, w / 2.0, h / 2.0, w, h, T)
+        p = check_finite("pose", pose, ndim=1)
+        if p.shape != (3,):
+            raise ValueError(f"pose: expected (x, y, yaw), got {p.tolist()}")
+        return PinholeCamera(*self.intrinsics(), self.camera_poses(p)[0])
 
 
 def _items(value: Any, source: str, where: str, n: int) -> list:

@@ -441,11 +441,20 @@ def perceive_scene(
             f"poses: expected ({t.size}, 4, 4) camera poses, one per time, got {p.shape}"
         )
     centres, half, rots, active = _scene_frames(scene, t)
-    return perceived_counts_batch(
-        env_mesh, centres, half, rots, camera, p, d_max, tau, active=active,
-        occlusion_between_artefacts=occlusion_between_artefacts, device=device,
-        threads=threads,
+    # only the artefacts alive in some frame reach the kernels (a long scenario holds many
+    # more artefacts than are ever alive at once); the others count 0
+    cols = np.flatnonzero(active.any(axis=0))
+    moving = centres.ndim == 3
+    counts, seen = perceived_counts_batch(
+        env_mesh, centres[:, cols] if moving else centres[cols], half[cols],
+        rots[:, cols] if moving else rots[cols], camera, p, d_max, tau,
+        active=active[:, cols], occlusion_between_artefacts=occlusion_between_artefacts,
+        device=device, threads=threads,
     )  # fmt: skip
+    all_counts = np.zeros(active.shape, np.int64)
+    all_seen = np.zeros(active.shape, bool)
+    all_counts[:, cols], all_seen[:, cols] = counts, seen
+    return all_counts, all_seen
 
 
 def scenario_scenes(

@@ -145,6 +145,15 @@ def test_robot_camera_frames():
     cam = r.camera([1.0, 2.0, np.pi / 2])
     assert_allclose(cam.center, [1.0, 2.2, 0.5], atol=1e-12)
     assert_allclose(cam.principal_axis, [0.0, 1.0, 0.0], atol=1e-12)  # looks along +y
+    # the composed chain equals the transform tree's lookup, one pose or many
+    r2 = Robot(camera_xyz=(0.1, -0.2, 0.7), camera_rpy=(0.1, 0.3, -0.4))
+    poses = np.random.default_rng(0).uniform(-5, 5, (6, 3))
+    many = r2.camera_poses(poses)
+    for p, T in zip(poses, many, strict=True):
+        assert_allclose(T, r2.frames(p).lookup("F_E", "F_C"), atol=1e-12)
+        assert_allclose(r2.camera(p).pose, T, atol=1e-12)
+    with pytest.raises(ValueError, match="pose"):
+        r2.camera([1.0, 2.0])
     with pytest.raises(ValueError, match="radius"):
         Robot(radius=0.0)
     with pytest.raises(ValueError, match="camera_fov"):
@@ -237,3 +246,76 @@ def test_contacts_are_blamed_on_whoever_closed_the_gap():
     art = _art([[0.0, 60.0, 8.0, 9.5, np.pi / 2, 0]])
     res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=across, **kw)
     assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
+
+
+def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
+    """The loop perceives the camera ticks ahead in one batch, at the poses the robot will
+    have along its plan; the mission is the same as perceiving every tick on its own."""
+    import trimesh
+
+    import are_stats.experiments._loop as loop
+
+    pillar = trimesh.creation.box([2.0, 2.0, 2.0])
+    pillar.apply_translation([10.0, 12.0, 1.0])  # hides walkers behind it on the way
+    rng = np.random.default_rng(4)
+    rows, tracks = [], []
+    for i in range(6):  # walkers crossing the map at different times, speeds and headings
+        t0, x = float(rng.uniform(0, 20)), float(rng.uniform(6, 16))
+        t = t0 + np.arange(0.0, 25.0)
+        y = 1.5 + (t - t0) * rng.uniform(0.4, 0.8)
+        keep = y <= 18.5
+        rows.append([t0, float(t[keep][-1]), x, 1.5, np.pi / 2, 0])
+        tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
+    art, tr = _art(rows), pd.concat(tracks, ignore_index=True)
+    kw = dict(
+        robot=Robot(radius=0.3, speed=0.7), start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(),
+        time_limit=50.0, perception="camera", env_mesh=pillar, d_max=15.0, tau=3.0,
+        tracks=tr, perception_period=0.1,
+    )  # fmt: skip
+    goals = [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0]]
+    batched = run_mission(GRID, art, goals, "astar", **kw)
+    monkeypatch.setattr(loop, "_PERCEPT_BATCH", 1)
+    single = run_mission(GRID, art, goals, "astar", **kw)
+    assert batched.summary["n_updates"] > 10 and (batched.timeline["kind"] == "perceived").any()
+    wall = ["rho_t", "rho"]
+    pd.testing.assert_frame_equal(batched.timeline, single.timeline)
+    pd.testing.assert_frame_equal(
+        batched.replans.drop(columns=wall), single.replans.drop(columns=wall)
+    )
+    pd.testing.assert_frame_equal(batched.goals, single.goals)
+    drop = {"rho_mean", "rho_t_mean"}
+    assert {k: v for k, v in batched.summary.items() if k not in drop} == {
+        k: v for k, v in single.summary.items() if k not in drop
+    }
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
+    """The planner's free cells (map distances once, artefact distances in a window) equal
+    the definition on the whole augmented grid."""
+    from types import SimpleNamespace
+
+    from scipy import ndimage
+
+    import are_stats.experiments._loop as loop
+
+    rng = np.random.default_rng(seed)
+    h, w, res = 60, 80, 0.1
+    static = rng.random((h, w)) < 0.02
+    static[20:25, 10:50] = True
+    grid = OccupancyGrid(np.where(static, 100, 0), res, origin=(1.0, -2.0, 0.3 * seed))
+    occ = static.copy()
+    for _ in range(int(rng.integers(0, 4))):  # a few artefact boxes
+        r, c = rng.integers(0, h - 5), rng.integers(0, w - 5)
+        occ[r : r + 4, c : c + 3] = True
+    robot = Robot(radius=0.3)
+    dist0 = ndimage.distance_transform_edt(~static) * res
+    m = SimpleNamespace(grid=grid, robot=robot, static_occ=static, static_dist=dist0)
+    pose = np.r_[grid.cell_to_world(np.array([[22, 30]]))[0], 0.0]  # on the wall's edge
+    got = loop._free_cells(m, occ, pose)
+    dist = ndimage.distance_transform_edt(~occ) * res
+    want = (dist > robot.radius + res * np.sqrt(0.5)) & ~occ
+    ij = np.indices(occ.shape).reshape(2, -1).T
+    near = np.linalg.norm(grid.cell_to_world(ij) - pose[:2], axis=1).reshape(occ.shape)
+    want |= (near <= robot.radius + res) & ~occ
+    np.testing.assert_array_equal(got, want)
