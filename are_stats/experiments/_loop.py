@@ -247,11 +247,9 @@ def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np
     return xy, pose[:, 2]
 
 
-def _register(m: _Mission, boxes: Any) -> int:
-    """Register the live boxes on the AR-builder (M_2D); returns n_A."""
-    m.builder.reset()
-    for c, h, y in zip(boxes.centres, boxes.half_extents, boxes.yaws, strict=True):
-        m.builder.register(None, [c[0], c[1], y], size=2 * h, check=False)
+def _register(m: _Mission, t: float) -> int:
+    """Register the scene's live boxes at ``t`` on the AR-builder (M_2D); returns n_A."""
+    m.builder.register_scene(m.scene, t)
     return m.builder.n_artefact_cells
 
 
@@ -466,7 +464,7 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     idx, boxes = _boxes(m, s.t)
     live = m.scene.alive(s.t)
     arrived, left = live & ~s.live, s.live & ~live
-    s = s._replace(live=live, seen=s.seen & live, n_A=_register(m, boxes), event=e + 1)
+    s = s._replace(live=live, seen=s.seen & live, n_A=_register(m, s.t), event=e + 1)
     kinds = []
     if m.event_lifecycle[e]:
         old = s.seen
@@ -508,7 +506,7 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
     s = _State(
         t=0.0, pose=pose, goal=0, reached=np.full(m.goals.shape[0], np.nan), path=None,
         cum=np.zeros(1), s_along=0.0, need_plan=True, reason="goal", live=live,
-        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=_register(m, boxes),
+        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=_register(m, 0.0),
         event=0, next_percept=m.period if m.perception == "camera" else np.inf,
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0,
