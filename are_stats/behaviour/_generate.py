@@ -3,20 +3,23 @@
 :func:`simulate_behaviour_tracks` is the generator behind ``are-stats generate --behaviours``
 with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
 
-1. gets its class's walking (or, with probability ``run_fraction``, running) speed ``v``
-   from the fitted lognormal law, and a horizon ``d = floor(stay v / cell)`` epochs;
-2. gets an exit drawn from the exit density given its entry, reachable within ``0.9 d``
-   moves (:meth:`BehaviourFit.draw_exits`); without one it stays where it entered;
+1. gets its class's walking (or, with probability ``run_fraction``, running) speed law,
+   lognormal ``(mu, sigma)``, and a reach: the path length its fast walkers
+   (``exp(mu + 2 sigma)``) cover in its stay;
+2. gets an exit drawn from the exit density given its entry **and its stay**, reachable
+   within ``0.9`` of the reach (:meth:`BehaviourFit.draw_exits` with ``stays``): people
+   leave when they reach their exit, so a stay ``s`` and a path of length ``L`` mean a
+   walking speed ``L / s``, and exits are weighted by the speed law at ``L / s``; without
+   a reachable exit it stays where it entered;
 3. walks there with the stationary soft policy of its class (:func:`soft_backward_induction`,
    ``beta`` and ``slip`` fitted), sampled epoch by epoch (:func:`sample_soft_paths`);
 4. becomes a continuous track: the distinct cells of its path, smoothed by a centred moving
-   average of ``smooth`` cells (ends fixed), walked at speed ``v``; turning in place takes no
-   time, a ``stay`` or a blocked move a pause of one epoch ``cell / v``. People leave when
-   they reach their exit, so a path that would end before ``t_leave`` is walked slower to
-   end at it (down to the class's slow walkers, ``exp(mu - 2 sigma)``; below that the
-   artefact reaches its exit early and stands there). Positions are sampled every
-   ``dt_out`` seconds from ``t_arrive`` to ``t_leave``. ``yaw`` follows the direction of
-   motion (any angle).
+   average of ``smooth`` cells (ends fixed), walked at the speed that ends the path at
+   ``t_leave``, within the class's slow and fast walkers (``exp(mu -+ 2 sigma)``: beyond
+   them the artefact reaches its exit early and stands there, or leaves while still
+   walking); turning in place takes no time, a ``stay`` or a blocked move a pause of one
+   epoch. Positions are sampled every ``dt_out`` seconds from ``t_arrive`` to
+   ``t_leave``. ``yaw`` follows the direction of motion (any angle).
 
 Artefacts do not see each other (no collision resolution).
 """
@@ -258,8 +261,15 @@ def simulate_behaviour_tracks(
     xy0 = artefacts[["x", "y"]].to_numpy(float)
     entry = fit.world_to_cell(xy0)
     stay = t_lv - t_arr
-    horizon = np.floor(stay * speed / fit.cell).astype(np.int64)
-    exits = fit.draw_exits(rng, cls, entry, np.floor(0.9 * horizon))
+    sg0 = np.nan_to_num(sg)
+    slowest, fastest = np.exp(mu - 2.0 * sg0), np.exp(mu + 2.0 * sg0)
+    # the exit is drawn given the stay (people leave when they reach it): paths that a
+    # walker of the class covers in the stay, up to its fast walkers (2 sd above)
+    reach = np.floor(stay * np.maximum(speed, fastest) / fit.cell)
+    horizon = np.floor(1.25 * reach).astype(np.int64) + 2
+    exits = fit.draw_exits(
+        rng, cls, entry, np.floor(0.9 * reach), stays=stay, speed_mu=mu, speed_sigma=sg
+    )
     moving = exits[:, 0] >= 0
     occ = ~fit.free
     paths: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n
@@ -306,11 +316,13 @@ def simulate_behaviour_tracks(
             yaw = np.zeros(ts.size)
         else:
             tv, pv = _continuous(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
-            # people leave when they reach their exit: an artefact that would arrive early
-            # walks slower, down to its class's slow walkers (2 sd below the median speed)
-            if 0.0 < tv[-1] < stay[i]:
-                slowest = float(np.exp(mu[i] - 2.0 * np.nan_to_num(sg[i])))
-                tv = tv * min(stay[i] / tv[-1], max(float(speed[i]) / slowest, 1.0))
+            # people leave when they reach their exit: the path is walked at the speed that
+            # ends it at t_leave, within the class's slow and fast walkers (2 sd around
+            # the median speed); beyond them the artefact arrives early and stands there,
+            # or is still walking when it leaves
+            if 0.0 < tv[-1]:
+                v_end = float(np.clip(speed[i] * tv[-1] / stay[i], slowest[i], fastest[i]))
+                tv = tv * (float(speed[i]) / v_end)
             x = np.interp(ts, tv, pv[:, 0])
             y = np.interp(ts, tv, pv[:, 1])
             dx, dy = np.gradient(x), np.gradient(y)

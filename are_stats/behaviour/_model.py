@@ -162,13 +162,24 @@ class BehaviourFit:
         reach: Any,
         *,
         tries: int = 20,
+        stays: Any = None,
+        speed_mu: Any = None,
+        speed_sigma: Any = None,
     ) -> np.ndarray:
-        """Exit cells given entry cells, reachable within ``reach`` cells.
+        """Exit cells given entry cells (and stays), reachable within ``reach`` cells.
 
         A track of the class is drawn with weight ``N(entry_m - entry; 0, h_entry^2)``, its
         exit jittered by ``N(0, h_exit^2)``; a draw that is not free or not reachable within
         ``reach`` moves (4-connected) is retried; after ``tries`` the reachable cell nearest
         to the last drawn exit is taken.
+
+        With ``stays``, the exit is drawn given the entry **and** the stay: people leave when
+        they reach their exit, so a stay ``s`` and a path of length ``L`` mean a walking
+        speed ``L / s``. ``tries`` exits are drawn as above and one of them is kept with
+        weight ``p_v(L / s)``, the class's lognormal speed density (sampling importance
+        resampling of ``p(exit | entry, s) ~ p(exit | entry) p_v(L(exit) / s)``). ``L`` is the
+        straight-line distance stretched by the grid's detour (4-connected geodesic over
+        Manhattan distance).
 
         Parameters
         ----------
@@ -178,12 +189,20 @@ class BehaviourFit:
             Entry cells ``(row, col)`` (free).
         reach : (n,) float
             Largest path length in cells.
+        stays : (n,) float, optional
+            Stay of each artefact (s).
+        speed_mu, speed_sigma : (n,) float, optional
+            Lognormal speed law of each artefact (log m/s), with ``stays``.
 
         Returns
         -------
         exits : (n, 2) int
             ``(-1, -1)`` where no other cell is reachable (the artefact stays).
         """
+        if stays is not None:
+            stays = np.broadcast_to(np.asarray(stays, float), (len(np.atleast_2d(entries)),))
+            speed_mu = np.broadcast_to(np.asarray(speed_mu, float), stays.shape)
+            speed_sigma = np.broadcast_to(np.asarray(speed_sigma, float), stays.shape)
         ent = np.asarray(entries, np.int64).reshape(-1, 2)
         cls = np.broadcast_to(np.asarray(class_index, np.int64), (len(ent),))
         reach = np.broadcast_to(np.asarray(reach, float), (len(ent),))
@@ -208,14 +227,28 @@ class BehaviourFit:
             logw = -0.5 * d2 / he**2
             p = np.exp(logw - logw.max())
             p /= p.sum()
-            xy = None
+            xy, cands = None, []
             for _ in range(tries):
                 m = m_of[rng.choice(len(m_of), p=p)]
                 xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
                 c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
                 if 0 <= c[0] < h and 0 <= c[1] < w and ok[c[0], c[1]]:
-                    out[i] = c
-                    break
+                    cands.append(c)
+                    if stays is None:
+                        break
+            if cands and stays is not None:
+                cc = np.asarray(cands)
+                geo = dist[inv.ravel()[i]][cc[:, 0], cc[:, 1]]
+                manhattan = np.maximum(np.abs(cc - ent[i]).sum(axis=1), 1)
+                length = np.hypot(*(self.cell_to_world(cc) - ent_xy[i]).T) * geo / manhattan
+                v = np.maximum(length / max(float(stays[i]), 1e-9), 1e-9)
+                sd = float(speed_sigma[i]) if np.isfinite(speed_sigma[i]) else 0.1
+                sd = max(sd, 0.02)
+                logw = -np.log(v) - 0.5 * ((np.log(v) - float(speed_mu[i])) / sd) ** 2
+                q = np.exp(logw - logw.max())
+                out[i] = cc[rng.choice(len(cc), p=q / q.sum())]
+            elif cands:
+                out[i] = cands[0]
             else:
                 cand = np.argwhere(ok)
                 cxy = self.cell_to_world(cand)
