@@ -26,6 +26,7 @@ import hashlib
 import html
 import os
 import re
+import shutil
 import subprocess
 import sys
 import unicodedata
@@ -38,7 +39,7 @@ DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 CACHE = DOCS / ".cache"
 NOTEBOOKS = ROOT / "notebooks"
-FIGURE_LINK = re.compile(r"!\[[^\]]*\]\((?:\.\./)*figures/([^)\s]+)\)(\{[^}]*\})?")
+FIGURE_LINK = re.compile(r"!\[[^\]]*\]\((?:\.\./)*figures/([^)\s]+)\)")
 
 sys.path.insert(0, str(DOCS))
 from make_figures import FIGURES  # noqa: E402
@@ -81,10 +82,9 @@ def _figures() -> Path:
     )
     if res.returncode != 0:
         raise RuntimeError(f"docs/make_figures.py failed:\n{res.stdout}\n{res.stderr}")
-    if folder.exists():
-        for p in folder.iterdir():
-            p.unlink()
-        folder.rmdir()
+    for old in folder.parent.iterdir():  # earlier sources' figures, a half-written folder
+        if old != tmp:
+            shutil.rmtree(old)
     tmp.rename(folder)
     return folder
 

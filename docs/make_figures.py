@@ -21,6 +21,7 @@ import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 DPI = 100
@@ -98,6 +99,53 @@ def _behaviour(out: Path) -> None:
     plt.close(fig)
 
 
+def _crossing_tracks(seed: int, n: int) -> tuple[Any, Any]:
+    """Door-to-door crossings of a 20 m x 12 m room (0.5 m cells) at about 1.2 m/s, 2.5 Hz:
+    the synthetic tracks of ``tests/fitting/test_behaviour_fit.py`` (``_crossing_world``)."""
+    import numpy as np
+    import pandas as pd
+
+    rng = np.random.default_rng(seed)
+    free = np.zeros((24, 40), bool)
+    free[1:-1, 1:-1] = True
+    free[9:15, 0] = True  # west door, y in [4.5, 7.5]
+    free[9:15, -1] = True  # east door
+    rows = []
+    for i in range(n):
+        y0, y1 = rng.uniform(4.7, 7.3, 2)
+        a, b = np.array([0.3, y0]), np.array([19.7, y1])
+        if i % 2:
+            a, b = b, a
+        v = 1.2 * np.exp(0.05 * rng.standard_normal())
+        dist = np.hypot(*(b - a))
+        t = np.arange(0.0, dist / v, 0.4)
+        t = np.append(t, dist / v)
+        xy = a + np.outer(t / t[-1], b - a) + rng.normal(0, 0.03, (t.size, 2))
+        rows.append(pd.DataFrame({"id": i, "t": 100.0 * i + t, "x": xy[:, 0], "y": xy[:, 1]}))
+    return pd.concat(rows, ignore_index=True), free
+
+
+def _motion(out: Path) -> None:
+    """Motion checks of a behaviour fitted on 28 of 40 synthetic crossings."""
+    import jax
+    import matplotlib.pyplot as plt
+
+    from are_stats.fitting import (
+        displacement_errors,
+        heldout_log_likelihood,
+        motion_checks,
+        plot_motion_checks,
+    )
+
+    tracks, free = _crossing_tracks(3, 40)
+    held, fit = heldout_log_likelihood(0, tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
+    table, reps = motion_checks(jax.random.key(1), fit, tracks, 50)
+    errors = displacement_errors(3, fit, tracks, n_samples=20)
+    fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)
+    fig.savefig(out / "motion_checks.png", dpi=DPI)
+    plt.close(fig)
+
+
 def _perception(out: Path) -> None:
     """One camera frame in the courtyard: depth with the boxes' A_f status, and a top view."""
     import matplotlib.pyplot as plt
@@ -160,6 +208,7 @@ JOBS: dict[str, Callable[[Path], None]] = {
     "courtyard": _courtyard,
     "fit": _fit,
     "behaviour": _behaviour,
+    "motion": _motion,
     "perception": _perception,
     "experiments": _experiments,
 }
@@ -169,6 +218,7 @@ FIGURES: dict[str, tuple[str, str]] = {
     "traffic_checks.png": ("models.md", "fit"),
     "mdp_values.png": ("behaviour.md", "behaviour"),
     "behaviour_tracks.png": ("behaviour.md", "behaviour"),
+    "motion_checks.png": ("behaviour.md", "motion"),
     "camera_view.png": ("perception.md", "perception"),
     "top_view.png": ("perception.md", "perception"),
     "fig7a_rho.png": ("experiments.md", "experiments"),
