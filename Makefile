@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 export XLA_FLAGS ?= --xla_force_host_platform_device_count=2
 export PYTHONHASHSEED := 0
 
-.PHONY: venv venv-bench demo test lint bench docs clean
+.PHONY: venv venv-bench venv-docs demo test lint bench docs clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -21,8 +21,13 @@ $(VENV)/.installed-bench: pyproject.toml $(VENV)/.installed-dev
 	$(BIN)/python -m pip install -q -e '.[dev,bench]'
 	touch $@
 
+$(VENV)/.installed-docs: pyproject.toml $(VENV)/.installed-dev
+	$(BIN)/python -m pip install -q -e '.[dev,docs]'
+	touch $@
+
 venv: $(VENV)/.installed-dev
 venv-bench: $(VENV)/.installed-bench
+venv-docs: $(VENV)/.installed-docs
 
 demo: venv
 	$(BIN)/are-stats demo --out demo-output --force
@@ -38,8 +43,10 @@ test: venv
 bench: venv-bench
 	$(BIN)/python -m tests.benchmarks
 
-docs: venv
+# Figures (docs/make_figures.py) and the executed notebooks are made during the build and
+# cached in docs/.cache; the site lands in docs/site.
+docs: venv-docs
 	$(BIN)/mkdocs build --strict -f docs/mkdocs.yml
 
 clean:
-	rm -rf $(VENV) docs/site .pytest_cache .ruff_cache
+	rm -rf $(VENV) docs/site docs/.cache .pytest_cache .ruff_cache

@@ -4,6 +4,7 @@ against mission time for increasing clutter nu (7b), with 95% bands over replica
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -162,7 +163,8 @@ def plot_results(
     """
     import matplotlib
 
-    matplotlib.use("Agg")
+    if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
+        matplotlib.use("Agg")  # session's backend (a notebook's inline one)
     import matplotlib.pyplot as plt
 
     from are_stats.experiments._sweep import load_results

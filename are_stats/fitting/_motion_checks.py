@@ -33,6 +33,7 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from typing import Any
 
@@ -657,7 +658,8 @@ def plot_motion_checks(
     """
     import matplotlib
 
-    matplotlib.use("Agg", force=False)
+    if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
+        matplotlib.use("Agg")  # session's backend (a notebook's inline one)
     import matplotlib.pyplot as plt
 
     obs, rep = replicates["observed"], replicates["tracks"]

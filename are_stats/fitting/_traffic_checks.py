@@ -21,6 +21,7 @@ and a flag where the observed value falls outside the 90% band.
 
 from __future__ import annotations
 
+import sys
 import warnings
 from typing import Any
 
@@ -220,7 +221,8 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
     """
     import matplotlib
 
-    matplotlib.use("Agg", force=False)
+    if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
+        matplotlib.use("Agg")  # session's backend (a notebook's inline one)
     import matplotlib.pyplot as plt
 
     colours = {"paper": "tab:grey", "chosen": "tab:blue"}
