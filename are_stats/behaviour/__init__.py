@@ -70,9 +70,17 @@ from are_stats.behaviour._model import BehaviourFit, grid_geodesic  # noqa: E402
 __all__ += ["BehaviourFit", "grid_geodesic"]
 
 from are_stats.behaviour._generate import (  # noqa: E402
+    path_points,
     sample_soft_paths,
+    separate_paths,
     simulate_behaviour_tracks,
     smooth_path,
 )
 
-__all__ += ["sample_soft_paths", "simulate_behaviour_tracks", "smooth_path"]
+__all__ += [
+    "path_points",
+    "sample_soft_paths",
+    "separate_paths",
+    "simulate_behaviour_tracks",
+    "smooth_path",
+]

@@ -21,7 +21,11 @@ with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
    epoch. Positions are sampled every ``dt_out`` seconds from ``t_arrive`` to
    ``t_leave``. ``yaw`` follows the direction of motion (any angle).
 
-Artefacts do not see each other (no collision resolution).
+5. keeps its distance: every step an artefact whose next step would bring it within
+   ``min_separation`` of another (and closer than it was) side-steps off its path on free
+   cells, or else holds its position and walks on later (:func:`separate_paths`);
+   artefacts never pass through each other, and those that cannot move stop until the way
+   clears or they leave.
 """
 
 from __future__ import annotations
@@ -39,7 +43,13 @@ from are_stats.behaviour._model import BehaviourFit
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._soft import soft_policy
 
-__all__ = ["sample_soft_paths", "simulate_behaviour_tracks", "smooth_path"]
+__all__ = [
+    "path_points",
+    "sample_soft_paths",
+    "separate_paths",
+    "simulate_behaviour_tracks",
+    "smooth_path",
+]
 
 _DROW = np.array([d[0] for d in HEADINGS])
 _DCOL = np.array([d[1] for d in HEADINGS])
@@ -189,6 +199,7 @@ def simulate_behaviour_tracks(
     chunk: int = 16,
     class_labels: Any = None,
     horizon: float | None = None,
+    min_separation: float = 0.5,
 ) -> pd.DataFrame:
     """Tracks of scenario artefacts from a fitted behaviour (see the module docstring).
 
@@ -215,11 +226,19 @@ def simulate_behaviour_tracks(
         ``class`` column and no ``label``.
     horizon : float, optional
         Leaving times are cut at it (the end of a mission).
+    min_separation : float
+        Centre distance (m) below which two artefacts of a scenario touch: every step
+        (the smallest ``dt_out``) an artefact whose next step would bring it closer than
+        that to another (and closer than it was) side-steps off its path on free cells,
+        or else holds its position and walks on later (it still leaves at ``t_leave``);
+        earlier arrivals move first. ``0`` turns it off. Artefacts never pass through
+        each other; artefacts that cannot move stop (:func:`separate_paths`).
 
     Returns
     -------
     pandas.DataFrame
-        ``scenario, id, t, x, y, yaw`` (as :func:`scenario_tracks`), sorted by scenario, id, t.
+        ``scenario, id, t, x, y, yaw`` (as :func:`scenario_tracks`), sorted by scenario, id, t;
+        ``attrs["holds"]`` counts the steps artefacts held to keep their separation.
 
     Raises
     ------
@@ -302,29 +321,48 @@ def simulate_behaviour_tracks(
             )
             for j, m in enumerate(members):
                 paths[m] = (st[j], ac[j])
+    curves: list[tuple[np.ndarray, np.ndarray]] = []
+    for i in range(n):
+        if paths[i] is None:
+            curves.append((np.zeros(1), xy0[i][None, :].copy()))
+            continue
+        tv, pv = _continuous(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
+        # people leave when they reach their exit: the path is walked at the speed that
+        # ends it at t_leave, within the class's slow and fast walkers (2 sd around the
+        # median speed); beyond them the artefact arrives early and stands there, or is
+        # still walking when it leaves
+        if 0.0 < tv[-1]:
+            v_end = float(np.clip(speed[i] * tv[-1] / stay[i], slowest[i], fastest[i]))
+            tv = tv * (float(speed[i]) / v_end)
+        curves.append((tv, pv))
+    steps = np.array([dt_out if dt_out is not None else float(fit.dt[c]) for c in cls])
+    scen = artefacts["scenario"].to_numpy()
+    delays: list[tuple[np.ndarray, ...]] = [(np.zeros(1), np.zeros(1), np.zeros(1))] * n
+    holds = 0
+    if float(min_separation) > 0.0:
+        for s_label in pd.unique(scen):
+            members = np.flatnonzero(scen == s_label)
+            got, h = separate_paths(
+                [curves[i] for i in members], t_arr[members], t_lv[members],
+                float(steps[members].min()), float(min_separation), free=fit.free,
+                origin=(float(fit.origin[0]), float(fit.origin[1])), cell=float(fit.cell),
+            )  # fmt: skip
+            holds += h
+            for i, d in zip(members, got, strict=True):
+                delays[i] = d
     rows = []
     ids = artefacts["id"].to_numpy()
-    scen = artefacts["scenario"].to_numpy()
     for i in range(n):
-        step_out = dt_out if dt_out is not None else float(fit.dt[cls[i]])
-        ts = np.arange(0.0, stay[i] + 1e-9, step_out)
+        ts = np.arange(0.0, stay[i] + 1e-9, steps[i])
         if ts.size == 0 or ts[-1] < stay[i] - 1e-9:
             ts = np.append(ts, stay[i])
+        tv, pv = curves[i]
+        t_rec, d_rec, s_rec = delays[i]
+        tau = ts - np.interp(t_arr[i] + ts, t_rec, d_rec)
+        x, y = path_points(tv, pv, tau, np.interp(t_arr[i] + ts, t_rec, s_rec)).T
         if paths[i] is None:
-            x = np.full(ts.size, xy0[i, 0])
-            y = np.full(ts.size, xy0[i, 1])
             yaw = np.zeros(ts.size)
         else:
-            tv, pv = _continuous(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
-            # people leave when they reach their exit: the path is walked at the speed that
-            # ends it at t_leave, within the class's slow and fast walkers (2 sd around
-            # the median speed); beyond them the artefact arrives early and stands there,
-            # or is still walking when it leaves
-            if 0.0 < tv[-1]:
-                v_end = float(np.clip(speed[i] * tv[-1] / stay[i], slowest[i], fastest[i]))
-                tv = tv * (float(speed[i]) / v_end)
-            x = np.interp(ts, tv, pv[:, 0])
-            y = np.interp(ts, tv, pv[:, 1])
             dx, dy = np.gradient(x), np.gradient(y)
             still = np.hypot(dx, dy) < 1e-9
             yaw = np.mod(np.arctan2(dy, dx), 2 * np.pi)
@@ -338,4 +376,255 @@ def simulate_behaviour_tracks(
             )
         )
     out = pd.concat(rows, ignore_index=True)
-    return out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
+    out = out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
+    out.attrs["holds"] = int(holds)
+    return out
+
+
+def path_points(tv: np.ndarray, pv: np.ndarray, tau: Any, side: Any) -> np.ndarray:
+    """Points of a timed path, side-stepped along its left normal.
+
+    Parameters
+    ----------
+    tv : (m,) float
+        Increasing times of the path's vertices.
+    pv : (m, 2) float
+        The vertices (world m).
+    tau : (k,) float
+        Times on the path (clamped to its ends).
+    side : (k,) float
+        Offsets (m) along the left normal of the segment walked at ``tau`` (in a pause:
+        of the last segment walked before it; none on a path that never moves).
+
+    Returns
+    -------
+    (k, 2) float
+    """
+    tau = np.asarray(tau, float)
+    side = np.asarray(side, float)
+    base = np.column_stack([np.interp(tau, tv, pv[:, 0]), np.interp(tau, tv, pv[:, 1])])
+    if len(tv) < 2:
+        return base
+    seg = np.diff(pv, axis=0)
+    length = np.hypot(*seg.T)
+    moving = length > 0
+    if not moving.any():
+        return base
+    # each segment's direction: its own, or that of the last moving segment before it
+    # (the first moving one for a pause at the start)
+    last = np.where(moving, np.arange(len(seg)), -1)
+    last = np.maximum.accumulate(last)
+    last[last < 0] = int(np.argmax(moving))
+    unit = seg[last] / length[last][:, None]
+    k = np.clip(np.searchsorted(tv, tau, side="right") - 1, 0, len(seg) - 1)
+    nrm = np.column_stack([-unit[k, 1], unit[k, 0]])
+    return base + side[:, None] * nrm
+
+
+def separate_paths(
+    curves: list[tuple[np.ndarray, np.ndarray]],
+    t_arrive: np.ndarray,
+    t_leave: np.ndarray,
+    dt: float,
+    min_separation: float,
+    *,
+    free: np.ndarray | None = None,
+    origin: tuple[float, float] = (0.0, 0.0),
+    cell: float = 1.0,
+    max_side: float | None = None,
+) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], int]:
+    """Delays and side-steps that keep artefacts walking their paths apart.
+
+    Every ``dt`` from the first arrival, the live artefacts move in order of arrival (the
+    earlier first). Each is at ``p_i(tau) + s_i n_i(tau)``: the point of its path at its own
+    time ``tau = t - t_arrive_i - delay_i``, side-stepped by ``s_i`` along the path's left
+    normal. Its candidates for the step, in order: on along the path, stepping back
+    towards it (``|s|`` shrinks by the step length); on, keeping ``s``; on, stepping
+    left or right (``|s| <= max_side``); and holding its position (``delay_i`` grows by
+    ``dt``). It takes the first candidate that lies on a free cell (with ``free``) and
+    comes within ``min_separation`` of no other artefact's position (the new ones of
+    those that moved before it, the current ones of the others) unless it ends no closer
+    than it was. Holding is always allowed, so no two artefacts ever come closer than
+    ``min_separation`` (or than they started, for a group entering together); an artefact
+    that can neither pass nor side-step stops until the way clears or it leaves. Side-steps
+    start ahead of time: a candidate that keeps every approaching artefact beyond
+    ``3 min_separation`` is preferred to one that is merely safe.
+
+    Parameters
+    ----------
+    curves : list of (tv (m,), pv (m, 2))
+        Each artefact's path: times from its arrival and positions (world m).
+    t_arrive, t_leave : (n,) float
+    dt : float
+        Decision step (s).
+    min_separation : float
+        Centre distance (m).
+    free : (H, W) bool, optional
+        Free cells of the map side-steps must stay on (row = y, col = x).
+    origin : tuple of float
+        World ``(x, y)`` of cell ``(0, 0)``'s corner.
+    cell : float
+        Cell size (m).
+    max_side : float, optional
+        Largest side-step from the path (m); default ``1.5 min_separation``.
+
+    Returns
+    -------
+    motion : list of (times (k,), delay (k,), side (k,))
+        Each artefact's delay and side-step at the steps of its life (and one step past
+        it); interpolate between them.
+    holds : int
+        Steps that did not go on along the path (held, or side-stepped in place), over
+        all artefacts.
+    """
+    n = len(curves)
+    if n == 0:
+        return [], 0
+    t_arrive = np.asarray(t_arrive, float)
+    t_leave = np.asarray(t_leave, float)
+    max_side = 1.5 * min_separation if max_side is None else float(max_side)
+    comfort = 3.0 * min_separation
+    grid = np.arange(float(t_arrive.min()), float(t_leave.max()) + dt, dt)
+    delay, side = np.zeros(n), np.zeros(n)
+    pos = np.full((n, 2), np.nan)
+    order = np.lexsort((np.arange(n), t_arrive))
+    paths = _PathSet(curves)
+    ox, oy = float(origin[0]), float(origin[1])
+
+    def on_map(pts: np.ndarray) -> np.ndarray:
+        if free is None:
+            return np.ones(pts.shape[:-1], bool)
+        h, w = free.shape
+        col = np.floor((pts[..., 0] - ox) / cell).astype(np.int64)
+        row = np.floor((pts[..., 1] - oy) / cell).astype(np.int64)
+        inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+        ok = np.zeros(pts.shape[:-1], bool)
+        ok[inside] = free[row[inside], col[inside]]
+        return ok
+
+    rec_t, rec_i, rec_d, rec_s = [], [], [], []
+    holds = 0
+    for t in grid:
+        # one step past t_leave is kept, so that samples up to t_leave interpolate
+        live = order[(t_arrive[order] <= t) & (t < t_leave[order] + dt)]
+        if live.size == 0:
+            pos[:] = np.nan
+            continue
+        cur = pos[live].copy()
+        new = np.isnan(cur[:, 0])
+        if new.any():  # arrivals enter where their path starts
+            i = live[new]
+            cur[new] = paths.points(i, np.maximum(t - t_arrive[i] - delay[i], 0.0), side[i])
+        now = cur.copy()  # positions decided this step (the current ones until then)
+        tau = t - t_arrive[live] - delay[live]
+        mover = ~new & ((tau <= paths.end[live] + dt) | (side[live] != 0.0))
+        mk = np.flatnonzero(mover)
+        if mk.size:
+            mi = live[mk]
+            on = paths.points(mi, tau[mk], np.zeros(mk.size))
+            step = np.maximum(np.hypot(*(on - paths.points(mi, tau[mk] - dt, np.zeros(mk.size))).T),
+                              1e-6)  # fmt: skip
+            s0 = side[mi]
+            back = np.sign(s0) * np.maximum(np.abs(s0) - step, 0.0)
+            # candidates: on along the path (back towards it, keeping the side-step,
+            # stepping left or right), then stepping aside without going on
+            sides = np.column_stack([back, s0, s0 + step, s0 - step, s0 + step, s0 - step])
+            wait = np.array([False, False, False, False, True, True])
+            taus = np.where(wait[None, :], tau[mk, None] - dt, tau[mk, None])
+            cand = paths.points(np.repeat(mi, 6), taus.ravel(), sides.ravel()).reshape(-1, 6, 2)
+            valid = (np.abs(sides) <= max_side + 1e-12) & on_map(cand)
+            # an artefact nobody can come near this step (all others stay within two
+            # steps of where they are) takes its first candidate: the common case, decided
+            # at once; the others go one by one, earlier arrivals first
+            reach = 2.0 * float(step.max()) + comfort
+            d_cur = np.hypot(*(cand[:, 0, None, :] - cur[None, :, :]).transpose(2, 0, 1))
+            d_cur[np.arange(mk.size), mk] = np.inf
+            alone = valid[:, 0] & (d_cur >= reach).all(axis=1)
+            now[mk[alone]] = cand[alone, 0]
+            side[mi[alone]] = back[alone]
+            for m in np.flatnonzero(~alone):
+                k, i = mk[m], mi[m]
+                others = np.arange(live.size) != k
+                d_new = np.hypot(*(cand[m, :, None, :] - now[None, others, :]).transpose(2, 0, 1))
+                d_old = np.hypot(*(cur[k][None, :] - now[others, :]).T)
+                away = d_new >= d_old[None, :] - 1e-9
+                ok = ((d_new >= min_separation) | away).all(axis=1) & valid[m]
+                if ok.any():
+                    # going on beats stepping aside in place; of the safe candidates, the
+                    # one that keeps approaching artefacts farthest (up to a comfort
+                    # distance: side-steps start ahead of time), the earlier on ties
+                    pool = ok & ~wait if (ok & ~wait).any() else ok
+                    near = np.where(away, comfort, np.minimum(d_new, comfort))
+                    score = np.where(pool, near.min(axis=1, initial=comfort), -1.0)
+                    j = int(np.argmax(score >= score.max() - 1e-9))
+                    now[k], side[i] = cand[m, j], sides[m, j]
+                    if wait[j]:
+                        delay[i] += dt
+                        holds += 1
+                    continue
+                delay[i] += dt  # hold: where it was
+                holds += 1
+        pos[:] = np.nan
+        pos[live] = now
+        rec_t.append(np.full(live.size, t))
+        rec_i.append(live)
+        rec_d.append(delay[live].copy())
+        rec_s.append(side[live].copy())
+    out = [(np.zeros(1), np.zeros(1), np.zeros(1))] * n
+    if rec_i:
+        ti, ii = np.concatenate(rec_t), np.concatenate(rec_i)
+        dd, ss = np.concatenate(rec_d), np.concatenate(rec_s)
+        srt = np.argsort(ii, kind="stable")
+        ti, ii, dd, ss = ti[srt], ii[srt], dd[srt], ss[srt]
+        cuts = np.flatnonzero(np.diff(ii)) + 1
+        for a, b in zip(np.r_[0, cuts], np.r_[cuts, ii.size], strict=True):
+            out[int(ii[a])] = (ti[a:b], dd[a:b], ss[a:b])
+    return out, holds
+
+
+class _PathSet:
+    """Many timed paths, for :func:`path_points` of many artefacts in one call."""
+
+    def __init__(self, curves: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        tvs = [np.asarray(tv, float) for tv, _ in curves]
+        pvs = [np.asarray(pv, float).reshape(-1, 2) for _, pv in curves]
+        self.end = np.array([tv[-1] for tv in tvs])
+        span = np.array([tv[-1] - tv[0] for tv in tvs]) + 1.0
+        self.start = np.array([tv[0] for tv in tvs])
+        self.offset = np.concatenate([[0.0], np.cumsum(span)[:-1]]) - self.start
+        counts = np.array([len(tv) for tv in tvs])
+        self.first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        self.last = self.first + counts - 1
+        self.keys = np.concatenate([tv + o for tv, o in zip(tvs, self.offset, strict=True)])
+        self.pts = np.concatenate(pvs)
+        # each vertex's outgoing unit direction: its own segment's, or that of the last
+        # moving segment before it on the same path (the first moving one at the start)
+        nrm = np.zeros_like(self.pts)
+        for i, pv in enumerate(pvs):
+            if len(pv) < 2:
+                continue
+            seg = np.diff(pv, axis=0)
+            length = np.hypot(*seg.T)
+            moving = length > 0
+            if not moving.any():
+                continue
+            last = np.maximum.accumulate(np.where(moving, np.arange(len(seg)), -1))
+            last[last < 0] = int(np.argmax(moving))
+            unit = seg[last] / length[last][:, None]
+            rows = slice(self.first[i], self.first[i] + len(seg))
+            nrm[rows] = np.column_stack([-unit[:, 1], unit[:, 0]])
+        self.nrm = nrm
+
+    def points(self, ids: np.ndarray, tau: np.ndarray, side: np.ndarray) -> np.ndarray:
+        """``(k, 2)``: path ``ids[k]`` at ``tau[k]`` side-stepped by ``side[k]``."""
+        ids = np.asarray(ids, np.int64)
+        tau = np.clip(np.asarray(tau, float), self.start[ids], self.end[ids])
+        k = np.searchsorted(self.keys, tau + self.offset[ids], side="right") - 1
+        k = np.clip(k, self.first[ids], np.maximum(self.last[ids] - 1, self.first[ids]))
+        k1 = np.minimum(k + 1, self.last[ids])
+        t0, t1 = self.keys[k] - self.offset[ids], self.keys[k1] - self.offset[ids]
+        span = t1 - t0
+        frac = np.where(span > 0, (tau - t0) / np.where(span > 0, span, 1.0), 0.0)
+        frac = np.clip(frac, 0.0, 1.0)
+        base = self.pts[k] + frac[:, None] * (self.pts[k1] - self.pts[k])
+        return base + np.asarray(side, float)[:, None] * self.nrm[k]
