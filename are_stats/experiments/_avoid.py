@@ -1,0 +1,288 @@
+"""Artefacts that avoid the robot: at a move epoch, an artefact whose next motion would bring
+its box within ``clearance`` of the robot's centre (robot radius plus a safety margin)
+detours around the robot or waits for it (issue 15, "Moving artefacts in the loop").
+
+The decision is a pure function of a :class:`~are_stats.Scene`, the artefact, the time, the
+robot's position and the map; it returns the artefact's new behaviour track, which the
+experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
+
+* **conflict**: the box, sampled along the artefact's motion from ``t`` to its next check
+  ``t_check`` (at most ``ds`` apart), comes closer to the robot's centre than
+  ``clearance`` *and* closer than it is now (an artefact already near the robot may move
+  away from it, or stand);
+* **detour**: a shortest 8-connected path on the map's free cells from the artefact's
+  position to one of its own next ``lookahead`` track epochs past the conflict, with the
+  cells blocked that would bring its circumscribed disc onto a wall (with two half cell
+  diagonals of slack, so straight chords between cells are safe too), within
+  ``clearance`` of the robot, or onto another live artefact's box; the path is
+  string-pulled, cut into pieces of one epoch's travel and walked at the artefact's speed
+  on the track it leaves (never arriving before the epoch it rejoins); the rest of its
+  track is delayed by the extra time. The detour is checked against the other artefacts'
+  boxes at every sample time (they move too) and refused when it takes more than
+  ``lookahead`` epochs longer than the track;
+* **yield** (no detour): the artefact advances along its own track up to the last sample
+  before the conflict and holds there until ``t_check``, where the loop checks it again;
+  the rest of its track is delayed by the wait.
+
+Either way the artefact's life-cycle is unchanged: a delayed artefact still leaves at its
+leaving time, possibly before the end of its track.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from are_stats.experiments._planners import astar_cells
+from are_stats.experiments._robot import point_box_distance
+from are_stats.scenarios import Scene
+
+__all__ = ["Avoidance", "plan_avoidance"]
+
+
+class Avoidance(NamedTuple):
+    """An artefact's answer to the robot in its way.
+
+    Attributes
+    ----------
+    kind : {"detour", "yield"}
+    t : (m,) float
+        The artefact's new track epochs (its whole track).
+    pose : (m, 3) float
+        ``x, y, yaw`` at the epochs.
+    delay : float
+        Seconds by which the rest of its track now runs late.
+    """
+
+    kind: str
+    t: np.ndarray
+    pose: np.ndarray
+    delay: float
+
+
+def _centres(scene: Scene, i: int, pose: np.ndarray) -> np.ndarray:
+    """Box centres (k, 2) of artefact ``i`` at poses (k, 3)."""
+    off = scene.offsets[i]
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    return pose[:, :2] + np.column_stack([c * off[0] - s * off[1], s * off[0] + c * off[1]])
+
+
+def _sample(scene: Scene, i: int, t0: float, t1: float, ds: float) -> tuple[np.ndarray, ...]:
+    """Times (k,), poses (k, 3) and box centres (k, 2) of artefact ``i`` over ``[t0, t1]``,
+    at most ``ds`` metres apart."""
+    tt, pp = scene.track(i)
+    v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
+    v_max = float(v.max()) if v.size else 0.0
+    k = int(np.ceil((t1 - t0) * v_max / ds)) + 2
+    times = np.linspace(t0, t1, k)
+    pose = np.array([scene.poses(float(u), [i])[0] for u in times])
+    return times, pose, _centres(scene, i, pose)
+
+
+def _clear_of_others(
+    scene: Scene, i: int, times: np.ndarray, pose: np.ndarray, centres: np.ndarray
+) -> bool:
+    """Whether artefact ``i``'s box at ``pose`` (k, 3) meets no other live box at ``times``."""
+    from are_stats.builder import obb_overlap_2d
+
+    half = scene.half_extents[i, :2]
+    for u, p, c in zip(times, pose, centres, strict=True):
+        alive = scene.alive(float(u))
+        alive[i] = False
+        j = np.flatnonzero(alive)
+        if not j.size:
+            continue
+        pj = scene.poses(float(u), j)
+        cj = np.array([_centres(scene, int(a), pj[n : n + 1])[0] for n, a in enumerate(j)])
+        hit = obb_overlap_2d(
+            np.tile(c, (j.size, 1)), np.tile(half, (j.size, 1)), np.full(j.size, p[2]),
+            cj, scene.half_extents[j, :2], pj[:, 2],
+        )  # fmt: skip
+        if hit.any():
+            return False
+    return True
+
+
+def plan_avoidance(
+    scene: Scene,
+    i: int,
+    t: float,
+    t_check: float,
+    robot_xy: Any,
+    clearance: float,
+    grid: Any,
+    wall_distance: np.ndarray,
+    *,
+    lookahead: int = 4,
+    ds: float | None = None,
+) -> Avoidance | None:
+    """Detour or wait when artefact ``i``'s motion over ``[t, t_check]`` meets the robot.
+
+    Parameters
+    ----------
+    scene : Scene
+        The artefacts now (their tracks as already changed by earlier avoidances).
+    i : int
+        The artefact (index in the scene), alive at ``t`` and on a track.
+    t, t_check : float
+        Now (a move epoch of ``i``) and when the loop checks ``i`` next (its next move
+        epoch), ``t_check > t``.
+    robot_xy : (2,) float
+        The robot's centre now.
+    clearance : float
+        Robot radius plus the safety margin (m).
+    grid : OccupancyGrid
+        The real map M_2D.
+    wall_distance : (H, W) float
+        ``grid.distance_to_occupied()`` (computed once per mission).
+    lookahead : int
+        How many of its track epochs past the conflict the artefact may rejoin at, and how
+        many epochs longer than its track a detour may take.
+    ds : float, optional
+        Spacing of the motion samples (m); default the smaller of the grid's resolution and
+        a quarter of ``clearance``.
+
+    Returns
+    -------
+    Avoidance or None
+        ``None`` when the motion keeps clear of the robot (nothing to do).
+    """
+    res = float(grid.resolution)
+    ds = min(res, clearance / 4.0) if ds is None else float(ds)
+    q = np.asarray(robot_xy, float)
+    half = scene.half_extents[i, :2]
+    times, pose, centres = _sample(scene, i, t, t_check, ds)
+    d = point_box_distance(q, centres, np.tile(half, (len(times), 1)), pose[:, 2])
+    bad = (d < clearance) & (d < d[0] - 1e-9)
+    bad[0] = False
+    if not bad.any():
+        return None
+    j0 = int(np.argmax(bad))
+    tt, pp = scene.track(i)
+    past = tt < t
+    head_t, head_p = np.r_[tt[past], t], np.vstack([pp[past], pose[0]])
+    got = _detour(scene, i, t, times[j0], q, clearance, grid, wall_distance, lookahead, ds,
+                  head_t, head_p, min(d[0], clearance))  # fmt: skip
+    if got is not None:
+        return got
+    # wait on the track just short of the conflict, until the next check
+    t_stop, p_stop = times[j0 - 1], pose[j0 - 1]
+    mid, later = (tt > t) & (tt < t_stop), tt > t_stop
+    delay = float(t_check - t_stop)
+    stop_t = [t_stop] if t_stop > t else []
+    stop_p = p_stop[None] if t_stop > t else np.zeros((0, 3))
+    new_t = [head_t, tt[mid], stop_t, [t_check], tt[later] + delay]
+    new_p = [head_p, pp[mid], stop_p, p_stop[None], pp[later]]
+    return Avoidance("yield", np.concatenate(new_t), np.vstack(new_p), delay)
+
+
+def _detour(
+    scene: Scene, i: int, t: float, t_bad: float, q: np.ndarray, clearance: float, grid: Any,
+    wall_distance: np.ndarray, lookahead: int, ds: float, head_t: np.ndarray,
+    head_p: np.ndarray, keep: float,
+) -> Avoidance | None:  # fmt: skip
+    """A detour rejoining the track at one of its next ``lookahead`` epochs past ``t_bad``."""
+    tt, pp = scene.track(i)
+    res = float(grid.resolution)
+    half = scene.half_extents[i]
+    r_art = float(np.hypot(*scene.offsets[i, :2]) + np.hypot(*half[:2]))
+    k_first = int(np.searchsorted(tt, t_bad, side="left"))
+    cand = np.arange(k_first, min(k_first + lookahead, tt.size))
+    cand_c = _centres(scene, i, pp[cand]) if cand.size else np.zeros((0, 2))
+    far = point_box_distance(q, cand_c, np.tile(half[:2], (cand.size, 1)), pp[cand, 2])
+    cand = cand[far >= clearance]
+    if not cand.size:
+        return None
+    p_t = head_p[-1, :2]
+    dt = float(np.median(np.diff(tt))) if tt.size > 1 else 1.0
+    # a window of the map around the artefact and the epochs it may rejoin at
+    reach = float(np.linalg.norm(pp[cand, :2] - p_t, axis=1).max()) + 2 * (clearance + r_art)
+    corners = p_t + reach * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+    cells = grid.world_to_cell(corners)
+    lo = np.clip(cells.min(axis=0), 0, [grid.height - 1, grid.width - 1])
+    hi = np.clip(cells.max(axis=0) + 1, 1, [grid.height, grid.width])
+    win = (slice(int(lo[0]), int(hi[0])), slice(int(lo[1]), int(hi[1])))
+    ok = grid.free[win] & (wall_distance[win] > r_art + res * np.sqrt(2.0))
+    ij = np.indices(ok.shape).reshape(2, -1).T + lo
+    xy = grid.cell_to_world(ij)
+    keep_out = min(clearance + r_art, float(np.linalg.norm(p_t - q)) - res)
+    ok &= (np.linalg.norm(xy - q, axis=1) > keep_out).reshape(ok.shape)
+    alive = scene.alive(t)
+    alive[i] = False
+    for j in np.flatnonzero(alive):
+        pj = scene.poses(t, [j])
+        cj = _centres(scene, int(j), pj)
+        gap = _cells_to_box(xy, cj[0], scene.half_extents[j, :2], float(pj[0, 2]))
+        ok &= (gap > r_art + res * np.sqrt(0.5)).reshape(ok.shape)
+    start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
+    if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
+        return None
+    ok[start] = True  # where the artefact stands now
+    for k in cand:
+        goal = tuple(int(v) for v in grid.world_to_cell(pp[k, :2]) - lo)
+        if not (0 <= goal[0] < ok.shape[0] and 0 <= goal[1] < ok.shape[1]) or not ok[goal]:
+            continue
+        path = astar_cells(ok, start, goal)
+        if path is None:
+            continue
+        pts = grid.cell_to_world(path + lo)
+        pts[0], pts[-1] = p_t, pp[k, :2]
+        pts = _string_pull(pts, ok, grid, lo)
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        length = float(seg.sum())
+        orig = np.vstack([p_t, pp[int(np.searchsorted(tt, t, "right")) : k + 1, :2]])
+        v = float(np.linalg.norm(np.diff(orig, axis=0), axis=1).sum()) / max(tt[k] - t, 1e-9)
+        if v <= 0.0:
+            continue
+        dur = max(length / v, float(tt[k] - t))
+        if dur > float(tt[k] - t) + lookahead * dt:
+            continue
+        # pieces of at most one epoch's travel, walked at the track's speed
+        way = [pts[0]]
+        for a, b, ln in zip(pts[:-1], pts[1:], seg, strict=True):
+            n = max(int(np.ceil(ln / max(v * dt, 1e-9))), 1)
+            way.extend(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
+        way = np.array(way)
+        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
+        heading = np.arctan2(*(np.diff(way, axis=0)[:, ::-1].T))
+        w_t = t + dur * arc[1:] / max(length, 1e-12)
+        w_p = np.column_stack([way[1:], heading])
+        w_p[-1, 2] = pp[k, 2]
+        delay = float(t + dur - tt[k])
+        new_t = np.concatenate([head_t, w_t, tt[k + 1 :] + delay])
+        new_p = np.vstack([head_p, w_p, pp[k + 1 :]])
+        trial = scene.with_track(i, new_t, new_p)
+        times, pose, centres = _sample(trial, i, t, t + dur, ds)
+        d = point_box_distance(q, centres, np.tile(half[:2], (len(times), 1)), pose[:, 2])
+        if (d < keep - 1e-9).any() or not _clear_of_others(trial, i, times, pose, centres):
+            continue
+        return Avoidance("detour", new_t, new_p, delay)
+    return None
+
+
+def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -> np.ndarray:
+    """Distance (n,) from points ``xy`` (n, 2) to one oriented rectangle."""
+    d = xy - c
+    cs, sn = np.cos(yaw), np.sin(yaw)
+    local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> np.ndarray:
+    """Drop the path's vertices that a straight chord on ``ok`` cells can skip."""
+
+    def visible(a: np.ndarray, b: np.ndarray) -> bool:
+        n = int(np.ceil(np.linalg.norm(b - a) / (grid.resolution / 4.0))) + 1
+        ij = grid.world_to_cell(a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]) - lo
+        inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
+        return bool(inside.all() and ok[ij[:, 0], ij[:, 1]].all())
+
+    out, a = [pts[0]], 0
+    while a < len(pts) - 1:
+        b = len(pts) - 1
+        while b > a + 1 and not visible(pts[a], pts[b]):
+            b -= 1
+        out.append(pts[b])
+        a = b
+    return np.array(out)
