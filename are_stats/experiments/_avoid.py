@@ -61,11 +61,13 @@ class Avoidance(NamedTuple):
     delay: float
 
 
-def _centres(scene: Scene, i: int, pose: np.ndarray) -> np.ndarray:
-    """Box centres (k, 2) of artefact ``i`` at poses (k, 3)."""
-    off = scene.offsets[i]
+def _centres(scene: Scene, i: Any, pose: np.ndarray) -> np.ndarray:
+    """Box centres (k, 2) of artefact ``i`` (an index, or (k,) indices) at poses (k, 3)."""
+    off = np.broadcast_to(scene.offsets[i], (len(pose), 3))
     c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    return pose[:, :2] + np.column_stack([c * off[0] - s * off[1], s * off[0] + c * off[1]])
+    return pose[:, :2] + np.column_stack(
+        [c * off[:, 0] - s * off[:, 1], s * off[:, 0] + c * off[:, 1]]
+    )
 
 
 def _sample(scene: Scene, i: int, t0: float, t1: float, ds: float) -> tuple[np.ndarray, ...]:
@@ -94,7 +96,7 @@ def _clear_of_others(
         if not j.size:
             continue
         pj = scene.poses(float(u), j)
-        cj = np.array([_centres(scene, int(a), pj[n : n + 1])[0] for n, a in enumerate(j)])
+        cj = _centres(scene, j, pj)
         hit = obb_overlap_2d(
             np.tile(c, (j.size, 1)), np.tile(half, (j.size, 1)), np.full(j.size, p[2]),
             cj, scene.half_extents[j, :2], pj[:, 2],
@@ -152,6 +154,13 @@ def plan_avoidance(
     ds = min(res, clearance / 4.0) if ds is None else float(ds)
     q = np.asarray(robot_xy, float)
     half = scene.half_extents[i, :2]
+    # far away: its box cannot reach the robot's disc by t_check, whatever its path
+    tt, pp = scene.track(i)
+    v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
+    reach = (float(v.max()) if v.size else 0.0) * (t_check - t)
+    r_art = float(np.hypot(*scene.offsets[i, :2]) + np.hypot(*half))
+    if np.linalg.norm(scene.poses(t, [i])[0, :2] - q) - r_art - reach > clearance:
+        return None
     times, pose, centres = _sample(scene, i, t, t_check, ds)
     d = point_box_distance(q, centres, np.tile(half, (len(times), 1)), pose[:, 2])
     bad = (d < clearance) & (d < d[0] - 1e-9)
@@ -159,7 +168,6 @@ def plan_avoidance(
     if not bad.any():
         return None
     j0 = int(np.argmax(bad))
-    tt, pp = scene.track(i)
     past = tt < t
     head_t, head_p = np.r_[tt[past], t], np.vstack([pp[past], pose[0]])
     got = _detour(scene, i, t, times[j0], q, clearance, grid, wall_distance, lookahead, ds,
@@ -210,10 +218,13 @@ def _detour(
     ok &= (np.linalg.norm(xy - q, axis=1) > keep_out).reshape(ok.shape)
     alive = scene.alive(t)
     alive[i] = False
-    for j in np.flatnonzero(alive):
-        pj = scene.poses(t, [j])
-        cj = _centres(scene, int(j), pj)
-        gap = _cells_to_box(xy, cj[0], scene.half_extents[j, :2], float(pj[0, 2]))
+    others = np.flatnonzero(alive)
+    p_o = scene.poses(t, others)
+    c_o = _centres(scene, others, p_o)
+    r_o = np.hypot(*scene.half_extents[others, :2].T)
+    near = np.linalg.norm(c_o - p_t, axis=1) <= reach * np.sqrt(2.0) + r_o + r_art + res
+    for j, cj, yj in zip(others[near], c_o[near], p_o[near, 2], strict=True):
+        gap = _cells_to_box(xy, cj, scene.half_extents[j, :2], float(yj))
         ok &= (gap > r_art + res * np.sqrt(0.5)).reshape(ok.shape)
     start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
     if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):

@@ -193,6 +193,8 @@ class _Mission:
     clearance: float  # robot radius + avoidance margin (m)
     move_period: float | None
     wall_distance: np.ndarray | None  # grid.distance_to_occupied() when avoid
+    art_radius: np.ndarray  # (N,) box reach from an artefact's pose (m)
+    art_speed: np.ndarray  # (N,) fastest speed along its track (avoidances only slow it)
 
 
 class _State(NamedTuple):
@@ -454,20 +456,17 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
     around it or wait (:func:`~are_stats.experiments._avoid.plan_avoidance`); their new
     tracks go into the state's scene and the rest of the event table is rebuilt from it."""
     scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
-    for i in moved.tolist():
-        tt, _ = scene.track(i)
-        nxt = tt[tt > s.t]
-        if not nxt.size:
+    t_check = scene.next_epoch(s.t, moved)
+    if m.move_period is not None:  # its next move is registered on the clock's tick
+        t_check = np.ceil(t_check / m.move_period) * m.move_period
+    t_check = np.minimum(t_check, scene.t_leave[moved])
+    # only those whose box can reach the robot's disc by then (at their fastest)
+    gap = np.linalg.norm(scene.poses(s.t, moved)[:, :2] - s.pose[:2], axis=1)
+    near = gap - m.art_radius[moved] - m.art_speed[moved] * (t_check - s.t) <= m.clearance
+    for i, tc in zip(moved[near].tolist(), t_check[near].tolist(), strict=True):
+        if not (s.t < tc < np.inf):
             continue
-        t_check = float(nxt[0])
-        if m.move_period is not None:  # its next move is registered on the clock's tick
-            t_check = float(np.ceil(t_check / m.move_period) * m.move_period)
-        t_check = min(t_check, float(scene.t_leave[i]))
-        if t_check <= s.t:
-            continue
-        got = plan_avoidance(
-            scene, i, s.t, t_check, s.pose[:2], m.clearance, m.grid, m.wall_distance
-        )
+        got = plan_avoidance(scene, i, s.t, tc, s.pose[:2], m.clearance, m.grid, m.wall_distance)
         if got is None:
             continue
         scene = scene.with_track(i, got.t, got.pose)
@@ -568,6 +567,17 @@ def _scene_record(m: _Mission, s: _State) -> dict:
         "yaws": boxes.yaws, "labels": list(boxes.labels), "perceived": s.seen[idx],
         "grid": _planning_grid(m, s, idx, boxes)[0],
     }  # fmt: skip
+
+
+def _track_speeds(scene: Scene) -> np.ndarray:
+    """(N,) the fastest speed of each artefact between its track epochs (0 without)."""
+    out = np.zeros(len(scene))
+    for i in np.flatnonzero(scene.has_tracks):
+        tt, pp = scene.track(int(i))
+        if tt.size > 1:
+            v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.diff(tt)
+            out[i] = float(v.max())
+    return out
 
 
 def _event_table(
@@ -748,6 +758,8 @@ def run_mission(
         event_moved=event_moved, avoid=avoid, clearance=robot.radius + margin,
         move_period=move_period,
         wall_distance=grid.distance_to_occupied() if avoid and scene.has_tracks.any() else None,
+        art_radius=np.hypot(*scene.offsets[:, :2].T) + np.hypot(*scene.half_extents[:, :2].T),
+        art_speed=_track_speeds(scene),
     )  # fmt: skip
     # refuse before looping: footprint tests along the path, and grid passes per replan
     n_motion = robot.speed * T / m.step + 1.0

@@ -238,6 +238,17 @@ class Scene:
         lo, hi = self._start[i], self._start[i + 1]
         return self._t[lo:hi].copy(), self._pose[lo:hi].copy()
 
+    def next_epoch(self, t: float, which: Any = None) -> np.ndarray:
+        """``(k,)`` the first track epoch after ``t`` of artefacts ``which`` (indices;
+        default all), ``inf`` where there is none."""
+        idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64)
+        q = idx * self._span + (float(t) - self._t_min)
+        k = np.maximum(np.searchsorted(self._key, q, side="right"), self._start[idx])
+        ok = k < self._start[idx + 1]
+        out = np.full(idx.size, np.inf)
+        out[ok] = self._t[k[ok]]
+        return out
+
     def with_track(self, i: int, t: Any, pose: Any) -> Scene:
         """A new scene, equal to this one except that artefact ``i`` follows the track
         ``t`` (m,) increasing, ``pose`` (m, 3) ``x, y, yaw`` (this scene is unchanged).

@@ -18,6 +18,9 @@
    artefacts in 30 s of mission (20x real time) plus 2 s of rollouts; perception 17 s,
    planning grids 6 s, planning 1.7 s, builder 1 s, the rest 4 s. With the cores busy
    with other jobs the same run took 53 s (11x), every stage about 1.8x slower.
+   (Measured before issue 15's ``avoid_robot``, which is now on.)
+4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
+   mission wall time, the avoidance stage, and the detours, yields and contacts.
 
 Median of the repeats after one warm-up. Run ``python -m tests.benchmarks.bench_experiments``
 (``--quick``: fewer tasks and repeats).
@@ -97,7 +100,9 @@ def _plan_times(repeats: int) -> dict:
     return out
 
 
-def _moving_mission(horizon: float, perception: str = "camera") -> dict:
+def _moving_mission(
+    horizon: float, perception: str = "camera", avoid: bool = True, planner: object = None
+) -> dict:
     import are_stats.experiments._loop as loop
     from are_stats.experiments import Robot, random_goals, run_mission
     from are_stats.experiments._sweep import _load_catalogue, _load_map, _task_scenario
@@ -114,8 +119,9 @@ def _moving_mission(horizon: float, perception: str = "camera") -> dict:
     t0 = time.perf_counter()
     scene, info = _task_scenario(task, grid, cat)
     stages = {"behaviours": time.perf_counter() - t0}
-    spent = dict.fromkeys(("builder", "perception", "planning grids"), 0.0)
-    names = {"_register": "builder", "_perceive": "perception", "_planning_grid": "planning grids"}
+    spent = dict.fromkeys(("builder", "perception", "planning grids", "avoidance"), 0.0)
+    names = {"_register": "builder", "_perceive": "perception", "_planning_grid": "planning grids",
+             "_avoid": "avoidance"}  # fmt: skip
     originals = {name: getattr(loop, name) for name in names}
 
     def timed(name):
@@ -134,9 +140,10 @@ def _moving_mission(horizon: float, perception: str = "camera") -> dict:
             setattr(loop, name, timed(name))
         t0 = time.perf_counter()
         res = run_mission(
-            grid, scene, goals, {"algorithm": "RRTConnect", "range": 2.0},
+            grid, scene, goals, planner or {"algorithm": "RRTConnect", "range": 2.0},
             robot=Robot(radius=0.3, speed=0.5), catalogue=cat, time_limit=horizon,
             perception=perception, env_mesh=mesh, perception_period=0.1, move_period=2.0,
+            avoid_robot=avoid,
         )  # fmt: skip
         wall = time.perf_counter() - t0
     finally:
@@ -178,6 +185,24 @@ def main(quick: bool = False) -> None:
     )
     for name, t in m["stages"].items():
         print(f"  {name:15s}: {t:7.2f} s")
+    # the same walkers avoiding the robot or not (A*, every artefact perceived), alternated
+    horizon = 60.0 if quick else 180.0
+    runs: dict[bool, list] = {True: [], False: []}
+    for _ in range(1 if quick else 3):
+        for avoid in (False, True):
+            runs[avoid].append(_moving_mission(horizon, "all", avoid, "astar"))
+    wall = {a: float(np.median([r["wall"] for r in rs])) for a, rs in runs.items()}
+    print(f"avoid_robot on vs off: {horizon:g} s mission, A*, perception all, median of "
+          f"{len(runs[True])} (rollouts not timed)")  # fmt: skip
+    for avoid in (False, True):
+        s = runs[avoid][0]["summary"]
+        print(
+            f"  avoid_robot={avoid!s:5s}: {wall[avoid]:6.2f} s wall (avoidance "
+            f"{runs[avoid][0]['stages']['avoidance']:.2f} s), {s['n_detours']} detours, "
+            f"{s['n_yields']} yields, {s['artefact_contacts']} artefact contacts, "
+            f"{s['collisions']} collisions, {s['goals_reached']} goals"
+        )
+    print(f"  ratio on / off: x{wall[True] / wall[False]:.2f}")
 
 
 if __name__ == "__main__":

@@ -166,6 +166,11 @@ def test_with_track_replaces_one_track_and_leaves_the_scene_alone(catalogue):
     np.testing.assert_array_equal(late.t_leave, scene.t_leave)
     ev = late.events(0.0, 20.0)
     assert sorted(ev.loc[ev["kind"] == "move", "t"].tolist()) == [1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 9.0]
+    # next epochs: by hand from the two tracks, inf without one or after the last
+    np.testing.assert_array_equal(late.next_epoch(0.0), [1.0, 2.0, np.inf])
+    np.testing.assert_array_equal(late.next_epoch(3.0, [1, 0]), [4.0, 5.0])
+    np.testing.assert_array_equal(late.next_epoch(9.0, [0, 1]), [np.inf, np.inf])
+    np.testing.assert_array_equal(late.next_epoch(-50.0, [1]), [2.0])
     with pytest.raises(ValueError, match="strictly increasing"):
         scene.with_track(0, [1.0, 1.0], np.zeros((2, 3)))
     with pytest.raises(ValueError, match=r"pose \(m, 3\)"):
