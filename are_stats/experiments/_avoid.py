@@ -12,14 +12,15 @@ experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
   away from it, or stand);
 * **detour**: a shortest 8-connected path on the map's free cells from the artefact's
   position to one of its own next ``lookahead`` track epochs past the conflict, with the
-  cells blocked that would bring its circumscribed disc onto a wall (with two half cell
-  diagonals of slack, so straight chords between cells are safe too), within
-  ``clearance`` of the robot, or onto another live artefact's box; the path is
-  string-pulled, cut into pieces of one epoch's travel and walked at the artefact's speed
-  on the track it leaves (never arriving before the epoch it rejoins); the rest of its
-  track is delayed by the extra time. The detour is checked against the other artefacts'
-  boxes at every sample time (they move too) and refused when it takes more than
-  ``lookahead`` epochs longer than the track;
+  cells blocked where its inscribed disc would meet a wall, where its circumscribed disc
+  would come within ``clearance`` of the robot or meet another live artefact's box; the
+  path is string-pulled, cut into pieces of one epoch's travel and walked at the
+  artefact's speed on the track it leaves (never arriving before the epoch it rejoins);
+  the rest of its track is delayed by the extra time. The detour's box, sampled at most
+  ``ds`` apart with its heading as the scene interpolates it, is then tested exactly
+  against the map's non-free cells (grown by ``ds``, for the motion between samples) and
+  against the other artefacts' boxes at the same times (they move too); a detour that
+  meets either, or takes more than ``lookahead`` epochs longer than the track, is refused;
 * **yield** (no detour): the artefact advances along its own track up to the last sample
   before the conflict and holds there until ``t_check``, where the loop checks it again;
   the rest of its track is delayed by the wait.
@@ -211,7 +212,10 @@ def _detour(
     lo = np.clip(cells.min(axis=0), 0, [grid.height - 1, grid.width - 1])
     hi = np.clip(cells.max(axis=0) + 1, 1, [grid.height, grid.width])
     win = (slice(int(lo[0]), int(hi[0])), slice(int(lo[1]), int(hi[1])))
-    ok = grid.free[win] & (wall_distance[win] > r_art + res * np.sqrt(2.0))
+    # the search runs on cells where the box's inscribed disc clears the walls; the exact
+    # box-vs-wall-cells test of every sample below makes the decision
+    r_in = float(np.hypot(*scene.offsets[i, :2]) + half[:2].min())
+    ok = grid.free[win] & (wall_distance[win] > r_in + res * np.sqrt(0.5))
     ij = np.indices(ok.shape).reshape(2, -1).T + lo
     xy = grid.cell_to_world(ij)
     keep_out = min(clearance + r_art, float(np.linalg.norm(p_t - q)) - res)
@@ -266,10 +270,40 @@ def _detour(
         trial = scene.with_track(i, new_t, new_p)
         times, pose, centres = _sample(trial, i, t, t + dur, ds)
         d = point_box_distance(q, centres, np.tile(half[:2], (len(times), 1)), pose[:, 2])
-        if (d < keep - 1e-9).any() or not _clear_of_others(trial, i, times, pose, centres):
+        if (
+            (d < keep - 1e-9).any()
+            or not _clear_of_walls(grid, centres, half[:2] + ds, pose[:, 2])
+            or not _clear_of_others(trial, i, times, pose, centres)
+        ):
             continue
         return Avoidance("detour", new_t, new_p, delay)
     return None
+
+
+def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray) -> bool:
+    """Whether boxes (k of them, half sizes ``half`` (2,)) share no area with a cell of
+    ``grid`` that is not free (an exact separating-axis test against the cells' squares)."""
+    from are_stats.builder import obb_overlap_2d
+
+    res = float(grid.resolution)
+    r = float(np.hypot(*half)) + res
+    blocked = ~grid.free
+    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * r
+    for c, y in zip(centres, yaws, strict=True):
+        cells = grid.world_to_cell(c + square)
+        lo = np.clip(cells.min(axis=0), 0, [grid.height, grid.width])
+        hi = np.clip(cells.max(axis=0) + 1, 0, [grid.height, grid.width])
+        ij = np.argwhere(blocked[lo[0] : hi[0], lo[1] : hi[1]]) + lo
+        if not ij.size:
+            continue
+        n = len(ij)
+        hit = obb_overlap_2d(
+            np.tile(c, (n, 1)), np.tile(half, (n, 1)), np.full(n, y), grid.cell_to_world(ij),
+            np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
+        )  # fmt: skip
+        if hit.any():
+            return False
+    return True
 
 
 def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -> np.ndarray:

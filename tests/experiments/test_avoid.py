@@ -200,3 +200,53 @@ def test_plan_avoidance_detour_rejoins_its_track_late():
     # the detour's vertices keep the box clear of the robot's disc plus margin
     off = np.abs(p_new[:-n, :2] - [10.0, 10.0]) - HALF
     assert (np.linalg.norm(np.maximum(off, 0.0), axis=1) >= 0.5 - 1e-9).all()
+
+
+def test_detour_by_a_wall_keeps_the_box_inside_the_corridor():
+    """A 3 m corridor; the robot stands 0.7 m from its east wall in the way of a walker a
+    little east of it: the shorter way round is east, through the wall; it goes west, and
+    its box never covers a wall cell (sampled by hand)."""
+    data = np.full((100, 100), 100)
+    data[:, 40:55] = 0  # x in [8.0, 11.0)
+    grid = OccupancyGrid(data, 0.2)
+    art, tracks = _north()
+    art, tracks = art.assign(x=10.5), tracks.assign(x=10.5)
+    res = run_mission(grid, art, [[10.0, 15.0]], _never, robot=ROBOT, start=[10.3, 10.0, 0.0],
+                      catalogue=CATALOGUE, tracks=tracks, time_limit=30.0, record=True)  # fmt: skip
+    assert res.summary["artefact_contacts"] == 0 and res.summary["n_detours"] >= 1
+    xs = []
+    for sc in res.trace.scenes:
+        pts = _box_points(sc["centres"][0, :2], sc["yaws"][0])
+        ij = grid.world_to_cell(pts)
+        assert (grid.data[ij[:, 0], ij[:, 1]] == 0).all()
+        assert np.linalg.norm(pts - [10.3, 10.0], axis=1).min() > ROBOT.radius
+        xs.append(sc["centres"][0, 0])
+    assert min(xs) <= 10.3 - 0.5 - HALF + 1e-9 and max(xs) == 10.5  # west, never east
+
+
+def test_clear_of_walls_against_sampled_boxes():
+    from are_stats.experiments._avoid import _clear_of_walls
+
+    rng = np.random.default_rng(5)
+    data = np.where(rng.random((30, 30)) < 0.05, 100, 0)
+    data[3, :] = -1  # unknown cells count as walls too
+    grid = OccupancyGrid(data, 0.2)
+    u = np.linspace(-1.0, 1.0, 41)
+    a, b = (g.ravel() for g in np.meshgrid(u, u))
+    n_hit = 0
+    for _ in range(300):
+        c, half, yaw = rng.uniform(1.0, 5.0, 2), rng.uniform(0.05, 0.6, 2), rng.uniform(0, 7)
+
+        def sampled(h, c=c, yaw=yaw):
+            x, y = a * h[0], b * h[1]
+            pts = c + np.column_stack([np.cos(yaw) * x - np.sin(yaw) * y,
+                                       np.sin(yaw) * x + np.cos(yaw) * y])  # fmt: skip
+            ij = grid.world_to_cell(pts)
+            ij = ij[grid.in_bounds(ij)]
+            return bool((grid.data[ij[:, 0], ij[:, 1]] != 0).any())
+
+        clear = _clear_of_walls(grid, c[None], half, np.array([yaw]))
+        assert not (clear and sampled(half - 0.01))  # a wall cell inside: not clear
+        assert clear or sampled(half + 0.02)  # not clear: a wall cell at the edge at most
+        n_hit += not clear
+    assert 30 < n_hit < 270  # both answers were checked
