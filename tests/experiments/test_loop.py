@@ -162,6 +162,8 @@ def test_robot_camera_frames():
         ({"grid": np.zeros((3, 3))}, "grid"),
         ({"artefacts": pd.DataFrame({"x": [1.0]})}, "artefacts"),
         ({"start": [1.0, 2.0]}, "start"),
+        ({"avoid_robot": "yes"}, "avoid_robot"),
+        ({"avoid_margin": -0.1}, "avoid_margin"),
     ],
 )
 def test_bad_input(kwargs, match):
