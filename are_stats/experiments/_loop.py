@@ -457,8 +457,12 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
     tracks go into the state's scene and the rest of the event table is rebuilt from it."""
     scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
     t_check = scene.next_epoch(s.t, moved)
-    if m.move_period is not None:  # its next move is registered on the clock's tick
+    if m.move_period is not None:
+        # its next move is registered on the clock's tick; a wait ends just before it, so
+        # that the tick _event_table puts the wait's end on is that tick (k * p / p may
+        # round above k)
         t_check = np.ceil(t_check / m.move_period) * m.move_period
+        t_check -= 1e-9 * np.maximum(1.0, np.abs(t_check))
     t_check = np.minimum(t_check, scene.t_leave[moved])
     # only those whose box can reach the robot's disc by then (at their fastest)
     gap = np.linalg.norm(scene.poses(s.t, moved)[:, :2] - s.pose[:2], axis=1)

@@ -131,13 +131,16 @@ def test_detour_keeps_clear_of_another_artefact():
     assert min(xs) < 9.5  # round the west side
 
 
-def test_walled_in_pedestrian_waits_and_never_meets_the_robot_or_a_wall():
+# moves on a 0.1 s / 0.7 s clock: k * p / p can round above k, and the wait must still end
+# on the tick that checks it again
+@pytest.mark.parametrize("move_period", [None, 0.1, 0.7])
+def test_walled_in_pedestrian_waits_and_never_meets_the_robot_or_a_wall(move_period):
     data = np.full((100, 100), 100)
     data[:, 47:53] = 0  # a corridor x in [9.4, 10.6): no way round a robot standing in it
     grid = OccupancyGrid(data, 0.2)
     art, tracks = _north()
     kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=tracks,
-              time_limit=30.0, record=True)  # fmt: skip
+              time_limit=30.0, record=True, move_period=move_period)  # fmt: skip
     off = run_mission(grid, art, [[10.0, 15.0]], _never, avoid_robot=False, **kw)
     assert off.summary["artefact_contacts"] == 1
     on = run_mission(grid, art, [[10.0, 15.0]], _never, **kw)
