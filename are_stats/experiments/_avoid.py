@@ -1,15 +1,17 @@
 """Artefacts that avoid the robot: at a move epoch, an artefact whose next motion would bring
-its box within ``clearance`` of the robot's centre (robot radius plus a safety margin)
-detours around the robot or waits for it (issue 15, "Moving artefacts in the loop").
+its box within ``clearance`` of the robot's centre (robot radius plus a safety margin), where
+the robot is at each instant along its current plan, detours around the robot or waits for
+it (issue 15, "Moving artefacts in the loop").
 
 The decision is a pure function of a :class:`~are_stats.Scene`, the artefact, the time, the
 robot's position and the map; it returns the artefact's new behaviour track, which the
 experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
 
 * **conflict**: the box, sampled along the artefact's motion from ``t`` to its next check
-  ``t_check`` (at most ``ds`` apart), comes closer to the robot's centre than
-  ``clearance`` *and* closer than it is now (an artefact already near the robot may move
-  away from it, or stand);
+  ``t_check`` (at most ``ds`` apart), comes closer to the robot's centre at that instant
+  than ``clearance`` *and* closer than it would be had it stood still (an artefact near
+  the robot may move away from it, or stand; a robot driving at a standing artefact is the
+  robot's doing);
 * **detour**: a shortest 8-connected path on the map's free cells from the artefact's
   position to one of its own next ``lookahead`` track epochs past the conflict, with the
   cells blocked where its inscribed disc would meet a wall, where its circumscribed disc
@@ -26,7 +28,9 @@ experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
   the rest of its track is delayed by the wait.
 
 Either way the artefact's life-cycle is unchanged: a delayed artefact still leaves at its
-leaving time, possibly before the end of its track.
+leaving time, possibly before the end of its track. The decision trusts the robot's plan at
+``t``: a replan before ``t_check`` can still bring the two together, and a waiting artefact
+is not an obstacle to the other artefacts' (precomputed) tracks.
 """
 
 from __future__ import annotations
@@ -117,6 +121,7 @@ def plan_avoidance(
     grid: Any,
     wall_distance: np.ndarray,
     *,
+    robot_track: tuple[np.ndarray, np.ndarray] | None = None,
     lookahead: int = 4,
     ds: float | None = None,
 ) -> Avoidance | None:
@@ -133,6 +138,10 @@ def plan_avoidance(
         epoch), ``t_check > t``.
     robot_xy : (2,) float
         The robot's centre now.
+    robot_track : ((r,) float, (r, 2) float), optional
+        Where the robot will be: times (increasing, from ``t``) and centres along its
+        current plan (it stands at the last one after); default: it stands at
+        ``robot_xy``. The footprint the artefact avoids is the robot's at each instant.
     clearance : float
         Robot radius plus the safety margin (m).
     grid : OccupancyGrid
@@ -154,25 +163,26 @@ def plan_avoidance(
     res = float(grid.resolution)
     ds = min(res, clearance / 4.0) if ds is None else float(ds)
     q = np.asarray(robot_xy, float)
+    rt, rxy = (np.array([t]), q[None]) if robot_track is None else robot_track
+    rt, rxy = np.asarray(rt, float), np.asarray(rxy, float).reshape(-1, 2)
     half = scene.half_extents[i, :2]
-    # far away: its box cannot reach the robot's disc by t_check, whatever its path
+    # far away: its box cannot reach the robot's discs by t_check, whatever its path
     tt, pp = scene.track(i)
     v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
     reach = (float(v.max()) if v.size else 0.0) * (t_check - t)
     r_art = float(np.hypot(*scene.offsets[i, :2]) + np.hypot(*half))
+    reach += _speed(rt, rxy) * (t_check - t)  # the robot comes at most this close
     if np.linalg.norm(scene.poses(t, [i])[0, :2] - q) - r_art - reach > clearance:
         return None
     times, pose, centres = _sample(scene, i, t, t_check, ds)
-    d = point_box_distance(q, centres, np.tile(half, (len(times), 1)), pose[:, 2])
-    bad = (d < clearance) & (d < d[0] - 1e-9)
-    bad[0] = False
+    bad = _closing(times, centres, pose[:, 2], half, rt, rxy, clearance)
     if not bad.any():
         return None
     j0 = int(np.argmax(bad))
     past = tt < t
     head_t, head_p = np.r_[tt[past], t], np.vstack([pp[past], pose[0]])
     got = _detour(scene, i, t, times[j0], q, clearance, grid, wall_distance, lookahead, ds,
-                  head_t, head_p, min(d[0], clearance))  # fmt: skip
+                  head_t, head_p, (rt, rxy))  # fmt: skip
     if got is not None:
         return got
     # wait on the track just short of the conflict, until the next check
@@ -186,10 +196,30 @@ def plan_avoidance(
     return Avoidance("yield", np.concatenate(new_t), np.vstack(new_p), delay)
 
 
+def _robot_at(rt: np.ndarray, rxy: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """The robot's centres (k, 2) at ``times``, along its track (standing after its end)."""
+    return np.column_stack([np.interp(times, rt, rxy[:, 0]), np.interp(times, rt, rxy[:, 1])])
+
+
+def _closing(
+    times: np.ndarray, centres: np.ndarray, yaws: np.ndarray, half: np.ndarray,
+    rt: np.ndarray, rxy: np.ndarray, clearance: float,
+) -> np.ndarray:  # fmt: skip
+    """(k,) bool: samples where the box is within ``clearance`` of the robot's centre then,
+    and closer than it would be had it stood at its first sample (its own motion closed the
+    gap: a robot driving at a standing artefact is the robot's doing)."""
+    r = _robot_at(rt, rxy, times)
+    d = _pair_distance(r, centres, half, yaws)
+    stay = _pair_distance(r, np.broadcast_to(centres[0], r.shape), half, np.full(len(r), yaws[0]))
+    bad = (d < clearance) & (d < stay - 1e-9)
+    bad[0] = False
+    return bad
+
+
 def _detour(
     scene: Scene, i: int, t: float, t_bad: float, q: np.ndarray, clearance: float, grid: Any,
     wall_distance: np.ndarray, lookahead: int, ds: float, head_t: np.ndarray,
-    head_p: np.ndarray, keep: float,
+    head_p: np.ndarray, robot: tuple[np.ndarray, np.ndarray],
 ) -> Avoidance | None:  # fmt: skip
     """A detour rejoining the track at one of its next ``lookahead`` epochs past ``t_bad``."""
     tt, pp = scene.track(i)
@@ -218,8 +248,15 @@ def _detour(
     ok = grid.free[win] & (wall_distance[win] > r_in + res * np.sqrt(0.5))
     ij = np.indices(ok.shape).reshape(2, -1).T + lo
     xy = grid.cell_to_world(ij)
-    keep_out = min(clearance + r_art, float(np.linalg.norm(p_t - q)) - res)
-    ok &= (np.linalg.norm(xy - q, axis=1) > keep_out).reshape(ok.shape)
+    # the robot's disc now and along its plan until the latest rejoin time
+    rt, rxy = robot
+    horizon = float(tt[cand].max() - t) + lookahead * dt
+    n_r = int(np.ceil(horizon * _speed(rt, rxy) / res)) + 2
+    sweep = _robot_at(rt, rxy, t + horizon * np.linspace(0.0, 1.0, n_r))
+    gone = np.linalg.norm(sweep - p_t, axis=1)
+    keep_out = np.minimum(clearance + r_art, gone - res)
+    for c, r in zip(sweep, keep_out, strict=True):
+        ok &= (np.linalg.norm(xy - c, axis=1) > r).reshape(ok.shape)
     alive = scene.alive(t)
     alive[i] = False
     others = np.flatnonzero(alive)
@@ -269,15 +306,33 @@ def _detour(
         new_p = np.vstack([head_p, w_p, pp[k + 1 :]])
         trial = scene.with_track(i, new_t, new_p)
         times, pose, centres = _sample(trial, i, t, t + dur, ds)
-        d = point_box_distance(q, centres, np.tile(half[:2], (len(times), 1)), pose[:, 2])
         if (
-            (d < keep - 1e-9).any()
+            _closing(times, centres, pose[:, 2], half[:2], rt, rxy, clearance).any()
             or not _clear_of_walls(grid, centres, half[:2] + ds, pose[:, 2])
             or not _clear_of_others(trial, i, times, pose, centres)
         ):
             continue
         return Avoidance("detour", new_t, new_p, delay)
     return None
+
+
+def _pair_distance(
+    points: np.ndarray, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray
+) -> np.ndarray:
+    """(k,) distance from point k (k, 2) to box k (centres (k, 2), yaws (k,), half (2,))."""
+    d = points - centres
+    c, s = np.cos(yaws), np.sin(yaws)
+    local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def _speed(rt: np.ndarray, rxy: np.ndarray) -> float:
+    """The robot's fastest speed along its track (0 standing)."""
+    if rt.size < 2:
+        return 0.0
+    return float(
+        (np.linalg.norm(np.diff(rxy, axis=0), axis=1) / np.maximum(np.diff(rt), 1e-12)).max()
+    )
 
 
 def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray) -> bool:

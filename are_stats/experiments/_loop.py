@@ -24,10 +24,11 @@ apply it), both pure functions of the mission's fixed settings (``_Mission``) an
   robot's footprint is counted apart, as an arrival contact, and one that walks into the
   robot, closing the gap faster than the robot did, as an artefact contact); when the plan
   fails the robot waits for the next update;
-* with ``avoid_robot`` (the default) the robot's current footprint is an obstacle to the
-  moving artefacts: at a move, an artefact whose motion to its next epoch would enter it
-  detours or waits (:mod:`are_stats.experiments._avoid`, timeline ``"move+detour"`` /
-  ``"move+yield"``); its new track goes into the state's scene (``_State.scene``, built by
+* with ``avoid_robot`` (the default) the robot's footprint is an obstacle to the moving
+  artefacts: at a move, an artefact whose motion to its next epoch would enter it (where
+  the robot is then, along its current plan) detours or waits
+  (:mod:`are_stats.experiments._avoid`, timeline ``"move+detour"`` / ``"move+yield"``);
+  its new track goes into the state's scene (``_State.scene``, built by
   :meth:`~are_stats.Scene.with_track`) and the coming events are rebuilt from it.
 
 The replanning time ``rho_t`` is measured on the wall clock (DECISIONS 10) and recorded, but
@@ -462,15 +463,27 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
         # that the tick _event_table puts the wait's end on is that tick (k * p / p may
         # round above k)
         t_check = np.ceil(t_check / m.move_period) * m.move_period
-        t_check -= 1e-9 * np.maximum(1.0, np.abs(t_check))
+        fin = np.isfinite(t_check)
+        t_check[fin] -= 1e-9 * np.abs(t_check[fin])
     t_check = np.minimum(t_check, scene.t_leave[moved])
-    # only those whose box can reach the robot's disc by then (at their fastest)
+    # only those whose box can reach the robot's disc by then (both at their fastest)
     gap = np.linalg.norm(scene.poses(s.t, moved)[:, :2] - s.pose[:2], axis=1)
-    near = gap - m.art_radius[moved] - m.art_speed[moved] * (t_check - s.t) <= m.clearance
+    v = m.art_speed[moved] + (m.robot.speed if s.path is not None else 0.0)
+    near = gap - m.art_radius[moved] - v * (t_check - s.t) <= m.clearance
+    track = None
+    if s.path is not None:  # where the robot will be: along its plan, then at its end
+        ahead = s.cum > s.s_along
+        track = (
+            s.t + np.r_[0.0, s.cum[ahead] - s.s_along] / m.robot.speed,
+            np.vstack([s.pose[:2], s.path[ahead]]),
+        )
     for i, tc in zip(moved[near].tolist(), t_check[near].tolist(), strict=True):
         if not (s.t < tc < np.inf):
             continue
-        got = plan_avoidance(scene, i, s.t, tc, s.pose[:2], m.clearance, m.grid, m.wall_distance)
+        got = plan_avoidance(
+            scene, i, s.t, tc, s.pose[:2], m.clearance, m.grid, m.wall_distance,
+            robot_track=track,
+        )  # fmt: skip
         if got is None:
             continue
         scene = scene.with_track(i, got.t, got.pose)

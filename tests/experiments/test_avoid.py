@@ -253,3 +253,20 @@ def test_clear_of_walls_against_sampled_boxes():
         assert clear or sampled(half + 0.02)  # not clear: a wall cell at the edge at most
         n_hit += not clear
     assert 30 < n_hit < 270  # both answers were checked
+
+
+def test_plan_avoidance_sees_where_the_robot_drives():
+    """The robot is 2 m east of the walker's line now, driving west at 2 m/s: it will be on
+    the line when the walker gets there. Standing where it is, it would be no obstacle."""
+    art, tracks = _north()
+    scene = _scene(tracks, art)
+    wall = OPEN.distance_to_occupied()
+    robot = ([7.0, 8.0], [[12.0, 10.0], [10.0, 10.0]])
+    assert plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall) is None
+    got = plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall, robot_track=robot)
+    assert got is not None and got.delay > 0
+    # a robot driving away from the walker's way is no obstacle either
+    away = ([7.0, 8.0], [[12.0, 10.0], [14.0, 10.0]])
+    assert (
+        plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall, robot_track=away) is None
+    )
