@@ -83,7 +83,13 @@ def _sample(scene: Scene, i: int, t0: float, t1: float, ds: float) -> tuple[np.n
     v_max = float(v.max()) if v.size else 0.0
     k = int(np.ceil((t1 - t0) * v_max / ds)) + 2
     times = np.linspace(t0, t1, k)
-    pose = np.array([scene.poses(float(u), [i])[0] for u in times])
+    # as Scene.poses (t0 is at or after its first epoch): linear between epochs, the
+    # heading the short way round, the last pose after the last epoch
+    turn = np.mod(np.diff(pp[:, 2]) + np.pi, 2 * np.pi) - np.pi
+    yaw = np.interp(times, tt, pp[0, 2] + np.r_[0.0, np.cumsum(turn)])
+    pose = np.column_stack(
+        [np.interp(times, tt, pp[:, 0]), np.interp(times, tt, pp[:, 1]), np.mod(yaw, 2 * np.pi)]
+    )
     return times, pose, _centres(scene, i, pose)
 
 

@@ -270,3 +270,19 @@ def test_plan_avoidance_sees_where_the_robot_drives():
     assert (
         plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall, robot_track=away) is None
     )
+
+
+def test_motion_samples_equal_the_scene_poses():
+    from are_stats.experiments._avoid import _sample
+
+    rng = np.random.default_rng(0)
+    t = np.r_[0.0, np.sort(rng.uniform(0, 20, 11))]
+    tr = pd.DataFrame({"id": 0, "t": t, "x": rng.uniform(0, 5, 12), "y": rng.uniform(0, 5, 12),
+                       "yaw": rng.uniform(0, 7, 12)})  # fmt: skip
+    scene = _scene(tr, pd.DataFrame([[0.0, 60.0, 1.0, 1.0, 0.0, 0]], columns=COLS))
+    times, pose, _ = _sample(scene, 0, 0.5, 25.0, 0.2)
+    ref = np.array([scene.poses(u, [0])[0] for u in times])
+    np.testing.assert_allclose(pose[:, :2], ref[:, :2], atol=1e-12)
+    turn = np.mod(pose[:, 2] - ref[:, 2] + np.pi, 2 * np.pi) - np.pi
+    np.testing.assert_allclose(turn, 0.0, atol=1e-12)
+    assert np.linalg.norm(np.diff(pose[:, :2], axis=0), axis=1).max() <= 0.2 + 1e-12
