@@ -261,8 +261,14 @@ def _detour(
     sweep = _robot_at(rt, rxy, t + horizon * np.linspace(0.0, 1.0, n_r))
     gone = np.linalg.norm(sweep - p_t, axis=1)
     keep_out = np.minimum(clearance + r_art, gone - res)
-    for c, r in zip(sweep, keep_out, strict=True):
-        ok &= (np.linalg.norm(xy - c, axis=1) > r).reshape(ok.shape)
+    from scipy.spatial import cKDTree
+
+    # cells within keep_out of a sweep point: query each point's ball (radii differ)
+    tree = cKDTree(xy)
+    hit = np.zeros(len(xy), bool)
+    for pts in tree.query_ball_point(sweep, np.maximum(keep_out, 0.0)):
+        hit[pts] = True
+    ok &= ~hit.reshape(ok.shape)
     alive = scene.alive(t)
     alive[i] = False
     others = np.flatnonzero(alive)
