@@ -36,7 +36,7 @@ from are_stats.experiments._planners import (
     timed_plan,
 )
 from are_stats.experiments._plots import plot_goals, plot_results, plot_rho
-from are_stats.experiments._robot import Robot, circle_box_overlap
+from are_stats.experiments._robot import Robot, circle_box_overlap, point_box_distance
 from are_stats.experiments._ros import ROS_FRAMES, artefact_frame, parse_start_time
 from are_stats.experiments._sweep import (
     expand_tasks,
@@ -75,6 +75,7 @@ __all__ = [
     "parse_start_time",
     "path_length",
     "plot_goals",
+    "point_box_distance",
     "plot_results",
     "plot_rho",
     "random_goals",

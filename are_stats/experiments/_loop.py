@@ -22,8 +22,14 @@ apply it), both pure functions of the mission's fixed settings (``_Mission``) an
   against every live artefact (perceived or not) at its pose at that instant and each new
   contact the robot drives into counts as a collision (an artefact that *arrives* on the
   robot's footprint is counted apart, as an arrival contact, and one that walks into the
-  robot, closing the gap faster than the robot did, as an artefact contact: artefacts do
-  not see the robot); when the plan fails the robot waits for the next update.
+  robot, closing the gap faster than the robot did, as an artefact contact); when the plan
+  fails the robot waits for the next update;
+* with ``avoid_robot`` (the default) the robot's footprint is an obstacle to the moving
+  artefacts: at a move, an artefact whose motion to its next epoch would enter it (where
+  the robot is then, along its current plan) detours or waits
+  (:mod:`are_stats.experiments._avoid`, timeline ``"move+detour"`` / ``"move+yield"``);
+  its new track goes into the state's scene (``_State.scene``, built by
+  :meth:`~are_stats.Scene.with_track`) and the coming events are rebuilt from it.
 
 The replanning time ``rho_t`` is measured on the wall clock (DECISIONS 10) and recorded, but
 it does not advance simulated time, so everything except ``rho_t`` and ``rho`` is
@@ -40,6 +46,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
+from are_stats.experiments._avoid import plan_avoidance
 from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
 from are_stats.experiments._robot import Robot, circle_box_overlap
@@ -82,6 +89,8 @@ class MissionResult(NamedTuple):
         ``collisions`` (contacts the robot drove into), ``arrival_contacts`` (artefacts
         that appeared on the robot's footprint), ``artefact_contacts`` (moving artefacts
         that walked into the robot: they closed the gap faster than the robot),
+        ``n_detours``, ``n_yields`` (artefacts that detoured around the robot or waited for
+        it, ``avoid_robot``), ``avoid_delay`` (s, the delays those added to their tracks),
         ``n_replans``, ``n_failed_plans``, ``n_updates``, ``n_move_updates`` (updates with
         moves),
         ``update_rate`` (scene updates per s), ``rho_mean``, ``rho_t_mean``, ``nu_mean``
@@ -178,12 +187,19 @@ class _Mission:
     record: bool
     step: float  # footprint test spacing along the path (m)
     n_free: int
-    event_t: np.ndarray
+    event_t: np.ndarray  # the events of the scene as given (the state holds the coming ones)
     event_lifecycle: np.ndarray
     event_moved: tuple
+    avoid: bool  # artefacts avoid the robot's footprint
+    clearance: float  # robot radius + avoidance margin (m)
+    move_period: float | None
+    wall_distance: np.ndarray | None  # grid.distance_to_occupied() when avoid
+    art_radius: np.ndarray  # (N,) box reach from an artefact's pose (m)
+    art_speed: np.ndarray  # (N,) fastest speed along its track (avoidances only slow it)
     # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
-    # batch: {tick time: (robot pose (3,), perceived (N,))}. A memo, not state: an entry is
-    # used only when the robot is where it was predicted to be at that tick.
+    # batch: {tick time: (robot pose (3,), perceived (N,), scene)}. A memo, not state: an
+    # entry is used only when the robot is where it was predicted to be at that tick, in
+    # the same scene.
     percepts: dict = field(default_factory=dict, compare=False)
     # the map's own occupied cells (H, W) and every cell's distance to them (m)
     static_occ: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]
@@ -218,6 +234,13 @@ class _State(NamedTuple):
     arrival_contacts: int
     artefact_contacts: int
     distance: float
+    scene: Scene  # the artefacts, with the tracks changed by their avoidances of the robot
+    event_t: np.ndarray  # (e,) times of the scene's coming events (see _Mission)
+    event_lifecycle: np.ndarray  # (e,) bool
+    event_moved: tuple  # e x (k,) indices of the artefacts that move then
+    n_detours: int
+    n_yields: int
+    avoid_delay: float  # s, summed over the avoidances
 
 
 class _Info(NamedTuple):
@@ -230,9 +253,9 @@ class _Info(NamedTuple):
     scene: dict | None = None
 
 
-def _boxes(m: _Mission, t: float) -> tuple[np.ndarray, Any]:
+def _boxes(scene: Scene, t: float) -> tuple[np.ndarray, Any]:
     """Indices (n,) of the live artefacts and their boxes at ``t``."""
-    return np.flatnonzero(m.scene.alive(t)), m.scene.at(t)
+    return np.flatnonzero(scene.alive(t)), scene.at(t)
 
 
 def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -247,9 +270,9 @@ def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np
     return xy, pose[:, 2]
 
 
-def _register(m: _Mission, t: float) -> int:
+def _register(m: _Mission, scene: Scene, t: float) -> int:
     """Register the scene's live boxes at ``t`` on the AR-builder (M_2D); returns n_A."""
-    m.builder.register_scene(m.scene, t)
+    m.builder.register_scene(scene, t)
     return m.builder.n_artefact_cells
 
 
@@ -274,16 +297,21 @@ _PERCEPT_BATCH = 32
 def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
     """(N,) bool: the artefacts in A_f at ``s.t`` seen from ``s.pose`` (no memory).
 
-    The same A_f as perceiving ``m.scene.at(s.t)`` on its own (:func:`perceive_scene`'s
+    The same A_f as perceiving ``s.scene.at(s.t)`` on its own (:func:`perceive_scene`'s
     frames are independent): the ticks ahead are perceived in the same batch, at the poses
     the robot will have if it keeps driving its plan (or keeps waiting), and reused when
-    it is there (to 1e-9 m and rad); a replan, a goal or a wait that changes the robot's
+    it is there (to 1e-9 m and rad) and the scene is the same one (an artefact avoiding
+    the robot makes a new scene); a replan, a goal or a wait that changes the robot's
     motion makes the prediction miss and the tick is perceived anew.
     """
     from are_stats.perception import perceive_scene
 
     hit = m.percepts.get(s.t)
-    if hit is not None and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9):
+    if (
+        hit is not None
+        and hit[2] is s.scene
+        and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9)
+    ):
         return hit[1].copy()
     times, t = [s.t], s.t
     if tick and not s.need_plan:  # (an arrival, a leave or a replan changes the motion)
@@ -302,11 +330,13 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
         poses = np.column_stack([pts, hd])
         poses[0] = s.pose
     _, seen = perceive_scene(
-        m.scene, tt, m.robot.camera_poses(poses), m.env_mesh, m.robot.camera(s.pose),
+        s.scene, tt, m.robot.camera_poses(poses), m.env_mesh, m.robot.camera(s.pose),
         m.d_max, m.tau,
     )  # fmt: skip
     m.percepts.clear()
-    m.percepts.update({float(t): (p, row) for t, p, row in zip(tt, poses, seen, strict=True)})
+    m.percepts.update(
+        {float(t): (p, row, s.scene) for t, p, row in zip(tt, poses, seen, strict=True)}
+    )
     return seen[0]
 
 
@@ -316,13 +346,13 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> tuple
 
     on = s.seen[idx]
     centres, half, yaws = boxes.centres[on, :2], boxes.half_extents[on], boxes.yaws[on]
-    ahead = idx[on & m.scene.has_tracks[idx]]
-    if ahead.size and s.event < m.event_t.size:
+    ahead = idx[on & s.scene.has_tracks[idx]]
+    if ahead.size and s.event < s.event_t.size:
         # a moving artefact is on the map over the interval to the next event: at its pose
         # now and at its next pose (the AR-builder knows where its artefacts go next)
-        xy, yaw = _footprints(m.scene, float(m.event_t[s.event]), ahead)
+        xy, yaw = _footprints(s.scene, float(s.event_t[s.event]), ahead)
         centres = np.vstack([centres, xy])
-        half = np.vstack([half, m.scene.half_extents[ahead]])
+        half = np.vstack([half, s.scene.half_extents[ahead]])
         yaws = np.r_[yaws, yaw]
     aug = perceived_grid(m.grid, centres, half, yaws, np.ones(len(yaws), bool))
     return aug, _free_cells(m, ~aug.free, s.pose)
@@ -385,17 +415,17 @@ def _contacts(
     the artefact (it walked into the robot faster than the robot came).
     """
     idx = np.flatnonzero(s.live)
-    moving = bool(m.scene.has_tracks[idx].any())
+    moving = bool(s.scene.has_tracks[idx].any())
     in_contact, by_robot, by_artefact = s.in_contact, 0, 0
-    half = m.scene.half_extents[idx, :2]
-    xy, yaw = _footprints(m.scene, s.t, idx)
+    half = s.scene.half_extents[idx, :2]
+    xy, yaw = _footprints(s.scene, s.t, idx)
     q_prev = s.pose[:2]
     for q, tq in zip(pts, times, strict=True):
         now = np.zeros(s.live.size, bool)
         if idx.size:
             xy_prev = xy
             if moving:
-                xy, yaw = _footprints(m.scene, tq, idx)
+                xy, yaw = _footprints(s.scene, tq, idx)
             hit = circle_box_overlap(q, m.robot.radius, xy, half, yaw)
             now[idx] = hit
             fresh = hit & ~in_contact[idx]
@@ -414,7 +444,7 @@ def _contacts(
 
 def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
     """Plan from the robot's pose to the current goal on the perceived grid."""
-    idx, boxes = _boxes(m, s.t)
+    idx, boxes = _boxes(s.scene, s.t)
     _, free = _planning_grid(m, s, idx, boxes)
     res = m.grid.resolution
     start_l = m.grid.world_to_local(s.pose[:2]) * res
@@ -461,12 +491,12 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     """Apply the scene's events at ``s.t`` (arrivals, leaves, moves); returns the update's
     kinds."""
     e = s.event
-    idx, boxes = _boxes(m, s.t)
-    live = m.scene.alive(s.t)
+    idx, boxes = _boxes(s.scene, s.t)
+    live = s.scene.alive(s.t)
     arrived, left = live & ~s.live, s.live & ~live
-    s = s._replace(live=live, seen=s.seen & live, n_A=_register(m, s.t), event=e + 1)
+    s = s._replace(live=live, seen=s.seen & live, n_A=_register(m, s.scene, s.t), event=e + 1)
     kinds = []
-    if m.event_lifecycle[e]:
+    if s.event_lifecycle[e]:
         old = s.seen
         s = s._replace(seen=_perceive(m, s, idx, boxes))
         if arrived.any():
@@ -478,11 +508,14 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
         if kinds:
             s = s._replace(need_plan=True)
     moved = np.zeros(live.size, bool)
-    moved[m.event_moved[e]] = True
+    moved[s.event_moved[e]] = True
     moved &= live
     if moved.any():
         kinds.append("move")
         s = s._replace(n_moves=s.n_moves + 1)
+        if m.avoid:
+            s, avoided = _avoid(m, s, np.flatnonzero(moved))
+            kinds.extend(avoided)
         if not s.need_plan and (moved & s.seen).any():
             # a perceived artefact moved: replan when it now blocks the plan (or the robot
             # was waiting for a way through)
@@ -498,18 +531,72 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     return s, kinds
 
 
+def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]]:
+    """Artefacts ``moved`` (indices) whose next motion meets the robot's footprint detour
+    around it or wait (:func:`~are_stats.experiments._avoid.plan_avoidance`); their new
+    tracks go into the state's scene and the rest of the event table is rebuilt from it."""
+    scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
+    t_check = scene.next_epoch(s.t, moved)
+    if m.move_period is not None:
+        # its next move is registered on the clock's tick; a wait ends just before it, so
+        # that the tick _event_table puts the wait's end on is that tick (k * p / p may
+        # round above k)
+        t_check = np.ceil(t_check / m.move_period) * m.move_period
+        fin = np.isfinite(t_check)
+        t_check[fin] -= 1e-9 * np.abs(t_check[fin])
+    t_check = np.minimum(t_check, scene.t_leave[moved])
+    # only those whose box can reach the robot's disc by then (both at their fastest)
+    gap = np.linalg.norm(scene.poses(s.t, moved)[:, :2] - s.pose[:2], axis=1)
+    v = m.art_speed[moved] + (m.robot.speed if s.path is not None else 0.0)
+    near = gap - m.art_radius[moved] - v * (t_check - s.t) <= m.clearance
+    track = None
+    if s.path is not None:  # where the robot will be: along its plan, then at its end
+        ahead = s.cum > s.s_along
+        track = (
+            s.t + np.r_[0.0, s.cum[ahead] - s.s_along] / m.robot.speed,
+            np.vstack([s.pose[:2], s.path[ahead]]),
+        )
+    for i, tc in zip(moved[near].tolist(), t_check[near].tolist(), strict=True):
+        if not (s.t < tc < np.inf):
+            continue
+        got = plan_avoidance(
+            scene, i, s.t, tc, s.pose[:2], m.clearance, m.grid, m.wall_distance,
+            robot_track=track,
+        )  # fmt: skip
+        if got is None:
+            continue
+        scene = scene.with_track(i, got.t, got.pose)
+        counts[got.kind] += 1
+        delay += got.delay
+        if got.kind not in kinds:
+            kinds.append(got.kind)
+    if not kinds:
+        return s, kinds
+    times, lifecycle, moves = _event_table(scene, m.T, m.move_period)
+    k = int(np.searchsorted(times, s.t, side="right"))
+    s = s._replace(
+        scene=scene, event_t=times[k:], event_lifecycle=lifecycle[k:], event_moved=moves[k:],
+        event=0, n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
+        avoid_delay=s.avoid_delay + delay,
+    )  # fmt: skip
+    return s, sorted(kinds)
+
+
 def _init(m: _Mission, pose: np.ndarray) -> _State:
     """The state at t = 0: the live artefacts registered and perceived from ``pose``."""
     n = len(m.scene)
-    idx, boxes = _boxes(m, 0.0)
+    idx, boxes = _boxes(m.scene, 0.0)
     live = m.scene.alive(0.0)
     s = _State(
         t=0.0, pose=pose, goal=0, reached=np.full(m.goals.shape[0], np.nan), path=None,
         cum=np.zeros(1), s_along=0.0, need_plan=True, reason="goal", live=live,
-        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=_register(m, 0.0),
+        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool),
+        n_A=_register(m, m.scene, 0.0),
         event=0, next_percept=m.period if m.perception == "camera" else np.inf,
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
-        artefact_contacts=0, distance=0.0,
+        artefact_contacts=0, distance=0.0, scene=m.scene, event_t=m.event_t,
+        event_lifecycle=m.event_lifecycle, event_moved=m.event_moved, n_detours=0, n_yields=0,
+        avoid_delay=0.0,
     )  # fmt: skip
     s = s._replace(seen=_perceive(m, s, idx, boxes))
     in_contact, _, _ = _contacts(m, pose[None, :2], np.array([0.0]), s)
@@ -526,7 +613,7 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     replan = plan = None
     if s.need_plan:
         s, replan, plan = _plan(m, s)
-    t_event = m.event_t[s.event] if s.event < m.event_t.size else np.inf
+    t_event = s.event_t[s.event] if s.event < s.event_t.size else np.inf
     t_next = min(t_event, s.next_percept, m.T)
     poses: list = []
     if s.path is not None:
@@ -548,7 +635,7 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
         s, kinds = _scene_update(m, s)
     if t_next == s.next_percept:
         old = s.seen
-        idx, boxes = _boxes(m, s.t)
+        idx, boxes = _boxes(s.scene, s.t)
         s = s._replace(
             seen=_perceive(m, s, idx, boxes, tick=True), next_percept=t_next + m.period
         )
@@ -573,12 +660,23 @@ def _timeline_row(m: _Mission, s: _State, kind: str) -> dict:
 
 
 def _scene_record(m: _Mission, s: _State) -> dict:
-    idx, boxes = _boxes(m, s.t)
+    idx, boxes = _boxes(s.scene, s.t)
     return {
         "t": s.t, "ids": boxes.ids, "centres": boxes.centres, "half": boxes.half_extents,
         "yaws": boxes.yaws, "labels": list(boxes.labels), "perceived": s.seen[idx],
         "grid": _planning_grid(m, s, idx, boxes)[0],
     }  # fmt: skip
+
+
+def _track_speeds(scene: Scene) -> np.ndarray:
+    """(N,) the fastest speed of each artefact between its track epochs (0 without)."""
+    out = np.zeros(len(scene))
+    for i in np.flatnonzero(scene.has_tracks):
+        tt, pp = scene.track(int(i))
+        if tt.size > 1:
+            v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.diff(tt)
+            out[i] = float(v.max())
+    return out
 
 
 def _event_table(
@@ -629,6 +727,8 @@ def run_mission(
     tau: float = 10.0,
     perception_memory: bool = True,
     move_period: float | None = None,
+    avoid_robot: bool = True,
+    avoid_margin: float = 0.2,
     seed: int = 0,
     record: bool = False,
 ) -> MissionResult:
@@ -677,6 +777,18 @@ def run_mission(
         new poses at its ticks (the boxes still slide continuously between them). Default:
         at every track epoch of every artefact (their epochs start at their own arrival
         times, so with many artefacts this makes many updates).
+    avoid_robot : bool
+        The robot's current footprint (a disc of radius ``robot.radius + avoid_margin``) is
+        an obstacle the moving artefacts plan around: at each of its move epochs an
+        artefact whose motion to its next epoch would bring its box into that disc (and
+        closer than it is) detours on the map's free cells, clear of walls and of the
+        other artefacts, rejoining its track a few epochs on, or, with no such detour,
+        stops short on its track and waits an epoch; the rest of its track runs late by
+        the extra time (:mod:`are_stats.experiments._avoid`). Each avoidance is a timeline
+        ``kind`` (``"move+detour"``, ``"move+yield"``) and counted in the summary. With
+        ``False`` the artefacts ignore the robot.
+    avoid_margin : float
+        Safety margin (m) added to the robot's radius for ``avoid_robot``.
     seed : int
         Passed to the planner as ``params["seed"]`` (plus the replan index).
     record : bool
@@ -710,6 +822,10 @@ def run_mission(
     tau = float(check_nonnegative("tau", tau))
     if move_period is not None:
         move_period = float(check_positive("move_period", move_period))
+    if not isinstance(avoid_robot, bool | np.bool_):
+        raise ValueError(f"avoid_robot: expected true or false, got {avoid_robot!r}")
+    avoid = bool(avoid_robot)
+    margin = float(check_nonnegative("avoid_margin", avoid_margin))
     G = check_finite("goals", goals, ndim=2)
     if G.shape[1] != 2 or G.shape[0] < 1:
         raise ValueError(f"goals: expected shape (g, 2) with g >= 1, got {G.shape}")
@@ -746,7 +862,11 @@ def run_mission(
         period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
         record=bool(record), step=min(grid.resolution, robot.radius / 2.0),
         n_free=grid.n_free, event_t=event_t, event_lifecycle=event_lifecycle,
-        event_moved=event_moved, static_occ=static_occ, static_dist=static_dist,
+        event_moved=event_moved, static_occ=static_occ, static_dist=static_dist, avoid=avoid,
+        clearance=robot.radius + margin, move_period=move_period,
+        wall_distance=grid.distance_to_occupied() if avoid and scene.has_tracks.any() else None,
+        art_radius=np.hypot(*scene.offsets[:, :2].T) + np.hypot(*scene.half_extents[:, :2].T),
+        art_speed=_track_speeds(scene),
     )  # fmt: skip
     # refuse before looping: footprint tests along the path, and grid passes per replan
     n_motion = robot.speed * T / m.step + 1.0
@@ -805,6 +925,9 @@ def run_mission(
         "collisions": int(s.collisions),
         "arrival_contacts": int(s.arrival_contacts),
         "artefact_contacts": int(s.artefact_contacts),
+        "n_detours": int(s.n_detours),
+        "n_yields": int(s.n_yields),
+        "avoid_delay": float(s.avoid_delay),
         "n_replans": len(rp),
         "n_failed_plans": int((~rp["success"]).sum()) if len(rp) else 0,
         "n_updates": s.n_updates,

@@ -16,7 +16,7 @@ import numpy as np
 from are_stats._checks import check_finite
 from are_stats.inputs import InputError, get_float, get_int, get_list
 
-__all__ = ["Robot", "circle_box_overlap"]
+__all__ = ["Robot", "circle_box_overlap", "point_box_distance"]
 
 
 @dataclass(frozen=True)
@@ -169,7 +169,19 @@ def circle_box_overlap(
     ...                    [0.0, 0.0]).tolist()
     [True, False]
     """
-    c = np.asarray(centre, float)
+    return point_box_distance(centre, box_xy, half_xy, yaw) <= float(radius)
+
+
+def point_box_distance(point: Any, box_xy: Any, half_xy: Any, yaw: Any) -> np.ndarray:
+    """Distance ``(n,)`` from a point ``(2,)`` to each oriented rectangle (0 inside); the
+    arguments are those of :func:`circle_box_overlap`.
+
+    Examples
+    --------
+    >>> point_box_distance([0.0, 0.0], [[3.0, 4.0]], [[0.0, 0.0]], [0.3]).tolist()
+    [5.0]
+    """
+    c = np.asarray(point, float)
     b = np.asarray(box_xy, float).reshape(-1, 2)
     h = np.asarray(half_xy, float).reshape(-1, 2)
     y = np.asarray(yaw, float).reshape(-1)
@@ -177,5 +189,4 @@ def circle_box_overlap(
     cs, sn = np.cos(y), np.sin(y)
     local = np.stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]], axis=1)
     q = np.abs(local) - h
-    dist = np.linalg.norm(np.maximum(q, 0.0), axis=1)
-    return dist <= float(radius)
+    return np.linalg.norm(np.maximum(q, 0.0), axis=1)

@@ -30,7 +30,9 @@ Schema (every key optional; unknown keys are errors that list the known ones):
   ``results/<name>``); ``map``: a shipped map name or a ROS map YAML path; ``catalogue``:
   an artefact catalogue YAML or a shipped catalogue name (default the shipped one,
   :func:`~are_stats.load_catalogue`);
-  ``behaviours``: true/false (artefacts move along behaviour tracks); ``seed``: integer in
+  ``behaviours``: true/false (artefacts move along behaviour tracks); ``avoid_robot``:
+  true/false (default true: moving artefacts detour around the robot's footprint or wait
+  for it, see :func:`~are_stats.experiments.run_mission`); ``seed``: integer in
   ``[0, 2**32 - 1]``; ``replicates``: integer >= 1.
 * ``scenario``: one source of artefacts. Hand-set rates: ``arrival_rate`` (> 0, per m^2
   per s), ``leave_rate`` (> 0, per s), ``mix_weights`` (1 to 64 numbers > 0 summing to 1),
@@ -129,6 +131,7 @@ _DEFAULTS: dict[str, Any] = {
     "map": "courtyard",
     "catalogue": None,
     "behaviours": False,
+    "avoid_robot": True,
     "seed": 0,
     "replicates": 1,
     "scenario": {
@@ -154,7 +157,10 @@ _DEFAULTS: dict[str, Any] = {
     "factors": {},
 }
 _SECTIONS = ("scenario", "robot", "mission", "planner")
-_TOP = ("name", "map", "catalogue", "behaviours", "seed", "replicates", *_SECTIONS, "factors")
+_TOP = (
+    "name", "map", "catalogue", "behaviours", "avoid_robot", "seed", "replicates", *_SECTIONS,
+    "factors",
+)  # fmt: skip
 #: Scenario keys that name where the artefacts come from instead of hand-set rates.
 _SOURCES = ("fit", "scenarios")
 _RATES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
@@ -390,6 +396,7 @@ def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
         None if cat is None else _resolve_catalogue(_path_string(cat, src, "catalogue"), base, src)
     )
     cfg["behaviours"] = get_bool(top.get("behaviours", False), src, "behaviours")
+    cfg["avoid_robot"] = get_bool(top.get("avoid_robot", True), src, "avoid_robot")
     cfg["seed"] = get_int(top.get("seed", _DEFAULTS["seed"]), src, "seed", lo=0, hi=MAX_SEED)
     cfg["replicates"] = get_int(
         top.get("replicates", _DEFAULTS["replicates"]), src, "replicates", lo=1, hi=2**62
@@ -735,7 +742,8 @@ def _expand(cfg: Mapping[str, Any]) -> list[dict[str, Any]]:
             seed = int(np.random.SeedSequence([cfg["seed"], r]).generate_state(1)[0])
             task = {
                 "map": cfg["map"], "catalogue": cfg["catalogue"], "behaviours": cfg["behaviours"],
-                "replicate": r, "seed": seed, "levels": levels, **base,
+                "avoid_robot": cfg["avoid_robot"], "replicate": r, "seed": seed, "levels": levels,
+                **base,
             }  # fmt: skip
             task["task"] = f"{idx:05d}-{_digest(task)}"
             task["sweep"] = sweep
@@ -750,8 +758,8 @@ def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str
     Each task has ``task`` (a file-name stem: index and a digest of its settings),
     ``sweep`` (a digest of the whole config), ``replicate``, ``seed`` (the replicate's
     integer seed), ``levels`` (factor -> label) and the resolved ``scenario``, ``robot``,
-    ``mission``, ``planner``, ``map``, ``catalogue`` (an absolute path or None) and
-    ``behaviours``.
+    ``mission``, ``planner``, ``map``, ``catalogue`` (an absolute path or None),
+    ``behaviours`` and ``avoid_robot``.
     """
     return _expand(load_sweep_config(config))
 
@@ -888,7 +896,8 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
         perception=ms.get("perception", "all"), env_mesh=mesh,
         perception_period=float(ms.get("perception_period", 1.0)),
         d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,
-        move_period=float(ms.get("behaviour_dt", 2.0)), record=record,
+        move_period=float(ms.get("behaviour_dt", 2.0)),
+        avoid_robot=bool(task.get("avoid_robot", True)), record=record,
     )  # fmt: skip
     ident = {
         "task": task["task"],

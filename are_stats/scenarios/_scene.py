@@ -224,6 +224,69 @@ class Scene:
         out[moving] = np.where(before[:, None], self._pose0[i], track)
         return out
 
+    def track(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """The behaviour track of artefact ``i`` (an index in table order).
+
+        Returns
+        -------
+        t : (m,) float64
+            Epoch times, increasing (empty without a track).
+        pose : (m, 3) float64
+            ``x, y, yaw`` at the epochs.
+        """
+        i = self._index(i)
+        lo, hi = self._start[i], self._start[i + 1]
+        return self._t[lo:hi].copy(), self._pose[lo:hi].copy()
+
+    def next_epoch(self, t: float, which: Any = None) -> np.ndarray:
+        """``(k,)`` the first track epoch after ``t`` of artefacts ``which`` (indices;
+        default all), ``inf`` where there is none."""
+        idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64)
+        q = idx * self._span + (float(t) - self._t_min)
+        k = np.maximum(np.searchsorted(self._key, q, side="right"), self._start[idx])
+        ok = k < self._start[idx + 1]
+        out = np.full(idx.size, np.inf)
+        out[ok] = self._t[k[ok]]
+        return out
+
+    def with_track(self, i: int, t: Any, pose: Any) -> Scene:
+        """A new scene, equal to this one except that artefact ``i`` follows the track
+        ``t`` (m,) increasing, ``pose`` (m, 3) ``x, y, yaw`` (this scene is unchanged).
+
+        The experiment loop uses it to make an artefact detour around the robot or wait for
+        it (the rest of its track delayed); its life-cycle (arrival, leaving) is unchanged.
+
+        Raises
+        ------
+        ValueError
+            If ``i`` is not an artefact index, or ``t``/``pose`` are not finite, of
+            matching shapes, with ``t`` strictly increasing.
+        """
+        i = self._index(i)
+        tt = np.asarray(t, float).reshape(-1)
+        pp = np.asarray(pose, float)
+        if pp.shape != (tt.size, 3) or not (np.isfinite(tt).all() and np.isfinite(pp).all()):
+            raise ValueError(
+                f"with_track: expected finite t (m,) and pose (m, 3), got shapes "
+                f"{tt.shape} and {pp.shape}"
+            )
+        if (np.diff(tt) <= 0).any():
+            raise ValueError("with_track: expected strictly increasing epoch times t")
+        lo, hi = self._start[i], self._start[i + 1]
+        start = self._start.copy()
+        start[i + 1 :] += tt.size - (hi - lo)
+        return Scene(
+            self.ids, self.labels, self.classes, self.rows, self.half_extents, self.offsets,
+            self.t_arrive, self.t_leave, self._pose0, start,
+            np.concatenate([self._t[:lo], tt, self._t[hi:]]),
+            np.concatenate([self._pose[:lo], pp, self._pose[hi:]]),
+        )  # fmt: skip
+
+    def _index(self, i: Any) -> int:
+        if isinstance(i, bool) or not isinstance(i, int | np.integer) or not 0 <= i < len(self):
+            raise ValueError(f"i: expected an artefact index in [0, {len(self)}), got {i!r}")
+        return int(i)
+
     def alive(self, t: float) -> np.ndarray:
         """(N,) bool: ``t_arrive <= t < t_leave``."""
         return (self.t_arrive <= t) & (t < self.t_leave)

@@ -171,6 +171,8 @@ def test_robot_camera_frames():
         ({"grid": np.zeros((3, 3))}, "grid"),
         ({"artefacts": pd.DataFrame({"x": [1.0]})}, "artefacts"),
         ({"start": [1.0, 2.0]}, "start"),
+        ({"avoid_robot": "yes"}, "avoid_robot"),
+        ({"avoid_margin": -0.1}, "avoid_margin"),
     ],
 )
 def test_bad_input(kwargs, match):
@@ -195,7 +197,9 @@ def _walker(t_cross):
 
 def test_walking_artefact_triggers_a_replan_and_is_not_driven_through():
     art, tracks = _walker(t_cross=8.0)
-    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0)
+    # the walker ignores the robot (avoid_robot=False): the robot alone must keep clear
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0,
+              avoid_robot=False)  # fmt: skip
     res = run_mission(GRID, art, [[18.0, 10.0]], "astar", tracks=tracks, record=True, **kw)
     s = res.summary
     assert s["goals_reached"] == 1
@@ -234,7 +238,8 @@ def _blind(free, start, goal, params):  # a user planner that ignores the map
 
 def test_contacts_are_blamed_on_whoever_closed_the_gap():
     slow = Robot(radius=0.3, speed=0.25)
-    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0)
+    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0,
+              avoid_robot=False)  # fmt: skip
     # a walker catches up with the robot from behind along its path (1 m/s against 0.25)
     t = np.arange(0.0, 40.0)  # it walks on past the goal and off the map
     behind = pd.DataFrame({"id": 0, "t": t, "x": 0.5 + t, "y": 10.0, "yaw": 0.0})

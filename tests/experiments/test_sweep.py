@@ -50,6 +50,9 @@ def test_expand_tasks_grid_and_common_seeds():
     assert len(seeds) == 2
     assert {t["levels"]["planner"] for t in tasks} == {"A*", "RRT"}
     assert {t["scenario"]["arrival_rate"] for t in tasks} == {0.0002, 0.001}
+    # artefacts avoid the robot unless the config says not to
+    assert all(t["avoid_robot"] is True for t in tasks)
+    assert all(t["avoid_robot"] is False for t in expand_tasks({**cfg, "avoid_robot": False}))
 
 
 def test_run_task_is_deterministic_but_rho_t():
@@ -134,6 +137,7 @@ def test_cli_experiment_and_plot(tmp_path):
         ({"factors": {"scenario.arrival_rate": []}}, "non-empty"),
         ({"colour": 1}, "unknown key"),
         ({"mission": 3}, "mapping"),
+        ({"avoid_robot": "maybe"}, "avoid_robot"),
     ],
 )
 def test_bad_configs(cfg, match):

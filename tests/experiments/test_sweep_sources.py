@@ -257,8 +257,9 @@ def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
     task = expand_tasks({**cfg, "behaviours": True})[0]
     moving = run_task(task)["runs"].iloc[0]
     assert moving["n_move_updates"] > 0
+    assert {"n_detours", "n_yields", "avoid_delay"} <= set(moving.index)
     still = run_task({**task, "behaviours": False})["runs"].iloc[0]
-    assert still["n_move_updates"] == 0
+    assert still["n_move_updates"] == 0 and still["n_detours"] == still["n_yields"] == 0
 
 
 def test_a_fit_with_groups_sends_groups_through_the_mission(files, tmp_path):

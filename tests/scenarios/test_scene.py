@@ -139,3 +139,41 @@ def test_bad_tracks_are_clear_errors(catalogue):
         Scene.from_scenarios(t, catalogue, tr.assign(id=99))
     with pytest.raises(ValueError, match="two poses at t=1.0"):
         Scene.from_scenarios(t, catalogue, pd.concat([tr, tr.iloc[[-1]]]))
+
+
+def test_with_track_replaces_one_track_and_leaves_the_scene_alone(catalogue):
+    t = table(3)
+    scene = Scene.from_scenarios(t, catalogue, tracks_for(t))
+    ep, pose = scene.track(0)
+    np.testing.assert_allclose(ep, [1.0, 3.0, 5.0, 7.0])
+    np.testing.assert_allclose(pose[:, 0], ep)
+    assert scene.track(1)[0].size == 0
+    # artefact 1 (no track) gets one; artefact 0 waits 2 s at x = 3 (its track delayed)
+    moved = scene.with_track(1, [2.0, 4.0], [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    late = moved.with_track(
+        0,
+        [1.0, 3.0, 5.0, 7.0, 9.0],
+        np.c_[[1.0, 3.0, 3.0, 5.0, 7.0], np.zeros(5), pose[[0, 1, 1, 2, 3], 2]],
+    )
+    assert late.has_tracks.tolist() == [True, True, False]
+    np.testing.assert_allclose(late.poses(3.0, [1])[0, :2], [1.0, 0.0])  # halfway
+    np.testing.assert_allclose(late.poses(4.0, [0])[0, :2], [3.0, 0.0])  # waiting
+    np.testing.assert_allclose(late.poses(8.0, [0])[0, :2], [6.0, 0.0])
+    np.testing.assert_allclose(late.poses(8.0, [2]), scene.poses(8.0, [2]))
+    # the original scene is unchanged, and so are life-cycles and boxes
+    np.testing.assert_allclose(scene.poses(4.0, [0])[0, :2], [4.0, 0.0])
+    assert scene.track(1)[0].size == 0
+    np.testing.assert_array_equal(late.t_leave, scene.t_leave)
+    ev = late.events(0.0, 20.0)
+    assert sorted(ev.loc[ev["kind"] == "move", "t"].tolist()) == [1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 9.0]
+    # next epochs: by hand from the two tracks, inf without one or after the last
+    np.testing.assert_array_equal(late.next_epoch(0.0), [1.0, 2.0, np.inf])
+    np.testing.assert_array_equal(late.next_epoch(3.0, [1, 0]), [4.0, 5.0])
+    np.testing.assert_array_equal(late.next_epoch(9.0, [0, 1]), [np.inf, np.inf])
+    np.testing.assert_array_equal(late.next_epoch(-50.0, [1]), [2.0])
+    with pytest.raises(ValueError, match="strictly increasing"):
+        scene.with_track(0, [1.0, 1.0], np.zeros((2, 3)))
+    with pytest.raises(ValueError, match=r"pose \(m, 3\)"):
+        scene.with_track(0, [1.0, 2.0], np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="artefact index"):
+        scene.track(3)

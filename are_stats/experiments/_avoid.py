@@ -1,0 +1,400 @@
+"""Artefacts that avoid the robot: at a move epoch, an artefact whose next motion would bring
+its box within ``clearance`` of the robot's centre (robot radius plus a safety margin), where
+the robot is at each instant along its current plan, detours around the robot or waits for
+it (issue 15, "Moving artefacts in the loop").
+
+The decision is a pure function of a :class:`~are_stats.Scene`, the artefact, the time, the
+robot's position and the map; it returns the artefact's new behaviour track, which the
+experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
+
+* **conflict**: the box, sampled along the artefact's motion from ``t`` to its next check
+  ``t_check`` (at most ``ds`` apart), comes closer to the robot's centre at that instant
+  than ``clearance`` *and* closer than it would be had it stood still (an artefact near
+  the robot may move away from it, or stand; a robot driving at a standing artefact is the
+  robot's doing);
+* **detour**: a shortest 8-connected path on the map's free cells from the artefact's
+  position to one of its own next ``lookahead`` track epochs past the conflict, with the
+  cells blocked where its inscribed disc would meet a wall, where its circumscribed disc
+  would come within ``clearance`` of the robot or meet another live artefact's box; the
+  path is string-pulled, cut into pieces of one epoch's travel and walked at the
+  artefact's speed on the track it leaves (never arriving before the epoch it rejoins);
+  the rest of its track is delayed by the extra time. The detour's box, sampled at most
+  ``ds`` apart with its heading as the scene interpolates it, is then tested exactly
+  against the map's non-free cells (grown by ``ds``, for the motion between samples) and
+  against the other artefacts' boxes at the same times (they move too); a detour that
+  meets either, or takes more than ``lookahead`` epochs longer than the track, is refused;
+* **yield** (no detour): the artefact advances along its own track up to the last sample
+  before the conflict and holds there until ``t_check``, where the loop checks it again;
+  the rest of its track is delayed by the wait.
+
+Either way the artefact's life-cycle is unchanged: a delayed artefact still leaves at its
+leaving time, possibly before the end of its track. The decision trusts the robot's plan at
+``t``: a replan before ``t_check`` can still bring the two together, and a waiting artefact
+is not an obstacle to the other artefacts' (precomputed) tracks.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from are_stats.experiments._planners import astar_cells
+from are_stats.experiments._robot import point_box_distance
+from are_stats.scenarios import Scene
+
+__all__ = ["Avoidance", "plan_avoidance"]
+
+
+class Avoidance(NamedTuple):
+    """An artefact's answer to the robot in its way.
+
+    Attributes
+    ----------
+    kind : {"detour", "yield"}
+    t : (m,) float
+        The artefact's new track epochs (its whole track).
+    pose : (m, 3) float
+        ``x, y, yaw`` at the epochs.
+    delay : float
+        Seconds by which the rest of its track now runs late.
+    """
+
+    kind: str
+    t: np.ndarray
+    pose: np.ndarray
+    delay: float
+
+
+def _centres(scene: Scene, i: Any, pose: np.ndarray) -> np.ndarray:
+    """Box centres (k, 2) of artefact ``i`` (an index, or (k,) indices) at poses (k, 3)."""
+    off = np.broadcast_to(scene.offsets[i], (len(pose), 3))
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    return pose[:, :2] + np.column_stack(
+        [c * off[:, 0] - s * off[:, 1], s * off[:, 0] + c * off[:, 1]]
+    )
+
+
+def _sample(scene: Scene, i: int, t0: float, t1: float, ds: float) -> tuple[np.ndarray, ...]:
+    """Times (k,), poses (k, 3) and box centres (k, 2) of artefact ``i`` over ``[t0, t1]``,
+    at most ``ds`` metres apart."""
+    tt, pp = scene.track(i)
+    v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
+    v_max = float(v.max()) if v.size else 0.0
+    k = int(np.ceil((t1 - t0) * v_max / ds)) + 2
+    times = np.linspace(t0, t1, k)
+    # as Scene.poses (t0 is at or after its first epoch): linear between epochs, the
+    # heading the short way round, the last pose after the last epoch
+    turn = np.mod(np.diff(pp[:, 2]) + np.pi, 2 * np.pi) - np.pi
+    yaw = np.interp(times, tt, pp[0, 2] + np.r_[0.0, np.cumsum(turn)])
+    pose = np.column_stack(
+        [np.interp(times, tt, pp[:, 0]), np.interp(times, tt, pp[:, 1]), np.mod(yaw, 2 * np.pi)]
+    )
+    return times, pose, _centres(scene, i, pose)
+
+
+def _clear_of_others(
+    scene: Scene, i: int, times: np.ndarray, pose: np.ndarray, centres: np.ndarray
+) -> bool:
+    """Whether artefact ``i``'s box at ``pose`` (k, 3) meets no other live box at ``times``."""
+    from are_stats.builder import obb_overlap_2d
+
+    half = scene.half_extents[i, :2]
+    for u, p, c in zip(times, pose, centres, strict=True):
+        alive = scene.alive(float(u))
+        alive[i] = False
+        j = np.flatnonzero(alive)
+        if not j.size:
+            continue
+        pj = scene.poses(float(u), j)
+        cj = _centres(scene, j, pj)
+        hit = obb_overlap_2d(
+            np.tile(c, (j.size, 1)), np.tile(half, (j.size, 1)), np.full(j.size, p[2]),
+            cj, scene.half_extents[j, :2], pj[:, 2],
+        )  # fmt: skip
+        if hit.any():
+            return False
+    return True
+
+
+def plan_avoidance(
+    scene: Scene,
+    i: int,
+    t: float,
+    t_check: float,
+    robot_xy: Any,
+    clearance: float,
+    grid: Any,
+    wall_distance: np.ndarray,
+    *,
+    robot_track: tuple[np.ndarray, np.ndarray] | None = None,
+    lookahead: int = 4,
+    ds: float | None = None,
+) -> Avoidance | None:
+    """Detour or wait when artefact ``i``'s motion over ``[t, t_check]`` meets the robot.
+
+    Parameters
+    ----------
+    scene : Scene
+        The artefacts now (their tracks as already changed by earlier avoidances).
+    i : int
+        The artefact (index in the scene), alive at ``t`` and on a track.
+    t, t_check : float
+        Now (a move epoch of ``i``) and when the loop checks ``i`` next (its next move
+        epoch), ``t_check > t``.
+    robot_xy : (2,) float
+        The robot's centre now.
+    robot_track : ((r,) float, (r, 2) float), optional
+        Where the robot will be: times (increasing, from ``t``) and centres along its
+        current plan (it stands at the last one after); default: it stands at
+        ``robot_xy``. The footprint the artefact avoids is the robot's at each instant.
+    clearance : float
+        Robot radius plus the safety margin (m).
+    grid : OccupancyGrid
+        The real map M_2D.
+    wall_distance : (H, W) float
+        ``grid.distance_to_occupied()`` (computed once per mission).
+    lookahead : int
+        How many of its track epochs past the conflict the artefact may rejoin at, and how
+        many epochs longer than its track a detour may take.
+    ds : float, optional
+        Spacing of the motion samples (m); default the smaller of the grid's resolution and
+        a quarter of ``clearance``.
+
+    Returns
+    -------
+    Avoidance or None
+        ``None`` when the motion keeps clear of the robot (nothing to do).
+    """
+    res = float(grid.resolution)
+    ds = min(res, clearance / 4.0) if ds is None else float(ds)
+    q = np.asarray(robot_xy, float)
+    rt, rxy = (np.array([t]), q[None]) if robot_track is None else robot_track
+    rt, rxy = np.asarray(rt, float), np.asarray(rxy, float).reshape(-1, 2)
+    half = scene.half_extents[i, :2]
+    # far away: its box cannot reach the robot's discs by t_check, whatever its path
+    tt, pp = scene.track(i)
+    v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
+    reach = (float(v.max()) if v.size else 0.0) * (t_check - t)
+    r_art = float(np.hypot(*scene.offsets[i, :2]) + np.hypot(*half))
+    reach += _speed(rt, rxy) * (t_check - t)  # the robot comes at most this close
+    if np.linalg.norm(scene.poses(t, [i])[0, :2] - q) - r_art - reach > clearance:
+        return None
+    times, pose, centres = _sample(scene, i, t, t_check, ds)
+    bad = _closing(times, centres, pose[:, 2], half, rt, rxy, clearance)
+    if not bad.any():
+        return None
+    j0 = int(np.argmax(bad))
+    past = tt < t
+    head_t, head_p = np.r_[tt[past], t], np.vstack([pp[past], pose[0]])
+    got = _detour(scene, i, t, times[j0], q, clearance, grid, wall_distance, lookahead, ds,
+                  head_t, head_p, (rt, rxy))  # fmt: skip
+    if got is not None:
+        return got
+    # wait on the track just short of the conflict, until the next check
+    t_stop, p_stop = times[j0 - 1], pose[j0 - 1]
+    mid, later = (tt > t) & (tt < t_stop), tt > t_stop
+    delay = float(t_check - t_stop)
+    stop_t = [t_stop] if t_stop > t else []
+    stop_p = p_stop[None] if t_stop > t else np.zeros((0, 3))
+    new_t = [head_t, tt[mid], stop_t, [t_check], tt[later] + delay]
+    new_p = [head_p, pp[mid], stop_p, p_stop[None], pp[later]]
+    return Avoidance("yield", np.concatenate(new_t), np.vstack(new_p), delay)
+
+
+def _robot_at(rt: np.ndarray, rxy: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """The robot's centres (k, 2) at ``times``, along its track (standing after its end)."""
+    return np.column_stack([np.interp(times, rt, rxy[:, 0]), np.interp(times, rt, rxy[:, 1])])
+
+
+def _closing(
+    times: np.ndarray, centres: np.ndarray, yaws: np.ndarray, half: np.ndarray,
+    rt: np.ndarray, rxy: np.ndarray, clearance: float,
+) -> np.ndarray:  # fmt: skip
+    """(k,) bool: samples where the box is within ``clearance`` of the robot's centre then,
+    and closer than it would be had it stood at its first sample (its own motion closed the
+    gap: a robot driving at a standing artefact is the robot's doing)."""
+    r = _robot_at(rt, rxy, times)
+    d = _pair_distance(r, centres, half, yaws)
+    stay = _pair_distance(r, np.broadcast_to(centres[0], r.shape), half, np.full(len(r), yaws[0]))
+    bad = (d < clearance) & (d < stay - 1e-9)
+    bad[0] = False
+    return bad
+
+
+def _detour(
+    scene: Scene, i: int, t: float, t_bad: float, q: np.ndarray, clearance: float, grid: Any,
+    wall_distance: np.ndarray, lookahead: int, ds: float, head_t: np.ndarray,
+    head_p: np.ndarray, robot: tuple[np.ndarray, np.ndarray],
+) -> Avoidance | None:  # fmt: skip
+    """A detour rejoining the track at one of its next ``lookahead`` epochs past ``t_bad``."""
+    tt, pp = scene.track(i)
+    res = float(grid.resolution)
+    half = scene.half_extents[i]
+    r_art = float(np.hypot(*scene.offsets[i, :2]) + np.hypot(*half[:2]))
+    k_first = int(np.searchsorted(tt, t_bad, side="left"))
+    cand = np.arange(k_first, min(k_first + lookahead, tt.size))
+    cand_c = _centres(scene, i, pp[cand]) if cand.size else np.zeros((0, 2))
+    far = point_box_distance(q, cand_c, np.tile(half[:2], (cand.size, 1)), pp[cand, 2])
+    cand = cand[far >= clearance]
+    if not cand.size:
+        return None
+    p_t = head_p[-1, :2]
+    dt = float(np.median(np.diff(tt))) if tt.size > 1 else 1.0
+    # a window of the map around the artefact and the epochs it may rejoin at
+    reach = float(np.linalg.norm(pp[cand, :2] - p_t, axis=1).max()) + 2 * (clearance + r_art)
+    corners = p_t + reach * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+    cells = grid.world_to_cell(corners)
+    lo = np.clip(cells.min(axis=0), 0, [grid.height - 1, grid.width - 1])
+    hi = np.clip(cells.max(axis=0) + 1, 1, [grid.height, grid.width])
+    win = (slice(int(lo[0]), int(hi[0])), slice(int(lo[1]), int(hi[1])))
+    # the search runs on cells where the box's inscribed disc clears the walls; the exact
+    # box-vs-wall-cells test of every sample below makes the decision
+    r_in = float(np.hypot(*scene.offsets[i, :2]) + half[:2].min())
+    ok = grid.free[win] & (wall_distance[win] > r_in + res * np.sqrt(0.5))
+    ij = np.indices(ok.shape).reshape(2, -1).T + lo
+    xy = grid.cell_to_world(ij)
+    # the robot's disc now and along its plan until the latest rejoin time
+    rt, rxy = robot
+    horizon = float(tt[cand].max() - t) + lookahead * dt
+    n_r = int(np.ceil(horizon * _speed(rt, rxy) / res)) + 2
+    sweep = _robot_at(rt, rxy, t + horizon * np.linspace(0.0, 1.0, n_r))
+    gone = np.linalg.norm(sweep - p_t, axis=1)
+    keep_out = np.minimum(clearance + r_art, gone - res)
+    from scipy.spatial import cKDTree
+
+    # cells within keep_out of a sweep point: query each point's ball (radii differ)
+    tree = cKDTree(xy)
+    hit = np.zeros(len(xy), bool)
+    for pts in tree.query_ball_point(sweep, np.maximum(keep_out, 0.0)):
+        hit[pts] = True
+    ok &= ~hit.reshape(ok.shape)
+    alive = scene.alive(t)
+    alive[i] = False
+    others = np.flatnonzero(alive)
+    p_o = scene.poses(t, others)
+    c_o = _centres(scene, others, p_o)
+    r_o = np.hypot(*scene.half_extents[others, :2].T)
+    near = np.linalg.norm(c_o - p_t, axis=1) <= reach * np.sqrt(2.0) + r_o + r_art + res
+    for j, cj, yj in zip(others[near], c_o[near], p_o[near, 2], strict=True):
+        gap = _cells_to_box(xy, cj, scene.half_extents[j, :2], float(yj))
+        ok &= (gap > r_art + res * np.sqrt(0.5)).reshape(ok.shape)
+    start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
+    if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
+        return None
+    ok[start] = True  # where the artefact stands now
+    for k in cand:
+        goal = tuple(int(v) for v in grid.world_to_cell(pp[k, :2]) - lo)
+        if not (0 <= goal[0] < ok.shape[0] and 0 <= goal[1] < ok.shape[1]) or not ok[goal]:
+            continue
+        path = astar_cells(ok, start, goal)
+        if path is None:
+            continue
+        pts = grid.cell_to_world(path + lo)
+        pts[0], pts[-1] = p_t, pp[k, :2]
+        pts = _string_pull(pts, ok, grid, lo)
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        length = float(seg.sum())
+        orig = np.vstack([p_t, pp[int(np.searchsorted(tt, t, "right")) : k + 1, :2]])
+        v = float(np.linalg.norm(np.diff(orig, axis=0), axis=1).sum()) / max(tt[k] - t, 1e-9)
+        if v <= 0.0:
+            continue
+        dur = max(length / v, float(tt[k] - t))
+        if dur > float(tt[k] - t) + lookahead * dt:
+            continue
+        # pieces of at most one epoch's travel, walked at the track's speed
+        way = [pts[0]]
+        for a, b, ln in zip(pts[:-1], pts[1:], seg, strict=True):
+            n = max(int(np.ceil(ln / max(v * dt, 1e-9))), 1)
+            way.extend(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
+        way = np.array(way)
+        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
+        heading = np.arctan2(*(np.diff(way, axis=0)[:, ::-1].T))
+        w_t = t + dur * arc[1:] / max(length, 1e-12)
+        w_p = np.column_stack([way[1:], heading])
+        w_p[-1, 2] = pp[k, 2]
+        delay = float(t + dur - tt[k])
+        new_t = np.concatenate([head_t, w_t, tt[k + 1 :] + delay])
+        new_p = np.vstack([head_p, w_p, pp[k + 1 :]])
+        trial = scene.with_track(i, new_t, new_p)
+        times, pose, centres = _sample(trial, i, t, t + dur, ds)
+        if (
+            _closing(times, centres, pose[:, 2], half[:2], rt, rxy, clearance).any()
+            or not _clear_of_walls(grid, centres, half[:2] + ds, pose[:, 2])
+            or not _clear_of_others(trial, i, times, pose, centres)
+        ):
+            continue
+        return Avoidance("detour", new_t, new_p, delay)
+    return None
+
+
+def _pair_distance(
+    points: np.ndarray, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray
+) -> np.ndarray:
+    """(k,) distance from point k (k, 2) to box k (centres (k, 2), yaws (k,), half (2,))."""
+    d = points - centres
+    c, s = np.cos(yaws), np.sin(yaws)
+    local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def _speed(rt: np.ndarray, rxy: np.ndarray) -> float:
+    """The robot's fastest speed along its track (0 standing)."""
+    if rt.size < 2:
+        return 0.0
+    return float(
+        (np.linalg.norm(np.diff(rxy, axis=0), axis=1) / np.maximum(np.diff(rt), 1e-12)).max()
+    )
+
+
+def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray) -> bool:
+    """Whether boxes (k of them, half sizes ``half`` (2,)) share no area with a cell of
+    ``grid`` that is not free (an exact separating-axis test against the cells' squares)."""
+    from are_stats.builder import obb_overlap_2d
+
+    res = float(grid.resolution)
+    r = float(np.hypot(*half)) + res
+    blocked = ~grid.free
+    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * r
+    for c, y in zip(centres, yaws, strict=True):
+        cells = grid.world_to_cell(c + square)
+        lo = np.clip(cells.min(axis=0), 0, [grid.height, grid.width])
+        hi = np.clip(cells.max(axis=0) + 1, 0, [grid.height, grid.width])
+        ij = np.argwhere(blocked[lo[0] : hi[0], lo[1] : hi[1]]) + lo
+        if not ij.size:
+            continue
+        n = len(ij)
+        hit = obb_overlap_2d(
+            np.tile(c, (n, 1)), np.tile(half, (n, 1)), np.full(n, y), grid.cell_to_world(ij),
+            np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
+        )  # fmt: skip
+        if hit.any():
+            return False
+    return True
+
+
+def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -> np.ndarray:
+    """Distance (n,) from points ``xy`` (n, 2) to one oriented rectangle."""
+    d = xy - c
+    cs, sn = np.cos(yaw), np.sin(yaw)
+    local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> np.ndarray:
+    """Drop the path's vertices that a straight chord on ``ok`` cells can skip."""
+
+    def visible(a: np.ndarray, b: np.ndarray) -> bool:
+        n = int(np.ceil(np.linalg.norm(b - a) / (grid.resolution / 4.0))) + 1
+        ij = grid.world_to_cell(a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]) - lo
+        inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
+        return bool(inside.all() and ok[ij[:, 0], ij[:, 1]].all())
+
+    out, a = [pts[0]], 0
+    while a < len(pts) - 1:
+        b = len(pts) - 1
+        while b > a + 1 and not visible(pts[a], pts[b]):
+            b -= 1
+        out.append(pts[b])
+        a = b
+    return np.array(out)

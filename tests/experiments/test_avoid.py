@@ -1,0 +1,288 @@
+"""Artefacts that avoid the robot (issue 15): a pedestrian detours around a robot standing
+or driving on its track, waits when walled in, never meets the robot, a wall or another
+box; with ``avoid_robot=False`` the artefacts ignore the robot as before."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats import Scene
+from are_stats.environment import ArtefactCatalogue, ArtefactClass, OccupancyGrid
+from are_stats.experiments import Robot, run_mission
+from are_stats.experiments._avoid import plan_avoidance
+
+#: one class: a 0.6 m x 0.6 m pedestrian centred on its pose
+CATALOGUE = ArtefactCatalogue([
+    ArtefactClass(
+        label="person", row=0, mesh_path=Path("person.ply"),
+        bounds=np.array([[-0.3, -0.3, 0.0], [0.3, 0.3, 1.7]]), speeds={"walk": 1.0},
+        behaviours=("walk", "stop"),
+    )
+])  # fmt: skip
+HALF = 0.3
+OPEN = OccupancyGrid(np.zeros((100, 100)), 0.2)  # 20 m x 20 m, nothing in it
+ROBOT = Robot(radius=0.3, speed=0.5)
+COLS = ["t_arrive", "t_leave", "x", "y", "yaw", "mark"]
+KEYS = ["artefact_contacts", "collisions", "n_detours", "n_yields", "avoid_delay"]
+
+
+def _never(free, start, goal, params):  # a planner that finds nothing: the robot stands
+    return None
+
+
+def _north(t_leave=60.0):
+    """A pedestrian walking north along x = 10 from y = 2 to y = 18 at 1 m/s (epochs 1 s
+    apart), through (10, 10) at t = 8."""
+    t = np.arange(0.0, 17.0)
+    tracks = pd.DataFrame({"id": 0, "t": t, "x": 10.0, "y": 2.0 + t, "yaw": np.pi / 2})
+    return pd.DataFrame([[0.0, t_leave, 10.0, 2.0, np.pi / 2, 0]], columns=COLS), tracks
+
+
+def _box_points(centre, yaw, half=HALF, n=13):
+    """(n*n, 2) points filling a box (sampled by hand, independent of the package)."""
+    u = np.linspace(-half, half, n)
+    a, b = (g.ravel() for g in np.meshgrid(u, u))
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.column_stack([centre[0] + c * a - s * b, centre[1] + s * a + c * b])
+
+
+def _robot_xy(trace, t):
+    p = trace.poses
+    return np.array([np.interp(t, p[:, 0], p[:, 1]), np.interp(t, p[:, 0], p[:, 2])])
+
+
+def _first_time_at(trace, art_id, xy):
+    for sc in trace.scenes:
+        k = np.flatnonzero(sc["ids"] == art_id)
+        if k.size and np.allclose(sc["centres"][k[0], :2], xy, atol=1e-9):
+            return sc["t"]
+    return np.inf
+
+
+def test_pedestrian_detours_around_a_standing_robot_and_arrives_later():
+    art, tracks = _north()
+    kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=tracks,
+              time_limit=30.0, record=True)  # fmt: skip
+    off = run_mission(OPEN, art, [[15.0, 15.0]], _never, avoid_robot=False, **kw)
+    assert off.summary["artefact_contacts"] == 1  # it walks into the robot, as before
+    assert off.summary["n_detours"] == off.summary["n_yields"] == 0
+    assert _first_time_at(off.trace, 0, [10.0, 18.0]) == 16.0
+    on = run_mission(OPEN, art, [[15.0, 15.0]], _never, **kw)
+    s = on.summary
+    assert s["artefact_contacts"] == 0 and s["collisions"] == 0 and s["n_detours"] >= 1
+    assert (on.timeline["kind"] == "move+detour").sum() == s["n_detours"]
+    # it reaches the end of its track later, by the delay its detour added
+    t_end = _first_time_at(on.trace, 0, [10.0, 18.0])
+    assert s["avoid_delay"] > 0 and t_end == pytest.approx(16.0 + s["avoid_delay"])
+    # independent truth: the box (sampled by hand) never comes within the robot's radius
+    for sc in on.trace.scenes:
+        pts = _box_points(sc["centres"][0, :2], sc["yaws"][0])
+        assert np.linalg.norm(pts - [10.0, 10.0], axis=1).min() > ROBOT.radius
+    # it left its straight line (a detour, not a wait)
+    assert max(abs(sc["centres"][0, 0] - 10.0) for sc in on.trace.scenes) > 0.5
+
+
+def test_pedestrian_overtaking_a_driving_robot_goes_round_it():
+    """The robot drives east at 0.25 m/s; the pedestrian walks along the same line at 1 m/s
+    from behind it (its track crosses the robot's footprint)."""
+    slow = Robot(radius=0.3, speed=0.25)
+    t = np.arange(0.0, 19.0)
+    behind = pd.DataFrame({"id": 0, "t": t, "x": 0.5 + t, "y": 10.0, "yaw": 0.0})
+    art = pd.DataFrame([[0.0, 25.0, 0.5, 10.0, 0.0, 0]], columns=COLS)
+    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=behind,
+              time_limit=60.0, record=True)  # fmt: skip
+    off = run_mission(OPEN, art, [[16.0, 10.0]], "astar", avoid_robot=False, **kw)
+    assert off.summary["artefact_contacts"] == 1
+    on = run_mission(OPEN, art, [[16.0, 10.0]], "astar", **kw)
+    s = on.summary
+    assert s["artefact_contacts"] == 0 and s["collisions"] == 0 and s["goals_reached"] == 1
+    assert s["n_detours"] + s["n_yields"] >= 1 and s["avoid_delay"] > 0
+    assert on.timeline["kind"].str.contains("detour|yield").any()
+    assert _first_time_at(on.trace, 0, [18.5, 10.0]) == pytest.approx(18.0 + s["avoid_delay"])
+    for sc in on.trace.scenes:
+        k = np.flatnonzero(sc["ids"] == 0)
+        if k.size:
+            pts = _box_points(sc["centres"][k[0], :2], sc["yaws"][k[0]])
+            gap = np.linalg.norm(pts - _robot_xy(on.trace, sc["t"]), axis=1).min()
+            assert gap > slow.radius
+
+
+def test_detour_keeps_clear_of_another_artefact():
+    """A second pedestrian stands just east of the robot: the walker goes round the west
+    side and never overlaps it (boxes sampled by hand)."""
+    art, tracks = _north()
+    art = pd.concat([art, pd.DataFrame([[0.0, 60.0, 10.9, 10.0, 0.0, 0]], columns=COLS)])
+    art["artefact"] = [0, 1]
+    res = run_mission(OPEN, art, [[15.0, 15.0]], _never, robot=ROBOT, start=[10.0, 10.0, 0.0],
+                      catalogue=CATALOGUE, tracks=tracks, time_limit=30.0, record=True)  # fmt: skip
+    assert res.summary["artefact_contacts"] == 0 and res.summary["n_detours"] >= 1
+    xs = []
+    for sc in res.trace.scenes:
+        walker = _box_points(sc["centres"][0, :2], sc["yaws"][0])
+        still = _box_points(sc["centres"][1, :2], sc["yaws"][1])
+        # two 0.6 m squares overlap only if some sampled points come closer than a sample step
+        gap = np.linalg.norm(walker[:, None] - still[None], axis=2).min()
+        assert gap > 0.05
+        xs.append(sc["centres"][0, 0])
+    assert min(xs) < 9.5  # round the west side
+
+
+# moves on a 0.1 s / 0.7 s clock: k * p / p can round above k, and the wait must still end
+# on the tick that checks it again
+@pytest.mark.parametrize("move_period", [None, 0.1, 0.7])
+def test_walled_in_pedestrian_waits_and_never_meets_the_robot_or_a_wall(move_period):
+    data = np.full((100, 100), 100)
+    data[:, 47:53] = 0  # a corridor x in [9.4, 10.6): no way round a robot standing in it
+    grid = OccupancyGrid(data, 0.2)
+    art, tracks = _north()
+    kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=tracks,
+              time_limit=30.0, record=True, move_period=move_period)  # fmt: skip
+    off = run_mission(grid, art, [[10.0, 15.0]], _never, avoid_robot=False, **kw)
+    assert off.summary["artefact_contacts"] == 1
+    on = run_mission(grid, art, [[10.0, 15.0]], _never, **kw)
+    s = on.summary
+    assert s["artefact_contacts"] == 0 and s["n_detours"] == 0 and s["n_yields"] > 5
+    assert (on.timeline["kind"] == "move+yield").sum() == s["n_yields"]
+    ys = []
+    for sc in on.trace.scenes:
+        pts = _box_points(sc["centres"][0, :2], sc["yaws"][0])
+        assert np.linalg.norm(pts - [10.0, 10.0], axis=1).min() > ROBOT.radius
+        ij = grid.world_to_cell(pts)
+        assert (grid.data[ij[:, 0], ij[:, 1]] == 0).all()  # inside the corridor
+        ys.append(sc["centres"][0, 1])
+    # it stops short of the robot (box edge at least radius + margin from its centre) and
+    # stays there: the rest of its track waits
+    assert max(ys) <= 10.0 - ROBOT.radius - 0.2 - HALF + 1e-9
+    assert max(ys) > 10.0 - ROBOT.radius - 0.2 - HALF - 0.2
+
+
+def _scene(tracks, art):
+    return Scene.from_scenarios(art, CATALOGUE, tracks)
+
+
+def test_plan_avoidance_none_when_clear_and_closed_form_yield():
+    art, tracks = _north()
+    scene = _scene(tracks, art)
+    wall = OPEN.distance_to_occupied()
+    # robot far east: nothing to do; robot behind the walker: it walks away, nothing to do
+    assert plan_avoidance(scene, 0, 7.0, 8.0, [15.0, 10.0], 0.5, OPEN, wall) is None
+    assert plan_avoidance(scene, 0, 7.0, 8.0, [10.0, 8.0], 0.5, OPEN, wall) is None
+    # corridor: no detour; it stops at the last sample (spaced 1/9 m, ds = 0.125) whose box
+    # edge keeps 0.5 m from the robot at (10, 10): y = 9 + 1/9, and waits until t = 8
+    data = np.full((100, 100), 100)
+    data[:, 47:53] = 0
+    grid = OccupancyGrid(data, 0.2)
+    got = plan_avoidance(scene, 0, 7.0, 8.0, [10.0, 10.0], 0.5, grid, grid.distance_to_occupied())
+    assert got is not None and got.kind == "yield"
+    t_stop = 7.0 + 1.0 / 9.0
+    assert got.delay == pytest.approx(8.0 - t_stop)
+    i = int(np.searchsorted(got.t, t_stop - 1e-9))
+    np.testing.assert_allclose(got.t[i : i + 2], [t_stop, 8.0])
+    np.testing.assert_allclose(got.pose[i : i + 2, :2], [[10.0, 9.0 + 1 / 9]] * 2)
+    # the rest of the track: the same poses, later by the delay
+    np.testing.assert_allclose(got.t[i + 2 :], np.arange(8.0, 17.0) + got.delay)
+    np.testing.assert_allclose(got.pose[i + 2 :, 1], 2.0 + np.arange(8.0, 17.0))
+    # the epochs before now are untouched
+    np.testing.assert_allclose(got.t[:i], np.arange(0.0, 7.0 + 1e-9))
+
+
+def test_plan_avoidance_detour_rejoins_its_track_late():
+    art, tracks = _north()
+    scene = _scene(tracks, art)
+    got = plan_avoidance(scene, 0, 7.0, 8.0, [10.0, 10.0], 0.5, OPEN, OPEN.distance_to_occupied())
+    assert got is not None and got.kind == "detour" and got.delay > 0
+    # from the rejoin epoch on: the original epochs, later by the delay
+    tail = got.t > 7.0 + 1e-9
+    t_new, p_new = got.t[tail], got.pose[tail]
+    n = int(np.sum(np.isclose(p_new[:, 0], 10.0) & (p_new[:, 1] > 10.0)))
+    np.testing.assert_allclose(t_new[-n:], np.arange(17.0 - n, 17.0) + got.delay)
+    # the detour's vertices keep the box clear of the robot's disc plus margin
+    off = np.abs(p_new[:-n, :2] - [10.0, 10.0]) - HALF
+    assert (np.linalg.norm(np.maximum(off, 0.0), axis=1) >= 0.5 - 1e-9).all()
+
+
+def test_detour_by_a_wall_keeps_the_box_inside_the_corridor():
+    """A 3 m corridor; the robot stands 0.7 m from its east wall in the way of a walker a
+    little east of it: the shorter way round is east, through the wall; it goes west, and
+    its box never covers a wall cell (sampled by hand)."""
+    data = np.full((100, 100), 100)
+    data[:, 40:55] = 0  # x in [8.0, 11.0)
+    grid = OccupancyGrid(data, 0.2)
+    art, tracks = _north()
+    art, tracks = art.assign(x=10.5), tracks.assign(x=10.5)
+    res = run_mission(grid, art, [[10.0, 15.0]], _never, robot=ROBOT, start=[10.3, 10.0, 0.0],
+                      catalogue=CATALOGUE, tracks=tracks, time_limit=30.0, record=True)  # fmt: skip
+    assert res.summary["artefact_contacts"] == 0 and res.summary["n_detours"] >= 1
+    xs = []
+    for sc in res.trace.scenes:
+        pts = _box_points(sc["centres"][0, :2], sc["yaws"][0])
+        ij = grid.world_to_cell(pts)
+        assert (grid.data[ij[:, 0], ij[:, 1]] == 0).all()
+        assert np.linalg.norm(pts - [10.3, 10.0], axis=1).min() > ROBOT.radius
+        xs.append(sc["centres"][0, 0])
+    assert min(xs) <= 10.3 - 0.5 - HALF + 1e-9 and max(xs) == 10.5  # west, never east
+
+
+def test_clear_of_walls_against_sampled_boxes():
+    from are_stats.experiments._avoid import _clear_of_walls
+
+    rng = np.random.default_rng(5)
+    data = np.where(rng.random((30, 30)) < 0.05, 100, 0)
+    data[3, :] = -1  # unknown cells count as walls too
+    grid = OccupancyGrid(data, 0.2)
+    u = np.linspace(-1.0, 1.0, 41)
+    a, b = (g.ravel() for g in np.meshgrid(u, u))
+    n_hit = 0
+    for _ in range(300):
+        c, half, yaw = rng.uniform(1.0, 5.0, 2), rng.uniform(0.05, 0.6, 2), rng.uniform(0, 7)
+
+        def sampled(h, c=c, yaw=yaw):
+            x, y = a * h[0], b * h[1]
+            pts = c + np.column_stack([np.cos(yaw) * x - np.sin(yaw) * y,
+                                       np.sin(yaw) * x + np.cos(yaw) * y])  # fmt: skip
+            ij = grid.world_to_cell(pts)
+            ij = ij[grid.in_bounds(ij)]
+            return bool((grid.data[ij[:, 0], ij[:, 1]] != 0).any())
+
+        clear = _clear_of_walls(grid, c[None], half, np.array([yaw]))
+        assert not (clear and sampled(half - 0.01))  # a wall cell inside: not clear
+        assert clear or sampled(half + 0.02)  # not clear: a wall cell at the edge at most
+        n_hit += not clear
+    assert 30 < n_hit < 270  # both answers were checked
+
+
+def test_plan_avoidance_sees_where_the_robot_drives():
+    """The robot is 2 m east of the walker's line now, driving west at 2 m/s: it will be on
+    the line when the walker gets there. Standing where it is, it would be no obstacle."""
+    art, tracks = _north()
+    scene = _scene(tracks, art)
+    wall = OPEN.distance_to_occupied()
+    robot = ([7.0, 8.0], [[12.0, 10.0], [10.0, 10.0]])
+    assert plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall) is None
+    got = plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall, robot_track=robot)
+    assert got is not None and got.delay > 0
+    # a robot driving away from the walker's way is no obstacle either
+    away = ([7.0, 8.0], [[12.0, 10.0], [14.0, 10.0]])
+    assert (
+        plan_avoidance(scene, 0, 7.0, 8.0, [12.0, 10.0], 0.5, OPEN, wall, robot_track=away) is None
+    )
+
+
+def test_motion_samples_equal_the_scene_poses():
+    from are_stats.experiments._avoid import _sample
+
+    rng = np.random.default_rng(0)
+    t = np.r_[0.0, np.sort(rng.uniform(0, 20, 11))]
+    tr = pd.DataFrame({"id": 0, "t": t, "x": rng.uniform(0, 5, 12), "y": rng.uniform(0, 5, 12),
+                       "yaw": rng.uniform(0, 7, 12)})  # fmt: skip
+    scene = _scene(tr, pd.DataFrame([[0.0, 60.0, 1.0, 1.0, 0.0, 0]], columns=COLS))
+    times, pose, _ = _sample(scene, 0, 0.5, 25.0, 0.2)
+    ref = np.array([scene.poses(u, [0])[0] for u in times])
+    np.testing.assert_allclose(pose[:, :2], ref[:, :2], atol=1e-12)
+    turn = np.mod(pose[:, 2] - ref[:, 2] + np.pi, 2 * np.pi) - np.pi
+    np.testing.assert_allclose(turn, 0.0, atol=1e-12)
+    assert np.linalg.norm(np.diff(pose[:, :2], axis=0), axis=1).max() <= 0.2 + 1e-12
