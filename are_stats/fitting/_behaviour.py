@@ -385,7 +385,17 @@ def _mle(
     )  # fmt: skip
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
     th = jnp.asarray(res.x, dtype)
-    hess = np.asarray(jax.jit(jax.jacfwd(jax.jacfwd(f)))(th), float)
+
+    # The Hessian entry by entry (h11, h22, h12), forward over forward mode with one tangent
+    # each: one small program run three times compiles and runs faster than jacfwd(jacfwd)
+    # (500 tracks, 100 x 100, under load: 19 + 3 x 4.3 s against 31 + 19 s).
+    def second(x: jax.Array, u: jax.Array, v: jax.Array) -> jax.Array:
+        return jax.jvp(lambda y: jax.jvp(f, (y,), (u,))[1], (x,), (v,))[1]
+
+    d2 = jax.jit(second)
+    e = jnp.eye(2, dtype=dtype)
+    h11, h22, h12 = (float(d2(th, e[i], e[j])) for i, j in ((0, 0), (1, 1), (0, 1)))
+    hess = np.array([[h11, h12], [h12, h22]])
     try:
         cov = np.linalg.inv(-hess)
         se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
