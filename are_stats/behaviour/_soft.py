@@ -162,6 +162,7 @@ def soft_backward_induction(
     relative: bool = True,
     tol: float | None = None,
     tol_mask: jax.Array | None = None,
+    axis_name: str | None = None,
 ) -> SoftSolution:
     """Soft backward induction over ``K = n_epochs`` epochs (pure; the caller jits).
 
@@ -194,6 +195,15 @@ def soft_backward_induction(
         per epoch, so for ``beta < log(A) / time_cost`` never reaching the goal is optimal and
         ``V`` does not converge with the horizon; the relative form has the same Boltzmann
         policy given ``Q`` and the same ``beta -> infinity`` limit.
+    tol : float or None
+        Stop once the values change by at most ``tol`` in an epoch (static; ``n_epochs`` is
+        then a cap).
+    tol_mask : (G, H, W) bool or None
+        Cells on which that change is measured (default: all).
+    axis_name : str or None
+        Name of a mapped axis that splits the goals (``jax.shard_map`` over devices): the
+        change is then the largest over every shard, so that all stop at the same epoch,
+        the epoch of the unsplit batch (identical results).
 
     Returns
     -------
@@ -234,7 +244,11 @@ def soft_backward_induction(
             change = jnp.abs(v_new - c[1])
             if tol_mask is not None:
                 change = jnp.where(tol_mask[None], change, 0.0)
-            return c[0] + 1, v_new, jnp.max(change)
+            # only the loop's predicate: no derivative (pmax has no differentiation rule)
+            largest = jax.lax.stop_gradient(jnp.max(change))
+            if axis_name is not None:
+                largest = jax.lax.pmax(largest, axis_name)
+            return c[0] + 1, v_new, largest
 
         start = (jnp.asarray(0), v0, jnp.asarray(jnp.inf, dtype))
         _, v_prev, _ = jax.lax.while_loop(cond, body, start)

@@ -17,6 +17,11 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   L-BFGS-B on ``(log beta, logit slip)`` with forward-mode JAX gradients; standard errors
   from the inverse Hessian (delta method). At most ``max_fit_tracks`` tracks per class enter
   this likelihood (a random subset; each track's goal costs one soft solve per evaluation).
+  With several local XLA devices (``XLA_FLAGS=--xla_force_host_platform_device_count=N``,
+  which the CLI sets: one per core) the goals are split across them; every split stops at
+  the epoch of the whole batch, so value and gradient are those of one device (500 tracks,
+  8 goals, 100 x 100, on 2 shared cores: 0.9 s against 3.2 s per value and gradient when
+  the other load left room, no gain when it did not).
 * **Exits.** Each track's first and last positions: the exit density given an entry is a
   kernel mixture over them (:meth:`~are_stats.behaviour.BehaviourFit.draw_exits`).
 """
@@ -171,14 +176,61 @@ def _loglik(
     n_epochs: int,
     tol: float | None,
     tol_mask: jax.Array | None = None,
+    n_devices: int = 1,
 ) -> jax.Array:
+    """Log-likelihood at ``theta = (log beta, logit slip)``; with ``n_devices > 1`` the goals
+    are split across that many local devices (results identical to one device)."""
     beta = jnp.exp(theta[0])
     slip = jax.nn.sigmoid(theta[1])
-    sol = soft_backward_induction(
-        ok, keep, bonus, beta, slip, n_epochs=n_epochs, step_cost=step_cost,
-        time_cost=time_cost, tol=tol, tol_mask=tol_mask,
+    opts = dict(n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost, tol=tol)
+    if n_devices < 2:
+        policy = soft_backward_induction(
+            ok, keep, bonus, beta, slip, tol_mask=tol_mask, **opts
+        ).policy
+    else:
+        policy = _sharded_policy(ok, keep, bonus, beta, slip, tol_mask, n_devices, opts)
+    return moves_log_likelihood(policy, ok, slip, obs)
+
+
+def _sharded_policy(
+    ok: jax.Array,
+    keep: jax.Array,
+    bonus: jax.Array,
+    beta: jax.Array,
+    slip: jax.Array,
+    tol_mask: jax.Array | None,
+    n_devices: int,
+    opts: dict[str, Any],
+) -> jax.Array:
+    """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices``.
+
+    The goals are padded to a multiple of ``n_devices`` by repeating the last one (a copy
+    changes by exactly as much per epoch, so the shared stopping rule is unaffected); every
+    shard stops at the epoch the whole batch would (``axis_name``).
+    """
+    from jax.sharding import Mesh
+    from jax.sharding import PartitionSpec as P
+
+    g = keep.shape[0]
+    pad = -g % n_devices
+    mask = jnp.ones(keep.shape, bool) if tol_mask is None else tol_mask
+
+    def padded(x: jax.Array) -> jax.Array:
+        return jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
+
+    mesh = Mesh(np.array(jax.local_devices()[:n_devices]), ("g",))
+
+    def solve(keep_s: jax.Array, bonus_s: jax.Array, mask_s: jax.Array, beta_: jax.Array,
+              slip_: jax.Array) -> jax.Array:  # fmt: skip
+        return soft_backward_induction(
+            ok, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g", **opts
+        ).policy
+
+    split = jax.shard_map(
+        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g"), P(), P()), out_specs=P("g"),
+        check_vma=False,
     )  # fmt: skip
-    return moves_log_likelihood(sol.policy, ok, slip, obs)
+    return split(padded(keep), padded(bonus), padded(mask), beta, slip)[:g]
 
 
 def behaviour_log_likelihood(
@@ -246,21 +298,23 @@ def _n_epochs(
     return int(math.ceil(factor * longest)) + 20
 
 
-def _mle(
+def _likelihood(
     paths: list[np.ndarray],
     free: np.ndarray,
     *,
     goal_reward: float,
     step_cost: float,
     time_cost: float,
-    beta0: float,
-    slip0: float,
     dtype: Any,
     tol: float,
-) -> dict[str, Any]:
-    """Maximum likelihood of ``(beta, slip)`` with inverse-Hessian standard errors."""
-    from scipy.optimize import minimize
+    n_devices: int | None = None,
+) -> tuple[Any, Any, int]:
+    """The fit's log-likelihood ``f(theta)`` of ``paths`` (pure JAX, not jitted), their
+    :class:`MoveObservations` and the epoch cap ``K``.
 
+    The goals are split across ``n_devices`` local devices (default: all of them, at most
+    one per goal); results are identical for any split.
+    """
     obs = move_observations(paths)
     k = _n_epochs(free, paths, obs.goals, factor=10.0)
     ok = jnp.asarray(_path_free(~free))
@@ -277,10 +331,34 @@ def _mle(
         obs.cols[valid],
     ] = True
     seen = ndimage.binary_dilation(seen, np.ones((1, 5, 5), bool))
+    if n_devices is None:
+        n_devices = jax.local_device_count()
     f = partial(
         _loglik, ok=ok, keep=keep, bonus=jnp.asarray(bonus, dtype), obs=obs_j,
         step_cost=step_cost, time_cost=time_cost, n_epochs=k, tol=tol,
-        tol_mask=jnp.asarray(seen),
+        tol_mask=jnp.asarray(seen), n_devices=max(1, min(n_devices, len(obs.goals))),
+    )  # fmt: skip
+    return f, obs, k
+
+
+def _mle(
+    paths: list[np.ndarray],
+    free: np.ndarray,
+    *,
+    goal_reward: float,
+    step_cost: float,
+    time_cost: float,
+    beta0: float,
+    slip0: float,
+    dtype: Any,
+    tol: float,
+) -> dict[str, Any]:
+    """Maximum likelihood of ``(beta, slip)`` with inverse-Hessian standard errors."""
+    from scipy.optimize import minimize
+
+    f, obs, k = _likelihood(
+        paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
+        dtype=dtype, tol=tol,
     )  # fmt: skip
     scale = 1.0 / max(obs.n_moves, 1)
 
@@ -307,7 +385,17 @@ def _mle(
     )  # fmt: skip
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
     th = jnp.asarray(res.x, dtype)
-    hess = np.asarray(jax.jit(jax.jacfwd(jax.jacfwd(f)))(th), float)
+
+    # The Hessian entry by entry (h11, h22, h12), forward over forward mode with one tangent
+    # each: one small program run three times compiles and runs faster than jacfwd(jacfwd)
+    # (500 tracks, 100 x 100, under load: 19 + 3 x 4.3 s against 31 + 19 s).
+    def second(x: jax.Array, u: jax.Array, v: jax.Array) -> jax.Array:
+        return jax.jvp(lambda y: jax.jvp(f, (y,), (u,))[1], (x,), (v,))[1]
+
+    d2 = jax.jit(second)
+    e = jnp.eye(2, dtype=dtype)
+    h11, h22, h12 = (float(d2(th, e[i], e[j])) for i, j in ((0, 0), (1, 1), (0, 1)))
+    hess = np.array([[h11, h12], [h12, h22]])
     try:
         cov = np.linalg.inv(-hess)
         se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))

@@ -148,3 +148,42 @@ def test_smooth_path_keeps_ends_and_straightens_a_staircase() -> None:
     length = np.hypot(*np.diff(s, axis=0).T).sum()
     net = np.hypot(*(s[-1] - s[0]))
     assert net / length > 0.95
+
+
+def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> None:
+    """shard_map over goals with ``axis_name``: the same values as one unsplit solve, although
+    the near goal's shard alone would stop epochs earlier than the far goals' shard."""
+    from jax.sharding import Mesh
+    from jax.sharding import PartitionSpec as P
+
+    from are_stats.behaviour._mdp import _path_free
+    from are_stats.behaviour._soft import soft_backward_induction
+
+    if jax.local_device_count() < 2:
+        pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
+    occ = _grid()
+    goals = np.array([[0, 0], [1, 1], [7, 8], [6, 7]])  # a near pair, a far pair
+    mask = np.zeros((4,) + occ.shape, bool)
+    mask[np.arange(4), goals[:, 0], goals[:, 1]] = True
+    keep, bonus = ~occ[None] & ~mask, jnp.asarray(mask, float)
+    ok = jnp.asarray(_path_free(occ))
+    opts = dict(n_epochs=400, time_cost=1.0, tol=1e-4)
+
+    def solve(keep_, bonus_, axis_name=None):
+        return soft_backward_induction(
+            ok, keep_, bonus_, jnp.asarray(1.5), jnp.asarray(0.1), axis_name=axis_name, **opts
+        )  # fmt: skip
+
+    whole = jax.jit(solve)(keep, bonus)
+    mesh = Mesh(np.array(jax.local_devices()[:2]), ("g",))
+    results = {}
+    for name in ("g", None):
+        split = jax.shard_map(
+            lambda k, b, name=name: solve(k, b, name), mesh=mesh, in_specs=(P("g"), P("g")),
+            out_specs=P("g"), check_vma=False,
+        )  # fmt: skip
+        results[name] = jax.jit(split)(keep, bonus)
+    assert_allclose(results["g"].values, whole.values, rtol=1e-12, atol=1e-12)
+    assert_allclose(results["g"].policy, whole.policy, rtol=1e-12, atol=1e-12)
+    # without the shared stopping rule the near goals' shard stops early
+    assert np.abs(np.asarray(results[None].values - whole.values)).max() > 1e-6

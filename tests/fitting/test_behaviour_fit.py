@@ -307,3 +307,33 @@ def test_path_set_points_equal_path_points() -> None:
         side = rng.uniform(-1, 1, 50)
         assert_allclose(ps.points(np.full(50, i), tau, side), path_points(tv, pv, tau, side),
                         atol=1e-12)  # fmt: skip
+
+
+def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
+    """The fit's likelihood and forward-mode gradient with three goals (padded to four) on
+    two XLA host devices are those of one device."""
+    from are_stats.fitting._behaviour import _likelihood
+
+    if jax.local_device_count() < 2:
+        pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
+    free = np.ones((10, 12), bool)
+    free[4, 3:9] = False
+    paths = [  # cell paths (one move or none per epoch) to three goals
+        np.array([[0, 0], [0, 1], [0, 1], [0, 2], [1, 2], [1, 3], [1, 4], [0, 4], [0, 5]]),
+        np.array([[9, 11], [8, 11], [7, 11], [7, 10], [6, 10], [5, 10], [5, 9], [5, 8]]),
+        np.array([[9, 0], [8, 0], [8, 1], [7, 1], [6, 1], [5, 1], [5, 2], [5, 3], [5, 4]]),
+        np.array([[2, 8], [2, 7], [1, 7], [1, 6], [1, 5], [0, 5]]),
+    ]
+    out = []
+    for n_devices in (1, 2):
+        f, obs, _ = _likelihood(
+            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
+            tol=1e-3, n_devices=n_devices,
+        )  # fmt: skip
+        assert len(obs.goals) == 3
+        th = np.array([np.log(1.7), -2.0])
+        out.append(jax.jit(jax.jacfwd(lambda t, f=f: (f(t), f(t)), has_aux=True))(th))
+    (g1, v1), (g2, v2) = out
+    assert np.isfinite(float(v1)) and np.abs(np.asarray(g1)).min() > 1e-3
+    assert_allclose(v2, v1, rtol=1e-12)
+    assert_allclose(g2, g1, rtol=1e-10)
