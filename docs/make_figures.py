@@ -101,28 +101,11 @@ def _behaviour(out: Path) -> None:
 
 def _crossing_tracks(seed: int, n: int) -> tuple[Any, Any]:
     """Door-to-door crossings of a 20 m x 12 m room (0.5 m cells) at about 1.2 m/s, 2.5 Hz:
-    the synthetic tracks of ``tests/fitting/test_behaviour_fit.py`` (``_crossing_world``)."""
-    import numpy as np
-    import pandas as pd
+    the synthetic tracks of the behaviour tests (``tests.helpers.crossing_world``)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.helpers import crossing_world
 
-    rng = np.random.default_rng(seed)
-    free = np.zeros((24, 40), bool)
-    free[1:-1, 1:-1] = True
-    free[9:15, 0] = True  # west door, y in [4.5, 7.5]
-    free[9:15, -1] = True  # east door
-    rows = []
-    for i in range(n):
-        y0, y1 = rng.uniform(4.7, 7.3, 2)
-        a, b = np.array([0.3, y0]), np.array([19.7, y1])
-        if i % 2:
-            a, b = b, a
-        v = 1.2 * np.exp(0.05 * rng.standard_normal())
-        dist = np.hypot(*(b - a))
-        t = np.arange(0.0, dist / v, 0.4)
-        t = np.append(t, dist / v)
-        xy = a + np.outer(t / t[-1], b - a) + rng.normal(0, 0.03, (t.size, 2))
-        rows.append(pd.DataFrame({"id": i, "t": 100.0 * i + t, "x": xy[:, 0], "y": xy[:, 1]}))
-    return pd.concat(rows, ignore_index=True), free
+    return crossing_world(seed, n)
 
 
 def _motion(out: Path) -> None:

@@ -20,7 +20,7 @@ from are_stats.behaviour import (
     soft_policy,
 )
 from are_stats.fitting import discretise_tracks, fit_behaviour
-from tests.helpers import assert_allclose
+from tests.helpers import assert_allclose, crossing_world
 
 K_SIGMA = 4.0
 
@@ -75,32 +75,9 @@ def test_discretise_fills_gaps_and_cuts_at_the_goal() -> None:
     assert ids.tolist() == [0]
 
 
-def _crossing_world(seed: int, n: int = 60):
-    """A 20 m x 12 m room (0.5 m map cells) with a door in the west and the east wall;
-    people walk straight from door to door at about 1.2 m/s, sampled at 2.5 Hz."""
-    rng = np.random.default_rng(seed)
-    free = np.zeros((24, 40), bool)
-    free[1:-1, 1:-1] = True
-    free[9:15, 0] = True  # west door, y in [4.5, 7.5]
-    free[9:15, -1] = True  # east door
-    rows = []
-    for i in range(n):
-        y0, y1 = rng.uniform(4.7, 7.3, 2)
-        a, b = np.array([0.3, y0]), np.array([19.7, y1])
-        if i % 2:
-            a, b = b, a
-        v = 1.2 * np.exp(0.05 * rng.standard_normal())
-        dist = np.hypot(*(b - a))
-        t = np.arange(0.0, dist / v, 0.4)
-        t = np.append(t, dist / v)
-        xy = a + np.outer(t / t[-1], b - a) + rng.normal(0, 0.03, (t.size, 2))
-        rows.append(pd.DataFrame({"id": i, "t": 100.0 * i + t, "x": xy[:, 0], "y": xy[:, 1]}))
-    return pd.concat(rows, ignore_index=True), free
-
-
 @pytest.fixture(scope="module")
 def crossing() -> tuple[pd.DataFrame, BehaviourFit]:
-    tracks, free = _crossing_world(3, n=40)
+    tracks, free = crossing_world(3, n=40)
     tracks["label"] = "person"
     return tracks, fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=20)
 

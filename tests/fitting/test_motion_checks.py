@@ -20,8 +20,7 @@ from are_stats.fitting import (
     plot_motion_checks,
     track_statistics,
 )
-from tests.fitting.test_behaviour_fit import _crossing_world
-from tests.helpers import assert_allclose
+from tests.helpers import assert_allclose, crossing_world
 
 
 def _straight(n: int = 6, rate: float = 2.5, seconds: float = 12.0) -> pd.DataFrame:
@@ -64,7 +63,7 @@ def test_constant_velocity_ade_is_exact_on_straight_tracks() -> None:
 @pytest.fixture(scope="module")
 def crossing():
     """Door-to-door tracks; the behaviour fitted on 70% of them, the rest scored."""
-    tracks, free = _crossing_world(3, n=40)
+    tracks, free = crossing_world(3, n=40)
     res, fit = heldout_log_likelihood(0, tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
     return tracks, free, res, fit
 
