@@ -291,6 +291,7 @@ def fit_lifecycle_nuts(
         init_params=init_params,
         chain_method=method,
         extra_fields=tuple(_STATS.values()),
+        cheap_compile=True,  # a gradient costs microseconds: compilation dominates
     )
     posterior, loglik = run.samples, dict(run.loglik)
     stats = {"diverging": run.diverging, **{n: run.extra[f] for n, f in _STATS.items()}}

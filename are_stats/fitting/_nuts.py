@@ -145,6 +145,13 @@ def _cached(key: tuple | None, build: Callable[[], Any], timing: dict[str, float
     return program
 
 
+def _compile(fn: Any, args: tuple, cheap: bool) -> Any:
+    """Compile ``fn`` for ``args``: cheap XLA optimisation (fast to compile, slower to run:
+    for small models) or XLA's default (4-5x faster sampling of the traffic models for
+    about twice the compile time, which the persistent cache pays once)."""
+    return _aot_compile(fn, *args) if cheap else fn.lower(*args).compile()
+
+
 def _shapes(tree: Any) -> tuple:
     """Shapes and dtypes of the leaves of ``tree`` (part of a cache key)."""
     return tuple((np.shape(x), np.asarray(x).dtype.str) for x in jax.tree.leaves(tree))
@@ -277,6 +284,7 @@ def _sample(
     arrays: list,
     method: str,
     num_chains: int,
+    cheap: bool,
     timing: dict[str, float],
 ) -> Any:
     """Run the chains by ``method`` with the cached program; arrays by chain first."""
@@ -284,9 +292,9 @@ def _sample(
     if method == "vectorized":
         program = _cached(
             None if key_base is None else ("vectorized", *key_base),
-            lambda: _aot_compile(
+            lambda: _compile(
                 jax.jit(jax.vmap(one_chain, in_axes=(0, start_axis, None, None))),
-                keys, start, init, arrays,
+                (keys, start, init, arrays), cheap,
             ),  # fmt: skip
             timing,
         )
@@ -307,7 +315,7 @@ def _sample(
         fn = jax.pmap(jax.vmap(one_chain, in_axes=axes), in_axes=axes)
         program = _cached(
             None if key_base is None else ("parallel", n_dev, *key_base),
-            lambda: _aot_compile(fn, keys_d, start_d, init, arrays),
+            lambda: _compile(fn, (keys_d, start_d, init, arrays), cheap),
             timing,
         )
         tic = time.perf_counter()
@@ -319,7 +327,7 @@ def _sample(
         first = None if start is None else jax.tree.map(lambda x: x[0], start)
         program = _cached(
             None if key_base is None else ("sequential", *key_base),
-            lambda: _aot_compile(jax.jit(one_chain), keys[0], first, init, arrays),
+            lambda: _compile(jax.jit(one_chain), (keys[0], first, init, arrays), cheap),
             timing,
         )
         tic = time.perf_counter()
@@ -351,6 +359,7 @@ def run_nuts(
     chain_method: str | None = None,
     extra_fields: tuple[str, ...] = (),
     pointwise_kwargs: bool = False,
+    cheap_compile: bool = False,
 ) -> NutsRun:
     """Sample ``model(**model_kwargs)`` by NUTS from ``init``.
 
@@ -394,6 +403,10 @@ def run_nuts(
         Call ``pointwise(sample_dict, **model_kwargs)`` instead: the data are then
         arguments of the compiled program rather than constants captured by a closure,
         and a module-level ``pointwise`` lets later calls reuse the program.
+    cheap_compile : bool
+        Compile with cheap XLA optimisation: for small models whose compilation costs
+        more than their sampling (the life-cycle model). Default: XLA's optimisation
+        (the traffic models sample 4-5x faster with it).
 
     Returns
     -------
@@ -427,7 +440,7 @@ def run_nuts(
     key_base = _hashable(
         (
             _fn_key(model), treedef, static, num_warmup, num_samples, num_chains, accept,
-            fields, jax.local_device_count(),
+            fields, jax.local_device_count(), bool(cheap_compile),
             _shapes((arrays, start, init_arg)),
             None if init_arg is None else tuple(sorted(init_arg)),
             None if start is None else tuple(sorted(start)),
@@ -437,11 +450,13 @@ def run_nuts(
         model, treedef, static, num_warmup, num_samples, accept, fields, start is not None
     )
     zs, stats = _sample(
-        one_chain, key_base, keys, start, init_arg, arrays, method, num_chains, timing
-    )
+        one_chain, key_base, keys, start, init_arg, arrays, method, num_chains, cheap_compile,
+        timing,
+    )  # fmt: skip
     samples, loglik = _post_process(
-        model, treedef, static, zs, arrays, pointwise, pointwise_kwargs, key_base, timing
-    )
+        model, treedef, static, zs, arrays, pointwise, pointwise_kwargs, key_base,
+        cheap_compile, timing,
+    )  # fmt: skip
     diverging = np.asarray(stats.pop("diverging")).astype(bool)
     extra = {f: np.asarray(v) for f, v in stats.items()}
     r_hat = {}
@@ -465,6 +480,7 @@ def _post_process(
     pointwise: Callable[..., Any] | None,
     pointwise_kwargs: bool,
     key_base: tuple | None,
+    cheap: bool,
     timing: dict[str, float],
 ) -> tuple[dict, Any]:
     """Constrained and deterministic sites and pointwise log-likelihood of every draw."""
@@ -485,7 +501,7 @@ def _post_process(
     key = None
     if key_base is not None and (pointwise is None or pointwise_kwargs):
         key = _hashable(("post", _fn_key(pointwise), *key_base))
-    program = _cached(key, lambda: _aot_compile(jax.jit(post), flat, arrays), timing)
+    program = _cached(key, lambda: _compile(jax.jit(post), (flat, arrays), cheap), timing)
     tic = time.perf_counter()
     samples, loglik = jax.tree.map(np.asarray, program(flat, arrays))
     timing["postprocess"] = time.perf_counter() - tic
