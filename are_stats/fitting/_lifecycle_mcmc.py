@@ -32,7 +32,7 @@ from are_stats.traffic._lifecycle import (
     prior_predictive,
 )
 
-__all__ = ["fit_lifecycle_nuts", "resolve_chain_method"]  # the latter from _nuts
+__all__ = ["fit_lifecycle_nuts"]
 
 _LATENT = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
 
