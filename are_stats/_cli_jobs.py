@@ -50,6 +50,11 @@ def _summary_table(summary: Any, title: str) -> Table:
 
 
 def _warnings(idata: Any, summary: Any) -> list[str]:
+    if "sample_stats" in idata.groups() and "nuts_warnings" in idata.sample_stats.attrs:
+        # the NUTS driver's own words (are_stats.fitting.nuts_warnings): divergences and
+        # split-r_hat of every latent site
+        text = str(idata.sample_stats.attrs["nuts_warnings"])
+        return [w for w in text.splitlines() if w.strip()]
     out = []
     if "sample_stats" in idata.groups() and "diverging" in idata.sample_stats:
         n_div = int(idata.sample_stats["diverging"].sum())

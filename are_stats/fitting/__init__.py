@@ -48,10 +48,8 @@ __all__ += [
 ]
 
 # --- life-cycle posterior by NUTS ---
-from are_stats.fitting._lifecycle_mcmc import (  # noqa: E402
-    fit_lifecycle_nuts,
-    resolve_chain_method,
-)
+from are_stats.fitting._lifecycle_mcmc import fit_lifecycle_nuts  # noqa: E402
+from are_stats.fitting._nuts import resolve_chain_method  # noqa: E402
 
 __all__ += ["fit_lifecycle_nuts", "resolve_chain_method"]
 

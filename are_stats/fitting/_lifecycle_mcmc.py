@@ -18,14 +18,13 @@ import jax
 import numpy as np
 import numpyro
 from numpyro.distributions import biject_to
-from numpyro.infer.hmc import hmc
-from numpyro.infer.util import constrain_fn, log_likelihood, potential_energy
+from numpyro.infer.util import log_likelihood
 
 from are_stats._checks import check_in, check_nonneg_int, check_probability, describe
+from are_stats.fitting._nuts import NutsRun, nuts_warnings, resolve_chain_method, run_nuts
 from are_stats.traffic._lifecycle import (
     LifecycleData,
     LifecyclePriors,
-    _aot_compile,
     _check_components,
     _numpy_rng,
     _Summary,
@@ -33,41 +32,9 @@ from are_stats.traffic._lifecycle import (
     prior_predictive,
 )
 
-__all__ = ["fit_lifecycle_nuts", "resolve_chain_method"]
+__all__ = ["fit_lifecycle_nuts"]
 
 _LATENT = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
-
-
-def resolve_chain_method(chain_method: str | None, num_chains: int) -> str:
-    """The numpyro chain method actually used.
-
-    ``None`` picks ``"parallel"`` when there are at least ``num_chains`` JAX devices
-    (``jax.local_device_count()``) and ``"vectorized"`` otherwise: numpyro silently runs
-    "parallel" chains one after another when devices are missing.
-
-    Parameters
-    ----------
-    chain_method : {"parallel", "vectorized", "sequential"} or None
-        Requested method.
-    num_chains : int
-        Number of chains.
-
-    Returns
-    -------
-    str
-        ``"parallel"``, ``"vectorized"`` or ``"sequential"``.
-
-    Raises
-    ------
-    ValueError
-        If ``chain_method`` is not one of the options.
-    """
-    check_in("chain_method", chain_method, (None, "parallel", "vectorized", "sequential"))
-    if chain_method is not None:
-        return chain_method
-    if num_chains == 1:
-        return "sequential"
-    return "parallel" if jax.local_device_count() >= num_chains else "vectorized"
 
 
 def _start_values(data: LifecycleData, k: int | None) -> dict[str, np.ndarray]:
@@ -105,23 +72,6 @@ def _latent_sites(model_kwargs: dict, start: dict[str, np.ndarray]) -> dict[str,
     }
 
 
-_CACHE: dict[tuple, Any] = {}  # compiled programs, keyed by settings and array shapes
-_CACHE_SIZE = 16
-
-
-def _cached(key: tuple, build: Any, timing: dict[str, float]) -> Any:
-    """The compiled program for ``key``, compiling it with ``build()`` on a miss."""
-    if key in _CACHE:
-        return _CACHE[key]
-    tic = time.perf_counter()
-    program = build()
-    timing["compile"] = timing.get("compile", 0.0) + time.perf_counter() - tic
-    if len(_CACHE) >= _CACHE_SIZE:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = program
-    return program
-
-
 def _bucket(n: int) -> int:
     """Padded length: the next power of two, at least 16 (bounds the number of compilations)."""
     return max(16, 1 << max(0, int(n) - 1).bit_length())
@@ -153,138 +103,26 @@ def _padded_summary(s: _Summary) -> _Summary:
     )
 
 
-def _shapes(tree: Any) -> tuple:
-    return tuple((np.shape(x), np.asarray(x).dtype.str) for x in jax.tree.leaves(tree))
+def _pointwise_loglik(draw: dict, **model_kwargs: Any) -> dict[str, Any]:
+    """Log-likelihood terms of one draw: window counts and the mark histogram.
+
+    The per-artefact stays would be draws x rows: left out (XLA then never computes them);
+    :func:`are_stats.fitting.fit_loo` recomputes them on demand.
+    """
+    one = {name: v[None] for name, v in draw.items()}
+    loglik = log_likelihood(lifecycle_model, one, **model_kwargs)
+    loglik.pop("stays", None)
+    return {name: v[0] for name, v in loglik.items()}
 
 
-def _run_chains(
-    key: Any,
-    obs: _Summary,
-    static: dict,
-    start: dict[str, np.ndarray],
-    noise: dict[str, np.ndarray],
-    transforms: dict[str, Any],
-    num_warmup: int,
-    num_samples: int,
-    accept: float,
-    method: str,
-    timing: dict[str, float],
-) -> tuple[dict, dict]:
-    """NUTS chains in one compiled program; returns unconstrained draws and statistics."""
-
-    def one_chain(chain_key, chain_noise, chain_start, data):
-        def potential_fn(u):
-            return potential_energy(lifecycle_model, (), {**static, "data": data}, u)
-
-        init_kernel, sample_kernel = hmc(potential_fn, algo="NUTS")
-        u0 = {
-            name: transforms[name].inv(chain_start[name]) + chain_noise[name] for name in transforms
-        }
-        state = init_kernel(u0, num_warmup, target_accept_prob=accept, rng_key=chain_key)
-
-        def body(s, _):
-            s = sample_kernel(s)
-            stats = {
-                "diverging": s.diverging,
-                "n_steps": s.num_steps,
-                "acceptance_rate": s.accept_prob,
-                "energy": s.energy,
-                "lp": -s.potential_energy,
-                "step_size": s.adapt_state.step_size,
-            }
-            return s, (s.z, stats)
-
-        _, (zs, stats) = jax.lax.scan(body, state, None, length=num_warmup + num_samples)
-        return jax.tree.map(lambda x: x[num_warmup:], (zs, stats))
-
-    num_chains = next(iter(noise.values())).shape[0]
-    keys = jax.random.split(key, num_chains)
-    settings = (
-        method, num_chains, num_warmup, num_samples, accept, static["priors"],
-        static["n_components"], static["stationary_start"], static["labelled"],
-        _shapes((obs, start, noise)),
-    )  # fmt: skip
-    if method == "vectorized":
-        program = _cached(
-            ("vectorized", jax.local_device_count(), *settings),
-            lambda: _aot_compile(
-                jax.jit(jax.vmap(one_chain, in_axes=(0, 0, None, None))), keys, noise, start, obs
-            ),
-            timing,
-        )
-        tic = time.perf_counter()
-        out = jax.block_until_ready(program(keys, noise, start, obs))
-    elif method == "parallel":
-        n_dev = min(jax.local_device_count(), num_chains)
-        while num_chains % n_dev:
-            n_dev -= 1
-        per = num_chains // n_dev
-
-        def split(x):
-            return x.reshape((n_dev, per) + x.shape[1:])
-
-        keys_d = split(keys)
-        noise_d = jax.tree.map(split, noise)
-        fn = jax.pmap(jax.vmap(one_chain, in_axes=(0, 0, None, None)), in_axes=(0, 0, None, None))
-        program = _cached(
-            ("parallel", n_dev, *settings),
-            lambda: _aot_compile(fn, keys_d, noise_d, start, obs),
-            timing,
-        )
-        tic = time.perf_counter()
-        out = jax.tree.map(
-            lambda x: np.asarray(x).reshape((num_chains,) + x.shape[2:]),
-            program(keys_d, noise_d, start, obs),
-        )
-    else:  # sequential: compile one chain, run it chain after chain
-        first = jax.tree.map(lambda x: x[0], noise)
-        program = _cached(
-            ("sequential", *settings),
-            lambda: _aot_compile(jax.jit(one_chain), keys[0], first, start, obs),
-            timing,
-        )
-        tic = time.perf_counter()
-        runs = [
-            program(keys[c], jax.tree.map(lambda x, c=c: x[c], noise), start, obs)
-            for c in range(num_chains)
-        ]
-        out = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *runs)
-    zs, stats = jax.tree.map(np.asarray, out)
-    timing["sampling"] = time.perf_counter() - tic
-    return zs, stats
-
-
-def _post_process(
-    zs: dict[str, np.ndarray], obs: _Summary, static: dict, timing: dict[str, float]
-) -> tuple[dict, dict]:
-    """Constrained draws and pointwise log-likelihood of every draw (one compiled program)."""
-
-    def post(flat, data):
-        kwargs = {**static, "data": data}
-        samples = jax.vmap(
-            lambda u: constrain_fn(lifecycle_model, (), kwargs, u, return_deterministic=True)
-        )(flat)
-        loglik = log_likelihood(lifecycle_model, samples, **kwargs)
-        # the per-artefact stays would be draws x rows: left out (XLA then never computes
-        # them); :func:`are_stats.fitting.fit_loo` recomputes them on demand
-        loglik.pop("stays", None)
-        return samples, loglik
-
-    shape = next(iter(zs.values())).shape[:2]
-    flat = {name: v.reshape((-1,) + v.shape[2:]) for name, v in zs.items()}
-    settings = (
-        "post", static["priors"], static["n_components"], static["stationary_start"],
-        static["labelled"], _shapes((flat, obs)),
-    )  # fmt: skip
-    program = _cached(settings, lambda: _aot_compile(jax.jit(post), flat, obs), timing)
-    tic = time.perf_counter()
-    samples, loglik = jax.tree.map(np.asarray, program(flat, obs))
-    timing["postprocess"] = time.perf_counter() - tic
-
-    def unflat(d):
-        return {name: v.reshape(shape + v.shape[1:]) for name, v in d.items()}
-
-    return unflat(samples), unflat(loglik)
+#: sample_stats names of the sampler fields kept (ArviZ's names on the left).
+_STATS = {
+    "n_steps": "num_steps",
+    "acceptance_rate": "accept_prob",
+    "energy": "energy",
+    "lp": "potential_energy",
+    "step_size": "step_size",
+}
 
 
 def _predictive_counts(
@@ -324,13 +162,15 @@ def fit_lifecycle_nuts(
     (mu, per time unit) and, for logs with marks, ``mix_weights`` and ``mix_rates`` of eq. (1)
     (ordered rates without labels, complete-data likelihood with labels).
 
-    The sampler is numpyro's NUTS kernel (``numpyro.infer.hmc.hmc``, step size and diagonal
-    mass matrix adapted during warm-up) driven by one ahead-of-time compiled XLA program for
-    all chains, warm-up and sampling together; a second small program computes the
-    constrained draws, pointwise log-likelihood, predictive and prior draws. Compilation
-    dominates the cost of this small model, so both are compiled once with cheap XLA
-    optimisation. Chains start at crude data estimates moved by U(-0.5, 0.5) on the
-    unconstrained (log) scale, independently per chain.
+    The sampler is the toolkit's one NUTS driver, :func:`~are_stats.fitting.run_nuts`
+    (numpyro's NUTS kernel, step size and diagonal mass matrix adapted during warm-up, in
+    one ahead-of-time compiled XLA program for all chains, warm-up and sampling together;
+    a second small program computes the constrained draws and pointwise log-likelihood).
+    The log's summary is padded to bucketed sizes and passed as an argument of both
+    programs, so later fits of logs of similar size in the same process compile nothing,
+    and a new process finds them in JAX's persistent cache. Chains start at crude data
+    estimates moved by U(-0.5, 0.5) on the unconstrained (log) scale, independently per
+    chain.
 
     Parameters
     ----------
@@ -366,7 +206,10 @@ def fit_lifecycle_nuts(
     -------
     arviz.InferenceData
         Groups ``posterior``, ``sample_stats`` (``diverging``, ``n_steps``,
-        ``acceptance_rate``, ``energy``, ``lp``, ``step_size``), ``log_likelihood``
+        ``acceptance_rate``, ``energy``, ``lp``, ``step_size``; attributes
+        ``n_divergent``, ``max_r_hat``, ``r_hat_<site>`` (split-``r_hat``) and
+        ``nuts_warnings``, the words of :func:`~are_stats.fitting.nuts_warnings`, empty
+        when clean), ``log_likelihood``
         (``n_arrivals``, ``n_present``, ``mark_histogram`` per distinct mark or (class,
         mark) pair: sizes that scale with the distinct data; the per-artefact ``stays``
         terms are recomputed on demand by :func:`are_stats.fitting.pointwise_log_likelihood`
@@ -429,12 +272,31 @@ def fit_lifecycle_nuts(
         name: rng.uniform(-0.5, 0.5, size=(chains,) + t.inverse_shape(np.shape(start[name])))
         for name, t in transforms.items()
     }
-    timing = {"compile": 0.0}
-    obs = _padded_summary(data._summary)
-    zs, stats = _run_chains(
-        key_mcmc, obs, static, start, noise, transforms, warmup, samples, accept, method, timing
+    start_u = {name: np.asarray(transforms[name].inv(start[name])) for name in transforms}
+    init_params = {name: start_u[name] + noise[name] for name in transforms}
+    if chains == 1:  # numpyro's convention: no chain axis for one chain
+        init_params = {name: v[0] for name, v in init_params.items()}
+    run = run_nuts(
+        key_mcmc,
+        lifecycle_model,
+        {**static, "data": _padded_summary(data._summary)},
+        None,
+        num_warmup=warmup,
+        num_samples=samples,
+        num_chains=chains,
+        pointwise=_pointwise_loglik,
+        pointwise_kwargs=True,
+        name="life-cycle",
+        target_accept_prob=accept,
+        init_params=init_params,
+        chain_method=method,
+        extra_fields=tuple(_STATS.values()),
+        cheap_compile=True,  # a gradient costs microseconds: compilation dominates
     )
-    posterior, loglik = _post_process(zs, obs, static, timing)
+    posterior, loglik = run.samples, dict(run.loglik)
+    stats = {"diverging": run.diverging, **{n: run.extra[f] for n, f in _STATS.items()}}
+    stats["lp"] = -stats["lp"]
+    timing = dict(run.timing)
     s = data._summary
     if "mark_histogram" in loglik:
         m = s.mark_values.size if data.labels is None else s.pair_counts.size
@@ -448,10 +310,23 @@ def fit_lifecycle_nuts(
             stationary_start=stationary_start, labelled=data.labels is not None,
         )  # fmt: skip
         timing["prior"] = time.perf_counter() - tic
-    return _inference_data(
-        data, priors, k, stationary_start, method, posterior, stats, loglik, post_pred, prior,
-        timing,
+    idata = _inference_data(
+        data, priors, k, stationary_start, run.chain_method, posterior, stats, loglik,
+        post_pred, prior, timing,
     )  # fmt: skip
+    _diagnostics(idata, run)
+    return idata
+
+
+def _diagnostics(idata: Any, run: NutsRun) -> None:
+    """Divergences, split-``r_hat`` and their warnings (:func:`nuts_warnings`) as attributes."""
+    words = nuts_warnings(run)
+    idata.sample_stats.attrs.update(
+        n_divergent=run.n_divergent,
+        max_r_hat=run.max_r_hat,
+        nuts_warnings="\n".join(words),
+        **{f"r_hat_{site}": value for site, value in run.r_hat.items()},
+    )
 
 
 def _inference_data(

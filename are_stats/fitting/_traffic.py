@@ -23,6 +23,7 @@ probabilities).
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
@@ -208,13 +209,32 @@ def _diag_cols(table: pd.DataFrame, runs: dict[str, NutsRun | None]) -> None:
     table["r_hat"] = [runs[n].max_r_hat if runs.get(n) is not None else np.nan for n in table.index]
 
 
-def _arrival_pointwise(units: Any, spec: ArrivalSpec, log_area: float) -> Any:
-    """``draw -> (B,)`` pointwise arrival log-likelihood for one draw."""
+@functools.partial(jax.jit, static_argnames=("spec",))
+def _arrival_loglik_draws(flat: dict, units: Any, spec: ArrivalSpec, log_area: Any) -> Any:
+    """``(draws, B)`` pointwise arrival log-likelihood of given draws (one compiled program,
+    the data its arguments)."""
+    return jax.vmap(lambda p: arrival_unit_loglik({**p, "log_area": log_area}, units, spec))(
+        flat
+    )
 
-    def f(p: dict) -> Any:
-        return arrival_unit_loglik({**p, "log_area": log_area}, units, spec)
 
-    return f
+@functools.partial(jax.jit, static_argnames=("law", "resolution"))
+def _stay_loglik_draws(flat: dict, units: Any, law: str, resolution: float) -> Any:
+    """``(draws, n)`` pointwise stay log-likelihood of given draws."""
+    return jax.vmap(lambda p: stay_unit_loglik(p, units, law, resolution))(flat)
+
+
+def _arrival_draw_loglik(p: dict, **model_kwargs: Any) -> Any:
+    """``(B,)`` pointwise arrival log-likelihood of one draw, given ``arrival_model``'s
+    arguments (module level: :func:`run_nuts` reuses its compiled program)."""
+    kw = model_kwargs
+    return arrival_unit_loglik({**p, "log_area": kw["log_area"]}, kw["units"], kw["spec"])
+
+
+def _stay_draw_loglik(p: dict, **model_kwargs: Any) -> Any:
+    """``(n,)`` pointwise stay log-likelihood of one draw, given ``stay_model``'s arguments."""
+    kw = model_kwargs
+    return stay_unit_loglik(p, kw["units"], kw["law"], kw["resolution"])
 
 
 def _bin_width(data: LifecycleData) -> float:
@@ -391,7 +411,7 @@ def fit_traffic(
         units = by_clock if spec.tod else plain
         if name == "poisson":
             flat = {"event_rate": lam.ravel()}
-            ll = jax.vmap(_arrival_pointwise(units, spec, log_area))(flat)
+            ll = _arrival_loglik_draws(flat, units, spec, np.asarray(log_area, float))
             ll = np.asarray(ll).reshape(shape + (-1,))
             runs[name] = None
         else:
@@ -404,13 +424,16 @@ def fit_traffic(
                 init["tod_eta"] = np.zeros(units.bin_exposure.shape[1])
             if spec.groups:
                 init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
+            # the centre and area are arrays: arguments of the compiled program, not
+            # constants of it (logs of similar size share one program)
             run = run_nuts(
                 jax.random.fold_in(k_arr, i),
                 arrival_model,
-                {"units": units, "spec": spec, "rate_centre": centre, "log_area": log_area,
-                 "max_group": max(max_tick, 1)},
+                {"units": units, "spec": spec, "rate_centre": np.asarray(centre, float),
+                 "log_area": np.asarray(log_area, float), "max_group": max(max_tick, 1)},
                 init,
-                pointwise=_arrival_pointwise(units, spec, log_area),
+                pointwise=_arrival_draw_loglik,
+                pointwise_kwargs=True,
                 name=f"arrivals {name}",
                 **nuts,
             )  # fmt: skip
@@ -460,7 +483,7 @@ def fit_traffic(
     for i, law in enumerate(laws):
         if law == "exponential":
             flat = {"stay_mean": 1.0 / mu.ravel()}
-            ll = jax.vmap(lambda p: stay_unit_loglik(p, units, "exponential", res))(flat)
+            ll = _stay_loglik_draws(flat, units, "exponential", res)
             ll = np.asarray(ll).reshape(shape + (-1,))
             runs[law] = None
         else:
@@ -468,9 +491,11 @@ def fit_traffic(
             run = run_nuts(
                 jax.random.fold_in(k_life, i),
                 stay_model,
-                {"units": units, "law": law, "mean_centre": mean_centre, "resolution": res},
+                {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
+                 "resolution": res},
                 {"stay_mean_z": 0.0, "stay_shape_eta": 0.0},
-                pointwise=lambda p, law=law: stay_unit_loglik(p, units, law, res),
+                pointwise=_stay_draw_loglik,
+                pointwise_kwargs=True,
                 name=f"stays {law}",
                 **nuts,
             )

@@ -30,7 +30,7 @@ import warnings  # noqa: E402
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from are_stats.fitting import _lifecycle_mcmc, fit_lifecycle_nuts  # noqa: E402
+from are_stats.fitting import _nuts, fit_lifecycle_nuts  # noqa: E402
 from are_stats.traffic import (  # noqa: E402
     LifecycleData,
     LifecyclePriors,
@@ -65,7 +65,7 @@ def _summary(posterior: dict[str, np.ndarray], truth: dict) -> tuple[float, floa
 
 def _ours(data, method, seed, warmup, samples, cold):
     if cold:  # forget compiled programs: every run pays tracing and compilation
-        _lifecycle_mcmc._CACHE.clear()
+        _nuts._CACHE.clear()
     tic = time.perf_counter()
     idata = fit_lifecycle_nuts(
         jax.random.key(seed), data, PRIORS, num_warmup=warmup, num_samples=samples,

@@ -14,6 +14,7 @@ import warnings
 import jax
 import numpy as np
 import pytest
+from numpyro.diagnostics import split_gelman_rubin
 from scipy import stats
 
 from are_stats.fitting import fit_lifecycle_nuts, pointwise_log_likelihood, resolve_chain_method
@@ -153,6 +154,15 @@ def test_sequential_chains_run():
     )  # fmt: skip
     assert idata.posterior["arrival_rate"].shape == (2, 100)
     assert set(idata.posterior.data_vars) == {"arrival_rate", "leave_rate"}
+    # the one NUTS driver's diagnostics: divergences and split-r_hat of every site
+    a = idata.sample_stats.attrs
+    assert a["n_divergent"] == int(idata.sample_stats["diverging"].sum())
+    for site in ("arrival_rate", "leave_rate"):
+        r = float(np.max(split_gelman_rubin(idata.posterior[site].values)))
+        assert a[f"r_hat_{site}"] == pytest.approx(r)
+    assert a["max_r_hat"] == max(a["r_hat_arrival_rate"], a["r_hat_leave_rate"])
+    assert ("r_hat" in a["nuts_warnings"]) == (a["max_r_hat"] > 1.01)
+    assert ("divergent" in a["nuts_warnings"]) == (a["n_divergent"] > 0)
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,137 @@
+"""The one NUTS driver (``run_nuts``) against a conjugate normal posterior.
+
+Model: ``mu ~ Normal(0, s0)``, ``y_i ~ Normal(mu, s)``; the posterior of ``mu`` is
+normal with precision ``1/s0^2 + n/s^2`` and mean ``sum(y)/s^2`` over it. Checks as in
+``test_lifecycle_mcmc``: bulk ESS > 400 first, then the mean within 4 Monte Carlo standard
+errors and the sd within 10 %.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import jax
+import numpy as np
+import numpyro
+import numpyro.distributions as dist
+import pytest
+from numpyro.diagnostics import split_gelman_rubin
+from scipy import stats
+
+from are_stats.fitting import NutsRun, nuts_warnings, run_nuts
+from are_stats.fitting import _nuts as nuts_module
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", FutureWarning)
+    import arviz as az
+
+S, S0 = 2.0, 10.0
+
+
+def normal_model(y, prior_sd=S0):
+    """``mu ~ Normal(0, prior_sd)``, ``y ~ Normal(mu, S)``; ``mu2 = mu^2`` deterministic."""
+    mu = numpyro.sample("mu", dist.Normal(0.0, prior_sd))
+    numpyro.deterministic("mu2", mu**2)
+    numpyro.sample("y", dist.Normal(mu, S), obs=y)
+
+
+def normal_pointwise(draw, y, prior_sd=S0):
+    """Pointwise log-likelihood of one draw, given the model's arguments."""
+    return dist.Normal(draw["mu"], S).log_prob(y)
+
+
+def _posterior(y: np.ndarray, prior_sd: float = S0) -> tuple[float, float]:
+    prec = 1.0 / prior_sd**2 + y.size / S**2
+    return float(y.sum() / S**2 / prec), float(np.sqrt(1.0 / prec))
+
+
+def _check(draws: np.ndarray, mean: float, sd: float) -> None:
+    ess = float(az.ess(draws, method="bulk"))
+    assert ess > 400, f"bulk ESS {ess:.0f} too small for the check"
+    mcse = draws.std() / np.sqrt(float(az.ess(draws, method="mean")))
+    assert abs(draws.mean() - mean) < 4 * mcse, (draws.mean(), mean, mcse)
+    assert abs(draws.std() / sd - 1) < 0.10, (draws.std(), sd)
+
+
+def _data(seed: int, n: int = 40, shift: float = 0.0) -> np.ndarray:
+    return np.random.default_rng(seed).normal(3.0 + shift, S, n)
+
+
+def test_matches_conjugate_posterior_and_reuses_its_program():
+    """Closed-form posterior; a second call on other data of the same shape compiles
+    nothing and still samples the NEW data's posterior (data are program arguments)."""
+    nuts_module._CACHE.clear()
+    y1, y2 = _data(0), _data(1, shift=-6.0)
+    kw = {"num_warmup": 300, "num_samples": 600, "num_chains": 2, "chain_method": "vectorized"}
+    runs = []
+    for i, y in enumerate((y1, y2)):
+        run = run_nuts(jax.random.key(i), normal_model, {"y": y}, {"mu": 0.0},
+                       pointwise=normal_pointwise, pointwise_kwargs=True, name="normal",
+                       extra_fields=("num_steps", "step_size"), **kw)  # fmt: skip
+        runs.append(run)
+        mean, sd = _posterior(y)
+        _check(run.samples["mu"].ravel(), mean, sd)
+        assert run.samples["mu"].shape == (2, 600)
+        np.testing.assert_allclose(run.samples["mu2"], run.samples["mu"] ** 2, rtol=1e-12)
+        expect = stats.norm.logpdf(y[None, None, :], run.samples["mu"][..., None], S)
+        np.testing.assert_allclose(run.loglik, expect, rtol=1e-10)
+        assert run.diverging.shape == (2, 600) and run.n_divergent == 0
+        r = float(np.max(split_gelman_rubin(run.samples["mu"])))
+        assert run.r_hat["mu"] == pytest.approx(r) and run.max_r_hat < 1.05
+        assert set(run.extra) == {"num_steps", "step_size"}
+        assert run.chain_method == "vectorized"
+        assert nuts_warnings(run) == []
+    assert runs[0].timing["compile"] > 0.0
+    assert runs[1].timing["compile"] == 0.0  # both programs found in the in-process cache
+    # a static argument (a Python number) is part of the program: a new one compiles
+    run = run_nuts(jax.random.key(5), normal_model, {"y": y1, "prior_sd": 0.5}, {"mu": 0.0},
+                   **kw)  # fmt: skip
+    assert run.timing["compile"] > 0.0 and run.loglik is None
+    _check(run.samples["mu"].ravel(), *_posterior(y1, 0.5))
+
+
+def test_parallel_chains_and_random_start():
+    """No ``init``: numpyro's uniform start; ``parallel`` with more chains than devices
+    vectorises chains on each device (sequential: the one-chain test)."""
+    y = _data(2)
+    run = run_nuts(jax.random.key(3), normal_model, {"y": y}, None, num_warmup=300,
+                   num_samples=500, num_chains=jax.local_device_count() * 2,
+                   chain_method="parallel")  # fmt: skip
+    assert run.chain_method == "parallel"
+    assert run.samples["mu"].shape == (jax.local_device_count() * 2, 500)
+    _check(run.samples["mu"].ravel(), *_posterior(y))
+
+
+def test_unconstrained_start_per_chain_and_one_chain():
+    """``init_params`` on the unconstrained scale (a chain axis; none with one chain)."""
+    y = _data(3)
+    run = run_nuts(jax.random.key(4), normal_model, {"y": y}, None, num_warmup=200,
+                   num_samples=200, num_chains=1, init_params={"mu": np.asarray(1.0)})  # fmt: skip
+    assert run.chain_method == "sequential" and run.samples["mu"].shape == (1, 200)
+    assert np.isnan(run.max_r_hat)
+    mean, sd = _posterior(y)
+    assert abs(run.samples["mu"].mean() - mean) < 6 * sd / np.sqrt(20)  # >= 20 eff. draws
+
+
+def test_bad_sizes_name_the_arguments():
+    with pytest.raises(ValueError, match="num_warmup, num_samples, num_chains: expected"):
+        run_nuts(jax.random.key(0), normal_model, {"y": _data(0)}, None, num_samples=0)
+    with pytest.raises(ValueError, match="chain_method: expected one of"):
+        run_nuts(jax.random.key(0), normal_model, {"y": _data(0)}, None, chain_method="x")
+
+
+def test_warnings_word_divergences_and_r_hat():
+    run = NutsRun(
+        samples={}, diverging=np.array([[True, False], [False, True]]),
+        r_hat={"a": 1.2, "b": 1.0, "c": float("nan")}, loglik=None, name="m",
+    )  # fmt: skip
+    words = nuts_warnings(run)
+    assert len(words) == 2
+    assert words[0].startswith("m: 2 of 4 draws divergent")
+    assert words[1].startswith("m: r_hat 1.200 > 1.01 for a:")
+    stuck = run._replace(diverging=np.zeros((2, 2), bool), r_hat={"a": float("inf")})
+    assert stuck.max_r_hat == np.inf
+    assert nuts_warnings(stuck) == [nuts_warnings(stuck)[0]]
+    assert nuts_warnings(stuck)[0].startswith("m: r_hat inf > 1.01 for a:")
+    clean = run._replace(diverging=np.zeros((2, 2), bool), r_hat={"a": 1.001})
+    assert nuts_warnings(clean) == []
