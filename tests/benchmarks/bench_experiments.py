@@ -14,12 +14,14 @@
    Reports simulated seconds per wall second (target: at least 20) and the time by stage:
    behaviours (MDP rollouts), builder (registration), perception, planning grids,
    planning, and the rest (footprint tests, bookkeeping). The camera ticks ahead are
-   perceived in batches along the robot's plan (``_loop._camera_percept``). Measured on
-   the 2 cores while three other jobs kept them busy (load about 5.7): 3600 s simulated in
-   181 s of loop (19.9x real time): perception 80 s, planning grids 31 s, behaviours 19 s,
-   planning 16 s, builder 16 s, the rest 37 s; before the batching the same mission took
-   357 s (10x), perception alone 220 s. ``--quick`` runs 5 minutes. (Measured before
-   issue 15's ``avoid_robot``, which is now on.)
+   perceived in batches along the robot's plan (``_loop._camera_percept``), and the
+   artefacts avoid the robot (``avoid_robot``). Measured on the 2 cores, idle
+   (2026-11-24): 3600 s simulated in 79 s of loop, **45.7x real time** (40x with the 10.5 s
+   of rollouts): perception 30 s, rest 14 s, avoidance 13 s, planning grids 12 s, planning
+   6.6 s, builder 2.6 s; 636 artefacts, 2200 replans, 1799 move updates, 21 detours and
+   137 waits, 2 artefact contacts, no collision. Under load from three other jobs (load
+   about 5.7) the same mission ran at 13x; before the batched camera ticks it ran at 10x
+   under load, perception alone 220 s. ``--quick`` runs 5 minutes.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
