@@ -14,9 +14,14 @@ from are_stats.behaviour._rewards import (  # noqa: E402
 
 __all__ += ["ACTIONS", "BEHAVIOURS", "HEADINGS", "allowed_actions", "follow_rewards"]
 
-from are_stats.behaviour._mdp import GridMDP, MDPSolution, backward_induction  # noqa: E402
+from are_stats.behaviour._mdp import (  # noqa: E402
+    GridMDP,
+    MDPSolution,
+    backward_induction,
+    path_free,
+)
 
-__all__ += ["GridMDP", "MDPSolution", "backward_induction"]
+__all__ += ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
 
 from are_stats.behaviour._rollout import (  # noqa: E402
     builder_resolver,

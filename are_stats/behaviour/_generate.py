@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_positive
-from are_stats.behaviour._mdp import _path_free
+from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._soft import soft_policy
@@ -92,7 +92,7 @@ def sample_soft_paths(
         The action of each epoch, ``-1`` once the artefact no longer acts.
     """
     pol = np.asarray(policy, np.float64)
-    ok = _path_free(np.asarray(occupied, bool))
+    ok = path_free(np.asarray(occupied, bool))
     b = len(starts)
     d = int(np.max(horizons, initial=0))
     states = np.zeros((b, d + 1, 3), np.int64)

@@ -63,7 +63,7 @@ from are_stats.behaviour._rewards import (
     allowed_actions,
 )
 
-__all__ = ["GridMDP", "MDPSolution", "backward_induction"]
+__all__ = ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
 
 _DROW = np.array([d[0] for d in HEADINGS])
 _DCOL = np.array([d[1] for d in HEADINGS])
@@ -96,8 +96,20 @@ def _occupancy(occupied: Any) -> np.ndarray:
     return a
 
 
-def _path_free(occupied: np.ndarray) -> np.ndarray:
-    """``ok[j, k - 1, r, c]``: moving ``k`` in {1, 2} cells along heading ``j`` stays free."""
+def path_free(occupied: np.ndarray) -> np.ndarray:
+    """Which forward moves stay on free cells (the MDP's blocking rule, shared by the
+    samplers and the behaviour fit).
+
+    Parameters
+    ----------
+    occupied : (H, W) bool
+
+    Returns
+    -------
+    ok : (4, 2, H, W) bool
+        ``ok[j, k - 1, r, c]``: moving ``k`` in {1, 2} cells from ``(r, c)`` along heading
+        ``j`` crosses only free cells inside the grid.
+    """
     h, w = occupied.shape
     free = np.zeros((h + 4, w + 4), dtype=bool)
     free[2:-2, 2:-2] = ~occupied
@@ -620,7 +632,7 @@ class GridMDP:
         if dtype not in ("float32", "float64"):
             raise ValueError(f"dtype: expected 'float32' or 'float64', got {dtype!r}")
         self.dtype = dtype
-        self._ok = _path_free(self.occupied)
+        self._ok = path_free(self.occupied)
 
     @property
     def shape(self) -> tuple[int, int]:

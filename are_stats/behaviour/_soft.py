@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from are_stats._checks import describe
-from are_stats.behaviour._mdp import _occupancy, _path_free
+from are_stats.behaviour._mdp import _occupancy, path_free
 from are_stats.behaviour._rewards import HEADINGS
 
 __all__ = [
@@ -351,7 +351,7 @@ def soft_policy(
         raise ValueError(f"n_epochs: expected an integer >= 1, got {n_epochs!r}")
     keep, bonus = _goal_arrays(occ, gl, goal_reward)
     return _soft_jit(
-        jnp.asarray(_path_free(occ)), jnp.asarray(keep), jnp.asarray(bonus),
+        jnp.asarray(path_free(occ)), jnp.asarray(keep), jnp.asarray(bonus),
         jnp.asarray(float(beta)), jnp.asarray(float(slip)), n_epochs=int(n_epochs),
         step_cost=step_cost, time_cost=time_cost, cell_reward=jnp.asarray(cell_reward, float),
         use_run=use_run, store_values=store_values, relative=relative, tol=tol,

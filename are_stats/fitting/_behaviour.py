@@ -44,9 +44,9 @@ from are_stats.behaviour import (
     grid_geodesic,
     move_observations,
     moves_log_likelihood,
+    path_free,
     soft_backward_induction,
 )
-from are_stats.behaviour._mdp import _path_free
 from are_stats.traffic import coarse_free_mask
 
 __all__ = ["discretise_tracks", "fit_behaviour", "behaviour_log_likelihood"]
@@ -267,7 +267,7 @@ def behaviour_log_likelihood(
     obs = move_observations(paths)
     if n_epochs is None:
         n_epochs = _n_epochs(free, paths, obs.goals)
-    ok = jnp.asarray(_path_free(~free))
+    ok = jnp.asarray(path_free(~free))
     keep, bonus = _goal_masks(free, obs.goals, goal_reward)
     dtype = jnp.result_type(beta)
     sol = soft_backward_induction(
@@ -317,7 +317,7 @@ def _likelihood(
     """
     obs = move_observations(paths)
     k = _n_epochs(free, paths, obs.goals, factor=10.0)
-    ok = jnp.asarray(_path_free(~free))
+    ok = jnp.asarray(path_free(~free))
     keep, bonus = _goal_masks(free, obs.goals, goal_reward)
     obs_j = tuple(jnp.asarray(x) for x in obs[:4])
     # convergence is measured on the visited cells and their neighbours

@@ -42,8 +42,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_positive
-from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood
-from are_stats.behaviour._mdp import _path_free
+from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood, path_free
 
 __all__ = [
     "MOTION_STATISTICS",
@@ -288,7 +287,7 @@ def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFra
                                                                                 tracks.index)
     )  # fmt: skip
     cls = labels.map(lambda v: names.get(v, 0)).to_numpy()
-    ok = jnp.asarray(_path_free(~fit.free))
+    ok = jnp.asarray(path_free(~fit.free))
     rows = []
     for c in np.unique(cls):
         tab = tracks[cls == c]
@@ -475,7 +474,7 @@ def _goal_posterior(
     rows_of = ids[moved].astype(np.int64)
     obs = move_observations([p for p, m in zip(paths, moved, strict=True) if m])
     n = len(rows_of)
-    ok = jnp.asarray(_path_free(~fit.free))
+    ok = jnp.asarray(path_free(~fit.free))
     slip = float(fit.slip[c])
     for g0 in range(0, len(goals), chunk):
         gsel = np.arange(g0, min(g0 + chunk, len(goals)))

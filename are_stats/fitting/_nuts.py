@@ -40,7 +40,7 @@ from numpyro.infer.hmc import hmc
 from numpyro.infer.util import constrain_fn, potential_energy
 
 from are_stats._checks import check_in
-from are_stats.traffic._lifecycle import _aot_compile
+from are_stats.traffic import aot_compile
 
 __all__ = ["NutsRun", "nuts_warnings", "resolve_chain_method", "run_nuts"]
 
@@ -149,7 +149,7 @@ def _compile(fn: Any, args: tuple, cheap: bool) -> Any:
     """Compile ``fn`` for ``args``: cheap XLA optimisation (fast to compile, slower to run:
     for small models) or XLA's default (4-5x faster sampling of the traffic models for
     about twice the compile time, which the persistent cache pays once)."""
-    return _aot_compile(fn, *args) if cheap else fn.lower(*args).compile()
+    return aot_compile(fn, *args) if cheap else fn.lower(*args).compile()
 
 
 def _shapes(tree: Any) -> tuple:

@@ -16,6 +16,7 @@ __all__ += ["PoissonMixture"]
 from are_stats.traffic._lifecycle import (  # noqa: E402
     LifecycleData,
     LifecyclePriors,
+    aot_compile,
     lifecycle_model,
     prior_predictive,
     simulate_lifecycle,
@@ -24,6 +25,7 @@ from are_stats.traffic._lifecycle import (  # noqa: E402
 __all__ += [
     "LifecycleData",
     "LifecyclePriors",
+    "aot_compile",
     "lifecycle_model",
     "prior_predictive",
     "simulate_lifecycle",

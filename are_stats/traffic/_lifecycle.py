@@ -47,6 +47,7 @@ from are_stats._checks import (
 from are_stats.traffic._mixture import PoissonMixture
 
 __all__ = [
+    "aot_compile",
     "LifecyclePriors",
     "LifecycleData",
     "simulate_lifecycle",
@@ -139,8 +140,21 @@ _COMPILER_OPTIONS = {
 }
 
 
-def _aot_compile(fn: Any, *args: Any) -> Any:
-    """Compile a jitted/pmapped ``fn`` for ``args`` with cheap XLA optimisation."""
+def aot_compile(fn: Any, *args: Any) -> Any:
+    """Compile a jitted/pmapped ``fn`` ahead of time for ``args`` with cheap XLA optimisation
+    (small programs whose compile time outweighs their run time).
+
+    Parameters
+    ----------
+    fn : jax.stages.Wrapped
+        A ``jax.jit`` or ``jax.pmap`` function.
+    *args
+        Example arguments (their shapes and dtypes fix the program).
+
+    Returns
+    -------
+    jax.stages.Compiled
+    """
     return fn.lower(*args).compile(_COMPILER_OPTIONS)
 
 
@@ -782,7 +796,7 @@ def prior_predictive(
         )
 
     try:
-        compiled = _aot_compile(jax.jit(draw), key)
+        compiled = aot_compile(jax.jit(draw), key)
     except (TypeError, ValueError) as err:
         raise ValueError(f"key: expected a JAX PRNG key, got {describe(key)}") from err
     out = {name: np.asarray(value) for name, value in compiled(key).items()}

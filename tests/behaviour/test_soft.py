@@ -113,14 +113,14 @@ def test_forward_mode_gradient_of_the_stationary_policy() -> None:
     @jax.jit
     def ll(theta: jax.Array) -> jax.Array:
         from are_stats.behaviour import moves_log_likelihood
-        from are_stats.behaviour._mdp import _path_free
+        from are_stats.behaviour._mdp import path_free
         from are_stats.behaviour._soft import soft_backward_induction
 
         obs = move_observations(paths)
         g = len(obs.goals)
         mask = np.zeros((g,) + occ.shape, bool)
         mask[np.arange(g), obs.goals[:, 0], obs.goals[:, 1]] = True
-        ok = jnp.asarray(_path_free(occ))
+        ok = jnp.asarray(path_free(occ))
         sol = soft_backward_induction(
             ok, ~occ[None] & ~mask, jnp.asarray(mask, float), theta[0], theta[1],
             n_epochs=500, time_cost=1.0, tol=1e-12,
@@ -156,7 +156,7 @@ def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> No
     from jax.sharding import Mesh
     from jax.sharding import PartitionSpec as P
 
-    from are_stats.behaviour._mdp import _path_free
+    from are_stats.behaviour._mdp import path_free
     from are_stats.behaviour._soft import soft_backward_induction
 
     if jax.local_device_count() < 2:
@@ -166,7 +166,7 @@ def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> No
     mask = np.zeros((4,) + occ.shape, bool)
     mask[np.arange(4), goals[:, 0], goals[:, 1]] = True
     keep, bonus = ~occ[None] & ~mask, jnp.asarray(mask, float)
-    ok = jnp.asarray(_path_free(occ))
+    ok = jnp.asarray(path_free(occ))
     opts = dict(n_epochs=400, time_cost=1.0, tol=1e-4)
 
     def solve(keep_, bonus_, axis_name=None):
