@@ -400,25 +400,8 @@ def path_points(tv: np.ndarray, pv: np.ndarray, tau: Any, side: Any) -> np.ndarr
     -------
     (k, 2) float
     """
-    tau = np.asarray(tau, float)
-    side = np.asarray(side, float)
-    base = np.column_stack([np.interp(tau, tv, pv[:, 0]), np.interp(tau, tv, pv[:, 1])])
-    if len(tv) < 2:
-        return base
-    seg = np.diff(pv, axis=0)
-    length = np.hypot(*seg.T)
-    moving = length > 0
-    if not moving.any():
-        return base
-    # each segment's direction: its own, or that of the last moving segment before it
-    # (the first moving one for a pause at the start)
-    last = np.where(moving, np.arange(len(seg)), -1)
-    last = np.maximum.accumulate(last)
-    last[last < 0] = int(np.argmax(moving))
-    unit = seg[last] / length[last][:, None]
-    k = np.clip(np.searchsorted(tv, tau, side="right") - 1, 0, len(seg) - 1)
-    nrm = np.column_stack([-unit[k, 1], unit[k, 0]])
-    return base + side[:, None] * nrm
+    tau = np.asarray(tau, float).reshape(-1)
+    return _PathSet([(tv, pv)]).points(np.zeros(tau.size, np.int64), tau, side)
 
 
 def separate_paths(

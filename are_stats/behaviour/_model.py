@@ -199,11 +199,11 @@ class BehaviourFit:
         exits : (n, 2) int
             ``(-1, -1)`` where no other cell is reachable (the artefact stays).
         """
+        ent = np.asarray(entries, np.int64).reshape(-1, 2)
         if stays is not None:
-            stays = np.broadcast_to(np.asarray(stays, float), (len(np.atleast_2d(entries)),))
+            stays = np.broadcast_to(np.asarray(stays, float), (len(ent),))
             speed_mu = np.broadcast_to(np.asarray(speed_mu, float), stays.shape)
             speed_sigma = np.broadcast_to(np.asarray(speed_sigma, float), stays.shape)
-        ent = np.asarray(entries, np.int64).reshape(-1, 2)
         cls = np.broadcast_to(np.asarray(class_index, np.int64), (len(ent),))
         reach = np.broadcast_to(np.asarray(reach, float), (len(ent),))
         out = np.full((len(ent), 2), -1, np.int64)

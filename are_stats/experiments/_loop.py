@@ -196,14 +196,15 @@ class _Mission:
     wall_distance: np.ndarray | None  # grid.distance_to_occupied() when avoid
     art_radius: np.ndarray  # (N,) box reach from an artefact's pose (m)
     art_speed: np.ndarray  # (N,) fastest speed along its track (avoidances only slow it)
+    # the map's own non-free cells (H, W), unknown included as the planner treats them, and
+    # every cell's distance to them (m); the planner adds the artefacts' in a window
+    static_occ: np.ndarray
+    static_dist: np.ndarray
     # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
     # batch: {tick time: (robot pose (3,), perceived (N,), scene)}. A memo, not state: an
     # entry is used only when the robot is where it was predicted to be at that tick, in
     # the same scene.
     percepts: dict = field(default_factory=dict, compare=False)
-    # the map's own occupied cells (H, W) and every cell's distance to them (m)
-    static_occ: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]
-    static_dist: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]
 
 
 class _State(NamedTuple):

@@ -265,25 +265,38 @@ def test_generated_walkers_keep_their_distance(crossing) -> None:
     assert crossed.mean() >= 0.7
 
 
-def test_path_set_points_equal_path_points() -> None:
-    """The vectorised paths of separate_paths agree with path_points (pauses included)."""
+def test_path_points_against_a_point_by_point_reference() -> None:
+    """path_points (the vectorised paths of separate_paths) against a point-by-point
+    reference: the interpolated point plus the side-step along the left normal of the
+    segment walked then (in a pause, of the last segment walked before it)."""
     from are_stats.behaviour import path_points
-    from are_stats.behaviour._generate import _PathSet
+
+    def reference(tv, pv, t, sd):
+        t = min(max(t, tv[0]), tv[-1])
+        k = min(max(int(np.searchsorted(tv, t, side="right")) - 1, 0), len(tv) - 2)
+        frac = (t - tv[k]) / (tv[k + 1] - tv[k])
+        base = pv[k] + frac * (pv[k + 1] - pv[k])
+        j = k
+        while j > 0 and not (pv[j + 1] - pv[j]).any():
+            j -= 1
+        if not (pv[j + 1] - pv[j]).any():  # a pause at the start: the first segment walked
+            j = next(m for m in range(len(pv) - 1) if (pv[m + 1] - pv[m]).any())
+        d = (pv[j + 1] - pv[j]) / np.hypot(*(pv[j + 1] - pv[j]))
+        return base + sd * np.array([-d[1], d[0]])
 
     rng = np.random.default_rng(3)
-    curves = []
-    for m in (1, 2, 5, 9):
+    for m in (2, 5, 9):
         tv = np.cumsum(np.r_[0.0, rng.choice([0.25, 0.5, 1.0], m - 1)])
         pv = rng.uniform(0, 5, (m, 2))
         if m > 3:
             pv[2] = pv[1]  # a pause
-        curves.append((tv, pv))
-    ps = _PathSet(curves)
-    for i, (tv, pv) in enumerate(curves):
+            pv[1] = pv[0]  # and one at the start
         tau = rng.uniform(-1.0, tv[-1] + 1.0, 50)
         side = rng.uniform(-1, 1, 50)
-        assert_allclose(ps.points(np.full(50, i), tau, side), path_points(tv, pv, tau, side),
-                        atol=1e-12)  # fmt: skip
+        want = np.array([reference(tv, pv, t, sd) for t, sd in zip(tau, side, strict=True)])
+        assert_allclose(path_points(tv, pv, tau, side), want, atol=1e-12)
+    one = path_points(np.zeros(1), np.array([[2.0, 3.0]]), [0.0, 4.0], [1.0, -1.0])
+    assert_allclose(one, [[2.0, 3.0], [2.0, 3.0]])  # a path that never moves: no normal
 
 
 def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
