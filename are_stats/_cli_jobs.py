@@ -103,9 +103,16 @@ def run_fit(
     finite and > 0), then the draws and the sampler's work against the limits of
     :mod:`are_stats.inputs`.
     """
-    from are_stats.fitting import ARRIVAL_CHOICES, LIFETIME_CHOICES, POSITION_CHOICES
-    from are_stats.fitting._fit_log import FitSettings, fit_log, write_fit
-    from are_stats.fitting._report import fit_summary, write_report
+    from are_stats.fitting import (
+        ARRIVAL_CHOICES,
+        LIFETIME_CHOICES,
+        POSITION_CHOICES,
+        FitSettings,
+        fit_log,
+        fit_summary,
+        write_fit,
+        write_report,
+    )
     from are_stats.inputs import (
         check_memory,
         check_work,
@@ -378,8 +385,7 @@ def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, 
     (:func:`are_stats.fitting.read_fit`) and the size of the replicates against the limits
     of :mod:`are_stats.inputs`, before anything is drawn.
     """
-    from are_stats.fitting._fit_log import read_fit
-    from are_stats.fitting._report import check_report_size, fit_summary, write_report
+    from are_stats.fitting import check_report_size, fit_summary, read_fit, write_report
     from are_stats.inputs import get_int, get_seed
 
     seed = get_seed(seed)
@@ -424,10 +430,16 @@ def run_generate(
     (:mod:`are_stats.inputs`), before anything is drawn. The folder ``out`` (scenarios,
     manifest and tracks) is written beside it and put in place as a whole.
     """
-    from are_stats.fitting._fit_log import read_fit
+    from are_stats.fitting import read_fit
     from are_stats.inputs import get_float, get_int, get_seed, get_str
-    from are_stats.scenarios import atomic_folder, check_folder, generate_scenarios, traffic_draws
-    from are_stats.scenarios._generate import _check_size, _draws, _write_files
+    from are_stats.scenarios import (
+        atomic_folder,
+        check_folder,
+        check_scenario_size,
+        generate_scenarios,
+        traffic_draws,
+        write_scenario_files,
+    )
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
     n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
@@ -462,7 +474,7 @@ def run_generate(
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
-    _check_size(_draws(draws), n_scenarios, horizon, nu, "stationary", source)
+    check_scenario_size(draws, n_scenarios, horizon, nu, "stationary", source)
     t = time.perf_counter()
     df = generate_scenarios(seed, draws, n_scenarios, horizon, free_mask=grid, area=area, laws=laws)
     labels = _class_labels(idata)
@@ -480,7 +492,7 @@ def run_generate(
             manifest["tracks"] = _behaviour_tracks(
                 seed, df, grid, labels, tmp, False, behaviour_cell, behaviour_dt
             )
-        _write_files(df, tmp, manifest)
+        write_scenario_files(df, tmp, manifest)
     console.print(
         f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
     )
@@ -714,9 +726,11 @@ def run_perceive(
     """
     from are_stats.environment import OccupancyGrid, extrude_grid, load_catalogue, load_mesh
     from are_stats.inputs import Described, InputError, get_float
-    from are_stats.perception import PinholeCamera, optical_from_base, perceive_scenario
-    from are_stats.perception._scenario import (
+    from are_stats.perception import (
+        PinholeCamera,
         check_path_times,
+        optical_from_base,
+        perceive_scenario,
         poses_outside,
         read_robot_path,
         read_scenario_folder,
@@ -875,7 +889,7 @@ def run_serve(
 ) -> dict[str, Any]:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
     (:func:`are_stats.experiments._live.serve_scenario`)."""
-    from are_stats.experiments._live import serve_scenario
+    from are_stats.experiments import serve_scenario
 
     def ready(info: dict[str, Any]) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""

@@ -645,7 +645,7 @@ class ARBuilder:
     def _surface(self, k: int) -> np.ndarray:
         import trimesh
 
-        from are_stats.environment._voxels import surface_points
+        from are_stats.environment import surface_points
 
         label = self.labels[k]
         key = label if label != "box" else f"box{self._half[k].tolist()}"

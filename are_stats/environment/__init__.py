@@ -30,7 +30,7 @@ from are_stats.environment._shipped import (
     shipped_names,
     shipped_path,
 )
-from are_stats.environment._voxels import VoxelMap
+from are_stats.environment._voxels import VoxelMap, surface_points
 
 __all__ = [
     "BEHAVIOURS",
@@ -57,4 +57,5 @@ __all__ = [
     "resolve_shipped",
     "shipped_names",
     "shipped_path",
+    "surface_points",
 ]

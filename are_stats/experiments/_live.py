@@ -300,7 +300,7 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
         (artefacts with tracks), ``map`` (the map file or None).
     """
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.perception._scenario import read_scenario_folder, read_scenario_tracks
+    from are_stats.perception import read_scenario_folder, read_scenario_tracks
     from are_stats.scenarios import Scene
 
     d = Path(folder)

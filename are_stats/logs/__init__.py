@@ -29,6 +29,7 @@ from are_stats.logs._rosbag import (
     read_tracks_bag,
     vision_msgs_typestore,
 )
+from are_stats.logs._table import RawTable, read_raw_table
 from are_stats.logs._tf import (
     TF_TYPE,
     TF_TYPES,
@@ -61,6 +62,7 @@ __all__ = [
     "TF_TYPE",
     "TF_TYPES",
     "LifecycleLog",
+    "RawTable",
     "TfBuffer",
     "bag_messages",
     "bag_read_errors",
@@ -71,6 +73,7 @@ __all__ = [
     "read_field_tracks",
     "read_lifecycle_log",
     "read_manifest",
+    "read_raw_table",
     "read_tracks",
     "read_tracks_bag",
     "sampling_step",

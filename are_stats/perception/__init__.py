@@ -12,9 +12,14 @@ from are_stats.perception._perceive import (
 )
 from are_stats.perception._plots import plot_camera_view, plot_top_view, save_figure
 from are_stats.perception._scenario import (
+    check_path_times,
     perceive_scenario,
     perceive_scene,
     perceived_grid,
+    poses_outside,
+    read_robot_path,
+    read_scenario_folder,
+    read_scenario_tracks,
     scenario_scenes,
     yaw_rotations,
 )
@@ -23,6 +28,7 @@ __all__ = [
     "PerceptionResult",
     "PinholeCamera",
     "box_rois",
+    "check_path_times",
     "clear_mesh_cache",
     "optical_from_base",
     "perceive_frames",
@@ -33,6 +39,10 @@ __all__ = [
     "perceived_grid",
     "plot_camera_view",
     "plot_top_view",
+    "poses_outside",
+    "read_robot_path",
+    "read_scenario_folder",
+    "read_scenario_tracks",
     "sample_perceived",
     "save_figure",
     "scenario_scenes",

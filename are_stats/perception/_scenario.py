@@ -70,7 +70,7 @@ def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
         (a ``ValueError``) naming the file, the row and the column of the first bad cell
         (``LimitError`` when the table is too large for the memory limit).
     """
-    from are_stats.logs._table import read_raw_table
+    from are_stats.logs import read_raw_table
 
     table = read_raw_table(path, "robot path")
     table.require(["t", "x", "y", "yaw"], "robot path")
@@ -119,7 +119,7 @@ def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[
     import pyarrow.parquet as pq
 
     from are_stats.inputs import load_yaml
-    from are_stats.logs._table import read_raw_table
+    from are_stats.logs import read_raw_table
 
     d = Path(folder)
     if not d.exists():
@@ -214,7 +214,7 @@ def read_scenario_tracks(
     are_stats.inputs.InputError
         Naming the manifest key, or the tracks file with the row and column.
     """
-    from are_stats.logs._table import read_raw_table
+    from are_stats.logs import read_raw_table
 
     spec = manifest.get("tracks")
     if spec is None:

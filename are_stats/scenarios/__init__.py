@@ -7,12 +7,14 @@ from are_stats.scenarios._generate import (
     TRAFFIC_NAMES,
     atomic_folder,
     check_folder,
+    check_scenario_size,
     expected_artefacts,
     generate_scenarios,
     posterior_draws,
     read_scenarios,
     scenario_counts,
     traffic_draws,
+    write_scenario_files,
     write_scenarios,
 )
 from are_stats.scenarios._scene import Boxes, Scene
@@ -25,11 +27,13 @@ __all__ = [
     "TRAFFIC_NAMES",
     "atomic_folder",
     "check_folder",
+    "check_scenario_size",
     "expected_artefacts",
     "generate_scenarios",
     "posterior_draws",
     "read_scenarios",
     "scenario_counts",
     "traffic_draws",
+    "write_scenario_files",
     "write_scenarios",
 ]

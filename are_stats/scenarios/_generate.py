@@ -42,12 +42,14 @@ __all__ = [
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
+    "check_scenario_size",
     "expected_artefacts",
     "generate_scenarios",
     "posterior_draws",
     "read_scenarios",
     "scenario_counts",
     "traffic_draws",
+    "write_scenario_files",
     "write_scenarios",
 ]
 
@@ -514,11 +516,48 @@ def expected_artefacts(
         return mean * float(n_scenarios)
 
 
+def check_scenario_size(
+    params: Mapping[str, Any],
+    n_scenarios: int,
+    horizon: float,
+    area: float,
+    start: str = "stationary",
+    source: str = "n_scenarios, horizon",
+) -> None:
+    """Refuse, before drawing, scenario tables past the memory or work limit.
+
+    The expected number of artefacts follows from the draws' rates (as in
+    :func:`expected_artefacts`); the check allows six Poisson standard deviations above it.
+
+    Parameters
+    ----------
+    params : dict
+        Posterior draws as :func:`generate_scenarios` takes them (validated here).
+    n_scenarios : int
+    horizon : float
+        Seconds.
+    area : float
+        Free area ``nu`` (m^2).
+    start : {"stationary", "empty"}
+        Initial population.
+    source : str
+        What the sizes came from (files, options), named in the error.
+
+    Raises
+    ------
+    ValueError
+        On malformed draws.
+    are_stats.inputs.LimitError
+        When the table would pass the memory or work limit.
+    """
+    _check_size(_draws(params), n_scenarios, horizon, area, start, source)
+
+
 def _check_size(
     p: Mapping[str, np.ndarray], n_sc: int, h: float, nu: float, start: str,
     source: str = "n_scenarios, horizon",
 ) -> None:  # fmt: skip
-    """Refuse, before drawing, tables past the memory or work limit."""
+    """:func:`check_scenario_size` on validated draws."""
     check_memory(float(n_sc) * BYTES_PER_SCENARIO, f"{n_sc} scenarios", source)
     expected = expected_artefacts(p, n_sc, h, nu, start)
     # the count is Poisson around its mean: allow 6 standard deviations
@@ -705,10 +744,20 @@ def _plain(x: Any) -> Any:
     return x
 
 
-def _write_files(
+def write_scenario_files(
     df: pd.DataFrame, out: Path, manifest: Mapping[str, Any] | None
 ) -> tuple[Path, Path]:
-    """Write ``artefacts.parquet`` and ``manifest.yaml`` into the (new, private) folder ``out``."""
+    """Write ``artefacts.parquet`` and ``manifest.yaml`` into the folder ``out``.
+
+    The building block of :func:`write_scenarios` for callers that write more files into
+    the same new folder (``out`` is the private folder of an :func:`atomic_folder`); the
+    bytes are the same.
+
+    Returns
+    -------
+    (Path, Path)
+        The Parquet and YAML paths.
+    """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -800,7 +849,7 @@ def write_scenarios(
     _check_table(df)
     out = Path(out_dir)
     with atomic_folder(out, force=force) as tmp:
-        _write_files(df, tmp, manifest)
+        write_scenario_files(df, tmp, manifest)
     return out / "artefacts.parquet", out / "manifest.yaml"
 
 
