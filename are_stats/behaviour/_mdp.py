@@ -34,17 +34,20 @@ Backward induction
 
 The sum is a stencil: shifted copies of ``V_{t+1}`` (``jnp.pad`` + static slices) selected
 by precomputed "path is free" masks, never a dense ``S x S`` matrix. The epochs run in one
-``lax.scan``; a batch of artefacts with different goals, behaviours and horizons runs under
-``lax.map`` one item at a time, split across the local devices (XLA host devices: one per
-core) when there are several (horizons are padded to the largest; epochs beyond an item's horizon
-keep the terminal value and the policy ``stay``).
+``fori_loop`` writing each epoch's policy (and values) in place into donated output buffers,
+reused from finished solutions (no page faults); a batch of artefacts with different goals,
+behaviours and horizons runs one item at a time, split across the local devices (XLA host
+devices: one per core) when there are several (horizons are padded to the largest; epochs
+beyond an item's horizon keep the terminal value and the policy ``stay``).
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
-from typing import Any
+import threading
+import weakref
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -70,10 +73,6 @@ _DCOL = np.array([d[1] for d in HEADINGS])
 #: Store every V_t in solve() when it takes at most this many bytes; else recompute on demand.
 _VALUES_BYTES = 64 * 2**20
 _DENSE_MAX_STATES = 20_000
-#: Batch items solved together (vmap); larger batches run in chunks of this many (lax.map).
-#: One at a time keeps an epoch's working set smallest and measured fastest: for 64 goals,
-#: 1.7x (with the policy) and 2.1x (values only) faster than chunks of 8.
-_CHUNK = 1
 #: Tie-breaking order of the moves; ``stay`` wins only when strictly better (by ``tie_tol``).
 _MOVE_ORDER = (RUN, FORWARD, LEFT, RIGHT)
 #: Relative tolerance of that comparison per dtype (a few ulps of the largest value).
@@ -133,22 +132,28 @@ def _solve_one(
     step_cost: jax.Array,
     goal_reward: jax.Array,
     tie_tol: jax.Array,
+    item: jax.Array,
+    out: Outputs,
     n_epochs: int,
-    store_values: bool,
     use_run: bool,
-    with_policy: bool,
-) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
-    """Backward induction for one artefact, returning heading-major ``(4, H, W)`` arrays.
+) -> Outputs:
+    """Backward induction for batch item ``item``, written into its rows of ``out``.
 
-    Inside the scan each heading is one flat plane of the grid padded by two cells on every
+    ``out`` holds the batch's output buffers (see :class:`Outputs`); the epochs run in a
+    ``fori_loop`` that writes each epoch's policy (and values) in place, so a solve
+    allocates nothing the size of its outputs (reused, donated buffers are never touched by
+    the kernel's page faults again). ``follow`` is the item's ``(D, H, W)`` rewards or None.
+
+    Inside the loop each heading is one flat plane of the grid padded by two cells on every
     side (``N = (H + 4)(W + 4)`` values, zero border). A shift by ``(dr, dc)`` cells is then a
     contiguous slice at offset ``dr (W + 4) + dc``, and every epoch is a few vectorised loops
     over the index range ``[m, N - m)``, ``m = 2 (W + 4)``: the grid's rows at full padded
     width (the carry holds only that range). Masks enter as arithmetic where possible
     (``+ penalty``, ``* keep``), which XLA's CPU backend vectorises better than selects.
-    Policy and values come back "wide", ``(..., H, W + 4)`` with the grid in columns
+    Policy and values are stored "wide", ``(..., H, W + 4)`` with the grid in columns
     ``2 .. W + 1``, so that the caller can crop them without a copy.
     """
+    with_policy, store_values = out.policy is not None, out.values is not None
     dtype = slip.dtype
     h_, w_ = goal.shape
     wp_ = w_ + 4
@@ -257,16 +262,30 @@ def _solve_one(
         packed = (pols[0] | (pols[1] << 4), pols[2] | (pols[3] << 4)) if with_policy else None
         return tuple(v_new), (packed, tuple(v_new) if store_values else None)
 
+    def put(buf: jax.Array, x: jax.Array, t: Any) -> jax.Array:
+        """``buf[item, t] = x`` in place (x flat over the interior rows)."""
+        zero = jnp.zeros((), t.dtype)
+        return jax.lax.dynamic_update_slice(buf, x.reshape(1, 1, h_, wp_), (item, t, zero, zero))
+
+    def epoch(i: Any, carry: tuple) -> tuple:
+        v, pol, val = carry
+        t = n_epochs - 1 - i
+        reward_t = None if follow_f is None else jax.lax.dynamic_index_in_dim(follow_f, t, 0, False)
+        v, (packed, v_t) = step(v, (t, reward_t))
+        if with_policy:
+            pol = tuple(put(b, x, t) for b, x in zip(pol, packed, strict=True))
+        if store_values:
+            val = tuple(put(b, x, t) for b, x in zip(val, v_t, strict=True))
+        return v, pol, val
+
     v_terminal = tuple(jnp.zeros(n - 2 * m, dtype) for _ in range(4))
-    xs = (jnp.arange(n_epochs), follow_f)
-    v0, (pols, values) = jax.lax.scan(step, v_terminal, xs, reverse=True)
-    v0 = unflat(jnp.stack(v0))[..., 2:-2]
-    # per pair of headings (D, H, W + 4): no stacking copies of the largest arrays
-    policy = tuple(unflat(p) for p in pols) if with_policy else None
-    if store_values:
-        last = jnp.zeros((1, h_, wp_), dtype)
-        values = tuple(jnp.concatenate([unflat(x), last], axis=0) for x in values)
-    return v0, policy, values
+    val = out.values
+    if store_values:  # V_D = 0
+        last = jnp.zeros(n - 2 * m, dtype)
+        val = tuple(put(b, last, jnp.asarray(n_epochs)) for b in val)
+    v0, pol, val = jax.lax.fori_loop(0, n_epochs, epoch, (v_terminal, out.policy, val))
+    v0_all = jax.lax.dynamic_update_slice(out.v0, unflat(jnp.stack(v0))[None], (item, 0, 0, 0))
+    return Outputs(v0_all, pol, val)
 
 
 def backward_induction(
@@ -328,10 +347,14 @@ def backward_induction(
     values : (B, n_epochs + 1, 4, H, W) or None
         ``V_t`` for ``t = 0 .. n_epochs`` when ``store_values``.
     """
+    shapes = _output_shapes(
+        goals.shape[0], n_epochs, goals.shape[1:], slip.dtype, store_values, with_policy
+    )
     v0, policy, values = _backward_induction_wide(
         ok, occupied, goals, allow, horizons, follow, slip, step_cost, goal_reward, tie_tol,
-        n_epochs=n_epochs, store_values=store_values, use_run=use_run, with_policy=with_policy,
+        _zeros(shapes), n_epochs=n_epochs, use_run=use_run,
     )  # fmt: skip
+    v0 = v0[..., 2:-2]
 
     def crop(x: tuple[jax.Array, ...] | None) -> jax.Array | None:
         if x is None:
@@ -348,6 +371,39 @@ def _unpack_policy(packed: Any) -> tuple[Any, ...]:
     return tuple((packed[h // 2] >> (4 * (h % 2))) & 15 for h in range(4))
 
 
+class Outputs(NamedTuple):
+    """The solver's output buffers for a batch of ``B`` items, wide (``W + 4`` columns).
+
+    ``v0`` is ``(B, 4, H, W + 4)``; ``policy`` two ``(B, D, H, W + 4)`` int8 planes, the
+    actions of headings ``2k`` (low four bits) and ``2k + 1`` (high four bits) in plane ``k``,
+    or None; ``values`` four ``(B, D + 1, H, W + 4)`` planes (one per heading) or None.
+    """
+
+    v0: Any
+    policy: Any
+    values: Any
+
+
+def _output_shapes(
+    b: int, n_epochs: int, shape: tuple[int, int], dtype: Any, store_values: bool,
+    with_policy: bool,
+) -> Outputs:  # fmt: skip
+    """The :class:`Outputs` of a batch of ``b`` items, as ``jax.ShapeDtypeStruct`` leaves."""
+    h, w = shape
+    wide = (h, w + 4)
+    sds = jax.ShapeDtypeStruct
+    return Outputs(
+        v0=sds((b, 4, *wide), dtype),
+        policy=(sds((b, n_epochs, *wide), np.int8),) * 2 if with_policy else None,
+        values=(sds((b, n_epochs + 1, *wide), dtype),) * 4 if store_values else None,
+    )
+
+
+def _zeros(shapes: Outputs) -> Outputs:
+    """Fresh zero buffers of ``shapes`` (inside a trace: the pure :func:`backward_induction`)."""
+    return jax.tree.map(lambda sd: jnp.zeros(sd.shape, sd.dtype), shapes)
+
+
 def _backward_induction_wide(
     ok: jax.Array,
     occupied: jax.Array,
@@ -359,35 +415,25 @@ def _backward_induction_wide(
     step_cost: jax.Array,
     goal_reward: jax.Array,
     tie_tol: jax.Array,
+    out: Outputs,
     *,
     n_epochs: int,
-    store_values: bool = False,
     use_run: bool = True,
-    with_policy: bool = True,
-) -> tuple[jax.Array, jax.Array | None, jax.Array | None]:
-    """:func:`backward_induction` returning policy and values per heading, batch-major and wide.
-
-    ``policy[k]`` is ``(B, D, H, W + 4)``, the actions of headings ``2k`` (low four bits) and
-    ``2k + 1`` (high four bits) in one byte, and ``values[h]`` ``(B, D + 1, H, W + 4)``, with the
-    grid in columns ``2 .. W + 1``: the layout the scan produces, so nothing is copied. Up to
-    ``_CHUNK`` items are solved together under ``vmap``; more run in chunks under ``lax.map``.
+) -> Outputs:
+    """:func:`backward_induction` into the output buffers ``out`` (:class:`Outputs`, batch-major
+    and wide), one item after the other, every epoch written in place.
     """
-    fn = functools.partial(
-        _solve_one,
-        n_epochs=n_epochs,
-        store_values=store_values,
-        use_run=use_run,
-        with_policy=with_policy,
-    )
-    batched = (goals, allow, horizons, follow)
+    fn = functools.partial(_solve_one, n_epochs=n_epochs, use_run=use_run)
 
-    def one(items: tuple[jax.Array, ...]) -> Any:
-        g, a, hz, f = items
-        return fn(ok, occupied, g, a, hz, f, slip, step_cost, goal_reward, tie_tol)
+    def one(b: Any, acc: Outputs) -> Outputs:
+        pick = functools.partial(jax.lax.dynamic_index_in_dim, index=b, keepdims=False)
+        f = None if follow is None else pick(follow)
+        return fn(
+            ok, occupied, pick(goals), pick(allow), pick(horizons), f, slip, step_cost,
+            goal_reward, tie_tol, b, acc,
+        )  # fmt: skip
 
-    if goals.shape[0] <= _CHUNK:
-        return jax.vmap(one)(batched)
-    return jax.lax.map(one, batched, batch_size=_CHUNK)
+    return jax.lax.fori_loop(0, goals.shape[0], one, out)
 
 
 #: XLA's CPU backend vectorises for 256-bit registers by default; where the CPU has 512-bit
@@ -397,7 +443,8 @@ _COMPILER_OPTIONS = {"xla_cpu_prefer_vector_width": 512}
 
 _backward_induction_jit = jax.jit(
     _backward_induction_wide,
-    static_argnames=("n_epochs", "store_values", "use_run", "with_policy"),
+    static_argnames=("n_epochs", "use_run"),
+    donate_argnames=("out",),
     compiler_options=_COMPILER_OPTIONS,
 )
 
@@ -407,57 +454,177 @@ _SHARED = ("ok", "occupied", "slip", "step_cost", "goal_reward", "tie_tol")
 
 
 @functools.lru_cache(maxsize=32)
-def _sharded_jit(
-    n_dev: int, n_epochs: int, store_values: bool, use_run: bool, with_policy: bool, follow: bool
-) -> Any:
-    """:func:`_backward_induction_wide` with the batch split across ``n_dev`` local devices."""
+def _mesh(n_dev: int) -> Any:
     from jax.sharding import Mesh
+
+    return Mesh(np.array(jax.local_devices()[:n_dev]), ("b",))
+
+
+@functools.lru_cache(maxsize=32)
+def _sharded_jit(n_dev: int, n_epochs: int, use_run: bool, follow: bool) -> Any:
+    """:func:`_backward_induction_wide` with the batch split across ``n_dev`` local devices."""
     from jax.sharding import PartitionSpec as P
 
-    mesh = Mesh(np.array(jax.local_devices()[:n_dev]), ("b",))
-    static = dict(
-        n_epochs=n_epochs, store_values=store_values, use_run=use_run, with_policy=with_policy
-    )
-
-    def body(goals, allow, horizons, follow_, ok, occupied, slip, step_cost, goal_reward, tie_tol):
+    def body(goals, allow, horizons, follow_, out, ok, occupied, slip, step_cost, goal_reward,
+             tie_tol):  # fmt: skip
         return _backward_induction_wide(
             ok, occupied, goals, allow, horizons, follow_ if follow else None,
-            slip, step_cost, goal_reward, tie_tol, **static,
+            slip, step_cost, goal_reward, tie_tol, out, n_epochs=n_epochs, use_run=use_run,
         )  # fmt: skip
 
     batch, shared = P("b"), P()
-    specs = (batch, batch, batch, batch if follow else shared) + (shared,) * len(_SHARED)
-    fn = jax.shard_map(body, mesh=mesh, in_specs=specs, out_specs=batch, check_vma=False)
-    return jax.jit(fn, compiler_options=_COMPILER_OPTIONS)
+    specs = (batch, batch, batch, batch if follow else shared, batch) + (shared,) * len(_SHARED)
+    fn = jax.shard_map(body, mesh=_mesh(n_dev), in_specs=specs, out_specs=batch, check_vma=False)
+    return jax.jit(fn, donate_argnums=(4,), compiler_options=_COMPILER_OPTIONS)
 
 
-def _run_solver(inputs: dict[str, Any], *, store_values: bool, with_policy: bool) -> Any:
+class _BufferPool:
+    """Output buffers of finished solutions, kept for the next solve of the same shapes.
+
+    The solver writes its outputs in place into buffers it is given (donated). A fresh
+    buffer costs a page fault per 4 KiB page on its first write (about 1.3 ms of a 5 ms
+    solve for the 2 MB policy of a 100 x 100 grid and 100 epochs), every call, since the
+    allocator hands large blocks back to the system; a reused one costs nothing. A
+    :class:`MDPSolution` gives its buffers back when it is garbage collected (its NumPy
+    views of them die with it); at most ``max_bytes`` are kept.
+    """
+
+    def __init__(self, max_bytes: int = 256 * 2**20) -> None:
+        self.max_bytes = max_bytes
+        self._free: dict[tuple, list[Any]] = {}
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def take(self, key: tuple, make: Callable[[], Any]) -> Any:
+        with self._lock:
+            stack = self._free.get(key)
+            if stack:
+                buf = stack.pop()
+                self._bytes -= buf.nbytes
+                return buf
+        return make()
+
+    def give(self, key: tuple, buf: Any) -> None:
+        if buf.is_deleted():
+            return
+        with self._lock:
+            if self._bytes + buf.nbytes <= self.max_bytes:
+                self._free.setdefault(key, []).append(buf)
+                self._bytes += buf.nbytes
+
+
+_POOL = _BufferPool()
+
+
+def _outputs(shapes: Outputs, sharding: Any) -> tuple[Outputs, list[tuple]]:
+    """Output buffers for ``shapes`` (from the pool, else fresh zeros) and their pool keys."""
+    keys: list[tuple] = []
+
+    def get(sd: jax.ShapeDtypeStruct) -> Any:
+        key = (sd.shape, np.dtype(sd.dtype).str, sharding)
+        keys.append(key)
+        return _POOL.take(key, lambda: jax.device_put(np.zeros(sd.shape, sd.dtype), sharding))
+
+    out = jax.tree.map(get, shapes)
+    return out, keys
+
+
+class _Batch:
+    """A batch-major array kept as the pieces the devices wrote (views, no gathering copy).
+
+    ``parts[k]`` holds items ``starts[k] .. starts[k + 1] - 1`` (the last may hold padding
+    items past ``n``).
+    """
+
+    def __init__(self, parts: list[np.ndarray], n: int) -> None:
+        self.parts = parts
+        self.n = n
+        self.starts = np.cumsum([0] + [len(x) for x in parts])
+
+    def crop(self) -> _Batch:
+        """The grid columns of wide ``(..., H, W + 4)`` parts."""
+        return _Batch([x[..., 2:-2] for x in self.parts], self.n)
+
+    def take(self, items: np.ndarray, *index: np.ndarray) -> np.ndarray:
+        """``a[items, *index]`` for 1-d integer arrays of equal length."""
+        part = np.searchsorted(self.starts, items, side="right") - 1
+        out = np.empty(len(items), self.parts[0].dtype)
+        for k in np.unique(part).tolist():
+            sel = part == k
+            out[sel] = self.parts[k][(items[sel] - self.starts[k], *(i[sel] for i in index))]
+        return out
+
+
+def _joined(batches: tuple[_Batch, ...], fn: Callable[..., np.ndarray]) -> np.ndarray:
+    """``fn`` applied part by part to ``batches`` (aligned), joined along the batch axis."""
+    n = batches[0].n
+    pieces = [fn(*xs) for xs in zip(*(b.parts for b in batches), strict=True)]
+    return pieces[0][:n] if len(pieces) == 1 else np.concatenate(pieces)[:n]
+
+
+def _run_solver(
+    inputs: dict[str, Any], *, store_values: bool, with_policy: bool
+) -> tuple[Outputs, Callable[[], None]]:
     """Run the compiled solver on ``inputs`` (NumPy arrays, as built by ``GridMDP.solve``).
 
     With several local devices (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, which
     the CLI sets; one per core) a batch is split across them, padded by repeating its last
     item to a multiple of the device count: each device solves its share one item at a time,
-    in parallel. Results are identical to a single-device solve; outputs come back as NumPy.
+    in parallel. Results are identical to a single-device solve.
+
+    Returns the outputs (``v0`` a NumPy copy, the policy and value planes :class:`_Batch`
+    views of the device buffers, cropped to the grid) and ``release()``, which hands the
+    buffers back to the pool once nothing refers to those views any more.
     """
     b = inputs["goals"].shape[0]
     n_dev = min(jax.local_device_count(), b)
+    dtype = np.dtype(inputs["slip"].dtype)
+    shape = inputs["occupied"].shape
+    n_epochs, use_run = int(inputs["n_epochs"]), bool(inputs["use_run"])
+    args = {k: inputs[k] for k in _BATCHED + _SHARED}
     if n_dev < 2:
-        return _backward_induction_jit(**inputs, store_values=store_values, with_policy=with_policy)
-    pad = -b % n_dev
-    follow = inputs["follow"] is not None
-    batched = []
-    for name in _BATCHED:
-        x = inputs[name]
-        if x is None:
-            x = np.zeros(b, np.int8)  # placeholder, unused
-        if pad:
-            x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
-        batched.append(x)
-    fn = _sharded_jit(
-        n_dev, int(inputs["n_epochs"]), store_values, bool(inputs["use_run"]), with_policy, follow
-    )
-    out = fn(*batched, *(inputs[name] for name in _SHARED))
-    return jax.tree.map(lambda x: np.asarray(x)[:b], out)
+        sharding = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+        shapes = _output_shapes(b, n_epochs, shape, dtype, store_values, with_policy)
+        bufs, keys = _outputs(shapes, sharding)
+        out = _backward_induction_jit(**args, out=bufs, n_epochs=n_epochs, use_run=use_run)
+
+        def parts(x: jax.Array) -> list[np.ndarray]:
+            return [np.asarray(x)]
+    else:
+        from jax.sharding import NamedSharding
+        from jax.sharding import PartitionSpec as P
+
+        pad = -b % n_dev
+        follow = inputs["follow"] is not None
+        batched = []
+        for name in _BATCHED:
+            x = inputs[name]
+            if x is None:
+                x = np.zeros(b, np.int8)  # placeholder, unused
+            if pad:
+                x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
+            batched.append(x)
+        sharding = NamedSharding(_mesh(n_dev), P("b"))
+        shapes = _output_shapes(b + pad, n_epochs, shape, dtype, store_values, with_policy)
+        bufs, keys = _outputs(shapes, sharding)
+        fn = _sharded_jit(n_dev, n_epochs, use_run, follow)
+        out = fn(*batched, bufs, *(inputs[name] for name in _SHARED))
+
+        def parts(x: jax.Array) -> list[np.ndarray]:
+            shards = sorted(x.addressable_shards, key=lambda sh: sh.index[0].start or 0)
+            return [np.asarray(sh.data) for sh in shards]
+
+    leaves = jax.tree.leaves(out)
+
+    def release() -> None:
+        for key, buf in zip(keys, leaves, strict=True):
+            _POOL.give(key, buf)
+
+    def planes(xs: Any) -> tuple[_Batch, ...] | None:
+        return None if xs is None else tuple(_Batch(parts(x), b).crop() for x in xs)
+
+    v0 = np.concatenate(parts(out.v0))[:b, ..., 2:-2]  # a copy: the buffer goes back to the pool
+    return Outputs(v0, planes(out.policy), planes(out.values)), release
 
 
 class MDPSolution:
@@ -489,9 +656,10 @@ class MDPSolution:
         behaviours: tuple[str, ...],
         horizons: np.ndarray,
         v0: np.ndarray,
-        policy: tuple[np.ndarray, ...] | None,
-        values: tuple[np.ndarray, ...] | None,
+        policy: tuple[_Batch, ...] | None,
+        values: tuple[_Batch, ...] | None,
         inputs: dict[str, Any],
+        release: Callable[[], None] | None = None,
     ) -> None:
         self.mdp = mdp
         self.goals = goals
@@ -503,21 +671,28 @@ class MDPSolution:
         self._policy_full: np.ndarray | None = None
         self._values_full: np.ndarray | None = None
         self._inputs = inputs
+        if release is not None:
+            weakref.finalize(self, release)
+
+    def _solve(self, *, store_values: bool, with_policy: bool) -> Outputs:
+        """Solve again (for what was not stored); the buffers go back to the pool with self."""
+        out, release = _run_solver(self._inputs, store_values=store_values, with_policy=with_policy)
+        weakref.finalize(self, release)
+        return out
 
     @property
     def n_epochs(self) -> int:
         """Padded horizon ``D`` (``max_b d_b`` unless ``solve(..., n_epochs=...)``)."""
         return int(self._inputs["n_epochs"])
 
-    def _policy_planes(self) -> tuple[np.ndarray, ...]:
+    def _policy_planes(self) -> tuple[_Batch, ...]:
         """The two packed ``(B, D, H, W)`` int8 policy planes (computed on first use).
 
         Plane ``k`` holds the actions of heading ``2k`` in its low four bits and of heading
         ``2k + 1`` in its high four bits.
         """
         if self._policy is None:
-            _, policy, _ = _run_solver(self._inputs, store_values=False, with_policy=True)
-            self._policy = _crop_planes(policy)
+            self._policy = self._solve(store_values=False, with_policy=True).policy
         return self._policy
 
     def action(self, items: Any, t: Any, states: Any) -> np.ndarray:
@@ -543,7 +718,7 @@ class MDPSolution:
         out = np.zeros(len(items), np.int8)
         for h in range(4):
             sel = states[:, 2] == h
-            packed = planes[h // 2][items[sel], t[sel], states[sel, 0], states[sel, 1]]
+            packed = planes[h // 2].take(items[sel], t[sel], states[sel, 0], states[sel, 1])
             out[sel] = (packed >> (4 * (h % 2))) & 15
         return out
 
@@ -555,8 +730,9 @@ class MDPSolution:
         access from the solver's two ``(B, D, H, W)`` planes (two headings per byte).
         """
         if self._policy_full is None:
-            planes = _unpack_policy(self._policy_planes())
-            self._policy_full = np.stack(planes, axis=-1)
+            self._policy_full = _joined(
+                self._policy_planes(), lambda *p: np.stack(_unpack_policy(p), axis=-1)
+            )
         return self._policy_full
 
     @property
@@ -567,10 +743,9 @@ class MDPSolution:
         recomputed on first access (it takes ``B (D + 1) H W 4`` floats).
         """
         if self._values is None:
-            _, _, values = _run_solver(self._inputs, store_values=True, with_policy=False)
-            self._values = _crop_planes(values)
+            self._values = self._solve(store_values=True, with_policy=False).values
         if self._values_full is None:
-            self._values_full = np.stack(self._values, axis=-1)
+            self._values_full = _joined(self._values, lambda *v: np.stack(v, axis=-1))
         return self._values_full
 
     def __repr__(self) -> str:
@@ -780,7 +955,7 @@ class GridMDP:
             n_epochs=d,
             use_run=bool(allow[:, RUN].any()),
         )
-        v0, policy, values = _run_solver(
+        (v0, policy, values), release = _run_solver(
             inputs, store_values=bool(store_values), with_policy=bool(with_policy)
         )
         return MDPSolution(
@@ -788,10 +963,11 @@ class GridMDP:
             goal_cells,
             tuple(behaviours),
             hz,
-            np.asarray(v0),
-            None if policy is None else _crop_planes(policy),
-            None if values is None else _crop_planes(values),
+            v0,
+            policy,
+            values,
             inputs,
+            release,
         )
 
     # ------------------------------------------------------------------ dense export
@@ -892,11 +1068,6 @@ class GridMDP:
                 reward[:, a] = -np.inf
         p_out: Any = mats if sparse else np.stack([m.toarray() for m in mats])
         return p_out, reward, np.zeros(n)
-
-
-def _crop_planes(planes: tuple[jax.Array, ...]) -> tuple[np.ndarray, ...]:
-    """Wide ``(..., H, W + 4)`` device arrays -> ``(..., H, W)`` NumPy views."""
-    return tuple(np.asarray(p)[..., 2:-2] for p in planes)
 
 
 def _goal_rows(goals: Any) -> list[Any]:

@@ -336,3 +336,51 @@ def test_batched_solve_equals_per_goal_solves(dtype):
     lazy = mdp.solve(goals, behaviours, horizons, store_values=False, with_policy=False)
     assert np.array_equal(lazy.policy, batch.policy)
     assert np.array_equal(lazy.values, batch.values)
+
+
+def test_reused_output_buffers_give_the_same_solutions():
+    # a solution's buffers are reused by later solves only once it is gone; a live one keeps
+    # its values, and what was handed out (v0, policy, values) never changes afterwards
+    import gc
+
+    rng = np.random.default_rng(12)
+    occ = random_grid(rng, 10, 12, 0.15)
+    free = np.argwhere(~occ)
+    mdp = GridMDP(occ, slip=0.1)
+    goals = free[rng.choice(len(free), 4, replace=False)]
+    fresh = []
+    for g in goals:
+        s = mdp.solve(g, "run", 15)
+        fresh.append((s.v0.copy(), s.policy.copy(), s.values.copy()))
+        del s
+        gc.collect()
+    kept = mdp.solve(goals[0], "run", 15, store_values=False)  # alive through the loop below
+    v0_out = mdp.solve(goals[1], "run", 15).v0  # its solution is gone, the array stays
+    for _ in range(2):
+        for g, (v0, pol, val) in zip(goals, fresh, strict=True):
+            s = mdp.solve(g, "run", 15)
+            assert np.array_equal(s.v0, v0) and np.array_equal(s.policy, pol)
+            assert np.array_equal(s.values, val)
+            del s
+            gc.collect()
+    assert np.array_equal(kept.policy, fresh[0][1]) and np.array_equal(kept.v0, fresh[0][0])
+    assert np.array_equal(kept.values, fresh[0][2])
+    assert np.array_equal(v0_out, fresh[1][0])
+
+
+def test_buffer_pool_takes_back_only_what_fits():
+    from are_stats.behaviour._mdp import _BufferPool
+
+    class Buf:
+        def __init__(self, n):
+            self.nbytes = n
+
+        def is_deleted(self):
+            return False
+
+    pool = _BufferPool(max_bytes=100)
+    a, b = Buf(60), Buf(60)
+    pool.give("k", a)
+    pool.give("k", b)  # over the limit: dropped
+    assert pool.take("k", lambda: "new") is a
+    assert pool.take("k", lambda: "new") == "new"
