@@ -493,7 +493,8 @@ class _BufferPool:
         self.max_bytes = max_bytes
         self._free: dict[tuple, list[Any]] = {}
         self._bytes = 0
-        self._lock = threading.Lock()
+        # reentrant: a collection inside take() or give() may run a finalizer that gives
+        self._lock = threading.RLock()
 
     def take(self, key: tuple, make: Callable[[], Any]) -> Any:
         with self._lock:
