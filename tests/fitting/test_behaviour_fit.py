@@ -380,9 +380,9 @@ def test_log_likelihood_gradient_in_the_weights_matches_finite_differences() -> 
             paths, free, 1.5, 0.1, n_epochs=60, features=phi, weights=w
         )[0]  # fmt: skip
 
-    grad = np.asarray(jax.grad(ll)(jax.numpy.asarray(w0)))
-    h = 1e-5
-    fd = [(float(ll(w0 + h * e)) - float(ll(w0 - h * e))) / (2 * h) for e in np.eye(2)]
+    grad = np.asarray(jax.jit(jax.grad(ll))(jax.numpy.asarray(w0)))
+    llj, h = jax.jit(ll), 1e-5
+    fd = [(float(llj(w0 + h * e)) - float(llj(w0 - h * e))) / (2 * h) for e in np.eye(2)]
     assert np.abs(grad).min() > 1e-2  # the weights do move the likelihood
     assert_allclose(grad, fd, rtol=1e-6, atol=1e-8)
 
@@ -391,17 +391,25 @@ def test_zero_weights_give_exactly_the_likelihood_without_features() -> None:
     from are_stats.fitting._behaviour import _likelihood
 
     free, paths, phi = _small_world()
-    plain, _ = behaviour_log_likelihood(paths, free, 1.5, 0.1, n_epochs=60)
-    zero, _ = behaviour_log_likelihood(
-        paths, free, 1.5, 0.1, n_epochs=60, features=phi, weights=np.zeros(2)
-    )
-    np.testing.assert_array_equal(np.asarray(zero), np.asarray(plain))
+    beta = np.float64(1.5)
+
+    @jax.jit
+    def plain(b):
+        return behaviour_log_likelihood(paths, free, b, 0.1, n_epochs=60)[0]
+
+    @jax.jit
+    def weighted(b, w):
+        return behaviour_log_likelihood(paths, free, b, 0.1, n_epochs=60, features=phi,
+                                        weights=w)[0]  # fmt: skip
+
+    np.testing.assert_array_equal(weighted(beta, np.zeros(2)), plain(beta))
+    assert float(weighted(beta, np.array([-0.5, 0.0]))) != float(plain(beta))
     # the fit's own likelihood (early stop, goals split over the devices there are)
     opts = dict(goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64, tol=1e-3)
-    f0, _, _ = _likelihood(paths, free, **opts)
-    f2, _, _ = _likelihood(paths, free, features=phi, **opts)
+    f0 = jax.jit(_likelihood(paths, free, **opts)[0])
+    f2 = jax.jit(_likelihood(paths, free, features=phi, **opts)[0])
     th = np.array([np.log(1.7), -2.0])
-    np.testing.assert_array_equal(np.asarray(f2(np.r_[th, 0.0, 0.0])), np.asarray(f0(th)))
+    np.testing.assert_array_equal(f2(np.r_[th, 0.0, 0.0]), f0(th))
     assert float(f2(np.r_[th, -0.5, 0.0])) != float(f0(th))
 
 
