@@ -90,12 +90,14 @@ def run_fit(
     positions: str = "auto",
     clock_start: str | None = None,
     behaviour: bool = True,
+    behaviour_features: str = "",
 ) -> Any:
     """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures.
 
     A tracks table with a map also gets its behaviour fitted (speeds, exits, rationality:
     :func:`are_stats.fitting.fit_behaviour`, stored as the ``behaviour`` group) unless
-    ``behaviour`` is false.
+    ``behaviour`` is false; ``behaviour_features`` (``--behaviour-features``, comma-separated
+    names of :data:`are_stats.fitting.BEHAVIOUR_FEATURES`) adds fitted reward weights.
 
     The options are checked first, named as on the command line (``--samples``,
     ``--chains``, ``--warmup``, ``--components``, ``--replicates`` integers in range,
@@ -105,6 +107,7 @@ def run_fit(
     """
     from are_stats.fitting import (
         ARRIVAL_CHOICES,
+        BEHAVIOUR_FEATURES,
         LIFETIME_CHOICES,
         POSITION_CHOICES,
         FitSettings,
@@ -128,6 +131,11 @@ def run_fit(
     arrivals = get_str(arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES)
     lifetimes = get_str(lifetimes, "--lifetimes", "", choices=LIFETIME_CHOICES)
     positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
+    features = tuple(
+        get_str(f.strip(), "--behaviour-features", "", choices=sorted(BEHAVIOUR_FEATURES))
+        for f in get_str(behaviour_features, "--behaviour-features", "").split(",")
+        if f.strip()
+    )
     if clock_start is not None:
         from are_stats.traffic import clock_offset
 
@@ -221,8 +229,13 @@ def run_fit(
             from are_stats.fitting import attach_behaviour, fit_behaviour
 
             status.update("fitting: behaviour from the tracks (speeds, exits, rationality) ...")
-            bfit = fit_behaviour(tracks, grid.free, grid.resolution, grid.origin[:2], seed=seed)
+            bfit = fit_behaviour(
+                tracks, grid.free, grid.resolution, grid.origin[:2], seed=seed,
+                features=features or None,
+            )  # fmt: skip
             idata = attach_behaviour(idata, bfit)
+            for line in _behaviour_lines(bfit):
+                console.print(line)
     if tracks is not None and grid is None:
         console.print("[yellow]warning:[/] no map in the manifest: behaviour not fitted")
     idata.posterior.attrs.update(
@@ -260,6 +273,23 @@ def run_fit(
     return idata
 
 
+def _behaviour_lines(fit: Any) -> list[str]:
+    """One line per class: the fitted rationality, slip and reward weights with their
+    standard errors."""
+    out = []
+    for c, name in enumerate(fit.classes):
+        parts = [
+            f"beta {fit.beta[c]:.3g} +- {fit.beta_se[c]:.2g}",
+            f"slip {fit.slip[c]:.3g} +- {fit.slip_se[c]:.2g}",
+        ]
+        parts += [
+            f"{f} weight {fit.weights[c, k]:+.3g} +- {fit.weights_se[c, k]:.2g}"
+            for k, f in enumerate(fit.feature_names)
+        ]
+        out.append(f"behaviour {name!r}: " + ", ".join(parts))
+    return out
+
+
 def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool):
     """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure."""
     import matplotlib.pyplot as plt
@@ -277,7 +307,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
-        max_fit_tracks=16,
+        max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
     )  # fmt: skip
     errors = displacement_errors(jax.random.fold_in(key, 3), bfit, tracks, n_samples=20)
     fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)

@@ -199,6 +199,12 @@ def fit(
         "--behaviour/--no-behaviour",
         help="Tracks tables: also fit the behaviour (speeds, exits, rationality).",
     ),
+    behaviour_features: str = typer.Option(
+        "",
+        "--behaviour-features",
+        help="Reward features whose weights the behaviour fit estimates with beta and slip, "
+        "comma-separated: walls (closeness to walls). Default: none.",
+    ),
     stationary_start: bool = typer.Option(
         True,
         "--stationary-start/--no-stationary-start",
@@ -232,6 +238,7 @@ def fit(
         positions=positions,
         clock_start=clock_start,
         behaviour=behaviour,
+        behaviour_features=behaviour_features,
     )
 
 

@@ -7,6 +7,7 @@ find the groups, the regular stays and the doors, and the generated people must 
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +69,8 @@ def test_tracks_fit_and_generated_people_walk(tmp_path):
     log = _tracks(tmp_path)
     fit = tmp_path / "f.nc"
     args = ["fit", str(log), "--out", str(fit), "--method", "em", "--samples", "150",
-            "--chains", "2", "--warmup", "150", "--no-figures"]  # fmt: skip
+            "--chains", "2", "--warmup", "150", "--no-figures",
+            "--behaviour-features", "walls"]  # fmt: skip
     res = runner.invoke(app, args)
     assert res.exit_code == 0, res.output
     import arviz as az
@@ -78,6 +80,11 @@ def test_tracks_fit_and_generated_people_walk(tmp_path):
     assert (a["arrival_model"], a["position_model"]) == ("groups", "learned")
     assert a["lifetime_model"] != "exponential"  # crossing times are regular
     assert "behaviour" in idata.groups()
+    # the wall weight is fitted, stored and printed beside beta and slip
+    b = idata.behaviour
+    assert list(b["feature"].values) == ["walls"] and b["feature_weight"].shape == (1, 1)
+    assert np.isfinite(b["feature_weight"].values).all()
+    assert re.search(r"behaviour '\w*': beta .* slip .* walls weight [-+]", res.output), res.output
     out = tmp_path / "scen"
     res = runner.invoke(app, ["generate", str(fit), "--scenarios", "2", "--horizon", "200",
                               "--seed", "1", "--out", str(out), "--map", str(room),
@@ -97,3 +104,12 @@ def test_tracks_fit_and_generated_people_walk(tmp_path):
     assert np.mean(np.asarray(net) < 1.0) < 0.1  # almost nobody stands still
     artefacts = pd.read_parquet(out / "artefacts.parquet")
     assert artefacts.groupby(["scenario", "group"]).size().max() > 1
+
+
+def test_fit_names_an_unknown_behaviour_feature(tmp_path):
+    log = _tracks(tmp_path)
+    res = runner.invoke(app, ["fit", str(log), "--out", str(tmp_path / "f.nc"),
+                              "--behaviour-features", "walls,doors"])  # fmt: skip
+    assert res.exit_code != 0
+    assert "--behaviour-features" in res.output and "'walls'" in res.output
+    assert not (tmp_path / "f.nc").exists()

@@ -12,7 +12,8 @@ with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
    walking speed ``L / s``, and exits are weighted by the speed law at ``L / s``; without
    a reachable exit it stays where it entered;
 3. walks there with the stationary soft policy of its class (:func:`soft_backward_induction`,
-   ``beta`` and ``slip`` fitted), sampled epoch by epoch (:func:`sample_soft_paths`);
+   ``beta``, ``slip`` and the cell reward of any fitted feature weights,
+   :meth:`BehaviourFit.cell_reward`), sampled epoch by epoch (:func:`sample_soft_paths`);
 4. becomes a continuous track: the distinct cells of its path, smoothed by a centred moving
    average of ``smooth`` cells (ends fixed), walked at the speed that ends the path at
    ``t_leave``, within the class's slow and fast walkers (``exp(mu -+ 2 sigma)``: beyond
@@ -310,7 +311,7 @@ def simulate_behaviour_tracks(
             sol = soft_policy(
                 occ, goals[gsel], float(fit.beta[c]), float(fit.slip[c]), n_epochs=k,
                 goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost,
-                tol=1e-2,
+                cell_reward=fit.cell_reward(c), tol=1e-2,
             )  # fmt: skip
             pol = np.asarray(sol.policy)
             v = np.asarray(sol.values)

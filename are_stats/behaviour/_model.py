@@ -4,9 +4,11 @@
 :func:`~are_stats.behaviour.simulate_behaviour_tracks` needs: the MDP grid (a coarse free
 mask of cells of ``cell`` metres), per class a lognormal law of walking speeds (and of run
 speeds), the decision epoch ``dt = cell / median speed``, the soft-policy rationality
-``beta`` and the slip probability with standard errors, and the observed (entry, exit) pairs
-that define the exit density given an entry: a Gaussian kernel over the entries picks a
-track, a Gaussian kernel around its exit gives the exit cell.
+``beta`` and the slip probability with standard errors, optionally the weights ``w`` of
+reward features ``phi`` (cell rewards ``sum_k w_k phi_k`` per epoch, e.g. closeness to walls)
+with standard errors, and the observed (entry, exit) pairs that define the exit density
+given an entry: a Gaussian kernel over the entries picks a track, a Gaussian kernel around
+its exit gives the exit cell.
 """
 
 from __future__ import annotations
@@ -94,7 +96,14 @@ class BehaviourFit:
     entry_xy, exit_xy : (M, 2) float
         First and last position of each observed track (m).
     time_cost, goal_reward, step_cost : float
-        Rewards of the soft MDP (``time_cost`` sets the scale of ``beta``).
+        Rewards of the soft MDP (``time_cost`` sets the scale of ``beta`` and the weights).
+    feature_names : tuple of str
+        Names of the ``F`` reward features (``()``: none, the default).
+    features : (F, H, W) float
+        The features ``phi_k`` on the MDP grid.
+    weights, weights_se : (C, F) float
+        Maximum-likelihood weights ``w_k`` per class (reward per epoch spent on a cell with
+        ``phi_k = 1``, in the units of ``time_cost``) and their standard errors.
     """
 
     classes: tuple
@@ -126,6 +135,47 @@ class BehaviourFit:
     goal_reward: float = 1.0
     step_cost: float = 1e-3
     warnings: list = field(default_factory=list)
+    feature_names: tuple = ()
+    features: Any = None
+    weights: Any = None
+    weights_se: Any = None
+
+    def __post_init__(self) -> None:
+        self.feature_names = tuple(str(n) for n in self.feature_names)
+        n_f, n_c = len(self.feature_names), len(self.classes)
+        shape = np.shape(self.free)
+        self.features = (
+            np.zeros((0, *shape)) if self.features is None else np.asarray(self.features, float)
+        )
+        for name in ("weights", "weights_se"):
+            v = getattr(self, name)
+            setattr(self, name, np.zeros((n_c, 0)) if v is None else np.asarray(v, float))
+        expect = {"features": (n_f, *shape), "weights": (n_c, n_f), "weights_se": (n_c, n_f)}
+        for name, want in expect.items():
+            got = getattr(self, name).shape
+            if got != want:
+                raise ValueError(
+                    f"BehaviourFit.{name}: expected shape {want} ({n_f} features, {n_c} "
+                    f"classes, grid {shape}), got {got}"
+                )
+
+    def cell_reward(self, class_index: int) -> Any:
+        """The fitted cell reward ``sum_k w_k phi_k`` of a class.
+
+        Parameters
+        ----------
+        class_index : int
+
+        Returns
+        -------
+        float or (H, W) float64
+            ``0.0`` without features (the soft solve is then exactly the one without them),
+            else the reward per epoch on each cell (``cell_reward`` of
+            :func:`~are_stats.behaviour.soft_policy`).
+        """
+        if not self.feature_names:
+            return 0.0
+        return np.tensordot(self.weights[int(class_index)], self.features, axes=1)
 
     # ------------------------------------------------------------------ grid helpers
     def world_to_cell(self, xy: Any) -> np.ndarray:
@@ -281,17 +331,31 @@ class BehaviourFit:
             "step_cost": float(self.step_cost),
             "warnings": "\n".join(self.warnings),
         }
-        return xr.Dataset(data, coords={"class": list(self.classes), "xy": ["x", "y"]}, attrs=attrs)
+        coords = {"class": list(self.classes), "xy": ["x", "y"]}
+        if self.feature_names:  # absent without features: such files are as before
+            data["feature_weight"] = (("class", "feature"), np.asarray(self.weights, float))
+            data["feature_weight_se"] = (("class", "feature"), np.asarray(self.weights_se, float))
+            data["feature_map"] = (("feature", "row", "col"), np.asarray(self.features, float))
+            coords["feature"] = list(self.feature_names)
+        return xr.Dataset(data, coords=coords, attrs=attrs)
 
     @classmethod
     def from_dataset(cls, ds: Any) -> BehaviourFit:
-        """Inverse of :meth:`to_dataset`."""
+        """Inverse of :meth:`to_dataset` (files without features give ``F = 0``)."""
         a = ds.attrs
         n_class = int(ds.sizes["class"])
         kw = {
             k: np.asarray(ds[k].values) if k in ds else np.full(n_class, np.nan) for k in _PER_CLASS
         }  # fit files leave out the wall-clock fit_seconds (same seed, same bytes)
         w = str(a.get("warnings", ""))
+        feats: dict[str, Any] = {}
+        if "feature_weight" in ds:
+            feats = {
+                "feature_names": tuple(str(n) for n in ds["feature"].values),
+                "features": np.asarray(ds["feature_map"].values, float),
+                "weights": np.asarray(ds["feature_weight"].values, float),
+                "weights_se": np.asarray(ds["feature_weight_se"].values, float),
+            }
         return cls(
             classes=tuple(str(c) for c in ds["class"].values),
             cell=float(a["cell"]),
@@ -304,5 +368,6 @@ class BehaviourFit:
             goal_reward=float(a["goal_reward"]),
             step_cost=float(a["step_cost"]),
             warnings=w.split("\n") if w else [],
+            **feats,
             **kw,
         )

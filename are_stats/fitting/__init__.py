@@ -144,12 +144,13 @@ from are_stats.fitting._panel import PanelComparison, compare_panel  # noqa: E40
 __all__ += ["PanelComparison", "compare_panel"]
 # --- behaviour fitted from tracks (issue 16) ---
 from are_stats.fitting._behaviour import (  # noqa: E402
+    BEHAVIOUR_FEATURES,
     behaviour_log_likelihood,
     discretise_tracks,
     fit_behaviour,
 )
 
-__all__ += ["behaviour_log_likelihood", "discretise_tracks", "fit_behaviour"]
+__all__ += ["BEHAVIOUR_FEATURES", "behaviour_log_likelihood", "discretise_tracks", "fit_behaviour"]
 # --- criticism for motion (issue 16) ---
 from are_stats.fitting._motion_checks import (  # noqa: E402
     MOTION_STATISTICS,

@@ -22,6 +22,14 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   the epoch of the whole batch, so value and gradient are those of one device (500 tracks,
   8 goals, 100 x 100, on 2 shared cores: 0.9 s against 3.2 s per value and gradient when
   the other load left room, no gain when it did not).
+* **Reward features** (optional, ``features``; maximum-entropy inverse RL on the grid,
+  Ziebart et al. 2008). Cell rewards ``sum_k w_k phi_k(cell)`` earned at every epoch off the
+  goal (e.g. ``phi`` = closeness to walls, :func:`~are_stats.behaviour.wall_distance_feature`)
+  enter the same soft solve, and the weights ``w_k`` are fitted jointly with ``beta`` and
+  ``slip`` by the same likelihood (``theta = (log beta, logit slip, w_1, .., w_F)``),
+  gradients and Hessian. The reward scale is fixed by ``time_cost``: a weight is a reward
+  per epoch in those units (``w = -0.5`` next to a wall costs half an epoch lost per epoch
+  spent there), and ``beta`` the rationality in them.
 * **Exits.** Each track's first and last positions: the exit density given an entry is a
   kernel mixture over them (:meth:`~are_stats.behaviour.BehaviourFit.draw_exits`).
 """
@@ -46,12 +54,25 @@ from are_stats.behaviour import (
     moves_log_likelihood,
     path_free,
     soft_backward_induction,
+    wall_distance_feature,
 )
 from are_stats.traffic import coarse_free_mask
 
-__all__ = ["discretise_tracks", "fit_behaviour", "behaviour_log_likelihood"]
+__all__ = [
+    "BEHAVIOUR_FEATURES",
+    "discretise_tracks",
+    "fit_behaviour",
+    "behaviour_log_likelihood",
+]
 
 _MAX_SIDE = 128
+#: Built-in reward features of :func:`fit_behaviour` (name -> what it is).
+BEHAVIOUR_FEATURES = {
+    "walls": "closeness to walls, exp(-(d - 1)), d the distance (cells) to an obstacle or the "
+    "map's border (wall_distance_feature with scale 1 cell)",
+}
+#: Bounds of a fitted feature weight (reward per epoch, in units of time_cost).
+_WEIGHT_BOUND = 10.0
 
 
 def _step_speeds(t: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -177,18 +198,24 @@ def _loglik(
     tol: float | None,
     tol_mask: jax.Array | None = None,
     n_devices: int = 1,
+    phi: jax.Array | None = None,
 ) -> jax.Array:
-    """Log-likelihood at ``theta = (log beta, logit slip)``; with ``n_devices > 1`` the goals
-    are split across that many local devices (results identical to one device)."""
+    """Log-likelihood at ``theta = (log beta, logit slip, w_1, .., w_F)`` with features
+    ``phi (F, H, W)`` (``None``: ``theta`` has two entries and the cell reward is 0); with
+    ``n_devices > 1`` the goals are split across that many local devices (results identical
+    to one device)."""
     beta = jnp.exp(theta[0])
     slip = jax.nn.sigmoid(theta[1])
+    reward = 0.0 if phi is None else jnp.tensordot(theta[2:], phi, axes=1)
     opts = dict(n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost, tol=tol)
     if n_devices < 2:
         policy = soft_backward_induction(
-            ok, keep, bonus, beta, slip, tol_mask=tol_mask, **opts
+            ok, keep, bonus, beta, slip, tol_mask=tol_mask, cell_reward=reward, **opts
         ).policy
     else:
-        policy = _sharded_policy(ok, keep, bonus, beta, slip, tol_mask, n_devices, opts)
+        policy = _sharded_policy(
+            ok, keep, bonus, beta, slip, tol_mask, n_devices, opts, jnp.asarray(reward, beta.dtype)
+        )  # fmt: skip
     return moves_log_likelihood(policy, ok, slip, obs)
 
 
@@ -201,8 +228,10 @@ def _sharded_policy(
     tol_mask: jax.Array | None,
     n_devices: int,
     opts: dict[str, Any],
+    reward: jax.Array,
 ) -> jax.Array:
-    """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices``.
+    """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices``
+    (``reward``: the cell reward, a scalar or ``(H, W)``, the same for every goal).
 
     The goals are padded to a multiple of ``n_devices`` by repeating the last one (a copy
     changes by exactly as much per epoch, so the shared stopping rule is unaffected); every
@@ -221,16 +250,17 @@ def _sharded_policy(
     mesh = Mesh(np.array(jax.local_devices()[:n_devices]), ("g",))
 
     def solve(keep_s: jax.Array, bonus_s: jax.Array, mask_s: jax.Array, beta_: jax.Array,
-              slip_: jax.Array) -> jax.Array:  # fmt: skip
+              slip_: jax.Array, reward_: jax.Array) -> jax.Array:  # fmt: skip
         return soft_backward_induction(
-            ok, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g", **opts
-        ).policy
+            ok, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g",
+            cell_reward=reward_, **opts,
+        ).policy  # fmt: skip
 
     split = jax.shard_map(
-        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g"), P(), P()), out_specs=P("g"),
+        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g"), P(), P(), P()), out_specs=P("g"),
         check_vma=False,
     )  # fmt: skip
-    return split(padded(keep), padded(bonus), padded(mask), beta, slip)[:g]
+    return split(padded(keep), padded(bonus), padded(mask), beta, slip, reward)[:g]
 
 
 def behaviour_log_likelihood(
@@ -243,6 +273,8 @@ def behaviour_log_likelihood(
     goal_reward: float = 1.0,
     step_cost: float = 1e-3,
     time_cost: float = 1.0,
+    features: Any = None,
+    weights: Any = None,
 ) -> tuple[Any, int]:
     """Log-likelihood of cell paths under the stationary soft policy (differentiable).
 
@@ -257,11 +289,24 @@ def behaviour_log_likelihood(
     n_epochs : int or None
         Time-to-go ``K`` of the policy (default: 3 times the longest shortest path from a
         start to its goal, plus 20).
+    goal_reward, step_cost, time_cost : float
+        Rewards of the soft MDP.
+    features : (F, H, W) float or None
+        Reward features ``phi_k`` on the grid (``None``: no cell reward).
+    weights : (F,) float or JAX tracer, or None
+        Their weights ``w_k`` (reward per epoch, units of ``time_cost``): every epoch on a
+        non-absorbing cell earns ``sum_k w_k phi_k(cell)``. Required with ``features``.
 
     Returns
     -------
     loglik : scalar
     n_epochs : int
+
+    Raises
+    ------
+    ValueError
+        On ``features`` that are not ``(F, H, W)`` on the grid, or weights that are not
+        ``(F,)``.
     """
     free = np.asarray(free, bool)
     obs = move_observations(paths)
@@ -270,9 +315,23 @@ def behaviour_log_likelihood(
     ok = jnp.asarray(path_free(~free))
     keep, bonus = _goal_masks(free, obs.goals, goal_reward)
     dtype = jnp.result_type(beta)
+    reward: Any = 0.0
+    if features is not None:
+        phi = np.asarray(features, float)
+        if phi.ndim != 3 or phi.shape[1:] != free.shape:
+            raise ValueError(
+                f"features: expected an (F, {free.shape[0]}, {free.shape[1]}) array on the "
+                f"grid, got {describe(phi)}"
+            )
+        if weights is None or jnp.shape(weights) != (phi.shape[0],):
+            raise ValueError(
+                f"weights: expected ({phi.shape[0]},) weights, one per feature, got "
+                + ("None" if weights is None else f"shape {tuple(jnp.shape(weights))}")
+            )
+        reward = jnp.tensordot(jnp.asarray(weights, dtype), jnp.asarray(phi, dtype), axes=1)
     sol = soft_backward_induction(
         ok, keep, jnp.asarray(bonus, dtype), beta, jnp.asarray(slip, dtype),
-        n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost,
+        n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost, cell_reward=reward,
     )  # fmt: skip
     return moves_log_likelihood(sol.policy, ok, slip, obs), n_epochs
 
@@ -298,6 +357,61 @@ def _n_epochs(
     return int(math.ceil(factor * longest)) + 20
 
 
+def _feature_maps(
+    features: Any, free: np.ndarray, free_fine: np.ndarray, factor: int
+) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """Names and ``(F, H, W)`` maps on the MDP grid ``free`` of :func:`fit_behaviour`'s
+    ``features`` (``None`` without features). ``factor``: map cells per MDP cell side."""
+    if features is None:
+        return (), None
+    h, w = free.shape
+    if isinstance(features, str):
+        features = (features,)
+    if isinstance(features, dict):
+        items = list(features.items())
+    elif isinstance(features, (list, tuple)):
+        items = [(f, f) for f in features]
+    else:
+        raise ValueError(
+            "features: expected a sequence of feature names or a mapping name -> (H, W) "
+            f"array, got {type(features).__name__}"
+        )
+    names, maps = [], []
+    for name, spec in items:
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"features: expected non-empty string names, got {name!r}")
+        if name in names:
+            raise ValueError(f"features: expected distinct names, got {name!r} twice")
+        if isinstance(spec, str):
+            if spec != "walls":
+                raise ValueError(
+                    f"features[{name!r}]: expected one of {sorted(BEHAVIOUR_FEATURES)} or an "
+                    f"(H, W) array, got {spec!r}"
+                )
+            phi = wall_distance_feature(~free, 1.0)
+        else:
+            a = np.asarray(spec, float)
+            fine = (free_fine.shape[0] // factor * factor, free_fine.shape[1] // factor * factor)
+            if a.shape == (h, w):
+                phi = a
+            elif a.shape == free_fine.shape and fine == (h * factor, w * factor):
+                # on the map's grid: the mean over each MDP cell's map cells
+                phi = a[: fine[0], : fine[1]].reshape(h, factor, w, factor).mean(axis=(1, 3))
+            else:
+                raise ValueError(
+                    f"features[{name!r}]: expected an array on the MDP grid ({h}, {w}) or on "
+                    f"the map {free_fine.shape}, got {describe(a)}"
+                )
+            if not np.isfinite(phi[free]).all():
+                raise ValueError(f"features[{name!r}]: expected finite values on free cells")
+            phi = np.where(free, phi, 0.0)
+        names.append(name)
+        maps.append(phi)
+    if not names:
+        return (), None
+    return tuple(names), np.stack(maps)
+
+
 def _likelihood(
     paths: list[np.ndarray],
     free: np.ndarray,
@@ -308,9 +422,11 @@ def _likelihood(
     dtype: Any,
     tol: float,
     n_devices: int | None = None,
+    features: np.ndarray | None = None,
 ) -> tuple[Any, Any, int]:
     """The fit's log-likelihood ``f(theta)`` of ``paths`` (pure JAX, not jitted), their
-    :class:`MoveObservations` and the epoch cap ``K``.
+    :class:`MoveObservations` and the epoch cap ``K``; with ``features (F, H, W)``, ``theta``
+    ends with their ``F`` weights.
 
     The goals are split across ``n_devices`` local devices (default: all of them, at most
     one per goal); results are identical for any split.
@@ -337,6 +453,7 @@ def _likelihood(
         _loglik, ok=ok, keep=keep, bonus=jnp.asarray(bonus, dtype), obs=obs_j,
         step_cost=step_cost, time_cost=time_cost, n_epochs=k, tol=tol,
         tol_mask=jnp.asarray(seen), n_devices=max(1, min(n_devices, len(obs.goals))),
+        phi=None if features is None else jnp.asarray(features, dtype),
     )  # fmt: skip
     return f, obs, k
 
@@ -352,14 +469,17 @@ def _mle(
     slip0: float,
     dtype: Any,
     tol: float,
+    features: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """Maximum likelihood of ``(beta, slip)`` with inverse-Hessian standard errors."""
+    """Maximum likelihood of ``(beta, slip[, weights])`` with inverse-Hessian standard
+    errors (the weights of ``features (F, H, W)`` start at 0)."""
     from scipy.optimize import minimize
 
     f, obs, k = _likelihood(
         paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
-        dtype=dtype, tol=tol,
+        dtype=dtype, tol=tol, features=features,
     )  # fmt: skip
+    n_f = 0 if features is None else len(features)
     scale = 1.0 / max(obs.n_moves, 1)
 
     def twice(th: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -372,12 +492,14 @@ def _mle(
         g, v = grad(jnp.asarray(th, dtype))
         return -float(v) * scale, -np.asarray(g, float) * scale
 
-    th0 = np.array([math.log(beta0), math.log(slip0 / (1 - slip0))])
+    th0 = np.r_[math.log(beta0), math.log(slip0 / (1 - slip0)), np.zeros(n_f)]
+    wb = _WEIGHT_BOUND * abs(time_cost) if time_cost else _WEIGHT_BOUND
     # float32 values carry ~1e-7 relative noise (and the early stop of the soft solve more):
     # tolerances below that make the line search fail
     single = jnp.dtype(dtype) == jnp.float32
     res = minimize(
-        fun, th0, jac=True, method="L-BFGS-B", bounds=[(-6.0, 8.0), (-10.0, 6.0)],
+        fun, th0, jac=True, method="L-BFGS-B",
+        bounds=[(-6.0, 8.0), (-10.0, 6.0)] + [(-wb, wb)] * n_f,
         options={
             "maxiter": 60, "maxfun": 80, "ftol": 1e-6 if single else 1e-10,
             "gtol": 1e-4 if single else 1e-7,
@@ -386,21 +508,24 @@ def _mle(
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
     th = jnp.asarray(res.x, dtype)
 
-    # The Hessian entry by entry (h11, h22, h12), forward over forward mode with one tangent
-    # each: one small program run three times compiles and runs faster than jacfwd(jacfwd)
-    # (500 tracks, 100 x 100, under load: 19 + 3 x 4.3 s against 31 + 19 s).
+    # The Hessian entry by entry (h11, h22, h12, ...), forward over forward mode with one
+    # tangent each: one small program run n (n + 1) / 2 times compiles and runs faster than
+    # jacfwd(jacfwd) (500 tracks, 100 x 100, under load: 19 + 3 x 4.3 s against 31 + 19 s).
     def second(x: jax.Array, u: jax.Array, v: jax.Array) -> jax.Array:
         return jax.jvp(lambda y: jax.jvp(f, (y,), (u,))[1], (x,), (v,))[1]
 
     d2 = jax.jit(second)
-    e = jnp.eye(2, dtype=dtype)
-    h11, h22, h12 = (float(d2(th, e[i], e[j])) for i, j in ((0, 0), (1, 1), (0, 1)))
-    hess = np.array([[h11, h12], [h12, h22]])
+    n = 2 + n_f
+    e = jnp.eye(n, dtype=dtype)
+    hess = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            hess[i, j] = hess[j, i] = float(d2(th, e[i], e[j]))
     try:
         cov = np.linalg.inv(-hess)
         se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
     except np.linalg.LinAlgError:
-        se = np.full(2, np.nan)
+        se = np.full(n, np.nan)
     beta = math.exp(res.x[0])
     slip = 1.0 / (1.0 + math.exp(-res.x[1]))
     return {
@@ -408,6 +533,8 @@ def _mle(
         "beta_se": beta * se[0],
         "slip": slip,
         "slip_se": slip * (1 - slip) * se[1],
+        "weights": np.asarray(res.x[2:], float),
+        "weights_se": np.asarray(se[2:], float),
         "loglik": -res.fun / scale,
         "n_moves": obs.n_moves,
         "n_epochs": k,
@@ -434,8 +561,9 @@ def fit_behaviour(
     seed: int = 0,
     dtype: str = "float32",
     tol: float = 1e-3,
+    features: Any = None,
 ) -> BehaviourFit:
-    """Fit speeds, exits, rationality and slip per class from a tracks table.
+    """Fit speeds, exits, rationality, slip (and reward weights) per class from tracks.
 
     Parameters
     ----------
@@ -473,6 +601,16 @@ def fit_behaviour(
         The soft values are iterated until they change by at most ``tol`` per epoch on the
         cells the tracks visit (and their 2-cell neighbourhoods): the stationary policy, with
         at most 10 times the longest start-goal path plus 20 epochs.
+    features : sequence of str, or mapping of str to str or (H, W) float, optional
+        Reward features whose weights are fitted with ``beta`` and ``slip`` (default: none;
+        the fit is then exactly the one without this option). A name of
+        :data:`BEHAVIOUR_FEATURES` (``"walls"``: closeness to walls, 1 next to an obstacle,
+        ``exp(-(d - 1))`` at ``d`` cells), or ``{name: phi}`` with ``phi`` an array on the
+        MDP grid or on the map (averaged over each MDP cell) or a built-in name. Every epoch
+        off the goal on a cell earns ``sum_k w_k phi_k(cell)``. The reward scale is fixed by
+        ``time_cost``: ``w_k`` is a reward per epoch in its units (``w < 0``: the cells are
+        avoided, ``w > 0``: sought; ``w = -time_cost`` doubles the cost of an epoch spent
+        where ``phi = 1``). Weights are bounded to ``+-10 time_cost``.
 
     Returns
     -------
@@ -481,7 +619,8 @@ def fit_behaviour(
     Raises
     ------
     ValueError
-        On missing columns or a class without a track of two distinct positions.
+        On missing columns, a class without a track of two distinct positions, or unknown
+        or misshapen ``features``.
     """
     if not isinstance(tracks, pd.DataFrame):
         raise ValueError(f"tracks: expected a pandas DataFrame, got {type(tracks).__name__}")
@@ -497,6 +636,9 @@ def fit_behaviour(
         cell = f * res
     free, cell, org = coarse_free_mask(free_fine, res, origin, cell)
     origin_a = np.asarray(org, float)
+    factor = max(1, round(cell / res))
+    feature_names, phi = _feature_maps(features, free, free_fine, factor)
+    weights, weights_se = [], []
     rng = np.random.default_rng(seed)
     labels = (
         tracks["label"].astype(str) if "label" in tracks.columns else pd.Series("all", tracks.index)
@@ -537,10 +679,13 @@ def fit_behaviour(
         t0 = time.perf_counter()
         mle = _mle(
             paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
-            beta0=beta0, slip0=slip0, dtype=jnp.dtype(dtype), tol=tol,
+            beta0=beta0, slip0=slip0, dtype=jnp.dtype(dtype), tol=tol, features=phi,
         )  # fmt: skip
+        weights.append(mle["weights"])
+        weights_se.append(mle["weights_se"])
         if not mle["converged"]:
-            warnings.append(f"class {name!r}: the beta/slip optimiser did not report convergence")
+            what = "beta/slip/weights" if feature_names else "beta/slip"
+            warnings.append(f"class {name!r}: the {what} optimiser did not report convergence")
         ent_a, ext_a = np.asarray(ent), np.asarray(ext)
         vals = {
             "dt": dt_c, "speed_mu": mu, "speed_sigma": sigma,
@@ -572,5 +717,9 @@ def fit_behaviour(
         goal_reward=float(goal_reward),
         step_cost=float(step_cost),
         warnings=warnings,
+        feature_names=feature_names,
+        features=None if phi is None else phi,
+        weights=np.asarray(weights, float).reshape(len(classes), len(feature_names)),
+        weights_se=np.asarray(weights_se, float).reshape(len(classes), len(feature_names)),
         **arrays,
     )

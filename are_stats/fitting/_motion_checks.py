@@ -251,7 +251,8 @@ def _policies(fit: BehaviourFit, c: int, goals: np.ndarray, tol: float = 1e-3) -
     k = int(math.ceil(10 * (finite.max() if finite.size else 1.0))) + 20
     sol = soft_policy(
         ~fit.free, goals, float(fit.beta[c]), float(fit.slip[c]), n_epochs=k,
-        goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost, tol=tol,
+        goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost,
+        cell_reward=fit.cell_reward(c), tol=tol,
     )  # fmt: skip
     return np.asarray(sol.policy)
 

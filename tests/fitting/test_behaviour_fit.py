@@ -18,15 +18,19 @@ from are_stats.behaviour import (
     sample_soft_paths,
     simulate_behaviour_tracks,
     soft_policy,
+    wall_distance_feature,
 )
-from are_stats.fitting import discretise_tracks, fit_behaviour
+from are_stats.fitting import behaviour_log_likelihood, discretise_tracks, fit_behaviour
 from tests.helpers import assert_allclose, crossing_world
 
 K_SIGMA = 4.0
 
 
-def _model_tracks(seed: int, beta: float, slip: float, dt: float, n: int = 130):
-    """Tracks of the soft policy itself on a 30 x 30 grid with 6 exits (cell 1 m)."""
+def _model_tracks(
+    seed: int, beta: float, slip: float, dt: float, n: int = 130, wall_weight: float = 0.0
+):
+    """Tracks of the soft policy itself on a 30 x 30 grid with 6 exits (cell 1 m), with a
+    cell reward ``wall_weight`` times the closeness to walls (the fit's ``"walls"``)."""
     rng = np.random.default_rng(seed)
     occ = np.zeros((30, 30), bool)
     occ[10, 5:20] = True
@@ -37,7 +41,10 @@ def _model_tracks(seed: int, beta: float, slip: float, dt: float, n: int = 130):
     gi = rng.integers(0, len(exits), n)
     far = grid_geodesic(~occ, exits)[gi, starts[:, 0], starts[:, 1]] >= 6
     starts, gi = starts[far], gi[far]
-    sol = soft_policy(occ, exits, beta, slip, n_epochs=2000, time_cost=1.0, tol=1e-7)
+    sol = soft_policy(
+        occ, exits, beta, slip, n_epochs=2000, time_cost=1.0, tol=1e-7,
+        cell_reward=wall_weight * wall_distance_feature(occ, 1.0),
+    )  # fmt: skip
     heads = rng.integers(0, 4, len(starts))
     st, _ = sample_soft_paths(
         rng, np.asarray(sol.policy), occ, slip, np.column_stack([starts, heads]), gi, exits,
@@ -327,3 +334,181 @@ def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
     assert np.isfinite(float(v1)) and np.abs(np.asarray(g1)).min() > 1e-3
     assert_allclose(v2, v1, rtol=1e-12)
     assert_allclose(g2, g1, rtol=1e-10)
+
+
+# ---------------------------------------------------------------------- reward features
+@pytest.mark.parametrize("wall_weight", [0.5, -0.5])
+def test_recovers_a_wall_weight_of_either_sign_from_model_tracks(wall_weight: float) -> None:
+    """+0.5: walkers hug walls, -0.5: they avoid them (reward per epoch, time cost 1). Each of
+    the k-sigma checks fails with probability about 6e-5 at a random seed; at these fixed
+    seeds |w - w_true| / se was 1.3 (+0.5) and 0.4 (-0.5) when written."""
+    beta, slip, dt = 2.0, 0.1, 0.8
+    tracks, free = _model_tracks(1, beta, slip, dt, wall_weight=wall_weight)
+    fit = fit_behaviour(
+        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=dt, max_fit_tracks=None, features=("walls",)
+    )
+    assert fit.feature_names == ("walls",) and fit.weights.shape == (1, 1)
+    assert_allclose(fit.features[0], wall_distance_feature(~free, 1.0))
+    w, se = fit.weights[0, 0], fit.weights_se[0, 0]
+    assert 0 < se < 0.1
+    assert abs(w - wall_weight) < K_SIGMA * se
+    assert abs(fit.beta[0] - beta) < K_SIGMA * fit.beta_se[0]
+    assert abs(fit.slip[0] - slip) < K_SIGMA * fit.slip_se[0]
+    assert not fit.warnings
+
+
+def _small_world():
+    free = np.ones((10, 12), bool)
+    free[4, 3:9] = False
+    paths = [  # cell paths (one move or none per epoch) to three goals
+        np.array([[0, 0], [0, 1], [0, 1], [0, 2], [1, 2], [1, 3], [1, 4], [0, 4], [0, 5]]),
+        np.array([[9, 11], [8, 11], [7, 11], [7, 10], [6, 10], [5, 10], [5, 9], [5, 8]]),
+        np.array([[9, 0], [8, 0], [8, 1], [7, 1], [6, 1], [5, 1], [5, 2], [5, 3], [5, 4]]),
+        np.array([[2, 8], [2, 7], [1, 7], [1, 6], [1, 5], [0, 5]]),
+    ]
+    rng = np.random.default_rng(3)
+    phi = np.stack([wall_distance_feature(~free, 1.0), rng.uniform(0, 1, free.shape)])
+    return free, paths, phi
+
+
+def test_log_likelihood_gradient_in_the_weights_matches_finite_differences() -> None:
+    free, paths, phi = _small_world()
+    w0 = np.array([-0.4, 0.3])
+
+    def ll(w):
+        return behaviour_log_likelihood(
+            paths, free, 1.5, 0.1, n_epochs=60, features=phi, weights=w
+        )[0]  # fmt: skip
+
+    grad = np.asarray(jax.jit(jax.grad(ll))(jax.numpy.asarray(w0)))
+    llj, h = jax.jit(ll), 1e-5
+    fd = [(float(llj(w0 + h * e)) - float(llj(w0 - h * e))) / (2 * h) for e in np.eye(2)]
+    assert np.abs(grad).min() > 1e-2  # the weights do move the likelihood
+    assert_allclose(grad, fd, rtol=1e-6, atol=1e-8)
+
+
+def test_zero_weights_give_exactly_the_likelihood_without_features() -> None:
+    from are_stats.fitting._behaviour import _likelihood
+
+    free, paths, phi = _small_world()
+    beta = np.float64(1.5)
+
+    @jax.jit
+    def plain(b):
+        return behaviour_log_likelihood(paths, free, b, 0.1, n_epochs=60)[0]
+
+    @jax.jit
+    def weighted(b, w):
+        return behaviour_log_likelihood(paths, free, b, 0.1, n_epochs=60, features=phi,
+                                        weights=w)[0]  # fmt: skip
+
+    np.testing.assert_array_equal(weighted(beta, np.zeros(2)), plain(beta))
+    assert float(weighted(beta, np.array([-0.5, 0.0]))) != float(plain(beta))
+    # the fit's own likelihood (early stop, goals split over the devices there are)
+    opts = dict(goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64, tol=1e-3)
+    f0 = jax.jit(_likelihood(paths, free, **opts)[0])
+    f2 = jax.jit(_likelihood(paths, free, features=phi, **opts)[0])
+    th = np.array([np.log(1.7), -2.0])
+    np.testing.assert_array_equal(f2(np.r_[th, 0.0, 0.0]), f0(th))
+    assert float(f2(np.r_[th, -0.5, 0.0])) != float(f0(th))
+
+
+def test_likelihood_with_features_split_across_devices_equals_one_device() -> None:
+    from are_stats.fitting._behaviour import _likelihood
+
+    if jax.local_device_count() < 2:
+        pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
+    free, paths, phi = _small_world()
+    th = np.array([np.log(1.7), -2.0, -0.4, 0.3])
+    out = []
+    for n_devices in (1, 2):
+        f, _, _ = _likelihood(
+            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
+            tol=1e-3, n_devices=n_devices, features=phi,
+        )  # fmt: skip
+        out.append(jax.jit(jax.jacfwd(lambda t, f=f: (f(t), f(t)), has_aux=True))(th))
+    (g1, v1), (g2, v2) = out
+    assert_allclose(v2, v1, rtol=1e-12)
+    assert_allclose(g2, g1, rtol=1e-10)
+
+
+def test_features_on_the_map_are_averaged_over_mdp_cells_and_bad_ones_named() -> None:
+    from are_stats.fitting._behaviour import _feature_maps
+
+    free_fine = np.ones((8, 12), bool)
+    free = free_fine.reshape(4, 2, 6, 2).all(axis=(1, 3))
+    ramp = np.tile(np.arange(12.0), (8, 1))
+    names, maps = _feature_maps({"east": ramp, "walls": "walls"}, free, free_fine, 2)
+    assert names == ("east", "walls")
+    assert_allclose(maps[0], np.tile(np.arange(0.5, 12, 2.0), (4, 1)))
+    assert_allclose(maps[1], wall_distance_feature(~free, 1.0))
+    assert _feature_maps(None, free, free_fine, 2) == ((), None)
+    with pytest.raises(ValueError, match=r"features\['doors'\]: expected one of \['walls'\]"):
+        _feature_maps(("doors",), free, free_fine, 2)
+    with pytest.raises(ValueError, match=r"features\['x'\]: expected an array on the MDP grid"):
+        _feature_maps({"x": np.ones((5, 5))}, free, free_fine, 2)
+
+
+def test_feature_weights_round_trip_and_old_files_load_without_them(tmp_path) -> None:
+    import dataclasses
+
+    import arviz as az
+
+    from are_stats.fitting import attach_behaviour
+
+    free, paths, phi = _small_world()
+    tracks = pd.concat(
+        [pd.DataFrame({"id": i, "t": 0.8 * np.arange(len(p)), "x": p[:, 1] + 0.5,
+                       "y": p[:, 0] + 0.5}) for i, p in enumerate(paths)],
+        ignore_index=True,
+    )  # fmt: skip
+    fit = fit_behaviour(
+        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, features={"walls": "walls", "r": phi[1]}
+    )
+    assert fit.weights.shape == fit.weights_se.shape == (1, 2)
+    assert np.isfinite(fit.weights).all()
+    path = tmp_path / "b.nc"
+    attach_behaviour(az.InferenceData(), fit).to_netcdf(path)
+    back = BehaviourFit.from_dataset(az.from_netcdf(path).behaviour)
+    assert back.feature_names == ("walls", "r")
+    for name in ("weights", "weights_se", "features", "beta", "slip"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(fit, name))
+    w = fit.weights[0]
+    assert_allclose(back.cell_reward(0), w[0] * phi[0] + w[1] * np.where(free, phi[1], 0.0))
+    # a fit without features writes no feature variables, and such files load with F = 0
+    plain = dataclasses.replace(fit, feature_names=(), features=None, weights=None,
+                                weights_se=None)  # fmt: skip
+    ds = plain.to_dataset()
+    assert not {"feature_weight", "feature_weight_se", "feature_map"} & set(ds.variables)
+    old = BehaviourFit.from_dataset(ds)
+    assert old.feature_names == () and old.weights.shape == (1, 0)
+    assert old.features.shape == (0, *free.shape) and old.cell_reward(0) == 0.0
+
+
+def test_generated_walkers_keep_off_walls_with_a_negative_wall_weight(crossing) -> None:
+    """The same entries, stays and key with the crossing fit's wall weight set to -2 and to
+    0: walkers entering near the north and south walls move away from them sooner."""
+    import dataclasses
+
+    from scipy import ndimage
+
+    _, fit = crossing
+    phi = wall_distance_feature(~fit.free, 1.0)[None]
+    n = 24
+    rng = np.random.default_rng(4)
+    arts = pd.DataFrame({
+        "scenario": 0, "id": np.arange(n), "t_arrive": np.arange(n) * 40.0,
+        "t_leave": np.arange(n) * 40.0 + 30.0, "x": rng.uniform(4.0, 16.0, n),
+        "y": np.where(np.arange(n) % 2, 1.0, 11.0), "yaw": 0.0,
+    })  # fmt: skip
+    dist = ndimage.distance_transform_edt(np.pad(fit.free, 1))[1:-1, 1:-1] * fit.cell
+    mean_dist = {}
+    for w in (0.0, -2.0):
+        f = dataclasses.replace(
+            fit, feature_names=("walls",), features=phi, weights=np.full((1, 1), w),
+            weights_se=np.zeros((1, 1)),
+        )  # fmt: skip
+        out = simulate_behaviour_tracks(jax.random.key(2), f, arts, dt_out=0.4)
+        cells = f.world_to_cell(out[["x", "y"]].to_numpy())
+        mean_dist[w] = float(dist[cells[:, 0], cells[:, 1]].mean())
+    assert mean_dist[-2.0] > mean_dist[0.0] + 0.5, mean_dist
