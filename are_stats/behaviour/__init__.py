@@ -75,6 +75,7 @@ from are_stats.behaviour._model import BehaviourFit, grid_geodesic  # noqa: E402
 __all__ += ["BehaviourFit", "grid_geodesic"]
 
 from are_stats.behaviour._generate import (  # noqa: E402
+    continuous_path,
     path_points,
     sample_soft_paths,
     separate_paths,
@@ -83,6 +84,7 @@ from are_stats.behaviour._generate import (  # noqa: E402
 )
 
 __all__ += [
+    "continuous_path",
     "path_points",
     "sample_soft_paths",
     "separate_paths",

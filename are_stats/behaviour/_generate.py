@@ -45,6 +45,7 @@ from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, ST
 from are_stats.behaviour._soft import soft_policy
 
 __all__ = [
+    "continuous_path",
     "path_points",
     "sample_soft_paths",
     "separate_paths",
@@ -151,7 +152,7 @@ def smooth_path(points: np.ndarray, window: int = 5) -> np.ndarray:
     return (c[i + k + 1] - c[i - k]) / (2 * k + 1)[:, None]
 
 
-def _continuous(
+def continuous_path(
     states: np.ndarray,
     actions: np.ndarray,
     fit: BehaviourFit,
@@ -160,7 +161,36 @@ def _continuous(
     end_xy: np.ndarray | None,
     smooth: int,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Vertex times ``(m,)`` and positions ``(m, 2)`` of one artefact's continuous path."""
+    """One artefact's continuous path from its sampled MDP states and actions.
+
+    Each move goes to the centre of the next cell, a pause (stay, or a blocked move) holds
+    for one epoch; the distinct vertices are smoothed (:func:`smooth_path`) and re-timed so
+    that the artefact moves at ``speed`` (m/s).
+
+    Parameters
+    ----------
+    states : (T + 1, 3) int
+        Sampled states ``(row, col, heading)`` (:func:`sample_soft_paths`).
+    actions : (T,) int
+        The actions taken (``-1`` after the path ends).
+    fit : BehaviourFit
+        Grid (cell size and origin) of the states.
+    speed : float
+        Walking speed (m/s).
+    start_xy : (2,) float
+        World position of the first vertex.
+    end_xy : (2,) float or None
+        World position of the last vertex (default: its cell's centre).
+    smooth : int
+        Smoothing window in vertices.
+
+    Returns
+    -------
+    t : (m,) float
+        Vertex times (s) from 0.
+    xy : (m, 2) float
+        Vertex positions (m).
+    """
     step = fit.cell / speed
     pts = [np.asarray(start_xy, float)]
     times = [0.0]
@@ -327,7 +357,7 @@ def simulate_behaviour_tracks(
         if paths[i] is None:
             curves.append((np.zeros(1), xy0[i][None, :].copy()))
             continue
-        tv, pv = _continuous(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
+        tv, pv = continuous_path(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
         # people leave when they reach their exit: the path is walked at the speed that
         # ends it at t_leave, within the class's slow and fast walkers (2 sd around the
         # median speed); beyond them the artefact arrives early and stands there, or is

@@ -499,8 +499,7 @@ def _model_predictions(
     chunk: int = 16,
 ) -> np.ndarray:
     """``(B, K, n_pred, 2)`` continuations sampled from the soft policy."""
-    from are_stats.behaviour import sample_soft_paths
-    from are_stats.behaviour._generate import _continuous
+    from are_stats.behaviour import continuous_path, sample_soft_paths
 
     b, n_obs, _ = observed.shape
     names = {c: i for i, c in enumerate(fit.classes)}
@@ -544,7 +543,7 @@ def _model_predictions(
             )
             for j, m in enumerate(members):
                 i = rep[m]
-                tv, pv = _continuous(st[j], ac[j], fit, float(speed[i]), last[i], None, smooth)
+                tv, pv = continuous_path(st[j], ac[j], fit, float(speed[i]), last[i], None, smooth)
                 out[i, m - i * n_samples, :, 0] = np.interp(ts, tv, pv[:, 0])
                 out[i, m - i * n_samples, :, 1] = np.interp(ts, tv, pv[:, 1])
     return out
