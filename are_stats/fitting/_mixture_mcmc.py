@@ -32,7 +32,7 @@ from numpyro.distributions.transforms import biject_to
 from are_stats._checks import check_in, check_positive
 from are_stats.fitting._em import _check_positive_int, fit_mixture_em, marks_histogram
 from are_stats.fitting._nuts import run_nuts
-from are_stats.traffic._mixture import PoissonMixture
+from are_stats.traffic import PoissonMixture
 
 __all__ = ["fit_mixture_nuts", "mixture_model"]
 

@@ -34,24 +34,24 @@ import pandas as pd
 
 from are_stats._checks import check_in
 from are_stats.fitting._nuts import NutsRun, nuts_warnings, run_nuts
-from are_stats.traffic import DAY, LifecycleData, clock_offset
-from are_stats.traffic._models import (
+from are_stats.traffic import (
     ARRIVAL_SPECS,
+    DAY,
+    STAY_LAWS,
     ArrivalSpec,
+    LifecycleData,
+    PositionDensity,
     arrival_model,
     arrival_unit_loglik,
     arrival_units,
+    clock_offset,
+    coarse_free_mask,
+    fit_position_density,
     stay_model,
     stay_unit_loglik,
     stay_units,
-)
-from are_stats.traffic._positions import (
-    PositionDensity,
-    coarse_free_mask,
-    fit_position_density,
     uniform_position_density,
 )
-from are_stats.traffic._stays import STAY_LAWS
 
 __all__ = [
     "ARRIVAL_CHOICES",
