@@ -619,7 +619,9 @@ def _done(m: _Mission, s: _State) -> bool:
 
 def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     """One transition: plan if needed, then drive to the next event (goal reached, scene
-    event, perception tick or time limit) and apply it."""
+    event, perception tick or time limit) and apply it. With ``avoid_robot``, a plan is
+    followed by the moving artefacts' decisions against it; when one detours or yields,
+    the transition ends there (a scene update at the plan's time)."""
     replan = plan = None
     if s.need_plan:
         s, replan, plan = _plan(m, s)
