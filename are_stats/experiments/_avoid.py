@@ -8,10 +8,10 @@ robot's position and the map; it returns the artefact's new behaviour track, whi
 experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
 
 * **conflict**: the box, sampled along the artefact's motion from ``t`` to its next check
-  ``t_check`` (at most ``ds`` apart), comes closer to the robot's centre at that instant
-  than ``clearance`` *and* closer than it would be had it stood still (an artefact near
-  the robot may move away from it, or stand; a robot driving at a standing artefact is the
-  robot's doing);
+  ``t_check`` (at most ``ds`` apart relative to the robot), comes closer to the robot's
+  centre at that instant than ``clearance`` *and* closer than it would be had it stood
+  still (an artefact near the robot may move away from it, or stand; a robot driving at a
+  standing artefact is the robot's doing);
 * **detour**: a shortest 8-connected path on the map's free cells from the artefact's
   position to one of its own next ``lookahead`` track epochs past the conflict, with the
   cells blocked where its inscribed disc would meet a wall, where its circumscribed disc
@@ -28,9 +28,13 @@ experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
   the rest of its track is delayed by the wait.
 
 Either way the artefact's life-cycle is unchanged: a delayed artefact still leaves at its
-leaving time, possibly before the end of its track. The decision trusts the robot's plan at
-``t``: a replan before ``t_check`` can still bring the two together, and a waiting artefact
-is not an obstacle to the other artefacts' (precomputed) tracks.
+leaving time, possibly before the end of its track. ``t`` need not be one of the artefact's
+epochs: the decision starts from its pose at ``t`` (its track gains an epoch there), so the
+loop can ask again between its epochs. The decision trusts the robot's plan at ``t``; the
+loop asks every moving artefact again whenever the robot replans (its plan, or its
+standing when a plan fails), so the decisions hold for the motion the robot drives, up to
+the sampling (``ds``). A waiting artefact is not an obstacle to the other artefacts'
+(precomputed) tracks.
 """
 
 from __future__ import annotations
@@ -75,12 +79,14 @@ def _centres(scene: Scene, i: Any, pose: np.ndarray) -> np.ndarray:
     )
 
 
-def _sample(scene: Scene, i: int, t0: float, t1: float, ds: float) -> tuple[np.ndarray, ...]:
+def _sample(
+    scene: Scene, i: int, t0: float, t1: float, ds: float, v_robot: float = 0.0
+) -> tuple[np.ndarray, ...]:
     """Times (k,), poses (k, 3) and box centres (k, 2) of artefact ``i`` over ``[t0, t1]``,
-    at most ``ds`` metres apart."""
+    at most ``ds`` metres apart, relative to a robot driving at up to ``v_robot`` (m/s)."""
     tt, pp = scene.track(i)
     v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
-    v_max = float(v.max()) if v.size else 0.0
+    v_max = (float(v.max()) if v.size else 0.0) + float(v_robot)
     k = int(np.ceil((t1 - t0) * v_max / ds)) + 2
     times = np.linspace(t0, t1, k)
     # as Scene.poses (t0 is at or after its first epoch): linear between epochs, the
@@ -140,8 +146,10 @@ def plan_avoidance(
     i : int
         The artefact (index in the scene), alive at ``t`` and on a track.
     t, t_check : float
-        Now (a move epoch of ``i``) and when the loop checks ``i`` next (its next move
-        epoch), ``t_check > t``.
+        Now and when the loop checks ``i`` next (its next move epoch), ``t_check > t``.
+        ``t`` is one of its move epochs or, when the robot has just replanned, any instant
+        between two: the artefact goes on from its pose at ``t`` (a new epoch of its
+        track) and its epochs before ``t`` are kept.
     robot_xy : (2,) float
         The robot's centre now.
     robot_track : ((r,) float, (r, 2) float), optional
@@ -180,7 +188,7 @@ def plan_avoidance(
     reach += _speed(rt, rxy) * (t_check - t)  # the robot comes at most this close
     if np.linalg.norm(scene.poses(t, [i])[0, :2] - q) - r_art - reach > clearance:
         return None
-    times, pose, centres = _sample(scene, i, t, t_check, ds)
+    times, pose, centres = _sample(scene, i, t, t_check, ds, _speed(rt, rxy))
     bad = _closing(times, centres, pose[:, 2], half, rt, rxy, clearance)
     if not bad.any():
         return None
@@ -290,8 +298,9 @@ def _detour(
         path = astar_cells(ok, start, goal)
         if path is None:
             continue
-        pts = grid.cell_to_world(path + lo)
-        pts[0], pts[-1] = p_t, pp[k, :2]
+        # from where it is to the epoch's pose through the path's inner cells (between
+        # epochs, it may stand in the cell of the epoch it rejoins at: a one-cell path)
+        pts = np.vstack([p_t, grid.cell_to_world(path[1:-1] + lo), pp[k, :2]])
         pts = _string_pull(pts, ok, grid, lo)
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         length = float(seg.sum())
@@ -310,19 +319,23 @@ def _detour(
         way = np.array(way)
         arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
         heading = np.arctan2(*(np.diff(way, axis=0)[:, ::-1].T))
-        w_t = t + dur * arc[1:] / max(length, 1e-12)
+        frac = arc[1:] / length if length > 1e-12 else np.arange(1, arc.size) / (arc.size - 1)
+        w_t = t + dur * frac
         w_p = np.column_stack([way[1:], heading])
         w_p[-1, 2] = pp[k, 2]
         delay = float(t + dur - tt[k])
         new_t = np.concatenate([head_t, w_t, tt[k + 1 :] + delay])
         new_p = np.vstack([head_p, w_p, pp[k + 1 :]])
         trial = scene.with_track(i, new_t, new_p)
+        # against the robot: samples at most ds apart relative to it (vectorised); against
+        # the walls and the others: at most ds apart along the detour
+        near = _sample(trial, i, t, t + dur, ds, _speed(rt, rxy))
+        if _closing(near[0], near[2], near[1][:, 2], half[:2], rt, rxy, clearance).any():
+            continue
         times, pose, centres = _sample(trial, i, t, t + dur, ds)
-        if (
-            _closing(times, centres, pose[:, 2], half[:2], rt, rxy, clearance).any()
-            or not _clear_of_walls(grid, centres, half[:2] + ds, pose[:, 2])
-            or not _clear_of_others(trial, i, times, pose, centres)
-        ):
+        if not _clear_of_walls(grid, centres, half[:2] + ds, pose[:, 2]):
+            continue
+        if not _clear_of_others(trial, i, times, pose, centres):
             continue
         return Avoidance("detour", new_t, new_p, delay)
     return None

@@ -29,7 +29,11 @@ apply it), both pure functions of the mission's fixed settings (``_Mission``) an
   the robot is then, along its current plan) detours or waits
   (:mod:`are_stats.experiments._avoid`, timeline ``"move+detour"`` / ``"move+yield"``);
   its new track goes into the state's scene (``_State.scene``, built by
-  :meth:`~are_stats.Scene.with_track`) and the coming events are rebuilt from it.
+  :meth:`~are_stats.Scene.with_track`) and the coming events are rebuilt from it. The robot
+  replans after some of those decisions: after every plan (or failed plan: it then
+  stands) every live moving artefact whose motion until its next check meets the new one
+  decides again from where it is (timeline ``"replan+detour"`` / ``"replan+yield"``, a
+  scene update of its own at the replan's time).
 
 The replanning time ``rho_t`` is measured on the wall clock (DECISIONS 10) and recorded, but
 it does not advance simulated time, so everything except ``rho_t`` and ``rho`` is
@@ -533,10 +537,15 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
 
 
 def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]]:
-    """Artefacts ``moved`` (indices) whose next motion meets the robot's footprint detour
-    around it or wait (:func:`~are_stats.experiments._avoid.plan_avoidance`); their new
-    tracks go into the state's scene and the rest of the event table is rebuilt from it."""
+    """Artefacts ``moved`` (indices: those moving at this update, or every moving one after
+    a replan) whose motion until their next check meets the robot's footprint, along its
+    current plan, detour around it or wait
+    (:func:`~are_stats.experiments._avoid.plan_avoidance`, the distance filter first);
+    their new tracks go into the state's scene and the rest of the event table is rebuilt
+    from it."""
     scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
+    if not moved.size:
+        return s, kinds
     t_check = scene.next_epoch(s.t, moved)
     if m.move_period is not None:
         # its next move is registered on the clock's tick; a wait ends just before it, so
@@ -610,10 +619,21 @@ def _done(m: _Mission, s: _State) -> bool:
 
 def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     """One transition: plan if needed, then drive to the next event (goal reached, scene
-    event, perception tick or time limit) and apply it."""
+    event, perception tick or time limit) and apply it. With ``avoid_robot``, a plan is
+    followed by the moving artefacts' decisions against it; when one detours or yields,
+    the transition ends there (a scene update at the plan's time)."""
     replan = plan = None
     if s.need_plan:
         s, replan, plan = _plan(m, s)
+        if m.avoid:
+            # the moving artefacts decided against the robot's old plan (or its standing):
+            # those whose motion until their next check meets the new one decide again
+            s, avoided = _avoid(m, s, np.flatnonzero(s.live & s.scene.has_tracks))
+            if avoided:  # a scene update of its own, at the replan's time
+                s = s._replace(n_updates=s.n_updates + 1)
+                update = _timeline_row(m, s, "+".join(["replan", *avoided]))
+                scene = _scene_record(m, s) if m.record else None
+                return s, _Info(replan=replan, update=update, plan=plan, scene=scene)
     t_event = s.event_t[s.event] if s.event < s.event_t.size else np.inf
     t_next = min(t_event, s.next_percept, m.T)
     poses: list = []
@@ -785,9 +805,12 @@ def run_mission(
         closer than it is) detours on the map's free cells, clear of walls and of the
         other artefacts, rejoining its track a few epochs on, or, with no such detour,
         stops short on its track and waits an epoch; the rest of its track runs late by
-        the extra time (:mod:`are_stats.experiments._avoid`). Each avoidance is a timeline
-        ``kind`` (``"move+detour"``, ``"move+yield"``) and counted in the summary. With
-        ``False`` the artefacts ignore the robot.
+        the extra time (:mod:`are_stats.experiments._avoid`). When the robot replans, every
+        moving artefact whose motion until its next epoch meets the new plan decides again
+        the same way, from where it is. Each avoidance is a timeline ``kind``
+        (``"move+detour"``, ``"move+yield"``; ``"replan+detour"``, ``"replan+yield"`` after
+        a replan) and counted in the summary. With ``False`` the artefacts ignore the
+        robot.
     avoid_margin : float
         Safety margin (m) added to the robot's radius for ``avoid_robot``.
     seed : int

@@ -19,9 +19,12 @@
    (2026-11-24): 3600 s simulated in 79 s of loop, **45.7x real time** (40x with the 10.5 s
    of rollouts): perception 30 s, rest 14 s, avoidance 13 s, planning grids 12 s, planning
    6.6 s, builder 2.6 s; 636 artefacts, 2200 replans, 1799 move updates, 21 detours and
-   137 waits, 2 artefact contacts, no collision. Under load from three other jobs (load
-   about 5.7) the same mission ran at 13x; before the batched camera ticks it ran at 10x
-   under load, perception alone 220 s. ``--quick`` runs 5 minutes.
+   137 waits, 2 artefact contacts, no collision. With the artefacts deciding again at every
+   replan (2026-11-25, one run each, under load from other jobs): 111 s of loop against
+   115 s before, 31 detours and 24 waits, 1 artefact contact (a standing box the robot
+   brushed sideways, which the contact test blames on the box). Under load from three
+   other jobs (load about 5.7) the same mission ran at 13x; before the batched camera ticks
+   it ran at 10x under load, perception alone 220 s. ``--quick`` runs 5 minutes.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move

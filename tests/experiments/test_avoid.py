@@ -286,3 +286,154 @@ def test_motion_samples_equal_the_scene_poses():
     turn = np.mod(pose[:, 2] - ref[:, 2] + np.pi, 2 * np.pi) - np.pi
     np.testing.assert_allclose(turn, 0.0, atol=1e-12)
     assert np.linalg.norm(np.diff(pose[:, :2], axis=0), axis=1).max() <= 0.2 + 1e-12
+
+
+#: the robot's goals in the replan mission: two it can reach, then one it cannot
+REPLAN_GOALS = np.array([[11.5, 10.0], [10.0, 10.0], [18.0, 18.0]])
+
+
+def _two_goals_then_none(free, start, goal, params):
+    """A planner that drives straight at its first two goals and finds no way to the last:
+    the robot waits at the second, on the walker's line."""
+    if np.allclose(goal, REPLAN_GOALS[2] - OPEN.origin[:2], atol=0.3):
+        return None
+    return np.vstack([start, goal])
+
+
+def test_walker_decides_again_when_the_robot_replans_into_its_way():
+    """A walker checks the robot every 4 s (north at 1 m/s along x = 10). At t = 4 the
+    robot's plan keeps it at (11.5, 10), clear of the walker's line; at t = 4.5 it reaches
+    that goal and replans to (10, 10), where it waits from t = 6: the walker, deciding only
+    at t = 8, would walk into it (at t = 7.4); it must decide again at the replan."""
+    t = np.arange(0.0, 17.0, 4.0)
+    tracks = pd.DataFrame({"id": 0, "t": t, "x": 10.0, "y": 2.0 + t, "yaw": np.pi / 2})
+    art = pd.DataFrame([[0.0, 60.0, 10.0, 2.0, np.pi / 2, 0]], columns=COLS)
+    robot = Robot(radius=0.3, speed=1.0)
+    kw = dict(robot=robot, start=[16.0, 10.0, np.pi], catalogue=CATALOGUE, tracks=tracks,
+              time_limit=20.0, record=True)  # fmt: skip
+    off = run_mission(OPEN, art, REPLAN_GOALS, _two_goals_then_none, avoid_robot=False, **kw)
+    assert off.summary["artefact_contacts"] == 1
+    on = run_mission(OPEN, art, REPLAN_GOALS, _two_goals_then_none, **kw)
+    s = on.summary
+    assert s["goals_reached"] == 2 and s["artefact_contacts"] == 0 and s["collisions"] == 0
+    # at t = 4 the walker had nothing to avoid; the replan at 4.5 made it detour
+    kinds = on.timeline.set_index("t")["kind"]
+    assert kinds[4.0] == "move" and kinds[4.5] == "replan+detour"
+    assert s["n_detours"] == 1 and s["n_yields"] == 0 and s["avoid_delay"] > 0
+    assert s["n_updates"] == len(on.timeline) - 1
+    # independent truth at every update: the box (sampled by hand) against the robot
+    for sc in on.trace.scenes:
+        pts = _box_points(sc["centres"][0, :2], sc["yaws"][0])
+        assert np.linalg.norm(pts - _robot_xy(on.trace, sc["t"]), axis=1).min() > robot.radius
+    # it went round the robot's west or east side and reached its track's end late
+    assert max(abs(sc["centres"][0, 0] - 10.0) for sc in on.trace.scenes) > 0.5
+    assert _first_time_at(on.trace, 0, [10.0, 18.0]) == pytest.approx(16.0 + s["avoid_delay"])
+    # deterministic: the same mission gives the same result
+    again = run_mission(OPEN, art, REPLAN_GOALS, _two_goals_then_none, **kw)
+    wall = {"rho_mean", "rho_t_mean"}  # measured on the wall clock
+    assert {k: v for k, v in again.summary.items() if k not in wall} == {
+        k: v for k, v in s.items() if k not in wall
+    }
+    pd.testing.assert_frame_equal(again.timeline, on.timeline)
+    np.testing.assert_array_equal(again.trace.poses, on.trace.poses)
+
+
+def _same_motion_until(old, new, t_end):
+    """The two scenes put artefact 0 at the same pose at every instant up to ``t_end``."""
+    for u in np.linspace(0.0, t_end, 97):
+        np.testing.assert_allclose(new.poses(u, [0]), old.poses(u, [0]), atol=1e-9)
+
+
+def test_plan_avoidance_between_epochs_yields_in_closed_form():
+    """Now is between the walker's epochs 8 and 9 (a replan): at t = 8.3 it is at y = 10.3;
+    the robot at (10, 11.55), clearance 0.5, in a corridor. Motion samples 0.1 m apart
+    (ds = 0.125 m, 0.7 m to go): the first whose box edge comes within 0.5 m is y = 10.8,
+    so it stops at y = 10.7 (t = 8.7) and waits until its next epoch, t = 9."""
+    art, tracks = _north()
+    scene = _scene(tracks, art)
+    data = np.full((100, 100), 100)
+    data[:, 47:53] = 0
+    grid = OccupancyGrid(data, 0.2)
+    wall = grid.distance_to_occupied()
+    got = plan_avoidance(scene, 0, 8.3, 9.0, [10.0, 11.55], 0.5, grid, wall)
+    assert got is not None and got.kind == "yield"
+    assert got.delay == pytest.approx(0.3)
+    # epochs 0..8 untouched, then now, the stop, the end of the wait, the rest 0.3 s late
+    np.testing.assert_allclose(
+        got.t, np.r_[np.arange(0.0, 9.0), 8.3, 8.7, 9.0, np.arange(9.0, 17.0) + 0.3]
+    )
+    y = np.r_[2.0 + np.arange(0.0, 9.0), 10.3, 10.7, 10.7, 2.0 + np.arange(9.0, 17.0)]
+    np.testing.assert_allclose(got.pose[:, 1], y)
+    np.testing.assert_allclose(got.pose[:, 0], 10.0)
+    # it goes on from where it is now: the same motion up to t = 8.3
+    new = scene.with_track(0, got.t, got.pose)
+    _same_motion_until(scene, new, 8.3)
+    # until the loop checks it again (t = 9) its box's edge keeps 0.5 m from the robot
+    for u in np.linspace(8.3, 9.0, 41):
+        assert new.poses(u, [0])[0, 1] + HALF <= 11.55 - 0.5 + 1e-9
+
+
+def test_plan_avoidance_between_epochs_detours_from_where_it_is():
+    """The robot stands at (10, 10.5) on the open map; decided at t = 7.5 (between epochs 7
+    and 8, the walker at y = 9.5, its box 0.7 m from the robot): the detour starts at the
+    walker's pose now, keeps its box clear of the robot's disc plus margin (sampled by
+    hand) and rejoins the track late."""
+    art, tracks = _north()
+    scene = _scene(tracks, art)
+    robot = np.array([10.0, 10.5])
+    got = plan_avoidance(scene, 0, 7.5, 8.0, robot, 0.5, OPEN, OPEN.distance_to_occupied())
+    assert got is not None and got.kind == "detour" and got.delay > 0
+    new = scene.with_track(0, got.t, got.pose)
+    _same_motion_until(scene, new, 7.5)
+    assert np.sum(got.t < 7.5 - 1e-9) == 8  # epochs 0..7 kept, then now
+    np.testing.assert_allclose(got.t[8], 7.5)
+    np.testing.assert_allclose(got.pose[8, :2], [10.0, 9.5])
+    # the box, sampled by hand, along the new track until it is back on its line past y = 12
+    back = (np.abs(got.pose[:, 0] - 10.0) < 1e-9) & (got.pose[:, 1] > 11.0)
+    t_back = got.t[np.flatnonzero(back)[0]]
+    for u in np.linspace(7.5, t_back, 200):
+        p = new.poses(u, [0])[0]
+        pts = _box_points(p[:2], p[2])
+        assert np.linalg.norm(pts - robot, axis=1).min() >= 0.5 - 0.02
+    # the rest of its track: the original epochs, late by the delay
+    tail = got.t > t_back - 1e-9
+    k = int(np.sum(tail))
+    np.testing.assert_allclose(got.t[tail], np.arange(17.0 - k, 17.0) + got.delay)
+
+
+def test_plan_avoidance_between_epochs_in_the_cell_of_its_next_epoch(monkeypatch):
+    """At t = 6.92 the walker (y = 2.1 + t) is 0.08 m short of its epoch at t = 7, in the
+    same grid cell; the robot passes just ahead of it at 3 m/s along y = 9.8. A detour to
+    that epoch is a one-cell search path (it used to fail on it); the answer starts where
+    the walker is and keeps its box clear of the passing robot (sampled by hand) until the
+    walker's next check."""
+    import are_stats.experiments._avoid as avoid
+
+    lengths = []
+
+    def spy(ok, start, goal):
+        path = astar(ok, start, goal)
+        lengths.append(None if path is None else len(path))
+        return path
+
+    astar = avoid.astar_cells
+    monkeypatch.setattr(avoid, "astar_cells", spy)
+    t = np.arange(0.0, 17.0)
+    tracks = pd.DataFrame({"id": 0, "t": t, "x": 10.0, "y": 2.1 + t, "yaw": np.pi / 2})
+    scene = _scene(tracks, pd.DataFrame([[0.0, 60.0, 10.0, 2.1, np.pi / 2, 0]], columns=COLS))
+    now = 6.92
+    assert (OPEN.world_to_cell([10.0, 2.1 + now]) == OPEN.world_to_cell([10.0, 9.1])).all()
+    rt, rxy = np.array([now, now + 2.0]), np.array([[10.6, 9.8], [4.6, 9.8]])
+    got = plan_avoidance(scene, 0, now, 7.0, rxy[0], 0.5, OPEN, OPEN.distance_to_occupied(),
+                         robot_track=(rt, rxy))  # fmt: skip
+    assert 1 in lengths  # the one-cell path was searched
+    assert got is not None and got.delay > 0
+    new = scene.with_track(0, got.t, got.pose)
+    _same_motion_until(scene, new, now)
+    t_end = 7.0 if got.kind == "yield" else now + (got.t > now).sum()
+    # the decision tests samples ds = 0.125 m apart relative to the robot: between two, the
+    # box may come up to ds / 2 closer than the clearance
+    for u in np.linspace(now, min(t_end, now + 2.0), 401):
+        p = new.poses(u, [0])[0]
+        robot = rxy[0] + (rxy[1] - rxy[0]) * (u - now) / 2.0
+        assert np.linalg.norm(_box_points(p[:2], p[2]) - robot, axis=1).min() >= 0.5 - 0.0625
