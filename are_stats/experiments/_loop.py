@@ -439,7 +439,8 @@ def _contacts(
                 d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
                 robot_gain = -(d @ (q - q_prev))
                 artefact_gain = np.einsum("ij,ij->i", d, xy[fresh] - xy_prev[fresh])
-                walked_in = int((artefact_gain > robot_gain).sum())
+                # a box that did not come closer (one standing) never walked in
+                walked_in = int(((artefact_gain > robot_gain) & (artefact_gain > 0)).sum())
                 by_artefact += walked_in
                 by_robot += int(fresh.sum()) - walked_in
         in_contact = now

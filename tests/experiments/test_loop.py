@@ -251,6 +251,12 @@ def test_contacts_are_blamed_on_whoever_closed_the_gap():
     art = _art([[0.0, 60.0, 8.0, 9.5, np.pi / 2, 0]])
     res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=across, **kw)
     assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
+    # the robot brushes a standing box (x 7..9, y 10..12) while its centre already moves away
+    # from the box's centre: still the robot's doing (it was counted as the box's)
+    art = _art([[0.0, 60.0, 8.0, 11.0, 0.0, 0]])
+    kw["robot"], kw["start"] = ROBOT, [4.0, 9.5, 0.0]
+    res = run_mission(GRID, art, [[18.0, 9.5 + 14.0 / 24.0]], _blind, **kw)
+    assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
 
 
 def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
