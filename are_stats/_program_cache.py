@@ -259,19 +259,31 @@ def compile_program(
         )
     path = folder / _file_name(key_text, args, compiler_options)
     exported = _read(path, leaves)
-    if exported is None:
-        flat = jax.jit(lambda *xs: fn(*jax.tree.unflatten(tree, xs)), in_shardings=shardings)
-        exported = jax.export.export(flat)(*leaves)
+    if exported is not None:
         try:
-            blob = exported.serialize()
-        except Exception:  # noqa: BLE001 - e.g. an unregistered output node: not kept
-            blob = None
-        if blob is not None:
-            _write(path, bytes(blob))
-    program = jax.jit(exported.call, in_shardings=shardings).lower(*leaves)
-    compiled = program.compile(compiler_options)
+            return _compile_exported(exported, leaves, shardings, compiler_options)
+        except Exception:  # noqa: BLE001 - a file that reads but does not fit: trace again
+            pass
+    flat = jax.jit(lambda *xs: fn(*jax.tree.unflatten(tree, xs)), in_shardings=shardings)
+    exported = jax.export.export(flat)(*leaves)
+    try:
+        blob = exported.serialize()
+    except Exception:  # noqa: BLE001 - e.g. an unregistered output node: not kept
+        blob = None
+    if blob is not None:
+        _write(path, bytes(blob))
+    return _compile_exported(exported, leaves, shardings, compiler_options)
 
-    def call(*xs: Any) -> Any:
-        return compiled(*jax.tree.leaves(xs))
+
+def _compile_exported(
+    exported: Any, leaves: list, shardings: tuple | None, options: dict | None
+) -> Callable[..., Any]:
+    """Compile ``exported`` (the same program whether just traced or read from disk)."""
+    import jax
+
+    compiled = jax.jit(exported.call, in_shardings=shardings).lower(*leaves).compile(options)
+
+    def call(*args: Any) -> Any:
+        return compiled(*jax.tree.leaves(args))
 
     return call

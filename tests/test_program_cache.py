@@ -140,6 +140,17 @@ def test_a_corrupt_file_is_traced_again_and_replaced(folder, content):
     assert _traces(args, ("test", 1)) == 0
 
 
+def test_a_file_for_other_shapes_is_not_used(folder):
+    """A stale file under the name (another program's arguments) is traced over."""
+    args5, args6 = _args(5), _args(6)
+    pc.compile_program(_Counter().fn, args6, ("test", 1))
+    (other,) = folder.glob("*" + pc.SUFFIX)
+    name = pc._file_name(pc.stable_repr(("test", 1)), args5, None)
+    (folder / name).write_bytes(other.read_bytes())
+    assert _traces(args5, ("test", 1)) == 1
+    assert _traces(args5, ("test", 1)) == 0
+
+
 def test_an_unwritable_folder_does_not_fail(tmp_path, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("a file where the folder should be")
@@ -160,14 +171,19 @@ def test_cache_off_or_unstable_key_keeps_nothing(folder, monkeypatch):
 
 
 def test_configure_jax_sets_the_folder_and_turns_it_off(tmp_path):
-    code = "import are_stats, os; print(os.environ['ARE_STATS_PROGRAM_CACHE'])"
+    code = (
+        "import are_stats, os, sys\n"
+        "if sys.argv[1:]: are_stats.configure_jax(cache=False)  # as are-stats --no-cache\n"
+        "print(os.environ['ARE_STATS_PROGRAM_CACHE'])"
+    )
     env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "ARE_STATS_"))}
     env["XDG_CACHE_HOME"] = str(tmp_path)
 
-    def run(extra: dict) -> str:
-        out = subprocess.run([sys.executable, "-c", code], env={**env, **extra},
+    def run(extra: dict, *argv: str) -> str:
+        out = subprocess.run([sys.executable, "-c", code, *argv], env={**env, **extra},
                              capture_output=True, text=True, check=True)  # fmt: skip
         return out.stdout.strip()
 
     assert run({}) == str(tmp_path / "are_stats" / "programs")
     assert run({"ARE_STATS_NO_CACHE": "1"}) == ""
+    assert run({}, "off") == ""
