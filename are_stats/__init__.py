@@ -27,6 +27,9 @@ def configure_jax(cache: bool | None = None) -> None:
     ``~/.cache/are_stats/jax``), small programs included, so a second process skips most
     compiling. ``ARE_STATS_NO_CACHE=1`` (or ``are-stats --no-cache``, or ``cache=False``)
     turns the cache off; a ``JAX_COMPILATION_CACHE_DIR`` set by the user is kept.
+    The traced programs that :mod:`are_stats._program_cache` keeps (so that a second
+    process does not trace them again) go to ``$XDG_CACHE_HOME/are_stats/programs``
+    (``ARE_STATS_PROGRAM_CACHE``), on and off with the rest.
 
     Called on import; JAX reads the settings when it is first imported (by whichever part
     of are_stats needs it), or they are applied at once when JAX is already loaded.
@@ -38,12 +41,13 @@ def configure_jax(cache: bool | None = None) -> None:
     ours = os.environ.get("ARE_STATS_JAX_CACHE", "") == os.environ.get(
         "JAX_COMPILATION_CACHE_DIR", ""
     )
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    os.environ["ARE_STATS_PROGRAM_CACHE"] = (
+        os.path.join(base, "are_stats", "programs") if cache else ""
+    )
     folder = ""
     if ours:
         if cache:
-            base = os.environ.get("XDG_CACHE_HOME") or os.path.join(
-                os.path.expanduser("~"), ".cache"
-            )
             folder = os.path.join(base, "are_stats", "jax")
         settings["jax_compilation_cache_dir"] = folder or None
         settings["jax_persistent_cache_min_compile_time_secs"] = 0.0 if cache else 1.0

@@ -97,7 +97,8 @@ def _limits(
     no_cache: bool = typer.Option(
         False,
         "--no-cache",
-        help="Keep no compiled JAX programs in $XDG_CACHE_HOME/are_stats (ARE_STATS_NO_CACHE=1).",
+        help="Keep no compiled or traced JAX programs in $XDG_CACHE_HOME/are_stats "
+        "(ARE_STATS_NO_CACHE=1).",
     ),
 ) -> None:
     """Limits that refuse runaway inputs before anything is allocated; the compile cache."""

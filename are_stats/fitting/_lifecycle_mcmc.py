@@ -168,7 +168,8 @@ def fit_lifecycle_nuts(
     a second small program computes the constrained draws and pointwise log-likelihood).
     The log's summary is padded to bucketed sizes and passed as an argument of both
     programs, so later fits of logs of similar size in the same process compile nothing,
-    and a new process finds them in JAX's persistent cache. Chains start at crude data
+    and a new process reads them from disk (traced programs kept by :mod:`jax.export`,
+    compiled ones in JAX's persistent cache). Chains start at crude data
     estimates moved by U(-0.5, 0.5) on the unconstrained (log) scale, independently per
     chain.
 
@@ -187,7 +188,7 @@ def fit_lifecycle_nuts(
     num_chains : int
         Number of chains (>= 1).
     chain_method : {"parallel", "vectorized", "sequential"} or None
-        ``"parallel"`` spreads the chains over the JAX devices (``jax.pmap``; several chains
+        ``"parallel"`` spreads the chains over the JAX devices (``jax.shard_map``; several chains
         per device are vectorised), ``"vectorized"`` runs them in lock-step on one device
         (``jax.vmap``), ``"sequential"`` one after another with one compilation. ``None``:
         see :func:`resolve_chain_method`.

@@ -17,8 +17,10 @@ JAX arrays, 0-d included, anywhere in ``model_kwargs``) are *arguments* of these
 programs, everything else (Python numbers, strings, specs, priors) is part of the
 program. Both are kept in an in-process cache keyed by the model, those static
 arguments, the settings and the array shapes: a second fit of the same model on data of
-the same (bucketed) shapes compiles nothing and traces nothing, and a fresh process finds
-the compiled programs in JAX's persistent cache (:func:`are_stats.configure_jax`).
+the same (bucketed) shapes compiles nothing and traces nothing. A fresh process neither
+traces them (the traced programs are kept on disk by :mod:`jax.export`, under the same
+key: :func:`are_stats._program_cache.compile_program`) nor compiles them (JAX's
+persistent cache, :func:`are_stats.configure_jax`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import numpyro
+from jax.sharding import NamedSharding, PartitionSpec
 from numpyro.diagnostics import split_gelman_rubin
 from numpyro.distributions import biject_to
 from numpyro.infer import init_to_uniform, init_to_value
@@ -40,6 +43,7 @@ from numpyro.infer.hmc import hmc
 from numpyro.infer.util import constrain_fn, potential_energy
 
 from are_stats._checks import check_in
+from are_stats._program_cache import compile_program
 from are_stats.traffic import aot_compile
 
 __all__ = ["NutsRun", "nuts_warnings", "resolve_chain_method", "run_nuts"]
@@ -145,11 +149,20 @@ def _cached(key: tuple | None, build: Callable[[], Any], timing: dict[str, float
     return program
 
 
-def _compile(fn: Any, args: tuple, cheap: bool) -> Any:
+def _compile(
+    fn: Any, args: tuple, cheap: bool, key: tuple | None, in_shardings: tuple | None = None
+) -> Any:
     """Compile ``fn`` for ``args``: cheap XLA optimisation (fast to compile, slower to run:
     for small models) or XLA's default (4-5x faster sampling of the traffic models for
-    about twice the compile time, which the persistent cache pays once)."""
-    return aot_compile(fn, *args) if cheap else fn.lower(*args).compile()
+    about twice the compile time, which the persistent cache pays once).
+
+    With a ``key`` (the in-process cache key: model, static arguments, settings, shapes)
+    the traced program is kept on disk and a later process reads it instead of tracing
+    the model again (:func:`are_stats._program_cache.compile_program`).
+    """
+    if cheap:
+        return aot_compile(fn, *args, key=key, in_shardings=in_shardings)
+    return compile_program(fn, args, key, None, in_shardings)
 
 
 def _shapes(tree: Any) -> tuple:
@@ -290,44 +303,49 @@ def _sample(
     """Run the chains by ``method`` with the cached program; arrays by chain first."""
     start_axis = None if start is None else 0
     if method == "vectorized":
+        key = None if key_base is None else ("vectorized", *key_base)
         program = _cached(
-            None if key_base is None else ("vectorized", *key_base),
+            key,
             lambda: _compile(
                 jax.jit(jax.vmap(one_chain, in_axes=(0, start_axis, None, None))),
-                (keys, start, init, arrays), cheap,
+                (keys, start, init, arrays), cheap, key,
             ),  # fmt: skip
             timing,
         )
         tic = time.perf_counter()
         out = jax.tree.map(np.asarray, program(keys, start, init, arrays))
     elif method == "parallel":
+        # the chains split over the devices by shard_map (several on one device are
+        # vectorised): a jitted program, which jax.export can keep on disk
         n_dev = min(jax.local_device_count(), num_chains)
         while num_chains % n_dev:
             n_dev -= 1
-        per = num_chains // n_dev
-
-        def split(x):
-            return x.reshape((n_dev, per) + x.shape[1:])
-
-        keys_d = split(keys)
-        start_d = None if start is None else jax.tree.map(split, start)
-        axes = (0, start_axis, None, None)
-        fn = jax.pmap(jax.vmap(one_chain, in_axes=axes), in_axes=axes)
+        mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), ("chains",))
+        by_chain, whole = PartitionSpec("chains"), PartitionSpec()
+        fn = jax.jit(
+            jax.shard_map(
+                jax.vmap(one_chain, in_axes=(0, start_axis, None, None)),
+                mesh=mesh,
+                in_specs=(by_chain, by_chain, whole, whole),
+                out_specs=by_chain,
+                check_vma=False,  # as pmap: the models' scans need no varying-axis types
+            )
+        )
+        shardings = tuple(NamedSharding(mesh, p) for p in (by_chain, by_chain, whole, whole))
+        key = None if key_base is None else ("parallel", n_dev, *key_base)
         program = _cached(
-            None if key_base is None else ("parallel", n_dev, *key_base),
-            lambda: _compile(fn, (keys_d, start_d, init, arrays), cheap),
+            key,
+            lambda: _compile(fn, (keys, start, init, arrays), cheap, key, shardings),
             timing,
         )
         tic = time.perf_counter()
-        out = jax.tree.map(
-            lambda x: np.asarray(x).reshape((num_chains,) + x.shape[2:]),
-            program(keys_d, start_d, init, arrays),
-        )
+        out = jax.tree.map(np.asarray, program(keys, start, init, arrays))
     else:  # sequential: compile one chain, run it chain after chain
         first = None if start is None else jax.tree.map(lambda x: x[0], start)
+        key = None if key_base is None else ("sequential", *key_base)
         program = _cached(
-            None if key_base is None else ("sequential", *key_base),
-            lambda: _compile(jax.jit(one_chain), (keys[0], first, init, arrays), cheap),
+            key,
+            lambda: _compile(jax.jit(one_chain), (keys[0], first, init, arrays), cheap, key),
             timing,
         )
         tic = time.perf_counter()
@@ -392,7 +410,8 @@ def run_nuts(
     chain_method : {"parallel", "vectorized", "sequential"}, optional
         Default: parallel when there is a device per chain
         (:func:`resolve_chain_method`). "parallel" spreads the chains over the JAX
-        devices (``jax.pmap``; several chains on one device are vectorised),
+        devices (``jax.shard_map`` in one jitted program; several chains on one device
+        are vectorised; the same draws as ``jax.pmap``),
         "vectorized" runs them in lock-step on one device, "sequential" one after
         another with one compilation.
     extra_fields : tuple of str
@@ -501,7 +520,7 @@ def _post_process(
     key = None
     if key_base is not None and (pointwise is None or pointwise_kwargs):
         key = _hashable(("post", _fn_key(pointwise), *key_base))
-    program = _cached(key, lambda: _compile(jax.jit(post), (flat, arrays), cheap), timing)
+    program = _cached(key, lambda: _compile(jax.jit(post), (flat, arrays), cheap, key), timing)
     tic = time.perf_counter()
     samples, loglik = jax.tree.map(np.asarray, program(flat, arrays))
     timing["postprocess"] = time.perf_counter() - tic

@@ -44,6 +44,7 @@ from are_stats._checks import (
     check_simplex,
     describe,
 )
+from are_stats._program_cache import compile_program
 from are_stats.traffic._mixture import PoissonMixture
 
 __all__ = [
@@ -140,7 +141,7 @@ _COMPILER_OPTIONS = {
 }
 
 
-def aot_compile(fn: Any, *args: Any) -> Any:
+def aot_compile(fn: Any, *args: Any, key: Any = None, in_shardings: tuple | None = None) -> Any:
     """Compile a jitted/pmapped ``fn`` ahead of time for ``args`` with cheap XLA optimisation
     (small programs whose compile time outweighs their run time).
 
@@ -150,12 +151,19 @@ def aot_compile(fn: Any, *args: Any) -> Any:
         A ``jax.jit`` or ``jax.pmap`` function.
     *args
         Example arguments (their shapes and dtypes fix the program).
+    key : Any, optional
+        What shapes ``fn``'s trace besides ``args`` (its function by name, static
+        arguments): with one, the traced program is kept on disk for later processes
+        (:func:`are_stats._program_cache.compile_program`).
+    in_shardings : tuple, optional
+        One sharding per argument, for a program over several devices.
 
     Returns
     -------
-    jax.stages.Compiled
+    callable
+        The compiled program.
     """
-    return fn.lower(*args).compile(_COMPILER_OPTIONS)
+    return compile_program(fn, args, key, _COMPILER_OPTIONS, in_shardings)
 
 
 def _mark_distribution(weights, rates) -> dist.Distribution:
@@ -796,7 +804,12 @@ def prior_predictive(
         )
 
     try:
-        compiled = aot_compile(jax.jit(draw), key)
+        # keyed by everything ``draw`` closes over: a later process reads its traced program
+        compiled = aot_compile(
+            jax.jit(draw), key,
+            key=("prior_predictive", lifecycle_model, priors, n, k, t0, t1, area,
+                 stationary_start, labelled),
+        )  # fmt: skip
     except (TypeError, ValueError) as err:
         raise ValueError(f"key: expected a JAX PRNG key, got {describe(key)}") from err
     out = {name: np.asarray(value) for name, value in compiled(key).items()}

@@ -135,3 +135,44 @@ def test_warnings_word_divergences_and_r_hat():
     assert nuts_warnings(stuck)[0].startswith("m: r_hat inf > 1.01 for a:")
     clean = run._replace(diverging=np.zeros((2, 2), bool), r_hat={"a": 1.001})
     assert nuts_warnings(clean) == []
+
+
+@pytest.mark.parametrize("method", ["parallel", "vectorized"])
+def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, method):
+    """The traced programs are kept on disk (``are_stats._program_cache``): a fresh process
+    (here: the in-process cache cleared, tracing forbidden) reads them and samples the same
+    bits, which are also those of the cache turned off."""
+    from are_stats.fitting._traffic import _stay_draw_loglik
+    from are_stats.traffic._models import stay_model, stay_units
+
+    rng = np.random.default_rng(7)
+    stay = rng.gamma(4.0, 150.0, 40)
+    kwargs = {"units": stay_units(stay, stay > 900.0, np.arange(40) < 5), "law": "exponential",
+              "mean_centre": np.asarray(stay.mean()), "resolution": 0.4}  # fmt: skip
+    init = {"stay_mean_z": 0.0}
+
+    def run():
+        nuts_module._CACHE.clear()
+        return run_nuts(jax.random.key(1), stay_model, kwargs, init, num_warmup=60,
+                        num_samples=40, num_chains=4, chain_method=method,
+                        pointwise=_stay_draw_loglik, pointwise_kwargs=True,
+                        cheap_compile=True)  # fmt: skip
+
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", str(tmp_path))
+    traced = run()
+    assert traced.chain_method == method
+    assert len(list(tmp_path.glob("*.jaxexport"))) == 2  # the sampler and the post-processing
+
+    def no_tracing(*args, **kwargs):
+        raise AssertionError("traced again: the kept program was not read")
+
+    with monkeypatch.context() as m:
+        m.setattr(jax.export, "export", no_tracing)
+        read = run()
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")
+    off = run()
+    for other in (read, off):
+        for site in traced.samples:
+            np.testing.assert_array_equal(other.samples[site], traced.samples[site])
+        np.testing.assert_array_equal(other.loglik, traced.loglik)
+        np.testing.assert_array_equal(other.diverging, traced.diverging)
