@@ -45,8 +45,9 @@ from are_stats.traffic import (
     conjugate_leave_rate,
     conjugate_mixture,
     fit_birth_death,
+    numpy_rng,
+    prior_predictive,
 )
-from are_stats.traffic._lifecycle import _numpy_rng, prior_predictive
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", FutureWarning)  # arviz 0.23 announces its 1.0 refactor
@@ -212,7 +213,7 @@ def _em_log_likelihood(data: LifecycleData, post: dict, k: int | None) -> dict[s
 
     from are_stats.inputs import check_memory
 
-    s = data._summary
+    s = data.summary
     lam = np.asarray(post["arrival_rate"], dtype=float)
     rate = lam * (s.area * s.duration)
     n = float(s.n_arrivals)
@@ -344,7 +345,7 @@ def fit_log(
             v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
         )
         kp, kq = jax.random.split(k_post)
-        post_pred = _predictive_counts(_numpy_rng(kp), post, data, False)
+        post_pred = _predictive_counts(numpy_rng(kp), post, data, False)
         prior = prior_predictive(
             kq, priors, data.window, data.area, 1000, n_components=k, stationary_start=False,
             labelled=data.labels is not None,

@@ -22,13 +22,13 @@ from numpyro.infer.util import log_likelihood
 
 from are_stats._checks import check_in, check_nonneg_int, check_probability, describe
 from are_stats.fitting._nuts import NutsRun, nuts_warnings, resolve_chain_method, run_nuts
-from are_stats.traffic._lifecycle import (
+from are_stats.traffic import (
     LifecycleData,
     LifecyclePriors,
-    _check_components,
-    _numpy_rng,
-    _Summary,
+    LifecycleSummary,
+    check_components,
     lifecycle_model,
+    numpy_rng,
     prior_predictive,
 )
 
@@ -77,7 +77,7 @@ def _bucket(n: int) -> int:
     return max(16, 1 << max(0, int(n) - 1).bit_length())
 
 
-def _padded_summary(s: _Summary) -> _Summary:
+def _padded_summary(s: LifecycleSummary) -> LifecycleSummary:
     """The summary as float64/int arrays padded with zero-weight rows to bucketed lengths.
 
     Padded stays have dwell 0 and no departure (log-likelihood term 0); padded marks and
@@ -88,7 +88,7 @@ def _padded_summary(s: _Summary) -> _Summary:
         x = np.asarray(x, dtype=dtype)
         return np.concatenate([x, np.zeros(_bucket(x.size) - x.size, dtype=dtype)])
 
-    return _Summary(
+    return LifecycleSummary(
         duration=np.asarray(s.duration, dtype=np.float64),
         area=np.asarray(s.area, dtype=np.float64),
         n_arrivals=np.asarray(s.n_arrivals, dtype=np.float64),
@@ -252,7 +252,7 @@ def fit_lifecycle_nuts(
     check_in("stationary_start", stationary_start, (True, False))
     check_in("progress_bar", progress_bar, (True, False))
     method = resolve_chain_method(chain_method, chains)
-    k = _check_components(n_components, data)
+    k = check_components(n_components, data)
     if data.marks is None:
         k = None  # no marks: the mixture is not part of this fit
     try:
@@ -268,7 +268,7 @@ def fit_lifecycle_nuts(
     }
     start = _start_values(data, k)
     transforms = _latent_sites({**static, "data": data}, start)
-    rng = _numpy_rng(key_mcmc)
+    rng = numpy_rng(key_mcmc)
     noise = {
         name: rng.uniform(-0.5, 0.5, size=(chains,) + t.inverse_shape(np.shape(start[name])))
         for name, t in transforms.items()
@@ -280,7 +280,7 @@ def fit_lifecycle_nuts(
     run = run_nuts(
         key_mcmc,
         lifecycle_model,
-        {**static, "data": _padded_summary(data._summary)},
+        {**static, "data": _padded_summary(data.summary)},
         None,
         num_warmup=warmup,
         num_samples=samples,
@@ -298,11 +298,11 @@ def fit_lifecycle_nuts(
     stats = {"diverging": run.diverging, **{n: run.extra[f] for n, f in _STATS.items()}}
     stats["lp"] = -stats["lp"]
     timing = dict(run.timing)
-    s = data._summary
+    s = data.summary
     if "mark_histogram" in loglik:
         m = s.mark_values.size if data.labels is None else s.pair_counts.size
         loglik["mark_histogram"] = loglik["mark_histogram"][..., :m]
-    post_pred = _predictive_counts(_numpy_rng(key_post), posterior, data, stationary_start)
+    post_pred = _predictive_counts(numpy_rng(key_post), posterior, data, stationary_start)
     prior = {}
     if prior_draws:
         tic = time.perf_counter()
@@ -371,7 +371,7 @@ def _inference_data(
     if data.marks is not None and data.n:
         # the mark likelihood runs over distinct marks (or (class, mark) pairs): its
         # observed counterpart is the histogram
-        s = data._summary
+        s = data.summary
         if data.labels is None:
             dims["mark_histogram"] = ["mark_value"]
             coords["mark_value"] = s.mark_values

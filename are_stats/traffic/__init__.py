@@ -16,8 +16,11 @@ __all__ += ["PoissonMixture"]
 from are_stats.traffic._lifecycle import (  # noqa: E402
     LifecycleData,
     LifecyclePriors,
+    LifecycleSummary,
     aot_compile,
+    check_components,
     lifecycle_model,
+    numpy_rng,
     prior_predictive,
     simulate_lifecycle,
 )
@@ -25,8 +28,11 @@ from are_stats.traffic._lifecycle import (  # noqa: E402
 __all__ += [
     "LifecycleData",
     "LifecyclePriors",
+    "LifecycleSummary",
     "aot_compile",
+    "check_components",
     "lifecycle_model",
+    "numpy_rng",
     "prior_predictive",
     "simulate_lifecycle",
 ]

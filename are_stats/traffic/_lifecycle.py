@@ -49,6 +49,9 @@ from are_stats.traffic._mixture import PoissonMixture
 
 __all__ = [
     "aot_compile",
+    "check_components",
+    "LifecycleSummary",
+    "numpy_rng",
     "LifecyclePriors",
     "LifecycleData",
     "simulate_lifecycle",
@@ -176,7 +179,7 @@ def _mark_distribution(weights, rates) -> dist.Distribution:
 # --------------------------------------------------------------------------------------
 
 
-class _Summary(NamedTuple):
+class LifecycleSummary(NamedTuple):
     """Sufficient statistics of a log (computed once, used by the likelihood).
 
     A pytree: :func:`fit_lifecycle_nuts` passes it (padded to bucketed sizes with zero-weight
@@ -379,7 +382,8 @@ class LifecycleData:
         return end - start
 
     @cached_property
-    def _summary(self) -> _Summary:
+    def summary(self) -> LifecycleSummary:
+        """The log's sufficient statistics for the likelihood (computed once)."""
         empty = np.zeros(0, dtype=np.int64)
         mark_values = mark_counts = empty
         pair_labels = pair_marks = pair_counts = empty
@@ -390,7 +394,7 @@ class LifecycleData:
                     np.stack([self.labels, self.marks], axis=1), axis=0, return_counts=True
                 )
                 pair_labels, pair_marks = pairs[:, 0], pairs[:, 1]
-        return _Summary(
+        return LifecycleSummary(
             duration=self.duration,
             area=self.area,
             n_arrivals=int((~self.truncated).sum()),
@@ -427,8 +431,23 @@ def _check_mixture(weights: Any, rates: Any) -> tuple[np.ndarray, np.ndarray]:
     return w / w.sum(), r
 
 
-def _numpy_rng(key: Any) -> np.random.Generator:
-    """A NumPy generator seeded from a JAX key (variable-size draws without recompiling)."""
+def numpy_rng(key: Any) -> np.random.Generator:
+    """A NumPy generator seeded from a JAX key (variable-size draws without recompiling).
+
+    Parameters
+    ----------
+    key : jax.Array
+        A JAX PRNG key.
+
+    Returns
+    -------
+    numpy.random.Generator
+
+    Raises
+    ------
+    ValueError
+        If ``key`` is not a JAX PRNG key.
+    """
     try:
         bits = jax.random.bits(key, (4,), dtype=jnp.uint32)
     except (TypeError, ValueError) as err:
@@ -544,7 +563,7 @@ def simulate_lifecycle(
     from are_stats.traffic._positions import uniform_position_density
     from are_stats.traffic._sampler import TrafficLaws, sample_population
 
-    rng = _numpy_rng(key)
+    rng = numpy_rng(key)
     free = None
     if cells is not None:
         free = uniform_position_density(free_mask, res, (float(orig[0]), float(orig[1])))
@@ -587,7 +606,13 @@ def simulate_lifecycle(
 # --------------------------------------------------------------------------------------
 
 
-def _check_components(n_components: Any, data: LifecycleData | None) -> int | None:
+def check_components(n_components: Any, data: LifecycleData | None) -> int | None:
+    """The number of mixture components (classes) of the model for ``data``.
+
+    ``None`` with a log that has labels gives their number; ``None`` without marks gives
+    ``None`` (no mark model). Raises ``ValueError`` for a log with marks and no number, or
+    for a number that is not an integer >= 1.
+    """
     if n_components is None:
         if data is not None and data.labels is not None:
             return int(data.labels.max()) + 1 if data.n else 1
@@ -670,16 +695,16 @@ def lifecycle_model(
         If ``data=None`` without ``window`` and ``area``, or ``n_components`` is missing or
         inconsistent with the labels.
     """
-    if isinstance(data, _Summary):  # internal: pre-summarised (possibly traced) log
+    if isinstance(data, LifecycleSummary):  # internal: pre-summarised (possibly traced) log
         k, s = n_components, data
         duration, area = s.duration, s.area
     elif data is not None:
-        k, s = _check_components(n_components, data), data._summary
+        k, s = check_components(n_components, data), data.summary
         duration, area = s.duration, s.area
         if labelled is None:
             labelled = data.labels is not None
     else:
-        k, s = _check_components(n_components, None), None
+        k, s = check_components(n_components, None), None
         if window is None or area is None:
             raise ValueError("window, area: expected both when data is None, got None")
         t0, t1 = _check_window(window)
@@ -786,7 +811,7 @@ def prior_predictive(
         raise ValueError(f"priors: expected a LifecyclePriors, got {type(priors).__name__}")
     t0, t1 = _check_window(window)
     area = float(check_positive("area", area, ndim=0))
-    k = _check_components(n_components, None)
+    k = check_components(n_components, None)
     check_in("stationary_start", stationary_start, (True, False))
     check_in("labelled", labelled, (True, False))
     predictive = numpyro.infer.Predictive(lifecycle_model, num_samples=n)
