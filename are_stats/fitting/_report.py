@@ -60,10 +60,23 @@ def fit_summary(idata: az.InferenceData) -> pd.DataFrame:
         ArviZ's summary, one row per scalar parameter. For single-chain fits (the ``em``
         method) r_hat is undefined (NaN).
     """
+    import logging
+
     names = [n for n in PARAMETERS if n in idata.posterior]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # r_hat of a single chain / bootstrap draws
-        return az.summary(idata, var_names=names, round_to="none")
+    # r_hat of a single chain / bootstrap draws: ArviZ warns through both warnings and its
+    # logger ("Shape validation failed" for one chain), which printed on every em fit; the
+    # logger is ArviZ's own instance, not registered with logging.getLogger
+    log = getattr(az, "_log", None)
+    if not isinstance(log, logging.Logger):
+        log = logging.getLogger("arviz")
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return az.summary(idata, var_names=names, round_to="none")
+    finally:
+        log.setLevel(level)
 
 
 def _observed(idata: az.InferenceData) -> dict[str, Any]:

@@ -1,0 +1,39 @@
+"""fit_summary: ArviZ's summary of a fit, quiet for single-chain (em) fits."""
+
+from __future__ import annotations
+
+import logging
+
+import arviz as az
+import numpy as np
+
+from are_stats.fitting import fit_summary
+
+
+class _Records(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+
+def test_single_chain_summary_is_quiet_and_has_no_r_hat():
+    rng = np.random.default_rng(0)
+    lam = rng.gamma(50.0, 1e-6, size=(1, 400))
+    mu = rng.gamma(80.0, 2e-5, size=(1, 400))
+    idata = az.from_dict(posterior={"arrival_rate": lam, "leave_rate": mu})
+    log = getattr(az, "_log", logging.getLogger("arviz"))
+    seen = _Records()
+    log.addHandler(seen)
+    try:
+        table = fit_summary(idata)
+    finally:
+        log.removeHandler(seen)
+    assert [r.getMessage() for r in seen.records if r.levelno >= logging.WARNING] == []
+    assert list(table.index) == ["arrival_rate", "leave_rate"]
+    assert np.isnan(table["r_hat"]).all()
+    np.testing.assert_allclose(table.loc["leave_rate", "mean"], mu.mean(), rtol=1e-12)
+    # the level ArviZ's logger had is restored
+    assert log.level == logging.NOTSET or log.level < logging.ERROR
