@@ -312,11 +312,7 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
     from are_stats.perception import perceive_scene
 
     hit = m.percepts.get(s.t)
-    if (
-        hit is not None
-        and hit[2] is s.scene
-        and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9)
-    ):
+    if hit is not None and hit[2] is s.scene and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9):
         return hit[1].copy()
     times, t = [s.t], s.t
     if tick and not s.need_plan:  # (an arrival, a leave or a replan changes the motion)
@@ -658,9 +654,7 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     if t_next == s.next_percept:
         old = s.seen
         idx, boxes = _boxes(s.scene, s.t)
-        s = s._replace(
-            seen=_perceive(m, s, idx, boxes, tick=True), next_percept=t_next + m.period
-        )
+        s = s._replace(seen=_perceive(m, s, idx, boxes, tick=True), next_percept=t_next + m.period)
         if not np.array_equal(old, s.seen):
             s = s._replace(need_plan=True)
             if not kinds:

@@ -308,7 +308,9 @@ def _sample(
             key,
             lambda: _compile(
                 jax.jit(jax.vmap(one_chain, in_axes=(0, start_axis, None, None))),
-                (keys, start, init, arrays), cheap, key,
+                (keys, start, init, arrays),
+                cheap,
+                key,
             ),  # fmt: skip
             timing,
         )
@@ -351,8 +353,10 @@ def _sample(
         tic = time.perf_counter()
         runs = [
             program(
-                keys[c], None if start is None else jax.tree.map(lambda x, c=c: x[c], start),
-                init, arrays,
+                keys[c],
+                None if start is None else jax.tree.map(lambda x, c=c: x[c], start),
+                init,
+                arrays,
             )  # fmt: skip
             for c in range(num_chains)
         ]
@@ -506,9 +510,9 @@ def _post_process(
 
     def post(flat, arrays):
         kwargs = _join_kwargs(arrays, treedef, static)
-        samples = jax.vmap(
-            lambda u: constrain_fn(model, (), kwargs, u, return_deterministic=True)
-        )(flat)
+        samples = jax.vmap(lambda u: constrain_fn(model, (), kwargs, u, return_deterministic=True))(
+            flat
+        )
         if pointwise is None:
             return samples, None
         if pointwise_kwargs:

@@ -213,9 +213,7 @@ def _diag_cols(table: pd.DataFrame, runs: dict[str, NutsRun | None]) -> None:
 def _arrival_loglik_draws(flat: dict, units: Any, spec: ArrivalSpec, log_area: Any) -> Any:
     """``(draws, B)`` pointwise arrival log-likelihood of given draws (one compiled program,
     the data its arguments)."""
-    return jax.vmap(lambda p: arrival_unit_loglik({**p, "log_area": log_area}, units, spec))(
-        flat
-    )
+    return jax.vmap(lambda p: arrival_unit_loglik({**p, "log_area": log_area}, units, spec))(flat)
 
 
 @functools.partial(jax.jit, static_argnames=("law", "resolution"))
@@ -491,8 +489,12 @@ def fit_traffic(
             run = run_nuts(
                 jax.random.fold_in(k_life, i),
                 stay_model,
-                {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
-                 "resolution": res},
+                {
+                    "units": units,
+                    "law": law,
+                    "mean_centre": np.asarray(mean_centre, float),
+                    "resolution": res,
+                },
                 {"stay_mean_z": 0.0, "stay_shape_eta": 0.0},
                 pointwise=_stay_draw_loglik,
                 pointwise_kwargs=True,

@@ -284,9 +284,11 @@ def csv_case(
         if kind in ("cell", "column_cells") and rows and ncol:
             j = draw(st.integers(0, ncol - 1))
             value = draw(st.sampled_from(NASTY_CELLS))
-            targets = range(len(rows)) if kind == "column_cells" else [
-                draw(st.integers(0, len(rows) - 1))
-            ]
+            targets = (
+                range(len(rows))
+                if kind == "column_cells"
+                else [draw(st.integers(0, len(rows) - 1))]
+            )
             for i in targets:
                 if j < len(rows[i]):
                     rows[i][j] = value
@@ -519,7 +521,6 @@ def write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
     idata.to_netcdf(str(dst))
 
 
-
 # ----------------------------------------------------------------------------- writing cases
 
 
@@ -549,8 +550,14 @@ MANIFEST = {"window": [0.0, 14400.0], "area": 900.0, "time_unit": "s", "descript
 #: A small valid tracks table: three tracks of five sightings.
 TRACK_HEADER = ["id", "t", "x", "y", "label", "yaw"]
 TRACK_ROWS = [
-    [f"trk{k}", f"{10.0 * k + 2.0 * i:.1f}", f"{k + 0.1 * i:.2f}", f"{-k + 0.2 * i:.2f}", "person",
-     "0.5"]
+    [
+        f"trk{k}",
+        f"{10.0 * k + 2.0 * i:.1f}",
+        f"{k + 0.1 * i:.2f}",
+        f"{-k + 0.2 * i:.2f}",
+        "person",
+        "0.5",
+    ]
     for k in range(3)
     for i in range(5)
 ]

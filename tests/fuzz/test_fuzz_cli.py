@@ -53,7 +53,6 @@ CAMERA = str(MODELS / "cameras" / "front_camera.yaml")
 MAP = str(MODELS / "courtyard.yaml")
 
 
-
 def invoke(args: list[str], names: list[str], seconds: float = 60.0) -> int:
     """Run ``are-stats ARGS`` in-process and check the contract; returns the exit code."""
     from are_stats.cli import app
@@ -264,8 +263,16 @@ def test_fit_damaged_log(case, case_dir) -> None:
     d = case_dir()
     (d / "log.yaml").write_text(_dump(MANIFEST))
     path = write_case(d / "log.csv", case)
-    args = ["fit", str(path), "--out", str(d / "f.nc"), "--method", "em", "--no-figures",
-            *PAPER_MODELS]
+    args = [
+        "fit",
+        str(path),
+        "--out",
+        str(d / "f.nc"),
+        "--method",
+        "em",
+        "--no-figures",
+        *PAPER_MODELS,
+    ]
     invoke(args, [path.name], seconds=60.0)
 
 
@@ -274,9 +281,18 @@ def test_fit_damaged_log(case, case_dir) -> None:
 def test_fit_damaged_manifest(case, case_dir, tiny_log) -> None:
     d = case_dir()
     path = write_case(d / "manifest.yaml", case)
-    args = ["fit", str(tiny_log), "--manifest", str(path), "--out", str(d / "f.nc"),
-            "--method", "em", "--no-figures",
-            *PAPER_MODELS]
+    args = [
+        "fit",
+        str(tiny_log),
+        "--manifest",
+        str(path),
+        "--out",
+        str(d / "f.nc"),
+        "--method",
+        "em",
+        "--no-figures",
+        *PAPER_MODELS,
+    ]
     invoke(args, [path.name], seconds=60.0)
 
 
@@ -304,8 +320,20 @@ def test_generate_damaged_map(case, case_dir, tiny_fit) -> None:
     d = case_dir()
     shutil.copy(MODELS / "courtyard.pgm", d / "courtyard.pgm")
     path = write_case(d / "map.yaml", case)
-    args = ["generate", str(tiny_fit), "--scenarios", "2", "--horizon", "60", "--seed", "3",
-            "--out", str(d / "g"), "--map", str(path)]
+    args = [
+        "generate",
+        str(tiny_fit),
+        "--scenarios",
+        "2",
+        "--horizon",
+        "60",
+        "--seed",
+        "3",
+        "--out",
+        str(d / "g"),
+        "--map",
+        str(path),
+    ]
     invoke(args, [path.name])
 
 
@@ -314,8 +342,16 @@ def test_generate_damaged_map(case, case_dir, tiny_fit) -> None:
 def test_perceive_damaged_camera(case, case_dir, tiny_scenarios, files) -> None:
     d = case_dir()
     path = write_case(d / "camera.yaml", case)
-    args = ["perceive", str(tiny_scenarios), "--camera", str(path), "--robot-path",
-            files["robot"], "--out", str(d / "p.parquet")]
+    args = [
+        "perceive",
+        str(tiny_scenarios),
+        "--camera",
+        str(path),
+        "--robot-path",
+        files["robot"],
+        "--out",
+        str(d / "p.parquet"),
+    ]
     invoke(args, [path.name], seconds=120.0)
 
 
@@ -381,8 +417,21 @@ def _are_stats() -> list[str]:
 @pytest.mark.parametrize(
     ("args", "name"),
     [
-        (["generate", "{fit}", "--scenarios", "2", "--horizon", "60", "--seed", str(2**70),
-          "--out", "{out}/g"], "--seed"),
+        (
+            [
+                "generate",
+                "{fit}",
+                "--scenarios",
+                "2",
+                "--horizon",
+                "60",
+                "--seed",
+                str(2**70),
+                "--out",
+                "{out}/g",
+            ],
+            "--seed",
+        ),
         (["fit", "{bomb}", "--out", "{out}/f.nc", "--method", "em"], "log.yaml"),
         (["experiment", "{bomb_yaml}", "--out", "{out}/e"], "bomb.yaml"),
         (["show", "courtyard", "--out", "{out}/m.png", "--artefacts", "100000"], "--artefacts"),

@@ -308,6 +308,7 @@ def test_yaml_bombs_are_refused(case_dir) -> None:
 
 # ----------------------------------------------------------------------------- fits, scenarios
 
+
 @fuzz_settings(40)
 @given(case=fit_case())
 def test_fit_file_to_scenarios(case, case_dir, tiny_fit) -> None:
@@ -385,4 +386,3 @@ def test_robot_path(case, case_dir, tiny_scenarios) -> None:
         _names(path),
         seconds=120.0,
     )
-
