@@ -313,14 +313,7 @@ def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
 
     if jax.local_device_count() < 2:
         pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
-    free = np.ones((10, 12), bool)
-    free[4, 3:9] = False
-    paths = [  # cell paths (one move or none per epoch) to three goals
-        np.array([[0, 0], [0, 1], [0, 1], [0, 2], [1, 2], [1, 3], [1, 4], [0, 4], [0, 5]]),
-        np.array([[9, 11], [8, 11], [7, 11], [7, 10], [6, 10], [5, 10], [5, 9], [5, 8]]),
-        np.array([[9, 0], [8, 0], [8, 1], [7, 1], [6, 1], [5, 1], [5, 2], [5, 3], [5, 4]]),
-        np.array([[2, 8], [2, 7], [1, 7], [1, 6], [1, 5], [0, 5]]),
-    ]
+    free, paths, _ = _small_world()
     out = []
     for n_devices in (1, 2):
         f, obs, _ = _likelihood(
@@ -358,6 +351,8 @@ def test_recovers_a_wall_weight_of_either_sign_from_model_tracks(wall_weight: fl
 
 
 def _small_world():
+    """A 10 x 12 grid with a wall, four cell paths (one move or none per epoch) to three
+    goals, and two reward features (closeness to walls, and noise)."""
     free = np.ones((10, 12), bool)
     free[4, 3:9] = False
     paths = [  # cell paths (one move or none per epoch) to three goals
