@@ -117,6 +117,8 @@ def run_fit(
         write_report,
     )
     from are_stats.inputs import (
+        Described,
+        InputError,
         check_memory,
         check_work,
         get_float,
@@ -136,6 +138,11 @@ def run_fit(
         for f in get_str(behaviour_features, "--behaviour-features", "").split(",")
         if f.strip()
     )
+    if features and not behaviour:
+        raise InputError(
+            "--behaviour-features", "", "the behaviour to be fitted (drop one of the two)",
+            Described("--no-behaviour"),
+        )  # fmt: skip
     if clock_start is not None:
         from are_stats.traffic import clock_offset
 

@@ -113,3 +113,12 @@ def test_fit_names_an_unknown_behaviour_feature(tmp_path):
     assert res.exit_code != 0
     assert "--behaviour-features" in res.output and "'walls'" in res.output
     assert not (tmp_path / "f.nc").exists()
+
+
+def test_fit_refuses_behaviour_features_without_the_behaviour(tmp_path):
+    log = _tracks(tmp_path)
+    res = runner.invoke(app, ["fit", str(log), "--out", str(tmp_path / "f.nc"),
+                              "--behaviour-features", "walls", "--no-behaviour"])  # fmt: skip
+    assert res.exit_code != 0
+    assert "--behaviour-features" in res.output and "--no-behaviour" in res.output
+    assert not (tmp_path / "f.nc").exists()
