@@ -257,23 +257,19 @@ def test_version() -> None:
 # ----------------------------------------------------------------------------- files
 
 
+def _em_fit(log, out, *extra: str) -> list[str]:
+    """The arguments of a quick ``fit`` (em, the paper's models, no figures) of ``log``."""
+    return ["fit", str(log), *extra, "--out", str(out), "--method", "em", "--no-figures",
+            *PAPER_MODELS]  # fmt: skip
+
+
 @fuzz_settings(10)
 @given(case=file_cases(csv_case(LOG_HEADER, LOG_ROWS)))
 def test_fit_damaged_log(case, case_dir) -> None:
     d = case_dir()
     (d / "log.yaml").write_text(_dump(MANIFEST))
     path = write_case(d / "log.csv", case)
-    args = [
-        "fit",
-        str(path),
-        "--out",
-        str(d / "f.nc"),
-        "--method",
-        "em",
-        "--no-figures",
-        *PAPER_MODELS,
-    ]
-    invoke(args, [path.name], seconds=60.0)
+    invoke(_em_fit(path, d / "f.nc"), [path.name], seconds=60.0)
 
 
 @fuzz_settings(25)
@@ -281,19 +277,7 @@ def test_fit_damaged_log(case, case_dir) -> None:
 def test_fit_damaged_manifest(case, case_dir, tiny_log) -> None:
     d = case_dir()
     path = write_case(d / "manifest.yaml", case)
-    args = [
-        "fit",
-        str(tiny_log),
-        "--manifest",
-        str(path),
-        "--out",
-        str(d / "f.nc"),
-        "--method",
-        "em",
-        "--no-figures",
-        *PAPER_MODELS,
-    ]
-    invoke(args, [path.name], seconds=60.0)
+    invoke(_em_fit(tiny_log, d / "f.nc", "--manifest", str(path)), [path.name], seconds=60.0)
 
 
 @fuzz_settings(8)
