@@ -62,7 +62,11 @@ shared cores (load 6-8) the whole benchmark took about 21 minutes (10 of them th
 fits, before the traced programs were kept), ``--quick`` about 6. The CLI fits alone
 (``--fit-only``, 2 shared cores, load 1.2-2, 2026-11-25): first 68.3 s, second 18.6 s,
 third 17.8 s (3.7x; other runs 3.6-4.2x); before the traced programs were kept, in the
-same conditions, 57.9 s then 27.0 s (2.1x).
+same conditions, 57.9 s then 27.0 s (2.1x). On idle cores (2026-11-25, later): 65.4 s,
+19.5 s, 18.2 s (3.4x / 3.6x) in the bench environment, whose numba (from PyMC) ArviZ
+compiles at import and for its variances; without numba, as after a plain install, 59.0 s,
+16.9 s, 16.1 s (3.5x / 3.7x). A warm run is then mostly sampling (about 9.7 s, as in the
+first), reading 27 cached executables (2.0 s), imports, PSIS-LOO (1.4 s) and writing.
 """
 
 from __future__ import annotations
