@@ -133,13 +133,13 @@ def _solve_one(
     goal_reward: jax.Array,
     tie_tol: jax.Array,
     item: jax.Array,
-    out: Outputs,
+    out: _Outputs,
     n_epochs: int,
     use_run: bool,
-) -> Outputs:
+) -> _Outputs:
     """Backward induction for batch item ``item``, written into its rows of ``out``.
 
-    ``out`` holds the batch's output buffers (see :class:`Outputs`); the epochs run in a
+    ``out`` holds the batch's output buffers (see :class:`_Outputs`); the epochs run in a
     ``fori_loop`` that writes each epoch's policy (and values) in place, so a solve
     allocates nothing the size of its outputs (reused, donated buffers are never touched by
     the kernel's page faults again). ``follow`` is the item's ``(D, H, W)`` rewards or None.
@@ -285,7 +285,7 @@ def _solve_one(
         val = tuple(put(b, last, jnp.asarray(n_epochs)) for b in val)
     v0, pol, val = jax.lax.fori_loop(0, n_epochs, epoch, (v_terminal, out.policy, val))
     v0_all = jax.lax.dynamic_update_slice(out.v0, unflat(jnp.stack(v0))[None], (item, 0, 0, 0))
-    return Outputs(v0_all, pol, val)
+    return _Outputs(v0_all, pol, val)
 
 
 def backward_induction(
@@ -371,7 +371,7 @@ def _unpack_policy(packed: Any) -> tuple[Any, ...]:
     return tuple((packed[h // 2] >> (4 * (h % 2))) & 15 for h in range(4))
 
 
-class Outputs(NamedTuple):
+class _Outputs(NamedTuple):
     """The solver's output buffers for a batch of ``B`` items, wide (``W + 4`` columns).
 
     ``v0`` is ``(B, 4, H, W + 4)``; ``policy`` two ``(B, D, H, W + 4)`` int8 planes, the
@@ -387,19 +387,19 @@ class Outputs(NamedTuple):
 def _output_shapes(
     b: int, n_epochs: int, shape: tuple[int, int], dtype: Any, store_values: bool,
     with_policy: bool,
-) -> Outputs:  # fmt: skip
-    """The :class:`Outputs` of a batch of ``b`` items, as ``jax.ShapeDtypeStruct`` leaves."""
+) -> _Outputs:  # fmt: skip
+    """The :class:`_Outputs` of a batch of ``b`` items, as ``jax.ShapeDtypeStruct`` leaves."""
     h, w = shape
     wide = (h, w + 4)
     sds = jax.ShapeDtypeStruct
-    return Outputs(
+    return _Outputs(
         v0=sds((b, 4, *wide), dtype),
         policy=(sds((b, n_epochs, *wide), np.int8),) * 2 if with_policy else None,
         values=(sds((b, n_epochs + 1, *wide), dtype),) * 4 if store_values else None,
     )
 
 
-def _zeros(shapes: Outputs) -> Outputs:
+def _zeros(shapes: _Outputs) -> _Outputs:
     """Fresh zero buffers of ``shapes`` (inside a trace: the pure :func:`backward_induction`)."""
     return jax.tree.map(lambda sd: jnp.zeros(sd.shape, sd.dtype), shapes)
 
@@ -415,17 +415,17 @@ def _backward_induction_wide(
     step_cost: jax.Array,
     goal_reward: jax.Array,
     tie_tol: jax.Array,
-    out: Outputs,
+    out: _Outputs,
     *,
     n_epochs: int,
     use_run: bool = True,
-) -> Outputs:
-    """:func:`backward_induction` into the output buffers ``out`` (:class:`Outputs`, batch-major
+) -> _Outputs:
+    """:func:`backward_induction` into the output buffers ``out`` (:class:`_Outputs`, batch-major
     and wide), one item after the other, every epoch written in place.
     """
     fn = functools.partial(_solve_one, n_epochs=n_epochs, use_run=use_run)
 
-    def one(b: Any, acc: Outputs) -> Outputs:
+    def one(b: Any, acc: _Outputs) -> _Outputs:
         pick = functools.partial(jax.lax.dynamic_index_in_dim, index=b, keepdims=False)
         f = None if follow is None else pick(follow)
         return fn(
@@ -517,7 +517,7 @@ class _BufferPool:
 _POOL = _BufferPool()
 
 
-def _outputs(shapes: Outputs, sharding: Any) -> tuple[Outputs, list[tuple]]:
+def _outputs(shapes: _Outputs, sharding: Any) -> tuple[_Outputs, list[tuple]]:
     """Output buffers for ``shapes`` (from the pool, else fresh zeros) and their pool keys."""
     keys: list[tuple] = []
 
@@ -565,7 +565,7 @@ def _joined(batches: tuple[_Batch, ...], fn: Callable[..., np.ndarray]) -> np.nd
 
 def _run_solver(
     inputs: dict[str, Any], *, store_values: bool, with_policy: bool
-) -> tuple[Outputs, Callable[[], None]]:
+) -> tuple[_Outputs, Callable[[], None]]:
     """Run the compiled solver on ``inputs`` (NumPy arrays, as built by ``GridMDP.solve``).
 
     With several local devices (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, which
@@ -625,7 +625,7 @@ def _run_solver(
         return None if xs is None else tuple(_Batch(parts(x), b).crop() for x in xs)
 
     v0 = np.concatenate(parts(out.v0))[:b, ..., 2:-2]  # a copy: the buffer goes back to the pool
-    return Outputs(v0, planes(out.policy), planes(out.values)), release
+    return _Outputs(v0, planes(out.policy), planes(out.values)), release
 
 
 class MDPSolution:
@@ -675,7 +675,7 @@ class MDPSolution:
         if release is not None:
             weakref.finalize(self, release)
 
-    def _solve(self, *, store_values: bool, with_policy: bool) -> Outputs:
+    def _solve(self, *, store_values: bool, with_policy: bool) -> _Outputs:
         """Solve again (for what was not stored); the buffers go back to the pool with self."""
         out, release = _run_solver(self._inputs, store_values=store_values, with_policy=with_policy)
         weakref.finalize(self, release)

@@ -627,9 +627,7 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
             # those whose motion until their next check meets the new one decide again
             s, avoided = _avoid(m, s, np.flatnonzero(s.live & s.scene.has_tracks))
             if avoided:  # a scene update of its own, at the replan's time
-                s = s._replace(n_updates=s.n_updates + 1)
-                update = _timeline_row(m, s, "+".join(["replan", *avoided]))
-                scene = _scene_record(m, s) if m.record else None
+                s, update, scene = _update(m, s, ["replan", *avoided])
                 return s, _Info(replan=replan, update=update, plan=plan, scene=scene)
     t_event = s.event_t[s.event] if s.event < s.event_t.size else np.inf
     t_next = min(t_event, s.next_percept, m.T)
@@ -661,11 +659,16 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
                 kinds.append("perceived")
     update = scene = None
     if kinds:
-        reason = "+".join(kinds)
-        s = s._replace(n_updates=s.n_updates + 1, reason=reason if s.need_plan else s.reason)
-        update = _timeline_row(m, s, reason)
-        scene = _scene_record(m, s) if m.record else None
+        s, update, scene = _update(m, s, kinds)
     return s, _Info(replan=replan, update=update, poses=poses, plan=plan, scene=scene)
+
+
+def _update(m: _Mission, s: _State, kinds: list[str]) -> tuple[_State, dict, dict | None]:
+    """A scene update of ``kinds`` at ``s.t``: counted, with its timeline row and recorded
+    scene; it is the reason of the next plan when it asks for one."""
+    reason = "+".join(kinds)
+    s = s._replace(n_updates=s.n_updates + 1, reason=reason if s.need_plan else s.reason)
+    return s, _timeline_row(m, s, reason), _scene_record(m, s) if m.record else None
 
 
 def _timeline_row(m: _Mission, s: _State, kind: str) -> dict:

@@ -718,7 +718,7 @@ def fit_behaviour(
         step_cost=float(step_cost),
         warnings=warnings,
         feature_names=feature_names,
-        features=None if phi is None else phi,
+        features=phi,
         weights=np.asarray(weights, float).reshape(len(classes), len(feature_names)),
         weights_se=np.asarray(weights_se, float).reshape(len(classes), len(feature_names)),
         **arrays,
