@@ -34,11 +34,17 @@ import hashlib
 import os
 import sys
 import tempfile
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["compile_program", "program_folder", "source_hash", "stable_repr"]
+__all__ = ["TRACE_LOCK", "compile_program", "program_folder", "source_hash", "stable_repr"]
+
+#: Held while a program is traced: numpyro's effect handlers live on one global stack, so
+#: two threads must not trace models at once. Reading, lowering and compiling a kept
+#: program need no lock: programs can be loaded in several threads while one is traced.
+TRACE_LOCK = threading.RLock()
 
 #: Suffix of the program files.
 SUFFIX = ".jaxexport"
@@ -249,7 +255,9 @@ def compile_program(
     folder = program_folder()
     key_text = None if key is None else stable_repr(key)
     if folder is None or key_text is None or not hasattr(fn, "trace"):
-        return fn.lower(*args).compile(compiler_options)
+        with TRACE_LOCK:
+            lowered = fn.lower(*args)
+        return lowered.compile(compiler_options)
     # exported with flat arguments: jax.export serialises only the pytree nodes it knows
     leaves, tree = jax.tree.flatten(args)
     shardings = None
@@ -265,7 +273,8 @@ def compile_program(
         except Exception:  # noqa: BLE001 - a file that reads but does not fit: trace again
             pass
     flat = jax.jit(lambda *xs: fn(*jax.tree.unflatten(tree, xs)), in_shardings=shardings)
-    exported = jax.export.export(flat)(*leaves)
+    with TRACE_LOCK:
+        exported = jax.export.export(flat)(*leaves)
     try:
         blob = exported.serialize()
     except Exception:  # noqa: BLE001 - e.g. an unregistered output node: not kept

@@ -49,9 +49,9 @@ __all__ += [
 
 # --- life-cycle posterior by NUTS ---
 from are_stats.fitting._lifecycle_mcmc import fit_lifecycle_nuts  # noqa: E402
-from are_stats.fitting._nuts import resolve_chain_method  # noqa: E402
+from are_stats.fitting._nuts import chains_per_device, resolve_chain_method  # noqa: E402
 
-__all__ += ["fit_lifecycle_nuts", "resolve_chain_method"]
+__all__ += ["fit_lifecycle_nuts", "chains_per_device", "resolve_chain_method"]
 
 # --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
 from are_stats.fitting._criticism import (  # noqa: E402
@@ -73,7 +73,7 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     read_fit,
     write_fit,
 )
-from are_stats.fitting._nuts import NutsRun, nuts_warnings, run_nuts  # noqa: E402
+from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
     PredictiveChecks,
     check_report_size,
@@ -107,6 +107,7 @@ __all__ += [
     "ARRIVAL_CHOICES",
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
+    "NutsPrefetch",
     "NutsRun",
     "TrafficFit",
     "attach_behaviour",

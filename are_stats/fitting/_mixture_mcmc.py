@@ -120,10 +120,10 @@ def fit_mixture_nuts(
     num_chains : int
         Number of chains.
     chain_method : {"parallel", "vectorized", "sequential"}
-        numpyro's chain method. ``"parallel"`` needs one JAX device per chain (on CPU set
-        ``XLA_FLAGS=--xla_force_host_platform_device_count=<chains>`` before JAX starts);
-        with fewer devices this function switches to ``"vectorized"`` (numpyro itself
-        would silently run the chains one after another). The method used is stored in
+        How the chains run (:func:`run_nuts`). ``"parallel"`` spreads them over the
+        JAX devices (on CPU set ``XLA_FLAGS=--xla_force_host_platform_device_count=N``
+        before JAX starts), each device vectorising its share when there are fewer
+        devices than chains. The method used is stored in
         ``idata.posterior.attrs["chain_method"]``.
     counts : (N,) float, optional
         Multiplicity of each entry of ``marks``.

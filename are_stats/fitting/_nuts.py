@@ -27,8 +27,10 @@ from __future__ import annotations
 
 import functools
 import operator
+import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, NamedTuple
 
 import jax
@@ -46,15 +48,21 @@ from are_stats._checks import check_in
 from are_stats._program_cache import compile_program
 from are_stats.traffic import aot_compile
 
-__all__ = ["NutsRun", "nuts_warnings", "resolve_chain_method", "run_nuts"]
+__all__ = [
+    "NutsPrefetch", "NutsRun", "chains_per_device", "nuts_warnings", "resolve_chain_method",
+    "run_nuts",
+]  # fmt: skip
 
 
 def resolve_chain_method(chain_method: str | None, num_chains: int) -> str:
     """The numpyro chain method actually used.
 
-    ``None`` picks ``"parallel"`` when there are at least ``num_chains`` JAX devices
-    (``jax.local_device_count()``) and ``"vectorized"`` otherwise: numpyro silently runs
-    "parallel" chains one after another when devices are missing.
+    ``None`` picks ``"parallel"`` when the chains split evenly over two or more of the
+    JAX devices (``jax.local_device_count()``; :func:`chains_per_device`), each device
+    vectorising its share (4 chains on this machine's 2 host devices: 2 per core, the
+    sampling 1.7-2x faster than all 4 in lock-step on one), and ``"vectorized"``
+    otherwise. Parallel and vectorised chains draw the same values up to rounding (the
+    vectorisation width differs).
 
     Parameters
     ----------
@@ -78,7 +86,26 @@ def resolve_chain_method(chain_method: str | None, num_chains: int) -> str:
         return chain_method
     if num_chains == 1:
         return "sequential"
-    return "parallel" if jax.local_device_count() >= num_chains else "vectorized"
+    return "parallel" if chains_per_device(num_chains)[0] > 1 else "vectorized"
+
+
+def chains_per_device(num_chains: int) -> tuple[int, int]:
+    """How "parallel" spreads ``num_chains`` over the local JAX devices.
+
+    Parameters
+    ----------
+    num_chains : int
+
+    Returns
+    -------
+    (n_devices, chains_per_device) : tuple of int
+        The most devices, at most ``jax.local_device_count()``, that share the chains
+        evenly; each vectorises its ``chains_per_device`` chains.
+    """
+    n_dev = max(1, min(jax.local_device_count(), int(num_chains)))
+    while num_chains % n_dev:
+        n_dev -= 1
+    return n_dev, int(num_chains) // n_dev
 
 
 class NutsRun(NamedTuple):
@@ -130,22 +157,45 @@ class NutsRun(NamedTuple):
 
 _CACHE: dict[tuple, Any] = {}  # compiled programs, keyed by model, settings and shapes
 _CACHE_SIZE = 32
+_LOCKS: dict[tuple, threading.Lock] = {}  # one per key: a program is compiled once
+_LOCKS_GUARD = threading.Lock()
 
 
 def _cached(key: tuple | None, build: Callable[[], Any], timing: dict[str, float]) -> Any:
     """The compiled program for ``key``, compiling it with ``build()`` on a miss.
 
-    ``key=None`` (static arguments that cannot be hashed): compile, keep nothing.
+    Thread-safe: a caller that finds the program being compiled by another thread (a
+    :class:`NutsPrefetch`) waits for it instead of compiling it again. ``key=None``
+    (static arguments that cannot be hashed): compile, keep nothing.
     """
-    if key is not None and key in _CACHE:
-        return _CACHE[key]
+    if key is None:
+        return _timed_build(build, timing)
+    program = _CACHE.get(key)
+    if program is not None:
+        return program
+    with _LOCKS_GUARD:
+        lock = _LOCKS.setdefault(key, threading.Lock())
+    tic = time.perf_counter()
+    with lock:
+        program = _CACHE.get(key)
+        if program is not None:  # compiled by another thread meanwhile: waiting was compiling
+            timing["compile"] = timing.get("compile", 0.0) + time.perf_counter() - tic
+        else:
+            program = _timed_build(build, timing)
+            with _LOCKS_GUARD:
+                if len(_CACHE) >= _CACHE_SIZE:
+                    old = next(iter(_CACHE))
+                    _CACHE.pop(old)
+                    if old in _LOCKS and not _LOCKS[old].locked():
+                        del _LOCKS[old]
+                _CACHE[key] = program
+    return program
+
+
+def _timed_build(build: Callable[[], Any], timing: dict[str, float]) -> Any:
     tic = time.perf_counter()
     program = build()
     timing["compile"] = timing.get("compile", 0.0) + time.perf_counter() - tic
-    if key is not None:
-        if len(_CACHE) >= _CACHE_SIZE:
-            _CACHE.pop(next(iter(_CACHE)))
-        _CACHE[key] = program
     return program
 
 
@@ -288,40 +338,88 @@ def _chain_fn(
     return one_chain
 
 
-def _sample(
-    one_chain: Callable[..., Any],
-    key_base: tuple | None,
-    keys: Any,
-    start: Any,
-    init: Any,
-    arrays: list,
-    method: str,
-    num_chains: int,
-    cheap: bool,
-    timing: dict[str, float],
-) -> Any:
-    """Run the chains by ``method`` with the cached program; arrays by chain first."""
-    start_axis = None if start is None else 0
-    if method == "vectorized":
-        key = None if key_base is None else ("vectorized", *key_base)
-        program = _cached(
-            key,
-            lambda: _compile(
-                jax.jit(jax.vmap(one_chain, in_axes=(0, start_axis, None, None))),
-                (keys, start, init, arrays),
-                cheap,
-                key,
-            ),  # fmt: skip
-            timing,
+class _Plan(NamedTuple):
+    """Everything :func:`run_nuts` needs to find (or compile) and run its programs."""
+
+    one_chain: Callable[..., Any]
+    key_base: tuple | None
+    keys: Any
+    start: Any
+    init: Any
+    arrays: list
+    treedef: Any
+    static: tuple
+    method: str
+    num_chains: int
+    cheap: bool
+
+
+def _plan(
+    key: Any,
+    model: Callable[..., None],
+    model_kwargs: dict,
+    init: dict | None,
+    *,
+    num_warmup: int = 1000,
+    num_samples: int = 1000,
+    num_chains: int = 4,
+    target_accept_prob: float = 0.85,
+    init_params: dict | None = None,
+    chain_method: str | None = None,
+    extra_fields: tuple[str, ...] = (),
+    cheap_compile: bool = False,
+) -> _Plan:
+    """Check the settings and set up the chains' function, arguments and cache key."""
+    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
+    if num_warmup < 0 or num_samples < 1 or num_chains < 1:
+        raise ValueError(
+            "num_warmup, num_samples, num_chains: expected >= 0, >= 1, >= 1, got "
+            f"{num_warmup}, {num_samples}, {num_chains}"
         )
-        tic = time.perf_counter()
-        out = jax.tree.map(np.asarray, program(keys, start, init, arrays))
-    elif method == "parallel":
+    method = resolve_chain_method(chain_method, num_chains)
+    accept = float(target_accept_prob)
+    fields = tuple(dict.fromkeys(("diverging", *extra_fields)))
+    arrays, treedef, static = _split_kwargs(model_kwargs)
+    start = None
+    if init_params is not None:
+        start = {n: jnp.asarray(v, float) for n, v in init_params.items()}
+        if num_chains == 1:  # numpyro's convention: no chain axis for one chain
+            start = {n: v[None] for n, v in start.items()}
+        init = None
+    init_arg = None if init is None else {n: jnp.asarray(v, float) for n, v in init.items()}
+    keys = jax.random.split(key, num_chains)
+    key_base = _hashable(
+        (
+            _fn_key(model), treedef, static, num_warmup, num_samples, num_chains, accept,
+            fields, jax.local_device_count(), bool(cheap_compile),
+            _shapes((arrays, start, init_arg)),
+            None if init_arg is None else tuple(sorted(init_arg)),
+            None if start is None else tuple(sorted(start)),
+        )
+    )  # fmt: skip
+    one_chain = _chain_fn(
+        model, treedef, static, num_warmup, num_samples, accept, fields, start is not None
+    )
+    return _Plan(
+        one_chain, key_base, keys, start, init_arg, arrays, treedef, static, method,
+        num_chains, bool(cheap_compile),
+    )  # fmt: skip
+
+
+def _sampling_program(plan: _Plan, timing: dict[str, float]) -> tuple[Any, tuple]:
+    """The compiled sampling program of ``plan`` (cached) and its arguments."""
+    one_chain, start, init, arrays = plan.one_chain, plan.start, plan.init, plan.arrays
+    cheap, keys = plan.cheap, plan.keys
+    start_axis = None if start is None else 0
+    if plan.method == "vectorized":
+        key = None if plan.key_base is None else ("vectorized", *plan.key_base)
+        fn = jax.jit(jax.vmap(one_chain, in_axes=(0, start_axis, None, None)))
+        args = (keys, start, init, arrays)
+        return _cached(key, lambda: _compile(fn, args, cheap, key), timing), args
+    if plan.method == "parallel":
         # the chains split over the devices by shard_map (several on one device are
         # vectorised): a jitted program, which jax.export can keep on disk
-        n_dev = min(jax.local_device_count(), num_chains)
-        while num_chains % n_dev:
-            n_dev -= 1
+        n_dev = chains_per_device(plan.num_chains)[0]
         mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), ("chains",))
         by_chain, whole = PartitionSpec("chains"), PartitionSpec()
         fn = jax.jit(
@@ -334,35 +432,100 @@ def _sample(
             )
         )
         shardings = tuple(NamedSharding(mesh, p) for p in (by_chain, by_chain, whole, whole))
-        key = None if key_base is None else ("parallel", n_dev, *key_base)
-        program = _cached(
-            key,
-            lambda: _compile(fn, (keys, start, init, arrays), cheap, key, shardings),
-            timing,
-        )
-        tic = time.perf_counter()
-        out = jax.tree.map(np.asarray, program(keys, start, init, arrays))
-    else:  # sequential: compile one chain, run it chain after chain
-        first = None if start is None else jax.tree.map(lambda x: x[0], start)
-        key = None if key_base is None else ("sequential", *key_base)
-        program = _cached(
-            key,
-            lambda: _compile(jax.jit(one_chain), (keys[0], first, init, arrays), cheap, key),
-            timing,
-        )
-        tic = time.perf_counter()
+        key = None if plan.key_base is None else ("parallel", n_dev, *plan.key_base)
+        args = (keys, start, init, arrays)
+        program = _cached(key, lambda: _compile(fn, args, cheap, key, shardings), timing)
+        return program, args
+    # sequential: compile one chain, run it chain after chain
+    first = None if start is None else jax.tree.map(lambda x: x[0], start)
+    key = None if plan.key_base is None else ("sequential", *plan.key_base)
+    args = (keys[0], first, init, arrays)
+    return _cached(key, lambda: _compile(jax.jit(one_chain), args, cheap, key), timing), args
+
+
+def _sample(plan: _Plan, timing: dict[str, float]) -> Any:
+    """Run the chains by the plan's method; arrays by chain first."""
+    program, args = _sampling_program(plan, timing)
+    tic = time.perf_counter()
+    if plan.method != "sequential":
+        out = jax.tree.map(np.asarray, program(*args))
+    else:
+        start = plan.start
         runs = [
             program(
-                keys[c],
+                plan.keys[c],
                 None if start is None else jax.tree.map(lambda x, c=c: x[c], start),
-                init,
-                arrays,
+                plan.init,
+                plan.arrays,
             )  # fmt: skip
-            for c in range(num_chains)
+            for c in range(plan.num_chains)
         ]
         out = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *runs)
     timing["sampling"] = time.perf_counter() - tic
     return out
+
+
+class NutsPrefetch:
+    """Compile the sampling programs of coming :func:`run_nuts` calls in the background.
+
+    A fit that samples several candidate models one after another (:func:`fit_traffic`)
+    announces them all first; worker threads compile (or, in a later process, read and
+    load: :mod:`are_stats._program_cache` and JAX's persistent cache) their programs while
+    the first models sample. :func:`run_nuts` then finds each program compiled, or waits
+    for the worker compiling it. Tracing stays one thread at a time
+    (:data:`are_stats._program_cache.TRACE_LOCK`); the draws are the same bits either way.
+    A program that fails to compile here is compiled again by :func:`run_nuts`, which
+    raises the error.
+
+    Parameters
+    ----------
+    workers : int
+        Threads that compile (default 2).
+
+    Examples
+    --------
+    >>> with NutsPrefetch() as ahead:  # doctest: +SKIP
+    ...     for model, kwargs in candidates:
+    ...         ahead.add(key, model, kwargs, init, num_chains=4)
+    ...     runs = [run_nuts(key, model, kwargs, init, num_chains=4) for ...]
+    """
+
+    def __init__(self, workers: int = 2) -> None:
+        self._pool = ThreadPoolExecutor(max(1, int(workers)), "are-stats-compile")
+        self._futures: list[Any] = []
+
+    def add(
+        self,
+        key: Any,
+        model: Callable[..., None],
+        model_kwargs: dict,
+        init: dict | None,
+        **settings: Any,
+    ) -> None:
+        """Start compiling the program of ``run_nuts(key, model, model_kwargs, init, **settings)``.
+
+        ``settings`` are :func:`run_nuts`'s keywords; those that do not shape the sampling
+        program (``pointwise``, ``name``, ...) are ignored here.
+        """
+        shaping = ("num_warmup", "num_samples", "num_chains", "target_accept_prob",
+                   "init_params", "chain_method", "extra_fields", "cheap_compile")  # fmt: skip
+        plan = _plan(key, model, model_kwargs, init,
+                     **{k: v for k, v in settings.items() if k in shaping})  # fmt: skip
+        if plan.key_base is not None:  # a program nobody could find again is not kept
+            self._futures.append(self._pool.submit(_sampling_program, plan, {}))
+
+    def close(self) -> None:
+        """Wait for the workers; their errors are left to :func:`run_nuts` to raise."""
+        self._pool.shutdown(wait=True)
+        for f in self._futures:
+            f.exception()
+        self._futures.clear()
+
+    def __enter__(self) -> NutsPrefetch:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def run_nuts(
@@ -412,7 +575,7 @@ def run_nuts(
         Starting values on the unconstrained scale, with a leading chain axis (none with
         one chain; e.g. an EM fit jittered per chain); they win over ``init``.
     chain_method : {"parallel", "vectorized", "sequential"}, optional
-        Default: parallel when there is a device per chain
+        Default: parallel when the chains split evenly over two or more devices
         (:func:`resolve_chain_method`). "parallel" spreads the chains over the JAX
         devices (``jax.shard_map`` in one jitted program; several chains on one device
         are vectorised; the same draws as ``jax.pmap``),
@@ -440,46 +603,14 @@ def run_nuts(
     ValueError
         On an unknown ``chain_method`` or non-positive sizes.
     """
-    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
-    if num_warmup < 0 or num_samples < 1 or num_chains < 1:
-        raise ValueError(
-            "num_warmup, num_samples, num_chains: expected >= 0, >= 1, >= 1, got "
-            f"{num_warmup}, {num_samples}, {num_chains}"
-        )
-    method = resolve_chain_method(chain_method, num_chains)
-    accept = float(target_accept_prob)
-    fields = tuple(dict.fromkeys(("diverging", *extra_fields)))
+    plan = _plan(
+        key, model, model_kwargs, init, num_warmup=num_warmup, num_samples=num_samples,
+        num_chains=num_chains, target_accept_prob=target_accept_prob, init_params=init_params,
+        chain_method=chain_method, extra_fields=extra_fields, cheap_compile=cheap_compile,
+    )  # fmt: skip
     timing: dict[str, float] = {"compile": 0.0}
-
-    arrays, treedef, static = _split_kwargs(model_kwargs)
-    start = None
-    if init_params is not None:
-        start = {n: jnp.asarray(v, float) for n, v in init_params.items()}
-        if num_chains == 1:  # numpyro's convention: no chain axis for one chain
-            start = {n: v[None] for n, v in start.items()}
-        init = None
-    init_arg = None if init is None else {n: jnp.asarray(v, float) for n, v in init.items()}
-    keys = jax.random.split(key, num_chains)
-    key_base = _hashable(
-        (
-            _fn_key(model), treedef, static, num_warmup, num_samples, num_chains, accept,
-            fields, jax.local_device_count(), bool(cheap_compile),
-            _shapes((arrays, start, init_arg)),
-            None if init_arg is None else tuple(sorted(init_arg)),
-            None if start is None else tuple(sorted(start)),
-        )
-    )  # fmt: skip
-    one_chain = _chain_fn(
-        model, treedef, static, num_warmup, num_samples, accept, fields, start is not None
-    )
-    zs, stats = _sample(
-        one_chain, key_base, keys, start, init_arg, arrays, method, num_chains, cheap_compile,
-        timing,
-    )  # fmt: skip
-    samples, loglik = _post_process(
-        model, treedef, static, zs, arrays, pointwise, pointwise_kwargs, key_base,
-        cheap_compile, timing,
-    )  # fmt: skip
+    zs, stats = _sample(plan, timing)
+    samples, loglik = _post_process(model, plan, zs, pointwise, pointwise_kwargs, timing)
     diverging = np.asarray(stats.pop("diverging")).astype(bool)
     extra = {f: np.asarray(v) for f, v in stats.items()}
     r_hat = {}
@@ -491,22 +622,23 @@ def run_nuts(
             r = np.asarray(split_gelman_rubin(v))
         # stuck chains (no variance within them) give inf: kept, it is the worst case
         r_hat[site] = float(np.nanmax(r)) if (~np.isnan(r)).any() else float("nan")
-    return NutsRun(samples, diverging, r_hat, loglik, name, extra, method, timing)
+    return NutsRun(samples, diverging, r_hat, loglik, name, extra, plan.method, timing)
 
 
 def _post_process(
     model: Callable[..., None],
-    treedef: Any,
-    static: tuple,
+    plan: _Plan,
     zs: dict[str, np.ndarray],
-    arrays: list,
     pointwise: Callable[..., Any] | None,
     pointwise_kwargs: bool,
-    key_base: tuple | None,
-    cheap: bool,
     timing: dict[str, float],
 ) -> tuple[dict, Any]:
-    """Constrained and deterministic sites and pointwise log-likelihood of every draw."""
+    """Constrained and deterministic sites and pointwise log-likelihood of every draw.
+
+    The draws are split over the local devices (``shard_map``) when they divide evenly:
+    each draw's sites and log-likelihood are computed alone, so the result is the same.
+    """
+    treedef, static = plan.treedef, plan.static
 
     def post(flat, arrays):
         kwargs = _join_kwargs(arrays, treedef, static)
@@ -520,13 +652,28 @@ def _post_process(
         return samples, jax.vmap(pointwise)(samples)
 
     shape = next(iter(zs.values())).shape[:2]
-    flat = {n: v.reshape((shape[0] * shape[1],) + v.shape[2:]) for n, v in zs.items()}
+    n_draws = shape[0] * shape[1]
+    flat = {n: v.reshape((n_draws,) + v.shape[2:]) for n, v in zs.items()}
+    n_dev = jax.local_device_count()
+    while n_draws % n_dev:
+        n_dev -= 1
+    shardings = None
+    fn = jax.jit(post)
+    if n_dev > 1:
+        mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), ("draws",))
+        by_draw, whole = PartitionSpec("draws"), PartitionSpec()
+        fn = jax.jit(
+            jax.shard_map(post, mesh=mesh, in_specs=(by_draw, whole), out_specs=by_draw,
+                          check_vma=False)
+        )  # fmt: skip
+        shardings = (NamedSharding(mesh, by_draw), NamedSharding(mesh, whole))
     key = None
-    if key_base is not None and (pointwise is None or pointwise_kwargs):
-        key = _hashable(("post", _fn_key(pointwise), *key_base))
-    program = _cached(key, lambda: _compile(jax.jit(post), (flat, arrays), cheap, key), timing)
+    if plan.key_base is not None and (pointwise is None or pointwise_kwargs):
+        key = _hashable(("post", n_dev, _fn_key(pointwise), *plan.key_base))
+    args = (flat, plan.arrays)
+    program = _cached(key, lambda: _compile(fn, args, plan.cheap, key, shardings), timing)
     tic = time.perf_counter()
-    samples, loglik = jax.tree.map(np.asarray, program(flat, arrays))
+    samples, loglik = jax.tree.map(np.asarray, program(*args))
     timing["postprocess"] = time.perf_counter() - tic
 
     def unflat(v):

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_in
-from are_stats.fitting._nuts import NutsRun, nuts_warnings, run_nuts
+from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts
 from are_stats.traffic import (
     ARRIVAL_SPECS,
     DAY,
@@ -404,16 +404,13 @@ def fit_traffic(
     if any(ArrivalSpec.from_name(n).tod for n in cands):
         by_clock = arrival_units(data.t_arrive, data.window, data.area, res, width,
                                  group=data.group, clock_offset=clock)  # fmt: skip
+    # every candidate's NUTS call is known before the first samples: their programs
+    # compile (or load, in a later process) in the background meanwhile
+    calls = {}
     for i, name in enumerate(cands):
         spec = ArrivalSpec.from_name(name)
-        units = by_clock if spec.tod else plain
-        if name == "poisson":
-            flat = {"event_rate": lam.ravel()}
-            ll = _arrival_loglik_draws(flat, units, spec, np.asarray(log_area, float))
-            ll = np.asarray(ll).reshape(shape + (-1,))
-            runs[name] = None
-        else:
-            say(f"arrivals: NUTS for {name}")
+        if name != "poisson":
+            units = by_clock if spec.tod else plain
             centre = _empirical_rate(np.sum(units.tick_count), data, spec.groups, n_ticks)
             init: dict[str, Any] = {"event_rate_z": 0.0}
             if spec.negbin:
@@ -424,23 +421,106 @@ def fit_traffic(
                 init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
             # the centre and area are arrays: arguments of the compiled program, not
             # constants of it (logs of similar size share one program)
-            run = run_nuts(
-                jax.random.fold_in(k_arr, i),
-                arrival_model,
-                {"units": units, "spec": spec, "rate_centre": np.asarray(centre, float),
-                 "log_area": np.asarray(log_area, float), "max_group": max(max_tick, 1)},
-                init,
-                pointwise=_arrival_draw_loglik,
-                pointwise_kwargs=True,
-                name=f"arrivals {name}",
-                **nuts,
-            )  # fmt: skip
-            runs[name] = run
-            ll = run.loglik
-            draws[name] = run.samples
-            out.warnings.extend(nuts_warnings(run))
-        ll = ll[..., :n_real_bins]
-        elpd[name], ks[name] = loo_pointwise(ll, _reff(runs[name]))
+            kwargs = {
+                "units": units,
+                "spec": spec,
+                "rate_centre": np.asarray(centre, float),
+                "log_area": np.asarray(log_area, float),
+                "max_group": max(max_tick, 1),
+            }
+            calls[name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
+    units = stay_units(data.dwell, data.censored, data.truncated)
+    n = data.n
+    departed = int(np.sum(~data.censored))
+    mean_centre = float(np.sum(data.dwell)) / max(departed, 1) if n else 1.0
+    mean_centre = mean_centre if mean_centre > 0 else res
+    laws = list(STAY_LAWS) if lifetimes == "auto" else sorted({"exponential", lifetimes},
+                                                              key=STAY_LAWS.index)  # fmt: skip
+    if n == 0 or departed == 0:
+        out.warnings.append("lifetimes: no departure seen; the exponential law is kept")
+        laws = ["exponential"]
+    for i, law in enumerate(laws):
+        if law != "exponential":
+            kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
+                      "resolution": res}  # fmt: skip
+            init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
+            calls[law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
+    with NutsPrefetch() as ahead:
+        for call in calls.values():
+            ahead.add(*call, **nuts)
+        for name in cands:
+            if name == "poisson":
+                flat = {"event_rate": lam.ravel()}
+                ll = _arrival_loglik_draws(flat, plain, ArrivalSpec.from_name(name),
+                                           np.asarray(log_area, float))  # fmt: skip
+                ll = np.asarray(ll).reshape(shape + (-1,))
+                runs[name] = None
+            else:
+                say(f"arrivals: NUTS for {name}")
+                run = run_nuts(*calls[name], pointwise=_arrival_draw_loglik, pointwise_kwargs=True,
+                               name=f"arrivals {name}", **nuts)  # fmt: skip
+                runs[name] = run
+                ll = run.loglik
+                draws[name] = run.samples
+                out.warnings.extend(nuts_warnings(run))
+            ll = ll[..., :n_real_bins]
+            elpd[name], ks[name] = loo_pointwise(ll, _reff(runs[name]))
+        _choose_arrivals(out, arrivals, cands, elpd, ks, runs, draws, reshape)
+        out.attrs.update(_group_stats(data))
+
+        elpd, ks, runs, draws = {}, {}, {}, {}
+        for law in laws:
+            if law == "exponential":
+                flat = {"stay_mean": 1.0 / mu.ravel()}
+                ll = _stay_loglik_draws(flat, units, "exponential", res)
+                ll = np.asarray(ll).reshape(shape + (-1,))
+                runs[law] = None
+            else:
+                say(f"stays: NUTS for {law}")
+                run = run_nuts(*calls[law], pointwise=_stay_draw_loglik, pointwise_kwargs=True,
+                               name=f"stays {law}", **nuts)  # fmt: skip
+                runs[law] = run
+                ll = run.loglik
+                draws[law] = run.samples
+                out.warnings.extend(nuts_warnings(run))
+            ll = ll[..., :n]
+            if n:
+                elpd[law], ks[law] = loo_pointwise(ll, _reff(runs[law]))
+            else:
+                elpd[law], ks[law] = np.zeros(0), np.zeros(0)
+    if lifetimes == "auto":
+        chosen, table = choose_simplest(elpd, laws)
+    else:
+        _, table = choose_simplest(elpd, laws)
+        chosen = lifetimes if lifetimes in laws else "exponential"
+        table["chosen"] = table.index == chosen
+    _pareto_cols(table, ks)
+    _diag_cols(table, runs)
+    out.tables["lifetimes"] = table
+    out.lifetime_model = chosen
+    if chosen != "exponential":
+        out.posterior["stay_mean"] = reshape(draws[chosen]["stay_mean"])
+        out.posterior["stay_shape"] = reshape(draws[chosen]["stay_shape"])
+
+    # ---------------- positions ----------------
+    out.position_model, out.entry, out.exit, table = _fit_positions(data, positions, grid)
+    out.tables["positions"] = table
+    if table is None:
+        out.tables.pop("positions")
+    return out
+
+
+def _choose_arrivals(
+    out: TrafficFit,
+    arrivals: str,
+    cands: list[str],
+    elpd: dict,
+    ks: dict,
+    runs: dict,
+    draws: dict,
+    reshape: Any,
+) -> None:
+    """Choose the arrival model by PSIS-LOO and store its table and draws in ``out``."""
     order = sorted(cands, key=lambda n: (ArrivalSpec.from_name(n).n_params, ARRIVAL_SPECS.index(n)))
     if arrivals == "auto":
         chosen, table = choose_simplest(elpd, order)
@@ -464,72 +544,6 @@ def fit_traffic(
         if spec.groups:
             out.posterior["group_size_probs"] = reshape(s["group_size_probs"])
             out.dims["group_size_probs"] = ["group_size"]
-    out.attrs.update(_group_stats(data))
-
-    # ---------------- stays ----------------
-    units = stay_units(data.dwell, data.censored, data.truncated)
-    n = data.n
-    departed = int(np.sum(~data.censored))
-    mean_centre = float(np.sum(data.dwell)) / max(departed, 1) if n else 1.0
-    mean_centre = mean_centre if mean_centre > 0 else res
-    laws = list(STAY_LAWS) if lifetimes == "auto" else sorted({"exponential", lifetimes},
-                                                              key=STAY_LAWS.index)  # fmt: skip
-    elpd, ks, runs, draws = {}, {}, {}, {}
-    if n == 0 or departed == 0:
-        out.warnings.append("lifetimes: no departure seen; the exponential law is kept")
-        laws = ["exponential"]
-    for i, law in enumerate(laws):
-        if law == "exponential":
-            flat = {"stay_mean": 1.0 / mu.ravel()}
-            ll = _stay_loglik_draws(flat, units, "exponential", res)
-            ll = np.asarray(ll).reshape(shape + (-1,))
-            runs[law] = None
-        else:
-            say(f"stays: NUTS for {law}")
-            run = run_nuts(
-                jax.random.fold_in(k_life, i),
-                stay_model,
-                {
-                    "units": units,
-                    "law": law,
-                    "mean_centre": np.asarray(mean_centre, float),
-                    "resolution": res,
-                },
-                {"stay_mean_z": 0.0, "stay_shape_eta": 0.0},
-                pointwise=_stay_draw_loglik,
-                pointwise_kwargs=True,
-                name=f"stays {law}",
-                **nuts,
-            )
-            runs[law] = run
-            ll = run.loglik
-            draws[law] = run.samples
-            out.warnings.extend(nuts_warnings(run))
-        ll = ll[..., :n]
-        if n:
-            elpd[law], ks[law] = loo_pointwise(ll, _reff(runs[law]))
-        else:
-            elpd[law], ks[law] = np.zeros(0), np.zeros(0)
-    if lifetimes == "auto":
-        chosen, table = choose_simplest(elpd, laws)
-    else:
-        _, table = choose_simplest(elpd, laws)
-        chosen = lifetimes if lifetimes in laws else "exponential"
-        table["chosen"] = table.index == chosen
-    _pareto_cols(table, ks)
-    _diag_cols(table, runs)
-    out.tables["lifetimes"] = table
-    out.lifetime_model = chosen
-    if chosen != "exponential":
-        out.posterior["stay_mean"] = reshape(draws[chosen]["stay_mean"])
-        out.posterior["stay_shape"] = reshape(draws[chosen]["stay_shape"])
-
-    # ---------------- positions ----------------
-    out.position_model, out.entry, out.exit, table = _fit_positions(data, positions, grid)
-    out.tables["positions"] = table
-    if table is None:
-        out.tables.pop("positions")
-    return out
 
 
 def _fit_positions(

@@ -176,3 +176,88 @@ def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, me
             np.testing.assert_array_equal(other.samples[site], traced.samples[site])
         np.testing.assert_array_equal(other.loglik, traced.loglik)
         np.testing.assert_array_equal(other.diverging, traced.diverging)
+
+
+def test_default_spreads_chains_over_devices():
+    """Without a stated method, chains that split evenly over two or more devices run
+    "parallel" (each device vectorising its share), otherwise vectorised on one."""
+    from are_stats.fitting import chains_per_device, resolve_chain_method
+
+    n_dev = jax.local_device_count()
+    assert n_dev == 2  # tests/conftest.py asks for 2 host devices
+    assert chains_per_device(4) == (2, 2) and chains_per_device(2) == (2, 1)
+    assert chains_per_device(3) == (1, 3) and chains_per_device(1) == (1, 1)
+    assert resolve_chain_method(None, 4) == "parallel"
+    assert resolve_chain_method(None, 3) == "vectorized"
+    assert resolve_chain_method(None, 1) == "sequential"
+    assert resolve_chain_method("vectorized", 4) == "vectorized"
+    # the same draws up to rounding either way, and the loglik of each of them (odd
+    # draw count: the post-processing on one device; even: split over both)
+    y = _data(5)
+    kw = {"num_warmup": 100, "num_samples": 51, "num_chains": 4, "pointwise": normal_pointwise,
+          "pointwise_kwargs": True}  # fmt: skip
+    start = {"mu": 0.0}
+    runs = {m: run_nuts(jax.random.key(8), normal_model, {"y": y}, start, chain_method=m, **kw)
+            for m in ("parallel", "vectorized", None)}  # fmt: skip
+    assert runs[None].chain_method == "parallel"
+    np.testing.assert_array_equal(runs[None].samples["mu"], runs["parallel"].samples["mu"])
+    np.testing.assert_allclose(runs["vectorized"].samples["mu"], runs["parallel"].samples["mu"],
+                               rtol=1e-9)  # fmt: skip
+    odd = run_nuts(
+        jax.random.key(8), normal_model, {"y": y}, {"mu": 0.0}, **{**kw, "num_chains": 3}
+    )
+    for run in (*runs.values(), odd):
+        expect = stats.norm.logpdf(y[None, None, :], run.samples["mu"][..., None], S)
+        np.testing.assert_allclose(run.loglik, expect, rtol=1e-10)
+
+
+def _failing_model(y):
+    numpyro.sample("mu", dist.Normal(0.0, 1.0))
+    raise RuntimeError("model error on purpose")
+
+
+def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
+    """Programs compiled by :class:`NutsPrefetch` worker threads (two models traced at
+    once, so the trace lock matters) are the ones ``run_nuts`` then uses, and give the same
+    bits as programs compiled by ``run_nuts`` itself. A model that fails to compile fails
+    in ``run_nuts``, not in the prefetch."""
+    from are_stats.fitting import NutsPrefetch
+    from are_stats.fitting._traffic import _stay_draw_loglik
+    from are_stats.traffic._models import stay_model, stay_units
+
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")  # trace in the workers, not read
+    rng = np.random.default_rng(11)
+    stay = rng.gamma(4.0, 150.0, 30)
+    calls = [
+        (jax.random.key(2), normal_model, {"y": _data(6)}, {"mu": 0.0}, normal_pointwise),
+        (jax.random.key(3), stay_model,
+         {"units": stay_units(stay, stay > 900.0, np.arange(30) < 4), "law": "gamma",
+          "mean_centre": np.asarray(stay.mean()), "resolution": 0.4},
+         {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}, _stay_draw_loglik),
+    ]  # fmt: skip
+    kw = {"num_warmup": 80, "num_samples": 40, "num_chains": 4, "pointwise_kwargs": True}
+
+    def runs():
+        return [run_nuts(k, m, a, i, pointwise=p, **kw) for k, m, a, i, p in calls]
+
+    nuts_module._CACHE.clear()
+    alone = runs()
+    nuts_module._CACHE.clear()
+    compiled = []
+    original = nuts_module._compile
+    monkeypatch.setattr(nuts_module, "_compile",
+                        lambda *a, **k: compiled.append(a[2]) or original(*a, **k))  # fmt: skip
+    with NutsPrefetch() as ahead:
+        for k, m, a, i, _ in calls:
+            ahead.add(k, m, a, i, name="ignored", **kw)
+    assert len(nuts_module._CACHE) == 2 and len(compiled) == 2  # both sampling programs
+    ahead_runs = runs()
+    assert len(compiled) == 4  # run_nuts compiled only the two post-processing programs
+    for a, b in zip(alone, ahead_runs, strict=True):
+        for site in a.samples:
+            np.testing.assert_array_equal(a.samples[site], b.samples[site])
+        np.testing.assert_array_equal(a.loglik, b.loglik)
+    with NutsPrefetch() as ahead:
+        ahead.add(jax.random.key(0), _failing_model, {"y": _data(0)}, None, num_chains=2)
+    with pytest.raises(RuntimeError, match="model error on purpose"):
+        run_nuts(jax.random.key(0), _failing_model, {"y": _data(0)}, None, num_chains=2)
