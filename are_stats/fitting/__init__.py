@@ -74,6 +74,7 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     write_fit,
 )
 from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts  # noqa: E402
+from are_stats.fitting._psis import psislw  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
     PredictiveChecks,
     check_report_size,
@@ -108,6 +109,7 @@ __all__ += [
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
     "NutsPrefetch",
+    "psislw",
     "NutsRun",
     "TrafficFit",
     "attach_behaviour",

@@ -38,6 +38,7 @@ from are_stats.fitting._lifecycle_mcmc import (
     _predictive_counts,
     fit_lifecycle_nuts,
 )
+from are_stats.fitting._psis import psislw
 from are_stats.traffic import (
     LifecycleData,
     LifecyclePriors,
@@ -971,7 +972,7 @@ def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> Any:
             flat = _stays_loglik(mu, pairs[j : j + block]).reshape(s, -1)
         else:
             flat = ll.reshape(s, m)[:, j : j + block]
-        log_w, k_block = az.psislw(-flat.T, reff)
+        log_w, k_block = psislw(-flat.T, reff)
         parts.append(
             (
                 logsumexp(log_w + flat.T, axis=1),

@@ -26,6 +26,7 @@ from are_stats.fitting._em import (
     marks_histogram,
 )
 from are_stats.fitting._mixture_mcmc import fit_mixture_nuts
+from are_stats.fitting._psis import psislw
 
 __all__ = ["InformationCriterion", "mixture_waic", "mixture_loo", "select_n_components"]
 
@@ -122,7 +123,7 @@ def mixture_loo(idata: az.InferenceData) -> InformationCriterion:
     -------
     InformationCriterion
         ``elpd_loo = sum_j c_j log sum_s w_js p(v_j | theta_s)`` with Pareto-smoothed
-        importance weights ``w_js`` (``arviz.psislw``) for leaving out one mark equal to
+        importance weights ``w_js`` (:func:`psislw`, ArviZ's estimator) for leaving out one mark equal to
         ``v_j``. The relative efficiency passed to ``psislw`` is the mean over marks of
         ``ess(p(v_j | theta)) / S`` (the R ``loo`` package's ``relative_eff``; ``arviz.loo``
         instead uses the ESS of the parameters).
@@ -141,7 +142,7 @@ def mixture_loo(idata: az.InferenceData) -> InformationCriterion:
         reff = float(np.sum(counts * ess) / counts.sum()) / s
     else:
         reff = 1.0
-    log_w, k_hat = az.psislw(-flat.T, reff)  # (m, S), normalised
+    log_w, k_hat = psislw(-flat.T, reff)  # (m, S), normalised
     e = logsumexp(log_w + flat.T, axis=1)
     lppd = logsumexp(flat, axis=0) - np.log(s)
     elpd, se = _weighted_total(e, counts)

@@ -24,7 +24,6 @@ probabilities).
 from __future__ import annotations
 
 import functools
-import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,6 +33,7 @@ import pandas as pd
 
 from are_stats._checks import check_in
 from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts
+from are_stats.fitting._psis import psislw
 from are_stats.traffic import (
     ARRIVAL_SPECS,
     DAY,
@@ -129,15 +129,12 @@ def time_resolution(*times: Any) -> float:
 
 def loo_pointwise(loglik: np.ndarray, reff: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """PSIS-LOO pointwise ``elpd_i`` and Pareto ``k_i`` of a ``(chains, draws, n)`` log-lik."""
-    import arviz as az
     from scipy.special import logsumexp
 
     c, d, n = loglik.shape
     flat = loglik.reshape(c * d, n)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        log_w, k = az.psislw(-flat.T, reff)
-    elpd = logsumexp(np.asarray(log_w) + flat.T, axis=1)
+    log_w, k = psislw(-flat.T, reff)
+    elpd = logsumexp(log_w + flat.T, axis=1)
     return np.asarray(elpd, float), np.atleast_1d(np.asarray(k, float))
 
 
