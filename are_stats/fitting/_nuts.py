@@ -514,18 +514,22 @@ class NutsPrefetch:
         if plan.key_base is not None:  # a program nobody could find again is not kept
             self._futures.append(self._pool.submit(_sampling_program, plan, {}))
 
-    def close(self) -> None:
-        """Wait for the workers; their errors are left to :func:`run_nuts` to raise."""
-        self._pool.shutdown(wait=True)
+    def close(self, cancel: bool = False) -> None:
+        """Wait for the workers; their errors are left to :func:`run_nuts` to raise.
+
+        ``cancel=True`` drops the programs not started yet (the ones compiling finish).
+        """
+        self._pool.shutdown(wait=True, cancel_futures=cancel)
         for f in self._futures:
-            f.exception()
+            if not f.cancelled():
+                f.exception()
         self._futures.clear()
 
     def __enter__(self) -> NutsPrefetch:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        self.close(cancel=exc_type is not None)  # an error or Ctrl-C: do not compile on
 
 
 def run_nuts(

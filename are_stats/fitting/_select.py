@@ -123,10 +123,10 @@ def mixture_loo(idata: az.InferenceData) -> InformationCriterion:
     -------
     InformationCriterion
         ``elpd_loo = sum_j c_j log sum_s w_js p(v_j | theta_s)`` with Pareto-smoothed
-        importance weights ``w_js`` (:func:`psislw`, ArviZ's estimator) for leaving out one mark equal to
-        ``v_j``. The relative efficiency passed to ``psislw`` is the mean over marks of
-        ``ess(p(v_j | theta)) / S`` (the R ``loo`` package's ``relative_eff``; ``arviz.loo``
-        instead uses the ESS of the parameters).
+        importance weights ``w_js`` (:func:`psislw`, ArviZ's estimator) for leaving out
+        one mark equal to ``v_j``. The relative efficiency passed to ``psislw`` is the
+        mean over marks of ``ess(p(v_j | theta)) / S`` (the R ``loo`` package's
+        ``relative_eff``; ``arviz.loo`` instead uses the ESS of the parameters).
 
     Raises
     ------
