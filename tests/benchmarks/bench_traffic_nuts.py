@@ -63,10 +63,18 @@ fits, before the traced programs were kept), ``--quick`` about 6. The CLI fits a
 (``--fit-only``, 2 shared cores, load 1.2-2, 2026-11-25): first 68.3 s, second 18.6 s,
 third 17.8 s (3.7x; other runs 3.6-4.2x); before the traced programs were kept, in the
 same conditions, 57.9 s then 27.0 s (2.1x). On idle cores (2026-11-25, later): 65.4 s,
-19.5 s, 18.2 s (3.4x / 3.6x) in the bench environment, whose numba (from PyMC) ArviZ
-compiles at import and for its variances; without numba, as after a plain install, 59.0 s,
-16.9 s, 16.1 s (3.5x / 3.7x). A warm run is then mostly sampling (about 9.7 s, as in the
-first), reading 27 cached executables (2.0 s), imports, PSIS-LOO (1.4 s) and writing.
+19.5 s, 18.2 s (3.4x / 3.6x) in the bench environment. Then three changes (2026-11-25,
+third session): the 4 chains run 2 per core instead of all 4 in lock-step on one core
+(the default chain method was "vectorized" with fewer devices than chains); every
+candidate's program is compiled or loaded in background threads while the first ones
+sample (:class:`are_stats.fitting.NutsPrefetch`); PSIS-LOO for all observations at once
+(:func:`are_stats.fitting.psislw`, 1.2 s -> 0.5 s). Idle cores, bench environment, four
+runs: first 57.7 / 48.3 / 52.1 / 46.8 s, second 13.8 / 11.9 / 12.2 / 13.2 s, third 15.8 /
+13.5 / 12.2 / 12.4 s (first / second 3.5-4.3x; the first run also compiles its candidates
+two at a time now). Without numba (a plain install; ArviZ compiles numba functions at import
+in the bench environment): 55.9 s, 12.2 s, 11.3 s (4.6x / 4.9x). A warm run is then about
+3.3 s of imports (ArviZ 2.1 s), 4.3 s of sampling on both cores, 0.5 s of PSIS-LOO and
+1.7 s of building and writing the InferenceData and its summary.
 """
 
 from __future__ import annotations
