@@ -29,7 +29,9 @@ def configure_jax(cache: bool | None = None) -> None:
     turns the cache off; a ``JAX_COMPILATION_CACHE_DIR`` set by the user is kept.
     The traced programs that :mod:`are_stats._program_cache` keeps (so that a second
     process does not trace them again) go to ``$XDG_CACHE_HOME/are_stats/programs``
-    (``ARE_STATS_PROGRAM_CACHE``), on and off with the rest.
+    (``ARE_STATS_PROGRAM_CACHE``), on and off with the rest. Each ``are-stats`` run then
+    keeps both folders under their cap (:func:`are_stats._program_cache.prune_cache`,
+    ``ARE_STATS_CACHE_MAX_MB``, default 1024).
 
     Called on import; JAX reads the settings when it is first imported (by whichever part
     of are_stats needs it), or they are applied at once when JAX is already loaded.

@@ -39,7 +39,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["TRACE_LOCK", "compile_program", "program_folder", "source_hash", "stable_repr"]
+__all__ = [
+    "TRACE_LOCK", "cache_limit", "compile_program", "program_folder", "prune_cache", "source_hash",
+    "stable_repr",
+]  # fmt: skip
 
 #: Held while a program is traced: numpyro's effect handlers live on one global stack, so
 #: two threads must not trace models at once. Reading, lowering and compiling a kept
@@ -194,9 +197,13 @@ def _read(path: Path, leaves: list) -> Any | None:
         want = [(jax.typeof(x).shape, jax.typeof(x).dtype) for x in leaves]
         if [(a.shape, a.dtype) for a in exported.in_avals] != want:
             return None
-        return exported
     except Exception:  # noqa: BLE001 - anything wrong with the file: trace again
         return None
+    try:
+        os.utime(path)  # its last use, for prune_cache
+    except OSError:
+        pass
+    return exported
 
 
 def _write(path: Path, blob: bytes) -> None:
@@ -296,3 +303,96 @@ def _compile_exported(
         return compiled(*jax.tree.leaves(args))
 
     return call
+
+
+#: Default cap on each cache folder, MiB (``ARE_STATS_CACHE_MAX_MB``; 0: no cap).
+CACHE_MAX_MB = 1024
+
+
+def cache_limit() -> int | None:
+    """Bytes each cache folder may hold (``ARE_STATS_CACHE_MAX_MB``, default 1024 MiB).
+
+    Returns
+    -------
+    int or None
+        None when the cap is off (``ARE_STATS_CACHE_MAX_MB=0``) or the value is not a
+        number.
+    """
+    text = os.environ.get("ARE_STATS_CACHE_MAX_MB", "").strip()
+    try:
+        mb = float(text) if text else float(CACHE_MAX_MB)
+    except ValueError:
+        return None
+    return int(mb * 2**20) if mb > 0 else None
+
+
+def prune_cache(max_bytes: int | None = None, folders: list[Path] | None = None) -> int:
+    """Delete the least recently used cache files of a folder past ``max_bytes``.
+
+    Every compiled program stays in ``$XDG_CACHE_HOME/are_stats`` until removed: an
+    edited or upgraded are_stats, other shapes or settings each add files. When a folder
+    holds more than ``max_bytes``, its files are deleted, least recently used first (the
+    later of access and modification time: the traced programs are touched when read,
+    JAX's compiled ones carry the access time the file system keeps), until it holds at
+    most 80% of it. A deleted program is compiled again when next needed. Files being
+    written (temporary names younger than an hour) are kept; errors are ignored.
+
+    Parameters
+    ----------
+    max_bytes : int, optional
+        Cap per folder; default :func:`cache_limit`. None (and a cap that is off): nothing
+        is deleted.
+    folders : list of Path, optional
+        Default: the traced programs' folder and JAX's compile cache, when are_stats
+        manages it (:func:`are_stats.configure_jax`).
+
+    Returns
+    -------
+    int
+        Bytes deleted.
+    """
+    import time
+
+    limit = cache_limit() if max_bytes is None else int(max_bytes)
+    if limit is None:
+        return 0
+    if folders is None:
+        folders = [
+            Path(f)
+            for f in (
+                os.environ.get("ARE_STATS_PROGRAM_CACHE"),
+                os.environ.get("ARE_STATS_JAX_CACHE"),
+            )
+            if f
+        ]
+    freed = 0
+    now = time.time()
+    for folder in folders:
+        entries = []
+        try:
+            with os.scandir(folder) as it:
+                for e in it:
+                    try:
+                        st = e.stat(follow_symlinks=False)
+                    except OSError:
+                        continue
+                    if not e.is_file(follow_symlinks=False):
+                        continue
+                    if e.name.endswith(".tmp") and now - st.st_mtime < 3600:
+                        continue
+                    entries.append((max(st.st_atime, st.st_mtime), st.st_size, e.path))
+        except OSError:
+            continue
+        total = sum(size for _, size, _ in entries)
+        if total <= limit:
+            continue
+        for _, size, path in sorted(entries):
+            if total <= 0.8 * limit:
+                break
+            try:
+                os.unlink(path)
+            except OSError:
+                continue
+            total -= size
+            freed += size
+    return freed

@@ -479,7 +479,13 @@ def serve(
 
 
 def main() -> None:  # pragma: no cover - console entry
-    app()
+    try:
+        app()
+    finally:
+        # the compiled programs this run added: the cache folders stay under their cap
+        from are_stats._program_cache import prune_cache
+
+        prune_cache()
 
 
 if __name__ == "__main__":  # python -m are_stats.cli

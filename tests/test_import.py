@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -48,7 +49,6 @@ def test_x64_is_switched_on_when_jax_came_first():
 
 def test_second_process_hits_the_compile_cache(tmp_path):
     """JAX's persistent cache is on by default (small programs too) and really hit."""
-    import os
 
     code = (
         "import are_stats, jax, jax.numpy as jnp\n"
@@ -78,3 +78,20 @@ def test_second_process_hits_the_compile_cache(tmp_path):
     assert hits > 0 and misses == 0
     hits, misses = run({"ARE_STATS_NO_CACHE": "1"})
     assert hits == 0
+
+
+def test_a_cli_run_keeps_the_cache_under_its_cap(tmp_path):
+    """Every ``are-stats`` run prunes the cache folders it manages to their cap
+    (``ARE_STATS_CACHE_MAX_MB``): the least recently used files go first."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "ARE_STATS_"))}
+    env["XDG_CACHE_HOME"] = str(tmp_path)
+    env["ARE_STATS_CACHE_MAX_MB"] = "0.001"  # 1048 bytes
+    programs = tmp_path / "are_stats" / "programs"
+    programs.mkdir(parents=True)
+    old, new = programs / "old.jaxexport", programs / "new.jaxexport"
+    old.write_bytes(b"o" * 800)
+    new.write_bytes(b"n" * 800)
+    os.utime(old, (1.0, 1.0))
+    subprocess.run([sys.executable, "-m", "are_stats", "version"], env=env, check=True,
+                   capture_output=True)  # fmt: skip
+    assert not old.exists() and new.exists()

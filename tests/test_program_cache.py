@@ -187,3 +187,40 @@ def test_configure_jax_sets_the_folder_and_turns_it_off(tmp_path):
     assert run({}) == str(tmp_path / "are_stats" / "programs")
     assert run({"ARE_STATS_NO_CACHE": "1"}) == ""
     assert run({}, "off") == ""
+
+
+def test_prune_deletes_the_least_recently_used_files_past_the_cap(tmp_path, monkeypatch):
+    """A folder over its cap loses its least recently used files until it holds 80% of
+    the cap; a folder under the cap, young temporary files and a cap turned off keep all."""
+    big, small = tmp_path / "jax", tmp_path / "programs"
+    big.mkdir()
+    small.mkdir()
+    now = 1_700_000_000.0
+    for i in range(10):  # 10 files of 100 bytes, used at times now - 10 + i
+        f = big / f"entry{i}-cache"
+        f.write_bytes(b"x" * 100)
+        os.utime(f, (now - 10 + i, now - 10 + i))
+    writing = big / ".entry.tmp"  # being written: neither counted nor deleted
+    writing.write_bytes(b"y" * 500)
+    (small / "p.jaxexport").write_bytes(b"z" * 100)
+    assert pc.prune_cache(900, [big, small, tmp_path / "missing"]) == 300
+    left = sorted(p.name for p in big.iterdir())
+    assert left == [".entry.tmp"] + [f"entry{i}-cache" for i in range(3, 10)]  # 700 <= 720
+    assert (small / "p.jaxexport").exists()
+    monkeypatch.setenv("ARE_STATS_CACHE_MAX_MB", "0")
+    assert pc.cache_limit() is None and pc.prune_cache(None, [big]) == 0
+    monkeypatch.setenv("ARE_STATS_CACHE_MAX_MB", "2.5")
+    assert pc.cache_limit() == int(2.5 * 2**20)
+    monkeypatch.delenv("ARE_STATS_CACHE_MAX_MB")
+    assert pc.cache_limit() == pc.CACHE_MAX_MB * 2**20
+
+
+def test_reading_a_kept_program_marks_it_used(folder):
+    """The traced programs are touched when read, so pruning keeps the ones in use."""
+    f = jax.jit(lambda x: x * 2.0)
+    args = (np.ones(3),)
+    pc.compile_program(f, args, ("double",))
+    (path,) = folder.glob("*.jaxexport")
+    os.utime(path, (1.0, 1.0))
+    pc.compile_program(f, args, ("double",))
+    assert path.stat().st_mtime > 1.0
