@@ -403,7 +403,7 @@ def fit_traffic(
                                  group=data.group, clock_offset=clock)  # fmt: skip
     # every candidate's NUTS call is known before the first samples: their programs
     # compile (or load, in a later process) in the background meanwhile
-    calls = {}
+    calls: dict[tuple[str, str], tuple] = {}
     for i, name in enumerate(cands):
         spec = ArrivalSpec.from_name(name)
         if name != "poisson":
@@ -425,7 +425,7 @@ def fit_traffic(
                 "log_area": np.asarray(log_area, float),
                 "max_group": max(max_tick, 1),
             }
-            calls[name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
+            calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
     units = stay_units(data.dwell, data.censored, data.truncated)
     n = data.n
     departed = int(np.sum(~data.censored))
@@ -441,7 +441,7 @@ def fit_traffic(
             kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
                       "resolution": res}  # fmt: skip
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
-            calls[law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
+            calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
     with NutsPrefetch() as ahead:
         for call in calls.values():
             ahead.add(*call, **nuts)
@@ -454,8 +454,8 @@ def fit_traffic(
                 runs[name] = None
             else:
                 say(f"arrivals: NUTS for {name}")
-                run = run_nuts(*calls[name], pointwise=_arrival_draw_loglik, pointwise_kwargs=True,
-                               name=f"arrivals {name}", **nuts)  # fmt: skip
+                run = run_nuts(*calls["arrivals", name], pointwise=_arrival_draw_loglik,
+                               pointwise_kwargs=True, name=f"arrivals {name}", **nuts)  # fmt: skip
                 runs[name] = run
                 ll = run.loglik
                 draws[name] = run.samples
@@ -474,8 +474,8 @@ def fit_traffic(
                 runs[law] = None
             else:
                 say(f"stays: NUTS for {law}")
-                run = run_nuts(*calls[law], pointwise=_stay_draw_loglik, pointwise_kwargs=True,
-                               name=f"stays {law}", **nuts)  # fmt: skip
+                run = run_nuts(*calls["stays", law], pointwise=_stay_draw_loglik,
+                               pointwise_kwargs=True, name=f"stays {law}", **nuts)  # fmt: skip
                 runs[law] = run
                 ll = run.loglik
                 draws[law] = run.samples
