@@ -26,6 +26,7 @@ persistent cache, :func:`are_stats.configure_jax`).
 from __future__ import annotations
 
 import functools
+import inspect
 import operator
 import threading
 import time
@@ -354,23 +355,20 @@ class _Plan(NamedTuple):
     cheap: bool
 
 
-def _plan(
-    key: Any,
-    model: Callable[..., None],
-    model_kwargs: dict,
-    init: dict | None,
-    *,
-    num_warmup: int = 1000,
-    num_samples: int = 1000,
-    num_chains: int = 4,
-    target_accept_prob: float = 0.85,
-    init_params: dict | None = None,
-    chain_method: str | None = None,
-    extra_fields: tuple[str, ...] = (),
-    cheap_compile: bool = False,
-) -> _Plan:
-    """Check the settings and set up the chains' function, arguments and cache key."""
-    num_warmup, num_samples, num_chains = int(num_warmup), int(num_samples), int(num_chains)
+def _plan(key: Any, model: Callable[..., None], model_kwargs: dict, init: dict | None,
+          settings: dict[str, Any]) -> _Plan:  # fmt: skip
+    """Check the settings and set up the chains' function, arguments and cache key.
+
+    ``settings``: :func:`run_nuts`'s keywords, those left out at its defaults.
+    """
+    given = {k: v for k, v in settings.items() if k in _RUN_NUTS_DEFAULTS}
+    opts = {**_RUN_NUTS_DEFAULTS, **given}
+    num_warmup, num_samples, num_chains = (
+        int(opts["num_warmup"]), int(opts["num_samples"]), int(opts["num_chains"])
+    )  # fmt: skip
+    init_params, chain_method = opts["init_params"], opts["chain_method"]
+    extra_fields, cheap_compile = opts["extra_fields"], opts["cheap_compile"]
+    target_accept_prob = opts["target_accept_prob"]
     if num_warmup < 0 or num_samples < 1 or num_chains < 1:
         raise ValueError(
             "num_warmup, num_samples, num_chains: expected >= 0, >= 1, >= 1, got "
@@ -507,10 +505,7 @@ class NutsPrefetch:
         ``settings`` are :func:`run_nuts`'s keywords; those that do not shape the sampling
         program (``pointwise``, ``name``, ...) are ignored here.
         """
-        shaping = ("num_warmup", "num_samples", "num_chains", "target_accept_prob",
-                   "init_params", "chain_method", "extra_fields", "cheap_compile")  # fmt: skip
-        plan = _plan(key, model, model_kwargs, init,
-                     **{k: v for k, v in settings.items() if k in shaping})  # fmt: skip
+        plan = _plan(key, model, model_kwargs, init, settings)
         if plan.key_base is not None:  # a program nobody could find again is not kept
             self._futures.append(self._pool.submit(_sampling_program, plan, {}))
 
@@ -607,11 +602,8 @@ def run_nuts(
     ValueError
         On an unknown ``chain_method`` or non-positive sizes.
     """
-    plan = _plan(
-        key, model, model_kwargs, init, num_warmup=num_warmup, num_samples=num_samples,
-        num_chains=num_chains, target_accept_prob=target_accept_prob, init_params=init_params,
-        chain_method=chain_method, extra_fields=extra_fields, cheap_compile=cheap_compile,
-    )  # fmt: skip
+    settings = dict(locals())  # the keywords, for _plan
+    plan = _plan(key, model, model_kwargs, init, settings)
     timing: dict[str, float] = {"compile": 0.0}
     zs, stats = _sample(plan, timing)
     samples, loglik = _post_process(model, plan, zs, pointwise, pointwise_kwargs, timing)
@@ -703,3 +695,12 @@ def nuts_warnings(run: NutsRun, r_hat_limit: float = 1.01) -> list[str]:
             "chains disagree (run longer chains: --samples, --warmup)"
         )
     return out
+
+
+#: run_nuts's keywords that shape the sampling program, at their defaults (for _plan).
+_RUN_NUTS_DEFAULTS = {
+    name: p.default
+    for name, p in inspect.signature(run_nuts).parameters.items()
+    if name in ("num_warmup", "num_samples", "num_chains", "target_accept_prob", "init_params",
+                "chain_method", "extra_fields", "cheap_compile")
+}  # fmt: skip

@@ -453,13 +453,9 @@ def fit_traffic(
                 ll = np.asarray(ll).reshape(shape + (-1,))
                 runs[name] = None
             else:
-                say(f"arrivals: NUTS for {name}")
-                run = run_nuts(*calls["arrivals", name], pointwise=_arrival_draw_loglik,
-                               pointwise_kwargs=True, name=f"arrivals {name}", **nuts)  # fmt: skip
-                runs[name] = run
-                ll = run.loglik
-                draws[name] = run.samples
-                out.warnings.extend(nuts_warnings(run))
+                run = _sample_candidate(calls, ("arrivals", name), _arrival_draw_loglik, nuts,
+                                        say, out)  # fmt: skip
+                runs[name], ll, draws[name] = run, run.loglik, run.samples
             ll = ll[..., :n_real_bins]
             elpd[name], ks[name] = loo_pointwise(ll, _reff(runs[name]))
         _choose_arrivals(out, arrivals, cands, elpd, ks, runs, draws, reshape)
@@ -473,13 +469,8 @@ def fit_traffic(
                 ll = np.asarray(ll).reshape(shape + (-1,))
                 runs[law] = None
             else:
-                say(f"stays: NUTS for {law}")
-                run = run_nuts(*calls["stays", law], pointwise=_stay_draw_loglik,
-                               pointwise_kwargs=True, name=f"stays {law}", **nuts)  # fmt: skip
-                runs[law] = run
-                ll = run.loglik
-                draws[law] = run.samples
-                out.warnings.extend(nuts_warnings(run))
+                run = _sample_candidate(calls, ("stays", law), _stay_draw_loglik, nuts, say, out)
+                runs[law], ll, draws[law] = run, run.loglik, run.samples
             ll = ll[..., :n]
             if n:
                 elpd[law], ks[law] = loo_pointwise(ll, _reff(runs[law]))
@@ -505,6 +496,18 @@ def fit_traffic(
     if table is None:
         out.tables.pop("positions")
     return out
+
+
+def _sample_candidate(
+    calls: dict, which: tuple[str, str], pointwise: Any, nuts: dict, say: Any, out: TrafficFit
+) -> NutsRun:
+    """NUTS for one candidate model (its warnings added to ``out``)."""
+    factor, name = which
+    say(f"{factor}: NUTS for {name}")
+    run = run_nuts(*calls[which], pointwise=pointwise, pointwise_kwargs=True,
+                   name=f"{factor} {name}", **nuts)  # fmt: skip
+    out.warnings.extend(nuts_warnings(run))
+    return run
 
 
 def _choose_arrivals(
