@@ -482,10 +482,11 @@ class NutsPrefetch:
 
     Examples
     --------
+    >>> calls = [(key_a, model_a, kw_a, init_a), (key_b, model_b, kw_b, init_b)]  # doctest: +SKIP
     >>> with NutsPrefetch() as ahead:  # doctest: +SKIP
-    ...     for model, kwargs in candidates:
-    ...         ahead.add(key, model, kwargs, init, num_chains=4)
-    ...     runs = [run_nuts(key, model, kwargs, init, num_chains=4) for ...]
+    ...     for call in calls:
+    ...         ahead.add(*call, num_chains=4)
+    ...     runs = [run_nuts(*call, num_chains=4) for call in calls]
     """
 
     def __init__(self, workers: int = 2) -> None:
