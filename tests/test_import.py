@@ -28,6 +28,17 @@ def test_cli_help_loads_no_heavy_library():
     assert not loaded & set(HEAVY)
 
 
+def test_the_fitting_package_imports_arviz_on_first_use():
+    """ArviZ (2 s of imports) comes in when a fit is built or read, not with the package."""
+    assert "arviz" not in _loaded_after("import are_stats.fitting")
+    loaded = _loaded_after(
+        "from are_stats.fitting import _fit_log as f\nassert 'not imported' in repr(f.az)\n"
+        "assert f.az.InferenceData.__name__ == 'InferenceData'\n"
+        "assert 'not imported' not in repr(f.az)"
+    )
+    assert "arviz" in loaded
+
+
 def test_public_names_resolve_and_jax_runs_in_64_bits():
     code = (
         "import are_stats as ar\n"

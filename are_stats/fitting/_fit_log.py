@@ -32,6 +32,7 @@ import numpyro
 
 from are_stats import __version__
 from are_stats._checks import check_in, check_nonneg_int, describe
+from are_stats._lazy import LazyModule
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
 from are_stats.fitting._lifecycle_mcmc import (
     _inference_data,
@@ -39,6 +40,7 @@ from are_stats.fitting._lifecycle_mcmc import (
     fit_lifecycle_nuts,
 )
 from are_stats.fitting._psis import psislw
+from are_stats.fitting._traffic import fit_traffic
 from are_stats.traffic import (
     LifecycleData,
     LifecyclePriors,
@@ -50,9 +52,8 @@ from are_stats.traffic import (
     prior_predictive,
 )
 
-with warnings.catch_warnings():
-    warnings.simplefilter("ignore", FutureWarning)  # arviz 0.23 announces its 1.0 refactor
-    import arviz as az
+# ArviZ (2 s of imports) comes in on first use; arviz 0.23 announces its 1.0 refactor
+az = LazyModule("arviz", quiet=(FutureWarning,))
 
 __all__ = [
     "FitSettings",
@@ -410,8 +411,6 @@ def fit_log(
             arrival_model="poisson", lifetime_model="exponential", position_model="uniform"
         )
     else:
-        from are_stats.fitting._traffic import fit_traffic
-
         post = idata.posterior
         traffic = fit_traffic(
             jax.random.fold_in(key, 14),

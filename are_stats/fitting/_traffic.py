@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import numpy as np
@@ -367,12 +367,12 @@ def fit_traffic(
     shape = lam.shape
     n_draws = lam.size
     out = TrafficFit("poisson", "exponential", "uniform")
-    t0, t1 = data.window
-    res = time_resolution(data.t_arrive, data.t_leave, [t0, t1])
-    if res <= 0:
-        res = (t1 - t0) * 1e-6
-    out.attrs["time_resolution"] = res
-    k_arr, k_life = jax.random.split(key)
+    nuts = {"num_warmup": num_warmup, "num_samples": num_samples, "num_chains": num_chains}
+    setup = _setup(key, data, arrivals, lifetimes, clock_start, out)
+    calls, cands, laws = setup.calls, setup.cands, setup.laws
+    plain, units, res, n_real_bins = setup.plain, setup.units, setup.res, setup.n_real_bins
+    log_area, n = float(np.log(data.area)), data.n
+    elpd, ks, runs, draws = {}, {}, {}, {}
 
     def reshape(v: np.ndarray) -> np.ndarray:
         flat = v.reshape((-1,) + v.shape[2:])
@@ -381,67 +381,6 @@ def fit_traffic(
             flat = flat[idx]
         return flat.reshape(shape + flat.shape[1:])
 
-    nuts = {"num_warmup": num_warmup, "num_samples": num_samples, "num_chains": num_chains}
-
-    # ---------------- arrivals ----------------
-    clock = None if clock_start is None else clock_offset(clock_start)
-    if clock_start is not None:
-        out.attrs["clock_start"] = str(clock_start)
-    width = _bin_width(data)
-    out.attrs["arrival_bin_width"] = width
-    plain = arrival_units(data.t_arrive, data.window, data.area, res, width, group=data.group)
-    max_tick = int(np.max(plain.tick_count)) if plain.tick_count.size else 0
-    cands, notes = _arrival_candidates(arrivals, max_tick, clock, t1 - t0)
-    out.attrs["arrival_notes"] = "; ".join(notes)
-    n_real_bins = int(np.sum(plain.bin_weight))
-    n_ticks = int(np.sum(plain.tick_weight))
-    elpd, ks, runs, draws = {}, {}, {}, {}
-    log_area = float(np.log(data.area))
-    by_clock = None  # the same ticks with their periods of the day, for time-of-day models
-    if any(ArrivalSpec.from_name(n).tod for n in cands):
-        by_clock = arrival_units(data.t_arrive, data.window, data.area, res, width,
-                                 group=data.group, clock_offset=clock)  # fmt: skip
-    # every candidate's NUTS call is known before the first samples: their programs
-    # compile (or load, in a later process) in the background meanwhile
-    calls: dict[tuple[str, str], tuple] = {}
-    for i, name in enumerate(cands):
-        spec = ArrivalSpec.from_name(name)
-        if name != "poisson":
-            units = by_clock if spec.tod else plain
-            centre = _empirical_rate(np.sum(units.tick_count), data, spec.groups, n_ticks)
-            init: dict[str, Any] = {"event_rate_z": 0.0}
-            if spec.negbin:
-                init["arrival_phi"] = 5.0
-            if spec.tod:
-                init["tod_eta"] = np.zeros(units.bin_exposure.shape[1])
-            if spec.groups:
-                init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
-            # the centre and area are arrays: arguments of the compiled program, not
-            # constants of it (logs of similar size share one program)
-            kwargs = {
-                "units": units,
-                "spec": spec,
-                "rate_centre": np.asarray(centre, float),
-                "log_area": np.asarray(log_area, float),
-                "max_group": max(max_tick, 1),
-            }
-            calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
-    units = stay_units(data.dwell, data.censored, data.truncated)
-    n = data.n
-    departed = int(np.sum(~data.censored))
-    mean_centre = float(np.sum(data.dwell)) / max(departed, 1) if n else 1.0
-    mean_centre = mean_centre if mean_centre > 0 else res
-    laws = list(STAY_LAWS) if lifetimes == "auto" else sorted({"exponential", lifetimes},
-                                                              key=STAY_LAWS.index)  # fmt: skip
-    if n == 0 or departed == 0:
-        out.warnings.append("lifetimes: no departure seen; the exponential law is kept")
-        laws = ["exponential"]
-    for i, law in enumerate(laws):
-        if law != "exponential":
-            kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
-                      "resolution": res}  # fmt: skip
-            init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
-            calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
     with NutsPrefetch() as ahead:
         for call in calls.values():
             ahead.add(*call, **nuts)
@@ -496,6 +435,87 @@ def fit_traffic(
     if table is None:
         out.tables.pop("positions")
     return out
+
+
+class _Setup(NamedTuple):
+    """What the candidates of :func:`fit_traffic` are fitted on, and their NUTS calls."""
+
+    calls: dict  # ("arrivals" | "stays", name) -> (key, model, model_kwargs, init)
+    cands: list  # arrival candidates
+    laws: list  # stay candidates
+    plain: Any  # the arrival ticks (ArrivalUnits) without periods of the day
+    units: Any  # the stays (StayUnits)
+    res: float  # the log's time resolution
+    n_real_bins: int
+
+
+def _setup(
+    key: Any, data: LifecycleData, arrivals: str, lifetimes: str, clock_start: str | None,
+    out: TrafficFit,
+) -> _Setup:  # fmt: skip
+    """The data and NUTS calls of every candidate (attributes and warnings into ``out``)."""
+    t0, t1 = data.window
+    res = time_resolution(data.t_arrive, data.t_leave, [t0, t1])
+    if res <= 0:
+        res = (t1 - t0) * 1e-6
+    out.attrs["time_resolution"] = res
+    k_arr, k_life = jax.random.split(key)
+    clock = None if clock_start is None else clock_offset(clock_start)
+    if clock_start is not None:
+        out.attrs["clock_start"] = str(clock_start)
+    width = _bin_width(data)
+    out.attrs["arrival_bin_width"] = width
+    plain = arrival_units(data.t_arrive, data.window, data.area, res, width, group=data.group)
+    max_tick = int(np.max(plain.tick_count)) if plain.tick_count.size else 0
+    cands, notes = _arrival_candidates(arrivals, max_tick, clock, t1 - t0)
+    out.attrs["arrival_notes"] = "; ".join(notes)
+    n_real_bins = int(np.sum(plain.bin_weight))
+    n_ticks = int(np.sum(plain.tick_weight))
+    log_area = float(np.log(data.area))
+    by_clock = None  # the same ticks with their periods of the day, for time-of-day models
+    if any(ArrivalSpec.from_name(n).tod for n in cands):
+        by_clock = arrival_units(data.t_arrive, data.window, data.area, res, width,
+                                 group=data.group, clock_offset=clock)  # fmt: skip
+    calls: dict[tuple[str, str], tuple] = {}
+    for i, name in enumerate(cands):
+        spec = ArrivalSpec.from_name(name)
+        if name != "poisson":
+            units = by_clock if spec.tod else plain
+            centre = _empirical_rate(np.sum(units.tick_count), data, spec.groups, n_ticks)
+            init: dict[str, Any] = {"event_rate_z": 0.0}
+            if spec.negbin:
+                init["arrival_phi"] = 5.0
+            if spec.tod:
+                init["tod_eta"] = np.zeros(units.bin_exposure.shape[1])
+            if spec.groups:
+                init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
+            # the centre and area are arrays: arguments of the compiled program, not
+            # constants of it (logs of similar size share one program)
+            kwargs = {
+                "units": units,
+                "spec": spec,
+                "rate_centre": np.asarray(centre, float),
+                "log_area": np.asarray(log_area, float),
+                "max_group": max(max_tick, 1),
+            }
+            calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
+    units = stay_units(data.dwell, data.censored, data.truncated)
+    n = data.n
+    departed = int(np.sum(~data.censored))
+    mean_centre = float(np.sum(data.dwell)) / max(departed, 1) if n else 1.0
+    mean_centre = mean_centre if mean_centre > 0 else res
+    laws = list(STAY_LAWS) if lifetimes == "auto" else sorted({"exponential", lifetimes},
+                                                              key=STAY_LAWS.index)  # fmt: skip
+    if n == 0 or departed == 0:
+        out.warnings.append("lifetimes: no departure seen; the exponential law is kept")
+        laws = ["exponential"]
+    for i, law in enumerate(laws):
+        if law != "exponential":
+            kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
+                      "resolution": res}  # fmt: skip
+            init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
+            calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
+    return _Setup(calls, cands, laws, plain, units, res, n_real_bins)
 
 
 def _sample_candidate(
