@@ -69,10 +69,11 @@ third session): the 4 chains run 2 per core instead of all 4 in lock-step on one
 candidate's program is compiled or loaded in background threads while the first ones
 sample (:class:`are_stats.fitting.NutsPrefetch`); PSIS-LOO for all observations at once
 (:func:`are_stats.fitting.psislw`, 1.2 s -> 0.5 s). Idle cores, bench environment, four
-runs: first 57.7 / 48.3 / 52.1 / 46.8 s, second 13.8 / 11.9 / 12.2 / 13.2 s, third 15.8 /
-13.5 / 12.2 / 12.4 s (first / second 3.5-4.3x; the first run also compiles its candidates
+runs: first 57.7 / 48.3 / 45.6 / 55.4 s, second 13.8 / 11.9 / 12.2 / 12.6 s, third 15.8 /
+13.5 / 11.9 / 14.3 s (first / second 3.7-4.4x; the first run also compiles its candidates
 two at a time now). Without numba (a plain install; ArviZ compiles numba functions at import
-in the bench environment): 55.9 s, 12.2 s, 11.3 s (4.6x / 4.9x). A warm run is then about
+in the bench environment): first 55.9 / 45.8 / 65.2 s, second 12.2 / 10.9 / 12.4 s, third
+11.3 / 10.7 / 11.5 s (4.2-5.3x). A warm run is then about
 3.3 s of imports (ArviZ 2.1 s), 4.3 s of sampling on both cores, 0.5 s of PSIS-LOO and
 1.7 s of building and writing the InferenceData and its summary.
 """
