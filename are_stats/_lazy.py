@@ -9,7 +9,7 @@ import warnings
 from types import ModuleType
 from typing import Any
 
-__all__ = ["LazyModule"]
+__all__ = ["LazyModule", "arviz"]
 
 
 class LazyModule:
@@ -51,3 +51,8 @@ class LazyModule:
     def __repr__(self) -> str:
         state = "imported" if self._module is not None else "not imported yet"
         return f"<LazyModule {self._name!r} ({state})>"
+
+
+#: ArviZ (2 s of imports), for the modules that build or read fits; its 0.23 release
+#: announces the 1.0 refactor with a FutureWarning on import.
+arviz = LazyModule("arviz", quiet=(FutureWarning,))

@@ -35,6 +35,7 @@ import os
 import sys
 import tempfile
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -351,8 +352,6 @@ def prune_cache(max_bytes: int | None = None, folders: list[Path] | None = None)
     int
         Bytes deleted.
     """
-    import time
-
     limit = cache_limit() if max_bytes is None else int(max_bytes)
     if limit is None:
         return 0

@@ -32,7 +32,7 @@ import numpyro
 
 from are_stats import __version__
 from are_stats._checks import check_in, check_nonneg_int, describe
-from are_stats._lazy import LazyModule
+from are_stats._lazy import arviz as az
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
 from are_stats.fitting._lifecycle_mcmc import (
     _inference_data,
@@ -51,9 +51,6 @@ from are_stats.traffic import (
     numpy_rng,
     prior_predictive,
 )
-
-# ArviZ (2 s of imports) comes in on first use; arviz 0.23 announces its 1.0 refactor
-az = LazyModule("arviz", quiet=(FutureWarning,))
 
 __all__ = [
     "FitSettings",

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-import warnings
 from typing import Any
 
 import jax
@@ -343,10 +342,9 @@ def _inference_data(
     prior: dict,
     timing: dict[str, float],
 ) -> Any:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)  # arviz 0.23 announces its 1.0 refactor
-        import arviz as az
-        import xarray as xr
+    import xarray as xr
+
+    from are_stats._lazy import arviz as az
 
     counts = ("n_arrivals", "n_present") if stationary_start else ("n_arrivals",)
     observed: dict[str, Any] = {"n_arrivals": np.asarray(int((~data.truncated).sum()))}

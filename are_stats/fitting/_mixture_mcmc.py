@@ -29,13 +29,10 @@ from numpyro.distributions import constraints
 from numpyro.distributions.transforms import biject_to
 
 from are_stats._checks import check_in, check_positive
-from are_stats._lazy import LazyModule
+from are_stats._lazy import arviz as az
 from are_stats.fitting._em import _check_positive_int, fit_mixture_em, marks_histogram
 from are_stats.fitting._nuts import run_nuts
 from are_stats.traffic import PoissonMixture
-
-# ArviZ (2 s of imports) comes in on first use
-az = LazyModule("arviz", quiet=(FutureWarning,))
 
 __all__ = ["fit_mixture_nuts", "mixture_model"]
 

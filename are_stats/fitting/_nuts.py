@@ -103,10 +103,32 @@ def chains_per_device(num_chains: int) -> tuple[int, int]:
         The most devices, at most ``jax.local_device_count()``, that share the chains
         evenly; each vectorises its ``chains_per_device`` chains.
     """
-    n_dev = max(1, min(jax.local_device_count(), int(num_chains)))
-    while num_chains % n_dev:
-        n_dev -= 1
+    n_dev = _even_devices(int(num_chains))
     return n_dev, int(num_chains) // n_dev
+
+
+def _even_devices(n: int) -> int:
+    """The most local devices (at least 1) that share ``n`` items evenly."""
+    n_dev = max(1, min(jax.local_device_count(), n))
+    while n % n_dev:
+        n_dev -= 1
+    return n_dev
+
+
+def _split_over_devices(
+    fn: Callable[..., Any], n_dev: int, axis: str, split: tuple[bool, ...]
+) -> tuple[Any, tuple]:
+    """``fn`` jitted over ``n_dev`` devices (``shard_map`` on mesh axis ``axis``): the
+    arguments flagged in ``split`` and the outputs are split along their leading axis,
+    the others whole on every device. Returns the program and the arguments' shardings.
+    """
+    mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), (axis,))
+    specs = tuple(PartitionSpec(axis) if s else PartitionSpec() for s in split)
+    mapped = jax.shard_map(
+        fn, mesh=mesh, in_specs=specs, out_specs=PartitionSpec(axis),
+        check_vma=False,  # as pmap: the models' scans need no varying-axis types
+    )  # fmt: skip
+    return jax.jit(mapped), tuple(NamedSharding(mesh, p) for p in specs)
 
 
 class NutsRun(NamedTuple):
@@ -418,18 +440,10 @@ def _sampling_program(plan: _Plan, timing: dict[str, float]) -> tuple[Any, tuple
         # the chains split over the devices by shard_map (several on one device are
         # vectorised): a jitted program, which jax.export can keep on disk
         n_dev = chains_per_device(plan.num_chains)[0]
-        mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), ("chains",))
-        by_chain, whole = PartitionSpec("chains"), PartitionSpec()
-        fn = jax.jit(
-            jax.shard_map(
-                jax.vmap(one_chain, in_axes=(0, start_axis, None, None)),
-                mesh=mesh,
-                in_specs=(by_chain, by_chain, whole, whole),
-                out_specs=by_chain,
-                check_vma=False,  # as pmap: the models' scans need no varying-axis types
-            )
-        )
-        shardings = tuple(NamedSharding(mesh, p) for p in (by_chain, by_chain, whole, whole))
+        fn, shardings = _split_over_devices(
+            jax.vmap(one_chain, in_axes=(0, start_axis, None, None)), n_dev, "chains",
+            (True, True, False, False),
+        )  # fmt: skip
         key = None if plan.key_base is None else ("parallel", n_dev, *plan.key_base)
         args = (keys, start, init, arrays)
         program = _cached(key, lambda: _compile(fn, args, cheap, key, shardings), timing)
@@ -651,19 +665,10 @@ def _post_process(
     shape = next(iter(zs.values())).shape[:2]
     n_draws = shape[0] * shape[1]
     flat = {n: v.reshape((n_draws,) + v.shape[2:]) for n, v in zs.items()}
-    n_dev = jax.local_device_count()
-    while n_draws % n_dev:
-        n_dev -= 1
-    shardings = None
-    fn = jax.jit(post)
+    n_dev = _even_devices(n_draws)
+    fn, shardings = jax.jit(post), None
     if n_dev > 1:
-        mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), ("draws",))
-        by_draw, whole = PartitionSpec("draws"), PartitionSpec()
-        fn = jax.jit(
-            jax.shard_map(post, mesh=mesh, in_specs=(by_draw, whole), out_specs=by_draw,
-                          check_vma=False)
-        )  # fmt: skip
-        shardings = (NamedSharding(mesh, by_draw), NamedSharding(mesh, whole))
+        fn, shardings = _split_over_devices(post, n_dev, "draws", (True, False))
     key = None
     if plan.key_base is not None and (pointwise is None or pointwise_kwargs):
         key = _hashable(("post", n_dev, _fn_key(pointwise), *plan.key_base))

@@ -92,20 +92,35 @@ def _smooth_block(x: np.ndarray, m: int) -> np.ndarray:
     if regular.any():
         rows = np.flatnonzero(regular)
         order = np.argsort(tail[rows], axis=1)
-        t_sorted = np.take_along_axis(tail[rows], order, axis=1)
-        idx_sorted = np.take_along_axis(tail_idx[rows], order, axis=1)
-        exp_cut = np.exp(cutoff[rows])
-        k_rows, sigma = _gpdfit(np.exp(t_sorted) - exp_cut[:, None])
-        k[rows] = k_rows
-        fit = np.isfinite(k_rows)
-        if fit.any():
-            probs = np.arange(0.5, m) / m
-            smooth = np.log(_gpinv(probs, k_rows[fit], sigma[fit]) + exp_cut[fit, None])
-            sub = x[rows[fit]]
-            np.put_along_axis(sub, idx_sorted[fit], smooth, axis=1)
-            sub[sub > 0] = 0.0
-            x[rows[fit]] = sub
+        sub = x[rows]
+        k[rows] = _replace_tails(
+            sub, np.take_along_axis(tail_idx[rows], order, axis=1),
+            np.take_along_axis(tail[rows], order, axis=1), np.exp(cutoff[rows]),
+        )  # fmt: skip
+        x[rows] = sub
     x -= _logsumexp_rows(x)[:, None]
+    return k
+
+
+def _replace_tails(
+    x: np.ndarray, idx_sorted: np.ndarray, t_sorted: np.ndarray, exp_cut: np.ndarray
+) -> np.ndarray:
+    """Fit the Pareto law to each row's tail and put its quantiles in place; return ``k``.
+
+    ``x`` (r, S) rows, changed in place; ``idx_sorted``, ``t_sorted`` (r, M): each row's
+    tail draws and their values, ascending; ``exp_cut`` (r,): ``exp`` of the cutoffs. Rows
+    whose fit fails (``k`` not finite) are left as they are.
+    """
+    m = t_sorted.shape[1]
+    k, sigma = _gpdfit(np.exp(t_sorted) - exp_cut[:, None])
+    fit = np.isfinite(k)
+    if fit.any():
+        probs = np.arange(0.5, m) / m
+        smooth = np.log(_gpinv(probs, k[fit], sigma[fit]) + exp_cut[fit, None])
+        sub = x[fit]
+        np.put_along_axis(sub, idx_sorted[fit], smooth, axis=1)
+        sub[sub > 0] = 0.0  # truncated at the largest raw weight
+        x[fit] = sub
     return k
 
 
@@ -158,13 +173,10 @@ def _psis_row(x: np.ndarray, m: int) -> tuple[np.ndarray, float]:
     (tail_idx,) = np.where(x > xcutoff)
     tail = x[tail_idx]
     k = np.inf
+    rows = x[None]
     if tail.size > 4:
         order = np.argsort(tail)
-        k_row, sigma = _gpdfit((np.exp(tail[order]) - exp_cut)[None, :])
-        k = float(k_row[0])
-        if np.isfinite(k):
-            probs = np.arange(0.5, tail.size) / tail.size
-            x[tail_idx[order]] = np.log(_gpinv(probs, k_row, sigma)[0] + exp_cut)
-            x[x > 0] = 0.0
-    x -= _logsumexp_rows(x[None])[0]
-    return x, k
+        k = float(_replace_tails(rows, tail_idx[order][None], tail[order][None],
+                                 np.array([exp_cut]))[0])  # fmt: skip
+    rows -= _logsumexp_rows(rows)[:, None]
+    return rows[0], k

@@ -24,13 +24,10 @@ import numpy as np
 import pandas as pd
 
 from are_stats._atomic import atomic_path
-from are_stats._lazy import LazyModule
+from are_stats._lazy import arviz as az
 from are_stats.fitting._criticism import count_path, hour_of_day_counts, kaplan_meier
 from are_stats.fitting._traffic_checks import plot_traffic_checks, traffic_checks
 from are_stats.scenarios import generate_scenarios, posterior_draws
-
-# ArviZ (2 s of imports) comes in on first use; arviz 0.23 announces its 1.0 refactor
-az = LazyModule("arviz", quiet=(FutureWarning,))
 
 __all__ = [
     "PARAMETERS",

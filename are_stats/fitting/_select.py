@@ -18,7 +18,7 @@ from jax import random
 from scipy.special import logsumexp
 
 from are_stats._checks import check_in
-from are_stats._lazy import LazyModule
+from are_stats._lazy import arviz as az
 from are_stats.fitting._em import (
     MixtureEMResult,
     _check_positive_int,
@@ -27,9 +27,6 @@ from are_stats.fitting._em import (
 )
 from are_stats.fitting._mixture_mcmc import fit_mixture_nuts
 from are_stats.fitting._psis import psislw
-
-# ArviZ (2 s of imports) comes in on first use
-az = LazyModule("arviz", quiet=(FutureWarning,))
 
 __all__ = ["InformationCriterion", "mixture_waic", "mixture_loo", "select_n_components"]
 

@@ -370,7 +370,8 @@ def fit_traffic(
     nuts = {"num_warmup": num_warmup, "num_samples": num_samples, "num_chains": num_chains}
     setup = _setup(key, data, arrivals, lifetimes, clock_start, out)
     calls, cands, laws = setup.calls, setup.cands, setup.laws
-    plain, units, res, n_real_bins = setup.plain, setup.units, setup.res, setup.n_real_bins
+    plain, units, res = setup.plain, setup.units, setup.res
+    n_real_bins = int(np.sum(plain.bin_weight))
     log_area, n = float(np.log(data.area)), data.n
     elpd, ks, runs, draws = {}, {}, {}, {}
 
@@ -446,7 +447,6 @@ class _Setup(NamedTuple):
     plain: Any  # the arrival ticks (ArrivalUnits) without periods of the day
     units: Any  # the stays (StayUnits)
     res: float  # the log's time resolution
-    n_real_bins: int
 
 
 def _setup(
@@ -469,7 +469,6 @@ def _setup(
     max_tick = int(np.max(plain.tick_count)) if plain.tick_count.size else 0
     cands, notes = _arrival_candidates(arrivals, max_tick, clock, t1 - t0)
     out.attrs["arrival_notes"] = "; ".join(notes)
-    n_real_bins = int(np.sum(plain.bin_weight))
     n_ticks = int(np.sum(plain.tick_weight))
     log_area = float(np.log(data.area))
     by_clock = None  # the same ticks with their periods of the day, for time-of-day models
@@ -515,7 +514,7 @@ def _setup(
                       "resolution": res}  # fmt: skip
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
             calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
-    return _Setup(calls, cands, laws, plain, units, res, n_real_bins)
+    return _Setup(calls, cands, laws, plain, units, res)
 
 
 def _sample_candidate(

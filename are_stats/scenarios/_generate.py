@@ -602,7 +602,7 @@ def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dic
         If the posterior lacks ``arrival_rate`` or ``leave_rate``.
     """
     if isinstance(idata, str | os.PathLike):
-        import arviz as az
+        from are_stats._lazy import arviz as az
 
         p = Path(idata)
         if not p.exists():
