@@ -24,6 +24,7 @@ probabilities).
 from __future__ import annotations
 
 import functools
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -132,10 +133,18 @@ def loo_pointwise(loglik: np.ndarray, reff: float = 1.0) -> tuple[np.ndarray, np
     from scipy.special import logsumexp
 
     c, d, n = loglik.shape
+    if n == 0:
+        return np.zeros(0), np.zeros(0)
     flat = loglik.reshape(c * d, n)
     log_w, k = psislw(-flat.T, reff)
     elpd = logsumexp(log_w + flat.T, axis=1)
     return np.asarray(elpd, float), np.atleast_1d(np.asarray(k, float))
+
+
+def _loo_results(futures: dict[str, Future]) -> tuple[dict, dict]:
+    """``elpd_i`` and Pareto ``k_i`` per candidate from :func:`loo_pointwise` futures."""
+    done = {name: f.result() for name, f in futures.items()}
+    return {n: r[0] for n, r in done.items()}, {n: r[1] for n, r in done.items()}
 
 
 def _reff(run: NutsRun | None) -> float:
@@ -373,7 +382,9 @@ def fit_traffic(
     plain, units, res = setup.plain, setup.units, setup.res
     n_real_bins = int(np.sum(plain.bin_weight))
     log_area, n = float(np.log(data.area)), data.n
-    elpd, ks, runs, draws = {}, {}, {}, {}
+    runs: dict[str, dict] = {"arrivals": {}, "stays": {}}
+    draws: dict[str, dict] = {"arrivals": {}, "stays": {}}
+    loo: dict[str, dict] = {"arrivals": {}, "stays": {}}  # PSIS-LOO futures
 
     def reshape(v: np.ndarray) -> np.ndarray:
         flat = v.reshape((-1,) + v.shape[2:])
@@ -382,7 +393,9 @@ def fit_traffic(
             flat = flat[idx]
         return flat.reshape(shape + flat.shape[1:])
 
-    with NutsPrefetch() as ahead:
+    # PSIS-LOO of a candidate runs in its own thread while the next candidate samples
+    # (NumPy releases the GIL in its array work; the sampler waits on the devices)
+    with NutsPrefetch() as ahead, ThreadPoolExecutor(1, "are-stats-loo") as psis:
         for call in calls.values():
             ahead.add(*call, **nuts)
         for name in cands:
@@ -391,31 +404,30 @@ def fit_traffic(
                 ll = _arrival_loglik_draws(flat, plain, ArrivalSpec.from_name(name),
                                            np.asarray(log_area, float))  # fmt: skip
                 ll = np.asarray(ll).reshape(shape + (-1,))
-                runs[name] = None
+                run = None
             else:
                 run = _sample_candidate(calls, ("arrivals", name), _arrival_draw_loglik, nuts,
                                         say, out)  # fmt: skip
-                runs[name], ll, draws[name] = run, run.loglik, run.samples
-            ll = ll[..., :n_real_bins]
-            elpd[name], ks[name] = loo_pointwise(ll, _reff(runs[name]))
-        _choose_arrivals(out, arrivals, cands, elpd, ks, runs, draws, reshape)
-        out.attrs.update(_group_stats(data))
-
-        elpd, ks, runs, draws = {}, {}, {}, {}
+                ll, draws["arrivals"][name] = run.loglik, run.samples
+            runs["arrivals"][name] = run
+            loo["arrivals"][name] = psis.submit(loo_pointwise, ll[..., :n_real_bins], _reff(run))
         for law in laws:
             if law == "exponential":
                 flat = {"stay_mean": 1.0 / mu.ravel()}
                 ll = _stay_loglik_draws(flat, units, "exponential", res)
                 ll = np.asarray(ll).reshape(shape + (-1,))
-                runs[law] = None
+                run = None
             else:
                 run = _sample_candidate(calls, ("stays", law), _stay_draw_loglik, nuts, say, out)
-                runs[law], ll, draws[law] = run, run.loglik, run.samples
-            ll = ll[..., :n]
-            if n:
-                elpd[law], ks[law] = loo_pointwise(ll, _reff(runs[law]))
-            else:
-                elpd[law], ks[law] = np.zeros(0), np.zeros(0)
+                ll, draws["stays"][law] = run.loglik, run.samples
+            runs["stays"][law] = run
+            loo["stays"][law] = psis.submit(loo_pointwise, ll[..., :n], _reff(run))
+        elpd, ks = _loo_results(loo["arrivals"])
+        _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"], draws["arrivals"],
+                         reshape)  # fmt: skip
+        out.attrs.update(_group_stats(data))
+        elpd, ks = _loo_results(loo["stays"])
+    runs, draws = runs["stays"], draws["stays"]
     if lifetimes == "auto":
         chosen, table = choose_simplest(elpd, laws)
     else:

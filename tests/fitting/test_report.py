@@ -37,3 +37,20 @@ def test_single_chain_summary_is_quiet_and_has_no_r_hat():
     np.testing.assert_allclose(table.loc["leave_rate", "mean"], mu.mean(), rtol=1e-12)
     # the level ArviZ's logger had is restored
     assert log.level == logging.NOTSET or log.level < logging.ERROR
+
+
+def test_summary_matches_arviz_and_leaves_its_numba_flag_alone():
+    # fit_summary takes ArviZ's NumPy paths (no numba compile per process); the numbers
+    # are ArviZ's own, and ArviZ's flag is what it was afterwards
+    rng = np.random.default_rng(1)
+    post = {
+        "arrival_rate": rng.gamma(50.0, 1e-6, size=(4, 300)),
+        "mix_rates": rng.gamma(9.0, 1.0, size=(4, 300, 2)).cumsum(axis=-1),
+    }
+    idata = az.from_dict(posterior=post)
+    flag = az.Numba.numba_flag
+    table = fit_summary(idata)
+    assert az.Numba.numba_flag == flag
+    ref = az.summary(idata, round_to="none")
+    assert list(table.index) == list(ref.index)
+    np.testing.assert_allclose(table.to_numpy(float), ref.to_numpy(float), rtol=1e-8)
