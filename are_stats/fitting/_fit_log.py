@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -248,6 +249,49 @@ def _stays_total(data: LifecycleData, leave_rate: np.ndarray) -> np.ndarray:
     return n_departed * np.log(mu) - mu * exposure
 
 
+def _em_inference_data(
+    key: Any,
+    data: LifecycleData,
+    priors: LifecyclePriors,
+    k: int | None,
+    post: dict[str, np.ndarray],
+    stats: dict[str, np.ndarray],
+    mix_attrs: dict[str, Any],
+) -> az.InferenceData:
+    """The em fit's InferenceData: its draws, likelihood terms and predictive counts."""
+    # the likelihood without its per-artefact stays: what is stored scales with the
+    # distinct data (window counts, distinct marks), not draws x rows; the stays are
+    # recomputed on demand from leave_rate and the observed dwell times (fit_loo). The
+    # terms and the predictive counts are closed forms in NumPy: numpyro's Predictive
+    # and log_likelihood would compile an XLA program per fit for microseconds of work.
+    loglik = _em_log_likelihood(data, post, k)
+    # total log-likelihood of each draw (a diagnostic; these draws are not MCMC); the
+    # stays add n_departed log(mu) - mu sum(dwell), never expanded per artefact
+    stays = _stays_total(data, post["leave_rate"])
+    stats = dict(stats)
+    stats["log_likelihood_total"] = stays + sum(
+        v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
+    )
+    kp, kq = jax.random.split(key)
+    post_pred = _predictive_counts(numpy_rng(kp), post, data, False)
+    prior = prior_predictive(
+        kq, priors, data.window, data.area, 1000, n_components=k, stationary_start=False,
+        labelled=data.labels is not None,
+    )  # fmt: skip
+    arviz_log = logging.getLogger("arviz")
+    level = arviz_log.level
+    arviz_log.setLevel(logging.ERROR)  # one "chain" of draws is expected here
+    try:
+        idata = _inference_data(
+            data, priors, k, False, "em", post, stats, loglik, post_pred, prior, {}
+        )
+    finally:
+        arviz_log.setLevel(level)
+    idata.posterior.attrs.update(mix_attrs)
+    idata.posterior.attrs["model"] = "are_stats.traffic.lifecycle_model (conjugate + EM)"
+    return idata
+
+
 def fit_log(
     key: Any,
     data: LifecycleData,
@@ -331,35 +375,7 @@ def fit_log(
     else:
         say("conjugate rate posteriors and EM mixture with bootstrap")
         post, stats, mix_attrs = _em_posterior(k_fit, data, priors, k, settings)
-        # the likelihood without its per-artefact stays: what is stored scales with the
-        # distinct data (window counts, distinct marks), not draws x rows; the stays are
-        # recomputed on demand from leave_rate and the observed dwell times (fit_loo). The
-        # terms and the predictive counts are closed forms in NumPy: numpyro's Predictive
-        # and log_likelihood would compile an XLA program per fit for microseconds of work.
-        loglik = _em_log_likelihood(data, post, k)
-        # total log-likelihood of each draw (a diagnostic; these draws are not MCMC); the
-        # stays add n_departed log(mu) - mu sum(dwell), never expanded per artefact
-        stays = _stays_total(data, post["leave_rate"])
-        stats["log_likelihood_total"] = stays + sum(
-            v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
-        )
-        kp, kq = jax.random.split(k_post)
-        post_pred = _predictive_counts(numpy_rng(kp), post, data, False)
-        prior = prior_predictive(
-            kq, priors, data.window, data.area, 1000, n_components=k, stationary_start=False,
-            labelled=data.labels is not None,
-        )  # fmt: skip
-        arviz_log = logging.getLogger("arviz")
-        level = arviz_log.level
-        arviz_log.setLevel(logging.ERROR)  # one "chain" of draws is expected here
-        try:
-            idata = _inference_data(
-                data, priors, k, False, "em", post, stats, loglik, post_pred, prior, {}
-            )
-        finally:
-            arviz_log.setLevel(level)
-        idata.posterior.attrs.update(mix_attrs)
-        idata.posterior.attrs["model"] = "are_stats.traffic.lifecycle_model (conjugate + EM)"
+        em_draws = (k_post, data, priors, k, post, stats, mix_attrs)
     attrs = {
         "method": settings.method,
         "window": np.asarray(data.window, dtype=float),
@@ -395,34 +411,48 @@ def fit_log(
             birth_death_loglik=bd.loglik,
             birth_death_n_obs=int(bd.n_obs),
         )
-    idata.posterior.attrs.update(attrs)
     paper_only = (settings.arrivals, settings.lifetimes, settings.positions) == (
         "poisson",
         "exponential",
         "uniform",
     )
+    traffic = None
+    if paper_only and settings.method == "em":
+        idata = _em_inference_data(*em_draws)
+    elif not paper_only:
+        # the em fit's InferenceData (ArviZ's import, its groups) is built in a thread while
+        # the traffic models sample: the devices wait on neither
+        with ThreadPoolExecutor(1, "are-stats-idata") as pool:
+            pending = None
+            if settings.method == "em":
+                paper = em_draws[4]
+                pending = pool.submit(_em_inference_data, *em_draws)
+            else:
+                paper = idata.posterior
+            traffic = fit_traffic(
+                jax.random.fold_in(key, 14),
+                data,
+                paper={n: np.asarray(paper[n]) for n in ("arrival_rate", "leave_rate")},
+                arrivals=settings.arrivals,
+                lifetimes=settings.lifetimes,
+                positions=settings.positions,
+                grid=grid,
+                clock_start=clock_start,
+                num_warmup=settings.num_warmup,
+                num_samples=settings.num_samples,
+                num_chains=settings.num_chains,
+                progress=say,
+            )
+            if pending is not None:
+                idata = pending.result()
+    idata.posterior.attrs.update(attrs)
     if clock_start is not None:
         idata.posterior.attrs["traffic_clock_start"] = str(clock_start)
-    if paper_only:
+    if traffic is None:
         idata.posterior.attrs.update(
             arrival_model="poisson", lifetime_model="exponential", position_model="uniform"
         )
     else:
-        post = idata.posterior
-        traffic = fit_traffic(
-            jax.random.fold_in(key, 14),
-            data,
-            paper={n: np.asarray(post[n].values) for n in ("arrival_rate", "leave_rate")},
-            arrivals=settings.arrivals,
-            lifetimes=settings.lifetimes,
-            positions=settings.positions,
-            grid=grid,
-            clock_start=clock_start,
-            num_warmup=settings.num_warmup,
-            num_samples=settings.num_samples,
-            num_chains=settings.num_chains,
-            progress=say,
-        )
         idata = attach_traffic(idata, traffic)
     return idata
 
