@@ -39,6 +39,18 @@ def test_the_fitting_package_imports_arviz_on_first_use():
     assert "arviz" in loaded
 
 
+def test_traffic_and_fitting_import_scipy_stats_on_first_use():
+    """scipy.stats (0.3-0.4 s of imports, scipy.signal brings it too) comes in when a
+    function that needs it runs, not with the traffic and fitting packages."""
+    loaded = _loaded_after("import are_stats.traffic, are_stats.fitting")
+    assert "scipy.stats" not in loaded and "scipy.signal" not in loaded
+    loaded = _loaded_after(
+        "import are_stats.traffic as t\n"
+        "assert abs(t.BirthDeath(2.0, 0.1).stationary_pmf(20) - 0.0888) < 1e-3"
+    )
+    assert "scipy.stats" in loaded
+
+
 def test_public_names_resolve_and_jax_runs_in_64_bits():
     code = (
         "import are_stats as ar\n"

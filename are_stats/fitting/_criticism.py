@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from are_stats._checks import (
     check_finite,
@@ -26,6 +25,9 @@ from are_stats._checks import (
     check_positive,
     check_probability,
 )
+from are_stats._lazy import LazyModule
+
+stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
 
 __all__ = [
     "KaplanMeier",

@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 import jax
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
 from are_stats._checks import (
     check_finite,
@@ -33,7 +33,10 @@ from are_stats._checks import (
     check_sorted,
     describe,
 )
+from are_stats._lazy import LazyModule
 from are_stats.traffic import _gillespie
+
+stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
 
 __all__ = [
     "BirthDeath",

@@ -24,10 +24,12 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
-from scipy import stats
 
 from are_stats._checks import check_nonneg_int
+from are_stats._lazy import LazyModule
 from are_stats.traffic._lifecycle import LifecycleData, LifecyclePriors
+
+stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
 
 __all__ = [
     "GammaPosterior",

@@ -21,7 +21,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy import stats
+
+from are_stats._lazy import LazyModule
+
+stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
 
 __all__ = ["BirthDeathEvents", "simulate_counts", "simulate_events", "event_bound"]
 
