@@ -75,7 +75,14 @@ two at a time now). Without numba (a plain install; ArviZ compiles numba functio
 in the bench environment): first 55.9 / 45.8 / 65.2 s, second 12.2 / 10.9 / 12.4 s, third
 11.3 / 10.7 / 11.5 s (4.2-5.3x). A warm run is then about
 3.3 s of imports (ArviZ 2.1 s), 4.3 s of sampling on both cores, 0.5 s of PSIS-LOO and
-1.7 s of building and writing the InferenceData and its summary.
+1.7 s of building and writing the InferenceData and its summary. On 2026-11-26 (an AMD EPYC
+with AVX-512, idle cores, bench environment, six runs): first 43.1 / 44.2 / 36.3 / 37.8 /
+34.0 / 41.1 s, second 9.6 / 8.9 / 9.0 / 8.2 / 8.6 / 8.5 s (4.5 / 4.9 / 4.0 / 4.6 / 3.9 / 4.9x;
+third within 0.3 s of the second). Of a warm run's 8.5 s, the five NUTS candidates sample for
+about 4.4 s, the gamma stays alone 1.3-1.9 s: their survival terms need the incomplete gamma
+and its derivative in the shape, whose data-dependent loops cost about 200 us per gradient
+on a few dozen censored stays (a fused one-loop version was tried: no faster on XLA's CPU
+backend, which runs every carried array of a loop body as its own kernel).
 """
 
 from __future__ import annotations
