@@ -9,7 +9,7 @@ import warnings
 from types import ModuleType
 from typing import Any
 
-__all__ = ["LazyModule", "arviz"]
+__all__ = ["LazyModule", "arviz", "scipy_signal", "scipy_stats"]
 
 
 class LazyModule:
@@ -56,3 +56,9 @@ class LazyModule:
 #: ArviZ (2 s of imports), for the modules that build or read fits; its 0.23 release
 #: announces the 1.0 refactor with a FutureWarning on import.
 arviz = LazyModule("arviz", quiet=(FutureWarning,))
+
+#: scipy.stats (0.3-0.4 s of imports), for the few traffic and fitting functions that use it.
+scipy_stats = LazyModule("scipy.stats")
+
+#: scipy.signal, which imports scipy.stats too (one convolution in the position densities).
+scipy_signal = LazyModule("scipy.signal")

@@ -81,6 +81,41 @@ def _build_wheel(tmp_path: Path) -> Path:
     return wheel
 
 
+def _run_shipped_defaults(python: str, script: Path, pkg: Path, work: Path,
+                          env: dict[str, str]) -> None:  # fmt: skip
+    """Run the shipped defaults from the empty folder ``work`` with an installed package.
+
+    ``python`` imports the package from ``pkg`` (checked); ``script`` is its installed
+    ``are-stats`` console script.
+    """
+    where = _run([python, "-c", "import are_stats; print(are_stats.__file__)"], work, env)
+    assert Path(where.strip()).resolve().is_relative_to(pkg.resolve()), where
+    assert "demo" in _run([str(script), "--help"], work, env)
+
+    # show: a shipped map by name, through the installed console script
+    _run([str(script), "show", "courtyard", "--out", "x.png"], work, env)
+    assert (work / "x.png").stat().st_size > 0
+
+    # demo: the shipped log and map; the fit goes under --out (here where fig7_fit wants it)
+    _run([python, "-m", "are_stats", "demo", "--quick", "--out", "fits"], work, env, timeout=900)
+    for name in ("courtyard_traffic.nc", "summary.yaml", "scenarios/artefacts.parquet"):
+        assert (work / "fits" / name).is_file(), name
+    summary = yaml.safe_load((work / "fits" / "summary.yaml").read_text())
+    assert summary["log"].startswith("courtyard_traffic")
+
+    # experiment: a tiny sweep on the shipped map; the shipped configs resolve by name
+    (work / "tiny.yaml").write_text(yaml.safe_dump(TINY_SWEEP))
+    _run([python, "-m", "are_stats", "experiment", "tiny.yaml", "--out", "r"], work, env)
+    assert len(list((work / "r" / "runs").glob("*.parquet"))) == 2
+    check = (
+        "from are_stats.experiments import load_sweep_config\n"
+        "assert load_sweep_config('fig7')['map'] == 'courtyard'\n"
+        "print(load_sweep_config('fig7_fit')['scenario']['fit'])\n"
+    )
+    fit = _run([python, "-c", check], work, env).strip()
+    assert Path(fit) == (work / "fits" / "courtyard_traffic.nc").resolve()
+
+
 @pytest.mark.slow
 def test_wheel_runs_the_defaults_from_an_empty_folder(tmp_path):
     # 1. build the wheel from the repository, offline
@@ -105,32 +140,7 @@ def test_wheel_runs_the_defaults_from_an_empty_folder(tmp_path):
         "MPLBACKEND": "Agg",
     }
     env.pop("PYTHONSTARTUP", None)
-    py = [sys.executable]
-    where = _run([*py, "-c", "import are_stats; print(are_stats.__file__)"], work, env)
-    assert Path(where.strip()).resolve().is_relative_to(pkg.resolve()), where
-
-    # show: a shipped map by name, through the installed console script
-    _run([str(site / "bin" / "are-stats"), "show", "courtyard", "--out", "x.png"], work, env)
-    assert (work / "x.png").stat().st_size > 0
-
-    # demo: the shipped log and map; the fit goes under --out (here where fig7_fit wants it)
-    _run([*py, "-m", "are_stats", "demo", "--quick", "--out", "fits"], work, env)
-    for name in ("courtyard_traffic.nc", "summary.yaml", "scenarios/artefacts.parquet"):
-        assert (work / "fits" / name).is_file(), name
-    summary = yaml.safe_load((work / "fits" / "summary.yaml").read_text())
-    assert summary["log"].startswith("courtyard_traffic")
-
-    # experiment: a tiny sweep on the shipped map; the shipped configs resolve by name
-    (work / "tiny.yaml").write_text(yaml.safe_dump(TINY_SWEEP))
-    _run([*py, "-m", "are_stats", "experiment", "tiny.yaml", "--out", "r"], work, env)
-    assert len(list((work / "r" / "runs").glob("*.parquet"))) == 2
-    check = (
-        "from are_stats.experiments import load_sweep_config\n"
-        "assert load_sweep_config('fig7')['map'] == 'courtyard'\n"
-        "print(load_sweep_config('fig7_fit')['scenario']['fit'])\n"
-    )
-    fit = _run([*py, "-c", check], work, env).strip()
-    assert Path(fit) == (work / "fits" / "courtyard_traffic.nc").resolve()
+    _run_shipped_defaults(sys.executable, site / "bin" / "are-stats", pkg, work, env)
 
     # nothing was written into the install
     after = _snapshot(site)
@@ -160,15 +170,4 @@ def test_wheel_installs_into_a_fresh_venv_with_its_declared_dependencies(tmp_pat
           str(wheel)], tmp_path, env, timeout=900)  # fmt: skip
     work = tmp_path / "work"
     work.mkdir()
-    where = _run([py, "-c", "import are_stats; print(are_stats.__file__)"], work, env)
-    assert Path(where.strip()).resolve().is_relative_to(env_dir.resolve()), where
-    cli = str(bin_dir / "are-stats")
-    assert "demo" in _run([cli, "--help"], work, env)
-    _run([cli, "show", "courtyard", "--out", "x.png"], work, env)
-    assert (work / "x.png").stat().st_size > 0
-    _run([cli, "demo", "--quick", "--out", "fits"], work, env, timeout=900)
-    for name in ("courtyard_traffic.nc", "summary.yaml", "scenarios/artefacts.parquet"):
-        assert (work / "fits" / name).is_file(), name
-    (work / "tiny.yaml").write_text(yaml.safe_dump(TINY_SWEEP))
-    _run([cli, "experiment", "tiny.yaml", "--out", "r"], work, env)
-    assert len(list((work / "r" / "runs").glob("*.parquet"))) == 2
+    _run_shipped_defaults(py, bin_dir / "are-stats", env_dir, work, env)

@@ -25,9 +25,7 @@ from are_stats._checks import (
     check_positive,
     check_probability,
 )
-from are_stats._lazy import LazyModule
-
-stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
+from are_stats._lazy import scipy_stats as stats
 
 __all__ = [
     "KaplanMeier",

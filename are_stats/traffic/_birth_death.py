@@ -33,10 +33,8 @@ from are_stats._checks import (
     check_sorted,
     describe,
 )
-from are_stats._lazy import LazyModule
+from are_stats._lazy import scipy_stats as stats
 from are_stats.traffic import _gillespie
-
-stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
 
 __all__ = [
     "BirthDeath",

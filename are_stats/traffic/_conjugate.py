@@ -26,10 +26,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from are_stats._checks import check_nonneg_int
-from are_stats._lazy import LazyModule
+from are_stats._lazy import scipy_stats as stats
 from are_stats.traffic._lifecycle import LifecycleData, LifecyclePriors
-
-stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
 
 __all__ = [
     "GammaPosterior",

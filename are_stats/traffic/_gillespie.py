@@ -22,9 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from are_stats._lazy import LazyModule
-
-stats = LazyModule("scipy.stats")  # 0.4 s of imports, used by few functions
+from are_stats._lazy import scipy_stats as stats
 
 __all__ = ["BirthDeathEvents", "simulate_counts", "simulate_events", "event_bound"]
 

@@ -27,10 +27,7 @@ import numpy as np
 from scipy import ndimage
 
 from are_stats._checks import check_finite, check_positive
-from are_stats._lazy import LazyModule
-
-# scipy.signal brings scipy.stats: 0.45 s of imports for one function
-signal = LazyModule("scipy.signal")
+from are_stats._lazy import scipy_signal as signal
 
 __all__ = [
     "POSITION_MODELS",
