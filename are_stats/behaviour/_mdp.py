@@ -214,7 +214,9 @@ def _solve_one(
                     o = 2 * offsets[j]
                     return jnp.where(ok_f[j, 1], wn[h][m + o : n - m + o], jnp.zeros((), dtype))
 
-                stay_part = p_blocked[h][1] * inner[h]
+                # sliced from wn here, not taken from ``inner``: a conditional's operands
+                # are materialised, and four interior copies per epoch cost ~10 % of a solve
+                stay_part = p_blocked[h][1] * wn[h][m : n - m]
             return (
                 p_main * shifted(h)
                 + p_side * (shifted((h + 1) % 4) + shifted((h - 1) % 4))
