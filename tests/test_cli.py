@@ -20,3 +20,46 @@ def test_help_lists_commands():
     res = runner.invoke(app, ["--help"])
     assert res.exit_code == 0
     assert "version" in res.stdout
+
+
+def _console_script() -> str:
+    """The installed ``are-stats`` script of this environment."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    script = shutil.which("are-stats", path=str(Path(sys.executable).parent))
+    assert script is not None, "are-stats is not installed next to this Python"
+    return script
+
+
+def test_console_script_is_main_not_the_bare_app():
+    from importlib.metadata import entry_points
+
+    (ep,) = entry_points(group="console_scripts", name="are-stats")
+    assert ep.value == "are_stats.cli:main"
+
+
+def test_console_script_prunes_the_cache_and_keeps_the_exit_status(tmp_path):
+    import os
+    import subprocess
+
+    cache = tmp_path / "cache"
+    programs = cache / "are_stats" / "programs"
+    programs.mkdir(parents=True)
+    old = programs / "old.bin"
+    old.write_bytes(b"x" * 20_000)
+    os.utime(old, (1e9, 1e9))  # long unused
+    env = dict(os.environ, XDG_CACHE_HOME=str(cache), ARE_STATS_CACHE_MAX_MB="0.01")
+    env.pop("ARE_STATS_NO_CACHE", None)
+    env.pop("JAX_COMPILATION_CACHE_DIR", None)
+    env.pop("ARE_STATS_JAX_CACHE", None)
+    ok = subprocess.run([_console_script(), "version"], env=env, capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.strip() == are_stats.__version__
+    assert not old.exists()  # 20 kB past a 10 kB cap: pruned after the command
+    bad = subprocess.run(
+        [_console_script(), "report", str(tmp_path / "none.nc")], env=env, capture_output=True,
+        text=True,
+    )  # fmt: skip
+    assert bad.returncode == 2 and "none.nc" in bad.stderr
