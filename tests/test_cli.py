@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
+from importlib.metadata import entry_points
+from pathlib import Path
+
 from typer.testing import CliRunner
 
 import are_stats
@@ -24,26 +31,17 @@ def test_help_lists_commands():
 
 def _console_script() -> str:
     """The installed ``are-stats`` script of this environment."""
-    import shutil
-    import sys
-    from pathlib import Path
-
     script = shutil.which("are-stats", path=str(Path(sys.executable).parent))
     assert script is not None, "are-stats is not installed next to this Python"
     return script
 
 
 def test_console_script_is_main_not_the_bare_app():
-    from importlib.metadata import entry_points
-
     (ep,) = entry_points(group="console_scripts", name="are-stats")
     assert ep.value == "are_stats.cli:main"
 
 
 def test_console_script_prunes_the_cache_and_keeps_the_exit_status(tmp_path):
-    import os
-    import subprocess
-
     cache = tmp_path / "cache"
     programs = cache / "are_stats" / "programs"
     programs.mkdir(parents=True)
