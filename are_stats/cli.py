@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import gc
 import os
 from collections.abc import Callable
 from typing import Any
@@ -496,8 +497,6 @@ def main() -> None:
       at exit would walk them all once more only to free memory the exit frees anyway
       (1.1 s after a fit). Outputs are written and closed by then.
     """
-    import gc
-
     gc.set_threshold(*_GC_THRESHOLDS)
     try:
         app()
