@@ -11,6 +11,10 @@ from typing import Any
 # Two XLA host devices so that NUTS chains run in parallel on the two cores; must be set
 # before JAX is imported (by are_stats).
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+# XLA's C++ log lines (e.g. the 'Very slow compile? If you want to file a bug' alarm of a long
+# CPU compile) are for XLA's developers, not for this command's users; errors that matter
+# reach Python as exceptions. A level the user set wins.
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from pathlib import Path  # noqa: E402
 
@@ -28,6 +32,10 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # click's plain help: it wraps every option's text under its full name at the terminal's
+    # width (rich's boxed tables cut long option names, e.g. --behaviour-features, at 80
+    # columns and squeezed their help into a narrow column)
+    rich_markup_mode=None,
 )
 
 # Errors that mean "bad input or environment": one line on stderr, exit status 2.
@@ -83,8 +91,21 @@ def _seed(seed: int) -> int:
     return get_seed(seed, "--seed")
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(__version__)
+        raise typer.Exit()
+
+
 @app.callback()
 def _limits(
+    show_version: bool = typer.Option(
+        False,
+        "--version",
+        help="Print the are_stats version and exit.",
+        is_eager=True,
+        callback=_print_version,
+    ),
     max_memory: str = typer.Option(
         None,
         "--max-memory",

@@ -23,6 +23,22 @@ def test_version():
     assert res.stdout.strip() == are_stats.__version__
 
 
+def test_version_option():
+    res = runner.invoke(app, ["--version"])
+    assert res.exit_code == 0
+    assert res.stdout.strip() == are_stats.__version__
+
+
+def test_help_at_80_columns_keeps_every_option_name_whole():
+    # rich's boxed help cut long names at 80 columns (--behaviour-fea…)
+    res = runner.invoke(app, ["fit", "--help"], terminal_width=80, env={"COLUMNS": "80"})
+    assert res.exit_code == 0
+    assert "…" not in res.stdout
+    for name in ("--behaviour-features", "--stationary-start", "--no-stationary-start"):
+        assert name in res.stdout
+    assert max(len(line) for line in res.stdout.splitlines()) <= 80
+
+
 def test_help_lists_commands():
     res = runner.invoke(app, ["--help"])
     assert res.exit_code == 0
