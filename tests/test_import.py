@@ -118,3 +118,24 @@ def test_a_cli_run_keeps_the_cache_under_its_cap(tmp_path):
     subprocess.run([sys.executable, "-m", "are_stats", "version"], env=env, check=True,
                    capture_output=True)  # fmt: skip
     assert not old.exists() and new.exists()
+
+
+def test_warp_starts_without_the_cuda_probe_warning():
+    """Warp's native start-up warns on stderr about a missing NVIDIA driver on every
+    CPU-only machine; the perception package starts Warp with that line filtered out."""
+    code = "import are_stats.perception\nimport warp as wp\nprint(wp.get_devices())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "cpu" in out.stdout
+    assert "NVIDIA CUDA driver" not in out.stderr
+
+
+def test_cli_keeps_xla_log_banners_from_the_user():
+    """XLA's C++ log ('Very slow compile? If you want to file a bug...') is switched off in
+    the command's process unless the user set its level."""
+    code = "import os\nimport are_stats.cli\nprint(os.environ['TF_CPP_MIN_LOG_LEVEL'])"
+    env = {k: v for k, v in os.environ.items() if k != "TF_CPP_MIN_LOG_LEVEL"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.stdout.strip() == "3", out.stderr
+    env["TF_CPP_MIN_LOG_LEVEL"] = "1"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.stdout.strip() == "1", out.stderr

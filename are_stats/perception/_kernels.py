@@ -41,6 +41,45 @@ __all__ = [
 if wp.config.log_level <= wp.LOG_INFO:
     wp.config.log_level = wp.LOG_WARNING
 
+#: What Warp's native start-up writes to stderr on every machine without an NVIDIA driver.
+CUDA_PROBE_WARNING = "Could not find or load the NVIDIA CUDA driver"
+
+
+def init_warp() -> None:
+    """``wp.init()`` without the CUDA probe's warning on a CPU-only machine.
+
+    Warp's native library prints ``Warp CUDA warning: Could not find or load the NVIDIA
+    CUDA driver`` straight to file descriptor 2 (not through Python's warnings) whenever
+    ``libcuda`` is absent: noise on every CPU run, which is what this package runs on. The
+    descriptor is captured while Warp starts and everything else it wrote is passed on.
+    Idempotent and cheap (about 60 ms once).
+    """
+    import os
+    import sys
+    import tempfile
+
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no usable stderr: nothing to keep clean
+        wp.init()
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read().decode(errors="replace")
+    kept = [line for line in text.splitlines(True) if CUDA_PROBE_WARNING not in line]
+    if kept:
+        sys.stderr.write("".join(kept))
+
+
+init_warp()
+
 # No gradients are taken through these kernels; skipping the adjoint code halves the
 # first-use compile time.
 wp.set_module_options({"enable_backward": False})
