@@ -862,6 +862,24 @@ def read_fit(path: str | Any) -> az.InferenceData:
     return idata
 
 
+def fit_class_labels(idata: Any) -> list[str] | None:
+    """The class name of each mixture component of a fit (read by :func:`read_fit`), or None.
+
+    A log with labels (life-cycle rows or tracks) stores them, comma-separated, as the
+    posterior attribute ``class_labels``; the only reader of that attribute.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData
+
+    Returns
+    -------
+    list of str or None
+    """
+    names = idata.posterior.attrs.get("class_labels")
+    return str(names).split(",") if names else None
+
+
 def _stays_columns(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Distinct ``(departed, dwell)`` pairs of the observed log, their counts and inverse."""
     obs = idata.observed_data

@@ -104,8 +104,14 @@ class Scene:
         track_start: np.ndarray,
         track_t: np.ndarray,
         track_pose: np.ndarray,
+        artefacts: pd.DataFrame | None = None,
+        class_labels: Any = None,
     ) -> None:
         self.ids, self.labels, self.classes, self.rows = ids, labels, classes, rows
+        # the scenario's table as given (life-cycle, marks, classes), written back by the
+        # scenes writer; tracks change only through with_track(s), so it never goes stale
+        self.artefacts = artefacts
+        self.class_labels = None if class_labels is None else list(class_labels)
         self.half_extents, self.offsets = half_extents, offsets
         self.t_arrive, self.t_leave = t_arrive, t_leave
         self._pose0 = pose0  # (N, 3) arrival x, y, yaw
@@ -194,8 +200,45 @@ class Scene:
         start, t, pose = _tracks(tracks, ids)
         return cls(
             ids, labels, classes, rows, half, off, num[:, 0], num[:, 1], num[:, 2:5],
-            start, t, pose,
+            start, t, pose, artefacts, class_labels,
         )  # fmt: skip
+
+    def with_tracks(self, tracks: pd.DataFrame | None) -> Scene:
+        """A new scene, equal to this one except that its artefacts follow ``tracks``.
+
+        Behaviours are Scene -> Scene: the life-cycle, classes and boxes stay; only the
+        poses over time change.
+
+        Parameters
+        ----------
+        tracks : pandas.DataFrame or None
+            ``id, t, x, y, yaw`` (and ``scenario``, one value) as in :meth:`from_scenarios`;
+            None: every artefact stands at its arrival pose.
+
+        Returns
+        -------
+        Scene
+        """
+        start, t, pose = _tracks(tracks, self.ids)
+        return Scene(
+            self.ids, self.labels, self.classes, self.rows, self.half_extents, self.offsets,
+            self.t_arrive, self.t_leave, self._pose0, start, t, pose, self.artefacts,
+            self.class_labels,
+        )  # fmt: skip
+
+    def tracks_table(self) -> pd.DataFrame:
+        """The scene's tracks as a table ``id, t, x, y, yaw`` (one row per epoch).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Sorted by artefact (table order) and time; empty without tracks.
+        """
+        owner = np.repeat(np.arange(self.ids.size), np.diff(self._start))
+        return pd.DataFrame({
+            "id": self.ids[owner], "t": self._t, "x": self._pose[:, 0],
+            "y": self._pose[:, 1], "yaw": self._pose[:, 2],
+        })  # fmt: skip
 
     # ---- poses ------------------------------------------------------------------------------
 
@@ -279,7 +322,8 @@ class Scene:
             self.ids, self.labels, self.classes, self.rows, self.half_extents, self.offsets,
             self.t_arrive, self.t_leave, self._pose0, start,
             np.concatenate([self._t[:lo], tt, self._t[hi:]]),
-            np.concatenate([self._pose[:lo], pp, self._pose[hi:]]),
+            np.concatenate([self._pose[:lo], pp, self._pose[hi:]]), self.artefacts,
+            self.class_labels,
         )  # fmt: skip
 
     def _index(self, i: Any) -> int:

@@ -1,0 +1,304 @@
+"""The one assembly from a fit to moving scenes (issue 25): ``Fit in, Scenes out``.
+
+Every command that puts artefacts on a map (``generate``, the experiment sweeps,
+``augment``) calls :func:`scenes_from_fit` (or :func:`scenes_from_draws` for hand-set
+rates), so a change to traffic, behaviour or motion reaches all of them at once.
+
+The behaviour rule (``behaviours=``), one for every command:
+
+* ``False`` / ``"none"``: artefacts stand at their arrival pose for their whole stay;
+* ``True`` / ``"auto"``: the fit's behaviour when the fit has one (speeds, exits and
+  rationality learned from the log's tracks:
+  :func:`~are_stats.behaviour.simulate_behaviour_tracks`), otherwise the catalogue's
+  (each class's behaviours, walk / run / follow / stop, solved as the finite-horizon MDP
+  of the paper on the map coarsened to ``behaviour_cell``:
+  :func:`~are_stats.behaviour.behaviour_tracks`);
+* ``"fitted"`` or ``"catalogue"``: that one (``"fitted"`` without a fitted behaviour is an
+  error).
+
+Tracks end at the scenario's horizon (the scenario is defined on ``[0, horizon]``; its
+artefacts' ``t_leave`` may lie beyond, right-censored there).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from are_stats.scenarios._generate import check_scenario_size, generate_scenarios, traffic_draws
+from are_stats.scenarios._scene import Scene
+
+__all__ = ["BEHAVIOUR_SOURCES", "check_tracks_size", "scenes_from_draws", "scenes_from_fit"]
+
+#: Values of ``behaviours=`` (besides ``True`` = ``"auto"`` and ``False`` = ``"none"``).
+BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
+
+
+def _behaviour_source(behaviours: Any, fitted: Any, source: str) -> str:
+    """The behaviour that moves the artefacts, by the module's one rule."""
+    if isinstance(behaviours, bool | np.bool_):
+        behaviours = "auto" if behaviours else "none"
+    if behaviours not in BEHAVIOUR_SOURCES:
+        raise ValueError(
+            f"{source}: behaviours: expected one of {list(BEHAVIOUR_SOURCES)} or a bool, "
+            f"got {behaviours!r}"
+        )
+    if behaviours == "auto":
+        return "fitted" if fitted is not None else "catalogue"
+    if behaviours == "fitted" and fitted is None:
+        raise ValueError(
+            f"{source}: behaviours 'fitted': the fit has no behaviour group (fit a tracks "
+            "table to learn one), use 'catalogue'"
+        )
+    return behaviours
+
+
+def check_tracks_size(artefacts: pd.DataFrame, shape: tuple[int, int], dt: float, source: str):
+    """Refuse catalogue (MDP) behaviour tracks past the memory or work limit, before solving.
+
+    Per scenario the MDP is solved for its artefacts at once over the longest stay (epochs
+    padded to 64): a policy of ``artefacts x epochs x cells x 4`` bytes and about ten times
+    as many steps; the tracks hold one row per artefact and epoch.
+
+    Parameters
+    ----------
+    artefacts : pandas.DataFrame
+        Scenarios table (``scenario``, ``t_arrive``, ``t_leave``).
+    shape : (int, int)
+        The coarse behaviour grid.
+    dt : float
+        Seconds per decision epoch.
+    source : str
+        Options or file named in the error.
+
+    Raises
+    ------
+    are_stats.inputs.LimitError
+    """
+    from are_stats.inputs import check_memory, check_work
+
+    cells = float(shape[0]) * float(shape[1])
+    with np.errstate(over="ignore", invalid="ignore"):
+        epochs = (artefacts["t_leave"].to_numpy(float) - artefacts["t_arrive"].to_numpy(float)) / dt
+    epochs = np.where(np.isfinite(epochs), np.maximum(epochs, 0.0), np.inf)
+    sc = pd.factorize(artefacts["scenario"])[0] if len(artefacts) else np.zeros(0, np.int64)
+    n_sc = int(sc.max()) + 1 if sc.size else 0
+    longest = np.zeros(n_sc)
+    np.maximum.at(longest, sc, epochs)
+    per = np.bincount(sc, minlength=n_sc).astype(float)
+    bucket = 64.0 * np.ceil(np.maximum(longest, 1.0) / 64.0)
+    policy = per * bucket * cells * 4.0
+    rows = float(np.sum(epochs + 1.0))
+    what = (
+        f"MDP tracks of {len(artefacts)} artefacts on a {shape[0]} x {shape[1]} grid, dt {dt:g} s"
+    )
+    check_memory(float(policy.max(initial=0.0)), f"the MDP policy of one scenario ({what})", source)
+    check_memory(rows * 64.0, f"the tracks table ({what})", source)
+    check_work(float(policy.sum()) * 10.0 + rows * 50.0, what, source)
+
+
+def _split_scenes(
+    artefacts: pd.DataFrame,
+    tracks: pd.DataFrame | None,
+    catalogue: Any,
+    class_labels: Any,
+    n: int,
+) -> list[Scene]:
+    """One :class:`Scene` per scenario index ``0..n-1`` (empty scenarios included)."""
+    by_sc = dict(tuple(artefacts.groupby("scenario", sort=True))) if len(artefacts) else {}
+    tr_by = {}
+    if tracks is not None and len(tracks):
+        tr_by = dict(tuple(tracks.groupby("scenario", sort=True)))
+    empty = artefacts.iloc[:0]
+    out = []
+    for s in range(n):
+        part = by_sc.get(s, empty)
+        out.append(Scene.from_scenarios(part, catalogue, tr_by.get(s), class_labels=class_labels))
+    return out
+
+
+def scenes_from_draws(
+    key: Any,
+    draws: Mapping[str, Any],
+    grid: Any,
+    catalogue: Any,
+    n: int,
+    horizon: float,
+    *,
+    laws: Any = None,
+    behaviours: Any = False,
+    fitted: Any = None,
+    class_labels: Any = None,
+    area: float | None = None,
+    start: str = "stationary",
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    source: str = "scenario",
+) -> list[Scene]:
+    """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
+
+    Parameters
+    ----------
+    key : int or jax.Array
+        An int seed >= 0 (the scenarios use it, the tracks ``jax.random.key(seed)``: the
+        command line's ``--seed``) or a JAX PRNG key (split in two).
+    draws : dict of str to array
+        Posterior draws (:func:`~are_stats.scenarios.traffic_draws`) or one hand-set draw:
+        ``arrival_rate`` (S,), ``leave_rate`` (S,), optional ``mix_weights`` (S, K),
+        ``mix_rates`` (S, K) (eq. 1) and the chosen models' variables.
+    grid : OccupancyGrid or None
+        The map (``M2D``); None places artefacts on a square of ``area`` (no behaviours).
+    catalogue : ArtefactCatalogue
+        The property table ``Q``.
+    n : int
+        Number of scenarios.
+    horizon : float
+        Length of each scenario (s).
+    laws : TrafficLaws, optional
+        Arrival, stay and position laws (None: the paper's).
+    behaviours : bool or str
+        See the module docstring: ``False``/``"none"``, ``True``/``"auto"``, ``"fitted"``,
+        ``"catalogue"``.
+    fitted : BehaviourFit, optional
+        The fit's behaviour (``"auto"`` uses it when given).
+    class_labels : sequence of str, optional
+        Label of each mixture component (the fit's ``class_labels``).
+    area : float, optional
+        ``nu(M2D)`` (m^2) when it differs from the map's free area, or without a map.
+    start : {"stationary", "empty"}
+        Initial population.
+    behaviour_cell, behaviour_dt : float
+        Catalogue behaviours: the coarse grid's cell (m) and seconds per decision epoch.
+    source : str
+        What errors name (the fit file, the options).
+
+    Returns
+    -------
+    list of Scene
+        Scene ``i`` is scenario ``i``; ``scene.artefacts`` its table and
+        :meth:`Scene.tracks_table` its tracks.
+    """
+    import jax
+
+    from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
+
+    kind = _behaviour_source(behaviours, fitted, source)
+    if kind == "catalogue" and grid is None:
+        raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
+    if isinstance(key, int | np.integer) and not isinstance(key, bool):
+        seed, k_tracks = int(key), None
+    else:
+        seed, k_tracks = jax.random.split(key)
+    art = generate_scenarios(
+        seed, draws, n, horizon, free_mask=grid, area=area, start=start, laws=laws
+    )
+    if k_tracks is None:
+        k_tracks = jax.random.key(seed)
+    tracks = None
+    if kind == "fitted" and len(art):
+        tracks = pd.DataFrame(
+            simulate_behaviour_tracks(
+                k_tracks, fitted, art, class_labels=class_labels, horizon=horizon
+            )
+        )
+    elif kind == "catalogue" and len(art):
+        from are_stats.environment import coarse_occupancy
+
+        occ, _ = coarse_occupancy(grid, behaviour_cell, "behaviour_cell")
+        cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
+        check_tracks_size(cut, occ.shape, behaviour_dt, source)
+        classes = np.concatenate(
+            [s.classes for s in _split_scenes(art, None, catalogue, class_labels, n)]
+        )
+        order = np.argsort(art["scenario"].to_numpy(), kind="stable")
+        cls_rows = np.empty_like(classes)
+        cls_rows[order] = classes
+        tracks = pd.DataFrame(
+            behaviour_tracks(
+                k_tracks, art, cls_rows, grid, catalogue, cell=behaviour_cell,
+                dt=behaviour_dt, horizon=horizon, source="behaviour_cell",
+            )
+        )  # fmt: skip
+    return _split_scenes(art, tracks, catalogue, class_labels, n)
+
+
+def scenes_from_fit(
+    key: Any,
+    fit: Any,
+    grid: Any,
+    catalogue: Any,
+    n: int,
+    horizon: float,
+    *,
+    behaviours: Any = False,
+    model: str = "chosen",
+    posterior_draw: int | None = None,
+    area: float | None = None,
+    start: str = "stationary",
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    source: str | None = None,
+) -> list[Scene]:
+    """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
+
+    Parameters
+    ----------
+    key : int or jax.Array
+        Seed or PRNG key (see :func:`scenes_from_draws`).
+    fit : arviz.InferenceData or str or PathLike
+        A fit (:func:`~are_stats.fitting.read_fit`, or its path).
+    grid, catalogue, n, horizon
+        See :func:`scenes_from_draws`.
+    behaviours : bool or str
+        The module's behaviour rule.
+    model : {"chosen", "paper"}
+        Generate from the models the fit chose, or the paper's Poisson / exponential /
+        uniform model (:func:`~are_stats.scenarios.traffic_draws`).
+    posterior_draw : int, optional
+        Use this one posterior draw for every scenario (the sweeps draw one per
+        replicate); default: scenario ``i`` uses draw ``i mod S``.
+    area, start, behaviour_cell, behaviour_dt
+        See :func:`scenes_from_draws`.
+    source : str, optional
+        What errors name (default: the fit's path, or ``"fit"``).
+
+    Returns
+    -------
+    list of Scene
+    """
+    from are_stats.behaviour import BehaviourFit
+    from are_stats.fitting import fit_class_labels, read_fit
+    from are_stats.inputs import Described, InputError
+
+    if source is None:
+        source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
+    idata = read_fit(fit) if isinstance(fit, str) or hasattr(fit, "__fspath__") else fit
+    draws, laws = traffic_draws(idata, model)
+    if posterior_draw is not None:
+        s = int(posterior_draw)
+        draws = {k: np.asarray(v)[s : s + 1] for k, v in draws.items()}
+    fitted = None
+    if "behaviour" in idata.groups():
+        try:
+            fitted = BehaviourFit.from_dataset(idata.behaviour)
+        except (KeyError, ValueError, TypeError, IndexError) as err:
+            raise InputError(
+                source, "behaviour", "the behaviour group written by are-stats fit",
+                Described(f"a damaged group ({type(err).__name__}: {err})"),
+            ) from None  # fmt: skip
+    nu = area
+    if nu is None:
+        nu = (
+            float(np.count_nonzero(grid.free)) * grid.resolution**2
+            if grid is not None
+            else float(idata.posterior.attrs["area"])
+        )
+    check_scenario_size(draws, n, horizon, nu, start, source)
+    return scenes_from_draws(
+        key, draws, grid, catalogue, n, horizon, laws=laws, behaviours=behaviours,
+        fitted=fitted, class_labels=fit_class_labels(idata), area=area, start=start,
+        behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=source,
+    )  # fmt: skip
