@@ -467,13 +467,15 @@ def run_generate(
     (:mod:`are_stats.inputs`), before anything is drawn. The folder ``out`` (scenarios,
     manifest and tracks) is written beside it and put in place as a whole.
     """
-    from are_stats.fitting import read_fit
+    import pandas as pd
+
+    from are_stats.environment import load_catalogue
+    from are_stats.fitting import fit_class_labels, read_fit
     from are_stats.inputs import get_float, get_int, get_seed, get_str
     from are_stats.scenarios import (
         atomic_folder,
         check_folder,
-        check_scenario_size,
-        generate_scenarios,
+        scenes_from_fit,
         traffic_draws,
         write_scenario_files,
     )
@@ -497,38 +499,50 @@ def run_generate(
 
         map_path = resolve_shipped(map_path, "map", source="--map")  # or a shipped map's name
         grid = OccupancyGrid.from_ros_yaml(map_path)
-    if behaviours and grid is None:
+    fitted = "behaviour" in idata.groups()
+    if behaviours and grid is None and not fitted:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    if area is None and grid is None:
-        area = float(idata.posterior.attrs["area"])
-    draws, laws = traffic_draws(idata, model)
+    laws = traffic_draws(idata, model)[1]
     if laws.positions == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
         raise ValueError(
             f"--map: expected an origin yaw of 0 with the fit's learned entry density, got "
             f"{grid.origin[2]} (or use --model paper)"
         )
-    nu = area if area is not None else float(np.count_nonzero(grid.free)) * grid.resolution**2
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
-    check_scenario_size(draws, n_scenarios, horizon, nu, "stationary", source)
     t = time.perf_counter()
-    df = generate_scenarios(seed, draws, n_scenarios, horizon, free_mask=grid, area=area, laws=laws)
-    labels = _class_labels(idata)
+    scenes = scenes_from_fit(
+        seed, idata, grid, load_catalogue(), n_scenarios, horizon, behaviours=behaviours,
+        model=model, area=area, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
+        source=source, cell_source="--behaviour-cell",
+    )  # fmt: skip
+    df = pd.concat([s.artefacts for s in scenes], ignore_index=True)
     manifest = {
         "fit": str(fit_path),
         "model": model,
         "map": None if map_path is None else str(map_path),
         "seed": int(seed),
-        "class_labels": labels,
+        "class_labels": fit_class_labels(idata),
     }
     with atomic_folder(out, force=force) as tmp:
-        if behaviours and "behaviour" in idata.groups():
-            manifest["tracks"] = _fitted_behaviour_tracks(seed, df, idata, labels, tmp, fit_path)
-        elif behaviours:
-            manifest["tracks"] = _behaviour_tracks(
-                seed, df, grid, labels, tmp, False, behaviour_cell, behaviour_dt
-            )
+        if behaviours:
+            tracks = pd.concat(
+                [s.tracks_table().assign(scenario=k) for k, s in enumerate(scenes)],
+                ignore_index=True,
+            )[["scenario", "id", "t", "x", "y", "yaw"]]
+            path = Path(tmp) / "tracks.parquet"
+            with atomic_path(path, force=False) as part:
+                tracks.to_parquet(part, index=False)
+            manifest["tracks"] = (
+                {"file": path.name, "source": "fitted behaviour", "rows": len(tracks)}
+                if fitted
+                else {
+                    "file": path.name, "source": "catalogue behaviour",
+                    "cell_m": _behaviour_cell_m(grid, behaviour_cell), "dt_s": behaviour_dt,
+                    "rows": len(tracks),
+                }
+            )  # fmt: skip
         write_scenario_files(df, tmp, manifest)
     console.print(
         f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
@@ -540,103 +554,16 @@ def run_generate(
     return df
 
 
-def _class_labels(idata: Any) -> list[str] | None:
-    """Class names of the fit's mixture components when the log had labels."""
-    names = idata.posterior.attrs.get("class_labels")
-    return str(names).split(",") if names else None
+def _behaviour_cell_m(grid: Any, cell: float) -> float:
+    """The coarse behaviour grid's actual cell (m): ``cell`` rounded to map cells."""
+    from are_stats.environment import coarse_occupancy
 
-
-def _check_tracks_size(table: Any, shape: tuple[int, int], dt: float) -> None:
-    """Refuse MDP rollouts past the memory or work limit, before solving anything.
-
-    Per scenario the MDP is solved for its artefacts at once over the longest stay
-    (epochs padded to 64): a policy of ``artefacts x epochs x cells x 4`` bytes and about
-    ten times as many steps; the tracks hold one row per artefact and epoch.
-    """
-    from are_stats.inputs import check_memory, check_work
-
-    source = "--behaviour-dt, --behaviour-cell, --horizon"
-    cells = float(shape[0]) * float(shape[1])
-    with np.errstate(over="ignore", invalid="ignore"):
-        epochs = (table["t_leave"].to_numpy(float) - table["t_arrive"].to_numpy(float)) / dt
-    epochs = np.where(np.isfinite(epochs), np.maximum(epochs, 0.0), np.inf)
-    sc = table["scenario"].to_numpy()
-    n_sc = int(sc.max()) + 1 if sc.size else 0
-    longest = np.zeros(n_sc)
-    np.maximum.at(longest, sc, epochs)
-    per = np.bincount(sc, minlength=n_sc).astype(float)
-    bucket = 64.0 * np.ceil(np.maximum(longest, 1.0) / 64.0)
-    policy = per * bucket * cells * 4.0
-    rows = float(np.sum(epochs + 1.0))
-    what = f"MDP tracks of {len(table)} artefacts on a {shape[0]} x {shape[1]} grid, dt {dt:g} s"
-    check_memory(float(policy.max(initial=0.0)), f"the MDP policy of one scenario ({what})", source)
-    check_memory(rows * 64.0, f"the tracks table ({what})", source)
-    check_work(float(policy.sum()) * 10.0 + rows * 50.0, what, source)
-
-
-def _fitted_behaviour_tracks(
-    seed: int, df: Any, idata: Any, labels: Any, out: Path, fit_path: Path
-) -> dict:
-    """Tracks of generated artefacts walking as the fit's behaviour says (issue 16)."""
-    import pandas as pd
-
-    from are_stats.behaviour import BehaviourFit, simulate_behaviour_tracks
-    from are_stats.inputs import Described, InputError
-
-    try:
-        bfit = BehaviourFit.from_dataset(idata.behaviour)
-    except (KeyError, ValueError, TypeError, IndexError) as err:
-        raise InputError(
-            fit_path, "behaviour", "the behaviour group written by are-stats fit",
-            Described(f"a damaged group ({type(err).__name__}: {err})"),
-        ) from None  # fmt: skip
-    tracks = pd.DataFrame(
-        simulate_behaviour_tracks(jax.random.key(seed), bfit, df, class_labels=labels)
-    )
-    path = Path(out) / "tracks.parquet"
-    with atomic_path(path, force=False) as tmp:
-        tracks.to_parquet(tmp, index=False)
-    return {"file": path.name, "source": "fitted behaviour", "rows": len(tracks)}
-
-
-def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
-    """MDP trajectories of generated scenarios (:func:`are_stats.behaviour.behaviour_tracks`)."""
-    import pandas as pd
-
-    from are_stats.behaviour import behaviour_tracks
-    from are_stats.environment import coarse_occupancy, load_catalogue
-    from are_stats.scenarios import Scene
-
-    if grid is None:
-        raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    occ, res = coarse_occupancy(grid, cell, "--behaviour-cell")
-    _check_tracks_size(df, occ.shape, dt)
-    cat = load_catalogue()
-    classes = np.zeros(len(df), np.int64)
-    sc = df["scenario"].to_numpy()
-    for s in np.unique(sc):
-        idx = np.flatnonzero(sc == s)
-        classes[idx] = Scene.from_scenarios(df.iloc[idx], cat, class_labels=labels).classes
-    tracks = pd.DataFrame(
-        behaviour_tracks(
-            jax.random.key(seed),
-            df,
-            classes,
-            grid,
-            cat,
-            cell=cell,
-            dt=dt,
-            source="--behaviour-cell",
-        )  # fmt: skip
-    )
-    path = Path(out) / "tracks.parquet"
-    with atomic_path(path, force=force) as tmp:
-        tracks.to_parquet(tmp, index=False)
-    return {"file": path.name, "cell_m": res, "dt_s": dt, "rows": len(tracks)}
+    return float(coarse_occupancy(grid, cell, "--behaviour-cell")[1])
 
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
+    from are_stats.fitting import fit_class_labels
     from are_stats.inputs import Described, InputError
 
     out = Path(out)
@@ -708,7 +635,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
             "classes": {
                 str(label): {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
                 for label, w, r in zip(
-                    _class_labels(idata) or range(len(weights)), weights, rates, strict=True
+                    fit_class_labels(idata) or range(len(weights)), weights, rates, strict=True
                 )
             },
         },

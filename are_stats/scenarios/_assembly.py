@@ -137,6 +137,7 @@ def scenes_from_draws(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     source: str = "scenario",
+    cell_source: str = "behaviour_cell",
 ) -> list[Scene]:
     """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
 
@@ -174,6 +175,8 @@ def scenes_from_draws(
         Catalogue behaviours: the coarse grid's cell (m) and seconds per decision epoch.
     source : str
         What errors name (the fit file, the options).
+    cell_source : str
+        The option or key of ``behaviour_cell``, named in errors.
 
     Returns
     -------
@@ -207,9 +210,9 @@ def scenes_from_draws(
     elif kind == "catalogue" and len(art):
         from are_stats.environment import coarse_occupancy
 
-        occ, _ = coarse_occupancy(grid, behaviour_cell, "behaviour_cell")
+        occ, _ = coarse_occupancy(grid, behaviour_cell, cell_source)
         cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
-        check_tracks_size(cut, occ.shape, behaviour_dt, source)
+        check_tracks_size(cut, occ.shape, behaviour_dt, f"{source}, {cell_source}")
         classes = np.concatenate(
             [s.classes for s in _split_scenes(art, None, catalogue, class_labels, n)]
         )
@@ -219,7 +222,7 @@ def scenes_from_draws(
         tracks = pd.DataFrame(
             behaviour_tracks(
                 k_tracks, art, cls_rows, grid, catalogue, cell=behaviour_cell,
-                dt=behaviour_dt, horizon=horizon, source="behaviour_cell",
+                dt=behaviour_dt, horizon=horizon, source=cell_source,
             )
         )  # fmt: skip
     return _split_scenes(art, tracks, catalogue, class_labels, n)
@@ -241,6 +244,7 @@ def scenes_from_fit(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     source: str | None = None,
+    cell_source: str = "behaviour_cell",
 ) -> list[Scene]:
     """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
 
@@ -260,7 +264,7 @@ def scenes_from_fit(
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
-    area, start, behaviour_cell, behaviour_dt
+    area, start, behaviour_cell, behaviour_dt, cell_source
         See :func:`scenes_from_draws`.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
@@ -299,6 +303,8 @@ def scenes_from_fit(
     check_scenario_size(draws, n, horizon, nu, start, source)
     return scenes_from_draws(
         key, draws, grid, catalogue, n, horizon, laws=laws, behaviours=behaviours,
-        fitted=fitted, class_labels=fit_class_labels(idata), area=area, start=start,
+        fitted=fitted, class_labels=fit_class_labels(idata),
+        area=nu if grid is None else area, start=start,
         behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=source,
+        cell_source=cell_source,
     )  # fmt: skip
