@@ -63,6 +63,8 @@ from are_stats.fitting._criticism import (  # noqa: E402
     kaplan_meier,
 )
 from are_stats.fitting._fit_log import (  # noqa: E402
+    FIT_FORMAT_VERSION,
+    FitFormatWarning,
     FitSettings,
     attach_behaviour,
     attach_traffic,
@@ -131,6 +133,8 @@ __all__ += [
     "fit_log",
     "fit_loo",
     "pointwise_log_likelihood",
+    "FIT_FORMAT_VERSION",
+    "FitFormatWarning",
     "fit_class_labels",
     "read_fit",
     "write_fit",

@@ -538,8 +538,20 @@ def _stable(idata: az.InferenceData) -> az.InferenceData:
     return az.InferenceData(**groups)
 
 
+#: Format of the fits this version writes (the posterior attribute ``format_version``).
+#: :func:`read_fit` refuses a newer one and reads a fit without one as format 1, with a
+#: :class:`FitFormatWarning`.
+FIT_FORMAT_VERSION = 1
+
+
+class FitFormatWarning(FutureWarning):
+    """A fit file without a format version (written before fits carried one)."""
+
+
 def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> Any:
     """Write a fit as NetCDF atomically (temporary file + rename); refuse to overwrite.
+
+    The posterior carries ``format_version`` (:data:`FIT_FORMAT_VERSION`).
 
     The file holds no wall-clock attribute (:data:`VOLATILE_ATTRS` are left out), so the
     same fit gives the same bytes. An interrupted or failed write (a full disk) leaves no
@@ -564,9 +576,39 @@ def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> A
     from are_stats._atomic import atomic_path
 
     path = Path(out)
+    stable = _stable(idata)
+    stable.posterior.attrs["format_version"] = FIT_FORMAT_VERSION
     with atomic_path(path, force=force) as tmp:
-        _stable(idata).to_netcdf(str(tmp))
+        stable.to_netcdf(str(tmp))
     return path
+
+
+def _check_format(attrs: Any, source: str) -> None:
+    """Refuse a fit of a newer format; warn about a fit written before formats had numbers."""
+    from are_stats import __version__
+    from are_stats.inputs import Described, InputError
+
+    if "format_version" not in attrs:
+        warnings.warn(
+            f"{source}: the fit has no format_version (written before fits carried one): read "
+            f"as format 1; fit the log again to stamp it",
+            FitFormatWarning,
+            stacklevel=3,
+        )
+        return
+    v = np.asarray(attrs["format_version"]).ravel()
+    if v.size != 1 or v.dtype.kind not in "iu":
+        raise InputError(
+            source, "posterior.attrs.format_version", "an integer",
+            Described(f"{attrs['format_version']!r}"),
+        )  # fmt: skip
+    if int(v[0]) > FIT_FORMAT_VERSION or int(v[0]) < 1:
+        raise InputError(
+            source, "posterior.attrs.format_version",
+            f"a fit format are_stats {__version__} reads (1 to {FIT_FORMAT_VERSION}; a newer "
+            "format was written by a newer are_stats: upgrade it, or fit the log again)",
+            int(v[0]),
+        )  # fmt: skip
 
 
 def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
@@ -625,6 +667,7 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
                 Described(f"groups {list(idata.groups())}"),
             )  # fmt: skip
     post = idata.posterior
+    _check_format(post.attrs, source)
     rates = {}
     for name in ("arrival_rate", "leave_rate"):
         rates[name] = _var(post, name, source, "posterior", ("chain", "draw"))

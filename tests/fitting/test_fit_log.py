@@ -16,6 +16,8 @@ from numpyro.infer.util import log_likelihood
 from scipy.special import gammaln
 
 from are_stats.fitting import (
+    FIT_FORMAT_VERSION,
+    FitFormatWarning,
     FitSettings,
     _fit_log,
     check_report_size,
@@ -232,6 +234,14 @@ BAD_FITS = [
         _set("posterior", "mix_weights", lambda a: 2 * a),
         r"posterior\.mix_weights\[0, 0\]: expected weights summing to 1, got a sum of 2\.0",
     ),
+    (
+        _attr("format_version", np.int64(FIT_FORMAT_VERSION + 1)),
+        r"posterior\.attrs\.format_version: expected a fit format are_stats .* reads",
+    ),
+    (
+        _attr("format_version", "one"),
+        r"posterior\.attrs\.format_version: expected an integer, got 'one'",
+    ),
     (_without_group("observed_data"), r"observed_data: expected this group"),
     (_without_group("posterior"), r"posterior: expected this group"),
     (
@@ -254,6 +264,19 @@ def test_read_fit_names_the_file_and_the_bad_field(tmp_path, em_file, change, ma
     bad = _rewrite(em_file, tmp_path / "bad.nc", change)
     with pytest.raises(InputError, match=re.escape(str(bad)) + ": " + match):
         read_fit(bad)
+
+
+def test_fits_carry_their_format_and_an_unversioned_fit_is_read_with_a_warning(tmp_path, em_file):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        idata = read_fit(em_file)  # written by this version: stamped, no warning
+    assert int(idata.posterior.attrs["format_version"]) == FIT_FORMAT_VERSION
+    old = _rewrite(em_file, tmp_path / "old.nc", _attr("format_version", delete=True))
+    with pytest.warns(FitFormatWarning, match=r"old\.nc: the fit has no format_version"):
+        back = read_fit(old)
+    np.testing.assert_array_equal(back.posterior["arrival_rate"], idata.posterior["arrival_rate"])
 
 
 def test_read_fit_refuses_what_is_not_a_fit(tmp_path):
