@@ -27,6 +27,84 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 DPI = 100
 
 
+#: The rooms of the package (subpackages) and what each holds: (name, text, x, y).
+_ROOMS = (
+    ("logs", "field logs,\ntracks, bags", 0, 1.0),
+    ("fitting", "EM, NUTS, LOO;\nread_fit", 1, 1.0),
+    ("scenarios", "scenes_from_fit;\nScene; folders", 2, 1.0),
+    ("builder", "registration,\ncollisions, nu", 3, 1.0),
+    ("perception", "Warp z-buffer,\nA_f (tau)", 4, 1.0),
+    ("experiments", "mission init/step,\nplanners, rho", 5, 1.0),
+    ("export", "MCAP, Foxglove,\nbag augmentation", 6, 1.0),
+    ("traffic", "N(t), arrivals,\nstays, eq. (1)", 1.5, -0.1),
+    ("behaviour", "MDP decisions,\nmotion", 2.5, -0.1),
+    ("environment", "grids, meshes,\nframes, catalogue Q", 3.5, -0.1),
+    ("cli", "are-stats: parses the options, calls the rooms", 3, 2.1),
+)
+_STEP = 1.45  # distance between neighbouring rooms
+
+
+def _house(out: Path) -> None:
+    """The package as a house: its rooms and the one-way flow fit -> scenes -> mission ->
+    export (issue 25), drawn from :data:`_ROOMS`."""
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import FancyArrowPatch, FancyBboxPatch
+
+    fig, ax = plt.subplots(figsize=(13.0, 4.6))
+    w, h = 1.12, 0.62
+    centre = {}
+    for name, text, x, y in _ROOMS:
+        x = x * _STEP
+        width = 6 * _STEP + w if name == "cli" else w
+        main = y == 1.0
+        colour = "#dbe8f6" if main else ("#f2f2f2" if name == "cli" else "#e8f3e1")
+        ax.add_patch(
+            FancyBboxPatch(
+                (x - width / 2, y - h / 2), width, h, boxstyle="round,pad=0.02",
+                facecolor=colour, edgecolor="#444", linewidth=1.2,
+            )
+        )  # fmt: skip
+        ax.text(x, y + 0.14, name + "/" if name != "cli" else "cli.py", ha="center",
+                va="center", fontsize=10.5, weight="bold")  # fmt: skip
+        ax.text(x, y - 0.1, text, ha="center", va="center", fontsize=8.2, color="#333")
+        centre[name] = (x, y)
+
+    def arrow(a: str, b: str, label: str = "", colour: str = "#1f4e8c") -> None:
+        (xa, ya), (xb, yb) = centre[a], centre[b]
+        if ya == yb:
+            start, end = (xa + w / 2, ya), (xb - w / 2, yb)
+        else:  # from a lower room up into a main one
+            start, end = (xa, ya + h / 2), (xb, yb - h / 2)
+        ax.add_patch(
+            FancyArrowPatch(start, end, arrowstyle="-|>", mutation_scale=14, color=colour,
+                            linewidth=1.6)
+        )  # fmt: skip
+        if label:
+            mid = ((start[0] + end[0]) / 2, (start[1] + end[1]) / 2 + 0.06)
+            ax.text(*mid, label, ha="center", va="bottom", fontsize=8.5, color=colour,
+                    style="italic")  # fmt: skip
+
+    flow = ["logs", "fitting", "scenarios", "builder", "perception", "experiments", "export"]
+    labels = ["log", "Fit", "Scenes", "boxes", "A_f", "trace"]
+    for a, b, label in zip(flow[:-1], flow[1:], labels, strict=True):
+        arrow(a, b, label)
+    arrow("traffic", "scenarios", colour="#3c7a2a")
+    arrow("traffic", "fitting", colour="#3c7a2a")
+    arrow("behaviour", "scenarios", colour="#3c7a2a")
+    arrow("environment", "builder", colour="#3c7a2a")
+    arrow("environment", "perception", colour="#3c7a2a")
+    ax.text(3 * _STEP, 1.56, "every command (fit, generate, experiment, augment, serve) calls the "
+            "same rooms, left to right", ha="center", fontsize=8.2, color="#555")  # fmt: skip
+    ax.text(3 * _STEP, -0.6, "models and worlds (green) feed the flow; nothing downstream is "
+            "imported upstream", ha="center", fontsize=8.2, color="#3c7a2a")  # fmt: skip
+    ax.set_xlim(-0.65, 6 * _STEP + 0.65)
+    ax.set_ylim(-0.72, 2.5)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    fig.savefig(out / "house.png", dpi=1.3 * DPI, bbox_inches="tight")
+    plt.close(fig)
+
+
 def _courtyard(out: Path) -> None:
     """``are-stats show courtyard``: the shipped map, its inflation and a few artefacts."""
     from are_stats.builder import show_map
@@ -188,6 +266,7 @@ def _experiments(out: Path) -> None:
 
 # figure -> (page that shows it, job that draws it)
 JOBS: dict[str, Callable[[Path], None]] = {
+    "house": _house,
     "courtyard": _courtyard,
     "fit": _fit,
     "behaviour": _behaviour,
@@ -196,6 +275,7 @@ JOBS: dict[str, Callable[[Path], None]] = {
     "experiments": _experiments,
 }
 FIGURES: dict[str, tuple[str, str]] = {
+    "house.png": ("index.md", "house"),
     "courtyard.png": ("environment.md", "courtyard"),
     "criticism.png": ("pipeline.md", "fit"),
     "traffic_checks.png": ("models.md", "fit"),
