@@ -20,6 +20,7 @@ from are_stats.environment._grid import (
     OCCUPIED,
     UNKNOWN,
     OccupancyGrid,
+    coarse_free,
     coarse_occupancy,
 )
 from are_stats.environment._mesh import extrude_grid, load_mesh, occupied_polygons
@@ -43,6 +44,7 @@ __all__ = [
     "UNKNOWN",
     "ArtefactCatalogue",
     "ArtefactClass",
+    "coarse_free",
     "coarse_occupancy",
     "OccupancyGrid",
     "PropertyRow",

@@ -690,11 +690,45 @@ def _pixels_to_values(
     return _shade_to_values(_shade(quanta, n), opaque, mode, negate, occ_th, free_th)
 
 
+def coarse_free(free_mask: Any, resolution: float, cell: float) -> tuple[np.ndarray, float]:
+    """The one coarsener: a free mask on square cells of about ``cell`` metres.
+
+    A coarse cell is free where **at least half** of its map cells are free (so a door that
+    straddles two coarse cells stays open in both). Behaviours, their fits and the learned
+    entry densities all move on grids made here, so they agree cell for cell. Trailing map
+    cells that do not fill a coarse cell are dropped; a map smaller than 2 x 2 coarse cells
+    keeps its own cells.
+
+    Parameters
+    ----------
+    free_mask : (H, W) bool
+        Free map cells (row 0 at the origin).
+    resolution : float
+        Map cell side (m).
+    cell : float
+        Target cell side (m), rounded to a whole number of map cells (at least one).
+
+    Returns
+    -------
+    free : (h, w) bool
+    resolution : float
+        The coarse cell side.
+    """
+    free = np.asarray(free_mask, bool)
+    res = float(resolution)
+    f = max(1, int(round(min(float(cell) / res, 2.0**31))))
+    h, w = free.shape[0] // f, free.shape[1] // f
+    if h < 2 or w < 2:
+        return free.copy(), res
+    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+    return frac >= 0.5, res * f
+
+
 def coarse_occupancy(grid: Any, cell: float, source: str = "cell") -> tuple[np.ndarray, float]:
     """Occupancy of ``grid`` on square cells of about ``cell`` metres (majority vote).
 
-    The grid the behaviours move on: a coarse cell is occupied where most of its map cells
-    are not free (occupied or unknown).
+    The grid the behaviours move on: the complement of :func:`coarse_free` (a coarse cell
+    is occupied where more than half of its map cells are not free: occupied or unknown).
 
     Parameters
     ----------
@@ -726,5 +760,5 @@ def coarse_occupancy(grid: Any, cell: float, source: str = "cell") -> tuple[np.n
     h, w = grid.shape[0] // f, grid.shape[1] // f
     if h < 2 or w < 2:
         raise ValueError(f"{source}: expected a cell much smaller than the map, got {cell}")
-    blocked = ~grid.free[: h * f, : w * f]
-    return blocked.reshape(h, f, w, f).mean(axis=(1, 3)) > 0.5, grid.resolution * f
+    free, res = coarse_free(grid.free, grid.resolution, cell)
+    return ~free, res

@@ -233,7 +233,9 @@ def boundary_distance(xy: Any, free_mask: Any, resolution: float, origin: Any) -
 def coarse_free_mask(
     free_mask: Any, resolution: float, origin: Any, cell: float
 ) -> tuple[np.ndarray, float, tuple[float, float]]:
-    """A free mask on cells of about ``cell`` metres (free where most fine cells are free).
+    """A free mask on cells of about ``cell`` metres, with its origin
+    (:func:`are_stats.environment.coarse_free`, the one coarsener: free where at least half
+    of the fine cells are free).
 
     Position densities live on such a grid (a kernel narrower than a person is noise).
 
@@ -256,12 +258,9 @@ def coarse_free_mask(
         Unchanged (the coarse grid starts at the same corner; trailing fine cells that do
         not fill a coarse cell are dropped).
     """
-    free = np.asarray(free_mask, bool)
+    from are_stats.environment import coarse_free
+
     res = float(check_positive("resolution", resolution))
     o = check_finite("origin", origin, ndim=1)
-    f = max(1, int(round(float(check_positive("cell", cell)) / res)))
-    h, w = free.shape[0] // f, free.shape[1] // f
-    if h < 2 or w < 2:
-        f, h, w = 1, free.shape[0], free.shape[1]
-    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
-    return frac > 0.5, res * f, (float(o[0]), float(o[1]))
+    free, res = coarse_free(free_mask, res, float(check_positive("cell", cell)))
+    return free, res, (float(o[0]), float(o[1]))

@@ -417,3 +417,37 @@ def test_values_no_pixel_can_hold_are_refused_on_writing(tmp_path):
         g.to_ros_yaml(tmp_path / "x.yaml")
     with pytest.raises(ValueError, match="no 8-bit pixel reads back as 50"):
         OccupancyGrid(np.array([[50]]), 0.1).to_ros_yaml(tmp_path / "y.yaml")
+
+
+def test_one_coarsener_keeps_a_straddling_door_open_on_every_grid():
+    """A 1 m door whose edges fall mid-cell of a 1 m coarse grid: each coarse cell it touches
+    is exactly half free. The behaviour grid (coarse_occupancy), the entry-density grid
+    (traffic.coarse_free_mask) and coarse_free agree, and keep the door open."""
+    from are_stats.environment import coarse_free, coarse_occupancy
+    from are_stats.traffic import coarse_free_mask
+
+    data = np.zeros((40, 40))  # 0.1 m free cells
+    data[20:30, :] = 100  # a wall band of coarse row 2 ...
+    data[20:30, 15:25] = 0  # ... with a 1 m door from x = 1.5 to 2.5 m
+    grid = OccupancyGrid(data, 0.1)
+    occ, res = coarse_occupancy(grid, 1.0)
+    free, res2 = coarse_free(grid.free, 0.1, 1.0)
+    free3, res3, origin = coarse_free_mask(grid.free, 0.1, (0.0, 0.0), 1.0)
+    assert res == res2 == res3 == pytest.approx(1.0) and origin == (0.0, 0.0)
+    np.testing.assert_array_equal(occ, ~free)
+    np.testing.assert_array_equal(free, free3)
+    assert free[2].tolist() == [False, True, True, False]  # both half-free cells stay open
+    assert free[[0, 1, 3]].all()
+
+
+def test_coarse_free_is_a_majority_vote_on_whole_cells(rng):
+    from are_stats.environment import coarse_free
+
+    fine = rng.random((37, 23)) < 0.6
+    free, res = coarse_free(fine, 0.1, 0.3)
+    want = fine[:36, :21].reshape(12, 3, 7, 3).mean(axis=(1, 3)) >= 0.5
+    np.testing.assert_array_equal(free, want)
+    assert res == pytest.approx(0.3)
+    tiny, res1 = coarse_free(fine[:3, :3], 0.1, 0.3)  # under 2 x 2 coarse cells: kept as is
+    np.testing.assert_array_equal(tiny, fine[:3, :3])
+    assert res1 == pytest.approx(0.1)
