@@ -3,8 +3,10 @@ the augmented map of one scenario, replanning at every scene update.
 
 The loop is event-driven on simulated time, an explicit state machine: ``_init`` builds the
 state at t = 0 and ``_step`` makes one transition (plan if needed, drive to the next event,
-apply it), both pure functions of the mission's fixed settings (``_Mission``) and the state
-(``_State``, a NamedTuple), as the EM code does with ``em_init`` / ``em_step``:
+apply it), both functions of the mission's fixed settings (``_Mission``) and the state
+(``_State``, a NamedTuple), as the EM code does with ``em_init`` / ``em_step``; everything
+that changes is in the state, the AR-builder that gives n_A and the batch of camera percepts
+ahead included (``_Mission`` is frozen and holds no cache):
 
 * the artefacts are an :class:`~are_stats.Scene` (the one place where an artefact becomes a
   box); **scene updates** are its events: arrivals, leaves and, with behaviour tracks,
@@ -43,13 +45,15 @@ deterministic given the seed (for OMPL planners: given the seed and an iteration
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
+from are_stats.builder import ARBuilder
 from are_stats.experiments._avoid import plan_avoidance
 from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
@@ -167,16 +171,15 @@ def _point_at(path: np.ndarray, cum: np.ndarray, s: Any) -> tuple[np.ndarray, np
 class _Mission:
     """What does not change during a mission (the step functions' first argument).
 
-    ``builder`` is the AR-builder used as a workspace: its content is a function of the
-    scene at the state's time, rewritten at every update. ``event_t`` (e,) are the distinct
-    times of the scene's events in ``(0, T)``;
+    ``catalogue`` is the property table the state's AR-builder registers boxes from.
+    ``event_t`` (e,) are the distinct times of the scene's events in ``(0, T)``;
     ``event_lifecycle`` (e,) bool says whether an artefact arrives or leaves then and
     ``event_moved`` holds the (k,) indices of the artefacts that move then.
     """
 
     grid: Any
     scene: Scene
-    builder: Any
+    catalogue: Any
     robot: Robot
     plan_fn: Callable[..., Any]
     goals: np.ndarray  # (g, 2)
@@ -204,11 +207,6 @@ class _Mission:
     # every cell's distance to them (m); the planner adds the artefacts' in a window
     static_occ: np.ndarray
     static_dist: np.ndarray
-    # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
-    # batch: {tick time: (robot pose (3,), perceived (N,), scene)}. A memo, not state: an
-    # entry is used only when the robot is where it was predicted to be at that tick, in
-    # the same scene.
-    percepts: dict = field(default_factory=dict, compare=False)
 
 
 class _State(NamedTuple):
@@ -246,6 +244,14 @@ class _State(NamedTuple):
     n_detours: int
     n_yields: int
     avoid_delay: float  # s, summed over the avoidances
+    # the AR-builder (M_2D augmented with the live boxes): its content is a function of
+    # (scene, t) at the last update, rewritten by _register; it gives n_A
+    builder: Any
+    # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
+    # batch: {tick time: (robot pose (3,), perceived (N,), scene)}, replaced (never
+    # changed) by each batch. An entry is used only when the robot is where it was
+    # predicted to be at that tick, in the same scene.
+    percepts: Mapping[float, tuple]
 
 
 class _Info(NamedTuple):
@@ -275,23 +281,22 @@ def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np
     return xy, pose[:, 2]
 
 
-def _register(m: _Mission, scene: Scene, t: float) -> int:
-    """Register the scene's live boxes at ``t`` on the AR-builder (M_2D); returns n_A."""
-    m.builder.register_scene(scene, t)
-    return m.builder.n_artefact_cells
+def _register(s: _State) -> _State:
+    """Register the scene's live boxes at ``s.t`` on the state's AR-builder (M_2D); n_A."""
+    s.builder.register_scene(s.scene, s.t)
+    return s._replace(n_A=s.builder.n_artefact_cells)
 
 
-def _perceive(
-    m: _Mission, s: _State, idx: np.ndarray, boxes: Any, tick: bool = False
-) -> np.ndarray:
-    """(N,) bool: the artefacts on the planner's map after a perception at ``s.pose``
-    (``tick``: at a camera tick, which perceives the ticks ahead in the same batch)."""
+def _perceive(m: _Mission, s: _State, idx: np.ndarray, boxes: Any, tick: bool = False) -> _State:
+    """The state with ``seen``, the artefacts on the planner's map after a perception at
+    ``s.pose`` (``tick``: at a camera tick, which perceives the ticks ahead in the same
+    batch and keeps them in ``percepts``)."""
     now = np.zeros(s.live.size, bool)
     if m.perception == "all":
         now[idx] = True
     elif idx.size:
-        now = _camera_percept(m, s, tick)
-    return (now | (s.seen & s.live)) if m.memory else now
+        now, s = _camera_percept(m, s, tick)
+    return s._replace(seen=(now | (s.seen & s.live)) if m.memory else now)
 
 
 #: Camera ticks perceived together in one batch (the robot's poses at them predicted along
@@ -299,8 +304,9 @@ def _perceive(
 _PERCEPT_BATCH = 32
 
 
-def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
-    """(N,) bool: the artefacts in A_f at ``s.t`` seen from ``s.pose`` (no memory).
+def _camera_percept(m: _Mission, s: _State, tick: bool) -> tuple[np.ndarray, _State]:
+    """(N,) bool: the artefacts in A_f at ``s.t`` seen from ``s.pose`` (no memory), and the
+    state with the batch's ``percepts``.
 
     The same A_f as perceiving ``s.scene.at(s.t)`` on its own (:func:`perceive_scene`'s
     frames are independent): the ticks ahead are perceived in the same batch, at the poses
@@ -311,9 +317,9 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
     """
     from are_stats.perception import perceive_scene
 
-    hit = m.percepts.get(s.t)
+    hit = s.percepts.get(s.t)
     if hit is not None and hit[2] is s.scene and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9):
-        return hit[1].copy()
+        return hit[1].copy(), s
     times, t = [s.t], s.t
     if tick and not s.need_plan:  # (an arrival, a leave or a replan changes the motion)
         while len(times) < _PERCEPT_BATCH:
@@ -334,11 +340,8 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> np.ndarray:
         s.scene, tt, m.robot.camera_poses(poses), m.env_mesh, m.robot.camera(s.pose),
         m.d_max, m.tau,
     )  # fmt: skip
-    m.percepts.clear()
-    m.percepts.update(
-        {float(t): (p, row, s.scene) for t, p, row in zip(tt, poses, seen, strict=True)}
-    )
-    return seen[0]
+    batch = {float(t): (p, row, s.scene) for t, p, row in zip(tt, poses, seen, strict=True)}
+    return seen[0], s._replace(percepts=MappingProxyType(batch))
 
 
 def _planning_grid(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> tuple[Any, np.ndarray]:
@@ -496,11 +499,11 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     idx, boxes = _boxes(s.scene, s.t)
     live = s.scene.alive(s.t)
     arrived, left = live & ~s.live, s.live & ~live
-    s = s._replace(live=live, seen=s.seen & live, n_A=_register(m, s.scene, s.t), event=e + 1)
+    s = _register(s._replace(live=live, seen=s.seen & live, event=e + 1))
     kinds = []
     if s.event_lifecycle[e]:
         old = s.seen
-        s = s._replace(seen=_perceive(m, s, idx, boxes))
+        s = _perceive(m, s, idx, boxes)
         if arrived.any():
             kinds.append("arrival")
         if left.any():
@@ -597,15 +600,14 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
     s = _State(
         t=0.0, pose=pose, goal=0, reached=np.full(m.goals.shape[0], np.nan), path=None,
         cum=np.zeros(1), s_along=0.0, need_plan=True, reason="goal", live=live,
-        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool),
-        n_A=_register(m, m.scene, 0.0),
+        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=0,
         event=0, next_percept=m.period if m.perception == "camera" else np.inf,
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0, scene=m.scene, event_t=m.event_t,
         event_lifecycle=m.event_lifecycle, event_moved=m.event_moved, n_detours=0, n_yields=0,
-        avoid_delay=0.0,
+        avoid_delay=0.0, builder=ARBuilder(m.grid, m.catalogue), percepts=MappingProxyType({}),
     )  # fmt: skip
-    s = s._replace(seen=_perceive(m, s, idx, boxes))
+    s = _perceive(m, _register(s), idx, boxes)
     in_contact, _, _ = _contacts(m, pose[None, :2], np.array([0.0]), s)
     return s._replace(in_contact=in_contact, arrival_contacts=int(in_contact.sum()))
 
@@ -652,7 +654,7 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     if t_next == s.next_percept:
         old = s.seen
         idx, boxes = _boxes(s.scene, s.t)
-        s = s._replace(seen=_perceive(m, s, idx, boxes, tick=True), next_percept=t_next + m.period)
+        s = _perceive(m, s, idx, boxes, tick=True)._replace(next_percept=t_next + m.period)
         if not np.array_equal(old, s.seen):
             s = s._replace(need_plan=True)
             if not kinds:
@@ -825,7 +827,6 @@ def run_mission(
     ValueError
         On malformed input (named argument and what was expected).
     """
-    from are_stats.builder import ARBuilder
     from are_stats.environment import OccupancyGrid, load_catalogue
 
     if not isinstance(grid, OccupancyGrid):
@@ -879,7 +880,7 @@ def run_mission(
         else np.full(static_occ.shape, np.inf)
     )
     m = _Mission(
-        grid=grid, scene=scene, builder=ARBuilder(grid, catalogue), robot=robot,
+        grid=grid, scene=scene, catalogue=catalogue, robot=robot,
         plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,
         period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
         record=bool(record), step=min(grid.resolution, robot.radius / 2.0),
