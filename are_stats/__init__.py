@@ -17,7 +17,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 
 def configure_jax(cache: bool | None = None) -> None:
@@ -150,6 +150,8 @@ _LAZY.update(
             "scenario_counts",
             "traffic_draws",
             "write_scenarios",
+            "scenes_from_draws",
+            "scenes_from_fit",
             "Boxes",
             "Scene",
         ],
@@ -224,6 +226,124 @@ _LAZY.update(
 )
 
 __all__ = ["__version__", "configure_jax", *_LAZY]
+
+# Real types for type checkers and IDEs: the names of _LAZY, imported only when type
+# checking (tests/test_import.py checks that the two lists agree)
+if TYPE_CHECKING:
+    from are_stats.behaviour import (  # noqa: F401
+        GridMDP,
+        MDPSolution,
+        plot_tracks,
+        plot_values,
+        rollout,
+        scenario_tracks,
+    )
+    from are_stats.builder import (  # noqa: F401
+        ARBuilder,
+        OrientedBox,
+        Placement,
+        Resolution,
+    )
+    from are_stats.environment import (  # noqa: F401
+        ArtefactCatalogue,
+        ArtefactClass,
+        OccupancyGrid,
+        TransformTree,
+        VoxelMap,
+        extrude_grid,
+        load_catalogue,
+        load_mesh,
+        resolve_shipped,
+        shipped_names,
+        shipped_path,
+    )
+    from are_stats.experiments import (  # noqa: F401
+        AStarPlanner,
+        MissionResult,
+        OMPLPlanner,
+        Robot,
+        export_mcap,
+        load_results,
+        plot_results,
+        replanning_ratio,
+        run_mission,
+        run_sweep,
+        space_complexity,
+    )
+    from are_stats.fitting import (  # noqa: F401
+        FitSettings,
+        MixtureEMResult,
+        TrafficFit,
+        fit_lifecycle_nuts,
+        fit_log,
+        fit_loo,
+        fit_mixture_em,
+        fit_mixture_nuts,
+        fit_summary,
+        fit_traffic,
+        kaplan_meier,
+        pointwise_log_likelihood,
+        read_fit,
+        run_nuts,
+        select_n_components,
+        write_fit,
+        write_report,
+    )
+    from are_stats.logs import (  # noqa: F401
+        LifecycleLog,
+        lifecycle_log_from_frame,
+        read_count_panel,
+        read_field_log,
+        read_lifecycle_log,
+        read_tracks,
+        read_tracks_bag,
+        tracks_to_lifecycle,
+        vision_msgs_typestore,
+    )
+    from are_stats.perception import (  # noqa: F401
+        PerceptionResult,
+        PinholeCamera,
+        perceive_frames,
+        perceive_scenario,
+        perceive_scene,
+        perceived_counts,
+        perceived_counts_batch,
+        perceived_grid,
+        sample_perceived,
+    )
+    from are_stats.scenarios import (  # noqa: F401
+        Boxes,
+        Scene,
+        generate_scenarios,
+        posterior_draws,
+        read_scenarios,
+        scenario_counts,
+        scenes_from_draws,
+        scenes_from_fit,
+        traffic_draws,
+        write_scenarios,
+    )
+    from are_stats.traffic import (  # noqa: F401
+        BirthDeath,
+        BirthDeathEvents,
+        BirthDeathFit,
+        GammaPosterior,
+        LifecycleData,
+        LifecyclePriors,
+        MixturePosterior,
+        PoissonMixture,
+        TrafficLaws,
+        birth_death_loglik,
+        conjugate_arrival_rate,
+        conjugate_leave_rate,
+        conjugate_mixture,
+        fit_birth_death,
+        lifecycle_model,
+        prior_predictive,
+        sample_population,
+        simulate_lifecycle,
+        simulate_traffic_log,
+    )
 
 
 def __getattr__(name: str) -> Any:

@@ -139,3 +139,25 @@ def test_cli_keeps_xla_log_banners_from_the_user():
     env["TF_CPP_MIN_LOG_LEVEL"] = "1"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert out.stdout.strip() == "1", out.stderr
+
+
+def test_type_checkers_see_every_lazy_name_and_the_table_matches_the_subpackages():
+    """The TYPE_CHECKING block of are_stats/__init__.py imports exactly the names of the lazy
+    table, each from the subpackage the table says, and every such name is in that
+    subpackage's __all__ (so the table is tested against the subpackages)."""
+    import ast
+    import importlib
+    from pathlib import Path
+
+    import are_stats
+
+    tree = ast.parse(Path(are_stats.__file__).read_text())
+    seen: dict[str, str] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING":
+            for imp in node.body:
+                assert isinstance(imp, ast.ImportFrom)
+                seen.update({a.name: imp.module for a in imp.names})
+    assert seen == are_stats._LAZY
+    for name, module in are_stats._LAZY.items():
+        assert name in importlib.import_module(module).__all__, (name, module)
