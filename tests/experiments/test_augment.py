@@ -562,3 +562,36 @@ def test_augment_refuses_a_run_without_live_artefacts(files, tmp_path):
     assert res.exit_code == 2, res.output
     assert "expected at least one artefact over the bag's 12.000 s" in res.output
     assert "try another --seed" in res.output and not out.exists()
+
+
+def test_no_artefact_alive_in_any_frame_is_refused_against_brute_force(files):
+    """The refusal agrees with ``Scene.alive`` at every frame (random scenes, seeded), and
+    says why and what to try."""
+    import pandas as pd
+
+    from are_stats.environment import load_catalogue
+    from are_stats.experiments._augment import _check_alive
+    from are_stats.scenarios import Scene
+
+    catalogue = load_catalogue()
+    traj = read_trajectory(files["ros2"])
+    rng = np.random.default_rng(30)
+    times = np.arange(0.0, 12.01, 0.5)
+    refused = 0
+    for _ in range(200):
+        n = int(rng.integers(1, 4))
+        arrive = rng.choice(np.r_[rng.uniform(-1.0, 13.0, 8), times], n)
+        stay = rng.choice([0.05, 0.2, 0.5, 1.0, 40.0], n)
+        art = pd.DataFrame(
+            {"t_arrive": arrive, "t_leave": arrive + stay, "x": 0.0, "y": 0.0, "yaw": 0.0}
+        )
+        scene = Scene.from_scenarios(art, catalogue)
+        truth = any(scene.alive(float(t)).any() for t in times)
+        if truth:
+            _check_alive(scene, times, 12.0, traj, "b.bag", 1)
+        else:
+            refused += 1
+            with pytest.raises(ValueError, match="alive in a camera frame") as err:
+                _check_alive(scene, times, 12.0, traj, "b.bag", 1)
+            assert "try --clock header or --clock log, another --seed" in str(err.value)
+    assert 0 < refused < 200
