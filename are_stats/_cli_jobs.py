@@ -814,6 +814,7 @@ def run_augment(
     d_max: float = 10.0,
     tau: float = 10.0,
     force: bool = False,
+    clock: str = "auto",
 ) -> Any:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
     (:func:`are_stats.experiments.augment_bag`)."""
@@ -828,7 +829,7 @@ def run_augment(
             bag, fit_path, map_path, out, seed, pose_topic=pose_topic,
             base_frame=base_frame or "base_link", camera=camera,
             camera_info_topic=camera_info_topic, period=period, d_max=d_max, tau=tau,
-            force=force,
+            force=force, clock=clock,
         )  # fmt: skip
     n_seen = int(res.perceived.any(axis=0).sum())
     console.print(
@@ -836,7 +837,7 @@ def run_augment(
         f"{n_seen} perceived in {len(res.times)} camera frames, "
         f"{int(res.contacts.any(axis=0).sum())} touched by the robot "
         f"({time.perf_counter() - t:.1f} s); wrote {res.path} "
-        f"({', '.join(f'{k} {v}' for k, v in res.topics.items())})"
+        f"({', '.join(f'{k} {v}' for k, v in res.topics.items())}); clock: {res.clock_note}"
     )
     return res
 

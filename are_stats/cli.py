@@ -462,6 +462,12 @@ def augment(
     ),
     d_max: float = typer.Option(10.0, "--d-max", help="Maximum viewing distance d_max (m)."),
     tau: float = typer.Option(10.0, "--tau", help="Pixels needed to perceive (count > tau)."),
+    clock: str = typer.Option(
+        "auto",
+        "--clock",
+        help="Clock of poses, camera frames and start: header stamps, log (recording) times, "
+        "or auto (header stamps when set).",
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite OUT."),
 ) -> None:
     """Augment a robot's recorded bag with artefacts generated from a fit (ROS 2 MCAP out)."""
@@ -470,7 +476,7 @@ def augment(
     run_augment(
         bag, fit_path, map_path, out, _seed(seed), pose_topic=pose_topic,
         base_frame=base_frame, camera=camera, camera_info_topic=camera_info_topic,
-        period=period, d_max=d_max, tau=tau, force=force,
+        period=period, d_max=d_max, tau=tau, force=force, clock=clock,
     )  # fmt: skip
 
 

@@ -355,3 +355,53 @@ def test_experiment_killed(work, tmp_path: Path) -> None:
         diff = _sweep_diff(w / "exp", d / "exp_a")
         assert not diff, f"resumed after a kill at {delay:.2f} s: {diff} differ"
     assert killed, "every run ended before its kill: the test checked nothing"
+
+
+def _complete_mcap(path: Path) -> bool:
+    """The MCAP reads to its end: summary, every message's bytes."""
+    from mcap.reader import make_reader
+
+    try:
+        with open(path, "rb") as fh:
+            reader = make_reader(fh)
+            reader.get_summary()
+            n = sum(1 for _ in reader.iter_messages())
+    except Exception:  # noqa: BLE001 (the mcap reader raises several types on a torn file)
+        return False
+    return n > 0
+
+
+def test_augment_killed(tmp_path: Path) -> None:
+    """``augment --force`` killed over an existing MCAP: the old file or a complete new one,
+    never a partial file under the output's name; a fresh run killed leaves nothing or a
+    complete file."""
+    from tests.experiments.rosbag_fixtures import write_bag
+    from tests.test_cli_jobs import _write_log
+
+    d = tmp_path / "setup"
+    d.mkdir()
+    log, _ = _write_log(d, labels=True)  # busy traffic: artefacts alive in a 12 s bag
+    fit = ["fit", str(log), "--method", "em", "--no-figures", "--seed", "1"]
+    run([*fit, *PAPER_MODELS, "--samples", "20", "--out", str(d / "a.nc")], d)
+    bag = write_bag(d / "robot_bag", "mcap")
+    base = ["augment", str(bag), "--fit", str(d / "a.nc"), "--map", MAP,
+            "--camera-info-topic", "/camera/camera_info"]  # fmt: skip
+    t_aug = run([*base, "--seed", "3", "--out", str(d / "aug_a.mcap")], d)
+    old = (d / "aug_a.mcap").read_bytes()
+    assert _complete_mcap(d / "aug_a.mcap")
+    killed = 0
+    for i, delay in enumerate(delays(t_aug, salt=4)):
+        w = tmp_path / f"k{i}"
+        w.mkdir()
+        (w / "aug.mcap").write_bytes(old)
+        args = [*base, "--seed", "4", "--force", "--out", str(w / "aug.mcap")]
+        killed += run_killed(args, w, delay) is None
+        now = (w / "aug.mcap").read_bytes()
+        assert now == old or _complete_mcap(w / "aug.mcap"), f"killed after {delay:.2f} s"
+        fresh = w / "fresh.mcap"
+        run_killed([*args[:-1], str(fresh)], w, delay)
+        assert not fresh.exists() or _complete_mcap(fresh), f"killed at {delay:.2f} s: fresh"
+        # anything else left is the writer's hidden temporary, never a file under a final name
+        left = {p.name for p in w.iterdir()} - {"aug.mcap", "fresh.mcap"}
+        assert all(n.startswith(".") and n.endswith(".tmp") for n in left), left
+    assert killed, "every run ended before its kill: the test checked nothing"

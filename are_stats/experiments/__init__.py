@@ -5,6 +5,8 @@ export with ROS conventions, the augmentation of a robot's recorded bag and the 
 
 from are_stats.experiments._augment import (
     AUGMENT_TOPICS,
+    CLOCK_TOLERANCE,
+    CLOCKS,
     POSE_TYPES,
     AugmentResult,
     BagTrajectory,
@@ -48,6 +50,8 @@ from are_stats.experiments._sweep import (
 
 __all__ = [
     "AUGMENT_TOPICS",
+    "CLOCKS",
+    "CLOCK_TOLERANCE",
     "LIVE_TOPICS",
     "MCAP_TOPICS",
     "POSE_TYPES",

@@ -35,10 +35,13 @@ from are_stats.inputs import (
     check_work,
     get_float,
     get_seed,
+    get_str,
 )
 
 __all__ = [
     "AUGMENT_TOPICS",
+    "CLOCKS",
+    "CLOCK_TOLERANCE",
     "POSE_TYPES",
     "AugmentResult",
     "BagTrajectory",
@@ -53,6 +56,15 @@ _TF = "tf2_msgs/msg/TFMessage"  # are_stats.logs.TF_TYPE
 _CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 #: Message types a ``pose_topic`` may have.
 POSE_TYPES = (_POSE_STAMPED, _POSE_COV, _ODOM)
+#: ``--clock`` choices: ``auto`` (header stamps when the messages have them), ``header``
+#: (header stamps) or ``log`` (the recording times).
+CLOCKS = ("auto", "header", "log")
+#: Header stamps and recording times further apart than this (s) are two clocks.
+CLOCK_TOLERANCE = 5.0
+#: Bytes held per pose, transform or camera stamp read from a bag (limits check).
+BYTES_PER_RECORD = 600.0
+#: Bytes held per camera frame besides the maps (times, poses, markers, messages).
+BYTES_PER_FRAME = 2000.0
 
 #: Topic -> ROS 2 message type written by :func:`augment_bag`.
 AUGMENT_TOPICS = {
@@ -71,23 +83,32 @@ class BagTrajectory(NamedTuple):
     Attributes
     ----------
     t : (m,) float
-        Pose times, seconds since the epoch (the bag's clock), increasing.
+        Pose times, seconds since the epoch on :attr:`clock`, increasing.
     poses : (m, 4, 4) float
         ``T_map_base`` at each time.
     start, end : float
-        The bag's first and last message times (s since the epoch).
+        The first and last pose or camera times (s since the epoch, on :attr:`clock`).
     mount : (4, 4) float or None
         ``T_base_optical`` from ``/tf_static``, when the bag has it.
     camera_frame : str or None
         The optical frame's name (from ``CameraInfo`` or ``/tf_static``).
     camera_times : (k,) float or None
-        Stamps of the ``CameraInfo`` topic (the camera's frames), when one was read.
+        Times of the ``CameraInfo`` messages (the camera's frames, on :attr:`clock`,
+        sorted), when a topic was read.
     camera_info : dict or None
         ``k``, ``width``, ``height`` of the first ``CameraInfo`` message.
     source : str
         Where the poses came from (``/tf map -> base_link`` or the topic).
     start_ns : int
         ``start`` in nanoseconds, exact.
+    t_ns : (m,) int64 or None
+        ``t`` in nanoseconds, exact (the input's stamps).
+    camera_ns : (k,) int64 or None
+        ``camera_times`` in nanoseconds, exact.
+    clock : str
+        ``"header"`` (header stamps) or ``"log"`` (recording times).
+    clock_note : str
+        Which clock was read and why (and how far apart the two are).
     """
 
     t: np.ndarray
@@ -100,6 +121,10 @@ class BagTrajectory(NamedTuple):
     camera_info: dict | None
     source: str
     start_ns: int = 0
+    t_ns: np.ndarray | None = None
+    camera_ns: np.ndarray | None = None
+    clock: str = "log"
+    clock_note: str = ""
 
 
 class AugmentResult(NamedTuple):
@@ -125,6 +150,10 @@ class AugmentResult(NamedTuple):
         The robot's footprint overlaps the artefact's box.
     topics : dict of str to int
         Messages written per topic.
+    clock : str
+        The clock read (``"header"`` or ``"log"``).
+    clock_note : str
+        Which clock was read and why.
     """
 
     path: Path
@@ -136,19 +165,50 @@ class AugmentResult(NamedTuple):
     perceived: np.ndarray
     contacts: np.ndarray
     topics: dict
+    clock: str = "log"
+    clock_note: str = ""
 
 
 # ---- reading ------------------------------------------------------------------------------
 
 
-def _stamp(header: Any, fallback_ns: int) -> float:
+def _ns(header: Any) -> int:
+    """A header's stamp in integer nanoseconds (0: unset)."""
     st = header.stamp
-    sec, nsec = int(st.sec), int(st.nanosec)
-    return fallback_ns * 1e-9 if sec == 0 and nsec == 0 else sec + nsec * 1e-9
+    return int(st.sec) * 1_000_000_000 + int(st.nanosec)
 
 
 def _topics_text(by_topic: dict[str, str]) -> str:
     return ", ".join(f"{t} ({ty})" for t, ty in sorted(by_topic.items())) or "none"
+
+
+def _clock_choice(p: Path, clock: str, hdr: np.ndarray, log: np.ndarray) -> tuple[str, int, str]:
+    """``(clock, offset_ns, note)``: the clock read (``header`` or ``log``), the median of
+    header stamp minus recording time (ns, over the stamped messages) and why."""
+    stamped = hdr != 0
+    offset = int(np.median(hdr[stamped] - log[stamped])) if stamped.any() else 0
+    gap = offset * 1e-9
+    apart = abs(gap) > CLOCK_TOLERANCE
+    differ = (
+        f"header stamps and recording times differ by {gap:+.6g} s"
+        + (" (simulation time?)" if abs(gap) > 86400.0 else "")
+        if apart
+        else f"header stamps within {CLOCK_TOLERANCE:g} s of the recording times"
+    )
+    if clock == "log":
+        return "log", offset, f"recording times (--clock log; {differ})"
+    if not stamped.any():
+        if clock == "header":
+            raise InputError(
+                p,
+                "--clock header",
+                "header stamps on the poses (or --clock log)",
+                Described("only zero stamps"),
+            )
+        return "log", 0, "recording times (the messages carry no header stamps)"
+    why = "--clock header" if clock == "header" else "the default"
+    other = "; --clock log reads the recording times instead" if apart else ""
+    return "header", offset, f"header stamps ({why}; {differ}{other})"
 
 
 def read_trajectory(
@@ -158,13 +218,15 @@ def read_trajectory(
     base_frame: str = "base_link",
     map_frame: str = "map",
     camera_info_topic: str | None = None,
+    clock: str = "auto",
 ) -> BagTrajectory:
     """The robot's base poses in the map frame, from a ROS 1 / ROS 2 bag or an MCAP file.
 
     Parameters
     ----------
     bag : path
-        ``*.bag`` (ROS 1), a ROS 2 bag folder or a ``*.mcap`` / ``*.db3`` file.
+        ``*.bag`` (ROS 1), a ROS 2 bag folder or a ``*.mcap`` / ``*.db3`` file (a regular
+        file: a FIFO or a device is refused at once).
     pose_topic : str, optional
         Read the poses from this topic (:data:`POSE_TYPES`; its ``frame_id`` should be the
         map frame) instead of ``/tf``.
@@ -172,6 +234,12 @@ def read_trajectory(
         The ``/tf`` frames composed into ``T_map_base`` (``map -> ... -> base_link``).
     camera_info_topic : str, optional
         A ``sensor_msgs/CameraInfo`` topic: its intrinsics, frame and stamps.
+    clock : {"auto", "header", "log"}
+        The one clock of poses, ``/tf`` and camera frames: ``header`` their header stamps
+        (a zero stamp reads as its recording time moved onto the header clock), ``log`` the
+        recording times; ``auto`` (default) the header stamps when the messages have them.
+        When the two disagree by more than :data:`CLOCK_TOLERANCE` seconds (simulation time
+        recorded on the wall clock) :attr:`BagTrajectory.clock_note` says so.
 
     Returns
     -------
@@ -182,9 +250,12 @@ def read_trajectory(
     FileNotFoundError
         If ``bag`` does not exist.
     are_stats.inputs.InputError
-        Naming the bag and topic: a missing topic (the topics present are listed), a topic of
-        the wrong type, a bag without poses (no ``/tf`` chain from ``map_frame`` to
-        ``base_frame``), a camera-info topic without messages.
+        Naming the bag and topic: not a regular file or ROS 2 bag folder, a missing topic
+        (the topics present are listed), a topic of the wrong type, a bag without poses (no
+        ``/tf`` chain from ``map_frame`` to ``base_frame``), a camera-info topic without
+        messages, a non-finite pose or transform, a quaternion that is not a unit one
+        (:data:`~are_stats.logs.QUATERNION_TOLERANCE`), a stamp far off the others of its
+        topic (:func:`~are_stats.logs.check_stamps`), more messages than the memory limit.
     """
     from rosbags.highlevel import AnyReader
 
@@ -193,18 +264,21 @@ def read_trajectory(
         TfBuffer,
         bag_messages,
         bag_read_errors,
+        check_bag_path,
+        check_stamps,
         transform_matrix,
         vision_msgs_typestore,
     )
 
-    p = Path(bag)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such bag file or directory")
+    clock = get_str(clock, "--clock", "", choices=CLOCKS)
+    p = check_bag_path(bag)
     errors = bag_read_errors()
-    tf = TfBuffer()
-    pose_t: list[float] = []
+    # (header stamp ns, 0 when unset; recording time ns) of every pose and camera message;
+    # every /tf transform as (parent, child, header ns, recording ns, matrix, static, message)
+    pose_hl: list[tuple[int, int]] = []
     pose_m: list[np.ndarray] = []
-    cam_t: list[float] = []
+    cam_hl: list[tuple[int, int]] = []
+    tfs: list[tuple[str, str, int, int, np.ndarray, bool, int]] = []
     cam_info: dict | None = None
     cam_frame: str | None = None
     try:
@@ -214,8 +288,6 @@ def read_trajectory(
             by_topic: dict[str, str] = {}
             for c in reader.connections:
                 by_topic.setdefault(c.topic, c.msgtype)
-            start_ns = int(reader.start_time)
-            start, end = start_ns * 1e-9, reader.end_time * 1e-9
             wanted: list[str] = []
             for topic, types, what in (
                 (pose_topic, POSE_TYPES, "--pose-topic"),
@@ -248,9 +320,28 @@ def read_trajectory(
                     Described(f"topics: {_topics_text(by_topic)}"),
                 )
             conns = [c for c in reader.connections if c.topic in (*wanted, *tf_topics)]
+            n_index = float(sum(max(int(c.msgcount or 0), 0) for c in conns))
+            what = "the poses, transforms and camera stamps read from the bag"
+            check_memory(n_index * BYTES_PER_RECORD, f"{what} ({n_index:.0f} messages)", p)
+            counts: dict[str, int] = {}
             for conn, ts, msg in bag_messages(reader, conns, p):
+                n = counts[conn.topic] = counts.get(conn.topic, 0) + 1
+                where = f"topic {conn.topic}, message {n}"
+                if n % 100_000 == 0:  # the index may undercount: check as the lists grow
+                    held = len(pose_hl) + len(cam_hl) + len(tfs)
+                    check_memory(held * BYTES_PER_RECORD, f"{what} ({held} records)", p)
                 if conn.topic in tf_topics:
-                    tf.add_message(msg, ts * 1e-9, static=conn.topic == "/tf_static")
+                    static = conn.topic == "/tf_static"
+                    for k, tr in enumerate(msg.transforms):
+                        parent = str(tr.header.frame_id).lstrip("/")
+                        child = str(tr.child_frame_id).lstrip("/")
+                        m = transform_matrix(
+                            tr.transform.translation,
+                            tr.transform.rotation,
+                            p,
+                            f"{where}, transform {k} ({parent} -> {child})",
+                        )
+                        tfs.append((parent, child, _ns(tr.header), int(ts), m, static, n))
                 elif conn.topic == pose_topic:
                     pose = msg.pose.pose if conn.msgtype in (_POSE_COV, _ODOM) else msg.pose
                     frame = str(msg.header.frame_id).lstrip("/")
@@ -261,10 +352,10 @@ def read_trajectory(
                             f"poses in the map frame {map_frame!r} (or read /tf with --base-frame)",
                             frame,
                         )
-                    pose_t.append(_stamp(msg.header, ts))
-                    pose_m.append(transform_matrix(pose.position, pose.orientation))
+                    pose_hl.append((_ns(msg.header), int(ts)))
+                    pose_m.append(transform_matrix(pose.position, pose.orientation, p, where))
                 else:  # camera info
-                    cam_t.append(_stamp(msg.header, ts))
+                    cam_hl.append((_ns(msg.header), int(ts)))
                     if cam_info is None:
                         cam_frame = str(msg.header.frame_id).lstrip("/") or None
                         k = getattr(msg, "k", None)  # ROS 1 spells it K
@@ -279,17 +370,35 @@ def read_trajectory(
             f"{p}: expected a readable ROS 1 / ROS 2 bag or MCAP file, got: "
             f"{type(err).__name__}: {err}"
         ) from None
-    if camera_info_topic is not None and not cam_t:
+    if camera_info_topic is not None and not cam_hl:
         raise InputError(
             p, f"topic {camera_info_topic}", "at least one CameraInfo message", Described("none")
         )
+    if pose_topic is not None and not pose_hl:
+        raise InputError(p, f"topic {pose_topic}", "at least one pose message", Described("none"))
+    # one clock for everything: the poses (or moving transforms) and camera frames decide
+    moving_tf = [r for r in tfs if not r[5]]
+    hl = np.array([*pose_hl, *cam_hl, *((r[2], r[3]) for r in moving_tf)], np.int64).reshape(-1, 2)
+    clock, offset, note = _clock_choice(p, clock, hl[:, 0], hl[:, 1])
+
+    def on_clock(h: int, lg: int) -> int:
+        return lg if clock == "log" else (h if h else lg + offset)
+
+    tf = TfBuffer()
+    link_ns: dict[tuple[str, str], list[int]] = {}
+    link_msg: dict[tuple[str, str], list[int]] = {}
+    for parent, child, h, lg, m, static, n in tfs:
+        t_ns = on_clock(h, lg)
+        tf.add(parent, child, t_ns * 1e-9, m, static)
+        if tf.parents.get(child) == parent:
+            link_ns.setdefault((parent, child), []).append(t_ns)
+            link_msg.setdefault((parent, child), []).append(n)
+    del tfs, moving_tf
     if pose_topic is not None:
-        if not pose_t:
-            raise InputError(
-                p, f"topic {pose_topic}", "at least one pose message", Described("none")
-            )
-        order = np.argsort(pose_t, kind="stable")
-        t = np.asarray(pose_t, float)[order]
+        ns = np.array([on_clock(h, lg) for h, lg in pose_hl], np.int64)
+        check_stamps(ns * 1e-9, p, f"topic {pose_topic}")
+        order = np.argsort(ns, kind="stable")
+        t_ns = ns[order]
         poses = np.stack(pose_m)[order]
         source = pose_topic
     else:
@@ -303,12 +412,23 @@ def read_trajectory(
                 Described(f"frames {', '.join(tf.frames) or 'none'}"),
             )
         moving = [k for k in links if k not in tf.static]
+        for k in moving:
+            check_stamps(
+                np.asarray(link_ns[k]) * 1e-9, p, f"topic /tf, {k[0]} -> {k[1]}", link_msg[k]
+            )
         # the stamps of the moving link nearest the base (odom -> base_link, usually)
-        t = tf.stamps(moving[-1] if moving else links[-1])
-        poses = tf.lookup(map_frame, base_frame, t)
+        t_ns = np.unique(np.asarray(link_ns[moving[-1] if moving else links[-1]], np.int64))
+        poses = tf.lookup(map_frame, base_frame, t_ns * 1e-9)
         source = f"/tf {map_frame} -> {base_frame}"
-    keep = np.r_[True, np.diff(t) > 0]
-    t, poses = t[keep], poses[keep]
+    keep = np.r_[True, np.diff(t_ns) > 0]
+    t_ns, poses = t_ns[keep], poses[keep]
+    cam_ns = None
+    if cam_hl:
+        cam_ns = np.array([on_clock(h, lg) for h, lg in cam_hl], np.int64)
+        check_stamps(cam_ns * 1e-9, p, f"topic {camera_info_topic}")
+        cam_ns = np.sort(cam_ns)
+    ends = [t_ns[[0, -1]]] + ([cam_ns[[0, -1]]] if cam_ns is not None else [])
+    start_ns, end_ns = int(min(e[0] for e in ends)), int(max(e[1] for e in ends))
     mount = None
     candidates = [cam_frame] if cam_frame else [f for f in tf.frames if "optical" in f]
     for f in candidates:
@@ -318,16 +438,20 @@ def read_trajectory(
             cam_frame = f
             break
     return BagTrajectory(
-        t,
+        t_ns * 1e-9,
         poses,
-        float(start),
-        float(end),
+        start_ns * 1e-9,
+        end_ns * 1e-9,
         mount,
         cam_frame,
-        np.asarray(sorted(cam_t), float) if cam_t else None,
+        None if cam_ns is None else cam_ns * 1e-9,
         cam_info,
         source,
         start_ns,
+        t_ns,
+        cam_ns,
+        clock,
+        note,
     )
 
 
@@ -356,6 +480,7 @@ def augment_bag(
     wall_height: float = 2.5,
     catalogue: Any = None,
     force: bool = False,
+    clock: str = "auto",
 ) -> AugmentResult:
     """Augment a robot's recorded run with generated artefacts and write an MCAP.
 
@@ -385,7 +510,9 @@ def augment_bag(
         when it has one, else :func:`~are_stats.perception.optical_from_base` 1 m above
         the base looking forward.
     period : float
-        Seconds between camera frames when the bag gives none (``camera`` from a file).
+        Seconds between camera frames when the bag gives none (``camera`` from a file);
+        frames cover the stretches of the trajectory, not the gaps of more than
+        :data:`~are_stats.logs.STAMP_GAP` seconds between them.
     d_max, tau : float
         Range and threshold of A_f.
     robot_radius : float
@@ -398,6 +525,9 @@ def augment_bag(
         The property table Q (default the shipped one).
     force : bool
         Overwrite ``out``.
+    clock : {"auto", "header", "log"}
+        The one clock of poses, camera frames and the scenario's start
+        (:func:`read_trajectory`); the output keeps the input's stamps on that clock.
 
     Returns
     -------
@@ -406,8 +536,13 @@ def augment_bag(
     Raises
     ------
     are_stats.inputs.InputError
-        A bag without poses, an unknown topic, a trajectory outside the map, a fit without
-        area, an existing ``out`` without ``force`` (``OutputExistsError``).
+        A bag without poses, an unknown topic, a bad pose or stamp (see
+        :func:`read_trajectory`), a trajectory outside the map, a fit without area, no
+        artefact alive in any camera frame (with why and what to try), an existing ``out``
+        without ``force`` (``OutputExistsError``).
+    are_stats.inputs.LimitError
+        Camera frames (``period``), tracing or messages past the memory or work limits,
+        checked before anything of that size is allocated.
     """
     import jax
 
@@ -417,7 +552,7 @@ def augment_bag(
     from are_stats.experiments._robot import circle_box_overlap
     from are_stats.experiments._sweep import _map_file
     from are_stats.fitting import read_fit
-    from are_stats.logs import interpolate_poses
+    from are_stats.logs import STAMP_GAP, interpolate_poses
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
     from are_stats.scenarios import Scene, generate_scenarios, traffic_draws
 
@@ -425,6 +560,7 @@ def augment_bag(
     period = get_float(period, "--period", "", lo=0.0, lo_open=True)
     d_max = get_float(d_max, "--d-max", "", lo=0.0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0.0)
+    clock = get_str(clock, "--clock", "", choices=CLOCKS)
     if camera is not None and camera_info_topic is not None:
         raise InputError("--camera", "", "either --camera or --camera-info-topic", "both")
     out = check_writable(out, force)
@@ -448,6 +584,7 @@ def augment_bag(
         base_frame=base_frame,
         map_frame=map_frame,
         camera_info_topic=camera_info_topic,
+        clock=clock,
     )
     xy = traj.poses[:, :2, 3]
     outside = ~grid.in_bounds(grid.world_to_cell(xy))
@@ -462,17 +599,24 @@ def augment_bag(
                 f"({xy[i, 0]:.3f}, {xy[i, 1]:.3f}); {int(outside.sum())} of {len(xy)} poses outside"
             ),
         )
+    # times on the scenario clock: seconds after the trajectory's start, from exact stamps
+    start, start_ns = traj.start, traj.start_ns
+    t_ns = traj.t_ns if traj.t_ns is not None else np.round(traj.t * 1e9).astype(np.int64)
+    pose_t = (t_ns - start_ns) * 1e-9
     # the camera: intrinsics, frame times, mount
     if camera_info_topic is not None:
         cam = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
-        frames = traj.camera_times
+        cam_ns = traj.camera_ns
+        if cam_ns is None:
+            cam_ns = np.round(traj.camera_times * 1e9).astype(np.int64)
+        frames = (cam_ns - start_ns) * 1e-9
     else:
         if camera is None:
             from are_stats.environment import DEFAULT_MODELS
 
             camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
         cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
-        frames = traj.t[0] + np.arange(0.0, traj.t[-1] - traj.t[0] + 1e-6, period)
+        frames = _period_frames(pose_t, period, cam, grid, bag, STAMP_GAP)
     if mount is None:
         if traj.mount is not None:
             mount = traj.mount
@@ -481,17 +625,16 @@ def augment_bag(
         else:
             mount = optical_from_base((0.0, 0.0, 1.0))
     mount = np.asarray(mount, float)
-    frames = frames[(frames >= traj.t[0] - 1e-6) & (frames <= traj.t[-1] + 1e-6)]
-    if frames.size == 0:
+    times = frames[(frames >= pose_t[0] - 1e-6) & (frames <= pose_t[-1] + 1e-6)]
+    if times.size == 0:
         raise InputError(
             bag,
             camera_info_topic or "--period",
-            f"camera frames within the trajectory's times {traj.t[0]:.3f} to {traj.t[-1]:.3f} s",
-            Described("none"),
+            f"camera frames within the trajectory's times {traj.t[0]:.3f} to "
+            f"{traj.t[-1]:.3f} s ({traj.clock_note})",
+            Described(f"none of {frames.size} (try --clock header or --clock log)"),
         )
-    start = traj.start
-    horizon = max(traj.end - start, float(frames[-1] - start), 1e-3)
-    times = frames - start
+    horizon = max(traj.end - start, float(times[-1]), 1e-3)
     # the scenario over the bag's time span, with behaviour tracks
     catalogue = load_catalogue() if catalogue is None else catalogue
     draws, laws = traffic_draws(idata, "chosen")
@@ -512,6 +655,7 @@ def augment_bag(
             source="--behaviour-cell",
         )
         scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    _check_alive(scene, times, horizon, traj, bag, seed)
     # refuse runaway sizes before tracing: a ray per pixel of every frame, and the output
     # held in memory (a grid per frame at most, markers and a pose per artefact and frame)
     pixels = float(cam.width) * float(cam.height)
@@ -522,7 +666,7 @@ def augment_bag(
         f"the MCAP messages of {what}",
         bag,
     )
-    base_at = interpolate_poses(traj.t, traj.poses, frames)
+    base_at = interpolate_poses(pose_t, traj.poses, times)
     cam_poses = base_at @ mount
     env = extrude_grid(grid, wall_height)
     n = len(scene)
@@ -532,11 +676,11 @@ def augment_bag(
         counts, seen = np.zeros((times.size, 0), np.int64), np.zeros((times.size, 0), bool)
     contacts = np.zeros((times.size, n), bool)
 
-    R = RosMessages(start, map_frame, start_ns=traj.start_ns)
+    R = RosMessages(start, map_frame, start_ns=start_ns)
     base, camf = ROS_FRAMES["F_R"], traj.camera_frame or ROS_FRAMES["F_C"]
     R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
     R.add(0.0, "/tf_static", _TF, R.tf([R.transform(0.0, base, camf, mount)]), latched=True)
-    for tk, m in zip(traj.t - start, traj.poses, strict=True):
+    for tk, m in zip(pose_t, traj.poses, strict=True):
         R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), map_frame, base, m)]))
     builder = ARBuilder(grid, catalogue)
     last = None
@@ -600,4 +744,57 @@ def augment_bag(
         R.add(t, "/perceived", AUGMENT_TOPICS["/perceived"], String(data=json.dumps(doc)))
     topics = dict(R.counts())
     path = R.write(out, force=force)
-    return AugmentResult(path, times, start, cam_poses, scene, counts, seen, contacts, topics)
+    return AugmentResult(
+        path, times, start, cam_poses, scene, counts, seen, contacts, topics,
+        traj.clock, traj.clock_note,
+    )  # fmt: skip
+
+
+def _period_frames(
+    pose_t: np.ndarray, period: float, cam: Any, grid: Any, bag: Any, gap: float
+) -> np.ndarray:
+    """Frame times every ``period`` seconds over the stretches of ``pose_t`` (split at gaps
+    longer than ``gap``), after checking their count against the limits."""
+    cuts = np.flatnonzero(np.diff(pose_t) > gap) + 1
+    lo = pose_t[np.r_[0, cuts]]
+    hi = pose_t[np.r_[cuts, pose_t.size] - 1]
+    n = np.floor((hi - lo + 1e-6) / period) + 1.0
+    total = float(n.sum())
+    pixels = float(cam.width) * float(cam.height)
+    what = f"{total:.6g} camera frames of {int(pixels)} pixels (--period {period:g} s)"
+    check_memory(total * (BYTES_PER_FRAME + grid.data.size), f"the frames of {what}", bag)
+    check_work(total * pixels, f"tracing {what}", bag)
+    return np.concatenate([a + np.arange(int(k)) * period for a, k in zip(lo, n, strict=True)])
+
+
+def _check_alive(
+    scene: Any, times: np.ndarray, horizon: float, traj: BagTrajectory, bag: Any, seed: int
+) -> None:
+    """Refuse a run in which no artefact is alive in any camera frame, saying why."""
+    n = len(scene)
+    if n == 0:
+        raise InputError(
+            bag,
+            "",
+            f"at least one artefact over the bag's {horizon:.3f} s (clock: {traj.clock_note})",
+            Described(
+                f"none: the fit's arrivals gave no artefact with --seed {seed} over so short "
+                "a span; try another --seed, a longer bag or a fit of busier traffic"
+            ),
+        )
+    arrive = np.asarray(scene.t_arrive, float)
+    leave = np.asarray(scene.t_leave, float)
+    i = np.searchsorted(times, arrive, side="left")
+    alive = (i < times.size) & (times[np.minimum(i, times.size - 1)] < leave)
+    if not alive.any():
+        raise InputError(
+            bag,
+            "",
+            f"at least one artefact alive in a camera frame (clock: {traj.clock_note})",
+            Described(
+                f"none: the {n} artefacts live between {arrive.min():.3f} and "
+                f"{leave.max():.3f} s of the scenario, the {times.size} camera frames lie at "
+                f"{times[0]:.3f} to {times[-1]:.3f} s and meet none of them; try --clock "
+                "header or --clock log, another --seed, or more camera frames"
+            ),
+        )

@@ -23,19 +23,25 @@ from are_stats.logs._lifecycle_log import (
 from are_stats.logs._panel import read_count_panel
 from are_stats.logs._rosbag import (
     DETECTION3D_MSGS,
+    OUTLIER_SHARE,
+    STAMP_GAP,
     SUPPORTED_TRACK_TYPES,
     bag_messages,
     bag_read_errors,
+    check_bag_path,
+    check_stamps,
     read_tracks_bag,
     vision_msgs_typestore,
 )
 from are_stats.logs._table import RawTable, read_raw_table
 from are_stats.logs._tf import (
+    QUATERNION_TOLERANCE,
     TF_TYPE,
     TF_TYPES,
     TfBuffer,
     interpolate_poses,
     transform_matrix,
+    unit_quaternion,
 )
 from are_stats.logs._tracks import (
     GROUP_DISTANCE,
@@ -55,6 +61,9 @@ __all__ = [
     "GROUP_TIME_STEPS",
     "LIFECYCLE_COLUMNS",
     "LIFECYCLE_KIND_COLUMNS",
+    "OUTLIER_SHARE",
+    "QUATERNION_TOLERANCE",
+    "STAMP_GAP",
     "SUPPORTED_TRACK_TYPES",
     "TRACKS_KIND_COLUMNS",
     "TRACK_COLUMNS",
@@ -66,6 +75,8 @@ __all__ = [
     "TfBuffer",
     "bag_messages",
     "bag_read_errors",
+    "check_bag_path",
+    "check_stamps",
     "interpolate_poses",
     "lifecycle_log_from_frame",
     "read_count_panel",
@@ -79,6 +90,7 @@ __all__ = [
     "sampling_step",
     "tracks_to_lifecycle",
     "transform_matrix",
+    "unit_quaternion",
     "validate_tracks",
     "vision_msgs_typestore",
 ]

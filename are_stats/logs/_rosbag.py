@@ -15,11 +15,13 @@ Two kinds of topics become sightings (rows ``id, t, x, y, yaw, label``) that
   ``bbox.center``; label ``results[0].hypothesis.class_id``.
 
 Times are the message header stamps in seconds (the bag's receive time when the stamp is
-zero). Positions published in another frame than the map frame are transformed into it
-through the bag's ``/tf`` and ``/tf_static`` (:class:`~are_stats.logs.TfBuffer`, at each
-sighting's stamp; the yaw turns with the frame) and their ``frame_id`` becomes the map
-frame; in a bag without ``/tf`` they are taken as published. The ``frame_id`` column says
-which frame the positions are in.
+zero); a stamp far from the rest of its topic's (:func:`check_stamps`) is refused, as are
+non-finite positions and orientations that are not unit quaternions (an all-zero
+orientation reads as the identity, as RViz reads it). Positions published in another
+frame than the map frame are transformed into it through the bag's ``/tf`` and
+``/tf_static`` (:class:`~are_stats.logs.TfBuffer`, at each sighting's stamp; the yaw turns
+with the frame) and their ``frame_id`` becomes the map frame; in a bag without ``/tf`` they
+are taken as published. The ``frame_id`` column says which frame the positions are in.
 """
 
 from __future__ import annotations
@@ -33,14 +35,18 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.inputs import InputError, get_str
-from are_stats.logs._tf import TF_TYPES, TfBuffer
+from are_stats.inputs import Described, InputError, get_str
+from are_stats.logs._tf import TF_TYPES, TfBuffer, unit_quaternion
 
 __all__ = [
     "DETECTION3D_MSGS",
+    "OUTLIER_SHARE",
+    "STAMP_GAP",
     "SUPPORTED_TRACK_TYPES",
     "bag_messages",
     "bag_read_errors",
+    "check_bag_path",
+    "check_stamps",
     "read_tracks_bag",
     "vision_msgs_typestore",
 ]
@@ -102,8 +108,13 @@ def _stamp(header: Any, fallback_ns: int) -> float:
     return sec + nsec * 1e-9
 
 
-def _yaw(q: Any) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+def _yaw(q: Any, source: Any, where: str) -> float:
+    """Yaw of a marker's or detection's orientation: a unit quaternion, or all zeros (an
+    orientation left unset, which RViz draws as the identity)."""
+    if float(q.x) == float(q.y) == float(q.z) == float(q.w) == 0.0:
+        return 0.0
+    x, y, z, w = unit_quaternion(q, source, f"{where}, orientation")
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 class _MarkerState:
@@ -129,9 +140,15 @@ class _MarkerState:
 
 
 def _markers(
-    markers: Sequence[Any], state: _MarkerState, topic: str, ts: int, rows: list[tuple]
+    markers: Sequence[Any],
+    state: _MarkerState,
+    topic: str,
+    ts: int,
+    rows: list[tuple],
+    source: Any = "",
+    where: str = "",
 ) -> None:
-    for m in markers:
+    for j, m in enumerate(markers):
         action = int(m.action)
         key = (str(m.ns), int(m.id))
         if action == 0:  # ADD / MODIFY
@@ -143,7 +160,7 @@ def _markers(
                     _stamp(m.header, ts),
                     float(p.x),
                     float(p.y),
-                    _yaw(m.pose.orientation),
+                    _yaw(m.pose.orientation, source, f"{where}, marker {j}"),
                     str(m.ns),
                     topic,
                     str(m.header.frame_id),
@@ -162,7 +179,9 @@ def _class_id(result: Any) -> str:
     return str(getattr(result, "id", ""))
 
 
-def _detections(msg: Any, topic: str, ts: int, rows: list[tuple]) -> None:
+def _detections(
+    msg: Any, topic: str, ts: int, rows: list[tuple], source: Any = "", where: str = ""
+) -> None:
     t_arr = _stamp(msg.header, ts)
     for j, det in enumerate(msg.detections):
         label = _class_id(det.results[0]) if len(det.results) else ""
@@ -178,7 +197,7 @@ def _detections(msg: Any, topic: str, ts: int, rows: list[tuple]) -> None:
                 t,
                 float(c.position.x),
                 float(c.position.y),
-                _yaw(c.orientation),
+                _yaw(c.orientation, source, f"{where}, detection {j}"),
                 label,
                 topic,
                 frame,
@@ -295,6 +314,133 @@ def bag_messages(
     return _messages(reader, connections, Path(path), _bag_errors())
 
 
+#: Stamps of one topic further apart than this (s) are separate stretches of the recording.
+STAMP_GAP = 3600.0
+#: A stretch holding at most this share of a topic's stamps (and at least one), further
+#: than :data:`STAMP_GAP` and than ten times the main stretch's length from it, is an
+#: outlier (a stamp of another clock or a damaged one), not a part of the recording.
+OUTLIER_SHARE = 0.01
+
+
+def _iso(t: float) -> str:
+    import datetime as _dt
+
+    try:
+        return _dt.datetime.fromtimestamp(float(t), _dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    except (OverflowError, OSError, ValueError):
+        return "out of the calendar"
+
+
+def check_bag_path(path: str | os.PathLike) -> Path:
+    """The bag's path, checked before a reader opens it: a regular file (ROS 1 ``.bag``,
+    ``.mcap``, ``.db3``) or a ROS 2 bag folder (``metadata.yaml`` beside its storage files).
+
+    A FIFO, a device or a socket would block a reader or never end; a folder without
+    ``metadata.yaml`` is not a bag.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    are_stats.inputs.InputError
+        If it is neither a regular file nor a ROS 2 bag folder of regular files.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such bag file or directory")
+    expected = "a ROS 1 .bag, an .mcap / .db3 file or a ROS 2 bag folder (with metadata.yaml)"
+    if p.is_dir():
+        if not (p / "metadata.yaml").exists():
+            raise InputError(p, "", expected, Described("a folder without metadata.yaml"))
+        for f in sorted(p.iterdir()):
+            if not f.is_dir() and not f.is_file():
+                raise InputError(
+                    p, f.name, "a regular file in the bag folder", Described("a special file")
+                )
+        return p
+    if not p.is_file():
+        raise InputError(
+            p, "", f"{expected} in a regular file", Described("a FIFO, a device or a socket")
+        )
+    return p
+
+
+def check_stamps(
+    t: Any,
+    source: Any,
+    what: str,
+    index: Any = None,
+    *,
+    gap: float = STAMP_GAP,
+    item: str = "message",
+) -> None:
+    """Refuse a topic's stamps when a few lie far from the rest (a clear outlier).
+
+    The sorted stamps split at gaps longer than ``gap``; the stretch with the most stamps is
+    the recording. Another stretch of at most :data:`OUTLIER_SHARE` of the stamps (and at
+    least one) further than ``max(gap, 10 x the recording's length)`` from it is refused,
+    naming the message and its stamp: one pose stamped 1970 among 2026 ones would otherwise
+    stretch the bag's span over 55 years. Larger stretches (a recording paused for hours)
+    are kept.
+
+    Parameters
+    ----------
+    t : (m,) float
+        Stamps, s since the epoch, in message order.
+    source : str or PathLike
+        The bag, named in errors.
+    what : str
+        The topic (or tf link), named in errors.
+    index : (m,) int, optional
+        Message numbers (1-based) of the stamps within ``what``; default ``1 .. m``.
+    gap : float
+        Stamps further apart than this (s) are separate stretches.
+    item : str
+        What ``index`` counts, for messages (``"message"``, ``"sighting"``).
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming the topic, the message, its stamp (and date) and the recording's stretch.
+    """
+    t = np.asarray(t, float)
+    if t.size < 2:
+        return
+    idx = np.arange(1, t.size + 1) if index is None else np.asarray(index)
+    bad = ~np.isfinite(t)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(source, f"{what}, {item} {int(idx[i])}", "a finite stamp", float(t[i]))
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    cuts = np.flatnonzero(np.diff(ts) > gap) + 1
+    if cuts.size == 0:
+        return
+    bounds = np.r_[0, cuts, ts.size]
+    sizes = np.diff(bounds)
+    main = int(np.argmax(sizes))
+    lo, hi = ts[bounds[main]], ts[bounds[main + 1] - 1]
+    far = max(gap, 10.0 * (hi - lo))
+    small = max(1, int(OUTLIER_SHARE * ts.size))
+    for k in range(sizes.size):
+        if k == main or sizes[k] > small:
+            continue
+        a, b = ts[bounds[k]], ts[bounds[k + 1] - 1]
+        if min(abs(a - hi), abs(lo - b)) <= far:
+            continue
+        j = int(order[bounds[k]])
+        raise InputError(
+            source,
+            f"{what}, {item} {int(idx[j])}, stamp {t[j]:.9f} s ({_iso(t[j])})",
+            f"stamps on the clock of the other {int(sizes[main])} {item}s "
+            f"({_iso(lo)} to {_iso(hi)})",
+            Described(
+                f"{int(sizes[k])} {item}(s) {abs(t[j] - (lo if t[j] < lo else hi)):.6g} s away "
+                "from them (a stamp of another clock or a damaged one)"
+            ),
+        )
+
+
 def read_tracks_bag(
     path: str | os.PathLike, topics: Sequence[str] | None = None, map_frame: str = "map"
 ) -> pd.DataFrame:
@@ -335,9 +481,7 @@ def read_tracks_bag(
     """
     from rosbags.highlevel import AnyReader
 
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such bag file or directory")
+    p = check_bag_path(path)
     if topics is not None:
         if isinstance(topics, str) or not isinstance(topics, Sequence):
             raise InputError("topics", "", "a list of topic names", topics)
@@ -378,17 +522,22 @@ def read_tracks_bag(
             tf = TfBuffer()
             conns = [c for c in reader.connections if c.topic in (*chosen, *tf_topics)]
             states = {t: _MarkerState() for t in chosen}
+            counts: dict[str, int] = {}
             for conn, ts, msg in _messages(reader, conns, p, bag_errors):
+                n = counts[conn.topic] = counts.get(conn.topic, 0) + 1
+                where = f"topic {conn.topic!r}, message {n}"
                 if conn.topic in tf_topics and conn.topic not in chosen:
-                    tf.add_message(msg, ts * 1e-9, static=conn.topic == "/tf_static")
+                    tf.add_message(
+                        msg, ts * 1e-9, conn.topic == "/tf_static", p, where.replace("'", "")
+                    )
                     continue
                 try:
                     if conn.msgtype == _MARKER_ARRAY:
-                        _markers(msg.markers, states[conn.topic], conn.topic, ts, rows)
+                        _markers(msg.markers, states[conn.topic], conn.topic, ts, rows, p, where)
                     elif conn.msgtype == _MARKER:
-                        _markers([msg], states[conn.topic], conn.topic, ts, rows)
+                        _markers([msg], states[conn.topic], conn.topic, ts, rows, p, where)
                     else:
-                        _detections(msg, conn.topic, ts, rows)
+                        _detections(msg, conn.topic, ts, rows, p, where)
                 except (AttributeError, TypeError) as err:
                     # the bag's own definition of the type lacks a standard field
                     raise ValueError(
@@ -408,6 +557,10 @@ def read_tracks_bag(
             "(ADD marker or detection), got none"
         )
     df = pd.DataFrame(rows, columns=["id", "t", "x", "y", "yaw", "label", "topic", "frame_id"])
+    for topic, part in df.groupby("topic", sort=True):
+        check_stamps(
+            part["t"].to_numpy(float), p, f"topic {topic!r}", part.index + 1, item="sighting"
+        )
     if tf_topics:
         df = _to_map_frame(df, tf, map_frame.lstrip("/"), p)
     for c in ("t", "x", "y"):

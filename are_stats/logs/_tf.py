@@ -4,16 +4,29 @@ Each link ``parent -> child`` keeps its stamped transforms; a lookup composes th
 between two frames of the tree and interpolates every moving link at the asked times
 (translation linearly, rotation by slerp, held constant outside its stamps, as a tf2
 lookup with extrapolation clamped). A frame has one parent, as in tf2: a second parent for
-a frame is ignored.
+a frame is ignored. Transforms are checked as tf2 checks them: finite translations and
+rotations, quaternions of unit norm within :data:`QUATERNION_TOLERANCE` (renormalised);
+anything else is an :class:`~are_stats.inputs.InputError` naming the message.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
-__all__ = ["TF_TYPE", "TF_TYPES", "TfBuffer", "interpolate_poses", "transform_matrix"]
+from are_stats.inputs import Described, InputError
+
+__all__ = [
+    "QUATERNION_TOLERANCE",
+    "TF_TYPE",
+    "TF_TYPES",
+    "TfBuffer",
+    "interpolate_poses",
+    "transform_matrix",
+    "unit_quaternion",
+]
 
 #: Message type of ``/tf`` and ``/tf_static``.
 TF_TYPE = "tf2_msgs/msg/TFMessage"
@@ -21,16 +34,62 @@ TF_TYPE = "tf2_msgs/msg/TFMessage"
 TF_TYPES = (TF_TYPE, "tf/msg/tfMessage")
 
 
-def transform_matrix(translation: Any, rotation: Any) -> np.ndarray:
+#: A quaternion ``q`` is a rotation when ``| |q|^2 - 1 | < QUATERNION_TOLERANCE`` (tf2's
+#: ``QUATERNION_NORMALIZATION_TOLERANCE``: beyond it tf2 refuses the transform as
+#: ``TF_DENORMALIZED_QUATERNION``); within it, ``q`` is renormalised.
+QUATERNION_TOLERANCE = 1e-2
+
+
+def unit_quaternion(rotation: Any, source: Any = "transform", where: str = "") -> np.ndarray:
+    """``(x, y, z, w)`` (4,) float of a ROS quaternion, renormalised.
+
+    Parameters
+    ----------
+    rotation : object
+        With fields ``x, y, z, w`` (a ``geometry_msgs/Quaternion``).
+    source, where : str
+        The input and the place in it (a topic and message), named in errors.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        If a component is not finite, or ``| |q|^2 - 1 |`` is not below
+        :data:`QUATERNION_TOLERANCE`.
+    """
+    q = np.array([rotation.x, rotation.y, rotation.z, rotation.w], float)
+    if not np.isfinite(q).all():
+        raise InputError(source, where, "a finite quaternion", Described(f"{q.tolist()}"))
+    n2 = float(q @ q)
+    if not abs(n2 - 1.0) < QUATERNION_TOLERANCE:
+        raise InputError(
+            source,
+            where,
+            f"a unit quaternion (| |q|^2 - 1 | < {QUATERNION_TOLERANCE:g}, as tf2 checks)",
+            Described(f"{q.tolist()} of norm {math.sqrt(n2):.6g}"),
+        )
+    return q / math.sqrt(n2)
+
+
+def transform_matrix(
+    translation: Any, rotation: Any, source: Any = "transform", where: str = ""
+) -> np.ndarray:
     """(4, 4) transform of a ROS translation (``x, y, z``) and quaternion (``x, y, z, w``)
-    (a ``geometry_msgs/Transform``'s fields or a ``Pose``'s ``position, orientation``)."""
+    (a ``geometry_msgs/Transform``'s fields or a ``Pose``'s ``position, orientation``).
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming ``source`` and ``where``, if the translation is not finite or the
+        quaternion is not a unit one (:func:`unit_quaternion`).
+    """
     from scipy.spatial.transform import Rotation
 
+    xyz = np.array([translation.x, translation.y, translation.z], float)
+    if not np.isfinite(xyz).all():
+        raise InputError(source, where, "a finite position", Described(f"{xyz.tolist()}"))
     m = np.eye(4)
-    q = np.array([rotation.x, rotation.y, rotation.z, rotation.w], float)
-    n = np.linalg.norm(q)
-    m[:3, :3] = Rotation.from_quat(q / n if n > 0 else [0, 0, 0, 1]).as_matrix()
-    m[:3, 3] = [translation.x, translation.y, translation.z]
+    m[:3, :3] = Rotation.from_quat(unit_quaternion(rotation, source, where)).as_matrix()
+    m[:3, 3] = xyz
     return m
 
 
@@ -89,15 +148,29 @@ class TfBuffer:
         if static:
             self.static.add(key)
 
-    def add_message(self, msg: Any, fallback_t: float, static: bool = False) -> None:
-        """Add every transform of a ``TFMessage`` (a zero stamp reads as ``fallback_t``)."""
-        for tr in msg.transforms:
+    def add_message(
+        self,
+        msg: Any,
+        fallback_t: float,
+        static: bool = False,
+        source: Any = "tf",
+        where: str = "",
+    ) -> None:
+        """Add every transform of a ``TFMessage`` (a zero stamp reads as ``fallback_t``).
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            Naming ``source``, ``where`` (the topic and message) and the link, if a
+            transform is not finite or its quaternion is not a unit one.
+        """
+        for k, tr in enumerate(msg.transforms):
             st = tr.header.stamp
             t = int(st.sec) + int(st.nanosec) * 1e-9
-            self.add(
-                str(tr.header.frame_id), str(tr.child_frame_id), t if t else fallback_t,
-                transform_matrix(tr.transform.translation, tr.transform.rotation), static,
-            )  # fmt: skip
+            parent, child = str(tr.header.frame_id), str(tr.child_frame_id)
+            place = f"{where + ', ' if where else ''}transform {k} ({parent} -> {child})"
+            m = transform_matrix(tr.transform.translation, tr.transform.rotation, source, place)
+            self.add(parent, child, t if t else fallback_t, m, static)
 
     @property
     def frames(self) -> list[str]:

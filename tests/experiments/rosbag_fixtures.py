@@ -1,6 +1,10 @@
 """Small robot bags written with rosbags (ROS 1 ``.bag``, ROS 2 folder, MCAP) for the
 augmentation tests: a robot driving along the courtyard's free corridor, as ``/tf``
-(``map -> odom -> base_link``), as pose topics and with a camera on ``/tf_static``."""
+(``map -> odom -> base_link``), as pose topics and with a camera on ``/tf_static``.
+
+Variants: header stamps on a simulation clock (``header_start``) while the recording times
+stay on the wall clock (as Nav2's simulation tutorials record), one message stamped in 1970
+(``outlier``), one pose or transform with a given orientation or position (``bad``)."""
 
 from __future__ import annotations
 
@@ -17,6 +21,12 @@ DURATION = 12.0
 CAMERA = {"k": [60.0, 0.0, 40.0, 0.0, 60.0, 30.0, 0.0, 0.0, 1.0], "width": 80, "height": 60}
 #: The camera mount of ``/tf_static``: base_link -> camera_link -> camera_optical_frame.
 CAMERA_XYZ = (0.2, 0.0, 1.2)
+#: A simulation clock's start (s): Gazebo's clock, some minutes after it started.
+SIM_START = 1234.5
+#: The index ``k`` (a tenth of a second) of the message an ``outlier`` or ``bad`` variant
+#: changes, and the 1970 stamp (s) an outlier gets.
+ODD_K = 37
+OUTLIER_STAMP = 5.25
 
 
 def robot_pose(t: float) -> tuple[float, float, float]:
@@ -24,38 +34,47 @@ def robot_pose(t: float) -> tuple[float, float, float]:
     return -15.0 + 0.5 * t, -10.0 + 0.05 * t, 0.1
 
 
-def _time(T, t: float):
-    n = int(round((START + t) * 1e9))
+#: Header stamps are ``header_start + t`` (:func:`bag_messages` sets it per bag).
+_CLOCK = {"start": START}
+
+
+def stamp_ns(t: float, start: float = START) -> int:
+    """Integer nanoseconds of ``start + t`` (the fixture's stamps and recording times)."""
+    return int(round((start + t) * 1e9))
+
+
+def _time(T, t: float, absolute: bool = False):
+    n = int(round(t * 1e9)) if absolute else stamp_ns(t, _CLOCK["start"])
     return T["builtin_interfaces/msg/Time"](sec=n // 10**9, nanosec=n % 10**9)
 
 
-def _header(T, t: float, frame: str, ros1: bool):
+def _header(T, t: float, frame: str, ros1: bool, absolute: bool = False):
     if ros1:
-        return T["std_msgs/msg/Header"](seq=0, stamp=_time(T, t), frame_id=frame)
-    return T["std_msgs/msg/Header"](stamp=_time(T, t), frame_id=frame)
+        return T["std_msgs/msg/Header"](seq=0, stamp=_time(T, t, absolute), frame_id=frame)
+    return T["std_msgs/msg/Header"](stamp=_time(T, t, absolute), frame_id=frame)
 
 
-def _quat(T, yaw: float, pitch: float = 0.0, roll: float = 0.0):
+def _quat(T, yaw: float, pitch: float = 0.0, roll: float = 0.0, q=None):
     from scipy.spatial.transform import Rotation
 
-    x, y, z, w = Rotation.from_euler("xyz", [roll, pitch, yaw]).as_quat()
+    x, y, z, w = Rotation.from_euler("xyz", [roll, pitch, yaw]).as_quat() if q is None else q
     return T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
 
 
-def _tf(T, t, parent, child, xyz, yaw=0.0, pitch=0.0, roll=0.0, ros1=False):
+def _tf(T, t, parent, child, xyz, yaw=0.0, pitch=0.0, roll=0.0, ros1=False, q=None, at=None):
     return T["geometry_msgs/msg/TransformStamped"](
-        header=_header(T, t, parent, ros1),
+        header=_header(T, t, parent, ros1) if at is None else _header(T, at, parent, ros1, True),
         child_frame_id=child,
         transform=T["geometry_msgs/msg/Transform"](
             translation=T["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2]),
-            rotation=_quat(T, yaw, pitch, roll),
+            rotation=_quat(T, yaw, pitch, roll, q),
         ),
     )
 
 
-def _pose(T, x, y, yaw):
+def _pose(T, x, y, yaw, q=None):
     return T["geometry_msgs/msg/Pose"](
-        position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=_quat(T, yaw)
+        position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0), orientation=_quat(T, yaw, q=q)
     )
 
 
@@ -66,8 +85,19 @@ def bag_messages(
     poses: bool = True,
     camera: bool = True,
     pose_frame: str = "map",
+    header_start: float = START,
+    outlier: bool = False,
+    bad: tuple | None = None,
 ):
-    """``(t, topic, msgtype, message)`` of the test bag, in time order."""
+    """``(t, topic, msgtype, message)`` of the test bag, in time order (``t`` s after
+    :data:`START`, the recording time).
+
+    ``header_start``: header stamps are ``header_start + t`` (a simulation clock when it
+    differs from :data:`START`). ``outlier``: message :data:`ODD_K` of ``/tf`` (its
+    ``odom -> base_link``) and of the pose topics is stamped :data:`OUTLIER_STAMP` (1970).
+    ``bad``: ``(x, y, quaternion)`` of that message's pose and transform.
+    """
+    _CLOCK["start"] = header_start
     out = []
     odom = (1.0, -0.5, 0.0)  # map -> odom offset: the composition must undo it
     if tf:
@@ -97,35 +127,44 @@ def bag_messages(
     for k in range(int(DURATION * 10) + 1):
         t = k / 10.0
         x, y, yaw = robot_pose(t)
+        q, at = None, None
+        if k == ODD_K and bad is not None:
+            x, y, q = bad
+        if k == ODD_K and outlier:
+            at = OUTLIER_STAMP
         if tf:
-            tfs = [_tf(T, t, "odom", "base_link", (x - odom[0], y - odom[1], 0.0), yaw, ros1=ros1)]
+            tfs = [
+                _tf(T, t, "odom", "base_link", (x - odom[0], y - odom[1], 0.0), yaw, ros1=ros1,
+                    q=q, at=at)
+            ]  # fmt: skip
             if k % 10 == 0:
                 tfs.append(_tf(T, t, "map", "odom", odom, ros1=ros1))
             out.append(
                 (t, "/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=tfs))
             )
         if poses:
+            hdr = (
+                _header(T, t, pose_frame, ros1)
+                if at is None
+                else _header(T, at, pose_frame, ros1, True)
+            )
             out.append(
                 (
                     t,
                     "/robot_pose",
                     "geometry_msgs/msg/PoseStamped",
-                    T["geometry_msgs/msg/PoseStamped"](
-                        header=_header(T, t, pose_frame, ros1), pose=_pose(T, x, y, yaw)
-                    ),
+                    T["geometry_msgs/msg/PoseStamped"](header=hdr, pose=_pose(T, x, y, yaw, q)),
                 )
             )
             cov = T["geometry_msgs/msg/PoseWithCovariance"](
-                pose=_pose(T, x, y, yaw), covariance=np.zeros(36)
+                pose=_pose(T, x, y, yaw, q), covariance=np.zeros(36)
             )
             out.append(
                 (
                     t,
                     "/amcl_pose",
                     "geometry_msgs/msg/PoseWithCovarianceStamped",
-                    T["geometry_msgs/msg/PoseWithCovarianceStamped"](
-                        header=_header(T, t, pose_frame, ros1), pose=cov
-                    ),
+                    T["geometry_msgs/msg/PoseWithCovarianceStamped"](header=hdr, pose=cov),
                 )
             )
         if camera and k % 5 == 0:
@@ -158,11 +197,16 @@ def _camera_info(T, t: float, ros1: bool):
     return T["sensor_msgs/msg/CameraInfo"](**common, d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=p)
 
 
-def write_bag(path: Path, kind: str, **which) -> Path:
+def write_bag(path: Path, kind: str, outlier_log: bool = False, **which) -> Path:
     """Write the test bag as ``kind`` ``"ros1"`` (``path`` a ``.bag``), ``"ros2"`` (a folder,
     sqlite3) or ``"mcap"`` (a ROS 2 folder with MCAP storage; its ``.mcap`` file is
-    returned)."""
+    returned). ``which`` goes to :func:`bag_messages`; ``outlier_log`` also records the
+    outlier messages at :data:`OUTLIER_STAMP` (1970)."""
     from rosbags.typesys import Stores, get_typestore
+
+    def log_ns(t: float, topic: str) -> int:
+        odd = outlier_log and round(t * 10) == ODD_K and topic != "/camera/camera_info"
+        return stamp_ns(OUTLIER_STAMP, 0.0) if odd else stamp_ns(t)
 
     ros1 = kind == "ros1"
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
@@ -183,7 +227,7 @@ def write_bag(path: Path, kind: str, **which) -> Path:
             for t, topic, typ, msg in msgs:
                 if topic not in conns:
                     conns[topic] = w.add_connection(topic, typ, typestore=ts)
-                w.write(conns[topic], int(round((START + t) * 1e9)), ts.serialize_ros1(msg, typ))
+                w.write(conns[topic], log_ns(t, topic), ts.serialize_ros1(msg, typ))
         return path
     from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -193,7 +237,7 @@ def write_bag(path: Path, kind: str, **which) -> Path:
         for t, topic, typ, msg in msgs:
             if topic not in conns:
                 conns[topic] = w.add_connection(topic, typ, typestore=ts)
-            w.write(conns[topic], int(round((START + t) * 1e9)), ts.serialize_cdr(msg, typ))
+            w.write(conns[topic], log_ns(t, topic), ts.serialize_cdr(msg, typ))
     if kind == "mcap":
         return next(Path(path).glob("*.mcap"))
     return path

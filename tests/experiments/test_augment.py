@@ -27,6 +27,7 @@ from tests.experiments.rosbag_fixtures import (
     CAMERA,
     CAMERA_XYZ,
     DURATION,
+    ODD_K,
     START,
     robot_pose,
     write_bag,
@@ -358,3 +359,239 @@ def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
     assert any(c.startswith("artefact_") for _, c in frames)
     texts = [m for _, a in msgs["/artefacts"] for m in a.markers if m.type == 9]
     assert texts and all(m.text for m in texts)
+
+
+# ---- the bag door (issue 30) and one clock (issue 27) -------------------------------------
+
+
+def _augment(files, bag, out, *extra, seed=1):
+    args = ["augment", bag, "--fit", files["fit"], "--map", MAP, "--out", out]
+    return runner.invoke(app, [str(a) for a in [*args, "--seed", str(seed), *extra]])
+
+
+def _in_thread(fn, seconds=60.0):
+    """``fn()`` in a daemon thread; fails (instead of hanging the suite) if it blocks."""
+    import threading
+
+    out: dict = {}
+
+    def target():
+        try:
+            out["value"] = fn()
+        except Exception as err:  # noqa: BLE001 (re-raised in the caller's thread)
+            out["error"] = err
+
+    th = threading.Thread(target=target, daemon=True)
+    th.start()
+    th.join(seconds)
+    assert not th.is_alive(), f"still blocked after {seconds} s"
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+def test_augment_refuses_special_files_at_once(files, tmp_path):
+    import os
+    import shutil
+
+    from are_stats.logs import read_tracks_bag
+
+    fifo = tmp_path / "pipe.bag"
+    os.mkfifo(fifo)
+    zero = tmp_path / "zero.mcap"
+    zero.symlink_to("/dev/zero")
+    folder = tmp_path / "folder.bag"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("not a bag")
+    inner = tmp_path / "inner"  # a ROS 2 bag folder whose storage file is a FIFO
+    shutil.copytree(files["ros2"], inner)
+    (db3,) = inner.glob("*.db3")
+    db3.unlink()
+    os.mkfifo(db3)
+    cases = [
+        (fifo, "got a FIFO, a device or a socket"),
+        (zero, "got a FIFO, a device or a socket"),
+        (folder, "got a folder without metadata.yaml"),
+        (inner, f"{db3.name}: expected a regular file in the bag folder, got a special file"),
+    ]
+    for bag, got in cases:
+        res = _in_thread(lambda bag=bag: _augment(files, bag, tmp_path / "o.mcap"))
+        assert res.exit_code == 2, res.output
+        assert str(bag) in res.output and got in res.output
+        with pytest.raises(ValueError, match=got.split(":")[-1].strip()):
+            _in_thread(lambda bag=bag: read_tracks_bag(bag))
+    assert not (tmp_path / "o.mcap").exists()
+    # a ROS 2 bag folder stays a bag
+    assert read_trajectory(files["ros2"]).t.size == int(DURATION * 10) + 1
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2", "mcap"])
+def test_augment_refuses_a_1970_stamp_among_2026_ones(files, tmp_path, kind):
+    path = tmp_path / ("b.bag" if kind == "ros1" else "b")
+    bag = write_bag(path, kind, outlier=True)
+    for extra, where in (
+        ((), "topic /tf, odom -> base_link, message 38, stamp 5.250000000 s"),
+        (("--pose-topic", "/amcl_pose"), "topic /amcl_pose, message 38, stamp 5.250000000 s"),
+    ):
+        res = _augment(files, bag, tmp_path / "o.mcap", *extra)
+        assert res.exit_code == 2, res.output
+        assert where in res.output and "(1970-01-01T00:00:05Z)" in res.output
+        assert "a stamp of another clock or a damaged one" in res.output
+    # the recording time in 1970 too: refused on the recording clock as well
+    path2 = tmp_path / ("c.bag" if kind == "ros1" else "c")
+    bag2 = write_bag(path2, kind, outlier_log=True, outlier=True)
+    res = _augment(files, bag2, tmp_path / "o.mcap", "--clock", "log")
+    assert res.exit_code == 2 and "(1970-01-01T00:00:05Z)" in res.output, res.output
+    assert not (tmp_path / "o.mcap").exists()
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2", "mcap"])
+def test_augment_refuses_non_finite_poses_and_non_unit_quaternions(files, tmp_path, kind):
+    x, y, _ = robot_pose(ODD_K / 10)
+    nan = float("nan")
+    cases = [
+        ((x, y, (nan, 0.0, 0.0, 1.0)), "expected a finite quaternion"),
+        ((x, y, (0.0, 0.0, 0.5, 0.5)), "expected a unit quaternion"),
+        ((x, y, (0.0, 0.0, 0.0, 0.0)), "of norm 0"),
+        ((nan, y, (0.0, 0.0, 0.0, 1.0)), "expected a finite position"),
+        ((x, float("inf"), (0.0, 0.0, 0.0, 1.0)), "expected a finite position"),
+    ]
+    for i, (bad, expected) in enumerate(cases):
+        for j, (which, extra, where) in enumerate(
+            (
+                ({"poses": False}, (), "topic /tf, message 38, transform 0 (odom -> base_link)"),
+                ({"tf": False}, ("--pose-topic", "/amcl_pose"), "topic /amcl_pose, message 38"),
+            )
+        ):
+            path = tmp_path / (f"b{i}{j}.bag" if kind == "ros1" else f"b{i}{j}")
+            bag = write_bag(path, kind, bad=bad, **which)
+            res = _augment(files, bag, tmp_path / "o.mcap", *extra)
+            assert res.exit_code == 2, res.output
+            assert str(bag) in res.output and where in res.output and expected in res.output
+
+
+def test_nearly_unit_quaternions_are_renormalised(tmp_path):
+    # float32 round-off and tf2's tolerance: accepted, renormalised to the same rotation
+    x, y, yaw = robot_pose(ODD_K / 10)
+    q = 1.004 * np.array([0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
+    bag = write_bag(tmp_path / "near", "mcap", bad=(x, y, tuple(q)))
+    for topic in (None, "/amcl_pose"):
+        tr = read_trajectory(bag, pose_topic=topic)
+        np.testing.assert_allclose(tr.poses, _truth(tr.t - START), atol=1e-9)
+
+
+def test_augment_sim_time_bag_uses_one_clock(files, tmp_path):
+    from tests.experiments.rosbag_fixtures import SIM_START, stamp_ns
+
+    bag = write_bag(tmp_path / "sim", "mcap", header_start=SIM_START)
+    topic = "/camera/camera_info"
+    tr = read_trajectory(bag, camera_info_topic=topic)
+    assert tr.clock == "header" and "simulation time" in tr.clock_note
+    poses_ns = [stamp_ns(k / 10, SIM_START) for k in range(int(DURATION * 10) + 1)]
+    np.testing.assert_array_equal(tr.t_ns, poses_ns)
+    assert tr.start_ns == poses_ns[0] and tr.camera_ns[0] == poses_ns[0]
+    np.testing.assert_allclose(tr.poses, _truth(tr.t - SIM_START), atol=1e-9)
+    log = read_trajectory(bag, camera_info_topic=topic, clock="log")
+    assert log.clock == "log" and log.start_ns == START_NS
+    np.testing.assert_allclose(log.poses, tr.poses, atol=1e-12)
+    # the CLI: header stamps by default, said in the summary; artefacts alive in the frames
+    out = tmp_path / "sim_are.mcap"
+    res = _augment(files, bag, out, "--camera-info-topic", topic, "--d-max", "15", seed=5)
+    assert res.exit_code == 0, res.output
+    assert "clock: header stamps" in res.output and "simulation time" in res.output
+    msgs, _, _ = _read_mcap(out)
+    docs = [json.loads(m.data) for _, m in msgs["/perceived"]]
+    assert all(d["live"] for d in docs), "every camera frame should see live artefacts"
+    assert any(d["perceived"] for d in docs)
+    # the input's stamps on everything derived from it, log times on the same clock
+    base = [
+        (ns, tr_.header.stamp.sec * 10**9 + tr_.header.stamp.nanosec)
+        for ns, m in msgs["/tf"]
+        for tr_ in m.transforms
+        if tr_.child_frame_id == "base_link"
+    ]
+    assert [s for _, s in base] == poses_ns and [n for n, _ in base] == poses_ns
+    cam_ns = [stamp_ns(k / 2, SIM_START) for k in range(int(DURATION * 2) + 1)]
+    assert [ns for ns, _ in msgs["/perceived"]] == cam_ns
+    ((ns, grid),) = msgs["/map"]
+    assert ns == poses_ns[0] == grid.header.stamp.sec * 10**9 + grid.header.stamp.nanosec
+    # --clock log: the recording times for all
+    res = _augment(
+        files, bag, tmp_path / "log.mcap", "--camera-info-topic", topic, "--clock", "log", seed=5
+    )
+    assert res.exit_code == 0 and "clock: recording times (--clock log" in res.output
+    msgs, _, _ = _read_mcap(tmp_path / "log.mcap")
+    assert msgs["/perceived"][0][0] == START_NS
+    assert all(json.loads(m.data)["live"] for _, m in msgs["/perceived"])
+    res = _augment(files, bag, tmp_path / "x.mcap", "--clock", "wall")
+    assert res.exit_code == 2 and "--clock: expected one of 'auto', 'header', 'log'" in res.output
+
+
+def test_augment_period_past_the_limits_is_refused_before_allocating(files, tmp_path):
+    res = _augment(
+        files, files["ros2"], tmp_path / "o.mcap", "--camera", files["camera"], "--period", "1e-9"
+    )
+    assert res.exit_code == 2, res.output
+    assert "1.2e+10 camera frames" in res.output and "memory limit" in res.output
+    assert not (tmp_path / "o.mcap").exists()
+
+
+def test_augment_refuses_a_run_without_live_artefacts(files, tmp_path):
+    import pandas as pd
+
+    from tests.test_cli_jobs import _quick_em_fit
+
+    # 20 artefacts of 2 s each over 1e6 s: a 12 s bag almost surely meets none
+    n = 20
+    t0 = np.arange(n) * 50_000.0 + 1000.0
+    pd.DataFrame(
+        {
+            "id": [f"r{i}" for i in range(n)],
+            "t_arrive": t0,
+            "t_leave": t0 + 2.0,
+            "mark": np.arange(n) % 3 + 1,
+            "label": ["small"] * n,
+        }
+    ).to_csv(tmp_path / "rare.csv", index=False)
+    (tmp_path / "rare.yaml").write_text(yaml.safe_dump({"window": [0.0, 1e6], "area": 400.0}))
+    fit = tmp_path / "rare.nc"
+    _quick_em_fit(tmp_path / "rare.csv", fit, samples=20)
+    out = tmp_path / "o.mcap"
+    args = ["augment", files["ros2"], "--fit", fit, "--map", MAP, "--out", out, "--seed", "1"]
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 2, res.output
+    assert "expected at least one artefact over the bag's 12.000 s" in res.output
+    assert "try another --seed" in res.output and not out.exists()
+
+
+def test_no_artefact_alive_in_any_frame_is_refused_against_brute_force(files):
+    """The refusal agrees with ``Scene.alive`` at every frame (random scenes, seeded), and
+    says why and what to try."""
+    import pandas as pd
+
+    from are_stats.environment import load_catalogue
+    from are_stats.experiments._augment import _check_alive
+    from are_stats.scenarios import Scene
+
+    catalogue = load_catalogue()
+    traj = read_trajectory(files["ros2"])
+    rng = np.random.default_rng(30)
+    times = np.arange(0.0, 12.01, 0.5)
+    refused = 0
+    for _ in range(200):
+        n = int(rng.integers(1, 4))
+        arrive = rng.choice(np.r_[rng.uniform(-1.0, 13.0, 8), times], n)
+        stay = rng.choice([0.05, 0.2, 0.5, 1.0, 40.0], n)
+        art = pd.DataFrame(
+            {"t_arrive": arrive, "t_leave": arrive + stay, "x": 0.0, "y": 0.0, "yaw": 0.0}
+        )
+        scene = Scene.from_scenarios(art, catalogue)
+        truth = any(scene.alive(float(t)).any() for t in times)
+        if truth:
+            _check_alive(scene, times, 12.0, traj, "b.bag", 1)
+        else:
+            refused += 1
+            with pytest.raises(ValueError, match="alive in a camera frame") as err:
+                _check_alive(scene, times, 12.0, traj, "b.bag", 1)
+            assert "try --clock header or --clock log, another --seed" in str(err.value)
+    assert 0 < refused < 200

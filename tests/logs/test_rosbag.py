@@ -341,3 +341,69 @@ def test_tracks_in_other_frames_are_moved_into_map_through_tf(tmp_path):
         ValueError, match=r"frame 'lidar': expected a /tf chain world -> ... -> lidar, got frames"
     ):
         read_tracks_bag(path, map_frame="world")
+
+
+def _marker_bag(path, frames, kind="ros1"):
+    """A bag of ``/markers`` only: ``frames`` is ``[(t, x, quaternion or None)]``."""
+    import dataclasses
+
+    ros1 = kind == "ros1"
+    ts = vision_msgs_typestore(1 if ros1 else 2)
+    ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    Q = ts.types["geometry_msgs/msg/Quaternion"]
+    typ = "visualization_msgs/msg/MarkerArray"
+    w = Writer1(path) if ros1 else Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    with w:
+        cm = w.add_connection("/markers", typ, typestore=ts)
+        for t, x, q in frames:
+            m = _marker(ts, t, "people", 1, x, 0.0, 0.0, 0, ros1)
+            if q is not None:
+                pose = dataclasses.replace(m.pose, orientation=Q(x=q[0], y=q[1], z=q[2], w=q[3]))
+                m = dataclasses.replace(m, pose=pose)
+            msg = ts.types[typ](markers=[m])
+            w.write(cm, int(t * 1e9) if t > 0 else 1, ser(msg, typ))
+    return path
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap"])
+def test_marker_orientations_are_unit_quaternions(tmp_path, kind):
+    nan = float("nan")
+    for i, (q, message) in enumerate(
+        [
+            ((0.0, 0.0, nan, 1.0), r"expected a finite quaternion, got \[0.0, 0.0, nan, 1.0\]"),
+            ((0.0, 0.0, 0.0, 2.0), r"expected a unit quaternion .*of norm 2"),
+        ]
+    ):
+        p = _marker_bag(tmp_path / f"q{i}{'.bag' if kind == 'ros1' else ''}", [
+            (1.0, 0.0, None), (2.0, 0.5, q), (3.0, 1.0, None)
+        ], kind)  # fmt: skip
+        with pytest.raises(
+            ValueError, match=r"topic '/markers', message 2, marker 0, orientation: " + message
+        ):
+            read_tracks_bag(p)
+    # an orientation left at zero is the identity (as RViz draws it); near-unit is renormalised
+    p = _marker_bag(
+        tmp_path / f"ok{'.bag' if kind == 'ros1' else ''}",
+        [(1.0, 0.0, (0.0, 0.0, 0.0, 0.0)), (2.0, 0.5, (0.0, 0.0, 0.0, 1.003))],
+        kind,
+    )
+    df = read_tracks_bag(p)
+    np.testing.assert_allclose(df["yaw"], [0.0, 0.0])
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap"])
+def test_a_1970_sighting_among_2026_ones_is_refused(tmp_path, kind):
+    t0 = 1_782_000_000.0  # 2026
+    frames = [(t0 + k, 0.1 * k, None) for k in range(30)] + [(5.0, 0.0, None)]
+    p = _marker_bag(tmp_path / f"b{'.bag' if kind == 'ros1' else ''}", frames, kind)
+    with pytest.raises(
+        ValueError,
+        match=r"topic '/markers', sighting 1, stamp 5\.000000000 s \(1970-01-01T00:00:05Z\): "
+        r"expected stamps on the clock of the other 30 sightings",
+    ):
+        read_tracks_bag(p)
+    # a recording paused for two hours, with many sightings on both sides, is kept
+    frames = [(t0 + k, 0.1 * k, None) for k in range(30)]
+    frames += [(t0 + 7200.0 + k, 0.1 * k, None) for k in range(30)]
+    p = _marker_bag(tmp_path / f"c{'.bag' if kind == 'ros1' else ''}", frames, kind)
+    assert len(read_tracks_bag(p)) == 60
