@@ -91,3 +91,11 @@ __all__ += [
     "simulate_behaviour_tracks",
     "smooth_path",
 ]
+
+from are_stats.behaviour._social import (  # noqa: E402
+    SocialForce,
+    fit_social_force,
+    social_force_tracks,
+)
+
+__all__ += ["SocialForce", "fit_social_force", "social_force_tracks"]

@@ -1,0 +1,99 @@
+"""Local interaction (social force): passing, walls, and the parameters recovered from tracks
+simulated with known values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.behaviour import SocialForce, fit_social_force, social_force_tracks
+from are_stats.environment import OccupancyGrid
+
+
+def _plan(walkers, dt: float, rest: float = 0.0) -> pd.DataFrame:
+    """Straight planned tracks: (id, t0, start (2,), end (2,), speed), then ``rest`` s
+    standing at the end."""
+    rows = []
+    for i, t0, a, b, v in walkers:
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        dur = max(np.hypot(*(b - a)) / v, dt) if v > 0 else rest
+        t = t0 + np.arange(0, np.ceil((dur + rest) / dt) + 1) * dt
+        f = np.clip((t - t0) / dur, 0, 1) if v > 0 else np.zeros(t.size)
+        xy = a + (b - a) * f[:, None]
+        rows += [(i, tt, x, y, 0.0) for tt, (x, y) in zip(t, xy, strict=True)]
+    return pd.DataFrame(rows, columns=["id", "t", "x", "y", "yaw"])
+
+
+def _pair(out: pd.DataFrame, i: int, j: int) -> np.ndarray:
+    a = out[out["id"] == i].set_index("t")[["x", "y"]]
+    b = out[out["id"] == j].set_index("t")[["x", "y"]]
+    both = a.merge(b, left_index=True, right_index=True, suffixes=("_a", "_b"))
+    return np.hypot(both["x_a"] - both["x_b"], both["y_a"] - both["y_b"]).to_numpy()
+
+
+def test_two_head_on_walkers_pass_without_contact_and_without_stopping():
+    plan = _plan([(0, 0.0, (0, 0), (14, 0), 1.3), (1, 0.0, (14, 0.05), (0, 0.05), 1.3)], 0.1, 3)
+    out = social_force_tracks(plan, dt=0.1)
+    p = SocialForce()
+    assert _pair(out, 0, 1).min() > 2 * p.radius  # no contact
+    for i, goal in ((0, 14.0), (1, 0.0)):
+        tr = out[out["id"] == i]
+        walking = tr[tr["t"] <= 9.0]
+        speed = np.hypot(np.diff(walking["x"]), np.diff(walking["y"])) / 0.1
+        assert speed[5:].min() > 0.6  # nobody stops to let the other pass
+        assert abs(tr["x"].iloc[-1] - goal) < 0.6  # and both get where they were going
+    without = social_force_tracks(plan[plan["id"] == 0], dt=0.1)
+    assert np.abs(without["y"]).max() < 1e-9  # alone: the planned straight line
+
+
+def test_walkers_go_round_a_standing_artefact_and_never_into_a_wall():
+    data = np.zeros((60, 200))  # a 20 m x 6 m corridor of 0.1 m cells
+    data[:3, :], data[-3:, :] = 100, 100
+    grid = OccupancyGrid(data, 0.1)
+    plan = _plan([(0, 0.0, (1, 3), (19, 3), 1.2), (1, 0.0, (10, 3.05), (10, 3.05), 0.0)], 0.1, 20)
+    out = social_force_tracks(plan, grid=grid, dt=0.1)
+    assert _pair(out, 0, 1).min() > 2 * SocialForce().radius
+    stand = out[out["id"] == 1]
+    assert np.allclose(stand[["x", "y"]], [10, 3.05])  # a standing artefact is not pushed
+    row, col = np.asarray(grid.world_to_cell(out[["x", "y"]].to_numpy())).T
+    assert grid.free[row, col].all()
+    walker = out[out["id"] == 0]
+    assert walker["x"].iloc[-1] > 18.0
+
+
+def _crowd(seed: int, n: int) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    walkers = []
+    for i in range(n):
+        a = rng.uniform(0, 20, 2)
+        b = rng.uniform(0, 20, 2)
+        while np.hypot(*(b - a)) < 8:
+            b = rng.uniform(0, 20, 2)
+        walkers.append((i, np.round(rng.uniform(0, 40), 1), a, b, rng.lognormal(np.log(1.3), 0.1)))
+    return _plan(walkers, 0.1, rest=5.0)
+
+
+@pytest.mark.slow
+def test_the_parameters_are_recovered_from_tracks_the_model_simulated():
+    """A crowd crossing an open square under known A, B, tau: least squares on the
+    accelerations gives them back (B on its grid of 0.05 m)."""
+    truth = SocialForce(strength=3.0, range=0.4, relaxation=0.6)
+    tracks = social_force_tracks(_crowd(1, 60), truth, dt=0.1)
+    est, info = fit_social_force(tracks)
+    assert est.range == pytest.approx(truth.range, abs=0.051)
+    assert est.strength == pytest.approx(truth.strength, rel=0.1)
+    assert est.relaxation == pytest.approx(truth.relaxation, rel=0.1)
+    assert info["r2"] > 0.9
+    # a weaker interaction is told apart from the first
+    weak = social_force_tracks(_crowd(1, 60), truth._replace(strength=1.0), dt=0.1)
+    assert fit_social_force(weak)[0].strength == pytest.approx(1.0, rel=0.2)
+
+
+def test_fit_refuses_uneven_sampling_and_too_little_walking():
+    plan = _plan([(0, 0.0, (0, 0), (5, 0), 1.0)], 0.1)
+    uneven = plan.drop(index=[3])
+    with pytest.raises(ValueError, match="equally spaced"):
+        fit_social_force(uneven)
+    with pytest.raises(ValueError, match="at least 10 walking samples"):
+        fit_social_force(plan.iloc[:6])
