@@ -97,3 +97,16 @@ def test_fit_refuses_uneven_sampling_and_too_little_walking():
         fit_social_force(uneven)
     with pytest.raises(ValueError, match="at least 10 walking samples"):
         fit_social_force(plan.iloc[:6])
+
+
+def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch):
+    """Past ALL_PAIRS_MAX people the neighbours come from the grid of cells; on a crowd
+    whose cells stay under their capacity the two give the same tracks."""
+    from are_stats.behaviour import _social
+
+    crowd = _crowd(3, 40)
+    pairs = social_force_tracks(crowd, dt=0.1)
+    monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 0)
+    cells = social_force_tracks(crowd, dt=0.1)
+    np.testing.assert_allclose(cells[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
+    assert np.hypot(*(cells[["x", "y"]].to_numpy() - crowd[["x", "y"]].to_numpy()).T).max() > 0.1
