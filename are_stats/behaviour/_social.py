@@ -147,10 +147,30 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs):
 
 @partial(jax.jit, static_argnames=("n_steps", "n_y", "all_pairs"))
 def _window(
-    state, route, n_vert, v0, t_on, t_off, movable, t0, dt, p, walls, n_steps, n_y, all_pairs
+    state,
+    route,
+    n_vert,
+    v0,
+    t_on,
+    t_off,
+    kin,
+    plan,
+    shift,
+    t0,
+    dt,
+    p,
+    walls,
+    n_steps,
+    n_y,
+    all_pairs,
 ):
     """Integrate ``n_steps`` steps of ``dt`` from ``t0`` (semi-implicit Euler); returns the
-    final state and the positions after every step (n_steps, n, 2)."""
+    final state and the positions after every step (n_steps, n, 2).
+
+    Positions are in a frame where each scenario is shifted by ``shift`` (n, 2) so that
+    artefacts of different scenarios never meet; the walls are looked up unshifted.
+    Kinematic artefacts (``kin``) are where their ``plan`` (n_steps, n, 2) puts them.
+    """
     dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
     h, w = free.shape
 
@@ -161,7 +181,8 @@ def _window(
         inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
         return grid[row, col], inside
 
-    def step(carry, s):
+    def step(carry, inputs):
+        s, planned = inputs
         x, v, k = carry
         t = t0 + s * dt
         alive = (t >= t_on) & (t < t_off)
@@ -174,32 +195,36 @@ def _window(
         a = (desired - v) / p.relaxation + _pair_forces(
             x, v, alive, p, cell, n_y, origin, all_pairs
         )
-        dw, _ = lookup(dist_w, x)
-        gw, _ = lookup(grad_w, x)
+        dw, _ = lookup(dist_w, x - shift)
+        gw, _ = lookup(grad_w, x - shift)
         a = a + (p.wall_strength * jnp.exp((p.radius - dw) / p.wall_range))[:, None] * gw
         v_new = v + a * dt
         cap = p.max_speed * jnp.maximum(v0, 1e-9)
         sp = jnp.sqrt(jnp.sum(v_new**2, axis=1) + 1e-18)
         v_new = v_new * jnp.minimum(1.0, cap / sp)[:, None]
         x_new = x + v_new * dt
-        on_free, inside = lookup(free, x_new)
+        on_free, inside = lookup(free, x_new - shift)
         ok = on_free & inside
-        move = alive & movable
+        move = alive & ~kin
         x_out = jnp.where((move & ok)[:, None], x_new, x)
         v_out = jnp.where((move & ok)[:, None], v_new, jnp.where(move[:, None], 0.0, v))
+        follow = (alive & kin)[:, None]
+        x_out = jnp.where(follow, planned, x_out)
+        v_out = jnp.where(follow, (planned - x) / dt, v_out)
         # the next corner once this one is reached
         reached = jnp.sqrt(jnp.sum((target - x_out) ** 2, axis=1)) < jnp.maximum(0.4, 2.0 * v0 * dt)
         k_out = jnp.where(move & reached & ~last, k + 1, k)
         return (x_out, v_out, k_out), x_out
 
-    return jax.lax.scan(step, state, jnp.arange(1, n_steps + 1, dtype=jnp.float64))
+    steps = jnp.arange(1, n_steps + 1, dtype=jnp.float64)
+    return jax.lax.scan(step, state, (steps, plan))
 
 
 def _bucket(n: int, lo: int = 8) -> int:
     return max(lo, 1 << (max(n, 1) - 1).bit_length())
 
 
-def _walls(grid: Any, xy: np.ndarray, reach: float) -> tuple:
+def _walls(grid: Any, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:
     """Distance to walls, its unit gradient, the free mask and the frames (JAX arrays)."""
     from scipy import ndimage
 
@@ -218,7 +243,7 @@ def _walls(grid: Any, xy: np.ndarray, reach: float) -> tuple:
     norm = np.maximum(np.hypot(gx, gy), 1e-9)
     grad = np.stack([gx / norm, gy / norm], axis=-1)
     lo = xy.min(0) - reach
-    hi = xy.max(0) + reach
+    hi = xy.max(0) + reach + np.array([x_shift, 0.0])
     cell = reach
     n_y = int(np.ceil((hi[1] - lo[1]) / cell)) + 3
     return (
@@ -233,6 +258,7 @@ def social_force_tracks(
     grid: Any = None,
     *,
     dt: float = 0.1,
+    kinematic: Any = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again with the social force (people give way to each other).
 
@@ -243,19 +269,25 @@ def social_force_tracks(
         of its life, as the behaviours write them. Each artefact keeps its first and last
         time (its life-cycle) and its route (the corners of its planned path); it walks the
         route at its preferred speed (the median of its planned speeds; an artefact that
-        never moves stands, and the others walk around it).
+        never moves stands, and the others walk around it). Artefacts of different
+        scenarios never meet.
     params : SocialForce, optional
         The model's parameters (default: the published values).
     grid : OccupancyGrid, optional
         The map: its occupied cells repel, and no step enters them.
     dt : float
         Integration step (s).
+    kinematic : (n_tracks,) bool or callable, optional
+        Artefacts that keep their planned track exactly (vehicles, carts: no social force
+        of their own) and are still avoided by the others, per row of ``tracks`` (True for
+        any row of an artefact makes it kinematic). Standing artefacts always are.
 
     Returns
     -------
     pandas.DataFrame
-        The same rows (same ``id`` and ``t``) with ``x, y`` from the simulation and ``yaw``
-        along the direction of motion (the planned one while standing).
+        The same rows (same ``id`` and ``t``, sorted by ``scenario``, ``id`` and ``t``) with
+        ``x, y`` from the simulation and ``yaw`` along the direction of motion (the planned
+        one while standing).
     """
     from are_stats._checks import check_positive
     from are_stats.inputs import check_memory, check_work
@@ -265,7 +297,9 @@ def social_force_tracks(
     if len(tracks) == 0:
         return tracks.copy()
     groups = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
-    tab = tracks.sort_values([*groups, "t"], kind="stable").reset_index(drop=True)
+    base = tracks.reset_index(drop=True)
+    perm = base.sort_values([*groups, "t"], kind="stable").index.to_numpy()
+    tab = base.iloc[perm].reset_index(drop=True)
     keys = tab[groups].to_numpy()
     first = np.r_[True, (keys[1:] != keys[:-1]).any(axis=1)]
     start = np.flatnonzero(first)
@@ -282,7 +316,23 @@ def social_force_tracks(
         r, v0[i] = _route(t_all[a:b], xy_all[a:b])
         routes.append(r)
     t_on, t_off = t_all[start], t_all[stop - 1] + 1e-9
-    movable = v0 > 0.0
+    kin = v0 <= 0.0
+    if kinematic is not None:
+        rows = np.asarray(kinematic, bool)
+        if rows.shape != (len(tracks),):
+            raise ValueError(
+                f"kinematic: expected one bool per track row ({len(tracks)}), got {rows.shape}"
+            )
+        rows = rows[perm]
+        kin |= np.logical_or.reduceat(rows, start)
+    # each scenario on its own stretch of the plane, far from the others
+    scen = (
+        pd.factorize(tab["scenario"].to_numpy()[start])[0]
+        if "scenario" in tab.columns
+        else np.zeros(n, np.int64)
+    )
+    stride = float(np.ptp(xy_all[:, 0])) + 2.0 * p.reach + 10.0
+    shift = np.column_stack([scen * stride, np.zeros(n)])
     m_max = _bucket(max(len(r) for r in routes), 4)
     route = np.zeros((n, m_max, 2))
     n_vert = np.zeros(n, np.int32)
@@ -290,7 +340,8 @@ def social_force_tracks(
         route[i, : len(r)] = r
         route[i, len(r) :] = r[-1]
         n_vert[i] = len(r)
-    walls, n_y = _walls(grid, xy_all, p.reach)
+    route = route + shift[:, None, :]
+    walls, n_y = _walls(grid, xy_all, p.reach, float(shift[:, 0].max()))
     x = route[:, 0].copy()
     v = np.zeros((n, 2))
     k = np.zeros(n, np.int32)
@@ -312,18 +363,24 @@ def social_force_tracks(
 
         state = (take(x), take(v), take(k))
         t_on_w = np.where(live_pad, t_on[pad], np.inf)
+        tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
+        plan = np.zeros((WINDOW_STEPS, nb, 2))
+        for c, i in enumerate(pad[: act.size]):
+            if kin[i]:
+                a, b = start[i], stop[i]
+                plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
+                plan[:, c, 1] = np.interp(tt, t_all[a:b], xy_all[a:b, 1]) + shift[i, 1]
         (xf, vf, kf), xs = _window(
             state, take(route), take(n_vert), take(v0), jnp.asarray(t_on_w),
-            take(t_off), take(movable), w0, dt, p_j, walls, WINDOW_STEPS, n_y,
-            nb <= ALL_PAIRS_MAX,
+            take(t_off), take(kin), jnp.asarray(plan), take(shift), w0, dt, p_j, walls,
+            WINDOW_STEPS, n_y, nb <= ALL_PAIRS_MAX,
         )  # fmt: skip
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
         x[act], v[act], k[act] = xf[: act.size], vf[: act.size], kf[: act.size]
-        tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
         alive = (tt[:, None] >= t_on[act][None, :]) & (tt[:, None] < t_off[act][None, :])
         si, ai = np.nonzero(alive)
         sim_t.append(tt[si])
-        sim_x.append(xs[si, ai])
+        sim_x.append(xs[si, ai] - shift[act[ai]])
         sim_i.append(act[ai])
     st = np.concatenate(sim_t) if sim_t else np.zeros(0)
     sx = np.concatenate(sim_x) if sim_x else np.zeros((0, 2))

@@ -110,3 +110,19 @@ def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch):
     cells = social_force_tracks(crowd, dt=0.1)
     np.testing.assert_allclose(cells[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
     assert np.hypot(*(cells[["x", "y"]].to_numpy() - crowd[["x", "y"]].to_numpy()).T).max() > 0.1
+
+
+def test_scenarios_do_not_meet_and_kinematic_artefacts_keep_their_plan():
+    one = _plan([(0, 0.0, (0, 0), (14, 0), 1.3), (1, 0.0, (14, 0.05), (0, 0.05), 1.3)], 0.1, 3)
+    apart = pd.concat(
+        [one[one["id"] == 0].assign(scenario=0), one[one["id"] == 1].assign(scenario=1)]
+    )
+    out = social_force_tracks(apart, dt=0.1)
+    np.testing.assert_allclose(out[out["scenario"] == 1]["y"], 0.05, atol=1e-9)  # alone
+    car = one["id"].to_numpy() == 1
+    out = social_force_tracks(one, dt=0.1, kinematic=car)
+    planned = one[car].sort_values("t")[["x", "y"]].to_numpy()
+    np.testing.assert_allclose(out[out["id"] == 1][["x", "y"]], planned, atol=1e-9)
+    walker = out[out["id"] == 0]
+    assert _pair(out, 0, 1).min() > 2 * SocialForce().radius  # the walker alone gave way
+    assert np.abs(walker["y"]).max() > 0.3
