@@ -18,6 +18,13 @@ The behaviour rule (``behaviours=``), one for every command:
 
 Tracks end at the scenario's horizon (the scenario is defined on ``[0, horizon]``; its
 artefacts' ``t_leave`` may lie beyond, right-censored there).
+
+Then the **interaction** (``interaction=``): the planned tracks are walked again under the
+social force (:func:`~are_stats.behaviour.social_force_tracks`), so people give way to
+each other, to artefacts standing and to vehicles instead of walking through them. The
+artefacts whose catalogue class is not a ``pedestrian`` (its ``kind`` feature: cars,
+carts, pallets) keep their planned tracks and are avoided. The parameters are the fit's
+when it estimated them from tracks, else the published ones (:class:`SocialForce`).
 """
 
 from __future__ import annotations
@@ -138,6 +145,7 @@ def scenes_from_draws(
     behaviour_dt: float = 2.0,
     source: str = "scenario",
     cell_source: str = "behaviour_cell",
+    interaction: Any = True,
 ) -> list[Scene]:
     """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
 
@@ -177,6 +185,10 @@ def scenes_from_draws(
         What errors name (the fit file, the options).
     cell_source : str
         The option or key of ``behaviour_cell``, named in errors.
+    interaction : bool or SocialForce
+        Walk the tracks again with the social force (see the module docstring): ``True``
+        with the published parameters, a :class:`~are_stats.behaviour.SocialForce` with
+        those, ``False`` keeps the planned tracks.
 
     Returns
     -------
@@ -225,7 +237,28 @@ def scenes_from_draws(
                 dt=behaviour_dt, horizon=horizon, source=cell_source,
             )
         )  # fmt: skip
+    if tracks is not None and len(tracks) and interaction is not False:
+        tracks = _interact(tracks, art, catalogue, class_labels, n, grid, interaction)
     return _split_scenes(art, tracks, catalogue, class_labels, n)
+
+
+def _interact(
+    tracks: pd.DataFrame, art: pd.DataFrame, catalogue: Any, labels: Any, n: int, grid: Any,
+    interaction: Any,
+) -> pd.DataFrame:  # fmt: skip
+    """The tracks walked again under the social force; non-pedestrians stay kinematic."""
+    from are_stats.behaviour import SocialForce, social_force_tracks
+
+    params = interaction if isinstance(interaction, SocialForce) else SocialForce()
+    scenes = _split_scenes(art, None, catalogue, labels, n)
+    walks = {}
+    for k, scene in enumerate(scenes):
+        for a, c in zip(scene.ids, scene.classes, strict=True):
+            kind = catalogue.row(int(c)).features.get("kind", "pedestrian")
+            walks[(k, int(a))] = kind == "pedestrian"
+    keys = zip(tracks["scenario"].to_numpy(), tracks["id"].to_numpy(), strict=True)
+    kinematic = np.array([not walks.get((int(s), int(a)), False) for s, a in keys])
+    return social_force_tracks(tracks, params, grid, kinematic=kinematic)
 
 
 def scenes_from_fit(
@@ -245,6 +278,7 @@ def scenes_from_fit(
     behaviour_dt: float = 2.0,
     source: str | None = None,
     cell_source: str = "behaviour_cell",
+    interaction: Any = True,
 ) -> list[Scene]:
     """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
 
@@ -264,7 +298,7 @@ def scenes_from_fit(
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
-    area, start, behaviour_cell, behaviour_dt, cell_source
+    area, start, behaviour_cell, behaviour_dt, cell_source, interaction
         See :func:`scenes_from_draws`.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
@@ -306,5 +340,5 @@ def scenes_from_fit(
         fitted=fitted, class_labels=fit_class_labels(idata),
         area=nu if grid is None else area, start=start,
         behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=source,
-        cell_source=cell_source,
+        cell_source=cell_source, interaction=interaction,
     )  # fmt: skip
