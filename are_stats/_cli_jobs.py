@@ -470,12 +470,11 @@ def run_generate(
     from are_stats.fitting import read_fit
     from are_stats.inputs import get_float, get_int, get_seed, get_str
     from are_stats.scenarios import (
-        atomic_folder,
         check_folder,
         check_scenario_size,
         generate_scenarios,
         traffic_draws,
-        write_scenario_files,
+        write_scenes,
     )
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
@@ -522,14 +521,14 @@ def run_generate(
         "seed": int(seed),
         "class_labels": labels,
     }
-    with atomic_folder(out, force=force) as tmp:
-        if behaviours and "behaviour" in idata.groups():
-            manifest["tracks"] = _fitted_behaviour_tracks(seed, df, idata, labels, tmp, fit_path)
-        elif behaviours:
-            manifest["tracks"] = _behaviour_tracks(
-                seed, df, grid, labels, tmp, False, behaviour_cell, behaviour_dt
-            )
-        write_scenario_files(df, tmp, manifest)
+    tracks = None
+    if behaviours and "behaviour" in idata.groups():
+        tracks, manifest["tracks"] = _fitted_behaviour_tracks(seed, df, idata, labels, fit_path)
+    elif behaviours:
+        tracks, manifest["tracks"] = _behaviour_tracks(
+            seed, df, grid, labels, behaviour_cell, behaviour_dt
+        )
+    write_scenes(df, out, manifest, tracks=tracks, force=force)
     console.print(
         f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
     )
@@ -575,9 +574,10 @@ def _check_tracks_size(table: Any, shape: tuple[int, int], dt: float) -> None:
 
 
 def _fitted_behaviour_tracks(
-    seed: int, df: Any, idata: Any, labels: Any, out: Path, fit_path: Path
-) -> dict:
-    """Tracks of generated artefacts walking as the fit's behaviour says (issue 16)."""
+    seed: int, df: Any, idata: Any, labels: Any, fit_path: Path
+) -> tuple[Any, dict]:
+    """Tracks of generated artefacts walking as the fit's behaviour says (issue 16), and
+    their manifest entry."""
     import pandas as pd
 
     from are_stats.behaviour import BehaviourFit, simulate_behaviour_tracks
@@ -593,14 +593,12 @@ def _fitted_behaviour_tracks(
     tracks = pd.DataFrame(
         simulate_behaviour_tracks(jax.random.key(seed), bfit, df, class_labels=labels)
     )
-    path = Path(out) / "tracks.parquet"
-    with atomic_path(path, force=False) as tmp:
-        tracks.to_parquet(tmp, index=False)
-    return {"file": path.name, "source": "fitted behaviour", "rows": len(tracks)}
+    return tracks, {"source": "fitted behaviour", "rows": len(tracks)}
 
 
-def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
-    """MDP trajectories of generated scenarios (:func:`are_stats.behaviour.behaviour_tracks`)."""
+def _behaviour_tracks(seed, df, grid, labels, cell=1.0, dt=2.0):
+    """MDP trajectories of generated scenarios (:func:`are_stats.behaviour.behaviour_tracks`)
+    and their manifest entry."""
     import pandas as pd
 
     from are_stats.behaviour import behaviour_tracks
@@ -629,10 +627,7 @@ def _behaviour_tracks(seed, df, grid, labels, out, force, cell=1.0, dt=2.0):
             source="--behaviour-cell",
         )  # fmt: skip
     )
-    path = Path(out) / "tracks.parquet"
-    with atomic_path(path, force=force) as tmp:
-        tracks.to_parquet(tmp, index=False)
-    return {"file": path.name, "cell_m": res, "dt_s": dt, "rows": len(tracks)}
+    return tracks, {"cell_m": res, "dt_s": dt, "rows": len(tracks)}
 
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
@@ -754,7 +749,7 @@ def run_perceive(
 
     Every input is checked before any tracing: the options (``--d-max`` > 0, ``--tau``
     >= 0, ``--camera-height`` and ``--wall-height`` within 1 km), the scenario folder
-    (:func:`are_stats.perception.read_scenario_folder`) and its behaviour tracks, the
+    (:func:`are_stats.scenarios.read_scenes`, its behaviour tracks included), the
     camera, the robot path (:func:`are_stats.perception.read_robot_path`: sorted times,
     finite poses) and the mesh or map. A robot path whose times miss the scenario window
     ``[0, horizon]`` or every artefact's presence is an error naming both time ranges;
@@ -770,9 +765,8 @@ def run_perceive(
         perceive_scenario,
         poses_outside,
         read_robot_path,
-        read_scenario_folder,
-        read_scenario_tracks,
     )
+    from are_stats.scenarios import read_scenes
 
     d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0)
@@ -781,8 +775,7 @@ def run_perceive(
     scenario = Path(scenario)
     target = Path(out) if out is not None else scenario / "perceived.parquet"
     check_writable(target, force)
-    df, manifest = read_scenario_folder(scenario)
-    tracks = read_scenario_tracks(scenario, manifest, df)
+    df, manifest, tracks = read_scenes(scenario)
     camera = PinholeCamera.from_yaml(resolve_shipped(camera_path, "camera", source="--camera"))
     path = Path(robot_path)
     robot = read_robot_path(path)

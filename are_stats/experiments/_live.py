@@ -300,17 +300,32 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
         (artefacts with tracks), ``map`` (the map file or None).
     """
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.perception import read_scenario_folder, read_scenario_tracks
-    from are_stats.scenarios import Scene
+    from are_stats.scenarios import Scene, read_scenes
 
     d = Path(folder)
-    df, manifest = read_scenario_folder(d)
-    tracks = read_scenario_tracks(d, manifest, df)
-    present = sorted(set(df["scenario"].astype(np.int64).tolist()))
+    df, manifest, tracks = read_scenes(d)
+    # the scenarios of the folder: 0 .. n_scenarios - 1 (some may hold no artefact), or
+    # those of the table when the manifest does not say
+    n_sc = manifest.get("n_scenarios")
+    present = (
+        list(range(int(n_sc)))
+        if n_sc is not None
+        else sorted(set(df["scenario"].astype(np.int64).tolist()))
+    )
+    if not present:
+        raise InputError(
+            d, "", "a scenarios folder with at least one scenario",
+            Described("none (no artefact, and no n_scenarios in manifest.yaml)" if n_sc is None
+                      else "n_scenarios: 0 in manifest.yaml"),
+        )  # fmt: skip
     if scenario is None:
         k = present[0]
     else:
-        if isinstance(scenario, bool) or int(scenario) != scenario or scenario not in present:
+        if (
+            isinstance(scenario, bool)
+            or not isinstance(scenario, int | np.integer)
+            or scenario not in present
+        ):
             lo, hi = present[0], present[-1]
             within = f"{lo}" if lo == hi else f"{lo} to {hi}"
             raise InputError(

@@ -1,6 +1,14 @@
-"""Posterior-predictive scenario generation: artefact populations from fitted priors, and
-the Scene that turns one scenario into boxes over time."""
+"""Posterior-predictive scenario generation: artefact populations from fitted priors, the
+Scene that turns one scenario into boxes over time, and the scenarios folder (one writer,
+:func:`write_scenes`, and one validating reader, :func:`read_scenes`)."""
 
+from are_stats.scenarios._folder import (
+    FORMAT_VERSION,
+    MAX_POSITION,
+    ScenesFolder,
+    read_scenes,
+    write_scenes,
+)
 from are_stats.scenarios._generate import (
     PARAMETER_NAMES,
     SCENARIO_COLUMNS,
@@ -14,14 +22,16 @@ from are_stats.scenarios._generate import (
     read_scenarios,
     scenario_counts,
     traffic_draws,
-    write_scenario_files,
     write_scenarios,
 )
 from are_stats.scenarios._scene import Boxes, Scene
 
 __all__ = [
     "Boxes",
+    "FORMAT_VERSION",
+    "MAX_POSITION",
     "Scene",
+    "ScenesFolder",
     "PARAMETER_NAMES",
     "SCENARIO_COLUMNS",
     "TRAFFIC_NAMES",
@@ -32,8 +42,9 @@ __all__ = [
     "generate_scenarios",
     "posterior_draws",
     "read_scenarios",
+    "read_scenes",
     "scenario_counts",
     "traffic_draws",
-    "write_scenario_files",
     "write_scenarios",
+    "write_scenes",
 ]
