@@ -282,6 +282,17 @@ def replay_messages(
         k += 1
 
 
+def _resolves(host: str) -> bool:
+    """Whether ``host`` names an address (so that a failed bind is the port's fault)."""
+    import socket
+
+    try:
+        socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError, ValueError):
+        return False
+    return True
+
+
 def _port_error(host: str, port: int, err: BaseException) -> InputError:
     return InputError(
         "--port", "", f"a free TCP port on {host} (or 0 for any free port)",
@@ -429,8 +440,13 @@ def serve_scenario(
         duration = get_float(duration, "--duration", "", lo=0, lo_open=True)
     if isinstance(port, bool) or not isinstance(port, int | np.integer) or not 0 <= port < 65536:
         raise InputError("--port", "", "a TCP port 0 to 65535", port)
-    if not isinstance(host, str) or not host:
-        raise InputError("--host", "", "an address to listen on (127.0.0.1)", host)
+    if (
+        not isinstance(host, str)
+        or not host
+        or len(host) > 253
+        or any(c.isspace() or c in "/\\\x00" for c in host)
+    ):
+        raise InputError("--host", "", "an address to listen on, such as 127.0.0.1", host)
     replay = load_replay(folder, scenario)
     _fm()
     import foxglove
@@ -453,7 +469,12 @@ def serve_scenario(
             capabilities=[Capability.Time],
         )
     except Exception as err:  # the SDK raises its own error types for bind failures
-        raise _port_error(host, int(port), err) from None
+        if _resolves(host):
+            raise _port_error(host, int(port), err) from None
+        raise InputError(
+            "--host", "", "an address of this machine to listen on, such as 127.0.0.1",
+            Described(f"{host!r} ({err})"),
+        ) from None  # fmt: skip
     info: dict[str, Any] = {
         "host": host,
         "port": int(server.port),

@@ -454,7 +454,8 @@ def read_scenes(folder: str | os.PathLike) -> ScenesFolder:
     if not d.exists():
         raise FileNotFoundError(f"{d}: no such scenarios folder")
     if not d.is_dir():
-        raise _error(d, "", "a scenarios folder written by are-stats generate", Described("a file"))
+        got = Described("a file" if d.is_file() else "neither a folder nor a file")
+        raise _error(d, "", "a scenarios folder written by are-stats generate", got)
     for name in (_MANIFEST, _ARTEFACTS):
         if not (d / name).is_file():
             raise _error(

@@ -172,3 +172,66 @@ def test_folder_tracks_move_on_a_turned_map(root, tmp_path):
     plain = _damaged(tmp_path)
     with pytest.raises(InputError, match=r"behaviours: expected a map whose origin yaw is 0"):
         load_sweep_config(_config(root, plain, behaviours=True, map=str(root / "turned.yaml")))
+
+
+VALID = {
+    "scenario from the folder": {},
+    "folder, time_limit factor": {"factors": {"mission.time_limit": [10.0, HORIZON]}},
+    "folder with a trailing slash": {"scenario": "slash"},
+    "hand-set rates": {"scenario": {"arrival_rate": 0.001, "leave_rate": 0.1}},
+    "rates as integers": {"scenario": {"arrival_rate": 1e-3, "leave_rate": 1}},
+    "rates, start factor": {
+        "scenario": {"arrival_rate": 0.001, "leave_rate": 0.1},
+        "factors": {"scenario.start": ["stationary", "empty"]},
+    },
+    "shipped catalogue by name": {"catalogue": "catalogue"},
+    "catalogue null": {"catalogue": None},
+    "behaviours and avoid_robot": {"behaviours": True, "avoid_robot": False},
+    "behaviour_cell factor": {"behaviours": True, "factors": {"mission.behaviour_cell": [1, 2]}},
+    "camera keys": {
+        "robot": {
+            "radius": 0.3,
+            "speed": 1.0,
+            "camera_xyz": [0.1, 0.0, 1.0],
+            "camera_rpy": [0, 0, 0],
+            "camera_fov": 1.2,
+            "image_size": [64, 48],
+        },
+    },  # fmt: skip
+    "planner factor": {
+        "planner": {"algorithm": "RRTConnect", "range": 2.0},
+        "factors": {"planner.range": [1.0, 2.0]},
+    },
+    "planner levels": {
+        "factors": {"planner": [{"name": "A*", "algorithm": "astar"}, {"algorithm": "PRM"}]}
+    },
+    "empty sections": {"robot": None, "factors": None, "planner": None},
+}
+
+
+@pytest.mark.parametrize("over", list(VALID.values()), ids=list(VALID))
+def test_documented_shapes_are_accepted(root, tmp_path, over):
+    folder = _damaged(tmp_path)
+    over = dict(over)
+    if over.get("scenario") == "slash":
+        over["scenario"] = {"scenarios": str(folder) + "/"}
+    cfg = load_sweep_config(_config(root, folder, **over))
+    assert cfg["map"] == str(root / "square.yaml")
+
+
+@pytest.mark.parametrize("name", ["fig7", "fig7_fit"])
+def test_shipped_configs_are_accepted(tmp_path, monkeypatch, name):
+    from are_stats.environment import shipped_path
+    from are_stats.inputs import load_yaml
+
+    raw = load_yaml(shipped_path(name, "experiment"), "sweep config")
+    if "fit" in raw["scenario"]:  # the shipped fit config, on a scenarios folder instead
+        df = generate_scenarios(3, PARAMS, 3, 90.0, free_mask=OccupancyGrid(np.zeros((4, 4)), 1.0))
+        write_scenes(df, tmp_path / "scen", {"generation": {"horizon": 90.0}})
+        raw["scenario"] = {"scenarios": "scen"}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    assert load_sweep_config(path)["name"] == raw["name"]
+    if name == "fig7":
+        monkeypatch.chdir(tmp_path)
+        assert load_sweep_config(name)["name"] == raw["name"]
