@@ -216,7 +216,8 @@ def write_scenes(
     with atomic_folder(out, force=force) as tmp:
         _write_parquet(plain, tmp / _ARTEFACTS)
         if tracks is not None:
-            cols = {c: tracks[c].to_numpy() for c in TRACK_COLUMNS}
+            kinds = {c: np.int64 if c in ("scenario", "id") else np.float64 for c in TRACK_COLUMNS}
+            cols = {c: tracks[c].to_numpy(kinds[c]) for c in TRACK_COLUMNS}
             _write_parquet(pd.DataFrame(cols), tmp / _TRACKS)
         (tmp / _MANIFEST).write_text(text)
     return out

@@ -60,7 +60,9 @@ def test_round_trip_with_tracks(tmp_path):
     ]  # fmt: skip
     back = read_scenes(out)
     pd.testing.assert_frame_equal(back.artefacts, df)
-    pd.testing.assert_frame_equal(back.tracks, tracks.astype({"scenario": np.int64}))
+    pd.testing.assert_frame_equal(
+        back.tracks, tracks.astype({"scenario": np.int64, "id": np.int64})
+    )
     m = back.manifest
     assert m["format_version"] == FORMAT_VERSION and m["class_labels"] == ["a", "b"]
     assert m["tracks"] == {"file": "tracks.parquet", "rows": len(tracks)}
@@ -113,12 +115,14 @@ def test_hand_made_folder_gets_the_optional_columns(tmp_path):
 def test_empty_artefacts_table_is_a_valid_folder(tmp_path):
     # zero artefacts (no arrival in any scenario): the folder reads, with typed columns
     out = tmp_path / "empty"
-    no_tracks = pd.DataFrame({c: np.zeros(0) for c in ("scenario", "id", "t", "x", "y", "yaw")})
+    # (behaviour_tracks of no artefact: a table of empty object columns)
+    no_tracks = pd.DataFrame({c: [] for c in ("scenario", "id", "t", "x", "y", "yaw")})
     write_scenes(_empty(), out, {"n_scenarios": 2}, tracks=no_tracks)
     back = read_scenes(out)
     assert len(back.artefacts) == 0 and list(back.artefacts.columns) == list(SCENARIO_COLUMNS)
     assert back.artefacts["scenario"].dtype == np.int32
     assert len(back.tracks) == 0 and back.manifest["n_scenarios"] == 2
+    assert back.tracks["id"].dtype == np.int64 and back.tracks["t"].dtype == np.float64
     # a hand-made empty table without a required column is still named
     pd.DataFrame({"scenario": np.zeros(0, int)}).to_parquet(out / "artefacts.parquet")
     with pytest.raises(InputError, match=r"artefacts\.parquet: missing column\(s\) 'class'"):
