@@ -467,17 +467,16 @@ def run_generate(
     (:mod:`are_stats.inputs`), before anything is drawn. The folder ``out`` (scenarios,
     manifest and tracks) is written beside it and put in place as a whole.
     """
-    import pandas as pd
 
     from are_stats.environment import load_catalogue
     from are_stats.fitting import fit_class_labels, read_fit
     from are_stats.inputs import get_float, get_int, get_seed, get_str
     from are_stats.scenarios import (
-        atomic_folder,
         check_folder,
         scenes_from_fit,
+        scenes_tables,
         traffic_draws,
-        write_scenario_files,
+        write_scenes,
     )
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
@@ -517,7 +516,7 @@ def run_generate(
         model=model, area=area, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
         source=source, cell_source="--behaviour-cell",
     )  # fmt: skip
-    df = pd.concat([s.artefacts for s in scenes], ignore_index=True)
+    df, tracks = scenes_tables(scenes)
     manifest = {
         "fit": str(fit_path),
         "model": model,
@@ -525,25 +524,18 @@ def run_generate(
         "seed": int(seed),
         "class_labels": fit_class_labels(idata),
     }
-    with atomic_folder(out, force=force) as tmp:
-        if behaviours:
-            tracks = pd.concat(
-                [s.tracks_table().assign(scenario=k) for k, s in enumerate(scenes)],
-                ignore_index=True,
-            )[["scenario", "id", "t", "x", "y", "yaw"]]
-            path = Path(tmp) / "tracks.parquet"
-            with atomic_path(path, force=False) as part:
-                tracks.to_parquet(part, index=False)
-            manifest["tracks"] = (
-                {"file": path.name, "source": "fitted behaviour", "rows": len(tracks)}
-                if fitted
-                else {
-                    "file": path.name, "source": "catalogue behaviour",
-                    "cell_m": _behaviour_cell_m(grid, behaviour_cell), "dt_s": behaviour_dt,
-                    "rows": len(tracks),
-                }
-            )  # fmt: skip
-        write_scenario_files(df, tmp, manifest)
+    if not behaviours:
+        tracks = None
+    else:
+        manifest["tracks"] = (
+            {"source": "fitted behaviour", "rows": len(tracks)}
+            if fitted
+            else {
+                "source": "catalogue behaviour", "cell_m": _behaviour_cell_m(grid, behaviour_cell),
+                "dt_s": behaviour_dt, "rows": len(tracks),
+            }
+        )  # fmt: skip
+    write_scenes(df, out, manifest, tracks=tracks, force=force)
     console.print(
         f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
     )
@@ -681,7 +673,7 @@ def run_perceive(
 
     Every input is checked before any tracing: the options (``--d-max`` > 0, ``--tau``
     >= 0, ``--camera-height`` and ``--wall-height`` within 1 km), the scenario folder
-    (:func:`are_stats.perception.read_scenario_folder`) and its behaviour tracks, the
+    (:func:`are_stats.scenarios.read_scenes`, its behaviour tracks included), the
     camera, the robot path (:func:`are_stats.perception.read_robot_path`: sorted times,
     finite poses) and the mesh or map. A robot path whose times miss the scenario window
     ``[0, horizon]`` or every artefact's presence is an error naming both time ranges;
@@ -697,9 +689,8 @@ def run_perceive(
         perceive_scenario,
         poses_outside,
         read_robot_path,
-        read_scenario_folder,
-        read_scenario_tracks,
     )
+    from are_stats.scenarios import read_scenes
 
     d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0)
@@ -708,8 +699,7 @@ def run_perceive(
     scenario = Path(scenario)
     target = Path(out) if out is not None else scenario / "perceived.parquet"
     check_writable(target, force)
-    df, manifest = read_scenario_folder(scenario)
-    tracks = read_scenario_tracks(scenario, manifest, df)
+    df, manifest, tracks = read_scenes(scenario)
     camera = PinholeCamera.from_yaml(resolve_shipped(camera_path, "camera", source="--camera"))
     path = Path(robot_path)
     robot = read_robot_path(path)

@@ -282,6 +282,17 @@ def replay_messages(
         k += 1
 
 
+def _resolves(host: str) -> bool:
+    """Whether ``host`` names an address (so that a failed bind is the port's fault)."""
+    import socket
+
+    try:
+        socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError, ValueError):
+        return False
+    return True
+
+
 def _port_error(host: str, port: int, err: BaseException) -> InputError:
     return InputError(
         "--port", "", f"a free TCP port on {host} (or 0 for any free port)",
@@ -300,17 +311,32 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
         (artefacts with tracks), ``map`` (the map file or None).
     """
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.perception import read_scenario_folder, read_scenario_tracks
-    from are_stats.scenarios import Scene
+    from are_stats.scenarios import Scene, read_scenes
 
     d = Path(folder)
-    df, manifest = read_scenario_folder(d)
-    tracks = read_scenario_tracks(d, manifest, df)
-    present = sorted(set(df["scenario"].astype(np.int64).tolist()))
+    df, manifest, tracks = read_scenes(d)
+    # the scenarios of the folder: 0 .. n_scenarios - 1 (some may hold no artefact), or
+    # those of the table when the manifest does not say
+    n_sc = manifest.get("n_scenarios")
+    present = (
+        list(range(int(n_sc)))
+        if n_sc is not None
+        else sorted(set(df["scenario"].astype(np.int64).tolist()))
+    )
+    if not present:
+        raise InputError(
+            d, "", "a scenarios folder with at least one scenario",
+            Described("none (no artefact, and no n_scenarios in manifest.yaml)" if n_sc is None
+                      else "n_scenarios: 0 in manifest.yaml"),
+        )  # fmt: skip
     if scenario is None:
         k = present[0]
     else:
-        if isinstance(scenario, bool) or int(scenario) != scenario or scenario not in present:
+        if (
+            isinstance(scenario, bool)
+            or not isinstance(scenario, int | np.integer)
+            or scenario not in present
+        ):
             lo, hi = present[0], present[-1]
             within = f"{lo}" if lo == hi else f"{lo} to {hi}"
             raise InputError(
@@ -414,8 +440,13 @@ def serve_scenario(
         duration = get_float(duration, "--duration", "", lo=0, lo_open=True)
     if isinstance(port, bool) or not isinstance(port, int | np.integer) or not 0 <= port < 65536:
         raise InputError("--port", "", "a TCP port 0 to 65535", port)
-    if not isinstance(host, str) or not host:
-        raise InputError("--host", "", "an address to listen on (127.0.0.1)", host)
+    if (
+        not isinstance(host, str)
+        or not host
+        or len(host) > 253
+        or any(c.isspace() or c in "/\\\x00" for c in host)
+    ):
+        raise InputError("--host", "", "an address to listen on, such as 127.0.0.1", host)
     replay = load_replay(folder, scenario)
     _fm()
     import foxglove
@@ -438,7 +469,12 @@ def serve_scenario(
             capabilities=[Capability.Time],
         )
     except Exception as err:  # the SDK raises its own error types for bind failures
-        raise _port_error(host, int(port), err) from None
+        if _resolves(host):
+            raise _port_error(host, int(port), err) from None
+        raise InputError(
+            "--host", "", "an address of this machine to listen on, such as 127.0.0.1",
+            Described(f"{host!r} ({err})"),
+        ) from None  # fmt: skip
     info: dict[str, Any] = {
         "host": host,
         "port": int(server.port),

@@ -402,15 +402,18 @@ def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
         top.get("replicates", _DEFAULTS["replicates"]), src, "replicates", lo=1, hi=2**62
     )
     for sec in _SECTIONS:
-        given = _section(sec, top[sec], src, sec) if sec in top else {}
+        # an empty section (``robot:`` with nothing, or only comments, below) is no section
+        present = top.get(sec) is not None
+        given = _section(sec, top[sec], src, sec) if present else {}
         if sec == "scenario":
             cfg[sec] = _scenario(given, src, base)
             continue
         # the planner is replaced as a whole; the other sections are merged over defaults
-        merged = {} if sec == "planner" and sec in top else copy.deepcopy(_DEFAULTS[sec])
+        merged = {} if sec == "planner" and present else copy.deepcopy(_DEFAULTS[sec])
         cfg[sec] = {**merged, **given}
     _cross(cfg, src, "")
-    factors = top.get("factors", {})
+    factors = top.get("factors")
+    factors = {} if factors is None else factors  # ``factors:`` with nothing below: none
     if not isinstance(factors, Mapping):
         raise InputError(src, "factors", "a mapping of factor key -> list of levels", factors)
     cfg["factors"] = {}
@@ -503,14 +506,54 @@ def _shipped_maps() -> list[str]:
     return shipped_names("map")
 
 
-@functools.lru_cache(maxsize=4)
+def _stamp(path: str | os.PathLike | None) -> Any:
+    """What identifies the content of a file or a folder for the caches below: size and
+    modification time of the file and of the files beside it (a map's image, a
+    catalogue's meshes), or of every file of a folder. A cache keyed by it never serves a
+    file that was edited or replaced since (a damaged catalogue is read, and refused)."""
+    if path is None:
+        return None
+    p = Path(path)
+    try:
+        if p.is_dir():
+            files = sorted(c for c in p.iterdir() if c.is_file())
+        elif p.is_file():
+            beside = sorted(c for c in itertools.islice(p.parent.iterdir(), 257) if c.is_file())
+            files = [p] if len(beside) > 256 else beside
+        else:
+            return None
+        return tuple((c.name, c.stat().st_mtime_ns, c.stat().st_size) for c in files)
+    except OSError:
+        return None
+
+
+def _cached(locate: Callable[[Any], Any] = lambda a: a) -> Callable[[Callable], Callable]:
+    """``functools.lru_cache`` (4 entries) of a one-argument reader, keyed by the argument
+    and the :func:`_stamp` of the file it names (``locate`` finds that file)."""
+
+    def wrap(fn: Callable) -> Callable:
+        @functools.lru_cache(maxsize=4)
+        def by_content(arg: Any, stamp: Any) -> Any:
+            return fn(arg)
+
+        @functools.wraps(fn)
+        def read(arg: Any) -> Any:
+            return by_content(arg, _stamp(locate(arg)))
+
+        read.cache_clear = by_content.cache_clear  # type: ignore[attr-defined]
+        return read
+
+    return wrap
+
+
+@_cached()
 def _grid(path: str) -> Any:
     from are_stats.environment import OccupancyGrid
 
     return OccupancyGrid.from_ros_yaml(path)
 
 
-@functools.lru_cache(maxsize=4)
+@_cached()
 def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any, Any]:
     """Posterior draws and laws of the fit's chosen traffic models
     (:func:`~are_stats.scenarios.traffic_draws`), its class labels and its fitted behaviour
@@ -524,24 +567,26 @@ def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any,
     draws, laws = traffic_draws(idata, "chosen")
     behaviour = None
     if "behaviour" in idata.groups():
-        behaviour = BehaviourFit.from_dataset(idata.behaviour)
+        try:
+            behaviour = BehaviourFit.from_dataset(idata.behaviour)
+        except (KeyError, ValueError, TypeError, IndexError) as err:
+            raise InputError(
+                path, "behaviour", "the behaviour group written by are-stats fit",
+                Described(f"a damaged group ({type(err).__name__}: {err})"),
+            ) from None  # fmt: skip
     return draws, (str(names).split(",") if names else None), laws, behaviour
 
 
-@functools.lru_cache(maxsize=4)
+@_cached()
 def _scenario_folder(path: str) -> tuple[pd.DataFrame, dict[str, Any], pd.DataFrame | None]:
-    """Artefacts, manifest and behaviour tracks (None without) of a scenarios folder."""
-    from are_stats.scenarios import read_scenarios
+    """Artefacts, manifest and behaviour tracks (None without) of a scenarios folder, all
+    checked (:func:`~are_stats.scenarios.read_scenes`)."""
+    from are_stats.scenarios import read_scenes
 
-    df, meta = read_scenarios(path)
-    info = meta.get("tracks")
-    tracks = None
-    if isinstance(info, Mapping) and isinstance(info.get("file"), str):
-        tracks = pd.read_parquet(Path(path) / Path(info["file"]).name)
-    return df, meta, tracks
+    return tuple(read_scenes(path))  # type: ignore[return-value]
 
 
-@functools.lru_cache(maxsize=4)
+@_cached()
 def _load_catalogue(path: str | None) -> Any:
     from are_stats.environment import load_catalogue
 
@@ -660,7 +705,7 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
                 Described(f"no such file {cfg['catalogue']}"),
             )  # fmt: skip
         _load_catalogue(cfg["catalogue"])
-    if cfg["behaviours"] and abs(float(grid.origin[2])) > 1e-9:
+    if cfg["behaviours"] and abs(float(grid.origin[2])) > 1e-9 and _rolls_out(cfg["scenario"]):
         raise InputError(
             src, "behaviours", "a map whose origin yaw is 0 (behaviours move on its cells)",
             Described(f"true, with the map's origin yaw {grid.origin[2]}"),
@@ -685,6 +730,17 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
         what = f"{concurrent} tasks at once like {what}"
     check_memory(worst_bytes * concurrent, what, src)
     check_work(total, f"the {n_tasks} tasks of the sweep", src)
+
+
+def _rolls_out(scenario: Mapping[str, Any]) -> bool:
+    """Whether ``behaviours`` roll tracks out on the map's cells for this scenario source:
+    not when a scenarios folder brings its own tracks, nor when a fit brings its fitted
+    behaviour (which moves in the plane)."""
+    if "scenarios" in scenario and Path(scenario["scenarios"]).is_dir():
+        return _scenario_folder(str(scenario["scenarios"]))[2] is None
+    if "fit" in scenario and Path(scenario["fit"]).is_file():
+        return _fit_draws(str(scenario["fit"]))[3] is None
+    return True  # (a missing source is named by the checks of each task)
 
 
 def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str, Any]:
@@ -764,7 +820,7 @@ def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str
     return _expand(load_sweep_config(config))
 
 
-@functools.lru_cache(maxsize=4)
+@_cached(lambda name: _map_file(name))
 def _load_map(name: str) -> tuple[Any, Any]:
     from are_stats.environment import load_mesh
 

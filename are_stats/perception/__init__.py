@@ -18,8 +18,6 @@ from are_stats.perception._scenario import (
     perceived_grid,
     poses_outside,
     read_robot_path,
-    read_scenario_folder,
-    read_scenario_tracks,
     scenario_scenes,
     yaw_rotations,
 )
@@ -41,8 +39,6 @@ __all__ = [
     "plot_top_view",
     "poses_outside",
     "read_robot_path",
-    "read_scenario_folder",
-    "read_scenario_tracks",
     "sample_perceived",
     "save_figure",
     "scenario_scenes",

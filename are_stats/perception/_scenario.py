@@ -10,39 +10,36 @@ marks on M_2D the footprints of the perceived artefacts only, and
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
-from are_stats.inputs import Described, InputError, check_memory, check_work, get_list, get_str
+from are_stats.inputs import Described, InputError, check_memory, check_work
 from are_stats.perception._camera import check_pose
 from are_stats.perception._perceive import perceived_counts_batch
+from are_stats.scenarios import MAX_POSITION
+
+_SCENARIO_FLOATS = ("t_arrive", "t_leave", "x", "y", "yaw")
 
 __all__ = [
     "check_path_times",
     "perceive_scene",
     "perceive_scenario",
     "poses_outside",
-    "read_scenario_tracks",
     "scenario_scenes",
     "perceived_grid",
     "read_robot_path",
-    "read_scenario_folder",
     "yaw_rotations",
     "MAX_POSITION",
 ]
 
-#: Largest ``|x|``, ``|y|`` of a robot pose or an artefact accepted (metres).
-MAX_POSITION = 1e7
 #: Memory per (robot pose, artefact of one scenario) pair while perceiving (bytes): the
 #: active mask, the counts and the perceived flags.
 PAIR_BYTES = 24
 #: More memory per pair when boxes move: a centre, a yaw and a rotation per frame.
 MOVING_PAIR_BYTES = 104
-_SCENARIO_FLOATS = ("t_arrive", "t_leave", "x", "y", "yaw")
 
 
 def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
@@ -93,179 +90,6 @@ def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
             repr(float(t[i])),
         )
     return pd.DataFrame(cols)
-
-
-def read_scenario_folder(folder: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Read and check a scenarios folder for perception (``are-stats perceive SCENARIO``).
-
-    The folder must hold ``manifest.yaml`` (a mapping; ``map`` a string or null,
-    ``class_labels`` a list of strings or null) and ``artefacts.parquet`` with integer
-    columns ``scenario`` (>= 0), ``class`` and ``mark`` (>= -1; ``mark`` optional),
-    ``artefact`` (optional: ids >= 0, unique within a scenario) and finite
-    ``t_arrive <= t_leave``, ``x``, ``y``, ``yaw`` (other columns are kept as they are).
-
-    Returns
-    -------
-    (pandas.DataFrame, dict)
-        The artefacts table and the manifest.
-
-    Raises
-    ------
-    FileNotFoundError
-        If the folder does not exist.
-    are_stats.inputs.InputError
-        (a ``ValueError``) naming the file, and the key or the row and column.
-    """
-    import pyarrow.parquet as pq
-
-    from are_stats.inputs import load_yaml
-    from are_stats.logs import read_raw_table
-
-    d = Path(folder)
-    if not d.exists():
-        raise FileNotFoundError(f"{d}: no such scenarios folder")
-    if not d.is_dir():
-        raise InputError(
-            d, "", "a scenarios folder written by are-stats generate", Described("a file")
-        )
-    for name in ("manifest.yaml", "artefacts.parquet"):
-        if not (d / name).is_file():
-            raise InputError(
-                d, name, "a scenarios folder with manifest.yaml and artefacts.parquet",
-                Described(f"no file {name}"),
-            )  # fmt: skip
-    mpath = d / "manifest.yaml"
-    manifest = load_yaml(mpath, "scenarios manifest")
-    if not isinstance(manifest, dict):
-        raise InputError(mpath, "", "a mapping (a scenarios manifest)", manifest)
-    if manifest.get("map") is not None:
-        get_str(manifest["map"], mpath, "map")
-    if manifest.get("class_labels") is not None:
-        labels = get_list(manifest["class_labels"], mpath, "class_labels")
-        for i, lab in enumerate(labels):
-            get_str(lab, mpath, f"class_labels[{i}]")
-    table = read_raw_table(d / "artefacts.parquet", "scenarios table")
-    table.require(["scenario", "class", *_SCENARIO_FLOATS], "scenarios table")
-    num = {c: table.floats(c, allow_empty=False)[0] for c in _SCENARIO_FLOATS}
-    for c in ("x", "y"):
-        big = np.abs(num[c]) > MAX_POSITION
-        if big.any():
-            i = int(np.argmax(big))
-            raise table.error(
-                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(num[c][i]))
-            )
-    early = num["t_leave"] < num["t_arrive"]
-    if early.any():
-        i = int(np.argmax(early))
-        raise table.error(
-            i,
-            "t_leave",
-            f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})",
-            repr(float(num["t_leave"][i])),
-        )
-    ints = {"scenario": table.nonneg_ints("scenario", allow_empty=False)[0]}
-    if "artefact" in table.columns:  # the ids the behaviour tracks name
-        ints["artefact"] = table.nonneg_ints("artefact", allow_empty=False)[0]
-    for c in ("class", "mark"):
-        if c not in table.columns:
-            continue
-        v = table.floats(c, allow_empty=False)[0]
-        bad = (v < -1) | (v != np.round(v)) | (v > 2**53)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise table.error(i, c, "an integer >= -1", repr(float(v[i])))
-        ints[c] = v.astype(np.int64)
-    try:
-        df = pq.read_table(d / "artefacts.parquet").to_pandas()
-    except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
-        raise InputError(
-            d / "artefacts.parquet", "", "a readable Parquet table", Described(str(err))
-        ) from None
-    for c, v in {**num, **ints}.items():
-        df[c] = v
-    if "artefact" in df.columns:
-        dup = df.duplicated(["scenario", "artefact"]).to_numpy()
-        if dup.any():
-            i = int(np.argmax(dup))
-            got = repr(int(ints["artefact"][i]))
-            raise table.error(i, "artefact", "artefact ids unique within a scenario", got)
-    return df, manifest
-
-
-def read_scenario_tracks(
-    folder: str | os.PathLike, manifest: dict[str, Any], artefacts: pd.DataFrame
-) -> pd.DataFrame | None:
-    """Read and check the behaviour tracks of a scenarios folder, if it has any.
-
-    ``are-stats generate --behaviours`` writes them beside the artefacts and names the file
-    in the manifest (``tracks: {file: tracks.parquet, ...}``). Every row must hold finite
-    ``t, x, y, yaw``, a ``scenario`` and ``id`` naming an artefact of ``artefacts``
-    (its ``artefact`` column, else its position in its scenario), and no artefact may have
-    two poses at one time.
-
-    Returns
-    -------
-    pandas.DataFrame or None
-        Columns ``scenario, id`` (int64) and ``t, x, y, yaw`` (float64); None when the
-        manifest names no tracks.
-
-    Raises
-    ------
-    are_stats.inputs.InputError
-        Naming the manifest key, or the tracks file with the row and column.
-    """
-    from are_stats.logs import read_raw_table
-
-    spec = manifest.get("tracks")
-    if spec is None:
-        return None
-    d = Path(folder)
-    mpath = d / "manifest.yaml"
-    if not isinstance(spec, dict):
-        raise InputError(mpath, "tracks", "a mapping naming the tracks file (file: NAME)", spec)
-    name = get_str(spec.get("file"), mpath, "tracks.file")
-    if Path(name).name != name or name in ("", ".", ".."):
-        raise InputError(mpath, "tracks.file", "a file name inside the scenarios folder", name)
-    if not (d / name).is_file():
-        raise InputError(
-            mpath, "tracks.file", "a tracks file in the scenarios folder",
-            Described(f"no file {name}"),
-        )  # fmt: skip
-    table = read_raw_table(d / name, "behaviour tracks")
-    cols = ["scenario", "id", "t", "x", "y", "yaw"]
-    table.require(cols, "behaviour tracks")
-    num = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
-    for c in ("x", "y"):
-        big = np.abs(num[c]) > MAX_POSITION
-        if big.any():
-            i = int(np.argmax(big))
-            raise table.error(
-                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(num[c][i]))
-            )
-    scen = table.nonneg_ints("scenario", allow_empty=False)[0]
-    ids = table.nonneg_ints("id", allow_empty=False)[0]
-    a_scen = artefacts["scenario"].to_numpy(np.int64)
-    a_ids = (
-        artefacts["artefact"].to_numpy(np.int64)
-        if "artefact" in artefacts.columns
-        else artefacts.groupby("scenario").cumcount().to_numpy(np.int64)
-    )
-    known = pd.MultiIndex.from_arrays([a_scen, a_ids])
-    bad = ~pd.MultiIndex.from_arrays([scen, ids]).isin(known)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise table.error(
-            i, "id", f"an artefact of scenario {int(scen[i])} in artefacts.parquet",
-            repr(int(ids[i])),
-        )  # fmt: skip
-    dup = pd.DataFrame({"s": scen, "a": ids, "t": num["t"]}).duplicated().to_numpy()
-    if dup.any():
-        i = int(np.argmax(dup))
-        raise table.error(
-            i, "t", f"one pose per artefact and time (artefact {int(ids[i])} has two)",
-            repr(float(num["t"][i])),
-        )  # fmt: skip
-    return pd.DataFrame({"scenario": scen, "id": ids, **num})
 
 
 def yaw_rotations(yaw: Any) -> np.ndarray:

@@ -1,11 +1,20 @@
-"""Posterior-predictive scenario generation: artefact populations from fitted priors, and
-the Scene that turns one scenario into boxes over time."""
+"""Posterior-predictive scenario generation: artefact populations from fitted priors, the
+Scene that turns one scenario into boxes over time, and the scenarios folder (one writer,
+:func:`write_scenes`, and one validating reader, :func:`read_scenes`)."""
 
 from are_stats.scenarios._assembly import (
     BEHAVIOUR_SOURCES,
     check_tracks_size,
     scenes_from_draws,
     scenes_from_fit,
+    scenes_tables,
+)
+from are_stats.scenarios._folder import (
+    FORMAT_VERSION,
+    MAX_POSITION,
+    ScenesFolder,
+    read_scenes,
+    write_scenes,
 )
 from are_stats.scenarios._generate import (
     PARAMETER_NAMES,
@@ -20,7 +29,6 @@ from are_stats.scenarios._generate import (
     read_scenarios,
     scenario_counts,
     traffic_draws,
-    write_scenario_files,
     write_scenarios,
 )
 from are_stats.scenarios._scene import Boxes, Scene
@@ -28,7 +36,10 @@ from are_stats.scenarios._scene import Boxes, Scene
 __all__ = [
     "BEHAVIOUR_SOURCES",
     "Boxes",
+    "FORMAT_VERSION",
+    "MAX_POSITION",
     "Scene",
+    "ScenesFolder",
     "PARAMETER_NAMES",
     "SCENARIO_COLUMNS",
     "TRAFFIC_NAMES",
@@ -40,10 +51,12 @@ __all__ = [
     "generate_scenarios",
     "posterior_draws",
     "read_scenarios",
+    "read_scenes",
     "scenario_counts",
     "scenes_from_draws",
     "scenes_from_fit",
+    "scenes_tables",
     "traffic_draws",
-    "write_scenario_files",
     "write_scenarios",
+    "write_scenes",
 ]

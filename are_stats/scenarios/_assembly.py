@@ -38,7 +38,13 @@ import pandas as pd
 from are_stats.scenarios._generate import check_scenario_size, generate_scenarios, traffic_draws
 from are_stats.scenarios._scene import Scene
 
-__all__ = ["BEHAVIOUR_SOURCES", "check_tracks_size", "scenes_from_draws", "scenes_from_fit"]
+__all__ = [
+    "BEHAVIOUR_SOURCES",
+    "check_tracks_size",
+    "scenes_from_draws",
+    "scenes_from_fit",
+    "scenes_tables",
+]
 
 #: Values of ``behaviours=`` (besides ``True`` = ``"auto"`` and ``False`` = ``"none"``).
 BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
@@ -122,9 +128,33 @@ def _split_scenes(
     empty = artefacts.iloc[:0]
     out = []
     for s in range(n):
-        part = by_sc.get(s, empty)
+        part = by_sc.get(s, empty).copy()
+        part.attrs = dict(artefacts.attrs)  # the generation settings, for the folder
         out.append(Scene.from_scenarios(part, catalogue, tr_by.get(s), class_labels=class_labels))
     return out
+
+
+def scenes_tables(scenes: list[Scene]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The scenarios table and the tracks table of scenes made by :func:`scenes_from_fit`
+    (what :func:`~are_stats.scenarios.write_scenes` writes).
+
+    Returns
+    -------
+    artefacts : pandas.DataFrame
+        The scenes' tables, scenario after scenario, with the generation settings in
+        ``attrs``.
+    tracks : pandas.DataFrame
+        ``scenario, id, t, x, y, yaw`` (empty without tracks).
+    """
+    cols = ["scenario", "id", "t", "x", "y", "yaw"]
+    if not scenes:
+        return pd.DataFrame(), pd.DataFrame(columns=cols)
+    art = pd.concat([s.artefacts for s in scenes], ignore_index=True)
+    art.attrs = dict(scenes[0].artefacts.attrs)
+    tracks = pd.concat(
+        [s.tracks_table().assign(scenario=k) for k, s in enumerate(scenes)], ignore_index=True
+    )[cols]
+    return art, tracks
 
 
 def scenes_from_draws(

@@ -17,7 +17,8 @@ Each scenario takes one posterior draw ``(lambda, mu, pi, lambda_mix)`` and simu
 
 Everything is drawn for all scenarios at once with one NumPy ``Generator`` (no Python loop
 per scenario or artefact), so the same seed gives the same table on every machine with the
-same NumPy version, and :func:`write_scenarios` writes it byte for byte identically.
+same NumPy version, and :func:`~are_stats.scenarios.write_scenes` writes it byte for byte
+identically.
 """
 
 from __future__ import annotations
@@ -30,11 +31,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from are_stats._atomic import atomic_folder, check_folder
 from are_stats._checks import check_in, check_nonnegative, check_positive, describe
 from are_stats.inputs import check_memory, check_work, get_float, get_int
+from are_stats.scenarios._folder import SCENARIO_COLUMNS, read_scenes, write_scenes
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -49,29 +50,11 @@ __all__ = [
     "read_scenarios",
     "scenario_counts",
     "traffic_draws",
-    "write_scenario_files",
     "write_scenarios",
 ]
 
 #: Posterior variables used (names of the fit's NetCDF variables).
 PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
-
-#: Columns of a scenarios table and their meaning (also written into the manifest).
-SCENARIO_COLUMNS: dict[str, str] = {
-    "scenario": "int32, scenario index 0..n_scenarios-1",
-    "artefact": "int32, artefact index within its scenario, in order of arrival",
-    "class": "int32, mixture component that drew the mark (-1 without a mixture)",
-    "mark": "int64, mark X of eq. (1) (-1 without a mixture)",
-    "t_arrive": "float64, arrival time in [0, horizon] (0 for the initial population)",
-    "t_leave": "float64, leaving time (may exceed the horizon: see censored)",
-    "x": "float64, arrival position x in the map frame (m)",
-    "y": "float64, arrival position y in the map frame (m)",
-    "yaw": "float64, arrival heading in [0, 2 pi) (rad)",
-    "truncated": "bool, present at time 0 (initial population)",
-    "censored": "bool, t_leave > horizon (still present at the end)",
-    "group": "int32, group within the scenario (members arrived together; a lone artefact "
-    "has a group of its own)",
-}
 
 
 def _seed_sequence(key: Any) -> tuple[np.random.SeedSequence, Any]:
@@ -729,210 +712,33 @@ def scenario_counts(df: pd.DataFrame, times: Any, n_scenarios: int | None = None
     return out
 
 
-def _plain(x: Any) -> Any:
-    """YAML-safe plain Python values."""
-    if isinstance(x, Mapping):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_plain(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _plain(x.tolist())
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, Path):
-        return str(x)
-    return x
-
-
-def write_scenario_files(
-    df: pd.DataFrame, out: Path, manifest: Mapping[str, Any] | None
-) -> tuple[Path, Path]:
-    """Write ``artefacts.parquet`` and ``manifest.yaml`` into the folder ``out``.
-
-    The building block of :func:`write_scenarios` for callers that write more files into
-    the same new folder (``out`` is the private folder of an :func:`atomic_folder`); the
-    bytes are the same.
-
-    Returns
-    -------
-    (Path, Path)
-        The Parquet and YAML paths.
-    """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from are_stats import __version__
-
-    pq_path, yml_path = out / "artefacts.parquet", out / "manifest.yaml"
-    plain = pd.DataFrame({c: df[c].to_numpy() for c in SCENARIO_COLUMNS})
-    table = pa.Table.from_pandas(plain, preserve_index=False)
-    table = table.replace_schema_metadata(None)
-    n_sc = int(
-        df.attrs.get("generation", {}).get(
-            "n_scenarios", int(df["scenario"].max()) + 1 if len(df) else 0
-        )
-    )
-    meta: dict[str, Any] = {
-        "format": "are_stats scenarios 1",
-        "version": __version__,
-        "n_scenarios": n_sc,
-        "n_artefacts": len(df),
-        "files": {"artefacts": pq_path.name},
-        "columns": dict(SCENARIO_COLUMNS),
-        "generation": df.attrs.get("generation", {}),
-    }
-    meta.update(dict(manifest or {}))
-    text = yaml.safe_dump(_plain(meta), sort_keys=False, default_flow_style=None)
-    pq.write_table(
-        table,
-        pq_path,
-        compression="zstd",
-        compression_level=3,
-        use_dictionary=False,
-        write_statistics=True,
-        version="2.6",
-        data_page_version="1.0",
-        row_group_size=1 << 20,
-        store_schema=False,
-    )
-    yml_path.write_text(text)
-    return pq_path, yml_path
-
-
-def _check_table(df: pd.DataFrame) -> None:
-    missing = [c for c in SCENARIO_COLUMNS if c not in df.columns]
-    if missing:
-        raise ValueError(
-            f"df: expected a scenarios table with columns {list(SCENARIO_COLUMNS)}, "
-            f"got {list(df.columns)} (missing {missing})"
-        )
-
-
 def write_scenarios(
     df: pd.DataFrame,
     out_dir: str | os.PathLike,
     manifest: Mapping[str, Any] | None = None,
     force: bool = False,
 ) -> tuple[Path, Path]:
-    """Write ``artefacts.parquet`` and ``manifest.yaml`` as a whole new folder ``out_dir``.
-
-    The Parquet file is written with pinned options (zstd level 3, no dictionary, no pandas
-    or Arrow schema metadata, one row group per 2^20 rows), so the same table gives the
-    same bytes. The manifest holds the format, the are_stats version, the columns, the
-    generation settings (``df.attrs["generation"]``: seed, parameters summary, ...) and
-    every key of ``manifest`` (e.g. ``fit``: the fit file used). The folder is written
-    beside ``out_dir`` and put in its place as a whole (:func:`atomic_folder`): with
-    ``force`` an existing folder is replaced entirely (no file of an earlier run stays).
-
-    Parameters
-    ----------
-    df : pandas.DataFrame
-        A scenarios table.
-    out_dir : str or PathLike
-        Output folder.
-    manifest : dict, optional
-        Extra manifest entries (they win over the generated ones).
-    force : bool
-        Replace an existing folder.
+    """Write ``artefacts.parquet`` and ``manifest.yaml`` as a whole new folder ``out_dir``
+    (:func:`~are_stats.scenarios.write_scenes` without tracks).
 
     Returns
     -------
     (Path, Path)
         The Parquet and YAML paths.
-
-    Raises
-    ------
-    OutputExistsError
-        If the folder exists (and is not empty) and ``force`` is false (nothing is written
-        then).
     """
-    _check_table(df)
-    out = Path(out_dir)
-    with atomic_folder(out, force=force) as tmp:
-        write_scenario_files(df, tmp, manifest)
+    out = write_scenes(df, out_dir, manifest, force=force)
     return out / "artefacts.parquet", out / "manifest.yaml"
 
 
 def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Read a scenarios folder written by :func:`write_scenarios`.
+    """Read a scenarios folder: the artefacts table and the manifest of
+    :func:`~are_stats.scenarios.read_scenes` (which checks every value, the tracks
+    included).
 
     Returns
     -------
     (pandas.DataFrame, dict)
         The artefacts table and the manifest.
-
-    Raises
-    ------
-    FileNotFoundError
-        If ``artefacts.parquet`` or ``manifest.yaml`` is missing.
-    are_stats.inputs.InputError
-        Naming the file: a manifest that is not a YAML mapping (duplicate keys, alias bombs
-        refused by :func:`are_stats.inputs.load_yaml`), a table that is not Parquet or lacks
-        a column of :data:`SCENARIO_COLUMNS`.
     """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from are_stats.inputs import Described, InputError, load_yaml
-
-    d = Path(out_dir)
-    for name in ("artefacts.parquet", "manifest.yaml"):
-        if not (d / name).exists():
-            raise FileNotFoundError(f"{d / name}: no such file (expected a scenarios folder)")
-    meta = load_yaml(d / "manifest.yaml", "scenarios manifest")
-    if not isinstance(meta, Mapping):
-        raise InputError(d / "manifest.yaml", "", "a mapping (the scenarios manifest)", meta)
-    generation = meta.get("generation", {})
-    if not isinstance(generation, Mapping):
-        raise InputError(d / "manifest.yaml", "generation", "a mapping", generation)
-    path = d / "artefacts.parquet"
-    try:
-        table = pq.read_table(path)
-    except (pa.ArrowException, OSError) as err:
-        raise InputError(path, "", "a Parquet scenarios table", Described(str(err))) from None
-    if "group" not in table.column_names and "artefact" in table.column_names:
-        # folders written before groups: every artefact alone
-        table = table.append_column("group", table.column("artefact"))
-    missing = [c for c in SCENARIO_COLUMNS if c not in table.column_names]
-    if missing:
-        raise InputError(
-            path, f"column {missing[0]!r}", "every column of " + ", ".join(SCENARIO_COLUMNS),
-            Described(f"columns {table.column_names}"),
-        )  # fmt: skip
-    df = table.to_pandas()
-    _check_columns(df, path, meta.get("n_scenarios"))
-    df.attrs["generation"] = dict(generation)
-    return df, dict(meta)
-
-
-def _check_columns(df: pd.DataFrame, path: Path, n_scenarios: Any) -> None:
-    """Column types and values of a scenarios table read from ``path`` (first bad row named)."""
-    from are_stats.inputs import Described, InputError
-
-    def bad_row(column: str, mask: np.ndarray, expected: str) -> None:
-        if mask.any():
-            i = int(np.argmax(mask))
-            raise InputError(path, f"row {i}, column {column!r}", expected, df[column].iloc[i])
-
-    n_sc = (
-        n_scenarios if isinstance(n_scenarios, int) and not isinstance(n_scenarios, bool) else None
-    )
-    for column, lo in (
-        ("scenario", 0), ("artefact", 0), ("class", -1), ("mark", -1), ("group", 0),
-    ):  # fmt: skip
-        a = df[column].to_numpy()
-        if a.dtype.kind not in "iu":
-            raise InputError(path, f"column {column!r}", "integers", Described(f"dtype {a.dtype}"))
-        hi = n_sc - 1 if column == "scenario" and n_sc is not None else np.iinfo(np.int64).max
-        bad = (a < lo) | (a > hi)
-        bad_row(column, bad, f"an integer in [{lo}, {hi}]")
-    for column in ("t_arrive", "t_leave", "x", "y", "yaw"):
-        a = df[column].to_numpy()
-        if a.dtype.kind != "f":
-            raise InputError(path, f"column {column!r}", "floats", Described(f"dtype {a.dtype}"))
-        bad_row(column, ~np.isfinite(a), "a finite number")
-    bad_row("t_leave", df["t_leave"].to_numpy() < df["t_arrive"].to_numpy(), "t_leave >= t_arrive")
-    for column in ("truncated", "censored"):
-        a = df[column].to_numpy()
-        if a.dtype.kind != "b":
-            raise InputError(path, f"column {column!r}", "booleans", Described(f"dtype {a.dtype}"))
+    folder = read_scenes(out_dir)
+    return folder.artefacts, folder.manifest

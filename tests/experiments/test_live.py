@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import socket
 import struct
 import threading
@@ -257,6 +258,15 @@ def test_cli_serve_runs_and_reports(folder):
         (["--scenario", "7"], r"--scenario: expected a scenario of .*\(0 to 1\), got 7"),
         (["--speed", "0"], r"--speed: expected"),
         (["--duration", "-1"], r"--duration: expected"),
+        (["--duration", "inf"], r"--duration: expected a finite number"),
+        (["--speed", "nan"], r"--speed: expected a finite number"),
+        (["--speed", "1e7"], r"--speed: expected a finite number .*<= 1e\+06"),
+        (["--port", "70000"], r"--port: expected a TCP port 0 to 65535, got 70000"),
+        (["--port", "-1"], r"--port: expected a TCP port 0 to 65535"),
+        (["--scenario", "-1"], r"--scenario: expected a scenario of .*\(0 to 1\), got -1"),
+        # a bad host was reported as a port in use
+        (["--host", "a b"], r"--host: expected an address to listen on"),
+        (["--host", "x/y"], r"--host: expected an address to listen on"),
     ],
 )
 def test_cli_serve_bad_options(folder, args, pattern):
@@ -270,6 +280,10 @@ def test_cli_serve_bad_options(folder, args, pattern):
 def test_cli_serve_bad_folder(tmp_path, folder):
     res = runner.invoke(app, ["serve", str(tmp_path / "nope")])
     assert res.exit_code == 2 and "no such scenarios folder" in res.output, res.output
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    res = runner.invoke(app, ["serve", str(fifo)])
+    assert res.exit_code == 2 and "neither a folder nor a file" in res.output, res.output
     (folder / "artefacts.parquet").unlink()
     res = runner.invoke(app, ["serve", str(folder)])
     assert res.exit_code == 2 and "artefacts.parquet" in res.output, res.output

@@ -1,0 +1,470 @@
+"""The scenarios folder: one writer (:func:`write_scenes`) and one validating reader
+(:func:`read_scenes`), the only code that touches such a folder.
+
+A scenarios folder holds
+
+* ``manifest.yaml``: a mapping with ``format_version`` (an integer, :data:`FORMAT_VERSION`
+  for folders written now; a folder without one is version 1, written before the key
+  existed, and reads the same way), the columns, the generation settings and the keys the
+  writer adds (``fit``, ``map``, ``seed``, ``class_labels``, ``tracks``, ...);
+* ``artefacts.parquet``: one row per artefact (:data:`SCENARIO_COLUMNS`); zero rows is a
+  valid folder (no artefact arrived);
+* optionally the behaviour tracks the manifest names (``tracks: {file: tracks.parquet}``):
+  columns ``scenario, id, t, x, y, yaw``, one pose per artefact and time.
+
+Every value is checked on reading; an error names the file, the row (1-based data rows) or
+the manifest key, the column and what was expected.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from are_stats._atomic import atomic_folder
+from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
+
+__all__ = [
+    "FORMAT_VERSION",
+    "MAX_POSITION",
+    "SCENARIO_COLUMNS",
+    "ScenesFolder",
+    "read_scenes",
+    "write_scenes",
+]
+
+#: Version of the folder layout written by :func:`write_scenes` (``format_version`` in the
+#: manifest). Version 1: folders written before the key (read the same way).
+FORMAT_VERSION = 2
+#: Largest ``|x|``, ``|y|`` of an artefact or a track pose accepted (metres).
+MAX_POSITION = 1e7
+
+#: Columns of a scenarios table and their meaning (also written into the manifest).
+SCENARIO_COLUMNS: dict[str, str] = {
+    "scenario": "int32, scenario index 0..n_scenarios-1",
+    "artefact": "int32, artefact index within its scenario, in order of arrival",
+    "class": "int32, mixture component that drew the mark (-1 without a mixture)",
+    "mark": "int64, mark X of eq. (1) (-1 without a mixture)",
+    "t_arrive": "float64, arrival time in [0, horizon] (0 for the initial population)",
+    "t_leave": "float64, leaving time (may exceed the horizon: see censored)",
+    "x": "float64, arrival position x in the map frame (m)",
+    "y": "float64, arrival position y in the map frame (m)",
+    "yaw": "float64, arrival heading in [0, 2 pi) (rad)",
+    "truncated": "bool, present at time 0 (initial population)",
+    "censored": "bool, t_leave > horizon (still present at the end)",
+    "group": "int32, group within the scenario (members arrived together; a lone artefact "
+    "has a group of its own)",
+}
+#: Columns every scenarios table must have; the others have defaults (``artefact``: the
+#: position within the scenario, ``mark``: -1, ``group``: the artefact, ``truncated``:
+#: ``t_arrive <= 0``, ``censored``: false).
+REQUIRED_COLUMNS = ("scenario", "class", "t_arrive", "t_leave", "x", "y", "yaw")
+TRACK_COLUMNS = ("scenario", "id", "t", "x", "y", "yaw")
+_FLOATS = ("t_arrive", "t_leave", "x", "y", "yaw")
+_INT32 = np.iinfo(np.int32).max
+_ARTEFACTS, _MANIFEST, _TRACKS = "artefacts.parquet", "manifest.yaml", "tracks.parquet"
+
+
+class ScenesFolder(NamedTuple):
+    """What :func:`read_scenes` returns."""
+
+    #: One row per artefact: the columns of :data:`SCENARIO_COLUMNS` (their dtypes) in
+    #: that order, then any other column of the file as it was.
+    artefacts: pd.DataFrame
+    #: The manifest (a mapping, checked).
+    manifest: dict[str, Any]
+    #: Behaviour tracks: ``scenario, id`` (int64), ``t, x, y, yaw`` (float64); None when
+    #: the manifest names none.
+    tracks: pd.DataFrame | None
+
+
+# ---- writing ---------------------------------------------------------------------------
+
+
+def _plain(x: Any) -> Any:
+    """YAML-safe plain Python values."""
+    if isinstance(x, Mapping):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, Path):
+        return str(x)
+    return x
+
+
+def _write_parquet(df: pd.DataFrame, path: Path) -> None:
+    """Pinned Parquet options (zstd 3, no dictionary, no schema metadata): same table, same
+    bytes."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None)
+    pq.write_table(
+        table,
+        path,
+        compression="zstd",
+        compression_level=3,
+        use_dictionary=False,
+        write_statistics=True,
+        version="2.6",
+        data_page_version="1.0",
+        row_group_size=1 << 20,
+        store_schema=False,
+    )
+
+
+def _check_table(df: pd.DataFrame, columns: Any, what: str) -> None:
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise ValueError(
+            f"{what}: expected a table with columns {list(columns)}, "
+            f"got {list(df.columns)} (missing {missing})"
+        )
+
+
+def write_scenes(
+    df: pd.DataFrame,
+    out_dir: str | os.PathLike,
+    manifest: Mapping[str, Any] | None = None,
+    *,
+    tracks: pd.DataFrame | None = None,
+    force: bool = False,
+) -> Path:
+    """Write a scenarios folder: ``artefacts.parquet``, ``manifest.yaml`` and, with
+    ``tracks``, ``tracks.parquet``, as a whole new folder ``out_dir``.
+
+    The Parquet files are written with pinned options, so the same tables give the same
+    bytes. The manifest holds ``format_version`` (:data:`FORMAT_VERSION`), the are_stats
+    version, the columns, the generation settings (``df.attrs["generation"]``: seed,
+    parameters summary, ...), the tracks file with ``tracks`` and every key of
+    ``manifest`` (e.g. ``fit``: the fit file used; ``tracks``: more about the tracks). The
+    folder is written beside ``out_dir`` and put in its place as a whole
+    (:func:`are_stats.scenarios.atomic_folder`): with ``force`` an existing folder is
+    replaced entirely (no file of an earlier run stays).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A scenarios table, ``(n_artefacts,)`` rows with the columns of
+        :data:`SCENARIO_COLUMNS`.
+    out_dir : str or PathLike
+        Output folder.
+    manifest : dict, optional
+        Extra manifest entries (they win over the generated ones).
+    tracks : pandas.DataFrame, optional
+        Behaviour tracks, ``(n_poses,)`` rows with columns ``scenario, id, t, x, y, yaw``.
+    force : bool
+        Replace an existing folder.
+
+    Returns
+    -------
+    Path
+        The folder.
+
+    Raises
+    ------
+    OutputExistsError
+        If the folder exists (and is not empty) and ``force`` is false (nothing is written
+        then).
+    ValueError
+        If ``df`` or ``tracks`` lacks a column.
+
+    Examples
+    --------
+    >>> write_scenes(df, "scen/", {"fit": "fit.nc"})  # doctest: +SKIP
+    >>> read_scenes("scen/").artefacts.equals(df)  # doctest: +SKIP
+    True
+    """
+    from are_stats import __version__
+
+    _check_table(df, SCENARIO_COLUMNS, "df")
+    if tracks is not None:
+        _check_table(tracks, TRACK_COLUMNS, "tracks")
+    plain = pd.DataFrame({c: df[c].to_numpy() for c in SCENARIO_COLUMNS})
+    generation = df.attrs.get("generation", {})
+    n_sc = int(generation.get("n_scenarios", int(df["scenario"].max()) + 1 if len(df) else 0))
+    meta: dict[str, Any] = {
+        "format": f"are_stats scenarios {FORMAT_VERSION}",
+        "format_version": FORMAT_VERSION,
+        "version": __version__,
+        "n_scenarios": n_sc,
+        "n_artefacts": len(df),
+        "files": {"artefacts": _ARTEFACTS},
+        "columns": dict(SCENARIO_COLUMNS),
+        "generation": generation,
+    }
+    extra = dict(manifest or {})
+    if tracks is not None:
+        given = extra.get("tracks")
+        spec = dict(given) if isinstance(given, Mapping) else {}
+        spec = {"file": _TRACKS, **{k: v for k, v in spec.items() if k != "file"}}
+        spec.setdefault("rows", len(tracks))
+        extra["tracks"] = spec
+    meta.update(extra)
+    text = yaml.safe_dump(_plain(meta), sort_keys=False, default_flow_style=None)
+    out = Path(out_dir)
+    with atomic_folder(out, force=force) as tmp:
+        _write_parquet(plain, tmp / _ARTEFACTS)
+        if tracks is not None:
+            kinds = {c: np.int64 if c in ("scenario", "id") else np.float64 for c in TRACK_COLUMNS}
+            cols = {c: tracks[c].to_numpy(kinds[c]) for c in TRACK_COLUMNS}
+            _write_parquet(pd.DataFrame(cols), tmp / _TRACKS)
+        (tmp / _MANIFEST).write_text(text)
+    return out
+
+
+# ---- reading ---------------------------------------------------------------------------
+
+
+def _error(path: Path, where: str, expected: str, got: Any) -> InputError:
+    return InputError(path, where, expected, got)
+
+
+def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[Any, list[str]]:
+    """``(RawTable or None, columns)``: None for a Parquet file with no rows (its schema
+    still checked for the ``required`` columns)."""
+    from are_stats.logs import read_raw_table
+
+    if path.suffix.lower() in (".parquet", ".pq") and path.is_file() and path.stat().st_size:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        try:
+            meta = pq.ParquetFile(path).metadata
+        except (pa.ArrowException, OSError) as err:
+            raise InputError(
+                path, "", f"a {what} in Parquet format", Described(f"an unreadable file: {err}")
+            ) from None
+        if meta.num_rows == 0:
+            names = [str(n) for n in meta.schema.to_arrow_schema().names]
+            missing = [c for c in required if c not in names]
+            if missing:
+                raise InputError(
+                    path, f"missing column(s) {', '.join(repr(c) for c in missing)}",
+                    f"a {what} with columns {', '.join(required)}",
+                    Described(f"columns {', '.join(repr(c) for c in names) or '(none)'}"),
+                )  # fmt: skip
+            return None, names
+    table = read_raw_table(path, what)
+    table.require(list(required), what)
+    return table, table.columns
+
+
+def _positions(table: Any, num: Mapping[str, np.ndarray]) -> None:
+    for c in ("x", "y"):
+        big = np.abs(num[c]) > MAX_POSITION
+        if big.any():
+            i = int(np.argmax(big))
+            raise table.error(
+                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(num[c][i]))
+            )
+
+
+def _ints(table: Any, column: str, lo: int, hi: int) -> np.ndarray:
+    """Integers in ``[lo, hi]`` (``lo`` is 0 or -1), first bad row named."""
+    if lo >= 0:
+        return table.nonneg_ints(column, allow_empty=False, hi=hi)[0]
+    v = table.floats(column, allow_empty=False)[0]
+    bad = (v < lo) | (v != np.round(v)) | (v > hi)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise table.error(i, column, f"an integer >= {lo}", repr(float(v[i])))
+    return v.astype(np.int64)
+
+
+def _bools(table: Any, column: str) -> np.ndarray:
+    if column not in table.bools:
+        raise table.error(0, column, "booleans (true/false)", "a column of other values")
+    s = table.strings[column]
+    bad = ~np.isin(s, ["True", "False"])
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise table.error(i, column, "true or false", "an empty cell")
+    return s == "True"
+
+
+def _manifest(d: Path) -> dict[str, Any]:
+    mpath = d / _MANIFEST
+    meta = load_yaml(mpath, "scenarios manifest")
+    if not isinstance(meta, Mapping):
+        raise _error(mpath, "", "a mapping (a scenarios manifest)", meta)
+    meta = dict(meta)
+    bad_key = next((k for k in meta if not isinstance(k, str)), None)
+    if bad_key is not None:
+        raise _error(mpath, "", "text keys", Described(f"the key {bad_key!r}"))
+    if "format_version" in meta:
+        get_int(meta["format_version"], mpath, "format_version", lo=1, hi=FORMAT_VERSION)
+    generation = meta.get("generation")
+    if generation is None:
+        meta.pop("generation", None)
+    elif not isinstance(generation, Mapping):
+        raise _error(mpath, "generation", "a mapping", generation)
+    elif generation.get("horizon") is not None:
+        get_float(generation["horizon"], mpath, "generation.horizon", lo=0)
+    if meta.get("n_scenarios") is not None:
+        get_int(meta["n_scenarios"], mpath, "n_scenarios", lo=0, hi=_INT32)
+    if meta.get("map") is not None:
+        get_str(meta["map"], mpath, "map")
+    if meta.get("class_labels") is not None:
+        labels = get_list(meta["class_labels"], mpath, "class_labels")
+        for i, lab in enumerate(labels):
+            get_str(lab, mpath, f"class_labels[{i}]")
+    return meta
+
+
+def _artefacts(d: Path, n_sc: int | None) -> pd.DataFrame:
+    path = d / _ARTEFACTS
+    table, names = _raw(path, "scenarios table", REQUIRED_COLUMNS)
+    if table is None:  # no artefact: a valid folder
+        empty = {c: np.zeros(0, SCENARIO_COLUMNS[c].split(",")[0]) for c in SCENARIO_COLUMNS}
+        return pd.DataFrame(empty)
+    num = {c: table.floats(c, allow_empty=False)[0] for c in _FLOATS}
+    _positions(table, num)
+    early = num["t_leave"] < num["t_arrive"]
+    if early.any():
+        i = int(np.argmax(early))
+        raise table.error(
+            i, "t_leave", f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})",
+            repr(float(num["t_leave"][i])),
+        )  # fmt: skip
+    hi_sc = _INT32 if n_sc is None else n_sc - 1
+    scen = table.nonneg_ints("scenario", allow_empty=False, hi=max(hi_sc, 0))[0]
+    if n_sc is not None and n_sc == 0:
+        raise table.error(
+            0, "scenario", f"no row ({d / _MANIFEST} says n_scenarios: 0)", int(scen[0])
+        )
+    if "artefact" in names:
+        art = _ints(table, "artefact", 0, _INT32)
+        dup = pd.DataFrame({"s": scen, "a": art}).duplicated().to_numpy()
+        if dup.any():
+            i = int(np.argmax(dup))
+            raise table.error(i, "artefact", "artefact ids unique within a scenario", int(art[i]))
+    else:
+        art = pd.Series(scen).groupby(scen).cumcount().to_numpy(np.int64)
+    cols: dict[str, np.ndarray] = {
+        "scenario": scen,
+        "artefact": art,
+        "class": _ints(table, "class", -1, _INT32),
+        "mark": _ints(table, "mark", -1, 2**53) if "mark" in names else np.full(len(scen), -1),
+        **num,
+        "truncated": _bools(table, "truncated") if "truncated" in names else num["t_arrive"] <= 0,
+        "censored": _bools(table, "censored") if "censored" in names else np.zeros(len(scen), bool),
+        "group": _ints(table, "group", 0, _INT32) if "group" in names else art,
+    }
+    df = pd.DataFrame(
+        {c: np.asarray(v).astype(SCENARIO_COLUMNS[c].split(",")[0]) for c, v in cols.items()}
+    )
+    extras = [c for c in names if c not in SCENARIO_COLUMNS]
+    if extras:  # kept as they are
+        import pyarrow.parquet as pq
+
+        more = pq.read_table(path, columns=extras).to_pandas()
+        for c in extras:
+            df[c] = more[c].to_numpy()
+    return df
+
+
+def _tracks(d: Path, meta: Mapping[str, Any], artefacts: pd.DataFrame) -> pd.DataFrame | None:
+    spec = meta.get("tracks")
+    if spec is None:
+        return None
+    mpath = d / _MANIFEST
+    if not isinstance(spec, Mapping):
+        raise _error(mpath, "tracks", "a mapping naming the tracks file (file: NAME)", spec)
+    name = get_str(spec.get("file"), mpath, "tracks.file")
+    if Path(name).name != name or name in ("", ".", ".."):
+        raise _error(mpath, "tracks.file", "a file name inside the scenarios folder", name)
+    if not (d / name).is_file():
+        raise _error(
+            mpath, "tracks.file", "a tracks file in the scenarios folder",
+            Described(f"no file {name}"),
+        )  # fmt: skip
+    table, _ = _raw(d / name, "behaviour tracks", TRACK_COLUMNS)
+    if table is None:
+        dtypes = {c: np.int64 if c in ("scenario", "id") else float for c in TRACK_COLUMNS}
+        return pd.DataFrame({c: np.zeros(0, t) for c, t in dtypes.items()})
+    num = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
+    _positions(table, num)
+    scen = table.nonneg_ints("scenario", allow_empty=False)[0]
+    ids = table.nonneg_ints("id", allow_empty=False)[0]
+    known = pd.MultiIndex.from_arrays(
+        [artefacts["scenario"].to_numpy(np.int64), artefacts["artefact"].to_numpy(np.int64)]
+    )
+    bad = ~pd.MultiIndex.from_arrays([scen, ids]).isin(known)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise table.error(
+            i, "id", f"an artefact of scenario {int(scen[i])} in {_ARTEFACTS}", repr(int(ids[i]))
+        )
+    dup = pd.DataFrame({"s": scen, "a": ids, "t": num["t"]}).duplicated().to_numpy()
+    if dup.any():
+        i = int(np.argmax(dup))
+        raise table.error(
+            i, "t", f"one pose per artefact and time (artefact {int(ids[i])} has two)",
+            repr(float(num["t"][i])),
+        )  # fmt: skip
+    return pd.DataFrame({"scenario": scen, "id": ids, **num})
+
+
+def read_scenes(folder: str | os.PathLike) -> ScenesFolder:
+    """Read and check a scenarios folder (written by :func:`write_scenes`, by an older
+    are_stats without ``format_version``, or by hand).
+
+    Checked: the manifest is a mapping with text keys; ``format_version`` an integer from 1
+    to :data:`FORMAT_VERSION`; ``generation`` a mapping (``horizon`` a finite number >= 0);
+    ``n_scenarios`` an integer >= 0; ``map`` a string or null; ``class_labels`` a list of
+    strings or null; ``tracks`` a mapping naming a file of the folder. The artefacts table
+    has the columns of :data:`REQUIRED_COLUMNS` (the others of :data:`SCENARIO_COLUMNS`
+    are optional and filled in), zero rows or more; integer columns hold integers
+    (``scenario`` below ``n_scenarios``, ``class`` and ``mark`` >= -1, ``artefact`` ids
+    unique within a scenario), the float columns finite numbers with ``|x|, |y|`` at most
+    :data:`MAX_POSITION` and ``t_arrive <= t_leave``, ``truncated`` and ``censored``
+    booleans. The tracks hold finite poses within :data:`MAX_POSITION`, each naming an
+    artefact of the table, one pose per artefact and time.
+
+    Parameters
+    ----------
+    folder : str or PathLike
+        The scenarios folder.
+
+    Returns
+    -------
+    ScenesFolder
+        ``artefacts`` (``df.attrs["generation"]`` holds the manifest's generation),
+        ``manifest`` and ``tracks`` (None without).
+
+    Raises
+    ------
+    FileNotFoundError
+        If the folder does not exist.
+    are_stats.inputs.InputError
+        (a ``ValueError``) naming the file and the key, or the row and the column, and what
+        was expected (``LimitError`` when a table is too large for the memory limit).
+    """
+    d = Path(folder)
+    if not d.exists():
+        raise FileNotFoundError(f"{d}: no such scenarios folder")
+    if not d.is_dir():
+        got = Described("a file" if d.is_file() else "neither a folder nor a file")
+        raise _error(d, "", "a scenarios folder written by are-stats generate", got)
+    for name in (_MANIFEST, _ARTEFACTS):
+        if not (d / name).is_file():
+            raise _error(
+                d, name, f"a scenarios folder with {_MANIFEST} and {_ARTEFACTS}",
+                Described(f"no file {name}"),
+            )  # fmt: skip
+    meta = _manifest(d)
+    n_sc = meta.get("n_scenarios")
+    df = _artefacts(d, None if n_sc is None else int(n_sc))
+    df.attrs["generation"] = dict(meta.get("generation") or {})
+    return ScenesFolder(df, meta, _tracks(d, meta, df))
