@@ -391,6 +391,9 @@ def social_force_tracks(
     out_xy = np.empty_like(xy_all)
     yaw = tab["yaw"].to_numpy(float).copy() if "yaw" in tab.columns else np.zeros(len(tab))
     for i, (a, b) in enumerate(zip(start, stop, strict=True)):
+        if kin[i]:  # its plan, row for row
+            out_xy[a:b] = xy_all[a:b]
+            continue
         lo, hi = bounds[i], bounds[i + 1]
         ts = np.r_[t_on[i], st[lo:hi]]
         xs_i = np.vstack([routes[i][:1], sx[lo:hi]])

@@ -66,7 +66,9 @@ def test_scenes_are_the_generated_scenarios_split_by_scenario(grid, catalogue):
 
 def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(grid, catalogue):
     idata = _idata()
-    scenes = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
+    scenes = scenes_from_fit(
+        11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False
+    )
     art = generate_scenarios(11, posterior_draws(idata), 2, HORIZON, free_mask=grid)
     classes = np.concatenate(
         [Scene.from_scenarios(art[art["scenario"] == k], catalogue).classes for k in range(2)]
@@ -119,3 +121,25 @@ def test_with_tracks_and_tracks_table_round_trip(grid, catalogue):
         np.testing.assert_allclose(again.poses(t), scene.poses(t))
     assert not scene.with_tracks(None).has_tracks.any()
     pd.testing.assert_frame_equal(again.artefacts, scene.artefacts)
+
+
+def test_the_interaction_walks_pedestrians_again_and_keeps_vehicles_on_their_plan(grid, catalogue):
+    idata = _idata()
+    planned = scenes_from_fit(
+        11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False
+    )
+    walked = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
+    moved_people = 0
+    for plan, scene in zip(planned, walked, strict=True):
+        a, b = plan.tracks_table(), scene.tracks_table()
+        pd.testing.assert_frame_equal(a[["id", "t"]], b[["id", "t"]])  # same life-cycles
+        np.testing.assert_array_equal(plan.classes, scene.classes)
+        kinds = [catalogue.row(int(c)).features.get("kind") for c in scene.classes]
+        walker = dict(zip(scene.ids.tolist(), [k == "pedestrian" for k in kinds], strict=True))
+        is_walker = a["id"].map(walker).to_numpy(bool)
+        gap = np.hypot(a["x"] - b["x"], a["y"] - b["y"]).to_numpy()
+        assert gap[~is_walker].max(initial=0.0) < 1e-9  # cars, carts, pallets: as planned
+        moved_people += int((gap[is_walker] > 0.05).any())
+        row, col = np.asarray(grid.world_to_cell(b[["x", "y"]].to_numpy())).T
+        assert grid.free[row, col].all()  # nobody walked into a wall
+    assert moved_people >= 1
