@@ -805,6 +805,7 @@ def run_augment(
     tau: float = 10.0,
     force: bool = False,
     clock: str = "auto",
+    model: str = "chosen",
 ) -> Any:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
     (:func:`are_stats.experiments.augment_bag`)."""
@@ -819,7 +820,7 @@ def run_augment(
             bag, fit_path, map_path, out, seed, pose_topic=pose_topic,
             base_frame=base_frame or "base_link", camera=camera,
             camera_info_topic=camera_info_topic, period=period, d_max=d_max, tau=tau,
-            force=force, clock=clock,
+            force=force, clock=clock, model=model,
         )  # fmt: skip
     n_seen = int(res.perceived.any(axis=0).sum())
     console.print(

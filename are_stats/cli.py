@@ -468,6 +468,12 @@ def augment(
         help="Clock of poses, camera frames and start: header stamps, log (recording) times, "
         "or auto (header stamps when set).",
     ),
+    model: str = typer.Option(
+        "chosen",
+        "--model",
+        help="chosen: the traffic models the fit chose; paper: Poisson arrivals, exponential "
+        "stays, uniform positions (for a fit whose learned entries belong to another map).",
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite OUT."),
 ) -> None:
     """Augment a robot's recorded bag with artefacts generated from a fit (ROS 2 MCAP out)."""
@@ -476,7 +482,7 @@ def augment(
     run_augment(
         bag, fit_path, map_path, out, _seed(seed), pose_topic=pose_topic,
         base_frame=base_frame, camera=camera, camera_info_topic=camera_info_topic,
-        period=period, d_max=d_max, tau=tau, force=force, clock=clock,
+        period=period, d_max=d_max, tau=tau, force=force, clock=clock, model=model,
     )  # fmt: skip
 
 

@@ -481,6 +481,7 @@ def augment_bag(
     catalogue: Any = None,
     force: bool = False,
     clock: str = "auto",
+    model: str = "chosen",
 ) -> AugmentResult:
     """Augment a robot's recorded run with generated artefacts and write an MCAP.
 
@@ -528,6 +529,10 @@ def augment_bag(
     clock : {"auto", "header", "log"}
         The one clock of poses, camera frames and the scenario's start
         (:func:`read_trajectory`); the output keeps the input's stamps on that clock.
+    model : {"chosen", "paper"}
+        Generate from the traffic models the fit chose or from the paper's (Poisson,
+        exponential, uniform positions: for a fit whose learned entries belong to another
+        map), as ``generate --model``.
 
     Returns
     -------
@@ -544,9 +549,7 @@ def augment_bag(
         Camera frames (``period``), tracing or messages past the memory or work limits,
         checked before anything of that size is allocated.
     """
-    import jax
 
-    from are_stats.behaviour import behaviour_tracks
     from are_stats.builder import ARBuilder
     from are_stats.environment import OccupancyGrid, extrude_grid, load_catalogue
     from are_stats.experiments._robot import circle_box_overlap
@@ -554,9 +557,10 @@ def augment_bag(
     from are_stats.fitting import read_fit
     from are_stats.logs import STAMP_GAP, interpolate_poses
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
-    from are_stats.scenarios import Scene, generate_scenarios, traffic_draws
+    from are_stats.scenarios import scenes_from_fit
 
     seed = get_seed(seed)
+    model = get_str(model, "--model", "", choices=("chosen", "paper"))
     period = get_float(period, "--period", "", lo=0.0, lo_open=True)
     d_max = get_float(d_max, "--d-max", "", lo=0.0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0.0)
@@ -637,24 +641,13 @@ def augment_bag(
     horizon = max(traj.end - start, float(times[-1]), 1e-3)
     # the scenario over the bag's time span, with behaviour tracks
     catalogue = load_catalogue() if catalogue is None else catalogue
-    draws, laws = traffic_draws(idata, "chosen")
-    art = generate_scenarios(seed, draws, 1, horizon, free_mask=grid, laws=laws)
-    names = idata.posterior.attrs.get("class_labels")
-    labels = str(names).split(",") if names else None
-    scene = Scene.from_scenarios(art, catalogue, class_labels=labels)
-    if len(art):
-        tracks = behaviour_tracks(
-            jax.random.key(seed),
-            art,
-            scene.classes,
-            grid,
-            catalogue,
-            cell=behaviour_cell,
-            dt=behaviour_dt,
-            horizon=horizon,
-            source="--behaviour-cell",
-        )
-        scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
+    # the one assembly (as generate and the sweeps): the fit's behaviour when it learned
+    # one from tracks, else the catalogue's, then the social force
+    (scene,) = scenes_from_fit(
+        seed, idata, grid, catalogue, 1, horizon, behaviours=True, model=model,
+        behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=str(fit),
+        cell_source="--behaviour-cell",
+    )  # fmt: skip
     _check_alive(scene, times, horizon, traj, bag, seed)
     # refuse runaway sizes before tracing: a ray per pixel of every frame, and the output
     # held in memory (a grid per frame at most, markers and a pose per artefact and frame)

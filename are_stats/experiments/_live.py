@@ -311,7 +311,7 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
         (artefacts with tracks), ``map`` (the map file or None).
     """
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.scenarios import Scene, read_scenes
+    from are_stats.scenarios import read_scenes, scenes_from_tables
 
     d = Path(folder)
     df, manifest, tracks = read_scenes(d)
@@ -343,11 +343,7 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
                 "--scenario", "", f"a scenario of {d / 'artefacts.parquet'} ({within})", scenario
             )
         k = int(scenario)
-    part = df[df["scenario"] == k]
-    tr = None if tracks is None else tracks[tracks["scenario"] == k]
-    scene = Scene.from_scenarios(
-        part, load_catalogue(), tr, class_labels=manifest.get("class_labels")
-    )
+    (scene,) = scenes_from_tables(df, tracks, load_catalogue(), manifest.get("class_labels"), [k])
     map_file = manifest.get("map")
     grid = None
     if map_file:
@@ -364,9 +360,9 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
     if horizon is not None:
         horizon = get_float(horizon, d / "manifest.yaml", "generation.horizon", lo=0, lo_open=True)
     else:  # a hand-made folder: until the last leaving (or the last track epoch)
-        ends = [part["t_leave"].to_numpy(float)]
-        if tr is not None and len(tr):
-            ends.append(tr["t"].to_numpy(float))
+        ends = [scene.t_leave]
+        if scene.has_tracks.any():
+            ends.append(scene.tracks_table()["t"].to_numpy(float))
         ends_all = np.concatenate(ends)
         horizon = float(ends_all.max()) if ends_all.size else 0.0
         if not horizon > 0:

@@ -59,7 +59,7 @@ from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
 from are_stats.experiments._robot import Robot, circle_box_overlap
 from are_stats.inputs import check_memory, check_work
-from are_stats.scenarios import Scene
+from are_stats.scenarios import Scene, scenes_from_tables
 
 __all__ = ["MissionResult", "MissionTrace", "random_goals", "run_mission"]
 
@@ -863,11 +863,15 @@ def run_mission(
         pose = check_finite("start", start, ndim=1).copy()
         if pose.shape != (3,):
             raise ValueError(f"start: expected (x, y, yaw), got {pose.tolist()}")
-    scene = (
-        artefacts
-        if isinstance(artefacts, Scene)
-        else Scene.from_scenarios(artefacts, catalogue, tracks)
-    )
+    if isinstance(artefacts, Scene):
+        scene = artefacts
+    else:
+        present = (
+            pd.unique(artefacts["scenario"]) if "scenario" in artefacts.columns else np.zeros(1)
+        )
+        if present.size > 1:
+            raise ValueError("artefacts: expected one scenario, got several (filter by 'scenario')")
+        (scene,) = scenes_from_tables(artefacts, tracks, catalogue, None, list(present[:1]))
     if grid.n_free == 0:
         raise ValueError("grid: expected free cells, got none")
     event_t, event_lifecycle, event_moved = _event_table(scene, T, move_period)

@@ -833,44 +833,50 @@ def _load_map(name: str) -> tuple[Any, Any]:
     return grid, mesh
 
 
-def _behaviour_tracks(
-    seed: int, art: pd.DataFrame, scene: Any, grid: Any, catalogue: Any, cell: float,
-    dt: float, horizon: float,
-) -> pd.DataFrame:  # fmt: skip
-    """Behaviour tracks of one scenario's artefacts over the mission
-    (:func:`are_stats.behaviour.behaviour_tracks` on the map coarsened to ``cell``)."""
-    import jax
-
-    from are_stats.behaviour import behaviour_tracks
-
-    return behaviour_tracks(
-        jax.random.key(seed), art, scene.classes, grid, catalogue, cell=cell, dt=dt,
-        horizon=horizon, source="mission.behaviour_cell",
-    )  # fmt: skip
-
-
 def _task_scenario(
     task: Mapping[str, Any], grid: Any, catalogue: Any
 ) -> tuple[Any, dict[str, Any]]:
     """The task's Scene (with behaviour tracks when asked) and the columns that describe
     where it came from: ``draw`` (posterior draw, scenario of the folder, or -1),
-    ``arrival_rate``, ``n_artefacts`` and ``n_arrivals`` (arrivals in ``(0, time_limit]``)."""
-    from are_stats.scenarios import Scene, generate_scenarios
+    ``arrival_rate``, ``n_artefacts`` and ``n_arrivals`` (arrivals in ``(0, time_limit]``).
+
+    The scene comes from the one assembly that ``generate`` and ``augment`` use
+    (:func:`~are_stats.scenarios.scenes_from_draws`): a fit's posterior draw or the
+    hand-set rates, moved by the fit's behaviour when it has one, else the catalogue's,
+    then the social force. A scenarios folder brings its own scenes (and tracks; without
+    them, the same behaviour rule moves its artefacts).
+    """
+    import jax
+
+    from are_stats.scenarios import scene_tracks, scenes_from_draws, scenes_from_tables
 
     sc, ms = task["scenario"], task["mission"]
     seed, horizon = int(task["seed"]), float(ms["time_limit"])
-    labels, tracks, draw, laws, fitted = None, None, -1, None, None
+    behave = bool(task.get("behaviours"))
+    moves = {
+        "behaviour_cell": float(ms.get("behaviour_cell", 1.0)),
+        "behaviour_dt": float(ms.get("behaviour_dt", 2.0)),
+        "cell_source": "mission.behaviour_cell",
+    }
     if "scenarios" in sc:
         table, meta, all_tracks = _scenario_folder(str(sc["scenarios"]))
         n = int(table["scenario"].max()) + 1 if len(table) else 1
         n = max(n, int(meta.get("n_scenarios", n) or n))
         draw = int(task["replicate"]) % n
-        art = table[table["scenario"] == draw].reset_index(drop=True)
         labels = meta.get("class_labels")
-        rate = float("nan")
-        if task.get("behaviours") and all_tracks is not None:
+        art = table[table["scenario"] == draw].reset_index(drop=True)
+        tracks = None
+        if behave and all_tracks is not None:
             tracks = all_tracks[all_tracks["scenario"] == draw].reset_index(drop=True)
+        elif behave:
+            tracks = scene_tracks(
+                jax.random.key(seed), art, grid, catalogue, horizon, behaviours="catalogue",
+                class_labels=labels, source=str(sc["scenarios"]), n=draw + 1, **moves,
+            )  # fmt: skip
+        (scene,) = scenes_from_tables(art, tracks, catalogue, labels, [draw])
+        rate = float("nan")
     else:
+        labels, laws, fitted, draw = None, None, None, -1
         if "fit" in sc:
             draws, labels, laws, fitted = _fit_draws(str(sc["fit"]))
             # one posterior draw per replicate, chosen by the replicate's seed alone
@@ -884,31 +890,16 @@ def _task_scenario(
                 "mix_rates": np.asarray(sc["mix_rates"], float)[None, :],
             }
         rate = float(params["arrival_rate"][0])
-        art = generate_scenarios(
-            seed, params, 1, horizon, free_mask=grid, start=sc.get("start", "stationary"),
-            laws=laws,
+        (scene,) = scenes_from_draws(
+            seed, params, grid, catalogue, 1, horizon, laws=laws, behaviours=behave,
+            fitted=fitted, class_labels=labels, start=sc.get("start", "stationary"),
+            source=str(sc.get("fit", "scenario")), **moves,
         )  # fmt: skip
-    if task.get("behaviours") and tracks is None and fitted is not None:
-        # the fit's behaviour: speeds, exits and rationality learned from the log's tracks
-        import jax
-
-        from are_stats.behaviour import simulate_behaviour_tracks
-
-        tracks = simulate_behaviour_tracks(
-            jax.random.key(seed), fitted, art, class_labels=labels, horizon=horizon
-        )
-    scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
-    if task.get("behaviours") and tracks is None:
-        tracks = _behaviour_tracks(
-            seed, art, scene, grid, catalogue, float(ms.get("behaviour_cell", 1.0)),
-            float(ms.get("behaviour_dt", 2.0)), horizon,
-        )  # fmt: skip
-        scene = Scene.from_scenarios(art, catalogue, tracks, class_labels=labels)
-    t_arr = art["t_arrive"].to_numpy(float)
+    t_arr = scene.t_arrive
     info = {
         "draw": draw,
         "arrival_rate": rate,
-        "n_artefacts": len(art),
+        "n_artefacts": len(scene),
         "n_arrivals": int(((t_arr > 0) & (t_arr <= horizon)).sum()),
     }
     return scene, info

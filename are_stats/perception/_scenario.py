@@ -309,7 +309,7 @@ def scenario_scenes(
         and its Scene (artefacts in the same order).
     """
     from are_stats.environment import load_catalogue
-    from are_stats.scenarios import Scene
+    from are_stats.scenarios import scenes_from_tables
 
     if not isinstance(artefacts, pd.DataFrame):
         raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
@@ -325,15 +325,11 @@ def scenario_scenes(
     several = pd.unique(scen).size > 1
     if tracks is not None and several and "scenario" not in tracks.columns:
         raise ValueError("tracks: expected a 'scenario' column for a table of several scenarios")
-    out = []
-    for s in pd.unique(scen):
-        rows = np.flatnonzero(scen == s)
-        tr = tracks
-        if tracks is not None and "scenario" in tracks.columns:
-            tr = tracks[tracks["scenario"].to_numpy() == s]
-        table = artefacts.iloc[rows].drop(columns="scenario", errors="ignore")
-        out.append((rows, Scene.from_scenarios(table, cat, tr, class_labels=class_labels)))
-    return out
+    keys = pd.unique(scen)
+    scenes = scenes_from_tables(
+        artefacts.assign(scenario=scen), tracks, cat, class_labels, list(keys)
+    )
+    return [(np.flatnonzero(scen == k), scene) for k, scene in zip(keys, scenes, strict=True)]
 
 
 def perceive_scenario(

@@ -5,8 +5,10 @@ Scene that turns one scenario into boxes over time, and the scenarios folder (on
 from are_stats.scenarios._assembly import (
     BEHAVIOUR_SOURCES,
     check_tracks_size,
+    scene_tracks,
     scenes_from_draws,
     scenes_from_fit,
+    scenes_from_tables,
     scenes_tables,
 )
 from are_stats.scenarios._folder import (
@@ -54,7 +56,9 @@ __all__ = [
     "read_scenes",
     "scenario_counts",
     "scenes_from_draws",
+    "scene_tracks",
     "scenes_from_fit",
+    "scenes_from_tables",
     "scenes_tables",
     "traffic_draws",
     "write_scenarios",

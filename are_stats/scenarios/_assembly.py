@@ -41,8 +41,10 @@ from are_stats.scenarios._scene import Scene
 __all__ = [
     "BEHAVIOUR_SOURCES",
     "check_tracks_size",
+    "scene_tracks",
     "scenes_from_draws",
     "scenes_from_fit",
+    "scenes_from_tables",
     "scenes_tables",
 ]
 
@@ -113,24 +115,54 @@ def check_tracks_size(artefacts: pd.DataFrame, shape: tuple[int, int], dt: float
     check_work(float(policy.sum()) * 10.0 + rows * 50.0, what, source)
 
 
-def _split_scenes(
+def scenes_from_tables(
     artefacts: pd.DataFrame,
     tracks: pd.DataFrame | None,
     catalogue: Any,
-    class_labels: Any,
-    n: int,
+    class_labels: Any = None,
+    scenarios: Any = None,
 ) -> list[Scene]:
-    """One :class:`Scene` per scenario index ``0..n-1`` (empty scenarios included)."""
+    """Scenes of a scenarios table and its tracks: the one place where table rows become
+    :class:`Scene` s (every reader of a scenarios folder and every assembly comes here).
+
+    Parameters
+    ----------
+    artefacts : pandas.DataFrame
+        Scenarios table (``scenario`` column; without it, one scenario 0).
+    tracks : pandas.DataFrame or None
+        ``scenario, id, t, x, y, yaw``.
+    catalogue : ArtefactCatalogue
+    class_labels : sequence of str, optional
+        Label of each mixture component.
+    scenarios : sequence of int, optional
+        The scenario indices to build, in order (default ``0..max``: empty scenarios
+        included).
+
+    Returns
+    -------
+    list of Scene
+    """
+    if "scenario" not in artefacts.columns:
+        artefacts = artefacts.assign(scenario=0)
+    if tracks is not None and len(tracks) and "scenario" not in tracks.columns:
+        present = pd.unique(artefacts["scenario"])
+        if present.size > 1:
+            raise ValueError(
+                "tracks: expected a 'scenario' column for a table of several scenarios"
+            )
+        tracks = tracks.assign(scenario=present[0] if present.size else 0)
     by_sc = dict(tuple(artefacts.groupby("scenario", sort=True))) if len(artefacts) else {}
     tr_by = {}
     if tracks is not None and len(tracks):
         tr_by = dict(tuple(tracks.groupby("scenario", sort=True)))
+    if scenarios is None:
+        scenarios = range(int(artefacts["scenario"].max()) + 1 if len(artefacts) else 1)
     empty = artefacts.iloc[:0]
     out = []
-    for s in range(n):
-        part = by_sc.get(s, empty).copy()
+    for k in scenarios:
+        part = by_sc.get(k, empty).copy()
         part.attrs = dict(artefacts.attrs)  # the generation settings, for the folder
-        out.append(Scene.from_scenarios(part, catalogue, tr_by.get(s), class_labels=class_labels))
+        out.append(Scene.from_scenarios(part, catalogue, tr_by.get(k), class_labels=class_labels))
     return out
 
 
@@ -155,6 +187,80 @@ def scenes_tables(scenes: list[Scene]) -> tuple[pd.DataFrame, pd.DataFrame]:
         [s.tracks_table().assign(scenario=k) for k, s in enumerate(scenes)], ignore_index=True
     )[cols]
     return art, tracks
+
+
+def scene_tracks(
+    key: Any,
+    artefacts: pd.DataFrame,
+    grid: Any,
+    catalogue: Any,
+    horizon: float,
+    *,
+    behaviours: Any = True,
+    fitted: Any = None,
+    class_labels: Any = None,
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    source: str = "scenario",
+    cell_source: str = "behaviour_cell",
+    interaction: Any = True,
+    n: int | None = None,
+) -> pd.DataFrame | None:
+    """The tracks of a scenarios table by the module's one behaviour rule, then the
+    interaction: what moves the artefacts of every assembly.
+
+    Parameters
+    ----------
+    key : jax.Array
+        PRNG key of the tracks.
+    artefacts : pandas.DataFrame
+        Scenarios table (``scenario`` column).
+    grid, catalogue, horizon, behaviours, fitted, class_labels, behaviour_cell,
+    behaviour_dt, source, cell_source, interaction
+        See :func:`scenes_from_draws`.
+    n : int, optional
+        Number of scenarios (default: the table's).
+
+    Returns
+    -------
+    pandas.DataFrame or None
+        ``scenario, id, t, x, y, yaw``; None when nothing moves (no behaviours, or no
+        artefact).
+    """
+    from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
+
+    kind = _behaviour_source(behaviours, fitted, source)
+    if kind == "catalogue" and grid is None:
+        raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
+    art = artefacts
+    if n is None:
+        n = int(art["scenario"].max()) + 1 if len(art) else 1
+    tracks = None
+    if kind == "fitted" and len(art):
+        tracks = pd.DataFrame(
+            simulate_behaviour_tracks(key, fitted, art, class_labels=class_labels, horizon=horizon)
+        )
+    elif kind == "catalogue" and len(art):
+        from are_stats.environment import coarse_occupancy
+
+        occ, _ = coarse_occupancy(grid, behaviour_cell, cell_source)
+        cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
+        check_tracks_size(cut, occ.shape, behaviour_dt, f"{source}, {cell_source}")
+        classes = np.concatenate(
+            [s.classes for s in scenes_from_tables(art, None, catalogue, class_labels, range(n))]
+        )
+        order = np.argsort(art["scenario"].to_numpy(), kind="stable")
+        cls_rows = np.empty_like(classes)
+        cls_rows[order] = classes
+        tracks = pd.DataFrame(
+            behaviour_tracks(
+                key, art, cls_rows, grid, catalogue, cell=behaviour_cell,
+                dt=behaviour_dt, horizon=horizon, source=cell_source,
+            )
+        )  # fmt: skip
+    if tracks is not None and len(tracks) and interaction is not False:
+        tracks = _interact(tracks, art, catalogue, class_labels, n, grid, interaction)
+    return tracks
 
 
 def scenes_from_draws(
@@ -228,8 +334,6 @@ def scenes_from_draws(
     """
     import jax
 
-    from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
-
     kind = _behaviour_source(behaviours, fitted, source)
     if kind == "catalogue" and grid is None:
         raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
@@ -242,34 +346,12 @@ def scenes_from_draws(
     )
     if k_tracks is None:
         k_tracks = jax.random.key(seed)
-    tracks = None
-    if kind == "fitted" and len(art):
-        tracks = pd.DataFrame(
-            simulate_behaviour_tracks(
-                k_tracks, fitted, art, class_labels=class_labels, horizon=horizon
-            )
-        )
-    elif kind == "catalogue" and len(art):
-        from are_stats.environment import coarse_occupancy
-
-        occ, _ = coarse_occupancy(grid, behaviour_cell, cell_source)
-        cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
-        check_tracks_size(cut, occ.shape, behaviour_dt, f"{source}, {cell_source}")
-        classes = np.concatenate(
-            [s.classes for s in _split_scenes(art, None, catalogue, class_labels, n)]
-        )
-        order = np.argsort(art["scenario"].to_numpy(), kind="stable")
-        cls_rows = np.empty_like(classes)
-        cls_rows[order] = classes
-        tracks = pd.DataFrame(
-            behaviour_tracks(
-                k_tracks, art, cls_rows, grid, catalogue, cell=behaviour_cell,
-                dt=behaviour_dt, horizon=horizon, source=cell_source,
-            )
-        )  # fmt: skip
-    if tracks is not None and len(tracks) and interaction is not False:
-        tracks = _interact(tracks, art, catalogue, class_labels, n, grid, interaction)
-    return _split_scenes(art, tracks, catalogue, class_labels, n)
+    tracks = scene_tracks(
+        k_tracks, art, grid, catalogue, horizon, behaviours=kind, fitted=fitted,
+        class_labels=class_labels, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
+        source=source, cell_source=cell_source, interaction=interaction, n=n,
+    )  # fmt: skip
+    return scenes_from_tables(art, tracks, catalogue, class_labels, range(n))
 
 
 def _interact(
@@ -280,7 +362,7 @@ def _interact(
     from are_stats.behaviour import SocialForce, social_force_tracks
 
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
-    scenes = _split_scenes(art, None, catalogue, labels, n)
+    scenes = scenes_from_tables(art, None, catalogue, labels, range(n))
     walks = {}
     for k, scene in enumerate(scenes):
         for a, c in zip(scene.ids, scene.classes, strict=True):

@@ -206,8 +206,10 @@ def test_shipped_fit_config_is_valid(tmp_path, monkeypatch):
 
 
 def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():
-    from are_stats import Scene, load_catalogue
-    from are_stats.experiments._sweep import _behaviour_tracks
+    import jax
+
+    from are_stats import load_catalogue
+    from are_stats.scenarios import scene_tracks, scenes_from_tables
 
     data = np.zeros((12, 12))
     data[3:8, 3:8] = 100  # a block of walls ...
@@ -218,8 +220,16 @@ def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():
         "t_leave": [30.0, 30.0], "x": [5.5, 1.5], "y": [5.5, 1.5], "yaw": 0.0,
     })  # fmt: skip
     cat = load_catalogue()
-    scene = Scene.from_scenarios(art, cat)
-    tracks = _behaviour_tracks(3, art, scene, grid, cat, 1.0, 1.0, 30.0)
+    tracks = scene_tracks(
+        jax.random.key(3),
+        art,
+        grid,
+        cat,
+        30.0,
+        behaviours="catalogue",
+        behaviour_dt=1.0,
+        interaction=False,
+    )
     pocket, walker = tracks[tracks["id"] == 0], tracks[tracks["id"] == 1]
     assert len(pocket) > 1 and (pocket["x"] == 5.5).all() and (pocket["y"] == 5.5).all()
     xy = walker[["x", "y"]].to_numpy()
@@ -229,7 +239,7 @@ def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():
     # steps of at most two cells per epoch (walk one, run two): no jump through a wall
     assert np.abs(np.diff(xy, axis=0)).max() <= 2.0
     # in the mission, the moving one makes move updates at its epochs
-    res = run_mission_on(grid, Scene.from_scenarios(art, cat, tracks))
+    res = run_mission_on(grid, scenes_from_tables(art, tracks, cat)[0])
     assert (res.timeline["kind"] == "move").any()
 
 
