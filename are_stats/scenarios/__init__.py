@@ -33,6 +33,13 @@ from are_stats.scenarios._generate import (
     traffic_draws,
     write_scenarios,
 )
+from are_stats.scenarios._realism import (
+    REALISM_FEATURES,
+    plot_realism,
+    realism_features,
+    realism_score,
+    realism_table,
+)
 from are_stats.scenarios._scene import Boxes, Scene
 
 __all__ = [
@@ -43,6 +50,7 @@ __all__ = [
     "Scene",
     "ScenesFolder",
     "PARAMETER_NAMES",
+    "REALISM_FEATURES",
     "SCENARIO_COLUMNS",
     "TRAFFIC_NAMES",
     "atomic_folder",
@@ -51,8 +59,12 @@ __all__ = [
     "check_tracks_size",
     "expected_artefacts",
     "generate_scenarios",
+    "plot_realism",
     "posterior_draws",
     "read_scenarios",
+    "realism_features",
+    "realism_score",
+    "realism_table",
     "read_scenes",
     "scenario_counts",
     "scenes_from_draws",

@@ -1,0 +1,386 @@
+"""Realism of generated motion, measured as the Waymo Open Sim Agents Challenge scores sim
+agents (issue 26): distribution matching, feature by feature.
+
+For each feature the observed values (from the log's tracks) are scored under a histogram
+of the values the model generated for the same artefacts (same entries, same stays): the
+score is ``exp(mean log p)``, ``p`` the smoothed probability of the observed value's bin
+(20 bins over the pooled 1-99% range, one pseudo-count per bin; two bins for the
+indicators): higher is closer to the log, and a model that generates the log's own
+distribution scores what that distribution scores against itself (about 1/12 for a
+bell-shaped feature, 1 for an indicator that is always the same), so compare models on one
+feature, not features with each other. The realism score is the weighted mean over
+features, with the challenge's weights per kind: kinematic 0.25, interactive 0.5, map 0.25
+(split evenly between the features of a kind).
+
+Features (:data:`REALISM_FEATURES`), on tracks resampled to one step ``dt``:
+
+* kinematic: speed, acceleration (change of velocity per second), turning rate (change
+  of heading per second while moving), straightness (net / path length, per track), time
+  to exit over the stay (first time within 0.5 m of the track's last position, per track);
+* interactive: distance to the nearest other person, collision (two discs of radius
+  ``radius`` overlap), time to collision (constant velocities, capped at 10 s);
+* map (with a map): distance to the nearest wall, on a free cell.
+
+:func:`realism_table` compares three motion models for the observed artefacts side by
+side: **constant velocity** (each person keeps its velocity of the first second), the
+**catalogue** behaviour (the paper's MDP on the coarse map, then the social force) and the
+**fitted** behaviour (then the social force), the last two through the one assembly's
+:func:`~are_stats.scenarios.scene_tracks`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "REALISM_FEATURES",
+    "plot_realism",
+    "realism_features",
+    "realism_score",
+    "realism_table",
+]
+
+#: Feature -> kind (kinematic, interactive, map).
+REALISM_FEATURES: dict[str, str] = {
+    "speed (m/s)": "kinematic",
+    "acceleration (m/s^2)": "kinematic",
+    "turning rate (rad/s)": "kinematic",
+    "straightness": "kinematic",
+    "time to exit / stay": "kinematic",
+    "nearest person (m)": "interactive",
+    "collision": "interactive",
+    "time to collision (s)": "interactive",
+    "wall distance (m)": "map",
+    "on free cells": "map",
+}
+#: The challenge's weight of each kind of feature.
+KIND_WEIGHTS = {"kinematic": 0.25, "interactive": 0.5, "map": 0.25}
+_TTC_MAX = 10.0
+_NEAR_MAX = 10.0
+
+
+def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
+    """Each track at the times ``k dt`` within its span (linear interpolation)."""
+    cols = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
+    out = []
+    for key, g in tracks.sort_values([*cols, "t"], kind="stable").groupby(cols, sort=False):
+        t = g["t"].to_numpy(float)
+        grid_t = np.arange(np.ceil(t[0] / dt - 1e-9), np.floor(t[-1] / dt + 1e-9) + 1) * dt
+        if grid_t.size == 0:
+            continue
+        key = key if isinstance(key, tuple) else (key,)
+        part = {c: np.full(grid_t.size, k) for c, k in zip(cols, key, strict=True)}
+        part["t"] = grid_t
+        part["x"] = np.interp(grid_t, t, g["x"].to_numpy(float))
+        part["y"] = np.interp(grid_t, t, g["y"].to_numpy(float))
+        out.append(pd.DataFrame(part))
+    if not out:
+        return pd.DataFrame(columns=[*cols, "t", "x", "y"])
+    res = pd.concat(out, ignore_index=True)
+    if "scenario" not in res.columns:
+        res["scenario"] = 0
+    return res
+
+
+def realism_features(
+    tracks: pd.DataFrame, dt: float, grid: Any = None, radius: float = 0.3
+) -> dict[str, np.ndarray]:
+    """The values of every feature of :data:`REALISM_FEATURES` in ``tracks``.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` (and ``scenario``: scenarios never meet).
+    dt : float
+        Resampling step (s): the log's sampling period.
+    grid : OccupancyGrid, optional
+        The map (map features need it).
+    radius : float
+        Disc radius of a person (m) for collisions and times to collision.
+
+    Returns
+    -------
+    dict of str to (k,) float
+        Per-sample values for speed, acceleration, turning rate, nearest person, collision,
+        time to collision and the map features; per-track values for straightness and time
+        to exit.
+    """
+    from scipy.spatial import cKDTree
+
+    tab = _resample(tracks, dt)
+    feats: dict[str, list[np.ndarray]] = {k: [] for k in REALISM_FEATURES}
+    vel_all = np.full((len(tab), 2), np.nan)
+    for (_, _), g in tab.groupby(["scenario", "id"], sort=False):
+        idx = g.index.to_numpy()
+        xy = g[["x", "y"]].to_numpy(float)
+        if len(xy) < 2:
+            continue
+        v = np.diff(xy, axis=0) / dt
+        vel_all[idx[1:]] = v
+        sp = np.hypot(*v.T)
+        feats["speed (m/s)"].append(sp)
+        if len(v) > 1:
+            feats["acceleration (m/s^2)"].append(np.hypot(*np.diff(v, axis=0).T) / dt)
+            moving = (sp[1:] > 0.2) & (sp[:-1] > 0.2)
+            head = np.arctan2(v[:, 1], v[:, 0])
+            turn = np.abs(np.angle(np.exp(1j * np.diff(head)))) / dt
+            feats["turning rate (rad/s)"].append(turn[moving])
+        path = float(sp.sum() * dt)
+        if path > 0.5:
+            feats["straightness"].append(np.array([np.hypot(*(xy[-1] - xy[0])) / path]))
+        stay = float(len(xy) - 1) * dt
+        near_end = np.flatnonzero(np.hypot(*(xy - xy[-1]).T) <= 0.5)
+        if stay > 0:
+            feats["time to exit / stay"].append(np.array([near_end[0] * dt / stay]))
+    ok = np.isfinite(vel_all).all(axis=1)
+    for (_, _), g in tab[ok].groupby(["scenario", "t"], sort=False):
+        if len(g) < 2:
+            continue
+        idx = g.index.to_numpy()
+        xy = g[["x", "y"]].to_numpy(float)
+        tree = cKDTree(xy)
+        d, j = tree.query(xy, k=2)
+        feats["nearest person (m)"].append(np.minimum(d[:, 1], _NEAR_MAX))
+        feats["collision"].append((d[:, 1] < 2 * radius).astype(float))
+        pairs = tree.query_pairs(_NEAR_MAX, output_type="ndarray")
+        ttc = np.full(len(g), _TTC_MAX)
+        if pairs.size:
+            a, b = pairs[:, 0], pairs[:, 1]
+            p = xy[b] - xy[a]
+            w = vel_all[idx[b]] - vel_all[idx[a]]
+            # |p + w t| = 2 r: the first root t > 0
+            qa = (w * w).sum(1)
+            qb = 2 * (p * w).sum(1)
+            qc = (p * p).sum(1) - (2 * radius) ** 2
+            disc = qb * qb - 4 * qa * qc
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t_hit = (-qb - np.sqrt(np.maximum(disc, 0))) / (2 * qa)
+            t_hit = np.where((disc >= 0) & (qa > 1e-12) & (t_hit >= 0), t_hit, _TTC_MAX)
+            t_hit = np.where(qc <= 0, 0.0, np.minimum(t_hit, _TTC_MAX))
+            np.minimum.at(ttc, a, t_hit)
+            np.minimum.at(ttc, b, t_hit)
+        feats["time to collision (s)"].append(ttc)
+    if grid is not None and len(tab):
+        dist = grid.distance_to_occupied()
+        xy = tab[["x", "y"]].to_numpy(float)
+        ij = np.asarray(grid.world_to_cell(xy))
+        inside = (
+            (ij[:, 0] >= 0) & (ij[:, 0] < grid.free.shape[0])
+            & (ij[:, 1] >= 0) & (ij[:, 1] < grid.free.shape[1])
+        )  # fmt: skip
+        r = np.clip(ij[:, 0], 0, grid.free.shape[0] - 1)
+        c = np.clip(ij[:, 1], 0, grid.free.shape[1] - 1)
+        feats["wall distance (m)"].append(np.where(inside, np.minimum(dist[r, c], 10.0), 0.0))
+        feats["on free cells"].append((inside & grid.free[r, c]).astype(float))
+    return {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in feats.items()}
+
+
+def realism_score(
+    observed: dict[str, np.ndarray], generated: dict[str, np.ndarray], edges: dict | None = None
+) -> dict[str, float]:
+    """Per feature, ``exp(mean log p)`` of the observed values under the smoothed histogram
+    of the generated ones (NaN where either side has no value).
+
+    Parameters
+    ----------
+    observed, generated : dict of str to (k,) float
+        :func:`realism_features` of the log and of a model.
+    edges : dict of str to (21,) float, optional
+        Bin edges per feature (default from the two samples; pass common edges to compare
+        models on the same bins).
+
+    Returns
+    -------
+    dict of str to float
+    """
+    out = {}
+    for name in REALISM_FEATURES:
+        obs, gen = observed.get(name, np.zeros(0)), generated.get(name, np.zeros(0))
+        if obs.size == 0 or gen.size == 0:
+            out[name] = float("nan")
+            continue
+        e = edges[name] if edges is not None else _edges(name, [obs, gen])
+        counts = np.histogram(np.clip(gen, e[0], e[-1]), bins=e)[0] + 1.0
+        p = counts / counts.sum()
+        k = np.clip(np.searchsorted(e, np.clip(obs, e[0], e[-1]), side="right") - 1, 0, len(p) - 1)
+        out[name] = float(np.exp(np.mean(np.log(p[k]))))
+    return out
+
+
+def _edges(name: str, samples: list[np.ndarray]) -> np.ndarray:
+    """21 edges: two bins for the indicators, else 20 over the pooled 1-99% range."""
+    if name in ("collision", "on free cells"):
+        return np.array([-0.5, 0.5, 1.5])
+    pooled = np.concatenate([s for s in samples if s.size])
+    lo, hi = np.quantile(pooled, [0.01, 0.99])
+    if not hi > lo:
+        hi = lo + 1e-6
+    return np.linspace(lo, hi, 21)
+
+
+def _weighted(scores: dict[str, float]) -> float:
+    """The realism score: the kinds' weights split evenly over their scored features."""
+    total, weight = 0.0, 0.0
+    for kind, w in KIND_WEIGHTS.items():
+        vals = [scores[f] for f, k in REALISM_FEATURES.items() if k == kind]
+        vals = [v for v in vals if np.isfinite(v)]
+        if vals:
+            total += w * float(np.mean(vals))
+            weight += w
+    return total / weight if weight else float("nan")
+
+
+def _constant_velocity(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
+    """Each observed person keeping the mean velocity of its first second, for its stay."""
+    tab = _resample(tracks, dt)
+    out = []
+    for _, g in tab.groupby(["scenario", "id"], sort=False):
+        xy = g[["x", "y"]].to_numpy(float)
+        t = g["t"].to_numpy(float)
+        k = max(1, min(len(xy) - 1, int(round(1.0 / dt))))
+        v = (xy[k] - xy[0]) / max(t[k] - t[0], 1e-9) if len(xy) > 1 else np.zeros(2)
+        moved = xy[0] + (t - t[0])[:, None] * v
+        out.append(g.assign(x=moved[:, 0], y=moved[:, 1]))
+    return pd.concat(out, ignore_index=True) if out else tab
+
+
+def realism_table(
+    key: Any,
+    tracks: pd.DataFrame,
+    grid: Any = None,
+    *,
+    behaviour: Any = None,
+    catalogue: Any = None,
+    n_replicates: int = 3,
+    radius: float = 0.3,
+) -> pd.DataFrame:
+    """Realism of constant velocity, the catalogue behaviour and the fitted behaviour on the
+    observed artefacts, side by side (see the module docstring).
+
+    Parameters
+    ----------
+    key : jax.Array
+        PRNG key (the models' replicates).
+    tracks : pandas.DataFrame
+        The log's tracks ``id, t, x, y`` (one scene), sampled at one rate.
+    grid : OccupancyGrid, optional
+        The map: map features, and the catalogue behaviour (which needs it).
+    behaviour : BehaviourFit, optional
+        The fitted behaviour (its column is left out without it).
+    catalogue : ArtefactCatalogue, optional
+        For the catalogue behaviour (default the shipped one); artefacts are its first
+        class (``person``).
+    n_replicates : int
+        Replicates of each stochastic model, pooled in its histograms.
+    radius : float
+        Disc radius of a person (m).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Rows: the features and ``realism (weighted)``; columns: ``kind``, ``weight`` and one
+        score per model (``constant velocity``, ``catalogue``, ``fitted``).
+    """
+    import jax
+
+    from are_stats.environment import load_catalogue
+    from are_stats.scenarios._assembly import scene_tracks
+
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    steps = np.diff(tab["t"].to_numpy(float))[tab["id"].to_numpy()[1:] == tab["id"].to_numpy()[:-1]]
+    if steps.size == 0:
+        raise ValueError("tracks: expected tracks of at least two samples")
+    dt = float(np.median(steps))
+    first = tab.groupby("id", sort=False).first()
+    last = tab.groupby("id", sort=False).last()
+    art = pd.DataFrame({
+        "scenario": 0, "artefact": np.arange(len(first)), "class": 0, "mark": 0,
+        "t_arrive": first["t"].to_numpy(float), "t_leave": last["t"].to_numpy(float),
+        "x": first["x"].to_numpy(float), "y": first["y"].to_numpy(float), "yaw": 0.0,
+        "label": "person",
+    })  # fmt: skip
+    horizon = float(art["t_leave"].max()) + dt
+    observed = realism_features(tab, dt, grid, radius)
+    models: dict[str, list[dict[str, np.ndarray]]] = {
+        "constant velocity": [realism_features(_constant_velocity(tab, dt), dt, grid, radius)]
+    }
+    cat = load_catalogue() if catalogue is None else catalogue
+    sources = []
+    if grid is not None and abs(float(grid.origin[2])) < 1e-9:
+        sources.append(("catalogue", "catalogue"))
+    if behaviour is not None:
+        sources.append(("fitted", "fitted"))
+    for m, (name, rule) in enumerate(sources):
+        runs = []
+        for r in range(n_replicates):
+            moved = scene_tracks(
+                jax.random.fold_in(jax.random.fold_in(key, m), r), art, grid, cat, horizon,
+                behaviours=rule, fitted=behaviour, source="realism",
+            )  # fmt: skip
+            if moved is not None and len(moved):
+                runs.append(realism_features(moved, dt, grid, radius))
+        if runs:
+            models[name] = runs
+    pooled = {
+        name: {f: np.concatenate([run[f] for run in runs]) for f in REALISM_FEATURES}
+        for name, runs in models.items()
+    }
+    edges = {}
+    for f in REALISM_FEATURES:
+        samples = [observed[f], *(p[f] for p in pooled.values())]
+        if any(s.size for s in samples):
+            edges[f] = _edges(f, samples)
+    rows = {f: {"kind": k, "weight": np.nan} for f, k in REALISM_FEATURES.items()}
+    for kind, w in KIND_WEIGHTS.items():
+        names = [f for f, k in REALISM_FEATURES.items() if k == kind and f in edges]
+        for f in names:
+            rows[f]["weight"] = w / len(names)
+    table = pd.DataFrame(rows).T
+    for name, feats in pooled.items():
+        scores = realism_score(observed, feats, edges)
+        table[name] = pd.Series(scores)
+        table.loc["realism (weighted)", name] = _weighted(scores)
+    table.loc["realism (weighted)", "kind"] = "all"
+    table.loc["realism (weighted)", "weight"] = 1.0
+    return table
+
+
+def plot_realism(table: pd.DataFrame) -> Any:
+    """Bars of every feature's score per model, the weighted realism score first.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        :func:`realism_table`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    models = [c for c in table.columns if c not in ("kind", "weight")]
+    rows = ["realism (weighted)", *[r for r in table.index if r != "realism (weighted)"]]
+    fig, ax = plt.subplots(figsize=(9.0, 0.42 * len(rows) + 1.2))
+    height = 0.8 / max(len(models), 1)
+    colours = {"constant velocity": "0.65", "catalogue": "#d08c3c", "fitted": "#2f6db3"}
+    y = np.arange(len(rows))
+    for m, name in enumerate(models):
+        vals = pd.to_numeric(table.loc[rows, name], errors="coerce").to_numpy(float)
+        ax.barh(
+            y + (m - (len(models) - 1) / 2) * height, np.nan_to_num(vals), height,
+            color=colours.get(name, f"C{m}"), label=name,
+        )  # fmt: skip
+    labels = [f"{r}  [{table.loc[r, 'kind']}]" if r != rows[0] else r for r in rows]
+    ax.set_yticks(y, labels)
+    ax.invert_yaxis()
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("likelihood of the log's values under the generated histogram")
+    ax.axhline(0.5, color="k", linewidth=0.6)
+    ax.set_title("Realism of generated motion against the log (higher is better)")
+    fig.legend(loc="lower center", ncol=len(models), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return fig
