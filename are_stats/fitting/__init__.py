@@ -182,3 +182,11 @@ __all__ += [
     "score_moves",
     "track_statistics",
 ]
+
+from are_stats.fitting._interaction import (  # noqa: E402
+    fit_interaction,
+    interaction_attrs,
+    interaction_from_attrs,
+)
+
+__all__ += ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]

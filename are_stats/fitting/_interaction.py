@@ -1,0 +1,100 @@
+"""The interaction of people fitted from a log's tracks (issue 26), stored in a fit.
+
+:func:`fit_interaction` resamples the tracks to one step (the log's median) and estimates
+the social force's strength ``A``, range ``B`` and relaxation time ``tau``
+(:func:`~are_stats.behaviour.fit_social_force`); :func:`interaction_attrs` writes them as
+attributes of the fit's ``behaviour`` group and :func:`interaction_from_attrs` reads them
+back (the only reader), so that every scene generated from the fit walks with the log's
+interaction (:func:`~are_stats.scenarios.scenes_from_fit`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from are_stats.behaviour import SocialForce, fit_social_force
+
+__all__ = ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]
+
+_PREFIX = "interaction_"
+_FITTED = ("strength", "range", "relaxation")
+
+
+def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]]:
+    """Social force parameters of a log's tracks (see the module docstring).
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene (a tracks table), any sampling.
+
+    Returns
+    -------
+    SocialForce
+        The published defaults with ``strength``, ``range`` and ``relaxation`` estimated.
+    dict
+        :func:`~are_stats.behaviour.fit_social_force`'s ``rss``, ``n``, ``r2`` and ``dt``.
+
+    Raises
+    ------
+    ValueError
+        With too little walking to fit (fewer than 10 samples), or an estimate outside the
+        model's range (a non-positive relaxation or strength: no interaction in the data).
+    """
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    ids = tab["id"].to_numpy()
+    t = tab["t"].to_numpy(float)
+    same = ids[1:] == ids[:-1]
+    steps = np.diff(t)[same]
+    if steps.size == 0:
+        raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
+    dt = float(np.median(steps))
+    parts = []
+    for i, g in tab.groupby("id", sort=False):
+        tt = g["t"].to_numpy(float)
+        grid_t = np.arange(np.ceil(tt[0] / dt - 1e-9), np.floor(tt[-1] / dt + 1e-9) + 1) * dt
+        if grid_t.size >= 3:
+            parts.append(pd.DataFrame({
+                "id": i, "t": grid_t, "x": np.interp(grid_t, tt, g["x"].to_numpy(float)),
+                "y": np.interp(grid_t, tt, g["y"].to_numpy(float)),
+            }))  # fmt: skip
+    if not parts:
+        raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
+    params, info = fit_social_force(pd.concat(parts, ignore_index=True))
+    if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
+        raise ValueError(
+            f"tracks: the social force does not describe them (relaxation "
+            f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
+        )
+    return params, info
+
+
+def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[str, float]:
+    """The fitted parameters and the fit's ``r2`` as attributes (``interaction_*``)."""
+    out = {f"{_PREFIX}{k}": float(getattr(params, k)) for k in SocialForce._fields}
+    out[f"{_PREFIX}r2"] = float(info.get("r2", np.nan))
+    out[f"{_PREFIX}samples"] = float(info.get("n", np.nan))
+    return out
+
+
+def interaction_from_attrs(attrs: Mapping[str, Any]) -> SocialForce | None:
+    """The :class:`SocialForce` a fit stored (:func:`interaction_attrs`), or None.
+
+    Raises
+    ------
+    ValueError
+        If a stored parameter is not a finite positive number.
+    """
+    if f"{_PREFIX}strength" not in attrs:
+        return None
+    values = {}
+    for k in SocialForce._fields:
+        v = float(np.asarray(attrs.get(f"{_PREFIX}{k}", getattr(SocialForce(), k))).ravel()[0])
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"behaviour.attrs.{_PREFIX}{k}: expected a finite number > 0, got {v}")
+        values[k] = v
+    return SocialForce(**values)
