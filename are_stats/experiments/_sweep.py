@@ -554,27 +554,28 @@ def _grid(path: str) -> Any:
 
 
 @_cached()
-def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any, Any]:
+def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any, Any, Any]:
     """Posterior draws and laws of the fit's chosen traffic models
-    (:func:`~are_stats.scenarios.traffic_draws`), its class labels and its fitted behaviour
-    (None without a ``behaviour`` group)."""
+    (:func:`~are_stats.scenarios.traffic_draws`), its class labels, its fitted behaviour
+    (None without a ``behaviour`` group) and the interaction it learned (``True``, the
+    published social force, without one)."""
     from are_stats.behaviour import BehaviourFit
-    from are_stats.fitting import read_fit
+    from are_stats.fitting import fit_class_labels, interaction_from_attrs, read_fit
     from are_stats.scenarios import traffic_draws
 
     idata = read_fit(path)
-    names = idata.posterior.attrs.get("class_labels")
     draws, laws = traffic_draws(idata, "chosen")
-    behaviour = None
+    behaviour, interaction = None, True
     if "behaviour" in idata.groups():
         try:
             behaviour = BehaviourFit.from_dataset(idata.behaviour)
+            interaction = interaction_from_attrs(idata.behaviour.attrs) or True
         except (KeyError, ValueError, TypeError, IndexError) as err:
             raise InputError(
                 path, "behaviour", "the behaviour group written by are-stats fit",
                 Described(f"a damaged group ({type(err).__name__}: {err})"),
             ) from None  # fmt: skip
-    return draws, (str(names).split(",") if names else None), laws, behaviour
+    return draws, fit_class_labels(idata), laws, behaviour, interaction
 
 
 @_cached()
@@ -876,9 +877,9 @@ def _task_scenario(
         (scene,) = scenes_from_tables(art, tracks, catalogue, labels, [draw])
         rate = float("nan")
     else:
-        labels, laws, fitted, draw = None, None, None, -1
+        labels, laws, fitted, draw, interaction = None, None, None, -1, True
         if "fit" in sc:
-            draws, labels, laws, fitted = _fit_draws(str(sc["fit"]))
+            draws, labels, laws, fitted, interaction = _fit_draws(str(sc["fit"]))
             # one posterior draw per replicate, chosen by the replicate's seed alone
             draw = int(np.random.default_rng([seed, 1]).integers(draws["arrival_rate"].shape[0]))
             params = {k: v[draw : draw + 1] for k, v in draws.items()}
@@ -893,7 +894,7 @@ def _task_scenario(
         (scene,) = scenes_from_draws(
             seed, params, grid, catalogue, 1, horizon, laws=laws, behaviours=behave,
             fitted=fitted, class_labels=labels, start=sc.get("start", "stationary"),
-            source=str(sc.get("fit", "scenario")), **moves,
+            source=str(sc.get("fit", "scenario")), interaction=interaction, **moves,
         )  # fmt: skip
     t_arr = scene.t_arrive
     info = {

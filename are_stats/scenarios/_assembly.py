@@ -410,8 +410,12 @@ def scenes_from_fit(
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
-    area, start, behaviour_cell, behaviour_dt, cell_source, interaction
+    area, start, behaviour_cell, behaviour_dt, cell_source
         See :func:`scenes_from_draws`.
+    interaction : bool or SocialForce
+        See :func:`scenes_from_draws`; ``True`` uses the social force the fit estimated
+        from the log's tracks when it has one (:func:`~are_stats.fitting.fit_interaction`),
+        else the published parameters.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
 
@@ -420,7 +424,7 @@ def scenes_from_fit(
     list of Scene
     """
     from are_stats.behaviour import BehaviourFit
-    from are_stats.fitting import fit_class_labels, read_fit
+    from are_stats.fitting import fit_class_labels, interaction_from_attrs, read_fit
     from are_stats.inputs import Described, InputError
 
     if source is None:
@@ -434,6 +438,9 @@ def scenes_from_fit(
     if "behaviour" in idata.groups():
         try:
             fitted = BehaviourFit.from_dataset(idata.behaviour)
+            learned = interaction_from_attrs(idata.behaviour.attrs)
+            if interaction is True and learned is not None:
+                interaction = learned  # the log's own interaction
         except (KeyError, ValueError, TypeError, IndexError) as err:
             raise InputError(
                 source, "behaviour", "the behaviour group written by are-stats fit",
