@@ -842,6 +842,7 @@ def run_serve(
     port: int = 8765,
     loop: bool = False,
     duration: float | None = None,
+    robot_path: Path | None = None,
 ) -> dict[str, Any]:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
     (:func:`are_stats.experiments._live.serve_scenario`)."""
@@ -860,7 +861,7 @@ def run_serve(
     try:
         info = serve_scenario(
             folder, scenario=scenario, speed=speed, host=host, port=port, loop=loop,
-            duration=duration, on_ready=ready,
+            duration=duration, on_ready=ready, robot_path=robot_path,
         )  # fmt: skip
     except KeyboardInterrupt:
         console.print("stopped")

@@ -502,13 +502,20 @@ def serve(
     duration: float = typer.Option(
         None, "--duration", help="Stop after this many wall-clock seconds."
     ),
+    robot_path: Path = typer.Option(
+        None,
+        "--robot-path",
+        help="Robot path (CSV/Parquet t,x,y,yaw) to stream too: base_link and the camera "
+        "frustum (the shipped front_camera).",
+    ),
 ) -> None:
-    """Stream a scenario replay live to Foxglove (WebSocket): boxes, map, /tf."""
+    """Stream a scenario replay live to Foxglove (WebSocket, foxglove.sdk.v1): boxes, map, /tf,
+    and the robot with --robot-path."""
     from are_stats._cli_jobs import run_serve
 
     run_serve(
         scenarios, scenario=scenario, speed=speed, host=host, port=port, loop=loop,
-        duration=duration,
+        duration=duration, robot_path=robot_path,
     )  # fmt: skip
 
 

@@ -18,7 +18,14 @@ topic        Foxglove schema             content
 ``/map``     ``foxglove.Grid``           the occupancy map (one ``uint8`` field
                                          ``occupancy``: 0-100, 255 unknown), at the start
                                          and again every second, so late viewers get it
+``/robot``   ``foxglove.SceneUpdate``    with a robot path (``--robot-path``): the robot's
+                                         footprint and its camera's viewing frustum (to
+                                         ``d_max``), with ``map -> base_link`` and
+                                         ``base_link -> camera_optical_frame`` on ``/tf``
 ===========  ==========================  ====================================================
+
+The server speaks the protocol foxglove-sdk serves, ``foxglove.sdk.v1`` (the Foxglove app
+and desktop connect to it; clients must offer that subprotocol).
 
 Frame names are the REP-105 names of :mod:`are_stats.experiments._ros`. Stamps and log
 times follow the replay clock: ``start + tau`` where ``tau`` is replay time since the start
@@ -44,7 +51,14 @@ import numpy as np
 from are_stats.experiments._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 
-__all__ = ["LIVE_TOPICS", "LiveMessage", "replay_messages", "serve_scenario"]
+__all__ = [
+    "LIVE_TOPICS",
+    "ROBOT_TOPICS",
+    "LiveMessage",
+    "load_robot",
+    "replay_messages",
+    "serve_scenario",
+]
 
 #: Topic -> Foxglove schema name published by :func:`serve_scenario`.
 LIVE_TOPICS = {
@@ -52,6 +66,8 @@ LIVE_TOPICS = {
     "/tf": "foxglove.FrameTransforms",
     "/map": "foxglove.Grid",
 }
+#: Topic -> schema added with a robot path (``--robot-path``).
+ROBOT_TOPICS = {"/robot": "foxglove.SceneUpdate"}
 
 #: Box colours (r, g, b, a) by catalogue class position (cycled).
 CLASS_RGBA = (
@@ -136,7 +152,7 @@ def grid_message(grid: Any, stamp_ns: int, frame: str = "map") -> Any:
 def _frame(
     fm: Any, scene: Any, t: float, ns: int, gone: list[int], frame: str
 ) -> tuple[Any, Any, list[int]]:
-    """(SceneUpdate, FrameTransforms, alive ids) of the scene at time ``t``."""
+    """(SceneUpdate, transforms, alive ids) of the scene at time ``t``."""
     boxes = scene.at(t)
     stamp = _ts(fm, ns)
     cls_of = dict(zip(scene.ids.tolist(), scene.classes.tolist(), strict=True))
@@ -190,11 +206,65 @@ def _frame(
         )
         for a in gone
     ]
-    return (
-        fm.SceneUpdate(deletions=deletions, entities=entities),
-        fm.FrameTransforms(transforms=tfs),
-        boxes.ids.tolist(),
-    )
+    return fm.SceneUpdate(deletions=deletions, entities=entities), tfs, boxes.ids.tolist()
+
+
+def _robot_frame(fm: Any, robot: Any, t: float, ns: int, frame: str) -> tuple[Any, list]:
+    """(SceneUpdate, transforms) of the robot at ``t``: footprint and camera frustum."""
+    from are_stats.logs import interpolate_poses
+
+    base_at = interpolate_poses(robot["t"], robot["poses"], np.array([t]))[0]
+    mount = robot["mount"]
+    cam = robot["camera"]
+    stamp = _ts(fm, ns)
+    x, y = float(base_at[0, 3]), float(base_at[1, 3])
+    yaw = math.atan2(base_at[1, 0], base_at[0, 0])
+    base, optical = ROS_FRAMES["F_R"], ROS_FRAMES["F_C"]
+    # the frustum's corners in the optical frame at d_max: pixel corners through the pinhole
+    d = robot["d_max"]
+    corners = []
+    for u, v in ((0, 0), (cam.width, 0), (cam.width, cam.height), (0, cam.height)):
+        ray = np.array([(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0])
+        corners.append(d * ray / np.linalg.norm(ray))
+    pts = [fm.Point3(x=0.0, y=0.0, z=0.0)]
+    for c in corners:
+        pts.append(fm.Point3(x=float(c[0]), y=float(c[1]), z=float(c[2])))
+    order = [0, 1, 0, 2, 0, 3, 0, 4, 1, 2, 2, 3, 3, 4, 4, 1]
+    frustum = fm.SceneEntity(
+        timestamp=stamp, frame_id=optical, id="camera_frustum",
+        lines=[fm.LinePrimitive(
+            type=fm.LinePrimitiveLineType.LineList, thickness=2.0, scale_invariant=True,
+            points=[pts[i] for i in order], color=fm.Color(r=0.2, g=0.9, b=1.0, a=0.9),
+        )],
+    )  # fmt: skip
+    body = fm.SceneEntity(
+        timestamp=stamp, frame_id=base, id="robot",
+        cylinders=[fm.CylinderPrimitive(
+            pose=fm.Pose(position=fm.Vector3(x=0.0, y=0.0, z=0.2),
+                         orientation=fm.Quaternion(w=1.0)),
+            size=fm.Vector3(x=2 * robot["radius"], y=2 * robot["radius"], z=0.4),
+            bottom_scale=1.0, top_scale=1.0, color=fm.Color(r=0.9, g=0.9, b=0.9, a=0.9),
+        )],
+    )  # fmt: skip
+    rot = mount[:3, :3]
+    w = math.sqrt(max(1.0 + rot[0, 0] + rot[1, 1] + rot[2, 2], 1e-12)) / 2.0
+    quat = fm.Quaternion(
+        x=(rot[2, 1] - rot[1, 2]) / (4 * w), y=(rot[0, 2] - rot[2, 0]) / (4 * w),
+        z=(rot[1, 0] - rot[0, 1]) / (4 * w), w=w,
+    )  # fmt: skip
+    tfs = [
+        fm.FrameTransform(
+            timestamp=stamp, parent_frame_id=frame, child_frame_id=base,
+            translation=fm.Vector3(x=x, y=y, z=0.0), rotation=_yaw_quat(fm, yaw),
+        ),
+        fm.FrameTransform(
+            timestamp=stamp, parent_frame_id=base, child_frame_id=optical,
+            translation=fm.Vector3(x=float(mount[0, 3]), y=float(mount[1, 3]),
+                                   z=float(mount[2, 3])),
+            rotation=quat,
+        ),
+    ]  # fmt: skip
+    return fm.SceneUpdate(entities=[body, frustum]), tfs
 
 
 def replay_messages(
@@ -208,6 +278,7 @@ def replay_messages(
     start_ns: int = 0,
     map_period: float = 1.0,
     frame: str = ROS_FRAMES["F_E"],
+    robot: dict | None = None,
 ) -> Iterator[LiveMessage]:
     """The timed messages of a replay of ``scene`` (pure: no server, no clock).
 
@@ -237,6 +308,10 @@ def replay_messages(
         Wall seconds between two ``/map`` messages.
     frame : str
         The fixed frame.
+    robot : dict, optional
+        ``t`` (m,), ``poses`` (m, 4, 4) ``T_map_base``, ``mount`` (4, 4) ``T_base_optical``,
+        ``camera`` (PinholeCamera), ``d_max`` and ``radius``: the robot on ``/robot`` and
+        ``/tf`` (:func:`load_robot`).
 
     Yields
     ------
@@ -274,12 +349,62 @@ def replay_messages(
         now = set(scene.ids[scene.alive(t)].tolist())
         gone = [a for a in alive if a not in now]
         upd, tfs, alive = _frame(fm, scene, t, ns, gone, frame)
-        if alive:
-            yield LiveMessage(wall, t, ns, "/tf", tfs)
+        if robot is not None:
+            body, robot_tfs = _robot_frame(fm, robot, t, ns, frame)
+            tfs = [*tfs, *robot_tfs]
+        if tfs:
+            yield LiveMessage(wall, t, ns, "/tf", fm.FrameTransforms(transforms=tfs))
         yield LiveMessage(wall, t, ns, "/scene", upd)
+        if robot is not None:
+            yield LiveMessage(wall, t, ns, "/robot", body)
         if not loop and tau >= horizon:
             return
         k += 1
+
+
+def load_robot(
+    path: str | os.PathLike,
+    camera: Any = None,
+    *,
+    height: float = 1.0,
+    d_max: float = 10.0,
+    radius: float = 0.3,
+) -> dict[str, Any]:
+    """A robot path (CSV/Parquet ``t, x, y, yaw``: :func:`~are_stats.perception.read_robot_path`)
+    and its camera for :func:`replay_messages`.
+
+    Parameters
+    ----------
+    path : path
+        The robot path.
+    camera : PinholeCamera or path, optional
+        Intrinsics and mount (default the shipped ``front_camera``; a camera without a
+        mount is ``height`` m above the base looking forward).
+    height, d_max, radius : float
+        Camera height (m) when the camera has no mount, frustum depth (m), footprint
+        radius (m).
+
+    Returns
+    -------
+    dict
+        ``t``, ``poses``, ``mount``, ``camera``, ``d_max``, ``radius``.
+    """
+    from are_stats.environment import DEFAULT_MODELS
+    from are_stats.perception import PinholeCamera, optical_from_base, read_robot_path
+
+    table = read_robot_path(path)
+    if camera is None:
+        camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
+    cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
+    mount = cam.pose if not np.allclose(cam.pose, np.eye(4)) else optical_from_base((0, 0, height))
+    t = table["t"].to_numpy(float)
+    c, s = np.cos(table["yaw"].to_numpy(float)), np.sin(table["yaw"].to_numpy(float))
+    poses = np.zeros((t.size, 4, 4))
+    poses[:, 0, 0], poses[:, 0, 1], poses[:, 1, 0], poses[:, 1, 1] = c, -s, s, c
+    poses[:, 2, 2] = poses[:, 3, 3] = 1.0
+    poses[:, 0, 3], poses[:, 1, 3] = table["x"].to_numpy(float), table["y"].to_numpy(float)
+    return {"t": t, "poses": poses, "mount": np.asarray(mount, float), "camera": cam,
+            "d_max": float(d_max), "radius": float(radius)}  # fmt: skip
 
 
 def _resolves(host: str) -> bool:
@@ -392,6 +517,7 @@ def serve_scenario(
     fps: float = 10.0,
     on_ready: Callable[[dict[str, Any]], None] | None = None,
     stop: Any = None,
+    robot_path: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Stream a scenario replay live over Foxglove's WebSocket protocol.
 
@@ -418,6 +544,9 @@ def serve_scenario(
         Frames per wall-clock second.
     on_ready : callable, optional
         Called with the summary (``port`` filled in) once the server listens.
+    robot_path : path, optional
+        A robot path (``t, x, y, yaw``) to stream with the scene (:func:`load_robot`:
+        ``/robot`` and its ``/tf``).
 
     Returns
     -------
@@ -444,6 +573,7 @@ def serve_scenario(
     ):
         raise InputError("--host", "", "an address to listen on, such as 127.0.0.1", host)
     replay = load_replay(folder, scenario)
+    robot = load_robot(robot_path) if robot_path is not None else None
     _fm()
     import foxglove
     from foxglove.channels import FrameTransformsChannel, GridChannel, SceneUpdateChannel
@@ -456,6 +586,8 @@ def serve_scenario(
     }
     if replay["grid"] is not None:
         channels["/map"] = GridChannel("/map", context=ctx)
+    if robot is not None:
+        channels["/robot"] = SceneUpdateChannel("/robot", context=ctx)
     try:
         server = foxglove.start_server(
             name="are-stats serve",
@@ -490,7 +622,7 @@ def serve_scenario(
             on_ready(dict(info))
         msgs = replay_messages(
             replay["scene"], replay["grid"], horizon=replay["horizon"], speed=speed, fps=fps,
-            loop=loop, start_ns=start_ns,
+            loop=loop, start_ns=start_ns, robot=robot,
         )  # fmt: skip
         last_stamp = None
         for m in msgs:

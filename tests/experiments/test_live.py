@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import os
 import socket
 import struct
@@ -298,3 +299,28 @@ def test_cli_serve_port_in_use(folder):
     assert res.exit_code == 2, res.output
     assert "--port: expected a free TCP port on 127.0.0.1" in res.output, res.output
     assert str(port) in res.output
+
+
+def test_replay_streams_the_robot_and_its_camera_frustum(tmp_path):
+    from are_stats.experiments._live import load_robot
+
+    path = tmp_path / "robot.csv"
+    path.write_text("t,x,y,yaw\n0,0,0,0\n60,6,0,0\n")
+    robot = load_robot(path, d_max=8.0)
+    msgs = list(
+        replay_messages(_scene(), horizon=60.0, speed=50.0, fps=10.0, start_ns=0, robot=robot)
+    )
+    bodies = [m for m in msgs if m.topic == "/robot"]
+    scenes = [m for m in msgs if m.topic == "/scene"]
+    assert len(bodies) == len(scenes) > 0  # the robot in every frame
+    first = _decode(bodies[0].message)
+    assert {e.id for e in first.entities} == {"robot", "camera_frustum"}
+    frustum = next(e for e in first.entities if e.id == "camera_frustum")
+    far = max(math.hypot(p.x, p.y, p.z) for p in frustum.lines[0].points)
+    assert far == pytest.approx(8.0)
+    for m in (m for m in msgs if m.topic == "/tf"):
+        by_child = {tf.child_frame_id: tf for tf in _decode(m.message).transforms}
+        base = by_child["base_link"]
+        assert base.parent_frame_id == "map"
+        assert base.translation.x == pytest.approx(m.t / 10.0)  # 6 m in 60 s
+        assert by_child["camera_optical_frame"].parent_frame_id == "base_link"
