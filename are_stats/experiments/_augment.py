@@ -13,8 +13,10 @@ base to an optical frame (the ``CameraInfo`` frame, or a frame named ``*optical*
 the fit chose, with behaviour tracks so that artefacts move), and at every camera frame
 registers the artefacts alive then with the AR-builder (the augmented grid), computes A_f
 from the recorded camera pose (DECISIONS 8) and the robot's contacts with the boxes. It
-writes an MCAP with ROS 2 types (:data:`AUGMENT_TOPICS`) stamped on the bag's clock, so the
-file lines up with the recording and ``ros2 bag play`` replays both.
+writes an MCAP holding the input's channels unchanged
+(:func:`~are_stats.logs.bag_passthrough`) and only what is new (:data:`AUGMENT_TOPICS`:
+``map -> artefact_<id>`` on ``/tf``, markers, maps, A_f), stamped on the input's header
+clock and logged on its recording clock, so that ``ros2 bag play`` replays the one file.
 """
 
 from __future__ import annotations

@@ -203,11 +203,14 @@ def _camera_info(T, t: float, ros1: bool):
     return T["sensor_msgs/msg/CameraInfo"](**common, d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=p)
 
 
-def write_bag(path: Path, kind: str, outlier_log: bool = False, **which) -> Path:
+def write_bag(
+    path: Path, kind: str, outlier_log: bool = False, damaged: str | None = None, **which
+) -> Path:
     """Write the test bag as ``kind`` ``"ros1"`` (``path`` a ``.bag``), ``"ros2"`` (a folder,
     sqlite3) or ``"mcap"`` (a ROS 2 folder with MCAP storage; its ``.mcap`` file is
     returned). ``which`` goes to :func:`bag_messages`; ``outlier_log`` also records the
-    outlier messages at :data:`OUTLIER_STAMP` (1970)."""
+    outlier messages at :data:`OUTLIER_STAMP` (1970); ``damaged`` (ROS 1 only) adds a
+    ``std_msgs/String`` topic of that name whose one message is undecodable bytes."""
     from rosbags.typesys import Stores, get_typestore
 
     def log_ns(t: float, topic: str) -> int:
@@ -234,6 +237,9 @@ def write_bag(path: Path, kind: str, outlier_log: bool = False, **which) -> Path
                 if topic not in conns:
                     conns[topic] = w.add_connection(topic, typ, typestore=ts)
                 w.write(conns[topic], log_ns(t, topic), ts.serialize_ros1(msg, typ))
+            if damaged is not None:  # a string of length 2^31 - 1 in 7 bytes
+                c = w.add_connection(damaged, "std_msgs/msg/String", typestore=ts)
+                w.write(c, stamp_ns(1.0), b"\xff\xff\xff\x7fabc")
         return path
     from rosbags.rosbag2 import StoragePlugin, Writer
 

@@ -796,3 +796,16 @@ def test_augment_pose_topic_only_bag_still_publishes_the_robot(files, tmp_path):
     links = _tf_links(msgs)
     assert ("map", "base_link") in links and ("base_link", "camera_optical_frame") in links
     assert len(msgs["/amcl_pose"]) == int(DURATION * 10) + 1
+
+
+def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
+    bag = write_bag(tmp_path / "damaged.bag", "ros1", damaged="/note")
+    out = tmp_path / "o.mcap"
+    res = _augment(files, bag, out, "--camera", files["camera"])
+    assert res.exit_code == 2, res.output
+    assert "topic '/note', message" in res.output and "convertible to ROS 2 CDR" in res.output
+    assert "--topics" in res.output and not out.exists()
+    keep = "/tf,/tf_static,/camera/camera_info"
+    res = _augment(files, bag, out, "--camera", files["camera"], "--topics", keep)
+    assert res.exit_code == 0, res.output
+    assert "/note" not in {c[0] for c in _raw_channels(out)}
