@@ -654,7 +654,7 @@ def _qos_form(texts: Sequence[str]) -> str:
     import re
 
     for text in texts:
-        m = re.search(r"reliability:\s*([A-Za-z_]+|\d+)", str(text))
+        m = re.search(r"reliability'?:\s*'?([A-Za-z_]+|\d+)", str(text))
         if m:
             return "int" if m.group(1).isdigit() else "string"
     return "int"
