@@ -806,9 +806,13 @@ def run_augment(
     force: bool = False,
     clock: str = "auto",
     model: str = "chosen",
+    topics: str | None = None,
+    map_frame: str = "map",
+    camera_frame: str | None = None,
 ) -> Any:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
-    (:func:`are_stats.experiments.augment_bag`)."""
+    (:func:`are_stats.experiments.augment_bag`); ``topics`` the comma-separated input
+    topics passed through (default all)."""
     from are_stats.experiments import augment_bag
     from are_stats.inputs import InputError
 
@@ -820,7 +824,9 @@ def run_augment(
             bag, fit_path, map_path, out, seed, pose_topic=pose_topic,
             base_frame=base_frame or "base_link", camera=camera,
             camera_info_topic=camera_info_topic, period=period, d_max=d_max, tau=tau,
-            force=force, clock=clock, model=model,
+            force=force, clock=clock, model=model, map_frame=map_frame,
+            camera_frame=camera_frame,
+            topics=None if topics is None else [t.strip() for t in topics.split(",") if t.strip()],
         )  # fmt: skip
     n_seen = int(res.perceived.any(axis=0).sum())
     console.print(
@@ -828,8 +834,12 @@ def run_augment(
         f"{n_seen} perceived in {len(res.times)} camera frames, "
         f"{int(res.contacts.any(axis=0).sum())} touched by the robot "
         f"({time.perf_counter() - t:.1f} s); wrote {res.path} "
-        f"({', '.join(f'{k} {v}' for k, v in res.topics.items())}); clock: {res.clock_note}"
+        f"({', '.join(f'{k} {v}' for k, v in res.topics.items())}; passed through: "
+        f"{', '.join(f'{k} {v}' for k, v in res.passed.items()) or 'nothing'}); "
+        f"clock: {res.clock_note}"
     )
+    if res.frame_note:
+        console.print(f"note: {res.frame_note}")
     return res
 
 

@@ -474,6 +474,21 @@ def augment(
         help="chosen: the traffic models the fit chose; paper: Poisson arrivals, exponential "
         "stays, uniform positions (for a fit whose learned entries belong to another map).",
     ),
+    topics: str = typer.Option(
+        None,
+        "--topics",
+        help="Comma-separated input topics copied into OUT (default: all of them).",
+    ),
+    map_frame: str = typer.Option(
+        "map",
+        "--map-frame",
+        help="Fixed frame of the artefacts (odom is used when the bag's tree has no map).",
+    ),
+    camera_frame: str = typer.Option(
+        None,
+        "--camera-frame",
+        help="The camera's frame in the bag's tree (default: the CameraInfo's frame).",
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite OUT."),
 ) -> None:
     """Augment a robot's recorded bag with artefacts generated from a fit (ROS 2 MCAP out)."""
@@ -483,6 +498,7 @@ def augment(
         bag, fit_path, map_path, out, _seed(seed), pose_topic=pose_topic,
         base_frame=base_frame, camera=camera, camera_info_topic=camera_info_topic,
         period=period, d_max=d_max, tau=tau, force=force, clock=clock, model=model,
+        topics=topics, map_frame=map_frame, camera_frame=camera_frame,
     )  # fmt: skip
 
 

@@ -13,8 +13,10 @@ base to an optical frame (the ``CameraInfo`` frame, or a frame named ``*optical*
 the fit chose, with behaviour tracks so that artefacts move), and at every camera frame
 registers the artefacts alive then with the AR-builder (the augmented grid), computes A_f
 from the recorded camera pose (DECISIONS 8) and the robot's contacts with the boxes. It
-writes an MCAP with ROS 2 types (:data:`AUGMENT_TOPICS`) stamped on the bag's clock, so the
-file lines up with the recording and ``ros2 bag play`` replays both.
+writes an MCAP holding the input's channels unchanged
+(:func:`~are_stats.logs.bag_passthrough`) and only what is new (:data:`AUGMENT_TOPICS`:
+``map -> artefact_<id>`` on ``/tf``, markers, maps, A_f), stamped on the input's header
+clock and logged on its recording clock, so that ``ros2 bag play`` replays the one file.
 """
 
 from __future__ import annotations
@@ -109,6 +111,14 @@ class BagTrajectory(NamedTuple):
         ``"header"`` (header stamps) or ``"log"`` (recording times).
     clock_note : str
         Which clock was read and why (and how far apart the two are).
+    frame : str
+        The fixed frame the poses are in: ``map_frame``, or ``odom`` for a bag whose tree
+        has no map frame (odometry only).
+    frame_note : str
+        Why the poses are in :attr:`frame` when it is not ``map_frame`` (else ``""``).
+    offset_ns : int
+        Header stamps minus recording times (ns, the median over the stamped messages):
+        the shift from the recording clock onto the header clock.
     """
 
     t: np.ndarray
@@ -125,6 +135,9 @@ class BagTrajectory(NamedTuple):
     camera_ns: np.ndarray | None = None
     clock: str = "log"
     clock_note: str = ""
+    frame: str = "map"
+    frame_note: str = ""
+    offset_ns: int = 0
 
 
 class AugmentResult(NamedTuple):
@@ -154,6 +167,12 @@ class AugmentResult(NamedTuple):
         The clock read (``"header"`` or ``"log"``).
     clock_note : str
         Which clock was read and why.
+    frame : str
+        The fixed frame of the artefacts (``map``, or ``odom`` in an odometry-only bag).
+    frame_note : str
+        Why it is not the map frame (else ``""``).
+    passed : dict of str to int
+        Messages copied from the input per topic (pass-through).
     """
 
     path: Path
@@ -167,6 +186,9 @@ class AugmentResult(NamedTuple):
     topics: dict
     clock: str = "log"
     clock_note: str = ""
+    frame: str = "map"
+    frame_note: str = ""
+    passed: dict = {}  # noqa: RUF012 (a NamedTuple default, never mutated)
 
 
 # ---- reading ------------------------------------------------------------------------------
@@ -219,6 +241,7 @@ def read_trajectory(
     map_frame: str = "map",
     camera_info_topic: str | None = None,
     clock: str = "auto",
+    camera_frame: str | None = None,
 ) -> BagTrajectory:
     """The robot's base poses in the map frame, from a ROS 1 / ROS 2 bag or an MCAP file.
 
@@ -231,9 +254,15 @@ def read_trajectory(
         Read the poses from this topic (:data:`POSE_TYPES`; its ``frame_id`` should be the
         map frame) instead of ``/tf``.
     base_frame, map_frame : str
-        The ``/tf`` frames composed into ``T_map_base`` (``map -> ... -> base_link``).
+        The ``/tf`` frames composed into ``T_map_base`` (``map -> ... -> base_link``). A
+        tree without the default ``map`` frame but with ``odom -> ... -> base_frame``
+        (odometry only) is read in ``odom`` (:attr:`BagTrajectory.frame_note` says so).
     camera_info_topic : str, optional
         A ``sensor_msgs/CameraInfo`` topic: its intrinsics, frame and stamps.
+    camera_frame : str, optional
+        The camera's optical frame in the bag's tree (default the ``CameraInfo``'s
+        ``header.frame_id``); :attr:`BagTrajectory.mount` is the static chain from the base
+        to it. Without either the bag's tree gives no mount (no frame is guessed by name).
     clock : {"auto", "header", "log"}
         The one clock of poses, ``/tf`` and camera frames: ``header`` their header stamps
         (a zero stamp reads as its recording time moved onto the header clock), ``log`` the
@@ -384,6 +413,7 @@ def read_trajectory(
     def on_clock(h: int, lg: int) -> int:
         return lg if clock == "log" else (h if h else lg + offset)
 
+    fixed, frame_note = map_frame, ""
     tf = TfBuffer()
     link_ns: dict[tuple[str, str], list[int]] = {}
     link_msg: dict[tuple[str, str], list[int]] = {}
@@ -403,6 +433,14 @@ def read_trajectory(
         source = pose_topic
     else:
         links = tf.chain(map_frame, base_frame)
+        if links is None and map_frame == "map" and "map" not in tf.frames:
+            odom = tf.chain("odom", base_frame)
+            if odom is not None:  # odometry only: no map frame in the tree
+                links, map_frame = odom, "odom"
+                frame_note = (
+                    f"the bag's tree has no frame {fixed!r}: poses and artefacts in 'odom' "
+                    "(odometry only; pass --map-frame to name another fixed frame)"
+                )
         if links is None:
             raise InputError(
                 p,
@@ -430,13 +468,19 @@ def read_trajectory(
     ends = [t_ns[[0, -1]]] + ([cam_ns[[0, -1]]] if cam_ns is not None else [])
     start_ns, end_ns = int(min(e[0] for e in ends)), int(max(e[1] for e in ends))
     mount = None
-    candidates = [cam_frame] if cam_frame else [f for f in tf.frames if "optical" in f]
-    for f in candidates:
-        links = tf.chain(base_frame, f)
+    cam_frame = camera_frame.lstrip("/") if camera_frame else cam_frame
+    if cam_frame:
+        links = tf.chain(base_frame, cam_frame)
         if links and tf.is_static(links):
-            mount = tf.lookup(base_frame, f, 0.0)[0]
-            cam_frame = f
-            break
+            mount = tf.lookup(base_frame, cam_frame, 0.0)[0]
+        elif camera_frame:
+            raise InputError(
+                p,
+                f"--camera-frame {camera_frame}",
+                f"a frame of the bag's tree with a static chain {base_frame} -> ... -> "
+                f"{cam_frame} (/tf_static)",
+                Described(f"frames {', '.join(tf.frames) or 'none'}"),
+            )
     return BagTrajectory(
         t_ns * 1e-9,
         poses,
@@ -452,6 +496,9 @@ def read_trajectory(
         cam_ns,
         clock,
         note,
+        map_frame,
+        frame_note,
+        int(offset),
     )
 
 
@@ -482,6 +529,8 @@ def augment_bag(
     force: bool = False,
     clock: str = "auto",
     model: str = "chosen",
+    topics: Any = None,
+    camera_frame: str | None = None,
 ) -> AugmentResult:
     """Augment a robot's recorded run with generated artefacts and write an MCAP.
 
@@ -506,6 +555,9 @@ def augment_bag(
         shipped ``front_camera``.
     camera_info_topic : str, optional
         ``sensor_msgs/CameraInfo`` topic: intrinsics and frame times from the bag.
+    camera_frame : str, optional
+        The camera's optical frame in the bag's tree (default the ``CameraInfo``'s frame);
+        the mount is the bag's static chain from the base to it.
     mount : (4, 4) float, optional
         ``T_base_optical``; default the bag's ``/tf_static``, else the camera file's pose
         when it has one, else :func:`~are_stats.perception.optical_from_base` 1 m above
@@ -533,6 +585,17 @@ def augment_bag(
         Generate from the traffic models the fit chose or from the paper's (Poisson,
         exponential, uniform positions: for a fit whose learned entries belong to another
         map), as ``generate --model``.
+    topics : sequence of str, optional
+        The input topics passed through (default all of them).
+
+    The output carries the input's channels unchanged (:func:`~are_stats.logs.
+    bag_passthrough`: same schemas, bytes, counts and log times; a ROS 1 bag converted to
+    ROS 2 CDR) plus only what is new: ``map -> artefact_<id>`` on ``/tf``, the markers of
+    ``/artefacts`` (living until the next camera frame and a bit), ``/augmented_map``,
+    ``/perceived`` and ``/map`` when the input has none. The robot's tree is the input's;
+    only a bag without ``/tf`` (a pose topic) gets ``map -> base_link`` and the static
+    camera mount published, so that the output can still be viewed. The new channels
+    spell QoS as the input does and carry ``topic_type_hash`` when the input's do.
 
     Returns
     -------
@@ -582,6 +645,8 @@ def augment_bag(
             "the fit's area (m^2; a fit of are-stats fit)",
             Described("none"),
         )
+    from are_stats.logs import bag_passthrough
+
     traj = read_trajectory(
         bag,
         pose_topic=pose_topic,
@@ -589,7 +654,20 @@ def augment_bag(
         map_frame=map_frame,
         camera_info_topic=camera_info_topic,
         clock=clock,
+        camera_frame=camera_frame,
     )
+    passthrough = bag_passthrough(bag, None if topics is None else list(topics))
+    clash = sorted(
+        {c.topic for c in passthrough.channels} & (set(AUGMENT_TOPICS) - {"/tf", "/tf_static"})
+    )
+    if clash:
+        raise InputError(
+            bag,
+            f"topic {clash[0]}",
+            f"input topics other than the ones augment writes ({', '.join(AUGMENT_TOPICS)})",
+            Described(f"{', '.join(clash)} in the bag; leave them out with --topics"),
+        )
+    fixed = traj.frame
     xy = traj.poses[:, :2, 3]
     outside = ~grid.in_bounds(grid.world_to_cell(xy))
     if outside.any():
@@ -669,12 +747,27 @@ def augment_bag(
         counts, seen = np.zeros((times.size, 0), np.int64), np.zeros((times.size, 0), bool)
     contacts = np.zeros((times.size, n), bool)
 
-    R = RosMessages(start, map_frame, start_ns=start_ns)
-    base, camf = ROS_FRAMES["F_R"], traj.camera_frame or ROS_FRAMES["F_C"]
-    R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
-    R.add(0.0, "/tf_static", _TF, R.tf([R.transform(0.0, base, camf, mount)]), latched=True)
-    for tk, m in zip(pose_t, traj.poses, strict=True):
-        R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), map_frame, base, m)]))
+    # one clock in the file: the new messages' header stamps on the input's header clock
+    # (as the stamps of the messages passed through), their log times on its recording
+    # clock (as their log times), whichever clock the poses were read on
+    off = traj.offset_ns
+    R = RosMessages(
+        start,
+        fixed,
+        start_ns=start_ns + (off if traj.clock == "log" else 0),
+        log_offset_ns=-off,
+    )
+    if "/map" not in passthrough.topics:
+        R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
+    if "/tf" not in passthrough.topics:  # no robot tree in the input: publish the pose
+        base, camf = base_frame, traj.camera_frame or ROS_FRAMES["F_C"]
+        R.add(0.0, "/tf_static", _TF, R.tf([R.transform(0.0, base, camf, mount)]), latched=True)
+        for tk, m in zip(pose_t, traj.poses, strict=True):
+            R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), fixed, base, m)]))
+    # markers live until the next camera frame and a bit: a replay stopped half-way (or
+    # started) shows no artefact that is not alive then
+    gaps = np.diff(times)
+    lifetime = 2.0 * float(np.median(gaps)) if gaps.size else 1.0
     builder = ARBuilder(grid, catalogue)
     last = None
     String = R.T["std_msgs/msg/String"]
@@ -712,6 +805,7 @@ def augment_bag(
                 boxes.yaws,
                 boxes.labels,
                 seen[f, idx],
+                lifetime=lifetime,
             ),
         )
         if idx.size:
@@ -721,7 +815,7 @@ def augment_bag(
                 _TF,
                 R.tf(
                     [
-                        R.planar(t, map_frame, artefact_frame(a), c[0], c[1], y, c[2])
+                        R.planar(t, fixed, artefact_frame(a), c[0], c[1], y, c[2])
                         for a, c, y in zip(boxes.ids, boxes.centres, boxes.yaws, strict=True)
                     ]
                 ),
@@ -735,11 +829,14 @@ def augment_bag(
             "contacts": [int(a) for a, k in zip(boxes.ids, idx, strict=True) if contacts[f, k]],
         }
         R.add(t, "/perceived", AUGMENT_TOPICS["/perceived"], String(data=json.dumps(doc)))
-    topics = dict(R.counts())
-    path = R.write(out, force=force)
+    written = dict(R.counts())
+    passed: dict[str, int] = {}
+    for c in passthrough.channels:
+        passed[c.topic] = passed.get(c.topic, 0) + c.count
+    path = R.write(out, force=force, passthrough=passthrough)
     return AugmentResult(
-        path, times, start, cam_poses, scene, counts, seen, contacts, topics,
-        traj.clock, traj.clock_note,
+        path, times, start, cam_poses, scene, counts, seen, contacts, written,
+        traj.clock, traj.clock_note, traj.frame, traj.frame_note, passed,
     )  # fmt: skip
 
 

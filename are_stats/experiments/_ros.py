@@ -33,7 +33,7 @@ import numpy as np
 from are_stats._atomic import atomic_path
 from are_stats.inputs import InputError
 
-__all__ = ["ROS_FRAMES", "RosMessages", "artefact_frame", "parse_start_time"]
+__all__ = ["ROS_FRAMES", "RosMessages", "artefact_frame", "parse_start_time", "qos_profile"]
 
 #: Paper frame -> REP-105 frame name used in exports (``F_A/<id>`` -> :func:`artefact_frame`).
 ROS_FRAMES: dict[str, str] = {
@@ -54,6 +54,25 @@ _QOS_VOLATILE = (
     "  avoid_ros_namespace_conventions: false\n"
 )
 _QOS_LATCHED = _QOS_VOLATILE.replace("durability: 2", "durability: 1")
+# Jazzy's spelling: names instead of enum integers, durations of rmw's infinity
+_QOS_VOLATILE_STR = (
+    "- history: unknown\n  depth: 0\n  reliability: reliable\n  durability: volatile\n"
+    "  deadline: {sec: 9223372036, nsec: 854775807}\n"
+    "  lifespan: {sec: 9223372036, nsec: 854775807}\n  liveliness: automatic\n"
+    "  liveliness_lease_duration: {sec: 9223372036, nsec: 854775807}\n"
+    "  avoid_ros_namespace_conventions: false\n"
+)
+_QOS_LATCHED_STR = _QOS_VOLATILE_STR.replace("durability: volatile", "durability: transient_local")
+
+
+def qos_profile(latched: bool, form: str = "int") -> str:
+    """The ``offered_qos_profiles`` channel metadata ``ros2 bag play`` reads: reliable,
+    transient local when ``latched`` (late subscribers such as rviz still get the message)
+    else volatile, spelt as Humble (``form="int"``, enum integers) or Jazzy (``"string"``)
+    bags spell it."""
+    if form == "string":
+        return _QOS_LATCHED_STR if latched else _QOS_VOLATILE_STR
+    return _QOS_LATCHED if latched else _QOS_VOLATILE
 
 
 def artefact_frame(artefact_id: int) -> str:
@@ -125,14 +144,24 @@ class RosMessages:
     start_ns : int, optional
         ``start`` in integer nanoseconds, exact (a bag's start time); default
         ``round(start * 1e9)``.
+    log_offset_ns : int
+        Log times are the stamps plus this (ns): a bag's recording clock when the stamps
+        are on another one (simulation time); default 0, the same clock.
     """
 
-    def __init__(self, start: float = 0.0, frame: str = "map", start_ns: int | None = None) -> None:
+    def __init__(
+        self,
+        start: float = 0.0,
+        frame: str = "map",
+        start_ns: int | None = None,
+        log_offset_ns: int = 0,
+    ) -> None:
         from rosbags.typesys import Stores, get_typestore
 
         self.start = float(start)
         self.start_ns = int(round(self.start * 1e9)) if start_ns is None else int(start_ns)
         self.frame = frame
+        self.log_offset_ns = int(log_offset_ns)
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
         self.T = self.ts.types
         self.topics: dict[str, str] = {}
@@ -214,10 +243,12 @@ class RosMessages:
         action: int = 0,
         text: str = "",
         frame: str | None = None,
+        lifetime: float = 0.0,
     ) -> Any:
         """``visualization_msgs/Marker`` (type 1 cube, 2 sphere, 9 text; action 3 deletes
-        all)."""
+        all; ``lifetime`` seconds, 0 for ever)."""
         T = self.T
+        life = int(round(max(float(lifetime), 0.0) * 1e9))
         empty = np.zeros(0, np.uint8)
         return T["visualization_msgs/msg/Marker"](
             header=self.header(t, frame),
@@ -232,7 +263,7 @@ class RosMessages:
             color=T["std_msgs/msg/ColorRGBA"](
                 r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3])
             ),
-            lifetime=T["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+            lifetime=T["builtin_interfaces/msg/Duration"](sec=life // 10**9, nanosec=life % 10**9),
             frame_locked=False,
             points=[],
             colors=[],
@@ -256,9 +287,12 @@ class RosMessages:
         yaws: Any,
         labels: Any,
         perceived: Any,
+        lifetime: float = 0.0,
     ) -> Any:
         """``MarkerArray``: a DELETEALL, then per artefact a cube (ns ``artefacts``; green
-        perceived, grey otherwise) and its class label as text above it (ns ``labels``).
+        perceived, grey otherwise) and its class label as text above it (ns ``labels``),
+        both living ``lifetime`` seconds (0: until replaced), so that a replay stopped or
+        started half-way leaves no ghost.
 
         Parameters
         ----------
@@ -278,7 +312,14 @@ class RosMessages:
             aid = int(ids[k])
             ms.append(
                 self.marker(
-                    t, "artefacts", aid, 1, self.pose(c[0], c[1], yaws[k], c[2]), 2 * h, rgba
+                    t,
+                    "artefacts",
+                    aid,
+                    1,
+                    self.pose(c[0], c[1], yaws[k], c[2]),
+                    2 * h,
+                    rgba,
+                    lifetime=lifetime,
                 )
             )
             label = f"{labels[k]} {aid}" + ("" if seen else " (occluded)")
@@ -292,6 +333,7 @@ class RosMessages:
                     (0.0, 0.0, 0.4),
                     (1.0, 1.0, 1.0, 1.0),
                     text=label,
+                    lifetime=lifetime,
                 )
             )
         return self.T["visualization_msgs/msg/MarkerArray"](markers=ms)
@@ -301,12 +343,13 @@ class RosMessages:
 
     # ---- collecting and writing -------------------------------------------------------
     def add(self, t: float, topic: str, msgtype: str, msg: Any, *, latched: bool = False) -> None:
-        """Queue ``msg`` on ``topic`` at scenario time ``t`` (log time ``start + t``)."""
+        """Queue ``msg`` on ``topic`` at scenario time ``t`` (log time ``start + t`` plus
+        the log offset)."""
         if self.topics.setdefault(topic, msgtype) != msgtype:
             raise ValueError(f"topic {topic}: expected {self.topics[topic]}, got {msgtype}")
         if latched:
             self.latched.add(topic)
-        self._msgs.append((self.ns(t), len(self._msgs), topic, msg))
+        self._msgs.append((self.ns(t) + self.log_offset_ns, len(self._msgs), topic, msg))
 
     def counts(self) -> Mapping[str, int]:
         out: dict[str, int] = {}
@@ -314,37 +357,80 @@ class RosMessages:
             out[topic] = out.get(topic, 0) + 1
         return out
 
-    def write(self, path: str | os.PathLike, *, force: bool = False) -> Path:
-        """Write the queued messages, sorted by time, to ``path`` (atomically)."""
+    def write(
+        self, path: str | os.PathLike, *, force: bool = False, passthrough: Any = None
+    ) -> Path:
+        """Write the queued messages, sorted by time, to ``path`` (atomically).
+
+        ``passthrough`` (:class:`~are_stats.logs.PassThrough`): an input bag's channels,
+        copied first and unchanged (schemas, metadata, bytes, log and publish times,
+        sequences), its messages streamed and merged by log time with the queued ones;
+        the new channels then spell QoS as the input does and carry a ``topic_type_hash``
+        when its channels do.
+        """
+        import heapq
+
         from mcap.writer import Writer
 
+        form = "int" if passthrough is None else passthrough.qos_form
+        hashed = passthrough is not None and passthrough.type_hash
         target = Path(path)
         with atomic_path(target, force=force) as tmp, open(tmp, "wb") as fh:
             w = Writer(fh)
             w.start(profile="ros2", library="are_stats")
-            schemas: dict[str, int] = {}
+            schemas: dict[tuple[str, str, bytes], int] = {}
+
+            def schema(name: str, encoding: str, data: bytes) -> int:
+                if not encoding:
+                    return 0
+                key = (name, encoding, data)
+                if key not in schemas:
+                    schemas[key] = w.register_schema(name=name, encoding=encoding, data=data)
+                return schemas[key]
+
+            inputs: list[int] = []
+            for ch in [] if passthrough is None else passthrough.channels:
+                meta = dict(ch.metadata)
+                if not meta.get("offered_qos_profiles"):
+                    meta["offered_qos_profiles"] = qos_profile(ch.latched, form)
+                inputs.append(
+                    w.register_channel(
+                        topic=ch.topic,
+                        message_encoding=ch.message_encoding,
+                        schema_id=schema(ch.msgtype, ch.schema_encoding, ch.schema),
+                        metadata=meta,
+                    )
+                )
             channels: dict[str, int] = {}
             for topic, typ in self.topics.items():
-                if typ not in schemas:
-                    schemas[typ] = w.register_schema(
-                        name=typ,
-                        encoding="ros2msg",
-                        data=self.ts.generate_msgdef(typ, ros_version=2)[0].encode(),
-                    )
-                qos = _QOS_LATCHED if topic in self.latched else _QOS_VOLATILE
-                channels[topic] = w.register_channel(
-                    topic=topic,
-                    message_encoding="cdr",
-                    schema_id=schemas[typ],
-                    metadata={"offered_qos_profiles": qos},
+                sid = schema(
+                    typ, "ros2msg", self.ts.generate_msgdef(typ, ros_version=2)[0].encode()
                 )
-            for seq, (ns, _, topic, msg) in enumerate(sorted(self._msgs, key=lambda m: m[:2])):
+                meta = {"offered_qos_profiles": qos_profile(topic in self.latched, form)}
+                if hashed:
+                    meta["topic_type_hash"] = self.ts.hash_rihs01(typ)
+                channels[topic] = w.register_channel(
+                    topic=topic, message_encoding="cdr", schema_id=sid, metadata=meta
+                )
+            ours = (
+                (ns, 1, seq, channels[topic], msg, topic)
+                for seq, (ns, _, topic, msg) in enumerate(sorted(self._msgs, key=lambda m: m[:2]))
+            )
+            theirs = (
+                (log, 0, seq, inputs[k], (pub, data), None)
+                for log, pub, seq, k, data in (
+                    () if passthrough is None else passthrough.messages()
+                )
+            )
+            for ns, mine, seq, cid, msg, topic in heapq.merge(
+                theirs, ours, key=lambda r: (r[0], r[1])
+            ):
+                if mine:
+                    pub, data = ns, bytes(self.ts.serialize_cdr(msg, self.topics[topic]))
+                else:
+                    pub, data = msg
                 w.add_message(
-                    channel_id=channels[topic],
-                    log_time=ns,
-                    publish_time=ns,
-                    sequence=seq,
-                    data=bytes(self.ts.serialize_cdr(msg, self.topics[topic])),
+                    channel_id=cid, log_time=ns, publish_time=pub, sequence=seq, data=data
                 )
             w.finish()
         return target

@@ -30,7 +30,7 @@ import math
 import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -43,7 +43,10 @@ __all__ = [
     "OUTLIER_SHARE",
     "STAMP_GAP",
     "SUPPORTED_TRACK_TYPES",
+    "PassChannel",
+    "PassThrough",
     "bag_messages",
+    "bag_passthrough",
     "bag_read_errors",
     "check_bag_path",
     "check_stamps",
@@ -579,3 +582,336 @@ def read_tracks_bag(
         df[c] = df[c].astype("str")
     order = np.argsort(df["t"].to_numpy(), kind="stable")
     return df.iloc[order].reset_index(drop=True)
+
+
+# ---- pass-through: an input bag's channels copied raw -------------------------------------
+
+
+class PassChannel(NamedTuple):
+    """One channel of an input bag, as it is copied into an MCAP.
+
+    Attributes
+    ----------
+    topic, msgtype : str
+        Topic and schema name (a ROS 1 type renamed as ``rosbags.convert`` renames it).
+    schema_encoding : str
+        ``ros2msg`` or ``ros2idl`` (``""``: no schema).
+    schema : bytes
+        The schema's definition text, as the input holds it (generated for a bag without
+        one).
+    message_encoding : str
+        ``cdr`` (a ROS 1 bag's messages are converted to it).
+    metadata : dict of str to str
+        The input's channel metadata (``offered_qos_profiles``, ``topic_type_hash``);
+        empty for a ROS 1 bag (the writer adds QoS from :attr:`latched`).
+    latched : bool
+        A ROS 1 latched topic or a transient-local one.
+    count : int
+        Messages of the channel in the input (its index).
+    """
+
+    topic: str
+    msgtype: str
+    schema_encoding: str
+    schema: bytes
+    message_encoding: str
+    metadata: dict
+    latched: bool
+    count: int
+
+
+class PassThrough(NamedTuple):
+    """The channels of an input bag selected for pass-through and how to stream them.
+
+    Attributes
+    ----------
+    path : Path
+        The bag.
+    channels : list of PassChannel
+        The selected channels (index ``k`` in :attr:`messages`' records).
+    topics : dict of str to str
+        Every topic of the bag and its type (selected or not).
+    qos_form : {"int", "string"}
+        How the bag spells QoS: Humble's integers or Jazzy's names (``int`` when it says
+        nothing).
+    type_hash : bool
+        Whether the bag's channels carry a ``topic_type_hash`` (Jazzy).
+    messages : callable
+        ``messages()`` yields ``(log_time ns, publish_time ns, sequence, k, data)`` in the
+        input's log-time order, streamed (one record at a time), the bytes unchanged
+        (CDR converted from ROS 1 for a ``.bag``).
+    """
+
+    path: Path
+    channels: list
+    topics: dict
+    qos_form: str
+    type_hash: bool
+    messages: Any
+
+
+def _qos_form(texts: Sequence[str]) -> str:
+    import re
+
+    for text in texts:
+        m = re.search(r"reliability'?:\s*'?([A-Za-z_]+|\d+)", str(text))
+        if m:
+            return "int" if m.group(1).isdigit() else "string"
+    return "int"
+
+
+def _select(p: Path, by_topic: dict[str, str], topics: Sequence[str] | None) -> set[str]:
+    if topics is None:
+        return set(by_topic)
+    listed = ", ".join(f"{t} ({ty})" for t, ty in sorted(by_topic.items())) or "none"
+    for t in topics:
+        if t not in by_topic:
+            raise InputError(
+                p,
+                f"--topics {t}",
+                "a topic of the bag",
+                Described(f"no such topic; topics: {listed}"),
+            )
+    return set(topics)
+
+
+def _mcap_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    errors = (*_bag_errors(), McapError, ValueError)
+    try:
+        with open(p, "rb") as fh:
+            summary = make_reader(fh).get_summary()
+    except errors as err:
+        raise ValueError(
+            f"{p}: expected a readable MCAP file, got: {type(err).__name__}: {err}"
+        ) from None
+    if summary is None:
+        raise InputError(p, "", "an MCAP file with a summary (index)", Described("none"))
+    by_topic: dict[str, str] = {}
+    for ch in summary.channels.values():
+        sc = summary.schemas.get(ch.schema_id)
+        by_topic.setdefault(ch.topic, sc.name if sc is not None else "")
+    sel = _select(p, by_topic, topics)
+    counts = summary.statistics.channel_message_counts if summary.statistics else {}
+    index: dict[int, int] = {}
+    channels: list[PassChannel] = []
+    for cid, ch in sorted(summary.channels.items()):
+        if ch.topic not in sel:
+            continue
+        sc = summary.schemas.get(ch.schema_id)
+        meta = dict(ch.metadata)
+        index[cid] = len(channels)
+        channels.append(
+            PassChannel(
+                ch.topic,
+                sc.name if sc is not None else "",
+                sc.encoding if sc is not None else "",
+                bytes(sc.data) if sc is not None else b"",
+                ch.message_encoding,
+                meta,
+                "transient_local" in meta.get("offered_qos_profiles", "")
+                or "durability: 1" in meta.get("offered_qos_profiles", ""),
+                int(counts.get(cid, 0)),
+            )
+        )
+    texts = [c.metadata.get("offered_qos_profiles", "") for c in summary.channels.values()]
+    hashed = any(c.metadata.get("topic_type_hash") for c in summary.channels.values())
+
+    def messages() -> Iterator[tuple[int, int, int, int, bytes]]:
+        n = 0
+        with open(p, "rb") as fh:
+            it = make_reader(fh).iter_messages(topics=sorted(sel), log_time_order=True)
+            while True:
+                try:
+                    item = next(it)
+                except StopIteration:
+                    return
+                except errors as err:
+                    raise ValueError(
+                        f"{p}: record after message {n}: expected a readable MCAP record, got "
+                        f"a damaged one ({type(err).__name__}: {err})"
+                    ) from None
+                n += 1
+                _, ch, m = item
+                yield m.log_time, m.publish_time, m.sequence, index[ch.id], m.data
+
+    return PassThrough(p, channels, by_topic, _qos_form(texts), hashed, messages)
+
+
+def _folder_metadata(p: Path) -> dict[str, dict]:
+    """``{topic: topic_metadata}`` of a ROS 2 bag folder's ``metadata.yaml``."""
+    import yaml
+
+    try:
+        info = yaml.safe_load((p / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        rows = info.get("topics_with_message_count") or []
+        return {str(r["topic_metadata"]["name"]): dict(r["topic_metadata"]) for r in rows}
+    except (yaml.YAMLError, KeyError, TypeError, AttributeError, UnicodeDecodeError) as err:
+        raise InputError(
+            p / "metadata.yaml",
+            "rosbag2_bagfile_information.topics_with_message_count",
+            "rosbag2 metadata",
+            Described(f"{type(err).__name__}: {err}"),
+        ) from None
+
+
+def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
+    import yaml
+    from rosbags.convert.converter import STATIC_MSGTYPE_RENAMES, generate_message_converter
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import MessageDefinitionFormat
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    errors = _bag_errors()
+    ros1 = p.suffix == ".bag"
+    store = vision_msgs_typestore(1 if ros1 else 2)
+    meta = {} if ros1 or not p.is_dir() else _folder_metadata(p)
+    keys: dict[tuple[str, str], int] = {}
+    channels: list[PassChannel] = []
+    convert: dict[str, Any] = {}
+    try:
+        with AnyReader([p], default_typestore=store) as reader:
+            by_topic: dict[str, str] = {}
+            for c in reader.connections:
+                by_topic.setdefault(c.topic, c.msgtype)
+            sel = _select(p, by_topic, topics)
+            dst = None
+            if ros1:  # ROS 2 Header (no seq) over the bag's own definitions, as rosbags.convert
+                header = get_typestore(Stores.ROS2_FOXY).fielddefs["std_msgs/msg/Header"]
+                dst = get_typestore(Stores.EMPTY)
+                dst.register({**reader.typestore.fielddefs, "std_msgs/msg/Header": header})
+            for c in reader.connections:
+                if c.topic not in sel:
+                    continue
+                typ = STATIC_MSGTYPE_RENAMES.get(c.msgtype, c.msgtype) if ros1 else c.msgtype
+                key = (c.topic, typ)
+                if key in keys:
+                    k = keys[key]
+                    channels[k] = channels[k]._replace(count=channels[k].count + int(c.msgcount))
+                    continue
+                if ros1:
+                    try:
+                        if typ not in dst.fielddefs:
+                            msgdef = reader.typestore.generate_msgdef(c.msgtype, ros_version=2)[0]
+                            typs = get_types_from_msg(msgdef, typ)
+                            typs.pop("std_msgs/msg/Header", None)
+                            dst.register(typs)
+                        convert[c.msgtype] = generate_message_converter(
+                            reader.typestore, dst, c.msgtype, typ, {}, src_is2=False, dst_is2=True
+                        )
+                        text, enc = dst.generate_msgdef(typ, ros_version=2)[0], "ros2msg"
+                    except errors as err:
+                        raise InputError(
+                            p,
+                            f"topic {c.topic}",
+                            "a ROS 1 type convertible to ROS 2 CDR for the MCAP (or leave the "
+                            "topic out with --topics)",
+                            Described(f"{c.msgtype}: {type(err).__name__}: {err}"),
+                        ) from None
+                    md: dict[str, str] = {}
+                    latched = bool(getattr(c.ext, "latching", 0))
+                else:
+                    if c.msgdef.format == MessageDefinitionFormat.IDL:
+                        text, enc = c.msgdef.data, "ros2idl"
+                    elif c.msgdef.format == MessageDefinitionFormat.MSG and c.msgdef.data:
+                        text, enc = c.msgdef.data, "ros2msg"
+                    else:
+                        text, enc = (
+                            reader.typestore.generate_msgdef(typ, ros_version=2)[0],
+                            "ros2msg",
+                        )
+                    tm = meta.get(c.topic, {})
+                    qos = tm.get("offered_qos_profiles", "")
+                    md = {
+                        "offered_qos_profiles": qos if isinstance(qos, str) else yaml.safe_dump(qos)
+                    }
+                    if tm.get("type_description_hash"):
+                        md["topic_type_hash"] = str(tm["type_description_hash"])
+                    latched = any(
+                        getattr(getattr(q, "durability", None), "value", None) == 1
+                        for q in (getattr(c.ext, "offered_qos_profiles", None) or [])
+                    )
+                keys[key] = len(channels)
+                channels.append(
+                    PassChannel(
+                        c.topic, typ, enc, text.encode(), "cdr", md, latched, int(c.msgcount)
+                    )
+                )
+    except errors as err:
+        raise ValueError(
+            f"{p}: expected a readable ROS 1 / ROS 2 bag or MCAP file, got: "
+            f"{type(err).__name__}: {err}"
+        ) from None
+    texts = [str(tm.get("offered_qos_profiles", "")) for tm in meta.values()]
+    hashed = any(tm.get("type_description_hash") for tm in meta.values())
+
+    def messages() -> Iterator[tuple[int, int, int, int, bytes]]:
+        with AnyReader([p], default_typestore=store) as reader:
+            conns = [c for c in reader.connections if c.topic in sel]
+            it = reader.messages(connections=conns)
+            n = 0
+            while True:
+                try:
+                    conn, ts, raw = next(it)
+                except StopIteration:
+                    return
+                except errors as err:
+                    raise ValueError(
+                        f"{p}: record after message {n}: expected a readable bag record, got "
+                        f"a damaged one ({type(err).__name__}: {err})"
+                    ) from None
+                n += 1
+                typ = (
+                    STATIC_MSGTYPE_RENAMES.get(conn.msgtype, conn.msgtype) if ros1 else conn.msgtype
+                )
+                if ros1:
+                    try:
+                        raw = bytes(convert[conn.msgtype](raw))
+                    except errors as err:
+                        raise ValueError(
+                            f"{p}: topic {conn.topic!r}, message {n}: expected a ROS 1 "
+                            f"{conn.msgtype} convertible to ROS 2 CDR (or leave the topic out "
+                            f"with --topics), got {type(err).__name__}: {err}"
+                        ) from None
+                yield int(ts), int(ts), n - 1, keys[(conn.topic, typ)], bytes(raw)
+
+    return PassThrough(p, channels, by_topic, _qos_form(texts), hashed, messages)
+
+
+def bag_passthrough(path: str | os.PathLike, topics: Sequence[str] | None = None) -> PassThrough:
+    """The channels of a bag to copy into an MCAP unchanged, streamed.
+
+    An ``.mcap`` file is copied raw (schemas, channel metadata, message bytes, log and
+    publish times, sequences); a ROS 2 bag folder (sqlite3 or MCAP storage) with its
+    schemas and the QoS / type hash of its ``metadata.yaml``; a ROS 1 ``.bag`` has its
+    messages converted to ROS 2 CDR with the bag's own definitions (the ROS 2 ``Header``
+    without ``seq``, ``tf/tfMessage`` as ``tf2_msgs/msg/TFMessage``, as
+    ``rosbags.convert`` converts), or is refused when a type cannot be converted.
+
+    Parameters
+    ----------
+    path : path
+        The bag (checked with :func:`check_bag_path`).
+    topics : sequence of str, optional
+        The topics to pass through (default all).
+
+    Returns
+    -------
+    PassThrough
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        A topic not in the bag (the bag's topics listed), a ROS 1 type that cannot be
+        converted, unreadable metadata.
+    ValueError
+        A damaged bag (naming it).
+    """
+    p = check_bag_path(path)
+    if topics is not None:
+        topics = [get_str(t, "--topics", "") for t in topics]
+    if p.is_file() and p.suffix == ".mcap":
+        return _mcap_passthrough(p, topics)
+    return _rosbags_passthrough(p, topics)

@@ -88,6 +88,8 @@ def bag_messages(
     header_start: float = START,
     outlier: bool = False,
     bad: tuple | None = None,
+    map_tf: bool = True,
+    extra: str | None = None,
 ):
     """``(t, topic, msgtype, message)`` of the test bag, in time order (``t`` s after
     :data:`START`, the recording time).
@@ -95,7 +97,9 @@ def bag_messages(
     ``header_start``: header stamps are ``header_start + t`` (a simulation clock when it
     differs from :data:`START`). ``outlier``: message :data:`ODD_K` of ``/tf`` (its
     ``odom -> base_link``) and of the pose topics is stamped :data:`OUTLIER_STAMP` (1970).
-    ``bad``: ``(x, y, quaternion)`` of that message's pose and transform.
+    ``bad``: ``(x, y, quaternion)`` of that message's pose and transform. ``map_tf``:
+    ``/tf`` has ``map -> odom`` (else odometry only). ``extra``: a ``std_msgs/String``
+    topic of that name besides.
     """
     _CLOCK["start"] = header_start
     out = []
@@ -137,7 +141,7 @@ def bag_messages(
                 _tf(T, t, "odom", "base_link", (x - odom[0], y - odom[1], 0.0), yaw, ros1=ros1,
                     q=q, at=at)
             ]  # fmt: skip
-            if k % 10 == 0:
+            if k % 10 == 0 and map_tf:
                 tfs.append(_tf(T, t, "map", "odom", odom, ros1=ros1))
             out.append(
                 (t, "/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=tfs))
@@ -167,6 +171,8 @@ def bag_messages(
                     T["geometry_msgs/msg/PoseWithCovarianceStamped"](header=hdr, pose=cov),
                 )
             )
+        if extra is not None and k % 10 == 0:
+            out.append((t, extra, "std_msgs/msg/String", T["std_msgs/msg/String"](data=f"{k}")))
         if camera and k % 5 == 0:
             out.append(
                 (t, "/camera/camera_info", "sensor_msgs/msg/CameraInfo", _camera_info(T, t, ros1))
@@ -197,11 +203,14 @@ def _camera_info(T, t: float, ros1: bool):
     return T["sensor_msgs/msg/CameraInfo"](**common, d=np.zeros(5), k=k, r=np.eye(3).ravel(), p=p)
 
 
-def write_bag(path: Path, kind: str, outlier_log: bool = False, **which) -> Path:
+def write_bag(
+    path: Path, kind: str, outlier_log: bool = False, damaged: str | None = None, **which
+) -> Path:
     """Write the test bag as ``kind`` ``"ros1"`` (``path`` a ``.bag``), ``"ros2"`` (a folder,
     sqlite3) or ``"mcap"`` (a ROS 2 folder with MCAP storage; its ``.mcap`` file is
     returned). ``which`` goes to :func:`bag_messages`; ``outlier_log`` also records the
-    outlier messages at :data:`OUTLIER_STAMP` (1970)."""
+    outlier messages at :data:`OUTLIER_STAMP` (1970); ``damaged`` (ROS 1 only) adds a
+    ``std_msgs/String`` topic of that name whose one message is undecodable bytes."""
     from rosbags.typesys import Stores, get_typestore
 
     def log_ns(t: float, topic: str) -> int:
@@ -228,6 +237,9 @@ def write_bag(path: Path, kind: str, outlier_log: bool = False, **which) -> Path
                 if topic not in conns:
                     conns[topic] = w.add_connection(topic, typ, typestore=ts)
                 w.write(conns[topic], log_ns(t, topic), ts.serialize_ros1(msg, typ))
+            if damaged is not None:  # a string of length 2^31 - 1 in 7 bytes
+                c = w.add_connection(damaged, "std_msgs/msg/String", typestore=ts)
+                w.write(c, stamp_ns(1.0), b"\xff\xff\xff\x7fabc")
         return path
     from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -241,3 +253,51 @@ def write_bag(path: Path, kind: str, outlier_log: bool = False, **which) -> Path
     if kind == "mcap":
         return next(Path(path).glob("*.mcap"))
     return path
+
+
+_HUMBLE_QOS = (
+    "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n"
+    "  deadline: {sec: 2147483647, nsec: 4294967295}\n"
+    "  lifespan: {sec: 2147483647, nsec: 4294967295}\n  liveliness: 1\n"
+    "  liveliness_lease_duration: {sec: 2147483647, nsec: 4294967295}\n"
+    "  avoid_ros_namespace_conventions: false\n"
+)
+
+
+def jazzy_mcap(src: Path, dst: Path) -> Path:
+    """A copy of the MCAP ``src`` as a Jazzy recorder writes it: QoS spelt with names
+    (``reliable``, ``transient_local``) and a ``topic_type_hash`` per channel."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    names = {
+        "reliability: 1": "reliability: reliable",
+        "reliability: 2": "reliability: best_effort",
+        "durability: 1": "durability: transient_local",
+        "durability: 2": "durability: volatile",
+    }
+    with open(src, "rb") as fi, open(dst, "wb") as fo:
+        r = make_reader(fi)
+        summary = r.get_summary()
+        w = Writer(fo)
+        w.start(profile="ros2", library="jazzy-like")
+        sid = {k: w.register_schema(s.name, s.encoding, s.data) for k, s in summary.schemas.items()}
+        cid = {}
+        for k, c in summary.channels.items():
+            latched = c.topic == "/tf_static"
+            qos = c.metadata.get("offered_qos_profiles", "")
+            if qos.strip() in ("", "[]"):  # rosbags writes none
+                qos = _HUMBLE_QOS.replace(
+                    "durability: 2", "durability: 1" if latched else "durability: 2"
+                )
+            for a, b in names.items():
+                qos = qos.replace(a, b)
+            name = summary.schemas[c.schema_id].name
+            meta = {"offered_qos_profiles": qos, "topic_type_hash": ts.hash_rihs01(name)}
+            cid[k] = w.register_channel(c.topic, c.message_encoding, sid[c.schema_id], meta)
+        for _, c, m in r.iter_messages(log_time_order=True):
+            w.add_message(cid[c.id], m.log_time, m.data, m.publish_time, m.sequence)
+        w.finish()
+    return dst

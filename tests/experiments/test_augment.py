@@ -81,6 +81,13 @@ def _read_mcap(path: Path) -> tuple[dict, dict, list]:
     return msgs, types, channels
 
 
+def _input_types(bag: Path) -> dict[str, str]:
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag]) as reader:
+        return {c.topic: c.msgtype for c in reader.connections}
+
+
 def _truth(times: np.ndarray) -> np.ndarray:
     """``T_map_base`` (T, 4, 4) of the fixture's robot at scenario times."""
     out = np.tile(np.eye(4), (len(times), 1, 1))
@@ -118,7 +125,8 @@ def test_augment_reads_back_and_matches_perceive_scene(files, tmp_path):
         tau=5.0,
     )
     msgs, types, channels = _read_mcap(out)
-    assert types == AUGMENT_TOPICS
+    # the input's topics (passed through) and the new ones; the input has no /map
+    assert types == {**_input_types(files["ros2"]), **AUGMENT_TOPICS}
     # times start at the bag's start and line up with its camera frames
     first = min(m[0][0] for m in msgs.values())
     assert first == START_NS
@@ -134,22 +142,25 @@ def test_augment_reads_back_and_matches_perceive_scene(files, tmp_path):
         assert (g.info.width, g.info.height) == (grid.width, grid.height)
         assert len(g.data) == grid.width * grid.height
     assert (msgs["/augmented_map"][0][1].data == 100).sum() > (grid.data == 100).sum()
-    # REP-105 frames: map -> base_link at every bag pose, map -> artefact_<id>, static camera
+    # REP-105 frames: the robot's tree is the input's (odom -> base_link at every bag pose,
+    # its static camera), the new frames map -> artefact_<id>
     parents = Counter()
     children = set()
     for _, m in msgs["/tf"]:
         for tr in m.transforms:
             parents[(tr.header.frame_id, tr.child_frame_id.split("_")[0])] += 1
             children.add(tr.child_frame_id)
-    assert parents[("map", "base")] == int(DURATION * 10) + 1
-    assert {f"artefact_{int(a)}" for a in res.scene.ids} >= children - {"base_link"}
+    assert parents[("odom", "base")] == int(DURATION * 10) + 1
+    assert parents[("map", "base")] == 0
+    assert {f"artefact_{int(a)}" for a in res.scene.ids} >= children - {"base_link", "odom"}
     assert parents[("map", "artefact")] > 0
-    ((_, static),) = msgs["/tf_static"]
+    ((_, static),) = msgs["/tf_static"]  # the input's
     assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [
-        ("base_link", "camera_optical_frame")
+        ("base_link", "camera_link"),
+        ("camera_link", "camera_optical_frame"),
     ]
-    qos = {c.topic: c.metadata["offered_qos_profiles"] for c in channels}
-    (latched,) = yaml.safe_load(qos["/tf_static"])  # the profile list ros2 bag play reads
+    qos = {c.topic: c.metadata["offered_qos_profiles"] for c in channels}  # the new ones last
+    (latched,) = yaml.safe_load(qos["/augmented_map"])  # the profile list ros2 bag play reads
     (volatile,) = yaml.safe_load(qos["/tf"])
     assert (latched["durability"], volatile["durability"]) == (1, 2)  # transient local, volatile
     assert latched["reliability"] == volatile["reliability"] == 1  # reliable
@@ -215,7 +226,7 @@ def test_augment_cli_ros1_mcap_reproducible(files, tmp_path):
     with AnyReader([out]) as reader:
         assert reader.start_time == START_NS
         topics = {c.topic: c.msgtype for c in reader.connections}
-        assert topics == AUGMENT_TOPICS
+        assert topics == {**_input_types(files["ros1"]), **AUGMENT_TOPICS}
         n = Counter(c.topic for c, _, _ in reader.messages())
     assert n["/perceived"] == int(DURATION) + 1 and n["/map"] == 1
     # from the MCAP bag's /tf with a named base frame, camera frames every 0.5 s
@@ -503,18 +514,25 @@ def test_augment_sim_time_bag_uses_one_clock(files, tmp_path):
     docs = [json.loads(m.data) for _, m in msgs["/perceived"]]
     assert all(d["live"] for d in docs), "every camera frame should see live artefacts"
     assert any(d["perceived"] for d in docs)
-    # the input's stamps on everything derived from it, log times on the same clock
+    # the input's messages passed through with their stamps and recording times; the new
+    # ones stamped on the header clock, logged on the recording clock beside them
     base = [
         (ns, tr_.header.stamp.sec * 10**9 + tr_.header.stamp.nanosec)
         for ns, m in msgs["/tf"]
         for tr_ in m.transforms
         if tr_.child_frame_id == "base_link"
     ]
-    assert [s for _, s in base] == poses_ns and [n for n, _ in base] == poses_ns
+    logs = [stamp_ns(k / 10) for k in range(int(DURATION * 10) + 1)]
+    assert [s for _, s in base] == poses_ns and [n for n, _ in base] == logs
     cam_ns = [stamp_ns(k / 2, SIM_START) for k in range(int(DURATION * 2) + 1)]
-    assert [ns for ns, _ in msgs["/perceived"]] == cam_ns
+    assert [ns for ns, _ in msgs["/perceived"]] == [stamp_ns(k / 2) for k in range(25)]
+    art = [(ns, m.header.stamp) for ns, a in msgs["/artefacts"] for m in a.markers[:1]]
+    assert [s.sec * 10**9 + s.nanosec for _, s in art] == cam_ns
     ((ns, grid),) = msgs["/map"]
-    assert ns == poses_ns[0] == grid.header.stamp.sec * 10**9 + grid.header.stamp.nanosec
+    assert (
+        ns == START_NS
+        and grid.header.stamp.sec * 10**9 + grid.header.stamp.nanosec == (poses_ns[0])
+    )
     # --clock log: the recording times for all
     res = _augment(
         files, bag, tmp_path / "log.mcap", "--camera-info-topic", topic, "--clock", "log", seed=5
@@ -523,6 +541,8 @@ def test_augment_sim_time_bag_uses_one_clock(files, tmp_path):
     msgs, _, _ = _read_mcap(tmp_path / "log.mcap")
     assert msgs["/perceived"][0][0] == START_NS
     assert all(json.loads(m.data)["live"] for _, m in msgs["/perceived"])
+    st = msgs["/artefacts"][0][1].markers[0].header.stamp  # still on the header clock
+    assert st.sec * 10**9 + st.nanosec == stamp_ns(0.0, SIM_START)
     res = _augment(files, bag, tmp_path / "x.mcap", "--clock", "wall")
     assert res.exit_code == 2 and "--clock: expected one of 'auto', 'header', 'log'" in res.output
 
@@ -595,3 +615,197 @@ def test_no_artefact_alive_in_any_frame_is_refused_against_brute_force(files):
                 _check_alive(scene, times, 12.0, traj, "b.bag", 1)
             assert "try --clock header or --clock log, another --seed" in str(err.value)
     assert 0 < refused < 200
+
+
+# ---- pass-through and REP-105 (issue 27) --------------------------------------------------
+
+NEW = ("/augmented_map", "/artefacts", "/perceived", "/map")
+
+
+def _raw_channels(path: Path) -> list[tuple[str, dict, list]]:
+    """The MCAP's channels in registration order: ``(topic, metadata, [(log_time,
+    publish_time, bytes)])``."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        chans = reader.get_summary().channels
+        out = {k: (c.topic, dict(c.metadata), []) for k, c in sorted(chans.items())}
+        for _, c, m in reader.iter_messages(log_time_order=True):
+            out[c.id][2].append((m.log_time, m.publish_time, bytes(m.data)))
+    return list(out.values())
+
+
+def _input_raw(bag: Path) -> dict[str, list]:
+    """``{topic: [(log_time, bytes)]}`` of a ROS 2 bag, the bytes as stored (rosbags)."""
+    from rosbags.highlevel import AnyReader
+
+    out: dict = defaultdict(list)
+    with AnyReader([bag]) as reader:
+        for c, ts, raw in reader.messages():
+            out[c.topic].append((ts, bytes(raw)))
+    return out
+
+
+def _tf_links(msgs: dict) -> set[tuple[str, str]]:
+    return {
+        (t.header.frame_id, t.child_frame_id)
+        for topic in ("/tf", "/tf_static")
+        for _, m in msgs.get(topic, [])
+        for t in m.transforms
+    }
+
+
+@pytest.mark.parametrize("kind", ["mcap", "ros2"])
+def test_augment_passes_every_input_channel_through_unchanged(files, tmp_path, kind):
+    out = tmp_path / "aug.mcap"
+    topic = "/camera/camera_info"
+    res = _augment(files, files[kind], out, "--camera-info-topic", topic, "--d-max", "15", seed=5)
+    assert res.exit_code == 0, res.output
+    assert "passed through: /tf_static 1, /tf 121" in res.output
+    ins = _input_raw(files[kind])
+    chans = _raw_channels(out)
+    # the input's channels first: same topic, count, log times and bytes, in order
+    assert [c[0] for c in chans[: len(ins)]] == list(ins)
+    for t, meta, rows in chans[: len(ins)]:
+        assert [(lg, data) for lg, _, data in rows] == ins[t], t
+        assert meta["offered_qos_profiles"]  # the input's QoS kept
+    # plus only new channels: artefact frames on /tf, no /tf_static, the new topics
+    new = chans[len(ins) :]
+    assert sorted(c[0] for c in new) == sorted(["/tf", *NEW])
+    msgs, _, _ = _read_mcap(out)
+    links = _tf_links(msgs)
+    in_links = _tf_links(_read_mcap(next(Path(files["mcap"]).parent.glob("*.mcap")))[0])
+    assert in_links and {("map", "odom"), ("odom", "base_link")} <= in_links
+    added = links - in_links
+    assert added and all(p == "map" and c.startswith("artefact_") for p, c in added)
+    # every child frame has one parent across input and output together
+    parents = defaultdict(set)
+    for p, c in links | in_links:
+        parents[c].add(p)
+    assert all(len(v) == 1 for v in parents.values()), dict(parents)
+    # artefacts alive, their markers with a lifetime (no ghosts in a partial replay)
+    docs = [json.loads(m.data) for _, m in msgs["/perceived"]]
+    assert any(d["live"] for d in docs) and any(d["perceived"] for d in docs)
+    cubes = [m for _, a in msgs["/artefacts"] for m in a.markers if m.ns == "artefacts"]
+    assert cubes and all(m.lifetime.sec * 10**9 + m.lifetime.nanosec == 10**9 for m in cubes)
+
+
+def test_augment_ros1_bag_is_converted_to_ros2_cdr(files, tmp_path):
+    from rosbags.highlevel import AnyReader
+
+    out = tmp_path / "aug.mcap"
+    res = _augment(files, files["ros1"], out, "--camera-info-topic", "/camera/camera_info")
+    assert res.exit_code == 0, res.output
+    ref, _, _ = _read_mcap(next(Path(files["mcap"]).parent.glob("*.mcap")))
+    msgs, types, _ = _read_mcap(out)  # every message decodes as ROS 2 CDR
+    with AnyReader([files["ros1"]]) as reader:
+        n_in = {c.topic: c.msgcount for c in reader.connections}
+
+    def theirs(topic):  # the input's messages (the /tf channel also holds the artefacts')
+        return [
+            (lg, m)
+            for lg, m in msgs[topic]
+            if topic != "/tf" or not m.transforms[0].child_frame_id.startswith("artefact_")
+        ]
+
+    for t, n in n_in.items():
+        mine = theirs(t)
+        assert len(mine) == n and [lg for lg, _ in mine] == [lg for lg, _ in ref[t]], t
+    # the same transforms and camera intrinsics as the ROS 2 recording of the same run
+    added = _tf_links(msgs) - _tf_links(ref)
+    assert added and all(p == "map" and c.startswith("artefact_") for p, c in added)
+    k = [list(m.k) for _, m in msgs["/camera/camera_info"]]
+    assert k == [list(m.k) for _, m in ref["/camera/camera_info"]]
+    assert types["/tf"] == "tf2_msgs/msg/TFMessage"
+
+
+def test_augment_topics_selects_what_passes_through(files, tmp_path):
+    out = tmp_path / "sel.mcap"
+    res = _augment(
+        files, files["mcap"], out, "--camera", files["camera"], "--topics", "/tf,/tf_static"
+    )
+    assert res.exit_code == 0, res.output
+    chans = _raw_channels(out)
+    assert sorted(c[0] for c in chans) == sorted(["/tf", "/tf_static", "/tf", *NEW])
+    res = _augment(files, files["mcap"], tmp_path / "x.mcap", "--topics", "/tf,/nope")
+    assert res.exit_code == 2 and "--topics /nope" in res.output and "/amcl_pose" in res.output
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_augment_odom_only_bag_puts_artefacts_in_odom(files, tmp_path):
+    bag = write_bag(tmp_path / "odom", "mcap", map_tf=False, poses=False)
+    out = tmp_path / "odom.mcap"
+    res = _augment(files, bag, out, "--camera-info-topic", "/camera/camera_info", "--d-max", "15")
+    assert res.exit_code == 0, res.output
+    assert "note: the bag's tree has no frame 'map'" in res.output and "'odom'" in res.output
+    msgs, _, _ = _read_mcap(out)
+    links = _tf_links(msgs)
+    assert ("map", "odom") not in links and ("odom", "base_link") in links
+    art = {p for p, c in links if c.startswith("artefact_")}
+    assert art == {"odom"}
+    assert {m.header.frame_id for _, a in msgs["/artefacts"] for m in a.markers} == {"odom"}
+    # --map-frame names the fixed frame: a bag with a map frame read in odom, no note
+    out2 = tmp_path / "o2.mcap"
+    res = _augment(files, files["mcap"], out2, "--map-frame", "odom", "--camera", files["camera"])
+    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    assert {p for p, c in _tf_links(_read_mcap(out2)[0]) if c.startswith("artefact_")} == {"odom"}
+    res = _augment(files, files["mcap"], tmp_path / "o3.mcap", "--map-frame", "nowhere")
+    assert res.exit_code == 2 and "nowhere -> ... -> base_link" in res.output
+
+
+def test_augment_qos_in_the_input_bags_form(files, tmp_path):
+    from tests.experiments.rosbag_fixtures import jazzy_mcap
+
+    src = next(Path(files["mcap"]).parent.glob("*.mcap"))
+    for bag, form in ((src, "int"), (jazzy_mcap(src, tmp_path / "jazzy.mcap"), "string")):
+        out = tmp_path / f"{form}.mcap"
+        res = _augment(files, bag, out, "--camera", files["camera"])
+        assert res.exit_code == 0, res.output
+        n_in = len(_raw_channels(bag))
+        for topic, meta, _ in _raw_channels(out)[n_in:]:
+            (qos,) = yaml.safe_load(meta["offered_qos_profiles"])
+            latched = topic in ("/map", "/augmented_map")
+            if form == "int":
+                assert (qos["reliability"], qos["durability"]) == (1, 1 if latched else 2)
+                assert "topic_type_hash" not in meta
+            else:
+                durability = "transient_local" if latched else "volatile"
+                assert (qos["reliability"], qos["durability"]) == ("reliable", durability)
+                assert meta["topic_type_hash"].startswith("RIHS01_")
+
+
+def test_augment_refuses_a_bag_holding_the_new_topics(files, tmp_path):
+    bag = write_bag(tmp_path / "clash", "mcap", extra="/perceived")
+    out = tmp_path / "o.mcap"
+    res = _augment(files, bag, out, "--camera", files["camera"])
+    assert res.exit_code == 2, res.output
+    assert "topic /perceived" in res.output and "leave them out with --topics" in res.output
+    assert not out.exists()
+    keep = "/tf,/tf_static,/camera/camera_info"
+    res = _augment(files, bag, out, "--camera", files["camera"], "--topics", keep)
+    assert res.exit_code == 0, res.output
+
+
+def test_augment_pose_topic_only_bag_still_publishes_the_robot(files, tmp_path):
+    bag = write_bag(tmp_path / "poses", "mcap", tf=False)
+    out = tmp_path / "p.mcap"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera", files["camera"])
+    assert res.exit_code == 0, res.output
+    msgs, _, _ = _read_mcap(out)
+    links = _tf_links(msgs)
+    assert ("map", "base_link") in links and ("base_link", "camera_optical_frame") in links
+    assert len(msgs["/amcl_pose"]) == int(DURATION * 10) + 1
+
+
+def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
+    bag = write_bag(tmp_path / "damaged.bag", "ros1", damaged="/note")
+    out = tmp_path / "o.mcap"
+    res = _augment(files, bag, out, "--camera", files["camera"])
+    assert res.exit_code == 2, res.output
+    assert "topic '/note', message" in res.output and "convertible to ROS 2 CDR" in res.output
+    assert "--topics" in res.output and not out.exists()
+    keep = "/tf,/tf_static,/camera/camera_info"
+    res = _augment(files, bag, out, "--camera", files["camera"], "--topics", keep)
+    assert res.exit_code == 0, res.output
+    assert "/note" not in {c[0] for c in _raw_channels(out)}
