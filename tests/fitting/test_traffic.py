@@ -246,3 +246,51 @@ def test_diurnal_truth_picks_time_of_day():
     assert fit.arrival_model == "time-of-day", fit.tables["arrivals"]
     got = fit.posterior["arrival_tod"].reshape(-1, 24)
     assert np.all(np.abs(got.mean(0) - tod) < 5 * got.std(0) + 0.05)
+
+
+# ---- the Laplace approximation (method em: no NUTS program) ----------------------------
+
+
+@pytest.fixture(scope="module")
+def laplace_fit(rich_log):
+    data, _ = rich_log
+    return fit_traffic(jax.random.key(0), data, paper=_paper(data), grid=_Grid(),
+                       approximation="laplace")  # fmt: skip
+
+
+def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit, rich_log):
+    """On the rich log (groups, gamma stays, door entries: none the paper's) the Laplace
+    + importance-sampled PSIS-LOO comparison picks what NUTS + PSIS-LOO picks, the truth,
+    with elpd within a few nats of NUTS's for every candidate."""
+    _, truth = rich_log
+    got = (laplace_fit.arrival_model, laplace_fit.lifetime_model, laplace_fit.position_model)
+    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
+    assert got == ("groups", "gamma", "learned")
+    assert "Laplace" in laplace_fit.attrs["model_choice"]
+    assert "NUTS" in rich_fit.attrs["model_choice"]
+    for factor in ("arrivals", "lifetimes"):
+        a, b = laplace_fit.tables[factor], rich_fit.tables[factor]
+        assert list(a.index) == list(b.index)
+        # MC error of PSIS-LOO and the Gaussian's fit: a few nats, against differences of
+        # hundreds between the candidates
+        assert np.all(np.abs(a["elpd"] - b["elpd"]) < 5.0 + 0.02 * b["se"]), (a, b)
+    post = laplace_fit.posterior
+    for name in ("event_rate", "stay_mean", "stay_shape"):
+        v = post[name].ravel()
+        assert v.shape == rich_fit.posterior[name].ravel().shape
+        assert abs(v.mean() - truth[name]) < 5 * v.std(), name
+        # the Gaussian's spread is the posterior's (NUTS) within 20%
+        assert v.std() == pytest.approx(rich_fit.posterior[name].std(), rel=0.2), name
+
+
+def test_laplace_keeps_the_paper_model_on_paper_truth():
+    laws = TrafficLaws()
+    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
+    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
+                                free=uniform_position_density(FREE, RES, ORIGIN),
+                                resolution=0.4)  # fmt: skip
+    fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(),
+                      approximation="laplace")  # fmt: skip
+    assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
+        "poisson", "exponential", "uniform",
+    )  # fmt: skip
