@@ -271,32 +271,37 @@ def _bin_width(data: LifecycleData) -> float:
 
 
 def _group_stats(data: LifecycleData) -> dict[str, float]:
-    """Spread of members' stays (sd of log stay) and entry points (m) around their group's."""
+    """Spread of members' stays (sd of log stay) and entry points (m) around their group's.
+
+    Pooled within-group variances: each group of ``n >= 2`` members gives ``n - 1``
+    degrees of freedom (stays: those seen whole and positive, when two or more are).
+    Sums per group by ``bincount`` (linear in the artefacts, whatever the number of groups).
+    """
     out = {"group_stay_sd": 0.0, "group_spread": 0.0}
     if data.group is None:
         return out
-    g = np.asarray(data.group)
+    _, codes = np.unique(np.asarray(data.group), return_inverse=True)
+    codes = codes.ravel()
+    n_groups = int(codes.max()) + 1 if codes.size else 0
+    size = np.bincount(codes, minlength=n_groups)
+    member = size[codes] >= 2
     seen = ~data.truncated & ~data.censored
     stay = np.where(seen, data.t_leave - data.t_arrive, np.nan)
-    # pooled within-group variances (each group of n members gives n - 1 degrees of freedom)
-    ss_stay = df_stay = ss_xy = df_xy = 0.0
-    for gid in np.unique(g):
-        idx = np.flatnonzero(g == gid)
-        if idx.size < 2:
-            continue
-        s = stay[idx]
-        s = s[np.isfinite(s) & (s > 0)]
-        if s.size >= 2:
-            ls = np.log(s)
-            ss_stay += float(np.sum((ls - ls.mean()) ** 2))
-            df_stay += s.size - 1
-        if data.x is not None and data.y is not None:
-            xy = np.column_stack([data.x[idx], data.y[idx]])
-            ss_xy += float(np.sum((xy - xy.mean(axis=0)) ** 2))
-            df_xy += 2 * (idx.size - 1)
-    if df_stay:
+    ok = member & np.isfinite(stay) & (stay > 0)
+    ls = np.log(np.where(ok, stay, 1.0))
+    m_ok = np.bincount(codes[ok], minlength=n_groups)
+    use = ok & (m_ok[codes] >= 2)
+    if use.any():
+        mean = np.bincount(codes[use], ls[use], n_groups) / np.maximum(m_ok, 1)
+        ss_stay = float(np.sum((ls[use] - mean[codes[use]]) ** 2))
+        df_stay = float(np.sum(m_ok[m_ok >= 2] - 1))
         out["group_stay_sd"] = float(np.sqrt(ss_stay / df_stay))
-    if df_xy:
+    if data.x is not None and data.y is not None and member.any():
+        ss_xy = 0.0
+        for v in (np.asarray(data.x, float), np.asarray(data.y, float)):
+            mean = np.bincount(codes[member], v[member], n_groups) / np.maximum(size, 1)
+            ss_xy += float(np.sum((v[member] - mean[codes[member]]) ** 2))
+        df_xy = 2.0 * float(np.sum(size[size >= 2] - 1))
         out["group_spread"] = float(np.sqrt(ss_xy / df_xy))
     return out
 
