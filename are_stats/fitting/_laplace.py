@@ -47,7 +47,16 @@ from are_stats.fitting._nuts import (
 from are_stats.fitting._psis import psislw
 from are_stats.traffic import aot_compile
 
-__all__ = ["LaplaceRun", "laplace_loo", "laplace_program", "run_laplace"]
+__all__ = [
+    "LaplaceRun", "laplace_dimension", "laplace_loo", "laplace_program", "run_laplace",
+]  # fmt: skip
+
+
+#: The mode is searched within ``[-Z_BOUND, Z_BOUND]`` on the unconstrained scale (the
+#: traffic models centre every rate on its empirical value, so ``e^12`` away is no data's).
+Z_BOUND = 12.0
+#: Iterations of the mode search at most (a well-posed candidate needs a few dozen).
+MAX_ITER = 200
 
 
 class LaplaceRun(NamedTuple):
@@ -64,7 +73,8 @@ class LaplaceRun(NamedTuple):
     mode : dict of str to ndarray
         The mode on the unconstrained scale.
     converged : bool
-        Whether the optimiser reported convergence at a finite log density.
+        Whether the mode search converged at a finite log density inside the bounds
+        (``|z| < Z_BOUND``), within :data:`MAX_ITER` iterations.
     name : str
     """
 
@@ -128,6 +138,11 @@ def _init_z(model: Callable, kwargs: dict, init: dict | None) -> dict:
         else:
             z0[name] = np.zeros(t.inverse_shape(shape))
     return z0
+
+
+def laplace_dimension(model: Callable[..., None], model_kwargs: dict, init: dict | None) -> int:
+    """Number of latent parameters of ``model`` on the unconstrained scale (nothing compiled)."""
+    return int(sum(np.size(v) for v in _init_z(model, model_kwargs, init).values()))
 
 
 def _batch_size(d: int) -> int:
@@ -218,15 +233,31 @@ def run_laplace(
     def steps(x: np.ndarray, rel: float) -> np.ndarray:
         return rel * np.maximum(1.0, np.abs(x))
 
+    last_ok: list = [None]  # the last point with a finite density and gradient
+
     def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
         h = steps(x, 1e-6)
         stencil = np.vstack([x, x + np.diag(h), x - np.diag(h)])
         pe = evaluate(stencil)[0]
-        if not np.isfinite(pe).all():
-            return (float(pe[0]) if np.isfinite(pe[0]) else 1e300), np.zeros(d)
-        return float(pe[0]), (pe[1 : d + 1] - pe[d + 1 :]) / (2 * h)
+        if np.isfinite(pe).all():
+            grad = (pe[1 : d + 1] - pe[d + 1 :]) / (2 * h)
+            last_ok[0] = (x.copy(), float(pe[0]))
+            return float(pe[0]), grad
+        # outside the density's finite region: a steep bowl around the last finite point,
+        # so that the line search steps back instead of stopping
+        if last_ok[0] is None:
+            return 1e300, np.zeros(d)
+        x_ok, f_ok = last_ok[0]
+        dx = x - x_ok
+        scale = 1e6 * (1.0 + abs(f_ok))
+        return f_ok + scale * (1.0 + float(dx @ dx)), 2.0 * scale * dx
 
-    res = minimize(fun, x0, jac=True, method="L-BFGS-B", options={"maxiter": 1000})
+    # within Z_BOUND of 0 on the unconstrained scale (4 prior sds of a rate's z, 8 of a
+    # shape's eta): beyond it a likelihood's numerics (and its cost: an incomplete gamma
+    # of shape e^30 takes seconds a point), not the data, rule
+    bounds = [(-Z_BOUND, Z_BOUND)] * d
+    res = minimize(fun, np.clip(x0, -Z_BOUND, Z_BOUND), jac=True, method="L-BFGS-B",
+                   bounds=bounds, options={"maxiter": MAX_ITER})  # fmt: skip
     mode = res.x
     hess = _hessian(lambda pts: evaluate(pts)[0], mode, steps(mode, 1e-4))
     lam, vec = np.linalg.eigh(hess)
@@ -238,7 +269,8 @@ def run_laplace(
     log_q = -0.5 * np.sum(eps**2, axis=1) - 0.5 * d * np.log(2 * np.pi) + 0.5 * np.sum(np.log(lam))
     pe, samples, ll = evaluate(zs)
     log_ratio = np.where(np.isfinite(pe), -pe - log_q, -np.inf)
-    converged = bool(res.success) and bool(np.isfinite(res.fun)) and res.fun < 1e299
+    on_bound = bool(np.any(np.abs(mode) >= Z_BOUND * (1 - 1e-9)))
+    converged = bool(res.success) and bool(np.isfinite(res.fun)) and not on_bound
     mode_d = {n: v[0] for n, v in _unflat_batch(mode[None], names, shapes).items()}
     return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name)
 

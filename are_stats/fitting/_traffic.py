@@ -41,7 +41,12 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_in
-from are_stats.fitting._laplace import laplace_loo, laplace_program, run_laplace
+from are_stats.fitting._laplace import (
+    laplace_dimension,
+    laplace_loo,
+    laplace_program,
+    run_laplace,
+)
 from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts
 from are_stats.fitting._psis import psislw
 from are_stats.traffic import (
@@ -84,6 +89,9 @@ POSITION_CHOICES = ("auto", "uniform", "learned")
 
 #: ``approximation`` of :func:`fit_traffic`: the posterior each candidate is compared by.
 APPROXIMATIONS = ("nuts", "laplace")
+#: Most latent parameters a candidate may have for the Laplace approximation (its mode
+#: search and Hessian grow with the square of the number); larger ones are not offered.
+LAPLACE_MAX_PARAMETERS = 64
 #: What ``traffic_model_choice`` records for each.
 MODEL_CHOICE = {
     "nuts": "PSIS-LOO over NUTS draws",
@@ -409,6 +417,8 @@ def fit_traffic(
     setup = _setup(key, data, arrivals, lifetimes, clock_start, out)
     out.attrs["model_choice"] = MODEL_CHOICE[approximation]
     laplace = approximation == "laplace"
+    if laplace:
+        setup = _laplace_sized(setup, arrivals, lifetimes, out)
     calls, cands, laws = setup.calls, setup.cands, setup.laws
     plain, units, res = setup.plain, setup.units, setup.res
     n_real_bins = int(np.sum(plain.bin_weight))
@@ -592,6 +602,33 @@ def _sample_candidate(
                    name=f"{factor} {name}", **nuts)  # fmt: skip
     out.warnings.extend(nuts_warnings(run))
     return run
+
+
+def _laplace_sized(setup: _Setup, arrivals: str, lifetimes: str, out: TrafficFit) -> _Setup:
+    """Leave out the candidates with more than :data:`LAPLACE_MAX_PARAMETERS` latent
+    parameters (a group-size law over thousands of sizes, when thousands of artefacts
+    arrived in one tick): their mode search and Hessian would cost the square of that.
+    A candidate named on the command line is an error instead (NUTS samples it)."""
+    calls, cands, laws = dict(setup.calls), list(setup.cands), list(setup.laws)
+    for (factor, name), (_, model, kwargs, init) in setup.calls.items():
+        d = laplace_dimension(model, kwargs, init)
+        if d <= LAPLACE_MAX_PARAMETERS:
+            continue
+        option = "--arrivals" if factor == "arrivals" else "--lifetimes"
+        if name in (arrivals, lifetimes):
+            raise ValueError(
+                f"{option} {name}: expected at most {LAPLACE_MAX_PARAMETERS} parameters for "
+                f"--method em (the Laplace approximation), got {d}; use --method nuts"
+            )
+        del calls[factor, name]
+        (cands if factor == "arrivals" else laws).remove(name)
+        note = (
+            f"{name} not offered: {d} parameters, more than the {LAPLACE_MAX_PARAMETERS} "
+            "of the Laplace approximation (--method nuts compares it)"
+        )
+        key = "arrival_notes" if factor == "arrivals" else "lifetime_notes"
+        out.attrs[key] = "; ".join(v for v in (out.attrs.get(key, ""), note) if v)
+    return setup._replace(calls=calls, cands=cands, laws=laws)
 
 
 def _laplace_candidate(

@@ -40,3 +40,30 @@ def test_em_fit_never_calls_the_nuts_driver(tmp_path, monkeypatch, auto):
     res = runner.invoke(app, ["fit", str(log), "--out", str(tmp_path / "g.nc"),
                               "--no-figures", "--samples", "20", "--warmup", "20"])  # fmt: skip
     assert res.exit_code != 0
+
+
+def test_em_leaves_out_a_candidate_too_large_for_the_laplace_approximation(tmp_path):
+    """100 artefacts arriving in one tick make a group-size law of 99 free parameters:
+    em does not offer it (a note says why) unless it is named, which is a clean error."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    stays = rng.exponential(20.0, 100).round(1) + 0.1
+    rows = [f"a{k},10,{10 + s:.1f}" for k, s in enumerate(stays)]
+    rows += [f"b{k},{50 + 7 * k},{60 + 7 * k}" for k in range(20)]
+    log = tmp_path / "crowd.csv"
+    log.write_text("id,t_arrive,t_leave\n" + "\n".join(rows) + "\n")
+    (tmp_path / "crowd.yaml").write_text("window: [0, 300]\narea: 100\n")
+    fit = tmp_path / "f.nc"
+    base = ["fit", str(log), "--out", str(fit), "--method", "em", "--no-figures",
+            "--samples", "200", "--chains", "1"]  # fmt: skip
+    res = runner.invoke(app, base + ["--lifetimes", "exponential"])
+    assert res.exit_code == 0, res.output
+    import arviz as az
+
+    a = az.from_netcdf(fit).posterior.attrs
+    assert "groups not offered: 100 parameters" in a["traffic_arrival_notes"]
+    assert a["arrival_model"] != "groups"
+    res = runner.invoke(app, base + ["--arrivals", "groups", "--force"])
+    assert res.exit_code == 2
+    assert "--arrivals groups" in res.output and "--method nuts" in res.output
