@@ -163,4 +163,3 @@ def _fit_crowd(case: dict, d: Path, models: list[str]) -> None:
 def test_fit_crowd_tracks_tables(case, case_dir) -> None:
     """The same through ``are-stats fit --method em``: exit 2 naming the file, or exit 0."""
     _fit_crowd(case, case_dir(), PAPER_MODELS)
-
