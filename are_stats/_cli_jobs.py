@@ -104,6 +104,10 @@ def run_fit(
     ``--seed`` in ``[0, 2**32 - 1]``, ``--window`` two finite times ``t0 < t1``, ``--area``
     finite and > 0), then the draws and the sampler's work against the limits of
     :mod:`are_stats.inputs`.
+
+    The fit's posterior attributes name the log by its file name (``log``) and the
+    SHA-256 of its bytes (``log_sha256``), never by its folder; ``log_report`` holds the
+    reading counts (its ``source`` is the file name too).
     """
     from are_stats.fitting import (
         ARRIVAL_CHOICES,
@@ -245,8 +249,16 @@ def run_fit(
                 console.print(line)
     if tracks is not None and grid is None:
         console.print("[yellow]warning:[/] no map in the manifest: behaviour not fitted")
+    # the log's file name and content hash, never its folder (a shared fit must not carry
+    # the user's folder layout): the hash identifies the bytes that were fitted
+    rep["source"] = Path(str(rep.get("source") or log)).name
     idata.posterior.attrs.update(
-        {"seed": int(seed), "log": str(log), "log_report": yaml.safe_dump(rep, sort_keys=False)}
+        {
+            "seed": int(seed),
+            "log": Path(log).name,
+            "log_sha256": _sha256(log),
+            "log_report": yaml.safe_dump(rep, sort_keys=False),
+        }
     )
     write_fit(idata, out, force=force)
     summary = fit_summary(idata)
@@ -278,6 +290,17 @@ def run_fit(
                 written.update(_motion_report(seed, idata, tracks, grid, figures, force))
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
+
+
+def _sha256(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes (read in 1 MiB blocks)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def _behaviour_lines(fit: Any) -> list[str]:

@@ -122,3 +122,26 @@ def test_fit_refuses_behaviour_features_without_the_behaviour(tmp_path):
     assert res.exit_code != 0
     assert "--behaviour-features" in res.output and "--no-behaviour" in res.output
     assert not (tmp_path / "f.nc").exists()
+
+
+def test_fit_names_its_log_by_file_name_and_hash_not_folder(tmp_path):
+    """A shared fit must not carry the user's folder layout: attrs.log is the file name,
+    attrs.log_sha256 the hash of the bytes fitted, and no attribute holds the folder."""
+    import hashlib
+
+    import arviz as az
+
+    _room(tmp_path)
+    log = _tracks(tmp_path, horizon=120.0)
+    fit = tmp_path / "f.nc"
+    args = ["fit", str(log), "--out", str(fit), "--method", "em", "--samples", "50",
+            "--chains", "1", "--no-figures", "--no-behaviour", "--arrivals", "poisson",
+            "--lifetimes", "exponential", "--positions", "uniform"]  # fmt: skip
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    a = az.from_netcdf(fit).posterior.attrs
+    assert a["log"] == "tracks.csv"
+    assert a["log_sha256"] == hashlib.sha256(log.read_bytes()).hexdigest()
+    assert yaml.safe_load(a["log_report"])["source"] == "tracks.csv"
+    assert str(tmp_path).encode() not in fit.read_bytes()
+    assert tmp_path.name.encode() not in fit.read_bytes()

@@ -76,6 +76,7 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     read_fit,
     write_fit,
 )
+from are_stats.fitting._laplace import LaplaceRun, laplace_loo, run_laplace  # noqa: E402
 from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts  # noqa: E402
 from are_stats.fitting._psis import psislw  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
@@ -112,6 +113,9 @@ __all__ += [
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
     "NutsPrefetch",
+    "LaplaceRun",
+    "laplace_loo",
+    "run_laplace",
     "psislw",
     "NutsRun",
     "TrafficFit",

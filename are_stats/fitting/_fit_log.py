@@ -91,6 +91,10 @@ class FitSettings:
         ``"auto"`` compares the candidates by PSIS-LOO and keeps the simplest within two
         standard errors of the best; a name fits that model. ``poisson``, ``exponential``
         and ``uniform`` together are the paper's model alone (nothing more is fitted).
+        With ``method="nuts"`` the candidates are sampled by NUTS; with ``method="em"`` no
+        NUTS program is compiled: each candidate is a Laplace approximation at its
+        posterior mode and PSIS-LOO is importance-sampled from it (the fit's attribute
+        ``traffic_model_choice`` says which).
     """
 
     method: str = "nuts"
@@ -442,6 +446,8 @@ def fit_log(
                 num_samples=settings.num_samples,
                 num_chains=settings.num_chains,
                 progress=say,
+                # em compiles no NUTS program: the candidates by the Laplace approximation
+                approximation="laplace" if settings.method == "em" else "nuts",
             )
             if pending is not None:
                 idata = pending.result()

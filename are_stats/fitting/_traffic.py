@@ -12,6 +12,14 @@ exponential candidates reuse the paper's posterior draws, and the learned densit
 closed-form Dirichlet posterior mean), and compares the candidates of each factor by
 PSIS-LOO over the same pointwise units (time bins, artefacts, entry points).
 
+**Without NUTS** (``approximation="laplace"``, what ``are-stats fit --method em`` uses):
+each candidate beyond the paper's is approximated by a Gaussian at its posterior mode on
+the unconstrained scale (the Laplace approximation, :func:`~are_stats.fitting.run_laplace`)
+and its pointwise ``elpd`` is importance-sampled PSIS-LOO from that Gaussian
+(:func:`~are_stats.fitting.laplace_loo`); the choice rule below is the same, and the
+chosen model's draws are the Gaussian's. No NUTS program is compiled. The fit's attribute
+``traffic_model_choice`` says which was used.
+
 **The choice.** Candidates are ordered from simple to complex. The candidate with the
 highest ``elpd`` is the best; the chosen one is the *simplest* candidate whose ``elpd`` is
 within two standard errors of the difference from the best (a richer model must earn its
@@ -33,6 +41,12 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_in
+from are_stats.fitting._laplace import (
+    laplace_dimension,
+    laplace_loo,
+    laplace_program,
+    run_laplace,
+)
 from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts
 from are_stats.fitting._psis import psislw
 from are_stats.traffic import (
@@ -55,6 +69,7 @@ from are_stats.traffic import (
 )
 
 __all__ = [
+    "APPROXIMATIONS",
     "ARRIVAL_CHOICES",
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
@@ -71,6 +86,17 @@ ARRIVAL_CHOICES = ("auto", *ARRIVAL_SPECS)
 LIFETIME_CHOICES = ("auto", *STAY_LAWS)
 #: ``--positions`` choices.
 POSITION_CHOICES = ("auto", "uniform", "learned")
+
+#: ``approximation`` of :func:`fit_traffic`: the posterior each candidate is compared by.
+APPROXIMATIONS = ("nuts", "laplace")
+#: Most latent parameters a candidate may have for the Laplace approximation (its mode
+#: search and Hessian grow with the square of the number); larger ones are not offered.
+LAPLACE_MAX_PARAMETERS = 64
+#: What ``traffic_model_choice`` records for each.
+MODEL_CHOICE = {
+    "nuts": "PSIS-LOO over NUTS draws",
+    "laplace": "importance-sampled PSIS-LOO over Laplace-approximation draws (no NUTS)",
+}
 
 #: Cell side (m) of the grid the entry/exit densities live on (the map is coarsened to it).
 POSITION_CELL = 0.5
@@ -253,32 +279,37 @@ def _bin_width(data: LifecycleData) -> float:
 
 
 def _group_stats(data: LifecycleData) -> dict[str, float]:
-    """Spread of members' stays (sd of log stay) and entry points (m) around their group's."""
+    """Spread of members' stays (sd of log stay) and entry points (m) around their group's.
+
+    Pooled within-group variances: each group of ``n >= 2`` members gives ``n - 1``
+    degrees of freedom (stays: those seen whole and positive, when two or more are).
+    Sums per group by ``bincount`` (linear in the artefacts, whatever the number of groups).
+    """
     out = {"group_stay_sd": 0.0, "group_spread": 0.0}
     if data.group is None:
         return out
-    g = np.asarray(data.group)
+    _, codes = np.unique(np.asarray(data.group), return_inverse=True)
+    codes = codes.ravel()
+    n_groups = int(codes.max()) + 1 if codes.size else 0
+    size = np.bincount(codes, minlength=n_groups)
+    member = size[codes] >= 2
     seen = ~data.truncated & ~data.censored
     stay = np.where(seen, data.t_leave - data.t_arrive, np.nan)
-    # pooled within-group variances (each group of n members gives n - 1 degrees of freedom)
-    ss_stay = df_stay = ss_xy = df_xy = 0.0
-    for gid in np.unique(g):
-        idx = np.flatnonzero(g == gid)
-        if idx.size < 2:
-            continue
-        s = stay[idx]
-        s = s[np.isfinite(s) & (s > 0)]
-        if s.size >= 2:
-            ls = np.log(s)
-            ss_stay += float(np.sum((ls - ls.mean()) ** 2))
-            df_stay += s.size - 1
-        if data.x is not None and data.y is not None:
-            xy = np.column_stack([data.x[idx], data.y[idx]])
-            ss_xy += float(np.sum((xy - xy.mean(axis=0)) ** 2))
-            df_xy += 2 * (idx.size - 1)
-    if df_stay:
+    ok = member & np.isfinite(stay) & (stay > 0)
+    ls = np.log(np.where(ok, stay, 1.0))
+    m_ok = np.bincount(codes[ok], minlength=n_groups)
+    use = ok & (m_ok[codes] >= 2)
+    if use.any():
+        mean = np.bincount(codes[use], ls[use], n_groups) / np.maximum(m_ok, 1)
+        ss_stay = float(np.sum((ls[use] - mean[codes[use]]) ** 2))
+        df_stay = float(np.sum(m_ok[m_ok >= 2] - 1))
         out["group_stay_sd"] = float(np.sqrt(ss_stay / df_stay))
-    if df_xy:
+    if data.x is not None and data.y is not None and member.any():
+        ss_xy = 0.0
+        for v in (np.asarray(data.x, float), np.asarray(data.y, float)):
+            mean = np.bincount(codes[member], v[member], n_groups) / np.maximum(size, 1)
+            ss_xy += float(np.sum((v[member] - mean[codes[member]]) ** 2))
+        df_xy = 2.0 * float(np.sum(size[size >= 2] - 1))
         out["group_spread"] = float(np.sqrt(ss_xy / df_xy))
     return out
 
@@ -339,6 +370,7 @@ def fit_traffic(
     num_samples: int = 1000,
     num_chains: int = 4,
     progress: Any = None,
+    approximation: str = "nuts",
 ) -> TrafficFit:
     """Fit the candidate traffic models of a log and choose one per factor by PSIS-LOO.
 
@@ -362,11 +394,16 @@ def fit_traffic(
         NUTS settings; the draws are reshaped to the paper posterior's ``(chains, draws)``.
     progress : callable, optional
         ``progress(message)`` at each stage.
+    approximation : {"nuts", "laplace"}
+        The candidates' posteriors: NUTS draws, or the Laplace approximation with
+        importance-sampled PSIS-LOO (no NUTS program is compiled; see the module
+        docstring). Recorded in ``attrs["model_choice"]``.
 
     Returns
     -------
     TrafficFit
     """
+    check_in("approximation", approximation, APPROXIMATIONS)
     check_in("arrivals", arrivals, ARRIVAL_CHOICES)
     check_in("lifetimes", lifetimes, LIFETIME_CHOICES)
     check_in("positions", positions, POSITION_CHOICES)
@@ -378,6 +415,10 @@ def fit_traffic(
     out = TrafficFit("poisson", "exponential", "uniform")
     nuts = {"num_warmup": num_warmup, "num_samples": num_samples, "num_chains": num_chains}
     setup = _setup(key, data, arrivals, lifetimes, clock_start, out)
+    out.attrs["model_choice"] = MODEL_CHOICE[approximation]
+    laplace = approximation == "laplace"
+    if laplace:
+        setup = _laplace_sized(setup, arrivals, lifetimes, out)
     calls, cands, laws = setup.calls, setup.cands, setup.laws
     plain, units, res = setup.plain, setup.units, setup.res
     n_real_bins = int(np.sum(plain.bin_weight))
@@ -396,8 +437,15 @@ def fit_traffic(
     # PSIS-LOO of a candidate runs in its own thread while the next candidate samples
     # (NumPy releases the GIL in its array work; the sampler waits on the devices)
     with NutsPrefetch() as ahead, ThreadPoolExecutor(1, "are-stats-loo") as psis:
-        for call in calls.values():
-            ahead.add(*call, **nuts)
+        if laplace:  # two threads compile the candidates' programs while the first run
+            prefetch = ThreadPoolExecutor(2, "are-stats-laplace")
+            for (factor, _), (_, model, kwargs, init) in calls.items():
+                pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
+                prefetch.submit(laplace_program, model, kwargs, init, pw)
+            prefetch.shutdown(wait=False)
+        else:
+            for call in calls.values():
+                ahead.add(*call, **nuts)
         for name in cands:
             if name == "poisson":
                 flat = {"event_rate": lam.ravel()}
@@ -405,6 +453,14 @@ def fit_traffic(
                                            np.asarray(log_area, float))  # fmt: skip
                 ll = np.asarray(ll).reshape(shape + (-1,))
                 run = None
+            elif laplace:
+                lap = _laplace_candidate(calls, ("arrivals", name), _arrival_draw_loglik,
+                                         n_draws, say, out)  # fmt: skip
+                draws["arrivals"][name] = {k: v[None] for k, v in lap.samples.items()}
+                runs["arrivals"][name] = None
+                lap = lap._replace(loglik=lap.loglik[:, :n_real_bins])
+                loo["arrivals"][name] = psis.submit(laplace_loo, lap)
+                continue
             else:
                 run = _sample_candidate(calls, ("arrivals", name), _arrival_draw_loglik, nuts,
                                         say, out)  # fmt: skip
@@ -417,6 +473,13 @@ def fit_traffic(
                 ll = _stay_loglik_draws(flat, units, "exponential", res)
                 ll = np.asarray(ll).reshape(shape + (-1,))
                 run = None
+            elif laplace:
+                lap = _laplace_candidate(calls, ("stays", law), _stay_draw_loglik, n_draws,
+                                         say, out)  # fmt: skip
+                draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
+                runs["stays"][law] = None
+                loo["stays"][law] = psis.submit(laplace_loo, lap._replace(loglik=lap.loglik[:, :n]))
+                continue
             else:
                 run = _sample_candidate(calls, ("stays", law), _stay_draw_loglik, nuts, say, out)
                 ll, draws["stays"][law] = run.loglik, run.samples
@@ -538,6 +601,51 @@ def _sample_candidate(
     run = run_nuts(*calls[which], pointwise=pointwise, pointwise_kwargs=True,
                    name=f"{factor} {name}", **nuts)  # fmt: skip
     out.warnings.extend(nuts_warnings(run))
+    return run
+
+
+def _laplace_sized(setup: _Setup, arrivals: str, lifetimes: str, out: TrafficFit) -> _Setup:
+    """Leave out the candidates with more than :data:`LAPLACE_MAX_PARAMETERS` latent
+    parameters (a group-size law over thousands of sizes, when thousands of artefacts
+    arrived in one tick): their mode search and Hessian would cost the square of that.
+    A candidate named on the command line is an error instead (NUTS samples it)."""
+    calls, cands, laws = dict(setup.calls), list(setup.cands), list(setup.laws)
+    for (factor, name), (_, model, kwargs, init) in setup.calls.items():
+        d = laplace_dimension(model, kwargs, init)
+        if d <= LAPLACE_MAX_PARAMETERS:
+            continue
+        option = "--arrivals" if factor == "arrivals" else "--lifetimes"
+        if name in (arrivals, lifetimes):
+            raise ValueError(
+                f"{option} {name}: expected at most {LAPLACE_MAX_PARAMETERS} parameters for "
+                f"--method em (the Laplace approximation), got {d}; use --method nuts"
+            )
+        del calls[factor, name]
+        (cands if factor == "arrivals" else laws).remove(name)
+        note = (
+            f"{name} not offered: {d} parameters, more than the {LAPLACE_MAX_PARAMETERS} "
+            "of the Laplace approximation (--method nuts compares it)"
+        )
+        key = "arrival_notes" if factor == "arrivals" else "lifetime_notes"
+        out.attrs[key] = "; ".join(v for v in (out.attrs.get(key, ""), note) if v)
+    return setup._replace(calls=calls, cands=cands, laws=laws)
+
+
+def _laplace_candidate(
+    calls: dict, which: tuple[str, str], pointwise: Any, n_draws: int, say: Any, out: TrafficFit
+) -> Any:
+    """Laplace approximation of one candidate model (a word in ``out`` if its mode search
+    did not converge)."""
+    factor, name = which
+    say(f"{factor}: Laplace approximation of {name}")
+    key, model, kwargs, init = calls[which]
+    run = run_laplace(key, model, kwargs, init, num_draws=n_draws, pointwise=pointwise,
+                      name=f"{factor} {name}")  # fmt: skip
+    if not run.converged:
+        out.warnings.append(
+            f"{factor} {name}: the mode search of the Laplace approximation did not converge "
+            "(its comparison may be off; --method nuts samples it instead)"
+        )
     return run
 
 

@@ -16,6 +16,7 @@ other and moving together" (see :func:`tracks_to_lifecycle`).
 
 from __future__ import annotations
 
+import itertools
 import os
 import warnings
 from typing import Any
@@ -30,6 +31,7 @@ __all__ = [
     "GROUP_DISTANCE",
     "GROUP_HORIZON_STEPS",
     "GROUP_TIME_STEPS",
+    "MAX_COORDINATE",
     "TRACK_COLUMNS",
     "read_tracks",
     "sampling_step",
@@ -40,6 +42,9 @@ __all__ = [
 #: Columns of a tracks table (``id, t, x, y`` required; ``label``, ``yaw`` optional).
 TRACK_COLUMNS = ("id", "t", "x", "y", "label", "yaw")
 
+#: Largest map coordinate (metres) a tracks table may hold: beyond any real map (UTM
+#: northings are below 1e7 m), it catches corrupted cells such as ``1e300``.
+MAX_COORDINATE = 1e9
 #: Default ``group_time`` of :func:`tracks_to_lifecycle`, in sampling steps.
 GROUP_TIME_STEPS = 1.5
 #: Default ``group_distance`` of :func:`tracks_to_lifecycle`, in metres.
@@ -51,8 +56,8 @@ GROUP_HORIZON_STEPS = 10
 #: track id, or split more than :data:`_SPLIT_FRACTION` of the track ids.
 _SPLIT_RATIO = 1.5
 _SPLIT_FRACTION = 0.1
-# candidate pairs of group inference handled at once
-_PAIR_CHUNK = 1 << 20
+# members of each nearby component checked first against a new segment (group inference)
+_FIRST_LOOK = 4
 
 
 def _from_raw(raw: RawTable) -> pd.DataFrame:
@@ -60,6 +65,17 @@ def _from_raw(raw: RawTable) -> pd.DataFrame:
     out: dict[str, Any] = {"id": raw.ids("id")}
     for c in ("t", "x", "y"):
         out[c] = raw.floats(c, allow_empty=False)[0]
+    for c in ("x", "y"):
+        far = np.abs(out[c]) > MAX_COORDINATE
+        if far.any():
+            i = int(np.argmax(far))
+            raise raw.error(
+                i,
+                c,
+                f"a map coordinate within +-{MAX_COORDINATE:g} m",
+                f"{float(out[c][i])!r}",
+            )
+    _check_unique_sightings(raw, out["id"], out["t"], out["x"], out["y"])
     out["label"] = (
         raw.class_labels("label")
         if "label" in raw.columns
@@ -74,6 +90,41 @@ def _from_raw(raw: RawTable) -> pd.DataFrame:
     df["id"] = df["id"].astype("str")
     df["label"] = df["label"].astype("str")
     return df
+
+
+def _check_unique_sightings(
+    raw: RawTable, ids: np.ndarray, t: np.ndarray, x: np.ndarray, y: np.ndarray
+) -> None:
+    """One sighting per ``(id, t)``: a second row for the same id and time is an error.
+
+    A tracker reports each object at most once per frame; two rows for one id at one time
+    (the same position or not) mean a damaged or concatenated table, and collapsing them
+    would hide it (a one-point track seen "twice" would even look like a real stay). The
+    error names the later row, the id, the time and the earlier row. Sort and sweep:
+    ``O(n log n)``.
+    """
+    codes, _ = pd.factorize(ids)
+    order = np.lexsort((np.arange(len(t)), t, codes))
+    c, tt = codes[order], t[order]
+    same = (c[1:] == c[:-1]) & (tt[1:] == tt[:-1])
+    if not same.any():
+        return
+    # the first offending row in file order, and the earlier row it repeats
+    later = order[1:][same]
+    earlier = order[:-1][same]
+    k = int(np.argmin(later))
+    i, j = int(later[k]), int(earlier[k])
+    what = (
+        "the same position"
+        if x[i] == x[j] and y[i] == y[j]
+        else f"another position ({float(x[j])!r}, {float(y[j])!r})"
+    )
+    raise raw.error(
+        i,
+        "t",
+        "one sighting per (id, t)",
+        f"id {str(ids[i])!r} seen twice at t={float(t[i])!r}: {raw.where(j)} has {what}",
+    )
 
 
 def read_tracks(path: str | os.PathLike) -> pd.DataFrame:
@@ -97,7 +148,10 @@ def read_tracks(path: str | os.PathLike) -> pd.DataFrame:
         If the file is missing.
     ValueError
         Naming file, row and column for missing columns, non-numeric or NaN cells, empty
-        ids and empty files.
+        ids, empty files, coordinates beyond :data:`MAX_COORDINATE` and a second sighting
+        of one id at one time (duplicate ``(id, t)`` rows are never collapsed: the error
+        names the row, the id, the time and the earlier row, and whether the positions
+        agree).
     """
     return _from_raw(read_raw_table(path, "tracks table"))
 
@@ -422,95 +476,228 @@ def _infer_groups(
     g_time: float,
     g_dist: float,
     step: float,
+    stats: dict | None = None,
 ) -> np.ndarray:
     """Group id of every segment (the first member's id, ``""`` when alone).
 
     ``segs`` are the segments taking part (indices into ``first`` / ``last``, whose
     sightings ``first[k]..last[k]`` of ``t``, ``x``, ``y`` are sorted by time).
+
+    The groups are the connected components of the relation of
+    :func:`tracks_to_lifecycle` (first seen within ``g_time`` and ``g_dist``, and moving
+    together: :func:`_move_together_many`), found with bounded work rather than over all
+    pairs:
+
+    * a sweep in first-sighting order keeps only the segments first seen within
+      ``g_time`` before the current one, binned on a grid of cells about ``g_dist`` wide
+      (so only the 3 x 3 cells around it hold candidates);
+    * each cell holds its segments by component (union-find with union by size), and a
+      pair whose ends are already in one component is never checked: the current segment
+      is checked against at most :data:`_FIRST_LOOK` members of each other component
+      first, and against the others only if none of those links.
+
+    Tracks that start together at one spot and move together (or are seen once) cost
+    O(1) checks each; the work left is the checks that can change the answer (a crowd at
+    one spot whose members all part ways needs a check per pair, within ``g_time``). The
+    checks are counted and held to :func:`are_stats.inputs.check_work`; ``stats``, when
+    given, receives ``pair_checks`` and ``work``.
     """
     out = np.full(len(first), "", dtype=object)
+    if stats is not None:
+        stats.update(pair_checks=0, work=0)
     if len(segs) < 2 or g_dist <= 0:
         return out
     tf = t[first[segs]]
     order = np.argsort(tf, kind="stable")
     segs, tf = segs[order], tf[order]
+    m = len(segs)
     fx, fy = x[first[segs]], y[first[segs]]
-    # candidate pairs (i < j in first-sighting order) within group_time and group_distance
-    # at their first sightings, in chunks of about _PAIR_CHUNK pairs (bounded memory)
-    hi = np.searchsorted(tf, tf + g_time, side="right")
-    n_after = hi - np.arange(len(segs)) - 1
-    check_work(
-        float(n_after.sum()), "group inference (pairs first seen within group_time)", "group_time"
-    )
-    ends = np.cumsum(n_after)
-    found_i, found_j = [], []
-    lo_i = 0
-    while lo_i < len(segs):
-        hi_i = max(lo_i + 1, int(np.searchsorted(ends, ends[lo_i] - n_after[lo_i] + _PAIR_CHUNK)))
-        na = n_after[lo_i:hi_i]
-        ii = np.repeat(np.arange(lo_i, hi_i), na)
-        jj = ii + 1 + (np.arange(ii.size) - np.repeat(np.cumsum(na) - na, na))
-        close = np.hypot(fx[jj] - fx[ii], fy[jj] - fy[ii]) <= g_dist
-        found_i.append(ii[close])
-        found_j.append(jj[close])
-        lo_i = hi_i
-    ii, jj = np.concatenate(found_i), np.concatenate(found_j)
+    s_lo, s_hi = first[segs], last[segs] + 1
     horizon = GROUP_HORIZON_STEPS * step
-    linked = [
-        (i, j)
-        for i, j in zip(ii.tolist(), jj.tolist(), strict=True)
-        if _move_together(segs[i], segs[j], first, last, t, x, y, horizon, step, 2 * g_dist)
-    ]
-    if not linked:
-        return out
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    # each segment's sightings that a check may look at: up to g_time + horizon (+ a step
+    # of margin for rounding) after its first sighting; counted per segment, vectorised
+    seg_of = np.repeat(np.arange(m), s_hi - s_lo)
+    idx_all = _ranges(s_lo, s_hi)
+    lim = tf + (g_time + horizon + step)
+    n_look = np.bincount(seg_of, weights=t[idx_all] <= lim[seg_of], minlength=m).astype(np.int64)
+    s_end = s_lo + n_look
+    # cells at least g_dist wide (and wide enough that their indices stay exact integers)
+    xmin, ymin = float(fx.min()), float(fy.min())
+    span = max(float(fx.max()) - xmin, float(fy.max()) - ymin)
+    width = max(g_dist * 1.01, span / 2.0**40)
+    cx = np.floor((fx - xmin) / width).astype(np.int64).tolist()
+    cy = np.floor((fy - ymin) / width).astype(np.int64).tolist()
+    label = np.arange(m)
+    members: dict[int, list[int]] = {}  # component -> its segments (those of size > 1)
+    cells: dict[tuple[int, int], dict[int, set[int]]] = {}
+    tf_list = tf.tolist()
+    lo = 0
+    work = checks = 0
+    next_check = 1 << 16
 
-    a, b = np.array(linked, dtype=np.int64).T
-    graph = coo_matrix((np.ones(a.size), (a, b)), shape=(len(segs), len(segs)))
-    _, comp = connected_components(graph, directed=False)
+    def check(cands: np.ndarray, j: int) -> np.ndarray:
+        nonlocal work, checks
+        d = np.hypot(fx[j] - fx[cands], fy[j] - fy[cands])
+        cands = cands[d <= g_dist]
+        if cands.size == 0:
+            return cands
+        linked, w = _move_together_many(cands, j, s_lo, s_end, s_hi, t, x, y, horizon,
+                                        step, 2 * g_dist)  # fmt: skip
+        checks += int(cands.size)
+        work += w
+        return cands[linked]
+
+    for j in range(m):
+        while not tf_list[j] <= tf_list[lo] + g_time:  # no longer within g_time
+            _bucket_remove(cells, (cx[lo], cy[lo]), int(label[lo]), lo)
+            lo += 1
+        near = [
+            cells[k]
+            for k in {(cx[j] + a, cy[j] + b) for a in (-1, 0, 1) for b in (-1, 0, 1)}
+            if k in cells
+        ]
+        comps: dict[int, list[set[int]]] = {}
+        for cell in near:
+            for lab, mem in cell.items():
+                comps.setdefault(lab, []).append(mem)
+        linked: set[int] = set()
+        if comps:
+            # first look: a few members of each component
+            first_look = np.fromiter(
+                (k for sets in comps.values() for mem in sets
+                 for k in itertools.islice(mem, _FIRST_LOOK)),
+                dtype=np.int64,
+            )  # fmt: skip
+            hit = check(first_look, j)
+            linked.update(int(label[k]) for k in hit)
+            rest = [lab for lab in comps if lab not in linked]
+            more = [
+                np.fromiter(mem, dtype=np.int64)
+                for lab in rest
+                for mem in comps[lab]
+                if len(mem) > _FIRST_LOOK
+            ]
+            if more:
+                cands = np.concatenate(more)
+                cands = cands[~np.isin(cands, first_look)]
+                work += int(cands.size)
+                linked.update(int(label[k]) for k in check(cands, j))
+            if work >= next_check:
+                check_work(float(work), "group inference (sightings compared)", "group_time")
+                next_check = 2 * work
+        lab_j = j
+        for lab in linked:
+            lab_j = _union(lab_j, lab, label, members, cells, cx, cy, lo)
+        cells.setdefault((cx[j], cy[j]), {}).setdefault(int(label[j]), set()).add(j)
+    check_work(float(work), "group inference (sightings compared)", "group_time")
+    if stats is not None:
+        stats.update(pair_checks=checks, work=work)
+    comp = np.unique(label, return_inverse=True)[1]
     sizes = np.bincount(comp)
     # the group's id: its first member's (segments are in first-sighting order)
     first_member = np.full(sizes.size, -1)
-    for k in range(len(segs) - 1, -1, -1):
+    for k in range(m - 1, -1, -1):
         first_member[comp[k]] = k
     in_group = sizes[comp] > 1
     out[segs[in_group]] = seg_ids[segs[first_member[comp[in_group]]]]
     return out
 
 
-def _move_together(
+def _ranges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``concatenate([arange(a, b) for a, b in zip(lo, hi)])``, vectorised."""
+    n = hi - lo
+    total = int(n.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    starts = np.repeat(lo - np.r_[0, np.cumsum(n)[:-1]], n)
+    return starts + np.arange(total)
+
+
+def _bucket_remove(cells: dict, key: tuple[int, int], lab: int, k: int) -> None:
+    cell = cells[key]
+    mem = cell[lab]
+    mem.discard(k)
+    if not mem:
+        del cell[lab]
+        if not cell:
+            del cells[key]
+
+
+def _union(
     a: int,
     b: int,
-    first: np.ndarray,
-    last: np.ndarray,
+    label: np.ndarray,
+    members: dict[int, list[int]],
+    cells: dict,
+    cx: list[int],
+    cy: list[int],
+    lo: int,
+) -> int:
+    """Merge components ``a`` and ``b`` (the smaller into the larger); the merged label."""
+    if a == b:
+        return a
+    ma, mb = members.get(a, [a]), members.get(b, [b])
+    if len(ma) < len(mb):
+        a, b, ma, mb = b, a, mb, ma
+    for k in mb:
+        label[k] = a
+        if k >= lo:  # still in a cell: move it to its new component there
+            key = (cx[k], cy[k])
+            if key in cells and b in cells[key] and k in cells[key][b]:
+                _bucket_remove(cells, key, b, k)
+                cells.setdefault(key, {}).setdefault(a, set()).add(k)
+    ma.extend(mb)
+    members[a] = ma
+    members.pop(b, None)
+    return a
+
+
+def _move_together_many(
+    cands: np.ndarray,
+    b: int,
+    s_lo: np.ndarray,
+    s_end: np.ndarray,
+    s_hi: np.ndarray,
     t: np.ndarray,
     x: np.ndarray,
     y: np.ndarray,
     horizon: float,
     step: float,
     max_dist: float,
-) -> bool:
-    """Whether segments ``a`` and ``b`` stay within ``max_dist`` at their common times.
+) -> tuple[np.ndarray, int]:
+    """Whether each earlier segment ``a`` in ``cands`` moves together with segment ``b``.
 
-    Common times: sightings of both within half a step of each other, during ``horizon``
-    after the later first sighting. Fewer than two common times: True (first-sighting
-    proximity, checked by the caller, suffices).
+    Common times: sightings of ``a`` during ``horizon`` after the later first sighting
+    (from half a step before it) matched to the nearest sighting of ``b`` within half a
+    step. ``a`` and ``b`` move together when they stay within ``max_dist`` at every
+    common time; with fewer than two common times they do (first-sighting proximity,
+    checked by the caller, suffices). Segments are given by position in first-sighting
+    order (sightings ``s_lo[k]:s_hi[k]``, of which ``s_lo[k]:s_end[k]`` can fall in a
+    check's window). One vectorised pass over all candidates.
+
+    Returns
+    -------
+    linked : (len(cands),) bool
+    work : int
+        Sightings looked at.
     """
-    start = max(t[first[a]], t[first[b]])
-    sa = slice(first[a], last[a] + 1)
-    sb = slice(first[b], last[b] + 1)
-    ta, tb = t[sa], t[sb]
-    ka = np.flatnonzero((ta >= start - 0.5 * step) & (ta <= start + horizon))
-    if ka.size == 0 or tb.size == 0:
-        return True
-    pos = np.clip(np.searchsorted(tb, ta[ka]), 1, max(tb.size - 1, 1))
+    a_lo, a_end = s_lo[cands], s_end[cands]
+    n = a_end - a_lo
+    idx = _ranges(a_lo, a_end)
+    owner = np.repeat(np.arange(cands.size), n)
+    tb = t[s_lo[b] : s_hi[b]]
+    start = np.maximum(t[a_lo], tb[0])[owner]
+    ta = t[idx]
+    win = (ta >= start - 0.5 * step) & (ta <= start + horizon)
+    idx, owner, ta = idx[win], owner[win], ta[win]
+    pos = np.clip(np.searchsorted(tb, ta), 1, max(tb.size - 1, 1))
     lo = np.clip(pos - 1, 0, tb.size - 1)
     hi = np.clip(pos, 0, tb.size - 1)
-    near = np.where(np.abs(tb[lo] - ta[ka]) <= np.abs(tb[hi] - ta[ka]), lo, hi)
-    match = np.abs(tb[near] - ta[ka]) < 0.5 * step
-    if match.sum() < 2:
-        return True
-    ia = ka[match] + first[a]
-    ib = near[match] + first[b]
-    return bool((np.hypot(x[ia] - x[ib], y[ia] - y[ib]) <= max_dist).all())
+    near = np.where(np.abs(tb[lo] - ta) <= np.abs(tb[hi] - ta), lo, hi)
+    match = np.abs(tb[near] - ta) < 0.5 * step
+    n_match = np.bincount(owner[match], minlength=cands.size)
+    ia = idx[match]
+    ib = near[match] + s_lo[b]
+    far = np.hypot(x[ia] - x[ib], y[ia] - y[ib]) > max_dist
+    n_far = np.bincount(owner[match][far], minlength=cands.size)
+    return (n_match < 2) | (n_far == 0), int(idx.size + n.sum())

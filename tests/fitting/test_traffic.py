@@ -246,3 +246,105 @@ def test_diurnal_truth_picks_time_of_day():
     assert fit.arrival_model == "time-of-day", fit.tables["arrivals"]
     got = fit.posterior["arrival_tod"].reshape(-1, 24)
     assert np.all(np.abs(got.mean(0) - tod) < 5 * got.std(0) + 0.05)
+
+
+# ---- the Laplace approximation (method em: no NUTS program) ----------------------------
+
+
+@pytest.fixture(scope="module")
+def laplace_fit(rich_log):
+    data, _ = rich_log
+    return fit_traffic(jax.random.key(0), data, paper=_paper(data), grid=_Grid(),
+                       approximation="laplace")  # fmt: skip
+
+
+def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit, rich_log):
+    """On the rich log (groups, gamma stays, door entries: none the paper's) the Laplace
+    + importance-sampled PSIS-LOO comparison picks what NUTS + PSIS-LOO picks, the truth,
+    with elpd within a few nats of NUTS's for every candidate."""
+    _, truth = rich_log
+    got = (laplace_fit.arrival_model, laplace_fit.lifetime_model, laplace_fit.position_model)
+    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
+    assert got == ("groups", "gamma", "learned")
+    assert "Laplace" in laplace_fit.attrs["model_choice"]
+    assert "NUTS" in rich_fit.attrs["model_choice"]
+    for factor in ("arrivals", "lifetimes"):
+        a, b = laplace_fit.tables[factor], rich_fit.tables[factor]
+        assert list(a.index) == list(b.index)
+        # MC error of PSIS-LOO and the Gaussian's fit: a few nats, against differences of
+        # hundreds between the candidates
+        assert np.all(np.abs(a["elpd"] - b["elpd"]) < 5.0 + 0.02 * b["se"]), (a, b)
+    post = laplace_fit.posterior
+    for name in ("event_rate", "stay_mean", "stay_shape"):
+        v = post[name].ravel()
+        assert v.shape == rich_fit.posterior[name].ravel().shape
+        assert abs(v.mean() - truth[name]) < 5 * v.std(), name
+        # the Gaussian's spread is the posterior's (NUTS) within 20%
+        assert v.std() == pytest.approx(rich_fit.posterior[name].std(), rel=0.2), name
+
+
+def test_laplace_keeps_the_paper_model_on_paper_truth():
+    laws = TrafficLaws()
+    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
+    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
+                                free=uniform_position_density(FREE, RES, ORIGIN),
+                                resolution=0.4)  # fmt: skip
+    fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(),
+                      approximation="laplace")  # fmt: skip
+    assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
+        "poisson", "exponential", "uniform",
+    )  # fmt: skip
+
+
+def _group_stats_loop(data):
+    """The per-group loop ``_group_stats`` replaced (a scan of all artefacts per group)."""
+    g = np.asarray(data.group)
+    seen = ~data.truncated & ~data.censored
+    stay = np.where(seen, data.t_leave - data.t_arrive, np.nan)
+    ss_stay = df_stay = ss_xy = df_xy = 0.0
+    for gid in np.unique(g):
+        idx = np.flatnonzero(g == gid)
+        if idx.size < 2:
+            continue
+        s = stay[idx]
+        s = s[np.isfinite(s) & (s > 0)]
+        if s.size >= 2:
+            ls = np.log(s)
+            ss_stay += float(np.sum((ls - ls.mean()) ** 2))
+            df_stay += s.size - 1
+        xy = np.column_stack([data.x[idx], data.y[idx]])
+        ss_xy += float(np.sum((xy - xy.mean(axis=0)) ** 2))
+        df_xy += 2 * (idx.size - 1)
+    return {
+        "group_stay_sd": float(np.sqrt(ss_stay / df_stay)) if df_stay else 0.0,
+        "group_spread": float(np.sqrt(ss_xy / df_xy)) if df_xy else 0.0,
+    }
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_group_stats_match_the_per_group_loop(seed):
+    """Group spreads by sums per group equal the per-group loop (censored, truncated and
+    lone artefacts, groups with one whole stay); 100,000 groups take no quadratic time."""
+    from are_stats.fitting._traffic import _group_stats
+    from are_stats.traffic import LifecycleData
+
+    rng = np.random.default_rng(seed)
+    n = 3000
+    group = rng.integers(0, 900, n)
+    ta = np.sort(rng.uniform(0, 1000, n))
+    tl = ta + rng.exponential(30, n)
+    trunc, cens = rng.random(n) < 0.1, tl > 990
+    data = LifecycleData(
+        t_arrive=np.where(trunc, np.nan, ta), t_leave=np.where(cens, np.nan, np.minimum(tl, 1000)),
+        window=(0.0, 1000.0), area=100.0, x=rng.normal(0, 3, n), y=rng.normal(0, 3, n),
+        group=group,
+    )  # fmt: skip
+    got, want = _group_stats(data), _group_stats_loop(data)
+    assert got["group_stay_sd"] == pytest.approx(want["group_stay_sd"], rel=1e-9)
+    assert got["group_spread"] == pytest.approx(want["group_spread"], rel=1e-9)
+    assert got["group_stay_sd"] > 0 and got["group_spread"] > 0
+    # many groups: linear work (the loop would scan 200,000 artefacts 100,000 times)
+    big = LifecycleData(t_arrive=np.arange(200000.0), t_leave=np.arange(200000.0) + 5.0,
+                        window=(-1.0, 300000.0), area=100.0, x=np.zeros(200000),
+                        y=np.zeros(200000), group=np.arange(200000) // 2)  # fmt: skip
+    assert _group_stats(big)["group_spread"] == 0.0

@@ -1,0 +1,331 @@
+"""Laplace approximation of a numpyro model, and PSIS-LOO from its draws (no NUTS).
+
+``are-stats fit --method em`` chooses the traffic models without compiling a NUTS program:
+each candidate's posterior is approximated by a Gaussian on the unconstrained scale at its
+mode (the Laplace approximation), and the candidates are compared by the same rule as the
+NUTS fits (:func:`~are_stats.fitting.choose_simplest` on pointwise ``elpd``), with the
+leave-one-out densities estimated by importance sampling from that Gaussian:
+``log r_si = log p(theta_s, y) - log q(theta_s) - log p(y_i | theta_s)`` for draws
+``theta_s`` of ``q = Normal(z_hat, H^-1)`` (``z_hat`` the mode, ``H`` the Hessian of minus
+the log density there), Pareto-smoothed (PSIS) per unit ``i``, and
+``elpd_i = log sum_s w_si p(y_i | theta_s)``. The first two terms correct the draws of
+``q`` toward the posterior, the third leaves unit ``i`` out (Vehtari, Gelman and Gabry
+2017, Sect. 2, with a proposal other than the posterior). The draws kept for the chosen
+model are the Gaussian's (a Laplace posterior; a fit records the comparison in its
+``traffic_model_choice`` attribute).
+
+One small program is compiled per candidate (cheap XLA optimisation, kept in the process
+and on disk like the NUTS programs): the log density, constrained sites and pointwise
+log-likelihood of a batch of points, without derivatives. The mode is found by SciPy's
+L-BFGS-B with central-difference gradients (each gradient one batch), the Hessian by
+central second differences, and the draws are scored batch by batch through the same
+program. Array arguments of the model are arguments of the program, so logs of one size
+share it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from numpyro.infer.util import constrain_fn, potential_energy
+from scipy.optimize import minimize
+from scipy.special import logsumexp
+
+from are_stats._program_cache import TRACE_LOCK
+from are_stats.fitting._nuts import (
+    _cached,
+    _fn_key,
+    _hashable,
+    _join_kwargs,
+    _shapes,
+    _split_kwargs,
+)
+from are_stats.fitting._psis import psislw
+from are_stats.traffic import aot_compile
+
+__all__ = [
+    "LaplaceRun", "laplace_dimension", "laplace_loo", "laplace_program", "run_laplace",
+]  # fmt: skip
+
+
+#: The mode is searched within ``[-Z_BOUND, Z_BOUND]`` on the unconstrained scale (the
+#: traffic models centre every rate on its empirical value, so ``e^12`` away is no data's).
+Z_BOUND = 12.0
+#: Iterations of the mode search at most (a well-posed candidate needs a few dozen).
+MAX_ITER = 200
+
+
+class LaplaceRun(NamedTuple):
+    """Draws of a Laplace approximation and what the comparison needs.
+
+    Attributes
+    ----------
+    samples : dict of str to (S, ...) ndarray
+        Constrained and deterministic sites of ``S`` draws from the Gaussian.
+    loglik : (S, n) ndarray
+        Pointwise log-likelihood of each draw.
+    log_ratio : (S,) ndarray
+        ``log p(theta_s, y) - log q(theta_s)``: importance log weights toward the posterior.
+    mode : dict of str to ndarray
+        The mode on the unconstrained scale.
+    converged : bool
+        Whether the mode search converged at a finite log density inside the bounds
+        (``|z| < Z_BOUND``), within :data:`MAX_ITER` iterations.
+    name : str
+    """
+
+    samples: dict
+    loglik: np.ndarray
+    log_ratio: np.ndarray
+    mode: dict
+    converged: bool
+    name: str
+
+
+def _batch_fn(model: Callable, treedef: Any, static: tuple, pointwise: Callable) -> Any:
+    """``(arrays, zs) -> (potential, sites, pointwise)`` of each point of a batch, jitted."""
+
+    def batch(arrays: list, zs: dict) -> Any:
+        kwargs = _join_kwargs(arrays, treedef, static)
+
+        def one(u: dict) -> Any:
+            pe = potential_energy(model, (), kwargs, u)
+            s = constrain_fn(model, (), kwargs, u, return_deterministic=True)
+            return pe, s, pointwise(s, **kwargs)
+
+        return jax.vmap(one)(zs)
+
+    return jax.jit(batch)
+
+
+def _program(name: str, fn: Any, args: tuple, key_parts: tuple) -> Any:
+    """``fn`` compiled for ``args`` with cheap XLA optimisation (small programs run a few
+    times), kept in the process and, traced, on disk (as the NUTS programs)."""
+    key = _hashable((name, *key_parts, _shapes(args)))
+    return _cached(key, lambda: aot_compile(fn, *args, key=key), {})
+
+
+def _init_z(model: Callable, kwargs: dict, init: dict | None) -> dict:
+    """The start on the unconstrained scale: ``init`` where given, else 0.
+
+    The latent sites and their supports are read off an abstract trace of the model
+    (``jax.eval_shape``: shapes only, nothing computed or compiled).
+    """
+    from numpyro import handlers
+    from numpyro.distributions.transforms import biject_to
+
+    found: dict[str, tuple[Any, tuple]] = {}
+
+    def trace() -> int:
+        with handlers.trace() as tr, handlers.seed(rng_seed=0):
+            model(**kwargs)
+        for name, site in tr.items():
+            if site["type"] == "sample" and not site.get("is_observed", False):
+                found[name] = (site["fn"].support, tuple(site["value"].shape))
+        return 0
+
+    with TRACE_LOCK:  # numpyro's handlers are one global stack: one trace at a time
+        jax.eval_shape(trace)
+    z0 = {}
+    for name, (support, shape) in found.items():
+        t = biject_to(support)
+        if init and name in init:
+            z0[name] = np.asarray(t.inv(jnp.asarray(init[name], jnp.float64)), np.float64)
+        else:
+            z0[name] = np.zeros(t.inverse_shape(shape))
+    return z0
+
+
+def laplace_dimension(model: Callable[..., None], model_kwargs: dict, init: dict | None) -> int:
+    """Number of latent parameters of ``model`` on the unconstrained scale (nothing compiled)."""
+    return int(sum(np.size(v) for v in _init_z(model, model_kwargs, init).values()))
+
+
+def _batch_size(d: int) -> int:
+    """Points per program call: a central-difference gradient stencil (``2d + 1``)."""
+    return max(8, int(2 ** np.ceil(np.log2(2 * d + 1))))
+
+
+def laplace_program(
+    model: Callable[..., None], model_kwargs: dict, init: dict | None, pointwise: Callable
+) -> tuple[Any, list, np.ndarray, list[str], list[tuple]]:
+    """The compiled batch program of :func:`run_laplace` (cached: calling this ahead, in
+    another thread, compiles it while other work goes on).
+
+    Returns
+    -------
+    program, arrays, x0, names, shapes
+        The program, the model's array arguments, the flat start and the latent sites'
+        names and shapes on the unconstrained scale.
+    """
+    arrays, treedef, static = _split_kwargs(model_kwargs)
+    z0 = _init_z(model, model_kwargs, init)
+    names = sorted(z0)
+    shapes = [np.shape(z0[n]) for n in names]
+    x0 = np.concatenate([np.asarray(z0[n], np.float64).ravel() for n in names])
+    size = _batch_size(x0.size)
+    program = _program(
+        "laplace_batch",
+        _batch_fn(model, treedef, static, pointwise),
+        (arrays, _unflat_batch(np.zeros((size, x0.size)), names, shapes)),
+        (_fn_key(model), treedef, static, _fn_key(pointwise)),
+    )
+    return program, arrays, x0, names, shapes
+
+
+def run_laplace(
+    key: Any,
+    model: Callable[..., None],
+    model_kwargs: dict,
+    init: dict | None,
+    *,
+    num_draws: int,
+    pointwise: Callable[..., Any],
+    name: str = "",
+) -> LaplaceRun:
+    """Laplace approximation of ``model(**model_kwargs)`` and ``num_draws`` draws from it.
+
+    Parameters
+    ----------
+    key : jax PRNG key
+        The draws' randomness.
+    model : callable
+        A numpyro model (module level, as for :func:`~are_stats.fitting.run_nuts`).
+    model_kwargs : dict
+        Its arguments (array leaves are program arguments, the rest constants).
+    init : dict or None
+        Start of the mode search, constrained scale (as ``run_nuts``'s ``init``).
+    num_draws : int
+        Draws ``S``.
+    pointwise : callable
+        ``pointwise(sample_dict, **model_kwargs) -> (n,)`` for one draw.
+    name : str
+
+    Returns
+    -------
+    LaplaceRun
+    """
+    program, arrays, x0, names, shapes = laplace_program(model, model_kwargs, init, pointwise)
+    d = x0.size
+    size = _batch_size(d)
+
+    def evaluate(points: np.ndarray) -> tuple[np.ndarray, dict, np.ndarray]:
+        """Potential, sites and pointwise log-likelihood of ``(m, d)`` points."""
+        pes, sites, lls = [], [], []
+        for k in range(0, len(points), size):
+            chunk = points[k : k + size]
+            pad = np.concatenate([chunk, np.repeat(chunk[-1:], size - len(chunk), 0)])
+            pe, si, ll = program(arrays, _unflat_batch(pad, names, shapes))
+            pes.append(np.asarray(pe, np.float64)[: len(chunk)])
+            sites.append({n: np.asarray(v)[: len(chunk)] for n, v in si.items()})
+            lls.append(np.asarray(ll, np.float64)[: len(chunk)])
+        pe = np.concatenate(pes)
+        return (
+            np.where(np.isfinite(pe), pe, np.inf),
+            {n: np.concatenate([c[n] for c in sites]) for n in sites[0]},
+            np.concatenate(lls),
+        )
+
+    def steps(x: np.ndarray, rel: float) -> np.ndarray:
+        return rel * np.maximum(1.0, np.abs(x))
+
+    last_ok: list = [None]  # the last point with a finite density and gradient
+
+    def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
+        h = steps(x, 1e-6)
+        stencil = np.vstack([x, x + np.diag(h), x - np.diag(h)])
+        pe = evaluate(stencil)[0]
+        if np.isfinite(pe).all():
+            grad = (pe[1 : d + 1] - pe[d + 1 :]) / (2 * h)
+            last_ok[0] = (x.copy(), float(pe[0]))
+            return float(pe[0]), grad
+        # outside the density's finite region: a steep bowl around the last finite point,
+        # so that the line search steps back instead of stopping
+        if last_ok[0] is None:
+            return 1e300, np.zeros(d)
+        x_ok, f_ok = last_ok[0]
+        dx = x - x_ok
+        scale = 1e6 * (1.0 + abs(f_ok))
+        return f_ok + scale * (1.0 + float(dx @ dx)), 2.0 * scale * dx
+
+    # within Z_BOUND of 0 on the unconstrained scale (4 prior sds of a rate's z, 8 of a
+    # shape's eta): beyond it a likelihood's numerics (and its cost: an incomplete gamma
+    # of shape e^30 takes seconds a point), not the data, rule
+    bounds = [(-Z_BOUND, Z_BOUND)] * d
+    res = minimize(fun, np.clip(x0, -Z_BOUND, Z_BOUND), jac=True, method="L-BFGS-B",
+                   bounds=bounds, options={"maxiter": MAX_ITER})  # fmt: skip
+    mode = res.x
+    hess = _hessian(lambda pts: evaluate(pts)[0], mode, steps(mode, 1e-4))
+    lam, vec = np.linalg.eigh(hess)
+    # a flat or non-convex direction (a mode on a boundary of the data's support): a wide
+    # unit variance there, so that the importance weights can still reach the posterior
+    lam = np.where(np.isfinite(lam) & (lam > 1e-8), lam, 1.0)
+    eps = np.asarray(jax.random.normal(key, (int(num_draws), d), dtype=jnp.float64))
+    zs = mode + (eps / np.sqrt(lam)) @ vec.T
+    log_q = -0.5 * np.sum(eps**2, axis=1) - 0.5 * d * np.log(2 * np.pi) + 0.5 * np.sum(np.log(lam))
+    pe, samples, ll = evaluate(zs)
+    log_ratio = np.where(np.isfinite(pe), -pe - log_q, -np.inf)
+    on_bound = bool(np.any(np.abs(mode) >= Z_BOUND * (1 - 1e-9)))
+    converged = bool(res.success) and bool(np.isfinite(res.fun)) and not on_bound
+    mode_d = {n: v[0] for n, v in _unflat_batch(mode[None], names, shapes).items()}
+    return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name)
+
+
+def _hessian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Hessian of ``f`` at ``x`` by central second differences (``f`` maps ``(m, d)`` points
+    to ``(m,)`` values, all points of a call at once)."""
+    d = x.size
+    e = np.diag(h)
+    pts = [x]
+    for i in range(d):
+        pts += [x + e[i], x - e[i]]
+        for j in range(i):
+            pts += [x + e[i] + e[j], x + e[i] - e[j], x - e[i] + e[j], x - e[i] - e[j]]
+    v = f(np.asarray(pts))
+    f0, k = v[0], 1
+    out = np.empty((d, d))
+    for i in range(d):
+        out[i, i] = (v[k] - 2 * f0 + v[k + 1]) / (h[i] * h[i])
+        k += 2
+        for j in range(i):
+            out[i, j] = out[j, i] = (v[k] - v[k + 1] - v[k + 2] + v[k + 3]) / (4 * h[i] * h[j])
+            k += 4
+    return out
+
+
+def _unflat_batch(zs: np.ndarray, names: list[str], shapes: list[tuple]) -> dict:
+    """``(S, d)`` flat draws to a dict of ``(S, *shape)`` arrays (the order of ``names``)."""
+    out, k = {}, 0
+    for n, s in zip(names, shapes, strict=True):
+        m = int(np.prod(s))
+        out[n] = zs[:, k : k + m].reshape((zs.shape[0], *s))
+        k += m
+    return out
+
+
+def laplace_loo(run: LaplaceRun) -> tuple[np.ndarray, np.ndarray]:
+    """Pointwise ``elpd_i`` and Pareto ``k_i`` by importance-sampled PSIS-LOO.
+
+    The raw log weights of unit ``i`` are ``log_ratio - loglik[:, i]`` (see the module
+    docstring); ``k_i`` above 0.7 flags a unit whose estimate is unreliable.
+
+    Returns
+    -------
+    elpd : (n,) float64
+    k : (n,) float64
+    """
+    ll = np.asarray(run.loglik, np.float64)
+    n = ll.shape[1]
+    if n == 0:
+        return np.zeros(0), np.zeros(0)
+    ok = np.isfinite(run.log_ratio) & np.isfinite(ll).all(axis=1)
+    ll, base = ll[ok], run.log_ratio[ok]
+    if ll.shape[0] < 5:
+        return np.full(n, -np.inf), np.full(n, np.inf)
+    log_w, k = psislw(base[None, :] - ll.T, 1.0)
+    elpd = logsumexp(log_w + ll.T, axis=1)
+    return np.asarray(elpd, float), np.atleast_1d(np.asarray(k, float))
