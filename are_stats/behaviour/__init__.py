@@ -91,3 +91,16 @@ __all__ += [
     "simulate_behaviour_tracks",
     "smooth_path",
 ]
+
+from are_stats.behaviour._motion import (  # noqa: E402
+    line_of_sight,
+    preferred_speeds,
+    string_pull,
+    walk_times,
+)
+
+__all__ += ["line_of_sight", "preferred_speeds", "string_pull", "walk_times"]
+
+from are_stats.behaviour._walk import walk_tracks  # noqa: E402
+
+__all__ += ["walk_tracks"]
