@@ -215,7 +215,16 @@ def continuous_path(
         pts = np.concatenate([np.asarray(start_xy, float)[None, :], fit.cell_to_world(cells[1:])])
         if end_xy is not None and len(pts) > 1:
             pts[-1] = end_xy
-        path = string_pull(pts, fit.free, (float(fit.origin[0]), float(fit.origin[1])), fit.cell)
+        free = np.asarray(fit.free, bool)
+        if np.any(np.asarray(fit.weights) != 0.0):
+            # fitted cell rewards make cells unequal: shortcuts stay within one cell of
+            # the route (the cells it chose), so the learned preferences shape the path
+            from scipy import ndimage
+
+            route = np.zeros(free.shape, bool)
+            route[cells[:, 0], cells[:, 1]] = True
+            free = free & ndimage.binary_dilation(route, np.ones((3, 3), bool))
+        path = string_pull(pts, free, (float(fit.origin[0]), float(fit.origin[1])), fit.cell)
         return walk_times(path, speed, rng, within_sd), path
     step = fit.cell / speed
     pts = [np.asarray(start_xy, float)]
@@ -348,13 +357,8 @@ def simulate_behaviour_tracks(
     # walker of the class covers in the stay, up to its fast walkers (2 sd above)
     reach = np.floor(stay * np.maximum(speed, fastest) / fit.cell)
     horizon = np.floor(1.25 * reach).astype(np.int64) + 2
-    # any-angle paths are walked at the person's own preferred speed: its exit is drawn
-    # for that speed (L / s near it, within the person's own variation)
-    pull = int(smooth) <= 1
-    ex_mu = np.log(speed) if pull else mu
-    ex_sg = np.full(n, max(float(within_sd), 0.05)) if pull else sg
     exits = fit.draw_exits(
-        rng, cls, entry, np.floor(0.9 * reach), stays=stay, speed_mu=ex_mu, speed_sigma=ex_sg
+        rng, cls, entry, np.floor(0.9 * reach), stays=stay, speed_mu=mu, speed_sigma=sg
     )
     moving = exits[:, 0] >= 0
     occ = ~fit.free
@@ -396,11 +400,13 @@ def simulate_behaviour_tracks(
         tv, pv = continuous_path(
             *paths[i], fit, float(speed[i]), xy0[i], None, smooth, rng=rng, within_sd=within_sd
         )
-        # grid paths (smooth > 1) are walked at the speed that ends them at t_leave, within
-        # the class's slow and fast walkers (2 sd around the median speed); any-angle paths
-        # at the person's own preferred speed: early, it stands at its exit; late, it leaves
-        # while still walking
-        if not pull and 0.0 < tv[-1]:
+        # people leave when they reach their exit: the person's speed, one for its whole
+        # path, is the one that ends the path at t_leave, within the class's slow and fast
+        # walkers (2 sd around the median speed); beyond them it reaches its exit early
+        # and stands there, or leaves while still walking. With the exit drawn given the
+        # stay and weighted by the speed law at L / s, that speed is a draw from the
+        # fitted between-person law given the entry and the stay
+        if 0.0 < tv[-1]:
             v_end = float(np.clip(speed[i] * tv[-1] / stay[i], slowest[i], fastest[i]))
             tv = tv * (float(speed[i]) / v_end)
         curves.append((tv, pv))
@@ -437,11 +443,14 @@ def _track_rows(
     stay: np.ndarray,
     steps: np.ndarray,
     yaw0: np.ndarray,
+    side_steps: bool = False,
 ) -> list[pd.DataFrame]:
     """Each artefact's track rows: its timed path (delayed and side-stepped as
     :func:`separate_paths` says) sampled every ``steps[i]`` seconds and at every vertex, so
-    that the piecewise-linear track is the path. ``yaw`` follows the motion; an artefact
-    keeps ``yaw0`` until it first moves and its last heading while standing."""
+    that the piecewise-linear track is the path; with ``side_steps``, also at every step of
+    the separation while side-stepped (the track between them is then the checked step).
+    ``yaw`` follows the motion; an artefact keeps ``yaw0`` until it first moves and its last
+    heading while standing."""
     rows = []
     for i in range(len(curves)):
         ts = np.arange(0.0, stay[i] + 1e-9, steps[i])
@@ -452,8 +461,9 @@ def _track_rows(
         # while side-stepped, the steps of the separation (checked on the map) are the track
         off = s_rec != 0.0
         near = off | np.r_[off[1:], False] | np.r_[False, off[:-1]]
-        tk_s = t_rec[near] - t_arr[i]
-        ts = np.unique(np.concatenate([ts, tk_s[(tk_s > 0.0) & (tk_s < stay[i])]]))
+        if side_steps:
+            tk_s = t_rec[near] - t_arr[i]
+            ts = np.unique(np.concatenate([ts, tk_s[(tk_s > 0.0) & (tk_s < stay[i])]]))
         if len(tv) > 2:
             # the times the vertices are reached (own time tau = t - t_arrive - delay)
             tau_rec = t_rec - t_arr[i] - d_rec
@@ -466,6 +476,7 @@ def _track_rows(
             on_path = np.interp(t_arr[i] + tk, t_rec, near.astype(float)) == 0.0
             tk = tk[on_path & (tk > 0.0) & (tk < stay[i])]
             ts = np.unique(np.concatenate([ts, tk]))
+        ts = ts[np.r_[True, np.diff(ts) > 1e-6]]  # one sample per instant
         tau = ts - np.interp(t_arr[i] + ts, t_rec, d_rec)
         x, y = path_points(tv, pv, tau, np.interp(t_arr[i] + ts, t_rec, s_rec)).T
         yaw = np.full(ts.size, float(yaw0[i]))

@@ -357,6 +357,7 @@ def walk_tracks(
                 stay,
                 np.full(n, dt),
                 yaw,
+                side_steps=True,
             )  # fmt: skip
         )
     if not out:
