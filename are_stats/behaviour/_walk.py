@@ -6,12 +6,13 @@ catalogue behaviour of :func:`~are_stats.behaviour.behaviour_tracks`):
 1. each artefact gets a preferred speed, drawn once (:func:`preferred_speeds`): its class's
    catalogue speed for its mode (walk, or run) times ``exp(speed_sd z)``;
 2. **walk** and **run** artefacts go from goal to goal while they are alive. Each leg's goal
-   is drawn uniformly among the free cells whose 4-connected path length from where the
-   artefact stands is at most what it walks in the rest of its stay at its preferred speed
-   (so every goal can be reached); the paper's MDP (:class:`GridMDP`, the artefact's
-   behaviour, slip, a horizon of twice the path length plus ten epochs) decides the route,
-   one rollout of its policy samples it; on arrival a new goal is drawn. An artefact with no
-   reachable cell left stands;
+   is drawn uniformly among the free cells whose 4-connected path length ``d`` from where
+   the artefact stands is at most what it walks in the rest of its stay at its preferred
+   speed (so every goal can be reached), and at least half of that reach or of the
+   farthest cell, whichever is less (crossings rather than short hops); the paper's MDP
+   (:class:`GridMDP`, the artefact's behaviour, slip, a horizon of twice the path length
+   plus ten epochs) decides the route, one rollout of its policy samples it; on arrival a
+   new goal is drawn. An artefact with no reachable cell left stands;
 3. **follow** artefacts walk (MDP leg) to the cell the nearest walking or running artefact
    present at their arrival is heading to, then along that artefact's path at their own
    speed, then on from goal to goal; without anybody to follow they walk;
@@ -83,7 +84,8 @@ def _legs(
 
     Each round plans, for every artefact still walking, a chain of goals from where it
     stands: each goal drawn uniformly among the cells whose 4-connected path length from
-    the previous one is at most what the artefact walks in its remaining time (which the
+    the previous one is at most what the artefact walks in its remaining time, and at
+    least half of that or of the farthest cell, whichever is less (which the
     chain then uses up at that length: any-angle paths are shorter, so a later round adds
     more legs). All legs of the round are solved (:meth:`GridMDP.solve`, in chunks of
     ``chunk``) and rolled out together; a leg that misses its goal ends the artefact's
@@ -117,7 +119,10 @@ def _legs(
                         break
                     items.append((i, c, g, int(2 * d[g[0], g[1]]) + 10))
                     break
-                ok = np.argwhere((d >= 1) & (d <= np.floor(speed[i] * budget / cell)))
+                reach = np.floor(speed[i] * budget / cell)
+                far = d[np.isfinite(d)].max(initial=0.0)
+                # the farther half of what it can reach: crossings, not short hops
+                ok = np.argwhere((d >= max(1.0, 0.5 * min(reach, far))) & (d <= reach))
                 if not len(ok):
                     break  # nothing reachable in the rest of the stay: it stands
                 g = ok[rng.integers(len(ok))]
