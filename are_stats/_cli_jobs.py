@@ -232,19 +232,25 @@ def run_fit(
             grid=None if positions == "uniform" else grid,
             clock_start=clock_start,
         )
-        if tracks is not None and grid is not None:
-            from are_stats.fitting import attach_behaviour, fit_behaviour
+        if tracks is not None:
+            from are_stats.fitting import attach_behaviour, fit_behaviour, open_area_grid
 
             status.update("fitting: behaviour from the tracks (speeds, exits, rationality) ...")
+            if grid is not None:
+                free, res, origin = grid.free, grid.resolution, grid.origin[:2]
+            else:  # no map: the open area the tracks cover (issue 26)
+                free, res, origin = open_area_grid(tracks, source=log)
+                console.print(
+                    "note: no map in the manifest: behaviour fitted on the open area the "
+                    f"tracks cover ({free.shape[1] * res:.1f} x {free.shape[0] * res:.1f} m, "
+                    "their bounding box plus 1 m, all free)"
+                )
             bfit = fit_behaviour(
-                tracks, grid.free, grid.resolution, grid.origin[:2], seed=seed,
-                features=features or None,
+                tracks, free, res, origin, seed=seed, features=features or None
             )  # fmt: skip
             idata = attach_behaviour(idata, bfit)
             for line in _behaviour_lines(bfit):
                 console.print(line)
-    if tracks is not None and grid is None:
-        console.print("[yellow]warning:[/] no map in the manifest: behaviour not fitted")
     idata.posterior.attrs.update(
         {"seed": int(seed), "log": str(log), "log_report": yaml.safe_dump(rep, sort_keys=False)}
     )
