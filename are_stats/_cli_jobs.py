@@ -236,19 +236,31 @@ def run_fit(
             grid=None if positions == "uniform" else grid,
             clock_start=clock_start,
         )
-        if tracks is not None and grid is not None:
-            from are_stats.fitting import attach_behaviour, fit_behaviour
+        if tracks is not None:
+            from are_stats.fitting import attach_behaviour, fit_behaviour, open_area_grid
 
             status.update("fitting: behaviour from the tracks (speeds, exits, rationality) ...")
+            if grid is not None:
+                free, res, origin = grid.free, grid.resolution, grid.origin[:2]
+            else:  # no map: the open area the tracks cover (issue 26)
+                free, res, origin = open_area_grid(tracks, source=log)
+                from are_stats.environment import OccupancyGrid
+
+                # the criticism (motion checks, realism) then scores on that open area too
+                grid = OccupancyGrid(np.where(free, 0, 100), res, (origin[0], origin[1], 0.0))
+                console.print(
+                    "note: no map in the manifest: behaviour fitted on the open area the "
+                    f"tracks cover ({free.shape[1] * res:.1f} x {free.shape[0] * res:.1f} m, "
+                    "their bounding box plus 1 m, all free)"
+                )
             bfit = fit_behaviour(
-                tracks, grid.free, grid.resolution, grid.origin[:2], seed=seed,
-                features=features or None,
+                tracks, free, res, origin, seed=seed, features=features or None
             )  # fmt: skip
             idata = attach_behaviour(idata, bfit)
             for line in _behaviour_lines(bfit):
                 console.print(line)
-    if tracks is not None and grid is None:
-        console.print("[yellow]warning:[/] no map in the manifest: behaviour not fitted")
+            status.update("fitting: interaction (social force) from the tracks ...")
+            _attach_interaction(idata, tracks)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep["source"] = Path(str(rep.get("source") or log)).name
@@ -303,6 +315,23 @@ def _sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
+def _attach_interaction(idata: Any, tracks: Any) -> None:
+    """The social force of the log's tracks, stored with the behaviour (issue 26)."""
+    from are_stats.fitting import fit_interaction, interaction_attrs
+
+    try:
+        params, info = fit_interaction(tracks)
+    except ValueError as err:  # too little walking together, or no interaction in the data
+        console.print(f"note: interaction not fitted ({err}); scenes use the published one")
+        return
+    idata.behaviour.attrs.update(interaction_attrs(params, info))
+    console.print(
+        f"interaction (social force): strength A {params.strength:.3g} m/s^2, range B "
+        f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s "
+        f"(R^2 {info['r2']:.2f} over {int(info['n'])} accelerations)"
+    )
+
+
 def _behaviour_lines(fit: Any) -> list[str]:
     """One line per class: the fitted rationality, slip and reward weights with their
     standard errors."""
@@ -331,6 +360,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         motion_checks,
         plot_motion_checks,
     )
+    from are_stats.scenarios import plot_realism, realism_table
 
     bfit = BehaviourFit.from_dataset(idata.behaviour)
     key = jax.random.key(seed)
@@ -341,16 +371,26 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     )  # fmt: skip
     errors = displacement_errors(jax.random.fold_in(key, 3), bfit, tracks, n_samples=20)
     fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)
+    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
+    # (each through the one assembly, social force included) against the log
+    real = realism_table(
+        jax.random.fold_in(key, 4), tracks[["id", "t", "x", "y"]], grid, behaviour=bfit,
+        n_replicates=1,
+    )  # fmt: skip
+    fig_real = plot_realism(real)
     out = {}
     for name, write in (
         ("motion_checks.csv", lambda p: table.to_csv(p, float_format="%.6g")),
         ("displacement_errors.csv", lambda p: errors.to_csv(p, float_format="%.6g")),
         ("motion_checks.png", lambda p: fig.savefig(p, dpi=110, format="png")),
+        ("realism.csv", lambda p: real.to_csv(p, float_format="%.6g")),
+        ("realism.png", lambda p: fig_real.savefig(p, dpi=110, format="png")),
     ):
         with atomic_path(Path(folder) / name, force=force) as tmp:
             write(tmp)
         out[name] = Path(folder) / name
     plt.close(fig)
+    plt.close(fig_real)
     rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
     for col in ("statistic", "observed", "model 5% - 95%"):
         rich.add_column(col, justify="left" if col == "statistic" else "right")
@@ -365,6 +405,15 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
         f"{held['random_walk_per_move']:.3f} nats per move"
     )
+    models = [c for c in real.columns if c not in ("kind", "weight")]
+    rich = Table(title="realism against the log (higher is closer)", title_justify="left")
+    rich.add_column("feature", justify="left")
+    for m in models:
+        rich.add_column(m, justify="right")
+    for feat, row in real.iterrows():
+        cells = [f"{float(row[m]):.3f}" if np.isfinite(float(row[m])) else "-" for m in models]
+        rich.add_row(str(feat), *cells)
+    console.print(rich)
     return out
 
 

@@ -92,6 +92,19 @@ __all__ += [
     "smooth_path",
 ]
 
+from are_stats.behaviour._motion import (  # noqa: E402
+    line_of_sight,
+    preferred_speeds,
+    string_pull,
+    walk_times,
+)
+
+__all__ += ["line_of_sight", "preferred_speeds", "string_pull", "walk_times"]
+
+from are_stats.behaviour._walk import walk_tracks  # noqa: E402
+
+__all__ += ["walk_tracks"]
+
 from are_stats.behaviour._social import (  # noqa: E402
     SocialForce,
     fit_social_force,

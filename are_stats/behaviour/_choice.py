@@ -6,8 +6,10 @@ first without a mark). :func:`behaviour_tracks` is the one path from a scenario'
 artefacts to behaviour tracks, used by ``are-stats generate --behaviours`` and by the
 experiment sweeps: the map is coarsened to the behaviour cell
 (:func:`are_stats.environment.coarse_occupancy`), starts on a coarse obstacle move to the
-nearest free coarse cell, and :func:`~are_stats.behaviour.scenario_tracks` rolls every
-scenario's artefacts out together.
+nearest free coarse cell, and :func:`~are_stats.behaviour.walk_tracks` moves them: the MDP
+picks each route to a goal reachable in the rest of the stay (a new goal on arrival, while
+alive), and the artefact walks it in continuous space, straight wherever it sees, at its
+own preferred speed (issue 26).
 """
 
 from __future__ import annotations
@@ -56,6 +58,9 @@ def behaviour_tracks(
     dt: float = 2.0,
     horizon: float | None = None,
     source: str = "cell",
+    speed_sd: float = 0.12,
+    within_sd: float = 0.05,
+    min_separation: float = 0.5,
 ) -> pd.DataFrame:
     """Behaviour tracks of scenario artefacts on ``grid`` coarsened to ``cell`` metres.
 
@@ -74,11 +79,18 @@ def behaviour_tracks(
     cell : float
         Behaviour grid cell (m).
     dt : float
-        Seconds per decision epoch.
+        Seconds between track samples (the path's vertices are sampled too).
     horizon : float, optional
         Leaving times are cut at it (artefacts arriving after it are left out).
     source : str
         The option or key of ``cell``, named in errors.
+    speed_sd : float
+        Between-person standard deviation of the log preferred speed around the catalogue
+        speed of the class (walk, or run for runners).
+    within_sd : float
+        Within-person standard deviation of the log speed.
+    min_separation : float
+        Centre distance (m) walking artefacts keep (``0``: off).
 
     Returns
     -------
@@ -87,7 +99,7 @@ def behaviour_tracks(
     """
     from scipy import ndimage
 
-    from are_stats.behaviour._rollout import scenario_tracks
+    from are_stats.behaviour._walk import walk_tracks
     from are_stats.environment import coarse_occupancy
 
     occ, res = coarse_occupancy(grid, cell, source)
@@ -119,4 +131,14 @@ def behaviour_tracks(
     })[keep]  # fmt: skip
     if table.empty:
         return pd.DataFrame(columns=list(TRACK_COLUMNS))
-    return pd.DataFrame(scenario_tracks(key, table, occ, dt=dt, resolution=res, origin=(x0, y0)))
+    speeds = [catalogue.row(int(c)).speeds for c in classes[keep]]
+    table["speed"] = [
+        sp.get("run", sp["walk"]) if b == "run" else sp["walk"]
+        for sp, b in zip(speeds, table["behaviour"], strict=True)
+    ]
+    return pd.DataFrame(
+        walk_tracks(
+            key, table, occ, resolution=res, origin=(x0, y0), dt=dt, speed_sd=speed_sd,
+            within_sd=within_sd, min_separation=min_separation,
+        )
+    )  # fmt: skip

@@ -41,6 +41,7 @@ import pandas as pd
 from are_stats._checks import check_positive
 from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
+from are_stats.behaviour._motion import _crossed, string_pull, walk_times
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._soft import soft_policy
 
@@ -159,13 +160,24 @@ def continuous_path(
     speed: float,
     start_xy: np.ndarray,
     end_xy: np.ndarray | None,
-    smooth: int,
+    smooth: int = 0,
+    *,
+    rng: np.random.Generator | None = None,
+    within_sd: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One artefact's continuous path from its sampled MDP states and actions.
 
-    Each move goes to the centre of the next cell, a pause (stay, or a blocked move) holds
-    for one epoch; the distinct vertices are smoothed (:func:`smooth_path`) and re-timed so
-    that the artefact moves at ``speed`` (m/s).
+    The route (the cells the artefact moves through, from ``start_xy``) becomes an
+    any-angle path (:func:`~are_stats.behaviour.string_pull` over ``fit.free``: straight
+    wherever the walker sees far enough, so an open crossing is one segment), walked at
+    ``speed`` with the within-person variation ``within_sd``
+    (:func:`~are_stats.behaviour.walk_times`): the MDP decides the route, not the timing,
+    so its stays and blocked moves are not pauses.
+
+    With ``smooth > 1`` the path of the grid version is returned instead: each move goes to
+    the centre of the next cell, a pause (stay, or a blocked move) holds for one epoch, and
+    the distinct vertices are smoothed (:func:`smooth_path`, ``smooth`` vertices) and
+    re-timed at ``speed``.
 
     Parameters
     ----------
@@ -174,7 +186,7 @@ def continuous_path(
     actions : (T,) int
         The actions taken (``-1`` after the path ends).
     fit : BehaviourFit
-        Grid (cell size and origin) of the states.
+        Grid (cell size, origin and free cells) of the states.
     speed : float
         Walking speed (m/s).
     start_xy : (2,) float
@@ -182,7 +194,12 @@ def continuous_path(
     end_xy : (2,) float or None
         World position of the last vertex (default: its cell's centre).
     smooth : int
-        Smoothing window in vertices.
+        ``0`` or ``1``: the any-angle path; more: the smoothed grid path (window in
+        vertices).
+    rng : numpy.random.Generator, optional
+        For ``within_sd > 0``.
+    within_sd : float
+        Within-person standard deviation of the log speed.
 
     Returns
     -------
@@ -191,6 +208,24 @@ def continuous_path(
     xy : (m, 2) float
         Vertex positions (m).
     """
+    if int(smooth) <= 1:
+        done = np.flatnonzero(np.asarray(actions) < 0)
+        n_act = int(done[0]) if done.size else len(actions)
+        cells = states[: n_act + 1, :2]
+        pts = np.concatenate([np.asarray(start_xy, float)[None, :], fit.cell_to_world(cells[1:])])
+        if end_xy is not None and len(pts) > 1:
+            pts[-1] = end_xy
+        free = np.asarray(fit.free, bool)
+        if np.any(np.asarray(fit.weights) != 0.0):
+            # fitted cell rewards make cells unequal: shortcuts stay within one cell of
+            # the route (the cells it chose), so the learned preferences shape the path
+            from scipy import ndimage
+
+            route = np.zeros(free.shape, bool)
+            route[cells[:, 0], cells[:, 1]] = True
+            free = free & ndimage.binary_dilation(route, np.ones((3, 3), bool))
+        path = string_pull(pts, free, (float(fit.origin[0]), float(fit.origin[1])), fit.cell)
+        return walk_times(path, speed, rng, within_sd), path
     step = fit.cell / speed
     pts = [np.asarray(start_xy, float)]
     times = [0.0]
@@ -226,11 +261,12 @@ def simulate_behaviour_tracks(
     artefacts: pd.DataFrame,
     *,
     dt_out: float | None = None,
-    smooth: int = 5,
+    smooth: int = 0,
     chunk: int = 16,
     class_labels: Any = None,
     horizon: float | None = None,
     min_separation: float = 0.5,
+    within_sd: float = 0.05,
 ) -> pd.DataFrame:
     """Tracks of scenario artefacts from a fitted behaviour (see the module docstring).
 
@@ -249,7 +285,9 @@ def simulate_behaviour_tracks(
     dt_out : float or None
         Sampling period of the output (default: the artefact's class epoch ``fit.dt``).
     smooth : int
-        Moving-average window (cells) of the continuous path.
+        ``0`` (default): any-angle paths walked at the preferred speed
+        (:func:`continuous_path`); more: the grid path smoothed over that many cells and
+        re-timed to end at ``t_leave`` (the motion before issue 26).
     chunk : int
         Goals solved together.
     class_labels : sequence of str, optional
@@ -264,6 +302,8 @@ def simulate_behaviour_tracks(
         or else holds its position and walks on later (it still leaves at ``t_leave``);
         earlier arrivals move first. ``0`` turns it off. Artefacts never pass through
         each other; artefacts that cannot move stop (:func:`separate_paths`).
+    within_sd : float
+        Within-person standard deviation of the log walking speed (:func:`walk_times`).
 
     Returns
     -------
@@ -357,11 +397,15 @@ def simulate_behaviour_tracks(
         if paths[i] is None:
             curves.append((np.zeros(1), xy0[i][None, :].copy()))
             continue
-        tv, pv = continuous_path(*paths[i], fit, float(speed[i]), xy0[i], None, smooth)
-        # people leave when they reach their exit: the path is walked at the speed that
-        # ends it at t_leave, within the class's slow and fast walkers (2 sd around the
-        # median speed); beyond them the artefact arrives early and stands there, or is
-        # still walking when it leaves
+        tv, pv = continuous_path(
+            *paths[i], fit, float(speed[i]), xy0[i], None, smooth, rng=rng, within_sd=within_sd
+        )
+        # people leave when they reach their exit: the person's speed, one for its whole
+        # path, is the one that ends the path at t_leave, within the class's slow and fast
+        # walkers (2 sd around the median speed); beyond them it reaches its exit early
+        # and stands there, or leaves while still walking. With the exit drawn given the
+        # stay and weighted by the speed law at L / s, that speed is a draw from the
+        # fitted between-person law given the entry and the stay
         if 0.0 < tv[-1]:
             v_end = float(np.clip(speed[i] * tv[-1] / stay[i], slowest[i], fastest[i]))
             tv = tv * (float(speed[i]) / v_end)
@@ -381,35 +425,77 @@ def simulate_behaviour_tracks(
             holds += h
             for i, d in zip(members, got, strict=True):
                 delays[i] = d
+    rows = _track_rows(
+        curves, delays, scen, artefacts["id"].to_numpy(), t_arr, stay, steps, np.zeros(n)
+    )
+    out = pd.concat(rows, ignore_index=True)
+    out = out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
+    out.attrs["holds"] = int(holds)
+    return out
+
+
+def _track_rows(
+    curves: list[tuple[np.ndarray, np.ndarray]],
+    delays: list[tuple[np.ndarray, ...]],
+    scen: np.ndarray,
+    ids: np.ndarray,
+    t_arr: np.ndarray,
+    stay: np.ndarray,
+    steps: np.ndarray,
+    yaw0: np.ndarray,
+    side_steps: bool = False,
+) -> list[pd.DataFrame]:
+    """Each artefact's track rows: its timed path (delayed and side-stepped as
+    :func:`separate_paths` says) sampled every ``steps[i]`` seconds and at every vertex, so
+    that the piecewise-linear track is the path; with ``side_steps``, also at every step of
+    the separation while side-stepped (the track between them is then the checked step).
+    ``yaw`` follows the motion; an artefact keeps ``yaw0`` until it first moves and its last
+    heading while standing."""
     rows = []
-    ids = artefacts["id"].to_numpy()
-    for i in range(n):
+    for i in range(len(curves)):
         ts = np.arange(0.0, stay[i] + 1e-9, steps[i])
         if ts.size == 0 or ts[-1] < stay[i] - 1e-9:
             ts = np.append(ts, stay[i])
         tv, pv = curves[i]
         t_rec, d_rec, s_rec = delays[i]
+        # while side-stepped, the steps of the separation (checked on the map) are the track
+        off = s_rec != 0.0
+        near = off | np.r_[off[1:], False] | np.r_[False, off[:-1]]
+        if side_steps:
+            tk_s = t_rec[near] - t_arr[i]
+            ts = np.unique(np.concatenate([ts, tk_s[(tk_s > 0.0) & (tk_s < stay[i])]]))
+        if len(tv) > 2:
+            # the times the vertices are reached (own time tau = t - t_arrive - delay)
+            tau_rec = t_rec - t_arr[i] - d_rec
+            inner = tv[1:-1]
+            if len(t_rec) > 1:
+                tk = np.interp(inner, tau_rec, t_rec) - t_arr[i]
+                tk = np.where(inner > tau_rec[-1], inner + d_rec[-1], tk)
+            else:
+                tk = inner + float(d_rec[0])
+            on_path = np.interp(t_arr[i] + tk, t_rec, near.astype(float)) == 0.0
+            tk = tk[on_path & (tk > 0.0) & (tk < stay[i])]
+            ts = np.unique(np.concatenate([ts, tk]))
+        ts = ts[np.r_[True, np.diff(ts) > 1e-6]]  # one sample per instant
         tau = ts - np.interp(t_arr[i] + ts, t_rec, d_rec)
         x, y = path_points(tv, pv, tau, np.interp(t_arr[i] + ts, t_rec, s_rec)).T
-        if paths[i] is None:
-            yaw = np.zeros(ts.size)
-        else:
+        yaw = np.full(ts.size, float(yaw0[i]))
+        if len(pv) > 1 and (np.diff(pv, axis=0) != 0).any():
             dx, dy = np.gradient(x), np.gradient(y)
             still = np.hypot(dx, dy) < 1e-9
-            yaw = np.mod(np.arctan2(dy, dx), 2 * np.pi)
+            yaw = np.where(still, np.nan, np.mod(np.arctan2(dy, dx), 2 * np.pi))
+            if np.isnan(yaw[0]):
+                yaw[0] = float(yaw0[i])
             # keep the last heading while standing
             for j in range(1, yaw.size):
-                if still[j]:
+                if np.isnan(yaw[j]):
                     yaw[j] = yaw[j - 1]
         rows.append(
             pd.DataFrame(
                 {"scenario": scen[i], "id": ids[i], "t": t_arr[i] + ts, "x": x, "y": y, "yaw": yaw}
             )
         )
-    out = pd.concat(rows, ignore_index=True)
-    out = out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
-    out.attrs["holds"] = int(holds)
-    return out
+    return rows
 
 
 def path_points(tv: np.ndarray, pv: np.ndarray, tau: Any, side: Any) -> np.ndarray:
@@ -446,6 +532,7 @@ def separate_paths(
     origin: tuple[float, float] = (0.0, 0.0),
     cell: float = 1.0,
     max_side: float | None = None,
+    patience: float | None = None,
 ) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], int]:
     """Delays and side-steps that keep artefacts walking their paths apart.
 
@@ -481,6 +568,11 @@ def separate_paths(
         Cell size (m).
     max_side : float, optional
         Largest side-step from the path (m); default ``1.5 min_separation``.
+    patience : float, optional
+        Seconds an artefact holds (or side-steps in place) in a row before it goes on along
+        its path regardless of the others (it squeezes past: two walkers facing each other
+        in a passage too narrow to side-step would otherwise both wait until one leaves).
+        Default: it waits.
 
     Returns
     -------
@@ -500,6 +592,7 @@ def separate_paths(
     comfort = 3.0 * min_separation
     grid = np.arange(float(t_arrive.min()), float(t_leave.max()) + dt, dt)
     delay, side = np.zeros(n), np.zeros(n)
+    waited = np.zeros(n)  # seconds held in a row
     pos = np.full((n, 2), np.nan)
     order = np.lexsort((np.arange(n), t_arrive))
     paths = _PathSet(curves)
@@ -547,6 +640,14 @@ def separate_paths(
             taus = np.where(wait[None, :], tau[mk, None] - dt, tau[mk, None])
             cand = paths.points(np.repeat(mi, 6), taus.ravel(), sides.ravel()).reshape(-1, 6, 2)
             valid = (np.abs(sides) <= max_side + 1e-12) & on_map(cand)
+            if free is not None:
+                # the step itself (from where it is) must not cut an occupied cell's corner
+                rc = np.stack([(cand[..., 1] - oy) / cell, (cand[..., 0] - ox) / cell], -1)
+                rc0 = np.repeat(np.stack([(cur[mk, 1] - oy) / cell, (cur[mk, 0] - ox) / cell],
+                                         -1)[:, None, :], 6, axis=1)  # fmt: skip
+                fv = valid.ravel()
+                fv[fv] = _crossed(free, rc0.reshape(-1, 2)[fv], rc.reshape(-1, 2)[fv])
+                valid = fv.reshape(valid.shape)
             # an artefact nobody can come near this step (all others stay within two
             # steps of where they are) takes its first candidate: the common case, decided
             # at once; the others go one by one, earlier arrivals first
@@ -563,6 +664,9 @@ def separate_paths(
                 d_old = np.hypot(*(cur[k][None, :] - now[others, :]).T)
                 away = d_new >= d_old[None, :] - 1e-9
                 ok = ((d_new >= min_separation) | away).all(axis=1) & valid[m]
+                if patience is not None and waited[i] >= patience and valid[m, 0]:
+                    ok[:] = False
+                    ok[0] = True  # out of patience: on along the path
                 if ok.any():
                     # going on beats stepping aside in place; of the safe candidates, the
                     # one that keeps approaching artefacts farthest (up to a comfort
@@ -572,11 +676,13 @@ def separate_paths(
                     score = np.where(pool, near.min(axis=1, initial=comfort), -1.0)
                     j = int(np.argmax(score >= score.max() - 1e-9))
                     now[k], side[i] = cand[m, j], sides[m, j]
+                    waited[i] = waited[i] + dt if wait[j] else 0.0
                     if wait[j]:
                         delay[i] += dt
                         holds += 1
                     continue
                 delay[i] += dt  # hold: where it was
+                waited[i] += dt
                 holds += 1
         pos[:] = np.nan
         pos[live] = now

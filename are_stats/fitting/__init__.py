@@ -161,9 +161,16 @@ from are_stats.fitting._behaviour import (  # noqa: E402
     behaviour_log_likelihood,
     discretise_tracks,
     fit_behaviour,
+    open_area_grid,
 )
 
-__all__ += ["BEHAVIOUR_FEATURES", "behaviour_log_likelihood", "discretise_tracks", "fit_behaviour"]
+__all__ += [
+    "BEHAVIOUR_FEATURES",
+    "behaviour_log_likelihood",
+    "discretise_tracks",
+    "fit_behaviour",
+    "open_area_grid",
+]
 # --- criticism for motion (issue 16) ---
 from are_stats.fitting._motion_checks import (  # noqa: E402
     MOTION_STATISTICS,

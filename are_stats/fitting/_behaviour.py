@@ -63,6 +63,7 @@ __all__ = [
     "discretise_tracks",
     "fit_behaviour",
     "behaviour_log_likelihood",
+    "open_area_grid",
 ]
 
 _MAX_SIDE = 128
@@ -540,6 +541,56 @@ def _mle(
         "n_epochs": k,
         "converged": converged,
     }
+
+
+def open_area_grid(
+    tracks: pd.DataFrame, resolution: float = 0.1, margin: float = 1.0, source: Any = "tracks"
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """The open area tracks cover, as a map for :func:`fit_behaviour` without one (issue 26).
+
+    The bounding box of every track position plus ``margin`` on each side, every cell free
+    (the box's edge is the only wall: nothing in the log says where walls are).
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``x, y`` (m).
+    resolution : float
+        Cell side (m).
+    margin : float
+        Free border around the box (m, >= 0).
+    source : str
+        The input named in errors.
+
+    Returns
+    -------
+    free_mask : (H, W) bool
+        All true.
+    resolution : float
+    origin : (2,) float
+        World ``(x, y)`` of the box's corner.
+
+    Raises
+    ------
+    ValueError
+        Without finite positions.
+    LimitError
+        If the grid would pass the memory limit (checked before allocating).
+    """
+    from are_stats.inputs import check_memory
+
+    resolution = float(check_positive("resolution", resolution))
+    margin = float(margin)
+    if not (np.isfinite(margin) and margin >= 0.0):
+        raise ValueError(f"margin: expected a finite number >= 0, got {margin!r}")
+    xy = tracks[["x", "y"]].to_numpy(float)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if not len(xy):
+        raise ValueError(f"{source}: expected finite x, y positions to span an open area")
+    lo, hi = xy.min(axis=0) - margin, xy.max(axis=0) + margin
+    w, h = np.maximum(np.ceil((hi - lo) / resolution - 1e-9), 2.0)
+    check_memory(float(h) * float(w), f"the {h:.0f} x {w:.0f} open-area grid of the tracks", source)
+    return np.ones((int(h), int(w)), bool), resolution, lo
 
 
 def fit_behaviour(

@@ -1,0 +1,259 @@
+"""Continuous motion between the MDP's decisions (issue 26).
+
+Straight any-angle paths, per-person preferred speeds, tracks that stay on free cells, and
+catalogue walkers that keep walking while alive. Statistical checks are k-sigma checks
+with k = 4 (false-failure rate about 6e-5 for a random seed; the seeds are fixed).
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.behaviour import (
+    BehaviourFit,
+    GridMDP,
+    behaviour_tracks,
+    line_of_sight,
+    preferred_speeds,
+    rollout,
+    simulate_behaviour_tracks,
+    string_pull,
+    walk_tracks,
+)
+from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
+
+K_SIGMA = 4.0
+
+
+def _straightness(xy: np.ndarray) -> float:
+    length = np.hypot(*np.diff(xy, axis=0).T).sum()
+    return float(np.hypot(*(xy[-1] - xy[0])) / length)
+
+
+def _room(h: int = 20, w: int = 30) -> np.ndarray:
+    """Occupied cells of an open room: walls all round."""
+    occ = np.zeros((h, w), bool)
+    occ[[0, -1], :] = True
+    occ[:, [0, -1]] = True
+    return occ
+
+
+def _on_free_cells(xy: np.ndarray, free: np.ndarray, origin=(0.0, 0.0), cell=1.0) -> bool:
+    """Every segment between consecutive track points crosses free cells only."""
+    rc = np.column_stack([(xy[:, 1] - origin[1]) / cell, (xy[:, 0] - origin[0]) / cell])
+    return all(line_of_sight(free, a, b, 0.0) for a, b in zip(rc[:-1], rc[1:], strict=True))
+
+
+def test_line_of_sight_against_dense_sampling() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(400):
+        free = rng.random((7, 7)) > 0.25
+        a, b = rng.uniform(0, 7, 2), rng.uniform(0, 7, 2)
+        t = np.linspace(0.0, 1.0, 20001)
+        cells = np.floor(a + t[:, None] * (b - a)).astype(int)
+        expected = bool(free[cells[:, 0], cells[:, 1]].all())
+        assert line_of_sight(free, a, b, 0.0) == expected
+    free = np.ones((5, 5), bool)
+    free[2, 2] = False
+    # a segment through the corner of an occupied cell keeps its clearance off it
+    assert line_of_sight(free, [1.5, 0.5], [2.0, 4.5], 0.0)
+    assert not line_of_sight(free, [1.5, 0.5], [2.0, 4.5], 0.2)
+
+
+def test_mdp_routes_across_an_open_room_become_straight() -> None:
+    """Routes of the paper's MDP (slip 0.1) across an open room zig-zag along grid cells;
+    string-pulled, each crossing is one straight segment (straightness > 0.95)."""
+    occ = _room()
+    mdp = GridMDP(occ, slip=0.1)
+    rng = np.random.default_rng(3)
+    n = 16
+    starts = np.column_stack([rng.integers(2, 18, n), np.full(n, 2), np.zeros(n, int)])
+    goals = np.column_stack([rng.integers(2, 18, n), np.full(n, 27)])
+    sol = mdp.solve(goals, "walk", 80)
+    states = rollout(jax.random.key(1), sol, starts, resolve=None)
+    raw, pulled = [], []
+    for i in range(n):
+        st = states[i]
+        end = int(np.flatnonzero((st[:, :2] == goals[i]).all(axis=1))[0])
+        xy = st[: end + 1, ::-1][:, 1:] + 0.5  # (x, y) = (col, row) + 0.5
+        raw.append(_straightness(xy))
+        path = string_pull(xy, ~occ)
+        pulled.append(_straightness(path))
+        assert _on_free_cells(path, ~occ)
+        assert np.allclose(path[0], xy[0]) and np.allclose(path[-1], xy[-1])
+    assert np.median(raw) < 0.95  # the grid routes themselves are not straight
+    assert min(pulled) > 0.95, pulled
+
+
+def test_pulled_paths_round_walls_stay_on_free_cells() -> None:
+    occ = _room(20, 20)
+    occ[10, 1:15] = True  # a wall with a gap at its east end
+    mdp = GridMDP(occ, slip=0.1)
+    sol = mdp.solve([[17, 3]] * 8, "walk", 120)
+    starts = np.tile([3, 3, 0], (8, 1))
+    states = rollout(jax.random.key(4), sol, starts, resolve=None)
+    for st in states:
+        end = int(np.flatnonzero((st[:, :2] == [17, 3]).all(axis=1))[0])
+        xy = st[: end + 1, ::-1][:, 1:] + 0.5
+        path = string_pull(xy, ~occ)
+        assert _on_free_cells(path, ~occ)
+        assert 3 <= len(path) <= 6  # round the wall's end: a few corners, no zig-zag
+
+
+def test_preferred_speeds_between_person_sd_is_the_configured_one() -> None:
+    """``log v ~ N(log median, sd^2)``: the sample sd of n draws has standard error
+    ``sd / sqrt(2 (n - 1))``, the sample mean ``sd / sqrt(n)``."""
+    n, sd = 4000, 0.12
+    v = preferred_speeds(jax.random.key(0), np.full(n, 1.2), sd)
+    lv = np.log(v)
+    assert abs(lv.std(ddof=1) - sd) < K_SIGMA * sd / np.sqrt(2 * (n - 1))
+    assert abs(lv.mean() - np.log(1.2)) < K_SIGMA * sd / np.sqrt(n)
+    with pytest.raises(ValueError, match="median"):
+        preferred_speeds(jax.random.key(0), [1.0, 0.0], sd)
+
+
+def _walkers(n: int, occ: np.ndarray, stay: float, behaviour="walk", speed=1.2, seed=0):
+    rng = np.random.default_rng(seed)
+    free = np.argwhere(~occ)
+    cells = free[rng.choice(len(free), n, replace=False)]
+    return pd.DataFrame({
+        "scenario": 0, "id": np.arange(n), "t_arrive": rng.uniform(0, 20, n),
+        "t_leave": 0.0, "x": cells[:, 1] + 0.5, "y": cells[:, 0] + 0.5, "yaw": 0.0,
+        "behaviour": behaviour, "speed": speed,
+    }).assign(t_leave=lambda d: d["t_arrive"] + stay)  # fmt: skip
+
+
+def test_walkers_walk_at_their_own_preferred_speed() -> None:
+    """Measured on the tracks (path length over moving time, within-person variation off),
+    the between-person sd of the log speed is the configured 0.12 (4-sigma, closed form)."""
+    occ = _room(30, 30)
+    n, sd = 160, 0.12
+    arts = _walkers(n, occ, 40.0)
+    tracks = walk_tracks(
+        jax.random.key(2), arts, occ, dt=0.5, speed_sd=sd, within_sd=0.0, min_separation=0.0
+    )
+    speeds = []
+    for _, g in tracks.groupby("id"):
+        xy, t = g[["x", "y"]].to_numpy(), g["t"].to_numpy()
+        step = np.hypot(*np.diff(xy, axis=0).T)
+        moving = step > 1e-9
+        speeds.append(step[moving].sum() / np.diff(t)[moving].sum())
+    lv = np.log(speeds)
+    assert abs(lv.std(ddof=1) - sd) < K_SIGMA * sd / np.sqrt(2 * (n - 1)), lv.std(ddof=1)
+    assert abs(lv.mean() - np.log(1.2)) < K_SIGMA * sd / np.sqrt(n)
+
+
+def test_walkers_keep_walking_while_alive_and_stay_on_free_cells() -> None:
+    """Goals within reach of the rest of the stay and a new one on arrival: every walker
+    moves in every minute of a five-minute stay, on free cells only; a stop stands."""
+    occ = _room(20, 30)
+    occ[10, 1:22] = True  # an inner wall
+    arts = _walkers(8, occ, 300.0, seed=1)
+    arts.loc[7, "behaviour"] = "stop"
+    tracks = walk_tracks(jax.random.key(5), arts, occ, dt=2.0)
+    assert list(tracks.columns) == ["scenario", "id", "t", "x", "y", "yaw"]
+    for i, g in tracks.groupby("id"):
+        xy, t = g[["x", "y"]].to_numpy(), g["t"].to_numpy()
+        assert t[0] == pytest.approx(arts["t_arrive"][i]) and t[-1] == pytest.approx(
+            arts["t_leave"][i]
+        )
+        if i == 7:
+            assert (xy == xy[0]).all()
+            continue
+        assert _on_free_cells(xy, ~occ)
+        for a in np.arange(t[0], t[-1] - 60.0, 60.0):
+            p0 = [np.interp(a, t, xy[:, 0]), np.interp(a, t, xy[:, 1])]
+            p1 = [np.interp(a + 60, t, xy[:, 0]), np.interp(a + 60, t, xy[:, 1])]
+            assert np.hypot(p1[0] - p0[0], p1[1] - p0[1]) > 0.5, (i, a)
+
+
+def test_catalogue_people_walk_in_the_courtyard_and_pallets_stand() -> None:
+    """The issue's target, with the shipped catalogue and map: most person and child
+    artefacts alive over a minute move more than 0.5 m in the middle minute of their stay
+    (all whose mark gives walk, run or follow); pallets never move."""
+    cat = load_catalogue()
+    grid = OccupancyGrid.from_ros_yaml(shipped_path("courtyard", "map"))
+    labels = [c.label for c in cat.classes]
+    rng = np.random.default_rng(7)
+    n = 24
+    cls = np.array([labels.index(c) for c in ["person", "child", "pallet"] * (n // 3)])
+    free = np.argwhere(grid.free)
+    cells = free[rng.choice(len(free), n, replace=False)]
+    xy = np.asarray(grid.cell_to_world(cells), float)
+    t_arr = rng.uniform(0, 60, n)
+    arts = pd.DataFrame({
+        "scenario": 0, "artefact": np.arange(n), "mark": rng.integers(0, 40, n),
+        "t_arrive": t_arr, "t_leave": t_arr + rng.uniform(90, 300, n), "x": xy[:, 0],
+        "y": xy[:, 1], "yaw": 0.0,
+    })  # fmt: skip
+    tracks = behaviour_tracks(jax.random.key(3), arts, cls, grid, cat, cell=1.0, dt=2.0)
+    from are_stats.behaviour import choose_behaviours
+
+    beh = choose_behaviours(cls, arts["mark"], cat)
+    moved = {}
+    for i, g in tracks.groupby("id"):
+        t, x, y = g["t"].to_numpy(), g["x"].to_numpy(), g["y"].to_numpy()
+        mid = 0.5 * (t[0] + t[-1])
+        d = np.hypot(*(np.interp([mid + 30], t, x) - np.interp([mid - 30], t, x)),
+                     *(np.interp([mid + 30], t, y) - np.interp([mid - 30], t, y)))  # fmt: skip
+        moved[i] = bool(d > 0.5)
+        if labels[cls[i]] == "pallet":
+            assert (x == x[0]).all() and (y == y[0]).all()
+    people = [i for i in range(n) if labels[cls[i]] in ("person", "child")]
+    goers = [i for i in people if beh[i] != "stop"]
+    assert np.mean([moved[i] for i in people]) > 0.5
+    assert all(moved[i] for i in goers), [(i, beh[i]) for i in goers if not moved[i]]
+
+
+def _open_fit(speed_sigma: float = 0.12) -> BehaviourFit:
+    """A hand-made behaviour on a 12 x 24 room (cell 1 m): people cross from the west wall
+    to the east wall at a median 1.2 m/s."""
+    occ = _room(12, 24)
+    rows = np.arange(2, 10)
+    entry = np.column_stack([np.full(rows.size, 1.5), rows + 0.5])
+    exit_ = np.column_stack([np.full(rows.size, 22.5), (11 - rows) + 0.5])
+    one = np.ones(1)
+    return BehaviourFit(
+        classes=("person",), cell=1.0, origin=np.zeros(2), free=~occ, dt=one / 1.2,
+        speed_mu=np.log(1.2) * one, speed_sigma=speed_sigma * one, run_fraction=0 * one,
+        run_mu=np.nan * one, run_sigma=np.nan * one, beta=4.0 * one, beta_se=0 * one,
+        slip=0.1 * one, slip_se=0 * one, loglik=0 * one, n_moves=one.astype(int),
+        n_tracks=one.astype(int) * rows.size, n_fit_tracks=one.astype(int),
+        n_epochs=200 * one.astype(int), bandwidth_entry=0.3 * one, bandwidth_exit=0.1 * one,
+        fit_seconds=0 * one, track_class=np.zeros(rows.size, int), entry_xy=entry,
+        exit_xy=exit_,
+    )  # fmt: skip
+
+
+def test_fitted_walkers_cross_an_open_room_straight_at_their_own_speed() -> None:
+    """Entries on the west wall, each with its own exit on the east wall (kernels narrow),
+    stays of people walking at lognormal speeds (median 1.2, sd of the log 0.12): the
+    crossings are straight, and each person's one speed recovers that law."""
+    fit = _open_fit()
+    n = 40
+    rng = np.random.default_rng(1)
+    row = rng.integers(2, 10, n)
+    y0, y1 = row + 0.5, (11 - row) + 0.5  # the exit of the entry track on that row
+    v = 1.2 * np.exp(0.12 * rng.standard_normal(n))
+    arts = pd.DataFrame({
+        "scenario": np.arange(n), "id": 0, "t_arrive": 0.0,
+        "t_leave": np.hypot(21.0, y1 - y0) / v, "x": 1.5, "y": y0,
+    })  # fmt: skip
+    out = simulate_behaviour_tracks(jax.random.key(0), fit, arts, dt_out=0.4)
+    straight, speeds = [], []
+    for _, g in out.groupby("scenario"):
+        xy, t = g[["x", "y"]].to_numpy(), g["t"].to_numpy()
+        step = np.hypot(*np.diff(xy, axis=0).T)
+        moving = np.flatnonzero(step > 1e-9)
+        straight.append(_straightness(xy[moving[0] : moving[-1] + 2]))
+        speeds.append(step[moving].sum() / np.diff(t)[moving].sum())
+        assert _on_free_cells(xy, fit.free)
+    assert np.median(straight) > 0.95, np.median(straight)
+    # one speed per person (clipped at 2 sd of the law: sd 0.96 of the law's)
+    lv = np.log(speeds)
+    assert abs(np.median(speeds) / 1.2 - 1) < 0.1
+    sd = 0.96 * 0.12
+    assert abs(lv.std(ddof=1) - sd) < K_SIGMA * sd / np.sqrt(2 * (n - 1)), lv.std(ddof=1)
