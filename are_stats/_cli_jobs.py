@@ -237,7 +237,12 @@ def run_fit(
             clock_start=clock_start,
         )
         if tracks is not None:
-            from are_stats.fitting import attach_behaviour, fit_behaviour, open_area_grid
+            from are_stats.fitting import (
+                NoWalkersError,
+                attach_behaviour,
+                fit_behaviour,
+                open_area_grid,
+            )
 
             status.update("fitting: behaviour from the tracks (speeds, exits, rationality) ...")
             if grid is not None:
@@ -253,14 +258,18 @@ def run_fit(
                     f"tracks cover ({free.shape[1] * res:.1f} x {free.shape[0] * res:.1f} m, "
                     "their bounding box plus 1 m, all free)"
                 )
-            bfit = fit_behaviour(
-                tracks, free, res, origin, seed=seed, features=features or None
-            )  # fmt: skip
-            idata = attach_behaviour(idata, bfit)
-            for line in _behaviour_lines(bfit):
-                console.print(line)
-            status.update("fitting: interaction (social force) from the tracks ...")
-            _attach_interaction(idata, tracks)
+            try:
+                bfit = fit_behaviour(
+                    tracks, free, res, origin, seed=seed, features=features or None
+                )  # fmt: skip
+            except NoWalkersError as err:  # people who only stand: no walking to learn
+                console.print(f"note: behaviour not fitted ({err}); scenes use the catalogue's")
+            else:
+                idata = attach_behaviour(idata, bfit)
+                for line in _behaviour_lines(bfit):
+                    console.print(line)
+                status.update("fitting: interaction (social force) from the tracks ...")
+                _attach_interaction(idata, tracks)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep["source"] = Path(str(rep.get("source") or log)).name

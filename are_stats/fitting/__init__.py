@@ -158,6 +158,7 @@ __all__ += ["PanelComparison", "compare_panel"]
 # --- behaviour fitted from tracks (issue 16) ---
 from are_stats.fitting._behaviour import (  # noqa: E402
     BEHAVIOUR_FEATURES,
+    NoWalkersError,
     behaviour_log_likelihood,
     discretise_tracks,
     fit_behaviour,
@@ -166,6 +167,7 @@ from are_stats.fitting._behaviour import (  # noqa: E402
 
 __all__ += [
     "BEHAVIOUR_FEATURES",
+    "NoWalkersError",
     "behaviour_log_likelihood",
     "discretise_tracks",
     "fit_behaviour",

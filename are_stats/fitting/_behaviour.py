@@ -64,7 +64,13 @@ __all__ = [
     "fit_behaviour",
     "behaviour_log_likelihood",
     "open_area_grid",
+    "NoWalkersError",
 ]
+
+
+class NoWalkersError(ValueError):
+    """A tracks table in which no track of a class walks: there is no walking to fit."""
+
 
 _MAX_SIDE = 128
 #: Built-in reward features of :func:`fit_behaviour` (name -> what it is).
@@ -715,7 +721,7 @@ def fit_behaviour(
         runner = speeds_a > run_speed
         walk = np.isfinite(speeds_a) & (speeds_a > 0) & ~runner
         if not walk.any():
-            raise ValueError(f"tracks: expected moving walkers in class {name!r}, got none")
+            raise NoWalkersError(f"tracks: expected moving walkers in class {name!r}, got none")
         mu, sigma = _lognormal(speeds_a[walk])
         rmu, rsig = _lognormal(speeds_a[runner]) if runner.sum() >= 2 else (math.nan, math.nan)
         dt_c = float(dt) if dt is not None else cell / math.exp(mu)
