@@ -9,7 +9,7 @@ import warnings
 from types import ModuleType
 from typing import Any
 
-__all__ = ["LazyModule", "arviz", "scipy_signal", "scipy_stats"]
+__all__ = ["LazyModule", "arviz", "import_xarray_dask", "scipy_signal", "scipy_stats"]
 
 
 class LazyModule:
@@ -62,3 +62,19 @@ scipy_stats = LazyModule("scipy.stats")
 
 #: scipy.signal, which imports scipy.stats too (one convolution in the position densities).
 scipy_signal = LazyModule("scipy.signal")
+
+
+def import_xarray_dask() -> None:
+    """Import ``dask.array`` (what xarray's first array of a process imports) here, before
+    threads start that build xarray objects.
+
+    xarray asks for ``dask.array`` when it makes its first variable; two threads doing that
+    at once can meet ``dask.array`` half-initialised (a circular import inside dask:
+    "partially initialized module 'dask.array' has no attribute 'Array'"), which an
+    ``are-stats fit`` of a tracks table hit once in a full test run. About 1.4 s, once per
+    process; nothing without dask.
+    """
+    try:
+        importlib.import_module("dask.array")
+    except ImportError:
+        pass

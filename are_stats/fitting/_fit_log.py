@@ -34,6 +34,7 @@ import numpyro
 from are_stats import __version__
 from are_stats._checks import check_in, check_nonneg_int, describe
 from are_stats._lazy import arviz as az
+from are_stats._lazy import import_xarray_dask
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
 from are_stats.fitting._lifecycle_mcmc import (
     _inference_data,
@@ -425,7 +426,9 @@ def fit_log(
         idata = _em_inference_data(*em_draws)
     elif not paper_only:
         # the em fit's InferenceData (ArviZ's import, its groups) is built in a thread while
-        # the traffic models sample: the devices wait on neither
+        # the traffic models sample: the devices wait on neither. xarray's dask support is
+        # imported first, in this thread alone (two threads importing it race)
+        import_xarray_dask()
         with ThreadPoolExecutor(1, "are-stats-idata") as pool:
             pending = None
             if settings.method == "em":

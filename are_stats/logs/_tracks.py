@@ -32,6 +32,7 @@ __all__ = [
     "GROUP_HORIZON_STEPS",
     "GROUP_TIME_STEPS",
     "MAX_COORDINATE",
+    "MAX_TIME",
     "TRACK_COLUMNS",
     "read_tracks",
     "sampling_step",
@@ -45,6 +46,9 @@ TRACK_COLUMNS = ("id", "t", "x", "y", "label", "yaw")
 #: Largest map coordinate (metres) a tracks table may hold: beyond any real map (UTM
 #: northings are below 1e7 m), it catches corrupted cells such as ``1e300``.
 MAX_COORDINATE = 1e9
+#: Largest time (s) a tracks table may hold: 1e12 s is about 31,700 years (epoch seconds
+#: are 1.8e9; a clock in ns or us must be converted first).
+MAX_TIME = 1e12
 #: Default ``group_time`` of :func:`tracks_to_lifecycle`, in sampling steps.
 GROUP_TIME_STEPS = 1.5
 #: Default ``group_distance`` of :func:`tracks_to_lifecycle`, in metres.
@@ -75,6 +79,13 @@ def _from_raw(raw: RawTable) -> pd.DataFrame:
                 f"a map coordinate within +-{MAX_COORDINATE:g} m",
                 f"{float(out[c][i])!r}",
             )
+    late = np.abs(out["t"]) > MAX_TIME  # (sums of such times overflow)
+    if late.any():
+        i = int(np.argmax(late))
+        raise raw.error(
+            i, "t", f"a time within +-{MAX_TIME:g} s (seconds: convert ns or us clocks)",
+            f"{float(out['t'][i])!r}",
+        )  # fmt: skip
     _check_unique_sightings(raw, out["id"], out["t"], out["x"], out["y"])
     out["label"] = (
         raw.class_labels("label")

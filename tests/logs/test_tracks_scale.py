@@ -212,3 +212,13 @@ def test_duplicate_sightings_in_a_frame_are_errors():
     # the same time for different ids, and different times for one id, are fine
     ok = pd.DataFrame({"id": ["a", "b", "a"], "t": [1.0, 1.0, 2.0], "x": 0.0, "y": 0.0})
     assert len(tracks_to_lifecycle(ok, window=(0.0, 5.0))) == 2
+
+
+def test_a_time_past_the_limit_is_refused_naming_the_row(tmp_path):
+    """t = 1e308 (a finite number) made a step sum overflow inside the conversion."""
+    from are_stats.logs import read_tracks
+
+    p = tmp_path / "tr.csv"
+    p.write_text("id,t,x,y\na,1e308,1,2\na,0.5,1,2\nb,1,0,0\n")
+    with pytest.raises(ValueError, match=r"tr\.csv.*row.*t.*within \+-1e\+12 s"):
+        read_tracks(p)
