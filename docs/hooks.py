@@ -6,9 +6,9 @@ Registered in ``docs/mkdocs.yml`` (``hooks:``). Three jobs, none of which needs 
   subprocess; the PNGs are cached in ``docs/.cache/figures/<hash>`` keyed by the content of
   that script and of the package, and enter the site as ``figures/NAME.png``.
 * **Notebooks.** Every ``notebooks/*.ipynb`` (committed with a full run's outputs) is run
-  again with nbclient (``ARE_STATS_NOTEBOOK_QUICK=1``; cached by the same kind of hash) and becomes the
-  page ``notebooks/NAME.md``: markdown cells as they are, code cells as Python blocks, their
-  outputs as text blocks, HTML tables and PNGs. A cell that raises fails the build.
+  again with nbclient (``ARE_STATS_NOTEBOOK_QUICK=1``; cached by the same kind of hash) and
+  becomes the page ``notebooks/NAME.md``: markdown cells as they are, code cells as Python
+  blocks, their outputs as text blocks, HTML tables and PNGs. A cell that raises fails the build.
 * **Math.** arithmatex (``generic: true``) leaves ``\\(...\\)`` / ``\\[...\\]`` in spans and
   divs; they are converted to MathML with ``latex2mathml``, which browsers render natively,
   so the site loads no MathJax.

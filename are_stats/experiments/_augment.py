@@ -534,6 +534,15 @@ def augment_bag(
 ) -> AugmentResult:
     """Augment a robot's recorded run with generated artefacts and write an MCAP.
 
+    The output carries the input's channels unchanged (:func:`~are_stats.logs.bag_passthrough`:
+    same schemas, bytes, counts and log times; a ROS 1 bag converted to
+    ROS 2 CDR) plus only what is new: ``map -> artefact_<id>`` on ``/tf``, the markers of
+    ``/artefacts`` (living until the next camera frame and a bit), ``/augmented_map``,
+    ``/perceived`` and ``/map`` when the input has none. The robot's tree is the input's;
+    only a bag without ``/tf`` (a pose topic) gets ``map -> base_link`` and the static
+    camera mount published, so that the output can still be viewed. The new channels
+    spell QoS as the input does and carry ``topic_type_hash`` when the input's do.
+
     Parameters
     ----------
     bag : path
@@ -587,15 +596,6 @@ def augment_bag(
         map), as ``generate --model``.
     topics : sequence of str, optional
         The input topics passed through (default all of them).
-
-    The output carries the input's channels unchanged (:func:`~are_stats.logs.
-    bag_passthrough`: same schemas, bytes, counts and log times; a ROS 1 bag converted to
-    ROS 2 CDR) plus only what is new: ``map -> artefact_<id>`` on ``/tf``, the markers of
-    ``/artefacts`` (living until the next camera frame and a bit), ``/augmented_map``,
-    ``/perceived`` and ``/map`` when the input has none. The robot's tree is the input's;
-    only a bag without ``/tf`` (a pose topic) gets ``map -> base_link`` and the static
-    camera mount published, so that the output can still be viewed. The new channels
-    spell QoS as the input does and carry ``topic_type_hash`` when the input's do.
 
     Returns
     -------
