@@ -338,6 +338,22 @@ def _behaviour_column(table: pd.DataFrame, behaviour_of: Any) -> list[str]:
     return out
 
 
+def check_on_free_cells(
+    rows: np.ndarray, cols: np.ndarray, occ: np.ndarray, xy: np.ndarray, scenario: Any
+) -> None:
+    """Refuse artefacts whose cells ``(rows, cols)`` (n,) lie outside ``occ`` (H, W) or on an
+    occupied cell, naming the first one's row of the scenario and its position ``xy``."""
+    h_, w_ = occ.shape
+    bad = (rows < 0) | (rows >= h_) | (cols < 0) | (cols >= w_)
+    bad[~bad] = occ[rows[~bad], cols[~bad]]
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"artefacts: expected positions on free cells, got row {i} of scenario "
+            f"{scenario!r} at x={xy[i, 0]!r}, y={xy[i, 1]!r}"
+        )
+
+
 def scenario_tracks(
     key: jax.Array,
     artefacts: pd.DataFrame,
@@ -439,14 +455,7 @@ def scenario_tracks(
         else:
             cols = np.floor((xy[:, 0] - origin[0]) / resolution).astype(np.int64)
             rows = np.floor((xy[:, 1] - origin[1]) / resolution).astype(np.int64)
-        bad = (rows < 0) | (rows >= h_) | (cols < 0) | (cols >= w_)
-        bad[~bad] = occ[rows[~bad], cols[~bad]]
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(
-                f"artefacts: expected positions on free cells, got row {i} of scenario "
-                f"{s_label!r} at x={table['x'].iloc[i]!r}, y={table['y'].iloc[i]!r}"
-            )
+        check_on_free_cells(rows, cols, occ, xy, s_label)
         yaw0 = float(grid.origin[2]) if grid is not None else 0.0
         heads = np.round((table["yaw"].to_numpy(float) - yaw0) / (np.pi / 2)).astype(np.int64) % 4
         starts = np.column_stack([rows, cols, heads])

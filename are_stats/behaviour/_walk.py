@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_nonnegative, check_positive
+from are_stats.behaviour._rollout import check_on_free_cells
 
 __all__ = ["walk_tracks"]
 
@@ -258,7 +259,6 @@ def walk_tracks(
     within_sd = float(check_nonnegative("within_sd", within_sd))
     min_separation = float(check_nonnegative("min_separation", min_separation))
     occ = GridMDP(occupied, slip=slip, step_cost=step_cost).occupied
-    h_, w_ = occ.shape
     ox, oy = float(origin[0]), float(origin[1])
     out, holds = [], 0
     for s_label, table in artefacts.groupby("scenario", sort=True):
@@ -276,14 +276,7 @@ def walk_tracks(
         xy = table[["x", "y"]].to_numpy(float)
         cols = np.floor((xy[:, 0] - ox) / cell).astype(np.int64)
         rows = np.floor((xy[:, 1] - oy) / cell).astype(np.int64)
-        bad = (rows < 0) | (rows >= h_) | (cols < 0) | (cols >= w_)
-        bad[~bad] = occ[rows[~bad], cols[~bad]]
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(
-                f"artefacts: expected positions on free cells, got row {i} of scenario "
-                f"{s_label!r} at x={xy[i, 0]!r}, y={xy[i, 1]!r}"
-            )
+        check_on_free_cells(rows, cols, occ, xy, s_label)
         modes = [str(b) for b in table["behaviour"]]
         unknown = sorted(set(modes) - set(BEHAVIOURS))
         if unknown:
