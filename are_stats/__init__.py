@@ -2,7 +2,7 @@
 
 The public surface is re-exported here; implementation lives in private ``_module.py``
 files inside one subpackage per concept of the paper (traffic, fitting, logs, scenarios,
-environment, builder, behaviour, perception, experiments).
+environment, builder, behaviour, perception, experiments, export).
 
 Names are loaded on first use (PEP 562), so ``import are_stats`` and ``are-stats --help``
 stay fast: JAX, Warp, ArviZ and the rest are imported only by the part that needs them.
@@ -215,7 +215,6 @@ _LAZY.update(
             "MissionResult",
             "OMPLPlanner",
             "Robot",
-            "export_mcap",
             "load_results",
             "plot_results",
             "replanning_ratio",
@@ -226,6 +225,8 @@ _LAZY.update(
         "are_stats.experiments",
     )
 )
+# --- export: MCAP, augmented bags, the live view ---
+_LAZY.update(dict.fromkeys(["augment_bag", "export_mcap", "serve_scenario"], "are_stats.export"))
 
 __all__ = ["__version__", "configure_jax", *_LAZY]
 
@@ -264,13 +265,17 @@ if TYPE_CHECKING:
         MissionResult,
         OMPLPlanner,
         Robot,
-        export_mcap,
         load_results,
         plot_results,
         replanning_ratio,
         run_mission,
         run_sweep,
         space_complexity,
+    )
+    from are_stats.export import (  # noqa: F401
+        augment_bag,
+        export_mcap,
+        serve_scenario,
     )
     from are_stats.fitting import (  # noqa: F401
         FitSettings,

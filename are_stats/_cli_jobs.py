@@ -892,9 +892,9 @@ def run_augment(
     camera_frame: str | None = None,
 ) -> Any:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
-    (:func:`are_stats.experiments.augment_bag`); ``topics`` the comma-separated input
+    (:func:`are_stats.export.augment_bag`); ``topics`` the comma-separated input
     topics passed through (default all)."""
-    from are_stats.experiments import augment_bag
+    from are_stats.export import augment_bag
     from are_stats.inputs import InputError
 
     if pose_topic is not None and base_frame is not None:
@@ -936,8 +936,8 @@ def run_serve(
     robot_path: Path | None = None,
 ) -> dict[str, Any]:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
-    (:func:`are_stats.experiments._live.serve_scenario`)."""
-    from are_stats.experiments import serve_scenario
+    (:func:`are_stats.export._live.serve_scenario`)."""
+    from are_stats.export import serve_scenario
 
     def ready(info: dict[str, Any]) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""

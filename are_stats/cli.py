@@ -406,7 +406,8 @@ def experiment(
     ),
 ) -> None:
     """Run a navigation-experiment sweep (Fig. 7) on Dask; resumes unfinished sweeps."""
-    from are_stats.experiments import load_sweep_config, parse_start_time, run_sweep
+    from are_stats.experiments import load_sweep_config, run_sweep
+    from are_stats.export import parse_start_time
 
     cfg = load_sweep_config(config)
     target = out if out is not None else f"results/{cfg['name']}"

@@ -375,7 +375,7 @@ def test_augment_killed(tmp_path: Path) -> None:
     """``augment --force`` killed over an existing MCAP: the old file or a complete new one,
     never a partial file under the output's name; a fresh run killed leaves nothing or a
     complete file."""
-    from tests.experiments.rosbag_fixtures import write_bag
+    from tests.export.rosbag_fixtures import write_bag
     from tests.test_cli_jobs import _write_log
 
     d = tmp_path / "setup"

@@ -65,7 +65,7 @@ __all__ = ["MissionResult", "MissionTrace", "random_goals", "run_mission"]
 
 
 class MissionTrace(NamedTuple):
-    """What happened, for replay and export (see :func:`are_stats.experiments.export_mcap`).
+    """What happened, for replay and export (see :func:`are_stats.export.export_mcap`).
 
     Attributes
     ----------

@@ -1058,7 +1058,7 @@ def run_sweep(
         (default loopback only).
     mcap : path, optional
         Folder for one MCAP per mission run, ``<task>.mcap``
-        (:func:`~are_stats.experiments.export_mcap`: REP-105 ``/tf``, class-labelled markers,
+        (:func:`~are_stats.export.export_mcap`: REP-105 ``/tf``, class-labelled markers,
         maps); tasks skipped on resume write none.
     start_time : float
         Wall-clock time (s since the epoch) of each mission's t = 0 in the MCAPs.
@@ -1158,7 +1158,7 @@ def _run(
     (and its MCAP into ``mcap`` when given)."""
     from distributed import as_completed
 
-    from are_stats.experiments._mcap import export_mcap
+    from are_stats.export import export_mcap
 
     record = mcap is not None
     futures = {client.submit(run_task, t, record, pure=False): t for t in todo}

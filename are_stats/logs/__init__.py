@@ -56,8 +56,20 @@ from are_stats.logs._tracks import (
     tracks_to_lifecycle,
     validate_tracks,
 )
+from are_stats.logs._trajectory import (
+    CLOCK_TOLERANCE,
+    CLOCKS,
+    POSE_TYPES,
+    BagTrajectory,
+    read_trajectory,
+)
 
 __all__ = [
+    "CLOCKS",
+    "CLOCK_TOLERANCE",
+    "POSE_TYPES",
+    "BagTrajectory",
+    "read_trajectory",
     "DETECTION3D_MSGS",
     "GROUP_DISTANCE",
     "GROUP_HORIZON_STEPS",

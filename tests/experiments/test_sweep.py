@@ -13,15 +13,14 @@ from are_stats._atomic import OutputExistsError
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
 from are_stats.experiments import (
-    MCAP_TOPICS,
     expand_tasks,
-    export_mcap,
     load_results,
     load_sweep_config,
     run_mission,
     run_sweep,
     run_task,
 )
+from are_stats.export import MCAP_TOPICS, export_mcap
 from are_stats.inputs import InputError
 
 CONFIG = {

@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 from are_stats.environment import SHIPPED_DATA, OccupancyGrid
-from are_stats.experiments import expand_tasks, load_replay, load_sweep_config, run_task
+from are_stats.experiments import expand_tasks, load_sweep_config, run_task
+from are_stats.export import load_replay
 from are_stats.inputs import InputError
 from are_stats.scenarios import SCENARIO_COLUMNS, generate_scenarios, write_scenes
 

@@ -1,6 +1,6 @@
 """Fuzz the bag door of ``are-stats augment`` (issue 30) with robot bags built by rosbags.
 
-Each case starts from the valid test bag of :mod:`tests.experiments.rosbag_fixtures` (ROS 1,
+Each case starts from the valid test bag of :mod:`tests.export.rosbag_fixtures` (ROS 1,
 ROS 2 sqlite3 or MCAP; poses from ``/tf`` or ``/amcl_pose``) and applies one edit: a
 quaternion scaled or made NaN, a position made NaN or infinite, one stamp in 1970 (on the
 header clock, or on both clocks), header stamps on a simulation clock, a special file where
@@ -25,7 +25,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.experiments.rosbag_fixtures import (
+from tests.export.rosbag_fixtures import (
     ODD_K,
     SIM_START,
     START,

@@ -109,7 +109,7 @@ def _check(folder) -> None:
 @given(data=st.data())
 def test_scenes_folder(data, case_dir, scenes) -> None:
     """read_scenes, then serve's replay of the folder (Scene, catalogue, horizon)."""
-    from are_stats.experiments import load_replay
+    from are_stats.export import load_replay
     from are_stats.scenarios import read_scenes
 
     d = case_dir() / "scen"

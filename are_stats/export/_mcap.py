@@ -1,9 +1,9 @@
 """Export a mission to MCAP with ROS 2 message types, for Foxglove Studio, rviz or
 ``ros2 bag play``.
 
-Messages use the REP-105 frames of :data:`~are_stats.experiments.ROS_FRAMES` (``map``,
+Messages use the REP-105 frames of :data:`~are_stats.export.ROS_FRAMES` (``map``,
 ``base_link``, ``camera_optical_frame``, ``artefact_<id>``) and are stamped ``start + t``,
-so a file lines up with a real recording (see :mod:`are_stats.experiments._ros`). Topics:
+so a file lines up with a real recording (see :mod:`are_stats.export._ros`). Topics:
 
 =====================  ====================================  ===============================
 topic                  type                                  when
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from are_stats.experiments._ros import ROS_FRAMES, RosMessages, artefact_frame, parse_start_time
+from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame, parse_start_time
 
 __all__ = ["MCAP_TOPICS", "export_mcap"]
 
@@ -75,7 +75,7 @@ def export_mcap(
         The fixed frame (``map``): ``frame_id`` of maps, markers and poses.
     start_time : float or str
         Wall-clock time of the mission's t = 0, seconds since the epoch or ISO 8601
-        (:func:`~are_stats.experiments.parse_start_time`); default 0 (1970).
+        (:func:`~are_stats.export.parse_start_time`); default 0 (1970).
     mount : (4, 4) float, optional
         ``T_base_optical`` of the camera on ``/tf_static`` (default: the default
         :class:`~are_stats.experiments.Robot`'s camera,
@@ -90,7 +90,7 @@ def export_mcap(
     ValueError
         If ``trace`` is not a recorded trace or ``start_time`` is not a time.
     """
-    from are_stats.experiments._loop import MissionTrace
+    from are_stats.experiments import MissionTrace
     from are_stats.perception import optical_from_base
 
     if not isinstance(trace, MissionTrace):
@@ -99,7 +99,7 @@ def export_mcap(
             f"got {type(trace).__name__}"
         )
     base, cam = ROS_FRAMES["F_R"], ROS_FRAMES["F_C"]
-    from are_stats.experiments._robot import Robot
+    from are_stats.experiments import Robot
 
     if mount is None:
         mount = optical_from_base(Robot().camera_xyz, Robot().camera_rpy)

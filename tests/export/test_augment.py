@@ -15,15 +15,10 @@ from typer.testing import CliRunner
 
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, extrude_grid
-from are_stats.experiments import (
-    AUGMENT_TOPICS,
-    MCAP_TOPICS,
-    augment_bag,
-    parse_start_time,
-    read_trajectory,
-)
+from are_stats.export import AUGMENT_TOPICS, MCAP_TOPICS, augment_bag, parse_start_time
+from are_stats.logs import read_trajectory
 from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
-from tests.experiments.rosbag_fixtures import (
+from tests.export.rosbag_fixtures import (
     CAMERA,
     CAMERA_XYZ,
     DURATION,
@@ -492,7 +487,7 @@ def test_nearly_unit_quaternions_are_renormalised(tmp_path):
 
 
 def test_augment_sim_time_bag_uses_one_clock(files, tmp_path):
-    from tests.experiments.rosbag_fixtures import SIM_START, stamp_ns
+    from tests.export.rosbag_fixtures import SIM_START, stamp_ns
 
     bag = write_bag(tmp_path / "sim", "mcap", header_start=SIM_START)
     topic = "/camera/camera_info"
@@ -590,7 +585,7 @@ def test_no_artefact_alive_in_any_frame_is_refused_against_brute_force(files):
     import pandas as pd
 
     from are_stats.environment import load_catalogue
-    from are_stats.experiments._augment import _check_alive
+    from are_stats.export._augment import _check_alive
     from are_stats.scenarios import Scene
 
     catalogue = load_catalogue()
@@ -755,7 +750,7 @@ def test_augment_odom_only_bag_puts_artefacts_in_odom(files, tmp_path):
 
 
 def test_augment_qos_in_the_input_bags_form(files, tmp_path):
-    from tests.experiments.rosbag_fixtures import jazzy_mcap
+    from tests.export.rosbag_fixtures import jazzy_mcap
 
     src = next(Path(files["mcap"]).parent.glob("*.mcap"))
     for bag, form in ((src, "int"), (jazzy_mcap(src, tmp_path / "jazzy.mcap"), "string")):

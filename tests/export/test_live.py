@@ -23,7 +23,7 @@ pytest.importorskip("google.protobuf")
 from are_stats import Scene, load_catalogue  # noqa: E402
 from are_stats.cli import app  # noqa: E402
 from are_stats.environment import DEFAULT_MODELS  # noqa: E402
-from are_stats.experiments._live import (  # noqa: E402
+from are_stats.export._live import (  # noqa: E402
     LIVE_TOPICS,
     replay_messages,
     serve_scenario,
@@ -302,7 +302,7 @@ def test_cli_serve_port_in_use(folder):
 
 
 def test_replay_streams_the_robot_and_its_camera_frustum(tmp_path):
-    from are_stats.experiments._live import load_robot
+    from are_stats.export._live import load_robot
 
     path = tmp_path / "robot.csv"
     path.write_text("t,x,y,yaw\n0,0,0,0\n60,6,0,0\n")

@@ -27,7 +27,7 @@ topic        Foxglove schema             content
 The server speaks the protocol foxglove-sdk serves, ``foxglove.sdk.v1`` (the Foxglove app
 and desktop connect to it; clients must offer that subprotocol).
 
-Frame names are the REP-105 names of :mod:`are_stats.experiments._ros`. Stamps and log
+Frame names are the REP-105 names of :mod:`are_stats.export._ros`. Stamps and log
 times follow the replay clock: ``start + tau`` where ``tau`` is replay time since the start
 (it keeps growing across ``--loop`` rounds, the scene time being ``tau`` modulo the
 horizon); the server also advertises the ``time`` capability and broadcasts that clock.
@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from are_stats.experiments._ros import ROS_FRAMES, artefact_frame
+from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 
 __all__ = [

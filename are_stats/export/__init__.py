@@ -1,0 +1,34 @@
+"""What leaves the package, with ROS conventions (REP-103/105): MCAP files of missions,
+the augmentation of a robot's recorded bag, and the live view (a scenario replay streamed
+to Foxglove).
+
+The last room of the one-way flow fit -> scenes -> mission -> export: it reads scenes and
+mission traces and writes them out; nothing upstream imports it (the sweep writes a task's
+MCAP through :func:`export_mcap`, imported where it is used)."""
+
+from are_stats.export._augment import AUGMENT_TOPICS, AugmentResult, augment_bag
+from are_stats.export._live import (
+    LIVE_TOPICS,
+    LiveMessage,
+    load_replay,
+    replay_messages,
+    serve_scenario,
+)
+from are_stats.export._mcap import MCAP_TOPICS, export_mcap
+from are_stats.export._ros import ROS_FRAMES, artefact_frame, parse_start_time
+
+__all__ = [
+    "AUGMENT_TOPICS",
+    "LIVE_TOPICS",
+    "MCAP_TOPICS",
+    "ROS_FRAMES",
+    "AugmentResult",
+    "LiveMessage",
+    "artefact_frame",
+    "augment_bag",
+    "export_mcap",
+    "load_replay",
+    "parse_start_time",
+    "replay_messages",
+    "serve_scenario",
+]
