@@ -636,10 +636,31 @@ class ARBuilder:
         """n_A: number of distinct cells of M_2D covered by live artefacts."""
         return int(np.unique(self.artefact_cells()[1]).size)
 
-    def augmented_grid(self) -> OccupancyGrid:
-        """The augmented M_2D (Fig. 4b): the base grid with artefact cells set to 100."""
+    def augmented_grid(self, perceived: Any = None) -> OccupancyGrid:
+        """The augmented M_2D (Fig. 4b): the base grid with artefact cells set to 100.
+
+        Parameters
+        ----------
+        perceived : (n,) bool, optional
+            Aligned with :attr:`ids`: only these artefacts' cells are set (the planner's
+            map: the perceived set A_f on M_2D, Sect. 3.3). Default: every live artefact.
+
+        Returns
+        -------
+        OccupancyGrid
+            A copy of :attr:`grid`.
+        """
+        owner, flat = self.artefact_cells()
+        if perceived is not None:
+            p = np.asarray(perceived)
+            if p.dtype != bool or p.shape != (self.ids.size,):
+                raise ValueError(
+                    f"perceived: expected a ({self.ids.size},) bool array aligned with the "
+                    f"builder's ids, got {p.dtype} of shape {p.shape}"
+                )
+            flat = flat[p[owner]]
         g = self.grid.copy()
-        g.data.ravel()[self.artefact_cells()[1]] = 100
+        g.data.ravel()[flat] = 100
         return g
 
     def _surface(self, k: int) -> np.ndarray:

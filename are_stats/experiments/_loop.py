@@ -245,8 +245,10 @@ class _State(NamedTuple):
     n_yields: int
     avoid_delay: float  # s, summed over the avoidances
     # the AR-builder (M_2D augmented with the live boxes): its content is a function of
-    # (scene, t) at the last update, rewritten by _register; it gives n_A
+    # (scene, t) = builder_at, rewritten by _register at each update (it gives n_A) and
+    # brought to the plan's time by _planning_grid (the planner's map is its grid)
     builder: Any
+    builder_at: tuple  # (scene, t) the builder holds
     # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
     # batch: {tick time: (robot pose (3,), perceived (N,), scene)}, replaced (never
     # changed) by each batch. An entry is used only when the robot is where it was
@@ -284,7 +286,7 @@ def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np
 def _register(s: _State) -> _State:
     """Register the scene's live boxes at ``s.t`` on the state's AR-builder (M_2D); n_A."""
     s.builder.register_scene(s.scene, s.t)
-    return s._replace(n_A=s.builder.n_artefact_cells)
+    return s._replace(n_A=s.builder.n_artefact_cells, builder_at=(s.scene, s.t))
 
 
 def _perceive(m: _Mission, s: _State, idx: np.ndarray, boxes: Any, tick: bool = False) -> _State:
@@ -344,22 +346,32 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> tuple[np.ndarray, _St
     return seen[0], s._replace(percepts=MappingProxyType(batch))
 
 
-def _planning_grid(m: _Mission, s: _State, idx: np.ndarray, boxes: Any) -> tuple[Any, np.ndarray]:
-    """The augmented grid with the perceived artefacts, and the robot's free cells."""
-    from are_stats.perception import perceived_grid
+def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any, np.ndarray]:
+    """The planner's map and the robot's free cells on it, and the state with the builder
+    at ``s.t``; ``idx`` (n,) the live artefacts at ``s.t``.
 
+    The map is the AR-builder's augmented grid with the perceived artefacts
+    (:meth:`ARBuilder.augmented_grid` with ``perceived``): the boxes rasterised at the
+    update are reused when the plan follows it; a plan at a later time (a camera tick
+    between events, tracks having moved the boxes) brings the builder to ``s.t`` first. A
+    moving perceived artefact also covers its footprint at the next event (the AR-builder
+    knows where its artefacts go next).
+    """
+    from are_stats.builder import box_corners, rasterise_convex
+
+    at_scene, at_t = s.builder_at
+    if at_scene is not s.scene or at_t != s.t:
+        s.builder.register_scene(s.scene, s.t)
+        s = s._replace(builder_at=(s.scene, s.t))
     on = s.seen[idx]
-    centres, half, yaws = boxes.centres[on, :2], boxes.half_extents[on], boxes.yaws[on]
+    aug = s.builder.augmented_grid(perceived=on)
     ahead = idx[on & s.scene.has_tracks[idx]]
     if ahead.size and s.event < s.event_t.size:
-        # a moving artefact is on the map over the interval to the next event: at its pose
-        # now and at its next pose (the AR-builder knows where its artefacts go next)
         xy, yaw = _footprints(s.scene, float(s.event_t[s.event]), ahead)
-        centres = np.vstack([centres, xy])
-        half = np.vstack([half, s.scene.half_extents[ahead]])
-        yaws = np.r_[yaws, yaw]
-    aug = perceived_grid(m.grid, centres, half, yaws, np.ones(len(yaws), bool))
-    return aug, _free_cells(m, ~aug.free, s.pose)
+        poly = box_corners(xy, s.scene.half_extents[ahead][:, :2], yaw)
+        _, flat, _ = rasterise_convex(m.grid.world_to_local(poly), m.grid.shape)
+        aug.data.ravel()[flat] = 100
+    return s, aug, _free_cells(m, ~aug.free, s.pose)
 
 
 def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -449,8 +461,8 @@ def _contacts(
 
 def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
     """Plan from the robot's pose to the current goal on the perceived grid."""
-    idx, boxes = _boxes(s.scene, s.t)
-    _, free = _planning_grid(m, s, idx, boxes)
+    idx = np.flatnonzero(s.scene.alive(s.t))
+    s, _, free = _planning_grid(m, s, idx)
     res = m.grid.resolution
     start_l = m.grid.world_to_local(s.pose[:2]) * res
     goal_l = m.grid.world_to_local(m.goals[s.goal]) * res
@@ -524,8 +536,12 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
         if not s.need_plan and (moved & s.seen).any():
             # a perceived artefact moved: replan when it now blocks the plan (or the robot
             # was waiting for a way through)
-            if s.path is None or _path_blocked(m, s, _planning_grid(m, s, idx, boxes)[1]):
+            if s.path is None:
                 s = s._replace(need_plan=True)
+            else:
+                s, _, free = _planning_grid(m, s, idx)
+                if _path_blocked(m, s, free):
+                    s = s._replace(need_plan=True)
     in_contact, _, _ = _contacts(m, s.pose[None, :2], np.array([s.t]), s)
     fresh = in_contact & ~s.in_contact
     s = s._replace(
@@ -605,7 +621,8 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0, scene=m.scene, event_t=m.event_t,
         event_lifecycle=m.event_lifecycle, event_moved=m.event_moved, n_detours=0, n_yields=0,
-        avoid_delay=0.0, builder=ARBuilder(m.grid, m.catalogue), percepts=MappingProxyType({}),
+        avoid_delay=0.0, builder=ARBuilder(m.grid, m.catalogue), builder_at=(None, np.nan),
+        percepts=MappingProxyType({}),
     )  # fmt: skip
     s = _perceive(m, _register(s), idx, boxes)
     in_contact, _, _ = _contacts(m, pose[None, :2], np.array([0.0]), s)
@@ -670,7 +687,10 @@ def _update(m: _Mission, s: _State, kinds: list[str]) -> tuple[_State, dict, dic
     scene; it is the reason of the next plan when it asks for one."""
     reason = "+".join(kinds)
     s = s._replace(n_updates=s.n_updates + 1, reason=reason if s.need_plan else s.reason)
-    return s, _timeline_row(m, s, reason), _scene_record(m, s) if m.record else None
+    record = None
+    if m.record:
+        s, record = _scene_record(m, s)
+    return s, _timeline_row(m, s, reason), record
 
 
 def _timeline_row(m: _Mission, s: _State, kind: str) -> dict:
@@ -680,12 +700,13 @@ def _timeline_row(m: _Mission, s: _State, kind: str) -> dict:
     }  # fmt: skip
 
 
-def _scene_record(m: _Mission, s: _State) -> dict:
+def _scene_record(m: _Mission, s: _State) -> tuple[_State, dict]:
     idx, boxes = _boxes(s.scene, s.t)
-    return {
+    s, grid, _ = _planning_grid(m, s, idx)
+    return s, {
         "t": s.t, "ids": boxes.ids, "centres": boxes.centres, "half": boxes.half_extents,
         "yaws": boxes.yaws, "labels": list(boxes.labels), "perceived": s.seen[idx],
-        "grid": _planning_grid(m, s, idx, boxes)[0],
+        "grid": grid,
     }  # fmt: skip
 
 
@@ -917,7 +938,10 @@ def run_mission(
     timeline: list[dict] = [_timeline_row(m, s, "start")]
     poses_log: list[list[float]] = [[0.0, *pose]]
     plans_log: list = []
-    scenes_log: list = [_scene_record(m, s)] if record else []
+    scenes_log: list = []
+    if record:
+        s, first = _scene_record(m, s)
+        scenes_log.append(first)
     while not _done(m, s):
         s, info = _step(m, s)
         if info.replan is not None:

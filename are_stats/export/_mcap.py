@@ -9,7 +9,13 @@ so a file lines up with a real recording (see :mod:`are_stats.export._ros`). Top
 topic                  type                                  when
 =====================  ====================================  ===============================
 ``/map``               ``nav_msgs/msg/OccupancyGrid``        once, at t = 0 (the real M_2D)
-``/augmented_map``     ``nav_msgs/msg/OccupancyGrid``        each scene update (planner's)
+``/augmented_map``     ``nav_msgs/msg/OccupancyGrid``        each scene update: M_2D with
+                                                             every live artefact (Fig. 4b,
+                                                             as ``augment`` publishes it)
+``/planner_map``       ``nav_msgs/msg/OccupancyGrid``        each scene update: what the
+                                                             planner saw (the perceived
+                                                             artefacts, moving ones also at
+                                                             their next pose)
 ``/artefacts``         ``visualization_msgs/msg/MarkerArray``  each scene update: boxes (green
                                                              perceived, grey occluded) and
                                                              class-label text markers
@@ -40,6 +46,7 @@ __all__ = ["MCAP_TOPICS", "export_mcap"]
 MCAP_TOPICS = {
     "/map": "nav_msgs/msg/OccupancyGrid",
     "/augmented_map": "nav_msgs/msg/OccupancyGrid",
+    "/planner_map": "nav_msgs/msg/OccupancyGrid",
     "/artefacts": "visualization_msgs/msg/MarkerArray",
     "/robot_pose": "geometry_msgs/msg/PoseStamped",
     "/tf": "tf2_msgs/msg/TFMessage",
@@ -91,7 +98,7 @@ def export_mcap(
         If ``trace`` is not a recorded trace or ``start_time`` is not a time.
     """
     from are_stats.experiments import MissionTrace
-    from are_stats.perception import optical_from_base
+    from are_stats.perception import optical_from_base, perceived_grid
 
     if not isinstance(trace, MissionTrace):
         raise ValueError(
@@ -127,7 +134,10 @@ def export_mcap(
     )
     for sc in trace.scenes:
         t = float(sc["t"])
-        R.add(t, "/augmented_map", MCAP_TOPICS["/augmented_map"], R.occupancy_grid(t, sc["grid"]))
+        everyone = np.ones(len(sc["ids"]), bool)
+        aug = perceived_grid(grid, sc["centres"], sc["half"], sc["yaws"], everyone)
+        R.add(t, "/augmented_map", MCAP_TOPICS["/augmented_map"], R.occupancy_grid(t, aug))
+        R.add(t, "/planner_map", MCAP_TOPICS["/planner_map"], R.occupancy_grid(t, sc["grid"]))
         R.add(
             t,
             "/artefacts",

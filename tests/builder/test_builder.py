@@ -77,6 +77,31 @@ def test_registration_projects_the_exact_footprint():
     assert len(b.augmented_voxels()) == 0
 
 
+def test_augmented_grid_with_the_perceived_artefacts_only():
+    """The planner's map (augmented_grid(perceived=...)) holds exactly the perceived boxes'
+    cells, the cells the perception module rasterises for the same boxes (one geometry)."""
+    from are_stats.perception import perceived_grid
+
+    g = _walled_grid(origin=(0.5, 0.3, 0.2), pillars=False)
+    b = ARBuilder(g)
+    rng = np.random.default_rng(3)
+    for k in range(6):
+        pose = g.cell_to_world([12 + 18 * (k % 3), 20 + 40 * (k // 3)]).tolist()
+        b.register(None, [*pose, float(rng.uniform(-3, 3))], size=[0.9, 0.4, 1.0])
+    seen = np.array([True, False, True, True, False, False])
+    c, h, y = b.boxes()
+    want = perceived_grid(g, c, h, y, seen)
+    got = b.augmented_grid(perceived=seen)
+    np.testing.assert_array_equal(got.data, want.data)
+    assert (got.data == 100).sum() < (b.augmented_grid().data == 100).sum()
+    np.testing.assert_array_equal(
+        b.augmented_grid(perceived=np.ones(6, bool)).data, b.augmented_grid().data
+    )
+    np.testing.assert_array_equal(b.augmented_grid(perceived=np.zeros(6, bool)).data, g.data)
+    with pytest.raises(ValueError, match="aligned with the builder's ids"):
+        b.augmented_grid(perceived=np.ones(5, bool))
+
+
 def test_catalogue_registration_and_voxels():
     q = load_catalogue()
     g = _walled_grid()

@@ -173,6 +173,16 @@ def test_mcap_export_reads_back(tmp_path):
     n_scenes = len(res.trace.scenes)
     assert counts["/map"] == 1 and counts["/goals"] == 1
     assert counts["/augmented_map"] == counts["/artefacts"] == n_scenes == 3
+    assert counts["/planner_map"] == n_scenes
+    # /augmented_map is M_2D with every live box (as augment publishes it), /planner_map
+    # what the planner saw; here both boxes are perceived, so the two agree cell for cell
+    sc = res.trace.scenes[-1]
+    assert len(sc["ids"]) == 1 and sc["perceived"].all()
+    aug = np.asarray(last["/augmented_map"].data).reshape(20, 20)
+    assert (aug == 100).sum() > 0 and np.array_equal(
+        aug, np.asarray(last["/planner_map"].data).reshape(20, 20)
+    )
+    assert np.array_equal(aug, sc["grid"].data)
     assert counts["/plan"] == int(res.replans["success"].sum())
     assert counts["/robot_pose"] == len(res.trace.poses)
     assert last["/map"].info.width == 20 and len(last["/map"].data) == 400
