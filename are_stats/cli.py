@@ -151,17 +151,30 @@ def version() -> None:
 @_cli_errors
 def show(
     map_path: str = typer.Argument(
-        ..., metavar="MAP", help="ROS map YAML, or the name of a shipped map (courtyard)."
+        ...,
+        metavar="MAP",
+        help="ROS map YAML, the name of a shipped map (courtyard), or an MCAP/bag written "
+        "by augment or experiment --mcap.",
     ),
     out: str = typer.Option(None, "--out", help="PNG to write (default: <map name>.png)."),
     inflate: float = typer.Option(None, "--inflate", help="Inflation radius to draw (m)."),
     artefacts: int = typer.Option(0, "--artefacts", help="Random catalogue artefacts to place."),
     seed: int = typer.Option(0, "--seed", help="Seed for the artefact placement."),
+    at: float = typer.Option(
+        None, "--at", help="An MCAP/bag: seconds after its start (default: most perceived)."
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite the PNG."),
 ) -> None:
-    """Render an occupancy grid, its inflation and artefacts to a PNG."""
+    """Render an occupancy grid, its inflation and artefacts to a PNG; or an MCAP/bag from
+    above at one time (map, augmented cells, artefacts, robot and camera)."""
     from are_stats.builder import show_map
+    from are_stats.logs import is_bag_path
 
+    if is_bag_path(map_path):
+        from are_stats.export import plot_mcap
+
+        typer.echo(str(plot_mcap(map_path, out, at=at, force=force)))
+        return
     path = show_map(
         map_path, out, inflate=inflate, artefacts=artefacts, seed=_seed(seed), force=force
     )

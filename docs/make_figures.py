@@ -264,6 +264,31 @@ def _experiments(out: Path) -> None:
             shutil.copy(path, out / path.name)
 
 
+def _augment(out: Path) -> None:
+    """The tests' synthetic robot bag (a 12 s drive, ROS 2 MCAP, /tf and a camera) augmented
+    with a quick em fit of the shipped log, then its top-down view (``are-stats show``)."""
+    import subprocess
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from are_stats.export import augment_bag, plot_mcap
+    from tests.export.rosbag_fixtures import write_bag
+
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        fit = d / "fit.nc"
+        subprocess.run(
+            [sys.executable, "-m", "are_stats", "fit", "courtyard_traffic", "--method", "em",
+             "--out", str(fit), "--seed", "1"],
+            check=True, capture_output=True,
+        )  # fmt: skip
+        bag = write_bag(d / "robot", "mcap")
+        res = augment_bag(
+            bag, fit, "courtyard", d / "augmented.mcap", seed=1,
+            camera_info_topic="/camera/camera_info", period=0.5,
+        )  # fmt: skip
+        plot_mcap(res.path, out / "augmented_bag.png", force=True)
+
+
 # figure -> (page that shows it, job that draws it)
 JOBS: dict[str, Callable[[Path], None]] = {
     "house": _house,
@@ -273,6 +298,7 @@ JOBS: dict[str, Callable[[Path], None]] = {
     "motion": _motion,
     "perception": _perception,
     "experiments": _experiments,
+    "augment": _augment,
 }
 FIGURES: dict[str, tuple[str, str]] = {
     "house.png": ("index.md", "house"),
@@ -286,6 +312,7 @@ FIGURES: dict[str, tuple[str, str]] = {
     "top_view.png": ("perception.md", "perception"),
     "fig7a_rho.png": ("experiments.md", "experiments"),
     "fig7b_goals.png": ("experiments.md", "experiments"),
+    "augmented_bag.png": ("ros.md", "augment"),
 }
 
 

@@ -1,6 +1,6 @@
 """What leaves the package, with ROS conventions (REP-103/105): MCAP files of missions,
-the augmentation of a robot's recorded bag, and the live view (a scenario replay streamed
-to Foxglove).
+the augmentation of a robot's recorded bag, the live view (a scenario replay streamed
+to Foxglove), and a top-down picture of what such a file shows.
 
 The last room of the one-way flow fit -> scenes -> mission -> export: it reads scenes and
 mission traces and writes them out; nothing upstream imports it (the sweep writes a task's
@@ -16,6 +16,7 @@ from are_stats.export._live import (
 )
 from are_stats.export._mcap import MCAP_TOPICS, export_mcap
 from are_stats.export._ros import ROS_FRAMES, artefact_frame, parse_start_time
+from are_stats.export._view import BagView, plot_mcap, read_view
 
 __all__ = [
     "AUGMENT_TOPICS",
@@ -23,12 +24,15 @@ __all__ = [
     "MCAP_TOPICS",
     "ROS_FRAMES",
     "AugmentResult",
+    "BagView",
     "LiveMessage",
     "artefact_frame",
     "augment_bag",
     "export_mcap",
     "load_replay",
     "parse_start_time",
+    "plot_mcap",
+    "read_view",
     "replay_messages",
     "serve_scenario",
 ]

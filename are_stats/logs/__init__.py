@@ -22,6 +22,7 @@ from are_stats.logs._lifecycle_log import (
 )
 from are_stats.logs._panel import read_count_panel
 from are_stats.logs._rosbag import (
+    BAG_SUFFIXES,
     DETECTION3D_MSGS,
     OUTLIER_SHARE,
     STAMP_GAP,
@@ -33,6 +34,7 @@ from are_stats.logs._rosbag import (
     bag_read_errors,
     check_bag_path,
     check_stamps,
+    is_bag_path,
     read_tracks_bag,
     vision_msgs_typestore,
 )
@@ -65,6 +67,8 @@ from are_stats.logs._trajectory import (
 )
 
 __all__ = [
+    "BAG_SUFFIXES",
+    "is_bag_path",
     "CLOCKS",
     "CLOCK_TOLERANCE",
     "POSE_TYPES",

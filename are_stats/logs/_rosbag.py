@@ -39,6 +39,7 @@ from are_stats.inputs import Described, InputError, get_str
 from are_stats.logs._tf import TF_TYPES, TfBuffer, unit_quaternion
 
 __all__ = [
+    "BAG_SUFFIXES",
     "DETECTION3D_MSGS",
     "OUTLIER_SHARE",
     "STAMP_GAP",
@@ -50,6 +51,7 @@ __all__ = [
     "bag_read_errors",
     "check_bag_path",
     "check_stamps",
+    "is_bag_path",
     "read_tracks_bag",
     "vision_msgs_typestore",
 ]
@@ -332,6 +334,17 @@ def _iso(t: float) -> str:
         return _dt.datetime.fromtimestamp(float(t), _dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
     except (OverflowError, OSError, ValueError):
         return "out of the calendar"
+
+
+#: Suffixes of the bag files :func:`check_bag_path` takes.
+BAG_SUFFIXES = (".bag", ".mcap", ".db3")
+
+
+def is_bag_path(path: str | os.PathLike) -> bool:
+    """Whether ``path`` names a bag: a ``.bag``/``.mcap``/``.db3`` file name (existing or
+    not) or a folder holding ``metadata.yaml`` (a ROS 2 bag)."""
+    p = Path(path)
+    return p.suffix.lower() in BAG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").exists())
 
 
 def check_bag_path(path: str | os.PathLike) -> Path:
