@@ -19,6 +19,7 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "OutputExistsError",
@@ -66,6 +67,31 @@ def atomic_path(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def save_figure(
+    fig: Any,
+    path: str | os.PathLike,
+    force: bool = False,
+    dpi: int = 120,
+    *,
+    tight: bool = True,
+    close: bool = False,
+) -> Path:
+    """Write a matplotlib figure atomically (PNG/PDF/SVG by suffix), refusing to overwrite
+    unless ``force``; ``tight`` trims the margins, ``close`` closes the figure after."""
+    with atomic_path(path, force=force) as tmp:
+        fig.savefig(
+            tmp,
+            dpi=dpi,
+            bbox_inches="tight" if tight else None,
+            format=str(path).rsplit(".", 1)[-1],
+        )
+    if close:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+    return Path(path)
 
 
 _RENAME_EXCHANGE = 2  # renameat2 flag (Linux >= 3.15)

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from are_stats._atomic import atomic_path, check_writable
+from are_stats._atomic import check_writable, save_figure
 from are_stats.inputs import InputError, get_float, get_int, get_seed
 
 if TYPE_CHECKING:
@@ -102,10 +102,7 @@ def render_map(
     )
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
-    with atomic_path(target, force=force) as tmp:
-        fig.savefig(tmp, format="png", bbox_inches="tight")
-    plt.close(fig)
-    return target
+    return save_figure(fig, target, force, dpi=120, close=True)
 
 
 def show_map(

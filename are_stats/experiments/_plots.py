@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats._atomic import atomic_path, check_writable
+from are_stats._atomic import check_writable, save_figure
 from are_stats.inputs import Described, InputError
 
 __all__ = ["plot_goals", "plot_results", "plot_rho"]
@@ -165,7 +165,6 @@ def plot_results(
 
     if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)
-    import matplotlib.pyplot as plt
 
     from are_stats.experiments._sweep import load_results
 
@@ -178,7 +177,5 @@ def plot_results(
         check_writable(p, force)
     figs = [plot_rho(res["runs"]), plot_goals(res["runs"], res["goals"])]
     for fig, p in zip(figs, paths, strict=True):
-        with atomic_path(p, force=force) as tmp:
-            fig.savefig(tmp, dpi=120, format="png")
-        plt.close(fig)
+        save_figure(fig, p, force, dpi=120, tight=False, close=True)
     return paths

@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from are_stats._atomic import atomic_path, check_writable
+from are_stats._atomic import check_writable, save_figure
 from are_stats.export._ros import ROS_FRAMES
 from are_stats.inputs import Described, InputError, get_float
 
@@ -331,7 +331,4 @@ def plot_mcap(
         )
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
-    with atomic_path(target, force=force) as tmp:
-        fig.savefig(tmp, format="png", bbox_inches="tight")
-    plt.close(fig)
-    return target
+    return save_figure(fig, target, force, dpi=120, close=True)

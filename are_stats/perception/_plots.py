@@ -3,12 +3,11 @@ depth image, and the top view with the view cone W (paper section 3.3, Fig. 4)."
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 import numpy as np
 
-from are_stats._atomic import atomic_path
+from are_stats._atomic import save_figure
 from are_stats.perception._perceive import _EDGES, _SIGNS
 
 __all__ = ["plot_camera_view", "plot_top_view", "save_figure"]
@@ -217,9 +216,3 @@ def plot_top_view(
         labels = [t.get_text() for t in leg.get_texts()] + labels
     ax.legend(handles, labels, loc="upper right", fontsize=8, framealpha=0.85)
     return ax.figure
-
-
-def save_figure(fig: Any, path: str | os.PathLike, force: bool = False, dpi: int = 120) -> None:
-    """Write a figure atomically (PNG/PDF/SVG by suffix); refuse to overwrite unless forced."""
-    with atomic_path(path, force=force) as tmp:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=str(path).rsplit(".", 1)[-1])
