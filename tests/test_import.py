@@ -5,6 +5,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
+
+import are_stats
 
 HEAVY = ["jax", "warp", "arviz", "numpyro", "pandas", "matplotlib", "scipy", "trimesh", "dask"]
 
@@ -161,3 +164,54 @@ def test_type_checkers_see_every_lazy_name_and_the_table_matches_the_subpackages
     assert seen == are_stats._LAZY
     for name, module in are_stats._LAZY.items():
         assert name in importlib.import_module(module).__all__, (name, module)
+
+
+#: The rooms in the order data flows through them (docs/src/index.md, the house), and the
+#: rooms below the line that feed them: a room imports only from rooms to its left or below.
+_LINE = ("logs", "fitting", "scenarios", "builder", "perception", "experiments", "export")
+_BELOW = ("environment", "traffic", "behaviour")
+#: Imports against the flow that stay, and why (each is a place to remove, not to copy).
+_AGAINST_THE_FLOW = {
+    # criticism simulates replicate logs from the posterior with the scenario generator
+    ("fitting", "scenarios"),
+    # a sweep task writes its mission's MCAP when asked (--mcap)
+    ("experiments", "export"),
+}
+
+
+def test_rooms_import_one_way():
+    """Every ``from are_stats.<room> import`` in a room's modules points left along the line
+    (logs -> fitting -> scenarios -> builder -> perception -> experiments -> export) or down
+    (environment, traffic, behaviour), apart from the listed exceptions."""
+    import ast
+
+    rooms = (*_LINE, *_BELOW)
+    root = Path(are_stats.__file__).parent
+    found = set()
+    for f in root.rglob("*.py"):
+        src = f.relative_to(root).parts[0]
+        if src not in rooms:
+            continue
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("are_stats."):
+                dst = node.module.split(".")[1]
+                if dst in rooms and dst != src:
+                    found.add((src, dst, f"{f.relative_to(root)}:{node.lineno}"))
+
+    def allowed(src: str, dst: str) -> bool:
+        if dst in _BELOW and src not in _BELOW:
+            return True
+        if src in _LINE and dst in _LINE:
+            return _LINE.index(dst) < _LINE.index(src)
+        if src in _BELOW and dst in _BELOW:
+            return _BELOW.index(dst) < _BELOW.index(src)
+        return False
+
+    bad = sorted(
+        where
+        for src, dst, where in found
+        if not allowed(src, dst) and (src, dst) not in _AGAINST_THE_FLOW
+    )
+    assert not bad, f"imports against the flow: {bad}"
+    used = {(s, d) for s, d, _ in found}
+    assert _AGAINST_THE_FLOW <= used, f"exceptions no longer needed: {_AGAINST_THE_FLOW - used}"
