@@ -11,18 +11,25 @@ export PYTHONHASHSEED := 0
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
+	-$(BIN)/python -m pip install -q uv
+
+# uv (from the registry, into the venv) downloads and installs in parallel: a fresh venv
+# takes about 25 s instead of about 4 minutes with pip. Where uv is missing or fails, pip
+# does the same install.
+INSTALL = sh -c '$(BIN)/python -m uv pip install -q --python $(BIN)/python "$$@" \
+	|| $(BIN)/python -m pip install -q "$$@"' install
 
 # The stamp is rebuilt whenever pyproject.toml changes.
 $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install -q -e '.[dev]'
+	$(INSTALL) -e '.[dev]'
 	touch $@
 
 $(VENV)/.installed-bench: pyproject.toml $(VENV)/.installed-dev
-	$(BIN)/python -m pip install -q -e '.[dev,bench]'
+	$(INSTALL) -e '.[dev,bench]'
 	touch $@
 
 $(VENV)/.installed-docs: pyproject.toml $(VENV)/.installed-dev
-	$(BIN)/python -m pip install -q -e '.[dev,docs]'
+	$(INSTALL) -e '.[dev,docs]'
 	touch $@
 
 venv: $(VENV)/.installed-dev
