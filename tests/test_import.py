@@ -176,6 +176,8 @@ _AGAINST_THE_FLOW = {
     ("fitting", "scenarios"),
     # a sweep task writes its mission's MCAP when asked (--mcap)
     ("experiments", "export"),
+    # pose -> box is one function, in the builder's geometry (Scene.at uses it)
+    ("scenarios", "builder"),
 }
 
 

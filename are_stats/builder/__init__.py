@@ -5,6 +5,7 @@ from are_stats.builder._broadphase import SpatialHash, aabb_pairs, aabb_pairs_br
 from are_stats.builder._builder import ARBuilder, Placement, Resolution
 from are_stats.builder._geometry import (
     OrientedBox,
+    box_centres,
     box_corners,
     box_runs,
     footprint_runs,
@@ -25,6 +26,7 @@ __all__ = [
     "SpatialHash",
     "aabb_pairs",
     "aabb_pairs_brute",
+    "box_centres",
     "box_corners",
     "box_runs",
     "footprint_runs",

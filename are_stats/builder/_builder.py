@@ -25,6 +25,7 @@ import numpy as np
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
 from are_stats.builder._broadphase import SpatialHash, aabb_pairs
 from are_stats.builder._geometry import (
+    box_centres,
     box_corners,
     box_runs,
     obb_overlap_3d,
@@ -222,10 +223,7 @@ class ARBuilder:
 
     @staticmethod
     def _boxes_for(P: np.ndarray, half: np.ndarray, offset: np.ndarray):
-        c, s = np.cos(P[:, 2]), np.sin(P[:, 2])
-        cx = P[:, 0] + c * offset[:, 0] - s * offset[:, 1]
-        cy = P[:, 1] + s * offset[:, 0] + c * offset[:, 1]
-        return np.stack([cx, cy, offset[:, 2]], 1), half, P[:, 2]
+        return box_centres(P, offset), half, P[:, 2]
 
     # ------------------------------------------------------------ collision tests
     def _footprints(self, centre, half, yaw):

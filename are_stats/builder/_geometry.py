@@ -29,6 +29,7 @@ from are_stats._checks import check_finite
 
 __all__ = [
     "OrientedBox",
+    "box_centres",
     "box_corners",
     "obb_overlap_2d",
     "obb_overlap_3d",
@@ -88,6 +89,34 @@ class OrientedBox:
                 eps,
             )[0]
         )
+
+
+def box_centres(pose: Any, offset: Any) -> np.ndarray:
+    """Centres of artefact boxes from the artefacts' poses: pose -> box, for everyone
+    (:meth:`Scene.at <are_stats.Scene.at>`, the mission's footprints and avoidance, the
+    AR-builder).
+
+    An artefact's frame F_A sits at ``(x, y)`` on the ground with heading ``yaw``; its box
+    centre is ``offset`` in F_A (the row of Q's box centre), so the centre in the world is
+    ``(x, y) + R(yaw) offset_xy`` at height ``offset_z``.
+
+    Parameters
+    ----------
+    pose : (n, 3) float
+        ``x, y, yaw`` of F_A.
+    offset : (n, 3) or (3,) float
+        Box centre in F_A.
+
+    Returns
+    -------
+    (n, 3) float
+    """
+    p = np.asarray(pose, float).reshape(-1, 3)
+    o = np.broadcast_to(np.asarray(offset, float), (p.shape[0], 3))
+    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+    return np.column_stack(
+        [p[:, 0] + c * o[:, 0] - s * o[:, 1], p[:, 1] + s * o[:, 0] + c * o[:, 1], o[:, 2]]
+    )
 
 
 def box_corners(centre: Any, half: Any, yaw: Any) -> np.ndarray:

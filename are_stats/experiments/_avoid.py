@@ -43,6 +43,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from are_stats.builder import box_centres
 from are_stats.experiments._planners import astar_cells
 from are_stats.experiments._robot import point_box_distance
 from are_stats.scenarios import Scene
@@ -72,11 +73,7 @@ class Avoidance(NamedTuple):
 
 def _centres(scene: Scene, i: Any, pose: np.ndarray) -> np.ndarray:
     """Box centres (k, 2) of artefact ``i`` (an index, or (k,) indices) at poses (k, 3)."""
-    off = np.broadcast_to(scene.offsets[i], (len(pose), 3))
-    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    return pose[:, :2] + np.column_stack(
-        [c * off[:, 0] - s * off[:, 1], s * off[:, 0] + c * off[:, 1]]
-    )
+    return box_centres(pose, scene.offsets[i])[:, :2]
 
 
 def _sample(

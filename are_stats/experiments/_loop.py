@@ -53,7 +53,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
-from are_stats.builder import ARBuilder
+from are_stats.builder import ARBuilder, box_centres
 from are_stats.experiments._avoid import plan_avoidance
 from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
@@ -275,12 +275,7 @@ def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np
     """Box centres (k, 2) and headings (k,) of artefacts ``idx`` at ``t``, alive or not (the
     robot's footprint tests run up to an event time, where some of them leave)."""
     pose = scene.poses(t, idx)
-    off = scene.offsets[idx]
-    c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    xy = pose[:, :2] + np.column_stack(
-        [c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]]
-    )
-    return xy, pose[:, 2]
+    return box_centres(pose, scene.offsets[idx])[:, :2], pose[:, 2]
 
 
 def _register(s: _State) -> _State:

@@ -19,6 +19,8 @@ that answers it.
 Examples
 --------
 >>> import pandas as pd
+
+from are_stats.builder import box_centres
 >>> from are_stats import Scene, load_catalogue
 >>> table = pd.DataFrame({"class": [0], "mark": [0], "t_arrive": [0.0], "t_leave": [9.0],
 ...                       "x": [1.0], "y": [2.0], "yaw": [0.0]})
@@ -34,6 +36,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from are_stats.builder import box_centres
 
 __all__ = ["Boxes", "Scene"]
 
@@ -344,15 +348,7 @@ class Scene:
         """
         idx = np.flatnonzero(self.alive(float(t)))
         pose = self.poses(float(t), idx)
-        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-        off = self.offsets[idx]
-        centres = np.column_stack(
-            [
-                pose[:, 0] + c * off[:, 0] - s * off[:, 1],
-                pose[:, 1] + s * off[:, 0] + c * off[:, 1],
-                off[:, 2],
-            ]
-        )
+        centres = box_centres(pose, self.offsets[idx])
         return Boxes(
             self.ids[idx], centres, self.half_extents[idx].copy(), _wrap(pose[:, 2]),
             self.labels[idx],

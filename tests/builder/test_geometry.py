@@ -153,3 +153,27 @@ def test_box_runs_equal_general_polygon_runs(rng):
         zip(o2.tolist(), f2.tolist(), strict=True)
     )
     assert (out1 == out2).all()
+
+
+def test_box_centres_carry_the_offset_with_the_pose():
+    """pose -> box centre against the homogeneous transform T(x, y, yaw) applied to the
+    offset (independent of the package)."""
+    from are_stats.builder import box_centres
+
+    rng = np.random.default_rng(7)
+    pose = np.column_stack([rng.uniform(-50, 50, (20, 2)), rng.uniform(-7, 7, 20)])
+    off = rng.uniform(-2, 2, (20, 3))
+    want = []
+    for (x, y, a), o in zip(pose, off, strict=True):
+        T = np.array(
+            [
+                [np.cos(a), -np.sin(a), 0, x],
+                [np.sin(a), np.cos(a), 0, y],
+                [0, 0, 1, 0],
+                [0, 0, 0, 1],
+            ]
+        )
+        want.append((T @ np.r_[o, 1.0])[:3])
+    np.testing.assert_allclose(box_centres(pose, off), np.array(want), atol=1e-12)
+    # one offset for every pose, and a single pose
+    np.testing.assert_allclose(box_centres(pose, off[0])[3], box_centres(pose[3], off[0])[0])
