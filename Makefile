@@ -43,9 +43,12 @@ lint: venv
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check are_stats tests
 
+# Two workers, each taking whole test files (module fixtures are built once): the suite
+# TEST_WORKERS=0 runs it serially.
+TEST_WORKERS ?= 2
 test: venv
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 bench: venv-bench
 	$(BIN)/python -m tests.benchmarks
