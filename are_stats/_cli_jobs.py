@@ -339,6 +339,11 @@ def _attach_interaction(idata: Any, tracks: Any) -> None:
         f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s "
         f"(R^2 {info['r2']:.2f} over {int(info['n'])} accelerations)"
     )
+    if info.get("group_samples", 0) > 0:
+        console.print(
+            f"groups walk {params.group_spacing:.2f} m apart (median over "
+            f"{int(info['group_samples'])} member samples)"
+        )
 
 
 def _behaviour_lines(fit: Any) -> list[str]:

@@ -197,9 +197,15 @@ __all__ += [
 ]
 
 from are_stats.fitting._interaction import (  # noqa: E402
+    fit_group_spacing,
     fit_interaction,
     interaction_attrs,
     interaction_from_attrs,
 )
 
-__all__ += ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]
+__all__ += [
+    "fit_group_spacing",
+    "fit_interaction",
+    "interaction_attrs",
+    "interaction_from_attrs",
+]
