@@ -371,6 +371,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     from are_stats.fitting import (
         displacement_errors,
         heldout_log_likelihood,
+        interaction_from_attrs,
         motion_checks,
         plot_motion_checks,
     )
@@ -383,7 +384,12 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
     )  # fmt: skip
-    errors = displacement_errors(jax.random.fold_in(key, 3), bfit, tracks, n_samples=20)
+    # predicted as generation walks people: continuous paths, then the fit's social force
+    learned = interaction_from_attrs(idata.behaviour.attrs)
+    errors = displacement_errors(
+        jax.random.fold_in(key, 3), bfit, tracks, n_samples=20,
+        interaction=learned if learned is not None else True, grid=grid,
+    )  # fmt: skip
     fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)
     # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
     # (each through the one assembly, social force included) against the log
@@ -419,6 +425,11 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
         f"{held['random_walk_per_move']:.3f} nats per move"
     )
+    for method, row in errors.iterrows():
+        console.print(
+            f"ADE/FDE ({int(row['n_windows'])} windows, 8 observed / 12 predicted), {method}: "
+            f"{row['ADE']:.2f} / {row['FDE']:.2f} m"
+        )
     models = [c for c in real.columns if c not in ("kind", "weight")]
     rich = Table(title="realism against the log (higher is closer)", title_justify="left")
     rich.add_column("feature", justify="left")

@@ -363,8 +363,9 @@ def social_force_tracks(
     Parameters
     ----------
     tracks : pandas.DataFrame
-        ``id, t, x, y, yaw`` (and optionally ``scenario``): one row per artefact and epoch
-        of its life, as the behaviours write them. Each artefact keeps its first and last
+        ``id, t, x, y, yaw`` (and optionally ``scenario``, and ``vx, vy``: the velocity at
+        an artefact's first row, default 0): one row per artefact and epoch of its life, as
+        the behaviours write them. Each artefact keeps its first and last
         time (its life-cycle) and its route (the corners of its planned path); it walks the
         route at its preferred speed (the median of its planned speeds; an artefact that
         never moves stands, and the others walk around it). Artefacts of different
@@ -481,6 +482,8 @@ def social_force_tracks(
     walls, n_y = _walls(grid, xy_all, p.reach, float(shift[:, 0].max()))
     x = xy_all[start] + shift  # where each artefact arrives (a member: beside its leader)
     v = np.zeros((n, 2))
+    if "vx" in tab.columns and "vy" in tab.columns:  # walking already when it appears
+        v = np.nan_to_num(tab[["vx", "vy"]].to_numpy(float)[start])
     k = np.zeros(n, np.int32)
     first_leg = route[:, min(1, m_max - 1)] - route[:, 0]
     norm = np.hypot(*first_leg.T)
