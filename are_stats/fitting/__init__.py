@@ -209,3 +209,11 @@ __all__ += [
     "interaction_attrs",
     "interaction_from_attrs",
 ]
+
+from are_stats.fitting._motion_store import (  # noqa: E402
+    MOTION_TABLES,
+    motion_attrs,
+    motion_tables,
+)
+
+__all__ += ["MOTION_TABLES", "motion_attrs", "motion_tables"]
