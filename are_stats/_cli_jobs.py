@@ -270,6 +270,8 @@ def run_fit(
                     console.print(line)
                 status.update("fitting: interaction (social force) from the tracks ...")
                 _attach_interaction(idata, tracks)
+                status.update("fitting: realism and displacement errors against the tracks ...")
+                _attach_motion_tables(seed, idata, tracks, grid)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep["source"] = Path(str(rep.get("source") or log)).name
@@ -339,6 +341,11 @@ def _attach_interaction(idata: Any, tracks: Any) -> None:
         f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s "
         f"(R^2 {info['r2']:.2f} over {int(info['n'])} accelerations)"
     )
+    if info.get("group_samples", 0) > 0:
+        console.print(
+            f"groups walk {params.group_spacing:.2f} m apart (median over "
+            f"{int(info['group_samples'])} member samples)"
+        )
 
 
 def _behaviour_lines(fit: Any) -> list[str]:
@@ -358,18 +365,96 @@ def _behaviour_lines(fit: Any) -> list[str]:
     return out
 
 
+def _attach_motion_tables(seed: int, idata: Any, tracks: Any, grid: Any) -> None:
+    """Realism and displacement errors against the log's tracks, stored in the fit so that
+    ``report`` shows them (the tracks are not stored): issue 26."""
+    from are_stats.behaviour import BehaviourFit
+    from are_stats.fitting import displacement_errors, interaction_from_attrs, motion_attrs
+    from are_stats.scenarios import realism_features, realism_summary, realism_table
+
+    bfit = BehaviourFit.from_dataset(idata.behaviour)
+    key = jax.random.key(seed)
+    # predicted as generation walks people: continuous paths, then the fit's social force
+    learned = interaction_from_attrs(idata.behaviour.attrs)
+    errors = displacement_errors(
+        jax.random.fold_in(key, 3), bfit, tracks, n_samples=20,
+        interaction=learned if learned is not None else True, grid=grid,
+    )  # fmt: skip
+    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
+    # (each through the one assembly, social force included) against the log
+    xy = tracks[["id", "t", "x", "y"]]
+    real = realism_table(jax.random.fold_in(key, 4), xy, grid, behaviour=bfit, n_replicates=1)
+    same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
+    dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
+    observed = realism_summary(realism_features(xy, dt, grid))
+    idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
+
+
+def _motion_outputs(tables: dict, folder: Path, force: bool) -> dict[str, Path]:
+    """realism.csv / .png and displacement_errors.csv of the stored motion tables."""
+    import matplotlib.pyplot as plt
+
+    from are_stats.scenarios import plot_realism
+
+    out: dict[str, Path] = {}
+    writers = []
+    if "displacement" in tables:
+        d = tables["displacement"]
+        writers.append(("displacement_errors.csv", lambda p: d.to_csv(p, float_format="%.6g")))
+    fig = None
+    if "realism" in tables:
+        real = tables["realism"]
+        fig = plot_realism(real)
+        writers += [
+            ("realism.csv", lambda p: real.to_csv(p, float_format="%.6g")),
+            ("realism.png", lambda p: fig.savefig(p, dpi=110, format="png")),
+        ]
+    if "observed" in tables:
+        obs = tables["observed"]
+        writers.append(("realism_observed.csv", lambda p: obs.to_csv(p, float_format="%.6g")))
+    for name, write in writers:
+        with atomic_path(Path(folder) / name, force=force) as tmp:
+            write(tmp)
+        out[name] = Path(folder) / name
+    if fig is not None:
+        plt.close(fig)
+    return out
+
+
+def _print_motion_tables(tables: dict) -> None:
+    """The ADE/FDE lines and the realism table (stored in the fit)."""
+    if "displacement" in tables:
+        for method, row in tables["displacement"].iterrows():
+            console.print(
+                f"ADE/FDE ({int(row['n_windows'])} windows, 8 observed / 12 predicted), "
+                f"{method}: {row['ADE']:.2f} / {row['FDE']:.2f} m"
+            )
+    if "realism" not in tables:
+        return
+    real = tables["realism"]
+    models = [c for c in real.columns if c not in ("kind", "weight")]
+    rich = Table(title="realism against the log (higher is closer)", title_justify="left")
+    rich.add_column("feature", justify="left")
+    for m in models:
+        rich.add_column(m, justify="right")
+    for feat, row in real.iterrows():
+        cells = [f"{float(row[m]):.3f}" if np.isfinite(float(row[m])) else "-" for m in models]
+        rich.add_row(str(feat), *cells)
+    console.print(rich)
+
+
 def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool):
-    """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure."""
+    """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure;
+    with the realism and displacement tables stored in the fit (issue 26)."""
     import matplotlib.pyplot as plt
 
     from are_stats.behaviour import BehaviourFit
     from are_stats.fitting import (
-        displacement_errors,
         heldout_log_likelihood,
         motion_checks,
+        motion_tables,
         plot_motion_checks,
     )
-    from are_stats.scenarios import plot_realism, realism_table
 
     bfit = BehaviourFit.from_dataset(idata.behaviour)
     key = jax.random.key(seed)
@@ -378,28 +463,18 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
     )  # fmt: skip
-    errors = displacement_errors(jax.random.fold_in(key, 3), bfit, tracks, n_samples=20)
-    fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)
-    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
-    # (each through the one assembly, social force included) against the log
-    real = realism_table(
-        jax.random.fold_in(key, 4), tracks[["id", "t", "x", "y"]], grid, behaviour=bfit,
-        n_replicates=1,
-    )  # fmt: skip
-    fig_real = plot_realism(real)
+    stored = motion_tables(idata.behaviour.attrs)
+    fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
     out = {}
     for name, write in (
         ("motion_checks.csv", lambda p: table.to_csv(p, float_format="%.6g")),
-        ("displacement_errors.csv", lambda p: errors.to_csv(p, float_format="%.6g")),
         ("motion_checks.png", lambda p: fig.savefig(p, dpi=110, format="png")),
-        ("realism.csv", lambda p: real.to_csv(p, float_format="%.6g")),
-        ("realism.png", lambda p: fig_real.savefig(p, dpi=110, format="png")),
     ):
         with atomic_path(Path(folder) / name, force=force) as tmp:
             write(tmp)
         out[name] = Path(folder) / name
     plt.close(fig)
-    plt.close(fig_real)
+    out.update(_motion_outputs(stored, folder, force))
     rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
     for col in ("statistic", "observed", "model 5% - 95%"):
         rich.add_column(col, justify="left" if col == "statistic" else "right")
@@ -414,15 +489,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
         f"{held['random_walk_per_move']:.3f} nats per move"
     )
-    models = [c for c in real.columns if c not in ("kind", "weight")]
-    rich = Table(title="realism against the log (higher is closer)", title_justify="left")
-    rich.add_column("feature", justify="left")
-    for m in models:
-        rich.add_column(m, justify="right")
-    for feat, row in real.iterrows():
-        cells = [f"{float(row[m]):.3f}" if np.isfinite(float(row[m])) else "-" for m in models]
-        rich.add_row(str(feat), *cells)
-    console.print(rich)
+    _print_motion_tables(stored)
     return out
 
 
@@ -518,6 +585,19 @@ def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, 
         written = write_report(idata, out, key=seed, n_replicates=replicates, force=force)
     _print_traffic(idata)
     _print_checks(written)
+    if "behaviour" in idata.groups():  # the motion criticism the fit stored (issue 26)
+        from are_stats.fitting import motion_tables
+        from are_stats.inputs import Described, InputError
+
+        try:
+            stored = motion_tables(idata.behaviour.attrs)
+        except ValueError as err:
+            raise InputError(
+                fit_path, "behaviour", "the motion tables written by are-stats fit",
+                Described(f"a damaged table ({err})"),
+            ) from None  # fmt: skip
+        written.update(_motion_outputs(stored, out, force))
+        _print_motion_tables(stored)
     console.print(f"wrote {len(written)} files to {out}/")
     return written
 

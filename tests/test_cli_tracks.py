@@ -85,6 +85,20 @@ def test_tracks_fit_and_generated_people_walk(tmp_path):
     assert list(b["feature"].values) == ["walls"] and b["feature_weight"].shape == (1, 1)
     assert np.isfinite(b["feature_weight"].values).all()
     assert re.search(r"behaviour '\w*': beta .* slip .* walls weight [-+]", res.output), res.output
+    # the realism and displacement tables are stored with the behaviour, and report shows
+    # them without the tracks (issue 26)
+    res = runner.invoke(app, ["report", str(fit), "--out", str(tmp_path / "rep"),
+                              "--replicates", "20"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "realism against the log" in res.output and "realism (weighted)" in res.output
+    assert re.search(r"ADE/FDE .* model mean of K: [\d.]+ / [\d.]+ m", res.output), res.output
+    assert (tmp_path / "rep" / "realism.png").stat().st_size > 10_000
+    real = pd.read_csv(tmp_path / "rep" / "realism.csv", index_col=0)
+    assert {"constant velocity", "catalogue", "fitted"} <= set(real.columns)
+    errors = pd.read_csv(tmp_path / "rep" / "displacement_errors.csv", index_col=0)
+    assert list(errors.index) == ["constant velocity", "model mean of K", "model best of K"]
+    observed = pd.read_csv(tmp_path / "rep" / "realism_observed.csv", index_col=0)
+    assert 1.0 < observed.loc["speed (m/s)", "50%"] < 1.4  # the log's people: about 1.2 m/s
     out = tmp_path / "scen"
     res = runner.invoke(app, ["generate", str(fit), "--scenarios", "2", "--horizon", "200",
                               "--seed", "1", "--out", str(out), "--map", str(room),

@@ -112,3 +112,12 @@ from are_stats.behaviour._social import (  # noqa: E402
 )
 
 __all__ += ["SocialForce", "fit_social_force", "social_force_tracks"]
+
+from are_stats.behaviour._groups import (  # noqa: E402
+    formation,
+    group_spacing,
+    group_tracks,
+    slot_offsets,
+)
+
+__all__ += ["formation", "group_spacing", "group_tracks", "slot_offsets"]

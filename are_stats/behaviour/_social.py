@@ -16,6 +16,11 @@ preferred speed, ``d_ij`` the distance between two people and ``n_ij`` the unit 
 ``j`` to ``i``, ``d_iW`` the distance to the nearest wall (occupied map cell) and ``n_iW``
 pointing away from it. Speeds are capped at ``max_speed`` times the preferred speed.
 
+**Groups** (``groups=``): the members of an arrival group share their leader's route and
+head for a formation slot beside it (or, where that is not free, behind the member ahead)
+at ``group_spacing``, at the pace of the slowest; the repulsion acts between members only
+when they are closer than that spacing (:mod:`~are_stats.behaviour._groups`).
+
 Why a social force and not reciprocal velocity obstacles: the force is a few smooth terms
 whose three parameters (``A``, ``B``, ``tau``) enter the acceleration linearly (``A``,
 ``1/tau``) or through one decay length (``B``), so they are estimated from tracks by least
@@ -63,6 +68,7 @@ class SocialForce(NamedTuple):
     max_speed: float = 1.3  # speed cap, times the preferred speed
     horizon: float = 2.0  # anticipation (s): pairs repel at their predicted closest approach
     reach: float = 4.0  # neighbourhood (m): people farther apart than this do not interact
+    group_spacing: float = 0.75  # distance (m) between neighbouring members of a group
 
 
 #: Neighbours looked at per grid cell of ``reach`` metres (16 people on 16 m^2 is a dense
@@ -104,29 +110,42 @@ def _anticipated(diff, dv, horizon):
     return diff + dv * t_star[..., None]
 
 
-def _pair_term(now, dv, ok, p):
-    """Repulsions (..., 2) of the pairs ``now`` (from j to i), relative velocities ``dv``."""
-    ok = ok & (jnp.sum(now**2, axis=-1) <= p.reach**2)
+def _pair_term(now, dv, ok, p, mates=None):
+    """Repulsions (..., 2) of the pairs ``now`` (from j to i), relative velocities ``dv``;
+    ``mates`` marks pairs of one group, which repel only when closer than the group's
+    spacing (their formation keeps them at it)."""
+    d2 = jnp.sum(now**2, axis=-1)
+    ok = ok & (d2 <= p.reach**2)
+    if mates is not None:
+        ok = ok & ~(mates & (d2 > p.group_spacing**2))
     diff = _anticipated(now, dv, p.horizon)
     dist = jnp.sqrt(jnp.sum(diff**2, axis=-1) + 1e-12)
     mag = p.strength * jnp.exp((2.0 * p.radius - dist) / p.range)
     return jnp.where(ok[..., None], (mag / dist)[..., None] * diff, 0.0)
 
 
+#: Seconds in which a group member makes up the distance to its formation slot (its
+#: desired velocity is its leader's plus the distance over this time).
+SLOT_TIME = 1.0
+#: A member farther than this (m) from its slot (plus its abreast offset), or with a wall
+#: between them, walks the group's route to catch up instead.
+SLOT_REACH = 1.5
+
 #: Up to this many people in a window every pair is looked at (cheaper than the grid's
 #: sort and gathers at this size); beyond it, the grid of cells.
 ALL_PAIRS_MAX = 128
 
 
-def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs):
+def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid):
     """(n, 2) sum of the pair repulsions on each alive person (all pairs for a few people,
     else neighbours by a cell list; the two agree while no cell holds more than
-    :data:`CELL_CAPACITY`)."""
+    :data:`CELL_CAPACITY`); ``gid`` (n,) the groups (None: nobody in one)."""
     n = x.shape[0]
     if all_pairs:
         ok = alive[:, None] & alive[None, :] & ~jnp.eye(n, dtype=bool)
         now = x[:, None, :] - x[None, :, :]
-        return _pair_term(now, v[:, None, :] - v[None, :, :], ok, p).sum(axis=1)
+        mates = None if gid is None else (gid[:, None] == gid[None, :]) & (gid[:, None] >= 0)
+        return _pair_term(now, v[:, None, :] - v[None, :, :], ok, p, mates).sum(axis=1)
     c = jnp.floor((x - origin) / cell).astype(jnp.int32)
     key = jnp.where(alive, c[:, 0] * n_y + c[:, 1], jnp.iinfo(jnp.int32).max)
     order = jnp.argsort(key)
@@ -142,10 +161,11 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs):
     ok = (sk[slot] == target[..., None]) & (cand != jnp.arange(n)[:, None, None])
     now = x[:, None, None, :] - x[cand]  # from j to i
     ok = ok & alive[:, None, None]
-    return _pair_term(now, v[:, None, None, :] - v[cand], ok, p).sum(axis=(1, 2))
+    mates = None if gid is None else (gid[:, None, None] == gid[cand]) & (gid[:, None, None] >= 0)
+    return _pair_term(now, v[:, None, None, :] - v[cand], ok, p, mates).sum(axis=(1, 2))
 
 
-@partial(jax.jit, static_argnames=("n_steps", "n_y", "all_pairs"))
+@partial(jax.jit, static_argnames=("n_steps", "n_y", "all_pairs", "with_groups"))
 def _window(
     state,
     route,
@@ -156,6 +176,7 @@ def _window(
     kin,
     plan,
     shift,
+    form,
     t0,
     dt,
     p,
@@ -163,6 +184,7 @@ def _window(
     n_steps,
     n_y,
     all_pairs,
+    with_groups,
 ):
     """Integrate ``n_steps`` steps of ``dt`` from ``t0`` (semi-implicit Euler); returns the
     final state and the positions after every step (n_steps, n, 2).
@@ -170,20 +192,55 @@ def _window(
     Positions are in a frame where each scenario is shifted by ``shift`` (n, 2) so that
     artefacts of different scenarios never meet; the walls are looked up unshifted.
     Kinematic artefacts (``kin``) are where their ``plan`` (n_steps, n, 2) puts them.
+    ``form`` is the formation: each artefact's leader and the member one slot ahead of it
+    (indices here; itself when it has none), its abreast offset and its group (``-1``:
+    alone; ``with_groups`` False leaves the formation out). The state is positions,
+    velocities, route indices and headings (unit vectors).
     """
     dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
+    lead, prev, side, gid = form
+    has_lead = lead != jnp.arange(lead.shape[0])
     h, w = free.shape
 
     def lookup(grid, xy):
+        """``grid`` at the points ``xy`` (..., 2), and whether they lie on the map."""
         ij = jnp.floor((xy - w_origin) / w_res).astype(jnp.int32)
-        col = jnp.clip(ij[:, 0], 0, w - 1)
-        row = jnp.clip(ij[:, 1], 0, h - 1)
-        inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
+        col = jnp.clip(ij[..., 0], 0, w - 1)
+        row = jnp.clip(ij[..., 1], 0, h - 1)
+        inside = (ij[..., 0] >= 0) & (ij[..., 0] < w) & (ij[..., 1] >= 0) & (ij[..., 1] < h)
         return grid[row, col], inside
+
+    def clear(a, b):
+        """Whether the straight walks ``a -> b`` (n, 2) keep on free cells (sampled)."""
+        f = jnp.array([0.2, 0.4, 0.6, 0.8, 1.0])[:, None, None]
+        d, _ = lookup(dist_w, a + f * (b - a) - shift)
+        return jnp.all(d > 0.0, axis=0)
+
+    def formation_slots(x, v, k, hd, alive, target, to, dist, speed, last):
+        """Members' desired velocities towards their slots; the rest keep ``speed``."""
+        grouped = has_lead & alive[lead]
+        xl, el = x[lead], hd[lead]
+        abreast = xl + side[:, None] * jnp.stack([-el[:, 1], el[:, 0]], axis=1)
+        behind = x[prev] - p.group_spacing * hd[prev]  # single file: behind the one ahead
+        d, _ = lookup(dist_w, jnp.stack([abreast, 0.5 * (xl + abreast), behind]) - shift)
+        slot = jnp.where(
+            ((d[0] > p.radius) & (d[1] > 0.0))[:, None],
+            abreast,
+            jnp.where((d[2] > p.radius)[:, None], behind, xl),
+        )
+        gap = slot - x
+        near = jnp.sqrt(jnp.sum(gap**2, axis=1)) <= SLOT_REACH + jnp.abs(side)
+        in_slot = grouped & near & clear(x, slot)
+        # a member cut off from its slot (a corner, a crowd) walks the shared route at its
+        # top speed to catch up
+        speed = jnp.where(grouped & ~in_slot & ~last, p.max_speed * v0, speed)
+        desired = speed[:, None] * to / dist[:, None]
+        desired = jnp.where(in_slot[:, None], v[lead] + gap / SLOT_TIME, desired)
+        return desired, speed, in_slot
 
     def step(carry, inputs):
         s, planned = inputs
-        x, v, k = carry
+        x, v, k, hd = carry
         t = t0 + s * dt
         alive = (t >= t_on) & (t < t_off)
         target = jnp.take_along_axis(route, k[:, None, None].repeat(2, axis=2), axis=1)[:, 0]
@@ -191,12 +248,31 @@ def _window(
         dist = jnp.sqrt(jnp.sum(to**2, axis=1) + 1e-12)
         last = k >= n_vert - 1
         speed = jnp.where(last, v0 * jnp.minimum(1.0, dist / 0.5), v0)
-        desired = speed[:, None] * to / dist[:, None]
-        a = (desired - v) / p.relaxation + _pair_forces(
-            x, v, alive, p, cell, n_y, origin, all_pairs
-        )
+        if with_groups:  # members head for their slot beside (or behind) their leader
+            desired, speed, in_slot = formation_slots(
+                x, v, k, hd, alive, target, to, dist, speed, last
+            )
+        else:
+            desired = speed[:, None] * to / dist[:, None]
+            in_slot = jnp.zeros_like(alive)
         dw, _ = lookup(dist_w, x - shift)
         gw, _ = lookup(grad_w, x - shift)
+        # whoever walks into a wall or pillar (a member off the route after walking beside
+        # its leader, anybody pushed off it by the others) goes round it: the desired
+        # velocity along the wall, not into it (the social force alone stalls where the
+        # wall's push balances the drive)
+        into = jnp.sum(desired * gw, axis=1)
+        along = desired - into[:, None] * gw
+        n_along = jnp.sqrt(jnp.sum(along**2, axis=1))
+        turn = jnp.stack([-gw[:, 1], gw[:, 0]], axis=1)  # head-on: turn left
+        along = jnp.where(
+            (n_along > 1e-3 * speed)[:, None], along / jnp.maximum(n_along, 1e-9)[:, None], turn
+        )
+        round_it = ~in_slot & (into < 0.0) & (dw < p.radius + 2.0 * p.wall_range)
+        desired = jnp.where(round_it[:, None], speed[:, None] * along, desired)
+        a = (desired - v) / p.relaxation + _pair_forces(
+            x, v, alive, p, cell, n_y, origin, all_pairs, gid if with_groups else None
+        )
         a = a + (p.wall_strength * jnp.exp((p.radius - dw) / p.wall_range))[:, None] * gw
         v_new = v + a * dt
         cap = p.max_speed * jnp.maximum(v0, 1e-9)
@@ -205,16 +281,37 @@ def _window(
         x_new = x + v_new * dt
         on_free, inside = lookup(free, x_new - shift)
         ok = on_free & inside
+        if with_groups:
+            # a member blocked by a wall slides along it (one component of its step)
+            # instead of standing: following its leader off the route, it meets corners
+            v_try = jnp.stack([v_new * jnp.array([1.0, 0.0]), v_new * jnp.array([0.0, 1.0])])
+            f_try, i_try = lookup(free, x + v_try * dt - shift)
+            can = has_lead & ~ok & f_try & i_try  # (2, n)
+            pick = jnp.where(can[0][:, None], v_try[0], v_try[1])
+            slide = can[0] | can[1]
+            v_new = jnp.where(slide[:, None], pick, v_new)
+            x_new = jnp.where(slide[:, None], x + pick * dt, x_new)
+            ok = ok | slide
         move = alive & ~kin
         x_out = jnp.where((move & ok)[:, None], x_new, x)
         v_out = jnp.where((move & ok)[:, None], v_new, jnp.where(move[:, None], 0.0, v))
         follow = (alive & kin)[:, None]
         x_out = jnp.where(follow, planned, x_out)
         v_out = jnp.where(follow, (planned - x) / dt, v_out)
-        # the next corner once this one is reached
-        reached = jnp.sqrt(jnp.sum((target - x_out) ** 2, axis=1)) < jnp.maximum(0.4, 2.0 * v0 * dt)
+        # the next corner once this one is reached (a member abreast passes a corner its
+        # offset away)
+        tol = jnp.maximum(0.4, 2.0 * v0 * dt) + jnp.where(has_lead, jnp.abs(side), 0.0)
+        reached = jnp.sqrt(jnp.sum((target - x_out) ** 2, axis=1)) < tol
         k_out = jnp.where(move & reached & ~last, k + 1, k)
-        return (x_out, v_out, k_out), x_out
+        if with_groups:
+            # a member in its slot is at most one corner behind its leader on the route
+            # (one it sees)
+            k_c = jnp.maximum(k_out, k_out[lead] - 1)
+            corner = jnp.take_along_axis(route, k_c[:, None, None].repeat(2, axis=2), axis=1)
+            k_out = jnp.where(in_slot & move & clear(x_out, corner[:, 0]), k_c, k_out)
+        sp_out = jnp.sqrt(jnp.sum(v_out**2, axis=1))
+        hd_out = jnp.where((sp_out > 0.1)[:, None], v_out / jnp.maximum(sp_out, 1e-9)[:, None], hd)
+        return (x_out, v_out, k_out, hd_out), x_out
 
     steps = jnp.arange(1, n_steps + 1, dtype=jnp.float64)
     return jax.lax.scan(step, state, (steps, plan))
@@ -259,14 +356,16 @@ def social_force_tracks(
     *,
     dt: float = 0.1,
     kinematic: Any = None,
+    groups: Any = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again with the social force (people give way to each other).
 
     Parameters
     ----------
     tracks : pandas.DataFrame
-        ``id, t, x, y, yaw`` (and optionally ``scenario``): one row per artefact and epoch
-        of its life, as the behaviours write them. Each artefact keeps its first and last
+        ``id, t, x, y, yaw`` (and optionally ``scenario``, and ``vx, vy``: the velocity at
+        an artefact's first row, default 0): one row per artefact and epoch of its life, as
+        the behaviours write them. Each artefact keeps its first and last
         time (its life-cycle) and its route (the corners of its planned path); it walks the
         route at its preferred speed (the median of its planned speeds; an artefact that
         never moves stands, and the others walk around it). Artefacts of different
@@ -281,6 +380,16 @@ def social_force_tracks(
         Artefacts that keep their planned track exactly (vehicles, carts: no social force
         of their own) and are still avoided by the others, per row of ``tracks`` (True for
         any row of an artefact makes it kinematic). Standing artefacts always are.
+    groups : (n_tracks,) array, optional
+        Group label of each row's artefact (its first row counts; groups are per scenario;
+        ``None``, NaN, ``""`` or a negative number: alone). The members of a group walk
+        together (:mod:`~are_stats.behaviour._groups`): the first to arrive leads on its
+        route, the others take the same route at the group's pace (the slowest member's
+        preferred speed) and keep to their formation slot, abreast of the leader at
+        ``params.group_spacing`` or, where the slot is not free (a door), that far behind
+        it; members repel each other only on contact, everybody else as usual. When the
+        leader has left, the others walk on along the shared route. Kinematic artefacts
+        walk alone.
 
     Returns
     -------
@@ -296,11 +405,11 @@ def social_force_tracks(
     dt = float(check_positive("dt", dt))
     if len(tracks) == 0:
         return tracks.copy()
-    groups = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
+    by = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
     base = tracks.reset_index(drop=True)
-    perm = base.sort_values([*groups, "t"], kind="stable").index.to_numpy()
+    perm = base.sort_values([*by, "t"], kind="stable").index.to_numpy()
     tab = base.iloc[perm].reset_index(drop=True)
-    keys = tab[groups].to_numpy()
+    keys = tab[by].to_numpy()
     first = np.r_[True, (keys[1:] != keys[:-1]).any(axis=1)]
     start = np.flatnonzero(first)
     stop = np.r_[start[1:], len(tab)]
@@ -325,6 +434,35 @@ def social_force_tracks(
             )
         rows = rows[perm]
         kin |= np.logical_or.reduceat(rows, start)
+    gid = np.full(n, -1, np.int64)
+    side = np.zeros(n)
+    leader, ahead = np.arange(n), np.arange(n)
+    if groups is not None:
+        from are_stats.behaviour._groups import formation, slot_offsets
+
+        labels = np.asarray(groups, dtype=object)
+        if labels.shape != (len(tracks),):
+            raise ValueError(
+                f"groups: expected one label per track row ({len(tracks)}), got {labels.shape}"
+            )
+        labels = labels[perm][start].copy()
+        labels[kin] = None  # vehicles, carts and standing artefacts walk alone
+        scen_of = tab["scenario"].to_numpy()[start] if "scenario" in tab.columns else None
+        leader, slot = formation(scen_of if scen_of is not None else np.zeros(n), labels, t_on)
+        side, _ = slot_offsets(slot, float(p.group_spacing))
+        member = leader != np.arange(n)
+        ahead = leader.copy()  # in single file each follows the member one slot ahead
+        by_slot = {(int(leader[i]), int(slot[i])): i for i in range(n)}
+        for i in np.flatnonzero(slot > 1):
+            ahead[i] = by_slot[(int(leader[i]), int(slot[i]) - 1)]
+        if member.any():
+            gid[member] = leader[member]
+            gid[leader[member]] = leader[member]
+            pace = v0.copy()
+            np.minimum.at(pace, leader[member], v0[member])
+            v0 = np.where(gid >= 0, pace[np.maximum(gid, 0)], v0)
+            for i in np.flatnonzero(member):
+                routes[i] = routes[leader[i]]  # one route: the leader's
     # each scenario on its own stretch of the plane, far from the others
     scen = (
         pd.factorize(tab["scenario"].to_numpy()[start])[0]
@@ -342,9 +480,14 @@ def social_force_tracks(
         n_vert[i] = len(r)
     route = route + shift[:, None, :]
     walls, n_y = _walls(grid, xy_all, p.reach, float(shift[:, 0].max()))
-    x = route[:, 0].copy()
+    x = xy_all[start] + shift  # where each artefact arrives (a member: beside its leader)
     v = np.zeros((n, 2))
+    if "vx" in tab.columns and "vy" in tab.columns:  # walking already when it appears
+        v = np.nan_to_num(tab[["vx", "vy"]].to_numpy(float)[start])
     k = np.zeros(n, np.int32)
+    first_leg = route[:, min(1, m_max - 1)] - route[:, 0]
+    norm = np.hypot(*first_leg.T)
+    hd = np.where((norm > 1e-9)[:, None], first_leg / np.maximum(norm, 1e-9)[:, None], [1.0, 0.0])
     p_j = SocialForce(*(float(f) for f in p))
     t0 = float(t_on.min())
     n_win = int(np.ceil(span / dt / WINDOW_STEPS)) + 1
@@ -361,7 +504,17 @@ def social_force_tracks(
         def take(a, pad=pad):
             return jnp.asarray(a[pad])
 
-        state = (take(x), take(v), take(k))
+        state = (take(x), take(v), take(k), take(hd))
+
+        def local(j, act=act, nb=nb):
+            loc = np.minimum(np.searchsorted(act, j[act]), act.size - 1)
+            loc = np.where(act[loc] == j[act], loc, np.arange(act.size))
+            return jnp.asarray(np.r_[loc, np.arange(act.size, nb)].astype(np.int32))
+
+        form = (
+            local(leader), local(ahead), take(side),
+            jnp.asarray(np.where(live_pad, gid[pad], -1)),
+        )  # fmt: skip
         t_on_w = np.where(live_pad, t_on[pad], np.inf)
         tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
         plan = np.zeros((WINDOW_STEPS, nb, 2))
@@ -370,13 +523,14 @@ def social_force_tracks(
                 a, b = start[i], stop[i]
                 plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
                 plan[:, c, 1] = np.interp(tt, t_all[a:b], xy_all[a:b, 1]) + shift[i, 1]
-        (xf, vf, kf), xs = _window(
+        (xf, vf, kf, hf), xs = _window(
             state, take(route), take(n_vert), take(v0), jnp.asarray(t_on_w),
-            take(t_off), take(kin), jnp.asarray(plan), take(shift), w0, dt, p_j, walls,
-            WINDOW_STEPS, n_y, nb <= ALL_PAIRS_MAX,
+            take(t_off), take(kin), jnp.asarray(plan), take(shift), form, w0, dt, p_j, walls,
+            WINDOW_STEPS, n_y, nb <= ALL_PAIRS_MAX, bool((gid[act] >= 0).any()),
         )  # fmt: skip
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
         x[act], v[act], k[act] = xf[: act.size], vf[: act.size], kf[: act.size]
+        hd[act] = np.asarray(hf)[: act.size]
         alive = (tt[:, None] >= t_on[act][None, :]) & (tt[:, None] < t_off[act][None, :])
         si, ai = np.nonzero(alive)
         sim_t.append(tt[si])
@@ -396,7 +550,7 @@ def social_force_tracks(
             continue
         lo, hi = bounds[i], bounds[i + 1]
         ts = np.r_[t_on[i], st[lo:hi]]
-        xs_i = np.vstack([routes[i][:1], sx[lo:hi]])
+        xs_i = np.vstack([xy_all[a : a + 1], sx[lo:hi]])
         out_xy[a:b, 0] = np.interp(t_all[a:b], ts, xs_i[:, 0])
         out_xy[a:b, 1] = np.interp(t_all[a:b], ts, xs_i[:, 1])
         if b - a > 1:

@@ -197,9 +197,23 @@ __all__ += [
 ]
 
 from are_stats.fitting._interaction import (  # noqa: E402
+    fit_group_spacing,
     fit_interaction,
     interaction_attrs,
     interaction_from_attrs,
 )
 
-__all__ += ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]
+__all__ += [
+    "fit_group_spacing",
+    "fit_interaction",
+    "interaction_attrs",
+    "interaction_from_attrs",
+]
+
+from are_stats.fitting._motion_store import (  # noqa: E402
+    MOTION_TABLES,
+    motion_attrs,
+    motion_tables,
+)
+
+__all__ += ["MOTION_TABLES", "motion_attrs", "motion_tables"]

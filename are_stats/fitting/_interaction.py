@@ -2,10 +2,12 @@
 
 :func:`fit_interaction` resamples the tracks to one step (the log's median) and estimates
 the social force's strength ``A``, range ``B`` and relaxation time ``tau``
-(:func:`~are_stats.behaviour.fit_social_force`); :func:`interaction_attrs` writes them as
-attributes of the fit's ``behaviour`` group and :func:`interaction_from_attrs` reads them
-back (the only reader), so that every scene generated from the fit walks with the log's
-interaction (:func:`~are_stats.scenarios.scenes_from_fit`).
+(:func:`~are_stats.behaviour.fit_social_force`) and the spacing of the log's groups
+(:func:`fit_group_spacing`: members of an arrival group walk that far apart);
+:func:`interaction_attrs` writes them as attributes of the fit's ``behaviour`` group and
+:func:`interaction_from_attrs` reads them back (the only reader), so that every scene
+generated from the fit walks with the log's interaction and groups
+(:func:`~are_stats.scenarios.scenes_from_fit`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import pandas as pd
 
 from are_stats.behaviour import SocialForce, fit_social_force
 
-__all__ = ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]
+__all__ = ["fit_group_spacing", "fit_interaction", "interaction_attrs", "interaction_from_attrs"]
 
 _PREFIX = "interaction_"
 _FITTED = ("strength", "range", "relaxation")
@@ -70,7 +72,42 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
             f"tracks: the social force does not describe them (relaxation "
             f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
         )
+    spacing, samples = fit_group_spacing(tracks)
+    info = {**info, "group_samples": float(samples)}
+    if samples > 0:
+        params = params._replace(group_spacing=spacing)
     return params, info
+
+
+def fit_group_spacing(tracks: pd.DataFrame) -> tuple[float, int]:
+    """The spacing of the groups in a log's tracks (:func:`~are_stats.behaviour.group_spacing`).
+
+    The groups are those the life-cycle conversion infers (people first seen together who
+    move together: :func:`~are_stats.logs.tracks_to_lifecycle`), the spacing the median
+    distance from a walking member to its nearest co-member.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene.
+
+    Returns
+    -------
+    spacing : float
+        Metres; NaN without groups seen walking.
+    samples : int
+        Member samples the spacing is the median of (0: none).
+    """
+    import warnings
+
+    from are_stats.behaviour import group_spacing
+    from are_stats.logs import tracks_to_lifecycle
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
+        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
+    labels = dict(zip(life["id"].astype(str), life["group"].astype(str), strict=True))
+    return group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
 
 
 def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[str, float]:
@@ -78,6 +115,7 @@ def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[st
     out = {f"{_PREFIX}{k}": float(getattr(params, k)) for k in SocialForce._fields}
     out[f"{_PREFIX}r2"] = float(info.get("r2", np.nan))
     out[f"{_PREFIX}samples"] = float(info.get("n", np.nan))
+    out[f"{_PREFIX}group_samples"] = float(info.get("group_samples", 0.0))
     return out
 
 

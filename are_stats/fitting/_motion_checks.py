@@ -26,8 +26,10 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   continuations: a goal from the posterior over the class's observed exit cells (their
   frequencies times the soft policy's likelihood of the window's observed moves,
   discretised as in the fit: Bayesian goal inference), then the soft policy walked from the
-  last observed cell with the observed heading at the observed speed, smoothed and timed as
-  in the generator. It is scored as the mean of the samples and as the best of them.
+  last observed cell with the observed heading at the observed speed, timed as in the
+  generator: the continuous (any-angle) path, then, with ``interaction``, walked
+  again with the social force among the people around, as generation walks people. It is
+  scored as the mean of the samples and as the best of them.
 """
 
 from __future__ import annotations
@@ -398,12 +400,12 @@ def heldout_log_likelihood(
 # ---------------------------------------------------------------------- ADE / FDE
 def _windows(
     tracks: pd.DataFrame, n_obs: int, n_pred: int, rate: float, stride: int | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Windows ``(B, n_obs + n_pred, 2)`` of tracks resampled at ``rate``, their track ids and
-    labels."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Windows ``(B, n_obs + n_pred, 2)`` of tracks resampled at ``rate``, their track ids,
+    labels and start times ``(B,)``."""
     n = n_obs + n_pred
     stride = n if stride is None else int(stride)
-    out, tid, lab = [], [], []
+    out, tid, lab, t0 = [], [], [], []
     has_label = "label" in tracks.columns
     for i, g in tracks.sort_values(["id", "t"], kind="stable").groupby("id", sort=True):
         t = g["t"].to_numpy(float)
@@ -415,7 +417,9 @@ def _windows(
             out.append(xy[s : s + n])
             tid.append(i)
             lab.append(str(g["label"].iloc[0]) if has_label else "")
-    return np.asarray(out, float).reshape(-1, n, 2), np.asarray(tid), np.asarray(lab)
+            t0.append(ts[s])
+    win = np.asarray(out, float).reshape(-1, n, 2)
+    return win, np.asarray(tid), np.asarray(lab), np.asarray(t0, float)
 
 
 def _errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -549,6 +553,77 @@ def _model_predictions(
     return out
 
 
+def _interacting(
+    samples: np.ndarray,
+    observed: np.ndarray,
+    ids: np.ndarray,
+    t_last: np.ndarray,
+    tracks: pd.DataFrame,
+    rate: float,
+    params: Any,
+    grid: Any,
+) -> np.ndarray:
+    """Continuations ``(B, K, n_pred, 2)`` walked again with the social force, as generation
+    walks people: each from its last observed position at its observed velocity along its
+    sampled path, among the people present at that time who can come within the
+    interaction's reach over the horizon (kinematic, at constant velocity from what was
+    observed of them: no future leaks)."""
+    from are_stats.behaviour import social_force_tracks
+
+    b, k, n_pred, _ = samples.shape
+    n_obs = observed.shape[1]
+    span = (n_obs - 1) / rate
+    v_obs = (observed[:, -1] - observed[:, 0]) / max(span, 1e-9)
+    steps = np.arange(n_pred + 1) / rate
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    per = {i: (g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)) for i, g in tab.groupby("id")}
+    frames = []
+    for w in range(b):
+        # the person: its K continuations, one scenario each
+        path = np.concatenate([np.repeat(observed[w, -1][None, None], k, 0), samples[w]], 1)
+        scen = w * k + np.arange(k)
+        nb = []
+        for j, (tj, xj) in per.items():
+            if j == ids[w] or not (tj[0] <= t_last[w] <= tj[-1]):
+                continue
+            p_now = np.array(
+                [np.interp(t_last[w], tj, xj[:, 0]), np.interp(t_last[w], tj, xj[:, 1])]
+            )
+            t_from = max(t_last[w] - span, tj[0])
+            p_then = np.array([np.interp(t_from, tj, xj[:, 0]), np.interp(t_from, tj, xj[:, 1])])
+            vel = (p_now - p_then) / (t_last[w] - t_from) if t_last[w] > t_from else np.zeros(2)
+            # near enough to meet within the horizon
+            closing = steps[-1] * (np.hypot(*v_obs[w]) + np.hypot(*vel))
+            if np.hypot(*(p_now - observed[w, -1])) <= params.reach + closing:
+                nb.append((p_now, vel))
+        m = 1 + len(nb)
+        xy = np.empty((k, m, n_pred + 1, 2))
+        xy[:, 0] = path
+        vel0 = np.empty((m, 2))
+        vel0[0] = v_obs[w]
+        for q, (p_now, vel) in enumerate(nb, start=1):
+            xy[:, q] = p_now + steps[:, None] * vel
+            vel0[q] = vel
+        frames.append(
+            pd.DataFrame(
+                {
+                    "scenario": np.repeat(scen, m * (n_pred + 1)),
+                    "id": np.tile(np.repeat(np.arange(m), n_pred + 1), k),
+                    "t": np.tile(steps, k * m),  # from the window's last observed time
+                    "x": xy[..., 0].ravel(),
+                    "y": xy[..., 1].ravel(),
+                    "yaw": 0.0,
+                    "vx": np.tile(np.repeat(vel0[:, 0], n_pred + 1), k),
+                    "vy": np.tile(np.repeat(vel0[:, 1], n_pred + 1), k),
+                }
+            )
+        )
+    plan = pd.concat(frames, ignore_index=True)
+    walked = social_force_tracks(plan, params, grid, dt=0.1, kinematic=plan["id"].to_numpy() > 0)
+    me = walked[walked["id"] == 0].sort_values(["scenario", "t"], kind="stable")
+    return me[["x", "y"]].to_numpy(float).reshape(b, k, n_pred + 1, 2)[:, :, 1:]
+
+
 def displacement_errors(
     key: Any,
     behaviour_fit: BehaviourFit | None,
@@ -559,8 +634,10 @@ def displacement_errors(
     rate: float = 2.5,
     n_samples: int = 20,
     stride: int | None = None,
-    smooth: int = 5,
+    smooth: int = 0,
     max_windows: int | None = 500,
+    interaction: Any = None,
+    grid: Any = None,
 ) -> pd.DataFrame:
     """Average and final displacement errors of the fitted model and of constant velocity.
 
@@ -581,9 +658,19 @@ def displacement_errors(
     stride : int or None
         Samples between window starts (default: ``n_obs + n_pred``, disjoint windows).
     smooth : int
-        Moving-average window (cells) of the sampled paths, as in the generator.
+        ``0``: the continuous motion of generation (any-angle paths:
+        :func:`~are_stats.behaviour.continuous_path`); ``> 1``: the old grid motion, the
+        cells' path smoothed over this many vertices.
     max_windows : int or None
         At most this many windows (a random subset).
+    interaction : bool or SocialForce, optional
+        Walk the model's continuations again with the social force, as generation does
+        (``True``: the published parameters; a :class:`~are_stats.behaviour.SocialForce`:
+        those, e.g. the fit's), among the people present at the window's last observed
+        time within its reach, who go on at their observed velocity. None: the sampled
+        paths as they are.
+    grid : OccupancyGrid, optional
+        The map the interaction keeps off (None: open ground).
 
     Returns
     -------
@@ -594,11 +681,11 @@ def displacement_errors(
         ``n_windows`` and ``K``.
     """
     rate = float(check_positive("rate", rate))
-    win, _, lab = _windows(tracks, int(n_obs), int(n_pred), rate, stride)
+    win, tid, lab, t0 = _windows(tracks, int(n_obs), int(n_pred), rate, stride)
     rng = _rng(key)
     if max_windows is not None and len(win) > max_windows:
         pick = np.sort(rng.choice(len(win), int(max_windows), replace=False))
-        win, lab = win[pick], lab[pick]
+        win, tid, lab, t0 = win[pick], tid[pick], lab[pick], t0[pick]
     obs, truth = win[:, :n_obs], win[:, n_obs:]
     rows = {}
 
@@ -619,6 +706,12 @@ def displacement_errors(
         samples = _model_predictions(
             rng, behaviour_fit, obs, lab, int(n_pred), rate, int(n_samples), smooth
         )
+        if interaction is not None and interaction is not False:
+            from are_stats.behaviour import SocialForce
+
+            params = interaction if isinstance(interaction, SocialForce) else SocialForce()
+            t_last = t0 + (int(n_obs) - 1) / rate
+            samples = _interacting(samples, obs, tid, t_last, tracks, rate, params, grid)
         add("model mean of K", *_errors(samples.mean(axis=1), truth), int(n_samples))
         d = np.hypot(*np.moveaxis(samples - truth[:, None], -1, 0))  # (B, K, n_pred)
         best = np.argmin(d.mean(axis=2), axis=1)

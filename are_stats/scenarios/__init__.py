@@ -38,6 +38,7 @@ from are_stats.scenarios._realism import (
     plot_realism,
     realism_features,
     realism_score,
+    realism_summary,
     realism_table,
 )
 from are_stats.scenarios._scene import Boxes, Scene
@@ -64,6 +65,7 @@ __all__ = [
     "read_scenarios",
     "realism_features",
     "realism_score",
+    "realism_summary",
     "realism_table",
     "read_scenes",
     "scenario_counts",

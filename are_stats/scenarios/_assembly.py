@@ -19,6 +19,12 @@ The behaviour rule (``behaviours=``), one for every command:
 Tracks end at the scenario's horizon (the scenario is defined on ``[0, horizon]``; its
 artefacts' ``t_leave`` may lie beyond, right-censored there).
 
+**Groups** (issue 26): the members of an arrival group (the scenarios table's ``group``,
+drawn by the ``groups`` arrival model) take their leader's planned route in formation at
+the group spacing (:func:`~are_stats.behaviour.group_tracks`: the fit's, else the
+published 0.75 m), pedestrians only; the interaction then keeps the formation while they
+walk.
+
 Then the **interaction** (``interaction=``): the planned tracks are walked again under the
 social force (:func:`~are_stats.behaviour.social_force_tracks`), so people give way to
 each other, to artefacts standing and to vehicles instead of walking through them. The
@@ -258,8 +264,11 @@ def scene_tracks(
                 dt=behaviour_dt, horizon=horizon, source=cell_source,
             )
         )  # fmt: skip
-    if tracks is not None and len(tracks) and interaction is not False:
-        tracks = _interact(tracks, art, catalogue, class_labels, n, grid, interaction)
+    if tracks is not None and len(tracks):
+        walks = _pedestrians(art, catalogue, class_labels, n)
+        tracks, groups = _groups(tracks, art, walks, grid, interaction)
+        if interaction is not False:
+            tracks = _interact(tracks, walks, grid, interaction, groups)
     return tracks
 
 
@@ -354,23 +363,52 @@ def scenes_from_draws(
     return scenes_from_tables(art, tracks, catalogue, class_labels, range(n))
 
 
-def _interact(
-    tracks: pd.DataFrame, art: pd.DataFrame, catalogue: Any, labels: Any, n: int, grid: Any,
-    interaction: Any,
-) -> pd.DataFrame:  # fmt: skip
-    """The tracks walked again under the social force; non-pedestrians stay kinematic."""
-    from are_stats.behaviour import SocialForce, social_force_tracks
-
-    params = interaction if isinstance(interaction, SocialForce) else SocialForce()
-    scenes = scenes_from_tables(art, None, catalogue, labels, range(n))
+def _pedestrians(art: pd.DataFrame, catalogue: Any, labels: Any, n: int) -> dict:
+    """``(scenario, id) -> bool``: whether the artefact's class walks (its catalogue
+    ``kind`` is ``pedestrian``, the default)."""
     walks = {}
-    for k, scene in enumerate(scenes):
+    for k, scene in enumerate(scenes_from_tables(art, None, catalogue, labels, range(n))):
         for a, c in zip(scene.ids, scene.classes, strict=True):
             kind = catalogue.row(int(c)).features.get("kind", "pedestrian")
             walks[(k, int(a))] = kind == "pedestrian"
+    return walks
+
+
+def _groups(
+    tracks: pd.DataFrame, art: pd.DataFrame, walks: dict, grid: Any, interaction: Any
+) -> tuple[pd.DataFrame, np.ndarray | None]:
+    """Planned tracks with the members of each arrival group on their leader's route
+    (:func:`~are_stats.behaviour.group_tracks`; pedestrians only) and each track row's
+    group label (None without a ``group`` column)."""
+    from are_stats.behaviour import SocialForce, group_tracks
+
+    if "group" not in art.columns:
+        return tracks, None
+    spacing = (interaction if isinstance(interaction, SocialForce) else SocialForce()).group_spacing
+    id_col = "artefact" if "artefact" in art.columns else "id"
+    if id_col not in art.columns:
+        return tracks, None
+    ids = art[id_col].to_numpy()
+    sc = art["scenario"].to_numpy()
+    walking = np.array([walks.get((int(s), int(a)), False) for s, a in zip(sc, ids, strict=True)])
+    group = np.where(walking, art["group"].to_numpy(np.int64), -1)
+    tracks = group_tracks(tracks, art.assign(group=group), spacing, grid)
+    label = pd.Series(group, index=pd.MultiIndex.from_arrays([sc, ids]))
+    rows = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
+    return tracks, label.reindex(rows).fillna(-1).to_numpy(np.int64)
+
+
+def _interact(
+    tracks: pd.DataFrame, walks: dict, grid: Any, interaction: Any, groups: Any = None
+) -> pd.DataFrame:
+    """The tracks walked again under the social force; non-pedestrians stay kinematic;
+    arrival groups walk together."""
+    from are_stats.behaviour import SocialForce, social_force_tracks
+
+    params = interaction if isinstance(interaction, SocialForce) else SocialForce()
     keys = zip(tracks["scenario"].to_numpy(), tracks["id"].to_numpy(), strict=True)
     kinematic = np.array([not walks.get((int(s), int(a)), False) for s, a in keys])
-    return social_force_tracks(tracks, params, grid, kinematic=kinematic)
+    return social_force_tracks(tracks, params, grid, kinematic=kinematic, groups=groups)
 
 
 def scenes_from_fit(

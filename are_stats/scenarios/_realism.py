@@ -40,6 +40,7 @@ __all__ = [
     "plot_realism",
     "realism_features",
     "realism_score",
+    "realism_summary",
     "realism_table",
 ]
 
@@ -176,6 +177,27 @@ def realism_features(
         feats["wall distance (m)"].append(np.where(inside, np.minimum(dist[r, c], 10.0), 0.0))
         feats["on free cells"].append((inside & grid.free[r, c]).astype(float))
     return {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in feats.items()}
+
+
+def realism_summary(features: dict[str, np.ndarray]) -> pd.DataFrame:
+    """Summaries of feature values (:func:`realism_features`): the log's side of the table.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by feature: ``kind``, ``n`` (values), ``mean``, ``5%``, ``50%``, ``95%``
+        (NaN without values).
+    """
+    rows = {}
+    for f, kind in REALISM_FEATURES.items():
+        v = np.asarray(features.get(f, np.zeros(0)), float)
+        v = v[np.isfinite(v)]
+        q = np.quantile(v, [0.05, 0.5, 0.95]) if v.size else np.full(3, np.nan)
+        rows[f] = {"kind": kind, "n": int(v.size), "mean": float(v.mean()) if v.size else np.nan,
+                   "5%": q[0], "50%": q[1], "95%": q[2]}  # fmt: skip
+    out = pd.DataFrame(rows).T
+    out.index.name = "feature"
+    return out
 
 
 def realism_score(

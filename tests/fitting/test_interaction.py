@@ -39,3 +39,35 @@ def test_the_interaction_of_a_log_is_recovered_and_survives_the_fit_file():
     assert interaction_from_attrs({}) is None
     with pytest.raises(ValueError, match="interaction_range: expected a finite number > 0"):
         interaction_from_attrs({**attrs, "interaction_range": -1.0})
+
+
+def test_the_group_spacing_of_a_log_is_fitted_and_stored_with_the_interaction():
+    rng = np.random.default_rng(5)
+    truth = 1.1
+    crowd = _crowd(2, 40)  # people walking alone, whom the pairs meet
+    rows, groups, i = [crowd], [-1] * 40, 40
+    for g in range(10):  # pairs walking across the square, one pair after the other
+        ang = rng.uniform(0, 2 * np.pi)
+        u = np.array([np.cos(ang), np.sin(ang)])
+        t0 = 4.0 * g
+        for m in range(2):
+            a = 10 - 9 * u + m * truth * np.array([-u[1], u[0]])
+            t = t0 + np.arange(0, 14.0, 0.1)
+            xy = a + np.clip(t - t0, 0, 18 / 1.3)[:, None] * 1.3 * u
+            rows.append(pd.DataFrame({"id": i, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": 0.0}))
+            groups.append(g)
+            i += 1
+    plan = pd.concat(rows, ignore_index=True)
+    log = social_force_tracks(
+        plan, SocialForce(group_spacing=truth), dt=0.1,
+        groups=np.asarray(groups)[plan["id"].to_numpy()],
+    )  # fmt: skip
+    est, info = fit_interaction(log[["id", "t", "x", "y"]])
+    assert est.group_spacing == pytest.approx(truth, abs=0.05)
+    assert info["group_samples"] > 1000
+    attrs = interaction_attrs(est, info)
+    assert attrs["interaction_group_spacing"] == est.group_spacing
+    assert interaction_from_attrs(attrs).group_spacing == est.group_spacing
+    # a fit stored before group spacings were fitted reads back with the default
+    old = {k: v for k, v in attrs.items() if k != "interaction_group_spacing"}
+    assert interaction_from_attrs(old).group_spacing == SocialForce().group_spacing

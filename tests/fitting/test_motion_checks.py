@@ -121,3 +121,38 @@ def test_checks_pass_on_model_tracks_and_flag_a_random_walk(crossing, tmp_path) 
     fig = plot_motion_checks(table_w, reps_w, heldout=res, displacement=de)
     fig.savefig(tmp_path / "motion.png", dpi=60)
     assert (tmp_path / "motion.png").stat().st_size > 10_000
+
+
+def test_displacement_errors_predict_with_the_motion_generation_uses(crossing) -> None:
+    """Continuous (any-angle) continuations beat the old smoothed grid paths on straight
+    walkers, and the social force re-walk (generation's interaction) keeps people apart."""
+    from are_stats.behaviour import SocialForce
+    from are_stats.environment import OccupancyGrid
+
+    tracks, free, _, fit = crossing
+    part = tracks.iloc[:600]
+    grid_motion = displacement_errors(3, fit, part, n_samples=8, smooth=5)
+    continuous = displacement_errors(3, fit, part, n_samples=8)
+    for method in ("model mean of K", "model best of K"):
+        assert continuous.loc[method, "ADE"] < 0.8 * grid_motion.loc[method, "ADE"]
+    grid = OccupancyGrid(np.where(free, 0, 100), 0.5)
+    walked = displacement_errors(3, fit, part, n_samples=8, interaction=True, grid=grid)
+    assert list(walked.index) == ["constant velocity", "model mean of K", "model best of K"]
+    assert walked.loc["model best of K", "ADE"] <= walked.loc["model mean of K", "ADE"]
+    assert walked.loc["model mean of K", "ADE"] < grid_motion.loc["model mean of K", "ADE"]
+    # two people walking head-on: each prediction steps aside for the other one
+    t = np.arange(0.0, 8.0 + 1e-9, 0.4)
+    a = pd.DataFrame({"id": 0, "t": t, "x": 2.0 + 1.2 * t, "y": 6.0})
+    b = pd.DataFrame({"id": 1, "t": t, "x": 18.0 - 1.2 * t, "y": 6.05})
+    two = pd.concat([a, b], ignore_index=True)
+    from are_stats.fitting._motion_checks import _interacting
+
+    obs = np.stack([a[["x", "y"]].to_numpy()[:8], b[["x", "y"]].to_numpy()[:8]])
+    cv = np.stack(
+        [obs[i, -1] + np.arange(1, 13)[:, None] * (obs[i, -1] - obs[i, 0]) / 7 for i in (0, 1)]
+    )[:, None]  # (2, 1, 12, 2): the plans, straight on
+    out = _interacting(cv, obs, np.array([0, 1]), np.array([2.8, 2.8]), two, 2.5,
+                       SocialForce(), None)  # fmt: skip
+    assert np.abs(out[:, 0, :, 1] - obs[:, -1:, 1]).max() > 0.2  # they step aside
+    gap = np.hypot(*(out[0, 0] - (obs[1, -1] + np.arange(1, 13)[:, None] * [-0.48, 0])).T)
+    assert gap.min() > 2 * SocialForce().radius  # and do not walk into the other one

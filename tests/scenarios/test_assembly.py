@@ -14,6 +14,7 @@ from are_stats.scenarios import (
     Scene,
     generate_scenarios,
     posterior_draws,
+    scene_tracks,
     scenes_from_draws,
     scenes_from_fit,
 )
@@ -145,3 +146,44 @@ def test_the_interaction_walks_pedestrians_again_and_keeps_vehicles_on_their_pla
         row, col = np.asarray(grid.world_to_cell(b[["x", "y"]].to_numpy())).T
         assert grid.free[row[is_walker], col[is_walker]].all()
     assert moved_people >= 1
+
+
+def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
+    """Groups of three (the groups arrival model) share their leader's route and walk at
+    the group spacing, against independent walkers without the group column."""
+    from are_stats.behaviour import SocialForce
+    from are_stats.traffic import TrafficLaws
+
+    draws = {
+        "arrival_rate": np.array([3e-4]), "leave_rate": np.array([1 / 60]),
+        "event_rate": np.array([1e-4]), "stay_mean": np.array([60.0]),
+        "group_size_probs": np.array([[0.0, 0.0, 1.0]]),
+        "mix_weights": np.array([[1.0, 0, 0, 0, 0]]),
+        "mix_rates": np.array([[15.0, 7, 3, 21, 5]]),
+    }  # fmt: skip
+    laws = TrafficLaws(arrivals="groups")
+    scene = scenes_from_draws(3, draws, grid, catalogue, 1, HORIZON, laws=laws, behaviours=True)[0]
+    art, tracks = scene.artefacts, scene.tracks_table()
+
+    def nearest(art: pd.DataFrame, tracks: pd.DataFrame) -> np.ndarray:
+        out = []
+        for _, part in art.groupby("group"):
+            tabs = [tracks[tracks["id"] == i].set_index("t")[["x", "y"]] for i in part["artefact"]]
+            times = tabs[0].index
+            for tab in tabs[1:]:
+                times = times.intersection(tab.index)
+            xy = np.stack([tab.loc[times].to_numpy() for tab in tabs])
+            d = np.hypot(*(xy[:, None] - xy[None, :]).transpose(3, 0, 1, 2))
+            d[np.arange(len(tabs)), np.arange(len(tabs))] = np.inf
+            out.append(d.min(axis=0).ravel())
+        return np.concatenate(out)
+
+    assert art.groupby("group").size().eq(3).all() and art["group"].nunique() >= 8
+    near = nearest(art, tracks)
+    assert abs(np.median(near) - SocialForce().group_spacing) < 0.1
+    assert np.quantile(near, 0.9) < 2 * SocialForce().group_spacing
+    # the same artefacts without their groups: everybody on its own route
+    alone = scene_tracks(jax.random.key(3), art.drop(columns="group"), grid, catalogue, HORIZON)
+    apart = nearest(art, alone)
+    assert np.median(apart) > 2 * np.median(near)
+    assert np.quantile(apart, 0.9) > 4 * np.quantile(near, 0.9)
