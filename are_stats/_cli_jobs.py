@@ -201,6 +201,12 @@ def run_fit(
     for w in caught:
         console.print(f"[yellow]warning:[/] {w.message}")
     data = lifecycle.to_lifecycle_data()
+    # labels without marks: the class is the label, found in the catalogue by name (issue 31)
+    labelled = lifecycle.label_classes()
+    if labelled is not None:
+        from are_stats.environment import load_catalogue
+
+        load_catalogue().rows_of_labels(labelled[1], source=log, where="column 'label'")
     if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
         steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
         check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
@@ -232,7 +238,12 @@ def run_fit(
             settings,
             counts_panel=panel,
             progress=lambda msg: status.update(f"fitting: {msg} ..."),
-            class_labels=lifecycle.to_arrays()["label_names"] if data.labels is not None else None,
+            class_labels=(
+                lifecycle.to_arrays()["label_names"]
+                if data.labels is not None or labelled is not None
+                else None
+            ),
+            classes=None if labelled is None else labelled[0],
             grid=None if positions == "uniform" else grid,
             clock_start=clock_start,
         )
@@ -259,8 +270,11 @@ def run_fit(
                     "their bounding box plus 1 m, all free)"
                 )
             try:
+                from are_stats.environment import load_catalogue
+
                 bfit = fit_behaviour(
-                    tracks, free, res, origin, seed=seed, features=features or None
+                    tracks, free, res, origin, seed=seed, features=features or None,
+                    run_speed=load_catalogue().run_thresholds(),
                 )  # fmt: skip
             except NoWalkersError as err:  # people who only stand: no walking to learn
                 console.print(f"note: behaviour not fitted ({err}); scenes use the catalogue's")

@@ -203,3 +203,12 @@ from are_stats.fitting._interaction import (  # noqa: E402
 )
 
 __all__ += ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]
+
+from are_stats.fitting._classes import (  # noqa: E402
+    CLASS_STAY_MODELS,
+    ClassFit,
+    attach_classes,
+    fit_classes,
+)
+
+__all__ += ["CLASS_STAY_MODELS", "ClassFit", "attach_classes", "fit_classes"]
