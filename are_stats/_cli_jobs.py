@@ -377,7 +377,9 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     import matplotlib.pyplot as plt
 
     from are_stats.behaviour import BehaviourFit
+    from are_stats.environment import load_catalogue
     from are_stats.fitting import (
+        class_motion_checks,
         displacement_errors,
         heldout_log_likelihood,
         motion_checks,
@@ -391,6 +393,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
+        run_speed=load_catalogue().run_thresholds(),  # as the fit's (cyclists ride)
     )  # fmt: skip
     errors = displacement_errors(jax.random.fold_in(key, 3), bfit, tracks, n_samples=20)
     fig = plot_motion_checks(table, reps, heldout=held, displacement=errors)
@@ -412,6 +415,11 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         with atomic_path(Path(folder) / name, force=force) as tmp:
             write(tmp)
         out[name] = Path(folder) / name
+    per_class = class_motion_checks(tracks, reps)  # speed and stillness per label (issue 31)
+    if per_class is not None:
+        with atomic_path(Path(folder) / "class_motion_checks.csv", force=force) as tmp:
+            per_class.to_csv(tmp, float_format="%.6g")
+        out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
     plt.close(fig)
     plt.close(fig_real)
     rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
@@ -424,6 +432,8 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
             str(stat), f"{row['observed']:.3g}", ("[red]! " + band + "[/]") if flag else band
         )
     console.print(rich)
+    if per_class is not None:
+        _print_class_checks(per_class)
     console.print(
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
         f"{held['random_walk_per_move']:.3f} nats per move"
@@ -507,6 +517,25 @@ def _print_checks(written: dict) -> None:
             cells.append(("[red]! " if bool(row[f"{m}_flag"]) else "  ") + band
                          + ("[/]" if bool(row[f"{m}_flag"]) else ""))  # fmt: skip
         rich.add_row(str(stat), fmt(row["observed"]), *cells)
+    console.print(rich)
+    for name in ("class_checks", "class_motion_checks"):
+        if written.get(name) is not None:
+            _print_class_checks(pd.read_csv(written[name], index_col=[0, 1]))
+
+
+def _print_class_checks(table: Any) -> None:
+    """Per-class rows of a labelled log's checks (issue 31): observed vs the model's band."""
+
+    def fmt(v: float) -> str:
+        return "-" if not np.isfinite(v) else f"{v:.3g}"
+
+    rich = Table(title="per class (90% bands; ! = observed outside)", title_justify="left")
+    for col in ("class", "statistic", "observed", "model"):
+        rich.add_column(col, justify="left" if col in ("class", "statistic") else "right")
+    for (cls, stat), row in table.iterrows():
+        band = f"{fmt(row['model_5%'])} - {fmt(row['model_95%'])}"
+        band = f"[red]! {band}[/]" if bool(row["model_flag"]) else f"  {band}"
+        rich.add_row(str(cls), str(stat), fmt(row["observed"]), band)
     console.print(rich)
 
 

@@ -205,10 +205,23 @@ from are_stats.fitting._interaction import (  # noqa: E402
 __all__ += ["fit_interaction", "interaction_attrs", "interaction_from_attrs"]
 
 from are_stats.fitting._classes import (  # noqa: E402
+    CLASS_MOTION_STATISTICS,
+    CLASS_STATISTICS,
     CLASS_STAY_MODELS,
     ClassFit,
     attach_classes,
+    class_checks,
+    class_motion_checks,
     fit_classes,
 )
 
-__all__ += ["CLASS_STAY_MODELS", "ClassFit", "attach_classes", "fit_classes"]
+__all__ += [
+    "CLASS_MOTION_STATISTICS",
+    "CLASS_STATISTICS",
+    "CLASS_STAY_MODELS",
+    "ClassFit",
+    "attach_classes",
+    "class_checks",
+    "class_motion_checks",
+    "fit_classes",
+]

@@ -488,15 +488,14 @@ def _fit_classes(
         raise ValueError("classes: expected a log without marks (marks keep the mixture)")
     post = idata.posterior
     law = str(post.attrs.get("lifetime_model", "exponential"))
-    shape = float(np.median(post["stay_shape"].values)) if law != "exponential" else 1.0
     res = post.attrs.get("traffic_time_resolution")
     if res is None:
         res = time_resolution(data.t_arrive, data.t_leave, list(data.window))
     say(f"class shares and per-class stays ({len(labels)} classes, {law} stays)")
     n_draws = post.sizes["chain"] * post.sizes["draw"]
     cfit = fit_classes(
-        key, data, np.asarray(classes, np.int64), labels, law=law, shape=shape,
-        n_draws=n_draws, resolution=float(np.asarray(res).ravel()[0]),
+        key, data, np.asarray(classes, np.int64), labels, law=law, n_draws=n_draws,
+        resolution=float(np.asarray(res).ravel()[0]),
     )  # fmt: skip
     return attach_classes(idata, cfit)
 
@@ -901,6 +900,9 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
     m = _var(post, "class_stay_mean", source, "posterior", dims)
     _check_real(w, source, "posterior.class_weights", lo=0.0, lo_open=False)
     _check_real(m, source, "posterior.class_stay_mean", lo=0.0, lo_open=True)
+    if "class_stay_shape" in post.data_vars:
+        v = _var(post, "class_stay_shape", source, "posterior", ("chain", "draw"))
+        _check_real(v, source, "posterior.class_stay_shape", lo=0.0, lo_open=True)
     k = w.shape[-1]
     if m.shape != w.shape:
         raise InputError(source, "posterior.class_stay_mean", f"shape {w.shape} (as class_weights)",

@@ -177,11 +177,16 @@ def _class_draws(params: Mapping[str, Any], s: int) -> dict[str, np.ndarray]:
                 f"got {m.shape}"
             )
         out["class_stay_mean"] = m
+        k = np.atleast_1d(check_positive("params['class_stay_shape']",
+                                         params.get("class_stay_shape", 1.0)))  # fmt: skip
+        if k.shape not in ((1,), (s,)):
+            raise ValueError(f"params['class_stay_shape']: expected ({s},) draws, got {k.shape}")
+        out["class_stay_shape"] = np.broadcast_to(k, (s,)).astype(float)
     return out
 
 
 def _draw_classes(
-    rng: np.random.Generator, p: Mapping[str, Any], pooled: np.ndarray, d: np.ndarray,
+    rng: np.random.Generator, p: Mapping[str, Any], law: str, d: np.ndarray,
     scen: np.ndarray, group: np.ndarray, initial: np.ndarray, t_arr: np.ndarray,
     t_leave: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
@@ -189,10 +194,10 @@ def _draw_classes(
 
     One class per group (members of a group share it): an arriving group's class is drawn
     from the shares ``class_weights``; a group present at the start from the stationary
-    composition, shares times mean stays. With ``class_stay_mean`` each stay (drawn under
-    the pooled law, mean ``m``) is scaled by ``m_c / m``: the stay laws are scale families
-    in their mean, so the result is a stay of class ``c`` (a residual one for the initial
-    population), group jitter kept.
+    composition, shares times mean stays. With ``class_stay_mean`` each group's stay is
+    drawn again from ``law`` with its class's mean and the shared ``class_stay_shape`` (a
+    residual stay for the initial population), and each member's stay is scaled by the
+    ratio of the new group stay to the old one (the members' jitter kept).
     """
     w = p["class_weights"][d]  # (n_sc, K)
     keys = np.stack([scen.astype(np.int64), np.asarray(group, np.int64)], axis=1)
@@ -212,9 +217,18 @@ def _draw_classes(
     u = rng.random(first.size)
     cls_g = np.sum(u[:, None] >= cum[:, :-1], axis=1).astype(np.int32)
     cls = cls_g[inv]
-    if per_class:  # pooled: (S,) the mean stay the populations were drawn with
-        ratio = p["class_stay_mean"][d][scen, cls] / pooled[d][scen]
-        t_leave = t_arr + (t_leave - t_arr) * ratio
+    if per_class:
+        from are_stats.traffic import stay_draws
+
+        m_g = p["class_stay_mean"][d][g_scen, cls_g]
+        k_g = p["class_stay_shape"][d][g_scen]
+        g_init = initial[first]
+        new = np.empty(first.size)
+        for residual in (False, True):
+            sel = g_init == residual
+            new[sel] = stay_draws(rng, law, m_g[sel], k_g[sel], int(sel.sum()), residual)
+        old = np.maximum(t_leave[first] - t_arr[first], 1e-300)
+        t_leave = t_arr + (t_leave - t_arr) * (new / old)[inv]
     return cls, t_leave
 
 
@@ -348,10 +362,8 @@ def generate_scenarios(
         group = j.copy()
         xy_map = None
     if "class_weights" in p and "mix_weights" not in p:  # a labelled log: class = label
-        pooled = 1.0 / p["leave_rate"]
-        if rich and "stay_mean" in params:  # the rich sampler's stays have this mean
-            pooled = np.atleast_1d(np.asarray(params["stay_mean"], float))
-        cls, t_leave = _draw_classes(rng, p, pooled, d, scen, group, initial, t_arr, t_leave)
+        law = laws.lifetimes if rich else "exponential"  # the class fit's (the chosen) law
+        cls, t_leave = _draw_classes(rng, p, law, d, scen, group, initial, t_arr, t_leave)
         mark = np.full(total, -1, dtype=np.int64)
     elif "mix_weights" in p:
         w = p["mix_weights"][d]
@@ -679,7 +691,7 @@ def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dic
 #: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
 TRAFFIC_NAMES = (
     "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
-    "class_stay_mean",
+    "class_stay_mean", "class_stay_shape",
 )  # fmt: skip
 
 
@@ -713,7 +725,7 @@ def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarr
     lifetimes = str(a.get("lifetime_model", "exponential"))
     positions = str(a.get("position_model", "uniform"))
     for name in TRAFFIC_NAMES:
-        if name == "class_stay_mean" and a.get("class_stay_model") != "per-class":
+        if name.startswith("class_stay") and a.get("class_stay_model") != "per-class":
             continue  # LOO kept the pooled stays: one law for every class
         if name in post:
             v = np.asarray(post[name].values)

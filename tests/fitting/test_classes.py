@@ -9,7 +9,10 @@ import pytest
 
 from are_stats.environment import load_catalogue
 from are_stats.fitting import (
+    CLASS_STATISTICS,
     FitSettings,
+    class_checks,
+    class_motion_checks,
     fit_class_labels,
     fit_classes,
     fit_log,
@@ -73,16 +76,18 @@ def test_a_class_seen_twice_shrinks_toward_the_pool(rng):
     assert abs(np.median(f.stay_mean[:, 2]) - 12.0) < 1.5
 
 
-def test_exponential_fast_path_equals_the_stay_law(rng):
-    from are_stats.fitting._classes import _exponential_loglik
+@pytest.mark.parametrize("law", ["exponential", "gamma", "weibull", "lognormal"])
+def test_numpy_stay_likelihood_equals_the_stay_law(rng, law):
+    from are_stats.fitting._classes import _loglik
     from are_stats.traffic import stay_loglik
 
     d = rng.exponential(5.0, 300)
     d[:20] = 0.05  # shorter than the resolution
-    cen, tru = rng.random(300) < 0.2, rng.random(300) < 0.2
+    cen, tru = rng.random(300) < 0.3, rng.random(300) < 0.3
     m = np.array([[0.5], [3.0], [40.0]])
-    ref = stay_loglik("exponential", d[None], cen[None], tru[None], m, 1.0, 0.1)
-    assert np.allclose(_exponential_loglik(d[None], cen[None], tru[None], m, 0.1), ref)
+    k = np.array([[0.4], [2.0], [30.0]]) / (20.0 if law == "lognormal" else 1.0)
+    ref = stay_loglik(law, d[None], cen[None], tru[None], m, k, 0.1)
+    assert np.allclose(_loglik(law, d[None], cen[None], tru[None], m, k, 0.1), ref, atol=1e-8)
 
 
 def test_unknown_label_is_a_clear_error():
@@ -142,6 +147,46 @@ def test_labelled_log_fit_generate_end_to_end(tmp_path, rng):
     assert labels <= set(LABELS) and "person" in labels and "bicycle" in labels
     cls = np.concatenate([sc.artefacts["class"].to_numpy() for sc in scenes])
     assert cls.min() >= 0 and cls.max() <= 2
+    # the report's per-class rows: the log's shares beside the model's bands
+    table = class_checks(0, back, 100)
+    assert list(table.index.levels[0]) == names and set(CLASS_STATISTICS) == set(
+        table.index.levels[1]
+    )
+    arrived = ~log.to_arrays()["truncated"]
+    for c, name in enumerate(names):
+        share = np.mean(codes[arrived] == c)
+        assert table.loc[(name, "share"), "observed"] == pytest.approx(share)
+    assert table["model_flag"].sum() <= 2  # 9 rows, 90% bands
+
+
+def test_class_motion_rows_against_hand_counts():
+    tracks = pd.DataFrame(
+        {
+            "id": ["a", "a", "b", "b", "c", "c"],
+            "t": [0, 1, 0, 1, 0, 1],
+            "x": 0.0,
+            "y": 0.0,
+            "label": ["bicycle"] * 2 + ["person"] * 4,
+        }
+    )
+    obs = pd.DataFrame(
+        {"speed": [4.0, 1.2, 1.4], "still": [False, False, True]},
+        index=pd.Index(["a", "b", "c"], name="id"),
+    )
+    rep_index = pd.MultiIndex.from_tuples(
+        [(r, i) for r in range(3) for i in "abc"], names=["scenario", "id"]
+    )
+    rep = pd.DataFrame(
+        {"speed": [3.0, 1.0, 1.0, 4.0, 1.5, 1.1, 5.0, 1.2, 1.3], "still": [False, True, True] * 3},
+        index=rep_index,
+    )
+    table = class_motion_checks(tracks, {"observed": obs, "tracks": rep})
+    assert table.loc[("bicycle", "median speed (m/s)"), "observed"] == 4.0
+    assert table.loc[("person", "median speed (m/s)"), "observed"] == pytest.approx(1.3)
+    assert table.loc[("person", "fraction still"), "observed"] == 0.5
+    assert table.loc[("bicycle", "median speed (m/s)"), "model_50%"] == 4.0
+    assert table.loc[("person", "fraction still"), "model_50%"] == 1.0
+    assert class_motion_checks(tracks.drop(columns="label"), {}) is None
 
 
 def test_a_log_without_labels_is_fitted_as_before(tmp_path, rng):
@@ -182,3 +227,30 @@ def test_generated_class_shares_and_stays_follow_the_fit():
     c0 = df0.loc[df0["truncated"], "class"].to_numpy()
     comp = w * m / np.sum(w * m)
     chisquare_gof(c0, lambda k: np.where(k < 3, comp[np.minimum(k, 2)], 0.0))
+
+
+def test_regular_stays_per_class_get_their_own_shape(rng):
+    # crossing times: cv 0.1 within each class, means 7 and 22 s (pooled cv about 0.5)
+    n, window = 1500, 20000.0
+    cls = rng.choice(2, n, p=[0.5, 0.5])
+    means = np.array([7.0, 22.0])
+    ta = np.sort(rng.uniform(0.0, window - 100.0, n))
+    tl = ta + rng.gamma(100.0, means[cls] / 100.0)
+    data = LifecycleData(t_arrive=ta, t_leave=tl, window=(0.0, window), area=100.0)
+    f = fit_classes(jax.random.key(3), data, cls, ["bicycle", "person"], law="gamma", n_draws=1000)
+    assert f.stay_model == "per-class"
+    cv = 1.0 / np.sqrt(np.median(f.stay_shape))
+    assert 0.07 < cv < 0.14  # the grid's shapes are 30% apart
+    assert 1.0 / np.sqrt(np.median(f.pooled_shape)) > 0.4
+    # generation draws each class's stays from its mean and the shared shape
+    from are_stats.traffic import TrafficLaws
+
+    params = {"arrival_rate": 0.002, "leave_rate": 1 / 15.0, "stay_mean": 15.0,
+              "stay_shape": 4.0, "class_weights": [0.5, 0.5], "class_stay_mean": means,
+              "class_stay_shape": np.median(f.stay_shape)}  # fmt: skip
+    df = generate_scenarios(5, params, 20, 3600.0, area=100.0, laws=TrafficLaws(lifetimes="gamma"))
+    arrived = ~df["truncated"].to_numpy()
+    stay = (df["t_leave"] - df["t_arrive"]).to_numpy()
+    for c in range(2):
+        s = stay[arrived & (df["class"].to_numpy() == c)]
+        assert abs(s.mean() / means[c] - 1.0) < 0.03 and 0.07 < s.std() / s.mean() < 0.14
