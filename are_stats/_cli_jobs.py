@@ -301,6 +301,7 @@ def run_fit(
     for w in _warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
     _print_traffic(idata)
+    _print_classes(idata)
     if panel is not None:
         from are_stats.fitting import compare_panel
 
@@ -325,6 +326,23 @@ def run_fit(
                 written.update(_motion_report(seed, idata, tracks, grid, figures, force))
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
+
+
+def _print_classes(idata: Any) -> None:
+    """One line on a labelled log's classes: shares and mean stays (issue 31)."""
+    from are_stats.fitting import fit_class_labels
+
+    post = idata.posterior
+    if "class_weights" not in post:
+        return
+    w = np.asarray(post["class_weights"].mean(("chain", "draw")))
+    m = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
+    model = str(post.attrs.get("class_stay_model"))
+    parts = [
+        f"{name} {wi:.0%} (mean stay {mi:.3g})"
+        for name, wi, mi in zip(fit_class_labels(idata) or [], w, m, strict=True)
+    ]
+    console.print(f"classes (stays {model} by PSIS-LOO): " + ", ".join(parts))
 
 
 def _sha256(path: str | Path) -> str:

@@ -254,3 +254,18 @@ def test_regular_stays_per_class_get_their_own_shape(rng):
     for c in range(2):
         s = stay[arrived & (df["class"].to_numpy() == c)]
         assert abs(s.mean() / means[c] - 1.0) < 0.03 and 0.07 < s.std() / s.mean() < 0.14
+
+
+def test_cli_fit_refuses_a_label_the_catalogue_lacks(tmp_path, rng):
+    from tests.test_cli_jobs import _invoke
+
+    p = _csv_log(tmp_path, rng, n=30)
+    df = pd.read_csv(p, keep_default_na=False)
+    df.loc[3, "label"] = "hoverboard"
+    df.to_csv(p, index=False)
+    res = _invoke(["fit", p, "--out", tmp_path / "f.nc", "--method", "em", "--no-figures"])
+    assert res.exit_code == 2, res.output
+    text = " ".join(res.output.split())
+    assert "column 'label': expected class labels of the artefact catalogue" in text
+    assert "hoverboard" in text and "Traceback" not in res.output
+    assert not (tmp_path / "f.nc").exists()
