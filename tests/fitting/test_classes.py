@@ -269,3 +269,20 @@ def test_cli_fit_refuses_a_label_the_catalogue_lacks(tmp_path, rng):
     assert "column 'label': expected class labels of the artefact catalogue" in text
     assert "hoverboard" in text and "Traceback" not in res.output
     assert not (tmp_path / "f.nc").exists()
+
+
+def test_marks_and_labels_keep_the_mixture(tmp_path, rng):
+    p = _csv_log(tmp_path, rng, n=40)
+    df = pd.read_csv(p, keep_default_na=False)
+    df["mark"] = rng.poisson(3.0, len(df))
+    df.to_csv(p, index=False)
+    log = read_lifecycle_log(p)
+    assert log.label_classes() is None  # the labels are the mixture's components
+    data = log.to_lifecycle_data()
+    assert data.labels is not None and data.marks is not None
+    # a label on some rows only is refused, naming the artefact
+    df = df.drop(columns="mark")
+    df.loc[5, "label"] = ""
+    df.to_csv(p, index=False)
+    with pytest.raises(ValueError, match=r"artefact 'a5', column 'label': expected a label on"):
+        read_lifecycle_log(p).label_classes()
