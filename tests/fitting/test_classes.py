@@ -286,3 +286,20 @@ def test_marks_and_labels_keep_the_mixture(tmp_path, rng):
     df.to_csv(p, index=False)
     with pytest.raises(ValueError, match=r"artefact 'a5', column 'label': expected a label on"):
         read_lifecycle_log(p).label_classes()
+
+
+@pytest.mark.slow  # a soft-policy fit (about 50 s on a busy 2-core machine)
+def test_cyclists_ride_at_their_speed_rather_than_all_run():
+    from are_stats.fitting import NoWalkersError, fit_behaviour
+    from tests.fitting.test_behaviour_fit import _model_tracks
+
+    # one cell (1 m) per 0.25 s: every cyclist moves at 4 m/s, above the people's 2.5 m/s
+    tracks, free = _model_tracks(0, 2.0, 0.1, dt=0.25, n=30)
+    tracks["label"] = "bicycle"
+    with pytest.raises(NoWalkersError, match="bicycle"):
+        fit_behaviour(tracks, free, 1.0, (0.0, 0.0), cell=1.0, max_fit_tracks=3)
+    thresholds = load_catalogue().run_thresholds()
+    fit = fit_behaviour(tracks, free, 1.0, (0.0, 0.0), cell=1.0, max_fit_tracks=3,
+                        run_speed=thresholds)  # fmt: skip
+    assert fit.classes == ("bicycle",) and fit.run_fraction[0] == 0.0
+    assert abs(np.exp(fit.speed_mu[0]) - 4.0) < 0.5
