@@ -10,7 +10,8 @@ Each scenario takes one posterior draw ``(lambda, mu, pi, lambda_mix)`` and simu
 * lifetimes ``Exp(mu)``; a leaving time beyond the horizon is kept (not clipped) and
   flagged ``censored``;
 * marks X from the Poisson mixture of eq. (1); the component is the artefact's ``class``
-  (DECISIONS 5);
+  (DECISIONS 5); a fit of a log that names its classes without marks draws the class from
+  its shares instead, and the stay from the class's law;
 * positions uniform over the free cells of the map (a uniformly chosen free cell, then
   uniform inside it, DECISIONS 4); headings uniform over ``{0, pi/2, pi, 3pi/2}``
   (DECISIONS 6) or over ``[0, 2pi)``.
@@ -273,7 +274,11 @@ def generate_scenarios(
     params : dict of str to array
         Posterior draws: ``arrival_rate`` (S,) (lambda, per m^2 per time unit),
         ``leave_rate`` (S,) (mu), optional ``mix_weights`` (S, K) and ``mix_rates`` (S, K)
-        (eq. 1). Scalars / (K,) vectors are one draw. See :func:`posterior_draws`.
+        (eq. 1). Scalars / (K,) vectors are one draw. See :func:`posterior_draws`. A fit
+        of a log that names its classes (labels, no marks) gives ``class_weights`` (S, K)
+        instead of the mixture, and with per-class stays ``class_stay_mean`` (S, K) and
+        ``class_stay_shape`` (S,): each group's class is drawn from the shares and its stay
+        from its class (:func:`are_stats.fitting.fit_classes`); ``mark`` is then -1.
     n_scenarios : int
         Number of scenarios.
     horizon : float
