@@ -201,6 +201,12 @@ def run_fit(
     for w in caught:
         console.print(f"[yellow]warning:[/] {w.message}")
     data = lifecycle.to_lifecycle_data()
+    # labels without marks: the class is the label, found in the catalogue by name (issue 31)
+    labelled = lifecycle.label_classes()
+    if labelled is not None:
+        from are_stats.environment import load_catalogue
+
+        load_catalogue().rows_of_labels(labelled[1], source=log, where="column 'label'")
     if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
         steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
         check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
@@ -232,7 +238,12 @@ def run_fit(
             settings,
             counts_panel=panel,
             progress=lambda msg: status.update(f"fitting: {msg} ..."),
-            class_labels=lifecycle.to_arrays()["label_names"] if data.labels is not None else None,
+            class_labels=(
+                lifecycle.to_arrays()["label_names"]
+                if data.labels is not None or labelled is not None
+                else None
+            ),
+            classes=None if labelled is None else labelled[0],
             grid=None if positions == "uniform" else grid,
             clock_start=clock_start,
         )
@@ -259,8 +270,11 @@ def run_fit(
                     "their bounding box plus 1 m, all free)"
                 )
             try:
+                from are_stats.environment import load_catalogue
+
                 bfit = fit_behaviour(
-                    tracks, free, res, origin, seed=seed, features=features or None
+                    tracks, free, res, origin, seed=seed, features=features or None,
+                    run_speed=load_catalogue().run_thresholds(),
                 )  # fmt: skip
             except NoWalkersError as err:  # people who only stand: no walking to learn
                 console.print(f"note: behaviour not fitted ({err}); scenes use the catalogue's")
@@ -289,6 +303,7 @@ def run_fit(
     for w in _warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
     _print_traffic(idata)
+    _print_classes(idata)
     if panel is not None:
         from are_stats.fitting import compare_panel
 
@@ -313,6 +328,23 @@ def run_fit(
                 written.update(_motion_report(seed, idata, tracks, grid, figures, force))
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
+
+
+def _print_classes(idata: Any) -> None:
+    """One line on a labelled log's classes: shares and mean stays (issue 31)."""
+    from are_stats.fitting import fit_class_labels
+
+    post = idata.posterior
+    if "class_weights" not in post:
+        return
+    w = np.asarray(post["class_weights"].mean(("chain", "draw")))
+    m = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
+    model = str(post.attrs.get("class_stay_model"))
+    parts = [
+        f"{name} {wi:.0%} (mean stay {mi:.3g})"
+        for name, wi, mi in zip(fit_class_labels(idata) or [], w, m, strict=True)
+    ]
+    console.print(f"classes (stays {model} by PSIS-LOO): " + ", ".join(parts))
 
 
 def _sha256(path: str | Path) -> str:
@@ -449,7 +481,9 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     import matplotlib.pyplot as plt
 
     from are_stats.behaviour import BehaviourFit
+    from are_stats.environment import load_catalogue
     from are_stats.fitting import (
+        class_motion_checks,
         heldout_log_likelihood,
         motion_checks,
         motion_tables,
@@ -462,6 +496,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
+        run_speed=load_catalogue().run_thresholds(),  # as the fit's (cyclists ride)
     )  # fmt: skip
     stored = motion_tables(idata.behaviour.attrs)
     fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
@@ -473,6 +508,11 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
         with atomic_path(Path(folder) / name, force=force) as tmp:
             write(tmp)
         out[name] = Path(folder) / name
+    per_class = class_motion_checks(tracks, reps)  # speed and stillness per label (issue 31)
+    if per_class is not None:
+        with atomic_path(Path(folder) / "class_motion_checks.csv", force=force) as tmp:
+            per_class.to_csv(tmp, float_format="%.6g")
+        out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
     plt.close(fig)
     out.update(_motion_outputs(stored, folder, force))
     rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
@@ -485,6 +525,8 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
             str(stat), f"{row['observed']:.3g}", ("[red]! " + band + "[/]") if flag else band
         )
     console.print(rich)
+    if per_class is not None:
+        _print_class_checks(per_class)
     console.print(
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
         f"{held['random_walk_per_move']:.3f} nats per move"
@@ -560,6 +602,25 @@ def _print_checks(written: dict) -> None:
             cells.append(("[red]! " if bool(row[f"{m}_flag"]) else "  ") + band
                          + ("[/]" if bool(row[f"{m}_flag"]) else ""))  # fmt: skip
         rich.add_row(str(stat), fmt(row["observed"]), *cells)
+    console.print(rich)
+    for name in ("class_checks", "class_motion_checks"):
+        if written.get(name) is not None:
+            _print_class_checks(pd.read_csv(written[name], index_col=[0, 1]))
+
+
+def _print_class_checks(table: Any) -> None:
+    """Per-class rows of a labelled log's checks (issue 31): observed vs the model's band."""
+
+    def fmt(v: float) -> str:
+        return "-" if not np.isfinite(v) else f"{v:.3g}"
+
+    rich = Table(title="per class (90% bands; ! = observed outside)", title_justify="left")
+    for col in ("class", "statistic", "observed", "model"):
+        rich.add_column(col, justify="left" if col in ("class", "statistic") else "right")
+    for (cls, stat), row in table.iterrows():
+        band = f"{fmt(row['model_5%'])} - {fmt(row['model_95%'])}"
+        band = f"[red]! {band}[/]" if bool(row["model_flag"]) else f"  {band}"
+        rich.add_row(str(cls), str(stat), fmt(row["observed"]), band)
     console.print(rich)
 
 

@@ -97,12 +97,39 @@ def artefact_meshes() -> dict[str, object]:
         ]
         + [box([0.08, 0.08, 0.27], [x, y, 0.135]) for x in (-0.4, 0.4) for y in (-0.24, 0.24)]
     )
+    # a city bicycle with its rider: 1.75 m long, 0.6 m across the bars, 1.7 m high
+    wheel = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0], [0, 0, 0])
+    bicycle = trimesh.util.concatenate(
+        [
+            trimesh.creation.cylinder(radius=0.34, height=0.05, sections=12)
+            .apply_transform(wheel)
+            .apply_translation([x, 0, 0.34])
+            for x in (-0.53, 0.53)
+        ]
+        + [
+            box([1.06, 0.05, 0.05], [0, 0, 0.55]),  # frame
+            box([0.05, 0.6, 0.05], [0.45, 0, 1.0]),  # handlebar
+            box([0.34, 0.36, 0.72], [-0.1, 0, 1.05]),  # rider's body
+        ]
+    )
+    rider_head = trimesh.creation.icosphere(subdivisions=1, radius=0.12)
+    rider_head.apply_translation([-0.05, 0, 1.58])
+    bicycle = trimesh.util.concatenate([bicycle, rider_head])
+    # a skater on a board: 0.8 m board, 1.75 m high, 0.45 m across the shoulders
+    skater = trimesh.util.concatenate(
+        [box([0.8, 0.22, 0.1], [0, 0, 0.05]), person(1.0).apply_translation([0, 0, 0.1])]
+    )
+    skater = trimesh.util.concatenate(
+        [skater, box([0.3, 0.45, 0.4], [0, 0, 1.2])]  # shoulders, arms out for balance
+    )
     return {
         "person": person(1.0),
         "child": person(0.65),
         "car": car,
         "pallet": pallet,
         "cart": cart,
+        "bicycle": bicycle,
+        "skater": skater,
     }
 
 
@@ -148,6 +175,18 @@ classes:
     speeds: {walk: 0.8}
     behaviours: [walk, follow, stop]
     features: {colour: [90, 160, 90], mass_kg: 40, kind: pushed}
+    variants: {rows: 10, scale: [0.9, 1.1]}
+  - label: bicycle
+    mesh: bicycle.obj
+    speeds: {walk: 4.0, run: 7.0}
+    behaviours: [walk, run, stop]
+    features: {colour: [40, 160, 200], mass_kg: 90, kind: cycle}
+    variants: {rows: 10, scale: [0.9, 1.1]}
+  - label: skater
+    mesh: skater.obj
+    speeds: {walk: 2.5, run: 5.0}
+    behaviours: [walk, run, follow, stop]
+    features: {colour: [180, 60, 180], mass_kg: 70, kind: skater}
     variants: {rows: 10, scale: [0.9, 1.1]}
 """
 

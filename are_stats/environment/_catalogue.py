@@ -225,6 +225,61 @@ class ArtefactCatalogue:
     def __contains__(self, label: object) -> bool:
         return label in self._by_label
 
+    def rows_of_labels(self, labels: Any, source: Any = "log", where: str = "label") -> np.ndarray:
+        """The catalogue row (class position) of each class label of a log.
+
+        A log that names its classes (the ``label`` column) is generated with the
+        catalogue's rows of those names (issue 31); a label the catalogue lacks is an
+        error that lists the catalogue's labels and shows how to add a row.
+
+        Parameters
+        ----------
+        labels : sequence of str
+            Distinct class labels (e.g. the fit's ``class_labels``).
+        source, where : str
+            What the error names (the log or fit file, and the column or attribute).
+
+        Returns
+        -------
+        (len(labels),) int64
+            Row of each label in :attr:`labels` order of the catalogue.
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            If a label is not one of the catalogue's.
+        """
+        from are_stats.inputs import Described, InputError
+
+        names = [str(v) for v in labels]
+        unknown = [v for v in names if v not in self._by_label]
+        if unknown:
+            raise InputError(
+                source,
+                where,
+                f"class labels of the artefact catalogue ({', '.join(self.labels)}); to add "
+                f"one, copy the shipped catalogue (are_stats/data/artefacts/catalogue.yaml) "
+                f"and append a row such as '- {{label: {unknown[0]}, mesh: {unknown[0]}.obj, "
+                f"speeds: {{walk: 1.0}}, behaviours: [walk, stop]}}' with its mesh beside it",
+                Described(f"the unknown label(s) {', '.join(repr(v) for v in unknown)}"),
+            )
+        return np.array([self.classes.index(self._by_label[v]) for v in names], np.int64)
+
+    def run_thresholds(self, floor: float = 2.5) -> dict[str, float]:
+        """Per class label, the speed (m/s) above which a track of the class runs.
+
+        Half-way between the class's walking and running speeds, and at least ``floor``
+        (the threshold of :func:`are_stats.fitting.fit_behaviour` for people); a class
+        without a running speed gets ``floor``. Cyclists (4 and 7 m/s) then ride, rather
+        than all run.
+        """
+        out = {}
+        for c in self.classes:
+            walk, run = c.speeds.get("walk"), c.speeds.get("run")
+            mid = 0.5 * (float(walk) + float(run)) if walk is not None and run is not None else 0.0
+            out[c.label] = max(float(floor), mid)
+        return out
+
     def row(self, i: int) -> ArtefactClass:
         """The class at position ``i`` (clipped to ``[0, len - 1]``)."""
         i = int(np.clip(int(i), 0, len(self.classes) - 1))

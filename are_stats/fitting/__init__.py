@@ -217,3 +217,25 @@ from are_stats.fitting._motion_store import (  # noqa: E402
 )
 
 __all__ += ["MOTION_TABLES", "motion_attrs", "motion_tables"]
+
+from are_stats.fitting._classes import (  # noqa: E402
+    CLASS_MOTION_STATISTICS,
+    CLASS_STATISTICS,
+    CLASS_STAY_MODELS,
+    ClassFit,
+    attach_classes,
+    class_checks,
+    class_motion_checks,
+    fit_classes,
+)
+
+__all__ += [
+    "CLASS_MOTION_STATISTICS",
+    "CLASS_STATISTICS",
+    "CLASS_STAY_MODELS",
+    "ClassFit",
+    "attach_classes",
+    "class_checks",
+    "class_motion_checks",
+    "fit_classes",
+]

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from functools import partial
 from typing import Any
 
@@ -607,7 +608,7 @@ def fit_behaviour(
     *,
     cell: float | None = None,
     dt: float | None = None,
-    run_speed: float = 2.5,
+    run_speed: float | Mapping[str, float] = 2.5,
     max_fit_tracks: int | None = 16,
     max_side: int = _MAX_SIDE,
     time_cost: float = 1.0,
@@ -638,8 +639,11 @@ def fit_behaviour(
     dt : float or None
         Decision epoch (s) for every class (default per class: ``cell`` over its median
         walking speed).
-    run_speed : float
-        Tracks whose median speed exceeds this (m/s) are runners.
+    run_speed : float or mapping of str to float
+        Tracks whose median speed exceeds this (m/s) are runners; a mapping gives it per
+        class label (classes it lacks: 2.5 m/s), so that a class of fast movers (cyclists
+        at 4 m/s) is not all runners (``are-stats fit`` takes it from the catalogue:
+        :meth:`are_stats.environment.ArtefactCatalogue.run_thresholds`).
     max_fit_tracks : int or None
         Largest number of tracks per class in the likelihood of ``beta`` and ``slip`` (a
         random subset drawn with ``seed``; ``None``: all). Each track's goal costs a soft
@@ -718,7 +722,8 @@ def fit_behaviour(
             ent.append(g[["x", "y"]].to_numpy(float)[0])
             ext.append(g[["x", "y"]].to_numpy(float)[-1])
         speeds_a = np.asarray(speeds)
-        runner = speeds_a > run_speed
+        threshold = run_speed.get(name, 2.5) if isinstance(run_speed, Mapping) else run_speed
+        runner = speeds_a > float(threshold)
         walk = np.isfinite(speeds_a) & (speeds_a > 0) & ~runner
         if not walk.any():
             raise NoWalkersError(f"tracks: expected moving walkers in class {name!r}, got none")

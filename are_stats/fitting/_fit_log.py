@@ -307,6 +307,7 @@ def fit_log(
     class_labels: Any = None,
     grid: Any = None,
     clock_start: str | None = None,
+    classes: Any = None,
 ) -> az.InferenceData:
     """Fit arrival rate, leave rate and mark mixture of a life-cycle log.
 
@@ -335,6 +336,12 @@ def fit_log(
         The scene's map: the learned entry/exit densities live on its free cells.
     clock_start : str, optional
         ISO 8601 wall-clock time of ``t = 0`` (time-of-day models need it).
+    classes : (n,) int, optional
+        The class of each row of a log that names its classes but has no marks
+        (:meth:`are_stats.logs.LifecycleLog.label_classes`; ``class_labels`` names them):
+        the class shares and per-class stays are fitted (:func:`fit_classes`, stored by
+        :func:`attach_classes`) after the pooled model, under its stay law. A log with
+        marks keeps the mixture, its labels as components (``data.labels``).
 
     Returns
     -------
@@ -463,7 +470,34 @@ def fit_log(
         )
     else:
         idata = attach_traffic(idata, traffic)
+    if classes is not None:
+        idata = _fit_classes(jax.random.fold_in(key, 31), idata, data, classes, class_labels, say)
     return idata
+
+
+def _fit_classes(
+    key: Any, idata: az.InferenceData, data: LifecycleData, classes: Any, labels: Any, say: Any
+) -> az.InferenceData:
+    """The class shares and per-class stays of a labelled log, under the pooled stay law."""
+    from are_stats.fitting._classes import attach_classes, fit_classes
+    from are_stats.fitting._traffic import time_resolution
+
+    if labels is None:
+        raise ValueError("class_labels: expected the names of the classes given by classes=")
+    if data.marks is not None:
+        raise ValueError("classes: expected a log without marks (marks keep the mixture)")
+    post = idata.posterior
+    law = str(post.attrs.get("lifetime_model", "exponential"))
+    res = post.attrs.get("traffic_time_resolution")
+    if res is None:
+        res = time_resolution(data.t_arrive, data.t_leave, list(data.window))
+    say(f"class shares and per-class stays ({len(labels)} classes, {law} stays)")
+    n_draws = post.sizes["chain"] * post.sizes["draw"]
+    cfit = fit_classes(
+        key, data, np.asarray(classes, np.int64), labels, law=law, n_draws=n_draws,
+        resolution=float(np.asarray(res).ravel()[0]),
+    )  # fmt: skip
+    return attach_classes(idata, cfit)
 
 
 def attach_behaviour(idata: az.InferenceData, behaviour: Any) -> az.InferenceData:
@@ -735,6 +769,7 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
                 f"{k} comma-separated names (one per mixture component)", labels,
             )  # fmt: skip
     _check_traffic(idata, source)
+    _check_classes(idata, source)
     obs = idata.observed_data
     cols = {
         name: _var(obs, name, source, "observed_data", ("artefact",))
@@ -851,6 +886,37 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
                 raise InputError(
                     source, where, "two finite numbers (x, y)", Described(repr(o.tolist()))
                 )
+
+
+def _check_classes(idata: az.InferenceData, source: str) -> None:
+    """The class shares and per-class stays of a labelled log (when recorded)."""
+    from are_stats.inputs import Described, InputError, get_str
+
+    post = idata.posterior
+    if "class_weights" not in post.data_vars:
+        return
+    dims = ("chain", "draw", "class")
+    w = _var(post, "class_weights", source, "posterior", dims)
+    m = _var(post, "class_stay_mean", source, "posterior", dims)
+    _check_real(w, source, "posterior.class_weights", lo=0.0, lo_open=False)
+    _check_real(m, source, "posterior.class_stay_mean", lo=0.0, lo_open=True)
+    if "class_stay_shape" in post.data_vars:
+        v = _var(post, "class_stay_shape", source, "posterior", ("chain", "draw"))
+        _check_real(v, source, "posterior.class_stay_shape", lo=0.0, lo_open=True)
+    k = w.shape[-1]
+    if m.shape != w.shape:
+        raise InputError(source, "posterior.class_stay_mean", f"shape {w.shape} (as class_weights)",
+                         Described(f"shape {m.shape}"))  # fmt: skip
+    sums = w.sum(axis=-1)
+    if np.any(np.abs(sums - 1.0) > 1e-6):
+        raise InputError(source, "posterior.class_weights", "shares summing to 1",
+                         Described(f"sums from {sums.min()!r} to {sums.max()!r}"))  # fmt: skip
+    names = get_str(post.attrs.get("class_labels", ""), source, "posterior.attrs.class_labels")
+    if len(names.split(",")) != k or not names:
+        raise InputError(source, "posterior.attrs.class_labels",
+                         f"{k} comma-separated names (one per class)", names)  # fmt: skip
+    get_str(post.attrs.get("class_stay_model", ""), source, "posterior.attrs.class_stay_model",
+            choices=("pooled", "per-class"))  # fmt: skip
 
 
 def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:

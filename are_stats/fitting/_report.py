@@ -27,6 +27,7 @@ import pandas as pd
 
 from are_stats._atomic import atomic_path
 from are_stats._lazy import arviz as az
+from are_stats.fitting._classes import class_checks
 from are_stats.fitting._criticism import count_path, hour_of_day_counts, kaplan_meier
 from are_stats.fitting._traffic_checks import plot_traffic_checks, traffic_checks
 from are_stats.scenarios import generate_scenarios, posterior_draws
@@ -522,8 +523,10 @@ def write_report(
     -------
     dict
         ``{name: path}`` of everything written: also ``traffic_checks.csv`` / ``.png`` (the
-        chosen models beside the paper's, :func:`~are_stats.fitting.traffic_checks`) and the
-        model comparison tables ``loo_*.csv``.
+        chosen models beside the paper's, :func:`~are_stats.fitting.traffic_checks`), the
+        model comparison tables ``loo_*.csv`` and, for a log that names its classes,
+        ``class_checks.csv`` (per class: share, stay median and cv,
+        :func:`~are_stats.fitting.class_checks`) and ``loo_class_stays.csv``.
     """
     import matplotlib.pyplot as plt
 
@@ -541,7 +544,12 @@ def write_report(
         table.to_csv(tmp, float_format="%.6g")
     written["traffic_checks_table"] = out / "traffic_checks.csv"
     figures["traffic_checks"] = plot_traffic_checks(table, reps)
-    for factor in ("arrivals", "lifetimes", "positions"):
+    per_class = class_checks(key, idata, n_replicates)  # a labelled log's classes (issue 31)
+    if per_class is not None:
+        with atomic_path(out / "class_checks.csv", force=force) as tmp:
+            per_class.to_csv(tmp, float_format="%.6g")
+        written["class_checks"] = out / "class_checks.csv"
+    for factor in ("arrivals", "lifetimes", "positions", "class_stays"):
         text = idata.posterior.attrs.get(f"loo_{factor}")
         if text:
             path = out / f"loo_{factor}.csv"

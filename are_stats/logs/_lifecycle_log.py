@@ -285,6 +285,39 @@ class LifecycleLog:
             **pose,
         )
 
+    def label_classes(self) -> tuple[np.ndarray, list[str]] | None:
+        """The classes a log without marks names in its ``label`` column (issue 31).
+
+        With labels and no marks the class of each artefact is its label (DECISIONS 5):
+        :func:`are_stats.fitting.fit_log` fits the class shares and per-class stays from
+        these codes (``classes=``). A log with marks keeps the mixture (the labels are its
+        components, :meth:`to_lifecycle_data`); a log without labels has no classes.
+
+        Returns
+        -------
+        (codes, names) or None
+            ``codes`` (n,) int64 indexes ``names`` (the sorted distinct labels), in the
+            order of :meth:`to_lifecycle_data`'s rows; None when the log has marks or no
+            label.
+
+        Raises
+        ------
+        ValueError
+            If some rows have a label and others none.
+        """
+        a = self.to_arrays()
+        labels = a["labels"]
+        lab = labels != ""
+        if (a["marks"] >= 0).any() or not lab.any():
+            return None
+        if not lab.all():
+            i = int(np.argmax(~lab))
+            raise ValueError(
+                f"{self.source}: artefact {a['ids'][i]!r}, column 'label': expected a label "
+                "on every row or on none (the class of each artefact), got an empty cell"
+            )
+        return np.asarray(a["label_codes"], np.int64), list(a["label_names"])
+
 
 def _label_names(value: Any) -> list[str]:
     """``label_names``: a list of distinct strings."""

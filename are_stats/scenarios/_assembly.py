@@ -469,6 +469,10 @@ def scenes_from_fit(
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
     idata = read_fit(fit) if isinstance(fit, str) or hasattr(fit, "__fspath__") else fit
     draws, laws = traffic_draws(idata, model)
+    if "class_weights" in draws:  # a labelled log's classes: catalogue rows by name
+        catalogue.rows_of_labels(
+            fit_class_labels(idata) or [], source, "posterior.attrs.class_labels"
+        )
     if posterior_draw is not None:
         s = int(posterior_draw)
         draws = {k: np.asarray(v)[s : s + 1] for k, v in draws.items()}

@@ -49,7 +49,8 @@ MAX_POSITION = 1e7
 SCENARIO_COLUMNS: dict[str, str] = {
     "scenario": "int32, scenario index 0..n_scenarios-1",
     "artefact": "int32, artefact index within its scenario, in order of arrival",
-    "class": "int32, mixture component that drew the mark (-1 without a mixture)",
+    "class": "int32, mixture component that drew the mark, or the class of a log that names "
+    "its classes (an index into the manifest's class_labels; -1 without either)",
     "mark": "int64, mark X of eq. (1) (-1 without a mixture)",
     "t_arrive": "float64, arrival time in [0, horizon] (0 for the initial population)",
     "t_leave": "float64, leaving time (may exceed the horizon: see censored)",

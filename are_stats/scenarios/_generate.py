@@ -10,7 +10,8 @@ Each scenario takes one posterior draw ``(lambda, mu, pi, lambda_mix)`` and simu
 * lifetimes ``Exp(mu)``; a leaving time beyond the horizon is kept (not clipped) and
   flagged ``censored``;
 * marks X from the Poisson mixture of eq. (1); the component is the artefact's ``class``
-  (DECISIONS 5);
+  (DECISIONS 5); a fit of a log that names its classes without marks draws the class from
+  its shares instead, and the stay from the class's law;
 * positions uniform over the free cells of the map (a uniformly chosen free cell, then
   uniform inside it, DECISIONS 4); headings uniform over ``{0, pi/2, pi, 3pi/2}``
   (DECISIONS 6) or over ``[0, 2pi)``.
@@ -54,7 +55,7 @@ __all__ = [
 ]
 
 #: Posterior variables used (names of the fit's NetCDF variables).
-PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
+PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates", "class_weights")
 
 
 def _seed_sequence(key: Any) -> tuple[np.random.SeedSequence, Any]:
@@ -150,7 +151,86 @@ def _draws(params: Mapping[str, Any]) -> dict[str, np.ndarray]:
             )
         out["mix_weights"] = w / sums[:, None]
         out["mix_rates"] = r
+    if "class_weights" in params:
+        out.update(_class_draws(params, s))
     return out
+
+
+def _class_draws(params: Mapping[str, Any], s: int) -> dict[str, np.ndarray]:
+    """``class_weights`` (S, K) and optional ``class_stay_mean`` (S, K), checked."""
+    w = check_nonnegative("params['class_weights']", np.asarray(params["class_weights"]) + 0.0)
+    w = w[None, :] if w.ndim == 1 else w
+    if w.ndim != 2 or w.shape[0] != s:
+        raise ValueError(f"params['class_weights']: expected shape ({s}, K), got {w.shape}")
+    sums = w.sum(axis=1)
+    if np.any(np.abs(sums - 1.0) > 1e-6):
+        raise ValueError(
+            f"params['class_weights']: expected rows summing to 1, got sums from "
+            f"{float(sums.min())!r} to {float(sums.max())!r}"
+        )
+    out = {"class_weights": w / sums[:, None]}
+    if "class_stay_mean" in params:
+        m = check_positive("params['class_stay_mean']", params["class_stay_mean"])
+        m = m[None, :] if m.ndim == 1 else m
+        if m.shape != w.shape:
+            raise ValueError(
+                f"params['class_stay_mean']: expected shape {w.shape} (as class_weights), "
+                f"got {m.shape}"
+            )
+        out["class_stay_mean"] = m
+        k = np.atleast_1d(check_positive("params['class_stay_shape']",
+                                         params.get("class_stay_shape", 1.0)))  # fmt: skip
+        if k.shape not in ((1,), (s,)):
+            raise ValueError(f"params['class_stay_shape']: expected ({s},) draws, got {k.shape}")
+        out["class_stay_shape"] = np.broadcast_to(k, (s,)).astype(float)
+    return out
+
+
+def _draw_classes(
+    rng: np.random.Generator, p: Mapping[str, Any], law: str, d: np.ndarray,
+    scen: np.ndarray, group: np.ndarray, initial: np.ndarray, t_arr: np.ndarray,
+    t_leave: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The class of each artefact of a labelled fit, and its stay under its class.
+
+    One class per group (members of a group share it): an arriving group's class is drawn
+    from the shares ``class_weights``; a group present at the start from the stationary
+    composition, shares times mean stays. With ``class_stay_mean`` each group's stay is
+    drawn again from ``law`` with its class's mean and the shared ``class_stay_shape`` (a
+    residual stay for the initial population), and each member's stay is scaled by the
+    ratio of the new group stay to the old one (the members' jitter kept).
+    """
+    w = p["class_weights"][d]  # (n_sc, K)
+    keys = np.stack([scen.astype(np.int64), np.asarray(group, np.int64)], axis=1)
+    if keys.shape[0] == 0:
+        return np.zeros(0, np.int32), t_leave
+    _, first, inv = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    g_scen = scen[first]
+    probs = w[g_scen]
+    per_class = "class_stay_mean" in p
+    if per_class:
+        m = p["class_stay_mean"][d][g_scen]
+        biased = probs * m
+        biased = biased / biased.sum(axis=1, keepdims=True)
+        probs = np.where(initial[first][:, None], biased, probs)
+    cum = np.cumsum(probs, axis=1)
+    u = rng.random(first.size)
+    cls_g = np.sum(u[:, None] >= cum[:, :-1], axis=1).astype(np.int32)
+    cls = cls_g[inv]
+    if per_class:
+        from are_stats.traffic import stay_draws
+
+        m_g = p["class_stay_mean"][d][g_scen, cls_g]
+        k_g = p["class_stay_shape"][d][g_scen]
+        g_init = initial[first]
+        new = np.empty(first.size)
+        for residual in (False, True):
+            sel = g_init == residual
+            new[sel] = stay_draws(rng, law, m_g[sel], k_g[sel], int(sel.sum()), residual)
+        old = np.maximum(t_leave[first] - t_arr[first], 1e-300)
+        t_leave = t_arr + (t_leave - t_arr) * (new / old)[inv]
+    return cls, t_leave
 
 
 def _grid(free_mask: Any, resolution: float, origin: Any) -> tuple[np.ndarray, float, tuple]:
@@ -194,7 +274,11 @@ def generate_scenarios(
     params : dict of str to array
         Posterior draws: ``arrival_rate`` (S,) (lambda, per m^2 per time unit),
         ``leave_rate`` (S,) (mu), optional ``mix_weights`` (S, K) and ``mix_rates`` (S, K)
-        (eq. 1). Scalars / (K,) vectors are one draw. See :func:`posterior_draws`.
+        (eq. 1). Scalars / (K,) vectors are one draw. See :func:`posterior_draws`. A fit
+        of a log that names its classes (labels, no marks) gives ``class_weights`` (S, K)
+        instead of the mixture, and with per-class stays ``class_stay_mean`` (S, K) and
+        ``class_stay_shape`` (S,): each group's class is drawn from the shares and its stay
+        from its class (:func:`are_stats.fitting.fit_classes`); ``mark`` is then -1.
     n_scenarios : int
         Number of scenarios.
     horizon : float
@@ -282,7 +366,11 @@ def generate_scenarios(
         scen, j, t_arr, t_leave, initial, total = _paper_populations(rng, p, d, h, nu, start)
         group = j.copy()
         xy_map = None
-    if "mix_weights" in p:
+    if "class_weights" in p and "mix_weights" not in p:  # a labelled log: class = label
+        law = laws.lifetimes if rich else "exponential"  # the class fit's (the chosen) law
+        cls, t_leave = _draw_classes(rng, p, law, d, scen, group, initial, t_arr, t_leave)
+        mark = np.full(total, -1, dtype=np.int64)
+    elif "mix_weights" in p:
         w = p["mix_weights"][d]
         cw = np.cumsum(w, axis=1)
         u = rng.random(total)
@@ -608,6 +696,7 @@ def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dic
 #: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
 TRAFFIC_NAMES = (
     "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
+    "class_stay_mean", "class_stay_shape",
 )  # fmt: skip
 
 
@@ -641,6 +730,8 @@ def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarr
     lifetimes = str(a.get("lifetime_model", "exponential"))
     positions = str(a.get("position_model", "uniform"))
     for name in TRAFFIC_NAMES:
+        if name.startswith("class_stay") and a.get("class_stay_model") != "per-class":
+            continue  # LOO kept the pooled stays: one law for every class
         if name in post:
             v = np.asarray(post[name].values)
             draws[name] = v.reshape(-1, *v.shape[2:])
