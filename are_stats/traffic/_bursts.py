@@ -257,18 +257,20 @@ def mmpp_step_loglik(
     q01, q10 = switch[0], switch[1]
     pi = jnp.stack([q10, q01]) / (q01 + q10)
     log_d = _log_tick_terms(jnp.log(lam) + log_delta, steps.count, conv)  # (S, 2)
+    # every step's transfer and tick term at once; the recursion only multiplies
+    log_scale, mat = jax.vmap(lambda u: mmpp_transfer(lam, switch, u))(steps.gap)
+    d_max = jnp.max(log_d, axis=1)
+    mat = mat * jnp.exp(log_d - d_max[:, None])[:, None, :]  # M_s diag(P(c_s | k)) / max
+    log_scale = log_scale + d_max
 
-    def body(log_alpha, xs):
-        u, ld, w = xs
-        log_scale, mat = mmpp_transfer(lam, switch, u)
-        v = jnp.exp(log_alpha) @ mat
-        lv = jnp.log(jnp.maximum(v, 1e-300)) + ld
-        z = logsumexp(lv)
-        inc = log_scale + z
-        new = lv - z
-        return jnp.where(w > 0, new, log_alpha), jnp.where(w > 0, inc, 0.0)
+    def body(alpha, xs):
+        m, w = xs
+        v = alpha @ m
+        z = jnp.sum(v)
+        return jnp.where(w > 0, v / z, alpha), jnp.where(w > 0, jnp.log(z), 0.0)
 
-    _, inc = jax.lax.scan(body, jnp.log(pi), (steps.gap, log_d, steps.weight))
+    _, log_z = jax.lax.scan(body, pi, (mat, steps.weight))
+    inc = jnp.where(steps.weight > 0, log_scale + log_z, 0.0)
     return jax.ops.segment_sum(inc, steps.bin, num_segments=n_bins)
 
 
@@ -299,17 +301,20 @@ def hawkes_step_loglik(
     """
     a0 = mu * alpha / (1.0 - alpha) if excitation0 is None else excitation0
 
-    def body(a, xs):
-        u, c, w = xs
-        comp = mu * u - a * jnp.expm1(-beta * u) / beta
-        a_end = a * jnp.exp(-beta * u)
-        lam = mu + a_end
-        ll = jnp.where(c > 0, c * (jnp.log(lam) + log_delta) - gammaln(c + 1.0), 0.0) - comp
-        new = a_end + alpha * beta * c
-        return jnp.where(w > 0, new, a), jnp.where(w > 0, ll, 0.0)
+    u, c, w = steps.gap, steps.count, steps.weight
+    decay = jnp.exp(-beta * u)
+    spent = -jnp.expm1(-beta * u) / beta  # integral of e^{-beta s} over the stretch
+    jump = alpha * beta * c
 
-    _, inc = jax.lax.scan(body, jnp.asarray(a0, float), (steps.gap, steps.count, steps.weight))
-    return jax.ops.segment_sum(inc, steps.bin, num_segments=n_bins)
+    def body(a, xs):  # excitation at the step's start -> its end, after the tick's events
+        d, sp, j, wt = xs
+        a_end = a * d
+        return jnp.where(wt > 0, a_end + j, a), (a * sp, a_end)
+
+    _, (excited, a_end) = jax.lax.scan(body, jnp.asarray(a0, float), (decay, spent, jump, w))
+    log_lam = jnp.log(mu + a_end) + log_delta
+    ll = jnp.where(c > 0, c * log_lam - gammaln(c + 1.0), 0.0) - mu * u - excited
+    return jax.ops.segment_sum(jnp.where(w > 0, ll, 0.0), steps.bin, num_segments=n_bins)
 
 
 def mmpp_count_dispersion(lam: Any, switch: Any, w: Any) -> np.ndarray:
