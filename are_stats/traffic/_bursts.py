@@ -27,9 +27,12 @@ time-of-day ones (:mod:`are_stats.traffic._arrivals`); each event may bring a gr
 width ``delta`` (its time resolution; :class:`~are_stats.traffic.ArrivalUnits`). The
 forward recursion walks the non-empty ticks in time order, with the ends of the LOO bins
 as extra steps (:class:`BurstSteps`): each step covers the empty time since the previous
-one and its tick, then scores the tick's count at the state (MMPP) or intensity (Hawkes)
-reached at the tick's end: ``c log(lambda delta) - log c!`` (or the compound-Poisson sum
-over group counts). With equal rates (MMPP) or ``alpha = 0`` (Hawkes) it is the Poisson
+one, then its tick. The MMPP holds its state over a non-empty tick (the count is
+``Poisson(lambda_k delta)``, or the compound-Poisson sum over group counts, then the state
+may switch: ``expm(Q delta)``), so that every factor is a probability of the quantised
+data; the Hawkes process scores the count at the intensity reached at the tick's end
+(``c log(lambda delta) - log c!``) and the exact compensator over the tick. With equal
+rates (MMPP) or ``alpha = 0`` (Hawkes) it is the Poisson
 tick likelihood exactly. The MMPP transfer over a stretch ``u`` is ``expm((Q - Lambda) u)``
 in closed form (a 2 x 2 matrix with real eigenvalues), in scaled (normalised) form so that
 long windows neither underflow nor overflow. The recursion starts from the stationary
@@ -39,7 +42,7 @@ an approximation: the history before the window is not seen).
 **Pointwise terms.** The bins are not exchangeable (a busy bin predicts a busy next bin),
 so the pointwise term of bin ``b`` is the one-step-ahead predictive
 ``log p(bin_b | bins < b)``; they sum to the log-likelihood. PSIS-LOO over them is
-leave-future-out-style and approximate (see ``docs/src/fitting.md``).
+leave-future-out-style and approximate (see ``docs/src/models.md``).
 """
 
 from __future__ import annotations
@@ -256,11 +259,21 @@ def mmpp_step_loglik(
     lam = jnp.asarray(lam)
     q01, q10 = switch[0], switch[1]
     pi = jnp.stack([q10, q01]) / (q01 + q10)
+    is_tick = (steps.tick >= 0).astype(lam.dtype)
+    delta = jnp.exp(log_delta)
+    # every step's factors at once; the recursion only multiplies. A step is the empty
+    # stretch before it, expm((Q - Lambda) u), then its tick with the state held over the
+    # tick: P(c | k) = Poisson(c; lambda_k delta), then the switches over the tick,
+    # expm(Q delta) = 1 pi + e^{-q delta} (I - 1 pi). Each factor is a probability.
     log_d = _log_tick_terms(jnp.log(lam) + log_delta, steps.count, conv)  # (S, 2)
-    # every step's transfer and tick term at once; the recursion only multiplies
-    log_scale, mat = jax.vmap(lambda u: mmpp_transfer(lam, switch, u))(steps.gap)
+    log_d = log_d - is_tick[:, None] * lam[None, :] * delta
+    empty = jnp.maximum(steps.gap - is_tick * delta, 0.0)
+    log_scale, mat = jax.vmap(lambda u: mmpp_transfer(lam, switch, u))(empty)
     d_max = jnp.max(log_d, axis=1)
-    mat = mat * jnp.exp(log_d - d_max[:, None])[:, None, :]  # M_s diag(P(c_s | k)) / max
+    mat = mat * jnp.exp(log_d - d_max[:, None])[:, None, :]  # T(u) diag(P(c | k)) / max
+    keep = jnp.exp(-(q01 + q10) * delta * is_tick)[:, None, None]
+    switched = keep * jnp.eye(2)[None] + (1.0 - keep) * jnp.ones((2, 1)) * pi[None, None, :]
+    mat = mat @ switched
     log_scale = log_scale + d_max
 
     def body(alpha, xs):

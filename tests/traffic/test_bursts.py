@@ -61,8 +61,9 @@ def _brute_mmpp_bins(t, window, delta, width, lam, switch, area=1.0):
         for j, c in zip(ticks, counts, strict=True):
             s = j * delta
             if b * width <= s + delta / 2 < (b + 1) * width:
-                alpha = alpha @ expm(gen * (s + delta - pos))
-                alpha = alpha * (lam * delta) ** c / np.exp(gammaln(c + 1))
+                alpha = alpha @ expm(gen * (s - pos))  # nothing until the tick
+                alpha = alpha * (lam * delta) ** c * np.exp(-lam * delta - gammaln(c + 1))
+                alpha = alpha @ expm(_q(switch) * delta)  # switches over the tick
                 pos = s + delta
                 total += np.log(alpha.sum())
                 alpha /= alpha.sum()
@@ -235,3 +236,19 @@ def test_bursty_start_is_stationary():
 def test_hawkes_sampler_refuses_an_explosive_branching_ratio():
     with pytest.raises(ValueError, match="branching ratio"):
         sample_hawkes_times(np.random.default_rng(0), 1.0, 1.0, 1.0, (0.0, 1.0))
+
+
+@pytest.mark.parametrize(
+    "contrast, switch", [(14.0, (1.0, 1000.0)), (8.0, (50.0, 1000.0)), (0.5, (1e-3, 2e-2))]
+)
+def test_mmpp_bins_are_probabilities_at_extreme_parameters(contrast, switch):
+    """Clumped ticks (2-3 arrivals) and a rare, short, very busy state: every one-step-ahead
+    term is the log of a probability of discrete counts, so at most 0 (a state read only
+    at the tick's end, switched into just before it, gave terms above 0)."""
+    rng = np.random.default_rng(9)
+    t = np.repeat(np.round(np.sort(rng.uniform(0, 600, 80)), 1), rng.integers(1, 4, 80))
+    units = arrival_units(t, (0.0, 600.0), 1.0, 0.4, 30.0)
+    params = {"event_rate": 0.3, "log_area": 0.0, "mmpp_contrast": contrast,
+              "mmpp_switch": jnp.array(switch)}  # fmt: skip
+    got = np.asarray(arrival_unit_loglik(params, units, ArrivalSpec.from_name("mmpp")))
+    assert np.all(np.isfinite(got)) and np.all(got <= 1e-12), got.max()
