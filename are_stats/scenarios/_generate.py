@@ -697,6 +697,7 @@ def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dic
 TRAFFIC_NAMES = (
     "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
     "class_stay_mean", "class_stay_shape",
+    "mmpp_factor", "mmpp_switch", "hawkes_branching", "hawkes_decay",
 )  # fmt: skip
 
 

@@ -125,6 +125,33 @@ __all__ += [
     "stationary_count_moments",
 ]
 
+# --- bursts within the window (MMPP, Hawkes) ---
+from are_stats.traffic._bursts import (  # noqa: E402
+    BurstSteps,
+    burst_steps,
+    hawkes_count_dispersion,
+    hawkes_step_loglik,
+    mmpp_count_dispersion,
+    mmpp_factors,
+    mmpp_step_loglik,
+    mmpp_transfer,
+    sample_hawkes_times,
+    sample_mmpp_times,
+)
+
+__all__ += [
+    "BurstSteps",
+    "burst_steps",
+    "hawkes_count_dispersion",
+    "hawkes_step_loglik",
+    "mmpp_count_dispersion",
+    "mmpp_factors",
+    "mmpp_step_loglik",
+    "mmpp_transfer",
+    "sample_hawkes_times",
+    "sample_mmpp_times",
+]
+
 # --- entry and exit positions (uniform, learned) ---
 from are_stats.traffic._positions import (  # noqa: E402
     POSITION_MODELS,

@@ -16,7 +16,16 @@ group of ``S`` artefacts (``S = 1`` without groups):
 * ``time-of-day``: ``tod`` piecewise constant over ``P`` periods of the day (mean 1);
 * ``groups``: ``c_j`` compound Poisson, ``P(c) = e^{-rho delta} sum_k (rho delta)^k / k!
   p^{*k}(c)`` with ``p`` the group-size law on ``1..K`` (a Dirichlet prior);
-* ``groups+time-of-day``, ``negbin+time-of-day``: the combinations.
+* ``groups+time-of-day``, ``negbin+time-of-day``: the combinations;
+* ``mmpp``: a two-state Markov-modulated Poisson process (rates ``rho f_0 < rho f_1``,
+  ``pi . f = 1``, switching rates ``q01``, ``q10``), and ``groups+mmpp`` (each event
+  brings a group): bursts of a few minutes within the window;
+* ``hawkes``: a self-exciting process with an exponential kernel (baseline
+  ``rho (1 - alpha)``, branching ratio ``alpha``, decay ``beta``).
+
+The MMPP and Hawkes likelihoods are forward recursions over the ticks in time order
+(:mod:`are_stats.traffic._bursts`); their pointwise terms are the one-step-ahead
+``log p(bin_b | bins < b)``, since their bins are not exchangeable.
 
 All of them are probabilities of the same quantised data, so their pointwise
 log-likelihoods (one per time bin, :func:`arrival_unit_loglik`) can be compared by
@@ -49,6 +58,13 @@ from jax.scipy.special import gammaln, logsumexp
 
 from are_stats._checks import check_in
 from are_stats.traffic._arrivals import DAY, period_exposure, period_of
+from are_stats.traffic._bursts import (
+    BurstSteps,
+    burst_steps,
+    hawkes_step_loglik,
+    mmpp_factors,
+    mmpp_step_loglik,
+)
 from are_stats.traffic._stays import STAY_LAWS
 
 _TINY = float(np.finfo(np.float64).tiny)
@@ -73,26 +89,56 @@ class ArrivalSpec(NamedTuple):
     negbin: bool = False
     tod: bool = False
     groups: bool = False
+    mmpp: bool = False
+    hawkes: bool = False
 
     @property
     def name(self) -> str:
-        """``poisson``, ``negbin``, ``time-of-day``, ``groups`` or a ``+`` combination."""
-        parts = [n for n, on in (("groups", self.groups), ("negbin", self.negbin)) if on]
+        """``poisson``, ``negbin``, ``time-of-day``, ``groups``, ``mmpp``, ``hawkes`` or a
+        ``+`` combination."""
+        parts = [
+            n
+            for n, on in (
+                ("groups", self.groups),
+                ("negbin", self.negbin),
+                ("mmpp", self.mmpp),
+                ("hawkes", self.hawkes),
+            )
+            if on
+        ]
         if self.tod:
             parts.append("time-of-day")
         return "+".join(parts) or "poisson"
 
     @property
+    def bursts(self) -> bool:
+        """An MMPP or Hawkes process (a forward recursion over the ticks in time order)."""
+        return self.mmpp or self.hawkes
+
+    @property
     def n_params(self) -> int:
         """A complexity order (fewer first) used to break ties towards simpler models."""
-        return 1 + int(self.negbin) + 23 * int(self.tod) + 4 * int(self.groups)
+        return (
+            1
+            + int(self.negbin)
+            + 23 * int(self.tod)
+            + 4 * int(self.groups)
+            + 3 * int(self.mmpp)
+            + 2 * int(self.hawkes)
+        )
 
     @classmethod
     def from_name(cls, name: str) -> ArrivalSpec:
         """The spec of a model name (inverse of :attr:`name`)."""
         check_in("arrivals", name, ARRIVAL_SPECS)
         parts = set(name.split("+"))
-        return cls("negbin" in parts, "time-of-day" in parts, "groups" in parts)
+        return cls(
+            "negbin" in parts,
+            "time-of-day" in parts,
+            "groups" in parts,
+            "mmpp" in parts,
+            "hawkes" in parts,
+        )
 
 
 #: Arrival models the fit can choose from, simplest first.
@@ -103,6 +149,9 @@ ARRIVAL_SPECS = (
     "time-of-day",
     "negbin+time-of-day",
     "groups+time-of-day",
+    "mmpp",
+    "hawkes",
+    "groups+mmpp",
 )
 
 
@@ -127,6 +176,8 @@ class ArrivalUnits(NamedTuple):
         1 for real bins, 0 for padding.
     log_delta : float
         ``log`` of the tick width (the log's time resolution).
+    steps : BurstSteps, optional
+        The ticks and the ends of the bins in time order (the MMPP and Hawkes models).
     """
 
     tick_count: Any
@@ -137,6 +188,7 @@ class ArrivalUnits(NamedTuple):
     bin_count: Any
     bin_weight: Any
     log_delta: Any
+    steps: BurstSteps | None = None
 
 
 def _bucket(n: int, least: int = 16) -> int:
@@ -215,6 +267,7 @@ def arrival_units(
     expo *= float(area)
     bin_count = np.bincount(tbin, weights=counts, minlength=n_bins)
     m, bb = _bucket(ticks.size), _bucket(n_bins)
+    steps = burst_steps(ticks, counts, tbin, (t0, t1), delta, bin_width, m + bb)
 
     def pad(a: np.ndarray, size: int, dtype: Any) -> np.ndarray:
         out = np.zeros((size,) + a.shape[1:], dtype)
@@ -230,6 +283,7 @@ def arrival_units(
         bin_count=pad(bin_count, bb, float),
         bin_weight=pad(np.ones(n_bins), bb, float),
         log_delta=float(np.log(delta)),
+        steps=steps,
     )
 
 
@@ -265,6 +319,8 @@ def arrival_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) ->
     """
     rate = params["event_rate"]
     n_bins = units.bin_weight.shape[0]
+    if spec.bursts:
+        return _burst_unit_loglik(params, units, spec)
     tod = params["arrival_tod"] if spec.tod else jnp.ones(units.bin_exposure.shape[1])
     log_tod_tick = jnp.log(tod)[units.tick_period]
     log_rho_delta = jnp.log(rate) + log_tod_tick + units.log_delta  # log(rho delta / area)
@@ -304,6 +360,30 @@ def arrival_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) ->
     return jnp.where(units.bin_weight > 0, out, 0.0)
 
 
+def _burst_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) -> jnp.ndarray:
+    """``(B,)`` one-step-ahead log-likelihood of each bin under an MMPP or Hawkes spec."""
+    if units.steps is None:
+        raise ValueError(f"units: expected the burst steps for {spec.name}, got None")
+    n_bins = units.bin_weight.shape[0]
+    total = params["event_rate"] * jnp.exp(params["log_area"])  # events per time, whole area
+    if spec.mmpp:
+        conv = None
+        if spec.groups:
+            probs = params["group_size_probs"]
+            log_p = jnp.concatenate([jnp.array([-jnp.inf]), jnp.log(probs)])
+            conv = _log_convolution_powers(log_p, probs.shape[0])
+        switch = params["mmpp_switch"]
+        lam = total * mmpp_factors(params["mmpp_contrast"], switch)
+        out = mmpp_step_loglik(lam, switch, units.log_delta, units.steps, n_bins, conv)
+    else:
+        alpha = params["hawkes_branching"]
+        mu = total * (1.0 - alpha)
+        out = hawkes_step_loglik(
+            mu, alpha, params["hawkes_decay"], units.log_delta, units.steps, n_bins
+        )
+    return jnp.where(units.bin_weight > 0, out, 0.0)
+
+
 def _positive(name: str, centre: float, sd: float = 3.0) -> jnp.ndarray:
     z = numpyro.sample(f"{name}_z", dist.Normal(0.0, sd))
     return numpyro.deterministic(name, centre * jnp.exp(z))
@@ -315,11 +395,16 @@ def arrival_model(
     rate_centre: float,
     log_area: float,
     max_group: int = 1,
+    time_centre: float = 1.0,
 ) -> None:
     """numpyro model of quantised arrivals under ``spec`` (see the module docstring).
 
     Latent sites: ``event_rate_z`` (deterministic ``event_rate``), and as the spec needs
-    ``arrival_phi``, ``tod_eta`` (deterministic ``arrival_tod``), ``group_size_probs``.
+    ``arrival_phi``, ``tod_eta`` (deterministic ``arrival_tod``), ``group_size_probs``,
+    ``mmpp_contrast`` (``HalfNormal(2)``: ``log(f_1 / f_0)``) and ``mmpp_switch_z``
+    (deterministic ``mmpp_switch``, ``(q01, q10)``, and ``mmpp_factor``, ``f``),
+    ``hawkes_branching`` (``Beta(1, 2)``) and ``hawkes_decay_z`` (deterministic
+    ``hawkes_decay``).
     The likelihood is one factor, ``arrival_units``, the sum of
     :func:`arrival_unit_loglik`.
 
@@ -333,6 +418,9 @@ def arrival_model(
         ``log`` of the free area.
     max_group : int
         Largest group size ``K`` (``groups`` only).
+    time_centre : float
+        A time scale of the bursts (the LOO bin width): the centre of the priors of the
+        switching rates and the Hawkes decay, ``exp(Normal(0, 1.5)) / time_centre``.
     """
     params: dict[str, Any] = {"log_area": log_area}
     params["event_rate"] = _positive("event_rate", rate_centre)
@@ -346,6 +434,16 @@ def arrival_model(
         params["group_size_probs"] = numpyro.sample(
             "group_size_probs", dist.Dirichlet(jnp.ones(int(max_group)))
         )
+    if spec.mmpp:
+        params["mmpp_contrast"] = numpyro.sample("mmpp_contrast", dist.HalfNormal(2.0))
+        z = numpyro.sample("mmpp_switch_z", dist.Normal(0.0, 1.5).expand([2]).to_event(1))
+        params["mmpp_switch"] = numpyro.deterministic("mmpp_switch", jnp.exp(z) / time_centre)
+        numpyro.deterministic(
+            "mmpp_factor", mmpp_factors(params["mmpp_contrast"], params["mmpp_switch"])
+        )
+    if spec.hawkes:
+        params["hawkes_branching"] = numpyro.sample("hawkes_branching", dist.Beta(1.0, 2.0))
+        params["hawkes_decay"] = _positive("hawkes_decay", 1.0 / time_centre, 1.5)
     numpyro.factor("arrival_units", jnp.sum(arrival_unit_loglik(params, units, spec)))
 
 

@@ -7,11 +7,17 @@ each with its group, stay and entry point. Scenario generation
 synthetic logs of the tests (:func:`simulate_traffic_log`) all draw through it.
 
 * **Arrivals**: :func:`~are_stats.traffic.sample_arrivals` (events at ``event_rate * area``,
-  times of day, negative-binomial frailty, group sizes).
+  times of day, negative-binomial frailty, group sizes); the bursty models (``mmpp``,
+  ``hawkes``, ``groups+mmpp``) by :func:`~are_stats.traffic.sample_mmpp_times` and
+  :func:`~are_stats.traffic.sample_hawkes_times`, run from a burn-in before ``t = 0`` so
+  that the window starts in the process's stationary regime.
 * **Initial population** (``start="stationary"``): ``Poisson(event_rate * area * m)``
   groups (times the time-of-day factor at ``t = 0`` and, for the negative binomial, one
   frailty draw), each with the equilibrium residual stay of its law
-  (:func:`~are_stats.traffic.stay_draws` with ``residual=True``).
+  (:func:`~are_stats.traffic.stay_draws` with ``residual=True``). For the bursty models
+  the number present at ``t = 0`` depends on the recent rate, so the initial population is
+  the groups of the burn-in (``BURN_STAYS`` mean stays and ``BURN_SCALES`` of the process's
+  time scale) still present at ``t = 0``, with their remaining stays.
 * **Stays**: one stay per group from the stay law; members keep the group's stay times
   ``exp(s * e - s^2 / 2)`` with ``e`` standard normal and ``s = group_stay_sd`` (0: they
   leave together).
@@ -29,12 +35,18 @@ from typing import Any
 import numpy as np
 
 from are_stats._checks import check_in
-from are_stats.traffic._arrivals import DAY, period_of, sample_arrivals
+from are_stats.traffic._arrivals import DAY, ArrivalDraw, period_of, sample_arrivals
+from are_stats.traffic._bursts import sample_hawkes_times, sample_mmpp_times
 from are_stats.traffic._models import ARRIVAL_SPECS, ArrivalSpec
 from are_stats.traffic._positions import POSITION_MODELS, PositionDensity
 from are_stats.traffic._stays import STAY_LAWS, stay_draws
 
 __all__ = ["TrafficLaws", "sample_population", "simulate_traffic_log"]
+
+#: Burn-in of the bursty arrival models before ``t = 0``: mean stays ...
+BURN_STAYS = 20.0
+#: ... plus time scales of the process (``1 / (q01 + q10)``, ``1 / (beta (1 - alpha))``).
+BURN_SCALES = 10.0
 
 
 @dataclass(frozen=True)
@@ -124,7 +136,8 @@ def sample_population(
         One posterior draw: ``event_rate`` (events per m^2 per time; the paper's
         ``arrival_rate``), ``stay_mean`` (the paper's ``1 / leave_rate``), and as the laws
         need ``arrival_phi``, ``arrival_tod`` (P,), ``group_size_probs`` (K,),
-        ``stay_shape``.
+        ``stay_shape``, ``mmpp_factor`` (2,) and ``mmpp_switch`` (2,), ``hawkes_branching``
+        and ``hawkes_decay``.
     laws : TrafficLaws
     horizon : float
     area : float
@@ -151,6 +164,12 @@ def sample_population(
     tod = _one(draw, "arrival_tod") if spec.tod else None
     probs = _one(draw, "group_size_probs") if spec.groups else None
     offset = 0.0 if laws.clock_offset is None else float(laws.clock_offset)
+    if spec.bursts:
+        size0, stay0, arr, stay_arr = _burst_groups(
+            rng, draw, laws, float(horizon), area, rate, mean, shape, probs, start
+        )
+        n0_groups = size0.size
+        return _finish(rng, laws, size0, stay0, arr, stay_arr, n0_groups, free)
     arr = sample_arrivals(
         rng,
         rate,
@@ -178,12 +197,60 @@ def sample_population(
     else:
         size0 = np.ones(n0_groups, np.int64)
     n_arr_groups = int(arr.group.max()) + 1 if arr.group.size else 0
-    g_stay = np.concatenate(
-        [
-            stay_draws(rng, laws.lifetimes, mean, shape, (n0_groups,), residual=True),
-            stay_draws(rng, laws.lifetimes, mean, shape, (n_arr_groups,)),
-        ]
-    )
+    stay0 = stay_draws(rng, laws.lifetimes, mean, shape, (n0_groups,), residual=True)
+    stay_arr = stay_draws(rng, laws.lifetimes, mean, shape, (n_arr_groups,))
+    return _finish(rng, laws, size0, stay0, arr, stay_arr, n0_groups, free)
+
+
+def _burst_groups(
+    rng: np.random.Generator, draw: Mapping[str, Any], laws: TrafficLaws, horizon: float,
+    area: float, rate: float, mean: float, shape: float, probs: np.ndarray | None, start: str,
+) -> tuple[np.ndarray, np.ndarray, ArrivalDraw, np.ndarray]:  # fmt: skip
+    """Groups of a bursty model: sizes and remaining stays of those present at ``t = 0``,
+    the arrivals of the window and their groups' stays (see the module docstring)."""
+    spec = laws.spec
+    total = rate * area
+    if spec.mmpp:
+        f = _one(draw, "mmpp_factor")
+        q = _one(draw, "mmpp_switch")
+        scale = 1.0 / float(q.sum())
+    else:
+        alpha = float(_one(draw, "hawkes_branching"))
+        beta = float(_one(draw, "hawkes_decay"))
+        scale = 1.0 / (beta * (1.0 - alpha))
+    burn = BURN_SCALES * scale + (BURN_STAYS * mean if start == "stationary" else 0.0)
+    window = (-burn, horizon)
+    if spec.mmpp:
+        t = sample_mmpp_times(rng, total * f, q, window)
+    else:
+        t = sample_hawkes_times(rng, total * (1.0 - alpha), alpha, beta, window)
+    if probs is not None and t.size:
+        p = probs / probs.sum()
+        sizes = rng.choice(np.arange(1, p.size + 1), size=t.size, p=p).astype(np.int64)
+    else:
+        sizes = np.ones(t.size, np.int64)
+    before = t < 0.0
+    n_before = int(np.sum(before))
+    if start == "stationary" and n_before:
+        stays = stay_draws(rng, laws.lifetimes, mean, shape, (n_before,))
+        left = t[before] + stays
+        here = left > 0.0
+        size0, stay0 = sizes[before][here], left[here]
+    else:
+        size0, stay0 = np.zeros(0, np.int64), np.zeros(0)
+    ta, sa = t[~before], sizes[~before]
+    n = ta.size
+    group = np.repeat(np.arange(n, dtype=np.int64), sa)
+    arr = ArrivalDraw(np.repeat(ta, sa), group, np.repeat(sa, sa))
+    return size0, stay0, arr, stay_draws(rng, laws.lifetimes, mean, shape, (n,))
+
+
+def _finish(
+    rng: np.random.Generator, laws: TrafficLaws, size0: np.ndarray, stay0: np.ndarray,
+    arr: ArrivalDraw, stay_arr: np.ndarray, n0_groups: int, free: PositionDensity | None,
+) -> dict[str, np.ndarray]:  # fmt: skip
+    """Artefacts of the groups present at ``t = 0`` and of the arrivals: stays, positions."""
+    g_stay = np.concatenate([stay0, stay_arr])
     group = np.concatenate([np.repeat(np.arange(n0_groups), size0), n0_groups + arr.group])
     t_arr = np.concatenate([np.zeros(int(size0.sum())), arr.t])
     truncated = np.zeros(group.size, bool)
