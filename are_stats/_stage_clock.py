@@ -1,0 +1,180 @@
+"""Stage progress with the time left, for the CLI's long jobs (``fit``, ``generate``).
+
+A command's slow parts (a NUTS fit per model, the candidates' comparison, the behaviour
+fit, the rollouts) each run as one compiled program, so their progress cannot be counted
+from inside. What can be said is how long each stage took the last time: :class:`StageClock`
+records every stage's duration (keyed by the stage's words and a size the caller gives,
+e.g. the log's rows) in ``$XDG_CACHE_HOME/are_stats/stage_times.json`` beside the compile
+cache, and while a stage runs it shows ``<stage> ... 12 s, about 20 s left`` from that
+record (``12 s`` alone for a stage never timed here; a stage past its last time says
+``longer than last time``). A fresh machine thus sees the time spent per stage, a second
+run the time left. The record follows the compile cache: off with ``ARE_STATS_NO_CACHE``.
+
+Nothing is drawn unless the console is a terminal (rich's status is silent elsewhere), so
+piped output and tests see only the command's own lines.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["StageClock", "format_left", "stage_times_path"]
+
+#: Stages shorter than this are not worth a clock (seconds).
+MIN_SHOWN = 2.0
+#: Most stages kept in the record (oldest dropped first).
+MAX_RECORDS = 512
+
+
+def stage_times_path() -> Path | None:
+    """The record of stage durations, or None when the cache is off."""
+    if os.environ.get("ARE_STATS_NO_CACHE", "") not in ("", "0"):
+        return None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "are_stats" / "stage_times.json"
+
+
+def format_left(elapsed: float, last: float | None) -> str:
+    """``12 s`` / ``12 s, about 20 s left`` / ``40 s, longer than last time (31 s)``.
+
+    Parameters
+    ----------
+    elapsed : float
+        Seconds spent in the stage so far.
+    last : float or None
+        The stage's duration the last time it ran here (None: never).
+    """
+    spent = f"{elapsed:.0f} s"
+    if last is None:
+        return spent
+    left = last - elapsed
+    if left < 0:
+        return f"{spent}, longer than last time ({last:.0f} s)"
+    return f"{spent}, about {max(left, 1.0):.0f} s left"
+
+
+class StageClock:
+    """Time a job's stages, show the time left in a rich status, record the durations.
+
+    Parameters
+    ----------
+    status : rich.status.Status or None
+        Where the words go (``status.update(text)``); None: only record.
+    prefix : str
+        Put before every stage (``"fitting: "``).
+    size : str
+        Part of every stage's key (e.g. ``"500 rows"``): the same stage on other data
+        takes another time.
+    live : bool
+        Refresh the words every half second (a terminal); otherwise once per stage.
+    path : Path or None
+        The record (default :func:`stage_times_path`).
+    timer : callable
+        Seconds now (default :func:`time.perf_counter`).
+
+    Examples
+    --------
+    >>> clock = StageClock(None, size="500 rows", path=None)
+    >>> clock("NUTS for groups")  # a stage starts; the previous one ends
+    >>> clock.close()  # the last stage ends; the record is written
+    """
+
+    def __init__(
+        self,
+        status: Any,
+        prefix: str = "",
+        size: str = "",
+        live: bool = False,
+        path: Path | None | str = "default",
+        timer: Callable[[], float] = time.perf_counter,
+    ) -> None:
+        self._status, self._prefix, self._size = status, prefix, size
+        self._timer = timer
+        self._path = stage_times_path() if path == "default" else path
+        self._record = self._read()
+        self._stage: str | None = None
+        self._t0 = 0.0
+        self._lock = threading.Lock()
+        self._done = threading.Event()
+        self.durations: dict[str, float] = {}
+        self._ticker = None
+        if live and status is not None:
+            self._ticker = threading.Thread(target=self._tick, name="are-stats-clock", daemon=True)
+            self._ticker.start()
+
+    def _read(self) -> dict[str, float]:
+        if self._path is None:
+            return {}
+        try:
+            data = json.loads(Path(self._path).read_text())
+        except (OSError, ValueError):
+            return {}
+        return {str(k): float(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+    def _key(self, stage: str) -> str:
+        return f"{stage} [{self._size}]" if self._size else stage
+
+    def last(self, stage: str) -> float | None:
+        """The stage's duration the last time (None: never recorded here)."""
+        return self._record.get(self._key(stage))
+
+    def _words(self) -> str:
+        stage = self._stage or ""
+        elapsed = self._timer() - self._t0
+        last = self.last(stage)
+        if elapsed < MIN_SHOWN and last is None:
+            return f"{self._prefix}{stage} ..."
+        return f"{self._prefix}{stage} ... {format_left(elapsed, last)}"
+
+    def _tick(self) -> None:
+        while not self._done.wait(0.5):
+            with self._lock:
+                if self._stage is not None:
+                    self._status.update(self._words())
+
+    def _end(self) -> None:
+        if self._stage is not None:
+            self.durations[self._key(self._stage)] = self._timer() - self._t0
+
+    def __call__(self, stage: str) -> None:
+        """Start ``stage`` (ending the one before)."""
+        with self._lock:
+            self._end()
+            self._stage, self._t0 = stage, self._timer()
+            if self._status is not None:
+                self._status.update(self._words())
+
+    def close(self) -> None:
+        """End the last stage, stop the refresh and write the record (best effort)."""
+        with self._lock:
+            self._end()
+            self._stage = None
+        self._done.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        if self._path is None or not self.durations:
+            return
+        # the stages just timed go last: the oldest are dropped first
+        record = {k: v for k, v in self._record.items() if k not in self.durations}
+        record.update(self.durations)
+        record = dict(list(record.items())[-MAX_RECORDS:])
+        try:
+            path = Path(self._path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(json.dumps(record, indent=0))
+            os.replace(tmp, path)
+        except OSError:  # a read-only cache: the clock is a nicety
+            pass
+
+    def __enter__(self) -> StageClock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
