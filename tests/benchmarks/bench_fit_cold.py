@@ -26,7 +26,8 @@ Run with ``python -m tests.benchmarks fit_cold`` (``--quick``: the cold and repe
 default fit only). Benchmarks never assert on time. Measured 2026-11-26 on the team's
 shared 2-core machine (load average 10-15; the table is on the docs' "Choosing the traffic
 models" page): cold CPU 111.6 s ranked vs 166.2 s all-NUTS (1.49x), the same choices, no
-XLA banner; repeated 53.4 s vs 43.0 s CPU. The demo and peer parts did not run to the end
+XLA banner; repeated 53.4 s vs 43.0 s CPU (noise of the load: the warm Laplace comparison
+itself takes 3.8 s of CPU). The demo and peer parts did not run to the end
 there (stopped to leave the cores to tests); PyMC was not installed.
 """
 
