@@ -20,6 +20,7 @@ from rich.table import Table
 
 from are_stats import __version__
 from are_stats._atomic import atomic_path, check_writable
+from are_stats._stage_clock import StageClock
 from are_stats.environment import resolve_shipped, shipped_path
 
 console = Console(highlight=False, width=None if Console().is_terminal else 100)
@@ -88,6 +89,7 @@ def run_fit(
     arrivals: str = "auto",
     lifetimes: str = "auto",
     positions: str = "auto",
+    compare: str = "laplace",
     clock_start: str | None = None,
     behaviour: bool = True,
     behaviour_features: str = "",
@@ -187,6 +189,7 @@ def run_fit(
         arrivals=arrivals,
         lifetimes=lifetimes,
         positions=positions,
+        compare=compare,
     )
     log = resolve_shipped(log, "log", source="LOG")  # a file, or a shipped log's name
     with warnings.catch_warnings(record=True) as caught:
@@ -231,13 +234,18 @@ def run_fit(
 
         grid = OccupancyGrid.from_ros_yaml(lifecycle.manifest["map"])
     t_start = time.perf_counter()
-    with console.status("fitting ...") as status:
+    with (
+        console.status("fitting ...") as status,
+        StageClock(
+            status, "fitting: ", size=f"{method}, {data.n} rows", live=console.is_terminal
+        ) as clock,
+    ):
         idata = fit_log(
             jax.random.key(seed),
             data,
             settings,
             counts_panel=panel,
-            progress=lambda msg: status.update(f"fitting: {msg} ..."),
+            progress=clock,
             class_labels=(
                 lifecycle.to_arrays()["label_names"]
                 if data.labels is not None or labelled is not None
@@ -255,7 +263,7 @@ def run_fit(
                 open_area_grid,
             )
 
-            status.update("fitting: behaviour from the tracks (speeds, exits, rationality) ...")
+            clock("behaviour from the tracks (speeds, exits, rationality)")
             if grid is not None:
                 free, res, origin = grid.free, grid.resolution, grid.origin[:2]
             else:  # no map: the open area the tracks cover (issue 26)
@@ -282,9 +290,9 @@ def run_fit(
                 idata = attach_behaviour(idata, bfit)
                 for line in _behaviour_lines(bfit):
                     console.print(line)
-                status.update("fitting: interaction (social force) from the tracks ...")
+                clock("interaction (social force) from the tracks")
                 _attach_interaction(idata, tracks)
-                status.update("fitting: realism and displacement errors against the tracks ...")
+                clock("realism and displacement errors against the tracks")
                 _attach_motion_tables(seed, idata, tracks, grid)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
@@ -733,11 +741,21 @@ def run_generate(
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
     t = time.perf_counter()
-    scenes = scenes_from_fit(
-        seed, idata, grid, load_catalogue(), n_scenarios, horizon, behaviours=behaviours,
-        model=model, area=area, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
-        source=source, cell_source="--behaviour-cell",
-    )  # fmt: skip
+    stage = "scenarios with their walks (rollouts)" if behaviours else "scenarios"
+    with (
+        console.status(f"{stage} ...") as status,
+        StageClock(
+            status,
+            size=f"{n_scenarios} x {horizon:g} s, {Path(fit_path).name}",
+            live=console.is_terminal,
+        ) as clock,
+    ):
+        clock(stage)
+        scenes = scenes_from_fit(
+            seed, idata, grid, load_catalogue(), n_scenarios, horizon, behaviours=behaviours,
+            model=model, area=area, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
+            source=source, cell_source="--behaviour-cell",
+        )  # fmt: skip
     df, tracks = scenes_tables(scenes)
     manifest = {
         "fit": str(fit_path),

@@ -241,6 +241,12 @@ def fit(
         help="Reward features whose weights the behaviour fit estimates with beta and slip, "
         "comma-separated: walls (closeness to walls). Default: none.",
     ),
+    compare: str = typer.Option(
+        "laplace",
+        "--compare",
+        help="How --method nuts compares the traffic candidates: laplace (PSIS-LOO from "
+        "each one's Laplace approximation, then NUTS for the chosen) | nuts (all sampled).",
+    ),
     stationary_start: bool = typer.Option(
         True,
         "--stationary-start/--no-stationary-start",
@@ -272,6 +278,7 @@ def fit(
         arrivals=arrivals,
         lifetimes=lifetimes,
         positions=positions,
+        compare=compare,
         clock_start=clock_start,
         behaviour=behaviour,
         behaviour_features=behaviour_features,

@@ -39,6 +39,15 @@ def test_help_at_80_columns_keeps_every_option_name_whole():
     assert max(len(line) for line in res.stdout.splitlines()) <= 80
 
 
+def test_fit_compare_option_is_checked_before_any_work(tmp_path):
+    res = runner.invoke(
+        app, ["fit", "courtyard_traffic", "--out", str(tmp_path / "f.nc"), "--compare", "bogus"]
+    )
+    assert res.exit_code == 2
+    assert "compare" in res.output and "laplace" in res.output
+    assert not (tmp_path / "f.nc").exists()
+
+
 def test_help_lists_commands():
     res = runner.invoke(app, ["--help"])
     assert res.exit_code == 0

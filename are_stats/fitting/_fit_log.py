@@ -92,10 +92,17 @@ class FitSettings:
         ``"auto"`` compares the candidates by PSIS-LOO and keeps the simplest within two
         standard errors of the best; a name fits that model. ``poisson``, ``exponential``
         and ``uniform`` together are the paper's model alone (nothing more is fitted).
-        With ``method="nuts"`` the candidates are sampled by NUTS; with ``method="em"`` no
-        NUTS program is compiled: each candidate is a Laplace approximation at its
-        posterior mode and PSIS-LOO is importance-sampled from it (the fit's attribute
-        ``traffic_model_choice`` says which).
+        With ``method="em"`` no NUTS program is compiled: each candidate is a Laplace
+        approximation at its posterior mode and PSIS-LOO is importance-sampled from it;
+        with ``method="nuts"`` see ``compare`` (the fit's attribute
+        ``traffic_model_choice`` says which ran).
+    compare : {"laplace", "nuts"}
+        ``method="nuts"``: how the traffic candidates are compared. ``"laplace"``: by
+        importance-sampled PSIS-LOO from each one's Laplace approximation, then NUTS
+        samples the chosen model alone (one or two NUTS programs to compile instead of
+        one per candidate); ``"nuts"``: every candidate sampled by NUTS and compared by
+        PSIS-LOO over its draws. ``method="em"`` always compares by the Laplace
+        approximation.
     """
 
     method: str = "nuts"
@@ -109,6 +116,7 @@ class FitSettings:
     arrivals: str = "auto"
     lifetimes: str = "auto"
     positions: str = "auto"
+    compare: str = "laplace"
 
     def __post_init__(self) -> None:
         from are_stats.fitting._traffic import (
@@ -118,6 +126,7 @@ class FitSettings:
         )
 
         check_in("method", self.method, ("nuts", "em"))
+        check_in("compare", self.compare, ("laplace", "nuts"))
         check_in("arrivals", self.arrivals, ARRIVAL_CHOICES)
         check_in("lifetimes", self.lifetimes, LIFETIME_CHOICES)
         check_in("positions", self.positions, POSITION_CHOICES)
@@ -456,8 +465,15 @@ def fit_log(
                 num_samples=settings.num_samples,
                 num_chains=settings.num_chains,
                 progress=say,
-                # em compiles no NUTS program: the candidates by the Laplace approximation
-                approximation="laplace" if settings.method == "em" else "nuts",
+                # em compiles no NUTS program: the candidates by the Laplace approximation;
+                # nuts ranks them so too (unless told otherwise) and samples the chosen
+                approximation=(
+                    "laplace"
+                    if settings.method == "em"
+                    else "ranked"
+                    if settings.compare == "laplace"
+                    else "nuts"
+                ),  # fmt: skip
             )
             if pending is not None:
                 idata = pending.result()

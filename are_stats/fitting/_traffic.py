@@ -20,6 +20,16 @@ and its pointwise ``elpd`` is importance-sampled PSIS-LOO from that Gaussian
 chosen model's draws are the Gaussian's. No NUTS program is compiled. The fit's attribute
 ``traffic_model_choice`` says which was used.
 
+**Ranked, then sampled** (``approximation="ranked"``, what ``are-stats fit`` uses by
+default): the candidates are compared as without NUTS (Laplace approximation and
+importance-sampled PSIS-LOO, one small derivative-free program each), and NUTS samples
+only the chosen model (and the paper's, whose draws the Poisson and exponential candidates
+are). A candidate with more than :data:`LAPLACE_MAX_PARAMETERS` parameters is sampled by
+NUTS for the comparison. A cold fit compiles one or two NUTS programs instead of one per
+candidate (tests check that the choices agree with the all-NUTS comparison on the
+shipped log and on logs drawn from each candidate). ``approximation="nuts"`` samples every
+candidate.
+
 **The choice.** Candidates are ordered from simple to complex. The candidate with the
 highest ``elpd`` is the best; the chosen one is the *simplest* candidate whose ``elpd`` is
 within two standard errors of the difference from the best (a richer model must earn its
@@ -88,7 +98,7 @@ LIFETIME_CHOICES = ("auto", *STAY_LAWS)
 POSITION_CHOICES = ("auto", "uniform", "learned")
 
 #: ``approximation`` of :func:`fit_traffic`: the posterior each candidate is compared by.
-APPROXIMATIONS = ("nuts", "laplace")
+APPROXIMATIONS = ("nuts", "laplace", "ranked")
 #: Most latent parameters a candidate may have for the Laplace approximation (its mode
 #: search and Hessian grow with the square of the number); larger ones are not offered.
 LAPLACE_MAX_PARAMETERS = 64
@@ -96,6 +106,8 @@ LAPLACE_MAX_PARAMETERS = 64
 MODEL_CHOICE = {
     "nuts": "PSIS-LOO over NUTS draws",
     "laplace": "importance-sampled PSIS-LOO over Laplace-approximation draws (no NUTS)",
+    "ranked": "importance-sampled PSIS-LOO over Laplace-approximation draws; the chosen "
+    "model's posterior by NUTS",
 }
 
 #: Cell side (m) of the grid the entry/exit densities live on (the map is coarsened to it).
@@ -394,9 +406,10 @@ def fit_traffic(
         NUTS settings; the draws are reshaped to the paper posterior's ``(chains, draws)``.
     progress : callable, optional
         ``progress(message)`` at each stage.
-    approximation : {"nuts", "laplace"}
-        The candidates' posteriors: NUTS draws, or the Laplace approximation with
-        importance-sampled PSIS-LOO (no NUTS program is compiled; see the module
+    approximation : {"nuts", "laplace", "ranked"}
+        The candidates' posteriors: NUTS draws; the Laplace approximation with
+        importance-sampled PSIS-LOO (no NUTS program is compiled); or ranked by the
+        Laplace approximation and the chosen model sampled by NUTS (see the module
         docstring). Recorded in ``attrs["model_choice"]``.
 
     Returns
@@ -416,9 +429,17 @@ def fit_traffic(
     nuts = {"num_warmup": num_warmup, "num_samples": num_samples, "num_chains": num_chains}
     setup = _setup(key, data, arrivals, lifetimes, clock_start, out)
     out.attrs["model_choice"] = MODEL_CHOICE[approximation]
-    laplace = approximation == "laplace"
+    laplace, ranked = approximation == "laplace", approximation == "ranked"
     if laplace:
         setup = _laplace_sized(setup, arrivals, lifetimes, out)
+    # the candidates compared by their Laplace approximation (all of them but the paper's
+    # with "laplace"; with "ranked" those small enough, the others sampled by NUTS)
+    approx = set(setup.calls) if laplace else set()
+    if ranked:
+        approx = {
+            c for c, (_, model, kwargs, init) in setup.calls.items()
+            if laplace_dimension(model, kwargs, init) <= LAPLACE_MAX_PARAMETERS
+        }  # fmt: skip
     calls, cands, laws = setup.calls, setup.cands, setup.laws
     plain, units, res = setup.plain, setup.units, setup.res
     n_real_bins = int(np.sum(plain.bin_weight))
@@ -437,14 +458,15 @@ def fit_traffic(
     # PSIS-LOO of a candidate runs in its own thread while the next candidate samples
     # (NumPy releases the GIL in its array work; the sampler waits on the devices)
     with NutsPrefetch() as ahead, ThreadPoolExecutor(1, "are-stats-loo") as psis:
-        if laplace:  # two threads compile the candidates' programs while the first run
+        if approx:  # two threads compile the candidates' programs while the first run
             prefetch = ThreadPoolExecutor(2, "are-stats-laplace")
-            for (factor, _), (_, model, kwargs, init) in calls.items():
-                pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
-                prefetch.submit(laplace_program, model, kwargs, init, pw)
+            for (factor, name), (_, model, kwargs, init) in calls.items():
+                if (factor, name) in approx:
+                    pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
+                    prefetch.submit(laplace_program, model, kwargs, init, pw)
             prefetch.shutdown(wait=False)
-        else:
-            for call in calls.values():
+        for which, call in calls.items():
+            if which not in approx:
                 ahead.add(*call, **nuts)
         for name in cands:
             if name == "poisson":
@@ -453,7 +475,7 @@ def fit_traffic(
                                            np.asarray(log_area, float))  # fmt: skip
                 ll = np.asarray(ll).reshape(shape + (-1,))
                 run = None
-            elif laplace:
+            elif ("arrivals", name) in approx:
                 lap = _laplace_candidate(calls, ("arrivals", name), _arrival_draw_loglik,
                                          n_draws, say, out)  # fmt: skip
                 draws["arrivals"][name] = {k: v[None] for k, v in lap.samples.items()}
@@ -473,7 +495,7 @@ def fit_traffic(
                 ll = _stay_loglik_draws(flat, units, "exponential", res)
                 ll = np.asarray(ll).reshape(shape + (-1,))
                 run = None
-            elif laplace:
+            elif ("stays", law) in approx:
                 lap = _laplace_candidate(calls, ("stays", law), _stay_draw_loglik, n_draws,
                                          say, out)  # fmt: skip
                 draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
@@ -486,17 +508,28 @@ def fit_traffic(
             runs["stays"][law] = run
             loo["stays"][law] = psis.submit(loo_pointwise, ll[..., :n], _reff(run))
         elpd, ks = _loo_results(loo["arrivals"])
-        _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"], draws["arrivals"],
-                         reshape)  # fmt: skip
-        out.attrs.update(_group_stats(data))
+        chosen = _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"])
         elpd, ks = _loo_results(loo["stays"])
-    runs, draws = runs["stays"], draws["stays"]
-    if lifetimes == "auto":
-        chosen, table = choose_simplest(elpd, laws)
-    else:
-        _, table = choose_simplest(elpd, laws)
-        chosen = lifetimes if lifetimes in laws else "exponential"
-        table["chosen"] = table.index == chosen
+        if lifetimes == "auto":
+            law, table = choose_simplest(elpd, laws)
+        else:
+            _, table = choose_simplest(elpd, laws)
+            law = lifetimes if lifetimes in laws else "exponential"
+            table["chosen"] = table.index == law
+        # ranked: the chosen models' posteriors by NUTS, the second program compiling in a
+        # thread while the first samples
+        chosen_calls = [("arrivals", chosen), ("stays", law)] if ranked else []
+        chosen_calls = [c for c in chosen_calls if c in approx]
+        for which in chosen_calls:
+            ahead.add(*calls[which], **nuts)
+        for factor, name in chosen_calls:
+            run = _sample_candidate(calls, (factor, name), None, nuts, say, out)
+            runs[factor][name], draws[factor][name] = run, run.samples
+        _diag_cols(out.tables["arrivals"], runs["arrivals"])
+        if chosen != "poisson":
+            _store_arrival_draws(out, chosen, draws["arrivals"][chosen], reshape)
+        out.attrs.update(_group_stats(data))
+    runs, draws, chosen = runs["stays"], draws["stays"], law
     _pareto_cols(table, ks)
     _diag_cols(table, runs)
     out.tables["lifetimes"] = table
@@ -650,16 +683,9 @@ def _laplace_candidate(
 
 
 def _choose_arrivals(
-    out: TrafficFit,
-    arrivals: str,
-    cands: list[str],
-    elpd: dict,
-    ks: dict,
-    runs: dict,
-    draws: dict,
-    reshape: Any,
-) -> None:
-    """Choose the arrival model by PSIS-LOO and store its table and draws in ``out``."""
+    out: TrafficFit, arrivals: str, cands: list[str], elpd: dict, ks: dict, runs: dict
+) -> str:
+    """Choose the arrival model by PSIS-LOO and store its table in ``out``; the choice."""
     order = sorted(cands, key=lambda n: (ArrivalSpec.from_name(n).n_params, ARRIVAL_SPECS.index(n)))
     if arrivals == "auto":
         chosen, table = choose_simplest(elpd, order)
@@ -671,18 +697,21 @@ def _choose_arrivals(
     _diag_cols(table, runs)
     out.tables["arrivals"] = table
     out.arrival_model = chosen
+    return chosen
+
+
+def _store_arrival_draws(out: TrafficFit, chosen: str, s: dict, reshape: Any) -> None:
+    """The chosen arrival model's draws into ``out.posterior`` (not the paper's Poisson)."""
     spec = ArrivalSpec.from_name(chosen)
-    if chosen != "poisson":
-        s = draws[chosen]
-        out.posterior["event_rate"] = reshape(s["event_rate"])
-        if spec.negbin:
-            out.posterior["arrival_phi"] = reshape(s["arrival_phi"])
-        if spec.tod:
-            out.posterior["arrival_tod"] = reshape(s["arrival_tod"])
-            out.dims["arrival_tod"] = ["period"]
-        if spec.groups:
-            out.posterior["group_size_probs"] = reshape(s["group_size_probs"])
-            out.dims["group_size_probs"] = ["group_size"]
+    out.posterior["event_rate"] = reshape(s["event_rate"])
+    if spec.negbin:
+        out.posterior["arrival_phi"] = reshape(s["arrival_phi"])
+    if spec.tod:
+        out.posterior["arrival_tod"] = reshape(s["arrival_tod"])
+        out.dims["arrival_tod"] = ["period"]
+    if spec.groups:
+        out.posterior["group_size_probs"] = reshape(s["group_size_probs"])
+        out.dims["group_size_probs"] = ["group_size"]
 
 
 def _fit_positions(

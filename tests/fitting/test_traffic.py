@@ -348,3 +348,76 @@ def test_group_stats_match_the_per_group_loop(seed):
                         window=(-1.0, 300000.0), area=100.0, x=np.zeros(200000),
                         y=np.zeros(200000), group=np.arange(200000) // 2)  # fmt: skip
     assert _group_stats(big)["group_spread"] == 0.0
+
+
+# ---- ranked by the Laplace approximation, the chosen model sampled by NUTS (the default) --
+
+
+@pytest.fixture(scope="module")
+def ranked_fit(rich_log):
+    data, _ = rich_log
+    return fit_traffic(jax.random.key(0), data, paper=_paper(data), grid=_Grid(),
+                       approximation="ranked", **NUTS)  # fmt: skip
+
+
+def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
+    """Ranked by Laplace + importance-sampled PSIS-LOO, then NUTS for the chosen model
+    alone: the choices of the all-NUTS comparison, and the chosen posterior is a NUTS
+    posterior of the same model (the same program and key: equal within Monte Carlo error;
+    here even the same draws)."""
+    got = (ranked_fit.arrival_model, ranked_fit.lifetime_model, ranked_fit.position_model)
+    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
+    assert "chosen model's posterior by NUTS" in ranked_fit.attrs["model_choice"]
+    for name in ("event_rate", "stay_mean", "stay_shape", "group_size_probs"):
+        a, b = ranked_fit.posterior[name], rich_fit.posterior[name]
+        assert a.shape == b.shape
+        mc = 4.0 * b.std(axis=(0, 1)) / np.sqrt(b.shape[0] * b.shape[1] / 10.0)
+        assert np.all(np.abs(a.mean(axis=(0, 1)) - b.mean(axis=(0, 1))) <= mc + 1e-12), name
+    # the chosen rows carry the NUTS diagnostics, the others (Laplace only) none
+    for factor, chosen in (("arrivals", "groups"), ("lifetimes", "gamma")):
+        table = ranked_fit.tables[factor]
+        assert np.isfinite(table.loc[chosen, "r_hat"]), table
+        assert table.loc[chosen, "divergent"] == 0
+
+
+@pytest.mark.parametrize(
+    "arrivals, lifetimes, draw",
+    [
+        ("poisson", "exponential", {"event_rate": 1e-3, "stay_mean": 60.0}),
+        ("negbin", "exponential", {"event_rate": 1e-3, "stay_mean": 60.0, "arrival_phi": 0.5}),
+        ("poisson", "weibull", {"event_rate": 1e-3, "stay_mean": 60.0, "stay_shape": 0.6}),
+        ("poisson", "lognormal", {"event_rate": 1e-3, "stay_mean": 60.0, "stay_shape": 1.2}),
+    ],
+)
+def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, lifetimes, draw):
+    """Logs drawn from each candidate (the rich log covers groups and gamma): ranking by
+    the Laplace approximation chooses what sampling every candidate by NUTS chooses, with
+    every candidate's elpd within a few nats of its NUTS value."""
+    laws = TrafficLaws(arrivals=arrivals, lifetimes=lifetimes,
+                       bin_width=60.0 if arrivals == "negbin" else None)  # fmt: skip
+    data = simulate_traffic_log(np.random.default_rng(5), draw, laws, (0.0, 3600.0), AREA,
+                                free=uniform_position_density(FREE, RES, ORIGIN),
+                                resolution=0.4)  # fmt: skip
+    fits = {
+        how: fit_traffic(
+            jax.random.key(3),
+            data,
+            paper=_paper(data),
+            positions="uniform",
+            approximation=how,
+            **NUTS,
+        )  # fmt: skip
+        for how in ("nuts", "ranked")
+    }
+    nuts, ranked = fits["nuts"], fits["ranked"]
+    assert (ranked.arrival_model, ranked.lifetime_model) == (arrivals, lifetimes)
+    assert (ranked.arrival_model, ranked.lifetime_model) == (nuts.arrival_model,
+                                                             nuts.lifetime_model)  # fmt: skip
+    for factor in ("arrivals", "lifetimes"):
+        a, b = ranked.tables[factor], nuts.tables[factor]
+        assert list(a.index) == list(b.index)
+        assert np.all(np.abs(a["elpd"] - b["elpd"]) < 5.0 + 0.02 * b["se"]), (a, b)
+    for name, v in nuts.posterior.items():
+        w = ranked.posterior[name]
+        mc = 4.0 * v.std(axis=(0, 1)) / np.sqrt(v.shape[0] * v.shape[1] / 10.0)
+        assert np.all(np.abs(w.mean(axis=(0, 1)) - v.mean(axis=(0, 1))) <= mc + 1e-12), name
