@@ -27,6 +27,14 @@ place). The table reports every candidate with ``elpd``, its standard error, the
 difference from the best and its standard error, ``p_loo``, Pareto-k counts and the
 sampler's divergences and ``r_hat``; it presents no stacking weights (they are not model
 probabilities).
+
+**The bursty candidates** (``mmpp``, ``hawkes``, ``groups+mmpp``: forward recursions over
+the log's ticks, slow to sample where the data do not support them) are compared by the
+Laplace approximation also under NUTS (while the other candidates' NUTS programs compile):
+a bursty candidate is sampled by NUTS only when the rule chooses it, and the choice is then
+made again with its NUTS ``elpd``. The others stay in the table with their Laplace
+``elpd`` (``r_hat`` blank); ``arrival_notes`` says so. A candidate named by ``--arrivals``
+is sampled by NUTS.
 """
 
 from __future__ import annotations
@@ -332,9 +340,9 @@ def _arrival_candidates(
                 "or equal arrival times), got none"
             )
         return sorted({"poisson", arrivals}, key=ARRIVAL_SPECS.index), notes
-    out = ["poisson", "negbin"]
+    out = ["poisson", "negbin", "mmpp", "hawkes"]
     if max_tick >= 2:
-        out.append("groups")
+        out += ["groups", "groups+mmpp"]
     else:
         notes.append("groups not offered: no two artefacts arrived together")
     if clock is None:
@@ -419,6 +427,7 @@ def fit_traffic(
     laplace = approximation == "laplace"
     if laplace:
         setup = _laplace_sized(setup, arrivals, lifetimes, out)
+    ranked: dict[str, tuple] = {}  # bursty candidates compared by Laplace only
     calls, cands, laws = setup.calls, setup.cands, setup.laws
     plain, units, res = setup.plain, setup.units, setup.res
     n_real_bins = int(np.sum(plain.bin_weight))
@@ -443,10 +452,22 @@ def fit_traffic(
                 pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
                 prefetch.submit(laplace_program, model, kwargs, init, pw)
             prefetch.shutdown(wait=False)
-        else:
-            for call in calls.values():
-                ahead.add(*call, **nuts)
+        else:  # the others compile and sample while the bursty ones are ranked
+            bursty = {k for k in calls if k[0] == "arrivals" and ArrivalSpec.from_name(k[1]).bursts}
+            for k, call in calls.items():
+                if k not in bursty:
+                    ahead.add(*call, **nuts)
+            all_calls = calls
+            setup, ranked = _rank_bursts(setup, arrivals, n_draws, say, out)
+            calls = setup.calls
+            for k in bursty & set(calls):
+                ahead.add(*calls[k], **nuts)
         for name in cands:
+            if name in ranked:
+                runs["arrivals"][name] = None
+                loo["arrivals"][name] = Future()
+                loo["arrivals"][name].set_result(ranked[name])
+                continue
             if name == "poisson":
                 flat = {"event_rate": lam.ravel()}
                 ll = _arrival_loglik_draws(flat, plain, ArrivalSpec.from_name(name),
@@ -486,8 +507,22 @@ def fit_traffic(
             runs["stays"][law] = run
             loo["stays"][law] = psis.submit(loo_pointwise, ll[..., :n], _reff(run))
         elpd, ks = _loo_results(loo["arrivals"])
-        _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"], draws["arrivals"],
-                         reshape)  # fmt: skip
+        pick = _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"], draws["arrivals"],
+                                reshape, set(ranked))  # fmt: skip
+        while pick in ranked:  # a bursty candidate chosen by its Laplace elpd: NUTS decides
+            run = _sample_candidate(all_calls, ("arrivals", pick), _arrival_draw_loglik, nuts,
+                                    say, out)  # fmt: skip
+            runs["arrivals"][pick], draws["arrivals"][pick] = run, run.samples
+            elpd[pick], ks[pick] = loo_pointwise(run.loglik[..., :n_real_bins], _reff(run))
+            del ranked[pick]
+            pick = _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"],
+                                    draws["arrivals"], reshape, set(ranked))  # fmt: skip
+        if ranked:
+            note = (f"{', '.join(ranked)}: compared by the Laplace approximation only "
+                    "(importance-sampled PSIS-LOO; NUTS samples a bursty candidate only when "
+                    "it is chosen)")  # fmt: skip
+            notes = (out.attrs.get("arrival_notes"), note)
+            out.attrs["arrival_notes"] = "; ".join(v for v in notes if v)
         out.attrs.update(_group_stats(data))
         elpd, ks = _loo_results(loo["stays"])
     runs, draws = runs["stays"], draws["stays"]
@@ -563,6 +598,12 @@ def _setup(
                 init["tod_eta"] = np.zeros(units.bin_exposure.shape[1])
             if spec.groups:
                 init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
+            if spec.mmpp:
+                init["mmpp_contrast"] = 1.0
+                init["mmpp_switch_z"] = np.zeros(2)
+            if spec.hawkes:
+                init["hawkes_branching"] = 0.3
+                init["hawkes_decay_z"] = 0.0
             # the centre and area are arrays: arguments of the compiled program, not
             # constants of it (logs of similar size share one program)
             kwargs = {
@@ -572,6 +613,8 @@ def _setup(
                 "log_area": np.asarray(log_area, float),
                 "max_group": max(max_tick, 1),
             }
+            if spec.bursts:  # the time scale of the switching rates' and decay's priors
+                kwargs["time_centre"] = np.asarray(width, float)
             calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
     units = stay_units(data.dwell, data.censored, data.truncated)
     n = data.n
@@ -590,6 +633,32 @@ def _setup(
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
             calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
     return _Setup(calls, cands, laws, plain, units, res)
+
+
+def _rank_bursts(
+    setup: _Setup, arrivals: str, n_draws: int, say: Any, out: TrafficFit
+) -> tuple[_Setup, dict[str, tuple]]:
+    """Compare the bursty candidates (but one named by ``--arrivals``) by the Laplace
+    approximation, without NUTS (see the module docstring).
+
+    Returns
+    -------
+    setup : _Setup
+        Without their NUTS calls.
+    ranked : dict of str to (elpd_i, k_i)
+        Their importance-sampled PSIS-LOO pointwise ``elpd`` and Pareto ``k``.
+    """
+    bursty = [n for n in setup.cands if ArrivalSpec.from_name(n).bursts and n != arrivals]
+    if not bursty:
+        return setup, {}
+    n_real = int(np.sum(setup.plain.bin_weight))
+    ranked = {}
+    for name in bursty:
+        lap = _laplace_candidate(setup.calls, ("arrivals", name), _arrival_draw_loglik,
+                                 n_draws, say, out)  # fmt: skip
+        ranked[name] = laplace_loo(lap._replace(loglik=lap.loglik[:, :n_real]))
+    calls = {k: v for k, v in setup.calls.items() if k[0] != "arrivals" or k[1] not in ranked}
+    return setup._replace(calls=calls), ranked
 
 
 def _sample_candidate(
@@ -658,11 +727,16 @@ def _choose_arrivals(
     runs: dict,
     draws: dict,
     reshape: Any,
-) -> None:
-    """Choose the arrival model by PSIS-LOO and store its table and draws in ``out``."""
+    ranked: set | None = None,
+) -> str:
+    """Choose the arrival model by PSIS-LOO and store its table and draws in ``out``
+    (unless the choice is in ``ranked``, compared by the Laplace approximation only: then
+    nothing is stored). Returns the choice."""
     order = sorted(cands, key=lambda n: (ArrivalSpec.from_name(n).n_params, ARRIVAL_SPECS.index(n)))
     if arrivals == "auto":
         chosen, table = choose_simplest(elpd, order)
+        if ranked and chosen in ranked:  # the caller samples it by NUTS and chooses again
+            return chosen
     else:
         _, table = choose_simplest(elpd, order)
         chosen = arrivals
@@ -683,6 +757,14 @@ def _choose_arrivals(
         if spec.groups:
             out.posterior["group_size_probs"] = reshape(s["group_size_probs"])
             out.dims["group_size_probs"] = ["group_size"]
+        if spec.mmpp:
+            for name in ("mmpp_factor", "mmpp_switch"):
+                out.posterior[name] = reshape(s[name])
+                out.dims[name] = ["mmpp_state"]
+        if spec.hawkes:
+            out.posterior["hawkes_branching"] = reshape(s["hawkes_branching"])
+            out.posterior["hawkes_decay"] = reshape(s["hawkes_decay"])
+    return chosen
 
 
 def _fit_positions(
