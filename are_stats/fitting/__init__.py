@@ -99,6 +99,7 @@ from are_stats.fitting._traffic import (  # noqa: E402
 )
 from are_stats.fitting._traffic_checks import (  # noqa: E402
     TRAFFIC_STATISTICS,
+    burst_statistics,
     plot_traffic_checks,
     traffic_checks,
     window_statistics,
@@ -106,6 +107,7 @@ from are_stats.fitting._traffic_checks import (  # noqa: E402
 
 __all__ += [
     "TRAFFIC_STATISTICS",
+    "burst_statistics",
     "plot_traffic_checks",
     "traffic_checks",
     "window_statistics",

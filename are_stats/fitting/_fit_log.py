@@ -854,6 +854,12 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
         need["arrival_tod"] = ("chain", "draw", "period")
     if spec.groups:
         need["group_size_probs"] = ("chain", "draw", "group_size")
+    if spec.mmpp:
+        need["mmpp_factor"] = ("chain", "draw", "mmpp_state")
+        need["mmpp_switch"] = ("chain", "draw", "mmpp_state")
+    if spec.hawkes:
+        need["hawkes_branching"] = ("chain", "draw")
+        need["hawkes_decay"] = ("chain", "draw")
     if life != "exponential":
         need["stay_mean"] = ("chain", "draw")
         need["stay_shape"] = ("chain", "draw")

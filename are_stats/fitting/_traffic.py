@@ -37,6 +37,14 @@ place). The table reports every candidate with ``elpd``, its standard error, the
 difference from the best and its standard error, ``p_loo``, Pareto-k counts and the
 sampler's divergences and ``r_hat``; it presents no stacking weights (they are not model
 probabilities).
+
+**The bursty candidates** (``mmpp``, ``hawkes``, ``groups+mmpp``: forward recursions over
+the log's ticks, slow to sample where the data do not support them) are compared by the
+Laplace approximation also in the all-NUTS comparison (``approximation="nuts"``, while the
+other candidates' NUTS programs compile): a bursty candidate is sampled by NUTS only when
+the rule chooses it, and the choice is then made again with its NUTS ``elpd``. The others
+stay in the table with their Laplace ``elpd`` (``r_hat`` blank); ``arrival_notes`` says so.
+A candidate named by ``--arrivals`` is sampled by NUTS.
 """
 
 from __future__ import annotations
@@ -344,9 +352,9 @@ def _arrival_candidates(
                 "or equal arrival times), got none"
             )
         return sorted({"poisson", arrivals}, key=ARRIVAL_SPECS.index), notes
-    out = ["poisson", "negbin"]
+    out = ["poisson", "negbin", "mmpp", "hawkes"]
     if max_tick >= 2:
-        out.append("groups")
+        out += ["groups", "groups+mmpp"]
     else:
         notes.append("groups not offered: no two artefacts arrived together")
     if clock is None:
@@ -440,6 +448,15 @@ def fit_traffic(
             c for c, (_, model, kwargs, init) in setup.calls.items()
             if laplace_dimension(model, kwargs, init) <= LAPLACE_MAX_PARAMETERS
         }  # fmt: skip
+    # all-NUTS comparison: the bursty candidates (but one named by --arrivals) are ranked
+    # by Laplace too, and sampled by NUTS only when chosen (then the choice is made again)
+    bursty = set()
+    if approximation == "nuts":
+        bursty = {
+            c for c in setup.calls
+            if c[0] == "arrivals" and c[1] != arrivals and ArrivalSpec.from_name(c[1]).bursts
+        }  # fmt: skip
+        approx = set(bursty)
     calls, cands, laws = setup.calls, setup.cands, setup.laws
     plain, units, res = setup.plain, setup.units, setup.res
     n_real_bins = int(np.sum(plain.bin_weight))
@@ -509,6 +526,22 @@ def fit_traffic(
             loo["stays"][law] = psis.submit(loo_pointwise, ll[..., :n], _reff(run))
         elpd, ks = _loo_results(loo["arrivals"])
         chosen = _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"])
+        while ("arrivals", chosen) in bursty:  # chosen by its Laplace elpd: NUTS decides
+            which = ("arrivals", chosen)
+            run = _sample_candidate(calls, which, _arrival_draw_loglik, nuts, say, out)
+            runs["arrivals"][chosen], draws["arrivals"][chosen] = run, run.samples
+            elpd[chosen], ks[chosen] = loo_pointwise(run.loglik[..., :n_real_bins], _reff(run))
+            bursty.discard(which)
+            approx.discard(which)
+            chosen = _choose_arrivals(out, arrivals, cands, elpd, ks, runs["arrivals"])
+        if bursty:
+            names = ", ".join(sorted(c[1] for c in bursty))
+            note = (
+                f"{names}: compared by the Laplace approximation only (importance-sampled "
+                "PSIS-LOO; NUTS samples a bursty candidate only when it is chosen)"
+            )
+            notes = (out.attrs.get("arrival_notes"), note)
+            out.attrs["arrival_notes"] = "; ".join(v for v in notes if v)
         elpd, ks = _loo_results(loo["stays"])
         if lifetimes == "auto":
             law, table = choose_simplest(elpd, laws)
@@ -596,6 +629,12 @@ def _setup(
                 init["tod_eta"] = np.zeros(units.bin_exposure.shape[1])
             if spec.groups:
                 init["group_size_probs"] = np.full(max_tick, 1.0 / max_tick)
+            if spec.mmpp:
+                init["mmpp_contrast"] = 1.0
+                init["mmpp_switch_z"] = np.zeros(2)
+            if spec.hawkes:
+                init["hawkes_branching"] = 0.3
+                init["hawkes_decay_z"] = 0.0
             # the centre and area are arrays: arguments of the compiled program, not
             # constants of it (logs of similar size share one program)
             kwargs = {
@@ -605,6 +644,8 @@ def _setup(
                 "log_area": np.asarray(log_area, float),
                 "max_group": max(max_tick, 1),
             }
+            if spec.bursts:  # the time scale of the switching rates' and decay's priors
+                kwargs["time_centre"] = np.asarray(width, float)
             calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
     units = stay_units(data.dwell, data.censored, data.truncated)
     n = data.n
@@ -712,6 +753,13 @@ def _store_arrival_draws(out: TrafficFit, chosen: str, s: dict, reshape: Any) ->
     if spec.groups:
         out.posterior["group_size_probs"] = reshape(s["group_size_probs"])
         out.dims["group_size_probs"] = ["group_size"]
+    if spec.mmpp:
+        for name in ("mmpp_factor", "mmpp_switch"):
+            out.posterior[name] = reshape(s[name])
+            out.dims[name] = ["mmpp_state"]
+    if spec.hawkes:
+        out.posterior["hawkes_branching"] = reshape(s["hawkes_branching"])
+        out.posterior["hawkes_decay"] = reshape(s["hawkes_decay"])
 
 
 def _fit_positions(

@@ -13,7 +13,14 @@ posterior draw each, drawn by the one sampler) are summarised by
 * ``stay cv``: the coefficient of variation of the stays seen from arrival to departure
   inside the window (1 for the exponential);
 * ``entry to boundary (m)``: the mean distance of entry points to the nearest non-free
-  cell or map edge (small when people enter through doors).
+  cell or map edge (small when people enter through doors);
+* burst statistics (times in seconds, the log's unit): ``arrivals var/mean (1 s)``,
+  ``(10 s)`` and ``(60 s)``, the index of dispersion of the number of arrivals in
+  consecutive bins of 1, 10 and 60 s (the counting process ``N(t)`` of arrivals; 1 for
+  Poisson arrivals at every width, growing with the width for bursts that last longer
+  than a bin, large at 1 s for groups); ``longest N(t) = 0 (s)``, the longest stretch with
+  no one present; ``arrivals autocorr (30 s)``, the correlation of the number of arrivals
+  in 10 s bins 30 s apart (0 for Poisson arrivals; positive when busy spells last).
 
 Each row holds the observed value, the 5%, 50% and 95% predictive quantiles of each model
 and a flag where the observed value falls outside the 90% band.
@@ -30,7 +37,10 @@ import pandas as pd
 
 from are_stats.fitting._criticism import count_path
 
-__all__ = ["TRAFFIC_STATISTICS", "plot_traffic_checks", "traffic_checks", "window_statistics"]
+__all__ = [
+    "TRAFFIC_STATISTICS", "burst_statistics", "plot_traffic_checks", "traffic_checks",
+    "window_statistics",
+]  # fmt: skip
 
 #: The statistics of :func:`window_statistics`, in table order.
 TRAFFIC_STATISTICS = (
@@ -39,7 +49,66 @@ TRAFFIC_STATISTICS = (
     "zero gaps",
     "stay cv",
     "entry to boundary (m)",
+    "arrivals var/mean (1 s)",
+    "arrivals var/mean (10 s)",
+    "arrivals var/mean (60 s)",
+    "longest N(t) = 0 (s)",
+    "arrivals autocorr (30 s)",
 )
+
+#: Bin widths (s) of the arrivals' index of dispersion.
+DISPERSION_BINS = (1.0, 10.0, 60.0)
+#: Bin width and lag (s) of the arrivals' autocorrelation.
+AUTOCORR_BIN, AUTOCORR_LAG = 10.0, 30.0
+
+
+def burst_statistics(
+    t_arrive: np.ndarray, t_leave: np.ndarray, window: tuple[float, float]
+) -> dict[str, float]:
+    """The burst statistics of the module docstring for one window.
+
+    Parameters
+    ----------
+    t_arrive : (n,) float
+        Arrival times inside the window (``t0`` or earlier for those present at ``t0``;
+        only those after ``t0`` count as arrivals).
+    t_leave : (n,) float
+        Leaving times (``inf`` when still present at the end).
+    window : (t0, t1)
+
+    Returns
+    -------
+    dict of str to float
+        NaN where undefined (fewer than two bins, no arrivals, constant counts).
+    """
+    t0, t1 = float(window[0]), float(window[1])
+    out: dict[str, float] = {}
+    arrived = t_arrive[(t_arrive > t0) & (t_arrive < t1)] - t0
+    for w in DISPERSION_BINS:
+        n_bins = int((t1 - t0) // w)
+        key = f"arrivals var/mean ({w:g} s)"
+        out[key] = float("nan")
+        if n_bins >= 2:
+            c = np.bincount((arrived // w).astype(np.int64), minlength=n_bins)[:n_bins]
+            if c.mean() > 0:
+                out[key] = float(c.var(ddof=1) / c.mean())
+    out["arrivals autocorr (30 s)"] = float("nan")
+    n_bins = int((t1 - t0) // AUTOCORR_BIN)
+    lag = int(round(AUTOCORR_LAG / AUTOCORR_BIN))
+    if n_bins >= lag + 3:
+        c = np.bincount((arrived // AUTOCORR_BIN).astype(np.int64), minlength=n_bins)[:n_bins]
+        a, b = c[:-lag].astype(float), c[lag:].astype(float)
+        if a.std() > 0 and b.std() > 0:
+            out["arrivals autocorr (30 s)"] = float(np.corrcoef(a, b)[0, 1])
+    # longest stretch with no one present: gaps in the union of [arrive, leave)
+    lo = np.clip(np.asarray(t_arrive, float), t0, t1)
+    hi = np.clip(np.asarray(t_leave, float), t0, t1)
+    order = np.argsort(lo, kind="stable")
+    lo, hi = lo[order], hi[order]
+    covered = np.maximum.accumulate(np.concatenate([[t0], hi]))  # [i]: max(t0, hi[:i])
+    gaps = np.concatenate([lo - covered[:-1], [t1 - covered[-1]]])
+    out["longest N(t) = 0 (s)"] = float(max(np.max(gaps), 0.0))
+    return out
 
 
 def window_statistics(
@@ -93,6 +162,7 @@ def window_statistics(
     stays = (tl - ta)[whole]
     if stays.size >= 3 and stays.mean() > 0:
         out["stay cv"] = float(stays.std(ddof=1) / stays.mean())
+    out.update(burst_statistics(ta, tl, (t0, t1)))
     if entry_xy is not None and free is not None and (~truncated).any():
         mask, res, origin = free
         xy = np.asarray(entry_xy, float)[~truncated]
@@ -134,7 +204,7 @@ def traffic_checks(
     table : pandas.DataFrame
         Indexed by statistic: ``observed``, and per model (``paper``, ``chosen``) the
         ``*_5%``, ``*_50%``, ``*_95%`` quantiles and ``*_flag`` (observed outside the band).
-    replicates : dict of str to (R, 5) ndarray
+    replicates : dict of str to (R, S) ndarray
         The replicated statistics of each model (columns in table order).
     """
     from are_stats.scenarios import generate_scenarios, traffic_draws
@@ -227,8 +297,11 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
 
     colours = {"paper": "tab:grey", "chosen": "tab:blue"}
     n = len(TRAFFIC_STATISTICS)
-    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.2), constrained_layout=True)
-    for j, (ax, stat) in enumerate(zip(axes, TRAFFIC_STATISTICS, strict=True)):
+    cols = (n + 1) // 2
+    fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 6.4), constrained_layout=True)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    for j, (ax, stat) in enumerate(zip(axes.ravel()[:n], TRAFFIC_STATISTICS, strict=True)):
         o = table.loc[stat, "observed"]
         values = [r[:, j][np.isfinite(r[:, j])] for r in reps.values()]
         allv = np.concatenate([v for v in values if v.size] + [np.array([o])])

@@ -117,14 +117,19 @@ class ArrivalSpec(NamedTuple):
 
     @property
     def n_params(self) -> int:
-        """A complexity order (fewer first) used to break ties towards simpler models."""
+        """A complexity order (fewer first) used to break ties towards simpler models.
+
+        The bursty models come after the time of day: a latent rate that wanders can mimic
+        a daily profile over days (a Hawkes process with a decay of hours), and where a
+        fixed profile does as well it is the simpler account.
+        """
         return (
             1
             + int(self.negbin)
             + 23 * int(self.tod)
             + 4 * int(self.groups)
-            + 3 * int(self.mmpp)
-            + 2 * int(self.hawkes)
+            + 31 * int(self.mmpp)
+            + 30 * int(self.hawkes)
         )
 
     @classmethod

@@ -22,7 +22,7 @@ table = pd.DataFrame({"observed": 1.0, "paper_flag": False, "chosen_flag": True}
 rng = np.random.default_rng(0)
 reps = {m: rng.normal(1.0, 0.2, (20, len(TRAFFIC_STATISTICS))) for m in ("paper", "chosen")}
 fig = plot_traffic_checks(table, reps)
-print(plt.get_backend(), len(fig.axes))
+print(plt.get_backend(), sum(ax.get_visible() for ax in fig.axes), len(TRAFFIC_STATISTICS))
 """
 
 
@@ -31,6 +31,6 @@ def test_plot_traffic_checks_keeps_the_session_backend():
     res = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
                          env=env, cwd=ROOT)  # fmt: skip
     assert res.returncode == 0, res.stderr
-    backend, n_axes = res.stdout.split()
+    backend, n_axes, n_stats = res.stdout.split()
     assert backend == "svg"  # Agg before the fix
-    assert int(n_axes) == 5
+    assert int(n_axes) == int(n_stats) == 10  # one panel per statistic
