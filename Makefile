@@ -16,7 +16,8 @@ $(BIN)/python:
 # uv (from the registry, into the venv) downloads and installs in parallel: a fresh venv
 # takes about 25 s instead of about 4 minutes with pip. Where uv is missing or fails, pip
 # does the same install.
-INSTALL = sh -c '$(BIN)/python -m uv pip install -q --python $(BIN)/python "$$@" \
+INSTALL = sh -c '{ $(BIN)/python -c "import uv" 2>/dev/null \
+	&& $(BIN)/python -m uv pip install -q --python $(BIN)/python "$$@"; } \
 	|| $(BIN)/python -m pip install -q "$$@"' install
 
 # The stamp is rebuilt whenever pyproject.toml changes.

@@ -557,7 +557,15 @@ def fit_traffic(
             ahead.add(*calls[which], **nuts)
         for factor, name in chosen_calls:
             run = _sample_candidate(calls, (factor, name), None, nuts, say, out)
-            runs[factor][name], draws[factor][name] = run, run.samples
+            runs[factor][name] = run
+            if _mixed(run):
+                draws[factor][name] = run.samples
+            else:  # chains stuck (a Weibull of shape 0.6 did): keep the Laplace draws
+                out.warnings.append(
+                    f"{factor} {name}: NUTS did not mix (r_hat {run.max_r_hat:.3g}, "
+                    f"{run.n_divergent} divergent transitions); the posterior kept is the "
+                    "chosen model's Laplace approximation (as --method em gives)"
+                )
         _diag_cols(out.tables["arrivals"], runs["arrivals"])
         if chosen != "poisson":
             _store_arrival_draws(out, chosen, draws["arrivals"][chosen], reshape)
@@ -664,6 +672,18 @@ def _setup(
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
             calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
     return _Setup(calls, cands, laws, plain, units, res)
+
+
+#: Largest split r_hat of a chosen model's NUTS run whose draws are kept (ranked mode).
+MIXED_R_HAT = 1.05
+
+
+def _mixed(run: NutsRun) -> bool:
+    """Whether a NUTS run's chains agree (every split ``r_hat`` at most
+    :data:`MIXED_R_HAT`) and at most 1% of its transitions diverged."""
+    first = next(iter(run.samples.values()), None)
+    n = int(np.prod(np.shape(first)[:2])) if first is not None else 1
+    return bool(run.max_r_hat <= MIXED_R_HAT and run.n_divergent <= 0.01 * n)
 
 
 def _sample_candidate(

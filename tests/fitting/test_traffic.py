@@ -415,8 +415,20 @@ def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, 
     }
     nuts, ranked = fits["nuts"], fits["ranked"]
     assert (ranked.arrival_model, ranked.lifetime_model) == (arrivals, lifetimes)
-    assert (ranked.arrival_model, ranked.lifetime_model) == (nuts.arrival_model,
-                                                             nuts.lifetime_model)  # fmt: skip
+    for factor, got, want in (
+        ("arrivals", ranked.arrival_model, nuts.arrival_model),
+        ("lifetimes", ranked.lifetime_model, nuts.lifetime_model),
+    ):
+        t = nuts.tables[factor]
+        if got != want and t.loc[got, "r_hat"] > 1.05:
+            # NUTS is no reference where its chains did not mix: on this Weibull log (shape
+            # 0.6) its Weibull run sticks (r_hat ~4), so sampling every candidate chose gamma;
+            # the ranked fit chose the true law and kept its Laplace draws, saying why
+            assert any("did not mix" in w for w in ranked.warnings), ranked.warnings
+            shape = float(ranked.posterior["stay_shape"].mean())
+            assert abs(shape - draw["stay_shape"]) < 0.1, shape
+            return
+        assert got == want, (factor, got, want, t)
     for factor in ("arrivals", "lifetimes"):
         a, b = ranked.tables[factor], nuts.tables[factor]
         assert list(a.index) == list(b.index)
