@@ -206,10 +206,11 @@ def run_fit(
     data = lifecycle.to_lifecycle_data()
     # labels without marks: the class is the label, found in the catalogue by name (issue 31)
     labelled = lifecycle.label_classes()
-    if labelled is not None:
-        from are_stats.environment import load_catalogue
+    from are_stats.environment import load_catalogue
 
-        load_catalogue().rows_of_labels(labelled[1], source=log, where="column 'label'")
+    catalogue = load_catalogue()  # read once: the labels' rows and the classes' run speeds
+    if labelled is not None:
+        catalogue.rows_of_labels(labelled[1], source=log, where="column 'label'")
     if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
         steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
         check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
@@ -278,11 +279,9 @@ def run_fit(
                     "their bounding box plus 1 m, all free)"
                 )
             try:
-                from are_stats.environment import load_catalogue
-
                 bfit = fit_behaviour(
                     tracks, free, res, origin, seed=seed, features=features or None,
-                    run_speed=load_catalogue().run_thresholds(),
+                    run_speed=catalogue.run_thresholds(),
                 )  # fmt: skip
             except NoWalkersError as err:  # people who only stand: no walking to learn
                 console.print(f"note: behaviour not fitted ({err}); scenes use the catalogue's")
@@ -333,7 +332,7 @@ def run_fit(
         _print_checks(written)
         if tracks is not None and "behaviour" in idata.groups():
             with console.status("motion checks (speeds, straightness, held-out moves) ..."):
-                written.update(_motion_report(seed, idata, tracks, grid, figures, force))
+                written.update(_motion_report(seed, idata, tracks, grid, figures, force, catalogue))
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
 
@@ -483,13 +482,14 @@ def _print_motion_tables(tables: dict) -> None:
     console.print(rich)
 
 
-def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool):
+def _motion_report(
+    seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool, catalogue: Any
+):
     """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure;
     with the realism and displacement tables stored in the fit (issue 26)."""
     import matplotlib.pyplot as plt
 
     from are_stats.behaviour import BehaviourFit
-    from are_stats.environment import load_catalogue
     from are_stats.fitting import (
         class_motion_checks,
         heldout_log_likelihood,
@@ -504,7 +504,7 @@ def _motion_report(seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, 
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
-        run_speed=load_catalogue().run_thresholds(),  # as the fit's (cyclists ride)
+        run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
     )  # fmt: skip
     stored = motion_tables(idata.behaviour.attrs)
     fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
