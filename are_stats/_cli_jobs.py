@@ -930,7 +930,7 @@ def run_perceive(
         poses_outside,
         read_robot_path,
     )
-    from are_stats.scenarios import read_scenes
+    from are_stats.scenarios import read_scenes, scenes_from_tables
 
     d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0)
@@ -1006,19 +1006,17 @@ def run_perceive(
     with console.status(
         f"perceiving {len(df)} artefacts{moving} over {len(robot)} robot poses ..."
     ):
+        scenes = scenes_from_tables(df, tracks, cat, labels, df["scenario"].unique())
         res = perceive_scenario(
-            df,
+            scenes,
             robot,
-            cat,
             env,
             camera,
             d_max,
             tau,
-            tracks=tracks,
-            class_labels=labels,
             mount=mount,
             occlusion_between_artefacts=occlusion_between_artefacts,
-        )
+        ).loc[df.index]  # the folder's row order
     with atomic_path(target, force=force) as tmp:
         res.to_parquet(tmp, index=False)
     n_p = int(res["perceived"].sum())

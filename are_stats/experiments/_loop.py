@@ -59,7 +59,7 @@ from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
 from are_stats.experiments._robot import Robot, circle_box_overlap
 from are_stats.inputs import check_memory, check_work
-from are_stats.scenarios import Scene, scenes_from_tables
+from are_stats.scenarios import Scene
 
 __all__ = ["MissionResult", "MissionTrace", "random_goals", "run_mission"]
 
@@ -171,7 +171,6 @@ def _point_at(path: np.ndarray, cum: np.ndarray, s: Any) -> tuple[np.ndarray, np
 class _Mission:
     """What does not change during a mission (the step functions' first argument).
 
-    ``catalogue`` is the property table the state's AR-builder registers boxes from.
     ``event_t`` (e,) are the distinct times of the scene's events in ``(0, T)``;
     ``event_lifecycle`` (e,) bool says whether an artefact arrives or leaves then and
     ``event_moved`` holds the (k,) indices of the artefacts that move then.
@@ -179,7 +178,6 @@ class _Mission:
 
     grid: Any
     scene: Scene
-    catalogue: Any
     robot: Robot
     plan_fn: Callable[..., Any]
     goals: np.ndarray  # (g, 2)
@@ -616,7 +614,7 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0, scene=m.scene, event_t=m.event_t,
         event_lifecycle=m.event_lifecycle, event_moved=m.event_moved, n_detours=0, n_yields=0,
-        avoid_delay=0.0, builder=ARBuilder(m.grid, m.catalogue), builder_at=(None, np.nan),
+        avoid_delay=0.0, builder=ARBuilder(m.grid), builder_at=(None, np.nan),
         percepts=MappingProxyType({}),
     )  # fmt: skip
     s = _perceive(m, _register(s), idx, boxes)
@@ -748,14 +746,12 @@ def _event_table(
 
 def run_mission(
     grid: Any,
-    artefacts: pd.DataFrame | Scene,
+    scene: Scene,
     goals: Any,
     planner: Mapping[str, Any] | Callable[..., Any] = "astar",  # type: ignore[assignment]
     *,
     robot: Robot | None = None,
     start: Any = None,
-    catalogue: Any = None,
-    tracks: pd.DataFrame | None = None,
     time_limit: float = 300.0,
     perception: str = "all",
     env_mesh: Any = None,
@@ -775,11 +771,11 @@ def run_mission(
     ----------
     grid : OccupancyGrid
         The real map M_2D.
-    artefacts : pandas.DataFrame or Scene
-        One scenario of :func:`are_stats.scenarios.generate_scenarios` (columns
-        ``t_arrive, t_leave, x, y, yaw`` and ``mark`` or ``class``), turned into boxes by
-        :meth:`are_stats.Scene.from_scenarios` with ``catalogue`` and ``tracks``; or a
-        :class:`~are_stats.Scene` built already (``catalogue`` and ``tracks`` unused).
+    scene : Scene
+        The artefacts of one scenario as boxes over time, moving along their behaviour
+        tracks when they have some (:func:`~are_stats.scenarios.scenes_from_fit`, or
+        :meth:`are_stats.Scene.from_scenarios` for a scenario table, the catalogue Q and
+        the tracks).
     goals : (g, 2) float
         Goal positions (m, map frame), visited in order.
     planner : callable, dict or "astar"
@@ -790,11 +786,6 @@ def run_mission(
     start : (3,) float, optional
         Initial pose ``(x, y, yaw)``; default the first goal's position (which then counts
         as reached at time 0 and is dropped from the goals).
-    catalogue : ArtefactCatalogue, optional
-        The property table Q (default :func:`~are_stats.load_catalogue`).
-    tracks : pandas.DataFrame, optional
-        Behaviour tracks ``id, t, x, y, yaw`` of the artefacts
-        (:func:`~are_stats.behaviour.scenario_tracks`): the artefacts move along them.
     time_limit : float
         Mission time limit (s).
     perception : {"all", "camera"}
@@ -843,14 +834,18 @@ def run_mission(
     ValueError
         On malformed input (named argument and what was expected).
     """
-    from are_stats.environment import OccupancyGrid, load_catalogue
+    from are_stats.environment import OccupancyGrid
 
     if not isinstance(grid, OccupancyGrid):
         raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
     robot = Robot() if robot is None else robot
     if not isinstance(robot, Robot):
         raise ValueError(f"robot: expected a Robot, got {type(robot).__name__}")
-    catalogue = load_catalogue() if catalogue is None else catalogue
+    if not isinstance(scene, Scene):
+        raise ValueError(
+            f"scene: expected a Scene (scenes_from_fit, or Scene.from_scenarios for a "
+            f"scenario table), got {type(scene).__name__}"
+        )
     plan_fn = make_planner({"algorithm": "astar"} if planner == "astar" else planner)
     perception = check_in("perception", perception, ("all", "camera"))
     if perception == "camera" and env_mesh is None:
@@ -879,15 +874,6 @@ def run_mission(
         pose = check_finite("start", start, ndim=1).copy()
         if pose.shape != (3,):
             raise ValueError(f"start: expected (x, y, yaw), got {pose.tolist()}")
-    if isinstance(artefacts, Scene):
-        scene = artefacts
-    else:
-        present = (
-            pd.unique(artefacts["scenario"]) if "scenario" in artefacts.columns else np.zeros(1)
-        )
-        if present.size > 1:
-            raise ValueError("artefacts: expected one scenario, got several (filter by 'scenario')")
-        (scene,) = scenes_from_tables(artefacts, tracks, catalogue, None, list(present[:1]))
     if grid.n_free == 0:
         raise ValueError("grid: expected free cells, got none")
     event_t, event_lifecycle, event_moved = _event_table(scene, T, move_period)
@@ -900,7 +886,7 @@ def run_mission(
         else np.full(static_occ.shape, np.inf)
     )
     m = _Mission(
-        grid=grid, scene=scene, catalogue=catalogue, robot=robot,
+        grid=grid, scene=scene, robot=robot,
         plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,
         period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
         record=bool(record), step=min(grid.resolution, robot.radius / 2.0),

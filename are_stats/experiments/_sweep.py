@@ -940,7 +940,7 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
     planner = dict(task["planner"])
     label = str(planner.get("name", _label({k: v for k, v in planner.items() if k != "name"})))
     res = run_mission(
-        grid, scene, goals, planner, robot=robot, catalogue=catalogue, time_limit=horizon,
+        grid, scene, goals, planner, robot=robot, time_limit=horizon,
         perception=ms.get("perception", "all"), env_mesh=mesh,
         perception_period=float(ms.get("perception_period", 1.0)),
         d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,

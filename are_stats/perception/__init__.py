@@ -18,7 +18,6 @@ from are_stats.perception._scenario import (
     perceived_grid,
     poses_outside,
     read_robot_path,
-    scenario_scenes,
     yaw_rotations,
 )
 
@@ -41,6 +40,5 @@ __all__ = [
     "read_robot_path",
     "sample_perceived",
     "save_figure",
-    "scenario_scenes",
     "yaw_rotations",
 ]

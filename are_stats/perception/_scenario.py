@@ -1,15 +1,16 @@
-"""A_f along a robot path for scenario tables, and the augmented grid the planner sees.
+"""A_f along a robot path for scenes, and the augmented grid the planner sees.
 
 The paper's augmented real environment "comprises only the artefacts which are not
 occluded, with respect to the robot field of view" (section 3.3): :func:`perceived_grid`
 marks on M_2D the footprints of the perceived artefacts only, and
-:func:`perceive_scenario` adds perceived flags to a scenarios table given the robot's path
-(the library side of ``are-stats perceive``).
+:func:`perceive_scenario` gives the perceived flags of a scene's artefacts (or several
+scenes') along the robot's path (the library side of ``are-stats perceive``).
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -19,16 +20,13 @@ from are_stats._checks import check_finite, describe
 from are_stats.inputs import Described, InputError, check_memory, check_work
 from are_stats.perception._camera import check_pose
 from are_stats.perception._perceive import perceived_counts_batch
-from are_stats.scenarios import MAX_POSITION
-
-_SCENARIO_FLOATS = ("t_arrive", "t_leave", "x", "y", "yaw")
+from are_stats.scenarios import MAX_POSITION, Scene
 
 __all__ = [
     "check_path_times",
     "perceive_scene",
     "perceive_scenario",
     "poses_outside",
-    "scenario_scenes",
     "perceived_grid",
     "read_robot_path",
     "yaw_rotations",
@@ -254,8 +252,6 @@ def perceive_scene(
     >>> seen[:, 0].tolist()
     [True, False, False]
     """
-    from are_stats.scenarios import Scene
-
     if not isinstance(scene, Scene):
         raise ValueError(f"scene: expected a Scene, got {type(scene).__name__}")
     t = check_finite("times", times, ndim=1)
@@ -281,103 +277,40 @@ def perceive_scene(
     return all_counts, all_seen
 
 
-def scenario_scenes(
-    artefacts: pd.DataFrame,
-    catalogue: Any = None,
-    tracks: pd.DataFrame | None = None,
-    class_labels: Any = None,
-) -> list[tuple[np.ndarray, Any]]:
-    """The :class:`~are_stats.Scene` of every scenario of a scenarios table.
-
-    Parameters
-    ----------
-    artefacts : pandas.DataFrame
-        A scenarios table (columns ``t_arrive, t_leave, x, y, yaw``; optionally
-        ``scenario``, ``artefact``, ``class``, ``mark``).
-    catalogue : ArtefactCatalogue, optional
-        The property table Q (default: the shipped catalogue).
-    tracks : pandas.DataFrame, optional
-        Behaviour tracks ``scenario, id, t, x, y, yaw`` (``scenario`` may be left out
-        when the table holds one scenario).
-    class_labels : sequence of str, optional
-        The fit's class labels.
-
-    Returns
-    -------
-    list of (rows, Scene)
-        Per scenario, in order of first appearance: its rows of ``artefacts`` ``(n,) int64``
-        and its Scene (artefacts in the same order).
-    """
-    from are_stats.environment import load_catalogue
-    from are_stats.scenarios import scenes_from_tables
-
-    if not isinstance(artefacts, pd.DataFrame):
-        raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
-    missing = [k for k in _SCENARIO_FLOATS if k not in artefacts.columns]
-    if missing:
-        raise ValueError(f"artefacts: expected columns {list(_SCENARIO_FLOATS)}, missing {missing}")
-    cat = load_catalogue() if catalogue is None else catalogue
-    scen = (
-        artefacts["scenario"].to_numpy()
-        if "scenario" in artefacts.columns
-        else np.zeros(len(artefacts), np.int64)
-    )
-    several = pd.unique(scen).size > 1
-    if tracks is not None and several and "scenario" not in tracks.columns:
-        raise ValueError("tracks: expected a 'scenario' column for a table of several scenarios")
-    keys = pd.unique(scen)
-    scenes = scenes_from_tables(
-        artefacts.assign(scenario=scen), tracks, cat, class_labels, list(keys)
-    )
-    return [(np.flatnonzero(scen == k), scene) for k, scene in zip(keys, scenes, strict=True)]
-
-
 def perceive_scenario(
-    artefacts: Any,
+    scenes: Scene | Sequence[Scene],
     robot_path: pd.DataFrame,
-    catalogue: Any,
     env_mesh: Any,
     camera: Any,
     d_max: float,
     tau: float,
     *,
-    tracks: pd.DataFrame | None = None,
-    class_labels: Any = None,
     mount: Any | None = None,
     occlusion_between_artefacts: bool = False,
     threads: int | None = None,
 ) -> pd.DataFrame:
-    """Add perceived flags to a scenarios table (or a Scene), for a robot following a path.
+    """Perceived flags of the artefacts of one scene (or several), for a robot on a path.
 
     Every row of ``robot_path`` is a frame at its time ``t``: the camera pose is
-    ``T_world_base(x, y, yaw) @ mount``. The artefacts of each scenario become boxes in
-    its :class:`~are_stats.Scene` (:func:`scenario_scenes`: the box of each artefact's row
-    of Q, DECISIONS 5); a frame shows the boxes alive at ``t`` where they are at ``t``
-    (moving along their behaviour ``tracks`` when given, else standing at their arrival
-    pose), as :func:`perceive_scene` computes.
+    ``T_world_base(x, y, yaw) @ mount``. A frame shows the boxes alive at ``t`` where they
+    are at ``t`` (moving along their behaviour tracks, else standing at their arrival
+    pose), as :func:`perceive_scene` computes. The work and memory of all the scenes
+    together are checked before any tracing.
 
     Parameters
     ----------
-    artefacts : pandas.DataFrame or Scene
-        A scenarios table: columns ``t_arrive, t_leave, x, y, yaw`` and optionally
-        ``scenario``, ``artefact`` (ids, matched by the tracks' ``id``), ``class``,
-        ``mark`` (other columns kept); or the Scene of one scenario.
+    scenes : Scene or sequence of Scene
+        The artefacts as boxes (:func:`~are_stats.scenarios.scenes_from_fit`, or
+        :func:`~are_stats.scenarios.scenes_from_tables` for a scenarios table and its
+        tracks): each artefact's box is that of its row of Q (DECISIONS 5).
     robot_path : pandas.DataFrame
         Columns ``t, x, y, yaw``: the robot base pose over time.
-    catalogue : ArtefactCatalogue or None
-        The property table Q that sizes the boxes (None: the shipped catalogue). Not used
-        for a Scene.
     env_mesh : trimesh.Trimesh
         Environment mesh S_3D.
     camera : PinholeCamera
         Intrinsics; its ``pose`` is the base-to-optical mount unless ``mount`` is given.
     d_max, tau : float
         Range and partial-occlusion threshold of A_f.
-    tracks : pandas.DataFrame, optional
-        Behaviour tracks ``scenario, id, t, x, y, yaw`` (``are-stats generate
-        --behaviours``). Not used for a Scene (it has its own).
-    class_labels : sequence of str, optional
-        The fit's class labels (see :meth:`Scene.from_scenarios`). Not used for a Scene.
     mount : (4, 4) float, optional
         ``T_base_optical`` (see :func:`optical_from_base`).
     occlusion_between_artefacts : bool
@@ -388,26 +321,31 @@ def perceive_scenario(
     Returns
     -------
     pandas.DataFrame
-        ``artefacts`` (for a Scene: columns ``artefact, label, t_arrive, t_leave``) with
-        columns ``perceived`` (bool: in A_f in at least one frame), ``n_frames_perceived``
-        (int64), ``max_count`` (int64: largest pixel count) and ``first_perceived_t``
-        (float64, NaN if never).
-    """
-    from are_stats.scenarios import Scene
+        One row per artefact, scene after scene: the scene's table (``scene.artefacts``,
+        the rows it was built from, their index kept; a scene built without one gives
+        columns ``artefact, label, t_arrive, t_leave``), then columns ``perceived`` (bool:
+        in A_f in at least one frame), ``n_frames_perceived`` (int64), ``max_count``
+        (int64: largest pixel count) and ``first_perceived_t`` (float64, NaN if never).
 
-    if isinstance(artefacts, Scene):
-        scenes = [(np.arange(len(artefacts)), artefacts)]
-        out = pd.DataFrame(
-            {
-                "artefact": artefacts.ids,
-                "label": artefacts.labels,
-                "t_arrive": artefacts.t_arrive,
-                "t_leave": artefacts.t_leave,
-            }
+    Raises
+    ------
+    ValueError
+        If ``scenes`` holds anything but Scenes, or on a malformed robot path.
+    """
+    one = isinstance(scenes, Scene)
+    scene_list = [scenes] if one else list(scenes) if isinstance(scenes, Sequence) else None
+    if scene_list is None or not all(isinstance(sc, Scene) for sc in scene_list):
+        got = type(scenes).__name__ if scene_list is None else "a sequence holding other values"
+        raise ValueError(
+            f"scenes: expected a Scene or a sequence of Scenes (scenes_from_fit, or "
+            f"scenes_from_tables for a scenarios table), got {got}"
         )
-    else:
-        scenes = scenario_scenes(artefacts, catalogue, tracks, class_labels)
-        out = artefacts.copy()
+    tables = [_scene_table(sc) for sc in scene_list]
+    out = pd.concat(tables) if tables else pd.DataFrame(columns=list(_BARE_COLUMNS))
+    ends = np.cumsum([0] + [len(sc) for sc in scene_list])
+    scenes_rows = [
+        (np.arange(a, b), sc) for a, b, sc in zip(ends[:-1], ends[1:], scene_list, strict=True)
+    ]
     if not isinstance(robot_path, pd.DataFrame):
         raise ValueError(f"robot_path: expected a DataFrame, got {type(robot_path).__name__}")
     missing = [k for k in ("t", "x", "y", "yaw") if k not in robot_path.columns]
@@ -427,13 +365,13 @@ def perceive_scenario(
     base[:, :3, :3] = yaw_rotations(path[:, 3])
     base[:, 0, 3], base[:, 1, 3], base[:, 3, 3] = path[:, 1], path[:, 2], 1.0
     poses = base @ m
-    _check_size([sc for _, sc in scenes], t, camera)
+    _check_size(scene_list, t, camera)
     n_out = len(out)
     perceived = np.zeros(n_out, bool)
     n_frames = np.zeros(n_out, np.int64)
     max_count = np.zeros(n_out, np.int64)
     first = np.full(n_out, np.nan)
-    for rows, scene in scenes:
+    for rows, scene in scenes_rows:
         counts, seen = perceive_scene(
             scene, t, poses, env_mesh, camera, d_max, tau,
             occlusion_between_artefacts=occlusion_between_artefacts, threads=threads,
@@ -443,11 +381,24 @@ def perceive_scenario(
         max_count[rows] = counts.max(axis=0) if len(t) else 0
         idx = np.argmax(seen, axis=0) if len(t) else np.zeros(len(rows), int)
         first[rows] = np.where(seen.any(axis=0), t[idx] if len(t) else np.nan, np.nan)
+    out = out.copy()
     out["perceived"] = perceived
     out["n_frames_perceived"] = n_frames
     out["max_count"] = max_count
     out["first_perceived_t"] = first
     return out
+
+
+#: Columns of :func:`perceive_scenario`'s rows for a scene built without a table.
+_BARE_COLUMNS = ("artefact", "label", "t_arrive", "t_leave")
+
+
+def _scene_table(scene: Any) -> pd.DataFrame:
+    """The rows of ``scene`` in :func:`perceive_scenario`'s output (before the flags)."""
+    if scene.artefacts is not None and len(scene.artefacts) == len(scene):
+        return scene.artefacts
+    cols = (scene.ids, scene.labels, scene.t_arrive, scene.t_leave)
+    return pd.DataFrame(dict(zip(_BARE_COLUMNS, cols, strict=True)))
 
 
 def _check_size(scenes: list[Any], t: np.ndarray, camera: Any) -> None:

@@ -172,7 +172,7 @@ def _moving_mission(
         t0 = time.perf_counter()
         res = run_mission(
             grid, scene, goals, planner or {"algorithm": "RRTConnect", "range": 2.0},
-            robot=Robot(radius=0.3, speed=0.5), catalogue=cat, time_limit=horizon,
+            robot=Robot(radius=0.3, speed=0.5), time_limit=horizon,
             perception=perception, env_mesh=mesh, perception_period=0.1, move_period=2.0,
             avoid_robot=avoid,
         )  # fmt: skip

@@ -65,13 +65,13 @@ def _first_time_at(trace, art_id, xy):
 
 def test_pedestrian_detours_around_a_standing_robot_and_arrives_later():
     art, tracks = _north()
-    kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=tracks,
-              time_limit=30.0, record=True)  # fmt: skip
-    off = run_mission(OPEN, art, [[15.0, 15.0]], _never, avoid_robot=False, **kw)
+    scene = _scene(tracks, art)
+    kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], time_limit=30.0, record=True)  # fmt: skip
+    off = run_mission(OPEN, scene, [[15.0, 15.0]], _never, avoid_robot=False, **kw)
     assert off.summary["artefact_contacts"] == 1  # it walks into the robot, as before
     assert off.summary["n_detours"] == off.summary["n_yields"] == 0
     assert _first_time_at(off.trace, 0, [10.0, 18.0]) == 16.0
-    on = run_mission(OPEN, art, [[15.0, 15.0]], _never, **kw)
+    on = run_mission(OPEN, scene, [[15.0, 15.0]], _never, **kw)
     s = on.summary
     assert s["artefact_contacts"] == 0 and s["collisions"] == 0 and s["n_detours"] >= 1
     assert (on.timeline["kind"] == "move+detour").sum() == s["n_detours"]
@@ -93,11 +93,11 @@ def test_pedestrian_overtaking_a_driving_robot_goes_round_it():
     t = np.arange(0.0, 19.0)
     behind = pd.DataFrame({"id": 0, "t": t, "x": 0.5 + t, "y": 10.0, "yaw": 0.0})
     art = pd.DataFrame([[0.0, 25.0, 0.5, 10.0, 0.0, 0]], columns=COLS)
-    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=behind,
-              time_limit=60.0, record=True)  # fmt: skip
-    off = run_mission(OPEN, art, [[16.0, 10.0]], "astar", avoid_robot=False, **kw)
+    scene = _scene(behind, art)
+    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], time_limit=60.0, record=True)  # fmt: skip
+    off = run_mission(OPEN, scene, [[16.0, 10.0]], "astar", avoid_robot=False, **kw)
     assert off.summary["artefact_contacts"] == 1
-    on = run_mission(OPEN, art, [[16.0, 10.0]], "astar", **kw)
+    on = run_mission(OPEN, scene, [[16.0, 10.0]], "astar", **kw)
     s = on.summary
     assert s["artefact_contacts"] == 0 and s["collisions"] == 0 and s["goals_reached"] == 1
     assert s["n_detours"] + s["n_yields"] >= 1 and s["avoid_delay"] > 0
@@ -117,8 +117,8 @@ def test_detour_keeps_clear_of_another_artefact():
     art, tracks = _north()
     art = pd.concat([art, pd.DataFrame([[0.0, 60.0, 10.9, 10.0, 0.0, 0]], columns=COLS)])
     art["artefact"] = [0, 1]
-    res = run_mission(OPEN, art, [[15.0, 15.0]], _never, robot=ROBOT, start=[10.0, 10.0, 0.0],
-                      catalogue=CATALOGUE, tracks=tracks, time_limit=30.0, record=True)  # fmt: skip
+    res = run_mission(OPEN, _scene(tracks, art), [[15.0, 15.0]], _never, robot=ROBOT,
+                      start=[10.0, 10.0, 0.0], time_limit=30.0, record=True)  # fmt: skip
     assert res.summary["artefact_contacts"] == 0 and res.summary["n_detours"] >= 1
     xs = []
     for sc in res.trace.scenes:
@@ -139,11 +139,12 @@ def test_walled_in_pedestrian_waits_and_never_meets_the_robot_or_a_wall(move_per
     data[:, 47:53] = 0  # a corridor x in [9.4, 10.6): no way round a robot standing in it
     grid = OccupancyGrid(data, 0.2)
     art, tracks = _north()
-    kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], catalogue=CATALOGUE, tracks=tracks,
-              time_limit=30.0, record=True, move_period=move_period)  # fmt: skip
-    off = run_mission(grid, art, [[10.0, 15.0]], _never, avoid_robot=False, **kw)
+    scene = _scene(tracks, art)
+    kw = dict(robot=ROBOT, start=[10.0, 10.0, 0.0], time_limit=30.0, record=True,
+              move_period=move_period)  # fmt: skip
+    off = run_mission(grid, scene, [[10.0, 15.0]], _never, avoid_robot=False, **kw)
     assert off.summary["artefact_contacts"] == 1
-    on = run_mission(grid, art, [[10.0, 15.0]], _never, **kw)
+    on = run_mission(grid, scene, [[10.0, 15.0]], _never, **kw)
     s = on.summary
     assert s["artefact_contacts"] == 0 and s["n_detours"] == 0 and s["n_yields"] > 5
     assert (on.timeline["kind"] == "move+yield").sum() == s["n_yields"]
@@ -214,8 +215,8 @@ def test_detour_by_a_wall_keeps_the_box_inside_the_corridor():
     grid = OccupancyGrid(data, 0.2)
     art, tracks = _north()
     art, tracks = art.assign(x=10.5), tracks.assign(x=10.5)
-    res = run_mission(grid, art, [[10.0, 15.0]], _never, robot=ROBOT, start=[10.3, 10.0, 0.0],
-                      catalogue=CATALOGUE, tracks=tracks, time_limit=30.0, record=True)  # fmt: skip
+    res = run_mission(grid, _scene(tracks, art), [[10.0, 15.0]], _never, robot=ROBOT,
+                      start=[10.3, 10.0, 0.0], time_limit=30.0, record=True)  # fmt: skip
     assert res.summary["artefact_contacts"] == 0 and res.summary["n_detours"] >= 1
     xs = []
     for sc in res.trace.scenes:
@@ -309,11 +310,11 @@ def test_walker_decides_again_when_the_robot_replans_into_its_way():
     tracks = pd.DataFrame({"id": 0, "t": t, "x": 10.0, "y": 2.0 + t, "yaw": np.pi / 2})
     art = pd.DataFrame([[0.0, 60.0, 10.0, 2.0, np.pi / 2, 0]], columns=COLS)
     robot = Robot(radius=0.3, speed=1.0)
-    kw = dict(robot=robot, start=[16.0, 10.0, np.pi], catalogue=CATALOGUE, tracks=tracks,
-              time_limit=20.0, record=True)  # fmt: skip
-    off = run_mission(OPEN, art, REPLAN_GOALS, _two_goals_then_none, avoid_robot=False, **kw)
+    scene = _scene(tracks, art)
+    kw = dict(robot=robot, start=[16.0, 10.0, np.pi], time_limit=20.0, record=True)  # fmt: skip
+    off = run_mission(OPEN, scene, REPLAN_GOALS, _two_goals_then_none, avoid_robot=False, **kw)
     assert off.summary["artefact_contacts"] == 1
-    on = run_mission(OPEN, art, REPLAN_GOALS, _two_goals_then_none, **kw)
+    on = run_mission(OPEN, scene, REPLAN_GOALS, _two_goals_then_none, **kw)
     s = on.summary
     assert s["goals_reached"] == 2 and s["artefact_contacts"] == 0 and s["collisions"] == 0
     # at t = 4 the walker had nothing to avoid; the replan at 4.5 made it detour
@@ -329,7 +330,7 @@ def test_walker_decides_again_when_the_robot_replans_into_its_way():
     assert max(abs(sc["centres"][0, 0] - 10.0) for sc in on.trace.scenes) > 0.5
     assert _first_time_at(on.trace, 0, [10.0, 18.0]) == pytest.approx(16.0 + s["avoid_delay"])
     # deterministic: the same mission gives the same result
-    again = run_mission(OPEN, art, REPLAN_GOALS, _two_goals_then_none, **kw)
+    again = run_mission(OPEN, scene, REPLAN_GOALS, _two_goals_then_none, **kw)
     wall = {"rho_mean", "rho_t_mean"}  # measured on the wall clock
     assert {k: v for k, v in again.summary.items() if k not in wall} == {
         k: v for k, v in s.items() if k not in wall

@@ -11,6 +11,7 @@ import pytest
 
 from are_stats.environment import ArtefactCatalogue, ArtefactClass, OccupancyGrid
 from are_stats.experiments import Robot, circle_box_overlap, run_mission
+from are_stats.scenarios import Scene
 from tests.helpers import assert_allclose
 
 
@@ -33,12 +34,17 @@ def _art(rows):
     return pd.DataFrame(rows, columns=["t_arrive", "t_leave", "x", "y", "yaw", "mark"])
 
 
+def _scene(art, tracks=None):
+    """The scene of a table of 2 m boxes (and their tracks)."""
+    return Scene.from_scenarios(art, _BoxCatalogue(), tracks)
+
+
 def test_toy_rho_nu_by_hand():
     # one 2x2 box at (10, 5) from t=2 to t=4: off the straight path y = 10
     art = _art([[2.0, 4.0, 10.0, 5.0, 0.0, 0]])
     res = run_mission(
-        GRID, art, [[18.0, 10.0]], "astar", robot=ROBOT, start=[2.0, 10.0, 0.0],
-        catalogue=_BoxCatalogue(), time_limit=100.0,
+        GRID, _scene(art), [[18.0, 10.0]], "astar", robot=ROBOT, start=[2.0, 10.0, 0.0],
+        time_limit=100.0,
     )  # fmt: skip
     rp = res.replans
     assert rp["reason"].tolist() == ["goal", "arrival", "leave"]
@@ -60,15 +66,15 @@ def test_toy_rho_nu_by_hand():
 
 def test_planner_avoids_perceived_but_blind_planner_collides():
     art = _art([[1.0, 50.0, 10.0, 10.0, 0.0, 0]])  # a box arrives on the straight path
-    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=100.0)
-    seen = run_mission(GRID, art, [[18.0, 10.0]], "astar", **kw)
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], time_limit=100.0)
+    seen = run_mission(GRID, _scene(art), [[18.0, 10.0]], "astar", **kw)
     assert seen.summary["goals_reached"] == 1 and seen.summary["collisions"] == 0
     assert seen.summary["distance"] > 16.0  # a detour
 
     def blind(free, start, goal, params):  # a user planner that ignores the map
         return np.vstack([start, goal])
 
-    hit = run_mission(GRID, art, [[18.0, 10.0]], blind, **kw)
+    hit = run_mission(GRID, _scene(art), [[18.0, 10.0]], blind, **kw)
     assert hit.summary["collisions"] == 1 and hit.summary["goals_reached"] == 1
     assert_allclose(hit.summary["distance"], 16.0, rtol=1e-12)
 
@@ -76,11 +82,11 @@ def test_planner_avoids_perceived_but_blind_planner_collides():
 def test_blocked_goal_waits_for_leave_and_time_limit():
     # the goal is covered until t = 30; the robot replans when the box leaves
     art = _art([[0.0, 30.0, 18.0, 10.0, 0.0, 0]])
-    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue())
-    res = run_mission(GRID, art, [[18.0, 10.0]], "astar", time_limit=100.0, **kw)
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0])
+    res = run_mission(GRID, _scene(art), [[18.0, 10.0]], "astar", time_limit=100.0, **kw)
     assert res.replans["success"].tolist() == [False, True]
     assert_allclose(res.goals["t_reached"], [46.0], rtol=1e-12)
-    short = run_mission(GRID, art, [[18.0, 10.0]], "astar", time_limit=20.0, **kw)
+    short = run_mission(GRID, _scene(art), [[18.0, 10.0]], "astar", time_limit=20.0, **kw)
     assert short.summary["goals_reached"] == 0 and short.summary["mission_time"] == 20.0
 
 
@@ -92,9 +98,9 @@ def test_goals_sequence_and_determinism():
         rng.uniform(3, 17, n), np.zeros(n), np.zeros(n),
     ]))  # fmt: skip
     goals = [[2.0, 2.0], [18.0, 18.0], [2.0, 18.0], [18.0, 2.0]]
-    kw = dict(robot=ROBOT, catalogue=_BoxCatalogue(), time_limit=200.0)
-    a = run_mission(GRID, art, goals, "astar", **kw)
-    b = run_mission(GRID, art, goals, "astar", **kw)
+    kw = dict(robot=ROBOT, time_limit=200.0)
+    a = run_mission(GRID, _scene(art), goals, "astar", **kw)
+    b = run_mission(GRID, _scene(art), goals, "astar", **kw)
     assert a.summary["goals_total"] == 3
     drop = ["rho_t", "rho"]
     pd.testing.assert_frame_equal(a.replans.drop(columns=drop), b.replans.drop(columns=drop))
@@ -111,8 +117,8 @@ def test_camera_perception_sees_only_what_is_in_view():
     # robot at (4, 10) looking along +x: a box ahead at (9, 10), one behind at (1, 14)
     art = _art([[0.0, 100.0, 9.0, 13.0, 0.0, 0], [0.0, 100.0, 1.0, 14.0, 0.0, 0]])
     res = run_mission(
-        GRID, art, [[16.0, 10.0]], "astar", robot=ROBOT, start=[4.0, 10.0, 0.0],
-        catalogue=_BoxCatalogue(), time_limit=30.0, perception="camera", env_mesh=wall,
+        GRID, _scene(art), [[16.0, 10.0]], "astar", robot=ROBOT, start=[4.0, 10.0, 0.0],
+        time_limit=30.0, perception="camera", env_mesh=wall,
         d_max=20.0, tau=5.0,
     )  # fmt: skip
     first = res.replans.iloc[0]
@@ -169,19 +175,19 @@ def test_robot_camera_frames():
         ({"perception": "camera"}, "env_mesh"),
         ({"time_limit": 0.0}, "time_limit"),
         ({"grid": np.zeros((3, 3))}, "grid"),
-        ({"artefacts": pd.DataFrame({"x": [1.0]})}, "artefacts"),
+        ({"scene": _art([])}, "scene: expected a Scene"),
         ({"start": [1.0, 2.0]}, "start"),
         ({"avoid_robot": "yes"}, "avoid_robot"),
         ({"avoid_margin": -0.1}, "avoid_margin"),
     ],
 )
 def test_bad_input(kwargs, match):
-    args = dict(grid=GRID, artefacts=_art([]), goals=[[2.0, 2.0], [5.0, 5.0]])
+    args = dict(grid=GRID, scene=_scene(_art([])), goals=[[2.0, 2.0], [5.0, 5.0]])
     args.update(kwargs)
     if "start" in kwargs:
         args["goals"] = [[5.0, 5.0]]
     with pytest.raises(ValueError, match=match):
-        run_mission(args.pop("grid"), args.pop("artefacts"), args.pop("goals"), **args)
+        run_mission(args.pop("grid"), args.pop("scene"), args.pop("goals"), **args)
 
 
 def _walker(t_cross):
@@ -198,9 +204,9 @@ def _walker(t_cross):
 def test_walking_artefact_triggers_a_replan_and_is_not_driven_through():
     art, tracks = _walker(t_cross=8.0)
     # the walker ignores the robot (avoid_robot=False): the robot alone must keep clear
-    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0,
+    kw = dict(robot=ROBOT, start=[2.0, 10.0, 0.0], time_limit=60.0,
               avoid_robot=False)  # fmt: skip
-    res = run_mission(GRID, art, [[18.0, 10.0]], "astar", tracks=tracks, record=True, **kw)
+    res = run_mission(GRID, _scene(art, tracks), [[18.0, 10.0]], "astar", record=True, **kw)
     s = res.summary
     assert s["goals_reached"] == 1
     assert (res.timeline["kind"] == "move").any() and s["n_move_updates"] > 0
@@ -216,19 +222,19 @@ def test_walking_artefact_triggers_a_replan_and_is_not_driven_through():
     )
     assert np.sqrt(gap).min() > ROBOT.radius
     # moves applied on a 2 s clock: one update per tick, and still no contact
-    tick = run_mission(GRID, art, [[18.0, 10.0]], "astar", tracks=tracks, move_period=2.0, **kw)
+    tick = run_mission(GRID, _scene(art, tracks), [[18.0, 10.0]], "astar", move_period=2.0, **kw)
     moves = tick.timeline.loc[tick.timeline["kind"] == "move", "t"].to_numpy()
     assert moves.size == tick.summary["n_move_updates"] > 0
     assert_allclose(moves % 2.0, 0.0) and tick.summary["collisions"] == 0
     # the same walker without its track stands still at its first pose, off the path
-    still = run_mission(GRID, art, [[18.0, 10.0]], "astar", **kw)
+    still = run_mission(GRID, _scene(art), [[18.0, 10.0]], "astar", **kw)
     assert still.summary["n_move_updates"] == 0 and not (still.timeline["kind"] == "move").any()
 
     # a planner blind to the map drives straight into the walker
     def blind(free, start, goal, params):
         return np.vstack([start, goal])
 
-    hit = run_mission(GRID, art, [[18.0, 10.0]], blind, tracks=tracks, **kw)
+    hit = run_mission(GRID, _scene(art, tracks), [[18.0, 10.0]], blind, **kw)
     assert hit.summary["collisions"] + hit.summary["artefact_contacts"] >= 1
 
 
@@ -238,24 +244,24 @@ def _blind(free, start, goal, params):  # a user planner that ignores the map
 
 def test_contacts_are_blamed_on_whoever_closed_the_gap():
     slow = Robot(radius=0.3, speed=0.25)
-    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], catalogue=_BoxCatalogue(), time_limit=60.0,
+    kw = dict(robot=slow, start=[4.0, 10.0, 0.0], time_limit=60.0,
               avoid_robot=False)  # fmt: skip
     # a walker catches up with the robot from behind along its path (1 m/s against 0.25)
     t = np.arange(0.0, 40.0)  # it walks on past the goal and off the map
     behind = pd.DataFrame({"id": 0, "t": t, "x": 0.5 + t, "y": 10.0, "yaw": 0.0})
     art = _art([[0.0, 60.0, 0.5, 10.0, 0.0, 0]])
-    res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=behind, **kw)
+    res = run_mission(GRID, _scene(art, behind), [[18.0, 10.0]], _blind, **kw)
     assert res.summary["artefact_contacts"] == 1 and res.summary["collisions"] == 0
     # the robot drives into the side of a walker crossing its path slowly (0.1 m/s)
     across = pd.DataFrame({"id": 0, "t": t, "x": 8.0, "y": 9.5 + 0.1 * t, "yaw": np.pi / 2})
     art = _art([[0.0, 60.0, 8.0, 9.5, np.pi / 2, 0]])
-    res = run_mission(GRID, art, [[18.0, 10.0]], _blind, tracks=across, **kw)
+    res = run_mission(GRID, _scene(art, across), [[18.0, 10.0]], _blind, **kw)
     assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
     # the robot brushes a standing box (x 7..9, y 10..12) while its centre already moves away
     # from the box's centre: still the robot's doing (it was counted as the box's)
     art = _art([[0.0, 60.0, 8.0, 11.0, 0.0, 0]])
     kw["robot"], kw["start"] = ROBOT, [4.0, 9.5, 0.0]
-    res = run_mission(GRID, art, [[18.0, 9.5 + 14.0 / 24.0]], _blind, **kw)
+    res = run_mission(GRID, _scene(art), [[18.0, 9.5 + 14.0 / 24.0]], _blind, **kw)
     assert res.summary["collisions"] == 1 and res.summary["artefact_contacts"] == 0
 
 
@@ -279,14 +285,14 @@ def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
         tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
     art, tr = _art(rows), pd.concat(tracks, ignore_index=True)
     kw = dict(
-        robot=Robot(radius=0.3, speed=0.7), start=[2.0, 10.0, 0.0], catalogue=_BoxCatalogue(),
+        robot=Robot(radius=0.3, speed=0.7), start=[2.0, 10.0, 0.0],
         time_limit=50.0, perception="camera", env_mesh=pillar, d_max=15.0, tau=3.0,
-        tracks=tr, perception_period=0.1,
+        perception_period=0.1,
     )  # fmt: skip
     goals = [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0]]
-    batched = run_mission(GRID, art, goals, "astar", **kw)
+    batched = run_mission(GRID, _scene(art, tr), goals, "astar", **kw)
     monkeypatch.setattr(loop, "_PERCEPT_BATCH", 1)
-    single = run_mission(GRID, art, goals, "astar", **kw)
+    single = run_mission(GRID, _scene(art, tr), goals, "astar", **kw)
     assert batched.summary["n_updates"] > 10 and (batched.timeline["kind"] == "perceived").any()
     wall = ["rho_t", "rho"]
     pd.testing.assert_frame_equal(batched.timeline, single.timeline)

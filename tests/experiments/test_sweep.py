@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from are_stats._atomic import OutputExistsError
 from are_stats.cli import app
-from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
+from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.experiments import (
     expand_tasks,
     load_results,
@@ -22,6 +22,7 @@ from are_stats.experiments import (
 )
 from are_stats.export import MCAP_TOPICS, export_mcap
 from are_stats.inputs import InputError
+from are_stats.scenarios import Scene
 
 CONFIG = {
     "name": "tiny",
@@ -160,7 +161,8 @@ def test_mcap_export_reads_back(tmp_path):
         [[2.0, 4.0, 10.0, 5.0, 0.0, 0], [0.0, 50.0, 10.0, 15.0, 0.0, 3]],
         columns=["t_arrive", "t_leave", "x", "y", "yaw", "mark"],
     )
-    res = run_mission(grid, art, [[2.0, 10.0], [18.0, 10.0]], "astar", record=True, time_limit=60)
+    scene = Scene.from_scenarios(art, load_catalogue())
+    res = run_mission(grid, scene, [[2.0, 10.0], [18.0, 10.0]], "astar", record=True, time_limit=60)
     path = export_mcap(tmp_path / "run.mcap", grid, res.trace)
     ts = get_typestore(Stores.ROS2_HUMBLE)
     counts: Counter = Counter()

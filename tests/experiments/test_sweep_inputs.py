@@ -297,11 +297,13 @@ def test_resolved_config_round_trips():
 def test_run_mission_refuses_runaway_motion_before_driving():
     import numpy as np
 
-    from are_stats.environment import OccupancyGrid
+    from are_stats.environment import OccupancyGrid, load_catalogue
     from are_stats.experiments import Robot, run_mission
+    from are_stats.scenarios import Scene
 
     grid = OccupancyGrid(np.zeros((20, 20)), 1.0)
-    art = pd.DataFrame(columns=["t_arrive", "t_leave", "x", "y", "yaw"], dtype=float)
+    empty = pd.DataFrame(columns=["t_arrive", "t_leave", "x", "y", "yaw"], dtype=float)
+    art = Scene.from_scenarios(empty, load_catalogue())
     goals = [[2.0, 10.0], [18.0, 10.0]]
     with pytest.raises(LimitError, match="run_mission: expected the robot's"):
         run_mission(grid, art, goals, "astar", robot=Robot(radius=1e-12), time_limit=1e9)

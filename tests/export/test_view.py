@@ -9,10 +9,11 @@ import pytest
 from typer.testing import CliRunner
 
 from are_stats.cli import app
-from are_stats.environment import OccupancyGrid
+from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.experiments import run_mission
 from are_stats.export import export_mcap, plot_mcap, read_view
 from are_stats.inputs import InputError
+from are_stats.scenarios import Scene
 
 runner = CliRunner()
 
@@ -29,7 +30,8 @@ def mission(tmp_path_factory):
         ],
         columns=["t_arrive", "t_leave", "x", "y", "yaw", "mark"],
     )
-    res = run_mission(grid, art, [[28.0, 6.0], [4.0, 14.0]], "astar", record=True, time_limit=60)
+    scene = Scene.from_scenarios(art, load_catalogue())
+    res = run_mission(grid, scene, [[28.0, 6.0], [4.0, 14.0]], "astar", record=True, time_limit=60)
     return grid, res, export_mcap(d / "run.mcap", grid, res.trace)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import jax
 import numpy as np
 import pandas as pd
@@ -24,11 +26,10 @@ from are_stats.perception import (
     plot_top_view,
     sample_perceived,
     save_figure,
-    scenario_scenes,
     yaw_rotations,
 )
 from are_stats.perception._scenario import read_robot_path
-from are_stats.scenarios import Scene
+from are_stats.scenarios import Scene, scenes_from_tables
 from tests.helpers import ALPHA
 
 
@@ -73,8 +74,10 @@ def test_perceive_scenario_matches_direct_batch(catalogue):
     path = pd.DataFrame({"t": [0.0, 2.0, 4.0], "x": [0.0, 0.0, 0.0], "y": [0.0, 0.0, 0.0],
                          "yaw": [0.0, 0.0, 0.0]})  # fmt: skip
     cam = _camera()
-    out = perceive_scenario(art, path, catalogue, wall, cam, 20.0, 5)
+    scenes = scenes_from_tables(art, None, catalogue, None, [0, 1])
+    out = perceive_scenario(scenes, path, wall, cam, 20.0, 5)
     assert list(out.columns[: len(art.columns)]) == list(art.columns)
+    assert out.index.tolist() == art.index.tolist()  # the table's rows, in order
     # scenario 0 by hand, boxes from the catalogue rows
     centers, half = _by_hand(catalogue, art.iloc[:3])
     poses = np.stack([cam.pose] * 3)
@@ -89,18 +92,25 @@ def test_perceive_scenario_matches_direct_batch(catalogue):
     assert out["first_perceived_t"].iloc[0] == 0.0 and np.isnan(out["first_perceived_t"].iloc[1])
     # scenario 1: present only at t = 0
     assert out["n_frames_perceived"].iloc[3] == 1
-    # the Scene of scenario 0 gives the same flags
-    (rows, scene), _ = scenario_scenes(art, catalogue)
-    one = perceive_scenario(scene, path, None, wall, cam, 20.0, 5)
-    assert rows.tolist() == [0, 1, 2] and one["artefact"].tolist() == [0, 1, 2]
-    np.testing.assert_array_equal(one["max_count"], s0["max_count"])
-    with pytest.raises(ValueError, match="artefacts: expected columns"):
-        perceive_scenario(art.drop(columns="yaw"), path, catalogue, wall, cam, 20.0, 5)
+    # the Scene of scenario 0 alone gives the same flags; a Scene without its table gives
+    # its ids, labels and life-cycle
+    one = perceive_scenario(scenes[0], path, wall, cam, 20.0, 5)
+    pd.testing.assert_frame_equal(one, s0)
+    bare = copy.copy(scenes[0])
+    bare.artefacts = None
+    flags = ["perceived", "n_frames_perceived", "max_count", "first_perceived_t"]
+    got = perceive_scenario(bare, path, wall, cam, 20.0, 5)
+    assert list(got.columns) == ["artefact", "label", "t_arrive", "t_leave", *flags]
+    assert got["artefact"].tolist() == [0, 1, 2]
+    assert got["label"].tolist() == scenes[0].labels.tolist() == ["person"] * 3
+    pd.testing.assert_frame_equal(got[flags], s0[flags])
+    with pytest.raises(ValueError, match="scenes: expected a Scene or a sequence of Scenes"):
+        perceive_scenario(art, path, wall, cam, 20.0, 5)
+    with pytest.raises(ValueError, match="scenes: expected a Scene or a sequence of Scenes"):
+        perceive_scenario([scenes[0], art], path, wall, cam, 20.0, 5)
     with pytest.raises(ValueError, match="robot_path: expected columns"):
-        perceive_scenario(art, path.drop(columns="t"), catalogue, wall, cam, 20.0, 5)
-    with pytest.raises(ValueError, match="tracks: expected a 'scenario' column"):
-        tracks = pd.DataFrame({"id": [0], "t": [0.0], "x": [0.0], "y": [0.0], "yaw": [0.0]})
-        perceive_scenario(art, path, catalogue, wall, cam, 20.0, 5, tracks=tracks)
+        perceive_scenario(scenes, path.drop(columns="t"), wall, cam, 20.0, 5)
+    assert len(perceive_scenario([], path, wall, cam, 20.0, 5)) == 0
 
 
 def _walkers(catalogue):
@@ -156,8 +166,8 @@ def test_moving_boxes_equal_static_frames(catalogue):
     # the table with its tracks, and the Scene, give the same flags
     path = pd.DataFrame({"t": times, "x": 0.1 * times, "y": 0.0, "yaw": 0.0})
     for out in (
-        perceive_scenario(scene, path, None, wall, cam, 20.0, 5),
-        perceive_scenario(table, path, catalogue, wall, cam, 20.0, 5, tracks=tracks),
+        perceive_scenario(scene, path, wall, cam, 20.0, 5),
+        perceive_scenario(scenes_from_tables(table, tracks, catalogue), path, wall, cam, 20.0, 5),
     ):
         np.testing.assert_array_equal(out["n_frames_perceived"], seen.sum(axis=0))
         np.testing.assert_array_equal(out["max_count"], counts.max(axis=0))
@@ -242,16 +252,16 @@ def test_perceive_scenario_refuses_unsorted_paths_and_runaway_work():
     art = pd.DataFrame({"scenario": [0, 1], "class": [0, 0], "t_arrive": [0.0, 0.0],
                         "t_leave": [10.0, 3.0], "x": [2.0, 2.0], "y": [0.0, 0.0],
                         "yaw": [0.0, 0.0]})  # fmt: skip
-    classes = load_catalogue()
+    scenes = scenes_from_tables(art, None, load_catalogue())
     path = pd.DataFrame({"t": [0.0, 4.0, 2.0], "x": 0.0, "y": 0.0, "yaw": 0.0})
     with pytest.raises(ValueError, match=r"robot_path: row 2: expected times in non-decreasing"):
-        perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)
+        perceive_scenario(scenes, path, wall, _camera(), 20.0, 5)
     path = pd.DataFrame({"t": [0.0, 2.0, 4.0], "x": 0.0, "y": 0.0, "yaw": 0.0})
     # frames with an artefact present: 3 in scenario 0, 2 in scenario 1; 80 x 60 pixels each
     with limits(work=5 * 4800 - 1), pytest.raises(LimitError, match="tracing 5 frames of 4800"):
-        perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)
+        perceive_scenario(scenes, path, wall, _camera(), 20.0, 5)
     with limits(work=5 * 4800):
-        assert len(perceive_scenario(art, path, classes, wall, _camera(), 20.0, 5)) == 2
+        assert len(perceive_scenario(scenes, path, wall, _camera(), 20.0, 5)) == 2
 
 
 def test_read_robot_path(tmp_path):
