@@ -146,7 +146,6 @@ _LAZY.update(
         [
             "generate_scenarios",
             "posterior_draws",
-            "read_scenarios",
             "read_scenes",
             "scenario_counts",
             "traffic_draws",
@@ -323,7 +322,6 @@ if TYPE_CHECKING:
         Scene,
         generate_scenarios,
         posterior_draws,
-        read_scenarios,
         read_scenes,
         scenario_counts,
         scenes_from_draws,

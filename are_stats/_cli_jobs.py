@@ -788,9 +788,9 @@ def run_generate(
 
 def _behaviour_cell_m(grid: Any, cell: float) -> float:
     """The coarse behaviour grid's actual cell (m): ``cell`` rounded to map cells."""
-    from are_stats.environment import coarse_occupancy
+    from are_stats.environment import coarse_free
 
-    return float(coarse_occupancy(grid, cell, "--behaviour-cell")[1])
+    return float(coarse_free(grid.free, grid.resolution, cell, source="--behaviour-cell")[1])
 
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:

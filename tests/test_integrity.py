@@ -276,13 +276,13 @@ def test_fit_killed(work, tmp_path: Path) -> None:
 
 def _scenarios_whole(folder: Path, old: dict[str, bytes], seed: int) -> str | None:
     """None when ``folder`` is the old folder byte for byte or a complete new one."""
-    from are_stats import read_scenarios
+    from are_stats import read_scenes
 
     now = snapshot(folder)
     if now == old:
         return None
     try:
-        df, manifest = read_scenarios(folder)
+        df, manifest, _ = read_scenes(folder)
     except (ValueError, FileNotFoundError) as err:
         return f"neither the old folder nor a readable new one: {err}"
     if int(manifest.get("seed", -1)) != seed:

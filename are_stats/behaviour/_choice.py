@@ -4,9 +4,9 @@ The catalogue row of an artefact (its class, DECISIONS 5) lists the behaviours t
 allows (walk, run, follow, stop); its mark picks one (``mark mod`` the number allowed; the
 first without a mark). :func:`behaviour_tracks` is the one path from a scenario's
 artefacts to behaviour tracks, used by ``are-stats generate --behaviours`` and by the
-experiment sweeps: the map is coarsened to the behaviour cell
-(:func:`are_stats.environment.coarse_occupancy`), starts on a coarse obstacle move to the
-nearest free coarse cell, and :func:`~are_stats.behaviour.walk_tracks` moves them: the MDP
+experiment sweeps: the map is coarsened to the behaviour cell (the cells that
+:func:`are_stats.environment.coarse_free` leaves blocked), starts on a coarse obstacle move to
+the nearest free coarse cell, and :func:`~are_stats.behaviour.walk_tracks` moves them: the MDP
 picks each route to a goal reachable in the rest of the stay (a new goal on arrival, while
 alive), and the artefact walks it in continuous space, straight wherever it sees, at its
 own preferred speed (issue 26).
@@ -100,9 +100,12 @@ def behaviour_tracks(
     from scipy import ndimage
 
     from are_stats.behaviour._walk import walk_tracks
-    from are_stats.environment import coarse_occupancy
+    from are_stats.environment import coarse_free
 
-    occ, res = coarse_occupancy(grid, cell, source)
+    if abs(float(grid.origin[2])) > 1e-9:
+        raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
+    free, res = coarse_free(grid.free, grid.resolution, cell, source=source)
+    occ = ~free
     if occ.all():
         raise ValueError(f"{source}: the coarse behaviour grid has no free cell")
     x0, y0 = float(grid.origin[0]), float(grid.origin[1])

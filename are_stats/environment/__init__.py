@@ -21,7 +21,6 @@ from are_stats.environment._grid import (
     UNKNOWN,
     OccupancyGrid,
     coarse_free,
-    coarse_occupancy,
 )
 from are_stats.environment._mesh import extrude_grid, load_mesh, occupied_polygons
 from are_stats.environment._shipped import (
@@ -45,7 +44,6 @@ __all__ = [
     "ArtefactCatalogue",
     "ArtefactClass",
     "coarse_free",
-    "coarse_occupancy",
     "OccupancyGrid",
     "PropertyRow",
     "TransformTree",

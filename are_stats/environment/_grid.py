@@ -690,14 +690,18 @@ def _pixels_to_values(
     return _shade_to_values(_shade(quanta, n), opaque, mode, negate, occ_th, free_th)
 
 
-def coarse_free(free_mask: Any, resolution: float, cell: float) -> tuple[np.ndarray, float]:
+def coarse_free(
+    free_mask: Any, resolution: float, cell: float, *, source: str | None = None
+) -> tuple[np.ndarray, float]:
     """The one coarsener: a free mask on square cells of about ``cell`` metres.
 
     A coarse cell is free where **at least half** of its map cells are free (so a door that
     straddles two coarse cells stays open in both). Behaviours, their fits and the learned
-    entry densities all move on grids made here, so they agree cell for cell. Trailing map
-    cells that do not fill a coarse cell are dropped; a map smaller than 2 x 2 coarse cells
-    keeps its own cells.
+    entry densities all move on grids made here, so they agree cell for cell (the
+    behaviours' occupancy is the complement: a coarse cell is blocked where more than half
+    of its map cells are not free, occupied or unknown). Trailing map cells that do not fill
+    a coarse cell are dropped; a map smaller than 2 x 2 coarse cells keeps its own cells
+    (an error with ``source``).
 
     Parameters
     ----------
@@ -707,58 +711,40 @@ def coarse_free(free_mask: Any, resolution: float, cell: float) -> tuple[np.ndar
         Map cell side (m).
     cell : float
         Target cell side (m), rounded to a whole number of map cells (at least one).
+    source : str, optional
+        The option or key ``cell`` came from (the behaviours' grid): then ``cell`` must be
+        a finite number > 0 and the coarse grid at least 2 x 2 cells, else a ``ValueError``
+        names it.
 
     Returns
     -------
     free : (h, w) bool
     resolution : float
         The coarse cell side.
-    """
-    free = np.asarray(free_mask, bool)
-    res = float(resolution)
-    f = max(1, int(round(min(float(cell) / res, 2.0**31))))
-    h, w = free.shape[0] // f, free.shape[1] // f
-    if h < 2 or w < 2:
-        return free.copy(), res
-    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
-    return frac >= 0.5, res * f
-
-
-def coarse_occupancy(grid: Any, cell: float, source: str = "cell") -> tuple[np.ndarray, float]:
-    """Occupancy of ``grid`` on square cells of about ``cell`` metres (majority vote).
-
-    The grid the behaviours move on: the complement of :func:`coarse_free` (a coarse cell
-    is occupied where more than half of its map cells are not free: occupied or unknown).
-
-    Parameters
-    ----------
-    grid : OccupancyGrid
-        The map (the yaw of its origin must be 0).
-    cell : float
-        Target cell size in metres (rounded to a whole number of map cells).
-    source : str
-        The option or key the cell came from, named in errors.
-
-    Returns
-    -------
-    occupied : (h, w) bool
-    resolution : float
-        The coarse cell size.
 
     Raises
     ------
     ValueError
-        If the origin is rotated, the cell is not a finite number > 0, or the coarse grid
-        would have fewer than 2 x 2 cells.
-    """
-    from are_stats.inputs import get_float
+        With ``source``: a cell that is not a finite number > 0, or a coarse grid of fewer
+        than 2 x 2 cells.
 
-    if abs(float(grid.origin[2])) > 1e-9:
-        raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
-    cell = get_float(cell, source, "", lo=0.0, lo_open=True)
-    f = max(1, int(round(min(cell / grid.resolution, 2.0**31))))
-    h, w = grid.shape[0] // f, grid.shape[1] // f
+    Examples
+    --------
+    >>> free = np.ones((6, 6), bool)
+    >>> free[:3, :2] = False  # 6 of the 9 fine cells of the corner coarse cell
+    >>> coarse, res = coarse_free(free, 0.1, 0.3)
+    >>> coarse.tolist(), round(res, 9)
+    ([[False, True], [True, True]], 0.3)
+    """
+    free = np.asarray(free_mask, bool)
+    res = float(resolution)
+    if source is not None:
+        cell = get_float(cell, source, "", lo=0.0, lo_open=True)
+    f = max(1, int(round(min(float(cell) / res, 2.0**31))))
+    h, w = free.shape[0] // f, free.shape[1] // f
     if h < 2 or w < 2:
-        raise ValueError(f"{source}: expected a cell much smaller than the map, got {cell}")
-    free, res = coarse_free(grid.free, grid.resolution, cell)
-    return ~free, res
+        if source is not None:
+            raise ValueError(f"{source}: expected a cell much smaller than the map, got {cell}")
+        return free.copy(), res
+    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+    return frac >= 0.5, res * f

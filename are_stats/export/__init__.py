@@ -10,7 +10,6 @@ from are_stats.export._augment import AUGMENT_TOPICS, AugmentResult, augment_bag
 from are_stats.export._live import (
     LIVE_TOPICS,
     LiveMessage,
-    load_replay,
     replay_messages,
     serve_scenario,
 )
@@ -29,7 +28,6 @@ __all__ = [
     "artefact_frame",
     "augment_bag",
     "export_mcap",
-    "load_replay",
     "parse_start_time",
     "plot_mcap",
     "read_view",

@@ -50,6 +50,7 @@ import numpy as np
 
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
+from are_stats.scenarios import read_scenes, scenes_from_tables
 
 __all__ = [
     "LIVE_TOPICS",
@@ -425,9 +426,19 @@ def _port_error(host: str, port: int, err: BaseException) -> InputError:
     )  # fmt: skip
 
 
-def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[str, Any]:
-    """Read a scenarios folder for :func:`serve_scenario`: the scene of one scenario, the
-    map (when the manifest names one) and the horizon.
+def _replay(d: Path, folder: Any, scenario: int | None = None) -> dict[str, Any]:
+    """What :func:`serve_scenario` replays of a scenarios folder read by
+    :func:`~are_stats.scenarios.read_scenes`: the scene of one scenario, the map (when the
+    manifest names one) and the horizon.
+
+    Parameters
+    ----------
+    d : Path
+        The folder (named in errors).
+    folder : ScenesFolder
+        Its content.
+    scenario : int, optional
+        Which scenario (default the first).
 
     Returns
     -------
@@ -436,10 +447,8 @@ def load_replay(folder: str | os.PathLike, scenario: int | None = None) -> dict[
         (artefacts with tracks), ``map`` (the map file or None).
     """
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.scenarios import read_scenes, scenes_from_tables
 
-    d = Path(folder)
-    df, manifest, tracks = read_scenes(d)
+    df, manifest, tracks = folder
     # the scenarios of the folder: 0 .. n_scenarios - 1 (some may hold no artefact), or
     # those of the table when the manifest does not say
     n_sc = manifest.get("n_scenarios")
@@ -521,10 +530,11 @@ def serve_scenario(
 ) -> dict[str, Any]:
     """Stream a scenario replay live over Foxglove's WebSocket protocol.
 
-    Reads the folder (:func:`load_replay`), starts a ``foxglove-sdk`` WebSocket server on
-    ``host:port`` with its own logging context, and sends :func:`replay_messages` at their
-    wall times until the replay ends (never with ``loop``), ``duration`` wall seconds
-    have passed or ``stop`` (a ``threading.Event``) is set; then stops the server.
+    Reads the folder (:func:`~are_stats.scenarios.read_scenes`), starts a ``foxglove-sdk``
+    WebSocket server on ``host:port`` with its own logging context, and sends
+    :func:`replay_messages` at their wall times until the replay ends (never with ``loop``),
+    ``duration`` wall seconds have passed or ``stop`` (a ``threading.Event``) is set; then
+    stops the server.
 
     Parameters
     ----------
@@ -572,7 +582,7 @@ def serve_scenario(
         or any(c.isspace() or c in "/\\\x00" for c in host)
     ):
         raise InputError("--host", "", "an address to listen on, such as 127.0.0.1", host)
-    replay = load_replay(folder, scenario)
+    replay = _replay(Path(folder), read_scenes(folder), scenario)
     robot = load_robot(robot_path) if robot_path is not None else None
     _fm()
     import foxglove

@@ -247,11 +247,11 @@ def scene_tracks(
             simulate_behaviour_tracks(key, fitted, art, class_labels=class_labels, horizon=horizon)
         )
     elif kind == "catalogue" and len(art):
-        from are_stats.environment import coarse_occupancy
+        from are_stats.environment import coarse_free
 
-        occ, _ = coarse_occupancy(grid, behaviour_cell, cell_source)
+        free, _ = coarse_free(grid.free, grid.resolution, behaviour_cell, source=cell_source)
         cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
-        check_tracks_size(cut, occ.shape, behaviour_dt, f"{source}, {cell_source}")
+        check_tracks_size(cut, free.shape, behaviour_dt, f"{source}, {cell_source}")
         classes = np.concatenate(
             [s.classes for s in scenes_from_tables(art, None, catalogue, class_labels, range(n))]
         )

@@ -36,7 +36,7 @@ import pandas as pd
 from are_stats._atomic import atomic_folder, check_folder
 from are_stats._checks import check_in, check_nonnegative, check_positive, describe
 from are_stats.inputs import check_memory, check_work, get_float, get_int
-from are_stats.scenarios._folder import SCENARIO_COLUMNS, read_scenes, write_scenes
+from are_stats.scenarios._folder import SCENARIO_COLUMNS, write_scenes
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -48,7 +48,6 @@ __all__ = [
     "expected_artefacts",
     "generate_scenarios",
     "posterior_draws",
-    "read_scenarios",
     "scenario_counts",
     "traffic_draws",
     "write_scenarios",
@@ -820,17 +819,3 @@ def write_scenarios(
     """
     out = write_scenes(df, out_dir, manifest, force=force)
     return out / "artefacts.parquet", out / "manifest.yaml"
-
-
-def read_scenarios(out_dir: str | os.PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Read a scenarios folder: the artefacts table and the manifest of
-    :func:`~are_stats.scenarios.read_scenes` (which checks every value, the tracks
-    included).
-
-    Returns
-    -------
-    (pandas.DataFrame, dict)
-        The artefacts table and the manifest.
-    """
-    folder = read_scenes(out_dir)
-    return folder.artefacts, folder.manifest

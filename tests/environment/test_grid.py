@@ -421,23 +421,43 @@ def test_values_no_pixel_can_hold_are_refused_on_writing(tmp_path):
 
 def test_one_coarsener_keeps_a_straddling_door_open_on_every_grid():
     """A 1 m door whose edges fall mid-cell of a 1 m coarse grid: each coarse cell it touches
-    is exactly half free. The behaviour grid (coarse_occupancy), the entry-density grid
-    (traffic.coarse_free_mask) and coarse_free agree, and keep the door open."""
-    from are_stats.environment import coarse_free, coarse_occupancy
+    is exactly half free. The behaviour grid (coarse_free with a source), the entry-density
+    grid (traffic.coarse_free_mask) and coarse_free agree, and keep the door open."""
+    from are_stats.environment import coarse_free
     from are_stats.traffic import coarse_free_mask
 
     data = np.zeros((40, 40))  # 0.1 m free cells
     data[20:30, :] = 100  # a wall band of coarse row 2 ...
     data[20:30, 15:25] = 0  # ... with a 1 m door from x = 1.5 to 2.5 m
     grid = OccupancyGrid(data, 0.1)
-    occ, res = coarse_occupancy(grid, 1.0)
+    behaviour, res = coarse_free(grid.free, grid.resolution, 1.0, source="--behaviour-cell")
     free, res2 = coarse_free(grid.free, 0.1, 1.0)
     free3, res3, origin = coarse_free_mask(grid.free, 0.1, (0.0, 0.0), 1.0)
     assert res == res2 == res3 == pytest.approx(1.0) and origin == (0.0, 0.0)
-    np.testing.assert_array_equal(occ, ~free)
+    np.testing.assert_array_equal(behaviour, free)
     np.testing.assert_array_equal(free, free3)
     assert free[2].tolist() == [False, True, True, False]  # both half-free cells stay open
     assert free[[0, 1, 3]].all()
+
+
+@pytest.mark.parametrize(
+    ("cell", "match"),
+    [
+        (0.0, "--behaviour-cell: expected"),
+        (float("nan"), "--behaviour-cell: expected"),
+        ("1", "--behaviour-cell: expected"),
+        (2.5, "--behaviour-cell: expected a cell much smaller than the map, got 2.5"),
+    ],
+)
+def test_coarse_free_with_a_source_names_a_bad_cell(cell, match):
+    from are_stats.environment import coarse_free
+
+    free = np.ones((40, 40), bool)  # 4 m x 4 m at 0.1 m: a 2.5 m cell leaves 1 x 1
+    with pytest.raises(ValueError, match=match):
+        coarse_free(free, 0.1, cell, source="--behaviour-cell")
+    if isinstance(cell, float) and cell > 1.0:  # without a source: the map's own cells
+        kept, res = coarse_free(free, 0.1, cell)
+        assert kept.shape == (40, 40) and res == 0.1
 
 
 def test_coarse_free_is_a_majority_vote_on_whole_cells(rng):

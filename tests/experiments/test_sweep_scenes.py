@@ -12,9 +12,9 @@ import yaml
 
 from are_stats.environment import SHIPPED_DATA, OccupancyGrid
 from are_stats.experiments import expand_tasks, load_sweep_config, run_task
-from are_stats.export import load_replay
+from are_stats.export._live import _replay
 from are_stats.inputs import InputError
-from are_stats.scenarios import SCENARIO_COLUMNS, generate_scenarios, write_scenes
+from are_stats.scenarios import SCENARIO_COLUMNS, generate_scenarios, read_scenes, write_scenes
 
 SIDE = 20
 HORIZON = 20.0
@@ -78,7 +78,7 @@ def test_empty_artefacts_with_behaviours_runs(root, tmp_path):
         assert runs["n_artefacts"] == 0 and runs["n_move_updates"] == 0
         assert runs["draw"] == task["replicate"]
     # serve: an empty scene of scenario 1
-    replay = load_replay(folder, 1)
+    replay = _replay(folder, read_scenes(folder), 1)
     assert len(replay["scene"]) == 0 and replay["horizon"] == HORIZON
 
 

@@ -327,7 +327,7 @@ def test_fit_file_to_scenarios(case, case_dir, tiny_fit) -> None:
 @fuzz_settings(120)
 @given(data=st.data())
 def test_scenario_folder(data, case_dir, tiny_scenarios) -> None:
-    from are_stats import read_scenarios
+    from are_stats import read_scenes
 
     d = case_dir() / "scen"
     shutil.copytree(tiny_scenarios, d)
@@ -357,15 +357,15 @@ def test_scenario_folder(data, case_dir, tiny_scenarios) -> None:
         case = data.draw(_byte_edit(raw)) if edit == "bytes" else raw
     (d / which).unlink()
     path = write_case(d / which, case)
-    out = expect_clean(lambda: read_scenarios(d), [path.name, d.name])
+    out = expect_clean(lambda: read_scenes(d), [path.name, d.name])
     if out is not None:
-        df, manifest = out
+        df, manifest, _ = out
         assert isinstance(manifest, dict)
         for c in ("t_arrive", "t_leave", "x", "y", "yaw"):
-            assert c in df, f"read_scenarios returned no {c!r} column"
-            assert df[c].dtype.kind == "f", f"read_scenarios returned {c!r} as {df[c].dtype}"
+            assert c in df, f"read_scenes returned no {c!r} column"
+            assert df[c].dtype.kind == "f", f"read_scenes returned {c!r} as {df[c].dtype}"
         for c in ("t_arrive", "x", "y", "yaw"):
-            assert np.isfinite(df[c].to_numpy()).all(), f"read_scenarios: non-finite {c!r}"
+            assert np.isfinite(df[c].to_numpy()).all(), f"read_scenes: non-finite {c!r}"
 
 
 @fuzz_settings(12)

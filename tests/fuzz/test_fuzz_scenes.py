@@ -109,7 +109,7 @@ def _check(folder) -> None:
 @given(data=st.data())
 def test_scenes_folder(data, case_dir, scenes) -> None:
     """read_scenes, then serve's replay of the folder (Scene, catalogue, horizon)."""
-    from are_stats.export import load_replay
+    from are_stats.export._live import _replay
     from are_stats.scenarios import read_scenes
 
     d = case_dir() / "scen"
@@ -120,8 +120,8 @@ def test_scenes_folder(data, case_dir, scenes) -> None:
         _check(folder)
         manifest = folder.manifest
         if manifest.get("map") is not None and not Path(manifest["map"]).is_file():
-            return  # a map that is not there: named by load_replay, not the subject here
-        expect_clean(lambda: load_replay(d), [path.name, d.name, "--scenario", "manifest"])
+            return  # a map that is not there: named by the replay, not the subject here
+        expect_clean(lambda: _replay(d, folder), [path.name, d.name, "--scenario", "manifest"])
 
 
 def _sweep(folder: Path, catalogue: Path | None = None) -> dict:

@@ -14,7 +14,6 @@ from are_stats.scenarios import (
     FORMAT_VERSION,
     SCENARIO_COLUMNS,
     generate_scenarios,
-    read_scenarios,
     read_scenes,
     write_scenes,
 )
@@ -67,10 +66,6 @@ def test_round_trip_with_tracks(tmp_path):
     assert m["format_version"] == FORMAT_VERSION and m["class_labels"] == ["a", "b"]
     assert m["tracks"] == {"file": "tracks.parquet", "rows": len(tracks)}
     assert m["n_scenarios"] == 3 and m["n_artefacts"] == len(df) and m["fit"] == "f.nc"
-    # the alias reads the same table and manifest
-    old_df, old_meta = read_scenarios(out)
-    pd.testing.assert_frame_equal(old_df, df)
-    assert old_meta == m
 
 
 def test_same_tables_same_bytes(tmp_path):

@@ -19,7 +19,7 @@ from are_stats.scenarios import (
     expected_artefacts,
     generate_scenarios,
     posterior_draws,
-    read_scenarios,
+    read_scenes,
     scenario_counts,
     write_scenarios,
 )
@@ -151,7 +151,7 @@ def test_same_seed_same_bytes(tmp_path):
     df = generate_scenarios(124, params(3), 50, 1800.0, area=AREA)
     write_scenarios(df, tmp_path / "other", {"fit": "fits/demo.nc", "seed": 124})
     assert digest(tmp_path / "other")["artefacts.parquet"] != out[0]["artefacts.parquet"]
-    back, meta = read_scenarios(tmp_path / "r0")
+    back, meta, _ = read_scenes(tmp_path / "r0")
     pd.testing.assert_frame_equal(
         back, generate_scenarios(123, params(3), 50, 1800.0, area=AREA), check_like=False
     )
@@ -172,7 +172,7 @@ def test_refuses_overwrite_and_replaces_the_folder_as_a_whole(tmp_path):
     # replaced as a whole: no file of the earlier run stays, no temporary folder is left
     assert sorted(p.name for p in out.iterdir()) == ["artefacts.parquet", "manifest.yaml"]
     assert [p.name for p in tmp_path.iterdir()] == ["sc"]
-    assert read_scenarios(out)[1]["generation"]["seed"] == 2
+    assert read_scenes(out).manifest["generation"]["seed"] == 2
     empty = tmp_path / "empty"
     empty.mkdir()
     write_scenarios(df, empty, {})  # an empty folder is not an earlier output
@@ -290,22 +290,22 @@ def test_argument_errors(kw, message):
         generate_scenarios(**args)
 
 
-def test_read_scenarios_names_the_bad_file(tmp_path):
+def test_read_scenes_names_the_bad_file(tmp_path):
     out = tmp_path / "sc"
     write_scenarios(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
     (out / "manifest.yaml").write_text("- a list\n")
     with pytest.raises(InputError, match=r"manifest\.yaml: expected a mapping"):
-        read_scenarios(out)
+        read_scenes(out)
     (out / "manifest.yaml").write_text("seed: 1\nseed: 2\n")
     with pytest.raises(InputError, match=r"manifest\.yaml: line 2: expected each key once"):
-        read_scenarios(out)
+        read_scenes(out)
     (out / "manifest.yaml").write_text("seed: 1\n")
     (out / "artefacts.parquet").write_text("not parquet")
     with pytest.raises(InputError, match=r"artefacts\.parquet: expected a scenarios table in Par"):
-        read_scenarios(out)
+        read_scenes(out)
     pd.DataFrame({"scenario": [0]}).to_parquet(out / "artefacts.parquet")
     with pytest.raises(ValueError, match=r"artefacts\.parquet: missing column\(s\) 'class'"):
-        read_scenarios(out)
+        read_scenes(out)
 
 
 @pytest.mark.parametrize(
@@ -319,11 +319,11 @@ def test_read_scenarios_names_the_bad_file(tmp_path):
         ("x", 1e300, r"row 1, column 'x': expected a position within 1e\+07 m of the origin"),
     ],
 )
-def test_read_scenarios_checks_every_column(tmp_path, column, value, match):
+def test_read_scenes_checks_every_column(tmp_path, column, value, match):
     out = tmp_path / "sc"
     write_scenarios(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
     df = pd.read_parquet(out / "artefacts.parquet")
     df[column] = value
     df.to_parquet(out / "artefacts.parquet")
     with pytest.raises(InputError, match=r"artefacts\.parquet: " + match):
-        read_scenarios(out)
+        read_scenes(out)
