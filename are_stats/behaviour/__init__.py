@@ -26,7 +26,6 @@ __all__ += ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
 from are_stats.behaviour._rollout import (  # noqa: E402
     builder_resolver,
     cells_to_tracks,
-    revert_collisions,
     rollout,
     scenario_tracks,
 )
@@ -34,7 +33,6 @@ from are_stats.behaviour._rollout import (  # noqa: E402
 __all__ += [
     "builder_resolver",
     "cells_to_tracks",
-    "revert_collisions",
     "rollout",
     "scenario_tracks",
 ]

@@ -3,9 +3,10 @@
 Artefacts move on a global clock of decision epochs. Artefact ``b`` arrives at epoch
 ``arrive[b]`` and follows its policy ``pi_t`` (``t = e - arrive[b]``) until its horizon
 ``d_b``; at each epoch the proposed cells of the artefacts present are passed to a
-``resolve(t, proposed, previous)`` callable (the AR-builder's collision step, Sec. 3.3). The
-default, :func:`revert_collisions`, sends every artefact that would share a cell with another
-back to its previous cell, its last safe pose (DECISIONS.md item 9).
+``resolve(t, proposed, previous)`` callable. The default is the AR-builder's collision step
+(Sec. 3.3, DECISIONS.md item 9; :func:`builder_resolver` on the MDP's cells): an artefact
+whose move would put it on another's cell goes back to its previous cell, its last safe
+pose, and so do two artefacts that would swap cells (pass through each other).
 """
 
 from __future__ import annotations
@@ -24,54 +25,15 @@ from are_stats.behaviour._rewards import FORWARD, LEFT, RIGHT, RUN
 __all__ = [
     "builder_resolver",
     "cells_to_tracks",
-    "revert_collisions",
     "rollout",
     "scenario_tracks",
 ]
 
 Resolver = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
 
-
-def revert_collisions(t: int, proposed: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """Default collision resolution: revert artefacts that would share a cell.
-
-    Every artefact whose proposed cell is also another artefact's cell, and which moved,
-    goes back to its previous cell (its last safe pose, DECISIONS.md item 9); so do two
-    artefacts that would swap cells (pass through each other). This repeats until no moved
-    artefact shares a cell.
-
-    Parameters
-    ----------
-    t : int
-        Global epoch of the move (unused by this rule; part of the resolver signature).
-    proposed : (n, 2) int
-        Cells ``(row, col)`` the artefacts present would occupy after the move.
-    previous : (n, 2) int
-        Their cells before the move.
-
-    Returns
-    -------
-    resolved : (n, 2) int
-        The cells after resolution.
-    """
-    cells = np.array(proposed, dtype=np.int64, copy=True)
-    previous = np.asarray(previous, dtype=np.int64)
-    moved = (cells != previous).any(axis=1)
-    where_before = {tuple(c): i for i, c in enumerate(previous.tolist())}
-    swap = np.zeros(len(cells), dtype=bool)
-    for i in np.flatnonzero(moved):
-        j = where_before.get(tuple(cells[i].tolist()))
-        if j is not None and j != i and np.array_equal(cells[j], previous[i]):
-            swap[i] = swap[j] = True
-    cells[swap] = previous[swap]
-    for _ in range(len(cells) + 1):
-        _, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-        clash = counts[inverse.ravel()] > 1
-        revert = clash & (cells != previous).any(axis=1)
-        if not revert.any():
-            break
-        cells[revert] = previous[revert]
-    return cells
+#: ``resolve=BUILDER`` (the default of :func:`rollout` and :func:`scenario_tracks`): the
+#: AR-builder's resolution (:func:`builder_resolver`) on the MDP's own cells.
+BUILDER = "builder"
 
 
 def builder_resolver(builder: Any, size: Any = None, label: str | None = None) -> Resolver:
@@ -123,6 +85,16 @@ def builder_resolver(builder: Any, size: Any = None, label: str | None = None) -
     return resolve
 
 
+def _cell_resolver(mdp: Any) -> Resolver:
+    """:func:`builder_resolver` on a builder of the MDP's cells (1 m cells at the origin:
+    the boxes, 0.9 of a cell, meet exactly when two artefacts share a cell)."""
+    from are_stats.builder import ARBuilder
+    from are_stats.environment import OccupancyGrid
+
+    grid = OccupancyGrid(np.where(mdp.occupied, 100, 0).astype(np.int8), 1.0)
+    return builder_resolver(ARBuilder(grid))
+
+
 def _groups(solutions: MDPSolution | Sequence[MDPSolution]) -> list[MDPSolution]:
     sols = [solutions] if isinstance(solutions, MDPSolution) else list(solutions)
     if not sols or not all(isinstance(s, MDPSolution) for s in sols):
@@ -139,7 +111,7 @@ def rollout(
     n_steps: int | None = None,
     *,
     arrive: Any = None,
-    resolve: Resolver | None = revert_collisions,
+    resolve: Resolver | str | None = BUILDER,
 ) -> np.ndarray:
     """Sample trajectories of a batch of artefacts from their policies (Sec. 3.2).
 
@@ -160,9 +132,11 @@ def rollout(
         its horizon).
     arrive : (B,) int or None
         Arrival epoch of each artefact on the global clock (default 0).
-    resolve : callable or None
+    resolve : callable, "builder" or None
         ``resolve(t, proposed (n, 2), previous (n, 2)) -> (n, 2)`` applied to the cells of
-        the artefacts present after each epoch; ``None`` disables collision handling.
+        the artefacts present after each epoch; ``"builder"`` (default): the AR-builder's
+        resolution on the MDP's cells (see the module docstring); ``None`` disables
+        collision handling.
 
     Returns
     -------
@@ -177,6 +151,10 @@ def rollout(
     """
     sols = _groups(solution)
     mdp = sols[0].mdp
+    if isinstance(resolve, str):
+        if resolve != BUILDER:
+            raise ValueError(f"resolve: expected a callable, {BUILDER!r} or None, got {resolve!r}")
+        resolve = _cell_resolver(mdp)
     h_, w_ = mdp.shape
     item_sol = np.concatenate([np.full(len(s.behaviours), g) for g, s in enumerate(sols)])
     item_idx = np.concatenate([np.arange(len(s.behaviours)) for s in sols])
@@ -365,7 +343,7 @@ def scenario_tracks(
     behaviour_of: Any = None,
     slip: float = 0.1,
     step_cost: float = 1e-3,
-    resolve: Resolver | None = revert_collisions,
+    resolve: Resolver | str | None = BUILDER,
 ) -> pd.DataFrame:
     """Trajectories for the artefacts of generated scenarios (the ``--behaviours`` hook).
 
@@ -398,8 +376,8 @@ def scenario_tracks(
         ``{class: behaviour}`` or ``f(row) -> behaviour`` (the class row of the catalogue Q).
     slip, step_cost : float
         MDP parameters (see :class:`GridMDP`).
-    resolve : callable or None
-        Collision resolution (see :func:`rollout`).
+    resolve : callable, "builder" or None
+        Collision resolution (see :func:`rollout`; default the AR-builder's).
 
     Returns
     -------

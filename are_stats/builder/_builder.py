@@ -494,6 +494,13 @@ class ARBuilder:
     def step(self, poses: Any, time: float | None = None) -> np.ndarray:
         """Move every artefact to its proposed pose, resolving collisions by the rule.
 
+        A move whose box would be embedded in the environment, or hit another artefact's
+        box, is resolved by the builder's rule (DECISIONS 9): back to the artefact's last
+        safe pose (``"revert"``) or along its move up to a safe distance (``"advance"``).
+        Two artefacts that would exchange places (each one's new box on the other's box
+        before the move: they would pass through each other) both stay where they were,
+        whatever the rule. Resolutions are appended to :attr:`log`.
+
         Parameters
         ----------
         poses : (n, 3) float or mapping of id to (3,) pose
@@ -526,7 +533,15 @@ class ARBuilder:
             for k, f, cause in zip(bi, frac, causes[bad], strict=True):
                 self._record(t, k, -1, str(cause), float(f))
             at_safe[bi[frac == 0]] = True
-        # 2. artefact pairs: with "advance", movers in a colliding pair first advance as
+        # 2. exchanges: two movers, each of whose new box hits the other's safe box, would
+        # pass through each other (a swap of places, which no test of the new poses sees):
+        # both stay where they were
+        for a, b in self._exchanges(np.flatnonzero(~at_safe), S, P):
+            for k, o in ((a, b), (b, a)):
+                P[k] = S[k]
+                at_safe[k] = True
+                self._record(t, k, o, "artefact", 0.0, rule="revert")
+        # 3. artefact pairs: with "advance", movers in a colliding pair first advance as
         # far as they safely can against everything else
         if self.rule == "advance":
             pairs = self._live_pairs(P, at_safe)
@@ -543,7 +558,7 @@ class ARBuilder:
                 env_bad, _ = self._env_bad(adv, P)
                 P[adv[env_bad]] = S[adv[env_bad]]
                 at_safe[adv[env_bad]] = True
-        # 3. revert until no colliding pair involves a box away from its safe pose; each
+        # 4. revert until no colliding pair involves a box away from its safe pose; each
         # round reverts at least one artefact, so this ends within n rounds
         for _ in range(n + 1):
             pairs = self._live_pairs(P, at_safe)
@@ -571,6 +586,24 @@ class ARBuilder:
         env, outside, mesh, _ = self._env_hits(c, h, y)
         causes = np.where(outside, "bounds", np.where(env, "environment", "mesh"))
         return env | outside | mesh, causes
+
+    def _exchanges(self, movers: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """``(m, 2)`` pairs ``a < b`` of ``movers`` that would exchange places: the box of
+        each at its new pose ``P`` hits the other's box at its safe pose ``S``."""
+        n = movers.size
+        if n < 2:
+            return np.zeros((0, 2), np.int64)
+        c, h, y = self._boxes_for(
+            np.concatenate([P[movers], S[movers]]),
+            np.concatenate([self._half[movers]] * 2),
+            np.concatenate([self._offset[movers]] * 2),
+        )
+        pairs = self._pair_hits(c, h, y)
+        lo, hi = pairs.min(axis=1), pairs.max(axis=1)
+        cross = (lo < n) & (hi >= n) & (lo != hi - n)  # a new box against another's safe one
+        hits = set(zip(movers[lo[cross]].tolist(), movers[hi[cross] - n].tolist(), strict=True))
+        both = sorted((a, b) for a, b in hits if a < b and (b, a) in hits)
+        return np.array(both, np.int64).reshape(-1, 2)
 
     def _live_pairs(self, P: np.ndarray, at_safe: np.ndarray) -> np.ndarray:
         centre, half, yaw = self.boxes(P)

@@ -10,7 +10,6 @@ from are_stats.behaviour import (
     GridMDP,
     cells_to_tracks,
     follow_rewards,
-    revert_collisions,
     rollout,
 )
 from tests.helpers import assert_allclose, chisquare_gof
@@ -72,21 +71,25 @@ def test_follow_tracks_moving_target():
     assert np.all(dist[5:] <= 1) and np.all(dist[5:] >= 1)
 
 
-def test_revert_collisions():
-    prev = np.array([[0, 0], [0, 2], [5, 5]])
-    prop = np.array([[0, 1], [0, 1], [5, 6]])
-    out = revert_collisions(0, prop, prev)
-    assert np.array_equal(out, [[0, 0], [0, 2], [5, 6]])
+def test_builder_resolution_on_cells_by_hand():
+    """The default resolution (the AR-builder's, on cells): movers onto a shared cell go
+    back, a chain reverts in rounds, a swap is reverted, a follower is not."""
+    from are_stats import ARBuilder, OccupancyGrid
+    from are_stats.behaviour import builder_resolver
+
+    def resolve(prop, prev):
+        b = ARBuilder(OccupancyGrid(np.zeros((8, 8)), 1.0))
+        return builder_resolver(b)(0, np.array(prop), np.array(prev))
+
+    prev = [[0, 0], [0, 2], [5, 5]]
+    assert resolve([[0, 1], [0, 1], [5, 6]], prev).tolist() == [[0, 0], [0, 2], [5, 6]]
     # a chain: reverting one artefact can block another that moved into its old cell
-    prev = np.array([[0, 0], [0, 1], [0, 3]])
-    prop = np.array([[0, 1], [0, 2], [0, 2]])
-    out = revert_collisions(0, prop, prev)
-    assert len({tuple(c) for c in out}) == 3
-    assert np.array_equal(out, prev)
-    # a swap (passing through each other) is reverted too
-    prev = np.array([[0, 4], [0, 5]])
-    out = revert_collisions(0, prev[::-1], prev)
-    assert np.array_equal(out, prev)
+    prev = [[0, 0], [0, 1], [0, 3]]
+    assert resolve([[0, 1], [0, 2], [0, 2]], prev).tolist() == prev
+    # a swap (passing through each other) is reverted too; following is not
+    prev = [[0, 4], [0, 5]]
+    assert resolve(prev[::-1], prev).tolist() == prev
+    assert resolve([[0, 5], [0, 6]], prev).tolist() == [[0, 5], [0, 6]]
 
 
 def test_rollout_resolves_collisions_in_a_corridor():
@@ -97,6 +100,8 @@ def test_rollout_resolves_collisions_in_a_corridor():
     states = rollout(jax.random.key(3), sol, [[0, 0, 0], [0, 11, 2]])
     cells = states[:, :, 1]
     assert np.all(cells[0] < cells[1])  # they neither meet nor pass through each other
+    with pytest.raises(ValueError, match="resolve: expected a callable, 'builder' or None"):
+        rollout(jax.random.key(3), sol, [[0, 0, 0], [0, 11, 2]], resolve="revert")
     free_run = rollout(jax.random.key(3), sol, [[0, 0, 0], [0, 11, 2]], resolve=None)
     assert free_run[0, -1, 1] == 11 and free_run[1, -1, 1] == 0  # without it they swap
 

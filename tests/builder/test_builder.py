@@ -140,6 +140,25 @@ def test_revert_rule_and_log():
     assert table["cause"].tolist()[0] == "artefact"
 
 
+@pytest.mark.parametrize("rule", ["revert", "advance"])
+def test_exchange_of_places_is_reverted_under_either_rule(rule):
+    b = ARBuilder(_walled_grid(pillars=False), rule=rule)
+    for x in (2.0, 3.0, 5.0):
+        b.register(None, [x, 2.0, 0.0], size=[0.9, 0.9, 1.0])
+    # 0 and 1 would swap places (pass through each other): no new pose collides, yet both
+    # stay; 2 moves freely
+    out = b.step([[3.0, 2.0, 0.0], [2.0, 2.0, 0.0], [5.0, 3.0, 0.0]], time=1.0)
+    assert out.tolist() == [[2.0, 2.0, 0.0], [3.0, 2.0, 0.0], [5.0, 3.0, 0.0]]
+    assert [(r.artefact, r.rule, r.cause, r.other, r.fraction) for r in b.log] == [
+        (0, "revert", "artefact", 1, 0.0),
+        (1, "revert", "artefact", 0, 0.0),
+    ]
+    # following is no exchange: 0 moves into the place that 1 leaves
+    out = b.step([[3.0, 2.0, 0.0], [4.0, 2.0, 0.0], [5.0, 3.0, 0.0]], time=2.0)
+    assert out.tolist() == [[3.0, 2.0, 0.0], [4.0, 2.0, 0.0], [5.0, 3.0, 0.0]]
+    assert len(b.log) == 2
+
+
 def test_advance_rule_moves_up_to_a_safe_distance():
     b = ARBuilder(_walled_grid(pillars=False), rule="advance", safe_distance=0.05)
     b.register(None, [2.0, 2.0, 0.0], size=[1.0, 1.0, 1.0])
