@@ -32,10 +32,10 @@ import pandas as pd
 import yaml
 
 import are_stats as ar
+from are_stats.environment import coarse_free
 from are_stats.traffic import (
     PositionDensity,
     TrafficLaws,
-    coarse_free_mask,
     simulate_traffic_log,
     uniform_position_density,
 )
@@ -55,7 +55,8 @@ SEED = 20261124
 
 def door_density(grid: ar.OccupancyGrid) -> PositionDensity:
     """Gaussian bumps at the doors (90%) over a uniform floor (10%), on free 0.5 m cells."""
-    free, res, origin = coarse_free_mask(grid.free, grid.resolution, grid.origin[:2], 0.5)
+    free, res = coarse_free(grid.free, grid.resolution, 0.5)
+    origin = (float(grid.origin[0]), float(grid.origin[1]))
     h, w = free.shape
     xc = origin[0] + (np.arange(w) + 0.5) * res
     yc = origin[1] + (np.arange(h) + 0.5) * res
@@ -72,7 +73,8 @@ def main() -> None:
     mean_size = float(np.dot(np.arange(1, 5), SIZE_PROBS))
     event_rate = 1.0 / 30.0 / area / mean_size
     doors = door_density(grid)
-    free, res, origin = coarse_free_mask(grid.free, grid.resolution, grid.origin[:2], 0.5)
+    free, res = coarse_free(grid.free, grid.resolution, 0.5)
+    origin = (float(grid.origin[0]), float(grid.origin[1]))
     uniform = uniform_position_density(free, res, origin)
     laws = TrafficLaws(
         arrivals="groups",
