@@ -395,7 +395,7 @@ _BARE_COLUMNS = ("artefact", "label", "t_arrive", "t_leave")
 
 def _scene_table(scene: Any) -> pd.DataFrame:
     """The rows of ``scene`` in :func:`perceive_scenario`'s output (before the flags)."""
-    if scene.artefacts is not None and len(scene.artefacts) == len(scene):
+    if scene.artefacts is not None:
         return scene.artefacts
     cols = (scene.ids, scene.labels, scene.t_arrive, scene.t_leave)
     return pd.DataFrame(dict(zip(_BARE_COLUMNS, cols, strict=True)))
