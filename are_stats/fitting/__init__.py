@@ -269,3 +269,17 @@ __all__ += [
     "fit_class_positions",
     "fit_class_shares_by_time",
 ]
+
+from are_stats.fitting._class_report import (  # noqa: E402
+    class_share_checks,
+    plot_class_checks,
+    plot_class_entries,
+    plot_class_shares_by_hour,
+)
+
+__all__ += [
+    "class_share_checks",
+    "plot_class_checks",
+    "plot_class_entries",
+    "plot_class_shares_by_hour",
+]

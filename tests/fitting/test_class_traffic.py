@@ -182,3 +182,89 @@ def test_a_log_without_labels_gets_no_class_traffic(rng):
     assert laws.class_entry is None and not [n for n in draws if n.startswith("class_")]
     df = generate_scenarios(2, draws, 3, 600.0, free_mask=grid, laws=laws)
     assert (df["class"] == -1).all()
+
+
+def _csv_mixed_log(folder, rng, n=1500):
+    """A labelled log of two days with entry points, a map and a clock (CSV + manifest)."""
+    import pandas as pd
+    from PIL import Image
+
+    data, cls = _mixed_log(rng, days=2.0, n=n)
+    t1 = data.window[1]
+    tl = np.asarray(data.t_leave)
+    df = pd.DataFrame({
+        "id": [f"a{i}" for i in range(data.n)], "t_arrive": np.round(data.t_arrive, 3),
+        "t_leave": np.where(np.isfinite(tl), np.round(tl, 3).astype(str), ""),
+        "x": np.round(data.x, 3), "y": np.round(data.y, 3),
+        "label": np.array(["bicycle", "person"])[cls],
+    })  # fmt: skip
+    df.to_csv(folder / "mixed.csv", index=False)
+    Image.fromarray(np.full(FREE.shape, 254, np.uint8)).save(folder / "m.pgm")
+    (folder / "m.yaml").write_text(
+        "image: m.pgm\nresolution: 0.5\norigin: [0, 0, 0]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    (folder / "mixed.yaml").write_text(
+        f"window: [0, {t1}]\nmap: m.yaml\nclock_start: '2026-01-01T00:00:00'\n"
+    )
+    return folder / "mixed.csv"
+
+
+@pytest.mark.slow
+def test_cli_log_fit_generate_report_per_class(tmp_path, rng):
+    import pandas as pd
+
+    from are_stats.scenarios import read_scenarios
+    from tests.test_cli_jobs import _invoke
+
+    log = _csv_mixed_log(tmp_path, rng)
+    fit = tmp_path / "fit.nc"
+    res = _invoke(["fit", log, "--out", fit, "--method", "em", "--samples", "200",
+                   "--chains", "1", "--arrivals", "poisson", "--lifetimes", "exponential",
+                   "--no-figures"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    assert "entry/exit densities per-class, shares time-of-day" in text
+    assert "bicycle" in text and "/h, mean stay" in text
+    res = _invoke(["generate", fit, "--scenarios", "10", "--horizon", str(DAY), "--seed", "1",
+                   "--out", tmp_path / "scen", "--map", tmp_path / "m.yaml"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    df, manifest = read_scenarios(tmp_path / "scen")
+    assert manifest["class_labels"] == ["bicycle", "person"]
+    df = df[~df["truncated"]]
+    hour = np.mod(df["t_arrive"].to_numpy(), DAY) // 3600
+    day = (hour >= 7) & (hour < 19)
+    bikes = df["class"].to_numpy() == 0
+    assert abs(bikes[day].mean() - 0.8) < 0.04 and abs(bikes[~day].mean() - 0.2) < 0.04
+    west = df["x"].to_numpy() < 2.5
+    assert west[bikes].mean() > 0.85 and west[~bikes].mean() < 0.1
+    res = _invoke(["report", fit, "--out", tmp_path / "rep", "--replicates", "50"])
+    assert res.exit_code == 0, res.output
+    rep = tmp_path / "rep"
+    for name in ("ppc_classes.png", "ppc_class_shares_by_hour.png", "class_entries.png"):
+        assert (rep / name).stat().st_size > 10_000, name
+    by_hour = pd.read_csv(rep / "class_shares_by_hour.csv", index_col=[0, 1])
+    assert by_hour.loc[("bicycle", 10), "observed"] > 0.6
+    assert by_hour.loc[("bicycle", 22), "observed"] < 0.4
+    assert by_hour["model_flag"].mean() < 0.25  # 48 rows, 90% bands
+    loo = pd.read_csv(rep / "loo_class_shares.csv", index_col=0)
+    assert bool(loo.loc["time-of-day", "chosen"])
+
+
+def test_class_figures_draw_the_stored_motion_rows():
+    import pandas as pd
+
+    from are_stats.fitting import motion_attrs, motion_tables, plot_class_checks
+
+    idx = pd.MultiIndex.from_product([["bicycle", "person"], ["share"]],
+                                     names=["class", "statistic"])  # fmt: skip
+    cols = {"observed": [0.4, 0.6], "model_5%": [0.3, 0.5], "model_50%": [0.4, 0.6],
+            "model_95%": [0.5, 0.7], "model_flag": [False, False]}  # fmt: skip
+    traffic = pd.DataFrame(cols, index=idx)
+    motion = traffic.rename(index={"share": "median speed (m/s)"}) * 1.0
+    motion["model_flag"] = [True, False]
+    back = motion_tables(motion_attrs(class_motion=motion.reset_index()))["class_motion"]
+    back = back.set_index(["class", "statistic"])
+    pd.testing.assert_frame_equal(back, motion, check_dtype=False)
+    fig = plot_class_checks(traffic, back)
+    assert [ax.get_title() for ax in fig.axes] == ["share", "median speed (m/s)"]
