@@ -468,6 +468,12 @@ def generate_scenarios(
             raise ValueError(
                 f"map: expected an origin yaw of 0 for per-class entry densities, got {oyaw}"
             )
+        if free_mask is not None:  # the map the fit learned its classes' entries on
+            from are_stats.traffic import uniform_position_density
+
+            on_map = uniform_position_density(mask, res, (ox, oy))
+            for density in laws.class_entry:
+                _check_entries_on_map(density, on_map)
         x, y = _place_by_class(rng, laws.class_entry, cls, scen, group, initial, x, y)
     if headings == 4:
         yaw = np.mod(rng.integers(0, 4, size=total) * (np.pi / 2) + oyaw, 2 * np.pi)

@@ -268,3 +268,13 @@ def test_class_figures_draw_the_stored_motion_rows():
     pd.testing.assert_frame_equal(back, motion, check_dtype=False)
     fig = plot_class_checks(traffic, back)
     assert [ax.get_title() for ax in fig.axes] == ["share", "median speed (m/s)"]
+
+
+def test_per_class_entries_on_another_map_are_refused(rng):
+    cls = rng.choice(2, 200)
+    f = fit_class_positions(_entries(rng, cls), cls, ["bicycle", "person"], FREE, RES, (0, 0))
+    dens = tuple(PositionDensity(p, RES, (0.0, 0.0), 0.0, np.nan) for p in f.entry)
+    far = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (100.0, 100.0, 0.0))
+    params = {"arrival_rate": 0.002, "leave_rate": 0.1, "class_weights": [0.5, 0.5]}
+    with pytest.raises(ValueError, match="the map the fit learned its entry points on"):
+        generate_scenarios(1, params, 2, 600.0, free_mask=far, laws=TrafficLaws(class_entry=dens))
