@@ -549,7 +549,7 @@ def _motion_report(
             write(tmp)
         out[name] = Path(folder) / name
     per_class = class_motion_checks(tracks, reps)  # speed and stillness per label (issue 31)
-    if per_class is not None:
+    if per_class is not None and "class_motion" not in stored:  # else the report wrote it
         with atomic_path(Path(folder) / "class_motion_checks.csv", force=force) as tmp:
             per_class.to_csv(tmp, float_format="%.6g")
         out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
@@ -565,7 +565,7 @@ def _motion_report(
             str(stat), f"{row['observed']:.3g}", ("[red]! " + band + "[/]") if flag else band
         )
     console.print(rich)
-    if per_class is not None:
+    if per_class is not None and "class_motion" not in stored:  # else printed with the report
         _print_class_checks(per_class)
     console.print(
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "

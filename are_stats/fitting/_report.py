@@ -510,6 +510,9 @@ def _class_figures(
             stored = motion_tables(idata.behaviour.attrs).get("class_motion")
             if stored is not None and {"class", "statistic"} <= set(stored.columns):
                 motion = stored.set_index(["class", "statistic"])
+                with atomic_path(out / "class_motion_checks.csv", force=force) as tmp:
+                    motion.to_csv(tmp, float_format="%.6g")
+                written["class_motion_checks"] = out / "class_motion_checks.csv"
     figures = {"ppc_classes": plot_class_checks(per_class, motion)}
     by_hour = class_share_checks(key, idata, n_replicates)
     if by_hour is not None:
