@@ -19,15 +19,15 @@ entry choice.
 
 **Class shares by time of day** (a log with a wall clock). The arrivals inside the window
 are binned into :data:`N_SHARE_PERIODS` periods of the day; period ``p``'s shares are
-``w_p ~ Dirichlet(kappa w)``, pooled toward the overall shares ``w`` (the
-Dirichlet-multinomial posterior of :func:`~are_stats.fitting.fit_classes`), with
-``kappa`` log-uniform on a grid. Each draw takes ``w`` from the overall posterior, then
-``kappa`` from its exact Dirichlet-multinomial marginal posterior given ``w`` and the
-counts ``n_p``, then ``w_p ~ Dirichlet(kappa w + n_p)`` (conjugate). Drawing ``w`` from the
-overall shares' posterior rather than from the hierarchy's is the one approximation: both
-concentrate on the observed overall composition. A period without arrivals keeps draws
-around ``w``. The constant shares and the time-of-day shares are compared by PSIS-LOO over
-the arrivals' classes (``log w[c_i]`` against ``log w_{p_i}[c_i]``).
+``w_p ~ Dirichlet(kappa w)``, pooled toward the day's shares ``w``, with ``kappa``
+log-uniform on a grid and ``w`` flat. The hyper-mean ``w`` is drawn by
+sampling-importance-resampling from the overall shares' posterior ``Dirichlet(1 + n)``,
+weighted by the Dirichlet-multinomial marginal of the periods' counts (summed over
+``kappa``) over the proposal's likelihood (so the counts are not used twice); then
+``kappa`` from its exact conditional on the grid, and ``w_p ~ Dirichlet(kappa w + n_p)``
+(conjugate). A period without arrivals keeps draws around ``w``. The constant shares and
+the time-of-day shares are compared by PSIS-LOO over the arrivals' classes
+(``log w[c_i]`` against ``log w_{p_i}[c_i]``).
 
 Class arrival rates follow: arrivals of class ``c`` in period ``p`` come at
 ``event_rate x area x tod_p x w_{p,c}`` (the pooled arrival law thinned by the shares).
@@ -47,6 +47,7 @@ __all__ = [
     "CLASS_POSITION_MODELS",
     "CLASS_SHARE_MODELS",
     "MIN_CLASS_POINTS",
+    "MIN_ELPD_GAIN",
     "N_SHARE_PERIODS",
     "ClassPositions",
     "ClassShareClock",
@@ -63,6 +64,8 @@ CLASS_POSITION_MODELS = ("pooled", "per-class")
 CLASS_SHARE_MODELS = ("constant", "time-of-day")
 #: Fewest entry points of a class fitted on its own (fewer: the pooled density).
 MIN_CLASS_POINTS = 2
+#: Fewest nats of elpd by which a per-class or time-of-day model must beat the simpler one.
+MIN_ELPD_GAIN = 4.0
 #: Periods of the day of the time-of-day shares (hours, as the arrival model's).
 N_SHARE_PERIODS = 24
 #: Dirichlet prior masses tried per class: up to 1e5 (the others' density as it is).
@@ -184,8 +187,6 @@ def fit_class_positions(
     >>> f.entry.shape
     (2, 10, 10)
     """
-    from are_stats.fitting._traffic import choose_simplest
-
     names = tuple(str(v) for v in labels)
     k = len(names)
     xy = np.asarray(entry_xy, float).reshape(-1, 2)
@@ -201,9 +202,7 @@ def fit_class_positions(
     dens, loo, alpha, bw, n_c = _per_class(xy, cls, k, free, resolution, origin, pooled)
     base = np.asarray(pooled.loo_logpdf, float)
     on = np.isfinite(base) & np.isfinite(loo)
-    model, table = choose_simplest(
-        {"pooled": base[on], "per-class": loo[on]}, list(CLASS_POSITION_MODELS)
-    )
+    model, table = _choose({"pooled": base[on], "per-class": loo[on]}, list(CLASS_POSITION_MODELS))
     exits = None
     if exit_xy is not None:
         exy = np.asarray(exit_xy, float).reshape(-1, 2)
@@ -301,6 +300,8 @@ class ClassShareClock:
         The PSIS-LOO choice.
     table : pandas.DataFrame
         The comparison.
+    ess : float
+        Effective sample size of the importance weights of the hyper-mean ``w``.
     """
 
     weights: np.ndarray
@@ -308,6 +309,7 @@ class ClassShareClock:
     counts: np.ndarray
     model: str
     table: pd.DataFrame
+    ess: float = float("nan")
 
 
 def _dm_marginal(kw: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -319,6 +321,27 @@ def _dm_marginal(kw: np.ndarray, n: np.ndarray) -> np.ndarray:
     return np.sum(
         gammaln(a0) - gammaln(a0 + n.sum(-1)) + np.sum(gammaln(kw + n) - gammaln(kw), -1), -1
     )
+
+
+def _log_dirichlet(w: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Log density of ``Dirichlet(a)`` at the rows of ``w (S, K)``."""
+    from scipy.special import gammaln
+
+    return gammaln(a.sum()) - gammaln(a).sum() + np.log(w) @ (a - 1.0)
+
+
+def _choose(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str, pd.DataFrame]:
+    """:func:`~are_stats.fitting.choose_simplest`, the richer model kept only when it is
+    also better by more than :data:`MIN_ELPD_GAIN` nats (below that the difference is
+    small and its standard error unreliable: two nearly equal models, e.g. the shares of
+    a log inside one hour, have a tiny ``dse``)."""
+    from are_stats.fitting._traffic import choose_simplest
+
+    chosen, table = choose_simplest(elpd, order)
+    if chosen != order[0] and float(table.loc[order[0], "elpd_diff"]) <= MIN_ELPD_GAIN:
+        chosen = order[0]
+        table["chosen"] = table.index == chosen
+    return chosen, table
 
 
 def fit_class_shares_by_time(
@@ -343,7 +366,8 @@ def fit_class_shares_by_time(
     classes : (n,) int
         Their classes, ``0..K-1``.
     overall : (S, K) float
-        Draws of the overall shares (:attr:`ClassFit.weights`).
+        Draws of the constant shares (:attr:`ClassFit.weights`): the simpler model of the
+        comparison; S draws are returned.
     clock_offset : float
         Time of day of ``t = 0`` (:func:`~are_stats.traffic.clock_offset`).
     n_periods : int
@@ -364,7 +388,7 @@ def fit_class_shares_by_time(
     """
     from scipy.special import logsumexp
 
-    from are_stats.fitting._traffic import choose_simplest, loo_pointwise
+    from are_stats.fitting._traffic import loo_pointwise
     from are_stats.inputs import check_memory
 
     w = np.asarray(overall, float)
@@ -382,20 +406,38 @@ def fit_class_shares_by_time(
     counts = np.zeros((p_n, k), np.int64)
     np.add.at(counts, (per, cls.astype(np.int64)), 1)
     rng = numpy_rng(key)
+    # the hyper-mean w: sampling-importance-resampling (flat prior), the target the
+    # Dirichlet-multinomial marginal of the periods' counts summed over kappa's grid; the
+    # proposal half the overall shares' posterior Dirichlet(1 + n), half a wider
+    # Dirichlet(1 + eps n) (where the periods differ, or kappa is small, w is wide)
+    n_tot = counts.sum(0).astype(float)
+    eps = min(1.0, (k + 10.0) / max(float(n_tot.sum()), 1.0))
+    a_near, a_wide = 1.0 + n_tot, 1.0 + eps * n_tot
+    wide = rng.random(s) < 0.5
+    prop = np.where(wide[:, None], rng.dirichlet(a_wide, s), rng.dirichlet(a_near, s))
+    prop = np.maximum(prop, 1e-300)
+    prop /= prop.sum(1, keepdims=True)
     log_prior = np.zeros(_KAPPAS.size)  # log-uniform: the grid is uniform in log kappa
-    kappa = np.empty(s)
+    lp_all = np.empty((s, _KAPPAS.size))
     for j in range(0, s, 512):
-        wb = np.maximum(w[j : j + 512], 1e-300)  # (B, K)
+        wb = prop[j : j + 512]  # (B, K)
         kw = _KAPPAS[None, :, None, None] * wb[:, None, None, :]  # (B, T, 1, K)
-        lp = _dm_marginal(kw, counts[None, None]) + log_prior  # (B, T)
-        lp -= logsumexp(lp, axis=1, keepdims=True)
-        u = rng.random(lp.shape[0])
-        pick = np.minimum(np.sum(np.cumsum(np.exp(lp), 1) < u[:, None], 1), _KAPPAS.size - 1)
-        kappa[j : j + 512] = _KAPPAS[pick]
-    conc = kappa[:, None, None] * w[:, None, :] + counts[None]  # (S, P, K)
+        lp_all[j : j + 512] = _dm_marginal(kw, counts[None, None]) + log_prior  # (B, T)
+    log_q = np.logaddexp(_log_dirichlet(prop, a_near), _log_dirichlet(prop, a_wide))
+    log_iw = logsumexp(lp_all, axis=1) - log_q
+    iw = np.exp(log_iw - logsumexp(log_iw))
+    ess = float(1.0 / np.sum(iw * iw))
+    pick_w = rng.choice(s, size=s, p=iw)
+    w_h, lp = prop[pick_w], lp_all[pick_w]
+    # kappa given w from its exact conditional on the grid, then w_p (conjugate)
+    lp = lp - logsumexp(lp, axis=1, keepdims=True)
+    u = rng.random(s)
+    pick = np.minimum(np.sum(np.cumsum(np.exp(lp), 1) < u[:, None], 1), _KAPPAS.size - 1)
+    kappa = _KAPPAS[pick]
+    conc = kappa[:, None, None] * w_h[:, None, :] + counts[None]  # (S, P, K)
     g = rng.gamma(np.maximum(conc, 1e-12))
     tot = g.sum(-1, keepdims=True)
-    weights = np.where(tot > 0, g / np.where(tot > 0, tot, 1.0), w[:, None, :])
+    weights = np.where(tot > 0, g / np.where(tot > 0, tot, 1.0), w_h[:, None, :])
     d = min(int(n_loo_draws), s)
     if t.size:
         with np.errstate(divide="ignore"):
@@ -405,14 +447,16 @@ def fit_class_shares_by_time(
             "constant": loo_pointwise(lw[None])[0],
             "time-of-day": loo_pointwise(lt[None])[0],
         }
-        model, table = choose_simplest(elpd, list(CLASS_SHARE_MODELS))
+        model, table = _choose(elpd, list(CLASS_SHARE_MODELS))
     else:
         model = "constant"
         table = pd.DataFrame(
             {"elpd": [0.0, 0.0], "se": 0.0, "elpd_diff": 0.0, "dse": 0.0,
              "chosen": [True, False]}, index=pd.Index(CLASS_SHARE_MODELS, name="model"),
         )  # fmt: skip
-    return ClassShareClock(weights=weights, kappa=kappa, counts=counts, model=model, table=table)
+    return ClassShareClock(
+        weights=weights, kappa=kappa, counts=counts, model=model, table=table, ess=ess
+    )
 
 
 def attach_class_shares_by_time(idata: Any, fit: ClassShareClock) -> Any:
@@ -420,7 +464,8 @@ def attach_class_shares_by_time(idata: Any, fit: ClassShareClock) -> Any:
 
     ``class_tod_weights`` over ``(chain, draw, period, class)``, ``class_share_kappa`` over
     ``(chain, draw)``; attributes ``class_share_model`` (the PSIS-LOO choice),
-    ``class_tod_counts`` (arrivals per period and class, flattened) and
+    ``class_tod_counts`` (arrivals per period and class, flattened), ``class_share_ess``
+    (the importance sampler's effective sample size) and
     ``loo_class_shares`` (CSV text).
     """
     import xarray as xr
@@ -436,5 +481,6 @@ def attach_class_shares_by_time(idata: Any, fit: ClassShareClock) -> Any:
     post["class_share_kappa"] = xr.DataArray(fit.kappa.reshape(c, d), dims=("chain", "draw"))
     post.attrs["class_share_model"] = fit.model
     post.attrs["class_tod_counts"] = np.asarray(fit.counts, np.int64).ravel()
+    post.attrs["class_share_ess"] = float(fit.ess)
     post.attrs["loo_class_shares"] = fit.table.to_csv(float_format="%.6g")
     return idata

@@ -93,6 +93,15 @@ def test_recovers_class_shares_by_time_of_day(rng):
     flat = (rng.random(t.size) >= 0.5).astype(np.int64)
     g = fit_class_shares_by_time(jax.random.key(1), t, flat, rng.dirichlet([1500, 1500], 2000), 0.0)
     assert g.model == "constant"
+    # a log inside one hour says nothing about the day: the counts are not used twice, so
+    # the hour's shares are no sharper than the day's and the constant shares are kept
+    one = np.sort(rng.uniform(0.0, 3000.0, 400))
+    c1 = (rng.random(one.size) >= 0.3).astype(np.int64)
+    day = rng.dirichlet(1.0 + np.bincount(c1, minlength=2), 2000)
+    h = fit_class_shares_by_time(jax.random.key(2), one, c1, day, 8 * 3600.0)
+    assert h.model == "constant" and h.ess > 500
+    sd_day, sd_hour = day[:, 0].std(), h.weights[:, 8, 0].std()
+    assert abs(sd_hour / sd_day - 1.0) < 0.15
 
 
 def test_generated_shares_vary_over_the_day_as_fitted():
