@@ -78,10 +78,11 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
     axes[0, 0].set_yticks(y, classes)
     axes[0, 0].set_ylim(-0.6, len(classes) - 0.4)
     axes[0, 0].invert_yaxis()
-    axes[0, 0].legend(fontsize=7, loc="best")
+    handles, names = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, names, fontsize=8, loc="lower center", ncol=3, frameon=False)
     fig.suptitle("Per class: the log against posterior-predictive replicates (red x: outside)",
                  fontsize=10)  # fmt: skip
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
     return fig
 
 
