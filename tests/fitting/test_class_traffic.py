@@ -287,3 +287,28 @@ def test_per_class_entries_on_another_map_are_refused(rng):
     params = {"arrival_rate": 0.002, "leave_rate": 0.1, "class_weights": [0.5, 0.5]}
     with pytest.raises(ValueError, match="the map the fit learned its entry points on"):
         generate_scenarios(1, params, 2, 600.0, free_mask=far, laws=TrafficLaws(class_entry=dens))
+
+
+def test_read_fit_names_damaged_class_traffic(tmp_path, rng):
+    from are_stats.inputs import InputError
+
+    data, cls = _mixed_log(rng, days=1.0, n=600)
+    grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
+    s = FitSettings(num_samples=100, positions="auto", **EM)
+    idata = fit_log(jax.random.key(0), data, s, class_labels=["bicycle", "person"],
+                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00")  # fmt: skip
+    write_fit(idata, tmp_path / "ok.nc")
+    read_fit(tmp_path / "ok.nc")
+    bad = idata.copy()
+    bad.posterior["class_tod_weights"] = bad.posterior["class_tod_weights"] * 2.0
+    write_fit(bad, tmp_path / "tod.nc")
+    with pytest.raises(InputError, match="class_tod_weights.*summing to 1"):
+        read_fit(tmp_path / "tod.nc")
+    bad = idata.copy()
+    one = bad.constant_data["class_entry_density"].isel({"class": [0]})  # one class of two
+    bad.constant_data = bad.constant_data.drop_vars("class_entry_density").assign(
+        class_entry_density=one
+    )
+    write_fit(bad, tmp_path / "dens.nc")
+    with pytest.raises(InputError, match="class_entry_density.*one per class"):
+        read_fit(tmp_path / "dens.nc")
