@@ -187,6 +187,8 @@ def fit_class_positions(
     >>> f.entry.shape
     (2, 10, 10)
     """
+    from are_stats.inputs import check_memory
+
     names = tuple(str(v) for v in labels)
     k = len(names)
     xy = np.asarray(entry_xy, float).reshape(-1, 2)
@@ -198,6 +200,8 @@ def fit_class_positions(
     if xy.shape[0] < 2:
         raise ValueError(f"entry_xy: expected at least two entry points, got {xy.shape[0]}")
     free = np.asarray(free_mask, bool)
+    # each class's entry and exit densities, the others' base and the kernel sums
+    check_memory(8.0 * free.size * (2 * k + 8), f"the entry densities of {k} classes")
     pooled = fit_position_density(xy, free, resolution, origin)
     dens, loo, alpha, bw, n_c = _per_class(xy, cls, k, free, resolution, origin, pooled)
     base = np.asarray(pooled.loo_logpdf, float)
@@ -400,7 +404,8 @@ def fit_class_shares_by_time(
     if cls.shape != t.shape or (cls.size and (cls.dtype.kind not in "iu" or cls.max() >= k)):
         raise ValueError(f"classes: expected ({t.size},) codes in 0..{k - 1}, got {cls.shape}")
     p_n = int(n_periods)
-    check_memory(8.0 * 6 * 512 * _KAPPAS.size * p_n * k + 8.0 * s * p_n * k * 3,
+    check_memory(8.0 * 6 * 512 * _KAPPAS.size * p_n * k + 8.0 * s * p_n * k * 3
+                 + 8.0 * s * (_KAPPAS.size + 4 * k),
                  f"the class shares by time of day of {t.size} arrivals")  # fmt: skip
     per = period_of(t, float(clock_offset), p_n, float(period))
     counts = np.zeros((p_n, k), np.int64)
