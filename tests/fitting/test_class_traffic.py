@@ -312,3 +312,17 @@ def test_read_fit_names_damaged_class_traffic(tmp_path, rng):
     write_fit(bad, tmp_path / "dens.nc")
     with pytest.raises(InputError, match="class_entry_density.*one per class"):
         read_fit(tmp_path / "dens.nc")
+
+
+def test_a_class_seen_thrice_borrows_the_other_classes_entries(rng):
+    # carts enter three times, by the bicycles' west edge: alone they would say "only there";
+    # pooled toward the others they keep mass where the others enter
+    cls = np.r_[np.zeros(200, int), np.ones(200, int), [2, 2, 2]]
+    xy = _entries(rng, np.minimum(cls, 1))
+    xy[-3:] = _entries(rng, np.zeros(3, int))
+    f = fit_class_positions(xy, cls, ["bicycle", "person", "cart"], FREE, RES, (0, 0))
+    assert f.alpha[2] >= 10.0  # the prior mass outweighs its three points
+    alone = fit_position_density(xy[-3:], FREE, RES, (0, 0))
+    assert _mass_in(alone.prob, REGIONS[1]) < 0.05
+    assert _mass_in(f.entry[2], REGIONS[1]) > 0.2
+    assert _mass_in(f.entry[2], REGIONS[0]) > _mass_in(f.entry[1], REGIONS[0]) + 0.2
