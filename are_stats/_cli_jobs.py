@@ -226,6 +226,7 @@ def run_fit(
     clock_start = lifecycle.clock_start
     grid = None
     tracks = None
+    checks = None  # the motion checks of labelled tracks, drawn once (issue 31)
     if lifecycle.conversion and behaviour:
         from are_stats.logs import read_field_tracks
 
@@ -292,7 +293,7 @@ def run_fit(
                 clock("interaction (social force) from the tracks")
                 _attach_interaction(idata, tracks)
                 clock("realism and displacement errors against the tracks")
-                _attach_motion_tables(seed, idata, tracks, grid)
+                checks = _attach_motion_tables(seed, idata, tracks, grid)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep["source"] = Path(str(rep.get("source") or log)).name
@@ -332,7 +333,9 @@ def run_fit(
         _print_checks(written)
         if tracks is not None and "behaviour" in idata.groups():
             with console.status("motion checks (speeds, straightness, held-out moves) ..."):
-                written.update(_motion_report(seed, idata, tracks, grid, figures, force, catalogue))
+                written.update(
+                    _motion_report(seed, idata, tracks, grid, figures, force, catalogue, checks)
+                )
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return idata
 
@@ -346,12 +349,22 @@ def _print_classes(idata: Any) -> None:
         return
     w = np.asarray(post["class_weights"].mean(("chain", "draw")))
     m = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
-    model = str(post.attrs.get("class_stay_model"))
+    a = post.attrs
+    model = str(a.get("class_stay_model"))
+    # each class's arrivals per hour: its share of the pooled arrival rate (lambda x nu)
+    total = float(post["arrival_rate"].mean()) * float(a["area"]) * 3600.0
     parts = [
-        f"{name} {wi:.0%} (mean stay {mi:.3g})"
+        f"{name} {wi:.0%} ({wi * total:.3g}/h, mean stay {mi:.3g})"
         for name, wi, mi in zip(fit_class_labels(idata) or [], w, m, strict=True)
     ]
     console.print(f"classes (stays {model} by PSIS-LOO): " + ", ".join(parts))
+    extra = []
+    if "class_position_model" in a:
+        extra.append(f"entry/exit densities {a['class_position_model']}")
+    if "class_share_model" in a:
+        extra.append(f"shares {a['class_share_model']}")
+    if extra:
+        console.print("classes by PSIS-LOO: " + ", ".join(extra))
 
 
 def _sha256(path: str | Path) -> str:
@@ -404,11 +417,19 @@ def _behaviour_lines(fit: Any) -> list[str]:
     return out
 
 
-def _attach_motion_tables(seed: int, idata: Any, tracks: Any, grid: Any) -> None:
+def _attach_motion_tables(seed: int, idata: Any, tracks: Any, grid: Any) -> Any:
     """Realism and displacement errors against the log's tracks, stored in the fit so that
-    ``report`` shows them (the tracks are not stored): issue 26."""
+    ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
+    store the per-class motion rows (median speed, fraction still: issue 31); the motion
+    checks they come from are returned (the motion report draws them), else None."""
     from are_stats.behaviour import BehaviourFit
-    from are_stats.fitting import displacement_errors, interaction_from_attrs, motion_attrs
+    from are_stats.fitting import (
+        class_motion_checks,
+        displacement_errors,
+        interaction_from_attrs,
+        motion_attrs,
+        motion_checks,
+    )
     from are_stats.scenarios import realism_features, realism_summary, realism_table
 
     bfit = BehaviourFit.from_dataset(idata.behaviour)
@@ -427,6 +448,13 @@ def _attach_motion_tables(seed: int, idata: Any, tracks: Any, grid: Any) -> None
     dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
     observed = realism_summary(realism_features(xy, dt, grid))
     idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
+    if "label" not in tracks.columns:
+        return None
+    checks = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    per_class = class_motion_checks(tracks, checks[1])
+    if per_class is not None:
+        idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
+    return checks
 
 
 def _motion_outputs(tables: dict, folder: Path, force: bool) -> dict[str, Path]:
@@ -483,10 +511,12 @@ def _print_motion_tables(tables: dict) -> None:
 
 
 def _motion_report(
-    seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool, catalogue: Any
-):
+    seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool, catalogue: Any,
+    checks: Any = None,
+):  # fmt: skip
     """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure;
-    with the realism and displacement tables stored in the fit (issue 26)."""
+    with the realism and displacement tables stored in the fit (issue 26). ``checks``: the
+    motion checks :func:`_attach_motion_tables` already drew (the same seed), or None."""
     import matplotlib.pyplot as plt
 
     from are_stats.behaviour import BehaviourFit
@@ -500,7 +530,9 @@ def _motion_report(
 
     bfit = BehaviourFit.from_dataset(idata.behaviour)
     key = jax.random.key(seed)
-    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    if checks is None:
+        checks = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    table, reps = checks
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
@@ -517,7 +549,7 @@ def _motion_report(
             write(tmp)
         out[name] = Path(folder) / name
     per_class = class_motion_checks(tracks, reps)  # speed and stillness per label (issue 31)
-    if per_class is not None:
+    if per_class is not None and "class_motion" not in stored:  # else the report wrote it
         with atomic_path(Path(folder) / "class_motion_checks.csv", force=force) as tmp:
             per_class.to_csv(tmp, float_format="%.6g")
         out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
@@ -533,7 +565,7 @@ def _motion_report(
             str(stat), f"{row['observed']:.3g}", ("[red]! " + band + "[/]") if flag else band
         )
     console.print(rich)
-    if per_class is not None:
+    if per_class is not None and "class_motion" not in stored:  # else printed with the report
         _print_class_checks(per_class)
     console.print(
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "

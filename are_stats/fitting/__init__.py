@@ -241,3 +241,45 @@ __all__ += [
     "class_motion_checks",
     "fit_classes",
 ]
+
+from are_stats.fitting._class_traffic import (  # noqa: E402
+    CLASS_POSITION_MODELS,
+    CLASS_SHARE_MODELS,
+    MIN_CLASS_POINTS,
+    N_SHARE_PERIODS,
+    ClassPositions,
+    ClassShareClock,
+    attach_class_positions,
+    attach_class_shares_by_time,
+    class_position_densities,
+    fit_class_positions,
+    fit_class_shares_by_time,
+)
+
+__all__ += [
+    "CLASS_POSITION_MODELS",
+    "CLASS_SHARE_MODELS",
+    "MIN_CLASS_POINTS",
+    "N_SHARE_PERIODS",
+    "ClassPositions",
+    "ClassShareClock",
+    "attach_class_positions",
+    "attach_class_shares_by_time",
+    "class_position_densities",
+    "fit_class_positions",
+    "fit_class_shares_by_time",
+]
+
+from are_stats.fitting._class_report import (  # noqa: E402
+    class_share_checks,
+    plot_class_checks,
+    plot_class_entries,
+    plot_class_shares_by_hour,
+)
+
+__all__ += [
+    "class_share_checks",
+    "plot_class_checks",
+    "plot_class_entries",
+    "plot_class_shares_by_hour",
+]

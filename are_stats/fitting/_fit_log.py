@@ -488,6 +488,10 @@ def fit_log(
         idata = attach_traffic(idata, traffic)
     if classes is not None:
         idata = _fit_classes(jax.random.fold_in(key, 31), idata, data, classes, class_labels, say)
+        idata = _fit_class_traffic(
+            jax.random.fold_in(key, 32), idata, data, np.asarray(classes, np.int64),
+            class_labels, grid, clock_start, say,
+        )  # fmt: skip
     return idata
 
 
@@ -514,6 +518,54 @@ def _fit_classes(
         resolution=float(np.asarray(res).ravel()[0]),
     )  # fmt: skip
     return attach_classes(idata, cfit)
+
+
+def _fit_class_traffic(
+    key: Any, idata: az.InferenceData, data: LifecycleData, classes: np.ndarray, labels: Any,
+    grid: Any, clock_start: str | None, say: Any,
+) -> az.InferenceData:  # fmt: skip
+    """Where (entry/exit densities per class, with a map and positions) and when (shares by
+    time of day, with a clock) each class of a labelled log comes (issue 31)."""
+    from are_stats.fitting._class_traffic import (
+        attach_class_positions,
+        attach_class_shares_by_time,
+        fit_class_positions,
+        fit_class_shares_by_time,
+    )
+    from are_stats.fitting._traffic import POSITION_CELL
+    from are_stats.traffic import clock_offset, coarse_free_mask
+
+    entered = ~data.truncated
+    if (
+        grid is not None and abs(float(grid.origin[2])) <= 1e-9 and data.x is not None
+        and data.y is not None and entered.sum() >= 2
+    ):  # fmt: skip
+        say(f"entry and exit densities per class ({len(labels)} classes)")
+        free, res, origin = coarse_free_mask(
+            grid.free, grid.resolution, grid.origin[:2], POSITION_CELL
+        )
+        xy = np.column_stack([data.x, data.y])[entered]
+        cls = classes[entered]
+        if data.group is not None:  # one entry point per group, as the pooled density's
+            _, first = np.unique(np.asarray(data.group)[entered], return_index=True)
+            xy, cls = xy[np.sort(first)], cls[np.sort(first)]
+        exy = ecls = None
+        if data.x_exit is not None and data.y_exit is not None:
+            ok = np.isfinite(data.x_exit) & np.isfinite(data.y_exit)
+            exy, ecls = np.column_stack([data.x_exit, data.y_exit])[ok], classes[ok]
+        pos = fit_class_positions(
+            xy, cls, labels, free, res, origin, exit_xy=exy, exit_classes=ecls
+        )
+        idata = attach_class_positions(idata, pos)
+    if clock_start is not None:
+        say("class shares by time of day")
+        w = idata.posterior["class_weights"].values
+        shares = fit_class_shares_by_time(
+            key, data.t_arrive[entered], classes[entered], w.reshape(-1, w.shape[-1]),
+            clock_offset(clock_start),
+        )  # fmt: skip
+        idata = attach_class_shares_by_time(idata, shares)
+    return idata
 
 
 def attach_behaviour(idata: az.InferenceData, behaviour: Any) -> az.InferenceData:
@@ -939,6 +991,44 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
                          f"{k} comma-separated names (one per class)", names)  # fmt: skip
     get_str(post.attrs.get("class_stay_model", ""), source, "posterior.attrs.class_stay_model",
             choices=("pooled", "per-class"))  # fmt: skip
+    if "class_tod_weights" in post.data_vars:  # shares by time of day (issue 31)
+        t = _var(post, "class_tod_weights", source, "posterior",
+                 ("chain", "draw", "period", "class"))  # fmt: skip
+        _check_real(t, source, "posterior.class_tod_weights", lo=0.0, lo_open=False)
+        if t.shape[-1] != k or np.any(np.abs(t.sum(axis=-1) - 1.0) > 1e-6):
+            raise InputError(
+                source, "posterior.class_tod_weights",
+                f"{k} shares summing to 1 in each period", Described(f"{t.shape}"),
+            )  # fmt: skip
+        share_model = get_str(
+            post.attrs.get("class_share_model", ""), source,
+            "posterior.attrs.class_share_model", choices=("constant", "time-of-day"),
+        )  # fmt: skip
+        if share_model == "time-of-day" and "traffic_clock_start" not in post.attrs:
+            raise InputError(
+                source, "posterior.attrs.traffic_clock_start",
+                "the log's clock (time-of-day class shares)", Described("none"),
+            )  # fmt: skip
+    cd = idata.constant_data if "constant_data" in idata.groups() else {}
+    if "class_entry_density" in cd:  # entry/exit densities per class (issue 31)
+        for name in ("class_entry_density", "class_exit_density"):
+            if name not in cd:
+                continue
+            v = _var(cd, name, source, "constant_data", ("class", "pos_y", "pos_x"))
+            _check_real(v, source, f"constant_data.{name}", lo=0.0, lo_open=False)
+            if v.shape[0] != k or np.any(np.abs(v.sum(axis=(1, 2)) - 1.0) > 1e-6):
+                raise InputError(source, f"constant_data.{name}",
+                                 f"{k} densities (one per class) summing to 1",
+                                 Described(f"shape {v.shape}"))  # fmt: skip
+        get_float_attr(cd.attrs, "class_position_resolution", source, "constant_data")
+        o = np.asarray(cd.attrs.get("class_position_origin", [np.nan])).ravel()
+        if o.size != 2 or not np.isfinite(o).all():
+            raise InputError(source, "constant_data.attrs.class_position_origin",
+                             "two finite numbers (x, y)", Described(repr(o.tolist())))  # fmt: skip
+        get_str(
+            post.attrs.get("class_position_model", ""), source,
+            "posterior.attrs.class_position_model", choices=("pooled", "per-class"),
+        )  # fmt: skip
 
 
 def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:

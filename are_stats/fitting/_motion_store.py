@@ -31,6 +31,7 @@ MOTION_TABLES = {
     "realism": "motion_realism",
     "observed": "motion_observed",
     "displacement": "motion_displacement",
+    "class_motion": "motion_class_checks",  # per class (issue 31), flat: class, statistic
 }
 
 

@@ -490,6 +490,43 @@ def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
     ax.legend(fontsize=7, loc="best")
 
 
+def _class_figures(
+    key: Any, idata: az.InferenceData, per_class: pd.DataFrame, n_replicates: int, out: Path,
+    force: bool, written: dict[str, Path],
+) -> dict[str, Any]:  # fmt: skip
+    """The per-class figures of a labelled log's fit (issue 31): the checks (with the
+    motion rows the fit stored), the shares by hour (with a clock), the entry densities."""
+    from are_stats.fitting._class_report import (
+        class_share_checks,
+        plot_class_checks,
+        plot_class_entries,
+        plot_class_shares_by_hour,
+    )
+    from are_stats.fitting._motion_store import motion_tables
+
+    motion = None
+    if "behaviour" in idata.groups():
+        with contextlib.suppress(ValueError):  # a damaged table: the CLI names it
+            stored = motion_tables(idata.behaviour.attrs).get("class_motion")
+            if stored is not None and {"class", "statistic"} <= set(stored.columns):
+                motion = stored.set_index(["class", "statistic"])
+                with atomic_path(out / "class_motion_checks.csv", force=force) as tmp:
+                    motion.to_csv(tmp, float_format="%.6g")
+                written["class_motion_checks"] = out / "class_motion_checks.csv"
+    figures = {"ppc_classes": plot_class_checks(per_class, motion)}
+    by_hour = class_share_checks(key, idata, n_replicates)
+    if by_hour is not None:
+        with atomic_path(out / "class_shares_by_hour.csv", force=force) as tmp:
+            by_hour.to_csv(tmp, float_format="%.6g")
+        written["class_shares_by_hour"] = out / "class_shares_by_hour.csv"
+        model = str(idata.posterior.attrs.get("class_share_model", "constant"))
+        figures["ppc_class_shares_by_hour"] = plot_class_shares_by_hour(by_hour, model)
+    entries = plot_class_entries(idata)
+    if entries is not None:
+        figures["class_entries"] = entries
+    return figures
+
+
 def write_report(
     idata: az.InferenceData,
     out_dir: str | Path,
@@ -526,7 +563,11 @@ def write_report(
         chosen models beside the paper's, :func:`~are_stats.fitting.traffic_checks`), the
         model comparison tables ``loo_*.csv`` and, for a log that names its classes,
         ``class_checks.csv`` (per class: share, stay median and cv,
-        :func:`~are_stats.fitting.class_checks`) and ``loo_class_stays.csv``.
+        :func:`~are_stats.fitting.class_checks`), its figure ``ppc_classes.png`` (with the
+        per-class speed and stillness the fit stored), ``loo_class_stays.csv`` and, as the
+        fit has them, ``class_shares_by_hour.csv`` / ``ppc_class_shares_by_hour.png``,
+        ``class_entries.png``, ``loo_class_positions.csv``, ``loo_class_shares.csv``
+        (:mod:`are_stats.fitting` class figures).
     """
     import matplotlib.pyplot as plt
 
@@ -549,7 +590,10 @@ def write_report(
         with atomic_path(out / "class_checks.csv", force=force) as tmp:
             per_class.to_csv(tmp, float_format="%.6g")
         written["class_checks"] = out / "class_checks.csv"
-    for factor in ("arrivals", "lifetimes", "positions", "class_stays"):
+        figures.update(_class_figures(key, idata, per_class, n_replicates, out, force, written))
+    for factor in (
+        "arrivals", "lifetimes", "positions", "class_stays", "class_positions", "class_shares",
+    ):  # fmt: skip
         text = idata.posterior.attrs.get(f"loo_{factor}")
         if text:
             path = out / f"loo_{factor}.csv"

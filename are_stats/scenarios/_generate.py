@@ -182,22 +182,36 @@ def _class_draws(params: Mapping[str, Any], s: int) -> dict[str, np.ndarray]:
         if k.shape not in ((1,), (s,)):
             raise ValueError(f"params['class_stay_shape']: expected ({s},) draws, got {k.shape}")
         out["class_stay_shape"] = np.broadcast_to(k, (s,)).astype(float)
+    if "class_tod_weights" in params:
+        t = check_nonnegative("params['class_tod_weights']",
+                              np.asarray(params["class_tod_weights"]) + 0.0)  # fmt: skip
+        if t.ndim != 3 or t.shape[0] != s or t.shape[2] != w.shape[1]:
+            raise ValueError(
+                f"params['class_tod_weights']: expected shape ({s}, P, {w.shape[1]}), got {t.shape}"
+            )
+        sums = t.sum(axis=2)
+        if not np.allclose(sums, 1.0, atol=1e-6):
+            raise ValueError("params['class_tod_weights']: expected shares summing to 1 per period")
+        out["class_tod_weights"] = t / sums[..., None]
     return out
 
 
 def _draw_classes(
     rng: np.random.Generator, p: Mapping[str, Any], law: str, d: np.ndarray,
     scen: np.ndarray, group: np.ndarray, initial: np.ndarray, t_arr: np.ndarray,
-    t_leave: np.ndarray,
+    t_leave: np.ndarray, clock: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The class of each artefact of a labelled fit, and its stay under its class.
 
     One class per group (members of a group share it): an arriving group's class is drawn
     from the shares ``class_weights``; a group present at the start from the stationary
-    composition, shares times mean stays. With ``class_stay_mean`` each group's stay is
-    drawn again from ``law`` with its class's mean and the shared ``class_stay_shape`` (a
-    residual stay for the initial population), and each member's stay is scaled by the
-    ratio of the new group stay to the old one (the members' jitter kept).
+    composition, shares times mean stays. With ``class_tod_weights`` (S, P, K) and the
+    ``clock`` (time of day of ``t = 0``, length of a day) the shares are those of the
+    period of the day the group arrives in (``t = 0``'s for those present at the start).
+    With ``class_stay_mean`` each group's stay is drawn again from ``law`` with its class's
+    mean and the shared ``class_stay_shape`` (a residual stay for the initial population),
+    and each member's stay is scaled by the ratio of the new group stay to the old one (the
+    members' jitter kept).
     """
     w = p["class_weights"][d]  # (n_sc, K)
     keys = np.stack([scen.astype(np.int64), np.asarray(group, np.int64)], axis=1)
@@ -207,6 +221,12 @@ def _draw_classes(
     inv = inv.ravel()
     g_scen = scen[first]
     probs = w[g_scen]
+    if "class_tod_weights" in p and clock is not None:
+        from are_stats.traffic import period_of
+
+        tw = p["class_tod_weights"][d]  # (n_sc, P, K)
+        when = np.where(initial[first], 0.0, t_arr[first])
+        probs = tw[g_scen, period_of(when, clock[0], tw.shape[1], clock[1])]
     per_class = "class_stay_mean" in p
     if per_class:
         m = p["class_stay_mean"][d][g_scen]
@@ -230,6 +250,50 @@ def _draw_classes(
         old = np.maximum(t_leave[first] - t_arr[first], 1e-300)
         t_leave = t_arr + (t_leave - t_arr) * (new / old)[inv]
     return cls, t_leave
+
+
+def _place_by_class(
+    rng: np.random.Generator, densities: Any, cls: np.ndarray, scen: np.ndarray,
+    group: np.ndarray, initial: np.ndarray, x: np.ndarray, y: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Arriving groups enter from their class's entry density (issue 31).
+
+    Each arriving group's first member is placed at a point of ``densities[class]``; the
+    other members keep their offsets from it (the group's spread), falling back to the
+    point where the offset leaves the density's free cells. Those present at the start keep
+    their places (drawn over the free cells, as the pooled laws place them).
+    """
+    x, y = np.array(x, float), np.array(y, float)
+    keys = np.stack([scen.astype(np.int64), np.asarray(group, np.int64)], axis=1)
+    arriving = ~np.asarray(initial, bool)
+    if not arriving.any():
+        return x, y
+    k = int(np.max(cls)) + 1 if cls.size else 0
+    if k > len(densities):
+        raise ValueError(
+            f"class_entry: expected an entry density per class ({k}), got {len(densities)}"
+        )
+    idx = np.flatnonzero(arriving)
+    _, first, inv = np.unique(keys[idx], axis=0, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    g_cls = cls[idx[first]]
+    anchor = np.empty((first.size, 2))
+    for c in range(len(densities)):
+        sel = g_cls == c
+        if sel.any():
+            anchor[sel] = densities[c].sample(rng, int(sel.sum()))
+    off = np.column_stack([x[idx] - x[idx[first]][inv], y[idx] - y[idx[first]][inv]])
+    new = anchor[inv] + off
+    for c in range(len(densities)):
+        sel = cls[idx] == c
+        if sel.any():
+            row, col = densities[c].cell_of(new[sel])
+            ok = row >= 0
+            on = np.zeros(row.size, bool)
+            on[ok] = densities[c].prob[row[ok], col[ok]] > 0
+            new[sel] = np.where(on[:, None], new[sel], anchor[inv][sel])
+    x[idx], y[idx] = new[:, 0], new[:, 1]
+    return x, y
 
 
 def _grid(free_mask: Any, resolution: float, origin: Any) -> tuple[np.ndarray, float, tuple]:
@@ -367,7 +431,10 @@ def generate_scenarios(
         xy_map = None
     if "class_weights" in p and "mix_weights" not in p:  # a labelled log: class = label
         law = laws.lifetimes if rich else "exponential"  # the class fit's (the chosen) law
-        cls, t_leave = _draw_classes(rng, p, law, d, scen, group, initial, t_arr, t_leave)
+        clock = None
+        if laws is not None and laws.clock_offset is not None:
+            clock = (float(laws.clock_offset), float(laws.period))
+        cls, t_leave = _draw_classes(rng, p, law, d, scen, group, initial, t_arr, t_leave, clock)
         mark = np.full(total, -1, dtype=np.int64)
     elif "mix_weights" in p:
         w = p["mix_weights"][d]
@@ -395,6 +462,18 @@ def generate_scenarios(
         c, sn = math.cos(oyaw), math.sin(oyaw)
         x = ox + c * q_u - sn * q_v
         y = oy + sn * q_u + c * q_v
+    if laws is not None and laws.class_entry is not None and "class_weights" in p:
+        if abs(oyaw) > 1e-12:
+            raise ValueError(
+                f"map: expected an origin yaw of 0 for per-class entry densities, got {oyaw}"
+            )
+        if free_mask is not None:  # the map the fit learned its classes' entries on
+            from are_stats.traffic import uniform_position_density
+
+            on_map = uniform_position_density(mask, res, (ox, oy))
+            for density in laws.class_entry:
+                _check_entries_on_map(density, on_map)
+        x, y = _place_by_class(rng, laws.class_entry, cls, scen, group, initial, x, y)
     if headings == 4:
         yaw = np.mod(rng.integers(0, 4, size=total) * (np.pi / 2) + oyaw, 2 * np.pi)
     else:
@@ -695,7 +774,7 @@ def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dic
 #: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
 TRAFFIC_NAMES = (
     "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
-    "class_stay_mean", "class_stay_shape",
+    "class_stay_mean", "class_stay_shape", "class_tod_weights",
     "mmpp_factor", "mmpp_switch", "hawkes_branching", "hawkes_decay",
 )  # fmt: skip
 
@@ -718,6 +797,7 @@ def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarr
         :data:`PARAMETER_NAMES` and, for chosen models, :data:`TRAFFIC_NAMES` present.
     laws : are_stats.traffic.TrafficLaws
     """
+    from are_stats.fitting import class_position_densities
     from are_stats.traffic import PositionDensity, TrafficLaws, clock_offset
 
     check_in("model", model, ("chosen", "paper"))
@@ -732,6 +812,8 @@ def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarr
     for name in TRAFFIC_NAMES:
         if name.startswith("class_stay") and a.get("class_stay_model") != "per-class":
             continue  # LOO kept the pooled stays: one law for every class
+        if name == "class_tod_weights" and a.get("class_share_model") != "time-of-day":
+            continue  # LOO kept one set of shares for the whole day
         if name in post:
             v = np.asarray(post[name].values)
             draws[name] = v.reshape(-1, *v.shape[2:])
@@ -761,6 +843,7 @@ def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarr
         group_stay_sd=num("traffic_group_stay_sd", 0.0),
         group_spread=num("traffic_group_spread", 0.0),
         entry=entry,
+        class_entry=class_position_densities(idata),
     )
     return draws, laws
 

@@ -143,6 +143,7 @@ def fit_position_density(
     *,
     bandwidths: Any = None,
     alphas: Any = (0.1, 1.0, 10.0),
+    base: Any = None,
 ) -> PositionDensity:
     """Learn a position density from observed points (first or last sightings).
 
@@ -162,6 +163,12 @@ def fit_position_density(
         at a quarter of the map's smaller side.
     alphas : sequence of float
         Candidate Dirichlet prior masses.
+    base : (H, W) float, optional
+        The Dirichlet prior's base measure (mass of each cell, zero off the free cells,
+        summing to one): default uniform over the free cells (``1 / n_free``, the formula
+        of the module docstring). A class's density pooled toward the other classes' passes
+        theirs (:func:`are_stats.fitting.fit_class_positions`): a large ``alpha`` then
+        returns the base.
 
     Returns
     -------
@@ -184,6 +191,17 @@ def fit_position_density(
     counts = np.zeros(free.shape)
     np.add.at(counts, (row, col), 1.0)
     n, n_free = pts.shape[0], int(free.sum())
+    prior = None  # uniform: a / n_free on every free cell (kept bit for bit)
+    if base is not None:
+        prior = np.asarray(base, float)
+        if prior.shape != free.shape or not np.isfinite(prior).all() or (prior < 0).any():
+            raise ValueError(
+                f"base: expected a finite non-negative ({h}, {w}) density, got {prior.shape}"
+            )
+        prior = np.where(free, prior, 0.0)
+        if prior.sum() <= 0:
+            raise ValueError("base: expected mass on the free cells, got none")
+        prior = prior / prior.sum()
     if bandwidths is None:
         top = max(min(h, w) * res / 4.0, res)
         bandwidths = [b for b in res * np.array([0.5, 1.0, 2, 4, 8, 16]) if b <= top] or [res]
@@ -193,13 +211,15 @@ def fit_position_density(
         k0 = 1.0  # the kernel's centre weight
         own = k0 / z[row, col]
         for a in check_positive("alphas", alphas, ndim=1):
-            loo = (a / n_free + smooth[row, col] - own) / (a + n - 1)
+            at = a / n_free if prior is None else a * prior[row, col]
+            loo = (at + smooth[row, col] - own) / (a + n - 1)
             score = float(np.sum(np.log(np.maximum(loo, 1e-300))))
             if best is None or score > best[0]:
                 best = (score, float(bw), float(a), smooth, loo)
     assert best is not None
     _, bw, a, smooth, loo = best
-    prob = np.where(free, (a / n_free + smooth) / (a + n), 0.0)
+    at_cells = a / n_free if prior is None else a * prior
+    prob = np.where(free, (at_cells + smooth) / (a + n), 0.0)
     with np.errstate(divide="ignore"):
         loo_logpdf = np.log(np.maximum(loo, 1e-300)) - 2.0 * np.log(res)
     return PositionDensity(prob / prob.sum(), res, uni.origin, bw, a, loo_logpdf)

@@ -70,6 +70,11 @@ class TrafficLaws:
         Members' log-stay deviation and entry spread (m) around their group's.
     entry : PositionDensity, optional
         Entry density (``learned``; also the free cells for ``uniform``).
+    class_entry : tuple of PositionDensity, optional
+        Entry density of each class of a labelled log (issue 31): an arriving group of
+        class ``c`` enters from ``class_entry[c]`` whatever ``positions`` says
+        (:func:`are_stats.scenarios.generate_scenarios` places them once the classes are
+        drawn).
     """
 
     arrivals: str = "poisson"
@@ -81,6 +86,7 @@ class TrafficLaws:
     group_stay_sd: float = 0.0
     group_spread: float = 0.0
     entry: PositionDensity | None = None
+    class_entry: tuple[PositionDensity, ...] | None = None
 
     def __post_init__(self) -> None:
         check_in("arrivals", self.arrivals, ARRIVAL_SPECS)
