@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from are_stats._checks import check_positive, describe
+from are_stats._checks import check_finite, check_positive, describe
 from are_stats.behaviour import (
     BehaviourFit,
     grid_geodesic,
@@ -57,7 +57,7 @@ from are_stats.behaviour import (
     soft_backward_induction,
     wall_distance_feature,
 )
-from are_stats.traffic import coarse_free_mask
+from are_stats.environment import coarse_free
 
 __all__ = [
     "BEHAVIOUR_FEATURES",
@@ -695,8 +695,8 @@ def fit_behaviour(
     if cell is None:
         f = max(1, round(0.5 / res), math.ceil(max(free_fine.shape) / max_side))
         cell = f * res
-    free, cell, org = coarse_free_mask(free_fine, res, origin, cell)
-    origin_a = np.asarray(org, float)
+    free, cell = coarse_free(free_fine, res, float(check_positive("cell", cell)))
+    origin_a = np.asarray(check_finite("origin", origin, ndim=1), float)[:2]
     factor = max(1, round(cell / res))
     feature_names, phi = _feature_maps(features, free, free_fine, factor)
     weights, weights_se = [], []

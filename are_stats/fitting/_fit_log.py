@@ -526,6 +526,7 @@ def _fit_class_traffic(
 ) -> az.InferenceData:  # fmt: skip
     """Where (entry/exit densities per class, with a map and positions) and when (shares by
     time of day, with a clock) each class of a labelled log comes (issue 31)."""
+    from are_stats.environment import coarse_free
     from are_stats.fitting._class_traffic import (
         attach_class_positions,
         attach_class_shares_by_time,
@@ -533,7 +534,7 @@ def _fit_class_traffic(
         fit_class_shares_by_time,
     )
     from are_stats.fitting._traffic import POSITION_CELL
-    from are_stats.traffic import clock_offset, coarse_free_mask
+    from are_stats.traffic import clock_offset
 
     entered = ~data.truncated
     if (
@@ -541,9 +542,8 @@ def _fit_class_traffic(
         and data.y is not None and entered.sum() >= 2
     ):  # fmt: skip
         say(f"entry and exit densities per class ({len(labels)} classes)")
-        free, res, origin = coarse_free_mask(
-            grid.free, grid.resolution, grid.origin[:2], POSITION_CELL
-        )
+        free, res = coarse_free(grid.free, grid.resolution, POSITION_CELL)
+        origin = (float(grid.origin[0]), float(grid.origin[1]))
         xy = np.column_stack([data.x, data.y])[entered]
         cls = classes[entered]
         if data.group is not None:  # one entry point per group, as the pooled density's

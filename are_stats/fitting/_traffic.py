@@ -59,6 +59,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_in
+from are_stats.environment import coarse_free
 from are_stats.fitting._laplace import (
     laplace_dimension,
     laplace_loo,
@@ -78,7 +79,6 @@ from are_stats.traffic import (
     arrival_unit_loglik,
     arrival_units,
     clock_offset,
-    coarse_free_mask,
     fit_position_density,
     stay_model,
     stay_unit_loglik,
@@ -798,7 +798,8 @@ def _fit_positions(
                 f"--positions learned: expected a map origin yaw of 0, got {grid.origin[2]}"
             )
         return "uniform", None, None, None
-    free, res, origin = coarse_free_mask(grid.free, grid.resolution, grid.origin[:2], POSITION_CELL)
+    free, res = coarse_free(grid.free, grid.resolution, POSITION_CELL)
+    origin = (float(grid.origin[0]), float(grid.origin[1]))
     uni = uniform_position_density(free, res, origin)
     entered = ~data.truncated
     if data.x is None or data.y is None or entered.sum() < 2:

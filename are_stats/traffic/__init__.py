@@ -157,7 +157,6 @@ from are_stats.traffic._positions import (  # noqa: E402
     POSITION_MODELS,
     PositionDensity,
     boundary_distance,
-    coarse_free_mask,
     fit_position_density,
     uniform_position_density,
 )
@@ -166,7 +165,6 @@ __all__ += [
     "POSITION_MODELS",
     "PositionDensity",
     "boundary_distance",
-    "coarse_free_mask",
     "fit_position_density",
     "uniform_position_density",
 ]

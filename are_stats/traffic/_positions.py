@@ -33,7 +33,6 @@ __all__ = [
     "POSITION_MODELS",
     "PositionDensity",
     "boundary_distance",
-    "coarse_free_mask",
     "fit_position_density",
     "uniform_position_density",
 ]
@@ -248,39 +247,3 @@ def boundary_distance(xy: Any, free_mask: Any, resolution: float, origin: Any) -
     ok = row >= 0
     out[ok] = dist[row[ok] + 1, col[ok] + 1]
     return out
-
-
-def coarse_free_mask(
-    free_mask: Any, resolution: float, origin: Any, cell: float
-) -> tuple[np.ndarray, float, tuple[float, float]]:
-    """A free mask on cells of about ``cell`` metres, with its origin
-    (:func:`are_stats.environment.coarse_free`, the one coarsener: free where at least half
-    of the fine cells are free).
-
-    Position densities live on such a grid (a kernel narrower than a person is noise).
-
-    Parameters
-    ----------
-    free_mask : (H, W) bool
-    resolution : float
-        Fine cell side (m).
-    origin : (2,) float
-        Map-frame corner of cell (0, 0).
-    cell : float
-        Target cell side (m), rounded to a whole number of fine cells.
-
-    Returns
-    -------
-    free : (h, w) bool
-    resolution : float
-        The coarse cell side.
-    origin : (x, y)
-        Unchanged (the coarse grid starts at the same corner; trailing fine cells that do
-        not fill a coarse cell are dropped).
-    """
-    from are_stats.environment import coarse_free
-
-    res = float(check_positive("resolution", resolution))
-    o = check_finite("origin", origin, ndim=1)
-    free, res = coarse_free(free_mask, res, float(check_positive("cell", cell)))
-    return free, res, (float(o[0]), float(o[1]))

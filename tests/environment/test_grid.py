@@ -421,10 +421,9 @@ def test_values_no_pixel_can_hold_are_refused_on_writing(tmp_path):
 
 def test_one_coarsener_keeps_a_straddling_door_open_on_every_grid():
     """A 1 m door whose edges fall mid-cell of a 1 m coarse grid: each coarse cell it touches
-    is exactly half free. The behaviour grid (coarse_free with a source), the entry-density
-    grid (traffic.coarse_free_mask) and coarse_free agree, and keep the door open."""
+    is exactly half free. The behaviour grid (coarse_free with a source) and the
+    entry-density grid (coarse_free) agree, and keep the door open."""
     from are_stats.environment import coarse_free
-    from are_stats.traffic import coarse_free_mask
 
     data = np.zeros((40, 40))  # 0.1 m free cells
     data[20:30, :] = 100  # a wall band of coarse row 2 ...
@@ -432,10 +431,8 @@ def test_one_coarsener_keeps_a_straddling_door_open_on_every_grid():
     grid = OccupancyGrid(data, 0.1)
     behaviour, res = coarse_free(grid.free, grid.resolution, 1.0, source="--behaviour-cell")
     free, res2 = coarse_free(grid.free, 0.1, 1.0)
-    free3, res3, origin = coarse_free_mask(grid.free, 0.1, (0.0, 0.0), 1.0)
-    assert res == res2 == res3 == pytest.approx(1.0) and origin == (0.0, 0.0)
+    assert res == res2 == pytest.approx(1.0)
     np.testing.assert_array_equal(behaviour, free)
-    np.testing.assert_array_equal(free, free3)
     assert free[2].tolist() == [False, True, True, False]  # both half-free cells stay open
     assert free[[0, 1, 3]].all()
 
