@@ -19,18 +19,14 @@ from are_stats.scenarios._folder import (
     write_scenes,
 )
 from are_stats.scenarios._generate import (
-    PARAMETER_NAMES,
     SCENARIO_COLUMNS,
-    TRAFFIC_NAMES,
     atomic_folder,
     check_folder,
     check_scenario_size,
     expected_artefacts,
     generate_scenarios,
-    posterior_draws,
     read_scenarios,
     scenario_counts,
-    traffic_draws,
     write_scenarios,
 )
 from are_stats.scenarios._realism import (
@@ -50,10 +46,8 @@ __all__ = [
     "MAX_POSITION",
     "Scene",
     "ScenesFolder",
-    "PARAMETER_NAMES",
     "REALISM_FEATURES",
     "SCENARIO_COLUMNS",
-    "TRAFFIC_NAMES",
     "atomic_folder",
     "check_folder",
     "check_scenario_size",
@@ -61,7 +55,6 @@ __all__ = [
     "expected_artefacts",
     "generate_scenarios",
     "plot_realism",
-    "posterior_draws",
     "read_scenarios",
     "realism_features",
     "realism_score",
@@ -74,7 +67,6 @@ __all__ = [
     "scenes_from_fit",
     "scenes_from_tables",
     "scenes_tables",
-    "traffic_draws",
     "write_scenarios",
     "write_scenes",
 ]
