@@ -107,9 +107,12 @@ _LAZY.update(
             "fit_mixture_nuts",
             "select_n_components",
             "fit_lifecycle_nuts",
+            "Fit",
             "FitSettings",
             "fit_log",
             "fit_summary",
+            "posterior_draws",
+            "traffic_draws",
             "kaplan_meier",
             "read_fit",
             "write_fit",
@@ -145,10 +148,8 @@ _LAZY.update(
     dict.fromkeys(
         [
             "generate_scenarios",
-            "posterior_draws",
             "read_scenes",
             "scenario_counts",
-            "traffic_draws",
             "write_scenarios",
             "scenes_from_draws",
             "scenes_from_fit",
@@ -277,6 +278,7 @@ if TYPE_CHECKING:
         serve_scenario,
     )
     from are_stats.fitting import (  # noqa: F401
+        Fit,
         FitSettings,
         MixtureEMResult,
         TrafficFit,
@@ -289,9 +291,11 @@ if TYPE_CHECKING:
         fit_traffic,
         kaplan_meier,
         pointwise_log_likelihood,
+        posterior_draws,
         read_fit,
         run_nuts,
         select_n_components,
+        traffic_draws,
         write_fit,
         write_report,
     )
@@ -321,12 +325,10 @@ if TYPE_CHECKING:
         Boxes,
         Scene,
         generate_scenarios,
-        posterior_draws,
         read_scenes,
         scenario_counts,
         scenes_from_draws,
         scenes_from_fit,
-        traffic_draws,
         write_scenarios,
         write_scenes,
     )

@@ -50,24 +50,6 @@ def _summary_table(summary: Any, title: str) -> Table:
     return table
 
 
-def _warnings(idata: Any, summary: Any) -> list[str]:
-    if "sample_stats" in idata.groups() and "nuts_warnings" in idata.sample_stats.attrs:
-        # the NUTS driver's own words (are_stats.fitting.nuts_warnings): divergences and
-        # split-r_hat of every latent site
-        text = str(idata.sample_stats.attrs["nuts_warnings"])
-        return [w for w in text.splitlines() if w.strip()]
-    out = []
-    if "sample_stats" in idata.groups() and "diverging" in idata.sample_stats:
-        n_div = int(idata.sample_stats["diverging"].sum())
-        if n_div:
-            out.append(f"{n_div} divergent transitions: the posterior may be biased")
-    r_hat = summary["r_hat"].to_numpy(dtype=float) if "r_hat" in summary else np.array([])
-    bad = summary.index[np.isfinite(r_hat) & (r_hat > 1.01)].tolist()
-    if bad:
-        out.append(f"r_hat > 1.01 for {', '.join(bad)}: run longer chains (--samples)")
-    return out
-
-
 def run_fit(
     log: Path,
     out: Path,
@@ -119,6 +101,7 @@ def run_fit(
         FitSettings,
         fit_log,
         fit_summary,
+        sampler_warnings,
         write_fit,
         write_report,
     )
@@ -204,13 +187,6 @@ def run_fit(
     for w in caught:
         console.print(f"[yellow]warning:[/] {w.message}")
     data = lifecycle.to_lifecycle_data()
-    # labels without marks: the class is the label, found in the catalogue by name (issue 31)
-    labelled = lifecycle.label_classes()
-    from are_stats.environment import load_catalogue
-
-    catalogue = load_catalogue()  # read once: the labels' rows and the classes' run speeds
-    if labelled is not None:
-        catalogue.rows_of_labels(labelled[1], source=log, where="column 'label'")
     if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
         steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
         check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
@@ -223,18 +199,9 @@ def run_fit(
     if rep.get("groups"):
         console.print(f"{rep['artefacts_in_groups']} artefacts arrived in {rep['groups']} groups")
     panel = read_count_panel(counts) if counts is not None else None
-    clock_start = lifecycle.clock_start
-    grid = None
-    tracks = None
-    checks = None  # the motion checks of labelled tracks, drawn once (issue 31)
-    if lifecycle.conversion and behaviour:
-        from are_stats.logs import read_field_tracks
+    from are_stats.environment import load_catalogue
 
-        tracks = read_field_tracks(log, manifest=manifest)
-    if (positions != "uniform" or tracks is not None) and lifecycle.manifest.get("map"):
-        from are_stats.environment import OccupancyGrid
-
-        grid = OccupancyGrid.from_ros_yaml(lifecycle.manifest["map"])
+    catalogue = load_catalogue()  # read once: the labels' rows and the classes' run speeds
     t_start = time.perf_counter()
     with (
         console.status("fitting ...") as status,
@@ -242,87 +209,28 @@ def run_fit(
             status, "fitting: ", size=f"{method}, {data.n} rows", live=console.is_terminal
         ) as clock,
     ):
-        idata = fit_log(
-            jax.random.key(seed),
-            data,
-            settings,
-            counts_panel=panel,
-            progress=clock,
-            class_labels=(
-                lifecycle.to_arrays()["label_names"]
-                if data.labels is not None or labelled is not None
-                else None
-            ),
-            classes=None if labelled is None else labelled[0],
-            grid=None if positions == "uniform" else grid,
-            clock_start=clock_start,
-        )
-        if tracks is not None:
-            from are_stats.fitting import (
-                NoWalkersError,
-                attach_behaviour,
-                fit_behaviour,
-                open_area_grid,
-            )
-
-            clock("behaviour from the tracks (speeds, exits, rationality)")
-            if grid is not None:
-                free, res, origin = grid.free, grid.resolution, grid.origin[:2]
-            else:  # no map: the open area the tracks cover (issue 26)
-                free, res, origin = open_area_grid(tracks, source=log)
-                from are_stats.environment import OccupancyGrid
-
-                # the criticism (motion checks, realism) then scores on that open area too
-                grid = OccupancyGrid(np.where(free, 0, 100), res, (origin[0], origin[1], 0.0))
-                console.print(
-                    "note: no map in the manifest: behaviour fitted on the open area the "
-                    f"tracks cover ({free.shape[1] * res:.1f} x {free.shape[0] * res:.1f} m, "
-                    "their bounding box plus 1 m, all free)"
-                )
-            try:
-                bfit = fit_behaviour(
-                    tracks, free, res, origin, seed=seed, features=features or None,
-                    run_speed=catalogue.run_thresholds(),
-                )  # fmt: skip
-            except NoWalkersError as err:  # people who only stand: no walking to learn
-                console.print(f"note: behaviour not fitted ({err}); scenes use the catalogue's")
-            else:
-                idata = attach_behaviour(idata, bfit)
-                for line in _behaviour_lines(bfit):
-                    console.print(line)
-                clock("interaction (social force) from the tracks")
-                _attach_interaction(idata, tracks)
-                clock("realism and displacement errors against the tracks")
-                checks = _attach_motion_tables(seed, idata, tracks, grid)
-    # the log's file name and content hash, never its folder (a shared fit must not carry
-    # the user's folder layout): the hash identifies the bytes that were fitted
-    rep["source"] = Path(str(rep.get("source") or log)).name
-    idata.posterior.attrs.update(
-        {
-            "seed": int(seed),
-            "log": Path(log).name,
-            "log_sha256": _sha256(log),
-            "log_report": yaml.safe_dump(rep, sort_keys=False),
-        }
-    )
+        fit = fit_log(
+            seed, lifecycle, settings, counts_panel=panel, progress=clock,
+            behaviour=behaviour, features=features, catalogue=catalogue,
+        )  # fmt: skip
+    idata = fit.idata
+    for note in fit.notes:
+        console.print(f"note: {note}")
+    if fit.behaviour is not None:
+        for line in _behaviour_lines(fit.behaviour):
+            console.print(line)
+        _print_interaction(fit)
     write_fit(idata, out, force=force)
     summary = fit_summary(idata)
     console.print(_summary_table(summary, f"{method} fit in {time.perf_counter() - t_start:.1f} s"))
-    for w in _warnings(idata, summary):
+    for w in sampler_warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
-    _print_traffic(idata)
-    _print_classes(idata)
+    _print_traffic(fit)
+    _print_classes(fit)
     if panel is not None:
-        from are_stats.fitting import compare_panel
+        from are_stats.fitting import compare_panel, panel_estimates
 
-        a = idata.posterior.attrs
-        se = a["birth_death_stderr"]
-        se_r = a.get("birth_death_stderr_robust", se)
-        console.print(
-            f"birth-death MLE of {counts}: birth rate {a['birth_death_birth_rate']:.4g} "
-            f"+- {se[0]:.2g} (robust {se_r[0]:.2g}), death rate "
-            f"{a['birth_death_death_rate']:.4g} +- {se[1]:.2g} (robust {se_r[1]:.2g})"
-        )
+        console.print(f"birth-death MLE of {counts}: {panel_estimates(fit)}")
         cmp = compare_panel(idata)
         if cmp.warning:
             console.print(f"[yellow]warning:[/] {cmp.warning}")
@@ -331,63 +239,44 @@ def run_fit(
         with console.status("posterior-predictive checks ..."):
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
         _print_checks(written)
-        if tracks is not None and "behaviour" in idata.groups():
+        if lifecycle.tracks is not None and fit.behaviour is not None:
             with console.status("motion checks (speeds, straightness, held-out moves) ..."):
                 written.update(
-                    _motion_report(seed, idata, tracks, grid, figures, force, catalogue, checks)
+                    _motion_report(seed, fit, lifecycle.tracks, figures, force, catalogue)
                 )
         console.print(f"wrote {len(written)} criticism files to {figures}/")
-    return idata
+    return fit
 
 
-def _print_classes(idata: Any) -> None:
+def _print_classes(fit: Any) -> None:
     """One line on a labelled log's classes: shares and mean stays (issue 31)."""
-    from are_stats.fitting import fit_class_labels
-
-    post = idata.posterior
+    post = fit.idata.posterior
     if "class_weights" not in post:
         return
     w = np.asarray(post["class_weights"].mean(("chain", "draw")))
     m = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
-    a = post.attrs
-    model = str(a.get("class_stay_model"))
     # each class's arrivals per hour: its share of the pooled arrival rate (lambda x nu)
-    total = float(post["arrival_rate"].mean()) * float(a["area"]) * 3600.0
+    total = float(post["arrival_rate"].mean()) * float(fit.area) * 3600.0
     parts = [
         f"{name} {wi:.0%} ({wi * total:.3g}/h, mean stay {mi:.3g})"
-        for name, wi, mi in zip(fit_class_labels(idata) or [], w, m, strict=True)
+        for name, wi, mi in zip(fit.class_labels or (), w, m, strict=True)
     ]
-    console.print(f"classes (stays {model} by PSIS-LOO): " + ", ".join(parts))
+    console.print(f"classes (stays {fit.class_stay_model} by PSIS-LOO): " + ", ".join(parts))
     extra = []
-    if "class_position_model" in a:
-        extra.append(f"entry/exit densities {a['class_position_model']}")
-    if "class_share_model" in a:
-        extra.append(f"shares {a['class_share_model']}")
+    if fit.class_position_model is not None:
+        extra.append(f"entry/exit densities {fit.class_position_model}")
+    if fit.class_share_model is not None:
+        extra.append(f"shares {fit.class_share_model}")
     if extra:
         console.print("classes by PSIS-LOO: " + ", ".join(extra))
 
 
-def _sha256(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes (read in 1 MiB blocks)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def _attach_interaction(idata: Any, tracks: Any) -> None:
-    """The social force of the log's tracks, stored with the behaviour (issue 26)."""
-    from are_stats.fitting import fit_interaction, interaction_attrs
-
-    try:
-        params, info = fit_interaction(tracks)
-    except ValueError as err:  # too little walking together, or no interaction in the data
-        console.print(f"note: interaction not fitted ({err}); scenes use the published one")
+def _print_interaction(fit: Any) -> None:
+    """The social force a fit learned from the log's tracks (issue 26)."""
+    params = fit.interaction
+    if params is None:
         return
-    idata.behaviour.attrs.update(interaction_attrs(params, info))
+    info = fit.interaction_info
     console.print(
         f"interaction (social force): strength A {params.strength:.3g} m/s^2, range B "
         f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s "
@@ -415,46 +304,6 @@ def _behaviour_lines(fit: Any) -> list[str]:
         ]
         out.append(f"behaviour {name!r}: " + ", ".join(parts))
     return out
-
-
-def _attach_motion_tables(seed: int, idata: Any, tracks: Any, grid: Any) -> Any:
-    """Realism and displacement errors against the log's tracks, stored in the fit so that
-    ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
-    store the per-class motion rows (median speed, fraction still: issue 31); the motion
-    checks they come from are returned (the motion report draws them), else None."""
-    from are_stats.behaviour import BehaviourFit
-    from are_stats.fitting import (
-        class_motion_checks,
-        displacement_errors,
-        interaction_from_attrs,
-        motion_attrs,
-        motion_checks,
-    )
-    from are_stats.scenarios import realism_features, realism_summary, realism_table
-
-    bfit = BehaviourFit.from_dataset(idata.behaviour)
-    key = jax.random.key(seed)
-    # predicted as generation walks people: continuous paths, then the fit's social force
-    learned = interaction_from_attrs(idata.behaviour.attrs)
-    errors = displacement_errors(
-        jax.random.fold_in(key, 3), bfit, tracks, n_samples=20,
-        interaction=learned if learned is not None else True, grid=grid,
-    )  # fmt: skip
-    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
-    # (each through the one assembly, social force included) against the log
-    xy = tracks[["id", "t", "x", "y"]]
-    real = realism_table(jax.random.fold_in(key, 4), xy, grid, behaviour=bfit, n_replicates=1)
-    same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
-    dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
-    observed = realism_summary(realism_features(xy, dt, grid))
-    idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
-    if "label" not in tracks.columns:
-        return None
-    checks = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
-    per_class = class_motion_checks(tracks, checks[1])
-    if per_class is not None:
-        idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
-    return checks
 
 
 def _motion_outputs(tables: dict, folder: Path, force: bool) -> dict[str, Path]:
@@ -510,35 +359,27 @@ def _print_motion_tables(tables: dict) -> None:
     console.print(rich)
 
 
-def _motion_report(
-    seed: int, idata: Any, tracks: Any, grid: Any, folder: Path, force: bool, catalogue: Any,
-    checks: Any = None,
-):  # fmt: skip
+def _motion_report(seed: int, fit: Any, tracks: Any, folder: Path, force: bool, catalogue: Any):
     """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure;
-    with the realism and displacement tables stored in the fit (issue 26). ``checks``: the
-    motion checks :func:`_attach_motion_tables` already drew (the same seed), or None."""
+    with the realism and displacement tables stored in the fit (issue 26)."""
     import matplotlib.pyplot as plt
 
-    from are_stats.behaviour import BehaviourFit
     from are_stats.fitting import (
         class_motion_checks,
         heldout_log_likelihood,
         motion_checks,
-        motion_tables,
         plot_motion_checks,
     )
 
-    bfit = BehaviourFit.from_dataset(idata.behaviour)
+    bfit, grid, stored = fit.behaviour, fit.grid, fit.motion
     key = jax.random.key(seed)
-    if checks is None:
-        checks = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
-    table, reps = checks
+    # the same draws as fit_log's per-class motion rows (the same key)
+    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
         run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
     )  # fmt: skip
-    stored = motion_tables(idata.behaviour.attrs)
     fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
     out = {}
     for name, write in (
@@ -575,18 +416,9 @@ def _motion_report(
     return out
 
 
-def _print_traffic(idata: Any) -> None:
+def _print_traffic(fit: Any) -> None:
     """The model comparison tables and the chosen models of a fit, with sampler warnings."""
-    import io
-
-    import pandas as pd
-
-    a = idata.posterior.attrs
-    for factor in ("arrivals", "lifetimes", "positions"):
-        text = a.get(f"loo_{factor}")
-        if not text:
-            continue
-        table = pd.read_csv(io.StringIO(str(text)), index_col=0)
+    for factor, table in fit.comparisons.items():
         rich = Table(title=f"{factor}: candidates by PSIS-LOO (chosen: simplest within 2 SE of "
                      "the best)", title_justify="left")  # fmt: skip
         cols = [c for c in ("elpd", "se", "elpd_diff", "dse", "k>0.7", "divergent", "r_hat")
@@ -603,17 +435,13 @@ def _print_traffic(idata: Any) -> None:
                              f"{v:.1f}" if isinstance(v, float) else str(v)))  # fmt: skip
             rich.add_row(str(model), *cells, "yes" if bool(row["chosen"]) else "")
         console.print(rich)
+    laws = fit.laws
     console.print(
-        f"chosen models: arrivals [bold]{a.get('arrival_model', 'poisson')}[/], stays "
-        f"[bold]{a.get('lifetime_model', 'exponential')}[/], positions "
-        f"[bold]{a.get('position_model', 'uniform')}[/]"
+        f"chosen models: arrivals [bold]{laws.arrivals}[/], stays [bold]{laws.lifetimes}[/], "
+        f"positions [bold]{laws.positions}[/]"
     )
-    notes = str(a.get("traffic_arrival_notes", "") or "")
-    if notes:
-        console.print(f"note: {notes}")
-    for w in str(a.get("traffic_warnings", "") or "").splitlines():
-        if w.strip():
-            console.print(f"[yellow]warning:[/] {w}")
+    for kind, text in fit.traffic_notes:
+        console.print(f"note: {text}" if kind == "note" else f"[yellow]warning:[/] {text}")
 
 
 def _print_checks(written: dict) -> None:
@@ -671,34 +499,31 @@ def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, 
     (:func:`are_stats.fitting.read_fit`) and the size of the replicates against the limits
     of :mod:`are_stats.inputs`, before anything is drawn.
     """
-    from are_stats.fitting import check_report_size, fit_summary, read_fit, write_report
+    from are_stats.fitting import (
+        check_report_size,
+        fit_summary,
+        read_fit,
+        sampler_warnings,
+        write_report,
+    )
     from are_stats.inputs import get_int, get_seed
 
     seed = get_seed(seed)
     replicates = get_int(replicates, "--replicates", "", lo=1)
-    idata = read_fit(fit_path)
+    fit = read_fit(fit_path)
+    idata = fit.idata
     check_report_size(idata, replicates, f"{fit_path} with --replicates {replicates}")
     summary = fit_summary(idata)
-    console.print(_summary_table(summary, f"{fit_path} ({idata.posterior.attrs.get('method')})"))
-    for w in _warnings(idata, summary):
+    console.print(_summary_table(summary, f"{fit_path} ({fit.method})"))
+    for w in sampler_warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
     with console.status("posterior-predictive checks ..."):
         written = write_report(idata, out, key=seed, n_replicates=replicates, force=force)
-    _print_traffic(idata)
+    _print_traffic(fit)
     _print_checks(written)
-    if "behaviour" in idata.groups():  # the motion criticism the fit stored (issue 26)
-        from are_stats.fitting import motion_tables
-        from are_stats.inputs import Described, InputError
-
-        try:
-            stored = motion_tables(idata.behaviour.attrs)
-        except ValueError as err:
-            raise InputError(
-                fit_path, "behaviour", "the motion tables written by are-stats fit",
-                Described(f"a damaged table ({err})"),
-            ) from None  # fmt: skip
-        written.update(_motion_outputs(stored, out, force))
-        _print_motion_tables(stored)
+    if fit.motion:  # the motion criticism the fit stored (issue 26)
+        written.update(_motion_outputs(fit.motion, out, force))
+        _print_motion_tables(fit.motion)
     console.print(f"wrote {len(written)} files to {out}/")
     return written
 
@@ -731,15 +556,9 @@ def run_generate(
     """
 
     from are_stats.environment import load_catalogue
-    from are_stats.fitting import fit_class_labels, read_fit
+    from are_stats.fitting import read_fit
     from are_stats.inputs import get_float, get_int, get_seed, get_str
-    from are_stats.scenarios import (
-        check_folder,
-        scenes_from_fit,
-        scenes_tables,
-        traffic_draws,
-        write_scenes,
-    )
+    from are_stats.scenarios import check_folder, scenes_from_fit, scenes_tables, write_scenes
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
     n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
@@ -753,17 +572,17 @@ def run_generate(
     area_given = area is not None
     out = Path(out)
     check_folder(out, force)
-    idata = read_fit(fit_path)
+    fit = read_fit(fit_path)
     grid = None
     if map_path is not None:
         from are_stats.environment import OccupancyGrid
 
         map_path = resolve_shipped(map_path, "map", source="--map")  # or a shipped map's name
         grid = OccupancyGrid.from_ros_yaml(map_path)
-    fitted = "behaviour" in idata.groups()
+    fitted = fit.behaviour is not None
     if behaviours and grid is None and not fitted:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    laws = traffic_draws(idata, model)[1]
+    laws = fit.laws if model == "chosen" else fit.traffic(model)[1]
     if laws.positions == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
         raise ValueError(
             f"--map: expected an origin yaw of 0 with the fit's learned entry density, got "
@@ -784,7 +603,7 @@ def run_generate(
     ):
         clock(stage)
         scenes = scenes_from_fit(
-            seed, idata, grid, load_catalogue(), n_scenarios, horizon, behaviours=behaviours,
+            seed, fit, grid, load_catalogue(), n_scenarios, horizon, behaviours=behaviours,
             model=model, area=area, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
             source=source, cell_source="--behaviour-cell",
         )  # fmt: skip
@@ -794,7 +613,7 @@ def run_generate(
         "model": model,
         "map": None if map_path is None else str(map_path),
         "seed": int(seed),
-        "class_labels": fit_class_labels(idata),
+        "class_labels": None if fit.class_labels is None else list(fit.class_labels),
     }
     if not behaviours:
         tracks = None
@@ -827,7 +646,6 @@ def _behaviour_cell_m(grid: Any, cell: float) -> float:
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
-    from are_stats.fitting import fit_class_labels
     from are_stats.inputs import Described, InputError
 
     out = Path(out)
@@ -839,7 +657,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     check_writable(fit_file, force)
     t0 = time.perf_counter()
     console.rule("[bold]are_stats demo: from a field log to scenarios")
-    idata = run_fit(
+    fit = run_fit(
         EXAMPLE_LOG,
         fit_file,
         method="nuts",
@@ -861,12 +679,12 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
 
     from are_stats.fitting import window_statistics
 
-    post = idata.posterior
-    area = float(post.attrs["area"])
+    post = fit.idata.posterior
+    area = fit.area
     weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
     rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
     desc = yaml.safe_load((EXAMPLE_LOG.with_suffix(".yaml")).read_text())["description"]
-    res = float(np.asarray(post.attrs.get("traffic_time_resolution", 0.1)).ravel()[0])
+    res = fit.time_resolution
 
     def crowding(table: Any) -> dict[str, float]:
         """Median over scenarios of the crowding statistics (as the checks compute them)."""
@@ -887,9 +705,9 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         "truth": desc,
         "fit": str(fit_file),
         "chosen_models": {
-            "arrivals": str(post.attrs.get("arrival_model")),
-            "lifetimes": str(post.attrs.get("lifetime_model")),
-            "positions": str(post.attrs.get("position_model")),
+            "arrivals": fit.laws.arrivals,
+            "lifetimes": fit.laws.lifetimes,
+            "positions": fit.laws.positions,
         },
         "posterior_mean": {
             "arrival_rate": float(post["arrival_rate"].mean()),
@@ -899,7 +717,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
             "classes": {
                 str(label): {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
                 for label, w, r in zip(
-                    fit_class_labels(idata) or range(len(weights)), weights, rates, strict=True
+                    fit.class_labels or range(len(weights)), weights, rates, strict=True
                 )
             },
         },

@@ -129,7 +129,7 @@ def _fit(out: Path) -> None:
         class_labels=log.to_arrays()["label_names"],
         grid=grid,
         clock_start=log.clock_start,
-    )
+    ).idata
     with tempfile.TemporaryDirectory() as tmp:
         written = write_report(idata, tmp, key=1, n_replicates=50)
         for name in ("criticism", "traffic_checks"):

@@ -556,26 +556,15 @@ def _grid(path: str) -> Any:
 @_cached()
 def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any, Any, Any]:
     """Posterior draws and laws of the fit's chosen traffic models
-    (:func:`~are_stats.scenarios.traffic_draws`), its class labels, its fitted behaviour
+    (:meth:`~are_stats.fitting.Fit.traffic`), its class labels, its fitted behaviour
     (None without a ``behaviour`` group) and the interaction it learned (``True``, the
     published social force, without one)."""
-    from are_stats.behaviour import BehaviourFit
-    from are_stats.fitting import fit_class_labels, interaction_from_attrs, read_fit
-    from are_stats.scenarios import traffic_draws
+    from are_stats.fitting import read_fit
 
-    idata = read_fit(path)
-    draws, laws = traffic_draws(idata, "chosen")
-    behaviour, interaction = None, True
-    if "behaviour" in idata.groups():
-        try:
-            behaviour = BehaviourFit.from_dataset(idata.behaviour)
-            interaction = interaction_from_attrs(idata.behaviour.attrs) or True
-        except (KeyError, ValueError, TypeError, IndexError) as err:
-            raise InputError(
-                path, "behaviour", "the behaviour group written by are-stats fit",
-                Described(f"a damaged group ({type(err).__name__}: {err})"),
-            ) from None  # fmt: skip
-    return draws, fit_class_labels(idata), laws, behaviour, interaction
+    fit = read_fit(path)
+    draws, laws = fit.traffic("chosen")
+    labels = None if fit.class_labels is None else list(fit.class_labels)
+    return draws, labels, laws, fit.behaviour, fit.interaction or True
 
 
 @_cached()

@@ -244,14 +244,7 @@ def augment_bag(
     out = check_writable(out, force)
     map_file = resolve_shipped(map_path, "map", source="--map")
     grid = OccupancyGrid.from_ros_yaml(map_file)
-    idata = read_fit(fit)
-    if "area" not in idata.posterior.attrs:
-        raise InputError(
-            fit,
-            "posterior.attrs",
-            "the fit's area (m^2; a fit of are-stats fit)",
-            Described("none"),
-        )
+    fitted = read_fit(fit)
     from are_stats.logs import bag_passthrough
 
     traj = read_trajectory(
@@ -329,7 +322,7 @@ def augment_bag(
     # the one assembly (as generate and the sweeps): the fit's behaviour when it learned
     # one from tracks, else the catalogue's, then the social force
     (scene,) = scenes_from_fit(
-        seed, idata, grid, catalogue, 1, horizon, behaviours=True, model=model,
+        seed, fitted, grid, catalogue, 1, horizon, behaviours=True, model=model,
         behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=str(fit),
         cell_source="--behaviour-cell",
     )  # fmt: skip

@@ -53,6 +53,34 @@ from are_stats.fitting._nuts import chains_per_device, resolve_chain_method  # n
 
 __all__ += ["fit_lifecycle_nuts", "chains_per_device", "resolve_chain_method"]
 
+# --- the typed fit: what a fit file holds, decoded once where it enters ---
+from are_stats.fitting._fit import (  # noqa: E402
+    PARAMETER_NAMES,
+    TRAFFIC_NAMES,
+    Fit,
+    as_fit,
+    fit_class_labels,
+    fit_from_idata,
+    posterior_draws,
+    traffic_draws,
+)
+
+__all__ += [
+    "PARAMETER_NAMES",
+    "TRAFFIC_NAMES",
+    "Fit",
+    "as_fit",
+    "fit_class_labels",
+    "fit_from_idata",
+    "posterior_draws",
+    "traffic_draws",
+]
+
+# --- one field log in, the whole fit out (are-stats fit) ---
+from are_stats.fitting._field_fit import fit_log, log_sha256  # noqa: E402
+
+__all__ += ["fit_log", "log_sha256"]
+
 # --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
 from are_stats.fitting._criticism import (  # noqa: E402
     DispersionTest,
@@ -69,8 +97,7 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     attach_behaviour,
     attach_traffic,
     choose_n_components,
-    fit_class_labels,
-    fit_log,
+    fit_lifecycle_data,
     fit_loo,
     pointwise_log_likelihood,
     read_fit,
@@ -86,6 +113,7 @@ from are_stats.fitting._report import (  # noqa: E402
     plot_checks,
     predictive_checks,
     predictive_windows,
+    sampler_warnings,
     write_report,
 )
 from are_stats.fitting._traffic import (  # noqa: E402
@@ -136,17 +164,17 @@ __all__ += [
     "kaplan_meier",
     "FitSettings",
     "choose_n_components",
-    "fit_log",
+    "fit_lifecycle_data",
     "fit_loo",
     "pointwise_log_likelihood",
     "FIT_FORMAT_VERSION",
     "FitFormatWarning",
-    "fit_class_labels",
     "read_fit",
     "write_fit",
     "PredictiveChecks",
     "check_report_size",
     "fit_summary",
+    "sampler_warnings",
     "plot_checks",
     "predictive_checks",
     "predictive_windows",
@@ -154,9 +182,9 @@ __all__ += [
 ]
 
 # --- count panel against the life-cycle fit (issue 14, count panels) ---
-from are_stats.fitting._panel import PanelComparison, compare_panel  # noqa: E402
+from are_stats.fitting._panel import PanelComparison, compare_panel, panel_estimates  # noqa: E402
 
-__all__ += ["PanelComparison", "compare_panel"]
+__all__ += ["PanelComparison", "compare_panel", "panel_estimates"]
 # --- behaviour fitted from tracks (issue 16) ---
 from are_stats.fitting._behaviour import (  # noqa: E402
     BEHAVIOUR_FEATURES,

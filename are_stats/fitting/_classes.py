@@ -480,8 +480,8 @@ def class_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.DataFrame 
         ``model_5%``, ``model_50%``, ``model_95%``, ``model_flag``; None for a fit without
         classes.
     """
-    from are_stats.fitting._fit_log import fit_class_labels
-    from are_stats.scenarios import generate_scenarios, traffic_draws
+    from are_stats.fitting._fit import fit_class_labels, traffic_draws
+    from are_stats.scenarios import generate_scenarios
 
     post = idata.posterior
     obs = idata.observed_data

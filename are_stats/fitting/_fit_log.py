@@ -36,6 +36,7 @@ from are_stats._checks import check_in, check_nonneg_int, describe
 from are_stats._lazy import arviz as az
 from are_stats._lazy import import_xarray_dask
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
+from are_stats.fitting._fit import Fit, fit_from_idata
 from are_stats.fitting._lifecycle_mcmc import (
     _inference_data,
     _predictive_counts,
@@ -58,7 +59,7 @@ __all__ = [
     "FitSettings",
     "attach_behaviour",
     "attach_traffic",
-    "fit_log",
+    "fit_lifecycle_data",
     "choose_n_components",
     "fit_loo",
     "pointwise_log_likelihood",
@@ -306,7 +307,7 @@ def _em_inference_data(
     return idata
 
 
-def fit_log(
+def fit_lifecycle_data(
     key: Any,
     data: LifecycleData,
     settings: FitSettings = FitSettings(),  # noqa: B008 (frozen, immutable)
@@ -318,7 +319,9 @@ def fit_log(
     clock_start: str | None = None,
     classes: Any = None,
 ) -> az.InferenceData:
-    """Fit arrival rate, leave rate and mark mixture of a life-cycle log.
+    """Fit arrival rate, leave rate and mark mixture of a validated life-cycle log, with
+    the chosen traffic models and the classes of a labelled log (the statistics of
+    :func:`~are_stats.fitting.fit_log`).
 
     Parameters
     ----------
@@ -659,7 +662,7 @@ class FitFormatWarning(FutureWarning):
     """A fit file without a format version (written before fits carried one)."""
 
 
-def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> Any:
+def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False) -> Any:
     """Write a fit as NetCDF atomically (temporary file + rename); refuse to overwrite.
 
     The posterior carries ``format_version`` (:data:`FIT_FORMAT_VERSION`).
@@ -670,8 +673,8 @@ def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> A
 
     Parameters
     ----------
-    idata : arviz.InferenceData
-        The fit.
+    idata : Fit or arviz.InferenceData
+        The fit (:func:`~are_stats.fitting.fit_log`).
     out : str or Path
         Destination ``.nc`` file.
     force : bool
@@ -687,7 +690,7 @@ def write_fit(idata: az.InferenceData, out: str | Any, force: bool = False) -> A
     from are_stats._atomic import atomic_path
 
     path = Path(out)
-    stable = _stable(idata)
+    stable = _stable(idata.idata if isinstance(idata, Fit) else idata)
     stable.posterior.attrs["format_version"] = FIT_FORMAT_VERSION
     with atomic_path(path, force=force) as tmp:
         stable.to_netcdf(str(tmp))
@@ -1043,8 +1046,9 @@ def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior")
     return get_float(v, source, f"{group}.attrs.{name}", lo=0.0, lo_open=True)
 
 
-def read_fit(path: str | Any) -> az.InferenceData:
-    """Read and validate a fit written by :func:`write_fit` / ``are-stats fit``.
+def read_fit(path: str | Any) -> Fit:
+    """Read and validate a fit written by :func:`write_fit` / ``are-stats fit``: the one
+    way a fit file enters.
 
     Everything ``are-stats report`` and ``generate`` use is checked where the file enters:
     the ``posterior`` (positive finite ``arrival_rate`` / ``leave_rate`` over ``(chain,
@@ -1061,7 +1065,10 @@ def read_fit(path: str | Any) -> az.InferenceData:
 
     Returns
     -------
-    arviz.InferenceData
+    Fit
+        The decoded fit (:class:`~are_stats.fitting.Fit`: chosen laws, class labels,
+        behaviour, interaction, area, provenance, format version), with the checked
+        InferenceData as ``Fit.idata``.
 
     Raises
     ------
@@ -1089,25 +1096,7 @@ def read_fit(path: str | Any) -> az.InferenceData:
             p, "", f"an ArviZ NetCDF fit written by are-stats fit (could not read it: {err})"
         ) from err
     _check_fit(idata, str(p))
-    return idata
-
-
-def fit_class_labels(idata: Any) -> list[str] | None:
-    """The class name of each mixture component of a fit (read by :func:`read_fit`), or None.
-
-    A log with labels (life-cycle rows or tracks) stores them, comma-separated, as the
-    posterior attribute ``class_labels``; the only reader of that attribute.
-
-    Parameters
-    ----------
-    idata : arviz.InferenceData
-
-    Returns
-    -------
-    list of str or None
-    """
-    names = idata.posterior.attrs.get("class_labels")
-    return str(names).split(",") if names else None
+    return fit_from_idata(idata, str(p))
 
 
 def _stays_columns(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -119,6 +119,15 @@ def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[st
     return out
 
 
+def interaction_info(attrs: Mapping[str, Any]) -> dict[str, float]:
+    """How a stored social force was estimated (:func:`interaction_attrs`): ``r2``, ``n``
+    (accelerations), ``group_samples``."""
+    keys = {"r2": "r2", "n": "samples", "group_samples": "group_samples"}
+    return {
+        k: float(np.asarray(attrs.get(f"{_PREFIX}{v}", np.nan)).ravel()[0]) for k, v in keys.items()
+    }
+
+
 def interaction_from_attrs(attrs: Mapping[str, Any]) -> SocialForce | None:
     """The :class:`SocialForce` a fit stored (:func:`interaction_attrs`), or None.
 

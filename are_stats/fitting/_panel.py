@@ -19,7 +19,7 @@ import numpy as np
 
 from are_stats._checks import check_positive, describe
 
-__all__ = ["PanelComparison", "compare_panel"]
+__all__ = ["PanelComparison", "compare_panel", "panel_estimates"]
 
 #: What is compared: the birth rate, the death rate and their ratio (the mean count).
 PANEL_QUANTITIES = ("birth_rate", "death_rate", "mean_count")
@@ -196,4 +196,30 @@ def compare_panel(idata: Any, threshold: float = 3.0) -> PanelComparison:
         threshold=float(thr),
         stderr_kind=kind,
         warning=warning,
+    )
+
+
+def panel_estimates(idata: Any) -> str | None:
+    """One line on the birth-death MLE of a fit's count panel (``birth_death_*``
+    attributes, :func:`~are_stats.fitting.fit_log` with ``counts_panel``), or None.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData or Fit
+
+    Returns
+    -------
+    str or None
+        Birth and death rates with their model-based and robust standard errors.
+    """
+    idata = getattr(idata, "idata", idata)
+    a = idata.posterior.attrs
+    if "birth_death_birth_rate" not in a:
+        return None
+    se = np.asarray(a["birth_death_stderr"], float).ravel()
+    se_r = np.asarray(a.get("birth_death_stderr_robust", se), float).ravel()
+    return (
+        f"birth rate {float(a['birth_death_birth_rate']):.4g} +- {se[0]:.2g} (robust "
+        f"{se_r[0]:.2g}), death rate {float(a['birth_death_death_rate']):.4g} +- {se[1]:.2g} "
+        f"(robust {se_r[1]:.2g})"
     )

@@ -29,11 +29,12 @@ from are_stats._atomic import atomic_path
 from are_stats._lazy import arviz as az
 from are_stats.fitting._classes import class_checks
 from are_stats.fitting._criticism import count_path, hour_of_day_counts, kaplan_meier
+from are_stats.fitting._fit import posterior_draws
 from are_stats.fitting._traffic_checks import plot_traffic_checks, traffic_checks
-from are_stats.scenarios import generate_scenarios, posterior_draws
 
 __all__ = [
     "PARAMETERS",
+    "sampler_warnings",
     "check_report_size",
     "fit_summary",
     "predictive_windows",
@@ -44,6 +45,39 @@ __all__ = [
 ]
 
 PARAMETERS = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
+
+
+def sampler_warnings(idata: Any, summary: pd.DataFrame) -> list[str]:
+    """What a user must know about the sampler of a fit: divergences and r_hat.
+
+    The NUTS driver's own words when the fit stored them (``nuts_warnings``:
+    divergences and split-r_hat of every latent site); otherwise the divergent
+    transitions and the parameters of ``summary`` with r_hat > 1.01.
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData or Fit
+    summary : pandas.DataFrame
+        :func:`fit_summary` of the fit.
+
+    Returns
+    -------
+    list of str
+    """
+    idata = getattr(idata, "idata", idata)
+    if "sample_stats" in idata.groups() and "nuts_warnings" in idata.sample_stats.attrs:
+        text = str(idata.sample_stats.attrs["nuts_warnings"])
+        return [w for w in text.splitlines() if w.strip()]
+    out = []
+    if "sample_stats" in idata.groups() and "diverging" in idata.sample_stats:
+        n_div = int(idata.sample_stats["diverging"].sum())
+        if n_div:
+            out.append(f"{n_div} divergent transitions: the posterior may be biased")
+    r_hat = summary["r_hat"].to_numpy(dtype=float) if "r_hat" in summary else np.array([])
+    bad = summary.index[np.isfinite(r_hat) & (r_hat > 1.01)].tolist()
+    if bad:
+        out.append(f"r_hat > 1.01 for {', '.join(bad)}: run longer chains (--samples)")
+    return out
 
 
 def fit_summary(idata: az.InferenceData) -> pd.DataFrame:
@@ -176,6 +210,10 @@ def predictive_windows(key: Any, idata: az.InferenceData, n_replicates: int = 20
         The scenario table of :func:`are_stats.scenarios.generate_scenarios` with times
         shifted to the fit's window ``[t0, t1]``.
     """
+    # the scenario generator (a room downstream, imported when used: the criticism's one
+    # exception to the one-way imports)
+    from are_stats.scenarios import generate_scenarios
+
     obs = _observed(idata)
     t0, t1 = obs["window"]
     df = generate_scenarios(

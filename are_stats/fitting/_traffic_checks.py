@@ -207,7 +207,8 @@ def traffic_checks(
     replicates : dict of str to (R, S) ndarray
         The replicated statistics of each model (columns in table order).
     """
-    from are_stats.scenarios import generate_scenarios, traffic_draws
+    from are_stats.fitting._fit import traffic_draws
+    from are_stats.scenarios import generate_scenarios
 
     post = idata.posterior
     obs = idata.observed_data

@@ -196,7 +196,7 @@ def read_field_log(
     log = _validate(
         frame_table(out, str(p), "life-cycle log"), win, a, min_life, 1.0, str(p), resolved, tol
     )
-    return dataclasses.replace(log, conversion=info)
+    return dataclasses.replace(log, conversion=info, tracks=tracks)
 
 
 def read_field_tracks(

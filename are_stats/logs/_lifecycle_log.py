@@ -102,6 +102,9 @@ class LifecycleLog:
         How the log was made from a tracks table (:func:`read_field_log`): sightings,
         track ids, artefacts, split track ids, the sampling step and the group tolerances;
         empty for a life-cycle log read as such.
+    tracks : pandas.DataFrame or None
+        The tracks table itself (``id, t, x, y, label, yaw``, ``t`` in seconds) of a log
+        made from one, read with it (the behaviour fit reads its motion); None otherwise.
     """
 
     table: pd.DataFrame
@@ -112,6 +115,7 @@ class LifecycleLog:
     manifest: dict[str, Any] = field(default_factory=dict)
     columns: tuple[str, ...] = ()
     conversion: dict[str, Any] = field(default_factory=dict)
+    tracks: pd.DataFrame | None = None
 
     @property
     def n_artefacts(self) -> int:

@@ -19,17 +19,13 @@ from are_stats.scenarios._folder import (
     write_scenes,
 )
 from are_stats.scenarios._generate import (
-    PARAMETER_NAMES,
     SCENARIO_COLUMNS,
-    TRAFFIC_NAMES,
     atomic_folder,
     check_folder,
     check_scenario_size,
     expected_artefacts,
     generate_scenarios,
-    posterior_draws,
     scenario_counts,
-    traffic_draws,
     write_scenarios,
 )
 from are_stats.scenarios._realism import (
@@ -49,10 +45,8 @@ __all__ = [
     "MAX_POSITION",
     "Scene",
     "ScenesFolder",
-    "PARAMETER_NAMES",
     "REALISM_FEATURES",
     "SCENARIO_COLUMNS",
-    "TRAFFIC_NAMES",
     "atomic_folder",
     "check_folder",
     "check_scenario_size",
@@ -60,7 +54,6 @@ __all__ = [
     "expected_artefacts",
     "generate_scenarios",
     "plot_realism",
-    "posterior_draws",
     "realism_features",
     "realism_score",
     "realism_summary",
@@ -72,7 +65,6 @@ __all__ = [
     "scenes_from_fit",
     "scenes_from_tables",
     "scenes_tables",
-    "traffic_draws",
     "write_scenarios",
     "write_scenes",
 ]

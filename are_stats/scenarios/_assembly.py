@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.scenarios._generate import check_scenario_size, generate_scenarios, traffic_draws
+from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
 from are_stats.scenarios._scene import Scene
 
 __all__ = [
@@ -300,7 +300,7 @@ def scenes_from_draws(
         An int seed >= 0 (the scenarios use it, the tracks ``jax.random.key(seed)``: the
         command line's ``--seed``) or a JAX PRNG key (split in two).
     draws : dict of str to array
-        Posterior draws (:func:`~are_stats.scenarios.traffic_draws`) or one hand-set draw:
+        Posterior draws (:func:`~are_stats.fitting.traffic_draws`) or one hand-set draw:
         ``arrival_rate`` (S,), ``leave_rate`` (S,), optional ``mix_weights`` (S, K),
         ``mix_rates`` (S, K) (eq. 1) and the chosen models' variables.
     grid : OccupancyGrid or None
@@ -436,15 +436,16 @@ def scenes_from_fit(
     ----------
     key : int or jax.Array
         Seed or PRNG key (see :func:`scenes_from_draws`).
-    fit : arviz.InferenceData or str or PathLike
-        A fit (:func:`~are_stats.fitting.read_fit`, or its path).
+    fit : Fit or str or PathLike
+        A fit (:func:`~are_stats.fitting.read_fit`, or its path; an InferenceData of
+        :func:`~are_stats.fitting.fit_log` is decoded by :func:`~are_stats.fitting.as_fit`).
     grid, catalogue, n, horizon
         See :func:`scenes_from_draws`.
     behaviours : bool or str
         The module's behaviour rule.
     model : {"chosen", "paper"}
         Generate from the models the fit chose, or the paper's Poisson / exponential /
-        uniform model (:func:`~are_stats.scenarios.traffic_draws`).
+        uniform model (:meth:`~are_stats.fitting.Fit.traffic`).
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
@@ -461,44 +462,37 @@ def scenes_from_fit(
     -------
     list of Scene
     """
-    from are_stats.behaviour import BehaviourFit
-    from are_stats.fitting import fit_class_labels, interaction_from_attrs, read_fit
+    from are_stats.fitting import as_fit
     from are_stats.inputs import Described, InputError
 
     if source is None:
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
-    idata = read_fit(fit) if isinstance(fit, str) or hasattr(fit, "__fspath__") else fit
-    draws, laws = traffic_draws(idata, model)
+    fit = as_fit(fit, source)
+    draws, laws = fit.traffic(model)
     if "class_weights" in draws:  # a labelled log's classes: catalogue rows by name
         catalogue.rows_of_labels(
-            fit_class_labels(idata) or [], source, "posterior.attrs.class_labels"
+            list(fit.class_labels or ()), source, "posterior.attrs.class_labels"
         )
     if posterior_draw is not None:
         s = int(posterior_draw)
         draws = {k: np.asarray(v)[s : s + 1] for k, v in draws.items()}
-    fitted = None
-    if "behaviour" in idata.groups():
-        try:
-            fitted = BehaviourFit.from_dataset(idata.behaviour)
-            learned = interaction_from_attrs(idata.behaviour.attrs)
-            if interaction is True and learned is not None:
-                interaction = learned  # the log's own interaction
-        except (KeyError, ValueError, TypeError, IndexError) as err:
-            raise InputError(
-                source, "behaviour", "the behaviour group written by are-stats fit",
-                Described(f"a damaged group ({type(err).__name__}: {err})"),
-            ) from None  # fmt: skip
+    if interaction is True and fit.interaction is not None:
+        interaction = fit.interaction  # the log's own interaction
     nu = area
     if nu is None:
-        nu = (
-            float(np.count_nonzero(grid.free)) * grid.resolution**2
-            if grid is not None
-            else float(idata.posterior.attrs["area"])
-        )
+        if grid is not None:
+            nu = float(np.count_nonzero(grid.free)) * grid.resolution**2
+        elif fit.area is None:
+            raise InputError(source, "posterior.attrs.area",
+                             "the fit's area (m^2; a fit of are-stats fit), or a map",
+                             Described("none"))  # fmt: skip
+        else:
+            nu = fit.area
     check_scenario_size(draws, n, horizon, nu, start, source)
+    labels = None if fit.class_labels is None else list(fit.class_labels)
     return scenes_from_draws(
         key, draws, grid, catalogue, n, horizon, laws=laws, behaviours=behaviours,
-        fitted=fitted, class_labels=fit_class_labels(idata),
+        fitted=fit.behaviour, class_labels=labels,
         area=nu if grid is None else area, start=start,
         behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=source,
         cell_source=cell_source, interaction=interaction,

@@ -39,22 +39,15 @@ from are_stats.inputs import check_memory, check_work, get_float, get_int
 from are_stats.scenarios._folder import SCENARIO_COLUMNS, write_scenes
 
 __all__ = [
-    "PARAMETER_NAMES",
-    "TRAFFIC_NAMES",
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
     "check_scenario_size",
     "expected_artefacts",
     "generate_scenarios",
-    "posterior_draws",
     "scenario_counts",
-    "traffic_draws",
     "write_scenarios",
 ]
-
-#: Posterior variables used (names of the fit's NetCDF variables).
-PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates", "class_weights")
 
 
 def _seed_sequence(key: Any) -> tuple[np.random.SeedSequence, Any]:
@@ -337,7 +330,8 @@ def generate_scenarios(
     params : dict of str to array
         Posterior draws: ``arrival_rate`` (S,) (lambda, per m^2 per time unit),
         ``leave_rate`` (S,) (mu), optional ``mix_weights`` (S, K) and ``mix_rates`` (S, K)
-        (eq. 1). Scalars / (K,) vectors are one draw. See :func:`posterior_draws`. A fit
+        (eq. 1). Scalars / (K,) vectors are one draw. See
+        :func:`~are_stats.fitting.posterior_draws`. A fit
         of a log that names its classes (labels, no marks) gives ``class_weights`` (S, K)
         instead of the mixture, and with per-class stays ``class_stay_mean`` (S, K) and
         ``class_stay_shape`` (S,): each group's class is drawn from the shares and its stay
@@ -366,7 +360,8 @@ def generate_scenarios(
         4: yaw uniform over ``{0, pi/2, pi, 3pi/2}`` (plus the map's yaw); 0: uniform on
         ``[0, 2 pi)``.
     laws : are_stats.traffic.TrafficLaws, optional
-        The arrival, stay and position laws (:func:`traffic_draws` reads them from a fit).
+        The arrival, stay and position laws (:func:`~are_stats.fitting.traffic_draws`
+        reads them from a fit).
         None or the paper's laws: the vectorised paper sampler; otherwise each scenario is
         drawn by :func:`are_stats.traffic.sample_population` and ``params`` must also hold
         the laws' draws (``event_rate``, ``stay_mean``, ...).
@@ -728,124 +723,6 @@ def _summary(p: Mapping[str, np.ndarray]) -> dict[str, Any]:
             "sd": [float(f"{v:.12g}") for v in np.ravel(a.std(axis=0))],
         }
     return out
-
-
-def posterior_draws(idata: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
-    """Flatten the ``posterior`` group of an ArviZ InferenceData (or a NetCDF path) to draws.
-
-    Parameters
-    ----------
-    idata : arviz.InferenceData or str or PathLike
-        A fit (as written by ``are-stats fit``).
-    names : tuple of str
-        Variables to take when present (:data:`PARAMETER_NAMES`).
-
-    Returns
-    -------
-    dict of str to array
-        ``(chain * draw, ...)`` arrays for each variable found.
-
-    Raises
-    ------
-    ValueError
-        If the posterior lacks ``arrival_rate`` or ``leave_rate``.
-    """
-    if isinstance(idata, str | os.PathLike):
-        from are_stats._lazy import arviz as az
-
-        p = Path(idata)
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: no such fit file")
-        idata = az.from_netcdf(p)
-    post = idata.posterior
-    out = {}
-    for name in names:
-        if name in post:
-            a = np.asarray(post[name].values)
-            out[name] = a.reshape(-1, *a.shape[2:])
-    for name in ("arrival_rate", "leave_rate"):
-        if name not in out:
-            raise ValueError(
-                f"posterior: expected a variable {name!r}, got {sorted(post.data_vars)}"
-            )
-    return out
-
-
-#: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
-TRAFFIC_NAMES = (
-    "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
-    "class_stay_mean", "class_stay_shape", "class_tod_weights",
-    "mmpp_factor", "mmpp_switch", "hawkes_branching", "hawkes_decay",
-)  # fmt: skip
-
-
-def traffic_draws(idata: Any, model: str = "chosen") -> tuple[dict[str, np.ndarray], Any]:
-    """Posterior draws and laws to generate from: the fit's chosen models or the paper's.
-
-    Parameters
-    ----------
-    idata : arviz.InferenceData
-        A fit (:func:`are_stats.fitting.read_fit`).
-    model : {"chosen", "paper"}
-        ``chosen``: the arrival, stay and position models recorded by ``are-stats fit``
-        (attributes ``arrival_model``, ``lifetime_model``, ``position_model``); ``paper``:
-        Poisson arrivals, exponential stays, uniform positions.
-
-    Returns
-    -------
-    draws : dict of str to (S, ...) ndarray
-        :data:`PARAMETER_NAMES` and, for chosen models, :data:`TRAFFIC_NAMES` present.
-    laws : are_stats.traffic.TrafficLaws
-    """
-    from are_stats.fitting import class_position_densities
-    from are_stats.traffic import PositionDensity, TrafficLaws, clock_offset
-
-    check_in("model", model, ("chosen", "paper"))
-    draws = posterior_draws(idata)
-    if model == "paper":
-        return draws, TrafficLaws()
-    post = idata.posterior
-    a = post.attrs
-    arrivals = str(a.get("arrival_model", "poisson"))
-    lifetimes = str(a.get("lifetime_model", "exponential"))
-    positions = str(a.get("position_model", "uniform"))
-    for name in TRAFFIC_NAMES:
-        if name.startswith("class_stay") and a.get("class_stay_model") != "per-class":
-            continue  # LOO kept the pooled stays: one law for every class
-        if name == "class_tod_weights" and a.get("class_share_model") != "time-of-day":
-            continue  # LOO kept one set of shares for the whole day
-        if name in post:
-            v = np.asarray(post[name].values)
-            draws[name] = v.reshape(-1, *v.shape[2:])
-    entry = None
-    if positions == "learned":
-        cd = idata.constant_data
-        o = np.asarray(cd.attrs["position_origin"], float).ravel()
-        entry = PositionDensity(
-            np.asarray(cd["entry_density"].values, float),
-            float(np.asarray(cd.attrs["position_resolution"]).ravel()[0]),
-            (float(o[0]), float(o[1])),
-            float(np.asarray(cd.attrs.get("position_bandwidth", 0.0)).ravel()[0]),
-            float("nan"),
-        )
-    clock = a.get("traffic_clock_start")
-
-    def num(name: str, default: float) -> float:
-        v = a.get(name, default)
-        return float(np.asarray(v).ravel()[0])
-
-    laws = TrafficLaws(
-        arrivals=arrivals,
-        lifetimes=lifetimes,
-        positions=positions,
-        bin_width=num("traffic_arrival_bin_width", 0.0) or None,
-        clock_offset=None if clock is None else clock_offset(str(clock)),
-        group_stay_sd=num("traffic_group_stay_sd", 0.0),
-        group_spread=num("traffic_group_spread", 0.0),
-        entry=entry,
-        class_entry=class_position_densities(idata),
-    )
-    return draws, laws
 
 
 def scenario_counts(df: pd.DataFrame, times: Any, n_scenarios: int | None = None) -> np.ndarray:

@@ -15,8 +15,9 @@ import yaml
 from are_stats import FitSettings, fit_log, simulate_lifecycle, write_fit
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
 from are_stats.experiments import expand_tasks, load_results, run_sweep, run_task
+from are_stats.fitting import posterior_draws
 from are_stats.inputs import InputError
-from are_stats.scenarios import generate_scenarios, posterior_draws, write_scenarios
+from are_stats.scenarios import generate_scenarios, write_scenarios
 
 SIDE = 20  # a 20 m x 20 m free square at 1 m cells
 AREA = float(SIDE * SIDE)
@@ -37,7 +38,7 @@ def files(tmp_path_factory):
     settings = FitSettings(
         method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2, **paper
     )
-    idata = fit_log(jax.random.key(1), data, settings)
+    idata = fit_log(jax.random.key(1), data, settings).idata
     write_fit(idata, root / "fits" / "fit.nc")
     draws = posterior_draws(idata)
     df = generate_scenarios(5, draws, 2, HORIZON, free_mask=grid)

@@ -17,11 +17,12 @@ from are_stats.fitting import (
     fit_classes,
     fit_log,
     read_fit,
+    traffic_draws,
     write_fit,
 )
 from are_stats.inputs import InputError
 from are_stats.logs import read_lifecycle_log
-from are_stats.scenarios import generate_scenarios, scenes_from_fit, traffic_draws
+from are_stats.scenarios import generate_scenarios, scenes_from_fit
 from are_stats.traffic import LifecycleData
 from tests.helpers import chisquare_gof
 
@@ -132,9 +133,9 @@ def test_labelled_log_fit_generate_end_to_end(tmp_path, rng):
     data = log.to_lifecycle_data()
     assert data.marks is None and data.labels is None
     s = FitSettings(method="em", num_samples=500, num_chains=1, **PAPER)
-    idata = fit_log(jax.random.key(0), data, s, class_labels=names, classes=codes)
+    idata = fit_log(jax.random.key(0), data, s, class_labels=names, classes=codes).idata
     write_fit(idata, tmp_path / "fit.nc")
-    back = read_fit(tmp_path / "fit.nc")
+    back = read_fit(tmp_path / "fit.nc").idata
     post = back.posterior
     assert fit_class_labels(back) == names
     assert post["class_weights"].dims == ("chain", "draw", "class")
@@ -195,12 +196,12 @@ def test_a_log_without_labels_is_fitted_as_before(tmp_path, rng):
     assert log.label_classes() is None
     data = log.to_lifecycle_data()
     s = FitSettings(method="em", num_samples=200, num_chains=1, **PAPER)
-    plain = fit_log(jax.random.key(0), data, s)
+    plain = fit_log(jax.random.key(0), data, s).idata
     assert not [v for v in plain.posterior.data_vars if str(v).startswith("class_")]
     assert "class_labels" not in plain.posterior.attrs
     # the class fit comes after the pooled one and leaves its draws as they were
     codes = rng.integers(0, 3, data.n)
-    labelled = fit_log(jax.random.key(0), data, s, class_labels=LABELS, classes=codes)
+    labelled = fit_log(jax.random.key(0), data, s, class_labels=LABELS, classes=codes).idata
     for name in ("arrival_rate", "leave_rate"):
         assert np.array_equal(plain.posterior[name].values, labelled.posterior[name].values)
     # and so are the scenarios of a fit without classes

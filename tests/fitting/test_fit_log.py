@@ -24,12 +24,13 @@ from are_stats.fitting import (
     fit_log,
     fit_loo,
     pointwise_log_likelihood,
+    posterior_draws,
     read_fit,
     write_fit,
     write_report,
 )
 from are_stats.inputs import InputError, LimitError
-from are_stats.scenarios import generate_scenarios, posterior_draws
+from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import LifecycleData, lifecycle_model, simulate_lifecycle
 
 with warnings.catch_warnings():
@@ -54,7 +55,7 @@ def _data(marks: bool = True, labels: bool = False, seed: int = 0) -> LifecycleD
 
 @pytest.fixture(scope="module")
 def em_file(tmp_path_factory):
-    idata = fit_log(jax.random.key(3), _data(), EM)
+    idata = fit_log(jax.random.key(3), _data(), EM).idata
     path = tmp_path_factory.mktemp("fit") / "em.nc"
     write_fit(idata, path)
     return path
@@ -66,11 +67,11 @@ def _digest(path) -> str:
 
 def test_em_fit_of_a_log_without_marks_goes_end_to_end(tmp_path):
     data = _data(marks=False)
-    idata = fit_log(jax.random.key(0), data, EM)
+    idata = fit_log(jax.random.key(0), data, EM).idata
     assert "mix_weights" not in idata.posterior and "mix_rates" not in idata.posterior
     assert int(idata.posterior.attrs["n_components"]) == -1
     path = write_fit(idata, tmp_path / "nomarks.nc")
-    back = read_fit(path)
+    back = read_fit(path).idata
     df = generate_scenarios(1, posterior_draws(back), 3, 600.0, area=AREA)
     assert len(df) and (df["mark"] == -1).all() and (df["class"] == -1).all()
     written = write_report(back, tmp_path / "report", n_replicates=3)
@@ -83,13 +84,13 @@ def test_report_of_a_log_without_arrivals_inside_the_window(tmp_path):
     data = LifecycleData(
         np.full(n, np.nan), np.full(n, np.nan), (0.0, 600.0), AREA, marks=np.arange(n)
     )
-    idata = fit_log(jax.random.key(0), data, EM)
+    idata = fit_log(jax.random.key(0), data, EM).idata
     written = write_report(idata, tmp_path / "report", n_replicates=3)
     assert written["ppc_interarrival"].exists() and written["ppc_dwell"].exists()
 
 
 def test_stored_log_likelihood_scales_with_distinct_data_and_loo_is_unchanged(em_file, monkeypatch):
-    idata = read_fit(em_file)
+    idata = read_fit(em_file).idata
     ll = idata.log_likelihood
     assert "stays" not in ll
     assert all("artefact" not in ll[v].dims for v in ll.data_vars)
@@ -126,7 +127,7 @@ def test_stored_log_likelihood_scales_with_distinct_data_and_loo_is_unchanged(em
     assert marks.shape[-1] == data.n and hist.shape[-1] == counts.size == np.unique(data.marks).size
     # with class labels the distinct observations are (class, mark) pairs
     labelled = _data(labels=True)
-    fit = fit_log(jax.random.key(5), labelled, EM)
+    fit = fit_log(jax.random.key(5), labelled, EM).idata
     pairs = np.unique(np.stack([labelled.labels, labelled.marks], 1), axis=0)
     assert fit.log_likelihood["mark_histogram"].shape[-1] == len(pairs)
     per = pointwise_log_likelihood(fit, "marks").values
@@ -143,9 +144,9 @@ def test_stored_log_likelihood_scales_with_distinct_data_and_loo_is_unchanged(em
 
 def test_same_seed_same_bytes(tmp_path, em_file):
     second = tmp_path / "again.nc"
-    write_fit(fit_log(jax.random.key(3), _data(), EM), second)
+    write_fit(fit_log(jax.random.key(3), _data(), EM).idata, second)
     assert _digest(second) == _digest(em_file)
-    idata = read_fit(em_file)
+    idata = read_fit(em_file).idata
     assert all("created_at" not in getattr(idata, g).attrs for g in idata.groups())
 
 
@@ -271,11 +272,11 @@ def test_fits_carry_their_format_and_an_unversioned_fit_is_read_with_a_warning(t
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        idata = read_fit(em_file)  # written by this version: stamped, no warning
+        idata = read_fit(em_file).idata  # written by this version: stamped, no warning
     assert int(idata.posterior.attrs["format_version"]) == FIT_FORMAT_VERSION
     old = _rewrite(em_file, tmp_path / "old.nc", _attr("format_version", delete=True))
     with pytest.warns(FitFormatWarning, match=r"old\.nc: the fit has no format_version"):
-        back = read_fit(old)
+        back = read_fit(old).idata
     np.testing.assert_array_equal(back.posterior["arrival_rate"], idata.posterior["arrival_rate"])
 
 
@@ -292,18 +293,18 @@ def test_read_fit_refuses_what_is_not_a_fit(tmp_path):
 
 def test_report_refuses_a_mark_panel_past_the_memory_limit(tmp_path, em_file):
     huge = _rewrite(em_file, tmp_path / "huge.nc", _set("observed_data", "marks", _at(0, 10**15)))
-    idata = read_fit(huge)  # a valid fit ...
+    idata = read_fit(huge).idata  # a valid fit ...
     with pytest.raises(LimitError, match=r"the marks panel \(marks up to 1000000000000000"):
         check_report_size(idata, 10, str(huge))  # ... whose report would need petabytes
     with pytest.raises(LimitError, match=r"--max-memory"):
         write_report(idata, tmp_path / "report", n_replicates=10)
     assert not (tmp_path / "report").exists()
     with pytest.raises(LimitError, match=r"expected about 1\.\d+e\+09 artefacts"):
-        check_report_size(read_fit(em_file), 10**7, "fit")
+        check_report_size(read_fit(em_file).idata, 10**7, "fit")
 
 
 def test_write_fit_failure_leaves_nothing_under_the_final_name(tmp_path, em_file):
-    idata = read_fit(em_file)
+    idata = read_fit(em_file).idata
     target = tmp_path / "fit.nc"
     target.write_bytes(b"the earlier fit")
     broken = idata.copy()

@@ -51,8 +51,8 @@ def _panel(data: LifecycleData) -> tuple[np.ndarray, np.ndarray]:
 def test_paper_data_agree_and_attrs_round_trip(tmp_path):
     d = simulate_lifecycle(jax.random.key(4), BIRTH / AREA, DEATH, [1.0], [1.0], WINDOW, area=AREA)
     data = LifecycleData(d.t_arrive, d.t_leave, d.window, d.area)
-    idata = fit_log(jax.random.key(5), data, PAPER, counts_panel=_panel(data))
-    back = read_fit(write_fit(idata, tmp_path / "fit.nc"))
+    idata = fit_log(jax.random.key(5), data, PAPER, counts_panel=_panel(data)).idata
+    back = read_fit(write_fit(idata, tmp_path / "fit.nc")).idata
     a = back.posterior.attrs
     se_r = np.asarray(a["birth_death_stderr_robust"])
     assert se_r.shape == (2,) and np.all(se_r > 0)
@@ -74,7 +74,7 @@ def test_group_data_disagree_with_a_warning():
     t_arrive = np.where(pop["truncated"], np.nan, pop["t_arrive"])
     t_leave = np.where(pop["t_leave"] >= WINDOW[1], np.nan, pop["t_leave"])
     data = LifecycleData(t_arrive, t_leave, WINDOW, AREA)
-    idata = fit_log(jax.random.key(6), data, PAPER, counts_panel=_panel(data))
+    idata = fit_log(jax.random.key(6), data, PAPER, counts_panel=_panel(data)).idata
     cmp = compare_panel(idata)
     assert cmp.z[0] > 3 and cmp.z[1] > 3 and abs(cmp.z[2]) < 3.29, cmp.z
     assert cmp.disagree and "group arrivals" in cmp.warning

@@ -19,10 +19,11 @@ from are_stats.fitting import (
     fit_traffic,
     read_fit,
     traffic_checks,
+    traffic_draws,
     write_fit,
 )
 from are_stats.inputs import InputError
-from are_stats.scenarios import generate_scenarios, scenario_counts, traffic_draws
+from are_stats.scenarios import generate_scenarios, scenario_counts
 from are_stats.traffic import (
     LifecyclePriors,
     TrafficLaws,
@@ -130,7 +131,7 @@ def _idata_with(traffic, data):
     """A small fit file holding the paper's conjugate draws and the traffic choice."""
     idata = fit_log(jax.random.key(3), data,
                     FitSettings(method="em", num_samples=200, num_chains=2, arrivals="poisson",
-                                lifetimes="exponential", positions="uniform"))  # fmt: skip
+                                lifetimes="exponential", positions="uniform")).idata  # fmt: skip
     from are_stats.fitting import attach_traffic
 
     return attach_traffic(idata, traffic)
@@ -140,7 +141,7 @@ def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
     data, _ = rich_log
     idata = _idata_with(rich_fit, data)
     write_fit(idata, tmp_path / "f.nc")
-    back = read_fit(tmp_path / "f.nc")
+    back = read_fit(tmp_path / "f.nc").idata
     assert back.posterior.attrs["arrival_model"] == "groups"
     assert "entry_density" in back.constant_data
     table, reps = traffic_checks(0, back, 100)

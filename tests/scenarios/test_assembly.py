@@ -10,10 +10,10 @@ import pytest
 from are_stats._lazy import arviz as az
 from are_stats.behaviour import behaviour_tracks
 from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
+from are_stats.fitting import posterior_draws
 from are_stats.scenarios import (
     Scene,
     generate_scenarios,
-    posterior_draws,
     scene_tracks,
     scenes_from_draws,
     scenes_from_fit,

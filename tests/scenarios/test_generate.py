@@ -12,13 +12,13 @@ import pytest
 from scipy import stats
 
 from are_stats._atomic import OutputExistsError
+from are_stats.fitting import posterior_draws
 from are_stats.inputs import InputError, LimitError, limits
 from are_stats.scenarios import (
     SCENARIO_COLUMNS,
     atomic_folder,
     expected_artefacts,
     generate_scenarios,
-    posterior_draws,
     read_scenes,
     scenario_counts,
     write_scenarios,

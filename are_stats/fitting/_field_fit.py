@@ -1,0 +1,233 @@
+"""One field log in, the whole fit out: traffic, classes, behaviour, interaction, motion.
+
+:func:`fit_log` is what ``are-stats fit`` runs: it takes a field log read once
+(:func:`are_stats.logs.read_field_log`: the life-cycle rows, and the tracks of a tracks
+table), reads the manifest's map once, fits the paper's models and the chosen traffic
+models (:func:`fit_lifecycle_data`), then, for a tracks table, the behaviour
+(:func:`~are_stats.fitting.fit_behaviour`), the social force
+(:func:`~are_stats.fitting.fit_interaction`) and the motion criticism stored with them
+(realism, displacement errors), and stamps the provenance. It returns a
+:class:`~are_stats.fitting.Fit`; the CLI only prints and writes it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+import yaml
+
+from are_stats.fitting._behaviour import NoWalkersError, fit_behaviour, open_area_grid
+from are_stats.fitting._classes import class_motion_checks
+from are_stats.fitting._fit import Fit, fit_from_idata
+from are_stats.fitting._fit_log import (
+    FitSettings,
+    attach_behaviour,
+    fit_lifecycle_data,
+)
+from are_stats.fitting._interaction import fit_interaction, interaction_attrs
+from are_stats.fitting._motion_checks import displacement_errors, motion_checks
+from are_stats.fitting._motion_store import motion_attrs
+from are_stats.logs import LifecycleLog
+from are_stats.traffic import LifecycleData, LifecyclePriors
+
+__all__ = ["fit_log", "log_sha256"]
+
+
+def log_sha256(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes (read in 1 MiB blocks): the fit's ``log_sha256``."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _seed_of(key: Any) -> tuple[Any, int | None]:
+    """A PRNG key and the int seed it came from (None for a key given as such)."""
+    if isinstance(key, int | np.integer) and not isinstance(key, bool):
+        return jax.random.key(int(key)), int(key)
+    return key, None
+
+
+def _behaviour(
+    seed: int, idata: Any, log: LifecycleLog, grid: Any, features: tuple[str, ...],
+    catalogue: Any, say: Any, notes: list[str],
+) -> Any:  # fmt: skip
+    """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``."""
+    from are_stats.environment import OccupancyGrid
+
+    tracks = log.tracks
+    if grid is not None:
+        free, res, origin = grid.free, grid.resolution, grid.origin[:2]
+    else:  # no map: the open area the tracks cover (issue 26)
+        free, res, origin = open_area_grid(tracks, source=log.source)
+        # the criticism (motion checks, realism) then scores on that open area too
+        grid = OccupancyGrid(np.where(free, 0, 100), res, (origin[0], origin[1], 0.0))
+        notes.append(
+            "no map in the manifest: behaviour fitted on the open area the tracks cover "
+            f"({free.shape[1] * res:.1f} x {free.shape[0] * res:.1f} m, their bounding box "
+            "plus 1 m, all free)"
+        )
+    say("behaviour from the tracks (speeds, exits, rationality)")
+    run_speed = None if catalogue is None else catalogue.run_thresholds()
+    try:
+        bfit = fit_behaviour(
+            tracks, free, res, origin, seed=seed, features=features or None, run_speed=run_speed
+        )
+    except NoWalkersError as err:  # people who only stand: no walking to learn
+        notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
+        return idata, grid
+    idata = attach_behaviour(idata, bfit)
+    say("interaction (social force) from the tracks")
+    learned = None
+    try:
+        learned, info = fit_interaction(tracks)
+    except ValueError as err:  # too little walking together, or no interaction in the data
+        notes.append(f"interaction not fitted ({err}); scenes use the published one")
+    else:
+        idata.behaviour.attrs.update(interaction_attrs(learned, info))
+    say("realism and displacement errors against the tracks")
+    _attach_motion_tables(seed, idata, bfit, learned, tracks, grid)
+    return idata, grid
+
+
+def _attach_motion_tables(
+    seed: int, idata: Any, bfit: Any, learned: Any, tracks: Any, grid: Any
+) -> None:
+    """Realism and displacement errors against the log's tracks, stored in the fit so that
+    ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
+    store the per-class motion rows (median speed, fraction still: issue 31)."""
+    # the realism table generates through the one assembly: the criticism's exception to
+    # the one-way imports (fitting -> scenarios), imported when used
+    from are_stats.scenarios import realism_features, realism_summary, realism_table
+
+    key = jax.random.key(seed)
+    # predicted as generation walks people: continuous paths, then the fit's social force
+    errors = displacement_errors(
+        jax.random.fold_in(key, 3), bfit, tracks, n_samples=20,
+        interaction=learned if learned is not None else True, grid=grid,
+    )  # fmt: skip
+    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
+    # (each through the one assembly, social force included) against the log
+    xy = tracks[["id", "t", "x", "y"]]
+    real = realism_table(jax.random.fold_in(key, 4), xy, grid, behaviour=bfit, n_replicates=1)
+    same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
+    dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
+    observed = realism_summary(realism_features(xy, dt, grid))
+    idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
+    if "label" not in tracks.columns:
+        return
+    _, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    per_class = class_motion_checks(tracks, reps)
+    if per_class is not None:
+        idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
+
+
+def fit_log(
+    key: Any,
+    log: LifecycleLog | LifecycleData,
+    settings: FitSettings = FitSettings(),  # noqa: B008 (frozen, immutable)
+    priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
+    counts_panel: tuple[np.ndarray, np.ndarray] | None = None,
+    progress: Any = None,
+    class_labels: Any = None,
+    grid: Any = None,
+    clock_start: str | None = None,
+    classes: Any = None,
+    *,
+    behaviour: bool = True,
+    features: tuple[str, ...] = (),
+    catalogue: Any = None,
+) -> Fit:
+    """Fit one field log: the whole fit ``are-stats fit`` writes.
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+        All randomness of the fit (reproducible from it). With a tracks table, an int seed
+        (as the CLI's ``--seed``) also seeds the behaviour fit and its motion criticism; a
+        key then seeds them with its first word.
+    log : LifecycleLog or LifecycleData
+        A field log read once by :func:`are_stats.logs.read_field_log` (life-cycle rows,
+        the tracks of a tracks table, the manifest with its map), or an already validated
+        :class:`~are_stats.logs.LifecycleData` (the traffic models only; ``class_labels``,
+        ``classes``, ``grid`` and ``clock_start`` as :func:`fit_lifecycle_data` takes them).
+    settings, priors, counts_panel, progress
+        See :func:`fit_lifecycle_data`.
+    class_labels, grid, clock_start, classes
+        Only with a :class:`~are_stats.logs.LifecycleData`: a field log supplies them (its
+        labels, the manifest's map, its ``clock_start``, its label classes).
+    behaviour : bool
+        Fit the behaviour, interaction and motion tables of a tracks table.
+    features : tuple of str
+        Extra reward features of the behaviour (:data:`BEHAVIOUR_FEATURES`).
+    catalogue : ArtefactCatalogue, optional
+        The property table Q: the labels' rows (an unknown label is an error) and the
+        classes' run speeds (default :func:`~are_stats.environment.load_catalogue`).
+
+    Returns
+    -------
+    Fit
+        The decoded fit (:attr:`Fit.idata` is what :func:`write_fit` writes), with the
+        notes on what was not fitted and why (:attr:`Fit.notes`).
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        For a label the catalogue does not have (naming the file and column ``label``).
+    """
+    key, seed = _seed_of(key)
+    if isinstance(log, LifecycleData):
+        idata = fit_lifecycle_data(
+            key, log, settings, priors, counts_panel, progress, class_labels, grid,
+            clock_start, classes,
+        )  # fmt: skip
+        return fit_from_idata(idata)
+    if not isinstance(log, LifecycleLog):
+        raise ValueError(
+            f"log: expected a LifecycleLog (read_field_log) or LifecycleData, got "
+            f"{type(log).__name__}"
+        )
+    from are_stats.environment import OccupancyGrid, load_catalogue
+
+    say = progress or (lambda _msg: None)
+    data = log.to_lifecycle_data()
+    # labels without marks: the class is the label, found in the catalogue by name (issue 31)
+    labelled = log.label_classes()
+    catalogue = load_catalogue() if catalogue is None else catalogue
+    if labelled is not None:
+        catalogue.rows_of_labels(labelled[1], source=log.source, where="column 'label'")
+    tracks = log.tracks if behaviour else None
+    if (settings.positions != "uniform" or tracks is not None) and log.manifest.get("map"):
+        grid = OccupancyGrid.from_ros_yaml(log.manifest["map"])
+    idata = fit_lifecycle_data(
+        key, data, settings, priors, counts_panel, progress,
+        class_labels=(log.to_arrays()["label_names"]
+                      if data.labels is not None or labelled is not None else None),
+        grid=None if settings.positions == "uniform" else grid,
+        clock_start=log.clock_start,
+        classes=None if labelled is None else labelled[0],
+    )  # fmt: skip
+    notes: list[str] = []
+    if tracks is not None:
+        if seed is None:
+            seed = int(np.asarray(jax.random.key_data(key)).ravel()[-1])
+        idata, grid = _behaviour(seed, idata, log, grid, features, catalogue, say, notes)
+    # the log's file name and content hash, never its folder (a shared fit must not carry
+    # the user's folder layout): the hash identifies the bytes that were fitted
+    rep = log.report()
+    rep["source"] = Path(str(rep.get("source") or log.source)).name
+    stamp: dict[str, Any] = {} if seed is None else {"seed": int(seed)}
+    stamp["log"] = Path(log.source).name
+    if Path(log.source).is_file():
+        stamp["log_sha256"] = log_sha256(log.source)
+    stamp["log_report"] = yaml.safe_dump(rep, sort_keys=False)
+    if notes:
+        stamp["fit_notes"] = "\n".join(notes)
+    idata.posterior.attrs.update(stamp)
+    return dataclasses.replace(fit_from_idata(idata, log.source), grid=grid)

@@ -1,0 +1,372 @@
+"""The typed fit: what a fit file holds, decoded once where it enters.
+
+A fit is written as ArviZ NetCDF (:func:`~are_stats.fitting.write_fit`): a posterior, the
+observed log, and attributes (the chosen traffic laws, the class labels, the area, the
+provenance) plus an optional ``behaviour`` group. :func:`~are_stats.fitting.read_fit`
+checks it and returns a :class:`Fit`: every consumer outside this room (the scenes
+assembly, the sweeps, ``augment``, the CLI) reads these typed fields, never the NetCDF
+attributes. The raw :attr:`Fit.idata` stays available to the fitting room itself (report,
+PSIS-LOO, criticism), which works on the InferenceData.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from are_stats._checks import check_in
+from are_stats.behaviour import BehaviourFit, SocialForce
+from are_stats.fitting._class_traffic import class_position_densities
+from are_stats.fitting._interaction import interaction_from_attrs, interaction_info
+from are_stats.fitting._motion_store import motion_tables
+from are_stats.inputs import Described, InputError
+from are_stats.traffic import PositionDensity, TrafficLaws, clock_offset
+
+__all__ = [
+    "PARAMETER_NAMES",
+    "TRAFFIC_NAMES",
+    "Fit",
+    "as_fit",
+    "fit_class_labels",
+    "fit_from_idata",
+    "posterior_draws",
+    "traffic_draws",
+]
+
+#: Posterior variables of the paper's models (names of the fit's NetCDF variables).
+PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates", "class_weights")
+
+#: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
+TRAFFIC_NAMES = (
+    "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
+    "class_stay_mean", "class_stay_shape", "class_tod_weights",
+    "mmpp_factor", "mmpp_switch", "hawkes_branching", "hawkes_decay",
+)  # fmt: skip
+
+
+def _flat(post: Any, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """``(chain * draw, ...)`` arrays of the variables of ``names`` present in ``post``."""
+    out = {}
+    for name in names:
+        if name in post:
+            a = np.asarray(post[name].values)
+            out[name] = a.reshape(-1, *a.shape[2:])
+    return out
+
+
+def _text(attrs: Mapping[str, Any], name: str) -> str | None:
+    return None if attrs.get(name) is None else str(attrs[name])
+
+
+def _num(attrs: Mapping[str, Any], name: str, default: float) -> float:
+    return float(np.asarray(attrs.get(name, default)).ravel()[0])
+
+
+def _chosen_laws(idata: Any) -> TrafficLaws:
+    """The arrival, stay and position laws ``are-stats fit`` chose (posterior attributes)."""
+    a = idata.posterior.attrs
+    positions = str(a.get("position_model", "uniform"))
+    entry = None
+    if positions == "learned":
+        cd = idata.constant_data
+        o = np.asarray(cd.attrs["position_origin"], float).ravel()
+        entry = PositionDensity(
+            np.asarray(cd["entry_density"].values, float),
+            _num(cd.attrs, "position_resolution", 0.0),
+            (float(o[0]), float(o[1])),
+            _num(cd.attrs, "position_bandwidth", 0.0),
+            float("nan"),
+        )
+    clock = a.get("traffic_clock_start")
+    return TrafficLaws(
+        arrivals=str(a.get("arrival_model", "poisson")),
+        lifetimes=str(a.get("lifetime_model", "exponential")),
+        positions=positions,
+        bin_width=_num(a, "traffic_arrival_bin_width", 0.0) or None,
+        clock_offset=None if clock is None else clock_offset(str(clock)),
+        group_stay_sd=_num(a, "traffic_group_stay_sd", 0.0),
+        group_spread=_num(a, "traffic_group_spread", 0.0),
+        entry=entry,
+        class_entry=class_position_densities(idata),
+    )
+
+
+def fit_class_labels(idata: Any) -> list[str] | None:
+    """The class name of each mixture component of a fit, or None.
+
+    A log with labels (life-cycle rows or tracks) stores them, comma-separated, as the
+    posterior attribute ``class_labels``; the only reader of that attribute (consumers
+    read :attr:`Fit.class_labels`).
+
+    Parameters
+    ----------
+    idata : arviz.InferenceData or Fit
+
+    Returns
+    -------
+    list of str or None
+    """
+    if isinstance(idata, Fit):
+        return None if idata.class_labels is None else list(idata.class_labels)
+    names = idata.posterior.attrs.get("class_labels")
+    return str(names).split(",") if names else None
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fit of a field log, decoded (:func:`~are_stats.fitting.read_fit`).
+
+    Attributes
+    ----------
+    idata : arviz.InferenceData
+        The file's content, for the fitting room's report, PSIS-LOO and criticism.
+    source : str
+        What errors name (the file, or ``"fit"`` for one in memory).
+    method : str
+        ``em`` or ``nuts`` (how the paper's models were fitted).
+    format_version : int
+        The file format (:data:`~are_stats.fitting.FIT_FORMAT_VERSION`; 1 for fits written
+        before formats had numbers).
+    area : float or None
+        ``area(M_2D)`` of the log (m^2), the area lambda is per.
+    window : (float, float) or None
+        The log's observation window ``(t0, t1)`` (s).
+    n_components : int
+        Mixture components (eq. 1); 0 without marks or labels.
+    class_labels : tuple of str or None
+        The class of each component (a labelled log), else None.
+    laws : are_stats.traffic.TrafficLaws
+        The arrival, stay and position laws the fit chose.
+    behaviour : BehaviourFit or None
+        The behaviour fitted from the log's tracks (None without tracks).
+    interaction : SocialForce or None
+        The social force estimated from the tracks (None: the published one applies).
+    interaction_info : mapping of str to float
+        How well it was estimated: ``r2``, ``n`` (accelerations), ``group_samples``.
+    motion : mapping of str to pandas.DataFrame
+        The realism and displacement-error tables stored at fit time (issue 26).
+    provenance : mapping of str to str
+        ``seed``, ``log`` (file name), ``log_sha256``, when recorded.
+    log_report : mapping
+        How the log was read (rows used, truncated, censored, excluded, groups, the
+        conversion of a tracks table), when recorded.
+    notes : tuple of str
+        What the fit did not do and why, or did differently (no map: the behaviour on the
+        open area the tracks cover; people who only stand: no behaviour; ...).
+    comparisons : mapping of str to pandas.DataFrame
+        The candidates of each factor (``arrivals``, ``lifetimes``, ``positions``) by
+        PSIS-LOO, with the chosen one flagged, when the fit compared them.
+    traffic_notes : tuple of str
+        Notes and warnings of the traffic model choice (``traffic_arrival_notes``,
+        ``traffic_warnings``), as ``("note", text)`` / ``("warning", text)`` pairs.
+    class_stay_model : str or None
+        ``pooled`` or ``per-class`` (which LOO kept for a labelled log's stays).
+    class_position_model, class_share_model : str or None
+        Which LOO kept for a labelled log's entry/exit densities (pooled or per class)
+        and class shares (constant or by time of day), when compared.
+    time_resolution : float
+        Time resolution (s) of the crowding statistics of the checks.
+    grid : OccupancyGrid or None
+        The map the behaviour and its criticism used (in memory after
+        :func:`~are_stats.fitting.fit_log`; None for a fit read from a file).
+    """
+
+    idata: Any
+    source: str
+    method: str
+    format_version: int
+    area: float | None
+    window: tuple[float, float] | None
+    n_components: int
+    class_labels: tuple[str, ...] | None
+    laws: TrafficLaws
+    behaviour: BehaviourFit | None = None
+    interaction: SocialForce | None = None
+    interaction_info: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    motion: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    provenance: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    log_report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    notes: tuple[str, ...] = ()
+    comparisons: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    traffic_notes: tuple[tuple[str, str], ...] = ()
+    class_stay_model: str | None = None
+    class_position_model: str | None = None
+    class_share_model: str | None = None
+    time_resolution: float = 0.1
+    grid: Any = None
+
+    def draws(self, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
+        """``(chain * draw, ...)`` posterior draws of ``names`` (those present)."""
+        return posterior_draws(self.idata, names)
+
+    def traffic(self, model: str = "chosen") -> tuple[dict[str, np.ndarray], TrafficLaws]:
+        """Draws and laws to generate from: the fit's chosen models or the paper's
+        (:func:`traffic_draws`)."""
+        return traffic_draws(self, model)
+
+
+def fit_from_idata(idata: Any, source: str = "fit") -> Fit:
+    """Decode an InferenceData of :func:`~are_stats.fitting.fit_log` into a :class:`Fit`.
+
+    :func:`~are_stats.fitting.read_fit` checks a file first and then calls this; a fit
+    in memory (just fitted) is decoded as it is.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming ``source`` and the group, if the behaviour group or its stored tables are
+        damaged.
+    """
+    a = idata.posterior.attrs
+    window = None
+    if "window" in a:
+        w = np.asarray(a["window"], float).ravel()
+        window = (float(w[0]), float(w[1]))
+    version = a.get("format_version")
+    labels = fit_class_labels(idata)
+    behaviour = interaction = None
+    motion: dict[str, Any] = {}
+    info: dict[str, float] = {}
+    if "behaviour" in idata.groups():
+        ds = idata.behaviour
+        try:
+            behaviour = BehaviourFit.from_dataset(ds)
+            interaction = interaction_from_attrs(ds.attrs)
+            if interaction is not None:
+                info = interaction_info(ds.attrs)
+            motion = motion_tables(ds.attrs)
+        except (KeyError, ValueError, TypeError, IndexError) as err:
+            raise InputError(
+                source, "behaviour", "the behaviour group written by are-stats fit",
+                Described(f"a damaged group ({type(err).__name__}: {err})"),
+            ) from None  # fmt: skip
+    provenance = {k: str(a[k]) for k in ("seed", "log", "log_sha256") if k in a}
+    report = yaml.safe_load(str(a["log_report"])) if a.get("log_report") else {}
+    notes = tuple(n for n in str(a.get("fit_notes", "") or "").splitlines() if n.strip())
+    comparisons = {}
+    for factor in ("arrivals", "lifetimes", "positions"):
+        text = a.get(f"loo_{factor}")
+        if text:
+            comparisons[factor] = pd.read_csv(io.StringIO(str(text)), index_col=0)
+    traffic_notes = (
+        [("note", str(a["traffic_arrival_notes"]))] if a.get("traffic_arrival_notes") else []
+    )
+    traffic_notes += [
+        ("warning", w) for w in str(a.get("traffic_warnings", "") or "").splitlines() if w.strip()
+    ]
+    stay_model = a.get("class_stay_model")
+    return Fit(
+        idata=idata,
+        source=source,
+        method=str(a.get("method", "")),
+        format_version=1 if version is None else int(np.asarray(version).ravel()[0]),
+        area=float(np.asarray(a["area"]).ravel()[0]) if "area" in a else None,
+        window=window,
+        n_components=int(np.asarray(a.get("n_components", 0)).ravel()[0]),
+        class_labels=None if labels is None else tuple(labels),
+        laws=_chosen_laws(idata),
+        behaviour=behaviour,
+        interaction=interaction,
+        interaction_info=MappingProxyType(info),
+        motion=MappingProxyType(motion),
+        provenance=MappingProxyType(provenance),
+        log_report=MappingProxyType(report if isinstance(report, dict) else {}),
+        notes=notes,
+        comparisons=MappingProxyType(comparisons),
+        traffic_notes=tuple(traffic_notes),
+        class_stay_model=None if stay_model is None else str(stay_model),
+        class_position_model=_text(a, "class_position_model"),
+        class_share_model=_text(a, "class_share_model"),
+        time_resolution=_num(a, "traffic_time_resolution", 0.1),
+    )
+
+
+def as_fit(fit: Any, source: str | None = None) -> Fit:
+    """A :class:`Fit` from a fit, an InferenceData of ``fit_log``, or a fit file's path
+    (read and checked by :func:`~are_stats.fitting.read_fit`)."""
+    if isinstance(fit, Fit):
+        return fit
+    if isinstance(fit, str | os.PathLike):
+        from are_stats.fitting._fit_log import read_fit
+
+        return read_fit(fit)
+    return fit_from_idata(fit, "fit" if source is None else source)
+
+
+def posterior_draws(fit: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
+    """Flatten the posterior of a fit (or a fit file, read by ``read_fit``) to draws.
+
+    Parameters
+    ----------
+    fit : Fit or arviz.InferenceData or str or PathLike
+        A fit (as written by ``are-stats fit``).
+    names : tuple of str
+        Variables to take when present (:data:`PARAMETER_NAMES`).
+
+    Returns
+    -------
+    dict of str to array
+        ``(chain * draw, ...)`` arrays for each variable found.
+
+    Raises
+    ------
+    ValueError
+        If the posterior lacks ``arrival_rate`` or ``leave_rate``.
+    """
+    if isinstance(fit, str | os.PathLike):
+        fit = as_fit(Path(fit))
+    idata = fit.idata if isinstance(fit, Fit) else fit
+    post = idata.posterior
+    out = _flat(post, names)
+    for name in ("arrival_rate", "leave_rate"):
+        if name not in out:
+            raise ValueError(
+                f"posterior: expected a variable {name!r}, got {sorted(post.data_vars)}"
+            )
+    return out
+
+
+def traffic_draws(fit: Any, model: str = "chosen") -> tuple[dict[str, np.ndarray], TrafficLaws]:
+    """Posterior draws and laws to generate from: the fit's chosen models or the paper's.
+
+    Parameters
+    ----------
+    fit : Fit or arviz.InferenceData or str or PathLike
+        A fit (:func:`are_stats.fitting.read_fit`).
+    model : {"chosen", "paper"}
+        ``chosen``: the arrival, stay and position models recorded by ``are-stats fit``
+        (:attr:`Fit.laws`); ``paper``: Poisson arrivals, exponential stays, uniform
+        positions.
+
+    Returns
+    -------
+    draws : dict of str to (S, ...) ndarray
+        :data:`PARAMETER_NAMES` and, for chosen models, :data:`TRAFFIC_NAMES` present.
+    laws : are_stats.traffic.TrafficLaws
+    """
+    check_in("model", model, ("chosen", "paper"))
+    fit = as_fit(fit)
+    draws = posterior_draws(fit)
+    if model == "paper":
+        return draws, TrafficLaws()
+    post = fit.idata.posterior
+    per_class = post.attrs.get("class_stay_model") == "per-class"
+    by_hour = post.attrs.get("class_share_model") == "time-of-day"
+    # LOO kept the pooled stays unless per-class (then one law for every class), one set of
+    # class shares for the whole day unless time-of-day
+    names = tuple(
+        n for n in TRAFFIC_NAMES
+        if (per_class or not n.startswith("class_stay"))
+        and (by_hour or n != "class_tod_weights")
+    )  # fmt: skip
+    draws.update(_flat(post, names))
+    return draws, fit.laws

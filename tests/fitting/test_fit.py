@@ -1,0 +1,132 @@
+"""The typed fit: fit_log takes one field log and returns the whole fit; read_fit gives the
+same Fit back from the file; the CLI only writes it (issue 25)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from are_stats.cli import app
+from are_stats.fitting import (
+    Fit,
+    FitSettings,
+    as_fit,
+    fit_log,
+    read_fit,
+    traffic_draws,
+    write_fit,
+)
+from are_stats.logs import read_field_log
+from tests.test_cli_tracks import _room, _tracks
+
+EM = FitSettings(method="em", arrivals="poisson", lifetimes="exponential", positions="uniform")
+
+
+@pytest.fixture(scope="module")
+def tracks_log(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("tracks")
+    _room(folder)
+    return _tracks(folder, horizon=240.0)
+
+
+@pytest.fixture(scope="module")
+def fitted(tracks_log):
+    return fit_log(5, read_field_log(tracks_log), EM)
+
+
+def test_field_log_keeps_its_tracks(tracks_log):
+    """The tracks are read with the log: no second reading for the behaviour."""
+    from are_stats.logs import read_field_tracks
+
+    log = read_field_log(tracks_log)
+    again = read_field_tracks(tracks_log)
+    assert log.tracks is not None
+    assert log.tracks.equals(again)
+
+
+def test_fit_log_returns_the_whole_fit(fitted, tracks_log):
+    fit = fitted
+    assert isinstance(fit, Fit)
+    assert fit.behaviour is not None  # a fit from tracks always carries a behaviour
+    assert fit.grid is not None and fit.grid.free.shape == (100, 200)  # the manifest's map
+    assert {"realism", "displacement"} <= set(fit.motion)
+    assert fit.provenance["log"] == tracks_log.name
+    assert fit.provenance["seed"] == "5"
+    assert len(fit.provenance["log_sha256"]) == 64
+    assert fit.log_report["rows_used"] > 0
+    assert fit.laws.arrivals == "poisson" and fit.area == pytest.approx(
+        fit.idata.posterior.attrs["area"]
+    )
+    assert fit.method == "em"
+
+
+def test_read_fit_gives_the_same_fit_back(fitted, tmp_path):
+    path = write_fit(fitted, tmp_path / "f.nc")
+    back = read_fit(path)
+    assert isinstance(back, Fit) and back.source == str(path)
+    assert back.grid is None  # the map stays with the log
+    for name in ("method", "area", "window", "n_components", "class_labels", "laws",
+                 "interaction", "notes", "class_stay_model", "time_resolution"):  # fmt: skip
+        assert getattr(back, name) == getattr(fitted, name), name
+    assert back.format_version == 1
+    assert dict(back.provenance) == dict(fitted.provenance)
+    np.testing.assert_array_equal(back.behaviour.beta, fitted.behaviour.beta)
+    np.testing.assert_array_equal(back.behaviour.free, fitted.behaviour.free)
+    for name, table in fitted.motion.items():
+        pd.testing.assert_frame_equal(back.motion[name], table)
+    d0, laws0 = traffic_draws(fitted)
+    d1, laws1 = back.traffic("chosen")
+    assert laws0 == laws1 and d0.keys() == d1.keys()
+    for k in d0:
+        np.testing.assert_array_equal(d0[k], d1[k])
+    assert as_fit(back) is back
+    assert as_fit(path).provenance == back.provenance
+
+
+def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
+    """``are-stats fit`` writes what fit_log returns for the same seed: the same bytes."""
+    out = tmp_path / "cli.nc"
+    args = ["fit", str(tracks_log), "--out", str(out), "--method", "em", "--seed", "5",
+            "--arrivals", "poisson", "--lifetimes", "exponential", "--positions", "uniform",
+            "--no-figures"]  # fmt: skip
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    mine = write_fit(fitted, tmp_path / "api.nc")
+    assert out.read_bytes() == mine.read_bytes()
+
+
+def test_no_map_fits_the_open_area_with_a_note(tracks_log, tmp_path):
+    import shutil
+
+    import yaml
+
+    log = tmp_path / "nomap.csv"
+    shutil.copy(tracks_log, log)
+    meta = yaml.safe_load(tracks_log.with_suffix(".yaml").read_text())
+    del meta["map"]
+    meta["area"] = 200.0
+    log.with_suffix(".yaml").write_text(yaml.safe_dump(meta))
+    fit = fit_log(5, read_field_log(log), EM)
+    assert fit.behaviour is not None
+    assert any("open area the tracks cover" in n for n in fit.notes)
+    back = read_fit(write_fit(fit, tmp_path / "nomap.nc"))
+    assert back.notes == fit.notes  # the note travels with the fit
+
+
+def test_a_damaged_behaviour_group_is_named(fitted, tmp_path):
+    from are_stats.inputs import InputError
+
+    idata = fitted.idata.copy()
+    idata.behaviour = idata.behaviour.drop_vars("free")  # the MDP grid the behaviour needs
+    path = write_fit(idata, tmp_path / "bad.nc")
+    with pytest.raises(InputError, match=r"bad\.nc.*behaviour"):
+        read_fit(path)
+
+
+def test_fit_is_frozen(fitted):
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fitted.area = 1.0  # type: ignore[misc]
