@@ -15,9 +15,10 @@ from are_stats.fitting import (
     fit_class_shares_by_time,
     fit_log,
     read_fit,
+    traffic_draws,
     write_fit,
 )
-from are_stats.scenarios import generate_scenarios, traffic_draws
+from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import DAY, LifecycleData, PositionDensity, TrafficLaws, fit_position_density
 from tests.helpers import chisquare_gof
 
@@ -223,7 +224,7 @@ def _csv_mixed_log(folder, rng, n=1500):
 def test_cli_log_fit_generate_report_per_class(tmp_path, rng):
     import pandas as pd
 
-    from are_stats.scenarios import read_scenarios
+    from are_stats.scenarios import read_scenes
     from tests.test_cli_jobs import _invoke
 
     log = _csv_mixed_log(tmp_path, rng)
@@ -238,7 +239,7 @@ def test_cli_log_fit_generate_report_per_class(tmp_path, rng):
     res = _invoke(["generate", fit, "--scenarios", "10", "--horizon", str(DAY), "--seed", "1",
                    "--out", tmp_path / "scen", "--map", tmp_path / "m.yaml"])  # fmt: skip
     assert res.exit_code == 0, res.output
-    df, manifest = read_scenarios(tmp_path / "scen")
+    df, manifest, _ = read_scenes(tmp_path / "scen")
     assert manifest["class_labels"] == ["bicycle", "person"]
     df = df[~df["truncated"]]
     hour = np.mod(df["t_arrive"].to_numpy(), DAY) // 3600
