@@ -178,6 +178,9 @@ _AGAINST_THE_FLOW = {
     ("experiments", "export"),
     # pose -> box is one function, in the builder's geometry (Scene.at uses it)
     ("scenarios", "builder"),
+    # one collision story (DECISIONS 9): MDP rollouts resolve conflicts with the
+    # AR-builder's own revert rule on the MDP's cells, not a copy of it
+    ("behaviour", "builder"),
 }
 
 
