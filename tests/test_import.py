@@ -220,3 +220,29 @@ def test_rooms_import_one_way():
     assert not bad, f"imports against the flow: {bad}"
     used = {(s, d) for s, d, _ in found}
     assert _AGAINST_THE_FLOW <= used, f"exceptions no longer needed: {_AGAINST_THE_FLOW - used}"
+
+
+def test_issue_25_recount_stays_at_one():
+    """The recount of "Fit in, Scenes out": one call that builds Scenes from tables outside
+    tests, one reader of a scenarios folder, one coarsener, one reader of the fit's class
+    labels (the typed Fit)."""
+    import re
+
+    root = Path(are_stats.__file__).parent
+    text = {
+        str(f.relative_to(root)): f.read_text() for f in root.rglob("*.py")
+    }  # fmt: skip
+
+    def where(pattern: str) -> list[str]:
+        return sorted(
+            f"{name}:{i + 1}"
+            for name, src in text.items()
+            for i, line in enumerate(src.splitlines())
+            if re.search(pattern, line) and ">>>" not in line
+        )
+
+    files = lambda pattern: [w.split(":")[0] for w in where(pattern)]  # noqa: E731
+    assert files(r"Scene\.from_scenarios\(") == ["scenarios/_assembly.py"]
+    assert where(r"def (read_scenarios|load_replay|read_scenario_folder)\b") == []
+    assert where(r"def (coarse_free_mask|coarse_occupancy)\b") == []
+    assert files(r'attrs\.get\("class_labels"\)') == ["fitting/_fit.py"]
