@@ -12,7 +12,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import jax
 import numpy as np
 import yaml
 from rich.console import Console
@@ -241,9 +240,11 @@ def run_fit(
         _print_checks(written)
         if lifecycle.tracks is not None and fit.behaviour is not None:
             with console.status("motion checks (speeds, straightness, held-out moves) ..."):
-                written.update(
-                    _motion_report(seed, fit, lifecycle.tracks, figures, force, catalogue)
-                )
+                from are_stats.fitting import write_motion_report
+
+                motion = write_motion_report(seed, fit, lifecycle.tracks, figures, force, catalogue)
+                written.update(motion.written)
+            _print_motion_report(motion, fit.motion)
         console.print(f"wrote {len(written)} criticism files to {figures}/")
     return fit
 
@@ -306,37 +307,6 @@ def _behaviour_lines(fit: Any) -> list[str]:
     return out
 
 
-def _motion_outputs(tables: dict, folder: Path, force: bool) -> dict[str, Path]:
-    """realism.csv / .png and displacement_errors.csv of the stored motion tables."""
-    import matplotlib.pyplot as plt
-
-    from are_stats.scenarios import plot_realism
-
-    out: dict[str, Path] = {}
-    writers = []
-    if "displacement" in tables:
-        d = tables["displacement"]
-        writers.append(("displacement_errors.csv", lambda p: d.to_csv(p, float_format="%.6g")))
-    fig = None
-    if "realism" in tables:
-        real = tables["realism"]
-        fig = plot_realism(real)
-        writers += [
-            ("realism.csv", lambda p: real.to_csv(p, float_format="%.6g")),
-            ("realism.png", lambda p: fig.savefig(p, dpi=110, format="png")),
-        ]
-    if "observed" in tables:
-        obs = tables["observed"]
-        writers.append(("realism_observed.csv", lambda p: obs.to_csv(p, float_format="%.6g")))
-    for name, write in writers:
-        with atomic_path(Path(folder) / name, force=force) as tmp:
-            write(tmp)
-        out[name] = Path(folder) / name
-    if fig is not None:
-        plt.close(fig)
-    return out
-
-
 def _print_motion_tables(tables: dict) -> None:
     """The ADE/FDE lines and the realism table (stored in the fit)."""
     if "displacement" in tables:
@@ -359,61 +329,26 @@ def _print_motion_tables(tables: dict) -> None:
     console.print(rich)
 
 
-def _motion_report(seed: int, fit: Any, tracks: Any, folder: Path, force: bool, catalogue: Any):
-    """Motion checks of a behaviour fit against the log's tracks (issue 16): table, figure;
-    with the realism and displacement tables stored in the fit (issue 26)."""
-    import matplotlib.pyplot as plt
-
-    from are_stats.fitting import (
-        class_motion_checks,
-        heldout_log_likelihood,
-        motion_checks,
-        plot_motion_checks,
-    )
-
-    bfit, grid, stored = fit.behaviour, fit.grid, fit.motion
-    key = jax.random.key(seed)
-    # the same draws as fit_log's per-class motion rows (the same key)
-    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
-    held, _ = heldout_log_likelihood(
-        jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
-        max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
-        run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
-    )  # fmt: skip
-    fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
-    out = {}
-    for name, write in (
-        ("motion_checks.csv", lambda p: table.to_csv(p, float_format="%.6g")),
-        ("motion_checks.png", lambda p: fig.savefig(p, dpi=110, format="png")),
-    ):
-        with atomic_path(Path(folder) / name, force=force) as tmp:
-            write(tmp)
-        out[name] = Path(folder) / name
-    per_class = class_motion_checks(tracks, reps)  # speed and stillness per label (issue 31)
-    if per_class is not None and "class_motion" not in stored:  # else the report wrote it
-        with atomic_path(Path(folder) / "class_motion_checks.csv", force=force) as tmp:
-            per_class.to_csv(tmp, float_format="%.6g")
-        out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
-    plt.close(fig)
-    out.update(_motion_outputs(stored, folder, force))
+def _print_motion_report(rep: Any, stored: Any) -> None:
+    """The motion checks table, per-class rows, held-out moves and stored motion tables."""
     rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
     for col in ("statistic", "observed", "model 5% - 95%"):
         rich.add_column(col, justify="left" if col == "statistic" else "right")
-    for stat, row in table.iterrows():
+    for stat, row in rep.checks.iterrows():
         flag = bool(row["model_flag"])
         band = f"{row['model_5%']:.3g} - {row['model_95%']:.3g}"
         rich.add_row(
             str(stat), f"{row['observed']:.3g}", ("[red]! " + band + "[/]") if flag else band
         )
     console.print(rich)
-    if per_class is not None and "class_motion" not in stored:  # else printed with the report
-        _print_class_checks(per_class)
+    if rep.per_class is not None:
+        _print_class_checks(rep.per_class)
+    held = rep.heldout
     console.print(
         f"held-out moves: fitted policy {held['policy_per_move']:.3f} vs random walk "
         f"{held['random_walk_per_move']:.3f} nats per move"
     )
     _print_motion_tables(stored)
-    return out
 
 
 def _print_traffic(fit: Any) -> None:
@@ -522,7 +457,9 @@ def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, 
     _print_traffic(fit)
     _print_checks(written)
     if fit.motion:  # the motion criticism the fit stored (issue 26)
-        written.update(_motion_outputs(fit.motion, out, force))
+        from are_stats.fitting import write_motion_tables
+
+        written.update(write_motion_tables(fit.motion, out, force))
         _print_motion_tables(fit.motion)
     console.print(f"wrote {len(written)} files to {out}/")
     return written

@@ -81,6 +81,15 @@ from are_stats.fitting._field_fit import fit_log, log_sha256  # noqa: E402
 
 __all__ += ["fit_log", "log_sha256"]
 
+# --- the motion criticism files of a fit from tracks ---
+from are_stats.fitting._motion_report import (  # noqa: E402
+    MotionReport,
+    write_motion_report,
+    write_motion_tables,
+)
+
+__all__ += ["MotionReport", "write_motion_report", "write_motion_tables"]
+
 # --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
 from are_stats.fitting._criticism import (  # noqa: E402
     DispersionTest,

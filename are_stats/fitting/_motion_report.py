@@ -1,0 +1,146 @@
+"""The motion criticism files of a fit from tracks: what ``fit --figures`` and ``report``
+write about how the fitted people move (issues 16, 26, 31).
+
+:func:`write_motion_tables` writes the tables the fit stored (realism, observed features,
+displacement errors); :func:`write_motion_report` draws the motion checks of the behaviour
+against the log's tracks (speeds, straightness, stillness, held-out moves), which need the
+tracks and so run at fit time only. The command line prints what they return.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import jax
+import pandas as pd
+
+from are_stats._atomic import atomic_path
+from are_stats.fitting._classes import class_motion_checks
+from are_stats.fitting._fit import Fit
+from are_stats.fitting._motion_checks import (
+    heldout_log_likelihood,
+    motion_checks,
+    plot_motion_checks,
+)
+
+__all__ = ["MotionReport", "write_motion_report", "write_motion_tables"]
+
+
+class MotionReport(NamedTuple):
+    """What :func:`write_motion_report` wrote and found.
+
+    Attributes
+    ----------
+    written : dict of str to Path
+        The files, by name.
+    checks : pandas.DataFrame
+        The motion statistics: observed, the model's 90% band, ``model_flag``.
+    per_class : pandas.DataFrame or None
+        Speed and stillness per label (labelled tracks), when not already stored in the fit.
+    heldout : dict of str to float
+        ``policy_per_move`` and ``random_walk_per_move`` (nats) of held-out moves.
+    """
+
+    written: dict[str, Path]
+    checks: pd.DataFrame
+    per_class: pd.DataFrame | None
+    heldout: dict[str, float]
+
+
+def write_motion_tables(tables: Mapping[str, pd.DataFrame], folder: Any, force: bool) -> dict:
+    """realism.csv / .png, realism_observed.csv and displacement_errors.csv of the motion
+    tables a fit stored (:attr:`Fit.motion`), written atomically into ``folder``.
+
+    Returns
+    -------
+    dict of str to Path
+    """
+    import matplotlib.pyplot as plt  # pyplot on first use: it costs every import otherwise
+
+    from are_stats.scenarios import plot_realism  # the criticism's exception to the flow
+
+    out: dict[str, Path] = {}
+    writers = []
+    if "displacement" in tables:
+        d = tables["displacement"]
+        writers.append(("displacement_errors.csv", lambda p: d.to_csv(p, float_format="%.6g")))
+    fig = None
+    if "realism" in tables:
+        real = tables["realism"]
+        fig = plot_realism(real)
+        writers += [
+            ("realism.csv", lambda p: real.to_csv(p, float_format="%.6g")),
+            ("realism.png", lambda p: fig.savefig(p, dpi=110, format="png")),
+        ]
+    if "observed" in tables:
+        obs = tables["observed"]
+        writers.append(("realism_observed.csv", lambda p: obs.to_csv(p, float_format="%.6g")))
+    for name, write in writers:
+        with atomic_path(Path(folder) / name, force=force) as tmp:
+            write(tmp)
+        out[name] = Path(folder) / name
+    if fig is not None:
+        plt.close(fig)
+    return out
+
+
+def write_motion_report(
+    seed: int, fit: Fit, tracks: pd.DataFrame, folder: Any, force: bool, catalogue: Any
+) -> MotionReport:
+    """Motion checks of a fit's behaviour against the log's tracks: table and figure, with
+    the stored motion tables (:func:`write_motion_tables`).
+
+    Parameters
+    ----------
+    seed : int
+        The fit's seed (the draws of :func:`~are_stats.fitting.fit_log`'s per-class rows).
+    fit : Fit
+        A fit from tracks (:func:`~are_stats.fitting.fit_log`: ``fit.behaviour`` and
+        ``fit.grid``, the map the behaviour used).
+    tracks : pandas.DataFrame
+        The log's tracks (``LifecycleLog.tracks``).
+    folder : str or Path
+        Where the files go.
+    force : bool
+        Overwrite existing files.
+    catalogue : ArtefactCatalogue
+        The property table Q (the classes' run speeds, as the fit's).
+
+    Returns
+    -------
+    MotionReport
+    """
+    import matplotlib.pyplot as plt  # pyplot on first use: it costs every import otherwise
+
+    bfit, grid, stored = fit.behaviour, fit.grid, fit.motion
+    if bfit is None or grid is None:
+        raise ValueError("fit: expected a fit from tracks with its behaviour and map (fit_log)")
+    key = jax.random.key(seed)
+    # the same draws as fit_log's per-class motion rows (the same key)
+    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    held, _ = heldout_log_likelihood(
+        jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
+        max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
+        run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
+    )  # fmt: skip
+    fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
+    out = {}
+    for name, write in (
+        ("motion_checks.csv", lambda p: table.to_csv(p, float_format="%.6g")),
+        ("motion_checks.png", lambda p: fig.savefig(p, dpi=110, format="png")),
+    ):
+        with atomic_path(Path(folder) / name, force=force) as tmp:
+            write(tmp)
+        out[name] = Path(folder) / name
+    plt.close(fig)
+    per_class = class_motion_checks(tracks, reps)  # speed and stillness per label (issue 31)
+    if per_class is not None and "class_motion" in stored:
+        per_class = None  # the report wrote and shows the stored rows
+    if per_class is not None:
+        with atomic_path(Path(folder) / "class_motion_checks.csv", force=force) as tmp:
+            per_class.to_csv(tmp, float_format="%.6g")
+        out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
+    out.update(write_motion_tables(stored, folder, force))
+    return MotionReport(out, table, per_class, dict(held))
