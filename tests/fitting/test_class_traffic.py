@@ -159,9 +159,9 @@ def test_labelled_fit_with_map_and_clock_generates_per_class(tmp_path, rng):
     grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
     s = FitSettings(num_samples=400, positions="auto", **EM)
     idata = fit_log(jax.random.key(0), data, s, class_labels=["bicycle", "person"],
-                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00")  # fmt: skip
+                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00").idata  # fmt: skip
     write_fit(idata, tmp_path / "fit.nc")
-    back = read_fit(tmp_path / "fit.nc")
+    back = read_fit(tmp_path / "fit.nc").idata
     a = back.posterior.attrs
     assert a["class_position_model"] == "per-class" and a["class_share_model"] == "time-of-day"
     assert back.constant_data["class_entry_density"].dims == ("class", "pos_y", "pos_x")
@@ -185,7 +185,7 @@ def test_a_log_without_labels_gets_no_class_traffic(rng):
     data, _ = _mixed_log(rng, days=1.0, n=600)
     grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
     s = FitSettings(num_samples=200, positions="auto", **EM)
-    idata = fit_log(jax.random.key(0), data, s, grid=grid, clock_start="2026-01-01T00:00:00")
+    idata = fit_log(jax.random.key(0), data, s, grid=grid, clock_start="2026-01-01T00:00:00").idata
     names = [*idata.posterior.data_vars, *idata.constant_data.data_vars, *idata.posterior.attrs]
     assert not [n for n in names if "class_" in str(n)]
     draws, laws = traffic_draws(idata)
@@ -297,7 +297,7 @@ def test_read_fit_names_damaged_class_traffic(tmp_path, rng):
     grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
     s = FitSettings(num_samples=100, positions="auto", **EM)
     idata = fit_log(jax.random.key(0), data, s, class_labels=["bicycle", "person"],
-                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00")  # fmt: skip
+                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00").idata  # fmt: skip
     write_fit(idata, tmp_path / "ok.nc")
     read_fit(tmp_path / "ok.nc")
     bad = idata.copy()
