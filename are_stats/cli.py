@@ -217,7 +217,9 @@ def fit(
         "auto",
         "--arrivals",
         help="auto (compare by PSIS-LOO) | poisson | negbin | groups | time-of-day | "
-        "negbin+time-of-day | groups+time-of-day.",
+        "negbin+time-of-day | groups+time-of-day | mmpp | hawkes | groups+mmpp | "
+        "groups+hawkes | mmpp+time-of-day | hawkes+time-of-day | groups+mmpp+time-of-day | "
+        "groups+hawkes+time-of-day.",
     ),
     lifetimes: str = typer.Option(
         "auto", "--lifetimes", help="auto | exponential | gamma | weibull | lognormal."

@@ -38,8 +38,11 @@ difference from the best and its standard error, ``p_loo``, Pareto-k counts and 
 sampler's divergences and ``r_hat``; it presents no stacking weights (they are not model
 probabilities).
 
-**The bursty candidates** (``mmpp``, ``hawkes``, ``groups+mmpp``: forward recursions over
-the log's ticks, slow to sample where the data do not support them) are compared by the
+**The bursty candidates** (``mmpp``, ``hawkes``, their ``groups+`` variants and, where the
+log has a clock and two days, ``mmpp+time-of-day`` and ``hawkes+time-of-day``: forward
+recursions over the log's ticks, slow to sample where the data do not support them; the
+``groups+`` variants with a time of day, each a Laplace search over 25 or more parameters
+through such a recursion, are fitted only when named) are compared by the
 Laplace approximation also in the all-NUTS comparison (``approximation="nuts"``, while the
 other candidates' NUTS programs compile): a bursty candidate is sampled by NUTS only when
 the rule chooses it, and the choice is then made again with its NUTS ``elpd``. The others
@@ -354,7 +357,7 @@ def _arrival_candidates(
         return sorted({"poisson", arrivals}, key=ARRIVAL_SPECS.index), notes
     out = ["poisson", "negbin", "mmpp", "hawkes"]
     if max_tick >= 2:
-        out += ["groups", "groups+mmpp"]
+        out += ["groups", "groups+mmpp", "groups+hawkes"]
     else:
         notes.append("groups not offered: no two artefacts arrived together")
     if clock is None:
@@ -364,9 +367,13 @@ def _arrival_candidates(
             f"time-of-day not offered: the window ({duration:g} s) is shorter than two days"
         )
     else:
-        out += ["time-of-day", "negbin+time-of-day"]
+        out += ["time-of-day", "negbin+time-of-day", "mmpp+time-of-day", "hawkes+time-of-day"]
         if max_tick >= 2:
             out.append("groups+time-of-day")
+            notes.append(
+                "groups+mmpp+time-of-day, groups+hawkes+time-of-day not offered by auto "
+                "(costly: name one with --arrivals)"
+            )
     return out, notes
 
 

@@ -129,6 +129,7 @@ __all__ += [
 from are_stats.traffic._bursts import (  # noqa: E402
     BurstSteps,
     burst_steps,
+    group_count_dispersion,
     hawkes_count_dispersion,
     hawkes_step_loglik,
     mmpp_count_dispersion,
@@ -142,6 +143,7 @@ from are_stats.traffic._bursts import (  # noqa: E402
 __all__ += [
     "BurstSteps",
     "burst_steps",
+    "group_count_dispersion",
     "hawkes_count_dispersion",
     "hawkes_step_loglik",
     "mmpp_count_dispersion",

@@ -55,10 +55,12 @@ import numpy as np
 from jax.scipy.special import gammaln, logsumexp
 
 from are_stats._checks import check_finite, check_positive
+from are_stats.traffic._arrivals import DAY, period_of
 
 __all__ = [
     "BurstSteps",
     "burst_steps",
+    "group_count_dispersion",
     "hawkes_count_dispersion",
     "hawkes_step_loglik",
     "mmpp_count_dispersion",
@@ -86,6 +88,11 @@ class BurstSteps(NamedTuple):
         Bin the step belongs to.
     weight : (S,) float
         1 for real steps, 0 for padding.
+    period : (S,) int
+        Period of the day the step lies in (0 without a clock). With a clock the
+        boundaries of the periods are steps of their own (``tick = -1``, ``count = 0``),
+        so that a step never crosses one (but a tick that straddles a boundary is held at
+        the period of its midpoint, as in the time-of-day model).
     """
 
     gap: Any
@@ -93,6 +100,7 @@ class BurstSteps(NamedTuple):
     tick: Any
     bin: Any
     weight: Any
+    period: Any = None
 
 
 def burst_steps(
@@ -103,6 +111,7 @@ def burst_steps(
     delta: float,
     bin_width: float,
     size: int,
+    clock: tuple[float, int, float] | None = None,
 ) -> BurstSteps:
     """Order the non-empty ticks and the ends of the bins in time (see :class:`BurstSteps`).
 
@@ -117,7 +126,11 @@ def burst_steps(
         Tick width.
     bin_width : float
     size : int
-        Padded length (at least ``m + B``).
+        Padded length (at least ``m + B``, plus the boundaries of the periods with a clock).
+    clock : (offset, n_periods, period), optional
+        Time of day of ``t = 0`` (log time), periods per day and the day's length: the
+        boundaries of the periods inside the window become steps, and each step gets its
+        period.
 
     Returns
     -------
@@ -129,21 +142,42 @@ def burst_steps(
     t_start = tick * delta  # window time
     t_end = t_start + delta
     b_end = np.minimum(bin_width * np.arange(1, n_bins + 1), t1 - t0)
-    # time order: ticks of bin b, then the end of bin b
-    kind = np.concatenate([np.zeros(m, np.int64), np.ones(n_bins, np.int64)])
-    bins = np.concatenate([np.asarray(tick_bin, np.int64), np.arange(n_bins)])
-    start = np.concatenate([t_start, b_end])
-    end = np.concatenate([t_end, b_end])
-    order = np.lexsort((start, kind, bins))
+    cuts = np.zeros(0)
+    if clock is not None:
+        offset, n_periods, day = float(clock[0]), int(clock[1]), float(clock[2])
+        width = day / n_periods
+        k0 = np.floor((t0 + offset) / width) + 1
+        k1 = np.ceil((t1 + offset) / width) - 1
+        cuts = np.arange(k0, k1 + 1) * width - offset - t0  # window time, inside (0, T)
+        cuts = cuts[(cuts > 0.0) & (cuts < t1 - t0)]
+    n_cut = cuts.size
+    cut_bin = np.minimum(np.floor(cuts / bin_width + 1e-12).astype(np.int64), n_bins - 1)
+    # time order: the ticks and boundaries of bin b (a boundary before a tick at the same
+    # time), then the end of bin b
+    kind = np.concatenate(
+        [np.zeros(m, np.int64), np.ones(n_bins, np.int64), np.zeros(n_cut, np.int64)]
+    )
+    tie = np.concatenate([np.ones(m), np.ones(n_bins), np.zeros(n_cut)])
+    bins = np.concatenate([np.asarray(tick_bin, np.int64), np.arange(n_bins), cut_bin])
+    start = np.concatenate([t_start, b_end, cuts])
+    end = np.concatenate([t_end, b_end, cuts])
+    order = np.lexsort((tie, start, kind, bins))
     start, end, kind, bins = start[order], end[order], kind[order], bins[order]
+    is_tick = np.concatenate([np.ones(m, bool), np.zeros(n_bins + n_cut, bool)])[order]
     prev_end = np.maximum.accumulate(np.concatenate([[0.0], end[:-1]]))
     gap = np.where(
-        kind == 0, np.maximum(start - prev_end, 0.0) + delta, np.maximum(end - prev_end, 0.0)
+        is_tick, np.maximum(start - prev_end, 0.0) + delta, np.maximum(end - prev_end, 0.0)
     )
-    count = np.concatenate([np.asarray(tick_count, float), np.zeros(n_bins)])[order]
-    rows = np.concatenate([np.arange(m), np.full(n_bins, -1)])[order]
+    count = np.concatenate([np.asarray(tick_count, float), np.zeros(n_bins + n_cut)])[order]
+    rows = np.concatenate([np.arange(m), np.full(n_bins + n_cut, -1)])[order]
+    if clock is None:
+        per = np.zeros(gap.size, np.int64)
+    else:
+        # a step spans [end - gap, end]: no boundary inside it (they are steps), but for a
+        # tick straddling one; its midpoint names its period
+        per = period_of(t0 + end - 0.5 * gap, offset, n_periods, day)
     s = gap.size
-    size = max(int(size), s)
+    size = int(size) if s <= int(size) else 1 << int(np.ceil(np.log2(s)))
 
     def pad(a: np.ndarray, fill: Any, dtype: Any) -> np.ndarray:
         out = np.full(size, fill, dtype)
@@ -156,6 +190,7 @@ def burst_steps(
         tick=pad(rows, -1, np.int64),
         bin=pad(bins, 0, np.int64),
         weight=pad(np.ones(s), 0.0, float),
+        period=pad(per, 0, np.int64),
     )
 
 
@@ -211,31 +246,32 @@ def mmpp_transfer(lam: Any, switch: Any, u: Any) -> tuple[jnp.ndarray, jnp.ndarr
 
 
 def _log_tick_terms(log_lam_delta: jnp.ndarray, count: jnp.ndarray, conv: Any) -> jnp.ndarray:
-    """``log P(count | state)`` without ``e^{-lambda delta}``: ``(S, K)`` for ``(K,)`` states.
+    """``log P(count | state)`` without ``e^{-lambda delta}``: ``(S, K)`` for ``(K,)`` or
+    ``(S, K)`` rates (per state, or per step and state).
 
     Plain: ``c log(lambda delta) - log c!``; with ``conv`` (``log p^{*j}(c)``, rows
     ``j = 1..J``): ``log sum_j (lambda delta)^j / j! p^{*j}(c)``; zero where ``c = 0``.
     """
     c = count[:, None]
+    lld = log_lam_delta if log_lam_delta.ndim == 2 else log_lam_delta[None, :]
     if conv is None:
-        out = c * log_lam_delta[None, :] - gammaln(c + 1.0)
+        out = c * lld - gammaln(c + 1.0)
     else:
         j_max = conv.shape[0]
-        j = jnp.arange(1, j_max + 1, dtype=log_lam_delta.dtype)
+        j = jnp.arange(1, j_max + 1, dtype=lld.dtype)
         ci = jnp.clip(count.astype(jnp.int32), 0, conv.shape[1] - 1)
         pc = conv[:, ci].T  # (S, J)
         terms = (
-            j[None, None, :] * log_lam_delta[None, :, None]
-            - gammaln(j + 1.0)[None, None, :]
-            + pc[:, None, :]
+            j[None, None, :] * lld[:, :, None] - gammaln(j + 1.0)[None, None, :] + pc[:, None, :]
         )
         out = logsumexp(terms, axis=-1)
     return jnp.where(c > 0, out, 0.0)
 
 
 def mmpp_step_loglik(
-    lam: Any, switch: Any, log_delta: Any, steps: BurstSteps, n_bins: int, conv: Any = None
-) -> jnp.ndarray:
+    lam: Any, switch: Any, log_delta: Any, steps: BurstSteps, n_bins: int, conv: Any = None,
+    tod: Any = None,
+) -> jnp.ndarray:  # fmt: skip
     """Log-likelihood of each bin given the earlier bins, under a two-state MMPP.
 
     Parameters
@@ -250,6 +286,10 @@ def mmpp_step_loglik(
     n_bins : int
     conv : (J, C + 1) float, optional
         ``log p^{*j}(c)`` of the group-size law (compound counts); None: one per event.
+    tod : (P,) float, optional
+        Time-of-day factors: in period ``p`` both intensities are ``lam * tod[p]`` (the
+        steps' ``period``; the boundaries of the periods are steps, so each transfer is
+        exact).
 
     Returns
     -------
@@ -257,6 +297,11 @@ def mmpp_step_loglik(
         ``log p(bin_b | bins < b)``; they sum to the log-likelihood of the window.
     """
     lam = jnp.asarray(lam)
+    n_steps = steps.gap.shape[0]
+    if tod is None:
+        lam_s = jnp.broadcast_to(lam, (n_steps, 2))
+    else:
+        lam_s = lam[None, :] * jnp.asarray(tod)[steps.period][:, None]  # (S, 2)
     q01, q10 = switch[0], switch[1]
     pi = jnp.stack([q10, q01]) / (q01 + q10)
     is_tick = (steps.tick >= 0).astype(lam.dtype)
@@ -265,10 +310,10 @@ def mmpp_step_loglik(
     # stretch before it, expm((Q - Lambda) u), then its tick with the state held over the
     # tick: P(c | k) = Poisson(c; lambda_k delta), then the switches over the tick,
     # expm(Q delta) = 1 pi + e^{-q delta} (I - 1 pi). Each factor is a probability.
-    log_d = _log_tick_terms(jnp.log(lam) + log_delta, steps.count, conv)  # (S, 2)
-    log_d = log_d - is_tick[:, None] * lam[None, :] * delta
+    log_d = _log_tick_terms(jnp.log(lam_s) + log_delta, steps.count, conv)  # (S, 2)
+    log_d = log_d - is_tick[:, None] * lam_s * delta
     empty = jnp.maximum(steps.gap - is_tick * delta, 0.0)
-    log_scale, mat = jax.vmap(lambda u: mmpp_transfer(lam, switch, u))(empty)
+    log_scale, mat = jax.vmap(lambda la, u: mmpp_transfer(la, switch, u))(lam_s, empty)
     d_max = jnp.max(log_d, axis=1)
     mat = mat * jnp.exp(log_d - d_max[:, None])[:, None, :]  # T(u) diag(P(c | k)) / max
     keep = jnp.exp(-(q01 + q10) * delta * is_tick)[:, None, None]
@@ -289,7 +334,7 @@ def mmpp_step_loglik(
 
 def hawkes_step_loglik(
     mu: Any, alpha: Any, beta: Any, log_delta: Any, steps: BurstSteps, n_bins: int,
-    excitation0: Any = None,
+    excitation0: Any = None, conv: Any = None, tod: Any = None,
 ) -> jnp.ndarray:  # fmt: skip
     """Log-likelihood of each bin given the earlier bins, under an exponential Hawkes process.
 
@@ -305,28 +350,52 @@ def hawkes_step_loglik(
     excitation0 : float, optional
         Excitation ``A`` at the window's start (default the stationary mean
         ``mu alpha / (1 - alpha)``).
+    conv : (J, C + 1) float, optional
+        ``log p^{*j}(c)`` of the group-size law: the events are groups, a tick's count is
+        compound Poisson at the intensity reached at the tick's end, and the excitation
+        jumps by ``alpha beta E[j | c]``, the expected number of groups that brought the
+        count (exactly ``1`` for ``c = 1``; the events within one tick are not told
+        apart). None: one artefact per event.
+    tod : (P,) float, optional
+        Time-of-day factors of the baseline: ``mu tod[p]`` in period ``p`` (the steps'
+        ``period``; the boundaries of the periods are steps, so the compensator is exact).
 
     Returns
     -------
     (n_bins,) float
-        ``log p(bin_b | bins < b)``: ``sum c log(lambda delta) - log c!`` minus the exact
-        compensator over the bin.
+        ``log p(bin_b | bins < b)``: the tick terms minus the exact compensator over the bin.
     """
     a0 = mu * alpha / (1.0 - alpha) if excitation0 is None else excitation0
-
     u, c, w = steps.gap, steps.count, steps.weight
+    base = mu if tod is None else mu * jnp.asarray(tod)[steps.period]  # scalar or (S,)
+    base = jnp.broadcast_to(base, u.shape)
     decay = jnp.exp(-beta * u)
     spent = -jnp.expm1(-beta * u) / beta  # integral of e^{-beta s} over the stretch
-    jump = alpha * beta * c
+    if conv is None:
+        pcs = jnp.zeros((u.shape[0], 1))
+        j = None
+    else:
+        ci = jnp.clip(c.astype(jnp.int32), 0, conv.shape[1] - 1)
+        pcs = conv[:, ci].T  # (S, J): log p^{*j}(c) of each step's count
+        j = jnp.arange(1, conv.shape[0] + 1, dtype=pcs.dtype)
 
     def body(a, xs):  # excitation at the step's start -> its end, after the tick's events
-        d, sp, j, wt = xs
+        d, sp, ci_, wt, b, pc = xs
         a_end = a * d
-        return jnp.where(wt > 0, a_end + j, a), (a * sp, a_end)
+        log_lam = jnp.log(b + a_end) + log_delta
+        if conv is None:
+            tick, n_ev = ci_ * log_lam - gammaln(ci_ + 1.0), ci_
+        else:  # log sum_j (lambda delta)^j / j! p^{*j}(c), and E[j | c]
+            terms = j * log_lam - gammaln(j + 1.0) + pc
+            tick = logsumexp(terms)
+            n_ev = jnp.sum(j * jnp.exp(terms - tick))
+        tick = jnp.where(ci_ > 0, tick, 0.0)
+        n_ev = jnp.where(ci_ > 0, n_ev, 0.0)
+        return jnp.where(wt > 0, a_end + alpha * beta * n_ev, a), (a * sp, tick)
 
-    _, (excited, a_end) = jax.lax.scan(body, jnp.asarray(a0, float), (decay, spent, jump, w))
-    log_lam = jnp.log(mu + a_end) + log_delta
-    ll = jnp.where(c > 0, c * log_lam - gammaln(c + 1.0), 0.0) - mu * u - excited
+    xs = (decay, spent, c, w, base, pcs)
+    _, (excited, tick_ll) = jax.lax.scan(body, jnp.asarray(a0, float), xs)
+    ll = tick_ll - base * u - excited
     return jax.ops.segment_sum(jnp.where(w > 0, ll, 0.0), steps.bin, num_segments=n_bins)
 
 
@@ -368,10 +437,47 @@ def hawkes_count_dispersion(alpha: float, beta: float, w: Any) -> np.ndarray:
     return 1.0 + (1.0 / (1.0 - alpha) ** 2 - 1.0) * (1.0 - (-np.expm1(-g * w)) / (g * w))
 
 
-def sample_mmpp_times(
-    rng: np.random.Generator, lam: Any, switch: Any, window: Any, state0: int | None = None
+def _thin(
+    rng: np.random.Generator, t: np.ndarray, tod: Any, offset: float, period: float
 ) -> np.ndarray:
-    """Event times of a two-state MMPP over ``window`` (exact: Poisson within each sojourn).
+    """Keep each time with probability ``tod[p(t)] / max(tod)`` (exact thinning)."""
+    f = np.asarray(tod, float)
+    keep = rng.random(t.size) * f.max() < f[period_of(t, offset, f.size, period)]
+    return t[keep]
+
+
+def group_count_dispersion(event_dispersion: Any, size_probs: Any) -> np.ndarray:
+    """Variance over mean of the artefacts' counts when each event brings a group.
+
+    For i.i.d. group sizes ``S`` independent of the events' counts ``J`` (any process),
+    ``Var N = E[J] Var S + Var J E[S]^2`` and ``E N = E[J] E[S]``, so
+
+    ``I_N = E[S^2] / E[S] + E[S] (I_J - 1)``.
+
+    Parameters
+    ----------
+    event_dispersion : float or array
+        ``I_J``, e.g. :func:`hawkes_count_dispersion` or :func:`mmpp_count_dispersion`.
+    size_probs : (K,) float
+        Probabilities of group sizes ``1 .. K``.
+
+    Returns
+    -------
+    ndarray shaped like ``event_dispersion``
+    """
+    p = np.asarray(check_finite("size_probs", size_probs, ndim=1), float)
+    p = p / p.sum()
+    k = np.arange(1, p.size + 1)
+    m1, m2 = float(p @ k), float(p @ k**2)
+    return m2 / m1 + m1 * (np.asarray(event_dispersion, float) - 1.0)
+
+
+def sample_mmpp_times(
+    rng: np.random.Generator, lam: Any, switch: Any, window: Any, state0: int | None = None,
+    *, tod: Any = None, offset: float = 0.0, period: float = DAY,
+) -> np.ndarray:  # fmt: skip
+    """Event times of a two-state MMPP over ``window`` (exact: Poisson within each sojourn;
+    with ``tod``, intensities ``lam * tod[p(t)]`` by thinning).
 
     Parameters
     ----------
@@ -383,6 +489,10 @@ def sample_mmpp_times(
     window : (t0, t1)
     state0 : int, optional
         State at ``t0`` (default drawn from the stationary law).
+    tod : (P,) float, optional
+        Time-of-day factors (mean 1 over the day).
+    offset, period : float
+        Time of day of ``t = 0`` and the length of a day.
 
     Returns
     -------
@@ -390,6 +500,10 @@ def sample_mmpp_times(
         Sorted.
     """
     lam = np.asarray(check_finite("lam", lam, ndim=1), float)
+    if tod is not None:
+        f = check_positive("tod", tod, ndim=1)
+        t = sample_mmpp_times(rng, lam * float(f.max()), switch, window, state0)
+        return _thin(rng, t, f, float(offset), float(period))
     q = check_positive("switch", switch, ndim=1)
     t0, t1 = (float(v) for v in check_finite("window", window, ndim=1))
     if state0 is None:
@@ -418,13 +532,14 @@ def sample_mmpp_times(
 
 def sample_hawkes_times(
     rng: np.random.Generator, mu: float, alpha: float, beta: float, window: Any,
-    burn: float = 0.0,
+    burn: float = 0.0, *, tod: Any = None, offset: float = 0.0, period: float = DAY,
 ) -> np.ndarray:  # fmt: skip
     """Event times of an exponential Hawkes process over ``window`` (the cluster process).
 
-    Immigrants arrive as a Poisson process of rate ``mu`` from ``t0 - burn``; each event
-    has ``Poisson(alpha)`` children at ``Exp(beta)`` delays, generation by generation.
-    With ``burn`` a few times ``1 / (beta (1 - alpha))`` the window starts near stationarity.
+    Immigrants arrive as a Poisson process of rate ``mu`` (``mu tod[p(t)]`` with ``tod``,
+    by thinning) from ``t0 - burn``; each event has ``Poisson(alpha)`` children at
+    ``Exp(beta)`` delays, generation by generation. With ``burn`` a few times
+    ``1 / (beta (1 - alpha))`` the window starts near stationarity.
 
     Returns
     -------
@@ -435,8 +550,11 @@ def sample_hawkes_times(
     if not 0.0 <= float(alpha) < 1.0:
         raise ValueError(f"alpha: expected a branching ratio in [0, 1), got {alpha}")
     start = t0 - float(burn)
-    n = rng.poisson(float(mu) * (t1 - start))
+    f_max = 1.0 if tod is None else float(check_positive("tod", tod, ndim=1).max())
+    n = rng.poisson(float(mu) * f_max * (t1 - start))
     gen = start + rng.random(n) * (t1 - start)
+    if tod is not None:
+        gen = _thin(rng, gen, tod, float(offset), float(period))
     out = [gen]
     while gen.size:
         kids = rng.poisson(float(alpha), gen.size)

@@ -21,7 +21,12 @@ group of ``S`` artefacts (``S = 1`` without groups):
   ``pi . f = 1``, switching rates ``q01``, ``q10``), and ``groups+mmpp`` (each event
   brings a group): bursts of a few minutes within the window;
 * ``hawkes``: a self-exciting process with an exponential kernel (baseline
-  ``rho (1 - alpha)``, branching ratio ``alpha``, decay ``beta``).
+  ``rho (1 - alpha)``, branching ratio ``alpha``, decay ``beta``), and ``groups+hawkes``
+  (the events are groups: a burst of groups);
+* ``mmpp+time-of-day``, ``hawkes+time-of-day`` and their ``groups+`` variants: the
+  time-of-day profile multiplies the MMPP's intensities (``rho tod f_k``) or the Hawkes
+  baseline (``rho (1 - alpha) tod``); the boundaries of the periods are steps of the
+  forward recursion, so the likelihood is exact for piecewise-constant rates.
 
 The MMPP and Hawkes likelihoods are forward recursions over the ticks in time order
 (:mod:`are_stats.traffic._bursts`); their pointwise terms are the one-step-ahead
@@ -157,6 +162,11 @@ ARRIVAL_SPECS = (
     "mmpp",
     "hawkes",
     "groups+mmpp",
+    "groups+hawkes",
+    "mmpp+time-of-day",
+    "hawkes+time-of-day",
+    "groups+mmpp+time-of-day",
+    "groups+hawkes+time-of-day",
 )
 
 
@@ -272,7 +282,8 @@ def arrival_units(
     expo *= float(area)
     bin_count = np.bincount(tbin, weights=counts, minlength=n_bins)
     m, bb = _bucket(ticks.size), _bucket(n_bins)
-    steps = burst_steps(ticks, counts, tbin, (t0, t1), delta, bin_width, m + bb)
+    clock = None if clock_offset is None else (float(clock_offset), int(n_periods), float(period))
+    steps = burst_steps(ticks, counts, tbin, (t0, t1), delta, bin_width, m + bb, clock)
 
     def pad(a: np.ndarray, size: int, dtype: Any) -> np.ndarray:
         out = np.zeros((size,) + a.shape[1:], dtype)
@@ -371,21 +382,21 @@ def _burst_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) -> 
         raise ValueError(f"units: expected the burst steps for {spec.name}, got None")
     n_bins = units.bin_weight.shape[0]
     total = params["event_rate"] * jnp.exp(params["log_area"])  # events per time, whole area
+    conv = None
+    if spec.groups:
+        probs = params["group_size_probs"]
+        log_p = jnp.concatenate([jnp.array([-jnp.inf]), jnp.log(probs)])
+        conv = _log_convolution_powers(log_p, probs.shape[0])
+    tod = params["arrival_tod"] if spec.tod else None
     if spec.mmpp:
-        conv = None
-        if spec.groups:
-            probs = params["group_size_probs"]
-            log_p = jnp.concatenate([jnp.array([-jnp.inf]), jnp.log(probs)])
-            conv = _log_convolution_powers(log_p, probs.shape[0])
         switch = params["mmpp_switch"]
         lam = total * mmpp_factors(params["mmpp_contrast"], switch)
-        out = mmpp_step_loglik(lam, switch, units.log_delta, units.steps, n_bins, conv)
+        out = mmpp_step_loglik(lam, switch, units.log_delta, units.steps, n_bins, conv, tod)
     else:
         alpha = params["hawkes_branching"]
         mu = total * (1.0 - alpha)
-        out = hawkes_step_loglik(
-            mu, alpha, params["hawkes_decay"], units.log_delta, units.steps, n_bins
-        )
+        out = hawkes_step_loglik(mu, alpha, params["hawkes_decay"], units.log_delta,
+                                 units.steps, n_bins, conv=conv, tod=tod)  # fmt: skip
     return jnp.where(units.bin_weight > 0, out, 0.0)
 
 

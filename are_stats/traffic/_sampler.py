@@ -8,9 +8,10 @@ synthetic logs of the tests (:func:`simulate_traffic_log`) all draw through it.
 
 * **Arrivals**: :func:`~are_stats.traffic.sample_arrivals` (events at ``event_rate * area``,
   times of day, negative-binomial frailty, group sizes); the bursty models (``mmpp``,
-  ``hawkes``, ``groups+mmpp``) by :func:`~are_stats.traffic.sample_mmpp_times` and
-  :func:`~are_stats.traffic.sample_hawkes_times`, run from a burn-in before ``t = 0`` so
-  that the window starts in the process's stationary regime.
+  ``hawkes``, their ``groups+`` and ``+time-of-day`` variants) by
+  :func:`~are_stats.traffic.sample_mmpp_times` and
+  :func:`~are_stats.traffic.sample_hawkes_times` (the time of day by thinning), run from a
+  burn-in before ``t = 0`` so that the window starts in the process's stationary regime.
 * **Initial population** (``start="stationary"``): ``Poisson(event_rate * area * m)``
   groups (times the time-of-day factor at ``t = 0`` and, for the negative binomial, one
   frailty draw), each with the equilibrium residual stay of its law
@@ -226,10 +227,14 @@ def _burst_groups(
         scale = 1.0 / (beta * (1.0 - alpha))
     burn = BURN_SCALES * scale + (BURN_STAYS * mean if start == "stationary" else 0.0)
     window = (-burn, horizon)
+    clock = {}
+    if spec.tod:
+        offset = 0.0 if laws.clock_offset is None else float(laws.clock_offset)
+        clock = {"tod": _one(draw, "arrival_tod"), "offset": offset, "period": laws.period}
     if spec.mmpp:
-        t = sample_mmpp_times(rng, total * f, q, window)
+        t = sample_mmpp_times(rng, total * f, q, window, **clock)
     else:
-        t = sample_hawkes_times(rng, total * (1.0 - alpha), alpha, beta, window)
+        t = sample_hawkes_times(rng, total * (1.0 - alpha), alpha, beta, window, **clock)
     if probs is not None and t.size:
         p = probs / probs.sum()
         sizes = rng.choice(np.arange(1, p.size + 1), size=t.size, p=p).astype(np.int64)

@@ -231,8 +231,19 @@ def test_time_of_day_needs_a_clock_and_two_days():
     assert "time-of-day" not in cands and "clock_start" in notes[-1]
     cands, notes = _arrival_candidates("auto", 1, 0.0, 13 * 60.0)
     assert "time-of-day" not in cands and "two days" in notes[-1]
-    cands, _ = _arrival_candidates("auto", 2, 0.0, 3 * 86400.0)
+    cands, notes = _arrival_candidates("auto", 2, 0.0, 3 * 86400.0)
     assert {"time-of-day", "groups+time-of-day"} <= set(cands)
+    # the bursts with a time of day: only where the time of day itself is offered
+    assert {"mmpp+time-of-day", "hawkes+time-of-day"} <= set(cands)
+    # the groups+ variants with a time of day only when named (costly), and the notes say so
+    assert not {"groups+mmpp+time-of-day", "groups+hawkes+time-of-day"} & set(cands)
+    assert "groups+hawkes+time-of-day" in notes[-1]
+    assert "groups+hawkes" in cands
+    for clock, dur in ((None, 3 * 86400.0), (0.0, 13 * 60.0)):
+        cands, _ = _arrival_candidates("auto", 2, clock, dur)
+        assert not any("time-of-day" in c for c in cands) and "groups+hawkes" in cands
+    with pytest.raises(ValueError, match="clock_start"):
+        _arrival_candidates("hawkes+time-of-day", 1, None, 3 * 86400.0)
     with pytest.raises(ValueError, match="clock_start"):
         _arrival_candidates("time-of-day", 1, None, 3 * 86400.0)
 
