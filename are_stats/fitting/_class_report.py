@@ -112,7 +112,7 @@ def class_share_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.Data
     """
     import warnings
 
-    from are_stats.fitting._fit_log import fit_class_labels
+    from are_stats.fitting._fit import fit_class_labels
     from are_stats.traffic import numpy_rng
 
     post = idata.posterior
@@ -200,7 +200,7 @@ def plot_class_entries(idata: Any) -> Any | None:
     """
     import matplotlib.pyplot as plt
 
-    from are_stats.fitting._fit_log import fit_class_labels
+    from are_stats.fitting._fit import fit_class_labels
 
     if "constant_data" not in idata.groups() or "class_entry_density" not in idata.constant_data:
         return None
