@@ -53,6 +53,15 @@ from are_stats.fitting._nuts import chains_per_device, resolve_chain_method  # n
 
 __all__ += ["fit_lifecycle_nuts", "chains_per_device", "resolve_chain_method"]
 
+# --- life-cycle posterior by exact draws (closed forms, no MCMC) ---
+from are_stats.fitting._lifecycle_exact import (  # noqa: E402
+    exact_lifecycle_draws,
+    has_exact_posterior,
+    sample_coupled_rates,
+)
+
+__all__ += ["exact_lifecycle_draws", "has_exact_posterior", "sample_coupled_rates"]
+
 # --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
 from are_stats.fitting._criticism import (  # noqa: E402
     DispersionTest,
