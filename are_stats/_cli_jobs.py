@@ -71,6 +71,7 @@ def run_fit(
     lifetimes: str = "auto",
     positions: str = "auto",
     compare: str = "laplace",
+    exact: bool = True,
     clock_start: str | None = None,
     behaviour: bool = True,
     behaviour_features: str = "",
@@ -172,6 +173,7 @@ def run_fit(
         lifetimes=lifetimes,
         positions=positions,
         compare=compare,
+        exact=exact,
     )
     log = resolve_shipped(log, "log", source="LOG")  # a file, or a shipped log's name
     with warnings.catch_warnings(record=True) as caught:

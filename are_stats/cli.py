@@ -254,6 +254,13 @@ def fit(
         "--stationary-start/--no-stationary-start",
         help="NUTS: use the Poisson(lambda*area/mu) count present at T0 (couples the rates).",
     ),
+    exact: bool = typer.Option(
+        True,
+        "--exact/--no-exact",
+        help="--method nuts: the paper's model by exact posterior draws where it has them "
+        "(no NUTS; a mixture of several classes without labels is sampled by NUTS); "
+        "--no-exact: always NUTS.",
+    ),
 ) -> None:
     """Fit a field log: the paper's rates and mixture, and the traffic models the data choose.
 
@@ -281,6 +288,7 @@ def fit(
         lifetimes=lifetimes,
         positions=positions,
         compare=compare,
+        exact=exact,
         clock_start=clock_start,
         behaviour=behaviour,
         behaviour_features=behaviour_features,

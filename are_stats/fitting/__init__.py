@@ -90,6 +90,15 @@ from are_stats.fitting._motion_report import (  # noqa: E402
 
 __all__ += ["MotionReport", "write_motion_report", "write_motion_tables"]
 
+# --- life-cycle posterior by exact draws (closed forms, no MCMC) ---
+from are_stats.fitting._lifecycle_exact import (  # noqa: E402
+    exact_lifecycle_draws,
+    has_exact_posterior,
+    sample_coupled_rates,
+)
+
+__all__ += ["exact_lifecycle_draws", "has_exact_posterior", "sample_coupled_rates"]
+
 # --- field-log fits, criticism and richer alternatives (are-stats fit / report) ---
 from are_stats.fitting._criticism import (  # noqa: E402
     DispersionTest,

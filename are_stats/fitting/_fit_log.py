@@ -37,6 +37,7 @@ from are_stats._lazy import arviz as az
 from are_stats._lazy import import_xarray_dask
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
 from are_stats.fitting._fit import Fit, fit_from_idata
+from are_stats.fitting._lifecycle_exact import exact_lifecycle_draws, has_exact_posterior
 from are_stats.fitting._lifecycle_mcmc import (
     _inference_data,
     _predictive_counts,
@@ -88,6 +89,13 @@ class FitSettings:
         Bootstrap replicates of the EM mixture fit.
     stationary_start : bool
         NUTS only: include the Poisson(lambda * area / mu) count present at ``t0``.
+    exact : bool
+        ``method="nuts"``: draw the paper's model from its exact posterior where it has one
+        (:func:`~are_stats.fitting.exact_lifecycle_draws`: Gamma priors, Poisson counts and
+        exponential stays, censoring, truncation and the stationary count included; the
+        mixture with class labels or one component), independent draws without NUTS; a
+        mixture of several latent classes is sampled by NUTS. ``False``: always NUTS. The
+        posterior attribute ``paper_posterior`` says which ran.
     arrivals, lifetimes, positions : str
         Traffic models beside the paper's (:func:`~are_stats.fitting.fit_traffic`):
         ``"auto"`` compares the candidates by PSIS-LOO and keeps the simplest within two
@@ -114,6 +122,7 @@ class FitSettings:
     num_chains: int = 4
     n_bootstrap: int = 200
     stationary_start: bool = True
+    exact: bool = True
     arrivals: str = "auto"
     lifetimes: str = "auto"
     positions: str = "auto"
@@ -128,6 +137,7 @@ class FitSettings:
 
         check_in("method", self.method, ("nuts", "em"))
         check_in("compare", self.compare, ("laplace", "nuts"))
+        check_in("exact", self.exact, (True, False))
         check_in("arrivals", self.arrivals, ARRIVAL_CHOICES)
         check_in("lifetimes", self.lifetimes, LIFETIME_CHOICES)
         check_in("positions", self.positions, POSITION_CHOICES)
@@ -217,10 +227,13 @@ def _em_posterior(
     return shaped, {name: v[None] for name, v in stats.items()}, attrs
 
 
-def _em_log_likelihood(data: LifecycleData, post: dict, k: int | None) -> dict[str, np.ndarray]:
+def _em_log_likelihood(
+    data: LifecycleData, post: dict, k: int | None, stationary_start: bool = False
+) -> dict[str, np.ndarray]:
     """Log-likelihood terms of :func:`~are_stats.traffic.lifecycle_model` without the stays.
 
     ``n_arrivals``: Poisson(lambda * area * T) of the observed count, per draw;
+    ``n_present`` (``stationary_start``): Poisson(lambda * area / mu) of the count at ``t0``;
     ``mark_histogram``: count x log-probability of each distinct mark (mixture of eq. 1) or,
     with labels, of each distinct (class, mark) pair (complete data), per draw.
     """
@@ -233,6 +246,10 @@ def _em_log_likelihood(data: LifecycleData, post: dict, k: int | None) -> dict[s
     rate = lam * (s.area * s.duration)
     n = float(s.n_arrivals)
     out = {"n_arrivals": xlogy(n, rate) - rate - gammaln(n + 1.0)}
+    if stationary_start:
+        present = lam * s.area / np.asarray(post["leave_rate"], dtype=float)
+        n0 = float(s.n_present)
+        out["n_present"] = xlogy(n0, present) - present - gammaln(n0 + 1.0)
     if k is None or not s.mark_values.size:
         return out
     w = np.asarray(post["mix_weights"], dtype=float)
@@ -272,14 +289,17 @@ def _em_inference_data(
     post: dict[str, np.ndarray],
     stats: dict[str, np.ndarray],
     mix_attrs: dict[str, Any],
+    stationary_start: bool = False,
+    label: str = "em",
 ) -> az.InferenceData:
-    """The em fit's InferenceData: its draws, likelihood terms and predictive counts."""
+    """The InferenceData of closed-form draws (the em fit's, or the exact posterior's of
+    ``method="nuts"``, ``label="exact"``): draws, likelihood terms and predictive counts."""
     # the likelihood without its per-artefact stays: what is stored scales with the
     # distinct data (window counts, distinct marks), not draws x rows; the stays are
     # recomputed on demand from leave_rate and the observed dwell times (fit_loo). The
     # terms and the predictive counts are closed forms in NumPy: numpyro's Predictive
     # and log_likelihood would compile an XLA program per fit for microseconds of work.
-    loglik = _em_log_likelihood(data, post, k)
+    loglik = _em_log_likelihood(data, post, k, stationary_start)
     # total log-likelihood of each draw (a diagnostic; these draws are not MCMC); the
     # stays add n_departed log(mu) - mu sum(dwell), never expanded per artefact
     stays = _stays_total(data, post["leave_rate"])
@@ -288,22 +308,26 @@ def _em_inference_data(
         v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
     )
     kp, kq = jax.random.split(key)
-    post_pred = _predictive_counts(numpy_rng(kp), post, data, False)
+    post_pred = _predictive_counts(numpy_rng(kp), post, data, stationary_start)
     prior = prior_predictive(
-        kq, priors, data.window, data.area, 1000, n_components=k, stationary_start=False,
-        labelled=data.labels is not None,
+        kq, priors, data.window, data.area, 1000, n_components=k,
+        stationary_start=stationary_start, labelled=data.labels is not None,
     )  # fmt: skip
     arviz_log = logging.getLogger("arviz")
     level = arviz_log.level
     arviz_log.setLevel(logging.ERROR)  # one "chain" of draws is expected here
     try:
         idata = _inference_data(
-            data, priors, k, False, "em", post, stats, loglik, post_pred, prior, {}
+            data, priors, k, stationary_start, label, post, stats, loglik, post_pred, prior, {}
         )
     finally:
         arviz_log.setLevel(level)
     idata.posterior.attrs.update(mix_attrs)
-    idata.posterior.attrs["model"] = "are_stats.traffic.lifecycle_model (conjugate + EM)"
+    idata.posterior.attrs["model"] = (
+        "are_stats.traffic.lifecycle_model (conjugate + EM)"
+        if label == "em"
+        else "are_stats.traffic.lifecycle_model (exact posterior draws)"
+    )
     return idata
 
 
@@ -381,7 +405,22 @@ def fit_lifecycle_data(
         else:
             say(f"choosing the number of mixture components by BIC (1..{settings.k_max})")
             k, bics = choose_n_components(k_choice, data.marks, settings.k_max)
-    if settings.method == "nuts":
+    em_draws = None  # closed-form draws whose InferenceData is built later (a thread)
+    exact = settings.method == "nuts" and settings.exact and has_exact_posterior(data, k)
+    if exact:
+        say("the paper's model: exact posterior draws (closed form, no NUTS)")
+        post = exact_lifecycle_draws(
+            k_fit, data, priors, n_components=k, num_samples=settings.num_samples,
+            num_chains=settings.num_chains, stationary_start=settings.stationary_start,
+        )  # fmt: skip
+        words = "exact: Gamma conditionals, leave_rate by rejection from a log-concave envelope"
+        em_draws = (
+            k_post, data, priors, k, post, {},
+            {} if k is None else {"mixture_method": "conjugate posterior (closed form)"},
+            settings.stationary_start, "exact",
+        )  # fmt: skip
+    elif settings.method == "nuts":
+        words = "nuts"
         say(
             f"NUTS: {settings.num_chains} chains x ({settings.num_warmup} warm-up + "
             f"{settings.num_samples} draws)"
@@ -402,6 +441,7 @@ def fit_lifecycle_data(
         em_draws = (k_post, data, priors, k, post, stats, mix_attrs)
     attrs = {
         "method": settings.method,
+        "paper_posterior": words if settings.method == "nuts" else "conjugate + EM",
         "window": np.asarray(data.window, dtype=float),
         "area": float(data.area),
         "are_stats_version": __version__,
@@ -441,7 +481,7 @@ def fit_lifecycle_data(
         "uniform",
     )
     traffic = None
-    if paper_only and settings.method == "em":
+    if paper_only and em_draws is not None:
         idata = _em_inference_data(*em_draws)
     elif not paper_only:
         # the em fit's InferenceData (ArviZ's import, its groups) is built in a thread while
@@ -450,7 +490,7 @@ def fit_lifecycle_data(
         import_xarray_dask()
         with ThreadPoolExecutor(1, "are-stats-idata") as pool:
             pending = None
-            if settings.method == "em":
+            if em_draws is not None:
                 paper = em_draws[4]
                 pending = pool.submit(_em_inference_data, *em_draws)
             else:

@@ -814,31 +814,21 @@ def prior_predictive(
     k = check_components(n_components, None)
     check_in("stationary_start", stationary_start, (True, False))
     check_in("labelled", labelled, (True, False))
-    predictive = numpyro.infer.Predictive(lifecycle_model, num_samples=n)
-
-    def draw(draw_key):
-        return predictive(
-            draw_key,
-            None,
-            priors=priors,
-            n_components=k,
-            window=(t0, t1),
-            area=area,
-            stationary_start=stationary_start,
-            labelled=labelled,
-        )
-
-    try:
-        # keyed by everything ``draw`` closes over: a later process reads its traced program
-        compiled = aot_compile(
-            jax.jit(draw), key,
-            key=("prior_predictive", lifecycle_model, priors, n, k, t0, t1, area,
-                 stationary_start, labelled),
-        )  # fmt: skip
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"key: expected a JAX PRNG key, got {describe(key)}") from err
-    out = {name: np.asarray(value) for name, value in compiled(key).items()}
-    for name in ("n_arrivals", "n_present"):
-        if name in out:
-            out[name] = out[name].astype(np.int64)
+    # the priors are Gamma, Dirichlet and Poisson laws: NumPy draws them in microseconds,
+    # where a compiled numpyro Predictive cost seconds of compilation in every new process
+    # (its program depends on the window and the area, so no cache is shared across logs)
+    rng = numpy_rng(key)
+    lam = rng.gamma(priors.arrival_shape, 1.0 / priors.arrival_rate, n)
+    mu = rng.gamma(priors.leave_shape, 1.0 / priors.leave_rate, n)
+    out = {"arrival_rate": lam, "leave_rate": mu}
+    out["n_arrivals"] = rng.poisson(lam * (area * (t1 - t0))).astype(np.int64)
+    if stationary_start:
+        out["n_present"] = rng.poisson(lam * area / mu).astype(np.int64)
+    if k is not None:
+        if k == 1:
+            out["mix_weights"] = np.ones((n, 1))
+        else:
+            out["mix_weights"] = rng.dirichlet(np.full(k, priors.weights_concentration), n)
+        rates = rng.gamma(priors.mix_rate_shape, 1.0 / priors.mix_rate_rate, (n, k))
+        out["mix_rates"] = rates if labelled else np.sort(rates, axis=1)  # order statistics
     return out

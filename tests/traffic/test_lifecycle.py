@@ -130,6 +130,30 @@ def test_prior_predictive_count_is_negative_binomial():
     assert stats.kstest(draws["leave_rate"], stats.gamma(1.0, scale=1.0).cdf).pvalue > ALPHA
 
 
+@pytest.mark.parametrize("labelled", [False, True])
+def test_prior_predictive_draws_the_model_laws(labelled):
+    """NumPy's draws against numpyro's Predictive of the model itself (two-sample KS)."""
+    from numpyro.infer import Predictive
+
+    priors = LifecyclePriors(arrival_shape=2.0, arrival_rate=4.0, leave_shape=3.0)
+    area, window, n = 2.0, (0.0, 10.0), 4000
+    ours = prior_predictive(jax.random.key(7), priors, window, area, n, n_components=3,
+                            labelled=labelled)  # fmt: skip
+    ref = Predictive(lifecycle_model, num_samples=n)(
+        jax.random.key(8), None, priors=priors, n_components=3, window=window, area=area,
+        labelled=labelled,
+    )  # fmt: skip
+    assert set(ours) == set(ref) - {"stays"}
+    assert ours["n_present"].dtype == np.int64 and ours["mix_rates"].shape == (n, 3)
+    assert bool(np.all(np.diff(ours["mix_rates"], axis=1) > 0)) is not labelled
+    for name in ("arrival_rate", "leave_rate", "n_arrivals", "n_present"):
+        assert stats.ks_2samp(ours[name], np.asarray(ref[name])).pvalue > ALPHA, name
+    for c in range(3):
+        for name in ("mix_weights", "mix_rates"):
+            got, want = ours[name][:, c], np.asarray(ref[name])[:, c]
+            assert stats.ks_2samp(got, want).pvalue > ALPHA, f"{name}[{c}]"
+
+
 def _scipy_log_joint(d, priors, lam, mu, w, r, stationary):
     """Independent reference: the log joint written with scipy."""
     t = d.duration
