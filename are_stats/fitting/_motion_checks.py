@@ -23,13 +23,16 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   positions, a **constant-velocity** prediction (the mean velocity of the observed window)
   and the fitted model's prediction are scored by the same code: ADE (mean distance over the
   predicted steps) and FDE (distance at the last one). The model draws ``n_samples``
-  continuations: a goal from the posterior over the class's observed exit cells (their
-  frequencies times the soft policy's likelihood of the window's observed moves,
-  discretised as in the fit: Bayesian goal inference), then the soft policy walked from the
-  last observed cell with the observed heading at the observed speed, timed as in the
-  generator: the continuous (any-angle) path, then, with ``interaction``, walked
-  again with the social force among the people around, as generation walks people. It is
-  scored as the mean of the samples and as the best of them.
+  continuations: a goal from the posterior over the class's observed exit cells given the
+  window (their frequencies times the soft policy's likelihood of the window's observed
+  moves, discretised as in the fit, times the likelihood of the window's continuous
+  heading given the direction in which the path to the goal leaves: Bayesian goal
+  inference, the last factor by importance resampling), then the soft policy walked from
+  the last observed cell with the observed heading over the whole route to the goal at the
+  observed speed, timed as in the generator: the continuous (any-angle) path, then, with
+  ``interaction``, walked again with the social force among the people around (the
+  person's own group aside), as generation walks people. It is scored as the mean of the
+  samples and as the best of them.
 """
 
 from __future__ import annotations
