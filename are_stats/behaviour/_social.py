@@ -484,7 +484,9 @@ def social_force_tracks(
     v = np.zeros((n, 2))
     if "vx" in tab.columns and "vy" in tab.columns:  # walking already when it appears
         v = np.nan_to_num(tab[["vx", "vy"]].to_numpy(float)[start])
-    k = np.zeros(n, np.int32)
+    # each heads for its route's second vertex: the first is where it stands (aiming
+    # at it would stop a walker that arrives walking for a step, a lag of tau's worth)
+    k = np.minimum(n_vert - 1, 1).astype(np.int32)
     first_leg = route[:, min(1, m_max - 1)] - route[:, 0]
     norm = np.hypot(*first_leg.T)
     hd = np.where((norm > 1e-9)[:, None], first_leg / np.maximum(norm, 1e-9)[:, None], [1.0, 0.0])

@@ -115,7 +115,10 @@ def _attach_motion_tables(
     # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
     # (each through the one assembly, social force included) against the log
     xy = tracks[["id", "t", "x", "y"]]
-    real = realism_table(jax.random.fold_in(key, 4), xy, grid, behaviour=bfit, n_replicates=1)
+    real = realism_table(
+        jax.random.fold_in(key, 4), xy, grid, behaviour=bfit, n_replicates=1,
+        interaction=learned if learned is not None else True,
+    )  # fmt: skip
     same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
     dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
     observed = realism_summary(realism_features(xy, dt, grid))

@@ -23,13 +23,16 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   positions, a **constant-velocity** prediction (the mean velocity of the observed window)
   and the fitted model's prediction are scored by the same code: ADE (mean distance over the
   predicted steps) and FDE (distance at the last one). The model draws ``n_samples``
-  continuations: a goal from the posterior over the class's observed exit cells (their
-  frequencies times the soft policy's likelihood of the window's observed moves,
-  discretised as in the fit: Bayesian goal inference), then the soft policy walked from the
-  last observed cell with the observed heading at the observed speed, timed as in the
-  generator: the continuous (any-angle) path, then, with ``interaction``, walked
-  again with the social force among the people around, as generation walks people. It is
-  scored as the mean of the samples and as the best of them.
+  continuations: a goal from the posterior over the class's observed exit cells given the
+  window (their frequencies times the soft policy's likelihood of the window's observed
+  moves, discretised as in the fit, times the likelihood of the window's continuous
+  heading given the direction in which the path to the goal leaves: Bayesian goal
+  inference, the last factor by importance resampling), then the soft policy walked from
+  the last observed cell with the observed heading over the whole route to the goal at the
+  observed speed, timed as in the generator: the continuous (any-angle) path, then, with
+  ``interaction``, walked again with the social force among the people around (the
+  person's own group aside), as generation walks people. It is scored as the mean of the
+  samples and as the best of them.
 """
 
 from __future__ import annotations
@@ -491,6 +494,48 @@ def _goal_posterior(
     return goals, logp
 
 
+#: Floor (rad) of the standard deviation of an observed heading about the direction of
+#: the path the person walks (:func:`_observed_heading`): people do not walk exactly
+#: straight at their path's next corner or exit (about a degree of sway and aim).
+HEADING_SD_FLOOR = 0.02
+
+
+def _observed_heading(observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Heading of each observed window and its standard deviation.
+
+    A straight line at constant velocity is fitted to the window by least squares
+    (``x(t), y(t)`` linear in the sample index); the heading is that of its velocity and
+    its standard error the slopes' (from the residual scatter about the line) over the
+    speed, combined with :data:`HEADING_SD_FLOOR`. A person who stands, wanders or turns
+    within the window gets a wide one, a person who walks straight a narrow one.
+
+    Parameters
+    ----------
+    observed : (B, n_obs, 2) float
+
+    Returns
+    -------
+    heading : (B,) float
+        Radians.
+    sd : (B,) float
+        Radians (``inf`` for a window that does not move).
+    """
+    obs = np.asarray(observed, float)
+    n = obs.shape[1]
+    k = np.arange(n) - 0.5 * (n - 1)
+    sxx = float((k * k).sum())
+    if n < 3 or sxx <= 0:
+        d = obs[:, -1] - obs[:, 0]
+        return np.arctan2(d[:, 1], d[:, 0]), np.full(len(obs), np.inf)
+    slope = (k[None, :, None] * (obs - obs.mean(axis=1, keepdims=True))).sum(axis=1) / sxx
+    resid = obs - obs.mean(axis=1, keepdims=True) - k[None, :, None] * slope[:, None, :]
+    s2 = (resid**2).sum(axis=(1, 2)) / (2.0 * (n - 2))  # pooled over x and y
+    speed = np.hypot(slope[:, 0], slope[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        se = np.where(speed > 0, np.sqrt(s2 / sxx) / speed, np.inf)
+    return np.arctan2(slope[:, 1], slope[:, 0]), np.hypot(se, HEADING_SD_FLOOR)
+
+
 def _model_predictions(
     rng: np.random.Generator,
     fit: BehaviourFit,
@@ -501,31 +546,116 @@ def _model_predictions(
     n_samples: int,
     smooth: int,
     chunk: int = 16,
+    oversample: int = 8,
 ) -> np.ndarray:
-    """``(B, K, n_pred, 2)`` continuations sampled from the soft policy."""
-    from are_stats.behaviour import continuous_path, sample_soft_paths
+    """``(B, K, n_pred, 2)`` continuations sampled from the soft policy given the window.
 
-    b, n_obs, _ = observed.shape
+    The goal of each continuation is drawn from the posterior given the whole window:
+    ``oversample * K`` goals are drawn given the window's moves on the grid (an exit cell
+    from :func:`_goal_posterior`, the person's point uniform within it), each is weighted
+    by the likelihood of the window's continuous heading (normal with the sd of
+    :func:`_observed_heading`) given the direction in which its path leaves: straight at
+    the point where the goal is in sight of a probe rollout to its cell, else at that
+    rollout's first corner (uniform for a goal where the person stands), and ``K`` goals
+    are resampled by those weights (importance resampling); each then gets its own
+    rollout, to the goal's point. The rollouts are thus conditioned on where the person
+    was seen walking, not only on the cells it crossed."""
+    b = observed.shape[0]
     names = {c: i for i, c in enumerate(fit.classes)}
     cls = np.array([names.get(str(v), 0) for v in labels], np.int64)
-    step = np.hypot(*np.diff(observed, axis=1).transpose(2, 0, 1)).sum(axis=1)
-    speed = np.clip(step * rate / max(n_obs - 1, 1), 0.05, 10.0)  # (B,)
-    horizon_s = n_pred / rate
-    last = observed[:, -1]
-    cur = fit.world_to_cell(last)
-    d = observed[:, -1] - observed[:, 0]
-    head = np.mod(np.round(np.arctan2(d[:, 1], d[:, 0]) / (np.pi / 2)), 4).astype(np.int64)
-    # K exits per window from the posterior over the observed exits given the window's moves
-    rep = np.repeat(np.arange(b), n_samples)
-    exits = np.zeros((b * n_samples, 2), np.int64)
+    k_all = int(n_samples) * max(int(oversample), 1)
+    cand = _draw_goals(rng, fit, observed, cls, rate, k_all, chunk)  # (B, K', 2)
+    ends = fit.cell_to_world(cand.reshape(-1, 2)).reshape(b, k_all, 2)
+    ends += (rng.random((b, k_all, 2)) - 0.5) * fit.cell
+    if k_all > n_samples:
+        last = observed[:, -1]
+        heading, sd = _observed_heading(observed)
+        # one probe rollout per distinct goal cell of a window
+        uniq = [np.unique(cand[i], axis=0, return_inverse=True) for i in range(b)]
+        width = max(len(u[0]) for u in uniq)
+        probes = np.repeat(fit.world_to_cell(last)[:, None], width, axis=1)
+        for i, (g, _) in enumerate(uniq):
+            probes[i, : len(g)] = g
+        _, first, sight = _rollouts(rng, fit, observed, cls, probes, n_pred, rate, smooth, chunk)
+        chosen = np.empty((b, int(n_samples), 2), np.int64)
+        chosen_end = np.empty((b, int(n_samples), 2))
+        for i, (_, inv) in enumerate(uniq):
+            inv = inv.ravel()
+            d = ends[i] - last[i]
+            direct = np.arctan2(d[:, 1], d[:, 0])
+            ang = np.where(sight[i, inv], direct, first[i, inv])  # (K',)
+            moving = np.isfinite(ang)
+            diff = np.angle(np.exp(1j * (np.where(moving, ang, 0.0) - heading[i])))
+            if np.isfinite(sd[i]):
+                lw = np.where(
+                    moving,
+                    -0.5 * (diff / sd[i]) ** 2 - np.log(np.sqrt(2 * np.pi) * sd[i]),
+                    -np.log(2 * np.pi),
+                )
+            else:  # a still window: its heading tells nothing
+                lw = np.zeros(k_all)
+            w = np.exp(lw - lw.max())
+            pick = rng.choice(k_all, int(n_samples), p=w / w.sum())
+            chosen[i], chosen_end[i] = cand[i, pick], ends[i, pick]
+        cand, ends = chosen, chosen_end
+    out, _, _ = _rollouts(rng, fit, observed, cls, cand, n_pred, rate, smooth, chunk, ends)
+    return out
+
+
+def _draw_goals(
+    rng: np.random.Generator,
+    fit: BehaviourFit,
+    observed: np.ndarray,
+    cls: np.ndarray,
+    rate: float,
+    n_samples: int,
+    chunk: int,
+) -> np.ndarray:
+    """``(B, K, 2)`` goal cells per window from the posterior over the class's observed
+    exits given the window's moves (:func:`_goal_posterior`)."""
+    b = observed.shape[0]
+    exits = np.zeros((b, n_samples, 2), np.int64)
     for c in np.unique(cls):
         w = np.flatnonzero(cls == c)
         goals, logp = _goal_posterior(fit, int(c), observed[w], rate, chunk)
         u = rng.gumbel(size=(len(w), n_samples, len(goals)))
-        pick = np.argmax(logp[:, None, :] + u, axis=2)  # (n_w, K)
-        exits[(w[:, None] * n_samples + np.arange(n_samples)).ravel()] = goals[pick.ravel()]
-    n_ep = np.ceil(2 * horizon_s * speed / fit.cell).astype(np.int64) + 4
+        exits[w] = goals[np.argmax(logp[:, None, :] + u, axis=2)]
+    return exits
+
+
+def _rollouts(
+    rng: np.random.Generator,
+    fit: BehaviourFit,
+    observed: np.ndarray,
+    cls: np.ndarray,
+    goals_of: np.ndarray,
+    n_pred: int,
+    rate: float,
+    smooth: int,
+    chunk: int = 16,
+    ends: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Continuations ``(B, K, n_pred, 2)`` to the goal cells ``goals_of (B, K, 2)``: the
+    soft policy walked from the last observed cell with the observed heading, the
+    continuous path at the observed speed, ending at ``ends (B, K, 2)`` (world; default
+    the goal cell's centre) where the route reaches its goal; the direction ``(B, K)``
+    (rad) of each one's first segment (NaN for one that stands) and whether that segment
+    ends at the goal (the goal in sight from the start, ``(B, K)`` bool)."""
+    from are_stats.behaviour import continuous_path, sample_soft_paths
+
+    b, n_obs, _ = observed.shape
+    n_samples = goals_of.shape[1]
+    step = np.hypot(*np.diff(observed, axis=1).transpose(2, 0, 1)).sum(axis=1)
+    speed = np.clip(step * rate / max(n_obs - 1, 1), 0.05, 10.0)  # (B,)
+    last = observed[:, -1]
+    cur = fit.world_to_cell(last)
+    d = observed[:, -1] - observed[:, 0]
+    head = np.mod(np.round(np.arctan2(d[:, 1], d[:, 0]) / (np.pi / 2)), 4).astype(np.int64)
+    rep = np.repeat(np.arange(b), n_samples)
+    exits = goals_of.reshape(-1, 2)
     out = np.repeat(last[:, None, None, :], n_samples, axis=1).repeat(n_pred, axis=2)
+    first = np.full((b, n_samples), np.nan)
+    sight = np.zeros((b, n_samples), bool)
     ts = np.arange(1, n_pred + 1) / rate
     occ = ~fit.free
     moving = (exits[:, 0] >= 0) & ~(exits == cur[rep]).all(axis=1)
@@ -542,15 +672,53 @@ def _model_predictions(
             pol = _policies(fit, int(c), goals[gsel], tol=1e-2)
             w = rep[members]
             starts = np.column_stack([cur[w], head[w]])
+            # the whole route to the goal, as generation walks it: the any-angle path of
+            # a route cut at the horizon would aim at wherever the cut falls
+            dist = fit.geodesic(goals[gsel])[local, cur[w, 0], cur[w, 1]]
+            n_ep = np.where(np.isfinite(dist), np.ceil(1.25 * dist) + 10, 0).astype(np.int64)
             st, ac = sample_soft_paths(
-                rng, pol, occ, float(fit.slip[c]), starts, local, goals[gsel], n_ep[w]
+                rng, pol, occ, float(fit.slip[c]), starts, local, goals[gsel], n_ep
             )
             for j, m in enumerate(members):
-                i = rep[m]
-                tv, pv = continuous_path(st[j], ac[j], fit, float(speed[i]), last[i], None, smooth)
-                out[i, m - i * n_samples, :, 0] = np.interp(ts, tv, pv[:, 0])
-                out[i, m - i * n_samples, :, 1] = np.interp(ts, tv, pv[:, 1])
-    return out
+                i, k = rep[m], m - rep[m] * n_samples
+                done = np.flatnonzero(ac[j] < 0)
+                arrived = (st[j][int(done[0]) if done.size else -1, :2] == exits[m]).all()
+                end = ends[i, k] if ends is not None and arrived else None
+                tv, pv = continuous_path(st[j], ac[j], fit, float(speed[i]), last[i], end, smooth)
+                out[i, k, :, 0] = np.interp(ts, tv, pv[:, 0])
+                out[i, k, :, 1] = np.interp(ts, tv, pv[:, 1])
+                away = np.flatnonzero(np.hypot(*(pv - pv[0]).T) > 1e-9)
+                if away.size:
+                    dx, dy = pv[away[0]] - pv[0]
+                    first[i, k] = np.arctan2(dy, dx)
+                    sight[i, k] = bool(arrived) and away[0] == len(pv) - 1
+    return out, first, sight
+
+
+#: Relative speed (m/s) below which a neighbour seen close by throughout the observed
+#: window walks *with* the person (one group, :func:`_walks_with`).
+GROUP_RELATIVE_SPEED = 0.5
+
+
+def _walks_with(
+    observed: np.ndarray,
+    v_obs: np.ndarray,
+    p_then: np.ndarray,
+    p_now: np.ndarray,
+    vel: np.ndarray,
+    seen_then: bool,
+) -> bool:
+    """Whether a neighbour belongs to the observed person's group, as the life-cycle
+    conversion groups people (:func:`~are_stats.logs.tracks_to_lifecycle`): within
+    ``GROUP_DISTANCE`` now, within twice that at the window's start (they moved
+    together), and walking at the person's velocity (within
+    :data:`GROUP_RELATIVE_SPEED`). Members of a group repel each other only on contact
+    (:func:`~are_stats.behaviour.social_force_tracks`), which their formation avoids."""
+    from are_stats.logs import GROUP_DISTANCE
+
+    near_now = np.hypot(*(p_now - observed[-1])) <= GROUP_DISTANCE
+    near_then = seen_then and np.hypot(*(p_then - observed[0])) <= 2.0 * GROUP_DISTANCE
+    return bool(near_now and near_then and np.hypot(*(vel - v_obs)) <= GROUP_RELATIVE_SPEED)
 
 
 def _interacting(
@@ -567,7 +735,8 @@ def _interacting(
     walks people: each from its last observed position at its observed velocity along its
     sampled path, among the people present at that time who can come within the
     interaction's reach over the horizon (kinematic, at constant velocity from what was
-    observed of them: no future leaks)."""
+    observed of them: no future leaks), the members of its own group aside
+    (:func:`_walks_with`)."""
     from are_stats.behaviour import social_force_tracks
 
     b, k, n_pred, _ = samples.shape
@@ -592,6 +761,10 @@ def _interacting(
             t_from = max(t_last[w] - span, tj[0])
             p_then = np.array([np.interp(t_from, tj, xj[:, 0]), np.interp(t_from, tj, xj[:, 1])])
             vel = (p_now - p_then) / (t_last[w] - t_from) if t_last[w] > t_from else np.zeros(2)
+            if _walks_with(
+                observed[w], v_obs[w], p_then, p_now, vel, t_last[w] - span >= tj[0] - 1e-6
+            ):
+                continue  # a member of the person's group: their formation keeps them apart
             # near enough to meet within the horizon
             closing = steps[-1] * (np.hypot(*v_obs[w]) + np.hypot(*vel))
             if np.hypot(*(p_now - observed[w, -1])) <= params.reach + closing:
@@ -703,15 +876,20 @@ def displacement_errors(
 
     add("constant velocity", *_errors(constant_velocity(obs, n_pred), truth), 1)
     if behaviour_fit is not None and len(win):
+        walked = interaction is not None and interaction is not False
+        # with the interaction, the paths go on past the horizon (as far again): a walker
+        # whose plan ended there would slow down to stop at its end
+        n_plan = 2 * int(n_pred) if walked else int(n_pred)
         samples = _model_predictions(
-            rng, behaviour_fit, obs, lab, int(n_pred), rate, int(n_samples), smooth
+            rng, behaviour_fit, obs, lab, n_plan, rate, int(n_samples), smooth
         )
-        if interaction is not None and interaction is not False:
+        if walked:
             from are_stats.behaviour import SocialForce
 
             params = interaction if isinstance(interaction, SocialForce) else SocialForce()
             t_last = t0 + (int(n_obs) - 1) / rate
             samples = _interacting(samples, obs, tid, t_last, tracks, rate, params, grid)
+            samples = samples[:, :, : int(n_pred)]
         add("model mean of K", *_errors(samples.mean(axis=1), truth), int(n_samples))
         d = np.hypot(*np.moveaxis(samples - truth[:, None], -1, 0))  # (B, K, n_pred)
         best = np.argmin(d.mean(axis=2), axis=1)

@@ -18,14 +18,19 @@ Features (:data:`REALISM_FEATURES`), on tracks resampled to one step ``dt``:
   of heading per second while moving), straightness (net / path length, per track), time
   to exit over the stay (first time within 0.5 m of the track's last position, per track);
 * interactive: distance to the nearest other person, collision (two discs of radius
-  ``radius`` overlap), time to collision (constant velocities, capped at 10 s);
+  ``radius`` overlap), time to collision (constant velocities, capped at 10 s), group
+  spacing (distance from a walking member of a group to its nearest walking co-member: the
+  statistic whose median is the fit's spacing, :func:`~are_stats.behaviour.group_spacing`);
 * map (with a map): distance to the nearest wall, on a free cell.
 
 :func:`realism_table` compares three motion models for the observed artefacts side by
 side: **constant velocity** (each person keeps its velocity of the first second), the
 **catalogue** behaviour (the paper's MDP on the coarse map, then the social force) and the
 **fitted** behaviour (then the social force), the last two through the one assembly's
-:func:`~are_stats.scenarios.scene_tracks`.
+:func:`~are_stats.scenarios.scene_tracks`. The log's groups are those the life-cycle
+conversion infers (:func:`~are_stats.logs.tracks_to_lifecycle`: people first seen together
+who move together); the models walk the same artefacts in the same groups (the assembly
+walks an arrival group in formation), so group spacing compares like with like.
 """
 
 from __future__ import annotations
@@ -54,6 +59,7 @@ REALISM_FEATURES: dict[str, str] = {
     "nearest person (m)": "interactive",
     "collision": "interactive",
     "time to collision (s)": "interactive",
+    "group spacing (m)": "interactive",
     "wall distance (m)": "map",
     "on free cells": "map",
 }
@@ -61,6 +67,9 @@ REALISM_FEATURES: dict[str, str] = {
 KIND_WEIGHTS = {"kinematic": 0.25, "interactive": 0.5, "map": 0.25}
 _TTC_MAX = 10.0
 _NEAR_MAX = 10.0
+#: Group members count for the group spacing while they walk at least this fast (m/s), as
+#: in :func:`~are_stats.behaviour.group_spacing` (standing groups gather closer).
+_GROUP_MIN_SPEED = 0.2
 
 
 def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
@@ -87,7 +96,11 @@ def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
 
 
 def realism_features(
-    tracks: pd.DataFrame, dt: float, grid: Any = None, radius: float = 0.3
+    tracks: pd.DataFrame,
+    dt: float,
+    grid: Any = None,
+    radius: float = 0.3,
+    groups: Any = None,
 ) -> dict[str, np.ndarray]:
     """The values of every feature of :data:`REALISM_FEATURES` in ``tracks``.
 
@@ -101,13 +114,18 @@ def realism_features(
         The map (map features need it).
     radius : float
         Disc radius of a person (m) for collisions and times to collision.
+    groups : Mapping, optional
+        Group label of each track id (``(scenario, id)`` keys are looked up first, then
+        ``id``); ids missing or labelled ``None``, NaN, ``""`` or a negative number walk
+        alone. Without it there are no group spacing values.
 
     Returns
     -------
     dict of str to (k,) float
         Per-sample values for speed, acceleration, turning rate, nearest person, collision,
-        time to collision and the map features; per-track values for straightness and time
-        to exit.
+        time to collision, group spacing (one per walking member of a group with another
+        member walking at that time, capped at 10 m) and the map features; per-track
+        values for straightness and time to exit.
     """
     from scipy.spatial import cKDTree
 
@@ -164,6 +182,8 @@ def realism_features(
             np.minimum.at(ttc, a, t_hit)
             np.minimum.at(ttc, b, t_hit)
         feats["time to collision (s)"].append(ttc)
+    if groups is not None and len(tab):
+        feats["group spacing (m)"].append(_group_spacing(tab, vel_all, groups))
     if grid is not None and len(tab):
         dist = grid.distance_to_occupied()
         xy = tab[["x", "y"]].to_numpy(float)
@@ -177,6 +197,55 @@ def realism_features(
         feats["wall distance (m)"].append(np.where(inside, np.minimum(dist[r, c], 10.0), 0.0))
         feats["on free cells"].append((inside & grid.free[r, c]).astype(float))
     return {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in feats.items()}
+
+
+def _group_label(groups: Any, scenario: Any, track: Any) -> str | None:
+    """A track's group label as text (None: alone)."""
+    lab = groups.get((scenario, track), groups.get(track))
+    if lab is None:
+        return None
+    num = pd.to_numeric(pd.Series([lab]), errors="coerce").iloc[0]
+    if pd.notna(num) and (not np.isfinite(num) or num < 0):
+        return None
+    text = str(lab)
+    return None if text in ("", "nan", "None") else text
+
+
+def _group_spacing(tab: pd.DataFrame, vel: np.ndarray, groups: Any) -> np.ndarray:
+    """Distance ``(k,)`` from each walking group member to its nearest walking co-member
+    at the same time (resampled rows ``tab``, velocities ``vel (n, 2)``)."""
+    from scipy.spatial import cKDTree
+
+    keys = tab[["scenario", "id"]].drop_duplicates()
+    label = {
+        (s, i): _group_label(groups, s, i)
+        for s, i in zip(keys["scenario"].to_numpy(), keys["id"].to_numpy(), strict=True)
+    }
+    lab = pd.Series(
+        [label[k] for k in zip(tab["scenario"].to_numpy(), tab["id"].to_numpy(), strict=True)],
+        dtype=object,
+    )
+    speed = np.hypot(*np.nan_to_num(vel).T)
+    walking = (speed >= _GROUP_MIN_SPEED) & np.isfinite(vel).all(axis=1) & lab.notna().to_numpy()
+    if walking.sum() < 2:
+        return np.zeros(0)
+    frame = pd.DataFrame(
+        {
+            "s": tab["scenario"].to_numpy(),
+            "g": lab.to_numpy(),
+            "t": np.round(tab["t"].to_numpy(float), 6),
+        }
+    )[walking]
+    xy = tab[["x", "y"]].to_numpy(float)[walking]
+    frame["r"] = np.arange(len(frame))
+    out = []
+    for _, part in frame.groupby(["s", "g", "t"], sort=False):
+        if len(part) < 2:
+            continue
+        pts = xy[part["r"].to_numpy()]
+        d, _ = cKDTree(pts).query(pts, k=2)
+        out.append(np.minimum(d[:, 1], _NEAR_MAX))
+    return np.concatenate(out) if out else np.zeros(0)
 
 
 def realism_summary(features: dict[str, np.ndarray]) -> pd.DataFrame:
@@ -269,6 +338,23 @@ def _constant_velocity(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
     return pd.concat(out, ignore_index=True) if out else tab
 
 
+def _log_groups(tracks: pd.DataFrame) -> dict[str, str]:
+    """Group label of each grouped track id (as text) of a log's tracks, as the life-cycle
+    conversion infers groups (:func:`~are_stats.logs.tracks_to_lifecycle`)."""
+    import warnings
+
+    from are_stats.logs import tracks_to_lifecycle
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
+        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
+    return {
+        str(i): str(g)
+        for i, g in zip(life["id"], life["group"], strict=True)
+        if str(g) not in ("", "nan", "None")
+    }
+
+
 def realism_table(
     key: Any,
     tracks: pd.DataFrame,
@@ -278,6 +364,7 @@ def realism_table(
     catalogue: Any = None,
     n_replicates: int = 3,
     radius: float = 0.3,
+    interaction: Any = True,
 ) -> pd.DataFrame:
     """Realism of constant velocity, the catalogue behaviour and the fitted behaviour on the
     observed artefacts, side by side (see the module docstring).
@@ -299,6 +386,10 @@ def realism_table(
         Replicates of each stochastic model, pooled in its histograms.
     radius : float
         Disc radius of a person (m).
+    interaction : bool or SocialForce
+        The interaction the two behaviours walk with (:func:`scene_tracks`; pass the fit's,
+        :func:`~are_stats.fitting.interaction_from_attrs`, to score what generation makes:
+        its group spacing included).
 
     Returns
     -------
@@ -324,10 +415,20 @@ def realism_table(
         "x": first["x"].to_numpy(float), "y": first["y"].to_numpy(float), "yaw": 0.0,
         "label": "person",
     })  # fmt: skip
+    # the log's groups (as the life-cycle conversion infers them); the models walk the
+    # same artefacts in the same groups (a lone artefact is a group of its own)
+    label = _log_groups(tab)
+    code = pd.factorize(pd.Series([label.get(str(i)) for i in first.index], dtype=object))[0]
+    lone = code < 0
+    art["group"] = np.where(lone, code.max(initial=-1) + 1 + np.arange(len(art)), code)
+    by_id = {i: int(c) for i, c, o in zip(first.index, code, lone, strict=True) if not o}
+    by_artefact = {k: int(c) for k, (c, o) in enumerate(zip(code, lone, strict=True)) if not o}
     horizon = float(art["t_leave"].max()) + dt
-    observed = realism_features(tab, dt, grid, radius)
+    observed = realism_features(tab, dt, grid, radius, groups=by_id)
     models: dict[str, list[dict[str, np.ndarray]]] = {
-        "constant velocity": [realism_features(_constant_velocity(tab, dt), dt, grid, radius)]
+        "constant velocity": [
+            realism_features(_constant_velocity(tab, dt), dt, grid, radius, groups=by_id)
+        ]
     }
     cat = load_catalogue() if catalogue is None else catalogue
     sources = []
@@ -340,10 +441,10 @@ def realism_table(
         for r in range(n_replicates):
             moved = scene_tracks(
                 jax.random.fold_in(jax.random.fold_in(key, m), r), art, grid, cat, horizon,
-                behaviours=rule, fitted=behaviour, source="realism",
+                behaviours=rule, fitted=behaviour, source="realism", interaction=interaction,
             )  # fmt: skip
             if moved is not None and len(moved):
-                runs.append(realism_features(moved, dt, grid, radius))
+                runs.append(realism_features(moved, dt, grid, radius, groups=by_artefact))
         if runs:
             models[name] = runs
     pooled = {

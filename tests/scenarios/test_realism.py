@@ -123,3 +123,40 @@ def test_the_fitted_model_beats_constant_velocity_and_the_catalogue_on_its_own_t
     assert realism["fitted"] > realism["constant velocity"] + 0.03
     assert realism["fitted"] > realism["catalogue"] + 0.03
     assert table.loc["straightness", "fitted"] > table.loc["straightness", "catalogue"]
+
+
+def test_group_spacing_is_the_distance_between_walking_members():
+    # a pair 0.7 m abreast and a trio in a line 0.5 m apart walk at 1 m/s; a lone walker
+    # 0.2 m from the pair's member and a standing member count for nothing
+    pair = [_line(i, 0.0, (0, y), (10, y), 1.0) for i, y in ((0, 0.0), (1, 0.7))]
+    trio = [_line(i, 0.0, (0, y), (10, y), 1.0) for i, y in ((2, 20.0), (3, 20.5), (4, 21.0))]
+    lone = _line(5, 0.0, (0, 0.9), (10, 0.9), 1.0)
+    still = pd.DataFrame({"id": 6, "t": np.arange(0, 10.01, 0.1), "x": 0.0, "y": 20.3})
+    tr = pd.concat([*pair, *trio, lone, still], ignore_index=True)
+    groups = {0: "a", 1: "a", 2: "b", 3: "b", 4: "b", 5: "", 6: "b"}
+    f = realism_features(tr, 0.1, groups=groups)
+    g = f["group spacing (m)"]
+    # 100 walking samples (the first has no velocity) of 2 + 3 members
+    assert g.size == 500
+    np.testing.assert_allclose(np.sort(g), np.r_[np.full(300, 0.5), np.full(200, 0.7)], atol=1e-9)
+    assert realism_features(tr, 0.1)["group spacing (m)"].size == 0  # no groups given
+
+
+def test_group_spacing_enters_the_realism_score():
+    """Pairs walking 0.7 m abreast in an open room: the table has a group spacing row,
+    weighted as one of the interactive features, and constant velocity (which keeps the
+    pairs' spacing) scores it well; a log without pairs has no group values."""
+    rows = []
+    for k in range(6):
+        t0, y = 12.0 * k, 2.0 + 1.5 * k
+        rows += [_line(2 * k, t0, (1, y), (15, y), 1.2, 0.4),
+                 _line(2 * k + 1, t0, (1, y + 0.7), (15, y + 0.7), 1.2, 0.4)]  # fmt: skip
+    log = pd.concat(rows, ignore_index=True)
+    table = realism_table(jax.random.key(0), log, None, n_replicates=1)
+    row = table.loc["group spacing (m)"]
+    assert row["kind"] == "interactive"
+    interactive = table[table["kind"] == "interactive"]
+    assert np.isclose(row["weight"], 0.5 / len(interactive))
+    assert row["constant velocity"] > 0.5
+    alone = realism_table(jax.random.key(0), log[log["id"] % 2 == 0], None, n_replicates=1)
+    assert np.isnan(alone.loc["group spacing (m)", "constant velocity"])
