@@ -35,7 +35,10 @@ from are_stats.fitting._motion_store import motion_attrs
 from are_stats.logs import LifecycleLog
 from are_stats.traffic import LifecycleData, LifecyclePriors
 
-__all__ = ["fit_log", "log_sha256"]
+__all__ = ["FIT_WINDOWS", "fit_log", "log_sha256"]
+
+#: Held-out windows (8 observed, 12 predicted) the fit scores ADE/FDE on, at most.
+FIT_WINDOWS = 200
 
 
 def log_sha256(path: str | Path) -> str:
@@ -108,9 +111,12 @@ def _attach_motion_tables(
 
     key = jax.random.key(seed)
     # predicted as generation walks people: continuous paths, then the fit's social force
+    # at most FIT_WINDOWS windows: each rolls out a path per candidate goal (the table
+    # keeps n_windows and the standard errors)
     errors = displacement_errors(
         jax.random.fold_in(key, 3), bfit, tracks, n_samples=20,
         interaction=learned if learned is not None else True, grid=grid,
+        max_windows=FIT_WINDOWS,
     )  # fmt: skip
     # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
     # (each through the one assembly, social force included) against the log
