@@ -150,7 +150,6 @@ _LAZY.update(
             "generate_scenarios",
             "read_scenes",
             "scenario_counts",
-            "write_scenarios",
             "scenes_from_draws",
             "scenes_from_fit",
             "write_scenes",
@@ -329,7 +328,6 @@ if TYPE_CHECKING:
         scenario_counts,
         scenes_from_draws,
         scenes_from_fit,
-        write_scenarios,
         write_scenes,
     )
     from are_stats.traffic import (  # noqa: F401

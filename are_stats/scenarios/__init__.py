@@ -26,7 +26,6 @@ from are_stats.scenarios._generate import (
     expected_artefacts,
     generate_scenarios,
     scenario_counts,
-    write_scenarios,
 )
 from are_stats.scenarios._realism import (
     REALISM_FEATURES,
@@ -65,6 +64,5 @@ __all__ = [
     "scenes_from_fit",
     "scenes_from_tables",
     "scenes_tables",
-    "write_scenarios",
     "write_scenes",
 ]

@@ -25,9 +25,7 @@ identically.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -36,7 +34,7 @@ import pandas as pd
 from are_stats._atomic import atomic_folder, check_folder
 from are_stats._checks import check_in, check_nonnegative, check_positive, describe
 from are_stats.inputs import check_memory, check_work, get_float, get_int
-from are_stats.scenarios._folder import SCENARIO_COLUMNS, write_scenes
+from are_stats.scenarios._folder import SCENARIO_COLUMNS
 
 __all__ = [
     "SCENARIO_COLUMNS",
@@ -46,7 +44,6 @@ __all__ = [
     "expected_artefacts",
     "generate_scenarios",
     "scenario_counts",
-    "write_scenarios",
 ]
 
 
@@ -371,7 +368,7 @@ def generate_scenarios(
     pandas.DataFrame
         One row per artefact, columns :data:`SCENARIO_COLUMNS`, sorted by scenario then
         arrival time. ``attrs["generation"]`` records seed, settings and a summary of the
-        parameters (written into the manifest by :func:`write_scenarios`);
+        parameters (written into the manifest by :func:`~are_stats.scenarios.write_scenes`);
         ``attrs["draws"]`` is the (n_scenarios,) draw index used by each scenario.
 
     Raises
@@ -761,21 +758,3 @@ def scenario_counts(df: pd.DataFrame, times: Any, n_scenarios: int | None = None
         alive = (ta <= tk) & (tl > tk)
         out[:, k] = np.bincount(sc[alive], minlength=int(n_scenarios))
     return out
-
-
-def write_scenarios(
-    df: pd.DataFrame,
-    out_dir: str | os.PathLike,
-    manifest: Mapping[str, Any] | None = None,
-    force: bool = False,
-) -> tuple[Path, Path]:
-    """Write ``artefacts.parquet`` and ``manifest.yaml`` as a whole new folder ``out_dir``
-    (:func:`~are_stats.scenarios.write_scenes` without tracks).
-
-    Returns
-    -------
-    (Path, Path)
-        The Parquet and YAML paths.
-    """
-    out = write_scenes(df, out_dir, manifest, force=force)
-    return out / "artefacts.parquet", out / "manifest.yaml"

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from are_stats.scenarios import generate_scenarios, scenario_counts, write_scenarios
+from are_stats.scenarios import generate_scenarios, scenario_counts, write_scenes
 
 HORIZON = 3600.0
 MU = 1 / 600.0  # 10 min mean stay
@@ -116,7 +116,7 @@ def main(quick: bool = False) -> None:
     )
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        write_scenarios(ours, tmp, {"fit": "benchmark"})
+        write_scenes(ours, tmp, {"fit": "benchmark"})
         print(
             f"  write artefacts.parquet + manifest.yaml: {time.perf_counter() - t0:.2f} s "
             f"({len(ours)} rows)"

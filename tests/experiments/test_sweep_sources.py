@@ -17,7 +17,7 @@ from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
 from are_stats.experiments import expand_tasks, load_results, run_sweep, run_task
 from are_stats.fitting import posterior_draws
 from are_stats.inputs import InputError
-from are_stats.scenarios import generate_scenarios, write_scenarios
+from are_stats.scenarios import generate_scenarios, write_scenes
 
 SIDE = 20  # a 20 m x 20 m free square at 1 m cells
 AREA = float(SIDE * SIDE)
@@ -42,7 +42,7 @@ def files(tmp_path_factory):
     write_fit(idata, root / "fits" / "fit.nc")
     draws = posterior_draws(idata)
     df = generate_scenarios(5, draws, 2, HORIZON, free_mask=grid)
-    write_scenarios(df, root / "scen", {"class_labels": None})
+    write_scenes(df, root / "scen", {"class_labels": None})
     return root, grid, draws, df
 
 
@@ -256,7 +256,7 @@ def run_mission_on(grid, scene):
 def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
     root, grid, _, df = files
     folder = tmp_path / "scen"
-    write_scenarios(df, folder, {"tracks": {"file": "tracks.parquet"}})
+    write_scenes(df, folder, {"tracks": {"file": "tracks.parquet"}})
     # every artefact steps 0.5 m along x one and two seconds after it arrives
     rows = [
         {"scenario": r.scenario, "id": r.artefact, "t": r.t_arrive + k, "x": r.x + 0.5 * k,

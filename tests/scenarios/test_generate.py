@@ -21,7 +21,7 @@ from are_stats.scenarios import (
     generate_scenarios,
     read_scenes,
     scenario_counts,
-    write_scenarios,
+    write_scenes,
 )
 from tests.helpers import ALPHA, chisquare_gof
 
@@ -145,11 +145,11 @@ def test_same_seed_same_bytes(tmp_path):
     out = []
     for run in range(2):
         df = generate_scenarios(123, params(3), 50, 1800.0, area=AREA)
-        write_scenarios(df, tmp_path / f"r{run}", {"fit": "fits/demo.nc", "seed": 123})
+        write_scenes(df, tmp_path / f"r{run}", {"fit": "fits/demo.nc", "seed": 123})
         out.append(digest(tmp_path / f"r{run}"))
     assert out[0] == out[1]
     df = generate_scenarios(124, params(3), 50, 1800.0, area=AREA)
-    write_scenarios(df, tmp_path / "other", {"fit": "fits/demo.nc", "seed": 124})
+    write_scenes(df, tmp_path / "other", {"fit": "fits/demo.nc", "seed": 124})
     assert digest(tmp_path / "other")["artefacts.parquet"] != out[0]["artefacts.parquet"]
     back, meta, _ = read_scenes(tmp_path / "r0")
     pd.testing.assert_frame_equal(
@@ -162,25 +162,25 @@ def test_same_seed_same_bytes(tmp_path):
 def test_refuses_overwrite_and_replaces_the_folder_as_a_whole(tmp_path):
     df = generate_scenarios(1, params(), 5, 100.0, area=AREA)
     out = tmp_path / "sc"
-    write_scenarios(df, out, {})
+    write_scenes(df, out, {})
     (out / "perceived.parquet").write_text("from an earlier run")
     before = sorted(p.name for p in out.iterdir())
     with pytest.raises(OutputExistsError, match=r"sc: already exists; pass --force"):
-        write_scenarios(df, out, {})
+        write_scenes(df, out, {})
     assert sorted(p.name for p in out.iterdir()) == before  # nothing touched
-    write_scenarios(generate_scenarios(2, params(), 5, 100.0, area=AREA), out, {}, force=True)
+    write_scenes(generate_scenarios(2, params(), 5, 100.0, area=AREA), out, {}, force=True)
     # replaced as a whole: no file of the earlier run stays, no temporary folder is left
     assert sorted(p.name for p in out.iterdir()) == ["artefacts.parquet", "manifest.yaml"]
     assert [p.name for p in tmp_path.iterdir()] == ["sc"]
     assert read_scenes(out).manifest["generation"]["seed"] == 2
     empty = tmp_path / "empty"
     empty.mkdir()
-    write_scenarios(df, empty, {})  # an empty folder is not an earlier output
+    write_scenes(df, empty, {})  # an empty folder is not an earlier output
 
 
 def test_interrupted_folder_write_keeps_the_old_folder(tmp_path):
     out = tmp_path / "sc"
-    write_scenarios(generate_scenarios(7, params(), 5, 100.0, area=AREA), out, {})
+    write_scenes(generate_scenarios(7, params(), 5, 100.0, area=AREA), out, {})
     old = {p.name: p.read_bytes() for p in out.iterdir()}
     with pytest.raises(RuntimeError, match="killed"):
         with atomic_folder(out, force=True) as tmp:
@@ -292,7 +292,7 @@ def test_argument_errors(kw, message):
 
 def test_read_scenes_names_the_bad_file(tmp_path):
     out = tmp_path / "sc"
-    write_scenarios(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
+    write_scenes(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
     (out / "manifest.yaml").write_text("- a list\n")
     with pytest.raises(InputError, match=r"manifest\.yaml: expected a mapping"):
         read_scenes(out)
@@ -321,7 +321,7 @@ def test_read_scenes_names_the_bad_file(tmp_path):
 )
 def test_read_scenes_checks_every_column(tmp_path, column, value, match):
     out = tmp_path / "sc"
-    write_scenarios(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
+    write_scenes(generate_scenarios(1, params(), 3, 100.0, area=AREA), out, {})
     df = pd.read_parquet(out / "artefacts.parquet")
     df[column] = value
     df.to_parquet(out / "artefacts.parquet")
