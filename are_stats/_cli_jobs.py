@@ -129,9 +129,11 @@ def run_fit(
     )
     if features and not behaviour:
         raise InputError(
-            "--behaviour-features", "", "the behaviour to be fitted (drop one of the two)",
+            "--behaviour-features",
+            "",
+            "the behaviour to be fitted (drop one of the two)",
             Described("--no-behaviour"),
-        )  # fmt: skip
+        )
     if clock_start is not None:
         from are_stats.traffic import clock_offset
 
@@ -211,9 +213,15 @@ def run_fit(
         ) as clock,
     ):
         fit = fit_log(
-            seed, lifecycle, settings, counts_panel=panel, progress=clock,
-            behaviour=behaviour, features=features, catalogue=catalogue,
-        )  # fmt: skip
+            seed,
+            lifecycle,
+            settings,
+            counts_panel=panel,
+            progress=clock,
+            behaviour=behaviour,
+            features=features,
+            catalogue=catalogue,
+        )
     idata = fit.idata
     for note in fit.notes:
         console.print(f"note: {note}")
@@ -356,10 +364,15 @@ def _print_motion_report(rep: Any, stored: Any) -> None:
 def _print_traffic(fit: Any) -> None:
     """The model comparison tables and the chosen models of a fit, with sampler warnings."""
     for factor, table in fit.comparisons.items():
-        rich = Table(title=f"{factor}: candidates by PSIS-LOO (chosen: simplest within 2 SE of "
-                     "the best)", title_justify="left")  # fmt: skip
-        cols = [c for c in ("elpd", "se", "elpd_diff", "dse", "k>0.7", "divergent", "r_hat")
-                if c in table.columns]  # fmt: skip
+        rich = Table(
+            title=f"{factor}: candidates by PSIS-LOO (chosen: simplest within 2 SE of the best)",
+            title_justify="left",
+        )
+        cols = [
+            c
+            for c in ("elpd", "se", "elpd_diff", "dse", "k>0.7", "divergent", "r_hat")
+            if c in table.columns
+        ]
         rich.add_column("model")
         for c in cols:
             rich.add_column(c, justify="right")
@@ -368,8 +381,17 @@ def _print_traffic(fit: Any) -> None:
             cells = []
             for c in cols:
                 v = row[c]
-                cells.append("-" if not np.isfinite(v) else (f"{v:.3f}" if c == "r_hat" else
-                             f"{v:.1f}" if isinstance(v, float) else str(v)))  # fmt: skip
+                cells.append(
+                    "-"
+                    if not np.isfinite(v)
+                    else (
+                        f"{v:.3f}"
+                        if c == "r_hat"
+                        else f"{v:.1f}"
+                        if isinstance(v, float)
+                        else str(v)
+                    )
+                )
             rich.add_row(str(model), *cells, "yes" if bool(row["chosen"]) else "")
         console.print(rich)
     laws = fit.laws
@@ -390,8 +412,9 @@ def _print_checks(written: dict) -> None:
         return
     table = pd.read_csv(path, index_col=0)
     models = [m for m in ("paper", "chosen") if f"{m}_5%" in table.columns]
-    rich = Table(title="posterior-predictive checks (90% bands; ! = observed outside)",
-                 title_justify="left")  # fmt: skip
+    rich = Table(
+        title="posterior-predictive checks (90% bands; ! = observed outside)", title_justify="left"
+    )
     rich.add_column("statistic")
     rich.add_column("observed", justify="right")
     for m in models:
@@ -404,8 +427,11 @@ def _print_checks(written: dict) -> None:
         cells = []
         for m in models:
             band = f"{fmt(row[f'{m}_5%'])} - {fmt(row[f'{m}_95%'])}"
-            cells.append(("[red]! " if bool(row[f"{m}_flag"]) else "  ") + band
-                         + ("[/]" if bool(row[f"{m}_flag"]) else ""))  # fmt: skip
+            cells.append(
+                ("[red]! " if bool(row[f"{m}_flag"]) else "  ")
+                + band
+                + ("[/]" if bool(row[f"{m}_flag"]) else "")
+            )
         rich.add_row(str(stat), fmt(row["observed"]), *cells)
     console.print(rich)
     for name in ("class_checks", "class_motion_checks"):
@@ -542,10 +568,20 @@ def run_generate(
     ):
         clock(stage)
         scenes = scenes_from_fit(
-            seed, fit, grid, load_catalogue(), n_scenarios, horizon, behaviours=behaviours,
-            model=model, area=area, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
-            source=source, cell_source="--behaviour-cell",
-        )  # fmt: skip
+            seed,
+            fit,
+            grid,
+            load_catalogue(),
+            n_scenarios,
+            horizon,
+            behaviours=behaviours,
+            model=model,
+            area=area,
+            behaviour_cell=behaviour_cell,
+            behaviour_dt=behaviour_dt,
+            source=source,
+            cell_source="--behaviour-cell",
+        )
     df, tracks = scenes_tables(scenes)
     manifest = {
         "fit": str(fit_path),
@@ -561,10 +597,12 @@ def run_generate(
             {"source": "fitted behaviour", "rows": len(tracks)}
             if fitted
             else {
-                "source": "catalogue behaviour", "cell_m": _behaviour_cell_m(grid, behaviour_cell),
-                "dt_s": behaviour_dt, "rows": len(tracks),
+                "source": "catalogue behaviour",
+                "cell_m": _behaviour_cell_m(grid, behaviour_cell),
+                "dt_s": behaviour_dt,
+                "rows": len(tracks),
             }
-        )  # fmt: skip
+        )
     write_scenes(df, out, manifest, tracks=tracks, force=force)
     console.print(
         f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
@@ -611,9 +649,17 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     # the same scenarios from the chosen models and from the paper's, side by side
     df = run_generate(fit_file, 100, 3600.0, 1, out / "scenarios", EXAMPLE_MAP, None, False, force)
     df_paper = run_generate(
-        fit_file, 100, 3600.0, 1, out / "scenarios_paper", EXAMPLE_MAP, None, False, force,
+        fit_file,
+        100,
+        3600.0,
+        1,
+        out / "scenarios_paper",
+        EXAMPLE_MAP,
+        None,
+        False,
+        force,
         model="paper",
-    )  # fmt: skip
+    )
     import pandas as pd
 
     from are_stats.fitting import window_statistics
@@ -629,12 +675,19 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         """Median over scenarios of the crowding statistics (as the checks compute them)."""
         stats = []
         for _, sc in table.groupby("scenario"):
-            st = window_statistics(sc["t_arrive"].to_numpy(), sc["t_leave"].to_numpy(),
-                                   sc["truncated"].to_numpy(), (0.0, 3600.0), res)  # fmt: skip
+            st = window_statistics(
+                sc["t_arrive"].to_numpy(),
+                sc["t_leave"].to_numpy(),
+                sc["truncated"].to_numpy(),
+                (0.0, 3600.0),
+                res,
+            )
             stats.append(st)
         frame = pd.DataFrame(stats)
-        return {k: round(float(frame[k].median()), 3) for k in
-                ("N(t) var/mean", "N(t) peak", "zero gaps", "stay cv")}  # fmt: skip
+        return {
+            k: round(float(frame[k].median()), 3)
+            for k in ("N(t) var/mean", "N(t) peak", "zero gaps", "stay cv")
+        }
 
     checks_file = out / "criticism" / "traffic_checks.csv"
     checks = pd.read_csv(checks_file, index_col=0) if checks_file.exists() else None
@@ -761,9 +814,13 @@ def run_perceive(
     if horizon is not None:  # written by are-stats generate
         window = (0.0, get_float(horizon, scenario / "manifest.yaml", "generation.horizon", lo=0))
     check_path_times(
-        path, robot["t"].to_numpy(), df["t_arrive"].to_numpy(), df["t_leave"].to_numpy(),
-        window, scenario,
-    )  # fmt: skip
+        path,
+        robot["t"].to_numpy(),
+        df["t_arrive"].to_numpy(),
+        df["t_leave"].to_numpy(),
+        window,
+        scenario,
+    )
     outside = poses_outside(robot[["x", "y"]].to_numpy(), grid=grid, bounds=bounds)
     if outside.any():
         area = (
@@ -848,13 +905,25 @@ def run_augment(
     t = time.perf_counter()
     with console.status(f"augmenting {bag} ..."):
         res = augment_bag(
-            bag, fit_path, map_path, out, seed, pose_topic=pose_topic,
-            base_frame=base_frame or "base_link", camera=camera,
-            camera_info_topic=camera_info_topic, period=period, d_max=d_max, tau=tau,
-            force=force, clock=clock, model=model, map_frame=map_frame,
+            bag,
+            fit_path,
+            map_path,
+            out,
+            seed,
+            pose_topic=pose_topic,
+            base_frame=base_frame or "base_link",
+            camera=camera,
+            camera_info_topic=camera_info_topic,
+            period=period,
+            d_max=d_max,
+            tau=tau,
+            force=force,
+            clock=clock,
+            model=model,
+            map_frame=map_frame,
             camera_frame=camera_frame,
             topics=None if topics is None else [t.strip() for t in topics.split(",") if t.strip()],
-        )  # fmt: skip
+        )
     n_seen = int(res.perceived.any(axis=0).sum())
     console.print(
         f"{len(res.scene)} artefacts over {res.times[-1] - res.times[0]:.1f} s of the bag, "
@@ -897,9 +966,16 @@ def run_serve(
 
     try:
         info = serve_scenario(
-            folder, scenario=scenario, speed=speed, host=host, port=port, loop=loop,
-            duration=duration, on_ready=ready, robot_path=robot_path,
-        )  # fmt: skip
+            folder,
+            scenario=scenario,
+            speed=speed,
+            host=host,
+            port=port,
+            loop=loop,
+            duration=duration,
+            on_ready=ready,
+            robot_path=robot_path,
+        )
     except KeyboardInterrupt:
         console.print("stopped")
         return {}

@@ -41,9 +41,14 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
-    "TRACE_LOCK", "cache_limit", "compile_program", "program_folder", "prune_cache", "source_hash",
+    "TRACE_LOCK",
+    "cache_limit",
+    "compile_program",
+    "program_folder",
+    "prune_cache",
+    "source_hash",
     "stable_repr",
-]  # fmt: skip
+]
 
 #: Held while a program is traced: numpyro's effect handlers live on one global stack, so
 #: two threads must not trace models at once. Reading, lowering and compiling a kept
@@ -174,10 +179,15 @@ def _environment() -> str:
     devices = jax.local_devices()
     return repr(
         (
-            jax.__version__, jaxlib.__version__, numpyro_version,
-            bool(jax.config.jax_enable_x64), devices[0].platform, len(devices), source_hash(),
+            jax.__version__,
+            jaxlib.__version__,
+            numpyro_version,
+            bool(jax.config.jax_enable_x64),
+            devices[0].platform,
+            len(devices),
+            source_hash(),
         )
-    )  # fmt: skip
+    )
 
 
 def _file_name(key_text: str, args: tuple, options: dict | None) -> str:

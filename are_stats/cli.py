@@ -443,9 +443,15 @@ def experiment(
     target = out if out is not None else f"results/{cfg['name']}"
     start = 0.0 if start_time is None else parse_start_time(start_time)
     path = run_sweep(
-        cfg, target, workers=workers, scheduler=scheduler, force=force, host=host, mcap=mcap,
+        cfg,
+        target,
+        workers=workers,
+        scheduler=scheduler,
+        force=force,
+        host=host,
+        mcap=mcap,
         start_time=start,
-    )  # fmt: skip
+    )
     typer.echo(str(path))
 
 
@@ -526,11 +532,25 @@ def augment(
     from are_stats._cli_jobs import run_augment
 
     run_augment(
-        bag, fit_path, map_path, out, _seed(seed), pose_topic=pose_topic,
-        base_frame=base_frame, camera=camera, camera_info_topic=camera_info_topic,
-        period=period, d_max=d_max, tau=tau, force=force, clock=clock, model=model,
-        topics=topics, map_frame=map_frame, camera_frame=camera_frame,
-    )  # fmt: skip
+        bag,
+        fit_path,
+        map_path,
+        out,
+        _seed(seed),
+        pose_topic=pose_topic,
+        base_frame=base_frame,
+        camera=camera,
+        camera_info_topic=camera_info_topic,
+        period=period,
+        d_max=d_max,
+        tau=tau,
+        force=force,
+        clock=clock,
+        model=model,
+        topics=topics,
+        map_frame=map_frame,
+        camera_frame=camera_frame,
+    )
 
 
 @app.command()
@@ -561,9 +581,15 @@ def serve(
     from are_stats._cli_jobs import run_serve
 
     run_serve(
-        scenarios, scenario=scenario, speed=speed, host=host, port=port, loop=loop,
-        duration=duration, robot_path=robot_path,
-    )  # fmt: skip
+        scenarios,
+        scenario=scenario,
+        speed=speed,
+        host=host,
+        port=port,
+        loop=loop,
+        duration=duration,
+        robot_path=robot_path,
+    )
 
 
 #: Garbage-collector thresholds of a command's process (Python's default: 700, 10, 10).

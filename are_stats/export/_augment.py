@@ -322,10 +322,19 @@ def augment_bag(
     # the one assembly (as generate and the sweeps): the fit's behaviour when it learned
     # one from tracks, else the catalogue's, then the social force
     (scene,) = scenes_from_fit(
-        seed, fitted, grid, catalogue, 1, horizon, behaviours=True, model=model,
-        behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=str(fit),
+        seed,
+        fitted,
+        grid,
+        catalogue,
+        1,
+        horizon,
+        behaviours=True,
+        model=model,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        source=str(fit),
         cell_source="--behaviour-cell",
-    )  # fmt: skip
+    )
     _check_alive(scene, times, horizon, traj, bag, seed)
     # refuse runaway sizes before tracing: a ray per pixel of every frame, and the output
     # held in memory (a grid per frame at most, markers and a pose per artefact and frame)
@@ -435,9 +444,21 @@ def augment_bag(
         passed[c.topic] = passed.get(c.topic, 0) + c.count
     path = R.write(out, force=force, passthrough=passthrough)
     return AugmentResult(
-        path, times, start, cam_poses, scene, counts, seen, contacts, written,
-        traj.clock, traj.clock_note, traj.frame, traj.frame_note, passed,
-    )  # fmt: skip
+        path,
+        times,
+        start,
+        cam_poses,
+        scene,
+        counts,
+        seen,
+        contacts,
+        written,
+        traj.clock,
+        traj.clock_note,
+        traj.frame,
+        traj.frame_note,
+        passed,
+    )
 
 
 def _period_frames(

@@ -159,9 +159,13 @@ def _frame(
     cls_of = dict(zip(scene.ids.tolist(), scene.classes.tolist(), strict=True))
     entities, tfs = [], []
     for aid, c, h, yaw, lab in zip(
-        boxes.ids.tolist(), boxes.centres, boxes.half_extents, boxes.yaws.tolist(),
-        boxes.labels.tolist(), strict=True,
-    ):  # fmt: skip
+        boxes.ids.tolist(),
+        boxes.centres,
+        boxes.half_extents,
+        boxes.yaws.tolist(),
+        boxes.labels.tolist(),
+        strict=True,
+    ):
         q = _yaw_quat(fm, yaw)
         r, g, b, a = CLASS_RGBA[int(cls_of[aid]) % len(CLASS_RGBA)]
         cx, cy, cz = (float(v) for v in c)
@@ -232,39 +236,61 @@ def _robot_frame(fm: Any, robot: Any, t: float, ns: int, frame: str) -> tuple[An
         pts.append(fm.Point3(x=float(c[0]), y=float(c[1]), z=float(c[2])))
     order = [0, 1, 0, 2, 0, 3, 0, 4, 1, 2, 2, 3, 3, 4, 4, 1]
     frustum = fm.SceneEntity(
-        timestamp=stamp, frame_id=optical, id="camera_frustum",
-        lines=[fm.LinePrimitive(
-            type=fm.LinePrimitiveLineType.LineList, thickness=2.0, scale_invariant=True,
-            points=[pts[i] for i in order], color=fm.Color(r=0.2, g=0.9, b=1.0, a=0.9),
-        )],
-    )  # fmt: skip
+        timestamp=stamp,
+        frame_id=optical,
+        id="camera_frustum",
+        lines=[
+            fm.LinePrimitive(
+                type=fm.LinePrimitiveLineType.LineList,
+                thickness=2.0,
+                scale_invariant=True,
+                points=[pts[i] for i in order],
+                color=fm.Color(r=0.2, g=0.9, b=1.0, a=0.9),
+            )
+        ],
+    )
     body = fm.SceneEntity(
-        timestamp=stamp, frame_id=base, id="robot",
-        cylinders=[fm.CylinderPrimitive(
-            pose=fm.Pose(position=fm.Vector3(x=0.0, y=0.0, z=0.2),
-                         orientation=fm.Quaternion(w=1.0)),
-            size=fm.Vector3(x=2 * robot["radius"], y=2 * robot["radius"], z=0.4),
-            bottom_scale=1.0, top_scale=1.0, color=fm.Color(r=0.9, g=0.9, b=0.9, a=0.9),
-        )],
-    )  # fmt: skip
+        timestamp=stamp,
+        frame_id=base,
+        id="robot",
+        cylinders=[
+            fm.CylinderPrimitive(
+                pose=fm.Pose(
+                    position=fm.Vector3(x=0.0, y=0.0, z=0.2), orientation=fm.Quaternion(w=1.0)
+                ),
+                size=fm.Vector3(x=2 * robot["radius"], y=2 * robot["radius"], z=0.4),
+                bottom_scale=1.0,
+                top_scale=1.0,
+                color=fm.Color(r=0.9, g=0.9, b=0.9, a=0.9),
+            )
+        ],
+    )
     rot = mount[:3, :3]
     w = math.sqrt(max(1.0 + rot[0, 0] + rot[1, 1] + rot[2, 2], 1e-12)) / 2.0
     quat = fm.Quaternion(
-        x=(rot[2, 1] - rot[1, 2]) / (4 * w), y=(rot[0, 2] - rot[2, 0]) / (4 * w),
-        z=(rot[1, 0] - rot[0, 1]) / (4 * w), w=w,
-    )  # fmt: skip
+        x=(rot[2, 1] - rot[1, 2]) / (4 * w),
+        y=(rot[0, 2] - rot[2, 0]) / (4 * w),
+        z=(rot[1, 0] - rot[0, 1]) / (4 * w),
+        w=w,
+    )
     tfs = [
         fm.FrameTransform(
-            timestamp=stamp, parent_frame_id=frame, child_frame_id=base,
-            translation=fm.Vector3(x=x, y=y, z=0.0), rotation=_yaw_quat(fm, yaw),
+            timestamp=stamp,
+            parent_frame_id=frame,
+            child_frame_id=base,
+            translation=fm.Vector3(x=x, y=y, z=0.0),
+            rotation=_yaw_quat(fm, yaw),
         ),
         fm.FrameTransform(
-            timestamp=stamp, parent_frame_id=base, child_frame_id=optical,
-            translation=fm.Vector3(x=float(mount[0, 3]), y=float(mount[1, 3]),
-                                   z=float(mount[2, 3])),
+            timestamp=stamp,
+            parent_frame_id=base,
+            child_frame_id=optical,
+            translation=fm.Vector3(
+                x=float(mount[0, 3]), y=float(mount[1, 3]), z=float(mount[2, 3])
+            ),
             rotation=quat,
         ),
-    ]  # fmt: skip
+    ]
     return fm.SceneUpdate(entities=[body, frustum]), tfs
 
 
@@ -404,8 +430,14 @@ def load_robot(
     poses[:, 0, 0], poses[:, 0, 1], poses[:, 1, 0], poses[:, 1, 1] = c, -s, s, c
     poses[:, 2, 2] = poses[:, 3, 3] = 1.0
     poses[:, 0, 3], poses[:, 1, 3] = table["x"].to_numpy(float), table["y"].to_numpy(float)
-    return {"t": t, "poses": poses, "mount": np.asarray(mount, float), "camera": cam,
-            "d_max": float(d_max), "radius": float(radius)}  # fmt: skip
+    return {
+        "t": t,
+        "poses": poses,
+        "mount": np.asarray(mount, float),
+        "camera": cam,
+        "d_max": float(d_max),
+        "radius": float(radius),
+    }
 
 
 def _resolves(host: str) -> bool:
@@ -421,9 +453,11 @@ def _resolves(host: str) -> bool:
 
 def _port_error(host: str, port: int, err: BaseException) -> InputError:
     return InputError(
-        "--port", "", f"a free TCP port on {host} (or 0 for any free port)",
+        "--port",
+        "",
+        f"a free TCP port on {host} (or 0 for any free port)",
         Described(f"{port}: {err}"),
-    )  # fmt: skip
+    )
 
 
 def _replay(d: Path, folder: Any, scenario: int | None = None) -> dict[str, Any]:
@@ -459,10 +493,15 @@ def _replay(d: Path, folder: Any, scenario: int | None = None) -> dict[str, Any]
     )
     if not present:
         raise InputError(
-            d, "", "a scenarios folder with at least one scenario",
-            Described("none (no artefact, and no n_scenarios in manifest.yaml)" if n_sc is None
-                      else "n_scenarios: 0 in manifest.yaml"),
-        )  # fmt: skip
+            d,
+            "",
+            "a scenarios folder with at least one scenario",
+            Described(
+                "none (no artefact, and no n_scenarios in manifest.yaml)"
+                if n_sc is None
+                else "n_scenarios: 0 in manifest.yaml"
+            ),
+        )
     if scenario is None:
         k = present[0]
     else:
@@ -501,9 +540,11 @@ def _replay(d: Path, folder: Any, scenario: int | None = None) -> dict[str, Any]
         horizon = float(ends_all.max()) if ends_all.size else 0.0
         if not horizon > 0:
             raise InputError(
-                d / "artefacts.parquet", f"scenario {k}", "artefacts leaving after t = 0",
+                d / "artefacts.parquet",
+                f"scenario {k}",
+                "artefacts leaving after t = 0",
                 Described(f"horizon {horizon:g} s"),
-            )  # fmt: skip
+            )
     return {
         "scene": scene,
         "grid": grid,
@@ -610,9 +651,11 @@ def serve_scenario(
         if _resolves(host):
             raise _port_error(host, int(port), err) from None
         raise InputError(
-            "--host", "", "an address of this machine to listen on, such as 127.0.0.1",
+            "--host",
+            "",
+            "an address of this machine to listen on, such as 127.0.0.1",
             Described(f"{host!r} ({err})"),
-        ) from None  # fmt: skip
+        ) from None
     info: dict[str, Any] = {
         "host": host,
         "port": int(server.port),
@@ -631,9 +674,15 @@ def serve_scenario(
         if on_ready is not None:
             on_ready(dict(info))
         msgs = replay_messages(
-            replay["scene"], replay["grid"], horizon=replay["horizon"], speed=speed, fps=fps,
-            loop=loop, start_ns=start_ns, robot=robot,
-        )  # fmt: skip
+            replay["scene"],
+            replay["grid"],
+            horizon=replay["horizon"],
+            speed=speed,
+            fps=fps,
+            loop=loop,
+            start_ns=start_ns,
+            robot=robot,
+        )
         last_stamp = None
         for m in msgs:
             if duration is not None and m.wall > duration:

@@ -298,13 +298,22 @@ def plot_mcap(
     if v.pose is not None:
         x, y, th = v.pose
         ax.plot([x], [y], "o", color=(0.1, 0.25, 0.8), ms=7)
-        ax.annotate("", (x + 0.6 * np.cos(th), y + 0.6 * np.sin(th)), (x, y),
-                    arrowprops={"arrowstyle": "->", "color": (0.1, 0.25, 0.8)})  # fmt: skip
+        ax.annotate(
+            "",
+            (x + 0.6 * np.cos(th), y + 0.6 * np.sin(th)),
+            (x, y),
+            arrowprops={"arrowstyle": "->", "color": (0.1, 0.25, 0.8)},
+        )
     if v.camera is not None:
         ax.add_patch(
-            Polygon(v.camera, closed=True, facecolor=(1.0, 0.6, 0.0, 0.25),
-                    edgecolor=(0.9, 0.5, 0.0), lw=1.0)
-        )  # fmt: skip
+            Polygon(
+                v.camera,
+                closed=True,
+                facecolor=(1.0, 0.6, 0.0, 0.25),
+                edgecolor=(0.9, 0.5, 0.0),
+                lw=1.0,
+            )
+        )
     cw = g.corners_world
     ax.set_xlim(cw[:, 0].min(), cw[:, 0].max())
     ax.set_ylim(cw[:, 1].min(), cw[:, 1].max())

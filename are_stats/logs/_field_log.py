@@ -57,8 +57,7 @@ def _open(p: Path, manifest: Any) -> tuple[dict, Any, Any, bool, bool]:
     meta, mpath = find_manifest(p, manifest)
     raw = read_raw_table(p, "field log (life-cycle log or tracks table)")
     cols = set(raw.columns)
-    return (meta, mpath, raw, set(LIFECYCLE_KIND_COLUMNS) <= cols,
-            set(TRACKS_KIND_COLUMNS) <= cols)  # fmt: skip
+    return (meta, mpath, raw, set(LIFECYCLE_KIND_COLUMNS) <= cols, set(TRACKS_KIND_COLUMNS) <= cols)
 
 
 def read_field_log(

@@ -83,9 +83,11 @@ def _from_raw(raw: RawTable) -> pd.DataFrame:
     if late.any():
         i = int(np.argmax(late))
         raise raw.error(
-            i, "t", f"a time within +-{MAX_TIME:g} s (seconds: convert ns or us clocks)",
+            i,
+            "t",
+            f"a time within +-{MAX_TIME:g} s (seconds: convert ns or us clocks)",
             f"{float(out['t'][i])!r}",
-        )  # fmt: skip
+        )
     _check_unique_sightings(raw, out["id"], out["t"], out["x"], out["y"])
     out["label"] = (
         raw.class_labels("label")
@@ -552,8 +554,9 @@ def _infer_groups(
         cands = cands[d <= g_dist]
         if cands.size == 0:
             return cands
-        linked, w = _move_together_many(cands, j, s_lo, s_end, s_hi, t, x, y, horizon,
-                                        step, 2 * g_dist)  # fmt: skip
+        linked, w = _move_together_many(
+            cands, j, s_lo, s_end, s_hi, t, x, y, horizon, step, 2 * g_dist
+        )
         checks += int(cands.size)
         work += w
         return cands[linked]
@@ -575,10 +578,14 @@ def _infer_groups(
         if comps:
             # first look: a few members of each component
             first_look = np.fromiter(
-                (k for sets in comps.values() for mem in sets
-                 for k in itertools.islice(mem, _FIRST_LOOK)),
+                (
+                    k
+                    for sets in comps.values()
+                    for mem in sets
+                    for k in itertools.islice(mem, _FIRST_LOOK)
+                ),
                 dtype=np.int64,
-            )  # fmt: skip
+            )
             hit = check(first_look, j)
             linked.update(int(label[k]) for k in hit)
             rest = [lab for lab in comps if lab not in linked]

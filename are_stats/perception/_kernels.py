@@ -469,9 +469,13 @@ def _gather(
         hi = upper[node]
         pl5 = wp.vec4(-axis[0], -axis[1], -axis[2], -(ac + far + pad))
         inside = not (
-            _box_outside(lo, hi, pl0) or _box_outside(lo, hi, pl1) or _box_outside(lo, hi, pl2)
-            or _box_outside(lo, hi, pl3) or _box_outside(lo, hi, pl4) or _box_outside(lo, hi, pl5)
-        )  # fmt: skip
+            _box_outside(lo, hi, pl0)
+            or _box_outside(lo, hi, pl1)
+            or _box_outside(lo, hi, pl2)
+            or _box_outside(lo, hi, pl3)
+            or _box_outside(lo, hi, pl4)
+            or _box_outside(lo, hi, pl5)
+        )
         if inside and k > 0:
             k -= 1
             j = j * _BRANCH
@@ -483,10 +487,12 @@ def _gather(
                     c = a + e2[ti]
                     z = wp.min(wp.min(wp.dot(axis, a), wp.dot(axis, b)), wp.dot(axis, c)) - ac
                     keep = z < far and not (
-                        _tri_outside(a, b, c, pl0) or _tri_outside(a, b, c, pl1)
-                        or _tri_outside(a, b, c, pl2) or _tri_outside(a, b, c, pl3)
+                        _tri_outside(a, b, c, pl0)
+                        or _tri_outside(a, b, c, pl1)
+                        or _tri_outside(a, b, c, pl2)
+                        or _tri_outside(a, b, c, pl3)
                         or _tri_outside(a, b, c, pl4)
-                    )  # fmt: skip
+                    )
                     rect = int(-1)  # noqa: UP018
                     if keep:
                         rect = _tri_rect(a, b, c, cam, rot, fx, fy, cx, cy, x0, x1, y0, y1)
@@ -714,14 +720,37 @@ def env_block_kernel(
         scale = wp.max(wp.max(wp.abs(c[0]), wp.abs(c[1])), wp.abs(c[2])) + top
         pad = 1.0e-3 + 1.0e-4 * scale
         g_out = _gather(
-            lower, upper, level_start, n_levels, p0, e1, e2, n_tri, cand, cand_z, start, cap,
+            lower,
+            upper,
+            level_start,
+            n_levels,
+            p0,
+            e1,
+            e2,
+            n_tri,
+            cand,
+            cand_z,
+            start,
+            cap,
             _plane(rot * wp.vec3(1.0, 0.0, -u0), c, pad),
             _plane(rot * wp.vec3(-1.0, 0.0, u1), c, pad),
             _plane(rot * wp.vec3(0.0, 1.0, -v0), c, pad),
             _plane(rot * wp.vec3(0.0, -1.0, v1), c, pad),
             _plane(axis, c, pad),
-            axis, top, pad, c, rot, fx, fy, cx, cy, x0, x1, y0, y1,
-        )  # fmt: skip
+            axis,
+            top,
+            pad,
+            c,
+            rot,
+            fx,
+            fy,
+            cx,
+            cy,
+            x0,
+            x1,
+            y0,
+            y1,
+        )
         n_cand = int(g_out[0])
         far_lim = g_out[1]
         if n_cand == 0:
@@ -742,9 +771,21 @@ def env_block_kernel(
                     if all_pixels == 1:
                         z_lo = -1.0  # a depth image needs the nearest hit itself
                     r = _cast_candidates(
-                        p0, e1, e2, cand, start, n_cand, far_lim, axis, c, d, t_max, z_lo,
-                        x - x0, y - y0,
-                    )  # fmt: skip
+                        p0,
+                        e1,
+                        e2,
+                        cand,
+                        start,
+                        n_cand,
+                        far_lim,
+                        axis,
+                        c,
+                        d,
+                        t_max,
+                        z_lo,
+                        x - x0,
+                        y - y0,
+                    )
                     if r == -2.0:
                         q = wp.mesh_query_ray(mesh, c, d, t_max)
                         if q.result and q.t >= 0.0 and q.t < t_max:
@@ -1005,10 +1046,26 @@ def launch_pair_depths(seg, intr, d_max, out, bounds, device):
 
         def row_inputs(base, j):
             return [
-                seg["row_seg"], seg["row_y"], seg["offsets"], seg["frame"], seg["rect"],
-                seg["origin"], seg["rot"], seg["half"], fx, fy, cx, cy, width, npix,
-                float(d_max), base, out["pair_z"], out["z_max"], out["z_min"],
-            ]  # fmt: skip
+                seg["row_seg"],
+                seg["row_y"],
+                seg["offsets"],
+                seg["frame"],
+                seg["rect"],
+                seg["origin"],
+                seg["rot"],
+                seg["half"],
+                fx,
+                fy,
+                cx,
+                cy,
+                width,
+                npix,
+                float(d_max),
+                base,
+                out["pair_z"],
+                out["z_max"],
+                out["z_min"],
+            ]
 
         workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
         edges = None
@@ -1019,10 +1076,25 @@ def launch_pair_depths(seg, intr, d_max, out, bounds, device):
         return
 
     inputs = [
-        seg["offsets"], seg["frame"], seg["rect"], seg["origin"], seg["rot"], seg["half"],
-        fx, fy, cx, cy, width, npix, float(d_max), seg["n"], 0,
-        out["pair_z"], out["z_max"], out["z_min"],
-    ]  # fmt: skip
+        seg["offsets"],
+        seg["frame"],
+        seg["rect"],
+        seg["origin"],
+        seg["rot"],
+        seg["half"],
+        fx,
+        fy,
+        cx,
+        cy,
+        width,
+        npix,
+        float(d_max),
+        seg["n"],
+        0,
+        out["pair_z"],
+        out["z_max"],
+        out["z_min"],
+    ]
     wp.launch(pair_depth_kernel, dim=seg["n_items"], inputs=inputs, device=device)
 
 
@@ -1059,9 +1131,23 @@ def _empty_tree(device) -> tuple:
 
 
 def launch_env_blocks(
-    mesh_id, tree, z_max, z_min, cams, intr, height, block, n_frames, all_pixels, t_all,
-    any_hit, z_env, status, device, threads,
-):  # fmt: skip
+    mesh_id,
+    tree,
+    z_max,
+    z_min,
+    cams,
+    intr,
+    height,
+    block,
+    n_frames,
+    all_pixels,
+    t_all,
+    any_hit,
+    z_env,
+    status,
+    device,
+    threads,
+):
     """Host side of :func:`env_block_kernel` over every pixel block of ``n_frames`` frames.
 
     ``tree`` is the mesh's :class:`~._frustum_bvh.FrustumBVH` (None: no gathering). Ray
@@ -1076,8 +1162,16 @@ def launch_env_blocks(
     # _tri_rect packs a block's pixel rectangle into 8-bit fields of a signed int32
     cap = GATHER_CAP if tree is not None and mesh_id != 0 and block < 128 else 0
     if cap > 0:
-        arrays = (tree.p0, tree.e1, tree.e2, tree.lower, tree.upper, tree.level_start,
-                  tree.n_levels, tree.n_tri)  # fmt: skip
+        arrays = (
+            tree.p0,
+            tree.e1,
+            tree.e2,
+            tree.lower,
+            tree.upper,
+            tree.level_start,
+            tree.n_levels,
+            tree.n_tri,
+        )
         cand = wp.empty(2 * n * cap, dtype=wp.int32, device=device)
         cand_z = wp.empty(n * cap, dtype=wp.float32, device=device)
     else:
@@ -1087,11 +1181,37 @@ def launch_env_blocks(
 
     def inputs(base, j):
         return [
-            mesh_id, 0 if mesh_id == 0 else 1, z_max, z_min, cams["pos"], cams["rot"],
-            fx, fy, cx, cy, width, height, npix, block, bw, bh, n, stride,
-            all_pixels, float(t_all), any_hit, COHERENT, 1 if cap > 0 else 0, cap, *arrays,
-            cand, cand_z, base, z_env, status,
-        ]  # fmt: skip
+            mesh_id,
+            0 if mesh_id == 0 else 1,
+            z_max,
+            z_min,
+            cams["pos"],
+            cams["rot"],
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+            npix,
+            block,
+            bw,
+            bh,
+            n,
+            stride,
+            all_pixels,
+            float(t_all),
+            any_hit,
+            COHERENT,
+            1 if cap > 0 else 0,
+            cap,
+            *arrays,
+            cand,
+            cand_z,
+            base,
+            z_env,
+            status,
+        ]
 
     launch_dynamic(env_block_kernel, n, k, inputs, device)
 
@@ -1107,19 +1227,42 @@ def launch_pair_counts(seg, intr, n_box, use_min, out, counts, bounds, device):
 
         def row_inputs(base, j):
             return [
-                seg["row_seg"], seg["row_y"], seg["offsets"], seg["frame"], seg["box"],
-                seg["rect"], out["pair_z"], out["z_env"], out["z_min"],
-                width, npix, n_box, base, use_min, counts[j],
-            ]  # fmt: skip
+                seg["row_seg"],
+                seg["row_y"],
+                seg["offsets"],
+                seg["frame"],
+                seg["box"],
+                seg["rect"],
+                out["pair_z"],
+                out["z_env"],
+                out["z_min"],
+                width,
+                npix,
+                n_box,
+                base,
+                use_min,
+                counts[j],
+            ]
 
         launch_dynamic(pair_count_row_kernel, seg["n_rows"], 1, row_inputs, device)
         return
 
     def inputs(base, j):
         return [
-            seg["offsets"], seg["frame"], seg["box"], seg["rect"],
-            out["pair_z"], out["z_env"], out["z_min"],
-            width, npix, n_box, seg["n"], base, use_min, counts[j],
-        ]  # fmt: skip
+            seg["offsets"],
+            seg["frame"],
+            seg["box"],
+            seg["rect"],
+            out["pair_z"],
+            out["z_env"],
+            out["z_min"],
+            width,
+            npix,
+            n_box,
+            seg["n"],
+            base,
+            use_min,
+            counts[j],
+        ]
 
     launch_split(pair_count_kernel, bounds, inputs, device)

@@ -219,9 +219,14 @@ def _warp_mesh(env_mesh: Any, device: str) -> int:
     points = wp.array(v, dtype=wp.vec3, device=device)
     mesh = wp.Mesh(points=points, indices=wp.array(f.ravel(), dtype=wp.int32, device=device))
     entry = {
-        "ref": weakref.ref(env_mesh), "faces": fh, "verts": vh, "points": points, "mesh": mesh,
-        "faces_i32": f, "tree": build_frustum_bvh(v, f, device),
-    }  # fmt: skip
+        "ref": weakref.ref(env_mesh),
+        "faces": fh,
+        "verts": vh,
+        "points": points,
+        "mesh": mesh,
+        "faces_i32": f,
+        "tree": build_frustum_bvh(v, f, device),
+    }
     _MESH_CACHE[key] = entry
     weakref.finalize(env_mesh, _MESH_CACHE.pop, key, None)
     return mesh.id
@@ -465,14 +470,28 @@ def _run(
             kern.launch_pair_depths(seg, wintr, d_max, out, item_bounds, device)
         # environment rays: every pixel for a depth image, else only under a finite Z_a
         z_env = wp.empty(tc * npix, dtype=wp.float32, device=device)
-        status = wp.empty(tc * (-(-width // _BLOCK)) * (-(-height // _BLOCK)), dtype=wp.int32,
-                          device=device)  # fmt: skip
+        status = wp.empty(
+            tc * (-(-width // _BLOCK)) * (-(-height // _BLOCK)), dtype=wp.int32, device=device
+        )
         kern.launch_env_blocks(
-            mesh_id, tree, z_max, z_min, cams, wintr, height, _BLOCK, tc, 1 if return_depth else 0,
+            mesh_id,
+            tree,
+            z_max,
+            z_min,
+            cams,
+            wintr,
+            height,
+            _BLOCK,
+            tc,
+            1 if return_depth else 0,
             # Warp accepts hits with t < max_t; eq. 2 keeps t == d_max
-            np.nextafter(np.float32(d_max), np.float32(np.inf)), 0 if return_depth else 1,
-            z_env, status, device, threads,
-        )  # fmt: skip
+            np.nextafter(np.float32(d_max), np.float32(np.inf)),
+            0 if return_depth else 1,
+            z_env,
+            status,
+            device,
+            threads,
+        )
         out["z_env"] = z_env
         if n_items:
             cnt = [wp.zeros(tc * max(n, 1), dtype=wp.int32, device=device) for _ in range(n_buf)]
@@ -581,9 +600,20 @@ def perceive_frames(
         raise ValueError(f"threads: expected a positive integer, got {threads!r}")
     mesh_id, tree = _mesh_and_tree(env_mesh, device)
     counts, depth_env, depth = _run(
-        mesh_id, tree, c, h, r, intr, p, d_max, act, bool(occlusion_between_artefacts),
-        bool(return_depth), device, int(threads),
-    )  # fmt: skip
+        mesh_id,
+        tree,
+        c,
+        h,
+        r,
+        intr,
+        p,
+        d_max,
+        act,
+        bool(occlusion_between_artefacts),
+        bool(return_depth),
+        device,
+        int(threads),
+    )
     return PerceptionResult(counts, counts > tau, depth_env, depth)
 
 
@@ -628,10 +658,19 @@ def perceived_counts_batch(
     ((3, 1), True)
     """
     res = perceive_frames(
-        env_mesh, centers, half_extents, rotations, camera, poses, d_max, tau,
-        active=active, occlusion_between_artefacts=occlusion_between_artefacts,
-        device=device, threads=threads,
-    )  # fmt: skip
+        env_mesh,
+        centers,
+        half_extents,
+        rotations,
+        camera,
+        poses,
+        d_max,
+        tau,
+        active=active,
+        occlusion_between_artefacts=occlusion_between_artefacts,
+        device=device,
+        threads=threads,
+    )
     return res.counts, res.perceived
 
 
@@ -701,9 +740,18 @@ def perceived_counts(
     [False, True]
     """
     res = perceive_frames(
-        env_mesh, centers, half_extents, rotations, camera, None, d_max, tau,
-        occlusion_between_artefacts=occlusion_between_artefacts, device=device, threads=threads,
-    )  # fmt: skip
+        env_mesh,
+        centers,
+        half_extents,
+        rotations,
+        camera,
+        None,
+        d_max,
+        tau,
+        occlusion_between_artefacts=occlusion_between_artefacts,
+        device=device,
+        threads=threads,
+    )
     return res.counts[0], res.perceived[0]
 
 

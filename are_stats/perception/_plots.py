@@ -83,9 +83,13 @@ def plot_camera_view(
     fin = np.isfinite(z)
     vmax = float(d_max) if d_max is not None else (float(z[fin].max()) if fin.any() else 1.0)
     im = ax.imshow(
-        np.where(fin, z, np.nan), cmap="viridis", vmin=0.0, vmax=vmax,
-        extent=(0, camera.width, camera.height, 0), interpolation="nearest",
-    )  # fmt: skip
+        np.where(fin, z, np.nan),
+        cmap="viridis",
+        vmin=0.0,
+        vmax=vmax,
+        extent=(0, camera.width, camera.height, 0),
+        interpolation="nearest",
+    )
     ax.set_facecolor("#f0f0f0")
     ax.figure.colorbar(
         im, ax=ax, fraction=0.035, pad=0.02, label="depth (m); blank: nothing within d_max"
@@ -173,9 +177,14 @@ def plot_top_view(
         img[grid.data >= 65] = 0.1
         ox, oy, _ = grid.origin
         ax.imshow(
-            img, cmap="gray", vmin=0, vmax=1, origin="lower", interpolation="nearest",
+            img,
+            cmap="gray",
+            vmin=0,
+            vmax=1,
+            origin="lower",
+            interpolation="nearest",
             extent=(ox, ox + grid.width * grid.resolution, oy, oy + grid.height * grid.resolution),
-        )  # fmt: skip
+        )
     cone = camera.fov_cone(d_max)
     # horizontal footprint of the cone: hull of the apex and the far corners
     from scipy.spatial import ConvexHull
@@ -185,8 +194,17 @@ def plot_top_view(
         hull = pts[ConvexHull(pts).vertices]
     except Exception:  # degenerate (camera looking straight up/down)
         hull = pts
-    ax.add_patch(Polygon(hull, closed=True, fc="#fee08b", ec="#f46d43", alpha=0.45,
-                         lw=1.5, label=f"view cone W (d_max = {d_max:g} m)"))  # fmt: skip
+    ax.add_patch(
+        Polygon(
+            hull,
+            closed=True,
+            fc="#fee08b",
+            ec="#f46d43",
+            alpha=0.45,
+            lw=1.5,
+            label=f"view cone W (d_max = {d_max:g} m)",
+        )
+    )
     ax.plot(*camera.center[:2], marker="o", color="#f46d43", ms=6)
     c = np.asarray(centers, float)
     h = np.asarray(half_extents, float)

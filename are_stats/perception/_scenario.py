@@ -266,11 +266,19 @@ def perceive_scene(
     cols = np.flatnonzero(active.any(axis=0))
     moving = centres.ndim == 3
     counts, seen = perceived_counts_batch(
-        env_mesh, centres[:, cols] if moving else centres[cols], half[cols],
-        rots[:, cols] if moving else rots[cols], camera, p, d_max, tau,
-        active=active[:, cols], occlusion_between_artefacts=occlusion_between_artefacts,
-        device=device, threads=threads,
-    )  # fmt: skip
+        env_mesh,
+        centres[:, cols] if moving else centres[cols],
+        half[cols],
+        rots[:, cols] if moving else rots[cols],
+        camera,
+        p,
+        d_max,
+        tau,
+        active=active[:, cols],
+        occlusion_between_artefacts=occlusion_between_artefacts,
+        device=device,
+        threads=threads,
+    )
     all_counts = np.zeros(active.shape, np.int64)
     all_seen = np.zeros(active.shape, bool)
     all_counts[:, cols], all_seen[:, cols] = counts, seen
@@ -373,9 +381,16 @@ def perceive_scenario(
     first = np.full(n_out, np.nan)
     for rows, scene in scenes_rows:
         counts, seen = perceive_scene(
-            scene, t, poses, env_mesh, camera, d_max, tau,
-            occlusion_between_artefacts=occlusion_between_artefacts, threads=threads,
-        )  # fmt: skip
+            scene,
+            t,
+            poses,
+            env_mesh,
+            camera,
+            d_max,
+            tau,
+            occlusion_between_artefacts=occlusion_between_artefacts,
+            threads=threads,
+        )
         perceived[rows] = seen.any(axis=0)
         n_frames[rows] = seen.sum(axis=0)
         max_count[rows] = counts.max(axis=0) if len(t) else 0

@@ -260,10 +260,17 @@ def scene_tracks(
         cls_rows[order] = classes
         tracks = pd.DataFrame(
             behaviour_tracks(
-                key, art, cls_rows, grid, catalogue, cell=behaviour_cell,
-                dt=behaviour_dt, horizon=horizon, source=cell_source,
+                key,
+                art,
+                cls_rows,
+                grid,
+                catalogue,
+                cell=behaviour_cell,
+                dt=behaviour_dt,
+                horizon=horizon,
+                source=cell_source,
             )
-        )  # fmt: skip
+        )
     if tracks is not None and len(tracks):
         walks = _pedestrians(art, catalogue, class_labels, n)
         tracks, groups = _groups(tracks, art, walks, grid, interaction)
@@ -356,10 +363,21 @@ def scenes_from_draws(
     if k_tracks is None:
         k_tracks = jax.random.key(seed)
     tracks = scene_tracks(
-        k_tracks, art, grid, catalogue, horizon, behaviours=kind, fitted=fitted,
-        class_labels=class_labels, behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt,
-        source=source, cell_source=cell_source, interaction=interaction, n=n,
-    )  # fmt: skip
+        k_tracks,
+        art,
+        grid,
+        catalogue,
+        horizon,
+        behaviours=kind,
+        fitted=fitted,
+        class_labels=class_labels,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        source=source,
+        cell_source=cell_source,
+        interaction=interaction,
+        n=n,
+    )
     return scenes_from_tables(art, tracks, catalogue, class_labels, range(n))
 
 
@@ -483,17 +501,32 @@ def scenes_from_fit(
         if grid is not None:
             nu = float(np.count_nonzero(grid.free)) * grid.resolution**2
         elif fit.area is None:
-            raise InputError(source, "posterior.attrs.area",
-                             "the fit's area (m^2; a fit of are-stats fit), or a map",
-                             Described("none"))  # fmt: skip
+            raise InputError(
+                source,
+                "posterior.attrs.area",
+                "the fit's area (m^2; a fit of are-stats fit), or a map",
+                Described("none"),
+            )
         else:
             nu = fit.area
     check_scenario_size(draws, n, horizon, nu, start, source)
     labels = None if fit.class_labels is None else list(fit.class_labels)
     return scenes_from_draws(
-        key, draws, grid, catalogue, n, horizon, laws=laws, behaviours=behaviours,
-        fitted=fit.behaviour, class_labels=labels,
-        area=nu if grid is None else area, start=start,
-        behaviour_cell=behaviour_cell, behaviour_dt=behaviour_dt, source=source,
-        cell_source=cell_source, interaction=interaction,
-    )  # fmt: skip
+        key,
+        draws,
+        grid,
+        catalogue,
+        n,
+        horizon,
+        laws=laws,
+        behaviours=behaviours,
+        fitted=fit.behaviour,
+        class_labels=labels,
+        area=nu if grid is None else area,
+        start=start,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        source=source,
+        cell_source=cell_source,
+        interaction=interaction,
+    )

@@ -251,10 +251,11 @@ def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[Any, list[st
             missing = [c for c in required if c not in names]
             if missing:
                 raise InputError(
-                    path, f"missing column(s) {', '.join(repr(c) for c in missing)}",
+                    path,
+                    f"missing column(s) {', '.join(repr(c) for c in missing)}",
                     f"a {what} with columns {', '.join(required)}",
                     Described(f"columns {', '.join(repr(c) for c in names) or '(none)'}"),
-                )  # fmt: skip
+                )
             return None, names
     table = read_raw_table(path, what)
     table.require(list(required), what)
@@ -335,9 +336,11 @@ def _artefacts(d: Path, n_sc: int | None) -> pd.DataFrame:
     if early.any():
         i = int(np.argmax(early))
         raise table.error(
-            i, "t_leave", f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})",
+            i,
+            "t_leave",
+            f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})",
             repr(float(num["t_leave"][i])),
-        )  # fmt: skip
+        )
     hi_sc = _INT32 if n_sc is None else n_sc - 1
     scen = table.nonneg_ints("scenario", allow_empty=False, hi=max(hi_sc, 0))[0]
     if n_sc is not None and n_sc == 0:
@@ -387,9 +390,11 @@ def _tracks(d: Path, meta: Mapping[str, Any], artefacts: pd.DataFrame) -> pd.Dat
         raise _error(mpath, "tracks.file", "a file name inside the scenarios folder", name)
     if not (d / name).is_file():
         raise _error(
-            mpath, "tracks.file", "a tracks file in the scenarios folder",
+            mpath,
+            "tracks.file",
+            "a tracks file in the scenarios folder",
             Described(f"no file {name}"),
-        )  # fmt: skip
+        )
     table, _ = _raw(d / name, "behaviour tracks", TRACK_COLUMNS)
     if table is None:
         dtypes = {c: np.int64 if c in ("scenario", "id") else float for c in TRACK_COLUMNS}
@@ -411,9 +416,11 @@ def _tracks(d: Path, meta: Mapping[str, Any], artefacts: pd.DataFrame) -> pd.Dat
     if dup.any():
         i = int(np.argmax(dup))
         raise table.error(
-            i, "t", f"one pose per artefact and time (artefact {int(ids[i])} has two)",
+            i,
+            "t",
+            f"one pose per artefact and time (artefact {int(ids[i])} has two)",
             repr(float(num["t"][i])),
-        )  # fmt: skip
+        )
     return pd.DataFrame({"scenario": scen, "id": ids, **num})
 
 
@@ -461,9 +468,11 @@ def read_scenes(folder: str | os.PathLike) -> ScenesFolder:
     for name in (_MANIFEST, _ARTEFACTS):
         if not (d / name).is_file():
             raise _error(
-                d, name, f"a scenarios folder with {_MANIFEST} and {_ARTEFACTS}",
+                d,
+                name,
+                f"a scenarios folder with {_MANIFEST} and {_ARTEFACTS}",
                 Described(f"no file {name}"),
-            )  # fmt: skip
+            )
     meta = _manifest(d)
     n_sc = meta.get("n_scenarios")
     df = _artefacts(d, None if n_sc is None else int(n_sc))

@@ -167,14 +167,16 @@ def _class_draws(params: Mapping[str, Any], s: int) -> dict[str, np.ndarray]:
                 f"got {m.shape}"
             )
         out["class_stay_mean"] = m
-        k = np.atleast_1d(check_positive("params['class_stay_shape']",
-                                         params.get("class_stay_shape", 1.0)))  # fmt: skip
+        k = np.atleast_1d(
+            check_positive("params['class_stay_shape']", params.get("class_stay_shape", 1.0))
+        )
         if k.shape not in ((1,), (s,)):
             raise ValueError(f"params['class_stay_shape']: expected ({s},) draws, got {k.shape}")
         out["class_stay_shape"] = np.broadcast_to(k, (s,)).astype(float)
     if "class_tod_weights" in params:
-        t = check_nonnegative("params['class_tod_weights']",
-                              np.asarray(params["class_tod_weights"]) + 0.0)  # fmt: skip
+        t = check_nonnegative(
+            "params['class_tod_weights']", np.asarray(params["class_tod_weights"]) + 0.0
+        )
         if t.ndim != 3 or t.shape[0] != s or t.shape[2] != w.shape[1]:
             raise ValueError(
                 f"params['class_tod_weights']: expected shape ({s}, P, {w.shape[1]}), got {t.shape}"
@@ -187,10 +189,17 @@ def _class_draws(params: Mapping[str, Any], s: int) -> dict[str, np.ndarray]:
 
 
 def _draw_classes(
-    rng: np.random.Generator, p: Mapping[str, Any], law: str, d: np.ndarray,
-    scen: np.ndarray, group: np.ndarray, initial: np.ndarray, t_arr: np.ndarray,
-    t_leave: np.ndarray, clock: tuple[float, float] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    rng: np.random.Generator,
+    p: Mapping[str, Any],
+    law: str,
+    d: np.ndarray,
+    scen: np.ndarray,
+    group: np.ndarray,
+    initial: np.ndarray,
+    t_arr: np.ndarray,
+    t_leave: np.ndarray,
+    clock: tuple[float, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """The class of each artefact of a labelled fit, and its stay under its class.
 
     One class per group (members of a group share it): an arriving group's class is drawn
@@ -243,9 +252,15 @@ def _draw_classes(
 
 
 def _place_by_class(
-    rng: np.random.Generator, densities: Any, cls: np.ndarray, scen: np.ndarray,
-    group: np.ndarray, initial: np.ndarray, x: np.ndarray, y: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    rng: np.random.Generator,
+    densities: Any,
+    cls: np.ndarray,
+    scen: np.ndarray,
+    group: np.ndarray,
+    initial: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Arriving groups enter from their class's entry density (issue 31).
 
     Each arriving group's first member is placed at a point of ``densities[class]``; the
@@ -412,10 +427,16 @@ def generate_scenarios(
     rich = laws is not None and not laws.is_paper
     if rich:
         scen, j, t_arr, t_leave, initial, group, xy_map = _rich_populations(
-            rng, params, laws, d, h, nu, start,
+            rng,
+            params,
+            laws,
+            d,
+            h,
+            nu,
+            start,
             (mask, res, (ox, oy, oyaw)) if free_mask is not None else None,
             (ox, oy, oyaw),
-        )  # fmt: skip
+        )
         total = scen.size
     else:
         scen, j, t_arr, t_leave, initial, total = _paper_populations(rng, p, d, h, nu, start)
@@ -524,9 +545,13 @@ def _laws_record(laws: Any) -> dict[str, Any]:
 
 
 def _paper_populations(
-    rng: np.random.Generator, p: Mapping[str, np.ndarray], d: np.ndarray, h: float, nu: float,
+    rng: np.random.Generator,
+    p: Mapping[str, np.ndarray],
+    d: np.ndarray,
+    h: float,
+    nu: float,
     start: str,
-) -> tuple:  # fmt: skip
+) -> tuple:
     """The paper's model for all scenarios at once (vectorised: no loop per scenario)."""
     n_sc = d.size
     lam_nu = p["arrival_rate"][d] * nu
@@ -549,10 +574,12 @@ def _check_entries_on_map(entry: Any, free: Any) -> None:
     """Refuse a learned entry density that mostly lies off the given map's free cells."""
     h, w = entry.prob.shape
     yy, xx = np.mgrid[0:h, 0:w]
-    centres = np.column_stack([
-        entry.origin[0] + (xx.ravel() + 0.5) * entry.resolution,
-        entry.origin[1] + (yy.ravel() + 0.5) * entry.resolution,
-    ])  # fmt: skip
+    centres = np.column_stack(
+        [
+            entry.origin[0] + (xx.ravel() + 0.5) * entry.resolution,
+            entry.origin[1] + (yy.ravel() + 0.5) * entry.resolution,
+        ]
+    )
     row, col = free.cell_of(centres)
     on = row >= 0
     ok = np.zeros(row.size, bool)
@@ -567,9 +594,16 @@ def _check_entries_on_map(entry: Any, free: Any) -> None:
 
 
 def _rich_populations(
-    rng: np.random.Generator, params: Mapping[str, Any], laws: Any, d: np.ndarray, h: float,
-    nu: float, start: str, grid: tuple | None, origin: tuple[float, float, float],
-) -> tuple:  # fmt: skip
+    rng: np.random.Generator,
+    params: Mapping[str, Any],
+    laws: Any,
+    d: np.ndarray,
+    h: float,
+    nu: float,
+    start: str,
+    grid: tuple | None,
+    origin: tuple[float, float, float],
+) -> tuple:
     """Each scenario by :func:`are_stats.traffic.sample_population` (positions in the map)."""
     from are_stats.traffic import sample_population, uniform_position_density
 
@@ -609,9 +643,14 @@ def _rich_populations(
         c, sn = math.cos(oyaw), math.sin(oyaw)
         x, y = ox + c * cat["x"] - sn * cat["y"], oy + sn * cat["x"] + c * cat["y"]
     return (
-        cat["scen"].astype(np.int32), cat["j"].astype(np.int64), cat["ta"].astype(float),
-        cat["tl"].astype(float), cat["tr"].astype(bool), cat["g"].astype(np.int64), (x, y),
-    )  # fmt: skip
+        cat["scen"].astype(np.int32),
+        cat["j"].astype(np.int64),
+        cat["ta"].astype(float),
+        cat["tl"].astype(float),
+        cat["tr"].astype(bool),
+        cat["g"].astype(np.int64),
+        (x, y),
+    )
 
 
 #: Bytes per generated artefact while drawing a table (its 11 columns and the temporaries).
@@ -621,9 +660,12 @@ BYTES_PER_SCENARIO = 64
 
 
 def expected_artefacts(
-    params: Mapping[str, Any], n_scenarios: int, horizon: float, area: float,
+    params: Mapping[str, Any],
+    n_scenarios: int,
+    horizon: float,
+    area: float,
     start: str = "stationary",
-) -> float:  # fmt: skip
+) -> float:
     """Expected number of artefacts of :func:`generate_scenarios` (before drawing anything).
 
     Each scenario holds ``Poisson(lambda nu / mu)`` initial artefacts (stationary start) and
@@ -695,9 +737,13 @@ def check_scenario_size(
 
 
 def _check_size(
-    p: Mapping[str, np.ndarray], n_sc: int, h: float, nu: float, start: str,
+    p: Mapping[str, np.ndarray],
+    n_sc: int,
+    h: float,
+    nu: float,
+    start: str,
     source: str = "n_scenarios, horizon",
-) -> None:  # fmt: skip
+) -> None:
     """:func:`check_scenario_size` on validated draws."""
     check_memory(float(n_sc) * BYTES_PER_SCENARIO, f"{n_sc} scenarios", source)
     expected = expected_artefacts(p, n_sc, h, nu, start)

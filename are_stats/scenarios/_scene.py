@@ -203,9 +203,21 @@ class Scene:
         labels, classes, rows, half, off = _boxes(catalogue, comp, marks, class_labels)
         start, t, pose = _tracks(tracks, ids)
         return cls(
-            ids, labels, classes, rows, half, off, num[:, 0], num[:, 1], num[:, 2:5],
-            start, t, pose, artefacts, class_labels,
-        )  # fmt: skip
+            ids,
+            labels,
+            classes,
+            rows,
+            half,
+            off,
+            num[:, 0],
+            num[:, 1],
+            num[:, 2:5],
+            start,
+            t,
+            pose,
+            artefacts,
+            class_labels,
+        )
 
     def with_tracks(self, tracks: pd.DataFrame | None) -> Scene:
         """A new scene, equal to this one except that its artefacts follow ``tracks``.
@@ -225,10 +237,21 @@ class Scene:
         """
         start, t, pose = _tracks(tracks, self.ids)
         return Scene(
-            self.ids, self.labels, self.classes, self.rows, self.half_extents, self.offsets,
-            self.t_arrive, self.t_leave, self._pose0, start, t, pose, self.artefacts,
+            self.ids,
+            self.labels,
+            self.classes,
+            self.rows,
+            self.half_extents,
+            self.offsets,
+            self.t_arrive,
+            self.t_leave,
+            self._pose0,
+            start,
+            t,
+            pose,
+            self.artefacts,
             self.class_labels,
-        )  # fmt: skip
+        )
 
     def tracks_table(self) -> pd.DataFrame:
         """The scene's tracks as a table ``id, t, x, y, yaw`` (one row per epoch).
@@ -239,10 +262,15 @@ class Scene:
             Sorted by artefact (table order) and time; empty without tracks.
         """
         owner = np.repeat(np.arange(self.ids.size), np.diff(self._start))
-        return pd.DataFrame({
-            "id": self.ids[owner], "t": self._t, "x": self._pose[:, 0],
-            "y": self._pose[:, 1], "yaw": self._pose[:, 2],
-        })  # fmt: skip
+        return pd.DataFrame(
+            {
+                "id": self.ids[owner],
+                "t": self._t,
+                "x": self._pose[:, 0],
+                "y": self._pose[:, 1],
+                "yaw": self._pose[:, 2],
+            }
+        )
 
     # ---- poses ------------------------------------------------------------------------------
 
@@ -323,12 +351,21 @@ class Scene:
         start = self._start.copy()
         start[i + 1 :] += tt.size - (hi - lo)
         return Scene(
-            self.ids, self.labels, self.classes, self.rows, self.half_extents, self.offsets,
-            self.t_arrive, self.t_leave, self._pose0, start,
+            self.ids,
+            self.labels,
+            self.classes,
+            self.rows,
+            self.half_extents,
+            self.offsets,
+            self.t_arrive,
+            self.t_leave,
+            self._pose0,
+            start,
             np.concatenate([self._t[:lo], tt, self._t[hi:]]),
-            np.concatenate([self._pose[:lo], pp, self._pose[hi:]]), self.artefacts,
+            np.concatenate([self._pose[:lo], pp, self._pose[hi:]]),
+            self.artefacts,
             self.class_labels,
-        )  # fmt: skip
+        )
 
     def _index(self, i: Any) -> int:
         if isinstance(i, bool) or not isinstance(i, int | np.integer) or not 0 <= i < len(self):
@@ -350,9 +387,12 @@ class Scene:
         pose = self.poses(float(t), idx)
         centres = box_centres(pose, self.offsets[idx])
         return Boxes(
-            self.ids[idx], centres, self.half_extents[idx].copy(), _wrap(pose[:, 2]),
+            self.ids[idx],
+            centres,
+            self.half_extents[idx].copy(),
+            _wrap(pose[:, 2]),
             self.labels[idx],
-        )  # fmt: skip
+        )
 
     def events(self, t0: float, t1: float) -> pd.DataFrame:
         """Arrivals, leavings and moves (track epochs of live artefacts) in ``(t0, t1]``.
@@ -404,8 +444,15 @@ def _boxes(
         else:
             cls = catalogue.row(int(np.clip(c, 0, n_cls - 1)))
         row = cls.property_row(int(x))
-        table.append((row.label, row.class_row, row.row, row.half_extents,
-                      (row.bounds[0] + row.bounds[1]) / 2.0))  # fmt: skip
+        table.append(
+            (
+                row.label,
+                row.class_row,
+                row.row,
+                row.half_extents,
+                (row.bounds[0] + row.bounds[1]) / 2.0,
+            )
+        )
     labels = np.array([table[k][0] for k in inv], dtype=object)
     classes = np.array([table[k][1] for k in inv], dtype=np.int64).reshape(-1)
     rows = np.array([table[k][2] for k in inv], dtype=np.int64).reshape(-1)

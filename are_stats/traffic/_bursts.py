@@ -269,9 +269,14 @@ def _log_tick_terms(log_lam_delta: jnp.ndarray, count: jnp.ndarray, conv: Any) -
 
 
 def mmpp_step_loglik(
-    lam: Any, switch: Any, log_delta: Any, steps: BurstSteps, n_bins: int, conv: Any = None,
+    lam: Any,
+    switch: Any,
+    log_delta: Any,
+    steps: BurstSteps,
+    n_bins: int,
+    conv: Any = None,
     tod: Any = None,
-) -> jnp.ndarray:  # fmt: skip
+) -> jnp.ndarray:
     """Log-likelihood of each bin given the earlier bins, under a two-state MMPP.
 
     Parameters
@@ -333,9 +338,16 @@ def mmpp_step_loglik(
 
 
 def hawkes_step_loglik(
-    mu: Any, alpha: Any, beta: Any, log_delta: Any, steps: BurstSteps, n_bins: int,
-    excitation0: Any = None, conv: Any = None, tod: Any = None,
-) -> jnp.ndarray:  # fmt: skip
+    mu: Any,
+    alpha: Any,
+    beta: Any,
+    log_delta: Any,
+    steps: BurstSteps,
+    n_bins: int,
+    excitation0: Any = None,
+    conv: Any = None,
+    tod: Any = None,
+) -> jnp.ndarray:
     """Log-likelihood of each bin given the earlier bins, under an exponential Hawkes process.
 
     Parameters
@@ -473,9 +485,16 @@ def group_count_dispersion(event_dispersion: Any, size_probs: Any) -> np.ndarray
 
 
 def sample_mmpp_times(
-    rng: np.random.Generator, lam: Any, switch: Any, window: Any, state0: int | None = None,
-    *, tod: Any = None, offset: float = 0.0, period: float = DAY,
-) -> np.ndarray:  # fmt: skip
+    rng: np.random.Generator,
+    lam: Any,
+    switch: Any,
+    window: Any,
+    state0: int | None = None,
+    *,
+    tod: Any = None,
+    offset: float = 0.0,
+    period: float = DAY,
+) -> np.ndarray:
     """Event times of a two-state MMPP over ``window`` (exact: Poisson within each sojourn;
     with ``tod``, intensities ``lam * tod[p(t)]`` by thinning).
 
@@ -531,9 +550,17 @@ def sample_mmpp_times(
 
 
 def sample_hawkes_times(
-    rng: np.random.Generator, mu: float, alpha: float, beta: float, window: Any,
-    burn: float = 0.0, *, tod: Any = None, offset: float = 0.0, period: float = DAY,
-) -> np.ndarray:  # fmt: skip
+    rng: np.random.Generator,
+    mu: float,
+    alpha: float,
+    beta: float,
+    window: Any,
+    burn: float = 0.0,
+    *,
+    tod: Any = None,
+    offset: float = 0.0,
+    period: float = DAY,
+) -> np.ndarray:
     """Event times of an exponential Hawkes process over ``window`` (the cluster process).
 
     Immigrants arrive as a Poisson process of rate ``mu`` (``mu tod[p(t)]`` with ``tod``,

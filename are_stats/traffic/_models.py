@@ -395,8 +395,16 @@ def _burst_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) -> 
     else:
         alpha = params["hawkes_branching"]
         mu = total * (1.0 - alpha)
-        out = hawkes_step_loglik(mu, alpha, params["hawkes_decay"], units.log_delta,
-                                 units.steps, n_bins, conv=conv, tod=tod)  # fmt: skip
+        out = hawkes_step_loglik(
+            mu,
+            alpha,
+            params["hawkes_decay"],
+            units.log_delta,
+            units.steps,
+            n_bins,
+            conv=conv,
+            tod=tod,
+        )
     return jnp.where(units.bin_weight > 0, out, 0.0)
 
 

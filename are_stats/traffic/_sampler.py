@@ -210,9 +210,17 @@ def sample_population(
 
 
 def _burst_groups(
-    rng: np.random.Generator, draw: Mapping[str, Any], laws: TrafficLaws, horizon: float,
-    area: float, rate: float, mean: float, shape: float, probs: np.ndarray | None, start: str,
-) -> tuple[np.ndarray, np.ndarray, ArrivalDraw, np.ndarray]:  # fmt: skip
+    rng: np.random.Generator,
+    draw: Mapping[str, Any],
+    laws: TrafficLaws,
+    horizon: float,
+    area: float,
+    rate: float,
+    mean: float,
+    shape: float,
+    probs: np.ndarray | None,
+    start: str,
+) -> tuple[np.ndarray, np.ndarray, ArrivalDraw, np.ndarray]:
     """Groups of a bursty model: sizes and remaining stays of those present at ``t = 0``,
     the arrivals of the window and their groups' stays (see the module docstring)."""
     spec = laws.spec
@@ -257,9 +265,15 @@ def _burst_groups(
 
 
 def _finish(
-    rng: np.random.Generator, laws: TrafficLaws, size0: np.ndarray, stay0: np.ndarray,
-    arr: ArrivalDraw, stay_arr: np.ndarray, n0_groups: int, free: PositionDensity | None,
-) -> dict[str, np.ndarray]:  # fmt: skip
+    rng: np.random.Generator,
+    laws: TrafficLaws,
+    size0: np.ndarray,
+    stay0: np.ndarray,
+    arr: ArrivalDraw,
+    stay_arr: np.ndarray,
+    n0_groups: int,
+    free: PositionDensity | None,
+) -> dict[str, np.ndarray]:
     """Artefacts of the groups present at ``t = 0`` and of the arrivals: stays, positions."""
     g_stay = np.concatenate([stay0, stay_arr])
     group = np.concatenate([np.repeat(np.arange(n0_groups), size0), n0_groups + arr.group])
