@@ -21,6 +21,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+# Lazy imports: matplotlib (about 0.5 s) is imported by save_figure only, when a figure is
+# written.
+
 __all__ = [
     "OutputExistsError",
     "atomic_folder",

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import yaml
 from rich.console import Console
 from rich.table import Table
@@ -20,7 +21,29 @@ from rich.table import Table
 from are_stats import __version__
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock
-from are_stats.environment import resolve_shipped, shipped_path
+from are_stats.environment import (
+    OccupancyGrid,
+    coarse_free,
+    extrude_grid,
+    load_catalogue,
+    load_mesh,
+    resolve_shipped,
+    shipped_path,
+)
+from are_stats.inputs import (
+    Described,
+    InputError,
+    check_memory,
+    check_work,
+    get_float,
+    get_int,
+    get_list,
+    get_seed,
+    get_str,
+)
+
+# Each job imports the rooms it runs when it runs (fitting: JAX and NumPyro; perception:
+# Warp; logs and scenarios: pyarrow): a command loads only what it uses.
 
 console = Console(highlight=False, width=None if Console().is_terminal else 100)
 
@@ -104,17 +127,6 @@ def run_fit(
         sampler_warnings,
         write_fit,
         write_report,
-    )
-    from are_stats.inputs import (
-        Described,
-        InputError,
-        check_memory,
-        check_work,
-        get_float,
-        get_int,
-        get_list,
-        get_seed,
-        get_str,
     )
     from are_stats.logs import read_count_panel, read_field_log
 
@@ -202,7 +214,6 @@ def run_fit(
     if rep.get("groups"):
         console.print(f"{rep['artefacts_in_groups']} artefacts arrived in {rep['groups']} groups")
     panel = read_count_panel(counts) if counts is not None else None
-    from are_stats.environment import load_catalogue
 
     catalogue = load_catalogue()  # read once: the labels' rows and the classes' run speeds
     t_start = time.perf_counter()
@@ -405,8 +416,6 @@ def _print_traffic(fit: Any) -> None:
 
 def _print_checks(written: dict) -> None:
     """The posterior-predictive statistics table (observed vs 90% bands, misfits flagged)."""
-    import pandas as pd
-
     path = written.get("traffic_checks_table")
     if path is None:
         return
@@ -469,7 +478,6 @@ def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, 
         sampler_warnings,
         write_report,
     )
-    from are_stats.inputs import get_int, get_seed
 
     seed = get_seed(seed)
     replicates = get_int(replicates, "--replicates", "", lo=1)
@@ -519,10 +527,7 @@ def run_generate(
     (:mod:`are_stats.inputs`), before anything is drawn. The folder ``out`` (scenarios,
     manifest and tracks) is written beside it and put in place as a whole.
     """
-
-    from are_stats.environment import load_catalogue
     from are_stats.fitting import read_fit
-    from are_stats.inputs import get_float, get_int, get_seed, get_str
     from are_stats.scenarios import check_folder, scenes_from_fit, scenes_tables, write_scenes
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
@@ -540,8 +545,6 @@ def run_generate(
     fit = read_fit(fit_path)
     grid = None
     if map_path is not None:
-        from are_stats.environment import OccupancyGrid
-
         map_path = resolve_shipped(map_path, "map", source="--map")  # or a shipped map's name
         grid = OccupancyGrid.from_ros_yaml(map_path)
     fitted = fit.behaviour is not None
@@ -616,15 +619,11 @@ def run_generate(
 
 def _behaviour_cell_m(grid: Any, cell: float) -> float:
     """The coarse behaviour grid's actual cell (m): ``cell`` rounded to map cells."""
-    from are_stats.environment import coarse_free
-
     return float(coarse_free(grid.free, grid.resolution, cell, source="--behaviour-cell")[1])
 
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
-    from are_stats.inputs import Described, InputError
-
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "", "a folder for the demo's outputs (--out)", Described("a file"))
@@ -660,7 +659,6 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         force,
         model="paper",
     )
-    import pandas as pd
 
     from are_stats.fitting import window_statistics
 
@@ -762,8 +760,6 @@ def run_perceive(
     poses outside the map are reported as a warning. With behaviour tracks the artefacts
     move: each robot pose sees them where they are at its time.
     """
-    from are_stats.environment import OccupancyGrid, extrude_grid, load_catalogue, load_mesh
-    from are_stats.inputs import Described, InputError, get_float
     from are_stats.perception import (
         PinholeCamera,
         check_path_times,
@@ -898,7 +894,6 @@ def run_augment(
     (:func:`are_stats.export.augment_bag`); ``topics`` the comma-separated input
     topics passed through (default all)."""
     from are_stats.export import augment_bag
-    from are_stats.inputs import InputError
 
     if pose_topic is not None and base_frame is not None:
         raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")

@@ -40,6 +40,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+# Lazy imports: JAX (1-2 s) is imported by the functions that trace or compile, not with the
+# module (the CLI imports it for prune_cache).
+
 __all__ = [
     "TRACE_LOCK",
     "cache_limit",

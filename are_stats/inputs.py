@@ -41,6 +41,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from are_stats._checks import describe
+
 __all__ = [
     "DEFAULT_MEMORY",
     "DEFAULT_WORK",
@@ -101,8 +103,6 @@ def _show(got: Any, limit: int = 80) -> str:
         text = repr(got)
         return f"a list {text if len(text) <= limit else text[:limit] + '...'}"
     if isinstance(got, np.ndarray):
-        from are_stats._checks import describe
-
         return describe(got, limit)
     text = repr(got.item() if isinstance(got, np.generic) else got)
     return text if len(text) <= limit else text[:limit] + "..."

@@ -32,11 +32,19 @@ from are_stats.builder._geometry import (
     runs_to_cells,
     triangle_box_overlap,
 )
+from are_stats.environment import (
+    ArtefactCatalogue,
+    OccupancyGrid,
+    VoxelMap,
+    planar_pose_matrix,
+    surface_points,
+)
+
+# Lazy imports: trimesh loads with the first mesh surface; Scene (scenarios imports the
+# builder's geometry) on the first register_scene.
 
 if TYPE_CHECKING:
     import trimesh
-
-    from are_stats.environment import ArtefactCatalogue, OccupancyGrid, VoxelMap
 
 __all__ = ["ARBuilder", "Resolution", "Placement"]
 
@@ -147,8 +155,6 @@ class ARBuilder:
         eps: float = 1e-9,
         advance_iters: int = 12,
     ) -> None:
-        from are_stats.environment import OccupancyGrid, VoxelMap
-
         if not isinstance(grid, OccupancyGrid):
             raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
         self.grid = grid
@@ -697,8 +703,6 @@ class ARBuilder:
     def _surface(self, k: int) -> np.ndarray:
         import trimesh
 
-        from are_stats.environment import surface_points
-
         label = self.labels[k]
         key = label if label != "box" else f"box{self._half[k].tolist()}"
         if key not in self._surface_cache:
@@ -732,8 +736,6 @@ class ARBuilder:
         """Publish every live artefact's frame F_A (``prefix + id``) in a
         :class:`~are_stats.environment.TransformTree` under ``env_frame`` at its current
         pose, and drop the frames of artefacts that left."""
-        from are_stats.environment import planar_pose_matrix
-
         live = {f"{prefix}{int(a)}" for a in self.ids}
         for f in tree.frames:
             if f.startswith(prefix) and f not in live and tree.parent(f) == env_frame:

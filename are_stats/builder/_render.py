@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from are_stats._atomic import check_writable, save_figure
+from are_stats.builder._builder import ARBuilder
+from are_stats.builder._geometry import box_corners
+from are_stats.environment import OccupancyGrid, load_catalogue, resolve_shipped
 from are_stats.inputs import InputError, get_float, get_int, get_seed
 
-if TYPE_CHECKING:
-    from are_stats.builder._builder import ARBuilder
-    from are_stats.environment import OccupancyGrid
+# Lazy imports: matplotlib (about 0.5 s) is imported when a map picture is drawn, not with the
+# builder.
 
 __all__ = ["render_map", "show_map", "MAX_INFLATE", "MAX_SHOW_ARTEFACTS"]
 
@@ -55,8 +56,6 @@ def render_map(
     import matplotlib.pyplot as plt
     import matplotlib.transforms
     from matplotlib.patches import Patch, Polygon
-
-    from are_stats.builder._geometry import box_corners
 
     if inflate is not None:
         inflate = get_float(inflate, "inflate", "", lo=0, hi=MAX_INFLATE)
@@ -140,9 +139,6 @@ def show_map(
         (a ``ValueError``) naming the option or the map file, also when the artefacts do
         not all find room (200 tries each).
     """
-    from are_stats.builder._builder import ARBuilder
-    from are_stats.environment import OccupancyGrid, load_catalogue, resolve_shipped
-
     if inflate is not None:
         inflate = get_float(inflate, "--inflate", "", lo=0, hi=MAX_INFLATE)
     n_art = get_int(artefacts, "--artefacts", "", lo=0, hi=MAX_SHOW_ARTEFACTS)

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from are_stats.environment._mesh import load_mesh
 from are_stats.environment._shipped import SHIPPED_DATA
 from are_stats.inputs import (
     Described,
@@ -144,8 +145,6 @@ class ArtefactClass:
 
     def mesh(self) -> trimesh.Trimesh:
         """The class mesh S_A (loaded on demand)."""
-        from are_stats.environment._mesh import load_mesh
-
         return load_mesh(self.mesh_path)
 
 
@@ -249,8 +248,6 @@ class ArtefactCatalogue:
         are_stats.inputs.InputError
             If a label is not one of the catalogue's.
         """
-        from are_stats.inputs import Described, InputError
-
         names = [str(v) for v in labels]
         unknown = [v for v in names if v not in self._by_label]
         if unknown:
@@ -343,8 +340,6 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
         cannot be read, or the ``variants`` ask for more rows than the memory limit allows
         (:class:`are_stats.inputs.LimitError`, :data:`ROW_BYTES` bytes per row).
     """
-    from are_stats.environment._mesh import load_mesh
-
     p = Path(path) if path is not None else DEFAULT_MODELS / "artefacts" / "catalogue.yaml"
     doc = check_keys(load_yaml(p, "catalogue YAML"), p, "", ("version", "classes"), ("classes",))
     if "version" in doc and get_int(doc["version"], p, "version") != 1:

@@ -23,6 +23,9 @@ import numpy as np
 
 from are_stats._checks import check_finite
 
+# Lazy imports: pytransform3d (about 0.8 s with SciPy) is imported when a transform tree is
+# used, not with the environment room.
+
 __all__ = ["TransformTree", "pose_matrix", "planar_pose_matrix", "OPTICAL_IN_BODY"]
 
 #: Rotation of a ROS optical frame in its body frame: columns are the optical axes.

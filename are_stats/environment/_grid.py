@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._checks import check_finite, check_in, describe
@@ -36,6 +37,9 @@ from are_stats.inputs import (
     get_str,
     load_yaml,
 )
+
+# Lazy imports: SciPy's ndimage (about 0.6 s) and Pillow load when a distance map is asked or a
+# map image read, not with the environment room.
 
 __all__ = [
     "OccupancyGrid",
@@ -472,7 +476,6 @@ class OccupancyGrid:
             is chosen so that reading it back with the grid's thresholds and mode returns the
             same value (map_saver's 254 / 0 / 205 for ``trinary``).
         """
-        import yaml
         from PIL import Image
 
         yp = Path(path)

@@ -19,6 +19,9 @@ import numpy as np
 from are_stats._checks import check_positive
 from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
 
+# Lazy imports: trimesh and shapely (about 1 s together) are imported when a mesh is loaded or
+# built, not with the environment room.
+
 if TYPE_CHECKING:
     import trimesh
 

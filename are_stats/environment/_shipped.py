@@ -37,6 +37,8 @@ import importlib.resources
 import os
 from pathlib import Path
 
+from are_stats.inputs import Described, InputError
+
 __all__ = ["SHIPPED_DATA", "SHIPPED_KINDS", "resolve_shipped", "shipped_names", "shipped_path"]
 
 #: Kind -> (folder inside the data folder, file suffix, what the file is, in words).
@@ -65,8 +67,6 @@ SHIPPED_DATA: Path = _data_folder()
 
 def _check_kind(kind: str) -> tuple[str, str, str]:
     if kind not in SHIPPED_KINDS:
-        from are_stats.inputs import InputError
-
         raise InputError("kind", "", "one of " + ", ".join(SHIPPED_KINDS), kind)
     return SHIPPED_KINDS[kind]
 
@@ -116,8 +116,6 @@ def shipped_path(name: str, kind: str) -> Path:
     folder, suffix, what = _check_kind(kind)
     names = shipped_names(kind)
     if name not in names:
-        from are_stats.inputs import InputError
-
         raise InputError(
             f"shipped {kind}", "", f"one of the shipped {kind} names ({', '.join(names)})", name
         )
@@ -180,7 +178,6 @@ def resolve_shipped(
     names = shipped_names(kind)
     if text in names:
         return shipped_path(text, kind)
-    from are_stats.inputs import Described, InputError
 
     raise InputError(
         source if source is not None else text,

@@ -30,6 +30,9 @@ from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
 from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
 
+# Lazy imports: trimesh (about 0.5 s) is imported when a mesh is sampled, not with the
+# environment room.
+
 if TYPE_CHECKING:
     import trimesh
 

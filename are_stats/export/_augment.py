@@ -23,6 +23,14 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from are_stats._atomic import check_writable
+from are_stats.builder import ARBuilder
+from are_stats.environment import (
+    DEFAULT_MODELS,
+    OccupancyGrid,
+    extrude_grid,
+    load_catalogue,
+    resolve_shipped,
+)
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame
 from are_stats.inputs import (
     Described,
@@ -33,7 +41,18 @@ from are_stats.inputs import (
     get_seed,
     get_str,
 )
-from are_stats.logs import CLOCKS, BagTrajectory, read_trajectory
+from are_stats.logs import (
+    CLOCKS,
+    STAMP_GAP,
+    BagTrajectory,
+    bag_passthrough,
+    interpolate_poses,
+    read_trajectory,
+)
+from are_stats.scenarios import scenes_from_fit
+
+# Lazy imports: fitting (JAX, NumPyro), perception (Warp) and experiments load when a bag is
+# augmented: `are-stats show`/`experiment` import this room for lighter functions.
 
 __all__ = [
     "AUGMENT_TOPICS",
@@ -219,19 +238,9 @@ def augment_bag(
         Camera frames (``period``), tracing or messages past the memory or work limits,
         checked before anything of that size is allocated.
     """
-
-    from are_stats.builder import ARBuilder
-    from are_stats.environment import (
-        OccupancyGrid,
-        extrude_grid,
-        load_catalogue,
-        resolve_shipped,
-    )
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit
-    from are_stats.logs import STAMP_GAP, interpolate_poses
     from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
-    from are_stats.scenarios import scenes_from_fit
 
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
@@ -245,7 +254,6 @@ def augment_bag(
     map_file = resolve_shipped(map_path, "map", source="--map")
     grid = OccupancyGrid.from_ros_yaml(map_file)
     fitted = read_fit(fit)
-    from are_stats.logs import bag_passthrough
 
     traj = read_trajectory(
         bag,
@@ -294,8 +302,6 @@ def augment_bag(
         frames = (cam_ns - start_ns) * 1e-9
     else:
         if camera is None:
-            from are_stats.environment import DEFAULT_MODELS
-
             camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
         cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
         frames = _period_frames(pose_t, period, cam, grid, bag, STAMP_GAP)

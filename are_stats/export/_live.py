@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import os
+import socket
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -48,9 +49,14 @@ from typing import Any
 
 import numpy as np
 
+from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
+from are_stats.logs import interpolate_poses
 from are_stats.scenarios import read_scenes, scenes_from_tables
+
+# Lazy imports: foxglove and perception (Warp) load when the live view starts, not with the
+# export room.
 
 __all__ = [
     "LIVE_TOPICS",
@@ -216,8 +222,6 @@ def _frame(
 
 def _robot_frame(fm: Any, robot: Any, t: float, ns: int, frame: str) -> tuple[Any, list]:
     """(SceneUpdate, transforms) of the robot at ``t``: footprint and camera frustum."""
-    from are_stats.logs import interpolate_poses
-
     base_at = interpolate_poses(robot["t"], robot["poses"], np.array([t]))[0]
     mount = robot["mount"]
     cam = robot["camera"]
@@ -416,7 +420,6 @@ def load_robot(
     dict
         ``t``, ``poses``, ``mount``, ``camera``, ``d_max``, ``radius``.
     """
-    from are_stats.environment import DEFAULT_MODELS
     from are_stats.perception import PinholeCamera, optical_from_base, read_robot_path
 
     table = read_robot_path(path)
@@ -442,8 +445,6 @@ def load_robot(
 
 def _resolves(host: str) -> bool:
     """Whether ``host`` names an address (so that a failed bind is the port's fault)."""
-    import socket
-
     try:
         socket.getaddrinfo(host, None)
     except (OSError, UnicodeError, ValueError):
@@ -480,8 +481,6 @@ def _replay(d: Path, folder: Any, scenario: int | None = None) -> dict[str, Any]
         ``scene``, ``grid`` (or None), ``horizon``, ``scenario`` (its index), ``moving``
         (artefacts with tracks), ``map`` (the map file or None).
     """
-    from are_stats.environment import OccupancyGrid, load_catalogue
-
     df, manifest, tracks = folder
     # the scenarios of the folder: 0 .. n_scenarios - 1 (some may hold no artefact), or
     # those of the table when the manifest does not say

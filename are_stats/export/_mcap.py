@@ -40,6 +40,9 @@ import numpy as np
 
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame, parse_start_time
 
+# Lazy imports: perception (Warp) and experiments load when an MCAP is written, not with the
+# export room.
+
 __all__ = ["MCAP_TOPICS", "export_mcap"]
 
 #: Topic -> ROS 2 message type written by :func:`export_mcap`.

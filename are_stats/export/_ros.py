@@ -22,6 +22,7 @@ late subscribers such as rviz still get them).
 from __future__ import annotations
 
 import datetime as _dt
+import heapq
 import math
 import os
 from collections.abc import Mapping
@@ -32,6 +33,9 @@ import numpy as np
 
 from are_stats._atomic import atomic_path
 from are_stats.inputs import InputError
+
+# Lazy imports: rosbags, mcap and SciPy's Rotation load when a bag is written, not with the
+# export room.
 
 __all__ = ["ROS_FRAMES", "RosMessages", "artefact_frame", "parse_start_time", "qos_profile"]
 
@@ -368,8 +372,6 @@ class RosMessages:
         the new channels then spell QoS as the input does and carry a ``topic_type_hash``
         when its channels do.
         """
-        import heapq
-
         from mcap.writer import Writer
 
         form = "int" if passthrough is None else passthrough.qos_form

@@ -18,8 +18,19 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from are_stats._atomic import check_writable, save_figure
+from are_stats.builder import box_corners
+from are_stats.environment import OccupancyGrid
 from are_stats.export._ros import ROS_FRAMES
 from are_stats.inputs import Described, InputError, get_float
+from are_stats.logs import (
+    bag_messages,
+    bag_read_errors,
+    check_bag_path,
+    read_trajectory,
+    vision_msgs_typestore,
+)
+
+# Lazy imports: rosbags and matplotlib load when a bag is drawn, not with the export room.
 
 __all__ = ["BagView", "plot_mcap", "read_view"]
 
@@ -79,8 +90,6 @@ def _yaw(q: Any) -> float:
 
 
 def _grid(msg: Any) -> Any:
-    from are_stats.environment import OccupancyGrid
-
     info = msg.info
     h, w = int(info.height), int(info.width)
     data = np.asarray(msg.data, np.int8).reshape(h, w)
@@ -137,14 +146,6 @@ def read_view(
         Naming the file: not a bag, no ``/map`` message, ``at`` outside the bag.
     """
     from rosbags.highlevel import AnyReader
-
-    from are_stats.logs import (
-        bag_messages,
-        bag_read_errors,
-        check_bag_path,
-        read_trajectory,
-        vision_msgs_typestore,
-    )
 
     p = check_bag_path(path)
     grid = None
@@ -268,8 +269,6 @@ def plot_mcap(
     import matplotlib.transforms
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch, Polygon
-
-    from are_stats.builder import box_corners
 
     target = check_writable(Path(out) if out is not None else Path(f"{Path(path).stem}.png"), force)
     v = read_view(path, at, map_frame=map_frame, base_frame=base_frame)

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from are_stats.environment import OccupancyGrid
 from are_stats.inputs import (
     Described,
     InputError,
@@ -31,6 +32,9 @@ from are_stats.inputs import (
     load_yaml,
 )
 from are_stats.logs._table import RawTable, frame_table, read_raw_table
+
+# Lazy imports: the traffic room (JAX, NumPyro) loads when a log becomes LifecycleData, not
+# with the logs room.
 
 __all__ = [
     "LIFECYCLE_COLUMNS",
@@ -471,8 +475,6 @@ def _resolve_settings(
         if not math.isfinite(a):
             raise InputError(mpath, "area", "an area that stays finite in m^2", manifest["area"])
     elif "map" in manifest:
-        from are_stats.environment import OccupancyGrid
-
         a = OccupancyGrid.from_ros_yaml(manifest["map"]).free_area
         if a <= 0:
             raise InputError(manifest["map"], "", "a map with free cells", Described("none"))

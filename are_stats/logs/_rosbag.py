@@ -26,17 +26,25 @@ are taken as published. The ``frame_id`` column says which frame the positions a
 
 from __future__ import annotations
 
+import datetime as _dt
 import math
 import os
+import re
+import sqlite3
+import struct
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
+import yaml
 
 from are_stats.inputs import Described, InputError, get_str
 from are_stats.logs._tf import TF_TYPES, TfBuffer, unit_quaternion
+
+# Lazy imports: rosbags, mcap and apsw (about 0.3 s) are imported when a bag is read or
+# written, not with the logs room.
 
 __all__ = [
     "BAG_SUFFIXES",
@@ -213,9 +221,6 @@ def _detections(
 def _bag_errors() -> tuple[type[BaseException], ...]:
     """What rosbags raises on a corrupt or truncated bag (its own errors, and the plain
     ones its parsers let through on damaged bytes)."""
-    import sqlite3
-    import struct
-
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag1 import ReaderError as Ros1ReaderError
     from rosbags.rosbag2 import ReaderError as Ros2ReaderError
@@ -328,8 +333,6 @@ OUTLIER_SHARE = 0.01
 
 
 def _iso(t: float) -> str:
-    import datetime as _dt
-
     try:
         return _dt.datetime.fromtimestamp(float(t), _dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
     except (OverflowError, OSError, ValueError):
@@ -664,8 +667,6 @@ class PassThrough(NamedTuple):
 
 
 def _qos_form(texts: Sequence[str]) -> str:
-    import re
-
     for text in texts:
         m = re.search(r"reliability'?:\s*'?([A-Za-z_]+|\d+)", str(text))
         if m:
@@ -755,8 +756,6 @@ def _mcap_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
 
 def _folder_metadata(p: Path) -> dict[str, dict]:
     """``{topic: topic_metadata}`` of a ROS 2 bag folder's ``metadata.yaml``."""
-    import yaml
-
     try:
         info = yaml.safe_load((p / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
         rows = info.get("topics_with_message_count") or []
@@ -771,7 +770,6 @@ def _folder_metadata(p: Path) -> dict[str, dict]:
 
 
 def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
-    import yaml
     from rosbags.convert.converter import STATIC_MSGTYPE_RENAMES, generate_message_converter
     from rosbags.highlevel import AnyReader
     from rosbags.interfaces import MessageDefinitionFormat

@@ -28,8 +28,12 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.compute as pc
 
 from are_stats.inputs import Described, InputError, check_memory
+
+# Lazy imports: pyarrow.parquet is imported when a Parquet table is read.
 
 __all__ = [
     "MAX_EXACT_INT",
@@ -441,8 +445,6 @@ def _read_csv(p: Path, what: str, sep: str) -> RawTable:
 
 
 def _read_parquet(p: Path, what: str) -> RawTable:
-    import pyarrow as pa
-    import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
     if p.stat().st_size == 0:

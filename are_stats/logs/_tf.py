@@ -18,6 +18,8 @@ import numpy as np
 
 from are_stats.inputs import Described, InputError
 
+# Lazy imports: SciPy's Rotation (0.1-1 s) is imported when a transform is interpolated.
+
 __all__ = [
     "QUATERNION_TOLERANCE",
     "TF_TYPE",

@@ -19,6 +19,9 @@ rectangle row per work item instead (``row_seg``, ``row_y``): its items are cons
 from __future__ import annotations
 
 import itertools
+import os
+import sys
+import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -54,10 +57,6 @@ def init_warp() -> None:
     descriptor is captured while Warp starts and everything else it wrote is passed on.
     Idempotent and cheap (about 60 ms once).
     """
-    import os
-    import sys
-    import tempfile
-
     try:
         sys.stderr.flush()
         saved = os.dup(2)

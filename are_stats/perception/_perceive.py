@@ -38,6 +38,9 @@ from are_stats._checks import check_finite, check_nonnegative, check_probability
 from are_stats.perception import _kernels as kern
 from are_stats.perception._frustum_bvh import FrustumBVH, build_frustum_bvh
 
+# Lazy imports: JAX is imported by sample_perceived only (a perception run needs Warp, not
+# JAX).
+
 __all__ = [
     "PerceptionResult",
     "perceived_counts",

@@ -10,6 +10,9 @@ import numpy as np
 from are_stats._atomic import save_figure
 from are_stats.perception._perceive import _EDGES, _SIGNS
 
+# Lazy imports: matplotlib and SciPy's ConvexHull load when a figure is drawn, not with the
+# perception room.
+
 __all__ = ["plot_camera_view", "plot_top_view", "save_figure"]
 
 _COLOURS = {"perceived": "#1a9850", "occluded": "#d73027", "outside": "#969696"}

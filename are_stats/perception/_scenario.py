@@ -17,7 +17,9 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
+from are_stats.builder import box_corners, rasterise_convex
 from are_stats.inputs import Described, InputError, check_memory, check_work
+from are_stats.logs import read_raw_table
 from are_stats.perception._camera import check_pose
 from are_stats.perception._perceive import perceived_counts_batch
 from are_stats.scenarios import MAX_POSITION, Scene
@@ -65,8 +67,6 @@ def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
         (a ``ValueError``) naming the file, the row and the column of the first bad cell
         (``LimitError`` when the table is too large for the memory limit).
     """
-    from are_stats.logs import read_raw_table
-
     table = read_raw_table(path, "robot path")
     table.require(["t", "x", "y", "yaw"], "robot path")
     cols = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
@@ -123,8 +123,6 @@ def perceived_grid(grid: Any, centers: Any, half_extents: Any, yaws: Any, percei
     OccupancyGrid
         A copy of ``grid`` with the perceived footprints set to occupied (100).
     """
-    from are_stats.builder import box_corners, rasterise_convex
-
     if not hasattr(grid, "world_to_local") or not hasattr(grid, "copy"):
         raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
     c = check_finite("centers", centers, ndim=2)

@@ -41,8 +41,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from are_stats.environment import coarse_free
+from are_stats.inputs import Described, InputError, check_memory, check_work
 from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
 from are_stats.scenarios._scene import Scene
+
+# Lazy imports: behaviour and fitting (JAX, NumPyro) load when a scene moves or a fit is read:
+# scenarios without behaviours stay light.
 
 __all__ = [
     "BEHAVIOUR_SOURCES",
@@ -99,8 +104,6 @@ def check_tracks_size(artefacts: pd.DataFrame, shape: tuple[int, int], dt: float
     ------
     are_stats.inputs.LimitError
     """
-    from are_stats.inputs import check_memory, check_work
-
     cells = float(shape[0]) * float(shape[1])
     with np.errstate(over="ignore", invalid="ignore"):
         epochs = (artefacts["t_leave"].to_numpy(float) - artefacts["t_arrive"].to_numpy(float)) / dt
@@ -247,8 +250,6 @@ def scene_tracks(
             simulate_behaviour_tracks(key, fitted, art, class_labels=class_labels, horizon=horizon)
         )
     elif kind == "catalogue" and len(art):
-        from are_stats.environment import coarse_free
-
         free, _ = coarse_free(grid.free, grid.resolution, behaviour_cell, source=cell_source)
         cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
         check_tracks_size(cut, free.shape, behaviour_dt, f"{source}, {cell_source}")
@@ -481,7 +482,6 @@ def scenes_from_fit(
     list of Scene
     """
     from are_stats.fitting import as_fit
-    from are_stats.inputs import Described, InputError
 
     if source is None:
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"

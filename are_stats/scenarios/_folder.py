@@ -25,10 +25,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import yaml
 
+from are_stats import __version__
 from are_stats._atomic import atomic_folder
 from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
+from are_stats.logs import read_raw_table
+
+# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read.
 
 __all__ = [
     "FORMAT_VERSION",
@@ -106,7 +111,6 @@ def _plain(x: Any) -> Any:
 def _write_parquet(df: pd.DataFrame, path: Path) -> None:
     """Pinned Parquet options (zstd 3, no dictionary, no schema metadata): same table, same
     bytes."""
-    import pyarrow as pa
     import pyarrow.parquet as pq
 
     table = pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None)
@@ -186,8 +190,6 @@ def write_scenes(
     >>> read_scenes("scen/").artefacts.equals(df)  # doctest: +SKIP
     True
     """
-    from are_stats import __version__
-
     _check_table(df, SCENARIO_COLUMNS, "df")
     if tracks is not None:
         _check_table(tracks, TRACK_COLUMNS, "tracks")
@@ -234,10 +236,7 @@ def _error(path: Path, where: str, expected: str, got: Any) -> InputError:
 def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[Any, list[str]]:
     """``(RawTable or None, columns)``: None for a Parquet file with no rows (its schema
     still checked for the ``required`` columns)."""
-    from are_stats.logs import read_raw_table
-
     if path.suffix.lower() in (".parquet", ".pq") and path.is_file() and path.stat().st_size:
-        import pyarrow as pa
         import pyarrow.parquet as pq
 
         try:

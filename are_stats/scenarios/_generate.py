@@ -36,6 +36,9 @@ from are_stats._checks import check_in, check_nonnegative, check_positive, descr
 from are_stats.inputs import check_memory, check_work, get_float, get_int
 from are_stats.scenarios._folder import SCENARIO_COLUMNS
 
+# Lazy imports: the traffic room (JAX, NumPyro) loads when its samplers are needed: the paper's
+# scenarios are NumPy only.
+
 __all__ = [
     "SCENARIO_COLUMNS",
     "atomic_folder",

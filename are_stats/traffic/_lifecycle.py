@@ -46,6 +46,8 @@ from are_stats._checks import (
 )
 from are_stats._program_cache import compile_program
 from are_stats.traffic._mixture import PoissonMixture
+from are_stats.traffic._positions import uniform_position_density
+from are_stats.traffic._sampler import TrafficLaws, sample_population
 
 __all__ = [
     "aot_compile",
@@ -559,9 +561,6 @@ def simulate_lifecycle(
     if area is None:
         raise ValueError("area: expected the free area in m^2 (or a free_mask), got None")
     area = float(check_positive("area", area, ndim=0))
-
-    from are_stats.traffic._positions import uniform_position_density
-    from are_stats.traffic._sampler import TrafficLaws, sample_population
 
     rng = numpy_rng(key)
     free = None

@@ -70,7 +70,13 @@ from are_stats.traffic._bursts import (
     mmpp_factors,
     mmpp_step_loglik,
 )
-from are_stats.traffic._stays import STAY_LAWS
+from are_stats.traffic._stays import (
+    STAY_LAWS,
+    stay_log_excess,
+    stay_logcdf,
+    stay_logpdf,
+    stay_logsf,
+)
 
 _TINY = float(np.finfo(np.float64).tiny)
 
@@ -534,13 +540,6 @@ def stay_unit_loglik(
 
     Equal to :func:`~are_stats.traffic.stay_loglik`, each term computed on its own rows.
     """
-    from are_stats.traffic._stays import (
-        stay_log_excess,
-        stay_logcdf,
-        stay_logpdf,
-        stay_logsf,
-    )
-
     mean = params["stay_mean"]
     shape = params.get("stay_shape", 1.0)
     m = units.stay.shape[0]

@@ -42,6 +42,9 @@ from are_stats.traffic._models import ARRIVAL_SPECS, ArrivalSpec
 from are_stats.traffic._positions import POSITION_MODELS, PositionDensity
 from are_stats.traffic._stays import STAY_LAWS, stay_draws
 
+# Lazy imports: _lifecycle imports this module, so simulate_traffic_log imports LifecycleData
+# when it runs.
+
 __all__ = ["TrafficLaws", "sample_population", "simulate_traffic_log"]
 
 #: Burn-in of the bursty arrival models before ``t = 0``: mean stays ...

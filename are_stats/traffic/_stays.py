@@ -42,8 +42,11 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy import special
 from jax.scipy.special import gammaln, log_ndtr, ndtr, xlogy
+from scipy.special import gammaln as sgammaln
 
 from are_stats._checks import check_in
+
+# Lazy imports: scipy.optimize is imported by stay_shape_from_cv only.
 
 __all__ = [
     "STAY_LAWS",
@@ -376,8 +379,6 @@ def stay_cv(law: str, shape: Any) -> Any:
     if law == "gamma":
         return 1.0 / np.sqrt(k)
     if law == "weibull":
-        from scipy.special import gammaln as sgammaln
-
         g1, g2 = sgammaln(1 + 1 / k), sgammaln(1 + 2 / k)
         return np.sqrt(np.expm1(g2 - 2 * g1))
     return np.sqrt(np.expm1(k * k))
@@ -450,6 +451,4 @@ def stay_draws(
 
 def _gammaln_np(x: Any) -> np.ndarray:
     """``log Gamma(x)`` in NumPy (scipy)."""
-    from scipy.special import gammaln as sgammaln
-
     return sgammaln(x)
