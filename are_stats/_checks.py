@@ -10,9 +10,12 @@ value as a NumPy array (or Python scalar) so that callers can write
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+import numpy.typing as npt
+
+_T = TypeVar("_T")
 
 __all__ = [
     "describe",
@@ -43,7 +46,9 @@ def describe(x: Any, limit: int = 60) -> str:
     return f"array of shape {a.shape} {text}"[: limit + 40]
 
 
-def check_array(name: str, x: Any, dtype: Any = float, ndim: int | None = None) -> np.ndarray:
+def check_array(
+    name: str, x: npt.ArrayLike, dtype: npt.DTypeLike = float, ndim: int | None = None
+) -> np.ndarray:
     """Convert ``x`` to an array of ``dtype``; reject what cannot be converted."""
     try:
         a = np.asarray(x, dtype=dtype)
@@ -60,7 +65,7 @@ def _first_bad(a: np.ndarray, bad: np.ndarray) -> str:
     return f"{a[tuple(idx)].item()!r}{where}"
 
 
-def check_finite(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
+def check_finite(name: str, x: npt.ArrayLike, ndim: int | None = None) -> np.ndarray:
     """Finite real numbers."""
     a = check_array(name, x, float, ndim)
     bad = ~np.isfinite(a)
@@ -69,7 +74,7 @@ def check_finite(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
     return a
 
 
-def check_positive(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
+def check_positive(name: str, x: npt.ArrayLike, ndim: int | None = None) -> np.ndarray:
     """Finite numbers > 0."""
     a = check_finite(name, x, ndim)
     bad = a <= 0
@@ -78,7 +83,7 @@ def check_positive(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
     return a
 
 
-def check_nonnegative(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
+def check_nonnegative(name: str, x: npt.ArrayLike, ndim: int | None = None) -> np.ndarray:
     """Finite numbers >= 0."""
     a = check_finite(name, x, ndim)
     bad = a < 0
@@ -87,7 +92,7 @@ def check_nonnegative(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
     return a
 
 
-def check_nonneg_int(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
+def check_nonneg_int(name: str, x: npt.ArrayLike, ndim: int | None = None) -> np.ndarray:
     """Non-negative integers (floats with integral values are accepted)."""
     a = check_finite(name, x, ndim)
     bad = (a < 0) | (a != np.round(a))
@@ -97,7 +102,7 @@ def check_nonneg_int(name: str, x: Any, ndim: int | None = None) -> np.ndarray:
 
 
 def check_probability(
-    name: str, x: Any, *, closed_right: bool = True, ndim: int | None = None
+    name: str, x: npt.ArrayLike, *, closed_right: bool = True, ndim: int | None = None
 ) -> np.ndarray:
     """Numbers in [0, 1] (or [0, 1) with ``closed_right=False``)."""
     a = check_finite(name, x, ndim)
@@ -108,7 +113,7 @@ def check_probability(
     return a
 
 
-def check_simplex(name: str, x: Any, atol: float = 1e-6) -> np.ndarray:
+def check_simplex(name: str, x: npt.ArrayLike, atol: float = 1e-6) -> np.ndarray:
     """A 1-d vector of non-negative weights that sums to one."""
     a = check_nonnegative(name, x, ndim=1)
     if a.size == 0:
@@ -119,7 +124,7 @@ def check_simplex(name: str, x: Any, atol: float = 1e-6) -> np.ndarray:
     return a
 
 
-def check_sorted(name: str, x: Any, strict: bool = True) -> np.ndarray:
+def check_sorted(name: str, x: npt.ArrayLike, strict: bool = True) -> np.ndarray:
     """A 1-d finite vector in increasing order."""
     a = check_finite(name, x, ndim=1)
     d = np.diff(a)
@@ -134,14 +139,14 @@ def check_sorted(name: str, x: Any, strict: bool = True) -> np.ndarray:
     return a
 
 
-def check_nonempty(name: str, x: Any) -> Any:
+def check_nonempty(name: str, x: _T) -> _T:
     """Reject empty arrays / sequences."""
     if np.size(x) == 0:
         raise ValueError(f"{name}: expected at least one value, got an empty input")
     return x
 
 
-def check_in(name: str, x: Any, allowed: Sequence[Any]) -> Any:
+def check_in(name: str, x: _T, allowed: Sequence[_T]) -> _T:
     """One of a fixed set of options."""
     if x not in allowed:
         opts = ", ".join(repr(a) for a in allowed)

@@ -43,6 +43,9 @@ import yaml
 
 from are_stats._checks import describe
 
+#: Where an input came from, as an error names it: a file path or an option (``--seed``).
+Source = str | os.PathLike[str]
+
 __all__ = [
     "DEFAULT_MEMORY",
     "DEFAULT_WORK",
@@ -51,6 +54,7 @@ __all__ = [
     "MAX_YAML_DEPTH",
     "MAX_SEED",
     "MAX_YAML_NODES",
+    "Source",
     "InputError",
     "LimitError",
     "check_keys",
@@ -127,7 +131,7 @@ class InputError(ValueError):
         What was found; described briefly (type shown for bools and strings).
     """
 
-    def __init__(self, source: Any, where: str, expected: str, got: Any = _MISSING) -> None:
+    def __init__(self, source: Source, where: str, expected: str, got: Any = _MISSING) -> None:
         self.source = str(source)
         self.where = where
         self.expected = expected
@@ -229,7 +233,7 @@ def format_bytes(n: float) -> str:
     return f"{n:.1f} EiB"  # pragma: no cover
 
 
-def check_memory(n_bytes: float, what: str, source: Any = "") -> None:
+def check_memory(n_bytes: float, what: str, source: Source = "") -> None:
     """Refuse an allocation of about ``n_bytes`` past :func:`memory_limit`.
 
     Parameters
@@ -252,7 +256,7 @@ def check_memory(n_bytes: float, what: str, source: Any = "") -> None:
         )
 
 
-def check_work(n_ops: float, what: str, source: Any = "") -> None:
+def check_work(n_ops: float, what: str, source: Source = "") -> None:
     """Refuse a computation of about ``n_ops`` elementary steps past :func:`work_limit`."""
     limit = work_limit()
     if not n_ops <= limit:
@@ -363,7 +367,7 @@ def _expanded_size(root: yaml.Node, source: str) -> None:
     visit(root)
 
 
-def parse_yaml(text: str, source: Any, what: str = "YAML document") -> Any:
+def parse_yaml(text: str, source: Source, what: str = "YAML document") -> Any:
     """Parse YAML text safely (see :func:`load_yaml`); ``source`` names it in errors."""
     src = str(source)
     try:
@@ -481,7 +485,7 @@ def _join(where: str, key: Any) -> str:
 
 def check_keys(
     mapping: Any,
-    source: Any,
+    source: Source,
     where: str,
     known: Iterable[str],
     required: Iterable[str] = (),
@@ -531,7 +535,7 @@ def _is_number(value: Any) -> bool:
 
 def get_float(
     value: Any,
-    source: Any,
+    source: Source,
     where: str,
     *,
     lo: float | None = None,
@@ -576,7 +580,7 @@ def get_float(
 
 def get_int(
     value: Any,
-    source: Any,
+    source: Source,
     where: str,
     *,
     lo: int | None = None,
@@ -604,14 +608,14 @@ def get_int(
     return n
 
 
-def get_bool(value: Any, source: Any, where: str) -> bool:
+def get_bool(value: Any, source: Source, where: str) -> bool:
     """``true`` or ``false`` (not 0/1, not strings)."""
     if not isinstance(value, bool | np.bool_):
         raise InputError(source, where, "true or false", value)
     return bool(value)
 
 
-def get_str(value: Any, source: Any, where: str, *, choices: Iterable[str] | None = None) -> str:
+def get_str(value: Any, source: Source, where: str, *, choices: Iterable[str] | None = None) -> str:
     """A string, optionally one of ``choices``."""
     opts = None if choices is None else list(choices)
     expected = "a string" if opts is None else "one of " + ", ".join(repr(c) for c in opts)
@@ -622,7 +626,7 @@ def get_str(value: Any, source: Any, where: str, *, choices: Iterable[str] | Non
 
 def get_list(
     value: Any,
-    source: Any,
+    source: Source,
     where: str,
     *,
     min_len: int = 0,
