@@ -18,10 +18,12 @@ import math
 import os
 import struct
 import threading
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import yaml
 
 from are_stats._atomic import atomic_path, check_writable
@@ -29,6 +31,7 @@ from are_stats._checks import check_finite, check_in, describe
 from are_stats.inputs import (
     Described,
     InputError,
+    Source,
     check_keys,
     check_memory,
     get_float,
@@ -40,6 +43,9 @@ from are_stats.inputs import (
 
 # Lazy imports: SciPy's ndimage (about 0.6 s) and Pillow load when a distance map is asked or a
 # map image read, not with the environment room.
+
+if TYPE_CHECKING:
+    import PIL.Image
 
 __all__ = [
     "OccupancyGrid",
@@ -163,9 +169,9 @@ class OccupancyGrid:
 
     def __init__(
         self,
-        data: Any,
+        data: npt.ArrayLike,
         resolution: float,
-        origin: Any = (0.0, 0.0, 0.0),
+        origin: Sequence[float] = (0.0, 0.0, 0.0),
         *,
         negate: bool = False,
         occupied_thresh: float = 0.65,
@@ -247,7 +253,7 @@ class OccupancyGrid:
         )
 
     # ------------------------------------------------------------------ transforms
-    def world_to_local(self, xy: Any) -> np.ndarray:
+    def world_to_local(self, xy: npt.ArrayLike) -> np.ndarray:
         """Continuous grid coordinates ``(u, v)`` in cell units of world points.
 
         Parameters
@@ -269,7 +275,7 @@ class OccupancyGrid:
         dx, dy = p[..., 0] - x0, p[..., 1] - y0
         return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1) / self.resolution
 
-    def local_to_world(self, uv: Any) -> np.ndarray:
+    def local_to_world(self, uv: npt.ArrayLike) -> np.ndarray:
         """Inverse of :meth:`world_to_local`: ``(..., 2)`` cell units to F_E points."""
         q = check_finite("uv", uv) * self.resolution
         x0, y0, yaw = self.origin
@@ -278,31 +284,21 @@ class OccupancyGrid:
             [x0 + c * q[..., 0] - s * q[..., 1], y0 + s * q[..., 0] + c * q[..., 1]], axis=-1
         )
 
-    def world_to_cell(self, xy: Any) -> np.ndarray:
-        """Cell ``(row, col)`` containing each world point (origin yaw respected).
-
-        Parameters
-        ----------
-        xy : (..., 2) float
-            Points in F_E.
-
-        Returns
-        -------
-        (..., 2) int64
-            ``(i, j)`` such that ``data[i, j]`` is the cell; not bounds-checked (see
-            :meth:`in_bounds`).
-        """
+    def world_to_cell(self, xy: npt.ArrayLike) -> np.ndarray:
+        """Cells ``(i, j)`` ``(..., 2) int64`` of world points ``xy (..., 2)`` in F_E (origin
+        yaw respected): ``data[i, j]`` holds the point; not bounds-checked (see
+        :meth:`in_bounds`)."""
         uv = np.floor(self.world_to_local(xy)).astype(np.int64)
         return uv[..., ::-1].copy()
 
-    def cell_to_world(self, ij: Any) -> np.ndarray:
+    def cell_to_world(self, ij: npt.ArrayLike) -> np.ndarray:
         """World coordinates ``(..., 2)`` of the centres of cells ``ij = (row, col)``."""
         a = check_finite("ij", ij)
         if a.ndim == 0 or a.shape[-1] != 2:
             raise ValueError(f"ij: expected cells of shape (..., 2), got shape {a.shape}")
         return self.local_to_world(a[..., ::-1] + 0.5)
 
-    def in_bounds(self, ij: Any) -> np.ndarray:
+    def in_bounds(self, ij: npt.ArrayLike) -> np.ndarray:
         """``(...)`` bool: whether cells ``(row, col)`` lie inside the grid."""
         a = np.asarray(ij)
         return (
@@ -551,7 +547,7 @@ class OccupancyGrid:
         return pixels, alpha
 
 
-def _check_geometry(resolution: Any, origin: Any, source: Any) -> tuple[float, tuple]:
+def _check_geometry(resolution: Any, origin: Any, source: Source) -> tuple[float, tuple]:
     """Resolution and origin of a map, checked strictly (see :meth:`from_ros_yaml`)."""
     res = get_float(resolution, source, "resolution", lo=MIN_RESOLUTION, hi=MAX_RESOLUTION)
     o = get_list(origin, source, "origin", min_len=3, max_len=3)
@@ -592,7 +588,7 @@ _CONVERT = {
 _BYTES_PER_PIXEL = 4 + 8 * 3 + 8 * 6 + 6
 
 
-def _open_image(path: Path, source: Path) -> Any:
+def _open_image(path: Path, source: Path) -> PIL.Image.Image:
     """Open the image lazily (header only), without Pillow's decompression-bomb refusal:
     the size is checked against :func:`are_stats.inputs.memory_limit` instead."""
     from PIL import Image, UnidentifiedImageError
@@ -694,7 +690,7 @@ def _pixels_to_values(
 
 
 def coarse_free(
-    free_mask: Any, resolution: float, cell: float, *, source: str | None = None
+    free_mask: npt.ArrayLike, resolution: float, cell: float, *, source: str | None = None
 ) -> tuple[np.ndarray, float]:
     """The one coarsener: a free mask on square cells of about ``cell`` metres.
 

@@ -16,7 +16,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -25,6 +25,7 @@ from are_stats.environment import OccupancyGrid
 from are_stats.inputs import (
     Described,
     InputError,
+    Source,
     check_keys,
     get_float,
     get_list,
@@ -35,6 +36,9 @@ from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
 # Lazy imports: the traffic room (JAX, NumPyro) loads when a log becomes LifecycleData, not
 # with the logs room.
+
+if TYPE_CHECKING:
+    from are_stats.traffic import LifecycleData
 
 __all__ = [
     "LIFECYCLE_COLUMNS",
@@ -215,7 +219,7 @@ class LifecycleLog:
             "clock_start": self.clock_start,
         }
 
-    def to_lifecycle_data(self, label_names: Sequence[str] | None = None) -> Any:
+    def to_lifecycle_data(self, label_names: Sequence[str] | None = None) -> LifecycleData:
         """Build the life-cycle model's container :class:`are_stats.traffic.LifecycleData`.
 
         Parameters
@@ -406,7 +410,7 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     return out
 
 
-def _clock_start(source: Any, where: str, value: Any) -> str:
+def _clock_start(source: Source, where: str, value: Any) -> str:
     """``clock_start``: ISO 8601 date-time text (:meth:`datetime.datetime.fromisoformat`).
 
     YAML reads an unquoted ``2024-05-02T07:30:00`` as a timestamp: it is accepted and
@@ -425,7 +429,7 @@ def _clock_start(source: Any, where: str, value: Any) -> str:
     return text
 
 
-def _window(source: Any, where: str, value: Any, scale: float) -> tuple[float, float]:
+def _window(source: Source, where: str, value: Any, scale: float) -> tuple[float, float]:
     """A window ``[t0, t1]`` of two finite numbers with ``t0 < t1``, times ``scale``."""
     if isinstance(value, np.ndarray):
         value = value.tolist()
@@ -531,14 +535,9 @@ def read_lifecycle_log(
         ``mark``, ``x``, ``y``, ``yaw``, ``group`` (an id shared by artefacts that arrived
         together; empty = alone), ``x_exit``, ``y_exit`` (leaving position; empty =
         unknown; both or neither).
-    manifest : str or PathLike, optional
-        The YAML manifest; by default ``<stem>.yaml`` (or ``.yml``) beside the table, if any.
-    window : (float, float), optional
-        Observation window ``(t0, t1)`` in the table's time unit; overrides the manifest.
-    area : float, optional
-        Free area in m^2; overrides the manifest's ``area`` / ``map``.
-    clock_start : str, optional
-        Wall-clock time of ``t = 0`` (ISO 8601); overrides the manifest's ``clock_start``.
+    manifest, window, area, clock_start
+        As :func:`~are_stats.logs.read_field_log` (the manifest by default ``<stem>.yaml``
+        or ``.yml`` beside the table; the other three override it).
 
     Returns
     -------

@@ -34,17 +34,23 @@ import sqlite3
 import struct
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 import yaml
 
-from are_stats.inputs import Described, InputError, get_str
+from are_stats.inputs import Described, InputError, Source, get_str
 from are_stats.logs._tf import TF_TYPES, TfBuffer, unit_quaternion
 
 # Lazy imports: rosbags, mcap and apsw (about 0.3 s) are imported when a bag is read or
 # written, not with the logs room.
+
+if TYPE_CHECKING:
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import Connection
+    from rosbags.typesys.store import Typestore
 
 __all__ = [
     "BAG_SUFFIXES",
@@ -87,7 +93,7 @@ _DET3D_ARRAY = "vision_msgs/msg/Detection3DArray"
 SUPPORTED_TRACK_TYPES = (_MARKER_ARRAY, _MARKER, _DET3D_ARRAY)
 
 
-def vision_msgs_typestore(ros_version: int = 2) -> Any:
+def vision_msgs_typestore(ros_version: int = 2) -> Typestore:
     """A rosbags typestore (ROS 2 Humble or ROS 1 Noetic) with vision_msgs registered.
 
     Parameters
@@ -121,7 +127,7 @@ def _stamp(header: Any, fallback_ns: int) -> float:
     return sec + nsec * 1e-9
 
 
-def _yaw(q: Any, source: Any, where: str) -> float:
+def _yaw(q: Any, source: Source, where: str) -> float:
     """Yaw of a marker's or detection's orientation: a unit quaternion, or all zeros (an
     orientation left unset, which RViz draws as the identity)."""
     if float(q.x) == float(q.y) == float(q.z) == float(q.w) == 0.0:
@@ -158,7 +164,7 @@ def _markers(
     topic: str,
     ts: int,
     rows: list[tuple],
-    source: Any = "",
+    source: Source = "",
     where: str = "",
 ) -> None:
     for j, m in enumerate(markers):
@@ -193,7 +199,7 @@ def _class_id(result: Any) -> str:
 
 
 def _detections(
-    msg: Any, topic: str, ts: int, rows: list[tuple], source: Any = "", where: str = ""
+    msg: Any, topic: str, ts: int, rows: list[tuple], source: Source = "", where: str = ""
 ) -> None:
     t_arr = _stamp(msg.header, ts)
     for j, det in enumerate(msg.detections):
@@ -254,12 +260,14 @@ def _bag_errors() -> tuple[type[BaseException], ...]:
     )
 
 
-def _messages(
-    reader: Any, conns: list[Any], p: Path, errors: tuple[type[BaseException], ...]
-) -> Iterator[tuple[Any, int, Any]]:
-    """``(connection, receive time ns, message)``; a damaged record or message is a
-    ``ValueError`` naming the bag (and the topic and time when known)."""
-    it = reader.messages(connections=conns)
+_T = TypeVar("_T")
+
+
+def _records(
+    it: Iterator[_T], p: Path, errors: tuple[type[BaseException], ...], kind: str
+) -> Iterator[_T]:
+    """The items of a bag reader's iterator ``it``; a damaged record is a ``ValueError``
+    naming the file ``p`` and the number of messages read before it."""
     n = 0
     while True:
         try:
@@ -268,11 +276,20 @@ def _messages(
             return
         except errors as err:
             raise ValueError(
-                f"{p}: record after message {n}: expected a readable bag record, got a "
+                f"{p}: record after message {n}: expected a readable {kind} record, got a "
                 f"damaged one ({type(err).__name__}: {err})"
             ) from None
-        conn, ts, raw = item
         n += 1
+        yield item
+
+
+def _messages(
+    reader: AnyReader, conns: list[Connection], p: Path, errors: tuple[type[BaseException], ...]
+) -> Iterator[tuple[Connection, int, Any]]:
+    """``(connection, receive time ns, message)``; a damaged record or message is a
+    ``ValueError`` naming the bag (and the topic and time when known)."""
+    records = _records(reader.messages(connections=conns), p, errors, "bag")
+    for n, (conn, ts, raw) in enumerate(records, 1):
         try:
             msg = reader.deserialize(raw, conn.msgtype)
         except errors as err:
@@ -316,8 +333,8 @@ def bag_read_errors() -> tuple[type[BaseException], ...]:
 
 
 def bag_messages(
-    reader: Any, connections: list[Any], path: str | os.PathLike
-) -> Iterator[tuple[Any, int, Any]]:
+    reader: AnyReader, connections: list[Connection], path: str | os.PathLike
+) -> Iterator[tuple[Connection, int, Any]]:
     """``(connection, receive time ns, message)`` of an open rosbags ``AnyReader``; a damaged
     record or message is a ``ValueError`` naming the bag (and the topic and time when
     known)."""
@@ -385,10 +402,10 @@ def check_bag_path(path: str | os.PathLike) -> Path:
 
 
 def check_stamps(
-    t: Any,
-    source: Any,
+    t: npt.ArrayLike,
+    source: Source,
     what: str,
-    index: Any = None,
+    index: npt.ArrayLike | None = None,
     *,
     gap: float = STAMP_GAP,
     item: str = "message",
@@ -734,21 +751,9 @@ def _mcap_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
     hashed = any(c.metadata.get("topic_type_hash") for c in summary.channels.values())
 
     def messages() -> Iterator[tuple[int, int, int, int, bytes]]:
-        n = 0
         with open(p, "rb") as fh:
             it = make_reader(fh).iter_messages(topics=sorted(sel), log_time_order=True)
-            while True:
-                try:
-                    item = next(it)
-                except StopIteration:
-                    return
-                except errors as err:
-                    raise ValueError(
-                        f"{p}: record after message {n}: expected a readable MCAP record, got "
-                        f"a damaged one ({type(err).__name__}: {err})"
-                    ) from None
-                n += 1
-                _, ch, m = item
+            for _, ch, m in _records(it, p, errors, "MCAP"):
                 yield m.log_time, m.publish_time, m.sequence, index[ch.id], m.data
 
     return PassThrough(p, channels, by_topic, _qos_form(texts), hashed, messages)

@@ -19,8 +19,6 @@ that answers it.
 Examples
 --------
 >>> import pandas as pd
-
-from are_stats.builder import box_centres
 >>> from are_stats import Scene, load_catalogue
 >>> table = pd.DataFrame({"class": [0], "mark": [0], "t_arrive": [0.0], "t_leave": [9.0],
 ...                       "x": [1.0], "y": [2.0], "yaw": [0.0]})
@@ -31,13 +29,15 @@ from are_stats.builder import box_centres
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats.builder import box_centres
+from are_stats.environment import ArtefactCatalogue
 
 __all__ = ["Boxes", "Scene"]
 
@@ -109,7 +109,7 @@ class Scene:
         track_t: np.ndarray,
         track_pose: np.ndarray,
         artefacts: pd.DataFrame | None = None,
-        class_labels: Any = None,
+        class_labels: Sequence[str] | None = None,
     ) -> None:
         self.ids, self.labels, self.classes, self.rows = ids, labels, classes, rows
         # the scenario's table as given (life-cycle, marks, classes), written back by the
@@ -144,10 +144,10 @@ class Scene:
     def from_scenarios(
         cls,
         artefacts: pd.DataFrame,
-        catalogue: Any,
+        catalogue: ArtefactCatalogue,
         tracks: pd.DataFrame | None = None,
         *,
-        class_labels: Any = None,
+        class_labels: Sequence[str] | None = None,
     ) -> Scene:
         """Build the scene of one scenario.
 
@@ -235,7 +235,11 @@ class Scene:
         -------
         Scene
         """
-        start, t, pose = _tracks(tracks, self.ids)
+        return self._moved(*_tracks(tracks, self.ids))
+
+    def _moved(self, start: np.ndarray, t: np.ndarray, pose: np.ndarray) -> Scene:
+        """This scene with the track arrays ``start (N + 1,)``, ``t (M,)``, ``pose (M, 3)``:
+        the life-cycle, classes and boxes stay."""
         return Scene(
             self.ids,
             self.labels,
@@ -274,7 +278,7 @@ class Scene:
 
     # ---- poses ------------------------------------------------------------------------------
 
-    def poses(self, t: float, which: Any = None) -> np.ndarray:
+    def poses(self, t: float, which: npt.ArrayLike | None = None) -> np.ndarray:
         """``(k, 3)`` poses ``x, y, yaw`` of artefacts ``which`` (indices; default all) at ``t``."""
         idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64)
         out = self._pose0[idx].copy()
@@ -313,7 +317,7 @@ class Scene:
         lo, hi = self._start[i], self._start[i + 1]
         return self._t[lo:hi].copy(), self._pose[lo:hi].copy()
 
-    def next_epoch(self, t: float, which: Any = None) -> np.ndarray:
+    def next_epoch(self, t: float, which: npt.ArrayLike | None = None) -> np.ndarray:
         """``(k,)`` the first track epoch after ``t`` of artefacts ``which`` (indices;
         default all), ``inf`` where there is none."""
         idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64)
@@ -324,7 +328,7 @@ class Scene:
         out[ok] = self._t[k[ok]]
         return out
 
-    def with_track(self, i: int, t: Any, pose: Any) -> Scene:
+    def with_track(self, i: int, t: npt.ArrayLike, pose: npt.ArrayLike) -> Scene:
         """A new scene, equal to this one except that artefact ``i`` follows the track
         ``t`` (m,) increasing, ``pose`` (m, 3) ``x, y, yaw`` (this scene is unchanged).
 
@@ -350,24 +354,13 @@ class Scene:
         lo, hi = self._start[i], self._start[i + 1]
         start = self._start.copy()
         start[i + 1 :] += tt.size - (hi - lo)
-        return Scene(
-            self.ids,
-            self.labels,
-            self.classes,
-            self.rows,
-            self.half_extents,
-            self.offsets,
-            self.t_arrive,
-            self.t_leave,
-            self._pose0,
+        return self._moved(
             start,
             np.concatenate([self._t[:lo], tt, self._t[hi:]]),
             np.concatenate([self._pose[:lo], pp, self._pose[hi:]]),
-            self.artefacts,
-            self.class_labels,
         )
 
-    def _index(self, i: Any) -> int:
+    def _index(self, i: object) -> int:
         if isinstance(i, bool) or not isinstance(i, int | np.integer) or not 0 <= i < len(self):
             raise ValueError(f"i: expected an artefact index in [0, {len(self)}), got {i!r}")
         return int(i)
@@ -428,7 +421,10 @@ class Scene:
 
 
 def _boxes(
-    catalogue: Any, comp: np.ndarray, marks: np.ndarray, class_labels: Any
+    catalogue: ArtefactCatalogue,
+    comp: np.ndarray,
+    marks: np.ndarray,
+    class_labels: Sequence[str] | None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Label, class position, row of Q, half extents and F_A box centre per artefact."""
     n_cls = len(catalogue)

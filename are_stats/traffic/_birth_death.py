@@ -22,6 +22,7 @@ from typing import Any, Literal
 
 import jax
 import numpy as np
+import numpy.typing as npt
 from scipy import special
 
 from are_stats._checks import (
@@ -63,7 +64,9 @@ _BLOCK = 1 << 21
 # ----------------------------------------------------------------------------------------
 
 
-def _check_rates(birth_rate: Any, death_rate: Any, death: str) -> tuple[float, float]:
+def _check_rates(
+    birth_rate: npt.ArrayLike, death_rate: npt.ArrayLike, death: str
+) -> tuple[float, float]:
     check_in("death", death, _DEATH_LAWS)
     lam = check_nonnegative("birth_rate", birth_rate)
     mu = check_positive("death_rate", death_rate)
@@ -80,11 +83,11 @@ def _check_rates(birth_rate: Any, death_rate: Any, death: str) -> tuple[float, f
     return lam, mu
 
 
-def _check_counts_arg(name: str, x: Any) -> np.ndarray:
+def _check_counts_arg(name: str, x: npt.ArrayLike) -> np.ndarray:
     return check_nonneg_int(name, x)
 
 
-def _check_key(key: Any) -> Any:
+def _check_key(key: jax.Array) -> Any:
     """A single JAX PRNG key: typed (``jax.random.key``) or raw (``jax.random.PRNGKey``)."""
     if isinstance(key, jax.Array):
         if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) and key.ndim == 0:
@@ -277,7 +280,7 @@ class BirthDeath:
 
     # -- stationary law -------------------------------------------------------------------
 
-    def stationary_logpmf(self, n: Any) -> np.ndarray:
+    def stationary_logpmf(self, n: npt.ArrayLike) -> np.ndarray:
         """Log of :meth:`stationary_pmf`.
 
         Parameters
@@ -295,7 +298,7 @@ class BirthDeath:
             return stats.poisson.logpmf(k, r)
         return np.log1p(-r) + special.xlogy(k, r)
 
-    def stationary_pmf(self, n: Any) -> np.ndarray:
+    def stationary_pmf(self, n: npt.ArrayLike) -> np.ndarray:
         """Stationary probability ``P(N = n)``.
 
         Poisson(``r``) for the linear death law, geometric ``(1 - r) r^n`` for the constant
@@ -324,7 +327,9 @@ class BirthDeath:
 
     # -- transient law --------------------------------------------------------------------
 
-    def transition_logpmf(self, n0: Any, n: Any, dt: Any) -> np.ndarray:
+    def transition_logpmf(
+        self, n0: npt.ArrayLike, n: npt.ArrayLike, dt: npt.ArrayLike
+    ) -> np.ndarray:
         """Log transition probability ``log P(N(t + dt) = n | N(t) = n0)``.
 
         Linear death law: exact log of Binomial(``n0, e^{-mu dt}``) convolved with
@@ -335,12 +340,8 @@ class BirthDeath:
 
         Parameters
         ----------
-        n0 : array_like of int
-            Start states, broadcast against ``n`` and ``dt``.
-        n : array_like of int
-            End states.
-        dt : array_like of float
-            Lags ``>= 0``.
+        n0, n, dt
+            As :meth:`transition_pmf`.
 
         Returns
         -------
@@ -352,7 +353,7 @@ class BirthDeath:
         with np.errstate(divide="ignore"):
             return np.log(_const_pmf(self.birth_rate, self.death_rate, n0a, na, dta))
 
-    def transition_pmf(self, n0: Any, n: Any, dt: Any) -> np.ndarray:
+    def transition_pmf(self, n0: npt.ArrayLike, n: npt.ArrayLike, dt: npt.ArrayLike) -> np.ndarray:
         """Transition probability ``P(N(t + dt) = n | N(t) = n0)`` (exact).
 
         Parameters
@@ -394,7 +395,7 @@ class BirthDeath:
             ) from err
         return n0a, na, dta
 
-    def mean(self, t: Any, n0: Any) -> np.ndarray:
+    def mean(self, t: npt.ArrayLike, n0: npt.ArrayLike) -> np.ndarray:
         """Transient mean ``E[N(t) | N(0) = n0]``.
 
         Linear death law: ``n0 e^{-mu t} + lambda/mu (1 - e^{-mu t})``. Constant death law:
@@ -414,7 +415,7 @@ class BirthDeath:
         """
         return self._moments(t, n0)[0]
 
-    def var(self, t: Any, n0: Any) -> np.ndarray:
+    def var(self, t: npt.ArrayLike, n0: npt.ArrayLike) -> np.ndarray:
         """Transient variance ``Var[N(t) | N(0) = n0]``.
 
         Linear death law: ``n0 p (1 - p) + lambda/mu (1 - p)`` with ``p = e^{-mu t}`` (binomial
@@ -493,7 +494,12 @@ class BirthDeath:
         return n0a, t_end, n_paths, times_a
 
     def simulate(
-        self, key: Any, n0: Any, t_end: float, n_paths: int, times: Any = None
+        self,
+        key: jax.Array,
+        n0: npt.ArrayLike,
+        t_end: float,
+        n_paths: int,
+        times: npt.ArrayLike | None = None,
     ) -> np.ndarray:
         """Exact event-by-event (Gillespie) simulation of independent paths.
 
@@ -535,7 +541,12 @@ class BirthDeath:
         )
 
     def simulate_events(
-        self, key: Any, n0: Any, t_end: float, n_paths: int, times: Any = None
+        self,
+        key: jax.Array,
+        n0: npt.ArrayLike,
+        t_end: float,
+        n_paths: int,
+        times: npt.ArrayLike | None = None,
     ) -> BirthDeathEvents:
         """Like :meth:`simulate`, also returning every event time and kind.
 
@@ -546,16 +557,8 @@ class BirthDeath:
 
         Parameters
         ----------
-        key : jax.Array
-            PRNG key.
-        n0 : int or (n_paths,) array of int
-            Initial state(s) ``N(0)``.
-        t_end : float
-            Horizon ``> 0``.
-        n_paths : int
-            Number of independent paths.
-        times : (n_times,) array of float, optional
-            Non-decreasing observation times in ``[0, t_end]``; default ``[t_end]``.
+        key, n0, t_end, n_paths, times
+            As :meth:`simulate`.
 
         Returns
         -------
@@ -574,7 +577,7 @@ class BirthDeath:
 # ----------------------------------------------------------------------------------------
 
 
-def _check_panel(times: Any, counts: Any) -> tuple[np.ndarray, np.ndarray]:
+def _check_panel(times: npt.ArrayLike, counts: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     t = check_finite("times", times)
     if t.ndim != 1:
         raise ValueError(f"times: expected a 1-d array, got shape {t.shape}")
@@ -770,8 +773,8 @@ class _Pairs:
 def birth_death_loglik(
     birth_rate: float,
     death_rate: float,
-    times: Any,
-    counts: Any,
+    times: npt.ArrayLike,
+    counts: npt.ArrayLike,
     death: DeathLaw = "linear",
 ) -> float:
     """Exact log-likelihood of counts observed at arbitrary times, given the first count.
@@ -990,7 +993,7 @@ RobustMethod = Literal["hac", "block-bootstrap"]
 ROBUST_METHODS = ("hac", "block-bootstrap")
 
 
-def hac_bandwidth(counts: Any) -> int:
+def hac_bandwidth(counts: npt.ArrayLike) -> int:
     """Bartlett-kernel bandwidth (lags) for the HAC sandwich of :func:`fit_birth_death`.
 
     Andrews' (1991) AR(1) plug-in rule for the Bartlett kernel, with the AR(1) coefficient
@@ -1045,7 +1048,7 @@ def _hac_meat(scores: np.ndarray, bandwidth: int) -> np.ndarray:
     return meat
 
 
-def _check_lags(name: str, value: Any, low: int, high: int) -> int | None:
+def _check_lags(name: str, value: npt.ArrayLike, low: int, high: int) -> int | None:
     if value is None:
         return None
     v = check_nonneg_int(name, value)
@@ -1057,7 +1060,7 @@ def _check_lags(name: str, value: Any, low: int, high: int) -> int | None:
     return int(v)
 
 
-def _rng_from_key(key: Any) -> np.random.Generator:
+def _rng_from_key(key: jax.Array) -> np.random.Generator:
     """A NumPy generator seeded from a JAX key (variable-size draws without recompiling)."""
     bits = jax.random.bits(_check_key(key), (4,), dtype=np.uint32)
     return np.random.default_rng(np.asarray(bits).tolist())
@@ -1096,14 +1099,14 @@ def _block_weights(
 
 
 def fit_birth_death(
-    times: Any,
-    counts: Any,
+    times: npt.ArrayLike,
+    counts: npt.ArrayLike,
     death: DeathLaw = "linear",
     *,
     max_iter: int = 100,
     robust: RobustMethod = "hac",
     bandwidth: int | None = None,
-    key: Any = None,
+    key: jax.Array | None = None,
     n_boot: int = 200,
     block_length: int | None = None,
 ) -> BirthDeathFit:

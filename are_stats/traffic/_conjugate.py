@@ -137,20 +137,14 @@ def conjugate_leave_rate(
 
     Parameters
     ----------
-    data : LifecycleData
-        The observed window.
-    priors : LifecyclePriors
-        Uses ``leave_shape`` and ``leave_rate``.
+    data, priors
+        As :func:`conjugate_arrival_rate`; ``priors`` supplies ``leave_shape`` and
+        ``leave_rate``.
 
     Returns
     -------
     GammaPosterior
-        ``(shape, rate)``; ``.frozen()`` gives the scipy law.
-
-    Raises
-    ------
-    ValueError
-        If ``data`` or ``priors`` has the wrong type.
+        As :func:`conjugate_arrival_rate` (and the same ``ValueError`` on wrong types).
     """
     _check_inputs(data, priors)
     departures = int((~data.censored).sum())

@@ -8,11 +8,10 @@ artefact's class (DECISIONS.md item 5).
 
 from __future__ import annotations
 
-from typing import Any
-
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import random
 from jax.scipy.special import gammaln, xlogy
 from numpyro.distributions import Distribution, constraints
@@ -23,12 +22,12 @@ from are_stats._checks import check_finite, check_positive, describe
 __all__ = ["PoissonMixture"]
 
 
-def _is_concrete(x: Any) -> bool:
+def _is_concrete(x: npt.ArrayLike) -> bool:
     """True when ``x`` holds values (not a JAX tracer inside ``jit``/``grad``/``vmap``)."""
     return not isinstance(x, jax.core.Tracer)
 
 
-def _validate_parameters(weights: Any, rates: Any) -> None:
+def _validate_parameters(weights: npt.ArrayLike, rates: npt.ArrayLike) -> None:
     """Reject bad concrete parameters with ``ValueError("<arg>: expected ..., got ...")``."""
     w = check_finite("weights", weights)
     r = check_positive("rates", rates)
@@ -97,7 +96,9 @@ class PoissonMixture(Distribution):
     support = constraints.nonnegative_integer
     pytree_data_fields = ("weights", "rates")
 
-    def __init__(self, weights: Any, rates: Any, *, validate_args: bool | None = None) -> None:
+    def __init__(
+        self, weights: npt.ArrayLike, rates: npt.ArrayLike, *, validate_args: bool | None = None
+    ) -> None:
         if _is_concrete(weights) and _is_concrete(rates):
             _validate_parameters(weights, rates)
         weights = jnp.asarray(weights)
@@ -119,7 +120,7 @@ class PoissonMixture(Distribution):
         """Number of mixture components ``n``."""
         return int(jnp.shape(self.weights)[-1])
 
-    def component_log_probs(self, value: Any) -> jax.Array:
+    def component_log_probs(self, value: npt.ArrayLike) -> jax.Array:
         """Joint log-probabilities ``log pi_i + log Poisson(value | lambda_i)``.
 
         Parameters
@@ -139,7 +140,7 @@ class PoissonMixture(Distribution):
         return jnp.where(k < 0, -jnp.inf, lp)
 
     @validate_sample
-    def log_prob(self, value: Any) -> jax.Array:
+    def log_prob(self, value: npt.ArrayLike) -> jax.Array:
         """Exact log-pmf of eq. (1), computed with a log-sum-exp over components.
 
         Parameters
@@ -154,13 +155,9 @@ class PoissonMixture(Distribution):
         """
         return jax.nn.logsumexp(self.component_log_probs(value), axis=-1)
 
-    def responsibilities(self, value: Any) -> jax.Array:
-        """Posterior class probabilities ``P(class = i | X = value)``.
-
-        Parameters
-        ----------
-        value : (...) int
-            Marks ``k >= 0``.
+    def responsibilities(self, value: npt.ArrayLike) -> jax.Array:
+        """Posterior class probabilities ``P(class = i | X = value)`` of marks ``value (...)``
+        (int, ``k >= 0``).
 
         Returns
         -------
