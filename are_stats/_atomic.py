@@ -19,10 +19,13 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 # Lazy imports: matplotlib (about 0.5 s) is imported by save_figure only, when a figure is
 # written.
+
+if TYPE_CHECKING:
+    import matplotlib.figure
 
 __all__ = [
     "OutputExistsError",
@@ -73,7 +76,7 @@ def atomic_path(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
 
 
 def save_figure(
-    fig: Any,
+    fig: matplotlib.figure.Figure,
     path: str | os.PathLike,
     force: bool = False,
     dpi: int = 120,

@@ -10,7 +10,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -42,6 +42,10 @@ from are_stats.inputs import (
     get_str,
 )
 
+if TYPE_CHECKING:
+    from are_stats.export import AugmentResult
+    from are_stats.fitting import Fit
+
 # Each job imports the rooms it runs when it runs (fitting: JAX and NumPyro; perception:
 # Warp; logs and scenarios: pyarrow): a command loads only what it uses.
 
@@ -54,7 +58,7 @@ EXAMPLE_LOG = shipped_path(EXAMPLE_LOG_NAME, "log")
 EXAMPLE_MAP = shipped_path("courtyard", "map")
 
 
-def _summary_table(summary: Any, title: str) -> Table:
+def _summary_table(summary: pd.DataFrame, title: str) -> Table:
     table = Table(title=title, title_justify="left")
     for col in ("parameter", "mean", "sd", "hdi_3%", "hdi_97%", "ess_bulk", "r_hat"):
         table.add_column(col, justify="left" if col == "parameter" else "right", no_wrap=True)
@@ -98,7 +102,7 @@ def run_fit(
     clock_start: str | None = None,
     behaviour: bool = True,
     behaviour_features: str = "",
-) -> Any:
+) -> Fit:
     """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures.
 
     A tracks table with a map also gets its behaviour fitted (speeds, exits, rationality:
@@ -270,7 +274,7 @@ def run_fit(
     return fit
 
 
-def _print_classes(fit: Any) -> None:
+def _print_classes(fit: Fit) -> None:
     """One line on a labelled log's classes: shares and mean stays (issue 31)."""
     post = fit.idata.posterior
     if "class_weights" not in post:
@@ -293,7 +297,7 @@ def _print_classes(fit: Any) -> None:
         console.print("classes by PSIS-LOO: " + ", ".join(extra))
 
 
-def _print_interaction(fit: Any) -> None:
+def _print_interaction(fit: Fit) -> None:
     """The social force a fit learned from the log's tracks (issue 26)."""
     params = fit.interaction
     if params is None:
@@ -311,7 +315,7 @@ def _print_interaction(fit: Any) -> None:
         )
 
 
-def _behaviour_lines(fit: Any) -> list[str]:
+def _behaviour_lines(fit: Fit) -> list[str]:
     """One line per class: the fitted rationality, slip and reward weights with their
     standard errors."""
     out = []
@@ -372,7 +376,7 @@ def _print_motion_report(rep: Any, stored: Any) -> None:
     _print_motion_tables(stored)
 
 
-def _print_traffic(fit: Any) -> None:
+def _print_traffic(fit: Fit) -> None:
     """The model comparison tables and the chosen models of a fit, with sampler warnings."""
     for factor, table in fit.comparisons.items():
         rich = Table(
@@ -448,7 +452,7 @@ def _print_checks(written: dict) -> None:
             _print_class_checks(pd.read_csv(written[name], index_col=[0, 1]))
 
 
-def _print_class_checks(table: Any) -> None:
+def _print_class_checks(table: pd.DataFrame) -> None:
     """Per-class rows of a labelled log's checks (issue 31): observed vs the model's band."""
 
     def fmt(v: float) -> str:
@@ -514,7 +518,7 @@ def run_generate(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     model: str = "chosen",
-) -> Any:
+) -> pd.DataFrame:
     """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest).
 
     ``model="chosen"`` draws from the arrival, stay and position models the fit chose
@@ -617,7 +621,7 @@ def run_generate(
     return df
 
 
-def _behaviour_cell_m(grid: Any, cell: float) -> float:
+def _behaviour_cell_m(grid: OccupancyGrid, cell: float) -> float:
     """The coarse behaviour grid's actual cell (m): ``cell`` rounded to map cells."""
     return float(coarse_free(grid.free, grid.resolution, cell, source="--behaviour-cell")[1])
 
@@ -669,7 +673,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     desc = yaml.safe_load((EXAMPLE_LOG.with_suffix(".yaml")).read_text())["description"]
     res = fit.time_resolution
 
-    def crowding(table: Any) -> dict[str, float]:
+    def crowding(table: pd.DataFrame) -> dict[str, float]:
         """Median over scenarios of the crowding statistics (as the checks compute them)."""
         stats = []
         for _, sc in table.groupby("scenario"):
@@ -748,7 +752,7 @@ def run_perceive(
     occlusion_between_artefacts: bool = False,
     out: Path | None = None,
     force: bool = False,
-) -> Any:
+) -> pd.DataFrame:
     """Add perceived flags (A_f, eq. 2) to a scenario folder for a robot path.
 
     Every input is checked before any tracing: the options (``--d-max`` > 0, ``--tau``
@@ -889,7 +893,7 @@ def run_augment(
     topics: str | None = None,
     map_frame: str = "map",
     camera_frame: str | None = None,
-) -> Any:
+) -> AugmentResult:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
     (:func:`are_stats.export.augment_bag`); ``topics`` the comma-separated input
     topics passed through (default all)."""

@@ -9,9 +9,8 @@ and ``np.repeat`` expansions, so ``n`` boxes cost ``O(n log n + pairs)`` instead
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+import numpy.typing as npt
 
 __all__ = ["aabb_pairs", "aabb_pairs_brute", "SpatialHash"]
 
@@ -39,7 +38,7 @@ def _default_cell(lo: np.ndarray, hi: np.ndarray) -> float:
     return c if c > 0 else 1.0
 
 
-def _check_boxes(lo: Any, hi: Any) -> tuple[np.ndarray, np.ndarray]:
+def _check_boxes(lo: npt.ArrayLike, hi: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     lo = np.asarray(lo, float)
     hi = np.asarray(hi, float)
     if lo.ndim != 2 or lo.shape[1] != 2 or lo.shape != hi.shape:
@@ -49,7 +48,7 @@ def _check_boxes(lo: Any, hi: Any) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def aabb_pairs(lo: Any, hi: Any, cell: float | None = None) -> np.ndarray:
+def aabb_pairs(lo: npt.ArrayLike, hi: npt.ArrayLike, cell: float | None = None) -> np.ndarray:
     """All pairs of overlapping axis-aligned boxes (touching counts as overlapping).
 
     Parameters
@@ -97,7 +96,7 @@ def aabb_pairs(lo: Any, hi: Any, cell: float | None = None) -> np.ndarray:
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
 
-def aabb_pairs_brute(lo: Any, hi: Any) -> np.ndarray:
+def aabb_pairs_brute(lo: npt.ArrayLike, hi: npt.ArrayLike) -> np.ndarray:
     """Reference: all overlapping pairs by testing every pair (``O(n^2)``)."""
     lo, hi = _check_boxes(lo, hi)
     a, b = np.triu_indices(lo.shape[0], k=1)
@@ -116,7 +115,7 @@ class SpatialHash:
         Hash cell size.
     """
 
-    def __init__(self, lo: Any, hi: Any, cell: float) -> None:
+    def __init__(self, lo: npt.ArrayLike, hi: npt.ArrayLike, cell: float) -> None:
         self.lo, self.hi = _check_boxes(lo, hi)
         if not cell > 0:
             raise ValueError(f"cell: expected a size > 0, got {cell!r}")
@@ -125,7 +124,7 @@ class SpatialHash:
         order = np.argsort(key, kind="stable")
         self._key, self._owner = key[order], owner[order]
 
-    def query(self, lo: Any, hi: Any) -> tuple[np.ndarray, np.ndarray]:
+    def query(self, lo: npt.ArrayLike, hi: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pairs ``(query_index, static_index)`` whose AABBs overlap, each reported once."""
         qlo, qhi = _check_boxes(lo, hi)
         if qlo.shape[0] == 0 or self._key.size == 0:

@@ -18,9 +18,10 @@ border, and the triangles of S_E when a mesh is given. A colliding move is resol
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
 from are_stats.builder._broadphase import SpatialHash, aabb_pairs
@@ -35,6 +36,7 @@ from are_stats.builder._geometry import (
 from are_stats.environment import (
     ArtefactCatalogue,
     OccupancyGrid,
+    TransformTree,
     VoxelMap,
     planar_pose_matrix,
     surface_points,
@@ -45,6 +47,8 @@ from are_stats.environment import (
 
 if TYPE_CHECKING:
     import trimesh
+
+    from are_stats.scenarios import Scene
 
 __all__ = ["ARBuilder", "Resolution", "Placement"]
 
@@ -210,7 +214,7 @@ class ARBuilder:
             raise ValueError(f"artefact_id: no live artefact with id {artefact_id!r}")
         return int(hit[0])
 
-    def _dims(self, label: str | None, size: Any) -> tuple[np.ndarray, np.ndarray]:
+    def _dims(self, label: str | None, size: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         if size is not None:
             s = check_positive("size", size, ndim=1)
             if s.shape != (3,):
@@ -221,7 +225,9 @@ class ARBuilder:
         cls = self.catalogue[label]  # raises a clear error for unknown labels
         return cls.half_extents.copy(), cls.box_centre.copy()
 
-    def boxes(self, poses: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def boxes(
+        self, poses: npt.ArrayLike | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Box centres ``(n, 3)``, half sizes ``(n, 3)`` and yaws ``(n,)`` at ``poses``
         (default the current poses)."""
         P = self.poses if poses is None else np.asarray(poses, float)
@@ -237,7 +243,9 @@ class ARBuilder:
         uv = g.world_to_local(centre[:, :2])
         return box_runs(uv, half[:, :2] / g.resolution, yaw - g.origin[2], g.shape)
 
-    def _env_hits(self, centre, half, yaw) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    def _env_hits(
+        self, centre: np.ndarray, half: np.ndarray, yaw: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
         """Per box: blocked cells hit, outside the map, mesh hit; and the runs."""
         runs = self._footprints(centre, half, yaw)
         owner, rows, jlo, jhi, outside = runs
@@ -283,7 +291,7 @@ class ARBuilder:
         out[qa[hit]] = True
         return out
 
-    def collisions(self, poses: Any = None) -> dict[str, np.ndarray]:
+    def collisions(self, poses: npt.ArrayLike | None = None) -> dict[str, np.ndarray]:
         """Collision report for ``(n, 3)`` poses (default: the current ones).
 
         Returns
@@ -307,9 +315,9 @@ class ARBuilder:
     def register(
         self,
         label: str | None,
-        pose: Any,
+        pose: npt.ArrayLike,
         *,
-        size: Any = None,
+        size: npt.ArrayLike | None = None,
         artefact_id: int | None = None,
         check: bool = True,
     ) -> int:
@@ -358,7 +366,7 @@ class ARBuilder:
         self._runs = None
         return aid
 
-    def register_scene(self, scene: Any, t: float, *, check: bool = False) -> np.ndarray:
+    def register_scene(self, scene: Scene, t: float, *, check: bool = False) -> np.ndarray:
         """Hold exactly the artefacts of ``scene`` alive at time ``t``, where they are then.
 
         The builder's boxes become those of ``scene.at(t)``: artefacts that are not alive
@@ -441,7 +449,7 @@ class ARBuilder:
         label: str | None,
         seed: int | np.random.Generator,
         *,
-        size: Any = None,
+        size: npt.ArrayLike | None = None,
         yaw: float | None = None,
         max_tries: int = 1000,
         batch: int = 64,
@@ -484,7 +492,7 @@ class ARBuilder:
         return Placement(False, -1, nan, tries)
 
     # ------------------------------------------------------------ the epoch hook
-    def _check_poses(self, poses: Any) -> np.ndarray:
+    def _check_poses(self, poses: npt.ArrayLike) -> np.ndarray:
         if isinstance(poses, Mapping):
             P = self.poses.copy()
             for aid, pose in poses.items():
@@ -497,7 +505,7 @@ class ARBuilder:
             )
         return P
 
-    def step(self, poses: Any, time: float | None = None) -> np.ndarray:
+    def step(self, poses: npt.ArrayLike, time: float | None = None) -> np.ndarray:
         """Move every artefact to its proposed pose, resolving collisions by the rule.
 
         A move whose box would be embedded in the environment, or hit another artefact's
@@ -673,7 +681,7 @@ class ARBuilder:
         """n_A: number of distinct cells of M_2D covered by live artefacts."""
         return int(np.unique(self.artefact_cells()[1]).size)
 
-    def augmented_grid(self, perceived: Any = None) -> OccupancyGrid:
+    def augmented_grid(self, perceived: npt.ArrayLike | None = None) -> OccupancyGrid:
         """The augmented M_2D (Fig. 4b): the base grid with artefact cells set to 100.
 
         Parameters
@@ -732,7 +740,9 @@ class ARBuilder:
             out.insert_points(np.concatenate(pts))
         return out
 
-    def sync_frames(self, tree: Any, env_frame: str = "F_E", prefix: str = "F_A/") -> None:
+    def sync_frames(
+        self, tree: TransformTree, env_frame: str = "F_E", prefix: str = "F_A/"
+    ) -> None:
         """Publish every live artefact's frame F_A (``prefix + id``) in a
         :class:`~are_stats.environment.TransformTree` under ``env_frame`` at its current
         pose, and drop the frames of artefacts that left."""

@@ -21,9 +21,9 @@ larger than ``eps`` along every separating axis); shapes that only touch do not.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_finite
 
@@ -91,7 +91,7 @@ class OrientedBox:
         )
 
 
-def box_centres(pose: Any, offset: Any) -> np.ndarray:
+def box_centres(pose: npt.ArrayLike, offset: npt.ArrayLike) -> np.ndarray:
     """Centres of artefact boxes from the artefacts' poses: pose -> box, for everyone
     (:meth:`Scene.at <are_stats.Scene.at>`, the mission's footprints and avoidance, the
     AR-builder).
@@ -119,7 +119,7 @@ def box_centres(pose: Any, offset: Any) -> np.ndarray:
     )
 
 
-def box_corners(centre: Any, half: Any, yaw: Any) -> np.ndarray:
+def box_corners(centre: npt.ArrayLike, half: npt.ArrayLike, yaw: npt.ArrayLike) -> np.ndarray:
     """Footprint corners of oriented rectangles.
 
     Parameters
@@ -147,7 +147,13 @@ def box_corners(centre: Any, half: Any, yaw: Any) -> np.ndarray:
 
 
 def obb_overlap_2d(
-    ca: Any, ha: Any, ya: Any, cb: Any, hb: Any, yb: Any, eps: float = 1e-9
+    ca: npt.ArrayLike,
+    ha: npt.ArrayLike,
+    ya: npt.ArrayLike,
+    cb: npt.ArrayLike,
+    hb: npt.ArrayLike,
+    yb: npt.ArrayLike,
+    eps: float = 1e-9,
 ) -> np.ndarray:
     """Separating-axis test of pairs of oriented rectangles.
 
@@ -187,7 +193,13 @@ def obb_overlap_2d(
 
 
 def obb_overlap_3d(
-    ca: Any, ha: Any, ya: Any, cb: Any, hb: Any, yb: Any, eps: float = 1e-9
+    ca: npt.ArrayLike,
+    ha: npt.ArrayLike,
+    ya: npt.ArrayLike,
+    cb: npt.ArrayLike,
+    hb: npt.ArrayLike,
+    yb: npt.ArrayLike,
+    eps: float = 1e-9,
 ) -> np.ndarray:
     """Separating-axis test of pairs of upright boxes ``(n, 3)`` centres / half sizes.
 
@@ -200,7 +212,7 @@ def obb_overlap_3d(
 
 
 def footprint_runs(
-    poly: Any, shape: tuple[int, int]
+    poly: npt.ArrayLike, shape: tuple[int, int]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Row runs of the cells with positive-area overlap with convex polygons.
 
@@ -264,7 +276,11 @@ def footprint_runs(
 
 
 def runs_to_cells(
-    rows: np.ndarray, jlo: np.ndarray, jhi: np.ndarray, width: int, owner: Any = None
+    rows: np.ndarray,
+    jlo: np.ndarray,
+    jhi: np.ndarray,
+    width: int,
+    owner: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Expand row runs to ``(owner, flat)`` cell indices.
 
@@ -291,7 +307,7 @@ def runs_to_cells(
 
 
 def box_runs(
-    centre: Any, half: Any, yaw: Any, shape: tuple[int, int]
+    centre: npt.ArrayLike, half: npt.ArrayLike, yaw: npt.ArrayLike, shape: tuple[int, int]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Row runs of the cells with positive-area overlap with oriented rectangles.
 
@@ -399,7 +415,7 @@ def box_runs(
 
 
 def rasterise_convex(
-    poly: Any, shape: tuple[int, int]
+    poly: npt.ArrayLike, shape: tuple[int, int]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cells with positive-area overlap with convex polygons (exact, not centre sampling).
 
@@ -435,7 +451,7 @@ def _relu_mean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(both_pos, 0.5 * (a + b), np.where(mixed & (d > 0), m, 0.0))
 
 
-def polygon_cell_coverage(vertices: Any) -> tuple[int, int, np.ndarray]:
+def polygon_cell_coverage(vertices: npt.ArrayLike) -> tuple[int, int, np.ndarray]:
     """Exact area fraction of every grid cell covered by a simple polygon.
 
     Parameters
@@ -487,7 +503,11 @@ def polygon_cell_coverage(vertices: Any) -> tuple[int, int, np.ndarray]:
 
 
 def triangle_box_overlap(
-    tri: Any, centre: Any, half: Any, yaw: Any, eps: float = 1e-9
+    tri: npt.ArrayLike,
+    centre: npt.ArrayLike,
+    half: npt.ArrayLike,
+    yaw: npt.ArrayLike,
+    eps: float = 1e-9,
 ) -> np.ndarray:
     """Separating-axis test of triangles against upright oriented boxes (13 axes).
 

@@ -30,6 +30,7 @@ around the origin with ``z >= 0``); the box is the mesh's axis-aligned bounds in
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -41,6 +42,7 @@ from are_stats.environment._shipped import SHIPPED_DATA
 from are_stats.inputs import (
     Described,
     InputError,
+    Source,
     check_keys,
     check_memory,
     get_float,
@@ -224,7 +226,9 @@ class ArtefactCatalogue:
     def __contains__(self, label: object) -> bool:
         return label in self._by_label
 
-    def rows_of_labels(self, labels: Any, source: Any = "log", where: str = "label") -> np.ndarray:
+    def rows_of_labels(
+        self, labels: Sequence[str], source: Source = "log", where: str = "label"
+    ) -> np.ndarray:
         """The catalogue row (class position) of each class label of a log.
 
         A log that names its classes (the ``label`` column) is generated with the

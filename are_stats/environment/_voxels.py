@@ -22,9 +22,10 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
@@ -86,7 +87,7 @@ class VoxelMap:
     (2, [True, False])
     """
 
-    def __init__(self, resolution: float, keys: Any = None) -> None:
+    def __init__(self, resolution: float, keys: npt.ArrayLike | None = None) -> None:
         self.resolution = float(check_positive("resolution", resolution))
         self._packed = np.zeros(0, dtype=np.int64)
         if keys is not None:
@@ -96,7 +97,7 @@ class VoxelMap:
             self._packed = np.unique(_pack(k))
 
     # ---------------------------------------------------------------- keys
-    def key_of(self, points: Any) -> np.ndarray:
+    def key_of(self, points: npt.ArrayLike) -> np.ndarray:
         """``(n, 3)`` int64 voxel keys of ``(n, 3)`` points."""
         p = check_finite("points", points)
         if p.ndim != 2 or p.shape[1] != 3:
@@ -130,29 +131,29 @@ class VoxelMap:
         return out
 
     # ---------------------------------------------------------------- updates
-    def insert_points(self, points: Any) -> None:
+    def insert_points(self, points: npt.ArrayLike) -> None:
         """Mark the voxels containing ``(n, 3)`` points occupied."""
         self.insert_keys(self.key_of(points))
 
-    def remove_points(self, points: Any) -> None:
+    def remove_points(self, points: npt.ArrayLike) -> None:
         """Mark the voxels containing ``(n, 3)`` points not occupied."""
         self.remove_keys(self.key_of(points))
 
-    def insert_keys(self, keys: Any) -> None:
+    def insert_keys(self, keys: npt.ArrayLike) -> None:
         """Add ``(n, 3)`` integer keys."""
         k = np.asarray(keys, dtype=np.int64).reshape(-1, 3)
         self._packed = np.union1d(self._packed, _pack(k))
 
-    def remove_keys(self, keys: Any) -> None:
+    def remove_keys(self, keys: npt.ArrayLike) -> None:
         """Remove ``(n, 3)`` integer keys."""
         k = np.asarray(keys, dtype=np.int64).reshape(-1, 3)
         self._packed = np.setdiff1d(self._packed, _pack(k), assume_unique=False)
 
-    def query(self, points: Any) -> np.ndarray:
+    def query(self, points: npt.ArrayLike) -> np.ndarray:
         """``(n,)`` bool: whether the voxel of each point is occupied."""
         return self.contains_keys(self.key_of(points))
 
-    def contains_keys(self, keys: Any) -> np.ndarray:
+    def contains_keys(self, keys: npt.ArrayLike) -> np.ndarray:
         """``(n,)`` bool: whether each ``(n, 3)`` key is occupied."""
         k = np.asarray(keys, dtype=np.int64).reshape(-1, 3)
         q = _pack(k)

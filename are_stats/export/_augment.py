@@ -17,15 +17,18 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._atomic import check_writable
 from are_stats.builder import ARBuilder
 from are_stats.environment import (
     DEFAULT_MODELS,
+    ArtefactCatalogue,
     OccupancyGrid,
     extrude_grid,
     load_catalogue,
@@ -35,6 +38,7 @@ from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame
 from are_stats.inputs import (
     Described,
     InputError,
+    Source,
     check_memory,
     check_work,
     get_float,
@@ -49,7 +53,10 @@ from are_stats.logs import (
     interpolate_poses,
     read_trajectory,
 )
-from are_stats.scenarios import scenes_from_fit
+from are_stats.scenarios import Scene, scenes_from_fit
+
+if TYPE_CHECKING:
+    from are_stats.perception import CameraModel, PinholeCamera
 
 # Lazy imports: fitting (JAX, NumPyro), perception (Warp) and experiments load when a bag is
 # augmented: `are-stats show`/`experiment` import this room for lighter functions.
@@ -115,7 +122,7 @@ class AugmentResult(NamedTuple):
     times: np.ndarray
     start: float
     camera_poses: np.ndarray
-    scene: Any
+    scene: Scene
     counts: np.ndarray
     perceived: np.ndarray
     contacts: np.ndarray
@@ -140,9 +147,9 @@ def augment_bag(
     pose_topic: str | None = None,
     base_frame: str = "base_link",
     map_frame: str = "map",
-    camera: Any = None,
+    camera: PinholeCamera | str | os.PathLike[str] | None = None,
     camera_info_topic: str | None = None,
-    mount: Any = None,
+    mount: npt.ArrayLike | None = None,
     period: float = 0.5,
     d_max: float = 10.0,
     tau: float = 10.0,
@@ -150,11 +157,11 @@ def augment_bag(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     wall_height: float = 2.5,
-    catalogue: Any = None,
+    catalogue: ArtefactCatalogue | None = None,
     force: bool = False,
     clock: str = "auto",
     model: str = "chosen",
-    topics: Any = None,
+    topics: Sequence[str] | None = None,
     camera_frame: str | None = None,
 ) -> AugmentResult:
     """Augment a robot's recorded run with generated artefacts and write an MCAP.
@@ -468,7 +475,12 @@ def augment_bag(
 
 
 def _period_frames(
-    pose_t: np.ndarray, period: float, cam: Any, grid: Any, bag: Any, gap: float
+    pose_t: np.ndarray,
+    period: float,
+    cam: CameraModel,
+    grid: OccupancyGrid,
+    bag: Source,
+    gap: float,
 ) -> np.ndarray:
     """Frame times every ``period`` seconds over the stretches of ``pose_t`` (split at gaps
     longer than ``gap``), after checking their count against the limits."""
@@ -485,7 +497,7 @@ def _period_frames(
 
 
 def _check_alive(
-    scene: Any, times: np.ndarray, horizon: float, traj: BagTrajectory, bag: Any, seed: int
+    scene: Scene, times: np.ndarray, horizon: float, traj: BagTrajectory, bag: Source, seed: int
 ) -> None:
     """Refuse a run in which no artefact is alive in any camera frame, saying why."""
     n = len(scene)

@@ -45,7 +45,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -53,10 +53,15 @@ from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 from are_stats.logs import interpolate_poses
-from are_stats.scenarios import read_scenes, scenes_from_tables
+from are_stats.scenarios import Scene, read_scenes, scenes_from_tables
 
 # Lazy imports: foxglove and perception (Warp) load when the live view starts, not with the
 # export room.
+
+if TYPE_CHECKING:
+    import threading
+
+    from are_stats.perception import PinholeCamera
 
 __all__ = [
     "LIVE_TOPICS",
@@ -132,7 +137,7 @@ def _yaw_quat(fm: Any, yaw: float) -> Any:
     return fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
 
-def grid_message(grid: Any, stamp_ns: int, frame: str = "map") -> Any:
+def grid_message(grid: OccupancyGrid, stamp_ns: int, frame: str = "map") -> Any:
     """``foxglove.Grid`` of an :class:`~are_stats.environment.OccupancyGrid` (row 0 at the
     origin, one ``uint8`` field ``occupancy``: 0-100 and 255 for unknown)."""
     fm = _fm()
@@ -157,7 +162,7 @@ def grid_message(grid: Any, stamp_ns: int, frame: str = "map") -> Any:
 
 
 def _frame(
-    fm: Any, scene: Any, t: float, ns: int, gone: list[int], frame: str
+    fm: Any, scene: Scene, t: float, ns: int, gone: list[int], frame: str
 ) -> tuple[Any, Any, list[int]]:
     """(SceneUpdate, transforms, alive ids) of the scene at time ``t``."""
     boxes = scene.at(t)
@@ -299,8 +304,8 @@ def _robot_frame(fm: Any, robot: Any, t: float, ns: int, frame: str) -> tuple[An
 
 
 def replay_messages(
-    scene: Any,
-    grid: Any = None,
+    scene: Scene,
+    grid: OccupancyGrid | None = None,
     *,
     horizon: float,
     speed: float = 1.0,
@@ -395,7 +400,7 @@ def replay_messages(
 
 def load_robot(
     path: str | os.PathLike,
-    camera: Any = None,
+    camera: PinholeCamera | str | os.PathLike[str] | None = None,
     *,
     height: float = 1.0,
     d_max: float = 10.0,
@@ -565,7 +570,7 @@ def serve_scenario(
     duration: float | None = None,
     fps: float = 10.0,
     on_ready: Callable[[dict[str, Any]], None] | None = None,
-    stop: Any = None,
+    stop: threading.Event | None = None,
     robot_path: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Stream a scenario replay live over Foxglove's WebSocket protocol.

@@ -34,14 +34,19 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame, parse_start_time
 
 # Lazy imports: perception (Warp) and experiments load when an MCAP is written, not with the
 # export room.
+
+if TYPE_CHECKING:
+    from are_stats.environment import OccupancyGrid
+    from are_stats.experiments import MissionTrace
 
 __all__ = ["MCAP_TOPICS", "export_mcap"]
 
@@ -61,13 +66,13 @@ MCAP_TOPICS = {
 
 def export_mcap(
     path: str | os.PathLike,
-    grid: Any,
-    trace: Any,
+    grid: OccupancyGrid,
+    trace: MissionTrace,
     *,
     force: bool = False,
     frame: str = "map",
     start_time: float | str = 0.0,
-    mount: Any = None,
+    mount: npt.ArrayLike | None = None,
 ) -> Path:
     """Write a recorded mission (``run_mission(..., record=True).trace``) to an MCAP file.
 

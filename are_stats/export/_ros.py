@@ -25,17 +25,22 @@ import datetime as _dt
 import heapq
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._atomic import atomic_path
 from are_stats.inputs import InputError
 
 # Lazy imports: rosbags, mcap and SciPy's Rotation load when a bag is written, not with the
 # export room.
+
+if TYPE_CHECKING:
+    from are_stats.environment import OccupancyGrid
+    from are_stats.logs import PassThrough
 
 __all__ = ["ROS_FRAMES", "RosMessages", "artefact_frame", "parse_start_time", "qos_profile"]
 
@@ -195,7 +200,7 @@ class RosMessages:
             ),
         )
 
-    def transform(self, t: float, parent: str, child: str, matrix: Any) -> Any:
+    def transform(self, t: float, parent: str, child: str, matrix: npt.ArrayLike) -> Any:
         """``geometry_msgs/TransformStamped`` of a (4, 4) parent-from-child transform."""
         T = self.T
         m = np.asarray(matrix, float)
@@ -221,7 +226,7 @@ class RosMessages:
         m[:3, 3] = [x, y, z]
         return self.transform(t, parent, child, m)
 
-    def occupancy_grid(self, t: float, grid: Any) -> Any:
+    def occupancy_grid(self, t: float, grid: OccupancyGrid) -> Any:
         T = self.T
         info = T["nav_msgs/msg/MapMetaData"](
             map_load_time=self.stamp(t),
@@ -240,9 +245,9 @@ class RosMessages:
         ns: str,
         mid: int,
         mtype: int,
-        pose: Any,
-        scale: Any,
-        rgba: Any,
+        pose: npt.ArrayLike,
+        scale: npt.ArrayLike,
+        rgba: npt.ArrayLike,
         *,
         action: int = 0,
         text: str = "",
@@ -285,12 +290,12 @@ class RosMessages:
     def artefact_markers(
         self,
         t: float,
-        ids: Any,
-        centres: Any,
-        half: Any,
-        yaws: Any,
-        labels: Any,
-        perceived: Any,
+        ids: npt.ArrayLike,
+        centres: npt.ArrayLike,
+        half: npt.ArrayLike,
+        yaws: npt.ArrayLike,
+        labels: Sequence[str],
+        perceived: npt.ArrayLike,
         lifetime: float = 0.0,
     ) -> Any:
         """``MarkerArray``: a DELETEALL, then per artefact a cube (ns ``artefacts``; green
@@ -362,7 +367,11 @@ class RosMessages:
         return out
 
     def write(
-        self, path: str | os.PathLike, *, force: bool = False, passthrough: Any = None
+        self,
+        path: str | os.PathLike,
+        *,
+        force: bool = False,
+        passthrough: PassThrough | None = None,
     ) -> Path:
         """Write the queued messages, sorted by time, to ``path`` (atomically).
 

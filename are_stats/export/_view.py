@@ -73,8 +73,8 @@ class BagView(NamedTuple):
     """
 
     t: float
-    grid: Any
-    augmented: Any
+    grid: OccupancyGrid
+    augmented: OccupancyGrid | None
     boxes: np.ndarray
     labels: list
     perceived: np.ndarray
@@ -89,7 +89,7 @@ def _yaw(q: Any) -> float:
     return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
 
 
-def _grid(msg: Any) -> Any:
+def _grid(msg: Any) -> OccupancyGrid:
     info = msg.info
     h, w = int(info.height), int(info.width)
     data = np.asarray(msg.data, np.int8).reshape(h, w)

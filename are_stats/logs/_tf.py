@@ -15,8 +15,9 @@ import math
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from are_stats.inputs import Described, InputError
+from are_stats.inputs import Described, InputError, Source
 
 # Lazy imports: SciPy's Rotation (0.1-1 s) is imported when a transform is interpolated.
 
@@ -42,7 +43,9 @@ TF_TYPES = (TF_TYPE, "tf/msg/tfMessage")
 QUATERNION_TOLERANCE = 1e-2
 
 
-def unit_quaternion(rotation: Any, source: Any = "transform", where: str = "") -> np.ndarray:
+def unit_quaternion(
+    rotation: npt.ArrayLike, source: Source = "transform", where: str = ""
+) -> np.ndarray:
     """``(x, y, z, w)`` (4,) float of a ROS quaternion, renormalised.
 
     Parameters
@@ -73,7 +76,10 @@ def unit_quaternion(rotation: Any, source: Any = "transform", where: str = "") -
 
 
 def transform_matrix(
-    translation: Any, rotation: Any, source: Any = "transform", where: str = ""
+    translation: npt.ArrayLike,
+    rotation: npt.ArrayLike,
+    source: Source = "transform",
+    where: str = "",
 ) -> np.ndarray:
     """(4, 4) transform of a ROS translation (``x, y, z``) and quaternion (``x, y, z, w``)
     (a ``geometry_msgs/Transform``'s fields or a ``Pose``'s ``position, orientation``).
@@ -95,7 +101,7 @@ def transform_matrix(
     return m
 
 
-def interpolate_poses(t: Any, poses: Any, times: Any) -> np.ndarray:
+def interpolate_poses(t: npt.ArrayLike, poses: npt.ArrayLike, times: npt.ArrayLike) -> np.ndarray:
     """Poses ``(T, 4, 4)`` at ``times`` from stamped poses ``t`` (m,), ``poses`` (m, 4, 4):
     translation linear, rotation slerp, clamped at the ends."""
     from scipy.spatial.transform import Rotation, Slerp
@@ -121,16 +127,17 @@ def interpolate_poses(t: Any, poses: Any, times: Any) -> np.ndarray:
 class TfBuffer:
     """Stamped links of a tf tree, filled from ``tf2_msgs/TFMessage`` messages.
 
-    Examples
-    --------
-    >>> import numpy as np
-    >>> buf = TfBuffer()
-    >>> a = np.eye(4); a[0, 3] = 1.0
-    >>> buf.add("map", "odom", 0.0, a, static=True)
-    >>> b = np.eye(4); b[1, 3] = 2.0
-    >>> buf.add("odom", "base_link", 0.0, b)
-    >>> buf.lookup("map", "base_link", [0.0])[0, :2, 3].tolist()
-    [1.0, 2.0]
+        Examples
+        --------
+        >>> import numpy as np
+    import numpy.typing as npt
+        >>> buf = TfBuffer()
+        >>> a = np.eye(4); a[0, 3] = 1.0
+        >>> buf.add("map", "odom", 0.0, a, static=True)
+        >>> b = np.eye(4); b[1, 3] = 2.0
+        >>> buf.add("odom", "base_link", 0.0, b)
+        >>> buf.lookup("map", "base_link", [0.0])[0, :2, 3].tolist()
+        [1.0, 2.0]
     """
 
     def __init__(self) -> None:
@@ -139,7 +146,9 @@ class TfBuffer:
         self._t: dict[tuple[str, str], list[float]] = {}
         self._m: dict[tuple[str, str], list[np.ndarray]] = {}
 
-    def add(self, parent: str, child: str, t: float, matrix: Any, static: bool = False) -> None:
+    def add(
+        self, parent: str, child: str, t: float, matrix: npt.ArrayLike, static: bool = False
+    ) -> None:
         """Add ``T_parent_child`` (4, 4) stamped ``t`` (s); leading ``/`` are dropped."""
         parent, child = parent.lstrip("/"), child.lstrip("/")
         if self.parents.setdefault(child, parent) != parent:
@@ -155,7 +164,7 @@ class TfBuffer:
         msg: Any,
         fallback_t: float,
         static: bool = False,
-        source: Any = "tf",
+        source: Source = "tf",
         where: str = "",
     ) -> None:
         """Add every transform of a ``TFMessage`` (a zero stamp reads as ``fallback_t``).
@@ -200,7 +209,7 @@ class TfBuffer:
     def is_static(self, links: list[tuple[str, str]]) -> bool:
         return all(k in self.static for k in links)
 
-    def lookup(self, target: str, source: str, times: Any) -> np.ndarray:
+    def lookup(self, target: str, source: str, times: npt.ArrayLike) -> np.ndarray:
         """``T_target_source`` at ``times``: (T, 4, 4).
 
         Raises

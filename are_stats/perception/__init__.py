@@ -1,6 +1,6 @@
 """Perception: camera model, Warp occlusion kernels and the perceived set A_f (section 3.3)."""
 
-from are_stats.perception._camera import PinholeCamera, optical_from_base
+from are_stats.perception._camera import CameraModel, PinholeCamera, optical_from_base
 from are_stats.perception._perceive import (
     PerceptionResult,
     box_rois,
@@ -23,6 +23,7 @@ from are_stats.perception._scenario import (
 
 __all__ = [
     "PerceptionResult",
+    "CameraModel",
     "PinholeCamera",
     "box_rois",
     "check_path_times",

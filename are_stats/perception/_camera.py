@@ -10,14 +10,16 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_finite, describe
 from are_stats.inputs import (
     Described,
     InputError,
+    Source,
     check_keys,
     check_memory,
     get_float,
@@ -28,6 +30,7 @@ from are_stats.inputs import (
 )
 
 __all__ = [
+    "CameraModel",
     "PinholeCamera",
     "check_pose",
     "optical_from_base",
@@ -52,7 +55,7 @@ _MAX_VECTOR = 64
 _BODY_FROM_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 
-def check_pose(name: str, pose: Any, atol: float = 1e-6) -> np.ndarray:
+def check_pose(name: str, pose: npt.ArrayLike, atol: float = 1e-6) -> np.ndarray:
     """Validate a rigid transform (4, 4) with an orthonormal, right-handed rotation block."""
     p = check_finite(name, pose)
     if p.shape != (4, 4):
@@ -69,7 +72,9 @@ def check_pose(name: str, pose: Any, atol: float = 1e-6) -> np.ndarray:
     return p
 
 
-def optical_from_base(xyz: Any = (0.0, 0.0, 0.0), rpy: Any = (0.0, 0.0, 0.0)) -> np.ndarray:
+def optical_from_base(
+    xyz: npt.ArrayLike = (0.0, 0.0, 0.0), rpy: npt.ArrayLike = (0.0, 0.0, 0.0)
+) -> np.ndarray:
     """Base-to-optical mount transform (4, 4): the camera link at ``xyz`` with roll-pitch-yaw.
 
     The camera link follows the ROS body convention (x forward, z up); the returned
@@ -103,6 +108,31 @@ def optical_from_base(xyz: Any = (0.0, 0.0, 0.0), rpy: Any = (0.0, 0.0, 0.0)) ->
     t[:3, :3] = rz @ ry @ rx @ _BODY_FROM_OPTICAL
     t[:3, 3] = xyz
     return t
+
+
+class CameraModel(Protocol):
+    """What the perception functions read of a camera: :class:`PinholeCamera`, or any
+    object with these attributes."""
+
+    @property
+    def K(self) -> np.ndarray:
+        """(3, 3) float: the intrinsic matrix."""
+        ...
+
+    @property
+    def width(self) -> int:
+        """Image width in pixels."""
+        ...
+
+    @property
+    def height(self) -> int:
+        """Image height in pixels."""
+        ...
+
+    @property
+    def pose(self) -> np.ndarray:
+        """(4, 4) float: camera-to-world transform of the optical frame."""
+        ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,7 +200,7 @@ class PinholeCamera:
             object.__setattr__(self, name, float(v))
         object.__setattr__(self, "pose", check_pose("pose", self.pose))
 
-    def check_memory(self, source: Any = "") -> None:
+    def check_memory(self, source: Source = "") -> None:
         """Refuse a camera whose per-frame ray buffers (:data:`PIXEL_BYTES` bytes a pixel)
         exceed :func:`are_stats.inputs.memory_limit` (``LimitError``)."""
         check_memory(
@@ -210,7 +240,7 @@ class PinholeCamera:
         v = np.linalg.det(m) * m[2]
         return v / np.linalg.norm(v)
 
-    def with_pose(self, pose: Any) -> PinholeCamera:
+    def with_pose(self, pose: npt.ArrayLike) -> PinholeCamera:
         """The same intrinsics at another camera-to-world pose (4, 4)."""
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height, pose)
 
@@ -240,7 +270,7 @@ class PinholeCamera:
         o = np.broadcast_to(self.pose[:3, 3], d.shape).copy()
         return o, d
 
-    def project(self, points: Any) -> tuple[np.ndarray, np.ndarray]:
+    def project(self, points: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Project world points (n, 3) to pixel coordinates (n, 2) and optical depth z (n,)."""
         x = check_finite("points", points)
         if x.ndim != 2 or x.shape[1] != 3:
@@ -442,7 +472,7 @@ def _show(v: Any) -> str:
     return f"{v!r} (a {type(v).__name__})" if isinstance(v, bool | str) else describe(v)
 
 
-def _matrix(value: Any, source: Any, key: str, rows: int, cols: int | None) -> np.ndarray:
+def _matrix(value: Any, source: Source, key: str, rows: int, cols: int | None) -> np.ndarray:
     """A ``rows x cols`` matrix given flat, nested or as ``{rows, cols, data}``; ``cols``
     ``None`` means a vector of any length up to :data:`_MAX_VECTOR`."""
     if isinstance(value, dict):
@@ -473,7 +503,7 @@ def _matrix(value: Any, source: Any, key: str, rows: int, cols: int | None) -> n
     return out if cols is None else out.reshape(rows, cols)
 
 
-def _check_ideal(d: dict, source: Any, k: np.ndarray) -> None:
+def _check_ideal(d: dict, source: Source, k: np.ndarray) -> None:
     """The ROS calibration fields must describe the ideal pinhole camera ``k``."""
     if "camera_name" in d:
         get_str(d["camera_name"], source, "camera_name")

@@ -29,14 +29,20 @@ from __future__ import annotations
 
 import os
 import weakref
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import warp as wp
 
 from are_stats._checks import check_finite, check_nonnegative, check_probability, describe
 from are_stats.perception import _kernels as kern
+from are_stats.perception._camera import CameraModel
 from are_stats.perception._frustum_bvh import FrustumBVH, build_frustum_bvh
+
+if TYPE_CHECKING:
+    import jax
+    import trimesh
 
 # Lazy imports: JAX is imported by sample_perceived only (a perception run needs Warp, not
 # JAX).
@@ -93,7 +99,7 @@ def _det3(m: np.ndarray) -> np.ndarray:
     )
 
 
-def _check_boxes(centers: Any, half_extents: Any, rotations: Any):
+def _check_boxes(centers: npt.ArrayLike, half_extents: npt.ArrayLike, rotations: npt.ArrayLike):
     """Checked boxes: ``(n, 3)`` centres and ``(n, 3, 3)`` rotations, or per-frame
     ``(T, n, 3)`` and ``(T, n, 3, 3)`` for boxes that move; ``(n, 3)`` half extents."""
     c = check_finite("centers", centers)
@@ -123,7 +129,7 @@ def _check_boxes(centers: Any, half_extents: Any, rotations: Any):
     return c, h, r
 
 
-def _check_camera(camera: Any):
+def _check_camera(camera: CameraModel):
     """(fx, fy, cx, cy, width, height) from any object with K, width, height (and pose)."""
     for attr in ("K", "width", "height"):
         if not hasattr(camera, attr):
@@ -151,7 +157,7 @@ def _check_camera(camera: Any):
     return float(fx), float(fy), float(cx), float(cy), w, h
 
 
-def _check_poses(name: str, poses: Any) -> np.ndarray:
+def _check_poses(name: str, poses: npt.ArrayLike) -> np.ndarray:
     p = check_finite(name, poses)
     if p.ndim == 2:
         p = p[None]
@@ -169,7 +175,7 @@ def _check_poses(name: str, poses: Any) -> np.ndarray:
     return p
 
 
-def _check_scalar(name: str, x: Any, positive: bool) -> float:
+def _check_scalar(name: str, x: float, positive: bool) -> float:
     v = float(check_finite(name, x, ndim=0))
     if (positive and v <= 0) or v < 0:
         what = "> 0" if positive else ">= 0"
@@ -187,7 +193,7 @@ def clear_mesh_cache() -> None:
     _MESH_CACHE.clear()
 
 
-def _warp_mesh(env_mesh: Any, device: str) -> int:
+def _warp_mesh(env_mesh: trimesh.Trimesh | None, device: str) -> int:
     """Warp mesh id of ``env_mesh`` (0 for an empty mesh), built once and refitted on change.
 
     The BVH is cached per (mesh object, device). It is rebuilt when the faces change and
@@ -235,7 +241,7 @@ def _warp_mesh(env_mesh: Any, device: str) -> int:
     return mesh.id
 
 
-def _mesh_and_tree(env_mesh: Any, device: str) -> tuple[int, FrustumBVH | None]:
+def _mesh_and_tree(env_mesh: trimesh.Trimesh | None, device: str) -> tuple[int, FrustumBVH | None]:
     """:func:`_warp_mesh` and the mesh's frustum-gathering tree (None for an empty mesh)."""
     mesh_id = _warp_mesh(env_mesh, device)
     if mesh_id == 0:
@@ -509,16 +515,16 @@ def _run(
 
 
 def perceive_frames(
-    env_mesh: Any,
-    centers: Any,
-    half_extents: Any,
-    rotations: Any,
-    camera: Any,
-    poses: Any | None,
+    env_mesh: trimesh.Trimesh | None,
+    centers: npt.ArrayLike,
+    half_extents: npt.ArrayLike,
+    rotations: npt.ArrayLike,
+    camera: CameraModel,
+    poses: npt.ArrayLike | None,
     d_max: float,
     tau: float,
     *,
-    active: Any | None = None,
+    active: npt.ArrayLike | None = None,
     occlusion_between_artefacts: bool = False,
     return_depth: bool = False,
     device: str = "cpu",
@@ -621,16 +627,16 @@ def perceive_frames(
 
 
 def perceived_counts_batch(
-    env_mesh: Any,
-    centers: Any,
-    half_extents: Any,
-    rotations: Any,
-    camera: Any,
-    poses: Any,
+    env_mesh: trimesh.Trimesh | None,
+    centers: npt.ArrayLike,
+    half_extents: npt.ArrayLike,
+    rotations: npt.ArrayLike,
+    camera: CameraModel,
+    poses: npt.ArrayLike,
     d_max: float,
     tau: float,
     *,
-    active: Any | None = None,
+    active: npt.ArrayLike | None = None,
     occlusion_between_artefacts: bool = False,
     device: str = "cpu",
     threads: int | None = None,
@@ -678,11 +684,11 @@ def perceived_counts_batch(
 
 
 def perceived_counts(
-    env_mesh: Any,
-    centers: Any,
-    half_extents: Any,
-    rotations: Any,
-    camera: Any,
+    env_mesh: trimesh.Trimesh | None,
+    centers: npt.ArrayLike,
+    half_extents: npt.ArrayLike,
+    rotations: npt.ArrayLike,
+    camera: CameraModel,
     d_max: float,
     tau: float,
     *,
@@ -759,10 +765,10 @@ def perceived_counts(
 
 
 def sample_perceived(
-    key: Any,
-    perceived: Any,
-    detection_prob: Any = 1.0,
-    existence_prob: Any = 1.0,
+    key: jax.Array,
+    perceived: npt.ArrayLike,
+    detection_prob: npt.ArrayLike = 1.0,
+    existence_prob: npt.ArrayLike = 1.0,
 ) -> np.ndarray:
     """A sampled perceived set: detection and existence uncertainty (beyond the paper).
 

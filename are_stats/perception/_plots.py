@@ -3,15 +3,22 @@ depth image, and the top view with the view cone W (paper section 3.3, Fig. 4)."
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._atomic import save_figure
+from are_stats.environment import OccupancyGrid
+from are_stats.perception._camera import CameraModel
 from are_stats.perception._perceive import _EDGES, _SIGNS
 
 # Lazy imports: matplotlib and SciPy's ConvexHull load when a figure is drawn, not with the
 # perception room.
+
+if TYPE_CHECKING:
+    import matplotlib.axes
+    import matplotlib.figure
 
 __all__ = ["plot_camera_view", "plot_top_view", "save_figure"]
 
@@ -43,17 +50,17 @@ def _legend(ax, used: set[str]) -> None:
 
 
 def plot_camera_view(
-    camera: Any,
-    depth: Any,
-    centers: Any,
-    half_extents: Any,
-    rotations: Any,
-    counts: Any,
-    perceived: Any,
+    camera: CameraModel,
+    depth: npt.ArrayLike,
+    centers: npt.ArrayLike,
+    half_extents: npt.ArrayLike,
+    rotations: npt.ArrayLike,
+    counts: npt.ArrayLike,
+    perceived: npt.ArrayLike,
     *,
     d_max: float | None = None,
-    ax: Any = None,
-) -> Any:
+    ax: matplotlib.axes.Axes | None = None,
+) -> matplotlib.figure.Figure:
     """Camera view: depth image with every box's wireframe coloured by its A_f status.
 
     Parameters
@@ -139,17 +146,17 @@ def plot_camera_view(
 
 
 def plot_top_view(
-    camera: Any,
+    camera: CameraModel,
     d_max: float,
-    centers: Any,
-    half_extents: Any,
-    yaws: Any,
-    counts: Any,
-    perceived: Any,
+    centers: npt.ArrayLike,
+    half_extents: npt.ArrayLike,
+    yaws: npt.ArrayLike,
+    counts: npt.ArrayLike,
+    perceived: npt.ArrayLike,
     *,
-    grid: Any = None,
-    ax: Any = None,
-) -> Any:
+    grid: OccupancyGrid | None = None,
+    ax: matplotlib.axes.Axes | None = None,
+) -> matplotlib.figure.Figure:
     """Top view: the occupancy grid, the view cone W cut at ``d_max`` and the footprints.
 
     Parameters

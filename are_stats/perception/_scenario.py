@@ -11,18 +11,23 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
 from are_stats.builder import box_corners, rasterise_convex
-from are_stats.inputs import Described, InputError, check_memory, check_work
+from are_stats.environment import OccupancyGrid
+from are_stats.inputs import Described, InputError, Source, check_memory, check_work
 from are_stats.logs import read_raw_table
-from are_stats.perception._camera import check_pose
+from are_stats.perception._camera import CameraModel, check_pose
 from are_stats.perception._perceive import perceived_counts_batch
 from are_stats.scenarios import MAX_POSITION, Scene
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = [
     "check_path_times",
@@ -90,7 +95,7 @@ def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
     return pd.DataFrame(cols)
 
 
-def yaw_rotations(yaw: Any) -> np.ndarray:
+def yaw_rotations(yaw: npt.ArrayLike) -> np.ndarray:
     """Box-to-world rotations (n, 3, 3) of upright boxes with heading ``yaw`` (n,)."""
     a = check_finite("yaw", yaw).reshape(-1)
     c, s = np.cos(a), np.sin(a)
@@ -99,7 +104,13 @@ def yaw_rotations(yaw: Any) -> np.ndarray:
     return r
 
 
-def perceived_grid(grid: Any, centers: Any, half_extents: Any, yaws: Any, perceived: Any) -> Any:
+def perceived_grid(
+    grid: OccupancyGrid,
+    centers: npt.ArrayLike,
+    half_extents: npt.ArrayLike,
+    yaws: npt.ArrayLike,
+    perceived: npt.ArrayLike,
+) -> OccupancyGrid:
     """The augmented occupancy grid with only the perceived artefacts (what the planner sees).
 
     Footprints are rasterised exactly (cells sharing positive area with the box's
@@ -148,7 +159,7 @@ def perceived_grid(grid: Any, centers: Any, half_extents: Any, yaws: Any, percei
 
 
 def _scene_frames(
-    scene: Any, times: np.ndarray
+    scene: Scene, times: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The boxes of ``scene`` in frames at ``times`` (T,), all taken from :meth:`Scene.at`.
 
@@ -184,11 +195,11 @@ def _scene_frames(
 
 
 def perceive_scene(
-    scene: Any,
-    times: Any,
-    poses: Any,
-    env_mesh: Any,
-    camera: Any,
+    scene: Scene,
+    times: npt.ArrayLike,
+    poses: npt.ArrayLike,
+    env_mesh: trimesh.Trimesh | None,
+    camera: CameraModel,
     d_max: float,
     tau: float,
     *,
@@ -286,12 +297,12 @@ def perceive_scene(
 def perceive_scenario(
     scenes: Scene | Sequence[Scene],
     robot_path: pd.DataFrame,
-    env_mesh: Any,
-    camera: Any,
+    env_mesh: trimesh.Trimesh | None,
+    camera: CameraModel,
     d_max: float,
     tau: float,
     *,
-    mount: Any | None = None,
+    mount: npt.ArrayLike | None = None,
     occlusion_between_artefacts: bool = False,
     threads: int | None = None,
 ) -> pd.DataFrame:
@@ -406,7 +417,7 @@ def perceive_scenario(
 _BARE_COLUMNS = ("artefact", "label", "t_arrive", "t_leave")
 
 
-def _scene_table(scene: Any) -> pd.DataFrame:
+def _scene_table(scene: Scene) -> pd.DataFrame:
     """The rows of ``scene`` in :func:`perceive_scenario`'s output (before the flags)."""
     if scene.artefacts is not None:
         return scene.artefacts
@@ -414,7 +425,7 @@ def _scene_table(scene: Any) -> pd.DataFrame:
     return pd.DataFrame(dict(zip(_BARE_COLUMNS, cols, strict=True)))
 
 
-def _check_size(scenes: list[Any], t: np.ndarray, camera: Any) -> None:
+def _check_size(scenes: list[Scene], t: np.ndarray, camera: CameraModel) -> None:
     """Refuse, before tracing, work past the work limit (a ray per pixel of every frame in
     which an artefact of the scenario is present) or pair buffers past the memory limit."""
     if not scenes or len(t) == 0:
@@ -446,12 +457,12 @@ def _check_size(scenes: list[Any], t: np.ndarray, camera: Any) -> None:
 
 
 def check_path_times(
-    source: Any,
+    source: Source,
     t: np.ndarray,
     t_arrive: np.ndarray,
     t_leave: np.ndarray,
     window: tuple[float, float] | None = None,
-    scenarios: Any = "",
+    scenarios: Source = "",
 ) -> None:
     """Refuse a robot path on which no artefact could be seen.
 
@@ -498,7 +509,9 @@ def check_path_times(
         )
 
 
-def poses_outside(xy: Any, grid: Any = None, bounds: Any = None) -> np.ndarray:
+def poses_outside(
+    xy: npt.ArrayLike, grid: OccupancyGrid | None = None, bounds: npt.ArrayLike | None = None
+) -> np.ndarray:
     """(n,) bool: robot positions ``xy (n, 2)`` outside the map ``grid`` (an
     OccupancyGrid), else outside ``bounds`` ``((x0, y0), (x1, y1))``; none without either."""
     p = check_finite("xy", xy, ndim=2)

@@ -35,16 +35,26 @@ when it estimated them from tracks, else the published ones (:class:`SocialForce
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
-from are_stats.environment import coarse_free
+from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_free
 from are_stats.inputs import Described, InputError, check_memory, check_work
 from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
 from are_stats.scenarios._scene import Scene
+
+if TYPE_CHECKING:
+    import arviz as az
+    import jax
+
+    from are_stats.behaviour import BehaviourFit, SocialForce
+    from are_stats.fitting import Fit
+    from are_stats.traffic import TrafficLaws
 
 # Lazy imports: behaviour and fitting (JAX, NumPyro) load when a scene moves or a fit is read:
 # scenarios without behaviours stay light.
@@ -63,7 +73,7 @@ __all__ = [
 BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
 
 
-def _behaviour_source(behaviours: Any, fitted: Any, source: str) -> str:
+def _behaviour_source(behaviours: bool | str, fitted: BehaviourFit | None, source: str) -> str:
     """The behaviour that moves the artefacts, by the module's one rule."""
     if isinstance(behaviours, bool | np.bool_):
         behaviours = "auto" if behaviours else "none"
@@ -127,9 +137,9 @@ def check_tracks_size(artefacts: pd.DataFrame, shape: tuple[int, int], dt: float
 def scenes_from_tables(
     artefacts: pd.DataFrame,
     tracks: pd.DataFrame | None,
-    catalogue: Any,
-    class_labels: Any = None,
-    scenarios: Any = None,
+    catalogue: ArtefactCatalogue,
+    class_labels: Sequence[str] | None = None,
+    scenarios: Iterable[int] | None = None,
 ) -> list[Scene]:
     """Scenes of a scenarios table and its tracks: the one place where table rows become
     :class:`Scene` s (every reader of a scenarios folder and every assembly comes here).
@@ -199,20 +209,20 @@ def scenes_tables(scenes: list[Scene]) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 
 def scene_tracks(
-    key: Any,
+    key: int | jax.Array,
     artefacts: pd.DataFrame,
-    grid: Any,
-    catalogue: Any,
+    grid: OccupancyGrid | None,
+    catalogue: ArtefactCatalogue,
     horizon: float,
     *,
-    behaviours: Any = True,
-    fitted: Any = None,
-    class_labels: Any = None,
+    behaviours: bool | str = True,
+    fitted: BehaviourFit | None = None,
+    class_labels: Sequence[str] | None = None,
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     source: str = "scenario",
     cell_source: str = "behaviour_cell",
-    interaction: Any = True,
+    interaction: bool | SocialForce = True,
     n: int | None = None,
 ) -> pd.DataFrame | None:
     """The tracks of a scenarios table by the module's one behaviour rule, then the
@@ -281,24 +291,24 @@ def scene_tracks(
 
 
 def scenes_from_draws(
-    key: Any,
-    draws: Mapping[str, Any],
-    grid: Any,
-    catalogue: Any,
+    key: int | jax.Array,
+    draws: Mapping[str, npt.ArrayLike],
+    grid: OccupancyGrid | None,
+    catalogue: ArtefactCatalogue,
     n: int,
     horizon: float,
     *,
-    laws: Any = None,
-    behaviours: Any = False,
-    fitted: Any = None,
-    class_labels: Any = None,
+    laws: TrafficLaws | None = None,
+    behaviours: bool | str = False,
+    fitted: BehaviourFit | None = None,
+    class_labels: Sequence[str] | None = None,
     area: float | None = None,
     start: str = "stationary",
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     source: str = "scenario",
     cell_source: str = "behaviour_cell",
-    interaction: Any = True,
+    interaction: bool | SocialForce = True,
 ) -> list[Scene]:
     """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
 
@@ -382,7 +392,9 @@ def scenes_from_draws(
     return scenes_from_tables(art, tracks, catalogue, class_labels, range(n))
 
 
-def _pedestrians(art: pd.DataFrame, catalogue: Any, labels: Any, n: int) -> dict:
+def _pedestrians(
+    art: pd.DataFrame, catalogue: ArtefactCatalogue, labels: Sequence[str] | None, n: int
+) -> dict:
     """``(scenario, id) -> bool``: whether the artefact's class walks (its catalogue
     ``kind`` is ``pedestrian``, the default)."""
     walks = {}
@@ -394,7 +406,11 @@ def _pedestrians(art: pd.DataFrame, catalogue: Any, labels: Any, n: int) -> dict
 
 
 def _groups(
-    tracks: pd.DataFrame, art: pd.DataFrame, walks: dict, grid: Any, interaction: Any
+    tracks: pd.DataFrame,
+    art: pd.DataFrame,
+    walks: dict,
+    grid: OccupancyGrid,
+    interaction: bool | SocialForce,
 ) -> tuple[pd.DataFrame, np.ndarray | None]:
     """Planned tracks with the members of each arrival group on their leader's route
     (:func:`~are_stats.behaviour.group_tracks`; pedestrians only) and each track row's
@@ -418,7 +434,11 @@ def _groups(
 
 
 def _interact(
-    tracks: pd.DataFrame, walks: dict, grid: Any, interaction: Any, groups: Any = None
+    tracks: pd.DataFrame,
+    walks: dict,
+    grid: OccupancyGrid,
+    interaction: bool | SocialForce,
+    groups: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """The tracks walked again under the social force; non-pedestrians stay kinematic;
     arrival groups walk together."""
@@ -431,14 +451,14 @@ def _interact(
 
 
 def scenes_from_fit(
-    key: Any,
-    fit: Any,
-    grid: Any,
-    catalogue: Any,
+    key: int | jax.Array,
+    fit: Fit | az.InferenceData | str | os.PathLike[str],
+    grid: OccupancyGrid | None,
+    catalogue: ArtefactCatalogue,
     n: int,
     horizon: float,
     *,
-    behaviours: Any = False,
+    behaviours: bool | str = False,
     model: str = "chosen",
     posterior_draw: int | None = None,
     area: float | None = None,
@@ -447,7 +467,7 @@ def scenes_from_fit(
     behaviour_dt: float = 2.0,
     source: str | None = None,
     cell_source: str = "behaviour_cell",
-    interaction: Any = True,
+    interaction: bool | SocialForce = True,
 ) -> list[Scene]:
     """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
 

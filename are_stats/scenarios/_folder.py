@@ -19,7 +19,7 @@ the manifest key, the column and what was expected.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -31,7 +31,7 @@ import yaml
 from are_stats import __version__
 from are_stats._atomic import atomic_folder
 from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
-from are_stats.logs import read_raw_table
+from are_stats.logs import RawTable, read_raw_table
 
 # Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read.
 
@@ -128,7 +128,7 @@ def _write_parquet(df: pd.DataFrame, path: Path) -> None:
     )
 
 
-def _check_table(df: pd.DataFrame, columns: Any, what: str) -> None:
+def _check_table(df: pd.DataFrame, columns: Sequence[str], what: str) -> None:
     missing = [c for c in columns if c not in df.columns]
     if missing:
         raise ValueError(
@@ -233,7 +233,7 @@ def _error(path: Path, where: str, expected: str, got: Any) -> InputError:
     return InputError(path, where, expected, got)
 
 
-def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[Any, list[str]]:
+def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[RawTable | None, list[str]]:
     """``(RawTable or None, columns)``: None for a Parquet file with no rows (its schema
     still checked for the ``required`` columns)."""
     if path.suffix.lower() in (".parquet", ".pq") and path.is_file() and path.stat().st_size:
@@ -261,7 +261,7 @@ def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[Any, list[st
     return table, table.columns
 
 
-def _positions(table: Any, num: Mapping[str, np.ndarray]) -> None:
+def _positions(table: RawTable, num: Mapping[str, np.ndarray]) -> None:
     for c in ("x", "y"):
         big = np.abs(num[c]) > MAX_POSITION
         if big.any():
@@ -271,7 +271,7 @@ def _positions(table: Any, num: Mapping[str, np.ndarray]) -> None:
             )
 
 
-def _ints(table: Any, column: str, lo: int, hi: int) -> np.ndarray:
+def _ints(table: RawTable, column: str, lo: int, hi: int) -> np.ndarray:
     """Integers in ``[lo, hi]`` (``lo`` is 0 or -1), first bad row named."""
     if lo >= 0:
         return table.nonneg_ints(column, allow_empty=False, hi=hi)[0]
@@ -283,7 +283,7 @@ def _ints(table: Any, column: str, lo: int, hi: int) -> np.ndarray:
     return v.astype(np.int64)
 
 
-def _bools(table: Any, column: str) -> np.ndarray:
+def _bools(table: RawTable, column: str) -> np.ndarray:
     if column not in table.bools:
         raise table.error(0, column, "booleans (true/false)", "a column of other values")
     s = table.strings[column]

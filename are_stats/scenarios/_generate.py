@@ -25,10 +25,11 @@ identically.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats._atomic import atomic_folder, check_folder
@@ -38,6 +39,12 @@ from are_stats.scenarios._folder import SCENARIO_COLUMNS
 
 # Lazy imports: the traffic room (JAX, NumPyro) loads when its samplers are needed: the paper's
 # scenarios are NumPy only.
+
+if TYPE_CHECKING:
+    import jax
+
+    from are_stats.environment import OccupancyGrid
+    from are_stats.traffic import TrafficLaws
 
 __all__ = [
     "SCENARIO_COLUMNS",
@@ -50,7 +57,7 @@ __all__ = [
 ]
 
 
-def _seed_sequence(key: Any) -> tuple[np.random.SeedSequence, Any]:
+def _seed_sequence(key: int | jax.Array) -> tuple[np.random.SeedSequence, Any]:
     """A NumPy SeedSequence from an int seed or a JAX PRNG key (and a YAML-able record)."""
     if isinstance(key, bool):
         raise ValueError(f"key: expected an int seed >= 0 or a JAX PRNG key, got {key!r}")
@@ -304,7 +311,9 @@ def _place_by_class(
     return x, y
 
 
-def _grid(free_mask: Any, resolution: float, origin: Any) -> tuple[np.ndarray, float, tuple]:
+def _grid(
+    free_mask: npt.ArrayLike | OccupancyGrid, resolution: float, origin: Sequence[float]
+) -> tuple[np.ndarray, float, tuple]:
     """Free mask, resolution and origin (x, y, yaw) from an array or an OccupancyGrid."""
     if hasattr(free_mask, "free") and hasattr(free_mask, "resolution"):
         ox, oy, oyaw = (float(v) for v in free_mask.origin)
@@ -323,18 +332,18 @@ def _grid(free_mask: Any, resolution: float, origin: Any) -> tuple[np.ndarray, f
 
 
 def generate_scenarios(
-    key: Any,
+    key: int | jax.Array,
     params: Mapping[str, Any],
     n_scenarios: int,
     horizon: float,
-    free_mask: Any = None,
+    free_mask: npt.ArrayLike | OccupancyGrid | None = None,
     resolution: float = 1.0,
-    origin: Any = (0.0, 0.0),
+    origin: Sequence[float] = (0.0, 0.0),
     area: float | None = None,
     start: str = "stationary",
     draw: str = "cycle",
     headings: int = 4,
-    laws: Any = None,
+    laws: TrafficLaws | None = None,
 ) -> pd.DataFrame:
     """Draw ``n_scenarios`` artefact populations on ``[0, horizon]`` from posterior draws.
 
@@ -534,7 +543,7 @@ def generate_scenarios(
     return df
 
 
-def _laws_record(laws: Any) -> dict[str, Any]:
+def _laws_record(laws: TrafficLaws) -> dict[str, Any]:
     """The laws of a generation, for the manifest."""
     return {
         "arrivals": laws.arrivals,
@@ -599,7 +608,7 @@ def _check_entries_on_map(entry: Any, free: Any) -> None:
 def _rich_populations(
     rng: np.random.Generator,
     params: Mapping[str, Any],
-    laws: Any,
+    laws: TrafficLaws,
     d: np.ndarray,
     h: float,
     nu: float,
@@ -771,7 +780,9 @@ def _summary(p: Mapping[str, np.ndarray]) -> dict[str, Any]:
     return out
 
 
-def scenario_counts(df: pd.DataFrame, times: Any, n_scenarios: int | None = None) -> np.ndarray:
+def scenario_counts(
+    df: pd.DataFrame, times: npt.ArrayLike, n_scenarios: int | None = None
+) -> np.ndarray:
     """N(t) of every scenario: artefacts with ``t_arrive <= t < t_leave``.
 
     Parameters

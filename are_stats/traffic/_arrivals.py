@@ -24,10 +24,11 @@ tests and the posterior-predictive checks use.
 from __future__ import annotations
 
 import datetime as _dt
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax.scipy.special import gammaln
 
 from are_stats._checks import check_finite, check_in, check_positive, check_simplex
@@ -100,7 +101,7 @@ def clock_offset(clock_start: str | _dt.datetime, time_unit: float = 1.0) -> flo
     return seconds / float(check_positive("time_unit", time_unit))
 
 
-def period_of(t: Any, offset: float, n_periods: int, period: float = DAY) -> np.ndarray:
+def period_of(t: npt.ArrayLike, offset: float, n_periods: int, period: float = DAY) -> np.ndarray:
     """Period of the day (``0 .. n_periods - 1``) of each time ``t``.
 
     ``offset`` is the time of day of ``t = 0`` (:func:`clock_offset`), ``period`` the length
@@ -111,7 +112,9 @@ def period_of(t: Any, offset: float, n_periods: int, period: float = DAY) -> np.
     return np.minimum((frac * n_periods).astype(np.int64), n_periods - 1)
 
 
-def period_exposure(window: Any, offset: float, n_periods: int, period: float = DAY) -> np.ndarray:
+def period_exposure(
+    window: npt.ArrayLike, offset: float, n_periods: int, period: float = DAY
+) -> np.ndarray:
     """Exact time the window spends in each period of the day.
 
     Parameters
@@ -174,15 +177,15 @@ def sample_arrivals(
     rng: np.random.Generator,
     rate: float,
     area: float,
-    window: Any,
+    window: npt.ArrayLike,
     *,
     model: str = "poisson",
     phi: float | None = None,
     bin_width: float | None = None,
-    tod: Any = None,
+    tod: npt.ArrayLike | None = None,
     offset: float = 0.0,
     period: float = DAY,
-    size_probs: Any = None,
+    size_probs: npt.ArrayLike | None = None,
 ) -> ArrivalDraw:
     """Draw the arrivals of one window (exactly, piece by piece).
 
@@ -244,19 +247,19 @@ def sample_arrivals(
 
 
 def arrival_loglik(
-    t_events: Any,
-    sizes: Any,
-    window: Any,
+    t_events: npt.ArrayLike,
+    sizes: npt.ArrayLike,
+    window: npt.ArrayLike,
     area: float,
-    rate: Any,
+    rate: npt.ArrayLike,
     *,
-    tod: Any = None,
+    tod: npt.ArrayLike | None = None,
     offset: float = 0.0,
     period: float = DAY,
-    size_probs: Any = None,
-    bin_counts: Any = None,
-    bin_exposure: Any = None,
-    phi: Any = None,
+    size_probs: npt.ArrayLike | None = None,
+    bin_counts: npt.ArrayLike | None = None,
+    bin_exposure: npt.ArrayLike | None = None,
+    phi: npt.ArrayLike | None = None,
 ) -> jnp.ndarray:
     """Log-likelihood of the arrival events seen in a window (differentiable in the rates).
 
@@ -323,7 +326,7 @@ def arrival_loglik(
 
 
 def stationary_count_moments(
-    rate: float, area: float, mean_stay: float, size_probs: Any = None
+    rate: float, area: float, mean_stay: float, size_probs: npt.ArrayLike | None = None
 ) -> tuple[float, float]:
     """Mean and variance of the stationary count ``N(t)`` (M^X/G/inf, shared group stays).
 

@@ -52,6 +52,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax.scipy.special import gammaln, logsumexp
 
 from are_stats._checks import check_finite, check_positive
@@ -179,7 +180,7 @@ def burst_steps(
     s = gap.size
     size = int(size) if s <= int(size) else 1 << int(np.ceil(np.log2(s)))
 
-    def pad(a: np.ndarray, fill: Any, dtype: Any) -> np.ndarray:
+    def pad(a: np.ndarray, fill: npt.ArrayLike, dtype: npt.DTypeLike) -> np.ndarray:
         out = np.full(size, fill, dtype)
         out[:s] = a
         return out
@@ -194,7 +195,7 @@ def burst_steps(
     )
 
 
-def mmpp_factors(contrast: Any, switch: Any) -> jnp.ndarray:
+def mmpp_factors(contrast: npt.ArrayLike, switch: npt.ArrayLike) -> jnp.ndarray:
     """Rate factors ``f = (f_0, f_1)`` with ``f_1 / f_0 = e^contrast`` and ``pi . f = 1``.
 
     Parameters
@@ -214,7 +215,9 @@ def mmpp_factors(contrast: Any, switch: Any) -> jnp.ndarray:
     return jnp.stack([f0, f0 * jnp.exp(contrast)])
 
 
-def mmpp_transfer(lam: Any, switch: Any, u: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
+def mmpp_transfer(
+    lam: npt.ArrayLike, switch: npt.ArrayLike, u: npt.ArrayLike
+) -> tuple[jnp.ndarray, jnp.ndarray]:
     """``expm((Q - diag(lam)) u)`` of a two-state MMPP, in closed form and scaled.
 
     Parameters
@@ -245,7 +248,9 @@ def mmpp_transfer(lam: Any, switch: Any, u: Any) -> tuple[jnp.ndarray, jnp.ndarr
     return (s + r) * u, mat
 
 
-def _log_tick_terms(log_lam_delta: jnp.ndarray, count: jnp.ndarray, conv: Any) -> jnp.ndarray:
+def _log_tick_terms(
+    log_lam_delta: jnp.ndarray, count: jnp.ndarray, conv: npt.ArrayLike
+) -> jnp.ndarray:
     """``log P(count | state)`` without ``e^{-lambda delta}``: ``(S, K)`` for ``(K,)`` or
     ``(S, K)`` rates (per state, or per step and state).
 
@@ -269,13 +274,13 @@ def _log_tick_terms(log_lam_delta: jnp.ndarray, count: jnp.ndarray, conv: Any) -
 
 
 def mmpp_step_loglik(
-    lam: Any,
-    switch: Any,
-    log_delta: Any,
+    lam: npt.ArrayLike,
+    switch: npt.ArrayLike,
+    log_delta: npt.ArrayLike,
     steps: BurstSteps,
     n_bins: int,
-    conv: Any = None,
-    tod: Any = None,
+    conv: npt.ArrayLike | None = None,
+    tod: npt.ArrayLike | None = None,
 ) -> jnp.ndarray:
     """Log-likelihood of each bin given the earlier bins, under a two-state MMPP.
 
@@ -338,15 +343,15 @@ def mmpp_step_loglik(
 
 
 def hawkes_step_loglik(
-    mu: Any,
-    alpha: Any,
-    beta: Any,
-    log_delta: Any,
+    mu: npt.ArrayLike,
+    alpha: npt.ArrayLike,
+    beta: npt.ArrayLike,
+    log_delta: npt.ArrayLike,
     steps: BurstSteps,
     n_bins: int,
-    excitation0: Any = None,
-    conv: Any = None,
-    tod: Any = None,
+    excitation0: npt.ArrayLike | None = None,
+    conv: npt.ArrayLike | None = None,
+    tod: npt.ArrayLike | None = None,
 ) -> jnp.ndarray:
     """Log-likelihood of each bin given the earlier bins, under an exponential Hawkes process.
 
@@ -411,7 +416,9 @@ def hawkes_step_loglik(
     return jax.ops.segment_sum(jnp.where(w > 0, ll, 0.0), steps.bin, num_segments=n_bins)
 
 
-def mmpp_count_dispersion(lam: Any, switch: Any, w: Any) -> np.ndarray:
+def mmpp_count_dispersion(
+    lam: npt.ArrayLike, switch: npt.ArrayLike, w: npt.ArrayLike
+) -> np.ndarray:
     """Stationary variance over mean of the number of events in a window of length ``w``.
 
     Parameters
@@ -437,7 +444,7 @@ def mmpp_count_dispersion(lam: Any, switch: Any, w: Any) -> np.ndarray:
     return 1.0 + 2.0 * var_rate / (mean * q) * (1.0 - (-np.expm1(-q * w)) / (q * w))
 
 
-def hawkes_count_dispersion(alpha: float, beta: float, w: Any) -> np.ndarray:
+def hawkes_count_dispersion(alpha: float, beta: float, w: npt.ArrayLike) -> np.ndarray:
     """Stationary variance over mean of the number of events in a window of length ``w``
     (exponential Hawkes; ``1 / (1 - alpha)^2`` as ``w`` grows)."""
     alpha = float(alpha)
@@ -450,7 +457,7 @@ def hawkes_count_dispersion(alpha: float, beta: float, w: Any) -> np.ndarray:
 
 
 def _thin(
-    rng: np.random.Generator, t: np.ndarray, tod: Any, offset: float, period: float
+    rng: np.random.Generator, t: np.ndarray, tod: npt.ArrayLike, offset: float, period: float
 ) -> np.ndarray:
     """Keep each time with probability ``tod[p(t)] / max(tod)`` (exact thinning)."""
     f = np.asarray(tod, float)
@@ -458,7 +465,9 @@ def _thin(
     return t[keep]
 
 
-def group_count_dispersion(event_dispersion: Any, size_probs: Any) -> np.ndarray:
+def group_count_dispersion(
+    event_dispersion: npt.ArrayLike, size_probs: npt.ArrayLike
+) -> np.ndarray:
     """Variance over mean of the artefacts' counts when each event brings a group.
 
     For i.i.d. group sizes ``S`` independent of the events' counts ``J`` (any process),
@@ -486,12 +495,12 @@ def group_count_dispersion(event_dispersion: Any, size_probs: Any) -> np.ndarray
 
 def sample_mmpp_times(
     rng: np.random.Generator,
-    lam: Any,
-    switch: Any,
-    window: Any,
+    lam: npt.ArrayLike,
+    switch: npt.ArrayLike,
+    window: npt.ArrayLike,
     state0: int | None = None,
     *,
-    tod: Any = None,
+    tod: npt.ArrayLike | None = None,
     offset: float = 0.0,
     period: float = DAY,
 ) -> np.ndarray:
@@ -554,10 +563,10 @@ def sample_hawkes_times(
     mu: float,
     alpha: float,
     beta: float,
-    window: Any,
+    window: npt.ArrayLike,
     burn: float = 0.0,
     *,
-    tod: Any = None,
+    tod: npt.ArrayLike | None = None,
     offset: float = 0.0,
     period: float = DAY,
 ) -> np.ndarray:

@@ -30,6 +30,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import numpyro
 import numpyro.distributions as dist
 from jax.scipy.special import gammaln
@@ -146,7 +147,9 @@ _COMPILER_OPTIONS = {
 }
 
 
-def aot_compile(fn: Any, *args: Any, key: Any = None, in_shardings: tuple | None = None) -> Any:
+def aot_compile(
+    fn: Any, *args: Any, key: jax.Array | None = None, in_shardings: tuple | None = None
+) -> Any:
     """Compile a jitted/pmapped ``fn`` ahead of time for ``args`` with cheap XLA optimisation
     (small programs whose compile time outweighs their run time).
 
@@ -202,7 +205,7 @@ class LifecycleSummary(NamedTuple):
     pair_counts: np.ndarray  # (p,) multiplicities
 
 
-def _optional_column(name: str, value: Any, n: int, kind: str) -> np.ndarray | None:
+def _optional_column(name: str, value: npt.ArrayLike, n: int, kind: str) -> np.ndarray | None:
     if value is None:
         return None
     if kind == "int":
@@ -416,14 +419,14 @@ class LifecycleData:
 # --------------------------------------------------------------------------------------
 
 
-def _check_window(window: Any) -> tuple[float, float]:
+def _check_window(window: npt.ArrayLike) -> tuple[float, float]:
     w = check_finite("window", window, ndim=1)
     if w.shape != (2,) or not w[1] > w[0]:
         raise ValueError(f"window: expected (t0, t1) with t1 > t0, got {describe(window)}")
     return float(w[0]), float(w[1])
 
 
-def _check_mixture(weights: Any, rates: Any) -> tuple[np.ndarray, np.ndarray]:
+def _check_mixture(weights: npt.ArrayLike, rates: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     w = check_simplex("mix_weights", weights)
     r = check_positive("mix_rates", rates, ndim=1)
     if r.shape != w.shape:
@@ -433,7 +436,7 @@ def _check_mixture(weights: Any, rates: Any) -> tuple[np.ndarray, np.ndarray]:
     return w / w.sum(), r
 
 
-def numpy_rng(key: Any) -> np.random.Generator:
+def numpy_rng(key: jax.Array) -> np.random.Generator:
     """A NumPy generator seeded from a JAX key (variable-size draws without recompiling).
 
     Parameters
@@ -458,14 +461,14 @@ def numpy_rng(key: Any) -> np.random.Generator:
 
 
 def simulate_lifecycle(
-    key: Any,
+    key: jax.Array,
     arrival_rate: float,
     leave_rate: float,
-    mix_weights: Any,
-    mix_rates: Any,
+    mix_weights: npt.ArrayLike,
+    mix_rates: npt.ArrayLike,
     window: tuple[float, float],
     area: float | None = None,
-    free_mask: Any = None,
+    free_mask: npt.ArrayLike | None = None,
     resolution: float = 1.0,
     origin: tuple[float, float] = (0.0, 0.0),
     stationary_start: bool = True,
@@ -760,7 +763,7 @@ def lifecycle_model(
 
 
 def prior_predictive(
-    key: Any,
+    key: jax.Array,
     priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
     window: tuple[float, float] = (0.0, 1.0),
     area: float = 1.0,

@@ -57,6 +57,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import numpyro
 import numpyro.distributions as dist
 from jax.scipy.special import gammaln, logsumexp
@@ -218,13 +219,13 @@ def _bucket(n: int, least: int = 16) -> int:
 
 
 def arrival_units(
-    t_arrive: Any,
+    t_arrive: npt.ArrayLike,
     window: tuple[float, float],
     area: float,
     resolution: float,
     bin_width: float,
     *,
-    group: Any = None,
+    group: npt.ArrayLike | None = None,
     clock_offset: float | None = None,
     n_periods: int = 24,
     period: float = DAY,
@@ -291,7 +292,7 @@ def arrival_units(
     clock = None if clock_offset is None else (float(clock_offset), int(n_periods), float(period))
     steps = burst_steps(ticks, counts, tbin, (t0, t1), delta, bin_width, m + bb, clock)
 
-    def pad(a: np.ndarray, size: int, dtype: Any) -> np.ndarray:
+    def pad(a: np.ndarray, size: int, dtype: npt.DTypeLike) -> np.ndarray:
         out = np.zeros((size,) + a.shape[1:], dtype)
         out[: a.shape[0]] = a
         return out
@@ -513,7 +514,7 @@ def _padded_index(idx: np.ndarray, dummy: int) -> np.ndarray:
     return out
 
 
-def stay_units(stay: Any, censored: Any, truncated: Any) -> StayUnits:
+def stay_units(stay: npt.ArrayLike, censored: npt.ArrayLike, truncated: npt.ArrayLike) -> StayUnits:
     """Pad the stays of a log to a power-of-two size (see :class:`StayUnits`)."""
     s = np.asarray(stay, float)
     n = s.size

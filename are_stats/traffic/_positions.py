@@ -21,9 +21,11 @@ the posterior-predictive checks compare.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 from scipy import ndimage
 
 from are_stats._checks import check_finite, check_positive
@@ -70,7 +72,7 @@ class PositionDensity(NamedTuple):
     alpha: float
     loo_logpdf: np.ndarray | None = None
 
-    def cell_of(self, xy: Any) -> tuple[np.ndarray, np.ndarray]:
+    def cell_of(self, xy: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Row and column of points ``xy (n, 2)``; ``-1`` off the map."""
         xy = np.asarray(xy, float).reshape(-1, 2)
         col = np.floor((xy[:, 0] - self.origin[0]) / self.resolution).astype(np.int64)
@@ -79,7 +81,7 @@ class PositionDensity(NamedTuple):
         off = (row < 0) | (row >= h) | (col < 0) | (col >= w)
         return np.where(off, -1, row), np.where(off, -1, col)
 
-    def logpdf(self, xy: Any) -> np.ndarray:
+    def logpdf(self, xy: npt.ArrayLike) -> np.ndarray:
         """Log density (per m^2) at points ``xy (n, 2)``; ``-inf`` off the free cells."""
         row, col = self.cell_of(xy)
         ok = row >= 0
@@ -99,7 +101,7 @@ class PositionDensity(NamedTuple):
         return np.column_stack([x, y])
 
 
-def _free(free_mask: Any) -> np.ndarray:
+def _free(free_mask: npt.ArrayLike) -> np.ndarray:
     free = np.asarray(free_mask, bool)
     if free.ndim != 2 or not free.any():
         raise ValueError(
@@ -110,7 +112,7 @@ def _free(free_mask: Any) -> np.ndarray:
 
 
 def uniform_position_density(
-    free_mask: Any, resolution: float, origin: Any = (0.0, 0.0)
+    free_mask: npt.ArrayLike, resolution: float, origin: Sequence[float] = (0.0, 0.0)
 ) -> PositionDensity:
     """The paper's placement: equal mass on every free cell."""
     free = _free(free_mask)
@@ -135,14 +137,14 @@ def _smooth(counts: np.ndarray, free: np.ndarray, h_cells: float) -> tuple[np.nd
 
 
 def fit_position_density(
-    xy: Any,
-    free_mask: Any,
+    xy: npt.ArrayLike,
+    free_mask: npt.ArrayLike,
     resolution: float,
-    origin: Any = (0.0, 0.0),
+    origin: Sequence[float] = (0.0, 0.0),
     *,
-    bandwidths: Any = None,
-    alphas: Any = (0.1, 1.0, 10.0),
-    base: Any = None,
+    bandwidths: npt.ArrayLike | None = None,
+    alphas: npt.ArrayLike = (0.1, 1.0, 10.0),
+    base: npt.ArrayLike | None = None,
 ) -> PositionDensity:
     """Learn a position density from observed points (first or last sightings).
 
@@ -224,7 +226,9 @@ def fit_position_density(
     return PositionDensity(prob / prob.sum(), res, uni.origin, bw, a, loo_logpdf)
 
 
-def boundary_distance(xy: Any, free_mask: Any, resolution: float, origin: Any) -> np.ndarray:
+def boundary_distance(
+    xy: npt.ArrayLike, free_mask: npt.ArrayLike, resolution: float, origin: Sequence[float]
+) -> np.ndarray:
     """Distance (m) from each point to the nearest cell that is not free, or the map edge.
 
     Parameters

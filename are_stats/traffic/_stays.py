@@ -40,6 +40,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax.scipy import special
 from jax.scipy.special import gammaln, log_ndtr, ndtr, xlogy
 from scipy.special import gammaln as sgammaln
@@ -72,7 +73,7 @@ def _law(law: str) -> str:
     return check_in("law", law, STAY_LAWS)
 
 
-def _log(x: Any) -> jnp.ndarray:
+def _log(x: npt.ArrayLike) -> jnp.ndarray:
     return jnp.log(jnp.maximum(x, _TINY))
 
 
@@ -81,7 +82,9 @@ def _log(x: Any) -> jnp.ndarray:
 _SHAPE_STEP = 1e-5
 
 
-def _and_d_da(f: Any, a: Any, x: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
+def _and_d_da(
+    f: npt.ArrayLike, a: npt.ArrayLike, x: npt.ArrayLike
+) -> tuple[jnp.ndarray, jnp.ndarray]:
     """``f(a, x)`` and ``d f / d a`` by a central difference: one vectorised evaluation of
     ``f`` at ``a - h, a, a + h`` (one loop in the compiled program, not three)."""
     a, x = jnp.broadcast_arrays(jnp.asarray(a, float), jnp.asarray(x, float))
@@ -90,13 +93,13 @@ def _and_d_da(f: Any, a: Any, x: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
     return v[1], (v[2] - v[0]) / (2.0 * h)
 
 
-def _dq_dx(a: Any, x: Any) -> jnp.ndarray:
+def _dq_dx(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
     """``d Q(a, x) / d x = -x^(a-1) e^-x / Gamma(a)`` (closed form)."""
     return -jnp.exp(xlogy(a - 1.0, x) - x - gammaln(a))
 
 
 @jax.custom_jvp
-def gammaincc(a: Any, x: Any) -> jnp.ndarray:
+def gammaincc(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
     """Regularised upper incomplete gamma ``Q(a, x)``, as :func:`jax.scipy.special.gammaincc`.
 
     Its derivative in ``a`` is a central difference of ``Q`` instead of JAX's own, whose
@@ -116,7 +119,7 @@ def _gammaincc_jvp(primals: tuple, tangents: tuple) -> tuple:
 
 
 @jax.custom_jvp
-def gammainc(a: Any, x: Any) -> jnp.ndarray:
+def gammainc(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
     """Regularised lower incomplete gamma ``P(a, x) = 1 - Q(a, x)`` (see :func:`gammaincc`)."""
     return special.gammainc(a, x)
 
@@ -129,15 +132,17 @@ def _gammainc_jvp(primals: tuple, tangents: tuple) -> tuple:
     return p, dp_da * da - _dq_dx(a, x) * dx
 
 
-def _weibull_scale(mean: Any, k: Any) -> jnp.ndarray:
+def _weibull_scale(mean: npt.ArrayLike, k: npt.ArrayLike) -> jnp.ndarray:
     return mean / jnp.exp(gammaln(1.0 + 1.0 / k))
 
 
-def _lognormal_mu(mean: Any, s: Any) -> jnp.ndarray:
+def _lognormal_mu(mean: npt.ArrayLike, s: npt.ArrayLike) -> jnp.ndarray:
     return jnp.log(mean) - 0.5 * s * s
 
 
-def _gamma_tails(r: Any, mean: Any, shape: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
+def _gamma_tails(
+    r: npt.ArrayLike, mean: npt.ArrayLike, shape: npt.ArrayLike
+) -> tuple[jnp.ndarray, jnp.ndarray]:
     """Gamma law: ``log S(r)`` and ``log E[(T - r)^+]`` from ONE incomplete-gamma call
     (``Q(k, x)`` and ``Q(k + 1, x)``, ``x = k r / m``, stacked): each call is a loop that
     XLA compiles for seconds, and NUTS programs compile the likelihood's derivative too."""
@@ -149,12 +154,14 @@ def _gamma_tails(r: Any, mean: Any, shape: Any) -> tuple[jnp.ndarray, jnp.ndarra
     return _log(q[0]), _log_excess(mean * q[1], r * q[0])
 
 
-def _log_excess(a: Any, b: Any) -> jnp.ndarray:
+def _log_excess(a: npt.ArrayLike, b: npt.ArrayLike) -> jnp.ndarray:
     """``log(a - b)`` for ``a > b >= 0``: their ratio keeps precision when both are small."""
     return _log(a) + jnp.log1p(-jnp.clip(b / jnp.maximum(a, _TINY), 0.0, 1.0 - 1e-16))
 
 
-def stay_logpdf(law: str, t: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
+def stay_logpdf(
+    law: str, t: npt.ArrayLike, mean: npt.ArrayLike, shape: npt.ArrayLike = 1.0
+) -> jnp.ndarray:
     """Log density of a stay ``t > 0`` under ``law`` with mean ``mean`` and shape ``shape``.
 
     Parameters
@@ -188,7 +195,9 @@ def stay_logpdf(law: str, t: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
     return -lt - jnp.log(shape) - 0.5 * jnp.log(2.0 * jnp.pi) - 0.5 * zz * zz
 
 
-def stay_logsf(law: str, t: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
+def stay_logsf(
+    law: str, t: npt.ArrayLike, mean: npt.ArrayLike, shape: npt.ArrayLike = 1.0
+) -> jnp.ndarray:
     """Log survival ``log P(T > t)``, ``t >= 0`` (see :func:`stay_logpdf` for the arguments)."""
     law = _law(law)
     t = jnp.maximum(jnp.asarray(t, float), 0.0)
@@ -202,7 +211,9 @@ def stay_logsf(law: str, t: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
     return log_ndtr(-(_log(t) - mu) / shape)
 
 
-def stay_logcdf(law: str, t: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
+def stay_logcdf(
+    law: str, t: npt.ArrayLike, mean: npt.ArrayLike, shape: npt.ArrayLike = 1.0
+) -> jnp.ndarray:
     """Log distribution function ``log P(T <= t)`` (see :func:`stay_logpdf`)."""
     law = _law(law)
     t = jnp.maximum(jnp.asarray(t, float), 0.0)
@@ -216,7 +227,9 @@ def stay_logcdf(law: str, t: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
     return log_ndtr((_log(t) - mu) / shape)
 
 
-def stay_log_excess(law: str, r: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarray:
+def stay_log_excess(
+    law: str, r: npt.ArrayLike, mean: npt.ArrayLike, shape: npt.ArrayLike = 1.0
+) -> jnp.ndarray:
     """``log E[(T - r)^+] = log int_r^inf S(u) du``, the mean excess over ``r >= 0``.
 
     Divided by the mean it is the survival of the equilibrium (stationary residual) law,
@@ -248,11 +261,11 @@ def stay_log_excess(law: str, r: Any, mean: Any, shape: Any = 1.0) -> jnp.ndarra
 
 def stay_loglik(
     law: str,
-    stay: Any,
-    censored: Any,
-    truncated: Any,
-    mean: Any,
-    shape: Any = 1.0,
+    stay: npt.ArrayLike,
+    censored: npt.ArrayLike,
+    truncated: npt.ArrayLike,
+    mean: npt.ArrayLike,
+    shape: npt.ArrayLike = 1.0,
     resolution: float = 0.0,
 ) -> jnp.ndarray:
     """Pointwise log-likelihood of the stays seen through a window (DECISIONS 3).
@@ -302,7 +315,13 @@ def stay_loglik(
     )
 
 
-def stay_sample(key: Any, law: str, mean: Any, shape: Any = 1.0, size: Any = ()) -> jnp.ndarray:
+def stay_sample(
+    key: jax.Array,
+    law: str,
+    mean: npt.ArrayLike,
+    shape: npt.ArrayLike = 1.0,
+    size: int | tuple[int, ...] = (),
+) -> jnp.ndarray:
     """Draw stays of ``law`` with the given mean and shape.
 
     Parameters
@@ -332,7 +351,11 @@ def stay_sample(key: Any, law: str, mean: Any, shape: Any = 1.0, size: Any = ())
 
 
 def stay_sample_residual(
-    key: Any, law: str, mean: Any, shape: Any = 1.0, size: Any = ()
+    key: jax.Array,
+    law: str,
+    mean: npt.ArrayLike,
+    shape: npt.ArrayLike = 1.0,
+    size: int | tuple[int, ...] = (),
 ) -> jnp.ndarray:
     """Draw residual stays of artefacts present at a fixed time of a stationary process.
 
@@ -370,7 +393,7 @@ def stay_sample_residual(
     return jax.random.uniform(k_u, size) * biased
 
 
-def stay_cv(law: str, shape: Any) -> Any:
+def stay_cv(law: str, shape: npt.ArrayLike) -> Any:
     """Coefficient of variation (sd / mean) of ``law`` with shape ``shape``."""
     law = _law(law)
     k = np.asarray(shape, float)
@@ -384,7 +407,7 @@ def stay_cv(law: str, shape: Any) -> Any:
     return np.sqrt(np.expm1(k * k))
 
 
-def stay_shape_from_cv(law: str, cv: Any) -> Any:
+def stay_shape_from_cv(law: str, cv: npt.ArrayLike) -> Any:
     """The shape giving coefficient of variation ``cv`` (inverse of :func:`stay_cv`)."""
     law = _law(law)
     c = np.asarray(cv, float)
@@ -403,9 +426,9 @@ def stay_shape_from_cv(law: str, cv: Any) -> Any:
 def stay_draws(
     rng: np.random.Generator,
     law: str,
-    mean: Any,
-    shape: Any = 1.0,
-    size: Any = (),
+    mean: npt.ArrayLike,
+    shape: npt.ArrayLike = 1.0,
+    size: int | tuple[int, ...] = (),
     residual: bool = False,
 ) -> np.ndarray:
     """NumPy twin of :func:`stay_sample` / :func:`stay_sample_residual` (same laws).
@@ -449,6 +472,6 @@ def stay_draws(
     return np.asarray(t, float)
 
 
-def _gammaln_np(x: Any) -> np.ndarray:
+def _gammaln_np(x: npt.ArrayLike) -> np.ndarray:
     """``log Gamma(x)`` in NumPy (scipy)."""
     return sgammaln(x)
