@@ -244,5 +244,7 @@ def test_issue_25_recount_stays_at_one():
     files = lambda pattern: [w.split(":")[0] for w in where(pattern)]  # noqa: E731
     assert files(r"Scene\.from_scenarios\(") == ["scenarios/_assembly.py"]
     assert where(r"def (read_scenarios|load_replay|read_scenario_folder)\b") == []
+    # one writer of a scenarios folder too: write_scenes (write_scenarios was its wrapper)
+    assert files(r"def write_scen") == ["scenarios/_folder.py"]
     assert where(r"def (coarse_free_mask|coarse_occupancy)\b") == []
     assert files(r'attrs\.get\("class_labels"\)') == ["fitting/_fit.py"]
