@@ -423,10 +423,8 @@ class BirthDeath:
 
         Parameters
         ----------
-        t : array_like of float
-            Times ``>= 0``, broadcast against ``n0``.
-        n0 : array_like of int
-            Start states.
+        t, n0
+            As :meth:`mean`.
 
         Returns
         -------
