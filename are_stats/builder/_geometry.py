@@ -270,7 +270,8 @@ def footprint_runs(
     jhi = np.ceil(np.where(valid, xmax, 0.0)) - 1
     outside = (valid & ((rows < 0) | (rows >= H) | (jlo < 0) | (jhi > W - 1))).any(axis=1)
     keep = valid & (rows >= 0) & (rows < H)
-    jlo_c = np.where(keep, np.clip(jlo, 0, W - 1), 0).astype(np.int64)
+    # a run wholly right of the grid clips to jlo = W > jhi = W - 1: empty, not column W - 1
+    jlo_c = np.where(keep, np.clip(jlo, 0, W), 0).astype(np.int64)
     jhi_c = np.where(keep, np.clip(jhi, -1, W - 1), -1).astype(np.int64)
     return np.clip(rows, 0, H - 1), jlo_c, jhi_c, outside
 
@@ -403,7 +404,7 @@ def box_runs(
         jhi = np.ceil(np.where(valid, xmax, 0.0)) - 1
         outside[idx] = (valid & ((rows < 0) | (rows >= H) | (jlo < 0) | (jhi > W - 1))).any(axis=1)
         keep = valid & (rows >= 0) & (rows < H)
-        jlo_c = np.clip(jlo[keep], 0, W - 1).astype(np.int64)
+        jlo_c = np.clip(jlo[keep], 0, W).astype(np.int64)  # wholly right of the grid: empty
         jhi_c = np.clip(jhi[keep], -1, W - 1).astype(np.int64)
         good = jhi_c >= jlo_c
         out[0].append(np.broadcast_to(idx[:, None], keep.shape)[keep][good])

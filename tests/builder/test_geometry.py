@@ -177,3 +177,19 @@ def test_box_centres_carry_the_offset_with_the_pose():
     np.testing.assert_allclose(box_centres(pose, off), np.array(want), atol=1e-12)
     # one offset for every pose, and a single pose
     np.testing.assert_allclose(box_centres(pose, off[0])[3], box_centres(pose[3], off[0])[0])
+
+
+def test_rasterisation_drops_a_row_run_right_of_the_grid():
+    """A row whose part of the box lies wholly beyond the grid's right edge marks nothing
+    (both rasterisers used to clip it to the last column; hypothesis found x=6, y=0,
+    1.25 x 3 m, yaw 1.875)."""
+    from are_stats.builder import box_runs, runs_to_cells
+
+    P = box_corners([[14.0, 8.0]], [[1.25, 3.0]], [1.875])
+    _, flat, outside = rasterise_convex(P, (16, 16))
+    exact = np.flatnonzero(_cell_areas(shapely.Polygon(P[0]), (16, 16)).ravel() > 0)
+    assert outside[0]
+    assert sorted(flat.tolist()) == exact.tolist()
+    owner, rows, jlo, jhi, out = box_runs([[14.0, 8.0]], [[1.25, 3.0]], [1.875], (16, 16))
+    assert out[0]
+    assert sorted(runs_to_cells(rows, jlo, jhi, 16, owner)[1].tolist()) == exact.tolist()
