@@ -32,15 +32,13 @@
    it ran at 10x under load, perception alone 220 s. ``--quick`` runs 5 minutes.
    With the social force in the scene assembly (issue 26) the loop had slowed down
    (2026-11-27, cores shared with other jobs at load 10-26, so measured on the process's
-   CPU time, which the benchmark now prints too): the 5-minute mission of these walkers
-   (96 artefacts, seeded, the scene built once) took 31.5 s of CPU with RRT-Connect and the
-   camera (9.5x real time), 22.4 s with A* and every artefact perceived (13.4x), 9.5 s
-   with A* and no avoidance; avoidance was half of it (its event table rebuilt through
-   pandas after every detour or wait), then perception, OMPL's Python validity checks and
-   the planning grids. After the vectorised poses, events, contacts, detour cells and ROI
-   cull: 23.8 s (12.6x), 21.4 s with A* and the camera (14.0x, against 30.2 s), 15.2 s with
-   A* (19.7x), 9.8 s without avoidance; identical missions. The one-hour run did not
-   finish in the time the shared cores gave it.
+   CPU time, which the benchmark now prints too). The 5-minute mission of these walkers
+   (96 artefacts, seeded, the scene built once), main and this branch run side by side:
+   RRT-Connect and the camera 29.0 s of CPU against 18.1 s (10.3x -> 16.6x real time), A*
+   with every artefact perceived 21.6 s against 13.9 s (13.9x -> 21.6x), identical
+   missions. Avoidance had been half of it (its event table rebuilt through pandas after
+   every detour or wait), then perception, OMPL's Python validity checks and the planning
+   grids. The one-hour run did not finish in the time the shared cores gave it.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
