@@ -17,6 +17,7 @@ border, and the triangles of S_E when a mesh is given. A colliding move is resol
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -432,6 +433,36 @@ class ARBuilder:
             self._next_id = max(self._next_id, int(self.ids.max()) + 1)
         self._runs = None
         return self.ids.copy()
+
+    def with_scene(self, scene: Any, t: float, *, check: bool = False) -> ARBuilder:
+        """A new builder that holds the artefacts of ``scene`` alive at ``t``, as
+        :meth:`register_scene` would make this one hold them; this builder is unchanged.
+
+        The base maps, the mesh index and the catalogue are shared (they are never
+        changed); the artefacts, their footprints and the resolution log are the new
+        builder's own. The experiment loop keeps its builder as state this way
+        (:func:`~are_stats.experiments.run_mission`).
+
+        Returns
+        -------
+        ARBuilder
+
+        Examples
+        --------
+        >>> import pandas as pd
+        >>> from are_stats import OccupancyGrid, Scene, load_catalogue
+        >>> table = pd.DataFrame({"t_arrive": [0.0, 5.0], "t_leave": [9.0, 9.0],
+        ...                       "x": [2.0, 6.0], "y": [2.0, 6.0], "yaw": [0.0, 0.0]})
+        >>> scene = Scene.from_scenarios(table, load_catalogue())
+        >>> b = ARBuilder(OccupancyGrid(np.zeros((100, 100)), 0.1), load_catalogue())
+        >>> later = b.with_scene(scene, 6.0)
+        >>> len(b), later.ids.tolist()
+        (0, [0, 1])
+        """
+        new = copy.copy(self)
+        new.log = list(self.log)
+        new.register_scene(scene, t, check=check)
+        return new
 
     def remove(self, artefact_id: int) -> None:
         """Remove an artefact (it leaves the scene; its cells and voxels are released)."""

@@ -102,22 +102,21 @@ def _clear_of_others(
     """Whether artefact ``i``'s box at ``pose`` (k, 3) meets no other live box at ``times``."""
     from are_stats.builder import obb_overlap_2d
 
-    half = scene.half_extents[i, :2]
-    for u, p, c in zip(times, pose, centres, strict=True):
-        alive = scene.alive(float(u))
-        alive[i] = False
-        j = np.flatnonzero(alive)
-        if not j.size:
-            continue
-        pj = scene.poses(float(u), j)
-        cj = _centres(scene, j, pj)
-        hit = obb_overlap_2d(
-            np.tile(c, (j.size, 1)), np.tile(half, (j.size, 1)), np.full(j.size, p[2]),
-            cj, scene.half_extents[j, :2], pj[:, 2],
-        )  # fmt: skip
-        if hit.any():
-            return False
-    return True
+    alive = scene.alive(np.asarray(times, float)[:, None])  # (k, N)
+    alive[:, i] = False
+    cols = np.flatnonzero(alive.any(axis=0))
+    if not cols.size:
+        return True
+    # every (sample, other) pair alive then, tested in one pass
+    ks, js = np.nonzero(alive[:, cols])
+    pj = scene.poses_at(times, cols)[ks, js]
+    cj = _centres(scene, cols[js], pj)
+    n = ks.size
+    hit = obb_overlap_2d(
+        centres[ks], np.tile(scene.half_extents[i, :2], (n, 1)), pose[ks, 2],
+        cj, scene.half_extents[cols[js], :2], pj[:, 2],
+    )  # fmt: skip
+    return not hit.any()
 
 
 def plan_avoidance(
@@ -281,9 +280,16 @@ def _detour(
     c_o = _centres(scene, others, p_o)
     r_o = np.hypot(*scene.half_extents[others, :2].T)
     near = np.linalg.norm(c_o - p_t, axis=1) <= reach * np.sqrt(2.0) + r_o + r_art + res
+    # cells within r_art (plus half a cell diagonal) of a near box are blocked: only those
+    # within that of the box's circumscribed disc can be (the tree finds them)
+    thr = r_art + res * np.sqrt(0.5)
+    flat = ok.reshape(-1)
     for j, cj, yj in zip(others[near], c_o[near], p_o[near, 2], strict=True):
-        gap = _cells_to_box(xy, cj, scene.half_extents[j, :2], float(yj))
-        ok &= (gap > r_art + res * np.sqrt(0.5)).reshape(ok.shape)
+        hj = scene.half_extents[j, :2]
+        cells = np.asarray(tree.query_ball_point(cj, float(np.hypot(*hj)) + thr + 1e-9), np.int64)
+        if cells.size:
+            gap = _cells_to_box(xy[cells], cj, hj, float(yj))
+            flat[cells[gap <= thr]] = False
     start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
     if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
         return None

@@ -6,7 +6,8 @@ state at t = 0 and ``_step`` makes one transition (plan if needed, drive to the 
 apply it), both functions of the mission's fixed settings (``_Mission``) and the state
 (``_State``, a NamedTuple), as the EM code does with ``em_init`` / ``em_step``; everything
 that changes is in the state, the AR-builder that gives n_A and the batch of camera percepts
-ahead included (``_Mission`` is frozen and holds no cache):
+ahead included (``_Mission`` is frozen and holds no cache, and no step changes a state, or
+an object it holds, in place):
 
 * the artefacts are an :class:`~are_stats.Scene` (the one place where an artefact becomes a
   box); **scene updates** are its events: arrivals, leaves and, with behaviour tracks,
@@ -57,7 +58,7 @@ from are_stats.builder import ARBuilder, box_centres
 from are_stats.experiments._avoid import plan_avoidance
 from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
-from are_stats.experiments._robot import Robot, circle_box_overlap
+from are_stats.experiments._robot import Robot, point_box_distance
 from are_stats.inputs import check_memory, check_work
 from are_stats.scenarios import Scene
 
@@ -171,9 +172,7 @@ def _point_at(path: np.ndarray, cum: np.ndarray, s: Any) -> tuple[np.ndarray, np
 class _Mission:
     """What does not change during a mission (the step functions' first argument).
 
-    ``event_t`` (e,) are the distinct times of the scene's events in ``(0, T)``;
-    ``event_lifecycle`` (e,) bool says whether an artefact arrives or leaves then and
-    ``event_moved`` holds the (k,) indices of the artefacts that move then.
+    ``events`` are the scene's events in ``(0, T)`` (:class:`_Events`).
     """
 
     grid: Any
@@ -192,9 +191,7 @@ class _Mission:
     record: bool
     step: float  # footprint test spacing along the path (m)
     n_free: int
-    event_t: np.ndarray  # the events of the scene as given (the state holds the coming ones)
-    event_lifecycle: np.ndarray
-    event_moved: tuple
+    events: _Events  # the events of the scene as given (the state holds the coming ones)
     avoid: bool  # artefacts avoid the robot's footprint
     clearance: float  # robot radius + avoidance margin (m)
     move_period: float | None
@@ -226,7 +223,7 @@ class _State(NamedTuple):
     seen: np.ndarray  # (N,) bool, on the planner's map
     in_contact: np.ndarray  # (N,) bool
     n_A: int  # artefact cells of the augmented map
-    event: int  # index of the next event time in _Mission.event_t
+    event: int  # index of the next event time in events.t
     next_percept: float
     n_replans: int
     n_updates: int
@@ -236,15 +233,14 @@ class _State(NamedTuple):
     artefact_contacts: int
     distance: float
     scene: Scene  # the artefacts, with the tracks changed by their avoidances of the robot
-    event_t: np.ndarray  # (e,) times of the scene's coming events (see _Mission)
-    event_lifecycle: np.ndarray  # (e,) bool
-    event_moved: tuple  # e x (k,) indices of the artefacts that move then
+    events: _Events  # the scene's coming events
     n_detours: int
     n_yields: int
     avoid_delay: float  # s, summed over the avoidances
-    # the AR-builder (M_2D augmented with the live boxes): its content is a function of
-    # (scene, t) = builder_at, rewritten by _register at each update (it gives n_A) and
-    # brought to the plan's time by _planning_grid (the planner's map is its grid)
+    # the AR-builder (M_2D augmented with the live boxes) holding the scene at builder_at =
+    # (scene, t); never changed in place: _register puts a new one in the state at each
+    # update (it gives n_A) and _planning_grid one at the plan's time (the planner's map
+    # is its grid), with ARBuilder.with_scene
     builder: Any
     builder_at: tuple  # (scene, t) the builder holds
     # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
@@ -278,8 +274,8 @@ def _footprints(scene: Scene, t: float, idx: np.ndarray) -> tuple[np.ndarray, np
 
 def _register(s: _State) -> _State:
     """Register the scene's live boxes at ``s.t`` on the state's AR-builder (M_2D); n_A."""
-    s.builder.register_scene(s.scene, s.t)
-    return s._replace(n_A=s.builder.n_artefact_cells, builder_at=(s.scene, s.t))
+    builder = s.builder.with_scene(s.scene, s.t)
+    return s._replace(builder=builder, n_A=builder.n_artefact_cells, builder_at=(s.scene, s.t))
 
 
 def _perceive(m: _Mission, s: _State, idx: np.ndarray, boxes: Any, tick: bool = False) -> _State:
@@ -354,13 +350,12 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
 
     at_scene, at_t = s.builder_at
     if at_scene is not s.scene or at_t != s.t:
-        s.builder.register_scene(s.scene, s.t)
-        s = s._replace(builder_at=(s.scene, s.t))
+        s = s._replace(builder=s.builder.with_scene(s.scene, s.t), builder_at=(s.scene, s.t))
     on = s.seen[idx]
     aug = s.builder.augmented_grid(perceived=on)
     ahead = idx[on & s.scene.has_tracks[idx]]
-    if ahead.size and s.event < s.event_t.size:
-        xy, yaw = _footprints(s.scene, float(s.event_t[s.event]), ahead)
+    if ahead.size and s.event < s.events.t.size:
+        xy, yaw = _footprints(s.scene, float(s.events.t[s.event]), ahead)
         poly = box_corners(xy, s.scene.half_extents[ahead][:, :2], yaw)
         _, flat, _ = rasterise_convex(m.grid.world_to_local(poly), m.grid.shape)
         aug.data.ravel()[flat] = 100
@@ -424,31 +419,39 @@ def _contacts(
     the artefact (it walked into the robot faster than the robot came).
     """
     idx = np.flatnonzero(s.live)
-    moving = bool(s.scene.has_tracks[idx].any())
-    in_contact, by_robot, by_artefact = s.in_contact, 0, 0
+    k, n = len(pts), idx.size
+    if not n:
+        return np.zeros(s.live.size, bool), 0, 0
     half = s.scene.half_extents[idx, :2]
-    xy, yaw = _footprints(s.scene, s.t, idx)
-    q_prev = s.pose[:2]
-    for q, tq in zip(pts, times, strict=True):
-        now = np.zeros(s.live.size, bool)
-        if idx.size:
-            xy_prev = xy
-            if moving:
-                xy, yaw = _footprints(s.scene, tq, idx)
-            hit = circle_box_overlap(q, m.robot.radius, xy, half, yaw)
-            now[idx] = hit
-            fresh = hit & ~in_contact[idx]
-            if fresh.any():
-                d = q - xy[fresh]
-                d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
-                robot_gain = -(d @ (q - q_prev))
-                artefact_gain = np.einsum("ij,ij->i", d, xy[fresh] - xy_prev[fresh])
-                # a box that did not come closer (one standing) never walked in
-                walked_in = int(((artefact_gain > robot_gain) & (artefact_gain > 0)).sum())
-                by_artefact += walked_in
-                by_robot += int(fresh.sum()) - walked_in
-        in_contact = now
-        q_prev = q
+    # the boxes at s.t and at every test time: (k + 1, n) centres and headings
+    if s.scene.has_tracks[idx].any():
+        pose = s.scene.poses_at(np.r_[s.t, times], idx).reshape(-1, 3)
+        xy = box_centres(pose, np.tile(s.scene.offsets[idx], (k + 1, 1)))[:, :2]
+        xy, yaw = xy.reshape(k + 1, n, 2), pose[:, 2].reshape(k + 1, n)
+    else:
+        xy0, yaw0 = _footprints(s.scene, s.t, idx)
+        xy, yaw = np.broadcast_to(xy0, (k + 1, n, 2)), np.broadcast_to(yaw0, (k + 1, n))
+    q = np.repeat(pts, n, axis=0)
+    hit = (
+        point_box_distance(
+            q, xy[1:].reshape(-1, 2), np.tile(half, (k, 1)), yaw[1:].reshape(-1)
+        ).reshape(k, n)
+        <= m.robot.radius
+    )
+    before = np.vstack([s.in_contact[idx][None], hit[:-1]])
+    step, box = np.nonzero(hit & ~before)  # new contacts: (step, box) pairs
+    by_robot = by_artefact = 0
+    if step.size:
+        q_prev = np.vstack([s.pose[None, :2], pts[:-1]])
+        d = pts[step] - xy[step + 1, box]
+        d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+        robot_gain = -np.einsum("ij,ij->i", d, pts[step] - q_prev[step])
+        artefact_gain = np.einsum("ij,ij->i", d, xy[step + 1, box] - xy[step, box])
+        # a box that did not come closer (one standing) never walked in
+        by_artefact = int(((artefact_gain > robot_gain) & (artefact_gain > 0)).sum())
+        by_robot = int(step.size) - by_artefact
+    in_contact = np.zeros(s.live.size, bool)
+    in_contact[idx] = hit[-1]
     return in_contact, by_robot, by_artefact
 
 
@@ -506,7 +509,7 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     arrived, left = live & ~s.live, s.live & ~live
     s = _register(s._replace(live=live, seen=s.seen & live, event=e + 1))
     kinds = []
-    if s.event_lifecycle[e]:
+    if s.events.lifecycle[e]:
         old = s.seen
         s = _perceive(m, s, idx, boxes)
         if arrived.any():
@@ -518,7 +521,7 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
         if kinds:
             s = s._replace(need_plan=True)
     moved = np.zeros(live.size, bool)
-    moved[s.event_moved[e]] = True
+    moved[s.events.moved_at(e)] = True
     moved &= live
     if moved.any():
         kinds.append("move")
@@ -591,11 +594,10 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
             kinds.append(got.kind)
     if not kinds:
         return s, kinds
-    times, lifecycle, moves = _event_table(scene, m.T, m.move_period)
-    k = int(np.searchsorted(times, s.t, side="right"))
+    # the tracks changed after s.t only: the coming events are rebuilt from there
     s = s._replace(
-        scene=scene, event_t=times[k:], event_lifecycle=lifecycle[k:], event_moved=moves[k:],
-        event=0, n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
+        scene=scene, events=_event_table(scene, m.T, m.move_period, after=s.t), event=0,
+        n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
         avoid_delay=s.avoid_delay + delay,
     )  # fmt: skip
     return s, sorted(kinds)
@@ -612,8 +614,8 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=0,
         event=0, next_percept=m.period if m.perception == "camera" else np.inf,
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
-        artefact_contacts=0, distance=0.0, scene=m.scene, event_t=m.event_t,
-        event_lifecycle=m.event_lifecycle, event_moved=m.event_moved, n_detours=0, n_yields=0,
+        artefact_contacts=0, distance=0.0, scene=m.scene, events=m.events, n_detours=0,
+        n_yields=0,
         avoid_delay=0.0, builder=ARBuilder(m.grid), builder_at=(None, np.nan),
         percepts=MappingProxyType({}),
     )  # fmt: skip
@@ -641,7 +643,7 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
             if avoided:  # a scene update of its own, at the replan's time
                 s, update, scene = _update(m, s, ["replan", *avoided])
                 return s, _Info(replan=replan, update=update, plan=plan, scene=scene)
-    t_event = s.event_t[s.event] if s.event < s.event_t.size else np.inf
+    t_event = s.events.t[s.event] if s.event < s.events.t.size else np.inf
     t_next = min(t_event, s.next_percept, m.T)
     poses: list = []
     if s.path is not None:
@@ -714,34 +716,39 @@ def _track_speeds(scene: Scene) -> np.ndarray:
     return out
 
 
-def _event_table(
-    scene: Scene, T: float, move_period: float | None
-) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """Distinct event times in ``(0, T)``, whether an artefact arrives or leaves at each, and
-    the indices of the artefacts that move at each (moves put on the next tick of
-    ``move_period`` when given)."""
-    ev = scene.events(0.0, T)
-    kind = ev["kind"].to_numpy()
-    t = ev["t"].to_numpy(float)
+class _Events(NamedTuple):
+    """A scene's events as the loop reads them: distinct times (e,), whether an artefact
+    arrives or leaves at each (e,) bool, and the indices of the artefacts that move at
+    each, ``moved[start[k]:start[k + 1]]`` for time ``k`` (start (e + 1,))."""
+
+    t: np.ndarray
+    lifecycle: np.ndarray
+    start: np.ndarray
+    moved: np.ndarray
+
+    def moved_at(self, k: int) -> np.ndarray:
+        """(j,) indices of the artefacts that move at time ``t[k]``."""
+        return self.moved[self.start[k] : self.start[k + 1]]
+
+
+def _event_table(scene: Scene, T: float, move_period: float | None, after: float = 0.0) -> _Events:
+    """The scene's events at times in ``(after, T)``: arrivals and leaves at their times,
+    moves at their epochs, or on the next tick of ``move_period`` when given (an epoch up
+    to a period before ``after`` may tick after it)."""
+    lower = after if move_period is None else max(0.0, after - 2.0 * move_period)
+    t, kind, idx = scene.event_arrays(lower, T)
+    is_move = kind == 2
     if move_period is not None:
-        tick = np.ceil(t / move_period) * move_period
-        t = np.where(kind == "move", tick, t)
-    ev = ev.assign(t=t).sort_values("t", kind="stable")
-    ev = ev[ev["t"].to_numpy() < T]
-    kind = ev["kind"].to_numpy()
-    times, inv = np.unique(ev["t"].to_numpy(float), return_inverse=True)
+        t = np.where(is_move, np.ceil(t / move_period) * move_period, t)
+    keep = (t > after) & (t < T)
+    t, is_move, idx = t[keep], is_move[keep], idx[keep]
+    times, inv = np.unique(t, return_inverse=True)
     lifecycle = np.zeros(times.size, bool)
-    lifecycle[inv[kind != "move"]] = True
-    order = np.argsort(scene.ids, kind="stable")
-    is_move = kind == "move"
-    pos = order[np.searchsorted(scene.ids[order], ev["id"].to_numpy(np.int64)[is_move])]
-    moved = [np.zeros(0, np.int64)] * times.size
-    if is_move.any():
-        t_of = inv[is_move]
-        cut = np.flatnonzero(np.diff(t_of)) + 1
-        for grp_t, grp in zip(np.split(t_of, cut), np.split(pos, cut), strict=True):
-            moved[int(grp_t[0])] = grp
-    return times, lifecycle, tuple(moved)
+    lifecycle[inv[~is_move]] = True
+    at, who = inv[is_move], idx[is_move]
+    order = np.lexsort((who, at))
+    start = np.r_[0, np.cumsum(np.bincount(at, minlength=times.size))].astype(np.int64)
+    return _Events(times, lifecycle, start, who[order])
 
 
 def run_mission(
@@ -876,7 +883,7 @@ def run_mission(
             raise ValueError(f"start: expected (x, y, yaw), got {pose.tolist()}")
     if grid.n_free == 0:
         raise ValueError("grid: expected free cells, got none")
-    event_t, event_lifecycle, event_moved = _event_table(scene, T, move_period)
+    events = _event_table(scene, T, move_period)
     from scipy import ndimage
 
     static_occ = ~grid.free
@@ -890,8 +897,8 @@ def run_mission(
         plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,
         period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
         record=bool(record), step=min(grid.resolution, robot.radius / 2.0),
-        n_free=grid.n_free, event_t=event_t, event_lifecycle=event_lifecycle,
-        event_moved=event_moved, static_occ=static_occ, static_dist=static_dist, avoid=avoid,
+        n_free=grid.n_free, events=events, static_occ=static_occ, static_dist=static_dist,
+        avoid=avoid,
         clearance=robot.radius + margin, move_period=move_period,
         wall_distance=grid.distance_to_occupied() if avoid and scene.has_tracks.any() else None,
         art_radius=np.hypot(*scene.offsets[:, :2].T) + np.hypot(*scene.half_extents[:, :2].T),
@@ -903,7 +910,7 @@ def run_mission(
     # artefact does about twice (into view, out of it)
     n_ticks = T / period if perception == "camera" else 0.0
     rays = float(np.prod(robot.image_size)) if perception == "camera" else 0.0
-    n_plans = event_t.size + G.shape[0] + min(n_ticks, 2.0 * len(scene)) + 1.0
+    n_plans = events.t.size + G.shape[0] + min(n_ticks, 2.0 * len(scene)) + 1.0
     check_memory(n_motion * 64.0, f"the robot's {n_motion:.3g} motion steps", "run_mission")
     check_work(
         n_motion * 200.0

@@ -174,7 +174,8 @@ def circle_box_overlap(
 
 def point_box_distance(point: Any, box_xy: Any, half_xy: Any, yaw: Any) -> np.ndarray:
     """Distance ``(n,)`` from a point ``(2,)`` to each oriented rectangle (0 inside); the
-    arguments are those of :func:`circle_box_overlap`.
+    arguments are those of :func:`circle_box_overlap`, except that ``point`` may also be
+    ``(n, 2)``, one point per rectangle.
 
     Examples
     --------
@@ -185,7 +186,7 @@ def point_box_distance(point: Any, box_xy: Any, half_xy: Any, yaw: Any) -> np.nd
     b = np.asarray(box_xy, float).reshape(-1, 2)
     h = np.asarray(half_xy, float).reshape(-1, 2)
     y = np.asarray(yaw, float).reshape(-1)
-    d = c[None, :] - b
+    d = c.reshape(-1, 2) - b
     cs, sn = np.cos(y), np.sin(y)
     local = np.stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]], axis=1)
     q = np.abs(local) - h

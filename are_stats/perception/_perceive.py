@@ -300,32 +300,55 @@ def box_rois(
         return out
     cam_c = poses[:, :3, 3]
     cam_r = poses[:, :3, :3]
-    if moving:  # (T, n, 8, 3) corners and (T, n, 3) camera centres in the box frames
-        corners = centers[:, :, None, :] + np.einsum(
-            "tnij,nkj->tnki", rotations, _SIGNS[None] * half_extents[:, None, :]
-        )
-        q = np.einsum("tnji,tnj->tni", rotations, cam_c[:, None, :] - centers)
-    else:
-        corners = (
-            centers[:, None, :]
-            + np.einsum("nij,nkj->nki", rotations, _SIGNS[None] * half_extents[:, None, :])
-        )[None]
-        # distance from each camera centre to each box
-        q = np.einsum("nji,tnj->tni", rotations, cam_c[:, None, :] - centers[None])
-    dist = np.linalg.norm(np.maximum(np.abs(q) - half_extents[None], 0.0), axis=-1)
+    # cheap cull first: a box whose circumscribed sphere lies beyond d_max or wholly behind
+    # the image plane gets nothing (the exact test below would give it w = h = 0)
+    c_all = centers if moving else np.broadcast_to(centers[None], (t_frames, n, 3))
+    rel = c_all - cam_c[:, None, :]  # (T, n, 3)
+    reach = np.linalg.norm(half_extents, axis=-1)[None] * (1.0 + 1e-9) + 1e-9
+    depth = np.einsum("tji,tnj->tn", cam_r[..., 2:3], rel)  # optical z of the centres
+    keep = (np.linalg.norm(rel, axis=-1) - reach <= d_max) & (depth + reach >= 0.0)
+    ft, fb = np.nonzero(keep)
+    if not ft.size:
+        return out
+    rot = rotations[ft, fb] if moving else rotations[fb]
+    out[ft, fb] = _pair_rois(
+        c_all[ft, fb], half_extents[fb], rot, cam_c[ft], cam_r[ft], intrinsics, d_max
+    )
+    return out
+
+
+def _pair_rois(
+    centers: np.ndarray,
+    half_extents: np.ndarray,
+    rotations: np.ndarray,
+    cam_c: np.ndarray,
+    cam_r: np.ndarray,
+    intrinsics: tuple[float, float, float, float, int, int],
+    d_max: float,
+) -> np.ndarray:
+    """:func:`box_rois` of (m,) (box, camera) pairs: centres (m, 3), half extents (m, 3),
+    rotations (m, 3, 3), camera centres (m, 3) and optical-to-world rotations (m, 3, 3);
+    returns (m, 4) ``x0, y0, w, h``."""
+    fx, fy, cx, cy, width, height = intrinsics
+    # (m, 8, 3) corners and (m, 3) camera centres in the box frames
+    corners = centers[:, None, :] + np.einsum(
+        "mij,mkj->mki", rotations, _SIGNS[None] * half_extents[:, None, :]
+    )
+    q = np.einsum("mji,mj->mi", rotations, cam_c - centers)
+    dist = np.linalg.norm(np.maximum(np.abs(q) - half_extents, 0.0), axis=-1)
     img = np.array([[0.0, 0.0], [width, 0.0], [width, height], [0.0, height]])
     dz = 1.0 / np.linalg.norm(
         np.column_stack([(img[:, 0] - cx) / fx, (img[:, 1] - cy) / fy, np.ones(4)]), axis=1
     )
-    z_near = np.maximum(dist * dz.min() * (1.0 - 1e-9), 1e-12)  # (T, n)
-    # corners in the optical frame: (T, n, 8, 3)
-    pc = np.einsum("tji,tnkj->tnki", cam_r, corners - cam_c[:, None, None, :])
+    z_near = np.maximum(dist * dz.min() * (1.0 - 1e-9), 1e-12)  # (m,)
+    # corners in the optical frame: (m, 8, 3)
+    pc = np.einsum("mji,mkj->mki", cam_r, corners - cam_c[:, None, :])
     z = pc[..., 2]
     cand = [pc]
-    valid = [(z >= z_near[..., None]) & (z <= d_max)]
-    a, b = pc[:, :, _EDGES[:, 0]], pc[:, :, _EDGES[:, 1]]  # (T, n, 12, 3)
+    valid = [(z >= z_near[:, None]) & (z <= d_max)]
+    a, b = pc[:, _EDGES[:, 0]], pc[:, _EDGES[:, 1]]  # (m, 12, 3)
     za, zb = a[..., 2], b[..., 2]
-    for plane in (z_near[..., None], np.full_like(za, d_max)):
+    for plane in (z_near[:, None], np.full_like(za, d_max)):
         with np.errstate(divide="ignore", invalid="ignore"):
             s = (plane - za) / (zb - za)
         ok = np.isfinite(s) & (s >= 0) & (s <= 1)
@@ -334,18 +357,18 @@ def box_rois(
         p[..., 2] = np.where(ok, plane, p[..., 2])
         cand.append(p)
         valid.append(ok)
-    pts = np.concatenate(cand, axis=2)
-    ok = np.concatenate(valid, axis=2)
+    pts = np.concatenate(cand, axis=1)
+    ok = np.concatenate(valid, axis=1)
     zz = np.where(ok, pts[..., 2], 1.0)
     big = 4.0 * (width + height) + 8.0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         u = np.clip(fx * pts[..., 0] / zz + cx, -big, big)
         v = np.clip(fy * pts[..., 1] / zz + cy, -big, big)
-    any_ok = ok.any(axis=2)
-    umin = np.where(ok, u, np.inf).min(axis=2)
-    umax = np.where(ok, u, -np.inf).max(axis=2)
-    vmin = np.where(ok, v, np.inf).min(axis=2)
-    vmax = np.where(ok, v, -np.inf).max(axis=2)
+    any_ok = ok.any(axis=1)
+    umin = np.where(ok, u, np.inf).min(axis=1)
+    umax = np.where(ok, u, -np.inf).max(axis=1)
+    vmin = np.where(ok, v, np.inf).min(axis=1)
+    vmax = np.where(ok, v, -np.inf).max(axis=1)
     x0 = np.floor(np.where(any_ok, umin, 0.0)) - 1
     x1 = np.ceil(np.where(any_ok, umax, -1.0)) + 1
     y0 = np.floor(np.where(any_ok, vmin, 0.0)) - 1
@@ -360,8 +383,7 @@ def box_rois(
     y0 = np.where(inside, 0, y0)
     w = np.where(inside, width, np.where(far, 0, w))
     h = np.where(inside, height, np.where(far, 0, h))
-    out[..., 0], out[..., 1], out[..., 2], out[..., 3] = x0, y0, w, h
-    return out
+    return np.stack([x0, y0, w, h], axis=-1).astype(np.int64)
 
 
 # ---------------------------------------------------------------------- driver

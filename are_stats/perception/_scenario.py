@@ -18,7 +18,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
-from are_stats.builder import box_corners, rasterise_convex
+from are_stats.builder import box_centres, box_corners, rasterise_convex
 from are_stats.environment import OccupancyGrid
 from are_stats.inputs import Described, InputError, Source, check_memory, check_work
 from are_stats.logs import read_raw_table
@@ -173,23 +173,20 @@ def _scene_frames(
     """
     n, n_t = len(scene), times.size
     active = scene.alive(times[:, None]) if n_t else np.zeros((0, n), bool)
-    order = np.argsort(scene.ids, kind="stable")
-
-    def rows(ids: np.ndarray) -> np.ndarray:  # scene positions of artefact ids
-        return order[np.searchsorted(scene.ids[order], ids)]
-
+    cols = np.flatnonzero(active.any(axis=0))  # the artefacts alive in some frame
     if not scene.has_tracks.any():  # every box stands at its arrival pose: one box each
         centres, yaws = np.zeros((n, 3)), np.zeros(n)
-        for ta in np.unique(scene.t_arrive[active.any(axis=0)]):
-            b = scene.at(float(ta))
-            k = rows(b.ids)
-            centres[k], yaws[k] = b.centres, b.yaws
+        pose = scene.poses(0.0, cols)  # (without tracks, the same at every time)
+        centres[cols] = box_centres(pose, scene.offsets[cols])
+        yaws[cols] = np.mod(pose[:, 2], 2.0 * np.pi)
         return centres, scene.half_extents, yaw_rotations(yaws), active
     centres, yaws = np.zeros((n_t, n, 3)), np.zeros((n_t, n))
-    for i in np.flatnonzero(active.any(axis=1)):
-        b = scene.at(float(times[i]))
-        k = rows(b.ids)
-        centres[i, k], yaws[i, k] = b.centres, b.yaws
+    if cols.size:  # the boxes of Scene.at at every frame, in one pass (zero where not alive)
+        pose = scene.poses_at(times, cols)  # (T, c, 3)
+        c = box_centres(pose.reshape(-1, 3), np.tile(scene.offsets[cols], (n_t, 1)))
+        live = active[:, cols]
+        centres[:, cols] = np.where(live[..., None], c.reshape(n_t, cols.size, 3), 0.0)
+        yaws[:, cols] = np.where(live, np.mod(pose[..., 2], 2.0 * np.pi), 0.0)
     rots = yaw_rotations(yaws.reshape(-1)).reshape(n_t, n, 3, 3)
     return centres, scene.half_extents, rots, active
 

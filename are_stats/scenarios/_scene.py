@@ -41,6 +41,9 @@ from are_stats.environment import ArtefactCatalogue
 
 __all__ = ["Boxes", "Scene"]
 
+# the kinds of Scene.events, indexed by the codes of Scene.event_arrays
+_KINDS = np.array(["leave", "arrive", "move"], dtype=object)
+
 _NEED = ("t_arrive", "t_leave", "x", "y", "yaw")
 _TRACK_NEED = ("id", "t", "x", "y", "yaw")
 
@@ -280,27 +283,34 @@ class Scene:
 
     def poses(self, t: float, which: npt.ArrayLike | None = None) -> np.ndarray:
         """``(k, 3)`` poses ``x, y, yaw`` of artefacts ``which`` (indices; default all) at ``t``."""
-        idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64)
-        out = self._pose0[idx].copy()
+        return self.poses_at(np.array([float(t)]), which)[0]
+
+    def poses_at(self, times: Any, which: Any = None) -> np.ndarray:
+        """``(m, k, 3)`` poses ``x, y, yaw`` of artefacts ``which`` (indices; default all) at
+        each of ``times`` (m,): :meth:`poses` at every time, in one vectorised pass."""
+        tt = np.asarray(times, float).reshape(-1)
+        idx = np.arange(len(self)) if which is None else np.asarray(which, np.int64).reshape(-1)
+        out = np.repeat(self._pose0[idx][None], tt.size, axis=0)
         n_ep = self._start[idx + 1] - self._start[idx]
         moving = n_ep > 0
-        if not moving.any():
+        if not moving.any() or not tt.size:
             return out
         i = idx[moving]
         lo, hi = self._start[i], self._start[i + 1] - 1
-        q = i * self._span + (float(t) - self._t_min)
+        q = i * self._span + (tt[:, None] - self._t_min)  # (m, j)
         k = np.searchsorted(self._key, q, side="right") - 1  # last epoch <= t
         before = k < lo
         k = np.clip(k, lo, hi)
         k1 = np.minimum(k + 1, hi)
         t0, t1 = self._t[k], self._t[k1]
-        f = np.where(t1 > t0, np.clip((float(t) - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0, 1), 0)
+        gap = t1 > t0
+        f = np.where(gap, np.clip((tt[:, None] - t0) / np.where(gap, t1 - t0, 1.0), 0, 1), 0)
         p0, p1 = self._pose[k], self._pose[k1]
-        xy = p0[:, :2] + f[:, None] * (p1[:, :2] - p0[:, :2])
-        dyaw = np.mod(p1[:, 2] - p0[:, 2] + np.pi, 2 * np.pi) - np.pi  # the short way round
-        yaw = _wrap(p0[:, 2] + f * dyaw)
-        track = np.column_stack([xy, yaw])
-        out[moving] = np.where(before[:, None], self._pose0[i], track)
+        xy = p0[..., :2] + f[..., None] * (p1[..., :2] - p0[..., :2])
+        dyaw = np.mod(p1[..., 2] - p0[..., 2] + np.pi, 2 * np.pi) - np.pi  # the short way round
+        yaw = _wrap(p0[..., 2] + f * dyaw)
+        track = np.concatenate([xy, yaw[..., None]], axis=-1)
+        out[:, moving] = np.where(before[..., None], self._pose0[i][None], track)
         return out
 
     def track(self, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -396,28 +406,35 @@ class Scene:
             Columns ``t, kind ("arrive" | "leave" | "move"), id``, sorted by time (leaves
             before arrivals before moves at equal times).
         """
-        a = (self.t_arrive > t0) & (self.t_arrive <= t1)
-        lv = (self.t_leave > t0) & (self.t_leave <= t1)
+        t, kind, idx = self.event_arrays(t0, t1)
+        return pd.DataFrame({"t": t, "kind": _KINDS[kind], "id": self.ids[idx]})
+
+    def event_arrays(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`events` as arrays, in the same order (for loops that read them often).
+
+        Returns
+        -------
+        t : (k,) float64
+            Event times in ``(t0, t1]``.
+        kind : (k,) int8
+            0 leave, 1 arrive, 2 move.
+        index : (k,) int64
+            The artefact's index in the scene (table order).
+        """
+        a = np.flatnonzero((self.t_arrive > t0) & (self.t_arrive <= t1))
+        lv = np.flatnonzero((self.t_leave > t0) & (self.t_leave <= t1))
         owner = np.repeat(np.arange(len(self)), np.diff(self._start))
-        mv = (
+        mv = np.flatnonzero(
             (self._t > t0)
             & (self._t <= t1)
             & (self._t >= self.t_arrive[owner])
             & (self._t < self.t_leave[owner])
         )
-        frame = pd.DataFrame(
-            {
-                "t": np.concatenate([self.t_leave[lv], self.t_arrive[a], self._t[mv]]),
-                "kind": ["leave"] * int(lv.sum())
-                + ["arrive"] * int(a.sum())
-                + ["move"] * int(mv.sum()),
-                "id": np.concatenate([self.ids[lv], self.ids[a], self.ids[owner[mv]]]),
-            }
-        )
-        order = {"leave": 0, "arrive": 1, "move": 2}
-        rank = frame["kind"].map(order).to_numpy()
-        keys = np.lexsort((frame["id"].to_numpy(), rank, frame["t"].to_numpy()))
-        return frame.iloc[keys].reset_index(drop=True)
+        t = np.concatenate([self.t_leave[lv], self.t_arrive[a], self._t[mv]])
+        kind = np.repeat(np.array([0, 1, 2], np.int8), [lv.size, a.size, mv.size])
+        idx = np.concatenate([lv, a, owner[mv]]).astype(np.int64)
+        keys = np.lexsort((self.ids[idx], kind, t))
+        return t[keys], kind[keys], idx[keys]
 
 
 def _boxes(

@@ -336,3 +336,72 @@ def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
     near = np.linalg.norm(grid.cell_to_world(ij) - pose[:2], axis=1).reshape(occ.shape)
     want |= (near <= robot.radius + res) & ~occ
     np.testing.assert_array_equal(got, want)
+
+
+def _snapshot(s):
+    """The values of a mission state, copied (arrays, the builder's artefacts, the plan)."""
+    out = {}
+    for name, v in s._asdict().items():
+        if isinstance(v, np.ndarray):
+            out[name] = v.copy()
+        elif name == "builder":
+            out[name] = (v.ids.copy(), v.poses.copy(), v.artefact_cells()[1].copy())
+        elif name == "percepts":
+            out[name] = {t: (p.copy(), row.copy(), sc) for t, (p, row, sc) in v.items()}
+        elif name == "events":
+            out[name] = tuple(a.copy() for a in v)
+        else:
+            out[name] = v
+    return out
+
+
+def _same(a, b):
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, tuple | list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, np.ndarray):
+        return np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+    return a is b or a == b or (isinstance(a, float) and np.isnan(a) and np.isnan(b))
+
+
+def test_steps_never_change_a_state_in_place(monkeypatch):
+    """The mission is init/step on explicit state (issue 25): a step returns a new state and
+    leaves the one it was given, and everything that state holds (the AR-builder, the
+    camera percepts ahead, the event table), as it was; each state's builder holds the
+    scene's live boxes at the time the state says."""
+    import trimesh
+
+    import are_stats.experiments._loop as loop
+
+    pillar = trimesh.creation.box([2.0, 2.0, 2.0])
+    pillar.apply_translation([10.0, 12.0, 1.0])
+    rng = np.random.default_rng(4)
+    rows, tracks = [], []
+    for i in range(6):  # walkers crossing the robot's way (some avoid it)
+        t0, x = float(rng.uniform(0, 10)), float(rng.uniform(6, 16))
+        t = t0 + np.arange(0.0, 25.0)
+        y = 1.5 + (t - t0) * rng.uniform(0.4, 0.8)
+        keep = y <= 18.5
+        rows.append([t0, float(t[keep][-1]), x, 1.5, np.pi / 2, 0])
+        tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
+    scene = _scene(_art(rows), pd.concat(tracks, ignore_index=True))
+    states, step = [], loop._step
+
+    def record(m, s):
+        states.append((s, _snapshot(s)))
+        return step(m, s)
+
+    monkeypatch.setattr(loop, "_step", record)
+    res = run_mission(
+        GRID, scene, [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0]], "astar",
+        robot=Robot(radius=0.3, speed=0.7), start=[2.0, 10.0, 0.0], time_limit=40.0,
+        perception="camera", env_mesh=pillar, d_max=15.0, tau=3.0, perception_period=0.1,
+        move_period=1.0,
+    )  # fmt: skip
+    assert len(states) > 100 and res.summary["n_move_updates"] > 5
+    assert res.summary["n_detours"] + res.summary["n_yields"] > 0
+    for s, before in states:
+        assert _same(_snapshot(s), before), f"the state at t={s.t} was changed by a step"
+        at_scene, at_t = s.builder_at
+        np.testing.assert_array_equal(s.builder.ids, at_scene.ids[at_scene.alive(at_t)])

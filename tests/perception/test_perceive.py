@@ -454,3 +454,36 @@ def test_bad_input_errors():
         perceived_counts("mesh.ply", c, h, r, cam, 9.0, 0)
     with pytest.raises(ValueError, match=r"active: expected a \(1, 1\) boolean array"):
         perceive_frames(None, c, h, r, cam, None, 9.0, 0, active=np.ones((2, 1), bool))
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_roi_cull_drops_only_boxes_the_exact_test_gives_nothing(moving):
+    """box_rois skips the boxes beyond d_max or behind the camera before the exact
+    rectangles: its output equals the exact rectangles of every (frame, box) pair, the
+    skipped ones included (which are all empty)."""
+    from are_stats.perception._perceive import _pair_rois
+
+    rng = np.random.default_rng(11)
+    cams = [make_camera(pitch=p) for p in (0.0, 0.2, -0.1)]
+    poses = np.stack([c.pose for c in cams])
+    n = 400
+    # around the cameras, in front, behind, beside, beyond d_max and straddling the camera
+    c = cams[0].center + rng.normal(0.0, 4.0, (n, 3))
+    c[:5] = cams[0].center + rng.normal(0.0, 0.05, (5, 3))
+    h = rng.uniform(0.05, 1.5, (n, 3))
+    r = Rotation.random(n, random_state=5).as_matrix()
+    if moving:
+        c = c[None] + rng.normal(0.0, 0.3, (3, n, 3))
+        r = np.stack([r, r[::-1], r])
+    intr = (cams[0].fx, cams[0].fy, cams[0].cx, cams[0].cy, W, H)
+    got = box_rois(c, h, r, intr, poses, 4.0)
+    ft, fb = np.meshgrid(np.arange(3), np.arange(n), indexing="ij")
+    ft, fb = ft.ravel(), fb.ravel()
+    want = _pair_rois(
+        c[ft, fb] if moving else c[fb], h[fb], r[ft, fb] if moving else r[fb],
+        poses[ft, :3, 3], poses[ft, :3, :3], intr, 4.0,
+    ).reshape(3, n, 4)  # fmt: skip
+    empty = (want[..., 2] == 0) | (want[..., 3] == 0)
+    assert empty.sum() > n and (~empty).sum() > 20  # both kinds are there
+    np.testing.assert_array_equal(got[~empty], want[~empty])
+    assert ((got[empty, 2] == 0) | (got[empty, 3] == 0)).all()
