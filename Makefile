@@ -44,8 +44,8 @@ lint: venv
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check are_stats tests
 
-# Two workers, each taking whole test files (module fixtures are built once);
-# TEST_WORKERS=0 runs the suite serially.
+# Two workers, each taking whole test files (module fixtures are built once), the longest
+# files first (tests/conftest.py: HEAVY_FILES); TEST_WORKERS=0 runs the suite serially.
 TEST_WORKERS ?= 2
 test: venv
 	$(BIN)/ruff check .

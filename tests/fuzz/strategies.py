@@ -84,13 +84,18 @@ def _vm_bytes() -> int:
 
 
 @contextlib.contextmanager
-def bounded(seconds: float = 20.0, memory: int = 3 * 2**30) -> Iterator[None]:
+def bounded(
+    seconds: float = 20.0, memory: int = 3 * 2**30, cpu_seconds: float | None = None
+) -> Iterator[None]:
     """Run a case with a time limit and a memory limit.
 
     Time: ``setitimer`` raises :class:`CaseTimeout` (a ``BaseException``, so no
     ``except Exception`` in the package can swallow it) in the main thread; it cannot stop
     a single C call, but every loop sized by an input returns to Python or allocates
-    first, and the allocation is what the memory limit catches.
+    first, and the allocation is what the memory limit catches. ``seconds`` is wall-clock
+    time; ``cpu_seconds``, where given, also bounds the CPU time of the process (all its
+    threads, ``ITIMER_PROF``), which does not grow when other processes share the cores:
+    a long case bounded by CPU time can keep a generous wall-clock bound for hangs only.
 
     Memory: ``RLIMIT_AS`` set to the process's current address space plus ``memory`` for
     the case, restored afterwards. Unlike ``tracemalloc`` it sees every allocation (NumPy,
@@ -104,18 +109,27 @@ def bounded(seconds: float = 20.0, memory: int = 3 * 2**30) -> Iterator[None]:
     def on_alarm(signum: int, frame: Any) -> None:
         raise CaseTimeout(f"case ran past {seconds} s")
 
+    def on_cpu(signum: int, frame: Any) -> None:
+        raise CaseTimeout(f"case ran past {cpu_seconds} s of CPU time")
+
     old_handler = signal.signal(signal.SIGALRM, on_alarm)
+    old_prof = signal.signal(signal.SIGPROF, on_cpu) if cpu_seconds is not None else None
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     cap = _vm_bytes() + memory
     if hard != resource.RLIM_INFINITY:
         cap = min(cap, hard)
     resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
     signal.setitimer(signal.ITIMER_REAL, seconds)
+    if cpu_seconds is not None:
+        signal.setitimer(signal.ITIMER_PROF, cpu_seconds)
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old_handler)
+        if cpu_seconds is not None:
+            signal.setitimer(signal.ITIMER_PROF, 0)
+            signal.signal(signal.SIGPROF, old_prof)
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
 
 

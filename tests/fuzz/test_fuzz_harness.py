@@ -19,6 +19,16 @@ def test_bounded_stops_a_hang() -> None:
             pass
 
 
+def test_bounded_stops_a_runaway_by_cpu_time() -> None:
+    """The CPU-time bound trips on its own: the wall-clock bound is far away."""
+    with pytest.raises(CaseTimeout, match="CPU time"), bounded(seconds=60.0, cpu_seconds=0.2):
+        while True:
+            pass
+    import signal
+
+    assert signal.getitimer(signal.ITIMER_PROF) == (0.0, 0.0)
+
+
 def test_bounded_restores_the_limits() -> None:
     import resource
     import signal
