@@ -10,8 +10,15 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from hypothesis import settings  # noqa: E402
 
 import are_stats  # noqa: E402,F401  (enables x64 before any test touches JAX)
+
+# Property tests explore new examples on every local run (failures are kept in
+# .hypothesis/); CI (.ci/run sets HYPOTHESIS_PROFILE=ci) runs the same derandomised examples
+# every time, so a landing is not decided by which examples a run happened to draw.
+settings.register_profile("ci", derandomize=True, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 #: The test files that take longest (from per-test CPU and wall times of 2026-11-27 and the
 #: full runs before), roughly longest first. ``make test`` hands whole files to
