@@ -126,3 +126,32 @@ def test_scenarios_do_not_meet_and_kinematic_artefacts_keep_their_plan():
     walker = out[out["id"] == 0]
     assert _pair(out, 0, 1).min() > 2 * SocialForce().radius  # the walker alone gave way
     assert np.abs(walker["y"]).max() > 0.3
+
+
+def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():
+    """On one map the walk compiles once per crowd size: the extent of the tracks, the
+    routes' corners, the number of steps and whether anybody walks in a group are data,
+    not program shapes (issue 29: the realism stage walked its models with a program
+    each)."""
+    from are_stats.behaviour import _social
+
+    grid = OccupancyGrid(np.zeros((400, 500)), 0.1)  # 50 x 40 m of open ground
+    first = _plan([(0, 0.0, (1, 1), (14, 1), 1.3), (1, 0.0, (14, 1.05), (1, 1.05), 1.3)], 0.1, 3)
+    social_force_tracks(first, grid=grid, dt=0.1)
+    compiled = _social._window._cache_size()
+    wide = _plan(
+        [(0, 0.0, (1, 1), (40, 12), 1.2), (1, 2.0, (40, 1), (1, 14), 1.4),
+         (2, 0.0, (5, 5), (5, 30), 1.1)], 0.1, 1,
+    )  # fmt: skip
+    t = np.arange(0.0, 6.01, 0.5)  # a zigzag of 11 corners
+    zig = pd.DataFrame(
+        {"id": 3, "t": t, "x": 0.5 * t, "y": 20.0 + (np.arange(t.size) % 2), "yaw": 0.0}
+    )
+    wide = pd.concat([wide, zig], ignore_index=True)
+    alone = social_force_tracks(wide, grid=grid, dt=0.1)
+    grouped = social_force_tracks(wide, grid=grid, dt=0.1, groups=np.where(wide["id"] < 2, 7, -1))
+    assert _social._window._cache_size() == compiled
+    # the walkers who are in no group walk as they do without groups
+    np.testing.assert_allclose(
+        grouped[grouped["id"] >= 2][["x", "y"]], alone[alone["id"] >= 2][["x", "y"]], atol=1e-9
+    )
