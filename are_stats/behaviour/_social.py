@@ -34,8 +34,11 @@ its preferred speed (the planned one), and people pass each other instead of wal
 through one another. The simulation runs in windows of 256 steps over the artefacts alive
 in them; with more than :data:`ALL_PAIRS_MAX` people in a window, neighbours are found on a
 grid of cells as wide as the interaction's ``reach`` (a sort and a binary search per step:
-linear in the number of people, not all pairs). 1,000 artefacts arriving over an hour,
-walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores (``bench_social``).
+linear in the number of people, not all pairs), or, when the window holds many scenarios of
+at most :data:`BLOCK_MAX` people each (the displacement errors' continuations), by all pairs
+within each scenario's block of slots. A window runs only the steps somebody is alive in,
+and one compiled program serves every window of a size on a map. 1,000 artefacts arriving
+over an hour, walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores (``bench_social``).
 """
 
 from __future__ import annotations
@@ -134,13 +137,29 @@ SLOT_REACH = 1.5
 #: Up to this many people in a window every pair is looked at (cheaper than the grid's
 #: sort and gathers at this size); beyond it, the grid of cells.
 ALL_PAIRS_MAX = 128
+#: Beyond :data:`ALL_PAIRS_MAX` people, when no scenario has more than this many people in
+#: a window (many small scenes: the displacement errors' continuations, one scene each),
+#: every scenario gets a block of slots and all pairs are looked at within blocks only
+#: (cheaper than the cell list's 9 x :data:`CELL_CAPACITY` candidates per person).
+BLOCK_MAX = 16
 
 
-def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid):
-    """(n, 2) sum of the pair repulsions on each alive person (all pairs for a few people,
-    else neighbours by a cell list; the two agree while no cell holds more than
+def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid, block=0):
+    """(n, 2) sum of the pair repulsions on each alive person (all pairs for a few people;
+    all pairs within consecutive blocks of ``block`` slots, one scenario each; else
+    neighbours by a cell list; the three agree while no cell holds more than
     :data:`CELL_CAPACITY`); ``gid`` (n,) the groups (None: nobody in one)."""
     n = x.shape[0]
+    if block:
+        xb, vb, ab = x.reshape(-1, block, 2), v.reshape(-1, block, 2), alive.reshape(-1, block)
+        ok = ab[:, :, None] & ab[:, None, :] & ~jnp.eye(block, dtype=bool)
+        mates = None
+        if gid is not None:
+            gb = gid.reshape(-1, block)
+            mates = (gb[:, :, None] == gb[:, None, :]) & (gb[:, :, None] >= 0)
+        now = xb[:, :, None, :] - xb[:, None, :, :]
+        dv = vb[:, :, None, :] - vb[:, None, :, :]
+        return _pair_term(now, dv, ok, p, mates).sum(axis=2).reshape(n, 2)
     if all_pairs:
         ok = alive[:, None] & alive[None, :] & ~jnp.eye(n, dtype=bool)
         now = x[:, None, :] - x[None, :, :]
@@ -165,7 +184,7 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid):
     return _pair_term(now, v[:, None, None, :] - v[cand], ok, p, mates).sum(axis=(1, 2))
 
 
-@partial(jax.jit, static_argnames=("all_pairs",))
+@partial(jax.jit, static_argnames=("all_pairs", "block"))
 def _window(
     state,
     route,
@@ -184,6 +203,7 @@ def _window(
     n_steps,
     n_y,
     all_pairs,
+    block,
 ):
     """Integrate ``n_steps`` steps of ``dt`` from ``t0`` (semi-implicit Euler); returns the
     final state and the positions after every step (W, n, 2), ``W = plan.shape[0]`` (rows
@@ -199,6 +219,7 @@ def _window(
     alone). One program serves windows with and without groups (nobody in a group: the
     formation's terms change nothing), so a walk compiles once per size. The state is
     positions, velocities, route indices and headings (unit vectors).
+    ``all_pairs`` and ``block`` choose the neighbour search (:func:`_pair_forces`).
     """
     dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
     lead, prev, side, gid = form
@@ -269,7 +290,7 @@ def _window(
         round_it = ~in_slot & (into < 0.0) & (dw < p.radius + 2.0 * p.wall_range)
         desired = jnp.where(round_it[:, None], speed[:, None] * along, desired)
         a = (desired - v) / p.relaxation + _pair_forces(
-            x, v, alive, p, cell, n_y, origin, all_pairs, gid
+            x, v, alive, p, cell, n_y, origin, all_pairs, gid, block
         )
         a = a + (p.wall_strength * jnp.exp((p.radius - dw) / p.wall_range))[:, None] * gw
         v_new = v + a * dt
@@ -500,19 +521,36 @@ def social_force_tracks(
     for w0, act in zip(w_start, active, strict=True):
         if act.size == 0:
             continue
-        nb = _bucket(act.size, 16)  # padded to a power of two: a few compiled programs
-        pad = np.r_[act, np.full(nb - act.size, act[0])]
-        live_pad = np.r_[np.ones(act.size, bool), np.zeros(nb - act.size, bool)]
+        # each artefact's slot (padded to a power of two: a few compiled programs); many
+        # small scenarios: a block of slots per scenario, all pairs within blocks
+        per_scene = int(np.bincount(scen[act]).max())
+        block = _bucket(per_scene, 4) if act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX else 0
+        if block:
+            first_in, rank = np.unique(scen[act], return_index=True, return_inverse=True)[1:]
+            rank = rank.ravel()  # act is sorted by scenario: each scenario a run
+            slot = rank * block + (np.arange(act.size) - first_in[rank])
+            nb = _bucket(first_in.size, 16) * block
+        else:
+            slot = np.arange(act.size)
+            nb = _bucket(act.size, 16)
+        pad = np.full(nb, act[0])
+        pad[slot] = act
+        live_pad = np.zeros(nb, bool)
+        live_pad[slot] = True
 
         def take(a, pad=pad):
             return jnp.asarray(a[pad])
 
         state = (take(x), take(v), take(k), take(hd))
+        slot_of = np.full(n, -1)
+        slot_of[act] = slot
 
-        def local(j, act=act, nb=nb):
-            loc = np.minimum(np.searchsorted(act, j[act]), act.size - 1)
-            loc = np.where(act[loc] == j[act], loc, np.arange(act.size))
-            return jnp.asarray(np.r_[loc, np.arange(act.size, nb)].astype(np.int32))
+        def local(j, act=act, slot=slot, slot_of=slot_of, nb=nb):
+            """Slot of each slot's leader (or member ahead): itself when not in the window."""
+            loc = np.arange(nb)
+            there = slot_of[j[act]]
+            loc[slot] = np.where(there >= 0, there, slot)
+            return jnp.asarray(loc.astype(np.int32))
 
         form = (
             local(leader), local(ahead), take(side),
@@ -523,7 +561,7 @@ def social_force_tracks(
         # the steps anybody is alive in (all of them unless everybody leaves in this window)
         n_run = int(np.searchsorted(tt, t_off[act].max(), side="left"))
         plan = np.zeros((WINDOW_STEPS, nb, 2))
-        for c, i in enumerate(pad[: act.size]):
+        for c, i in zip(slot, act, strict=True):
             if kin[i]:
                 a, b = start[i], stop[i]
                 plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
@@ -531,15 +569,15 @@ def social_force_tracks(
         (xf, vf, kf, hf), xs = _window(
             state, take(route), take(n_vert), take(v0), jnp.asarray(t_on_w),
             take(t_off), take(kin), jnp.asarray(plan), take(shift), form, w0, dt, p_j, walls,
-            jnp.int32(n_run), jnp.int32(n_y), nb <= ALL_PAIRS_MAX,
+            jnp.int32(n_run), jnp.int32(n_y), nb <= ALL_PAIRS_MAX, block,
         )  # fmt: skip
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
-        x[act], v[act], k[act] = xf[: act.size], vf[: act.size], kf[: act.size]
-        hd[act] = np.asarray(hf)[: act.size]
+        x[act], v[act], k[act] = xf[slot], vf[slot], kf[slot]
+        hd[act] = np.asarray(hf)[slot]
         alive = (tt[:, None] >= t_on[act][None, :]) & (tt[:, None] < t_off[act][None, :])
         si, ai = np.nonzero(alive)
         sim_t.append(tt[si])
-        sim_x.append(xs[si, ai] - shift[act[ai]])
+        sim_x.append(xs[si, slot[ai]] - shift[act[ai]])
         sim_i.append(act[ai])
     st = np.concatenate(sim_t) if sim_t else np.zeros(0)
     sx = np.concatenate(sim_x) if sim_x else np.zeros((0, 2))

@@ -107,6 +107,7 @@ def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch):
     crowd = _crowd(3, 40)
     pairs = social_force_tracks(crowd, dt=0.1)
     monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 0)
+    monkeypatch.setattr(_social, "BLOCK_MAX", 0)  # one scene: no blocks either
     cells = social_force_tracks(crowd, dt=0.1)
     np.testing.assert_allclose(cells[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
     assert np.hypot(*(cells[["x", "y"]].to_numpy() - crowd[["x", "y"]].to_numpy()).T).max() > 0.1
@@ -155,3 +156,23 @@ def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():
     np.testing.assert_allclose(
         grouped[grouped["id"] >= 2][["x", "y"]], alone[alone["id"] >= 2][["x", "y"]], atol=1e-9
     )
+
+
+def test_many_small_scenarios_walk_as_they_do_with_all_pairs(monkeypatch):
+    """Past ALL_PAIRS_MAX people in small scenarios, each scenario gets a block of slots
+    and all pairs within it: the same tracks as all pairs over everybody (group members
+    included, whose leaders sit in their own block)."""
+    from are_stats.behaviour import _social
+
+    scenes = []
+    for s in range(100):  # 100 scenarios of 2-5 people: 350, over 128 in a window
+        crowd = _crowd(100 + s, 2 + s % 4)
+        scenes.append(crowd.assign(scenario=s, x=crowd["x"] / 3, y=crowd["y"] / 3))
+    plan = pd.concat(scenes, ignore_index=True)
+    groups = np.where(plan["id"] < 2, plan["scenario"], -1)  # the first two walk together
+    blocks = social_force_tracks(plan, dt=0.1, groups=groups)
+    monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 10**6)
+    pairs = social_force_tracks(plan, dt=0.1, groups=groups)
+    np.testing.assert_allclose(blocks[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
+    moved = np.hypot(*(blocks[["x", "y"]].to_numpy() - plan[["x", "y"]].to_numpy()).T)
+    assert moved.max() > 0.1  # they did give way to each other
