@@ -159,3 +159,32 @@ def test_fit_names_its_log_by_file_name_and_hash_not_folder(tmp_path):
     assert yaml.safe_load(a["log_report"])["source"] == "tracks.csv"
     assert str(tmp_path).encode() not in fit.read_bytes()
     assert tmp_path.name.encode() not in fit.read_bytes()
+
+
+@pytest.mark.slow
+def test_the_motion_checks_are_drawn_once_and_handed_to_the_report(tmp_path, monkeypatch):
+    """fit_log draws the motion checks for the per-class rows; the report uses the fit's
+    (the same draws) instead of simulating the 50 replicates again (issue 29)."""
+    import jax
+
+    from are_stats.environment import load_catalogue
+    from are_stats.fitting import FitSettings, _motion_report, fit_log, motion_checks
+    from are_stats.logs import read_field_log
+
+    _room(tmp_path)
+    log = read_field_log(_tracks(tmp_path, horizon=80.0))
+    fit = fit_log(3, log, FitSettings(method="em", positions="uniform"))
+    assert fit.motion_checks is not None
+    key = jax.random.fold_in(jax.random.key(3), 1)
+    table, _ = motion_checks(key, fit.behaviour, log.tracks, n_replicates=50)
+    pd.testing.assert_frame_equal(fit.motion_checks[0], table)
+
+    def again(*args, **kwargs):
+        raise AssertionError("the report drew the motion checks again")
+
+    monkeypatch.setattr(_motion_report, "motion_checks", again)
+    (tmp_path / "rep").mkdir()
+    report = _motion_report.write_motion_report(
+        3, fit, log.tracks, tmp_path / "rep", False, load_catalogue()
+    )
+    pd.testing.assert_frame_equal(report.checks, table)

@@ -34,8 +34,11 @@ its preferred speed (the planned one), and people pass each other instead of wal
 through one another. The simulation runs in windows of 256 steps over the artefacts alive
 in them; with more than :data:`ALL_PAIRS_MAX` people in a window, neighbours are found on a
 grid of cells as wide as the interaction's ``reach`` (a sort and a binary search per step:
-linear in the number of people, not all pairs). 1,000 artefacts arriving over an hour,
-walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores (``bench_social``).
+linear in the number of people, not all pairs), or, when the window holds many scenarios of
+at most :data:`BLOCK_MAX` people each (the displacement errors' continuations), by all pairs
+within each scenario's block of slots. A window runs only the steps somebody is alive in,
+and one compiled program serves every window of a size on a map. 1,000 artefacts arriving
+over an hour, walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores (``bench_social``).
 """
 
 from __future__ import annotations
@@ -134,13 +137,29 @@ SLOT_REACH = 1.5
 #: Up to this many people in a window every pair is looked at (cheaper than the grid's
 #: sort and gathers at this size); beyond it, the grid of cells.
 ALL_PAIRS_MAX = 128
+#: Beyond :data:`ALL_PAIRS_MAX` people, when no scenario has more than this many people in
+#: a window (many small scenes: the displacement errors' continuations, one scene each),
+#: every scenario gets a block of slots and all pairs are looked at within blocks only
+#: (cheaper than the cell list's 9 x :data:`CELL_CAPACITY` candidates per person).
+BLOCK_MAX = 16
 
 
-def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid):
-    """(n, 2) sum of the pair repulsions on each alive person (all pairs for a few people,
-    else neighbours by a cell list; the two agree while no cell holds more than
+def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid, block=0):
+    """(n, 2) sum of the pair repulsions on each alive person (all pairs for a few people;
+    all pairs within consecutive blocks of ``block`` slots, one scenario each; else
+    neighbours by a cell list; the three agree while no cell holds more than
     :data:`CELL_CAPACITY`); ``gid`` (n,) the groups (None: nobody in one)."""
     n = x.shape[0]
+    if block:
+        xb, vb, ab = x.reshape(-1, block, 2), v.reshape(-1, block, 2), alive.reshape(-1, block)
+        ok = ab[:, :, None] & ab[:, None, :] & ~jnp.eye(block, dtype=bool)
+        mates = None
+        if gid is not None:
+            gb = gid.reshape(-1, block)
+            mates = (gb[:, :, None] == gb[:, None, :]) & (gb[:, :, None] >= 0)
+        now = xb[:, :, None, :] - xb[:, None, :, :]
+        dv = vb[:, :, None, :] - vb[:, None, :, :]
+        return _pair_term(now, dv, ok, p, mates).sum(axis=2).reshape(n, 2)
     if all_pairs:
         ok = alive[:, None] & alive[None, :] & ~jnp.eye(n, dtype=bool)
         now = x[:, None, :] - x[None, :, :]
@@ -165,7 +184,7 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid):
     return _pair_term(now, v[:, None, None, :] - v[cand], ok, p, mates).sum(axis=(1, 2))
 
 
-@partial(jax.jit, static_argnames=("n_steps", "n_y", "all_pairs", "with_groups"))
+@partial(jax.jit, static_argnames=("all_pairs", "block"))
 def _window(
     state,
     route,
@@ -184,18 +203,23 @@ def _window(
     n_steps,
     n_y,
     all_pairs,
-    with_groups,
+    block,
 ):
     """Integrate ``n_steps`` steps of ``dt`` from ``t0`` (semi-implicit Euler); returns the
-    final state and the positions after every step (n_steps, n, 2).
+    final state and the positions after every step (W, n, 2), ``W = plan.shape[0]`` (rows
+    past ``n_steps`` are zero). ``n_steps <= W`` is traced: one compiled program runs any
+    number of steps of a window, and a window that ends early (the last one, or one whose
+    people have all left) costs only its steps.
 
     Positions are in a frame where each scenario is shifted by ``shift`` (n, 2) so that
     artefacts of different scenarios never meet; the walls are looked up unshifted.
     Kinematic artefacts (``kin``) are where their ``plan`` (n_steps, n, 2) puts them.
     ``form`` is the formation: each artefact's leader and the member one slot ahead of it
     (indices here; itself when it has none), its abreast offset and its group (``-1``:
-    alone; ``with_groups`` False leaves the formation out). The state is positions,
-    velocities, route indices and headings (unit vectors).
+    alone). One program serves windows with and without groups (nobody in a group: the
+    formation's terms change nothing), so a walk compiles once per size. The state is
+    positions, velocities, route indices and headings (unit vectors).
+    ``all_pairs`` and ``block`` choose the neighbour search (:func:`_pair_forces`).
     """
     dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
     lead, prev, side, gid = form
@@ -248,13 +272,8 @@ def _window(
         dist = jnp.sqrt(jnp.sum(to**2, axis=1) + 1e-12)
         last = k >= n_vert - 1
         speed = jnp.where(last, v0 * jnp.minimum(1.0, dist / 0.5), v0)
-        if with_groups:  # members head for their slot beside (or behind) their leader
-            desired, speed, in_slot = formation_slots(
-                x, v, k, hd, alive, target, to, dist, speed, last
-            )
-        else:
-            desired = speed[:, None] * to / dist[:, None]
-            in_slot = jnp.zeros_like(alive)
+        # members head for their slot beside (or behind) their leader
+        desired, speed, in_slot = formation_slots(x, v, k, hd, alive, target, to, dist, speed, last)
         dw, _ = lookup(dist_w, x - shift)
         gw, _ = lookup(grad_w, x - shift)
         # whoever walks into a wall or pillar (a member off the route after walking beside
@@ -271,7 +290,7 @@ def _window(
         round_it = ~in_slot & (into < 0.0) & (dw < p.radius + 2.0 * p.wall_range)
         desired = jnp.where(round_it[:, None], speed[:, None] * along, desired)
         a = (desired - v) / p.relaxation + _pair_forces(
-            x, v, alive, p, cell, n_y, origin, all_pairs, gid if with_groups else None
+            x, v, alive, p, cell, n_y, origin, all_pairs, gid, block
         )
         a = a + (p.wall_strength * jnp.exp((p.radius - dw) / p.wall_range))[:, None] * gw
         v_new = v + a * dt
@@ -281,17 +300,16 @@ def _window(
         x_new = x + v_new * dt
         on_free, inside = lookup(free, x_new - shift)
         ok = on_free & inside
-        if with_groups:
-            # a member blocked by a wall slides along it (one component of its step)
-            # instead of standing: following its leader off the route, it meets corners
-            v_try = jnp.stack([v_new * jnp.array([1.0, 0.0]), v_new * jnp.array([0.0, 1.0])])
-            f_try, i_try = lookup(free, x + v_try * dt - shift)
-            can = has_lead & ~ok & f_try & i_try  # (2, n)
-            pick = jnp.where(can[0][:, None], v_try[0], v_try[1])
-            slide = can[0] | can[1]
-            v_new = jnp.where(slide[:, None], pick, v_new)
-            x_new = jnp.where(slide[:, None], x + pick * dt, x_new)
-            ok = ok | slide
+        # a member blocked by a wall slides along it (one component of its step) instead
+        # of standing: following its leader off the route, it meets corners
+        v_try = jnp.stack([v_new * jnp.array([1.0, 0.0]), v_new * jnp.array([0.0, 1.0])])
+        f_try, i_try = lookup(free, x + v_try * dt - shift)
+        can = has_lead & ~ok & f_try & i_try  # (2, n)
+        pick = jnp.where(can[0][:, None], v_try[0], v_try[1])
+        slide = can[0] | can[1]
+        v_new = jnp.where(slide[:, None], pick, v_new)
+        x_new = jnp.where(slide[:, None], x + pick * dt, x_new)
+        ok = ok | slide
         move = alive & ~kin
         x_out = jnp.where((move & ok)[:, None], x_new, x)
         v_out = jnp.where((move & ok)[:, None], v_new, jnp.where(move[:, None], 0.0, v))
@@ -303,18 +321,22 @@ def _window(
         tol = jnp.maximum(0.4, 2.0 * v0 * dt) + jnp.where(has_lead, jnp.abs(side), 0.0)
         reached = jnp.sqrt(jnp.sum((target - x_out) ** 2, axis=1)) < tol
         k_out = jnp.where(move & reached & ~last, k + 1, k)
-        if with_groups:
-            # a member in its slot is at most one corner behind its leader on the route
-            # (one it sees)
-            k_c = jnp.maximum(k_out, k_out[lead] - 1)
-            corner = jnp.take_along_axis(route, k_c[:, None, None].repeat(2, axis=2), axis=1)
-            k_out = jnp.where(in_slot & move & clear(x_out, corner[:, 0]), k_c, k_out)
+        # a member in its slot is at most one corner behind its leader on the route (one
+        # it sees)
+        k_c = jnp.maximum(k_out, k_out[lead] - 1)
+        corner = jnp.take_along_axis(route, k_c[:, None, None].repeat(2, axis=2), axis=1)
+        k_out = jnp.where(in_slot & move & clear(x_out, corner[:, 0]), k_c, k_out)
         sp_out = jnp.sqrt(jnp.sum(v_out**2, axis=1))
         hd_out = jnp.where((sp_out > 0.1)[:, None], v_out / jnp.maximum(sp_out, 1e-9)[:, None], hd)
         return (x_out, v_out, k_out, hd_out), x_out
 
-    steps = jnp.arange(1, n_steps + 1, dtype=jnp.float64)
-    return jax.lax.scan(step, state, (steps, plan))
+    def body(s, carry):
+        state, out = carry
+        state, x_out = step(state, ((s + 1).astype(jnp.float64), plan[s]))
+        return state, out.at[s].set(x_out)
+
+    out = jnp.zeros(plan.shape, state[0].dtype)
+    return jax.lax.fori_loop(0, n_steps, body, (state, out))
 
 
 def _bucket(n: int, lo: int = 8) -> int:
@@ -471,7 +493,7 @@ def social_force_tracks(
     )
     stride = float(np.ptp(xy_all[:, 0])) + 2.0 * p.reach + 10.0
     shift = np.column_stack([scen * stride, np.zeros(n)])
-    m_max = _bucket(max(len(r) for r in routes), 4)
+    m_max = _bucket(max(len(r) for r in routes), 16)  # a few route widths: few programs
     route = np.zeros((n, m_max, 2))
     n_vert = np.zeros(n, np.int32)
     for i, r in enumerate(routes):
@@ -499,19 +521,36 @@ def social_force_tracks(
     for w0, act in zip(w_start, active, strict=True):
         if act.size == 0:
             continue
-        nb = _bucket(act.size, 16)  # padded to a power of two: a few compiled programs
-        pad = np.r_[act, np.full(nb - act.size, act[0])]
-        live_pad = np.r_[np.ones(act.size, bool), np.zeros(nb - act.size, bool)]
+        # each artefact's slot (padded to a power of two: a few compiled programs); many
+        # small scenarios: a block of slots per scenario, all pairs within blocks
+        per_scene = int(np.bincount(scen[act]).max())
+        block = _bucket(per_scene, 4) if act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX else 0
+        if block:
+            first_in, rank = np.unique(scen[act], return_index=True, return_inverse=True)[1:]
+            rank = rank.ravel()  # act is sorted by scenario: each scenario a run
+            slot = rank * block + (np.arange(act.size) - first_in[rank])
+            nb = _bucket(first_in.size, 16) * block
+        else:
+            slot = np.arange(act.size)
+            nb = _bucket(act.size, 16)
+        pad = np.full(nb, act[0])
+        pad[slot] = act
+        live_pad = np.zeros(nb, bool)
+        live_pad[slot] = True
 
         def take(a, pad=pad):
             return jnp.asarray(a[pad])
 
         state = (take(x), take(v), take(k), take(hd))
+        slot_of = np.full(n, -1)
+        slot_of[act] = slot
 
-        def local(j, act=act, nb=nb):
-            loc = np.minimum(np.searchsorted(act, j[act]), act.size - 1)
-            loc = np.where(act[loc] == j[act], loc, np.arange(act.size))
-            return jnp.asarray(np.r_[loc, np.arange(act.size, nb)].astype(np.int32))
+        def local(j, act=act, slot=slot, slot_of=slot_of, nb=nb):
+            """Slot of each slot's leader (or member ahead): itself when not in the window."""
+            loc = np.arange(nb)
+            there = slot_of[j[act]]
+            loc[slot] = np.where(there >= 0, there, slot)
+            return jnp.asarray(loc.astype(np.int32))
 
         form = (
             local(leader), local(ahead), take(side),
@@ -519,8 +558,10 @@ def social_force_tracks(
         )  # fmt: skip
         t_on_w = np.where(live_pad, t_on[pad], np.inf)
         tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
+        # the steps anybody is alive in (all of them unless everybody leaves in this window)
+        n_run = int(np.searchsorted(tt, t_off[act].max(), side="left"))
         plan = np.zeros((WINDOW_STEPS, nb, 2))
-        for c, i in enumerate(pad[: act.size]):
+        for c, i in zip(slot, act, strict=True):
             if kin[i]:
                 a, b = start[i], stop[i]
                 plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
@@ -528,15 +569,15 @@ def social_force_tracks(
         (xf, vf, kf, hf), xs = _window(
             state, take(route), take(n_vert), take(v0), jnp.asarray(t_on_w),
             take(t_off), take(kin), jnp.asarray(plan), take(shift), form, w0, dt, p_j, walls,
-            WINDOW_STEPS, n_y, nb <= ALL_PAIRS_MAX, bool((gid[act] >= 0).any()),
+            jnp.int32(n_run), jnp.int32(n_y), nb <= ALL_PAIRS_MAX, block,
         )  # fmt: skip
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
-        x[act], v[act], k[act] = xf[: act.size], vf[: act.size], kf[: act.size]
-        hd[act] = np.asarray(hf)[: act.size]
+        x[act], v[act], k[act] = xf[slot], vf[slot], kf[slot]
+        hd[act] = np.asarray(hf)[slot]
         alive = (tt[:, None] >= t_on[act][None, :]) & (tt[:, None] < t_off[act][None, :])
         si, ai = np.nonzero(alive)
         sim_t.append(tt[si])
-        sim_x.append(xs[si, ai] - shift[act[ai]])
+        sim_x.append(xs[si, slot[ai]] - shift[act[ai]])
         sim_i.append(act[ai])
     st = np.concatenate(sim_t) if sim_t else np.zeros(0)
     sx = np.concatenate(sim_x) if sim_x else np.zeros((0, 2))

@@ -61,7 +61,8 @@ def _behaviour(
     seed: int, idata: Any, log: LifecycleLog, grid: Any, features: tuple[str, ...],
     catalogue: Any, say: Any, notes: list[str],
 ) -> Any:  # fmt: skip
-    """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``."""
+    """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``;
+    the map used and the motion checks of a labelled table (None without labels)."""
     from are_stats.environment import OccupancyGrid
 
     tracks = log.tracks
@@ -84,7 +85,7 @@ def _behaviour(
         )
     except NoWalkersError as err:  # people who only stand: no walking to learn
         notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
-        return idata, grid
+        return idata, grid, None
     idata = attach_behaviour(idata, bfit)
     say("interaction (social force) from the tracks")
     learned = None
@@ -95,16 +96,17 @@ def _behaviour(
     else:
         idata.behaviour.attrs.update(interaction_attrs(learned, info))
     say("realism and displacement errors against the tracks")
-    _attach_motion_tables(seed, idata, bfit, learned, tracks, grid)
-    return idata, grid
+    checks = _attach_motion_tables(seed, idata, bfit, learned, tracks, grid)
+    return idata, grid, checks
 
 
 def _attach_motion_tables(
     seed: int, idata: Any, bfit: Any, learned: Any, tracks: Any, grid: Any
-) -> None:
+) -> tuple[Any, Any] | None:
     """Realism and displacement errors against the log's tracks, stored in the fit so that
     ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
-    store the per-class motion rows (median speed, fraction still: issue 31)."""
+    store the per-class motion rows (median speed, fraction still: issue 31); their motion
+    checks (table, replicates) are returned for the report to reuse (None without labels)."""
     # the realism table generates through the one assembly: the criticism's exception to
     # the one-way imports (fitting -> scenarios), imported when used
     from are_stats.scenarios import realism_features, realism_summary, realism_table
@@ -130,11 +132,14 @@ def _attach_motion_tables(
     observed = realism_summary(realism_features(xy, dt, grid))
     idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
     if "label" not in tracks.columns:
-        return
-    _, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+        return None
+    # the report's motion checks (write_motion_report) draw with the same key: computed
+    # once here and handed on with the fit
+    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
     per_class = class_motion_checks(tracks, reps)
     if per_class is not None:
         idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
+    return table, reps
 
 
 def fit_log(
@@ -223,10 +228,11 @@ def fit_log(
         classes=None if labelled is None else labelled[0],
     )  # fmt: skip
     notes: list[str] = []
+    checks = None
     if tracks is not None:
         if seed is None:
             seed = int(np.asarray(jax.random.key_data(key)).ravel()[-1])
-        idata, grid = _behaviour(seed, idata, log, grid, features, catalogue, say, notes)
+        idata, grid, checks = _behaviour(seed, idata, log, grid, features, catalogue, say, notes)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep = log.report()
@@ -239,4 +245,4 @@ def fit_log(
     if notes:
         stamp["fit_notes"] = "\n".join(notes)
     idata.posterior.attrs.update(stamp)
-    return dataclasses.replace(fit_from_idata(idata, log.source), grid=grid)
+    return dataclasses.replace(fit_from_idata(idata, log.source), grid=grid, motion_checks=checks)

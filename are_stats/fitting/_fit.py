@@ -178,6 +178,12 @@ class Fit:
     grid : OccupancyGrid or None
         The map the behaviour and its criticism used (in memory after
         :func:`~are_stats.fitting.fit_log`; None for a fit read from a file).
+    motion_checks : (pandas.DataFrame, pandas.DataFrame) or None
+        The posterior-predictive motion checks of a labelled tracks table
+        (:func:`~are_stats.fitting.motion_checks`: the table and the replicates' statistics)
+        that :func:`~are_stats.fitting.fit_log` computed for the per-class rows, in memory
+        only, so that :func:`~are_stats.fitting.write_motion_report` does not draw them again
+        (None for a fit read from a file, or without labels).
     """
 
     idata: Any
@@ -203,6 +209,7 @@ class Fit:
     class_share_model: str | None = None
     time_resolution: float = 0.1
     grid: Any = None
+    motion_checks: tuple[Any, Any] | None = None
 
     def draws(self, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
         """``(chain * draw, ...)`` posterior draws of ``names`` (those present)."""

@@ -118,8 +118,12 @@ def write_motion_report(
     if bfit is None or grid is None:
         raise ValueError("fit: expected a fit from tracks with its behaviour and map (fit_log)")
     key = jax.random.key(seed)
-    # the same draws as fit_log's per-class motion rows (the same key)
-    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    # the same draws as fit_log's per-class motion rows (the same key): the fit's own when
+    # fit_log computed them (a labelled table), else drawn here
+    if fit.motion_checks is not None:
+        table, reps = fit.motion_checks
+    else:
+        table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names

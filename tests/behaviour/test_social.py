@@ -107,6 +107,7 @@ def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch):
     crowd = _crowd(3, 40)
     pairs = social_force_tracks(crowd, dt=0.1)
     monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 0)
+    monkeypatch.setattr(_social, "BLOCK_MAX", 0)  # one scene: no blocks either
     cells = social_force_tracks(crowd, dt=0.1)
     np.testing.assert_allclose(cells[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
     assert np.hypot(*(cells[["x", "y"]].to_numpy() - crowd[["x", "y"]].to_numpy()).T).max() > 0.1
@@ -126,3 +127,52 @@ def test_scenarios_do_not_meet_and_kinematic_artefacts_keep_their_plan():
     walker = out[out["id"] == 0]
     assert _pair(out, 0, 1).min() > 2 * SocialForce().radius  # the walker alone gave way
     assert np.abs(walker["y"]).max() > 0.3
+
+
+def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():
+    """On one map the walk compiles once per crowd size: the extent of the tracks, the
+    routes' corners, the number of steps and whether anybody walks in a group are data,
+    not program shapes (issue 29: the realism stage walked its models with a program
+    each)."""
+    from are_stats.behaviour import _social
+
+    grid = OccupancyGrid(np.zeros((400, 500)), 0.1)  # 50 x 40 m of open ground
+    first = _plan([(0, 0.0, (1, 1), (14, 1), 1.3), (1, 0.0, (14, 1.05), (1, 1.05), 1.3)], 0.1, 3)
+    social_force_tracks(first, grid=grid, dt=0.1)
+    compiled = _social._window._cache_size()
+    wide = _plan(
+        [(0, 0.0, (1, 1), (40, 12), 1.2), (1, 2.0, (40, 1), (1, 14), 1.4),
+         (2, 0.0, (5, 5), (5, 30), 1.1)], 0.1, 1,
+    )  # fmt: skip
+    t = np.arange(0.0, 6.01, 0.5)  # a zigzag of 11 corners
+    zig = pd.DataFrame(
+        {"id": 3, "t": t, "x": 0.5 * t, "y": 20.0 + (np.arange(t.size) % 2), "yaw": 0.0}
+    )
+    wide = pd.concat([wide, zig], ignore_index=True)
+    alone = social_force_tracks(wide, grid=grid, dt=0.1)
+    grouped = social_force_tracks(wide, grid=grid, dt=0.1, groups=np.where(wide["id"] < 2, 7, -1))
+    assert _social._window._cache_size() == compiled
+    # the walkers who are in no group walk as they do without groups
+    np.testing.assert_allclose(
+        grouped[grouped["id"] >= 2][["x", "y"]], alone[alone["id"] >= 2][["x", "y"]], atol=1e-9
+    )
+
+
+def test_many_small_scenarios_walk_as_they_do_with_all_pairs(monkeypatch):
+    """Past ALL_PAIRS_MAX people in small scenarios, each scenario gets a block of slots
+    and all pairs within it: the same tracks as all pairs over everybody (group members
+    included, whose leaders sit in their own block)."""
+    from are_stats.behaviour import _social
+
+    scenes = []
+    for s in range(100):  # 100 scenarios of 2-5 people: 350, over 128 in a window
+        crowd = _crowd(100 + s, 2 + s % 4)
+        scenes.append(crowd.assign(scenario=s, x=crowd["x"] / 3, y=crowd["y"] / 3))
+    plan = pd.concat(scenes, ignore_index=True)
+    groups = np.where(plan["id"] < 2, plan["scenario"], -1)  # the first two walk together
+    blocks = social_force_tracks(plan, dt=0.1, groups=groups)
+    monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 10**6)
+    pairs = social_force_tracks(plan, dt=0.1, groups=groups)
+    np.testing.assert_allclose(blocks[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
+    moved = np.hypot(*(blocks[["x", "y"]].to_numpy() - plan[["x", "y"]].to_numpy()).T)
+    assert moved.max() > 0.1  # they did give way to each other

@@ -160,3 +160,55 @@ def test_group_spacing_enters_the_realism_score():
     assert row["constant velocity"] > 0.5
     alone = realism_table(jax.random.key(0), log[log["id"] % 2 == 0], None, n_replicates=1)
     assert np.isnan(alone.loc["group spacing (m)", "constant velocity"])
+
+
+def test_interactive_features_match_a_brute_force_over_every_frame():
+    """Nearest person, collision and time to collision of a crowd in two scenarios against
+    every pair of each (scenario, time) frame computed directly; a person alone in its
+    frame has no value."""
+    rng = np.random.default_rng(7)
+    rows = []
+    for scen in (0, 1):
+        for i in range(12):
+            t0 = rng.integers(0, 20) * 0.4
+            t = t0 + 0.4 * np.arange(rng.integers(3, 30))
+            p0, v = rng.uniform(0, 15, 2), rng.normal(0, 1.0, 2)
+            xy = p0 + (t - t0)[:, None] * v
+            rows.append(
+                pd.DataFrame({"scenario": scen, "id": i, "t": t, "x": xy[:, 0], "y": xy[:, 1]})
+            )
+    tracks = pd.concat(rows, ignore_index=True)
+    from are_stats.scenarios._realism import _resample
+
+    got = realism_features(tracks, 0.4, radius=0.3)
+    near, hit, ttc = [], [], []
+    tab = _resample(tracks, 0.4)
+    vel = np.full((len(tab), 2), np.nan)
+    for _, g in tab.groupby(["scenario", "id"]):
+        vel[g.index[1:]] = np.diff(g[["x", "y"]].to_numpy(), axis=0) / 0.4
+    ok = np.isfinite(vel).all(axis=1)
+    for _, g in tab[ok].groupby(["scenario", "t"]):
+        if len(g) < 2:
+            continue
+        xy, v = g[["x", "y"]].to_numpy(), vel[g.index]
+        for a in range(len(g)):
+            d = np.hypot(*(xy - xy[a]).T)
+            d[a] = np.inf
+            near.append(min(d.min(), 10.0))
+            hit.append(float(d.min() < 0.6))
+            best = 10.0
+            for b in np.flatnonzero(d <= 10.0):
+                p, w = xy[b] - xy[a], v[b] - v[a]
+                qa, qb, qc = w @ w, 2 * p @ w, p @ p - 0.36
+                disc = qb * qb - 4 * qa * qc
+                t_hit = (-qb - np.sqrt(max(disc, 0))) / (2 * qa) if qa > 1e-12 else 10.0
+                if qc <= 0:
+                    t_hit = 0.0
+                elif not (disc >= 0 and qa > 1e-12 and t_hit >= 0):
+                    t_hit = 10.0
+                best = min(best, t_hit, 10.0)
+            ttc.append(best)
+    assert len(near) > 100
+    for name, want in (("nearest person (m)", near), ("collision", hit),
+                       ("time to collision (s)", ttc)):  # fmt: skip
+        np.testing.assert_allclose(np.sort(got[name]), np.sort(want), atol=1e-9)
