@@ -289,7 +289,7 @@ def run_laplace(
     # a flat or non-convex direction (a mode on a boundary of the data's support): a wide
     # unit variance there, so that the importance weights can still reach the posterior
     lam = np.where(np.isfinite(lam) & (lam > 1e-8), lam, 1.0)
-    eps = np.asarray(jax.random.normal(key, (int(num_draws), d), dtype=jnp.float64))
+    eps = _numpy_rng(key).standard_normal((int(num_draws), d))
     zs = mode + (eps / np.sqrt(lam)) @ vec.T
     log_q = -0.5 * np.sum(eps**2, axis=1) - 0.5 * d * np.log(2 * np.pi) + 0.5 * np.sum(np.log(lam))
     pe, samples, ll = evaluate(zs)
@@ -298,6 +298,12 @@ def run_laplace(
     converged = bool(res.success) and bool(np.isfinite(res.fun)) and not on_bound
     mode_d = {n: v[0] for n, v in _unflat_batch(mode[None], names, shapes).items()}
     return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name)
+
+
+def _numpy_rng(key: Any) -> np.random.Generator:
+    """A NumPy generator seeded by a JAX key's bits: the draws' randomness without a
+    compiled JAX sampler per shape (each a small XLA compilation in a fresh process)."""
+    return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel().tolist())
 
 
 def _hessian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -418,9 +424,9 @@ def importance_resample(
     ess = float(1.0 / np.sum(w**2))
     if not k_hat < max_k:
         return Resampled(None, k_hat, ess)
-    k_u, k_perm = jax.random.split(key)
-    u = (float(jax.random.uniform(k_u, dtype=jnp.float64)) + np.arange(num_draws)) / num_draws
+    rng = _numpy_rng(key)
+    u = (rng.random() + np.arange(num_draws)) / num_draws
     cdf = np.cumsum(w)
     idx = np.minimum(np.searchsorted(cdf / cdf[-1], u, side="right"), w.size - 1)
-    idx = np.flatnonzero(ok)[idx[np.asarray(jax.random.permutation(k_perm, num_draws))]]
+    idx = np.flatnonzero(ok)[idx[rng.permutation(num_draws)]]
     return Resampled({n: np.asarray(v)[idx] for n, v in run.samples.items()}, k_hat, ess)

@@ -55,6 +55,8 @@ from tests.benchmarks.bench_traffic_nuts import _env, _pymc_available, _run_work
 
 LOG = "courtyard_traffic"
 BANNER = re.compile(r"slow_operation_alarm|Very slow compile")
+#: JAX's own line per XLA compilation (``JAX_LOG_COMPILES=1`` in the child).
+COMPILED = re.compile(r"Finished XLA compilation of (.*) in ([0-9.eE+-]+) sec")
 
 
 def _children_cpu() -> float:
@@ -65,6 +67,7 @@ def _children_cpu() -> float:
 def _run(args: list[str], home: Path) -> dict[str, Any]:
     """One CLI run in a fresh process on the cache ``home``: wall, CPU, load, stages."""
     env = _env(home)
+    env["JAX_LOG_COMPILES"] = "1"  # one line per XLA compilation: counted, then left out
     load0, cpu0 = os.getloadavg()[0], _children_cpu()
     proc, wall = _spawn([sys.executable, "-m", "are_stats", *args], env)
     if proc.returncode != 0:
@@ -72,6 +75,9 @@ def _run(args: list[str], home: Path) -> dict[str, Any]:
     record = home / "are_stats" / "stage_times.json"
     stages = json.loads(record.read_text()) if record.is_file() else {}
     chosen = re.search(r"chosen models: (.*)", proc.stdout)
+    compiled = [float(m.group(2)) for m in COMPILED.finditer(proc.stderr)]
+    jax_log = re.compile(r"^(Finished|Compiling|Persistent compilation cache|Not writing)")
+    stderr = [ln for ln in proc.stderr.splitlines() if ln.strip() and not jax_log.match(ln)]
     return {
         "wall": wall,
         "cpu": _children_cpu() - cpu0,
@@ -79,8 +85,21 @@ def _run(args: list[str], home: Path) -> dict[str, Any]:
         "stages": stages,
         "chosen": chosen.group(1).strip() if chosen else "",
         "banner": bool(BANNER.search(proc.stderr)),
-        "stderr_lines": len([ln for ln in proc.stderr.splitlines() if ln.strip()]),
+        "stderr_lines": len(stderr),
+        "compiles": (len(compiled), sum(compiled)),
     }
+
+
+def _posterior_how(fit: Path) -> str:
+    """How the chosen traffic models' posteriors were drawn (the fit's attributes)."""
+    import xarray as xr
+
+    try:
+        attrs = xr.open_dataset(fit, group="posterior").attrs
+    except (OSError, ValueError):
+        return ""
+    names = ("traffic_arrival_posterior", "traffic_lifetime_posterior")
+    return "; ".join(f"{n[8:]}: {attrs[n]}" for n in names if n in attrs)
 
 
 def _nuts_times(fit: Path) -> str:
@@ -99,7 +118,8 @@ def _print_run(label: str, r: dict[str, Any], previous: dict[str, Any] | None) -
     print(
         f"{label}: wall {r['wall']:.1f} s, CPU {r['cpu']:.1f} s, load {r['load'][0]:.1f} -> "
         f"{r['load'][1]:.1f}; chosen: {r['chosen'] or '-'}; XLA banner on stderr: "
-        f"{'YES' if r['banner'] else 'no'} ({r['stderr_lines']} stderr lines)",
+        f"{'YES' if r['banner'] else 'no'} ({r['stderr_lines']} other stderr lines); XLA "
+        f"compilations {r['compiles'][0]} ({r['compiles'][1]:.1f} s)",
         flush=True,
     )
     if previous is None:  # the cold run: its stages
@@ -120,6 +140,9 @@ def _bench_fit(tmp: Path, compare: str) -> dict[str, dict]:
             times = _nuts_times(fit)
             if times:
                 print(f"    paper's NUTS fit: {times}")
+            how = _posterior_how(fit)
+            if how:
+                print(f"    {how}")
     return out
 
 
