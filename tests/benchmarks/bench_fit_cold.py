@@ -40,7 +40,8 @@ gamma-stays NUTS process 77.7 s ours, 83.4 s PyMC (1.07x). The docs' table has t
 With the chosen models' posteriors importance-resampled from their Laplace draws (no NUTS
 program in a default fit; 2026-11-27, main and the branch back to back at load 15-28, the
 same command in fresh processes, timed by ``/usr/bin/time``, not by this script): cold CPU
-29.0 s vs 108.0 s (wall 286 vs 891 s), repeated CPU 13.5 s vs 34.2 s (wall 86 vs 288 s),
+29.0 s vs 108.0 s (wall 286 vs 891 s), repeated CPU 13.5 s vs 34.2 s (wall 86 vs 288 s;
+again at load 7-9: 14.0 s vs 35.8 s, wall 32 vs 69 s),
 XLA compilations in the cold run 38 vs 49 (9 vs 13 ahead-of-time programs), the same
 choices. The script now also counts the XLA compilations and prints how the chosen
 posteriors were drawn.
