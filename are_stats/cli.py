@@ -250,7 +250,8 @@ def fit(
         "laplace",
         "--compare",
         help="How --method nuts compares the traffic candidates: laplace (PSIS-LOO from "
-        "each one's Laplace approximation, then NUTS for the chosen) | nuts (all sampled).",
+        "each one's Laplace approximation; the chosen one's draws importance-resampled, NUTS "
+        "where their Pareto k is 0.7 or more) | nuts (all sampled).",
     ),
     stationary_start: bool = typer.Option(
         True,

@@ -121,7 +121,13 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     read_fit,
     write_fit,
 )
-from are_stats.fitting._laplace import LaplaceRun, laplace_loo, run_laplace  # noqa: E402
+from are_stats.fitting._laplace import (  # noqa: E402
+    LaplaceRun,
+    Resampled,
+    importance_resample,
+    laplace_loo,
+    run_laplace,
+)
 from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts  # noqa: E402
 from are_stats.fitting._psis import psislw  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
@@ -162,6 +168,8 @@ __all__ += [
     "POSITION_CHOICES",
     "NutsPrefetch",
     "LaplaceRun",
+    "Resampled",
+    "importance_resample",
     "laplace_loo",
     "run_laplace",
     "psislw",

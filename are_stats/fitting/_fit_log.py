@@ -107,11 +107,12 @@ class FitSettings:
         ``traffic_model_choice`` says which ran).
     compare : {"laplace", "nuts"}
         ``method="nuts"``: how the traffic candidates are compared. ``"laplace"``: by
-        importance-sampled PSIS-LOO from each one's Laplace approximation, then NUTS
-        samples the chosen model alone (one or two NUTS programs to compile instead of
-        one per candidate); ``"nuts"``: every candidate sampled by NUTS and compared by
-        PSIS-LOO over its draws. ``method="em"`` always compares by the Laplace
-        approximation.
+        importance-sampled PSIS-LOO from each one's Laplace approximation, then the chosen
+        model's Laplace draws importance-resampled (NUTS samples it instead where their
+        Pareto k is 0.7 or more; ``traffic_arrival_posterior`` and
+        ``traffic_lifetime_posterior`` say which ran); ``"nuts"``: every candidate
+        sampled by NUTS and compared by PSIS-LOO over its draws. ``method="em"`` always
+        compares by the Laplace approximation.
     """
 
     method: str = "nuts"

@@ -48,7 +48,8 @@ from are_stats.fitting._psis import psislw
 from are_stats.traffic import aot_compile
 
 __all__ = [
-    "LaplaceRun", "laplace_dimension", "laplace_loo", "laplace_program", "run_laplace",
+    "RESAMPLE_MAX_K", "LaplaceRun", "Resampled", "importance_resample", "laplace_dimension",
+    "laplace_loo", "laplace_program", "run_laplace",
 ]  # fmt: skip
 
 
@@ -57,6 +58,10 @@ __all__ = [
 Z_BOUND = 12.0
 #: Iterations of the mode search at most (a well-posed candidate needs a few dozen).
 MAX_ITER = 200
+#: Largest Pareto ``k`` of the importance weights whose resampled draws stand for the
+#: posterior (Vehtari et al. 2024, "Pareto smoothed importance sampling": above 0.7 the
+#: estimates' error no longer shrinks at the Monte Carlo rate).
+RESAMPLE_MAX_K = 0.7
 
 
 class LaplaceRun(NamedTuple):
@@ -115,9 +120,34 @@ def _init_z(model: Callable, kwargs: dict, init: dict | None) -> dict:
     The latent sites and their supports are read off an abstract trace of the model
     (``jax.eval_shape``: shapes only, nothing computed or compiled).
     """
-    from numpyro import handlers
     from numpyro.distributions.transforms import biject_to
 
+    z0 = {}
+    found = _latent_sites(model, kwargs)
+    for name, (support, shape) in found.items():
+        t = biject_to(support)
+        if init and name in init:
+            z0[name] = np.asarray(t.inv(jnp.asarray(init[name], jnp.float64)), np.float64)
+        else:
+            z0[name] = np.zeros(t.inverse_shape(shape))
+    return z0
+
+
+#: The latent sites of a model by (model, static arguments, array shapes): tracing the
+#: model abstractly takes a few tenths of a second, and each candidate asks three times
+#: (its size, its program, its start).
+_SITES: dict[tuple, dict[str, tuple[Any, tuple]]] = {}
+
+
+def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Any, tuple]]:
+    """``name -> (support, shape)`` of the latent sample sites of ``model(**kwargs)``, read
+    off an abstract trace (``jax.eval_shape``: shapes only), kept per model and shapes."""
+    from numpyro import handlers
+
+    arrays, treedef, static = _split_kwargs(kwargs)
+    key = _hashable((_fn_key(model), treedef, static, _shapes(arrays)))
+    if key is not None and key in _SITES:
+        return _SITES[key]
     found: dict[str, tuple[Any, tuple]] = {}
 
     def trace() -> int:
@@ -130,14 +160,9 @@ def _init_z(model: Callable, kwargs: dict, init: dict | None) -> dict:
 
     with TRACE_LOCK:  # numpyro's handlers are one global stack: one trace at a time
         jax.eval_shape(trace)
-    z0 = {}
-    for name, (support, shape) in found.items():
-        t = biject_to(support)
-        if init and name in init:
-            z0[name] = np.asarray(t.inv(jnp.asarray(init[name], jnp.float64)), np.float64)
-        else:
-            z0[name] = np.zeros(t.inverse_shape(shape))
-    return z0
+    if key is not None:
+        _SITES[key] = found
+    return found
 
 
 def laplace_dimension(model: Callable[..., None], model_kwargs: dict, init: dict | None) -> int:
@@ -264,7 +289,7 @@ def run_laplace(
     # a flat or non-convex direction (a mode on a boundary of the data's support): a wide
     # unit variance there, so that the importance weights can still reach the posterior
     lam = np.where(np.isfinite(lam) & (lam > 1e-8), lam, 1.0)
-    eps = np.asarray(jax.random.normal(key, (int(num_draws), d), dtype=jnp.float64))
+    eps = _numpy_rng(key).standard_normal((int(num_draws), d))
     zs = mode + (eps / np.sqrt(lam)) @ vec.T
     log_q = -0.5 * np.sum(eps**2, axis=1) - 0.5 * d * np.log(2 * np.pi) + 0.5 * np.sum(np.log(lam))
     pe, samples, ll = evaluate(zs)
@@ -273,6 +298,12 @@ def run_laplace(
     converged = bool(res.success) and bool(np.isfinite(res.fun)) and not on_bound
     mode_d = {n: v[0] for n, v in _unflat_batch(mode[None], names, shapes).items()}
     return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name)
+
+
+def _numpy_rng(key: Any) -> np.random.Generator:
+    """A NumPy generator seeded by a JAX key's bits: the draws' randomness without a
+    compiled JAX sampler per shape (each a small XLA compilation in a fresh process)."""
+    return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel().tolist())
 
 
 def _hessian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -329,3 +360,73 @@ def laplace_loo(run: LaplaceRun) -> tuple[np.ndarray, np.ndarray]:
     log_w, k = psislw(base[None, :] - ll.T, 1.0)
     elpd = logsumexp(log_w + ll.T, axis=1)
     return np.asarray(elpd, float), np.atleast_1d(np.asarray(k, float))
+
+
+class Resampled(NamedTuple):
+    """Posterior draws by importance resampling of a Laplace approximation's draws.
+
+    Attributes
+    ----------
+    samples : dict of str to (S, ...) ndarray, or None
+        The resampled draws (every site of :attr:`LaplaceRun.samples`); None when the
+        weights are not reliable (Pareto ``k`` at least ``max_k``, or the mode search did
+        not converge): the caller samples the posterior otherwise (NUTS).
+    k_hat : float
+        Pareto ``k`` of the weights' tail (inf when it could not be estimated).
+    ess : float
+        Effective sample size of the smoothed weights, ``1 / sum_s w_s^2``.
+    """
+
+    samples: dict | None
+    k_hat: float
+    ess: float
+
+
+def importance_resample(
+    key: Any, run: LaplaceRun, num_draws: int, max_k: float = RESAMPLE_MAX_K
+) -> Resampled:
+    """Draws of the posterior from a Laplace approximation's draws, by PSIS resampling.
+
+    The draws ``theta_s`` of ``q`` (the Gaussian at the mode) carry the log weights
+    ``log p(theta_s, y) - log q(theta_s)`` (:attr:`LaplaceRun.log_ratio`); Pareto
+    smoothing (:func:`~are_stats.fitting.psislw`) stabilises them and estimates ``k``,
+    whose value says whether ``q`` covers the posterior's tails. With ``k < max_k``
+    ``num_draws`` indices are drawn by systematic resampling with probabilities ``w_s``
+    (then shuffled), so that the draws' averages estimate posterior expectations (a
+    draw may repeat: the information is that of ``ess`` independent draws).
+
+    Parameters
+    ----------
+    key : jax PRNG key
+        The resampling's randomness.
+    run : LaplaceRun
+        A converged Laplace approximation and its draws (:func:`run_laplace`).
+    num_draws : int
+        Draws returned.
+    max_k : float
+        Largest Pareto ``k`` accepted.
+
+    Returns
+    -------
+    Resampled
+    """
+    num_draws = int(num_draws)
+    ok = np.isfinite(run.log_ratio)
+    if not run.converged or ok.sum() < 5 or num_draws < 1:
+        return Resampled(None, float("inf"), 0.0)
+    lr = run.log_ratio[ok]
+    if np.ptp(lr) <= 1e-12 * max(1.0, float(np.max(np.abs(lr)))):
+        log_w, k_hat = np.zeros(lr.size), 0.0  # q is the posterior: equal weights, no tail
+    else:
+        log_w, k = psislw(lr, 1.0)
+        k_hat = float(np.asarray(k))
+    w = np.exp(log_w - logsumexp(log_w))
+    ess = float(1.0 / np.sum(w**2))
+    if not k_hat < max_k:
+        return Resampled(None, k_hat, ess)
+    rng = _numpy_rng(key)
+    u = (rng.random() + np.arange(num_draws)) / num_draws
+    cdf = np.cumsum(w)
+    idx = np.minimum(np.searchsorted(cdf / cdf[-1], u, side="right"), w.size - 1)
+    idx = np.flatnonzero(ok)[idx[rng.permutation(num_draws)]]
+    return Resampled({n: np.asarray(v)[idx] for n, v in run.samples.items()}, k_hat, ess)

@@ -311,11 +311,19 @@ def arrival_units(
 
 
 def _log_convolution_powers(log_p: jnp.ndarray, c_max: int) -> jnp.ndarray:
-    """``log p^{*k}(c)`` for ``k = 1..c_max`` (rows) and ``c = 0..c_max`` (columns)."""
+    """``log p^{*k}(c)`` for ``k = 1..c_max`` (rows) and ``c = 0..c_max`` (columns).
+
+    Each power is the previous one times the lower-triangular Toeplitz matrix of ``p``
+    (``T[c, j] = p[c - j]``, the convolution truncated at ``c_max``): a matrix product,
+    not ``jnp.convolve``, whose batched form (``vmap`` over draws or chains) XLA's CPU
+    backend runs as a grouped convolution 15-100 times slower.
+    """
     p = jnp.exp(log_p)
+    lag = jnp.arange(c_max + 1)[:, None] - jnp.arange(c_max + 1)[None, :]
+    toeplitz = jnp.where(lag >= 0, p[jnp.clip(lag, 0, c_max)], 0.0)
 
     def body(prev, _):
-        nxt = jnp.convolve(prev, p)[: c_max + 1]
+        nxt = toeplitz @ prev
         return nxt, nxt
 
     _, rows = jax.lax.scan(body, jnp.zeros(c_max + 1).at[0].set(1.0), None, length=c_max)

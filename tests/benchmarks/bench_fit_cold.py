@@ -36,6 +36,15 @@ cold CPU 68.9 s vs 92.3 s, repeated wall 46 s vs 61 s (a first round, noisier: c
 107.5 vs 108.8 s, repeated wall 104 vs 190 s). The peer part with PyMC 5.28.5 installed
 beside the environment (``pip install --target DIR pymc``, DIR on ``PYTHONPATH``): cold
 gamma-stays NUTS process 77.7 s ours, 83.4 s PyMC (1.07x). The docs' table has the stages.
+
+With the chosen models' posteriors importance-resampled from their Laplace draws (no NUTS
+program in a default fit; 2026-11-27, main and the branch back to back at load 15-28, the
+same command in fresh processes, timed by ``/usr/bin/time``, not by this script): cold CPU
+29.0 s vs 108.0 s (wall 286 vs 891 s), repeated CPU 13.5 s vs 34.2 s (wall 86 vs 288 s;
+again at load 7-9: 14.0 s vs 35.8 s, wall 32 vs 69 s),
+XLA compilations in the cold run 38 vs 49 (9 vs 13 ahead-of-time programs), the same
+choices. The script now also counts the XLA compilations and prints how the chosen
+posteriors were drawn.
 """
 
 from __future__ import annotations
@@ -55,6 +64,8 @@ from tests.benchmarks.bench_traffic_nuts import _env, _pymc_available, _run_work
 
 LOG = "courtyard_traffic"
 BANNER = re.compile(r"slow_operation_alarm|Very slow compile")
+#: JAX's own line per XLA compilation (``JAX_LOG_COMPILES=1`` in the child).
+COMPILED = re.compile(r"Finished XLA compilation of (.*) in ([0-9.eE+-]+) sec")
 
 
 def _children_cpu() -> float:
@@ -65,6 +76,7 @@ def _children_cpu() -> float:
 def _run(args: list[str], home: Path) -> dict[str, Any]:
     """One CLI run in a fresh process on the cache ``home``: wall, CPU, load, stages."""
     env = _env(home)
+    env["JAX_LOG_COMPILES"] = "1"  # one line per XLA compilation: counted, then left out
     load0, cpu0 = os.getloadavg()[0], _children_cpu()
     proc, wall = _spawn([sys.executable, "-m", "are_stats", *args], env)
     if proc.returncode != 0:
@@ -72,6 +84,9 @@ def _run(args: list[str], home: Path) -> dict[str, Any]:
     record = home / "are_stats" / "stage_times.json"
     stages = json.loads(record.read_text()) if record.is_file() else {}
     chosen = re.search(r"chosen models: (.*)", proc.stdout)
+    compiled = [float(m.group(2)) for m in COMPILED.finditer(proc.stderr)]
+    jax_log = re.compile(r"^(Finished|Compiling|Persistent compilation cache|Not writing)")
+    stderr = [ln for ln in proc.stderr.splitlines() if ln.strip() and not jax_log.match(ln)]
     return {
         "wall": wall,
         "cpu": _children_cpu() - cpu0,
@@ -79,8 +94,21 @@ def _run(args: list[str], home: Path) -> dict[str, Any]:
         "stages": stages,
         "chosen": chosen.group(1).strip() if chosen else "",
         "banner": bool(BANNER.search(proc.stderr)),
-        "stderr_lines": len([ln for ln in proc.stderr.splitlines() if ln.strip()]),
+        "stderr_lines": len(stderr),
+        "compiles": (len(compiled), sum(compiled)),
     }
+
+
+def _posterior_how(fit: Path) -> str:
+    """How the chosen traffic models' posteriors were drawn (the fit's attributes)."""
+    import xarray as xr
+
+    try:
+        attrs = xr.open_dataset(fit, group="posterior").attrs
+    except (OSError, ValueError):
+        return ""
+    names = ("traffic_arrival_posterior", "traffic_lifetime_posterior")
+    return "; ".join(f"{n[8:]}: {attrs[n]}" for n in names if n in attrs)
 
 
 def _nuts_times(fit: Path) -> str:
@@ -99,7 +127,8 @@ def _print_run(label: str, r: dict[str, Any], previous: dict[str, Any] | None) -
     print(
         f"{label}: wall {r['wall']:.1f} s, CPU {r['cpu']:.1f} s, load {r['load'][0]:.1f} -> "
         f"{r['load'][1]:.1f}; chosen: {r['chosen'] or '-'}; XLA banner on stderr: "
-        f"{'YES' if r['banner'] else 'no'} ({r['stderr_lines']} stderr lines)",
+        f"{'YES' if r['banner'] else 'no'} ({r['stderr_lines']} other stderr lines); XLA "
+        f"compilations {r['compiles'][0]} ({r['compiles'][1]:.1f} s)",
         flush=True,
     )
     if previous is None:  # the cold run: its stages
@@ -120,6 +149,9 @@ def _bench_fit(tmp: Path, compare: str) -> dict[str, dict]:
             times = _nuts_times(fit)
             if times:
                 print(f"    paper's NUTS fit: {times}")
+            how = _posterior_how(fit)
+            if how:
+                print(f"    {how}")
     return out
 
 

@@ -366,7 +366,8 @@ def test_group_stats_match_the_per_group_loop(seed):
     assert _group_stats(big)["group_spread"] == 0.0
 
 
-# ---- ranked by the Laplace approximation, the chosen model sampled by NUTS (the default) --
+# ---- ranked by the Laplace approximation, the chosen model's Laplace draws importance-
+# ---- resampled (NUTS where their weights are unreliable): the default --
 
 
 @pytest.fixture(scope="module")
@@ -377,23 +378,23 @@ def ranked_fit(rich_log):
 
 
 def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
-    """Ranked by Laplace + importance-sampled PSIS-LOO, then NUTS for the chosen model
-    alone: the choices of the all-NUTS comparison, and the chosen posterior is a NUTS
-    posterior of the same model (the same program and key: equal within Monte Carlo error;
-    here even the same draws)."""
+    """Ranked by Laplace + importance-sampled PSIS-LOO, then the chosen model's Laplace
+    draws importance-resampled (Pareto k below 0.7 here): the choices of the all-NUTS
+    comparison, and the chosen posterior is the NUTS posterior within Monte Carlo error."""
     got = (ranked_fit.arrival_model, ranked_fit.lifetime_model, ranked_fit.position_model)
     assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
-    assert "chosen model's posterior by NUTS" in ranked_fit.attrs["model_choice"]
+    assert "importance resampling" in ranked_fit.attrs["model_choice"]
+    for attr in ("arrival_posterior", "lifetime_posterior"):
+        assert ranked_fit.attrs[attr].startswith("importance-resampled Laplace"), attr
     for name in ("event_rate", "stay_mean", "stay_shape", "group_size_probs"):
         a, b = ranked_fit.posterior[name], rich_fit.posterior[name]
         assert a.shape == b.shape
         mc = 4.0 * b.std(axis=(0, 1)) / np.sqrt(b.shape[0] * b.shape[1] / 10.0)
         assert np.all(np.abs(a.mean(axis=(0, 1)) - b.mean(axis=(0, 1))) <= mc + 1e-12), name
-    # the chosen rows carry the NUTS diagnostics, the others (Laplace only) none
-    for factor, chosen in (("arrivals", "groups"), ("lifetimes", "gamma")):
-        table = ranked_fit.tables[factor]
-        assert np.isfinite(table.loc[chosen, "r_hat"]), table
-        assert table.loc[chosen, "divergent"] == 0
+        assert np.all(np.abs(a.std(axis=(0, 1)) / b.std(axis=(0, 1)) - 1.0) < 0.3), name
+    # no NUTS ran: no row carries NUTS diagnostics
+    for factor in ("arrivals", "lifetimes"):
+        assert not np.isfinite(ranked_fit.tables[factor]["r_hat"]).any()
 
 
 @pytest.mark.parametrize(
@@ -435,8 +436,9 @@ def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, 
         if got != want and t.loc[got, "r_hat"] > 1.05:
             # NUTS is no reference where its chains did not mix: on this Weibull log (shape
             # 0.6) its Weibull run sticks (r_hat ~4), so sampling every candidate chose gamma;
-            # the ranked fit chose the true law and kept its Laplace draws, saying why
-            assert any("did not mix" in w for w in ranked.warnings), ranked.warnings
+            # the ranked fit chose the true law and kept its (resampled) Laplace draws
+            resampled = ranked.attrs[f"{factor[:-1]}_posterior"].startswith("importance-")
+            assert resampled or any("did not mix" in w for w in ranked.warnings), ranked.attrs
             shape = float(ranked.posterior["stay_shape"].mean())
             assert abs(shape - draw["stay_shape"]) < 0.1, shape
             return
