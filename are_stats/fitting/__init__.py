@@ -122,7 +122,14 @@ from are_stats.fitting._fit_log import (  # noqa: E402
     write_fit,
 )
 from are_stats.fitting._laplace import LaplaceRun, laplace_loo, run_laplace  # noqa: E402
-from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts  # noqa: E402
+from are_stats.fitting._nuts import (  # noqa: E402
+    NutsPrefetch,
+    NutsProgress,
+    NutsRun,
+    clock_progress,
+    nuts_warnings,
+    run_nuts,
+)
 from are_stats.fitting._psis import psislw  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
     PredictiveChecks,
@@ -161,6 +168,7 @@ __all__ += [
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
     "NutsPrefetch",
+    "NutsProgress",
     "LaplaceRun",
     "laplace_loo",
     "run_laplace",
@@ -173,6 +181,7 @@ __all__ += [
     "fit_traffic",
     "loo_pointwise",
     "nuts_warnings",
+    "clock_progress",
     "run_nuts",
     "DispersionTest",
     "KaplanMeier",
