@@ -369,7 +369,7 @@ def _chain_fn(
     ``step(chain_key, start, init, arrays, leaves, first, limit) -> (leaves, (z, stats))``:
     ``limit`` (at most ``chunk``) NUTS iterations from the state whose leaves are given
     (from :func:`start` itself when ``first``: the state's leaves are then ignored),
-    with the draws of the ``chunk`` slots (those past ``limit`` repeat the last state).
+    with the draws in the first ``limit`` of ``chunk`` slots.
     The state goes in and out as its flat leaves (a program kept by :mod:`jax.export`
     takes and gives only pytrees it knows).
     """
@@ -403,11 +403,18 @@ def _chain_fn(
         flat = jax.lax.cond(first, fresh, lambda: tuple(leaves))
         state, sample_kernel = jax.tree.unflatten(made["tree"], flat), made["sample"]
 
-        def body(s, j):
-            s = jax.lax.cond(j < limit, sample_kernel, lambda x: x, s)
-            return s, (s.z, {f: get(s) for f, get in getters.items()})
+        def record(s):
+            return s.z, {f: get(s) for f, get in getters.items()}
 
-        state, out = jax.lax.scan(body, state, jnp.arange(chunk))
+        def body(j, carry):  # a loop of ``limit`` iterations: no branch in it
+            s, out = carry
+            s = sample_kernel(s)
+            out = jax.tree.map(lambda b, x: b.at[j].set(x), out, record(s))
+            return s, out
+
+        # slots past ``limit`` keep the state's values (never read)
+        out = jax.tree.map(lambda x: jnp.broadcast_to(x, (chunk, *jnp.shape(x))), record(state))
+        state, out = jax.lax.fori_loop(0, limit, body, (state, out))
         return tuple(jax.tree.leaves(state)), out
 
     return first_state, step
