@@ -104,6 +104,10 @@ def test_a_stage_estimate_counts_down_and_ends_with_the_stage(tmp_path):
     assert status.words[-1] == "fitting: NUTS for groups ... 14 s, warm-up 50/500, about 20 s left"
     timer.now += 40.0  # past the estimate: never below a second
     assert clock._words().endswith("about 1 s left")
+    tell(NutsProgress("postprocess", 0, 0, None))
+    assert status.words[-1] == (
+        "fitting: NUTS for groups ... 54 s, constrained draws and log-likelihood"
+    )
     clock("Laplace approximation of gamma")
     assert status.words[-1] == "fitting: Laplace approximation of gamma ..."
     clock.close()

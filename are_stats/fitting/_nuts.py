@@ -560,16 +560,19 @@ class NutsProgress(NamedTuple):
 
     Attributes
     ----------
-    phase : {"compile", "warm-up", "sampling"}
-        What runs now (``compile``: before the first iteration; also when the program
-        is read from the caches).
+    phase : {"compile", "warm-up", "sampling", "postprocess"}
+        What runs now (``compile``: before the first iteration, also when the program
+        is read from the caches; ``postprocess``: after the last draw, the constrained
+        draws and pointwise log-likelihood, their program compiled on a first run).
     done : int
         Iterations of the phase done (per chain).
     total : int
         Iterations of the phase (0 while compiling).
     seconds_left : float or None
         Estimated seconds until the last draw (warm-up and sampling, from the rates
-        measured so far); None while compiling.
+        measured so far; the first chunk, which also finds the start and the first
+        step size, counts only until a second warm-up chunk is timed); None while
+        compiling and post-processing.
     """
 
     phase: str
@@ -630,6 +633,8 @@ def clock_progress(clock: Any) -> Callable[[NutsProgress], None] | None:
     def tell(p: NutsProgress) -> None:
         if p.phase == "compile":
             left(None, "compiling")
+        elif p.phase == "postprocess":
+            left(None, "constrained draws and log-likelihood")
         else:
             left(p.seconds_left, f"{p.phase} {p.done}/{p.total}")
 
@@ -670,6 +675,7 @@ def _run_chunks(
     keep = []
     spent = {"warm-up": 0.0, "sampling": 0.0}
     last_rate = float("nan")
+    opening = (0, 0.0)  # the first warm-up chunk (start, first step size): iterations, s
     axis = 0 if plan.method == "sequential" else 1  # the draws' axis in a chunk's output
     for phase, total in (("warm-up", plan.num_warmup), ("sampling", plan.num_samples)):
         done = 0
@@ -690,10 +696,12 @@ def _run_chunks(
                 ))  # fmt: skip
             else:
                 last_rate = took / limit
+                opening = opening if opening[0] else (limit, took)
             w_done = plan.num_warmup if phase == "sampling" else done
             s_done = done if phase == "sampling" else 0
+            o_it, o_sec = opening if w_done > opening[0] else (0, 0.0)
             left = time_left(
-                (w_done, plan.num_warmup, spent["warm-up"], last_rate),
+                (w_done - o_it, plan.num_warmup - o_it, spent["warm-up"] - o_sec, last_rate),
                 (s_done, plan.num_samples, spent["sampling"]),
             )
             if left is not None and runs > 1:  # the chains to come, as this one
@@ -856,6 +864,8 @@ def run_nuts(
     plan = _plan(key, model, model_kwargs, init, settings)
     timing: dict[str, float] = {"compile": 0.0}
     zs, stats = _sample(plan, timing, progress)
+    if progress is not None:
+        progress(NutsProgress("postprocess", 0, 0, None))
     samples, loglik = _post_process(model, plan, zs, pointwise, pointwise_kwargs, timing)
     diverging = np.asarray(stats.pop("diverging")).astype(bool)
     extra = {f: np.asarray(v) for f, v in stats.items()}
