@@ -686,6 +686,9 @@ def _run_chunks(
                 *args[:4], leaves, np.asarray(first), np.asarray(limit, np.int32)
             )
             jax.block_until_ready(leaves)
+            # empty leaves (a model without some kind of site) come back replicated: the
+            # program, split over devices, takes them split; host zeros fit either way
+            leaves = tuple(np.zeros(x.shape, x.dtype) if x.size == 0 else x for x in leaves)
             took = time.perf_counter() - tic
             first = False
             spent[phase] += took
