@@ -7,8 +7,11 @@ records every stage's duration (keyed by the stage's words and a size the caller
 e.g. the log's rows) in ``$XDG_CACHE_HOME/are_stats/stage_times.json`` beside the compile
 cache, and while a stage runs it shows ``<stage> ... 12 s, about 20 s left`` from that
 record (``12 s`` alone for a stage never timed here; a stage past its last time says
-``longer than last time``). A fresh machine thus sees the time spent per stage, a second
-run the time left. The record follows the compile cache: off with ``ARE_STATS_NO_CACHE``.
+``longer than last time``). A stage that can measure its own rate says so
+(:meth:`StageClock.left`: NUTS between its compiled chunks of iterations), and then the
+line shows that estimate, ``NUTS for groups ... 12 s, sampling 300/500, about 8 s left``,
+on a machine's first run too. The record follows the compile cache: off with
+``ARE_STATS_NO_CACHE``.
 
 Nothing is drawn unless the console is a terminal (rich's status is silent elsewhere), so
 piped output and tests see only the command's own lines.
@@ -82,6 +85,7 @@ class StageClock:
     --------
     >>> clock = StageClock(None, size="500 rows", path=None)
     >>> clock("NUTS for groups")  # a stage starts; the previous one ends
+    >>> clock.left(20.0, "warm-up 50/500")  # the stage's own estimate of its time left
     >>> clock.close()  # the last stage ends; the record is written
     """
 
@@ -100,6 +104,7 @@ class StageClock:
         self._record = self._read()
         self._stage: str | None = None
         self._t0 = 0.0
+        self._estimate: tuple[float | None, str, float] | None = None  # (left, words, at)
         self._lock = threading.Lock()
         self._done = threading.Event()
         self.durations: dict[str, float] = {}
@@ -126,7 +131,14 @@ class StageClock:
 
     def _words(self) -> str:
         stage = self._stage or ""
-        elapsed = self._timer() - self._t0
+        now = self._timer()
+        elapsed = now - self._t0
+        if self._estimate is not None:
+            left, words, at = self._estimate
+            parts = [f"{elapsed:.0f} s", words]
+            if left is not None:
+                parts.append(f"about {max(left - (now - at), 1.0):.0f} s left")
+            return f"{self._prefix}{stage} ... " + ", ".join(p for p in parts if p)
         last = self.last(stage)
         if elapsed < MIN_SHOWN and last is None:
             return f"{self._prefix}{stage} ..."
@@ -146,7 +158,27 @@ class StageClock:
         """Start ``stage`` (ending the one before)."""
         with self._lock:
             self._end()
-            self._stage, self._t0 = stage, self._timer()
+            self._stage, self._t0, self._estimate = stage, self._timer(), None
+            if self._status is not None:
+                self._status.update(self._words())
+
+    def left(self, seconds: float | None, words: str = "") -> None:
+        """The current stage's own estimate of its time left, from its measured rate.
+
+        It replaces the record's until the stage ends; the line counts it down between
+        two estimates.
+
+        Parameters
+        ----------
+        seconds : float or None
+            Seconds left (None: not known yet, e.g. while compiling).
+        words : str
+            Where the stage stands (``"warm-up 100/500"``), shown before the time left.
+        """
+        with self._lock:
+            if self._stage is None:
+                return
+            self._estimate = (None if seconds is None else float(seconds), words, self._timer())
             if self._status is not None:
                 self._status.update(self._words())
 

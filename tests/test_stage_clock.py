@@ -83,3 +83,33 @@ def test_an_unreadable_record_is_no_record(tmp_path):
     clock("anything")
     clock.close()
     assert "anything" in json.loads(path.read_text())
+
+
+def test_a_stage_estimate_counts_down_and_ends_with_the_stage(tmp_path):
+    """A stage's own estimate (NUTS between its chunks) replaces the record's, counts
+    down between two estimates, and is gone at the next stage."""
+    from are_stats.fitting import NutsProgress, clock_progress
+
+    timer, status = _Timer(), _Status()
+    clock = StageClock(status, "fitting: ", path=tmp_path / "t.json", timer=timer)
+    clock("NUTS for groups")
+    tell = clock_progress(clock)
+    tell(NutsProgress("compile", 0, 0, None))
+    assert status.words[-1] == "fitting: NUTS for groups ... 0 s, compiling"
+    timer.now += 4.0
+    tell(NutsProgress("warm-up", 50, 500, 30.0))
+    assert status.words[-1] == "fitting: NUTS for groups ... 4 s, warm-up 50/500, about 30 s left"
+    timer.now += 10.0
+    clock._status.update(clock._words())  # the live refresh, 10 s later
+    assert status.words[-1] == "fitting: NUTS for groups ... 14 s, warm-up 50/500, about 20 s left"
+    timer.now += 40.0  # past the estimate: never below a second
+    assert clock._words().endswith("about 1 s left")
+    tell(NutsProgress("postprocess", 0, 0, None))
+    assert status.words[-1] == (
+        "fitting: NUTS for groups ... 54 s, constrained draws and log-likelihood"
+    )
+    clock("Laplace approximation of gamma")
+    assert status.words[-1] == "fitting: Laplace approximation of gamma ..."
+    clock.close()
+    # a plain callable has no estimate to be told
+    assert clock_progress(print) is None and clock_progress(None) is None

@@ -128,7 +128,14 @@ from are_stats.fitting._laplace import (  # noqa: E402
     laplace_loo,
     run_laplace,
 )
-from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts  # noqa: E402
+from are_stats.fitting._nuts import (  # noqa: E402
+    NutsPrefetch,
+    NutsProgress,
+    NutsRun,
+    clock_progress,
+    nuts_warnings,
+    run_nuts,
+)
 from are_stats.fitting._psis import psislw  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
     PredictiveChecks,
@@ -167,6 +174,7 @@ __all__ += [
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
     "NutsPrefetch",
+    "NutsProgress",
     "LaplaceRun",
     "Resampled",
     "importance_resample",
@@ -181,6 +189,7 @@ __all__ += [
     "fit_traffic",
     "loo_pointwise",
     "nuts_warnings",
+    "clock_progress",
     "run_nuts",
     "DispersionTest",
     "KaplanMeier",

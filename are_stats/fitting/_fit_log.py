@@ -365,7 +365,9 @@ def fit_lifecycle_data(
         ``birth_death_stderr_method``; :func:`~are_stats.fitting.compare_panel` compares
         them with the life-cycle posterior).
     progress : callable, optional
-        ``progress(message)`` is called at each stage (the CLI shows it).
+        ``progress(message)`` is called at each stage (the CLI shows it). One with a
+        ``left(seconds, words)`` method (:class:`~are_stats._stage_clock.StageClock`) is
+        also told the NUTS fits' estimated time left (:func:`~are_stats.fitting.clock_progress`).
     class_labels : sequence of str, optional
         Names of the classes ``0..K-1`` of a labelled log (stored as the comma-separated
         attribute ``class_labels``; see ``LifecycleLog.to_arrays()["label_names"]``).

@@ -10,9 +10,14 @@ PSIS-LOO). Nothing is hidden: divergences and ``r_hat`` are part of the result a
 
 **One compiled program per model and shapes.** The sampler is numpyro's NUTS kernel
 (``numpyro.infer.hmc.hmc``: step size and diagonal mass matrix adapted during warm-up)
-driven by one ahead-of-time compiled XLA program for all chains, start, warm-up and
-sampling together; a second small program computes the constrained draws (deterministic
-sites included) and the pointwise log-likelihood. The model's array arguments (NumPy or
+driven by one ahead-of-time compiled XLA program for all chains: a chunk of
+:func:`chunk_length` iterations (the start too, in the first), called about
+:data:`TARGET_CHUNKS` times with the sampler's state carried from call to call (the same
+iterations, hence the same draws, as one long loop). Between the calls the time left is
+estimated from the measured rates of warm-up and sampling (:class:`NutsProgress`,
+:func:`time_left`), so that a first run on a machine shows it too. A second small program
+computes the constrained draws (deterministic sites included) and the pointwise
+log-likelihood. The model's array arguments (NumPy or
 JAX arrays, 0-d included, anywhere in ``model_kwargs``) are *arguments* of these
 programs, everything else (Python numbers, strings, specs, priors) is part of the
 program. Both are kept in an in-process cache keyed by the model, those static
@@ -46,12 +51,12 @@ from numpyro.infer.hmc import hmc
 from numpyro.infer.util import constrain_fn, potential_energy
 
 from are_stats._checks import check_in
-from are_stats._program_cache import compile_program
+from are_stats._program_cache import TRACE_LOCK, compile_program
 from are_stats.traffic import aot_compile
 
 __all__ = [
-    "NutsPrefetch", "NutsRun", "chains_per_device", "nuts_warnings", "resolve_chain_method",
-    "run_nuts",
+    "NutsPrefetch", "NutsProgress", "NutsRun", "chains_per_device", "chunk_length",
+    "clock_progress", "nuts_warnings", "resolve_chain_method", "run_nuts", "time_left",
 ]  # fmt: skip
 
 
@@ -152,7 +157,8 @@ class NutsRun(NamedTuple):
         How the chains ran (``parallel``, ``vectorized`` or ``sequential``).
     timing : dict of str to float
         Seconds spent compiling (``compile``: 0 when the programs were cached in this
-        process), sampling (``sampling``) and post-processing (``postprocess``).
+        process), in warm-up (``warmup``), in warm-up and sampling together
+        (``sampling``) and post-processing (``postprocess``).
     """
 
     samples: dict
@@ -326,22 +332,50 @@ def _start(
 
 _STAT_ALIASES = {"step_size": "adapt_state.step_size"}
 
+#: Warm-up and sampling run as about this many compiled chunks in all (at least one
+#: iteration each): the time left is measured from the first ones.
+TARGET_CHUNKS = 20
+
+
+def chunk_length(num_warmup: int, num_samples: int) -> int:
+    """Iterations per compiled chunk: about :data:`TARGET_CHUNKS` chunks in all.
+
+    Parameters
+    ----------
+    num_warmup, num_samples : int
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
+    return max(1, -(-(int(num_warmup) + int(num_samples)) // TARGET_CHUNKS))
+
 
 def _chain_fn(
     model: Callable[..., None],
     treedef: Any,
     static: tuple,
     num_warmup: int,
-    num_samples: int,
+    chunk: int,
     accept: float,
     fields: tuple[str, ...],
     given_start: bool,
-) -> Callable[..., Any]:
-    """``(chain_key, start, init, arrays) -> (z draws, stats)`` for one chain."""
+) -> tuple[Callable[..., Any], Callable[..., Any]]:
+    """One chain's start and chunk.
+
+    Returns ``(start, step)``: ``start(chain_key, start, init, arrays) -> state`` (the
+    sampler's state, numpyro's ``HMCState``, before the first iteration) and
+    ``step(chain_key, start, init, arrays, leaves, first, limit) -> (leaves, (z, stats))``:
+    ``limit`` (at most ``chunk``) NUTS iterations from the state whose leaves are given
+    (from :func:`start` itself when ``first``: the state's leaves are then ignored),
+    with the draws in the first ``limit`` of ``chunk`` slots.
+    The state goes in and out as its flat leaves (a program kept by :mod:`jax.export`
+    takes and gives only pytrees it knows).
+    """
     getters = {f: operator.attrgetter(_STAT_ALIASES.get(f, f)) for f in fields}
 
-    def one_chain(chain_key, start, init, arrays):
-        kwargs = _join_kwargs(arrays, treedef, static)
+    def kernels(chain_key, start, init, kwargs):
         k_init, k_run = jax.random.split(chain_key)
         u0 = start if given_start else _start(model, kwargs, k_init, init)
 
@@ -349,22 +383,48 @@ def _chain_fn(
             return potential_energy(model, (), kwargs, u)
 
         init_kernel, sample_kernel = hmc(potential_fn, algo="NUTS")
+        # traced here, so that the sample kernel knows the warm-up schedule
         state = init_kernel(u0, num_warmup, target_accept_prob=accept, rng_key=k_run)
+        return state, sample_kernel
 
-        def body(s, _):
+    def first_state(chain_key, start, init, arrays):
+        kwargs = _join_kwargs(arrays, treedef, static)
+        return kernels(chain_key, start, init, kwargs)[0]
+
+    def step(chain_key, start, init, arrays, leaves, first, limit):
+        kwargs = _join_kwargs(arrays, treedef, static)
+        made: dict[str, Any] = {}
+
+        def fresh():  # the start, computed only in the first chunk
+            state, made["sample"] = kernels(chain_key, start, init, kwargs)
+            made["tree"] = jax.tree.structure(state)
+            return tuple(jax.tree.leaves(state))
+
+        flat = jax.lax.cond(first, fresh, lambda: tuple(leaves))
+        state, sample_kernel = jax.tree.unflatten(made["tree"], flat), made["sample"]
+
+        def record(s):
+            return s.z, {f: get(s) for f, get in getters.items()}
+
+        def body(j, carry):  # a loop of ``limit`` iterations: no branch in it
+            s, out = carry
             s = sample_kernel(s)
-            return s, (s.z, {f: get(s) for f, get in getters.items()})
+            out = jax.tree.map(lambda b, x: b.at[j].set(x), out, record(s))
+            return s, out
 
-        _, out = jax.lax.scan(body, state, None, length=num_warmup + num_samples)
-        return jax.tree.map(lambda x: x[num_warmup:], out)
+        # slots past ``limit`` keep the state's values (never read)
+        out = jax.tree.map(lambda x: jnp.broadcast_to(x, (chunk, *jnp.shape(x))), record(state))
+        state, out = jax.lax.fori_loop(0, limit, body, (state, out))
+        return tuple(jax.tree.leaves(state)), out
 
-    return one_chain
+    return first_state, step
 
 
 class _Plan(NamedTuple):
     """Everything :func:`run_nuts` needs to find (or compile) and run its programs."""
 
-    one_chain: Callable[..., Any]
+    first_state: Callable[..., Any]
+    step: Callable[..., Any]
     key_base: tuple | None
     keys: Any
     start: Any
@@ -375,11 +435,14 @@ class _Plan(NamedTuple):
     method: str
     num_chains: int
     cheap: bool
+    num_warmup: int
+    num_samples: int
+    chunk: int
 
 
 def _plan(key: Any, model: Callable[..., None], model_kwargs: dict, init: dict | None,
           settings: dict[str, Any]) -> _Plan:  # fmt: skip
-    """Check the settings and set up the chains' function, arguments and cache key.
+    """Check the settings and set up the chains' functions, arguments and cache key.
 
     ``settings``: :func:`run_nuts`'s keywords, those left out at its defaults.
     """
@@ -408,73 +471,250 @@ def _plan(key: Any, model: Callable[..., None], model_kwargs: dict, init: dict |
         init = None
     init_arg = None if init is None else {n: jnp.asarray(v, float) for n, v in init.items()}
     keys = jax.random.split(key, num_chains)
+    chunk = chunk_length(num_warmup, num_samples)
     key_base = _hashable(
         (
-            _fn_key(model), treedef, static, num_warmup, num_samples, num_chains, accept,
+            _fn_key(model), treedef, static, num_warmup, "chunk", chunk, num_chains, accept,
             fields, jax.local_device_count(), bool(cheap_compile),
             _shapes((arrays, start, init_arg)),
             None if init_arg is None else tuple(sorted(init_arg)),
             None if start is None else tuple(sorted(start)),
         )
     )  # fmt: skip
-    one_chain = _chain_fn(
-        model, treedef, static, num_warmup, num_samples, accept, fields, start is not None
+    first_state, step = _chain_fn(
+        model, treedef, static, num_warmup, chunk, accept, fields, start is not None
     )
     return _Plan(
-        one_chain, key_base, keys, start, init_arg, arrays, treedef, static, method,
-        num_chains, bool(cheap_compile),
+        first_state, step, key_base, keys, start, init_arg, arrays, treedef, static, method,
+        num_chains, bool(cheap_compile), num_warmup, num_samples, chunk,
     )  # fmt: skip
 
 
+def _blank_state(plan: _Plan, chains: int | None) -> tuple:
+    """Leaves of a sampler state of the right shapes (zeros, the chains' keys), for the
+    first chunk, which ignores them; ``chains`` None: one chain, no chain axis."""
+    first = None if plan.start is None else jax.tree.map(lambda x: x[0], plan.start)
+    with TRACE_LOCK:  # numpyro's handler stack is global: one model traced at a time
+        shape = jax.eval_shape(plan.first_state, plan.keys[0], first, plan.init, plan.arrays)
+    lead = () if chains is None else (chains,)
+
+    def blank(s):
+        if jax.dtypes.issubdtype(s.dtype, jax.dtypes.prng_key):
+            return jnp.broadcast_to(plan.keys[0], lead + s.shape)
+        return np.zeros(lead + s.shape, s.dtype)
+
+    return tuple(blank(s) for s in jax.tree.leaves(shape))
+
+
 def _sampling_program(plan: _Plan, timing: dict[str, float]) -> tuple[Any, tuple]:
-    """The compiled sampling program of ``plan`` (cached) and its arguments."""
-    one_chain, start, init, arrays = plan.one_chain, plan.start, plan.init, plan.arrays
+    """The compiled chunk program of ``plan`` (cached) and its arguments (the first
+    chunk's: a blank state, ``first`` true, ``limit`` a whole chunk)."""
+    step, start, init, arrays = plan.step, plan.start, plan.init, plan.arrays
     cheap, keys = plan.cheap, plan.keys
+    first, limit = np.asarray(True), np.asarray(plan.chunk, np.int32)
     start_axis = None if start is None else 0
+    axes = (0, start_axis, None, None, 0, None, None)
+    head = (keys, start, init, arrays)
     if plan.method == "vectorized":
         key = None if plan.key_base is None else ("vectorized", *plan.key_base)
-        fn = jax.jit(jax.vmap(one_chain, in_axes=(0, start_axis, None, None)))
-        args = (keys, start, init, arrays)
-        return _cached(key, lambda: _compile(fn, args, cheap, key), timing), args
+
+        def build():
+            blank = _blank_state(plan, plan.num_chains)
+            fn = jax.jit(jax.vmap(step, in_axes=axes))
+            return _compile(fn, (*head, blank, first, limit), cheap, key), blank
+
+        program, blank = _cached(key, build, timing)
+        return program, (*head, blank, first, limit)
     if plan.method == "parallel":
         # the chains split over the devices by shard_map (several on one device are
         # vectorised): a jitted program, which jax.export can keep on disk
         n_dev = chains_per_device(plan.num_chains)[0]
-        fn, shardings = _split_over_devices(
-            jax.vmap(one_chain, in_axes=(0, start_axis, None, None)), n_dev, "chains",
-            (True, True, False, False),
-        )  # fmt: skip
         key = None if plan.key_base is None else ("parallel", n_dev, *plan.key_base)
-        args = (keys, start, init, arrays)
-        program = _cached(key, lambda: _compile(fn, args, cheap, key, shardings), timing)
-        return program, args
-    # sequential: compile one chain, run it chain after chain
-    first = None if start is None else jax.tree.map(lambda x: x[0], start)
-    key = None if plan.key_base is None else ("sequential", *plan.key_base)
-    args = (keys[0], first, init, arrays)
-    return _cached(key, lambda: _compile(jax.jit(one_chain), args, cheap, key), timing), args
 
-
-def _sample(plan: _Plan, timing: dict[str, float]) -> Any:
-    """Run the chains by the plan's method; arrays by chain first."""
-    program, args = _sampling_program(plan, timing)
-    tic = time.perf_counter()
-    if plan.method != "sequential":
-        out = jax.tree.map(np.asarray, program(*args))
-    else:
-        start = plan.start
-        runs = [
-            program(
-                plan.keys[c],
-                None if start is None else jax.tree.map(lambda x, c=c: x[c], start),
-                plan.init,
-                plan.arrays,
+        def build():
+            fn, shardings = _split_over_devices(
+                jax.vmap(step, in_axes=axes), n_dev, "chains",
+                (True, True, False, False, True, False, False),
             )  # fmt: skip
-            for c in range(plan.num_chains)
-        ]
-        out = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *runs)
-    timing["sampling"] = time.perf_counter() - tic
+            blank = _blank_state(plan, plan.num_chains)
+            return _compile(fn, (*head, blank, first, limit), cheap, key, shardings), blank
+
+        program, blank = _cached(key, build, timing)
+        return program, (*head, blank, first, limit)
+    # sequential: compile one chain, run it chain after chain
+    key = None if plan.key_base is None else ("sequential", *plan.key_base)
+
+    one = None if start is None else jax.tree.map(lambda x: x[0], start)
+    head = (keys[0], one, init, arrays)
+
+    def build():
+        blank = _blank_state(plan, None)
+        return _compile(jax.jit(step), (*head, blank, first, limit), cheap, key), blank
+
+    program, blank = _cached(key, build, timing)
+    return program, (*head, blank, first, limit)
+
+
+class NutsProgress(NamedTuple):
+    """Where a :func:`run_nuts` call stands, given to its ``progress`` callback.
+
+    Attributes
+    ----------
+    phase : {"compile", "warm-up", "sampling", "postprocess"}
+        What runs now (``compile``: before the first iteration, also when the program
+        is read from the caches; ``postprocess``: after the last draw, the constrained
+        draws and pointwise log-likelihood, their program compiled on a first run).
+    done : int
+        Iterations of the phase done (per chain).
+    total : int
+        Iterations of the phase (0 while compiling).
+    seconds_left : float or None
+        Estimated seconds until the last draw (warm-up and sampling, from the rates
+        measured so far; the first chunk, which also finds the start and the first
+        step size, counts only until a second warm-up chunk is timed); None while
+        compiling and post-processing.
+    """
+
+    phase: str
+    done: int
+    total: int
+    seconds_left: float | None
+
+
+def time_left(
+    warmup: tuple[int, int, float, float], sampling: tuple[int, int, float]
+) -> float | None:
+    """Seconds left of warm-up and sampling, from the rates measured so far.
+
+    The rest of the warm-up goes at its mean rate so far; sampling, before it starts, at
+    the rate of the warm-up's last chunk (the adapted step size and mass matrix), then at
+    its own mean rate.
+
+    Parameters
+    ----------
+    warmup : (done, total, seconds, last_rate)
+        Warm-up iterations done and in all, the seconds they took, and the seconds per
+        iteration of the last warm-up chunk (NaN before any).
+    sampling : (done, total, seconds)
+        The same for sampling.
+
+    Returns
+    -------
+    float or None
+        None before any iteration was timed.
+    """
+    w_done, w_total, w_sec, w_last = warmup
+    s_done, s_total, s_sec = sampling
+    if s_done > 0:
+        return s_sec / s_done * (s_total - s_done)
+    if w_done == 0:
+        return None
+    return w_sec / w_done * (w_total - w_done) + w_last * s_total
+
+
+def clock_progress(clock: Any) -> Callable[[NutsProgress], None] | None:
+    """A :func:`run_nuts` ``progress`` that tells a stage clock the time left.
+
+    Parameters
+    ----------
+    clock : object
+        Anything with ``left(seconds, words)`` (a
+        :class:`~are_stats._stage_clock.StageClock`); other objects (a plain
+        ``progress(message)`` callable, None) give None: no estimate to tell.
+
+    Returns
+    -------
+    callable or None
+    """
+    left = getattr(clock, "left", None)
+    if left is None:
+        return None
+
+    def tell(p: NutsProgress) -> None:
+        if p.phase == "compile":
+            left(None, "compiling")
+        elif p.phase == "postprocess":
+            left(None, "constrained draws and log-likelihood")
+        else:
+            left(p.seconds_left, f"{p.phase} {p.done}/{p.total}")
+
+    return tell
+
+
+def _sample(plan: _Plan, timing: dict[str, float], progress: Callable[..., Any] | None) -> Any:
+    """Run the chains by the plan's method, chunk after chunk; arrays by chain first."""
+    say = progress or (lambda _p: None)
+    say(NutsProgress("compile", 0, 0, None))
+    program, args = _sampling_program(plan, timing)
+    if plan.method != "sequential":
+        out = _run_chunks(program, args, plan, timing, say, (0, 1))
+    else:
+        runs = []
+        for c in range(plan.num_chains):
+            start = None if plan.start is None else jax.tree.map(lambda x, c=c: x[c], plan.start)
+            chain_args = (plan.keys[c], start, *args[2:])
+            runs.append(_run_chunks(program, chain_args, plan, timing, say, (c, plan.num_chains)))
+        out = jax.tree.map(lambda *xs: np.stack(xs), *runs)
     return out
+
+
+def _run_chunks(
+    program: Any,
+    args: tuple,
+    plan: _Plan,
+    timing: dict[str, float],
+    say: Callable[..., Any],
+    chain: tuple[int, int],
+) -> Any:
+    """Warm-up then sampling, a chunk of ``plan.chunk`` iterations a call, the state
+    carried from call to call; returns the draws, (draws, ...) per chain or with a chain
+    axis first, as the program gives them. ``chain``: (this run's chains before it, runs
+    in all), for the estimate when the chains run one after another."""
+    before, runs = chain
+    leaves, first = args[4], True
+    keep = []
+    spent = {"warm-up": 0.0, "sampling": 0.0}
+    last_rate = float("nan")
+    opening = (0, 0.0)  # the first warm-up chunk (start, first step size): iterations, s
+    axis = 0 if plan.method == "sequential" else 1  # the draws' axis in a chunk's output
+    for phase, total in (("warm-up", plan.num_warmup), ("sampling", plan.num_samples)):
+        done = 0
+        while done < total:
+            limit = min(plan.chunk, total - done)
+            tic = time.perf_counter()
+            leaves, draws = program(
+                *args[:4], leaves, np.asarray(first), np.asarray(limit, np.int32)
+            )
+            jax.block_until_ready(leaves)
+            # empty leaves (a model without some kind of site) come back replicated: the
+            # program, split over devices, takes them split; host zeros fit either way
+            leaves = tuple(np.zeros(x.shape, x.dtype) if x.size == 0 else x for x in leaves)
+            took = time.perf_counter() - tic
+            first = False
+            spent[phase] += took
+            done += limit
+            if phase == "sampling":
+                keep.append(jax.tree.map(
+                    lambda x, n=limit: np.take(np.asarray(x), np.arange(n), axis=axis), draws
+                ))  # fmt: skip
+            else:
+                last_rate = took / limit
+                opening = opening if opening[0] else (limit, took)
+            w_done = plan.num_warmup if phase == "sampling" else done
+            s_done = done if phase == "sampling" else 0
+            o_it, o_sec = opening if w_done > opening[0] else (0, 0.0)
+            left = time_left(
+                (w_done - o_it, plan.num_warmup - o_it, spent["warm-up"] - o_sec, last_rate),
+                (s_done, plan.num_samples, spent["sampling"]),
+            )
+            if left is not None and runs > 1:  # the chains to come, as this one
+                per_run = spent["warm-up"] + spent["sampling"] + left
+                left += per_run * (runs - before - 1)
+            say(NutsProgress(phase, done, total, left))
+    # "sampling" as before: every iteration, warm-up included (as PyMC's sampling_time)
+    timing["warmup"] = timing.get("warmup", 0.0) + spent["warm-up"]
+    timing["sampling"] = timing.get("sampling", 0.0) + spent["warm-up"] + spent["sampling"]
+    return jax.tree.map(lambda *xs: np.concatenate(xs, axis=axis), *keep)
 
 
 class NutsPrefetch:
@@ -559,6 +799,7 @@ def run_nuts(
     extra_fields: tuple[str, ...] = (),
     pointwise_kwargs: bool = False,
     cheap_compile: bool = False,
+    progress: Callable[[NutsProgress], Any] | None = None,
 ) -> NutsRun:
     """Sample ``model(**model_kwargs)`` by NUTS from ``init``.
 
@@ -607,6 +848,11 @@ def run_nuts(
         Compile with cheap XLA optimisation: for small models whose compilation costs
         more than their sampling (the life-cycle model). Default: XLA's optimisation
         (the traffic models sample 4-5x faster with it).
+    progress : callable, optional
+        ``progress(NutsProgress)`` before compiling and after every chunk of iterations
+        (:data:`TARGET_CHUNKS` chunks in all): the phase, its iterations done and the
+        estimated seconds left (:func:`time_left`). :func:`clock_progress` turns a
+        :class:`~are_stats._stage_clock.StageClock` into one.
 
     Returns
     -------
@@ -620,7 +866,9 @@ def run_nuts(
     settings = dict(locals())  # the keywords, for _plan
     plan = _plan(key, model, model_kwargs, init, settings)
     timing: dict[str, float] = {"compile": 0.0}
-    zs, stats = _sample(plan, timing)
+    zs, stats = _sample(plan, timing, progress)
+    if progress is not None:
+        progress(NutsProgress("postprocess", 0, 0, None))
     samples, loglik = _post_process(model, plan, zs, pointwise, pointwise_kwargs, timing)
     diverging = np.asarray(stats.pop("diverging")).astype(bool)
     extra = {f: np.asarray(v) for f, v in stats.items()}

@@ -75,7 +75,13 @@ from are_stats.fitting._laplace import (
     laplace_program,
     run_laplace,
 )
-from are_stats.fitting._nuts import NutsPrefetch, NutsRun, nuts_warnings, run_nuts
+from are_stats.fitting._nuts import (
+    NutsPrefetch,
+    NutsRun,
+    clock_progress,
+    nuts_warnings,
+    run_nuts,
+)
 from are_stats.fitting._psis import psislw
 from are_stats.traffic import (
     ARRIVAL_SPECS,
@@ -760,7 +766,7 @@ def _sample_candidate(
     factor, name = which
     say(f"{factor}: NUTS for {name}")
     run = run_nuts(*calls[which], pointwise=pointwise, pointwise_kwargs=True,
-                   name=f"{factor} {name}", **nuts)  # fmt: skip
+                   name=f"{factor} {name}", progress=clock_progress(say), **nuts)  # fmt: skip
     out.warnings.extend(nuts_warnings(run))
     return run
 

@@ -261,3 +261,45 @@ def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
         ahead.add(jax.random.key(0), _failing_model, {"y": _data(0)}, None, num_chains=2)
     with pytest.raises(RuntimeError, match="model error on purpose"):
         run_nuts(jax.random.key(0), _failing_model, {"y": _data(0)}, None, num_chains=2)
+
+
+def test_time_left_from_the_measured_rates():
+    from are_stats.fitting._nuts import time_left
+
+    assert time_left((0, 500, 0.0, float("nan")), (0, 500, 0.0)) is None
+    # warm-up 100 of 500 in 20 s (0.2 s each), the last chunk 0.1 s each: 400 x 0.2 + 500 x 0.1
+    assert time_left((100, 500, 20.0, 0.1), (0, 500, 0.0)) == pytest.approx(130.0)
+    # sampling 200 of 500 in 10 s: 300 x 0.05
+    assert time_left((500, 500, 60.0, 0.1), (200, 500, 10.0)) == pytest.approx(15.0)
+    assert time_left((500, 500, 60.0, 0.1), (500, 500, 10.0)) == 0.0
+
+
+@pytest.mark.parametrize("method", ["vectorized", "sequential"])
+def test_chunks_report_progress_and_change_no_draw(monkeypatch, method):
+    """Warm-up and sampling run as chunks of one compiled program; every chunk tells the
+    phase, the iterations done and an estimate of the time left; the draws are those of
+    the whole run in one chunk (the sampler's state goes on exactly from chunk to chunk)."""
+    from are_stats.fitting._nuts import chunk_length
+
+    y = _data(9)
+    chains = 2 if method == "vectorized" else 1
+    kw = {"num_warmup": 45, "num_samples": 30, "num_chains": chains, "chain_method": method,
+          "extra_fields": ("step_size",)}  # fmt: skip
+    assert chunk_length(45, 30) == 4  # 75 iterations in about 20 chunks
+    told = []
+    run = run_nuts(jax.random.key(6), normal_model, {"y": y}, {"mu": 0.0}, progress=told.append,
+                   **kw)  # fmt: skip
+    one = [(p.phase, p.done, p.total) for p in told if p.phase in ("warm-up", "sampling")]
+    per_chain = [("warm-up", d, 45) for d in [*range(4, 45, 4), 45]] + [
+        ("sampling", d, 30) for d in [*range(4, 30, 4), 30]
+    ]
+    assert one == per_chain * (1 if method == "vectorized" else chains)
+    assert told[0] == ("compile", 0, 0, None) and told[-1] == ("postprocess", 0, 0, None)
+    lefts = [p.seconds_left for p in told[1:-1]]
+    assert all(x is not None and x >= 0 for x in lefts) and lefts[-1] == 0.0
+    assert run.timing["sampling"] >= run.timing["warmup"] > 0.0
+    monkeypatch.setattr(nuts_module, "TARGET_CHUNKS", 1)  # the whole run in one chunk
+    whole = run_nuts(jax.random.key(6), normal_model, {"y": y}, {"mu": 0.0}, **kw)
+    np.testing.assert_allclose(run.samples["mu"], whole.samples["mu"], rtol=1e-9)
+    np.testing.assert_allclose(run.extra["step_size"], whole.extra["step_size"], rtol=1e-9)
+    assert run.samples["mu"].shape == (chains, 30)
