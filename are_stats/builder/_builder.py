@@ -434,7 +434,7 @@ class ARBuilder:
         self._runs = None
         return self.ids.copy()
 
-    def with_scene(self, scene: Any, t: float, *, check: bool = False) -> ARBuilder:
+    def with_scene(self, scene: Scene, t: float, *, check: bool = False) -> ARBuilder:
         """A new builder that holds the artefacts of ``scene`` alive at ``t``, as
         :meth:`register_scene` would make this one hold them; this builder is unchanged.
 

@@ -285,7 +285,7 @@ class Scene:
         """``(k, 3)`` poses ``x, y, yaw`` of artefacts ``which`` (indices; default all) at ``t``."""
         return self.poses_at(np.array([float(t)]), which)[0]
 
-    def poses_at(self, times: Any, which: Any = None) -> np.ndarray:
+    def poses_at(self, times: npt.ArrayLike, which: npt.ArrayLike | None = None) -> np.ndarray:
         """``(m, k, 3)`` poses ``x, y, yaw`` of artefacts ``which`` (indices; default all) at
         each of ``times`` (m,): :meth:`poses` at every time, in one vectorised pass."""
         tt = np.asarray(times, float).reshape(-1)
