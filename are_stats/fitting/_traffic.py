@@ -37,10 +37,16 @@ posteriors with NUTS's). ``approximation="nuts"`` samples every candidate.
 **The choice.** Candidates are ordered from simple to complex. The candidate with the
 highest ``elpd`` is the best; the chosen one is the *simplest* candidate whose ``elpd`` is
 within two standard errors of the difference from the best (a richer model must earn its
-place). The table reports every candidate with ``elpd``, its standard error, the
-difference from the best and its standard error, ``p_loo``, Pareto-k counts and the
-sampler's divergences and ``r_hat``; it presents no stacking weights (they are not model
-probabilities).
+place). A bursty arrival candidate (below), compared by its Laplace approximation only,
+whose importance-sampled PSIS-LOO has a Pareto ``k`` above 0.7 on more than
+:data:`UNRELIABLE_K_SHARE` of its units has an ``elpd`` estimate that is too optimistic
+(Vehtari, Gelman and Gabry 2017): it does not set the bar for the others (it may still be
+chosen, where it is the simplest within the bar), and the arrivals' notes name it. The
+other candidates' LOO is kept where its ``k`` is high (a poor Laplace proposal for a
+right model, e.g. Weibull stays of shape 0.6, must not lose to a worse model). The table
+reports every candidate with ``elpd``, its standard error, the difference from the best
+and its standard error, ``p_loo``, Pareto-k counts and the sampler's divergences and
+``r_hat``; it presents no stacking weights (they are not model probabilities).
 
 **The bursty candidates** (``mmpp``, ``hawkes``, their ``groups+`` variants and, where the
 log has a clock and two days, ``mmpp+time-of-day`` and ``hawkes+time-of-day``: forward
@@ -57,6 +63,7 @@ A candidate named by ``--arrivals`` is sampled by NUTS.
 from __future__ import annotations
 
 import functools
+from collections.abc import Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -235,7 +242,22 @@ def _reff(run: NutsRun | None) -> float:
     return float(np.clip(np.mean(vals) / (c * d), 0.05, 1.0)) if vals else 1.0
 
 
-def choose_simplest(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str, pd.DataFrame]:
+#: Share of a candidate's units with Pareto ``k > 0.7`` above which its PSIS-LOO ``elpd``
+#: is not trusted to be the best (module doc, "The choice").
+UNRELIABLE_K_SHARE = 0.05
+
+
+def unreliable_loo(ks: Mapping[str, np.ndarray]) -> list[str]:
+    """The candidates whose PSIS-LOO has ``k > 0.7`` on more than
+    :data:`UNRELIABLE_K_SHARE` of their units."""
+    return [
+        n for n, k in ks.items() if np.size(k) and np.mean(np.asarray(k) > 0.7) > UNRELIABLE_K_SHARE
+    ]
+
+
+def choose_simplest(
+    elpd: dict[str, np.ndarray], order: list[str], unreliable: Collection[str] = ()
+) -> tuple[str, pd.DataFrame]:
     """The simplest candidate within two standard errors of the best (see the module doc).
 
     Parameters
@@ -244,6 +266,9 @@ def choose_simplest(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str,
         Pointwise ``elpd_i`` of each candidate over the same units.
     order : list of str
         Candidates from simplest to most complex.
+    unreliable : collection of str
+        Candidates whose ``elpd`` may not be the best (:func:`unreliable_loo`); they are
+        compared, and may be chosen, against the best of the others.
 
     Returns
     -------
@@ -253,7 +278,8 @@ def choose_simplest(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str,
     """
     names = [n for n in order if n in elpd]
     tot = {n: float(np.sum(elpd[n])) for n in names}
-    best = max(names, key=lambda n: tot[n])
+    trusted = [n for n in names if n not in unreliable] or names
+    best = max(trusted, key=lambda n: tot[n])
     rows = []
     chosen = None
     for n in names:
@@ -268,6 +294,16 @@ def choose_simplest(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str,
     table = table.set_index("model")
     table["chosen"] = table.index == chosen
     return str(chosen), table
+
+
+def _note_unreliable(out: TrafficFit, attr: str, shaky: list[str]) -> None:
+    """Say in ``out.attrs[attr]`` which candidates' PSIS-LOO did not set the bar."""
+    if shaky:
+        note = (
+            f"{', '.join(shaky)}: Pareto k > 0.7 on more than {UNRELIABLE_K_SHARE:.0%} of "
+            "the units, so its PSIS-LOO elpd (too optimistic there) did not set the bar"
+        )
+        out.attrs[attr] = "; ".join(v for v in (out.attrs.get(attr), note) if v)
 
 
 def _pareto_cols(table: pd.DataFrame, ks: dict[str, np.ndarray]) -> None:
@@ -821,14 +857,20 @@ def _choose_arrivals(
 ) -> str:
     """Choose the arrival model by PSIS-LOO and store its table in ``out``; the choice."""
     order = sorted(cands, key=lambda n: (ArrivalSpec.from_name(n).n_params, ARRIVAL_SPECS.index(n)))
+    # the bursty candidates are only ever compared by their Laplace approximation: where
+    # its importance-sampled PSIS-LOO is unreliable, the (optimistic) elpd sets no bar
+    shaky = unreliable_loo(
+        {n: k for n, k in ks.items() if n in elpd and ArrivalSpec.from_name(n).bursts}
+    )
     if arrivals == "auto":
-        chosen, table = choose_simplest(elpd, order)
+        chosen, table = choose_simplest(elpd, order, shaky)
     else:
-        _, table = choose_simplest(elpd, order)
+        _, table = choose_simplest(elpd, order, shaky)
         chosen = arrivals
         table["chosen"] = table.index == chosen
     _pareto_cols(table, ks)
     _diag_cols(table, runs)
+    _note_unreliable(out, "arrival_notes", shaky)
     out.tables["arrivals"] = table
     out.arrival_model = chosen
     return chosen

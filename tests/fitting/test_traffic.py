@@ -145,9 +145,11 @@ def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
     assert back.posterior.attrs["arrival_model"] == "groups"
     assert "entry_density" in back.constant_data
     table, reps = traffic_checks(0, back, 100)
-    # each 90% band misses a correct model's statistic one time in ten: the chosen model
-    # may miss one of five; the paper's misses the groups, the stays and the doors
-    assert table["chosen_flag"].sum() <= 1, table
+    # each 90% band misses a correct model's statistic one time in ten: of the nine
+    # statistics that can miss (the longest empty stretch is 0 in every window), three or
+    # more miss in about 5% of seeds were they independent; the chosen model may miss two.
+    # The paper's misses the groups, the stays and the doors
+    assert table["chosen_flag"].sum() <= 2, table
     assert table.loc["zero gaps", "paper_flag"] and table.loc["stay cv", "paper_flag"]
     assert table.loc["entry to boundary (m)", "paper_flag"]
     # the statistics groups, stays and doors move (the burst statistics at 30-60 s and the
@@ -451,3 +453,26 @@ def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, 
         w = ranked.posterior[name]
         mc = 4.0 * v.std(axis=(0, 1)) / np.sqrt(v.shape[0] * v.shape[1] / 10.0)
         assert np.all(np.abs(w.mean(axis=(0, 1)) - v.mean(axis=(0, 1))) <= mc + 1e-12), name
+
+
+def test_an_unreliable_loo_does_not_set_the_bar():
+    """A candidate whose PSIS-LOO has k > 0.7 on many units (its elpd too optimistic) is not
+    the best the others are measured against; it may still be chosen where simplest."""
+    from are_stats.fitting._traffic import choose_simplest, unreliable_loo
+
+    rng = np.random.default_rng(0)
+    base = rng.normal(-1.0, 0.3, 400)
+    elpd = {"simple": base, "rich": base + 0.01, "shaky": base + 0.05}  # shaky: +20 nat
+    ks = {
+        "simple": np.zeros(400),
+        "rich": np.zeros(400),
+        "shaky": np.r_[np.ones(40), np.zeros(360)],
+    }
+    assert unreliable_loo(ks) == ["shaky"]
+    chosen, table = choose_simplest(elpd, ["simple", "rich", "shaky"])
+    assert chosen == "shaky"  # 20 nat over the others with a tiny standard error
+    chosen, table = choose_simplest(elpd, ["simple", "rich", "shaky"], unreliable_loo(ks))
+    assert chosen == "rich" and table.loc["rich", "elpd_diff"] == 0.0
+    # an unreliable candidate simpler than the bar may still be chosen
+    chosen, _ = choose_simplest(elpd, ["shaky", "simple", "rich"], ["shaky"])
+    assert chosen == "shaky"
