@@ -246,7 +246,18 @@ def run_fit(
         _print_interaction(fit)
     write_fit(idata, out, force=force)
     summary = fit_summary(idata)
-    console.print(_summary_table(summary, f"{method} fit in {time.perf_counter() - t_start:.1f} s"))
+    console.print(_summary_table(summary, f"fit in {time.perf_counter() - t_start:.1f} s"))
+    # how each posterior was drawn (the paper's exact draws, resampled Laplace or NUTS): the
+    # method alone ("nuts") no longer says it
+    a = idata.posterior.attrs
+    sources = (
+        ("the paper's model", "paper_posterior"),
+        ("arrivals", "traffic_arrival_posterior"),
+        ("stays", "traffic_lifetime_posterior"),
+    )
+    how = [f"{who}: {a[key]}" for who, key in sources if a.get(key)]
+    if how:
+        console.print("posteriors: " + "; ".join(how))
     for w in sampler_warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
     _print_traffic(fit)
