@@ -296,16 +296,6 @@ def choose_simplest(
     return str(chosen), table
 
 
-def _note_unreliable(out: TrafficFit, attr: str, shaky: list[str]) -> None:
-    """Say in ``out.attrs[attr]`` which candidates' PSIS-LOO did not set the bar."""
-    if shaky:
-        note = (
-            f"{', '.join(shaky)}: Pareto k > 0.7 on more than {UNRELIABLE_K_SHARE:.0%} of "
-            "the units, so its PSIS-LOO elpd (too optimistic there) did not set the bar"
-        )
-        out.attrs[attr] = "; ".join(v for v in (out.attrs.get(attr), note) if v)
-
-
 def _pareto_cols(table: pd.DataFrame, ks: dict[str, np.ndarray]) -> None:
     table["k>0.7"] = [int(np.sum(ks[n] > 0.7)) if n in ks else 0 for n in table.index]
     table["k_max"] = [
@@ -870,7 +860,14 @@ def _choose_arrivals(
         table["chosen"] = table.index == chosen
     _pareto_cols(table, ks)
     _diag_cols(table, runs)
-    _note_unreliable(out, "arrival_notes", shaky)
+    if shaky:
+        note = (
+            f"{', '.join(shaky)}: Pareto k > 0.7 on more than {UNRELIABLE_K_SHARE:.0%} of "
+            "the bins, so its PSIS-LOO elpd (too optimistic there) did not set the bar"
+        )
+        out.attrs["arrival_notes"] = "; ".join(
+            v for v in (out.attrs.get("arrival_notes"), note) if v
+        )
     out.tables["arrivals"] = table
     out.arrival_model = chosen
     return chosen
