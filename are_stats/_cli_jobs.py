@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -599,6 +599,7 @@ def run_generate(
             behaviour_dt=behaviour_dt,
             source=source,
             cell_source="--behaviour-cell",
+            progress=StepsLeft(clock, stage),
         )
     df, tracks = scenes_tables(scenes)
     manifest = {
@@ -630,6 +631,49 @@ def run_generate(
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
     )
     return df
+
+
+class StepsLeft:
+    """A ``progress(done, total, what)`` of the scene assembly
+    (:func:`~are_stats.scenarios.scenes_from_fit`) that tells a stage clock where the
+    assembly stands and the time left (:meth:`StageClock.left`).
+
+    The time left is the stage's recorded duration less the time spent when the clock
+    has one (a later run); on a machine's first run it is the mean time of the steps done
+    after the first (the scenarios' draw, quick: the planning and the social force are
+    the long steps) times the steps left, unknown until one of those is timed.
+
+    Parameters
+    ----------
+    clock : StageClock
+        The clock of the running stage.
+    stage : str
+        The stage's words (its key in the clock's record).
+    timer : callable
+        Seconds now (default :func:`time.perf_counter`).
+    """
+
+    def __init__(
+        self, clock: StageClock, stage: str, timer: Callable[[], float] = time.perf_counter
+    ) -> None:
+        self._clock, self._stage, self._timer = clock, stage, timer
+        self._t0 = timer()
+        self._first: float | None = None
+
+    def __call__(self, done: int, total: int, what: str) -> None:
+        now = self._timer()
+        if self._first is None:
+            self._first = now
+        last = self._clock.last(self._stage)
+        if last is not None:
+            left: float | None = max(last - (now - self._t0), 0.0)
+        elif done >= total:
+            left = 0.0
+        elif done >= 2:
+            left = (now - self._first) / (done - 1) * (total - done)
+        else:
+            left = None
+        self._clock.left(left, f"{what} ({done}/{total})")
 
 
 def _behaviour_cell_m(grid: OccupancyGrid, cell: float) -> float:

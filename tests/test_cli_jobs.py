@@ -19,6 +19,8 @@ import yaml
 from scipy import stats
 from typer.testing import CliRunner
 
+from are_stats import _cli_jobs as cli_jobs
+from are_stats._stage_clock import StageClock
 from are_stats.cli import app
 from are_stats.traffic import (
     LifecyclePriors,
@@ -346,11 +348,29 @@ def test_perceive_adds_flags(tmp_path):
     assert res.exit_code == 2 and "camera file not found" in res.output
 
 
-def test_generate_with_behaviours(tmp_path):
+class _SlowClock(StageClock):
+    """The generate job's stage clock, its status lines recorded, on a forced slow timer
+    (every reading 1.5 s after the one before: each step of the stage takes seconds),
+    with no record of earlier runs (a machine's first run)."""
+
+    lines: list[str] = []
+
+    def __init__(self, status, *args, **kwargs):
+        now = iter(np.arange(1, 10_000) * 1.5)
+        kwargs.update(path=None, live=False, timer=lambda: float(next(now)))
+        super().__init__(self, *args, **kwargs)
+
+    def update(self, text):  # the rich status this clock writes to
+        self.lines.append(text)
+
+
+def test_generate_with_behaviours(tmp_path, monkeypatch):
     log, _ = _write_log(tmp_path, labels=True)
     fit = tmp_path / "f.nc"
     _quick_em_fit(log, fit)
     out = tmp_path / "s"
+    monkeypatch.setattr(cli_jobs, "StageClock", _SlowClock)
+    _SlowClock.lines = []
     res = _invoke(
         [
             "generate",
@@ -380,6 +400,13 @@ def test_generate_with_behaviours(tmp_path):
     assert tracks["x"].between(-20, 20).all() and tracks["y"].between(-15, 15).all()
     manifest = yaml.safe_load((out / "manifest.yaml").read_text())
     assert manifest["tracks"]["file"] == "tracks.parquet"
+    # the stage's line says where the assembly stands and, once a long step is timed, the
+    # time left (issue 27): on a first run too, with no record of the stage
+    stage = "scenarios with their walks (rollouts) ... "
+    lines = [w for w in _SlowClock.lines if w.startswith(stage)]
+    assert any("scenarios drawn (1/3)" in w for w in lines), lines
+    assert re.search(r"tracks planned \(2/3\), about \d+ s left", lines[-2]), lines
+    assert re.search(r"walked with the social force \(3/3\), about 1 s left", lines[-1]), lines
 
 
 def test_fit_with_count_panel_adds_birth_death_mle(tmp_path):
@@ -479,3 +506,32 @@ def test_report_of_a_damaged_fit_names_the_file_and_field(tmp_path, em_fit_file)
         assert "posterior.attrs.area: expected this attribute" in " ".join(res.output.split())
     res = _invoke(["report", em_fit_file, "--out", tmp_path / "r", "--replicates", "0"])
     assert res.exit_code == 2 and "--replicates: expected an integer >= 1" in res.output
+
+
+def test_steps_left_from_the_steps_timed_or_the_record(tmp_path):
+    """The generate stage's time left: on a first run from the mean of the steps timed
+    after the quick first one, on a later run from the stage's recorded duration."""
+    now = [0.0]
+    timer = lambda: now[0]  # noqa: E731
+    said = []
+
+    class Clock(StageClock):
+        def left(self, seconds, words=""):
+            said.append((seconds, words))
+
+    first = Clock(None, path=tmp_path / "times.json", timer=timer)
+    first("rollouts")
+    steps = cli_jobs.StepsLeft(first, "rollouts", timer=timer)
+    for at, done in ((0.5, 1), (20.5, 2), (30.5, 3), (40.5, 4)):
+        now[0] = at
+        steps(done, 4, f"step {done}")
+    first.close()  # records 40.5 s
+    assert said == [(None, "step 1 (1/4)"), (40.0, "step 2 (2/4)"), (15.0, "step 3 (3/4)"),
+                    (0.0, "step 4 (4/4)")]  # fmt: skip
+    said.clear()
+    second = Clock(None, path=tmp_path / "times.json", timer=timer)
+    second("rollouts")
+    steps = cli_jobs.StepsLeft(second, "rollouts", timer=timer)
+    now[0] += 10.0
+    steps(1, 4, "step 1")
+    assert said == [(30.5, "step 1 (1/4)")]

@@ -36,7 +36,7 @@ when it estimated them from tracks, else the published ones (:class:`SocialForce
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -71,6 +71,10 @@ __all__ = [
 
 #: Values of ``behaviours=`` (besides ``True`` = ``"auto"`` and ``False`` = ``"none"``).
 BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
+
+#: ``progress(done, total, what)``: the assembly's steps done so far, of ``total``, and
+#: the last one done (``done`` grows by one a step and ends at ``total``).
+_Progress = Callable[[int, int, str], object]
 
 
 def _behaviour_source(behaviours: bool | str, fitted: BehaviourFit | None, source: str) -> str:
@@ -224,6 +228,7 @@ def scene_tracks(
     cell_source: str = "behaviour_cell",
     interaction: bool | SocialForce = True,
     n: int | None = None,
+    progress: _Progress | None = None,
 ) -> pd.DataFrame | None:
     """The tracks of a scenarios table by the module's one behaviour rule, then the
     interaction: what moves the artefacts of every assembly.
@@ -239,6 +244,9 @@ def scene_tracks(
         See :func:`scenes_from_draws`.
     n : int, optional
         Number of scenarios (default: the table's).
+    progress : callable, optional
+        ``progress(done, total, what)`` after each step: the tracks planned, then (with
+        ``interaction``) walked under the social force; ``done == total`` at the end.
 
     Returns
     -------
@@ -254,6 +262,8 @@ def scene_tracks(
     art = artefacts
     if n is None:
         n = int(art["scenario"].max()) + 1 if len(art) else 1
+    steps = 1 if interaction is False else 2
+    say = progress or (lambda done, total, what: None)
     tracks = None
     if kind == "fitted" and len(art):
         tracks = pd.DataFrame(
@@ -282,11 +292,14 @@ def scene_tracks(
                 source=cell_source,
             )
         )
+    say(1, steps, "tracks planned")
     if tracks is not None and len(tracks):
         walks = _pedestrians(art, catalogue, class_labels, n)
         tracks, groups = _groups(tracks, art, walks, grid, interaction)
         if interaction is not False:
             tracks = _interact(tracks, walks, grid, interaction, groups)
+    if steps > 1:
+        say(2, steps, "walked with the social force")
     return tracks
 
 
@@ -309,6 +322,7 @@ def scenes_from_draws(
     source: str = "scenario",
     cell_source: str = "behaviour_cell",
     interaction: bool | SocialForce = True,
+    progress: _Progress | None = None,
 ) -> list[Scene]:
     """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
 
@@ -352,6 +366,11 @@ def scenes_from_draws(
         Walk the tracks again with the social force (see the module docstring): ``True``
         with the published parameters, a :class:`~are_stats.behaviour.SocialForce` with
         those, ``False`` keeps the planned tracks.
+    progress : callable, optional
+        ``progress(done, total, what)`` after each step of the
+        assembly: the scenarios drawn, then with behaviours the tracks planned and walked
+        (:func:`scene_tracks`); the last call has ``done == total``. The steps are the
+        assembly's: the planning and the social force report no finer progress.
 
     Returns
     -------
@@ -371,6 +390,12 @@ def scenes_from_draws(
     art = generate_scenarios(
         seed, draws, n, horizon, free_mask=grid, area=area, start=start, laws=laws
     )
+    say = progress or (lambda done, total, what: None)
+    if kind == "none":
+        say(1, 1, "scenarios drawn")
+        return scenes_from_tables(art, None, catalogue, class_labels, range(n))
+    moves = 1 if interaction is False else 2
+    say(1, 1 + moves, "scenarios drawn")
     if k_tracks is None:
         k_tracks = jax.random.key(seed)
     tracks = scene_tracks(
@@ -388,6 +413,7 @@ def scenes_from_draws(
         cell_source=cell_source,
         interaction=interaction,
         n=n,
+        progress=lambda done, total, what: say(1 + done, 1 + total, what),
     )
     return scenes_from_tables(art, tracks, catalogue, class_labels, range(n))
 
@@ -468,6 +494,7 @@ def scenes_from_fit(
     source: str | None = None,
     cell_source: str = "behaviour_cell",
     interaction: bool | SocialForce = True,
+    progress: _Progress | None = None,
 ) -> list[Scene]:
     """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
 
@@ -496,6 +523,8 @@ def scenes_from_fit(
         else the published parameters.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
+    progress : callable, optional
+        ``progress(done, total, what)`` after each step (see :func:`scenes_from_draws`).
 
     Returns
     -------
@@ -549,4 +578,5 @@ def scenes_from_fit(
         source=source,
         cell_source=cell_source,
         interaction=interaction,
+        progress=progress,
     )

@@ -187,3 +187,27 @@ def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
     apart = nearest(art, alone)
     assert np.median(apart) > 2 * np.median(near)
     assert np.quantile(apart, 0.9) > 4 * np.quantile(near, 0.9)
+
+
+def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue):
+    idata = _idata()
+    calls = []
+    scenes = scenes_from_fit(
+        11, idata, grid, catalogue, 2, HORIZON, behaviours=True,
+        progress=lambda done, total, what: calls.append((done, total, what)),
+    )  # fmt: skip
+    assert [c[:2] for c in calls] == [(1, 3), (2, 3), (3, 3)]
+    assert [c[2] for c in calls] == [
+        "scenarios drawn", "tracks planned", "walked with the social force"
+    ]  # fmt: skip
+    # the same scenes as without a progress
+    again = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
+    for a, b in zip(scenes, again, strict=True):
+        pd.testing.assert_frame_equal(a.tracks_table(), b.tracks_table())
+    calls.clear()
+    scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, progress=lambda *c: calls.append(c))
+    assert calls == [(1, 1, "scenarios drawn")]  # no behaviours: one step
+    calls.clear()
+    scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False,
+                    progress=lambda *c: calls.append(c))  # fmt: skip
+    assert [c[:2] for c in calls] == [(1, 2), (2, 2)]
