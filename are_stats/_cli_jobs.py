@@ -1003,10 +1003,48 @@ def run_serve(
     loop: bool = False,
     duration: float | None = None,
     robot_path: Path | None = None,
+    bag: Path | None = None,
+    pose_topic: str | None = None,
+    base_frame: str | None = None,
+    map_frame: str = "map",
+    camera_frame: str | None = None,
+    camera_info_topic: str | None = None,
+    clock: str = "auto",
 ) -> dict[str, Any]:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
-    (:func:`are_stats.export._live.serve_scenario`)."""
-    from are_stats.export import serve_scenario
+    (:func:`are_stats.export.serve_scenario`), with the robot of a path or of a bag
+    (:func:`are_stats.export.robot_from_bag`: the options of ``augment``)."""
+    from are_stats.export import robot_from_bag, serve_scenario
+    from are_stats.logs import CLOCKS
+
+    clock = get_str(clock, "--clock", "", choices=CLOCKS)
+    bag_only = {
+        "--pose-topic": pose_topic,
+        "--base-frame": base_frame,
+        "--camera-frame": camera_frame,
+        "--camera-info-topic": camera_info_topic,
+        "--map-frame": None if map_frame == "map" else map_frame,
+        "--clock": None if clock == "auto" else clock,
+    }
+    if bag is None:
+        for name, value in bag_only.items():
+            if value is not None:
+                raise InputError(name, "", "--bag (the bag it reads)", Described("no --bag"))
+    if bag is not None and robot_path is not None:
+        raise InputError("--bag", "", "either --robot-path or --bag", "both")
+    if pose_topic is not None and base_frame is not None:
+        raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
+    robot = None
+    if bag is not None:
+        robot = robot_from_bag(
+            bag,
+            pose_topic=pose_topic,
+            base_frame=base_frame or "base_link",
+            map_frame=map_frame,
+            camera_info_topic=camera_info_topic,
+            camera_frame=camera_frame,
+            clock=clock,
+        )
 
     def ready(info: dict[str, Any]) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""
@@ -1017,6 +1055,14 @@ def run_serve(
             f"{until} on {info['url']} (Foxglove: Open connection -> {info['url']}; "
             "Ctrl-C stops)"
         )
+        if robot is not None:
+            console.print(
+                f"robot from {bag}: {robot['source']}, {robot['t'].size} poses over "
+                f"{robot['duration']:.1f} s, camera frame {robot['camera_frame']}, fixed frame "
+                f"{info['frame']}; clock: {robot['clock_note']}"
+            )
+            if robot["frame_note"]:
+                console.print(f"note: {robot['frame_note']}")
 
     try:
         info = serve_scenario(
@@ -1029,6 +1075,7 @@ def run_serve(
             duration=duration,
             on_ready=ready,
             robot_path=robot_path,
+            robot=robot,
         )
     except KeyboardInterrupt:
         console.print("stopped")

@@ -579,9 +579,48 @@ def serve(
         help="Robot path (CSV/Parquet t,x,y,yaw) to stream too: base_link and the camera "
         "frustum (the shipped front_camera).",
     ),
+    bag: Path = typer.Option(
+        None,
+        "--bag",
+        help="Robot bag (ROS 1 .bag, ROS 2 folder or .mcap) to stream the robot from, as "
+        "augment reads it: its path and camera frustum, scene time 0 at the bag's start, "
+        "stamps on its header clock.",
+    ),
+    pose_topic: str = typer.Option(
+        None,
+        "--pose-topic",
+        help="With --bag: poses from this topic (PoseStamped, PoseWithCovarianceStamped, "
+        "Odometry).",
+    ),
+    base_frame: str = typer.Option(
+        None,
+        "--base-frame",
+        help="With --bag: poses from /tf, map -> ... -> this frame (base_link).",
+    ),
+    map_frame: str = typer.Option(
+        "map",
+        "--map-frame",
+        help="With --bag: the fixed frame (odom is used when the bag's tree has no map).",
+    ),
+    camera_frame: str = typer.Option(
+        None,
+        "--camera-frame",
+        help="With --bag: the camera's frame in its tree (default: the CameraInfo's frame).",
+    ),
+    camera_info_topic: str = typer.Option(
+        None,
+        "--camera-info-topic",
+        help="With --bag: sensor_msgs/CameraInfo topic, the frustum's intrinsics.",
+    ),
+    clock: str = typer.Option(
+        "auto",
+        "--clock",
+        help="With --bag: clock of its poses, header stamps, log (recording) times, or auto "
+        "(header stamps when set).",
+    ),
 ) -> None:
     """Stream a scenario replay live to Foxglove (WebSocket, foxglove.sdk.v1): boxes, map, /tf,
-    and the robot with --robot-path."""
+    and the robot with --robot-path or --bag."""
     from are_stats._cli_jobs import run_serve
 
     run_serve(
@@ -593,6 +632,13 @@ def serve(
         loop=loop,
         duration=duration,
         robot_path=robot_path,
+        bag=bag,
+        pose_topic=pose_topic,
+        base_frame=base_frame,
+        map_frame=map_frame,
+        camera_frame=camera_frame,
+        camera_info_topic=camera_info_topic,
+        clock=clock,
     )
 
 

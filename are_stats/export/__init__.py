@@ -11,6 +11,7 @@ from are_stats.export._live import (
     LIVE_TOPICS,
     LiveMessage,
     replay_messages,
+    robot_from_bag,
     serve_scenario,
 )
 from are_stats.export._mcap import MCAP_TOPICS, export_mcap
@@ -32,5 +33,6 @@ __all__ = [
     "plot_mcap",
     "read_view",
     "replay_messages",
+    "robot_from_bag",
     "serve_scenario",
 ]

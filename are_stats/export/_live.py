@@ -18,11 +18,20 @@ topic        Foxglove schema             content
 ``/map``     ``foxglove.Grid``           the occupancy map (one ``uint8`` field
                                          ``occupancy``: 0-100, 255 unknown), at the start
                                          and again every second, so late viewers get it
-``/robot``   ``foxglove.SceneUpdate``    with a robot path (``--robot-path``): the robot's
-                                         footprint and its camera's viewing frustum (to
-                                         ``d_max``), with ``map -> base_link`` and
-                                         ``base_link -> camera_optical_frame`` on ``/tf``
+``/robot``   ``foxglove.SceneUpdate``    with a robot path (``--robot-path``) or a robot's
+                                         bag (``--bag``): the robot's footprint and its
+                                         camera's viewing frustum (to ``d_max``), with
+                                         ``map -> base_link`` and ``base_link ->
+                                         camera_optical_frame`` on ``/tf`` (the bag's own
+                                         frame names with ``--bag``)
 ===========  ==========================  ====================================================
+
+With a bag (:func:`robot_from_bag`) the robot's path and camera come from the bag, read by
+:func:`~are_stats.logs.read_trajectory` as ``are-stats augment`` reads them (the same
+``--pose-topic``, ``--base-frame``, ``--map-frame``, ``--camera-frame``,
+``--camera-info-topic`` and ``--clock``): scene time 0 is the bag's start and the replay's
+stamps are on the bag's header clock, so the robot is shown where the bag has it at each
+stamp; in an odometry-only bag the fixed frame is ``odom``.
 
 The server speaks the protocol foxglove-sdk serves, ``foxglove.sdk.v1`` (the Foxglove app
 and desktop connect to it; clients must offer that subprotocol).
@@ -42,7 +51,7 @@ import math
 import os
 import socket
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -52,7 +61,7 @@ import numpy as np
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
-from are_stats.logs import interpolate_poses
+from are_stats.logs import interpolate_poses, read_trajectory
 from are_stats.scenarios import Scene, read_scenes, scenes_from_tables
 
 # Lazy imports: foxglove and perception (Warp) load when the live view starts, not with the
@@ -69,6 +78,7 @@ __all__ = [
     "LiveMessage",
     "load_robot",
     "replay_messages",
+    "robot_from_bag",
     "serve_scenario",
 ]
 
@@ -78,7 +88,7 @@ LIVE_TOPICS = {
     "/tf": "foxglove.FrameTransforms",
     "/map": "foxglove.Grid",
 }
-#: Topic -> schema added with a robot path (``--robot-path``).
+#: Topic -> schema added with a robot path (``--robot-path``) or bag (``--bag``).
 ROBOT_TOPICS = {"/robot": "foxglove.SceneUpdate"}
 
 #: Box colours (r, g, b, a) by catalogue class position (cycled).
@@ -233,7 +243,8 @@ def _robot_frame(fm: Any, robot: Any, t: float, ns: int, frame: str) -> tuple[An
     stamp = _ts(fm, ns)
     x, y = float(base_at[0, 3]), float(base_at[1, 3])
     yaw = math.atan2(base_at[1, 0], base_at[0, 0])
-    base, optical = ROS_FRAMES["F_R"], ROS_FRAMES["F_C"]
+    base = robot.get("base_frame", ROS_FRAMES["F_R"])
+    optical = robot.get("camera_frame", ROS_FRAMES["F_C"])
     # the frustum's corners in the optical frame at d_max: pixel corners through the pinhole
     d = robot["d_max"]
     corners = []
@@ -346,8 +357,9 @@ def replay_messages(
         The fixed frame.
     robot : dict, optional
         ``t`` (m,), ``poses`` (m, 4, 4) ``T_map_base``, ``mount`` (4, 4) ``T_base_optical``,
-        ``camera`` (PinholeCamera), ``d_max`` and ``radius``: the robot on ``/robot`` and
-        ``/tf`` (:func:`load_robot`).
+        ``camera`` (PinholeCamera), ``d_max`` and ``radius``, optionally ``base_frame``
+        and ``camera_frame`` (default ``base_link``, ``camera_optical_frame``): the robot
+        on ``/robot`` and ``/tf`` (:func:`load_robot`, :func:`robot_from_bag`).
 
     Yields
     ------
@@ -425,13 +437,10 @@ def load_robot(
     dict
         ``t``, ``poses``, ``mount``, ``camera``, ``d_max``, ``radius``.
     """
-    from are_stats.perception import PinholeCamera, optical_from_base, read_robot_path
+    from are_stats.perception import read_robot_path
 
     table = read_robot_path(path)
-    if camera is None:
-        camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
-    cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
-    mount = cam.pose if not np.allclose(cam.pose, np.eye(4)) else optical_from_base((0, 0, height))
+    cam, mount = _camera_and_mount(camera, height)
     t = table["t"].to_numpy(float)
     c, s = np.cos(table["yaw"].to_numpy(float)), np.sin(table["yaw"].to_numpy(float))
     poses = np.zeros((t.size, 4, 4))
@@ -445,6 +454,108 @@ def load_robot(
         "camera": cam,
         "d_max": float(d_max),
         "radius": float(radius),
+    }
+
+
+def _camera_and_mount(
+    camera: PinholeCamera | str | os.PathLike[str] | None, height: float
+) -> tuple[PinholeCamera, np.ndarray]:
+    """The camera (default the shipped ``front_camera``) and its mount ``T_base_optical``
+    (its pose, or ``height`` m above the base looking forward when it has none)."""
+    from are_stats.perception import PinholeCamera, optical_from_base
+
+    if camera is None:
+        camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
+    cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
+    mount = cam.pose if not np.allclose(cam.pose, np.eye(4)) else optical_from_base((0, 0, height))
+    return cam, np.asarray(mount, float)
+
+
+def robot_from_bag(
+    bag: str | os.PathLike,
+    *,
+    pose_topic: str | None = None,
+    base_frame: str = "base_link",
+    map_frame: str = "map",
+    camera_info_topic: str | None = None,
+    camera_frame: str | None = None,
+    clock: str = "auto",
+    camera: PinholeCamera | str | os.PathLike[str] | None = None,
+    height: float = 1.0,
+    d_max: float = 10.0,
+    radius: float = 0.3,
+) -> dict[str, Any]:
+    """A robot's recorded path and camera from its bag, for :func:`replay_messages`.
+
+    The bag is read by :func:`~are_stats.logs.read_trajectory` (the reader of ``are-stats
+    augment``, with its options and clock rule). Scene time 0 is the bag's start (its first
+    pose or camera time on the clock read), as in ``augment``; ``start_ns`` is that start
+    on the bag's header clock, the replay's stamp of scene time 0.
+
+    Parameters
+    ----------
+    bag : path
+        ROS 1 ``.bag``, ROS 2 bag folder or ``.mcap``.
+    pose_topic, base_frame, map_frame, camera_info_topic, camera_frame, clock
+        See :func:`~are_stats.logs.read_trajectory`.
+    camera : PinholeCamera or path, optional
+        Intrinsics when ``camera_info_topic`` is not given (default the shipped
+        ``front_camera``).
+    height, d_max, radius : float
+        Camera height (m) when neither the bag's tree nor the camera gives a mount, frustum
+        depth (m), footprint radius (m).
+
+    Returns
+    -------
+    dict
+        ``t`` (m,) scene times (s after the bag's start), ``poses`` (m, 4, 4)
+        ``T_frame_base``, ``mount`` (4, 4) ``T_base_optical`` (the bag's static chain to
+        the camera frame when it has one, else the camera's), ``camera``, ``d_max``,
+        ``radius``, ``base_frame``, ``camera_frame`` (the bag's names), ``frame`` (the
+        fixed frame: ``map_frame``, or ``odom`` in an odometry-only bag), ``start_ns``,
+        ``duration`` (s), ``source``, ``clock_note``, ``frame_note``.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming the bag and topic when it holds no usable pose (no ``/tf`` chain from the
+        map frame to the base, a missing or empty pose topic) and for the other errors of
+        :func:`~are_stats.logs.read_trajectory`.
+    """
+    from are_stats.perception import PinholeCamera
+
+    traj = read_trajectory(
+        bag,
+        pose_topic=pose_topic,
+        base_frame=base_frame,
+        map_frame=map_frame,
+        camera_info_topic=camera_info_topic,
+        clock=clock,
+        camera_frame=camera_frame,
+    )
+    t_ns = traj.t_ns if traj.t_ns is not None else np.round(traj.t * 1e9).astype(np.int64)
+    if camera_info_topic is not None:
+        camera = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
+    cam, mount = _camera_and_mount(camera, height)
+    if traj.mount is not None:  # the bag's own tree wins
+        mount = traj.mount
+    # the header clock's start (augment's rule): stamps of the replay as the bag's
+    off = traj.offset_ns if traj.clock == "log" else 0
+    return {
+        "t": (t_ns - traj.start_ns) * 1e-9,
+        "poses": np.asarray(traj.poses, float),
+        "mount": np.asarray(mount, float),
+        "camera": cam,
+        "d_max": float(d_max),
+        "radius": float(radius),
+        "base_frame": base_frame.lstrip("/"),
+        "camera_frame": traj.camera_frame or ROS_FRAMES["F_C"],
+        "frame": traj.frame,
+        "start_ns": int(traj.start_ns) + int(off),
+        "duration": traj.end - traj.start,
+        "source": traj.source,
+        "clock_note": traj.clock_note,
+        "frame_note": traj.frame_note,
     }
 
 
@@ -572,6 +683,7 @@ def serve_scenario(
     on_ready: Callable[[dict[str, Any]], None] | None = None,
     stop: threading.Event | None = None,
     robot_path: str | os.PathLike | None = None,
+    robot: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Stream a scenario replay live over Foxglove's WebSocket protocol.
 
@@ -602,12 +714,16 @@ def serve_scenario(
     robot_path : path, optional
         A robot path (``t, x, y, yaw``) to stream with the scene (:func:`load_robot`:
         ``/robot`` and its ``/tf``).
+    robot : dict, optional
+        A robot already read (:func:`robot_from_bag`, :func:`load_robot`), instead of
+        ``robot_path``. With a ``start_ns`` (a bag's) the replay is stamped from it instead
+        of the wall clock's now, and with a ``frame`` that is the fixed frame.
 
     Returns
     -------
     dict
         ``host``, ``port``, ``url``, ``scenario``, ``artefacts``, ``moving``, ``horizon``,
-        ``frames`` and ``messages`` (counts sent), ``wall`` (seconds served).
+        ``frame``, ``frames`` and ``messages`` (counts sent), ``wall`` (seconds served).
 
     Raises
     ------
@@ -627,8 +743,12 @@ def serve_scenario(
         or any(c.isspace() or c in "/\\\x00" for c in host)
     ):
         raise InputError("--host", "", "an address to listen on, such as 127.0.0.1", host)
+    if robot_path is not None and robot is not None:
+        raise InputError("--robot-path", "", "either --robot-path or --bag", "both")
     replay = _replay(Path(folder), read_scenes(folder), scenario)
-    robot = load_robot(robot_path) if robot_path is not None else None
+    if robot_path is not None:
+        robot = load_robot(robot_path)
+    fixed = str(robot.get("frame", ROS_FRAMES["F_E"])) if robot is not None else ROS_FRAMES["F_E"]
     _fm()
     import foxglove
     from foxglove.channels import FrameTransformsChannel, GridChannel, SceneUpdateChannel
@@ -668,11 +788,12 @@ def serve_scenario(
         "artefacts": len(replay["scene"]),
         "moving": replay["moving"],
         "horizon": replay["horizon"],
+        "frame": fixed,
         "frames": 0,
         "messages": 0,
         "wall": 0.0,
     }
-    start_ns = time.time_ns()
+    start_ns = time.time_ns() if robot is None else int(robot.get("start_ns", time.time_ns()))
     t0 = time.monotonic()
     try:
         if on_ready is not None:
@@ -685,7 +806,8 @@ def serve_scenario(
             fps=fps,
             loop=loop,
             start_ns=start_ns,
-            robot=robot,
+            frame=fixed,
+            robot=None if robot is None else dict(robot),
         )
         last_stamp = None
         for m in msgs:

@@ -6,6 +6,7 @@ import base64
 import json
 import math
 import os
+import re
 import socket
 import struct
 import threading
@@ -324,3 +325,123 @@ def test_replay_streams_the_robot_and_its_camera_frustum(tmp_path):
         assert base.parent_frame_id == "map"
         assert base.translation.x == pytest.approx(m.t / 10.0)  # 6 m in 60 s
         assert by_child["camera_optical_frame"].parent_frame_id == "base_link"
+
+
+# ---- the robot from a bag (issue 27): the reader and clock of augment -------------------
+
+
+def _bag_robot(tmp_path, kind="mcap", **which):
+    from tests.export.rosbag_fixtures import write_bag
+
+    name = "robot.bag" if kind == "ros1" else f"robot_{kind}"
+    return write_bag(tmp_path / name, kind, **which)
+
+
+def _robot_tfs(msgs):
+    """(scene time, stamp ns, {child: transform}) of every /tf message."""
+    out = []
+    for m in msgs:
+        if m.topic == "/tf":
+            tfs = {tf.child_frame_id: tf for tf in _decode(m.message).transforms}
+            out.append((m.t, m.stamp_ns, tfs))
+    return out
+
+
+@pytest.mark.parametrize("kind", ["mcap", "ros1"])
+def test_replay_streams_the_robot_of_a_bag_on_its_clock(tmp_path, kind):
+    from are_stats.export import robot_from_bag
+    from tests.export.rosbag_fixtures import CAMERA, CAMERA_XYZ, SIM_START, robot_pose, stamp_ns
+
+    # header stamps on a simulation clock, recording times on the wall clock (as Nav2's
+    # simulation tutorials record): the robot is read on the header clock, as augment does
+    bag = _bag_robot(tmp_path, kind, header_start=SIM_START)
+    robot = robot_from_bag(bag, camera_info_topic="/camera/camera_info", d_max=5.0)
+    assert robot["frame"] == "map" and robot["start_ns"] == stamp_ns(0.0, SIM_START)
+    assert robot["camera_frame"] == "camera_optical_frame"
+    msgs = list(
+        replay_messages(
+            _scene(), horizon=12.0, speed=40.0, fps=10.0, start_ns=robot["start_ns"], robot=robot
+        )
+    )
+    seen = _robot_tfs(msgs)
+    assert len(seen) == 4  # t = 0, 4, 8, 12
+    for t, ns, tfs in seen:
+        assert ns == stamp_ns(t, SIM_START)  # stamps on the bag's header clock
+        base = tfs["base_link"]
+        assert base.parent_frame_id == "map"
+        x, y, yaw = robot_pose(t)  # map -> odom -> base_link composed
+        assert (base.translation.x, base.translation.y) == pytest.approx((x, y), abs=1e-9)
+        assert 2 * math.atan2(base.rotation.z, base.rotation.w) == pytest.approx(yaw)
+        cam = tfs["camera_optical_frame"]  # the mount from the bag's /tf_static
+        assert cam.parent_frame_id == "base_link"
+        xyz = (cam.translation.x, cam.translation.y, cam.translation.z)
+        assert xyz == pytest.approx(CAMERA_XYZ)
+        # optical z (forward) along the base's x: q rotates (0, 0, 1) onto (1, 0, 0)
+        q = cam.rotation
+        fwd_x = 2 * (q.x * q.z + q.w * q.y)
+        assert fwd_x == pytest.approx(1.0)
+    # the frustum from the bag's CameraInfo (80 x 60, fx = 60, cx = 40): its corner rays
+    body = _decode(next(m for m in msgs if m.topic == "/robot").message)
+    frustum = next(e for e in body.entities if e.id == "camera_frustum")
+    assert frustum.frame_id == "camera_optical_frame"
+    pts = frustum.lines[0].points
+    corners = {(round(p.x / p.z, 6), round(p.y / p.z, 6)) for p in pts if p.z > 0}
+    fx, cx, cy = CAMERA["k"][0], CAMERA["k"][2], CAMERA["k"][5]
+    want = {
+        (round(-cx / fx, 6), round(-cy / fx, 6)),
+        (round((80 - cx) / fx, 6), round(-cy / fx, 6)),
+    }
+    assert want <= corners
+    assert max(math.hypot(p.x, p.y, p.z) for p in pts) == pytest.approx(5.0)
+
+
+def test_robot_of_an_odometry_only_bag_lives_in_odom(tmp_path):
+    from are_stats.export import robot_from_bag
+    from tests.export.rosbag_fixtures import robot_pose
+
+    bag = _bag_robot(tmp_path, "ros2", map_tf=False, camera=False)
+    robot = robot_from_bag(bag)
+    assert robot["frame"] == "odom" and "odom" in robot["frame_note"]
+    msgs = list(
+        replay_messages(_scene(), horizon=12.0, speed=120.0, fps=10.0, robot=robot, frame="odom")
+    )
+    (_, _, tfs), *_ = _robot_tfs(msgs)
+    x, y, _ = robot_pose(0.0)
+    base = tfs["base_link"]
+    assert base.parent_frame_id == "odom"
+    assert (base.translation.x, base.translation.y) == pytest.approx((x - 1.0, y + 0.5))
+    assert {tf.parent_frame_id for tf in tfs.values()} == {"odom", "base_link"}
+
+
+def test_cli_serve_streams_the_robot_of_a_bag(folder, tmp_path):
+    bag = _bag_robot(tmp_path)
+    args = ["serve", str(folder), "--port", "0", "--speed", "100", "--duration", "0.3"]
+    res = runner.invoke(app, [*args, "--bag", str(bag), "--pose-topic", "/amcl_pose"])
+    assert res.exit_code == 0, res.output
+    said = " ".join(res.output.split())  # the console wraps long lines
+    assert f"robot from {bag}: /amcl_pose, 121 poses over 12.0 s" in said, said
+    assert "camera frame camera_optical_frame, fixed frame map" in said
+
+
+def test_cli_serve_refuses_a_bag_without_a_usable_pose(folder, tmp_path):
+    args = ["serve", str(folder), "--port", "0", "--duration", "0.1"]
+    bare = _bag_robot(tmp_path, "ros2", tf=False, poses=False)
+    res = runner.invoke(app, [*args, "--bag", str(bare)])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {bare}"), res.output
+    assert "robot poses" in res.output and "/camera/camera_info" in res.output
+    bag = _bag_robot(tmp_path)
+    for extra, pattern in (
+        (["--pose-topic", "/nope"], r"--pose-topic /nope: expected a topic of the bag"),
+        (["--base-frame", "robot"], r"map -> \.\.\. -> robot"),
+        (["--camera-frame", "nope"], r"--camera-frame nope: expected a frame"),
+        (["--pose-topic", "/amcl_pose", "--base-frame", "b"], "either --pose-topic or"),
+        (["--robot-path", str(tmp_path / "p.csv")], "either --robot-path or --bag"),
+        (["--clock", "sun"], r"--clock: expected one of"),
+    ):
+        res = runner.invoke(app, [*args, "--bag", str(bag), *extra])
+        assert res.exit_code == 2, (extra, res.output)
+        assert re.search(pattern, res.output), (extra, res.output)
+    res = runner.invoke(app, [*args, "--pose-topic", "/amcl_pose"])
+    assert res.exit_code == 2 and "--pose-topic: expected --bag" in res.output, res.output
