@@ -445,3 +445,48 @@ def test_cli_serve_refuses_a_bag_without_a_usable_pose(folder, tmp_path):
         assert re.search(pattern, res.output), (extra, res.output)
     res = runner.invoke(app, [*args, "--pose-topic", "/amcl_pose"])
     assert res.exit_code == 2 and "--pose-topic: expected --bag" in res.output, res.output
+
+
+def test_serve_sends_the_bag_robot_on_the_bags_clock(folder, tmp_path):
+    """On the wire: /robot advertised, and the frames stamped (and logged) from the bag's
+    start on its header clock (a simulation clock here), not from the wall clock's now."""
+    ws_client = pytest.importorskip("websockets.sync.client")
+    from are_stats.export import robot_from_bag
+    from tests.export.rosbag_fixtures import SIM_START, stamp_ns
+
+    robot = robot_from_bag(_bag_robot(tmp_path, header_start=SIM_START))
+    ready, stop, box = threading.Event(), threading.Event(), {}
+
+    def run():
+        try:
+            box["info"] = serve_scenario(
+                folder, speed=10.0, port=0, loop=True, duration=15.0, robot=robot,
+                on_ready=lambda info: (box.update(ready=info), ready.set()), stop=stop,
+            )  # fmt: skip
+        except BaseException as err:  # pragma: no cover - reported below
+            box["error"] = err
+            ready.set()
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    try:
+        assert ready.wait(10) and "error" not in box, box.get("error")
+        deadline = time.monotonic() + 10
+        url = f"ws://127.0.0.1:{box['ready']['port']}"
+        with ws_client.connect(url, subprotocols=SUBPROTOCOLS, open_timeout=5) as ws:
+            adv = _recv_json(ws, deadline, "advertise")
+            chans = {c["topic"]: c for c in adv["channels"]}
+            assert chans["/robot"]["schemaName"] == "foxglove.SceneUpdate"
+            subs = [{"id": k, "channelId": chans[t]["id"]} for k, t in enumerate(["/robot"])]
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            log_times = []
+            while len(log_times) < 2:
+                raw = ws.recv(timeout=max(deadline - time.monotonic(), 0.01))
+                if isinstance(raw, bytes) and raw[0] == 1:
+                    log_times.append(struct.unpack_from("<BIQ", raw)[2])
+    finally:
+        stop.set()
+        th.join(10)
+    assert not th.is_alive() and "error" not in box, box.get("error")
+    start = stamp_ns(0.0, SIM_START)
+    assert all(start <= lt < start + 60 * 10**9 for lt in log_times), (start, log_times)
