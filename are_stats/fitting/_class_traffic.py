@@ -366,6 +366,22 @@ def _choose(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str, pd.Data
     return chosen, table
 
 
+def uncompared(order: Sequence[str]) -> tuple[str, pd.DataFrame]:
+    """The simplest model and a comparison table of zeros with it chosen: the outcome of
+    :func:`_choose` when there is nothing to compare (one class, or no draws to compare on)."""
+    table = pd.DataFrame(
+        {
+            "elpd": 0.0,
+            "se": 0.0,
+            "elpd_diff": 0.0,
+            "dse": 0.0,
+            "chosen": [True] + [False] * (len(order) - 1),
+        },
+        index=pd.Index(list(order), name="model"),
+    )
+    return order[0], table
+
+
 def fit_class_shares_by_time(
     key: jax.Array,
     t_arrive: npt.ArrayLike,
@@ -470,11 +486,7 @@ def fit_class_shares_by_time(
         }
         model, table = _choose(elpd, list(CLASS_SHARE_MODELS))
     else:
-        model = "constant"
-        table = pd.DataFrame(
-            {"elpd": [0.0, 0.0], "se": 0.0, "elpd_diff": 0.0, "dse": 0.0, "chosen": [True, False]},
-            index=pd.Index(CLASS_SHARE_MODELS, name="model"),
-        )
+        model, table = uncompared(CLASS_SHARE_MODELS)
     return ClassShareClock(
         weights=weights, kappa=kappa, counts=counts, model=model, table=table, ess=ess
     )

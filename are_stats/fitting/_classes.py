@@ -37,6 +37,7 @@ import pandas as pd
 from scipy.special import gammainc, gammaincc, gammaln, log_ndtr, logsumexp, ndtr
 
 from are_stats._checks import check_in
+from are_stats.fitting._class_traffic import uncompared
 from are_stats.fitting._fit import fit_class_labels, traffic_draws
 from are_stats.fitting._traffic import choose_simplest, loo_pointwise
 from are_stats.inputs import check_memory, check_work
@@ -399,11 +400,7 @@ def fit_classes(
         }
         chosen, table = choose_simplest(elpd, list(CLASS_STAY_MODELS))
     else:
-        chosen = "pooled"
-        table = pd.DataFrame(
-            {"elpd": [0.0, 0.0], "se": 0.0, "elpd_diff": 0.0, "dse": 0.0, "chosen": [True, False]},
-            index=pd.Index(CLASS_STAY_MODELS, name="model"),
-        )
+        chosen, table = uncompared(CLASS_STAY_MODELS)
     return ClassFit(
         labels=names,
         counts=counts,
