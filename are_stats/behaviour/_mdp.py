@@ -532,12 +532,12 @@ class _BufferPool:
 
     def __init__(self, max_bytes: int = 256 * 2**20) -> None:
         self.max_bytes = max_bytes
-        self._free: dict[tuple, list[Any]] = {}
+        self._free: dict[tuple, list[jax.Array]] = {}
         self._bytes = 0
         # reentrant: a collection inside take() or give() may run a finalizer that gives
         self._lock = threading.RLock()
 
-    def take(self, key: tuple, make: Callable[[], Any]) -> Any:
+    def take(self, key: tuple, make: Callable[[], jax.Array]) -> jax.Array:
         with self._lock:
             stack = self._free.get(key)
             if stack:
@@ -546,7 +546,7 @@ class _BufferPool:
                 return buf
         return make()
 
-    def give(self, key: tuple, buf: Any) -> None:
+    def give(self, key: tuple, buf: jax.Array) -> None:
         if buf.is_deleted():
             return
         with self._lock:
@@ -562,7 +562,7 @@ def _outputs(shapes: _Outputs, sharding: jax.sharding.Sharding) -> tuple[_Output
     """Output buffers for ``shapes`` (from the pool, else fresh zeros) and their pool keys."""
     keys: list[tuple] = []
 
-    def get(sd: jax.ShapeDtypeStruct) -> Any:
+    def get(sd: jax.ShapeDtypeStruct) -> jax.Array:
         key = (sd.shape, np.dtype(sd.dtype).str, sharding)
         keys.append(key)
         return _POOL.take(key, lambda: jax.device_put(np.zeros(sd.shape, sd.dtype), sharding))
