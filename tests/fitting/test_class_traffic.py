@@ -172,11 +172,11 @@ def _mixed_log(rng, days=2.0, n=2400):
     return data, cls
 
 
-def test_labelled_fit_with_map_and_clock_generates_per_class(tmp_path, rng):
-    data, cls = _mixed_log(rng)
+def _fit_mixed(data, cls, num_samples):
+    """The fit of a mixed log on the open test map, clocked from midnight."""
     grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
-    s = FitSettings(num_samples=400, positions="auto", **EM)
-    idata = fit_log(
+    s = FitSettings(num_samples=num_samples, positions="auto", **EM)
+    return fit_log(
         jax.random.key(0),
         data,
         s,
@@ -185,6 +185,12 @@ def test_labelled_fit_with_map_and_clock_generates_per_class(tmp_path, rng):
         grid=grid,
         clock_start="2026-01-01T00:00:00",
     ).idata
+
+
+def test_labelled_fit_with_map_and_clock_generates_per_class(tmp_path, rng):
+    data, cls = _mixed_log(rng)
+    grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
+    idata = _fit_mixed(data, cls, 400)
     write_fit(idata, tmp_path / "fit.nc")
     back = read_fit(tmp_path / "fit.nc").idata
     a = back.posterior.attrs
@@ -345,17 +351,7 @@ def test_per_class_entries_on_another_map_are_refused(rng):
 
 def test_read_fit_names_damaged_class_traffic(tmp_path, rng):
     data, cls = _mixed_log(rng, days=1.0, n=600)
-    grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
-    s = FitSettings(num_samples=100, positions="auto", **EM)
-    idata = fit_log(
-        jax.random.key(0),
-        data,
-        s,
-        class_labels=["bicycle", "person"],
-        classes=cls,
-        grid=grid,
-        clock_start="2026-01-01T00:00:00",
-    ).idata
+    idata = _fit_mixed(data, cls, 100)
     write_fit(idata, tmp_path / "ok.nc")
     read_fit(tmp_path / "ok.nc")
     bad = idata.copy()
