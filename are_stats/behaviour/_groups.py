@@ -23,15 +23,26 @@ members walk, see there). :func:`group_spacing` measures the spacing of observed
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Hashable, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
+
+from are_stats._checks import check_positive
+
+# Lazy imports: scipy.spatial (0.4 s, not loaded by the behaviour package) in group_spacing.
+
+if TYPE_CHECKING:
+    from are_stats.environment import OccupancyGrid
 
 __all__ = ["formation", "group_spacing", "group_tracks", "slot_offsets"]
 
 
-def formation(scenario: Any, group: Any, t_arrive: Any) -> tuple[np.ndarray, np.ndarray]:
+def formation(
+    scenario: npt.ArrayLike, group: npt.ArrayLike, t_arrive: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """Each artefact's group leader and formation slot.
 
     Parameters
@@ -75,7 +86,7 @@ def formation(scenario: Any, group: Any, t_arrive: Any) -> tuple[np.ndarray, np.
     return leader, slot
 
 
-def slot_offsets(slot: Any, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+def slot_offsets(slot: npt.ArrayLike, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     """Lateral (abreast) and backward (single file) offsets of formation slots.
 
     Parameters
@@ -98,7 +109,7 @@ def slot_offsets(slot: Any, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     return side, k * float(spacing)
 
 
-def _free_at(grid: Any, xy: np.ndarray) -> np.ndarray:
+def _free_at(grid: OccupancyGrid | None, xy: np.ndarray) -> np.ndarray:
     if grid is None:
         return np.ones(len(xy), bool)
     rc = np.asarray(grid.world_to_cell(xy))
@@ -109,7 +120,7 @@ def _free_at(grid: Any, xy: np.ndarray) -> np.ndarray:
     return out
 
 
-def _clear(grid: Any, a: np.ndarray, b: np.ndarray, steps: int = 8) -> np.ndarray:
+def _clear(grid: OccupancyGrid | None, a: np.ndarray, b: np.ndarray, steps: int = 8) -> np.ndarray:
     """Whether the segments ``a -> b`` (m, 2) stay on free cells (sampled)."""
     ok = np.ones(len(a), bool)
     for f in np.linspace(0.0, 1.0, steps + 1)[1:]:
@@ -121,7 +132,7 @@ def group_tracks(
     tracks: pd.DataFrame,
     artefacts: pd.DataFrame,
     spacing: float,
-    grid: Any = None,
+    grid: OccupancyGrid | None = None,
 ) -> pd.DataFrame:
     """Planned tracks with every group member on its leader's path, in formation.
 
@@ -145,8 +156,6 @@ def group_tracks(
         and last position outside the leader's time) at the member's slot, ``yaw`` the
         leader's heading. ``attrs["group_members"]`` counts the members moved.
     """
-    from are_stats._checks import check_positive
-
     spacing = float(check_positive("spacing", spacing))
     out = tracks.copy()
     out.attrs["group_members"] = 0
@@ -228,7 +237,7 @@ def group_tracks(
 
 
 def group_spacing(
-    tracks: pd.DataFrame, groups: Any, *, min_speed: float = 0.2
+    tracks: pd.DataFrame, groups: Mapping[Hashable, Hashable] | pd.Series, *, min_speed: float = 0.2
 ) -> tuple[float, int]:
     """The spacing of observed groups: the median distance from a walking member to its
     nearest co-member at the same time.

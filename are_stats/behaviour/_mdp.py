@@ -47,12 +47,14 @@ import functools
 import threading
 import weakref
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from are_stats._checks import check_array, check_nonnegative, check_probability, describe
 from are_stats.behaviour._rewards import (
@@ -65,6 +67,9 @@ from are_stats.behaviour._rewards import (
     STAY,
     allowed_actions,
 )
+
+if TYPE_CHECKING:
+    from are_stats.environment import OccupancyGrid
 
 __all__ = ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
 
@@ -79,7 +84,7 @@ _MOVE_ORDER = (RUN, FORWARD, LEFT, RIGHT)
 _TIE_RTOL = {"float32": 1e-5, "float64": 1e-12}
 
 
-def _occupancy(occupied: Any) -> np.ndarray:
+def _occupancy(occupied: npt.ArrayLike | OccupancyGrid) -> np.ndarray:
     """The boolean occupancy array of ``occupied`` (an array or an OccupancyGrid-like object)."""
     if hasattr(occupied, "free"):  # OccupancyGrid: unknown cells are not free (DECISIONS 4)
         occupied = ~np.asarray(occupied.free, dtype=bool)
@@ -160,7 +165,7 @@ def _solve_one(
     n = (h_ + 4) * wp_
     m = 2 * wp_
 
-    def flat(x: jax.Array, fill: Any) -> jax.Array:
+    def flat(x: jax.Array, fill: bool | float) -> jax.Array:
         """``(..., H, W)`` -> ``(..., N)`` padded with ``fill``."""
         pad = [(0, 0)] * (x.ndim - 2) + [(2, 2), (2, 2)]
         x = jnp.pad(x, pad, constant_values=fill)
@@ -264,12 +269,12 @@ def _solve_one(
         packed = (pols[0] | (pols[1] << 4), pols[2] | (pols[3] << 4)) if with_policy else None
         return tuple(v_new), (packed, tuple(v_new) if store_values else None)
 
-    def put(buf: jax.Array, x: jax.Array, t: Any) -> jax.Array:
+    def put(buf: jax.Array, x: jax.Array, t: jax.Array) -> jax.Array:
         """``buf[item, t] = x`` in place (x flat over the interior rows)."""
         zero = jnp.zeros((), t.dtype)
         return jax.lax.dynamic_update_slice(buf, x.reshape(1, 1, h_, wp_), (item, t, zero, zero))
 
-    def epoch(i: Any, carry: tuple) -> tuple:
+    def epoch(i: jax.Array, carry: tuple) -> tuple:
         v, pol, val = carry
         t = n_epochs - 1 - i
         reward_t = None if follow_f is None else jax.lax.dynamic_index_in_dim(follow_f, t, 0, False)
@@ -353,9 +358,20 @@ def backward_induction(
         goals.shape[0], n_epochs, goals.shape[1:], slip.dtype, store_values, with_policy
     )
     v0, policy, values = _backward_induction_wide(
-        ok, occupied, goals, allow, horizons, follow, slip, step_cost, goal_reward, tie_tol,
-        _zeros(shapes), n_epochs=n_epochs, use_run=use_run,
-    )  # fmt: skip
+        ok,
+        occupied,
+        goals,
+        allow,
+        horizons,
+        follow,
+        slip,
+        step_cost,
+        goal_reward,
+        tie_tol,
+        _zeros(shapes),
+        n_epochs=n_epochs,
+        use_run=use_run,
+    )
     v0 = v0[..., 2:-2]
 
     def crop(x: tuple[jax.Array, ...] | None) -> jax.Array | None:
@@ -387,9 +403,13 @@ class _Outputs(NamedTuple):
 
 
 def _output_shapes(
-    b: int, n_epochs: int, shape: tuple[int, int], dtype: Any, store_values: bool,
+    b: int,
+    n_epochs: int,
+    shape: tuple[int, int],
+    dtype: npt.DTypeLike,
+    store_values: bool,
     with_policy: bool,
-) -> _Outputs:  # fmt: skip
+) -> _Outputs:
     """The :class:`_Outputs` of a batch of ``b`` items, as ``jax.ShapeDtypeStruct`` leaves."""
     h, w = shape
     wide = (h, w + 4)
@@ -427,13 +447,23 @@ def _backward_induction_wide(
     """
     fn = functools.partial(_solve_one, n_epochs=n_epochs, use_run=use_run)
 
-    def one(b: Any, acc: _Outputs) -> _Outputs:
+    def one(b: jax.Array, acc: _Outputs) -> _Outputs:
         pick = functools.partial(jax.lax.dynamic_index_in_dim, index=b, keepdims=False)
         f = None if follow is None else pick(follow)
         return fn(
-            ok, occupied, pick(goals), pick(allow), pick(horizons), f, slip, step_cost,
-            goal_reward, tie_tol, b, acc,
-        )  # fmt: skip
+            ok,
+            occupied,
+            pick(goals),
+            pick(allow),
+            pick(horizons),
+            f,
+            slip,
+            step_cost,
+            goal_reward,
+            tie_tol,
+            b,
+            acc,
+        )
 
     return jax.lax.fori_loop(0, goals.shape[0], one, out)
 
@@ -456,25 +486,34 @@ _SHARED = ("ok", "occupied", "slip", "step_cost", "goal_reward", "tie_tol")
 
 
 @functools.lru_cache(maxsize=32)
-def _mesh(n_dev: int) -> Any:
-    from jax.sharding import Mesh
-
+def _mesh(n_dev: int) -> Mesh:
     return Mesh(np.array(jax.local_devices()[:n_dev]), ("b",))
 
 
 @functools.lru_cache(maxsize=32)
-def _sharded_jit(n_dev: int, n_epochs: int, use_run: bool, follow: bool) -> Any:
+def _sharded_jit(n_dev: int, n_epochs: int, use_run: bool, follow: bool) -> jax.stages.Wrapped:
     """:func:`_backward_induction_wide` with the batch split across ``n_dev`` local devices."""
-    from jax.sharding import PartitionSpec as P
 
-    def body(goals, allow, horizons, follow_, out, ok, occupied, slip, step_cost, goal_reward,
-             tie_tol):  # fmt: skip
+    def body(
+        goals, allow, horizons, follow_, out, ok, occupied, slip, step_cost, goal_reward, tie_tol
+    ):
         return _backward_induction_wide(
-            ok, occupied, goals, allow, horizons, follow_ if follow else None,
-            slip, step_cost, goal_reward, tie_tol, out, n_epochs=n_epochs, use_run=use_run,
-        )  # fmt: skip
+            ok,
+            occupied,
+            goals,
+            allow,
+            horizons,
+            follow_ if follow else None,
+            slip,
+            step_cost,
+            goal_reward,
+            tie_tol,
+            out,
+            n_epochs=n_epochs,
+            use_run=use_run,
+        )
 
-    batch, shared = P("b"), P()
+    batch, shared = PartitionSpec("b"), PartitionSpec()
     specs = (batch, batch, batch, batch if follow else shared, batch) + (shared,) * len(_SHARED)
     fn = jax.shard_map(body, mesh=_mesh(n_dev), in_specs=specs, out_specs=batch, check_vma=False)
     return jax.jit(fn, donate_argnums=(4,), compiler_options=_COMPILER_OPTIONS)
@@ -493,12 +532,12 @@ class _BufferPool:
 
     def __init__(self, max_bytes: int = 256 * 2**20) -> None:
         self.max_bytes = max_bytes
-        self._free: dict[tuple, list[Any]] = {}
+        self._free: dict[tuple, list[jax.Array]] = {}
         self._bytes = 0
         # reentrant: a collection inside take() or give() may run a finalizer that gives
         self._lock = threading.RLock()
 
-    def take(self, key: tuple, make: Callable[[], Any]) -> Any:
+    def take(self, key: tuple, make: Callable[[], jax.Array]) -> jax.Array:
         with self._lock:
             stack = self._free.get(key)
             if stack:
@@ -507,7 +546,7 @@ class _BufferPool:
                 return buf
         return make()
 
-    def give(self, key: tuple, buf: Any) -> None:
+    def give(self, key: tuple, buf: jax.Array) -> None:
         if buf.is_deleted():
             return
         with self._lock:
@@ -519,11 +558,11 @@ class _BufferPool:
 _POOL = _BufferPool()
 
 
-def _outputs(shapes: _Outputs, sharding: Any) -> tuple[_Outputs, list[tuple]]:
+def _outputs(shapes: _Outputs, sharding: jax.sharding.Sharding) -> tuple[_Outputs, list[tuple]]:
     """Output buffers for ``shapes`` (from the pool, else fresh zeros) and their pool keys."""
     keys: list[tuple] = []
 
-    def get(sd: jax.ShapeDtypeStruct) -> Any:
+    def get(sd: jax.ShapeDtypeStruct) -> jax.Array:
         key = (sd.shape, np.dtype(sd.dtype).str, sharding)
         keys.append(key)
         return _POOL.take(key, lambda: jax.device_put(np.zeros(sd.shape, sd.dtype), sharding))
@@ -594,9 +633,6 @@ def _run_solver(
         def parts(x: jax.Array) -> list[np.ndarray]:
             return [np.asarray(x)]
     else:
-        from jax.sharding import NamedSharding
-        from jax.sharding import PartitionSpec as P
-
         pad = -b % n_dev
         follow = inputs["follow"] is not None
         batched = []
@@ -607,7 +643,7 @@ def _run_solver(
             if pad:
                 x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
             batched.append(x)
-        sharding = NamedSharding(_mesh(n_dev), P("b"))
+        sharding = NamedSharding(_mesh(n_dev), PartitionSpec("b"))
         shapes = _output_shapes(b + pad, n_epochs, shape, dtype, store_values, with_policy)
         bufs, keys = _outputs(shapes, sharding)
         fn = _sharded_jit(n_dev, n_epochs, use_run, follow)
@@ -698,7 +734,7 @@ class MDPSolution:
             self._policy = self._solve(store_values=False, with_policy=True).policy
         return self._policy
 
-    def action(self, items: Any, t: Any, states: Any) -> np.ndarray:
+    def action(self, items: npt.ArrayLike, t: npt.ArrayLike, states: npt.ArrayLike) -> np.ndarray:
         """Actions ``pi_t(s)`` of batch items at their epochs and states ``(row, col, h)``.
 
         Parameters
@@ -795,7 +831,7 @@ class GridMDP:
 
     def __init__(
         self,
-        occupied: Any,
+        occupied: npt.ArrayLike | OccupancyGrid,
         slip: float = 0.1,
         *,
         step_cost: float = 1e-3,
@@ -824,7 +860,7 @@ class GridMDP:
         return h * w * 4
 
     # ------------------------------------------------------------------ validation
-    def _check_goal(self, name: str, goal: Any) -> tuple[int, int]:
+    def _check_goal(self, name: str, goal: npt.ArrayLike) -> tuple[int, int]:
         g = check_array(name, goal, dtype=float)
         h, w = self.shape
         if g.shape != (2,) or not np.all(g == np.round(g)):
@@ -839,11 +875,11 @@ class GridMDP:
     # ------------------------------------------------------------------ solve
     def solve(
         self,
-        goals: Any,
+        goals: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None,
         behaviours: str | Sequence[str] = "walk",
-        horizons: Any = 100,
+        horizons: npt.ArrayLike = 100,
         *,
-        follow: Sequence[Any] | None = None,
+        follow: Sequence[npt.ArrayLike | None] | None = None,
         store_values: bool | None = None,
         n_epochs: int | None = None,
         with_policy: bool = True,
@@ -975,8 +1011,12 @@ class GridMDP:
 
     # ------------------------------------------------------------------ dense export
     def to_dense(
-        self, goal: Any = None, behaviour: str = "walk", *, sparse: bool = False
-    ) -> tuple[Any, np.ndarray, np.ndarray]:
+        self,
+        goal: npt.ArrayLike | None = None,
+        behaviour: str = "walk",
+        *,
+        sparse: bool = False,
+    ) -> tuple[np.ndarray | list[sp.csr_array], np.ndarray, np.ndarray]:
         """Export the (time-homogeneous) MDP as arrays for an independent solver.
 
         States are ordered ``s = (row * W + col) * 4 + heading`` over all cells; occupied
@@ -1069,11 +1109,15 @@ class GridMDP:
             reward[:, a] = np.where(absorbing, 0.0, m @ bonus - cost[a])
             if not allow[a]:
                 reward[:, a] = -np.inf
-        p_out: Any = mats if sparse else np.stack([m.toarray() for m in mats])
+        p_out: np.ndarray | list[sp.csr_array] = (
+            mats if sparse else np.stack([m.toarray() for m in mats])
+        )
         return p_out, reward, np.zeros(n)
 
 
-def _goal_rows(goals: Any) -> list[Any]:
+def _goal_rows(
+    goals: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None,
+) -> list[npt.ArrayLike | None]:
     """Split ``goals`` into per-artefact rows (a single (2,) goal gives one row)."""
     if goals is None:
         return [None]

@@ -14,20 +14,44 @@ its exit gives the exit cell.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
+from scipy.sparse import csr_array
+
+# Lazy imports: scipy.sparse.csgraph (0.2 s), scipy.ndimage (0.4 s) and xarray (0.4 s), which
+# importing the behaviour package does not load, come in with the function that uses them.
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 __all__ = ["BehaviourFit", "grid_geodesic"]
 
+
 _PER_CLASS = (
-    "dt", "speed_mu", "speed_sigma", "run_fraction", "run_mu", "run_sigma", "beta", "beta_se",
-    "slip", "slip_se", "loglik", "n_moves", "n_tracks", "n_fit_tracks", "n_epochs",
-    "bandwidth_entry", "bandwidth_exit", "fit_seconds",
-)  # fmt: skip
+    "dt",
+    "speed_mu",
+    "speed_sigma",
+    "run_fraction",
+    "run_mu",
+    "run_sigma",
+    "beta",
+    "beta_se",
+    "slip",
+    "slip_se",
+    "loglik",
+    "n_moves",
+    "n_tracks",
+    "n_fit_tracks",
+    "n_epochs",
+    "bandwidth_entry",
+    "bandwidth_exit",
+    "fit_seconds",
+)
 
 
-def grid_geodesic(free: Any, cells: Any) -> np.ndarray:
+def grid_geodesic(free: npt.ArrayLike, cells: npt.ArrayLike) -> np.ndarray:
     """4-connected path lengths (in cells) over free cells from each of ``cells``.
 
     Parameters
@@ -41,7 +65,6 @@ def grid_geodesic(free: Any, cells: Any) -> np.ndarray:
     dist : (n, H, W) float64
         ``inf`` where unreachable.
     """
-    from scipy.sparse import csr_array
     from scipy.sparse.csgraph import dijkstra
 
     free = np.asarray(free, bool)
@@ -136,9 +159,9 @@ class BehaviourFit:
     step_cost: float = 1e-3
     warnings: list = field(default_factory=list)
     feature_names: tuple = ()
-    features: Any = None
-    weights: Any = None
-    weights_se: Any = None
+    features: npt.ArrayLike | None = None
+    weights: npt.ArrayLike | None = None
+    weights_se: npt.ArrayLike | None = None
 
     def __post_init__(self) -> None:
         self.feature_names = tuple(str(n) for n in self.feature_names)
@@ -159,7 +182,7 @@ class BehaviourFit:
                     f"classes, grid {shape}), got {got}"
                 )
 
-    def cell_reward(self, class_index: int) -> Any:
+    def cell_reward(self, class_index: int) -> float | np.ndarray:
         """The fitted cell reward ``sum_k w_k phi_k`` of a class.
 
         Parameters
@@ -178,7 +201,7 @@ class BehaviourFit:
         return np.tensordot(self.weights[int(class_index)], self.features, axes=1)
 
     # ------------------------------------------------------------------ grid helpers
-    def world_to_cell(self, xy: Any) -> np.ndarray:
+    def world_to_cell(self, xy: npt.ArrayLike) -> np.ndarray:
         """``(n, 2)`` world points -> ``(n, 2)`` cells ``(row, col)`` snapped to free cells."""
         from scipy import ndimage
 
@@ -189,7 +212,7 @@ class BehaviourFit:
         _, (ri, ci) = ndimage.distance_transform_edt(~self.free, return_indices=True)
         return np.column_stack([ri[row, col], ci[row, col]])
 
-    def cell_to_world(self, cells: Any) -> np.ndarray:
+    def cell_to_world(self, cells: npt.ArrayLike) -> np.ndarray:
         """``(n, 2)`` cells -> ``(n, 2)`` world centres."""
         c = np.asarray(cells, float).reshape(-1, 2)
         return np.column_stack(
@@ -199,7 +222,7 @@ class BehaviourFit:
             ]
         )
 
-    def geodesic(self, cells: Any) -> np.ndarray:
+    def geodesic(self, cells: npt.ArrayLike) -> np.ndarray:
         """``(n, H, W)`` path lengths from ``cells`` (see :func:`grid_geodesic`)."""
         return grid_geodesic(self.free, cells)
 
@@ -207,14 +230,14 @@ class BehaviourFit:
     def draw_exits(
         self,
         rng: np.random.Generator,
-        class_index: Any,
-        entries: Any,
-        reach: Any,
+        class_index: npt.ArrayLike,
+        entries: npt.ArrayLike,
+        reach: npt.ArrayLike,
         *,
         tries: int = 20,
-        stays: Any = None,
-        speed_mu: Any = None,
-        speed_sigma: Any = None,
+        stays: npt.ArrayLike | None = None,
+        speed_mu: npt.ArrayLike | None = None,
+        speed_sigma: npt.ArrayLike | None = None,
     ) -> np.ndarray:
         """Exit cells given entry cells (and stays), reachable within ``reach`` cells.
 
@@ -306,7 +329,7 @@ class BehaviourFit:
         return out
 
     # ------------------------------------------------------------------ xarray
-    def to_dataset(self) -> Any:
+    def to_dataset(self) -> xr.Dataset:
         """The fit as an ``xarray.Dataset`` (the fit file's ``behaviour`` group).
 
         Returns
@@ -340,7 +363,7 @@ class BehaviourFit:
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
     @classmethod
-    def from_dataset(cls, ds: Any) -> BehaviourFit:
+    def from_dataset(cls, ds: xr.Dataset) -> BehaviourFit:
         """Inverse of :meth:`to_dataset` (files without features give ``F = 0``)."""
         a = ds.attrs
         n_class = int(ds.sizes["class"])

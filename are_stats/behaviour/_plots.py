@@ -2,17 +2,25 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Hashable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_positive, describe
 from are_stats.behaviour._mdp import MDPSolution
 from are_stats.behaviour._rewards import FORWARD, LEFT, RIGHT, RUN
 
+# Lazy imports: matplotlib (about 1 s) is imported by the plotting functions only.
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
 __all__ = ["plot_values", "plot_tracks"]
+
 
 _DX = np.array([1.0, 0.0, -1.0, 0.0])  # heading -> unit vector along x (columns)
 _DY = np.array([0.0, 1.0, 0.0, -1.0])  # heading -> unit vector along y (rows)
@@ -24,9 +32,9 @@ def plot_values(
     t: int = 0,
     *,
     heading: int | None = None,
-    ax: Any = None,
+    ax: Axes | None = None,
     arrows: bool = True,
-) -> Any:
+) -> Axes:
     """Heat map of ``V_t`` over the grid with the policy ``pi_t`` as arrows.
 
     For each free cell the heading shown is ``heading`` or, by default, the best heading
@@ -91,10 +99,16 @@ def plot_values(
         )
         moving = (length > 0) & ~occ
         ax.quiver(
-            cols[moving], rows[moving],
-            (_DX[new_h] * length)[moving], (_DY[new_h] * length)[moving],
-            angles="xy", scale_units="xy", scale=1, color="white", width=0.004,
-        )  # fmt: skip
+            cols[moving],
+            rows[moving],
+            (_DX[new_h] * length)[moving],
+            (_DY[new_h] * length)[moving],
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color="white",
+            width=0.004,
+        )
         stay = (length == 0) & ~occ
         ax.plot(cols[stay], rows[stay], ".", color="white", markersize=2)
     if g[0] >= 0:
@@ -110,14 +124,14 @@ def plot_values(
 
 def plot_tracks(
     tracks: pd.DataFrame,
-    occupied: Any,
+    occupied: npt.ArrayLike,
     times: Sequence[float],
     *,
     resolution: float = 1.0,
     origin: tuple[float, float] = (0.0, 0.0),
     ncols: int = 4,
-    scenario: Any = None,
-) -> Any:
+    scenario: Hashable | None = None,
+) -> Figure:
     """Small multiples of a rollout: artefacts (arrows along yaw) and their trails.
 
     Parameters
@@ -134,7 +148,7 @@ def plot_tracks(
         World coordinates of the grid's corner.
     ncols : int
         Panels per row.
-    scenario : any
+    scenario : hashable
         Scenario to draw (default: the first one in the table).
 
     Returns
@@ -160,9 +174,11 @@ def plot_tracks(
     ncols = min(ncols, len(times))
     fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 3.2 * nrows + 0.4), squeeze=False)
     extent = (
-        origin[0], origin[0] + occ.shape[1] * resolution,
-        origin[1], origin[1] + occ.shape[0] * resolution,
-    )  # fmt: skip
+        origin[0],
+        origin[0] + occ.shape[1] * resolution,
+        origin[1],
+        origin[1] + occ.shape[0] * resolution,
+    )
     ids = np.unique(tr["id"])
     colours = plt.cm.tab10(np.arange(len(ids)) % 10)
     for ax, when in zip(axes.ravel(), times, strict=False):
@@ -174,9 +190,16 @@ def plot_tracks(
             ax.plot(mine["x"], mine["y"], "-", color=colour, lw=1, alpha=0.6)
             last = mine.iloc[-1]
             ax.quiver(
-                last["x"], last["y"], np.cos(last["yaw"]), np.sin(last["yaw"]),
-                color=colour, angles="xy", scale_units="xy", scale=1 / resolution, width=0.02,
-            )  # fmt: skip
+                last["x"],
+                last["y"],
+                np.cos(last["yaw"]),
+                np.sin(last["yaw"]),
+                color=colour,
+                angles="xy",
+                scale_units="xy",
+                scale=1 / resolution,
+                width=0.02,
+            )
         ax.set_title(f"t = {when:g} s", fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])

@@ -22,9 +22,8 @@ A disallowed action has reward ``-inf`` (it is never chosen).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_array, check_nonnegative, describe
 
@@ -84,7 +83,7 @@ def allowed_actions(behaviour: str) -> np.ndarray:
 
 
 def follow_rewards(
-    target_cells: Any,
+    target_cells: npt.ArrayLike,
     shape: tuple[int, int],
     reward: float = 1.0,
     radius: int = 1,

@@ -44,12 +44,23 @@ over an hour, walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores 
 from __future__ import annotations
 
 from functools import partial
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
+
+from are_stats._checks import check_positive
+from are_stats.behaviour._groups import formation, slot_offsets
+from are_stats.inputs import check_memory, check_work
+
+# Lazy imports: scipy.ndimage and scipy.spatial (0.4 s each, not loaded by the behaviour
+# package) in the functions that use them.
+
+if TYPE_CHECKING:
+    from are_stats.environment import OccupancyGrid
 
 __all__ = ["SocialForce", "fit_social_force", "social_force_tracks"]
 
@@ -343,7 +354,7 @@ def _bucket(n: int, lo: int = 8) -> int:
     return max(lo, 1 << (max(n, 1) - 1).bit_length())
 
 
-def _walls(grid: Any, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:
+def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:
     """Distance to walls, its unit gradient, the free mask and the frames (JAX arrays)."""
     from scipy import ndimage
 
@@ -366,19 +377,24 @@ def _walls(grid: Any, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tup
     cell = reach
     n_y = int(np.ceil((hi[1] - lo[1]) / cell)) + 3
     return (
-        jnp.asarray(dist), jnp.asarray(grad), jnp.asarray(free), jnp.asarray(org),
-        float(res), jnp.asarray(lo - cell), float(cell),
-    ), n_y  # fmt: skip
+        jnp.asarray(dist),
+        jnp.asarray(grad),
+        jnp.asarray(free),
+        jnp.asarray(org),
+        float(res),
+        jnp.asarray(lo - cell),
+        float(cell),
+    ), n_y
 
 
 def social_force_tracks(
     tracks: pd.DataFrame,
     params: SocialForce | None = None,
-    grid: Any = None,
+    grid: OccupancyGrid | None = None,
     *,
     dt: float = 0.1,
-    kinematic: Any = None,
-    groups: Any = None,
+    kinematic: npt.ArrayLike | None = None,
+    groups: npt.ArrayLike | None = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again with the social force (people give way to each other).
 
@@ -398,7 +414,7 @@ def social_force_tracks(
         The map: its occupied cells repel, and no step enters them.
     dt : float
         Integration step (s).
-    kinematic : (n_tracks,) bool or callable, optional
+    kinematic : (n_tracks,) bool, optional
         Artefacts that keep their planned track exactly (vehicles, carts: no social force
         of their own) and are still avoided by the others, per row of ``tracks`` (True for
         any row of an artefact makes it kinematic). Standing artefacts always are.
@@ -420,9 +436,6 @@ def social_force_tracks(
         ``x, y`` from the simulation and ``yaw`` along the direction of motion (the planned
         one while standing).
     """
-    from are_stats._checks import check_positive
-    from are_stats.inputs import check_memory, check_work
-
     p = SocialForce() if params is None else SocialForce(*params)
     dt = float(check_positive("dt", dt))
     if len(tracks) == 0:
@@ -460,8 +473,6 @@ def social_force_tracks(
     side = np.zeros(n)
     leader, ahead = np.arange(n), np.arange(n)
     if groups is not None:
-        from are_stats.behaviour._groups import formation, slot_offsets
-
         labels = np.asarray(groups, dtype=object)
         if labels.shape != (len(tracks),):
             raise ValueError(
@@ -553,9 +564,11 @@ def social_force_tracks(
             return jnp.asarray(loc.astype(np.int32))
 
         form = (
-            local(leader), local(ahead), take(side),
+            local(leader),
+            local(ahead),
+            take(side),
             jnp.asarray(np.where(live_pad, gid[pad], -1)),
-        )  # fmt: skip
+        )
         t_on_w = np.where(live_pad, t_on[pad], np.inf)
         tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
         # the steps anybody is alive in (all of them unless everybody leaves in this window)
@@ -567,10 +580,25 @@ def social_force_tracks(
                 plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
                 plan[:, c, 1] = np.interp(tt, t_all[a:b], xy_all[a:b, 1]) + shift[i, 1]
         (xf, vf, kf, hf), xs = _window(
-            state, take(route), take(n_vert), take(v0), jnp.asarray(t_on_w),
-            take(t_off), take(kin), jnp.asarray(plan), take(shift), form, w0, dt, p_j, walls,
-            jnp.int32(n_run), jnp.int32(n_y), nb <= ALL_PAIRS_MAX, block,
-        )  # fmt: skip
+            state,
+            take(route),
+            take(n_vert),
+            take(v0),
+            jnp.asarray(t_on_w),
+            take(t_off),
+            take(kin),
+            jnp.asarray(plan),
+            take(shift),
+            form,
+            w0,
+            dt,
+            p_j,
+            walls,
+            jnp.int32(n_run),
+            jnp.int32(n_y),
+            nb <= ALL_PAIRS_MAX,
+            block,
+        )
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
         x[act], v[act], k[act] = xf[slot], vf[slot], kf[slot]
         hd[act] = np.asarray(hf)[slot]
@@ -612,7 +640,7 @@ def fit_social_force(
     tracks: pd.DataFrame,
     *,
     base: SocialForce | None = None,
-    ranges: Any = None,
+    ranges: npt.ArrayLike | None = None,
     min_speed: float = 0.2,
 ) -> tuple[SocialForce, dict[str, float]]:
     """Estimate ``A``, ``B`` and ``tau`` from observed tracks by least squares on the
@@ -750,8 +778,9 @@ def fit_social_force(
     rss, b_best, inv_tau, strength, _ = solve(keep.astype(float))
     y = y[keep]
     params = base._replace(
-        strength=float(strength), range=b_best,
+        strength=float(strength),
+        range=b_best,
         relaxation=float(1.0 / inv_tau) if inv_tau > 0 else float("inf"),
-    )  # fmt: skip
+    )
     r2 = 1.0 - rss / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
     return params, {"rss": rss, "n": float(keep.sum() // 2), "r2": float(r2), "dt": dt}

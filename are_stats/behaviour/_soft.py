@@ -38,15 +38,22 @@ turn, a move into an obstacle) from giving ``-inf``.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import describe
 from are_stats.behaviour._mdp import _occupancy, path_free
 from are_stats.behaviour._rewards import HEADINGS
+
+# Lazy imports: scipy.ndimage (0.4 s, not loaded by the behaviour package) in
+# wall_distance_feature.
+
+if TYPE_CHECKING:
+    from are_stats.environment import OccupancyGrid
 
 __all__ = [
     "SoftSolution",
@@ -154,9 +161,9 @@ def soft_backward_induction(
     slip: jax.Array,
     *,
     n_epochs: int,
-    step_cost: Any = 1e-3,
-    time_cost: Any = 0.0,
-    cell_reward: Any = 0.0,
+    step_cost: float | jax.Array = 1e-3,
+    time_cost: float | jax.Array = 0.0,
+    cell_reward: float | jax.Array = 0.0,
     use_run: bool = False,
     store_values: bool = False,
     relative: bool = True,
@@ -239,7 +246,9 @@ def soft_backward_induction(
         def cond(c: tuple[jax.Array, jax.Array, jax.Array]) -> jax.Array:
             return (c[0] < n_epochs - 1) & (c[2] > tol)
 
-        def body(c: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[Any, ...]:
+        def body(
+            c: tuple[jax.Array, jax.Array, jax.Array],
+        ) -> tuple[jax.Array, jax.Array, jax.Array]:
             v_new, _ = step(c[1], None)
             change = jnp.abs(v_new - c[1])
             if tol_mask is not None:
@@ -286,8 +295,8 @@ def _goal_arrays(
 
 
 def soft_policy(
-    occupied: Any,
-    goals: Any,
+    occupied: npt.ArrayLike | OccupancyGrid,
+    goals: npt.ArrayLike,
     beta: float,
     slip: float,
     *,
@@ -295,7 +304,7 @@ def soft_policy(
     goal_reward: float = 1.0,
     step_cost: float = 1e-3,
     time_cost: float = 0.0,
-    cell_reward: Any = 0.0,
+    cell_reward: npt.ArrayLike = 0.0,
     use_run: bool = False,
     store_values: bool = False,
     relative: bool = True,
@@ -351,11 +360,20 @@ def soft_policy(
         raise ValueError(f"n_epochs: expected an integer >= 1, got {n_epochs!r}")
     keep, bonus = _goal_arrays(occ, gl, goal_reward)
     return _soft_jit(
-        jnp.asarray(path_free(occ)), jnp.asarray(keep), jnp.asarray(bonus),
-        jnp.asarray(float(beta)), jnp.asarray(float(slip)), n_epochs=int(n_epochs),
-        step_cost=step_cost, time_cost=time_cost, cell_reward=jnp.asarray(cell_reward, float),
-        use_run=use_run, store_values=store_values, relative=relative, tol=tol,
-    )  # fmt: skip
+        jnp.asarray(path_free(occ)),
+        jnp.asarray(keep),
+        jnp.asarray(bonus),
+        jnp.asarray(float(beta)),
+        jnp.asarray(float(slip)),
+        n_epochs=int(n_epochs),
+        step_cost=step_cost,
+        time_cost=time_cost,
+        cell_reward=jnp.asarray(cell_reward, float),
+        use_run=use_run,
+        store_values=store_values,
+        relative=relative,
+        tol=tol,
+    )
 
 
 _soft_jit = jax.jit(
@@ -364,7 +382,7 @@ _soft_jit = jax.jit(
 )
 
 
-def wall_distance_feature(occupied: Any, scale: float = 1.0) -> np.ndarray:
+def wall_distance_feature(occupied: npt.ArrayLike, scale: float = 1.0) -> np.ndarray:
     """A reward feature: ``exp(-d / scale)`` with ``d`` the distance (cells) to an obstacle.
 
     Parameters
@@ -452,7 +470,7 @@ def moves_log_likelihood(
     policy: jax.Array,
     ok: jax.Array,
     slip: jax.Array,
-    obs: MoveObservations | tuple[Any, ...],
+    obs: MoveObservations | tuple[jax.Array, ...],
     *,
     eps: float = OUTLIER,
     per_track: bool = False,
@@ -503,7 +521,9 @@ def moves_log_likelihood(
     tm = (1 - eps) * tm + eps / 24.0
     tm = jnp.where((move < 0)[..., None, None], eye, tm)
 
-    def fwd(carry: tuple[jax.Array, jax.Array], m: jax.Array) -> tuple[Any, None]:
+    def fwd(
+        carry: tuple[jax.Array, jax.Array], m: jax.Array
+    ) -> tuple[tuple[jax.Array, jax.Array], None]:
         alpha, ll = carry
         a = jnp.einsum("nh,nhk->nk", alpha, m)
         c = a.sum(axis=1)

@@ -11,16 +11,15 @@ complexity nu (eq. 4), with the definitions of DECISIONS 10.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_finite, check_nonnegative, check_positive, describe
 
 __all__ = ["path_length", "replanning_ratio", "space_complexity", "time_average"]
 
 
-def replanning_ratio(rho_t: Any, g_t: Any) -> np.ndarray:
+def replanning_ratio(rho_t: npt.ArrayLike, g_t: npt.ArrayLike) -> np.ndarray:
     """The replanning ratio of eq. (3), ``rho = rho_t / (rho_t + g_t)``.
 
     Parameters
@@ -61,7 +60,7 @@ def replanning_ratio(rho_t: Any, g_t: Any) -> np.ndarray:
     return out
 
 
-def space_complexity(n_artefact_cells: Any, n_free: Any) -> np.ndarray:
+def space_complexity(n_artefact_cells: npt.ArrayLike, n_free: npt.ArrayLike) -> np.ndarray:
     """The space complexity of eq. (4), ``nu = n_A / n_free``.
 
     Parameters
@@ -86,7 +85,7 @@ def space_complexity(n_artefact_cells: Any, n_free: Any) -> np.ndarray:
     return a / f
 
 
-def path_length(path: Any) -> float:
+def path_length(path: npt.ArrayLike) -> float:
     """Length (m) of a polyline ``path : (k, 2)`` (0 for fewer than two points)."""
     p = check_finite("path", path, ndim=2)
     if p.shape[1] != 2:
@@ -96,7 +95,7 @@ def path_length(path: Any) -> float:
     return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
 
 
-def time_average(times: Any, values: Any, t_end: float) -> float:
+def time_average(times: npt.ArrayLike, values: npt.ArrayLike, t_end: float) -> float:
     """Time average over ``[times[0], t_end]`` of a piecewise-constant signal.
 
     ``values[k]`` holds on ``[times[k], times[k + 1])`` (the last one up to ``t_end``).

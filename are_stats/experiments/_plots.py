@@ -6,21 +6,28 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from are_stats._atomic import check_writable, save_figure
+from are_stats._lazy import scipy_stats as stats
+from are_stats.experiments._sweep import load_results
 from are_stats.inputs import Described, InputError
+
+# Lazy imports: matplotlib (about 1 s) is imported by the plotting functions only; scipy.stats
+# (are_stats._lazy) on the first band.
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_goals", "plot_results", "plot_rho"]
 
 
 def _band(values: np.ndarray) -> tuple[float, float]:
     """Mean and half-width of a 95% t confidence interval (0 for one value)."""
-    from scipy import stats
-
     v = values[np.isfinite(values)]
     if v.size == 0:
         return np.nan, np.nan
@@ -44,7 +51,7 @@ def _clutter(runs: pd.DataFrame, hue: str) -> tuple[pd.DataFrame, str]:
     return runs.assign(clutter=label), "clutter"
 
 
-def plot_rho(runs: pd.DataFrame, hue: str = "planner", ax: Any = None) -> Any:
+def plot_rho(runs: pd.DataFrame, hue: str = "planner", ax: Axes | None = None) -> Figure:
     """Fig. 7a: mean rho per run (eq. 3) against the scene-update frequency.
 
     Runs are grouped by ``hue`` (planner settings) and by arrival rate (for scenarios from
@@ -85,8 +92,8 @@ def plot_rho(runs: pd.DataFrame, hue: str = "planner", ax: Any = None) -> Any:
 
 
 def plot_goals(
-    runs: pd.DataFrame, goals: pd.DataFrame, by: str | None = None, ax: Any = None
-) -> Any:
+    runs: pd.DataFrame, goals: pd.DataFrame, by: str | None = None, ax: Axes | None = None
+) -> Figure:
     """Fig. 7b: goals reached against mission time, one line per level of ``by``.
 
     ``by`` defaults to ``arrival_rate`` for hand-set rates and, for scenarios from a fit or
@@ -119,8 +126,9 @@ def plot_goals(
         c = np.array(curves, float)
         band = np.array([_band(c[:, k]) for k in range(c.shape[1])])
         nu = grp["nu_mean"].mean()
-        (line,) = ax.step(grid_t / 60.0, band[:, 0], where="post",
-                          label=f"nu = {nu:.3f} ({by} {level})")  # fmt: skip
+        (line,) = ax.step(
+            grid_t / 60.0, band[:, 0], where="post", label=f"nu = {nu:.3f} ({by} {level})"
+        )
         lo = np.maximum(band[:, 0] - band[:, 1], 0.0)
         hi = np.minimum(band[:, 0] + band[:, 1], float(runs["goals_total"].max()))
         ax.fill_between(grid_t / 60.0, lo, hi, step="post", color=line.get_color(), alpha=0.2)
@@ -165,8 +173,6 @@ def plot_results(
 
     if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)
-
-    from are_stats.experiments._sweep import load_results
 
     res = load_results(results)
     out = Path(results if out is None else out)

@@ -95,14 +95,27 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
+import pyarrow
 import yaml
 
 from are_stats._atomic import OutputExistsError, atomic_path, replace_folder
+from are_stats.environment import (
+    SHIPPED_DATA,
+    ArtefactCatalogue,
+    OccupancyGrid,
+    load_catalogue,
+    load_mesh,
+    resolve_shipped,
+    shipped_names,
+    shipped_path,
+)
+from are_stats.experiments._loop import random_goals, run_mission
 from are_stats.experiments._planners import OMPL_ALGORITHMS
+from are_stats.experiments._robot import Robot
 from are_stats.inputs import (  # Described: a ``got`` already worded, shown as is
     MAX_SEED,
     Described,
@@ -117,6 +130,25 @@ from are_stats.inputs import (  # Described: a ``got`` already worded, shown as 
     get_str,
     load_yaml,
 )
+from are_stats.scenarios import (
+    Scene,
+    read_scenes,
+    scene_tracks,
+    scenes_from_draws,
+    scenes_from_tables,
+)
+
+# Lazy imports: JAX (2 s), fitting (JAX and NumPyro, 4-5 s), Dask's distributed (1.5 s),
+# perception (Warp, 1 s) and rich.progress (0.1 s) are imported by the task or sweep that
+# needs them, not by `import are_stats.experiments`; export (downstream: it reads missions'
+# traces) when a sweep writes MCAP.
+
+if TYPE_CHECKING:
+    import trimesh
+    from distributed import Client
+
+    from are_stats.behaviour import BehaviourFit, SocialForce
+    from are_stats.traffic import TrafficLaws
 
 __all__ = [
     "expand_tasks",
@@ -158,9 +190,16 @@ _DEFAULTS: dict[str, Any] = {
 }
 _SECTIONS = ("scenario", "robot", "mission", "planner")
 _TOP = (
-    "name", "map", "catalogue", "behaviours", "avoid_robot", "seed", "replicates", *_SECTIONS,
+    "name",
+    "map",
+    "catalogue",
+    "behaviours",
+    "avoid_robot",
+    "seed",
+    "replicates",
+    *_SECTIONS,
     "factors",
-)  # fmt: skip
+)
 #: Scenario keys that name where the artefacts come from instead of hand-set rates.
 _SOURCES = ("fit", "scenarios")
 _RATES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
@@ -268,8 +307,6 @@ def _resolve(value: str, base: Path) -> str:
 
 def _resolve_map(name: str, base: Path) -> str:
     """A map path relative to ``base`` made absolute; a shipped map name kept as is."""
-    from are_stats.environment import shipped_names
-
     p = base / Path(name).expanduser()
     if not p.is_file() and name == Path(name).name and name in shipped_names("map"):
         return name
@@ -278,8 +315,6 @@ def _resolve_map(name: str, base: Path) -> str:
 
 def _resolve_catalogue(value: str, base: Path, src: str) -> str:
     """A catalogue path relative to ``base`` made absolute, or a shipped catalogue's file."""
-    from are_stats.environment import resolve_shipped
-
     return str(resolve_shipped(value, "catalogue", base=base, source=src, where="catalogue"))
 
 
@@ -291,19 +326,22 @@ def _scenario(given: Mapping[str, Any], src: str, base: Path) -> dict[str, Any]:
         return {**copy.deepcopy(_DEFAULTS["scenario"]), **given}
     if len(sources) > 1:
         raise InputError(
-            src, "scenario.scenarios", "either scenario.fit or scenario.scenarios, not both",
+            src,
+            "scenario.scenarios",
+            "either scenario.fit or scenario.scenarios, not both",
             Described(f"scenarios: {given['scenarios']!r}"),
-        )  # fmt: skip
+        )
     key = sources[0]
     allowed = ("fit", "start") if key == "fit" else ("scenarios",)
     for k in given:
         if k not in allowed:
             gives = "the rates and mixture" if key == "fit" else "the artefacts"
             raise InputError(
-                src, f"scenario.{k}",
+                src,
+                f"scenario.{k}",
                 f"no {k} beside scenario.{key} (it gives {gives}; keys: {', '.join(allowed)})",
                 Described(f"{k}: {given[k]!r}"),
-            )  # fmt: skip
+            )
     out = {key: _resolve(given[key], base)}
     if key == "fit":
         out["start"] = given.get("start", _DEFAULTS["scenario"]["start"])
@@ -324,9 +362,11 @@ def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> N
     w, r = sc.get("mix_weights", ()), sc.get("mix_rates", ())
     if len(w) != len(r):
         raise InputError(
-            src, f"{pre}scenario.mix_rates",
-            f"as many rates as scenario.mix_weights has weights ({len(w)})", r,
-        )  # fmt: skip
+            src,
+            f"{pre}scenario.mix_rates",
+            f"as many rates as scenario.mix_weights has weights ({len(w)})",
+            r,
+        )
     if w and abs(math.fsum(w) - 1.0) > 1e-6:
         raise InputError(src, f"{pre}scenario.mix_weights", "weights summing to 1", w)
     pl = sections["planner"]
@@ -336,10 +376,11 @@ def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> N
         if key not in ("name", "algorithm") and key not in allowed:
             takes = ", ".join(allowed) if allowed else "no option"
             raise InputError(
-                src, f"{pre}planner.{key}",
+                src,
+                f"{pre}planner.{key}",
                 f"only options that planner {algo!r} takes ({takes})",
                 Described(f"{key}: {pl[key]!r}"),
-            )  # fmt: skip
+            )
 
 
 def _factor_checker(key: Any, src: str) -> tuple[str, str, _Checker | None]:
@@ -358,9 +399,11 @@ def _factor_checker(key: Any, src: str) -> tuple[str, str, _Checker | None]:
         raise InputError(src, where, expected, Described(f"the key {key!r}"))
     if sub not in _SCHEMA[sec]:
         raise InputError(
-            src, where, f"a key of {sec}: one of " + ", ".join(_SCHEMA[sec]),
+            src,
+            where,
+            f"a key of {sec}: one of " + ", ".join(_SCHEMA[sec]),
             Described(f"an unknown key {sub!r}"),
-        )  # fmt: skip
+        )
     return sec, sub, _SCHEMA[sec][sub]
 
 
@@ -382,10 +425,12 @@ def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
     name = top.get("name", _DEFAULTS["name"])
     if not isinstance(name, str) or not _NAME.match(name):
         raise InputError(
-            src, "name",
+            src,
+            "name",
             "a name of 1 to 100 letters, digits, '.', '_' or '-' (not starting with '.', '_' "
-            "or '-')", name,
-        )  # fmt: skip
+            "or '-')",
+            name,
+        )
     cfg["name"] = name
     cfg["map"] = get_str(top.get("map", _DEFAULTS["map"]), src, "map")
     if not cfg["map"] or "\x00" in cfg["map"]:
@@ -422,15 +467,19 @@ def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
         where = f"factors.{key}"
         if sec == "scenario" and sub in _SOURCES:
             raise InputError(
-                src, where, "a factor other than the scenario source (one sweep, one source)",
+                src,
+                where,
+                "a factor other than the scenario source (one sweep, one source)",
                 Described(f"the key {key!r}"),
-            )  # fmt: skip
+            )
         source = next((k for k in _SOURCES if k in cfg["scenario"]), None)
         if sec == "scenario" and source is not None and sub not in cfg["scenario"]:
             raise InputError(
-                src, where, f"no scenario rate factor beside scenario.{source} (it gives them)",
+                src,
+                where,
+                f"no scenario rate factor beside scenario.{source} (it gives them)",
                 Described(f"the key {key!r}"),
-            )  # fmt: skip
+            )
         if not isinstance(levels, list | tuple) or not levels:
             raise InputError(src, where, "a non-empty list of levels", levels)
         clean, labels = [], {}
@@ -442,10 +491,11 @@ def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
             label = _label(level)
             if label in labels:
                 raise InputError(
-                    src, f"{where}[{i}]",
+                    src,
+                    f"{where}[{i}]",
                     f"levels with distinct labels (level {labels[label]} is labelled the same)",
                     Described(repr(label)),
-                )  # fmt: skip
+                )
             labels[label] = i
             clean.append(level)
         cfg["factors"][key] = clean
@@ -490,8 +540,6 @@ _BYTES_PER_TASK = 8_192  # a task dict of the task list
 
 
 def _map_file(name: str) -> Path | None:
-    from are_stats.environment import shipped_names, shipped_path
-
     p = Path(name)
     if p.is_file():
         return p
@@ -501,12 +549,10 @@ def _map_file(name: str) -> Path | None:
 
 
 def _shipped_maps() -> list[str]:
-    from are_stats.environment import shipped_names
-
     return shipped_names("map")
 
 
-def _stamp(path: str | os.PathLike | None) -> Any:
+def _stamp(path: str | os.PathLike | None) -> tuple[tuple[str, int, int], ...] | None:
     """What identifies the content of a file or a folder for the caches below: size and
     modification time of the file and of the files beside it (a map's image, a
     catalogue's meshes), or of every file of a folder. A cache keyed by it never serves a
@@ -547,14 +593,16 @@ def _cached(locate: Callable[[Any], Any] = lambda a: a) -> Callable[[Callable], 
 
 
 @_cached()
-def _grid(path: str) -> Any:
-    from are_stats.environment import OccupancyGrid
-
+def _grid(path: str) -> OccupancyGrid:
     return OccupancyGrid.from_ros_yaml(path)
 
 
 @_cached()
-def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any, Any, Any]:
+def _fit_draws(
+    path: str,
+) -> tuple[
+    dict[str, np.ndarray], list[str] | None, TrafficLaws, BehaviourFit | None, SocialForce | bool
+]:
     """Posterior draws and laws of the fit's chosen traffic models
     (:meth:`~are_stats.fitting.Fit.traffic`), its class labels, its fitted behaviour
     (None without a ``behaviour`` group) and the interaction it learned (``True``, the
@@ -571,20 +619,16 @@ def _fit_draws(path: str) -> tuple[dict[str, np.ndarray], list[str] | None, Any,
 def _scenario_folder(path: str) -> tuple[pd.DataFrame, dict[str, Any], pd.DataFrame | None]:
     """Artefacts, manifest and behaviour tracks (None without) of a scenarios folder, all
     checked (:func:`~are_stats.scenarios.read_scenes`)."""
-    from are_stats.scenarios import read_scenes
-
     return tuple(read_scenes(path))  # type: ignore[return-value]
 
 
 @_cached()
-def _load_catalogue(path: str | None) -> Any:
-    from are_stats.environment import load_catalogue
-
+def _load_catalogue(path: str | None) -> ArtefactCatalogue:
     return load_catalogue(path)
 
 
 def _scenario_size(
-    sections: Mapping[str, Mapping[str, Any]], grid: Any, src: str, pre: str
+    sections: Mapping[str, Mapping[str, Any]], grid: OccupancyGrid, src: str, pre: str
 ) -> tuple[float, float, float]:
     """``(artefacts, live at once, arrivals and leaves)`` expected in one task; reads (and
     so checks) the scenario source, naming its key in errors."""
@@ -593,26 +637,32 @@ def _scenario_size(
         p = Path(sc["scenarios"])
         if not p.is_dir():
             raise InputError(
-                src, f"{pre}scenario.scenarios", "a scenarios folder written by are-stats generate",
+                src,
+                f"{pre}scenario.scenarios",
+                "a scenarios folder written by are-stats generate",
                 Described(f"no such folder {p}"),
-            )  # fmt: skip
+            )
         df, meta, _ = _scenario_folder(str(p))
         gen = meta.get("generation")
         h = gen.get("horizon") if isinstance(gen, Mapping) else None
         if isinstance(h, int | float) and horizon > float(h) * (1 + 1e-9):
             raise InputError(
-                src, f"{pre}mission.time_limit", f"at most the horizon {h} of the scenarios {p}",
+                src,
+                f"{pre}mission.time_limit",
+                f"at most the horizon {h} of the scenarios {p}",
                 horizon,
-            )  # fmt: skip
+            )
         n = float(df.groupby("scenario").size().max()) if len(df) else 0.0
         return n, n, 2.0 * n
     if "fit" in sc:
         p = Path(sc["fit"])
         if not p.is_file():
             raise InputError(
-                src, f"{pre}scenario.fit", "a fit file written by are-stats fit",
+                src,
+                f"{pre}scenario.fit",
+                "a fit file written by are-stats fit",
                 Described(f"no such file {p}"),
-            )  # fmt: skip
+            )
         draws = _fit_draws(str(p))[0]
         lam, mu = float(np.mean(draws["arrival_rate"])), float(np.mean(draws["leave_rate"]))
     else:
@@ -626,7 +676,7 @@ def _scenario_size(
 
 def _task_cost(
     sections: Mapping[str, Mapping[str, Any]],
-    grid: Any,
+    grid: OccupancyGrid,
     size: tuple[float, float, float],
     behaviours: bool,
 ) -> tuple[float, float, str]:
@@ -682,34 +732,40 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
     path = _map_file(cfg["map"])
     if path is None:
         raise InputError(
-            src, "map",
-            "a shipped map name (" + ", ".join(_shipped_maps()) + ") or the path of a ROS map "
-            "YAML", cfg["map"],
-        )  # fmt: skip
+            src,
+            "map",
+            "a shipped map name (" + ", ".join(_shipped_maps()) + ") or the path of a ROS map YAML",
+            cfg["map"],
+        )
     grid = _grid(str(path))
     has_mesh = path.with_suffix(".ply").is_file()
     if cfg["catalogue"] is not None:
         if not Path(cfg["catalogue"]).is_file():
             raise InputError(
-                src, "catalogue", "an artefact catalogue YAML",
+                src,
+                "catalogue",
+                "an artefact catalogue YAML",
                 Described(f"no such file {cfg['catalogue']}"),
-            )  # fmt: skip
+            )
         _load_catalogue(cfg["catalogue"])
     if cfg["behaviours"] and abs(float(grid.origin[2])) > 1e-9 and _rolls_out(cfg["scenario"]):
         raise InputError(
-            src, "behaviours", "a map whose origin yaw is 0 (behaviours move on its cells)",
+            src,
+            "behaviours",
+            "a map whose origin yaw is 0 (behaviours move on its cells)",
             Described(f"true, with the map's origin yaw {grid.origin[2]}"),
-        )  # fmt: skip
+        )
     worst_bytes, total, worst = 0.0, 0.0, ""
     for sections, levels in _combos(cfg):
         where = "factors " + ", ".join(f"{k}={v}" for k, v in levels.items()) if levels else ""
         _cross(sections, src, where)
         if sections["mission"]["perception"] == "camera" and not has_mesh:
             raise InputError(
-                src, (f"{where}: " if where else "") + "mission.perception",
+                src,
+                (f"{where}: " if where else "") + "mission.perception",
                 f"'all', or 'camera' with the map's mesh {path.with_suffix('.ply')}",
                 Described("'camera' and no such mesh"),
-            )  # fmt: skip
+            )
         size = _scenario_size(sections, grid, src, f"{where}: " if where else "")
         n_bytes, steps, what = _task_cost(sections, grid, size, cfg["behaviours"])
         if n_bytes > worst_bytes:
@@ -758,8 +814,6 @@ def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str
     if isinstance(config, Mapping):
         raw, src, base = config, "config", Path.cwd()
     elif isinstance(config, str | os.PathLike):
-        from are_stats.environment import SHIPPED_DATA, resolve_shipped
-
         p = resolve_shipped(config, "experiment", source="sweep config")  # or a shipped name
         if not p.exists():
             raise FileNotFoundError(f"{p}: sweep config not found")
@@ -787,10 +841,15 @@ def _expand(cfg: Mapping[str, Any]) -> list[dict[str, Any]]:
         for r in range(cfg["replicates"]):
             seed = int(np.random.SeedSequence([cfg["seed"], r]).generate_state(1)[0])
             task = {
-                "map": cfg["map"], "catalogue": cfg["catalogue"], "behaviours": cfg["behaviours"],
-                "avoid_robot": cfg["avoid_robot"], "replicate": r, "seed": seed, "levels": levels,
+                "map": cfg["map"],
+                "catalogue": cfg["catalogue"],
+                "behaviours": cfg["behaviours"],
+                "avoid_robot": cfg["avoid_robot"],
+                "replicate": r,
+                "seed": seed,
+                "levels": levels,
                 **base,
-            }  # fmt: skip
+            }
             task["task"] = f"{idx:05d}-{_digest(task)}"
             task["sweep"] = sweep
             tasks.append(task)
@@ -811,9 +870,7 @@ def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str
 
 
 @_cached(lambda name: _map_file(name))
-def _load_map(name: str) -> tuple[Any, Any]:
-    from are_stats.environment import load_mesh
-
+def _load_map(name: str) -> tuple[OccupancyGrid, trimesh.Trimesh | None]:
     p = _map_file(name)
     if p is None:
         raise InputError("map", "", "a shipped map name or the path of a ROS map YAML", name)
@@ -824,8 +881,8 @@ def _load_map(name: str) -> tuple[Any, Any]:
 
 
 def _task_scenario(
-    task: Mapping[str, Any], grid: Any, catalogue: Any
-) -> tuple[Any, dict[str, Any]]:
+    task: Mapping[str, Any], grid: OccupancyGrid, catalogue: ArtefactCatalogue
+) -> tuple[Scene, dict[str, Any]]:
     """The task's Scene (with behaviour tracks when asked) and the columns that describe
     where it came from: ``draw`` (posterior draw, scenario of the folder, or -1),
     ``arrival_rate``, ``n_artefacts`` and ``n_arrivals`` (arrivals in ``(0, time_limit]``).
@@ -837,8 +894,6 @@ def _task_scenario(
     them, the same behaviour rule moves its artefacts).
     """
     import jax
-
-    from are_stats.scenarios import scene_tracks, scenes_from_draws, scenes_from_tables
 
     sc, ms = task["scenario"], task["mission"]
     seed, horizon = int(task["seed"]), float(ms["time_limit"])
@@ -860,9 +915,17 @@ def _task_scenario(
             tracks = all_tracks[all_tracks["scenario"] == draw].reset_index(drop=True)
         elif behave:
             tracks = scene_tracks(
-                jax.random.key(seed), art, grid, catalogue, horizon, behaviours="catalogue",
-                class_labels=labels, source=str(sc["scenarios"]), n=draw + 1, **moves,
-            )  # fmt: skip
+                jax.random.key(seed),
+                art,
+                grid,
+                catalogue,
+                horizon,
+                behaviours="catalogue",
+                class_labels=labels,
+                source=str(sc["scenarios"]),
+                n=draw + 1,
+                **moves,
+            )
         (scene,) = scenes_from_tables(art, tracks, catalogue, labels, [draw])
         rate = float("nan")
     else:
@@ -881,10 +944,21 @@ def _task_scenario(
             }
         rate = float(params["arrival_rate"][0])
         (scene,) = scenes_from_draws(
-            seed, params, grid, catalogue, 1, horizon, laws=laws, behaviours=behave,
-            fitted=fitted, class_labels=labels, start=sc.get("start", "stationary"),
-            source=str(sc.get("fit", "scenario")), interaction=interaction, **moves,
-        )  # fmt: skip
+            seed,
+            params,
+            grid,
+            catalogue,
+            1,
+            horizon,
+            laws=laws,
+            behaviours=behave,
+            fitted=fitted,
+            class_labels=labels,
+            start=sc.get("start", "stationary"),
+            source=str(sc.get("fit", "scenario")),
+            interaction=interaction,
+            **moves,
+        )
     t_arr = scene.t_arrive
     info = {
         "draw": draw,
@@ -912,9 +986,6 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
         ``replans`` and ``goals`` (the mission tables with the task's identifying columns);
         with ``record``, also ``trace`` (the :class:`~are_stats.experiments.MissionTrace`).
     """
-    from are_stats.experiments._loop import random_goals, run_mission
-    from are_stats.experiments._robot import Robot
-
     grid, mesh = _load_map(str(task["map"]))
     catalogue = _load_catalogue(task.get("catalogue"))
     ms = dict(task["mission"])
@@ -923,19 +994,31 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
     scene, source = _task_scenario(task, grid, catalogue)
     robot = Robot(**task["robot"])
     goals = random_goals(
-        grid, int(ms["n_goals"]) + 1, robot.radius + grid.resolution, seed,
+        grid,
+        int(ms["n_goals"]) + 1,
+        robot.radius + grid.resolution,
+        seed,
         min_separation=float(ms.get("min_goal_separation", 5.0)),
-    )  # fmt: skip
+    )
     planner = dict(task["planner"])
     label = str(planner.get("name", _label({k: v for k, v in planner.items() if k != "name"})))
     res = run_mission(
-        grid, scene, goals, planner, robot=robot, time_limit=horizon,
-        perception=ms.get("perception", "all"), env_mesh=mesh,
+        grid,
+        scene,
+        goals,
+        planner,
+        robot=robot,
+        time_limit=horizon,
+        perception=ms.get("perception", "all"),
+        env_mesh=mesh,
         perception_period=float(ms.get("perception_period", 1.0)),
-        d_max=float(ms.get("d_max", 10.0)), tau=float(ms.get("tau", 10.0)), seed=seed,
+        d_max=float(ms.get("d_max", 10.0)),
+        tau=float(ms.get("tau", 10.0)),
+        seed=seed,
         move_period=float(ms.get("behaviour_dt", 2.0)),
-        avoid_robot=bool(task.get("avoid_robot", True)), record=record,
-    )  # fmt: skip
+        avoid_robot=bool(task.get("avoid_robot", True)),
+        record=record,
+    )
     ident = {
         "task": task["task"],
         "sweep": str(task.get("sweep", "")),
@@ -946,8 +1029,16 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
     ident["planner"] = label
     ident["arrival_rate"] = source["arrival_rate"]
     ident["draw"] = source["draw"]
-    runs = pd.DataFrame([{**ident, **res.summary, "n_artefacts": source["n_artefacts"],
-                          "n_arrivals": source["n_arrivals"]}])  # fmt: skip
+    runs = pd.DataFrame(
+        [
+            {
+                **ident,
+                **res.summary,
+                "n_artefacts": source["n_artefacts"],
+                "n_arrivals": source["n_arrivals"],
+            }
+        ]
+    )
     out: dict[str, Any] = {"runs": runs}
     for name, df in (("replans", res.replans), ("goals", res.goals)):
         df = df.copy()
@@ -981,11 +1072,12 @@ def _folder_state(out: Path) -> str:
     if not entries:
         return "empty"
     raise InputError(
-        out, "",
+        out,
+        "",
         "a new or empty folder, or a sweep's results folder (with sweep.yaml); a sweep does "
         "not write into or replace other folders",
         Described(f"{len(entries)} other entries such as {entries[0]!r}"),
-    )  # fmt: skip
+    )
 
 
 def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, Any]:
@@ -1112,7 +1204,7 @@ def run_sweep(
 
 
 @contextlib.contextmanager
-def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> Iterator[Any]:
+def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> Iterator[Client]:
     """A Dask client of the given scheduler, or of a local cluster listening on ``host``."""
     from distributed import Client, LocalCluster
 
@@ -1124,9 +1216,11 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
             client = Client(scheduler, timeout="20s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(
-                "--scheduler", "", "the address of a running Dask scheduler (tcp://host:port)",
+                "--scheduler",
+                "",
+                "the address of a running Dask scheduler (tcp://host:port)",
                 Described(f"{scheduler!r} ({err})"),
-            ) from None  # fmt: skip
+            ) from None
         cluster = None
     else:
         cluster = LocalCluster(**_cluster_kwargs(workers, processes, host))
@@ -1140,9 +1234,14 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
 
 
 def _run(
-    client: Any, todo: list[dict[str, Any]], target: Path, n_tasks: int, progress: bool,
-    mcap: str | os.PathLike | None = None, start_time: float = 0.0,
-) -> None:  # fmt: skip
+    client: Client,
+    todo: list[dict[str, Any]],
+    target: Path,
+    n_tasks: int,
+    progress: bool,
+    mcap: str | os.PathLike | None = None,
+    start_time: float = 0.0,
+) -> None:
     """Run ``todo`` on ``client``, writing each task's tables into ``target`` as it ends
     (and its MCAP into ``mcap`` when given)."""
     from distributed import as_completed
@@ -1157,16 +1256,18 @@ def _run(
             task = futures[fut]
             res = fut.result()
             if record:
-                from are_stats.experiments._robot import Robot
                 from are_stats.perception import optical_from_base
 
                 grid = _load_map(str(task["map"]))[0]
                 robot = Robot(**task["robot"])
                 export_mcap(
-                    Path(mcap) / f"{task['task']}.mcap", grid, res.pop("trace"), force=True,
+                    Path(mcap) / f"{task['task']}.mcap",
+                    grid,
+                    res.pop("trace"),
+                    force=True,
                     start_time=start_time,
                     mount=optical_from_base(robot.camera_xyz, robot.camera_rpy),
-                )  # fmt: skip
+                )
             _write(target, task["task"], res, force=True)
             bar.advance()
     finally:
@@ -1196,22 +1297,30 @@ class _progress:
 
 # columns the plots and tables need, by table: numeric ones are checked as numbers
 _COLUMNS = {
-    "runs": {"task": False, "sweep": False, "planner": False, "arrival_rate": True,
-             "update_rate": True, "rho_mean": True, "nu_mean": True, "mission_time": True,
-             "goals_total": True},
+    "runs": {
+        "task": False,
+        "sweep": False,
+        "planner": False,
+        "arrival_rate": True,
+        "update_rate": True,
+        "rho_mean": True,
+        "nu_mean": True,
+        "mission_time": True,
+        "goals_total": True,
+    },
     "replans": {"task": False},
     "goals": {"task": False, "t_reached": True},
-}  # fmt: skip
+}
 
 
 def _read_table(path: Path, table: str, task: str) -> pd.DataFrame:
-    import pyarrow
-
     if not path.is_file():
         raise InputError(
-            path, "", f"the {table} table of finished task {task} (written before its runs file)",
+            path,
+            "",
+            f"the {table} table of finished task {task} (written before its runs file)",
             Described("no such file"),
-        )  # fmt: skip
+        )
     try:
         df = pd.read_parquet(path)
     except (OSError, ValueError, pyarrow.ArrowException) as err:
@@ -1267,9 +1376,11 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
     for p in done:
         if p.stem not in tasks:
             raise InputError(
-                p, "", f"a task of the sweep in {meta} (a results folder holds one sweep)",
+                p,
+                "",
+                f"a task of the sweep in {meta} (a results folder holds one sweep)",
                 Described("a file of another sweep"),
-            )  # fmt: skip
+            )
     res = {}
     for t in _TABLES:
         parts = []
@@ -1281,9 +1392,11 @@ def load_results(out: str | os.PathLike) -> dict[str, pd.DataFrame]:
                 )
             if t == "runs" and df["sweep"].iloc[0] != sweep:
                 raise InputError(
-                    p, "row 0, column 'sweep'", f"the digest {sweep!r} of {meta}",
+                    p,
+                    "row 0, column 'sweep'",
+                    f"the digest {sweep!r} of {meta}",
                     df["sweep"].iloc[0],
-                )  # fmt: skip
+                )
             parts.append(df)
         res[t] = pd.concat(parts, ignore_index=True)
     return res

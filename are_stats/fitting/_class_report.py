@@ -15,10 +15,21 @@
 
 from __future__ import annotations
 
-from typing import Any
+import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+
+from are_stats.fitting._fit import fit_class_labels
+from are_stats.traffic import numpy_rng
+
+# Lazy imports: matplotlib (about 1-2 s) is imported by the plotting functions only.
+
+if TYPE_CHECKING:
+    import arviz as az
+    import jax
+    from matplotlib.figure import Figure
 
 __all__ = [
     "class_share_checks",
@@ -28,7 +39,7 @@ __all__ = [
 ]
 
 
-def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None) -> Any:
+def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None) -> Figure:
     """Per-class posterior-predictive bands beside the log's values.
 
     Parameters
@@ -53,9 +64,12 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
     if motion is not None:
         classes += [c for c in dict.fromkeys(motion.index.get_level_values(0)) if c not in classes]
     fig, axes = plt.subplots(
-        1, len(stats), figsize=(2.6 * len(stats) + 0.8, 0.45 * len(classes) + 1.6), sharey=True,
+        1,
+        len(stats),
+        figsize=(2.6 * len(stats) + 0.8, 0.45 * len(classes) + 1.6),
+        sharey=True,
         squeeze=False,
-    )  # fmt: skip
+    )
     y = np.arange(len(classes))
     for ax, stat in zip(axes[0], stats, strict=True):
         for i, cls in enumerate(classes):
@@ -63,15 +77,29 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
                 continue
             row = table.loc[(cls, stat)]
             lo, mid, hi = (float(row[f"model_{q}"]) for q in ("5%", "50%", "95%"))
-            ax.plot([lo, hi], [i, i], color="C0", lw=5, alpha=0.35, solid_capstyle="butt",
-                    label="model 90%" if i == 0 else None)  # fmt: skip
-            ax.plot([mid], [i], "|", color="C0", ms=12, mew=2,
-                    label="model median" if i == 0 else None)  # fmt: skip
+            ax.plot(
+                [lo, hi],
+                [i, i],
+                color="C0",
+                lw=5,
+                alpha=0.35,
+                solid_capstyle="butt",
+                label="model 90%" if i == 0 else None,
+            )
+            ax.plot(
+                [mid], [i], "|", color="C0", ms=12, mew=2, label="model median" if i == 0 else None
+            )
             obs = float(row["observed"])
             if np.isfinite(obs):
                 flag = bool(row["model_flag"])
-                ax.plot([obs], [i], "x" if flag else "o", color="C3" if flag else "k", ms=7,
-                        label=None if i else "log")  # fmt: skip
+                ax.plot(
+                    [obs],
+                    [i],
+                    "x" if flag else "o",
+                    color="C3" if flag else "k",
+                    ms=7,
+                    label=None if i else "log",
+                )
         ax.set_title(stat, fontsize=9)
         ax.grid(axis="x", alpha=0.3)
         ax.tick_params(labelsize=8)
@@ -80,13 +108,16 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
     axes[0, 0].invert_yaxis()
     handles, names = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, names, fontsize=8, loc="lower center", ncol=3, frameon=False)
-    fig.suptitle("Per class: the log against posterior-predictive replicates (red x: outside)",
-                 fontsize=10)  # fmt: skip
+    fig.suptitle(
+        "Per class: the log against posterior-predictive replicates (red x: outside)", fontsize=10
+    )
     fig.tight_layout(rect=(0, 0.1, 1, 1))
     return fig
 
 
-def class_share_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.DataFrame | None:
+def class_share_checks(
+    key: int | jax.Array, idata: az.InferenceData, n_replicates: int = 200
+) -> pd.DataFrame | None:
     """Each class's share of the arrivals in each hour of the day, log against model.
 
     Replicates keep the log's arrivals per hour ``n_p`` and draw their classes from the
@@ -110,11 +141,6 @@ def class_share_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.Data
         ``model_5%``, ``model_50%``, ``model_95%``, ``model_flag``; None for a fit
         without shares by time of day.
     """
-    import warnings
-
-    from are_stats.fitting._fit import fit_class_labels
-    from are_stats.traffic import numpy_rng
-
     post = idata.posterior
     if "class_tod_weights" not in post or "class_tod_counts" not in post.attrs:
         return None
@@ -149,7 +175,7 @@ def class_share_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.Data
     return table
 
 
-def plot_class_shares_by_hour(table: pd.DataFrame, model: str = "time-of-day") -> Any:
+def plot_class_shares_by_hour(table: pd.DataFrame, model: str = "time-of-day") -> Figure:
     """Each class's share of the arrivals by hour: the log's (dots, sized by the hour's
     arrivals) in the model's 90% band (:func:`class_share_checks`).
 
@@ -165,18 +191,34 @@ def plot_class_shares_by_hour(table: pd.DataFrame, model: str = "time-of-day") -
         sub = table.loc[name]
         h = sub.index.to_numpy(float) + 0.5
         color = f"C{c % 10}"
-        ax.fill_between(h, sub["model_5%"], sub["model_95%"], color=color, alpha=0.2, lw=0,
-                        step="mid", label=f"{name}: model 90%")  # fmt: skip
+        ax.fill_between(
+            h,
+            sub["model_5%"],
+            sub["model_95%"],
+            color=color,
+            alpha=0.2,
+            lw=0,
+            step="mid",
+            label=f"{name}: model 90%",
+        )
         n = sub["arrivals"].to_numpy(float)
         size = 8 + 40 * n / max(float(n.max()), 1.0)
         flag = sub["model_flag"].to_numpy(bool)
-        ax.scatter(h[~flag], sub["observed"][~flag], s=size[~flag], color=color, zorder=3,
-                   label=f"{name}: log")  # fmt: skip
+        ax.scatter(
+            h[~flag],
+            sub["observed"][~flag],
+            s=size[~flag],
+            color=color,
+            zorder=3,
+            label=f"{name}: log",
+        )
         if flag.any():
-            ax.scatter(h[flag], sub["observed"][flag], s=size[flag], color=color, marker="x",
-                       zorder=3)  # fmt: skip
-    ax.set(xlim=(0, 24), ylim=(-0.02, 1.02), xlabel="hour of the day",
-           ylabel="share of the arrivals")  # fmt: skip
+            ax.scatter(
+                h[flag], sub["observed"][flag], s=size[flag], color=color, marker="x", zorder=3
+            )
+    ax.set(
+        xlim=(0, 24), ylim=(-0.02, 1.02), xlabel="hour of the day", ylabel="share of the arrivals"
+    )
     ax.set_xticks(range(0, 25, 3))
     ax.set_title(f"Class shares by hour ({model} shares; x: outside the band)", fontsize=10)
     ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
@@ -184,7 +226,7 @@ def plot_class_shares_by_hour(table: pd.DataFrame, model: str = "time-of-day") -
     return fig
 
 
-def plot_class_entries(idata: Any) -> Any | None:
+def plot_class_entries(idata: az.InferenceData) -> Figure | None:
     """Each class's entry density (image) with the log's entry points of that class.
 
     Parameters
@@ -200,8 +242,6 @@ def plot_class_entries(idata: Any) -> Any | None:
     """
     import matplotlib.pyplot as plt
 
-    from are_stats.fitting._fit import fit_class_labels
-
     if "constant_data" not in idata.groups() or "class_entry_density" not in idata.constant_data:
         return None
     cd = idata.constant_data
@@ -216,8 +256,9 @@ def plot_class_entries(idata: Any) -> Any | None:
     cols = min(k, 3)
     rows = int(np.ceil(k / cols))
     aspect = h / max(w, 1)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.0 * cols, 4.0 * rows * aspect + 0.8),
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(4.0 * cols, 4.0 * rows * aspect + 0.8), squeeze=False
+    )
     model = str(idata.posterior.attrs.get("class_position_model", "?"))
     for c in range(rows * cols):
         ax = axes.flat[c]
@@ -229,11 +270,18 @@ def plot_class_entries(idata: Any) -> Any | None:
         if have_xy:
             entered = np.isfinite(np.asarray(obs["t_arrive"].values, float))
             sel = entered & (np.asarray(obs["classes"].values) == c)
-            ax.scatter(np.asarray(obs["x"].values)[sel], np.asarray(obs["y"].values)[sel],
-                       s=2, color="c", alpha=0.3, lw=0)  # fmt: skip
+            ax.scatter(
+                np.asarray(obs["x"].values)[sel],
+                np.asarray(obs["y"].values)[sel],
+                s=2,
+                color="c",
+                alpha=0.3,
+                lw=0,
+            )
         ax.set_title(f"{labels[c]} (entry density, per m^2)", fontsize=9)
         ax.tick_params(labelsize=7)
-    fig.suptitle(f"Entry densities per class ({model} by LOO; dots: the log's entries)",
-                 fontsize=10)  # fmt: skip
+    fig.suptitle(
+        f"Entry densities per class ({model} by LOO; dots: the log's entries)", fontsize=10
+    )
     fig.tight_layout()
     return fig

@@ -35,13 +35,24 @@ Class arrival rates follow: arrivals of class ``c`` in period ``p`` come at
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
+from scipy.special import gammaln, logsumexp
 
+from are_stats.fitting._traffic import choose_simplest, loo_pointwise
+from are_stats.inputs import check_memory
 from are_stats.traffic import DAY, PositionDensity, fit_position_density, numpy_rng, period_of
+
+# Lazy imports: xarray (0.4 s) comes with ArviZ when a fit is built (the attach_ functions).
+
+if TYPE_CHECKING:
+    import arviz as az
+    import jax
 
 __all__ = [
     "CLASS_POSITION_MODELS",
@@ -113,9 +124,14 @@ class ClassPositions:
 
 
 def _per_class(
-    xy: np.ndarray, cls: np.ndarray, k: int, free: np.ndarray, res: float, origin: Any,
+    xy: np.ndarray,
+    cls: np.ndarray,
+    k: int,
+    free: np.ndarray,
+    res: float,
+    origin: npt.ArrayLike,
     pooled: PositionDensity,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(K, H, W)`` densities, ``(n,)`` leave-one-out log densities, alphas, bandwidths,
     points per class."""
     dens = np.empty((k, *free.shape))
@@ -137,15 +153,15 @@ def _per_class(
 
 
 def fit_class_positions(
-    entry_xy: Any,
-    entry_classes: Any,
-    labels: Any,
-    free_mask: Any,
+    entry_xy: npt.ArrayLike,
+    entry_classes: npt.ArrayLike,
+    labels: Sequence[str],
+    free_mask: npt.ArrayLike,
     resolution: float,
-    origin: Any,
+    origin: npt.ArrayLike,
     *,
-    exit_xy: Any = None,
-    exit_classes: Any = None,
+    exit_xy: npt.ArrayLike | None = None,
+    exit_classes: npt.ArrayLike | None = None,
 ) -> ClassPositions:
     """Fit per-class entry (and exit) densities pooled toward the other classes'.
 
@@ -187,8 +203,6 @@ def fit_class_positions(
     >>> f.entry.shape
     (2, 10, 10)
     """
-    from are_stats.inputs import check_memory
-
     names = tuple(str(v) for v in labels)
     k = len(names)
     xy = np.asarray(entry_xy, float).reshape(-1, 2)
@@ -223,12 +237,20 @@ def fit_class_positions(
         dens = np.broadcast_to(pooled.prob, dens.shape).copy()
     o = np.asarray(origin, float).ravel()
     return ClassPositions(
-        labels=names, model=model, entry=dens, exit=exits, resolution=float(resolution),
-        origin=(float(o[0]), float(o[1])), n_points=n_c, alpha=alpha, bandwidth=bw, table=table,
-    )  # fmt: skip
+        labels=names,
+        model=model,
+        entry=dens,
+        exit=exits,
+        resolution=float(resolution),
+        origin=(float(o[0]), float(o[1])),
+        n_points=n_c,
+        alpha=alpha,
+        bandwidth=bw,
+        table=table,
+    )
 
 
-def attach_class_positions(idata: Any, fit: ClassPositions) -> Any:
+def attach_class_positions(idata: az.InferenceData, fit: ClassPositions) -> az.InferenceData:
     """Store a :class:`ClassPositions` in a fit.
 
     ``constant_data`` gains ``class_entry_density`` (and ``class_exit_density``) over
@@ -242,9 +264,11 @@ def attach_class_positions(idata: Any, fit: ClassPositions) -> Any:
     if fit.exit is not None:
         dens["class_exit_density"] = fit.exit
     ds = xr.Dataset(
-        {n: xr.DataArray(np.asarray(v, np.float64), dims=("class", "pos_y", "pos_x"))
-         for n, v in dens.items()}
-    )  # fmt: skip
+        {
+            n: xr.DataArray(np.asarray(v, np.float64), dims=("class", "pos_y", "pos_x"))
+            for n, v in dens.items()
+        }
+    )
     attrs = {
         "class_position_resolution": float(fit.resolution),
         "class_position_origin": np.asarray(fit.origin, np.float64),
@@ -261,7 +285,7 @@ def attach_class_positions(idata: Any, fit: ClassPositions) -> Any:
     return idata
 
 
-def class_position_densities(idata: Any) -> tuple[PositionDensity, ...] | None:
+def class_position_densities(idata: az.InferenceData) -> tuple[PositionDensity, ...] | None:
     """The per-class entry densities of a fit whose LOO kept them, or None.
 
     Parameters
@@ -319,8 +343,6 @@ class ClassShareClock:
 def _dm_marginal(kw: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Dirichlet-multinomial log marginal (up to the multinomial coefficient), summed over
     periods: ``kw (..., P, K)`` concentrations, ``n (P, K)`` counts."""
-    from scipy.special import gammaln
-
     a0 = kw.sum(-1)
     return np.sum(
         gammaln(a0) - gammaln(a0 + n.sum(-1)) + np.sum(gammaln(kw + n) - gammaln(kw), -1), -1
@@ -329,8 +351,6 @@ def _dm_marginal(kw: np.ndarray, n: np.ndarray) -> np.ndarray:
 
 def _log_dirichlet(w: np.ndarray, a: np.ndarray) -> np.ndarray:
     """Log density of ``Dirichlet(a)`` at the rows of ``w (S, K)``."""
-    from scipy.special import gammaln
-
     return gammaln(a.sum()) - gammaln(a).sum() + np.log(w) @ (a - 1.0)
 
 
@@ -339,8 +359,6 @@ def _choose(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str, pd.Data
     also better by more than :data:`MIN_ELPD_GAIN` nats (below that the difference is
     small and its standard error unreliable: two nearly equal models, e.g. the shares of
     a log inside one hour, have a tiny ``dse``)."""
-    from are_stats.fitting._traffic import choose_simplest
-
     chosen, table = choose_simplest(elpd, order)
     if chosen != order[0] and float(table.loc[order[0], "elpd_diff"]) <= MIN_ELPD_GAIN:
         chosen = order[0]
@@ -348,11 +366,27 @@ def _choose(elpd: dict[str, np.ndarray], order: list[str]) -> tuple[str, pd.Data
     return chosen, table
 
 
+def uncompared(order: Sequence[str]) -> tuple[str, pd.DataFrame]:
+    """The simplest model and a comparison table of zeros with it chosen: the outcome of
+    :func:`_choose` when there is nothing to compare (one class, or no draws to compare on)."""
+    table = pd.DataFrame(
+        {
+            "elpd": 0.0,
+            "se": 0.0,
+            "elpd_diff": 0.0,
+            "dse": 0.0,
+            "chosen": [True] + [False] * (len(order) - 1),
+        },
+        index=pd.Index(list(order), name="model"),
+    )
+    return order[0], table
+
+
 def fit_class_shares_by_time(
-    key: Any,
-    t_arrive: Any,
-    classes: Any,
-    overall: Any,
+    key: jax.Array,
+    t_arrive: npt.ArrayLike,
+    classes: npt.ArrayLike,
+    overall: npt.ArrayLike,
     clock_offset: float,
     *,
     n_periods: int = N_SHARE_PERIODS,
@@ -390,11 +424,6 @@ def fit_class_shares_by_time(
     ValueError
         If times and classes disagree, or the overall draws are not (S, K) shares.
     """
-    from scipy.special import logsumexp
-
-    from are_stats.fitting._traffic import loo_pointwise
-    from are_stats.inputs import check_memory
-
     w = np.asarray(overall, float)
     if w.ndim != 2 or not np.allclose(w.sum(1), 1.0):
         raise ValueError(f"overall: expected (S, K) shares summing to 1, got {w.shape}")
@@ -404,9 +433,12 @@ def fit_class_shares_by_time(
     if cls.shape != t.shape or (cls.size and (cls.dtype.kind not in "iu" or cls.max() >= k)):
         raise ValueError(f"classes: expected ({t.size},) codes in 0..{k - 1}, got {cls.shape}")
     p_n = int(n_periods)
-    check_memory(8.0 * 6 * 512 * _KAPPAS.size * p_n * k + 8.0 * s * p_n * k * 3
-                 + 8.0 * s * (_KAPPAS.size + 4 * k),
-                 f"the class shares by time of day of {t.size} arrivals")  # fmt: skip
+    check_memory(
+        8.0 * 6 * 512 * _KAPPAS.size * p_n * k
+        + 8.0 * s * p_n * k * 3
+        + 8.0 * s * (_KAPPAS.size + 4 * k),
+        f"the class shares by time of day of {t.size} arrivals",
+    )
     per = period_of(t, float(clock_offset), p_n, float(period))
     counts = np.zeros((p_n, k), np.int64)
     np.add.at(counts, (per, cls.astype(np.int64)), 1)
@@ -454,17 +486,13 @@ def fit_class_shares_by_time(
         }
         model, table = _choose(elpd, list(CLASS_SHARE_MODELS))
     else:
-        model = "constant"
-        table = pd.DataFrame(
-            {"elpd": [0.0, 0.0], "se": 0.0, "elpd_diff": 0.0, "dse": 0.0,
-             "chosen": [True, False]}, index=pd.Index(CLASS_SHARE_MODELS, name="model"),
-        )  # fmt: skip
+        model, table = uncompared(CLASS_SHARE_MODELS)
     return ClassShareClock(
         weights=weights, kappa=kappa, counts=counts, model=model, table=table, ess=ess
     )
 
 
-def attach_class_shares_by_time(idata: Any, fit: ClassShareClock) -> Any:
+def attach_class_shares_by_time(idata: az.InferenceData, fit: ClassShareClock) -> az.InferenceData:
     """Store a :class:`ClassShareClock` in a fit's ``posterior``.
 
     ``class_tod_weights`` over ``(chain, draw, period, class)``, ``class_share_kappa`` over

@@ -26,14 +26,29 @@ the simplest within two standard errors of the best).
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
+from scipy.special import gammainc, gammaincc, gammaln, log_ndtr, logsumexp, ndtr
 
 from are_stats._checks import check_in
+from are_stats.fitting._class_traffic import uncompared
+from are_stats.fitting._fit import fit_class_labels, traffic_draws
+from are_stats.fitting._traffic import choose_simplest, loo_pointwise
+from are_stats.inputs import check_memory, check_work
 from are_stats.traffic import STAY_LAWS, LifecycleData, numpy_rng
+
+# Lazy imports: xarray (0.4 s) comes with ArviZ when a fit is built; scenarios, downstream
+# of fitting, is imported by class_checks only.
+
+if TYPE_CHECKING:
+    import arviz as az
+    import jax
 
 __all__ = [
     "CLASS_MOTION_STATISTICS",
@@ -134,8 +149,6 @@ def _law_terms(law: str, kind: str, t: np.ndarray, m: np.ndarray, k: np.ndarray)
     ``excess`` (log mean excess); the formulas of :mod:`are_stats.traffic` stays, each
     evaluated only on the rows that need it (the JAX function evaluates all four).
     """
-    from scipy.special import gammainc, gammaincc, gammaln, log_ndtr, ndtr
-
     tiny = np.finfo(float).tiny
     t = np.maximum(t, 0.0)
     with np.errstate(divide="ignore", over="ignore", under="ignore", invalid="ignore"):
@@ -175,7 +188,13 @@ def _law_terms(law: str, kind: str, t: np.ndarray, m: np.ndarray, k: np.ndarray)
 
 
 def _loglik(
-    law: str, dwell: Any, cen: Any, tru: Any, mean: Any, shape: Any, resolution: float
+    law: str,
+    dwell: npt.ArrayLike,
+    cen: npt.ArrayLike,
+    tru: npt.ArrayLike,
+    mean: npt.ArrayLike,
+    shape: npt.ArrayLike,
+    resolution: float,
 ) -> np.ndarray:
     """Pointwise stay log-likelihood (broadcast over rows, draws, grids), in NumPy.
 
@@ -185,9 +204,12 @@ def _loglik(
     if law == "exponential":
         return _exponential_loglik(dwell, cen, tru, mean, resolution)
     dwell, cen, tru, mean, shape = np.broadcast_arrays(
-        np.asarray(dwell, float), np.asarray(cen, bool), np.asarray(tru, bool),
-        np.asarray(mean, float), np.asarray(shape, float),
-    )  # fmt: skip
+        np.asarray(dwell, float),
+        np.asarray(cen, bool),
+        np.asarray(tru, bool),
+        np.asarray(mean, float),
+        np.asarray(shape, float),
+    )
     out = np.empty(dwell.shape)
     short = (dwell < resolution) if resolution > 0 else np.zeros(dwell.shape, bool)
     s_pos = np.maximum(dwell, 1e-12 * mean)
@@ -205,9 +227,14 @@ def _loglik(
 
 
 def _class_loglik(
-    data: LifecycleData, classes: np.ndarray, k: int, grid: np.ndarray, law: str,
-    shapes: np.ndarray, resolution: float,
-) -> np.ndarray:  # fmt: skip
+    data: LifecycleData,
+    classes: np.ndarray,
+    k: int,
+    grid: np.ndarray,
+    law: str,
+    shapes: np.ndarray,
+    resolution: float,
+) -> np.ndarray:
     """``(H, K, G)`` stay log-likelihood of each class's rows at each shape and log mean."""
     out = np.zeros((shapes.size, k, grid.size))
     mean = np.exp(grid)[None, None, :]
@@ -226,8 +253,15 @@ def _pointwise(
 ) -> np.ndarray:
     """``(D, n)`` stay log-likelihood of each row under draws ``means`` (D, n), ``shape``
     (D, 1)."""
-    return _loglik(law, data.dwell[None, :], data.censored[None, :], data.truncated[None, :],
-                   means, shape, resolution)  # fmt: skip
+    return _loglik(
+        law,
+        data.dwell[None, :],
+        data.censored[None, :],
+        data.truncated[None, :],
+        means,
+        shape,
+        resolution,
+    )
 
 
 def _gumbel_pick(rng: np.random.Generator, logits: np.ndarray) -> np.ndarray:
@@ -236,10 +270,10 @@ def _gumbel_pick(rng: np.random.Generator, logits: np.ndarray) -> np.ndarray:
 
 
 def fit_classes(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
-    classes: Any,
-    labels: Any,
+    classes: npt.ArrayLike,
+    labels: Sequence[str],
     *,
     law: str = "exponential",
     n_draws: int = 4000,
@@ -288,11 +322,6 @@ def fit_classes(
     >>> f.weights.shape, f.stay_mean.shape
     ((10, 2), (10, 2))
     """
-    from scipy.special import logsumexp
-
-    from are_stats.fitting._traffic import choose_simplest, loo_pointwise
-    from are_stats.inputs import check_memory, check_work
-
     check_in("law", law, STAY_LAWS)
     names = tuple(str(v) for v in labels)
     k = len(names)
@@ -311,10 +340,14 @@ def fit_classes(
     centre = float(np.log(max(float(np.sum(data.dwell)) / departed, 1e-9)))
     grid = centre + np.arange(-_SPAN, _SPAN + _STEP / 2, _STEP)
     g, h = grid.size, shapes.size
-    check_work(float(data.n) * g * h * 50.0 + float(n_loo_draws) * data.n * 100.0,
-               f"the per-class stays of {data.n} artefacts")  # fmt: skip
-    check_memory(float(_BLOCK) * g * h * 8.0 * 8 + float(n_loo_draws) * data.n * 8.0 * 6,
-                 f"the per-class stays of {data.n} artefacts")  # fmt: skip
+    check_work(
+        float(data.n) * g * h * 50.0 + float(n_loo_draws) * data.n * 100.0,
+        f"the per-class stays of {data.n} artefacts",
+    )
+    check_memory(
+        float(_BLOCK) * g * h * 8.0 * 8 + float(n_loo_draws) * data.n * 8.0 * 6,
+        f"the per-class stays of {data.n} artefacts",
+    )
     lik = _class_loglik(data, cls, k, grid, law, shapes, resolution)  # (H, K, G)
     # the discretised prior N(m0, tau) on the grid, normalised over it: (M, T, G)
     m0 = grid[::4]
@@ -323,10 +356,15 @@ def fit_classes(
     log_prior -= logsumexp(log_prior, axis=-1, keepdims=True)
     # log p(data_c | shape, m0, tau) summed over the classes, then the hyper posterior
     log_tau_prior = -0.5 * _TAUS**2 + np.log(_TAUS)  # half-normal(1), grid uniform in log tau
-    hyper = np.stack([
-        logsumexp(lik[i][:, None, None, :] + log_prior[None], axis=-1).sum(axis=0)
-        for i in range(h)
-    ]) + log_tau_prior[None, None, :]  # (H, M, T)  # fmt: skip
+    hyper = (
+        np.stack(
+            [
+                logsumexp(lik[i][:, None, None, :] + log_prior[None], axis=-1).sum(axis=0)
+                for i in range(h)
+            ]
+        )
+        + log_tau_prior[None, None, :]
+    )  # (H, M, T)
     flat = hyper.ravel()
     pick = rng.choice(flat.size, size=n_draws, p=np.exp(flat - logsumexp(flat)))
     ih, im, it = np.unravel_index(pick, hyper.shape)
@@ -351,29 +389,37 @@ def fit_classes(
     d = min(n_loo_draws, n_draws)
     if data.n:
         elpd = {
-            "pooled": loo_pointwise(_pointwise(
-                data, law, pooled_shape[:d, None], resolution, pooled_mean[:d, None]
-            )[None])[0],
-            "per-class": loo_pointwise(_pointwise(
-                data, law, stay_shape[:d, None], resolution, stay_mean[:d][:, cls]
-            )[None])[0],
-        }  # fmt: skip
+            "pooled": loo_pointwise(
+                _pointwise(data, law, pooled_shape[:d, None], resolution, pooled_mean[:d, None])[
+                    None
+                ]
+            )[0],
+            "per-class": loo_pointwise(
+                _pointwise(data, law, stay_shape[:d, None], resolution, stay_mean[:d][:, cls])[None]
+            )[0],
+        }
         chosen, table = choose_simplest(elpd, list(CLASS_STAY_MODELS))
     else:
-        chosen = "pooled"
-        table = pd.DataFrame(
-            {"elpd": [0.0, 0.0], "se": 0.0, "elpd_diff": 0.0, "dse": 0.0,
-             "chosen": [True, False]}, index=pd.Index(CLASS_STAY_MODELS, name="model"),
-        )  # fmt: skip
+        chosen, table = uncompared(CLASS_STAY_MODELS)
     return ClassFit(
-        labels=names, counts=counts, n_rows=n_rows, weights=weights, stay_mean=stay_mean,
-        stay_shape=stay_shape, pool_mean=pool_mean, pool_sd=pool_sd, pooled_mean=pooled_mean,
-        pooled_shape=pooled_shape, law=law, stay_model=chosen, table=table,
+        labels=names,
+        counts=counts,
+        n_rows=n_rows,
+        weights=weights,
+        stay_mean=stay_mean,
+        stay_shape=stay_shape,
+        pool_mean=pool_mean,
+        pool_sd=pool_sd,
+        pooled_mean=pooled_mean,
+        pooled_shape=pooled_shape,
+        law=law,
+        stay_model=chosen,
+        table=table,
         classes=cls.astype(np.int64),
-    )  # fmt: skip
+    )
 
 
-def attach_classes(idata: Any, fit: ClassFit) -> Any:
+def attach_classes(idata: az.InferenceData, fit: ClassFit) -> az.InferenceData:
     """Store a :class:`ClassFit` in a fit's ``posterior``.
 
     Variables over ``(chain, draw, class)``: ``class_weights`` (the shares) and
@@ -439,10 +485,10 @@ def _class_stats(
     return out
 
 
-def _band_table(labels: Any, stats: Any, observed: np.ndarray, reps: np.ndarray) -> pd.DataFrame:
+def _band_table(
+    labels: Sequence[str], stats: Sequence[str], observed: np.ndarray, reps: np.ndarray
+) -> pd.DataFrame:
     """Rows (class, statistic): observed, the model's 5/50/95% and the flag."""
-    import warnings
-
     index = pd.MultiIndex.from_product([list(labels), list(stats)], names=["class", "statistic"])
     table = pd.DataFrame(index=index)
     table["observed"] = observed.ravel()
@@ -456,7 +502,9 @@ def _band_table(labels: Any, stats: Any, observed: np.ndarray, reps: np.ndarray)
     return table
 
 
-def class_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.DataFrame | None:
+def class_checks(
+    key: int | jax.Array, idata: az.InferenceData, n_replicates: int = 200
+) -> pd.DataFrame | None:
     """Per-class posterior-predictive rows of a labelled log's fit: share, stay median, cv.
 
     Replicated windows of the log's length are drawn from the fit's chosen models (class
@@ -480,7 +528,6 @@ def class_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.DataFrame 
         ``model_5%``, ``model_50%``, ``model_95%``, ``model_flag``; None for a fit without
         classes.
     """
-    from are_stats.fitting._fit import fit_class_labels, traffic_draws
     from are_stats.scenarios import generate_scenarios
 
     post = idata.posterior
@@ -498,9 +545,14 @@ def class_checks(key: Any, idata: Any, n_replicates: int = 200) -> pd.DataFrame 
     observed = _class_stats(cls, np.isfinite(ta), np.where(whole, tl - ta, 0.0), whole, k)
     draws, laws = traffic_draws(idata, "chosen")
     df = generate_scenarios(
-        key, draws, int(n_replicates), t1 - t0, area=float(post.attrs["area"]), draw="random",
+        key,
+        draws,
+        int(n_replicates),
+        t1 - t0,
+        area=float(post.attrs["area"]),
+        draw="random",
         laws=laws,
-    )  # fmt: skip
+    )
     reps = np.full((int(n_replicates), k, 3), np.nan)
     for r, sc in df.groupby("scenario", sort=True):
         a = ~sc["truncated"].to_numpy()
@@ -535,7 +587,7 @@ def class_motion_checks(
     label_of = first["label"].astype(str)
     labels = sorted(label_of.unique())
 
-    def stats(st: pd.DataFrame, ids: Any) -> np.ndarray:
+    def stats(st: pd.DataFrame, ids: npt.ArrayLike) -> np.ndarray:
         lab = label_of.reindex(np.asarray(ids)).to_numpy()
         out = np.full((len(labels), 2), np.nan)
         for i, name in enumerate(labels):

@@ -13,9 +13,9 @@ Summaries that a posterior-predictive check compares with replicated data:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import (
     check_finite,
@@ -62,13 +62,15 @@ class KaplanMeier:
     at_risk: np.ndarray
     events: np.ndarray
 
-    def __call__(self, t: Any) -> np.ndarray:
+    def __call__(self, t: npt.ArrayLike) -> np.ndarray:
         """Evaluate the right-continuous step function ``S(t)`` at ``t``."""
         idx = np.searchsorted(self.time, np.asarray(t, dtype=float), side="right")
         return np.concatenate([[1.0], self.survival])[idx]
 
 
-def kaplan_meier(durations: Any, censored: Any, level: float = 0.95) -> KaplanMeier:
+def kaplan_meier(
+    durations: npt.ArrayLike, censored: npt.ArrayLike, level: float = 0.95
+) -> KaplanMeier:
     """Kaplan-Meier survival curve of right-censored durations.
 
     Parameters
@@ -134,7 +136,7 @@ class DispersionTest:
     n: int
 
 
-def dispersion_index(counts: Any) -> DispersionTest:
+def dispersion_index(counts: npt.ArrayLike) -> DispersionTest:
     """Dispersion index of counts per bin (variance / mean) with a Poisson test.
 
     Parameters
@@ -159,7 +161,7 @@ def dispersion_index(counts: Any) -> DispersionTest:
     return DispersionTest(float(index), float(stat), float(min(p, 1.0)), int(x.size))
 
 
-def count_path(t_arrive: Any, t_leave: Any, times: Any) -> np.ndarray:
+def count_path(t_arrive: npt.ArrayLike, t_leave: npt.ArrayLike, times: npt.ArrayLike) -> np.ndarray:
     """``N(t)``: artefacts present at each of ``times``.
 
     Parameters
@@ -191,7 +193,7 @@ def count_path(t_arrive: Any, t_leave: Any, times: Any) -> np.ndarray:
 
 
 def hour_of_day_counts(
-    t_arrive: Any, period: float = 24.0, n_periods: int = 24, clock_offset: float = 0.0
+    t_arrive: npt.ArrayLike, period: float = 24.0, n_periods: int = 24, clock_offset: float = 0.0
 ) -> np.ndarray:
     """Arrivals per period of the day.
 

@@ -22,11 +22,13 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from jax import lax, random
 from jax.scipy.special import xlogy
 from scipy.special import gammaln
 
 from are_stats._checks import check_array, check_nonneg_int, check_nonnegative, describe
+from are_stats.traffic import PoissonMixture
 
 __all__ = [
     "MarksHistogram",
@@ -58,9 +60,9 @@ class MarksHistogram(NamedTuple):
         ``log(values!)``, precomputed once.
     """
 
-    values: Any
-    counts: Any
-    log_factorial: Any
+    values: np.ndarray | jax.Array
+    counts: np.ndarray | jax.Array
+    log_factorial: np.ndarray | jax.Array
 
     @property
     def n_marks(self) -> float:
@@ -73,7 +75,7 @@ class MarksHistogram(NamedTuple):
         return int(np.shape(self.values)[0])
 
 
-def _check_marks(marks: Any) -> np.ndarray:
+def _check_marks(marks: npt.ArrayLike) -> np.ndarray:
     """Marks as a 1-d int64 array of non-negative integers (fast path for integer input)."""
     a = np.asarray(marks) if not isinstance(marks, np.ndarray) else marks
     if a.dtype.kind in "iu":
@@ -86,7 +88,7 @@ def _check_marks(marks: Any) -> np.ndarray:
     return check_nonneg_int("marks", a.ravel())
 
 
-def marks_histogram(marks: Any, counts: Any = None) -> MarksHistogram:
+def marks_histogram(marks: npt.ArrayLike, counts: npt.ArrayLike | None = None) -> MarksHistogram:
     """Histogram of distinct marks.
 
     Parameters
@@ -160,11 +162,11 @@ class EMState(NamedTuple):
         Expected sum of marks per component (E-step at the current parameters).
     """
 
-    weights: Any
-    rates: Any
-    mean_loglik: Any
-    resp_counts: Any
-    resp_sums: Any
+    weights: jax.Array
+    rates: jax.Array
+    mean_loglik: jax.Array
+    resp_counts: jax.Array
+    resp_sums: jax.Array
 
 
 class EMInfo(NamedTuple):
@@ -178,11 +180,13 @@ class EMInfo(NamedTuple):
         Change of the mean log-likelihood (never negative up to rounding: EM is monotone).
     """
 
-    mean_loglik: Any
-    delta: Any
+    mean_loglik: jax.Array
+    delta: jax.Array
 
 
-def _e_step(weights: Any, rates: Any, hist: MarksHistogram) -> tuple[Any, Any, Any]:
+def _e_step(
+    weights: jax.Array, rates: jax.Array, hist: MarksHistogram
+) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Mean log-likelihood and expected sufficient statistics at ``(weights, rates)``."""
     v = hist.values[:, None]
     joint = jnp.log(weights) + xlogy(v, rates) - rates - hist.log_factorial[:, None]  # (m, n)
@@ -195,7 +199,7 @@ def _e_step(weights: Any, rates: Any, hist: MarksHistogram) -> tuple[Any, Any, A
     return mean_ll, resp_counts, resp_sums
 
 
-def em_init(hist: MarksHistogram, weights: Any, rates: Any) -> EMState:
+def em_init(hist: MarksHistogram, weights: npt.ArrayLike, rates: npt.ArrayLike) -> EMState:
     """Start EM at ``(weights, rates)``: runs the first E-step.
 
     Parameters
@@ -251,19 +255,19 @@ def em_step(state: EMState, hist: MarksHistogram) -> tuple[EMState, EMInfo]:
     return new, EMInfo(mean_ll, mean_ll - state.mean_loglik)
 
 
-def _weighted_quantiles(hist: MarksHistogram, q: Any) -> Any:
+def _weighted_quantiles(hist: MarksHistogram, q: jax.Array) -> jax.Array:
     """Quantiles of the marks (histogram with sorted values)."""
     cdf = jnp.cumsum(hist.counts) / jnp.sum(hist.counts)
     idx = jnp.searchsorted(cdf, q, side="left")
     return hist.values[jnp.clip(idx, 0, hist.values.shape[0] - 1)]
 
 
-def _kmeanspp(key: Any, hist: MarksHistogram, n_slots: int, n_real: Any) -> Any:
+def _kmeanspp(key: jax.Array, hist: MarksHistogram, n_slots: int, n_real: jax.Array) -> jax.Array:
     """k-means++ seeding on the distinct marks weighted by counts (first ``n_real`` slots)."""
     keys = random.split(key, n_slots)
     idx = jnp.arange(n_slots)
 
-    def body(i: Any, centers: Any) -> Any:
+    def body(i: jax.Array, centers: jax.Array) -> jax.Array:
         d2 = (hist.values[:, None] - centers[None, :]) ** 2
         d2 = jnp.min(jnp.where(idx[None, :] < i, d2, jnp.inf), axis=1)
         d2 = jnp.where(i == 0, 1.0, d2)
@@ -274,7 +278,9 @@ def _kmeanspp(key: Any, hist: MarksHistogram, n_slots: int, n_real: Any) -> Any:
     return lax.fori_loop(0, n_real, body, jnp.zeros(n_slots))
 
 
-def _initial_rates(key: Any, hist: MarksHistogram, n_slots: int, n_real: Any, restart: Any) -> Any:
+def _initial_rates(
+    key: jax.Array, hist: MarksHistogram, n_slots: int, n_real: jax.Array, restart: jax.Array
+) -> jax.Array:
     """Initial rates of the ``n_real`` components; padding slots get rate 1.
 
     Restart 0: evenly spaced quantiles of the marks; odd restarts: k-means++ seeding; even
@@ -296,7 +302,7 @@ def _initial_rates(key: Any, hist: MarksHistogram, n_slots: int, n_real: Any, re
     return jnp.where(real, rates, 1.0)
 
 
-def squarem_step(state: EMState, hist: MarksHistogram) -> tuple[EMState, EMInfo, Any]:
+def squarem_step(state: EMState, hist: MarksHistogram) -> tuple[EMState, EMInfo, jax.Array]:
     """One SQUAREM-accelerated EM iteration (Varadhan and Roland 2008, scheme S3).
 
     Two EM steps ``theta0 -> theta1 -> theta2`` define ``r = theta1 - theta0`` and
@@ -347,16 +353,16 @@ def squarem_step(state: EMState, hist: MarksHistogram) -> tuple[EMState, EMInfo,
 
 @partial(jax.jit, static_argnames=("n_slots", "n_restarts", "max_iter", "accelerate"))
 def _fit_restarts(
-    key: Any,
+    key: jax.Array,
     hist: MarksHistogram,
-    tol: Any,
-    n_components: Any,
+    tol: float | jax.Array,
+    n_components: int | jax.Array,
     *,
     n_slots: int,
     n_restarts: int,
     max_iter: int,
     accelerate: bool,
-) -> tuple[EMState, Any, Any]:
+) -> tuple[EMState, jax.Array, jax.Array]:
     """EM from ``n_restarts`` initialisations at once: final states, EM updates, deltas.
 
     The parameter vectors have ``n_slots >= n_components`` entries; the extra slots have
@@ -371,14 +377,16 @@ def _fit_restarts(
     w0 = jnp.where(real, 1.0 / n_components, 0.0)
     weights0 = jnp.broadcast_to(w0, (n_restarts, n_slots))
 
-    def run(w0: Any, r0: Any) -> tuple[EMState, Any, Any]:
+    def run(w0: jax.Array, r0: jax.Array) -> tuple[EMState, jax.Array, jax.Array]:
         state0 = em_init(hist, w0, r0)
 
-        def cond(carry: Any) -> Any:
+        def cond(carry: tuple[EMState, jax.Array, jax.Array]) -> jax.Array:
             _, it, delta = carry
             return (it < max_iter) & (jnp.abs(delta) >= tol)
 
-        def body(carry: Any) -> Any:
+        def body(
+            carry: tuple[EMState, jax.Array, jax.Array],
+        ) -> tuple[EMState, jax.Array, jax.Array]:
             state, it, _ = carry
             if accelerate:
                 state, info, used = squarem_step(state, hist)
@@ -444,10 +452,8 @@ class MixtureEMResult:
         """``-2 loglik + 2 (2n - 1)``."""
         return -2.0 * self.loglik + 2.0 * self.n_params
 
-    def distribution(self) -> Any:
+    def distribution(self) -> PoissonMixture:
         """The fitted law as a :class:`are_stats.traffic.PoissonMixture`."""
-        from are_stats.traffic import PoissonMixture
-
         w = self.weights / self.weights.sum()
         return PoissonMixture(w, self.rates)
 
@@ -478,14 +484,14 @@ def _pad(hist: MarksHistogram) -> MarksHistogram:
 
 
 def fit_mixture_em(
-    marks: Any,
+    marks: npt.ArrayLike,
     n_components: int,
-    key: Any = None,
+    key: jax.Array | None = None,
     n_restarts: int = 16,
     tol: float = 1e-8,
     max_iter: int = 10_000,
     *,
-    counts: Any = None,
+    counts: npt.ArrayLike | None = None,
     accelerate: bool = True,
 ) -> MixtureEMResult:
     """Fit the Poisson mixture of eq. (1) by EM over the histogram of distinct marks.

@@ -14,13 +14,17 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import numpy as np
+import numpy.typing as npt
+import pandas as pd
 import yaml
 
+from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.fitting._behaviour import NoWalkersError, fit_behaviour, open_area_grid
 from are_stats.fitting._classes import class_motion_checks
 from are_stats.fitting._fit import Fit, fit_from_idata
@@ -34,6 +38,15 @@ from are_stats.fitting._motion_checks import displacement_errors, motion_checks
 from are_stats.fitting._motion_store import motion_attrs
 from are_stats.logs import LifecycleLog
 from are_stats.traffic import LifecycleData, LifecyclePriors
+
+# Lazy imports: scenarios, downstream of fitting (the realism table generates through its
+# one assembly), in _attach_motion_tables only.
+
+if TYPE_CHECKING:
+    import arviz as az
+
+    from are_stats.behaviour import BehaviourFit, SocialForce
+    from are_stats.environment import ArtefactCatalogue
 
 __all__ = ["FIT_WINDOWS", "fit_log", "log_sha256"]
 
@@ -50,7 +63,7 @@ def log_sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def _seed_of(key: Any) -> tuple[Any, int | None]:
+def _seed_of(key: int | jax.Array) -> tuple[jax.Array, int | None]:
     """A PRNG key and the int seed it came from (None for a key given as such)."""
     if isinstance(key, int | np.integer) and not isinstance(key, bool):
         return jax.random.key(int(key)), int(key)
@@ -58,13 +71,17 @@ def _seed_of(key: Any) -> tuple[Any, int | None]:
 
 
 def _behaviour(
-    seed: int, idata: Any, log: LifecycleLog, grid: Any, features: tuple[str, ...],
-    catalogue: Any, say: Any, notes: list[str],
-) -> Any:  # fmt: skip
+    seed: int,
+    idata: az.InferenceData,
+    log: LifecycleLog,
+    grid: OccupancyGrid | None,
+    features: tuple[str, ...],
+    catalogue: ArtefactCatalogue | None,
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[az.InferenceData, OccupancyGrid, tuple[pd.DataFrame, dict[str, Any]] | None]:
     """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``;
     the map used and the motion checks of a labelled table (None without labels)."""
-    from are_stats.environment import OccupancyGrid
-
     tracks = log.tracks
     if grid is not None:
         free, res, origin = grid.free, grid.resolution, grid.origin[:2]
@@ -101,14 +118,17 @@ def _behaviour(
 
 
 def _attach_motion_tables(
-    seed: int, idata: Any, bfit: Any, learned: Any, tracks: Any, grid: Any
-) -> tuple[Any, Any] | None:
+    seed: int,
+    idata: az.InferenceData,
+    bfit: BehaviourFit,
+    learned: SocialForce | None,
+    tracks: pd.DataFrame,
+    grid: OccupancyGrid,
+) -> tuple[pd.DataFrame, dict[str, Any]] | None:
     """Realism and displacement errors against the log's tracks, stored in the fit so that
     ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
     store the per-class motion rows (median speed, fraction still: issue 31); their motion
     checks (table, replicates) are returned for the report to reuse (None without labels)."""
-    # the realism table generates through the one assembly: the criticism's exception to
-    # the one-way imports (fitting -> scenarios), imported when used
     from are_stats.scenarios import realism_features, realism_summary, realism_table
 
     key = jax.random.key(seed)
@@ -116,17 +136,25 @@ def _attach_motion_tables(
     # at most FIT_WINDOWS windows: each rolls out a path per candidate goal (the table
     # keeps n_windows and the standard errors)
     errors = displacement_errors(
-        jax.random.fold_in(key, 3), bfit, tracks, n_samples=20,
-        interaction=learned if learned is not None else True, grid=grid,
+        jax.random.fold_in(key, 3),
+        bfit,
+        tracks,
+        n_samples=20,
+        interaction=learned if learned is not None else True,
+        grid=grid,
         max_windows=FIT_WINDOWS,
-    )  # fmt: skip
+    )
     # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
     # (each through the one assembly, social force included) against the log
     xy = tracks[["id", "t", "x", "y"]]
     real = realism_table(
-        jax.random.fold_in(key, 4), xy, grid, behaviour=bfit, n_replicates=1,
+        jax.random.fold_in(key, 4),
+        xy,
+        grid,
+        behaviour=bfit,
+        n_replicates=1,
         interaction=learned if learned is not None else True,
-    )  # fmt: skip
+    )
     same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
     dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
     observed = realism_summary(realism_features(xy, dt, grid))
@@ -143,20 +171,20 @@ def _attach_motion_tables(
 
 
 def fit_log(
-    key: Any,
+    key: int | jax.Array,
     log: LifecycleLog | LifecycleData,
     settings: FitSettings = FitSettings(),  # noqa: B008 (frozen, immutable)
     priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
     counts_panel: tuple[np.ndarray, np.ndarray] | None = None,
-    progress: Any = None,
-    class_labels: Any = None,
-    grid: Any = None,
+    progress: Callable[[str], None] | None = None,
+    class_labels: Sequence[str] | None = None,
+    grid: OccupancyGrid | None = None,
     clock_start: str | None = None,
-    classes: Any = None,
+    classes: npt.ArrayLike | None = None,
     *,
     behaviour: bool = True,
     features: tuple[str, ...] = (),
-    catalogue: Any = None,
+    catalogue: ArtefactCatalogue | None = None,
 ) -> Fit:
     """Fit one field log: the whole fit ``are-stats fit`` writes.
 
@@ -198,17 +226,23 @@ def fit_log(
     key, seed = _seed_of(key)
     if isinstance(log, LifecycleData):
         idata = fit_lifecycle_data(
-            key, log, settings, priors, counts_panel, progress, class_labels, grid,
-            clock_start, classes,
-        )  # fmt: skip
+            key,
+            log,
+            settings,
+            priors,
+            counts_panel,
+            progress,
+            class_labels,
+            grid,
+            clock_start,
+            classes,
+        )
         return fit_from_idata(idata)
     if not isinstance(log, LifecycleLog):
         raise ValueError(
             f"log: expected a LifecycleLog (read_field_log) or LifecycleData, got "
             f"{type(log).__name__}"
         )
-    from are_stats.environment import OccupancyGrid, load_catalogue
-
     say = progress or (lambda _msg: None)
     data = log.to_lifecycle_data()
     # labels without marks: the class is the label, found in the catalogue by name (issue 31)
@@ -220,13 +254,21 @@ def fit_log(
     if (settings.positions != "uniform" or tracks is not None) and log.manifest.get("map"):
         grid = OccupancyGrid.from_ros_yaml(log.manifest["map"])
     idata = fit_lifecycle_data(
-        key, data, settings, priors, counts_panel, progress,
-        class_labels=(log.to_arrays()["label_names"]
-                      if data.labels is not None or labelled is not None else None),
+        key,
+        data,
+        settings,
+        priors,
+        counts_panel,
+        progress,
+        class_labels=(
+            log.to_arrays()["label_names"]
+            if data.labels is not None or labelled is not None
+            else None
+        ),
         grid=None if settings.positions == "uniform" else grid,
         clock_start=log.clock_start,
         classes=None if labelled is None else labelled[0],
-    )  # fmt: skip
+    )
     notes: list[str] = []
     checks = None
     if tracks is not None:

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -30,6 +30,14 @@ from are_stats.fitting._interaction import interaction_from_attrs, interaction_i
 from are_stats.fitting._motion_store import motion_tables
 from are_stats.inputs import Described, InputError
 from are_stats.traffic import PositionDensity, TrafficLaws, clock_offset
+
+# Lazy imports: _fit_log (it imports this module) in as_fit.
+
+if TYPE_CHECKING:
+    import arviz as az
+    import xarray as xr
+
+    from are_stats.environment import OccupancyGrid
 
 __all__ = [
     "PARAMETER_NAMES",
@@ -47,13 +55,23 @@ PARAMETER_NAMES = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates", "cl
 
 #: Variables of the chosen traffic models (beside :data:`PARAMETER_NAMES`).
 TRAFFIC_NAMES = (
-    "event_rate", "arrival_phi", "arrival_tod", "group_size_probs", "stay_mean", "stay_shape",
-    "class_stay_mean", "class_stay_shape", "class_tod_weights",
-    "mmpp_factor", "mmpp_switch", "hawkes_branching", "hawkes_decay",
-)  # fmt: skip
+    "event_rate",
+    "arrival_phi",
+    "arrival_tod",
+    "group_size_probs",
+    "stay_mean",
+    "stay_shape",
+    "class_stay_mean",
+    "class_stay_shape",
+    "class_tod_weights",
+    "mmpp_factor",
+    "mmpp_switch",
+    "hawkes_branching",
+    "hawkes_decay",
+)
 
 
-def _flat(post: Any, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+def _flat(post: xr.Dataset, names: tuple[str, ...]) -> dict[str, np.ndarray]:
     """``(chain * draw, ...)`` arrays of the variables of ``names`` present in ``post``."""
     out = {}
     for name in names:
@@ -71,7 +89,7 @@ def _num(attrs: Mapping[str, Any], name: str, default: float) -> float:
     return float(np.asarray(attrs.get(name, default)).ravel()[0])
 
 
-def _chosen_laws(idata: Any) -> TrafficLaws:
+def _chosen_laws(idata: az.InferenceData) -> TrafficLaws:
     """The arrival, stay and position laws ``are-stats fit`` chose (posterior attributes)."""
     a = idata.posterior.attrs
     positions = str(a.get("position_model", "uniform"))
@@ -100,7 +118,7 @@ def _chosen_laws(idata: Any) -> TrafficLaws:
     )
 
 
-def fit_class_labels(idata: Any) -> list[str] | None:
+def fit_class_labels(idata: az.InferenceData | Fit) -> list[str] | None:
     """The class name of each mixture component of a fit, or None.
 
     A log with labels (life-cycle rows or tracks) stores them, comma-separated, as the
@@ -186,7 +204,7 @@ class Fit:
         (None for a fit read from a file, or without labels).
     """
 
-    idata: Any
+    idata: az.InferenceData
     source: str
     method: str
     format_version: int
@@ -198,18 +216,18 @@ class Fit:
     behaviour: BehaviourFit | None = None
     interaction: SocialForce | None = None
     interaction_info: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
-    motion: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    motion: Mapping[str, pd.DataFrame] = field(default_factory=lambda: MappingProxyType({}))
     provenance: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     log_report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     notes: tuple[str, ...] = ()
-    comparisons: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    comparisons: Mapping[str, pd.DataFrame] = field(default_factory=lambda: MappingProxyType({}))
     traffic_notes: tuple[tuple[str, str], ...] = ()
     class_stay_model: str | None = None
     class_position_model: str | None = None
     class_share_model: str | None = None
     time_resolution: float = 0.1
-    grid: Any = None
-    motion_checks: tuple[Any, Any] | None = None
+    grid: OccupancyGrid | None = None
+    motion_checks: tuple[pd.DataFrame, dict[str, Any]] | None = None
 
     def draws(self, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
         """``(chain * draw, ...)`` posterior draws of ``names`` (those present)."""
@@ -221,7 +239,7 @@ class Fit:
         return traffic_draws(self, model)
 
 
-def fit_from_idata(idata: Any, source: str = "fit") -> Fit:
+def fit_from_idata(idata: az.InferenceData, source: str = "fit") -> Fit:
     """Decode an InferenceData of :func:`~are_stats.fitting.fit_log` into a :class:`Fit`.
 
     :func:`~are_stats.fitting.read_fit` checks a file first and then calls this; a fit
@@ -241,7 +259,7 @@ def fit_from_idata(idata: Any, source: str = "fit") -> Fit:
     version = a.get("format_version")
     labels = fit_class_labels(idata)
     behaviour = interaction = None
-    motion: dict[str, Any] = {}
+    motion: dict[str, pd.DataFrame] = {}
     info: dict[str, float] = {}
     if "behaviour" in idata.groups():
         ds = idata.behaviour
@@ -253,9 +271,11 @@ def fit_from_idata(idata: Any, source: str = "fit") -> Fit:
             motion = motion_tables(ds.attrs)
         except (KeyError, ValueError, TypeError, IndexError) as err:
             raise InputError(
-                source, "behaviour", "the behaviour group written by are-stats fit",
+                source,
+                "behaviour",
+                "the behaviour group written by are-stats fit",
                 Described(f"a damaged group ({type(err).__name__}: {err})"),
-            ) from None  # fmt: skip
+            ) from None
     provenance = {k: str(a[k]) for k in ("seed", "log", "log_sha256") if k in a}
     report = yaml.safe_load(str(a["log_report"])) if a.get("log_report") else {}
     notes = tuple(n for n in str(a.get("fit_notes", "") or "").splitlines() if n.strip())
@@ -297,7 +317,7 @@ def fit_from_idata(idata: Any, source: str = "fit") -> Fit:
     )
 
 
-def as_fit(fit: Any, source: str | None = None) -> Fit:
+def as_fit(fit: Fit | az.InferenceData | str | os.PathLike, source: str | None = None) -> Fit:
     """A :class:`Fit` from a fit, an InferenceData of ``fit_log``, or a fit file's path
     (read and checked by :func:`~are_stats.fitting.read_fit`)."""
     if isinstance(fit, Fit):
@@ -309,7 +329,9 @@ def as_fit(fit: Any, source: str | None = None) -> Fit:
     return fit_from_idata(fit, "fit" if source is None else source)
 
 
-def posterior_draws(fit: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
+def posterior_draws(
+    fit: Fit | az.InferenceData | str | os.PathLike, names: tuple[str, ...] = PARAMETER_NAMES
+) -> dict[str, np.ndarray]:
     """Flatten the posterior of a fit (or a fit file, read by ``read_fit``) to draws.
 
     Parameters
@@ -342,7 +364,9 @@ def posterior_draws(fit: Any, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[
     return out
 
 
-def traffic_draws(fit: Any, model: str = "chosen") -> tuple[dict[str, np.ndarray], TrafficLaws]:
+def traffic_draws(
+    fit: Fit | az.InferenceData | str | os.PathLike, model: str = "chosen"
+) -> tuple[dict[str, np.ndarray], TrafficLaws]:
     """Posterior draws and laws to generate from: the fit's chosen models or the paper's.
 
     Parameters
@@ -371,9 +395,9 @@ def traffic_draws(fit: Any, model: str = "chosen") -> tuple[dict[str, np.ndarray
     # LOO kept the pooled stays unless per-class (then one law for every class), one set of
     # class shares for the whole day unless time-of-day
     names = tuple(
-        n for n in TRAFFIC_NAMES
-        if (per_class or not n.startswith("class_stay"))
-        and (by_hour or n != "class_tod_weights")
-    )  # fmt: skip
+        n
+        for n in TRAFFIC_NAMES
+        if (per_class or not n.startswith("class_stay")) and (by_hour or n != "class_tod_weights")
+    )
     draws.update(_flat(post, names))
     return draws, fit.laws

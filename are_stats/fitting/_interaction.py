@@ -12,13 +12,15 @@ generated from the fit walks with the log's interaction and groups
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from are_stats.behaviour import SocialForce, fit_social_force
+from are_stats.behaviour import SocialForce, fit_social_force, group_spacing
+from are_stats.logs import tracks_to_lifecycle
 
 __all__ = ["fit_group_spacing", "fit_interaction", "interaction_attrs", "interaction_from_attrs"]
 
@@ -60,10 +62,16 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
         tt = g["t"].to_numpy(float)
         grid_t = np.arange(np.ceil(tt[0] / dt - 1e-9), np.floor(tt[-1] / dt + 1e-9) + 1) * dt
         if grid_t.size >= 3:
-            parts.append(pd.DataFrame({
-                "id": i, "t": grid_t, "x": np.interp(grid_t, tt, g["x"].to_numpy(float)),
-                "y": np.interp(grid_t, tt, g["y"].to_numpy(float)),
-            }))  # fmt: skip
+            parts.append(
+                pd.DataFrame(
+                    {
+                        "id": i,
+                        "t": grid_t,
+                        "x": np.interp(grid_t, tt, g["x"].to_numpy(float)),
+                        "y": np.interp(grid_t, tt, g["y"].to_numpy(float)),
+                    }
+                )
+            )
     if not parts:
         raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
     params, info = fit_social_force(pd.concat(parts, ignore_index=True))
@@ -98,11 +106,6 @@ def fit_group_spacing(tracks: pd.DataFrame) -> tuple[float, int]:
     samples : int
         Member samples the spacing is the median of (0: none).
     """
-    import warnings
-
-    from are_stats.behaviour import group_spacing
-    from are_stats.logs import tracks_to_lifecycle
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
         life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])

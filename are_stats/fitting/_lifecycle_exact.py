@@ -34,9 +34,10 @@ sampler where the mixture of eq. (1) is conjugate too:
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.optimize import brentq
 
 from are_stats._checks import check_in, check_nonneg_int
 from are_stats.traffic import (
@@ -47,6 +48,9 @@ from are_stats.traffic import (
     conjugate_mixture,
     numpy_rng,
 )
+
+if TYPE_CHECKING:
+    import jax
 
 __all__ = ["exact_lifecycle_draws", "has_exact_posterior", "sample_coupled_rates"]
 
@@ -85,7 +89,7 @@ class _LogMarginal:
             - self.alpha * np.logaddexp(self.log_c, self.log_a - u)
         )
 
-    def _s(self, u: Any) -> Any:  # A e^-u / (c + A e^-u)
+    def _s(self, u: float | np.ndarray) -> float | np.ndarray:  # A e^-u / (c + A e^-u)
         return 1.0 / (1.0 + np.exp(u + self.log_c - self.log_a))
 
     def d1(self, u: float) -> float:
@@ -98,8 +102,6 @@ class _LogMarginal:
 
 def _mode(h: _LogMarginal, start: float) -> float:
     """The root of the decreasing ``h'``, bracketed from ``start`` then by Brent's method."""
-    from scipy.optimize import brentq
-
     lo, hi, step = start - 1.0, start + 1.0, 1.0
     while h.d1(lo) <= 0:
         lo, step = lo - step, step * 2
@@ -201,7 +203,7 @@ def sample_coupled_rates(
 
 
 def exact_lifecycle_draws(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
     priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
     *,

@@ -17,9 +17,11 @@ import jax
 import numpy as np
 import numpyro
 from numpyro.distributions import biject_to
+from numpyro.distributions.transforms import Transform
 from numpyro.infer.util import log_likelihood
 
 from are_stats._checks import check_in, check_nonneg_int, check_probability, describe
+from are_stats._lazy import arviz as az
 from are_stats.fitting._nuts import NutsRun, nuts_warnings, resolve_chain_method, run_nuts
 from are_stats.traffic import (
     LifecycleData,
@@ -30,6 +32,8 @@ from are_stats.traffic import (
     numpy_rng,
     prior_predictive,
 )
+
+# Lazy imports: xarray (0.4 s) comes with ArviZ when a fit is built.
 
 __all__ = ["fit_lifecycle_nuts"]
 
@@ -60,7 +64,7 @@ def _start_values(data: LifecycleData, k: int | None) -> dict[str, np.ndarray]:
     return values
 
 
-def _latent_sites(model_kwargs: dict, start: dict[str, np.ndarray]) -> dict[str, Any]:
+def _latent_sites(model_kwargs: dict, start: dict[str, np.ndarray]) -> dict[str, Transform]:
     """Support transforms of the latent sites, from one trace at the start values."""
     model = numpyro.handlers.substitute(lifecycle_model, data=start)
     trace = numpyro.handlers.trace(model).get_trace(**model_kwargs)
@@ -102,7 +106,7 @@ def _padded_summary(s: LifecycleSummary) -> LifecycleSummary:
     )
 
 
-def _pointwise_loglik(draw: dict, **model_kwargs: Any) -> dict[str, Any]:
+def _pointwise_loglik(draw: dict, **model_kwargs: Any) -> dict[str, jax.Array]:
     """Log-likelihood terms of one draw: window counts and the mark histogram.
 
     The per-artefact stays would be draws x rows: left out (XLA then never computes them);
@@ -141,7 +145,7 @@ def _predictive_counts(
 
 
 def fit_lifecycle_nuts(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
     priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
     *,
@@ -154,7 +158,7 @@ def fit_lifecycle_nuts(
     stationary_start: bool = True,
     target_accept_prob: float = 0.8,
     num_prior_draws: int = 1000,
-) -> Any:
+) -> az.InferenceData:
     """Sample the life-cycle posterior with NUTS and return ArviZ ``InferenceData``.
 
     Posterior variables: ``arrival_rate`` (lambda, per m^2 per time unit), ``leave_rate``
@@ -306,19 +310,34 @@ def fit_lifecycle_nuts(
     if prior_draws:
         tic = time.perf_counter()
         prior = prior_predictive(
-            key_prior, priors, data.window, data.area, prior_draws, n_components=k,
-            stationary_start=stationary_start, labelled=data.labels is not None,
-        )  # fmt: skip
+            key_prior,
+            priors,
+            data.window,
+            data.area,
+            prior_draws,
+            n_components=k,
+            stationary_start=stationary_start,
+            labelled=data.labels is not None,
+        )
         timing["prior"] = time.perf_counter() - tic
     idata = _inference_data(
-        data, priors, k, stationary_start, run.chain_method, posterior, stats, loglik,
-        post_pred, prior, timing,
-    )  # fmt: skip
+        data,
+        priors,
+        k,
+        stationary_start,
+        run.chain_method,
+        posterior,
+        stats,
+        loglik,
+        post_pred,
+        prior,
+        timing,
+    )
     _diagnostics(idata, run)
     return idata
 
 
-def _diagnostics(idata: Any, run: NutsRun) -> None:
+def _diagnostics(idata: az.InferenceData, run: NutsRun) -> None:
     """Divergences, split-``r_hat`` and their warnings (:func:`nuts_warnings`) as attributes."""
     words = nuts_warnings(run)
     idata.sample_stats.attrs.update(
@@ -341,10 +360,8 @@ def _inference_data(
     post_pred: dict,
     prior: dict,
     timing: dict[str, float],
-) -> Any:
+) -> az.InferenceData:
     import xarray as xr
-
-    from are_stats._lazy import arviz as az
 
     counts = ("n_arrivals", "n_present") if stationary_start else ("n_arrivals",)
     observed: dict[str, Any] = {"n_arrivals": np.asarray(int((~data.truncated).sum()))}

@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import math
 from functools import partial
-from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import numpyro
 import numpyro.distributions as dist
 from jax import random
@@ -38,8 +38,8 @@ __all__ = ["fit_mixture_nuts", "mixture_model"]
 
 
 def mixture_model(
-    values: Any,
-    counts: Any,
+    values: npt.ArrayLike,
+    counts: npt.ArrayLike,
     n_components: int,
     weight_concentration: float = 1.0,
     rate_prior: tuple[float, float] = (1.0, 1.0),
@@ -81,25 +81,25 @@ def mixture_model(
     numpyro.factor("marks", jnp.sum(counts * log_p))
 
 
-def _pointwise_loglik(weights: Any, rates: Any, values: Any) -> Any:
+def _pointwise_loglik(weights: jax.Array, rates: jax.Array, values: jax.Array) -> jax.Array:
     """log p(values_j | draw) for every draw: (chain, draw, m)."""
 
-    def one(w: Any, r: Any) -> Any:
+    def one(w: jax.Array, r: jax.Array) -> jax.Array:
         return PoissonMixture(w, r).log_prob(values)
 
     return jax.vmap(jax.vmap(one))(weights, rates)
 
 
 def fit_mixture_nuts(
-    key: Any,
-    marks: Any,
+    key: jax.Array,
+    marks: npt.ArrayLike,
     n_components: int,
     num_warmup: int = 500,
     num_samples: int = 500,
     num_chains: int = 2,
     chain_method: str = "parallel",
     *,
-    counts: Any = None,
+    counts: npt.ArrayLike | None = None,
     weight_concentration: float = 1.0,
     rate_prior: tuple[float, float] | None = None,
     init: str = "em",

@@ -44,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 import numpyro
 from jax.sharding import NamedSharding, PartitionSpec
+from jax.tree_util import PyTreeDef
 from numpyro.diagnostics import split_gelman_rubin
 from numpyro.distributions import biject_to
 from numpyro.infer import init_to_uniform, init_to_value
@@ -55,9 +56,17 @@ from are_stats._program_cache import TRACE_LOCK, compile_program
 from are_stats.traffic import aot_compile
 
 __all__ = [
-    "NutsPrefetch", "NutsProgress", "NutsRun", "chains_per_device", "chunk_length",
-    "clock_progress", "nuts_warnings", "resolve_chain_method", "run_nuts", "time_left",
-]  # fmt: skip
+    "NutsPrefetch",
+    "NutsProgress",
+    "NutsRun",
+    "chains_per_device",
+    "chunk_length",
+    "clock_progress",
+    "nuts_warnings",
+    "resolve_chain_method",
+    "run_nuts",
+    "time_left",
+]
 
 
 def resolve_chain_method(chain_method: str | None, num_chains: int) -> str:
@@ -122,7 +131,7 @@ def _even_devices(n: int) -> int:
 
 def _split_over_devices(
     fn: Callable[..., Any], n_dev: int, axis: str, split: tuple[bool, ...]
-) -> tuple[Any, tuple]:
+) -> tuple[jax.stages.Wrapped, tuple]:
     """``fn`` jitted over ``n_dev`` devices (``shard_map`` on mesh axis ``axis``): the
     arguments flagged in ``split`` and the outputs are split along their leading axis,
     the others whole on every device. Returns the program and the arguments' shardings.
@@ -130,9 +139,12 @@ def _split_over_devices(
     mesh = jax.sharding.Mesh(np.asarray(jax.local_devices()[:n_dev]), (axis,))
     specs = tuple(PartitionSpec(axis) if s else PartitionSpec() for s in split)
     mapped = jax.shard_map(
-        fn, mesh=mesh, in_specs=specs, out_specs=PartitionSpec(axis),
+        fn,
+        mesh=mesh,
+        in_specs=specs,
+        out_specs=PartitionSpec(axis),
         check_vma=False,  # as pmap: the models' scans need no varying-axis types
-    )  # fmt: skip
+    )
     return jax.jit(mapped), tuple(NamedSharding(mesh, p) for p in specs)
 
 
@@ -164,7 +176,7 @@ class NutsRun(NamedTuple):
     samples: dict
     diverging: np.ndarray
     r_hat: dict
-    loglik: Any
+    loglik: np.ndarray | dict[str, np.ndarray] | None
     name: str
     extra: dict = {}  # noqa: RUF012 (NamedTuple default, never mutated)
     chain_method: str = "sequential"
@@ -249,11 +261,11 @@ def _shapes(tree: Any) -> tuple:
     return tuple((np.shape(x), np.asarray(x).dtype.str) for x in jax.tree.leaves(tree))
 
 
-def _is_array(x: Any) -> bool:
+def _is_array(x: object) -> bool:
     return isinstance(x, (np.ndarray, np.generic, jax.Array))
 
 
-def _split_kwargs(model_kwargs: dict) -> tuple[list, Any, tuple]:
+def _split_kwargs(model_kwargs: dict) -> tuple[list, PyTreeDef, tuple]:
     """Array leaves of ``model_kwargs`` (program arguments) and the static rest.
 
     Returns ``(arrays, treedef, static)``: ``static`` holds the non-array leaves in order,
@@ -265,7 +277,7 @@ def _split_kwargs(model_kwargs: dict) -> tuple[list, Any, tuple]:
     return arrays, treedef, static
 
 
-def _join_kwargs(arrays: list, treedef: Any, static: tuple) -> dict:
+def _join_kwargs(arrays: list, treedef: PyTreeDef, static: tuple) -> dict:
     it = iter(arrays)
     return jax.tree.unflatten(treedef, [next(it) if s is None else s for s in static])
 
@@ -286,8 +298,8 @@ def _hashable(key: tuple) -> tuple | None:
 
 
 def _start(
-    model: Callable[..., None], kwargs: dict, chain_key: Any, init: dict | None
-) -> dict[str, Any]:
+    model: Callable[..., None], kwargs: dict, chain_key: jax.Array, init: dict | None
+) -> dict[str, jax.Array]:
     """Unconstrained start of one chain, inside the compiled program.
 
     Sites in ``init`` start there (``init_to_value``), the others uniformly in (-2, 2) on
@@ -302,10 +314,10 @@ def _start(
         )
         tr = numpyro.handlers.trace(seeded).get_trace(**kwargs)
         latent = {
-            n: s for n, s in tr.items()
-            if s["type"] == "sample" and not s["is_observed"]
-            and not s["fn"].support.is_discrete
-        }  # fmt: skip
+            n: s
+            for n, s in tr.items()
+            if s["type"] == "sample" and not s["is_observed"] and not s["fn"].support.is_discrete
+        }
         u = {n: biject_to(s["fn"].support).inv(s["value"]) for n, s in latent.items()}
         return u, set(latent) <= set(init or {})
 
@@ -354,7 +366,7 @@ def chunk_length(num_warmup: int, num_samples: int) -> int:
 
 def _chain_fn(
     model: Callable[..., None],
-    treedef: Any,
+    treedef: PyTreeDef,
     static: tuple,
     num_warmup: int,
     chunk: int,
@@ -426,11 +438,11 @@ class _Plan(NamedTuple):
     first_state: Callable[..., Any]
     step: Callable[..., Any]
     key_base: tuple | None
-    keys: Any
-    start: Any
-    init: Any
+    keys: jax.Array
+    start: dict[str, jax.Array] | None
+    init: dict | None
     arrays: list
-    treedef: Any
+    treedef: PyTreeDef
     static: tuple
     method: str
     num_chains: int
@@ -440,8 +452,13 @@ class _Plan(NamedTuple):
     chunk: int
 
 
-def _plan(key: Any, model: Callable[..., None], model_kwargs: dict, init: dict | None,
-          settings: dict[str, Any]) -> _Plan:  # fmt: skip
+def _plan(
+    key: jax.Array,
+    model: Callable[..., None],
+    model_kwargs: dict,
+    init: dict | None,
+    settings: dict[str, Any],
+) -> _Plan:
     """Check the settings and set up the chains' functions, arguments and cache key.
 
     ``settings``: :func:`run_nuts`'s keywords, those left out at its defaults.
@@ -449,8 +466,10 @@ def _plan(key: Any, model: Callable[..., None], model_kwargs: dict, init: dict |
     given = {k: v for k, v in settings.items() if k in _RUN_NUTS_DEFAULTS}
     opts = {**_RUN_NUTS_DEFAULTS, **given}
     num_warmup, num_samples, num_chains = (
-        int(opts["num_warmup"]), int(opts["num_samples"]), int(opts["num_chains"])
-    )  # fmt: skip
+        int(opts["num_warmup"]),
+        int(opts["num_samples"]),
+        int(opts["num_chains"]),
+    )
     init_params, chain_method = opts["init_params"], opts["chain_method"]
     extra_fields, cheap_compile = opts["extra_fields"], opts["cheap_compile"]
     target_accept_prob = opts["target_accept_prob"]
@@ -474,20 +493,42 @@ def _plan(key: Any, model: Callable[..., None], model_kwargs: dict, init: dict |
     chunk = chunk_length(num_warmup, num_samples)
     key_base = _hashable(
         (
-            _fn_key(model), treedef, static, num_warmup, "chunk", chunk, num_chains, accept,
-            fields, jax.local_device_count(), bool(cheap_compile),
+            _fn_key(model),
+            treedef,
+            static,
+            num_warmup,
+            "chunk",
+            chunk,
+            num_chains,
+            accept,
+            fields,
+            jax.local_device_count(),
+            bool(cheap_compile),
             _shapes((arrays, start, init_arg)),
             None if init_arg is None else tuple(sorted(init_arg)),
             None if start is None else tuple(sorted(start)),
         )
-    )  # fmt: skip
+    )
     first_state, step = _chain_fn(
         model, treedef, static, num_warmup, chunk, accept, fields, start is not None
     )
     return _Plan(
-        first_state, step, key_base, keys, start, init_arg, arrays, treedef, static, method,
-        num_chains, bool(cheap_compile), num_warmup, num_samples, chunk,
-    )  # fmt: skip
+        first_state,
+        step,
+        key_base,
+        keys,
+        start,
+        init_arg,
+        arrays,
+        treedef,
+        static,
+        method,
+        num_chains,
+        bool(cheap_compile),
+        num_warmup,
+        num_samples,
+        chunk,
+    )
 
 
 def _blank_state(plan: _Plan, chains: int | None) -> tuple:
@@ -533,9 +574,11 @@ def _sampling_program(plan: _Plan, timing: dict[str, float]) -> tuple[Any, tuple
 
         def build():
             fn, shardings = _split_over_devices(
-                jax.vmap(step, in_axes=axes), n_dev, "chains",
+                jax.vmap(step, in_axes=axes),
+                n_dev,
+                "chains",
                 (True, True, False, False, True, False, False),
-            )  # fmt: skip
+            )
             blank = _blank_state(plan, plan.num_chains)
             return _compile(fn, (*head, blank, first, limit), cheap, key, shardings), blank
 
@@ -612,7 +655,7 @@ def time_left(
     return w_sec / w_done * (w_total - w_done) + w_last * s_total
 
 
-def clock_progress(clock: Any) -> Callable[[NutsProgress], None] | None:
+def clock_progress(clock: object) -> Callable[[NutsProgress], None] | None:
     """A :func:`run_nuts` ``progress`` that tells a stage clock the time left.
 
     Parameters
@@ -694,9 +737,11 @@ def _run_chunks(
             spent[phase] += took
             done += limit
             if phase == "sampling":
-                keep.append(jax.tree.map(
-                    lambda x, n=limit: np.take(np.asarray(x), np.arange(n), axis=axis), draws
-                ))  # fmt: skip
+                keep.append(
+                    jax.tree.map(
+                        lambda x, n=limit: np.take(np.asarray(x), np.arange(n), axis=axis), draws
+                    )
+                )
             else:
                 last_rate = took / limit
                 opening = opening if opening[0] else (limit, took)
@@ -749,7 +794,7 @@ class NutsPrefetch:
 
     def add(
         self,
-        key: Any,
+        key: jax.Array,
         model: Callable[..., None],
         model_kwargs: dict,
         init: dict | None,
@@ -783,7 +828,7 @@ class NutsPrefetch:
 
 
 def run_nuts(
-    key: Any,
+    key: jax.Array,
     model: Callable[..., None],
     model_kwargs: dict,
     init: dict | None,
@@ -891,7 +936,7 @@ def _post_process(
     pointwise: Callable[..., Any] | None,
     pointwise_kwargs: bool,
     timing: dict[str, float],
-) -> tuple[dict, Any]:
+) -> tuple[dict, np.ndarray | dict[str, np.ndarray] | None]:
     """Constrained and deterministic sites and pointwise log-likelihood of every draw.
 
     The draws are split over the local devices (``shard_map``) when they divide evenly:
@@ -955,6 +1000,15 @@ def nuts_warnings(run: NutsRun, r_hat_limit: float = 1.01) -> list[str]:
 _RUN_NUTS_DEFAULTS = {
     name: p.default
     for name, p in inspect.signature(run_nuts).parameters.items()
-    if name in ("num_warmup", "num_samples", "num_chains", "target_accept_prob", "init_params",
-                "chain_method", "extra_fields", "cheap_compile")
-}  # fmt: skip
+    if name
+    in (
+        "num_warmup",
+        "num_samples",
+        "num_chains",
+        "target_accept_prob",
+        "init_params",
+        "chain_method",
+        "extra_fields",
+        "cheap_compile",
+    )
+}

@@ -12,12 +12,16 @@ standard deviations.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from are_stats._checks import check_positive, describe
+
+if TYPE_CHECKING:
+    import arviz as az
 
 __all__ = ["PanelComparison", "compare_panel", "panel_estimates"]
 
@@ -72,7 +76,7 @@ class PanelComparison:
         return self.warning is not None
 
 
-def _attr(attrs: Any, name: str) -> Any:
+def _attr(attrs: Mapping[str, Any], name: str) -> Any:
     if name not in attrs:
         raise ValueError(
             f"idata: expected a fit with a count panel (posterior attribute {name!r}; "
@@ -81,7 +85,7 @@ def _attr(attrs: Any, name: str) -> Any:
     return attrs[name]
 
 
-def compare_panel(idata: Any, threshold: float = 3.0) -> PanelComparison:
+def compare_panel(idata: az.InferenceData, threshold: float = 3.0) -> PanelComparison:
     """Compare the life-cycle posterior of a fit with its count panel's birth-death MLE.
 
     Parameters
@@ -199,7 +203,7 @@ def compare_panel(idata: Any, threshold: float = 3.0) -> PanelComparison:
     )
 
 
-def panel_estimates(idata: Any) -> str | None:
+def panel_estimates(idata: az.InferenceData) -> str | None:
     """One line on the birth-death MLE of a fit's count panel (``birth_death_*``
     attributes, :func:`~are_stats.fitting.fit_log` with ``counts_panel``), or None.
 

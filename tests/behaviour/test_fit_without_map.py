@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import arviz as az
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
 from typer.testing import CliRunner
 
+from are_stats.behaviour import BehaviourFit
 from are_stats.cli import app
 from are_stats.fitting import open_area_grid
 from tests.test_cli_tracks import _tracks
@@ -35,16 +37,23 @@ def test_tracks_without_a_map_get_a_behaviour(tmp_path):
     fit = tmp_path / "f.nc"
     res = runner.invoke(
         app,
-        ["fit", str(log), "--out", str(fit), "--method", "em", "--positions", "uniform",
-         "--no-figures"],
-    )  # fmt: skip
+        [
+            "fit",
+            str(log),
+            "--out",
+            str(fit),
+            "--method",
+            "em",
+            "--positions",
+            "uniform",
+            "--no-figures",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "behaviour fitted on the open area the tracks cover" in " ".join(res.output.split())
-    import arviz as az
 
     idata = az.from_netcdf(fit)
     assert "behaviour" in idata.groups()
-    from are_stats.behaviour import BehaviourFit
 
     bfit = BehaviourFit.from_dataset(idata.behaviour)
     assert abs(float(np.exp(bfit.speed_mu[0])) / 1.2 - 1) < 0.15  # the log's 1.2 m/s

@@ -67,9 +67,14 @@ def test_a_group_keeps_its_spacing_through_a_door():
     # three friends planned side by side straight across the room (the door is on the
     # leader's line only), one of them faster than the others
     plan = _plan(
-        [(0, 0.0, (2, 5), (18, 5), 1.2), (1, 0.0, (2, 5.75), (18, 5.75), 1.2),
-         (2, 0.0, (2, 4.25), (18, 4.25), 1.5)], 0.1, 3.0,
-    )  # fmt: skip
+        [
+            (0, 0.0, (2, 5), (18, 5), 1.2),
+            (1, 0.0, (2, 5.75), (18, 5.75), 1.2),
+            (2, 0.0, (2, 4.25), (18, 4.25), 1.5),
+        ],
+        0.1,
+        3.0,
+    )
     out = social_force_tracks(plan, params, grid=grid, dt=0.1, groups=np.full(len(plan), 4))
     t, near = _nearest_mate(out, [0, 1, 2], t_max=13.0)
     assert near.min() > 2 * params.radius  # never on top of each other
@@ -132,9 +137,11 @@ def test_group_spacing_is_recovered_from_tracks_simulated_with_known_spacing():
             i += 1
     plan = _plan(walkers, 0.2, 0)
     out = social_force_tracks(
-        plan, SocialForce(group_spacing=truth), dt=0.1,
+        plan,
+        SocialForce(group_spacing=truth),
+        dt=0.1,
         groups=np.asarray(groups)[plan["id"].to_numpy()],
-    )  # fmt: skip
+    )
     spacing, samples = fit_group_spacing(out)
     assert samples > 500
     assert abs(spacing - truth) < 0.05

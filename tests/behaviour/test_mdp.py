@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import functools
+import gc
+
+import jax
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from are_stats.behaviour import GridMDP, follow_rewards
+from are_stats.behaviour import GridMDP, backward_induction, follow_rewards
+from are_stats.behaviour._mdp import _BufferPool
 from tests.helpers import assert_allclose
 
 
@@ -296,12 +301,6 @@ def test_lazy_policy_matches_eager():
 
 
 def test_backward_induction_pure_function_under_jit():
-    import functools
-
-    import jax
-
-    from are_stats.behaviour import backward_induction
-
     rng = np.random.default_rng(10)
     occ = random_grid(rng, 5, 6, 0.2)
     free = np.argwhere(~occ)
@@ -341,7 +340,6 @@ def test_batched_solve_equals_per_goal_solves(dtype):
 def test_reused_output_buffers_give_the_same_solutions():
     # a solution's buffers are reused by later solves only once it is gone; a live one keeps
     # its values, and what was handed out (v0, policy, values) never changes afterwards
-    import gc
 
     rng = np.random.default_rng(12)
     occ = random_grid(rng, 10, 12, 0.15)
@@ -369,8 +367,6 @@ def test_reused_output_buffers_give_the_same_solutions():
 
 
 def test_buffer_pool_takes_back_only_what_fits():
-    from are_stats.behaviour._mdp import _BufferPool
-
     class Buf:
         def __init__(self, n):
             self.nbytes = n

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from are_stats.behaviour import SocialForce, fit_social_force, social_force_tracks
+from are_stats.behaviour import SocialForce, _social, fit_social_force, social_force_tracks
 from are_stats.environment import OccupancyGrid
 
 
@@ -102,8 +102,6 @@ def test_fit_refuses_uneven_sampling_and_too_little_walking():
 def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch):
     """Past ALL_PAIRS_MAX people the neighbours come from the grid of cells; on a crowd
     whose cells stay under their capacity the two give the same tracks."""
-    from are_stats.behaviour import _social
-
     crowd = _crowd(3, 40)
     pairs = social_force_tracks(crowd, dt=0.1)
     monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 0)
@@ -134,16 +132,19 @@ def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():
     routes' corners, the number of steps and whether anybody walks in a group are data,
     not program shapes (issue 29: the realism stage walked its models with a program
     each)."""
-    from are_stats.behaviour import _social
-
     grid = OccupancyGrid(np.zeros((400, 500)), 0.1)  # 50 x 40 m of open ground
     first = _plan([(0, 0.0, (1, 1), (14, 1), 1.3), (1, 0.0, (14, 1.05), (1, 1.05), 1.3)], 0.1, 3)
     social_force_tracks(first, grid=grid, dt=0.1)
     compiled = _social._window._cache_size()
     wide = _plan(
-        [(0, 0.0, (1, 1), (40, 12), 1.2), (1, 2.0, (40, 1), (1, 14), 1.4),
-         (2, 0.0, (5, 5), (5, 30), 1.1)], 0.1, 1,
-    )  # fmt: skip
+        [
+            (0, 0.0, (1, 1), (40, 12), 1.2),
+            (1, 2.0, (40, 1), (1, 14), 1.4),
+            (2, 0.0, (5, 5), (5, 30), 1.1),
+        ],
+        0.1,
+        1,
+    )
     t = np.arange(0.0, 6.01, 0.5)  # a zigzag of 11 corners
     zig = pd.DataFrame(
         {"id": 3, "t": t, "x": 0.5 * t, "y": 20.0 + (np.arange(t.size) % 2), "yaw": 0.0}
@@ -162,8 +163,6 @@ def test_many_small_scenarios_walk_as_they_do_with_all_pairs(monkeypatch):
     """Past ALL_PAIRS_MAX people in small scenarios, each scenario gets a block of slots
     and all pairs within it: the same tracks as all pairs over everybody (group members
     included, whose leaders sit in their own block)."""
-    from are_stats.behaviour import _social
-
     scenes = []
     for s in range(100):  # 100 scenarios of 2-5 people: 350, over 128 in a window
         crowd = _crowd(100 + s, 2 + s % 4)

@@ -6,14 +6,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from jax.sharding import Mesh
+from jax.sharding import PartitionSpec as P
 
 from are_stats.behaviour import (
     GridMDP,
     move_observations,
+    moves_log_likelihood,
     sample_soft_paths,
     smooth_path,
     soft_policy,
 )
+from are_stats.behaviour._mdp import path_free
+from are_stats.behaviour._soft import soft_backward_induction
 from are_stats.fitting import behaviour_log_likelihood
 from tests.helpers import assert_allclose
 
@@ -112,19 +117,21 @@ def test_forward_mode_gradient_of_the_stationary_policy() -> None:
 
     @jax.jit
     def ll(theta: jax.Array) -> jax.Array:
-        from are_stats.behaviour import moves_log_likelihood
-        from are_stats.behaviour._mdp import path_free
-        from are_stats.behaviour._soft import soft_backward_induction
-
         obs = move_observations(paths)
         g = len(obs.goals)
         mask = np.zeros((g,) + occ.shape, bool)
         mask[np.arange(g), obs.goals[:, 0], obs.goals[:, 1]] = True
         ok = jnp.asarray(path_free(occ))
         sol = soft_backward_induction(
-            ok, ~occ[None] & ~mask, jnp.asarray(mask, float), theta[0], theta[1],
-            n_epochs=500, time_cost=1.0, tol=1e-12,
-        )  # fmt: skip
+            ok,
+            ~occ[None] & ~mask,
+            jnp.asarray(mask, float),
+            theta[0],
+            theta[1],
+            n_epochs=500,
+            time_cost=1.0,
+            tol=1e-12,
+        )
         return moves_log_likelihood(sol.policy, ok, theta[1], obs)
 
     th = jnp.array([2.1, 0.1])
@@ -153,12 +160,6 @@ def test_smooth_path_keeps_ends_and_straightens_a_staircase() -> None:
 def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> None:
     """shard_map over goals with ``axis_name``: the same values as one unsplit solve, although
     the near goal's shard alone would stop epochs earlier than the far goals' shard."""
-    from jax.sharding import Mesh
-    from jax.sharding import PartitionSpec as P
-
-    from are_stats.behaviour._mdp import path_free
-    from are_stats.behaviour._soft import soft_backward_induction
-
     if jax.local_device_count() < 2:
         pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
     occ = _grid()
@@ -172,16 +173,19 @@ def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> No
     def solve(keep_, bonus_, axis_name=None):
         return soft_backward_induction(
             ok, keep_, bonus_, jnp.asarray(1.5), jnp.asarray(0.1), axis_name=axis_name, **opts
-        )  # fmt: skip
+        )
 
     whole = jax.jit(solve)(keep, bonus)
     mesh = Mesh(np.array(jax.local_devices()[:2]), ("g",))
     results = {}
     for name in ("g", None):
         split = jax.shard_map(
-            lambda k, b, name=name: solve(k, b, name), mesh=mesh, in_specs=(P("g"), P("g")),
-            out_specs=P("g"), check_vma=False,
-        )  # fmt: skip
+            lambda k, b, name=name: solve(k, b, name),
+            mesh=mesh,
+            in_specs=(P("g"), P("g")),
+            out_specs=P("g"),
+            check_vma=False,
+        )
         results[name] = jax.jit(split)(keep, bonus)
     assert_allclose(results["g"].values, whole.values, rtol=1e-12, atol=1e-12)
     assert_allclose(results["g"].policy, whole.policy, rtol=1e-12, atol=1e-12)

@@ -20,9 +20,14 @@ def test_rho_edge_cases():
 
 @pytest.mark.parametrize(
     ("rho_t", "g_t", "match"),
-    [([-1.0], [1.0], "rho_t"), ([1.0], [-1.0], "g_t"), ([1.0], [np.nan], "g_t"),
-     ([1.0, 2.0], [1.0], "shapes"), ([np.inf], [1.0], "rho_t")],
-)  # fmt: skip
+    [
+        ([-1.0], [1.0], "rho_t"),
+        ([1.0], [-1.0], "g_t"),
+        ([1.0], [np.nan], "g_t"),
+        ([1.0, 2.0], [1.0], "shapes"),
+        ([np.inf], [1.0], "rho_t"),
+    ],
+)
 def test_rho_bad_input(rho_t, g_t, match):
     with pytest.raises(ValueError, match=match):
         replanning_ratio(rho_t, g_t)

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+from collections import Counter
+
 import dask
 import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
+import yaml
+from distributed import LocalCluster
+from mcap.reader import make_reader
+from rosbags.typesys import Stores, get_typestore
 from typer.testing import CliRunner
 
 from are_stats._atomic import OutputExistsError
@@ -29,19 +35,29 @@ CONFIG = {
     "map": "courtyard",
     "seed": 3,
     "replicates": 2,
-    "scenario": {"arrival_rate": 0.0005, "leave_rate": 0.05, "mix_weights": [0.5, 0.5],
-                 "mix_rates": [0.5, 3.0]},
+    "scenario": {
+        "arrival_rate": 0.0005,
+        "leave_rate": 0.05,
+        "mix_weights": [0.5, 0.5],
+        "mix_rates": [0.5, 3.0],
+    },
     "mission": {"n_goals": 2, "time_limit": 25.0},
     "planner": {"algorithm": "astar"},
     "factors": {"scenario.arrival_rate": [0.0002, 0.001]},
-}  # fmt: skip
+}
 
 
 def test_expand_tasks_grid_and_common_seeds():
-    cfg = {**CONFIG, "factors": {**CONFIG["factors"], "planner": [
-        {"name": "A*", "algorithm": "astar"},
-        {"name": "RRT", "algorithm": "RRT", "range": 2.0, "goal_bias": 0.05},
-    ]}}  # fmt: skip
+    cfg = {
+        **CONFIG,
+        "factors": {
+            **CONFIG["factors"],
+            "planner": [
+                {"name": "A*", "algorithm": "astar"},
+                {"name": "RRT", "algorithm": "RRT", "range": 2.0, "goal_bias": 0.05},
+            ],
+        },
+    }
     tasks = expand_tasks(cfg)
     assert len(tasks) == 2 * 2 * 2
     assert len({t["task"] for t in tasks}) == 8
@@ -107,8 +123,6 @@ def test_sweep_end_to_end_and_resume(tmp_path):
 
 
 def test_cli_experiment_and_plot(tmp_path):
-    import yaml
-
     cfg = {**CONFIG, "replicates": 1, "factors": {"scenario.arrival_rate": [0.0002]}}
     path = tmp_path / "c.yaml"
     path.write_text(yaml.safe_dump(cfg))
@@ -151,11 +165,6 @@ def test_shipped_config_loads():
 
 
 def test_mcap_export_reads_back(tmp_path):
-    from collections import Counter
-
-    from mcap.reader import make_reader
-    from rosbags.typesys import Stores, get_typestore
-
     grid = OccupancyGrid(np.zeros((20, 20)), 1.0)
     art = pd.DataFrame(
         [[2.0, 4.0, 10.0, 5.0, 0.0, 0], [0.0, 50.0, 10.0, 15.0, 0.0, 3]],
@@ -201,8 +210,6 @@ def test_mcap_export_reads_back(tmp_path):
 
 
 def test_sweep_on_an_existing_scheduler(tmp_path):
-    from distributed import LocalCluster
-
     cfg = {**CONFIG, "replicates": 1, "factors": {"scenario.arrival_rate": [0.0002]}}
     with LocalCluster(
         n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"

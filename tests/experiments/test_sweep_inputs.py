@@ -6,14 +6,29 @@ from __future__ import annotations
 import re
 import shutil
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from distributed import LocalCluster
+from distributed.comm.utils import get_tcp_server_addresses
 from typer.testing import CliRunner
 
 from are_stats.cli import app
-from are_stats.experiments import _sweep, expand_tasks, load_results, load_sweep_config, run_sweep
+from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
+from are_stats.experiments import (
+    Robot,
+    _sweep,
+    expand_tasks,
+    load_results,
+    load_sweep_config,
+    make_planner,
+    plot_results,
+    run_mission,
+    run_sweep,
+)
 from are_stats.inputs import InputError, LimitError, limits
+from are_stats.scenarios import Scene
 
 # one short task: A* on the courtyard, one goal, a few artefacts
 TINY = {
@@ -62,12 +77,25 @@ TINY = {
         ({"factors": {"robot.radius": [0.3, False]}}, "factors.robot.radius[1]", "number"),
         ({"factors": {"scenario.arrival_rate": [1e-4, 1e-4]}}, "arrival_rate[1]", "distinct"),
         ({"factors": {"planner": [{"algorithm": "RRT", "wings": 2}]}}, "planner[0].wings", "known"),
-        ({"factors": {"planner": [{"name": "a", "algorithm": "astar"},
-                                  {"name": "a", "algorithm": "RRT"}]}}, "planner[1]", "distinct"),
-        ({"planner": {"algorithm": "astar"}, "factors": {"planner.range": [1.0]}},
-         "planner.range=1.0: planner.range", "'astar' takes"),
+        (
+            {
+                "factors": {
+                    "planner": [
+                        {"name": "a", "algorithm": "astar"},
+                        {"name": "a", "algorithm": "RRT"},
+                    ]
+                }
+            },
+            "planner[1]",
+            "distinct",
+        ),
+        (
+            {"planner": {"algorithm": "astar"}, "factors": {"planner.range": [1.0]}},
+            "planner.range=1.0: planner.range",
+            "'astar' takes",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_config_is_named_with_its_key_path(cfg, where, expected):
     with pytest.raises(InputError) as info:
         load_sweep_config({**TINY, **cfg})
@@ -82,15 +110,20 @@ def test_bad_config_is_named_with_its_key_path(cfg, where, expected):
         ("seed: 1\nseed: 2\n", "line 2: expected each key once"),
         ("robot: {radius: " + "{a: " * 100 + "1" + "}" * 100 + "}\n", "nested at most"),
         ("scenario: " + "[" * 500 + "]" * 500 + "\n", "nested at most"),
-        ("a: &a [x, x, x, x, x, x, x, x, x, x]\n"
-         + "".join(f"{chr(98 + i)}: &{chr(98 + i)} [" + ", ".join([f"*{chr(97 + i)}"] * 10)
-                   + "]\n" for i in range(7)), "alias"),
+        (
+            "a: &a [x, x, x, x, x, x, x, x, x, x]\n"
+            + "".join(
+                f"{chr(98 + i)}: &{chr(98 + i)} [" + ", ".join([f"*{chr(97 + i)}"] * 10) + "]\n"
+                for i in range(7)
+            ),
+            "alias",
+        ),
         ("- 1\n- 2\n", "expected a mapping"),
         ("", "expected a mapping"),
         ("scenario: {arrival_rate: yes}\n", "scenario.arrival_rate: expected a finite number"),
         ("scenario: {arrival_rate: 1e-4\n", "valid YAML"),
     ],
-)  # fmt: skip
+)
 def test_bad_yaml_is_named(tmp_path, text, expected):
     path = tmp_path / "fig7.yaml"
     path.write_text(text)
@@ -120,10 +153,17 @@ def test_yaml_12_numbers_and_undecodable_file(tmp_path):
         ({"replicates": 10**18}, "tasks"),
         ({"robot": {"radius": 1e-300}}, "motion steps"),
         ({"robot": {"image_size": [10000, 10000]}, "mission": {"perception": "camera"}}, "rays"),
-        ({"factors": {"scenario.arrival_rate": [1e-4 * (k + 1) for k in range(300)],
-                      "mission.time_limit": [10.0 * (k + 1) for k in range(300)]}}, "tasks"),
+        (
+            {
+                "factors": {
+                    "scenario.arrival_rate": [1e-4 * (k + 1) for k in range(300)],
+                    "mission.time_limit": [10.0 * (k + 1) for k in range(300)],
+                }
+            },
+            "tasks",
+        ),
     ],
-)  # fmt: skip
+)
 def test_runaway_sweeps_are_refused_before_running(cfg, expected):
     with pytest.raises(LimitError) as info:
         load_sweep_config({**TINY, **cfg})
@@ -140,16 +180,11 @@ def test_limits_can_be_raised():
 
 
 def test_shipped_config_is_within_the_default_limits():
-    from are_stats.environment import DEFAULT_MODELS
-
     cfg = load_sweep_config(DEFAULT_MODELS / "experiments" / "fig7.yaml")
     assert len(expand_tasks(cfg)) == 12
 
 
 def test_local_cluster_listens_on_loopback_only():
-    from distributed import LocalCluster
-    from distributed.comm.utils import get_tcp_server_addresses
-
     kw = _sweep._cluster_kwargs(2, True, "127.0.0.1")
     assert kw["host"] == "127.0.0.1" and kw["dashboard_address"] == "127.0.0.1:0"
     assert _sweep._cluster_kwargs(1, False, "::1")["dashboard_address"] == "[::1]:0"
@@ -295,12 +330,6 @@ def test_resolved_config_round_trips():
 
 
 def test_run_mission_refuses_runaway_motion_before_driving():
-    import numpy as np
-
-    from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.experiments import Robot, run_mission
-    from are_stats.scenarios import Scene
-
     grid = OccupancyGrid(np.zeros((20, 20)), 1.0)
     empty = pd.DataFrame(columns=["t_arrive", "t_leave", "x", "y", "yaw"], dtype=float)
     art = Scene.from_scenarios(empty, load_catalogue())
@@ -312,8 +341,6 @@ def test_run_mission_refuses_runaway_motion_before_driving():
 
 
 def test_plot_out_must_be_a_folder(results, tmp_path):
-    from are_stats.experiments import plot_results
-
     (tmp_path / "png").write_text("a file")
     with pytest.raises(InputError, match="expected a folder for the PNGs"):
         plot_results(results, tmp_path / "png")
@@ -331,8 +358,6 @@ def test_plot_out_must_be_a_folder(results, tmp_path):
     ],
 )
 def test_robot_fields_are_strict(kw, where):
-    from are_stats.experiments import Robot
-
     with pytest.raises(InputError, match=rf"^Robot: {re.escape(where)}: expected"):
         Robot(**kw)
 
@@ -348,7 +373,5 @@ def test_robot_fields_are_strict(kw, where):
     ],
 )
 def test_planner_options_are_strict(spec, where):
-    from are_stats.experiments import make_planner
-
     with pytest.raises(InputError, match=rf"^planner: {where}: expected"):
         make_planner(spec)

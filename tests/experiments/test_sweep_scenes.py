@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from are_stats.environment import SHIPPED_DATA, OccupancyGrid
+from are_stats.environment import SHIPPED_DATA, OccupancyGrid, shipped_path
 from are_stats.experiments import expand_tasks, load_sweep_config, run_task
 from are_stats.export._live import _replay
-from are_stats.inputs import InputError
+from are_stats.inputs import InputError, load_yaml
 from are_stats.scenarios import SCENARIO_COLUMNS, generate_scenarios, read_scenes, write_scenes
 
 SIDE = 20
@@ -44,10 +44,17 @@ def _artefacts(n=2):
 
 def _tracks(df):
     rows = [
-        {"scenario": r.scenario, "id": r.artefact, "t": r.t_arrive + k, "x": r.x,
-         "y": r.y, "yaw": r.yaw}
-        for r in df.itertuples() for k in (1.0, 2.0)
-    ]  # fmt: skip
+        {
+            "scenario": r.scenario,
+            "id": r.artefact,
+            "t": r.t_arrive + k,
+            "x": r.x,
+            "y": r.y,
+            "yaw": r.yaw,
+        }
+        for r in df.itertuples()
+        for k in (1.0, 2.0)
+    ]
     return pd.DataFrame(rows)
 
 
@@ -198,7 +205,7 @@ VALID = {
             "camera_fov": 1.2,
             "image_size": [64, 48],
         },
-    },  # fmt: skip
+    },
     "planner factor": {
         "planner": {"algorithm": "RRTConnect", "range": 2.0},
         "factors": {"planner.range": [1.0, 2.0]},
@@ -222,9 +229,6 @@ def test_documented_shapes_are_accepted(root, tmp_path, over):
 
 @pytest.mark.parametrize("name", ["fig7", "fig7_fit"])
 def test_shipped_configs_are_accepted(tmp_path, monkeypatch, name):
-    from are_stats.environment import shipped_path
-    from are_stats.inputs import load_yaml
-
     raw = load_yaml(shipped_path(name, "experiment"), "sweep config")
     if "fit" in raw["scenario"]:  # the shipped fit config, on a scenarios folder instead
         df = generate_scenarios(3, PARAMS, 3, 90.0, free_mask=OccupancyGrid(np.zeros((4, 4)), 1.0))

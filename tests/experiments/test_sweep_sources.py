@@ -6,18 +6,32 @@ from __future__ import annotations
 import os
 import shutil
 
+import arviz as az
 import jax
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 import yaml
 
-from are_stats import FitSettings, fit_log, simulate_lifecycle, write_fit
-from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
-from are_stats.experiments import expand_tasks, load_results, run_sweep, run_task
+import are_stats.experiments._sweep as sweep_module
+from are_stats import FitSettings, fit_log, load_catalogue, simulate_lifecycle, write_fit
+from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, shipped_path
+from are_stats.experiments import (
+    Robot,
+    expand_tasks,
+    load_results,
+    load_sweep_config,
+    plot_goals,
+    plot_results,
+    run_mission,
+    run_sweep,
+    run_task,
+)
+from are_stats.experiments._sweep import _task_scenario, _validate
 from are_stats.fitting import posterior_draws
-from are_stats.inputs import InputError
-from are_stats.scenarios import generate_scenarios, write_scenes
+from are_stats.inputs import InputError, load_yaml
+from are_stats.scenarios import generate_scenarios, scene_tracks, scenes_from_tables, write_scenes
 
 SIDE = 20  # a 20 m x 20 m free square at 1 m cells
 AREA = float(SIDE * SIDE)
@@ -85,7 +99,6 @@ def test_sweep_from_a_fit_matches_its_posterior_and_resumes(files, tmp_path):
     got = one["n_arrivals"].mean()
     assert abs(got - expected) < 4 * se, (got, expected, se)
     # Fig. 7: every run has its own drawn rate, so the plots group by the speed factor
-    from are_stats.experiments import plot_goals
 
     fig = plot_goals(runs, load_results(out)["goals"])
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
@@ -111,14 +124,14 @@ def test_sweep_from_a_scenarios_folder(files, tmp_path):
     assert runs["n_artefacts"].tolist() == [sizes[0], sizes[1], sizes[0]]
     assert runs["arrival_rate"].isna().all()
     # the Fig. 7 plots group such runs by their factor levels (here: all runs together)
-    from are_stats.experiments import plot_results
 
     assert all(p.is_file() for p in plot_results(out))
     # a mission longer than the scenarios is refused, naming the key
     long = _config(
-        root, scenario={"scenarios": str(root / "scen")},
+        root,
+        scenario={"scenarios": str(root / "scen")},
         mission={"n_goals": 1, "time_limit": 2 * HORIZON},
-    )  # fmt: skip
+    )
     with pytest.raises(InputError, match="mission.time_limit"):
         expand_tasks(long)
 
@@ -143,7 +156,6 @@ def test_relative_paths_resolve_against_the_config_file(files, tmp_path, monkeyp
     out = run_sweep(path, "res", workers=1, processes=False, progress=False)
     assert len(load_results(out)["runs"]) == 2
     # a missing relative file is named with the config and its key, before any worker
-    import are_stats.experiments._sweep as sweep_module
 
     def no_workers(*args, **kwargs):
         raise AssertionError("a Dask client was started")
@@ -171,8 +183,6 @@ def test_relative_paths_resolve_against_the_config_file(files, tmp_path, monkeyp
     ],
 )
 def test_scenario_sources_are_exclusive(scenario, factors, where):
-    from are_stats.experiments._sweep import _validate
-
     with pytest.raises(InputError, match=where.replace(".", r"\.")):
         _validate({"scenario": scenario, "factors": factors}, "cfg.yaml")
 
@@ -190,11 +200,6 @@ def test_behaviours_move_the_artefacts(files):
 
 
 def test_shipped_fit_config_is_valid(tmp_path, monkeypatch):
-    from are_stats.environment import shipped_path
-    from are_stats.experiments import load_sweep_config
-    from are_stats.experiments._sweep import _validate
-    from are_stats.inputs import load_yaml
-
     path = shipped_path("fig7_fit", "experiment")
     cfg = _validate(load_yaml(path, "sweep config"), str(path), tmp_path)
     assert cfg["behaviours"] is True and cfg["map"] == "courtyard"
@@ -207,19 +212,23 @@ def test_shipped_fit_config_is_valid(tmp_path, monkeypatch):
 
 
 def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():
-    import jax
-
-    from are_stats import load_catalogue
-    from are_stats.scenarios import scene_tracks, scenes_from_tables
-
     data = np.zeros((12, 12))
     data[3:8, 3:8] = 100  # a block of walls ...
     data[5, 5] = 0  # ... with a one-cell pocket at (5.5, 5.5)
     grid = OccupancyGrid(data, 1.0)
-    art = pd.DataFrame({
-        "scenario": 0, "artefact": [0, 1], "class": 0, "mark": 0, "t_arrive": [0.0, 0.0],
-        "t_leave": [30.0, 30.0], "x": [5.5, 1.5], "y": [5.5, 1.5], "yaw": 0.0,
-    })  # fmt: skip
+    art = pd.DataFrame(
+        {
+            "scenario": 0,
+            "artefact": [0, 1],
+            "class": 0,
+            "mark": 0,
+            "t_arrive": [0.0, 0.0],
+            "t_leave": [30.0, 30.0],
+            "x": [5.5, 1.5],
+            "y": [5.5, 1.5],
+            "yaw": 0.0,
+        }
+    )
     cat = load_catalogue()
     tracks = scene_tracks(
         jax.random.key(3),
@@ -245,12 +254,14 @@ def test_behaviour_tracks_stay_on_free_cells_and_a_walled_in_artefact_stops():
 
 
 def run_mission_on(grid, scene):
-    from are_stats.experiments import Robot, run_mission
-
     return run_mission(
-        grid, scene, [[10.5, 1.5], [10.5, 10.5]], "astar", robot=Robot(radius=0.3, speed=1.0),
+        grid,
+        scene,
+        [[10.5, 1.5], [10.5, 10.5]],
+        "astar",
+        robot=Robot(radius=0.3, speed=1.0),
         time_limit=30.0,
-    )  # fmt: skip
+    )
 
 
 def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
@@ -259,10 +270,17 @@ def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
     write_scenes(df, folder, {"tracks": {"file": "tracks.parquet"}})
     # every artefact steps 0.5 m along x one and two seconds after it arrives
     rows = [
-        {"scenario": r.scenario, "id": r.artefact, "t": r.t_arrive + k, "x": r.x + 0.5 * k,
-         "y": r.y, "yaw": r.yaw}
-        for r in df.itertuples() for k in (1.0, 2.0)
-    ]  # fmt: skip
+        {
+            "scenario": r.scenario,
+            "id": r.artefact,
+            "t": r.t_arrive + k,
+            "x": r.x + 0.5 * k,
+            "y": r.y,
+            "yaw": r.yaw,
+        }
+        for r in df.itertuples()
+        for k in (1.0, 2.0)
+    ]
     pd.DataFrame(rows).to_parquet(folder / "tracks.parquet", index=False)
     cfg = _config(root, replicates=1, scenario={"scenarios": str(folder)})
     task = expand_tasks({**cfg, "behaviours": True})[0]
@@ -275,9 +293,6 @@ def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
 
 def test_a_fit_with_groups_sends_groups_through_the_mission(files, tmp_path):
     """A fit whose chosen arrival model is groups: the mission's artefacts arrive in groups."""
-    import arviz as az
-    import xarray as xr
-
     root, grid, _, _ = files
     idata = az.from_netcdf(root / "fits" / "fit.nc")
     post = idata.posterior
@@ -292,8 +307,6 @@ def test_a_fit_with_groups_sends_groups_through_the_mission(files, tmp_path):
     write_fit(idata, fit)
     cfg = _config(root, replicates=1, scenario={"fit": str(fit)})
     task = expand_tasks(cfg)[0]
-    from are_stats import load_catalogue
-    from are_stats.experiments._sweep import _task_scenario
 
     scene, _ = _task_scenario(task, grid, load_catalogue())
     # arrivals come three at a time: arrival times repeat in threes

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import jax
 import numpy as np
+import pandas as pd
 import pytest
+from PIL import Image
 
 from are_stats.environment import OccupancyGrid
 from are_stats.fitting import (
@@ -14,13 +16,18 @@ from are_stats.fitting import (
     fit_class_positions,
     fit_class_shares_by_time,
     fit_log,
+    motion_attrs,
+    motion_tables,
+    plot_class_checks,
     read_fit,
     traffic_draws,
     write_fit,
 )
-from are_stats.scenarios import generate_scenarios
+from are_stats.inputs import InputError
+from are_stats.scenarios import generate_scenarios, read_scenes
 from are_stats.traffic import DAY, LifecycleData, PositionDensity, TrafficLaws, fit_position_density
 from tests.helpers import chisquare_gof
+from tests.test_cli_jobs import _invoke
 
 RES = 0.5
 FREE = np.ones((40, 60), bool)  # 30 x 20 m, all free
@@ -108,8 +115,12 @@ def test_recovers_class_shares_by_time_of_day(rng):
 def test_generated_shares_vary_over_the_day_as_fitted():
     tod = np.tile(np.array([0.2, 0.8]), (24, 1))
     tod[7:19] = [0.8, 0.2]
-    params = {"arrival_rate": 0.001, "leave_rate": 1 / 30.0, "class_weights": [0.5, 0.5],
-              "class_tod_weights": tod[None]}  # fmt: skip
+    params = {
+        "arrival_rate": 0.001,
+        "leave_rate": 1 / 30.0,
+        "class_weights": [0.5, 0.5],
+        "class_tod_weights": tod[None],
+    }
     laws = TrafficLaws(clock_offset=6 * 3600.0)  # t = 0 at 06:00
     df = generate_scenarios(3, params, 5, DAY, area=100.0, start="empty", laws=laws)
     hour = np.mod(df["t_arrive"].to_numpy() + 6 * 3600.0, DAY) // 3600
@@ -139,8 +150,9 @@ def test_generated_entries_follow_each_class_density(rng):
         inside = a["x"].between(x0 - 1, x1 + 1) & a["y"].between(y0 - 1, y1 + 1)
         assert inside.mean() > 0.85
     with pytest.raises(ValueError, match="an entry density per class"):
-        generate_scenarios(5, {**params, "class_weights": [0.3, 0.3, 0.4]}, 3, 600.0,
-                           free_mask=grid, laws=laws)  # fmt: skip
+        generate_scenarios(
+            5, {**params, "class_weights": [0.3, 0.3, 0.4]}, 3, 600.0, free_mask=grid, laws=laws
+        )
 
 
 def _mixed_log(rng, days=2.0, n=2400):
@@ -149,17 +161,36 @@ def _mixed_log(rng, days=2.0, n=2400):
     cls = (rng.random(n) >= _day_share(ta)).astype(np.int64)
     tl = ta + rng.exponential(20.0, n)
     xy = _entries(rng, cls)
-    data = LifecycleData(t_arrive=ta, t_leave=np.where(tl > t1, np.nan, tl), window=(0.0, t1),
-                         area=600.0, x=xy[:, 0], y=xy[:, 1])  # fmt: skip
+    data = LifecycleData(
+        t_arrive=ta,
+        t_leave=np.where(tl > t1, np.nan, tl),
+        window=(0.0, t1),
+        area=600.0,
+        x=xy[:, 0],
+        y=xy[:, 1],
+    )
     return data, cls
+
+
+def _fit_mixed(data, cls, num_samples):
+    """The fit of a mixed log on the open test map, clocked from midnight."""
+    grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
+    s = FitSettings(num_samples=num_samples, positions="auto", **EM)
+    return fit_log(
+        jax.random.key(0),
+        data,
+        s,
+        class_labels=["bicycle", "person"],
+        classes=cls,
+        grid=grid,
+        clock_start="2026-01-01T00:00:00",
+    ).idata
 
 
 def test_labelled_fit_with_map_and_clock_generates_per_class(tmp_path, rng):
     data, cls = _mixed_log(rng)
     grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
-    s = FitSettings(num_samples=400, positions="auto", **EM)
-    idata = fit_log(jax.random.key(0), data, s, class_labels=["bicycle", "person"],
-                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00").idata  # fmt: skip
+    idata = _fit_mixed(data, cls, 400)
     write_fit(idata, tmp_path / "fit.nc")
     back = read_fit(tmp_path / "fit.nc").idata
     a = back.posterior.attrs
@@ -196,18 +227,19 @@ def test_a_log_without_labels_gets_no_class_traffic(rng):
 
 def _csv_mixed_log(folder, rng, n=1500):
     """A labelled log of two days with entry points, a map and a clock (CSV + manifest)."""
-    import pandas as pd
-    from PIL import Image
-
     data, cls = _mixed_log(rng, days=2.0, n=n)
     t1 = data.window[1]
     tl = np.asarray(data.t_leave)
-    df = pd.DataFrame({
-        "id": [f"a{i}" for i in range(data.n)], "t_arrive": np.round(data.t_arrive, 3),
-        "t_leave": np.where(np.isfinite(tl), np.round(tl, 3).astype(str), ""),
-        "x": np.round(data.x, 3), "y": np.round(data.y, 3),
-        "label": np.array(["bicycle", "person"])[cls],
-    })  # fmt: skip
+    df = pd.DataFrame(
+        {
+            "id": [f"a{i}" for i in range(data.n)],
+            "t_arrive": np.round(data.t_arrive, 3),
+            "t_leave": np.where(np.isfinite(tl), np.round(tl, 3).astype(str), ""),
+            "x": np.round(data.x, 3),
+            "y": np.round(data.y, 3),
+            "label": np.array(["bicycle", "person"])[cls],
+        }
+    )
     df.to_csv(folder / "mixed.csv", index=False)
     Image.fromarray(np.full(FREE.shape, 254, np.uint8)).save(folder / "m.pgm")
     (folder / "m.yaml").write_text(
@@ -222,22 +254,47 @@ def _csv_mixed_log(folder, rng, n=1500):
 
 @pytest.mark.slow
 def test_cli_log_fit_generate_report_per_class(tmp_path, rng):
-    import pandas as pd
-
-    from are_stats.scenarios import read_scenes
-    from tests.test_cli_jobs import _invoke
-
     log = _csv_mixed_log(tmp_path, rng)
     fit = tmp_path / "fit.nc"
-    res = _invoke(["fit", log, "--out", fit, "--method", "em", "--samples", "200",
-                   "--chains", "1", "--arrivals", "poisson", "--lifetimes", "exponential",
-                   "--no-figures"])  # fmt: skip
+    res = _invoke(
+        [
+            "fit",
+            log,
+            "--out",
+            fit,
+            "--method",
+            "em",
+            "--samples",
+            "200",
+            "--chains",
+            "1",
+            "--arrivals",
+            "poisson",
+            "--lifetimes",
+            "exponential",
+            "--no-figures",
+        ]
+    )
     assert res.exit_code == 0, res.output
     text = " ".join(res.output.split())
     assert "entry/exit densities per-class, shares time-of-day" in text
     assert "bicycle" in text and "/h, mean stay" in text
-    res = _invoke(["generate", fit, "--scenarios", "10", "--horizon", str(DAY), "--seed", "1",
-                   "--out", tmp_path / "scen", "--map", tmp_path / "m.yaml"])  # fmt: skip
+    res = _invoke(
+        [
+            "generate",
+            fit,
+            "--scenarios",
+            "10",
+            "--horizon",
+            str(DAY),
+            "--seed",
+            "1",
+            "--out",
+            tmp_path / "scen",
+            "--map",
+            tmp_path / "m.yaml",
+        ]
+    )
     assert res.exit_code == 0, res.output
     df, manifest, _ = read_scenes(tmp_path / "scen")
     assert manifest["class_labels"] == ["bicycle", "person"]
@@ -262,14 +319,16 @@ def test_cli_log_fit_generate_report_per_class(tmp_path, rng):
 
 
 def test_class_figures_draw_the_stored_motion_rows():
-    import pandas as pd
-
-    from are_stats.fitting import motion_attrs, motion_tables, plot_class_checks
-
-    idx = pd.MultiIndex.from_product([["bicycle", "person"], ["share"]],
-                                     names=["class", "statistic"])  # fmt: skip
-    cols = {"observed": [0.4, 0.6], "model_5%": [0.3, 0.5], "model_50%": [0.4, 0.6],
-            "model_95%": [0.5, 0.7], "model_flag": [False, False]}  # fmt: skip
+    idx = pd.MultiIndex.from_product(
+        [["bicycle", "person"], ["share"]], names=["class", "statistic"]
+    )
+    cols = {
+        "observed": [0.4, 0.6],
+        "model_5%": [0.3, 0.5],
+        "model_50%": [0.4, 0.6],
+        "model_95%": [0.5, 0.7],
+        "model_flag": [False, False],
+    }
     traffic = pd.DataFrame(cols, index=idx)
     motion = traffic.rename(index={"share": "median speed (m/s)"}) * 1.0
     motion["model_flag"] = [True, False]
@@ -291,13 +350,8 @@ def test_per_class_entries_on_another_map_are_refused(rng):
 
 
 def test_read_fit_names_damaged_class_traffic(tmp_path, rng):
-    from are_stats.inputs import InputError
-
     data, cls = _mixed_log(rng, days=1.0, n=600)
-    grid = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (0.0, 0.0, 0.0))
-    s = FitSettings(num_samples=100, positions="auto", **EM)
-    idata = fit_log(jax.random.key(0), data, s, class_labels=["bicycle", "person"],
-                    classes=cls, grid=grid, clock_start="2026-01-01T00:00:00").idata  # fmt: skip
+    idata = _fit_mixed(data, cls, 100)
     write_fit(idata, tmp_path / "ok.nc")
     read_fit(tmp_path / "ok.nc")
     bad = idata.copy()

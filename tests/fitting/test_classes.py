@@ -11,8 +11,10 @@ from are_stats.environment import load_catalogue
 from are_stats.fitting import (
     CLASS_STATISTICS,
     FitSettings,
+    NoWalkersError,
     class_checks,
     class_motion_checks,
+    fit_behaviour,
     fit_class_labels,
     fit_classes,
     fit_log,
@@ -20,11 +22,14 @@ from are_stats.fitting import (
     traffic_draws,
     write_fit,
 )
+from are_stats.fitting._classes import _loglik
 from are_stats.inputs import InputError
 from are_stats.logs import read_lifecycle_log
 from are_stats.scenarios import generate_scenarios, scenes_from_fit
-from are_stats.traffic import LifecycleData
+from are_stats.traffic import LifecycleData, TrafficLaws, stay_loglik
+from tests.fitting.test_behaviour_fit import _model_tracks
 from tests.helpers import chisquare_gof
+from tests.test_cli_jobs import _invoke
 
 LABELS = ["bicycle", "cart", "person"]
 PAPER = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
@@ -79,9 +84,6 @@ def test_a_class_seen_twice_shrinks_toward_the_pool(rng):
 
 @pytest.mark.parametrize("law", ["exponential", "gamma", "weibull", "lognormal"])
 def test_numpy_stay_likelihood_equals_the_stay_law(rng, law):
-    from are_stats.fitting._classes import _loglik
-    from are_stats.traffic import stay_loglik
-
     d = rng.exponential(5.0, 300)
     d[:20] = 0.05  # shorter than the resolution
     cen, tru = rng.random(300) < 0.3, rng.random(300) < 0.3
@@ -95,11 +97,15 @@ def test_unknown_label_is_a_clear_error():
     q = load_catalogue()
     assert {"bicycle", "skater", "cart"} <= set(q.labels)
     assert q.rows_of_labels(["person", "bicycle"]).tolist() == [
-        q.labels.index("person"), q.labels.index("bicycle"),
-    ]  # fmt: skip
-    with pytest.raises(InputError, match=r"log.csv: column 'label': expected class labels of "
-                       r"the artefact catalogue \(person, .*bicycle.*\); to add one.*append a "
-                       r"row.*hoverboard.*got the unknown label\(s\) 'hoverboard'"):  # fmt: skip
+        q.labels.index("person"),
+        q.labels.index("bicycle"),
+    ]
+    with pytest.raises(
+        InputError,
+        match=r"log.csv: column 'label': expected class labels of "
+        r"the artefact catalogue \(person, .*bicycle.*\); to add one.*append a "
+        r"row.*hoverboard.*got the unknown label\(s\) 'hoverboard'",
+    ):
         q.rows_of_labels(["person", "hoverboard"], "log.csv", "column 'label'")
 
 
@@ -116,8 +122,13 @@ def _csv_log(tmp_path, rng, labels=True, n=300):
     cls = rng.choice(3, n, p=shares)
     ta = np.sort(rng.uniform(0, 3600.0, n)).round(3)
     tl = (ta + rng.exponential(np.asarray(means)[cls])).round(3)
-    df = pd.DataFrame({"id": [f"a{i}" for i in range(n)], "t_arrive": ta,
-                       "t_leave": np.where(tl > 3600, "", tl.astype(str))})  # fmt: skip
+    df = pd.DataFrame(
+        {
+            "id": [f"a{i}" for i in range(n)],
+            "t_arrive": ta,
+            "t_leave": np.where(tl > 3600, "", tl.astype(str)),
+        }
+    )
     if labels:
         df["label"] = np.asarray(LABELS)[cls]
     p = tmp_path / ("mixed.csv" if labels else "plain.csv")
@@ -212,8 +223,12 @@ def test_a_log_without_labels_is_fitted_as_before(tmp_path, rng):
 def test_generated_class_shares_and_stays_follow_the_fit():
     w = np.array([0.34, 0.11, 0.55])
     m = np.array([6.8, 30.0, 18.0])
-    params = {"arrival_rate": 0.002, "leave_rate": 1 / 15.0, "class_weights": w,
-              "class_stay_mean": m}  # fmt: skip
+    params = {
+        "arrival_rate": 0.002,
+        "leave_rate": 1 / 15.0,
+        "class_weights": w,
+        "class_stay_mean": m,
+    }
     df = generate_scenarios(7, params, 50, 3600.0, area=100.0, start="empty")
     cls = df["class"].to_numpy()
     assert df["mark"].eq(-1).all() and len(df) > 10000
@@ -244,11 +259,16 @@ def test_regular_stays_per_class_get_their_own_shape(rng):
     assert 0.07 < cv < 0.14  # the grid's shapes are 30% apart
     assert 1.0 / np.sqrt(np.median(f.pooled_shape)) > 0.4
     # generation draws each class's stays from its mean and the shared shape
-    from are_stats.traffic import TrafficLaws
 
-    params = {"arrival_rate": 0.002, "leave_rate": 1 / 15.0, "stay_mean": 15.0,
-              "stay_shape": 4.0, "class_weights": [0.5, 0.5], "class_stay_mean": means,
-              "class_stay_shape": np.median(f.stay_shape)}  # fmt: skip
+    params = {
+        "arrival_rate": 0.002,
+        "leave_rate": 1 / 15.0,
+        "stay_mean": 15.0,
+        "stay_shape": 4.0,
+        "class_weights": [0.5, 0.5],
+        "class_stay_mean": means,
+        "class_stay_shape": np.median(f.stay_shape),
+    }
     df = generate_scenarios(5, params, 20, 3600.0, area=100.0, laws=TrafficLaws(lifetimes="gamma"))
     arrived = ~df["truncated"].to_numpy()
     stay = (df["t_leave"] - df["t_arrive"]).to_numpy()
@@ -258,8 +278,6 @@ def test_regular_stays_per_class_get_their_own_shape(rng):
 
 
 def test_cli_fit_refuses_a_label_the_catalogue_lacks(tmp_path, rng):
-    from tests.test_cli_jobs import _invoke
-
     p = _csv_log(tmp_path, rng, n=30)
     df = pd.read_csv(p, keep_default_na=False)
     df.loc[3, "label"] = "hoverboard"
@@ -291,16 +309,14 @@ def test_marks_and_labels_keep_the_mixture(tmp_path, rng):
 
 @pytest.mark.slow  # a soft-policy fit (about 50 s on a busy 2-core machine)
 def test_cyclists_ride_at_their_speed_rather_than_all_run():
-    from are_stats.fitting import NoWalkersError, fit_behaviour
-    from tests.fitting.test_behaviour_fit import _model_tracks
-
     # one cell (1 m) per 0.25 s: every cyclist moves at 4 m/s, above the people's 2.5 m/s
     tracks, free = _model_tracks(0, 2.0, 0.1, dt=0.25, n=30)
     tracks["label"] = "bicycle"
     with pytest.raises(NoWalkersError, match="bicycle"):
         fit_behaviour(tracks, free, 1.0, (0.0, 0.0), cell=1.0, max_fit_tracks=3)
     thresholds = load_catalogue().run_thresholds()
-    fit = fit_behaviour(tracks, free, 1.0, (0.0, 0.0), cell=1.0, max_fit_tracks=3,
-                        run_speed=thresholds)  # fmt: skip
+    fit = fit_behaviour(
+        tracks, free, 1.0, (0.0, 0.0), cell=1.0, max_fit_tracks=3, run_speed=thresholds
+    )
     assert fit.classes == ("bicycle",) and fit.run_fraction[0] == 0.0
     assert abs(np.exp(fit.speed_mu[0]) - 4.0) < 0.5

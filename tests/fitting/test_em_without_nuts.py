@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import arviz as az
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -26,11 +28,24 @@ def test_em_fit_never_calls_the_nuts_driver(tmp_path, monkeypatch, auto):
     (tmp_path / "three.yaml").write_text("window: [0, 200]\narea: 100\n")
     fit = tmp_path / "f.nc"
     models = [] if auto else ["--arrivals", "negbin", "--lifetimes", "weibull"]
-    res = runner.invoke(app, ["fit", str(log), "--out", str(fit), "--method", "em",
-                              "--no-figures", "--samples", "200", "--chains", "2",
-                              *models])  # fmt: skip
+    res = runner.invoke(
+        app,
+        [
+            "fit",
+            str(log),
+            "--out",
+            str(fit),
+            "--method",
+            "em",
+            "--no-figures",
+            "--samples",
+            "200",
+            "--chains",
+            "2",
+            *models,
+        ],
+    )
     assert res.exit_code == 0, res.output
-    import arviz as az
 
     a = az.from_netcdf(fit).posterior.attrs
     assert "Laplace" in a["traffic_model_choice"] and "no NUTS" in a["traffic_model_choice"]
@@ -38,17 +53,27 @@ def test_em_fit_never_calls_the_nuts_driver(tmp_path, monkeypatch, auto):
         assert (a["arrival_model"], a["lifetime_model"]) == ("negbin", "weibull")
     # the NUTS method does reach the driver (the patch is what the em fit avoided); the
     # paper's model alone has exact draws, so --no-exact asks for its NUTS run
-    res = runner.invoke(app, ["fit", str(log), "--out", str(tmp_path / "g.nc"),
-                              "--no-figures", "--samples", "20", "--warmup", "20",
-                              "--no-exact"])  # fmt: skip
+    res = runner.invoke(
+        app,
+        [
+            "fit",
+            str(log),
+            "--out",
+            str(tmp_path / "g.nc"),
+            "--no-figures",
+            "--samples",
+            "20",
+            "--warmup",
+            "20",
+            "--no-exact",
+        ],
+    )
     assert res.exit_code != 0
 
 
 def test_em_leaves_out_a_candidate_too_large_for_the_laplace_approximation(tmp_path):
     """100 artefacts arriving in one tick make a group-size law of 99 free parameters:
     em does not offer it (a note says why) unless it is named, which is a clean error."""
-    import numpy as np
-
     rng = np.random.default_rng(0)
     stays = rng.exponential(20.0, 100).round(1) + 0.1
     rows = [f"a{k},10,{10 + s:.1f}" for k, s in enumerate(stays)]
@@ -57,11 +82,21 @@ def test_em_leaves_out_a_candidate_too_large_for_the_laplace_approximation(tmp_p
     log.write_text("id,t_arrive,t_leave\n" + "\n".join(rows) + "\n")
     (tmp_path / "crowd.yaml").write_text("window: [0, 300]\narea: 100\n")
     fit = tmp_path / "f.nc"
-    base = ["fit", str(log), "--out", str(fit), "--method", "em", "--no-figures",
-            "--samples", "200", "--chains", "1"]  # fmt: skip
+    base = [
+        "fit",
+        str(log),
+        "--out",
+        str(fit),
+        "--method",
+        "em",
+        "--no-figures",
+        "--samples",
+        "200",
+        "--chains",
+        "1",
+    ]
     res = runner.invoke(app, base + ["--lifetimes", "exponential"])
     assert res.exit_code == 0, res.output
-    import arviz as az
 
     a = az.from_netcdf(fit).posterior.attrs
     assert "groups not offered: 100 parameters" in a["traffic_arrival_notes"]

@@ -4,10 +4,12 @@ same Fit back from the file; the CLI only writes it (issue 25)."""
 from __future__ import annotations
 
 import dataclasses
+import shutil
 
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 from are_stats.cli import app
@@ -20,7 +22,8 @@ from are_stats.fitting import (
     traffic_draws,
     write_fit,
 )
-from are_stats.logs import read_field_log
+from are_stats.inputs import InputError
+from are_stats.logs import read_field_log, read_field_tracks
 from tests.test_cli_tracks import _room, _tracks
 
 EM = FitSettings(method="em", arrivals="poisson", lifetimes="exponential", positions="uniform")
@@ -40,8 +43,6 @@ def fitted(tracks_log):
 
 def test_field_log_keeps_its_tracks(tracks_log):
     """The tracks are read with the log: no second reading for the behaviour."""
-    from are_stats.logs import read_field_tracks
-
     log = read_field_log(tracks_log)
     again = read_field_tracks(tracks_log)
     assert log.tracks is not None
@@ -69,8 +70,18 @@ def test_read_fit_gives_the_same_fit_back(fitted, tmp_path):
     back = read_fit(path)
     assert isinstance(back, Fit) and back.source == str(path)
     assert back.grid is None  # the map stays with the log
-    for name in ("method", "area", "window", "n_components", "class_labels", "laws",
-                 "interaction", "notes", "class_stay_model", "time_resolution"):  # fmt: skip
+    for name in (
+        "method",
+        "area",
+        "window",
+        "n_components",
+        "class_labels",
+        "laws",
+        "interaction",
+        "notes",
+        "class_stay_model",
+        "time_resolution",
+    ):
         assert getattr(back, name) == getattr(fitted, name), name
     assert back.format_version == 1
     assert dict(back.provenance) == dict(fitted.provenance)
@@ -90,9 +101,23 @@ def test_read_fit_gives_the_same_fit_back(fitted, tmp_path):
 def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
     """``are-stats fit`` writes what fit_log returns for the same seed: the same bytes."""
     out = tmp_path / "cli.nc"
-    args = ["fit", str(tracks_log), "--out", str(out), "--method", "em", "--seed", "5",
-            "--arrivals", "poisson", "--lifetimes", "exponential", "--positions", "uniform",
-            "--no-figures"]  # fmt: skip
+    args = [
+        "fit",
+        str(tracks_log),
+        "--out",
+        str(out),
+        "--method",
+        "em",
+        "--seed",
+        "5",
+        "--arrivals",
+        "poisson",
+        "--lifetimes",
+        "exponential",
+        "--positions",
+        "uniform",
+        "--no-figures",
+    ]
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
     mine = write_fit(fitted, tmp_path / "api.nc")
@@ -100,10 +125,6 @@ def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
 
 
 def test_no_map_fits_the_open_area_with_a_note(tracks_log, tmp_path):
-    import shutil
-
-    import yaml
-
     log = tmp_path / "nomap.csv"
     shutil.copy(tracks_log, log)
     meta = yaml.safe_load(tracks_log.with_suffix(".yaml").read_text())
@@ -118,8 +139,6 @@ def test_no_map_fits_the_open_area_with_a_note(tracks_log, tmp_path):
 
 
 def test_a_damaged_behaviour_group_is_named(fitted, tmp_path):
-    from are_stats.inputs import InputError
-
     idata = fitted.idata.copy()
     idata.behaviour = idata.behaviour.drop_vars("free")  # the MDP grid the behaviour needs
     path = write_fit(idata, tmp_path / "bad.nc")

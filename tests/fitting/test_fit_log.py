@@ -45,9 +45,14 @@ EM = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max
 
 def _data(marks: bool = True, labels: bool = False, seed: int = 0) -> LifecycleData:
     d = simulate_lifecycle(
-        jax.random.key(seed), 1 / 30 / AREA, 1 / 200, [0.5, 0.5], [2.0, 12.0], (0.0, 3600.0),
+        jax.random.key(seed),
+        1 / 30 / AREA,
+        1 / 200,
+        [0.5, 0.5],
+        [2.0, 12.0],
+        (0.0, 3600.0),
         area=AREA,
-    )  # fmt: skip
+    )
     if labels:
         return d
     return LifecycleData(d.t_arrive, d.t_leave, d.window, d.area, marks=d.marks if marks else None)
@@ -100,9 +105,12 @@ def test_stored_log_likelihood_scales_with_distinct_data_and_loo_is_unchanged(em
     flat |= {n: idata.posterior[n].values[0] for n in ("mix_weights", "mix_rates")}
     assert "labels" not in idata.observed_data
     full = log_likelihood(
-        lifecycle_model, flat, data=data, n_components=int(idata.posterior.attrs["n_components"]),
+        lifecycle_model,
+        flat,
+        data=data,
+        n_components=int(idata.posterior.attrs["n_components"]),
         stationary_start=False,
-    )  # fmt: skip
+    )
     stays = pointwise_log_likelihood(idata)
     np.testing.assert_allclose(stays.values[0], np.asarray(full["stays"]), rtol=1e-12)
     # PSIS-LOO over distinct observations equals arviz.loo over every artefact
@@ -268,8 +276,6 @@ def test_read_fit_names_the_file_and_the_bad_field(tmp_path, em_file, change, ma
 
 
 def test_fits_carry_their_format_and_an_unversioned_fit_is_read_with_a_warning(tmp_path, em_file):
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         idata = read_fit(em_file).idata  # written by this version: stamped, no warning

@@ -59,9 +59,11 @@ def test_the_group_spacing_of_a_log_is_fitted_and_stored_with_the_interaction():
             i += 1
     plan = pd.concat(rows, ignore_index=True)
     log = social_force_tracks(
-        plan, SocialForce(group_spacing=truth), dt=0.1,
+        plan,
+        SocialForce(group_spacing=truth),
+        dt=0.1,
         groups=np.asarray(groups)[plan["id"].to_numpy()],
-    )  # fmt: skip
+    )
     est, info = fit_interaction(log[["id", "t", "x", "y"]])
     assert est.group_spacing == pytest.approx(truth, abs=0.05)
     assert info["group_samples"] > 1000

@@ -99,9 +99,14 @@ def test_coupled_rates_match_quadrature_of_the_joint_density(data, which):
 
 def test_without_the_stationary_count_the_draws_are_the_conjugate_laws(data):
     post = exact_lifecycle_draws(
-        jax.random.key(1), data, PRIORS, n_components=2, num_samples=2000, num_chains=4,
+        jax.random.key(1),
+        data,
+        PRIORS,
+        n_components=2,
+        num_samples=2000,
+        num_chains=4,
         stationary_start=False,
-    )  # fmt: skip
+    )
     assert post["arrival_rate"].shape == (4, 2000)
     assert post["mix_rates"].shape == post["mix_weights"].shape == (4, 2000, 2)
     mix = conjugate_mixture(data, PRIORS)
@@ -112,13 +117,19 @@ def test_without_the_stationary_count_the_draws_are_the_conjugate_laws(data):
     ]
     for c in range(2):
         laws.append(
-            (f"mix_weights[{c}]", post["mix_weights"][..., c],
-             stats.beta(alpha[c], alpha.sum() - alpha[c]))
-        )  # fmt: skip
+            (
+                f"mix_weights[{c}]",
+                post["mix_weights"][..., c],
+                stats.beta(alpha[c], alpha.sum() - alpha[c]),
+            )
+        )
         laws.append(
-            (f"mix_rates[{c}]", post["mix_rates"][..., c],
-             stats.gamma(mix.shape[c], scale=1 / mix.rate[c]))
-        )  # fmt: skip
+            (
+                f"mix_rates[{c}]",
+                post["mix_rates"][..., c],
+                stats.gamma(mix.shape[c], scale=1 / mix.rate[c]),
+            )
+        )
     for name, draws, law in laws:
         res = stats.kstest(draws.ravel(), law.cdf)
         assert res.pvalue > P_MIN, f"{name}: KS {res.statistic:.4f} (p {res.pvalue:.2g})"
@@ -128,8 +139,9 @@ def test_one_component_without_labels_is_a_gamma_and_several_have_no_closed_form
     one = LifecycleData(data.t_arrive, data.t_leave, data.window, data.area, marks=data.marks)
     assert has_exact_posterior(one, 1) and not has_exact_posterior(one, 2)
     assert has_exact_posterior(data, 2) and has_exact_posterior(data, None)
-    post = exact_lifecycle_draws(jax.random.key(2), one, PRIORS, n_components=1,
-                                 num_samples=1000, num_chains=2)  # fmt: skip
+    post = exact_lifecycle_draws(
+        jax.random.key(2), one, PRIORS, n_components=1, num_samples=1000, num_chains=2
+    )
     assert np.all(post["mix_weights"] == 1.0)
     law = stats.gamma(PRIORS.mix_rate_shape + one.marks.sum(), scale=1 / (0.1 + one.n))
     res = stats.kstest(post["mix_rates"].ravel(), law.cdf)

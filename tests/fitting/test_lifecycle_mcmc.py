@@ -56,9 +56,16 @@ def _check(draws: np.ndarray, mean: float, sd: float, name: str) -> None:
 def test_nuts_matches_conjugate_posteriors(data):
     """stationary_start=False: lambda, mu, weights and class rates are exactly conjugate."""
     idata = fit_lifecycle_nuts(
-        jax.random.key(1), data, PRIORS, num_warmup=500, num_samples=500, num_chains=4,
-        chain_method="vectorized", stationary_start=False, num_prior_draws=200,
-    )  # fmt: skip
+        jax.random.key(1),
+        data,
+        PRIORS,
+        num_warmup=500,
+        num_samples=500,
+        num_chains=4,
+        chain_method="vectorized",
+        stationary_start=False,
+        num_prior_draws=200,
+    )
     post = idata.posterior
     assert post.attrs["chain_method"] == "vectorized"
     for name, conj in (
@@ -75,9 +82,14 @@ def test_nuts_matches_conjugate_posteriors(data):
         _check(post["mix_rates"].values[..., c], g.mean(), g.std(), f"mix_rates[{c}]")
     # groups and shapes other issues rely on
     assert set(idata.groups()) >= {
-        "posterior", "sample_stats", "log_likelihood", "prior", "prior_predictive",
-        "posterior_predictive", "observed_data",
-    }  # fmt: skip
+        "posterior",
+        "sample_stats",
+        "log_likelihood",
+        "prior",
+        "prior_predictive",
+        "posterior_predictive",
+        "observed_data",
+    }
     # the per-artefact stays are not stored (draws x rows): recomputed on demand, equal to
     # the model's own pointwise terms
     assert "stays" not in idata.log_likelihood
@@ -119,9 +131,16 @@ def test_nuts_with_stationary_start_matches_grid_posterior(data):
         data.t_arrive, data.t_leave, data.window, data.area, marks=data.marks
     )
     idata = fit_lifecycle_nuts(
-        jax.random.key(2), unlabelled, PRIORS, n_components=2, num_warmup=500,
-        num_samples=500, num_chains=4, chain_method="parallel", num_prior_draws=0,
-    )  # fmt: skip
+        jax.random.key(2),
+        unlabelled,
+        PRIORS,
+        n_components=2,
+        num_warmup=500,
+        num_samples=500,
+        num_chains=4,
+        chain_method="parallel",
+        num_prior_draws=0,
+    )
     post = idata.posterior
     assert post.attrs["chain_method"] == "parallel"
     for name, (mean, sd) in _grid_posterior_moments(data).items():
@@ -149,9 +168,14 @@ def test_sequential_chains_run():
     d = simulate_lifecycle(jax.random.key(4), 2.0, 0.05, [1.0], [5.0], (0.0, 100.0), area=1.0)
     small = LifecycleData(d.t_arrive, d.t_leave, d.window, d.area)
     idata = fit_lifecycle_nuts(
-        jax.random.key(3), small, num_warmup=100, num_samples=100, num_chains=2,
-        chain_method="sequential", num_prior_draws=0,
-    )  # fmt: skip
+        jax.random.key(3),
+        small,
+        num_warmup=100,
+        num_samples=100,
+        num_chains=2,
+        chain_method="sequential",
+        num_prior_draws=0,
+    )
     assert idata.posterior["arrival_rate"].shape == (2, 100)
     assert set(idata.posterior.data_vars) == {"arrival_rate", "leave_rate"}
     # the one NUTS driver's diagnostics: divergences and split-r_hat of every site

@@ -18,8 +18,18 @@ import pytest
 from numpyro.diagnostics import split_gelman_rubin
 from scipy import stats
 
-from are_stats.fitting import NutsRun, nuts_warnings, run_nuts
+from are_stats.fitting import (
+    NutsPrefetch,
+    NutsRun,
+    chains_per_device,
+    nuts_warnings,
+    resolve_chain_method,
+    run_nuts,
+)
 from are_stats.fitting import _nuts as nuts_module
+from are_stats.fitting._nuts import chunk_length, time_left
+from are_stats.fitting._traffic import _stay_draw_loglik
+from are_stats.traffic._models import stay_model, stay_units
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", FutureWarning)
@@ -65,9 +75,17 @@ def test_matches_conjugate_posterior_and_reuses_its_program():
     kw = {"num_warmup": 300, "num_samples": 600, "num_chains": 2, "chain_method": "vectorized"}
     runs = []
     for i, y in enumerate((y1, y2)):
-        run = run_nuts(jax.random.key(i), normal_model, {"y": y}, {"mu": 0.0},
-                       pointwise=normal_pointwise, pointwise_kwargs=True, name="normal",
-                       extra_fields=("num_steps", "step_size"), **kw)  # fmt: skip
+        run = run_nuts(
+            jax.random.key(i),
+            normal_model,
+            {"y": y},
+            {"mu": 0.0},
+            pointwise=normal_pointwise,
+            pointwise_kwargs=True,
+            name="normal",
+            extra_fields=("num_steps", "step_size"),
+            **kw,
+        )
         runs.append(run)
         mean, sd = _posterior(y)
         _check(run.samples["mu"].ravel(), mean, sd)
@@ -84,8 +102,7 @@ def test_matches_conjugate_posterior_and_reuses_its_program():
     assert runs[0].timing["compile"] > 0.0
     assert runs[1].timing["compile"] == 0.0  # both programs found in the in-process cache
     # a static argument (a Python number) is part of the program: a new one compiles
-    run = run_nuts(jax.random.key(5), normal_model, {"y": y1, "prior_sd": 0.5}, {"mu": 0.0},
-                   **kw)  # fmt: skip
+    run = run_nuts(jax.random.key(5), normal_model, {"y": y1, "prior_sd": 0.5}, {"mu": 0.0}, **kw)
     assert run.timing["compile"] > 0.0 and run.loglik is None
     _check(run.samples["mu"].ravel(), *_posterior(y1, 0.5))
 
@@ -94,9 +111,16 @@ def test_parallel_chains_and_random_start():
     """No ``init``: numpyro's uniform start; ``parallel`` with more chains than devices
     vectorises chains on each device (sequential: the one-chain test)."""
     y = _data(2)
-    run = run_nuts(jax.random.key(3), normal_model, {"y": y}, None, num_warmup=300,
-                   num_samples=500, num_chains=jax.local_device_count() * 2,
-                   chain_method="parallel")  # fmt: skip
+    run = run_nuts(
+        jax.random.key(3),
+        normal_model,
+        {"y": y},
+        None,
+        num_warmup=300,
+        num_samples=500,
+        num_chains=jax.local_device_count() * 2,
+        chain_method="parallel",
+    )
     assert run.chain_method == "parallel"
     assert run.samples["mu"].shape == (jax.local_device_count() * 2, 500)
     _check(run.samples["mu"].ravel(), *_posterior(y))
@@ -105,8 +129,16 @@ def test_parallel_chains_and_random_start():
 def test_unconstrained_start_per_chain_and_one_chain():
     """``init_params`` on the unconstrained scale (a chain axis; none with one chain)."""
     y = _data(3)
-    run = run_nuts(jax.random.key(4), normal_model, {"y": y}, None, num_warmup=200,
-                   num_samples=200, num_chains=1, init_params={"mu": np.asarray(1.0)})  # fmt: skip
+    run = run_nuts(
+        jax.random.key(4),
+        normal_model,
+        {"y": y},
+        None,
+        num_warmup=200,
+        num_samples=200,
+        num_chains=1,
+        init_params={"mu": np.asarray(1.0)},
+    )
     assert run.chain_method == "sequential" and run.samples["mu"].shape == (1, 200)
     assert np.isnan(run.max_r_hat)
     mean, sd = _posterior(y)
@@ -122,9 +154,12 @@ def test_bad_sizes_name_the_arguments():
 
 def test_warnings_word_divergences_and_r_hat():
     run = NutsRun(
-        samples={}, diverging=np.array([[True, False], [False, True]]),
-        r_hat={"a": 1.2, "b": 1.0, "c": float("nan")}, loglik=None, name="m",
-    )  # fmt: skip
+        samples={},
+        diverging=np.array([[True, False], [False, True]]),
+        r_hat={"a": 1.2, "b": 1.0, "c": float("nan")},
+        loglik=None,
+        name="m",
+    )
     words = nuts_warnings(run)
     assert len(words) == 2
     assert words[0].startswith("m: 2 of 4 draws divergent")
@@ -142,21 +177,31 @@ def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, me
     """The traced programs are kept on disk (``are_stats._program_cache``): a fresh process
     (here: the in-process cache cleared, tracing forbidden) reads them and samples the same
     bits, which are also those of the cache turned off."""
-    from are_stats.fitting._traffic import _stay_draw_loglik
-    from are_stats.traffic._models import stay_model, stay_units
-
     rng = np.random.default_rng(7)
     stay = rng.gamma(4.0, 150.0, 40)
-    kwargs = {"units": stay_units(stay, stay > 900.0, np.arange(40) < 5), "law": "exponential",
-              "mean_centre": np.asarray(stay.mean()), "resolution": 0.4}  # fmt: skip
+    kwargs = {
+        "units": stay_units(stay, stay > 900.0, np.arange(40) < 5),
+        "law": "exponential",
+        "mean_centre": np.asarray(stay.mean()),
+        "resolution": 0.4,
+    }
     init = {"stay_mean_z": 0.0}
 
     def run():
         nuts_module._CACHE.clear()
-        return run_nuts(jax.random.key(1), stay_model, kwargs, init, num_warmup=60,
-                        num_samples=40, num_chains=4, chain_method=method,
-                        pointwise=_stay_draw_loglik, pointwise_kwargs=True,
-                        cheap_compile=True)  # fmt: skip
+        return run_nuts(
+            jax.random.key(1),
+            stay_model,
+            kwargs,
+            init,
+            num_warmup=60,
+            num_samples=40,
+            num_chains=4,
+            chain_method=method,
+            pointwise=_stay_draw_loglik,
+            pointwise_kwargs=True,
+            cheap_compile=True,
+        )
 
     monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", str(tmp_path))
     traced = run()
@@ -181,8 +226,6 @@ def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, me
 def test_default_spreads_chains_over_devices():
     """Without a stated method, chains that split evenly over two or more devices run
     "parallel" (each device vectorising its share), otherwise vectorised on one."""
-    from are_stats.fitting import chains_per_device, resolve_chain_method
-
     n_dev = jax.local_device_count()
     assert n_dev == 2  # tests/conftest.py asks for 2 host devices
     assert chains_per_device(4) == (2, 2) and chains_per_device(2) == (2, 1)
@@ -194,15 +237,23 @@ def test_default_spreads_chains_over_devices():
     # the same draws up to rounding either way, and the loglik of each of them (odd
     # draw count: the post-processing on one device; even: split over both)
     y = _data(5)
-    kw = {"num_warmup": 100, "num_samples": 51, "num_chains": 4, "pointwise": normal_pointwise,
-          "pointwise_kwargs": True}  # fmt: skip
+    kw = {
+        "num_warmup": 100,
+        "num_samples": 51,
+        "num_chains": 4,
+        "pointwise": normal_pointwise,
+        "pointwise_kwargs": True,
+    }
     start = {"mu": 0.0}
-    runs = {m: run_nuts(jax.random.key(8), normal_model, {"y": y}, start, chain_method=m, **kw)
-            for m in ("parallel", "vectorized", None)}  # fmt: skip
+    runs = {
+        m: run_nuts(jax.random.key(8), normal_model, {"y": y}, start, chain_method=m, **kw)
+        for m in ("parallel", "vectorized", None)
+    }
     assert runs[None].chain_method == "parallel"
     np.testing.assert_array_equal(runs[None].samples["mu"], runs["parallel"].samples["mu"])
-    np.testing.assert_allclose(runs["vectorized"].samples["mu"], runs["parallel"].samples["mu"],
-                               rtol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        runs["vectorized"].samples["mu"], runs["parallel"].samples["mu"], rtol=1e-9
+    )
     odd = run_nuts(
         jax.random.key(8), normal_model, {"y": y}, {"mu": 0.0}, **{**kw, "num_chains": 3}
     )
@@ -221,20 +272,24 @@ def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
     once, so the trace lock matters) are the ones ``run_nuts`` then uses, and give the same
     bits as programs compiled by ``run_nuts`` itself. A model that fails to compile fails
     in ``run_nuts``, not in the prefetch."""
-    from are_stats.fitting import NutsPrefetch
-    from are_stats.fitting._traffic import _stay_draw_loglik
-    from are_stats.traffic._models import stay_model, stay_units
-
     monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")  # trace in the workers, not read
     rng = np.random.default_rng(11)
     stay = rng.gamma(4.0, 150.0, 30)
     calls = [
         (jax.random.key(2), normal_model, {"y": _data(6)}, {"mu": 0.0}, normal_pointwise),
-        (jax.random.key(3), stay_model,
-         {"units": stay_units(stay, stay > 900.0, np.arange(30) < 4), "law": "gamma",
-          "mean_centre": np.asarray(stay.mean()), "resolution": 0.4},
-         {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}, _stay_draw_loglik),
-    ]  # fmt: skip
+        (
+            jax.random.key(3),
+            stay_model,
+            {
+                "units": stay_units(stay, stay > 900.0, np.arange(30) < 4),
+                "law": "gamma",
+                "mean_centre": np.asarray(stay.mean()),
+                "resolution": 0.4,
+            },
+            {"stay_mean_z": 0.0, "stay_shape_eta": 0.0},
+            _stay_draw_loglik,
+        ),
+    ]
     kw = {"num_warmup": 80, "num_samples": 40, "num_chains": 4, "pointwise_kwargs": True}
 
     def runs():
@@ -245,8 +300,9 @@ def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
     nuts_module._CACHE.clear()
     compiled = []
     original = nuts_module._compile
-    monkeypatch.setattr(nuts_module, "_compile",
-                        lambda *a, **k: compiled.append(a[2]) or original(*a, **k))  # fmt: skip
+    monkeypatch.setattr(
+        nuts_module, "_compile", lambda *a, **k: compiled.append(a[2]) or original(*a, **k)
+    )
     with NutsPrefetch() as ahead:
         for k, m, a, i, _ in calls:
             ahead.add(k, m, a, i, name="ignored", **kw)
@@ -264,8 +320,6 @@ def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
 
 
 def test_time_left_from_the_measured_rates():
-    from are_stats.fitting._nuts import time_left
-
     assert time_left((0, 500, 0.0, float("nan")), (0, 500, 0.0)) is None
     # warm-up 100 of 500 in 20 s (0.2 s each), the last chunk 0.1 s each: 400 x 0.2 + 500 x 0.1
     assert time_left((100, 500, 20.0, 0.1), (0, 500, 0.0)) == pytest.approx(130.0)
@@ -279,16 +333,20 @@ def test_chunks_report_progress_and_change_no_draw(monkeypatch, method):
     """Warm-up and sampling run as chunks of one compiled program; every chunk tells the
     phase, the iterations done and an estimate of the time left; the draws are those of
     the whole run in one chunk (the sampler's state goes on exactly from chunk to chunk)."""
-    from are_stats.fitting._nuts import chunk_length
-
     y = _data(9)
     chains = 2 if method == "vectorized" else 1
-    kw = {"num_warmup": 45, "num_samples": 30, "num_chains": chains, "chain_method": method,
-          "extra_fields": ("step_size",)}  # fmt: skip
+    kw = {
+        "num_warmup": 45,
+        "num_samples": 30,
+        "num_chains": chains,
+        "chain_method": method,
+        "extra_fields": ("step_size",),
+    }
     assert chunk_length(45, 30) == 4  # 75 iterations in about 20 chunks
     told = []
-    run = run_nuts(jax.random.key(6), normal_model, {"y": y}, {"mu": 0.0}, progress=told.append,
-                   **kw)  # fmt: skip
+    run = run_nuts(
+        jax.random.key(6), normal_model, {"y": y}, {"mu": 0.0}, progress=told.append, **kw
+    )
     one = [(p.phase, p.done, p.total) for p in told if p.phase in ("warm-up", "sampling")]
     per_chain = [("warm-up", d, 45) for d in [*range(4, 45, 4), 45]] + [
         ("sampling", d, 30) for d in [*range(4, 30, 4), 30]

@@ -28,8 +28,9 @@ print(plt.get_backend(), sum(ax.get_visible() for ax in fig.axes), len(TRAFFIC_S
 
 def test_plot_traffic_checks_keeps_the_session_backend():
     env = {**os.environ, "MPLBACKEND": "svg", "PYTHONPATH": str(ROOT)}
-    res = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
-                         env=env, cwd=ROOT)  # fmt: skip
+    res = subprocess.run(
+        [sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, cwd=ROOT
+    )
     assert res.returncode == 0, res.stderr
     backend, n_axes, n_stats = res.stdout.split()
     assert backend == "svg"  # Agg before the fix
