@@ -62,7 +62,6 @@ A candidate named by ``--arrivals`` is sampled by NUTS.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -101,7 +100,9 @@ from are_stats.traffic import (
     arrival_unit_loglik,
     arrival_units,
     clock_offset,
+    exponential_unit_loglik,
     fit_position_density,
+    poisson_unit_loglik,
     stay_model,
     stay_unit_loglik,
     stay_units,
@@ -308,19 +309,6 @@ def _diag_cols(table: pd.DataFrame, runs: dict[str, NutsRun | None]) -> None:
         runs[n].n_divergent if runs.get(n) is not None else 0 for n in table.index
     ]
     table["r_hat"] = [runs[n].max_r_hat if runs.get(n) is not None else np.nan for n in table.index]
-
-
-@functools.partial(jax.jit, static_argnames=("spec",))
-def _arrival_loglik_draws(flat: dict, units: Any, spec: ArrivalSpec, log_area: Any) -> Any:
-    """``(draws, B)`` pointwise arrival log-likelihood of given draws (one compiled program,
-    the data its arguments)."""
-    return jax.vmap(lambda p: arrival_unit_loglik({**p, "log_area": log_area}, units, spec))(flat)
-
-
-@functools.partial(jax.jit, static_argnames=("law", "resolution"))
-def _stay_loglik_draws(flat: dict, units: Any, law: str, resolution: float) -> Any:
-    """``(draws, n)`` pointwise stay log-likelihood of given draws."""
-    return jax.vmap(lambda p: stay_unit_loglik(p, units, law, resolution))(flat)
 
 
 def _arrival_draw_loglik(p: dict, **model_kwargs: Any) -> Any:
@@ -544,10 +532,8 @@ def fit_traffic(
                 ahead.add(*call, **nuts)
         for name in cands:
             if name == "poisson":
-                flat = {"event_rate": lam.ravel()}
-                ll = _arrival_loglik_draws(flat, plain, ArrivalSpec.from_name(name),
-                                           np.asarray(log_area, float))  # fmt: skip
-                ll = np.asarray(ll).reshape(shape + (-1,))
+                # the paper's draws in closed form (NumPy: no program to compile)
+                ll = poisson_unit_loglik(lam.ravel(), plain, log_area).reshape(shape + (-1,))
                 run = None
             elif ("arrivals", name) in approx:
                 lap = _laplace_candidate(calls, ("arrivals", name), _arrival_draw_loglik,
@@ -566,9 +552,7 @@ def fit_traffic(
             loo["arrivals"][name] = psis.submit(loo_pointwise, ll[..., :n_real_bins], _reff(run))
         for law in laws:
             if law == "exponential":
-                flat = {"stay_mean": 1.0 / mu.ravel()}
-                ll = _stay_loglik_draws(flat, units, "exponential", res)
-                ll = np.asarray(ll).reshape(shape + (-1,))
+                ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
                 run = None
             elif ("stays", law) in approx:
                 lap = _laplace_candidate(calls, ("stays", law), _stay_draw_loglik, n_lap,
