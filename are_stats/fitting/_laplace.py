@@ -14,8 +14,9 @@ the log density there), Pareto-smoothed (PSIS) per unit ``i``, and
 model are the Gaussian's (a Laplace posterior; a fit records the comparison in its
 ``traffic_model_choice`` attribute).
 
-One small program is compiled per candidate (cheap XLA optimisation, kept in the process
-and on disk like the NUTS programs): the log density, constrained sites and pointwise
+One small program is compiled per candidate (cheap XLA optimisation unless the caller
+asks for XLA's default, for a likelihood with a long recursion; kept in the process and on
+disk like the NUTS programs): the log density, constrained sites and pointwise
 log-likelihood of a batch of points, without derivatives. The mode is found by SciPy's
 L-BFGS-B with central-difference gradients (each gradient one batch), the Hessian by
 central second differences, and the draws are scored batch by batch through the same
@@ -31,11 +32,21 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
+from numpyro.distributions.transforms import (
+    ExpTransform,
+    IdentityTransform,
+    IndependentTransform,
+    SigmoidTransform,
+    StickBreakingTransform,
+    Transform,
+    biject_to,
+)
 from numpyro.infer.util import constrain_fn, potential_energy
 from scipy.optimize import minimize
 from scipy.special import logsumexp
 
-from are_stats._program_cache import TRACE_LOCK
+from are_stats._program_cache import TRACE_LOCK, compile_program
 from are_stats.fitting._nuts import (
     _cached,
     _fn_key,
@@ -107,10 +118,13 @@ def _batch_fn(model: Callable, treedef: Any, static: tuple, pointwise: Callable)
     return jax.jit(batch)
 
 
-def _program(name: str, fn: Any, args: tuple, key_parts: tuple) -> Any:
+def _program(name: str, fn: Any, args: tuple, key_parts: tuple, optimise: bool = False) -> Any:
     """``fn`` compiled for ``args`` with cheap XLA optimisation (small programs run a few
-    times), kept in the process and, traced, on disk (as the NUTS programs)."""
-    key = _hashable((name, *key_parts, _shapes(args)))
+    times; ``optimise``: XLA's default optimisation), kept in the process and, traced, on
+    disk (as the NUTS programs)."""
+    key = _hashable((name, *key_parts, _shapes(args), optimise))
+    if optimise:
+        return _cached(key, lambda: compile_program(fn, args, key, {}), {})
     return _cached(key, lambda: aot_compile(fn, *args, key=key), {})
 
 
@@ -120,17 +134,54 @@ def _init_z(model: Callable, kwargs: dict, init: dict | None) -> dict:
     The latent sites and their supports are read off an abstract trace of the model
     (``jax.eval_shape``: shapes only, nothing computed or compiled).
     """
-    from numpyro.distributions.transforms import biject_to
-
     z0 = {}
     found = _latent_sites(model, kwargs)
     for name, (support, shape) in found.items():
         t = biject_to(support)
         if init and name in init:
-            z0[name] = np.asarray(t.inv(jnp.asarray(init[name], jnp.float64)), np.float64)
+            z0[name] = _unconstrain(t, init[name])
         else:
             z0[name] = np.zeros(t.inverse_shape(shape))
     return z0
+
+
+def _unconstrain(transform: Transform, value: npt.ArrayLike) -> np.ndarray:
+    """``transform.inv(value)``, in NumPy for the transforms of the traffic models' sites.
+
+    The identity, ``exp`` (positive), sigmoid (unit interval) and stick-breaking
+    (simplex) transforms, also inside an ``IndependentTransform``, are inverted in NumPy:
+    numpyro's own inverse runs JAX operations one by one, each a small XLA compilation in
+    a fresh process (14 of them for the shipped log's starts). Other transforms are
+    inverted by numpyro.
+
+    Parameters
+    ----------
+    transform : numpyro.distributions.transforms.Transform
+        ``biject_to(support)`` of a site.
+    value : (...) float
+        A point of the support.
+
+    Returns
+    -------
+    (...) float64
+        The point on the unconstrained scale (stick-breaking: one entry fewer).
+    """
+    t = transform
+    while isinstance(t, IndependentTransform):
+        t = t.base_transform
+    y = np.asarray(value, np.float64)
+    if isinstance(t, IdentityTransform):
+        return y.copy()
+    if isinstance(t, ExpTransform):
+        return np.log(y)
+    if isinstance(t, SigmoidTransform):
+        return np.log(y) - np.log1p(-y)
+    if isinstance(t, StickBreakingTransform):  # as numpyro's StickBreakingTransform._inverse
+        crop = y[..., :-1]
+        rest = np.clip(1.0 - np.cumsum(crop, axis=-1), np.finfo(np.float64).tiny, None)
+        x = np.log(crop / rest)
+        return x + np.log(x.shape[-1] - np.arange(x.shape[-1]))
+    return np.asarray(transform.inv(jnp.asarray(y)), np.float64)
 
 
 #: The latent sites of a model by (model, static arguments, array shapes): tracing the
@@ -176,10 +227,18 @@ def _batch_size(d: int) -> int:
 
 
 def laplace_program(
-    model: Callable[..., None], model_kwargs: dict, init: dict | None, pointwise: Callable
+    model: Callable[..., None],
+    model_kwargs: dict,
+    init: dict | None,
+    pointwise: Callable,
+    optimise: bool = False,
 ) -> tuple[Any, list, np.ndarray, list[str], list[tuple]]:
     """The compiled batch program of :func:`run_laplace` (cached: calling this ahead, in
     another thread, compiles it while other work goes on).
+
+    ``optimise`` compiles it with XLA's default optimisation instead of the cheap one: for
+    a likelihood with a long recursion (the MMPP's forward pass over every tick), whose
+    run time at the cheap level (5-6 times longer) outweighs the longer compile.
 
     Returns
     -------
@@ -198,6 +257,7 @@ def laplace_program(
         _batch_fn(model, treedef, static, pointwise),
         (arrays, _unflat_batch(np.zeros((size, x0.size)), names, shapes)),
         (_fn_key(model), treedef, static, _fn_key(pointwise)),
+        optimise,
     )
     return program, arrays, x0, names, shapes
 
@@ -211,6 +271,7 @@ def run_laplace(
     num_draws: int,
     pointwise: Callable[..., Any],
     name: str = "",
+    optimise: bool = False,
 ) -> LaplaceRun:
     """Laplace approximation of ``model(**model_kwargs)`` and ``num_draws`` draws from it.
 
@@ -229,12 +290,17 @@ def run_laplace(
     pointwise : callable
         ``pointwise(sample_dict, **model_kwargs) -> (n,)`` for one draw.
     name : str
+    optimise : bool
+        Compile the model's program with XLA's default optimisation (see
+        :func:`laplace_program`).
 
     Returns
     -------
     LaplaceRun
     """
-    program, arrays, x0, names, shapes = laplace_program(model, model_kwargs, init, pointwise)
+    program, arrays, x0, names, shapes = laplace_program(
+        model, model_kwargs, init, pointwise, optimise
+    )
     d = x0.size
     size = _batch_size(d)
 

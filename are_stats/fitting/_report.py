@@ -400,29 +400,80 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
     """
     import matplotlib.pyplot as plt
 
-    c = checks
-    t0 = c.window[0]
-    panels = ["counts", "interarrival", "dwell", "hour_of_day", "dispersion"]
-    if getattr(c, "clock_offset", 0.0) is None:  # no clock: the time of day is unknown
-        panels.remove("hour_of_day")
-    if c.marks_obs is not None and c.mix_rates is not None:
-        panels.append("marks")
+    overview, panels = _overview(checks)
     figs: dict[str, Any] = {}
-    overview, axes = plt.subplots(2, 3, figsize=(15, 8))
-    for name, big_ax in zip(panels, axes.ravel(), strict=False):
+    for name in panels:
         fig, ax = plt.subplots(figsize=(6, 4))
-        for a in (ax, big_ax):
-            _draw_panel(name, a, c, t0)
+        _draw_panel(name, ax, checks, checks.window[0])
         fig.tight_layout()
         figs[f"ppc_{name}"] = fig
+    figs["criticism"] = overview
+    return figs
+
+
+def _overview(checks: PredictiveChecks) -> tuple[Any, dict[str, Any]]:
+    """The ``criticism`` figure: every check's panel on one page (laid out once).
+
+    Returns
+    -------
+    figure, panels
+        The figure and ``{check name: its axes}`` in the order drawn.
+    """
+    import matplotlib.pyplot as plt
+
+    c = checks
+    names = ["counts", "interarrival", "dwell", "hour_of_day", "dispersion"]
+    if getattr(c, "clock_offset", 0.0) is None:  # no clock: the time of day is unknown
+        names.remove("hour_of_day")
+    if c.marks_obs is not None and c.mix_rates is not None:
+        names.append("marks")
+    overview, axes = plt.subplots(2, 3, figsize=(15, 8))
+    panels = dict(zip(names, axes.ravel(), strict=False))
+    for name, ax in panels.items():
+        _draw_panel(name, ax, c, c.window[0])
     for a in axes.ravel()[len(panels) :]:
         a.set_axis_off()
     overview.suptitle(
         "Posterior-predictive checks of the paper's model (the chosen models: traffic_checks.png)"
     )
     overview.tight_layout()
-    figs["criticism"] = overview
-    return figs
+    return overview, panels
+
+
+#: Resolution of the report's figures (dots per inch).
+REPORT_DPI = 110
+#: Margin kept around a panel cut out of the overview (pixels).
+_PANEL_MARGIN = 6
+
+
+def _overview_images(checks: PredictiveChecks) -> dict[str, np.ndarray]:
+    """``criticism`` and each ``ppc_<check>`` as ``(h, w, 4)`` uint8 RGBA images, from one
+    rendering: each panel is cut out of the overview along its axes' extent (title, tick
+    labels and legend included), instead of being drawn and laid out again in a figure
+    of its own (two renderings and a layout per panel: most of a report's time)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    overview, panels = _overview(checks)
+    try:
+        overview.set_dpi(REPORT_DPI)
+        canvas = FigureCanvasAgg(overview)  # Agg whatever the session's backend
+        canvas.draw()
+        full = np.asarray(canvas.buffer_rgba()).copy()
+        renderer = canvas.get_renderer()
+        height, width = full.shape[:2]
+        images = {}
+        for name, ax in panels.items():
+            box = ax.get_tightbbox(renderer)  # pixels, origin at the bottom left
+            x0 = max(int(np.floor(box.x0)) - _PANEL_MARGIN, 0)
+            x1 = min(int(np.ceil(box.x1)) + _PANEL_MARGIN, width)
+            y0 = max(height - int(np.ceil(box.y1)) - _PANEL_MARGIN, 0)
+            y1 = min(height - int(np.floor(box.y0)) + _PANEL_MARGIN, height)
+            images[f"ppc_{name}"] = full[y0:y1, x0:x1]
+        images["criticism"] = full
+    finally:
+        plt.close(overview)
+    return images
 
 
 def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
@@ -608,6 +659,7 @@ def write_report(
         (:mod:`are_stats.fitting` class figures).
     """
     import matplotlib.pyplot as plt
+    from PIL import Image
 
     check_report_size(idata, n_replicates, source)
     out = Path(out_dir)
@@ -617,7 +669,8 @@ def write_report(
         summary.to_csv(tmp)
     written["summary"] = out / "summary.csv"
     checks = predictive_checks(key, idata, n_replicates, clock_offset)
-    figures = plot_checks(checks)
+    images = _overview_images(checks)
+    figures: dict[str, Any] = {}
     table, reps = traffic_checks(key, idata, n_replicates)
     with atomic_path(out / "traffic_checks.csv", force=force) as tmp:
         table.to_csv(tmp, float_format="%.6g")
@@ -638,10 +691,15 @@ def write_report(
             with atomic_path(path, force=force) as tmp:
                 Path(tmp).write_text(str(text))
             written[f"loo_{factor}"] = path
+    for name, image in images.items():
+        path = out / f"{name}.png"
+        with atomic_path(path, force=force) as tmp:
+            Image.fromarray(image).save(tmp, format="png")
+        written[name] = path
     for name, fig in figures.items():
         path = out / f"{name}.png"
         with atomic_path(path, force=force) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
+            fig.savefig(tmp, dpi=REPORT_DPI, format="png")
         plt.close(fig)
         written[name] = path
     return written

@@ -61,6 +61,7 @@ import numpy.typing as npt
 import numpyro
 import numpyro.distributions as dist
 from jax.scipy.special import gammaln, logsumexp
+from scipy.special import gammaln as _np_gammaln
 
 from are_stats._checks import check_in
 from are_stats.traffic._arrivals import DAY, period_exposure, period_of
@@ -89,6 +90,8 @@ __all__ = [
     "arrival_model",
     "arrival_unit_loglik",
     "arrival_units",
+    "exponential_unit_loglik",
+    "poisson_unit_loglik",
     "stay_model",
     "stay_unit_loglik",
     "stay_units",
@@ -391,6 +394,47 @@ def arrival_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) ->
     return jnp.where(units.bin_weight > 0, out, 0.0)
 
 
+def poisson_unit_loglik(rate: npt.ArrayLike, units: ArrivalUnits, log_area: float) -> np.ndarray:
+    """:func:`arrival_unit_loglik` of the ``poisson`` spec for many draws, in NumPy.
+
+    The paper's arrival model has a closed form per bin (ticks' Poisson terms minus the
+    bin's expected count), so the draws of its exact posterior are scored without a
+    compiled program (a fresh process would compile one for this alone).
+
+    Parameters
+    ----------
+    rate : (S,) float
+        ``event_rate`` of each draw (events per m^2 per time).
+    units : ArrivalUnits
+        Without a clock (one period of the day).
+    log_area : float
+        ``log`` of the free area.
+
+    Returns
+    -------
+    (S, B) float
+        Zero on padded bins.
+    """
+    rate = np.asarray(rate, float).reshape(-1)
+    c = np.asarray(units.tick_count, float)
+    real_tick = np.asarray(units.tick_weight) > 0
+    n_bins = np.asarray(units.bin_weight).shape[0]
+    bins = np.asarray(units.tick_bin)[real_tick]
+    # sum over a bin's ticks of c (log rate + log delta + log area) - log c!
+    per_bin_c = np.bincount(bins, c[real_tick], n_bins)
+    per_bin_g = np.bincount(bins, _np_gammaln(c[real_tick] + 1.0), n_bins)
+    lam0 = float(np.asarray(units.log_delta)) + float(log_area)
+    exposure = np.asarray(units.bin_exposure, float).sum(axis=1)  # tod = 1 in every period
+    with np.errstate(divide="ignore"):
+        log_rate = np.log(rate)
+    out = (
+        per_bin_c[None, :] * (log_rate[:, None] + lam0)
+        - per_bin_g[None, :]
+        - rate[:, None] * exposure[None, :]
+    )
+    return np.where(np.asarray(units.bin_weight)[None, :] > 0, out, 0.0)
+
+
 def _burst_unit_loglik(params: dict, units: ArrivalUnits, spec: ArrivalSpec) -> jnp.ndarray:
     """``(B,)`` one-step-ahead log-likelihood of each bin under an MMPP or Hawkes spec."""
     if units.steps is None:
@@ -575,6 +619,51 @@ def stay_unit_loglik(
         .set(le)
     )[:m]
     return jnp.where(jnp.asarray(units.weight) > 0, out, 0.0)
+
+
+def exponential_unit_loglik(
+    mean: npt.ArrayLike, units: StayUnits, resolution: float = 0.0
+) -> np.ndarray:
+    """:func:`stay_unit_loglik` of the ``exponential`` law for many draws, in NumPy.
+
+    The paper's stay law in closed form (density ``e^{-s/m} / m``, below the resolution
+    ``1 - e^{-r/m}``; survival ``e^{-s/m}``, over ``m`` when left-truncated; mean excess
+    over ``m``: ``e^{-s/m}``), so the draws of its exact posterior are scored without a
+    compiled program.
+
+    Parameters
+    ----------
+    mean : (S,) float
+        ``stay_mean`` of each draw.
+    units : StayUnits
+    resolution : float
+        The log's time resolution (stays shorter are interval-censored).
+
+    Returns
+    -------
+    (S, n) float
+        Zero on padding.
+    """
+    m = np.asarray(mean, float).reshape(-1)[:, None]
+    n = np.asarray(units.stay).shape[0]
+    stay = np.concatenate([np.asarray(units.stay, float), np.ones(1)])  # row n: dummy
+    trunc = np.concatenate([np.asarray(units.truncated, bool), np.zeros(1, bool)])
+    log_m = np.log(m)
+    floor = 1e-12 * m
+    out = np.zeros((m.shape[0], n + 1))
+    idx = np.asarray(units.idx_full)
+    sa = stay[idx][None, :]
+    la = -log_m - np.maximum(sa, _TINY) / m
+    if resolution > 0:
+        cdf = np.log(np.maximum(-np.expm1(-resolution / m), _TINY))
+        la = np.where(sa < resolution, cdf, la)
+    out[:, idx] = la
+    idx = np.asarray(units.idx_surv)
+    ls = -np.maximum(stay[idx][None, :], floor) / m
+    out[:, idx] = ls - np.where(trunc[idx][None, :], log_m, 0.0)
+    idx = np.asarray(units.idx_excess)
+    out[:, idx] = -np.maximum(stay[idx][None, :], floor) / m
+    return np.where(np.asarray(units.weight)[None, :] > 0, out[:, :n], 0.0)
 
 
 def stay_model(units: StayUnits, law: str, mean_centre: float, resolution: float = 0.0) -> None:

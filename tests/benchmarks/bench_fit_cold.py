@@ -45,6 +45,14 @@ again at load 7-9: 14.0 s vs 35.8 s, wall 32 vs 69 s),
 XLA compilations in the cold run 38 vs 49 (9 vs 13 ahead-of-time programs), the same
 choices. The script now also counts the XLA compilations and prints how the chosen
 posteriors were drawn.
+
+With the paper's candidates scored in NumPy, the Laplace starts unconstrained in NumPy, the
+MMPP candidates' programs at XLA's default optimisation and the report's panels cut out of
+one rendering (2026-11-27, main 4b99766 and the branch alternating at load 9-10, the full
+``are-stats fit courtyard_traffic`` with figures, ``/usr/bin/time``): cold CPU 25.9 s vs
+31.2 s (wall 46 vs 57 s), repeated CPU 12.3 and 13.5 s vs 16.0 and 17.1 s, XLA
+compilations cold 21 vs 38, the same choices and printed tables. The stage names are
+unchanged.
 """
 
 from __future__ import annotations

@@ -5,9 +5,12 @@ from __future__ import annotations
 import logging
 
 import arviz as az
+import jax
 import numpy as np
+from PIL import Image
 
-from are_stats.fitting import fit_summary
+from are_stats.fitting import FitSettings, fit_log, fit_summary, write_report
+from are_stats.traffic import simulate_lifecycle
 
 
 class _Records(logging.Handler):
@@ -54,3 +57,49 @@ def test_summary_matches_arviz_and_leaves_its_numba_flag_alone():
     ref = az.summary(idata, round_to="none")
     assert list(table.index) == list(ref.index)
     np.testing.assert_allclose(table.to_numpy(float), ref.to_numpy(float), rtol=1e-8)
+
+
+def _where(full: np.ndarray, img: np.ndarray) -> list[tuple[int, int]]:
+    """Every offset at which ``img`` is exactly a region of ``full`` (RGB arrays)."""
+    h, w = img.shape[:2]
+    big_h, big_w = full.shape[0] - h + 1, full.shape[1] - w + 1
+    rng = np.random.default_rng(0)
+    drawn = np.argwhere(np.any(img < 255, axis=-1))
+    probes = drawn[rng.choice(len(drawn), min(40, len(drawn)), replace=False)]
+    ok = np.ones((big_h, big_w), bool)
+    for r, c in probes:
+        ok &= np.all(full[r : r + big_h, c : c + big_w] == img[r, c], axis=-1)
+    return [
+        (int(r), int(c)) for r, c in np.argwhere(ok)
+        if np.array_equal(full[r : r + h, c : c + w], img)
+    ]  # fmt: skip
+
+
+def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
+    """write_report renders the checks once: each ``ppc_<check>.png`` is the region of
+    ``criticism.png`` around that check's panel, cut where the overview is blank (the
+    panel's title, labels and legend whole), and the panels are different regions."""
+    data = simulate_lifecycle(
+        jax.random.key(0), 1 / 30 / 200.0, 1 / 200, [0.5, 0.5], [2.0, 12.0], (0.0, 3600.0),
+        area=200.0,
+    )  # fmt: skip
+    paper = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
+    settings = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2,
+                           **paper)  # fmt: skip
+    idata = fit_log(jax.random.key(1), data, settings).idata
+    written = write_report(idata, tmp_path / "report", n_replicates=3)
+    full = np.asarray(Image.open(written["criticism"]).convert("RGB"))
+    panels = sorted(n for n in written if n.startswith("ppc_"))
+    assert len(panels) >= 5
+    corners = set()
+    for name in panels:
+        img = np.asarray(Image.open(written[name]).convert("RGB"))
+        h, w = img.shape[:2]
+        assert full.shape[0] / 4 < h < full.shape[0] and full.shape[1] / 5 < w < full.shape[1] / 2
+        edges = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
+        assert np.all(edges == 255), name  # nothing of the drawing cut at the border
+        assert np.mean(np.any(img < 255, axis=-1)) > 0.05, name  # a drawing, not blank
+        found = _where(full, img)
+        assert len(found) == 1, (name, found)
+        corners.add(found[0])
+    assert len(corners) == len(panels)

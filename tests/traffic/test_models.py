@@ -16,6 +16,8 @@ from are_stats.traffic import (
     ArrivalSpec,
     arrival_unit_loglik,
     arrival_units,
+    exponential_unit_loglik,
+    poisson_unit_loglik,
     stay_loglik,
     stay_unit_loglik,
     stay_units,
@@ -156,3 +158,51 @@ def test_stay_units_match_stay_loglik():
     want = np.asarray(stay_loglik("gamma", stay, cen, tru, 9.0, 2.0, resolution=0.1))
     np.testing.assert_allclose(got[:37], want, rtol=1e-12)
     assert np.all(got[37:] == 0)
+
+
+def test_poisson_draws_in_numpy_are_the_tick_poissons_and_the_jax_units(times):
+    """The paper's arrival model scored for many draws without a compiled program: per bin
+    the product of its ticks' Poissons (scipy, every tick of the window), and equal to
+    :func:`arrival_unit_loglik` draw by draw."""
+    units = arrival_units(times, WINDOW, AREA, DELTA, WIDTH)
+    rates = np.array([0.001, 0.004, 0.02])
+    got = poisson_unit_loglik(rates, units, np.log(AREA))
+    n_bins = int(np.sum(units.bin_weight))
+    assert got.shape == (3, units.bin_weight.shape[0])
+    assert np.all(got[:, n_bins:] == 0)
+    c = _ticks(times).reshape(n_bins, -1)  # WIDTH / DELTA ticks a bin
+    for rate, row in zip(rates, got, strict=True):
+        truth = stats.poisson.logpmf(c, rate * AREA * DELTA).sum(axis=1)
+        np.testing.assert_allclose(row[:n_bins], truth, rtol=1e-10)
+        p = {"event_rate": rate, "log_area": np.log(AREA)}
+        jax_row = np.asarray(arrival_unit_loglik(p, units, ArrivalSpec()))
+        np.testing.assert_allclose(row, jax_row, rtol=1e-11, atol=1e-11)
+
+
+def test_exponential_draws_in_numpy_match_the_stay_likelihood():
+    """The paper's stay law scored for many draws without a compiled program: equal to
+    :func:`stay_loglik` (every kind of row: seen whole, below the resolution, censored,
+    truncated, both) and to scipy's exponential law on the rows seen whole."""
+    rng = np.random.default_rng(3)
+    stay = np.concatenate([rng.exponential(10.0, 40), [0.05, 0.02]])  # two below 0.1
+    n = stay.size
+    cen = rng.random(n) < 0.25
+    tru = rng.random(n) < 0.25
+    cen[-2:] = tru[-2:] = False
+    assert (cen & tru).any() and (cen ^ tru).any()
+    u = stay_units(stay, cen, tru)
+    means = np.array([4.0, 9.0, 30.0])
+    got = exponential_unit_loglik(means, u, 0.1)
+    assert got.shape == (3, u.stay.shape[0])
+    assert np.all(got[:, n:] == 0)
+    whole = ~cen & ~tru & (stay >= 0.1)
+    for m, row in zip(means, got, strict=True):
+        want = np.asarray(stay_loglik("exponential", stay, cen, tru, m, resolution=0.1))
+        np.testing.assert_allclose(row[:n], want, rtol=1e-12, atol=1e-14)
+        units_row = np.asarray(stay_unit_loglik({"stay_mean": m}, u, "exponential", 0.1))
+        np.testing.assert_allclose(row, units_row, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(
+            row[:n][whole], stats.expon.logpdf(stay[whole], scale=m), rtol=1e-12
+        )
+        short = stats.expon.logcdf(0.1, scale=m)
+        np.testing.assert_allclose(row[n - 2 : n], short, rtol=1e-12)
