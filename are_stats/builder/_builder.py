@@ -716,9 +716,10 @@ class ARBuilder:
         (of two crossing, the first passes and the other waits), and a box that a mover
         already touches where it stands (artefacts placed on each other) does not hold
         it. A mover keeps its route and its life-cycle and never jumps: it only waits; a
-        mover that never has to wait keeps its track exactly. A step runs only where a
-        mover's box could touch another box; every resolution is in :attr:`log` (cleared
-        first). The builder holds no artefact afterwards.
+        mover that never has to wait keeps its track exactly. :meth:`step` runs only for a
+        move whose box hits the environment or another box (it would take any other move
+        as it is); every resolution is in :attr:`log` (cleared first). The builder holds
+        no artefact afterwards.
 
         Parameters
         ----------
@@ -783,6 +784,7 @@ class ARBuilder:
         safe = np.zeros((n, 3))
         started = np.zeros(n, bool)
         rec: dict[int, tuple[list[float], list[float], list[np.ndarray]]] = {}
+        open_ground = not self._blocked.any() and self._mesh_hash is None
         t_last = max(min(float(t_off[i]), float(tr[0][-1])) for i, tr in plan.items())
         for t in np.arange(float(t_on[mv].min()), t_last, dt):
             live = take & (t_on <= t) & (t < t_off)
@@ -813,14 +815,46 @@ class ARBuilder:
             near = gap <= reach[m_idx, None] + r2[None, :] + step_len[:, None]
             mine = np.arange(j_mv.size)
             near[mine, j_mv] = near[mine, j_mv + idx.size] = False
-            for j, i, busy in zip(j_mv, m_idx, near.any(axis=1), strict=True):
-                if busy:  # the builder's step, this mover's move alone
-                    # boxes it already touches where it stands (placed on each other)
-                    # do not hold it: it may walk out of them
-                    sub = np.ones(idx.size, bool)
-                    pairs = self._pair_hits(*self._boxes_for(now, half[idx], offset[idx]))
+            # the environment (map, border, mesh) for every mover's proposal at once; on
+            # open ground (nothing blocked, no mesh) only the border
+            env_bad = np.zeros(j_mv.size, bool)
+            go = (prop[j_mv] != now[j_mv]).any(axis=1)
+            if go.any():
+                c, h, y = self._boxes_for(prop[j_mv[go]], half[m_idx[go]], offset[m_idx[go]])
+                if open_ground:
+                    uv = self.grid.world_to_local(box_corners(c[:, :2], h[:, :2], y).reshape(-1, 2))
+                    uv = uv.reshape(-1, 4, 2)
+                    env_bad[go] = ((uv < 0.0) | (uv > [self.grid.width, self.grid.height])).any(
+                        axis=(1, 2)
+                    )
+                else:
+                    env, outside, mesh, _ = self._env_hits(c, h, y)
+                    env_bad[go] = env | outside | mesh
+            for j, i, row, bad in zip(j_mv, m_idx, near, env_bad, strict=True):
+                moves = bool((prop[j] != now[j]).any())
+                sub = np.zeros(idx.size, bool)
+                if moves and row.any():
+                    # the boxes it could touch; those it already touches where it stands
+                    # (placed on each other) do not hold it: it may walk out of them
+                    sub[np.flatnonzero(row) % idx.size] = True
+                    sub[j] = True
+                    at = np.flatnonzero(sub)
+                    pairs = at[self._pair_hits(*self._boxes_for(now[at], half[idx[at]],
+                                                                offset[idx[at]]))]  # fmt: skip
                     touching = pairs[(pairs == j).any(axis=1)]
                     sub[touching[touching != j]] = False
+                    o = np.flatnonzero(sub)
+                    o = o[o != j]
+                    if o.size and not bad:
+                        c_j, h_j, y_j = self._boxes_for(prop[j][None], half[i][None],
+                                                        offset[i][None])  # fmt: skip
+                        c_o, h_o, y_o = self._boxes_for(now[o], half[idx[o]], offset[idx[o]])
+                        bad = bool(obb_overlap_3d(
+                            np.repeat(c_j, o.size, 0), np.repeat(h_j, o.size, 0),
+                            np.repeat(y_j, o.size), c_o, h_o, y_o, self.eps,
+                        ).any())  # fmt: skip
+                if moves and bad:  # the builder's step: this mover's move alone
+                    sub[j] = True
                     self.ids = scene.ids[idx[sub]].astype(np.int64)
                     self.labels = [str(lab) for lab in scene.labels[idx[sub]]]
                     self.poses = now[sub]
@@ -834,7 +868,7 @@ class ARBuilder:
                     kept = [r.fraction for r in self.log[first:] if r.artefact == scene.ids[i]]
                     if kept:
                         delay[i] += (1.0 - min(kept)) * dt
-                else:
+                else:  # nothing in the way: the step would take it as it is
                     now[j] = prop[j]
                 safe[i] = now[j]
                 ts, us, ps = rec.setdefault(int(i), ([], [], []))
@@ -967,8 +1001,9 @@ def _retimed(
     :meth:`ARBuilder.resolve_scene`: its poses ``ps`` (k, 3) at the steps ``ts`` (k,),
     where it had reached its own time ``us`` (k,) (non-decreasing); the planned vertices
     at the times it reached them; the planned rows before the first step; after the last
-    step, on along the plan. It ends where the plan ends (``tv[-1]``: its leaving time,
-    or the scenario's horizon), late by its delay."""
+    step, on along the plan (where it was held at that step: there). It ends where the
+    plan ends (``tv[-1]``: its leaving time, or the scenario's horizon), late by its
+    delay."""
     t_end = float(tv[-1])
     before = tv < ts[0]
     inside = (tv > us[0]) & (tv <= us[-1])
@@ -977,6 +1012,9 @@ def _retimed(
     lag = ts[-1] - us[-1]
     after = (tv > us[-1]) & (tv + lag < t_end)
     end = _track_pose(tv, pv, t_end - lag)
+    if len(us) > 1 and us[-1] <= us[-2]:  # held at its last step: it stays there
+        after[:] = False
+        end = ps[-1]
     t_all = np.concatenate([tv[before], ts, t_in, tv[after] + lag, [t_end]])
     p_all = np.concatenate([pv[before], ps, pv[inside], pv[after], end[None]])
     keep = t_all <= t_end

@@ -427,3 +427,19 @@ def test_resolve_scene_crossing_movers_the_later_arrival_waits():
         assert check.collisions()["pairs"].size == 0, tt
     with pytest.raises(ValueError, match="movers"):
         b.resolve_scene(scene, np.ones(2, bool))
+
+
+def test_resolve_scene_a_mover_stops_at_a_wall_on_its_route():
+    """On a map (not open ground) the environment is tested too: a mover whose planned
+    route runs into a wall (x from 7 m) holds its last safe pose before it, a box length
+    short of the wall, for the rest of its life."""
+    d = np.zeros((140, 200))
+    d[:, 100:110] = 100  # x in [7, 8)
+    grid = OccupancyGrid(d, 0.1, (-3.0, -2.0, 0.0))
+    scene = _moving_scene([(0.0, 12.0, 0.0, 5.0)], {0: [(0.0, 0.0, 5.0), (12.0, 12.0, 5.0)]})
+    b = ARBuilder(grid)
+    out = b.resolve_scene(scene, dt=0.25)
+    front = 7.0 - scene.half_extents[0, 0] - scene.offsets[0, 0]  # centre x at contact
+    x_end = out.poses(11.9)[0, 0]
+    assert front - 0.25 - 1e-9 <= x_end <= front + 1e-9
+    assert {(r.cause, r.rule) for r in b.log} == {("environment", "revert")}
