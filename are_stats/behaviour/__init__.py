@@ -76,7 +76,6 @@ from are_stats.behaviour._generate import (  # noqa: E402
     continuous_path,
     path_points,
     sample_soft_paths,
-    separate_paths,
     simulate_behaviour_tracks,
     smooth_path,
 )
@@ -85,7 +84,6 @@ __all__ += [
     "continuous_path",
     "path_points",
     "sample_soft_paths",
-    "separate_paths",
     "simulate_behaviour_tracks",
     "smooth_path",
 ]

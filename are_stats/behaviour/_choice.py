@@ -60,7 +60,6 @@ def behaviour_tracks(
     source: str = "cell",
     speed_sd: float = 0.12,
     within_sd: float = 0.05,
-    min_separation: float = 0.5,
 ) -> pd.DataFrame:
     """Behaviour tracks of scenario artefacts on ``grid`` coarsened to ``cell`` metres.
 
@@ -89,8 +88,6 @@ def behaviour_tracks(
         speed of the class (walk, or run for runners).
     within_sd : float
         Within-person standard deviation of the log speed.
-    min_separation : float
-        Centre distance (m) walking artefacts keep (``0``: off).
 
     Returns
     -------
@@ -142,6 +139,6 @@ def behaviour_tracks(
     return pd.DataFrame(
         walk_tracks(
             key, table, occ, resolution=res, origin=(x0, y0), dt=dt, speed_sd=speed_sd,
-            within_sd=within_sd, min_separation=min_separation,
+            within_sd=within_sd,
         )
     )  # fmt: skip

@@ -22,11 +22,11 @@ with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
    epoch. Positions are sampled every ``dt_out`` seconds from ``t_arrive`` to
    ``t_leave``. ``yaw`` follows the direction of motion (any angle).
 
-5. keeps its distance: every step an artefact whose next step would bring it within
-   ``min_separation`` of another (and closer than it was) side-steps off its path on free
-   cells, or else holds its position and walks on later (:func:`separate_paths`);
-   artefacts never pass through each other, and those that cannot move stop until the way
-   clears or they leave.
+5. plans alone: artefacts do not see each other here. Generated people give way to each
+   other while they walk, under the social force of the one assembly
+   (:func:`~are_stats.scenarios.scene_tracks`, :func:`social_force_tracks`); moving
+   artefacts without a social force of their own are kept apart by the AR-builder's rule
+   (DECISIONS 9, :meth:`~are_stats.builder.ARBuilder.resolve_scene`).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import pandas as pd
 from are_stats._checks import check_positive
 from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
-from are_stats.behaviour._motion import _crossed, string_pull, walk_times
+from are_stats.behaviour._motion import string_pull, walk_times
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._soft import soft_policy
 
@@ -49,7 +49,6 @@ __all__ = [
     "continuous_path",
     "path_points",
     "sample_soft_paths",
-    "separate_paths",
     "simulate_behaviour_tracks",
     "smooth_path",
 ]
@@ -265,7 +264,6 @@ def simulate_behaviour_tracks(
     chunk: int = 16,
     class_labels: Any = None,
     horizon: float | None = None,
-    min_separation: float = 0.5,
     within_sd: float = 0.05,
 ) -> pd.DataFrame:
     """Tracks of scenario artefacts from a fitted behaviour (see the module docstring).
@@ -295,21 +293,13 @@ def simulate_behaviour_tracks(
         ``class`` column and no ``label``.
     horizon : float, optional
         Leaving times are cut at it (the end of a mission).
-    min_separation : float
-        Centre distance (m) below which two artefacts of a scenario touch: every step
-        (the smallest ``dt_out``) an artefact whose next step would bring it closer than
-        that to another (and closer than it was) side-steps off its path on free cells,
-        or else holds its position and walks on later (it still leaves at ``t_leave``);
-        earlier arrivals move first. ``0`` turns it off. Artefacts never pass through
-        each other; artefacts that cannot move stop (:func:`separate_paths`).
     within_sd : float
         Within-person standard deviation of the log walking speed (:func:`walk_times`).
 
     Returns
     -------
     pandas.DataFrame
-        ``scenario, id, t, x, y, yaw`` (as :func:`scenario_tracks`), sorted by scenario, id, t;
-        ``attrs["holds"]`` counts the steps artefacts held to keep their separation.
+        ``scenario, id, t, x, y, yaw`` (as :func:`scenario_tracks`), sorted by scenario, id, t.
 
     Raises
     ------
@@ -411,74 +401,38 @@ def simulate_behaviour_tracks(
             tv = tv * (float(speed[i]) / v_end)
         curves.append((tv, pv))
     steps = np.array([dt_out if dt_out is not None else float(fit.dt[c]) for c in cls])
-    scen = artefacts["scenario"].to_numpy()
-    delays: list[tuple[np.ndarray, ...]] = [(np.zeros(1), np.zeros(1), np.zeros(1))] * n
-    holds = 0
-    if float(min_separation) > 0.0:
-        for s_label in pd.unique(scen):
-            members = np.flatnonzero(scen == s_label)
-            got, h = separate_paths(
-                [curves[i] for i in members], t_arr[members], t_lv[members],
-                float(steps[members].min()), float(min_separation), free=fit.free,
-                origin=(float(fit.origin[0]), float(fit.origin[1])), cell=float(fit.cell),
-            )  # fmt: skip
-            holds += h
-            for i, d in zip(members, got, strict=True):
-                delays[i] = d
     rows = _track_rows(
-        curves, delays, scen, artefacts["id"].to_numpy(), t_arr, stay, steps, np.zeros(n)
-    )
+        curves, artefacts["scenario"].to_numpy(), artefacts["id"].to_numpy(), t_arr, stay,
+        steps, np.zeros(n),
+    )  # fmt: skip
     out = pd.concat(rows, ignore_index=True)
-    out = out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
-    out.attrs["holds"] = int(holds)
-    return out
+    return out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
 
 
 def _track_rows(
     curves: list[tuple[np.ndarray, np.ndarray]],
-    delays: list[tuple[np.ndarray, ...]],
     scen: np.ndarray,
     ids: np.ndarray,
     t_arr: np.ndarray,
     stay: np.ndarray,
     steps: np.ndarray,
     yaw0: np.ndarray,
-    side_steps: bool = False,
 ) -> list[pd.DataFrame]:
-    """Each artefact's track rows: its timed path (delayed and side-stepped as
-    :func:`separate_paths` says) sampled every ``steps[i]`` seconds and at every vertex, so
-    that the piecewise-linear track is the path; with ``side_steps``, also at every step of
-    the separation while side-stepped (the track between them is then the checked step).
-    ``yaw`` follows the motion; an artefact keeps ``yaw0`` until it first moves and its last
-    heading while standing."""
+    """Each artefact's track rows: its timed path sampled every ``steps[i]`` seconds and at
+    every vertex, so that the piecewise-linear track is the path. ``yaw`` follows the
+    motion; an artefact keeps ``yaw0`` until it first moves and its last heading while
+    standing."""
     rows = []
     for i in range(len(curves)):
         ts = np.arange(0.0, stay[i] + 1e-9, steps[i])
         if ts.size == 0 or ts[-1] < stay[i] - 1e-9:
             ts = np.append(ts, stay[i])
         tv, pv = curves[i]
-        t_rec, d_rec, s_rec = delays[i]
-        # while side-stepped, the steps of the separation (checked on the map) are the track
-        off = s_rec != 0.0
-        near = off | np.r_[off[1:], False] | np.r_[False, off[:-1]]
-        if side_steps:
-            tk_s = t_rec[near] - t_arr[i]
-            ts = np.unique(np.concatenate([ts, tk_s[(tk_s > 0.0) & (tk_s < stay[i])]]))
-        if len(tv) > 2:
-            # the times the vertices are reached (own time tau = t - t_arrive - delay)
-            tau_rec = t_rec - t_arr[i] - d_rec
+        if len(tv) > 2:  # the times the vertices are reached
             inner = tv[1:-1]
-            if len(t_rec) > 1:
-                tk = np.interp(inner, tau_rec, t_rec) - t_arr[i]
-                tk = np.where(inner > tau_rec[-1], inner + d_rec[-1], tk)
-            else:
-                tk = inner + float(d_rec[0])
-            on_path = np.interp(t_arr[i] + tk, t_rec, near.astype(float)) == 0.0
-            tk = tk[on_path & (tk > 0.0) & (tk < stay[i])]
-            ts = np.unique(np.concatenate([ts, tk]))
+            ts = np.unique(np.concatenate([ts, inner[(inner > 0.0) & (inner < stay[i])]]))
         ts = ts[np.r_[True, np.diff(ts) > 1e-6]]  # one sample per instant
-        tau = ts - np.interp(t_arr[i] + ts, t_rec, d_rec)
-        x, y = path_points(tv, pv, tau, np.interp(t_arr[i] + ts, t_rec, s_rec)).T
+        x, y = path_points(tv, pv, ts, np.zeros(ts.size)).T
         yaw = np.full(ts.size, float(yaw0[i]))
         if len(pv) > 1 and (np.diff(pv, axis=0) != 0).any():
             dx, dy = np.gradient(x), np.gradient(y)
@@ -519,187 +473,6 @@ def path_points(tv: np.ndarray, pv: np.ndarray, tau: Any, side: Any) -> np.ndarr
     """
     tau = np.asarray(tau, float).reshape(-1)
     return _PathSet([(tv, pv)]).points(np.zeros(tau.size, np.int64), tau, side)
-
-
-def separate_paths(
-    curves: list[tuple[np.ndarray, np.ndarray]],
-    t_arrive: np.ndarray,
-    t_leave: np.ndarray,
-    dt: float,
-    min_separation: float,
-    *,
-    free: np.ndarray | None = None,
-    origin: tuple[float, float] = (0.0, 0.0),
-    cell: float = 1.0,
-    max_side: float | None = None,
-    patience: float | None = None,
-) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray]], int]:
-    """Delays and side-steps that keep artefacts walking their paths apart.
-
-    Every ``dt`` from the first arrival, the live artefacts move in order of arrival (the
-    earlier first). Each is at ``p_i(tau) + s_i n_i(tau)``: the point of its path at its own
-    time ``tau = t - t_arrive_i - delay_i``, side-stepped by ``s_i`` along the path's left
-    normal. Its candidates for the step, in order: on along the path, stepping back
-    towards it (``|s|`` shrinks by the step length); on, keeping ``s``; on, stepping
-    left or right (``|s| <= max_side``); and holding its position (``delay_i`` grows by
-    ``dt``). It takes the first candidate that lies on a free cell (with ``free``) and
-    comes within ``min_separation`` of no other artefact's position (the new ones of
-    those that moved before it, the current ones of the others) unless it ends no closer
-    than it was. Holding is always allowed, so no two artefacts ever come closer than
-    ``min_separation`` (or than they started, for a group entering together); an artefact
-    that can neither pass nor side-step stops until the way clears or it leaves. Side-steps
-    start ahead of time: a candidate that keeps every approaching artefact beyond
-    ``3 min_separation`` is preferred to one that is merely safe.
-
-    Parameters
-    ----------
-    curves : list of (tv (m,), pv (m, 2))
-        Each artefact's path: times from its arrival and positions (world m).
-    t_arrive, t_leave : (n,) float
-    dt : float
-        Decision step (s).
-    min_separation : float
-        Centre distance (m).
-    free : (H, W) bool, optional
-        Free cells of the map side-steps must stay on (row = y, col = x).
-    origin : tuple of float
-        World ``(x, y)`` of cell ``(0, 0)``'s corner.
-    cell : float
-        Cell size (m).
-    max_side : float, optional
-        Largest side-step from the path (m); default ``1.5 min_separation``.
-    patience : float, optional
-        Seconds an artefact holds (or side-steps in place) in a row before it goes on along
-        its path regardless of the others (it squeezes past: two walkers facing each other
-        in a passage too narrow to side-step would otherwise both wait until one leaves).
-        Default: it waits.
-
-    Returns
-    -------
-    motion : list of (times (k,), delay (k,), side (k,))
-        Each artefact's delay and side-step at the steps of its life (and one step past
-        it); interpolate between them.
-    holds : int
-        Steps that did not go on along the path (held, or side-stepped in place), over
-        all artefacts.
-    """
-    n = len(curves)
-    if n == 0:
-        return [], 0
-    t_arrive = np.asarray(t_arrive, float)
-    t_leave = np.asarray(t_leave, float)
-    max_side = 1.5 * min_separation if max_side is None else float(max_side)
-    comfort = 3.0 * min_separation
-    grid = np.arange(float(t_arrive.min()), float(t_leave.max()) + dt, dt)
-    delay, side = np.zeros(n), np.zeros(n)
-    waited = np.zeros(n)  # seconds held in a row
-    pos = np.full((n, 2), np.nan)
-    order = np.lexsort((np.arange(n), t_arrive))
-    paths = _PathSet(curves)
-    ox, oy = float(origin[0]), float(origin[1])
-
-    def on_map(pts: np.ndarray) -> np.ndarray:
-        if free is None:
-            return np.ones(pts.shape[:-1], bool)
-        h, w = free.shape
-        col = np.floor((pts[..., 0] - ox) / cell).astype(np.int64)
-        row = np.floor((pts[..., 1] - oy) / cell).astype(np.int64)
-        inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
-        ok = np.zeros(pts.shape[:-1], bool)
-        ok[inside] = free[row[inside], col[inside]]
-        return ok
-
-    rec_t, rec_i, rec_d, rec_s = [], [], [], []
-    holds = 0
-    for t in grid:
-        # one step past t_leave is kept, so that samples up to t_leave interpolate
-        live = order[(t_arrive[order] <= t) & (t < t_leave[order] + dt)]
-        if live.size == 0:
-            pos[:] = np.nan
-            continue
-        cur = pos[live].copy()
-        new = np.isnan(cur[:, 0])
-        if new.any():  # arrivals enter where their path starts
-            i = live[new]
-            cur[new] = paths.points(i, np.maximum(t - t_arrive[i] - delay[i], 0.0), side[i])
-        now = cur.copy()  # positions decided this step (the current ones until then)
-        tau = t - t_arrive[live] - delay[live]
-        mover = ~new & ((tau <= paths.end[live] + dt) | (side[live] != 0.0))
-        mk = np.flatnonzero(mover)
-        if mk.size:
-            mi = live[mk]
-            on = paths.points(mi, tau[mk], np.zeros(mk.size))
-            step = np.maximum(np.hypot(*(on - paths.points(mi, tau[mk] - dt, np.zeros(mk.size))).T),
-                              1e-6)  # fmt: skip
-            s0 = side[mi]
-            back = np.sign(s0) * np.maximum(np.abs(s0) - step, 0.0)
-            # candidates: on along the path (back towards it, keeping the side-step,
-            # stepping left or right), then stepping aside without going on
-            sides = np.column_stack([back, s0, s0 + step, s0 - step, s0 + step, s0 - step])
-            wait = np.array([False, False, False, False, True, True])
-            taus = np.where(wait[None, :], tau[mk, None] - dt, tau[mk, None])
-            cand = paths.points(np.repeat(mi, 6), taus.ravel(), sides.ravel()).reshape(-1, 6, 2)
-            valid = (np.abs(sides) <= max_side + 1e-12) & on_map(cand)
-            if free is not None:
-                # the step itself (from where it is) must not cut an occupied cell's corner
-                rc = np.stack([(cand[..., 1] - oy) / cell, (cand[..., 0] - ox) / cell], -1)
-                rc0 = np.repeat(np.stack([(cur[mk, 1] - oy) / cell, (cur[mk, 0] - ox) / cell],
-                                         -1)[:, None, :], 6, axis=1)  # fmt: skip
-                fv = valid.ravel()
-                fv[fv] = _crossed(free, rc0.reshape(-1, 2)[fv], rc.reshape(-1, 2)[fv])
-                valid = fv.reshape(valid.shape)
-            # an artefact nobody can come near this step (all others stay within two
-            # steps of where they are) takes its first candidate: the common case, decided
-            # at once; the others go one by one, earlier arrivals first
-            reach = 2.0 * float(step.max()) + comfort
-            d_cur = np.hypot(*(cand[:, 0, None, :] - cur[None, :, :]).transpose(2, 0, 1))
-            d_cur[np.arange(mk.size), mk] = np.inf
-            alone = valid[:, 0] & (d_cur >= reach).all(axis=1)
-            now[mk[alone]] = cand[alone, 0]
-            side[mi[alone]] = back[alone]
-            for m in np.flatnonzero(~alone):
-                k, i = mk[m], mi[m]
-                others = np.arange(live.size) != k
-                d_new = np.hypot(*(cand[m, :, None, :] - now[None, others, :]).transpose(2, 0, 1))
-                d_old = np.hypot(*(cur[k][None, :] - now[others, :]).T)
-                away = d_new >= d_old[None, :] - 1e-9
-                ok = ((d_new >= min_separation) | away).all(axis=1) & valid[m]
-                if patience is not None and waited[i] >= patience and valid[m, 0]:
-                    ok[:] = False
-                    ok[0] = True  # out of patience: on along the path
-                if ok.any():
-                    # going on beats stepping aside in place; of the safe candidates, the
-                    # one that keeps approaching artefacts farthest (up to a comfort
-                    # distance: side-steps start ahead of time), the earlier on ties
-                    pool = ok & ~wait if (ok & ~wait).any() else ok
-                    near = np.where(away, comfort, np.minimum(d_new, comfort))
-                    score = np.where(pool, near.min(axis=1, initial=comfort), -1.0)
-                    j = int(np.argmax(score >= score.max() - 1e-9))
-                    now[k], side[i] = cand[m, j], sides[m, j]
-                    waited[i] = waited[i] + dt if wait[j] else 0.0
-                    if wait[j]:
-                        delay[i] += dt
-                        holds += 1
-                    continue
-                delay[i] += dt  # hold: where it was
-                waited[i] += dt
-                holds += 1
-        pos[:] = np.nan
-        pos[live] = now
-        rec_t.append(np.full(live.size, t))
-        rec_i.append(live)
-        rec_d.append(delay[live].copy())
-        rec_s.append(side[live].copy())
-    out = [(np.zeros(1), np.zeros(1), np.zeros(1))] * n
-    if rec_i:
-        ti, ii = np.concatenate(rec_t), np.concatenate(rec_i)
-        dd, ss = np.concatenate(rec_d), np.concatenate(rec_s)
-        srt = np.argsort(ii, kind="stable")
-        ti, ii, dd, ss = ti[srt], ii[srt], dd[srt], ss[srt]
-        cuts = np.flatnonzero(np.diff(ii)) + 1
-        for a, b in zip(np.r_[0, cuts], np.r_[cuts, ii.size], strict=True):
-            out[int(ii[a])] = (ti[a:b], dd[a:b], ss[a:b])
-    return out, holds
 
 
 class _PathSet:

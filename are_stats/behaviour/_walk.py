@@ -19,9 +19,10 @@ catalogue behaviour of :func:`~are_stats.behaviour.behaviour_tracks`):
 4. **stop** artefacts stand where they arrived;
 5. each route becomes an any-angle path (:func:`string_pull`) timed at the preferred speed
    with a small within-person variation (:func:`walk_times`);
-6. artefacts keep ``min_separation`` apart while walking (:func:`separate_paths`): they
-   side-step or hold, and after ``patience`` seconds of holding squeeze past (without it
-   two walkers facing each other in a narrow passage would both wait until one leaves).
+6. the walkers plan alone: people give way to each other while they walk, under the
+   social force of the one assembly (:func:`~are_stats.scenarios.scene_tracks`), and moving
+   artefacts without a social force of their own are kept apart by the AR-builder's rule
+   (DECISIONS 9).
 
 Tracks are sampled every ``dt`` seconds and at every vertex of the path (so the piecewise
 linear track is the path: it never crosses an occupied cell).
@@ -194,8 +195,6 @@ def walk_tracks(
     dt: float = 2.0,
     speed_sd: float = 0.12,
     within_sd: float = 0.05,
-    min_separation: float = 0.5,
-    patience: float = 3.0,
     slip: float = 0.1,
     step_cost: float = 1e-3,
 ) -> pd.DataFrame:
@@ -223,20 +222,13 @@ def walk_tracks(
         around the catalogue speed).
     within_sd : float
         Within-person standard deviation of the log speed (:func:`walk_times`).
-    min_separation : float
-        Centre distance (m) kept between walking artefacts (:func:`separate_paths`);
-        ``0`` turns it off.
-    patience : float
-        Seconds an artefact waits for the way to clear before it squeezes past
-        (``separate_paths``).
     slip, step_cost : float
         MDP parameters (:class:`GridMDP`).
 
     Returns
     -------
     pandas.DataFrame
-        ``scenario, id, t, x, y, yaw`` sorted by scenario, id and t;
-        ``attrs["holds"]`` counts the steps artefacts held to keep their separation.
+        ``scenario, id, t, x, y, yaw`` sorted by scenario, id and t.
 
     Raises
     ------
@@ -244,7 +236,7 @@ def walk_tracks(
         On missing columns, ``t_leave < t_arrive``, positions off the free cells, unknown
         behaviours or speeds that are not > 0.
     """
-    from are_stats.behaviour._generate import _track_rows, separate_paths
+    from are_stats.behaviour._generate import _track_rows
     from are_stats.behaviour._mdp import GridMDP
     from are_stats.behaviour._model import grid_geodesic
     from are_stats.behaviour._motion import preferred_speeds, walk_times
@@ -257,10 +249,9 @@ def walk_tracks(
     cell = float(check_positive("resolution", resolution))
     speed_sd = float(check_nonnegative("speed_sd", speed_sd))
     within_sd = float(check_nonnegative("within_sd", within_sd))
-    min_separation = float(check_nonnegative("min_separation", min_separation))
     occ = GridMDP(occupied, slip=slip, step_cost=step_cost).occupied
     ox, oy = float(origin[0]), float(origin[1])
-    out, holds = [], 0
+    out = []
     for s_label, table in artefacts.groupby("scenario", sort=True):
         table = table.reset_index(drop=True)
         n = len(table)
@@ -335,32 +326,18 @@ def walk_tracks(
         key, k_on = jax.random.split(key)
         _legs(rng, k_on, mdp, walkers, followers, cur, stay, speed, modes, geo)
         curves = [walkers.curve(i) for i in range(n)]
-        # separation steps short enough that a side-step (one step's length, at most
-        # 1.5 min_separation) is possible at the fastest artefact's speed
-        step = min(dt, 0.5, 1.2 * max(min_separation, 0.1) / float(speed.max(initial=1.0)))
-        delays: list[tuple[np.ndarray, ...]] = [(np.zeros(1), np.zeros(1), np.zeros(1))] * n
-        if min_separation > 0.0:
-            delays, h = separate_paths(
-                curves, t_arr, t_lv, step, min_separation, free=~occ, origin=(ox, oy),
-                cell=cell, patience=patience,
-            )  # fmt: skip
-            holds += h
         out.extend(
             _track_rows(
                 curves,
-                delays,
                 table["scenario"].to_numpy(),
                 table["id"].to_numpy(),
                 t_arr,
                 stay,
                 np.full(n, dt),
                 yaw,
-                side_steps=True,
             )  # fmt: skip
         )
     if not out:
         return pd.DataFrame({c: [] for c in _COLUMNS})
     res = pd.concat(out, ignore_index=True)
-    res = res.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
-    res.attrs["holds"] = int(holds)
-    return res
+    return res.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)

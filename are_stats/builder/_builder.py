@@ -694,6 +694,197 @@ class ARBuilder:
             back = np.where(dist > 0, self.safe_distance / dist, 1.0)
         return np.clip(lo - back, 0.0, 1.0)
 
+    # ------------------------------------------------------------ moving scenes
+    def resolve_scene(
+        self,
+        scene: Scene,
+        movers: npt.ArrayLike | None = None,
+        *,
+        others: npt.ArrayLike | None = None,
+        dt: float = 0.5,
+    ) -> Scene:
+        """The scene with the moves of ``movers`` resolved by the builder's rule along
+        their tracks (DECISIONS 9): :meth:`step` every ``dt`` seconds of the scene's clock.
+
+        At every step each live mover proposes the pose of its track at its own time
+        ``t - delay`` (the planned track, less the time it has lost); the builder holds the
+        movers at their last safe poses and the ``others`` where the scene puts them, and
+        :meth:`step` resolves the proposals. A mover whose move is reverted holds its last
+        safe pose for the step and walks on from there (its delay grows by ``dt``); with
+        ``rule="advance"`` it keeps the collision-free fraction ``f`` of its move (its
+        delay grows by ``(1 - f) dt``). Movers step one at a time, earlier arrivals first
+        (of two crossing, the first passes and the other waits), and a box that a mover
+        already touches where it stands (artefacts placed on each other) does not hold
+        it. A mover keeps its route and its life-cycle and never jumps: it only waits; a
+        mover that never has to wait keeps its track exactly. :meth:`step` runs only for a
+        move whose box hits the environment or another box (it would take any other move
+        as it is); every resolution is in :attr:`log` (cleared first). The builder holds
+        no artefact afterwards.
+
+        Parameters
+        ----------
+        scene : Scene
+            The artefacts and their planned tracks.
+        movers : (N,) bool, optional
+            Artefacts (scene order) whose moves are resolved; default every artefact with
+            a track.
+        others : (N,) bool, optional
+            Artefacts that take part as they are (obstacles at their scene poses, never
+            moved by the builder); default every artefact that is not a mover. Artefacts
+            in neither do not take part.
+        dt : float
+            Seconds between steps.
+
+        Returns
+        -------
+        Scene
+            ``scene`` with the tracks of the movers that had to wait re-timed: a row at
+            every step of their life and at every vertex of their planned track.
+
+        Examples
+        --------
+        Two carts cross; the one that would run into the other waits for it to pass:
+
+        >>> import pandas as pd
+        >>> from are_stats import OccupancyGrid, Scene, load_catalogue
+        >>> table = pd.DataFrame({"t_arrive": [0.0, 0.0], "t_leave": [10.0, 10.0],
+        ...                       "x": [0.0, 5.0], "y": [5.0, 0.0], "yaw": [0.0, 0.0]})
+        >>> tracks = pd.DataFrame({"id": [0, 0, 1, 1], "t": [0.0, 10.0, 0.0, 10.0],
+        ...                        "x": [0.0, 10.0, 5.0, 5.0], "y": [5.0, 5.0, 0.0, 10.0],
+        ...                        "yaw": [0.0, 0.0, 0.0, 0.0]})
+        >>> scene = Scene.from_scenarios(table, load_catalogue(), tracks)
+        >>> b = ARBuilder(OccupancyGrid(np.zeros((160, 160)), 0.1, origin=(-3.0, -3.0, 0.0)))
+        >>> moved = b.resolve_scene(scene)
+        >>> len(b.log) > 0, bool(moved.poses(10.0)[1, 1] < 10.0)
+        (True, True)
+        """
+        from are_stats.scenarios import Scene
+
+        if not isinstance(scene, Scene):
+            raise ValueError(f"scene: expected a Scene, got {type(scene).__name__}")
+        n = len(scene)
+        dt = float(check_positive("dt", dt))
+        mv = scene.has_tracks.copy() if movers is None else np.asarray(movers, bool)
+        if mv.shape != (n,):
+            raise ValueError(f"movers: expected ({n},) bool in scene order, got {mv.shape}")
+        ot = ~mv if others is None else np.asarray(others, bool)
+        if ot.shape != (n,):
+            raise ValueError(f"others: expected ({n},) bool in scene order, got {ot.shape}")
+        mv = mv & scene.has_tracks
+        ot = ot & ~mv
+        self.reset()
+        if not mv.any():
+            return scene
+        take = mv | ot
+        half, offset = scene.half_extents.astype(float), scene.offsets.astype(float)
+        reach = np.hypot(half[:, 0], half[:, 1]) + np.hypot(offset[:, 0], offset[:, 1])
+        t_on, t_off = scene.t_arrive, scene.t_leave
+        plan = {int(i): scene.track(int(i)) for i in np.flatnonzero(mv)}
+        delay = np.zeros(n)
+        safe = np.zeros((n, 3))
+        started = np.zeros(n, bool)
+        rec: dict[int, tuple[list[float], list[float], list[np.ndarray]]] = {}
+        open_ground = not self._blocked.any() and self._mesh_hash is None
+        t_last = max(min(float(t_off[i]), float(tr[0][-1])) for i, tr in plan.items())
+        for t in np.arange(float(t_on[mv].min()), t_last, dt):
+            live = take & (t_on <= t) & (t < t_off)
+            if not (live & mv).any():
+                continue
+            idx = np.flatnonzero(live)
+            j_mv = np.flatnonzero(mv[idx])
+            j_mv = j_mv[np.argsort(t_on[idx[j_mv]], kind="stable")]  # earlier arrivals first
+            m_idx = idx[j_mv]
+            for i in m_idx[~started[m_idx]]:  # arrivals: safe where their tracks start
+                safe[i] = plan[int(i)][1][0]
+                started[i] = True
+            now = np.empty((idx.size, 3))
+            rest = np.flatnonzero(~mv[idx])
+            now[rest] = scene.poses(float(t), idx[rest])
+            now[j_mv] = safe[m_idx]
+            prop = now.copy()
+            for j, i in zip(j_mv, m_idx, strict=True):
+                prop[j] = _track_pose(*plan[int(i)], t - delay[i])
+            # a mover steps alone where its box could touch no other box, before or after
+            xy = np.concatenate([now[:, :2], prop[:, :2]])
+            r2 = np.concatenate([reach[idx], reach[idx]])
+            gap = np.minimum(
+                np.hypot(*(now[j_mv, None, :2] - xy[None]).transpose(2, 0, 1)),
+                np.hypot(*(prop[j_mv, None, :2] - xy[None]).transpose(2, 0, 1)),
+            )
+            step_len = np.hypot(*(prop[j_mv, :2] - now[j_mv, :2]).T)
+            near = gap <= reach[m_idx, None] + r2[None, :] + step_len[:, None]
+            mine = np.arange(j_mv.size)
+            near[mine, j_mv] = near[mine, j_mv + idx.size] = False
+            # the environment (map, border, mesh) for every mover's proposal at once; on
+            # open ground (nothing blocked, no mesh) only the border
+            env_bad = np.zeros(j_mv.size, bool)
+            go = (prop[j_mv] != now[j_mv]).any(axis=1)
+            if go.any():
+                c, h, y = self._boxes_for(prop[j_mv[go]], half[m_idx[go]], offset[m_idx[go]])
+                if open_ground:
+                    uv = self.grid.world_to_local(box_corners(c[:, :2], h[:, :2], y).reshape(-1, 2))
+                    uv = uv.reshape(-1, 4, 2)
+                    env_bad[go] = ((uv < 0.0) | (uv > [self.grid.width, self.grid.height])).any(
+                        axis=(1, 2)
+                    )
+                else:
+                    env, outside, mesh, _ = self._env_hits(c, h, y)
+                    env_bad[go] = env | outside | mesh
+            for j, i, row, bad in zip(j_mv, m_idx, near, env_bad, strict=True):
+                moves = bool((prop[j] != now[j]).any())
+                sub = np.zeros(idx.size, bool)
+                if moves and row.any():
+                    # the boxes it could touch; those it already touches where it stands
+                    # (placed on each other) do not hold it: it may walk out of them
+                    sub[np.flatnonzero(row) % idx.size] = True
+                    sub[j] = True
+                    at = np.flatnonzero(sub)
+                    pairs = at[self._pair_hits(*self._boxes_for(now[at], half[idx[at]],
+                                                                offset[idx[at]]))]  # fmt: skip
+                    touching = pairs[(pairs == j).any(axis=1)]
+                    sub[touching[touching != j]] = False
+                    o = np.flatnonzero(sub)
+                    o = o[o != j]
+                    if o.size and not bad:
+                        c_j, h_j, y_j = self._boxes_for(prop[j][None], half[i][None],
+                                                        offset[i][None])  # fmt: skip
+                        c_o, h_o, y_o = self._boxes_for(now[o], half[idx[o]], offset[idx[o]])
+                        bad = bool(obb_overlap_3d(
+                            np.repeat(c_j, o.size, 0), np.repeat(h_j, o.size, 0),
+                            np.repeat(y_j, o.size), c_o, h_o, y_o, self.eps,
+                        ).any())  # fmt: skip
+                if moves and bad:  # the builder's step: this mover's move alone
+                    sub[j] = True
+                    self.ids = scene.ids[idx[sub]].astype(np.int64)
+                    self.labels = [str(lab) for lab in scene.labels[idx[sub]]]
+                    self.poses = now[sub]
+                    self._half, self._offset = half[idx[sub]], offset[idx[sub]]
+                    self._runs = None
+                    first = len(self.log)
+                    k = int(np.count_nonzero(sub[:j]))
+                    moved = now[sub]
+                    moved[k] = prop[j]
+                    now[j] = self.step(moved, time=float(t))[k]
+                    kept = [r.fraction for r in self.log[first:] if r.artefact == scene.ids[i]]
+                    if kept:
+                        delay[i] += (1.0 - min(kept)) * dt
+                else:  # nothing in the way: the step would take it as it is
+                    now[j] = prop[j]
+                safe[i] = now[j]
+                ts, us, ps = rec.setdefault(int(i), ([], [], []))
+                ts.append(float(t))
+                us.append(float(t - delay[i]))
+                ps.append(now[j].copy())
+        log = self.log
+        self.reset()
+        self.log = log
+        for i in np.flatnonzero(mv & (delay > 0.0)):
+            ts, us, ps = rec[int(i)]
+            t_new, p_new = _retimed(*plan[int(i)], np.array(ts), np.array(us), np.array(ps))
+
+            scene = scene.with_track(int(i), t_new, p_new)
+        return scene
+
     # ------------------------------------------------------------ augmented views
     def _current_runs(self):
         if self._runs is None:
@@ -790,3 +981,45 @@ class ARBuilder:
         if not self.log:
             return {c: np.zeros(0) for c in cols}
         return {c: np.array([getattr(r, c) for r in self.log]) for c in cols}
+
+
+def _track_pose(tv: np.ndarray, pv: np.ndarray, u: float) -> np.ndarray:
+    """Pose ``(3,)`` of a track (times ``tv`` (m,), poses ``pv`` (m, 3)) at time ``u``
+    (clamped to its ends; yaw the short way round)."""
+    k = int(np.clip(np.searchsorted(tv, u, side="right") - 1, 0, len(tv) - 1))
+    k1 = min(k + 1, len(tv) - 1)
+    f = float(np.clip((u - tv[k]) / (tv[k1] - tv[k]), 0.0, 1.0)) if tv[k1] > tv[k] else 0.0
+    out = pv[k] + f * (pv[k1] - pv[k])
+    out[2] = pv[k, 2] + f * _wrap(np.array(pv[k1, 2] - pv[k, 2]))
+    return out
+
+
+def _retimed(
+    tv: np.ndarray, pv: np.ndarray, ts: np.ndarray, us: np.ndarray, ps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A planned track (``tv`` (m,), ``pv`` (m, 3)) walked with the waits of
+    :meth:`ARBuilder.resolve_scene`: its poses ``ps`` (k, 3) at the steps ``ts`` (k,),
+    where it had reached its own time ``us`` (k,) (non-decreasing); the planned vertices
+    at the times it reached them; the planned rows before the first step; after the last
+    step, on along the plan (where it was held at that step: there). It ends where the
+    plan ends (``tv[-1]``: its leaving time, or the scenario's horizon), late by its
+    delay."""
+    t_end = float(tv[-1])
+    before = tv < ts[0]
+    inside = (tv > us[0]) & (tv <= us[-1])
+    j = np.searchsorted(us, tv[inside], side="left")  # first step that reached the vertex
+    t_in = ts[j - 1] + (tv[inside] - us[j - 1]) / (us[j] - us[j - 1]) * (ts[j] - ts[j - 1])
+    lag = ts[-1] - us[-1]
+    after = (tv > us[-1]) & (tv + lag < t_end)
+    end = _track_pose(tv, pv, t_end - lag)
+    if len(us) > 1 and us[-1] <= us[-2]:  # held at its last step: it stays there
+        after[:] = False
+        end = ps[-1]
+    t_all = np.concatenate([tv[before], ts, t_in, tv[after] + lag, [t_end]])
+    p_all = np.concatenate([pv[before], ps, pv[inside], pv[after], end[None]])
+    keep = t_all <= t_end
+    t_all, p_all = t_all[keep], p_all[keep]
+    order = np.argsort(t_all, kind="stable")
+    t_all, p_all = t_all[order], p_all[order]
+    keep = np.r_[True, np.diff(t_all) > 1e-9]
+    return t_all[keep], p_all[keep]

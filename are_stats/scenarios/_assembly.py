@@ -25,12 +25,24 @@ the group spacing (:func:`~are_stats.behaviour.group_tracks`: the fit's, else th
 published 0.75 m), pedestrians only; the interaction then keeps the formation while they
 walk.
 
-Then the **interaction** (``interaction=``): the planned tracks are walked again under the
-social force (:func:`~are_stats.behaviour.social_force_tracks`), so people give way to
-each other, to artefacts standing and to vehicles instead of walking through them. The
-artefacts whose catalogue class is not a ``pedestrian`` (its ``kind`` feature: cars,
-carts, pallets) keep their planned tracks and are avoided. The parameters are the fit's
-when it estimated them from tracks, else the published ones (:class:`SocialForce`).
+**Collisions: one story.** The behaviours plan each artefact alone (routes on free cells).
+Then:
+
+* the **AR-builder** (DECISIONS 9, :meth:`~are_stats.builder.ARBuilder.resolve_scene`)
+  resolves the moves of the artefacts that have no social force of their own (vehicles,
+  carts: catalogue ``kind`` other than ``pedestrian``) against each other and against
+  every artefact standing: a move whose box would hit another box is reverted, so the
+  mover waits on its route and goes on later (earlier arrivals first). With
+  ``interaction=False`` it resolves every mover, people included;
+* the **interaction** (``interaction=``): the tracks of walking people are walked again
+  under the social force (:func:`~are_stats.behaviour.social_force_tracks`), so people
+  give way to each other, to artefacts standing and to vehicles (on their resolved
+  tracks) instead of walking through them, continuously and without stopping. The
+  parameters are the fit's when it estimated them from tracks, else the published ones
+  (:class:`SocialForce`).
+
+In a mission the robot's own footprint is avoided by the moving artefacts
+(:func:`~are_stats.experiments.run_mission`, ``avoid_robot``).
 """
 
 from __future__ import annotations
@@ -231,7 +243,8 @@ def scene_tracks(
     progress: _Progress | None = None,
 ) -> pd.DataFrame | None:
     """The tracks of a scenarios table by the module's one behaviour rule, then the
-    interaction: what moves the artefacts of every assembly.
+    AR-builder's resolution and the interaction (the module's collision story): what
+    moves the artefacts of every assembly.
 
     Parameters
     ----------
@@ -296,6 +309,7 @@ def scene_tracks(
     if tracks is not None and len(tracks):
         walks = _pedestrians(art, catalogue, class_labels, n)
         tracks, groups = _groups(tracks, art, walks, grid, interaction)
+        tracks = _resolve(tracks, art, catalogue, class_labels, n, walks, interaction)
         if interaction is not False:
             tracks = _interact(tracks, walks, grid, interaction, groups)
     if steps > 1:
@@ -365,7 +379,8 @@ def scenes_from_draws(
     interaction : bool or SocialForce
         Walk the tracks again with the social force (see the module docstring): ``True``
         with the published parameters, a :class:`~are_stats.behaviour.SocialForce` with
-        those, ``False`` keeps the planned tracks.
+        those, ``False`` keeps the planned tracks, every mover's collisions resolved by the
+        AR-builder's rule (see the module docstring).
     progress : callable, optional
         ``progress(done, total, what)`` after each step of the
         assembly: the scenarios drawn, then with behaviours the tracks planned and walked
@@ -437,10 +452,10 @@ def _groups(
     walks: dict,
     grid: OccupancyGrid,
     interaction: bool | SocialForce,
-) -> tuple[pd.DataFrame, np.ndarray | None]:
+) -> tuple[pd.DataFrame, pd.Series | None]:
     """Planned tracks with the members of each arrival group on their leader's route
-    (:func:`~are_stats.behaviour.group_tracks`; pedestrians only) and each track row's
-    group label (None without a ``group`` column)."""
+    (:func:`~are_stats.behaviour.group_tracks`; pedestrians only) and each artefact's
+    group label, indexed by ``(scenario, id)`` (None without a ``group`` column)."""
     from are_stats.behaviour import SocialForce, group_tracks
 
     if "group" not in art.columns:
@@ -454,9 +469,57 @@ def _groups(
     walking = np.array([walks.get((int(s), int(a)), False) for s, a in zip(sc, ids, strict=True)])
     group = np.where(walking, art["group"].to_numpy(np.int64), -1)
     tracks = group_tracks(tracks, art.assign(group=group), spacing, grid)
-    label = pd.Series(group, index=pd.MultiIndex.from_arrays([sc, ids]))
+    return tracks, pd.Series(group, index=pd.MultiIndex.from_arrays([sc, ids]))
+
+
+def _resolve(
+    tracks: pd.DataFrame,
+    art: pd.DataFrame,
+    catalogue: ArtefactCatalogue,
+    labels: Sequence[str] | None,
+    n: int,
+    walks: dict,
+    interaction: bool | SocialForce,
+) -> pd.DataFrame:
+    """The planned tracks with the moves left to the AR-builder resolved by its rule
+    (DECISIONS 9, :meth:`~are_stats.builder.ARBuilder.resolve_scene`): with the
+    interaction on, the movers without a social force of their own (vehicles, carts)
+    against each other and against everything standing (walking people give way to them
+    afterwards); without it, every mover against everybody. The environment is the
+    route planner's (routes keep to free cells), so the builder's map is open ground."""
+    from are_stats.builder import ARBuilder
+
+    xy = tracks[["x", "y"]].to_numpy(float)
+    lo = xy.min(axis=0) - 10.0
+    shape = np.ceil((xy.max(axis=0) + 10.0 - lo) / 0.5).astype(int) + 1
+    ground = OccupancyGrid(np.zeros((shape[1], shape[0]), np.int8), 0.5, (lo[0], lo[1], 0.0))
+    builder = ARBuilder(ground)
+    new, gone = [], []
+    for k, scene in enumerate(scenes_from_tables(art, tracks, catalogue, labels, range(n))):
+        walking = np.array([walks.get((k, int(a)), False) for a in scene.ids], bool)
+        moving = np.array(
+            [np.ptp(scene.track(i)[1][:, :2], axis=0).max(initial=0.0) > 1e-9
+             if scene.has_tracks[i] else False for i in range(len(scene))], bool,
+        )  # fmt: skip
+        movers = moving & ~walking if interaction is not False else moving
+        if not movers.any():
+            continue
+        out = builder.resolve_scene(scene, movers, others=~(moving & ~movers))
+        for i in np.flatnonzero(movers):
+            t, pose = out.track(int(i))
+            if t.shape == scene.track(int(i))[0].shape and (t == scene.track(int(i))[0]).all():
+                continue  # it never had to wait
+            gone.append((k, int(scene.ids[i])))
+            new.append(
+                pd.DataFrame({"scenario": k, "id": scene.ids[i], "t": t, "x": pose[:, 0],
+                              "y": pose[:, 1], "yaw": pose[:, 2]})
+            )  # fmt: skip
+    if not new:
+        return tracks
     rows = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
-    return tracks, label.reindex(rows).fillna(-1).to_numpy(np.int64)
+    kept = tracks[~rows.isin(gone)]
+    out = pd.concat([kept, *new], ignore_index=True)
+    return out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
 
 
 def _interact(
@@ -464,16 +527,20 @@ def _interact(
     walks: dict,
     grid: OccupancyGrid,
     interaction: bool | SocialForce,
-    groups: np.ndarray | None = None,
+    groups: pd.Series | None = None,
 ) -> pd.DataFrame:
     """The tracks walked again under the social force; non-pedestrians stay kinematic;
-    arrival groups walk together."""
+    arrival groups (labels by ``(scenario, id)``) walk together."""
     from are_stats.behaviour import SocialForce, social_force_tracks
 
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
     keys = zip(tracks["scenario"].to_numpy(), tracks["id"].to_numpy(), strict=True)
     kinematic = np.array([not walks.get((int(s), int(a)), False) for s, a in keys])
-    return social_force_tracks(tracks, params, grid, kinematic=kinematic, groups=groups)
+    rows = None
+    if groups is not None:
+        at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
+        rows = groups.reindex(at).fillna(-1).to_numpy(np.int64)
+    return social_force_tracks(tracks, params, grid, kinematic=kinematic, groups=rows)
 
 
 def scenes_from_fit(

@@ -132,9 +132,7 @@ def test_walkers_walk_at_their_own_preferred_speed() -> None:
     occ = _room(30, 30)
     n, sd = 160, 0.12
     arts = _walkers(n, occ, 40.0)
-    tracks = walk_tracks(
-        jax.random.key(2), arts, occ, dt=0.5, speed_sd=sd, within_sd=0.0, min_separation=0.0
-    )
+    tracks = walk_tracks(jax.random.key(2), arts, occ, dt=0.5, speed_sd=sd, within_sd=0.0)
     speeds = []
     for _, g in tracks.groupby("id"):
         xy, t = g[["x", "y"]].to_numpy(), g["t"].to_numpy()
@@ -144,6 +142,21 @@ def test_walkers_walk_at_their_own_preferred_speed() -> None:
     lv = np.log(speeds)
     assert abs(lv.std(ddof=1) - sd) < K_SIGMA * sd / np.sqrt(2 * (n - 1)), lv.std(ddof=1)
     assert abs(lv.mean() - np.log(1.2)) < K_SIGMA * sd / np.sqrt(n)
+
+
+def test_walkers_plan_alone_and_never_hold_for_each_other() -> None:
+    """Thirty walkers crossing a 10 x 10 m room (issue 26): nobody stands on the way to
+    keep its distance (people give way while walking, under the social force of the one
+    assembly, not by holding on their plans): every walker's track moves at every sample
+    until it stands for good, if ever (no reachable goal left in its stay)."""
+    occ = _room(10, 10)
+    arts = _walkers(30, occ, 60.0, seed=3)
+    tracks = walk_tracks(jax.random.key(7), arts, occ, dt=0.5)
+    assert "holds" not in tracks.attrs
+    for i, g in tracks.groupby("id"):
+        step = np.hypot(*np.diff(g[["x", "y"]].to_numpy(), axis=0).T)
+        still = step < 1e-9
+        assert not still.any() or still[int(np.argmax(still)) :].all(), i
 
 
 def test_walkers_keep_walking_while_alive_and_stay_on_free_cells() -> None:

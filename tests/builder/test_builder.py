@@ -344,3 +344,102 @@ def test_register_scene_check_refuses_collisions():
     assert b.register_scene(scene, 1.0).tolist() == [0, 1]
     with pytest.raises(ValueError, match="scene: expected a Scene"):
         b.register_scene(table, 1.0)
+
+
+def _moving_scene(rows, tracks):
+    """A Scene of person boxes (catalogue row 0) from (t_arrive, t_leave, x, y) rows and
+    tracks ``{index: [(t, x, y), ...]}`` (yaw 0)."""
+    import pandas as pd
+
+    from are_stats import Scene
+
+    table = pd.DataFrame(rows, columns=["t_arrive", "t_leave", "x", "y"]).assign(yaw=0.0)
+    tr = pd.DataFrame(
+        [(i, t, x, y, 0.0) for i, pts in tracks.items() for t, x, y in pts],
+        columns=["id", "t", "x", "y", "yaw"],
+    )
+    return Scene.from_scenarios(table, load_catalogue(), tr)
+
+
+def _open_ground():
+    return OccupancyGrid(np.zeros((140, 200)), 0.1, (-3.0, -2.0, 0.0))
+
+
+def test_resolve_scene_a_mover_waits_for_a_standing_box_then_walks_on_its_route():
+    """A mover walking at 1 m/s into a box that stands until t = 6 s holds its last safe
+    pose from the step its box would touch the other (the contact distance, known from the
+    two boxes) until the box leaves, then walks on: it reaches the end of its route that
+    much later (to within one step), never overlaps the box, never moves faster than
+    planned, and the standing box is not moved. (The builder tests poses at its steps;
+    between them the scene interpolates.)"""
+    scene = _moving_scene(
+        [(0.0, 15.0, 0.0, 5.0), (0.0, 6.0, 5.0, 5.0)],
+        {0: [(0.0, 0.0, 5.0), (10.0, 10.0, 5.0), (15.0, 10.0, 5.0)]},
+    )
+    dt = 0.5
+    b = ARBuilder(_open_ground())
+    out = b.resolve_scene(scene, np.array([True, False]), dt=dt)
+    contact = 5.0 - (scene.half_extents[0, 0] + scene.half_extents[1, 0])  # centre x at touch
+    # the first step whose proposal passes the contact is reverted; it waits until t = 6
+    t_touch = np.ceil(contact / dt + 1e-9) * dt
+    delay = np.ceil((6.0 - t_touch) / dt - 1e-9) * dt
+    t, pose = out.track(0)
+    t_end = t[np.argmax(pose[:, 0] >= 10.0 - 1e-9)]
+    assert abs(t_end - (10.0 + delay)) <= dt + 1e-9
+    assert abs(pose[-1, 0] - 10.0) < 1e-9 and t[-1] == 15.0
+    speed = np.hypot(*np.diff(pose[:, :2], axis=0).T) / np.diff(t)
+    assert speed.max() <= 1.0 + 1e-9  # no jump: it only waited
+    assert np.allclose(pose[:, 1], 5.0)  # on its route
+    assert out.track(1)[0].size == 0 and np.allclose(out.poses(3.0)[1], scene.poses(3.0)[1])
+    assert {(r.rule, r.cause, r.other) for r in b.log} == {("revert", "artefact", 1)}
+    assert len(b) == 0
+    check = ARBuilder(_open_ground())
+    for tt in np.arange(0.0, 6.0, dt):
+        check.register_scene(out, tt)
+        assert check.collisions()["pairs"].size == 0, tt
+    # the planned track walks through the box
+    check.register_scene(scene, 5.0)
+    assert check.collisions()["pairs"].size == 2
+
+
+def test_resolve_scene_crossing_movers_the_later_arrival_waits():
+    """Two movers at the crossing of their routes at the same time (t = 5 s): the
+    earlier arrival keeps its track exactly, the later one waits and is in contact at no
+    step; movers that meet nobody keep their tracks (the same rows)."""
+    scene = _moving_scene(
+        [(0.0, 14.0, 0.0, 5.0), (0.5, 14.0, 5.0, 0.5), (0.0, 14.0, 15.0, 10.0)],
+        {
+            0: [(0.0, 0.0, 5.0), (10.0, 10.0, 5.0), (14.0, 10.0, 5.0)],
+            1: [(0.5, 5.0, 0.5), (10.0, 5.0, 10.0), (14.0, 5.0, 10.0)],
+            2: [(0.0, 15.0, 10.0), (14.0, 15.0, 1.0)],
+        },
+    )
+    b = ARBuilder(_open_ground())
+    out = b.resolve_scene(scene, dt=0.25)
+    for i in (0, 2):
+        assert all(np.array_equal(a, c) for a, c in zip(out.track(i), scene.track(i), strict=True))
+    t, pose = out.track(1)
+    assert t[np.argmax(pose[:, 1] >= 10.0 - 1e-9)] > 10.0 + 0.25  # it waited
+    assert {r.artefact for r in b.log} == {1}
+    check = ARBuilder(_open_ground())
+    for tt in np.arange(0.5, 14.0, 0.25):
+        check.register_scene(out, tt)
+        assert check.collisions()["pairs"].size == 0, tt
+    with pytest.raises(ValueError, match="movers"):
+        b.resolve_scene(scene, np.ones(2, bool))
+
+
+def test_resolve_scene_a_mover_stops_at_a_wall_on_its_route():
+    """On a map (not open ground) the environment is tested too: a mover whose planned
+    route runs into a wall (x from 7 m) holds its last safe pose before it, a box length
+    short of the wall, for the rest of its life."""
+    d = np.zeros((140, 200))
+    d[:, 100:110] = 100  # x in [7, 8)
+    grid = OccupancyGrid(d, 0.1, (-3.0, -2.0, 0.0))
+    scene = _moving_scene([(0.0, 12.0, 0.0, 5.0)], {0: [(0.0, 0.0, 5.0), (12.0, 12.0, 5.0)]})
+    b = ARBuilder(grid)
+    out = b.resolve_scene(scene, dt=0.25)
+    front = 7.0 - scene.half_extents[0, 0] - scene.offsets[0, 0]  # centre x at contact
+    x_end = out.poses(11.9)[0, 0]
+    assert front - 0.25 - 1e-9 <= x_end <= front + 1e-9
+    assert {(r.cause, r.rule) for r in b.log} == {("environment", "revert")}

@@ -9,6 +9,7 @@ import pytest
 
 from are_stats._lazy import arviz as az
 from are_stats.behaviour import behaviour_tracks
+from are_stats.builder import ARBuilder
 from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
 from are_stats.fitting import posterior_draws
 from are_stats.scenarios import (
@@ -66,6 +67,9 @@ def test_scenes_are_the_generated_scenarios_split_by_scenario(grid, catalogue):
 
 
 def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(grid, catalogue):
+    """Without the interaction, the scenes' tracks are the catalogue behaviour's, cut at
+    the horizon, with every mover's collisions resolved by the AR-builder's rule
+    (DECISIONS 9) on open ground (the routes keep to free cells)."""
     idata = _idata()
     scenes = scenes_from_fit(
         11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False
@@ -74,7 +78,22 @@ def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(grid, catalo
     classes = np.concatenate(
         [Scene.from_scenarios(art[art["scenario"] == k], catalogue).classes for k in range(2)]
     )
-    want = behaviour_tracks(jax.random.key(11), art, classes, grid, catalogue, horizon=HORIZON)
+    plan = behaviour_tracks(jax.random.key(11), art, classes, grid, catalogue, horizon=HORIZON)
+    ground = OccupancyGrid(np.zeros((160, 160), np.int8), 0.5, (-40.0, -40.0, 0.0))
+    builder = ARBuilder(ground)
+    want, waited = [], 0
+    for k in range(2):
+        planned = Scene.from_scenarios(
+            art[art["scenario"] == k], catalogue, plan[plan["scenario"] == k]
+        )
+        moving = np.array(
+            [np.ptp(planned.track(i)[1][:, :2], axis=0).max(initial=0.0) > 1e-9
+             for i in range(len(planned))]
+        )  # fmt: skip
+        resolved = builder.resolve_scene(planned, moving, others=~moving)
+        waited += len({r.artefact for r in builder.log})
+        want.append(resolved.tracks_table().assign(scenario=k))
+    want = pd.concat(want, ignore_index=True)
     got = pd.concat(
         [s.tracks_table().assign(scenario=k) for k, s in enumerate(scenes)], ignore_index=True
     )
@@ -83,6 +102,7 @@ def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(grid, catalo
     np.testing.assert_allclose(got[["t", "x", "y"]], want[["t", "x", "y"]])
     assert got["t"].max() <= HORIZON + 2.0  # the last epoch of dt = 2 s
     assert any(s.has_tracks.any() for s in scenes)
+    assert waited > 0  # some movers did meet
 
 
 def test_one_posterior_draw_for_every_scene(grid, catalogue):
@@ -124,27 +144,49 @@ def test_with_tracks_and_tracks_table_round_trip(grid, catalogue):
     pd.testing.assert_frame_equal(again.artefacts, scene.artefacts)
 
 
+def _off_route(xy: np.ndarray, route: np.ndarray) -> float:
+    """Largest distance (m) from the points ``xy`` (n, 2) to the polyline ``route`` (m, 2)."""
+    if len(route) < 2:
+        return float(np.hypot(*(xy - route[0]).T).max(initial=0.0))
+    a, b = route[:-1], route[1:]
+    ab = b - a
+    f = ((xy[:, None, :] - a[None]) * ab[None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-18)
+    near = a[None] + np.clip(f, 0.0, 1.0)[..., None] * ab[None]
+    return float(np.hypot(*(xy[:, None, :] - near).transpose(2, 0, 1)).min(axis=1).max())
+
+
 def test_the_interaction_walks_pedestrians_again_and_keeps_vehicles_on_their_plan(grid, catalogue):
+    """Against the catalogue behaviour's plans: people keep their life-cycles (the same
+    rows) and are walked again (off their plans, on free cells); cars, carts and pallets
+    keep to their planned routes (the AR-builder may only make them wait on them)."""
     idata = _idata()
-    planned = scenes_from_fit(
-        11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False
+    art = generate_scenarios(11, posterior_draws(idata), 2, HORIZON, free_mask=grid)
+    classes = np.concatenate(
+        [Scene.from_scenarios(art[art["scenario"] == k], catalogue).classes for k in range(2)]
     )
+    plan = behaviour_tracks(jax.random.key(11), art, classes, grid, catalogue, horizon=HORIZON)
     walked = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
     moved_people = 0
-    for plan, scene in zip(planned, walked, strict=True):
-        a, b = plan.tracks_table(), scene.tracks_table()
-        pd.testing.assert_frame_equal(a[["id", "t"]], b[["id", "t"]])  # same life-cycles
-        np.testing.assert_array_equal(plan.classes, scene.classes)
+    for k, scene in enumerate(walked):
+        a = plan[plan["scenario"] == k].sort_values(["id", "t"]).reset_index(drop=True)
+        b = scene.tracks_table().sort_values(["id", "t"]).reset_index(drop=True)
         kinds = [catalogue.row(int(c)).features.get("kind") for c in scene.classes]
-        walker = dict(zip(scene.ids.tolist(), [k == "pedestrian" for k in kinds], strict=True))
-        is_walker = a["id"].map(walker).to_numpy(bool)
-        gap = np.hypot(a["x"] - b["x"], a["y"] - b["y"]).to_numpy()
-        assert gap[~is_walker].max(initial=0.0) < 1e-9  # cars, carts, pallets: as planned
-        moved_people += int((gap[is_walker] > 0.05).any())
-        # no walker steps onto a wall cell of the map (vehicles keep their coarse-grid plans,
-        # which the AR-builder's embedding tests resolve)
-        row, col = np.asarray(grid.world_to_cell(b[["x", "y"]].to_numpy())).T
-        assert grid.free[row[is_walker], col[is_walker]].all()
+        walker = dict(zip(scene.ids.tolist(), [kd == "pedestrian" for kd in kinds], strict=True))
+        wa, wb = a[a["id"].map(walker).astype(bool)], b[b["id"].map(walker).astype(bool)]
+        pd.testing.assert_frame_equal(
+            wa[["id", "t"]].reset_index(drop=True),
+            wb[["id", "t"]].reset_index(drop=True),
+            check_dtype=False,
+        )  # same life-cycles
+        gap = np.hypot(wa["x"].to_numpy() - wb["x"].to_numpy(), wa["y"].to_numpy() - wb["y"])
+        moved_people += int((gap > 0.05).any())
+        for i, g in b[~b["id"].map(walker).astype(bool)].groupby("id"):
+            route = a.loc[a["id"] == i, ["x", "y"]].to_numpy()
+            assert _off_route(g[["x", "y"]].to_numpy(), route) < 1e-6, i  # on its route
+            assert g["t"].iloc[-1] == a.loc[a["id"] == i, "t"].iloc[-1]  # its life-cycle
+        # no walker steps onto a wall cell of the map
+        row, col = np.asarray(grid.world_to_cell(wb[["x", "y"]].to_numpy())).T
+        assert grid.free[row, col].all()
     assert moved_people >= 1
 
 
@@ -211,3 +253,31 @@ def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue):
     scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False,
                     progress=lambda *c: calls.append(c))  # fmt: skip
     assert [c[:2] for c in calls] == [(1, 2), (2, 2)]
+
+
+def test_one_collision_story_recount():
+    """Issue 25: one collision story. The after-the-fact path separation is gone
+    (``separate_paths``, ``min_separation`` of the generators); the AR-builder's rule
+    (DECISIONS 9, ``ARBuilder.step``) resolves moving scenes through
+    ``ARBuilder.resolve_scene``, which the one assembly calls, and the MDP rollouts on their
+    cells (``builder_resolver``)."""
+    import re
+    from pathlib import Path
+
+    import are_stats
+    import are_stats.behaviour as behaviour
+
+    root = Path(are_stats.__file__).parent
+    src = {p.relative_to(root).as_posix(): p.read_text() for p in root.rglob("*.py")}
+
+    def users(pattern):
+        return sorted(k for k, t in src.items() if re.search(pattern, re.sub(r">>>.*", "", t)))
+
+    assert users(r"separate_paths") == []
+    assert not hasattr(behaviour, "separate_paths")
+    assert [k for k in users(r"min_separation") if k.startswith("behaviour/")] == []
+    assert users(r"\.resolve_scene\(") == ["scenarios/_assembly.py"]
+    assert users(r"builder\.step\(|self\.step\(") == [
+        "behaviour/_rollout.py",
+        "builder/_builder.py",
+    ]
