@@ -117,7 +117,15 @@ def behaviour_tracks(
     xy = art[["x", "y"]].to_numpy(float)
     col = np.clip(((xy[:, 0] - x0) // res).astype(int), 0, occ.shape[1] - 1)
     row = np.clip(((xy[:, 1] - y0) // res).astype(int), 0, occ.shape[0] - 1)
-    _, (ri, ci) = ndimage.distance_transform_edt(occ, return_indices=True)
+    # starts snap to the nearest coarse cell that is free and whose centre lies on a free
+    # map cell: a majority-free coarse cell can have a wall at its centre, and the social
+    # force never walks out of a wall (a group placed there stood its whole stay)
+    f = max(1, int(round(res / grid.resolution)))
+    centre = grid.free[
+        np.ix_(np.arange(occ.shape[0]) * f + f // 2, np.arange(occ.shape[1]) * f + f // 2)
+    ]
+    start_ok = ~occ & centre if (~occ & centre).any() else ~occ
+    _, (ri, ci) = ndimage.distance_transform_edt(~start_ok, return_indices=True)
     row, col = ri[row, col], ci[row, col]
     t_leave = art["t_leave"].to_numpy(float)
     if horizon is not None:

@@ -270,3 +270,22 @@ def test_fitted_walkers_cross_an_open_room_straight_at_their_own_speed() -> None
     assert abs(np.median(speeds) / 1.2 - 1) < 0.1
     sd = 0.96 * 0.12
     assert abs(lv.std(ddof=1) - sd) < K_SIGMA * sd / np.sqrt(2 * (n - 1)), lv.std(ddof=1)
+
+
+def test_starts_snap_to_coarse_cells_whose_centre_is_free() -> None:
+    """A coarse behaviour cell that is mostly free can have a wall at its centre; an artefact
+    placed there starts at the nearest coarse cell whose centre is a free map cell (the
+    social force never walks out of a wall, so such a start stood its whole stay)."""
+    data = np.zeros((60, 60))  # 6 x 6 m at 0.1 m: coarse cells of 1 m hold 10 x 10 map cells
+    data[13:18, 13:18] = 100.0  # a pillar at the centre of coarse cell (1, 1): 25 of 100
+    grid = OccupancyGrid(data, 0.1)
+    cat = load_catalogue()
+    person = [c.label for c in cat.classes].index("person")
+    arts = pd.DataFrame({
+        "scenario": 0, "artefact": [0], "mark": [0], "t_arrive": [0.0], "t_leave": [60.0],
+        "x": [1.5], "y": [1.5], "yaw": [0.0],
+    })  # fmt: skip
+    tracks = behaviour_tracks(jax.random.key(0), arts, np.array([person]), grid, cat, cell=1.0)
+    x0, y0 = tracks[["x", "y"]].to_numpy()[0]
+    assert grid.free[int(y0 // 0.1), int(x0 // 0.1)]
+    assert np.hypot(x0 - 1.5, y0 - 1.5) == pytest.approx(1.0)  # a neighbouring cell's centre
