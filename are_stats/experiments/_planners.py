@@ -178,52 +178,61 @@ def astar_cells(
     when the goal cannot be reached.
     """
     h, w = free.shape
-    fr = free.ravel()
-    n = h * w
-    si, gi = start[0] * w + start[1], goal[0] * w + goal[1]
     gr, gc = goal
-    cost = np.full(n, np.inf)
-    parent = np.full(n, -1, dtype=np.int64)
-    closed = np.zeros(n, bool)
-    cost[si] = 0.0
     sq2 = math.sqrt(2.0)
     c2 = sq2 - 2.0
-
-    def heur(r: int, c: int) -> float:
-        dr, dc = abs(r - gr), abs(c - gc)
-        return dr + dc + c2 * min(dr, dc)
-
-    heap = [(heur(*start), 0.0, si)]
-    moves = [(dr, dc, sq2 if dr and dc else 1.0) for dr, dc in _MOVES]
+    # the octile heuristic of every cell, dr + dc + (sqrt 2 - 2) min(dr, dc), and the grid
+    # padded by a blocked ring (no bounds tests), as Python lists: NumPy scalar indexing
+    # costs more than the search itself (same floats, so the same path, ties included)
+    dr = np.abs(np.arange(h) - gr)[:, None]
+    dc = np.abs(np.arange(w) - gc)[None, :]
+    hp = np.zeros((h + 2, w + 2))
+    hp[1:-1, 1:-1] = (dr + dc) + c2 * np.minimum(dr, dc)
+    heur = hp.ravel().tolist()
+    fp = np.zeros((h + 2, w + 2), bool)
+    fp[1:-1, 1:-1] = free
+    fr = fp.ravel().tolist()
+    wp = w + 2
+    sp, gp = (start[0] + 1) * wp + start[1] + 1, (goal[0] + 1) * wp + goal[1] + 1
+    inf = math.inf
+    cost = [inf] * len(fr)
+    parent = [-1] * len(fr)
+    closed = bytearray(len(fr))
+    cost[sp] = 0.0
+    heap = [(heur[sp], 0.0, sp)]
+    # (offset, step, the two orthogonal neighbours a diagonal needs free, or -1 for none),
+    # in the order of _MOVES (the order ties are pushed in)
+    moves = [
+        (dr_ * wp + dc_, sq2 if dr_ and dc_ else 1.0, dr_ * wp if dr_ and dc_ else 0,
+         dc_ if dr_ and dc_ else 0)
+        for dr_, dc_ in _MOVES
+    ]  # fmt: skip
+    pop, push = heapq.heappop, heapq.heappush
     while heap:
-        _, g_cost, u = heapq.heappop(heap)
+        _, g_cost, u = pop(heap)
         if closed[u]:
             continue
-        if u == gi:
+        if u == gp:
             break
-        closed[u] = True
-        r, c = divmod(u, w)
-        for dr, dc, step in moves:
-            rr, cc = r + dr, c + dc
-            if rr < 0 or rr >= h or cc < 0 or cc >= w:
-                continue
-            v = rr * w + cc
+        closed[u] = 1
+        for off, step, a, b in moves:
+            v = u + off
             if not fr[v] or closed[v]:
                 continue
-            if dr and dc and not (fr[r * w + cc] and fr[rr * w + c]):
+            if a and not (fr[u + b] and fr[u + a]):
                 continue
             nc = g_cost + step
             if nc < cost[v]:
                 cost[v] = nc
                 parent[v] = u
-                heapq.heappush(heap, (nc + heur(rr, cc), nc, v))
-    if not np.isfinite(cost[gi]):
+                push(heap, (nc + heur[v], nc, v))
+    if cost[gp] == inf:
         return None
-    out = [gi]
-    while out[-1] != si:
-        out.append(int(parent[out[-1]]))
+    out = [gp]
+    while out[-1] != sp:
+        out.append(parent[out[-1]])
     idx = np.array(out[::-1])
-    return np.stack(np.divmod(idx, w), axis=1)
+    return np.stack(np.divmod(idx, wp), axis=1) - 1
 
 
 class OMPLPlanner:
