@@ -306,10 +306,11 @@ def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
     }
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(8))
 def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
-    """The planner's free cells (map distances once, artefact distances in a window) equal
-    the definition on the whole augmented grid."""
+    """The planner's free cells (the map's clearance once, the artefact cells' by the
+    offsets around their set's edge) equal the definition on the whole augmented grid:
+    one Euclidean distance transform, thresholded."""
     from types import SimpleNamespace
 
     from scipy import ndimage
@@ -325,9 +326,15 @@ def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
     for _ in range(int(rng.integers(0, 4))):  # a few artefact boxes
         r, c = rng.integers(0, h - 5), rng.integers(0, w - 5)
         occ[r : r + 4, c : c + 3] = True
-    robot = Robot(radius=0.3)
-    dist0 = ndimage.distance_transform_edt(~static) * res
-    m = SimpleNamespace(grid=grid, robot=robot, static_occ=static, static_dist=dist0)
+    # and blobs of any shape (holes, notches), some on the map's border
+    blobs = ndimage.binary_opening(rng.random((h, w)) < 0.6) & (rng.random((h, w)) < 0.97)
+    occ |= blobs & (np.add.outer(np.arange(h), np.arange(w)) % 40 < 6 + seed)
+    robot = Robot(radius=0.15 + 0.05 * seed)
+    static_occ, static_clear, offsets = loop._static_clearance(grid, robot.radius)
+    m = SimpleNamespace(
+        grid=grid, robot=robot, static_occ=static_occ, static_clear=static_clear,
+        clear_offsets=offsets,
+    )  # fmt: skip
     pose = np.r_[grid.cell_to_world(np.array([[22, 30]]))[0], 0.0]  # on the wall's edge
     got = loop._free_cells(m, occ, pose)
     dist = ndimage.distance_transform_edt(~occ) * res
@@ -335,6 +342,7 @@ def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
     ij = np.indices(occ.shape).reshape(2, -1).T
     near = np.linalg.norm(grid.cell_to_world(ij) - pose[:2], axis=1).reshape(occ.shape)
     want |= (near <= robot.radius + res) & ~occ
+    assert (occ & ~static).sum() > 50 and want.sum() > 100
     np.testing.assert_array_equal(got, want)
 
 
