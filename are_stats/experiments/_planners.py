@@ -178,36 +178,34 @@ def astar_cells(
     when the goal cannot be reached.
     """
     h, w = free.shape
-    gr, gc = goal
     sq2 = math.sqrt(2.0)
     c2 = sq2 - 2.0
-    # the octile heuristic of every cell, dr + dc + (sqrt 2 - 2) min(dr, dc), and the grid
-    # padded by a blocked ring (no bounds tests), as Python lists: NumPy scalar indexing
-    # costs more than the search itself (same floats, so the same path, ties included)
-    dr = np.abs(np.arange(h) - gr)[:, None]
-    dc = np.abs(np.arange(w) - gc)[None, :]
-    hp = np.zeros((h + 2, w + 2))
-    hp[1:-1, 1:-1] = (dr + dc) + c2 * np.minimum(dr, dc)
-    heur = hp.ravel().tolist()
+    # the grid padded by a blocked ring (no bounds tests), as bytes; costs and parents in
+    # dicts of the cells reached: NumPy scalar indexing costs more than the search itself,
+    # and whole-grid lists more than a short search. The same pops and pushes in the same
+    # order as on the (H, W) grid (padded indices keep the cells' order), so the same path,
+    # ties included
     fp = np.zeros((h + 2, w + 2), bool)
     fp[1:-1, 1:-1] = free
-    fr = fp.ravel().tolist()
+    fr = fp.tobytes()
     wp = w + 2
     sp, gp = (start[0] + 1) * wp + start[1] + 1, (goal[0] + 1) * wp + goal[1] + 1
+    gr, gc = goal[0] + 1, goal[1] + 1
+    # octile distance to the goal, dr + dc + (sqrt 2 - 2) min(dr, dc)
+    ar, ac = abs(start[0] + 1 - gr), abs(start[1] + 1 - gc)
+    heap = [(ar + ac + c2 * min(ar, ac), 0.0, sp)]
     inf = math.inf
-    cost = [inf] * len(fr)
-    parent = [-1] * len(fr)
+    cost = {sp: 0.0}
+    parent: dict[int, int] = {}
     closed = bytearray(len(fr))
-    cost[sp] = 0.0
-    heap = [(heur[sp], 0.0, sp)]
-    # (offset, step, the two orthogonal neighbours a diagonal needs free, or -1 for none),
-    # in the order of _MOVES (the order ties are pushed in)
+    # (offset, step, the two orthogonal neighbours a diagonal needs free, dr, dc) in the
+    # order of _MOVES (the order ties are pushed in)
     moves = [
-        (dr_ * wp + dc_, sq2 if dr_ and dc_ else 1.0, dr_ * wp if dr_ and dc_ else 0,
-         dc_ if dr_ and dc_ else 0)
-        for dr_, dc_ in _MOVES
+        (dr * wp + dc, sq2 if dr and dc else 1.0, dr * wp if dr and dc else 0,
+         dc if dr and dc else 0, dr, dc)
+        for dr, dc in _MOVES
     ]  # fmt: skip
-    pop, push = heapq.heappop, heapq.heappush
+    pop, push, get = heapq.heappop, heapq.heappush, cost.get
     while heap:
         _, g_cost, u = pop(heap)
         if closed[u]:
@@ -215,18 +213,20 @@ def astar_cells(
         if u == gp:
             break
         closed[u] = 1
-        for off, step, a, b in moves:
+        r, c = divmod(u, wp)
+        for off, step, a, b, dr, dc in moves:
             v = u + off
             if not fr[v] or closed[v]:
                 continue
             if a and not (fr[u + b] and fr[u + a]):
                 continue
             nc = g_cost + step
-            if nc < cost[v]:
+            if nc < get(v, inf):
                 cost[v] = nc
                 parent[v] = u
-                push(heap, (nc + heur[v], nc, v))
-    if cost[gp] == inf:
+                ar, ac = abs(r + dr - gr), abs(c + dc - gc)
+                push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
+    if gp not in cost:
         return None
     out = [gp]
     while out[-1] != sp:
