@@ -267,7 +267,8 @@ def test_contacts_are_blamed_on_whoever_closed_the_gap():
 
 def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
     """The loop perceives the camera ticks ahead in one batch, at the poses the robot will
-    have along its plan; the mission is the same as perceiving every tick on its own."""
+    have along its plan, up to the next scene event; the mission is the same as
+    perceiving every tick on its own."""
     import trimesh
 
     import are_stats.experiments._loop as loop
@@ -290,7 +291,20 @@ def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
         perception_period=0.1,
     )  # fmt: skip
     goals = [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0]]
+    percept, crossed, sizes = loop._camera_percept, [], []
+
+    def watch(m, s, tick):  # a batch ends before the next scene event
+        now, out = percept(m, s, tick)
+        if out.percepts is not s.percepts:
+            t_event = s.events.t[s.event] if s.event < s.events.t.size else m.T
+            crossed.extend(t for t in out.percepts if t >= t_event)
+            sizes.append(len(out.percepts))
+        return now, out
+
+    monkeypatch.setattr(loop, "_camera_percept", watch)
     batched = run_mission(GRID, _scene(art, tr), goals, "astar", **kw)
+    assert not crossed and max(sizes) > 5
+    monkeypatch.setattr(loop, "_camera_percept", percept)
     monkeypatch.setattr(loop, "_PERCEPT_BATCH", 1)
     single = run_mission(GRID, _scene(art, tr), goals, "astar", **kw)
     assert batched.summary["n_updates"] > 10 and (batched.timeline["kind"] == "perceived").any()
