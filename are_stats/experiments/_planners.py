@@ -354,9 +354,13 @@ class OMPLPlanner:
         setup = og.SimpleSetup(space)
         inv = 1.0 / res
 
+        # OMPL calls this a million times in a minute of mission: a lookup in bytes, not
+        # NumPy's scalar indexing (the same cells, so the same plans)
+        cells = free.tobytes()
+
         def valid(state: Any) -> bool:
             j, i = int(state[0] * inv), int(state[1] * inv)
-            return 0 <= i < h and 0 <= j < w and bool(free[i, j])
+            return 0 <= i < h and 0 <= j < w and cells[i * w + j] == 1
 
         setup.setStateValidityChecker(valid)
         si = setup.getSpaceInformation()
