@@ -39,6 +39,23 @@
    missions. Avoidance had been half of it (its event table rebuilt through pandas after
    every detour or wait), then perception, OMPL's Python validity checks and the planning
    grids. The one-hour run did not finish in the time the shared cores gave it.
+   Since (2026-11-27, later; load 7-13, CPU time, main and this branch alternated on the
+   same seeded scenes, every mission identical to main's: timelines, replans but rho_t,
+   goals, summaries, traces): the planner's free cells by offsets around the artefact
+   cells' edge instead of a distance transform, grid A* on bytes and dicts, camera
+   batches up to the next scene event (8658 -> 3429 frames for 3100 ticks), a vectorised
+   distance bound before each avoidance decision (2514 -> 239 decisions sampled), the
+   detour's string-pulling in one pass, detour trials without a new Scene. 5 minutes:
+   A* with every artefact perceived 9.4 -> 5.8 s (32x -> 52x), RRT-Connect with the camera
+   11.9 -> 10.4 s (25x -> 29x; the robot stands, plans failing, and 475 yields to it each
+   try a detour first). The hour, now printed for both (the scene built once, 636
+   walkers, its tracks 169 s of CPU): A* 244 -> 214 s (14.7x -> 16.8x), of which
+   avoidance 183 -> 171 s: over an hour each avoidance rebuilds the tracks and the events
+   of all 636 artefacts (Scene.with_track, _event_table) and detours run one at a time;
+   this is what is left to reach 20x. The first 600 s of that hour, after the detour
+   trials stopped building a Scene each: A* 25.2 -> 18.5 s (23.8x -> 32.4x), avoidance
+   16.2 -> 11.6 s (profiled: the plan's and the detours' A* searches, the detours, then
+   the rebuilt scene and events after each avoidance, about 3 s each).
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
