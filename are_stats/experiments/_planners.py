@@ -178,52 +178,61 @@ def astar_cells(
     when the goal cannot be reached.
     """
     h, w = free.shape
-    fr = free.ravel()
-    n = h * w
-    si, gi = start[0] * w + start[1], goal[0] * w + goal[1]
-    gr, gc = goal
-    cost = np.full(n, np.inf)
-    parent = np.full(n, -1, dtype=np.int64)
-    closed = np.zeros(n, bool)
-    cost[si] = 0.0
     sq2 = math.sqrt(2.0)
     c2 = sq2 - 2.0
-
-    def heur(r: int, c: int) -> float:
-        dr, dc = abs(r - gr), abs(c - gc)
-        return dr + dc + c2 * min(dr, dc)
-
-    heap = [(heur(*start), 0.0, si)]
-    moves = [(dr, dc, sq2 if dr and dc else 1.0) for dr, dc in _MOVES]
+    # the grid padded by a blocked ring (no bounds tests), as bytes; costs and parents in
+    # dicts of the cells reached: NumPy scalar indexing costs more than the search itself,
+    # and whole-grid lists more than a short search. The same pops and pushes in the same
+    # order as on the (H, W) grid (padded indices keep the cells' order), so the same path,
+    # ties included
+    fp = np.zeros((h + 2, w + 2), bool)
+    fp[1:-1, 1:-1] = free
+    fr = fp.tobytes()
+    wp = w + 2
+    sp, gp = (start[0] + 1) * wp + start[1] + 1, (goal[0] + 1) * wp + goal[1] + 1
+    gr, gc = goal[0] + 1, goal[1] + 1
+    # octile distance to the goal, dr + dc + (sqrt 2 - 2) min(dr, dc)
+    ar, ac = abs(start[0] + 1 - gr), abs(start[1] + 1 - gc)
+    heap = [(ar + ac + c2 * min(ar, ac), 0.0, sp)]
+    inf = math.inf
+    cost = {sp: 0.0}
+    parent: dict[int, int] = {}
+    closed = bytearray(len(fr))
+    # (offset, step, the two orthogonal neighbours a diagonal needs free, dr, dc) in the
+    # order of _MOVES (the order ties are pushed in)
+    moves = [
+        (dr * wp + dc, sq2 if dr and dc else 1.0, dr * wp if dr and dc else 0,
+         dc if dr and dc else 0, dr, dc)
+        for dr, dc in _MOVES
+    ]  # fmt: skip
+    pop, push, get = heapq.heappop, heapq.heappush, cost.get
     while heap:
-        _, g_cost, u = heapq.heappop(heap)
+        _, g_cost, u = pop(heap)
         if closed[u]:
             continue
-        if u == gi:
+        if u == gp:
             break
-        closed[u] = True
-        r, c = divmod(u, w)
-        for dr, dc, step in moves:
-            rr, cc = r + dr, c + dc
-            if rr < 0 or rr >= h or cc < 0 or cc >= w:
-                continue
-            v = rr * w + cc
+        closed[u] = 1
+        r, c = divmod(u, wp)
+        for off, step, a, b, dr, dc in moves:
+            v = u + off
             if not fr[v] or closed[v]:
                 continue
-            if dr and dc and not (fr[r * w + cc] and fr[rr * w + c]):
+            if a and not (fr[u + b] and fr[u + a]):
                 continue
             nc = g_cost + step
-            if nc < cost[v]:
+            if nc < get(v, inf):
                 cost[v] = nc
                 parent[v] = u
-                heapq.heappush(heap, (nc + heur(rr, cc), nc, v))
-    if not np.isfinite(cost[gi]):
+                ar, ac = abs(r + dr - gr), abs(c + dc - gc)
+                push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
+    if gp not in cost:
         return None
-    out = [gi]
-    while out[-1] != si:
-        out.append(int(parent[out[-1]]))
+    out = [gp]
+    while out[-1] != sp:
+        out.append(parent[out[-1]])
     idx = np.array(out[::-1])
-    return np.stack(np.divmod(idx, w), axis=1)
+    return np.stack(np.divmod(idx, wp), axis=1) - 1
 
 
 class OMPLPlanner:
@@ -345,9 +354,13 @@ class OMPLPlanner:
         setup = og.SimpleSetup(space)
         inv = 1.0 / res
 
+        # OMPL calls this a million times in a minute of mission: a lookup in bytes, not
+        # NumPy's scalar indexing (the same cells, so the same plans)
+        cells = free.tobytes()
+
         def valid(state: Any) -> bool:
             j, i = int(state[0] * inv), int(state[1] * inv)
-            return 0 <= i < h and 0 <= j < w and bool(free[i, j])
+            return 0 <= i < h and 0 <= j < w and cells[i * w + j] == 1
 
         setup.setStateValidityChecker(valid)
         si = setup.getSpaceInformation()

@@ -438,3 +438,54 @@ def test_plan_avoidance_between_epochs_in_the_cell_of_its_next_epoch(monkeypatch
         p = new.poses(u, [0])[0]
         robot = rxy[0] + (rxy[1] - rxy[0]) * (u - now) / 2.0
         assert np.linalg.norm(_box_points(p[:2], p[2]) - robot, axis=1).min() >= 0.5 - 0.0625
+
+
+def test_within_reach_drops_only_artefacts_that_would_not_avoid():
+    """The loop's vectorised distance bound (_loop._within_reach) drops an artefact only
+    when plan_avoidance, which samples its motion, finds nothing to do: walkers zig-zagging
+    at up to 1.5 m/s around a robot standing or driving."""
+    from types import SimpleNamespace
+
+    import are_stats.experiments._loop as loop
+
+    rng = np.random.default_rng(7)
+    rows, tracks = [], []
+    for i in range(40):
+        t = np.arange(0.0, 30.0)
+        step = rng.normal(0.0, 1.0, (t.size, 2))
+        step *= rng.uniform(0.2, 1.5, (t.size, 1)) / np.linalg.norm(step, axis=1, keepdims=True)
+        xy = np.clip(rng.uniform(7.0, 13.0, 2) + np.cumsum(step, axis=0), 1.0, 19.0)
+        yaw = np.r_[np.arctan2(*np.diff(xy, axis=0)[:, ::-1].T), 0.0]
+        rows.append([0.0, 60.0, xy[0, 0], xy[0, 1], yaw[0], 0])
+        tracks.append(pd.DataFrame({"id": i, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": yaw}))
+    scene = _scene(pd.concat(tracks, ignore_index=True), pd.DataFrame(rows, columns=COLS))
+    m = SimpleNamespace(
+        clearance=0.5, art_speed=loop._track_speeds(scene),
+        art_radius=np.hypot(*scene.offsets[:, :2].T) + np.hypot(*scene.half_extents[:, :2].T),
+    )  # fmt: skip
+    wall = OPEN.distance_to_occupied()
+    dropped = kept_avoiding = 0
+    for k in range(40):
+        t = float(rng.uniform(0.0, 27.0))
+        pose = np.r_[rng.uniform(8.0, 12.0, 2), 0.0]
+        track = None
+        if k % 2:  # driving at 0.5 m/s through two waypoints
+            way = np.vstack([pose[:2], pose[:2] + rng.normal(0.0, 2.0, (2, 2))])
+            arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))]
+            track = (t + arc / 0.5, way)
+        s = SimpleNamespace(t=t, pose=pose, scene=scene)
+        cand = np.arange(len(scene))
+        t_check = scene.next_epoch(t, cand)
+        got, _ = loop._within_reach(m, s, cand, t_check, track)
+        assert np.all(np.diff(got) > 0)  # the order is kept
+        for i in cand:
+            answer = plan_avoidance(
+                scene, int(i), t, float(t_check[i]), pose[:2], m.clearance, OPEN, wall,
+                robot_track=track,
+            )  # fmt: skip
+            if i not in got:
+                dropped += 1
+                assert answer is None, (k, i)
+            elif answer is not None:
+                kept_avoiding += 1
+    assert dropped > 500 and kept_avoiding > 5

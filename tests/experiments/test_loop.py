@@ -267,7 +267,8 @@ def test_contacts_are_blamed_on_whoever_closed_the_gap():
 
 def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
     """The loop perceives the camera ticks ahead in one batch, at the poses the robot will
-    have along its plan; the mission is the same as perceiving every tick on its own."""
+    have along its plan, up to the next scene event; the mission is the same as
+    perceiving every tick on its own."""
     import trimesh
 
     import are_stats.experiments._loop as loop
@@ -290,7 +291,20 @@ def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
         perception_period=0.1,
     )  # fmt: skip
     goals = [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0]]
+    percept, crossed, sizes = loop._camera_percept, [], []
+
+    def watch(m, s, tick):  # a batch ends before the next scene event
+        now, out = percept(m, s, tick)
+        if out.percepts is not s.percepts:
+            t_event = s.events.t[s.event] if s.event < s.events.t.size else m.T
+            crossed.extend(t for t in out.percepts if t >= t_event)
+            sizes.append(len(out.percepts))
+        return now, out
+
+    monkeypatch.setattr(loop, "_camera_percept", watch)
     batched = run_mission(GRID, _scene(art, tr), goals, "astar", **kw)
+    assert not crossed and max(sizes) > 5
+    monkeypatch.setattr(loop, "_camera_percept", percept)
     monkeypatch.setattr(loop, "_PERCEPT_BATCH", 1)
     single = run_mission(GRID, _scene(art, tr), goals, "astar", **kw)
     assert batched.summary["n_updates"] > 10 and (batched.timeline["kind"] == "perceived").any()
@@ -306,10 +320,11 @@ def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
     }
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(8))
 def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
-    """The planner's free cells (map distances once, artefact distances in a window) equal
-    the definition on the whole augmented grid."""
+    """The planner's free cells (the map's clearance once, the artefact cells' by the
+    offsets around their set's edge) equal the definition on the whole augmented grid:
+    one Euclidean distance transform, thresholded."""
     from types import SimpleNamespace
 
     from scipy import ndimage
@@ -325,9 +340,15 @@ def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
     for _ in range(int(rng.integers(0, 4))):  # a few artefact boxes
         r, c = rng.integers(0, h - 5), rng.integers(0, w - 5)
         occ[r : r + 4, c : c + 3] = True
-    robot = Robot(radius=0.3)
-    dist0 = ndimage.distance_transform_edt(~static) * res
-    m = SimpleNamespace(grid=grid, robot=robot, static_occ=static, static_dist=dist0)
+    # and blobs of any shape (holes, notches), some on the map's border
+    blobs = ndimage.binary_opening(rng.random((h, w)) < 0.6) & (rng.random((h, w)) < 0.97)
+    occ |= blobs & (np.add.outer(np.arange(h), np.arange(w)) % 40 < 6 + seed)
+    robot = Robot(radius=0.15 + 0.05 * seed)
+    static_occ, static_clear, offsets = loop._static_clearance(grid, robot.radius)
+    m = SimpleNamespace(
+        grid=grid, robot=robot, static_occ=static_occ, static_clear=static_clear,
+        clear_offsets=offsets,
+    )  # fmt: skip
     pose = np.r_[grid.cell_to_world(np.array([[22, 30]]))[0], 0.0]  # on the wall's edge
     got = loop._free_cells(m, occ, pose)
     dist = ndimage.distance_transform_edt(~occ) * res
@@ -335,6 +356,7 @@ def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
     ij = np.indices(occ.shape).reshape(2, -1).T
     near = np.linalg.norm(grid.cell_to_world(ij) - pose[:2], axis=1).reshape(occ.shape)
     want |= (near <= robot.radius + res) & ~occ
+    assert (occ & ~static).sum() > 50 and want.sum() > 100
     np.testing.assert_array_equal(got, want)
 
 
