@@ -50,6 +50,12 @@ again at load 7-9: 14.0 s vs 35.8 s, wall 32 vs 69 s),
 XLA compilations in the cold run 38 vs 49 (9 vs 13 ahead-of-time programs), the same
 choices. The script now also counts the XLA compilations and prints how the chosen
 posteriors were drawn.
+
+The tracks part's command, timed by ``/usr/bin/time`` (2026-11-27, main 4b99766 and the
+lockstep string pulling side by side at load 8-13): cold CPU 345 s vs 337 s, 31 min wall
+each, the same choices and motion checks; of the 50 motion-check replicates' 150 s of CPU,
+``separate_paths`` takes 110 s (the docs' "Choosing the traffic models" page has the
+breakdown). Issue 29's 60 s is far off.
 """
 
 from __future__ import annotations
