@@ -74,6 +74,7 @@ __all__ += ["BehaviourFit", "grid_geodesic"]
 
 from are_stats.behaviour._generate import (  # noqa: E402
     continuous_path,
+    continuous_paths,
     path_points,
     sample_soft_paths,
     simulate_behaviour_tracks,
@@ -82,6 +83,7 @@ from are_stats.behaviour._generate import (  # noqa: E402
 
 __all__ += [
     "continuous_path",
+    "continuous_paths",
     "path_points",
     "sample_soft_paths",
     "simulate_behaviour_tracks",
@@ -92,10 +94,11 @@ from are_stats.behaviour._motion import (  # noqa: E402
     line_of_sight,
     preferred_speeds,
     string_pull,
+    string_pull_many,
     walk_times,
 )
 
-__all__ += ["line_of_sight", "preferred_speeds", "string_pull", "walk_times"]
+__all__ += ["line_of_sight", "preferred_speeds", "string_pull", "string_pull_many", "walk_times"]
 
 from are_stats.behaviour._walk import walk_tracks  # noqa: E402
 

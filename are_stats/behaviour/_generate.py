@@ -32,21 +32,24 @@ with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import jax
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_positive
 from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
-from are_stats.behaviour._motion import string_pull, walk_times
+from are_stats.behaviour._motion import string_pull_many, walk_times
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._soft import soft_policy
 
 __all__ = [
     "continuous_path",
+    "continuous_paths",
     "path_points",
     "sample_soft_paths",
     "simulate_behaviour_tracks",
@@ -171,7 +174,8 @@ def continuous_path(
     wherever the walker sees far enough, so an open crossing is one segment), walked at
     ``speed`` with the within-person variation ``within_sd``
     (:func:`~are_stats.behaviour.walk_times`): the MDP decides the route, not the timing,
-    so its stays and blocked moves are not pauses.
+    so its stays and blocked moves are not pauses. :func:`continuous_paths` does the same
+    for many artefacts at once.
 
     With ``smooth > 1`` the path of the grid version is returned instead: each move goes to
     the centre of the next cell, a pause (stay, or a blocked move) holds for one epoch, and
@@ -207,24 +211,111 @@ def continuous_path(
     xy : (m, 2) float
         Vertex positions (m).
     """
-    if int(smooth) <= 1:
-        done = np.flatnonzero(np.asarray(actions) < 0)
-        n_act = int(done[0]) if done.size else len(actions)
-        cells = states[: n_act + 1, :2]
-        pts = np.concatenate([np.asarray(start_xy, float)[None, :], fit.cell_to_world(cells[1:])])
-        if end_xy is not None and len(pts) > 1:
-            pts[-1] = end_xy
-        free = np.asarray(fit.free, bool)
-        if np.any(np.asarray(fit.weights) != 0.0):
-            # fitted cell rewards make cells unequal: shortcuts stay within one cell of
-            # the route (the cells it chose), so the learned preferences shape the path
-            from scipy import ndimage
+    return continuous_paths(
+        [(states, actions)], fit, [speed], np.reshape(np.asarray(start_xy, float), (1, 2)),
+        [end_xy], smooth, rng=rng, within_sd=within_sd,
+    )[0]  # fmt: skip
 
-            route = np.zeros(free.shape, bool)
-            route[cells[:, 0], cells[:, 1]] = True
-            free = free & ndimage.binary_dilation(route, np.ones((3, 3), bool))
-        path = string_pull(pts, free, (float(fit.origin[0]), float(fit.origin[1])), fit.cell)
-        return walk_times(path, speed, rng, within_sd), path
+
+def continuous_paths(
+    paths: Sequence[tuple[np.ndarray, np.ndarray]],
+    fit: BehaviourFit,
+    speeds: npt.ArrayLike,
+    starts: npt.ArrayLike,
+    ends: Sequence[np.ndarray | None] | None = None,
+    smooth: int = 0,
+    *,
+    rng: np.random.Generator | None = None,
+    within_sd: float = 0.0,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`continuous_path` of many artefacts, the same as one after another.
+
+    The any-angle paths are string-pulled together
+    (:func:`~are_stats.behaviour.string_pull_many`), then timed in order, so ``rng`` is
+    drawn from as by successive :func:`continuous_path` calls and the paths are the same.
+
+    Parameters
+    ----------
+    paths : sequence of ((T_i + 1, 3) int, (T_i,) int)
+        Each artefact's sampled states and actions (:func:`sample_soft_paths`).
+    fit : BehaviourFit
+        Grid of the states.
+    speeds : (P,) float
+        Walking speeds (m/s).
+    starts : (P, 2) float
+        World positions of the first vertices.
+    ends : sequence of (2,) float or None, optional
+        World positions of the last vertices (None: the last cell's centre).
+    smooth, rng, within_sd
+        As :func:`continuous_path`.
+
+    Returns
+    -------
+    list of ((m_i,) float, (m_i, 2) float)
+        Each artefact's vertex times (s, from 0) and positions (m).
+    """
+    speeds = np.asarray(speeds, float).reshape(-1)
+    starts = np.asarray(starts, float).reshape(-1, 2)
+    ends = [None] * len(paths) if ends is None else list(ends)
+    if not len(paths) == len(speeds) == len(starts) == len(ends):
+        raise ValueError(
+            f"paths, speeds, starts, ends: expected one each per artefact, got {len(paths)}, "
+            f"{len(speeds)}, {len(starts)}, {len(ends)}"
+        )
+    if int(smooth) > 1:
+        return [
+            _grid_path(st, ac, fit, float(v), p0, end, int(smooth))
+            for (st, ac), v, p0, end in zip(paths, speeds, starts, ends, strict=True)
+        ]
+    routes, cells = [], []
+    for (st, ac), p0, end in zip(paths, starts, ends, strict=True):
+        done = np.flatnonzero(np.asarray(ac) < 0)
+        n_act = int(done[0]) if done.size else len(ac)
+        c = np.asarray(st)[: n_act + 1, :2]
+        pts = np.concatenate([p0[None, :], fit.cell_to_world(c[1:])])
+        if end is not None and len(pts) > 1:
+            pts[-1] = end
+        routes.append(pts)
+        cells.append(c)
+    origin = (float(fit.origin[0]), float(fit.origin[1]))
+    free = np.asarray(fit.free, bool)
+    pulled: list[np.ndarray] = []
+    weighted = bool(np.any(np.asarray(fit.weights) != 0.0))
+    for b0 in range(0, len(routes), _ROUTE_BLOCK if weighted else max(len(routes), 1)):
+        block = slice(b0, b0 + (_ROUTE_BLOCK if weighted else len(routes)))
+        grids = _route_grids(free, cells[block]) if weighted else free
+        pulled += string_pull_many(routes[block], grids, origin, fit.cell)
+    return [
+        (walk_times(p, float(v), rng, within_sd), p) for p, v in zip(pulled, speeds, strict=True)
+    ]
+
+
+#: Routes whose own grids (:func:`_route_grids`) are made at once.
+_ROUTE_BLOCK = 256
+
+
+def _route_grids(free: np.ndarray, cells: Sequence[np.ndarray]) -> np.ndarray:
+    """``(P, H, W)``: fitted cell rewards make cells unequal, so shortcuts stay within one
+    cell of the route (the cells it chose) and the learned preferences shape the path."""
+    from scipy import ndimage  # as the rest of behaviour: scipy.ndimage when used
+
+    route = np.zeros((len(cells), *free.shape), bool)
+    for r, c in zip(route, cells, strict=True):
+        r[c[:, 0], c[:, 1]] = True
+    near = ndimage.binary_dilation(route, np.ones((1, 3, 3), bool))
+    return free[None] & near
+
+
+def _grid_path(
+    states: np.ndarray,
+    actions: np.ndarray,
+    fit: BehaviourFit,
+    speed: float,
+    start_xy: np.ndarray,
+    end_xy: np.ndarray | None,
+    smooth: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`continuous_path` with ``smooth > 1``: the smoothed grid path."""
     step = fit.cell / speed
     pts = [np.asarray(start_xy, float)]
     times = [0.0]
@@ -383,13 +474,24 @@ def simulate_behaviour_tracks(
             for j, m in enumerate(members):
                 paths[m] = (st[j], ac[j])
     curves: list[tuple[np.ndarray, np.ndarray]] = []
+    walking = [i for i in range(n) if paths[i] is not None]
+    walked = iter(
+        continuous_paths(
+            [paths[i] for i in walking],
+            fit,
+            speed[walking],
+            xy0[walking],
+            None,
+            smooth,
+            rng=rng,
+            within_sd=within_sd,
+        )  # fmt: skip
+    )
     for i in range(n):
         if paths[i] is None:
             curves.append((np.zeros(1), xy0[i][None, :].copy()))
             continue
-        tv, pv = continuous_path(
-            *paths[i], fit, float(speed[i]), xy0[i], None, smooth, rng=rng, within_sd=within_sd
-        )
+        tv, pv = next(walked)
         # people leave when they reach their exit: the person's speed, one for its whole
         # path, is the one that ends the path at t_leave, within the class's slow and fast
         # walkers (2 sd around the median speed); beyond them it reaches its exit early

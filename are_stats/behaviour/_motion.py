@@ -16,21 +16,33 @@ between decisions is continuous:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import jax
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_nonnegative, check_positive
 
-__all__ = ["line_of_sight", "preferred_speeds", "string_pull", "walk_times"]
+__all__ = [
+    "line_of_sight",
+    "preferred_speeds",
+    "string_pull",
+    "string_pull_many",
+    "walk_times",
+]
 
 
-def _crossed(free: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+def _crossed(
+    free: np.ndarray, p0: np.ndarray, p1: np.ndarray, grid: np.ndarray | None = None
+) -> np.ndarray:
     """Whether each segment ``p0[k] -> p1[k]`` (``(row, col)`` in cell units) crosses only
     free cells: the cells between successive crossings of grid lines, and both end cells.
 
-    ``p0, p1 : (m, 2)``; returns ``(m,)`` bool (exact, vectorised over the segments)."""
+    ``p0, p1 : (m, 2)``; ``free : (H, W)`` bool, or ``(G, H, W)`` with ``grid : (m,)`` int
+    naming each segment's grid; returns ``(m,)`` bool (exact, vectorised over the segments;
+    a segment's answer does not depend on the others it is tested with)."""
     p0 = np.atleast_2d(p0)
     p1 = np.atleast_2d(p1)
     d = p1 - p0
@@ -53,18 +65,29 @@ def _crossed(free: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     mid = np.where(valid, np.clip(mid, 0.0, 1.0), 0.0)
     mid[:, -1] = 1.0
     cells = np.floor(p0[:, None, :] + mid[..., None] * d[:, None, :]).astype(np.int64)
-    h, w = free.shape
+    h, w = free.shape[-2:]
     inside = (cells[..., 0] >= 0) & (cells[..., 0] < h) & (cells[..., 1] >= 0)
     inside &= cells[..., 1] < w
     ok = np.zeros(cells.shape[:2], bool)
-    ok[inside] = free[cells[..., 0][inside], cells[..., 1][inside]]
+    if grid is None:
+        ok[inside] = free[cells[..., 0][inside], cells[..., 1][inside]]
+    else:
+        g = np.broadcast_to(np.asarray(grid, np.int64)[:, None], inside.shape)
+        ok[inside] = free[g[inside], cells[..., 0][inside], cells[..., 1][inside]]
     return (ok | ~valid).all(axis=1) & (inside | ~valid).all(axis=1)
 
 
-def _sight(free: np.ndarray, p0: np.ndarray, p1: np.ndarray, clearance: float) -> np.ndarray:
-    """:func:`line_of_sight` from one point ``p0 (2,)`` to each of ``p1 (m, 2)``."""
+def _sight(
+    free: np.ndarray,
+    p0: np.ndarray,
+    p1: np.ndarray,
+    clearance: float,
+    grid: np.ndarray | None = None,
+) -> np.ndarray:
+    """:func:`line_of_sight` from ``p0 (2,)`` (or one ``(m, 2)`` per segment) to each of
+    ``p1 (m, 2)``; ``grid`` as in :func:`_crossed`."""
     p0 = np.broadcast_to(np.asarray(p0, float), np.shape(p1))
-    ok = _crossed(free, p0, p1)
+    ok = _crossed(free, p0, p1, grid)
     if clearance <= 0.0:
         return ok
     d = p1 - p0
@@ -72,7 +95,7 @@ def _sight(free: np.ndarray, p0: np.ndarray, p1: np.ndarray, clearance: float) -
     safe = np.where(length > 0, length, 1.0)
     n = np.column_stack([-d[:, 1], d[:, 0]]) / safe[:, None] * float(clearance)
     n[length == 0] = 0.0
-    return ok & _crossed(free, p0 + n, p1 + n) & _crossed(free, p0 - n, p1 - n)
+    return ok & _crossed(free, p0 + n, p1 + n, grid) & _crossed(free, p0 - n, p1 - n, grid)
 
 
 def line_of_sight(free: Any, p0: Any, p1: Any, clearance: float = 0.2) -> bool:
@@ -142,28 +165,119 @@ def string_pull(
     >>> string_pull(stairs, np.ones((4, 4), bool)).tolist()
     [[0.5, 0.5], [2.5, 2.5]]
     """
-    p = np.asarray(points, float).reshape(-1, 2)
-    if len(p) > 1:
-        p = p[np.concatenate([[True], (np.diff(p, axis=0) != 0).any(axis=1)])]
-    if len(p) < 3:
-        return p.copy()
+    return string_pull_many([points], free, origin, cell, clearance)[0]
+
+
+#: Route points tested for sight at once from an anchor (a window; the next one follows
+#: while all are seen).
+_AHEAD = 64
+#: Routes walked in lockstep at once (bounds the segments tested together to
+#: ``_BLOCK * _AHEAD``).
+_BLOCK = 256
+
+
+def string_pull_many(
+    routes: Sequence[npt.ArrayLike],
+    free: npt.ArrayLike,
+    origin: tuple[float, float] = (0.0, 0.0),
+    cell: float = 1.0,
+    clearance: float = 0.2,
+) -> list[np.ndarray]:
+    """:func:`string_pull` of many routes at once, each exactly as alone.
+
+    The routes are walked in lockstep, a block of them at a time: at every step each
+    unfinished route tests the next window of its points for sight from its current
+    vertex, and the segments of all of them go through one vectorised test, so the
+    Python work is per step, not per route and vertex. A segment's test does not depend
+    on the others tested with it, so the kept vertices are those of :func:`string_pull`.
+
+    Parameters
+    ----------
+    routes : sequence of (n_i, 2) float
+        The routes in world coordinates ``(x, y)``.
+    free : (H, W) bool or (P, H, W) bool
+        Free cells: one grid for every route, or one per route (``P = len(routes)``).
+    origin : tuple of float
+        World ``(x, y)`` of the corner of cell ``(0, 0)``.
+    cell : float
+        Cell side (m).
+    clearance : float
+        Half-width of the walker in cells (see :func:`line_of_sight`).
+
+    Returns
+    -------
+    list of (m_i, 2) float
+        Each route's kept vertices, first and last points included (``m_i <= n_i``).
+    """
     free = np.asarray(free, bool)
     cell = float(check_positive("cell", cell))
-    rc = np.column_stack([(p[:, 1] - origin[1]) / cell, (p[:, 0] - origin[0]) / cell])
-    keep = [0]
-    a, n = 0, len(p)
-    while a < n - 1:
-        j = a + 1  # the next point is always kept reachable (the route's own step)
-        while j + 1 < n:
-            ahead = np.arange(j + 1, min(j + 1 + 64, n))
-            ok = _sight(free, rc[a], rc[ahead], float(clearance))
-            run = int(np.argmin(ok)) if not ok.all() else ok.size
-            j += run
-            if run < ok.size:
-                break
-        keep.append(j)
-        a = j
-    return p[keep].copy()
+    if free.ndim == 3 and len(free) != len(routes):
+        raise ValueError(
+            f"free: expected one (H, W) grid or one per route ({len(routes)}), got "
+            f"{free.shape[0]} grids"
+        )
+    pts = []
+    for r in routes:
+        p = np.asarray(r, float).reshape(-1, 2)
+        if len(p) > 1:
+            p = p[np.concatenate([[True], (np.diff(p, axis=0) != 0).any(axis=1)])]
+        pts.append(p)
+    out = [p.copy() for p in pts]
+    todo = np.flatnonzero([len(p) >= 3 for p in pts])
+    for b0 in range(0, todo.size, _BLOCK):
+        block = todo[b0 : b0 + _BLOCK]
+        grids = free if free.ndim == 2 else free[block]
+        keep = _pull_block([pts[i] for i in block], grids, origin, cell, float(clearance))
+        for i, k in zip(block, keep, strict=True):
+            out[i] = pts[i][k]
+    return out
+
+
+def _pull_block(
+    pts: list[np.ndarray],
+    free: np.ndarray,
+    origin: tuple[float, float],
+    cell: float,
+    clearance: float,
+) -> list[np.ndarray]:
+    """Indices of the kept vertices of each route (``(n_i, 2)`` world points without
+    consecutive repeats, ``n_i >= 3``); ``free`` one ``(H, W)`` grid or one per route."""
+    n = np.array([len(p) for p in pts], np.int64)
+    off = np.concatenate([[0], np.cumsum(n)[:-1]])
+    xy = np.concatenate(pts)
+    rc = np.column_stack([(xy[:, 1] - origin[1]) / cell, (xy[:, 0] - origin[0]) / cell])
+    a = np.zeros(len(n), np.int64)  # current vertex of each route
+    j = np.ones(len(n), np.int64)  # farthest point seen from it so far (its next point)
+    kept_route, kept_point = [np.arange(len(n))], [np.zeros(len(n), np.int64)]
+    active = np.ones(len(n), bool)
+    while active.any():
+        idx = np.flatnonzero(active)
+        cnt = np.minimum(_AHEAD, n[idx] - 1 - j[idx])  # >= 1: j + 1 < n for the active
+        start = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+        route = np.repeat(idx, cnt)
+        local = np.arange(int(cnt.sum())) - np.repeat(start, cnt)
+        p0 = rc[off[route] + a[route]]
+        p1 = rc[off[route] + j[route] + 1 + local]
+        ok = _sight(free, p0, p1, clearance, None if free.ndim == 2 else route)
+        # the points seen before the first one that is not, in each window
+        run = np.minimum.reduceat(np.where(ok, _AHEAD, local), start)
+        run = np.minimum(run, cnt)
+        j[idx] += run
+        ended = idx[(run < cnt) | (j[idx] == n[idx] - 1)]
+        kept_route.append(ended)
+        kept_point.append(j[ended].copy())
+        a[ended] = j[ended]
+        j[ended] = a[ended] + 1
+        # a vertex next to the last point: the last point is kept at once
+        last = ended[j[ended] == n[ended] - 1]
+        kept_route.append(last)
+        kept_point.append(j[last].copy())
+        a[last] = j[last]
+        active = a < n - 1
+    r, k = np.concatenate(kept_route), np.concatenate(kept_point)
+    order = np.lexsort((k, r))
+    r, k = r[order], k[order]
+    return np.split(k, np.cumsum(np.bincount(r, minlength=len(n)))[:-1])
 
 
 def preferred_speeds(key: jax.Array, median: Any, sd_log: Any) -> np.ndarray:

@@ -641,7 +641,7 @@ def _rollouts(
     the goal cell's centre) where the route reaches its goal; the direction ``(B, K)``
     (rad) of each one's first segment (NaN for one that stands) and whether that segment
     ends at the goal (the goal in sight from the start, ``(B, K)`` bool)."""
-    from are_stats.behaviour import continuous_path, sample_soft_paths
+    from are_stats.behaviour import continuous_paths, sample_soft_paths
 
     b, n_obs, _ = observed.shape
     n_samples = goals_of.shape[1]
@@ -679,19 +679,27 @@ def _rollouts(
             st, ac = sample_soft_paths(
                 rng, pol, occ, float(fit.slip[c]), starts, local, goals[gsel], n_ep
             )
-            for j, m in enumerate(members):
-                i, k = rep[m], m - rep[m] * n_samples
-                done = np.flatnonzero(ac[j] < 0)
-                arrived = (st[j][int(done[0]) if done.size else -1, :2] == exits[m]).all()
-                end = ends[i, k] if ends is not None and arrived else None
-                tv, pv = continuous_path(st[j], ac[j], fit, float(speed[i]), last[i], end, smooth)
+            # where each route ended: at its goal, or cut at its horizon
+            done = ac < 0
+            stop = np.where(done.any(axis=1), np.argmax(done, axis=1), ac.shape[1])
+            arrived = (st[np.arange(len(members)), stop, :2] == exits[members]).all(axis=1)
+            i_of, k_of = rep[members], members - rep[members] * n_samples
+            end_of = [
+                ends[i, k] if ends is not None and ok else None
+                for i, k, ok in zip(i_of, k_of, arrived, strict=True)
+            ]
+            walked = continuous_paths(
+                list(zip(st, ac, strict=True)), fit, speed[i_of], last[i_of], end_of, smooth
+            )
+            for j, (tv, pv) in enumerate(walked):
+                i, k = i_of[j], k_of[j]
                 out[i, k, :, 0] = np.interp(ts, tv, pv[:, 0])
                 out[i, k, :, 1] = np.interp(ts, tv, pv[:, 1])
                 away = np.flatnonzero(np.hypot(*(pv - pv[0]).T) > 1e-9)
                 if away.size:
                     dx, dy = pv[away[0]] - pv[0]
                     first[i, k] = np.arctan2(dy, dx)
-                    sight[i, k] = bool(arrived) and away[0] == len(pv) - 1
+                    sight[i, k] = bool(arrived[j]) and away[0] == len(pv) - 1
     return out, first, sight
 
 

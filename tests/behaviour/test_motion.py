@@ -16,11 +16,14 @@ from are_stats.behaviour import (
     BehaviourFit,
     GridMDP,
     behaviour_tracks,
+    continuous_paths,
     line_of_sight,
     preferred_speeds,
     rollout,
     simulate_behaviour_tracks,
     string_pull,
+    string_pull_many,
+    walk_times,
     walk_tracks,
 )
 from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
@@ -101,6 +104,69 @@ def test_pulled_paths_round_walls_stay_on_free_cells() -> None:
         path = string_pull(xy, ~occ)
         assert _on_free_cells(path, ~occ)
         assert 3 <= len(path) <= 6  # round the wall's end: a few corners, no zig-zag
+
+
+def _pull_by_definition(points, free, origin, cell, clearance) -> np.ndarray:
+    """The string pull as defined, one sight test at a time: from each kept vertex, extend
+    to the next route point while it is in sight (:func:`line_of_sight`)."""
+    p = np.asarray(points, float)
+    p = p[np.concatenate([[True], (np.diff(p, axis=0) != 0).any(axis=1)])]
+    rc = np.column_stack([(p[:, 1] - origin[1]) / cell, (p[:, 0] - origin[0]) / cell])
+    keep, a = [0], 0
+    while a < len(p) - 1:
+        j = a + 1
+        while j + 1 < len(p) and line_of_sight(free, rc[a], rc[j + 1], clearance):
+            j += 1
+        keep.append(j)
+        a = j
+    return p[keep]
+
+
+def _random_routes(rng, free, n_routes, origin, cell) -> list[np.ndarray]:
+    """4-connected random walks over free cells (with repeats, some longer than a sight
+    window) from a point inside the first cell, ending off-centre in the last one."""
+    cells = np.argwhere(free)
+    routes = []
+    for _ in range(n_routes):
+        r, c = cells[rng.integers(len(cells))]
+        path = [(r, c)]
+        for _ in range(int(rng.integers(1, 160))):
+            dr, dc = [(0, 1), (1, 0), (0, -1), (-1, 0), (0, 0)][rng.integers(5)]
+            if 0 <= r + dr < free.shape[0] and 0 <= c + dc < free.shape[1] and free[r + dr, c + dc]:
+                r, c = r + dr, c + dc
+            path.append((r, c))
+        rc = np.asarray(path, float) + 0.5
+        rc[0] += rng.uniform(-0.45, 0.45, 2)
+        rc[-1] += rng.uniform(-0.45, 0.45, 2)
+        routes.append(np.column_stack([origin[0] + rc[:, 1] * cell, origin[1] + rc[:, 0] * cell]))
+    return routes
+
+
+def test_many_routes_pulled_at_once_are_each_pulled_by_definition() -> None:
+    """The lockstep string pull keeps exactly the vertices of the definition, route by
+    route, on cluttered maps, with a shared grid and with one grid per route."""
+    rng = np.random.default_rng(7)
+    origin, cell = (-3.0, 2.0), 0.5
+    for _ in range(2):
+        free = rng.random((18, 26)) > 0.2
+        free[8:10, :] = True  # a corridor, so that some routes see far
+        routes = _random_routes(rng, free, 100, origin, cell)
+        for clearance in (0.0, 0.2):
+            got = string_pull_many(routes, free, origin, cell, clearance)
+            for route, path in zip(routes, got, strict=True):
+                want = _pull_by_definition(route, free, origin, cell, clearance)
+                np.testing.assert_array_equal(path, want)
+        # one grid per route: each route's own cells and their neighbours
+        grids = np.zeros((len(routes), *free.shape), bool)
+        for g, route in zip(grids, routes, strict=True):
+            col = np.floor((route[:, 0] - origin[0]) / cell).astype(int)
+            row = np.floor((route[:, 1] - origin[1]) / cell).astype(int)
+            g[row, col] = True
+            g[:] = g | np.roll(g, 1, 0) | np.roll(g, -1, 1)
+            g &= free
+        got = string_pull_many(routes, grids, origin, cell, 0.2)
+        for route, g, path in zip(routes, grids, got, strict=True):
+            np.testing.assert_array_equal(path, _pull_by_definition(route, g, origin, cell, 0.2))
 
 
 def test_preferred_speeds_between_person_sd_is_the_configured_one() -> None:
@@ -289,3 +355,55 @@ def test_starts_snap_to_coarse_cells_whose_centre_is_free() -> None:
     x0, y0 = tracks[["x", "y"]].to_numpy()[0]
     assert grid.free[int(y0 // 0.1), int(x0 // 0.1)]
     assert np.hypot(x0 - 1.5, y0 - 1.5) == pytest.approx(1.0)  # a neighbouring cell's centre
+
+
+def test_continuous_paths_of_many_are_those_one_at_a_time_by_definition() -> None:
+    """Many artefacts' paths at once: each the route pulled by definition (on the free
+    cells, or within one cell of its route with fitted cell rewards), timed in order from
+    one generator (so the within-person speeds are drawn as one path after another)."""
+    import dataclasses
+
+    from scipy import ndimage
+
+    base = _open_fit()
+    free = base.free.copy()
+    free[4:8, 8:10] = False  # a pillar to walk round
+    rng = np.random.default_rng(11)
+    routes = _random_routes(rng, free, 120, (0.0, 0.0), 1.0)
+    paths, starts, ends = [], [], []
+    for r in routes:
+        cells = np.floor(r[:, ::-1]).astype(int)
+        states = np.column_stack([cells, np.zeros(len(cells), int)])
+        pad = int(rng.integers(0, 4))  # ended early: -1 actions, the last state repeated
+        states = np.concatenate([states, np.repeat(states[-1:], pad, 0)])
+        actions = np.concatenate([np.zeros(len(cells) - 1, int), np.full(pad, -1)])
+        paths.append((states, actions))
+        starts.append(r[0])
+        ends.append(r[-1] if rng.random() < 0.5 else None)
+    speeds = rng.uniform(0.6, 1.8, len(paths))
+    walls = np.asarray(~free, float)[None]
+    weighted = dataclasses.replace(
+        base, free=free, feature_names=("walls",), features=walls, weights=np.ones((1, 1)),
+        weights_se=np.zeros((1, 1)),
+    )  # fmt: skip
+    for fit in (dataclasses.replace(base, free=free), weighted):
+        got = continuous_paths(
+            paths, fit, speeds, np.asarray(starts), ends, rng=np.random.default_rng(2),
+            within_sd=0.1,
+        )  # fmt: skip
+        ref_rng = np.random.default_rng(2)
+        for (states, actions), v, p0, end, (t, xy) in zip(
+            paths, speeds, starts, ends, got, strict=True
+        ):
+            n_act = int((actions >= 0).sum())
+            pts = np.concatenate([p0[None], fit.cell_to_world(states[1 : n_act + 1, :2])])
+            if end is not None and len(pts) > 1:
+                pts[-1] = end
+            allowed = free
+            if fit is weighted:
+                near = np.zeros(free.shape, bool)
+                near[states[: n_act + 1, 0], states[: n_act + 1, 1]] = True
+                allowed = free & ndimage.binary_dilation(near, np.ones((3, 3), bool))
+            want = _pull_by_definition(pts, allowed, (0.0, 0.0), 1.0, 0.2)
+            np.testing.assert_array_equal(xy, want)
+            np.testing.assert_array_equal(t, walk_times(want, float(v), ref_rng, 0.1))

@@ -10,6 +10,11 @@ Every run is a fresh process (``subprocess``) with an empty cache (a new
   sampled by NUTS, the only way before issue 29); the chosen models of both are printed
   (they must be the same);
 * ``are-stats demo`` cold (the ``make demo`` goal without the venv's installation);
+* ``are-stats fit`` of a 302-person tracks table with its map, cold (issue 29's "300-person
+  tracks table with behaviour" goal): :mod:`tests.test_cli_tracks`'s seeded synthetic
+  room and tracks (groups of 1-3 door to door at about 1.2 m/s, 2.5 Hz) over 1,700 s,
+  12,112 rows; figures on, so the motion checks and held-out moves run as a user's fit
+  runs them;
 * the peer: one NUTS fit of the gamma-stays model (:mod:`bench_traffic_nuts`'s synthetic
   log, the same model written in PyTensor) in a fresh process with an empty cache, ours and
   PyMC (when installed: ``pip install 'are-stats[bench]'``), ratio cold/cold.
@@ -53,6 +58,12 @@ one rendering (2026-11-27, main 4b99766 and the branch alternating at load 9-10,
 31.2 s (wall 46 vs 57 s), repeated CPU 12.3 and 13.5 s vs 16.0 and 17.1 s, XLA
 compilations cold 21 vs 38, the same choices and printed tables. The stage names are
 unchanged.
+
+The tracks part's command, timed by ``/usr/bin/time`` (2026-11-27, main 4b99766 and the
+lockstep string pulling side by side at load 8-13): cold CPU 345 s vs 337 s, 31 min wall
+each, the same choices and motion checks; of the 50 motion-check replicates' 150 s of CPU,
+``separate_paths`` takes 110 s (the docs' "Choosing the traffic models" page has the
+breakdown). Issue 29's 60 s is far off.
 """
 
 from __future__ import annotations
@@ -181,6 +192,23 @@ def _bench_peer(tmp: Path) -> None:
         print(f"  PyMC / ours, cold process wall: {walls['pymc'][1] / walls['ours'][1]:.2f}x")
 
 
+def _bench_tracks(tmp: Path) -> dict[str, Any]:
+    """One cold ``are-stats fit`` of the seeded 302-person tracks table with its map."""
+    from tests.test_cli_tracks import _room, _tracks
+
+    home = tmp / "tracks"
+    home.mkdir()
+    _room(home)
+    log = _tracks(home, horizon=TRACKS_HORIZON)
+    r = _run(["fit", str(log), "--out", str(home / "fit.nc")], home)
+    _print_run("  cold", r, None)
+    return r
+
+
+#: Seconds of :func:`tests.test_cli_tracks._tracks` that make 302 people (12,112 rows).
+TRACKS_HORIZON = 1700.0
+
+
 def main(quick: bool = False) -> None:
     """The goals of issue 29 in fresh processes with empty caches."""
     tmp = Path(tempfile.mkdtemp(prefix="bench_fit_cold_"))
@@ -208,6 +236,8 @@ def main(quick: bool = False) -> None:
         r = _run(["demo", "--out", str(home / "out"), "--force"], home)
         _print_run("  cold", r, None)
         print(f"  ({time.perf_counter() - tic:.1f} s)")
+        print("\nare-stats fit of a 302-person tracks table with its map (cold)", flush=True)
+        _bench_tracks(tmp)
         print("\npeer: one cold NUTS fit of the same gamma-stays model and data", flush=True)
         _bench_peer(tmp)
     finally:

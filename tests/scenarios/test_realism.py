@@ -212,3 +212,42 @@ def test_interactive_features_match_a_brute_force_over_every_frame():
     for name, want in (("nearest person (m)", near), ("collision", hit),
                        ("time to collision (s)", ttc)):  # fmt: skip
         np.testing.assert_allclose(np.sort(got[name]), np.sort(want), atol=1e-9)
+
+
+def test_group_spacing_matches_a_brute_force_over_every_group_and_frame():
+    """Groups of one to four walkers in two scenarios (the same labels in both, some
+    members standing for a while): the distance of each walking member to its nearest
+    walking co-member of the same (scenario, group, time), computed frame by frame."""
+    rng = np.random.default_rng(3)
+    rows, groups = [], {}
+    for scen in (0, 1):
+        for i in range(14):
+            t0 = rng.integers(0, 10) * 0.4
+            t = t0 + 0.4 * np.arange(rng.integers(3, 25))
+            v = rng.normal(0, 1.0, 2) * (rng.random(t.size) < 0.8)[:, None]  # some stand
+            xy = rng.uniform(0, 12, 2) + np.cumsum(v * 0.4, axis=0)
+            rows.append(
+                pd.DataFrame({"scenario": scen, "id": i, "t": t, "x": xy[:, 0], "y": xy[:, 1]})
+            )
+            groups[(scen, i)] = "abcd"[rng.integers(4)] if i < 12 else ""
+    tracks = pd.concat(rows, ignore_index=True)
+    from are_stats.scenarios._realism import _resample
+
+    got = realism_features(tracks, 0.4, groups=groups)["group spacing (m)"]
+    tab = _resample(tracks, 0.4)
+    vel = np.full((len(tab), 2), np.nan)
+    for _, g in tab.groupby(["scenario", "id"]):
+        vel[g.index[1:]] = np.diff(g[["x", "y"]].to_numpy(), axis=0) / 0.4
+    lab = np.array([groups[(s, i)] for s, i in zip(tab["scenario"], tab["id"], strict=True)])
+    walking = np.isfinite(vel).all(axis=1) & (np.hypot(*np.nan_to_num(vel).T) >= 0.2)
+    walking &= lab != ""
+    want = []
+    sel = tab[walking].assign(g=lab[walking], t=np.round(tab["t"][walking], 6))
+    for _, f in sel.groupby(["scenario", "g", "t"]):
+        xy = f[["x", "y"]].to_numpy()
+        for a in range(len(f) if len(f) >= 2 else 0):
+            d = np.hypot(*(xy - xy[a]).T)
+            d[a] = np.inf
+            want.append(min(d.min(), 10.0))
+    assert len(want) > 100
+    np.testing.assert_allclose(np.sort(got), np.sort(want), atol=1e-9)
