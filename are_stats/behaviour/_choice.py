@@ -14,6 +14,7 @@ own preferred speed (issue 26).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -60,6 +61,7 @@ def behaviour_tracks(
     source: str = "cell",
     speed_sd: float = 0.12,
     within_sd: float = 0.05,
+    progress: Callable[[int, int], object] | None = None,
 ) -> pd.DataFrame:
     """Behaviour tracks of scenario artefacts on ``grid`` coarsened to ``cell`` metres.
 
@@ -88,6 +90,8 @@ def behaviour_tracks(
         speed of the class (walk, or run for runners).
     within_sd : float
         Within-person standard deviation of the log speed.
+    progress : callable, optional
+        ``progress(done, total)`` after each scenario planned (:func:`walk_tracks`).
 
     Returns
     -------
@@ -147,6 +151,6 @@ def behaviour_tracks(
     return pd.DataFrame(
         walk_tracks(
             key, table, occ, resolution=res, origin=(x0, y0), dt=dt, speed_sd=speed_sd,
-            within_sd=within_sd,
+            within_sd=within_sd, progress=progress,
         )
     )  # fmt: skip

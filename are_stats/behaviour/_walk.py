@@ -31,6 +31,7 @@ linear track is the path: it never crosses an occupied cell).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -197,6 +198,7 @@ def walk_tracks(
     within_sd: float = 0.05,
     slip: float = 0.1,
     step_cost: float = 1e-3,
+    progress: Callable[[int, int], object] | None = None,
 ) -> pd.DataFrame:
     """Tracks of catalogue artefacts that keep walking while alive (module docstring).
 
@@ -224,6 +226,9 @@ def walk_tracks(
         Within-person standard deviation of the log speed (:func:`walk_times`).
     slip, step_cost : float
         MDP parameters (:class:`GridMDP`).
+    progress : callable, optional
+        ``progress(done, total)`` after each scenario's tracks (``total`` scenarios): the
+        planning runs one scenario at a time, so a caller can tell the time left.
 
     Returns
     -------
@@ -252,7 +257,10 @@ def walk_tracks(
     occ = GridMDP(occupied, slip=slip, step_cost=step_cost).occupied
     ox, oy = float(origin[0]), float(origin[1])
     out = []
-    for s_label, table in artefacts.groupby("scenario", sort=True):
+    scenarios = artefacts.groupby("scenario", sort=True)
+    for k_scen, (s_label, table) in enumerate(scenarios):
+        if progress is not None and k_scen:
+            progress(k_scen, scenarios.ngroups)
         table = table.reset_index(drop=True)
         n = len(table)
         t_arr = table["t_arrive"].to_numpy(float)
@@ -337,6 +345,8 @@ def walk_tracks(
                 yaw,
             )  # fmt: skip
         )
+    if progress is not None and scenarios.ngroups:
+        progress(scenarios.ngroups, scenarios.ngroups)
     if not out:
         return pd.DataFrame({c: [] for c in _COLUMNS})
     res = pd.concat(out, ignore_index=True)

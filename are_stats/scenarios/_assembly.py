@@ -258,8 +258,10 @@ def scene_tracks(
     n : int, optional
         Number of scenarios (default: the table's).
     progress : callable, optional
-        ``progress(done, total, what)`` after each step: the tracks planned, then (with
-        ``interaction``) walked under the social force; ``done == total`` at the end.
+        ``progress(done, total, what)`` after each step: the tracks planned (the
+        catalogue's behaviour one step per scenario, the fitted one in one batch), then
+        (with ``interaction``) walked under the social force; ``done == total`` at the end
+        (``total`` is known once the first scenario is planned).
 
     Returns
     -------
@@ -275,8 +277,15 @@ def scene_tracks(
     art = artefacts
     if n is None:
         n = int(art["scenario"].max()) + 1 if len(art) else 1
-    steps = 1 if interaction is False else 2
     say = progress or (lambda done, total, what: None)
+    social = int(interaction is not False)  # the social force's step after the planning
+    planned = [0]  # the catalogue's planning reports one step per scenario
+
+    def plan_step(done: int, total: int) -> None:
+        planned[0] = total
+        words = f" ({done} of {total} scenarios)" if total > 1 else ""
+        say(done, total + social, f"tracks planned{words}")
+
     tracks = None
     if kind == "fitted" and len(art):
         tracks = pd.DataFrame(
@@ -303,17 +312,20 @@ def scene_tracks(
                 dt=behaviour_dt,
                 horizon=horizon,
                 source=cell_source,
+                progress=plan_step,
             )
         )
-    say(1, steps, "tracks planned")
+    steps = max(planned[0], 1) + social
+    if not planned[0]:
+        say(1, steps, "tracks planned")
     if tracks is not None and len(tracks):
         walks = _pedestrians(art, catalogue, class_labels, n)
         tracks, groups = _groups(tracks, art, walks, grid, interaction)
         tracks = _resolve(tracks, art, catalogue, class_labels, n, walks, interaction)
         if interaction is not False:
             tracks = _interact(tracks, walks, grid, interaction, groups)
-    if steps > 1:
-        say(2, steps, "walked with the social force")
+    if social:
+        say(steps, steps, "walked with the social force")
     return tracks
 
 
@@ -384,8 +396,9 @@ def scenes_from_draws(
     progress : callable, optional
         ``progress(done, total, what)`` after each step of the
         assembly: the scenarios drawn, then with behaviours the tracks planned and walked
-        (:func:`scene_tracks`); the last call has ``done == total``. The steps are the
-        assembly's: the planning and the social force report no finer progress.
+        (:func:`scene_tracks`: the catalogue's planning one step per scenario); the last
+        call has ``done == total``. The fitted behaviour's planning and the social force
+        are one step each.
 
     Returns
     -------
