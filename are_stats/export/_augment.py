@@ -27,13 +27,13 @@ import numpy.typing as npt
 from are_stats._atomic import check_writable
 from are_stats.builder import ARBuilder
 from are_stats.environment import (
-    DEFAULT_MODELS,
     ArtefactCatalogue,
     OccupancyGrid,
     extrude_grid,
     load_catalogue,
     resolve_shipped,
 )
+from are_stats.export._live import camera_and_mount
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame
 from are_stats.inputs import (
     Described,
@@ -247,7 +247,7 @@ def augment_bag(
     """
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit
-    from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
+    from are_stats.perception import PinholeCamera, perceive_scene
 
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
@@ -300,26 +300,18 @@ def augment_bag(
     start, start_ns = traj.start, traj.start_ns
     t_ns = traj.t_ns if traj.t_ns is not None else np.round(traj.t * 1e9).astype(np.int64)
     pose_t = (t_ns - start_ns) * 1e-9
-    # the camera: intrinsics, frame times, mount
+    # the camera: intrinsics, frame times, mount (the bag's tree wins: serve's rule)
     if camera_info_topic is not None:
-        cam = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
+        camera = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
+    cam, tree_mount = camera_and_mount(camera, 1.0, traj.mount)
+    if camera_info_topic is not None:
         cam_ns = traj.camera_ns
         if cam_ns is None:
             cam_ns = np.round(traj.camera_times * 1e9).astype(np.int64)
         frames = (cam_ns - start_ns) * 1e-9
     else:
-        if camera is None:
-            camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
-        cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
         frames = _period_frames(pose_t, period, cam, grid, bag, STAMP_GAP)
-    if mount is None:
-        if traj.mount is not None:
-            mount = traj.mount
-        elif not np.allclose(cam.pose, np.eye(4)):
-            mount = cam.pose
-        else:
-            mount = optical_from_base((0.0, 0.0, 1.0))
-    mount = np.asarray(mount, float)
+    mount = np.asarray(tree_mount if mount is None else mount, float)
     times = frames[(frames >= pose_t[0] - 1e-6) & (frames <= pose_t[-1] + 1e-6)]
     if times.size == 0:
         raise InputError(

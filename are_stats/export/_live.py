@@ -440,7 +440,7 @@ def load_robot(
     from are_stats.perception import read_robot_path
 
     table = read_robot_path(path)
-    cam, mount = _camera_and_mount(camera, height)
+    cam, mount = camera_and_mount(camera, height)
     t = table["t"].to_numpy(float)
     c, s = np.cos(table["yaw"].to_numpy(float)), np.sin(table["yaw"].to_numpy(float))
     poses = np.zeros((t.size, 4, 4))
@@ -457,17 +457,26 @@ def load_robot(
     }
 
 
-def _camera_and_mount(
-    camera: PinholeCamera | str | os.PathLike[str] | None, height: float
+def camera_and_mount(
+    camera: PinholeCamera | str | os.PathLike[str] | None,
+    height: float,
+    tree_mount: np.ndarray | None = None,
 ) -> tuple[PinholeCamera, np.ndarray]:
-    """The camera (default the shipped ``front_camera``) and its mount ``T_base_optical``
-    (its pose, or ``height`` m above the base looking forward when it has none)."""
+    """The camera (default the shipped ``front_camera``) and its mount ``T_base_optical``:
+    the robot's own tree (``tree_mount``, a bag's static chain from the base to the camera
+    frame) wins, else the camera's pose, else ``height`` m above the base looking forward.
+    The one rule of ``augment`` and ``serve --bag``."""
     from are_stats.perception import PinholeCamera, optical_from_base
 
     if camera is None:
         camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
     cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
-    mount = cam.pose if not np.allclose(cam.pose, np.eye(4)) else optical_from_base((0, 0, height))
+    if tree_mount is not None:
+        mount = tree_mount
+    elif not np.allclose(cam.pose, np.eye(4)):
+        mount = cam.pose
+    else:
+        mount = optical_from_base((0, 0, height))
     return cam, np.asarray(mount, float)
 
 
@@ -536,9 +545,7 @@ def robot_from_bag(
     t_ns = traj.t_ns if traj.t_ns is not None else np.round(traj.t * 1e9).astype(np.int64)
     if camera_info_topic is not None:
         camera = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
-    cam, mount = _camera_and_mount(camera, height)
-    if traj.mount is not None:  # the bag's own tree wins
-        mount = traj.mount
+    cam, mount = camera_and_mount(camera, height, traj.mount)
     # the header clock's start (augment's rule): stamps of the replay as the bag's
     off = traj.offset_ns if traj.clock == "log" else 0
     return {
