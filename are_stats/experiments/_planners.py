@@ -27,7 +27,7 @@ import heapq
 import math
 import time
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -82,6 +82,31 @@ def _cell(free: np.ndarray, p: np.ndarray, res: float) -> tuple[int, int] | None
     if 0 <= i < free.shape[0] and 0 <= j < free.shape[1]:
         return i, j
     return None
+
+
+class _Query(NamedTuple):
+    """What both planners check before planning: the mask, the end points and their cells."""
+
+    free: np.ndarray  # (H, W) bool
+    start: np.ndarray  # (2,) float, m
+    goal: np.ndarray  # (2,) float, m
+    res: float  # m per cell
+    start_cell: tuple[int, int]  # (row, col)
+    goal_cell: tuple[int, int]
+
+
+def _query(
+    free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+) -> _Query | None:
+    """A planner's validated arguments; ``None`` (no path) when ``start`` or ``goal`` lies
+    off the grid or on a blocked cell."""
+    free = check_free_mask(free)
+    res = _resolution(params)
+    start, goal = _point("start", start), _point("goal", goal)
+    s, g = _cell(free, start, res), _cell(free, goal, res)
+    if s is None or g is None or not free[s] or not free[g]:
+        return None
+    return _Query(free, start, goal, res, s, g)
 
 
 def timed_plan(
@@ -143,13 +168,11 @@ class AStarPlanner:
     def __call__(
         self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
     ) -> np.ndarray | None:
-        free = check_free_mask(free)
-        res = _resolution(params)
-        start, goal = _point("start", start), _point("goal", goal)
-        s, g = _cell(free, start, res), _cell(free, goal, res)
-        if s is None or g is None or not free[s] or not free[g]:
+        q = _query(free, start, goal, params)
+        if q is None:
             return None
-        cells = astar_cells(free, s, g)
+        free, start, goal, res = q.free, q.start, q.goal, q.res
+        cells = astar_cells(free, q.start_cell, q.goal_cell)
         if cells is None:
             return None
         pts = (cells[:, ::-1] + 0.5) * res
@@ -335,12 +358,10 @@ class OMPLPlanner:
         from ompl import geometric as og
         from ompl import util as ou
 
-        free = check_free_mask(free)
-        res = _resolution(params)
-        start, goal = _point("start", start), _point("goal", goal)
-        s, g = _cell(free, start, res), _cell(free, goal, res)
-        if s is None or g is None or not free[s] or not free[g]:
+        q = _query(free, start, goal, params)
+        if q is None:
             return None
+        free, start, goal, res = q.free, q.start, q.goal, q.res
         h, w = free.shape
         ou.setLogLevel(ou.LOG_NONE)
         ou.RNG.setSeed(int(params.get("seed", 0)) % (2**31 - 1) + 1)
