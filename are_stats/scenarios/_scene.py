@@ -174,17 +174,7 @@ class Scene:
         -------
         Scene
         """
-        if not isinstance(artefacts, pd.DataFrame):
-            raise ValueError(f"artefacts: expected a DataFrame, got {type(artefacts).__name__}")
-        missing = [c for c in _NEED if c not in artefacts.columns]
-        if missing:
-            raise ValueError(f"artefacts: expected columns {list(_NEED)}, missing {missing}")
-        if "scenario" in artefacts.columns and artefacts["scenario"].nunique() > 1:
-            raise ValueError("artefacts: expected one scenario, got several (filter by 'scenario')")
-        num = artefacts[list(_NEED)].to_numpy(float)
-        if not np.isfinite(num).all():
-            r = int(np.argwhere(~np.isfinite(num))[0, 0])
-            raise ValueError(f"artefacts: row {r}: expected finite times and poses")
+        num = _one_scenario("artefacts", artefacts, _NEED, _NEED, "times and poses")
         n = len(artefacts)
         ids = (
             artefacts["artefact"].to_numpy(np.int64)
@@ -474,6 +464,28 @@ def _boxes(
     return labels, classes, rows, half, off
 
 
+def _one_scenario(
+    name: str, table: object, need: Sequence[str], numeric: Sequence[str], what: str
+) -> np.ndarray:
+    """The ``numeric`` columns of one scenario's table ``name``, as (rows, k) floats.
+
+    Raises ``ValueError`` naming ``name`` for anything but a DataFrame, missing ``need``
+    columns, several values of ``scenario``, or a non-finite number (``what`` says which).
+    """
+    if not isinstance(table, pd.DataFrame):
+        raise ValueError(f"{name}: expected a DataFrame, got {type(table).__name__}")
+    missing = [c for c in need if c not in table.columns]
+    if missing:
+        raise ValueError(f"{name}: expected columns {list(need)}, missing {missing}")
+    if "scenario" in table.columns and table["scenario"].nunique() > 1:
+        raise ValueError(f"{name}: expected one scenario, got several (filter by 'scenario')")
+    num = table[list(numeric)].to_numpy(float)
+    if not np.isfinite(num).all():
+        r = int(np.argwhere(~np.isfinite(num))[0, 0])
+        raise ValueError(f"{name}: row {r}: expected finite {what}")
+    return num
+
+
 def _tracks(
     tracks: pd.DataFrame | None, ids: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -481,18 +493,9 @@ def _tracks(
     n = ids.size
     if tracks is None or len(tracks) == 0:
         return np.zeros(n + 1, np.int64), np.zeros(0), np.zeros((0, 3))
-    if not isinstance(tracks, pd.DataFrame):
-        raise ValueError(f"tracks: expected a DataFrame, got {type(tracks).__name__}")
-    missing = [c for c in _TRACK_NEED if c not in tracks.columns]
-    if missing:
-        raise ValueError(f"tracks: expected columns {list(_TRACK_NEED)}, missing {missing}")
-    if "scenario" in tracks.columns and tracks["scenario"].nunique() > 1:
-        raise ValueError("tracks: expected one scenario, got several (filter by 'scenario')")
+    poses = ("t", "x", "y", "yaw")
+    num = _one_scenario("tracks", tracks, _TRACK_NEED, poses, ", ".join(poses))
     tid = tracks["id"].to_numpy(np.int64)
-    num = tracks[["t", "x", "y", "yaw"]].to_numpy(float)
-    if not np.isfinite(num).all():
-        r = int(np.argwhere(~np.isfinite(num))[0, 0])
-        raise ValueError(f"tracks: row {r}: expected finite t, x, y, yaw")
     order_ids = np.argsort(ids, kind="stable")
     pos = np.searchsorted(ids[order_ids], tid)
     pos = np.clip(pos, 0, n - 1)

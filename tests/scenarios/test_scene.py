@@ -141,6 +141,40 @@ def test_bad_tracks_are_clear_errors(catalogue):
         Scene.from_scenarios(t, catalogue, pd.concat([tr, tr.iloc[[-1]]]))
 
 
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (
+            lambda tr: tr.drop(columns="t"),
+            "tracks: expected columns ['id', 't', 'x', 'y', 'yaw'], missing ['t']",
+        ),
+        (
+            lambda tr: tr.assign(scenario=np.arange(len(tr)) % 2),
+            "tracks: expected one scenario, got several (filter by 'scenario')",
+        ),
+        (
+            lambda tr: tr.assign(yaw=np.r_[0.0, np.inf, np.zeros(len(tr) - 2)]),
+            "tracks: row 1: expected finite t, x, y, yaw",
+        ),
+        (lambda tr: tr.to_numpy().tolist(), "tracks: expected a DataFrame, got list"),
+    ],
+)
+def test_bad_track_tables_are_named_as_tracks(catalogue, bad, message):
+    t = table(2)
+    with pytest.raises(ValueError) as err:
+        Scene.from_scenarios(t, catalogue, bad(tracks_for(t)))
+    assert str(err.value) == message
+
+
+def test_bad_artefact_tables_are_named_as_artefacts(catalogue):
+    with pytest.raises(ValueError) as err:
+        Scene.from_scenarios(table(3).assign(t_leave=[1.0, 2.0, np.nan]), catalogue)
+    assert str(err.value) == "artefacts: row 2: expected finite times and poses"
+    with pytest.raises(ValueError) as err:
+        Scene.from_scenarios(table(3).to_dict(), catalogue)
+    assert str(err.value) == "artefacts: expected a DataFrame, got dict"
+
+
 def test_with_track_replaces_one_track_and_leaves_the_scene_alone(catalogue):
     t = table(3)
     scene = Scene.from_scenarios(t, catalogue, tracks_for(t))
