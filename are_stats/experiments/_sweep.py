@@ -627,6 +627,23 @@ def _load_catalogue(path: str | None) -> ArtefactCatalogue:
     return load_catalogue(path)
 
 
+#: The scenario sources read from disk: whether each is a folder, and what it must be.
+_SOURCES = {
+    "scenarios": (True, "a scenarios folder written by are-stats generate"),
+    "fit": (False, "a fit file written by are-stats fit"),
+}
+
+
+def _source_path(sc: Mapping[str, Any], key: str, src: str, pre: str) -> Path:
+    """The scenario section's source ``key`` (``scenarios`` or ``fit``), which must exist."""
+    p = Path(sc[key])
+    folder, expected = _SOURCES[key]
+    if not (p.is_dir() if folder else p.is_file()):
+        kind = "folder" if folder else "file"
+        raise InputError(src, f"{pre}scenario.{key}", expected, Described(f"no such {kind} {p}"))
+    return p
+
+
 def _scenario_size(
     sections: Mapping[str, Mapping[str, Any]], grid: OccupancyGrid, src: str, pre: str
 ) -> tuple[float, float, float]:
@@ -634,14 +651,7 @@ def _scenario_size(
     so checks) the scenario source, naming its key in errors."""
     sc, horizon = sections["scenario"], float(sections["mission"]["time_limit"])
     if "scenarios" in sc:
-        p = Path(sc["scenarios"])
-        if not p.is_dir():
-            raise InputError(
-                src,
-                f"{pre}scenario.scenarios",
-                "a scenarios folder written by are-stats generate",
-                Described(f"no such folder {p}"),
-            )
+        p = _source_path(sc, "scenarios", src, pre)
         df, meta, _ = _scenario_folder(str(p))
         gen = meta.get("generation")
         h = gen.get("horizon") if isinstance(gen, Mapping) else None
@@ -655,14 +665,7 @@ def _scenario_size(
         n = float(df.groupby("scenario").size().max()) if len(df) else 0.0
         return n, n, 2.0 * n
     if "fit" in sc:
-        p = Path(sc["fit"])
-        if not p.is_file():
-            raise InputError(
-                src,
-                f"{pre}scenario.fit",
-                "a fit file written by are-stats fit",
-                Described(f"no such file {p}"),
-            )
+        p = _source_path(sc, "fit", src, pre)
         draws = _fit_draws(str(p))[0]
         lam, mu = float(np.mean(draws["arrival_rate"])), float(np.mean(draws["leave_rate"]))
     else:

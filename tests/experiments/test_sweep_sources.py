@@ -187,6 +187,20 @@ def test_scenario_sources_are_exclusive(scenario, factors, where):
         _validate({"scenario": scenario, "factors": factors}, "cfg.yaml")
 
 
+@pytest.mark.parametrize(
+    ("key", "expected"),
+    [
+        ("scenarios", "a scenarios folder written by are-stats generate, got no such folder"),
+        ("fit", "a fit file written by are-stats fit, got no such file"),
+    ],
+)
+def test_a_missing_scenario_source_is_named(tmp_path, key, expected):
+    missing = tmp_path / "missing"
+    cfg = {"name": "gone", "map": "courtyard", "scenario": {key: str(missing)}}
+    with pytest.raises(InputError, match=f"scenario.{key}: expected {expected} {missing}$"):
+        load_sweep_config(cfg)
+
+
 def test_behaviours_move_the_artefacts(files):
     root, *_ = files
     cfg = _config(root, replicates=1, behaviours=True)
