@@ -33,7 +33,7 @@ from are_stats.environment import (
     load_catalogue,
     resolve_shipped,
 )
-from are_stats.export._live import camera_and_mount
+from are_stats.export._live import bag_camera
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame
 from are_stats.inputs import (
     Described,
@@ -247,7 +247,7 @@ def augment_bag(
     """
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit
-    from are_stats.perception import PinholeCamera, perceive_scene
+    from are_stats.perception import perceive_scene
 
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
@@ -298,12 +298,9 @@ def augment_bag(
         )
     # times on the scenario clock: seconds after the trajectory's start, from exact stamps
     start, start_ns = traj.start, traj.start_ns
-    t_ns = traj.t_ns if traj.t_ns is not None else np.round(traj.t * 1e9).astype(np.int64)
-    pose_t = (t_ns - start_ns) * 1e-9
+    pose_t = traj.since_start
     # the camera: intrinsics, frame times, mount (the bag's tree wins: serve's rule)
-    if camera_info_topic is not None:
-        camera = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
-    cam, tree_mount = camera_and_mount(camera, 1.0, traj.mount)
+    cam, tree_mount = bag_camera(bag, traj, camera, camera_info_topic, 1.0)
     if camera_info_topic is not None:
         cam_ns = traj.camera_ns
         if cam_ns is None:

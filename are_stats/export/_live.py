@@ -61,7 +61,7 @@ import numpy as np
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
-from are_stats.logs import interpolate_poses, read_trajectory
+from are_stats.logs import BagTrajectory, interpolate_poses, read_trajectory
 from are_stats.scenarios import Scene, read_scenes, scenes_from_tables
 
 # Lazy imports: foxglove and perception (Warp) load when the live view starts, not with the
@@ -480,6 +480,24 @@ def camera_and_mount(
     return cam, np.asarray(mount, float)
 
 
+def bag_camera(
+    bag: str | os.PathLike,
+    traj: BagTrajectory,
+    camera: PinholeCamera | str | os.PathLike[str] | None,
+    camera_info_topic: str | None,
+    height: float,
+) -> tuple[PinholeCamera, np.ndarray]:
+    """The camera of a robot's bag and its mount ``T_base_optical`` (4, 4), for ``augment``
+    and ``serve --bag``: the intrinsics of the ``CameraInfo`` topic read into ``traj`` when
+    ``camera_info_topic`` is given, else ``camera``; the mount by :func:`camera_and_mount`
+    (the bag's tree first)."""
+    from are_stats.perception import PinholeCamera
+
+    if camera_info_topic is not None:
+        camera = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
+    return camera_and_mount(camera, height, traj.mount)
+
+
 def robot_from_bag(
     bag: str | os.PathLike,
     *,
@@ -531,8 +549,6 @@ def robot_from_bag(
         map frame to the base, a missing or empty pose topic) and for the other errors of
         :func:`~are_stats.logs.read_trajectory`.
     """
-    from are_stats.perception import PinholeCamera
-
     traj = read_trajectory(
         bag,
         pose_topic=pose_topic,
@@ -542,14 +558,11 @@ def robot_from_bag(
         clock=clock,
         camera_frame=camera_frame,
     )
-    t_ns = traj.t_ns if traj.t_ns is not None else np.round(traj.t * 1e9).astype(np.int64)
-    if camera_info_topic is not None:
-        camera = PinholeCamera.from_dict(traj.camera_info, f"{bag}: {camera_info_topic}")
-    cam, mount = camera_and_mount(camera, height, traj.mount)
+    cam, mount = bag_camera(bag, traj, camera, camera_info_topic, height)
     # the header clock's start (augment's rule): stamps of the replay as the bag's
     off = traj.offset_ns if traj.clock == "log" else 0
     return {
-        "t": (t_ns - traj.start_ns) * 1e-9,
+        "t": traj.since_start,
         "poses": np.asarray(traj.poses, float),
         "mount": np.asarray(mount, float),
         "camera": cam,

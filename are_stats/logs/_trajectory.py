@@ -115,6 +115,13 @@ class BagTrajectory(NamedTuple):
     frame_note: str = ""
     offset_ns: int = 0
 
+    @property
+    def since_start(self) -> np.ndarray:
+        """(m,) float: the pose times in seconds after :attr:`start`, from the exact
+        nanosecond stamps (:attr:`t_ns`, else :attr:`t` rounded to nanoseconds)."""
+        t_ns = self.t_ns if self.t_ns is not None else np.round(self.t * 1e9).astype(np.int64)
+        return (t_ns - self.start_ns) * 1e-9
+
 
 def _ns(header: Any) -> int:
     """A header's stamp in integer nanoseconds (0: unset)."""
