@@ -6,7 +6,7 @@ import functools
 import gc
 import os
 from collections.abc import Callable
-from typing import Any
+from typing import Annotated, Any
 
 # Two XLA host devices so that NUTS chains run in parallel on the two cores; must be set
 # before JAX is imported (by are_stats).
@@ -41,6 +41,14 @@ app = typer.Typer(
     # columns and squeezed their help into a narrow column)
     rich_markup_mode=None,
 )
+
+# Options that several commands share: the same flag, help text and meaning (each command
+# gives its own default).
+_FIT_HELP = "A fit written by are-stats fit."
+_Fit = Annotated[Path, typer.Argument(metavar="FIT", help=_FIT_HELP)]
+_DMax = Annotated[float, typer.Option("--d-max", help="Maximum viewing distance d_max (m).")]
+_Tau = Annotated[float, typer.Option("--tau", help="Pixels needed to perceive (count > tau).")]
+_ForceOutputs = Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")]
 
 # Errors that mean "bad input or environment": one line on stderr, exit status 2.
 # (ValueError covers are_stats.inputs.InputError/LimitError; OSError covers missing files,
@@ -197,7 +205,7 @@ def fit(
         "nuts", "--method", help="nuts: joint posterior by NUTS; em: conjugate rates + EM."
     ),
     seed: int = typer.Option(0, "--seed", help="Seed of the fit (same seed, same fit)."),
-    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
+    force: _ForceOutputs = False,
     window: tuple[float, float] | None = typer.Option(
         None, "--window", help="Observation window T0 T1 (log's time unit)."
     ),
@@ -302,7 +310,7 @@ def fit(
 @app.command()
 @_cli_errors
 def report(
-    fit_path: Path = typer.Argument(..., metavar="FIT", help="A fit written by are-stats fit."),
+    fit_path: _Fit,
     out: Path = typer.Option(None, "--out", help="Folder for figures (default: FIT without .nc)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the replicated windows."),
     replicates: int = typer.Option(200, "--replicates", help="Replicated windows for the PPC."),
@@ -317,7 +325,7 @@ def report(
 @app.command()
 @_cli_errors
 def generate(
-    fit_path: Path = typer.Argument(..., metavar="FIT", help="A fit written by are-stats fit."),
+    fit_path: _Fit,
     scenarios: int = typer.Option(..., "--scenarios", help="Number of scenarios."),
     horizon: float = typer.Option(..., "--horizon", help="Scenario length (fit's time unit, s)."),
     seed: int = typer.Option(..., "--seed", help="Seed (same seed, same bytes)."),
@@ -333,7 +341,7 @@ def generate(
         1.0, "--behaviour-cell", help="MDP grid cell (m): the map is coarsened to it."
     ),
     behaviour_dt: float = typer.Option(2.0, "--behaviour-dt", help="Seconds per MDP epoch."),
-    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
+    force: _ForceOutputs = False,
     model: str = typer.Option(
         "chosen",
         "--model",
@@ -391,8 +399,8 @@ def perceive(
     mesh: Path = typer.Option(
         None, "--mesh", help="Environment mesh (default: walls extruded from the map)."
     ),
-    d_max: float = typer.Option(30.0, "--d-max", help="Maximum viewing distance d_max (m)."),
-    tau: float = typer.Option(50.0, "--tau", help="Pixels needed to perceive (count > tau)."),
+    d_max: _DMax = 30.0,
+    tau: _Tau = 50.0,
     camera_height: float = typer.Option(
         1.0, "--camera-height", help="Camera height (m) when the camera file has no pose."
     ),
@@ -480,7 +488,7 @@ def augment(
     bag: Path = typer.Argument(
         ..., metavar="BAG", help="Robot bag: ROS 1 .bag, ROS 2 bag folder or .mcap."
     ),
-    fit_path: Path = typer.Option(..., "--fit", help="A fit written by are-stats fit."),
+    fit_path: Path = typer.Option(..., "--fit", help=_FIT_HELP),
     map_path: str = typer.Option(
         ..., "--map", help="ROS map YAML of the run (or a shipped map name: courtyard)."
     ),
@@ -501,8 +509,8 @@ def augment(
     period: float = typer.Option(
         0.5, "--period", help="Seconds between camera frames with --camera."
     ),
-    d_max: float = typer.Option(10.0, "--d-max", help="Maximum viewing distance d_max (m)."),
-    tau: float = typer.Option(10.0, "--tau", help="Pixels needed to perceive (count > tau)."),
+    d_max: _DMax = 10.0,
+    tau: _Tau = 10.0,
     clock: str = typer.Option(
         "auto",
         "--clock",
