@@ -15,6 +15,7 @@ from are_stats.scenarios._folder import (
     FORMAT_VERSION,
     MAX_POSITION,
     ScenesFolder,
+    check_positions,
     read_scenes,
     write_scenes,
 )
@@ -48,6 +49,7 @@ __all__ = [
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
+    "check_positions",
     "check_scenario_size",
     "check_tracks_size",
     "expected_artefacts",

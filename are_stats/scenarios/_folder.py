@@ -40,6 +40,7 @@ __all__ = [
     "MAX_POSITION",
     "SCENARIO_COLUMNS",
     "ScenesFolder",
+    "check_positions",
     "read_scenes",
     "write_scenes",
 ]
@@ -261,7 +262,22 @@ def _raw(path: Path, what: str, required: tuple[str, ...]) -> tuple[RawTable | N
     return table, table.columns
 
 
-def _positions(table: RawTable, num: Mapping[str, np.ndarray]) -> None:
+def check_positions(table: RawTable, num: Mapping[str, np.ndarray]) -> None:
+    """Refuse a position farther than :data:`MAX_POSITION` metres from the origin.
+
+    Parameters
+    ----------
+    table : RawTable
+        The table read (named in the error with the row and column).
+    num : mapping of str to (rows,) float
+        Its parsed columns; ``x`` and ``y`` are checked.
+
+    Raises
+    ------
+    ValueError
+        ``<file>: row <r>, column 'x': expected a position within 1e+07 m of the origin,
+        got ...`` at the first such cell.
+    """
     for c in ("x", "y"):
         big = np.abs(num[c]) > MAX_POSITION
         if big.any():
@@ -330,7 +346,7 @@ def _artefacts(d: Path, n_sc: int | None) -> pd.DataFrame:
         empty = {c: np.zeros(0, SCENARIO_COLUMNS[c].split(",")[0]) for c in SCENARIO_COLUMNS}
         return pd.DataFrame(empty)
     num = {c: table.floats(c, allow_empty=False)[0] for c in _FLOATS}
-    _positions(table, num)
+    check_positions(table, num)
     early = num["t_leave"] < num["t_arrive"]
     if early.any():
         i = int(np.argmax(early))
@@ -399,7 +415,7 @@ def _tracks(d: Path, meta: Mapping[str, Any], artefacts: pd.DataFrame) -> pd.Dat
         dtypes = {c: np.int64 if c in ("scenario", "id") else float for c in TRACK_COLUMNS}
         return pd.DataFrame({c: np.zeros(0, t) for c, t in dtypes.items()})
     num = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
-    _positions(table, num)
+    check_positions(table, num)
     scen = table.nonneg_ints("scenario", allow_empty=False)[0]
     ids = table.nonneg_ints("id", allow_empty=False)[0]
     known = pd.MultiIndex.from_arrays(
