@@ -23,6 +23,7 @@ wall-clock time ``rho_t`` of a call (eq. 3). Two planners ship:
 
 from __future__ import annotations
 
+import abc
 import heapq
 import math
 import time
@@ -146,7 +147,21 @@ def timed_plan(
     return p, dt
 
 
-class AStarPlanner:
+class _GridPlanner(abc.ABC):
+    """What the two planners share: the checks of :func:`_query` before ``_plan``."""
+
+    def __call__(
+        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+    ) -> np.ndarray | None:
+        q = _query(free, start, goal, params)
+        return None if q is None else self._plan(q, params)
+
+    @abc.abstractmethod
+    def _plan(self, q: _Query, params: Mapping[str, Any]) -> np.ndarray | None:
+        """The path of a checked query, or None."""
+
+
+class AStarPlanner(_GridPlanner):
     """Grid A* on the 8-connected free cells (a deterministic, fast baseline).
 
     Moves between cell centres cost their Euclidean length; diagonal moves may not cut a
@@ -165,19 +180,14 @@ class AStarPlanner:
 
     name = "astar"
 
-    def __call__(
-        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
-    ) -> np.ndarray | None:
-        q = _query(free, start, goal, params)
-        if q is None:
-            return None
-        free, start, goal, res = q.free, q.start, q.goal, q.res
-        cells = astar_cells(free, q.start_cell, q.goal_cell)
+    def _plan(self, q: _Query, params: Mapping[str, Any]) -> np.ndarray | None:
+        cells = astar_cells(q.free, q.start_cell, q.goal_cell)
         if cells is None:
             return None
-        pts = (cells[:, ::-1] + 0.5) * res
-        pts = _merge_collinear(pts)
-        return np.vstack([start, pts[1:-1], goal]) if len(pts) > 2 else np.vstack([start, goal])
+        pts = _merge_collinear((cells[:, ::-1] + 0.5) * q.res)
+        if len(pts) > 2:
+            return np.vstack([q.start, pts[1:-1], q.goal])
+        return np.vstack([q.start, q.goal])
 
 
 def _merge_collinear(pts: np.ndarray) -> np.ndarray:
@@ -258,7 +268,7 @@ def astar_cells(
     return np.stack(np.divmod(idx, wp), axis=1) - 1
 
 
-class OMPLPlanner:
+class OMPLPlanner(_GridPlanner):
     """OMPL's sampling-based planners on the grid (RRT, RRT-Connect, RRT*, PRM).
 
     The state space is R^2 bounded by the grid; a state is valid when its cell is free.
@@ -351,16 +361,11 @@ class OMPLPlanner:
     def __repr__(self) -> str:
         return f"OMPLPlanner({self.name}, time_limit={self.time_limit:g})"
 
-    def __call__(
-        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
-    ) -> np.ndarray | None:
+    def _plan(self, q: _Query, params: Mapping[str, Any]) -> np.ndarray | None:
         from ompl import base as ob
         from ompl import geometric as og
         from ompl import util as ou
 
-        q = _query(free, start, goal, params)
-        if q is None:
-            return None
         free, start, goal, res = q.free, q.start, q.goal, q.res
         h, w = free.shape
         ou.setLogLevel(ou.LOG_NONE)
