@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -44,7 +44,7 @@ from are_stats.inputs import (
 
 if TYPE_CHECKING:
     from are_stats.export import AugmentResult
-    from are_stats.fitting import Fit
+    from are_stats.fitting import Fit, MotionReport
 
 # Each job imports the rooms it runs when it runs (fitting: JAX and NumPyro; perception:
 # Warp; logs and scenarios: pyarrow): a command loads only what it uses.
@@ -365,7 +365,7 @@ def _print_motion_tables(tables: dict) -> None:
     console.print(rich)
 
 
-def _print_motion_report(rep: Any, stored: Any) -> None:
+def _print_motion_report(rep: MotionReport, stored: Mapping[str, pd.DataFrame]) -> None:
     """The motion checks table, per-class rows, held-out moves and stored motion tables."""
     rich = Table(title="motion checks (90% bands; ! = observed outside)", title_justify="left")
     for col in ("statistic", "observed", "model 5% - 95%"):

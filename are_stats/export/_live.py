@@ -62,7 +62,7 @@ from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 from are_stats.logs import BagTrajectory, interpolate_poses, read_trajectory
-from are_stats.scenarios import Scene, read_scenes, scenes_from_tables
+from are_stats.scenarios import Scene, ScenesFolder, read_scenes, scenes_from_tables
 
 # Lazy imports: foxglove and perception (Warp) load when the live view starts, not with the
 # export room.
@@ -235,7 +235,9 @@ def _frame(
     return fm.SceneUpdate(deletions=deletions, entities=entities), tfs, boxes.ids.tolist()
 
 
-def _robot_frame(fm: Any, robot: Any, t: float, ns: int, frame: str) -> tuple[Any, list]:
+def _robot_frame(
+    fm: Any, robot: Mapping[str, Any], t: float, ns: int, frame: str
+) -> tuple[Any, list]:
     """(SceneUpdate, transforms) of the robot at ``t``: footprint and camera frustum."""
     base_at = interpolate_poses(robot["t"], robot["poses"], np.array([t]))[0]
     mount = robot["mount"]
@@ -597,7 +599,7 @@ def _port_error(host: str, port: int, err: BaseException) -> InputError:
     )
 
 
-def _replay(d: Path, folder: Any, scenario: int | None = None) -> dict[str, Any]:
+def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> dict[str, Any]:
     """What :func:`serve_scenario` replays of a scenarios folder read by
     :func:`~are_stats.scenarios.read_scenes`: the scene of one scenario, the map (when the
     manifest names one) and the horizon.

@@ -26,7 +26,7 @@ from are_stats.logs._lifecycle_log import (
     find_manifest,
     window_tolerance,
 )
-from are_stats.logs._table import frame_table, read_raw_table
+from are_stats.logs._table import RawTable, frame_table, read_raw_table
 from are_stats.logs._tracks import _from_raw, tracks_to_lifecycle
 
 __all__ = [
@@ -52,7 +52,9 @@ TRACK_OPTIONS = (
 )
 
 
-def _open(p: Path, manifest: Any) -> tuple[dict, Any, Any, bool, bool]:
+def _open(
+    p: Path, manifest: str | os.PathLike | None
+) -> tuple[dict[str, Any], str, RawTable, bool, bool]:
     """Manifest (and its path), raw table, and which kind of field log the columns say."""
     meta, mpath = find_manifest(p, manifest)
     raw = read_raw_table(p, "field log (life-cycle log or tracks table)")

@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     import jax
 
     from are_stats.environment import OccupancyGrid
-    from are_stats.traffic import TrafficLaws
+    from are_stats.traffic import PositionDensity, TrafficLaws
 
 __all__ = [
     "SCENARIO_COLUMNS",
@@ -57,7 +57,7 @@ __all__ = [
 ]
 
 
-def _seed_sequence(key: int | jax.Array) -> tuple[np.random.SeedSequence, Any]:
+def _seed_sequence(key: int | jax.Array) -> tuple[np.random.SeedSequence, int | list[int]]:
     """A NumPy SeedSequence from an int seed or a JAX PRNG key (and a YAML-able record)."""
     if isinstance(key, bool):
         raise ValueError(f"key: expected an int seed >= 0 or a JAX PRNG key, got {key!r}")
@@ -263,7 +263,7 @@ def _draw_classes(
 
 def _place_by_class(
     rng: np.random.Generator,
-    densities: Any,
+    densities: Sequence[PositionDensity],
     cls: np.ndarray,
     scen: np.ndarray,
     group: np.ndarray,
@@ -582,7 +582,7 @@ def _paper_populations(
     return scen, j, t_arr, t_leave, initial, total
 
 
-def _check_entries_on_map(entry: Any, free: Any) -> None:
+def _check_entries_on_map(entry: PositionDensity, free: PositionDensity) -> None:
     """Refuse a learned entry density that mostly lies off the given map's free cells."""
     h, w = entry.prob.shape
     yy, xx = np.mgrid[0:h, 0:w]
