@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, extrude_grid
 from are_stats.export import AUGMENT_TOPICS, MCAP_TOPICS, augment_bag, parse_start_time
-from are_stats.logs import read_trajectory
+from are_stats.logs import BagTrajectory, read_trajectory
 from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
 from tests.export.rosbag_fixtures import (
     CAMERA,
@@ -486,6 +486,13 @@ def test_nearly_unit_quaternions_are_renormalised(tmp_path):
         np.testing.assert_allclose(tr.poses, _truth(tr.t - START), atol=1e-9)
 
 
+def test_since_start_without_exact_stamps_rounds_the_times_to_nanoseconds():
+    t = np.array([10.0, 10.25, 10.5])
+    poses = np.tile(np.eye(4), (3, 1, 1))
+    tr = BagTrajectory(t, poses, 10.0, 10.5, None, None, None, None, "test", 10_000_000_000)
+    np.testing.assert_allclose(tr.since_start, [0.0, 0.25, 0.5], rtol=0, atol=1e-12)
+
+
 def test_augment_sim_time_bag_uses_one_clock(files, tmp_path):
     from tests.export.rosbag_fixtures import SIM_START, stamp_ns
 
@@ -497,6 +504,9 @@ def test_augment_sim_time_bag_uses_one_clock(files, tmp_path):
     np.testing.assert_array_equal(tr.t_ns, poses_ns)
     assert tr.start_ns == poses_ns[0] and tr.camera_ns[0] == poses_ns[0]
     np.testing.assert_allclose(tr.poses, _truth(tr.t - SIM_START), atol=1e-9)
+    # scene times from the exact stamps: k / 10 s after the start, not the float epoch's
+    # round-off (1e-7 s at 1.7e9 s)
+    np.testing.assert_allclose(tr.since_start, np.arange(len(poses_ns)) / 10, rtol=0, atol=1e-12)
     log = read_trajectory(bag, camera_info_topic=topic, clock="log")
     assert log.clock == "log" and log.start_ns == START_NS
     np.testing.assert_allclose(log.poses, tr.poses, atol=1e-12)
