@@ -45,6 +45,7 @@ from are_stats.inputs import (
 if TYPE_CHECKING:
     from are_stats.export import AugmentResult
     from are_stats.fitting import Fit, MotionReport
+    from are_stats.logs import TrajectoryOptions
 
 # Each job imports the rooms it runs when it runs (fitting: JAX and NumPyro; perception:
 # Warp; logs and scenarios: pyarrow): a command loads only what it uses.
@@ -934,28 +935,21 @@ def run_augment(
     map_path: str,
     out: Path,
     seed: int,
+    trajectory: TrajectoryOptions,
     *,
-    pose_topic: str | None = None,
-    base_frame: str | None = None,
     camera: Path | None = None,
-    camera_info_topic: str | None = None,
     period: float = 0.5,
     d_max: float = 10.0,
     tau: float = 10.0,
     force: bool = False,
-    clock: str = "auto",
     model: str = "chosen",
     topics: str | None = None,
-    map_frame: str = "map",
-    camera_frame: str | None = None,
 ) -> AugmentResult:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
-    (:func:`are_stats.export.augment_bag`); ``topics`` the comma-separated input
-    topics passed through (default all)."""
+    (:func:`are_stats.export.augment_bag`); ``trajectory`` how the bag's robot is read,
+    ``topics`` the comma-separated input topics passed through (default all)."""
     from are_stats.export import augment_bag
 
-    if pose_topic is not None and base_frame is not None:
-        raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
     t = time.perf_counter()
     with console.status(f"augmenting {bag} ..."):
         res = augment_bag(
@@ -964,18 +958,13 @@ def run_augment(
             map_path,
             out,
             seed,
-            pose_topic=pose_topic,
-            base_frame=base_frame or "base_link",
+            **trajectory.checked().keywords(),
             camera=camera,
-            camera_info_topic=camera_info_topic,
             period=period,
             d_max=d_max,
             tau=tau,
             force=force,
-            clock=clock,
             model=model,
-            map_frame=map_frame,
-            camera_frame=camera_frame,
             topics=None if topics is None else [t.strip() for t in topics.split(",") if t.strip()],
         )
     n_seen = int(res.perceived.any(axis=0).sum())
@@ -1004,47 +993,24 @@ def run_serve(
     duration: float | None = None,
     robot_path: Path | None = None,
     bag: Path | None = None,
-    pose_topic: str | None = None,
-    base_frame: str | None = None,
-    map_frame: str = "map",
-    camera_frame: str | None = None,
-    camera_info_topic: str | None = None,
-    clock: str = "auto",
+    trajectory: TrajectoryOptions | None = None,
 ) -> dict[str, Any]:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
     (:func:`are_stats.export.serve_scenario`), with the robot of a path or of a bag
-    (:func:`are_stats.export.robot_from_bag`: the options of ``augment``)."""
+    (:func:`are_stats.export.robot_from_bag`, read with ``trajectory``: the options of
+    ``augment``)."""
     from are_stats.export import robot_from_bag, serve_scenario
-    from are_stats.logs import CLOCKS
+    from are_stats.logs import TrajectoryOptions
 
-    clock = get_str(clock, "--clock", "", choices=CLOCKS)
-    bag_only = {
-        "--pose-topic": pose_topic,
-        "--base-frame": base_frame,
-        "--camera-frame": camera_frame,
-        "--camera-info-topic": camera_info_topic,
-        "--map-frame": None if map_frame == "map" else map_frame,
-        "--clock": None if clock == "auto" else clock,
-    }
+    trajectory = trajectory or TrajectoryOptions()
     if bag is None:
-        for name, value in bag_only.items():
-            if value is not None:
-                raise InputError(name, "", "--bag (the bag it reads)", Described("no --bag"))
+        for name in trajectory.given():
+            raise InputError(name, "", "--bag (the bag it reads)", Described("no --bag"))
     if bag is not None and robot_path is not None:
         raise InputError("--bag", "", "either --robot-path or --bag", "both")
-    if pose_topic is not None and base_frame is not None:
-        raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
     robot = None
     if bag is not None:
-        robot = robot_from_bag(
-            bag,
-            pose_topic=pose_topic,
-            base_frame=base_frame or "base_link",
-            map_frame=map_frame,
-            camera_info_topic=camera_info_topic,
-            camera_frame=camera_frame,
-            clock=clock,
-        )
+        robot = robot_from_bag(bag, **trajectory.checked().keywords())
 
     def ready(info: dict[str, Any]) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""

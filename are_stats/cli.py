@@ -542,6 +542,7 @@ def augment(
 ) -> None:
     """Augment a robot's recorded bag with artefacts generated from a fit (ROS 2 MCAP out)."""
     from are_stats._cli_jobs import run_augment
+    from are_stats.logs import TrajectoryOptions
 
     run_augment(
         bag,
@@ -549,19 +550,16 @@ def augment(
         map_path,
         out,
         _seed(seed),
-        pose_topic=pose_topic,
-        base_frame=base_frame,
+        TrajectoryOptions(
+            pose_topic, base_frame, map_frame, camera_info_topic, clock, camera_frame
+        ),
         camera=camera,
-        camera_info_topic=camera_info_topic,
         period=period,
         d_max=d_max,
         tau=tau,
         force=force,
-        clock=clock,
         model=model,
         topics=topics,
-        map_frame=map_frame,
-        camera_frame=camera_frame,
     )
 
 
@@ -630,6 +628,7 @@ def serve(
     """Stream a scenario replay live to Foxglove (WebSocket, foxglove.sdk.v1): boxes, map, /tf,
     and the robot with --robot-path or --bag."""
     from are_stats._cli_jobs import run_serve
+    from are_stats.logs import TrajectoryOptions
 
     run_serve(
         scenarios,
@@ -641,12 +640,9 @@ def serve(
         duration=duration,
         robot_path=robot_path,
         bag=bag,
-        pose_topic=pose_topic,
-        base_frame=base_frame,
-        map_frame=map_frame,
-        camera_frame=camera_frame,
-        camera_info_topic=camera_info_topic,
-        clock=clock,
+        trajectory=TrajectoryOptions(
+            pose_topic, base_frame, map_frame, camera_info_topic, clock, camera_frame
+        ),
     )
 
 

@@ -49,9 +49,9 @@ from are_stats.logs import (
     CLOCKS,
     STAMP_GAP,
     BagTrajectory,
+    TrajectoryOptions,
     bag_passthrough,
     interpolate_poses,
-    read_trajectory,
 )
 from are_stats.scenarios import Scene, scenes_from_fit
 
@@ -262,15 +262,8 @@ def augment_bag(
     grid = OccupancyGrid.from_ros_yaml(map_file)
     fitted = read_fit(fit)
 
-    traj = read_trajectory(
-        bag,
-        pose_topic=pose_topic,
-        base_frame=base_frame,
-        map_frame=map_frame,
-        camera_info_topic=camera_info_topic,
-        clock=clock,
-        camera_frame=camera_frame,
-    )
+    opts = TrajectoryOptions(pose_topic, base_frame, map_frame, camera_info_topic, clock)
+    traj = opts._replace(camera_frame=camera_frame).read(bag)
     passthrough = bag_passthrough(bag, None if topics is None else list(topics))
     clash = sorted(
         {c.topic for c in passthrough.channels} & (set(AUGMENT_TOPICS) - {"/tf", "/tf_static"})

@@ -61,7 +61,7 @@ import numpy as np
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
-from are_stats.logs import BagTrajectory, interpolate_poses, read_trajectory
+from are_stats.logs import BagTrajectory, TrajectoryOptions, interpolate_poses
 from are_stats.scenarios import Scene, ScenesFolder, read_scenes, scenes_from_tables
 
 # Lazy imports: foxglove and perception (Warp) load when the live view starts, not with the
@@ -551,15 +551,8 @@ def robot_from_bag(
         map frame to the base, a missing or empty pose topic) and for the other errors of
         :func:`~are_stats.logs.read_trajectory`.
     """
-    traj = read_trajectory(
-        bag,
-        pose_topic=pose_topic,
-        base_frame=base_frame,
-        map_frame=map_frame,
-        camera_info_topic=camera_info_topic,
-        clock=clock,
-        camera_frame=camera_frame,
-    )
+    opts = TrajectoryOptions(pose_topic, base_frame, map_frame, camera_info_topic, clock)
+    traj = opts._replace(camera_frame=camera_frame).read(bag)
     cam, mount = bag_camera(bag, traj, camera, camera_info_topic, height)
     # the header clock's start (augment's rule): stamps of the replay as the bag's
     off = traj.offset_ns if traj.clock == "log" else 0

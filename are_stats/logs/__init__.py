@@ -63,6 +63,7 @@ from are_stats.logs._trajectory import (
     CLOCKS,
     POSE_TYPES,
     BagTrajectory,
+    TrajectoryOptions,
     read_trajectory,
 )
 
@@ -74,6 +75,7 @@ __all__ = [
     "POSE_TYPES",
     "BagTrajectory",
     "read_trajectory",
+    "TrajectoryOptions",
     "DETECTION3D_MSGS",
     "GROUP_DISTANCE",
     "GROUP_HORIZON_STEPS",

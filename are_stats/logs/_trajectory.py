@@ -36,6 +36,7 @@ __all__ = [
     "CLOCK_TOLERANCE",
     "POSE_TYPES",
     "BagTrajectory",
+    "TrajectoryOptions",
     "read_trajectory",
 ]
 
@@ -160,6 +161,83 @@ def _clock_choice(p: Path, clock: str, hdr: np.ndarray, log: np.ndarray) -> tupl
     why = "--clock header" if clock == "header" else "the default"
     other = "; --clock log reads the recording times instead" if apart else ""
     return "header", offset, f"header stamps ({why}; {differ}{other})"
+
+
+class TrajectoryOptions(NamedTuple):
+    """How a bag's robot is read: the options ``augment`` and ``serve --bag`` share.
+
+    The fields are :func:`read_trajectory`'s keywords, in the order the commands declare
+    them, so a command builds one from its parsed options in one line and every layer below
+    (``run_augment`` -> :func:`~are_stats.export.augment_bag`, ``run_serve`` ->
+    :func:`~are_stats.export.robot_from_bag` -> :func:`read_trajectory`) passes it on
+    whole instead of repeating six keywords.
+
+    Attributes
+    ----------
+    pose_topic : str or None
+        Poses from this topic instead of ``/tf`` (``--pose-topic``).
+    base_frame : str or None
+        The robot's ``/tf`` frame (``--base-frame``); ``None``: not given, ``base_link``.
+    map_frame : str
+        The fixed frame (``--map-frame``).
+    camera_info_topic : str or None
+        The ``CameraInfo`` topic (``--camera-info-topic``).
+    clock : {"auto", "header", "log"}
+        The one clock (``--clock``, :data:`CLOCKS`).
+    camera_frame : str or None
+        The camera's frame in the bag's tree (``--camera-frame``).
+
+    Examples
+    --------
+    >>> TrajectoryOptions(None, None, "map", "/camera/camera_info").keywords()["base_frame"]
+    'base_link'
+    >>> TrajectoryOptions(clock="log").given()
+    {'--clock': 'log'}
+    """
+
+    pose_topic: str | None = None
+    base_frame: str | None = None
+    map_frame: str = "map"
+    camera_info_topic: str | None = None
+    clock: str = "auto"
+    camera_frame: str | None = None
+
+    def given(self) -> dict[str, str]:
+        """The options set away from their defaults, by command-line flag.
+
+        Returns
+        -------
+        dict
+            ``{"--pose-topic": ..., ...}`` for each option given (for a command that
+            refuses bag options without a bag).
+        """
+        default = TrajectoryOptions()
+        return {
+            "--" + name.replace("_", "-"): value
+            for name, value in self._asdict().items()
+            if value != getattr(default, name)
+        }
+
+    def checked(self) -> TrajectoryOptions:
+        """These options, when they name one source of poses.
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            When both ``pose_topic`` and ``base_frame`` are given (``--pose-topic`` and
+            ``--base-frame``: two sources of the robot's poses).
+        """
+        if self.pose_topic is not None and self.base_frame is not None:
+            raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
+        return self
+
+    def keywords(self) -> dict[str, Any]:
+        """:func:`read_trajectory`'s keywords (``base_frame`` ``base_link`` when not given)."""
+        return {**self._asdict(), "base_frame": self.base_frame or "base_link"}
+
+    def read(self, bag: str | os.PathLike) -> BagTrajectory:
+        """:func:`read_trajectory` of ``bag`` with these options."""
+        return read_trajectory(bag, **self.keywords())
 
 
 def read_trajectory(
