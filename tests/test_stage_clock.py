@@ -113,3 +113,78 @@ def test_a_stage_estimate_counts_down_and_ends_with_the_stage(tmp_path):
     clock.close()
     # a plain callable has no estimate to be told
     assert clock_progress(print) is None and clock_progress(None) is None
+
+
+def test_the_record_leaves_out_the_compiling_a_warm_cache_spares(tmp_path):
+    """A first run compiles (20 s of its 30 s); the persistent cache spares the second run
+    that, so the second run's estimate is the first's 10 s of work, not its 30 s. A run
+    that compiles again holds its time left while it compiles."""
+    path = tmp_path / "stage_times.json"
+    timer, compiled = _Timer(), [0.0]
+    first = StageClock(None, size="4 x 600 s", path=path, timer=timer, compiled=lambda: compiled[0])
+    first("rollouts")
+    timer.now += 30.0
+    compiled[0] += 20.0  # of which compiling
+    first.close()
+    assert json.loads(path.read_text()) == {"rollouts [4 x 600 s]": 10.0}
+
+    status = _Status()
+    second = StageClock(
+        status, size="4 x 600 s", path=path, timer=timer, compiled=lambda: compiled[0]
+    )
+    second("rollouts")
+    timer.now += 4.0
+    assert second._words() == "rollouts ... 4 s, about 6 s left"
+    assert second.spent() == 4.0
+    timer.now += 3.0
+    compiled[0] += 3.0  # a program the cache did not have: the time left holds
+    assert second._words() == "rollouts ... 7 s, about 6 s left"
+    assert second.spent() == 4.0
+    timer.now += 7.0
+    assert second._words() == "rollouts ... 14 s, longer than last time (10 s)"
+    second.close()
+    assert json.loads(path.read_text()) == {"rollouts [4 x 600 s]": 11.0}
+    assert second.spent() == 0.0  # between stages
+
+
+def test_xla_compile_seconds_counts_compiles_and_not_cache_loads(tmp_path):
+    """JAX's own compile events: a new program adds its compile time; the same program
+    loaded from the persistent cache by a fresh process (here: after the in-memory caches
+    are cleared) adds almost nothing."""
+    import jax
+    import numpy as np
+    from jax.experimental.compilation_cache import compilation_cache
+
+    from are_stats._stage_clock import xla_compile_seconds
+
+    names = (
+        "jax_compilation_cache_dir",
+        "jax_persistent_cache_min_compile_time_secs",
+        "jax_persistent_cache_min_entry_size_bytes",
+    )
+    saved = {name: getattr(jax.config, name) for name in names}
+    constant = float(np.random.default_rng().integers(1, 10**9))  # a program no cache holds
+
+    def program(x):
+        for _ in range(20):
+            x = jax.numpy.sin(x) * constant + jax.numpy.cos(x)
+        return x
+
+    x = np.linspace(0.0, 1.0, 37)
+    try:
+        for name, value in zip(names, (str(tmp_path), 0.0, -1), strict=True):
+            jax.config.update(name, value)
+        compilation_cache.reset_cache()
+        before = xla_compile_seconds()
+        jax.jit(program)(x).block_until_ready()
+        compiled = xla_compile_seconds() - before
+        assert compiled > 0.0
+        assert any(tmp_path.iterdir())  # the program went to the persistent cache
+        jax.clear_caches()
+        middle = xla_compile_seconds()
+        jax.jit(program)(x).block_until_ready()
+        assert abs(xla_compile_seconds() - middle) < 0.5 * compiled
+    finally:
+        for name, value in saved.items():
+            jax.config.update(name, value)
+        compilation_cache.reset_cache()
