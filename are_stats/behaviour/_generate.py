@@ -389,7 +389,7 @@ def simulate_behaviour_tracks(
         Within-person standard deviation of the log walking speed (:func:`walk_times`).
     progress : callable, optional
         ``progress(done, total)`` after each chunk of goals solved and its paths sampled
-        (one soft solve, the long part), then once more when the paths are walked: ``total``
+        (one soft solve, the long part), then once more when the paths are timed: ``total``
         is the chunks (of every class) plus one; the last call has ``done == total``.
 
     Returns
