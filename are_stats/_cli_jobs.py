@@ -271,11 +271,24 @@ def run_fit(
             console.print(f"[yellow]warning:[/] {cmp.warning}")
     console.print(f"wrote {out}")
     if figures is not None:
-        with console.status("posterior-predictive checks ..."):
+        # stages over 2 s: the time left from the last run (StageClock)
+        size = f"{n_replicates} replicates, {data.n} rows"
+        with (
+            console.status("posterior-predictive checks ...") as status,
+            StageClock(status, size=size, live=console.is_terminal) as clock,
+        ):
+            clock("posterior-predictive checks")
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
         _print_checks(written)
         if lifecycle.tracks is not None and fit.behaviour is not None:
-            with console.status("motion checks (speeds, straightness, held-out moves) ..."):
+            stage = "motion checks (speeds, straightness, held-out moves)"
+            with (
+                console.status(f"{stage} ...") as status,
+                StageClock(
+                    status, size=f"{len(lifecycle.tracks)} track rows", live=console.is_terminal
+                ) as clock,
+            ):
+                clock(stage)
                 from are_stats.fitting import write_motion_report
 
                 motion = write_motion_report(seed, fit, lifecycle.tracks, figures, force, catalogue)
