@@ -272,11 +272,24 @@ def run_fit(
             console.print(f"[yellow]warning:[/] {cmp.warning}")
     console.print(f"wrote {out}")
     if figures is not None:
-        with console.status("posterior-predictive checks ..."):
+        # stages over 2 s: the time left from the last run (StageClock)
+        size = f"{n_replicates} replicates, {data.n} rows"
+        with (
+            console.status("posterior-predictive checks ...") as status,
+            StageClock(status, size=size, live=console.is_terminal) as clock,
+        ):
+            clock("posterior-predictive checks")
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
         _print_checks(written)
         if lifecycle.tracks is not None and fit.behaviour is not None:
-            with console.status("motion checks (speeds, straightness, held-out moves) ..."):
+            stage = "motion checks (speeds, straightness, held-out moves)"
+            with (
+                console.status(f"{stage} ...") as status,
+                StageClock(
+                    status, size=f"{len(lifecycle.tracks)} track rows", live=console.is_terminal
+                ) as clock,
+            ):
+                clock(stage)
                 from are_stats.fitting import write_motion_report
 
                 motion = write_motion_report(seed, fit, lifecycle.tracks, figures, force, catalogue)
@@ -640,9 +653,12 @@ class StepsLeft:
     assembly stands and the time left (:meth:`StageClock.left`).
 
     The time left is the stage's recorded duration less the time spent when the clock
-    has one (a later run); on a machine's first run it is the mean time of the steps done
-    after the first (the scenarios' draw, quick: the planning and the social force are
-    the long steps) times the steps left, unknown until one of those is timed.
+    has one (a later run; both without compiling, :meth:`StageClock.spent`); on a
+    machine's first run it is the mean time of the steps of the current phase done after
+    its first (which compiles) times the steps left, unknown until one of those is timed.
+    A phase is a run of steps with the same ``total``: the assembly's planning and its
+    social force have steps of different lengths, and each announces its own total when
+    it starts (the scenarios' draw, quick, is a phase of its own).
 
     Parameters
     ----------
@@ -658,20 +674,20 @@ class StepsLeft:
         self, clock: StageClock, stage: str, timer: Callable[[], float] = time.perf_counter
     ) -> None:
         self._clock, self._stage, self._timer = clock, stage, timer
-        self._t0 = timer()
-        self._first: float | None = None
+        self._phase: tuple[int, int, float] | None = None  # (total, done, time) at its start
 
     def __call__(self, done: int, total: int, what: str) -> None:
         now = self._timer()
-        if self._first is None:
-            self._first = now
+        if self._phase is None or self._phase[0] != total:
+            self._phase = (total, done, now)
+        _, done0, t0 = self._phase
         last = self._clock.last(self._stage)
         if last is not None:
-            left: float | None = max(last - (now - self._t0), 0.0)
+            left: float | None = max(last - self._clock.spent(), 0.0)
         elif done >= total:
             left = 0.0
-        elif done >= 2:
-            left = (now - self._first) / (done - 1) * (total - done)
+        elif done > done0:
+            left = (now - t0) / (done - done0) * (total - done)
         else:
             left = None
         self._clock.left(left, f"{what} ({done}/{total})")

@@ -535,3 +535,38 @@ def test_steps_left_from_the_steps_timed_or_the_record(tmp_path):
     now[0] += 10.0
     steps(1, 4, "step 1")
     assert said == [(30.5, "step 1 (1/4)")]
+
+
+def test_steps_left_times_each_phase_by_its_own_steps(tmp_path):
+    """The planning's steps and the social force's windows take different times: a first
+    run's time left comes from the steps of the phase running (a phase announces its own
+    total), after its first step (which compiles); a later run's from the record, less the
+    compiling this run had to do."""
+    now = [0.0]
+    said = []
+
+    class Clock(StageClock):
+        def left(self, seconds, words=""):
+            said.append((seconds, words.split(" (")[-1]))
+
+    first = Clock(None, path=tmp_path / "t.json", timer=lambda: now[0], compiled=None)
+    first("rollouts")
+    steps = cli_jobs.StepsLeft(first, "rollouts", timer=lambda: now[0])
+    # the draw (1 of 3), 4 planning steps of 5 s after a first of 9 s, 20 windows of 0.5 s
+    for at, done, total in ((1.0, 1, 3), (10.0, 2, 7), (15.0, 3, 7), (20.0, 4, 7),
+                            (30.0, 7, 26), (30.5, 8, 26), (31.0, 9, 26)):  # fmt: skip
+        now[0] = at
+        steps(done, total, "step")
+    assert said == [(None, "1/3)"), (None, "2/7)"), (20.0, "3/7)"), (15.0, "4/7)"),
+                    (None, "7/26)"), (9.0, "8/26)"), (8.5, "9/26)")]  # fmt: skip
+    first.close()
+    said.clear()
+    # 11 s in, 5 of them compiling (from 103 s to 108 s): 6 of the 31 s done
+    compiled = lambda t0, t1: max(0.0, min(t1, 108.0) - max(t0, 103.0))  # noqa: E731
+    second = Clock(None, path=tmp_path / "t.json", timer=lambda: now[0], compiled=compiled)
+    now[0] = 100.0
+    second("rollouts")
+    steps = cli_jobs.StepsLeft(second, "rollouts", timer=lambda: now[0])
+    now[0] = 111.0
+    steps(2, 7, "step")
+    assert said == [(25.0, "2/7)")]

@@ -113,3 +113,100 @@ def test_a_stage_estimate_counts_down_and_ends_with_the_stage(tmp_path):
     clock.close()
     # a plain callable has no estimate to be told
     assert clock_progress(print) is None and clock_progress(None) is None
+
+
+def _compiling(spans):
+    """``compiled(t0, t1)`` of a clock whose compiles ran in ``spans`` (disjoint)."""
+    return lambda t0, t1: sum(max(0.0, min(b, t1) - max(a, t0)) for a, b in spans)
+
+
+def test_the_record_leaves_out_the_compiling_a_warm_cache_spares(tmp_path):
+    """A first run compiles (20 s of its 30 s); the persistent cache spares the second run
+    that, so the second run's estimate is the first's 10 s of work, not its 30 s. A run
+    that compiles again holds its time left while it compiles."""
+    path = tmp_path / "stage_times.json"
+    timer, spans = _Timer(), [(101.0, 121.0)]  # the timer starts at 100 s
+    first = StageClock(None, size="4 x 600 s", path=path, timer=timer, compiled=_compiling(spans))
+    first("rollouts")
+    timer.now += 30.0
+    first.close()
+    assert json.loads(path.read_text()) == {"rollouts [4 x 600 s]": 10.0}
+
+    status = _Status()
+    spans.append((134.0, 137.0))  # a program the cache did not have
+    second = StageClock(status, size="4 x 600 s", path=path, timer=timer,
+                        compiled=_compiling(spans))  # fmt: skip
+    second("rollouts")
+    timer.now += 4.0
+    assert second._words() == "rollouts ... 4 s, about 6 s left"
+    assert second.spent() == 4.0
+    timer.now += 3.0  # compiling: the time left holds
+    assert second._words() == "rollouts ... 7 s, about 6 s left"
+    assert second.spent() == 4.0
+    timer.now += 7.0
+    assert second._words() == "rollouts ... 14 s, longer than last time (10 s)"
+    second.close()
+    assert json.loads(path.read_text()) == {"rollouts [4 x 600 s]": 11.0}
+    assert second.spent() == 0.0  # between stages
+
+
+def test_xla_compiling_is_the_time_xla_compiled_not_loaded(tmp_path):
+    """JAX's own compile events: a new program's compile is inside the time measured; the
+    same program loaded from the persistent cache by a fresh jit adds (almost) nothing;
+    two threads compiling at once count once (at most the time that passed)."""
+    import threading
+    import time
+
+    import jax
+    import numpy as np
+    from jax.experimental.compilation_cache import compilation_cache
+
+    from are_stats._stage_clock import xla_compiling
+
+    names = (
+        "jax_compilation_cache_dir",
+        "jax_persistent_cache_min_compile_time_secs",
+        "jax_persistent_cache_min_entry_size_bytes",
+    )
+    saved = {name: getattr(jax.config, name) for name in names}
+    base = float(np.random.default_rng().integers(1, 10**9))  # programs no cache holds
+
+    def program(constant):
+        def f(x):
+            for _ in range(20):
+                x = jax.numpy.sin(x) * constant + jax.numpy.cos(x)
+            return x
+
+        return jax.jit(f)
+
+    x = np.linspace(0.0, 1.0, 37)
+    try:
+        for name, value in zip(names, (str(tmp_path), 0.0, -1), strict=True):
+            jax.config.update(name, value)
+        compilation_cache.reset_cache()
+        xla_compiling(0.0, 0.0)  # watching from here
+        t0 = time.perf_counter()
+        program(base)(x).block_until_ready()
+        t1 = time.perf_counter()
+        compiled = xla_compiling(t0, t1)
+        assert 0.0 < compiled <= t1 - t0
+        assert any(tmp_path.iterdir())  # the program went to the persistent cache
+        jax.clear_caches()
+        t2 = time.perf_counter()
+        program(base)(x).block_until_ready()
+        assert xla_compiling(t2, time.perf_counter()) < 0.5 * compiled
+        threads = [
+            threading.Thread(target=lambda c=c: program(c)(x).block_until_ready())
+            for c in (base + 1, base + 2, base + 3)
+        ]
+        t3 = time.perf_counter()
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        t4 = time.perf_counter()
+        assert 0.0 < xla_compiling(t3, t4) <= t4 - t3
+    finally:
+        for name, value in saved.items():
+            jax.config.update(name, value)
+        compilation_cache.reset_cache()

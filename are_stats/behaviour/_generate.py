@@ -32,7 +32,7 @@ with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -356,6 +356,7 @@ def simulate_behaviour_tracks(
     class_labels: Any = None,
     horizon: float | None = None,
     within_sd: float = 0.05,
+    progress: Callable[[int, int], object] | None = None,
 ) -> pd.DataFrame:
     """Tracks of scenario artefacts from a fitted behaviour (see the module docstring).
 
@@ -386,6 +387,10 @@ def simulate_behaviour_tracks(
         Leaving times are cut at it (the end of a mission).
     within_sd : float
         Within-person standard deviation of the log walking speed (:func:`walk_times`).
+    progress : callable, optional
+        ``progress(done, total)`` after each chunk of goals solved and its paths sampled
+        (one soft solve, the long part), then once more when the paths are timed: ``total``
+        is the chunks (of every class) plus one; the last call has ``done == total``.
 
     Returns
     -------
@@ -445,10 +450,14 @@ def simulate_behaviour_tracks(
     occ = ~fit.free
     paths: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n
     # one soft solve per (class, exit); chunks of goals keep the policies small
+    by_class = []
     for c in np.unique(cls[moving]):
         idx = np.flatnonzero(moving & (cls == c))
         goals, ginv = np.unique(exits[idx], axis=0, return_inverse=True)
-        ginv = ginv.ravel()
+        by_class.append((c, idx, goals, ginv.ravel()))
+    total = sum(-(-len(goals) // chunk) for _, _, goals, _ in by_class) + 1
+    done = 0
+    for c, idx, goals, ginv in by_class:
         dist = fit.geodesic(goals)
         for g0 in range(0, len(goals), chunk):
             gsel = np.arange(g0, min(g0 + chunk, len(goals)))
@@ -473,6 +482,9 @@ def simulate_behaviour_tracks(
             )
             for j, m in enumerate(members):
                 paths[m] = (st[j], ac[j])
+            done += 1
+            if progress is not None:
+                progress(done, total)
     curves: list[tuple[np.ndarray, np.ndarray]] = []
     walking = [i for i in range(n) if paths[i] is not None]
     walked = iter(
@@ -508,6 +520,8 @@ def simulate_behaviour_tracks(
         steps, np.zeros(n),
     )  # fmt: skip
     out = pd.concat(rows, ignore_index=True)
+    if progress is not None:
+        progress(total, total)
     return out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
 
 

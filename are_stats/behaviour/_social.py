@@ -60,6 +60,8 @@ from are_stats.inputs import check_memory, check_work
 # package) in the functions that use them.
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from are_stats.environment import OccupancyGrid
 
 __all__ = ["SocialForce", "fit_social_force", "social_force_tracks"]
@@ -395,6 +397,7 @@ def social_force_tracks(
     dt: float = 0.1,
     kinematic: npt.ArrayLike | None = None,
     groups: npt.ArrayLike | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again with the social force (people give way to each other).
 
@@ -428,6 +431,10 @@ def social_force_tracks(
         it; members repel each other only on contact, everybody else as usual. When the
         leader has left, the others walk on along the shared route. Kinematic artefacts
         walk alone.
+    progress : callable, optional
+        ``progress(done, total)`` after each window of the simulation (``WINDOW_STEPS``
+        steps of every scenario at once, one compiled program), ``total`` windows; the
+        last call has ``done == total``.
 
     Returns
     -------
@@ -529,7 +536,9 @@ def social_force_tracks(
     w_start = t0 + np.arange(n_win) * WINDOW_STEPS * dt
     active = [np.flatnonzero((t_on < w0 + WINDOW_STEPS * dt) & (t_off > w0)) for w0 in w_start]
     sim_t, sim_x, sim_i = [], [], []
-    for w0, act in zip(w_start, active, strict=True):
+    for w, (w0, act) in enumerate(zip(w_start, active, strict=True)):
+        if progress is not None and w:
+            progress(w, n_win)
         if act.size == 0:
             continue
         # each artefact's slot (padded to a power of two: a few compiled programs); many
@@ -607,6 +616,8 @@ def social_force_tracks(
         sim_t.append(tt[si])
         sim_x.append(xs[si, slot[ai]] - shift[act[ai]])
         sim_i.append(act[ai])
+    if progress is not None:
+        progress(n_win, n_win)
     st = np.concatenate(sim_t) if sim_t else np.zeros(0)
     sx = np.concatenate(sim_x) if sim_x else np.zeros((0, 2))
     si = np.concatenate(sim_i) if sim_i else np.zeros(0, np.int64)

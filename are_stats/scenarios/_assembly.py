@@ -259,9 +259,12 @@ def scene_tracks(
         Number of scenarios (default: the table's).
     progress : callable, optional
         ``progress(done, total, what)`` after each step: the tracks planned (the
-        catalogue's behaviour one step per scenario, the fitted one in one batch), then
-        (with ``interaction``) walked under the social force; ``done == total`` at the end
-        (``total`` is known once the first scenario is planned).
+        catalogue's behaviour one step per scenario, the fitted one per chunk of exits
+        solved, :func:`~are_stats.behaviour.simulate_behaviour_tracks`), then (with
+        ``interaction``) walked under the social force, one step per window of its
+        simulation (:func:`~are_stats.behaviour.social_force_tracks`); ``done == total`` at
+        the end. ``total`` is known once the first step of the planning is done, and grows
+        when the social force starts (counted as one step until then).
 
     Returns
     -------
@@ -278,18 +281,29 @@ def scene_tracks(
     if n is None:
         n = int(art["scenario"].max()) + 1 if len(art) else 1
     say = progress or (lambda done, total, what: None)
-    social = int(interaction is not False)  # the social force's step after the planning
-    planned = [0]  # the catalogue's planning reports one step per scenario
+    social = int(interaction is not False)  # the social force's steps (1 until it starts)
+    planned = [0]  # the planning's steps (per scenario, or per chunk of exits)
+    walked = [0, 0]  # the social force's windows: done, total
 
     def plan_step(done: int, total: int) -> None:
         planned[0] = total
-        words = f" ({done} of {total} scenarios)" if total > 1 else ""
+        if kind == "catalogue":
+            words = f" ({done} of {total} scenarios)" if total > 1 else ""
+        else:  # the chunks of exits solved, then the paths timed
+            words = f" ({done} of {total - 1} exit batches)" if done < total else ""
         say(done, total + social, f"tracks planned{words}")
+
+    def walk_step(done: int, total: int) -> None:
+        walked[:] = [done, total]
+        base = max(planned[0], 1)
+        say(base + done, base + total, f"walked with the social force ({done} of {total} windows)")
 
     tracks = None
     if kind == "fitted" and len(art):
         tracks = pd.DataFrame(
-            simulate_behaviour_tracks(key, fitted, art, class_labels=class_labels, horizon=horizon)
+            simulate_behaviour_tracks(
+                key, fitted, art, class_labels=class_labels, horizon=horizon, progress=plan_step
+            )
         )
     elif kind == "catalogue" and len(art):
         free, _ = coarse_free(grid.free, grid.resolution, behaviour_cell, source=cell_source)
@@ -323,8 +337,8 @@ def scene_tracks(
         tracks, groups = _groups(tracks, art, walks, grid, interaction)
         tracks = _resolve(tracks, art, catalogue, class_labels, n, walks, interaction)
         if interaction is not False:
-            tracks = _interact(tracks, walks, grid, interaction, groups)
-    if social:
+            tracks = _interact(tracks, walks, grid, interaction, groups, walk_step)
+    if social and not (walked[1] and walked[0] == walked[1]):
         say(steps, steps, "walked with the social force")
     return tracks
 
@@ -396,9 +410,9 @@ def scenes_from_draws(
     progress : callable, optional
         ``progress(done, total, what)`` after each step of the
         assembly: the scenarios drawn, then with behaviours the tracks planned and walked
-        (:func:`scene_tracks`: the catalogue's planning one step per scenario); the last
-        call has ``done == total``. The fitted behaviour's planning and the social force
-        are one step each.
+        (:func:`scene_tracks`: the catalogue's planning one step per scenario, the fitted
+        behaviour's per chunk of exits, the social force per window); the last call has
+        ``done == total``.
 
     Returns
     -------
@@ -541,9 +555,11 @@ def _interact(
     grid: OccupancyGrid,
     interaction: bool | SocialForce,
     groups: pd.Series | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """The tracks walked again under the social force; non-pedestrians stay kinematic;
-    arrival groups (labels by ``(scenario, id)``) walk together."""
+    arrival groups (labels by ``(scenario, id)``) walk together; ``progress(done, total)``
+    after each window of its simulation."""
     from are_stats.behaviour import SocialForce, social_force_tracks
 
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
@@ -553,7 +569,9 @@ def _interact(
     if groups is not None:
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         rows = groups.reindex(at).fillna(-1).to_numpy(np.int64)
-    return social_force_tracks(tracks, params, grid, kinematic=kinematic, groups=rows)
+    return social_force_tracks(
+        tracks, params, grid, kinematic=kinematic, groups=rows, progress=progress
+    )
 
 
 def scenes_from_fit(

@@ -407,3 +407,36 @@ def test_continuous_paths_of_many_are_those_one_at_a_time_by_definition() -> Non
             want = _pull_by_definition(pts, allowed, (0.0, 0.0), 1.0, 0.2)
             np.testing.assert_array_equal(xy, want)
             np.testing.assert_array_equal(t, walk_times(want, float(v), ref_rng, 0.1))
+
+
+def test_fitted_planning_reports_each_batch_of_exits(monkeypatch) -> None:
+    """``progress(done, total)`` after each chunk of exits solved (a soft solve each), then
+    once for the paths: ``done`` counts up to ``total`` = solves + 1, and the tracks are the
+    same as without it."""
+    from are_stats.behaviour import _generate
+
+    fit = _open_fit()
+    n = 30
+    rng = np.random.default_rng(4)
+    row = rng.integers(2, 10, n)
+    arts = pd.DataFrame({
+        "scenario": np.arange(n) % 3, "id": np.arange(n), "t_arrive": 0.0,
+        "t_leave": 40.0, "x": 1.5, "y": row + 0.5,
+    })  # fmt: skip
+    events = []
+    solve = _generate.soft_policy
+
+    def counted(*args, **kwargs):
+        events.append("solve")
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(_generate, "soft_policy", counted)
+    key = jax.random.key(2)
+    out = simulate_behaviour_tracks(key, fit, arts, chunk=2, progress=lambda *c: events.append(c))
+    solves = events.count("solve")
+    assert solves >= 3  # a few chunks of two exits (the exits: up to 8 rows of the east wall)
+    total = solves + 1
+    assert events == [e for k in range(1, solves + 1) for e in ("solve", (k, total))] + [
+        (total, total)
+    ]
+    pd.testing.assert_frame_equal(out, simulate_behaviour_tracks(key, fit, arts, chunk=2))

@@ -175,3 +175,27 @@ def test_many_small_scenarios_walk_as_they_do_with_all_pairs(monkeypatch):
     np.testing.assert_allclose(blocks[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
     moved = np.hypot(*(blocks[["x", "y"]].to_numpy() - plan[["x", "y"]].to_numpy()).T)
     assert moved.max() > 0.1  # they did give way to each other
+
+
+def test_progress_reports_each_window_up_to_the_last(monkeypatch):
+    """``progress(done, total)`` after each window of the simulation, empty ones too (two
+    walkers a minute apart leave one with nobody in it), the last with ``done == total``;
+    the walk is the same as without it."""
+    plan = _plan([(0, 0.0, (0, 0), (12, 0), 1.3), (1, 60.0, (12, 2), (0, 2), 1.3)], 0.1, 3)
+    simulated, calls = [], []
+    window = _social._window
+
+    def counted(*args, **kwargs):
+        simulated.append(len(calls))  # the progress calls before this window's simulation
+        return window(*args, **kwargs)
+
+    monkeypatch.setattr(_social, "_window", counted)
+    out = social_force_tracks(plan, dt=0.1, progress=lambda done, total: calls.append(done))
+    span = plan["t"].max() - plan["t"].min()
+    total = int(np.ceil(span / (0.1 * _social.WINDOW_STEPS))) + 1  # 25.6 s windows
+    assert total == 4
+    assert calls == [1, 2, 3, 4]
+    # the first walker's window runs before any report, the second's after the empty one
+    assert simulated[0] == 0 and simulated[-1] >= 2 and len(simulated) < total
+    monkeypatch.setattr(_social, "_window", window)
+    pd.testing.assert_frame_equal(out, social_force_tracks(plan, dt=0.1))

@@ -239,11 +239,16 @@ def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue):
         progress=lambda done, total, what: calls.append((done, total, what)),
     )  # fmt: skip
     # the catalogue's planning reports each scenario (the time left on a first run comes
-    # from the scenarios timed so far)
-    assert [c[:2] for c in calls] == [(1, 3), (2, 4), (3, 4), (4, 4)]
-    assert [c[2] for c in calls] == [
-        "scenarios drawn", "tracks planned (1 of 2 scenarios)",
-        "tracks planned (2 of 2 scenarios)", "walked with the social force",
+    # from the scenarios timed so far), the social force each window of its simulation
+    # (25.6 s of the scenarios each): the total grows when it starts
+    windows = calls[-1][1] - 3
+    assert HORIZON / 25.6 <= windows <= HORIZON / 25.6 + 2
+    assert [c[:2] for c in calls] == [(1, 3), (2, 4), (3, 4)] + [
+        (3 + k, 3 + windows) for k in range(1, windows + 1)
+    ]
+    assert [c[2] for c in calls[:4]] == [
+        "scenarios drawn", "tracks planned (1 of 2 scenarios)", "tracks planned (2 of 2 scenarios)",
+        f"walked with the social force (1 of {windows} windows)",
     ]  # fmt: skip
     # the same scenes as without a progress
     again = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
