@@ -85,7 +85,7 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
             f"tracks: the social force does not describe them (relaxation "
             f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
         )
-    spacing, samples = fit_group_spacing(tracks)
+    spacing, samples = group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
     info = {**info, "group_samples": float(samples)}
     if samples > 0:
         params = params._replace(group_spacing=spacing)
