@@ -43,6 +43,7 @@ over an hour, walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores 
 
 from __future__ import annotations
 
+from collections.abc import Hashable, Mapping
 from functools import partial
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -647,12 +648,23 @@ def social_force_tracks(
     return out
 
 
+def _group_codes(ids: np.ndarray, groups: Mapping[Hashable, Hashable]) -> np.ndarray:
+    """(n,) int code of each row's group (``-1``: alone; a missing label, ``None``, NaN,
+    ``""`` or a negative number)."""
+    lab = pd.Series([groups.get(i) for i in ids], dtype=object)
+    num = pd.to_numeric(lab, errors="coerce")
+    alone = lab.isna() | lab.astype(str).isin(["", "nan", "None"]) | (num < 0).to_numpy()
+    code = pd.factorize(lab.astype(str))[0]
+    return np.where(alone.to_numpy(), -1, code)
+
+
 def fit_social_force(
     tracks: pd.DataFrame,
     *,
     base: SocialForce | None = None,
     ranges: npt.ArrayLike | None = None,
     min_speed: float = 0.2,
+    groups: Mapping[Hashable, Hashable] | None = None,
 ) -> tuple[SocialForce, dict[str, float]]:
     """Estimate ``A``, ``B`` and ``tau`` from observed tracks by least squares on the
     accelerations (as Johansson, Helbing and Shukla 2007 calibrated the model).
@@ -677,6 +689,15 @@ def fit_social_force(
         Candidate ``B`` (m); default 0.1 to 1.0 m.
     min_speed : float
         Samples where the person moves slower (m/s) are left out (standing is not walking).
+    groups : Mapping, optional
+        Group label of each track id (ids missing or labelled ``None``, NaN, ``""`` or a
+        negative number walk alone). A group's members walk in formation
+        (:func:`social_force_tracks`): they head for a slot beside their leader, not for
+        their destination, and repel each other only inside the group's spacing. So their
+        own accelerations are left out of the least squares and the pairs of one group out
+        of the repulsion sums; members still repel the people outside their group. Without
+        it, a log with groups walking abreast gives a repulsion far too weak (every
+        untroubled pair at 0.7 m reads as no push at that distance).
 
     Returns
     -------
@@ -718,6 +739,9 @@ def fit_social_force(
     to = dest[inner] - xy[inner]
     e = to / np.maximum(np.hypot(*to.T), 1e-9)[:, None]
     use = (np.hypot(*vel[inner].T) >= min_speed) & (np.hypot(*to.T) > 0.5)
+    label = None if groups is None else _group_codes(ids, groups)
+    if label is not None:  # members head for their slot, not their destination
+        use &= label[inner] < 0
     inner, acc, e = inner[use], acc[use], e[use]
     m = inner.size
     if m < 10:
@@ -737,6 +761,12 @@ def fit_social_force(
             pj.append(np.r_[idx[pr[:, 1]], idx[pr[:, 0]]])
     pi = np.concatenate(pi) if pi else np.zeros(0, np.int64)
     pj = np.concatenate(pj) if pj else np.zeros(0, np.int64)
+    if label is not None and pi.size:
+        # group mates: the formation, not the repulsion, keeps them apart (the pair term
+        # leaves them out while they walk at their spacing, _pair_term's ``mates``), so
+        # their pairs are no evidence about A and B
+        pair_ok = ~((label[pi] >= 0) & (label[pi] == label[pj]))
+        pi, pj = pi[pair_ok], pj[pair_ok]
     diff = _anticipated(xy[pi] - xy[pj], vel[pi] - vel[pj], base.horizon)
     dist = np.maximum(np.hypot(*diff.T), 1e-9)
     n_hat = diff / dist[:, None]

@@ -2,7 +2,8 @@
 
 :func:`fit_interaction` resamples the tracks to one step (the log's median) and estimates
 the social force's strength ``A``, range ``B`` and relaxation time ``tau``
-(:func:`~are_stats.behaviour.fit_social_force`) and the spacing of the log's groups
+(:func:`~are_stats.behaviour.fit_social_force`; the members of the log's groups walk in
+formation, so they are left out of its least squares) and the spacing of the log's groups
 (:func:`fit_group_spacing`: members of an arrival group walk that far apart);
 :func:`interaction_attrs` writes them as attributes of the fit's ``behaviour`` group and
 :func:`interaction_from_attrs` reads them back (the only reader), so that every scene
@@ -74,13 +75,17 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
             )
     if not parts:
         raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
-    params, info = fit_social_force(pd.concat(parts, ignore_index=True))
+    # the log's groups walk in formation: their members are left out of the repulsion's
+    # least squares (fit_social_force's ``groups``)
+    labels = _log_groups(tracks)
+    groups = {i: labels[str(i)] for i in pd.unique(ids) if str(i) in labels}
+    params, info = fit_social_force(pd.concat(parts, ignore_index=True), groups=groups)
     if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
         raise ValueError(
             f"tracks: the social force does not describe them (relaxation "
             f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
         )
-    spacing, samples = fit_group_spacing(tracks)
+    spacing, samples = group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
     info = {**info, "group_samples": float(samples)}
     if samples > 0:
         params = params._replace(group_spacing=spacing)
@@ -106,11 +111,21 @@ def fit_group_spacing(tracks: pd.DataFrame) -> tuple[float, int]:
     samples : int
         Member samples the spacing is the median of (0: none).
     """
+    labels = _log_groups(tracks)
+    return group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
+
+
+def _log_groups(tracks: pd.DataFrame) -> dict[str, str]:
+    """Group label of each grouped track id (as text), as the life-cycle conversion infers
+    them (:func:`~are_stats.logs.tracks_to_lifecycle`)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
         life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
-    labels = dict(zip(life["id"].astype(str), life["group"].astype(str), strict=True))
-    return group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
+    return {
+        str(i): str(g)
+        for i, g in zip(life["id"], life["group"], strict=True)
+        if str(g) not in ("", "nan", "None")
+    }
 
 
 def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[str, float]:

@@ -15,6 +15,10 @@ Every run is a fresh process (``subprocess``) with an empty cache (a new
   room and tracks (groups of 1-3 door to door at about 1.2 m/s, 2.5 Hz) over 1,700 s,
   12,112 rows; figures on, so the motion checks and held-out moves run as a user's fit
   runs them;
+* ``are-stats fit`` of the independent crowd of :mod:`tests.crowd` (68 people round a
+  pillar, groups abreast, 5 cm noise) with its map, cold, and the realism table and
+  displacement errors ``are-stats report`` prints from it (issue 26; the same table,
+  without the traffic fit, is ``python -m tests.benchmarks realism``);
 * the peer: one NUTS fit of the gamma-stays model (:mod:`bench_traffic_nuts`'s synthetic
   log, the same model written in PyTensor) in a fresh process with an empty cache, ours and
   PyMC (when installed: ``pip install 'are-stats[bench]'``), ratio cold/cold.
@@ -64,6 +68,11 @@ lockstep string pulling side by side at load 8-13): cold CPU 345 s vs 337 s, 31 
 each, the same choices and motion checks; of the 50 motion-check replicates' 150 s of CPU,
 ``separate_paths`` takes 110 s (the docs' "Choosing the traffic models" page has the
 breakdown). Issue 29's 60 s is far off.
+
+The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
+0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
+against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not
+simulate").
 """
 
 from __future__ import annotations
@@ -205,6 +214,34 @@ def _bench_tracks(tmp: Path) -> dict[str, Any]:
     return r
 
 
+def _bench_crowd(tmp: Path) -> dict[str, Any]:
+    """``are-stats fit`` of the independent crowd (:mod:`tests.crowd`: door to door round a
+    pillar, velocity-obstacle avoidance, groups abreast, 5 cm noise; 68 people over 300 s)
+    with its map, cold, then ``are-stats report``: the realism table and the displacement
+    errors the fit stored (issue 26: does the fitted motion beat the baselines on a crowd
+    that is not constant velocity?)."""
+    import pandas as pd
+
+    from tests.crowd import write_crowd
+
+    home = tmp / "crowd"
+    home.mkdir()
+    log = write_crowd(home)
+    fit = home / "fit.nc"
+    r = _run(["fit", str(log), "--out", str(fit), "--no-figures"], home)
+    _print_run("  cold", r, None)
+    proc, _ = _spawn(
+        [sys.executable, "-m", "are_stats", "report", str(fit), "--out", str(home / "rep"),
+         "--replicates", "20"], _env(home),
+    )  # fmt: skip
+    if proc.returncode != 0:
+        raise RuntimeError(f"are-stats report failed:\n{proc.stderr[-3000:]}")
+    with pd.option_context("display.width", 120, "display.float_format", "{:.3f}".format):
+        print(pd.read_csv(home / "rep" / "realism.csv", index_col=0).to_string())
+        print(pd.read_csv(home / "rep" / "displacement_errors.csv", index_col=0).to_string())
+    return r
+
+
 #: Seconds of :func:`tests.test_cli_tracks._tracks` that make 302 people (12,112 rows).
 TRACKS_HORIZON = 1700.0
 
@@ -238,6 +275,9 @@ def main(quick: bool = False) -> None:
         print(f"  ({time.perf_counter() - tic:.1f} s)")
         print("\nare-stats fit of a 302-person tracks table with its map (cold)", flush=True)
         _bench_tracks(tmp)
+        print("\nare-stats fit of the independent crowd (tests.crowd) with its map (cold), "
+              "then its realism table", flush=True)  # fmt: skip
+        _bench_crowd(tmp)
         print("\npeer: one cold NUTS fit of the same gamma-stays model and data", flush=True)
         _bench_peer(tmp)
     finally:
