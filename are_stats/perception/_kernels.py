@@ -94,15 +94,15 @@ _INF = wp.constant(wp.float32(np.inf))
 
 @wp.struct
 class View:
-    """Pinhole intrinsics and the layout of a launch's frames (``npix = width height``)."""
+    """The layout of a launch's frames (``npix = width height``) and the camera intrinsics."""
 
+    width: int
+    height: int
+    npix: int
     fx: float
     fy: float
     cx: float
     cy: float
-    width: int
-    height: int
-    npix: int
 
 
 @wp.struct
