@@ -31,8 +31,6 @@ import warp as wp
 from are_stats.perception._frustum_bvh import BRANCH, LEAF, FrustumBVH
 
 __all__ = [
-    "Depths",
-    "Segments",
     "View",
     "block_stride",
     "launch_dynamic",
@@ -40,6 +38,7 @@ __all__ = [
     "launch_pair_counts",
     "launch_pair_depths",
     "launch_split",
+    "make_boxes",
     "make_depths",
     "make_segments",
     "make_view",
@@ -103,39 +102,6 @@ class View:
     fy: float
     cx: float
     cy: float
-
-
-@wp.struct
-class Segments:
-    """The (frame, artefact) segments of a pair launch (see the module docstring).
-
-    Per segment ``s``: ``offsets[s]`` its first item (``offsets[n]`` the item count),
-    ``frame``, ``box`` (artefact index), ``rect = (x0, y0, w)``, ``origin`` (the camera
-    centre in the box frame), ``rot`` (optical frame to box frame) and ``half`` (the box's
-    half extents). Per rectangle row ``r`` (CPU launches): ``row_seg[r]``, ``row_y[r]``.
-    """
-
-    offsets: wp.array(dtype=wp.int64)
-    frame: wp.array(dtype=wp.int32)
-    box: wp.array(dtype=wp.int32)
-    rect: wp.array(dtype=wp.vec3i)
-    origin: wp.array(dtype=wp.vec3)
-    rot: wp.array(dtype=wp.mat33)
-    half: wp.array(dtype=wp.vec3)
-    row_seg: wp.array(dtype=wp.int32)
-    row_y: wp.array(dtype=wp.int32)
-    n: int
-
-
-@wp.struct
-class Depths:
-    """Per item: ``pair_z`` (Z_a); per pixel of the launch's frames: the largest finite
-    Z_a ``z_max`` (-1 where no box covers it), the smallest ``z_min`` and ``z_env``."""
-
-    pair_z: wp.array(dtype=wp.float32)
-    z_max: wp.array(dtype=wp.float32)
-    z_min: wp.array(dtype=wp.float32)
-    z_env: wp.array(dtype=wp.float32)
 
 
 @wp.func
@@ -234,76 +200,83 @@ def _find_segment(offsets: wp.array(dtype=wp.int64), n_seg: int, i: wp.int64) ->
 
 
 @wp.func
-def _item_pixel(seg: Segments, i: wp.int64) -> wp.vec3i:
-    """``(s, px, py)``: the segment of pair item ``i`` and the pixel it stands for."""
-    s = _find_segment(seg.offsets, seg.n, i)
-    k = int(i - seg.offsets[s])
-    rect = seg.rect[s]
-    return wp.vec3i(s, rect[0] + k % rect[2], rect[1] + k // rect[2])
+def _run_of(
+    offsets: wp.array(dtype=wp.int64),
+    rect: wp.array(dtype=wp.vec3i),
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
+    n_seg: int,
+    rows: int,
+    t: wp.int64,
+) -> wp.vec4i:
+    """``(s, x0, y, n)``: the pair items of work item ``t``, pixels ``x0 .. x0 + n - 1`` of
+    image row ``y`` in segment ``s`` (consecutive items).
+
+    With ``rows == 1`` (CPU launches) a work item is rectangle row ``t``: row ``row_y[t]``
+    of segment ``row_seg[t]``, walked without a per-item segment search. Otherwise it is
+    the single item ``t``, found by binary search over the ``offsets``.
+    """
+    if rows == 1:
+        s = row_seg[t]
+        r = rect[s]
+        return wp.vec4i(s, r[0], r[1] + row_y[t], r[2])
+    s = _find_segment(offsets, n_seg, t)
+    k = int(t - offsets[s])
+    r = rect[s]
+    return wp.vec4i(s, r[0] + k % r[2], r[1] + k // r[2], 1)
 
 
 @wp.func
-def _row_first_item(seg: Segments, r: wp.int64) -> wp.int64:
-    """The first pair item of rectangle row ``r`` (its ``rect[2]`` items are consecutive)."""
-    s = seg.row_seg[r]
-    return seg.offsets[s] + wp.int64(seg.row_y[r]) * wp.int64(seg.rect[s][2])
+def _first_item(
+    offsets: wp.array(dtype=wp.int64), rect: wp.array(dtype=wp.vec3i), run: wp.vec4i
+) -> wp.int64:
+    """The pair item of the first pixel of ``run`` (see :func:`_run_of`)."""
+    r = rect[run[0]]
+    return offsets[run[0]] + wp.int64((run[2] - r[1]) * r[2] + run[1] - r[0])
 
 
-@wp.func
-def _depth_item(
-    o: wp.vec3,
-    rot: wp.mat33,
-    h: wp.vec3,
-    px: int,
-    py: int,
-    g: int,
-    i: wp.int64,
+@wp.kernel
+def pair_depth_kernel(
+    offsets: wp.array(dtype=wp.int64),
+    frame: wp.array(dtype=wp.int32),
+    rect: wp.array(dtype=wp.vec3i),
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
+    n_seg: int,
+    origin: wp.array(dtype=wp.vec3),
+    rot: wp.array(dtype=wp.mat33),
+    half: wp.array(dtype=wp.vec3),
     view: View,
     d_max: float,
-    out: Depths,
+    rows: int,
+    base: wp.int64,
+    pair_z: wp.array(dtype=wp.float32),
+    z_max: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
 ):
-    """Z_a of box ``(o, rot, h)`` (segment frame) at pixel ``(px, py)`` into ``pair_z[i]``,
-    scattered into the max and min of its frame pixel ``g``."""
-    z = _slab(o, rot * _pixel_ray_cam(px, py, view), h, d_max)
-    out.pair_z[i] = z
-    if z < _INF:
-        wp.atomic_max(out.z_max, g, z)
-        wp.atomic_min(out.z_min, g, z)
-
-
-@wp.kernel
-def pair_depth_kernel(seg: Segments, view: View, d_max: float, base: wp.int64, out: Depths):
     """Z_a of every (artefact, pixel-in-rectangle) item; scatter its max and min per pixel.
 
-    ``seg.origin`` is the camera centre in the box frame and ``seg.rot`` the rotation from
-    the optical frame to the box frame, per segment (computed on the host).
+    The segments (see the module docstring) are ``offsets``, ``frame``, ``rect = (x0, y0,
+    w)``, and for CPU launches their rectangle rows ``row_seg``, ``row_y``. Per segment,
+    ``origin`` is the camera centre in the box frame, ``rot`` the rotation from the
+    optical frame to the box frame and ``half`` the box's half extents. Work item
+    ``tid + base`` is a run of items (:func:`_run_of`): a rectangle row when ``rows == 1``
+    (CPU launches), else one item (CUDA launches).
     """
-    i = wp.int64(wp.tid()) + base
-    sp = _item_pixel(seg, i)
-    s = sp[0]
-    g = seg.frame[s] * view.npix + sp[2] * view.width + sp[1]
-    _depth_item(seg.origin[s], seg.rot[s], seg.half[s], sp[1], sp[2], g, i, view, d_max, out)
-
-
-@wp.kernel
-def pair_depth_row_kernel(seg: Segments, view: View, d_max: float, base: wp.int64, out: Depths):
-    """:func:`pair_depth_kernel` with one work item per rectangle row (CPU launches).
-
-    Row ``r`` is row ``row_y[r]`` of segment ``row_seg[r]``; its items are consecutive,
-    so a host thread walks them without a per-item segment search.
-    """
-    r = wp.int64(wp.tid()) + base
-    s = seg.row_seg[r]
-    rect = seg.rect[s]
-    py = rect[1] + seg.row_y[r]
-    i0 = _row_first_item(seg, r)
-    o = seg.origin[s]
-    rot = seg.rot[s]
-    h = seg.half[s]
-    g0 = seg.frame[s] * view.npix + py * view.width
-    for j in range(rect[2]):
-        px = rect[0] + j
-        _depth_item(o, rot, h, px, py, g0 + px, i0 + wp.int64(j), view, d_max, out)
+    run = _run_of(offsets, rect, row_seg, row_y, n_seg, rows, wp.int64(wp.tid()) + base)
+    s = run[0]
+    i0 = _first_item(offsets, rect, run)
+    o = origin[s]
+    m = rot[s]
+    h = half[s]
+    g0 = frame[s] * view.npix + run[2] * view.width
+    for j in range(run[3]):
+        px = run[1] + j
+        z = _slab(o, m * _pixel_ray_cam(px, run[2], view), h, d_max)
+        pair_z[i0 + wp.int64(j)] = z
+        if z < _INF:
+            wp.atomic_max(z_max, g0 + px, z)
+            wp.atomic_min(z_min, g0 + px, z)
 
 
 @wp.func
@@ -559,7 +532,9 @@ def _gather(
 
 @wp.func
 def _cast_candidates(
-    tree: FrustumBVH,
+    p0: wp.array(dtype=wp.vec3),
+    e1: wp.array(dtype=wp.vec3),
+    e2: wp.array(dtype=wp.vec3),
     cand: wp.array(dtype=wp.int32),
     start: wp.int64,
     n: int,
@@ -592,13 +567,13 @@ def _cast_candidates(
         if py < ((rect >> 16) & 255) or py > (rect >> 24):
             continue
         ti = cand[start + wp.int64(2 * k)]
-        a = tree.e1[ti]
-        b = tree.e2[ti]
+        a = e1[ti]
+        b = e2[ti]
         pv = wp.cross(d, b)
         det = wp.dot(a, pv)
         if wp.abs(det) > 1.0e-20:
             inv = 1.0 / det
-            tv = o - tree.p0[ti]
+            tv = o - p0[ti]
             u = wp.dot(tv, pv) * inv
             if u >= -eps and u <= 1.0 + eps:
                 qv = wp.cross(tv, a)
@@ -688,7 +663,9 @@ def env_block_kernel(
     cand: wp.array(dtype=wp.int32),
     cand_z: wp.array(dtype=wp.float32),
     base: wp.int64,
-    out: Depths,
+    z_max: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
+    z_env: wp.array(dtype=wp.float32),
     status: wp.array(dtype=wp.int32),
 ):
     """Z_env (eq. 2) of one ``block`` x ``block`` pixel block, cast only where needed.
@@ -698,8 +675,8 @@ def env_block_kernel(
     frames): any run of consecutive items is spread over the image, so the host threads
     get similar ray loads, while neighbouring items stay neighbouring blocks. Every pixel
     ``g`` of the block starts at ``Z_env = +inf``; unless a ray is cast below, that is the
-    answer. ``out.z_max[g]`` is the largest finite ``Z_a`` of the pixel (-1 when no box covers
-    it) and ``out.z_min[g]`` the smallest.
+    answer. ``z_max[g]`` is the largest finite ``Z_a`` of the pixel (-1 when no box covers
+    it) and ``z_min[g]`` the smallest.
 
     A ray is then cast for every pixel under a box (``z_max >= 0``), or for every pixel
     when ``all_pixels == 1`` (a depth image, up to ``t_all``), accepting triangle hits at
@@ -739,8 +716,8 @@ def env_block_kernel(
         g0 = f * view.npix + y * view.width
         for x in range(blk[0], blk[1]):
             g = g0 + x
-            out.z_env[g] = _INF
-            top = wp.max(top, out.z_max[g])
+            z_env[g] = _INF
+            top = wp.max(top, z_max[g])
     if all_pixels == 1:
         top = t_all
     if top < 0.0 or has_mesh == 0:
@@ -771,72 +748,79 @@ def env_block_kernel(
             t_max = t_all
             z_lo = float(-1.0)  # noqa: UP018 (a depth image needs the nearest hit itself)
             if all_pixels == 0:
-                t_max = out.z_max[g]
-                z_lo = out.z_min[g]
+                t_max = z_max[g]
+                z_lo = z_min[g]
             if t_max >= 0.0:
                 d = rot * _pixel_dir_cam(x, y, view)
                 if n_cand > 0:
                     r = _cast_candidates(
-                        tree, cand, start, n_cand, far_lim, axis, c, d, t_max, z_lo, x - x0, y - y0
+                        tree.p0,
+                        tree.e1,
+                        tree.e2,
+                        cand,
+                        start,
+                        n_cand,
+                        far_lim,
+                        axis,
+                        c,
+                        d,
+                        t_max,
+                        z_lo,
+                        x - x0,
+                        y - y0,
                     )
                     if r == -2.0:
                         q = wp.mesh_query_ray(mesh, c, d, t_max)
                         if q.result and q.t >= 0.0 and q.t < t_max:
-                            out.z_env[g] = q.t
+                            z_env[g] = q.t
                     else:
-                        out.z_env[g] = r
+                        z_env[g] = r
                 else:
                     face = _cast_bvh(
-                        mesh, face, coherent, any_hit, all_pixels, c, d, t_max, z_lo, out.z_env, g
+                        mesh, face, coherent, any_hit, all_pixels, c, d, t_max, z_lo, z_env, g
                     )
 
 
 @wp.kernel
 def pair_count_kernel(
-    seg: Segments,
+    offsets: wp.array(dtype=wp.int64),
+    frame: wp.array(dtype=wp.int32),
+    rect: wp.array(dtype=wp.vec3i),
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
+    n_seg: int,
+    box: wp.array(dtype=wp.int32),
     view: View,
     n_box: int,
     use_min: int,
+    rows: int,
     base: wp.int64,
-    out: Depths,
+    pair_z: wp.array(dtype=wp.float32),
+    z_env: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
     counts: wp.array(dtype=wp.int32),
 ):
-    """count((Z_a - Z_env)_ij <= 0) per (frame, artefact): the left side of A_f."""
-    i = wp.int64(wp.tid()) + base
-    z = out.pair_z[i]
-    if z < _INF:
-        sp = _item_pixel(seg, i)
-        f = seg.frame[sp[0]]
-        g = f * view.npix + sp[2] * view.width + sp[1]
-        if _counts_for(z, out.z_env[g], out.z_min[g], use_min) == 1:
-            wp.atomic_add(counts, f * n_box + seg.box[sp[0]], 1)
+    """count((Z_a - Z_env)_ij <= 0) per (frame, artefact): the left side of A_f.
 
-
-@wp.kernel
-def pair_count_row_kernel(
-    seg: Segments,
-    view: View,
-    n_box: int,
-    use_min: int,
-    base: wp.int64,
-    out: Depths,
-    counts: wp.array(dtype=wp.int32),
-):
-    """:func:`pair_count_kernel` with one work item per rectangle row (CPU launches)."""
-    r = wp.int64(wp.tid()) + base
-    s = seg.row_seg[r]
-    rect = seg.rect[s]
-    i0 = _row_first_item(seg, r)
-    f = seg.frame[s]
-    g0 = f * view.npix + (rect[1] + seg.row_y[r]) * view.width + rect[0]
+    Work items as in :func:`pair_depth_kernel`; ``box[s]`` is the artefact of segment
+    ``s``, in ``[0, n_box)``.
+    """
+    t = wp.int64(wp.tid()) + base
+    if rows == 0 and pair_z[t] == _INF:
+        return  # a single item that no box covers: no segment search
+    run = _run_of(offsets, rect, row_seg, row_y, n_seg, rows, t)
+    s = run[0]
+    i0 = _first_item(offsets, rect, run)
+    f = frame[s]
+    g0 = f * view.npix + run[2] * view.width + run[1]
     n = wp.int32(0)
-    for j in range(rect[2]):
-        z = out.pair_z[i0 + wp.int64(j)]
+    for j in range(run[3]):
+        z = pair_z[i0 + wp.int64(j)]
         if z < _INF:
             g = g0 + j
-            n += _counts_for(z, out.z_env[g], out.z_min[g], use_min)
+            n += _counts_for(z, z_env[g], z_min[g], use_min)
     if n > 0:
-        wp.atomic_add(counts, f * n_box + seg.box[s], n)
+        wp.atomic_add(counts, f * n_box + box[s], n)
 
 
 # ---------------------------------------------------------------------- host launchers
@@ -986,81 +970,82 @@ def make_view(fx: float, fy: float, cx: float, cy: float, width: int, height: in
 def make_segments(
     offsets: np.ndarray,
     frame: np.ndarray,
-    box: np.ndarray,
     rect: np.ndarray,
-    origin: np.ndarray,
-    rot: np.ndarray,
-    half: np.ndarray,
     row_seg: np.ndarray,
     row_y: np.ndarray,
     device: str,
-) -> Segments:
-    """The device :class:`Segments` of a launch from its host arrays.
+) -> list:
+    """The segment arguments of the pair kernels, ``[offsets, frame, rect, row_seg,
+    row_y, n_seg]``, as device arrays.
 
     Parameters
     ----------
     offsets : (n + 1,) int
         First item of each segment, then the item count.
-    frame, box : (n,) int
-        Frame and artefact of each segment.
+    frame : (n,) int
+        Frame of each segment.
     rect : (n, 3) int
         ``(x0, y0, w)`` of each segment's pixel rectangle.
-    origin : (n, 3) float
-        Camera centre in the segment's box frame.
-    rot : (n, 3, 3) float
-        Rotation from the optical frame to the box frame.
-    half : (n, 3) float
-        The box's half extents.
     row_seg, row_y : (R,) int
         Segment and row (within the rectangle) of each rectangle row.
     device : str
         Warp device of the arrays.
     """
-    seg = Segments()
-    seg.offsets = _array(offsets.astype(np.int64), wp.int64, device)
-    seg.frame = _array(frame.astype(np.int32), wp.int32, device)
-    seg.box = _array(box.astype(np.int32), wp.int32, device)
-    seg.rect = _array(rect.astype(np.int32), wp.vec3i, device)
-    seg.origin = _array(origin.astype(np.float32), wp.vec3, device)
-    seg.rot = _array(rot.astype(np.float32), wp.mat33, device)
-    seg.half = _array(half.astype(np.float32), wp.vec3, device)
-    seg.row_seg = _array(row_seg.astype(np.int32), wp.int32, device)
-    seg.row_y = _array(row_y.astype(np.int32), wp.int32, device)
-    seg.n = len(frame)
-    return seg
+    return [
+        _array(offsets.astype(np.int64), wp.int64, device),
+        _array(frame.astype(np.int32), wp.int32, device),
+        _array(rect.astype(np.int32), wp.vec3i, device),
+        _array(row_seg.astype(np.int32), wp.int32, device),
+        _array(row_y.astype(np.int32), wp.int32, device),
+        len(frame),
+    ]
 
 
-def make_depths(n_items: int, n_pixels: int, device: str) -> Depths:
-    """Fresh :class:`Depths` buffers: ``z_max = -1``, ``z_min = +inf``, the rest unset."""
-    out = Depths()
-    out.pair_z = wp.empty(max(n_items, 1), dtype=wp.float32, device=device)
-    out.z_max = wp.full(n_pixels, -1.0, dtype=wp.float32, device=device)
-    out.z_min = wp.full(n_pixels, np.inf, dtype=wp.float32, device=device)
-    out.z_env = wp.empty(n_pixels, dtype=wp.float32, device=device)
-    return out
+def make_boxes(origin: np.ndarray, rot: np.ndarray, half: np.ndarray, device: str) -> list:
+    """The box arguments of :func:`pair_depth_kernel`, ``[origin (n, 3), rot (n, 3, 3),
+    half (n, 3)]``, as device arrays."""
+    return [
+        _array(origin.astype(np.float32), wp.vec3, device),
+        _array(rot.astype(np.float32), wp.mat33, device),
+        _array(half.astype(np.float32), wp.vec3, device),
+    ]
 
 
-def launch_pair_depths(seg: dict, view: View, d_max: float, out: Depths, bounds, device: str):
-    """Host side of the box-depth kernels, writing ``out.pair_z``, ``z_max`` and ``z_min``.
+def make_depths(n_items: int, n_pixels: int, device: str) -> dict[str, wp.array]:
+    """Fresh buffers of the box depths: Z_a per pair item (``pair_z``, unset) and, per
+    pixel of the launch's frames, the largest finite Z_a (``z_max``, -1 where no box covers
+    it) and the smallest (``z_min``, +inf)."""
+    return {
+        "pair_z": wp.empty(max(n_items, 1), dtype=wp.float32, device=device),
+        "z_max": wp.full(n_pixels, -1.0, dtype=wp.float32, device=device),
+        "z_min": wp.full(n_pixels, np.inf, dtype=wp.float32, device=device),
+    }
 
-    ``seg["arrays"]`` is the launch's :class:`Segments`. On the CPU the rectangle rows,
-    sorted by frame and image row, go to :func:`pair_depth_row_kernel` with
-    ``len(bounds)`` workers (:func:`launch_dynamic`) in chunks that never share an image
-    row (:func:`row_chunk_edges`): Warp's CPU atomics are plain read-modify-writes, and
-    this way no two threads touch the same pixel. Elsewhere :func:`pair_depth_kernel`
-    takes one item per work item.
+
+def launch_pair_depths(seg: dict, view: View, d_max: float, out: dict, bounds, device: str):
+    """Host side of :func:`pair_depth_kernel`, writing ``out``'s ``pair_z``, ``z_max``
+    and ``z_min`` (:func:`make_depths`).
+
+    ``seg["arrays"]`` are the launch's segments (:func:`make_segments`), ``seg["boxes"]``
+    their boxes (:func:`make_boxes`). On the CPU the work items are the rectangle rows,
+    sorted by frame and image row, run by ``len(bounds)`` workers (:func:`launch_dynamic`)
+    in chunks that never share an image row (:func:`row_chunk_edges`): Warp's CPU atomics
+    are plain read-modify-writes, and this way no two threads touch the same pixel.
+    Elsewhere a work item is one pair item.
     """
+    rows = 1 if _is_cpu(device) else 0
 
     def inputs(base, j):
-        return [seg["arrays"], view, float(d_max), base, out]
+        outs = [out["pair_z"], out["z_max"], out["z_min"]]
+        return [*seg["arrays"], *seg["boxes"], view, float(d_max), rows, base, *outs]
 
-    if _is_cpu(device):
+    if rows:
         workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
         edges = None
         if workers > 1:
             n_chunks = workers * _CHUNKS_PER_THREAD
             edges = row_chunk_edges(seg["row_key"], seg["row_work"], n_chunks)
-        launch_dynamic(pair_depth_row_kernel, seg["n_rows"], workers, inputs, device, edges)
+        launch_dynamic(pair_depth_kernel, seg["n_rows"], workers, inputs, device, edges)
         return
     wp.launch(pair_depth_kernel, dim=seg["n_items"], inputs=inputs(0, 0), device=device)
 
@@ -1112,7 +1097,8 @@ def launch_env_blocks(
     all_pixels: int,
     t_all: float,
     any_hit: int,
-    out: Depths,
+    out: dict,
+    z_env: wp.array,
     status: wp.array,
     device: str,
     threads: int,
@@ -1155,7 +1141,9 @@ def launch_env_blocks(
             cand,
             cand_z,
             base,
-            out,
+            out["z_max"],
+            out["z_min"],
+            z_env,
             status,
         ]
 
@@ -1163,18 +1151,29 @@ def launch_env_blocks(
 
 
 def launch_pair_counts(
-    seg: dict, view: View, n_box: int, use_min: int, out: Depths, counts: list, bounds, device: str
+    seg: dict,
+    view: View,
+    n_box: int,
+    use_min: int,
+    out: dict,
+    z_env: wp.array,
+    counts: list,
+    bounds,
+    device: str,
 ) -> None:
-    """Host side of the count kernels; ``counts[j]`` is range j's buffer.
+    """Host side of :func:`pair_count_kernel`; ``counts[j]`` is range j's buffer,
+    ``seg["box"]`` the artefact of each segment.
 
-    On the CPU, :func:`pair_count_row_kernel` runs on the calling thread (about 3 ns per
-    item) and fills ``counts[0]``.
+    On the CPU, the rectangle rows run on the calling thread (about 3 ns per item) and fill
+    ``counts[0]``; elsewhere the pair items are split at ``bounds``.
     """
+    rows = 1 if _is_cpu(device) else 0
 
     def inputs(base, j):
-        return [seg["arrays"], view, n_box, use_min, base, out, counts[j]]
+        args = [*seg["arrays"], seg["box"], view, n_box, use_min, rows, base]
+        return [*args, out["pair_z"], z_env, out["z_min"], counts[j]]
 
-    if _is_cpu(device):
-        launch_dynamic(pair_count_row_kernel, seg["n_rows"], 1, inputs, device)
+    if rows:
+        launch_dynamic(pair_count_kernel, seg["n_rows"], 1, inputs, device)
         return
     launch_split(pair_count_kernel, bounds, inputs, device)

@@ -454,7 +454,7 @@ def _run(
         }
         item_bounds = kern.split_bounds(n_items, device, threads)
         n_buf = len(item_bounds)
-        # Z_a per item; largest and smallest finite Z_a and Z_env per pixel
+        # Z_a per item; largest and smallest finite Z_a per pixel
         out = kern.make_depths(n_items, tc * npix, device)
         # per segment: camera centre in the box frame, optical-to-box rotation, half extents
         cam_c, cam_r = poses[g0:g1, :3, 3][fr], poses[g0:g1, :3, :3][fr]
@@ -475,11 +475,10 @@ def _run(
         row_key = fr[row_seg] * np.int64(height) + rect[row_seg, 1] + row_y
         order = np.argsort(row_key, kind="stable")
         row_seg, row_y, row_key = row_seg[order], row_y[order], row_key[order]
-        arrays = kern.make_segments(
-            offsets, fr, bx, rect[:, :3], seg_origin, seg_rot, half[bx], row_seg, row_y, device
-        )
         seg = {
-            "arrays": arrays,
+            "arrays": kern.make_segments(offsets, fr, rect[:, :3], row_seg, row_y, device),
+            "boxes": kern.make_boxes(seg_origin, seg_rot, half[bx], device),
+            "box": wp.array(bx.astype(np.int32), dtype=wp.int32, device=device),
             "n_items": n_items,
             "n_rows": int(row_seg.shape[0]),
             "row_key": row_key,
@@ -488,6 +487,7 @@ def _run(
         if n_items:
             kern.launch_pair_depths(seg, view, d_max, out, item_bounds, device)
         # environment rays: every pixel for a depth image, else only under a finite Z_a
+        z_env = wp.empty(tc * npix, dtype=wp.float32, device=device)
         status = wp.empty(
             tc * (-(-width // _BLOCK)) * (-(-height // _BLOCK)), dtype=wp.int32, device=device
         )
@@ -503,19 +503,20 @@ def _run(
             np.nextafter(np.float32(d_max), np.float32(np.inf)),
             0 if return_depth else 1,
             out,
+            z_env,
             status,
             device,
             threads,
         )
         if n_items:
             cnt = [wp.zeros(tc * max(n, 1), dtype=wp.int32, device=device) for _ in range(n_buf)]
-            kern.launch_pair_counts(seg, view, n, use_min, out, cnt, item_bounds, device)
+            kern.launch_pair_counts(seg, view, n, use_min, out, z_env, cnt, item_bounds, device)
             total = sum(c.numpy().astype(np.int64) for c in cnt)
             counts[g0:g1] = total[: tc * n].reshape(tc, n)
         if return_depth:
-            ze = out.z_env.numpy().reshape(tc, height, width)
+            ze = z_env.numpy().reshape(tc, height, width)
             depth_env[g0:g1] = ze
-            depth[g0:g1] = np.minimum(ze, out.z_min.numpy().reshape(tc, height, width))
+            depth[g0:g1] = np.minimum(ze, out["z_min"].numpy().reshape(tc, height, width))
     return counts, depth_env, depth
 
 

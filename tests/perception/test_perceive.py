@@ -166,7 +166,7 @@ def test_split_box_depths_are_exact(monkeypatch):
     inner = _kernels.launch_dynamic
 
     def spy(kernel, n, workers, make_inputs, device="cpu", edges=None):
-        if kernel is _kernels.pair_depth_row_kernel:
+        if kernel is _kernels.pair_depth_kernel:
             seen.append((workers, edges))
         inner(kernel, n, workers, make_inputs, device, edges)
 
@@ -185,8 +185,8 @@ def test_split_box_depths_are_exact(monkeypatch):
 
 @pytest.mark.parametrize("occlusion", [False, True])
 def test_per_item_kernels_are_exact(monkeypatch, occlusion):
-    """The one-item-per-pixel kernels (the CUDA launches), run here on the CPU, give the
-    reference counts and depths, like the per-row kernels of CPU launches."""
+    """The pair kernels with one work item per pair item (the CUDA launches), run here on
+    the CPU, give the reference counts and depths, like their per-row CPU launches."""
     from are_stats.perception import _kernels
 
     rng = np.random.default_rng(8)
@@ -201,7 +201,9 @@ def test_per_item_kernels_are_exact(monkeypatch, occlusion):
     inner = _kernels.wp.launch
 
     def spy(kernel, *args, **kwargs):
-        launched.append(kernel)
+        if kernel in (_kernels.pair_depth_kernel, _kernels.pair_count_kernel):
+            rows_at = [a.label for a in kernel.adj.args].index("rows")
+            launched.append((kernel, kwargs["inputs"][rows_at]))
         return inner(kernel, *args, **kwargs)
 
     monkeypatch.setattr(_kernels, "_is_cpu", lambda device: False)
@@ -220,7 +222,8 @@ def test_per_item_kernels_are_exact(monkeypatch, occlusion):
         return_depth=True,
         threads=2,
     )
-    assert _kernels.pair_depth_kernel in launched and _kernels.pair_count_kernel in launched
+    assert {k for k, _ in launched} == {_kernels.pair_depth_kernel, _kernels.pair_count_kernel}
+    assert all(rows == 0 for _, rows in launched)  # one work item per pair item
     assert ref.sum() > 300
     np.testing.assert_array_equal(items.counts[0], ref)
     np.testing.assert_array_equal(items.counts, rows.counts)
