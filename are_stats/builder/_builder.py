@@ -400,8 +400,13 @@ class ARBuilder:
         ...                       "x": [2.0, 6.0], "y": [2.0, 6.0], "yaw": [0.0, 0.0]})
         >>> scene = Scene.from_scenarios(table, load_catalogue())
         >>> b = ARBuilder(OccupancyGrid(np.zeros((100, 100)), 0.1), load_catalogue())
-        >>> b.register_scene(scene, 1.0).tolist(), b.register_scene(scene, 6.0).tolist()
-        ([0], [0, 1])
+        >>> b.register_scene(scene, 1.0).tolist()
+        [0]
+        >>> later = b.with_scene(scene, 6.0)  # a new builder; b is unchanged
+        >>> later.ids.tolist(), b.ids.tolist()
+        ([0, 1], [0])
+        >>> b.register_scene(scene, 6.0).tolist()
+        [0, 1]
         """
         from are_stats.scenarios import Scene
 
@@ -449,15 +454,7 @@ class ARBuilder:
 
         Examples
         --------
-        >>> import pandas as pd
-        >>> from are_stats import OccupancyGrid, Scene, load_catalogue
-        >>> table = pd.DataFrame({"t_arrive": [0.0, 5.0], "t_leave": [9.0, 9.0],
-        ...                       "x": [2.0, 6.0], "y": [2.0, 6.0], "yaw": [0.0, 0.0]})
-        >>> scene = Scene.from_scenarios(table, load_catalogue())
-        >>> b = ARBuilder(OccupancyGrid(np.zeros((100, 100)), 0.1), load_catalogue())
-        >>> later = b.with_scene(scene, 6.0)
-        >>> len(b), later.ids.tolist()
-        (0, [0, 1])
+        See :meth:`register_scene`.
         """
         new = copy.copy(self)
         new.log = list(self.log)

@@ -423,8 +423,7 @@ def rasterise_convex(
     Parameters
     ----------
     poly : (n, k, 2) float
-        Convex polygons in grid cell units ``(u, v)`` (cell ``(i, j)`` is
-        ``[j, j + 1] x [i, i + 1]``); vertex order may be either orientation.
+        Convex polygons in grid cell units, as for :func:`footprint_runs`.
     shape : (height, width)
         Grid shape; cells outside are dropped.
 

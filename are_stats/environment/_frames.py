@@ -17,9 +17,9 @@ optical frame relative to a body frame (x forward, y left, z up).
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_finite
 
@@ -41,7 +41,7 @@ def planar_pose_matrix(x: float, y: float, yaw: float, z: float = 0.0) -> np.nda
     return T
 
 
-def pose_matrix(pose: Any, name: str = "pose") -> np.ndarray:
+def pose_matrix(pose: npt.ArrayLike, name: str = "pose") -> np.ndarray:
     """A 4x4 matrix from a 4x4 matrix, a ``(7,)`` ``[x, y, z, qw, qx, qy, qz]`` or a planar
     ``(3,)`` ``[x, y, yaw]`` pose."""
     from pytransform3d import transformations as pt
@@ -126,7 +126,7 @@ class TransformTree:
                 f"({' -> '.join(self._root_path(parent))})"
             )
 
-    def set_static(self, child: str, parent: str, pose: Any) -> None:
+    def set_static(self, child: str, parent: str, pose: npt.ArrayLike) -> None:
         """Set the fixed pose of ``child`` in ``parent`` (see :func:`pose_matrix`)."""
         from pytransform3d.transform_manager import StaticTransform
 
@@ -137,7 +137,9 @@ class TransformTree:
         self._moving.discard(child)
         self._frames.update((child, parent))
 
-    def set_series(self, child: str, parent: str, times: Any, poses: Any) -> None:
+    def set_series(
+        self, child: str, parent: str, times: npt.ArrayLike, poses: npt.ArrayLike
+    ) -> None:
         """Set time-stamped poses of a moving ``child`` in ``parent``.
 
         Parameters
@@ -213,7 +215,7 @@ class TransformTree:
             ) from err
 
     def transform_points(
-        self, target: str, source: str, points: Any, time: float | None = None
+        self, target: str, source: str, points: npt.ArrayLike, time: float | None = None
     ) -> np.ndarray:
         """Map ``(n, 3)`` points from ``source`` to ``target``."""
         p = check_finite("points", points)

@@ -12,15 +12,17 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import shapely
+from shapely import affinity
 
 from are_stats._checks import check_positive
 from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
 
-# Lazy imports: trimesh and shapely (about 1 s together) are imported when a mesh is loaded or
-# built, not with the environment room.
+# Lazy import: trimesh (about 0.6 s CPU) is imported when a mesh is loaded or built, not with
+# the environment room (shapely costs about 20 ms).
 
 if TYPE_CHECKING:
     import trimesh
@@ -98,7 +100,9 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     return obj
 
 
-def occupied_polygons(grid: OccupancyGrid, cells: np.ndarray | None = None) -> list[Any]:
+def occupied_polygons(
+    grid: OccupancyGrid, cells: np.ndarray | None = None
+) -> list[shapely.Polygon]:
     """Shapely polygons (in F_E, metres) covering the occupied cells of ``grid``.
 
     Parameters
@@ -114,8 +118,6 @@ def occupied_polygons(grid: OccupancyGrid, cells: np.ndarray | None = None) -> l
         only at a corner meet at a single point: as two polygons, or as a hole touching its
         shell (or another hole) there.
     """
-    from shapely import affinity
-
     mask = grid.occupied if cells is None else np.asarray(cells, bool)
     if mask.shape != grid.shape:
         raise ValueError(f"cells: expected a mask of shape {grid.shape}, got {mask.shape}")
@@ -128,10 +130,8 @@ def occupied_polygons(grid: OccupancyGrid, cells: np.ndarray | None = None) -> l
     ]
 
 
-def _cell_polygons(mask: np.ndarray) -> list[Any]:
+def _cell_polygons(mask: np.ndarray) -> list[shapely.Polygon]:
     """Oriented polygons covering ``mask`` in cell units (integer corner coordinates)."""
-    import shapely
-
     rects = _row_runs_merged(mask)
     if len(rects) == 0:
         return []
@@ -271,11 +271,9 @@ def _diagonal_pinches(mask: np.ndarray) -> np.ndarray:
     return (sw == ne) & (se == nw) & (sw != se)
 
 
-def _caps_and_walls(polys: list[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _caps_and_walls(polys: list[shapely.Polygon]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cap triangles ``(T, 3, 2)`` (counter-clockwise) and boundary edges ``a -> b``
     (``(E, 2)`` each, solid on the left) of oriented cell-unit polygons, as int64."""
-    import shapely
-
     rings = shapely.get_rings(np.asarray(polys, dtype=object))
     coords, ring_of = shapely.get_coordinates(rings, return_index=True)
     pts = np.rint(coords).astype(np.int64)

@@ -23,8 +23,6 @@ face index.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import warp as wp
 
@@ -34,18 +32,19 @@ LEAF = 4  # triangles per leaf
 BRANCH = 4  # children per inner node
 
 
-class FrustumBVH(NamedTuple):
-    """Device arrays of the implicit tree (see the module docstring)."""
+@wp.struct
+class FrustumBVH:
+    """Device arrays of the implicit tree (see the module docstring); a kernel argument."""
 
-    p0: wp.array  # (F,) vec3, first vertex of each sorted triangle
-    e1: wp.array  # (F,) vec3, second minus first vertex
-    e2: wp.array  # (F,) vec3, third minus first vertex
-    lower: wp.array  # (N,) vec3, node lower bounds, level 0 first
-    upper: wp.array  # (N,) vec3, node upper bounds
-    level_start: wp.array  # (L + 1,) int32, first node of each level (and the total)
+    p0: wp.array(dtype=wp.vec3)  # (F,) first vertex of each sorted triangle
+    e1: wp.array(dtype=wp.vec3)  # (F,) second minus first vertex
+    e2: wp.array(dtype=wp.vec3)  # (F,) third minus first vertex
+    lower: wp.array(dtype=wp.vec3)  # (N,) node lower bounds, level 0 first
+    upper: wp.array(dtype=wp.vec3)  # (N,) node upper bounds
+    level_start: wp.array(dtype=wp.int32)  # (L + 1,) first node of each level (and the total)
     n_levels: int
     n_tri: int
-    order: np.ndarray  # (F,) int64, face index of each sorted triangle
+    order: wp.array(dtype=wp.int64)  # (F,) face index of each sorted triangle
 
 
 def _spread_bits(v: np.ndarray) -> np.ndarray:
@@ -107,14 +106,14 @@ def build_frustum_bvh(vertices: np.ndarray, faces: np.ndarray, device: str) -> F
     def vec3(a: np.ndarray) -> wp.array:
         return wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=device)
 
-    return FrustumBVH(
-        p0=vec3(tri[:, 0]),
-        e1=vec3(tri[:, 1] - tri[:, 0]),
-        e2=vec3(tri[:, 2] - tri[:, 0]),
-        lower=vec3(np.concatenate(lowers)),
-        upper=vec3(np.concatenate(uppers)),
-        level_start=wp.array(level_start, dtype=wp.int32, device=device),
-        n_levels=len(lowers),
-        n_tri=len(tri),
-        order=order,
+    tree = FrustumBVH()
+    tree.p0, tree.e1, tree.e2 = (
+        vec3(tri[:, 0]),
+        vec3(tri[:, 1] - tri[:, 0]),
+        vec3(tri[:, 2] - tri[:, 0]),
     )
+    tree.lower, tree.upper = vec3(np.concatenate(lowers)), vec3(np.concatenate(uppers))
+    tree.level_start = wp.array(level_start, dtype=wp.int32, device=device)
+    tree.n_levels, tree.n_tri = len(lowers), len(tri)
+    tree.order = wp.array(order.astype(np.int64), dtype=wp.int64, device=device)
+    return tree

@@ -28,15 +28,20 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import warp as wp
 
-from are_stats.perception._frustum_bvh import BRANCH, LEAF
+from are_stats.perception._frustum_bvh import BRANCH, LEAF, FrustumBVH
 
 __all__ = [
+    "View",
     "block_stride",
     "launch_dynamic",
     "launch_env_blocks",
     "launch_pair_counts",
     "launch_pair_depths",
     "launch_split",
+    "make_boxes",
+    "make_depths",
+    "make_segments",
+    "make_view",
     "split_bounds",
 ]
 
@@ -86,16 +91,51 @@ wp.set_module_options({"enable_backward": False})
 _INF = wp.constant(wp.float32(np.inf))
 
 
+@wp.struct
+class View:
+    """The layout of a launch's frames (``npix = width height``) and the camera intrinsics."""
+
+    width: int
+    height: int
+    npix: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+
 @wp.func
-def _pixel_ray_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
+def _pixel_ray_cam(px: int, py: int, view: View) -> wp.vec3:
     """Optical-frame direction (not normalised, z = 1) through the centre of pixel (px, py)."""
-    return wp.vec3((wp.float32(px) + 0.5 - cx) / fx, (wp.float32(py) + 0.5 - cy) / fy, 1.0)
+    return wp.vec3(
+        (wp.float32(px) + 0.5 - view.cx) / view.fx, (wp.float32(py) + 0.5 - view.cy) / view.fy, 1.0
+    )
 
 
 @wp.func
-def _pixel_dir_cam(px: int, py: int, fx: float, fy: float, cx: float, cy: float) -> wp.vec3:
+def _pixel_dir_cam(px: int, py: int, view: View) -> wp.vec3:
     """Unit optical-frame direction of the ray through the centre of pixel (px, py)."""
-    return wp.normalize(_pixel_ray_cam(px, py, fx, fy, cx, cy))
+    return wp.normalize(_pixel_ray_cam(px, py, view))
+
+
+@wp.func
+def _block_uv(view: View, blk: wp.vec4i) -> wp.vec4:
+    """``(u0, u1, v0, v1)``: optical-frame x / z of the first and last pixel-centre columns
+    of the block ``blk = (x0, x1, y0, y1)`` (pixels ``[x0, x1) x [y0, y1)``), and y / z of
+    its first and last rows."""
+    return wp.vec4(
+        (wp.float32(blk[0]) + 0.5 - view.cx) / view.fx,
+        (wp.float32(blk[1]) - 0.5 - view.cx) / view.fx,
+        (wp.float32(blk[2]) + 0.5 - view.cy) / view.fy,
+        (wp.float32(blk[3]) - 0.5 - view.cy) / view.fy,
+    )
+
+
+@wp.func
+def _block_pad(c: wp.vec3, top: float) -> float:
+    """A margin far above the float32 rounding of points near ``c`` up to depth ``top``."""
+    scale = wp.max(wp.max(wp.abs(c[0]), wp.abs(c[1])), wp.abs(c[2])) + top
+    return 1.0e-3 + 1.0e-4 * scale
 
 
 @wp.func
@@ -159,22 +199,56 @@ def _find_segment(offsets: wp.array(dtype=wp.int64), n_seg: int, i: wp.int64) ->
     return lo
 
 
+@wp.func
+def _run_of(
+    offsets: wp.array(dtype=wp.int64),
+    rect: wp.array(dtype=wp.vec3i),
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
+    n_seg: int,
+    rows: int,
+    t: wp.int64,
+) -> wp.vec4i:
+    """``(s, x0, y, n)``: the pair items of work item ``t``, pixels ``x0 .. x0 + n - 1`` of
+    image row ``y`` in segment ``s`` (consecutive items).
+
+    With ``rows == 1`` (CPU launches) a work item is rectangle row ``t``: row ``row_y[t]``
+    of segment ``row_seg[t]``, walked without a per-item segment search. Otherwise it is
+    the single item ``t``, found by binary search over the ``offsets``.
+    """
+    if rows == 1:
+        s = row_seg[t]
+        r = rect[s]
+        return wp.vec4i(s, r[0], r[1] + row_y[t], r[2])
+    s = _find_segment(offsets, n_seg, t)
+    k = int(t - offsets[s])
+    r = rect[s]
+    return wp.vec4i(s, r[0] + k % r[2], r[1] + k // r[2], 1)
+
+
+@wp.func
+def _first_item(
+    offsets: wp.array(dtype=wp.int64), rect: wp.array(dtype=wp.vec3i), run: wp.vec4i
+) -> wp.int64:
+    """The pair item of the first pixel of ``run`` (see :func:`_run_of`)."""
+    r = rect[run[0]]
+    return offsets[run[0]] + wp.int64((run[2] - r[1]) * r[2] + run[1] - r[0])
+
+
 @wp.kernel
 def pair_depth_kernel(
     offsets: wp.array(dtype=wp.int64),
-    seg_frame: wp.array(dtype=wp.int32),
-    seg_rect: wp.array(dtype=wp.vec3i),
-    seg_origin: wp.array(dtype=wp.vec3),
-    seg_rot: wp.array(dtype=wp.mat33),
-    seg_half: wp.array(dtype=wp.vec3),
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    width: int,
-    npix: int,
-    d_max: float,
+    frame: wp.array(dtype=wp.int32),
+    rect: wp.array(dtype=wp.vec3i),
+    row_seg: wp.array(dtype=wp.int32),
+    row_y: wp.array(dtype=wp.int32),
     n_seg: int,
+    origin: wp.array(dtype=wp.vec3),
+    rot: wp.array(dtype=wp.mat33),
+    half: wp.array(dtype=wp.vec3),
+    view: View,
+    d_max: float,
+    rows: int,
     base: wp.int64,
     pair_z: wp.array(dtype=wp.float32),
     z_max: wp.array(dtype=wp.float32),
@@ -182,88 +256,34 @@ def pair_depth_kernel(
 ):
     """Z_a of every (artefact, pixel-in-rectangle) item; scatter its max and min per pixel.
 
-    ``seg_origin`` is the camera centre in the box frame and ``seg_rot`` the rotation from
-    the optical frame to the box frame, per segment (computed on the host).
+    The segments (see the module docstring) are ``offsets``, ``frame``, ``rect = (x0, y0,
+    w)``, and for CPU launches their rectangle rows ``row_seg``, ``row_y``. Per segment,
+    ``origin`` is the camera centre in the box frame, ``rot`` the rotation from the
+    optical frame to the box frame and ``half`` the box's half extents. Work item
+    ``tid + base`` is a run of items (:func:`_run_of`): a rectangle row when ``rows == 1``
+    (CPU launches), else one item (CUDA launches).
     """
-    i = wp.int64(wp.tid()) + base
-    s = _find_segment(offsets, n_seg, i)
-    k = int(i - offsets[s])
-    rect = seg_rect[s]
-    px = rect[0] + k % rect[2]
-    py = rect[1] + k // rect[2]
-    d = seg_rot[s] * _pixel_ray_cam(px, py, fx, fy, cx, cy)
-    z = _slab(seg_origin[s], d, seg_half[s], d_max)
-    pair_z[i] = z
-    if z < _INF:
-        g = seg_frame[s] * npix + py * width + px
-        wp.atomic_max(z_max, g, z)
-        wp.atomic_min(z_min, g, z)
-
-
-@wp.kernel
-def pair_depth_row_kernel(
-    row_seg: wp.array(dtype=wp.int32),
-    row_y: wp.array(dtype=wp.int32),
-    offsets: wp.array(dtype=wp.int64),
-    seg_frame: wp.array(dtype=wp.int32),
-    seg_rect: wp.array(dtype=wp.vec3i),
-    seg_origin: wp.array(dtype=wp.vec3),
-    seg_rot: wp.array(dtype=wp.mat33),
-    seg_half: wp.array(dtype=wp.vec3),
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    width: int,
-    npix: int,
-    d_max: float,
-    base: wp.int64,
-    pair_z: wp.array(dtype=wp.float32),
-    z_max: wp.array(dtype=wp.float32),
-    z_min: wp.array(dtype=wp.float32),
-):
-    """:func:`pair_depth_kernel` with one work item per rectangle row (CPU launches).
-
-    Row ``r`` is row ``row_y[r]`` of segment ``row_seg[r]``; its items are consecutive,
-    so a host thread walks them without a per-item segment search.
-    """
-    r = wp.int64(wp.tid()) + base
-    s = row_seg[r]
-    yy = row_y[r]
-    rect = seg_rect[s]
-    py = rect[1] + yy
-    i0 = offsets[s] + wp.int64(yy) * wp.int64(rect[2])
-    o = seg_origin[s]
-    rot = seg_rot[s]
-    h = seg_half[s]
-    g0 = seg_frame[s] * npix + py * width
-    for j in range(rect[2]):
-        px = rect[0] + j
-        d = rot * _pixel_ray_cam(px, py, fx, fy, cx, cy)
-        z = _slab(o, d, h, d_max)
+    run = _run_of(offsets, rect, row_seg, row_y, n_seg, rows, wp.int64(wp.tid()) + base)
+    s = run[0]
+    i0 = _first_item(offsets, rect, run)
+    o = origin[s]
+    m = rot[s]
+    h = half[s]
+    g0 = frame[s] * view.npix + run[2] * view.width
+    for j in range(run[3]):
+        px = run[1] + j
+        z = _slab(o, m * _pixel_ray_cam(px, run[2], view), h, d_max)
         pair_z[i0 + wp.int64(j)] = z
         if z < _INF:
-            g = g0 + px
-            wp.atomic_max(z_max, g, z)
-            wp.atomic_min(z_min, g, z)
+            wp.atomic_max(z_max, g0 + px, z)
+            wp.atomic_min(z_min, g0 + px, z)
 
 
 @wp.func
 def _block_is_clear(
-    mesh: wp.uint64,
-    c: wp.vec3,
-    rot: wp.mat33,
-    x0: int,
-    x1: int,
-    y0: int,
-    y1: int,
-    t_top: float,
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
+    mesh: wp.uint64, c: wp.vec3, rot: wp.mat33, blk: wp.vec4i, t_top: float, view: View
 ) -> bool:
-    """Whether no mesh triangle can meet a ray of pixels ``[x0, x1) x [y0, y1)`` before ``t_top``.
+    """Whether no mesh triangle can meet a ray of the pixel block ``blk`` before ``t_top``.
 
     Every ray segment ``{c + t d : 0 <= t < t_top}`` of the block's pixels lies in the
     pyramid with apex at the camera centre ``c`` spanned by the block's pixel-centre
@@ -271,24 +291,20 @@ def _block_is_clear(
     length). When no triangle's bounding box meets the pyramid's bounding box (widened
     well beyond float32 rounding), no ray query of the block can hit anything.
     """
-    u0 = (wp.float32(x0) + 0.5 - cx) / fx
-    u1 = (wp.float32(x1) - 0.5 - cx) / fx
-    v0 = (wp.float32(y0) + 0.5 - cy) / fy
-    v1 = (wp.float32(y1) - 0.5 - cy) / fy
+    uv = _block_uv(view, blk)
     lo = c
     hi = c
     for k in range(4):
-        u = u0
+        u = uv[0]
         if k % 2 == 1:
-            u = u1
-        v = v0
+            u = uv[1]
+        v = uv[2]
         if k >= 2:
-            v = v1
+            v = uv[3]
         q = c + rot * wp.vec3(u * t_top, v * t_top, t_top)
         lo = wp.min(lo, q)
         hi = wp.max(hi, q)
-    scale = wp.max(wp.max(wp.abs(c[0]), wp.abs(c[1])), wp.abs(c[2])) + t_top
-    pad = 1.0e-3 + 1.0e-4 * scale
+    pad = _block_pad(c, t_top)
     padv = wp.vec3(pad, pad, pad)
     query = wp.mesh_query_aabb(mesh, lo - padv, hi + padv)
     face = wp.int32(0)
@@ -352,21 +368,9 @@ def _plane(n: wp.vec3, c: wp.vec3, pad: float) -> wp.vec4:
 
 @wp.func
 def _tri_rect(
-    a: wp.vec3,
-    b: wp.vec3,
-    c: wp.vec3,
-    cam: wp.vec3,
-    rot: wp.mat33,
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    x0: int,
-    x1: int,
-    y0: int,
-    y1: int,
+    a: wp.vec3, b: wp.vec3, c: wp.vec3, cam: wp.vec3, rot: wp.mat33, view: View, blk: wp.vec4i
 ) -> int:
-    """Pixels of the block ``[x0, x1) x [y0, y1)`` whose centre rays can meet triangle ``abc``.
+    """Pixels of the block ``blk = (x0, x1, y0, y1)`` whose centre rays can meet triangle ``abc``.
 
     The rectangle ``[xa, xb] x [ya, yb]`` (relative to ``x0, y0``) of pixel centres inside
     the triangle's projected bounding box, widened by 0.05 px (far above the rounding of
@@ -374,6 +378,8 @@ def _tri_rect(
     a vertex lies less than 1 mm in front of the camera. Empty (``xa > xb`` or ``ya > yb``)
     when no pixel centre of the block can see the triangle.
     """
+    x0, x1, y0, y1 = blk[0], blk[1], blk[2], blk[3]
+    fx, fy, cx, cy = view.fx, view.fy, view.cx, view.cy
     rt = wp.transpose(rot)
     qa = rt * (a - cam)
     qb = rt * (b - cam)
@@ -405,44 +411,25 @@ def _tri_rect(
 
 @wp.func
 def _gather(
-    lower: wp.array(dtype=wp.vec3),
-    upper: wp.array(dtype=wp.vec3),
-    level_start: wp.array(dtype=wp.int32),
-    n_levels: int,
-    p0: wp.array(dtype=wp.vec3),
-    e1: wp.array(dtype=wp.vec3),
-    e2: wp.array(dtype=wp.vec3),
-    n_tri: int,
+    tree: FrustumBVH,
     cand: wp.array(dtype=wp.int32),
     cand_z: wp.array(dtype=wp.float32),
     start: wp.int64,
     cap: int,
-    pl0: wp.vec4,
-    pl1: wp.vec4,
-    pl2: wp.vec4,
-    pl3: wp.vec4,
-    pl4: wp.vec4,
-    axis: wp.vec3,
-    top: float,
-    pad: float,
     cam: wp.vec3,
     rot: wp.mat33,
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    x0: int,
-    x1: int,
-    y0: int,
-    y1: int,
+    view: View,
+    blk: wp.vec4i,
+    top: float,
 ) -> wp.vec2:
     """The nearest triangles (at most ``cap``) that the block's ray pyramid can meet.
 
     Walks the implicit tree (:mod:`._frustum_bvh`) depth first without a stack (node ``j``
     of level ``k`` has the children ``BRANCH j + i`` of level ``k - 1``), skipping every
-    node that lies outside one of the four side planes ``pl0..pl3``, behind the camera
-    (``pl4``) or beyond the optical depth ``far``. A triangle passing the same tests that
-    some pixel centre of the block can see is stored with its pixel rectangle
+    node that lies outside one of the four side planes ``pl0..pl3`` of the block's ray
+    pyramid (through the camera centre ``cam`` and the pixel centres of the block's edges),
+    behind the camera (``pl4``) or beyond the optical depth ``far``. A triangle passing
+    the same tests that some pixel centre of the block can see is stored with its pixel rectangle
     (:func:`_tri_rect`) in ``cand[start + 2 i]``, ``cand[start + 2 i + 1]`` and its
     nearest optical depth in ``cand_z[start / 2 + i]``.
 
@@ -454,7 +441,15 @@ def _gather(
     a hit found among them is the first hit of its ray (+inf when nothing was dropped;
     otherwise ``far`` less ``pad``, far above the rounding of depths).
     """
-    k = int(n_levels - 1)
+    uv = _block_uv(view, blk)
+    pad = _block_pad(cam, top)
+    axis = rot * wp.vec3(0.0, 0.0, 1.0)  # optical axis
+    pl0 = _plane(rot * wp.vec3(1.0, 0.0, -uv[0]), cam, pad)
+    pl1 = _plane(rot * wp.vec3(-1.0, 0.0, uv[1]), cam, pad)
+    pl2 = _plane(rot * wp.vec3(0.0, 1.0, -uv[2]), cam, pad)
+    pl3 = _plane(rot * wp.vec3(0.0, -1.0, uv[3]), cam, pad)
+    pl4 = _plane(axis, cam, pad)
+    k = int(tree.n_levels - 1)
     j = int(0)  # noqa: UP018 (Warp: mutable loop variables, not constants)
     n = int(0)  # noqa: UP018
     zs = start // wp.int64(2)
@@ -463,9 +458,9 @@ def _gather(
     full = bool(False)  # noqa: UP018
     done = bool(False)  # noqa: UP018
     while not done:
-        node = level_start[k] + j
-        lo = lower[node]
-        hi = upper[node]
+        node = tree.level_start[k] + j
+        lo = tree.lower[node]
+        hi = tree.upper[node]
         pl5 = wp.vec4(-axis[0], -axis[1], -axis[2], -(ac + far + pad))
         inside = not (
             _box_outside(lo, hi, pl0)
@@ -480,10 +475,10 @@ def _gather(
             j = j * _BRANCH
         else:
             if inside:
-                for ti in range(j * _LEAF, wp.min(j * _LEAF + _LEAF, n_tri)):
-                    a = p0[ti]
-                    b = a + e1[ti]
-                    c = a + e2[ti]
+                for ti in range(j * _LEAF, wp.min(j * _LEAF + _LEAF, tree.n_tri)):
+                    a = tree.p0[ti]
+                    b = a + tree.e1[ti]
+                    c = a + tree.e2[ti]
                     z = wp.min(wp.min(wp.dot(axis, a), wp.dot(axis, b)), wp.dot(axis, c)) - ac
                     keep = z < far and not (
                         _tri_outside(a, b, c, pl0)
@@ -494,7 +489,7 @@ def _gather(
                     )
                     rect = int(-1)  # noqa: UP018
                     if keep:
-                        rect = _tri_rect(a, b, c, cam, rot, fx, fy, cx, cy, x0, x1, y0, y1)
+                        rect = _tri_rect(a, b, c, cam, rot, view, blk)
                     if rect >= 0:
                         slot = n
                         if n == cap:
@@ -519,14 +514,14 @@ def _gather(
                             cand[start + wp.int64(2 * slot + 1)] = rect
                             cand_z[zs + wp.int64(slot)] = z
             # next sibling, climbing while this node is its parent's last child
-            while k < n_levels - 1:
-                size = level_start[k + 1] - level_start[k]
+            while k < tree.n_levels - 1:
+                size = tree.level_start[k + 1] - tree.level_start[k]
                 if j % _BRANCH == _BRANCH - 1 or j == size - 1:
                     j = j // _BRANCH
                     k += 1
                 else:
                     break
-            if k == n_levels - 1:
+            if k == tree.n_levels - 1:
                 done = True
             j += 1
     far_lim = float(_INF)
@@ -605,21 +600,54 @@ def _cast_candidates(
     return result
 
 
+@wp.func
+def _cast_bvh(
+    mesh: wp.uint64,
+    face: int,
+    coherent: int,
+    any_hit: int,
+    all_pixels: int,
+    c: wp.vec3,
+    d: wp.vec3,
+    t_max: float,
+    z_lo: float,
+    z_env: wp.array(dtype=wp.float32),
+    g: int,
+) -> int:
+    """Z_env of pixel ``g`` by Warp's BVH queries (the path without gathering).
+
+    ``face`` is the triangle hit by the block's last cast ray (-1: none yet); returns the
+    one to try next (see :func:`env_block_kernel`).
+    """
+    if coherent == 1 and face >= 0:
+        t_c = _tri_hit_interior(mesh, face, c, d)
+        if t_c < t_max:
+            slack = 1.0e-4 * t_c + 1.0e-5  # far above float32 rounding of t
+            if all_pixels == 0 and t_c + slack < z_lo:
+                z_env[g] = -1.0  # occluded before every box depth
+                return face
+            q = wp.mesh_query_ray(mesh, c, d, wp.min(t_max, t_c + slack))
+            if q.result and q.t >= 0.0:
+                z_env[g] = q.t
+                return q.face
+    if all_pixels == 0 and any_hit == 1 and z_lo == t_max and face < 0:
+        if wp.mesh_query_ray_anyhit(mesh, c, d, t_max):
+            z_env[g] = -1.0
+        return face
+    q = wp.mesh_query_ray(mesh, c, d, t_max)
+    if q.result and q.t >= 0.0 and q.t < t_max:
+        z_env[g] = q.t
+        return q.face
+    return face
+
+
 @wp.kernel
 def env_block_kernel(
     mesh: wp.uint64,
     has_mesh: int,
-    z_max: wp.array(dtype=wp.float32),
-    z_min: wp.array(dtype=wp.float32),
     cam_pos: wp.array(dtype=wp.vec3),
     cam_rot: wp.array(dtype=wp.mat33),
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    width: int,
-    height: int,
-    npix: int,
+    view: View,
     block: int,
     bw: int,
     bh: int,
@@ -631,17 +659,12 @@ def env_block_kernel(
     coherent: int,
     gather: int,
     cap: int,
-    p0: wp.array(dtype=wp.vec3),
-    e1: wp.array(dtype=wp.vec3),
-    e2: wp.array(dtype=wp.vec3),
-    lower: wp.array(dtype=wp.vec3),
-    upper: wp.array(dtype=wp.vec3),
-    level_start: wp.array(dtype=wp.int32),
-    n_levels: int,
-    n_tri: int,
+    tree: FrustumBVH,
     cand: wp.array(dtype=wp.int32),
     cand_z: wp.array(dtype=wp.float32),
     base: wp.int64,
+    z_max: wp.array(dtype=wp.float32),
+    z_min: wp.array(dtype=wp.float32),
     z_env: wp.array(dtype=wp.float32),
     status: wp.array(dtype=wp.int32),
 ):
@@ -670,7 +693,7 @@ def env_block_kernel(
 
     With ``gather == 1`` (the default launch) the block's rays are first traced together:
     the (at most ``cap``) nearest triangles the block's ray pyramid can meet are gathered
-    from the mesh's implicit tree (:func:`_gather`, into the block's slots of ``cand`` and
+    from the mesh's implicit tree ``tree`` (:func:`_gather`, into the block's slots of ``cand`` and
     ``cand_z``), and every ray tests only those whose pixel rectangle holds it
     (:func:`_cast_candidates`, about 10 triangles per ray instead of a BVH walk). A ray the
     list cannot settle exactly (a hit near a triangle edge, or an answer beyond the depth
@@ -687,12 +710,11 @@ def env_block_kernel(
     b = int(key - wp.int64(f) * nb)
     x0 = (b % bw) * block
     y0 = (b // bw) * block
-    x1 = wp.min(x0 + block, width)
-    y1 = wp.min(y0 + block, height)
+    blk = wp.vec4i(x0, wp.min(x0 + block, view.width), y0, wp.min(y0 + block, view.height))
     top = float(-1.0)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
-    for y in range(y0, y1):
-        g0 = f * npix + y * width
-        for x in range(x0, x1):
+    for y in range(blk[2], blk[3]):
+        g0 = f * view.npix + y * view.width
+        for x in range(blk[0], blk[1]):
             g = g0 + x
             z_env[g] = _INF
             top = wp.max(top, z_max[g])
@@ -703,76 +725,38 @@ def env_block_kernel(
         return
     c = cam_pos[f]
     rot = cam_rot[f]
-    if _block_is_clear(mesh, c, rot, x0, x1, y0, y1, top, fx, fy, cx, cy):
+    if _block_is_clear(mesh, c, rot, blk, top, view):
         status[key] = 1
         return
     status[key] = 2
     n_cand = int(-1)  # noqa: UP018 (Warp: mutable variables, not constants)
     far_lim = float(_INF)  # noqa: UP018
     start = key * wp.int64(2 * cap)
-    axis = rot * wp.vec3(0.0, 0.0, 1.0)  # optical axis
     if gather == 1:
-        u0 = (wp.float32(x0) + 0.5 - cx) / fx
-        u1 = (wp.float32(x1) - 0.5 - cx) / fx
-        v0 = (wp.float32(y0) + 0.5 - cy) / fy
-        v1 = (wp.float32(y1) - 0.5 - cy) / fy
-        scale = wp.max(wp.max(wp.abs(c[0]), wp.abs(c[1])), wp.abs(c[2])) + top
-        pad = 1.0e-3 + 1.0e-4 * scale
-        g_out = _gather(
-            lower,
-            upper,
-            level_start,
-            n_levels,
-            p0,
-            e1,
-            e2,
-            n_tri,
-            cand,
-            cand_z,
-            start,
-            cap,
-            _plane(rot * wp.vec3(1.0, 0.0, -u0), c, pad),
-            _plane(rot * wp.vec3(-1.0, 0.0, u1), c, pad),
-            _plane(rot * wp.vec3(0.0, 1.0, -v0), c, pad),
-            _plane(rot * wp.vec3(0.0, -1.0, v1), c, pad),
-            _plane(axis, c, pad),
-            axis,
-            top,
-            pad,
-            c,
-            rot,
-            fx,
-            fy,
-            cx,
-            cy,
-            x0,
-            x1,
-            y0,
-            y1,
-        )
+        g_out = _gather(tree, cand, cand_z, start, cap, c, rot, view, blk, top)
         n_cand = int(g_out[0])
         far_lim = g_out[1]
         if n_cand == 0:
             status[key] = 1
             return
-    if n_cand > 0:
-        for y in range(y0, y1):
-            g0 = f * npix + y * width
-            for x in range(x0, x1):
-                g = g0 + x
-                t_max = t_all
-                z_lo = t_all
-                if all_pixels == 0:
-                    t_max = z_max[g]
-                    z_lo = z_min[g]
-                if t_max >= 0.0:
-                    d = rot * _pixel_dir_cam(x, y, fx, fy, cx, cy)
-                    if all_pixels == 1:
-                        z_lo = -1.0  # a depth image needs the nearest hit itself
+    axis = rot * wp.vec3(0.0, 0.0, 1.0)  # optical axis
+    face = int(-1)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
+    for y in range(blk[2], blk[3]):
+        g0 = f * view.npix + y * view.width
+        for x in range(blk[0], blk[1]):
+            g = g0 + x
+            t_max = t_all
+            z_lo = float(-1.0)  # noqa: UP018 (a depth image needs the nearest hit itself)
+            if all_pixels == 0:
+                t_max = z_max[g]
+                z_lo = z_min[g]
+            if t_max >= 0.0:
+                d = rot * _pixel_dir_cam(x, y, view)
+                if n_cand > 0:
                     r = _cast_candidates(
-                        p0,
-                        e1,
-                        e2,
+                        tree.p0,
+                        tree.e1,
+                        tree.e2,
                         cand,
                         start,
                         n_cand,
@@ -791,112 +775,52 @@ def env_block_kernel(
                             z_env[g] = q.t
                     else:
                         z_env[g] = r
-        return
-    # triangle hit by the block's last cast ray (occluders are coherent)
-    face = int(-1)  # noqa: UP018 (Warp: a mutable loop variable, not a constant)
-    for y in range(y0, y1):
-        g0 = f * npix + y * width
-        for x in range(x0, x1):
-            g = g0 + x
-            t_max = t_all
-            z_lo = t_all
-            if all_pixels == 0:
-                t_max = z_max[g]
-                z_lo = z_min[g]
-            if t_max >= 0.0:
-                d = rot * _pixel_dir_cam(x, y, fx, fy, cx, cy)
-                done = False
-                if coherent == 1 and face >= 0:
-                    t_c = _tri_hit_interior(mesh, face, c, d)
-                    if t_c < t_max:
-                        slack = 1.0e-4 * t_c + 1.0e-5  # far above float32 rounding of t
-                        if all_pixels == 0 and t_c + slack < z_lo:
-                            z_env[g] = -1.0  # occluded before every box depth
-                            done = True
-                        else:
-                            q = wp.mesh_query_ray(mesh, c, d, wp.min(t_max, t_c + slack))
-                            if q.result and q.t >= 0.0:
-                                z_env[g] = q.t
-                                face = q.face
-                                done = True
-                if not done:
-                    if all_pixels == 0 and any_hit == 1 and z_lo == t_max and face < 0:
-                        if wp.mesh_query_ray_anyhit(mesh, c, d, t_max):
-                            z_env[g] = -1.0
-                    else:
-                        q = wp.mesh_query_ray(mesh, c, d, t_max)
-                        if q.result and q.t >= 0.0 and q.t < t_max:
-                            z_env[g] = q.t
-                            face = q.face
+                else:
+                    face = _cast_bvh(
+                        mesh, face, coherent, any_hit, all_pixels, c, d, t_max, z_lo, z_env, g
+                    )
 
 
 @wp.kernel
 def pair_count_kernel(
     offsets: wp.array(dtype=wp.int64),
-    seg_frame: wp.array(dtype=wp.int32),
-    seg_box: wp.array(dtype=wp.int32),
-    seg_rect: wp.array(dtype=wp.vec3i),
-    pair_z: wp.array(dtype=wp.float32),
-    z_env: wp.array(dtype=wp.float32),
-    z_min: wp.array(dtype=wp.float32),
-    width: int,
-    npix: int,
-    n_box: int,
-    n_seg: int,
-    base: wp.int64,
-    use_min: int,
-    counts: wp.array(dtype=wp.int32),
-):
-    """count((Z_a - Z_env)_ij <= 0) per (frame, artefact): the left side of A_f."""
-    i = wp.int64(wp.tid()) + base
-    z = pair_z[i]
-    if z < _INF:
-        s = _find_segment(offsets, n_seg, i)
-        k = int(i - offsets[s])
-        rect = seg_rect[s]
-        px = rect[0] + k % rect[2]
-        py = rect[1] + k // rect[2]
-        f = seg_frame[s]
-        g = f * npix + py * width + px
-        if _counts_for(z, z_env[g], z_min[g], use_min) == 1:
-            wp.atomic_add(counts, f * n_box + seg_box[s], 1)
-
-
-@wp.kernel
-def pair_count_row_kernel(
+    frame: wp.array(dtype=wp.int32),
+    rect: wp.array(dtype=wp.vec3i),
     row_seg: wp.array(dtype=wp.int32),
     row_y: wp.array(dtype=wp.int32),
-    offsets: wp.array(dtype=wp.int64),
-    seg_frame: wp.array(dtype=wp.int32),
-    seg_box: wp.array(dtype=wp.int32),
-    seg_rect: wp.array(dtype=wp.vec3i),
+    n_seg: int,
+    box: wp.array(dtype=wp.int32),
+    view: View,
+    n_box: int,
+    use_min: int,
+    rows: int,
+    base: wp.int64,
     pair_z: wp.array(dtype=wp.float32),
     z_env: wp.array(dtype=wp.float32),
     z_min: wp.array(dtype=wp.float32),
-    width: int,
-    npix: int,
-    n_box: int,
-    base: wp.int64,
-    use_min: int,
     counts: wp.array(dtype=wp.int32),
 ):
-    """:func:`pair_count_kernel` with one work item per rectangle row (CPU launches)."""
-    r = wp.int64(wp.tid()) + base
-    s = row_seg[r]
-    yy = row_y[r]
-    rect = seg_rect[s]
-    py = rect[1] + yy
-    i0 = offsets[s] + wp.int64(yy) * wp.int64(rect[2])
-    f = seg_frame[s]
-    g0 = f * npix + py * width + rect[0]
+    """count((Z_a - Z_env)_ij <= 0) per (frame, artefact): the left side of A_f.
+
+    Work items as in :func:`pair_depth_kernel`; ``box[s]`` is the artefact of segment
+    ``s``, in ``[0, n_box)``.
+    """
+    t = wp.int64(wp.tid()) + base
+    if rows == 0 and pair_z[t] == _INF:
+        return  # a single item that no box covers: no segment search
+    run = _run_of(offsets, rect, row_seg, row_y, n_seg, rows, t)
+    s = run[0]
+    i0 = _first_item(offsets, rect, run)
+    f = frame[s]
+    g0 = f * view.npix + run[2] * view.width + run[1]
     n = wp.int32(0)
-    for j in range(rect[2]):
+    for j in range(run[3]):
         z = pair_z[i0 + wp.int64(j)]
         if z < _INF:
             g = g0 + j
             n += _counts_for(z, z_env[g], z_min[g], use_min)
     if n > 0:
-        wp.atomic_add(counts, f * n_box + seg_box[s], n)
+        wp.atomic_add(counts, f * n_box + box[s], n)
 
 
 # ---------------------------------------------------------------------- host launchers
@@ -1031,70 +955,99 @@ def row_chunk_edges(row_key: np.ndarray, row_work: np.ndarray, n_chunks: int) ->
     return np.unique(np.concatenate([[0], cut, [n]])).astype(np.int64)
 
 
-def launch_pair_depths(seg, intr, d_max, out, bounds, device):
-    """Host side of the box-depth kernels, writing one ``z_max`` / ``z_min`` buffer.
+def _array(x: np.ndarray, dtype, device: str) -> wp.array:
+    return wp.array(np.ascontiguousarray(x), dtype=dtype, device=device)
 
-    On the CPU the rectangle rows, sorted by frame and image row, go to
-    :func:`pair_depth_row_kernel` with ``len(bounds)`` workers (:func:`launch_dynamic`) in
-    chunks that never share an image row (:func:`row_chunk_edges`): Warp's CPU atomics are
-    plain read-modify-writes, and this way no two threads touch the same pixel. Elsewhere
-    :func:`pair_depth_kernel` takes one item per work item.
+
+def make_view(fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> View:
+    """The :class:`View` of frames ``width`` x ``height`` seen with intrinsics ``fx .. cy``."""
+    view = View()
+    view.fx, view.fy, view.cx, view.cy = float(fx), float(fy), float(cx), float(cy)
+    view.width, view.height, view.npix = int(width), int(height), int(width) * int(height)
+    return view
+
+
+def make_segments(
+    offsets: np.ndarray,
+    frame: np.ndarray,
+    rect: np.ndarray,
+    row_seg: np.ndarray,
+    row_y: np.ndarray,
+    device: str,
+) -> list:
+    """The segment arguments of the pair kernels, ``[offsets, frame, rect, row_seg,
+    row_y, n_seg]``, as device arrays.
+
+    Parameters
+    ----------
+    offsets : (n + 1,) int
+        First item of each segment, then the item count.
+    frame : (n,) int
+        Frame of each segment.
+    rect : (n, 3) int
+        ``(x0, y0, w)`` of each segment's pixel rectangle.
+    row_seg, row_y : (R,) int
+        Segment and row (within the rectangle) of each rectangle row.
+    device : str
+        Warp device of the arrays.
     """
-    fx, fy, cx, cy, width, npix = intr
-    if _is_cpu(device):
+    return [
+        _array(offsets.astype(np.int64), wp.int64, device),
+        _array(frame.astype(np.int32), wp.int32, device),
+        _array(rect.astype(np.int32), wp.vec3i, device),
+        _array(row_seg.astype(np.int32), wp.int32, device),
+        _array(row_y.astype(np.int32), wp.int32, device),
+        len(frame),
+    ]
 
-        def row_inputs(base, j):
-            return [
-                seg["row_seg"],
-                seg["row_y"],
-                seg["offsets"],
-                seg["frame"],
-                seg["rect"],
-                seg["origin"],
-                seg["rot"],
-                seg["half"],
-                fx,
-                fy,
-                cx,
-                cy,
-                width,
-                npix,
-                float(d_max),
-                base,
-                out["pair_z"],
-                out["z_max"],
-                out["z_min"],
-            ]
 
+def make_boxes(origin: np.ndarray, rot: np.ndarray, half: np.ndarray, device: str) -> list:
+    """The box arguments of :func:`pair_depth_kernel`, ``[origin (n, 3), rot (n, 3, 3),
+    half (n, 3)]``, as device arrays."""
+    return [
+        _array(origin.astype(np.float32), wp.vec3, device),
+        _array(rot.astype(np.float32), wp.mat33, device),
+        _array(half.astype(np.float32), wp.vec3, device),
+    ]
+
+
+def make_depths(n_items: int, n_pixels: int, device: str) -> dict[str, wp.array]:
+    """Fresh buffers of the box depths: Z_a per pair item (``pair_z``, unset) and, per
+    pixel of the launch's frames, the largest finite Z_a (``z_max``, -1 where no box covers
+    it) and the smallest (``z_min``, +inf)."""
+    return {
+        "pair_z": wp.empty(max(n_items, 1), dtype=wp.float32, device=device),
+        "z_max": wp.full(n_pixels, -1.0, dtype=wp.float32, device=device),
+        "z_min": wp.full(n_pixels, np.inf, dtype=wp.float32, device=device),
+    }
+
+
+def launch_pair_depths(seg: dict, view: View, d_max: float, out: dict, bounds, device: str):
+    """Host side of :func:`pair_depth_kernel`, writing ``out``'s ``pair_z``, ``z_max``
+    and ``z_min`` (:func:`make_depths`).
+
+    ``seg["arrays"]`` are the launch's segments (:func:`make_segments`), ``seg["boxes"]``
+    their boxes (:func:`make_boxes`). On the CPU the work items are the rectangle rows,
+    sorted by frame and image row, run by ``len(bounds)`` workers (:func:`launch_dynamic`)
+    in chunks that never share an image row (:func:`row_chunk_edges`): Warp's CPU atomics
+    are plain read-modify-writes, and this way no two threads touch the same pixel.
+    Elsewhere a work item is one pair item.
+    """
+    rows = 1 if _is_cpu(device) else 0
+
+    def inputs(base, j):
+        outs = [out["pair_z"], out["z_max"], out["z_min"]]
+        return [*seg["arrays"], *seg["boxes"], view, float(d_max), rows, base, *outs]
+
+    if rows:
         workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
         edges = None
         if workers > 1:
             n_chunks = workers * _CHUNKS_PER_THREAD
             edges = row_chunk_edges(seg["row_key"], seg["row_work"], n_chunks)
-        launch_dynamic(pair_depth_row_kernel, seg["n_rows"], workers, row_inputs, device, edges)
+        launch_dynamic(pair_depth_kernel, seg["n_rows"], workers, inputs, device, edges)
         return
-
-    inputs = [
-        seg["offsets"],
-        seg["frame"],
-        seg["rect"],
-        seg["origin"],
-        seg["rot"],
-        seg["half"],
-        fx,
-        fy,
-        cx,
-        cy,
-        width,
-        npix,
-        float(d_max),
-        seg["n"],
-        0,
-        out["pair_z"],
-        out["z_max"],
-        out["z_min"],
-    ]
-    wp.launch(pair_depth_kernel, dim=seg["n_items"], inputs=inputs, device=device)
+    wp.launch(pair_depth_kernel, dim=seg["n_items"], inputs=inputs(0, 0), device=device)
 
 
 # Try the block's last-hit triangle before a BVH query (env_block_kernel); 0 turns it off.
@@ -1117,82 +1070,62 @@ def block_stride(n_rows: int) -> int:
 # are best overall, larger lists cost more per ray than they save.
 GATHER_CAP = 16
 
-_EMPTY: dict = {}
+_EMPTY: dict[str, FrustumBVH] = {}
 
 
-def _empty_tree(device) -> tuple:
+def _empty_tree(device: str) -> FrustumBVH:
     """Placeholder tree arrays for launches without a mesh or without gathering."""
     key = str(device)
     if key not in _EMPTY:
         v = wp.zeros(1, dtype=wp.vec3, device=device)
-        _EMPTY[key] = (v, v, v, v, v, wp.zeros(2, dtype=wp.int32, device=device), 1, 0)
+        t = FrustumBVH()
+        t.p0, t.e1, t.e2, t.lower, t.upper = v, v, v, v, v
+        t.level_start = wp.zeros(2, dtype=wp.int32, device=device)
+        t.n_levels, t.n_tri = 1, 0
+        t.order = wp.zeros(1, dtype=wp.int64, device=device)
+        _EMPTY[key] = t
     return _EMPTY[key]
 
 
 def launch_env_blocks(
-    mesh_id,
-    tree,
-    z_max,
-    z_min,
-    cams,
-    intr,
-    height,
-    block,
-    n_frames,
-    all_pixels,
-    t_all,
-    any_hit,
-    z_env,
-    status,
-    device,
-    threads,
-):
+    mesh_id: int,
+    tree: FrustumBVH | None,
+    cams: dict,
+    view: View,
+    block: int,
+    n_frames: int,
+    all_pixels: int,
+    t_all: float,
+    any_hit: int,
+    out: dict,
+    z_env: wp.array,
+    status: wp.array,
+    device: str,
+    threads: int,
+) -> None:
     """Host side of :func:`env_block_kernel` over every pixel block of ``n_frames`` frames.
 
     ``tree`` is the mesh's :class:`~._frustum_bvh.FrustumBVH` (None: no gathering). Ray
     costs vary across the image (sky, ground, far walls); the blocks are visited in a
     scattered order and handed to the threads in chunks on demand (:func:`launch_dynamic`).
     """
-    fx, fy, cx, cy, width, npix = intr
-    bw, bh = -(-width // block), -(-height // block)
+    bw, bh = -(-view.width // block), -(-view.height // block)
     n = n_frames * bw * bh
     stride = block_stride(n_frames * bh)
     k = len(split_bounds(n * block * block, device, threads))
     # _tri_rect packs a block's pixel rectangle into 8-bit fields of a signed int32
     cap = GATHER_CAP if tree is not None and mesh_id != 0 and block < 128 else 0
-    if cap > 0:
-        arrays = (
-            tree.p0,
-            tree.e1,
-            tree.e2,
-            tree.lower,
-            tree.upper,
-            tree.level_start,
-            tree.n_levels,
-            tree.n_tri,
-        )
-        cand = wp.empty(2 * n * cap, dtype=wp.int32, device=device)
-        cand_z = wp.empty(n * cap, dtype=wp.float32, device=device)
-    else:
-        arrays = _empty_tree(device)
-        cand = wp.empty(1, dtype=wp.int32, device=device)
-        cand_z = wp.empty(1, dtype=wp.float32, device=device)
+    arrays = tree if cap > 0 else _empty_tree(device)
+    cand = wp.empty(max(2 * n * cap, 1), dtype=wp.int32, device=device)
+    cand_z = wp.empty(max(n * cap, 1), dtype=wp.float32, device=device)
 
     def inputs(base, j):
         return [
             mesh_id,
             0 if mesh_id == 0 else 1,
-            z_max,
-            z_min,
             cams["pos"],
             cams["rot"],
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
-            npix,
+            view,
             block,
             bw,
             bh,
@@ -1204,10 +1137,12 @@ def launch_env_blocks(
             COHERENT,
             1 if cap > 0 else 0,
             cap,
-            *arrays,
+            arrays,
             cand,
             cand_z,
             base,
+            out["z_max"],
+            out["z_min"],
             z_env,
             status,
         ]
@@ -1215,53 +1150,30 @@ def launch_env_blocks(
     launch_dynamic(env_block_kernel, n, k, inputs, device)
 
 
-def launch_pair_counts(seg, intr, n_box, use_min, out, counts, bounds, device):
-    """Host side of the count kernels; ``counts[j]`` is range j's buffer.
+def launch_pair_counts(
+    seg: dict,
+    view: View,
+    n_box: int,
+    use_min: int,
+    out: dict,
+    z_env: wp.array,
+    counts: list,
+    bounds,
+    device: str,
+) -> None:
+    """Host side of :func:`pair_count_kernel`; ``counts[j]`` is range j's buffer,
+    ``seg["box"]`` the artefact of each segment.
 
-    On the CPU, :func:`pair_count_row_kernel` runs on the calling thread (about 3 ns per
-    item) and fills ``counts[0]``.
+    On the CPU, the rectangle rows run on the calling thread (about 3 ns per item) and fill
+    ``counts[0]``; elsewhere the pair items are split at ``bounds``.
     """
-    _, _, _, _, width, npix = intr
-    if _is_cpu(device):
-
-        def row_inputs(base, j):
-            return [
-                seg["row_seg"],
-                seg["row_y"],
-                seg["offsets"],
-                seg["frame"],
-                seg["box"],
-                seg["rect"],
-                out["pair_z"],
-                out["z_env"],
-                out["z_min"],
-                width,
-                npix,
-                n_box,
-                base,
-                use_min,
-                counts[j],
-            ]
-
-        launch_dynamic(pair_count_row_kernel, seg["n_rows"], 1, row_inputs, device)
-        return
+    rows = 1 if _is_cpu(device) else 0
 
     def inputs(base, j):
-        return [
-            seg["offsets"],
-            seg["frame"],
-            seg["box"],
-            seg["rect"],
-            out["pair_z"],
-            out["z_env"],
-            out["z_min"],
-            width,
-            npix,
-            n_box,
-            seg["n"],
-            base,
-            use_min,
-            counts[j],
-        ]
+        args = [*seg["arrays"], seg["box"], view, n_box, use_min, rows, base]
+        return [*args, out["pair_z"], z_env, out["z_min"], counts[j]]
 
+    if rows:
+        launch_dynamic(pair_count_kernel, seg["n_rows"], 1, inputs, device)
+        return
     launch_split(pair_count_kernel, bounds, inputs, device)

@@ -427,7 +427,7 @@ def _run(
     rois[~active] = 0
     items = rois[..., 2] * rois[..., 3]  # (T, n)
     per_frame = items.sum(axis=1)
-    wintr = (fx, fy, cx, cy, width, npix)
+    view = kern.make_view(fx, fy, cx, cy, width, height)
     use_min = 1 if occlusion else 0
     # group frames so that items and per-frame buffers stay bounded
     groups, start, acc = [], 0, 0
@@ -454,14 +454,8 @@ def _run(
         }
         item_bounds = kern.split_bounds(n_items, device, threads)
         n_buf = len(item_bounds)
-        # largest and smallest finite Z_a per pixel (host threads write disjoint image rows)
-        z_max = wp.full(tc * npix, -1.0, dtype=wp.float32, device=device)
-        z_min = wp.full(tc * npix, np.inf, dtype=wp.float32, device=device)
-        out = {
-            "pair_z": wp.empty(max(n_items, 1), dtype=wp.float32, device=device),
-            "z_max": z_max,
-            "z_min": z_min,
-        }
+        # Z_a per item; largest and smallest finite Z_a per pixel
+        out = kern.make_depths(n_items, tc * npix, device)
         # per segment: camera centre in the box frame, optical-to-box rotation, half extents
         cam_c, cam_r = poses[g0:g1, :3, 3][fr], poses[g0:g1, :3, :3][fr]
         if centers.ndim == 3:  # boxes that move: their pose in the segment's frame
@@ -482,23 +476,16 @@ def _run(
         order = np.argsort(row_key, kind="stable")
         row_seg, row_y, row_key = row_seg[order], row_y[order], row_key[order]
         seg = {
-            "offsets": wp.array(offsets, dtype=wp.int64, device=device),
-            "frame": wp.array(fr.astype(np.int32), dtype=wp.int32, device=device),
+            "arrays": kern.make_segments(offsets, fr, rect[:, :3], row_seg, row_y, device),
+            "boxes": kern.make_boxes(seg_origin, seg_rot, half[bx], device),
             "box": wp.array(bx.astype(np.int32), dtype=wp.int32, device=device),
-            "rect": wp.array(rect[:, :3].astype(np.int32), dtype=wp.vec3i, device=device),
-            "origin": wp.array(seg_origin.astype(np.float32), dtype=wp.vec3, device=device),
-            "rot": wp.array(seg_rot.astype(np.float32), dtype=wp.mat33, device=device),
-            "half": wp.array(half[bx].astype(np.float32), dtype=wp.vec3, device=device),
-            "n": len(fr),
             "n_items": n_items,
             "n_rows": int(row_seg.shape[0]),
-            "row_seg": wp.array(row_seg, dtype=wp.int32, device=device),
-            "row_y": wp.array(row_y, dtype=wp.int32, device=device),
             "row_key": row_key,
             "row_work": rect[row_seg, 2],
         }
         if n_items:
-            kern.launch_pair_depths(seg, wintr, d_max, out, item_bounds, device)
+            kern.launch_pair_depths(seg, view, d_max, out, item_bounds, device)
         # environment rays: every pixel for a depth image, else only under a finite Z_a
         z_env = wp.empty(tc * npix, dtype=wp.float32, device=device)
         status = wp.empty(
@@ -507,32 +494,29 @@ def _run(
         kern.launch_env_blocks(
             mesh_id,
             tree,
-            z_max,
-            z_min,
             cams,
-            wintr,
-            height,
+            view,
             _BLOCK,
             tc,
             1 if return_depth else 0,
             # Warp accepts hits with t < max_t; eq. 2 keeps t == d_max
             np.nextafter(np.float32(d_max), np.float32(np.inf)),
             0 if return_depth else 1,
+            out,
             z_env,
             status,
             device,
             threads,
         )
-        out["z_env"] = z_env
         if n_items:
             cnt = [wp.zeros(tc * max(n, 1), dtype=wp.int32, device=device) for _ in range(n_buf)]
-            kern.launch_pair_counts(seg, wintr, n, use_min, out, cnt, item_bounds, device)
+            kern.launch_pair_counts(seg, view, n, use_min, out, z_env, cnt, item_bounds, device)
             total = sum(c.numpy().astype(np.int64) for c in cnt)
             counts[g0:g1] = total[: tc * n].reshape(tc, n)
         if return_depth:
             ze = z_env.numpy().reshape(tc, height, width)
             depth_env[g0:g1] = ze
-            depth[g0:g1] = np.minimum(ze, z_min.numpy().reshape(tc, height, width))
+            depth[g0:g1] = np.minimum(ze, out["z_min"].numpy().reshape(tc, height, width))
     return counts, depth_env, depth
 
 

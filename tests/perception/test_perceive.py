@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import pytest
 import trimesh
@@ -164,7 +166,7 @@ def test_split_box_depths_are_exact(monkeypatch):
     inner = _kernels.launch_dynamic
 
     def spy(kernel, n, workers, make_inputs, device="cpu", edges=None):
-        if kernel is _kernels.pair_depth_row_kernel:
+        if kernel is _kernels.pair_depth_kernel:
             seen.append((workers, edges))
         inner(kernel, n, workers, make_inputs, device, edges)
 
@@ -179,6 +181,57 @@ def test_split_box_depths_are_exact(monkeypatch):
     fin = np.isfinite(aug)
     np.testing.assert_array_equal(np.isfinite(res.depth[0].ravel()), fin)
     assert_allclose(res.depth[0].ravel()[fin], aug[fin], rtol=1e-5)
+
+
+@pytest.mark.parametrize("occlusion", [False, True])
+def test_per_item_kernels_are_exact(monkeypatch, occlusion):
+    """The pair kernels with one work item per pair item (the CUDA launches), run here on
+    the CPU, give the reference counts and depths, like their per-row CPU launches."""
+    from are_stats.perception import _kernels
+
+    rng = np.random.default_rng(8)
+    env = make_env(rng)
+    c, h, r = make_boxes(rng, 30)
+    cam = make_camera(pitch=0.1, yaw=-0.2, w=96, h=72, f=80.0)
+    ref, z_env, za = reference(cam, env, c, h, r, 9.0, occlusion=occlusion)
+    rows = perceive_frames(
+        env, c, h, r, cam, None, 9.0, 0, occlusion_between_artefacts=occlusion, return_depth=True
+    )
+    launched = []
+    inner = _kernels.wp.launch
+
+    def spy(kernel, *args, **kwargs):
+        if kernel in (_kernels.pair_depth_kernel, _kernels.pair_count_kernel):
+            rows_at = [a.label for a in kernel.adj.args].index("rows")
+            launched.append((kernel, kwargs["inputs"][rows_at]))
+        return inner(kernel, *args, **kwargs)
+
+    monkeypatch.setattr(_kernels, "_is_cpu", lambda device: False)
+    monkeypatch.setattr(_kernels.wp, "launch", spy)
+    monkeypatch.setattr(_kernels, "split_bounds", lambda n, device, threads: [(0, 7), (7, n)])
+    items = perceive_frames(
+        env,
+        c,
+        h,
+        r,
+        cam,
+        None,
+        9.0,
+        0,
+        occlusion_between_artefacts=occlusion,
+        return_depth=True,
+        threads=2,
+    )
+    assert {k for k, _ in launched} == {_kernels.pair_depth_kernel, _kernels.pair_count_kernel}
+    assert all(rows == 0 for _, rows in launched)  # one work item per pair item
+    assert ref.sum() > 300
+    np.testing.assert_array_equal(items.counts[0], ref)
+    np.testing.assert_array_equal(items.counts, rows.counts)
+    np.testing.assert_array_equal(items.depth, rows.depth)
+    aug = np.minimum(z_env, za.min(axis=0))
+    fin = np.isfinite(aug)
+    np.testing.assert_array_equal(np.isfinite(items.depth[0].ravel()), fin)
+    assert_allclose(items.depth[0].ravel()[fin], aug[fin], rtol=1e-5)
 
 
 def test_first_call_split_over_threads_in_a_fresh_process():
@@ -228,7 +281,8 @@ def test_block_culling_is_exact(monkeypatch, block):
 
     def spy(*args):
         inner(*args)
-        flags.append(args[13].numpy().copy())  # per-block status: 0 idle, 1 cleared, 2 rays
+        status = inspect.signature(inner).bind(*args).arguments["status"]
+        flags.append(status.numpy().copy())  # per-block status: 0 idle, 1 cleared, 2 rays
 
     monkeypatch.setattr(_perceive, "_BLOCK", block)
     monkeypatch.setattr(_perceive.kern, "launch_env_blocks", spy)
