@@ -24,7 +24,7 @@ from are_stats.inputs import Described, InputError, Source, check_memory, check_
 from are_stats.logs import read_raw_table
 from are_stats.perception._camera import CameraModel, check_pose
 from are_stats.perception._perceive import perceived_counts_batch
-from are_stats.scenarios import MAX_POSITION, Scene
+from are_stats.scenarios import MAX_POSITION, Scene, check_positions
 
 if TYPE_CHECKING:
     import trimesh
@@ -75,13 +75,7 @@ def read_robot_path(path: str | os.PathLike) -> pd.DataFrame:
     table = read_raw_table(path, "robot path")
     table.require(["t", "x", "y", "yaw"], "robot path")
     cols = {c: table.floats(c, allow_empty=False)[0] for c in ("t", "x", "y", "yaw")}
-    for c in ("x", "y"):
-        big = np.abs(cols[c]) > MAX_POSITION
-        if big.any():
-            i = int(np.argmax(big))
-            raise table.error(
-                i, c, f"a position within {MAX_POSITION:g} m of the origin", repr(float(cols[c][i]))
-            )
+    check_positions(table, cols)
     t = cols["t"]
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:

@@ -272,5 +272,10 @@ def test_read_robot_path(tmp_path):
     p.write_text("t,x,y,yaw\n0,1,2,0.5\n-1,1,2,0.5\n")
     with pytest.raises(InputError, match=r"r.csv: row 2 \(line 3\), column 't': expected times"):
         read_robot_path(p)
+    p.write_text("t,x,y,yaw\n0,1,2,0.5\n1,1,2e8,0.5\n")
+    with pytest.raises(
+        InputError, match=r"row 2 \(line 3\), column 'y': expected a position within"
+    ):
+        read_robot_path(p)
     with pytest.raises(FileNotFoundError):
         read_robot_path(tmp_path / "none.csv")
