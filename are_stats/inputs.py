@@ -25,7 +25,7 @@ Examples
 >>> get_float(True, "run.yaml", "robot.speed")
 Traceback (most recent call last):
 ...
-are_stats.inputs.InputError: run.yaml: robot.speed: expected a number, got True (a bool)
+are_stats.inputs.InputError: run.yaml: robot.speed: expected a finite number, got True (a bool)
 """
 
 from __future__ import annotations

@@ -127,17 +127,16 @@ def interpolate_poses(t: npt.ArrayLike, poses: npt.ArrayLike, times: npt.ArrayLi
 class TfBuffer:
     """Stamped links of a tf tree, filled from ``tf2_msgs/TFMessage`` messages.
 
-        Examples
-        --------
-        >>> import numpy as np
-    import numpy.typing as npt
-        >>> buf = TfBuffer()
-        >>> a = np.eye(4); a[0, 3] = 1.0
-        >>> buf.add("map", "odom", 0.0, a, static=True)
-        >>> b = np.eye(4); b[1, 3] = 2.0
-        >>> buf.add("odom", "base_link", 0.0, b)
-        >>> buf.lookup("map", "base_link", [0.0])[0, :2, 3].tolist()
-        [1.0, 2.0]
+    Examples
+    --------
+    >>> import numpy as np
+    >>> buf = TfBuffer()
+    >>> a = np.eye(4); a[0, 3] = 1.0
+    >>> buf.add("map", "odom", 0.0, a, static=True)
+    >>> b = np.eye(4); b[1, 3] = 2.0
+    >>> buf.add("odom", "base_link", 0.0, b)
+    >>> buf.lookup("map", "base_link", [0.0])[0, :2, 3].tolist()
+    [1.0, 2.0]
     """
 
     def __init__(self) -> None:
