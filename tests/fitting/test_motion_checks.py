@@ -18,6 +18,7 @@ from are_stats.fitting import (
     motion_checks,
     plot_motion_checks,
     track_statistics,
+    tracker_noise,
 )
 from tests.helpers import assert_allclose, crossing_world
 
@@ -44,10 +45,10 @@ def test_statistics_of_straight_constant_speed_tracks_are_exact() -> None:
     assert_allclose(moving["straightness"], 1.0, rtol=1e-12)
     assert_allclose(moving["duration"], 12.0, rtol=1e-12)
     assert not moving["still"].any()
-    # first sample within 0.5 m of the end: 0.5 / v seconds before it, rounded up to 0.4 s
+    # within 0.5 m of the end 0.5 / v seconds before it (the crossing interpolated)
     v = moving["speed"].to_numpy()
-    expect = np.floor((12.0 - 0.5 / v) / 0.4 + 1 - 1e-9) * 0.4 / 12.0
-    assert_allclose(moving["exit_fraction"], expect, rtol=1e-12)
+    assert_allclose(moving["exit_fraction"], (12.0 - 0.5 / v) / 12.0, rtol=1e-12)
+    assert_allclose(moving["walk_time"], 12.0 - 1.0 / v, rtol=1e-12)
     assert st.loc[99, "still"] and st.loc[99, "walk_time"] == 0.0
     assert np.isnan(st.loc[99, "speed"]) and np.isnan(st.loc[99, "straightness"])
 
@@ -60,7 +61,7 @@ def test_speed_times_the_walk_not_the_stay() -> None:
     x = np.clip(1.25 * (t - 6.0), 0.0, 25.0)  # walks from 6 s to 26 s
     st = track_statistics(pd.DataFrame({"id": 0, "t": t, "x": x, "y": 1.0}))
     assert_allclose(st.loc[0, "speed"], 1.25, rtol=1e-9)
-    assert st.loc[0, "walk_time"] == pytest.approx(25.0 / 1.25 - 2 * 0.4, abs=0.41)
+    assert_allclose(st.loc[0, "walk_time"], 25.0 / 1.25 - 2 * 0.4, rtol=1e-9)
     assert st.loc[0, "path"] / st.loc[0, "duration"] < 0.75
 
 
@@ -85,6 +86,17 @@ def test_policy_beats_the_random_walk_on_held_out_tracks(crossing) -> None:
     assert res["n_moves"] > 200
     assert res["policy_per_move"] > res["random_walk_per_move"]
     assert res["difference_per_move"] > 5 * res["difference_se"] > 0
+
+
+def test_tracker_noise_is_the_position_noise_of_steady_walks() -> None:
+    """Straight walks at steady speeds with 5 cm of noise per coordinate: the estimate is
+    the noise's sd within 5% (3,600 second differences: the robust scale's relative
+    standard error is about 1.1 / sqrt(3600) = 2%)."""
+    rng = np.random.default_rng(3)
+    tracks = _straight(n=6, seconds=120.0)
+    tracks[["x", "y"]] += rng.normal(0.0, 0.05, (len(tracks), 2))
+    assert tracker_noise(tracks) == pytest.approx(0.05, rel=0.05)
+    assert tracker_noise(_straight()) < 1e-9  # no noise
 
 
 @pytest.fixture(scope="module")
