@@ -176,7 +176,11 @@ def test_the_motion_checks_are_drawn_once_and_handed_to_the_report(tmp_path, mon
     fit = fit_log(3, log, FitSettings(method="em", positions="uniform"))
     assert fit.motion_checks is not None
     key = jax.random.fold_in(jax.random.key(3), 1)
-    table, _ = motion_checks(key, fit.behaviour, log.tracks, n_replicates=50)
+    # as the fit draws them: its interaction (the published one where it learned none), its map
+    walk = fit.interaction if fit.interaction is not None else True
+    table, _ = motion_checks(
+        key, fit.behaviour, log.tracks, n_replicates=50, interaction=walk, grid=fit.grid
+    )
     pd.testing.assert_frame_equal(fit.motion_checks[0], table)
 
     def again(*args, **kwargs):

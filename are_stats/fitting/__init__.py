@@ -248,6 +248,7 @@ from are_stats.fitting._motion_checks import (  # noqa: E402
     plot_motion_checks,
     score_moves,
     track_statistics,
+    tracker_noise,
 )
 
 __all__ += [
@@ -259,6 +260,7 @@ __all__ += [
     "plot_motion_checks",
     "score_moves",
     "track_statistics",
+    "tracker_noise",
 ]
 
 from are_stats.fitting._interaction import (  # noqa: E402

@@ -163,7 +163,10 @@ def _attach_motion_tables(
         return None
     # the report's motion checks (write_motion_report) draw with the same key: computed
     # once here and handed on with the fit
-    table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+    table, reps = motion_checks(
+        jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
+        interaction=learned if learned is not None else True, grid=grid,
+    )  # fmt: skip
     per_class = class_motion_checks(tracks, reps)
     if per_class is not None:
         idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))

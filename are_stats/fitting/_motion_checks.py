@@ -2,15 +2,21 @@
 
 Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traffic_checks`):
 
-* **Posterior-predictive statistics** (:func:`motion_checks`). The observed tracks' artefacts
-  (same entries, same stays, same classes) are walked again ``n_replicates`` times by
-  :func:`~are_stats.behaviour.simulate_behaviour_tracks`, sampled at the log's rate; per
-  track (:func:`track_statistics`) the speed (path length / duration), the straightness
-  (net displacement / path length), whether it stays still (net displacement below
-  ``still_distance``) and the time from entry to exit over the stay (first time within
-  ``exit_radius`` of the last position, over the duration) are summarised per replicate by
-  :data:`MOTION_STATISTICS`; each row holds the observed value, the 5/50/95% predictive
-  quantiles and a flag where the observed value is outside the 90% band.
+* **Posterior-predictive statistics** (:func:`motion_checks`). The observed people (same
+  entries, arrivals, classes and groups) are walked again ``n_replicates`` times as
+  generation walks people (:func:`_replicate_tracks`): the model's exit and route
+  (:func:`~are_stats.behaviour.simulate_behaviour_tracks`), a preferred speed drawn from
+  the fitted between-person law, the social force among the others with the groups in
+  formation (:func:`~are_stats.behaviour.social_force_tracks`), leaving at the exit;
+  sampled at the log's rate (the straightness with the log's position noise,
+  :func:`tracker_noise`). Per
+  track (:func:`track_statistics`) the speed over the walking part (from setting off to
+  reaching the exit), the straightness (net displacement / path length), whether it stays
+  still (net displacement below ``still_distance``) and the time from entry to exit over
+  the stay (reaching within ``exit_radius`` of the last position, over the duration) are
+  summarised per replicate by :data:`MOTION_STATISTICS`; each row holds the observed
+  value, the 5/50/95% predictive quantiles and a flag where the observed value is outside
+  the 90% band.
 * **Held-out log-likelihood** (:func:`heldout_log_likelihood`, :func:`score_moves`). Tracks
   are split by id (``train_fraction`` fitted, the rest scored); the held-out tracks are
   discretised as in the fit and their moves scored under the fitted soft policy and under a
@@ -58,6 +64,7 @@ __all__ = [
     "plot_motion_checks",
     "score_moves",
     "track_statistics",
+    "tracker_noise",
 ]
 
 #: The statistics of :func:`motion_checks`, in table order.
@@ -85,6 +92,13 @@ def track_statistics(
 ) -> pd.DataFrame:
     """Per-track motion statistics.
 
+    The **walking part** of a track runs from where it first gets farther than
+    ``exit_radius`` from where it entered (it has set off) to where it first comes within
+    ``exit_radius`` of where it left (it has reached its exit), both crossings interpolated
+    linearly between the samples either side (not rounded to the sampling period): the
+    time a person stands before setting off or at its exit before leaving is not walking,
+    so the speed is that of the walk, not of the stay.
+
     Parameters
     ----------
     tracks : pandas.DataFrame
@@ -92,15 +106,18 @@ def track_statistics(
     still_distance : float
         A track whose net displacement is below this (m) is still.
     exit_radius : float
-        The time to exit is the first time the track is within this (m) of its last position.
+        The track has set off when farther than this (m) from its first position, and has
+        reached its exit when first within this of its last position.
 
     Returns
     -------
     pandas.DataFrame
-        One row per track (indexed by ``id``, or ``(scenario, id)``): ``duration`` (s),
-        ``path`` and ``net`` (m), ``speed`` (path / duration, m/s; NaN for a zero duration),
+        One row per track (indexed by ``id``, or ``(scenario, id)``): ``duration`` (s, the
+        stay), ``path`` and ``net`` (m), ``walk_time`` (s, the walking part's duration; 0
+        for a track that never sets off or reaches its exit as it sets off), ``speed`` (the
+        walking part's path length over ``walk_time``, m/s; NaN for a zero ``walk_time``),
         ``straightness`` (net / path; NaN for a zero path), ``still`` (bool) and
-        ``exit_fraction`` (time to exit / duration).
+        ``exit_fraction`` (time from entry to the exit over ``duration``).
     """
     keys = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
     tab = tracks.sort_values(keys + ["t"], kind="stable")
@@ -117,22 +134,51 @@ def track_statistics(
     path = csum[stop] - csum[start]
     net = np.hypot(*(xy[stop] - xy[start]).T)
     dur = t[stop] - t[start]
+    row = np.arange(kid.size)
+    # where each track reaches its exit (first within exit_radius of its last position) and
+    # sets off (first farther than that from its first), at the crossing of the circle
+    # interpolated between the samples either side: not rounded to the sampling period
     d_end = np.hypot(*(xy - xy[stop][kid]).T)
-    near = d_end <= exit_radius
-    # first index of each track that is near its end
-    idx = np.where(near, np.arange(kid.size), kid.size)
-    first_near = np.minimum.reduceat(idx, start) if n else np.zeros(0, int)
+    d_start = np.hypot(*(xy - xy[start][kid]).T)
+    first_near = (
+        np.minimum.reduceat(np.where(d_end <= exit_radius, row, kid.size), start) if n else start
+    )
+    set_off = (
+        np.minimum.reduceat(np.where(d_start > exit_radius, row, kid.size), start) if n else start
+    )
+    set_off = np.minimum(set_off, stop)  # one that never sets off: its last sample
+
+    def crossing(j: np.ndarray, d: np.ndarray, inward: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Time and path length where the track crosses the circle between ``j - 1``
+        and ``j`` (at ``j`` itself for a track's first sample)."""
+        i = np.maximum(j - 1, start)
+        a, b = d[i], d[j]
+        gap = (a - b) if inward else (b - a)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = np.where(
+                (j > start) & (gap > 0),
+                ((a - exit_radius) if inward else (exit_radius - a)) / gap,
+                1.0,
+            )
+        f = np.clip(f, 0.0, 1.0)
+        return t[i] + f * (t[j] - t[i]), csum[i] + f * (csum[j] - csum[i])
+
+    t_exit, s_exit = crossing(first_near, d_end, True)
+    t_off, s_off = crossing(set_off, d_start, False)
+    walk = np.maximum(t_exit - t_off, 0.0)
+    walked = np.where(walk > 0, s_exit - s_off, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = pd.DataFrame(
             {
                 "duration": dur,
                 "path": path,
                 "net": net,
-                "speed": np.where(dur > 0, path / np.where(dur > 0, dur, 1.0), np.nan),
+                "walk_time": walk,
+                "speed": np.where(walk > 0, walked / np.where(walk > 0, walk, 1.0), np.nan),
                 "straightness": np.where(path > 0, net / np.where(path > 0, path, 1.0), np.nan),
                 "still": net < still_distance,
                 "exit_fraction": np.where(
-                    dur > 0, (t[first_near] - t[start]) / np.where(dur > 0, dur, 1.0), np.nan
+                    dur > 0, (t_exit - t[start]) / np.where(dur > 0, dur, 1.0), np.nan
                 ),
             }
         )
@@ -145,12 +191,13 @@ def track_statistics(
 
 
 def _summary(st: pd.DataFrame) -> list[float]:
-    """The :data:`MOTION_STATISTICS` of one set of tracks (NaN where undefined)."""
+    """The :data:`MOTION_STATISTICS` of one set of tracks (NaN where undefined): speeds,
+    straightness and time to exit of the moving tracks, the fraction still of all."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        sp = st["speed"].to_numpy(float)
-        sp = sp[np.isfinite(sp)]
         moving = ~st["still"].to_numpy(bool)
+        sp = st["speed"].to_numpy(float)[moving]
+        sp = sp[np.isfinite(sp)]
         s = st["straightness"].to_numpy(float)[moving]
         e = st["exit_fraction"].to_numpy(float)[moving]
         q = np.quantile(sp, [0.25, 0.75]) if sp.size else [np.nan, np.nan]
@@ -171,6 +218,341 @@ def _sampling_period(tracks: pd.DataFrame) -> float:
     return float(np.median(d)) if d.size else 1.0
 
 
+#: Sampling period (s) of the planned routes that :func:`_replicate_tracks` re-times (their
+#: vertices are rows whatever the period).
+PLAN_PERIOD = 60.0
+
+#: Distance (m) from its route's end within which a replicated walker has reached its
+#: exit, and leaves (about a step: the log's period times a walking speed).
+ARRIVED = 0.5
+#: Seconds a replicated walker's life-cycle lasts past its path's walking time at its
+#: preferred speed: the social force's start from rest (its relaxation time) and a little
+#: give-and-take on the way; it leaves where it reaches its exit (or, held up longer, when
+#: its time is up).
+SLACK = 2.0
+
+#: Integration step (s) of the social force that walks the model's people, as generation's
+#: (:func:`~are_stats.behaviour.social_force_tracks`' default).
+WALK_DT = 0.1
+
+
+def _social(interaction: Any) -> Any:
+    """The social force's parameters of ``interaction`` (``True``: the published ones; a
+    :class:`~are_stats.behaviour.SocialForce`: itself), None for no interaction."""
+    from are_stats.behaviour import SocialForce
+
+    if interaction is None or interaction is False:
+        return None
+    return interaction if isinstance(interaction, SocialForce) else SocialForce()
+
+
+def _walk(
+    plan: pd.DataFrame,
+    params: Any,
+    grid: Any,
+    *,
+    kinematic: np.ndarray | None = None,
+    groups: np.ndarray | None = None,
+) -> pd.DataFrame:
+    """Planned tracks walked again as generation walks people: the social force
+    (:func:`~are_stats.behaviour.social_force_tracks`) with ``params`` on ``grid``, the
+    arrival groups in formation (``groups``, per row; their planned tracks already on the
+    leader's route, :func:`~are_stats.behaviour.group_tracks`). The one path by which the
+    criticism moves the model's people: the replicates of :func:`motion_checks` and the
+    continuations of :func:`displacement_errors`."""
+    from are_stats.behaviour import social_force_tracks
+
+    return social_force_tracks(plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups)
+
+
+def _log_groups(tracks: pd.DataFrame) -> dict[Any, str]:
+    """Group label of each grouped track id of a log, as the life-cycle conversion infers
+    groups (:func:`~are_stats.logs.tracks_to_lifecycle`); a track it splits at a gap is
+    left alone."""
+    from are_stats.logs import tracks_to_lifecycle
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
+        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
+    by_text = {str(i): i for i in pd.unique(tracks["id"])}
+    return {
+        by_text[str(i)]: str(g)
+        for i, g in zip(life["id"], life["group"], strict=True)
+        if str(g) not in ("", "nan", "None") and str(i) in by_text
+    }
+
+
+def _draw_speeds(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> np.ndarray:
+    """Each artefact's preferred speed ``(n,)`` from its class's fitted between-person law:
+    running with probability ``run_fraction``, then lognormal (walking or running ``mu,
+    sigma``; :func:`~are_stats.behaviour.preferred_speeds`)."""
+    from are_stats.behaviour import preferred_speeds
+
+    k_run, k_speed = jax.random.split(key)
+    u = np.asarray(jax.random.uniform(k_run, cls.shape), float)
+    run = u < np.nan_to_num(np.asarray(fit.run_fraction, float)[cls])
+    mu = np.where(run, fit.run_mu[cls], fit.speed_mu[cls])
+    sd = np.nan_to_num(np.where(run, fit.run_sigma[cls], fit.speed_sigma[cls]))
+    return preferred_speeds(k_speed, np.exp(mu), sd)
+
+
+def _at_speed(
+    plan: pd.DataFrame, t0: np.ndarray, stay: np.ndarray, speed: np.ndarray, step: float
+) -> pd.DataFrame:
+    """Planned paths walked at constant speeds: track ``i`` walks its path at ``speed[i]``
+    from ``t0[i]``, sampled every ``step`` seconds for ``stay[i]`` seconds (and at its end),
+    standing at the path's end once there.
+
+    Parameters
+    ----------
+    plan : pandas.DataFrame
+        ``scenario, id, x, y``: each track's rows together, in the order of its path.
+    t0, stay, speed : (n_tracks,) float
+        Start (s), duration (s) and speed (m/s, > 0) of each track, in the plan's order.
+    step : float
+        Sampling period (s).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scenario, id, t, x, y, yaw`` (``yaw`` 0: the walk sets the heading).
+    """
+    from are_stats.inputs import check_memory
+
+    sc, ids = plan["scenario"].to_numpy(), plan["id"].to_numpy()
+    new = np.r_[True, (sc[1:] != sc[:-1]) | (ids[1:] != ids[:-1])]
+    start = np.flatnonzero(new)
+    stop = np.r_[start[1:], len(plan)] - 1
+    xy = plan[["x", "y"]].to_numpy(float)
+    seg = np.r_[0.0, np.hypot(*np.diff(xy, axis=0).T)]
+    seg[start] = 0.0
+    arc = np.cumsum(seg)
+    arc -= np.repeat(arc[start], stop - start + 1)  # arc length along each track
+    length = arc[stop]
+    n_at = np.floor(stay / step + 1e-9).astype(np.int64) + 1
+    tail = (n_at - 1) * step < stay - 1e-9  # the stay ends between two samples
+    n_at += tail
+    total = int(n_at.sum())
+    check_memory(total * 80.0, f"the motion checks' {total} replicated samples", "n_replicates")
+    track = np.repeat(np.arange(start.size), n_at)
+    first_at = np.r_[0, np.cumsum(n_at)[:-1]]
+    tau = (np.arange(total) - first_at[track]) * step
+    tau[(first_at + n_at - 1)[tail]] = stay[tail]
+    # the point at arc length min(speed tau, length): every track's arcs on one increasing
+    # key, the segment of each sample by one binary search
+    s_at = np.minimum(speed[track] * tau, length[track])
+    offset = np.r_[0.0, np.cumsum(length + 1.0)[:-1]]
+    owner = np.repeat(np.arange(start.size), stop - start + 1)
+    k = np.searchsorted(arc + offset[owner], s_at + offset[track], side="right") - 1
+    k = np.clip(k, start[track], np.maximum(stop[track] - 1, start[track]))
+    k1 = np.minimum(k + 1, stop[track])
+    span = arc[k1] - arc[k]
+    frac = np.where(span > 0, (s_at - arc[k]) / np.where(span > 0, span, 1.0), 0.0)
+    pos = xy[k] + np.clip(frac, 0.0, 1.0)[:, None] * (xy[k1] - xy[k])
+    return pd.DataFrame(
+        {
+            "scenario": sc[start][track],
+            "id": ids[start][track],
+            "t": t0[track] + tau,
+            "x": pos[:, 0],
+            "y": pos[:, 1],
+            "yaw": 0.0,
+        }
+    )
+
+
+def _until_arrived(tracks: pd.DataFrame, end: np.ndarray, tol: float) -> pd.DataFrame:
+    """Each track cut at its first sample within ``tol`` of its exit ``end`` (it has
+    arrived, and leaves), whole where it never gets there (NaN: never cut).
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``scenario, id, t, x, y, ...``, sorted by ``scenario, id, t``.
+    end : (n_tracks, 2) float
+        Each track's exit, in the tracks' order.
+    tol : float
+        Metres.
+    """
+    sc, ids = tracks["scenario"].to_numpy(), tracks["id"].to_numpy()
+    new = np.r_[True, (sc[1:] != sc[:-1]) | (ids[1:] != ids[:-1])]
+    start = np.flatnonzero(new)
+    kid = np.cumsum(new) - 1
+    xy = tracks[["x", "y"]].to_numpy(float)
+    row = np.arange(len(tracks))
+    with np.errstate(invalid="ignore"):
+        there = np.hypot(*(xy - end[kid]).T) <= tol
+    arrived = np.minimum.reduceat(np.where(there, row, len(tracks)), start)
+    return tracks[row <= arrived[kid]].reset_index(drop=True)
+
+
+def _replicate_tracks(
+    key: Any,
+    behaviour_fit: BehaviourFit,
+    observed_tracks: pd.DataFrame,
+    n_replicates: int,
+    *,
+    dt_out: float | None = None,
+    interaction: Any = True,
+    grid: Any = None,
+) -> pd.DataFrame:
+    """The observed people walked again ``n_replicates`` times by the fitted model.
+
+    A replicate keeps what the checks do not test: every observed person's entry, arrival
+    time, label and arrival group (the log's groups, as
+    :func:`~are_stats.logs.tracks_to_lifecycle` infers them). The model decides the rest, as
+    generation does (:func:`~are_stats.scenarios.scene_tracks`): the exit, drawn given the
+    entry and the observed stay, and the route to it
+    (:func:`~are_stats.behaviour.simulate_behaviour_tracks`); the walk among the others
+    under the social force (:func:`~are_stats.behaviour.social_force_tracks`: the fit's
+    interaction parameters, the members of a group on their leader's route, in formation).
+    Each person (each group: one pace) walks at a **preferred speed** drawn from the
+    fitted between-person law (:func:`~are_stats.behaviour.preferred_speeds`) and leaves
+    when it reaches its exit (:data:`ARRIVED`); a person without a reachable exit stands
+    through its stay. Generation instead times a path to end with its stay: there the
+    stay is the traffic model's, a draw from the model; here it is the log's, and that
+    timing would copy the observed speeds into the replicates (a band of width 0).
+
+    Parameters
+    ----------
+    key : int or jax PRNG key
+    behaviour_fit : BehaviourFit
+    observed_tracks : pandas.DataFrame
+        ``id, t, x, y`` [, ``label``].
+    n_replicates : int
+    dt_out : float or None
+        Sampling period (default: the observed median period).
+    interaction : bool or SocialForce
+        The social force people walk with (``True``: the published parameters; ``False``:
+        the planned paths at the preferred speeds, nobody giving way).
+    grid : OccupancyGrid, optional
+        The map whose walls repel (default: the behaviour's cells, occupied where not free).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scenario, id, t, x, y, yaw``, sorted by ``scenario, id, t``: ``scenario`` is the
+        replicate.
+    """
+    from are_stats.behaviour import formation, simulate_behaviour_tracks
+
+    fit = behaviour_fit
+    n_rep = int(n_replicates)
+    if n_rep < 1:
+        raise ValueError(f"n_replicates: expected an integer >= 1, got {n_replicates!r}")
+    params = _social(interaction)
+    if grid is None:
+        from are_stats.environment import OccupancyGrid
+
+        origin = np.asarray(fit.origin, float)
+        grid = OccupancyGrid(np.where(fit.free, 0, 100), fit.cell, (origin[0], origin[1], 0.0))
+    g = observed_tracks.sort_values(["id", "t"], kind="stable").groupby("id", sort=True)
+    first, last = g.first(), g.last()
+    base = pd.DataFrame(
+        {
+            "id": first.index.to_numpy(),
+            "t_arrive": first["t"].to_numpy(float),
+            "t_leave": last["t"].to_numpy(float),
+            "x": first["x"].to_numpy(float),
+            "y": first["y"].to_numpy(float),
+        }
+    )
+    m = len(base)
+    if "label" in observed_tracks.columns:
+        base["label"] = first["label"].astype(str).to_numpy()
+    names = {c: i for i, c in enumerate(fit.classes)}
+    cls = np.array([names.get(str(v), 0) for v in base.get("label", [""] * m)], np.int64)
+    # the log's groups: a member takes its leader's route and pace (no plan of its own)
+    label = _log_groups(observed_tracks) if params is not None else {}
+    code = pd.factorize(pd.Series([label.get(i) for i in base["id"]], dtype=object))[0]
+    leader = formation(np.zeros(m), np.where(code >= 0, code, None), base["t_arrive"])[0]
+    leads = leader == np.arange(m)
+    step = float(dt_out) if dt_out is not None else _sampling_period(observed_tracks)
+    k_plan, k_speed = jax.random.split(_key(key))
+    arts = pd.concat([base[leads].assign(scenario=r) for r in range(n_rep)], ignore_index=True)
+    # the routes: the plan's timing (its path ending at the stay's end) is replaced, so it
+    # is sampled coarsely (its rows keep every vertex whatever the period)
+    plan = simulate_behaviour_tracks(k_plan, fit, arts, dt_out=max(step, PLAN_PERIOD))
+    plan = plan[["scenario", "id", "x", "y"]]
+    if not leads.all():  # a member: from its own entry along its leader's planned path
+        mem = np.flatnonzero(~leads)
+        pairs = pd.DataFrame({"lead": base["id"].to_numpy()[leader[mem]],
+                              "member": base["id"].to_numpy()[mem]})  # fmt: skip
+        follow = plan.merge(pairs, left_on="id", right_on="lead").drop(columns=["id", "lead"])
+        entry = base.iloc[mem][["id", "x", "y"]].rename(columns={"id": "member"})
+        entry = pd.concat([entry.assign(scenario=r) for r in range(n_rep)], ignore_index=True)
+        members = pd.concat([entry.assign(seq=0), follow.assign(seq=1)], ignore_index=True)
+        members = members.sort_values(["scenario", "member", "seq"], kind="stable")
+        plan = pd.concat(
+            [plan, members.rename(columns={"member": "id"})[["scenario", "id", "x", "y"]]],
+            ignore_index=True,
+        )
+        pos = pd.Index(base["id"]).get_indexer(plan["id"])
+        order = np.lexsort((np.arange(len(plan)), pos, plan["scenario"].to_numpy()))
+        plan = plan.iloc[order].reset_index(drop=True)
+    # per track of the plan (replicate-major, then the observed order): who it is
+    sc, ids = plan["scenario"].to_numpy(), plan["id"].to_numpy()
+    new = np.r_[True, (sc[1:] != sc[:-1]) | (ids[1:] != ids[:-1])]
+    who = pd.Index(base["id"]).get_indexer(ids[new])
+    rep = sc[new].astype(np.int64)
+    drawn = _draw_speeds(k_speed, fit, np.tile(cls, n_rep)).reshape(n_rep, m)
+    speed = drawn[rep, leader[who]]  # a group walks at its leader's pace
+    xy = plan[["x", "y"]].to_numpy(float)
+    seg = np.r_[0.0, np.hypot(*np.diff(xy, axis=0).T)]
+    seg[new] = 0.0
+    length = np.add.reduceat(seg, np.flatnonzero(new))
+    moving = length > 0
+    stay_obs = (base["t_leave"] - base["t_arrive"]).to_numpy(float)[who]
+    # long enough to reach the exit; cut where it arrives
+    stay = np.where(moving, length / speed + SLACK, stay_obs)
+    walked = _at_speed(plan, base["t_arrive"].to_numpy(float)[who], stay, speed, step)
+    if params is not None:
+        group = np.where(code >= 0, code, -1)[pd.Index(base["id"]).get_indexer(walked["id"])]
+        walked = _walk(walked, params, grid, groups=group)
+    # each walker's exit (its route's end; a member's: its leader's), by (replicate,
+    # person); NaN for one that stands
+    end = np.full((n_rep * m, 2), np.nan)
+    last = np.r_[np.flatnonzero(new)[1:], len(plan)] - 1
+    end[rep * m + who] = np.where(moving[:, None], xy[last], np.nan)
+    w_sc, w_ids = walked["scenario"].to_numpy(), walked["id"].to_numpy()
+    w_new = np.r_[True, (w_sc[1:] != w_sc[:-1]) | (w_ids[1:] != w_ids[:-1])]
+    w_key = w_sc[w_new].astype(np.int64) * m + pd.Index(base["id"]).get_indexer(w_ids[w_new])
+    return _until_arrived(walked, end[w_key], ARRIVED)
+
+
+def tracker_noise(tracks: pd.DataFrame) -> float:
+    """Standard deviation (m) of the position noise of a log's tracks.
+
+    Of three consecutive samples equally spaced in time, the second difference
+    ``p[k+1] - 2 p[k] + p[k-1]`` of a walk at a steady velocity is the noise alone,
+    ``sd sqrt(6)`` per coordinate; the robust scale of all of them (1.4826 times their
+    median absolute value, over x and y), over ``sqrt(6)``, leaves out turns and stops.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y``.
+
+    Returns
+    -------
+    float
+        0 where no track has three equally spaced samples.
+    """
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    ids = tab["id"].to_numpy()
+    t = tab["t"].to_numpy(float)
+    xy = tab[["x", "y"]].to_numpy(float)
+    if len(tab) < 3:
+        return 0.0
+    same = (ids[2:] == ids[1:-1]) & (ids[1:-1] == ids[:-2])
+    d1, d2 = t[1:-1] - t[:-2], t[2:] - t[1:-1]
+    even = same & (d1 > 0) & (np.abs(d2 - d1) <= 1e-6 * np.maximum(d1, 1.0))
+    second = (xy[2:] - 2.0 * xy[1:-1] + xy[:-2])[even]
+    if not second.size:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(second)) / math.sqrt(6.0))
+
+
 def motion_checks(
     key: Any,
     behaviour_fit: BehaviourFit,
@@ -180,8 +562,18 @@ def motion_checks(
     dt_out: float | None = None,
     still_distance: float = 1.0,
     exit_radius: float = 0.5,
+    interaction: Any = True,
+    grid: Any = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Observed motion statistics against their posterior-predictive bands.
+
+    The observed people are walked again ``n_replicates`` times by the model as generation
+    walks people (:func:`_replicate_tracks`: their entries, arrivals, stays, labels and
+    groups kept; exits, routes and preferred speeds drawn from the fit; the walk under the
+    social force among the others, groups in formation), sampled at the log's period. Their
+    straightness is measured with the log's position noise added (:func:`tracker_noise`),
+    so that the tracker's jitter does not pass for a model that walks too straight; their
+    speeds without it (the fitted speeds are measured on the noisy log already).
 
     Parameters
     ----------
@@ -197,6 +589,12 @@ def motion_checks(
         Sampling period of the replicated tracks (default: the observed median period).
     still_distance, exit_radius : float
         See :func:`track_statistics`.
+    interaction : bool or SocialForce
+        The social force the replicates walk with (``True``: the published parameters; pass
+        the fit's, :attr:`~are_stats.fitting.Fit.interaction`, to check what generation
+        makes; ``False``: nobody gives way).
+    grid : OccupancyGrid, optional
+        The map whose walls repel the walkers (default: the behaviour's cells).
 
     Returns
     -------
@@ -208,34 +606,27 @@ def motion_checks(
         ``"tracks"``: per-track statistics of every replicate (:func:`track_statistics`, the
         ``scenario`` level is the replicate); ``"observed"``: those of the observed tracks.
     """
-    from are_stats.behaviour import simulate_behaviour_tracks
-
-    n_replicates = int(n_replicates)
-    if n_replicates < 1:
-        raise ValueError(f"n_replicates: expected an integer >= 1, got {n_replicates!r}")
     kw = {"still_distance": still_distance, "exit_radius": exit_radius}
     obs_st = track_statistics(observed_tracks, **kw)
     observed = _summary(obs_st)
-    g = observed_tracks.sort_values(["id", "t"], kind="stable").groupby("id", sort=True)
-    first, last = g.first(), g.last()
-    base = pd.DataFrame(
-        {
-            "id": first.index.to_numpy(),
-            "t_arrive": first["t"].to_numpy(float),
-            "t_leave": last["t"].to_numpy(float),
-            "x": first["x"].to_numpy(float),
-            "y": first["y"].to_numpy(float),
-        }
-    )
-    if "label" in observed_tracks.columns:
-        base["label"] = first["label"].astype(str).to_numpy()
-    arts = pd.concat([base.assign(scenario=r) for r in range(n_replicates)], ignore_index=True)
-    step = float(dt_out) if dt_out is not None else _sampling_period(observed_tracks)
-    sim = simulate_behaviour_tracks(_key(key), behaviour_fit, arts, dt_out=step)
+    sim = _replicate_tracks(
+        key, behaviour_fit, observed_tracks, n_replicates, dt_out=dt_out,
+        interaction=interaction, grid=grid,
+    )  # fmt: skip
     rep_st = track_statistics(sim, **kw)
-    summary = np.asarray(
-        [_summary(rep_st.xs(r, level="scenario")) for r in range(n_replicates)], float
-    )
+    # the straightness of the replicates as the tracker would measure it: with the log's
+    # position noise (it lengthens an observed path). Not their speeds: the fitted
+    # preferred speeds are measured on the noisy log already (step speeds)
+    noise = tracker_noise(observed_tracks)
+    if noise > 0:
+        jitter = noise * np.asarray(
+            jax.random.normal(jax.random.fold_in(_key(key), 7), (len(sim), 2)), float
+        )
+        noisy = sim.assign(x=sim["x"].to_numpy(float) + jitter[:, 0],
+                           y=sim["y"].to_numpy(float) + jitter[:, 1])  # fmt: skip
+        rep_st["straightness"] = track_statistics(noisy, **kw)["straightness"].to_numpy()
+    scen = rep_st.index.get_level_values("scenario").to_numpy()
+    summary = np.asarray([_summary(rep_st[scen == r]) for r in range(int(n_replicates))], float)
     table = pd.DataFrame(index=pd.Index(MOTION_STATISTICS, name="statistic"))
     table["observed"] = observed
     with warnings.catch_warnings():
@@ -745,8 +1136,6 @@ def _interacting(
     interaction's reach over the horizon (kinematic, at constant velocity from what was
     observed of them: no future leaks), the members of its own group aside
     (:func:`_walks_with`)."""
-    from are_stats.behaviour import social_force_tracks
-
     b, k, n_pred, _ = samples.shape
     n_obs = observed.shape[1]
     span = (n_obs - 1) / rate
@@ -800,7 +1189,7 @@ def _interacting(
             )
         )
     plan = pd.concat(frames, ignore_index=True)
-    walked = social_force_tracks(plan, params, grid, dt=0.1, kinematic=plan["id"].to_numpy() > 0)
+    walked = _walk(plan, params, grid, kinematic=plan["id"].to_numpy() > 0)
     me = walked[walked["id"] == 0].sort_values(["scenario", "t"], kind="stable")
     return me[["x", "y"]].to_numpy(float).reshape(b, k, n_pred + 1, 2)[:, :, 1:]
 
@@ -884,7 +1273,8 @@ def displacement_errors(
 
     add("constant velocity", *_errors(constant_velocity(obs, n_pred), truth), 1)
     if behaviour_fit is not None and len(win):
-        walked = interaction is not None and interaction is not False
+        params = _social(interaction)
+        walked = params is not None
         # with the interaction, the paths go on past the horizon (as far again): a walker
         # whose plan ended there would slow down to stop at its end
         n_plan = 2 * int(n_pred) if walked else int(n_pred)
@@ -892,9 +1282,6 @@ def displacement_errors(
             rng, behaviour_fit, obs, lab, n_plan, rate, int(n_samples), smooth
         )
         if walked:
-            from are_stats.behaviour import SocialForce
-
-            params = interaction if isinstance(interaction, SocialForce) else SocialForce()
             t_last = t0 + (int(n_obs) - 1) / rate
             samples = _interacting(samples, obs, tid, t_last, tracks, rate, params, grid)
             samples = samples[:, :, : int(n_pred)]
@@ -975,7 +1362,7 @@ def plot_motion_checks(
         ax.set_yticks([])
         flag(ax, stat)
 
-    dist(axes[0, 0], "speed", "speed per track (m/s)", MOTION_STATISTICS[0], False)
+    dist(axes[0, 0], "speed", "walking speed per track (m/s)", MOTION_STATISTICS[0], False)
     axes[0, 0].legend(fontsize=7, frameon=False, loc="upper left")
     dist(axes[0, 1], "straightness", "straightness (net / path), moving tracks",
          MOTION_STATISTICS[2], True)  # fmt: skip

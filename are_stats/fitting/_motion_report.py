@@ -123,7 +123,10 @@ def write_motion_report(
     if fit.motion_checks is not None:
         table, reps = fit.motion_checks
     else:
-        table, reps = motion_checks(jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50)
+        table, reps = motion_checks(
+            jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
+            interaction=fit.interaction if fit.interaction is not None else True, grid=grid,
+        )  # fmt: skip
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
