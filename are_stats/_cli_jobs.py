@@ -328,10 +328,15 @@ def _print_interaction(fit: Fit) -> None:
     if params is None:
         return
     info = fit.interaction_info
+    n = info.get("n", np.nan)
+    how = (
+        f"R^2 {info['r2']:.2f} over {int(n)} accelerations"
+        if np.isfinite(n)
+        else "published: the tracks do not fit a repulsion"
+    )
     console.print(
         f"interaction (social force): strength A {params.strength:.3g} m/s^2, range B "
-        f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s "
-        f"(R^2 {info['r2']:.2f} over {int(info['n'])} accelerations)"
+        f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s ({how})"
     )
     if info.get("group_samples", 0) > 0:
         console.print(

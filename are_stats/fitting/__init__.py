@@ -268,6 +268,7 @@ from are_stats.fitting._interaction import (  # noqa: E402
     fit_interaction,
     interaction_attrs,
     interaction_from_attrs,
+    learn_interaction,
 )
 
 __all__ += [
@@ -275,6 +276,7 @@ __all__ += [
     "fit_interaction",
     "interaction_attrs",
     "interaction_from_attrs",
+    "learn_interaction",
 ]
 
 from are_stats.fitting._motion_store import (  # noqa: E402

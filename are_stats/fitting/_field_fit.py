@@ -33,7 +33,7 @@ from are_stats.fitting._fit_log import (
     attach_behaviour,
     fit_lifecycle_data,
 )
-from are_stats.fitting._interaction import fit_interaction, interaction_attrs
+from are_stats.fitting._interaction import interaction_attrs, learn_interaction
 from are_stats.fitting._motion_checks import displacement_errors, motion_checks
 from are_stats.fitting._motion_store import motion_attrs
 from are_stats.logs import LifecycleLog
@@ -105,12 +105,10 @@ def _behaviour(
         return idata, grid, None
     idata = attach_behaviour(idata, bfit)
     say("interaction (social force) from the tracks")
-    learned = None
-    try:
-        learned, info = fit_interaction(tracks)
-    except ValueError as err:  # too little walking together, or no interaction in the data
-        notes.append(f"interaction not fitted ({err}); scenes use the published one")
-    else:
+    learned, info, note = learn_interaction(tracks)
+    if note:
+        notes.append(note)
+    if learned is not None:
         idata.behaviour.attrs.update(interaction_attrs(learned, info))
     say("realism and displacement errors against the tracks")
     checks = _attach_motion_tables(seed, idata, bfit, learned, tracks, grid)

@@ -23,7 +23,13 @@ import pandas as pd
 from are_stats.behaviour import SocialForce, fit_social_force, group_spacing
 from are_stats.logs import tracks_to_lifecycle
 
-__all__ = ["fit_group_spacing", "fit_interaction", "interaction_attrs", "interaction_from_attrs"]
+__all__ = [
+    "fit_group_spacing",
+    "fit_interaction",
+    "interaction_attrs",
+    "interaction_from_attrs",
+    "learn_interaction",
+]
 
 _PREFIX = "interaction_"
 _FITTED = ("strength", "range", "relaxation")
@@ -90,6 +96,45 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
     if samples > 0:
         params = params._replace(group_spacing=spacing)
     return params, info
+
+
+def learn_interaction(
+    tracks: pd.DataFrame,
+) -> tuple[SocialForce | None, dict[str, float], str | None]:
+    """What a fit keeps of a log's interaction: the fitted social force, else the
+    published one with the log's group spacing, else nothing (the published one).
+
+    The groups' spacing is measured apart from the repulsion: a log whose people never push
+    each other (no repulsion to fit) can still show how close its groups walk, and the
+    scenes keep that spacing instead of the published 0.75 m.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene.
+
+    Returns
+    -------
+    params : SocialForce or None
+        :func:`fit_interaction`'s; or the published force with ``group_spacing`` measured
+        (:func:`fit_group_spacing`); or None when neither can be learned.
+    info : dict
+        :func:`fit_interaction`'s info; with the published force only ``group_samples``.
+    note : str or None
+        What was not learned and what scenes use instead, for the fit's notes.
+    """
+    try:
+        params, info = fit_interaction(tracks)
+    except ValueError as err:  # too little walking together, or no interaction in the data
+        spacing, samples = fit_group_spacing(tracks)
+        if samples == 0:
+            return None, {}, f"interaction not fitted ({err}); scenes use the published one"
+        note = (
+            f"interaction not fitted ({err}); scenes use the published one with the log's "
+            f"group spacing, {spacing:.2f} m"
+        )
+        return SocialForce(group_spacing=spacing), {"group_samples": float(samples)}, note
+    return params, info, None
 
 
 def fit_group_spacing(tracks: pd.DataFrame) -> tuple[float, int]:

@@ -7,7 +7,12 @@ import pandas as pd
 import pytest
 
 from are_stats.behaviour import SocialForce, social_force_tracks
-from are_stats.fitting import fit_interaction, interaction_attrs, interaction_from_attrs
+from are_stats.fitting import (
+    fit_interaction,
+    interaction_attrs,
+    interaction_from_attrs,
+    learn_interaction,
+)
 
 
 def _crowd(seed: int, n: int) -> pd.DataFrame:
@@ -91,3 +96,35 @@ def test_the_group_spacing_of_a_log_is_fitted_and_stored_with_the_interaction():
     # a fit stored before group spacings were fitted reads back with the default
     old = {k: v for k, v in attrs.items() if k != "interaction_group_spacing"}
     assert interaction_from_attrs(old).group_spacing == SocialForce().group_spacing
+
+
+def _straight_pairs(spacing: float, n_pairs: int = 12) -> pd.DataFrame:
+    """Pairs walking abreast in straight lines at constant speed, one pair at a time: no
+    pushing to learn a repulsion from, but a spacing to measure."""
+    rows = []
+    for k in range(n_pairs):
+        t0 = 30.0 * k
+        t = t0 + np.arange(0, 201) * 0.1
+        y0 = 5.0 + (k % 3)
+        for m in range(2):
+            x = 1.0 + 1.2 * (t - t0)
+            y = np.full_like(t, y0 + m * spacing)
+            rows.append(pd.DataFrame({"id": 2 * k + m, "t": t, "x": x, "y": y}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_a_log_without_repulsion_keeps_its_group_spacing():
+    log = _straight_pairs(0.5)
+    with pytest.raises(ValueError, match="tracks: expected"):
+        fit_interaction(log)
+    params, info, note = learn_interaction(log)
+    assert params is not None and params.group_spacing == pytest.approx(0.5, abs=0.02)
+    # the rest is the published force, and the note says so
+    assert params._replace(group_spacing=SocialForce().group_spacing) == SocialForce()
+    assert info["group_samples"] > 100 and "group spacing, 0.50 m" in note
+    # read back from a fit file as the fitted one would be
+    assert interaction_from_attrs(interaction_attrs(params, info)) == params
+    # walkers alone: nothing to learn, the published force (None) and a note
+    alone = log[log["id"] % 2 == 0]
+    params, info, note = learn_interaction(alone)
+    assert params is None and "published one" in note
