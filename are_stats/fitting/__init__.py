@@ -241,6 +241,8 @@ __all__ += [
 # --- criticism for motion (issue 16) ---
 from are_stats.fitting._motion_checks import (  # noqa: E402
     MOTION_STATISTICS,
+    MOTION_TOLERANCE,
+    band_flags,
     constant_velocity,
     displacement_errors,
     heldout_log_likelihood,
@@ -253,6 +255,8 @@ from are_stats.fitting._motion_checks import (  # noqa: E402
 
 __all__ += [
     "MOTION_STATISTICS",
+    "MOTION_TOLERANCE",
+    "band_flags",
     "constant_velocity",
     "displacement_errors",
     "heldout_log_likelihood",

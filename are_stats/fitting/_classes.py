@@ -39,6 +39,7 @@ from scipy.special import gammainc, gammaincc, gammaln, log_ndtr, logsumexp, ndt
 from are_stats._checks import check_in
 from are_stats.fitting._class_traffic import uncompared
 from are_stats.fitting._fit import fit_class_labels, traffic_draws
+from are_stats.fitting._motion_checks import band_flags
 from are_stats.fitting._traffic import choose_simplest, loo_pointwise
 from are_stats.inputs import check_memory, check_work
 from are_stats.traffic import STAY_LAWS, LifecycleData, numpy_rng
@@ -497,8 +498,10 @@ def _band_table(
         warnings.simplefilter("ignore", RuntimeWarning)  # a class absent from every replicate
         q = np.nanquantile(flat, [0.05, 0.5, 0.95], axis=0)
     table["model_5%"], table["model_50%"], table["model_95%"] = q
-    o = table["observed"].to_numpy()
-    table["model_flag"] = np.isfinite(o) & ((o < q[0]) | (o > q[2]))
+    # each statistic's difference that matters (MOTION_TOLERANCE; 0 for the traffic rows)
+    table["model_flag"] = band_flags(
+        index.get_level_values("statistic"), table["observed"].to_numpy(), q[0], q[2]
+    )
     return table
 
 

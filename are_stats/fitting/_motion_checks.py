@@ -16,7 +16,7 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   the stay (reaching within ``exit_radius`` of the last position, over the duration) are
   summarised per replicate by :data:`MOTION_STATISTICS`; each row holds the observed
   value, the 5/50/95% predictive quantiles and a flag where the observed value is outside
-  the 90% band.
+  the 90% band by more than the difference that matters (:data:`MOTION_TOLERANCE`).
 * **Held-out log-likelihood** (:func:`heldout_log_likelihood`, :func:`score_moves`). Tracks
   are split by id (``train_fraction`` fitted, the rest scored); the held-out tracks are
   discretised as in the fit and their moves scored under the fitted soft policy and under a
@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 import sys
 import warnings
+from collections.abc import Sequence
 from typing import Any
 
 import jax
@@ -57,6 +58,8 @@ from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likel
 
 __all__ = [
     "MOTION_STATISTICS",
+    "MOTION_TOLERANCE",
+    "band_flags",
     "constant_velocity",
     "displacement_errors",
     "heldout_log_likelihood",
@@ -75,6 +78,46 @@ MOTION_STATISTICS = (
     "fraction still",
     "median time to exit / stay",
 )
+#: The smallest difference between observed and model that matters, per statistic: an
+#: observed value outside the 90% band by less is not flagged. Without it, statistics that
+#: barely vary between replicates (the straightness of open crossings, the time to the exit
+#: over the stay) were flagged for thousandths that no user could see in a track.
+MOTION_TOLERANCE = {
+    "median speed (m/s)": 0.05,
+    "speed spread (m/s)": 0.05,
+    "median straightness": 0.01,
+    "fraction still": 0.02,
+    "median time to exit / stay": 0.02,
+}
+
+
+def band_flags(
+    statistics: Sequence[str], observed: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> np.ndarray:
+    """Observed values outside the model's band by more than :data:`MOTION_TOLERANCE`.
+
+    Parameters
+    ----------
+    statistics : sequence of str
+        ``(n,)`` statistic of each value (one without a tolerance gets 0).
+    observed, lo, hi : (n,) float
+        The observed values and the band's ends (5% and 95% predictive quantiles).
+
+    Returns
+    -------
+    (n,) bool
+        ``observed < lo - tol`` or ``observed > hi + tol``; False where ``observed`` is NaN.
+
+    Examples
+    --------
+    >>> band_flags(["median straightness"] * 2, np.array([0.996, 0.97]),
+    ...            np.array([0.990, 0.990]), np.array([0.995, 0.995])).tolist()
+    [False, True]
+    """
+    tol = np.array([MOTION_TOLERANCE.get(s, 0.0) for s in statistics], float)
+    o = np.asarray(observed, float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(o) & ((o < np.asarray(lo) - tol) | (o > np.asarray(hi) + tol))
 
 
 def _rng(key: Any) -> np.random.Generator:
@@ -600,7 +643,8 @@ def motion_checks(
     -------
     table : pandas.DataFrame
         Indexed by statistic (:data:`MOTION_STATISTICS`): ``observed``, ``model_5%``,
-        ``model_50%``, ``model_95%`` and ``model_flag`` (observed outside the 90% band).
+        ``model_50%``, ``model_95%`` and ``model_flag`` (observed outside the 90% band by
+        more than :data:`MOTION_TOLERANCE`, :func:`band_flags`).
     replicates : dict
         ``"summary"``: ``(R, 5)`` replicated statistics (columns in table order);
         ``"tracks"``: per-track statistics of every replicate (:func:`track_statistics`, the
@@ -633,8 +677,7 @@ def motion_checks(
         warnings.simplefilter("ignore", RuntimeWarning)
         q = np.nanquantile(summary, [0.05, 0.5, 0.95], axis=0)
     table["model_5%"], table["model_50%"], table["model_95%"] = q
-    o = table["observed"].to_numpy()
-    table["model_flag"] = np.isfinite(o) & ((o < q[0]) | (o > q[2]))
+    table["model_flag"] = band_flags(MOTION_STATISTICS, table["observed"].to_numpy(), q[0], q[2])
     return table, {"summary": summary, "tracks": rep_st, "observed": obs_st}
 
 

@@ -312,3 +312,20 @@ def test_mean_of_k_predicts_held_out_tracks_at_least_as_well_as_constant_velocit
         assert mean["ADE"] < 0.5 * cv["ADE"] and mean["FDE"] < 0.5 * cv["FDE"], de
     else:
         assert mean["ADE"] <= cv["ADE"] and mean["FDE"] <= cv["FDE"] + 0.5 * cv["FDE_se"], de
+
+
+def test_flags_need_a_difference_that_matters():
+    from are_stats.fitting import MOTION_STATISTICS, MOTION_TOLERANCE, band_flags
+
+    assert set(MOTION_TOLERANCE) == set(MOTION_STATISTICS)
+    stats = list(MOTION_STATISTICS)
+    lo, hi = np.full(5, 0.5), np.full(5, 0.6)
+    tol = np.array([MOTION_TOLERANCE[s] for s in stats])
+    # just inside the tolerance on either side: not flagged; just beyond: flagged
+    assert not band_flags(stats, hi + 0.9 * tol, lo, hi).any()
+    assert not band_flags(stats, lo - 0.9 * tol, lo, hi).any()
+    assert band_flags(stats, hi + 1.1 * tol, lo, hi).all()
+    assert band_flags(stats, lo - 1.1 * tol, lo, hi).all()
+    # an unknown statistic has no tolerance, a missing observation no flag
+    assert band_flags(["other"], np.array([0.6001]), lo[:1], hi[:1]).tolist() == [True]
+    assert band_flags(stats[:1], np.array([np.nan]), lo[:1], hi[:1]).tolist() == [False]
