@@ -317,9 +317,10 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         pad = 0.05 * (hi - lo) if hi > lo else 0.5
         bins = np.linspace(lo - pad, hi + pad, 30)
         for model, v in zip(reps, values, strict=True):
-            if v.size:
+            if v.size:  # one filled outline per model, not a rectangle per bin (the same
+                # picture: the figure's 580 bars took 0.4 s of a repeated fit's CPU)
                 ax.hist(v, bins=bins, color=colours.get(model, "tab:orange"), alpha=0.55,
-                        label=model)  # fmt: skip
+                        label=model, histtype="stepfilled")  # fmt: skip
         if np.isfinite(o):
             ax.axvline(o, color="black", lw=2, label="observed")
         misfit = [m for m in reps if bool(table.loc[stat, f"{m}_flag"])]
