@@ -67,7 +67,6 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
-import jax
 import numpy as np
 import pandas as pd
 
@@ -102,7 +101,9 @@ from are_stats.traffic import (
     clock_offset,
     exponential_unit_loglik,
     fit_position_density,
+    fold_in_key,
     poisson_unit_loglik,
+    split_key,
     stay_model,
     stay_unit_loglik,
     stay_units,
@@ -600,7 +601,7 @@ def fit_traffic(
         chosen_calls = [c for c in chosen_calls if c in approx]
         _posterior_words(out, chosen, law, runs)
         resampled = {
-            which: importance_resample(jax.random.fold_in(key, 101 + i), laps[which], n_draws,
+            which: importance_resample(fold_in_key(key, 101 + i), laps[which], n_draws,
                                        max_k=RESAMPLE_MAX_K)
             for i, which in enumerate(chosen_calls)
         }  # fmt: skip
@@ -692,7 +693,7 @@ def _setup(
     if res <= 0:
         res = (t1 - t0) * 1e-6
     out.attrs["time_resolution"] = res
-    k_arr, k_life = jax.random.split(key)
+    k_arr, k_life = split_key(key)
     clock = None if clock_start is None else clock_offset(clock_start)
     if clock_start is not None:
         out.attrs["clock_start"] = str(clock_start)
@@ -738,7 +739,7 @@ def _setup(
             }
             if spec.bursts:  # the time scale of the switching rates' and decay's priors
                 kwargs["time_centre"] = np.asarray(width, float)
-            calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
+            calls["arrivals", name] = (fold_in_key(k_arr, i), arrival_model, kwargs, init)
     units = stay_units(data.dwell, data.censored, data.truncated)
     n = data.n
     departed = int(np.sum(~data.censored))
@@ -754,7 +755,7 @@ def _setup(
             kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
                       "resolution": res}  # fmt: skip
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
-            calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
+            calls["stays", law] = (fold_in_key(k_life, i), stay_model, kwargs, init)
     return _Setup(calls, cands, laws, plain, units, res)
 
 

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats.fitting._criticism import count_path
+from are_stats.traffic import fold_in_key, key_from_seed
 
 __all__ = [
     "TRAFFIC_STATISTICS", "burst_statistics", "plot_traffic_checks", "traffic_checks",
@@ -233,9 +234,7 @@ def traffic_checks(
         xy,
         free,
     )
-    import jax
-
-    base_key = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
+    base_key = key_from_seed(int(key)) if isinstance(key, int | np.integer) else key
     reps: dict[str, np.ndarray] = {}
     sources = {"paper": traffic_draws(idata, "paper")}
     chosen = traffic_draws(idata, "chosen")
@@ -245,7 +244,7 @@ def traffic_checks(
         grid = None if free is None else free[0]
         kw = {} if free is None else {"resolution": free[1], "origin": free[2]}
         df = generate_scenarios(
-            jax.random.fold_in(base_key, i),
+            fold_in_key(base_key, i),
             draws,
             n_replicates,
             t1 - t0,
