@@ -58,6 +58,9 @@ __all__ = [
 #: program need no lock: programs can be loaded in several threads while one is traced.
 TRACE_LOCK = threading.RLock()
 
+#: Options this jaxlib does not know (a later XLA may drop one): left out from then on.
+_UNKNOWN_OPTIONS: set[str] = set()
+
 #: Suffix of the program files.
 SUFFIX = ".jaxexport"
 #: Modules whose functions may be named in a key: are_stats (its source is hashed) and
@@ -278,7 +281,7 @@ def compile_program(
     if folder is None or key_text is None or not hasattr(fn, "trace"):
         with TRACE_LOCK:
             lowered = fn.lower(*args)
-        return lowered.compile(compiler_options)
+        return _compile_lowered(lowered, compiler_options)
     # exported with flat arguments: jax.export serialises only the pytree nodes it knows
     leaves, tree = jax.tree.flatten(args)
     shardings = None
@@ -311,12 +314,32 @@ def _compile_exported(
     """Compile ``exported`` (the same program whether just traced or read from disk)."""
     import jax
 
-    compiled = jax.jit(exported.call, in_shardings=shardings).lower(*leaves).compile(options)
+    compiled = _compile_lowered(
+        jax.jit(exported.call, in_shardings=shardings).lower(*leaves), options
+    )
 
     def call(*args: Any) -> Any:
         return compiled(*jax.tree.leaves(args))
 
     return call
+
+
+def _compile_lowered(lowered: Any, options: dict | None) -> Any:
+    """``lowered.compile(options)``, leaving out the options this jaxlib does not know."""
+
+    def known() -> dict | None:
+        return None if options is None else {
+            k: v for k, v in options.items() if k not in _UNKNOWN_OPTIONS
+        }  # fmt: skip
+
+    try:
+        return lowered.compile(known())
+    except Exception as err:  # noqa: BLE001 - XLA's own error type: one that names options
+        unknown = {k for k in options or {} if f"No such compile option: '{k}'" in str(err)}
+        if not unknown:
+            raise
+        _UNKNOWN_OPTIONS.update(unknown)
+        return lowered.compile(known())
 
 
 #: Default cap on each cache folder, MiB (``ARE_STATS_CACHE_MAX_MB``; 0: no cap).

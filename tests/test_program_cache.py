@@ -224,3 +224,22 @@ def test_reading_a_kept_program_marks_it_used(folder):
     os.utime(path, (1.0, 1.0))
     pc.compile_program(f, args, ("double",))
     assert path.stat().st_mtime > 1.0
+
+
+@pytest.mark.parametrize("kept", [True, False])
+def test_an_xla_option_this_jaxlib_lacks_is_left_out(folder, monkeypatch, kept):
+    """An XLA option this jaxlib does not know (a later XLA may drop one that the
+    programs ask for, such as ``xla_cpu_use_fusion_emitters``) is left out, not an error,
+    and the program's results are the function's; an error that names no option is still
+    raised."""
+    monkeypatch.setattr(pc, "_UNKNOWN_OPTIONS", set())
+    if not kept:
+        monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")
+    bogus = "xla_no_such_option_for_this_test"
+    args = _args()
+    options = {"xla_cpu_use_fusion_emitters": False, bogus: True}
+    assert _traces(args, ("test", "options"), options) == 1  # _check: the right results
+    assert pc._UNKNOWN_OPTIONS == {bogus}
+    assert _traces(args, ("test", "options", 2), options) == 1  # no failed try now
+    with pytest.raises(Exception, match="INVALID_ARGUMENT"):  # a wrong value: XLA's error
+        _traces(args, ("test", "options", 3), {"xla_backend_optimization_level": "high"})

@@ -37,7 +37,7 @@ from are_stats.fitting._interaction import interaction_attrs, learn_interaction
 from are_stats.fitting._motion_checks import displacement_errors, motion_checks
 from are_stats.fitting._motion_store import motion_attrs
 from are_stats.logs import LifecycleLog
-from are_stats.traffic import LifecycleData, LifecyclePriors
+from are_stats.traffic import LifecycleData, LifecyclePriors, key_from_seed
 
 # Lazy imports: scenarios, downstream of fitting (the realism table generates through its
 # one assembly), in _attach_motion_tables only.
@@ -66,7 +66,7 @@ def log_sha256(path: str | Path) -> str:
 def _seed_of(key: int | jax.Array) -> tuple[jax.Array, int | None]:
     """A PRNG key and the int seed it came from (None for a key given as such)."""
     if isinstance(key, int | np.integer) and not isinstance(key, bool):
-        return jax.random.key(int(key)), int(key)
+        return key_from_seed(int(key)), int(key)
     return key, None
 
 

@@ -52,8 +52,10 @@ from are_stats.traffic import (
     conjugate_leave_rate,
     conjugate_mixture,
     fit_birth_death,
+    fold_in_key,
     numpy_rng,
     prior_predictive,
+    split_key,
 )
 
 __all__ = [
@@ -180,7 +182,7 @@ def _em_posterior(
 ) -> tuple[dict, dict, dict]:
     """Conjugate rate draws and bootstrap (or conjugate) mixture draws, shaped (1, S, ...)."""
     n_draws = s.num_samples * s.num_chains
-    k_rate, k_mix, k_boot = jax.random.split(key, 3)
+    k_rate, k_mix, k_boot = split_key(key, 3)
     rng = np.random.default_rng(np.asarray(jax.random.key_data(k_rate)).ravel().tolist())
     arr = conjugate_arrival_rate(data, priors)
     lea = conjugate_leave_rate(data, priors)
@@ -206,7 +208,7 @@ def _em_posterior(
             for b in range(s.n_bootstrap):
                 resampled = rng.multinomial(n, counts / n)
                 fit = fit_mixture_em(
-                    values, k, jax.random.fold_in(k_boot, b), counts=resampled, n_restarts=4
+                    values, k, fold_in_key(k_boot, b), counts=resampled, n_restarts=4
                 )
                 ws.append(fit.weights)
                 rs.append(fit.rates)
@@ -308,7 +310,7 @@ def _em_inference_data(
     stats["log_likelihood_total"] = stays + sum(
         v.reshape(v.shape[:2] + (-1,)).sum(-1) for v in loglik.values()
     )
-    kp, kq = jax.random.split(key)
+    kp, kq = split_key(key)
     post_pred = _predictive_counts(numpy_rng(kp), post, data, stationary_start)
     prior = prior_predictive(
         kq, priors, data.window, data.area, 1000, n_components=k,
@@ -397,7 +399,7 @@ def fit_lifecycle_data(
     if not isinstance(data, LifecycleData):
         raise ValueError(f"data: expected a LifecycleData, got {describe(data)}")
     say = progress or (lambda _msg: None)
-    k_choice, k_fit, k_post = jax.random.split(key, 3)
+    k_choice, k_fit, k_post = split_key(key, 3)
     k: int | None = None
     bics: list[float] = []
     if data.marks is not None and data.n:
@@ -499,7 +501,7 @@ def fit_lifecycle_data(
             else:
                 paper = idata.posterior
             traffic = fit_traffic(
-                jax.random.fold_in(key, 14),
+                fold_in_key(key, 14),
                 data,
                 paper={n: np.asarray(paper[n]) for n in ("arrival_rate", "leave_rate")},
                 arrivals=settings.arrivals,
@@ -533,9 +535,9 @@ def fit_lifecycle_data(
     else:
         idata = attach_traffic(idata, traffic)
     if classes is not None:
-        idata = _fit_classes(jax.random.fold_in(key, 31), idata, data, classes, class_labels, say)
+        idata = _fit_classes(fold_in_key(key, 31), idata, data, classes, class_labels, say)
         idata = _fit_class_traffic(
-            jax.random.fold_in(key, 32), idata, data, np.asarray(classes, np.int64),
+            fold_in_key(key, 32), idata, data, np.asarray(classes, np.int64),
             class_labels, grid, clock_start, say,
         )  # fmt: skip
     return idata

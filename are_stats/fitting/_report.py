@@ -549,7 +549,7 @@ def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
         ax.set_title("Arrivals per hour of day")
     elif name == "dispersion":
         d = c.dispersion_rep[np.isfinite(c.dispersion_rep)]
-        ax.hist(d, bins=30, color="C0", alpha=0.5, label="predictive")
+        ax.hist(d, bins=30, color="C0", alpha=0.5, label="predictive", histtype="stepfilled")
         ax.axvline(c.dispersion_obs, color="k", lw=1.5, label="observed")
         ax.axvline(1.0, color="C3", ls=":", lw=1, label="Poisson (1)")
         ax.set(

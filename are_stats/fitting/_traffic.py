@@ -67,7 +67,6 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
-import jax
 import numpy as np
 import pandas as pd
 
@@ -102,7 +101,9 @@ from are_stats.traffic import (
     clock_offset,
     exponential_unit_loglik,
     fit_position_density,
+    fold_in_key,
     poisson_unit_loglik,
+    split_key,
     stay_model,
     stay_unit_loglik,
     stay_units,
@@ -600,7 +601,7 @@ def fit_traffic(
         chosen_calls = [c for c in chosen_calls if c in approx]
         _posterior_words(out, chosen, law, runs)
         resampled = {
-            which: importance_resample(jax.random.fold_in(key, 101 + i), laps[which], n_draws,
+            which: importance_resample(fold_in_key(key, 101 + i), laps[which], n_draws,
                                        max_k=RESAMPLE_MAX_K)
             for i, which in enumerate(chosen_calls)
         }  # fmt: skip
@@ -692,7 +693,7 @@ def _setup(
     if res <= 0:
         res = (t1 - t0) * 1e-6
     out.attrs["time_resolution"] = res
-    k_arr, k_life = jax.random.split(key)
+    k_arr, k_life = split_key(key)
     clock = None if clock_start is None else clock_offset(clock_start)
     if clock_start is not None:
         out.attrs["clock_start"] = str(clock_start)
@@ -738,7 +739,7 @@ def _setup(
             }
             if spec.bursts:  # the time scale of the switching rates' and decay's priors
                 kwargs["time_centre"] = np.asarray(width, float)
-            calls["arrivals", name] = (jax.random.fold_in(k_arr, i), arrival_model, kwargs, init)
+            calls["arrivals", name] = (fold_in_key(k_arr, i), arrival_model, kwargs, init)
     units = stay_units(data.dwell, data.censored, data.truncated)
     n = data.n
     departed = int(np.sum(~data.censored))
@@ -754,7 +755,7 @@ def _setup(
             kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
                       "resolution": res}  # fmt: skip
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
-            calls["stays", law] = (jax.random.fold_in(k_life, i), stay_model, kwargs, init)
+            calls["stays", law] = (fold_in_key(k_life, i), stay_model, kwargs, init)
     return _Setup(calls, cands, laws, plain, units, res)
 
 
@@ -811,11 +812,17 @@ def _laplace_sized(setup: _Setup, arrivals: str, lifetimes: str, out: TrafficFit
 
 def _optimise(which: tuple[str, str]) -> bool:
     """Whether a candidate's Laplace program is compiled with XLA's default optimisation:
-    the MMPP arrival models, whose forward pass over every tick runs 5-6 times longer at
-    the cheap level (the shipped log: 7.6 ms a batch of 16 points instead of 1.2 ms, for
-    about 110 batches; the compile 0.3-0.9 s longer, once per machine)."""
+    a likelihood whose loop runs several times longer at the cheap level (every run pays
+    that; the compile is paid once per machine). The MMPP arrival models' forward pass over
+    every tick (the shipped log: 7.6 ms a batch of 16 points instead of 1.2 ms, for about
+    110 batches; the compile 0.3-0.9 s longer) and the gamma stays' incomplete gammas (138
+    batches: 0.22-0.29 s of CPU instead of 0.71-0.85 s; the compile 1.5-2 s longer, as long
+    as the cheap one's with XLA's fusion emitters). The Hawkes models' recursion gains less
+    than its compile costs (groups+hawkes: 0.3 s a run for 0.5 s more compile)."""
     factor, name = which
-    return factor == "arrivals" and ArrivalSpec.from_name(name).mmpp
+    if factor == "stays":
+        return name == "gamma"
+    return ArrivalSpec.from_name(name).mmpp
 
 
 def _laplace_candidate(

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats.fitting._criticism import count_path
+from are_stats.traffic import fold_in_key, key_from_seed
 
 __all__ = [
     "TRAFFIC_STATISTICS", "burst_statistics", "plot_traffic_checks", "traffic_checks",
@@ -233,9 +234,7 @@ def traffic_checks(
         xy,
         free,
     )
-    import jax
-
-    base_key = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
+    base_key = key_from_seed(int(key)) if isinstance(key, int | np.integer) else key
     reps: dict[str, np.ndarray] = {}
     sources = {"paper": traffic_draws(idata, "paper")}
     chosen = traffic_draws(idata, "chosen")
@@ -245,7 +244,7 @@ def traffic_checks(
         grid = None if free is None else free[0]
         kw = {} if free is None else {"resolution": free[1], "origin": free[2]}
         df = generate_scenarios(
-            jax.random.fold_in(base_key, i),
+            fold_in_key(base_key, i),
             draws,
             n_replicates,
             t1 - t0,
@@ -317,9 +316,10 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         pad = 0.05 * (hi - lo) if hi > lo else 0.5
         bins = np.linspace(lo - pad, hi + pad, 30)
         for model, v in zip(reps, values, strict=True):
-            if v.size:
+            if v.size:  # one filled outline per model, not a rectangle per bin (the same
+                # picture: the figure's 580 bars took 0.4 s of a repeated fit's CPU)
                 ax.hist(v, bins=bins, color=colours.get(model, "tab:orange"), alpha=0.55,
-                        label=model)  # fmt: skip
+                        label=model, histtype="stepfilled")  # fmt: skip
         if np.isfinite(o):
             ax.axvline(o, color="black", lw=2, label="observed")
         misfit = [m for m in reps if bool(table.loc[stat, f"{m}_flag"])]

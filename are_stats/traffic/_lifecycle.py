@@ -46,6 +46,7 @@ from are_stats._checks import (
     describe,
 )
 from are_stats._program_cache import compile_program
+from are_stats.traffic._keys import key_bits
 from are_stats.traffic._mixture import PoissonMixture
 from are_stats.traffic._positions import uniform_position_density
 from are_stats.traffic._sampler import TrafficLaws, sample_population
@@ -454,7 +455,7 @@ def numpy_rng(key: jax.Array) -> np.random.Generator:
         If ``key`` is not a JAX PRNG key.
     """
     try:
-        bits = jax.random.bits(key, (4,), dtype=jnp.uint32)
+        bits = key_bits(key, 4)  # jax.random.bits's, without its XLA programs
     except (TypeError, ValueError) as err:
         raise ValueError(f"key: expected a JAX PRNG key, got {describe(key)}") from err
     return np.random.default_rng(np.asarray(bits).tolist())

@@ -63,6 +63,14 @@ one rendering (2026-11-27, main 4b99766 and the branch alternating at load 9-10,
 compilations cold 21 vs 38, the same choices and printed tables. The stage names are
 unchanged.
 
+Without XLA's CPU fusion emitters for the Laplace programs, the fit's key operations in
+NumPy (no one-operation programs) and the report's histograms as outlines (2026-11-27, main
+cdb4212 and the branch alternating at load 5-12, the full ``are-stats fit
+courtyard_traffic`` with figures, ``/usr/bin/time``, medians of 4 rounds): cold CPU 25.1 s
+vs 31.9 s (wall 35.5 vs 51.1 s), repeated CPU 13.9 s vs 15.0 s (wall 21.5 vs 21.3 s; a run
+varies by a third at this load); XLA compilations cold 9 (the Laplace programs) vs 21, the
+same choices and printed tables.
+
 The tracks part's command, timed by ``/usr/bin/time`` (2026-11-27, main 4b99766 and the
 lockstep string pulling side by side at load 8-13): cold CPU 345 s vs 337 s, 31 min wall
 each, the same choices and motion checks; of the 50 motion-check replicates' 150 s of CPU,
