@@ -268,6 +268,7 @@ def _detour(
     sweep = _robot_at(rt, rxy, t + horizon * np.linspace(0.0, 1.0, n_r))
     gone = np.linalg.norm(sweep - p_t, axis=1)
     keep_out = np.minimum(clearance + r_art, gone - res)
+    from scipy import ndimage
     from scipy.spatial import cKDTree
 
     # cells within keep_out of a sweep point: query each point's ball (radii differ)
@@ -297,9 +298,15 @@ def _detour(
     if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
         return None
     ok[start] = True  # where the artefact stands now
+    # the search moves diagonally only between two free orthogonal neighbours, so it
+    # reaches exactly the 4-connected part of ok around the start: a goal outside it is
+    # refused before a search that would visit all of that part in vain
+    part, _ = ndimage.label(ok)
     for k in cand:
         goal = tuple(int(v) for v in grid.world_to_cell(pp[k, :2]) - lo)
         if not (0 <= goal[0] < ok.shape[0] and 0 <= goal[1] < ok.shape[1]) or not ok[goal]:
+            continue
+        if part[goal] != part[start]:
             continue
         path = astar_cells(ok, start, goal)
         if path is None:
@@ -370,28 +377,43 @@ def _speed(rt: np.ndarray, rxy: np.ndarray) -> float:
 
 def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray) -> bool:
     """Whether boxes (k of them, half sizes ``half`` (2,)) share no area with a cell of
-    ``grid`` that is not free (an exact separating-axis test against the cells' squares)."""
+    ``grid`` that is not free (an exact separating-axis test against the cells' squares).
+
+    Each box is tested against the non-free cells of the square window of cells around it
+    (its circumscribed radius plus a cell); the windows of all k boxes are gathered and
+    tested in one pass.
+    """
     from are_stats.builder import obb_overlap_2d
 
+    centres = np.asarray(centres, float).reshape(-1, 2)
+    yaws = np.asarray(yaws, float).reshape(-1)
+    k = len(centres)
+    if not k:
+        return True
     res = float(grid.resolution)
     r = float(np.hypot(*half)) + res
-    blocked = ~grid.free
     square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * r
-    for c, y in zip(centres, yaws, strict=True):
-        cells = grid.world_to_cell(c + square)
-        lo = np.clip(cells.min(axis=0), 0, [grid.height, grid.width])
-        hi = np.clip(cells.max(axis=0) + 1, 0, [grid.height, grid.width])
-        ij = np.argwhere(blocked[lo[0] : hi[0], lo[1] : hi[1]]) + lo
-        if not ij.size:
-            continue
-        n = len(ij)
-        hit = obb_overlap_2d(
-            np.tile(c, (n, 1)), np.tile(half, (n, 1)), np.full(n, y), grid.cell_to_world(ij),
-            np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
-        )  # fmt: skip
-        if hit.any():
-            return False
-    return True
+    cells = grid.world_to_cell((centres[:, None, :] + square[None]).reshape(-1, 2))
+    cells = cells.reshape(k, 4, 2)
+    shape = np.array([grid.height, grid.width])
+    lo = np.clip(cells.min(axis=1), 0, shape)  # (k, 2) each box's window [lo, hi)
+    size = np.clip(cells.max(axis=1) + 1, 0, shape) - lo
+    s0, s1 = (int(v) for v in size.max(axis=0))
+    if s0 <= 0 or s1 <= 0:
+        return True
+    off = np.indices((s0, s1)).reshape(2, -1).T  # (S, 2)
+    box, o = np.nonzero((off[None] < size[:, None, :]).all(axis=2))  # (box, offset) pairs
+    ij = lo[box] + off[o]
+    wall = ~grid.free[ij[:, 0], ij[:, 1]]
+    box, ij = box[wall], ij[wall]
+    n = box.size
+    if not n:
+        return True
+    hit = obb_overlap_2d(
+        centres[box], np.tile(half, (n, 1)), yaws[box], grid.cell_to_world(ij),
+        np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
+    )  # fmt: skip
+    return not hit.any()
 
 
 def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -> np.ndarray:
@@ -406,29 +428,45 @@ def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> 
     """Drop the path's vertices that a straight chord on ``ok`` cells can skip: from each
     kept vertex, on to the farthest vertex it sees (chords sampled every quarter cell).
 
-    The chords from a vertex to every later one are tested in one pass (one grid
-    transform of all their samples): the same samples and cells as one chord at a time,
-    at a fraction of the cost of a long detour's path of cells.
+    The chords from a vertex to every later one are sampled and tested in one pass (one
+    grid transform of all their samples), each sampled as ``np.linspace(0, 1, k)`` along
+    it, ``k`` from its length (:func:`_chord_counts`): the same samples and cells as one
+    chord at a time, at a fraction of the cost of a long detour's path of cells.
     """
     step = grid.resolution / 4.0
     out, a = [pts[0]], 0
     while a < len(pts) - 1:
-        bs = np.arange(a + 2, len(pts))
         b = a + 1
-        if bs.size:
-            chords = []
-            for j in bs:
-                d = pts[j] - pts[a]
-                k = int(np.ceil(np.linalg.norm(d) / step)) + 1
-                chords.append(pts[a] + d * np.linspace(0.0, 1.0, k)[:, None])
-            n = np.array([len(c) for c in chords])
-            ij = grid.world_to_cell(np.concatenate(chords)) - lo
+        if a + 2 < len(pts):
+            d = pts[a + 2 :] - pts[a]  # (m, 2) the chords to the vertices past the next
+            n = _chord_counts(d, step)
+            first = np.r_[0, np.cumsum(n)[:-1]]
+            which = np.repeat(np.arange(n.size), n)
+            i = np.arange(which.size) - first[which]  # sample index along its chord
+            div = (n - 1)[which]
+            # np.linspace(0, 1, k): i * (1 / (k - 1)), the last sample exactly 1
+            frac = i * (1.0 / np.maximum(div, 1))
+            frac[i == div] = 1.0
+            frac[div == 0] = 0.0
+            ij = grid.world_to_cell(pts[a] + d[which] * frac[:, None]) - lo
             inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
             clear = np.zeros(len(ij), bool)
             clear[inside] = ok[ij[inside, 0], ij[inside, 1]]
-            seen = np.logical_and.reduceat(clear, np.r_[0, np.cumsum(n)[:-1]])
+            seen = np.logical_and.reduceat(clear, first)
             if seen.any():
-                b = int(bs[np.flatnonzero(seen)[-1]])
+                b = a + 2 + int(np.flatnonzero(seen)[-1])
         out.append(pts[b])
         a = b
     return np.array(out)
+
+
+def _chord_counts(d: np.ndarray, step: float) -> np.ndarray:
+    """(m,) samples ``ceil(|d| / step) + 1`` of chords ``d`` (m, 2), with ``|d|`` as
+    ``np.linalg.norm`` of each chord computes it (a dot product): one vectorised pass, and
+    that norm again only where the two could round to different counts (a chord a whole
+    number of steps long, which cell-centred paths often have)."""
+    q = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) / step
+    near = np.abs(q - np.round(q)) <= 1e-9 * np.maximum(q, 1.0)
+    for j in np.flatnonzero(near):
+        q[j] = np.linalg.norm(d[j]) / step
+    return np.ceil(q).astype(np.int64) + 1
