@@ -259,8 +259,6 @@ def _detour(
     # box-vs-wall-cells test of every sample below makes the decision
     r_in = float(np.hypot(*scene.offsets[i, :2]) + half[:2].min())
     ok = grid.free[win] & (wall_distance[win] > r_in + res * np.sqrt(0.5))
-    ij = np.indices(ok.shape).reshape(2, -1).T + lo
-    xy = grid.cell_to_world(ij)
     # the robot's disc now and along its plan until the latest rejoin time
     rt, rxy = robot
     horizon = float(tt[cand].max() - t) + lookahead * dt
@@ -269,14 +267,13 @@ def _detour(
     gone = np.linalg.norm(sweep - p_t, axis=1)
     keep_out = np.minimum(clearance + r_art, gone - res)
     from scipy import ndimage
-    from scipy.spatial import cKDTree
 
-    # cells within keep_out of a sweep point: query each point's ball (radii differ)
-    tree = cKDTree(xy)
-    hit = np.zeros(len(xy), bool)
-    for pts in tree.query_ball_point(sweep, np.maximum(keep_out, 0.0)):
-        hit[pts] = True
-    ok &= ~hit.reshape(ok.shape)
+    # cells within keep_out of a sweep point (their centres; a ball of radius 0 holds a
+    # centre it is on)
+    flat = ok.reshape(-1)
+    cells, ball, xy = _cells_near(grid, lo, ok.shape, sweep, np.maximum(keep_out, 0.0))
+    d2 = _sq_distance(xy, sweep[ball])
+    flat[cells[d2 <= np.maximum(keep_out, 0.0)[ball] ** 2]] = False
     alive = scene.alive(t)
     alive[i] = False
     others = np.flatnonzero(alive)
@@ -285,15 +282,21 @@ def _detour(
     r_o = np.hypot(*scene.half_extents[others, :2].T)
     near = np.linalg.norm(c_o - p_t, axis=1) <= reach * np.sqrt(2.0) + r_o + r_art + res
     # cells within r_art (plus half a cell diagonal) of a near box are blocked: only those
-    # within that of the box's circumscribed disc can be (the tree finds them)
+    # within that of the box's circumscribed disc can be (the cells near it, tested exactly)
     thr = r_art + res * np.sqrt(0.5)
-    flat = ok.reshape(-1)
-    for j, cj, yj in zip(others[near], c_o[near], p_o[near, 2], strict=True):
-        hj = scene.half_extents[j, :2]
-        cells = np.asarray(tree.query_ball_point(cj, float(np.hypot(*hj)) + thr + 1e-9), np.int64)
-        if cells.size:
-            gap = _cells_to_box(xy[cells], cj, hj, float(yj))
-            flat[cells[gap <= thr]] = False
+    js = others[near]
+    if js.size:
+        hj = scene.half_extents[js, :2]
+        reach_j = np.hypot(hj[:, 0], hj[:, 1]) + thr + 1e-9
+        cells, box, xy = _cells_near(grid, lo, ok.shape, c_o[near], reach_j)
+        yj = p_o[near, 2]
+        # each box's heading's cosine and sine as _cells_to_box takes them (one scalar each)
+        cs = np.array([np.cos(float(y)) for y in yj])[box]
+        sn = np.array([np.sin(float(y)) for y in yj])[box]
+        d = xy - c_o[near][box]
+        local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
+        gap = np.linalg.norm(np.maximum(np.abs(local) - hj[box], 0.0), axis=1)
+        flat[cells[gap <= thr]] = False
     start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
     if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
         return None
@@ -422,6 +425,37 @@ def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -
     cs, sn = np.cos(yaw), np.sin(yaw)
     local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
     return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def _cells_near(
+    grid: Any, lo: np.ndarray, shape: tuple[int, int], centres: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The cells of the window ``shape`` at ``lo`` (rows, cols) whose centres may lie within
+    ``radii`` (m,) of ``centres`` (m, 2): a superset (each disc's square of cells, a cell
+    wider); flat window indices (n,), which disc (n,), and the cells' centres (n, 2) as
+    :meth:`~are_stats.environment.OccupancyGrid.cell_to_world` gives them."""
+    if not len(centres):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2))
+    uv = grid.world_to_local(centres)  # (m, 2) u along columns, v along rows (cell units)
+    r = np.asarray(radii, float) / grid.resolution
+    first = np.floor(uv[:, ::-1] - r[:, None]).astype(np.int64) - 1  # (m, 2) rows, cols
+    size = int(np.ceil(2.0 * r.max())) + 4
+    off = np.indices((size, size)).reshape(2, -1).T
+    ij = first[:, None, :] + off[None] - lo  # (m, S, 2) window cells
+    ok = (ij >= 0).all(axis=2) & (ij < shape).all(axis=2)
+    disc, k = np.nonzero(ok)
+    ij = ij[disc, k]
+    return ij[:, 0] * shape[1] + ij[:, 1], disc, grid.cell_to_world(ij + lo)
+
+
+def _sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) squared distances between points ``a`` and ``b`` (n, 2), summed as a k-d tree
+    sums them (x first)."""
+    d = a - b
+    s = np.zeros(len(d))
+    s += d[:, 0] * d[:, 0]
+    s += d[:, 1] * d[:, 1]
+    return s
 
 
 def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> np.ndarray:

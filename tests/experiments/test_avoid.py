@@ -555,3 +555,36 @@ def test_string_pull_equals_one_chord_at_a_time():
         np.testing.assert_array_equal(_string_pull(pts, ok, grid, lo), want)
         dropped += len(pts) - len(want)
     assert dropped > 100
+
+
+def test_cells_near_a_disc_are_those_a_kd_tree_finds():
+    """The detour blocks the window's cells within a radius of points (the robot's sweep)
+    by the cells around each point: the same cells as a k-d tree of every cell centre of
+    the window finds (scipy's query_ball_point), on a rotated grid, with radii of zero and
+    points on cell centres."""
+    from scipy.spatial import cKDTree
+
+    from are_stats.experiments._avoid import _cells_near, _sq_distance
+
+    rng = np.random.default_rng(9)
+    grid = OccupancyGrid(np.zeros((80, 90)), 0.1, origin=(-3.0, 2.0, 0.4))
+    n_found = 0
+    for _ in range(40):
+        lo = rng.integers(0, 30, 2)
+        shape = (int(rng.integers(5, 50)), int(rng.integers(5, 60)))
+        ij = np.indices(shape).reshape(2, -1).T + lo
+        tree = cKDTree(grid.cell_to_world(ij))
+        m = int(rng.integers(1, 30))
+        pts = grid.cell_to_world(rng.uniform(-5.0, 85.0, (m, 2)))
+        on = rng.random(m) < 0.3  # some exactly on a cell centre
+        pts[on] = grid.cell_to_world(ij[rng.integers(0, len(ij), on.sum())])
+        radii = np.where(rng.random(m) < 0.2, 0.0, rng.uniform(0.0, 1.2, m))
+        want = np.zeros(len(ij), bool)
+        for found in tree.query_ball_point(pts, radii):
+            want[found] = True
+        cells, disc, xy = _cells_near(grid, lo, shape, pts, radii)
+        got = np.zeros(len(ij), bool)
+        got[cells[_sq_distance(xy, pts[disc]) <= radii[disc] ** 2]] = True
+        np.testing.assert_array_equal(got, want)
+        n_found += int(want.sum())
+    assert n_found > 1000
