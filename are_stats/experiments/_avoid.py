@@ -462,36 +462,46 @@ def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> 
     """Drop the path's vertices that a straight chord on ``ok`` cells can skip: from each
     kept vertex, on to the farthest vertex it sees (chords sampled every quarter cell).
 
-    The chords from a vertex to every later one are sampled and tested in one pass (one
-    grid transform of all their samples), each sampled as ``np.linspace(0, 1, k)`` along
-    it, ``k`` from its length (:func:`_chord_counts`): the same samples and cells as one
-    chord at a time, at a fraction of the cost of a long detour's path of cells.
+    Each chord is sampled as ``np.linspace(0, 1, k)`` along it, ``k`` from its length
+    (:func:`_chord_counts`), and the chords from a vertex are tested from the farthest
+    vertex back, in batches of 1, 2, 4... (one grid transform of a batch's samples), until
+    one is clear: the same vertices as testing every chord one at a time.
     """
     step = grid.resolution / 4.0
     out, a = [pts[0]], 0
     while a < len(pts) - 1:
-        b = a + 1
-        if a + 2 < len(pts):
-            d = pts[a + 2 :] - pts[a]  # (m, 2) the chords to the vertices past the next
-            n = _chord_counts(d, step)
-            first = np.r_[0, np.cumsum(n)[:-1]]
-            which = np.repeat(np.arange(n.size), n)
-            i = np.arange(which.size) - first[which]  # sample index along its chord
-            div = (n - 1)[which]
-            # np.linspace(0, 1, k): i * (1 / (k - 1)), the last sample exactly 1
-            frac = i * (1.0 / np.maximum(div, 1))
-            frac[i == div] = 1.0
-            frac[div == 0] = 0.0
-            ij = grid.world_to_cell(pts[a] + d[which] * frac[:, None]) - lo
-            inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
-            clear = np.zeros(len(ij), bool)
-            clear[inside] = ok[ij[inside, 0], ij[inside, 1]]
-            seen = np.logical_and.reduceat(clear, first)
+        b, hi, batch = a + 1, len(pts), 1
+        while hi > a + 2:
+            js = np.arange(max(a + 2, hi - batch), hi)
+            seen = _chords_clear(pts[a], pts[js] - pts[a], ok, grid, lo, step)
             if seen.any():
-                b = a + 2 + int(np.flatnonzero(seen)[-1])
+                b = int(js[np.flatnonzero(seen)[-1]])
+                break
+            hi, batch = js[0], 2 * batch
         out.append(pts[b])
         a = b
     return np.array(out)
+
+
+def _chords_clear(
+    p: np.ndarray, d: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray, step: float
+) -> np.ndarray:  # fmt: skip
+    """(m,) bool: whether the chords from ``p`` (2,) along ``d`` (m, 2), sampled every
+    ``step`` at most, stay on ``ok`` cells (the window at ``lo``)."""
+    n = _chord_counts(d, step)
+    first = np.r_[0, np.cumsum(n)[:-1]]
+    which = np.repeat(np.arange(n.size), n)
+    i = np.arange(which.size) - first[which]  # sample index along its chord
+    div = (n - 1)[which]
+    # np.linspace(0, 1, k): i * (1 / (k - 1)), the last sample exactly 1
+    frac = i * (1.0 / np.maximum(div, 1))
+    frac[i == div] = 1.0
+    frac[div == 0] = 0.0
+    ij = grid.world_to_cell(p + d[which] * frac[:, None]) - lo
+    inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
+    clear = np.zeros(len(ij), bool)
+    clear[inside] = ok[ij[inside, 0], ij[inside, 1]]
+    return np.logical_and.reduceat(clear, first)
 
 
 def _chord_counts(d: np.ndarray, step: float) -> np.ndarray:
