@@ -497,10 +497,18 @@ def _chords_clear(
     frac = i * (1.0 / np.maximum(div, 1))
     frac[i == div] = 1.0
     frac[div == 0] = 0.0
-    ij = grid.world_to_cell(p + d[which] * frac[:, None]) - lo
-    inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
-    clear = np.zeros(len(ij), bool)
-    clear[inside] = ok[ij[inside, 0], ij[inside, 1]]
+    x, y = p[0] + d[which, 0] * frac, p[1] + d[which, 1] * frac
+    x0, y0, yaw = (float(v) for v in grid.origin)
+    if yaw == 0.0:  # world_to_cell unrotated: u = (x - x0) / res exactly (1 dx + 0 dy)
+        res = float(grid.resolution)
+        r = np.floor((y - y0) / res).astype(np.int64) - lo[0]
+        c = np.floor((x - x0) / res).astype(np.int64) - lo[1]
+    else:
+        ij = grid.world_to_cell(np.column_stack([x, y])) - lo
+        r, c = ij[:, 0], ij[:, 1]
+    inside = (r >= 0) & (r < ok.shape[0]) & (c >= 0) & (c < ok.shape[1])
+    clear = np.zeros(r.size, bool)
+    clear[inside] = ok[r[inside], c[inside]]
     return np.logical_and.reduceat(clear, first)
 
 

@@ -538,9 +538,10 @@ def test_string_pull_equals_one_chord_at_a_time():
         return np.array(out)
 
     rng = np.random.default_rng(8)
-    grid = OccupancyGrid(np.zeros((60, 60)), 0.1, origin=(-2.0, 1.0, 0.0))
     dropped = 0
-    for trial in range(60):
+    for trial in range(80):
+        # an unrotated grid (cells from the origin's offset alone) and a rotated one
+        grid = OccupancyGrid(np.zeros((60, 60)), 0.1, origin=(-2.0, 1.0, 0.7 * (trial % 4 == 3)))
         ok = rng.random((40, 40)) > 0.25 * (trial % 3)
         lo = np.array([int(rng.integers(0, 20)), int(rng.integers(0, 20))])
         a, b = rng.integers(0, 40, (2, 2))
