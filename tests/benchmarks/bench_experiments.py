@@ -56,6 +56,23 @@
    trials stopped building a Scene each: A* 25.2 -> 18.5 s (23.8x -> 32.4x), avoidance
    16.2 -> 11.6 s (profiled: the plan's and the detours' A* searches, the detours, then
    the rebuilt scene and events after each avoidance, about 3 s each).
+   Then (2026-11-27, load 9-14, CPU time, the hour's scene built once and pickled, main
+   and this branch run at the same time on it; every mission identical to main's:
+   timelines, replans but rho_t, goals, summaries, and on the first 600 s the recorded
+   scenes): profiled, three quarters of the hour was the detours (string-pulling one
+   np.linspace per chord, one wall window per box sample, failing A* searches over a
+   window of about 38,000 cells, a k-d tree of those cells per detour) and 7% the event
+   table rebuilt after each avoidance. Now the chords of a vertex are sampled in one pass
+   from the farthest back, the wall windows tested in one pass, a goal outside the start's
+   4-connected part refused before its search, the cells near the robot's sweep and the
+   other boxes found around each, and the avoiding artefacts' new moves merged into the
+   coming events. The hour with A*: 167.6 -> 105.7 s of CPU (21.5x -> 34.1x, x1.59; 2300
+   replans, 461 detours, 1313 yields). What is left is mostly grid A* (the robot's plans
+   and the detours' searches, about 40% of the loop, ``_planners.astar_cells``), then the
+   string-pulling and the planning grids. The scenario's tracks took 69 s of CPU that day
+   (behaviours 48.5 s, the social force 19.9 s). RRT-Connect now plans on an iteration
+   budget (``RRT``): see the docs (experiments) for its hour. ``--baseline CHECKOUT``
+   runs the missions with another checkout's ``are_stats`` too and prints the ratio.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
