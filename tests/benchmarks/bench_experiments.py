@@ -66,13 +66,16 @@
    from the farthest back, the wall windows tested in one pass, a goal outside the start's
    4-connected part refused before its search, the cells near the robot's sweep and the
    other boxes found around each, and the avoiding artefacts' new moves merged into the
-   coming events. The hour with A*: 167.6 -> 105.7 s of CPU (21.5x -> 34.1x, x1.59; 2300
-   replans, 461 detours, 1313 yields). What is left is mostly grid A* (the robot's plans
-   and the detours' searches, about 40% of the loop, ``_planners.astar_cells``), then the
-   string-pulling and the planning grids. The scenario's tracks took 69 s of CPU that day
-   (behaviours 48.5 s, the social force 19.9 s). RRT-Connect now plans on an iteration
-   budget (``RRT``): see the docs (experiments) for its hour. ``--baseline CHECKOUT``
-   runs the missions with another checkout's ``are_stats`` too and prints the ratio.
+   coming events. The hour with A*: 169.8 -> 97.7 s of CPU (21.2x -> 36.8x, x1.74; a
+   first pair under more load 167.6 -> 105.7 s, x1.59; 2300 replans, 461 detours, 1313
+   yields). What is left is mostly grid A* (the robot's plans and the detours' searches,
+   about 40% of the loop, ``_planners.astar_cells``), then the string-pulling and the
+   planning grids. The scenario's tracks took 69 s of CPU that day (behaviours 48.5 s,
+   the social force 19.9 s). RRT-Connect now plans on an iteration budget (``RRT``): its
+   first 600 s 41.9 -> 28.6 s (14.3x -> 20.9x, identical), its hour 287.9 s (12.5x; 3014
+   replans, 1375 of them failed, 21,271 yields; docs, experiments). ``--baseline
+   CHECKOUT`` runs the missions with another checkout's ``are_stats`` too and prints the
+   ratio.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
