@@ -259,8 +259,6 @@ def _detour(
     # box-vs-wall-cells test of every sample below makes the decision
     r_in = float(np.hypot(*scene.offsets[i, :2]) + half[:2].min())
     ok = grid.free[win] & (wall_distance[win] > r_in + res * np.sqrt(0.5))
-    ij = np.indices(ok.shape).reshape(2, -1).T + lo
-    xy = grid.cell_to_world(ij)
     # the robot's disc now and along its plan until the latest rejoin time
     rt, rxy = robot
     horizon = float(tt[cand].max() - t) + lookahead * dt
@@ -268,14 +266,14 @@ def _detour(
     sweep = _robot_at(rt, rxy, t + horizon * np.linspace(0.0, 1.0, n_r))
     gone = np.linalg.norm(sweep - p_t, axis=1)
     keep_out = np.minimum(clearance + r_art, gone - res)
-    from scipy.spatial import cKDTree
+    from scipy import ndimage
 
-    # cells within keep_out of a sweep point: query each point's ball (radii differ)
-    tree = cKDTree(xy)
-    hit = np.zeros(len(xy), bool)
-    for pts in tree.query_ball_point(sweep, np.maximum(keep_out, 0.0)):
-        hit[pts] = True
-    ok &= ~hit.reshape(ok.shape)
+    # cells within keep_out of a sweep point (their centres; a ball of radius 0 holds a
+    # centre it is on)
+    flat = ok.reshape(-1)
+    cells, ball, xy = _cells_near(grid, lo, ok.shape, sweep, np.maximum(keep_out, 0.0))
+    d2 = _sq_distance(xy, sweep[ball])
+    flat[cells[d2 <= np.maximum(keep_out, 0.0)[ball] ** 2]] = False
     alive = scene.alive(t)
     alive[i] = False
     others = np.flatnonzero(alive)
@@ -284,22 +282,34 @@ def _detour(
     r_o = np.hypot(*scene.half_extents[others, :2].T)
     near = np.linalg.norm(c_o - p_t, axis=1) <= reach * np.sqrt(2.0) + r_o + r_art + res
     # cells within r_art (plus half a cell diagonal) of a near box are blocked: only those
-    # within that of the box's circumscribed disc can be (the tree finds them)
+    # within that of the box's circumscribed disc can be (the cells near it, tested exactly)
     thr = r_art + res * np.sqrt(0.5)
-    flat = ok.reshape(-1)
-    for j, cj, yj in zip(others[near], c_o[near], p_o[near, 2], strict=True):
-        hj = scene.half_extents[j, :2]
-        cells = np.asarray(tree.query_ball_point(cj, float(np.hypot(*hj)) + thr + 1e-9), np.int64)
-        if cells.size:
-            gap = _cells_to_box(xy[cells], cj, hj, float(yj))
-            flat[cells[gap <= thr]] = False
+    js = others[near]
+    if js.size:
+        hj = scene.half_extents[js, :2]
+        reach_j = np.hypot(hj[:, 0], hj[:, 1]) + thr + 1e-9
+        cells, box, xy = _cells_near(grid, lo, ok.shape, c_o[near], reach_j)
+        yj = p_o[near, 2]
+        # each box's heading's cosine and sine as _cells_to_box takes them (one scalar each)
+        cs = np.array([np.cos(float(y)) for y in yj])[box]
+        sn = np.array([np.sin(float(y)) for y in yj])[box]
+        d = xy - c_o[near][box]
+        local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
+        gap = np.linalg.norm(np.maximum(np.abs(local) - hj[box], 0.0), axis=1)
+        flat[cells[gap <= thr]] = False
     start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
     if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
         return None
     ok[start] = True  # where the artefact stands now
+    # the search moves diagonally only between two free orthogonal neighbours, so it
+    # reaches exactly the 4-connected part of ok around the start: a goal outside it is
+    # refused before a search that would visit all of that part in vain
+    part, _ = ndimage.label(ok)
     for k in cand:
         goal = tuple(int(v) for v in grid.world_to_cell(pp[k, :2]) - lo)
         if not (0 <= goal[0] < ok.shape[0] and 0 <= goal[1] < ok.shape[1]) or not ok[goal]:
+            continue
+        if part[goal] != part[start]:
             continue
         path = astar_cells(ok, start, goal)
         if path is None:
@@ -370,28 +380,43 @@ def _speed(rt: np.ndarray, rxy: np.ndarray) -> float:
 
 def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray) -> bool:
     """Whether boxes (k of them, half sizes ``half`` (2,)) share no area with a cell of
-    ``grid`` that is not free (an exact separating-axis test against the cells' squares)."""
+    ``grid`` that is not free (an exact separating-axis test against the cells' squares).
+
+    Each box is tested against the non-free cells of the square window of cells around it
+    (its circumscribed radius plus a cell); the windows of all k boxes are gathered and
+    tested in one pass.
+    """
     from are_stats.builder import obb_overlap_2d
 
+    centres = np.asarray(centres, float).reshape(-1, 2)
+    yaws = np.asarray(yaws, float).reshape(-1)
+    k = len(centres)
+    if not k:
+        return True
     res = float(grid.resolution)
     r = float(np.hypot(*half)) + res
-    blocked = ~grid.free
     square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * r
-    for c, y in zip(centres, yaws, strict=True):
-        cells = grid.world_to_cell(c + square)
-        lo = np.clip(cells.min(axis=0), 0, [grid.height, grid.width])
-        hi = np.clip(cells.max(axis=0) + 1, 0, [grid.height, grid.width])
-        ij = np.argwhere(blocked[lo[0] : hi[0], lo[1] : hi[1]]) + lo
-        if not ij.size:
-            continue
-        n = len(ij)
-        hit = obb_overlap_2d(
-            np.tile(c, (n, 1)), np.tile(half, (n, 1)), np.full(n, y), grid.cell_to_world(ij),
-            np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
-        )  # fmt: skip
-        if hit.any():
-            return False
-    return True
+    cells = grid.world_to_cell((centres[:, None, :] + square[None]).reshape(-1, 2))
+    cells = cells.reshape(k, 4, 2)
+    shape = np.array([grid.height, grid.width])
+    lo = np.clip(cells.min(axis=1), 0, shape)  # (k, 2) each box's window [lo, hi)
+    size = np.clip(cells.max(axis=1) + 1, 0, shape) - lo
+    s0, s1 = (int(v) for v in size.max(axis=0))
+    if s0 <= 0 or s1 <= 0:
+        return True
+    off = np.indices((s0, s1)).reshape(2, -1).T  # (S, 2)
+    box, o = np.nonzero((off[None] < size[:, None, :]).all(axis=2))  # (box, offset) pairs
+    ij = lo[box] + off[o]
+    wall = ~grid.free[ij[:, 0], ij[:, 1]]
+    box, ij = box[wall], ij[wall]
+    n = box.size
+    if not n:
+        return True
+    hit = obb_overlap_2d(
+        centres[box], np.tile(half, (n, 1)), yaws[box], grid.cell_to_world(ij),
+        np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
+    )  # fmt: skip
+    return not hit.any()
 
 
 def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -> np.ndarray:
@@ -402,33 +427,98 @@ def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -
     return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
 
 
+def _cells_near(
+    grid: Any, lo: np.ndarray, shape: tuple[int, int], centres: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The cells of the window ``shape`` at ``lo`` (rows, cols) whose centres may lie within
+    ``radii`` (m,) of ``centres`` (m, 2): a superset (each disc's square of cells, a cell
+    wider); flat window indices (n,), which disc (n,), and the cells' centres (n, 2) as
+    :meth:`~are_stats.environment.OccupancyGrid.cell_to_world` gives them."""
+    if not len(centres):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2))
+    uv = grid.world_to_local(centres)  # (m, 2) u along columns, v along rows (cell units)
+    r = np.asarray(radii, float) / grid.resolution
+    first = np.floor(uv[:, ::-1] - r[:, None]).astype(np.int64) - 1  # (m, 2) rows, cols
+    size = int(np.ceil(2.0 * r.max())) + 4
+    off = np.indices((size, size)).reshape(2, -1).T
+    ij = first[:, None, :] + off[None] - lo  # (m, S, 2) window cells
+    ok = (ij >= 0).all(axis=2) & (ij < shape).all(axis=2)
+    disc, k = np.nonzero(ok)
+    ij = ij[disc, k]
+    return ij[:, 0] * shape[1] + ij[:, 1], disc, grid.cell_to_world(ij + lo)
+
+
+def _sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) squared distances between points ``a`` and ``b`` (n, 2), summed as a k-d tree
+    sums them (x first)."""
+    d = a - b
+    s = np.zeros(len(d))
+    s += d[:, 0] * d[:, 0]
+    s += d[:, 1] * d[:, 1]
+    return s
+
+
 def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> np.ndarray:
     """Drop the path's vertices that a straight chord on ``ok`` cells can skip: from each
     kept vertex, on to the farthest vertex it sees (chords sampled every quarter cell).
 
-    The chords from a vertex to every later one are tested in one pass (one grid
-    transform of all their samples): the same samples and cells as one chord at a time,
-    at a fraction of the cost of a long detour's path of cells.
+    Each chord is sampled as ``np.linspace(0, 1, k)`` along it, ``k`` from its length
+    (:func:`_chord_counts`), and the chords from a vertex are tested from the farthest
+    vertex back, in batches of 1, 2, 4... (one grid transform of a batch's samples), until
+    one is clear: the same vertices as testing every chord one at a time.
     """
     step = grid.resolution / 4.0
     out, a = [pts[0]], 0
     while a < len(pts) - 1:
-        bs = np.arange(a + 2, len(pts))
-        b = a + 1
-        if bs.size:
-            chords = []
-            for j in bs:
-                d = pts[j] - pts[a]
-                k = int(np.ceil(np.linalg.norm(d) / step)) + 1
-                chords.append(pts[a] + d * np.linspace(0.0, 1.0, k)[:, None])
-            n = np.array([len(c) for c in chords])
-            ij = grid.world_to_cell(np.concatenate(chords)) - lo
-            inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
-            clear = np.zeros(len(ij), bool)
-            clear[inside] = ok[ij[inside, 0], ij[inside, 1]]
-            seen = np.logical_and.reduceat(clear, np.r_[0, np.cumsum(n)[:-1]])
+        b, hi, batch = a + 1, len(pts), 1
+        while hi > a + 2:
+            js = np.arange(max(a + 2, hi - batch), hi)
+            seen = _chords_clear(pts[a], pts[js] - pts[a], ok, grid, lo, step)
             if seen.any():
-                b = int(bs[np.flatnonzero(seen)[-1]])
+                b = int(js[np.flatnonzero(seen)[-1]])
+                break
+            hi, batch = js[0], 2 * batch
         out.append(pts[b])
         a = b
     return np.array(out)
+
+
+def _chords_clear(
+    p: np.ndarray, d: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray, step: float
+) -> np.ndarray:  # fmt: skip
+    """(m,) bool: whether the chords from ``p`` (2,) along ``d`` (m, 2), sampled every
+    ``step`` at most, stay on ``ok`` cells (the window at ``lo``)."""
+    n = _chord_counts(d, step)
+    first = np.r_[0, np.cumsum(n)[:-1]]
+    which = np.repeat(np.arange(n.size), n)
+    i = np.arange(which.size) - first[which]  # sample index along its chord
+    div = (n - 1)[which]
+    # np.linspace(0, 1, k): i * (1 / (k - 1)), the last sample exactly 1
+    frac = i * (1.0 / np.maximum(div, 1))
+    frac[i == div] = 1.0
+    frac[div == 0] = 0.0
+    x, y = p[0] + d[which, 0] * frac, p[1] + d[which, 1] * frac
+    x0, y0, yaw = (float(v) for v in grid.origin)
+    if yaw == 0.0:  # world_to_cell unrotated: u = (x - x0) / res exactly (1 dx + 0 dy)
+        res = float(grid.resolution)
+        r = np.floor((y - y0) / res).astype(np.int64) - lo[0]
+        c = np.floor((x - x0) / res).astype(np.int64) - lo[1]
+    else:
+        ij = grid.world_to_cell(np.column_stack([x, y])) - lo
+        r, c = ij[:, 0], ij[:, 1]
+    inside = (r >= 0) & (r < ok.shape[0]) & (c >= 0) & (c < ok.shape[1])
+    clear = np.zeros(r.size, bool)
+    clear[inside] = ok[r[inside], c[inside]]
+    return np.logical_and.reduceat(clear, first)
+
+
+def _chord_counts(d: np.ndarray, step: float) -> np.ndarray:
+    """(m,) samples ``ceil(|d| / step) + 1`` of chords ``d`` (m, 2), with ``|d|`` as
+    ``np.linalg.norm`` of each chord computes it (a dot product): one vectorised pass, and
+    that norm again only where the two could round to different counts (a chord a whole
+    number of steps long, which cell-centred paths often have)."""
+    q = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) / step
+    near = np.abs(q - np.round(q)) <= 1e-9 * np.maximum(q, 1.0)
+    for j in np.flatnonzero(near):
+        q[j] = np.linalg.norm(d[j]) / step
+    return np.ceil(q).astype(np.int64) + 1

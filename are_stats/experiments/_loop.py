@@ -591,6 +591,7 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
     their new tracks go into the state's scene and the rest of the event table is rebuilt
     from it."""
     scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
+    changed: list[int] = []
     if not moved.size:
         return s, kinds
     t_check = scene.next_epoch(s.t, moved)
@@ -626,15 +627,18 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
         if got is None:
             continue
         scene = scene.with_track(i, got.t, got.pose)
+        changed.append(i)
         counts[got.kind] += 1
         delay += got.delay
         if got.kind not in kinds:
             kinds.append(got.kind)
     if not kinds:
         return s, kinds
-    # the tracks changed after s.t only: the coming events are rebuilt from there
+    # the tracks changed after s.t only: the coming events are rebuilt from there (the
+    # changed artefacts' events; the others' are the coming ones of s.events)
+    events = _events_after(s.events, scene, np.array(changed), m.T, m.move_period, s.t)
     s = s._replace(
-        scene=scene, events=_event_table(scene, m.T, m.move_period, after=s.t), event=0,
+        scene=scene, events=events, event=0,
         n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
         avoid_delay=s.avoid_delay + delay,
     )  # fmt: skip
@@ -823,6 +827,46 @@ def _event_table(scene: Scene, T: float, move_period: float | None, after: float
     order = np.lexsort((who, at))
     start = np.r_[0, np.cumsum(np.bincount(at, minlength=times.size))].astype(np.int64)
     return _Events(times, lifecycle, start, who[order])
+
+
+def _events_after(
+    events: _Events, scene: Scene, changed: np.ndarray, T: float, move_period: float | None,
+    after: float,
+) -> _Events:  # fmt: skip
+    """:func:`_event_table` of ``scene`` after ``after``, from ``events``, the table of a
+    scene that differs from it only in the tracks of the artefacts ``changed`` (k,) and was
+    built at or before ``after``: its events after ``after`` less the moves of ``changed``,
+    and their moves on their new tracks. The same table as a rebuild of every artefact's
+    events, at the cost of the changed artefacts' tracks and a merge."""
+    lower = after if move_period is None else max(0.0, after - 2.0 * move_period)
+    # the moves of the changed artefacts on their new tracks, as _event_table finds them
+    ticks, who = [], []
+    for i in np.unique(changed).tolist():
+        tt, _ = scene.track(i)
+        tt = tt[(tt > lower) & (tt <= T) & (tt >= scene.t_arrive[i]) & (tt < scene.t_leave[i])]
+        if move_period is not None:
+            tt = np.ceil(tt / move_period) * move_period
+        tt = tt[(tt > after) & (tt < T)]
+        ticks.append(tt)
+        who.append(np.full(tt.size, i, np.int64))
+    new_t = np.concatenate([np.zeros(0), *ticks])
+    new_who = np.concatenate([np.zeros(0, np.int64), *who])
+    # the old table after ``after``, less the changed artefacts' moves
+    at = np.repeat(np.arange(events.t.size), np.diff(events.start))
+    keep = (events.t[at] > after) & ~np.isin(events.moved, changed)
+    old_at, old_who = at[keep], events.moved[keep]
+    life = events.lifecycle & (events.t > after)
+    times = np.unique(np.concatenate([events.t[old_at], events.t[life], new_t]))
+    lifecycle = np.zeros(times.size, bool)
+    lifecycle[np.searchsorted(times, events.t[life])] = True
+    # old moves stay sorted by (time, artefact): the new ones are merged in by that key
+    n = len(scene)
+    key_old = np.searchsorted(times, events.t[old_at]) * n + old_who
+    key_new = np.sort(np.searchsorted(times, new_t) * n + new_who)
+    key = np.insert(key_old, np.searchsorted(key_old, key_new, side="right"), key_new)
+    at_all, moved = np.divmod(key, n)
+    start = np.r_[0, np.cumsum(np.bincount(at_all, minlength=times.size))].astype(np.int64)
+    return _Events(times, lifecycle, start, moved.astype(np.int64))
 
 
 def run_mission(

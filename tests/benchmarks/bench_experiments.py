@@ -56,6 +56,26 @@
    trials stopped building a Scene each: A* 25.2 -> 18.5 s (23.8x -> 32.4x), avoidance
    16.2 -> 11.6 s (profiled: the plan's and the detours' A* searches, the detours, then
    the rebuilt scene and events after each avoidance, about 3 s each).
+   Then (2026-11-27, load 9-14, CPU time, the hour's scene built once and pickled, main
+   and this branch run at the same time on it; every mission identical to main's:
+   timelines, replans but rho_t, goals, summaries, and on the first 600 s the recorded
+   scenes): profiled, three quarters of the hour was the detours (string-pulling one
+   np.linspace per chord, one wall window per box sample, failing A* searches over a
+   window of about 38,000 cells, a k-d tree of those cells per detour) and 7% the event
+   table rebuilt after each avoidance. Now the chords of a vertex are sampled in one pass
+   from the farthest back, the wall windows tested in one pass, a goal outside the start's
+   4-connected part refused before its search, the cells near the robot's sweep and the
+   other boxes found around each, and the avoiding artefacts' new moves merged into the
+   coming events. The hour with A*: 169.8 -> 97.7 s of CPU (21.2x -> 36.8x, x1.74; a
+   first pair under more load 167.6 -> 105.7 s, x1.59; 2300 replans, 461 detours, 1313
+   yields). What is left is mostly grid A* (the robot's plans and the detours' searches,
+   about 40% of the loop, ``_planners.astar_cells``), then the string-pulling and the
+   planning grids. The scenario's tracks took 69 s of CPU that day (behaviours 48.5 s,
+   the social force 19.9 s). RRT-Connect now plans on an iteration budget (``RRT``): its
+   first 600 s 41.9 -> 28.6 s (14.3x -> 20.9x, identical), its hour 287.9 s (12.5x; 3014
+   replans, 1375 of them failed, 21,271 yields; docs, experiments). ``--baseline
+   CHECKOUT`` runs the missions with another checkout's ``are_stats`` too and prints the
+   ratio.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
@@ -69,7 +89,10 @@ Median of the repeats after one warm-up. Run ``python -m tests.benchmarks.bench_
 
 from __future__ import annotations
 
+import os
+import pickle
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -139,6 +162,14 @@ def _plan_times(repeats: int) -> dict:
             lengths.append(path_length(path))
         out[name] = (float(np.median(times)), float(np.median(lengths)))
     return out
+
+
+#: The missions' RRT-Connect: an iteration budget (OMPL termination checks) instead of its
+#: default 1 s of wall clock, so that a plan to an unreachable goal costs the same CPU
+#: whatever the load and the mission is the same from run to run. On the courtyard with 60
+#: random 1.2 m blocks, 40 solvable plans needed 1 to 1581 checks (median 4); a plan that
+#: fails uses the 5000, about 0.08 s of CPU (2026-11-27).
+RRT = {"algorithm": "RRTConnect", "range": 2.0, "max_iterations": 5000, "time_limit": 60.0}
 
 
 def _walkers(horizon: float) -> tuple:
@@ -216,7 +247,7 @@ def _moving_mission(
         robot=Robot(radius=0.3, speed=0.5), perception=perception, env_mesh=mesh,
         perception_period=0.1, move_period=2.0, avoid_robot=avoid,
     )  # fmt: skip
-    planner = planner or {"algorithm": "RRTConnect", "range": 2.0}
+    planner = planner or RRT
     if perception == "camera":  # Warp's kernels loaded and compiled outside the timing
         run_mission(grid, scene, goals, planner, time_limit=1.0, **kwargs)
     try:
@@ -231,10 +262,65 @@ def _moving_mission(
     stages.update(spent)
     stages["rest"] = max(cpu - sum(spent.values()), 0.0)
     return {"wall": wall, "cpu": cpu, "stages": stages, "summary": res.summary,
-            "artefacts": n_artefacts}  # fmt: skip
+            "artefacts": n_artefacts, "same": _deterministic(res)}  # fmt: skip
 
 
-def main(quick: bool = False) -> None:
+def _deterministic(res) -> dict:
+    """What a seeded mission must repeat exactly: all but the measured ``rho_t``, ``rho``."""
+    summary = {k: v for k, v in res.summary.items() if k not in ("rho_mean", "rho_t_mean")}
+    return {"summary": summary, "replans": res.replans.drop(columns=["rho_t", "rho"]),
+            "timeline": res.timeline, "goals": res.goals}  # fmt: skip
+
+
+def _same(a: dict, b: dict) -> bool:
+    import pandas as pd
+
+    for k in a:
+        if isinstance(a[k], pd.DataFrame):
+            if not a[k].equals(b[k]):
+                return False
+        elif a[k].keys() != b[k].keys() or any(
+            x != y and not (x != x and y != y)
+            for x, y in zip(a[k].values(), b[k].values(), strict=True)
+        ):
+            return False
+    return True
+
+
+def _baseline_mission(checkout: str, walkers_file: str, horizon: float, perception: str,
+                      planner: object) -> dict:  # fmt: skip
+    """:func:`_moving_mission` with the ``are_stats`` of another checkout (the previous
+    implementation), in a subprocess, on the same pickled walkers (its Scene must read this
+    one's pickle)."""
+    out = walkers_file + ".baseline"
+    args = [sys.executable, __file__, "--mission", walkers_file, str(horizon), perception,
+            repr(planner), out]  # fmt: skip
+    env = dict(os.environ, PYTHONPATH=os.path.abspath(checkout))
+    subprocess.run(args, env=env, check=True, cwd=os.path.abspath(checkout))
+    with open(out, "rb") as f:
+        return pickle.load(f)
+
+
+def _mission_main(walkers_file: str, horizon: str, perception: str, planner: str, out: str):
+    """The subprocess side of :func:`_baseline_mission`."""
+    import ast
+
+    from are_stats.inputs import limits
+
+    with open(walkers_file, "rb") as f:
+        walkers = pickle.load(f)
+    with limits(work=10**13):
+        m = _moving_mission(float(horizon), perception, True, ast.literal_eval(planner), walkers)
+    with open(out, "wb") as f:
+        pickle.dump(m, f)
+
+
+def main(quick: bool = False, baseline: str | None = None) -> None:
+    """``baseline``: a checkout of the previous implementation (default the environment
+    variable ``ARE_STATS_BENCH_BASELINE``): the missions with moving artefacts also run with
+    its ``are_stats``, side by side, and the ratio and whether the missions are identical
+    are printed."""
+    baseline = baseline or os.environ.get("ARE_STATS_BENCH_BASELINE") or None
     repeats = 2 if quick else 5
     cfg = _config(replicates=2 if quick else 4)
     n = len(expand_tasks(cfg))
@@ -262,12 +348,25 @@ def main(quick: bool = False) -> None:
             f"time (threads included: what counts when other jobs share the cores), target "
             f"at least 20x with interaction on"
         )
+        walkers_file = None
+        if baseline:
+            fd, walkers_file = tempfile.mkstemp(prefix="bench-walkers-", suffix=".pkl")
+            with os.fdopen(fd, "wb") as f:
+                pickle.dump(walkers, f)
         for label, perception, planner in (
-            ("RRT-Connect, camera at 10 Hz", "camera", None),
+            (f"RRT-Connect (max_iterations {RRT['max_iterations']}), camera at 10 Hz",
+             "camera", RRT),
             ("A*, every artefact perceived", "all", "astar"),
-        ):
+        ):  # fmt: skip
             m = _moving_mission(horizon, perception, True, planner, walkers)
             s = m["summary"]
+            if walkers_file:
+                b = _baseline_mission(baseline, walkers_file, horizon, perception, planner)
+                print(
+                    f"  {label}, baseline {baseline}: loop {horizon / b['cpu']:.1f}x on CPU "
+                    f"({b['cpu']:.1f} s); this one x{b['cpu'] / m['cpu']:.2f} faster, "
+                    f"missions {'identical' if _same(m['same'], b['same']) else 'DIFFERENT'}"
+                )
             print(
                 f"  {label}: loop {horizon / m['cpu']:.1f}x on CPU ({m['cpu']:.1f} s), "
                 f"{horizon / m['wall']:.1f}x on the wall clock; with the scenario's tracks "
@@ -280,6 +379,9 @@ def main(quick: bool = False) -> None:
                 f"{name} {t:.1f}" for name, t in m["stages"].items()
                 if name not in ("behaviours", "interaction")
             ))  # fmt: skip
+        if walkers_file:
+            for f in (walkers_file, walkers_file + ".baseline"):
+                Path(f).unlink(missing_ok=True)
     # the same walkers avoiding the robot or not (A*, every artefact perceived), alternated
     horizon = 60.0 if quick else 180.0
     runs: dict[bool, list] = {True: [], False: []}
@@ -302,4 +404,8 @@ def main(quick: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main(quick="--quick" in sys.argv)
+    if sys.argv[1:2] == ["--mission"]:
+        _mission_main(*sys.argv[2:7])
+    else:
+        at = sys.argv.index("--baseline") + 1 if "--baseline" in sys.argv else None
+        main(quick="--quick" in sys.argv, baseline=sys.argv[at] if at else None)

@@ -489,3 +489,103 @@ def test_within_reach_drops_only_artefacts_that_would_not_avoid():
             elif answer is not None:
                 kept_avoiding += 1
     assert dropped > 500 and kept_avoiding > 5
+
+
+def test_clear_of_walls_of_many_boxes_is_every_box_clear():
+    """The boxes' windows are gathered and tested in one pass: a set of boxes is clear
+    exactly when each of them is (each tested alone)."""
+    from are_stats.experiments._avoid import _clear_of_walls
+
+    rng = np.random.default_rng(6)
+    data = np.where(rng.random((30, 30)) < 0.03, 100, 0)
+    data[:, 0] = -1
+    grid = OccupancyGrid(data, 0.2, origin=(-1.0, 0.5, 0.3))
+    answers = set()
+    for _ in range(200):
+        k = int(rng.integers(1, 12))
+        half = rng.uniform(0.05, 0.5, 2)
+        # centres inside the map, near its edge or past it
+        centres = grid.cell_to_world(rng.uniform(-3.0, 33.0, (k, 2)))
+        yaws = rng.uniform(0.0, 7.0, k)
+        alone = [_clear_of_walls(grid, centres[j : j + 1], half, yaws[j : j + 1]) for j in range(k)]
+        got = _clear_of_walls(grid, centres, half, yaws)
+        assert got == all(alone)
+        answers.add(got)
+    assert answers == {True, False}
+
+
+def test_string_pull_equals_one_chord_at_a_time():
+    """The detour's string-pulling tests every chord from a vertex in one pass: the same
+    vertices as testing one chord at a time (each sampled with np.linspace every quarter
+    cell), on cell-centred paths (chords a whole number of samples long) and others."""
+    from are_stats.experiments._avoid import _string_pull
+    from are_stats.experiments._planners import astar_cells
+
+    def one_at_a_time(pts, ok, grid, lo):
+        step = grid.resolution / 4.0
+        out, a = [pts[0]], 0
+        while a < len(pts) - 1:
+            b = a + 1
+            for j in range(a + 2, len(pts)):
+                d = pts[j] - pts[a]
+                k = int(np.ceil(np.linalg.norm(d) / step)) + 1
+                ij = grid.world_to_cell(pts[a] + d * np.linspace(0.0, 1.0, k)[:, None]) - lo
+                inside = (ij >= 0).all(axis=1) & (ij < ok.shape).all(axis=1)
+                if inside.all() and ok[ij[:, 0], ij[:, 1]].all():
+                    b = j
+            out.append(pts[b])
+            a = b
+        return np.array(out)
+
+    rng = np.random.default_rng(8)
+    dropped = 0
+    for trial in range(80):
+        # an unrotated grid (cells from the origin's offset alone) and a rotated one
+        grid = OccupancyGrid(np.zeros((60, 60)), 0.1, origin=(-2.0, 1.0, 0.7 * (trial % 4 == 3)))
+        ok = rng.random((40, 40)) > 0.25 * (trial % 3)
+        lo = np.array([int(rng.integers(0, 20)), int(rng.integers(0, 20))])
+        a, b = rng.integers(0, 40, (2, 2))
+        ok[tuple(a)] = ok[tuple(b)] = True
+        path = astar_cells(ok, tuple(a), tuple(b))
+        if path is None:
+            continue
+        pts = grid.cell_to_world(path + lo)
+        if trial % 2:  # off-centre ends, as the artefact's position and its epoch's pose
+            pts = np.vstack([pts[0] + rng.uniform(-0.05, 0.05, 2), pts[1:]])
+        want = one_at_a_time(pts, ok, grid, lo)
+        np.testing.assert_array_equal(_string_pull(pts, ok, grid, lo), want)
+        dropped += len(pts) - len(want)
+    assert dropped > 100
+
+
+def test_cells_near_a_disc_are_those_a_kd_tree_finds():
+    """The detour blocks the window's cells within a radius of points (the robot's sweep)
+    by the cells around each point: the same cells as a k-d tree of every cell centre of
+    the window finds (scipy's query_ball_point), on a rotated grid, with radii of zero and
+    points on cell centres."""
+    from scipy.spatial import cKDTree
+
+    from are_stats.experiments._avoid import _cells_near, _sq_distance
+
+    rng = np.random.default_rng(9)
+    grid = OccupancyGrid(np.zeros((80, 90)), 0.1, origin=(-3.0, 2.0, 0.4))
+    n_found = 0
+    for _ in range(40):
+        lo = rng.integers(0, 30, 2)
+        shape = (int(rng.integers(5, 50)), int(rng.integers(5, 60)))
+        ij = np.indices(shape).reshape(2, -1).T + lo
+        tree = cKDTree(grid.cell_to_world(ij))
+        m = int(rng.integers(1, 30))
+        pts = grid.cell_to_world(rng.uniform(-5.0, 85.0, (m, 2)))
+        on = rng.random(m) < 0.3  # some exactly on a cell centre
+        pts[on] = grid.cell_to_world(ij[rng.integers(0, len(ij), on.sum())])
+        radii = np.where(rng.random(m) < 0.2, 0.0, rng.uniform(0.0, 1.2, m))
+        want = np.zeros(len(ij), bool)
+        for found in tree.query_ball_point(pts, radii):
+            want[found] = True
+        cells, disc, xy = _cells_near(grid, lo, shape, pts, radii)
+        got = np.zeros(len(ij), bool)
+        got[cells[_sq_distance(xy, pts[disc]) <= radii[disc] ** 2]] = True
+        np.testing.assert_array_equal(got, want)
+        n_found += int(want.sum())
+    assert n_found > 1000

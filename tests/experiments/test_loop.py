@@ -427,3 +427,41 @@ def test_steps_never_change_a_state_in_place(monkeypatch):
         assert _same(_snapshot(s), before), f"the state at t={s.t} was changed by a step"
         at_scene, at_t = s.builder_at
         np.testing.assert_array_equal(s.builder.ids, at_scene.ids[at_scene.alive(at_t)])
+
+
+@pytest.mark.parametrize("move_period", [None, 1.0, 0.7])
+def test_events_after_an_avoidance_equal_a_rebuild_of_every_event(monkeypatch, move_period):
+    """After artefacts detour or wait, the loop merges their new moves into the coming
+    events (_loop._events_after) instead of rebuilding every artefact's events: the table
+    equals the rebuild (_event_table of the new scene after the update's time) at every
+    avoidance of a mission among walkers whose epochs fall between the move clock's ticks."""
+    import are_stats.experiments._loop as loop
+
+    rng = np.random.default_rng(11)
+    rows, tracks = [], []
+    for i in range(20):  # walkers crossing the robot's way, epochs at irregular times
+        t0, x = float(rng.uniform(0, 30)), float(rng.uniform(5, 15))
+        t = t0 + np.cumsum(rng.uniform(0.6, 1.4, 30))
+        y = 1.5 + (t - t0) * rng.uniform(0.4, 0.8)
+        keep = y <= 18.5
+        rows.append([t0, float(t[keep][-1]) + rng.uniform(-2.0, 2.0), x, 1.5, np.pi / 2, 0])
+        tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
+    scene = _scene(_art(rows), pd.concat(tracks, ignore_index=True))
+    merge, checked = loop._events_after, []
+
+    def compare(events, new_scene, changed, T, mp, after):
+        got = merge(events, new_scene, changed, T, mp, after)
+        want = loop._event_table(new_scene, T, mp, after=after)
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+        checked.append(after)
+        return got
+
+    monkeypatch.setattr(loop, "_events_after", compare)
+    res = run_mission(
+        GRID, scene, [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0], [10.0, 2.0]], "astar",
+        robot=Robot(radius=0.3, speed=0.7), start=[2.0, 10.0, 0.0], time_limit=60.0,
+        move_period=move_period,
+    )  # fmt: skip
+    assert len(checked) >= 3
+    assert res.summary["n_detours"] + res.summary["n_yields"] >= len(checked)
