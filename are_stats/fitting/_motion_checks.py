@@ -55,6 +55,7 @@ import pandas as pd
 
 from are_stats._checks import check_positive
 from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood, path_free
+from are_stats.inputs import LimitError
 
 __all__ = [
     "MOTION_STATISTICS",
@@ -305,7 +306,33 @@ def _walk(
     continuations of :func:`displacement_errors`."""
     from are_stats.behaviour import social_force_tracks
 
-    return social_force_tracks(plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups)
+    try:
+        return social_force_tracks(
+            plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups
+        )
+    except LimitError:
+        # the replicates of a large log together exceed the work or memory limit that guards
+        # one user-sized call: walk them in halves (scenarios never meet, so each half walks
+        # as it would have together); one scenario over the limit is refused as before
+        if "scenario" not in plan.columns:
+            raise
+        scen = plan["scenario"].to_numpy()
+        names = np.sort(pd.unique(scen))
+        if names.size < 2:
+            raise
+        parts = []
+        for half in np.array_split(names, 2):
+            rows = np.isin(scen, half)
+            parts.append(
+                _walk(
+                    plan[rows].reset_index(drop=True),
+                    params,
+                    grid,
+                    kinematic=None if kinematic is None else kinematic[rows],
+                    groups=None if groups is None else groups[rows],
+                )
+            )
+        return pd.concat(parts, ignore_index=True)
 
 
 def _log_groups(tracks: pd.DataFrame) -> dict[Any, str]:

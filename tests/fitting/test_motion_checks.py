@@ -329,3 +329,40 @@ def test_flags_need_a_difference_that_matters():
     # an unknown statistic has no tolerance, a missing observation no flag
     assert band_flags(["other"], np.array([0.6001]), lo[:1], hi[:1]).tolist() == [True]
     assert band_flags(stats[:1], np.array([np.nan]), lo[:1], hi[:1]).tolist() == [False]
+
+
+def test_replicates_over_the_work_limit_walk_in_parts():
+    """A large log's replicates together exceed the limit that guards one call: they are
+    walked in parts, as they would have walked together (scenarios never meet)."""
+    from are_stats.behaviour import SocialForce
+    from are_stats.environment import OccupancyGrid
+    from are_stats.fitting._motion_checks import _walk
+    from are_stats.inputs import LimitError, limits
+
+    rows = []
+    for s in range(4):
+        for i in range(6):
+            t = np.arange(0.0, 20.0, 0.5)
+            y0 = 2.0 + i
+            rows.append(
+                pd.DataFrame(
+                    {"scenario": s, "id": i, "t": t, "x": 1.0 + 0.6 * t + 0.1 * s,
+                     "y": np.full_like(t, y0 if i % 2 else 9.0 - y0), "yaw": 0.0}
+                )
+            )  # fmt: skip
+    plan = pd.concat(rows, ignore_index=True)
+    grid = OccupancyGrid(np.zeros((24, 32), np.int8), 0.5)
+    whole = _walk(plan, SocialForce(), grid)
+    one = _walk(plan[plan["scenario"] == 0].reset_index(drop=True), SocialForce(), grid)
+    # a work limit one scenario fits in and the four together do not
+    from are_stats.behaviour import social_force_tracks
+
+    with limits(work="1e4"), pytest.raises(LimitError) as err:
+        social_force_tracks(plan, SocialForce(), grid, dt=0.1)
+    need = float(str(err.value).split("got about ")[1].split(" ")[0])
+    with limits(work=f"{need / 3:.0f}"):
+        with pytest.raises(LimitError):
+            social_force_tracks(plan, SocialForce(), grid, dt=0.1)
+        parts = _walk(plan, SocialForce(), grid)
+    pd.testing.assert_frame_equal(parts, whole)
+    assert len(one) == len(plan) // 4
