@@ -308,7 +308,7 @@ class StageClock:
         done, total : int
             Steps done so far, and in all (a new ``total`` starts a new phase).
         what : str
-            Where the stage stands (``"realism: fitted 1/3"``), shown before ``done/total``.
+            Where the stage stands (``"displacement errors"``), shown before ``done/total``.
         """
         with self._lock:
             if self._stage is None:
