@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,7 +20,7 @@ from rich.table import Table
 
 from are_stats import __version__
 from are_stats._atomic import atomic_path, check_writable
-from are_stats._stage_clock import StageClock
+from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
     OccupancyGrid,
     coarse_free,
@@ -650,52 +650,6 @@ def run_generate(
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
     )
     return df
-
-
-class StepsLeft:
-    """A ``progress(done, total, what)`` of the scene assembly
-    (:func:`~are_stats.scenarios.scenes_from_fit`) that tells a stage clock where the
-    assembly stands and the time left (:meth:`StageClock.left`).
-
-    The time left is the stage's recorded duration less the time spent when the clock
-    has one (a later run; both without compiling, :meth:`StageClock.spent`); on a
-    machine's first run it is the mean time of the steps of the current phase done after
-    its first (which compiles) times the steps left, unknown until one of those is timed.
-    A phase is a run of steps with the same ``total``: the assembly's planning and its
-    social force have steps of different lengths, and each announces its own total when
-    it starts (the scenarios' draw, quick, is a phase of its own).
-
-    Parameters
-    ----------
-    clock : StageClock
-        The clock of the running stage.
-    stage : str
-        The stage's words (its key in the clock's record).
-    timer : callable
-        Seconds now (default :func:`time.perf_counter`).
-    """
-
-    def __init__(
-        self, clock: StageClock, stage: str, timer: Callable[[], float] = time.perf_counter
-    ) -> None:
-        self._clock, self._stage, self._timer = clock, stage, timer
-        self._phase: tuple[int, int, float] | None = None  # (total, done, time) at its start
-
-    def __call__(self, done: int, total: int, what: str) -> None:
-        now = self._timer()
-        if self._phase is None or self._phase[0] != total:
-            self._phase = (total, done, now)
-        _, done0, t0 = self._phase
-        last = self._clock.last(self._stage)
-        if last is not None:
-            left: float | None = max(last - self._clock.spent(), 0.0)
-        elif done >= total:
-            left = 0.0
-        elif done > done0:
-            left = (now - t0) / (done - done0) * (total - done)
-        else:
-            left = None
-        self._clock.left(left, f"{what} ({done}/{total})")
 
 
 def _behaviour_cell_m(grid: OccupancyGrid, cell: float) -> float:

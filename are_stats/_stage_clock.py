@@ -10,8 +10,11 @@ record (``12 s`` alone for a stage never timed here; a stage past its last time 
 ``longer than last time``). A stage that can measure its own rate says so
 (:meth:`StageClock.left`: NUTS between its compiled chunks of iterations), and then the
 line shows that estimate, ``NUTS for groups ... 12 s, sampling 300/500, about 8 s left``,
-on a machine's first run too. The record follows the compile cache: off with
-``ARE_STATS_NO_CACHE``.
+on a machine's first run too. A stage of counted steps says where it stands
+(:meth:`StageClock.steps`, :class:`StepsLeft`: the scene assembly's planning and social
+force, the fit's behaviour classes and realism replicates), and on a first run its time
+left is the rate of its steps after the first (which compiles) times the steps left. The
+record follows the compile cache: off with ``ARE_STATS_NO_CACHE``.
 
 What is recorded is a stage's time **less the XLA compiling it paid**
 (:func:`xla_compiling`: the time during the stage when some thread compiled), and a
@@ -50,6 +53,7 @@ from typing import Any
 
 __all__ = [
     "StageClock",
+    "StepsLeft",
     "format_left",
     "stage_times_path",
     "watch_xla_compiles",
@@ -200,6 +204,7 @@ class StageClock:
         self._stage: str | None = None
         self._t0 = 0.0
         self._estimate: tuple[float | None, str, float] | None = None  # (left, words, at)
+        self._steps: StepsLeft | None = None  # the running stage's steps (steps())
         self._lock = threading.Lock()
         self._done = threading.Event()
         self.durations: dict[str, float] = {}
@@ -267,6 +272,7 @@ class StageClock:
         with self._lock:
             self._end()
             self._stage, self._t0, self._estimate = stage, self._timer(), None
+            self._steps = None
             if self._status is not None:
                 self._status.update(self._words())
 
@@ -289,6 +295,28 @@ class StageClock:
             self._estimate = (None if seconds is None else float(seconds), words, self._timer())
             if self._status is not None:
                 self._status.update(self._words())
+
+    def steps(self, done: int, total: int, what: str = "") -> None:
+        """The current stage's steps: ``done`` of ``total`` (``what``: the last one done).
+
+        The time left is :class:`StepsLeft`'s: the record's on a later run, on a first
+        run the rate of the steps after the first of a phase (which compiles) times the
+        steps left. A stage that reports no steps keeps the record's time left alone.
+
+        Parameters
+        ----------
+        done, total : int
+            Steps done so far, and in all (a new ``total`` starts a new phase).
+        what : str
+            Where the stage stands (``"displacement errors"``), shown before ``done/total``.
+        """
+        with self._lock:
+            if self._stage is None:
+                return
+            if self._steps is None:
+                self._steps = StepsLeft(self, self._stage, timer=self._timer)
+            steps = self._steps
+        steps(done, total, what)
 
     def close(self) -> None:
         """End the last stage, stop the refresh and write the record (best effort)."""
@@ -318,3 +346,51 @@ class StageClock:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class StepsLeft:
+    """A ``progress(done, total, what)`` that tells a stage clock where a stage of counted
+    steps stands and the time left (:meth:`StageClock.left`): the scene assembly's
+    (:func:`~are_stats.scenarios.scenes_from_fit`, ``are-stats generate``) and, through
+    :meth:`StageClock.steps`, the fit's (behaviour classes, realism replicates).
+
+    The time left is the stage's recorded duration less the time spent when the clock
+    has one (a later run; both without compiling, :meth:`StageClock.spent`); on a
+    machine's first run it is the mean time of the steps of the current phase done after
+    its first (which compiles) times the steps left, unknown until one of those is timed.
+    A phase is a run of steps with the same ``total``: the assembly's planning and its
+    social force have steps of different lengths, and each announces its own total when
+    it starts (the scenarios' draw, quick, is a phase of its own). ``what`` may be empty:
+    the line then shows ``done/total`` alone.
+
+    Parameters
+    ----------
+    clock : StageClock
+        The clock of the running stage.
+    stage : str
+        The stage's words (its key in the clock's record).
+    timer : callable
+        Seconds now (default :func:`time.perf_counter`).
+    """
+
+    def __init__(
+        self, clock: StageClock, stage: str, timer: Callable[[], float] = time.perf_counter
+    ) -> None:
+        self._clock, self._stage, self._timer = clock, stage, timer
+        self._phase: tuple[int, int, float] | None = None  # (total, done, time) at its start
+
+    def __call__(self, done: int, total: int, what: str) -> None:
+        now = self._timer()
+        if self._phase is None or self._phase[0] != total:
+            self._phase = (total, done, now)
+        _, done0, t0 = self._phase
+        last = self._clock.last(self._stage)
+        if last is not None:
+            left: float | None = max(last - self._clock.spent(), 0.0)
+        elif done >= total:
+            left = 0.0
+        elif done > done0:
+            left = (now - t0) / (done - done0) * (total - done)
+        else:
+            left = None
+        self._clock.left(left, f"{what} ({done}/{total})" if what else f"{done}/{total}")

@@ -210,3 +210,33 @@ def test_xla_compiling_is_the_time_xla_compiled_not_loaded(tmp_path):
         for name, value in saved.items():
             jax.config.update(name, value)
         compilation_cache.reset_cache()
+
+
+def test_a_stage_of_steps_shows_the_time_left_from_their_rate_on_a_first_run(tmp_path):
+    """``clock.steps``: nothing recorded, the first step (which compiles) starts the count,
+    the next ones' mean time times the steps left is the time left; a new stage counts
+    afresh; a later run uses the record instead."""
+    path = tmp_path / "stage_times.json"
+    timer = _Timer()
+    status = _Status()
+    with StageClock(status, "fitting: ", path=path, timer=timer, compiled=None) as clock:
+        clock("realism")
+        for dt, done in ((30.0, 1), (10.0, 2), (12.0, 3)):
+            timer.now += dt
+            clock.steps(done, 5, "replicates")
+        assert status.words[-3:] == [
+            "fitting: realism ... 30 s, replicates (1/5)",
+            "fitting: realism ... 40 s, replicates (2/5), about 30 s left",
+            "fitting: realism ... 52 s, replicates (3/5), about 22 s left",
+        ]
+        clock("behaviour")  # the steps of the stage before count for nothing here
+        timer.now += 8.0
+        clock.steps(1, 2)
+        assert status.words[-1] == "fitting: behaviour ... 8 s, 1/2"
+        timer.now += 4.0
+    second = _Status()
+    with StageClock(second, "fitting: ", path=path, timer=timer, compiled=None) as clock:
+        clock("realism")
+        timer.now += 20.0
+        clock.steps(1, 5, "replicates")  # 52 s recorded, 20 s spent
+    assert second.words[-1] == "fitting: realism ... 20 s, replicates (1/5), about 32 s left"

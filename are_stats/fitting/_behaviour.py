@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from functools import partial
 from typing import Any
 
@@ -620,6 +620,7 @@ def fit_behaviour(
     dtype: str = "float32",
     tol: float = 1e-3,
     features: Any = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> BehaviourFit:
     """Fit speeds, exits, rationality, slip (and reward weights) per class from tracks.
 
@@ -672,6 +673,11 @@ def fit_behaviour(
         ``time_cost``: ``w_k`` is a reward per epoch in its units (``w < 0``: the cells are
         avoided, ``w > 0``: sought; ``w = -time_cost`` doubles the cost of an epoch spent
         where ``phi = 1``). Weights are bounded to ``+-10 time_cost``.
+    progress : callable, optional
+        ``progress(done, total)`` after each class fitted (``total``: the classes). The
+        class is the only loop with a count known in advance: its maximum likelihood is
+        one L-BFGS-B run that stops when it converges (at most 80 evaluations), so a log
+        of one class reports its one step at the end. The fit does not depend on it.
 
     Returns
     -------
@@ -764,6 +770,8 @@ def fit_behaviour(
         track_class.extend([ci] * len(ent_a))
         entry_xy.append(ent_a)
         exit_xy.append(ext_a)
+        if progress is not None:
+            progress(ci + 1, len(classes))
     arrays = {k: np.asarray(v) for k, v in per.items()}
     for k in ("n_moves", "n_tracks", "n_fit_tracks", "n_epochs"):
         arrays[k] = arrays[k].astype(np.int64)

@@ -81,7 +81,9 @@ def _behaviour(
     notes: list[str],
 ) -> tuple[az.InferenceData, OccupancyGrid, tuple[pd.DataFrame, dict[str, Any]] | None]:
     """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``;
-    the map used and the motion checks of a labelled table (None without labels)."""
+    the map used and the motion checks of a labelled table (None without labels). The
+    long stages report their steps to ``say.steps(done, total, what)`` when it has one."""
+    steps = _steps_of(say)
     tracks = log.tracks
     if grid is not None:
         free, res, origin = grid.free, grid.resolution, grid.origin[:2]
@@ -98,8 +100,9 @@ def _behaviour(
     run_speed = None if catalogue is None else catalogue.run_thresholds()
     try:
         bfit = fit_behaviour(
-            tracks, free, res, origin, seed=seed, features=features or None, run_speed=run_speed
-        )
+            tracks, free, res, origin, seed=seed, features=features or None,
+            run_speed=run_speed, progress=lambda done, total: steps(done, total, "classes"),
+        )  # fmt: skip
     except NoWalkersError as err:  # people who only stand: no walking to learn
         notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
         return idata, grid, None
@@ -111,8 +114,15 @@ def _behaviour(
     if learned is not None:
         idata.behaviour.attrs.update(interaction_attrs(learned, info))
     say("realism and displacement errors against the tracks")
-    checks = _attach_motion_tables(seed, idata, bfit, learned, tracks, grid)
+    checks = _attach_motion_tables(seed, idata, bfit, learned, tracks, grid, steps)
     return idata, grid, checks
+
+
+def _steps_of(progress: object) -> Callable[[int, int, str], None]:
+    """``progress.steps`` (a stage clock's: :meth:`~are_stats._stage_clock.StageClock.steps`),
+    or a no-op for a plain ``progress(message)`` or None."""
+    steps = getattr(progress, "steps", None)
+    return steps if callable(steps) else (lambda done, total, what: None)
 
 
 def _attach_motion_tables(
@@ -122,14 +132,40 @@ def _attach_motion_tables(
     learned: SocialForce | None,
     tracks: pd.DataFrame,
     grid: OccupancyGrid,
+    steps: Callable[[int, int, str], None] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]] | None:
     """Realism and displacement errors against the log's tracks, stored in the fit so that
     ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
     store the per-class motion rows (median speed, fraction still: issue 31); their motion
-    checks (table, replicates) are returned for the report to reuse (None without labels)."""
+    checks (table, replicates) are returned for the report to reuse (None without labels).
+
+    ``steps(done, total, what)`` is told each step: the realism table's replicates, then
+    the displacement errors, then the motion checks (labels only). The realism runs first
+    so that the count is known at the first step (its own total); each part draws with its
+    own key, so the order changes no number."""
     from are_stats.scenarios import realism_features, realism_summary, realism_table
 
+    say = steps or (lambda done, total, what: None)
+    after = 1 + int("label" in tracks.columns)  # displacement errors, motion checks
     key = jax.random.key(seed)
+    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
+    # (each through the one assembly, social force included) against the log
+    xy = tracks[["id", "t", "x", "y"]]
+    walked = [0]  # the realism table's replicates
+
+    def realism_step(done: int, total: int) -> None:
+        walked[0] = total
+        say(done, total + after, f"realism, replicate {done} of {total}")
+
+    real = realism_table(
+        jax.random.fold_in(key, 4),
+        xy,
+        grid,
+        behaviour=bfit,
+        n_replicates=1,
+        interaction=learned if learned is not None else True,
+        progress=realism_step,
+    )
     # predicted as generation walks people: continuous paths, then the fit's social force
     # at most FIT_WINDOWS windows: each rolls out a path per candidate goal (the table
     # keeps n_windows and the standard errors)
@@ -142,17 +178,7 @@ def _attach_motion_tables(
         grid=grid,
         max_windows=FIT_WINDOWS,
     )
-    # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
-    # (each through the one assembly, social force included) against the log
-    xy = tracks[["id", "t", "x", "y"]]
-    real = realism_table(
-        jax.random.fold_in(key, 4),
-        xy,
-        grid,
-        behaviour=bfit,
-        n_replicates=1,
-        interaction=learned if learned is not None else True,
-    )
+    say(walked[0] + 1, walked[0] + after, "displacement errors")
     same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
     dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
     observed = realism_summary(realism_features(xy, dt, grid))
@@ -165,6 +191,7 @@ def _attach_motion_tables(
         jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
         interaction=learned if learned is not None else True, grid=grid,
     )  # fmt: skip
+    say(walked[0] + 2, walked[0] + after, "motion checks")
     per_class = class_motion_checks(tracks, reps)
     if per_class is not None:
         idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
@@ -200,8 +227,17 @@ def fit_log(
         the tracks of a tracks table, the manifest with its map), or an already validated
         :class:`~are_stats.logs.LifecycleData` (the traffic models only; ``class_labels``,
         ``classes``, ``grid`` and ``clock_start`` as :func:`fit_lifecycle_data` takes them).
-    settings, priors, counts_panel, progress
+    settings, priors, counts_panel
         See :func:`fit_lifecycle_data`.
+    progress : callable, optional
+        ``progress(stage)`` at each stage, as :func:`fit_lifecycle_data` takes it (one with
+        ``left(seconds, words)`` is told the NUTS fits' time left). One that also has a
+        ``steps(done, total, what)`` method (:class:`~are_stats._stage_clock.StageClock`)
+        is told the steps of a tracks table's long stages, after each: the behaviour's
+        classes (:func:`~are_stats.fitting.fit_behaviour`), then the realism table's
+        replicates (:func:`~are_stats.scenarios.realism_table`), the displacement errors
+        and, with labels, the motion checks; the clock shows a time left from their rate
+        on a machine's first run. A plain callable is only told the stages.
     class_labels, grid, clock_start, classes
         Only with a :class:`~are_stats.logs.LifecycleData`: a field log supplies them (its
         labels, the manifest's map, its ``clock_start``, its label classes).

@@ -39,6 +39,7 @@ near passes, which no model of motion makes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -441,6 +442,7 @@ def realism_table(
     radius: float = 0.3,
     interaction: Any = True,
     noise: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """Realism of constant velocity, the catalogue behaviour and the fitted behaviour on the
     observed artefacts, side by side (see the module docstring).
@@ -473,6 +475,10 @@ def realism_table(
         rates, near passes and times to collision are those of noisy positions (5 cm at
         2.5 Hz is an acceleration noise of 0.8 m/s^2); a model's exact positions, scored
         against them, would lose on the sensor, not on the motion.
+    progress : callable, optional
+        ``progress(done, total)`` after each replicate of each behaviour (``total``: the
+        behaviours walked, catalogue and fitted, times ``n_replicates``; each replicate
+        assembles a scene, the long part of the table). The table does not depend on it.
 
     Returns
     -------
@@ -527,6 +533,8 @@ def realism_table(
         sources.append(("catalogue", "catalogue"))
     if behaviour is not None:
         sources.append(("fitted", "fitted"))
+    say = progress or (lambda done, total: None)
+    total = len(sources) * n_replicates
     for m, (name, rule) in enumerate(sources):
         runs = []
         for r in range(n_replicates):
@@ -538,6 +546,7 @@ def realism_table(
             if moved is not None and len(moved):
                 moved = seen(jax.random.fold_in(k_run, 7), moved)
                 runs.append(realism_features(moved, dt, grid, radius, groups=by_artefact))
+            say(m * n_replicates + r + 1, total)
         if runs:
             models[name] = runs
     pooled = {

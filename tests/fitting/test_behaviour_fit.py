@@ -466,3 +466,18 @@ def test_generated_walkers_keep_off_walls_with_a_negative_wall_weight(crossing) 
         cells = f.world_to_cell(out[["x", "y"]].to_numpy())
         mean_dist[w] = float(dist[cells[:, 0], cells[:, 1]].mean())
     assert mean_dist[-2.0] > mean_dist[0.0] + 0.5, mean_dist
+
+
+@pytest.mark.slow  # two soft-policy fits (about 60 s on a busy 2-core machine)
+def test_progress_counts_the_classes_fitted() -> None:
+    """``progress(done, total)`` after each class (two here), not before: the class is the
+    fit's one loop with a count known in advance."""
+    tracks, free = _model_tracks(1, 2.0, 0.1, 0.8, n=24)
+    tracks["label"] = np.where(tracks["id"] % 2 == 0, "person", "child")
+    said = []
+    fit = fit_behaviour(
+        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, max_fit_tracks=3,
+        progress=lambda done, total: said.append((done, total)),
+    )  # fmt: skip
+    assert fit.classes == ("child", "person")
+    assert said == [(1, 2), (2, 2)]

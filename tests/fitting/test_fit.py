@@ -149,3 +149,28 @@ def test_a_damaged_behaviour_group_is_named(fitted, tmp_path):
 def test_fit_is_frozen(fitted):
     with pytest.raises(dataclasses.FrozenInstanceError):
         fitted.area = 1.0  # type: ignore[misc]
+
+
+def test_the_long_stages_tell_their_steps_to_the_clock(tracks_log, fitted):
+    """A ``progress`` with a ``steps`` method (the CLI's stage clock) is told the steps of
+    the behaviour (its classes) and of the motion criticism (the realism replicates, then
+    the displacement errors and the motion checks), each under its stage; the fit is the
+    one without it."""
+    calls = []
+
+    class Clock:
+        def __call__(self, stage):
+            calls.append(stage)
+
+        def steps(self, done, total, what):
+            calls.append((done, total, what))
+
+    fit = fit_log(5, read_field_log(tracks_log), EM, progress=Clock())
+    behaviour = calls.index("behaviour from the tracks (speeds, exits, rationality)")
+    assert calls[behaviour + 1] == (1, 1, "classes")
+    realism = calls.index("realism and displacement errors against the tracks")
+    steps = calls[realism + 1 :]
+    assert [s[:2] for s in steps] == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert [s[2] for s in steps[2:]] == ["displacement errors", "motion checks"]
+    for name in ("realism", "displacement"):
+        pd.testing.assert_frame_equal(fit.motion[name], fitted.motion[name])

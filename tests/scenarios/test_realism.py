@@ -302,3 +302,24 @@ def test_the_fitted_model_beats_both_baselines_on_an_independent_crowd():
     assert spacing["fitted"] > spacing["constant velocity"]
     assert r["interaction"].group_spacing == pytest.approx(0.7, abs=0.05)
     assert r["table"].attrs["observation_noise"] == pytest.approx(0.05, rel=0.15)
+
+
+def test_progress_counts_the_replicates_and_changes_nothing():
+    """``progress(done, total)`` after each replicate of each behaviour walked (here the
+    catalogue's, twice), ``done`` rising by one to ``total``; the same table without it."""
+    occ = np.zeros((40, 80), np.int8)
+    occ[[0, -1], :] = occ[:, [0, -1]] = 100
+    grid = OccupancyGrid(occ, 0.25, (0.0, 0.0, 0.0))
+    log = pd.concat(
+        [_line(k, 6.0 * k, (1.5, 2.0 + 2.0 * k), (18.0, 2.5 + 2.0 * k), 1.2, 0.4)
+         for k in range(4)], ignore_index=True,
+    )  # fmt: skip
+    said = []
+    table = realism_table(
+        jax.random.key(3), log, grid, n_replicates=2,
+        progress=lambda done, total: said.append((done, total)),
+    )  # fmt: skip
+    assert said == [(1, 2), (2, 2)]
+    alone = realism_table(jax.random.key(3), log, grid, n_replicates=2)
+    assert "catalogue" in table.columns
+    pd.testing.assert_frame_equal(table, alone)
