@@ -13,7 +13,6 @@ generated from the fit walks with the log's interaction and groups
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -21,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats.behaviour import SocialForce, fit_social_force, group_spacing
-from are_stats.logs import tracks_to_lifecycle
+from are_stats.logs import track_groups
 
 __all__ = [
     "fit_group_spacing",
@@ -83,7 +82,7 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
         raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
     # the log's groups walk in formation: their members are left out of the repulsion's
     # least squares (fit_social_force's ``groups``)
-    labels = _log_groups(tracks)
+    labels = track_groups(tracks)
     groups = {i: labels[str(i)] for i in pd.unique(ids) if str(i) in labels}
     params, info = fit_social_force(pd.concat(parts, ignore_index=True), groups=groups)
     if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
@@ -156,21 +155,8 @@ def fit_group_spacing(tracks: pd.DataFrame) -> tuple[float, int]:
     samples : int
         Member samples the spacing is the median of (0: none).
     """
-    labels = _log_groups(tracks)
+    labels = track_groups(tracks)
     return group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
-
-
-def _log_groups(tracks: pd.DataFrame) -> dict[str, str]:
-    """Group label of each grouped track id (as text), as the life-cycle conversion infers
-    them (:func:`~are_stats.logs.tracks_to_lifecycle`)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
-        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
-    return {
-        str(i): str(g)
-        for i, g in zip(life["id"], life["group"], strict=True)
-        if str(g) not in ("", "nan", "None")
-    }
 
 
 def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[str, float]:

@@ -336,20 +336,11 @@ def _walk(
 
 
 def _log_groups(tracks: pd.DataFrame) -> dict[Any, str]:
-    """Group label of each grouped track id of a log, as the life-cycle conversion infers
-    groups (:func:`~are_stats.logs.tracks_to_lifecycle`); a track it splits at a gap is
-    left alone."""
-    from are_stats.logs import tracks_to_lifecycle
+    """:func:`~are_stats.logs.track_groups` keyed by the log's own ids (not their text)."""
+    from are_stats.logs import track_groups
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
-        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
     by_text = {str(i): i for i in pd.unique(tracks["id"])}
-    return {
-        by_text[str(i)]: str(g)
-        for i, g in zip(life["id"], life["group"], strict=True)
-        if str(g) not in ("", "nan", "None") and str(i) in by_text
-    }
+    return {by_text[i]: g for i, g in track_groups(tracks).items() if i in by_text}
 
 
 def _draw_speeds(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> np.ndarray:

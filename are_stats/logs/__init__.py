@@ -55,6 +55,7 @@ from are_stats.logs._tracks import (
     TRACK_COLUMNS,
     read_tracks,
     sampling_step,
+    track_groups,
     tracks_to_lifecycle,
     validate_tracks,
 )
@@ -112,6 +113,7 @@ __all__ = [
     "read_tracks",
     "read_tracks_bag",
     "sampling_step",
+    "track_groups",
     "tracks_to_lifecycle",
     "transform_matrix",
     "unit_quaternion",

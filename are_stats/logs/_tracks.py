@@ -36,6 +36,7 @@ __all__ = [
     "TRACK_COLUMNS",
     "read_tracks",
     "sampling_step",
+    "track_groups",
     "tracks_to_lifecycle",
     "validate_tracks",
 ]
@@ -476,6 +477,41 @@ def tracks_to_lifecycle(
     ].reset_index(drop=True)
     out.attrs.update(excluded=excluded, window=(t0, t1), tracks=info)
     return out
+
+
+def track_groups(tracks: pd.DataFrame) -> dict[str, str]:
+    """The arrival group of each grouped track, as :func:`tracks_to_lifecycle` infers groups
+    (people first seen together who move together).
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` (other columns are ignored).
+
+    Returns
+    -------
+    dict of str to str
+        Group label by track id as text; tracks alone and the parts of a track split at a
+        gap (``<id>#k``, reported by the conversion's warning, silenced here) are left out.
+
+    Examples
+    --------
+    >>> import numpy as np, pandas as pd
+    >>> t = np.arange(0.0, 10.0, 0.5)
+    >>> pair = [pd.DataFrame({"id": i, "t": t, "x": t, "y": 0.5 * i}) for i in (1, 2)]
+    >>> alone = pd.DataFrame({"id": 3, "t": t + 20, "x": 0.0, "y": t})
+    >>> g = track_groups(pd.concat([*pair, alone]))
+    >>> sorted(g), g["1"] == g["2"]
+    (['1', '2'], True)
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reports them
+        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
+    return {
+        str(i): str(g)
+        for i, g in zip(life["id"], life["group"], strict=True)
+        if str(g) not in ("", "nan", "None")
+    }
 
 
 def _infer_groups(

@@ -45,6 +45,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from are_stats.logs import track_groups
+
 __all__ = [
     "REALISM_FEATURES",
     "plot_realism",
@@ -414,23 +416,6 @@ def _constant_velocity(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
     return pd.concat(out, ignore_index=True) if out else tab
 
 
-def _log_groups(tracks: pd.DataFrame) -> dict[str, str]:
-    """Group label of each grouped track id (as text) of a log's tracks, as the life-cycle
-    conversion infers groups (:func:`~are_stats.logs.tracks_to_lifecycle`)."""
-    import warnings
-
-    from are_stats.logs import tracks_to_lifecycle
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # split tracks: the fit reported them
-        life = tracks_to_lifecycle(tracks[["id", "t", "x", "y"]])
-    return {
-        str(i): str(g)
-        for i, g in zip(life["id"], life["group"], strict=True)
-        if str(g) not in ("", "nan", "None")
-    }
-
-
 def realism_table(
     key: Any,
     tracks: pd.DataFrame,
@@ -507,7 +492,7 @@ def realism_table(
     })  # fmt: skip
     # the log's groups (as the life-cycle conversion infers them); the models walk the
     # same artefacts in the same groups (a lone artefact is a group of its own)
-    label = _log_groups(tab)
+    label = track_groups(tab)
     code = pd.factorize(pd.Series([label.get(str(i)) for i in first.index], dtype=object))[0]
     lone = code < 0
     art["group"] = np.where(lone, code.max(initial=-1) + 1 + np.arange(len(art)), code)
