@@ -135,6 +135,7 @@ from are_stats.scenarios import (
     read_scenes,
     scene_tracks,
     scenes_from_draws,
+    scenes_from_fit,
     scenes_from_tables,
 )
 
@@ -147,8 +148,7 @@ if TYPE_CHECKING:
     import trimesh
     from distributed import Client
 
-    from are_stats.behaviour import BehaviourFit, SocialForce
-    from are_stats.traffic import TrafficLaws
+    from are_stats.fitting import Fit
 
 __all__ = [
     "expand_tasks",
@@ -598,21 +598,11 @@ def _grid(path: str) -> OccupancyGrid:
 
 
 @_cached()
-def _fit_draws(
-    path: str,
-) -> tuple[
-    dict[str, np.ndarray], list[str] | None, TrafficLaws, BehaviourFit | None, SocialForce | bool
-]:
-    """Posterior draws and laws of the fit's chosen traffic models
-    (:meth:`~are_stats.fitting.Fit.traffic`), its class labels, its fitted behaviour
-    (None without a ``behaviour`` group) and the interaction it learned (``True``, the
-    published social force, without one)."""
+def _fit(path: str) -> Fit:
+    """The fit at ``path``, read and checked once (:func:`~are_stats.fitting.read_fit`)."""
     from are_stats.fitting import read_fit
 
-    fit = read_fit(path)
-    draws, laws = fit.traffic("chosen")
-    labels = None if fit.class_labels is None else list(fit.class_labels)
-    return draws, labels, laws, fit.behaviour, fit.interaction or True
+    return read_fit(path)
 
 
 @_cached()
@@ -666,7 +656,7 @@ def _scenario_size(
         return n, n, 2.0 * n
     if "fit" in sc:
         p = _source_path(sc, "fit", src, pre)
-        draws = _fit_draws(str(p))[0]
+        draws = _fit(str(p)).traffic("chosen")[0]
         lam, mu = float(np.mean(draws["arrival_rate"])), float(np.mean(draws["leave_rate"]))
     else:
         lam, mu = float(sc["arrival_rate"]), float(sc["leave_rate"])
@@ -788,7 +778,7 @@ def _rolls_out(scenario: Mapping[str, Any]) -> bool:
     if "scenarios" in scenario and Path(scenario["scenarios"]).is_dir():
         return _scenario_folder(str(scenario["scenarios"]))[2] is None
     if "fit" in scenario and Path(scenario["fit"]).is_file():
-        return _fit_draws(str(scenario["fit"]))[3] is None
+        return _fit(str(scenario["fit"])).behaviour is None
     return True  # (a missing source is named by the checks of each task)
 
 
@@ -891,10 +881,11 @@ def _task_scenario(
     ``arrival_rate``, ``n_artefacts`` and ``n_arrivals`` (arrivals in ``(0, time_limit]``).
 
     The scene comes from the one assembly that ``generate`` and ``augment`` use
-    (:func:`~are_stats.scenarios.scenes_from_draws`): a fit's posterior draw or the
-    hand-set rates, moved by the fit's behaviour when it has one, else the catalogue's,
-    then the social force. A scenarios folder brings its own scenes (and tracks; without
-    them, the same behaviour rule moves its artefacts).
+    (:func:`~are_stats.scenarios.scenes_from_fit` at one posterior draw; hand-set rates
+    go through :func:`~are_stats.scenarios.scenes_from_draws`, which it calls), moved by
+    the fit's behaviour when it has one, else the catalogue's, then the social force. A
+    scenarios folder brings its own scenes (and tracks; without them, the same behaviour
+    rule moves its artefacts).
     """
     import jax
 
@@ -932,12 +923,26 @@ def _task_scenario(
         (scene,) = scenes_from_tables(art, tracks, catalogue, labels, [draw])
         rate = float("nan")
     else:
-        labels, laws, fitted, draw, interaction = None, None, None, -1, True
+        start = sc.get("start", "stationary")
         if "fit" in sc:
-            draws, labels, laws, fitted, interaction = _fit_draws(str(sc["fit"]))
+            fit = _fit(str(sc["fit"]))
             # one posterior draw per replicate, chosen by the replicate's seed alone
-            draw = int(np.random.default_rng([seed, 1]).integers(draws["arrival_rate"].shape[0]))
-            params = {k: v[draw : draw + 1] for k, v in draws.items()}
+            rates = np.asarray(fit.traffic("chosen")[0]["arrival_rate"])
+            draw = int(np.random.default_rng([seed, 1]).integers(rates.shape[0]))
+            (scene,) = scenes_from_fit(
+                seed,
+                fit,
+                grid,
+                catalogue,
+                1,
+                horizon,
+                behaviours=behave,
+                posterior_draw=draw,
+                start=start,
+                source=str(sc["fit"]),
+                **moves,
+            )
+            rate = float(rates[draw])
         else:
             params = {
                 "arrival_rate": np.atleast_1d(float(sc["arrival_rate"])),
@@ -945,23 +950,19 @@ def _task_scenario(
                 "mix_weights": np.asarray(sc["mix_weights"], float)[None, :],
                 "mix_rates": np.asarray(sc["mix_rates"], float)[None, :],
             }
-        rate = float(params["arrival_rate"][0])
-        (scene,) = scenes_from_draws(
-            seed,
-            params,
-            grid,
-            catalogue,
-            1,
-            horizon,
-            laws=laws,
-            behaviours=behave,
-            fitted=fitted,
-            class_labels=labels,
-            start=sc.get("start", "stationary"),
-            source=str(sc.get("fit", "scenario")),
-            interaction=interaction,
-            **moves,
-        )
+            draw, rate = -1, float(params["arrival_rate"][0])
+            (scene,) = scenes_from_draws(
+                seed,
+                params,
+                grid,
+                catalogue,
+                1,
+                horizon,
+                behaviours=behave,
+                start=start,
+                source="scenario",
+                **moves,
+            )
     t_arr = scene.t_arrive
     info = {
         "draw": draw,
