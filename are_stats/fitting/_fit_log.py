@@ -25,6 +25,7 @@ import logging
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -32,9 +33,18 @@ import numpy as np
 import numpyro
 
 from are_stats import __version__
+from are_stats._atomic import atomic_path
 from are_stats._checks import check_in, check_nonneg_int, describe
 from are_stats._lazy import arviz as az
 from are_stats._lazy import import_xarray_dask
+from are_stats.environment import coarse_free
+from are_stats.fitting._class_traffic import (
+    attach_class_positions,
+    attach_class_shares_by_time,
+    fit_class_positions,
+    fit_class_shares_by_time,
+)
+from are_stats.fitting._classes import attach_classes, fit_classes
 from are_stats.fitting._em import fit_mixture_em, marks_histogram
 from are_stats.fitting._fit import Fit, fit_from_idata
 from are_stats.fitting._lifecycle_exact import exact_lifecycle_draws, has_exact_posterior
@@ -44,10 +54,32 @@ from are_stats.fitting._lifecycle_mcmc import (
     fit_lifecycle_nuts,
 )
 from are_stats.fitting._psis import psislw
-from are_stats.fitting._traffic import fit_traffic
+from are_stats.fitting._select import InformationCriterion, _weighted_total
+from are_stats.fitting._traffic import (
+    ARRIVAL_CHOICES,
+    LIFETIME_CHOICES,
+    POSITION_CELL,
+    POSITION_CHOICES,
+    fit_traffic,
+    time_resolution,
+)
+from are_stats.inputs import (
+    Described,
+    InputError,
+    check_memory,
+    check_work,
+    get_float,
+    get_int,
+    get_list,
+    get_str,
+)
 from are_stats.traffic import (
+    ARRIVAL_SPECS,
+    STAY_LAWS,
+    ArrivalSpec,
     LifecycleData,
     LifecyclePriors,
+    clock_offset,
     conjugate_arrival_rate,
     conjugate_leave_rate,
     conjugate_mixture,
@@ -132,11 +164,6 @@ class FitSettings:
     compare: str = "laplace"
 
     def __post_init__(self) -> None:
-        from are_stats.fitting._traffic import (
-            ARRIVAL_CHOICES,
-            LIFETIME_CHOICES,
-            POSITION_CHOICES,
-        )
 
         check_in("method", self.method, ("nuts", "em"))
         check_in("compare", self.compare, ("laplace", "nuts"))
@@ -241,8 +268,6 @@ def _em_log_likelihood(
     with labels, of each distinct (class, mark) pair (complete data), per draw.
     """
     from scipy.special import gammaln, logsumexp, xlogy
-
-    from are_stats.inputs import check_memory
 
     s = data.summary
     lam = np.asarray(post["arrival_rate"], dtype=float)
@@ -547,8 +572,6 @@ def _fit_classes(
     key: Any, idata: az.InferenceData, data: LifecycleData, classes: Any, labels: Any, say: Any
 ) -> az.InferenceData:
     """The class shares and per-class stays of a labelled log, under the pooled stay law."""
-    from are_stats.fitting._classes import attach_classes, fit_classes
-    from are_stats.fitting._traffic import time_resolution
 
     if labels is None:
         raise ValueError("class_labels: expected the names of the classes given by classes=")
@@ -574,15 +597,6 @@ def _fit_class_traffic(
 ) -> az.InferenceData:  # fmt: skip
     """Where (entry/exit densities per class, with a map and positions) and when (shares by
     time of day, with a clock) each class of a labelled log comes (issue 31)."""
-    from are_stats.environment import coarse_free
-    from are_stats.fitting._class_traffic import (
-        attach_class_positions,
-        attach_class_shares_by_time,
-        fit_class_positions,
-        fit_class_shares_by_time,
-    )
-    from are_stats.fitting._traffic import POSITION_CELL
-    from are_stats.traffic import clock_offset
 
     entered = ~data.truncated
     if (
@@ -730,9 +744,6 @@ def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False
     pathlib.Path
         The written file.
     """
-    from pathlib import Path
-
-    from are_stats._atomic import atomic_path
 
     path = Path(out)
     stable = _stable(idata.idata if isinstance(idata, Fit) else idata)
@@ -744,8 +755,6 @@ def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False
 
 def _check_format(attrs: Any, source: str) -> None:
     """Refuse a fit of a newer format; warn about a fit written before formats had numbers."""
-    from are_stats import __version__
-    from are_stats.inputs import Described, InputError
 
     if "format_version" not in attrs:
         warnings.warn(
@@ -772,7 +781,6 @@ def _check_format(attrs: Any, source: str) -> None:
 
 def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
     """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
-    from are_stats.inputs import Described, InputError
 
     if name not in ds.data_vars:
         raise InputError(
@@ -797,8 +805,6 @@ MAX_MARK_RATE = 1e18
 def _check_real(
     a: np.ndarray, source: str, where: str, *, lo: float, lo_open: bool, hi: float = np.inf
 ) -> None:
-    from are_stats._checks import describe
-    from are_stats.inputs import Described, InputError
 
     word = ">" if lo_open else ">="
     word_hi = f" and <= {hi:g}" if np.isfinite(hi) else ""
@@ -817,7 +823,6 @@ def _check_real(
 
 def _check_fit(idata: az.InferenceData, source: str) -> None:
     """Validate a fit read from ``source`` (groups, variables, attributes)."""
-    from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str
 
     for group in ("posterior", "observed_data"):
         if group not in idata.groups():
@@ -933,8 +938,6 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
 
 def _check_traffic(idata: az.InferenceData, source: str) -> None:
     """The chosen traffic models of a fit and the variables they need (when recorded)."""
-    from are_stats.inputs import Described, InputError, get_str
-    from are_stats.traffic import ARRIVAL_SPECS, STAY_LAWS, ArrivalSpec
 
     post = idata.posterior
     attrs = post.attrs
@@ -975,8 +978,6 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
     if spec.negbin:
         get_float_attr(attrs, "traffic_arrival_bin_width", source)
     if spec.tod:
-        from are_stats.traffic import clock_offset
-
         try:
             clock_offset(str(attrs.get("traffic_clock_start", "")))
         except ValueError as err:
@@ -1012,7 +1013,6 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
 
 def _check_classes(idata: az.InferenceData, source: str) -> None:
     """The class shares and per-class stays of a labelled log (when recorded)."""
-    from are_stats.inputs import Described, InputError, get_str
 
     post = idata.posterior
     if "class_weights" not in post.data_vars:
@@ -1081,7 +1081,6 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
 
 def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:
     """A finite attribute > 0 of a fit group, named in the error when missing or bad."""
-    from are_stats.inputs import Described, InputError, get_float
 
     if name not in attrs:
         raise InputError(source, f"{group}.attrs.{name}", "this attribute",
@@ -1123,9 +1122,6 @@ def read_fit(path: str | Any) -> Fit:
         (a ValueError) naming the file, the group/variable/attribute and what was expected,
         if it is not a readable NetCDF fit or any of the above is missing or bad.
     """
-    from pathlib import Path
-
-    from are_stats.inputs import InputError
 
     p = Path(path)
     if not p.exists():
@@ -1167,7 +1163,6 @@ def _distinct_loglik(
     idata: az.InferenceData, var_name: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(chain, draw, m) log-likelihood of the m distinct observations, counts and inverse."""
-    from are_stats.inputs import check_memory
 
     if var_name == "stays":
         pairs, counts, inverse = _stays_columns(idata)
@@ -1217,8 +1212,6 @@ def pointwise_log_likelihood(idata: az.InferenceData, var_name: str = "stays") -
     """
     import xarray as xr
 
-    from are_stats.inputs import check_memory
-
     ll, _, inverse = _distinct_loglik(idata, var_name)
     check_memory(ll.shape[0] * ll.shape[1] * inverse.size * 8.0, f"the {var_name} log-likelihood")
     return xr.DataArray(ll[..., inverse], dims=("chain", "draw", "artefact"), name=var_name)
@@ -1251,9 +1244,6 @@ def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> Any:
         distinct observation, their counts and Pareto k.
     """
     from scipy.special import logsumexp
-
-    from are_stats.fitting._select import InformationCriterion, _weighted_total
-    from are_stats.inputs import check_work
 
     if var_name == "stays":  # distinct stays may be as many as rows: computed in blocks
         pairs, counts, _ = _stays_columns(idata)
