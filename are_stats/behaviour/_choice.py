@@ -20,6 +20,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from are_stats.behaviour._walk import walk_tracks
+from are_stats.environment import coarse_free
+
 __all__ = ["TRACK_COLUMNS", "behaviour_tracks", "choose_behaviours"]
 
 #: Columns of a behaviour tracks table.
@@ -99,9 +102,6 @@ def behaviour_tracks(
         Columns :data:`TRACK_COLUMNS`.
     """
     from scipy import ndimage
-
-    from are_stats.behaviour._walk import walk_tracks
-    from are_stats.environment import coarse_free
 
     if abs(float(grid.origin[2])) > 1e-9:
         raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")

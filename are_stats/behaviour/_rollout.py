@@ -19,8 +19,10 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_array, check_positive, describe
-from are_stats.behaviour._mdp import MDPSolution
-from are_stats.behaviour._rewards import FORWARD, LEFT, RIGHT, RUN
+from are_stats.behaviour._mdp import GridMDP, MDPSolution
+from are_stats.behaviour._rewards import FORWARD, LEFT, RIGHT, RUN, follow_rewards
+from are_stats.builder import ARBuilder
+from are_stats.environment import OccupancyGrid
 
 __all__ = [
     "builder_resolver",
@@ -88,9 +90,6 @@ def builder_resolver(builder: Any, size: Any = None, label: str | None = None) -
 def _cell_resolver(mdp: Any) -> Resolver:
     """:func:`builder_resolver` on a builder of the MDP's cells (1 m cells at the origin:
     the boxes, 0.9 of a cell, meet exactly when two artefacts share a cell)."""
-    from are_stats.builder import ARBuilder
-    from are_stats.environment import OccupancyGrid
-
     grid = OccupancyGrid(np.where(mdp.occupied, 100, 0).astype(np.int8), 1.0)
     return builder_resolver(ARBuilder(grid))
 
@@ -391,9 +390,6 @@ def scenario_tracks(
         t_arrive``, or unknown behaviours.
     """
     from scipy import ndimage
-
-    from are_stats.behaviour._mdp import GridMDP
-    from are_stats.behaviour._rewards import follow_rewards
 
     if not isinstance(artefacts, pd.DataFrame):
         raise ValueError(f"artefacts: expected a pandas DataFrame, got {type(artefacts).__name__}")

@@ -39,7 +39,12 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_nonnegative, check_positive
-from are_stats.behaviour._rollout import check_on_free_cells
+from are_stats.behaviour._generate import _track_rows
+from are_stats.behaviour._mdp import GridMDP
+from are_stats.behaviour._model import grid_geodesic
+from are_stats.behaviour._motion import preferred_speeds, string_pull, walk_times
+from are_stats.behaviour._rewards import BEHAVIOURS
+from are_stats.behaviour._rollout import check_on_free_cells, rollout
 
 __all__ = ["walk_tracks"]
 
@@ -95,9 +100,6 @@ def _legs(
     chain for the round. ``cur`` (n, 2) holds every artefact's cell and is updated;
     ``fixed`` gives some artefacts the goal of their first leg (with ``max_rounds=1``,
     that leg alone: a follower's approach)."""
-    from are_stats.behaviour._motion import string_pull, walk_times
-    from are_stats.behaviour._rollout import rollout
-
     occ, cell, origin, within = mdp.occupied, geo["cell"], geo["origin"], geo["within_sd"]
     free = ~occ
     cache: dict[tuple[int, int], np.ndarray] = geo.setdefault("cache", {})
@@ -241,12 +243,6 @@ def walk_tracks(
         On missing columns, ``t_leave < t_arrive``, positions off the free cells, unknown
         behaviours or speeds that are not > 0.
     """
-    from are_stats.behaviour._generate import _track_rows
-    from are_stats.behaviour._mdp import GridMDP
-    from are_stats.behaviour._model import grid_geodesic
-    from are_stats.behaviour._motion import preferred_speeds, walk_times
-    from are_stats.behaviour._rewards import BEHAVIOURS
-
     missing = [c for c in _NEED if c not in artefacts.columns]
     if missing:
         raise ValueError(f"artefacts: expected columns {list(_NEED)}, missing {missing}")

@@ -572,7 +572,6 @@ def _fit_classes(
     key: Any, idata: az.InferenceData, data: LifecycleData, classes: Any, labels: Any, say: Any
 ) -> az.InferenceData:
     """The class shares and per-class stays of a labelled log, under the pooled stay law."""
-
     if labels is None:
         raise ValueError("class_labels: expected the names of the classes given by classes=")
     if data.marks is not None:
@@ -597,7 +596,6 @@ def _fit_class_traffic(
 ) -> az.InferenceData:  # fmt: skip
     """Where (entry/exit densities per class, with a map and positions) and when (shares by
     time of day, with a clock) each class of a labelled log comes (issue 31)."""
-
     entered = ~data.truncated
     if (
         grid is not None and abs(float(grid.origin[2])) <= 1e-9 and data.x is not None
@@ -744,7 +742,6 @@ def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False
     pathlib.Path
         The written file.
     """
-
     path = Path(out)
     stable = _stable(idata.idata if isinstance(idata, Fit) else idata)
     stable.posterior.attrs["format_version"] = FIT_FORMAT_VERSION
@@ -755,7 +752,6 @@ def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False
 
 def _check_format(attrs: Any, source: str) -> None:
     """Refuse a fit of a newer format; warn about a fit written before formats had numbers."""
-
     if "format_version" not in attrs:
         warnings.warn(
             f"{source}: the fit has no format_version (written before fits carried one): read "
@@ -781,7 +777,6 @@ def _check_format(attrs: Any, source: str) -> None:
 
 def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
     """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
-
     if name not in ds.data_vars:
         raise InputError(
             source, f"{group}.{name}", "this variable (a fit written by are-stats fit)",
@@ -823,7 +818,6 @@ def _check_real(
 
 def _check_fit(idata: az.InferenceData, source: str) -> None:
     """Validate a fit read from ``source`` (groups, variables, attributes)."""
-
     for group in ("posterior", "observed_data"):
         if group not in idata.groups():
             raise InputError(
@@ -938,7 +932,6 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
 
 def _check_traffic(idata: az.InferenceData, source: str) -> None:
     """The chosen traffic models of a fit and the variables they need (when recorded)."""
-
     post = idata.posterior
     attrs = post.attrs
     arr = get_str(attrs.get("arrival_model", "poisson"), source, "posterior.attrs.arrival_model",
@@ -1013,7 +1006,6 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
 
 def _check_classes(idata: az.InferenceData, source: str) -> None:
     """The class shares and per-class stays of a labelled log (when recorded)."""
-
     post = idata.posterior
     if "class_weights" not in post.data_vars:
         return
@@ -1081,7 +1073,6 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
 
 def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:
     """A finite attribute > 0 of a fit group, named in the error when missing or bad."""
-
     if name not in attrs:
         raise InputError(source, f"{group}.attrs.{name}", "this attribute",
                          Described(f"attributes {sorted(attrs)}"))  # fmt: skip
@@ -1122,7 +1113,6 @@ def read_fit(path: str | Any) -> Fit:
         (a ValueError) naming the file, the group/variable/attribute and what was expected,
         if it is not a readable NetCDF fit or any of the above is missing or bad.
     """
-
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such fit file")
@@ -1163,7 +1153,6 @@ def _distinct_loglik(
     idata: az.InferenceData, var_name: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(chain, draw, m) log-likelihood of the m distinct observations, counts and inverse."""
-
     if var_name == "stays":
         pairs, counts, inverse = _stays_columns(idata)
         mu = np.asarray(idata.posterior["leave_rate"].values, dtype=np.float64)

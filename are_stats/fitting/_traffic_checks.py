@@ -36,7 +36,10 @@ import numpy as np
 import pandas as pd
 
 from are_stats.fitting._criticism import count_path
-from are_stats.traffic import fold_in_key, key_from_seed
+from are_stats.fitting._fit import traffic_draws
+from are_stats.fitting._traffic import time_resolution
+from are_stats.scenarios import generate_scenarios
+from are_stats.traffic import boundary_distance, fold_in_key, key_from_seed
 
 __all__ = [
     "TRAFFIC_STATISTICS", "burst_statistics", "plot_traffic_checks", "traffic_checks",
@@ -144,8 +147,6 @@ def window_statistics(
     dict of str to float
         NaN where a statistic is undefined (no arrivals, no complete stay, no positions).
     """
-    from are_stats.traffic import boundary_distance
-
     t0, t1 = window
     ta = np.where(truncated, t0, t_arrive)
     tl = np.where(np.isfinite(t_leave), t_leave, np.inf)
@@ -208,9 +209,6 @@ def traffic_checks(
     replicates : dict of str to (R, S) ndarray
         The replicated statistics of each model (columns in table order).
     """
-    from are_stats.fitting._fit import traffic_draws
-    from are_stats.scenarios import generate_scenarios
-
     post = idata.posterior
     obs = idata.observed_data
     w = np.asarray(post.attrs["window"], float)
@@ -218,8 +216,6 @@ def traffic_checks(
     area = float(post.attrs["area"])
     res = float(np.asarray(post.attrs.get("traffic_time_resolution", 0.0)).ravel()[0])
     if not res > 0:
-        from are_stats.fitting._traffic import time_resolution
-
         res = time_resolution(obs["t_arrive"].values, obs["t_leave"].values, [t0, t1]) or 1e-6
     free = _free_of(idata)
     xy = None

@@ -342,6 +342,7 @@ def simulate_traffic_log(
         Left-truncated rows (present at ``t0``) first; ``group`` always; ``x``, ``y`` with
         positions.
     """
+    # (lazy: a cycle, _lifecycle imports this module)
     from are_stats.traffic._lifecycle import LifecycleData
 
     t0, t1 = float(window[0]), float(window[1])
