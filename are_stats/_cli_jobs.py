@@ -250,13 +250,7 @@ def run_fit(
     console.print(_summary_table(summary, f"fit in {time.perf_counter() - t_start:.1f} s"))
     # how each posterior was drawn (the paper's exact draws, resampled Laplace or NUTS): the
     # method alone ("nuts") no longer says it
-    a = idata.posterior.attrs
-    sources = (
-        ("the paper's model", "paper_posterior"),
-        ("arrivals", "traffic_arrival_posterior"),
-        ("stays", "traffic_lifetime_posterior"),
-    )
-    how = [f"{who}: {a[key]}" for who, key in sources if a.get(key)]
+    how = [f"{who}: {how}" for who, how in fit.posterior_sources.items()]
     if how:
         console.print("posteriors: " + "; ".join(how))
     for w in sampler_warnings(idata, summary):

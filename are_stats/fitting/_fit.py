@@ -81,6 +81,14 @@ def _flat(post: xr.Dataset, names: tuple[str, ...]) -> dict[str, np.ndarray]:
     return out
 
 
+#: How each posterior was drawn: (what the CLI calls it, the posterior attribute).
+_POSTERIOR_SOURCES = (
+    ("the paper's model", "paper_posterior"),
+    ("arrivals", "traffic_arrival_posterior"),
+    ("stays", "traffic_lifetime_posterior"),
+)
+
+
 def _text(attrs: Mapping[str, Any], name: str) -> str | None:
     return None if attrs.get(name) is None else str(attrs[name])
 
@@ -193,6 +201,9 @@ class Fit:
         and class shares (constant or by time of day), when compared.
     time_resolution : float
         Time resolution (s) of the crowding statistics of the checks.
+    posterior_sources : mapping of str to str
+        How each posterior was drawn (the paper's exact draws, resampled Laplace or NUTS),
+        keyed ``the paper's model``, ``arrivals`` and ``stays``, where recorded.
     grid : OccupancyGrid or None
         The map the behaviour and its criticism used (in memory after
         :func:`~are_stats.fitting.fit_log`; None for a fit read from a file).
@@ -226,6 +237,7 @@ class Fit:
     class_position_model: str | None = None
     class_share_model: str | None = None
     time_resolution: float = 0.1
+    posterior_sources: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     grid: OccupancyGrid | None = None
     motion_checks: tuple[pd.DataFrame, dict[str, Any]] | None = None
 
@@ -314,6 +326,9 @@ def fit_from_idata(idata: az.InferenceData, source: str = "fit") -> Fit:
         class_position_model=_text(a, "class_position_model"),
         class_share_model=_text(a, "class_share_model"),
         time_resolution=_num(a, "traffic_time_resolution", 0.1),
+        posterior_sources=MappingProxyType(
+            {who: str(a[key]) for who, key in _POSTERIOR_SOURCES if a.get(key)}
+        ),
     )
 
 
@@ -389,9 +404,8 @@ def traffic_draws(
     draws = posterior_draws(fit)
     if model == "paper":
         return draws, TrafficLaws()
-    post = fit.idata.posterior
-    per_class = post.attrs.get("class_stay_model") == "per-class"
-    by_hour = post.attrs.get("class_share_model") == "time-of-day"
+    per_class = fit.class_stay_model == "per-class"
+    by_hour = fit.class_share_model == "time-of-day"
     # LOO kept the pooled stays unless per-class (then one law for every class), one set of
     # class shares for the whole day unless time-of-day
     names = tuple(
@@ -399,5 +413,5 @@ def traffic_draws(
         for n in TRAFFIC_NAMES
         if (per_class or not n.startswith("class_stay")) and (by_hour or n != "class_tod_weights")
     )
-    draws.update(_flat(post, names))
+    draws.update(_flat(fit.idata.posterior, names))
     return draws, fit.laws

@@ -81,6 +81,7 @@ def test_read_fit_gives_the_same_fit_back(fitted, tmp_path):
         "notes",
         "class_stay_model",
         "time_resolution",
+        "posterior_sources",
     ):
         assert getattr(back, name) == getattr(fitted, name), name
     assert back.format_version == 1
@@ -122,6 +123,20 @@ def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
     assert res.exit_code == 0, res.output
     mine = write_fit(fitted, tmp_path / "api.nc")
     assert out.read_bytes() == mine.read_bytes()
+    # how each posterior was drawn is read from the Fit, not from the file's attributes
+    a = fitted.idata.posterior.attrs
+    assert dict(fitted.posterior_sources) == {
+        who: a[key]
+        for who, key in (
+            ("the paper's model", "paper_posterior"),
+            ("arrivals", "traffic_arrival_posterior"),
+            ("stays", "traffic_lifetime_posterior"),
+        )
+        if a.get(key)
+    }
+    assert fitted.posterior_sources, "an EM fit records how its posteriors were drawn"
+    line = "; ".join(f"{k}: {v}" for k, v in fitted.posterior_sources.items())
+    assert f"posteriors: {line}" in " ".join(res.output.split())
 
 
 def test_no_map_fits_the_open_area_with_a_note(tracks_log, tmp_path):
