@@ -134,13 +134,18 @@ def behaviour_tracks(
     t_leave = art["t_leave"].to_numpy(float)
     if horizon is not None:
         t_leave = np.minimum(t_leave, horizon)
-    table = pd.DataFrame({
-        "scenario": art["scenario"].to_numpy() if "scenario" in art.columns else 0,
-        "id": ids.to_numpy(), "t_arrive": art["t_arrive"].to_numpy(float), "t_leave": t_leave,
-        "x": x0 + (col + 0.5) * res, "y": y0 + (row + 0.5) * res,
-        "yaw": art["yaw"].to_numpy(float),
-        "behaviour": choose_behaviours(classes, marks, catalogue),
-    })[keep]  # fmt: skip
+    table = pd.DataFrame(
+        {
+            "scenario": art["scenario"].to_numpy() if "scenario" in art.columns else 0,
+            "id": ids.to_numpy(),
+            "t_arrive": art["t_arrive"].to_numpy(float),
+            "t_leave": t_leave,
+            "x": x0 + (col + 0.5) * res,
+            "y": y0 + (row + 0.5) * res,
+            "yaw": art["yaw"].to_numpy(float),
+            "behaviour": choose_behaviours(classes, marks, catalogue),
+        }
+    )[keep]
     if table.empty:
         return pd.DataFrame(columns=list(TRACK_COLUMNS))
     speeds = [catalogue.row(int(c)).speeds for c in classes[keep]]
@@ -150,7 +155,14 @@ def behaviour_tracks(
     ]
     return pd.DataFrame(
         walk_tracks(
-            key, table, occ, resolution=res, origin=(x0, y0), dt=dt, speed_sd=speed_sd,
-            within_sd=within_sd, progress=progress,
+            key,
+            table,
+            occ,
+            resolution=res,
+            origin=(x0, y0),
+            dt=dt,
+            speed_sd=speed_sd,
+            within_sd=within_sd,
+            progress=progress,
         )
-    )  # fmt: skip
+    )

@@ -212,9 +212,15 @@ def continuous_path(
         Vertex positions (m).
     """
     return continuous_paths(
-        [(states, actions)], fit, [speed], np.reshape(np.asarray(start_xy, float), (1, 2)),
-        [end_xy], smooth, rng=rng, within_sd=within_sd,
-    )[0]  # fmt: skip
+        [(states, actions)],
+        fit,
+        [speed],
+        np.reshape(np.asarray(start_xy, float), (1, 2)),
+        [end_xy],
+        smooth,
+        rng=rng,
+        within_sd=within_sd,
+    )[0]
 
 
 def continuous_paths(
@@ -469,10 +475,17 @@ def simulate_behaviour_tracks(
             )
             k = int(math.ceil(10 * longest)) + 20
             sol = soft_policy(
-                occ, goals[gsel], float(fit.beta[c]), float(fit.slip[c]), n_epochs=k,
-                goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost,
-                cell_reward=fit.cell_reward(c), tol=1e-2,
-            )  # fmt: skip
+                occ,
+                goals[gsel],
+                float(fit.beta[c]),
+                float(fit.slip[c]),
+                n_epochs=k,
+                goal_reward=fit.goal_reward,
+                step_cost=fit.step_cost,
+                time_cost=fit.time_cost,
+                cell_reward=fit.cell_reward(c),
+                tol=1e-2,
+            )
             pol = np.asarray(sol.policy)
             v = np.asarray(sol.values)
             head = np.argmax(v[local, :, entry[members, 0], entry[members, 1]], axis=1)
@@ -497,7 +510,7 @@ def simulate_behaviour_tracks(
             smooth,
             rng=rng,
             within_sd=within_sd,
-        )  # fmt: skip
+        )
     )
     for i in range(n):
         if paths[i] is None:
@@ -516,9 +529,14 @@ def simulate_behaviour_tracks(
         curves.append((tv, pv))
     steps = np.array([dt_out if dt_out is not None else float(fit.dt[c]) for c in cls])
     rows = _track_rows(
-        curves, artefacts["scenario"].to_numpy(), artefacts["id"].to_numpy(), t_arr, stay,
-        steps, np.zeros(n),
-    )  # fmt: skip
+        curves,
+        artefacts["scenario"].to_numpy(),
+        artefacts["id"].to_numpy(),
+        t_arr,
+        stay,
+        steps,
+        np.zeros(n),
+    )
     out = pd.concat(rows, ignore_index=True)
     if progress is not None:
         progress(total, total)

@@ -454,9 +454,12 @@ def scenario_tracks(
         lead_idx = np.flatnonzero(leader)
         if len(lead_idx):
             sol_lead = mdp.solve(
-                goals[lead_idx], [behaviours[i] for i in lead_idx], horizons[lead_idx],
-                n_epochs=bucket, store_values=False,
-            )  # fmt: skip
+                goals[lead_idx],
+                [behaviours[i] for i in lead_idx],
+                horizons[lead_idx],
+                n_epochs=bucket,
+                store_values=False,
+            )
             sols.append(sol_lead)
             order.extend(lead_idx)
         fol_idx = np.flatnonzero(~leader)
@@ -465,9 +468,13 @@ def scenario_tracks(
             pred = None
             if len(lead_idx):
                 pred = rollout(
-                    k_pre, sol_lead, starts[lead_idx], int((arrive + horizons).max()),
-                    arrive=arrive[lead_idx], resolve=None,
-                )  # fmt: skip
+                    k_pre,
+                    sol_lead,
+                    starts[lead_idx],
+                    int((arrive + horizons).max()),
+                    arrive=arrive[lead_idx],
+                    resolve=None,
+                )
             for i in fol_idx:
                 target = None
                 if pred is not None:
@@ -492,20 +499,29 @@ def scenario_tracks(
                 )
             sols.append(
                 mdp.solve(
-                    goals[fol_idx], fol_beh, horizons[fol_idx], follow=rewards,
-                    n_epochs=bucket, store_values=False,
+                    goals[fol_idx],
+                    fol_beh,
+                    horizons[fol_idx],
+                    follow=rewards,
+                    n_epochs=bucket,
+                    store_values=False,
                 )
-            )  # fmt: skip
+            )
             order.extend(fol_idx)
         order = np.asarray(order)
         states = rollout(k_roll, sols, starts[order], arrive=arrive[order], resolve=resolve)
         tables.append(
             cells_to_tracks(
-                states, scenario=s_label, ids=table["id"].to_numpy()[order], dt=dt,
-                t0=t_arr[order] - arrive[order] * dt, resolution=resolution, origin=origin,
+                states,
+                scenario=s_label,
+                ids=table["id"].to_numpy()[order],
+                dt=dt,
+                t0=t_arr[order] - arrive[order] * dt,
+                resolution=resolution,
+                origin=origin,
                 grid=grid,
             )
-        )  # fmt: skip
+        )
     if not tables:
         return pd.DataFrame({c: [] for c in ("scenario", "id", "t", "x", "y", "yaw")})
     out = pd.concat(tables, ignore_index=True)

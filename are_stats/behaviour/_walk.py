@@ -318,8 +318,20 @@ def walk_tracks(
                 fixed[i] = g
         if fixed:
             key, k_app = jax.random.split(key)
-            _legs(rng, k_app, mdp, walkers, np.array(sorted(fixed), np.int64), cur, stay,
-                  speed, modes, geo, fixed, max_rounds=1)  # fmt: skip
+            _legs(
+                rng,
+                k_app,
+                mdp,
+                walkers,
+                np.array(sorted(fixed), np.int64),
+                cur,
+                stay,
+                speed,
+                modes,
+                geo,
+                fixed,
+                max_rounds=1,
+            )
         for i, (g, tail) in tails.items():
             if (cur[i] != g).any() or walkers.times[i][-1] >= stay[i]:
                 continue  # the approach did not reach the target's path, or no time left
@@ -339,7 +351,7 @@ def walk_tracks(
                 stay,
                 np.full(n, dt),
                 yaw,
-            )  # fmt: skip
+            )
         )
     if progress is not None and scenarios.ngroups:
         progress(scenarios.ngroups, scenarios.ngroups)

@@ -338,9 +338,15 @@ def _em_inference_data(
     kp, kq = split_key(key)
     post_pred = _predictive_counts(numpy_rng(kp), post, data, stationary_start)
     prior = prior_predictive(
-        kq, priors, data.window, data.area, 1000, n_components=k,
-        stationary_start=stationary_start, labelled=data.labels is not None,
-    )  # fmt: skip
+        kq,
+        priors,
+        data.window,
+        data.area,
+        1000,
+        n_components=k,
+        stationary_start=stationary_start,
+        labelled=data.labels is not None,
+    )
     arviz_log = logging.getLogger("arviz")
     level = arviz_log.level
     arviz_log.setLevel(logging.ERROR)  # one "chain" of draws is expected here
@@ -440,15 +446,26 @@ def fit_lifecycle_data(
     if exact:
         say("the paper's model: exact posterior draws (closed form, no NUTS)")
         post = exact_lifecycle_draws(
-            k_fit, data, priors, n_components=k, num_samples=settings.num_samples,
-            num_chains=settings.num_chains, stationary_start=settings.stationary_start,
-        )  # fmt: skip
+            k_fit,
+            data,
+            priors,
+            n_components=k,
+            num_samples=settings.num_samples,
+            num_chains=settings.num_chains,
+            stationary_start=settings.stationary_start,
+        )
         words = "exact: Gamma conditionals, leave_rate by rejection from a log-concave envelope"
         em_draws = (
-            k_post, data, priors, k, post, {},
+            k_post,
+            data,
+            priors,
+            k,
+            post,
+            {},
             {} if k is None else {"mixture_method": "conjugate posterior (closed form)"},
-            settings.stationary_start, "exact",
-        )  # fmt: skip
+            settings.stationary_start,
+            "exact",
+        )
     elif settings.method == "nuts":
         words = "nuts"
         say(
@@ -546,7 +563,7 @@ def fit_lifecycle_data(
                     else "ranked"
                     if settings.compare == "laplace"
                     else "nuts"
-                ),  # fmt: skip
+                ),
             )
             if pending is not None:
                 idata = pending.result()
@@ -562,9 +579,15 @@ def fit_lifecycle_data(
     if classes is not None:
         idata = _fit_classes(fold_in_key(key, 31), idata, data, classes, class_labels, say)
         idata = _fit_class_traffic(
-            fold_in_key(key, 32), idata, data, np.asarray(classes, np.int64),
-            class_labels, grid, clock_start, say,
-        )  # fmt: skip
+            fold_in_key(key, 32),
+            idata,
+            data,
+            np.asarray(classes, np.int64),
+            class_labels,
+            grid,
+            clock_start,
+            say,
+        )
     return idata
 
 
@@ -584,23 +607,37 @@ def _fit_classes(
     say(f"class shares and per-class stays ({len(labels)} classes, {law} stays)")
     n_draws = post.sizes["chain"] * post.sizes["draw"]
     cfit = fit_classes(
-        key, data, np.asarray(classes, np.int64), labels, law=law, n_draws=n_draws,
+        key,
+        data,
+        np.asarray(classes, np.int64),
+        labels,
+        law=law,
+        n_draws=n_draws,
         resolution=float(np.asarray(res).ravel()[0]),
-    )  # fmt: skip
+    )
     return attach_classes(idata, cfit)
 
 
 def _fit_class_traffic(
-    key: Any, idata: az.InferenceData, data: LifecycleData, classes: np.ndarray, labels: Any,
-    grid: Any, clock_start: str | None, say: Any,
-) -> az.InferenceData:  # fmt: skip
+    key: Any,
+    idata: az.InferenceData,
+    data: LifecycleData,
+    classes: np.ndarray,
+    labels: Any,
+    grid: Any,
+    clock_start: str | None,
+    say: Any,
+) -> az.InferenceData:
     """Where (entry/exit densities per class, with a map and positions) and when (shares by
     time of day, with a clock) each class of a labelled log comes (issue 31)."""
     entered = ~data.truncated
     if (
-        grid is not None and abs(float(grid.origin[2])) <= 1e-9 and data.x is not None
-        and data.y is not None and entered.sum() >= 2
-    ):  # fmt: skip
+        grid is not None
+        and abs(float(grid.origin[2])) <= 1e-9
+        and data.x is not None
+        and data.y is not None
+        and entered.sum() >= 2
+    ):
         say(f"entry and exit densities per class ({len(labels)} classes)")
         free, res = coarse_free(grid.free, grid.resolution, POSITION_CELL)
         origin = (float(grid.origin[0]), float(grid.origin[1]))
@@ -621,9 +658,12 @@ def _fit_class_traffic(
         say("class shares by time of day")
         w = idata.posterior["class_weights"].values
         shares = fit_class_shares_by_time(
-            key, data.t_arrive[entered], classes[entered], w.reshape(-1, w.shape[-1]),
+            key,
+            data.t_arrive[entered],
+            classes[entered],
+            w.reshape(-1, w.shape[-1]),
             clock_offset(clock_start),
-        )  # fmt: skip
+        )
         idata = attach_class_shares_by_time(idata, shares)
     return idata
 
@@ -763,25 +803,30 @@ def _check_format(attrs: Any, source: str) -> None:
     v = np.asarray(attrs["format_version"]).ravel()
     if v.size != 1 or v.dtype.kind not in "iu":
         raise InputError(
-            source, "posterior.attrs.format_version", "an integer",
+            source,
+            "posterior.attrs.format_version",
+            "an integer",
             Described(f"{attrs['format_version']!r}"),
-        )  # fmt: skip
+        )
     if int(v[0]) > FIT_FORMAT_VERSION or int(v[0]) < 1:
         raise InputError(
-            source, "posterior.attrs.format_version",
+            source,
+            "posterior.attrs.format_version",
             f"a fit format are_stats {__version__} reads (1 to {FIT_FORMAT_VERSION}; a newer "
             "format was written by a newer are_stats: upgrade it, or fit the log again)",
             int(v[0]),
-        )  # fmt: skip
+        )
 
 
 def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
     """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
     if name not in ds.data_vars:
         raise InputError(
-            source, f"{group}.{name}", "this variable (a fit written by are-stats fit)",
+            source,
+            f"{group}.{name}",
+            "this variable (a fit written by are-stats fit)",
             Described(f"variables {sorted(ds.data_vars)}"),
-        )  # fmt: skip
+        )
     var = ds[name]
     if dims is not None and tuple(var.dims) != dims:
         raise InputError(
@@ -811,9 +856,11 @@ def _check_real(
     if bad.any():
         idx = np.unravel_index(int(np.argmax(bad)), a.shape)
         raise InputError(
-            source, f"{where}{[int(i) for i in idx]}", f"finite numbers {word} {lo:g}{word_hi}",
+            source,
+            f"{where}{[int(i) for i in idx]}",
+            f"finite numbers {word} {lo:g}{word_hi}",
             Described(f"{a[idx].item()!r} (in {describe(a)})"),
-        )  # fmt: skip
+        )
 
 
 def _check_fit(idata: az.InferenceData, source: str) -> None:
@@ -821,9 +868,11 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
     for group in ("posterior", "observed_data"):
         if group not in idata.groups():
             raise InputError(
-                source, group, "this group (a fit written by are-stats fit)",
+                source,
+                group,
+                "this group (a fit written by are-stats fit)",
                 Described(f"groups {list(idata.groups())}"),
-            )  # fmt: skip
+            )
     post = idata.posterior
     _check_format(post.attrs, source)
     rates = {}
@@ -835,9 +884,11 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
     has_w, has_r = "mix_weights" in post.data_vars, "mix_rates" in post.data_vars
     if has_w != has_r:
         raise InputError(
-            source, "posterior", "both mix_weights and mix_rates or neither",
+            source,
+            "posterior",
+            "both mix_weights and mix_rates or neither",
             Described(f"variables {sorted(post.data_vars)}"),
-        )  # fmt: skip
+        )
     k = None
     if has_w:
         dims = ("chain", "draw", "component")
@@ -855,16 +906,20 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         if bad.any():
             c, d = np.unravel_index(int(np.argmax(bad)), bad.shape)
             raise InputError(
-                source, f"posterior.mix_weights[{c}, {d}]", "weights summing to 1",
+                source,
+                f"posterior.mix_weights[{c}, {d}]",
+                "weights summing to 1",
                 Described(f"a sum of {float(sums[c, d])!r}"),
-            )  # fmt: skip
+            )
     attrs = post.attrs
     for name in ("window", "area"):
         if name not in attrs:
             raise InputError(
-                source, f"posterior.attrs.{name}", "this attribute (a fit written by "
-                "are-stats fit)", Described(f"attributes {sorted(attrs)}"),
-            )  # fmt: skip
+                source,
+                f"posterior.attrs.{name}",
+                "this attribute (a fit written by are-stats fit)",
+                Described(f"attributes {sorted(attrs)}"),
+            )
     win = np.asarray(attrs["window"]).ravel().tolist()
     win = get_list(win, source, "posterior.attrs.window", min_len=2, max_len=2)
     t0 = get_float(win[0], source, "posterior.attrs.window[0]")
@@ -880,9 +935,11 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         labels = get_str(attrs["class_labels"], source, "posterior.attrs.class_labels")
         if k is not None and len(labels.split(",")) != k:
             raise InputError(
-                source, "posterior.attrs.class_labels",
-                f"{k} comma-separated names (one per mixture component)", labels,
-            )  # fmt: skip
+                source,
+                "posterior.attrs.class_labels",
+                f"{k} comma-separated names (one per mixture component)",
+                labels,
+            )
     _check_traffic(idata, source)
     _check_classes(idata, source)
     obs = idata.observed_data
@@ -900,9 +957,11 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
     for name in ("t_arrive", "t_leave"):
         if cols[name].dtype.kind != "f":
             raise InputError(
-                source, f"observed_data.{name}", "floats (NaN where unobserved)",
+                source,
+                f"observed_data.{name}",
+                "floats (NaN where unobserved)",
                 Described(f"dtype {cols[name].dtype}"),
-            )  # fmt: skip
+            )
     if "marks" in cols:
         _check_real(cols["marks"], source, "observed_data.marks", lo=0.0, lo_open=False)
         if cols["marks"].dtype.kind not in "iu":
@@ -914,10 +973,11 @@ def _check_fit(idata: az.InferenceData, source: str) -> None:
         if mismatch.any():
             i = int(np.argmax(mismatch))
             raise InputError(
-                source, f"observed_data.{flag}[{i}]",
+                source,
+                f"observed_data.{flag}[{i}]",
                 f"{flag} exactly where {name} is NaN",
                 Described(f"{bool(cols[flag][i])} with {name} {float(cols[name][i])!r}"),
-            )  # fmt: skip
+            )
     try:  # the value checks of a log (times inside the window, leave after arrival)
         LifecycleData(
             t_arrive=cols["t_arrive"],
@@ -934,12 +994,24 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
     """The chosen traffic models of a fit and the variables they need (when recorded)."""
     post = idata.posterior
     attrs = post.attrs
-    arr = get_str(attrs.get("arrival_model", "poisson"), source, "posterior.attrs.arrival_model",
-                  choices=ARRIVAL_SPECS)  # fmt: skip
-    life = get_str(attrs.get("lifetime_model", "exponential"), source,
-                   "posterior.attrs.lifetime_model", choices=STAY_LAWS)  # fmt: skip
-    pos = get_str(attrs.get("position_model", "uniform"), source,
-                  "posterior.attrs.position_model", choices=("uniform", "learned"))  # fmt: skip
+    arr = get_str(
+        attrs.get("arrival_model", "poisson"),
+        source,
+        "posterior.attrs.arrival_model",
+        choices=ARRIVAL_SPECS,
+    )
+    life = get_str(
+        attrs.get("lifetime_model", "exponential"),
+        source,
+        "posterior.attrs.lifetime_model",
+        choices=STAY_LAWS,
+    )
+    pos = get_str(
+        attrs.get("position_model", "uniform"),
+        source,
+        "posterior.attrs.position_model",
+        choices=("uniform", "learned"),
+    )
     spec = ArrivalSpec.from_name(arr)
     need: dict[str, tuple[str, ...]] = {}
     if arr != "poisson":
@@ -966,8 +1038,12 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
         v = np.asarray(post["group_size_probs"].values)
         sums = v.sum(axis=-1)
         if v.shape[-1] < 1 or np.any(np.abs(sums - 1.0) > 1e-6):
-            raise InputError(source, "posterior.group_size_probs", "probabilities summing to 1",
-                             Described(f"sums from {sums.min()!r} to {sums.max()!r}"))  # fmt: skip
+            raise InputError(
+                source,
+                "posterior.group_size_probs",
+                "probabilities summing to 1",
+                Described(f"sums from {sums.min()!r} to {sums.max()!r}"),
+            )
     if spec.negbin:
         get_float_attr(attrs, "traffic_arrival_bin_width", source)
     if spec.tod:
@@ -982,9 +1058,12 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
             ) from None
     if pos == "learned":
         if "constant_data" not in idata.groups() or "entry_density" not in idata.constant_data:
-            raise InputError(source, "constant_data.entry_density",
-                             "the learned entry density (position_model is 'learned')",
-                             Described("none"))  # fmt: skip
+            raise InputError(
+                source,
+                "constant_data.entry_density",
+                "the learned entry density (position_model is 'learned')",
+                Described("none"),
+            )
     if "constant_data" in idata.groups():
         cd = idata.constant_data
         for name in ("entry_density", "exit_density"):
@@ -992,8 +1071,12 @@ def _check_traffic(idata: az.InferenceData, source: str) -> None:
                 v = _var(cd, name, source, "constant_data", ("pos_y", "pos_x"))
                 _check_real(v, source, f"constant_data.{name}", lo=0.0, lo_open=False)
                 if not abs(float(v.sum()) - 1.0) < 1e-6:
-                    raise InputError(source, f"constant_data.{name}", "cell masses summing to 1",
-                                     Described(f"a sum of {float(v.sum())!r}"))  # fmt: skip
+                    raise InputError(
+                        source,
+                        f"constant_data.{name}",
+                        "cell masses summing to 1",
+                        Described(f"a sum of {float(v.sum())!r}"),
+                    )
         if "entry_density" in cd or "exit_density" in cd:
             get_float_attr(cd.attrs, "position_resolution", source, "constant_data")
             o = np.asarray(cd.attrs.get("position_origin", [np.nan])).ravel()
@@ -1019,36 +1102,59 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
         _check_real(v, source, "posterior.class_stay_shape", lo=0.0, lo_open=True)
     k = w.shape[-1]
     if m.shape != w.shape:
-        raise InputError(source, "posterior.class_stay_mean", f"shape {w.shape} (as class_weights)",
-                         Described(f"shape {m.shape}"))  # fmt: skip
+        raise InputError(
+            source,
+            "posterior.class_stay_mean",
+            f"shape {w.shape} (as class_weights)",
+            Described(f"shape {m.shape}"),
+        )
     sums = w.sum(axis=-1)
     if np.any(np.abs(sums - 1.0) > 1e-6):
-        raise InputError(source, "posterior.class_weights", "shares summing to 1",
-                         Described(f"sums from {sums.min()!r} to {sums.max()!r}"))  # fmt: skip
+        raise InputError(
+            source,
+            "posterior.class_weights",
+            "shares summing to 1",
+            Described(f"sums from {sums.min()!r} to {sums.max()!r}"),
+        )
     names = get_str(post.attrs.get("class_labels", ""), source, "posterior.attrs.class_labels")
     if len(names.split(",")) != k or not names:
-        raise InputError(source, "posterior.attrs.class_labels",
-                         f"{k} comma-separated names (one per class)", names)  # fmt: skip
-    get_str(post.attrs.get("class_stay_model", ""), source, "posterior.attrs.class_stay_model",
-            choices=("pooled", "per-class"))  # fmt: skip
+        raise InputError(
+            source,
+            "posterior.attrs.class_labels",
+            f"{k} comma-separated names (one per class)",
+            names,
+        )
+    get_str(
+        post.attrs.get("class_stay_model", ""),
+        source,
+        "posterior.attrs.class_stay_model",
+        choices=("pooled", "per-class"),
+    )
     if "class_tod_weights" in post.data_vars:  # shares by time of day (issue 31)
-        t = _var(post, "class_tod_weights", source, "posterior",
-                 ("chain", "draw", "period", "class"))  # fmt: skip
+        t = _var(
+            post, "class_tod_weights", source, "posterior", ("chain", "draw", "period", "class")
+        )
         _check_real(t, source, "posterior.class_tod_weights", lo=0.0, lo_open=False)
         if t.shape[-1] != k or np.any(np.abs(t.sum(axis=-1) - 1.0) > 1e-6):
             raise InputError(
-                source, "posterior.class_tod_weights",
-                f"{k} shares summing to 1 in each period", Described(f"{t.shape}"),
-            )  # fmt: skip
+                source,
+                "posterior.class_tod_weights",
+                f"{k} shares summing to 1 in each period",
+                Described(f"{t.shape}"),
+            )
         share_model = get_str(
-            post.attrs.get("class_share_model", ""), source,
-            "posterior.attrs.class_share_model", choices=("constant", "time-of-day"),
-        )  # fmt: skip
+            post.attrs.get("class_share_model", ""),
+            source,
+            "posterior.attrs.class_share_model",
+            choices=("constant", "time-of-day"),
+        )
         if share_model == "time-of-day" and "traffic_clock_start" not in post.attrs:
             raise InputError(
-                source, "posterior.attrs.traffic_clock_start",
-                "the log's clock (time-of-day class shares)", Described("none"),
-            )  # fmt: skip
+                source,
+                "posterior.attrs.traffic_clock_start",
+                "the log's clock (time-of-day class shares)",
+                Described("none"),
+            )
     cd = idata.constant_data if "constant_data" in idata.groups() else {}
     if "class_entry_density" in cd:  # entry/exit densities per class (issue 31)
         for name in ("class_entry_density", "class_exit_density"):
@@ -1057,25 +1163,38 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
             v = _var(cd, name, source, "constant_data", ("class", "pos_y", "pos_x"))
             _check_real(v, source, f"constant_data.{name}", lo=0.0, lo_open=False)
             if v.shape[0] != k or np.any(np.abs(v.sum(axis=(1, 2)) - 1.0) > 1e-6):
-                raise InputError(source, f"constant_data.{name}",
-                                 f"{k} densities (one per class) summing to 1",
-                                 Described(f"shape {v.shape}"))  # fmt: skip
+                raise InputError(
+                    source,
+                    f"constant_data.{name}",
+                    f"{k} densities (one per class) summing to 1",
+                    Described(f"shape {v.shape}"),
+                )
         get_float_attr(cd.attrs, "class_position_resolution", source, "constant_data")
         o = np.asarray(cd.attrs.get("class_position_origin", [np.nan])).ravel()
         if o.size != 2 or not np.isfinite(o).all():
-            raise InputError(source, "constant_data.attrs.class_position_origin",
-                             "two finite numbers (x, y)", Described(repr(o.tolist())))  # fmt: skip
+            raise InputError(
+                source,
+                "constant_data.attrs.class_position_origin",
+                "two finite numbers (x, y)",
+                Described(repr(o.tolist())),
+            )
         get_str(
-            post.attrs.get("class_position_model", ""), source,
-            "posterior.attrs.class_position_model", choices=("pooled", "per-class"),
-        )  # fmt: skip
+            post.attrs.get("class_position_model", ""),
+            source,
+            "posterior.attrs.class_position_model",
+            choices=("pooled", "per-class"),
+        )
 
 
 def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:
     """A finite attribute > 0 of a fit group, named in the error when missing or bad."""
     if name not in attrs:
-        raise InputError(source, f"{group}.attrs.{name}", "this attribute",
-                         Described(f"attributes {sorted(attrs)}"))  # fmt: skip
+        raise InputError(
+            source,
+            f"{group}.attrs.{name}",
+            "this attribute",
+            Described(f"attributes {sorted(attrs)}"),
+        )
     v = attrs[name]
     v = v.item() if isinstance(v, np.ndarray) and v.size == 1 else v
     return get_float(v, source, f"{group}.attrs.{name}", lo=0.0, lo_open=True)

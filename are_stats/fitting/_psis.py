@@ -94,9 +94,11 @@ def _smooth_block(x: np.ndarray, m: int) -> np.ndarray:
         order = np.argsort(tail[rows], axis=1)
         sub = x[rows]
         k[rows] = _replace_tails(
-            sub, np.take_along_axis(tail_idx[rows], order, axis=1),
-            np.take_along_axis(tail[rows], order, axis=1), np.exp(cutoff[rows]),
-        )  # fmt: skip
+            sub,
+            np.take_along_axis(tail_idx[rows], order, axis=1),
+            np.take_along_axis(tail[rows], order, axis=1),
+            np.exp(cutoff[rows]),
+        )
         x[rows] = sub
     x -= _logsumexp_rows(x)[:, None]
     return k
@@ -176,7 +178,8 @@ def _psis_row(x: np.ndarray, m: int) -> tuple[np.ndarray, float]:
     rows = x[None]
     if tail.size > 4:
         order = np.argsort(tail)
-        k = float(_replace_tails(rows, tail_idx[order][None], tail[order][None],
-                                 np.array([exp_cut]))[0])  # fmt: skip
+        k = float(
+            _replace_tails(rows, tail_idx[order][None], tail[order][None], np.array([exp_cut]))[0]
+        )
     rows -= _logsumexp_rows(rows)[:, None]
     return rows[0], k

@@ -42,9 +42,12 @@ from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import boundary_distance, fold_in_key, key_from_seed
 
 __all__ = [
-    "TRAFFIC_STATISTICS", "burst_statistics", "plot_traffic_checks", "traffic_checks",
+    "TRAFFIC_STATISTICS",
+    "burst_statistics",
+    "plot_traffic_checks",
+    "traffic_checks",
     "window_statistics",
-]  # fmt: skip
+]
 
 #: The statistics of :func:`window_statistics`, in table order.
 TRAFFIC_STATISTICS = (
@@ -262,8 +265,9 @@ def traffic_checks(
         for r in range(n_replicates):
             a, b = bounds[r], bounds[r + 1]
             ta_r = np.ceil((ta[a:b] - t0) / res - 1e-9) * res + t0  # the log's quantisation
-            st = window_statistics(ta_r, tl[a:b], tr[a:b], (t0, t1), res,
-                                   pts[a:b] if xy is not None else None, free)  # fmt: skip
+            st = window_statistics(
+                ta_r, tl[a:b], tr[a:b], (t0, t1), res, pts[a:b] if xy is not None else None, free
+            )
             rows.append([st[s] for s in TRAFFIC_STATISTICS])
         reps[model] = np.asarray(rows, float)
     table = pd.DataFrame(index=pd.Index(TRAFFIC_STATISTICS, name="statistic"))
@@ -303,8 +307,15 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         allv = np.concatenate([v for v in values if v.size] + [np.array([o])])
         allv = allv[np.isfinite(allv)]
         if allv.size == 0:
-            ax.text(0.5, 0.5, "not defined\nfor this log", ha="center", va="center",
-                    transform=ax.transAxes, color="0.4")  # fmt: skip
+            ax.text(
+                0.5,
+                0.5,
+                "not defined\nfor this log",
+                ha="center",
+                va="center",
+                transform=ax.transAxes,
+                color="0.4",
+            )
             ax.set_title(stat, fontsize=10)
             ax.set_yticks([])
             continue
@@ -314,14 +325,28 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         for model, v in zip(reps, values, strict=True):
             if v.size:  # one filled outline per model, not a rectangle per bin (the same
                 # picture: the figure's 580 bars took 0.4 s of a repeated fit's CPU)
-                ax.hist(v, bins=bins, color=colours.get(model, "tab:orange"), alpha=0.55,
-                        label=model, histtype="stepfilled")  # fmt: skip
+                ax.hist(
+                    v,
+                    bins=bins,
+                    color=colours.get(model, "tab:orange"),
+                    alpha=0.55,
+                    label=model,
+                    histtype="stepfilled",
+                )
         if np.isfinite(o):
             ax.axvline(o, color="black", lw=2, label="observed")
         misfit = [m for m in reps if bool(table.loc[stat, f"{m}_flag"])]
         if misfit:
-            ax.text(0.98, 0.97, "outside 90%:\n" + ", ".join(misfit), ha="right", va="top",
-                    transform=ax.transAxes, fontsize=8, color="tab:red")  # fmt: skip
+            ax.text(
+                0.98,
+                0.97,
+                "outside 90%:\n" + ", ".join(misfit),
+                ha="right",
+                va="top",
+                transform=ax.transAxes,
+                fontsize=8,
+                color="tab:red",
+            )
         ax.set_title(stat, fontsize=10)
         ax.set_yticks([])
         if j == 0:
