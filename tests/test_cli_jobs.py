@@ -345,7 +345,7 @@ def test_perceive_adds_flags(tmp_path):
     res = _invoke(
         ["perceive", scen, "--camera", tmp_path / "none.yaml", "--robot-path", robot, "--force"]
     )
-    assert res.exit_code == 2 and "camera file not found" in res.output
+    assert res.exit_code == 2 and "none.yaml: no such file: expected a camera YAML" in res.output
 
 
 class _SlowClock(StageClock):
