@@ -985,7 +985,7 @@ def run_serve(
         raise InputError("--bag", "", "either --robot-path or --bag", "both")
     robot = None
     if bag is not None:
-        robot = robot_from_bag(bag, **trajectory.checked().keywords())
+        robot = robot_from_bag(bag, trajectory.checked())
 
     def ready(info: dict[str, Any]) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""
