@@ -49,6 +49,21 @@ _Fit = Annotated[Path, typer.Argument(metavar="FIT", help=_FIT_HELP)]
 _DMax = Annotated[float, typer.Option("--d-max", help="Maximum viewing distance d_max (m).")]
 _Tau = Annotated[float, typer.Option("--tau", help="Pixels needed to perceive (count > tau).")]
 _ForceOutputs = Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")]
+_Camera = Annotated[
+    Path,
+    typer.Option(
+        "--camera", help="Camera YAML (ROS camera_info fields) or a shipped camera (front_camera)."
+    ),
+]
+_Model = Annotated[
+    str,
+    typer.Option(
+        "--model",
+        help="chosen: the traffic models the fit chose (groups, stays, entries); paper: "
+        "Poisson arrivals, exponential stays, uniform positions (for a fit whose learned "
+        "entries belong to another map).",
+    ),
+]
 
 # How a robot bag is read (augment, serve --bag): the fields of logs.TrajectoryOptions.
 _PoseTopic = Annotated[
@@ -387,11 +402,7 @@ def generate(
     ),
     behaviour_dt: float = typer.Option(2.0, "--behaviour-dt", help="Seconds per MDP epoch."),
     force: _ForceOutputs = False,
-    model: str = typer.Option(
-        "chosen",
-        "--model",
-        help="chosen: the models the fit chose (groups, stays, entries); paper: the paper's.",
-    ),
+    model: _Model = "chosen",
 ) -> None:
     """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
     from are_stats._cli_jobs import run_generate
@@ -433,11 +444,7 @@ def perceive(
     scenario: Path = typer.Argument(
         ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
     ),
-    camera: Path = typer.Option(
-        ...,
-        "--camera",
-        help="Camera YAML (ROS camera_info) or a shipped camera (front_camera).",
-    ),
+    camera: _Camera = ...,
     robot_path: Path = typer.Option(
         ..., "--robot-path", help="Robot base poses over time: CSV/Parquet with t, x, y, yaw."
     ),
@@ -541,7 +548,7 @@ def augment(
     seed: int = typer.Option(..., "--seed", help="Seed of the scenario (same seed, same file)."),
     pose_topic: _PoseTopic = None,
     base_frame: _BaseFrame = None,
-    camera: Path = typer.Option(None, "--camera", help="Camera YAML (ROS camera_info fields)."),
+    camera: _Camera = None,
     camera_info_topic: _CameraInfoTopic = None,
     period: float = typer.Option(
         0.5, "--period", help="Seconds between camera frames with --camera."
@@ -549,12 +556,7 @@ def augment(
     d_max: _DMax = 10.0,
     tau: _Tau = 10.0,
     clock: _Clock = "auto",
-    model: str = typer.Option(
-        "chosen",
-        "--model",
-        help="chosen: the traffic models the fit chose; paper: Poisson arrivals, exponential "
-        "stays, uniform positions (for a fit whose learned entries belong to another map).",
-    ),
+    model: _Model = "chosen",
     topics: str = typer.Option(
         None,
         "--topics",
