@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
-from are_stats.export._ros import ROS_FRAMES, artefact_frame
+from are_stats.export._ros import ROS_FRAMES, _quat, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 from are_stats.logs import BagTrajectory, TrajectoryOptions, interpolate_poses
 from are_stats.scenarios import Scene, ScenesFolder, read_scenes, scenes_from_tables
@@ -287,14 +287,8 @@ def _robot_frame(
             )
         ],
     )
-    rot = mount[:3, :3]
-    w = math.sqrt(max(1.0 + rot[0, 0] + rot[1, 1] + rot[2, 2], 1e-12)) / 2.0
-    quat = fm.Quaternion(
-        x=(rot[2, 1] - rot[1, 2]) / (4 * w),
-        y=(rot[0, 2] - rot[2, 0]) / (4 * w),
-        z=(rot[1, 0] - rot[0, 1]) / (4 * w),
-        w=w,
-    )
+    qx, qy, qz, qw = _quat(mount[:3, :3])  # as the MCAP writer's /tf (any rotation)
+    quat = fm.Quaternion(x=qx, y=qy, z=qz, w=qw)
     tfs = [
         fm.FrameTransform(
             timestamp=stamp,

@@ -402,6 +402,28 @@ def test_replay_streams_the_robot_of_a_bag_on_its_clock(tmp_path, kind):
     assert max(math.hypot(p.x, p.y, p.z) for p in pts) == pytest.approx(5.0)
 
 
+@pytest.mark.parametrize(
+    "rot",
+    [
+        [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]],  # forward (trace 0)
+        [[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],  # straight down (trace -1)
+    ],
+)
+def test_replay_mount_rotation_is_the_mounts_quaternion(tmp_path, rot):
+    from scipy.spatial.transform import Rotation
+
+    from are_stats.export import robot_from_bag
+
+    mount = np.eye(4)
+    mount[:3, :3] = rot
+    mount[:3, 3] = [0.1, 0.0, 1.2]
+    robot = {**robot_from_bag(_bag_robot(tmp_path)), "mount": mount}
+    msgs = list(replay_messages(_scene(), horizon=4.0, speed=40.0, fps=10.0, robot=robot))
+    q = _robot_tfs(msgs)[0][2]["camera_optical_frame"].rotation
+    got = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    np.testing.assert_allclose(got, rot, atol=1e-9)
+
+
 def test_robot_of_an_odometry_only_bag_lives_in_odom(tmp_path):
     from are_stats.export import robot_from_bag
     from tests.export.rosbag_fixtures import robot_pose
