@@ -427,8 +427,9 @@ def _yaml_problem(err: yaml.YAMLError) -> str:
 def check_file(path: str | os.PathLike, expected: str) -> int:
     """The size in bytes of ``path``, refused unless it is a regular file.
 
-    Every reader of a user's file asks this first, so that a missing path, a directory and a
-    FIFO or device (whose read would block or never end) get the same messages.
+    The readers of YAML (:func:`load_yaml`), mesh and OctoMap files ask this first, so that a
+    missing path, a directory and a FIFO or device (whose read would block or never end) get
+    the same messages.
 
     Parameters
     ----------
