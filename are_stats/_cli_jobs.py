@@ -916,9 +916,12 @@ def run_augment(
 ) -> AugmentResult:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
     (:func:`are_stats.export.augment_bag`); ``trajectory`` how the bag's robot is read,
-    ``topics`` the comma-separated input topics passed through (default all)."""
+    ``topics`` the comma-separated input topics passed through (default all); ``camera`` a
+    camera YAML or a shipped camera's name, as ``perceive --camera``."""
     from are_stats.export import augment_bag
 
+    if camera is not None:
+        camera = resolve_shipped(camera, "camera", source="--camera")
     t = time.perf_counter()
     with console.status(f"augmenting {bag} ..."):
         res = augment_bag(
@@ -979,7 +982,7 @@ def run_serve(
         raise InputError("--bag", "", "either --robot-path or --bag", "both")
     robot = None
     if bag is not None:
-        robot = robot_from_bag(bag, **trajectory.checked().keywords())
+        robot = robot_from_bag(bag, trajectory.checked())
 
     def ready(info: dict[str, Any]) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""

@@ -49,6 +49,66 @@ _Fit = Annotated[Path, typer.Argument(metavar="FIT", help=_FIT_HELP)]
 _DMax = Annotated[float, typer.Option("--d-max", help="Maximum viewing distance d_max (m).")]
 _Tau = Annotated[float, typer.Option("--tau", help="Pixels needed to perceive (count > tau).")]
 _ForceOutputs = Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")]
+_Camera = Annotated[
+    Path,
+    typer.Option(
+        "--camera", help="Camera YAML (ROS camera_info fields) or a shipped camera (front_camera)."
+    ),
+]
+_Model = Annotated[
+    str,
+    typer.Option(
+        "--model",
+        help="chosen: the traffic models the fit chose (groups, stays, entries); paper: "
+        "Poisson arrivals, exponential stays, uniform positions (for a fit whose learned "
+        "entries belong to another map).",
+    ),
+]
+
+# How a robot bag is read (augment, serve --bag): the fields of logs.TrajectoryOptions.
+_PoseTopic = Annotated[
+    str,
+    typer.Option(
+        "--pose-topic",
+        help="Robot poses from this topic of the bag (PoseStamped, PoseWithCovarianceStamped, "
+        "Odometry).",
+    ),
+]
+_BaseFrame = Annotated[
+    str,
+    typer.Option(
+        "--base-frame", help="Robot poses from the bag's /tf: map -> ... -> this frame (base_link)."
+    ),
+]
+_MapFrame = Annotated[
+    str,
+    typer.Option(
+        "--map-frame",
+        help="Fixed frame of the artefacts (odom is used when the bag's tree has no map).",
+    ),
+]
+_CameraFrame = Annotated[
+    str,
+    typer.Option(
+        "--camera-frame",
+        help="The camera's frame in the bag's tree (default: the CameraInfo's frame).",
+    ),
+]
+_CameraInfoTopic = Annotated[
+    str,
+    typer.Option(
+        "--camera-info-topic",
+        help="The bag's sensor_msgs/CameraInfo topic: the camera's intrinsics and frames.",
+    ),
+]
+_Clock = Annotated[
+    str,
+    typer.Option(
+        "--clock",
+        help="The bag's clock of poses, camera frames and start: header stamps, log "
+        "(recording) times, or auto (header stamps when set).",
+    ),
+]
 
 # Errors that mean "bad input or environment": one line on stderr, exit status 2.
 # (ValueError covers are_stats.inputs.InputError/LimitError; OSError covers missing files,
@@ -342,11 +402,7 @@ def generate(
     ),
     behaviour_dt: float = typer.Option(2.0, "--behaviour-dt", help="Seconds per MDP epoch."),
     force: _ForceOutputs = False,
-    model: str = typer.Option(
-        "chosen",
-        "--model",
-        help="chosen: the models the fit chose (groups, stays, entries); paper: the paper's.",
-    ),
+    model: _Model = "chosen",
 ) -> None:
     """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
     from are_stats._cli_jobs import run_generate
@@ -388,11 +444,7 @@ def perceive(
     scenario: Path = typer.Argument(
         ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
     ),
-    camera: Path = typer.Option(
-        ...,
-        "--camera",
-        help="Camera YAML (ROS camera_info) or a shipped camera (front_camera).",
-    ),
+    camera: _Camera = ...,
     robot_path: Path = typer.Option(
         ..., "--robot-path", help="Robot base poses over time: CSV/Parquet with t, x, y, yaw."
     ),
@@ -494,50 +546,24 @@ def augment(
     ),
     out: Path = typer.Option(..., "--out", help="The augmented MCAP to write (OUT.mcap)."),
     seed: int = typer.Option(..., "--seed", help="Seed of the scenario (same seed, same file)."),
-    pose_topic: str = typer.Option(
-        None,
-        "--pose-topic",
-        help="Robot poses from this topic (PoseStamped, PoseWithCovarianceStamped, Odometry).",
-    ),
-    base_frame: str = typer.Option(
-        None, "--base-frame", help="Robot poses from /tf: map -> ... -> this frame (base_link)."
-    ),
-    camera: Path = typer.Option(None, "--camera", help="Camera YAML (ROS camera_info fields)."),
-    camera_info_topic: str = typer.Option(
-        None, "--camera-info-topic", help="sensor_msgs/CameraInfo topic: intrinsics and frames."
-    ),
+    pose_topic: _PoseTopic = None,
+    base_frame: _BaseFrame = None,
+    camera: _Camera = None,
+    camera_info_topic: _CameraInfoTopic = None,
     period: float = typer.Option(
         0.5, "--period", help="Seconds between camera frames with --camera."
     ),
     d_max: _DMax = 10.0,
     tau: _Tau = 10.0,
-    clock: str = typer.Option(
-        "auto",
-        "--clock",
-        help="Clock of poses, camera frames and start: header stamps, log (recording) times, "
-        "or auto (header stamps when set).",
-    ),
-    model: str = typer.Option(
-        "chosen",
-        "--model",
-        help="chosen: the traffic models the fit chose; paper: Poisson arrivals, exponential "
-        "stays, uniform positions (for a fit whose learned entries belong to another map).",
-    ),
+    clock: _Clock = "auto",
+    model: _Model = "chosen",
     topics: str = typer.Option(
         None,
         "--topics",
         help="Comma-separated input topics copied into OUT (default: all of them).",
     ),
-    map_frame: str = typer.Option(
-        "map",
-        "--map-frame",
-        help="Fixed frame of the artefacts (odom is used when the bag's tree has no map).",
-    ),
-    camera_frame: str = typer.Option(
-        None,
-        "--camera-frame",
-        help="The camera's frame in the bag's tree (default: the CameraInfo's frame).",
-    ),
+    map_frame: _MapFrame = "map",
+    camera_frame: _CameraFrame = None,
     force: bool = typer.Option(False, "--force", help="Overwrite OUT."),
 ) -> None:
     """Augment a robot's recorded bag with artefacts generated from a fit (ROS 2 MCAP out)."""
@@ -589,41 +615,15 @@ def serve(
         None,
         "--bag",
         help="Robot bag (ROS 1 .bag, ROS 2 folder or .mcap) to stream the robot from, as "
-        "augment reads it: its path and camera frustum, scene time 0 at the bag's start, "
-        "stamps on its header clock.",
+        "augment reads it (the options below): its path and camera frustum, scene time 0 "
+        "at the bag's start, stamps on its header clock.",
     ),
-    pose_topic: str = typer.Option(
-        None,
-        "--pose-topic",
-        help="With --bag: poses from this topic (PoseStamped, PoseWithCovarianceStamped, "
-        "Odometry).",
-    ),
-    base_frame: str = typer.Option(
-        None,
-        "--base-frame",
-        help="With --bag: poses from /tf, map -> ... -> this frame (base_link).",
-    ),
-    map_frame: str = typer.Option(
-        "map",
-        "--map-frame",
-        help="With --bag: the fixed frame (odom is used when the bag's tree has no map).",
-    ),
-    camera_frame: str = typer.Option(
-        None,
-        "--camera-frame",
-        help="With --bag: the camera's frame in its tree (default: the CameraInfo's frame).",
-    ),
-    camera_info_topic: str = typer.Option(
-        None,
-        "--camera-info-topic",
-        help="With --bag: sensor_msgs/CameraInfo topic, the frustum's intrinsics.",
-    ),
-    clock: str = typer.Option(
-        "auto",
-        "--clock",
-        help="With --bag: clock of its poses, header stamps, log (recording) times, or auto "
-        "(header stamps when set).",
-    ),
+    pose_topic: _PoseTopic = None,
+    base_frame: _BaseFrame = None,
+    map_frame: _MapFrame = "map",
+    camera_frame: _CameraFrame = None,
+    camera_info_topic: _CameraInfoTopic = None,
+    clock: _Clock = "auto",
 ) -> None:
     """Stream a scenario replay live to Foxglove (WebSocket, foxglove.sdk.v1): boxes, map, /tf,
     and the robot with --robot-path or --bag."""

@@ -57,6 +57,7 @@ __all__ = [
     "Source",
     "InputError",
     "LimitError",
+    "check_file",
     "check_keys",
     "check_memory",
     "check_work",
@@ -423,6 +424,42 @@ def _yaml_problem(err: yaml.YAMLError) -> str:
     return f"{problem} at line {mark.line + 1}, column {mark.column + 1}" if mark else problem
 
 
+def check_file(path: str | os.PathLike, expected: str) -> int:
+    """The size in bytes of ``path``, refused unless it is a regular file.
+
+    The readers of YAML (:func:`load_yaml`), mesh and OctoMap files ask this first, so that a
+    missing path, a directory and a FIFO or device (whose read would block or never end) get
+    the same messages.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    expected : str
+        What it should be, with its article, for messages (``"an OctoMap .bt file"``).
+
+    Returns
+    -------
+    int
+        The file's size in bytes.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    InputError
+        If it is a directory or not a regular file.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file: expected {expected}")
+    if p.is_dir():
+        raise InputError(p, "", expected, Described("a directory"))
+    if not p.is_file():
+        raise InputError(p, "", f"{expected} in a regular file", Described("not a regular file"))
+    return p.stat().st_size
+
+
 def load_yaml(path: str | os.PathLike, what: str = "YAML file") -> Any:
     """Read a YAML file safely.
 
@@ -451,13 +488,7 @@ def load_yaml(path: str | os.PathLike, what: str = "YAML file") -> Any:
         If it is a directory, too large, not UTF-8 or not valid YAML.
     """
     p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file: expected a {what}")
-    if p.is_dir():
-        raise InputError(p, "", f"a {what}", Described("a directory"))
-    if not p.is_file():  # a FIFO or a device would block or never end
-        raise InputError(p, "", f"a {what} in a regular file", Described("not a regular file"))
-    size = p.stat().st_size
+    size = check_file(p, f"a {what}")
     if size > MAX_YAML_BYTES:
         raise InputError(
             p,

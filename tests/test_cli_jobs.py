@@ -301,6 +301,26 @@ def test_demo_quick(tmp_path):
         assert (tmp_path / "demo" / "criticism" / name).exists()
 
 
+def test_augment_camera_takes_a_shipped_name_as_perceive_does(tmp_path):
+    from are_stats.environment import SHIPPED_DATA
+    from tests.export.rosbag_fixtures import write_bag
+
+    log, _ = _write_log(tmp_path, labels=True)
+    fit = tmp_path / "small.nc"
+    _quick_em_fit(log, fit, samples=20)
+    bag = write_bag(tmp_path / "robot.bag", "ros1")
+    base = ["augment", bag, "--fit", fit, "--map", "courtyard", "--seed", "2",
+            "--pose-topic", "/amcl_pose", "--period", "2.0"]  # fmt: skip
+    by_path = tmp_path / "by_path.mcap"
+    shipped = SHIPPED_DATA / "cameras" / "front_camera.yaml"
+    res = _invoke([*base, "--out", by_path, "--camera", shipped])
+    assert res.exit_code == 0, res.output
+    by_name = tmp_path / "by_name.mcap"
+    res = _invoke([*base, "--out", by_name, "--camera", "front_camera"])
+    assert res.exit_code == 0, res.output
+    assert by_name.read_bytes() == by_path.read_bytes()
+
+
 def test_perceive_adds_flags(tmp_path):
     log, _ = _write_log(tmp_path)
     fit = tmp_path / "f.nc"
@@ -345,7 +365,7 @@ def test_perceive_adds_flags(tmp_path):
     res = _invoke(
         ["perceive", scen, "--camera", tmp_path / "none.yaml", "--robot-path", robot, "--force"]
     )
-    assert res.exit_code == 2 and "camera file not found" in res.output
+    assert res.exit_code == 2 and "none.yaml: no such file: expected a camera YAML" in res.output
 
 
 class _SlowClock(StageClock):

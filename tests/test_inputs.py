@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from are_stats import inputs
 from are_stats.inputs import (
     InputError,
     LimitError,
+    check_file,
     check_keys,
     check_memory,
     check_work,
@@ -87,6 +89,20 @@ def test_load_yaml_file_problems(tmp_path):
     big.write_bytes(b"#" * (inputs.MAX_YAML_BYTES + 1))
     with pytest.raises(InputError, match="at most 16.0 MiB"):
         load_yaml(big)
+
+
+def test_check_file_sizes_a_regular_file_and_names_what_is_not(tmp_path):
+    f = tmp_path / "x.bt"
+    f.write_bytes(b"12345")
+    assert check_file(f, "an OctoMap .bt file") == 5
+    with pytest.raises(FileNotFoundError, match=r"none.bt: no such file: expected an OctoMap"):
+        check_file(tmp_path / "none.bt", "an OctoMap .bt file")
+    with pytest.raises(InputError, match="expected an OctoMap .bt file, got a directory"):
+        check_file(tmp_path, "an OctoMap .bt file")
+    fifo = tmp_path / "fifo.bt"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="fifo.bt: expected an OctoMap .bt file in a regular file"):
+        check_file(fifo, "an OctoMap .bt file")
 
 
 def test_check_keys_lists_the_known_keys():

@@ -19,7 +19,14 @@ import shapely
 from shapely import affinity
 
 from are_stats._checks import check_positive
-from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
+from are_stats.inputs import (
+    Described,
+    InputError,
+    check_file,
+    check_memory,
+    check_work,
+    format_bytes,
+)
 
 # Lazy import: trimesh (about 0.6 s CPU) is imported when a mesh is loaded or built, not with
 # the environment room (shapely costs about 20 ms).
@@ -59,11 +66,7 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     import trimesh
 
     p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: mesh file not found")
-    if not p.is_file():
-        raise InputError(p, "", "a mesh file (OBJ, PLY, STL, GLB, ...)", Described("not a file"))
-    size = p.stat().st_size
+    size = check_file(p, "a mesh file (OBJ, PLY, STL, GLB, ...)")
     if size == 0:
         raise InputError(p, "", "a mesh with triangles", Described("an empty file"))
     check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", p)

@@ -29,7 +29,14 @@ import numpy.typing as npt
 
 from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
-from are_stats.inputs import Described, InputError, check_memory, check_work, format_bytes
+from are_stats.inputs import (
+    Described,
+    InputError,
+    check_file,
+    check_memory,
+    check_work,
+    format_bytes,
+)
 
 # Lazy imports: trimesh (about 0.5 s) is imported when a mesh is sampled, not with the
 # environment room.
@@ -199,11 +206,7 @@ class VoxelMap:
             If the header or the tree data are malformed.
         """
         p = Path(path)
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: OctoMap file not found")
-        if not p.is_file():
-            raise InputError(p, "", "an OctoMap .bt file", Described("not a file"))
-        size_b = p.stat().st_size
+        size_b = check_file(p, "an OctoMap .bt file")
         check_memory(size_b * 2, f"reading the {format_bytes(size_b)} OctoMap file", p)
         # the tree is walked one inner node (2 bytes) at a time
         check_work(size_b * _BT_STEPS_PER_BYTE, "walking the OctoMap tree", p)

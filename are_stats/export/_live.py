@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
-from are_stats.export._ros import ROS_FRAMES, artefact_frame
+from are_stats.export._ros import ROS_FRAMES, _quat, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 from are_stats.logs import BagTrajectory, TrajectoryOptions, interpolate_poses
 from are_stats.scenarios import Scene, ScenesFolder, read_scenes, scenes_from_tables
@@ -287,14 +287,8 @@ def _robot_frame(
             )
         ],
     )
-    rot = mount[:3, :3]
-    w = math.sqrt(max(1.0 + rot[0, 0] + rot[1, 1] + rot[2, 2], 1e-12)) / 2.0
-    quat = fm.Quaternion(
-        x=(rot[2, 1] - rot[1, 2]) / (4 * w),
-        y=(rot[0, 2] - rot[2, 0]) / (4 * w),
-        z=(rot[1, 0] - rot[0, 1]) / (4 * w),
-        w=w,
-    )
+    qx, qy, qz, qw = _quat(mount[:3, :3])  # as the MCAP writer's /tf (any rotation)
+    quat = fm.Quaternion(x=qx, y=qy, z=qz, w=qw)
     tfs = [
         fm.FrameTransform(
             timestamp=stamp,
@@ -502,13 +496,8 @@ def bag_camera(
 
 def robot_from_bag(
     bag: str | os.PathLike,
+    trajectory: TrajectoryOptions | None = None,
     *,
-    pose_topic: str | None = None,
-    base_frame: str = "base_link",
-    map_frame: str = "map",
-    camera_info_topic: str | None = None,
-    camera_frame: str | None = None,
-    clock: str = "auto",
     camera: PinholeCamera | str | os.PathLike[str] | None = None,
     height: float = 1.0,
     d_max: float = 10.0,
@@ -525,10 +514,12 @@ def robot_from_bag(
     ----------
     bag : path
         ROS 1 ``.bag``, ROS 2 bag folder or ``.mcap``.
-    pose_topic, base_frame, map_frame, camera_info_topic, camera_frame, clock
-        See :func:`~are_stats.logs.read_trajectory`.
+    trajectory : TrajectoryOptions, optional
+        How the bag's robot is read (``serve``'s ``--pose-topic`` ... ``--clock``, as
+        ``augment``'s); default :class:`~are_stats.logs.TrajectoryOptions` ``()``: ``/tf``
+        from ``map`` to ``base_link``, the ``auto`` clock.
     camera : PinholeCamera or path, optional
-        Intrinsics when ``camera_info_topic`` is not given (default the shipped
+        Intrinsics when ``trajectory.camera_info_topic`` is not given (default the shipped
         ``front_camera``).
     height, d_max, radius : float
         Camera height (m) when neither the bag's tree nor the camera gives a mount, frustum
@@ -551,9 +542,9 @@ def robot_from_bag(
         map frame to the base, a missing or empty pose topic) and for the other errors of
         :func:`~are_stats.logs.read_trajectory`.
     """
-    opts = TrajectoryOptions(pose_topic, base_frame, map_frame, camera_info_topic, clock)
-    traj = opts._replace(camera_frame=camera_frame).read(bag)
-    cam, mount = bag_camera(bag, traj, camera, camera_info_topic, height)
+    opts = trajectory or TrajectoryOptions()
+    traj = opts.read(bag)
+    cam, mount = bag_camera(bag, traj, camera, opts.camera_info_topic, height)
     # the header clock's start (augment's rule): stamps of the replay as the bag's
     off = traj.offset_ns if traj.clock == "log" else 0
     return {
@@ -563,7 +554,7 @@ def robot_from_bag(
         "camera": cam,
         "d_max": float(d_max),
         "radius": float(radius),
-        "base_frame": base_frame.lstrip("/"),
+        "base_frame": opts.keywords()["base_frame"].lstrip("/"),
         "camera_frame": traj.camera_frame or ROS_FRAMES["F_C"],
         "frame": traj.frame,
         "start_ns": int(traj.start_ns) + int(off),

@@ -414,8 +414,6 @@ class PinholeCamera:
             unknown or invalid.
         """
         p = Path(path)
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: camera file not found")
         return cls.from_dict(load_yaml(p, "camera YAML"), source=str(p))
 
     def to_dict(self) -> dict:

@@ -31,6 +31,7 @@ import warp as wp
 from are_stats.perception._frustum_bvh import BRANCH, LEAF, FrustumBVH
 
 __all__ = [
+    "Segments",
     "View",
     "block_stride",
     "launch_dynamic",
@@ -102,6 +103,20 @@ class View:
     fy: float
     cx: float
     cy: float
+
+
+@wp.struct
+class Segments:
+    """A pair launch's segments (see the module docstring): ``offsets`` (n + 1,) the first
+    item of each segment then the item count, ``frame`` (n,), ``rect`` (n,) ``(x0, y0, w)``,
+    the rectangle rows of CPU launches ``row_seg``, ``row_y`` (R,), and ``n``."""
+
+    offsets: wp.array(dtype=wp.int64)
+    frame: wp.array(dtype=wp.int32)
+    rect: wp.array(dtype=wp.vec3i)
+    row_seg: wp.array(dtype=wp.int32)
+    row_y: wp.array(dtype=wp.int32)
+    n: int
 
 
 @wp.func
@@ -200,49 +215,34 @@ def _find_segment(offsets: wp.array(dtype=wp.int64), n_seg: int, i: wp.int64) ->
 
 
 @wp.func
-def _run_of(
-    offsets: wp.array(dtype=wp.int64),
-    rect: wp.array(dtype=wp.vec3i),
-    row_seg: wp.array(dtype=wp.int32),
-    row_y: wp.array(dtype=wp.int32),
-    n_seg: int,
-    rows: int,
-    t: wp.int64,
-) -> wp.vec4i:
+def _run_of(seg: Segments, rows: int, t: wp.int64) -> wp.vec4i:
     """``(s, x0, y, n)``: the pair items of work item ``t``, pixels ``x0 .. x0 + n - 1`` of
     image row ``y`` in segment ``s`` (consecutive items).
 
-    With ``rows == 1`` (CPU launches) a work item is rectangle row ``t``: row ``row_y[t]``
-    of segment ``row_seg[t]``, walked without a per-item segment search. Otherwise it is
-    the single item ``t``, found by binary search over the ``offsets``.
+    With ``rows == 1`` (CPU launches) a work item is rectangle row ``t``: row
+    ``seg.row_y[t]`` of segment ``seg.row_seg[t]``, walked without a per-item segment
+    search. Otherwise it is the single item ``t``, found by binary search over the offsets.
     """
     if rows == 1:
-        s = row_seg[t]
-        r = rect[s]
-        return wp.vec4i(s, r[0], r[1] + row_y[t], r[2])
-    s = _find_segment(offsets, n_seg, t)
-    k = int(t - offsets[s])
-    r = rect[s]
+        s = seg.row_seg[t]
+        r = seg.rect[s]
+        return wp.vec4i(s, r[0], r[1] + seg.row_y[t], r[2])
+    s = _find_segment(seg.offsets, seg.n, t)
+    k = int(t - seg.offsets[s])
+    r = seg.rect[s]
     return wp.vec4i(s, r[0] + k % r[2], r[1] + k // r[2], 1)
 
 
 @wp.func
-def _first_item(
-    offsets: wp.array(dtype=wp.int64), rect: wp.array(dtype=wp.vec3i), run: wp.vec4i
-) -> wp.int64:
+def _first_item(seg: Segments, run: wp.vec4i) -> wp.int64:
     """The pair item of the first pixel of ``run`` (see :func:`_run_of`)."""
-    r = rect[run[0]]
-    return offsets[run[0]] + wp.int64((run[2] - r[1]) * r[2] + run[1] - r[0])
+    r = seg.rect[run[0]]
+    return seg.offsets[run[0]] + wp.int64((run[2] - r[1]) * r[2] + run[1] - r[0])
 
 
 @wp.kernel
 def pair_depth_kernel(
-    offsets: wp.array(dtype=wp.int64),
-    frame: wp.array(dtype=wp.int32),
-    rect: wp.array(dtype=wp.vec3i),
-    row_seg: wp.array(dtype=wp.int32),
-    row_y: wp.array(dtype=wp.int32),
-    n_seg: int,
+    seg: Segments,
     origin: wp.array(dtype=wp.vec3),
     rot: wp.array(dtype=wp.mat33),
     half: wp.array(dtype=wp.vec3),
@@ -256,20 +256,19 @@ def pair_depth_kernel(
 ):
     """Z_a of every (artefact, pixel-in-rectangle) item; scatter its max and min per pixel.
 
-    The segments (see the module docstring) are ``offsets``, ``frame``, ``rect = (x0, y0,
-    w)``, and for CPU launches their rectangle rows ``row_seg``, ``row_y``. Per segment,
+    ``seg`` holds the segments (:class:`Segments`). Per segment,
     ``origin`` is the camera centre in the box frame, ``rot`` the rotation from the
     optical frame to the box frame and ``half`` the box's half extents. Work item
     ``tid + base`` is a run of items (:func:`_run_of`): a rectangle row when ``rows == 1``
     (CPU launches), else one item (CUDA launches).
     """
-    run = _run_of(offsets, rect, row_seg, row_y, n_seg, rows, wp.int64(wp.tid()) + base)
+    run = _run_of(seg, rows, wp.int64(wp.tid()) + base)
     s = run[0]
-    i0 = _first_item(offsets, rect, run)
+    i0 = _first_item(seg, run)
     o = origin[s]
     m = rot[s]
     h = half[s]
-    g0 = frame[s] * view.npix + run[2] * view.width
+    g0 = seg.frame[s] * view.npix + run[2] * view.width
     for j in range(run[3]):
         px = run[1] + j
         z = _slab(o, m * _pixel_ray_cam(px, run[2], view), h, d_max)
@@ -783,12 +782,7 @@ def env_block_kernel(
 
 @wp.kernel
 def pair_count_kernel(
-    offsets: wp.array(dtype=wp.int64),
-    frame: wp.array(dtype=wp.int32),
-    rect: wp.array(dtype=wp.vec3i),
-    row_seg: wp.array(dtype=wp.int32),
-    row_y: wp.array(dtype=wp.int32),
-    n_seg: int,
+    seg: Segments,
     box: wp.array(dtype=wp.int32),
     view: View,
     n_box: int,
@@ -808,10 +802,10 @@ def pair_count_kernel(
     t = wp.int64(wp.tid()) + base
     if rows == 0 and pair_z[t] == _INF:
         return  # a single item that no box covers: no segment search
-    run = _run_of(offsets, rect, row_seg, row_y, n_seg, rows, t)
+    run = _run_of(seg, rows, t)
     s = run[0]
-    i0 = _first_item(offsets, rect, run)
-    f = frame[s]
+    i0 = _first_item(seg, run)
+    f = seg.frame[s]
     g0 = f * view.npix + run[2] * view.width + run[1]
     n = wp.int32(0)
     for j in range(run[3]):
@@ -974,9 +968,8 @@ def make_segments(
     row_seg: np.ndarray,
     row_y: np.ndarray,
     device: str,
-) -> list:
-    """The segment arguments of the pair kernels, ``[offsets, frame, rect, row_seg,
-    row_y, n_seg]``, as device arrays.
+) -> Segments:
+    """The segments of the pair kernels (:class:`Segments`), on ``device``.
 
     Parameters
     ----------
@@ -991,14 +984,14 @@ def make_segments(
     device : str
         Warp device of the arrays.
     """
-    return [
-        _array(offsets.astype(np.int64), wp.int64, device),
-        _array(frame.astype(np.int32), wp.int32, device),
-        _array(rect.astype(np.int32), wp.vec3i, device),
-        _array(row_seg.astype(np.int32), wp.int32, device),
-        _array(row_y.astype(np.int32), wp.int32, device),
-        len(frame),
-    ]
+    seg = Segments()
+    seg.offsets = _array(offsets.astype(np.int64), wp.int64, device)
+    seg.frame = _array(frame.astype(np.int32), wp.int32, device)
+    seg.rect = _array(rect.astype(np.int32), wp.vec3i, device)
+    seg.row_seg = _array(row_seg.astype(np.int32), wp.int32, device)
+    seg.row_y = _array(row_y.astype(np.int32), wp.int32, device)
+    seg.n = len(frame)
+    return seg
 
 
 def make_boxes(origin: np.ndarray, rot: np.ndarray, half: np.ndarray, device: str) -> list:
@@ -1026,7 +1019,7 @@ def launch_pair_depths(seg: dict, view: View, d_max: float, out: dict, bounds, d
     """Host side of :func:`pair_depth_kernel`, writing ``out``'s ``pair_z``, ``z_max``
     and ``z_min`` (:func:`make_depths`).
 
-    ``seg["arrays"]`` are the launch's segments (:func:`make_segments`), ``seg["boxes"]``
+    ``seg["segments"]`` are the launch's segments (:func:`make_segments`), ``seg["boxes"]``
     their boxes (:func:`make_boxes`). On the CPU the work items are the rectangle rows,
     sorted by frame and image row, run by ``len(bounds)`` workers (:func:`launch_dynamic`)
     in chunks that never share an image row (:func:`row_chunk_edges`): Warp's CPU atomics
@@ -1037,7 +1030,7 @@ def launch_pair_depths(seg: dict, view: View, d_max: float, out: dict, bounds, d
 
     def inputs(base, j):
         outs = [out["pair_z"], out["z_max"], out["z_min"]]
-        return [*seg["arrays"], *seg["boxes"], view, float(d_max), rows, base, *outs]
+        return [seg["segments"], *seg["boxes"], view, float(d_max), rows, base, *outs]
 
     if rows:
         workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
@@ -1170,7 +1163,7 @@ def launch_pair_counts(
     rows = 1 if _is_cpu(device) else 0
 
     def inputs(base, j):
-        args = [*seg["arrays"], seg["box"], view, n_box, use_min, rows, base]
+        args = [seg["segments"], seg["box"], view, n_box, use_min, rows, base]
         return [*args, out["pair_z"], z_env, out["z_min"], counts[j]]
 
     if rows:

@@ -476,7 +476,7 @@ def _run(
         order = np.argsort(row_key, kind="stable")
         row_seg, row_y, row_key = row_seg[order], row_y[order], row_key[order]
         seg = {
-            "arrays": kern.make_segments(offsets, fr, rect[:, :3], row_seg, row_y, device),
+            "segments": kern.make_segments(offsets, fr, rect[:, :3], row_seg, row_y, device),
             "boxes": kern.make_boxes(seg_origin, seg_rot, half[bx], device),
             "box": wp.array(bx.astype(np.int32), dtype=wp.int32, device=device),
             "n_items": n_items,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 import shapely
@@ -57,7 +59,7 @@ def test_load_mesh_formats(tmp_path, ext):
 
 
 def test_load_mesh_errors(tmp_path):
-    with pytest.raises(FileNotFoundError, match="mesh file not found"):
+    with pytest.raises(FileNotFoundError, match="none.obj: no such file: expected a mesh file"):
         load_mesh(tmp_path / "none.obj")
     bad = tmp_path / "bad.ply"
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 9\nend_header\n\x00")
@@ -115,8 +117,12 @@ def test_bad_meshes_name_the_file(tmp_path, name, data, match):
 
 
 def test_mesh_directory_and_memory_limit(tmp_path):
-    with pytest.raises(InputError, match="expected a mesh file .*, got not a file"):
+    with pytest.raises(InputError, match=r"expected a mesh file \(OBJ.*\), got a directory"):
         load_mesh(tmp_path)
+    fifo = tmp_path / "fifo.ply"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="fifo.ply: expected a mesh .* in a regular file"):
+        load_mesh(fifo)
     with limits(memory="1K"), pytest.raises(LimitError, match="courtyard.ply"):
         load_mesh(DEFAULT_MODELS / "courtyard.ply")
 

@@ -64,7 +64,7 @@ def test_bt_round_trip(tmp_path, rng):
 
 
 def test_bt_errors(tmp_path):
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(FileNotFoundError, match="none.bt: no such file: expected an OctoMap"):
         VoxelMap.from_octomap_bt(tmp_path / "none.bt")
     p = tmp_path / "x.bt"
     p.write_bytes(b"# something else\n")
@@ -76,7 +76,7 @@ def test_bt_errors(tmp_path):
     p.write_bytes(b"# Octomap OcTree binary file\nid OcTree\nsize 1\ndata\n\x00\x00")
     with pytest.raises(InputError, match="x.bt: header: expected a line 'res R'"):
         VoxelMap.from_octomap_bt(p)
-    with pytest.raises(InputError, match="expected an OctoMap .bt file, got not a file"):
+    with pytest.raises(InputError, match="expected an OctoMap .bt file, got a directory"):
         VoxelMap.from_octomap_bt(tmp_path)
 
 

@@ -350,14 +350,21 @@ def _robot_tfs(msgs):
 @pytest.mark.parametrize("kind", ["mcap", "ros1"])
 def test_replay_streams_the_robot_of_a_bag_on_its_clock(tmp_path, kind):
     from are_stats.export import robot_from_bag
+    from are_stats.logs import TrajectoryOptions
     from tests.export.rosbag_fixtures import CAMERA, CAMERA_XYZ, SIM_START, robot_pose, stamp_ns
 
     # header stamps on a simulation clock, recording times on the wall clock (as Nav2's
     # simulation tutorials record): the robot is read on the header clock, as augment does
     bag = _bag_robot(tmp_path, kind, header_start=SIM_START)
-    robot = robot_from_bag(bag, camera_info_topic="/camera/camera_info", d_max=5.0)
+    info = TrajectoryOptions(camera_info_topic="/camera/camera_info")
+    robot = robot_from_bag(bag, info, d_max=5.0)
     assert robot["frame"] == "map" and robot["start_ns"] == stamp_ns(0.0, SIM_START)
     assert robot["camera_frame"] == "camera_optical_frame"
+    # the options reach the reader whole: the clock too (the replay's stamps stay on the
+    # header clock)
+    on_log = robot_from_bag(bag, info._replace(clock="log"))
+    assert on_log["clock_note"].startswith("recording times (--clock log")
+    assert on_log["base_frame"] == "base_link" and on_log["start_ns"] == robot["start_ns"]
     msgs = list(
         replay_messages(
             _scene(), horizon=12.0, speed=40.0, fps=10.0, start_ns=robot["start_ns"], robot=robot
@@ -393,6 +400,28 @@ def test_replay_streams_the_robot_of_a_bag_on_its_clock(tmp_path, kind):
     }
     assert want <= corners
     assert max(math.hypot(p.x, p.y, p.z) for p in pts) == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize(
+    "rot",
+    [
+        [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]],  # forward (trace 0)
+        [[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],  # straight down (trace -1)
+    ],
+)
+def test_replay_mount_rotation_is_the_mounts_quaternion(tmp_path, rot):
+    from scipy.spatial.transform import Rotation
+
+    from are_stats.export import robot_from_bag
+
+    mount = np.eye(4)
+    mount[:3, :3] = rot
+    mount[:3, 3] = [0.1, 0.0, 1.2]
+    robot = {**robot_from_bag(_bag_robot(tmp_path)), "mount": mount}
+    msgs = list(replay_messages(_scene(), horizon=4.0, speed=40.0, fps=10.0, robot=robot))
+    q = _robot_tfs(msgs)[0][2]["camera_optical_frame"].rotation
+    got = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    np.testing.assert_allclose(got, rot, atol=1e-9)
 
 
 def test_robot_of_an_odometry_only_bag_lives_in_odom(tmp_path):

@@ -89,7 +89,7 @@ def test_bad_cameras(tmp_path):
         PinholeCamera(100.0, 100.0, 32.0, 24.0, 64.5, 48)
     with pytest.raises(ValueError, match="pose: expected an orthonormal"):
         PinholeCamera(100.0, 100.0, 32.0, 24.0, 64, 48, np.diag([1.0, 1.0, 2.0, 1.0]))
-    with pytest.raises(FileNotFoundError, match="camera file not found"):
+    with pytest.raises(FileNotFoundError, match="missing.yaml: no such file: expected a camera"):
         PinholeCamera.from_yaml(tmp_path / "missing.yaml")
     with pytest.raises(InputError, match="expected a camera YAML, got a directory"):
         PinholeCamera.from_yaml(tmp_path)
