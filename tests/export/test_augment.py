@@ -273,9 +273,10 @@ def test_augment_errors(files, tmp_path, monkeypatch):
     assert res.exit_code == 2 and "/nope" in res.output and "/amcl_pose" in res.output
     res = run("--pose-topic", "/camera/camera_info")
     assert res.exit_code == 2 and "sensor_msgs/msg/CameraInfo" in res.output
-    odom = write_bag(tmp_path / "odom", "ros2", tf=False, camera=False, pose_frame="odom")
-    res = run("--pose-topic", "/robot_pose", bag=odom)
-    assert res.exit_code == 2 and "'map'" in res.output and "got 'odom'" in res.output
+    odom = write_bag(tmp_path / "odom", "ros2", camera=False, pose_frame="odom")
+    res = run("--pose-topic", "/robot_pose", bag=odom)  # odom poses, a tree with a map frame
+    assert res.exit_code == 2 and "'map'" in res.output and "got 'odom' in a bag" in res.output
+    assert "--map-frame odom" in res.output
     res = run("--base-frame", "robot")
     assert res.exit_code == 2 and "map -> ... -> robot" in res.output
     res = run("--pose-topic", "/amcl_pose", "--base-frame", "base_link")
@@ -757,6 +758,26 @@ def test_augment_odom_only_bag_puts_artefacts_in_odom(files, tmp_path):
     assert {p for p, c in _tf_links(_read_mcap(out2)[0]) if c.startswith("artefact_")} == {"odom"}
     res = _augment(files, files["mcap"], tmp_path / "o3.mcap", "--map-frame", "nowhere")
     assert res.exit_code == 2 and "nowhere -> ... -> base_link" in res.output
+
+
+@pytest.mark.parametrize("tf", [False, True])
+def test_augment_odom_only_bag_from_its_odometry_topic(files, tmp_path, tf):
+    """``--pose-topic`` with poses in ``odom`` in a bag without a ``map`` frame (no /tf, or
+    a tree ``odom -> base_link`` only): read in ``odom`` with a note, as from /tf."""
+    bag = write_bag(tmp_path / "odom", "mcap", tf=tf, map_tf=False, pose_frame="odom")
+    out = tmp_path / "odom.mcap"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera", files["camera"])
+    assert res.exit_code == 0, res.output
+    said = " ".join(res.output.split())
+    assert "note: the bag has no frame 'map' and /amcl_pose is in 'odom'" in said, said
+    msgs, _, _ = _read_mcap(out)
+    links = _tf_links(msgs)
+    assert {p for p, c in links if c.startswith("artefact_")} == {"odom"}
+    assert {m.header.frame_id for _, a in msgs["/artefacts"] for m in a.markers} == {"odom"}
+    assert ("odom", "base_link") in links and not any(p == "map" for p, _ in links)
+    tr = read_trajectory(bag, pose_topic="/amcl_pose")
+    assert tr.frame == "odom"
+    np.testing.assert_allclose(tr.poses, _truth(tr.t - START), atol=1e-9)
 
 
 def test_augment_qos_in_the_input_bags_form(files, tmp_path):
