@@ -835,3 +835,30 @@ def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
     res = _augment(files, bag, out, "--camera", files["camera"], "--topics", keep)
     assert res.exit_code == 0, res.output
     assert "/note" not in {c[0] for c in _raw_channels(out)}
+
+
+def test_augment_says_when_the_camera_mount_is_not_the_bags_tree(files, tmp_path):
+    """The mount is the bag's tree (the CameraInfo's frame) or a note says what it is and
+    how to use the bag's camera: never a silent shortcut."""
+    cam = "/camera/camera_info"
+    res = _augment(files, files["mcap"], tmp_path / "a.mcap", "--camera-info-topic", cam)
+    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    res = _augment(files, files["mcap"], tmp_path / "b.mcap", "--camera", files["camera"])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert "note: camera: the --camera file, mounted by default, 1 m above the base" in said
+    assert f"--camera-info-topic {cam} uses the bag's" in said
+    # a CameraInfo whose frame has no static chain from the base (no /tf_static at all)
+    bag = write_bag(tmp_path / "notree", "mcap", tf=False)
+    out = tmp_path / "c.mcap"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera-info-topic", cam)
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert (
+        "note: the bag's tree has no static chain base_link -> ... -> camera_optical_frame" in said
+    )
+    msgs, _, _ = _read_mcap(out)  # the mount published is the one the note names
+    ((_, static),) = msgs["/tf_static"]
+    (mount,) = static.transforms
+    assert (mount.header.frame_id, mount.child_frame_id) == ("base_link", "camera_optical_frame")
+    assert mount.transform.translation.z == pytest.approx(1.0)
