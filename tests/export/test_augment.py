@@ -862,3 +862,41 @@ def test_augment_says_when_the_camera_mount_is_not_the_bags_tree(files, tmp_path
     (mount,) = static.transforms
     assert (mount.header.frame_id, mount.child_frame_id) == ("base_link", "camera_optical_frame")
     assert mount.transform.translation.z == pytest.approx(1.0)
+
+
+def test_augment_moves_the_artefacts_as_generate_does(files, tmp_path):
+    """``augment`` assembles and moves its scene as ``generate --behaviours`` does (same
+    fit, seed and horizon: the bag's 12 s): every ``map -> artefact_<id>`` of the output
+    is the generated scene's box at that camera frame, and the artefacts walk."""
+    from are_stats.environment import load_catalogue
+    from are_stats.scenarios import read_scenes, scenes_from_tables
+
+    out = tmp_path / "aug.mcap"
+    res = _augment(files, files["mcap"], out, "--camera", files["camera"], seed=5)
+    assert res.exit_code == 0, res.output
+    gen = tmp_path / "gen"
+    args = ["generate", files["fit"], "--scenarios", "1", "--horizon", "12", "--seed", "5"]
+    res = runner.invoke(app, [str(a) for a in [*args, "--out", gen, "--map", MAP, "--behaviours"]])
+    assert res.exit_code == 0, res.output
+    df, manifest, tracks = read_scenes(gen)
+    (scene,) = scenes_from_tables(df, tracks, load_catalogue(), manifest["class_labels"], [0])
+    msgs, _, _ = _read_mcap(out)
+    path: dict = defaultdict(list)
+    frames = 0
+    for _, m in msgs["/tf"]:
+        art = [tr for tr in m.transforms if tr.child_frame_id.startswith("artefact_")]
+        if not art:
+            continue
+        st = art[0].header.stamp
+        t = (st.sec * 10**9 + st.nanosec - START_NS) * 1e-9
+        boxes = scene.at(t)
+        want = {f"artefact_{int(a)}": c for a, c in zip(boxes.ids, boxes.centres, strict=True)}
+        assert {tr.child_frame_id for tr in art} == set(want), t
+        for tr in art:
+            xyz = tr.transform.translation
+            np.testing.assert_allclose([xyz.x, xyz.y], want[tr.child_frame_id][:2], atol=1e-6)
+            path[tr.child_frame_id].append((xyz.x, xyz.y))
+        frames += 1
+    assert frames == int(DURATION / 0.5) + 1
+    moved = [np.ptp(np.asarray(p), axis=0).max() for p in path.values() if len(p) > 1]
+    assert sum(d > 0.5 for d in moved) >= len(moved) // 2, moved  # most of them walk
