@@ -438,6 +438,8 @@ def augment_bag(
             "counts": {str(int(a)): int(counts[f, k]) for a, k in zip(boxes.ids, idx, strict=True)},
             "labels": {str(int(a)): str(lb) for a, lb in zip(boxes.ids, boxes.labels, strict=True)},
             "contacts": [int(a) for a, k in zip(boxes.ids, idx, strict=True) if contacts[f, k]],
+            "d_max": d_max,
+            "tau": tau,
         }
         R.add(t, "/perceived", AUGMENT_TOPICS["/perceived"], String(data=json.dumps(doc)))
     written = dict(R.counts())

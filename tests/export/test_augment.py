@@ -900,3 +900,29 @@ def test_augment_moves_the_artefacts_as_generate_does(files, tmp_path):
     assert frames == int(DURATION / 0.5) + 1
     moved = [np.ptp(np.asarray(p), axis=0).max() for p in path.values() if len(p) > 1]
     assert sum(d > 0.5 for d in moved) >= len(moved) // 2, moved  # most of them walk
+
+
+def test_show_draws_the_camera_view_to_the_range_augment_perceived_with(files, tmp_path):
+    """``are-stats show`` of an augmented bag draws the camera's field of view out to the
+    ``d_max`` of A_f (said by ``/perceived``), so that a perceived box is never drawn
+    beyond it; the half-angle is the CameraInfo's ``atan(width / 2 / fx)``."""
+    from are_stats.export import read_view
+
+    out = tmp_path / "aug.mcap"
+    cam = "/camera/camera_info"
+    res = _augment(files, files["mcap"], out, "--camera-info-topic", cam, "--d-max", "15", seed=5)
+    assert res.exit_code == 0, res.output
+    msgs, _, _ = _read_mcap(out)
+    assert {json.loads(m.data)["d_max"] for _, m in msgs["/perceived"]} == {15.0}
+    v = read_view(out)
+    assert v.perceived.any()
+    apex, ends = v.camera[0], v.camera[1:]
+    np.testing.assert_allclose(np.linalg.norm(ends - apex, axis=1), 15.0, atol=1e-9)
+    half = np.arctan2(CAMERA["width"] / 2, CAMERA["k"][0])
+    a, b = ends - apex
+    assert np.arccos(a @ b / (a @ a)) == pytest.approx(2 * half)
+    near = (
+        np.linalg.norm(v.boxes[v.perceived, :2] - apex, axis=1)
+        - np.hypot(v.boxes[v.perceived, 3], v.boxes[v.perceived, 4]) / 2
+    )
+    assert (near <= 15.0).all()
