@@ -926,3 +926,24 @@ def test_show_draws_the_camera_view_to_the_range_augment_perceived_with(files, t
         - np.hypot(v.boxes[v.perceived, 3], v.boxes[v.perceived, 4]) / 2
     )
     assert (near <= 15.0).all()
+
+
+def test_a_fit_of_the_older_format_is_read_with_a_note_line(capsys):
+    """``are-stats`` shows a fit read as format 1 (no ``format_version``) as one ``note:``
+    line, not a Python warning quoting our source; other warnings as Python shows them."""
+    import warnings
+
+    from are_stats.cli import _note_fit_formats
+    from are_stats.fitting import FitFormatWarning
+
+    shown = []
+    show = _note_fit_formats(lambda *a, **k: shown.append(a[:2]))
+    text = "old.nc: the fit has no format_version (written before fits carried one)"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = show
+        warnings.warn(text, FitFormatWarning, stacklevel=1)
+        warnings.warn("other", UserWarning, stacklevel=1)
+    err = capsys.readouterr().err
+    assert err == f"note: {text}\n"
+    assert [(str(m), c) for m, c in shown] == [("other", UserWarning)]
