@@ -372,7 +372,9 @@ def augment_bag(
         R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
     if "/tf" not in passthrough.topics:  # no robot tree in the input: publish the pose
         base, camf = base_frame, traj.camera_frame or ROS_FRAMES["F_C"]
-        R.add(0.0, "/tf_static", _TF, R.tf([R.transform(0.0, base, camf, mount)]), latched=True)
+        if traj.mount is None:  # the input's /tf_static mounts the camera already
+            tf = R.tf([R.transform(0.0, base, camf, mount)])
+            R.add(0.0, "/tf_static", _TF, tf, latched=True)
         for tk, m in zip(pose_t, traj.poses, strict=True):
             R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), fixed, base, m)]))
     # markers live until the next camera frame and a bit: a replay stopped half-way (or

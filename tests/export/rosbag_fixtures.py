@@ -204,13 +204,19 @@ def _camera_info(T, t: float, ros1: bool):
 
 
 def write_bag(
-    path: Path, kind: str, outlier_log: bool = False, damaged: str | None = None, **which
+    path: Path,
+    kind: str,
+    outlier_log: bool = False,
+    damaged: str | None = None,
+    drop: tuple[str, ...] = (),
+    **which,
 ) -> Path:
     """Write the test bag as ``kind`` ``"ros1"`` (``path`` a ``.bag``), ``"ros2"`` (a folder,
     sqlite3) or ``"mcap"`` (a ROS 2 folder with MCAP storage; its ``.mcap`` file is
     returned). ``which`` goes to :func:`bag_messages`; ``outlier_log`` also records the
     outlier messages at :data:`OUTLIER_STAMP` (1970); ``damaged`` (ROS 1 only) adds a
-    ``std_msgs/String`` topic of that name whose one message is undecodable bytes."""
+    ``std_msgs/String`` topic of that name whose one message is undecodable bytes;
+    ``drop``: topics left out (``("/tf",)``: ``/tf_static`` without ``/tf``)."""
     from rosbags.typesys import Stores, get_typestore
 
     def log_ns(t: float, topic: str) -> int:
@@ -227,7 +233,7 @@ def write_bag(
                 "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
             )
         )
-    msgs = bag_messages(ts.types, ros1=ros1, **which)
+    msgs = [m for m in bag_messages(ts.types, ros1=ros1, **which) if m[1] not in drop]
     if ros1:
         from rosbags.rosbag1 import Writer
 

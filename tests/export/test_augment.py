@@ -824,6 +824,26 @@ def test_augment_pose_topic_only_bag_still_publishes_the_robot(files, tmp_path):
     assert len(msgs["/amcl_pose"]) == int(DURATION * 10) + 1
 
 
+def test_augment_pose_topic_bag_with_a_static_tree_keeps_one_parent_per_frame(files, tmp_path):
+    """A bag with ``/tf_static`` (the camera's chain) but no ``/tf``: ``map -> base_link``
+    is published, the camera mount is not (the input's chain has it), so every frame keeps
+    one parent across the input and the output."""
+    bag = write_bag(tmp_path / "static", "mcap", drop=("/tf",))
+    out = tmp_path / "s.mcap"
+    cam = "/camera/camera_info"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera-info-topic", cam)
+    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    msgs, _, _ = _read_mcap(out)
+    ins, _, _ = _read_mcap(next(Path(bag).parent.glob("*.mcap")) if Path(bag).is_dir() else bag)
+    parents = defaultdict(set)
+    for p, c in _tf_links(msgs) | _tf_links(ins):
+        parents[c].add(p)
+    assert parents["base_link"] == {"map"}
+    assert parents["camera_optical_frame"] == {"camera_link"}
+    assert all(len(v) == 1 for v in parents.values()), dict(parents)
+    assert len(msgs["/tf_static"]) == 1  # the input's
+
+
 def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
     bag = write_bag(tmp_path / "damaged.bag", "ros1", damaged="/note")
     out = tmp_path / "o.mcap"
