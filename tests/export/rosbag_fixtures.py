@@ -90,6 +90,7 @@ def bag_messages(
     bad: tuple | None = None,
     map_tf: bool = True,
     extra: str | None = None,
+    decoy: bool = False,
 ):
     """``(t, topic, msgtype, message)`` of the test bag, in time order (``t`` s after
     :data:`START`, the recording time).
@@ -99,7 +100,9 @@ def bag_messages(
     ``odom -> base_link``) and of the pose topics is stamped :data:`OUTLIER_STAMP` (1970).
     ``bad``: ``(x, y, quaternion)`` of that message's pose and transform. ``map_tf``:
     ``/tf`` has ``map -> odom`` (else odometry only). ``extra``: a ``std_msgs/String``
-    topic of that name besides.
+    topic of that name besides. ``decoy``: ``/tf_static`` first mounts another optical
+    frame, ``left_camera_optical_frame`` (an OAK-D's left mono camera), 0.1 m left of
+    the base, before the ``CameraInfo``'s camera.
     """
     _CLOCK["start"] = header_start
     out = []
@@ -112,6 +115,23 @@ def bag_messages(
                 "tf2_msgs/msg/TFMessage",
                 T["tf2_msgs/msg/TFMessage"](
                     transforms=[
+                        *(
+                            [
+                                _tf(
+                                    T,
+                                    0.0,
+                                    "base_link",
+                                    "left_camera_optical_frame",
+                                    (0, 0.1, 0.3),
+                                    -math.pi / 2,
+                                    0,
+                                    -math.pi / 2,
+                                    ros1=ros1,
+                                )
+                            ]
+                            if decoy
+                            else []
+                        ),
                         _tf(T, 0.0, "base_link", "camera_link", CAMERA_XYZ, ros1=ros1),
                         _tf(
                             T,

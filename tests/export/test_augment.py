@@ -107,6 +107,18 @@ def test_read_trajectory_from_tf_and_pose_topics(files, kind, topic):
     np.testing.assert_allclose(tr.camera_times - START, np.arange(0, DURATION + 0.01, 0.5))
 
 
+def test_the_camera_mount_is_the_camera_infos_frame_not_the_first_optical_one(tmp_path):
+    """An OAK-D-like tree mounts several optical frames: the mount is the chain to the
+    ``CameraInfo``'s frame (or ``--camera-frame``), never a frame guessed by its name."""
+    bag = write_bag(tmp_path / "oakd", "mcap", decoy=True)
+    tr = read_trajectory(bag, camera_info_topic="/camera/camera_info")
+    assert tr.camera_frame == "camera_optical_frame"
+    np.testing.assert_allclose(tr.mount, optical_from_base(CAMERA_XYZ), atol=1e-12)
+    left = read_trajectory(bag, camera_frame="left_camera_optical_frame")
+    np.testing.assert_allclose(left.mount, optical_from_base((0, 0.1, 0.3)), atol=1e-12)
+    assert read_trajectory(bag).mount is None  # no CameraInfo, no --camera-frame: no guess
+
+
 def test_augment_reads_back_and_matches_perceive_scene(files, tmp_path):
     out = tmp_path / "aug.mcap"
     res = augment_bag(
@@ -754,7 +766,7 @@ def test_augment_odom_only_bag_puts_artefacts_in_odom(files, tmp_path):
     # --map-frame names the fixed frame: a bag with a map frame read in odom, no note
     out2 = tmp_path / "o2.mcap"
     res = _augment(files, files["mcap"], out2, "--map-frame", "odom", "--camera", files["camera"])
-    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    assert res.exit_code == 0 and "no frame" not in res.output, res.output  # no frame note
     assert {p for p, c in _tf_links(_read_mcap(out2)[0]) if c.startswith("artefact_")} == {"odom"}
     res = _augment(files, files["mcap"], tmp_path / "o3.mcap", "--map-frame", "nowhere")
     assert res.exit_code == 2 and "nowhere -> ... -> base_link" in res.output
