@@ -949,8 +949,9 @@ def run_augment(
         f"{', '.join(f'{k} {v}' for k, v in res.passed.items()) or 'nothing'}); "
         f"clock: {res.clock_note}"
     )
-    if res.frame_note:
-        console.print(f"note: {res.frame_note}")
+    for note in (res.frame_note, res.camera_note):
+        if note:
+            console.print(f"note: {note}")
     return res
 
 

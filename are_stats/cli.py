@@ -650,9 +650,27 @@ def serve(
 _GC_THRESHOLDS = (10_000, 20, 20)
 
 
+def _note_fit_formats(show: Callable[..., None]) -> Callable[..., None]:
+    """``warnings.showwarning`` that shows a fit read under an older format
+    (:class:`~are_stats.fitting.FitFormatWarning`) as one ``note:`` line, as the commands'
+    other notes, and any other warning by ``show``."""
+    import sys
+
+    def showwarning(message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
+        fitting = sys.modules.get("are_stats.fitting")  # loaded when the fit was read
+        if fitting is not None and issubclass(category, fitting.FitFormatWarning):
+            typer.echo(f"note: {message}", err=True)
+        else:
+            show(message, category, *args, **kw)
+
+    return showwarning
+
+
 def main() -> None:
     """The ``are-stats`` console script: :data:`app`, then the process's own housekeeping.
 
+    * A fit of an older format is read with a ``note:`` line, not a
+      Python warning with a line of our source (:func:`_note_fit_formats`).
     * A command builds up many long-lived objects (the imported libraries, traced and
       compiled programs), which every full collection walks again: at Python's default
       thresholds a warm ``are-stats fit`` of the shipped log spent 1.1-1.3 s of its 9 s in
@@ -664,7 +682,10 @@ def main() -> None:
       at exit would walk them all once more only to free memory the exit frees anyway
       (1.1 s after a fit). Outputs are written and closed by then.
     """
+    import warnings
+
     gc.set_threshold(*_GC_THRESHOLDS)
+    warnings.showwarning = _note_fit_formats(warnings.showwarning)
     try:
         app()
     finally:

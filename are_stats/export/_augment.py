@@ -116,6 +116,9 @@ class AugmentResult(NamedTuple):
         Why it is not the map frame (else ``""``).
     passed : dict of str to int
         Messages copied from the input per topic (pass-through).
+    camera_note : str
+        Why the camera mount is not the bag's tree (the camera file's pose or the default
+        mount instead), and how to use the bag's camera; ``""`` when it is the tree's.
     """
 
     path: Path
@@ -132,6 +135,7 @@ class AugmentResult(NamedTuple):
     frame: str = "map"
     frame_note: str = ""
     passed: dict = {}  # noqa: RUF012 (a NamedTuple default, never mutated)
+    camera_note: str = ""
 
 
 # ---- the loop -----------------------------------------------------------------------------
@@ -301,6 +305,9 @@ def augment_bag(
         frames = (cam_ns - start_ns) * 1e-9
     else:
         frames = _period_frames(pose_t, period, cam, grid, bag, STAMP_GAP)
+    camera_note = (
+        "" if mount is not None else _camera_note(traj, base_frame, camera, cam, passthrough.topics)
+    )
     mount = np.asarray(tree_mount if mount is None else mount, float)
     times = frames[(frames >= pose_t[0] - 1e-6) & (frames <= pose_t[-1] + 1e-6)]
     if times.size == 0:
@@ -365,7 +372,9 @@ def augment_bag(
         R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
     if "/tf" not in passthrough.topics:  # no robot tree in the input: publish the pose
         base, camf = base_frame, traj.camera_frame or ROS_FRAMES["F_C"]
-        R.add(0.0, "/tf_static", _TF, R.tf([R.transform(0.0, base, camf, mount)]), latched=True)
+        if traj.mount is None:  # the input's /tf_static mounts the camera already
+            tf = R.tf([R.transform(0.0, base, camf, mount)])
+            R.add(0.0, "/tf_static", _TF, tf, latched=True)
         for tk, m in zip(pose_t, traj.poses, strict=True):
             R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), fixed, base, m)]))
     # markers live until the next camera frame and a bit: a replay stopped half-way (or
@@ -431,6 +440,8 @@ def augment_bag(
             "counts": {str(int(a)): int(counts[f, k]) for a, k in zip(boxes.ids, idx, strict=True)},
             "labels": {str(int(a)): str(lb) for a, lb in zip(boxes.ids, boxes.labels, strict=True)},
             "contacts": [int(a) for a, k in zip(boxes.ids, idx, strict=True) if contacts[f, k]],
+            "d_max": d_max,
+            "tau": tau,
         }
         R.add(t, "/perceived", AUGMENT_TOPICS["/perceived"], String(data=json.dumps(doc)))
     written = dict(R.counts())
@@ -453,7 +464,28 @@ def augment_bag(
         traj.frame,
         traj.frame_note,
         passed,
+        camera_note,
     )
+
+
+def _camera_note(
+    traj: BagTrajectory, base_frame: str, camera: object, cam: CameraModel, topics: dict[str, str]
+) -> str:
+    """Where the camera mount comes from when it is not the bag's tree (``""`` when it
+    is): the camera file's pose or 1 m above the base, and how to use the bag's camera."""
+    if traj.mount is not None:
+        return ""
+    posed = not np.allclose(getattr(cam, "pose", np.eye(4)), np.eye(4))
+    what = "the camera file's pose" if posed else "default, 1 m above the base looking forward"
+    if traj.camera_frame:
+        return (
+            f"the bag's tree has no static chain {base_frame} -> ... -> {traj.camera_frame} "
+            f"(/tf_static): the camera is mounted by {what}"
+        )
+    name = "the shipped front_camera" if camera is None else "the --camera file"
+    infos = sorted(t for t, typ in topics.items() if typ.split("/")[-1] == "CameraInfo")
+    hint = f"--camera-info-topic {infos[0]}" if infos else "--camera-frame FRAME"
+    return f"camera: {name}, mounted by {what}, not from the bag's tree; {hint} uses the bag's"
 
 
 def _period_frames(

@@ -11,6 +11,7 @@ before replaying it (``are-stats show OUT.mcap``).
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -37,7 +38,9 @@ __all__ = ["BagView", "plot_mcap", "read_view"]
 _GRID = ("nav_msgs/msg/OccupancyGrid", "nav_msgs/OccupancyGrid")
 _MARKERS = ("visualization_msgs/msg/MarkerArray", "visualization_msgs/MarkerArray")
 _CAMERA_INFO = ("sensor_msgs/msg/CameraInfo", "sensor_msgs/CameraInfo")
-#: Length (m) of the camera's horizontal field of view as drawn.
+_STRING = ("std_msgs/msg/String", "std_msgs/String")
+#: Length (m) of the camera's horizontal field of view as drawn when the bag does not say
+#: the range of A_f (``d_max`` of ``/perceived``, written by ``augment``).
 _FRUSTUM_DRAWN = 6.0
 
 
@@ -64,8 +67,9 @@ class BagView(NamedTuple):
     pose : (3,) float or None
         The robot's pose at ``t``.
     camera : (3, 2) float or None
-        The camera's optical centre and the ends of its horizontal field of view 6 m out
-        (from the ``CameraInfo`` intrinsics; 60 degrees without), in the plane.
+        The camera's optical centre and the ends of its horizontal field of view at the
+        range of A_f (``d_max`` of the ``/perceived`` message then; 6 m out without one),
+        from the ``CameraInfo`` intrinsics (60 degrees without), in the plane.
     n_boxes : (k,) int
         Boxes in each ``/artefacts`` message (its length is the number of messages).
     frame : str
@@ -97,6 +101,15 @@ def _grid(msg: Any) -> OccupancyGrid:
     return OccupancyGrid(
         data, float(info.resolution), (o.position.x, o.position.y, _yaw(o.orientation))
     )
+
+
+def _reach(text: str) -> float | None:
+    """``d_max`` (m) of a ``/perceived`` document, None when it has no finite one."""
+    try:
+        d = float(json.loads(text).get("d_max"))
+    except (ValueError, TypeError, AttributeError):
+        return None
+    return d if np.isfinite(d) and d > 0 else None
 
 
 def _boxes(msg: Any) -> tuple[np.ndarray, list, np.ndarray]:
@@ -151,6 +164,7 @@ def read_view(
     grid = None
     augmented: list[tuple[int, Any]] = []
     markers: list[tuple[int, Any]] = []
+    reach: list[tuple[int, float | None]] = []  # the range of A_f, from /perceived
     try:
         with AnyReader([p], default_typestore=vision_msgs_typestore(2)) as reader:
             t0 = int(reader.start_time)
@@ -161,6 +175,7 @@ def read_view(
                 for c in reader.connections
                 if (c.topic in ("/map", "/augmented_map") and c.msgtype in _GRID)
                 or (c.topic == "/artefacts" and c.msgtype in _MARKERS)
+                or (c.topic == "/perceived" and c.msgtype in _STRING)
             ]
             # (rosbags reads every connection when given none)
             for conn, ts, msg in bag_messages(reader, conns, p) if conns else ():
@@ -168,6 +183,8 @@ def read_view(
                     grid = grid if grid is not None else _grid(msg)
                 elif conn.topic == "/augmented_map":
                     augmented.append((int(ts), msg))
+                elif conn.topic == "/perceived":
+                    reach.append((int(ts), _reach(msg.data)))
                 else:
                     markers.append((int(ts), _boxes(msg)))
     except bag_read_errors() as err:
@@ -218,9 +235,9 @@ def read_view(
                 fx, width = traj.camera_info["k"][0], traj.camera_info["width"]
                 half = float(np.arctan2(width / 2.0, fx))
             ends = heading + np.array([-half, half])
-            reach = _FRUSTUM_DRAWN
+            d = last(reach) or _FRUSTUM_DRAWN
             camera = np.vstack(
-                [cam[:2, 3], cam[:2, 3] + reach * np.column_stack([np.cos(ends), np.sin(ends)])]
+                [cam[:2, 3], cam[:2, 3] + d * np.column_stack([np.cos(ends), np.sin(ends)])]
             )
     return BagView(
         (at_ns - t0) * 1e-9,
@@ -289,9 +306,20 @@ def plot_mcap(
         for poly, seen, text in zip(corners, v.perceived, v.labels, strict=True):
             col = (0.1, 0.75, 0.2) if seen else (0.5, 0.5, 0.5)
             ax.add_patch(Polygon(poly, closed=True, facecolor=col, edgecolor="k", lw=0.5))
-            if text:
-                c = poly.mean(axis=0)
-                ax.annotate(text, c, xytext=(3, 3), textcoords="offset points", fontsize=6)
+            if text:  # the colour says occluded: the label alone; the perceived ones on top
+                ax.annotate(
+                    text.removesuffix(" (occluded)"),
+                    poly.mean(axis=0),
+                    xytext=(3, 3),
+                    textcoords="offset points",
+                    fontsize=7 if seen else 6,
+                    fontweight="bold" if seen else "normal",
+                    color="k" if seen else (0.25, 0.25, 0.25),
+                    zorder=4 if seen else 3,
+                    bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.7}
+                    if seen
+                    else None,
+                )
     if v.path is not None:
         ax.plot(v.path[:, 0], v.path[:, 1], "-", color=(0.2, 0.4, 0.9), lw=1.0)
     if v.pose is not None:

@@ -259,7 +259,8 @@ def read_trajectory(
         file: a FIFO or a device is refused at once).
     pose_topic : str, optional
         Read the poses from this topic (:data:`POSE_TYPES`; its ``frame_id`` should be the
-        map frame) instead of ``/tf``.
+        map frame; in a bag without a ``map`` frame, ``odom`` reads it in ``odom``, as
+        :attr:`BagTrajectory.frame_note` says) instead of ``/tf``.
     base_frame, map_frame : str
         The ``/tf`` frames composed into ``T_map_base`` (``map -> ... -> base_link``). A
         tree without the default ``map`` frame but with ``odom -> ... -> base_frame``
@@ -306,6 +307,7 @@ def read_trajectory(
     tfs: list[tuple[str, str, int, int, np.ndarray, bool, int]] = []
     cam_info: dict | None = None
     cam_frame: str | None = None
+    pose_frames: set[str] = set()  # the pose topic's frames: the map's, or odom's
     try:
         with AnyReader(
             [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
@@ -370,13 +372,14 @@ def read_trajectory(
                 elif conn.topic == pose_topic:
                     pose = msg.pose.pose if conn.msgtype in (_POSE_COV, _ODOM) else msg.pose
                     frame = str(msg.header.frame_id).lstrip("/")
-                    if frame and frame != map_frame:
+                    if frame and frame != map_frame and (frame, map_frame) != ("odom", "map"):
                         raise InputError(
                             p,
                             f"topic {pose_topic}, header.frame_id",
                             f"poses in the map frame {map_frame!r} (or read /tf with --base-frame)",
                             frame,
                         )
+                    pose_frames.add(frame or map_frame)
                     pose_hl.append((_ns(msg.header), int(ts)))
                     pose_m.append(transform_matrix(pose.position, pose.orientation, p, where))
                 else:  # camera info
@@ -421,6 +424,24 @@ def read_trajectory(
             link_msg.setdefault((parent, child), []).append(n)
     del tfs, moving_tf
     if pose_topic is not None:
+        if map_frame == "map" and "odom" in pose_frames:  # odometry: an odometry-only bag
+            if len(pose_frames) > 1 or "map" in tf.frames:
+                raise InputError(
+                    p,
+                    f"topic {pose_topic}, header.frame_id",
+                    f"poses in the map frame {fixed!r} (or read /tf with --base-frame, or "
+                    "--map-frame odom for odometry)",
+                    Described(
+                        f"'odom' in a bag whose tree has a frame {fixed!r}"
+                        if len(pose_frames) == 1
+                        else f"frames {', '.join(sorted(pose_frames))} mixed"
+                    ),
+                )
+            map_frame = "odom"
+            frame_note = (
+                f"the bag has no frame {fixed!r} and {pose_topic} is in 'odom': poses and "
+                "artefacts in 'odom' (odometry only; pass --map-frame to name another fixed frame)"
+            )
         ns = np.array([on_clock(h, lg) for h, lg in pose_hl], np.int64)
         check_stamps(ns * 1e-9, p, f"topic {pose_topic}")
         order = np.argsort(ns, kind="stable")

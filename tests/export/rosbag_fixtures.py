@@ -90,6 +90,7 @@ def bag_messages(
     bad: tuple | None = None,
     map_tf: bool = True,
     extra: str | None = None,
+    decoy: bool = False,
 ):
     """``(t, topic, msgtype, message)`` of the test bag, in time order (``t`` s after
     :data:`START`, the recording time).
@@ -99,7 +100,9 @@ def bag_messages(
     ``odom -> base_link``) and of the pose topics is stamped :data:`OUTLIER_STAMP` (1970).
     ``bad``: ``(x, y, quaternion)`` of that message's pose and transform. ``map_tf``:
     ``/tf`` has ``map -> odom`` (else odometry only). ``extra``: a ``std_msgs/String``
-    topic of that name besides.
+    topic of that name besides. ``decoy``: ``/tf_static`` first mounts another optical
+    frame, ``left_camera_optical_frame`` (an OAK-D's left mono camera), 0.1 m left of
+    the base, before the ``CameraInfo``'s camera.
     """
     _CLOCK["start"] = header_start
     out = []
@@ -112,6 +115,23 @@ def bag_messages(
                 "tf2_msgs/msg/TFMessage",
                 T["tf2_msgs/msg/TFMessage"](
                     transforms=[
+                        *(
+                            [
+                                _tf(
+                                    T,
+                                    0.0,
+                                    "base_link",
+                                    "left_camera_optical_frame",
+                                    (0, 0.1, 0.3),
+                                    -math.pi / 2,
+                                    0,
+                                    -math.pi / 2,
+                                    ros1=ros1,
+                                )
+                            ]
+                            if decoy
+                            else []
+                        ),
                         _tf(T, 0.0, "base_link", "camera_link", CAMERA_XYZ, ros1=ros1),
                         _tf(
                             T,
@@ -204,13 +224,19 @@ def _camera_info(T, t: float, ros1: bool):
 
 
 def write_bag(
-    path: Path, kind: str, outlier_log: bool = False, damaged: str | None = None, **which
+    path: Path,
+    kind: str,
+    outlier_log: bool = False,
+    damaged: str | None = None,
+    drop: tuple[str, ...] = (),
+    **which,
 ) -> Path:
     """Write the test bag as ``kind`` ``"ros1"`` (``path`` a ``.bag``), ``"ros2"`` (a folder,
     sqlite3) or ``"mcap"`` (a ROS 2 folder with MCAP storage; its ``.mcap`` file is
     returned). ``which`` goes to :func:`bag_messages`; ``outlier_log`` also records the
     outlier messages at :data:`OUTLIER_STAMP` (1970); ``damaged`` (ROS 1 only) adds a
-    ``std_msgs/String`` topic of that name whose one message is undecodable bytes."""
+    ``std_msgs/String`` topic of that name whose one message is undecodable bytes;
+    ``drop``: topics left out (``("/tf",)``: ``/tf_static`` without ``/tf``)."""
     from rosbags.typesys import Stores, get_typestore
 
     def log_ns(t: float, topic: str) -> int:
@@ -227,7 +253,7 @@ def write_bag(
                 "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
             )
         )
-    msgs = bag_messages(ts.types, ros1=ros1, **which)
+    msgs = [m for m in bag_messages(ts.types, ros1=ros1, **which) if m[1] not in drop]
     if ros1:
         from rosbags.rosbag1 import Writer
 

@@ -107,6 +107,18 @@ def test_read_trajectory_from_tf_and_pose_topics(files, kind, topic):
     np.testing.assert_allclose(tr.camera_times - START, np.arange(0, DURATION + 0.01, 0.5))
 
 
+def test_the_camera_mount_is_the_camera_infos_frame_not_the_first_optical_one(tmp_path):
+    """An OAK-D-like tree mounts several optical frames: the mount is the chain to the
+    ``CameraInfo``'s frame (or ``--camera-frame``), never a frame guessed by its name."""
+    bag = write_bag(tmp_path / "oakd", "mcap", decoy=True)
+    tr = read_trajectory(bag, camera_info_topic="/camera/camera_info")
+    assert tr.camera_frame == "camera_optical_frame"
+    np.testing.assert_allclose(tr.mount, optical_from_base(CAMERA_XYZ), atol=1e-12)
+    left = read_trajectory(bag, camera_frame="left_camera_optical_frame")
+    np.testing.assert_allclose(left.mount, optical_from_base((0, 0.1, 0.3)), atol=1e-12)
+    assert read_trajectory(bag).mount is None  # no CameraInfo, no --camera-frame: no guess
+
+
 def test_augment_reads_back_and_matches_perceive_scene(files, tmp_path):
     out = tmp_path / "aug.mcap"
     res = augment_bag(
@@ -273,9 +285,10 @@ def test_augment_errors(files, tmp_path, monkeypatch):
     assert res.exit_code == 2 and "/nope" in res.output and "/amcl_pose" in res.output
     res = run("--pose-topic", "/camera/camera_info")
     assert res.exit_code == 2 and "sensor_msgs/msg/CameraInfo" in res.output
-    odom = write_bag(tmp_path / "odom", "ros2", tf=False, camera=False, pose_frame="odom")
-    res = run("--pose-topic", "/robot_pose", bag=odom)
-    assert res.exit_code == 2 and "'map'" in res.output and "got 'odom'" in res.output
+    odom = write_bag(tmp_path / "odom", "ros2", camera=False, pose_frame="odom")
+    res = run("--pose-topic", "/robot_pose", bag=odom)  # odom poses, a tree with a map frame
+    assert res.exit_code == 2 and "'map'" in res.output and "got 'odom' in a bag" in res.output
+    assert "--map-frame odom" in res.output
     res = run("--base-frame", "robot")
     assert res.exit_code == 2 and "map -> ... -> robot" in res.output
     res = run("--pose-topic", "/amcl_pose", "--base-frame", "base_link")
@@ -753,10 +766,30 @@ def test_augment_odom_only_bag_puts_artefacts_in_odom(files, tmp_path):
     # --map-frame names the fixed frame: a bag with a map frame read in odom, no note
     out2 = tmp_path / "o2.mcap"
     res = _augment(files, files["mcap"], out2, "--map-frame", "odom", "--camera", files["camera"])
-    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    assert res.exit_code == 0 and "no frame" not in res.output, res.output  # no frame note
     assert {p for p, c in _tf_links(_read_mcap(out2)[0]) if c.startswith("artefact_")} == {"odom"}
     res = _augment(files, files["mcap"], tmp_path / "o3.mcap", "--map-frame", "nowhere")
     assert res.exit_code == 2 and "nowhere -> ... -> base_link" in res.output
+
+
+@pytest.mark.parametrize("tf", [False, True])
+def test_augment_odom_only_bag_from_its_odometry_topic(files, tmp_path, tf):
+    """``--pose-topic`` with poses in ``odom`` in a bag without a ``map`` frame (no /tf, or
+    a tree ``odom -> base_link`` only): read in ``odom`` with a note, as from /tf."""
+    bag = write_bag(tmp_path / "odom", "mcap", tf=tf, map_tf=False, pose_frame="odom")
+    out = tmp_path / "odom.mcap"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera", files["camera"])
+    assert res.exit_code == 0, res.output
+    said = " ".join(res.output.split())
+    assert "note: the bag has no frame 'map' and /amcl_pose is in 'odom'" in said, said
+    msgs, _, _ = _read_mcap(out)
+    links = _tf_links(msgs)
+    assert {p for p, c in links if c.startswith("artefact_")} == {"odom"}
+    assert {m.header.frame_id for _, a in msgs["/artefacts"] for m in a.markers} == {"odom"}
+    assert ("odom", "base_link") in links and not any(p == "map" for p, _ in links)
+    tr = read_trajectory(bag, pose_topic="/amcl_pose")
+    assert tr.frame == "odom"
+    np.testing.assert_allclose(tr.poses, _truth(tr.t - START), atol=1e-9)
 
 
 def test_augment_qos_in_the_input_bags_form(files, tmp_path):
@@ -803,6 +836,26 @@ def test_augment_pose_topic_only_bag_still_publishes_the_robot(files, tmp_path):
     assert len(msgs["/amcl_pose"]) == int(DURATION * 10) + 1
 
 
+def test_augment_pose_topic_bag_with_a_static_tree_keeps_one_parent_per_frame(files, tmp_path):
+    """A bag with ``/tf_static`` (the camera's chain) but no ``/tf``: ``map -> base_link``
+    is published, the camera mount is not (the input's chain has it), so every frame keeps
+    one parent across the input and the output."""
+    bag = write_bag(tmp_path / "static", "mcap", drop=("/tf",))
+    out = tmp_path / "s.mcap"
+    cam = "/camera/camera_info"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera-info-topic", cam)
+    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    msgs, _, _ = _read_mcap(out)
+    ins, _, _ = _read_mcap(next(Path(bag).parent.glob("*.mcap")) if Path(bag).is_dir() else bag)
+    parents = defaultdict(set)
+    for p, c in _tf_links(msgs) | _tf_links(ins):
+        parents[c].add(p)
+    assert parents["base_link"] == {"map"}
+    assert parents["camera_optical_frame"] == {"camera_link"}
+    assert all(len(v) == 1 for v in parents.values()), dict(parents)
+    assert len(msgs["/tf_static"]) == 1  # the input's
+
+
 def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
     bag = write_bag(tmp_path / "damaged.bag", "ros1", damaged="/note")
     out = tmp_path / "o.mcap"
@@ -814,3 +867,115 @@ def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
     res = _augment(files, bag, out, "--camera", files["camera"], "--topics", keep)
     assert res.exit_code == 0, res.output
     assert "/note" not in {c[0] for c in _raw_channels(out)}
+
+
+def test_augment_says_when_the_camera_mount_is_not_the_bags_tree(files, tmp_path):
+    """The mount is the bag's tree (the CameraInfo's frame) or a note says what it is and
+    how to use the bag's camera: never a silent shortcut."""
+    cam = "/camera/camera_info"
+    res = _augment(files, files["mcap"], tmp_path / "a.mcap", "--camera-info-topic", cam)
+    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    res = _augment(files, files["mcap"], tmp_path / "b.mcap", "--camera", files["camera"])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert "note: camera: the --camera file, mounted by default, 1 m above the base" in said
+    assert f"--camera-info-topic {cam} uses the bag's" in said
+    # a CameraInfo whose frame has no static chain from the base (no /tf_static at all)
+    bag = write_bag(tmp_path / "notree", "mcap", tf=False)
+    out = tmp_path / "c.mcap"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera-info-topic", cam)
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert (
+        "note: the bag's tree has no static chain base_link -> ... -> camera_optical_frame" in said
+    )
+    msgs, _, _ = _read_mcap(out)  # the mount published is the one the note names
+    ((_, static),) = msgs["/tf_static"]
+    (mount,) = static.transforms
+    assert (mount.header.frame_id, mount.child_frame_id) == ("base_link", "camera_optical_frame")
+    assert mount.transform.translation.z == pytest.approx(1.0)
+
+
+def test_augment_moves_the_artefacts_as_generate_does(files, tmp_path):
+    """``augment`` assembles and moves its scene as ``generate --behaviours`` does (same
+    fit, seed and horizon: the bag's 12 s): every ``map -> artefact_<id>`` of the output
+    is the generated scene's box at that camera frame, and the artefacts walk."""
+    from are_stats.environment import load_catalogue
+    from are_stats.scenarios import read_scenes, scenes_from_tables
+
+    out = tmp_path / "aug.mcap"
+    res = _augment(files, files["mcap"], out, "--camera", files["camera"], seed=5)
+    assert res.exit_code == 0, res.output
+    gen = tmp_path / "gen"
+    args = ["generate", files["fit"], "--scenarios", "1", "--horizon", "12", "--seed", "5"]
+    res = runner.invoke(app, [str(a) for a in [*args, "--out", gen, "--map", MAP, "--behaviours"]])
+    assert res.exit_code == 0, res.output
+    df, manifest, tracks = read_scenes(gen)
+    (scene,) = scenes_from_tables(df, tracks, load_catalogue(), manifest["class_labels"], [0])
+    msgs, _, _ = _read_mcap(out)
+    path: dict = defaultdict(list)
+    frames = 0
+    for _, m in msgs["/tf"]:
+        art = [tr for tr in m.transforms if tr.child_frame_id.startswith("artefact_")]
+        if not art:
+            continue
+        st = art[0].header.stamp
+        t = (st.sec * 10**9 + st.nanosec - START_NS) * 1e-9
+        boxes = scene.at(t)
+        want = {f"artefact_{int(a)}": c for a, c in zip(boxes.ids, boxes.centres, strict=True)}
+        assert {tr.child_frame_id for tr in art} == set(want), t
+        for tr in art:
+            xyz = tr.transform.translation
+            np.testing.assert_allclose([xyz.x, xyz.y], want[tr.child_frame_id][:2], atol=1e-6)
+            path[tr.child_frame_id].append((xyz.x, xyz.y))
+        frames += 1
+    assert frames == int(DURATION / 0.5) + 1
+    moved = [np.ptp(np.asarray(p), axis=0).max() for p in path.values() if len(p) > 1]
+    assert sum(d > 0.5 for d in moved) >= len(moved) // 2, moved  # most of them walk
+
+
+def test_show_draws_the_camera_view_to_the_range_augment_perceived_with(files, tmp_path):
+    """``are-stats show`` of an augmented bag draws the camera's field of view out to the
+    ``d_max`` of A_f (said by ``/perceived``), so that a perceived box is never drawn
+    beyond it; the half-angle is the CameraInfo's ``atan(width / 2 / fx)``."""
+    from are_stats.export import read_view
+
+    out = tmp_path / "aug.mcap"
+    cam = "/camera/camera_info"
+    res = _augment(files, files["mcap"], out, "--camera-info-topic", cam, "--d-max", "15", seed=5)
+    assert res.exit_code == 0, res.output
+    msgs, _, _ = _read_mcap(out)
+    assert {json.loads(m.data)["d_max"] for _, m in msgs["/perceived"]} == {15.0}
+    v = read_view(out)
+    assert v.perceived.any()
+    apex, ends = v.camera[0], v.camera[1:]
+    np.testing.assert_allclose(np.linalg.norm(ends - apex, axis=1), 15.0, atol=1e-9)
+    half = np.arctan2(CAMERA["width"] / 2, CAMERA["k"][0])
+    a, b = ends - apex
+    assert np.arccos(a @ b / (a @ a)) == pytest.approx(2 * half)
+    near = (
+        np.linalg.norm(v.boxes[v.perceived, :2] - apex, axis=1)
+        - np.hypot(v.boxes[v.perceived, 3], v.boxes[v.perceived, 4]) / 2
+    )
+    assert (near <= 15.0).all()
+
+
+def test_a_fit_of_the_older_format_is_read_with_a_note_line(capsys):
+    """``are-stats`` shows a fit read as format 1 (no ``format_version``) as one ``note:``
+    line, not a Python warning quoting our source; other warnings as Python shows them."""
+    import warnings
+
+    from are_stats.cli import _note_fit_formats
+    from are_stats.fitting import FitFormatWarning
+
+    shown = []
+    show = _note_fit_formats(lambda *a, **k: shown.append(a[:2]))
+    text = "old.nc: the fit has no format_version (written before fits carried one)"
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = show
+        warnings.warn(text, FitFormatWarning, stacklevel=1)
+        warnings.warn("other", UserWarning, stacklevel=1)
+    err = capsys.readouterr().err
+    assert err == f"note: {text}\n"
+    assert [(str(m), c) for m, c in shown] == [("other", UserWarning)]
