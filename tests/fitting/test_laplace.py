@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+import numpyro
+import numpyro.distributions as dist
 import pytest
 from numpyro import handlers
 from numpyro.distributions import constraints
@@ -104,3 +106,18 @@ def test_a_damaged_site_record_is_traced_again(new_process, content):
     z0 = lap._init_z(stay_model, kwargs, None)
     assert {n: np.shape(v) for n, v in z0.items()} == _numpyro_layout(stay_model, kwargs)
     assert path.read_text() == good  # rewritten whole
+
+
+def _interval_model() -> None:
+    numpyro.sample("a", dist.Uniform(2.0, 5.0))
+    numpyro.sample("b", dist.Exponential(1.0))
+
+
+def test_a_site_numpyro_must_invert_starts_at_its_init(new_process):
+    """A support outside the NumPy inverses (an interval) is inverted by numpyro."""
+    folder, _ = new_process
+    z0 = lap._init_z(_interval_model, {}, {"a": 3.0, "b": 2.0})
+    want = np.asarray(biject_to(constraints.interval(2.0, 5.0)).inv(jnp.asarray(3.0)))
+    np.testing.assert_allclose(z0["a"], want, rtol=1e-12)
+    np.testing.assert_allclose(z0["b"], np.log(2.0), rtol=1e-12)
+    assert not list(folder.glob("*.json"))  # a test's local model has no stable name
