@@ -23,6 +23,11 @@ rewritten); a file is written to a temporary name in its folder and renamed into
 program compiled is always the exported one (``jax.jit(exported.call)``), in the first
 process as in later ones, so a fit gives the same bits whether its program was traced or
 read.
+
+**Records.** :func:`load_record` / :func:`store_record` keep small JSON values under the
+same key rules (``.json`` files in the same folder): what a process would otherwise learn
+by tracing a model again, such as the latent sites of a Laplace candidate
+(:mod:`are_stats.fitting._laplace`).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import dataclasses
 import enum
 import functools
 import hashlib
+import json
 import os
 import sys
 import tempfile
@@ -47,10 +53,12 @@ __all__ = [
     "TRACE_LOCK",
     "cache_limit",
     "compile_program",
+    "load_record",
     "program_folder",
     "prune_cache",
     "source_hash",
     "stable_repr",
+    "store_record",
 ]
 
 #: Held while a program is traced: numpyro's effect handlers live on one global stack, so
@@ -63,6 +71,8 @@ _UNKNOWN_OPTIONS: set[str] = set()
 
 #: Suffix of the program files.
 SUFFIX = ".jaxexport"
+#: Suffix of the record files (:func:`store_record`).
+RECORD_SUFFIX = ".json"
 #: Modules whose functions may be named in a key: are_stats (its source is hashed) and
 #: the libraries whose versions are part of the key.
 _KNOWN_MODULES = ("are_stats", "numpyro", "jax")
@@ -196,13 +206,13 @@ def _environment() -> str:
     )
 
 
-def _file_name(key_text: str, args: tuple, options: dict | None) -> str:
+def _file_name(key_text: str, args: tuple, options: dict | None, suffix: str = SUFFIX) -> str:
     import jax
 
     leaves, tree = jax.tree.flatten(args)
     avals = [(a.shape, str(a.dtype), a.weak_type) for a in map(jax.typeof, leaves)]
     text = repr((key_text, str(tree), avals, sorted((options or {}).items()), _environment()))
-    return hashlib.sha256(text.encode()).hexdigest()[:40] + SUFFIX
+    return hashlib.sha256(text.encode()).hexdigest()[:40] + suffix
 
 
 def _read(path: Path, leaves: list) -> Any | None:
@@ -241,6 +251,66 @@ def _write(path: Path, blob: bytes) -> None:
                 os.unlink(tmp)
             except OSError:
                 pass
+
+
+def _record_path(key: Any, args: tuple) -> Path | None:
+    folder = program_folder()
+    key_text = None if key is None else stable_repr(key)
+    if folder is None or key_text is None:
+        return None
+    return folder / _file_name(key_text, args, None, RECORD_SUFFIX)
+
+
+def load_record(key: Any, args: tuple) -> Any | None:
+    """The JSON value kept by :func:`store_record` for ``key`` and ``args``, or None.
+
+    None when the cache is off, the key has no :func:`stable_repr`, or the file is
+    missing, unreadable or not JSON; the caller then computes the value (and stores it).
+    The caller checks the value's form: a record is a cache, never trusted input.
+
+    Parameters
+    ----------
+    key : Any
+        What the value depends on besides the arguments' shapes (as for
+        :func:`compile_program`).
+    args : tuple
+        Example arguments: their tree, shapes and dtypes are part of the file's name, as
+        are the versions and the source hash.
+
+    Returns
+    -------
+    Any or None
+        The decoded JSON value (lists where tuples were stored).
+    """
+    path = _record_path(key, args)
+    if path is None:
+        return None
+    try:
+        value = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    try:
+        os.utime(path)  # its last use, for prune_cache
+    except OSError:
+        pass
+    return value
+
+
+def store_record(key: Any, args: tuple, value: Any) -> None:
+    """Keep the JSON value ``value`` for ``key`` and ``args`` (see :func:`load_record`).
+
+    Written through a temporary file and renamed into place; nothing is kept when the
+    cache is off or the key has no stable text, and a failed write is ignored.
+
+    Parameters
+    ----------
+    key : Any
+    args : tuple
+    value : JSON-serialisable
+    """
+    path = _record_path(key, args)
+    if path is not None:
+        _write(path, json.dumps(value).encode("utf-8"))
 
 
 def compile_program(

@@ -243,3 +243,18 @@ def test_an_xla_option_this_jaxlib_lacks_is_left_out(folder, monkeypatch, kept):
     assert _traces(args, ("test", "options", 2), options) == 1  # no failed try now
     with pytest.raises(Exception, match="INVALID_ARGUMENT"):  # a wrong value: XLA's error
         _traces(args, ("test", "options", 3), {"xla_backend_optimization_level": "high"})
+
+
+def test_a_record_is_kept_per_key_and_shapes_and_not_when_off(folder, monkeypatch):
+    args = _args()
+    assert pc.load_record(("test", 1), args) is None
+    pc.store_record(("test", 1), args, [["a", "exp", [2]]])
+    assert pc.load_record(("test", 1), args) == [["a", "exp", [2]]]
+    assert pc.load_record(("test", 2), args) is None  # another key
+    assert pc.load_record(("test", 1), _args(6)) is None  # other shapes
+    pc.store_record(("test", lambda: 0), args, 1)  # no stable text: not kept
+    assert len(list(folder.glob("*" + pc.RECORD_SUFFIX))) == 1
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")
+    assert pc.load_record(("test", 1), args) is None
+    pc.store_record(("test", 3), args, 1)
+    assert len(list(folder.glob("*" + pc.RECORD_SUFFIX))) == 1

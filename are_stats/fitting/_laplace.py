@@ -46,7 +46,7 @@ from numpyro.infer.util import constrain_fn, potential_energy
 from scipy.optimize import minimize
 from scipy.special import logsumexp
 
-from are_stats._program_cache import TRACE_LOCK, compile_program
+from are_stats._program_cache import TRACE_LOCK, compile_program, load_record, store_record
 from are_stats.fitting._nuts import (
     _cached,
     _fn_key,
@@ -142,28 +142,52 @@ def _program(name: str, fn: Any, args: tuple, key_parts: tuple, optimise: bool =
 def _init_z(model: Callable, kwargs: dict, init: dict | None) -> dict:
     """The start on the unconstrained scale: ``init`` where given, else 0.
 
-    The latent sites and their supports are read off an abstract trace of the model
-    (``jax.eval_shape``: shapes only, nothing computed or compiled).
+    The latent sites, their transforms and shapes are those of :func:`_site_layout` (an
+    abstract trace of the model, or its record on disk).
     """
     z0 = {}
-    found = _latent_sites(model, kwargs)
-    for name, (support, shape) in found.items():
-        t = biject_to(support)
+    for name, (kind, zshape) in _site_layout(model, kwargs).items():
         if init and name in init:
-            z0[name] = _unconstrain(t, init[name])
+            if kind is None:  # a transform not inverted in NumPy: the traced support's
+                support = _latent_sites(model, kwargs)[name][0]
+                z0[name] = _unconstrain(biject_to(support), init[name])
+            else:
+                z0[name] = _inverse(kind, init[name])
         else:
-            z0[name] = np.zeros(t.inverse_shape(shape))
+            z0[name] = np.zeros(zshape)
     return z0
+
+
+#: The transforms :func:`_unconstrain` inverts in NumPy, by the name a site layout records
+#: (checked in this order, as the classes could share a base).
+_KINDS: dict[str, type] = {
+    "identity": IdentityTransform,
+    "exp": ExpTransform,
+    "sigmoid": SigmoidTransform,
+    "stick_breaking": StickBreakingTransform,
+}
+
+
+def _kind(transform: Transform) -> str | None:
+    """The name in :data:`_KINDS` of ``transform`` (inside ``IndependentTransform``s), or
+    None for a transform numpyro must invert."""
+    t = transform
+    while isinstance(t, IndependentTransform):
+        t = t.base_transform
+    for name, cls in _KINDS.items():
+        if isinstance(t, cls):
+            return name
+    return None
 
 
 def _unconstrain(transform: Transform, value: npt.ArrayLike) -> np.ndarray:
     """``transform.inv(value)``, in NumPy for the transforms of the traffic models' sites.
 
     The identity, ``exp`` (positive), sigmoid (unit interval) and stick-breaking
-    (simplex) transforms, also inside an ``IndependentTransform``, are inverted in NumPy:
-    numpyro's own inverse runs JAX operations one by one, each a small XLA compilation in
-    a fresh process (14 of them for the shipped log's starts). Other transforms are
-    inverted by numpyro.
+    (simplex) transforms, also inside an ``IndependentTransform``, are inverted in NumPy
+    (:func:`_inverse`): numpyro's own inverse runs JAX operations one by one, each a small
+    XLA compilation in a fresh process (14 of them for the shipped log's starts). Other
+    transforms are inverted by numpyro.
 
     Parameters
     ----------
@@ -177,27 +201,42 @@ def _unconstrain(transform: Transform, value: npt.ArrayLike) -> np.ndarray:
     (...) float64
         The point on the unconstrained scale (stick-breaking: one entry fewer).
     """
-    t = transform
-    while isinstance(t, IndependentTransform):
-        t = t.base_transform
+    kind = _kind(transform)
+    if kind is not None:
+        return _inverse(kind, value)
+    return np.asarray(transform.inv(jnp.asarray(np.asarray(value, np.float64))), np.float64)
+
+
+def _inverse(kind: str, value: npt.ArrayLike) -> np.ndarray:
+    """The inverse of the transform named ``kind`` (:data:`_KINDS`) at ``value``, in NumPy.
+
+    Parameters
+    ----------
+    kind : str
+    value : (...) float
+
+    Returns
+    -------
+    (...) float64
+    """
     y = np.asarray(value, np.float64)
-    if isinstance(t, IdentityTransform):
+    if kind == "identity":
         return y.copy()
-    if isinstance(t, ExpTransform):
+    if kind == "exp":
         return np.log(y)
-    if isinstance(t, SigmoidTransform):
+    if kind == "sigmoid":
         return np.log(y) - np.log1p(-y)
-    if isinstance(t, StickBreakingTransform):  # as numpyro's StickBreakingTransform._inverse
+    if kind == "stick_breaking":  # as numpyro's StickBreakingTransform._inverse
         crop = y[..., :-1]
         rest = np.clip(1.0 - np.cumsum(crop, axis=-1), np.finfo(np.float64).tiny, None)
         x = np.log(crop / rest)
         return x + np.log(x.shape[-1] - np.arange(x.shape[-1]))
-    return np.asarray(transform.inv(jnp.asarray(y)), np.float64)
+    raise ValueError(f"kind: expected one of {sorted(_KINDS)}, got {kind!r}")
 
 
 #: The latent sites of a model by (model, static arguments, array shapes): tracing the
-#: model abstractly takes a few tenths of a second, and each candidate asks three times
-#: (its size, its program, its start).
+#: model abstractly takes a few tenths of a second (:func:`_site_layout` asks once a
+#: process, and not at all when its record is on disk).
 _SITES: dict[tuple, dict[str, tuple[Any, tuple]]] = {}
 
 
@@ -225,6 +264,59 @@ def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Any, tuple]]
     if key is not None:
         _SITES[key] = found
     return found
+
+
+#: Each model's site layout by (model, static arguments, array shapes), in this process.
+_LAYOUTS: dict[tuple, dict[str, tuple[str | None, tuple]]] = {}
+
+
+def _site_layout(model: Callable, kwargs: dict) -> dict[str, tuple[str | None, tuple]]:
+    """``name -> (kind, shape)`` of the latent sites of ``model(**kwargs)``: the name of
+    the transform to the unconstrained scale (:data:`_KINDS`; None for another) and the
+    site's shape there.
+
+    Read off an abstract trace (:func:`_latent_sites`) once a process, and kept on disk
+    beside the compiled programs (:func:`are_stats._program_cache.store_record`, keyed by
+    the model, its static arguments, the arrays' shapes and the package's source), so a
+    later process does not trace the model again: the trace of each of the shipped log's
+    nine candidates cost 0.05-0.25 s of CPU in every repeated fit. A layout with a
+    transform outside :data:`_KINDS` stays off the disk (its support is needed).
+    """
+    arrays, treedef, static = _split_kwargs(kwargs)
+    key = _hashable((_fn_key(model), treedef, static, _shapes(arrays)))
+    if key is not None and key in _LAYOUTS:
+        return _LAYOUTS[key]
+    disk_key = ("laplace_sites", _fn_key(model), treedef, static)
+    layout = _parse_layout(load_record(disk_key, (arrays,)))
+    if layout is None:
+        layout = {}
+        for name, (support, shape) in _latent_sites(model, kwargs).items():
+            t = biject_to(support)
+            layout[name] = (_kind(t), tuple(int(n) for n in t.inverse_shape(shape)))
+        if all(kind is not None for kind, _ in layout.values()):
+            record = [[name, kind, list(shape)] for name, (kind, shape) in layout.items()]
+            store_record(disk_key, (arrays,), record)
+    if key is not None:
+        _LAYOUTS[key] = layout
+    return layout
+
+
+def _parse_layout(record: Any) -> dict[str, tuple[str | None, tuple]] | None:
+    """A layout from its record (``[[name, kind, shape], ...]``), or None when the record
+    is missing or not of that form (then the model is traced again)."""
+    if not isinstance(record, list):
+        return None
+    layout: dict[str, tuple[str | None, tuple]] = {}
+    for entry in record:
+        if not (isinstance(entry, list) and len(entry) == 3):
+            return None
+        name, kind, shape = entry
+        if not (isinstance(name, str) and kind in _KINDS and isinstance(shape, list)):
+            return None
+        if name in layout or not all(type(n) is int and n >= 0 for n in shape):
+            return None
+        layout[name] = (kind, tuple(shape))
+    return layout
 
 
 def laplace_dimension(model: Callable[..., None], model_kwargs: dict, init: dict | None) -> int:

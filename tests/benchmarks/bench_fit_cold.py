@@ -71,6 +71,12 @@ vs 31.9 s (wall 35.5 vs 51.1 s), repeated CPU 13.9 s vs 15.0 s (wall 21.5 vs 21.
 varies by a third at this load); XLA compilations cold 9 (the Laplace programs) vs 21, the
 same choices and printed tables.
 
+With the Laplace candidates' latent-site layouts kept on disk (no model traced in a
+repeated fit; 2026-11-27, main e3d94b9 and the branch alternating at load 10-12, the full
+``are-stats fit courtyard_traffic`` with figures, ``/usr/bin/time``, 4 rounds): repeated
+CPU median 12.1 s vs 12.4 s (0.97x; the nine candidates' starts 0.01 s instead of
+0.25-0.33 s of thread CPU), the same printed tables, fit file and figures byte for byte.
+
 The tracks part's command, timed by ``/usr/bin/time`` (2026-11-27, main 4b99766 and the
 lockstep string pulling side by side at load 8-13): cold CPU 345 s vs 337 s, 31 min wall
 each, the same choices and motion checks; of the 50 motion-check replicates' 150 s of CPU,

@@ -1,15 +1,21 @@
 """The Laplace approximation's start: the inits taken to the unconstrained scale in NumPy
-give numpyro's own inverse transforms (the truth), and map back to the inits."""
+give numpyro's own inverse transforms (the truth), and map back to the inits; the latent
+sites' layout, kept on disk, is read by a later process instead of tracing the model."""
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+import numpyro
+import numpyro.distributions as dist
 import pytest
+from numpyro import handlers
 from numpyro.distributions import constraints
 from numpyro.distributions.transforms import biject_to
 
+from are_stats.fitting import _laplace as lap
 from are_stats.fitting._laplace import _unconstrain
+from are_stats.traffic import stay_model, stay_units
 
 CASES = [
     (constraints.real, np.array(0.7)),
@@ -32,3 +38,86 @@ def test_unconstrain_is_numpyros_inverse(support, value):
     assert got.dtype == np.float64 and got.shape == want.shape
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(np.asarray(t(jnp.asarray(got))), value, rtol=1e-12, atol=1e-14)
+
+
+def _stay_kwargs(law: str = "gamma") -> dict:
+    rng = np.random.default_rng(3)
+    stay = rng.gamma(2.0, 30.0, 40)
+    units = stay_units(stay, rng.random(40) < 0.2, rng.random(40) < 0.1)
+    return {"units": units, "law": law, "mean_centre": np.asarray(60.0), "resolution": 0.0}
+
+
+def _numpyro_layout(model, kwargs) -> dict:
+    """The truth: each latent site's unconstrained shape, from numpyro's own concrete trace."""
+    tr = handlers.trace(handlers.seed(model, 0)).get_trace(**kwargs)
+    return {
+        name: tuple(biject_to(s["fn"].support).inverse_shape(jnp.shape(s["value"])))
+        for name, s in tr.items()
+        if s["type"] == "sample" and not s["is_observed"]
+    }
+
+
+@pytest.fixture
+def new_process(tmp_path, monkeypatch):
+    """A program folder of its own; ``forget()`` drops what the process learned (as a new
+    process would start)."""
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", str(tmp_path / "programs"))
+
+    def forget() -> None:
+        monkeypatch.setattr(lap, "_LAYOUTS", {})
+        monkeypatch.setattr(lap, "_SITES", {})
+
+    forget()
+    return tmp_path / "programs", forget
+
+
+def test_a_kept_site_layout_is_read_not_traced(new_process, monkeypatch):
+    folder, forget = new_process
+    kwargs = _stay_kwargs()
+    init = {"stay_mean_z": 0.4, "stay_shape_eta": -0.3}
+    want = _numpyro_layout(stay_model, kwargs)
+    first = lap._init_z(stay_model, kwargs, init)
+    assert {n: np.shape(v) for n, v in first.items()} == want
+    assert len(list(folder.glob("*.json"))) == 1
+    forget()
+
+    def no_trace(*args, **kw):
+        raise AssertionError("the model was traced again")
+
+    monkeypatch.setattr(lap.jax, "eval_shape", no_trace)
+    second = lap._init_z(stay_model, kwargs, init)
+    assert second.keys() == first.keys()
+    for name in first:
+        np.testing.assert_array_equal(second[name], first[name])
+    assert lap.laplace_dimension(stay_model, kwargs, None) == sum(
+        int(np.prod(s)) for s in want.values()
+    )
+
+
+@pytest.mark.parametrize("content", ["", "not json", '{"a": 1}', '[["x", "tanh", []]]'])
+def test_a_damaged_site_record_is_traced_again(new_process, content):
+    folder, forget = new_process
+    kwargs = _stay_kwargs("weibull")
+    lap._init_z(stay_model, kwargs, None)
+    (path,) = folder.glob("*.json")
+    good = path.read_text()
+    path.write_text(content)
+    forget()
+    z0 = lap._init_z(stay_model, kwargs, None)
+    assert {n: np.shape(v) for n, v in z0.items()} == _numpyro_layout(stay_model, kwargs)
+    assert path.read_text() == good  # rewritten whole
+
+
+def _interval_model() -> None:
+    numpyro.sample("a", dist.Uniform(2.0, 5.0))
+    numpyro.sample("b", dist.Exponential(1.0))
+
+
+def test_a_site_numpyro_must_invert_starts_at_its_init(new_process):
+    """A support outside the NumPy inverses (an interval) is inverted by numpyro."""
+    folder, _ = new_process
+    z0 = lap._init_z(_interval_model, {}, {"a": 3.0, "b": 2.0})
+    want = np.asarray(biject_to(constraints.interval(2.0, 5.0)).inv(jnp.asarray(3.0)))
+    np.testing.assert_allclose(z0["a"], want, rtol=1e-12)
+    np.testing.assert_allclose(z0["b"], np.log(2.0), rtol=1e-12)
+    assert not list(folder.glob("*.json"))  # a test's local model has no stable name
