@@ -31,7 +31,8 @@ itself one draw of the law independent of the group (as the fit's motion checks 
 their replicates, one draw per group). At the slowest of its ``g`` members' own draws it
 would walk at the minimum of ``g`` draws, slower than the law: for a lognormal law of
 log-sd ``sigma``, a median ``0.55 sigma`` (pairs) or ``0.82 sigma`` (threes) below the
-law's in log speed, and the fit's speed checks would find generated groups too slow.
+law's in log speed (the assemblies' :func:`~are_stats.behaviour.group_tracks` already
+re-times members' plans to their leader's; the pace here does not rely on it).
 
 Why a social force and not reciprocal velocity obstacles: the force is a few smooth terms
 whose three parameters (``A``, ``B``, ``tau``) enter the acceleration linearly (``A``,
