@@ -18,8 +18,21 @@ pointing away from it. Speeds are capped at ``max_speed`` times the preferred sp
 
 **Groups** (``groups=``): the members of an arrival group share their leader's route and
 head for a formation slot beside it (or, where that is not free, behind the member ahead)
-at ``group_spacing``, at the pace of the slowest; the repulsion acts between members only
-when they are closer than that spacing (:mod:`~are_stats.behaviour._groups`).
+at ``group_spacing``, at the group's one pace, its leader's preferred speed; the repulsion
+acts between members only when they are closer than that spacing
+(:mod:`~are_stats.behaviour._groups`).
+
+Why the leader's speed and not the slowest member's: the between-person law of preferred
+speeds is fitted on the log's tracks (:func:`~are_stats.fitting.fit_behaviour`), one
+speed per track, and in the log a group's members walk at the group's pace: each of the
+log's tracks walks at a pace drawn from that law, a group's tracks all at one. A generated
+group therefore draws one pace from the law for all its members: its leader's speed,
+itself one draw of the law independent of the group (as the fit's motion checks walk
+their replicates, one draw per group). At the slowest of its ``g`` members' own draws it
+would walk at the minimum of ``g`` draws, slower than the law: for a lognormal law of
+log-sd ``sigma``, a median ``0.55 sigma`` (pairs) or ``0.82 sigma`` (threes) below the
+law's in log speed (the assemblies' :func:`~are_stats.behaviour.group_tracks` already
+re-times members' plans to their leader's; the pace here does not rely on it).
 
 Why a social force and not reciprocal velocity obstacles: the force is a few smooth terms
 whose three parameters (``A``, ``B``, ``tau``) enter the acceleration linearly (``A``,
@@ -426,8 +439,9 @@ def social_force_tracks(
         Group label of each row's artefact (its first row counts; groups are per scenario;
         ``None``, NaN, ``""`` or a negative number: alone). The members of a group walk
         together (:mod:`~are_stats.behaviour._groups`): the first to arrive leads on its
-        route, the others take the same route at the group's pace (the slowest member's
-        preferred speed) and keep to their formation slot, abreast of the leader at
+        route, the others take the same route at the group's pace (the leader's preferred
+        speed, one draw of the speed law per group: module docstring) and keep to their
+        formation slot, abreast of the leader at
         ``params.group_spacing`` or, where the slot is not free (a door), that far behind
         it; members repel each other only on contact, everybody else as usual. When the
         leader has left, the others walk on along the shared route. Kinematic artefacts
@@ -499,9 +513,8 @@ def social_force_tracks(
         if member.any():
             gid[member] = leader[member]
             gid[leader[member]] = leader[member]
-            pace = v0.copy()
-            np.minimum.at(pace, leader[member], v0[member])
-            v0 = np.where(gid >= 0, pace[np.maximum(gid, 0)], v0)
+            # one pace per group, its leader's preferred speed (see the docstring)
+            v0 = np.where(gid >= 0, v0[np.maximum(gid, 0)], v0)
             for i in np.flatnonzero(member):
                 routes[i] = routes[leader[i]]  # one route: the leader's
     # each scenario on its own stretch of the plane, far from the others
