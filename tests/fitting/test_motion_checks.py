@@ -221,7 +221,7 @@ def test_displacement_errors_predict_with_the_motion_generation_uses(crossing) -
     a = pd.DataFrame({"id": 0, "t": t, "x": 2.0 + 1.2 * t, "y": 6.0})
     b = pd.DataFrame({"id": 1, "t": t, "x": 18.0 - 1.2 * t, "y": 6.05})
     two = pd.concat([a, b], ignore_index=True)
-    from are_stats.fitting._motion_checks import _interacting
+    from are_stats.fitting._prediction import _interacting
 
     obs = np.stack([a[["x", "y"]].to_numpy()[:8], b[["x", "y"]].to_numpy()[:8]])
     cv = np.stack(
