@@ -178,6 +178,7 @@ def _attach_motion_tables(
         interaction=learned if learned is not None else True,
         grid=grid,
         max_windows=FIT_WINDOWS,
+        progress=say,
     )
     say(walked[0] + 1, walked[0] + after, "displacement errors")
     same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]

@@ -11,11 +11,14 @@ window (their frequencies times the soft policy's likelihood of the window's obs
 moves, discretised as in the fit, times the likelihood of the window's continuous
 heading given the direction in which the path to the goal leaves: Bayesian goal
 inference, the last factor by importance resampling), then the soft policy walked from
-the last observed cell with the observed heading over the whole route to the goal at the
-observed speed, timed as in the generator: the continuous (any-angle) path, then, with
-``interaction``, walked again with the social force among the people around (the
-person's own group aside), as generation walks people. It is scored as the mean of the
-samples and as the best of them.
+the last observed cell with the observed heading over the whole route to the goal at a
+preferred speed drawn from the person's posterior given the window (the class's fitted
+between-person law as the prior, the window's least-squares speed as a conjugate
+lognormal likelihood: :func:`_speed_posterior`), timed as in the generator: the
+continuous (any-angle) path, then, with ``interaction``, walked again with the social
+force among the people around (the person's own group aside; everybody gives way), as
+generation walks people. It is scored as the mean of the samples and as the best of
+them.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import pandas as pd
 
 from are_stats._checks import check_positive
 from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood, path_free
-from are_stats.fitting._motion_checks import _policies, _rng, _social, _walk
+from are_stats.fitting._motion_checks import _policies, _rng, _social, _walk, tracker_noise
 
 __all__ = ["constant_velocity", "displacement_errors"]
 
@@ -168,6 +171,131 @@ def _observed_heading(observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.arctan2(slope[:, 1], slope[:, 0]), np.hypot(se, HEADING_SD_FLOOR)
 
 
+#: Speed (m/s) below which a window counts as standing: its continuations keep this speed
+#: (no preferred speed is inferred from a person who does not walk).
+STILL_SPEED = 0.05
+
+
+def _speed_posterior(
+    observed: np.ndarray,
+    rate: float,
+    noise: float,
+    mu: np.ndarray,
+    sigma: np.ndarray,
+    run_fraction: np.ndarray,
+    run_mu: np.ndarray,
+    run_sigma: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Posterior of each window's preferred speed given its observed steps.
+
+    The prior is the class's fitted between-person law: ``log v ~ N(mu, sigma^2)`` for
+    walkers, ``N(run_mu, run_sigma^2)`` for the ``run_fraction`` of runners. The window's
+    speed is measured by the straight line fitted to it by least squares (as
+    :func:`_observed_heading`): ``v_hat = rate |slope|``, unbiased under tracker noise
+    (the summed step lengths are not: each step adds the noise of two samples), with the
+    slope's standard error ``se = rate sqrt(s2 / sxx)`` from the residual scatter ``s2``
+    (tracker noise and the person's own variation about a steady walk), at least the
+    noise's alone (``s2 >= noise^2``); on the log scale ``se / v_hat``. The likelihood
+    ``log v_hat ~ N(log v, se_log^2)`` is conjugate to each component: its posterior is
+    normal with precision ``1/sigma^2 + 1/se_log^2`` and mean
+    ``(mu/sigma^2 + log v_hat/se_log^2) / precision``, and the components are weighted by
+    their prior weight times the marginal likelihood ``N(log v_hat; mu, sigma^2 +
+    se_log^2)``. A component with ``sigma = 0`` is its own posterior (``mu``); a window
+    slower than :data:`STILL_SPEED` stands (all weight on the first component, a point
+    mass at :data:`STILL_SPEED`).
+
+    Parameters
+    ----------
+    observed : (B, n_obs, 2) float
+        Positions at ``rate``.
+    rate : float
+        Samples per second.
+    noise : float
+        Tracker noise sd (m) per coordinate (:func:`~are_stats.fitting.tracker_noise`).
+    mu, sigma, run_fraction, run_mu, run_sigma : (B,) float
+        The prior of each window (its class's fitted laws; ``run_fraction`` 0 or NaN: no
+        runners).
+
+    Returns
+    -------
+    weight, mean, sd : (B, 2) float
+        Posterior weight, mean and sd of ``log v`` of the walking and running components.
+    v_hat : (B,) float
+        The window's measured speed (m/s).
+
+    Examples
+    --------
+    A window at 1.0 m/s seen without noise does not move a prior centred at 1.5 m/s:
+
+    >>> obs = np.stack([np.arange(8) * 0.4, np.zeros(8)], axis=1)[None]
+    >>> w, m, sd, v = _speed_posterior(obs, 2.5, 0.0, np.array([np.log(1.5)]),
+    ...                                np.array([0.2]), np.zeros(1), np.ones(1), np.ones(1))
+    >>> round(float(np.exp(m[0, 0])), 6), round(float(v[0]), 6)
+    (1.0, 1.0)
+    """
+    obs = np.asarray(observed, float)
+    n = obs.shape[1]
+    k = np.arange(n) - 0.5 * (n - 1)
+    sxx = max(float((k * k).sum()), 1e-12)
+    centred = obs - obs.mean(axis=1, keepdims=True)
+    slope = (k[None, :, None] * centred).sum(axis=1) / sxx  # (B, 2) m per sample
+    resid = centred - k[None, :, None] * slope[:, None, :]
+    s2 = (resid**2).sum(axis=(1, 2)) / (2.0 * max(n - 2, 1))  # pooled over x and y
+    v_hat = rate * np.hypot(slope[:, 0], slope[:, 1])
+    se = rate * np.sqrt(np.maximum(s2, noise**2) / sxx)
+    walking = v_hat >= STILL_SPEED
+    y = np.log(np.maximum(v_hat, STILL_SPEED))
+    se_log = np.maximum(se, 1e-12) / np.maximum(v_hat, STILL_SPEED)
+    pi_run = np.nan_to_num(np.asarray(run_fraction, float))
+    prior_w = np.column_stack([1.0 - pi_run, pi_run])
+    prior_mu = np.column_stack([mu, np.where(pi_run > 0, run_mu, mu)]).astype(float)
+    prior_sd = np.column_stack([sigma, np.where(pi_run > 0, run_sigma, sigma)]).astype(float)
+    prior_sd = np.nan_to_num(prior_sd)
+    lik2 = se_log[:, None] ** 2
+    known = np.isfinite(prior_mu)
+    prior_mu = np.where(known, prior_mu, y[:, None])  # no law fitted: the window alone
+    v2 = prior_sd**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mean = np.where(v2 > 0, (prior_mu * lik2 + y[:, None] * v2) / (lik2 + v2), prior_mu)
+        sd = np.where(v2 > 0, np.sqrt(v2 * lik2 / (v2 + lik2)), 0.0)
+    mean = np.where(known, mean, y[:, None])
+    sd = np.where(known, sd, se_log[:, None])
+    tot = v2 + lik2
+    logw = np.log(np.maximum(prior_w, 1e-300)) - 0.5 * (
+        np.log(2 * np.pi * tot) + (y[:, None] - prior_mu) ** 2 / tot
+    )
+    logw = np.where(prior_w > 0, logw, -np.inf)
+    weight = np.exp(logw - logw.max(axis=1, keepdims=True))
+    weight /= weight.sum(axis=1, keepdims=True)
+    still = ~walking
+    weight[still] = [1.0, 0.0]
+    mean[still] = math.log(STILL_SPEED)
+    sd[still] = 0.0
+    return weight, mean, sd, v_hat
+
+
+def _draw_window_speeds(
+    rng: np.random.Generator,
+    fit: BehaviourFit,
+    observed: np.ndarray,
+    cls: np.ndarray,
+    rate: float,
+    noise: float,
+    n_samples: int,
+) -> np.ndarray:
+    """``(B, K)`` preferred speeds (m/s) drawn from each window's posterior
+    (:func:`_speed_posterior`, with its class's fitted laws as the prior)."""
+    weight, mean, sd, _ = _speed_posterior(
+        observed, rate, noise, fit.speed_mu[cls], fit.speed_sigma[cls],
+        fit.run_fraction[cls], fit.run_mu[cls], fit.run_sigma[cls],
+    )  # fmt: skip
+    b = len(observed)
+    comp = (rng.random((b, n_samples)) < weight[:, 1:2]).astype(np.int64)
+    rows = np.arange(b)[:, None]
+    z = rng.standard_normal((b, n_samples))
+    return np.clip(np.exp(mean[rows, comp] + sd[rows, comp] * z), STILL_SPEED, 10.0)
+
+
 def _model_predictions(
     rng: np.random.Generator,
     fit: BehaviourFit,
@@ -179,6 +307,7 @@ def _model_predictions(
     smooth: int,
     chunk: int = 16,
     oversample: int = 8,
+    noise: float = 0.0,
 ) -> np.ndarray:
     """``(B, K, n_pred, 2)`` continuations sampled from the soft policy given the window.
 
@@ -191,11 +320,14 @@ def _model_predictions(
     rollout's first corner (uniform for a goal where the person stands), and ``K`` goals
     are resampled by those weights (importance resampling); each then gets its own
     rollout, to the goal's point. The rollouts are thus conditioned on where the person
-    was seen walking, not only on the cells it crossed."""
+    was seen walking, not only on the cells it crossed. Each rollout walks at a speed
+    drawn from the person's posterior given the window's steps (:func:`_speed_posterior`,
+    tracker noise ``noise`` m)."""
     b = observed.shape[0]
     names = {c: i for i, c in enumerate(fit.classes)}
     cls = np.array([names.get(str(v), 0) for v in labels], np.int64)
     k_all = int(n_samples) * max(int(oversample), 1)
+    speeds = _draw_window_speeds(rng, fit, observed, cls, rate, noise, int(n_samples))
     cand = _draw_goals(rng, fit, observed, cls, rate, k_all, chunk)  # (B, K', 2)
     ends = fit.cell_to_world(cand.reshape(-1, 2)).reshape(b, k_all, 2)
     ends += (rng.random((b, k_all, 2)) - 0.5) * fit.cell
@@ -208,7 +340,11 @@ def _model_predictions(
         probes = np.repeat(fit.world_to_cell(last)[:, None], width, axis=1)
         for i, (g, _) in enumerate(uniq):
             probes[i, : len(g)] = g
-        _, first, sight = _rollouts(rng, fit, observed, cls, probes, n_pred, rate, smooth, chunk)
+        # the probes tell where a path leaves, whatever its speed
+        probe_speed = np.repeat(speeds[:, :1], width, axis=1)
+        _, first, sight = _rollouts(
+            rng, fit, observed, cls, probes, probe_speed, n_pred, rate, smooth, chunk
+        )
         chosen = np.empty((b, int(n_samples), 2), np.int64)
         chosen_end = np.empty((b, int(n_samples), 2))
         for i, (_, inv) in enumerate(uniq):
@@ -230,7 +366,7 @@ def _model_predictions(
             pick = rng.choice(k_all, int(n_samples), p=w / w.sum())
             chosen[i], chosen_end[i] = cand[i, pick], ends[i, pick]
         cand, ends = chosen, chosen_end
-    out, _, _ = _rollouts(rng, fit, observed, cls, cand, n_pred, rate, smooth, chunk, ends)
+    out, _, _ = _rollouts(rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends)
     return out
 
 
@@ -261,6 +397,7 @@ def _rollouts(
     observed: np.ndarray,
     cls: np.ndarray,
     goals_of: np.ndarray,
+    speeds: np.ndarray,
     n_pred: int,
     rate: float,
     smooth: int,
@@ -269,16 +406,14 @@ def _rollouts(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Continuations ``(B, K, n_pred, 2)`` to the goal cells ``goals_of (B, K, 2)``: the
     soft policy walked from the last observed cell with the observed heading, the
-    continuous path at the observed speed, ending at ``ends (B, K, 2)`` (world; default
-    the goal cell's centre) where the route reaches its goal; the direction ``(B, K)``
-    (rad) of each one's first segment (NaN for one that stands) and whether that segment
-    ends at the goal (the goal in sight from the start, ``(B, K)`` bool)."""
+    continuous path at the speeds ``speeds (B, K)`` (m/s), ending at ``ends (B, K, 2)``
+    (world; default the goal cell's centre) where the route reaches its goal; the
+    direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands) and
+    whether that segment ends at the goal (the goal in sight from the start, ``(B, K)`` bool)."""
     from are_stats.behaviour import continuous_paths, sample_soft_paths
 
     b, n_obs, _ = observed.shape
     n_samples = goals_of.shape[1]
-    step = np.hypot(*np.diff(observed, axis=1).transpose(2, 0, 1)).sum(axis=1)
-    speed = np.clip(step * rate / max(n_obs - 1, 1), 0.05, 10.0)  # (B,)
     last = observed[:, -1]
     cur = fit.world_to_cell(last)
     d = observed[:, -1] - observed[:, 0]
@@ -321,7 +456,7 @@ def _rollouts(
                 for i, k, ok in zip(i_of, k_of, arrived, strict=True)
             ]
             walked = continuous_paths(
-                list(zip(st, ac, strict=True)), fit, speed[i_of], last[i_of], end_of, smooth
+                list(zip(st, ac, strict=True)), fit, speeds[i_of, k_of], last[i_of], end_of, smooth
             )
             for j, (tv, pv) in enumerate(walked):
                 i, k = i_of[j], k_of[j]
@@ -374,9 +509,11 @@ def _interacting(
     """Continuations ``(B, K, n_pred, 2)`` walked again with the social force, as generation
     walks people: each from its last observed position at its observed velocity along its
     sampled path, among the people present at that time who can come within the
-    interaction's reach over the horizon (kinematic, at constant velocity from what was
+    interaction's reach over the horizon (planned at constant velocity from what was
     observed of them: no future leaks), the members of its own group aside
-    (:func:`_walks_with`)."""
+    (:func:`_walks_with`). The neighbours walk under the social force too, as in
+    generation, where everybody gives way: held to their plans (kinematic), they left
+    the person to make the whole of each avoidance, twice the model's sidestep."""
     b, k, n_pred, _ = samples.shape
     n_obs = observed.shape[1]
     span = (n_obs - 1) / rate
@@ -430,9 +567,23 @@ def _interacting(
             )
         )
     plan = pd.concat(frames, ignore_index=True)
-    walked = _walk(plan, params, grid, kinematic=plan["id"].to_numpy() > 0)
+    walked = _walk(plan, params, grid)
     me = walked[walked["id"] == 0].sort_values(["scenario", "t"], kind="stable")
     return me[["x", "y"]].to_numpy(float).reshape(b, k, n_pred + 1, 2)[:, :, 1:]
+
+
+#: Windows predicted per progress step of :func:`displacement_errors` (a fit's 200 windows
+#: in 8 steps).
+PROGRESS_WINDOWS = 25
+
+
+def _progress_of(progress: Any) -> Any:
+    """``progress.steps`` where it has one (a stage clock), else ``progress`` itself, else a
+    no-op: a callable ``(done, total, what)``."""
+    steps = getattr(progress, "steps", None)
+    if callable(steps):
+        return steps
+    return progress if callable(progress) else (lambda done, total, what: None)
 
 
 def displacement_errors(
@@ -449,6 +600,7 @@ def displacement_errors(
     max_windows: int | None = 500,
     interaction: Any = None,
     grid: Any = None,
+    progress: Any = None,
 ) -> pd.DataFrame:
     """Average and final displacement errors of the fitted model and of constant velocity.
 
@@ -482,6 +634,11 @@ def displacement_errors(
         paths as they are.
     grid : OccupancyGrid, optional
         The map the interaction keeps off (None: open ground).
+    progress : object, optional
+        Told after each chunk of ``PROGRESS_WINDOWS`` (25) windows predicted:
+        ``progress.steps(done, total, what)`` (a
+        :class:`~are_stats._stage_clock.StageClock`), or ``progress(done, total, what)``
+        for a plain callable; ``total`` chunks, the last call has ``done == total``.
 
     Returns
     -------
@@ -519,13 +676,22 @@ def displacement_errors(
         # with the interaction, the paths go on past the horizon (as far again): a walker
         # whose plan ended there would slow down to stop at its end
         n_plan = 2 * int(n_pred) if walked else int(n_pred)
-        samples = _model_predictions(
-            rng, behaviour_fit, obs, lab, n_plan, rate, int(n_samples), smooth
-        )
-        if walked:
-            t_last = t0 + (int(n_obs) - 1) / rate
-            samples = _interacting(samples, obs, tid, t_last, tracks, rate, params, grid)
-            samples = samples[:, :, : int(n_pred)]
+        noise = tracker_noise(tracks)
+        t_last = t0 + (int(n_obs) - 1) / rate
+        say = _progress_of(progress)
+        parts = []
+        starts = range(0, len(obs), PROGRESS_WINDOWS)
+        for j, a in enumerate(starts):
+            sl = slice(a, a + PROGRESS_WINDOWS)
+            part = _model_predictions(
+                rng, behaviour_fit, obs[sl], lab[sl], n_plan, rate, int(n_samples), smooth,
+                noise=noise,
+            )  # fmt: skip
+            if walked:
+                part = _interacting(part, obs[sl], tid[sl], t_last[sl], tracks, rate, params, grid)
+            parts.append(part[:, :, : int(n_pred)])
+            say(j + 1, len(starts), "displacement errors, windows")
+        samples = np.concatenate(parts, axis=0)
         add("model mean of K", *_errors(samples.mean(axis=1), truth), int(n_samples))
         d = np.hypot(*np.moveaxis(samples - truth[:, None], -1, 0))  # (B, K, n_pred)
         best = np.argmin(d.mean(axis=2), axis=1)
