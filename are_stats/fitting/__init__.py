@@ -243,8 +243,6 @@ from are_stats.fitting._motion_checks import (  # noqa: E402
     MOTION_STATISTICS,
     MOTION_TOLERANCE,
     band_flags,
-    constant_velocity,
-    displacement_errors,
     heldout_log_likelihood,
     motion_checks,
     plot_motion_checks,
@@ -252,6 +250,7 @@ from are_stats.fitting._motion_checks import (  # noqa: E402
     track_statistics,
     tracker_noise,
 )
+from are_stats.fitting._prediction import constant_velocity, displacement_errors  # noqa: E402
 
 __all__ += [
     "MOTION_STATISTICS",

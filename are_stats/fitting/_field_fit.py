@@ -34,8 +34,9 @@ from are_stats.fitting._fit_log import (
     fit_lifecycle_data,
 )
 from are_stats.fitting._interaction import interaction_attrs, learn_interaction
-from are_stats.fitting._motion_checks import displacement_errors, motion_checks
+from are_stats.fitting._motion_checks import motion_checks
 from are_stats.fitting._motion_store import motion_attrs
+from are_stats.fitting._prediction import displacement_errors
 from are_stats.logs import LifecycleLog
 from are_stats.traffic import LifecycleData, LifecyclePriors, key_from_seed
 
@@ -177,6 +178,7 @@ def _attach_motion_tables(
         interaction=learned if learned is not None else True,
         grid=grid,
         max_windows=FIT_WINDOWS,
+        progress=say,
     )
     say(walked[0] + 1, walked[0] + after, "displacement errors")
     same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]

@@ -169,8 +169,8 @@ def test_fit_is_frozen(fitted):
 def test_the_long_stages_tell_their_steps_to_the_clock(tracks_log, fitted):
     """A ``progress`` with a ``steps`` method (the CLI's stage clock) is told the steps of
     the behaviour (its classes) and of the motion criticism (the realism replicates, then
-    the displacement errors and the motion checks), each under its stage; the fit is the
-    one without it."""
+    the displacement errors, with their chunks of windows as a phase of their own, and the
+    motion checks), each under its stage; the fit is the one without it."""
     calls = []
 
     class Clock:
@@ -185,7 +185,13 @@ def test_the_long_stages_tell_their_steps_to_the_clock(tracks_log, fitted):
     assert calls[behaviour + 1] == (1, 1, "classes")
     realism = calls.index("realism and displacement errors against the tracks")
     steps = calls[realism + 1 :]
+    # the displacement errors' own phase: one step per chunk of windows predicted
+    windows = [s for s in steps if s[2] == "displacement errors, windows"]
+    chunks = len(windows)
+    assert chunks >= 1 and [s[:2] for s in windows] == [(j, chunks) for j in range(1, chunks + 1)]
+    steps = [s for s in steps if s not in windows]
     assert [s[:2] for s in steps] == [(1, 4), (2, 4), (3, 4), (4, 4)]
     assert [s[2] for s in steps[2:]] == ["displacement errors", "motion checks"]
+    assert calls.index(windows[-1]) < calls.index(steps[2])
     for name in ("realism", "displacement"):
         pd.testing.assert_frame_equal(fit.motion[name], fitted.motion[name])
