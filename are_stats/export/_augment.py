@@ -53,7 +53,7 @@ from are_stats.logs import (
     bag_passthrough,
     interpolate_poses,
 )
-from are_stats.scenarios import Scene, scenes_from_fit
+from are_stats.scenarios import POSITION_CHOICES, Scene, scenes_from_fit
 
 if TYPE_CHECKING:
     from are_stats.perception import CameraModel, PinholeCamera
@@ -165,6 +165,7 @@ def augment_bag(
     force: bool = False,
     clock: str = "auto",
     model: str = "chosen",
+    positions: str = "chosen",
     topics: Sequence[str] | None = None,
     camera_frame: str | None = None,
 ) -> AugmentResult:
@@ -231,6 +232,11 @@ def augment_bag(
         Generate from the traffic models the fit chose or from the paper's (Poisson,
         exponential, uniform positions: for a fit whose learned entries belong to another
         map), as ``generate --model``.
+    positions : {"chosen", "uniform"}
+        Entry points as ``model`` says, or uniform over the free cells of the map with the
+        arrivals and stays ``model`` gives (for a fit whose learned entries belong to
+        another map), as ``generate --positions``
+        (:func:`~are_stats.scenarios.scenes_from_fit`).
     topics : sequence of str, optional
         The input topics passed through (default all of them).
 
@@ -255,6 +261,7 @@ def augment_bag(
 
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
+    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
     period = get_float(period, "--period", "", lo=0.0, lo_open=True)
     d_max = get_float(d_max, "--d-max", "", lo=0.0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0.0)
@@ -332,6 +339,7 @@ def augment_bag(
         horizon,
         behaviours=True,
         model=model,
+        positions=positions,
         behaviour_cell=behaviour_cell,
         behaviour_dt=behaviour_dt,
         source=str(fit),
