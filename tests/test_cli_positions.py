@@ -1,7 +1,7 @@
-"""``--positions chosen|uniform`` of ``generate`` (issue 27): a fit that learned its entry
-points on one map (the courtyard) generates on another map with the fit's arrivals and
-stays and the paper's uniform positions, instead of being refused or thrown back to
-``--model paper``."""
+"""``--positions chosen|uniform`` of ``generate`` and ``augment`` (issue 27): a fit that
+learned its entry points on one map (the courtyard) generates on another map with the
+fit's arrivals and stays and the paper's uniform positions, instead of being refused or
+thrown back to ``--model paper``."""
 
 from __future__ import annotations
 
@@ -26,19 +26,19 @@ ROOM_ORIGIN = (100.0, 100.0)
 RES = 0.25
 
 
-def _room(folder: Path) -> Path:
-    h, w = 40, 80
+def _room(folder: Path, origin=ROOM_ORIGIN, shape=(40, 80), name="room") -> Path:
+    h, w = shape
     img = np.full((h, w), 254, np.uint8)
     img[:2, :] = img[-2:, :] = 0
     img[:, :2] = img[:, -2:] = 0
     img[16:24, 30:42] = 0  # the pillar
-    with open(folder / "room.pgm", "wb") as f:
+    with open(folder / f"{name}.pgm", "wb") as f:
         f.write(f"P5\n{w} {h}\n255\n".encode())
         f.write(img.tobytes())
-    meta = {"image": "room.pgm", "resolution": RES, "origin": [*ROOM_ORIGIN, 0.0],
+    meta = {"image": f"{name}.pgm", "resolution": RES, "origin": [*origin, 0.0],
             "negate": 0, "occupied_thresh": 0.65, "free_thresh": 0.196}  # fmt: skip
-    (folder / "room.yaml").write_text(yaml.safe_dump(meta))
-    return folder / "room.yaml"
+    (folder / f"{name}.yaml").write_text(yaml.safe_dump(meta))
+    return folder / f"{name}.yaml"
 
 
 @pytest.fixture(scope="module")
@@ -121,3 +121,40 @@ def test_uniform_positions_keep_the_chosen_arrivals_and_stays(learned):
     same = ["scenario", "artefact", "class", "mark", "t_arrive", "t_leave", "truncated", "group"]
     pd.testing.assert_frame_equal(da[same], db[same])
     assert (db["x"] > ROOM_ORIGIN[0]).all() and (da["x"] < ROOM_ORIGIN[0]).all()
+
+
+def test_augment_forwards_positions_to_the_one_assembly(learned, tmp_path):
+    """A 14 x 8 m room around the test bag's robot path, inside the courtyard but away from
+    its doors: the learned entries are refused, ``--positions uniform`` places the bag's
+    artefacts on the room's free cells."""
+    from are_stats.export import augment_bag
+    from tests.export.rosbag_fixtures import write_bag
+
+    room = _room(tmp_path, origin=(-20.0, -13.0), shape=(32, 56), name="corner")
+    bag = write_bag(tmp_path / "robot", "mcap")
+    base = ["augment", bag, "--fit", learned["fit"], "--map", room, "--seed", "3",
+            "--camera-info-topic", "/camera/camera_info"]  # fmt: skip
+    res = runner.invoke(app, [str(a) for a in [*base, "--out", tmp_path / "no.mcap"]])
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "--positions uniform" in errors[0], res.output
+    out = tmp_path / "yes.mcap"
+    res = runner.invoke(app, [str(a) for a in [*base, "--out", out, "--positions", "uniform"]])
+    assert res.exit_code == 0, res.output
+    got = augment_bag(bag, learned["fit"], room, tmp_path / "py.mcap", 3, positions="uniform",
+                      camera_info_topic="/camera/camera_info")  # fmt: skip
+    assert got.path.read_bytes() == out.read_bytes()  # the CLI is the package's
+    art = got.scene.artefacts
+    grid = OccupancyGrid.from_ros_yaml(room)
+    cells = grid.world_to_cell(art[["x", "y"]].to_numpy())
+    assert len(art) and grid.in_bounds(cells).all()
+    assert grid.free[cells[:, 0], cells[:, 1]].all()
+
+
+def test_an_unknown_positions_choice_is_refused_before_any_work(learned, tmp_path):
+    out = tmp_path / "bad"
+    res = _generate(learned, out, learned["room"], "--positions", "learned")
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "--positions" in errors[0], res.output
+    assert "'chosen', 'uniform'" in errors[0] and not out.exists()
