@@ -542,12 +542,16 @@ def run_generate(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     model: str = "chosen",
+    positions: str = "chosen",
 ) -> pd.DataFrame:
     """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest).
 
     ``model="chosen"`` draws from the arrival, stay and position models the fit chose
     (``arrival_model``, ``lifetime_model``, ``position_model``), ``"paper"`` from the
-    paper's Poisson / exponential / uniform model.
+    paper's Poisson / exponential / uniform model; ``positions="uniform"`` keeps the
+    arrivals and stays ``model`` gives and places artefacts uniformly on the free cells of
+    the map (:func:`are_stats.scenarios.scenes_from_fit`), recorded in the manifest's
+    ``generation`` section.
 
     The options are checked first (``--scenarios`` an integer >= 1, ``--horizon``,
     ``--area``, ``--behaviour-cell``, ``--behaviour-dt`` finite and > 0, ``--seed`` in
@@ -556,9 +560,16 @@ def run_generate(
     manifest and tracks) is written beside it and put in place as a whole.
     """
     from are_stats.fitting import read_fit
-    from are_stats.scenarios import check_folder, scenes_from_fit, scenes_tables, write_scenes
+    from are_stats.scenarios import (
+        POSITION_CHOICES,
+        check_folder,
+        scenes_from_fit,
+        scenes_tables,
+        write_scenes,
+    )
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
+    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
     n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
     horizon = get_float(horizon, "--horizon", "", lo=0.0, lo_open=True)
     seed = get_seed(seed)
@@ -579,10 +590,11 @@ def run_generate(
     if behaviours and grid is None and not fitted:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
     laws = fit.laws if model == "chosen" else fit.traffic(model)[1]
-    if laws.positions == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
+    placed = laws.positions if positions == "chosen" else "uniform"  # --positions wins
+    if placed == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
         raise ValueError(
             f"--map: expected an origin yaw of 0 with the fit's learned entry density, got "
-            f"{grid.origin[2]} (or use --model paper)"
+            f"{grid.origin[2]} (or use --positions uniform, or --model paper)"
         )
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
@@ -607,6 +619,7 @@ def run_generate(
             horizon,
             behaviours=behaviours,
             model=model,
+            positions=positions,
             area=area,
             behaviour_cell=behaviour_cell,
             behaviour_dt=behaviour_dt,
@@ -615,6 +628,7 @@ def run_generate(
             progress=StepsLeft(clock, stage),
         )
     df, tracks = scenes_tables(scenes)
+    df.attrs["generation"] = {**df.attrs.get("generation", {}), "positions": positions}
     manifest = {
         "fit": str(fit_path),
         "model": model,
@@ -636,9 +650,7 @@ def run_generate(
             }
         )
     write_scenes(df, out, manifest, tracks=tracks, force=force)
-    console.print(
-        f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {laws.positions}"
-    )
+    console.print(f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {placed}")
     console.print(
         f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
@@ -912,6 +924,7 @@ def run_augment(
     tau: float = 10.0,
     force: bool = False,
     model: str = "chosen",
+    positions: str = "chosen",
     topics: str | None = None,
 ) -> AugmentResult:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
@@ -937,6 +950,7 @@ def run_augment(
             tau=tau,
             force=force,
             model=model,
+            positions=positions,
             topics=None if topics is None else [t.strip() for t in topics.split(",") if t.strip()],
         )
     n_seen = int(res.perceived.any(axis=0).sum())

@@ -64,6 +64,15 @@ _Model = Annotated[
         "entries belong to another map).",
     ),
 ]
+_Positions = Annotated[
+    str,
+    typer.Option(
+        "--positions",
+        help="chosen: where --model places artefacts (the fit's learned entries, if it "
+        "chose them); uniform: uniformly on the map's free cells, keeping the model's "
+        "arrivals and stays (for a fit whose learned entries belong to another map).",
+    ),
+]
 
 # How a robot bag is read (augment, serve --bag): the fields of logs.TrajectoryOptions.
 _PoseTopic = Annotated[
@@ -403,6 +412,7 @@ def generate(
     behaviour_dt: float = typer.Option(2.0, "--behaviour-dt", help="Seconds per MDP epoch."),
     force: _ForceOutputs = False,
     model: _Model = "chosen",
+    positions: _Positions = "chosen",
 ) -> None:
     """Generate posterior-predictive scenarios (one posterior draw per scenario)."""
     from are_stats._cli_jobs import run_generate
@@ -420,6 +430,7 @@ def generate(
         behaviour_cell=behaviour_cell,
         behaviour_dt=behaviour_dt,
         model=model,
+        positions=positions,
     )
 
 
@@ -557,6 +568,7 @@ def augment(
     tau: _Tau = 10.0,
     clock: _Clock = "auto",
     model: _Model = "chosen",
+    positions: _Positions = "chosen",
     topics: str = typer.Option(
         None,
         "--topics",
@@ -585,6 +597,7 @@ def augment(
         tau=tau,
         force=force,
         model=model,
+        positions=positions,
         topics=topics,
     )
 

@@ -9,6 +9,7 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 import are_stats
@@ -29,12 +30,20 @@ def test_version_option():
     assert res.stdout.strip() == are_stats.__version__
 
 
-def test_help_at_80_columns_keeps_every_option_name_whole():
+@pytest.mark.parametrize(
+    "command, names",
+    [
+        ("fit", ("--behaviour-features", "--stationary-start", "--no-stationary-start")),
+        ("generate", ("--positions", "--model", "--behaviour-cell")),
+        ("augment", ("--positions", "--model", "--camera-info-topic")),
+    ],
+)
+def test_help_at_80_columns_keeps_every_option_name_whole(command, names):
     # rich's boxed help cut long names at 80 columns (--behaviour-fea…)
-    res = runner.invoke(app, ["fit", "--help"], terminal_width=80, env={"COLUMNS": "80"})
+    res = runner.invoke(app, [command, "--help"], terminal_width=80, env={"COLUMNS": "80"})
     assert res.exit_code == 0
     assert "…" not in res.stdout
-    for name in ("--behaviour-features", "--stationary-start", "--no-stationary-start"):
+    for name in names:
         assert name in res.stdout
     assert max(len(line) for line in res.stdout.splitlines()) <= 80
 

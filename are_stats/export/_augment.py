@@ -53,7 +53,7 @@ from are_stats.logs import (
     bag_passthrough,
     interpolate_poses,
 )
-from are_stats.scenarios import Scene, scenes_from_fit
+from are_stats.scenarios import POSITION_CHOICES, Scene, scenes_from_fit
 
 if TYPE_CHECKING:
     from are_stats.perception import CameraModel, PinholeCamera
@@ -165,6 +165,7 @@ def augment_bag(
     force: bool = False,
     clock: str = "auto",
     model: str = "chosen",
+    positions: str = "chosen",
     topics: Sequence[str] | None = None,
     camera_frame: str | None = None,
 ) -> AugmentResult:
@@ -176,7 +177,10 @@ def augment_bag(
     ``/artefacts`` (living until the next camera frame and a bit), ``/augmented_map``,
     ``/perceived`` and ``/map`` when the input has none. The robot's tree is the input's;
     only a bag without ``/tf`` (a pose topic) gets ``map -> base_link`` and the static
-    camera mount published, so that the output can still be viewed. The new channels
+    camera mount published, so that the output can still be viewed; when the bag's
+    ``/tf_static`` gives the base a parent (``base_footprint -> base_link``),
+    ``map -> base_footprint`` (the root of that static chain, composed so that the base's
+    pose is the pose topic's) instead, so that every frame keeps one parent. The new channels
     spell QoS as the input does and carry ``topic_type_hash`` when the input's do.
 
     Parameters
@@ -231,6 +235,11 @@ def augment_bag(
         Generate from the traffic models the fit chose or from the paper's (Poisson,
         exponential, uniform positions: for a fit whose learned entries belong to another
         map), as ``generate --model``.
+    positions : {"chosen", "uniform"}
+        Entry points as ``model`` says, or uniform over the free cells of the map with the
+        arrivals and stays ``model`` gives (for a fit whose learned entries belong to
+        another map), as ``generate --positions``
+        (:func:`~are_stats.scenarios.scenes_from_fit`).
     topics : sequence of str, optional
         The input topics passed through (default all of them).
 
@@ -244,7 +253,8 @@ def augment_bag(
         A bag without poses, an unknown topic, a bad pose or stamp (see
         :func:`~are_stats.logs.read_trajectory`), a trajectory outside the map, a fit
         without area, no artefact alive in any camera frame (with why and what to try),
-        an existing ``out`` without ``force`` (``OutputExistsError``).
+        an existing ``out`` without ``force`` (``OutputExistsError``), a bag without
+        ``/tf`` whose ``/tf_static`` chain above the base holds the map frame.
     are_stats.inputs.LimitError
         Camera frames (``period``), tracing or messages past the memory or work limits,
         checked before anything of that size is allocated.
@@ -255,6 +265,7 @@ def augment_bag(
 
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
+    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
     period = get_float(period, "--period", "", lo=0.0, lo_open=True)
     d_max = get_float(d_max, "--d-max", "", lo=0.0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0.0)
@@ -332,6 +343,7 @@ def augment_bag(
         horizon,
         behaviours=True,
         model=model,
+        positions=positions,
         behaviour_cell=behaviour_cell,
         behaviour_dt=behaviour_dt,
         source=str(fit),
@@ -375,8 +387,11 @@ def augment_bag(
         if traj.mount is None:  # the input's /tf_static mounts the camera already
             tf = R.tf([R.transform(0.0, base, camf, mount)])
             R.add(0.0, "/tf_static", _TF, tf, latched=True)
+        # one parent per frame: a base with a static parent in the output's /tf_static
+        # (base_footprint -> base_link) is placed through the root of that chain
+        child, below = _robot_child(traj, base_frame, "/tf_static" in passthrough.topics, bag)
         for tk, m in zip(pose_t, traj.poses, strict=True):
-            R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), fixed, base, m)]))
+            R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), fixed, child, m @ below)]))
     # markers live until the next camera frame and a bit: a replay stopped half-way (or
     # started) shows no artefact that is not alive then
     gaps = np.diff(times)
@@ -466,6 +481,33 @@ def augment_bag(
         passed,
         camera_note,
     )
+
+
+def _robot_child(
+    traj: BagTrajectory, base_frame: str, static_out: bool, bag: Source
+) -> tuple[str, np.ndarray]:
+    """The frame ``augment`` places in the fixed frame for a bag without ``/tf``, and
+    ``T_base_child``: the base itself, or the root of its static chain when the output's
+    ``/tf_static`` (``static_out``) gives the base a parent, so that no frame gets two.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        When the fixed frame is itself in the base's static chain (the bag's
+        ``/tf_static`` already fixes the base in it, against the pose topic).
+    """
+    if not static_out or not traj.base_parents:
+        return base_frame, np.eye(4)
+    chain = " -> ".join([*traj.base_parents[::-1], base_frame])
+    if traj.frame in traj.base_parents:
+        raise InputError(
+            bag,
+            "topic /tf_static",
+            f"a static chain above {base_frame} that does not hold the fixed frame "
+            f"{traj.frame!r} (the poses of {traj.source} place {base_frame} in it)",
+            Described(f"{chain}; leave /tf_static out with --topics"),
+        )
+    return traj.base_parents[-1], np.linalg.inv(np.asarray(traj.root_from_base, float))
 
 
 def _camera_note(

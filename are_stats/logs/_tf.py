@@ -201,6 +201,20 @@ class TfBuffer:
             f = self.parents[f]
         return links[::-1]
 
+    def static_parents(self, frame: str) -> list[str]:
+        """The frames above ``frame`` through static links (``/tf_static``), nearest first:
+        ``["base_footprint"]`` for ``base_footprint -> base_link``; empty when ``frame``
+        has no static parent. The last one is the root of the static chain (its own parent,
+        if any, is a moving link)."""
+        f = start = frame.lstrip("/")
+        out: list[str] = []
+        while (p := self.parents.get(f)) is not None and (p, f) in self.static:
+            if p == start or p in out:  # a loop of static links
+                break
+            out.append(p)
+            f = p
+        return out
+
     def stamps(self, link: tuple[str, str]) -> np.ndarray:
         """Sorted distinct stamps (s) of a link."""
         return np.unique(np.asarray(self._t[link], float))

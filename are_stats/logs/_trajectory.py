@@ -96,6 +96,14 @@ class BagTrajectory(NamedTuple):
     offset_ns : int
         Header stamps minus recording times (ns, the median over the stamped messages):
         the shift from the recording clock onto the header clock.
+    base_parents : tuple of str
+        The frames above the base frame through ``/tf_static`` links, nearest first
+        (``("base_footprint",)`` for a TurtleBot's ``base_footprint -> base_link``); empty
+        when the base has no static parent. The last one is the root of the base's static
+        chain.
+    root_from_base : (4, 4) float or None
+        ``T_root_base``: the static transform from that root down to the base (None when
+        :attr:`base_parents` is empty). ``poses @ inv(root_from_base)`` places the root.
     """
 
     t: np.ndarray
@@ -115,6 +123,8 @@ class BagTrajectory(NamedTuple):
     frame: str = "map"
     frame_note: str = ""
     offset_ns: int = 0
+    base_parents: tuple[str, ...] = ()
+    root_from_base: np.ndarray | None = None
 
     @property
     def since_start(self) -> np.ndarray:
@@ -484,6 +494,7 @@ def read_trajectory(
         cam_ns = np.sort(cam_ns)
     ends = [t_ns[[0, -1]]] + ([cam_ns[[0, -1]]] if cam_ns is not None else [])
     start_ns, end_ns = int(min(e[0] for e in ends)), int(max(e[1] for e in ends))
+    above = tf.static_parents(base_frame)
     mount = None
     cam_frame = camera_frame.lstrip("/") if camera_frame else cam_frame
     if cam_frame:
@@ -516,4 +527,6 @@ def read_trajectory(
         map_frame,
         frame_note,
         int(offset),
+        tuple(above),
+        tf.lookup(above[-1], base_frame, 0.0)[0] if above else None,
     )

@@ -4,6 +4,7 @@ Scene that turns one scenario into boxes over time, and the scenarios folder (on
 
 from are_stats.scenarios._assembly import (
     BEHAVIOUR_SOURCES,
+    POSITION_CHOICES,
     check_tracks_size,
     scene_tracks,
     scenes_from_draws,
@@ -43,6 +44,7 @@ __all__ = [
     "Boxes",
     "FORMAT_VERSION",
     "MAX_POSITION",
+    "POSITION_CHOICES",
     "Scene",
     "ScenesFolder",
     "REALISM_FEATURES",

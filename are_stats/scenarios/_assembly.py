@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -56,7 +57,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_free
-from are_stats.inputs import Described, InputError, check_memory, check_work
+from are_stats.inputs import Described, InputError, check_memory, check_work, get_str
 from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
 from are_stats.scenarios._scene import Scene
 
@@ -73,6 +74,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BEHAVIOUR_SOURCES",
+    "POSITION_CHOICES",
     "check_tracks_size",
     "scene_tracks",
     "scenes_from_draws",
@@ -80,6 +82,9 @@ __all__ = [
     "scenes_from_tables",
     "scenes_tables",
 ]
+
+#: Values of ``positions=`` (``generate --positions``, ``augment --positions``).
+POSITION_CHOICES = ("chosen", "uniform")
 
 #: Values of ``behaviours=`` (besides ``True`` = ``"auto"`` and ``False`` = ``"none"``).
 BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
@@ -584,6 +589,7 @@ def scenes_from_fit(
     *,
     behaviours: bool | str = False,
     model: str = "chosen",
+    positions: str = "chosen",
     posterior_draw: int | None = None,
     area: float | None = None,
     start: str = "stationary",
@@ -610,6 +616,13 @@ def scenes_from_fit(
     model : {"chosen", "paper"}
         Generate from the models the fit chose, or the paper's Poisson / exponential /
         uniform model (:meth:`~are_stats.fitting.Fit.traffic`).
+    positions : {"chosen", "uniform"}
+        Where artefacts enter: as ``model`` says (the entry density the fit learned, when
+        it chose ``learned`` positions), or ``uniform`` over the free cells of ``grid``
+        (the paper's positions; per-class entry densities dropped too) while the arrivals
+        and stays stay the ones ``model`` gives: for a fit whose learned entries belong to
+        another map. Uniform positions with the paper's arrivals and stays are the paper's
+        model, drawn as ``model="paper"`` draws it.
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
@@ -627,13 +640,21 @@ def scenes_from_fit(
     Returns
     -------
     list of Scene
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming ``--positions`` when ``positions`` is neither ``chosen`` nor ``uniform``.
     """
     from are_stats.fitting import as_fit
 
+    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
     if source is None:
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
     fit = as_fit(fit, source)
     draws, laws = fit.traffic(model)
+    if positions == "uniform":  # the fit's arrivals and stays, the paper's positions
+        laws = replace(laws, positions="uniform", entry=None, class_entry=None)
     if "class_weights" in draws:  # a labelled log's classes: catalogue rows by name
         catalogue.rows_of_labels(
             list(fit.class_labels or ()), source, "posterior.attrs.class_labels"

@@ -490,7 +490,8 @@ def generate_scenarios(
     if laws is not None and laws.class_entry is not None and "class_weights" in p:
         if abs(oyaw) > 1e-12:
             raise ValueError(
-                f"map: expected an origin yaw of 0 for per-class entry densities, got {oyaw}"
+                f"map: expected an origin yaw of 0 for per-class entry densities, got {oyaw} "
+                "(or use --positions uniform, or --model paper)"
             )
         if free_mask is not None:  # the map the fit learned its classes' entries on
             from are_stats.traffic import uniform_position_density
@@ -600,8 +601,9 @@ def _check_entries_on_map(entry: PositionDensity, free: PositionDensity) -> None
     if mass < 0.5:
         raise ValueError(
             f"map: expected the map the fit learned its entry points on, got one whose free "
-            f"cells hold {mass:.0%} of the entry density (use the fit's map, or the paper's "
-            "uniform positions: --model paper)"
+            f"cells hold {mass:.0%} of the entry density (use the fit's map, or uniform "
+            "positions on this map with the fit's arrivals and stays: --positions uniform; or "
+            "the paper's whole model: --model paper)"
         )
 
 
@@ -622,7 +624,10 @@ def _rich_populations(
     ox, oy, oyaw = origin
     rotated = abs(oyaw) > 1e-12
     if laws.positions == "learned" and rotated:
-        raise ValueError(f"map: expected an origin yaw of 0 for learned positions, got {oyaw}")
+        raise ValueError(
+            f"map: expected an origin yaw of 0 for learned positions, got {oyaw} (or use "
+            "--positions uniform, or --model paper)"
+        )
     if grid is not None:
         mask, res, _ = grid
         free = uniform_position_density(mask, res, (0.0, 0.0) if rotated else (ox, oy))

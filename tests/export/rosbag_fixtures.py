@@ -21,6 +21,11 @@ DURATION = 12.0
 CAMERA = {"k": [60.0, 0.0, 40.0, 0.0, 60.0, 30.0, 0.0, 0.0, 1.0], "width": 80, "height": 60}
 #: The camera mount of ``/tf_static``: base_link -> camera_link -> camera_optical_frame.
 CAMERA_XYZ = (0.2, 0.0, 1.2)
+#: ``T_parent_base`` of the static parent a ``base_parent`` bag gives ``base_link``
+#: (``base_footprint -> base_link``): offset, lifted and turned, so that a wrong
+#: composition shows.
+BASE_PARENT_XYZ = (0.05, -0.02, 0.1)
+BASE_PARENT_YAW = 0.3
 #: A simulation clock's start (s): Gazebo's clock, some minutes after it started.
 SIM_START = 1234.5
 #: The index ``k`` (a tenth of a second) of the message an ``outlier`` or ``bad`` variant
@@ -91,6 +96,7 @@ def bag_messages(
     map_tf: bool = True,
     extra: str | None = None,
     decoy: bool = False,
+    base_parent: str | None = None,
 ):
     """``(t, topic, msgtype, message)`` of the test bag, in time order (``t`` s after
     :data:`START`, the recording time).
@@ -102,7 +108,10 @@ def bag_messages(
     ``/tf`` has ``map -> odom`` (else odometry only). ``extra``: a ``std_msgs/String``
     topic of that name besides. ``decoy``: ``/tf_static`` first mounts another optical
     frame, ``left_camera_optical_frame`` (an OAK-D's left mono camera), 0.1 m left of
-    the base, before the ``CameraInfo``'s camera.
+    the base, before the ``CameraInfo``'s camera. ``base_parent``: ``/tf_static`` also gives
+    ``base_link`` that static parent (:data:`BASE_PARENT_XYZ`, :data:`BASE_PARENT_YAW`; a
+    TurtleBot's ``base_footprint``); with ``drop=("/tf",)`` of :func:`write_bag` (else
+    ``/tf``'s ``odom -> base_link`` would be a second parent).
     """
     _CLOCK["start"] = header_start
     out = []
@@ -130,6 +139,21 @@ def bag_messages(
                                 )
                             ]
                             if decoy
+                            else []
+                        ),
+                        *(
+                            [
+                                _tf(
+                                    T,
+                                    0.0,
+                                    base_parent,
+                                    "base_link",
+                                    BASE_PARENT_XYZ,
+                                    BASE_PARENT_YAW,
+                                    ros1=ros1,
+                                )
+                            ]
+                            if base_parent is not None
                             else []
                         ),
                         _tf(T, 0.0, "base_link", "camera_link", CAMERA_XYZ, ros1=ros1),

@@ -27,6 +27,7 @@ from tests.export.rosbag_fixtures import (
     robot_pose,
     write_bag,
 )
+from tests.helpers import assert_allclose
 
 runner = CliRunner()
 MAP = DEFAULT_MODELS / "courtyard.yaml"
@@ -854,6 +855,65 @@ def test_augment_pose_topic_bag_with_a_static_tree_keeps_one_parent_per_frame(fi
     assert parents["camera_optical_frame"] == {"camera_link"}
     assert all(len(v) == 1 for v in parents.values()), dict(parents)
     assert len(msgs["/tf_static"]) == 1  # the input's
+
+
+def _matrix(translation, rotation) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_quat([rotation.x, rotation.y, rotation.z, rotation.w]).as_matrix()
+    m[:3, 3] = [translation.x, translation.y, translation.z]
+    return m
+
+
+def _stamp(header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def test_augment_places_the_root_of_the_bases_static_chain(files, tmp_path):
+    """A TurtleBot's bag: ``/tf_static`` has ``base_footprint -> base_link``, the poses come
+    from a topic. ``map -> base_footprint`` is published (not a second parent of
+    ``base_link``), and ``base_link`` composed through it is the pose topic's pose."""
+    bag = write_bag(tmp_path / "footprint", "mcap", drop=("/tf",), base_parent="base_footprint")
+    out = tmp_path / "f.mcap"
+    cam = "/camera/camera_info"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera-info-topic", cam)
+    assert res.exit_code == 0 and "note:" not in res.output, res.output
+    msgs, _, _ = _read_mcap(out)
+    ins, _, _ = _read_mcap(bag)
+    parents = defaultdict(set)
+    for p, c in _tf_links(msgs) | _tf_links(ins):
+        parents[c].add(p)
+    assert parents["base_link"] == {"base_footprint"} and parents["base_footprint"] == {"map"}
+    assert all(len(v) == 1 for v in parents.values()), dict(parents)
+    (static,) = [t for _, m in ins["/tf_static"] for t in m.transforms
+                 if t.child_frame_id == "base_link"]  # fmt: skip
+    fp_base = _matrix(static.transform.translation, static.transform.rotation)
+    truth = {
+        _stamp(m.header): _matrix(m.pose.pose.position, m.pose.pose.orientation)
+        for _, m in ins["/amcl_pose"]
+    }
+    placed = [
+        (t, _stamp(t.header))
+        for _, m in msgs["/tf"]
+        for t in m.transforms
+        if t.child_frame_id == "base_footprint"
+    ]
+    assert sorted(s for _, s in placed) == sorted(truth)  # one transform per pose
+    for t, ns in placed:
+        map_fp = _matrix(t.transform.translation, t.transform.rotation)
+        assert_allclose(map_fp @ fp_base, truth[ns], atol=1e-9)
+
+
+def test_augment_refuses_a_static_chain_that_holds_the_map_frame(files, tmp_path):
+    bag = write_bag(tmp_path / "pinned", "mcap", drop=("/tf",), base_parent="map")
+    out = tmp_path / "p.mcap"
+    res = _augment(files, bag, out, "--pose-topic", "/amcl_pose", "--camera", files["camera"])
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "topic /tf_static" in errors[0], res.output
+    assert "map -> base_link" in errors[0] and "--topics" in errors[0]
+    assert not out.exists()
 
 
 def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):

@@ -114,6 +114,13 @@ def test_one_posterior_draw_for_every_scene(grid, catalogue):
     pd.testing.assert_frame_equal(_table(scenes), want.reset_index(drop=True))
 
 
+def test_an_unknown_positions_choice_names_the_option(grid, catalogue):
+    from are_stats.inputs import InputError
+
+    with pytest.raises(InputError, match=r"--positions: expected one of 'chosen', 'uniform'"):
+        scenes_from_fit(7, _idata(), grid, catalogue, 1, HORIZON, positions="learned")
+
+
 def test_the_behaviour_rule_refuses_what_it_cannot_do(grid, catalogue):
     idata = _idata()
     with pytest.raises(ValueError, match="no behaviour group"):
