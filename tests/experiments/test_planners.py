@@ -160,3 +160,130 @@ def test_bad_free_mask_and_resolution():
         AStarPlanner()(np.ones((3, 3)), np.zeros(2), np.ones(2), {"resolution": 1.0})
     with pytest.raises(ValueError, match="resolution"):
         AStarPlanner()(np.ones((3, 3), bool), np.zeros(2), np.ones(2), {})
+
+
+def _ompl_space(free: np.ndarray, res: float, motion_resolution: float = 0.25):
+    """OMPL's space information over ``free`` as :class:`OMPLPlanner` sets it up, with its
+    default (discrete) motion validator over a per-state validity checker."""
+    from ompl import base as ob
+    from ompl import geometric as og
+
+    h, w = free.shape
+    space = ob.RealVectorStateSpace(2)
+    bounds = ob.RealVectorBounds(2)
+    bounds.setLow(0, 0.0)
+    bounds.setHigh(0, w * res)
+    bounds.setLow(1, 0.0)
+    bounds.setHigh(1, h * res)
+    space.setBounds(bounds)
+    setup = og.SimpleSetup(space)
+
+    inv = 1.0 / res  # the planner's per-state check
+
+    def valid(state):
+        i, j = int(state[1] * inv), int(state[0] * inv)
+        return 0 <= i < h and 0 <= j < w and bool(free[i, j])
+
+    setup.setStateValidityChecker(valid)
+    si = setup.getSpaceInformation()
+    si.setStateValidityCheckingResolution(min(1.0, motion_resolution / math.hypot(h, w)))
+    si.setup()
+    return setup, space, si
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grid_motion_validator_agrees_with_ompls_discrete_one(seed):
+    """OMPLPlanner's NumPy motion check answers as OMPL's DiscreteMotionValidator over the
+    per-state check, on random motions (cell-aligned end points, zero length and motions
+    leaving the grid included)."""
+    from are_stats.experiments._planners import _grid_motion_validator
+
+    rng = np.random.default_rng(seed)
+    res = 0.1
+    free = rng.random((40, 50)) > 0.15
+    setup, space, si = _ompl_space(free, res)
+    mv = _grid_motion_validator()(si, space, free, 1.0 / res)
+    a, b = space.allocState(), space.allocState()
+    top = np.array([50 * res, 40 * res])
+    n, agree, n_valid = 4000, 0, 0
+    for k in range(n):
+        p = rng.uniform(0.0, top)
+        q = p + 10.0 ** rng.uniform(-3.0, 0.5) * rng.normal(size=2)
+        if k % 4 == 1:  # on cell edges and corners
+            p, q = np.round(p / res) * res, np.round(q / res) * res
+        elif k % 4 == 2:
+            q = p.copy()
+        q = np.clip(q, 0.0, top)
+        a[0], a[1] = float(p[0]), float(p[1])
+        b[0], b[1] = float(q[0]), float(q[1])
+        ref = si.checkMotion(a, b)
+        n_valid += ref
+        agree += mv.checkMotion(a, b) == ref
+    assert agree == n
+    assert 0.2 * n < n_valid < 0.8 * n  # both answers are exercised
+
+
+def _blocks(rng: np.random.Generator) -> np.ndarray:
+    free = np.ones((80, 100), bool)
+    for _ in range(25):
+        r, c = rng.integers(0, 80), rng.integers(0, 100)
+        free[r : r + rng.integers(2, 15), c : c + rng.integers(2, 15)] = False
+    return free
+
+
+@pytest.mark.parametrize("algorithm", ["RRTConnect", "RRT"])
+def test_ompl_plans_as_with_ompls_motion_validator(algorithm, monkeypatch):
+    """The same seeded plans as with OMPL's own motion validator over the per-state check
+    (RRT* is left out: OMPL's RRT* does not repeat its own plans exactly)."""
+    import are_stats.experiments._planners as planners
+
+    rng = np.random.default_rng(5)
+    kw = {"range": 1.0, "max_iterations": 2000}
+    if algorithm == "RRT":
+        kw["goal_bias"] = 0.05
+    plan = OMPLPlanner(algorithm, **kw)
+    ours = planners._grid_motion_validator
+    theirs = lambda: lambda si, space, free, inv: si.getMotionValidator()  # noqa: E731
+    found = 0
+    for k in range(12):
+        free = _blocks(rng)
+        cells = np.argwhere(free)
+        s, g = cells[rng.choice(len(cells), 2, replace=False)]
+        args = (free, (s[::-1] + 0.5) * 0.1, (g[::-1] + 0.5) * 0.1, {"resolution": 0.1, "seed": k})
+        monkeypatch.setattr(planners, "_grid_motion_validator", ours)
+        a = plan(*args)
+        monkeypatch.setattr(planners, "_grid_motion_validator", theirs)
+        b = plan(*args)
+        assert (a is None) == (b is None)
+        if a is not None:
+            found += 1
+            assert np.array_equal(a, b)
+    assert found >= 8
+
+
+def test_ompl_goal_outside_the_starts_part_is_refused_unsearched(monkeypatch):
+    """A goal outside the start's 8-connected free cells is answered without a search (no
+    OMPL path can reach it); one joined to it only through a diagonal step is searched."""
+    import ompl.geometric as og
+
+    free = np.ones((30, 30), bool)
+    free[14:16, :] = False
+    args = (free, np.array([0.5, 0.5]), np.array([0.5, 2.5]), {"resolution": 0.1, "seed": 1})
+    plan = OMPLPlanner("RRTConnect", max_iterations=10**9, time_limit=3600.0)
+
+    class NoSearch:
+        def __init__(self, *a):
+            raise AssertionError("searched")
+
+    monkeypatch.setattr(og, "SimpleSetup", NoSearch)
+    assert plan(*args) is None
+    monkeypatch.undo()
+    free[14:16, 10] = True  # a door: a plan
+    assert plan(*args) is not None
+    # a wall of cells that touch at their corners only: 8-connected, so searched (and a
+    # motion check's steps may slip through a corner)
+    diag = np.ones((30, 30), bool)
+    diag[np.arange(30), np.arange(30)] = False
+    monkeypatch.setattr(og, "SimpleSetup", NoSearch)
+    with pytest.raises(AssertionError, match="searched"):
+        plan(diag, np.array([0.25, 2.5]), np.array([2.5, 0.25]), {"resolution": 0.1})
