@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 import math
 
 import numpy as np
@@ -287,3 +288,102 @@ def test_ompl_goal_outside_the_starts_part_is_refused_unsearched(monkeypatch):
     monkeypatch.setattr(og, "SimpleSetup", NoSearch)
     with pytest.raises(AssertionError, match="searched"):
         plan(diag, np.array([0.25, 2.5]), np.array([2.5, 0.25]), {"resolution": 0.1})
+
+
+_MOVES_BEFORE = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+def _astar_before(
+    free: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
+) -> np.ndarray | None:
+    """The grid A* before its moves were written out (2026-11-27), verbatim: the reference
+    whose paths, ties included, the current one must repeat."""
+    h, w = free.shape
+    sq2 = math.sqrt(2.0)
+    c2 = sq2 - 2.0
+    # the grid padded by a blocked ring (no bounds tests), as bytes; costs and parents in
+    # dicts of the cells reached: NumPy scalar indexing costs more than the search itself,
+    # and whole-grid lists more than a short search. The same pops and pushes in the same
+    # order as on the (H, W) grid (padded indices keep the cells' order), so the same path,
+    # ties included
+    fp = np.zeros((h + 2, w + 2), bool)
+    fp[1:-1, 1:-1] = free
+    fr = fp.tobytes()
+    wp = w + 2
+    sp, gp = (start[0] + 1) * wp + start[1] + 1, (goal[0] + 1) * wp + goal[1] + 1
+    gr, gc = goal[0] + 1, goal[1] + 1
+    # octile distance to the goal, dr + dc + (sqrt 2 - 2) min(dr, dc)
+    ar, ac = abs(start[0] + 1 - gr), abs(start[1] + 1 - gc)
+    heap = [(ar + ac + c2 * min(ar, ac), 0.0, sp)]
+    inf = math.inf
+    cost = {sp: 0.0}
+    parent: dict[int, int] = {}
+    closed = bytearray(len(fr))
+    # (offset, step, the two orthogonal neighbours a diagonal needs free, dr, dc) in the
+    # order of _MOVES (the order ties are pushed in)
+    moves = [
+        (dr * wp + dc, sq2 if dr and dc else 1.0, dr * wp if dr and dc else 0,
+         dc if dr and dc else 0, dr, dc)
+        for dr, dc in _MOVES_BEFORE
+    ]  # fmt: skip
+    pop, push, get = heapq.heappop, heapq.heappush, cost.get
+    while heap:
+        _, g_cost, u = pop(heap)
+        if closed[u]:
+            continue
+        if u == gp:
+            break
+        closed[u] = 1
+        r, c = divmod(u, wp)
+        for off, step, a, b, dr, dc in moves:
+            v = u + off
+            if not fr[v] or closed[v]:
+                continue
+            if a and not (fr[u + b] and fr[u + a]):
+                continue
+            nc = g_cost + step
+            if nc < get(v, inf):
+                cost[v] = nc
+                parent[v] = u
+                ar, ac = abs(r + dr - gr), abs(c + dc - gc)
+                push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
+    if gp not in cost:
+        return None
+    out = [gp]
+    while out[-1] != sp:
+        out.append(parent[out[-1]])
+    idx = np.array(out[::-1])
+    return np.stack(np.divmod(idx, wp), axis=1) - 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_astar_repeats_the_previous_implementations_paths(seed):
+    """The same cell paths (ties included) as the implementation before the moves were
+    written out, on random grids: speckled, blocks, and the courtyard with blocks."""
+    from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
+
+    rng = np.random.default_rng(seed)
+    grid = OccupancyGrid.from_ros_yaml(DEFAULT_MODELS / "courtyard.yaml")
+    court = grid.free & ~grid.inflate(0.37)
+    n_none = 0
+    for k in range(30):
+        if k % 3 == 0:
+            free = rng.random(tuple(rng.integers(5, 60, 2))) > rng.uniform(0.1, 0.5)
+        elif k % 3 == 1:
+            free = _blocks(rng)
+        else:
+            free = court.copy()
+            for _ in range(40):
+                r, c = rng.integers(0, 300), rng.integers(0, 400)
+                free[r : r + rng.integers(2, 12), c : c + rng.integers(2, 12)] = False
+        cells = np.argwhere(free)
+        if len(cells) < 2:
+            continue
+        s, g = (tuple(int(v) for v in cells[j]) for j in rng.choice(len(cells), 2, replace=False))
+        got, ref = astar_cells(free, s, g), _astar_before(free, s, g)
+        assert (got is None) == (ref is None)
+        if ref is None:
+            n_none += 1
+        else:
+            assert np.array_equal(got, ref)
+    assert n_none < 30
