@@ -240,6 +240,9 @@ class _State(NamedTuple):
     n_detours: int
     n_yields: int
     avoid_delay: float  # s, summed over the avoidances
+    # (t, n): the robot planned again n times at time t because the artefacts' answers
+    # to its plan blocked it (_check_after_avoidance)
+    replans_at: tuple
     # the AR-builder (M_2D augmented with the live boxes) holding the scene at builder_at =
     # (scene, t); never changed in place: _register puts a new one in the state at each
     # update (it gives n_A) and _planning_grid one at the plan's time (the planner's map
@@ -562,7 +565,7 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
         kinds.append("move")
         s = s._replace(n_moves=s.n_moves + 1)
         if m.avoid:
-            s, avoided = _avoid(m, s, np.flatnonzero(moved))
+            s, avoided, _ = _avoid(m, s, np.flatnonzero(moved))
             kinds.extend(avoided)
         if not s.need_plan and (moved & s.seen).any():
             # a perceived artefact moved: replan when it now blocks the plan (or the robot
@@ -583,17 +586,17 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     return s, kinds
 
 
-def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]]:
+def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str], np.ndarray]:
     """Artefacts ``moved`` (indices: those moving at this update, or every moving one after
     a replan) whose motion until their next check meets the robot's footprint, along its
     current plan, detour around it or wait
     (:func:`~are_stats.experiments._avoid.plan_avoidance`, the distance filter first);
     their new tracks go into the state's scene and the rest of the event table is rebuilt
-    from it."""
+    from it; also returns the indices (k,) of the artefacts whose tracks changed."""
     scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
     changed: list[int] = []
     if not moved.size:
-        return s, kinds
+        return s, kinds, np.zeros(0, np.int64)
     t_check = scene.next_epoch(s.t, moved)
     if m.move_period is not None:
         # its next move is registered on the clock's tick; a wait ends just before it, so
@@ -633,7 +636,7 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
         if got.kind not in kinds:
             kinds.append(got.kind)
     if not kinds:
-        return s, kinds
+        return s, kinds, np.zeros(0, np.int64)
     # the tracks changed after s.t only: the coming events are rebuilt from there (the
     # changed artefacts' events; the others' are the coming ones of s.events)
     events = _events_after(s.events, scene, np.array(changed), m.T, m.move_period, s.t)
@@ -642,7 +645,7 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
         n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
         avoid_delay=s.avoid_delay + delay,
     )  # fmt: skip
-    return s, sorted(kinds)
+    return s, sorted(kinds), np.array(changed, np.int64)
 
 
 #: Common times at which :func:`_within_reach` compares the moving artefacts with the robot.
@@ -693,8 +696,8 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         event=0, next_percept=m.period if m.perception == "camera" else np.inf,
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0, scene=m.scene, events=m.events, n_detours=0,
-        n_yields=0,
-        avoid_delay=0.0, builder=ARBuilder(m.grid), builder_at=(None, np.nan),
+        n_yields=0, avoid_delay=0.0, replans_at=(np.nan, 0), builder=ARBuilder(m.grid),
+        builder_at=(None, np.nan),
         percepts=MappingProxyType({}),
     )  # fmt: skip
     s = _perceive(m, _register(s), idx, boxes)
@@ -717,8 +720,9 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
         if m.avoid:
             # the moving artefacts decided against the robot's old plan (or its standing):
             # those whose motion until their next check meets the new one decide again
-            s, avoided = _avoid(m, s, np.flatnonzero(s.live & s.scene.has_tracks))
+            s, avoided, changed = _avoid(m, s, np.flatnonzero(s.live & s.scene.has_tracks))
             if avoided:  # a scene update of its own, at the replan's time
+                s = _check_after_avoidance(m, s, changed)
                 s, update, scene = _update(m, s, ["replan", *avoided])
                 return s, _Info(replan=replan, update=update, plan=plan, scene=scene)
     t_event = s.events.t[s.event] if s.event < s.events.t.size else np.inf
@@ -753,6 +757,32 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
     if kinds:
         s, update, scene = _update(m, s, kinds)
     return s, _Info(replan=replan, update=update, poses=poses, plan=plan, scene=scene)
+
+
+#: Plans one instant may make again because the artefacts' answers to the previous one
+#: (a wait, a detour) stand in its way (:func:`_check_after_avoidance`).
+_REPLANS_AT_ONCE = 3
+
+
+def _check_after_avoidance(m: _Mission, s: _State, changed: np.ndarray) -> _State:
+    """The state after the moving artefacts answered a new plan: when a perceived one of
+    those that changed their tracks (``changed`` (k,)) now blocks the plan (it waits on it,
+    or detours across it), the robot plans again at the same instant, as after a move that
+    blocks its plan; at most ``_REPLANS_AT_ONCE`` times in one instant (each plan is
+    answered again).
+
+    Without it the robot drove on along a plan made against the artefacts' old tracks,
+    into an artefact waiting on it for the robot to pass (most of the robot's collisions
+    in the one-hour benchmark mission)."""
+    if s.path is None or not s.seen[changed].any():
+        return s
+    at, n = s.replans_at
+    if at == s.t and n >= _REPLANS_AT_ONCE:
+        return s
+    s, _, free = _planning_grid(m, s, np.flatnonzero(s.scene.alive(s.t)))
+    if not _path_blocked(m, s, free):
+        return s
+    return s._replace(need_plan=True, replans_at=(s.t, n + 1 if at == s.t else 1))
 
 
 def _update(m: _Mission, s: _State, kinds: list[str]) -> tuple[_State, dict, dict | None]:

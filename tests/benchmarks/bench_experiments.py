@@ -76,6 +76,44 @@
    replans, 1375 of them failed, 21,271 yields; docs, experiments). ``--baseline
    CHECKOUT`` runs the missions with another checkout's ``are_stats`` too and prints the
    ratio.
+   Then (2026-11-27, load 10-16, CPU time, the hour's scene built once and pickled, main
+   and this branch run at the same time on it). RRT-Connect: OMPL's motions are checked
+   in one Python call each (``_planners._grid_motion_validator``: the states OMPL's
+   discrete validator checks, in its order, the rest of a long motion in NumPy; the same
+   answers as OMPL's, tested) instead of one Python call per state, and a goal outside the
+   start's 8-connected free cells is refused before a search (no path OMPL can validate
+   leaves them: every seed fails after its whole budget). Missions identical to main's:
+   the first 600 s 22.0 -> 21.8 s (planning 3.3 -> 3.2 s); the hour, profiled, the same
+   3014 replans, 1375 failed, 21,271 yields, 39 goals, and its planning stage at most
+   15.9 s of CPU (under the profiler) against main's 33.3 s unprofiled. Planning was not
+   what held the RRT hour back: profiled, avoidance was two thirds of its loop (205 of
+   307 s of CPU):
+   about 21,600 avoidances while the robot stands, each one a detour tried first (two
+   cell searches, around the robot's sweep and around the other boxes, and a labelling
+   of the window; only 2822 reach an A* search) then a new Scene (``Scene.with_track``,
+   about 12% of the loop); then perception 13%, the rest 9%, planning 5%, planning grids
+   5%. Most of those avoidances went with the collision bug below (the robot drove into
+   a person waiting on its plan, 15 times in the RRT hour, and stood there among the
+   walkers, its plans failing). With both changes the RRT hour runs 351.2 -> 199.4 s of
+   CPU (10.2x -> 18.1x, x1.76; main and this branch at the same time, load 4-16): 0
+   collisions instead of 15, 61 goals instead of 39, 2948 replans of which 403 failed
+   (3014, 1375), 559 detours and 1392 yields (350, 21,271), 1 arrival contact (0); by
+   stage avoidance 71.8 s (233.1), perception 32.6 (36.3), the rest 34.8 (26.9), planning
+   31.7 (33.3, with 2545 plans found instead of 1639), planning grids 23.4 (16.7),
+   builder 5.1 (4.9). Still short of 20x on CPU time (180 s): avoidance, then perception,
+   planning and the planning grids, about evenly.
+   The A* hour's 23 robot collisions were a bug: after each plan the moving artefacts
+   answer it (a wait or a detour), but the robot drove on along the plan made against
+   their old tracks, into an artefact now waiting on it (with moves on the 2 s clock a
+   wait ends at the next tick, after the robot got there; 3 of the first 56 s, each a
+   person standing where the robot drove). The robot now plans again when a perceived
+   artefact that changed its track blocks the plan, as after a move (at most 3 times an
+   instant). Grid A* with its eight moves written out: the same paths, ties included,
+   about 15% less CPU per search (300 random searches). The A* hour, main -> this branch
+   (at the same time, load 5-9): 23 -> 6 collisions, 2300 -> 2309 replans (409 -> 419
+   failed), 80 -> 81 goals, 461 -> 489 detours, 1313 -> 1208 yields, 100.2 -> 101.0 s of
+   CPU (35.9x -> 35.6x: the checks' planning grids, 16.7 -> 19.6 s, take what the faster
+   A* gave). The 6 collisions left were not examined.
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move

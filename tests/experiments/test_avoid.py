@@ -589,3 +589,38 @@ def test_cells_near_a_disc_are_those_a_kd_tree_finds():
         np.testing.assert_array_equal(got, want)
         n_found += int(want.sum())
     assert n_found > 1000
+
+
+def test_robot_plans_again_when_an_artefact_waits_on_its_new_plan():
+    """At a crossing of two corridors, moves on a 2 s clock: the robot, stopped by a box in
+    its corridor, plans east when the box leaves (t = 4); the walker coming south, which
+    had decided against the standing robot, meets the new plan in the crossing and waits
+    there, on the plan, until the next tick. The robot plans again instead of driving into
+    it (before, a collision at about t = 5)."""
+    data = np.full((100, 100), 100)
+    data[47:53, :] = 0  # an east-west corridor, y in [9.4, 10.6)
+    data[:, 47:53] = 0  # a north-south one, x in [9.4, 10.6)
+    grid = OccupancyGrid(data, 0.2)
+    t = np.arange(0.0, 40.0, 4.0)  # south at 1 m/s, epochs 4 s apart: y = 16, 12, 8, ...
+    tracks = pd.DataFrame({"id": 0, "t": t, "x": 10.0, "y": 16.0 - t, "yaw": -np.pi / 2})
+    art = pd.DataFrame(
+        [[0.0, 60.0, 10.0, 16.0, -np.pi / 2, 0], [0.0, 4.0, 13.0, 10.0, 0.0, 0]], columns=COLS
+    )
+    art["artefact"] = [0, 1]
+    robot = Robot(radius=0.3, speed=1.0)
+    res = run_mission(grid, _scene(tracks, art), [[16.0, 10.0]], "astar", robot=robot,
+                      start=[7.8, 10.0, 0.0], time_limit=40.0, move_period=2.0,
+                      record=True)  # fmt: skip
+    s = res.summary
+    assert s["collisions"] == 0 and s["artefact_contacts"] == 0
+    assert s["n_yields"] >= 1 and s["goals_reached"] == 1
+    # the plan at the leave was answered by a wait on it: the robot planned again then
+    at4 = res.replans[res.replans["t"] == 4.0]
+    assert len(at4) == 2 and at4["reason"].tolist() == ["leave+move", "replan+yield"]
+    # independent truth: the walker's box (sampled by hand) never within the robot's radius
+    for sc in res.trace.scenes:
+        k = np.flatnonzero(sc["ids"] == 0)
+        if k.size:
+            pts = _box_points(sc["centres"][k[0], :2], sc["yaws"][k[0]])
+            gap = np.linalg.norm(pts - _robot_xy(res.trace, sc["t"]), axis=1).min()
+            assert gap > robot.radius

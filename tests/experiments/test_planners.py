@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 import math
 
 import numpy as np
@@ -160,3 +161,229 @@ def test_bad_free_mask_and_resolution():
         AStarPlanner()(np.ones((3, 3)), np.zeros(2), np.ones(2), {"resolution": 1.0})
     with pytest.raises(ValueError, match="resolution"):
         AStarPlanner()(np.ones((3, 3), bool), np.zeros(2), np.ones(2), {})
+
+
+def _ompl_space(free: np.ndarray, res: float, motion_resolution: float = 0.25):
+    """OMPL's space information over ``free`` as :class:`OMPLPlanner` sets it up, with its
+    default (discrete) motion validator over a per-state validity checker."""
+    from ompl import base as ob
+    from ompl import geometric as og
+
+    h, w = free.shape
+    space = ob.RealVectorStateSpace(2)
+    bounds = ob.RealVectorBounds(2)
+    bounds.setLow(0, 0.0)
+    bounds.setHigh(0, w * res)
+    bounds.setLow(1, 0.0)
+    bounds.setHigh(1, h * res)
+    space.setBounds(bounds)
+    setup = og.SimpleSetup(space)
+
+    inv = 1.0 / res  # the planner's per-state check
+
+    def valid(state):
+        i, j = int(state[1] * inv), int(state[0] * inv)
+        return 0 <= i < h and 0 <= j < w and bool(free[i, j])
+
+    setup.setStateValidityChecker(valid)
+    si = setup.getSpaceInformation()
+    si.setStateValidityCheckingResolution(min(1.0, motion_resolution / math.hypot(h, w)))
+    si.setup()
+    return setup, space, si
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grid_motion_validator_agrees_with_ompls_discrete_one(seed):
+    """OMPLPlanner's NumPy motion check answers as OMPL's DiscreteMotionValidator over the
+    per-state check, on random motions (cell-aligned end points, zero length and motions
+    leaving the grid included)."""
+    from are_stats.experiments._planners import _grid_motion_validator
+
+    rng = np.random.default_rng(seed)
+    res = 0.1
+    free = rng.random((40, 50)) > 0.15
+    setup, space, si = _ompl_space(free, res)
+    mv = _grid_motion_validator()(si, space, free, 1.0 / res)
+    a, b = space.allocState(), space.allocState()
+    top = np.array([50 * res, 40 * res])
+    n, agree, n_valid = 4000, 0, 0
+    for k in range(n):
+        p = rng.uniform(0.0, top)
+        q = p + 10.0 ** rng.uniform(-3.0, 0.5) * rng.normal(size=2)
+        if k % 4 == 1:  # on cell edges and corners
+            p, q = np.round(p / res) * res, np.round(q / res) * res
+        elif k % 4 == 2:
+            q = p.copy()
+        q = np.clip(q, 0.0, top)
+        a[0], a[1] = float(p[0]), float(p[1])
+        b[0], b[1] = float(q[0]), float(q[1])
+        ref = si.checkMotion(a, b)
+        n_valid += ref
+        agree += mv.checkMotion(a, b) == ref
+    assert agree == n
+    assert 0.2 * n < n_valid < 0.8 * n  # both answers are exercised
+
+
+def _blocks(rng: np.random.Generator) -> np.ndarray:
+    free = np.ones((80, 100), bool)
+    for _ in range(25):
+        r, c = rng.integers(0, 80), rng.integers(0, 100)
+        free[r : r + rng.integers(2, 15), c : c + rng.integers(2, 15)] = False
+    return free
+
+
+@pytest.mark.parametrize("algorithm", ["RRTConnect", "RRT"])
+def test_ompl_plans_as_with_ompls_motion_validator(algorithm, monkeypatch):
+    """The same seeded plans as with OMPL's own motion validator over the per-state check
+    (RRT* is left out: OMPL's RRT* does not repeat its own plans exactly)."""
+    import are_stats.experiments._planners as planners
+
+    rng = np.random.default_rng(5)
+    kw = {"range": 1.0, "max_iterations": 2000}
+    if algorithm == "RRT":
+        kw["goal_bias"] = 0.05
+    plan = OMPLPlanner(algorithm, **kw)
+    ours = planners._grid_motion_validator
+    theirs = lambda: lambda si, space, free, inv: si.getMotionValidator()  # noqa: E731
+    found = 0
+    for k in range(12):
+        free = _blocks(rng)
+        cells = np.argwhere(free)
+        s, g = cells[rng.choice(len(cells), 2, replace=False)]
+        args = (free, (s[::-1] + 0.5) * 0.1, (g[::-1] + 0.5) * 0.1, {"resolution": 0.1, "seed": k})
+        monkeypatch.setattr(planners, "_grid_motion_validator", ours)
+        a = plan(*args)
+        monkeypatch.setattr(planners, "_grid_motion_validator", theirs)
+        b = plan(*args)
+        assert (a is None) == (b is None)
+        if a is not None:
+            found += 1
+            assert np.array_equal(a, b)
+    assert found >= 8
+
+
+def test_ompl_goal_outside_the_starts_part_is_refused_unsearched(monkeypatch):
+    """A goal outside the start's 8-connected free cells is answered without a search (no
+    OMPL path can reach it); one joined to it only through a diagonal step is searched."""
+    import ompl.geometric as og
+
+    free = np.ones((30, 30), bool)
+    free[14:16, :] = False
+    args = (free, np.array([0.5, 0.5]), np.array([0.5, 2.5]), {"resolution": 0.1, "seed": 1})
+    plan = OMPLPlanner("RRTConnect", max_iterations=10**9, time_limit=3600.0)
+
+    class NoSearch:
+        def __init__(self, *a):
+            raise AssertionError("searched")
+
+    monkeypatch.setattr(og, "SimpleSetup", NoSearch)
+    assert plan(*args) is None
+    monkeypatch.undo()
+    free[14:16, 10] = True  # a door: a plan
+    assert plan(*args) is not None
+    # a wall of cells that touch at their corners only: 8-connected, so searched (and a
+    # motion check's steps may slip through a corner)
+    diag = np.ones((30, 30), bool)
+    diag[np.arange(30), np.arange(30)] = False
+    monkeypatch.setattr(og, "SimpleSetup", NoSearch)
+    with pytest.raises(AssertionError, match="searched"):
+        plan(diag, np.array([0.25, 2.5]), np.array([2.5, 0.25]), {"resolution": 0.1})
+
+
+_MOVES_BEFORE = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+def _astar_before(
+    free: np.ndarray, start: tuple[int, int], goal: tuple[int, int]
+) -> np.ndarray | None:
+    """The grid A* before its moves were written out (2026-11-27), verbatim: the reference
+    whose paths, ties included, the current one must repeat."""
+    h, w = free.shape
+    sq2 = math.sqrt(2.0)
+    c2 = sq2 - 2.0
+    # the grid padded by a blocked ring (no bounds tests), as bytes; costs and parents in
+    # dicts of the cells reached: NumPy scalar indexing costs more than the search itself,
+    # and whole-grid lists more than a short search. The same pops and pushes in the same
+    # order as on the (H, W) grid (padded indices keep the cells' order), so the same path,
+    # ties included
+    fp = np.zeros((h + 2, w + 2), bool)
+    fp[1:-1, 1:-1] = free
+    fr = fp.tobytes()
+    wp = w + 2
+    sp, gp = (start[0] + 1) * wp + start[1] + 1, (goal[0] + 1) * wp + goal[1] + 1
+    gr, gc = goal[0] + 1, goal[1] + 1
+    # octile distance to the goal, dr + dc + (sqrt 2 - 2) min(dr, dc)
+    ar, ac = abs(start[0] + 1 - gr), abs(start[1] + 1 - gc)
+    heap = [(ar + ac + c2 * min(ar, ac), 0.0, sp)]
+    inf = math.inf
+    cost = {sp: 0.0}
+    parent: dict[int, int] = {}
+    closed = bytearray(len(fr))
+    # (offset, step, the two orthogonal neighbours a diagonal needs free, dr, dc) in the
+    # order of _MOVES (the order ties are pushed in)
+    moves = [
+        (dr * wp + dc, sq2 if dr and dc else 1.0, dr * wp if dr and dc else 0,
+         dc if dr and dc else 0, dr, dc)
+        for dr, dc in _MOVES_BEFORE
+    ]  # fmt: skip
+    pop, push, get = heapq.heappop, heapq.heappush, cost.get
+    while heap:
+        _, g_cost, u = pop(heap)
+        if closed[u]:
+            continue
+        if u == gp:
+            break
+        closed[u] = 1
+        r, c = divmod(u, wp)
+        for off, step, a, b, dr, dc in moves:
+            v = u + off
+            if not fr[v] or closed[v]:
+                continue
+            if a and not (fr[u + b] and fr[u + a]):
+                continue
+            nc = g_cost + step
+            if nc < get(v, inf):
+                cost[v] = nc
+                parent[v] = u
+                ar, ac = abs(r + dr - gr), abs(c + dc - gc)
+                push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
+    if gp not in cost:
+        return None
+    out = [gp]
+    while out[-1] != sp:
+        out.append(parent[out[-1]])
+    idx = np.array(out[::-1])
+    return np.stack(np.divmod(idx, wp), axis=1) - 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_astar_repeats_the_previous_implementations_paths(seed):
+    """The same cell paths (ties included) as the implementation before the moves were
+    written out, on random grids: speckled, blocks, and the courtyard with blocks."""
+    from are_stats.environment import DEFAULT_MODELS, OccupancyGrid
+
+    rng = np.random.default_rng(seed)
+    grid = OccupancyGrid.from_ros_yaml(DEFAULT_MODELS / "courtyard.yaml")
+    court = grid.free & ~grid.inflate(0.37)
+    n_none = 0
+    for k in range(30):
+        if k % 3 == 0:
+            free = rng.random(tuple(rng.integers(5, 60, 2))) > rng.uniform(0.1, 0.5)
+        elif k % 3 == 1:
+            free = _blocks(rng)
+        else:
+            free = court.copy()
+            for _ in range(40):
+                r, c = rng.integers(0, 300), rng.integers(0, 400)
+                free[r : r + rng.integers(2, 12), c : c + rng.integers(2, 12)] = False
+        cells = np.argwhere(free)
+        if len(cells) < 2:
+            continue
+        s, g = (tuple(int(v) for v in cells[j]) for j in rng.choice(len(cells), 2, replace=False))
+        got, ref = astar_cells(free, s, g), _astar_before(free, s, g)
+        assert (got is None) == (ref is None)
+        if ref is None:
+            n_none += 1
+        else:
+            assert np.array_equal(got, ref)
+    assert n_none < 30
