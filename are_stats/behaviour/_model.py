@@ -283,16 +283,21 @@ class BehaviourFit:
         if not len(ent):
             return out
         uniq, inv = np.unique(ent, axis=0, return_inverse=True)
+        inv = inv.ravel()
         dist = self.geodesic(uniq)
+        # the nearest cell one move or more from each entry: a smaller reach has no exit
+        # (checked without building an (H, W) mask per artefact)
+        near = np.array([d[d >= 1].min(initial=np.inf) for d in dist])
         ent_xy = self.cell_to_world(ent)
         h, w = self.free.shape
+        of_class = {c: np.flatnonzero(self.track_class == c) for c in np.unique(cls)}
         for i in range(len(ent)):
-            ok = (dist[inv.ravel()[i]] <= reach[i]) & (dist[inv.ravel()[i]] >= 1)
-            if not ok.any():
+            d_i = dist[inv[i]]
+            if not near[inv[i]] <= reach[i]:
                 continue
-            m_of = np.flatnonzero(self.track_class == cls[i])
+            m_of = of_class[cls[i]]
             if not m_of.size:
-                cand = np.argwhere(ok)
+                cand = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
                 out[i] = cand[rng.integers(len(cand))]
                 continue
             he, hx = self.bandwidth_entry[cls[i]], self.bandwidth_exit[cls[i]]
@@ -300,18 +305,35 @@ class BehaviourFit:
             logw = -0.5 * d2 / he**2
             p = np.exp(logw - logw.max())
             p /= p.sum()
+            # rng.choice(len(m_of), p=p) as numpy draws it (one uniform against the
+            # normalised cumulative weights), without re-checking p on each try: the same
+            # draws from the same generator
+            cdf = p.cumsum()
+            cdf /= cdf[-1]
             xy, cands = None, []
-            for _ in range(tries):
-                m = m_of[rng.choice(len(m_of), p=p)]
-                xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
-                c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
-                if 0 <= c[0] < h and 0 <= c[1] < w and ok[c[0], c[1]]:
-                    cands.append(c)
-                    if stays is None:
+            if stays is None:  # the first exit that is free and reachable
+                for _ in range(tries):
+                    m = m_of[int(cdf.searchsorted(rng.random(), side="right"))]
+                    xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
+                    c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
+                    if 0 <= c[0] < h and 0 <= c[1] < w and 1 <= d_i[c[0], c[1]] <= reach[i]:
+                        cands.append(c)
                         break
+            else:  # every try: the draws in the generator's order, then checked together
+                u, jitter = np.empty(tries), np.empty((tries, 2))
+                for t in range(tries):
+                    u[t] = rng.random()
+                    jitter[t] = rng.normal(0.0, hx, 2)
+                all_xy = self.exit_xy[m_of[cdf.searchsorted(u, side="right")]] + jitter
+                cc = np.floor((all_xy - self.origin) / self.cell).astype(int)[:, ::-1]
+                inside = (cc[:, 0] >= 0) & (cc[:, 0] < h) & (cc[:, 1] >= 0) & (cc[:, 1] < w)
+                d_c = np.full(tries, np.inf)
+                d_c[inside] = d_i[cc[inside, 0], cc[inside, 1]]
+                cands = list(cc[(d_c >= 1) & (d_c <= reach[i])])
+                xy = all_xy[-1]
             if cands and stays is not None:
                 cc = np.asarray(cands)
-                geo = dist[inv.ravel()[i]][cc[:, 0], cc[:, 1]]
+                geo = d_i[cc[:, 0], cc[:, 1]]
                 manhattan = np.maximum(np.abs(cc - ent[i]).sum(axis=1), 1)
                 length = np.hypot(*(self.cell_to_world(cc) - ent_xy[i]).T) * geo / manhattan
                 v = np.maximum(length / max(float(stays[i]), 1e-9), 1e-9)
@@ -323,7 +345,7 @@ class BehaviourFit:
             elif cands:
                 out[i] = cands[0]
             else:
-                cand = np.argwhere(ok)
+                cand = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
                 cxy = self.cell_to_world(cand)
                 out[i] = cand[np.argmin(((cxy - xy) ** 2).sum(axis=1))]
         return out

@@ -42,9 +42,36 @@ def _crossed(
 
     ``p0, p1 : (m, 2)``; ``free : (H, W)`` bool, or ``(G, H, W)`` with ``grid : (m,)`` int
     naming each segment's grid; returns ``(m,)`` bool (exact, vectorised over the segments;
-    a segment's answer does not depend on the others it is tested with)."""
+    a segment's answer does not depend on the others it is tested with).
+
+    Segments are tested in blocks of similar length (the grid lines each crosses, within a
+    factor of 2): a block pads every segment to its longest, so one long segment among many
+    short ones no longer makes all of them as wide."""
     p0 = np.atleast_2d(p0)
     p1 = np.atleast_2d(p1)
+    if len(p0) > _CROSS_BLOCK:
+        lo, hi = np.minimum(p0, p1), np.maximum(p0, p1)
+        lines = np.maximum(np.ceil(hi) - np.floor(lo) - 1.0, 0.0).sum(axis=1)
+        band = np.ceil(np.log2(lines + 1.0)).astype(np.int64)
+        if np.unique(band).size > 1:
+            out = np.empty(len(p0), bool)
+            for b in np.unique(band):
+                sel = np.flatnonzero(band == b)
+                out[sel] = _crossed_block(
+                    free, p0[sel], p1[sel], None if grid is None else np.asarray(grid)[sel]
+                )
+            return out
+    return _crossed_block(free, p0, p1, grid)
+
+
+#: Segments above which :func:`_crossed` tests them in blocks of similar length.
+_CROSS_BLOCK = 256
+
+
+def _crossed_block(
+    free: np.ndarray, p0: np.ndarray, p1: np.ndarray, grid: np.ndarray | None
+) -> np.ndarray:
+    """:func:`_crossed` of one block of segments (each padded to the block's longest)."""
     d = p1 - p0
     parts = [np.zeros((len(d), 1)), np.ones((len(d), 1))]
     for axis in (0, 1):

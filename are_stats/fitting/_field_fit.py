@@ -141,7 +141,8 @@ def _attach_motion_tables(
     checks (table, replicates) are returned for the report to reuse (None without labels).
 
     ``steps(done, total, what)`` is told each step: the realism table's replicates, then
-    the displacement errors, then the motion checks (labels only). The realism runs first
+    the displacement errors, then the motion checks' steps (labels only: their routes'
+    chunks and social force windows, :func:`motion_checks`). The realism runs first
     so that the count is known at the first step (its own total); each part draws with its
     own key, so the order changes no number."""
     from are_stats.scenarios import realism_features, realism_summary, realism_table
@@ -187,13 +188,17 @@ def _attach_motion_tables(
     idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
     if "label" not in tracks.columns:
         return None
+
     # the report's motion checks (write_motion_report) draw with the same key: computed
     # once here and handed on with the fit
+    def check_step(done: int, total: int, what: str) -> None:
+        say(walked[0] + 1 + done, walked[0] + 1 + total, f"motion checks, {what}")
+
     table, reps = motion_checks(
         jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
         interaction=learned if learned is not None else True, grid=grid,
+        progress=check_step,
     )  # fmt: skip
-    say(walked[0] + 2, walked[0] + after, "motion checks")
     per_class = class_motion_checks(tracks, reps)
     if per_class is not None:
         idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))

@@ -44,7 +44,7 @@ from numpyro.distributions.transforms import (
 )
 from numpyro.infer.util import constrain_fn, potential_energy
 from scipy.optimize import minimize
-from scipy.special import logsumexp
+from scipy.special import gammaln, logsumexp
 
 from are_stats._program_cache import TRACE_LOCK, compile_program, load_record, store_record
 from are_stats.fitting._nuts import (
@@ -91,6 +91,11 @@ class LaplaceRun(NamedTuple):
         Whether the mode search converged at a finite log density inside the bounds
         (``|z| < Z_BOUND``), within :data:`MAX_ITER` iterations.
     name : str
+    redraw : callable or None
+        ``redraw(key, num_draws, df)``: a :class:`LaplaceRun` of ``num_draws`` draws from
+        the Student-t with ``df`` degrees of freedom at the same mode and scale (the
+        Gaussian's heavier-tailed relative, through the same compiled program), for
+        :func:`importance_resample` where the Gaussian's tails are too light.
     """
 
     samples: dict
@@ -99,6 +104,7 @@ class LaplaceRun(NamedTuple):
     mode: dict
     converged: bool
     name: str
+    redraw: Callable[[Any, int, float], LaplaceRun] | None = None
 
 
 def _batch_fn(model: Callable, treedef: Any, static: tuple, pointwise: Callable) -> Any:
@@ -466,7 +472,23 @@ def run_laplace(
     on_bound = bool(np.any(np.abs(mode) >= Z_BOUND * (1 - 1e-9)))
     converged = bool(res.success) and bool(np.isfinite(res.fun)) and not on_bound
     mode_d = {n: v[0] for n, v in _unflat_batch(mode[None], names, shapes).items()}
-    return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name)
+
+    def redraw(key_t: Any, n_t: int, df: float) -> LaplaceRun:
+        """Draws of the multivariate Student-t at the mode with the Gaussian's scale."""
+        rng = _numpy_rng(key_t)
+        eps_t = rng.standard_normal((int(n_t), d))
+        eps_t *= np.sqrt(df / rng.chisquare(df, int(n_t)))[:, None]
+        zs_t = mode + (eps_t / np.sqrt(lam)) @ vec.T
+        log_q_t = (
+            gammaln(0.5 * (df + d)) - gammaln(0.5 * df) - 0.5 * d * np.log(df * np.pi)
+            + 0.5 * np.sum(np.log(lam))
+            - 0.5 * (df + d) * np.log1p(np.sum(eps_t**2, axis=1) / df)
+        )  # fmt: skip
+        pe_t, samples_t, ll_t = evaluate(zs_t)
+        ratio_t = np.where(np.isfinite(pe_t), -pe_t - log_q_t, -np.inf)
+        return LaplaceRun(samples_t, ll_t, ratio_t, mode_d, converged, name)
+
+    return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name, redraw)
 
 
 def _numpy_rng(key: Any) -> np.random.Generator:

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -281,19 +281,23 @@ def _walk(
     *,
     kinematic: np.ndarray | None = None,
     groups: np.ndarray | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again as generation walks people: the social force
     (:func:`~are_stats.behaviour.social_force_tracks`) with ``params`` on ``grid``, the
     arrival groups in formation (``groups``, per row; their planned tracks already on the
     leader's route, :func:`~are_stats.behaviour.group_tracks`). The one path by which the
     criticism moves the model's people: the replicates of :func:`motion_checks` and the
-    continuations of :func:`displacement_errors`."""
+    continuations of :func:`displacement_errors`. ``progress(done, total)`` is told the
+    social force's windows (those of the parts, one after the other, when walked in parts:
+    the parts not yet begun counted as long as the current one)."""
     from are_stats.behaviour import social_force_tracks
 
     try:
         return social_force_tracks(
-            plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups
-        )
+            plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups,
+            progress=progress,
+        )  # fmt: skip
     except LimitError:
         # the replicates of a large log together exceed the work or memory limit that guards
         # one user-sized call: walk them in halves (scenarios never meet, so each half walks
@@ -304,9 +308,18 @@ def _walk(
         names = np.sort(pd.unique(scen))
         if names.size < 2:
             raise
-        parts = []
-        for half in np.array_split(names, 2):
+        parts: list[pd.DataFrame] = []
+        halves = np.array_split(names, 2)
+        before = [0]  # the windows of the parts already walked
+        for h, half in enumerate(halves):
             rows = np.isin(scen, half)
+
+            def part_step(done: int, total: int, h: int = h) -> None:
+                if progress is not None:
+                    progress(before[0] + done, before[0] + total * (len(halves) - h))
+                if done == total:
+                    before[0] += total
+
             parts.append(
                 _walk(
                     plan[rows].reset_index(drop=True),
@@ -314,6 +327,7 @@ def _walk(
                     grid,
                     kinematic=None if kinematic is None else kinematic[rows],
                     groups=None if groups is None else groups[rows],
+                    progress=part_step,
                 )
             )
         return pd.concat(parts, ignore_index=True)
@@ -440,6 +454,7 @@ def _replicate_tracks(
     dt_out: float | None = None,
     interaction: Any = True,
     grid: Any = None,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> pd.DataFrame:
     """The observed people walked again ``n_replicates`` times by the fitted model.
 
@@ -472,6 +487,11 @@ def _replicate_tracks(
         the planned paths at the preferred speeds, nobody giving way).
     grid : OccupancyGrid, optional
         The map whose walls repel (default: the behaviour's cells, occupied where not free).
+    progress : callable, optional
+        ``progress(done, total, what)`` after each step: the routes' chunks of exits solved
+        (:func:`~are_stats.behaviour.simulate_behaviour_tracks`), then the social force's
+        windows (:func:`~are_stats.behaviour.social_force_tracks`); until the walk begins,
+        it counts as one step.
 
     Returns
     -------
@@ -517,7 +537,20 @@ def _replicate_tracks(
     arts = pd.concat([base[leads].assign(scenario=r) for r in range(n_rep)], ignore_index=True)
     # the routes: the plan's timing (its path ending at the stay's end) is replaced, so it
     # is sampled coarsely (its rows keep every vertex whatever the period)
-    plan = simulate_behaviour_tracks(k_plan, fit, arts, dt_out=max(step, PLAN_PERIOD))
+    say = progress or (lambda done, total, what: None)
+    walks = params is not None
+    planned = [0]
+
+    def plan_step(done: int, total: int) -> None:
+        planned[0] = total
+        say(done, total + walks, f"routes, {done} of {total}")
+
+    def walk_step(done: int, total: int) -> None:
+        say(planned[0] + done, planned[0] + total, f"social force, window {done} of {total}")
+
+    plan = simulate_behaviour_tracks(
+        k_plan, fit, arts, dt_out=max(step, PLAN_PERIOD), progress=plan_step
+    )
     plan = plan[["scenario", "id", "x", "y"]]
     if not leads.all():  # a member: from its own entry along its leader's planned path
         mem = np.flatnonzero(~leads)
@@ -553,7 +586,7 @@ def _replicate_tracks(
     walked = _at_speed(plan, base["t_arrive"].to_numpy(float)[who], stay, speed, step)
     if params is not None:
         group = np.where(code >= 0, code, -1)[pd.Index(base["id"]).get_indexer(walked["id"])]
-        walked = _walk(walked, params, grid, groups=group)
+        walked = _walk(walked, params, grid, groups=group, progress=walk_step)
     # each walker's exit (its route's end; a member's: its leader's), by (replicate,
     # person); NaN for one that stands
     end = np.full((n_rep * m, 2), np.nan)
@@ -609,6 +642,7 @@ def motion_checks(
     exit_radius: float = 0.5,
     interaction: Any = True,
     grid: Any = None,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Observed motion statistics against their posterior-predictive bands.
 
@@ -640,6 +674,11 @@ def motion_checks(
         makes; ``False``: nobody gives way).
     grid : OccupancyGrid, optional
         The map whose walls repel the walkers (default: the behaviour's cells).
+    progress : callable, optional
+        ``progress(done, total, what)`` after each step of the replicates (as
+        :meth:`~are_stats._stage_clock.StageClock.steps` takes them): their routes' chunks of
+        exits solved, then the social force's windows (``total`` grows by the windows
+        when the walk begins).
 
     Returns
     -------
@@ -657,7 +696,7 @@ def motion_checks(
     observed = _summary(obs_st)
     sim = _replicate_tracks(
         key, behaviour_fit, observed_tracks, n_replicates, dt_out=dt_out,
-        interaction=interaction, grid=grid,
+        interaction=interaction, grid=grid, progress=progress,
     )  # fmt: skip
     rep_st = track_statistics(sim, **kw)
     # the straightness of the replicates as the tracker would measure it: with the log's

@@ -83,6 +83,20 @@ each, the same choices and motion checks; of the 50 motion-check replicates' 150
 ``separate_paths`` takes 110 s (the docs' "Choosing the traffic models" page has the
 breakdown). Issue 29's 60 s is far off.
 
+The tracks part after wt-tracks' second round (2026-11-27, main e3d94b9 and the branch side
+by side in one window at load 12-15, the CLI's command with a stage logger around its
+stage clock, ``/usr/bin/time``; CPU seconds, read the ratio): cold CPU 234.3 s main vs
+198.5 s branch (1.18x; wall 1312 vs 1228 s at this load). Per stage, main vs branch: the
+traffic fit up to the behaviour 43.7 vs 20.6 s (the groups arrivals' posterior by the
+Laplace mode's Student-t, k 0.26, instead of NUTS after the Gaussian's k 0.71; posterior
+means within 0.1 sd of NUTS's, sds within 3%), the motion checks 72.8 vs 57.2 s (their
+routes about 29 vs 13.7 s: one table of track rows, no per-artefact masks in the exits,
+segments tested in blocks of similar length; the social force's 67 windows, 43.5 s, are
+now most of it), behaviour 24.0 vs 28.4 s, realism 24.0 vs 21.4 s, displacement errors
+28.7 vs 28.2 s, the report's motion checks and held-out moves 36 vs 38 s (noise of the
+load). Every printed table is the same except the PPC's "chosen" bands (other posterior
+draws: the same flags) and ``r_hat`` of groups (no NUTS). Issue 29's 60 s is still far.
+
 The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not

@@ -170,7 +170,8 @@ def test_the_long_stages_tell_their_steps_to_the_clock(tracks_log, fitted):
     """A ``progress`` with a ``steps`` method (the CLI's stage clock) is told the steps of
     the behaviour (its classes) and of the motion criticism (the realism replicates, then
     the displacement errors, with their chunks of windows as a phase of their own, and the
-    motion checks), each under its stage; the fit is the one without it."""
+    motion checks' routes and social force windows), each under its stage; the fit is the
+    one without it."""
     calls = []
 
     class Clock:
@@ -190,8 +191,14 @@ def test_the_long_stages_tell_their_steps_to_the_clock(tracks_log, fitted):
     chunks = len(windows)
     assert chunks >= 1 and [s[:2] for s in windows] == [(j, chunks) for j in range(1, chunks + 1)]
     steps = [s for s in steps if s not in windows]
-    assert [s[:2] for s in steps] == [(1, 4), (2, 4), (3, 4), (4, 4)]
-    assert [s[2] for s in steps[2:]] == ["displacement errors", "motion checks"]
+    assert [s[:2] for s in steps[:3]] == [(1, 4), (2, 4), (3, 4)]
+    assert steps[2][2] == "displacement errors"
     assert calls.index(windows[-1]) < calls.index(steps[2])
+    # the motion checks' own steps (routes, social force windows) after the first three,
+    # counted to the end
+    checks = steps[3:]
+    assert len(checks) > 2 and all(s[2].startswith("motion checks, ") for s in checks)
+    assert [s[0] for s in checks] == sorted(s[0] for s in checks)
+    assert checks[0][0] == 4 and checks[-1][0] == checks[-1][1], checks
     for name in ("realism", "displacement"):
         pd.testing.assert_frame_equal(fit.motion[name], fitted.motion[name])

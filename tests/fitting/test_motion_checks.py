@@ -133,6 +133,27 @@ def test_speed_band_is_as_wide_as_the_models_speed_spread(own, crossing) -> None
     assert 0.5 * expected < width < 2.0 * expected, (width, expected)
 
 
+def test_progress_counts_the_routes_and_the_walk_and_changes_nothing(own, crossing) -> None:
+    """``progress(done, total, what)`` after each chunk of routes solved and each window of
+    the social force, to the end (``done == total`` once, last); the checks are those drawn
+    without it."""
+    fit = crossing[3]
+    tracks, _, _ = own
+    said = []
+    table, reps = motion_checks(
+        jax.random.key(1), fit, tracks, 6, progress=lambda *c: said.append(c)
+    )
+    plain, plain_reps = motion_checks(jax.random.key(1), fit, tracks, 6)
+    pd.testing.assert_frame_equal(table, plain)
+    np.testing.assert_array_equal(reps["summary"], plain_reps["summary"])
+    done = [d for d, _, _ in said]
+    assert done == sorted(done) and said[-1][0] == said[-1][1], said
+    assert [d == t for d, t, _ in said].count(True) == 1, said
+    assert any("routes" in w for *_, w in said) and any("social force" in w for *_, w in said)
+    # every window of the walk is a step: far more than the routes' chunks
+    assert said[-1][1] > 2 + sum("routes" in w for *_, w in said), said
+
+
 def test_checks_flag_a_model_that_walks_too_fast(own, crossing) -> None:
     """The same tracks checked against the behaviour with preferred speeds 1.6 times the
     fitted ones: the median speed is flagged (observed below the band). Timed by the
@@ -241,6 +262,10 @@ def test_replicates_over_the_work_limit_walk_in_parts():
     with limits(work=f"{need / 3:.0f}"):
         with pytest.raises(LimitError):
             social_force_tracks(plan, SocialForce(), grid, dt=0.1)
-        parts = _walk(plan, SocialForce(), grid)
+        said = []
+        parts = _walk(plan, SocialForce(), grid, progress=lambda *c: said.append(c))
     pd.testing.assert_frame_equal(parts, whole)
+    # the windows of both parts, counted one after the other to the end
+    done = [d for d, _ in said]
+    assert done == sorted(done) and said[-1][0] == said[-1][1] == len(said), said
     assert len(one) == len(plan) // 4
