@@ -8,8 +8,8 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   (:func:`~are_stats.behaviour.simulate_behaviour_tracks`), a preferred speed drawn from
   the fitted between-person law, the social force among the others with the groups in
   formation (:func:`~are_stats.behaviour.social_force_tracks`), leaving at the exit;
-  sampled at the log's rate (the straightness with the log's position noise,
-  :func:`tracker_noise`). Per
+  sampled at the log's rate and measured with the log's position noise added
+  (:func:`tracker_noise`). Per
   track (:func:`track_statistics`) the speed over the walking part (from setting off to
   reaching the exit), the straightness (net displacement / path length), whether it stays
   still (net displacement below ``still_distance``) and the time from entry to exit over
@@ -649,10 +649,11 @@ def motion_checks(
     The observed people are walked again ``n_replicates`` times by the model as generation
     walks people (:func:`_replicate_tracks`: their entries, arrivals, stays, labels and
     groups kept; exits, routes and preferred speeds drawn from the fit; the walk under the
-    social force among the others, groups in formation), sampled at the log's period. Their
-    straightness is measured with the log's position noise added (:func:`tracker_noise`),
-    so that the tracker's jitter does not pass for a model that walks too straight; their
-    speeds without it (the fitted speeds are measured on the noisy log already).
+    social force among the others, groups in formation), sampled at the log's period. They
+    are measured as the tracker measured the log: with its position noise added
+    (:func:`tracker_noise`), so that the jitter, which lengthens a path, does not pass for a
+    model that walks too straight or too slowly (the fitted speeds are free of it:
+    :func:`~are_stats.fitting.fit_behaviour`).
 
     Parameters
     ----------
@@ -698,18 +699,18 @@ def motion_checks(
         key, behaviour_fit, observed_tracks, n_replicates, dt_out=dt_out,
         interaction=interaction, grid=grid, progress=progress,
     )  # fmt: skip
-    rep_st = track_statistics(sim, **kw)
-    # the straightness of the replicates as the tracker would measure it: with the log's
-    # position noise (it lengthens an observed path). Not their speeds: the fitted
-    # preferred speeds are measured on the noisy log already (step speeds)
+    # the replicates as the tracker would measure them: with the log's position noise,
+    # which lengthens an observed path (straighter and slower people than the log's
+    # otherwise); the fitted preferred speeds are free of that noise (fit_behaviour)
     noise = tracker_noise(observed_tracks)
     if noise > 0:
         jitter = noise * np.asarray(
             jax.random.normal(jax.random.fold_in(_key(key), 7), (len(sim), 2)), float
         )
-        noisy = sim.assign(x=sim["x"].to_numpy(float) + jitter[:, 0],
-                           y=sim["y"].to_numpy(float) + jitter[:, 1])  # fmt: skip
-        rep_st["straightness"] = track_statistics(noisy, **kw)["straightness"].to_numpy()
+        sim = sim.assign(
+            x=sim["x"].to_numpy(float) + jitter[:, 0], y=sim["y"].to_numpy(float) + jitter[:, 1]
+        )
+    rep_st = track_statistics(sim, **kw)
     scen = rep_st.index.get_level_values("scenario").to_numpy()
     summary = np.asarray([_summary(rep_st[scen == r]) for r in range(int(n_replicates))], float)
     table = pd.DataFrame(index=pd.Index(MOTION_STATISTICS, name="statistic"))
