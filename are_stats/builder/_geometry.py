@@ -33,6 +33,7 @@ __all__ = [
     "box_corners",
     "obb_overlap_2d",
     "obb_overlap_3d",
+    "point_box_distance",
     "footprint_runs",
     "runs_to_cells",
     "box_runs",
@@ -144,6 +145,44 @@ def box_corners(centre: npt.ArrayLike, half: npt.ArrayLike, yaw: npt.ArrayLike) 
     x = c[:, :1] + cs[:, None] * lx - sn[:, None] * ly
     y = c[:, 1:2] + sn[:, None] * lx + cs[:, None] * ly
     return np.stack([x, y], axis=-1)
+
+
+def point_box_distance(
+    point: npt.ArrayLike, box_xy: npt.ArrayLike, half_xy: npt.ArrayLike, yaw: npt.ArrayLike
+) -> np.ndarray:
+    """Distance ``(n,)`` from a point to each oriented rectangle (0 inside): the one
+    point-to-box distance of the package (the robot's clearance, the avoidance's detours
+    and waits).
+
+    Parameters
+    ----------
+    point : (2,) or (n, 2) float
+        One point, or one point per rectangle.
+    box_xy : (n, 2) or (2,) float
+        Rectangle centres.
+    half_xy : (n, 2) or (2,) float
+        Half sizes along the rectangle's own axes (one for all, or one each).
+    yaw : (n,) float or float
+        Headings (rad).
+
+    Returns
+    -------
+    (n,) float
+
+    Examples
+    --------
+    >>> point_box_distance([0.0, 0.0], [[3.0, 4.0]], [[0.0, 0.0]], [0.3]).tolist()
+    [5.0]
+    """
+    c = np.asarray(point, float)
+    b = np.asarray(box_xy, float).reshape(-1, 2)
+    h = np.asarray(half_xy, float).reshape(-1, 2)
+    y = np.asarray(yaw, float).reshape(-1)
+    d = c.reshape(-1, 2) - b
+    cs, sn = np.cos(y), np.sin(y)
+    local = np.stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]], axis=1)
+    q = np.abs(local) - h
+    return np.linalg.norm(np.maximum(q, 0.0), axis=1)
 
 
 def obb_overlap_2d(

@@ -21,7 +21,7 @@ from are_stats.experiments._planners import (
     timed_plan,
 )
 from are_stats.experiments._plots import plot_goals, plot_results, plot_rho
-from are_stats.experiments._robot import Robot, circle_box_overlap, point_box_distance
+from are_stats.experiments._robot import Robot, circle_box_overlap
 from are_stats.experiments._sweep import (
     expand_tasks,
     load_results,
@@ -46,7 +46,6 @@ __all__ = [
     "make_planner",
     "path_length",
     "plot_goals",
-    "point_box_distance",
     "plot_results",
     "plot_rho",
     "random_goals",

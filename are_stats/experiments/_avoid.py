@@ -43,9 +43,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from are_stats.builder import box_centres
+from are_stats.builder import box_centres, point_box_distance
 from are_stats.experiments._planners import astar_cells
-from are_stats.experiments._robot import point_box_distance
 from are_stats.scenarios import Scene
 
 __all__ = ["Avoidance", "plan_avoidance"]
@@ -222,8 +221,10 @@ def _closing(
     and closer than it would be had it stood at its first sample (its own motion closed the
     gap: a robot driving at a standing artefact is the robot's doing)."""
     r = _robot_at(rt, rxy, times)
-    d = _pair_distance(r, centres, half, yaws)
-    stay = _pair_distance(r, np.broadcast_to(centres[0], r.shape), half, np.full(len(r), yaws[0]))
+    d = point_box_distance(r, centres, half, yaws)
+    stay = point_box_distance(
+        r, np.broadcast_to(centres[0], r.shape), half, np.full(len(r), yaws[0])
+    )
     bad = (d < clearance) & (d < stay - 1e-9)
     bad[0] = False
     return bad
@@ -290,12 +291,7 @@ def _detour(
         reach_j = np.hypot(hj[:, 0], hj[:, 1]) + thr + 1e-9
         cells, box, xy = _cells_near(grid, lo, ok.shape, c_o[near], reach_j)
         yj = p_o[near, 2]
-        # each box's heading's cosine and sine as _cells_to_box takes them (one scalar each)
-        cs = np.array([np.cos(float(y)) for y in yj])[box]
-        sn = np.array([np.sin(float(y)) for y in yj])[box]
-        d = xy - c_o[near][box]
-        local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
-        gap = np.linalg.norm(np.maximum(np.abs(local) - hj[box], 0.0), axis=1)
+        gap = point_box_distance(xy, c_o[near][box], hj[box], yj[box])
         flat[cells[gap <= thr]] = False
     start = tuple(int(v) for v in grid.world_to_cell(p_t) - lo)
     if not (0 <= start[0] < ok.shape[0] and 0 <= start[1] < ok.shape[1]):
@@ -359,16 +355,6 @@ def _detour(
     return None
 
 
-def _pair_distance(
-    points: np.ndarray, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray
-) -> np.ndarray:
-    """(k,) distance from point k (k, 2) to box k (centres (k, 2), yaws (k,), half (2,))."""
-    d = points - centres
-    c, s = np.cos(yaws), np.sin(yaws)
-    local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
-    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
-
-
 def _speed(rt: np.ndarray, rxy: np.ndarray) -> float:
     """The robot's fastest speed along its track (0 standing)."""
     if rt.size < 2:
@@ -417,14 +403,6 @@ def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.n
         np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
     )  # fmt: skip
     return not hit.any()
-
-
-def _cells_to_box(xy: np.ndarray, c: np.ndarray, half: np.ndarray, yaw: float) -> np.ndarray:
-    """Distance (n,) from points ``xy`` (n, 2) to one oriented rectangle."""
-    d = xy - c
-    cs, sn = np.cos(yaw), np.sin(yaw)
-    local = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
-    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
 
 
 def _cells_near(

@@ -54,11 +54,11 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
-from are_stats.builder import ARBuilder, box_centres
+from are_stats.builder import ARBuilder, box_centres, point_box_distance
 from are_stats.experiments._avoid import plan_avoidance
 from are_stats.experiments._metrics import replanning_ratio, time_average
 from are_stats.experiments._planners import make_planner, timed_plan
-from are_stats.experiments._robot import Robot, point_box_distance
+from are_stats.experiments._robot import Robot
 from are_stats.inputs import check_memory, check_work
 from are_stats.scenarios import Scene
 

@@ -14,9 +14,10 @@ from typing import Any
 import numpy as np
 
 from are_stats._checks import check_finite
+from are_stats.builder import point_box_distance
 from are_stats.inputs import InputError, get_float, get_int, get_list
 
-__all__ = ["Robot", "circle_box_overlap", "point_box_distance"]
+__all__ = ["Robot", "circle_box_overlap"]
 
 
 @dataclass(frozen=True)
@@ -170,24 +171,3 @@ def circle_box_overlap(
     [True, False]
     """
     return point_box_distance(centre, box_xy, half_xy, yaw) <= float(radius)
-
-
-def point_box_distance(point: Any, box_xy: Any, half_xy: Any, yaw: Any) -> np.ndarray:
-    """Distance ``(n,)`` from a point ``(2,)`` to each oriented rectangle (0 inside); the
-    arguments are those of :func:`circle_box_overlap`, except that ``point`` may also be
-    ``(n, 2)``, one point per rectangle.
-
-    Examples
-    --------
-    >>> point_box_distance([0.0, 0.0], [[3.0, 4.0]], [[0.0, 0.0]], [0.3]).tolist()
-    [5.0]
-    """
-    c = np.asarray(point, float)
-    b = np.asarray(box_xy, float).reshape(-1, 2)
-    h = np.asarray(half_xy, float).reshape(-1, 2)
-    y = np.asarray(yaw, float).reshape(-1)
-    d = c.reshape(-1, 2) - b
-    cs, sn = np.cos(y), np.sin(y)
-    local = np.stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]], axis=1)
-    q = np.abs(local) - h
-    return np.linalg.norm(np.maximum(q, 0.0), axis=1)

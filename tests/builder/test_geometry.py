@@ -15,6 +15,7 @@ from are_stats.builder import (
     box_corners,
     obb_overlap_2d,
     obb_overlap_3d,
+    point_box_distance,
     polygon_cell_coverage,
     rasterise_convex,
     triangle_box_overlap,
@@ -193,3 +194,23 @@ def test_rasterisation_drops_a_row_run_right_of_the_grid():
     owner, rows, jlo, jhi, out = box_runs([[14.0, 8.0]], [[1.25, 3.0]], [1.875], (16, 16))
     assert out[0]
     assert sorted(runs_to_cells(rows, jlo, jhi, 16, owner)[1].tolist()) == exact.tolist()
+
+
+def test_point_box_distance_is_shapelys_distance_to_the_rectangle():
+    """The one point-to-box distance (robot clearance, avoidance) against shapely's
+    distance from the point to the rotated rectangle polygon (0 inside), one point per box
+    and one point for all boxes."""
+    rng = np.random.default_rng(5)
+    n = 300
+    c = rng.uniform(-5, 5, (n, 2))
+    h = rng.uniform(0.05, 2.0, (n, 2))
+    y = rng.uniform(-np.pi, np.pi, n)
+    p = rng.uniform(-8, 8, (n, 2))
+    got = point_box_distance(p, c, h, y)
+    corners = box_corners(c, h, y)
+    polys = shapely.polygons(corners)
+    want = shapely.distance(shapely.points(p), polys)
+    np.testing.assert_allclose(got, want, atol=1e-9)
+    assert (got == 0).sum() == shapely.contains(polys, shapely.points(p)).sum() > 0
+    one = point_box_distance(p[0], c, h, y)
+    np.testing.assert_allclose(one, shapely.distance(shapely.points(p[0]), polys), atol=1e-9)
