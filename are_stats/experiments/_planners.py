@@ -215,111 +215,53 @@ def astar_cells(
     h, w = free.shape
     sq2 = math.sqrt(2.0)
     c2 = sq2 - 2.0
-    # the grid padded by a blocked ring (no bounds tests), as bytes; the eight moves
-    # written out, the four orthogonal neighbours read once (a diagonal needs two of
-    # them); costs in a list, parents in a dict of the cells reached. The same pops and
-    # pushes in the same order as on the (H, W) grid (padded indices keep the cells'
-    # order), so the same path, ties included
+    # the grid padded by a blocked ring (no bounds tests), as bytes; costs and parents in
+    # dicts of the cells reached: NumPy scalar indexing costs more than the search itself,
+    # and whole-grid lists more than a short search. The same pops and pushes in the same
+    # order as on the (H, W) grid (padded indices keep the cells' order), so the same path,
+    # ties included
     fp = np.zeros((h + 2, w + 2), bool)
     fp[1:-1, 1:-1] = free
     fr = fp.tobytes()
-    opn = bytearray(fr)  # free and not yet closed: one lookup for both
     wp = w + 2
     sp, gp = (start[0] + 1) * wp + start[1] + 1, (goal[0] + 1) * wp + goal[1] + 1
     gr, gc = goal[0] + 1, goal[1] + 1
+    # octile distance to the goal, dr + dc + (sqrt 2 - 2) min(dr, dc)
     ar, ac = abs(start[0] + 1 - gr), abs(start[1] + 1 - gc)
     heap = [(ar + ac + c2 * min(ar, ac), 0.0, sp)]
     inf = math.inf
-    cost = [inf] * len(fr)
-    cost[sp] = 0.0
+    cost = {sp: 0.0}
     parent: dict[int, int] = {}
-    pop, push = heapq.heappop, heapq.heappush
+    closed = bytearray(len(fr))
+    # (offset, step, the two orthogonal neighbours a diagonal needs free, dr, dc) in the
+    # order of _MOVES (the order ties are pushed in)
+    moves = [
+        (dr * wp + dc, sq2 if dr and dc else 1.0, dr * wp if dr and dc else 0,
+         dc if dr and dc else 0, dr, dc)
+        for dr, dc in _MOVES
+    ]  # fmt: skip
+    pop, push, get = heapq.heappop, heapq.heappush, cost.get
     while heap:
-        _, g, u = pop(heap)
-        if not opn[u]:
+        _, g_cost, u = pop(heap)
+        if closed[u]:
             continue
         if u == gp:
             break
-        opn[u] = 0
+        closed[u] = 1
         r, c = divmod(u, wp)
-        up, down, left, right = fr[u - wp], fr[u + wp], fr[u - 1], fr[u + 1]
-        # the moves in _MOVES order (the order ties are pushed in)
-        if up:
-            ar = abs(r - 1 - gr)
-            if left:
-                v = u - wp - 1
-                if opn[v]:
-                    nc = g + sq2
-                    if nc < cost[v]:
-                        cost[v] = nc
-                        parent[v] = u
-                        ac = abs(c - 1 - gc)
-                        push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-            v = u - wp
-            if opn[v]:
-                nc = g + 1.0
-                if nc < cost[v]:
-                    cost[v] = nc
-                    parent[v] = u
-                    ac = abs(c - gc)
-                    push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-            if right:
-                v = u - wp + 1
-                if opn[v]:
-                    nc = g + sq2
-                    if nc < cost[v]:
-                        cost[v] = nc
-                        parent[v] = u
-                        ac = abs(c + 1 - gc)
-                        push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-        ar = abs(r - gr)
-        if left:
-            v = u - 1
-            if opn[v]:
-                nc = g + 1.0
-                if nc < cost[v]:
-                    cost[v] = nc
-                    parent[v] = u
-                    ac = abs(c - 1 - gc)
-                    push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-        if right:
-            v = u + 1
-            if opn[v]:
-                nc = g + 1.0
-                if nc < cost[v]:
-                    cost[v] = nc
-                    parent[v] = u
-                    ac = abs(c + 1 - gc)
-                    push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-        if down:
-            ar = abs(r + 1 - gr)
-            if left:
-                v = u + wp - 1
-                if opn[v]:
-                    nc = g + sq2
-                    if nc < cost[v]:
-                        cost[v] = nc
-                        parent[v] = u
-                        ac = abs(c - 1 - gc)
-                        push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-            v = u + wp
-            if opn[v]:
-                nc = g + 1.0
-                if nc < cost[v]:
-                    cost[v] = nc
-                    parent[v] = u
-                    ac = abs(c - gc)
-                    push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-            if right:
-                v = u + wp + 1
-                if opn[v]:
-                    nc = g + sq2
-                    if nc < cost[v]:
-                        cost[v] = nc
-                        parent[v] = u
-                        ac = abs(c + 1 - gc)
-                        push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
-    if cost[gp] == inf:
+        for off, step, a, b, dr, dc in moves:
+            v = u + off
+            if not fr[v] or closed[v]:
+                continue
+            if a and not (fr[u + b] and fr[u + a]):
+                continue
+            nc = g_cost + step
+            if nc < get(v, inf):
+                cost[v] = nc
+                parent[v] = u
+                ar, ac = abs(r + dr - gr), abs(c + dc - gc)
+                push(heap, (nc + (ar + ac + c2 * (ar if ar < ac else ac)), nc, v))
+    if gp not in cost:
         return None
     out = [gp]
     while out[-1] != sp:
