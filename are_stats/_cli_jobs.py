@@ -323,11 +323,12 @@ def _print_interaction(fit: Fit) -> None:
         return
     info = fit.interaction_info
     n = info.get("n", np.nan)
-    how = (
-        f"R^2 {info['r2']:.2f} over {int(n)} accelerations"
-        if np.isfinite(n)
-        else "published: the tracks do not fit a repulsion"
-    )
+    if np.isfinite(n):
+        how = f"R^2 {info['r2']:.2f} over {int(n)} accelerations"
+    elif params.strength == 0:  # learn_interaction: the log shows no repulsion
+        how = "no repulsion: the published one fits the tracks worse than none"
+    else:
+        how = "published: the tracks do not fit a repulsion"
     console.print(
         f"interaction (social force): strength A {params.strength:.3g} m/s^2, range B "
         f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s ({how})"

@@ -107,10 +107,11 @@ __all__ += ["walk_tracks"]
 from are_stats.behaviour._social import (  # noqa: E402
     SocialForce,
     fit_social_force,
+    repulsion_evidence,
     social_force_tracks,
 )
 
-__all__ += ["SocialForce", "fit_social_force", "social_force_tracks"]
+__all__ += ["SocialForce", "fit_social_force", "repulsion_evidence", "social_force_tracks"]
 
 from are_stats.behaviour._groups import (  # noqa: E402
     formation,

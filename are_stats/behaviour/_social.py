@@ -58,7 +58,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Mapping
 from functools import partial
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -671,64 +671,19 @@ def _group_codes(ids: np.ndarray, groups: Mapping[Hashable, Hashable]) -> np.nda
     return np.where(alone.to_numpy(), -1, code)
 
 
-def fit_social_force(
+def _acceleration_design(
     tracks: pd.DataFrame,
-    *,
-    base: SocialForce | None = None,
-    ranges: npt.ArrayLike | None = None,
-    min_speed: float = 0.2,
-    groups: Mapping[Hashable, Hashable] | None = None,
-) -> tuple[SocialForce, dict[str, float]]:
-    """Estimate ``A``, ``B`` and ``tau`` from observed tracks by least squares on the
-    accelerations (as Johansson, Helbing and Shukla 2007 calibrated the model).
-
-    Every person is taken to head for the last point of its track at its own preferred
-    speed ``v0_i`` (unknown, estimated with the rest): its acceleration at each inner
-    sample is ``(v0_i e_i - v_i) / tau + sum_j A exp((2 r - d*_ij) / B) n*_ij`` with ``e_i``
-    the unit vector to its destination and ``d*``, ``n*`` the anticipated separation of
-    the pair (:class:`SocialForce`'s ``horizon``, over the neighbours within ``reach``), so
-    for a fixed ``B`` the model is linear in ``1/tau``, ``A`` and the ``v0_i / tau``; ``B``
-    is chosen on a grid by the residual sum of squares. Velocities and accelerations are
-    finite differences of the samples, which must be equally spaced in time (one step for
-    everybody); a track's first sample has velocity 0 (it has just arrived).
-
-    Parameters
-    ----------
-    tracks : pandas.DataFrame
-        ``id, t, x, y`` of one scene, equally spaced times.
-    base : SocialForce, optional
-        The parameters not estimated (``radius``, ``horizon``, ``reach``, the walls').
-    ranges : array of float, optional
-        Candidate ``B`` (m); default 0.1 to 1.0 m.
-    min_speed : float
-        Samples where the person moves slower (m/s) are left out (standing is not walking).
-    groups : Mapping, optional
-        Group label of each track id (ids missing or labelled ``None``, NaN, ``""`` or a
-        negative number walk alone). A group's members walk in formation
-        (:func:`social_force_tracks`): they head for a slot beside their leader, not for
-        their destination, and repel each other only inside the group's spacing. So their
-        own accelerations are left out of the least squares and the pairs of one group out
-        of the repulsion sums; members still repel the people outside their group. Without
-        it, a log with groups walking abreast gives a repulsion far too weak (every
-        untroubled pair at 0.7 m reads as no push at that distance).
-
-    Returns
-    -------
-    SocialForce
-        ``base`` with the estimated ``strength``, ``range`` and ``relaxation``.
-    dict
-        ``rss`` (residual sum of squares), ``n`` (accelerations used), ``r2`` (share of the
-        acceleration variance explained), ``dt`` (the sampling step).
-
-    Raises
-    ------
-    ValueError
-        With fewer than 10 walking samples, or unequal time steps.
-    """
+    base: SocialForce,
+    min_speed: float,
+    groups: Mapping[Hashable, Hashable] | None,
+) -> dict[str, Any]:
+    """The least squares of :func:`fit_social_force` before ``B`` is chosen: the observed
+    accelerations ``y`` (2m,) (x, y interleaved), the columns of ``1/tau`` (``minus_v``) and
+    of the ``v0_i / tau`` (``e_col`` in row ``person``), the samples used (``inner``), the
+    neighbour pairs within reach (``pi``, ``pj``) with their anticipated separations
+    (``dist``, ``n_hat``), ``xy``, ``n_people``, ``m`` and ``dt``."""
     from scipy.spatial import cKDTree
 
-    base = SocialForce() if base is None else base
-    ranges = np.linspace(0.1, 1.0, 19) if ranges is None else np.asarray(ranges, float)
     tab = tracks.sort_values(["id", "t"], kind="stable")
     ids = tab["id"].to_numpy()
     t = tab["t"].to_numpy(float)
@@ -784,10 +739,83 @@ def fit_social_force(
     dist = np.maximum(np.hypot(*diff.T), 1e-9)
     n_hat = diff / dist[:, None]
     n_people = int(who.max()) + 1
-    y = acc.reshape(-1)  # x, y interleaved per sample
-    person = np.repeat(who[inner], 2)  # the one per-person column each row touches
-    e_col = e.reshape(-1)  # its value there (v0_i / tau times the destination direction)
-    minus_v = -vel[inner].reshape(-1)  # the column of 1 / tau
+    return {
+        "xy": xy,
+        "inner": inner,
+        "pi": pi,
+        "pj": pj,
+        "dist": dist,
+        "n_hat": n_hat,
+        "y": acc.reshape(-1),  # x, y interleaved per sample
+        "person": np.repeat(who[inner], 2),  # the one per-person column each row touches
+        "e_col": e.reshape(-1),  # its value there (v0_i / tau times the destination direction)
+        "minus_v": -vel[inner].reshape(-1),  # the column of 1 / tau
+        "n_people": n_people,
+        "m": m,
+        "dt": dt,
+    }
+
+
+def fit_social_force(
+    tracks: pd.DataFrame,
+    *,
+    base: SocialForce | None = None,
+    ranges: npt.ArrayLike | None = None,
+    min_speed: float = 0.2,
+    groups: Mapping[Hashable, Hashable] | None = None,
+) -> tuple[SocialForce, dict[str, float]]:
+    """Estimate ``A``, ``B`` and ``tau`` from observed tracks by least squares on the
+    accelerations (as Johansson, Helbing and Shukla 2007 calibrated the model).
+
+    Every person is taken to head for the last point of its track at its own preferred
+    speed ``v0_i`` (unknown, estimated with the rest): its acceleration at each inner
+    sample is ``(v0_i e_i - v_i) / tau + sum_j A exp((2 r - d*_ij) / B) n*_ij`` with ``e_i``
+    the unit vector to its destination and ``d*``, ``n*`` the anticipated separation of
+    the pair (:class:`SocialForce`'s ``horizon``, over the neighbours within ``reach``), so
+    for a fixed ``B`` the model is linear in ``1/tau``, ``A`` and the ``v0_i / tau``; ``B``
+    is chosen on a grid by the residual sum of squares. Velocities and accelerations are
+    finite differences of the samples, which must be equally spaced in time (one step for
+    everybody); a track's first sample has velocity 0 (it has just arrived).
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene, equally spaced times.
+    base : SocialForce, optional
+        The parameters not estimated (``radius``, ``horizon``, ``reach``, the walls').
+    ranges : array of float, optional
+        Candidate ``B`` (m); default 0.1 to 1.0 m.
+    min_speed : float
+        Samples where the person moves slower (m/s) are left out (standing is not walking).
+    groups : Mapping, optional
+        Group label of each track id (ids missing or labelled ``None``, NaN, ``""`` or a
+        negative number walk alone). A group's members walk in formation
+        (:func:`social_force_tracks`): they head for a slot beside their leader, not for
+        their destination, and repel each other only inside the group's spacing. So their
+        own accelerations are left out of the least squares and the pairs of one group out
+        of the repulsion sums; members still repel the people outside their group. Without
+        it, a log with groups walking abreast gives a repulsion far too weak (every
+        untroubled pair at 0.7 m reads as no push at that distance).
+
+    Returns
+    -------
+    SocialForce
+        ``base`` with the estimated ``strength``, ``range`` and ``relaxation``.
+    dict
+        ``rss`` (residual sum of squares), ``n`` (accelerations used), ``r2`` (share of the
+        acceleration variance explained), ``dt`` (the sampling step).
+
+    Raises
+    ------
+    ValueError
+        With fewer than 10 walking samples, or unequal time steps.
+    """
+    base = SocialForce() if base is None else base
+    ranges = np.linspace(0.1, 1.0, 19) if ranges is None else np.asarray(ranges, float)
+    d = _acceleration_design(tracks, base, min_speed, groups)
+    xy, inner, pi, dist, n_hat = d["xy"], d["inner"], d["pi"], d["dist"], d["n_hat"]
+    y, person, e_col, minus_v = d["y"], d["person"], d["e_col"], d["minus_v"]
+    n_people, m, dt = d["n_people"], d["m"], d["dt"]
     g_of = {}
     for b_range in ranges:
         g = np.zeros_like(xy)
@@ -838,3 +866,131 @@ def fit_social_force(
     )
     r2 = 1.0 - rss / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
     return params, {"rss": rss, "n": float(keep.sum() // 2), "r2": float(r2), "dt": dt}
+
+
+def repulsion_evidence(
+    tracks: pd.DataFrame,
+    *,
+    base: SocialForce | None = None,
+    min_speed: float = 0.2,
+    groups: Mapping[Hashable, Hashable] | None = None,
+    level: float = 0.01,
+    min_close: int = 50,
+    trim: float = 0.02,
+) -> dict[str, float | str]:
+    """Whether observed accelerations show ``base``'s repulsion or none at all.
+
+    On the samples :func:`fit_social_force` uses where another person is within ``reach``
+    (elsewhere both models predict the same), the accelerations are fitted by least
+    squares with the repulsion's range fixed at ``base.range`` and ``1/tau``, the
+    ``v0_i / tau`` and the strength ``A`` free (the ``trim`` share of worst-fitted samples
+    left out, 2% as in the fit). The residual sums of squares with ``A`` held at ``base.strength``
+    (``rss_published``) and at 0 (``rss_none``), the others refitted, follow from it:
+    ``RSS(A) = RSS(A_hat) + (A - A_hat)^2 / k`` with ``k`` the ``A, A`` entry of the
+    inverse normal matrix. Their difference is linear in ``A_hat``, so with Gaussian
+    residuals of variance ``s^2`` it is tested exactly:
+    ``z = (A_pub / 2 - A_hat) / (s sqrt(k))``; the published repulsion fits worse than
+    none at ``level`` when ``z`` exceeds the normal's upper ``level`` quantile, and none
+    fits worse than it when ``-z`` does. (The residuals of one track are correlated,
+    finite differences of its positions, so the level is nominal.)
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene, equally spaced times.
+    base : SocialForce, optional
+        The published force tested (default :class:`SocialForce`'s).
+    min_speed, groups
+        As in :func:`fit_social_force`.
+    level : float
+        Significance level of the one-sided test.
+    min_close : int
+        Fewest close samples (accelerations with a neighbour within reach) to decide.
+    trim : float
+        Share of the close samples left out as worst fitted (by the free fit's residual).
+
+    Returns
+    -------
+    dict
+        ``verdict``: ``"none"`` (the published repulsion fits significantly worse than
+        none), ``"published"`` (none fits significantly worse than it) or ``"too little"``
+        (neither is rejected, or fewer than ``min_close`` close samples); ``close`` (close
+        samples used), ``strength_hat`` and its standard error ``se``, ``rss_published``,
+        ``rss_none``, ``z`` and ``p`` (one-sided, for "published fits worse than none").
+
+    Raises
+    ------
+    ValueError
+        As :func:`fit_social_force`.
+    """
+    from scipy.stats import norm
+
+    base = SocialForce() if base is None else base
+    d = _acceleration_design(tracks, base, min_speed, groups)
+    xy, inner, pi = d["xy"], d["inner"], d["pi"]
+    y, person, e_col, minus_v = d["y"], d["person"], d["e_col"], d["minus_v"]
+    g = np.zeros_like(xy)
+    np.add.at(g, pi, np.exp((2 * base.radius - d["dist"]) / base.range)[:, None] * d["n_hat"])
+    near = np.zeros(len(xy), bool)
+    near[pi] = True
+    close = near[inner]
+    out: dict[str, float | str] = {"verdict": "too little", "close": float(close.sum())}
+    for k in ("strength_hat", "se", "rss_published", "rss_none", "z", "p"):
+        out[k] = float("nan")
+    if close.sum() < min_close:
+        return out
+    cols = (minus_v, g[inner].reshape(-1))
+    n_people = d["n_people"]
+
+    def fit(w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """Weighted least squares (weights ``w`` (2m,)), the per-person columns eliminated
+        (Schur complement): coefficients ``(1/tau, A)``, the inverse 2 x 2 normal matrix,
+        the residuals and the number of per-person coefficients fitted."""
+
+        def per_person(v: np.ndarray) -> np.ndarray:
+            return np.bincount(person, weights=w * v, minlength=n_people)
+
+        dd = per_person(e_col * e_col)
+        has = dd > 0
+        d_inv = np.where(has, 1.0 / np.where(has, dd, 1.0), 0.0)
+        b_p = per_person(e_col * y)
+        c = np.stack([per_person(e_col * col) for col in cols], axis=1)
+        f = np.array([[np.sum(w * u * v) for v in cols] for u in cols])
+        rhs = np.array([np.sum(w * col * y) for col in cols])
+        inv = np.linalg.pinv(f - c.T @ (d_inv[:, None] * c))
+        beta = inv @ (rhs - c.T @ (d_inv * b_p))
+        alpha = d_inv * (b_p - c @ beta)
+        res = e_col * alpha[person] + cols[0] * beta[0] + cols[1] * beta[1] - y
+        return beta, inv, res, int(has.sum())
+
+    _, _, res, _ = fit(np.repeat(close, 2).astype(float))
+    norm_res = np.hypot(res[0::2], res[1::2])
+    kept = close & (norm_res <= np.quantile(norm_res[close], 1.0 - trim))
+    w = np.repeat(kept, 2).astype(float)
+    beta, inv, res, n_per = fit(w)
+    rss = float(np.sum(w * res**2))
+    k = float(inv[1, 1])
+    dof = float(w.sum()) - n_per - 2
+    if not (k > 0 and dof > 0):
+        return out
+    se = float(np.sqrt(rss / dof * k))
+    a_hat, a_pub = float(beta[1]), float(base.strength)
+    z = (a_pub / 2 - a_hat) / se
+    p = float(norm.sf(z))
+    if p < level:  # the published repulsion fits worse than none
+        verdict = "none"
+    elif 1.0 - p < level:  # none fits worse than the published repulsion
+        verdict = "published"
+    else:  # neither is rejected: too few close samples (or too noisy) to tell
+        verdict = "too little"
+    out.update(
+        verdict=verdict,
+        close=float(kept.sum()),
+        strength_hat=a_hat,
+        se=se,
+        rss_published=rss + (a_pub - a_hat) ** 2 / k,
+        rss_none=rss + a_hat**2 / k,
+        z=float(z),
+        p=p,
+    )
+    return out

@@ -270,6 +270,7 @@ from are_stats.fitting._interaction import (  # noqa: E402
     fit_group_spacing,
     fit_interaction,
     interaction_attrs,
+    interaction_evidence,
     interaction_from_attrs,
     learn_interaction,
 )
@@ -278,6 +279,7 @@ __all__ += [
     "fit_group_spacing",
     "fit_interaction",
     "interaction_attrs",
+    "interaction_evidence",
     "interaction_from_attrs",
     "learn_interaction",
 ]

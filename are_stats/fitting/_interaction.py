@@ -19,42 +19,29 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.behaviour import SocialForce, fit_social_force, group_spacing
+from are_stats.behaviour import SocialForce, fit_social_force, group_spacing, repulsion_evidence
 from are_stats.logs import track_groups
 
 __all__ = [
     "fit_group_spacing",
     "fit_interaction",
     "interaction_attrs",
+    "interaction_evidence",
     "interaction_from_attrs",
     "learn_interaction",
 ]
 
 _PREFIX = "interaction_"
 _FITTED = ("strength", "range", "relaxation")
+#: Level of the test of the published repulsion against none (:func:`interaction_evidence`).
+_LEVEL = 0.01
 
 
-def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]]:
-    """Social force parameters of a log's tracks (see the module docstring).
-
-    Parameters
-    ----------
-    tracks : pandas.DataFrame
-        ``id, t, x, y`` of one scene (a tracks table), any sampling.
-
-    Returns
-    -------
-    SocialForce
-        The published defaults with ``strength``, ``range`` and ``relaxation`` estimated.
-    dict
-        :func:`~are_stats.behaviour.fit_social_force`'s ``rss``, ``n``, ``r2`` and ``dt``.
-
-    Raises
-    ------
-    ValueError
-        With too little walking to fit (fewer than 10 samples), or an estimate outside the
-        model's range (a non-positive relaxation or strength: no interaction in the data).
-    """
+def _on_one_step(
+    tracks: pd.DataFrame, labels: Mapping[str, Any]
+) -> tuple[pd.DataFrame, dict[Any, Any]]:
+    """The tracks resampled to one step (the median), and the group of each track id
+    (``labels``: :func:`~are_stats.logs.track_groups`'s)."""
     tab = tracks.sort_values(["id", "t"], kind="stable")
     ids = tab["id"].to_numpy()
     t = tab["t"].to_numpy(float)
@@ -82,9 +69,34 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
         raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
     # the log's groups walk in formation: their members are left out of the repulsion's
     # least squares (fit_social_force's ``groups``)
-    labels = track_groups(tracks)
     groups = {i: labels[str(i)] for i in pd.unique(ids) if str(i) in labels}
-    params, info = fit_social_force(pd.concat(parts, ignore_index=True), groups=groups)
+    return pd.concat(parts, ignore_index=True), groups
+
+
+def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]]:
+    """Social force parameters of a log's tracks (see the module docstring).
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene (a tracks table), any sampling.
+
+    Returns
+    -------
+    SocialForce
+        The published defaults with ``strength``, ``range`` and ``relaxation`` estimated.
+    dict
+        :func:`~are_stats.behaviour.fit_social_force`'s ``rss``, ``n``, ``r2`` and ``dt``.
+
+    Raises
+    ------
+    ValueError
+        With too little walking to fit (fewer than 10 samples), or an estimate outside the
+        model's range (a non-positive relaxation or strength: no interaction in the data).
+    """
+    labels = track_groups(tracks)
+    grid, groups = _on_one_step(tracks, labels)
+    params, info = fit_social_force(grid, groups=groups)
     if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
         raise ValueError(
             f"tracks: the social force does not describe them (relaxation "
@@ -100,8 +112,14 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
 def learn_interaction(
     tracks: pd.DataFrame,
 ) -> tuple[SocialForce | None, dict[str, float], str | None]:
-    """What a fit keeps of a log's interaction: the fitted social force, else the
-    published one with the log's group spacing, else nothing (the published one).
+    """What a fit keeps of a log's interaction: the fitted social force, else no repulsion
+    when the log shows none, else the published one; with the log's group spacing.
+
+    When the fit's estimate is out of the model's range, "too little data to fit" and "the
+    data show no repulsion" are told apart by :func:`interaction_evidence`: if the
+    published repulsion fits the accelerations of people near each other significantly
+    worse (1%) than none, the force kept has strength 0 (nobody pushes; walls and group
+    formation still act), else the published one.
 
     The groups' spacing is measured apart from the repulsion: a log whose people never push
     each other (no repulsion to fit) can still show how close its groups walk, and the
@@ -115,10 +133,11 @@ def learn_interaction(
     Returns
     -------
     params : SocialForce or None
-        :func:`fit_interaction`'s; or the published force with ``group_spacing`` measured
-        (:func:`fit_group_spacing`); or None when neither can be learned.
+        :func:`fit_interaction`'s; or the published force, with strength 0 where the log
+        shows no repulsion, and ``group_spacing`` measured (:func:`fit_group_spacing`); or
+        None when nothing can be learned (the published force).
     info : dict
-        :func:`fit_interaction`'s info; with the published force only ``group_samples``.
+        :func:`fit_interaction`'s info; otherwise only ``group_samples`` (if any).
     note : str or None
         What was not learned and what scenes use instead, for the fit's notes.
     """
@@ -126,14 +145,80 @@ def learn_interaction(
         params, info = fit_interaction(tracks)
     except ValueError as err:  # too little walking together, or no interaction in the data
         spacing, samples = fit_group_spacing(tracks)
-        if samples == 0:
-            return None, {}, f"interaction not fitted ({err}); scenes use the published one"
-        note = (
-            f"interaction not fitted ({err}); scenes use the published one with the log's "
-            f"group spacing, {spacing:.2f} m"
-        )
-        return SocialForce(group_spacing=spacing), {"group_samples": float(samples)}, note
+        try:
+            evidence = interaction_evidence(tracks)
+        except ValueError:  # too little walking to test either
+            evidence = {"verdict": "too little", "close": 0.0}
+        info = {"group_samples": float(samples)} if samples else {}
+        if evidence["verdict"] == "none":
+            params = SocialForce(strength=0.0)
+            note = (
+                f"interaction not fitted ({err}); the log shows no repulsion: on its "
+                f"{evidence['close']:.0f} accelerations with someone within reach the "
+                f"published repulsion fits worse than none (residual sum of squares "
+                f"{evidence['rss_published']:.4g} against {evidence['rss_none']:.4g}; "
+                f"strength {evidence['strength_hat']:.3g} +- {evidence['se']:.2g} m/s^2, "
+                f"one-sided p {evidence['p']:.2g} < {_LEVEL}), so scenes walk with no "
+                f"repulsion (strength 0)"
+            )
+        else:
+            params = SocialForce()
+            why = (
+                f"too little walking near others to tell repulsion from none "
+                f"({evidence['close']:.0f} accelerations with someone within reach)"
+                if evidence["verdict"] == "too little"
+                else f"the published repulsion fits better than none (one-sided p "
+                f"{1.0 - evidence['p']:.2g})"
+            )
+            note = f"interaction not fitted ({err}); {why}; scenes use the published one"
+            if samples == 0:
+                return None, {}, note
+        if samples > 0:
+            params = params._replace(group_spacing=spacing)
+            note += f", with the log's group spacing, {spacing:.2f} m"
+        return params, info, note
     return params, info, None
+
+
+def interaction_evidence(tracks: pd.DataFrame) -> dict[str, float | str]:
+    """Whether a log's accelerations show the published repulsion or none at all.
+
+    The tracks are resampled and their groups left out as in :func:`fit_interaction`;
+    :func:`~are_stats.behaviour.repulsion_evidence` then compares, on the accelerations of
+    people with someone within the force's reach, the residual sums of squares under the
+    published repulsion (:class:`~are_stats.behaviour.SocialForce`'s strength and range)
+    and under none, at the 1% level. :func:`learn_interaction` uses it when the fit's
+    estimate is out of the model's range: ``"none"`` gives a force of strength 0, the rest
+    keep the published one.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` of one scene, any sampling.
+
+    Returns
+    -------
+    dict
+        :func:`~are_stats.behaviour.repulsion_evidence`'s: ``verdict`` (``"none"``,
+        ``"published"`` or ``"too little"``), ``close``, ``strength_hat``, ``se``,
+        ``rss_published``, ``rss_none``, ``z``, ``p``.
+
+    Raises
+    ------
+    ValueError
+        With too little walking (as :func:`fit_interaction`).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> t = [0.1 * k for k in range(100)]
+    >>> a = pd.DataFrame({"id": 0, "t": t, "x": [1.2 * s for s in t], "y": 0.0})
+    >>> interaction_evidence(a)["verdict"]  # nobody near: nothing to tell
+    'too little'
+    """
+    labels = track_groups(tracks)
+    grid, groups = _on_one_step(tracks, labels)
+    return repulsion_evidence(grid, groups=groups, level=_LEVEL)
 
 
 def fit_group_spacing(tracks: pd.DataFrame) -> tuple[float, int]:
@@ -183,14 +268,20 @@ def interaction_from_attrs(attrs: Mapping[str, Any]) -> SocialForce | None:
     Raises
     ------
     ValueError
-        If a stored parameter is not a finite positive number.
+        If a stored parameter is not a finite positive number (the strength may be 0: a
+        log that shows no repulsion, :func:`learn_interaction`).
     """
     if f"{_PREFIX}strength" not in attrs:
         return None
     values = {}
     for k in SocialForce._fields:
         v = float(np.asarray(attrs.get(f"{_PREFIX}{k}", getattr(SocialForce(), k))).ravel()[0])
-        if not (np.isfinite(v) and v > 0):
+        if k == "strength":
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(
+                    f"behaviour.attrs.{_PREFIX}{k}: expected a finite number >= 0, got {v}"
+                )
+        elif not (np.isfinite(v) and v > 0):
             raise ValueError(f"behaviour.attrs.{_PREFIX}{k}: expected a finite number > 0, got {v}")
         values[k] = v
     return SocialForce(**values)

@@ -12,12 +12,14 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from are_stats.behaviour import SocialForce
 from are_stats.cli import app
 from are_stats.fitting import (
     Fit,
     FitSettings,
     as_fit,
     fit_log,
+    interaction_attrs,
     read_fit,
     traffic_draws,
     write_fit,
@@ -159,6 +161,17 @@ def test_a_damaged_behaviour_group_is_named(fitted, tmp_path):
     path = write_fit(idata, tmp_path / "bad.nc")
     with pytest.raises(InputError, match=r"bad\.nc.*behaviour"):
         read_fit(path)
+
+
+def test_a_fit_without_repulsion_reads_back_with_strength_0(fitted, tmp_path):
+    """A log that shows no repulsion is stored with strength 0 (learn_interaction) and
+    read back so, not refused as a non-positive parameter."""
+    idata = fitted.idata.copy()
+    idata.behaviour.attrs.update(
+        interaction_attrs(SocialForce(strength=0.0, group_spacing=0.3), {"group_samples": 9.0})
+    )
+    back = read_fit(write_fit(idata, tmp_path / "none.nc"))
+    assert back.interaction == SocialForce(strength=0.0, group_spacing=0.3)
 
 
 def test_fit_is_frozen(fitted):
