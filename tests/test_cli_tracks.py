@@ -85,6 +85,10 @@ def test_tracks_fit_and_generated_people_walk(tmp_path):
     assert list(b["feature"].values) == ["walls"] and b["feature_weight"].shape == (1, 1)
     assert np.isfinite(b["feature_weight"].values).all()
     assert re.search(r"behaviour '\w*': beta .* slip .* walls weight [-+]", res.output), res.output
+    # these people walk through each other: the fit keeps no repulsion and says why
+    said = " ".join(res.output.split())
+    assert "interaction (social force): strength A 0 m/s^2" in said, said
+    assert "(no repulsion: the published one fits the tracks worse than none)" in said, said
     # the realism and displacement tables are stored with the behaviour, and report shows
     # them without the tracks (issue 26)
     res = runner.invoke(app, ["report", str(fit), "--out", str(tmp_path / "rep"),
