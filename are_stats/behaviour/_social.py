@@ -756,6 +756,59 @@ def _acceleration_design(
     }
 
 
+def _profiled_least_squares(
+    w: np.ndarray,
+    person: np.ndarray,
+    n_people: int,
+    e_col: np.ndarray,
+    y: np.ndarray,
+    cols: tuple[np.ndarray, np.ndarray],
+    *,
+    inverse: bool = False,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, int]:
+    """Weighted least squares (weights ``w`` (2m,)) of ``y`` on a per-person column
+    (``e_col``, person ``person`` of each row) and two shared columns ``cols``.
+
+    The per-person columns touch disjoint rows, so the normal equations are a diagonal
+    block and a 2 x 2 one: the per-person coefficients are eliminated (Schur complement)
+    in O(rows) instead of a dense (2m x n_people) solve.
+
+    Returns
+    -------
+    beta : (2,) float
+        The shared coefficients (``lstsq`` of the Schur complement, or with ``inverse``
+        its pseudo-inverse times the right-hand side).
+    inv : (2, 2) float or None
+        With ``inverse``, the Schur complement's pseudo-inverse (the shared coefficients'
+        covariance up to the residual variance); else None.
+    res : (2m,) float
+        Residuals (fit - ``y``).
+    n_per : int
+        Per-person coefficients fitted (people with weight).
+    """
+
+    def per_person(v: np.ndarray) -> np.ndarray:
+        return np.bincount(person, weights=w * v, minlength=n_people)
+
+    d = per_person(e_col * e_col)
+    has = d > 0
+    d_inv = np.where(has, 1.0 / np.where(has, d, 1.0), 0.0)
+    b_p = per_person(e_col * y)
+    c = np.stack([per_person(e_col * col) for col in cols], axis=1)  # (P, 2)
+    f = np.array([[np.sum(w * u * v) for v in cols] for u in cols])
+    rhs = np.array([np.sum(w * col * y) for col in cols])
+    schur = f - c.T @ (d_inv[:, None] * c)
+    inv = None
+    if inverse:
+        inv = np.linalg.pinv(schur)
+        beta = inv @ (rhs - c.T @ (d_inv * b_p))
+    else:
+        beta = np.linalg.lstsq(schur, rhs - c.T @ (d_inv * b_p), rcond=None)[0]
+    alpha = d_inv * (b_p - c @ beta)
+    res = e_col * alpha[person] + cols[0] * beta[0] + cols[1] * beta[1] - y
+    return beta, inv, res, int(has.sum())
+
+
 def fit_social_force(
     tracks: pd.DataFrame,
     *,
@@ -823,30 +876,11 @@ def fit_social_force(
         g_of[float(b_range)] = g[inner].reshape(-1)
 
     def solve(w: np.ndarray) -> tuple:
-        """Weighted least squares (weights ``w`` (2m,)) for every ``B``; the best.
-
-        The per-person columns touch disjoint rows, so the normal equations are a diagonal
-        block and a 2 x 2 one: the per-person coefficients are eliminated (Schur
-        complement) in O(rows) instead of a dense (2m x n_people) solve.
-        """
-
-        def per_person(v: np.ndarray) -> np.ndarray:
-            return np.bincount(person, weights=w * v, minlength=n_people)
-
-        d = per_person(e_col * e_col)
-        has = d > 0
-        d_inv = np.where(has, 1.0 / np.where(has, d, 1.0), 0.0)
-        b_p = per_person(e_col * y)
+        """Weighted least squares (weights ``w`` (2m,)) for every ``B``; the best."""
         best = None
         for b_range, g in g_of.items():
             cols = (minus_v, g)
-            c = np.stack([per_person(e_col * col) for col in cols], axis=1)  # (P, 2)
-            f = np.array([[np.sum(w * u * v) for v in cols] for u in cols])
-            rhs = np.array([np.sum(w * col * y) for col in cols])
-            schur = f - c.T @ (d_inv[:, None] * c)
-            beta = np.linalg.lstsq(schur, rhs - c.T @ (d_inv * b_p), rcond=None)[0]
-            alpha = d_inv * (b_p - c @ beta)
-            res = e_col * alpha[person] + cols[0] * beta[0] + cols[1] * beta[1] - y
+            beta, _, res, _ = _profiled_least_squares(w, person, n_people, e_col, y, cols)
             rss = float(np.sum(w * res**2))
             if best is None or rss < best[0]:
                 best = (rss, b_range, beta[0], beta[1], res)
@@ -943,25 +977,9 @@ def repulsion_evidence(
     n_people = d["n_people"]
 
     def fit(w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """Weighted least squares (weights ``w`` (2m,)), the per-person columns eliminated
-        (Schur complement): coefficients ``(1/tau, A)``, the inverse 2 x 2 normal matrix,
-        the residuals and the number of per-person coefficients fitted."""
-
-        def per_person(v: np.ndarray) -> np.ndarray:
-            return np.bincount(person, weights=w * v, minlength=n_people)
-
-        dd = per_person(e_col * e_col)
-        has = dd > 0
-        d_inv = np.where(has, 1.0 / np.where(has, dd, 1.0), 0.0)
-        b_p = per_person(e_col * y)
-        c = np.stack([per_person(e_col * col) for col in cols], axis=1)
-        f = np.array([[np.sum(w * u * v) for v in cols] for u in cols])
-        rhs = np.array([np.sum(w * col * y) for col in cols])
-        inv = np.linalg.pinv(f - c.T @ (d_inv[:, None] * c))
-        beta = inv @ (rhs - c.T @ (d_inv * b_p))
-        alpha = d_inv * (b_p - c @ beta)
-        res = e_col * alpha[person] + cols[0] * beta[0] + cols[1] * beta[1] - y
-        return beta, inv, res, int(has.sum())
+        """Coefficients ``(1/tau, A)``, the inverse 2 x 2 normal matrix, the residuals and
+        the number of per-person coefficients fitted (weights ``w`` (2m,))."""
+        return _profiled_least_squares(w, person, n_people, e_col, y, cols, inverse=True)
 
     _, _, res, _ = fit(np.repeat(close, 2).astype(float))
     norm_res = np.hypot(res[0::2], res[1::2])
