@@ -23,10 +23,9 @@ from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
     OccupancyGrid,
-    coarse_free,
-    extrude_grid,
+    coarse_cell,
+    environment_mesh,
     load_catalogue,
-    load_mesh,
     resolve_shipped,
     shipped_path,
 )
@@ -645,7 +644,9 @@ def run_generate(
             if fitted
             else {
                 "source": "catalogue behaviour",
-                "cell_m": _behaviour_cell_m(grid, behaviour_cell),
+                "cell_m": coarse_cell(
+                    grid.shape, grid.resolution, behaviour_cell, source="--behaviour-cell"
+                ),
                 "dt_s": behaviour_dt,
                 "rows": len(tracks),
             }
@@ -657,11 +658,6 @@ def run_generate(
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
     )
     return df
-
-
-def _behaviour_cell_m(grid: OccupancyGrid, cell: float) -> float:
-    """The coarse behaviour grid's actual cell (m): ``cell`` rounded to map cells."""
-    return float(coarse_free(grid.free, grid.resolution, cell, source="--behaviour-cell")[1])
 
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
@@ -804,8 +800,8 @@ def run_perceive(
     """
     from are_stats.perception import (
         PinholeCamera,
+        camera_mount,
         check_path_times,
-        optical_from_base,
         perceive_scenario,
         poses_outside,
         read_robot_path,
@@ -833,19 +829,8 @@ def run_perceive(
             Described(f"{map_file}: no such file"),
         )
     grid = OccupancyGrid.from_ros_yaml(map_file) if map_file and Path(map_file).exists() else None
-    bounds = None
-    if mesh is not None:
-        env = load_mesh(mesh)
-        bounds = np.asarray(env.bounds)[:, :2]
-    elif grid is not None:
-        env = extrude_grid(grid, wall_height)
-    else:
-        raise InputError(
-            scenario / "manifest.yaml",
-            "map",
-            "a map for the environment mesh (or pass --mesh MESH)",
-            Described("none"),
-        )
+    env = environment_mesh(grid, wall_height, mesh, source=scenario / "manifest.yaml")
+    bounds = None if mesh is None else np.asarray(env.bounds)[:, :2]
     generation = manifest.get("generation")
     horizon = generation.get("horizon") if isinstance(generation, dict) else None
     window = None
@@ -881,9 +866,7 @@ def run_perceive(
                 f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
                 "in their position"
             )
-    mount = None
-    if np.allclose(camera.pose, np.eye(4)):  # no mount in the camera file: forward-looking
-        mount = optical_from_base((0.0, 0.0, camera_height))
+    mount = camera_mount(camera.pose, camera_height)
     n_moving = 0 if tracks is None else len(tracks[["scenario", "id"]].drop_duplicates())
     moving = f" ({n_moving} moving)" if n_moving else ""
     t = time.perf_counter()

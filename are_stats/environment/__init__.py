@@ -20,9 +20,15 @@ from are_stats.environment._grid import (
     OCCUPIED,
     UNKNOWN,
     OccupancyGrid,
+    coarse_cell,
     coarse_free,
 )
-from are_stats.environment._mesh import extrude_grid, load_mesh, occupied_polygons
+from are_stats.environment._mesh import (
+    environment_mesh,
+    extrude_grid,
+    load_mesh,
+    occupied_polygons,
+)
 from are_stats.environment._shipped import (
     SHIPPED_DATA,
     SHIPPED_KINDS,
@@ -43,11 +49,13 @@ __all__ = [
     "UNKNOWN",
     "ArtefactCatalogue",
     "ArtefactClass",
+    "coarse_cell",
     "coarse_free",
     "OccupancyGrid",
     "PropertyRow",
     "TransformTree",
     "VoxelMap",
+    "environment_mesh",
     "extrude_grid",
     "load_catalogue",
     "load_mesh",

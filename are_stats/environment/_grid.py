@@ -731,13 +731,62 @@ def coarse_free(
     """
     free = np.asarray(free_mask, bool)
     res = float(resolution)
+    f = _coarse_factor(free.shape, res, cell, source)
+    if f is None:
+        return free.copy(), res
+    h, w = free.shape[0] // f, free.shape[1] // f
+    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+    return frac >= 0.5, res * f
+
+
+def coarse_cell(
+    shape: tuple[int, int], resolution: float, cell: float, *, source: str | None = None
+) -> float:
+    """The side (m) of the cells :func:`coarse_free` makes of a map, without making them.
+
+    ``cell`` rounded to a whole number of map cells (at least one); the map's own cells
+    when the map is smaller than 2 x 2 coarse cells (an error with ``source``), as
+    :func:`coarse_free` does.
+
+    Parameters
+    ----------
+    shape : (H, W)
+        The map's shape in cells.
+    resolution : float
+        Map cell side (m).
+    cell : float
+        Target cell side (m).
+    source : str, optional
+        The option or key ``cell`` came from, as for :func:`coarse_free`.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        With ``source``: a cell that is not a finite number > 0, or a coarse grid of fewer
+        than 2 x 2 cells.
+
+    Examples
+    --------
+    >>> round(coarse_cell((60, 40), 0.05, 1.0), 9), round(coarse_cell((60, 40), 0.05, 0.12), 9)
+    (1.0, 0.1)
+    """
+    f = _coarse_factor(shape, float(resolution), cell, source)
+    return float(resolution) * (1 if f is None else f)
+
+
+def _coarse_factor(
+    shape: tuple[int, ...], res: float, cell: float, source: str | None
+) -> int | None:
+    """Map cells per coarse cell side, or None when the coarse grid would be under 2 x 2."""
     if source is not None:
         cell = get_float(cell, source, "", lo=0.0, lo_open=True)
     f = max(1, int(round(min(float(cell) / res, 2.0**31))))
-    h, w = free.shape[0] // f, free.shape[1] // f
-    if h < 2 or w < 2:
+    if shape[0] // f < 2 or shape[1] // f < 2:
         if source is not None:
             raise ValueError(f"{source}: expected a cell much smaller than the map, got {cell}")
-        return free.copy(), res
-    frac = free[: h * f, : w * f].reshape(h, f, w, f).mean(axis=(1, 3))
-    return frac >= 0.5, res * f
+        return None
+    return f

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
     from are_stats.environment._grid import OccupancyGrid
 
-__all__ = ["load_mesh", "extrude_grid", "occupied_polygons", "MAX_COORDINATE"]
+__all__ = ["load_mesh", "extrude_grid", "environment_mesh", "occupied_polygons", "MAX_COORDINATE"]
 
 #: Largest ``|coordinate|`` of a mesh vertex accepted (metres).
 MAX_COORDINATE = 1e9
@@ -298,3 +298,52 @@ def _caps_and_walls(polys: list[shapely.Polygon]) -> tuple[np.ndarray, np.ndarra
     cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
     tri[cw] = tri[cw][:, ::-1]
     return tri, wall_a, wall_b
+
+
+def environment_mesh(
+    grid: OccupancyGrid | None,
+    wall_height: float,
+    mesh: str | os.PathLike | None = None,
+    *,
+    source: str | os.PathLike = "",
+) -> trimesh.Trimesh:
+    """The environment mesh S_E a command traces against: the one rule for its source.
+
+    A mesh file (``mesh``, :func:`load_mesh`) wins; else the grid's occupied cells are
+    extruded into walls of ``wall_height`` m (:func:`extrude_grid`).
+
+    Parameters
+    ----------
+    grid : OccupancyGrid or None
+        The map M_2D, when there is one.
+    wall_height : float
+        Height (m) of the walls extruded from ``grid``.
+    mesh : str or PathLike, optional
+        A mesh file of the environment.
+    source : str or PathLike
+        Where the map was to come from (e.g. a scenarios folder's manifest), named by the
+        error when there is neither a mesh nor a map.
+
+    Returns
+    -------
+    trimesh.Trimesh
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        With neither ``mesh`` nor ``grid``.
+
+    Examples
+    --------
+    >>> from are_stats import OccupancyGrid
+    >>> walls = environment_mesh(OccupancyGrid(np.pad(np.full((2, 3), 100), 1), 0.5), 2.0)
+    >>> round(float(walls.volume), 6)  # 6 cells of 0.25 m^2, 2 m high
+    3.0
+    """
+    if mesh is not None:
+        return load_mesh(mesh)
+    if grid is None:
+        raise InputError(
+            source, "map", "a map for the environment mesh (or pass --mesh MESH)", Described("none")
+        )
+    return extrude_grid(grid, wall_height)

@@ -460,20 +460,14 @@ def camera_and_mount(
 ) -> tuple[PinholeCamera, np.ndarray]:
     """The camera (default the shipped ``front_camera``) and its mount ``T_base_optical``:
     the robot's own tree (``tree_mount``, a bag's static chain from the base to the camera
-    frame) wins, else the camera's pose, else ``height`` m above the base looking forward.
-    The one rule of ``augment`` and ``serve --bag``."""
-    from are_stats.perception import PinholeCamera, optical_from_base
+    frame) wins, else the camera's pose, else ``height`` m above the base looking forward
+    (:func:`are_stats.perception.camera_mount`)."""
+    from are_stats.perception import PinholeCamera, camera_mount
 
     if camera is None:
         camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
     cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
-    if tree_mount is not None:
-        mount = tree_mount
-    elif not np.allclose(cam.pose, np.eye(4)):
-        mount = cam.pose
-    else:
-        mount = optical_from_base((0, 0, height))
-    return cam, np.asarray(mount, float)
+    return cam, camera_mount(cam.pose, height, tree_mount)
 
 
 def bag_camera(

@@ -1,6 +1,11 @@
 """Perception: camera model, Warp occlusion kernels and the perceived set A_f (section 3.3)."""
 
-from are_stats.perception._camera import CameraModel, PinholeCamera, optical_from_base
+from are_stats.perception._camera import (
+    CameraModel,
+    PinholeCamera,
+    camera_mount,
+    optical_from_base,
+)
 from are_stats.perception._perceive import (
     PerceptionResult,
     box_rois,
@@ -26,6 +31,7 @@ __all__ = [
     "CameraModel",
     "PinholeCamera",
     "box_rois",
+    "camera_mount",
     "check_path_times",
     "clear_mesh_cache",
     "optical_from_base",

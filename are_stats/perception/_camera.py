@@ -32,6 +32,7 @@ from are_stats.inputs import (
 __all__ = [
     "CameraModel",
     "PinholeCamera",
+    "camera_mount",
     "check_pose",
     "optical_from_base",
     "MIN_FOCAL",
@@ -108,6 +109,43 @@ def optical_from_base(
     t[:3, :3] = rz @ ry @ rx @ _BODY_FROM_OPTICAL
     t[:3, 3] = xyz
     return t
+
+
+def camera_mount(
+    pose: npt.ArrayLike, height: float, tree_mount: npt.ArrayLike | None = None
+) -> np.ndarray:
+    """The one rule for where a robot's camera sits: its mount ``T_base_optical`` (4, 4).
+
+    The robot's own tree (``tree_mount``, e.g. a bag's static chain from the base to the
+    camera frame) wins; else the camera file's ``pose`` when it has one (any pose but the
+    identity, which a camera file without a pose gets); else ``height`` m above the base,
+    looking forward (:func:`optical_from_base` at ``(0, 0, height)``). ``are-stats
+    perceive``, ``augment`` and ``serve`` all mount their camera by it.
+
+    Parameters
+    ----------
+    pose : (4, 4) float
+        The camera's ``pose`` (:attr:`PinholeCamera.pose`).
+    height : float
+        Height (m) of the forward-looking default.
+    tree_mount : (4, 4) float, optional
+        The mount the robot's own frames give.
+
+    Returns
+    -------
+    (4, 4) float64
+        ``T_base_optical``.
+
+    Examples
+    --------
+    >>> camera_mount(np.eye(4), 1.5)[:3].round(6).tolist()
+    [[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.5]]
+    """
+    if tree_mount is not None:
+        return np.asarray(tree_mount, float)
+    if not np.allclose(pose, np.eye(4)):
+        return np.asarray(pose, float)
+    return optical_from_base((0.0, 0.0, float(height)))
 
 
 class CameraModel(Protocol):

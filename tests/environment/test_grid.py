@@ -468,3 +468,30 @@ def test_coarse_free_is_a_majority_vote_on_whole_cells(rng):
     tiny, res1 = coarse_free(fine[:3, :3], 0.1, 0.3)  # under 2 x 2 coarse cells: kept as is
     np.testing.assert_array_equal(tiny, fine[:3, :3])
     assert res1 == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize(
+    ("shape", "res", "cell", "want"),
+    [
+        ((40, 40), 0.1, 1.0, 1.0),  # 10 map cells a side
+        ((40, 40), 0.1, 0.34, 0.3),  # 3.4 map cells: 3
+        ((40, 40), 0.1, 0.04, 0.1),  # under one map cell: one
+        ((40, 40), 0.1, 2.5, 0.1),  # 25 cells leave 1 x 1 coarse cells: the map's own
+        ((40, 41), 0.05, 1.0, 1.0),  # 20 cells: 2 x 2 coarse cells
+    ],
+)
+def test_coarse_cell_is_the_side_coarse_free_makes(shape, res, cell, want):
+    from are_stats.environment import coarse_cell, coarse_free
+
+    assert coarse_cell(shape, res, cell) == pytest.approx(want)
+    assert coarse_free(np.ones(shape, bool), res, cell)[1] == pytest.approx(want)
+
+
+def test_coarse_cell_with_a_source_names_a_bad_cell():
+    from are_stats.environment import coarse_cell
+
+    assert coarse_cell((40, 40), 0.1, 1.0, source="--behaviour-cell") == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="--behaviour-cell: expected a cell much smaller"):
+        coarse_cell((40, 40), 0.1, 2.5, source="--behaviour-cell")
+    with pytest.raises(ValueError, match="--behaviour-cell: expected"):
+        coarse_cell((40, 40), 0.1, 0.0, source="--behaviour-cell")

@@ -201,3 +201,23 @@ def test_shipped_courtyard_extrudes_watertight():
     _assert_closed_walls(g, 2.5, extrude_grid(g, 2.5))
     shipped = load_mesh(DEFAULT_MODELS / "courtyard.ply")
     assert shipped.is_watertight and shipped.is_winding_consistent
+
+
+def test_environment_mesh_file_wins_else_walls_of_the_grid(tmp_path):
+    """A mesh file wins over the map; else the map's 6 occupied 0.5 m cells become walls of
+    2 m (volume 6 x 0.25 x 2 = 3 m^3); with neither, an error names the source."""
+    from are_stats.environment import environment_mesh
+
+    grid = OccupancyGrid(np.pad(np.full((2, 3), 100), 1), 0.5)
+    walls = environment_mesh(grid, 2.0)
+    assert walls.volume == pytest.approx(3.0)
+    assert walls.bounds[1][2] == pytest.approx(2.0)
+    box = trimesh.creation.box((1.0, 2.0, 3.0))
+    path = tmp_path / "box.stl"
+    box.export(path)
+    loaded = environment_mesh(grid, 2.0, path)
+    assert loaded.volume == pytest.approx(6.0)
+    np.testing.assert_allclose(loaded.bounds, [[-0.5, -1.0, -1.5], [0.5, 1.0, 1.5]])
+    assert environment_mesh(None, 2.0, path).volume == pytest.approx(6.0)
+    with pytest.raises(InputError, match="scen/manifest.yaml: map: expected a map for the"):
+        environment_mesh(None, 2.0, source="scen/manifest.yaml")

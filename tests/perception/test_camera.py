@@ -172,3 +172,22 @@ def test_ideal_ros_calibration_fields_are_accepted(tmp_path):
     assert (cam.fx, cam.cy, cam.width) == (525.0, 240.0, 640)
     with limits(memory="1M"), pytest.raises(LimitError, match="640 x 480 camera image"):
         cam.directions_camera()
+
+
+def test_camera_mount_tree_then_pose_then_height():
+    """One rule for every command: the robot's tree wins, then the camera file's pose, then
+    a forward-looking camera ``height`` m above the base (optical z along base x, optical x
+    along -base y, optical y along -base z)."""
+    from are_stats.perception import camera_mount
+
+    forward = np.array(
+        [[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.2], [0, 0, 0, 1.0]]
+    )
+    assert_allclose(camera_mount(np.eye(4), 1.2), forward)
+    posed = forward.copy()
+    posed[:3, 3] = [0.3, -0.1, 0.8]
+    assert_allclose(camera_mount(posed, 1.2), posed)
+    tree = np.eye(4)
+    tree[:3, 3] = [1.0, 2.0, 3.0]
+    assert_allclose(camera_mount(posed, 1.2, tree), tree)
+    assert_allclose(camera_mount(np.eye(4), 1.2, np.eye(4)), np.eye(4))  # the tree's own
