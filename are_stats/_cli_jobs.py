@@ -698,7 +698,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         model="paper",
     )
 
-    from are_stats.fitting import window_statistics
+    from are_stats.fitting import crowding_statistics
 
     post = fit.idata.posterior
     area = fit.area
@@ -708,22 +708,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     res = fit.time_resolution
 
     def crowding(table: pd.DataFrame) -> dict[str, float]:
-        """Median over scenarios of the crowding statistics (as the checks compute them)."""
-        stats = []
-        for _, sc in table.groupby("scenario"):
-            st = window_statistics(
-                sc["t_arrive"].to_numpy(),
-                sc["t_leave"].to_numpy(),
-                sc["truncated"].to_numpy(),
-                (0.0, 3600.0),
-                res,
-            )
-            stats.append(st)
-        frame = pd.DataFrame(stats)
-        return {
-            k: round(float(frame[k].median()), 3)
-            for k in ("N(t) var/mean", "N(t) peak", "zero gaps", "stay cv")
-        }
+        return {k: round(v, 3) for k, v in crowding_statistics(table, (0.0, 3600.0), res).items()}
 
     checks_file = out / "criticism" / "traffic_checks.csv"
     checks = pd.read_csv(checks_file, index_col=0) if checks_file.exists() else None

@@ -157,16 +157,20 @@ from are_stats.fitting._traffic import (  # noqa: E402
     loo_pointwise,
 )
 from are_stats.fitting._traffic_checks import (  # noqa: E402
+    CROWDING_STATISTICS,
     TRAFFIC_STATISTICS,
     burst_statistics,
+    crowding_statistics,
     plot_traffic_checks,
     traffic_checks,
     window_statistics,
 )
 
 __all__ += [
+    "CROWDING_STATISTICS",
     "TRAFFIC_STATISTICS",
     "burst_statistics",
+    "crowding_statistics",
     "plot_traffic_checks",
     "traffic_checks",
     "window_statistics",

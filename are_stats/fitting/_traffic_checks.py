@@ -42,8 +42,10 @@ from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import boundary_distance, fold_in_key, key_from_seed
 
 __all__ = [
+    "CROWDING_STATISTICS",
     "TRAFFIC_STATISTICS",
     "burst_statistics",
+    "crowding_statistics",
     "plot_traffic_checks",
     "traffic_checks",
     "window_statistics",
@@ -177,6 +179,57 @@ def window_statistics(
                 np.mean(boundary_distance(xy[ok], mask, res, origin))
             )
     return out
+
+
+#: The statistics :func:`crowding_statistics` summarises: how crowded a window is.
+CROWDING_STATISTICS = ("N(t) var/mean", "N(t) peak", "zero gaps", "stay cv")
+
+
+def crowding_statistics(
+    scenarios: pd.DataFrame, window: tuple[float, float], resolution: float
+) -> dict[str, float]:
+    """The median over scenarios of :data:`CROWDING_STATISTICS`, as the checks compute them.
+
+    Each scenario of the table is one window (:func:`window_statistics`); a scenario
+    without artefacts has no row and does not count.
+
+    Parameters
+    ----------
+    scenarios : pandas.DataFrame
+        Columns ``scenario``, ``t_arrive``, ``t_leave`` (float), ``truncated`` (bool): a
+        scenarios table (:func:`~are_stats.scenarios.generate_scenarios`).
+    window : (t0, t1)
+        The scenarios' window (``(0, horizon)`` for generated ones).
+    resolution : float
+        The time resolution of the zero gaps (the fit's ``time_resolution``).
+
+    Returns
+    -------
+    dict of str to float
+        Keyed by :data:`CROWDING_STATISTICS`: the median over scenarios (NaN-skipping; NaN
+        when no scenario defines it).
+
+    Examples
+    --------
+    >>> table = pd.DataFrame(
+    ...     {"scenario": [0, 0], "t_arrive": [10.0, 10.0], "t_leave": [30.0, 50.0],
+    ...      "truncated": [False, False]}
+    ... )
+    >>> crowding_statistics(table, (0.0, 100.0), 1.0)["N(t) peak"]
+    2.0
+    """
+    stats = [
+        window_statistics(
+            sc["t_arrive"].to_numpy(),
+            sc["t_leave"].to_numpy(),
+            sc["truncated"].to_numpy(),
+            window,
+            resolution,
+        )
+        for _, sc in scenarios.groupby("scenario")
+    ]
+    frame = pd.DataFrame(stats, columns=list(TRAFFIC_STATISTICS))
+    return {k: float(frame[k].median()) for k in CROWDING_STATISTICS}
 
 
 def _free_of(idata: Any) -> tuple[np.ndarray, float, tuple[float, float]] | None:
