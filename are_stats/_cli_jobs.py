@@ -42,7 +42,7 @@ from are_stats.inputs import (
 )
 
 if TYPE_CHECKING:
-    from are_stats.export import AugmentResult
+    from are_stats.export import AugmentResult, ServeInfo
     from are_stats.fitting import Fit, MotionReport
     from are_stats.logs import TrajectoryOptions
 
@@ -356,7 +356,7 @@ def _behaviour_lines(fit: Fit) -> list[str]:
     return out
 
 
-def _print_motion_tables(tables: dict) -> None:
+def _print_motion_tables(tables: Mapping[str, pd.DataFrame]) -> None:
     """The ADE/FDE lines and the realism table (stored in the fit)."""
     if "displacement" in tables:
         for method, row in tables["displacement"].iterrows():
@@ -442,7 +442,7 @@ def _print_traffic(fit: Fit) -> None:
         console.print(f"note: {text}" if kind == "note" else f"[yellow]warning:[/] {text}")
 
 
-def _print_checks(written: dict) -> None:
+def _print_checks(written: Mapping[str, Path]) -> None:
     """The posterior-predictive statistics table (observed vs 90% bands, misfits flagged)."""
     path = written.get("traffic_checks_table")
     if path is None:
@@ -492,7 +492,9 @@ def _print_class_checks(table: pd.DataFrame) -> None:
     console.print(rich)
 
 
-def run_report(fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, force=False):
+def run_report(
+    fit_path: Path, out: Path, seed: int = 0, replicates: int = 200, force: bool = False
+) -> dict[str, Path]:
     """Summary table and posterior-predictive figures of a saved fit.
 
     ``--replicates`` (an integer >= 1) and ``--seed`` are checked, then the fit file
@@ -950,11 +952,11 @@ def run_serve(
     robot_path: Path | None = None,
     bag: Path | None = None,
     trajectory: TrajectoryOptions | None = None,
-) -> dict[str, Any]:
+) -> ServeInfo | None:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
     (:func:`are_stats.export.serve_scenario`), with the robot of a path or of a bag
     (:func:`are_stats.export.robot_from_bag`, read with ``trajectory``: the options of
-    ``augment``)."""
+    ``augment``); what was served, None when stopped by Ctrl-C."""
     from are_stats.export import robot_from_bag, serve_scenario
     from are_stats.logs import TrajectoryOptions
 
@@ -968,7 +970,7 @@ def run_serve(
     if bag is not None:
         robot = robot_from_bag(bag, trajectory.checked())
 
-    def ready(info: dict[str, Any]) -> None:
+    def ready(info: ServeInfo) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""
         until = f", for {duration:g} s" if duration is not None else ""
         console.print(
@@ -1001,7 +1003,7 @@ def run_serve(
         )
     except KeyboardInterrupt:
         console.print("stopped")
-        return {}
+        return None
     console.print(
         f"sent {info['messages']} messages in {info['frames']} frames ({info['wall']:.1f} s)"
     )

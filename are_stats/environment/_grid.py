@@ -766,8 +766,7 @@ def coarse_cell(
     Raises
     ------
     ValueError
-        With ``source``: a cell that is not a finite number > 0, or a coarse grid of fewer
-        than 2 x 2 cells.
+        With ``source``, as :func:`coarse_free`.
 
     Examples
     --------

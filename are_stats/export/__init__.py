@@ -10,6 +10,8 @@ from are_stats.export._augment import AUGMENT_TOPICS, AugmentResult, augment_bag
 from are_stats.export._live import (
     LIVE_TOPICS,
     LiveMessage,
+    LiveRobot,
+    ServeInfo,
     replay_messages,
     robot_from_bag,
     serve_scenario,
@@ -26,6 +28,8 @@ __all__ = [
     "AugmentResult",
     "BagView",
     "LiveMessage",
+    "LiveRobot",
+    "ServeInfo",
     "artefact_frame",
     "augment_bag",
     "export_mcap",

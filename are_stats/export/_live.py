@@ -51,10 +51,11 @@ import math
 import os
 import socket
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from types import ModuleType
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 import numpy as np
 
@@ -70,12 +71,23 @@ from are_stats.scenarios import Scene, ScenesFolder, read_scenes, scenes_from_ta
 if TYPE_CHECKING:
     import threading
 
+    from foxglove.messages import (
+        FrameTransform,
+        FrameTransforms,
+        Grid,
+        Quaternion,
+        SceneUpdate,
+        Timestamp,
+    )
+
     from are_stats.perception import PinholeCamera
 
 __all__ = [
     "LIVE_TOPICS",
     "ROBOT_TOPICS",
     "LiveMessage",
+    "LiveRobot",
+    "ServeInfo",
     "load_robot",
     "replay_messages",
     "robot_from_bag",
@@ -115,7 +127,7 @@ class LiveMessage:
         Its stamp and log time: ``start_ns`` + replay time, in ns.
     topic : str
         A key of :data:`LIVE_TOPICS`.
-    message : Any
+    message : foxglove.messages.Grid, SceneUpdate or FrameTransforms
         The ``foxglove.messages`` object.
     """
 
@@ -123,10 +135,67 @@ class LiveMessage:
     t: float
     stamp_ns: int
     topic: str
-    message: Any
+    message: Grid | SceneUpdate | FrameTransforms
 
 
-def _fm() -> Any:
+class LiveRobot(TypedDict):
+    """A robot to replay with a scene (:func:`load_robot`, :func:`robot_from_bag`)."""
+
+    #: (m,) float: times of the poses (s of scene time).
+    t: np.ndarray
+    #: (m, 4, 4) float: ``T_frame_base`` at ``t``.
+    poses: np.ndarray
+    #: (4, 4) float: ``T_base_optical``.
+    mount: np.ndarray
+    camera: PinholeCamera
+    #: Frustum depth (m).
+    d_max: float
+    #: Footprint radius (m).
+    radius: float
+    #: A bag's frame names (default ``base_link``, ``camera_optical_frame``), its fixed
+    #: frame, the stamp of scene time 0 on its header clock (ns), its length (s), where
+    #: its poses came from and notes on its clock and frames.
+    base_frame: NotRequired[str]
+    camera_frame: NotRequired[str]
+    frame: NotRequired[str]
+    start_ns: NotRequired[int]
+    duration: NotRequired[float]
+    source: NotRequired[str]
+    clock_note: NotRequired[str]
+    frame_note: NotRequired[str]
+
+
+class ServeInfo(TypedDict):
+    """What :func:`serve_scenario` served (and tells ``on_ready`` once it listens)."""
+
+    host: str
+    port: int
+    url: str
+    #: The scenario's index, its artefacts and those with tracks, its horizon (s).
+    scenario: int
+    artefacts: int
+    moving: int
+    horizon: float
+    #: The fixed frame.
+    frame: str
+    #: Frames and messages sent, wall seconds served.
+    frames: int
+    messages: int
+    wall: float
+
+
+class _Replay(TypedDict):
+    """What :func:`serve_scenario` replays of a scenarios folder (:func:`_replay`)."""
+
+    scene: Scene
+    grid: OccupancyGrid | None
+    horizon: float
+    scenario: int
+    moving: int
+    map: str | None
+
+
+def _fm() -> ModuleType:
     try:
         import foxglove.messages as fm
     except ImportError:  # pragma: no cover - depends on the environment
@@ -139,15 +208,15 @@ def _fm() -> Any:
     return fm
 
 
-def _ts(fm: Any, ns: int) -> Any:
+def _ts(fm: ModuleType, ns: int) -> Timestamp:
     return fm.Timestamp(sec=ns // 10**9, nsec=ns % 10**9)
 
 
-def _yaw_quat(fm: Any, yaw: float) -> Any:
+def _yaw_quat(fm: ModuleType, yaw: float) -> Quaternion:
     return fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
 
-def grid_message(grid: OccupancyGrid, stamp_ns: int, frame: str = "map") -> Any:
+def grid_message(grid: OccupancyGrid, stamp_ns: int, frame: str = "map") -> Grid:
     """``foxglove.Grid`` of an :class:`~are_stats.environment.OccupancyGrid` (row 0 at the
     origin, one ``uint8`` field ``occupancy``: 0-100 and 255 for unknown)."""
     fm = _fm()
@@ -172,8 +241,8 @@ def grid_message(grid: OccupancyGrid, stamp_ns: int, frame: str = "map") -> Any:
 
 
 def _frame(
-    fm: Any, scene: Scene, t: float, ns: int, gone: list[int], frame: str
-) -> tuple[Any, Any, list[int]]:
+    fm: ModuleType, scene: Scene, t: float, ns: int, gone: list[int], frame: str
+) -> tuple[SceneUpdate, list[FrameTransform], list[int]]:
     """(SceneUpdate, transforms, alive ids) of the scene at time ``t``."""
     boxes = scene.at(t)
     stamp = _ts(fm, ns)
@@ -236,8 +305,8 @@ def _frame(
 
 
 def _robot_frame(
-    fm: Any, robot: Mapping[str, Any], t: float, ns: int, frame: str
-) -> tuple[Any, list]:
+    fm: ModuleType, robot: LiveRobot, t: float, ns: int, frame: str
+) -> tuple[SceneUpdate, list[FrameTransform]]:
     """(SceneUpdate, transforms) of the robot at ``t``: footprint and camera frustum."""
     base_at = interpolate_poses(robot["t"], robot["poses"], np.array([t]))[0]
     mount = robot["mount"]
@@ -321,7 +390,7 @@ def replay_messages(
     start_ns: int = 0,
     map_period: float = 1.0,
     frame: str = ROS_FRAMES["F_E"],
-    robot: dict | None = None,
+    robot: LiveRobot | None = None,
 ) -> Iterator[LiveMessage]:
     """The timed messages of a replay of ``scene`` (pure: no server, no clock).
 
@@ -351,7 +420,7 @@ def replay_messages(
         Wall seconds between two ``/map`` messages.
     frame : str
         The fixed frame.
-    robot : dict, optional
+    robot : LiveRobot, optional
         ``t`` (m,), ``poses`` (m, 4, 4) ``T_map_base``, ``mount`` (4, 4) ``T_base_optical``,
         ``camera`` (PinholeCamera), ``d_max`` and ``radius``, optionally ``base_frame``
         and ``camera_frame`` (default ``base_link``, ``camera_optical_frame``): the robot
@@ -413,7 +482,7 @@ def load_robot(
     height: float = 1.0,
     d_max: float = 10.0,
     radius: float = 0.3,
-) -> dict[str, Any]:
+) -> LiveRobot:
     """A robot path (CSV/Parquet ``t, x, y, yaw``: :func:`~are_stats.perception.read_robot_path`)
     and its camera for :func:`replay_messages`.
 
@@ -430,7 +499,7 @@ def load_robot(
 
     Returns
     -------
-    dict
+    LiveRobot
         ``t``, ``poses``, ``mount``, ``camera``, ``d_max``, ``radius``.
     """
     from are_stats.perception import read_robot_path
@@ -496,7 +565,7 @@ def robot_from_bag(
     height: float = 1.0,
     d_max: float = 10.0,
     radius: float = 0.3,
-) -> dict[str, Any]:
+) -> LiveRobot:
     """A robot's recorded path and camera from its bag, for :func:`replay_messages`.
 
     The bag is read by :func:`~are_stats.logs.read_trajectory` (the reader of ``are-stats
@@ -521,7 +590,7 @@ def robot_from_bag(
 
     Returns
     -------
-    dict
+    LiveRobot
         ``t`` (m,) scene times (s after the bag's start), ``poses`` (m, 4, 4)
         ``T_frame_base``, ``mount`` (4, 4) ``T_base_optical`` (the bag's static chain to
         the camera frame when it has one, else the camera's), ``camera``, ``d_max``,
@@ -577,7 +646,7 @@ def _port_error(host: str, port: int, err: BaseException) -> InputError:
     )
 
 
-def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> dict[str, Any]:
+def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> _Replay:
     """What :func:`serve_scenario` replays of a scenarios folder read by
     :func:`~are_stats.scenarios.read_scenes`: the scene of one scenario, the map (when the
     manifest names one) and the horizon.
@@ -593,7 +662,7 @@ def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> dict[
 
     Returns
     -------
-    dict
+    _Replay
         ``scene``, ``grid`` (or None), ``horizon``, ``scenario`` (its index), ``moving``
         (artefacts with tracks), ``map`` (the map file or None).
     """
@@ -680,11 +749,11 @@ def serve_scenario(
     loop: bool = False,
     duration: float | None = None,
     fps: float = 10.0,
-    on_ready: Callable[[dict[str, Any]], None] | None = None,
+    on_ready: Callable[[ServeInfo], None] | None = None,
     stop: threading.Event | None = None,
     robot_path: str | os.PathLike | None = None,
-    robot: Mapping[str, Any] | None = None,
-) -> dict[str, Any]:
+    robot: LiveRobot | None = None,
+) -> ServeInfo:
     """Stream a scenario replay live over Foxglove's WebSocket protocol.
 
     Reads the folder (:func:`~are_stats.scenarios.read_scenes`), starts a ``foxglove-sdk``
@@ -714,14 +783,14 @@ def serve_scenario(
     robot_path : path, optional
         A robot path (``t, x, y, yaw``) to stream with the scene (:func:`load_robot`:
         ``/robot`` and its ``/tf``).
-    robot : dict, optional
+    robot : LiveRobot, optional
         A robot already read (:func:`robot_from_bag`, :func:`load_robot`), instead of
         ``robot_path``. With a ``start_ns`` (a bag's) the replay is stamped from it instead
         of the wall clock's now, and with a ``frame`` that is the fixed frame.
 
     Returns
     -------
-    dict
+    ServeInfo
         ``host``, ``port``, ``url``, ``scenario``, ``artefacts``, ``moving``, ``horizon``,
         ``frame``, ``frames`` and ``messages`` (counts sent), ``wall`` (seconds served).
 
@@ -780,7 +849,7 @@ def serve_scenario(
             "an address of this machine to listen on, such as 127.0.0.1",
             Described(f"{host!r} ({err})"),
         ) from None
-    info: dict[str, Any] = {
+    info: ServeInfo = {
         "host": host,
         "port": int(server.port),
         "url": f"ws://{host}:{int(server.port)}",
@@ -797,7 +866,7 @@ def serve_scenario(
     t0 = time.monotonic()
     try:
         if on_ready is not None:
-            on_ready(dict(info))
+            on_ready(info.copy())
         msgs = replay_messages(
             replay["scene"],
             replay["grid"],
@@ -807,7 +876,7 @@ def serve_scenario(
             loop=loop,
             start_ns=start_ns,
             frame=fixed,
-            robot=None if robot is None else dict(robot),
+            robot=None if robot is None else LiveRobot(**robot),
         )
         last_stamp = None
         for m in msgs:

@@ -39,6 +39,9 @@ from are_stats.inputs import InputError
 # export room.
 
 if TYPE_CHECKING:
+    # the message classes of the type store the writer builds from (ROS 2 Humble)
+    import rosbags.typesys.stores.ros2_humble as humble
+
     from are_stats.environment import OccupancyGrid
     from are_stats.logs import PassThrough
 
@@ -182,16 +185,18 @@ class RosMessages:
         """Nanoseconds since the epoch of scenario time ``t``."""
         return self.start_ns + int(round(float(t) * 1e9))
 
-    def stamp(self, t: float) -> Any:
+    def stamp(self, t: float) -> humble.builtin_interfaces__msg__Time:
         n = self.ns(t)
         return self.T["builtin_interfaces/msg/Time"](sec=n // 10**9, nanosec=n % 10**9)
 
-    def header(self, t: float, frame: str | None = None) -> Any:
+    def header(self, t: float, frame: str | None = None) -> humble.std_msgs__msg__Header:
         return self.T["std_msgs/msg/Header"](
             stamp=self.stamp(t), frame_id=self.frame if frame is None else frame
         )
 
-    def pose(self, x: float, y: float, yaw: float, z: float = 0.0) -> Any:
+    def pose(
+        self, x: float, y: float, yaw: float, z: float = 0.0
+    ) -> humble.geometry_msgs__msg__Pose:
         T = self.T
         return T["geometry_msgs/msg/Pose"](
             position=T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=float(z)),
@@ -200,7 +205,9 @@ class RosMessages:
             ),
         )
 
-    def transform(self, t: float, parent: str, child: str, matrix: npt.ArrayLike) -> Any:
+    def transform(
+        self, t: float, parent: str, child: str, matrix: npt.ArrayLike
+    ) -> humble.geometry_msgs__msg__TransformStamped:
         """``geometry_msgs/TransformStamped`` of a (4, 4) parent-from-child transform."""
         T = self.T
         m = np.asarray(matrix, float)
@@ -218,7 +225,7 @@ class RosMessages:
 
     def planar(
         self, t: float, parent: str, child: str, x: float, y: float, yaw: float, z: float = 0.0
-    ) -> Any:
+    ) -> humble.geometry_msgs__msg__TransformStamped:
         """``TransformStamped`` of a planar pose ``(x, y, yaw)`` at height ``z``."""
         m = np.eye(4)
         c, s = math.cos(yaw), math.sin(yaw)
@@ -226,7 +233,7 @@ class RosMessages:
         m[:3, 3] = [x, y, z]
         return self.transform(t, parent, child, m)
 
-    def occupancy_grid(self, t: float, grid: OccupancyGrid) -> Any:
+    def occupancy_grid(self, t: float, grid: OccupancyGrid) -> humble.nav_msgs__msg__OccupancyGrid:
         T = self.T
         info = T["nav_msgs/msg/MapMetaData"](
             map_load_time=self.stamp(t),
@@ -253,7 +260,7 @@ class RosMessages:
         text: str = "",
         frame: str | None = None,
         lifetime: float = 0.0,
-    ) -> Any:
+    ) -> humble.visualization_msgs__msg__Marker:
         """``visualization_msgs/Marker`` (type 1 cube, 2 sphere, 9 text; action 3 deletes
         all; ``lifetime`` seconds, 0 for ever)."""
         T = self.T
@@ -297,7 +304,7 @@ class RosMessages:
         labels: Sequence[str],
         perceived: npt.ArrayLike,
         lifetime: float = 0.0,
-    ) -> Any:
+    ) -> humble.visualization_msgs__msg__MarkerArray:
         """``MarkerArray``: a DELETEALL, then per artefact a cube (ns ``artefacts``; green
         perceived, grey otherwise) and its class label as text above it (ns ``labels``),
         both living ``lifetime`` seconds (0: until replaced), so that a replay stopped or
@@ -347,7 +354,9 @@ class RosMessages:
             )
         return self.T["visualization_msgs/msg/MarkerArray"](markers=ms)
 
-    def tf(self, transforms: list[Any]) -> Any:
+    def tf(
+        self, transforms: list[humble.geometry_msgs__msg__TransformStamped]
+    ) -> humble.tf2_msgs__msg__TFMessage:
         return self.T["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
     # ---- collecting and writing -------------------------------------------------------

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -89,11 +89,24 @@ class BagView(NamedTuple):
     frame: str
 
 
-def _yaw(q: Any) -> float:
+#: A bag's message (any ROS 1 or ROS 2 type store's class: read by duck typing).
+_Msg = Any
+#: Boxes of one ``/artefacts`` message: (n, 5) ``x, y, yaw, length, width``, labels, seen.
+_Boxes = tuple[np.ndarray, list[str], np.ndarray]
+_T = TypeVar("_T")
+
+
+def _last(items: list[tuple[int, _T]], at_ns: int) -> _T | None:
+    """The value of the last ``(stamp, value)`` at or before ``at_ns``, else None."""
+    before = [v for ts, v in items if ts <= at_ns]
+    return before[-1] if before else None
+
+
+def _yaw(q: _Msg) -> float:
     return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
 
 
-def _grid(msg: Any) -> OccupancyGrid:
+def _grid(msg: _Msg) -> OccupancyGrid:
     info = msg.info
     h, w = int(info.height), int(info.width)
     data = np.asarray(msg.data, np.int8).reshape(h, w)
@@ -112,7 +125,7 @@ def _reach(text: str) -> float | None:
     return d if np.isfinite(d) and d > 0 else None
 
 
-def _boxes(msg: Any) -> tuple[np.ndarray, list, np.ndarray]:
+def _boxes(msg: _Msg) -> _Boxes:
     """Cubes of ns ``artefacts`` (added) with their text markers of ns ``labels``."""
     text = {int(m.id): str(m.text) for m in msg.markers if m.ns == "labels" and m.action == 0}
     rows, labels, seen = [], [], []
@@ -162,8 +175,8 @@ def read_view(
 
     p = check_bag_path(path)
     grid = None
-    augmented: list[tuple[int, Any]] = []
-    markers: list[tuple[int, Any]] = []
+    augmented: list[tuple[int, _Msg]] = []
+    markers: list[tuple[int, _Boxes]] = []
     reach: list[tuple[int, float | None]] = []  # the range of A_f, from /perceived
     try:
         with AnyReader([p], default_typestore=vision_msgs_typestore(2)) as reader:
@@ -203,12 +216,8 @@ def read_view(
         at = get_float(at, "--at", "", lo=0.0, hi=span)
         at_ns = t0 + int(round(at * 1e9))
 
-    def last(items: list) -> Any:
-        before = [v for ts, v in items if ts <= at_ns]
-        return before[-1] if before else None
-
-    aug_msg = last(augmented)
-    boxes, labels, seen = last(markers) or (np.zeros((0, 5)), [], np.zeros(0, bool))
+    aug_msg = _last(augmented, at_ns)
+    boxes, labels, seen = _last(markers, at_ns) or (np.zeros((0, 5)), [], np.zeros(0, bool))
     path_xy = pose = camera = None
     frame = map_frame
     # the camera: the CameraInfo's frame, else the optical frame of our own MCAP exports
@@ -235,7 +244,7 @@ def read_view(
                 fx, width = traj.camera_info["k"][0], traj.camera_info["width"]
                 half = float(np.arctan2(width / 2.0, fx))
             ends = heading + np.array([-half, half])
-            d = last(reach) or _FRUSTUM_DRAWN
+            d = _last(reach, at_ns) or _FRUSTUM_DRAWN
             camera = np.vstack(
                 [cam[:2, 3], cam[:2, 3] + d * np.column_stack([np.cos(ends), np.sin(ends)])]
             )

@@ -454,9 +454,9 @@ def _window(source: Source, where: str, value: Any, scale: float) -> tuple[float
 def _resolve_settings(
     manifest: Mapping[str, Any],
     mpath: str,
-    window: Any,
-    area: Any,
-    clock_start: Any = None,
+    window: tuple[float, float] | None,
+    area: float | None,
+    clock_start: str | None = None,
 ) -> tuple[tuple[float, float], float | None, float, dict[str, Any]]:
     tu = str(manifest.get("time_unit", "s"))
     au = str(manifest.get("area_unit", "m^2"))

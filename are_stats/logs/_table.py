@@ -24,7 +24,6 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -472,7 +471,7 @@ def _read_parquet(p: Path, what: str) -> RawTable:
     for j, name in enumerate(names):
         col = t.column(j).combine_chunks() if t.num_rows else t.column(j)
         typ = t.schema.field(j).type
-        exact = pa.types.is_integer(typ) and _within_float_exact(col, pc)
+        exact = pa.types.is_integer(typ) and _within_float_exact(col)
         if pa.types.is_floating(typ) or exact:
             null = np.asarray(col.is_null().to_numpy(zero_copy_only=False), dtype=bool)
             filled = pc.fill_null(pc.cast(col, pa.float64()), 0.0)
@@ -489,7 +488,7 @@ def _read_parquet(p: Path, what: str) -> RawTable:
     return RawTable(p, "parquet", t.num_rows, strings, numbers, bools=frozenset(bools))
 
 
-def _within_float_exact(col: Any, pc: Any) -> bool:
+def _within_float_exact(col: pa.Array | pa.ChunkedArray) -> bool:
     """Whether every integer of the Arrow column is exact in float64 (|v| <= 2**53)."""
     if col.null_count == len(col):
         return True

@@ -19,7 +19,6 @@ from __future__ import annotations
 import itertools
 import os
 import warnings
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -67,7 +66,7 @@ _FIRST_LOOK = 4
 
 def _from_raw(raw: RawTable) -> pd.DataFrame:
     raw.require(["id", "t", "x", "y"], "tracks table")
-    out: dict[str, Any] = {"id": raw.ids("id")}
+    out: dict[str, np.ndarray] = {"id": raw.ids("id")}
     for c in ("t", "x", "y"):
         out[c] = raw.floats(c, allow_empty=False)[0]
     for c in ("x", "y"):
@@ -359,7 +358,7 @@ def tracks_to_lifecycle(
     df = df.assign(t=np.clip(t_all, t0, t1))
     excluded = {"outside_window": int((~inside).sum()), "too_few_sightings": 0}
     df = df[inside]
-    info: dict[str, Any] = {
+    info: dict[str, int | float] = {
         "sightings": int(len(df)),
         "track_ids": 0,
         "artefacts": 0,

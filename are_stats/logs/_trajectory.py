@@ -241,7 +241,7 @@ class TrajectoryOptions(NamedTuple):
             raise InputError("--pose-topic", "", "either --pose-topic or --base-frame", "both")
         return self
 
-    def keywords(self) -> dict[str, Any]:
+    def keywords(self) -> dict[str, str | None]:
         """:func:`read_trajectory`'s keywords (``base_frame`` ``base_link`` when not given)."""
         return {**self._asdict(), "base_frame": self.base_frame or "base_link"}
 
