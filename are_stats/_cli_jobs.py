@@ -456,39 +456,35 @@ def _print_checks(written: Mapping[str, Path]) -> None:
     rich.add_column("observed", justify="right")
     for m in models:
         rich.add_column(m, justify="right")
-
-    def fmt(v: float) -> str:
-        return "-" if not np.isfinite(v) else f"{v:.3g}"
-
     for stat, row in table.iterrows():
-        cells = []
-        for m in models:
-            band = f"{fmt(row[f'{m}_5%'])} - {fmt(row[f'{m}_95%'])}"
-            cells.append(
-                ("[red]! " if bool(row[f"{m}_flag"]) else "  ")
-                + band
-                + ("[/]" if bool(row[f"{m}_flag"]) else "")
-            )
-        rich.add_row(str(stat), fmt(row["observed"]), *cells)
+        cells = [_band(row[f"{m}_5%"], row[f"{m}_95%"], row[f"{m}_flag"]) for m in models]
+        rich.add_row(str(stat), _fmt(row["observed"]), *cells)
     console.print(rich)
     for name in ("class_checks", "class_motion_checks"):
         if written.get(name) is not None:
             _print_class_checks(pd.read_csv(written[name], index_col=[0, 1]))
 
 
+def _fmt(v: float) -> str:
+    """A checks table's number: three significant digits, ``-`` where undefined."""
+    return "-" if not np.isfinite(v) else f"{v:.3g}"
+
+
+def _band(lo: float, hi: float, flag: bool) -> str:
+    """A 90% band cell of the checks tables, red with a ``!`` when the observed value
+    falls outside it."""
+    band = f"{_fmt(lo)} - {_fmt(hi)}"
+    return f"[red]! {band}[/]" if bool(flag) else f"  {band}"
+
+
 def _print_class_checks(table: pd.DataFrame) -> None:
     """Per-class rows of a labelled log's checks (issue 31): observed vs the model's band."""
-
-    def fmt(v: float) -> str:
-        return "-" if not np.isfinite(v) else f"{v:.3g}"
-
     rich = Table(title="per class (90% bands; ! = observed outside)", title_justify="left")
     for col in ("class", "statistic", "observed", "model"):
         rich.add_column(col, justify="left" if col in ("class", "statistic") else "right")
     for (cls, stat), row in table.iterrows():
-        band = f"{fmt(row['model_5%'])} - {fmt(row['model_95%'])}"
-        band = f"[red]! {band}[/]" if bool(row["model_flag"]) else f"  {band}"
-        rich.add_row(str(cls), str(stat), fmt(row["observed"]), band)
+        band = _band(row["model_5%"], row["model_95%"], row["model_flag"])
+        rich.add_row(str(cls), str(stat), _fmt(row["observed"]), band)
     console.print(rich)
 
 
