@@ -697,12 +697,13 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     )
 
     from are_stats.fitting import crowding_statistics
+    from are_stats.logs import read_manifest
 
     post = fit.idata.posterior
     area = fit.area
     weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
     rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
-    desc = yaml.safe_load((EXAMPLE_LOG.with_suffix(".yaml")).read_text())["description"]
+    desc = read_manifest(EXAMPLE_LOG.with_suffix(".yaml"))["description"]
     res = fit.time_resolution
 
     def crowding(table: pd.DataFrame) -> dict[str, float]:
