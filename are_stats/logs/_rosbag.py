@@ -32,7 +32,7 @@ import os
 import re
 import sqlite3
 import struct
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
@@ -50,6 +50,7 @@ from are_stats.logs._tf import TF_TYPES, TfBuffer, unit_quaternion
 if TYPE_CHECKING:
     from rosbags.highlevel import AnyReader
     from rosbags.interfaces import Connection
+    from rosbags.interfaces.typing import Typesdict
     from rosbags.typesys.store import Typestore
 
 __all__ = [
@@ -112,7 +113,7 @@ def vision_msgs_typestore(ros_version: int = 2) -> Typestore:
     if ros_version not in (1, 2):
         raise ValueError(f"ros_version: expected 1 or 2, got {ros_version!r}")
     store = get_typestore(Stores.ROS1_NOETIC if ros_version == 1 else Stores.ROS2_HUMBLE)
-    types: dict[str, Any] = {}
+    types: Typesdict = {}
     for name, text in DETECTION3D_MSGS.items():
         types.update(get_types_from_msg(text, name))
     store.register(types)
@@ -676,11 +677,11 @@ class PassThrough(NamedTuple):
     """
 
     path: Path
-    channels: list
-    topics: dict
+    channels: list[PassChannel]
+    topics: dict[str, str]
     qos_form: str
     type_hash: bool
-    messages: Any
+    messages: Callable[[], Iterator[tuple[int, int, int, int, bytes]]]
 
 
 def _qos_form(texts: Sequence[str]) -> str:
@@ -786,7 +787,7 @@ def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
     meta = {} if ros1 or not p.is_dir() else _folder_metadata(p)
     keys: dict[tuple[str, str], int] = {}
     channels: list[PassChannel] = []
-    convert: dict[str, Any] = {}
+    convert: dict[str, Callable[[bytes | memoryview], memoryview]] = {}
     try:
         with AnyReader([p], default_typestore=store) as reader:
             by_topic: dict[str, str] = {}
