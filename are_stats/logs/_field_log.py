@@ -69,7 +69,7 @@ def read_field_log(
     window: tuple[float, float] | None = None,
     area: float | None = None,
     clock_start: str | None = None,
-    **track_options: Any,
+    **track_options: float | None,
 ) -> LifecycleLog:
     """Read a field log, a life-cycle log or a tracks table, detected from its columns.
 
