@@ -252,7 +252,8 @@ def crowd_realism(
 ) -> dict[str, Any]:
     """The crowd's behaviour and interaction fitted from its tracks on its map as
     ``are-stats fit`` fits them (:func:`~are_stats.fitting.fit_behaviour`,
-    :func:`~are_stats.fitting.fit_interaction`), scored by the realism table (constant
+    :func:`~are_stats.fitting.learn_interaction`: the fitted force, or none or the
+    published one where it cannot be fitted), scored by the realism table (constant
     velocity, the catalogue behaviour, the fitted one, ``n_replicates`` each) and, with
     ``errors``, the displacement errors (8 observed / 12 predicted, K = 20).
 
@@ -266,7 +267,7 @@ def crowd_realism(
     import jax
 
     from are_stats.environment import OccupancyGrid, load_catalogue
-    from are_stats.fitting import displacement_errors, fit_behaviour, fit_interaction
+    from are_stats.fitting import displacement_errors, fit_behaviour, learn_interaction
     from are_stats.scenarios import realism_table
 
     cpu: dict[str, float] = {}
@@ -283,7 +284,7 @@ def crowd_realism(
     )  # fmt: skip
     cpu["behaviour fit"] = time.process_time() - tic
     tic = time.process_time()
-    learned, info = fit_interaction(tracks)
+    learned, info, _ = learn_interaction(tracks)
     cpu["interaction fit"] = time.process_time() - tic
     key = jax.random.key(seed)
     tic = time.process_time()

@@ -9,7 +9,7 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   the fitted between-person law, the social force among the others with the groups in
   formation (:func:`~are_stats.behaviour.social_force_tracks`), leaving at the exit;
   sampled at the log's rate and measured with the log's position noise added
-  (:func:`tracker_noise`). Per
+  (:func:`~are_stats.logs.tracker_noise`). Per
   track (:func:`track_statistics`) the speed over the walking part (from setting off to
   reaching the exit), the straightness (net displacement / path length), whether it stays
   still (net displacement below ``still_distance``) and the time from entry to exit over
@@ -42,6 +42,7 @@ import pandas as pd
 
 from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood, path_free
 from are_stats.inputs import LimitError
+from are_stats.logs import tracker_noise
 
 __all__ = [
     "MOTION_STATISTICS",
@@ -596,39 +597,6 @@ def _replicate_tracks(
     w_new = np.r_[True, (w_sc[1:] != w_sc[:-1]) | (w_ids[1:] != w_ids[:-1])]
     w_key = w_sc[w_new].astype(np.int64) * m + pd.Index(base["id"]).get_indexer(w_ids[w_new])
     return _until_arrived(walked, end[w_key], ARRIVED)
-
-
-def tracker_noise(tracks: pd.DataFrame) -> float:
-    """Standard deviation (m) of the position noise of a log's tracks.
-
-    Of three consecutive samples equally spaced in time, the second difference
-    ``p[k+1] - 2 p[k] + p[k-1]`` of a walk at a steady velocity is the noise alone,
-    ``sd sqrt(6)`` per coordinate; the robust scale of all of them (1.4826 times their
-    median absolute value, over x and y), over ``sqrt(6)``, leaves out turns and stops.
-
-    Parameters
-    ----------
-    tracks : pandas.DataFrame
-        ``id, t, x, y``.
-
-    Returns
-    -------
-    float
-        0 where no track has three equally spaced samples.
-    """
-    tab = tracks.sort_values(["id", "t"], kind="stable")
-    ids = tab["id"].to_numpy()
-    t = tab["t"].to_numpy(float)
-    xy = tab[["x", "y"]].to_numpy(float)
-    if len(tab) < 3:
-        return 0.0
-    same = (ids[2:] == ids[1:-1]) & (ids[1:-1] == ids[:-2])
-    d1, d2 = t[1:-1] - t[:-2], t[2:] - t[1:-1]
-    even = same & (d1 > 0) & (np.abs(d2 - d1) <= 1e-6 * np.maximum(d1, 1.0))
-    second = (xy[2:] - 2.0 * xy[1:-1] + xy[:-2])[even]
-    if not second.size:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(second)) / math.sqrt(6.0))
 
 
 def motion_checks(

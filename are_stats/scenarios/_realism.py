@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.logs import track_groups
+from are_stats.logs import track_groups, tracker_noise
 
 __all__ = [
     "REALISM_FEATURES",
@@ -103,28 +103,9 @@ def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
 
 
 def _observation_noise(tracks: pd.DataFrame, dt: float) -> float:
-    """Standard deviation (m) of white position noise in tracks sampled every ``dt``.
-
-    Per coordinate, the second differences ``d_k = x_{k+1} - 2 x_k + x_{k-1}`` of a smooth
-    path plus white noise of variance ``s^2`` have the noise's autocovariances ``-4 s^2`` at
-    lag 1 and ``s^2`` at lag 2, while a smooth path's accelerations are about as correlated
-    at both lags: ``s^2 = (c_2 - c_1) / 5`` (0 for noise-free tracks; never negative).
-    """
-    tab = _resample(tracks, dt)
-    c1 = c2 = 0.0
-    n1 = n2 = 0
-    for _, g in tab.groupby(["scenario", "id"], sort=False):
-        xy = g[["x", "y"]].to_numpy(float)
-        if len(xy) < 5:
-            continue
-        d2 = xy[2:] - 2.0 * xy[1:-1] + xy[:-2]
-        c1 += float((d2[1:] * d2[:-1]).sum())
-        c2 += float((d2[2:] * d2[:-2]).sum())
-        n1 += d2[1:].size
-        n2 += d2[2:].size
-    if not n2:
-        return 0.0
-    return float(np.sqrt(max((c2 / n2 - c1 / n1) / 5.0, 0.0)))
+    """Standard deviation (m) of white position noise in tracks sampled every ``dt``: the
+    tracker's (:func:`~are_stats.logs.tracker_noise`) on the tracks resampled to ``dt``."""
+    return tracker_noise(_resample(tracks, dt))
 
 
 def _seen_as_logged(seed: Any, tracks: pd.DataFrame, dt: float, noise: float) -> pd.DataFrame:
