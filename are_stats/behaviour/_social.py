@@ -530,7 +530,7 @@ def social_force_tracks(
         last call has ``done == total``.
     speed_variation : (key, sd, time), optional
         Within-person variation of the walking speed
-        (:attr:`~are_stats.behaviour.BehaviourFit.speed_within_sd`): each walker's desired
+        (``BehaviourFit.speed_within_sd``): each walker's desired
         speed is its preferred speed times ``exp(u(t))``, ``u`` a stationary
         Ornstein-Uhlenbeck process, drawn with ``key`` (a JAX PRNG key or an int seed),
         whose walked speed has log-sd ``sd`` and correlation time ``time`` (s) at lags
