@@ -49,6 +49,9 @@ _PER_CLASS = (
     "bandwidth_exit",
     "fit_seconds",
 )
+#: Per-class values that fit files written before them lack, and their defaults there: no
+#: within-person variation of the walking speed.
+_WITHIN = {"speed_within_sd": 0.0, "speed_within_time": np.nan}
 
 
 def grid_geodesic(free: npt.ArrayLike, cells: npt.ArrayLike) -> np.ndarray:
@@ -127,6 +130,13 @@ class BehaviourFit:
     weights, weights_se : (C, F) float
         Maximum-likelihood weights ``w_k`` per class (reward per epoch spent on a cell with
         ``phi_k = 1``, in the units of ``time_cost``) and their standard errors.
+    speed_within_sd, speed_within_time : (C,) float
+        Within-person variation of the walking speed: a walker's log speed is a stationary
+        Ornstein-Uhlenbeck process around its preferred speed's, of this sd (log units)
+        and correlation time (s) (:func:`~are_stats.fitting.fit_behaviour`). Default (and
+        fit files written before it was fitted): sd 0 and time NaN, no within-person
+        variation, each walker at its one preferred speed. NaN sd: not estimable (no
+        track long enough); generation then walks without it.
     """
 
     classes: tuple
@@ -162,10 +172,20 @@ class BehaviourFit:
     features: npt.ArrayLike | None = None
     weights: npt.ArrayLike | None = None
     weights_se: npt.ArrayLike | None = None
+    speed_within_sd: npt.ArrayLike | None = None
+    speed_within_time: npt.ArrayLike | None = None
 
     def __post_init__(self) -> None:
         self.feature_names = tuple(str(n) for n in self.feature_names)
         n_f, n_c = len(self.feature_names), len(self.classes)
+        for name, default in _WITHIN.items():
+            v = getattr(self, name)
+            v = np.full(n_c, default) if v is None else np.asarray(v, float)
+            if v.shape != (n_c,):
+                raise ValueError(
+                    f"BehaviourFit.{name}: expected shape ({n_c},) (one per class), got {v.shape}"
+                )
+            setattr(self, name, v)
         shape = np.shape(self.free)
         self.features = (
             np.zeros((0, *shape)) if self.features is None else np.asarray(self.features, float)
@@ -362,7 +382,7 @@ class BehaviourFit:
         """
         import xarray as xr
 
-        data = {k: (("class",), np.asarray(getattr(self, k))) for k in _PER_CLASS}
+        data = {k: (("class",), np.asarray(getattr(self, k))) for k in (*_PER_CLASS, *_WITHIN)}
         data["free"] = (("row", "col"), np.asarray(self.free, np.int8))
         data["track_class"] = (("track",), np.asarray(self.track_class, np.int64))
         data["entry_xy"] = (("track", "xy"), np.asarray(self.entry_xy, float))
@@ -392,6 +412,8 @@ class BehaviourFit:
         kw = {
             k: np.asarray(ds[k].values) if k in ds else np.full(n_class, np.nan) for k in _PER_CLASS
         }  # fit files leave out the wall-clock fit_seconds (same seed, same bytes)
+        # files from before the within-person variation was fitted: none (_WITHIN)
+        kw |= {k: np.asarray(ds[k].values, float) for k in _WITHIN if k in ds}
         w = str(a.get("warnings", ""))
         feats: dict[str, Any] = {}
         if "feature_weight" in ds:

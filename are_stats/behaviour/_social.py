@@ -222,6 +222,7 @@ def _window(
     t_off,
     kin,
     plan,
+    pace,
     shift,
     form,
     t0,
@@ -242,6 +243,8 @@ def _window(
     Positions are in a frame where each scenario is shifted by ``shift`` (n, 2) so that
     artefacts of different scenarios never meet; the walls are looked up unshifted.
     Kinematic artefacts (``kin``) are where their ``plan`` (n_steps, n, 2) puts them.
+    ``pace`` (n_steps, n) is each artefact's desired speed over its preferred ``v0`` at
+    each step (ones: the preferred speed throughout).
     ``form`` is the formation: each artefact's leader and the member one slot ahead of it
     (indices here; itself when it has none), its abreast offset and its group (``-1``:
     alone). One program serves windows with and without groups (nobody in a group: the
@@ -291,7 +294,7 @@ def _window(
         return desired, speed, in_slot
 
     def step(carry, inputs):
-        s, planned = inputs
+        s, planned, pace_s = inputs
         x, v, k, hd = carry
         t = t0 + s * dt
         alive = (t >= t_on) & (t < t_off)
@@ -299,7 +302,8 @@ def _window(
         to = target - x
         dist = jnp.sqrt(jnp.sum(to**2, axis=1) + 1e-12)
         last = k >= n_vert - 1
-        speed = jnp.where(last, v0 * jnp.minimum(1.0, dist / 0.5), v0)
+        vd = v0 * pace_s  # the desired speed: the preferred one times the pace's drift
+        speed = jnp.where(last, vd * jnp.minimum(1.0, dist / 0.5), vd)
         # members head for their slot beside (or behind) their leader
         desired, speed, in_slot = formation_slots(x, v, k, hd, alive, target, to, dist, speed, last)
         dw, _ = lookup(dist_w, x - shift)
@@ -360,7 +364,7 @@ def _window(
 
     def body(s, carry):
         state, out = carry
-        state, x_out = step(state, ((s + 1).astype(jnp.float64), plan[s]))
+        state, x_out = step(state, ((s + 1).astype(jnp.float64), plan[s], pace[s]))
         return state, out.at[s].set(x_out)
 
     out = jnp.zeros(plan.shape, state[0].dtype)
@@ -404,6 +408,79 @@ def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0
     ), n_y
 
 
+class _Pace(NamedTuple):
+    """The walkers' within-person variation of the desired speed (see
+    :func:`social_force_tracks`' ``speed_variation``): the log pace ``u`` of each artefact
+    (n,), its AR(1) coefficient per step ``phi`` and innovation sd ``innovation`` (n,),
+    and the generator that draws the innovations."""
+
+    rng: np.random.Generator
+    u: np.ndarray
+    phi: np.ndarray
+    innovation: np.ndarray
+
+
+def _pace(
+    speed_variation: tuple, n_rows: int, rows: np.ndarray, relaxation: float, dt: float
+) -> _Pace:
+    """The stationary start of each artefact's log pace (``rows``: its first row in the
+    caller's table), from ``speed_variation = (key, sd, time)``."""
+    try:
+        key, sd, time = speed_variation
+    except (TypeError, ValueError):
+        raise ValueError(
+            "speed_variation: expected (key, sd, time), got "
+            f"{type(speed_variation).__name__} {speed_variation!r:.60}"
+        ) from None
+    values = {}
+    for name, v in (("sd", sd), ("time", time)):
+        a = np.asarray(v, float)
+        if a.ndim == 0:
+            a = np.full(n_rows, float(a))
+        if a.shape != (n_rows,):
+            raise ValueError(
+                f"speed_variation: expected {name} a number or one per track row ({n_rows}), "
+                f"got shape {a.shape}"
+            )
+        values[name] = a[rows]
+    sd, time = np.nan_to_num(values["sd"], nan=0.0), values["time"]
+    varies = sd > 0
+    bad = ~np.isfinite(sd) | (sd < 0) | (varies & ~(np.isfinite(time) & (time > 0)))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            "speed_variation: expected sd >= 0 (log units) and, where sd > 0, a time > 0 (s), "
+            f"got sd {sd[i]!r} and time {time[i]!r}"
+        )
+    time = np.where(varies, time, 1.0)
+    # the walked speed follows the desired one with the relaxation time tau (a first-order
+    # lag): its autocovariance is sd_d^2 (e^{-L/T} - (tau/T) e^{-L/tau}) / (1 - (tau/T)^2),
+    # whose slow part (the one the fit reads at lags past its window) has variance sd^2
+    # when sd_d = sd sqrt(1 - (tau/T)^2) (held at sd / 2 or more where T is near tau)
+    sd_desired = sd * np.sqrt(np.clip(1.0 - (relaxation / time) ** 2, 0.25, 1.0))
+    phi = np.where(varies, np.exp(-dt / time), 1.0)
+    if isinstance(key, jax.Array):
+        seed = np.asarray(jax.random.key_data(key)).ravel().tolist()
+    else:
+        seed = int(key)
+    rng = np.random.default_rng(seed)
+    u = sd_desired * rng.standard_normal(sd.size)
+    return _Pace(rng, u, phi, sd_desired * np.sqrt(1.0 - phi**2))
+
+
+def _pace_window(pace: _Pace, act: np.ndarray, n_steps: int) -> np.ndarray:
+    """(n_steps, len(act)) desired speed over preferred speed of the artefacts ``act`` at
+    the steps of a window (the exact AR(1) of their OU log pace); advances ``pace.u``."""
+    eps = pace.rng.standard_normal((n_steps, act.size))
+    u, phi, innovation = pace.u[act], pace.phi[act], pace.innovation[act]
+    out = np.empty((n_steps, act.size))
+    for s in range(n_steps):
+        u = phi * u + innovation * eps[s]
+        out[s] = u
+    pace.u[act] = u
+    return np.exp(out)
+
+
 def social_force_tracks(
     tracks: pd.DataFrame,
     params: SocialForce | None = None,
@@ -413,6 +490,7 @@ def social_force_tracks(
     kinematic: npt.ArrayLike | None = None,
     groups: npt.ArrayLike | None = None,
     progress: Callable[[int, int], None] | None = None,
+    speed_variation: tuple | None = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again with the social force (people give way to each other).
 
@@ -451,6 +529,19 @@ def social_force_tracks(
         ``progress(done, total)`` after each window of the simulation (``WINDOW_STEPS``
         steps of every scenario at once, one compiled program), ``total`` windows; the
         last call has ``done == total``.
+    speed_variation : (key, sd, time), optional
+        Within-person variation of the walking speed
+        (``BehaviourFit.speed_within_sd``): each walker's desired
+        speed is its preferred speed times ``exp(u(t))``, ``u`` a stationary
+        Ornstein-Uhlenbeck process, drawn with ``key`` (a JAX PRNG key or an int seed),
+        whose walked speed has log-sd ``sd`` and correlation time ``time`` (s) at lags
+        past the relaxation time (as :func:`~are_stats.fitting.fit_behaviour` reads them
+        from tracks): the walked speed follows the desired one with the relaxation time
+        ``tau``, so the desired speed's own sd is ``sd sqrt(1 - (tau / time)^2)`` (at
+        least ``sd / 2``). ``sd`` and ``time`` are numbers or one
+        per track row (an artefact's first row counts; ``sd`` 0 or NaN: none). The members
+        of a group keep their leader's pace. Default: each walker at its preferred speed
+        throughout; ``sd = 0`` everywhere gives exactly the same tracks.
 
     Returns
     -------
@@ -546,6 +637,9 @@ def social_force_tracks(
     norm = np.hypot(*first_leg.T)
     hd = np.where((norm > 1e-9)[:, None], first_leg / np.maximum(norm, 1e-9)[:, None], [1.0, 0.0])
     p_j = SocialForce(*(float(f) for f in p))
+    pace = None
+    if speed_variation is not None:
+        pace = _pace(speed_variation, len(tracks), perm[start], p.relaxation, dt)
     t0 = float(t_on.min())
     n_win = int(np.ceil(span / dt / WINDOW_STEPS)) + 1
     w_start = t0 + np.arange(n_win) * WINDOW_STEPS * dt
@@ -598,6 +692,13 @@ def social_force_tracks(
         # the steps anybody is alive in (all of them unless everybody leaves in this window)
         n_run = int(np.searchsorted(tt, t_off[act].max(), side="left"))
         plan = np.zeros((WINDOW_STEPS, nb, 2))
+        pace_w = np.ones((WINDOW_STEPS, nb))
+        if pace is not None:
+            drift = _pace_window(pace, act, WINDOW_STEPS)
+            # a member walks at its leader's pace (when the leader is in the window)
+            col = slot_of[leader[act]]
+            col = np.where(col >= 0, col, slot)
+            pace_w[:, slot] = drift[:, np.argsort(slot)[np.searchsorted(np.sort(slot), col)]]
         for c, i in zip(slot, act, strict=True):
             if kin[i]:
                 a, b = start[i], stop[i]
@@ -612,6 +713,7 @@ def social_force_tracks(
             take(t_off),
             take(kin),
             jnp.asarray(plan),
+            jnp.asarray(pace_w),
             take(shift),
             form,
             w0,

@@ -8,6 +8,13 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   noise-free log's windows are single steps: the median step speed); tracks faster than
   ``run_speed`` are runners. Walking (and running) speeds get a lognormal law fitted by
   maximum likelihood: the between-person law of preferred speeds.
+* **Within-person variation** (:func:`_speed_variation`). Around its own preferred speed a
+  walker's log speed drifts as a stationary Ornstein-Uhlenbeck process: its sd
+  (``speed_within_sd``, log units) and correlation time (``speed_within_time``, s) are
+  fitted to the semivariogram of the walkers' windowed log speeds within tracks, with the
+  tracker's noise subtracted as a known moment. Generation walks it
+  (:func:`~are_stats.behaviour.social_force_tracks`' ``speed_variation``); the
+  accelerations and turning rates that follow are checked, not fitted (the realism table).
 * **Scale.** The MDP cell is ``cell`` (default: about 0.5 m, coarser when the map would
   exceed ``max_side`` cells a side); the decision epoch is ``dt = cell / median walking
   speed``, so that an artefact at walking speed moves one cell per epoch.
@@ -63,6 +70,7 @@ from are_stats.behaviour import (
 )
 from are_stats.environment import coarse_free
 from are_stats.fitting._motion_checks import tracker_noise
+from are_stats.inputs import check_memory
 
 __all__ = [
     "BEHAVIOUR_FEATURES",
@@ -140,6 +148,185 @@ def _track_speed(t: np.ndarray, xy: np.ndarray, noise: float) -> float:
     if noise > 0 and speed <= 3.0 * math.sqrt(2.0) * noise / float(np.median(span[ok])):
         return 0.0
     return speed
+
+
+#: Longest lag (s) of the variogram of the within-person log speed (:func:`_speed_variation`).
+VARIATION_LAG = 30.0
+#: A walker's own pace is read only where nobody else is within this distance (m) of it
+#: (:func:`_speed_variation`): near others, speed changes are the interaction's, which
+#: generation adds by itself (the social force).
+VARIATION_ALONE = 3.0
+#: Windows whose speed is not within this factor of their track's speed are left out of
+#: :func:`_speed_variation`: a stop or a burst is not the slow drift of the pace.
+VARIATION_CLIP = 3.0
+
+
+def _ou_window_terms(tau: float, window: float, lags: np.ndarray) -> np.ndarray:
+    """``g0 - h(L)``: the semivariogram, per unit variance, of the averages over windows
+    of ``window`` s of a stationary OU process of correlation time ``tau``, at lags
+    ``L >= window`` (s). ``g0 = 2 (r - 1 + e^-r) / r^2`` is the variance of a window
+    average (``r = window / tau``), ``h(L) = e^{(window - L) / tau} (tau / window)^2
+    (1 - e^-r)^2`` the covariance of two averages ``L`` apart (windows that do not
+    overlap)."""
+    r = window / tau
+    g0 = 2.0 * (r - 1.0 + math.exp(-r)) / r**2
+    h = np.exp((window - lags) / tau) * (tau / window) ** 2 * (1.0 - math.exp(-r)) ** 2
+    return g0 - h
+
+
+def _crowded(tracks: pd.DataFrame, radius: float = VARIATION_ALONE) -> np.ndarray:
+    """(n_rows,) bool: whether another track is within ``radius`` (m) of the row's position
+    at its time (the same step of the log's median sampling step), per row of ``tracks``
+    (``id, t, x, y``, any order)."""
+    from scipy.spatial import cKDTree
+
+    ids = tracks["id"].to_numpy()
+    t = tracks["t"].to_numpy(float)
+    xy = tracks[["x", "y"]].to_numpy(float)
+    if len(t) < 2:
+        return np.zeros(len(t), bool)
+    order = np.lexsort((t, ids))
+    same = ids[order][1:] == ids[order][:-1]
+    steps = np.diff(t[order])[same]
+    steps = steps[steps > 0]
+    period = float(np.median(steps)) if steps.size else 1.0
+    # one point per row in (x, y, time bin * far): rows of different bins never meet
+    far = 4.0 * radius + float(np.ptp(xy, axis=0).max())
+    pts = np.column_stack([xy, np.round(t / period) * far])
+    # counts, not pairs (a dense crowd has many): the row itself is one, and a track has
+    # one sample per time bin (two only where it is sampled faster than the median)
+    check_memory(64.0 * len(t), f"the neighbours of {len(t)} track samples")
+    return cKDTree(pts).query_ball_point(pts, radius, return_length=True) > 1
+
+
+def _speed_variation(
+    tracks: list[tuple[np.ndarray, np.ndarray]],
+    speeds: np.ndarray,
+    noise: float,
+    crowded: list[np.ndarray] | None = None,
+) -> dict[str, float]:
+    """The within-person variation of the walking speed: a stationary Ornstein-Uhlenbeck
+    process of the log speed around each person's own (sd and correlation time), pooled
+    over a class's walkers.
+
+    Model: person ``i`` walks at ``v_i(t) = v_i exp(u_i(t))``, ``u_i`` a stationary OU
+    process of sd ``sigma`` and correlation time ``T`` (``cov u(t) u(t + L) = sigma^2
+    e^{-L / T}``), independent across people; ``v_i`` is the preferred speed of the
+    between-person law (:func:`_speed_law`).
+
+    Estimator. Each track is resampled at the class's median sampling step ``dt``; its
+    speed is measured over windows of ``m`` samples (``W = m dt``), as many as
+    :func:`_track_speed` uses to keep the tracker's noise small, as the sum of the two
+    half-window chords over ``W`` (so that a corner costs the window less than its
+    chord; along the walk, the middle sample's noise cancels from the sum). The log of
+    that speed, ``y_j``, is ``log v_i + (average of u over the window) + noise``. Its
+    semivariogram within tracks, ``gamma(L) = E (y_{j+L} - y_j)^2 / 2`` at lags ``L > W``
+    (windows sharing no sample: their noise is independent), needs no person's mean (the
+    between-person speed drops out of the differences) and is, to first order in the
+    noise,
+
+    ``gamma(L) = n0 + sigma^2 (g0(T) - h(L; T))``  (:func:`_ou_window_terms`),
+
+    ``n0 = 2 s^2 / (W v_i)^2`` the noise of a window's log speed (``s`` the tracker's
+    position sd, :func:`~are_stats.fitting.tracker_noise`; the along-walk noise of the
+    two end samples), averaged over the pairs. So the noise is not made small by the
+    windows only: its known moment is subtracted (a moment correction), and the windows
+    keep it from dominating. ``sigma^2`` is then a weighted least-squares line through
+    the pooled semivariogram (weights: the pairs at each lag) for each ``T`` of a grid
+    (``dt / 2`` to 300 s, 1% apart), and ``T`` the one of least residual. Lags run up to
+    :data:`VARIATION_LAG` (s). Windows whose speed is not within a factor
+    :data:`VARIATION_CLIP` of the track's are left out (stops and bursts are not the
+    pace's drift), and so are windows with someone within :data:`VARIATION_ALONE` of the
+    walker at any of their samples (``crowded``): there the speed changes are the
+    interaction's, which generation adds by itself. Turns that remain inside a half
+    window read as a slower window: real logs with many corners overstate ``sigma``
+    somewhat.
+
+    Parameters
+    ----------
+    tracks : list of ((n_k,) float, (n_k, 2) float)
+        Each walking track's sorted times (s) and positions (m).
+    speeds : (n_tracks,) float
+        Each track's walking speed (m/s, :func:`_track_speed`).
+    noise : float
+        Sd (m) of the position noise per coordinate.
+    crowded : list of (n_k,) bool, optional
+        Per track, its samples with somebody else near (:func:`_crowded`); default none.
+
+    Returns
+    -------
+    dict
+        ``speed_within_sd`` (``sigma``, log units; 0 when the variogram shows no
+        variation, NaN when no track is long enough), ``speed_within_time`` (``T``, s; NaN
+        with ``sigma = 0`` or unknown).
+    """
+    nan = {"speed_within_sd": math.nan, "speed_within_time": math.nan}
+    steps = [np.diff(t) for t, _ in tracks]
+    steps = np.concatenate(steps) if steps else np.zeros(0)
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return nan
+    period = float(np.median(steps))
+    m = max(1, math.ceil(NOISE_WINDOW * noise / (SLOW_WALK * period) - 1e-9))
+    half = m // 2
+    window = m * period
+    max_lag = math.ceil(VARIATION_LAG / period)
+    n_samples = sum(
+        int((t[-1] - t[0]) / period) + 1 for t, _ in tracks if t.size
+    )  # resampled, each track once
+    check_memory(8.0 * 4.0 * n_samples, f"the within-person speeds of {len(tracks)} tracks")
+    lags = np.unique(np.geomspace(m + 1, max(m + 1, max_lag), 40).round().astype(np.int64))
+    sq = np.zeros(lags.size)
+    pairs = np.zeros(lags.size)
+    noise_pairs = np.zeros(lags.size)
+    near_of = [None] * len(tracks) if crowded is None else crowded
+    for (t, xy), v, near in zip(tracks, speeds, near_of, strict=True):
+        if not (np.isfinite(v) and v > 0) or t.size < 2:
+            continue
+        tt = t[0] + period * np.arange(int((t[-1] - t[0]) / period + 1e-9) + 1)
+        if tt.size <= m + lags[0]:
+            continue
+        p = np.column_stack([np.interp(tt, t, xy[:, 0]), np.interp(tt, t, xy[:, 1])])
+        if half:
+            chord = np.hypot(*(p[half : -m + half or None] - p[:-m]).T) + np.hypot(
+                *(p[m:] - p[half : -m + half or None]).T
+            )
+        else:
+            chord = np.hypot(*(p[m:] - p[:-m]).T)
+        speed = chord / window
+        # stops and bursts are not the pace's drift: their windows are left out
+        y = np.where(np.abs(np.log(np.maximum(speed, 1e-12) / v)) <= math.log(VARIATION_CLIP),
+                     np.log(np.maximum(speed, 1e-12)), np.nan)  # fmt: skip
+        if near is not None and np.any(near):
+            # a window with somebody near at any of its samples (the log's nearest)
+            busy = np.interp(tt, t, np.asarray(near, float)) > 0
+            c = np.r_[0, np.cumsum(busy)]
+            y[(c[m + 1 :] - c[: -m - 1]) > 0] = np.nan
+        n0 = 2.0 * noise**2 / (window * v) ** 2
+        for k, lag in enumerate(lags):
+            if lag >= y.size:
+                break
+            d = y[lag:] - y[:-lag]
+            d = d[np.isfinite(d)]
+            sq[k] += 0.5 * float(d @ d)
+            pairs[k] += d.size
+            noise_pairs[k] += d.size * n0
+    use = pairs > 0
+    if not use.any():
+        return nan
+    gamma = sq[use] / pairs[use] - noise_pairs[use] / pairs[use]
+    w, lag_s = pairs[use], lags[use] * period
+    best = (math.inf, 0.0, math.nan)
+    for tau in np.geomspace(period / 2.0, 300.0, 1 + math.ceil(math.log(600.0 / period) / 0.01)):
+        k = _ou_window_terms(float(tau), window, lag_s)
+        var = max(0.0, float(np.sum(w * k * gamma) / np.sum(w * k * k)))
+        sse = float(np.sum(w * (gamma - var * k) ** 2))
+        if sse < best[0]:
+            best = (sse, var, float(tau))
+    _, var, tau = best
+    if var <= 0.0:
+        return {"speed_within_sd": 0.0, "speed_within_time": math.nan}
+    return {"speed_within_sd": math.sqrt(var), "speed_within_time": tau}
 
 
 def _line_cells(a: np.ndarray, b: np.ndarray) -> list[tuple[int, int]]:
@@ -800,7 +987,8 @@ def fit_behaviour(
     )
     classes = tuple(sorted(labels.unique()))
     per: dict[str, list[float]] = {k: [] for k in (
-        "dt", "speed_mu", "speed_sigma", "run_fraction", "run_mu", "run_sigma", "beta",
+        "dt", "speed_mu", "speed_sigma", "speed_within_sd", "speed_within_time",
+        "run_fraction", "run_mu", "run_sigma", "beta",
         "beta_se", "slip", "slip_se", "loglik", "n_moves", "n_tracks", "n_fit_tracks",
         "n_epochs", "bandwidth_entry", "bandwidth_exit", "fit_seconds",
     )}  # fmt: skip
@@ -808,17 +996,29 @@ def fit_behaviour(
     warnings: list[str] = []
     # the speeds, measured through the log's tracker noise (one tracker for every class)
     noise = tracker_noise(tracks[["id", "t", "x", "y"]])
+    # where each walker has somebody near (any class): its own pace is read elsewhere
+    near_all = _crowded(tracks[["id", "t", "x", "y"]])
     for ci, name in enumerate(classes):
-        tab = tracks[labels == name]
-        speeds, ent, ext = [], [], []
-        for _, g in tab.groupby("id", sort=True):
+        in_class = (labels == name).to_numpy()
+        tab = tracks[in_class]
+        near_class = near_all[in_class]
+        speeds, ent, ext, seen, near = [], [], [], [], []
+        for _, g in tab.reset_index(drop=True).groupby("id", sort=True):
             g = g.sort_values("t", kind="stable")
             xy = g[["x", "y"]].to_numpy(float)
-            speeds.append(_track_speed(g["t"].to_numpy(float), xy, noise))
+            seen.append((g["t"].to_numpy(float), xy))
+            near.append(near_class[g.index.to_numpy()])
+            speeds.append(_track_speed(seen[-1][0], xy, noise))
             ent.append(xy[0])
             ext.append(xy[-1])
         threshold = run_speed.get(name, 2.5) if isinstance(run_speed, Mapping) else run_speed
-        law = _speed_law(np.asarray(speeds, float), float(threshold), name)
+        sp = np.asarray(speeds, float)
+        law = _speed_law(sp, float(threshold), name)
+        # the within-person variation of the walkers' pace (runners left out)
+        walkers = np.flatnonzero(np.isfinite(sp) & (sp > 0) & (sp <= float(threshold)))
+        law |= _speed_variation(
+            [seen[i] for i in walkers], sp[walkers], noise, [near[i] for i in walkers]
+        )
         # one cell per epoch at the (noise-free) median walking speed
         dt_c = float(dt) if dt is not None else cell / math.exp(law["speed_mu"])
         paths, _ = discretise_tracks(tab, free, cell, origin_a, dt_c)

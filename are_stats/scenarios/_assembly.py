@@ -342,7 +342,8 @@ def scene_tracks(
         tracks, groups = _groups(tracks, art, walks, grid, interaction)
         tracks = _resolve(tracks, art, catalogue, class_labels, n, walks, interaction)
         if interaction is not False:
-            tracks = _interact(tracks, walks, grid, interaction, groups, walk_step)
+            pace = _speed_variation(key, fitted, art, class_labels) if kind == "fitted" else None
+            tracks = _interact(tracks, walks, grid, interaction, groups, walk_step, pace)
     if social and not (walked[1] and walked[0] == walked[1]):
         say(steps, steps, "walked with the social force")
     return tracks
@@ -561,10 +562,11 @@ def _interact(
     interaction: bool | SocialForce,
     groups: pd.Series | None = None,
     progress: Callable[[int, int], None] | None = None,
+    pace: tuple | None = None,
 ) -> pd.DataFrame:
     """The tracks walked again under the social force; non-pedestrians stay kinematic;
     arrival groups (labels by ``(scenario, id)``) walk together; ``progress(done, total)``
-    after each window of its simulation."""
+    after each window of its simulation; ``pace``: :func:`_speed_variation`'s."""
     from are_stats.behaviour import SocialForce, social_force_tracks
 
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
@@ -574,9 +576,49 @@ def _interact(
     if groups is not None:
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         rows = groups.reindex(at).fillna(-1).to_numpy(np.int64)
+    speed_variation = None
+    if pace is not None:
+        key, by_artefact = pace
+        at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
+        per_row = by_artefact.reindex(at)
+        speed_variation = (key, per_row["sd"].to_numpy(float), per_row["time"].to_numpy(float))
     return social_force_tracks(
-        tracks, params, grid, kinematic=kinematic, groups=rows, progress=progress
+        tracks, params, grid, kinematic=kinematic, groups=rows, progress=progress,
+        speed_variation=speed_variation,
+    )  # fmt: skip
+
+
+def _speed_variation(
+    key: int | jax.Array,
+    fitted: BehaviourFit | None,
+    art: pd.DataFrame,
+    labels: Sequence[str] | None,
+) -> tuple | None:
+    """The fitted within-person variation of the walking speed of each artefact (its
+    class's ``speed_within_sd`` and ``speed_within_time``, the class as
+    :func:`~are_stats.behaviour.simulate_behaviour_tracks` takes it), indexed by
+    ``(scenario, id)``, with the key of its processes (``key`` folded with 26, so the
+    planned tracks draw as before); None when the fit has none (an older fit file)."""
+    import jax
+
+    if fitted is None or not (np.nan_to_num(fitted.speed_within_sd) > 0).any() or not len(art):
+        return None
+    names = {c: i for i, c in enumerate(fitted.classes)}
+    if "label" in art.columns:
+        lab = art["label"].astype(str).to_numpy()
+    elif labels is not None and "class" in art.columns:
+        known = list(labels)
+        lab = np.array([known[c] if 0 <= c < len(known) else "" for c in art["class"]])
+    else:
+        lab = np.full(len(art), "")
+    cls = np.array([names.get(str(v), 0) for v in lab], np.int64)
+    ids = art["artefact" if "artefact" in art.columns else "id"].to_numpy()
+    index = pd.MultiIndex.from_arrays([art["scenario"].to_numpy(), ids])
+    table = pd.DataFrame(
+        {"sd": fitted.speed_within_sd[cls], "time": fitted.speed_within_time[cls]}, index=index
     )
+    k = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
+    return jax.random.fold_in(k, 26), table
 
 
 def scenes_from_fit(
