@@ -271,12 +271,10 @@ def scene_tracks(
     Returns
     -------
     pandas.DataFrame or None
-        ``scenario, id, t, x, y, yaw`` (sorted by scenario, artefact and time); None when
-        nothing moves (no behaviours, or no artefact).
+        ``scenario, id, t, x, y, yaw`` (by scenario, artefacts in table order, epochs in
+        time order); None when nothing moves (no behaviours, or no artefact).
     """
     kind = _behaviour_source(behaviours, fitted, source)
-    if kind == "catalogue" and grid is None:
-        raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
     if n is None:
         n = int(artefacts["scenario"].max()) + 1 if len(artefacts) else 1
     standing = scenes_from_tables(artefacts, None, catalogue, class_labels, range(n))
