@@ -143,6 +143,8 @@ def export_mcap(
     for sc in trace.scenes:
         t = float(sc["t"])
         everyone = np.ones(len(sc["ids"]), bool)
+        # the AR-builder's augmented_grid of the live boxes (perceived_grid holds them in
+        # one): the map augment publishes and the planner's map is made of
         aug = perceived_grid(grid, sc["centres"], sc["half"], sc["yaws"], everyone)
         R.add(t, "/augmented_map", MCAP_TOPICS["/augmented_map"], R.occupancy_grid(t, aug))
         R.add(t, "/planner_map", MCAP_TOPICS["/planner_map"], R.occupancy_grid(t, sc["grid"]))

@@ -141,12 +141,24 @@ def learn_interaction(
     note : str or None
         What was not learned and what scenes use instead, for the fit's notes.
     """
+    # the log's groups, converted once for the fit, the evidence and the spacing (what
+    # fit_interaction, interaction_evidence and fit_group_spacing each convert)
+    labels = track_groups(tracks)
+    spacing, samples = group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
+    step = None
     try:
-        params, info = fit_interaction(tracks)
+        step = _on_one_step(tracks, labels)
+        params, info = fit_social_force(step[0], groups=step[1])
+        if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
+            raise ValueError(  # as fit_interaction refuses it
+                f"tracks: the social force does not describe them (relaxation "
+                f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
+            )
     except ValueError as err:  # too little walking together, or no interaction in the data
-        spacing, samples = fit_group_spacing(tracks)
         try:
-            evidence = interaction_evidence(tracks)
+            if step is None:  # too little walking to resample
+                raise ValueError(str(err)) from err
+            evidence = repulsion_evidence(step[0], groups=step[1], level=_LEVEL)
         except ValueError:  # too little walking to test either
             evidence = {"verdict": "too little", "close": 0.0}
         info = {"group_samples": float(samples)} if samples else {}
@@ -177,6 +189,9 @@ def learn_interaction(
             params = params._replace(group_spacing=spacing)
             note += f", with the log's group spacing, {spacing:.2f} m"
         return params, info, note
+    info = {**info, "group_samples": float(samples)}
+    if samples > 0:
+        params = params._replace(group_spacing=spacing)
     return params, info, None
 
 

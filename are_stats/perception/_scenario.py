@@ -18,7 +18,7 @@ import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_finite, describe
-from are_stats.builder import box_centres, box_corners, rasterise_convex
+from are_stats.builder import ARBuilder, box_centres
 from are_stats.environment import OccupancyGrid
 from are_stats.inputs import Described, InputError, Source, check_memory, check_work
 from are_stats.logs import read_raw_table
@@ -107,8 +107,11 @@ def perceived_grid(
 ) -> OccupancyGrid:
     """The augmented occupancy grid with only the perceived artefacts (what the planner sees).
 
-    Footprints are rasterised exactly (cells sharing positive area with the box's
-    footprint) by the AR-builder's :func:`are_stats.builder.rasterise_convex`.
+    The boxes are held by an AR-builder on ``grid`` and the map is its
+    :meth:`~are_stats.builder.ARBuilder.augmented_grid` with ``perceived``: the one
+    producer of the augmented map (the mission's planner map and every ``/augmented_map``
+    published), footprints rasterised exactly (cells sharing positive area with the box's
+    footprint).
 
     Parameters
     ----------
@@ -117,7 +120,7 @@ def perceived_grid(
     centers : (n, 2) or (n, 3) float
         Box centres (x, y[, z]) in the world frame.
     half_extents : (n, 2) or (n, 3) float
-        Half sizes along the box's x and y axes (z ignored).
+        Half sizes (> 0) along the box's x and y axes (z ignored).
     yaws : (n,) float
         Headings (rad).
     perceived : (n,) bool
@@ -128,7 +131,7 @@ def perceived_grid(
     OccupancyGrid
         A copy of ``grid`` with the perceived footprints set to occupied (100).
     """
-    if not hasattr(grid, "world_to_local") or not hasattr(grid, "copy"):
+    if not isinstance(grid, OccupancyGrid):
         raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
     c = check_finite("centers", centers, ndim=2)
     h = check_finite("half_extents", half_extents, ndim=2)
@@ -139,17 +142,16 @@ def perceived_grid(
             f"centers, half_extents, yaws: expected (n, 2|3), (n, 2|3), (n,), got "
             f"{c.shape}, {h.shape}, {y.shape}"
         )
-    if (h < 0).any():
-        raise ValueError(f"half_extents: expected values >= 0, got {describe(h)}")
+    if (h[:, :2] <= 0).any():
+        raise ValueError(f"half_extents: expected values > 0, got {describe(h)}")
     p = np.asarray(perceived)
     if p.dtype != bool or p.shape != (n,):
         raise ValueError(f"perceived: expected a ({n},) bool array, got {describe(perceived)}")
-    out = grid.copy()
-    if p.any():
-        poly = box_corners(c[p, :2], h[p, :2], y[p])
-        _, flat, _ = rasterise_convex(grid.world_to_local(poly), grid.shape)
-        out.data.ravel()[flat] = 100
-    return out
+    builder = ARBuilder(grid)
+    for k in range(n):  # a box (footprint) at its centre: F_A at the centre of its base
+        size = [2.0 * h[k, 0], 2.0 * h[k, 1], 1.0]
+        builder.register(None, [c[k, 0], c[k, 1], y[k]], size=size, artefact_id=k, check=False)
+    return builder.augmented_grid(perceived=p)
 
 
 def _scene_frames(

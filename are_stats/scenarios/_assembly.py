@@ -25,6 +25,11 @@ the group spacing (:func:`~are_stats.behaviour.group_tracks`: the fit's, else th
 published 0.75 m), pedestrians only; the interaction then keeps the formation while they
 walk.
 
+**Behaviour is Scene -> Scene.** The assembly draws the scenarios and builds their standing
+scenes first (:func:`scenes_from_tables`); :func:`move_scenes` then moves them, each step
+(planning, groups, the AR-builder's resolution, the social force) a
+:meth:`~are_stats.scenarios.Scene.with_tracks` (or ``with_track``) of the scenes before it.
+
 **Collisions: one story.** The behaviours plan each artefact alone (routes on free cells).
 Then:
 
@@ -76,6 +81,7 @@ __all__ = [
     "BEHAVIOUR_SOURCES",
     "POSITION_CHOICES",
     "check_tracks_size",
+    "move_scenes",
     "scene_tracks",
     "scenes_from_draws",
     "scenes_from_fit",
@@ -247,9 +253,8 @@ def scene_tracks(
     n: int | None = None,
     progress: _Progress | None = None,
 ) -> pd.DataFrame | None:
-    """The tracks of a scenarios table by the module's one behaviour rule, then the
-    AR-builder's resolution and the interaction (the module's collision story): what
-    moves the artefacts of every assembly.
+    """The tracks of a scenarios table moved by :func:`move_scenes`: its standing scenes
+    (:func:`scenes_from_tables`, scenarios ``0 .. n - 1``) moved, as a table.
 
     Parameters
     ----------
@@ -258,10 +263,81 @@ def scene_tracks(
     artefacts : pandas.DataFrame
         Scenarios table (``scenario`` column).
     grid, catalogue, horizon, behaviours, fitted, class_labels, behaviour_cell,
-    behaviour_dt, source, cell_source, interaction
-        See :func:`scenes_from_draws`.
+    behaviour_dt, source, cell_source, interaction, progress
+        See :func:`scenes_from_draws` and :func:`move_scenes`.
     n : int, optional
         Number of scenarios (default: the table's).
+
+    Returns
+    -------
+    pandas.DataFrame or None
+        ``scenario, id, t, x, y, yaw`` (by scenario, artefacts in table order, epochs in
+        time order); None when nothing moves (no behaviours, or no artefact).
+    """
+    kind = _behaviour_source(behaviours, fitted, source)
+    if n is None:
+        n = int(artefacts["scenario"].max()) + 1 if len(artefacts) else 1
+    standing = scenes_from_tables(artefacts, None, catalogue, class_labels, range(n))
+    moved = move_scenes(
+        key,
+        standing,
+        grid,
+        catalogue,
+        horizon,
+        behaviours=kind,
+        fitted=fitted,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        source=source,
+        cell_source=cell_source,
+        interaction=interaction,
+        progress=progress,
+    )
+    if kind == "none" or not len(artefacts):
+        return None
+    return _tracks_of(moved, _numbers(moved))
+
+
+def move_scenes(
+    key: jax.Array,
+    scenes: Sequence[Scene],
+    grid: OccupancyGrid | None,
+    catalogue: ArtefactCatalogue,
+    horizon: float,
+    *,
+    behaviours: bool | str = True,
+    fitted: BehaviourFit | None = None,
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    source: str = "scenario",
+    cell_source: str = "behaviour_cell",
+    interaction: bool | SocialForce = True,
+    progress: _Progress | None = None,
+) -> list[Scene]:
+    """Standing scenes moved by the module's one behaviour rule, then the AR-builder's
+    resolution and the interaction (the module's collision story): behaviour is
+    Scene -> Scene, each step a ``scene.with_tracks(...)`` of the step before.
+
+    The steps: the tracks planned (the fitted behaviour,
+    :func:`~are_stats.behaviour.simulate_behaviour_tracks`, or the catalogue's,
+    :func:`~are_stats.behaviour.behaviour_tracks`), arrival groups put on their leader's
+    route (:func:`~are_stats.behaviour.group_tracks`), the AR-builder's resolution
+    (:meth:`~are_stats.builder.ARBuilder.resolve_scene`), the social force
+    (:func:`~are_stats.behaviour.social_force_tracks`). The scenes are moved together
+    (one key for all, as the behaviours draw them); artefacts of different scenes never
+    meet.
+
+    Parameters
+    ----------
+    key : jax.Array
+        PRNG key of the tracks.
+    scenes : sequence of Scene
+        The standing scenes (:func:`scenes_from_tables`); a scene's scenario number is its
+        table's ``scenario`` value, else its position in ``scenes``. Their tracks, if any,
+        are replaced.
+    grid, catalogue, horizon, behaviours, fitted, behaviour_cell, behaviour_dt, source,
+    cell_source, interaction
+        See :func:`scenes_from_draws`. Class labels are the scenes' own.
     progress : callable, optional
         ``progress(done, total, what)`` after each step: the tracks planned (the
         catalogue's behaviour one step per scenario, the fitted one per chunk of exits
@@ -273,18 +349,29 @@ def scene_tracks(
 
     Returns
     -------
-    pandas.DataFrame or None
-        ``scenario, id, t, x, y, yaw``; None when nothing moves (no behaviours, or no
-        artefact).
+    list of Scene
+        Scene ``i`` is ``scenes[i]`` with the tracks of its artefacts (the same life-cycle,
+        classes and boxes); without behaviours (``"none"``), the scenes standing.
+
+    Raises
+    ------
+    ValueError
+        For catalogue behaviours without a map, or two scenes of one scenario number.
     """
     from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
 
     kind = _behaviour_source(behaviours, fitted, source)
     if kind == "catalogue" and grid is None:
         raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
-    art = artefacts
-    if n is None:
-        n = int(art["scenario"].max()) + 1 if len(art) else 1
+    scenes = list(scenes)
+    numbers = _numbers(scenes)
+    labels = next((s.class_labels for s in scenes if s.class_labels is not None), None)
+    parts = [
+        s.artefacts if "scenario" in s.artefacts else s.artefacts.assign(scenario=k)
+        for s, k in zip(scenes, numbers, strict=True)
+        if len(s)
+    ]
+    art = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
     say = progress or (lambda done, total, what: None)
     social = int(interaction is not False)  # the social force's steps (1 until it starts)
     planned = [0]  # the planning's steps (per scenario, or per chunk of exits)
@@ -307,24 +394,18 @@ def scene_tracks(
     if kind == "fitted" and len(art):
         tracks = pd.DataFrame(
             simulate_behaviour_tracks(
-                key, fitted, art, class_labels=class_labels, horizon=horizon, progress=plan_step
+                key, fitted, art, class_labels=labels, horizon=horizon, progress=plan_step
             )
         )
     elif kind == "catalogue" and len(art):
         free, _ = coarse_free(grid.free, grid.resolution, behaviour_cell, source=cell_source)
         cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
         check_tracks_size(cut, free.shape, behaviour_dt, f"{source}, {cell_source}")
-        classes = np.concatenate(
-            [s.classes for s in scenes_from_tables(art, None, catalogue, class_labels, range(n))]
-        )
-        order = np.argsort(art["scenario"].to_numpy(), kind="stable")
-        cls_rows = np.empty_like(classes)
-        cls_rows[order] = classes
         tracks = pd.DataFrame(
             behaviour_tracks(
                 key,
                 art,
-                cls_rows,
+                np.concatenate([s.classes for s in scenes]),
                 grid,
                 catalogue,
                 cell=behaviour_cell,
@@ -338,15 +419,18 @@ def scene_tracks(
     if not planned[0]:
         say(1, steps, "tracks planned")
     if tracks is not None and len(tracks):
-        walks = _pedestrians(art, catalogue, class_labels, n)
-        tracks, groups = _groups(tracks, art, walks, grid, interaction)
-        tracks = _resolve(tracks, art, catalogue, class_labels, n, walks, interaction)
+        scenes = _with_tracks(scenes, numbers, tracks)  # planned
+        walks = [_pedestrians(s, catalogue) for s in scenes]
+        scenes, groups = _groups(scenes, numbers, art, walks, grid, interaction)
+        scenes = _resolve(scenes, walks, interaction)
         if interaction is not False:
-            pace = _speed_variation(key, fitted, art, class_labels) if kind == "fitted" else None
-            tracks = _interact(tracks, walks, grid, interaction, groups, walk_step, pace)
+            pace = _speed_variation(key, fitted, art, labels) if kind == "fitted" else None
+            scenes = _interact(scenes, numbers, walks, grid, interaction, groups, walk_step, pace)
+    else:  # nothing moves
+        scenes = [s.with_tracks(None) if s.has_tracks.any() else s for s in scenes]
     if social and not (walked[1] and walked[0] == walked[1]):
         say(steps, steps, "walked with the social force")
-    return tracks
+    return scenes
 
 
 def scenes_from_draws(
@@ -438,83 +522,104 @@ def scenes_from_draws(
     art = generate_scenarios(
         seed, draws, n, horizon, free_mask=grid, area=area, start=start, laws=laws
     )
+    standing = scenes_from_tables(art, None, catalogue, class_labels, range(n))
     say = progress or (lambda done, total, what: None)
     if kind == "none":
         say(1, 1, "scenarios drawn")
-        return scenes_from_tables(art, None, catalogue, class_labels, range(n))
+        return standing
     moves = 1 if interaction is False else 2
     say(1, 1 + moves, "scenarios drawn")
     if k_tracks is None:
         k_tracks = jax.random.key(seed)
-    tracks = scene_tracks(
+    return move_scenes(
         k_tracks,
-        art,
+        standing,
         grid,
         catalogue,
         horizon,
         behaviours=kind,
         fitted=fitted,
-        class_labels=class_labels,
         behaviour_cell=behaviour_cell,
         behaviour_dt=behaviour_dt,
         source=source,
         cell_source=cell_source,
         interaction=interaction,
-        n=n,
         progress=lambda done, total, what: say(1 + done, 1 + total, what),
     )
-    return scenes_from_tables(art, tracks, catalogue, class_labels, range(n))
 
 
-def _pedestrians(
-    art: pd.DataFrame, catalogue: ArtefactCatalogue, labels: Sequence[str] | None, n: int
-) -> dict:
-    """``(scenario, id) -> bool``: whether the artefact's class walks (its catalogue
-    ``kind`` is ``pedestrian``, the default)."""
-    walks = {}
-    for k, scene in enumerate(scenes_from_tables(art, None, catalogue, labels, range(n))):
-        for a, c in zip(scene.ids, scene.classes, strict=True):
-            kind = catalogue.row(int(c)).features.get("kind", "pedestrian")
-            walks[(k, int(a))] = kind == "pedestrian"
-    return walks
+def _numbers(scenes: Sequence[Scene]) -> list[int]:
+    """The scenario number of each scene: its table's ``scenario`` value, else its
+    position in ``scenes``."""
+    out = []
+    for k, s in enumerate(scenes):
+        if not isinstance(s, Scene) or s.artefacts is None:
+            raise ValueError(
+                f"scenes: expected scenes of a scenarios table (Scene.from_scenarios), got "
+                f"{type(s).__name__} at position {k}"
+            )
+        table = s.artefacts
+        out.append(int(table["scenario"].iloc[0]) if "scenario" in table and len(table) else k)
+    if len(set(out)) != len(out):
+        raise ValueError(f"scenes: expected one scene per scenario number, got {out}")
+    return out
+
+
+def _tracks_of(scenes: Sequence[Scene], numbers: Sequence[int]) -> pd.DataFrame:
+    """``scenario, id, t, x, y, yaw``: the scenes' tracks, scene after scene (artefacts in
+    table order, epochs in time order)."""
+    parts = [s.tracks_table().assign(scenario=k) for s, k in zip(scenes, numbers, strict=True)]
+    return pd.concat(parts, ignore_index=True)[["scenario", "id", "t", "x", "y", "yaw"]]
+
+
+def _with_tracks(
+    scenes: Sequence[Scene], numbers: Sequence[int], tracks: pd.DataFrame
+) -> list[Scene]:
+    """Each scene with the rows of ``tracks`` of its scenario number as its tracks."""
+    by = dict(tuple(tracks.groupby("scenario", sort=True))) if len(tracks) else {}
+    return [s.with_tracks(by.get(k)) for s, k in zip(scenes, numbers, strict=True)]
+
+
+def _pedestrians(scene: Scene, catalogue: ArtefactCatalogue) -> np.ndarray:
+    """(N,) bool: whether each artefact's class walks (its catalogue ``kind`` is
+    ``pedestrian``, the default)."""
+    kinds = [catalogue.row(int(c)).features.get("kind", "pedestrian") for c in scene.classes]
+    return np.array([k == "pedestrian" for k in kinds], bool)
 
 
 def _groups(
-    tracks: pd.DataFrame,
+    scenes: list[Scene],
+    numbers: Sequence[int],
     art: pd.DataFrame,
-    walks: dict,
+    walks: list[np.ndarray],
     grid: OccupancyGrid,
     interaction: bool | SocialForce,
-) -> tuple[pd.DataFrame, pd.Series | None]:
-    """Planned tracks with the members of each arrival group on their leader's route
+) -> tuple[list[Scene], pd.Series | None]:
+    """The scenes with the members of each arrival group on their leader's route
     (:func:`~are_stats.behaviour.group_tracks`; pedestrians only) and each artefact's
-    group label, indexed by ``(scenario, id)`` (None without a ``group`` column)."""
+    group label, indexed by ``(scenario, id)`` (None without a ``group`` column);
+    ``art`` is the scenes' tables, scene after scene."""
     from are_stats.behaviour import SocialForce, group_tracks
 
     if "group" not in art.columns:
-        return tracks, None
+        return scenes, None
     spacing = (interaction if isinstance(interaction, SocialForce) else SocialForce()).group_spacing
     id_col = "artefact" if "artefact" in art.columns else "id"
     if id_col not in art.columns:
-        return tracks, None
+        return scenes, None
     ids = art[id_col].to_numpy()
     sc = art["scenario"].to_numpy()
-    walking = np.array([walks.get((int(s), int(a)), False) for s, a in zip(sc, ids, strict=True)])
+    walking = np.concatenate(walks)
     group = np.where(walking, art["group"].to_numpy(np.int64), -1)
-    tracks = group_tracks(tracks, art.assign(group=group), spacing, grid)
-    return tracks, pd.Series(group, index=pd.MultiIndex.from_arrays([sc, ids]))
+    tracks = group_tracks(_tracks_of(scenes, numbers), art.assign(group=group), spacing, grid)
+    groups = pd.Series(group, index=pd.MultiIndex.from_arrays([sc, ids]))
+    return _with_tracks(scenes, numbers, tracks), groups
 
 
 def _resolve(
-    tracks: pd.DataFrame,
-    art: pd.DataFrame,
-    catalogue: ArtefactCatalogue,
-    labels: Sequence[str] | None,
-    n: int,
-    walks: dict,
-    interaction: bool | SocialForce,
-) -> pd.DataFrame:
-    """The planned tracks with the moves left to the AR-builder resolved by its rule
+    scenes: list[Scene], walks: list[np.ndarray], interaction: bool | SocialForce
+) -> list[Scene]:
+    """The scenes with the moves left to the AR-builder resolved by its rule
     (DECISIONS 9, :meth:`~are_stats.builder.ARBuilder.resolve_scene`): with the
     interaction on, the movers without a social force of their own (vehicles, carts)
     against each other and against everything standing (walking people give way to them
@@ -522,56 +627,50 @@ def _resolve(
     route planner's (routes keep to free cells), so the builder's map is open ground."""
     from are_stats.builder import ARBuilder
 
-    xy = tracks[["x", "y"]].to_numpy(float)
+    xy = np.concatenate([s.tracks_table()[["x", "y"]].to_numpy(float) for s in scenes])
     lo = xy.min(axis=0) - 10.0
     shape = np.ceil((xy.max(axis=0) + 10.0 - lo) / 0.5).astype(int) + 1
     ground = OccupancyGrid(np.zeros((shape[1], shape[0]), np.int8), 0.5, (lo[0], lo[1], 0.0))
     builder = ARBuilder(ground)
-    new, gone = [], []
-    for k, scene in enumerate(scenes_from_tables(art, tracks, catalogue, labels, range(n))):
-        walking = np.array([walks.get((k, int(a)), False) for a in scene.ids], bool)
+    out = []
+    for scene, walking in zip(scenes, walks, strict=True):
         moving = np.array(
             [np.ptp(scene.track(i)[1][:, :2], axis=0).max(initial=0.0) > 1e-9
              if scene.has_tracks[i] else False for i in range(len(scene))], bool,
         )  # fmt: skip
         movers = moving & ~walking if interaction is not False else moving
-        if not movers.any():
-            continue
-        out = builder.resolve_scene(scene, movers, others=~(moving & ~movers))
-        for i in np.flatnonzero(movers):
-            t, pose = out.track(int(i))
-            if t.shape == scene.track(int(i))[0].shape and (t == scene.track(int(i))[0]).all():
-                continue  # it never had to wait
-            gone.append((k, int(scene.ids[i])))
-            new.append(
-                pd.DataFrame({"scenario": k, "id": scene.ids[i], "t": t, "x": pose[:, 0],
-                              "y": pose[:, 1], "yaw": pose[:, 2]})
-            )  # fmt: skip
-    if not new:
-        return tracks
-    rows = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
-    kept = tracks[~rows.isin(gone)]
-    out = pd.concat([kept, *new], ignore_index=True)
-    return out.sort_values(["scenario", "id", "t"], kind="stable").reset_index(drop=True)
+        if movers.any():
+            resolved = builder.resolve_scene(scene, movers, others=~(moving & ~movers))
+            for i in np.flatnonzero(movers):
+                t, pose = resolved.track(int(i))
+                planned = scene.track(int(i))[0]
+                if t.shape != planned.shape or (t != planned).any():  # it had to wait
+                    scene = scene.with_track(int(i), t, pose)
+        out.append(scene)
+    return out
 
 
 def _interact(
-    tracks: pd.DataFrame,
-    walks: dict,
+    scenes: list[Scene],
+    numbers: Sequence[int],
+    walks: list[np.ndarray],
     grid: OccupancyGrid,
     interaction: bool | SocialForce,
     groups: pd.Series | None = None,
     progress: Callable[[int, int], None] | None = None,
     pace: tuple | None = None,
-) -> pd.DataFrame:
-    """The tracks walked again under the social force; non-pedestrians stay kinematic;
+) -> list[Scene]:
+    """The scenes walked again under the social force; non-pedestrians stay kinematic;
     arrival groups (labels by ``(scenario, id)``) walk together; ``progress(done, total)``
     after each window of its simulation; ``pace``: :func:`_speed_variation`'s."""
     from are_stats.behaviour import SocialForce, social_force_tracks
 
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
-    keys = zip(tracks["scenario"].to_numpy(), tracks["id"].to_numpy(), strict=True)
-    kinematic = np.array([not walks.get((int(s), int(a)), False) for s, a in keys])
+    tracks = _tracks_of(scenes, numbers)
+    kinematic = np.concatenate(
+        [~w[pd.Index(s.ids).get_indexer(s.tracks_table()["id"])]
+         for s, w in zip(scenes, walks, strict=True)]
+    )  # fmt: skip
     rows = None
     if groups is not None:
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
@@ -582,10 +681,11 @@ def _interact(
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         per_row = by_artefact.reindex(at)
         speed_variation = (key, per_row["sd"].to_numpy(float), per_row["time"].to_numpy(float))
-    return social_force_tracks(
+    walked = social_force_tracks(
         tracks, params, grid, kinematic=kinematic, groups=rows, progress=progress,
         speed_variation=speed_variation,
     )  # fmt: skip
+    return _with_tracks(scenes, numbers, walked)
 
 
 def _speed_variation(

@@ -79,7 +79,9 @@ def test_registration_projects_the_exact_footprint():
 
 def test_augmented_grid_with_the_perceived_artefacts_only():
     """The planner's map (augmented_grid(perceived=...)) holds exactly the perceived boxes'
-    cells, the cells the perception module rasterises for the same boxes (one geometry)."""
+    cells: those whose area the boxes' footprint polygons share (rasterise_convex), and
+    the perception module's grid of the same boxes is this map (one producer)."""
+    from are_stats.builder import box_corners, rasterise_convex
     from are_stats.perception import perceived_grid
 
     g = _walled_grid(origin=(0.5, 0.3, 0.2), pillars=False)
@@ -90,9 +92,12 @@ def test_augmented_grid_with_the_perceived_artefacts_only():
         b.register(None, [*pose, float(rng.uniform(-3, 3))], size=[0.9, 0.4, 1.0])
     seen = np.array([True, False, True, True, False, False])
     c, h, y = b.boxes()
-    want = perceived_grid(g, c, h, y, seen)
+    want = g.copy()
+    poly = box_corners(c[seen, :2], h[seen, :2], y[seen])
+    want.data.ravel()[rasterise_convex(g.world_to_local(poly), g.shape)[1]] = 100
     got = b.augmented_grid(perceived=seen)
     np.testing.assert_array_equal(got.data, want.data)
+    np.testing.assert_array_equal(perceived_grid(g, c, h, y, seen).data, got.data)
     assert (got.data == 100).sum() < (b.augmented_grid().data == 100).sum()
     np.testing.assert_array_equal(
         b.augmented_grid(perceived=np.ones(6, bool)).data, b.augmented_grid().data

@@ -244,3 +244,43 @@ def test_the_evidence_is_the_least_squares_with_the_strength_held():
     assert rows.sum() // 2 == ev["close"]
     assert ev["rss_none"] == pytest.approx(rss(0.0), rel=1e-6)
     assert ev["rss_published"] == pytest.approx(rss(base.strength), rel=1e-6)
+
+
+def test_learn_interaction_converts_the_groups_once_and_answers_as_its_parts(monkeypatch):
+    """learn_interaction converts the log's groups once (track_groups), and its answer is
+    the one its public parts give: fit_interaction's when it fits, otherwise
+    interaction_evidence's verdict with fit_group_spacing's spacing (issue 25)."""
+    from are_stats.fitting import _interaction, fit_group_spacing
+
+    def parts(log):  # the answer, from the public functions
+        try:
+            params, info = fit_interaction(log)
+            return params, info
+        except ValueError:
+            spacing, samples = fit_group_spacing(log)
+            try:
+                verdict = interaction_evidence(log)["verdict"]
+            except ValueError:
+                verdict = "too little"
+            return verdict, spacing, samples
+
+    pairs = _straight_pairs(0.5)
+    logs = [pairs, pairs[pairs["id"] % 2 == 0], _noisy(_crowd(7, 12), 0.01, seed=1)]
+    calls = []
+    real = _interaction.track_groups
+    monkeypatch.setattr(_interaction, "track_groups", lambda t: calls.append(1) or real(t))
+    for log in logs:
+        want = parts(log)
+        calls.clear()
+        params, info, note = learn_interaction(log)
+        assert len(calls) == 1
+        if note is None:
+            assert (params, info) == want
+            continue
+        verdict, spacing, samples = want
+        if params is None:
+            assert verdict != "none" and samples == 0
+            continue
+        assert params.strength == (0.0 if verdict == "none" else SocialForce().strength)
+        assert info == ({"group_samples": float(samples)} if samples else {})
+        assert params.group_spacing == (spacing if samples else SocialForce().group_spacing)

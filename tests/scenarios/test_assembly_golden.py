@@ -1,0 +1,172 @@
+"""The moving scenes of the one assembly, held to the bit (issue 25).
+
+The assembly moves its standing scenes through the behaviour as Scene -> Scene steps;
+these digests were taken from the table -> table assembly before that change (commit
+07438ab, same seeds): the scenes' life-cycle and every track pose must stay identical
+for the catalogue behaviour (with the AR-builder's resolution, with and without the
+social force), arrival groups, the fitted behaviour, one scenario of a folder moved
+alone (the sweep), and ``are-stats generate --behaviours``'s folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from are_stats._lazy import arviz as az
+from are_stats.behaviour import BehaviourFit
+from are_stats.cli import app
+from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
+from are_stats.scenarios import (
+    read_scenes,
+    scene_tracks,
+    scenes_from_draws,
+    scenes_from_fit,
+    scenes_tables,
+)
+from are_stats.traffic import TrafficLaws
+
+HORIZON = 120.0
+
+#: sha256 of the scenarios and tracks tables (columns, dtypes, values), computed from
+#: the assembly before the Scene -> Scene change.
+WANT = {
+    "catalogue": "ddf5271219ee4af195da0d0e4a3db23e066c9016f2e72494437afa1e4e939d10",
+    "catalogue, no interaction": "8416bbc7aaac2ba6f3a737f0a73f2235b861344d2efb36c205ed9452dee3ad75",
+    "groups": "b4b32fdb6b37c9e6485a6958df2b720386677c4e68311339d6d93b64855d641c",
+    "fitted": "76b814f11b6abcd5ad327ebcd937c8fe9b98b3efd495c0eca5f39ee12626c583",
+    "folder scenario": "9197338fded5486cc40a5eaa01fc9e2313f50d35b2228f5dcf58cda7c35500d9",
+    "generate": "dcad3e1fe2e9659345f14e068ef34b0f03b755bc38ade4e9a06b2b188f2c90f9",
+}
+
+
+@pytest.fixture(scope="module")
+def grid() -> OccupancyGrid:
+    return OccupancyGrid.from_ros_yaml(shipped_path("courtyard", "map"))
+
+
+@pytest.fixture(scope="module")
+def catalogue():
+    return load_catalogue()
+
+
+def _digest(*tables: pd.DataFrame | None) -> str:
+    h = hashlib.sha256()
+    for df in tables:
+        if df is None:
+            h.update(b"none")
+            continue
+        h.update(repr([(c, str(df[c].dtype)) for c in df.columns]).encode())
+        h.update(pd.util.hash_pandas_object(df, index=False).to_numpy().tobytes())
+    return h.hexdigest()
+
+
+def _idata() -> object:
+    """A small paper-model fit: 2 chains of 3 posterior draws, five classes (eq. 1)."""
+    rng = np.random.default_rng(3)
+    shape = (2, 3)
+    idata = az.from_dict(
+        posterior={
+            "arrival_rate": rng.uniform(2e-4, 4e-4, shape),
+            "leave_rate": rng.uniform(1 / 200, 1 / 100, shape),
+            "mix_weights": rng.dirichlet(np.ones(5), size=shape),
+            "mix_rates": np.broadcast_to([15.0, 7, 3, 21, 5], (*shape, 5)).copy(),
+        },
+        dims={"mix_weights": ["component"], "mix_rates": ["component"]},
+    )
+    idata.posterior.attrs.update({"area": 800.0, "window": [0.0, 3600.0]})
+    return idata
+
+
+def _room_fit() -> tuple[BehaviourFit, OccupancyGrid]:
+    """A hand-made behaviour on a 12 x 24 m room (cell 1 m): people cross west to east."""
+    occ = np.zeros((12, 24), bool)
+    occ[[0, -1], :] = occ[:, [0, -1]] = True
+    rows = np.arange(2, 10)
+    one = np.ones(1)
+    fit = BehaviourFit(
+        classes=("person",), cell=1.0, origin=np.zeros(2), free=~occ, dt=one / 1.2,
+        speed_mu=np.log(1.2) * one, speed_sigma=0.12 * one, run_fraction=0 * one,
+        run_mu=np.nan * one, run_sigma=np.nan * one, beta=4.0 * one, beta_se=0 * one,
+        slip=0.1 * one, slip_se=0 * one, loglik=0 * one, n_moves=one.astype(int),
+        n_tracks=one.astype(int) * rows.size, n_fit_tracks=one.astype(int),
+        n_epochs=200 * one.astype(int), bandwidth_entry=0.3 * one, bandwidth_exit=0.1 * one,
+        fit_seconds=0 * one, track_class=np.zeros(rows.size, int),
+        entry_xy=np.column_stack([np.full(rows.size, 1.5), rows + 0.5]),
+        exit_xy=np.column_stack([np.full(rows.size, 22.5), (11 - rows) + 0.5]),
+    )  # fmt: skip
+    return fit, OccupancyGrid(np.where(occ, 100, 0).astype(np.int8), 1.0)
+
+
+def _scenes_digest(scenes) -> str:
+    return _digest(*scenes_tables(scenes))
+
+
+@pytest.mark.parametrize("interaction", [True, False], ids=["catalogue", "no interaction"])
+def test_catalogue_scenes_are_unchanged(grid, catalogue, interaction):
+    scenes = scenes_from_fit(
+        11, _idata(), grid, catalogue, 2, HORIZON, behaviours=True, interaction=interaction
+    )
+    assert any(s.has_tracks.any() for s in scenes)
+    name = "catalogue" if interaction else "catalogue, no interaction"
+    assert _scenes_digest(scenes) == WANT[name]
+
+
+def test_group_scenes_are_unchanged(grid, catalogue):
+    draws = {
+        "arrival_rate": np.array([3e-4]), "leave_rate": np.array([1 / 60]),
+        "event_rate": np.array([1e-4]), "stay_mean": np.array([60.0]),
+        "group_size_probs": np.array([[0.0, 0.0, 1.0]]),
+        "mix_weights": np.array([[1.0, 0, 0, 0, 0]]),
+        "mix_rates": np.array([[15.0, 7, 3, 21, 5]]),
+    }  # fmt: skip
+    laws = TrafficLaws(arrivals="groups")
+    scenes = scenes_from_draws(3, draws, grid, catalogue, 1, HORIZON, laws=laws, behaviours=True)
+    assert scenes[0].has_tracks.any()
+    assert _scenes_digest(scenes) == WANT["groups"]
+
+
+def test_fitted_scenes_are_unchanged(catalogue):
+    fit, room = _room_fit()
+    draws = {
+        "arrival_rate": np.array([0.05]), "leave_rate": np.array([1 / 20]),
+        "mix_weights": np.array([[1.0]]), "mix_rates": np.array([[1.0]]),
+    }  # fmt: skip
+    scenes = scenes_from_draws(
+        jax.random.key(4), draws, room, catalogue, 2, 60.0, behaviours="fitted", fitted=fit,
+        class_labels=["person"],
+    )  # fmt: skip
+    assert any(s.has_tracks.any() for s in scenes)
+    assert _scenes_digest(scenes) == WANT["fitted"]
+
+
+def test_one_folder_scenario_moved_alone_is_unchanged(grid, catalogue):
+    """The sweep moves scenario ``draw`` of a folder without tracks on its own."""
+    (standing,) = scenes_from_fit(5, _idata(), grid, catalogue, 2, HORIZON)[1:]
+    art = standing.artefacts.reset_index(drop=True)
+    tracks = scene_tracks(
+        jax.random.key(5), art, grid, catalogue, HORIZON, behaviours="catalogue", n=2
+    )
+    assert tracks is not None and len(tracks)
+    assert _digest(tracks) == WANT["folder scenario"]
+
+
+def test_generate_folder_is_unchanged(tmp_path):
+    from tests.test_cli_jobs import _quick_em_fit, _write_log
+
+    log, _ = _write_log(tmp_path, labels=True)
+    fit = tmp_path / "f.nc"
+    _quick_em_fit(log, fit, samples=20)
+    out = tmp_path / "scen"
+    args = ["generate", fit, "--scenarios", "2", "--horizon", "90", "--seed", "2", "--out", out,
+            "--map", "courtyard", "--behaviours"]  # fmt: skip
+    res = CliRunner().invoke(app, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    art, _, tracks = read_scenes(out)
+    assert tracks is not None and len(tracks)
+    assert _digest(art, tracks) == WANT["generate"]
