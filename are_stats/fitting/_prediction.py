@@ -334,7 +334,9 @@ def _model_predictions(
     cand = _draw_goals(rng, fit, observed, cls, rate, k_all, chunk)  # (B, K', 2)
     ends = fit.cell_to_world(cand.reshape(-1, 2)).reshape(b, k_all, 2)
     ends += (rng.random((b, k_all, 2)) - 0.5) * fit.cell
-    out, first = _rollouts(rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends)
+    out, first, timed = _rollouts(
+        rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends
+    )
     if k_all == k:
         return out
     heading, sd = _observed_heading(observed)
@@ -352,7 +354,20 @@ def _model_predictions(
             lw = np.zeros(k_all)
         w = np.exp(lw - lw.max())
         pick[i] = rng.choice(k_all, k, p=w / w.sum())
-    return out[np.arange(b)[:, None], pick]
+    out = out[np.arange(b)[:, None], pick]
+    # the speed is independent of the goal and the route given the window, and the weights
+    # do not depend on it: each resampled route is walked at a fresh draw of the speed's
+    # posterior (a route drawn twice is not walked twice at one speed)
+    fresh = _draw_window_speeds(rng, fit, observed, cls, rate, noise, k)
+    ts = np.arange(1, n_pred + 1) / rate
+    for i in range(b):
+        for j, c in enumerate(pick[i]):
+            if timed[i, c] is not None:
+                tv, pv = timed[i, c]
+                tv = tv * (speeds[i, c] / fresh[i, j])  # walked at constant speed
+                out[i, j, :, 0] = np.interp(ts, tv, pv[:, 0])
+                out[i, j, :, 1] = np.interp(ts, tv, pv[:, 1])
+    return out
 
 
 def _draw_goals(
@@ -388,12 +403,14 @@ def _rollouts(
     smooth: int,
     chunk: int = 16,
     ends: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Continuations ``(B, K, n_pred, 2)`` to the goal cells ``goals_of (B, K, 2)``: the
     soft policy walked from the last observed cell with the observed heading, the
     continuous path at the speeds ``speeds (B, K)`` (m/s), ending at ``ends (B, K, 2)``
-    (world; default the goal cell's centre) where the route reaches its goal; and the
-    direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands)."""
+    (world; default the goal cell's centre) where the route reaches its goal; the
+    direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands); and
+    each one's timed path ``(B, K)`` object (vertex times and positions, None for one
+    that stands)."""
     from are_stats.behaviour import continuous_paths, sample_soft_paths
 
     b, n_obs, _ = observed.shape
@@ -406,6 +423,7 @@ def _rollouts(
     exits = goals_of.reshape(-1, 2)
     out = np.repeat(last[:, None, None, :], n_samples, axis=1).repeat(n_pred, axis=2)
     first = np.full((b, n_samples), np.nan)
+    timed = np.full((b, n_samples), None, dtype=object)
     ts = np.arange(1, n_pred + 1) / rate
     occ = ~fit.free
     moving = (exits[:, 0] >= 0) & ~(exits == cur[rep]).all(axis=1)
@@ -443,13 +461,14 @@ def _rollouts(
             )
             for j, (tv, pv) in enumerate(walked):
                 i, k = i_of[j], k_of[j]
+                timed[i, k] = (tv, pv)
                 out[i, k, :, 0] = np.interp(ts, tv, pv[:, 0])
                 out[i, k, :, 1] = np.interp(ts, tv, pv[:, 1])
                 away = np.flatnonzero(np.hypot(*(pv - pv[0]).T) > 1e-9)
                 if away.size:
                     dx, dy = pv[away[0]] - pv[0]
                     first[i, k] = np.arctan2(dy, dx)
-    return out, first
+    return out, first, timed
 
 
 #: Relative speed (m/s) below which a neighbour seen close by throughout the observed

@@ -209,7 +209,7 @@ def test_continuations_pass_an_obstacle_on_the_side_the_person_heads_for(pillar)
     side: the routes themselves are resampled by the likelihood of the observed heading,
     not only their goals. The fitted policy sends people either way round it; when the
     heading weighed a probe route per goal and a fresh route was then drawn to the chosen
-    goal, 24 of 1,100 continuations (55 windows) went round the other side."""
+    goal, 25 of 1,100 continuations (55 windows) went round the other side."""
     obs, truth, samples = pillar
     assert len(obs) > 40
     assert (_side(samples) == _side(truth)[:, None]).all()
