@@ -6,12 +6,12 @@ are cut into windows of ``n_obs + n_pred`` (8 + 12) samples. From the ``n_obs`` 
 positions, a **constant-velocity** prediction (the mean velocity of the observed window)
 and the fitted model's prediction are scored by the same code: ADE (mean distance over the
 predicted steps) and FDE (distance at the last one). The model draws ``n_samples``
-continuations: a goal from the posterior over the class's observed exit cells given the
-window (their frequencies times the soft policy's likelihood of the window's observed
-moves, discretised as in the fit, times the likelihood of the window's continuous
-heading given the direction in which the path to the goal leaves: Bayesian goal
-inference, the last factor by importance resampling), then the soft policy walked from
-the last observed cell with the observed heading over the whole route to the goal at a
+continuations: a goal and a route to it from the posterior given the window (the
+goals' prior, the class's observed exit frequencies, times the soft policy's likelihood
+of the window's observed moves, discretised as in the fit; the route the soft policy
+walked from the last observed cell with the observed heading over the whole way to the
+goal; times the likelihood of the window's continuous heading given the direction in
+which that route's path leaves, by importance resampling of whole continuations), at a
 preferred speed drawn from the person's posterior given the window (the class's fitted
 between-person law as the prior, the window's least-squares speed as a conjugate
 lognormal likelihood: :func:`_speed_posterior`), timed as in the generator: the
@@ -311,62 +311,62 @@ def _model_predictions(
 ) -> np.ndarray:
     """``(B, K, n_pred, 2)`` continuations sampled from the soft policy given the window.
 
-    The goal of each continuation is drawn from the posterior given the whole window:
-    ``oversample * K`` goals are drawn given the window's moves on the grid (an exit cell
-    from :func:`_goal_posterior`, the person's point uniform within it), each is weighted
+    Each continuation, its goal and its route, is drawn from the posterior given the whole
+    window by importance resampling: ``oversample * K`` candidates are drawn given the
+    window's moves on the grid (a goal, an exit cell from :func:`_goal_posterior` with the
+    person's point uniform within it; a route to it, the soft policy walked from the last
+    observed cell, :func:`_rollouts`; a speed from the person's posterior given the
+    window's steps, :func:`_speed_posterior`, tracker noise ``noise`` m), each is weighted
     by the likelihood of the window's continuous heading (normal with the sd of
-    :func:`_observed_heading`) given the direction in which its path leaves: straight at
-    the point where the goal is in sight of a probe rollout to its cell, else at that
-    rollout's first corner (uniform for a goal where the person stands), and ``K`` goals
-    are resampled by those weights (importance resampling); each then gets its own
-    rollout, to the goal's point. The rollouts are thus conditioned on where the person
-    was seen walking, not only on the cells it crossed. Each rollout walks at a speed
-    drawn from the person's posterior given the window's steps (:func:`_speed_posterior`,
-    tracker noise ``noise`` m)."""
+    :func:`_observed_heading`) given the direction in which its own path leaves (uniform
+    for a candidate that stands), and ``K`` are resampled by those weights. The weight is
+    that of the route itself, not of the goal alone: where the policy goes either way
+    round an obstacle, a person seen heading for one side goes on round that side (a
+    route drawn afresh to the chosen goal would not know the heading). The continuations
+    are thus conditioned on where the person was seen walking, not only on the cells it
+    crossed."""
     b = observed.shape[0]
     names = {c: i for i, c in enumerate(fit.classes)}
     cls = np.array([names.get(str(v), 0) for v in labels], np.int64)
-    k_all = int(n_samples) * max(int(oversample), 1)
-    speeds = _draw_window_speeds(rng, fit, observed, cls, rate, noise, int(n_samples))
+    k = int(n_samples)
+    k_all = k * max(int(oversample), 1)
+    speeds = _draw_window_speeds(rng, fit, observed, cls, rate, noise, k_all)
     cand = _draw_goals(rng, fit, observed, cls, rate, k_all, chunk)  # (B, K', 2)
     ends = fit.cell_to_world(cand.reshape(-1, 2)).reshape(b, k_all, 2)
     ends += (rng.random((b, k_all, 2)) - 0.5) * fit.cell
-    if k_all > n_samples:
-        last = observed[:, -1]
-        heading, sd = _observed_heading(observed)
-        # one probe rollout per distinct goal cell of a window
-        uniq = [np.unique(cand[i], axis=0, return_inverse=True) for i in range(b)]
-        width = max(len(u[0]) for u in uniq)
-        probes = np.repeat(fit.world_to_cell(last)[:, None], width, axis=1)
-        for i, (g, _) in enumerate(uniq):
-            probes[i, : len(g)] = g
-        # the probes tell where a path leaves, whatever its speed
-        probe_speed = np.repeat(speeds[:, :1], width, axis=1)
-        _, first, sight = _rollouts(
-            rng, fit, observed, cls, probes, probe_speed, n_pred, rate, smooth, chunk
-        )
-        chosen = np.empty((b, int(n_samples), 2), np.int64)
-        chosen_end = np.empty((b, int(n_samples), 2))
-        for i, (_, inv) in enumerate(uniq):
-            inv = inv.ravel()
-            d = ends[i] - last[i]
-            direct = np.arctan2(d[:, 1], d[:, 0])
-            ang = np.where(sight[i, inv], direct, first[i, inv])  # (K',)
-            moving = np.isfinite(ang)
-            diff = np.angle(np.exp(1j * (np.where(moving, ang, 0.0) - heading[i])))
-            if np.isfinite(sd[i]):
-                lw = np.where(
-                    moving,
-                    -0.5 * (diff / sd[i]) ** 2 - np.log(np.sqrt(2 * np.pi) * sd[i]),
-                    -np.log(2 * np.pi),
-                )
-            else:  # a still window: its heading tells nothing
-                lw = np.zeros(k_all)
-            w = np.exp(lw - lw.max())
-            pick = rng.choice(k_all, int(n_samples), p=w / w.sum())
-            chosen[i], chosen_end[i] = cand[i, pick], ends[i, pick]
-        cand, ends = chosen, chosen_end
-    out, _, _ = _rollouts(rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends)
+    out, first, timed = _rollouts(
+        rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends
+    )
+    if k_all == k:
+        return out
+    heading, sd = _observed_heading(observed)
+    pick = np.empty((b, k), np.int64)
+    for i in range(b):
+        moving = np.isfinite(first[i])
+        diff = np.angle(np.exp(1j * (np.where(moving, first[i], 0.0) - heading[i])))
+        if np.isfinite(sd[i]):
+            lw = np.where(
+                moving,
+                -0.5 * (diff / sd[i]) ** 2 - np.log(np.sqrt(2 * np.pi) * sd[i]),
+                -np.log(2 * np.pi),
+            )
+        else:  # a still window: its heading tells nothing
+            lw = np.zeros(k_all)
+        w = np.exp(lw - lw.max())
+        pick[i] = rng.choice(k_all, k, p=w / w.sum())
+    out = out[np.arange(b)[:, None], pick]
+    # the speed is independent of the goal and the route given the window, and the weights
+    # do not depend on it: each resampled route is walked at a fresh draw of the speed's
+    # posterior (a route drawn twice is not walked twice at one speed)
+    fresh = _draw_window_speeds(rng, fit, observed, cls, rate, noise, k)
+    ts = np.arange(1, n_pred + 1) / rate
+    for i in range(b):
+        for j, c in enumerate(pick[i]):
+            if timed[i, c] is not None:
+                tv, pv = timed[i, c]
+                tv = tv * (speeds[i, c] / fresh[i, j])  # walked at constant speed
+                out[i, j, :, 0] = np.interp(ts, tv, pv[:, 0])
+                out[i, j, :, 1] = np.interp(ts, tv, pv[:, 1])
     return out
 
 
@@ -408,8 +408,9 @@ def _rollouts(
     soft policy walked from the last observed cell with the observed heading, the
     continuous path at the speeds ``speeds (B, K)`` (m/s), ending at ``ends (B, K, 2)``
     (world; default the goal cell's centre) where the route reaches its goal; the
-    direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands) and
-    whether that segment ends at the goal (the goal in sight from the start, ``(B, K)`` bool)."""
+    direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands); and
+    each one's timed path ``(B, K)`` object (vertex times and positions, None for one
+    that stands)."""
     from are_stats.behaviour import continuous_paths, sample_soft_paths
 
     b, n_obs, _ = observed.shape
@@ -422,7 +423,7 @@ def _rollouts(
     exits = goals_of.reshape(-1, 2)
     out = np.repeat(last[:, None, None, :], n_samples, axis=1).repeat(n_pred, axis=2)
     first = np.full((b, n_samples), np.nan)
-    sight = np.zeros((b, n_samples), bool)
+    timed = np.full((b, n_samples), None, dtype=object)
     ts = np.arange(1, n_pred + 1) / rate
     occ = ~fit.free
     moving = (exits[:, 0] >= 0) & ~(exits == cur[rep]).all(axis=1)
@@ -460,14 +461,14 @@ def _rollouts(
             )
             for j, (tv, pv) in enumerate(walked):
                 i, k = i_of[j], k_of[j]
+                timed[i, k] = (tv, pv)
                 out[i, k, :, 0] = np.interp(ts, tv, pv[:, 0])
                 out[i, k, :, 1] = np.interp(ts, tv, pv[:, 1])
                 away = np.flatnonzero(np.hypot(*(pv - pv[0]).T) > 1e-9)
                 if away.size:
                     dx, dy = pv[away[0]] - pv[0]
                     first[i, k] = np.arctan2(dy, dx)
-                    sight[i, k] = bool(arrived[j]) and away[0] == len(pv) - 1
-    return out, first, sight
+    return out, first, timed
 
 
 #: Relative speed (m/s) below which a neighbour seen close by throughout the observed
