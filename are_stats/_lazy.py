@@ -5,11 +5,14 @@ ArviZ's two seconds of imports)."""
 from __future__ import annotations
 
 import importlib
+import sys
 import warnings
 from types import ModuleType
 from typing import Any
 
-__all__ = ["LazyModule", "arviz", "import_xarray_dask", "scipy_signal", "scipy_stats"]
+__all__ = [
+    "LazyModule", "arviz", "hide_dask", "import_xarray_dask", "scipy_signal", "scipy_stats",
+]  # fmt: skip
 
 
 class LazyModule:
@@ -78,3 +81,33 @@ def import_xarray_dask() -> None:
         importlib.import_module("dask.array")
     except ImportError:
         pass
+
+
+#: The packages :func:`hide_dask` makes unimportable.
+DASK_PACKAGES = ("dask", "distributed")
+
+
+def hide_dask() -> bool:
+    """Make ``dask`` and ``distributed`` unimportable in this process, so that xarray runs
+    without them.
+
+    xarray imports ``dask.array`` when it makes its first variable in a process where dask
+    is installed, and ``dask.distributed`` when it writes a NetCDF file (to ask whether a
+    distributed scheduler is running): about 0.6 s of imports in an ``are-stats fit``
+    that uses neither. After this call ``import dask`` raises ``ImportError`` and
+    ``importlib.util.find_spec("dask")`` returns None, which is how xarray (and
+    :func:`import_xarray_dask`) learn that dask is not there.
+
+    For a command's own process only (:func:`are_stats.cli.main` calls it for the commands
+    that run no Dask sweep); a library user's process keeps dask.
+
+    Returns
+    -------
+    bool
+        True if dask is hidden now; False if it was imported already (then it stays).
+    """
+    if any(sys.modules.get(name) is not None for name in DASK_PACKAGES):
+        return False
+    for name in DASK_PACKAGES:
+        sys.modules[name] = None  # type: ignore[assignment]  # the import system's "absent"
+    return True

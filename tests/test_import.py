@@ -248,3 +248,51 @@ def test_issue_25_recount_stays_at_one():
     assert files(r"def write_scen") == ["scenarios/_folder.py"]
     assert where(r"def (coarse_free_mask|coarse_occupancy)\b") == []
     assert files(r'attrs\.get\("class_labels"\)') == ["fitting/_fit.py"]
+
+
+def test_hide_dask_leaves_xarray_writing_and_reading_netcdf(tmp_path):
+    """Without dask (are_stats._lazy.hide_dask) xarray still writes and reads a NetCDF
+    file, and imports neither dask nor distributed on the way."""
+    out = tmp_path / "x.nc"
+    loaded = _loaded_after(
+        "from are_stats._lazy import hide_dask, import_xarray_dask\n"
+        "assert hide_dask()\n"
+        "import_xarray_dask()\n"
+        "import numpy as np, xarray as xr\n"
+        "xr.Dataset({'a': ('x', np.arange(3.0))}).to_netcdf("
+        f"{str(out)!r}, engine='h5netcdf')\n"
+        f"with xr.open_dataset({str(out)!r}, engine='h5netcdf') as d:\n"
+        "    assert d['a'].values.tolist() == [0.0, 1.0, 2.0]\n"
+        "try:\n    import dask\nexcept ImportError:\n    pass\nelse:\n    raise AssertionError\n"
+        "import sys\nassert all(sys.modules[n] is None for n in ('dask', 'distributed'))\n"
+        "del sys.modules['dask'], sys.modules['distributed']"
+    )
+    assert not {m for m in loaded if m.split(".")[0] in ("dask", "distributed")}
+
+
+def _dask_after_main(argv: list[str]) -> str:
+    """``repr(sys.modules.get('dask'))`` after are_stats.cli.main ran ``argv``."""
+    code = (
+        f"import sys\nsys.argv = ['are-stats', *{argv!r}]\nfrom are_stats import cli\n"
+        "try:\n    cli.main()\nexcept SystemExit:\n    pass\n"
+        "print(repr(sys.modules.get('dask', 'absent')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return out.stdout.strip().splitlines()[-1]
+
+
+def test_cli_main_hides_dask_from_a_fit_only():
+    """The console script hides dask for `fit` (also after global options), not for
+    `experiment` (its sweeps run on Dask), and importing the CLI hides nothing."""
+    assert _dask_after_main(["fit", "no_such_log.csv", "--out", "x.nc"]) == "None"
+    assert _dask_after_main(["--max-memory", "4G", "report", "no_such_fit.nc"]) == "None"
+    assert _dask_after_main(["experiment", "--help"]) == "'absent'"
+    assert "dask" in _loaded_after("import are_stats.cli\nimport dask")
+
+
+def test_command_of_skips_the_global_options():
+    from are_stats.cli import _command_of
+
+    assert _command_of(["fit", "log.csv"]) == "fit"
+    assert _command_of(["--max-work", "1e9", "--no-cache", "report", "f.nc"]) == "report"
+    assert _command_of(["--version"]) is None

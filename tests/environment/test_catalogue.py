@@ -161,3 +161,63 @@ def test_catalogue_alias_bomb_is_refused(tmp_path):
     )
     with pytest.raises(InputError, match="expands to at most"):
         load_catalogue(tmp_path / "q.yaml")
+
+
+def test_mesh_bounds_equal_trimesh_on_every_shipped_mesh():
+    """The catalogue reads a plain OBJ's bounds without trimesh: the same numbers as
+    trimesh's Trimesh.bounds (exactly) on each shipped mesh."""
+    from are_stats.environment._catalogue import _mesh_bounds, _obj_bounds
+
+    meshes = sorted((DEFAULT_MODELS / "artefacts").glob("*.obj"))
+    assert len(meshes) >= 7
+    for path in meshes:
+        fast = _obj_bounds(path)
+        assert fast is not None, path.name
+        np.testing.assert_array_equal(fast, np.asarray(load_mesh(path).bounds))
+        np.testing.assert_array_equal(_mesh_bounds(path), fast)
+
+
+def test_obj_bounds_use_the_faces_vertices_and_leave_other_files_to_trimesh(tmp_path):
+    from are_stats.environment._catalogue import _mesh_bounds, _obj_bounds
+
+    # an unused far vertex, negative and v/t/n-style indices, groups and comments
+    plain = tmp_path / "plain.obj"
+    plain.write_text(
+        "# a tetrahedron\no tet\nv 0 0 0\nv 1 0 0\nv 0 2 0\nv 0 0 3\nv 50 -50 9\n"
+        "g sides\ns off\nf 1 2 3\nf 1//1 2//1 4//1\nf -5 -3 -2\n"
+    )
+    np.testing.assert_array_equal(_obj_bounds(plain), [[0, 0, 0], [1, 2, 3]])
+    np.testing.assert_array_equal(_obj_bounds(plain), np.asarray(load_mesh(plain).bounds))
+    # a quad, normals, a bad index: trimesh reads it (and says what is wrong)
+    quad = tmp_path / "quad.obj"
+    quad.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 1\nf 1 2 3 4\n")
+    assert _obj_bounds(quad) is None
+    np.testing.assert_array_equal(_mesh_bounds(quad), np.asarray(load_mesh(quad).bounds))
+    normals = tmp_path / "normals.obj"
+    normals.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n")
+    assert _obj_bounds(normals) is None
+    np.testing.assert_array_equal(_mesh_bounds(normals), np.asarray(load_mesh(normals).bounds))
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 7\n")
+    assert _obj_bounds(bad) is None
+    with pytest.raises(InputError, match="bad.obj"):
+        _mesh_bounds(bad)
+    for text in (
+        "v 0 0 nan\nv 1 0 0\nv 1 1 1\nf 1 2 3\n",
+        "v 0 0 1_0\nv 1 0 0\nv 1 1 1\nf 1 2 3\n",
+    ):
+        odd = tmp_path / "odd.obj"
+        odd.write_text(text)
+        assert _obj_bounds(odd) is None
+
+
+def test_loading_the_catalogue_imports_no_trimesh():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\nfrom are_stats import load_catalogue\nq = load_catalogue()\n"
+        "assert len(q) >= 7\nprint('trimesh' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -476,3 +476,30 @@ def test_an_unreliable_loo_does_not_set_the_bar():
     # an unreliable candidate simpler than the bar may still be chosen
     chosen, _ = choose_simplest(elpd, ["shaky", "simple", "rich"], ["shaky"])
     assert chosen == "shaky"
+
+
+def test_laplace_candidates_in_threads_fit_as_one_at_a_time(monkeypatch):
+    """The candidates' Laplace approximations run LAPLACE_THREADS at a time and are taken
+    in order: the fit (draws, tables, notes, warnings) is the one a single thread gives."""
+    import are_stats.fitting._traffic as traffic
+
+    laws = TrafficLaws()
+    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
+    data = simulate_traffic_log(np.random.default_rng(5), draw, laws, (0.0, 1800.0), AREA,
+                                free=uniform_position_density(FREE, RES, ORIGIN),
+                                resolution=0.4)  # fmt: skip
+    fits = {}
+    for threads in (1, 2):
+        monkeypatch.setattr(traffic, "LAPLACE_THREADS", threads)
+        fits[threads] = fit_traffic(jax.random.key(3), data, paper=_paper(data), grid=_Grid(),
+                                    approximation="laplace")  # fmt: skip
+    one, two = fits[1], fits[2]
+    assert sorted(one.posterior) == sorted(two.posterior)
+    for name in one.posterior:
+        np.testing.assert_array_equal(np.asarray(one.posterior[name]),
+                                      np.asarray(two.posterior[name]))  # fmt: skip
+    assert sorted(one.tables) == sorted(two.tables)
+    for name in one.tables:
+        pd.testing.assert_frame_equal(one.tables[name], two.tables[name])
+    assert one.attrs == two.attrs and one.warnings == two.warnings
+    assert (one.arrival_model, one.lifetime_model) == (two.arrival_model, two.lifetime_model)
