@@ -285,7 +285,9 @@ def run_fit(
                 clock(stage)
                 from are_stats.fitting import write_motion_report
 
-                motion = write_motion_report(seed, fit, lifecycle.tracks, figures, force, catalogue)
+                motion = write_motion_report(
+                    seed, fit, lifecycle.tracks, figures, force, catalogue, progress=clock.steps
+                )
                 written.update(motion.written)
             _print_motion_report(motion, fit.motion)
         console.print(f"wrote {len(written)} criticism files to {figures}/")

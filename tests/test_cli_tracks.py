@@ -7,6 +7,7 @@ find the groups, the regular stays and the doors, and the generated people must 
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -192,7 +193,26 @@ def test_the_motion_checks_are_drawn_once_and_handed_to_the_report(tmp_path, mon
 
     monkeypatch.setattr(_motion_report, "motion_checks", again)
     (tmp_path / "rep").mkdir()
+    told = []
     report = _motion_report.write_motion_report(
-        3, fit, log.tracks, tmp_path / "rep", False, load_catalogue()
-    )
+        3, fit, log.tracks, tmp_path / "rep", False, load_catalogue(),
+        progress=lambda done, total, what: told.append((done, total, what)),
+    )  # fmt: skip
     pd.testing.assert_frame_equal(report.checks, table)
+    assert told == [(1, 2, "held-out moves"), (2, 2, "figure")]
+    # an unlabelled log's report draws them itself, and tells their steps (issue 29: every
+    # stage over 2 s shows progress)
+    monkeypatch.setattr(_motion_report, "motion_checks", motion_checks)
+    told.clear()
+    (tmp_path / "rep2").mkdir()
+    report = _motion_report.write_motion_report(
+        3, dataclasses.replace(fit, motion_checks=None), log.tracks, tmp_path / "rep2", False,
+        load_catalogue(), progress=lambda done, total, what: told.append((done, total, what)),
+    )  # fmt: skip
+    pd.testing.assert_frame_equal(report.checks, table)
+    whats = [w for _, _, w in told]
+    assert any(w.startswith("motion checks, routes") for w in whats)
+    assert any(w.startswith("motion checks, social force") for w in whats)
+    assert whats[-2:] == ["held-out moves", "figure"]
+    assert all(0 < d <= t for d, t, _ in told) and told[-1][0] == told[-1][1]
+    assert [d for d, _, _ in told] == sorted(d for d, _, _ in told)

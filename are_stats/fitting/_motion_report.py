@@ -9,7 +9,7 @@ tracks and so run at fit time only. The command line prints what they return.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -87,7 +87,14 @@ def write_motion_tables(tables: Mapping[str, pd.DataFrame], folder: Any, force: 
 
 
 def write_motion_report(
-    seed: int, fit: Fit, tracks: pd.DataFrame, folder: Any, force: bool, catalogue: Any
+    seed: int,
+    fit: Fit,
+    tracks: pd.DataFrame,
+    folder: Any,
+    force: bool,
+    catalogue: Any,
+    *,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> MotionReport:
     """Motion checks of a fit's behaviour against the log's tracks: table and figure, with
     the stored motion tables (:func:`write_motion_tables`).
@@ -107,6 +114,12 @@ def write_motion_report(
         Overwrite existing files.
     catalogue : ArtefactCatalogue
         The property table Q (the classes' run speeds, as the fit's).
+    progress : callable, optional
+        ``progress(done, total, what)`` after each step (as
+        :meth:`~are_stats._stage_clock.StageClock.steps` takes them): the motion checks'
+        steps where the fit did not hand them on (an unlabelled log: their routes' chunks
+        and social force windows, :func:`~are_stats.fitting.motion_checks`), then the
+        held-out fit and the figure; the last call has ``done == total``.
 
     Returns
     -------
@@ -118,6 +131,14 @@ def write_motion_report(
     if bfit is None or grid is None:
         raise ValueError("fit: expected a fit from tracks with its behaviour and map (fit_log)")
     key = jax.random.key(seed)
+    say = progress or (lambda done, total, what: None)
+    after = 2  # the held-out fit, the figure
+    checked = [0]  # the motion checks' steps
+
+    def check_step(done: int, total: int, what: str) -> None:
+        checked[0] = total
+        say(done, total + after, f"motion checks, {what}")
+
     # the same draws as fit_log's per-class motion rows (the same key): the fit's own when
     # fit_log computed them (a labelled table), else drawn here
     if fit.motion_checks is not None:
@@ -126,12 +147,14 @@ def write_motion_report(
         table, reps = motion_checks(
             jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
             interaction=fit.interaction if fit.interaction is not None else True, grid=grid,
+            progress=check_step,
         )  # fmt: skip
     held, _ = heldout_log_likelihood(
         jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
         run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
     )  # fmt: skip
+    say(checked[0] + 1, checked[0] + after, "held-out moves")
     fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
     out = {}
     for name, write in (
@@ -150,4 +173,5 @@ def write_motion_report(
             per_class.to_csv(tmp, float_format="%.6g")
         out["class_motion_checks.csv"] = Path(folder) / "class_motion_checks.csv"
     out.update(write_motion_tables(stored, folder, force))
+    say(checked[0] + after, checked[0] + after, "figure")
     return MotionReport(out, table, per_class, dict(held))

@@ -520,8 +520,16 @@ def _interacting(
     span = (n_obs - 1) / rate
     v_obs = (observed[:, -1] - observed[:, 0]) / max(span, 1e-9)
     steps = np.arange(n_pred + 1) / rate
+    # everyone's track, by id (as groupby orders them): slices of one sorted table, not a
+    # DataFrame per person (a chunk's call rebuilt 300 of them, most of its own time)
     tab = tracks.sort_values(["id", "t"], kind="stable")
-    per = {i: (g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)) for i, g in tab.groupby("id")}
+    tab = tab[tab["id"].notna()]
+    key = tab["id"].to_numpy()
+    t_all = tab["t"].to_numpy(float)
+    xy_all = tab[["x", "y"]].to_numpy(float)
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, int)
+    last = np.r_[first[1:], len(key)]
+    per = {key[a]: (t_all[a:z], xy_all[a:z]) for a, z in zip(first, last, strict=True)}
     frames = []
     for w in range(b):
         # the person: its K continuations, one scenario each

@@ -81,6 +81,37 @@ def test_policy_beats_the_random_walk_on_held_out_tracks(crossing) -> None:
     assert res["difference_per_move"] > 5 * res["difference_se"] > 0
 
 
+def test_policies_share_one_program_and_equal_soft_policy(crossing, caplog) -> None:
+    """The soft solves of the criticism (held-out moves, displacement errors' goals) run one
+    compiled program for any epoch cap and up to GOAL_BUCKET goals (issue 29: each cap and
+    goal count compiled its own), with the policies of soft_policy bit for bit."""
+    import logging
+
+    from are_stats.behaviour import soft_policy
+    from are_stats.fitting._motion_checks import _policies
+
+    _, free, _, fit = crossing
+    cells = np.argwhere(free)
+    rng = np.random.default_rng(0)
+    _policies(fit, 0, cells[:3])  # compiled once
+    got = {}
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        for g in (1, 5, 16):  # other goal counts, and caps from their geodesic distances
+            goals = cells[rng.choice(len(cells), g, replace=False)]
+            got[g] = (goals, _policies(fit, 0, goals))
+    compiled = [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
+    assert compiled == []
+    for goals, pol in got.values():
+        dist = fit.geodesic(goals)
+        k = int(np.ceil(10 * dist[np.isfinite(dist)].max())) + 20
+        want = soft_policy(
+            ~fit.free, goals, float(fit.beta[0]), float(fit.slip[0]), n_epochs=k,
+            goal_reward=fit.goal_reward, step_cost=fit.step_cost, time_cost=fit.time_cost,
+            cell_reward=fit.cell_reward(0), tol=1e-3,
+        ).policy  # fmt: skip
+        np.testing.assert_array_equal(pol, np.asarray(want))
+
+
 def test_tracker_noise_is_the_position_noise_of_steady_walks() -> None:
     """Straight walks at steady speeds with 5 cm of noise per coordinate: the estimate is
     the noise's sd within 5% (3,600 second differences: the robust scale's relative

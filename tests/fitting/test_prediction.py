@@ -68,6 +68,11 @@ def test_displacement_errors_predict_with_the_motion_generation_uses(crossing) -
     assert np.abs(out[:, 0, :, 1] - obs[:, -1:, 1]).max() > 0.2  # they step aside
     gap = np.hypot(*(out[0, 0] - (obs[1, -1] + np.arange(1, 13)[:, None] * [-0.48, 0])).T)
     assert gap.min() > 2 * SocialForce().radius  # and do not walk into the other one
+    # everyone's tracks are looked up by id whatever the rows' order and the ids' type
+    named = two.assign(id=two["id"].map({0: "b", 1: "a"})).sample(frac=1.0, random_state=1)
+    again = _interacting(cv, obs, np.array(["b", "a"]), np.array([2.8, 2.8]), named, 2.5,
+                         SocialForce(), None)  # fmt: skip
+    np.testing.assert_array_equal(again, out)
 
 
 def _corner_world(seed: int, n: int = 40) -> tuple[pd.DataFrame, np.ndarray]:
