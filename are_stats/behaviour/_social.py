@@ -212,7 +212,7 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid, block=0):
     return _pair_term(now, v[:, None, None, :] - v[cand], ok, p, mates).sum(axis=(1, 2))
 
 
-@partial(jax.jit, static_argnames=("all_pairs", "block"))
+@partial(jax.jit, static_argnames=("all_pairs", "block", "repel"))
 def _window(
     state,
     route,
@@ -233,6 +233,7 @@ def _window(
     n_y,
     all_pairs,
     block,
+    repel=True,
 ):
     """Integrate ``n_steps`` steps of ``dt`` from ``t0`` (semi-implicit Euler); returns the
     final state and the positions after every step (W, n, 2), ``W = plan.shape[0]`` (rows
@@ -250,7 +251,8 @@ def _window(
     alone). One program serves windows with and without groups (nobody in a group: the
     formation's terms change nothing), so a walk compiles once per size. The state is
     positions, velocities, route indices and headings (unit vectors).
-    ``all_pairs`` and ``block`` choose the neighbour search (:func:`_pair_forces`).
+    ``all_pairs`` and ``block`` choose the neighbour search (:func:`_pair_forces`);
+    ``repel`` False (a force of strength 0: every pair term is exactly zero) skips it.
     """
     dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
     lead, prev, side, gid = form
@@ -321,9 +323,9 @@ def _window(
         )
         round_it = ~in_slot & (into < 0.0) & (dw < p.radius + 2.0 * p.wall_range)
         desired = jnp.where(round_it[:, None], speed[:, None] * along, desired)
-        a = (desired - v) / p.relaxation + _pair_forces(
-            x, v, alive, p, cell, n_y, origin, all_pairs, gid, block
-        )
+        a = (desired - v) / p.relaxation
+        if repel:
+            a = a + _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid, block)
         a = a + (p.wall_strength * jnp.exp((p.radius - dw) / p.wall_range))[:, None] * gw
         v_new = v + a * dt
         cap = p.max_speed * jnp.maximum(v0, 1e-9)
@@ -724,6 +726,7 @@ def social_force_tracks(
             jnp.int32(n_y),
             nb <= ALL_PAIRS_MAX,
             block,
+            bool(p.strength != 0.0),
         )
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
         x[act], v[act], k[act] = xf[slot], vf[slot], kf[slot]

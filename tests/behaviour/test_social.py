@@ -244,3 +244,28 @@ def test_progress_reports_each_window_up_to_the_last(monkeypatch):
     assert simulated[0] == 0 and simulated[-1] >= 2 and len(simulated) < total
     monkeypatch.setattr(_social, "_window", window)
     pd.testing.assert_frame_equal(out, social_force_tracks(plan, dt=0.1))
+
+
+def test_a_force_of_strength_zero_skips_the_pair_search_and_walks_the_same(monkeypatch):
+    """Strength 0 (the fit's "no repulsion" verdict) makes every pair term exactly zero:
+    the walk skips the neighbour search and gives the tracks, bit for bit, that the walk
+    with the search gives."""
+    plan = _crowd(2, 40)
+    none = SocialForce(strength=0.0)
+    calls = []
+    window = _social._window
+
+    def spy(*args):
+        calls.append(args[-1])
+        return window(*args)
+
+    monkeypatch.setattr(_social, "_window", spy)
+    skipped = social_force_tracks(plan, none, dt=0.1)
+    assert calls and not any(calls)  # repel False in every window
+    calls.clear()
+    monkeypatch.setattr(_social, "_window", lambda *args: spy(*args[:-1], True))
+    searched = social_force_tracks(plan, none, dt=0.1)
+    assert calls and all(calls)
+    pd.testing.assert_frame_equal(skipped, searched, check_exact=True)
+    published = social_force_tracks(plan, SocialForce(), dt=0.1)
+    assert not np.allclose(published[["x", "y"]], skipped[["x", "y"]])
