@@ -421,8 +421,8 @@ def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
         ok = (ij[:, 0] >= 0) & (ij[:, 0] < h) & (ij[:, 1] >= 0) & (ij[:, 1] < w)
         free.ravel()[ij[ok, 0] * w + ij[ok, 1]] = False
     # cells around the robot that are inflated but not occupied are released (a robot
-    # brushing an obstacle can still leave), those no nearer to the artefacts' cells than
-    # the robot is (cell centres; its own cell always): releasing the nearer ones let a plan
+    # brushing an obstacle can still leave), those no nearer to the occupied cells than the
+    # robot is (cell centres; its own cell always): releasing the nearer ones let a plan
     # run from the robot along a person standing next to it (one waiting for the robot to
     # pass) and into it, the A* hour's robot collisions
     reach = radius + res
@@ -439,10 +439,9 @@ def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
     near &= ~occ[ij[:, 0], ij[:, 1]] & ~free[ij[:, 0], ij[:, 1]]
     if not near.any():
         return free
-    # a cell within the clearance of an artefact cell has one in the window (the window
-    # reaches the clearance past the released disc); the map's own cells do not count (a
-    # robot by a wall may go along it, as before: walls do not walk into it)
-    blocked = (occ & ~m.static_occ)[ij[:, 0], ij[:, 1]]
+    # a cell within the clearance of an occupied cell has one in the window (the window
+    # reaches the clearance past the released disc); cells farther are free already
+    blocked = occ[ij[:, 0], ij[:, 1]]
     if blocked.any():
         c_occ = xy[blocked]
         d_robot = float(np.sqrt(_sq_distances(pose[None, :2], c_occ).min()))
