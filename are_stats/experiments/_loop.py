@@ -420,44 +420,18 @@ def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
         h, w = occ.shape
         ok = (ij[:, 0] >= 0) & (ij[:, 0] < h) & (ij[:, 1] >= 0) & (ij[:, 1] < w)
         free.ravel()[ij[ok, 0] * w + ij[ok, 1]] = False
-    # cells around the robot that are inflated but not occupied are released (a robot
-    # brushing an obstacle can still leave), those no nearer to the occupied cells than the
-    # robot is (cell centres; its own cell always): releasing the nearer ones let a plan
-    # run from the robot along a person standing next to it (one waiting for the robot to
-    # pass) and into it, the A* hour's robot collisions
+    # cells around the robot that are inflated but not occupied are released
     reach = radius + res
-    clear = radius + res * np.sqrt(0.5)
     r_c = np.asarray(m.grid.world_to_cell(pose[None, :2]), np.int64).reshape(2)
-    pad = int(np.ceil((reach + clear) / res)) + 2
+    pad = int(np.ceil(reach / res)) + 2
     lo = np.clip(r_c - pad, 0, occ.shape)
     hi = np.clip(r_c + pad + 1, 0, occ.shape)
     ij = np.indices(tuple(hi - lo)).reshape(2, -1).T + lo
-    if not ij.size:
-        return free
-    xy = m.grid.cell_to_world(ij)
-    near = np.linalg.norm(xy - pose[:2], axis=1) <= reach
-    near &= ~occ[ij[:, 0], ij[:, 1]] & ~free[ij[:, 0], ij[:, 1]]
-    if not near.any():
-        return free
-    # a cell within the clearance of an occupied cell has one in the window (the window
-    # reaches the clearance past the released disc); cells farther are free already
-    blocked = occ[ij[:, 0], ij[:, 1]]
-    if blocked.any():
-        c_occ = xy[blocked]
-        d_robot = float(np.sqrt(_sq_distances(pose[None, :2], c_occ).min()))
-        d_cell = np.sqrt(_sq_distances(xy[near], c_occ).min(axis=1))
-        keep = d_cell >= d_robot
-        near[np.flatnonzero(near)[~keep]] = False
-    own = (ij[:, 0] == r_c[0]) & (ij[:, 1] == r_c[1]) & ~occ[ij[:, 0], ij[:, 1]]
-    rel = ij[near | own]
-    free[rel[:, 0], rel[:, 1]] = True
+    if ij.size:
+        near = np.linalg.norm(m.grid.cell_to_world(ij) - pose[:2], axis=1)
+        ij = ij[near <= reach]
+        free[ij[:, 0], ij[:, 1]] |= ~occ[ij[:, 0], ij[:, 1]]
     return free
-
-
-def _sq_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(n, m) squared distances between points ``a`` (n, 2) and ``b`` (m, 2)."""
-    d = a[:, None, :] - b[None, :, :]
-    return d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
 
 
 def _static_clearance(grid: Any, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

