@@ -117,14 +117,13 @@
    The 6 collisions left were not examined.
    Examined since (2026-11-27, later): each a person standing, waiting for the robot; in 5
    the robot planned inside the inflation of the person's cells and the cells released
-   around it let the plan run into the person. The released cells are now only those no
-   nearer to an artefact's cell than the robot (first 1000 s of the A* hour: 2 -> 0
-   collisions, 24 goals both). The RRT hour profiled, then cut (load 13-19, CPU time, main
-   and this branch at the same time): the motion validator's bisection orders cached per
-   process, the planning grid reused at the same instant, detours too long in a straight
-   line refused before their search (the first 600 s identical to main's, 29.1 -> 26.3 s);
-   with the first form of the collision fix the hour ran 180.6 -> 177.3 s (19.9x ->
-   20.3x; 61 -> 56 goals, 0 collisions both; docs, experiments).
+   around it let the plan run into the person (a fix releasing only the cells no nearer to
+   an artefact: 6 -> 0 collisions over the A* hour, but it stalled the RRT hour; not kept,
+   docs, experiments). The RRT hour profiled, then cut (load 13-19, CPU time, main and this
+   branch at the same time): the motion validator's bisection orders cached per process,
+   the planning grid reused at the same instant, detours too long in a straight line
+   refused before their search: its first 600 s identical to main's, 29.1 -> 26.3 s of CPU
+   (20.6x -> 22.8x); main's hour that day 180.6 s (19.9x).
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
