@@ -118,7 +118,7 @@
    Examined since (2026-11-27, later): each a person standing, waiting for the robot; in 5
    the robot planned inside the inflation of the person's cells and the cells released
    around it let the plan run into the person (a fix releasing only the cells no nearer to
-   an artefact: 6 -> 0 collisions over the A* hour, but it stalled the RRT hour; not kept,
+   an artefact: 6 -> 0 collisions over the A* hour, but the RRT hour stalled, 2 goals; not kept,
    docs, experiments). The RRT hour profiled, then cut (load 13-19, CPU time, main and this
    branch at the same time): the motion validator's bisection orders cached per process,
    the planning grid reused at the same instant, detours too long in a straight line
