@@ -307,6 +307,16 @@ def _detour(
             continue
         if part[goal] != part[start]:
             continue
+        # the track's speed to the epoch, and the refusals that need no search: no speed,
+        # or a straight line to the epoch already longer than the time the detour may take
+        # (the string-pulled path is no shorter than it; 1e-9 for rounding)
+        orig = np.vstack([p_t, pp[int(np.searchsorted(tt, t, "right")) : k + 1, :2]])
+        v = float(np.linalg.norm(np.diff(orig, axis=0), axis=1).sum()) / max(tt[k] - t, 1e-9)
+        if v <= 0.0:
+            continue
+        straight = float(np.linalg.norm(pp[k, :2] - p_t)) * (1.0 - 1e-9)
+        if max(straight / v, float(tt[k] - t)) > float(tt[k] - t) + lookahead * dt:
+            continue
         path = astar_cells(ok, start, goal)
         if path is None:
             continue
@@ -316,10 +326,6 @@ def _detour(
         pts = _string_pull(pts, ok, grid, lo)
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         length = float(seg.sum())
-        orig = np.vstack([p_t, pp[int(np.searchsorted(tt, t, "right")) : k + 1, :2]])
-        v = float(np.linalg.norm(np.diff(orig, axis=0), axis=1).sum()) / max(tt[k] - t, 1e-9)
-        if v <= 0.0:
-            continue
         dur = max(length / v, float(tt[k] - t))
         if dur > float(tt[k] - t) + lookahead * dt:
             continue

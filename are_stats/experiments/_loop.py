@@ -249,6 +249,11 @@ class _State(NamedTuple):
     # is its grid), with ARBuilder.with_scene
     builder: Any
     builder_at: tuple  # (scene, t) the builder holds
+    # the last planner's map and free cells (_planning_grid) and what they were made of:
+    # (scene, t, events, event, seen, pose, augmented grid, free (H, W) bool), both
+    # read-only; the same instant asks for them again (a move's check of the plan, then
+    # its replan; an avoidance's check, then its replan)
+    planning_at: tuple
     # A_f of the camera ticks ahead, predicted along the current plan and perceived in one
     # batch: {tick time: (robot pose (3,), perceived (N,), scene)}, replaced (never
     # changed) by each batch. An entry is used only when the robot is where it was
@@ -359,6 +364,19 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
     """
     from are_stats.builder import box_corners, rasterise_convex
 
+    c = s.planning_at
+    if (
+        c
+        and c[0] is s.scene
+        and c[1] == s.t
+        and c[2] is s.events
+        and c[3] == s.event
+        and np.array_equal(c[4], s.seen)
+        and np.array_equal(c[5], s.pose)
+        and s.builder_at[0] is s.scene
+        and s.builder_at[1] == s.t
+    ):
+        return s, c[6], c[7]
     at_scene, at_t = s.builder_at
     if at_scene is not s.scene or at_t != s.t:
         s = s._replace(builder=s.builder.with_scene(s.scene, s.t), builder_at=(s.scene, s.t))
@@ -370,7 +388,11 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
         poly = box_corners(xy, s.scene.half_extents[ahead][:, :2], yaw)
         _, flat, _ = rasterise_convex(m.grid.world_to_local(poly), m.grid.shape)
         aug.data.ravel()[flat] = 100
-    return s, aug, _free_cells(m, ~aug.free, s.pose)
+    free = _free_cells(m, ~aug.free, s.pose)
+    aug.data.flags.writeable = False
+    free.flags.writeable = False
+    at = (s.scene, s.t, s.events, s.event, s.seen.copy(), s.pose.copy(), aug, free)
+    return s._replace(planning_at=at), aug, free
 
 
 def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -697,7 +719,7 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0, scene=m.scene, events=m.events, n_detours=0,
         n_yields=0, avoid_delay=0.0, replans_at=(np.nan, 0), builder=ARBuilder(m.grid),
-        builder_at=(None, np.nan),
+        builder_at=(None, np.nan), planning_at=(),
         percepts=MappingProxyType({}),
     )  # fmt: skip
     s = _perceive(m, _register(s), idx, boxes)

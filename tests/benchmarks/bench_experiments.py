@@ -115,6 +115,15 @@
    written out (about 15% less CPU per search, the same paths); that gained nothing
    measurable over the hour and wrote the relaxation step eight times, so it was reverted.
    The 6 collisions left were not examined.
+   Examined since (2026-11-27, later): each a person standing, waiting for the robot; in 5
+   the robot planned inside the inflation of the person's cells and the cells released
+   around it let the plan run into the person (a fix releasing only the cells no nearer to
+   an artefact: 6 -> 0 collisions over the A* hour, but the RRT hour stalled, 2 goals; not kept,
+   docs, experiments). The RRT hour profiled, then cut (load 13-19, CPU time, main and this
+   branch at the same time): the motion validator's bisection orders cached per process,
+   the planning grid reused at the same instant, detours too long in a straight line
+   refused before their search: its first 600 s identical to main's, 29.1 -> 26.3 s of CPU
+   (20.6x -> 22.8x); main's hour that day 180.6 s (19.9x).
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
