@@ -104,6 +104,10 @@ from are_stats.behaviour._walk import walk_tracks  # noqa: E402
 
 __all__ += ["walk_tracks"]
 
+from are_stats.behaviour._noise import NOISE_ORDER, tracker_noise  # noqa: E402
+
+__all__ += ["NOISE_ORDER", "tracker_noise"]
+
 from are_stats.behaviour._social import (  # noqa: E402
     SocialForce,
     fit_social_force,

@@ -68,8 +68,8 @@ import pandas as pd
 
 from are_stats._checks import check_positive
 from are_stats.behaviour._groups import formation, slot_offsets
+from are_stats.behaviour._noise import tracker_noise
 from are_stats.inputs import check_memory, check_work
-from are_stats.logs import tracker_noise
 
 # Lazy imports: scipy.ndimage and scipy.spatial (0.4 s each, not loaded by the behaviour
 # package) in the functions that use them.
@@ -1072,7 +1072,7 @@ def fit_social_force(
     ``tau`` 0.5 s as 0.1 s). What noise remains in the regressors would still shrink
     their coefficients: the velocities' share of the normal equations is corrected by
     its expectation (method of moments, the noise's sd ``noise`` read from the tracks by
-    :func:`~are_stats.logs.tracker_noise`), and the repulsion's, which enters through
+    :func:`~are_stats.behaviour.tracker_noise`), and the repulsion's, which enters through
     the exponential, by SIMEX (Cook and Stefanski 1994): the fit repeated with the noise
     variance raised by 0.5-2 times its own (more noise added, seeded), its ``1/tau`` and
     ``A`` extrapolated by a quadratic back to no noise. The model fitted is continuous in
@@ -1109,7 +1109,7 @@ def fit_social_force(
 
     noise : float, optional
         Sd (m) of the tracker's position noise per coordinate; default: read from the
-        tracks (:func:`~are_stats.logs.tracker_noise`).
+        tracks (:func:`~are_stats.behaviour.tracker_noise`).
     step : float
         Step (s) of the simulation the parameters are for (:data:`SIMULATION_STEP`).
     simex : bool

@@ -9,7 +9,7 @@ Three kinds of numbers, like the traffic checks (:func:`~are_stats.fitting.traff
   the fitted between-person law, the social force among the others with the groups in
   formation (:func:`~are_stats.behaviour.social_force_tracks`), leaving at the exit;
   sampled at the log's rate and measured with the log's position noise added
-  (:func:`~are_stats.logs.tracker_noise`). Per
+  (:func:`~are_stats.behaviour.tracker_noise`). Per
   track (:func:`track_statistics`) the speed over the walking part (from setting off to
   reaching the exit), the straightness (net displacement / path length), whether it stays
   still (net displacement below ``still_distance``) and the time from entry to exit over
@@ -42,9 +42,14 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood, path_free
+from are_stats.behaviour import (
+    BehaviourFit,
+    move_observations,
+    moves_log_likelihood,
+    path_free,
+    tracker_noise,
+)
 from are_stats.inputs import LimitError
-from are_stats.logs import tracker_noise
 
 __all__ = [
     "MOTION_STATISTICS",

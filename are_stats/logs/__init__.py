@@ -20,7 +20,6 @@ from are_stats.logs._lifecycle_log import (
     read_lifecycle_log,
     read_manifest,
 )
-from are_stats.logs._noise import NOISE_ORDER, tracker_noise
 from are_stats.logs._panel import read_count_panel
 from are_stats.logs._rosbag import (
     BAG_SUFFIXES,
@@ -70,7 +69,6 @@ from are_stats.logs._trajectory import (
 )
 
 __all__ = [
-    "NOISE_ORDER",
     "BAG_SUFFIXES",
     "is_bag_path",
     "CLOCKS",
@@ -116,7 +114,6 @@ __all__ = [
     "read_tracks_bag",
     "sampling_step",
     "track_groups",
-    "tracker_noise",
     "tracks_to_lifecycle",
     "transform_matrix",
     "unit_quaternion",

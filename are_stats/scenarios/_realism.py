@@ -45,7 +45,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from are_stats.logs import track_groups, tracker_noise
+from are_stats.behaviour import tracker_noise
+from are_stats.logs import track_groups
 
 __all__ = [
     "REALISM_FEATURES",
@@ -104,7 +105,7 @@ def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
 
 def _observation_noise(tracks: pd.DataFrame, dt: float) -> float:
     """Standard deviation (m) of white position noise in tracks sampled every ``dt``: the
-    tracker's (:func:`~are_stats.logs.tracker_noise`) on the tracks resampled to ``dt``."""
+    tracker's (:func:`~are_stats.behaviour.tracker_noise`) on the tracks resampled to ``dt``."""
     return tracker_noise(_resample(tracks, dt))
 
 

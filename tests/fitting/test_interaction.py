@@ -219,8 +219,7 @@ def test_the_evidence_is_the_least_squares_with_the_strength_held():
     """rss_published and rss_none against a dense least squares of the same rows (the
     accelerations with someone within reach) with the strength held at 2.1 and at 0
     (columns: -v, each person's destination direction, and the published push)."""
-    from are_stats.behaviour import _social
-    from are_stats.logs import tracker_noise
+    from are_stats.behaviour import _social, tracker_noise
 
     log = social_force_tracks(_crowd(7, 12), SocialForce(), dt=0.1)[["id", "t", "x", "y"]]
     ev = repulsion_evidence(log, min_close=10, trim=0.0)

@@ -35,7 +35,7 @@ def tracker_noise(tracks: pd.DataFrame) -> float:
     ``-4 s^2`` at lag 1 and ``s^2`` at lag 2, the path's taken as equal at both) read them
     as too little noise: 1 cm of noise on a 2 m/s walker winding at up to 0.3 rad/s, seen at
     2.5 Hz, comes out as 2.4 cm and 0.79 cm, and as 0.99 cm from fourth differences; at
-    10 Hz all three give 1.0 cm (``tests/logs/test_noise.py``).
+    10 Hz all three give 1.0 cm (``tests/behaviour/test_noise.py``).
 
     Parameters
     ----------

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from are_stats.logs import tracker_noise
+from are_stats.behaviour import tracker_noise
 
 
 def _walks(seed: int, speed: float, rate: float, noise: float, n: int = 30) -> pd.DataFrame:
