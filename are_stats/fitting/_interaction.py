@@ -73,6 +73,17 @@ def _on_one_step(
     return pd.concat(parts, ignore_index=True), groups
 
 
+def _check_range(params: SocialForce) -> None:
+    """Refuse a fitted force outside the model's range (a non-positive or infinite
+    relaxation, a non-positive strength: no interaction in the data), as
+    :func:`fit_interaction` and :func:`learn_interaction` both do."""
+    if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
+        raise ValueError(
+            f"tracks: the social force does not describe them (relaxation "
+            f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
+        )
+
+
 def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]]:
     """Social force parameters of a log's tracks (see the module docstring).
 
@@ -97,11 +108,7 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
     labels = track_groups(tracks)
     grid, groups = _on_one_step(tracks, labels)
     params, info = fit_social_force(grid, groups=groups)
-    if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
-        raise ValueError(
-            f"tracks: the social force does not describe them (relaxation "
-            f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
-        )
+    _check_range(params)
     spacing, samples = group_spacing(tracks.assign(id=tracks["id"].astype(str)), labels)
     info = {**info, "group_samples": float(samples)}
     if samples > 0:
@@ -149,11 +156,7 @@ def learn_interaction(
     try:
         step = _on_one_step(tracks, labels)
         params, info = fit_social_force(step[0], groups=step[1])
-        if not (params.relaxation > 0 and np.isfinite(params.relaxation) and params.strength > 0):
-            raise ValueError(  # as fit_interaction refuses it
-                f"tracks: the social force does not describe them (relaxation "
-                f"{params.relaxation:.3g} s, strength {params.strength:.3g} m/s^2)"
-            )
+        _check_range(params)
     except ValueError as err:  # too little walking together, or no interaction in the data
         try:
             if step is None:  # too little walking to resample
