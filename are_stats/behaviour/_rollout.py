@@ -11,11 +11,11 @@ pose, and so do two artefacts that would swap cells (pass through each other).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Hashable, Mapping, Sequence
 
 import jax
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_array, check_positive, describe
@@ -32,13 +32,17 @@ __all__ = [
 ]
 
 Resolver = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
+#: A behaviour per class (``{class: behaviour}``) or per artefact row (``f(row)``).
+BehaviourOf = Mapping[Hashable, str] | Callable[[pd.Series], str]
 
 #: ``resolve=BUILDER`` (the default of :func:`rollout` and :func:`scenario_tracks`): the
 #: AR-builder's resolution (:func:`builder_resolver`) on the MDP's own cells.
 BUILDER = "builder"
 
 
-def builder_resolver(builder: Any, size: Any = None, label: str | None = None) -> Resolver:
+def builder_resolver(
+    builder: ARBuilder, size: npt.ArrayLike | None = None, label: str | None = None
+) -> Resolver:
     """Collision resolution by the AR-builder (Sec. 3.3) as a :func:`rollout` resolver.
 
     At each epoch the artefacts present are (re-)registered on ``builder`` at their previous
@@ -87,7 +91,7 @@ def builder_resolver(builder: Any, size: Any = None, label: str | None = None) -
     return resolve
 
 
-def _cell_resolver(mdp: Any) -> Resolver:
+def _cell_resolver(mdp: GridMDP) -> Resolver:
     """:func:`builder_resolver` on a builder of the MDP's cells (1 m cells at the origin:
     the boxes, 0.9 of a cell, meet exactly when two artefacts share a cell)."""
     grid = OccupancyGrid(np.where(mdp.occupied, 100, 0).astype(np.int8), 1.0)
@@ -106,10 +110,10 @@ def _groups(solutions: MDPSolution | Sequence[MDPSolution]) -> list[MDPSolution]
 def rollout(
     key: jax.Array,
     solution: MDPSolution | Sequence[MDPSolution],
-    starts: Any,
+    starts: npt.ArrayLike,
     n_steps: int | None = None,
     *,
-    arrive: Any = None,
+    arrive: npt.ArrayLike | None = None,
     resolve: Resolver | str | None = BUILDER,
 ) -> np.ndarray:
     """Sample trajectories of a batch of artefacts from their policies (Sec. 3.2).
@@ -230,13 +234,13 @@ def rollout(
 def cells_to_tracks(
     states: np.ndarray,
     *,
-    scenario: Any = 0,
-    ids: Any = None,
+    scenario: Hashable | npt.ArrayLike = 0,
+    ids: npt.ArrayLike | None = None,
     dt: float = 1.0,
-    t0: Any = 0.0,
+    t0: npt.ArrayLike = 0.0,
     resolution: float = 1.0,
     origin: tuple[float, float] = (0.0, 0.0),
-    grid: Any = None,
+    grid: OccupancyGrid | None = None,
 ) -> pd.DataFrame:
     """Tracks table ``(scenario, id, t, x, y, yaw)`` from rollout states.
 
@@ -298,7 +302,7 @@ def cells_to_tracks(
 _SCENARIO_COLUMNS = ("scenario", "id", "t_arrive", "t_leave", "x", "y", "yaw")
 
 
-def _behaviour_column(table: pd.DataFrame, behaviour_of: Any) -> list[str]:
+def _behaviour_column(table: pd.DataFrame, behaviour_of: BehaviourOf | None) -> list[str]:
     if "behaviour" in table.columns:
         return [str(b) for b in table["behaviour"]]
     if behaviour_of is None:
@@ -316,7 +320,7 @@ def _behaviour_column(table: pd.DataFrame, behaviour_of: Any) -> list[str]:
 
 
 def check_on_free_cells(
-    rows: np.ndarray, cols: np.ndarray, occ: np.ndarray, xy: np.ndarray, scenario: Any
+    rows: np.ndarray, cols: np.ndarray, occ: np.ndarray, xy: np.ndarray, scenario: Hashable
 ) -> None:
     """Refuse artefacts whose cells ``(rows, cols)`` (n,) lie outside ``occ`` (H, W) or on an
     occupied cell, naming the first one's row of the scenario and its position ``xy``."""
@@ -334,12 +338,12 @@ def check_on_free_cells(
 def scenario_tracks(
     key: jax.Array,
     artefacts: pd.DataFrame,
-    occupied: Any,
+    occupied: npt.ArrayLike | OccupancyGrid,
     *,
     dt: float = 1.0,
     resolution: float = 1.0,
     origin: tuple[float, float] = (0.0, 0.0),
-    behaviour_of: Any = None,
+    behaviour_of: BehaviourOf | None = None,
     slip: float = 0.1,
     step_cost: float = 1e-3,
     resolve: Resolver | str | None = BUILDER,

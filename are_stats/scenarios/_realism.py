@@ -39,14 +39,24 @@ near passes, which no model of motion makes.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Hashable, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from are_stats.behaviour import tracker_noise
 from are_stats.logs import track_groups
+
+if TYPE_CHECKING:
+    import jax
+    from matplotlib.figure import Figure
+
+    from are_stats.behaviour import BehaviourFit, SocialForce
+    from are_stats.environment import ArtefactCatalogue, OccupancyGrid
+
+#: The groups argument: a track's group label by track id, or by ``(scenario, id)``.
+Groups = Mapping[Hashable, Hashable]
 
 __all__ = [
     "REALISM_FEATURES",
@@ -109,7 +119,9 @@ def _observation_noise(tracks: pd.DataFrame, dt: float) -> float:
     return tracker_noise(_resample(tracks, dt))
 
 
-def _seen_as_logged(seed: Any, tracks: pd.DataFrame, dt: float, noise: float) -> pd.DataFrame:
+def _seen_as_logged(
+    seed: int | list[int], tracks: pd.DataFrame, dt: float, noise: float
+) -> pd.DataFrame:
     """Tracks resampled to the log's step ``dt`` and seen through its tracker: white
     Gaussian noise of ``noise`` metres on every position (seeded by ``seed``)."""
     tab = _resample(tracks, dt)
@@ -125,9 +137,9 @@ def _seen_as_logged(seed: Any, tracks: pd.DataFrame, dt: float, noise: float) ->
 def realism_features(
     tracks: pd.DataFrame,
     dt: float,
-    grid: Any = None,
+    grid: OccupancyGrid | None = None,
     radius: float = 0.3,
-    groups: Any = None,
+    groups: Groups | None = None,
 ) -> dict[str, np.ndarray]:
     """The values of every feature of :data:`REALISM_FEATURES` in ``tracks``.
 
@@ -252,7 +264,7 @@ def _interactive(
     return near, hit, ttc
 
 
-def _group_label(groups: Any, scenario: Any, track: Any) -> str | None:
+def _group_label(groups: Groups, scenario: Hashable, track: Hashable) -> str | None:
     """A track's group label as text (None: alone)."""
     lab = groups.get((scenario, track), groups.get(track))
     if lab is None:
@@ -264,7 +276,7 @@ def _group_label(groups: Any, scenario: Any, track: Any) -> str | None:
     return None if text in ("", "nan", "None") else text
 
 
-def _group_spacing(tab: pd.DataFrame, vel: np.ndarray, groups: Any) -> np.ndarray:
+def _group_spacing(tab: pd.DataFrame, vel: np.ndarray, groups: Groups) -> np.ndarray:
     """Distance ``(k,)`` from each walking group member to its nearest walking co-member
     at the same time (resampled rows ``tab``, velocities ``vel (n, 2)``)."""
     from scipy.spatial import cKDTree
@@ -399,15 +411,15 @@ def _constant_velocity(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
 
 
 def realism_table(
-    key: Any,
+    key: jax.Array,
     tracks: pd.DataFrame,
-    grid: Any = None,
+    grid: OccupancyGrid | None = None,
     *,
-    behaviour: Any = None,
-    catalogue: Any = None,
+    behaviour: BehaviourFit | None = None,
+    catalogue: ArtefactCatalogue | None = None,
     n_replicates: int = 3,
     radius: float = 0.3,
-    interaction: Any = True,
+    interaction: bool | SocialForce = True,
     noise: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
@@ -485,7 +497,7 @@ def realism_table(
     if not (np.isfinite(sigma) and sigma >= 0):
         raise ValueError(f"noise: expected a finite number >= 0 (m), got {noise}")
 
-    def seen(k: Any, moved: pd.DataFrame) -> pd.DataFrame:
+    def seen(k: jax.Array, moved: pd.DataFrame) -> pd.DataFrame:
         seed = np.asarray(jax.random.key_data(k)).ravel().tolist()
         return _seen_as_logged(seed, moved, dt, sigma)
 
@@ -541,7 +553,7 @@ def realism_table(
     return table
 
 
-def plot_realism(table: pd.DataFrame) -> Any:
+def plot_realism(table: pd.DataFrame) -> Figure:
     """Bars of every feature's score per model, the weighted realism score first.
 
     Parameters
