@@ -47,7 +47,7 @@ leave-future-out-style and approximate (see ``docs/src/models.md``).
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -96,12 +96,12 @@ class BurstSteps(NamedTuple):
         the period of its midpoint, as in the time-of-day model).
     """
 
-    gap: Any
-    count: Any
-    tick: Any
-    bin: Any
-    weight: Any
-    period: Any = None
+    gap: npt.ArrayLike
+    count: npt.ArrayLike
+    tick: npt.ArrayLike
+    bin: npt.ArrayLike
+    weight: npt.ArrayLike
+    period: npt.ArrayLike | None = None
 
 
 def burst_steps(

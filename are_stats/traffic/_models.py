@@ -205,14 +205,14 @@ class ArrivalUnits(NamedTuple):
         The ticks and the ends of the bins in time order (the MMPP and Hawkes models).
     """
 
-    tick_count: Any
-    tick_bin: Any
-    tick_period: Any
-    tick_weight: Any
-    bin_exposure: Any
-    bin_count: Any
-    bin_weight: Any
-    log_delta: Any
+    tick_count: npt.ArrayLike
+    tick_bin: npt.ArrayLike
+    tick_period: npt.ArrayLike
+    tick_weight: npt.ArrayLike
+    bin_exposure: npt.ArrayLike
+    bin_count: npt.ArrayLike
+    bin_weight: npt.ArrayLike
+    log_delta: npt.ArrayLike
     steps: BurstSteps | None = None
 
 
@@ -551,13 +551,13 @@ class StayUnits(NamedTuple):
         probability), the survival, or the mean excess; padded with ``n`` (a dummy row).
     """
 
-    stay: Any
-    censored: Any
-    truncated: Any
-    weight: Any
-    idx_full: Any
-    idx_surv: Any
-    idx_excess: Any
+    stay: npt.ArrayLike
+    censored: npt.ArrayLike
+    truncated: npt.ArrayLike
+    weight: npt.ArrayLike
+    idx_full: npt.ArrayLike
+    idx_surv: npt.ArrayLike
+    idx_excess: npt.ArrayLike
 
 
 def _padded_index(idx: np.ndarray, dummy: int) -> np.ndarray:
