@@ -32,8 +32,6 @@ from are_stats.environment import (
 from are_stats.inputs import (
     Described,
     InputError,
-    check_memory,
-    check_work,
     get_float,
     get_int,
     get_list,
@@ -56,6 +54,11 @@ console = Console(highlight=False, width=None if Console().is_terminal else 100)
 EXAMPLE_LOG_NAME = "courtyard_traffic"
 EXAMPLE_LOG = shipped_path(EXAMPLE_LOG_NAME, "log")
 EXAMPLE_MAP = shipped_path("courtyard", "map")
+
+
+#: The options of ``are-stats fit`` that set :class:`~are_stats.fitting.FitSettings`' sampler
+#: fields (named in a size error).
+SETTING_OPTIONS = {"num_samples": "--samples", "num_warmup": "--warmup", "num_chains": "--chains"}
 
 
 def _summary_table(summary: pd.DataFrame, title: str) -> Table:
@@ -113,8 +116,9 @@ def run_fit(
     The options are checked first, named as on the command line (``--samples``,
     ``--chains``, ``--warmup``, ``--components``, ``--replicates`` integers in range,
     ``--seed`` in ``[0, 2**32 - 1]``, ``--window`` two finite times ``t0 < t1``, ``--area``
-    finite and > 0), then the draws and the sampler's work against the limits of
-    :mod:`are_stats.inputs`.
+    finite and > 0); :func:`~are_stats.fitting.fit_log` checks the draws and the sampler's
+    work against the limits of :mod:`are_stats.inputs` (naming these options) before it
+    samples.
 
     The fit's posterior attributes name the log by its file name (``log``) and the
     SHA-256 of its bytes (``log_sha256``), never by its folder; ``log_report`` holds the
@@ -174,8 +178,6 @@ def run_fit(
         window = [w0, get_float(window[1], "--window", "t1", lo=w0, lo_open=True)]
     if area is not None:
         area = get_float(area, "--area", "", lo=0.0, lo_open=True)
-    draws = float(samples) * float(chains)
-    check_memory(draws * 8.0 * 64, f"{draws:.3g} posterior draws", "--samples, --chains")
     out = Path(out)
     if out.suffix != ".nc":
         raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
@@ -206,9 +208,6 @@ def run_fit(
     for w in caught:
         console.print(f"[yellow]warning:[/] {w.message}")
     data = lifecycle.to_lifecycle_data()
-    if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
-        steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
-        check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
     rep = lifecycle.report()
     console.print(
         f"[bold]{log}[/]: {rep['rows_used']} artefacts ({rep['left_truncated']} present at "
@@ -236,6 +235,7 @@ def run_fit(
             behaviour=behaviour,
             features=features,
             catalogue=catalogue,
+            setting_names=SETTING_OPTIONS,
         )
     idata = fit.idata
     for note in fit.notes:
