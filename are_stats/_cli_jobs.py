@@ -589,13 +589,6 @@ def run_generate(
     fitted = fit.behaviour is not None
     if behaviours and grid is None and not fitted:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    laws = fit.laws if model == "chosen" else fit.traffic(model)[1]
-    placed = laws.positions if positions == "chosen" else "uniform"  # --positions wins
-    if placed == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
-        raise ValueError(
-            f"--map: expected an origin yaw of 0 with the fit's learned entry density, got "
-            f"{grid.origin[2]} (or use --positions uniform, or --model paper)"
-        )
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
@@ -652,7 +645,11 @@ def run_generate(
             }
         )
     write_scenes(df, out, manifest, tracks=tracks, force=force)
-    console.print(f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {placed}")
+    laws = df.attrs["generation"]["laws"]  # what the scenes were drawn from
+    console.print(
+        f"model: arrivals {laws['arrivals']}, stays {laws['lifetimes']}, "
+        f"positions {laws['positions']}"
+    )
     console.print(
         f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"

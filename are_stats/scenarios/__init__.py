@@ -22,9 +22,11 @@ from are_stats.scenarios._folder import (
     write_scenes,
 )
 from are_stats.scenarios._generate import (
+    ORIGIN_YAW_TOLERANCE,
     SCENARIO_COLUMNS,
     atomic_folder,
     check_folder,
+    check_origin_yaw,
     check_scenario_size,
     expected_artefacts,
     generate_scenarios,
@@ -45,6 +47,7 @@ __all__ = [
     "Boxes",
     "FORMAT_VERSION",
     "MAX_POSITION",
+    "ORIGIN_YAW_TOLERANCE",
     "POSITION_CHOICES",
     "Scene",
     "ScenesFolder",
@@ -52,6 +55,7 @@ __all__ = [
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
+    "check_origin_yaw",
     "check_positions",
     "check_scenario_size",
     "check_tracks_size",
