@@ -798,27 +798,15 @@ def run_perceive(
     scenario = Path(scenario)
     target = Path(out) if out is not None else scenario / "perceived.parquet"
     check_writable(target, force)
-    df, manifest, tracks = read_scenes(scenario)
+    folder = read_scenes(scenario)
+    df, tracks = folder.artefacts, folder.tracks
     camera = PinholeCamera.from_yaml(resolve_shipped(camera_path, "camera", source="--camera"))
     path = Path(robot_path)
     robot = read_robot_path(path)
-    map_file = manifest.get("map")
-    if map_file and not Path(map_file).exists() and mesh is None:
-        raise InputError(
-            scenario / "manifest.yaml",
-            "map",
-            "an existing ROS map YAML (a relative path is read from the current folder), "
-            "or pass --mesh MESH",
-            Described(f"{map_file}: no such file"),
-        )
-    grid = OccupancyGrid.from_ros_yaml(map_file) if map_file and Path(map_file).exists() else None
-    env = environment_mesh(grid, wall_height, mesh, source=scenario / "manifest.yaml")
+    grid = folder.grid(missing_ok=mesh is not None, or_else="pass --mesh MESH")
+    env = environment_mesh(grid, wall_height, mesh, source=folder.manifest_path)
     bounds = None if mesh is None else np.asarray(env.bounds)[:, :2]
-    generation = manifest.get("generation")
-    horizon = generation.get("horizon") if isinstance(generation, dict) else None
-    window = None
-    if horizon is not None:  # written by are-stats generate
-        window = (0.0, get_float(horizon, scenario / "manifest.yaml", "generation.horizon", lo=0))
+    window = None if folder.horizon is None else (0.0, folder.horizon)
     check_path_times(
         path,
         robot["t"].to_numpy(),
@@ -830,7 +818,7 @@ def run_perceive(
     outside = poses_outside(robot[["x", "y"]].to_numpy(), grid=grid, bounds=bounds)
     if outside.any():
         area = (
-            f"the map {map_file}"
+            f"the map {folder.map_file}"
             if grid is not None
             else f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
         )
@@ -838,24 +826,21 @@ def run_perceive(
             f"[yellow]warning:[/] {int(outside.sum())} of {len(outside)} robot poses of {path} "
             f"lie outside {area} (first: row {int(np.argmax(outside)) + 1})"
         )
-    labels = manifest.get("class_labels")
     cat = load_catalogue()
-    if labels:
-        used = {labels[c] for c in np.unique(df["class"]).tolist() if 0 <= c < len(labels)}
-        unknown = sorted(used - set(cat.labels))
-        if unknown:
-            console.print(
-                f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the "
-                f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
-                "in their position"
-            )
+    unknown = folder.unknown_classes(cat)
+    if unknown:
+        console.print(
+            f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the "
+            f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
+            "in their position"
+        )
     mount = camera_mount(camera.pose, camera_height)
-    n_moving = 0 if tracks is None else len(tracks[["scenario", "id"]].drop_duplicates())
-    moving = f" ({n_moving} moving)" if n_moving else ""
+    moving = f" ({folder.n_moving} moving)" if folder.n_moving else ""
     t = time.perf_counter()
     with console.status(
         f"perceiving {len(df)} artefacts{moving} over {len(robot)} robot poses ..."
     ):
+        labels = folder.manifest.get("class_labels")
         scenes = scenes_from_tables(df, tracks, cat, labels, df["scenario"].unique())
         res = perceive_scenario(
             scenes,
