@@ -23,7 +23,6 @@ from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
     OccupancyGrid,
-    coarse_cell,
     environment_mesh,
     load_catalogue,
     resolve_shipped,
@@ -565,6 +564,7 @@ def run_generate(
         check_folder,
         scenes_from_fit,
         scenes_tables,
+        tracks_record,
         write_scenes,
     )
 
@@ -629,22 +629,18 @@ def run_generate(
         "seed": int(seed),
         "class_labels": None if fit.class_labels is None else list(fit.class_labels),
     }
-    if not behaviours:
-        tracks = None
-    else:
-        manifest["tracks"] = (
-            {"source": "fitted behaviour", "rows": len(tracks)}
-            if fitted
-            else {
-                "source": "catalogue behaviour",
-                "cell_m": coarse_cell(
-                    grid.shape, grid.resolution, behaviour_cell, source="--behaviour-cell"
-                ),
-                "dt_s": behaviour_dt,
-                "rows": len(tracks),
-            }
-        )
-    write_scenes(df, out, manifest, tracks=tracks, force=force)
+    section = tracks_record(
+        behaviours,
+        fit.behaviour,
+        tracks,
+        grid,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        cell_source="--behaviour-cell",
+    )
+    if section is not None:
+        manifest["tracks"] = section
+    write_scenes(df, out, manifest, tracks=None if section is None else tracks, force=force)
     laws = df.attrs["generation"]["laws"]  # what the scenes were drawn from
     console.print(
         f"model: arrivals {laws['arrivals']}, stays {laws['lifetimes']}, "

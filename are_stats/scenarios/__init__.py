@@ -19,6 +19,7 @@ from are_stats.scenarios._folder import (
     ScenesFolder,
     check_positions,
     read_scenes,
+    tracks_record,
     write_scenes,
 )
 from are_stats.scenarios._generate import (
@@ -74,5 +75,6 @@ __all__ = [
     "scenes_from_fit",
     "scenes_from_tables",
     "scenes_tables",
+    "tracks_record",
     "write_scenes",
 ]

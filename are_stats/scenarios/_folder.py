@@ -22,7 +22,7 @@ import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -31,11 +31,16 @@ import yaml
 
 from are_stats import __version__
 from are_stats._atomic import atomic_folder
-from are_stats.environment import ArtefactCatalogue, OccupancyGrid
+from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_cell
 from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
 from are_stats.logs import RawTable, read_raw_table
 
-# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read.
+if TYPE_CHECKING:
+    from are_stats.behaviour import BehaviourFit
+
+# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read;
+# _assembly (the behaviour rule) in tracks_record (_assembly imports _generate, which
+# imports this module).
 
 __all__ = [
     "FORMAT_VERSION",
@@ -44,6 +49,7 @@ __all__ = [
     "ScenesFolder",
     "check_positions",
     "read_scenes",
+    "tracks_record",
     "write_scenes",
 ]
 
@@ -246,6 +252,68 @@ def _check_table(df: pd.DataFrame, columns: Sequence[str], what: str) -> None:
             f"{what}: expected a table with columns {list(columns)}, "
             f"got {list(df.columns)} (missing {missing})"
         )
+
+
+def tracks_record(
+    behaviours: bool | str,
+    fitted: BehaviourFit | None,
+    tracks: pd.DataFrame,
+    grid: OccupancyGrid | None = None,
+    *,
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    cell_source: str = "behaviour_cell",
+) -> dict[str, Any] | None:
+    """The manifest's ``tracks`` section for scenes moved by the assembly's behaviour rule
+    (:func:`~are_stats.scenarios.scenes_from_fit`'s ``behaviours=``): which behaviour made
+    the tracks and on what; None when nothing moves (no tracks file is written then).
+
+    Parameters
+    ----------
+    behaviours : bool or str
+        As given to the assembly (``True``: the fit's behaviour when it has one, else the
+        catalogue's).
+    fitted : BehaviourFit or None
+        The fit's behaviour (:attr:`~are_stats.fitting.Fit.behaviour`).
+    tracks : pandas.DataFrame
+        The tracks written, ``(n_poses,)`` rows.
+    grid : OccupancyGrid, optional
+        The map (the catalogue's behaviours move on its coarsened cells).
+    behaviour_cell, behaviour_dt : float
+        The catalogue behaviours' target cell (m) and seconds per decision epoch.
+    cell_source : str
+        The option ``behaviour_cell`` came from, named in errors.
+
+    Returns
+    -------
+    dict or None
+        ``{"source": "fitted behaviour", "rows": n}``, or ``{"source": "catalogue
+        behaviour", "cell_m": side of the MDP's cells (m), "dt_s": behaviour_dt, "rows":
+        n}``; :func:`write_scenes` adds ``file``.
+
+    Raises
+    ------
+    ValueError
+        For catalogue behaviours without a map, or a ``behaviours`` the rule does not know.
+
+    Examples
+    --------
+    >>> tracks_record(True, None, pd.DataFrame({"t": [0.0, 2.0]}),
+    ...               OccupancyGrid(np.zeros((40, 40)), 0.1), behaviour_cell=0.5)
+    {'source': 'catalogue behaviour', 'cell_m': 0.5, 'dt_s': 2.0, 'rows': 2}
+    """
+    from are_stats.scenarios._assembly import _behaviour_source
+
+    kind = _behaviour_source(behaviours, fitted, "behaviours")
+    if kind == "none":
+        return None
+    if kind == "fitted":
+        return {"source": "fitted behaviour", "rows": len(tracks)}
+    if grid is None:
+        raise ValueError(f"{cell_source}: catalogue behaviours need a map, got none")
+    cell = coarse_cell(grid.shape, grid.resolution, behaviour_cell, source=cell_source)
+    return {"source": "catalogue behaviour", "cell_m": cell, "dt_s": behaviour_dt,
+            "rows": len(tracks)}  # fmt: skip
 
 
 def write_scenes(

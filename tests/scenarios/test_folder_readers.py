@@ -78,3 +78,21 @@ def test_unknown_classes_are_the_present_labels_the_catalogue_lacks():
     assert folder.unknown_classes(cat) == ["forklift", "robot dog"]
     only_known = ScenesFolder(_table([0], [1]), {"class_labels": labels}, None)
     assert only_known.unknown_classes(cat) == []
+
+
+def test_the_tracks_record_follows_the_assemblys_behaviour_rule():
+    from are_stats.scenarios import tracks_record
+
+    tracks = pd.DataFrame({"t": [0.0, 2.0, 4.0]})
+    grid = OccupancyGrid(np.zeros((60, 80)), 0.1)
+    fitted = object()  # the rule asks only whether the fit has a behaviour
+    assert tracks_record(False, fitted, tracks, grid) is None  # nothing moves: no file
+    assert tracks_record(True, fitted, tracks, grid) == {"source": "fitted behaviour", "rows": 3}
+    # no fitted behaviour: the catalogue's MDP on the map coarsened to whole cells,
+    # 0.33 m -> 3 cells of 0.1 m
+    got = tracks_record(True, None, tracks, grid, behaviour_cell=0.33, behaviour_dt=1.5)
+    assert got == {"source": "catalogue behaviour", "cell_m": pytest.approx(0.3), "dt_s": 1.5,
+                   "rows": 3}  # fmt: skip
+    assert tracks_record("catalogue", fitted, tracks, grid)["cell_m"] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="catalogue behaviours need a map"):
+        tracks_record(True, None, tracks, None, cell_source="--behaviour-cell")
