@@ -694,10 +694,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     from are_stats.fitting import crowding_statistics
     from are_stats.logs import read_manifest
 
-    post = fit.idata.posterior
-    area = fit.area
-    weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
-    rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
+    means = fit.posterior_means()
     desc = read_manifest(EXAMPLE_LOG.with_suffix(".yaml"))["description"]
     res = fit.time_resolution
 
@@ -717,14 +714,14 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
             "positions": fit.laws.positions,
         },
         "posterior_mean": {
-            "arrival_rate": float(post["arrival_rate"].mean()),
-            "leave_rate": float(post["leave_rate"].mean()),
-            "arrivals_per_s (lambda * area)": float((post["arrival_rate"] * area).mean()),
-            "mean_stay_s (1 / mu)": float((1.0 / post["leave_rate"]).mean()),
+            "arrival_rate": means.arrival_rate,
+            "leave_rate": means.leave_rate,
+            "arrivals_per_s (lambda * area)": means.arrivals_per_s,
+            "mean_stay_s (1 / mu)": means.mean_stay_s,
             "classes": {
-                str(label): {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
+                label: {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
                 for label, w, r in zip(
-                    fit.class_labels or range(len(weights)), weights, rates, strict=True
+                    means.class_labels, means.class_weights, means.mark_rates, strict=True
                 )
             },
         },

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -43,6 +43,7 @@ __all__ = [
     "PARAMETER_NAMES",
     "TRAFFIC_NAMES",
     "Fit",
+    "PosteriorMeans",
     "as_fit",
     "fit_class_labels",
     "fit_from_idata",
@@ -147,6 +148,26 @@ def fit_class_labels(idata: az.InferenceData | Fit) -> list[str] | None:
     return str(names).split(",") if names else None
 
 
+class PosteriorMeans(NamedTuple):
+    """Posterior means of the paper's model of a fit (:meth:`Fit.posterior_means`)."""
+
+    #: ``E[lambda]``, arrivals per m^2 per second.
+    arrival_rate: float
+    #: ``E[mu]``, leaving rate per second.
+    leave_rate: float
+    #: ``E[lambda * area]``, arrivals per second over the log's area (None without one).
+    arrivals_per_s: float | None
+    #: ``E[1 / mu]``, the mean stay (s).
+    mean_stay_s: float
+    #: Each mixture component's name: the fit's class labels, else ``"0"``, ``"1"``, ...
+    #: (empty without marks).
+    class_labels: tuple[str, ...]
+    #: ``(K,)`` ``E[w_k]``, the mixture weights of eq. (1) (empty without marks).
+    class_weights: np.ndarray
+    #: ``(K,)`` ``E[r_k]``, the components' Poisson mark rates (empty without marks).
+    mark_rates: np.ndarray
+
+
 @dataclass(frozen=True)
 class Fit:
     """A fit of a field log, decoded (:func:`~are_stats.fitting.read_fit`).
@@ -244,6 +265,45 @@ class Fit:
     def draws(self, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
         """``(chain * draw, ...)`` posterior draws of ``names`` (those present)."""
         return posterior_draws(self.idata, names)
+
+    def posterior_means(self) -> PosteriorMeans:
+        """Posterior means of the paper's model: ``lambda``, ``mu``, the arrivals per
+        second ``lambda * area``, the mean stay ``1 / mu`` (means of the transformed draws,
+        not transforms of the means) and the mixture's weights and mark rates (eq. 1).
+
+        Returns
+        -------
+        PosteriorMeans
+
+        Examples
+        --------
+        >>> import arviz as az
+        >>> idata = az.from_dict(posterior={"arrival_rate": [[1.0, 3.0]],
+        ...                                 "leave_rate": [[0.5, 0.25]]})
+        >>> idata.posterior.attrs["area"] = 10.0
+        >>> m = fit_from_idata(idata).posterior_means()
+        >>> m.arrival_rate, m.arrivals_per_s, m.mean_stay_s
+        (2.0, 20.0, 3.0)
+        """
+        post = self.idata.posterior
+        k = int(post["mix_weights"].shape[-1]) if "mix_weights" in post else 0
+        if k:
+            weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
+            rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
+        else:
+            weights = rates = np.zeros(0)
+        labels = (self.class_labels or tuple(str(c) for c in range(k))) if k else ()
+        return PosteriorMeans(
+            arrival_rate=float(post["arrival_rate"].mean()),
+            leave_rate=float(post["leave_rate"].mean()),
+            arrivals_per_s=(
+                None if self.area is None else float((post["arrival_rate"] * self.area).mean())
+            ),
+            mean_stay_s=float((1.0 / post["leave_rate"]).mean()),
+            class_labels=tuple(str(v) for v in labels),
+            class_weights=weights,
+            mark_rates=rates,
+        )
 
     def traffic(self, model: str = "chosen") -> tuple[dict[str, np.ndarray], TrafficLaws]:
         """Draws and laws to generate from: the fit's chosen models or the paper's

@@ -1,0 +1,51 @@
+"""Fit.posterior_means (issue 25: the demo's summary no longer computes them) against means
+worked out by hand from a 2-chain x 2-draw posterior."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from are_stats.fitting import fit_from_idata
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore", FutureWarning)
+    import arviz as az
+
+
+def _idata(labels: str | None = "small,large", area: float | None = 10.0, marks: bool = True):
+    post = {
+        "arrival_rate": np.array([[1.0, 2.0], [3.0, 4.0]]),
+        "leave_rate": np.array([[0.5, 1.0], [0.25, 0.5]]),
+    }
+    if marks:
+        post["mix_weights"] = np.array([[[0.2, 0.8], [0.4, 0.6]], [[0.6, 0.4], [0.8, 0.2]]])
+        post["mix_rates"] = np.array([[[1.0, 10.0], [3.0, 10.0]], [[1.0, 20.0], [3.0, 20.0]]])
+    idata = az.from_dict(posterior=post)
+    if area is not None:
+        idata.posterior.attrs["area"] = area
+    if labels is not None:
+        idata.posterior.attrs["class_labels"] = labels
+    return idata
+
+
+def test_means_of_the_draws_and_of_their_transforms():
+    m = fit_from_idata(_idata()).posterior_means()
+    assert m.arrival_rate == pytest.approx(2.5)  # (1 + 2 + 3 + 4) / 4
+    assert m.leave_rate == pytest.approx(0.5625)  # (0.5 + 1 + 0.25 + 0.5) / 4
+    assert m.arrivals_per_s == pytest.approx(25.0)  # E[lambda] * 10 m^2
+    # E[1 / mu] = (2 + 1 + 4 + 2) / 4, not 1 / E[mu] = 1.78
+    assert m.mean_stay_s == pytest.approx(2.25)
+    assert m.class_labels == ("small", "large")
+    np.testing.assert_allclose(m.class_weights, [0.5, 0.5])
+    np.testing.assert_allclose(m.mark_rates, [2.0, 15.0])
+
+
+def test_components_without_labels_are_numbered_and_no_area_gives_none():
+    m = fit_from_idata(_idata(labels=None, area=None)).posterior_means()
+    assert m.class_labels == ("0", "1") and m.arrivals_per_s is None
+    bare = fit_from_idata(_idata(labels=None, marks=False)).posterior_means()
+    assert bare.class_labels == () and bare.class_weights.shape == (0,)
+    assert bare.mark_rates.shape == (0,) and bare.mean_stay_s == pytest.approx(2.25)
