@@ -295,16 +295,12 @@ def run_fit(
 
 def _print_classes(fit: Fit) -> None:
     """One line on a labelled log's classes: shares and mean stays (issue 31)."""
-    post = fit.idata.posterior
-    if "class_weights" not in post:
+    classes = fit.class_shares()
+    if classes is None:
         return
-    w = np.asarray(post["class_weights"].mean(("chain", "draw")))
-    m = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
-    # each class's arrivals per hour: its share of the pooled arrival rate (lambda x nu)
-    total = float(post["arrival_rate"].mean()) * float(fit.area) * 3600.0
     parts = [
-        f"{name} {wi:.0%} ({wi * total:.3g}/h, mean stay {mi:.3g})"
-        for name, wi, mi in zip(fit.class_labels or (), w, m, strict=True)
+        f"{name} {wi:.0%} ({hi:.3g}/h, mean stay {mi:.3g})"
+        for name, wi, hi, mi in zip(*classes, strict=True)
     ]
     console.print(f"classes (stays {fit.class_stay_model} by PSIS-LOO): " + ", ".join(parts))
     extra = []

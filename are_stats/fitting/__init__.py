@@ -57,6 +57,7 @@ __all__ += ["fit_lifecycle_nuts", "chains_per_device", "resolve_chain_method"]
 from are_stats.fitting._fit import (  # noqa: E402
     PARAMETER_NAMES,
     TRAFFIC_NAMES,
+    ClassShares,
     Fit,
     PosteriorMeans,
     as_fit,
@@ -69,6 +70,7 @@ from are_stats.fitting._fit import (  # noqa: E402
 __all__ += [
     "PARAMETER_NAMES",
     "TRAFFIC_NAMES",
+    "ClassShares",
     "Fit",
     "PosteriorMeans",
     "as_fit",

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
 __all__ = [
     "PARAMETER_NAMES",
     "TRAFFIC_NAMES",
+    "ClassShares",
     "Fit",
     "PosteriorMeans",
     "as_fit",
@@ -166,6 +167,20 @@ class PosteriorMeans(NamedTuple):
     class_weights: np.ndarray
     #: ``(K,)`` ``E[r_k]``, the components' Poisson mark rates (empty without marks).
     mark_rates: np.ndarray
+
+
+class ClassShares(NamedTuple):
+    """The classes of a labelled log (issue 31) as the fit sees them
+    (:meth:`Fit.class_shares`)."""
+
+    #: The class names, in component order.
+    labels: tuple[str, ...]
+    #: ``(K,)`` posterior mean share of the arrivals of each class.
+    shares: np.ndarray
+    #: ``(K,)`` arrivals per hour of each class: its share of ``E[lambda] * area * 3600``.
+    per_hour: np.ndarray
+    #: ``(K,)`` posterior median of each class's mean stay (s).
+    stay_mean: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -304,6 +319,37 @@ class Fit:
             class_weights=weights,
             mark_rates=rates,
         )
+
+    def class_shares(self) -> ClassShares | None:
+        """Each class's share of the arrivals, its arrivals per hour and its mean stay, for a
+        log that names its classes (posterior ``class_weights`` and ``class_stay_mean``);
+        None for other fits.
+
+        The arrivals per hour of class ``k`` are ``E[w_k] * E[lambda] * area * 3600``.
+
+        Returns
+        -------
+        ClassShares or None
+
+        Examples
+        --------
+        >>> import arviz as az
+        >>> idata = az.from_dict(posterior={
+        ...     "arrival_rate": [[1e-4, 3e-4]], "leave_rate": [[0.01, 0.01]],
+        ...     "class_weights": [[[0.25, 0.75], [0.75, 0.25]]],
+        ...     "class_stay_mean": [[[10.0, 100.0], [30.0, 300.0]]]})
+        >>> idata.posterior.attrs.update(area=10.0, class_labels="person,cart")
+        >>> c = fit_from_idata(idata).class_shares()
+        >>> c.labels, c.shares.tolist(), c.per_hour.round(6).tolist(), c.stay_mean.tolist()
+        (('person', 'cart'), [0.5, 0.5], [3.6, 3.6], [20.0, 200.0])
+        """
+        post = self.idata.posterior
+        if "class_weights" not in post:
+            return None
+        shares = np.asarray(post["class_weights"].mean(("chain", "draw")))
+        stays = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
+        total = float(post["arrival_rate"].mean()) * float(self.area) * 3600.0
+        return ClassShares(tuple(self.class_labels or ()), shares, shares * total, stays)
 
     def traffic(self, model: str = "chosen") -> tuple[dict[str, np.ndarray], TrafficLaws]:
         """Draws and laws to generate from: the fit's chosen models or the paper's

@@ -49,3 +49,23 @@ def test_components_without_labels_are_numbered_and_no_area_gives_none():
     bare = fit_from_idata(_idata(labels=None, marks=False)).posterior_means()
     assert bare.class_labels == () and bare.class_weights.shape == (0,)
     assert bare.mark_rates.shape == (0,) and bare.mean_stay_s == pytest.approx(2.25)
+
+
+def test_class_shares_of_a_labelled_fit():
+    """Shares (0.25 + 0.75) / 2, arrivals per hour share x E[lambda] x area x 3600 =
+    0.5 x 2.5 x 10 x 3600, stays the median of two draws (their mean)."""
+    idata = _idata(marks=False, labels="person,cart")
+    idata.posterior["class_weights"] = (
+        ("chain", "draw", "class"),
+        np.array([[[0.25, 0.75], [0.75, 0.25]], [[0.25, 0.75], [0.75, 0.25]]]),
+    )
+    idata.posterior["class_stay_mean"] = (
+        ("chain", "draw", "class"),
+        np.array([[[10.0, 100.0], [30.0, 300.0]], [[10.0, 100.0], [30.0, 300.0]]]),
+    )
+    c = fit_from_idata(idata).class_shares()
+    assert c.labels == ("person", "cart")
+    np.testing.assert_allclose(c.shares, [0.5, 0.5])
+    np.testing.assert_allclose(c.per_hour, [45000.0, 45000.0])
+    np.testing.assert_allclose(c.stay_mean, [20.0, 200.0])
+    assert fit_from_idata(_idata()).class_shares() is None  # marks, no named classes
