@@ -318,13 +318,11 @@ def _print_interaction(fit: Fit) -> None:
     if params is None:
         return
     info = fit.interaction_info
-    n = info.get("n", np.nan)
-    if np.isfinite(n):
-        how = f"R^2 {info['r2']:.2f} over {int(n)} accelerations"
-    elif params.strength == 0:  # learn_interaction: the log shows no repulsion
-        how = "no repulsion: the published one fits the tracks worse than none"
-    else:
-        how = "published: the tracks do not fit a repulsion"
+    how = {
+        "estimated": f"R^2 {info.get('r2', np.nan):.2f} over {info.get('n', 0):.0f} accelerations",
+        "none": "no repulsion: the published one fits the tracks worse than none",
+        "published": "published: the tracks do not fit a repulsion",
+    }[fit.interaction_source]
     console.print(
         f"interaction (social force): strength A {params.strength:.3g} m/s^2, range B "
         f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s ({how})"

@@ -320,6 +320,20 @@ class Fit:
             mark_rates=rates,
         )
 
+    @property
+    def interaction_source(self) -> str | None:
+        """Where the fit's social force (:attr:`interaction`) comes from: ``"estimated"``
+        from the tracks' accelerations (:attr:`interaction_info` holds ``r2`` and ``n``),
+        ``"none"`` when the tracks show no repulsion (strength 0: the published force fits
+        them worse than none), ``"published"`` when they do not fit one (the published
+        parameters kept); None without an interaction (the published force applies).
+        """
+        if self.interaction is None:
+            return None
+        if np.isfinite(self.interaction_info.get("n", np.nan)):
+            return "estimated"
+        return "none" if self.interaction.strength == 0 else "published"
+
     def class_shares(self) -> ClassShares | None:
         """Each class's share of the arrivals, its arrivals per hour and its mean stay, for a
         log that names its classes (posterior ``class_weights`` and ``class_stay_mean``);

@@ -69,3 +69,21 @@ def test_class_shares_of_a_labelled_fit():
     np.testing.assert_allclose(c.per_hour, [45000.0, 45000.0])
     np.testing.assert_allclose(c.stay_mean, [20.0, 200.0])
     assert fit_from_idata(_idata()).class_shares() is None  # marks, no named classes
+
+
+def test_interaction_source_says_where_the_social_force_came_from():
+    import dataclasses
+
+    from are_stats.behaviour import SocialForce
+
+    fit = fit_from_idata(_idata())
+    assert fit.interaction_source is None  # no interaction stored: the published applies
+    fitted = dataclasses.replace(
+        fit, interaction=SocialForce(strength=1.2), interaction_info={"r2": 0.4, "n": 812.0}
+    )
+    assert fitted.interaction_source == "estimated"
+    unfit = {"r2": np.nan, "n": np.nan}
+    none = dataclasses.replace(fit, interaction=SocialForce(strength=0.0), interaction_info=unfit)
+    assert none.interaction_source == "none"
+    kept = dataclasses.replace(fit, interaction=SocialForce(), interaction_info=unfit)
+    assert kept.interaction_source == "published"
