@@ -686,10 +686,10 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     )
 
     from are_stats.fitting import crowding_statistics
-    from are_stats.logs import read_manifest
+    from are_stats.logs import find_manifest
 
     means = fit.posterior_means()
-    desc = read_manifest(EXAMPLE_LOG.with_suffix(".yaml"))["description"]
+    desc = find_manifest(EXAMPLE_LOG)[0].get("description")
     res = fit.time_resolution
 
     def crowding(table: pd.DataFrame) -> dict[str, float]:
