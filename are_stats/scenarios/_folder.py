@@ -263,7 +263,7 @@ def tracks_record(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     cell_source: str = "behaviour_cell",
-) -> dict[str, Any] | None:
+) -> dict[str, str | float] | None:
     """The manifest's ``tracks`` section for scenes moved by the assembly's behaviour rule
     (:func:`~are_stats.scenarios.scenes_from_fit`'s ``behaviours=``): which behaviour made
     the tracks and on what; None when nothing moves (no tracks file is written then).
