@@ -23,7 +23,6 @@ from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
     OccupancyGrid,
-    coarse_cell,
     environment_mesh,
     load_catalogue,
     resolve_shipped,
@@ -32,8 +31,6 @@ from are_stats.environment import (
 from are_stats.inputs import (
     Described,
     InputError,
-    check_memory,
-    check_work,
     get_float,
     get_int,
     get_list,
@@ -56,6 +53,11 @@ console = Console(highlight=False, width=None if Console().is_terminal else 100)
 EXAMPLE_LOG_NAME = "courtyard_traffic"
 EXAMPLE_LOG = shipped_path(EXAMPLE_LOG_NAME, "log")
 EXAMPLE_MAP = shipped_path("courtyard", "map")
+
+
+#: The options of ``are-stats fit`` that set :class:`~are_stats.fitting.FitSettings`' sampler
+#: fields (named in a size error).
+SETTING_OPTIONS = {"num_samples": "--samples", "num_warmup": "--warmup", "num_chains": "--chains"}
 
 
 def _summary_table(summary: pd.DataFrame, title: str) -> Table:
@@ -113,8 +115,9 @@ def run_fit(
     The options are checked first, named as on the command line (``--samples``,
     ``--chains``, ``--warmup``, ``--components``, ``--replicates`` integers in range,
     ``--seed`` in ``[0, 2**32 - 1]``, ``--window`` two finite times ``t0 < t1``, ``--area``
-    finite and > 0), then the draws and the sampler's work against the limits of
-    :mod:`are_stats.inputs`.
+    finite and > 0); :func:`~are_stats.fitting.fit_log` checks the draws and the sampler's
+    work against the limits of :mod:`are_stats.inputs` (naming these options) before it
+    samples.
 
     The fit's posterior attributes name the log by its file name (``log``) and the
     SHA-256 of its bytes (``log_sha256``), never by its folder; ``log_report`` holds the
@@ -174,8 +177,6 @@ def run_fit(
         window = [w0, get_float(window[1], "--window", "t1", lo=w0, lo_open=True)]
     if area is not None:
         area = get_float(area, "--area", "", lo=0.0, lo_open=True)
-    draws = float(samples) * float(chains)
-    check_memory(draws * 8.0 * 64, f"{draws:.3g} posterior draws", "--samples, --chains")
     out = Path(out)
     if out.suffix != ".nc":
         raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
@@ -206,9 +207,6 @@ def run_fit(
     for w in caught:
         console.print(f"[yellow]warning:[/] {w.message}")
     data = lifecycle.to_lifecycle_data()
-    if method == "nuts":  # about 16 leapfrog steps a draw, each over the stays and marks
-        steps = float(chains) * float(warmup + samples) * 16.0 * (data.n + 64)
-        check_work(steps, f"NUTS on {data.n} artefacts", "--samples, --warmup, --chains")
     rep = lifecycle.report()
     console.print(
         f"[bold]{log}[/]: {rep['rows_used']} artefacts ({rep['left_truncated']} present at "
@@ -236,6 +234,7 @@ def run_fit(
             behaviour=behaviour,
             features=features,
             catalogue=catalogue,
+            setting_names=SETTING_OPTIONS,
         )
     idata = fit.idata
     for note in fit.notes:
@@ -296,16 +295,12 @@ def run_fit(
 
 def _print_classes(fit: Fit) -> None:
     """One line on a labelled log's classes: shares and mean stays (issue 31)."""
-    post = fit.idata.posterior
-    if "class_weights" not in post:
+    classes = fit.class_shares()
+    if classes is None:
         return
-    w = np.asarray(post["class_weights"].mean(("chain", "draw")))
-    m = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
-    # each class's arrivals per hour: its share of the pooled arrival rate (lambda x nu)
-    total = float(post["arrival_rate"].mean()) * float(fit.area) * 3600.0
     parts = [
-        f"{name} {wi:.0%} ({wi * total:.3g}/h, mean stay {mi:.3g})"
-        for name, wi, mi in zip(fit.class_labels or (), w, m, strict=True)
+        f"{name} {wi:.0%} ({hi:.3g}/h, mean stay {mi:.3g})"
+        for name, wi, hi, mi in zip(*classes, strict=True)
     ]
     console.print(f"classes (stays {fit.class_stay_model} by PSIS-LOO): " + ", ".join(parts))
     extra = []
@@ -323,13 +318,11 @@ def _print_interaction(fit: Fit) -> None:
     if params is None:
         return
     info = fit.interaction_info
-    n = info.get("n", np.nan)
-    if np.isfinite(n):
-        how = f"R^2 {info['r2']:.2f} over {int(n)} accelerations"
-    elif params.strength == 0:  # learn_interaction: the log shows no repulsion
-        how = "no repulsion: the published one fits the tracks worse than none"
-    else:
-        how = "published: the tracks do not fit a repulsion"
+    how = {
+        "estimated": f"R^2 {info.get('r2', np.nan):.2f} over {info.get('n', 0):.0f} accelerations",
+        "none": "no repulsion: the published one fits the tracks worse than none",
+        "published": "published: the tracks do not fit a repulsion",
+    }[fit.interaction_source]
     console.print(
         f"interaction (social force): strength A {params.strength:.3g} m/s^2, range B "
         f"{params.range:.3g} m, relaxation tau {params.relaxation:.3g} s ({how})"
@@ -565,6 +558,7 @@ def run_generate(
         check_folder,
         scenes_from_fit,
         scenes_tables,
+        tracks_record,
         write_scenes,
     )
 
@@ -589,13 +583,6 @@ def run_generate(
     fitted = fit.behaviour is not None
     if behaviours and grid is None and not fitted:
         raise ValueError("--behaviours: expected --map (trajectories need the grid)")
-    laws = fit.laws if model == "chosen" else fit.traffic(model)[1]
-    placed = laws.positions if positions == "chosen" else "uniform"  # --positions wins
-    if placed == "learned" and grid is not None and abs(float(grid.origin[2])) > 1e-9:
-        raise ValueError(
-            f"--map: expected an origin yaw of 0 with the fit's learned entry density, got "
-            f"{grid.origin[2]} (or use --positions uniform, or --model paper)"
-        )
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
@@ -636,23 +623,23 @@ def run_generate(
         "seed": int(seed),
         "class_labels": None if fit.class_labels is None else list(fit.class_labels),
     }
-    if not behaviours:
-        tracks = None
-    else:
-        manifest["tracks"] = (
-            {"source": "fitted behaviour", "rows": len(tracks)}
-            if fitted
-            else {
-                "source": "catalogue behaviour",
-                "cell_m": coarse_cell(
-                    grid.shape, grid.resolution, behaviour_cell, source="--behaviour-cell"
-                ),
-                "dt_s": behaviour_dt,
-                "rows": len(tracks),
-            }
-        )
-    write_scenes(df, out, manifest, tracks=tracks, force=force)
-    console.print(f"model: arrivals {laws.arrivals}, stays {laws.lifetimes}, positions {placed}")
+    section = tracks_record(
+        behaviours,
+        fit.behaviour,
+        tracks,
+        grid,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        cell_source="--behaviour-cell",
+    )
+    if section is not None:
+        manifest["tracks"] = section
+    write_scenes(df, out, manifest, tracks=None if section is None else tracks, force=force)
+    laws = df.attrs["generation"]["laws"]  # what the scenes were drawn from
+    console.print(
+        f"model: arrivals {laws['arrivals']}, stays {laws['lifetimes']}, "
+        f"positions {laws['positions']}"
+    )
     console.print(
         f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
@@ -699,13 +686,10 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     )
 
     from are_stats.fitting import crowding_statistics
-    from are_stats.logs import read_manifest
+    from are_stats.logs import find_manifest
 
-    post = fit.idata.posterior
-    area = fit.area
-    weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
-    rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
-    desc = read_manifest(EXAMPLE_LOG.with_suffix(".yaml"))["description"]
+    means = fit.posterior_means()
+    desc = find_manifest(EXAMPLE_LOG)[0].get("description")
     res = fit.time_resolution
 
     def crowding(table: pd.DataFrame) -> dict[str, float]:
@@ -724,14 +708,14 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
             "positions": fit.laws.positions,
         },
         "posterior_mean": {
-            "arrival_rate": float(post["arrival_rate"].mean()),
-            "leave_rate": float(post["leave_rate"].mean()),
-            "arrivals_per_s (lambda * area)": float((post["arrival_rate"] * area).mean()),
-            "mean_stay_s (1 / mu)": float((1.0 / post["leave_rate"]).mean()),
+            "arrival_rate": means.arrival_rate,
+            "leave_rate": means.leave_rate,
+            "arrivals_per_s (lambda * area)": means.arrivals_per_s,
+            "mean_stay_s (1 / mu)": means.mean_stay_s,
             "classes": {
-                str(label): {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
+                label: {"weight": round(float(w), 4), "mark_rate": round(float(r), 3)}
                 for label, w, r in zip(
-                    fit.class_labels or range(len(weights)), weights, rates, strict=True
+                    means.class_labels, means.class_weights, means.mark_rates, strict=True
                 )
             },
         },
@@ -801,27 +785,15 @@ def run_perceive(
     scenario = Path(scenario)
     target = Path(out) if out is not None else scenario / "perceived.parquet"
     check_writable(target, force)
-    df, manifest, tracks = read_scenes(scenario)
+    folder = read_scenes(scenario)
+    df, tracks = folder.artefacts, folder.tracks
     camera = PinholeCamera.from_yaml(resolve_shipped(camera_path, "camera", source="--camera"))
     path = Path(robot_path)
     robot = read_robot_path(path)
-    map_file = manifest.get("map")
-    if map_file and not Path(map_file).exists() and mesh is None:
-        raise InputError(
-            scenario / "manifest.yaml",
-            "map",
-            "an existing ROS map YAML (a relative path is read from the current folder), "
-            "or pass --mesh MESH",
-            Described(f"{map_file}: no such file"),
-        )
-    grid = OccupancyGrid.from_ros_yaml(map_file) if map_file and Path(map_file).exists() else None
-    env = environment_mesh(grid, wall_height, mesh, source=scenario / "manifest.yaml")
+    grid = folder.grid(missing_ok=mesh is not None, or_else="pass --mesh MESH")
+    env = environment_mesh(grid, wall_height, mesh, source=folder.manifest_path)
     bounds = None if mesh is None else np.asarray(env.bounds)[:, :2]
-    generation = manifest.get("generation")
-    horizon = generation.get("horizon") if isinstance(generation, dict) else None
-    window = None
-    if horizon is not None:  # written by are-stats generate
-        window = (0.0, get_float(horizon, scenario / "manifest.yaml", "generation.horizon", lo=0))
+    window = None if folder.horizon is None else (0.0, folder.horizon)
     check_path_times(
         path,
         robot["t"].to_numpy(),
@@ -833,7 +805,7 @@ def run_perceive(
     outside = poses_outside(robot[["x", "y"]].to_numpy(), grid=grid, bounds=bounds)
     if outside.any():
         area = (
-            f"the map {map_file}"
+            f"the map {folder.map_file}"
             if grid is not None
             else f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
         )
@@ -841,24 +813,21 @@ def run_perceive(
             f"[yellow]warning:[/] {int(outside.sum())} of {len(outside)} robot poses of {path} "
             f"lie outside {area} (first: row {int(np.argmax(outside)) + 1})"
         )
-    labels = manifest.get("class_labels")
     cat = load_catalogue()
-    if labels:
-        used = {labels[c] for c in np.unique(df["class"]).tolist() if 0 <= c < len(labels)}
-        unknown = sorted(used - set(cat.labels))
-        if unknown:
-            console.print(
-                f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the "
-                f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
-                "in their position"
-            )
+    unknown = folder.unknown_classes(cat)
+    if unknown:
+        console.print(
+            f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the "
+            f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
+            "in their position"
+        )
     mount = camera_mount(camera.pose, camera_height)
-    n_moving = 0 if tracks is None else len(tracks[["scenario", "id"]].drop_duplicates())
-    moving = f" ({n_moving} moving)" if n_moving else ""
+    moving = f" ({folder.n_moving} moving)" if folder.n_moving else ""
     t = time.perf_counter()
     with console.status(
         f"perceiving {len(df)} artefacts{moving} over {len(robot)} robot poses ..."
     ):
+        labels = folder.manifest.get("class_labels")
         scenes = scenes_from_tables(df, tracks, cat, labels, df["scenario"].unique())
         res = perceive_scenario(
             scenes,

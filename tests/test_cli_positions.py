@@ -158,3 +158,44 @@ def test_an_unknown_positions_choice_is_refused_before_any_work(learned, tmp_pat
     errors = [line for line in res.output.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and "--positions" in errors[0], res.output
     assert "'chosen', 'uniform'" in errors[0] and not out.exists()
+
+
+def _courtyard_turned(folder: Path, yaw: float) -> Path:
+    """The shipped courtyard map with its origin turned by ``yaw`` (rad)."""
+    from are_stats.environment import shipped_path
+
+    src = shipped_path("courtyard", "map")
+    meta = yaml.safe_load(src.read_text())
+    meta["image"] = str(src.parent / meta["image"])
+    meta["origin"] = [*meta["origin"][:2], yaw]
+    path = folder / f"courtyard_{yaw:g}.yaml"
+    path.write_text(yaml.safe_dump(meta))
+    return path
+
+
+@pytest.mark.parametrize("yaw", [0.1, 1e-10])
+def test_a_turned_map_is_refused_for_learned_entries_by_the_one_yaw_check(learned, yaw):
+    """One check (scenarios.check_origin_yaw, 1e-12 rad) decides, whatever the yaw: the
+    CLI no longer pre-checks with its own tolerance and message."""
+    out = learned["dir"] / f"turned_{yaw:g}"
+    res = _generate(learned, out, _courtyard_turned(learned["dir"], yaw), n=2)
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1, res.output
+    assert f"map: expected an origin yaw of 0 for learned positions, got {yaw}" in errors[0]
+    assert "--positions uniform" in errors[0] and not out.exists()
+
+
+def test_a_yaw_within_the_tolerance_is_no_turn(learned):
+    """A yaw of 1e-13 rad (below ORIGIN_YAW_TOLERANCE) places the learned entries as on the
+    unturned map: same positions, headings within 1e-12 rad."""
+    a, b = learned["dir"] / "yaw_0", learned["dir"] / "yaw_1e-13"
+    res = _generate(learned, a, _courtyard_turned(learned["dir"], 0.0), n=2)
+    assert res.exit_code == 0, res.output
+    res = _generate(learned, b, _courtyard_turned(learned["dir"], 1e-13), n=2)
+    assert res.exit_code == 0, res.output
+    da, db = read_scenes(a).artefacts, read_scenes(b).artefacts
+    assert len(da) == len(db) > 0
+    pd.testing.assert_frame_equal(da.drop(columns="yaw"), db.drop(columns="yaw"))
+    turn = np.angle(np.exp(1j * (db["yaw"].to_numpy() - da["yaw"].to_numpy())))
+    assert np.abs(turn).max() <= 1e-12

@@ -667,14 +667,7 @@ def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> _Repl
         (artefacts with tracks), ``map`` (the map file or None).
     """
     df, manifest, tracks = folder
-    # the scenarios of the folder: 0 .. n_scenarios - 1 (some may hold no artefact), or
-    # those of the table when the manifest does not say
-    n_sc = manifest.get("n_scenarios")
-    present = (
-        list(range(int(n_sc)))
-        if n_sc is not None
-        else sorted(set(df["scenario"].astype(np.int64).tolist()))
-    )
+    present = folder.scenario_numbers
     if not present:
         raise InputError(
             d,
@@ -682,7 +675,7 @@ def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> _Repl
             "a scenarios folder with at least one scenario",
             Described(
                 "none (no artefact, and no n_scenarios in manifest.yaml)"
-                if n_sc is None
+                if manifest.get("n_scenarios") is None
                 else "n_scenarios: 0 in manifest.yaml"
             ),
         )
@@ -701,21 +694,10 @@ def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> _Repl
             )
         k = int(scenario)
     (scene,) = scenes_from_tables(df, tracks, load_catalogue(), manifest.get("class_labels"), [k])
-    map_file = manifest.get("map")
-    grid = None
-    if map_file:
-        if not Path(map_file).exists():
-            raise InputError(
-                d / "manifest.yaml",
-                "map",
-                "an existing ROS map YAML (a relative path is read from the current folder)",
-                Described(f"{map_file}: no such file"),
-            )
-        grid = OccupancyGrid.from_ros_yaml(map_file)
-    generation = manifest.get("generation")
-    horizon = generation.get("horizon") if isinstance(generation, dict) else None
-    if horizon is not None:
-        horizon = get_float(horizon, d / "manifest.yaml", "generation.horizon", lo=0, lo_open=True)
+    grid = folder.grid()
+    horizon = folder.horizon
+    if horizon is not None:  # the replay needs a scene of some length
+        horizon = get_float(horizon, folder.manifest_path, "generation.horizon", lo=0, lo_open=True)
     else:  # a hand-made folder: until the last leaving (or the last track epoch)
         ends = [scene.t_leave]
         if scene.has_tracks.any():
@@ -735,7 +717,7 @@ def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> _Repl
         "horizon": float(horizon),
         "scenario": k,
         "moving": int(np.count_nonzero(scene.has_tracks)),
-        "map": map_file,
+        "map": folder.map_file,
     }
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -220,6 +220,7 @@ def fit_log(
     behaviour: bool = True,
     features: tuple[str, ...] = (),
     catalogue: ArtefactCatalogue | None = None,
+    setting_names: Mapping[str, str] | None = None,
 ) -> Fit:
     """Fit one field log: the whole fit ``are-stats fit`` writes.
 
@@ -255,6 +256,10 @@ def fit_log(
     catalogue : ArtefactCatalogue, optional
         The property table Q: the labels' rows (an unknown label is an error) and the
         classes' run speeds (default :func:`~are_stats.environment.load_catalogue`).
+    setting_names : mapping of str to str, optional
+        What a size error calls the sampler settings: the draws and the NUTS work are
+        checked against the limits of :mod:`are_stats.inputs` before anything is sampled
+        (:func:`~are_stats.fitting.check_fit_size`; the CLI names its options).
 
     Returns
     -------
@@ -266,6 +271,8 @@ def fit_log(
     ------
     are_stats.inputs.InputError
         For a label the catalogue does not have (naming the file and column ``label``).
+    are_stats.inputs.LimitError
+        For draws or NUTS work past the limits (:func:`~are_stats.fitting.check_fit_size`).
     """
     key, seed = _seed_of(key)
     if isinstance(log, LifecycleData):
@@ -280,6 +287,7 @@ def fit_log(
             grid,
             clock_start,
             classes,
+            setting_names=setting_names,
         )
         return fit_from_idata(idata)
     if not isinstance(log, LifecycleLog):
@@ -312,6 +320,7 @@ def fit_log(
         grid=None if settings.positions == "uniform" else grid,
         clock_start=log.clock_start,
         classes=None if labelled is None else labelled[0],
+        setting_names=setting_names,
     )
     notes: list[str] = []
     checks = None

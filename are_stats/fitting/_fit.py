@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -42,7 +42,9 @@ if TYPE_CHECKING:
 __all__ = [
     "PARAMETER_NAMES",
     "TRAFFIC_NAMES",
+    "ClassShares",
     "Fit",
+    "PosteriorMeans",
     "as_fit",
     "fit_class_labels",
     "fit_from_idata",
@@ -147,6 +149,40 @@ def fit_class_labels(idata: az.InferenceData | Fit) -> list[str] | None:
     return str(names).split(",") if names else None
 
 
+class PosteriorMeans(NamedTuple):
+    """Posterior means of the paper's model of a fit (:meth:`Fit.posterior_means`)."""
+
+    #: ``E[lambda]``, arrivals per m^2 per second.
+    arrival_rate: float
+    #: ``E[mu]``, leaving rate per second.
+    leave_rate: float
+    #: ``E[lambda * area]``, arrivals per second over the log's area (None without one).
+    arrivals_per_s: float | None
+    #: ``E[1 / mu]``, the mean stay (s).
+    mean_stay_s: float
+    #: Each mixture component's name: the fit's class labels, else ``"0"``, ``"1"``, ...
+    #: (empty without marks).
+    class_labels: tuple[str, ...]
+    #: ``(K,)`` ``E[w_k]``, the mixture weights of eq. (1) (empty without marks).
+    class_weights: np.ndarray
+    #: ``(K,)`` ``E[r_k]``, the components' Poisson mark rates (empty without marks).
+    mark_rates: np.ndarray
+
+
+class ClassShares(NamedTuple):
+    """The classes of a labelled log (issue 31) as the fit sees them
+    (:meth:`Fit.class_shares`)."""
+
+    #: The class names, in component order.
+    labels: tuple[str, ...]
+    #: ``(K,)`` posterior mean share of the arrivals of each class.
+    shares: np.ndarray
+    #: ``(K,)`` arrivals per hour of each class: its share of ``E[lambda] * area * 3600``.
+    per_hour: np.ndarray
+    #: ``(K,)`` posterior median of each class's mean stay (s).
+    stay_mean: np.ndarray
+
+
 @dataclass(frozen=True)
 class Fit:
     """A fit of a field log, decoded (:func:`~are_stats.fitting.read_fit`).
@@ -244,6 +280,90 @@ class Fit:
     def draws(self, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
         """``(chain * draw, ...)`` posterior draws of ``names`` (those present)."""
         return posterior_draws(self.idata, names)
+
+    def posterior_means(self) -> PosteriorMeans:
+        """Posterior means of the paper's model: ``lambda``, ``mu``, the arrivals per
+        second ``lambda * area``, the mean stay ``1 / mu`` (means of the transformed draws,
+        not transforms of the means) and the mixture's weights and mark rates (eq. 1).
+
+        Returns
+        -------
+        PosteriorMeans
+
+        Examples
+        --------
+        >>> import arviz as az
+        >>> idata = az.from_dict(posterior={"arrival_rate": [[1.0, 3.0]],
+        ...                                 "leave_rate": [[0.5, 0.25]]})
+        >>> idata.posterior.attrs["area"] = 10.0
+        >>> m = fit_from_idata(idata).posterior_means()
+        >>> m.arrival_rate, m.arrivals_per_s, m.mean_stay_s
+        (2.0, 20.0, 3.0)
+        """
+        post = self.idata.posterior
+        k = int(post["mix_weights"].shape[-1]) if "mix_weights" in post else 0
+        if k:
+            weights = np.asarray(post["mix_weights"].mean(("chain", "draw")))
+            rates = np.asarray(post["mix_rates"].mean(("chain", "draw")))
+        else:
+            weights = rates = np.zeros(0)
+        labels = (self.class_labels or tuple(str(c) for c in range(k))) if k else ()
+        return PosteriorMeans(
+            arrival_rate=float(post["arrival_rate"].mean()),
+            leave_rate=float(post["leave_rate"].mean()),
+            arrivals_per_s=(
+                None if self.area is None else float((post["arrival_rate"] * self.area).mean())
+            ),
+            mean_stay_s=float((1.0 / post["leave_rate"]).mean()),
+            class_labels=tuple(str(v) for v in labels),
+            class_weights=weights,
+            mark_rates=rates,
+        )
+
+    @property
+    def interaction_source(self) -> str | None:
+        """Where the fit's social force (:attr:`interaction`) comes from: ``"estimated"``
+        from the tracks' accelerations (:attr:`interaction_info` holds ``r2`` and ``n``),
+        ``"none"`` when the tracks show no repulsion (strength 0: the published force fits
+        them worse than none), ``"published"`` when they do not fit one (the published
+        parameters kept); None without an interaction (the published force applies).
+        """
+        if self.interaction is None:
+            return None
+        if np.isfinite(self.interaction_info.get("n", np.nan)):
+            return "estimated"
+        return "none" if self.interaction.strength == 0 else "published"
+
+    def class_shares(self) -> ClassShares | None:
+        """Each class's share of the arrivals, its arrivals per hour and its mean stay, for a
+        log that names its classes (posterior ``class_weights`` and ``class_stay_mean``);
+        None for other fits.
+
+        The arrivals per hour of class ``k`` are ``E[w_k] * E[lambda] * area * 3600``.
+
+        Returns
+        -------
+        ClassShares or None
+
+        Examples
+        --------
+        >>> import arviz as az
+        >>> idata = az.from_dict(posterior={
+        ...     "arrival_rate": [[1e-4, 3e-4]], "leave_rate": [[0.01, 0.01]],
+        ...     "class_weights": [[[0.25, 0.75], [0.75, 0.25]]],
+        ...     "class_stay_mean": [[[10.0, 100.0], [30.0, 300.0]]]})
+        >>> idata.posterior.attrs.update(area=10.0, class_labels="person,cart")
+        >>> c = fit_from_idata(idata).class_shares()
+        >>> c.labels, c.shares.tolist(), c.per_hour.round(6).tolist(), c.stay_mean.tolist()
+        (('person', 'cart'), [0.5, 0.5], [3.6, 3.6], [20.0, 200.0])
+        """
+        post = self.idata.posterior
+        if "class_weights" not in post:
+            return None
+        shares = np.asarray(post["class_weights"].mean(("chain", "draw")))
+        stays = np.asarray(post["class_stay_mean"].median(("chain", "draw")))
+        total = float(post["arrival_rate"].mean()) * float(self.area) * 3600.0
+        return ClassShares(tuple(self.class_labels or ()), shares, shares * total, stays)
 
     def traffic(self, model: str = "chosen") -> tuple[dict[str, np.ndarray], TrafficLaws]:
         """Draws and laws to generate from: the fit's chosen models or the paper's

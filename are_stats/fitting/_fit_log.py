@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import warnings
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,6 +94,7 @@ from are_stats.traffic import (
 __all__ = [
     "FitSettings",
     "attach_behaviour",
+    "check_fit_size",
     "attach_traffic",
     "fit_lifecycle_data",
     "choose_n_components",
@@ -178,6 +180,66 @@ class FitSettings:
         if self.n_components is not None:
             if int(check_nonneg_int("n_components", self.n_components, ndim=0)) < 1:
                 raise ValueError(f"n_components: expected an integer >= 1, got {self.n_components}")
+
+
+#: Bytes a posterior draw of the life-cycle model holds while a fit builds its InferenceData
+#: (its variables, sampler statistics and copies; 64 float64 values).
+BYTES_PER_DRAW = 8.0 * 64
+#: Leapfrog steps per NUTS draw assumed by the work estimate (tree depth about 4).
+LEAPFROG_STEPS_PER_DRAW = 16.0
+#: Work per leapfrog step beyond one per artefact (the priors, the mixture's marks).
+STEP_OVERHEAD = 64.0
+
+
+def check_fit_size(
+    settings: FitSettings, n_rows: int, names: Mapping[str, str] | None = None
+) -> None:
+    """Refuse a fit whose draws or NUTS work pass the limits of :mod:`are_stats.inputs`,
+    before anything is sampled.
+
+    The posterior holds ``S = num_samples * num_chains`` draws of about
+    :data:`BYTES_PER_DRAW` bytes each (both methods). ``method="nuts"`` also runs
+    ``num_chains * (num_warmup + num_samples)`` NUTS iterations of about
+    :data:`LEAPFROG_STEPS_PER_DRAW` leapfrog steps, each over the ``n_rows`` stays and
+    marks plus :data:`STEP_OVERHEAD`:
+
+    ``work = num_chains * (num_warmup + num_samples) * 16 * (n_rows + 64)``.
+
+    Parameters
+    ----------
+    settings : FitSettings
+        The sampler settings.
+    n_rows : int
+        Artefacts (rows) of the log (``LifecycleData.n``).
+    names : mapping of str to str, optional
+        What the error calls ``num_samples``, ``num_warmup`` and ``num_chains`` (the CLI
+        passes its options ``--samples``, ``--warmup``, ``--chains``); default the field
+        names.
+
+    Raises
+    ------
+    are_stats.inputs.LimitError
+        Naming the settings and the estimate (``check_memory`` / ``check_work``).
+
+    Examples
+    --------
+    >>> check_fit_size(FitSettings(num_samples=10, num_chains=2, num_warmup=5), 36)
+    """
+    named = {f: f for f in ("num_samples", "num_warmup", "num_chains")}
+    named.update(names or {})
+    draws = float(settings.num_samples) * float(settings.num_chains)
+    check_memory(
+        draws * BYTES_PER_DRAW,
+        f"{draws:.3g} posterior draws",
+        f"{named['num_samples']}, {named['num_chains']}",
+    )
+    if settings.method == "nuts":
+        iterations = float(settings.num_chains) * float(settings.num_warmup + settings.num_samples)
+        check_work(
+            iterations * LEAPFROG_STEPS_PER_DRAW * (float(n_rows) + STEP_OVERHEAD),
+            f"NUTS on {n_rows} artefacts",
+            f"{named['num_samples']}, {named['num_warmup']}, {named['num_chains']}",
+        )
 
 
 def choose_n_components(key: Any, marks: np.ndarray, k_max: int) -> tuple[int, list[float]]:
@@ -376,6 +438,8 @@ def fit_lifecycle_data(
     grid: Any = None,
     clock_start: str | None = None,
     classes: Any = None,
+    *,
+    setting_names: Mapping[str, str] | None = None,
 ) -> az.InferenceData:
     """Fit arrival rate, leave rate and mark mixture of a validated life-cycle log, with
     the chosen traffic models and the classes of a labelled log (the statistics of
@@ -414,6 +478,9 @@ def fit_lifecycle_data(
         the class shares and per-class stays are fitted (:func:`fit_classes`, stored by
         :func:`attach_classes`) after the pooled model, under its stay law. A log with
         marks keeps the mixture, its labels as components (``data.labels``).
+    setting_names : mapping of str to str, optional
+        What a size error calls the sampler settings (:func:`check_fit_size`: the draws
+        and the NUTS work are checked against the limits first).
 
     Returns
     -------
@@ -429,6 +496,7 @@ def fit_lifecycle_data(
     """
     if not isinstance(data, LifecycleData):
         raise ValueError(f"data: expected a LifecycleData, got {describe(data)}")
+    check_fit_size(settings, data.n, setting_names)
     say = progress or (lambda _msg: None)
     k_choice, k_fit, k_post = split_key(key, 3)
     k: int | None = None

@@ -16,6 +16,7 @@ from are_stats.logs._field_log import (
 from are_stats.logs._lifecycle_log import (
     LIFECYCLE_COLUMNS,
     LifecycleLog,
+    find_manifest,
     lifecycle_log_from_frame,
     read_lifecycle_log,
     read_manifest,
@@ -102,6 +103,7 @@ __all__ = [
     "bag_read_errors",
     "check_bag_path",
     "check_stamps",
+    "find_manifest",
     "interpolate_poses",
     "lifecycle_log_from_frame",
     "read_count_panel",

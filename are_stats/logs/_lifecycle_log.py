@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 __all__ = [
     "LIFECYCLE_COLUMNS",
     "LifecycleLog",
+    "find_manifest",
     "lifecycle_log_from_frame",
     "read_lifecycle_log",
     "read_manifest",
@@ -571,11 +572,34 @@ def read_lifecycle_log(
     return _validate(raw, win, a, min_life, scale, str(p), resolved, tol)
 
 
-def find_manifest(path: Path, manifest: str | os.PathLike | None) -> tuple[dict[str, Any], str]:
-    """The manifest of table ``path``: ``manifest`` if given, else ``<stem>.yaml`` / ``.yml``.
+def find_manifest(
+    path: str | os.PathLike, manifest: str | os.PathLike | None = None
+) -> tuple[dict[str, Any], str]:
+    """The manifest of a log table: ``manifest`` if given, else the table's neighbour
+    ``<stem>.yaml`` (or ``<stem>.yml``), read and checked by :func:`read_manifest`.
 
-    Returns the checked manifest (empty when there is none) and its path for messages.
+    Parameters
+    ----------
+    path : str or PathLike
+        The log table (CSV or Parquet).
+    manifest : str or PathLike, optional
+        A manifest given explicitly (``are-stats fit --manifest``).
+
+    Returns
+    -------
+    meta : dict
+        The checked manifest; empty when the table has none.
+    where : str
+        Its path, for messages (``"<stem>.yaml (not found)"`` when there is none).
+
+    Examples
+    --------
+    >>> from are_stats.environment import shipped_path
+    >>> meta, where = find_manifest(shipped_path("courtyard_traffic", "log"))
+    >>> where.endswith("courtyard_traffic.yaml"), "window" in meta
+    (True, True)
     """
+    path = Path(path)
     if manifest is None:
         cands = [path.with_suffix(".yaml"), path.with_suffix(".yml")]
         found = next((c for c in cands if c.exists()), None)

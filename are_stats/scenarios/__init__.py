@@ -19,12 +19,15 @@ from are_stats.scenarios._folder import (
     ScenesFolder,
     check_positions,
     read_scenes,
+    tracks_record,
     write_scenes,
 )
 from are_stats.scenarios._generate import (
+    ORIGIN_YAW_TOLERANCE,
     SCENARIO_COLUMNS,
     atomic_folder,
     check_folder,
+    check_origin_yaw,
     check_scenario_size,
     expected_artefacts,
     generate_scenarios,
@@ -45,6 +48,7 @@ __all__ = [
     "Boxes",
     "FORMAT_VERSION",
     "MAX_POSITION",
+    "ORIGIN_YAW_TOLERANCE",
     "POSITION_CHOICES",
     "Scene",
     "ScenesFolder",
@@ -52,6 +56,7 @@ __all__ = [
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
+    "check_origin_yaw",
     "check_positions",
     "check_scenario_size",
     "check_tracks_size",
@@ -70,5 +75,6 @@ __all__ = [
     "scenes_from_fit",
     "scenes_from_tables",
     "scenes_tables",
+    "tracks_record",
     "write_scenes",
 ]

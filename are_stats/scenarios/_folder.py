@@ -19,9 +19,10 @@ the manifest key, the column and what was expected.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -30,10 +31,16 @@ import yaml
 
 from are_stats import __version__
 from are_stats._atomic import atomic_folder
+from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_cell
 from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
 from are_stats.logs import RawTable, read_raw_table
 
-# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read.
+if TYPE_CHECKING:
+    from are_stats.behaviour import BehaviourFit
+
+# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read;
+# _assembly (the behaviour rule) in tracks_record (_assembly imports _generate, which
+# imports this module).
 
 __all__ = [
     "FORMAT_VERSION",
@@ -42,6 +49,7 @@ __all__ = [
     "ScenesFolder",
     "check_positions",
     "read_scenes",
+    "tracks_record",
     "write_scenes",
 ]
 
@@ -78,8 +86,19 @@ _INT32 = np.iinfo(np.int32).max
 _ARTEFACTS, _MANIFEST, _TRACKS = "artefacts.parquet", "manifest.yaml", "tracks.parquet"
 
 
-class ScenesFolder(NamedTuple):
-    """What :func:`read_scenes` returns."""
+@dataclass(frozen=True, eq=False)
+class ScenesFolder:
+    """What :func:`read_scenes` returns: the folder's tables and manifest, and what the
+    manifest says about the scenes (their map, horizon, classes) for every reader.
+
+    It unpacks as ``artefacts, manifest, tracks`` (``df, manifest, tracks =
+    read_scenes(d)``).
+
+    Examples
+    --------
+    >>> folder = read_scenes("scen/")  # doctest: +SKIP
+    >>> grid, horizon = folder.grid(), folder.horizon  # doctest: +SKIP
+    """
 
     #: One row per artefact: the columns of :data:`SCENARIO_COLUMNS` (their dtypes) in
     #: that order, then any other column of the file as it was.
@@ -89,6 +108,103 @@ class ScenesFolder(NamedTuple):
     #: Behaviour tracks: ``scenario, id`` (int64), ``t, x, y, yaw`` (float64); None when
     #: the manifest names none.
     tracks: pd.DataFrame | None
+    #: The folder it was read from (named in errors); None for one made in memory.
+    folder: Path | None = None
+
+    def __iter__(self) -> Iterator[Any]:
+        """``artefacts, manifest, tracks``: the folder unpacks as the tuple it once was."""
+        return iter((self.artefacts, self.manifest, self.tracks))
+
+    @property
+    def manifest_path(self) -> Path:
+        """``<folder>/manifest.yaml``: what errors about the manifest's keys name."""
+        return Path(_MANIFEST) if self.folder is None else self.folder / _MANIFEST
+
+    @property
+    def map_file(self) -> str | None:
+        """The ROS map YAML the manifest names (``map``; relative to the current folder),
+        or None."""
+        name = self.manifest.get("map")
+        return str(name) if name else None
+
+    @property
+    def horizon(self) -> float | None:
+        """The scenarios' length ``generation.horizon`` (s, checked >= 0 on reading), or None
+        for a folder that does not record it (made by hand)."""
+        generation = self.manifest.get("generation")
+        horizon = generation.get("horizon") if isinstance(generation, Mapping) else None
+        return None if horizon is None else float(horizon)
+
+    @property
+    def scenario_numbers(self) -> list[int]:
+        """The folder's scenarios: ``0 .. n_scenarios - 1`` as the manifest says (some may
+        hold no artefact), else those of the artefacts table, in order."""
+        n_sc = self.manifest.get("n_scenarios")
+        if n_sc is not None:
+            return list(range(int(n_sc)))
+        return sorted(set(self.artefacts["scenario"].astype(np.int64).tolist()))
+
+    @property
+    def n_moving(self) -> int:
+        """Artefacts with behaviour tracks (distinct ``scenario, id`` of the tracks)."""
+        if self.tracks is None:
+            return 0
+        return len(self.tracks[["scenario", "id"]].drop_duplicates())
+
+    def grid(self, *, missing_ok: bool = False, or_else: str = "") -> OccupancyGrid | None:
+        """The map the manifest names, read (:meth:`OccupancyGrid.from_ros_yaml`); None when
+        it names none.
+
+        Parameters
+        ----------
+        missing_ok : bool
+            Return None, instead of refusing, when the named map is not there (a reader
+            with another source of the environment: ``perceive --mesh``).
+        or_else : str
+            The way out a refusal suggests (``"pass --mesh MESH"``).
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            Naming ``manifest.yaml`` and its key ``map`` when the file is not there (and not
+            ``missing_ok``), or what is wrong with the map itself.
+        """
+        name = self.map_file
+        if name is None:
+            return None
+        if not Path(name).exists():
+            if missing_ok:
+                return None
+            expected = "an existing ROS map YAML (a relative path is read from the current folder)"
+            raise InputError(
+                self.manifest_path,
+                "map",
+                f"{expected}, or {or_else}" if or_else else expected,
+                Described(f"{name}: no such file"),
+            )
+        return OccupancyGrid.from_ros_yaml(name)
+
+    def unknown_classes(self, catalogue: ArtefactCatalogue) -> list[str]:
+        """The class labels of the artefacts (``class`` indexing the manifest's
+        ``class_labels``) that ``catalogue`` lacks, sorted; a :class:`Scene` sizes such an
+        artefact as the catalogue's class in its position (a reader warns).
+
+        Parameters
+        ----------
+        catalogue : ArtefactCatalogue
+            The property table ``Q``.
+
+        Returns
+        -------
+        list of str
+            Empty without ``class_labels`` or when every class present is known.
+        """
+        labels = self.manifest.get("class_labels")
+        if not labels:
+            return []
+        present = np.unique(self.artefacts["class"]).tolist()
+        used = {labels[c] for c in present if 0 <= c < len(labels)}
+        return sorted(used - set(catalogue.labels))
 
 
 # ---- writing ---------------------------------------------------------------------------
@@ -136,6 +252,68 @@ def _check_table(df: pd.DataFrame, columns: Sequence[str], what: str) -> None:
             f"{what}: expected a table with columns {list(columns)}, "
             f"got {list(df.columns)} (missing {missing})"
         )
+
+
+def tracks_record(
+    behaviours: bool | str,
+    fitted: BehaviourFit | None,
+    tracks: pd.DataFrame,
+    grid: OccupancyGrid | None = None,
+    *,
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    cell_source: str = "behaviour_cell",
+) -> dict[str, str | float] | None:
+    """The manifest's ``tracks`` section for scenes moved by the assembly's behaviour rule
+    (:func:`~are_stats.scenarios.scenes_from_fit`'s ``behaviours=``): which behaviour made
+    the tracks and on what; None when nothing moves (no tracks file is written then).
+
+    Parameters
+    ----------
+    behaviours : bool or str
+        As given to the assembly (``True``: the fit's behaviour when it has one, else the
+        catalogue's).
+    fitted : BehaviourFit or None
+        The fit's behaviour (:attr:`~are_stats.fitting.Fit.behaviour`).
+    tracks : pandas.DataFrame
+        The tracks written, ``(n_poses,)`` rows.
+    grid : OccupancyGrid, optional
+        The map (the catalogue's behaviours move on its coarsened cells).
+    behaviour_cell, behaviour_dt : float
+        The catalogue behaviours' target cell (m) and seconds per decision epoch.
+    cell_source : str
+        The option ``behaviour_cell`` came from, named in errors.
+
+    Returns
+    -------
+    dict or None
+        ``{"source": "fitted behaviour", "rows": n}``, or ``{"source": "catalogue
+        behaviour", "cell_m": side of the MDP's cells (m), "dt_s": behaviour_dt, "rows":
+        n}``; :func:`write_scenes` adds ``file``.
+
+    Raises
+    ------
+    ValueError
+        For catalogue behaviours without a map, or a ``behaviours`` the rule does not know.
+
+    Examples
+    --------
+    >>> tracks_record(True, None, pd.DataFrame({"t": [0.0, 2.0]}),
+    ...               OccupancyGrid(np.zeros((40, 40)), 0.1), behaviour_cell=0.5)
+    {'source': 'catalogue behaviour', 'cell_m': 0.5, 'dt_s': 2.0, 'rows': 2}
+    """
+    from are_stats.scenarios._assembly import _behaviour_source
+
+    kind = _behaviour_source(behaviours, fitted, "behaviours")
+    if kind == "none":
+        return None
+    if kind == "fitted":
+        return {"source": "fitted behaviour", "rows": len(tracks)}
+    if grid is None:
+        raise ValueError(f"{cell_source}: catalogue behaviours need a map, got none")
+    cell = coarse_cell(grid.shape, grid.resolution, behaviour_cell, source=cell_source)
+    return {"source": "catalogue behaviour", "cell_m": cell, "dt_s": behaviour_dt,
+            "rows": len(tracks)}  # fmt: skip
 
 
 def write_scenes(
@@ -464,7 +642,9 @@ def read_scenes(folder: str | os.PathLike) -> ScenesFolder:
     -------
     ScenesFolder
         ``artefacts`` (``df.attrs["generation"]`` holds the manifest's generation),
-        ``manifest`` and ``tracks`` (None without).
+        ``manifest``, ``tracks`` (None without) and ``folder``; its map, horizon and
+        classes for every reader (:meth:`ScenesFolder.grid`, :attr:`ScenesFolder.horizon`,
+        :meth:`ScenesFolder.unknown_classes`).
 
     Raises
     ------
@@ -492,4 +672,4 @@ def read_scenes(folder: str | os.PathLike) -> ScenesFolder:
     n_sc = meta.get("n_scenarios")
     df = _artefacts(d, None if n_sc is None else int(n_sc))
     df.attrs["generation"] = dict(meta.get("generation") or {})
-    return ScenesFolder(df, meta, _tracks(d, meta, df))
+    return ScenesFolder(df, meta, _tracks(d, meta, df), d)

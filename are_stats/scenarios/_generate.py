@@ -47,14 +47,55 @@ if TYPE_CHECKING:
     from are_stats.traffic import PositionDensity, TrafficLaws
 
 __all__ = [
+    "ORIGIN_YAW_TOLERANCE",
     "SCENARIO_COLUMNS",
     "atomic_folder",
     "check_folder",
+    "check_origin_yaw",
     "check_scenario_size",
     "expected_artefacts",
     "generate_scenarios",
     "scenario_counts",
 ]
+
+
+#: Largest ``|yaw|`` (rad) of a map's origin that counts as no rotation. Positions learned
+#: on an axis-aligned grid (entry densities) are placed unrotated on such a map: ignoring a
+#: yaw ``e`` moves a point ``r`` metres from the origin by ``e * r``, at most 1e-5 m at
+#: :data:`~are_stats.scenarios.MAX_POSITION` (1e7 m) with 1e-12, far below any cell.
+#: (The CLI once pre-checked with 1e-9, up to 1 cm there; yaws between the two passed it
+#: and were refused here anyway: this one check decides.)
+ORIGIN_YAW_TOLERANCE = 1e-12
+
+
+def check_origin_yaw(yaw: float, what: str) -> None:
+    """Refuse a rotated map for positions learned on an axis-aligned grid.
+
+    Parameters
+    ----------
+    yaw : float
+        The map's origin yaw (rad; ``OccupancyGrid.origin[2]``).
+    what : str
+        What needs the unrotated map, named in the error (``"learned positions"``).
+
+    Raises
+    ------
+    ValueError
+        ``map: expected an origin yaw of 0 for <what>, got <yaw> (or use --positions
+        uniform, or --model paper)`` when ``|yaw|`` exceeds :data:`ORIGIN_YAW_TOLERANCE`.
+
+    Examples
+    --------
+    >>> check_origin_yaw(1e-13, "learned positions")  # below the tolerance: no rotation
+    >>> check_origin_yaw(1e-9, "learned positions")
+    Traceback (most recent call last):
+    ValueError: map: expected an origin yaw of 0 for learned positions, got 1e-09 (or use ...)
+    """
+    if abs(float(yaw)) > ORIGIN_YAW_TOLERANCE:
+        raise ValueError(
+            f"map: expected an origin yaw of 0 for {what}, got {yaw} (or use --positions "
+            "uniform, or --model paper)"
+        )
 
 
 def _seed_sequence(key: int | jax.Array) -> tuple[np.random.SeedSequence, int | list[int]]:
@@ -488,11 +529,7 @@ def generate_scenarios(
         x = ox + c * q_u - sn * q_v
         y = oy + sn * q_u + c * q_v
     if laws is not None and laws.class_entry is not None and "class_weights" in p:
-        if abs(oyaw) > 1e-12:
-            raise ValueError(
-                f"map: expected an origin yaw of 0 for per-class entry densities, got {oyaw} "
-                "(or use --positions uniform, or --model paper)"
-            )
+        check_origin_yaw(oyaw, "per-class entry densities")
         if free_mask is not None:  # the map the fit learned its classes' entries on
             from are_stats.traffic import uniform_position_density
 
@@ -622,12 +659,9 @@ def _rich_populations(
     from are_stats.traffic import sample_population, uniform_position_density
 
     ox, oy, oyaw = origin
-    rotated = abs(oyaw) > 1e-12
-    if laws.positions == "learned" and rotated:
-        raise ValueError(
-            f"map: expected an origin yaw of 0 for learned positions, got {oyaw} (or use "
-            "--positions uniform, or --model paper)"
-        )
+    rotated = abs(oyaw) > ORIGIN_YAW_TOLERANCE
+    if laws.positions == "learned":
+        check_origin_yaw(oyaw, "learned positions")
     if grid is not None:
         mask, res, _ = grid
         free = uniform_position_density(mask, res, (0.0, 0.0) if rotated else (ox, oy))
