@@ -441,8 +441,9 @@ class ARBuilder:
             if taken.any():
                 aid = int(ids[np.argmax(taken)])
                 raise ValueError(f"artefact_id: id {aid} is already registered")
-        if check and n:
-            self._check_new(P, half, offset)
+        hit = self._collision(P, half, offset, live=True) if check and n else None
+        if hit is not None:
+            raise ValueError(f"pose: artefact box at {P[hit[0]].tolist()} collides with {hit[1]}")
         self.ids = np.r_[self.ids, ids]
         self.labels.extend(lab if lab is not None else "box" for lab in labels)
         self.poses = np.vstack([self.poses, P])
@@ -469,21 +470,26 @@ class ARBuilder:
             return np.zeros((0, 3)), np.zeros((0, 3))
         return np.stack([d[0] for d in dims]), np.stack([d[1] for d in dims])
 
-    def _check_new(self, P: np.ndarray, half: np.ndarray, offset: np.ndarray) -> None:
-        """Refuse boxes at ``P`` that hit the environment, the live boxes or each other."""
+    def _collision(
+        self, P: np.ndarray, half: np.ndarray, offset: np.ndarray, *, live: bool
+    ) -> tuple[int, str, int] | None:
+        """The first box at poses ``P`` (n, 3) that collides, as ``(row, what, other)``:
+        with the environment (``other = -1``), with a live box when ``live`` (``-1``), or
+        with box ``other`` of ``P``; None when none does."""
         c, h, y = self._boxes_for(P, half, offset)
         env, outside, mesh, _ = self._env_hits(c, h, y)
         bad = env | outside | mesh
         if bad.any():
             k = int(np.argmax(bad))
-            what = "the map border" if outside[k] else "the environment"
-            raise ValueError(f"pose: artefact box at {P[k].tolist()} collides with {what}")
-        oc, oh, oy = self.boxes()
-        hit = self._hits_against(np.full(P.shape[0], -1), c, h, y, oc, oh, oy)
+            return k, "the map border" if outside[k] else "the environment", -1
+        if live:
+            hit = self._hits_against(np.full(P.shape[0], -1), c, h, y, *self.boxes())
+            if hit.any():
+                return int(np.argmax(hit)), "an artefact", -1
         pairs = self._pair_hits(c, h, y)
-        if hit.any() or pairs.size:
-            k = int(np.argmax(hit)) if hit.any() else int(pairs.max(axis=1).min())
-            raise ValueError(f"pose: artefact box at {P[k].tolist()} collides with an artefact")
+        if pairs.size:
+            return int(pairs[0, 1]), "an artefact", int(pairs[0, 0])
+        return None
 
     def register_scene(self, scene: Scene, t: float, *, check: bool = False) -> np.ndarray:
         """Hold exactly the artefacts of ``scene`` alive at time ``t``, where they are then.
@@ -534,20 +540,15 @@ class ARBuilder:
         idx = np.flatnonzero(scene.alive(t))
         poses = scene.poses(t, idx)
         half, offset = scene.half_extents[idx], scene.offsets[idx]
-        if check and idx.size:
-            c, h, y = self._boxes_for(poses, half, offset)
-            env, outside, mesh, _ = self._env_hits(c, h, y)
-            bad = env | outside | mesh
-            if bad.any():
-                k = int(np.argmax(bad))
-                what = "the map border" if outside[k] else "the environment"
-                raise ValueError(
-                    f"scene: artefact {int(scene.ids[idx[k]])} at t={t!r} collides with {what}"
-                )
-            pairs = self._pair_hits(c, h, y)
-            if pairs.size:
-                a, b = scene.ids[idx[pairs[0]]].tolist()
+        hit = self._collision(poses, half, offset, live=False) if check and idx.size else None
+        if hit is not None:
+            k, what, other = hit
+            if other >= 0:
+                a, b = scene.ids[idx[[other, k]]].tolist()
                 raise ValueError(f"scene: artefacts {a} and {b} collide at t={t!r}")
+            raise ValueError(
+                f"scene: artefact {int(scene.ids[idx[k]])} at t={t!r} collides with {what}"
+            )
         self.ids = scene.ids[idx].astype(np.int64)
         self.labels = [str(lab) for lab in scene.labels[idx]]
         self.poses = poses.astype(float)
