@@ -18,7 +18,8 @@ border, and the triangles of S_E when a mesh is given. A colliding move is resol
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+import functools
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -174,12 +175,6 @@ class ARBuilder:
             if voxels is not None
             else VoxelMap(check_positive("voxel_resolution", voxel_resolution))
         )
-        blocked = grid.occupied | (grid.unknown if unknown_blocks else False)
-        self._blocked = blocked
-        prefix = np.zeros((grid.height, grid.width + 1), dtype=np.int32)
-        np.cumsum(blocked, axis=1, out=prefix[:, 1:])
-        self._prefix = prefix
-        self._free_flat = np.flatnonzero(grid.free.ravel() & ~blocked.ravel())
         self._mesh_tris: np.ndarray | None = None
         self._mesh_hash: SpatialHash | None = None
         if env_mesh is not None:
@@ -191,6 +186,28 @@ class ARBuilder:
                 self._mesh_hash = SpatialHash(lo, hi, cell)
         self._surface_cache: dict[str, np.ndarray] = {}
         self.reset()
+
+    # ------------------------------------------------------------ the base map's tables
+    # (made on the first collision test or placement: a builder that only rasterises, such
+    # as the planner's map of perceived_grid, never pays for them; copies share them)
+    @functools.cached_property
+    def _blocked(self) -> np.ndarray:
+        """``(H, W)`` bool: cells that block artefacts."""
+        g = self.grid
+        return g.occupied | (g.unknown if self.unknown_blocks else False)
+
+    @functools.cached_property
+    def _prefix(self) -> np.ndarray:
+        """``(H, W + 1)`` int32 row prefix sums of :attr:`_blocked` (blocked cells of a run
+        in O(1))."""
+        prefix = np.zeros((self.grid.height, self.grid.width + 1), dtype=np.int32)
+        np.cumsum(self._blocked, axis=1, out=prefix[:, 1:])
+        return prefix
+
+    @functools.cached_property
+    def _free_flat(self) -> np.ndarray:
+        """Flat indices of the free cells that do not block: where :meth:`place` draws."""
+        return np.flatnonzero(self.grid.free.ravel() & ~self._blocked.ravel())
 
     # ------------------------------------------------------------ state
     def reset(self) -> None:
@@ -346,26 +363,133 @@ class ARBuilder:
         if p.shape != (3,):
             raise ValueError(f"pose: expected (x, y, yaw), got {p.tolist()}")
         half, offset = self._dims(label, size)
-        aid = self._next_id if artefact_id is None else int(artefact_id)
-        if aid in set(self.ids.tolist()):
-            raise ValueError(f"artefact_id: id {aid} is already registered")
-        if check:
-            c, h, y = self._boxes_for(p[None], half[None], offset[None])
-            env, outside, mesh, _ = self._env_hits(c, h, y)
-            if env[0] or outside[0] or mesh[0]:
-                what = "the map border" if outside[0] else "the environment"
-                raise ValueError(f"pose: artefact box at {p.tolist()} collides with {what}")
-            oc, oh, oy = self.boxes()
-            if self._hits_against(np.array([-1]), c, h, y, oc, oh, oy)[0]:
-                raise ValueError(f"pose: artefact box at {p.tolist()} collides with an artefact")
-        self.ids = np.r_[self.ids, aid]
-        self.labels.append(label if label is not None else "box")
-        self.poses = np.vstack([self.poses, p])
+        ids = None if artefact_id is None else [int(artefact_id)]
+        return int(self._add([label], p[None], half[None], offset[None], ids, check)[0])
+
+    def register_many(
+        self,
+        labels: Sequence[str | None],
+        poses: npt.ArrayLike,
+        *,
+        sizes: npt.ArrayLike | None = None,
+        artefact_ids: npt.ArrayLike | None = None,
+        check: bool = True,
+    ) -> np.ndarray:
+        """Register ``n`` artefacts at once: what ``n`` calls of :meth:`register` do, in
+        one vectorised pass (the same ids, boxes and footprints, in the same order).
+
+        Parameters
+        ----------
+        labels : sequence of n str or None
+            Catalogue classes; ``None`` entries (or every entry) with ``sizes``.
+        poses : (n, 3) float
+            ``(x, y, yaw)`` of each F_A in F_E.
+        sizes : (n, 3) float, optional
+            Box length, width, height of each artefact (F_A at the centre of the box base)
+            instead of its catalogue class.
+        artefact_ids : (n,) int, optional
+            Ids to use (default: the next free ones, in order).
+        check : bool
+            Refuse the whole batch (``ValueError``, nothing registered) when a box collides
+            with the environment, an artefact already registered or another box of the
+            batch.
+
+        Returns
+        -------
+        (n,) int64
+            The artefact ids, in input order.
+
+        Examples
+        --------
+        >>> from are_stats import OccupancyGrid
+        >>> b = ARBuilder(OccupancyGrid(np.zeros((100, 100)), 0.1))
+        >>> b.register_many([None, None], [[2.0, 2.0, 0.0], [5.0, 5.0, 0.0]],
+        ...                 sizes=[[1.0, 0.5, 1.0]] * 2).tolist()
+        [0, 1]
+        """
+        P = check_finite("poses", poses, ndim=2)
+        n = P.shape[0]
+        if P.shape[1] != 3:
+            raise ValueError(f"poses: expected (n, 3) rows (x, y, yaw), got shape {P.shape}")
+        labels = list(labels)
+        if len(labels) != n:
+            raise ValueError(f"labels: expected {n} labels (one per pose), got {len(labels)}")
+        half, offset = self._dims_many(labels, sizes, n)
+        return self._add(labels, P, half, offset, artefact_ids, check)
+
+    def _add(
+        self,
+        labels: list[str | None],
+        P: np.ndarray,
+        half: np.ndarray,
+        offset: np.ndarray,
+        artefact_ids: npt.ArrayLike | None,
+        check: bool,
+    ) -> np.ndarray:
+        """Append ``n`` checked boxes (poses, half sizes and centres in F_A, ``(n, 3)``)."""
+        n = P.shape[0]
+        if artefact_ids is None:
+            ids = self._next_id + np.arange(n, dtype=np.int64)
+        else:
+            ids = np.asarray(artefact_ids).astype(np.int64).reshape(-1)
+            if ids.shape != (n,):
+                raise ValueError(f"artefact_ids: expected {n} ids, got {ids.size}")
+            # (default ids are past every id in use: no check needed)
+            taken = np.isin(ids, self.ids) if self.ids.size else np.zeros(n, bool)
+            if not taken.any() and np.unique(ids).size < n:  # twice in the batch
+                taken = ~np.isin(np.arange(n), np.unique(ids, return_index=True)[1])
+            if taken.any():
+                aid = int(ids[np.argmax(taken)])
+                raise ValueError(f"artefact_id: id {aid} is already registered")
+        hit = self._collision(P, half, offset, live=True) if check and n else None
+        if hit is not None:
+            raise ValueError(f"pose: artefact box at {P[hit[0]].tolist()} collides with {hit[1]}")
+        self.ids = np.r_[self.ids, ids]
+        self.labels.extend(lab if lab is not None else "box" for lab in labels)
+        self.poses = np.vstack([self.poses, P])
         self._half = np.vstack([self._half, half])
         self._offset = np.vstack([self._offset, offset])
-        self._next_id = max(self._next_id, aid + 1)
+        if n:
+            self._next_id = max(self._next_id, int(ids.max()) + 1)
         self._runs = None
-        return aid
+        return ids.copy()
+
+    def _dims_many(
+        self, labels: list[str | None], sizes: npt.ArrayLike | None, n: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Half sizes and box centres in F_A, ``(n, 3)`` each, from ``sizes`` or Q."""
+        if sizes is not None:
+            s = check_positive("sizes", sizes, ndim=2)
+            if s.shape != (n, 3):
+                raise ValueError(
+                    f"sizes: expected ({n}, 3) rows [length, width, height], got {s.shape}"
+                )
+            return s / 2.0, np.column_stack([np.zeros((n, 2)), s[:, 2] / 2.0])
+        dims = [self._dims(lab, None) for lab in labels]
+        if not dims:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return np.stack([d[0] for d in dims]), np.stack([d[1] for d in dims])
+
+    def _collision(
+        self, P: np.ndarray, half: np.ndarray, offset: np.ndarray, *, live: bool
+    ) -> tuple[int, str, int] | None:
+        """The first box at poses ``P`` (n, 3) that collides, as ``(row, what, other)``:
+        with the environment (``other = -1``), with a live box when ``live`` (``-1``), or
+        with box ``other`` of ``P``; None when none does."""
+        c, h, y = self._boxes_for(P, half, offset)
+        env, outside, mesh, _ = self._env_hits(c, h, y)
+        bad = env | outside | mesh
+        if bad.any():
+            k = int(np.argmax(bad))
+            return k, "the map border" if outside[k] else "the environment", -1
+        if live:
+            hit = self._hits_against(np.full(P.shape[0], -1), c, h, y, *self.boxes())
+            if hit.any():
+                return int(np.argmax(hit)), "an artefact", -1
+        pairs = self._pair_hits(c, h, y)
+        if pairs.size:
+            return int(pairs[0, 1]), "an artefact", int(pairs[0, 0])
+        return None
 
     def register_scene(self, scene: Scene, t: float, *, check: bool = False) -> np.ndarray:
         """Hold exactly the artefacts of ``scene`` alive at time ``t``, where they are then.
@@ -416,20 +540,15 @@ class ARBuilder:
         idx = np.flatnonzero(scene.alive(t))
         poses = scene.poses(t, idx)
         half, offset = scene.half_extents[idx], scene.offsets[idx]
-        if check and idx.size:
-            c, h, y = self._boxes_for(poses, half, offset)
-            env, outside, mesh, _ = self._env_hits(c, h, y)
-            bad = env | outside | mesh
-            if bad.any():
-                k = int(np.argmax(bad))
-                what = "the map border" if outside[k] else "the environment"
-                raise ValueError(
-                    f"scene: artefact {int(scene.ids[idx[k]])} at t={t!r} collides with {what}"
-                )
-            pairs = self._pair_hits(c, h, y)
-            if pairs.size:
-                a, b = scene.ids[idx[pairs[0]]].tolist()
+        hit = self._collision(poses, half, offset, live=False) if check and idx.size else None
+        if hit is not None:
+            k, what, other = hit
+            if other >= 0:
+                a, b = scene.ids[idx[[other, k]]].tolist()
                 raise ValueError(f"scene: artefacts {a} and {b} collide at t={t!r}")
+            raise ValueError(
+                f"scene: artefact {int(scene.ids[idx[k]])} at t={t!r} collides with {what}"
+            )
         self.ids = scene.ids[idx].astype(np.int64)
         self.labels = [str(lab) for lab in scene.labels[idx]]
         self.poses = poses.astype(float)
@@ -914,15 +1033,22 @@ class ARBuilder:
         OccupancyGrid
             A copy of :attr:`grid`.
         """
-        owner, flat = self.artefact_cells()
-        if perceived is not None:
+        if perceived is None:
+            flat = self.artefact_cells()[1]
+        else:
             p = np.asarray(perceived)
             if p.dtype != bool or p.shape != (self.ids.size,):
                 raise ValueError(
                     f"perceived: expected a ({self.ids.size},) bool array aligned with the "
                     f"builder's ids, got {p.dtype} of shape {p.shape}"
                 )
-            flat = flat[p[owner]]
+            if self._runs is not None:  # the footprints of this update, rasterised already
+                owner, flat = self.artefact_cells()
+                flat = flat[p[owner]]
+            else:  # rasterise only the perceived boxes (a footprint depends on its box only)
+                c, h, y = self.boxes()
+                _, rows, jlo, jhi, _ = self._footprints(c[p], h[p], y[p])
+                flat = runs_to_cells(rows, jlo, jhi, self.grid.width, rows)[1]
         g = self.grid.copy()
         g.data.ravel()[flat] = 100
         return g

@@ -390,14 +390,14 @@ def box_runs(
     vlo = np.floor(ymin)
     nrows = np.maximum((np.ceil(ymax) - vlo).astype(np.int64), 1)
     # the two edge normals with a negative x component (outward, left side): +-u, +-v
-    u = np.stack([cs, sn], -1)
-    v = np.stack([-sn, cs], -1)
-    normals, offsets = [], []
-    for d, hh in ((u, h[:, 0]), (v, h[:, 1])):
-        sgn = np.where(d[:, 0] > 0, -1.0, 1.0)
-        nrm = d * sgn[:, None]
-        normals.append(nrm)
-        offsets.append(hh + np.einsum("ij,ij->i", nrm, c))
+    uv = np.stack([np.stack([cs, sn], -1), np.stack([-sn, cs], -1)], axis=1)  # (n, face, xy)
+    nrm = uv * np.where(uv[:, :, :1] > 0, -1.0, 1.0)  # the outward normals facing left
+    off = (h[:, :2] + np.einsum("nfi,ni->nf", nrm, c))[:, :, None]  # (n, face, 1)
+    nrm = nrm[..., None]  # (n, face, xy, 1)
+    opp = 2 * h[:, :2, None] - off  # the opposite faces: -n.p <= h - n.c
+    has_line = np.abs(nrm[:, :, 0]) >= 1e-9  # (n, face, 1)
+    left_x = np.where(has_line, nrm[:, :, 0], -1.0)
+    right_x = np.where(has_line, -nrm[:, :, 0], 1.0)
     corners = box_corners(c, h, a)
     il = np.argmin(corners[..., 0], axis=1)
     ir = np.argmax(corners[..., 0], axis=1)
@@ -405,28 +405,14 @@ def box_runs(
     xl, yl = corners[ar, il, 0], corners[ar, il, 1]
     xr, yr = corners[ar, ir, 0], corners[ar, ir, 1]
     out = ([], [], [], [])
-    bucket = np.ceil(np.log2(nrows)).astype(np.int64)
-    for bk in np.unique(bucket):
-        idx = np.flatnonzero(bucket == bk)
+    for idx in _row_buckets(nrows):
         R = int(nrows[idx].max())
         lines = vlo[idx, None] + np.arange(R + 1)[None, :]
-        yc = np.clip(lines, ymin[idx, None], ymax[idx, None])
-        left = np.full(yc.shape, -np.inf)
-        right = np.full(yc.shape, np.inf)
-        for nrm, off in zip(normals, offsets, strict=True):
-            nx, ny, o = nrm[idx, 0:1], nrm[idx, 1:2], off[idx, None]
-            ok = np.abs(nx) >= 1e-9
-            safe = np.where(ok, nx, -1.0)
-            # left face n.p <= o with nx < 0:  x >= (o - ny y) / nx
-            xline = (o - ny * yc) / safe
-            left = np.where(ok, np.maximum(left, xline), left)
-        for nrm, off, hh in zip(normals, offsets, (h[:, 0], h[:, 1]), strict=True):
-            nx, ny = -nrm[idx, 0:1], -nrm[idx, 1:2]
-            o = 2 * hh[idx, None] - off[idx, None]  # the opposite face: -n.p <= h - n.c
-            ok = np.abs(nx) >= 1e-9
-            safe = np.where(ok, nx, 1.0)
-            xline = (o - ny * yc) / safe
-            right = np.where(ok, np.minimum(right, xline), right)
+        yc = np.clip(lines, ymin[idx, None], ymax[idx, None])[:, None, :]  # (m, 1, R+1)
+        ny, ok = nrm[idx, :, 1], has_line[idx]
+        # left faces n.p <= o with nx < 0: x >= (o - ny y) / nx; right: the opposite faces
+        left = np.where(ok, (off[idx] - ny * yc) / left_x[idx], -np.inf).max(axis=1)
+        right = np.where(ok, (opp[idx] + ny * yc) / right_x[idx], np.inf).min(axis=1)
         # axis-aligned sides (no line): the side is the vertical edge at c -+ ext_x
         left = np.where(np.isfinite(left), left, (c[idx, 0] - ext_x[idx])[:, None])
         right = np.where(np.isfinite(right), right, (c[idx, 0] + ext_x[idx])[:, None])
@@ -452,6 +438,25 @@ def box_runs(
         out[3].append(jhi_c[good])
     owner, rows, jlo, jhi = (np.concatenate(x) for x in out)
     return owner, rows, jlo, jhi, outside
+
+
+def _row_buckets(nrows: np.ndarray, small: int = 4096) -> list[np.ndarray]:
+    """Boxes grouped by row count ``(n,)``: by ``ceil(log2(rows))``, so that padding stays
+    under half a group, with neighbouring groups merged while the merged group holds at
+    most ``small`` padded rows (each group costs a fixed number of array operations, which
+    dominate for a few boxes). Groups of box indices, by increasing row count; a box's runs
+    do not depend on its group."""
+    if nrows.size * int(nrows.max()) <= small:
+        return [np.arange(nrows.size)]
+    bucket = np.ceil(np.log2(nrows)).astype(np.int64)
+    groups: list[np.ndarray] = []
+    for bk in np.unique(bucket):
+        idx = np.flatnonzero(bucket == bk)
+        if groups and (groups[-1].size + idx.size) * int(nrows[idx].max()) <= small:
+            groups[-1] = np.concatenate([groups[-1], idx])
+        else:
+            groups.append(idx)
+    return groups
 
 
 def rasterise_convex(

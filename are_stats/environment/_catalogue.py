@@ -83,38 +83,62 @@ DEFAULT_MODELS = SHIPPED_DATA
 
 
 @dataclass(frozen=True)
-class ArtefactClass:
-    """One row of Q.
+class _Box:
+    """What a class of Q and a row of Q have alike: a label, a box, speeds, behaviours.
 
     Attributes
     ----------
     label : str
+        Class label ``l``.
     row : int
-        Index of the row in Q.
-    mesh_path : Path
+        Index of the class in Q (:class:`ArtefactClass`), or of the row within its class
+        (:class:`PropertyRow`, the clipped mark).
     bounds : (2, 3) float
-        Axis-aligned bounding box of the mesh in F_A: ``[[xmin, ymin, zmin], [xmax, ...]]``.
+        Axis-aligned bounding box ``b`` in F_A: ``[[xmin, ymin, zmin], [xmax, ...]]``.
     speeds : dict of str to float
-        m/s per speed name (``walk`` and optionally ``run``).
+        m/s per speed name (``walk`` and optionally ``run``; the operators p, q are driven
+        by the behaviours).
     behaviours : tuple of str
         Allowed behaviours, a subset of :data:`BEHAVIOURS`.
-    features : dict
-        Class features Phi.
     """
 
     label: str
     row: int
-    mesh_path: Path
     bounds: np.ndarray
     speeds: dict[str, float]
     behaviours: tuple[str, ...]
-    features: dict[str, Any] = field(default_factory=dict)
-    variants: tuple[tuple[np.ndarray, dict[str, Any]], ...] = ((np.ones(3), {}),)
 
     @property
     def half_extents(self) -> np.ndarray:
         """``(3,)`` half sizes of the bounding box."""
         return (self.bounds[1] - self.bounds[0]) / 2.0
+
+    @property
+    def box_centre(self) -> np.ndarray:
+        """``(3,)`` centre of the bounding box in F_A."""
+        return (self.bounds[1] + self.bounds[0]) / 2.0
+
+
+@dataclass(frozen=True)
+class ArtefactClass(_Box):
+    """One class of Q: its rows are the class box scaled by its variants.
+
+    Attributes
+    ----------
+    label, row, bounds, speeds, behaviours
+        As for every row of Q (``row``: the index of the class in Q; ``bounds``: the
+        mesh's bounding box).
+    mesh_path : Path
+    features : dict
+        Class features Phi.
+    variants : tuple of ((3,) float, dict)
+        Per row of the class: the box scale about the base centre and the features it
+        updates.
+    """
+
+    mesh_path: Path
+    features: dict[str, Any] = field(default_factory=dict)
+    variants: tuple[tuple[np.ndarray, dict[str, Any]], ...] = ((np.ones(3), {}),)
 
     @property
     def n_rows(self) -> int:
@@ -142,50 +166,27 @@ class ArtefactClass:
             features={**self.features, **feats},
         )
 
-    @property
-    def box_centre(self) -> np.ndarray:
-        """``(3,)`` centre of the bounding box in F_A."""
-        return (self.bounds[1] + self.bounds[0]) / 2.0
-
     def mesh(self) -> trimesh.Trimesh:
         """The class mesh S_A (loaded on demand)."""
         return load_mesh(self.mesh_path)
 
 
 @dataclass(frozen=True)
-class PropertyRow:
+class PropertyRow(_Box):
     """One tuple ``Q = {l, b, p, q, Phi}`` of the table, as selected by a mark.
 
     Attributes
     ----------
-    label : str
-        Class label ``l``.
+    label, row, bounds, speeds, behaviours
+        As for every row of Q (``row``: the row within the class, the clipped mark).
     class_row : int
         Position of the class in the catalogue (the mixture component).
-    row : int
-        Row within the class (the clipped mark).
-    bounds : (2, 3) float
-        Bounding box ``b`` in F_A.
-    speeds : dict of str to float
-        m/s per speed name (the operators p, q are driven by the behaviours).
-    behaviours : tuple of str
-        Allowed behaviours.
     features : dict
         Features Phi.
     """
 
-    label: str
     class_row: int
-    row: int
-    bounds: np.ndarray
-    speeds: dict[str, float]
-    behaviours: tuple[str, ...]
     features: dict[str, Any]
-
-    @property
-    def half_extents(self) -> np.ndarray:
-        """``(3,)`` half sizes of the bounding box."""
-        return (self.bounds[1] - self.bounds[0]) / 2.0
 
 
 class ArtefactCatalogue:

@@ -132,8 +132,8 @@ from are_stats.inputs import (  # Described: a ``got`` already worded, shown as 
 )
 from are_stats.scenarios import (
     Scene,
+    move_scenes,
     read_scenes,
-    scene_tracks,
     scenes_from_draws,
     scenes_from_fit,
     scenes_from_tables,
@@ -907,20 +907,18 @@ def _task_scenario(
         tracks = None
         if behave and all_tracks is not None:
             tracks = all_tracks[all_tracks["scenario"] == draw].reset_index(drop=True)
-        elif behave:
-            tracks = scene_tracks(
+        (scene,) = scenes_from_tables(art, tracks, catalogue, labels, [draw])
+        if behave and tracks is None:  # a folder without tracks: the catalogue's behaviours
+            (scene,) = move_scenes(
                 jax.random.key(seed),
-                art,
+                [scene],
                 grid,
                 catalogue,
                 horizon,
                 behaviours="catalogue",
-                class_labels=labels,
                 source=str(sc["scenarios"]),
-                n=draw + 1,
                 **moves,
             )
-        (scene,) = scenes_from_tables(art, tracks, catalogue, labels, [draw])
         rate = float("nan")
     else:
         start = sc.get("start", "stationary")

@@ -148,9 +148,10 @@ def perceived_grid(
     if p.dtype != bool or p.shape != (n,):
         raise ValueError(f"perceived: expected a ({n},) bool array, got {describe(perceived)}")
     builder = ARBuilder(grid)
-    for k in range(n):  # a box (footprint) at its centre: F_A at the centre of its base
-        size = [2.0 * h[k, 0], 2.0 * h[k, 1], 1.0]
-        builder.register(None, [c[k, 0], c[k, 1], y[k]], size=size, artefact_id=k, check=False)
+    # each box (footprint) at its centre: F_A at the centre of its base
+    sizes = np.column_stack([2.0 * h[:, :2], np.ones(n)])
+    poses = np.column_stack([c[:, :2], y])
+    builder.register_many([None] * n, poses, sizes=sizes, artefact_ids=np.arange(n), check=False)
     return builder.augmented_grid(perceived=p)
 
 

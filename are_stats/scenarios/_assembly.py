@@ -55,7 +55,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -98,6 +98,20 @@ BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
 #: ``progress(done, total, what)``: the assembly's steps done so far, of ``total``, and
 #: the last one done (``done`` grows by one a step and ends at ``total``).
 _Progress = Callable[[int, int, str], object]
+
+
+class _Moves(TypedDict, total=False):
+    """The keywords of :func:`move_scenes` after its positional arguments (what
+    :func:`scene_tracks` forwards)."""
+
+    behaviours: bool | str
+    fitted: BehaviourFit | None
+    behaviour_cell: float
+    behaviour_dt: float
+    source: str
+    cell_source: str
+    interaction: bool | SocialForce
+    progress: _Progress | None
 
 
 def _behaviour_source(behaviours: bool | str, fitted: BehaviourFit | None, source: str) -> str:
@@ -242,16 +256,9 @@ def scene_tracks(
     catalogue: ArtefactCatalogue,
     horizon: float,
     *,
-    behaviours: bool | str = True,
-    fitted: BehaviourFit | None = None,
     class_labels: Sequence[str] | None = None,
-    behaviour_cell: float = 1.0,
-    behaviour_dt: float = 2.0,
-    source: str = "scenario",
-    cell_source: str = "behaviour_cell",
-    interaction: bool | SocialForce = True,
     n: int | None = None,
-    progress: _Progress | None = None,
+    **moves: Unpack[_Moves],
 ) -> pd.DataFrame | None:
     """The tracks of a scenarios table moved by :func:`move_scenes`: its standing scenes
     (:func:`scenes_from_tables`, scenarios ``0 .. n - 1``) moved, as a table.
@@ -262,11 +269,16 @@ def scene_tracks(
         PRNG key of the tracks.
     artefacts : pandas.DataFrame
         Scenarios table (``scenario`` column).
-    grid, catalogue, horizon, behaviours, fitted, class_labels, behaviour_cell,
-    behaviour_dt, source, cell_source, interaction, progress
-        See :func:`scenes_from_draws` and :func:`move_scenes`.
+    grid, catalogue, horizon
+        See :func:`move_scenes`.
+    class_labels : sequence of str, optional
+        Label of each mixture component.
     n : int, optional
         Number of scenarios (default: the table's).
+    **moves
+        The keywords of :func:`move_scenes` (``behaviours``, default ``True``,
+        ``fitted``, ``behaviour_cell``, ``behaviour_dt``, ``source``, ``cell_source``,
+        ``interaction``, ``progress``).
 
     Returns
     -------
@@ -274,24 +286,12 @@ def scene_tracks(
         ``scenario, id, t, x, y, yaw`` (by scenario, artefacts in table order, epochs in
         time order); None when nothing moves (no behaviours, or no artefact).
     """
-    kind = _behaviour_source(behaviours, fitted, source)
     if n is None:
         n = int(artefacts["scenario"].max()) + 1 if len(artefacts) else 1
     standing = scenes_from_tables(artefacts, None, catalogue, class_labels, range(n))
-    moved = move_scenes(
-        key,
-        standing,
-        grid,
-        catalogue,
-        horizon,
-        behaviours=kind,
-        fitted=fitted,
-        behaviour_cell=behaviour_cell,
-        behaviour_dt=behaviour_dt,
-        source=source,
-        cell_source=cell_source,
-        interaction=interaction,
-        progress=progress,
+    moved = move_scenes(key, standing, grid, catalogue, horizon, **moves)
+    kind = _behaviour_source(
+        moves.get("behaviours", True), moves.get("fitted"), moves.get("source", "scenario")
     )
     if kind == "none" or not len(artefacts):
         return None

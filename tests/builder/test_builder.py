@@ -107,6 +107,97 @@ def test_augmented_grid_with_the_perceived_artefacts_only():
         b.augmented_grid(perceived=np.ones(5, bool))
 
 
+def _same_builders(a: ARBuilder, b: ARBuilder) -> None:
+    np.testing.assert_array_equal(a.ids, b.ids)
+    assert a.labels == b.labels
+    for x, y in zip(a.boxes(), b.boxes(), strict=True):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(a.augmented_grid().data, b.augmented_grid().data)
+    assert a.n_artefact_cells == b.n_artefact_cells
+    ca, cb = a.collisions(), b.collisions()
+    for k in ca:
+        np.testing.assert_array_equal(ca[k], cb[k])
+
+
+def test_register_many_is_register_one_at_a_time():
+    """register_many holds the same ids, labels, boxes, cells and collisions as one
+    register call per artefact, by label (rows of Q) and by size, with given ids."""
+    q = load_catalogue()
+    g = _walled_grid()
+    rng = np.random.default_rng(11)
+    n = 40
+    poses = np.column_stack(
+        [rng.uniform(0.5, 7.5, n), rng.uniform(0.5, 5.5, n), rng.uniform(-4, 4, n)]
+    )
+    labels = list(rng.choice(["person", "child", "pallet"], n))
+    one, many = ARBuilder(g, q), ARBuilder(g, q)
+    one.register(None, [3.0, 3.0, 0.0], size=[0.3, 0.3, 1.0])  # one artefact there first
+    many.register(None, [3.0, 3.0, 0.0], size=[0.3, 0.3, 1.0])
+    for lab, p in zip(labels, poses, strict=True):
+        one.register(lab, p, check=False)
+    got = many.register_many(labels, poses, check=False)
+    np.testing.assert_array_equal(got, np.arange(1, n + 1))
+    _same_builders(one, many)
+    assert one.collisions()["pairs"].size  # the check below has collisions to refuse
+    sizes = rng.uniform(0.2, 1.5, (n, 3))
+    ids = rng.permutation(1000)[:n]
+    one, many = ARBuilder(g), ARBuilder(g)
+    for p, sz, aid in zip(poses, sizes, ids, strict=True):
+        one.register(None, p, size=sz, artefact_id=aid, check=False)
+    many.register_many([None] * n, poses, sizes=sizes, artefact_ids=ids, check=False)
+    _same_builders(one, many)
+    assert (
+        one.register(None, [1.0, 1.0, 0.0], size=[0.2, 0.2, 1.0], check=False)
+        == (many.register_many([None], [[1.0, 1.0, 0.0]], sizes=[[0.2, 0.2, 1.0]], check=False)[0])
+    )
+
+
+def test_register_many_refuses_a_colliding_batch_whole():
+    """With check, a batch is refused (nothing registered) when a box hits the
+    environment, a live artefact or another box of the batch; ids must be new and
+    distinct; register_many([]) registers nothing."""
+    q = load_catalogue()
+    b = ARBuilder(_walled_grid(), q)
+    b.register("person", [1.0, 1.0, 0.0])
+    free = [[2.0, 4.0, 0.0], [5.0, 2.0, 0.0]]
+    cases = {
+        "the environment": [*free, [3.2, 2.3, 0.0]],  # into a pillar
+        "an artefact": [*free, [1.1, 1.0, 0.0]],  # onto the person
+        "an artefact ": [*free, [5.1, 2.0, 0.0]],  # onto the batch's second box
+    }
+    for what, poses in cases.items():
+        with pytest.raises(ValueError, match=f"collides with {what.strip()}"):
+            b.register_many(["person"] * 3, poses)
+        assert b.ids.tolist() == [0]
+    with pytest.raises(ValueError, match="id 0 is already registered"):
+        b.register_many(["person"] * 2, free, artefact_ids=[5, 0])
+    with pytest.raises(ValueError, match="id 5 is already registered"):
+        b.register_many(["person"] * 2, free, artefact_ids=[5, 5])
+    with pytest.raises(ValueError, match="labels: expected 2 labels"):
+        b.register_many(["person"], free)
+    with pytest.raises(ValueError, match=r"sizes: expected \(2, 3\)"):
+        b.register_many([None] * 2, free, sizes=[[1.0, 1.0, 1.0]])
+    assert b.register_many([], np.zeros((0, 3))).size == 0
+    assert b.register_many(["person"] * 2, free).tolist() == [1, 2]
+
+
+def test_perceived_map_with_and_without_the_footprints_cached():
+    """augmented_grid(perceived=...) rasterises only the perceived boxes when the
+    footprints of the update are not there yet, and filters them when they are: the
+    same map."""
+    g = _walled_grid(origin=(0.3, -0.2, 0.1))
+    rng = np.random.default_rng(5)
+    n = 30
+    poses = np.column_stack([rng.uniform(-1, 9, n), rng.uniform(-1, 7, n), rng.uniform(-4, 4, n)])
+    b = ARBuilder(g)
+    b.register_many([None] * n, poses, sizes=rng.uniform(0.1, 2.0, (n, 3)), check=False)
+    seen = rng.random(n) < 0.5
+    fresh = b.augmented_grid(perceived=seen)
+    assert b._runs is None  # only the perceived boxes were rasterised
+    b.augmented_grid()
+    np.testing.assert_array_equal(b.augmented_grid(perceived=seen).data, fresh.data)
+
+
 def test_catalogue_registration_and_voxels():
     q = load_catalogue()
     g = _walled_grid()

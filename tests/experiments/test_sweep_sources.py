@@ -305,6 +305,41 @@ def test_scenarios_folder_tracks_are_used_with_behaviours(files, tmp_path):
     assert still["n_move_updates"] == 0 and still["n_detours"] == still["n_yields"] == 0
 
 
+def test_a_folder_without_tracks_moves_its_scene_as_the_table_route_did(files, monkeypatch):
+    """A scenarios folder without tracks, with behaviours: the task's Scene is moved by
+    move_scenes (Scene -> Scene), and is the scene the table route made (scene_tracks of
+    the scenario's rows, keyed by the task's seed, then scenes_from_tables): same poses at
+    every time, same life-cycle."""
+    root, grid, _, df = files
+    cfg = _config(root, replicates=2, scenario={"scenarios": str(root / "scen")})
+    cat = load_catalogue()
+
+    def table_view(*args, **kwargs):
+        raise AssertionError("the sweep moved its scene through the table view scene_tracks")
+
+    for task in expand_tasks({**cfg, "behaviours": True}):
+        with monkeypatch.context() as m:
+            m.setattr(sweep_module, "scene_tracks", table_view, raising=False)
+            scene, info = _task_scenario(task, grid, cat)
+        draw = info["draw"]
+        art = df[df["scenario"] == draw].reset_index(drop=True)
+        tracks = scene_tracks(
+            jax.random.key(int(task["seed"])),
+            art,
+            grid,
+            cat,
+            HORIZON,
+            behaviours="catalogue",
+            n=draw + 1,
+        )
+        (want,) = scenes_from_tables(art, tracks, cat, None, [draw])
+        assert scene.has_tracks.any() and len(scene) == len(want)
+        np.testing.assert_array_equal(scene.ids, want.ids)
+        np.testing.assert_array_equal(scene.t_arrive, want.t_arrive)
+        for t in np.linspace(0.0, HORIZON, 41):
+            np.testing.assert_array_equal(scene.poses(t), want.poses(t))
+
+
 def test_a_fit_with_groups_sends_groups_through_the_mission(files, tmp_path):
     """A fit whose chosen arrival model is groups: the mission's artefacts arrive in groups."""
     root, grid, _, _ = files
