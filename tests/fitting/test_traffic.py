@@ -163,6 +163,39 @@ def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
     assert reps["chosen"].shape == (100, len(table))
 
 
+def test_checks_entry_distance_is_each_windows_own(rich_fit, rich_log):
+    """traffic_checks measures every replicate's entry distances in one call of
+    boundary_distance; each window's value is window_statistics' on that window alone."""
+    from are_stats.fitting import window_statistics
+    from are_stats.fitting._traffic_checks import _free_of
+    from are_stats.traffic import fold_in_key, key_from_seed
+
+    data, _ = rich_log
+    idata = _idata_with(rich_fit, data)
+    n_rep = 12
+    table, reps = traffic_checks(0, idata, n_rep)
+    free = _free_of(idata)
+    w = np.asarray(idata.posterior.attrs["window"], float)
+    res = float(np.asarray(idata.posterior.attrs["traffic_time_resolution"]).ravel()[0])
+    j = list(table.index).index("entry to boundary (m)")
+    for i, model in enumerate(("paper", "chosen")):
+        draws, laws = traffic_draws(idata, model)
+        df = generate_scenarios(fold_in_key(key_from_seed(0), i), draws, n_rep, w[1] - w[0],
+                                free_mask=free[0], area=float(idata.posterior.attrs["area"]),
+                                draw="random", headings=0, laws=laws, resolution=free[1],
+                                origin=free[2])  # fmt: skip
+        want = []
+        for r in range(n_rep):
+            sc = df[df["scenario"] == r]
+            ta = np.ceil(sc["t_arrive"].to_numpy() / res - 1e-9) * res + w[0]
+            st = window_statistics(ta, sc["t_leave"].to_numpy() + w[0],
+                                   sc["truncated"].to_numpy(), (w[0], w[1]), res,
+                                   sc[["x", "y"]].to_numpy(), free)  # fmt: skip
+            want.append(st["entry to boundary (m)"])
+        assert np.isfinite(want).all()
+        np.testing.assert_array_equal(reps[model][:, j], want)
+
+
 def test_read_fit_names_a_missing_variable(rich_fit, rich_log, tmp_path):
     data, _ = rich_log
     idata = _idata_with(rich_fit, data)
