@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["smooth_tracks"]
+__all__ = ["smooth_samples", "smooth_tracks"]
 
 #: Prior sd of the first sample's position (m), velocity (m/s) and acceleration (m/s^2):
 #: diffuse against a walk's.
@@ -105,3 +105,57 @@ def smooth_tracks(
         out[k] = np.where(last[k][None, :, None], x_filt[k], smoothed)
     out = np.where(alive[:, None, :, None], out, 0.0)
     return np.moveaxis(out, 1, 0)
+
+
+def smooth_samples(
+    values: np.ndarray,
+    track: np.ndarray,
+    index: np.ndarray,
+    step: float,
+    noise: float,
+    jerk: float,
+) -> np.ndarray:
+    """:func:`smooth_tracks` of samples given row by row.
+
+    Tracks are padded to a common length in batches of similar lengths (longest first,
+    a batch closed when padding would double its samples), so a few long tracks among
+    many short ones cost what their samples cost.
+
+    Parameters
+    ----------
+    values : (n, c) float
+        Observed positions, one row per sample.
+    track : (n,) int
+        Each row's track, ``0 .. n_tracks - 1``.
+    index : (n,) int
+        Each row's sample index within its track, ``0 .. length - 1`` (every index once).
+    step, noise, jerk
+        As in :func:`smooth_tracks`.
+
+    Returns
+    -------
+    (3, n, c) float
+        Smoothed position, velocity and acceleration of each row.
+    """
+    values = np.asarray(values, float)
+    track = np.asarray(track, int)
+    index = np.asarray(index, int)
+    length = np.bincount(track)
+    order = np.argsort(-length, kind="stable")
+    out = np.zeros((3, *values.shape))
+    rows_of = np.argsort(track, kind="stable")
+    first_row = np.r_[0, np.cumsum(length)]
+    k = 0
+    while k < order.size:
+        top, samples, stop = length[order[k]], 0, k
+        while stop < order.size and (stop - k + 1) * top <= 2 * (samples + length[order[stop]]):
+            samples += length[order[stop]]
+            stop += 1
+        batch = order[k:stop]
+        rows = np.concatenate([rows_of[first_row[b] : first_row[b + 1]] for b in batch])
+        slot = np.repeat(np.arange(batch.size), length[batch])
+        pad = np.zeros((top, batch.size, values.shape[1]))
+        pad[index[rows], slot] = values[rows]
+        out[:, rows] = smooth_tracks(pad, length[batch], step, noise, jerk)[:, index[rows], slot]
+        k = stop
+    return out

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from are_stats.behaviour._smoother import smooth_tracks
+from are_stats.behaviour._smoother import smooth_samples, smooth_tracks
 
 
 def test_quadratic_paths_come_back_exactly_whatever_the_noise_assumed():
@@ -56,3 +56,20 @@ def test_the_smoothed_acceleration_of_a_noisy_walk_is_near_the_truth():
     assert np.sqrt(np.mean(err**2)) < 0.45 * np.sqrt(np.mean(acc[inner] ** 2))
     second = np.diff(seen, 2) / 0.01
     assert np.std(second - acc[1:-1]) > 10.0
+
+
+def test_samples_row_by_row_are_smoothed_as_their_tracks_alone():
+    """Rows of tracks of very different lengths (batched by length inside), in shuffled
+    order: each row gets what its track smoothed alone gives at its index."""
+    rng = np.random.default_rng(1)
+    lengths = [300, 5, 9, 120, 4, 4, 60]
+    walks = [np.cumsum(rng.normal(0.0, 0.1, (n, 2)), axis=0) for n in lengths]
+    track = np.concatenate([np.full(n, i) for i, n in enumerate(lengths)])
+    index = np.concatenate([np.arange(n) for n in lengths])
+    values = np.concatenate(walks)
+    mix = rng.permutation(track.size)
+    out = smooth_samples(values[mix], track[mix], index[mix], 0.4, 0.05, 3.0)
+    for i, n in enumerate(lengths):
+        alone = smooth_tracks(walks[i][:, None, :], np.array([n]), 0.4, 0.05, 3.0)[:, :, 0]
+        rows = np.flatnonzero(track[mix] == i)
+        assert out[:, rows] == pytest.approx(alone[:, index[mix][rows]], abs=1e-9)
