@@ -801,6 +801,8 @@ SMOOTH_NOISE = 0.02
 CORRECTIONS = 2
 SIMULATION_NOISE_DRAWS = 2
 MAX_CORRECTION = 4.0
+#: Relaxation time (s) past which a fit is no estimate (published values are 0.3-1 s).
+MAX_RELAXATION = 5.0
 #: Nodes (in units of the second difference's span) and weights of the quadrature of the
 #: triangle-weighted mean over ``-1 .. 1`` (composite Simpson's rule on each half).
 NODES = np.array([-0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75])
@@ -1311,7 +1313,8 @@ def fit_social_force(
     ValueError
         With fewer than 10 walking samples, or unequal time steps; or when no parameters
         of the model reproduce the tracks' estimate (the correction would scale one by
-        :data:`MAX_CORRECTION` or more, or the range is at an end of ``ranges``).
+        :data:`MAX_CORRECTION` or more, the range is at an end of ``ranges``, or the
+        relaxation time past :data:`MAX_RELAXATION`).
     """
     base = SocialForce() if base is None else base
     ranges = np.linspace(0.1, 1.0, 37) if ranges is None else np.asarray(ranges, float)
@@ -1324,6 +1327,13 @@ def fit_social_force(
     info = {**info, "noise": sd, "strength_direct": params.strength,
             "relaxation_direct": params.relaxation, "corrections": 0.0}  # fmt: skip
     if corrections > 0 and _in_range(params):
+        if params.relaxation > MAX_RELAXATION:
+            # nobody steers to a goal over this long: the model does not describe them
+            raise ValueError(
+                f"tracks: the social force's relaxation time reads {params.relaxation:.3g} s "
+                f"(strength {params.strength:.3g} m/s^2), past {MAX_RELAXATION:g} s: they do "
+                f"not walk as the model walks, or too little near each other to tell"
+            )
         if ranges.size > 2 and params.range in (ranges.min(), ranges.max()):
             # a range at the end of its grid is no estimate of it: nothing to correct at
             raise ValueError(
