@@ -69,6 +69,7 @@ import pandas as pd
 from are_stats._checks import check_positive
 from are_stats.behaviour._groups import formation, slot_offsets
 from are_stats.behaviour._noise import tracker_noise
+from are_stats.behaviour._smoother import smooth_samples
 from are_stats.inputs import check_memory, check_work
 
 # Lazy imports: scipy.ndimage and scipy.spatial (0.4 s each, not loaded by the behaviour
@@ -792,6 +793,16 @@ STATE_ORDER = 2
 #: SIMEX's raised noise variances (in units of the tracker's) and replicates of each.
 SIMEX_LAMBDAS = (0.5, 1.0, 1.5, 2.0)
 SIMEX_REPLICATES = 2
+#: Position noise (m) from which the accelerations and the state are read from a smoother
+#: (:func:`_smoothed_design`) instead of differences of the samples.
+SMOOTH_NOISE = 0.02
+#: Corrections of the fit by simulation (:func:`_simulation_correction`), noise draws of
+#: each simulated crowd, and the largest factor one correction applies.
+CORRECTIONS = 2
+SIMULATION_NOISE_DRAWS = 2
+MAX_CORRECTION = 4.0
+#: Relaxation time (s) past which a fit is no estimate (published values are 0.3-1 s).
+MAX_RELAXATION = 5.0
 #: Nodes (in units of the second difference's span) and weights of the quadrature of the
 #: triangle-weighted mean over ``-1 .. 1`` (composite Simpson's rule on each half).
 NODES = np.array([-0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75])
@@ -861,6 +872,57 @@ def _node_states(
     return pos, vel, full
 
 
+def _equal_step(t: np.ndarray, first: np.ndarray) -> float:
+    """The one time step (s) of tracks sorted by id and time (``first`` (n,) bool marks
+    each track's first row).
+
+    Raises
+    ------
+    ValueError
+        Without two samples in a track, or with unequal steps.
+    """
+    steps = np.diff(t)[~first[1:]]
+    if steps.size == 0:
+        raise ValueError("tracks: expected tracks of at least three samples")
+    dt = float(np.median(steps))
+    if not np.allclose(steps, dt, rtol=1e-6, atol=1e-9):
+        raise ValueError(
+            f"tracks: expected equally spaced times, got steps from {steps.min()} to {steps.max()}"
+        )
+    return dt
+
+
+def _neighbour_pairs(
+    t: np.ndarray, pos: np.ndarray, dt: float, reach: float, label: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ordered pairs (i, j) (P,) int of samples at one time within ``reach`` of each
+    other (positions ``pos`` (n, 2)), pairs of one group (``label`` (n,), ``-1`` alone) left
+    out."""
+    from scipy.spatial import cKDTree
+
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    cut = np.r_[0, np.flatnonzero(np.diff(ts) > 1e-6 * dt) + 1, ts.size]
+    pi, pj = [], []
+    for a, b in zip(cut[:-1], cut[1:], strict=True):
+        idx = order[a:b]
+        if idx.size < 2:
+            continue
+        pr = cKDTree(pos[idx]).query_pairs(reach, output_type="ndarray")
+        if pr.size:
+            pi.append(np.r_[idx[pr[:, 0]], idx[pr[:, 1]]])
+            pj.append(np.r_[idx[pr[:, 1]], idx[pr[:, 0]]])
+    pi = np.concatenate(pi) if pi else np.zeros(0, np.int64)
+    pj = np.concatenate(pj) if pj else np.zeros(0, np.int64)
+    if label is not None and pi.size:
+        # group mates: the formation, not the repulsion, keeps them apart (the pair term
+        # leaves them out while they walk at their spacing, _pair_term's ``mates``), so
+        # their pairs are no evidence about A and B
+        pair_ok = ~((label[pi] >= 0) & (label[pi] == label[pj]))
+        pi, pj = pi[pair_ok], pj[pair_ok]
+    return pi, pj
+
+
 def _acceleration_design(
     tracks: pd.DataFrame,
     base: SocialForce,
@@ -887,22 +949,13 @@ def _acceleration_design(
     regressors independently: no errors-in-variables correlation, which with the state
     from ``k - 1, k`` (a backward difference) read 1 cm of noise at 10 Hz as a strength of
     3.4 for 2.1. Only samples with ``d + 1`` neighbours on either side are used."""
-    from scipy.spatial import cKDTree
-
     tab = tracks.sort_values(["id", "t"], kind="stable")
     ids = tab["id"].to_numpy()
     t = tab["t"].to_numpy(float)
     raw = tab[["x", "y"]].to_numpy(float)
     first = np.r_[True, ids[1:] != ids[:-1]]
     last = np.r_[first[1:], True]
-    steps = np.diff(t)[~first[1:]]
-    if steps.size == 0:
-        raise ValueError("tracks: expected tracks of at least three samples")
-    dt = float(np.median(steps))
-    if not np.allclose(steps, dt, rtol=1e-6, atol=1e-9):
-        raise ValueError(
-            f"tracks: expected equally spaced times, got steps from {steps.min()} to {steps.max()}"
-        )
+    dt = _equal_step(t, first)
     lag = 1  # the second difference's span, in steps
     acc_noise = np.sqrt(6) * noise / dt**2
     while lag < ACCELERATION_SPAN / dt and acc_noise > ACCELERATION_NOISE * lag**2:
@@ -929,27 +982,7 @@ def _acceleration_design(
     m = inner.size
     if m < 10:
         raise ValueError(f"tracks: expected at least 10 walking samples, got {m}")
-    # the neighbours of each used sample: every sample at the same time within reach
-    order = np.argsort(t, kind="stable")
-    ts = t[order]
-    cut = np.r_[0, np.flatnonzero(np.diff(ts) > 1e-6 * dt) + 1, ts.size]
-    pi, pj = [], []
-    for a, b in zip(cut[:-1], cut[1:], strict=True):
-        idx = order[a:b]
-        if idx.size < 2:
-            continue
-        pr = cKDTree(pos[mid, idx]).query_pairs(base.reach, output_type="ndarray")
-        if pr.size:
-            pi.append(np.r_[idx[pr[:, 0]], idx[pr[:, 1]]])
-            pj.append(np.r_[idx[pr[:, 1]], idx[pr[:, 0]]])
-    pi = np.concatenate(pi) if pi else np.zeros(0, np.int64)
-    pj = np.concatenate(pj) if pj else np.zeros(0, np.int64)
-    if label is not None and pi.size:
-        # group mates: the formation, not the repulsion, keeps them apart (the pair term
-        # leaves them out while they walk at their spacing, _pair_term's ``mates``), so
-        # their pairs are no evidence about A and B
-        pair_ok = ~((label[pi] >= 0) & (label[pi] == label[pj]))
-        pi, pj = pi[pair_ok], pj[pair_ok]
+    pi, pj = _neighbour_pairs(t, pos[mid], dt, base.reach, label)
     diff = _anticipated(pos[:, pi] - pos[:, pj], vel[:, pi] - vel[:, pj], base.horizon)
     dist = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), 1e-9)
     return {
@@ -972,12 +1005,138 @@ def _acceleration_design(
 
 def _repulsion_column(d: Mapping[str, Any], radius: float, b_range: float) -> np.ndarray:
     """(2m,) the column of ``A`` in :func:`_acceleration_design`'s least squares for the
-    range ``b_range``: each used sample's summed unit repulsions, averaged over the nodes."""
+    range ``b_range``: each used sample's summed unit repulsions, averaged over the nodes
+    (or, for :func:`_smoothed_design`, through the smoother)."""
     g = np.zeros((d["dist"].shape[0], d["n"], 2))
     push = np.exp((2 * radius - d["dist"]) / b_range)[..., None] * d["n_hat"]
     for q in range(g.shape[0]):
         np.add.at(g[q], d["pi"], push[q])
+    if "smooth" in d:
+        return _smoothed_acceleration(d, g[0]).reshape(-1)
     return np.einsum("q,qnc->nc", NODE_WEIGHTS, g)[d["inner"]].reshape(-1)
+
+
+#: Spectral density (m^2/s^5) of the white jerk of the smoother's walk
+#: (:func:`~are_stats.behaviour._smoother.smooth_tracks`): a push of 2 m/s^2 that builds
+#: up and fades in about 0.3 s.
+JERK_DENSITY = 10.0
+#: Samples within this many seconds (and at least 2 samples) of a track's end are not
+#: fitted (the smoother sees them from one side only); they serve as neighbours.
+SMOOTH_EDGE = 0.4
+#: White jerk (m^2/s^5) of the smoother that gives the state the repulsion is evaluated at
+#: (positions and velocities of the anticipated separations): smoother than the
+#: accelerations', since the velocity's noise times the 2 s horizon is the separations'
+#: (with the accelerations' 10: 5 cm at 10 Hz read the published 2.1 as 1.06 for 1.36).
+STATE_JERK = 1.0
+#: Share of the worst-fitted samples the least squares' second pass leaves out.
+FIT_TRIM = 0.02
+
+
+def _smoothed_acceleration(d: Mapping[str, Any], seq: np.ndarray) -> np.ndarray:
+    """(m, c) the smoother's acceleration at the used samples of the path whose
+    acceleration is ``seq`` (n, c), one value per sample (constant over the step after it),
+    integrated twice along each track from rest at its first sample: the smoother's own
+    kernel applied to ``seq``, as the observed accelerations have it applied to the walk's
+    (so a pulse of repulsion the smoother flattens is flattened in the model too)."""
+    sm = d["smooth"]
+    dt, at, who = d["dt"], sm["at"], sm["who"]
+    start = np.flatnonzero(at == 0)
+
+    def along(x: np.ndarray) -> np.ndarray:
+        """Cumulative sums of ``x`` (n, c) along each track (rows sorted by track)."""
+        cs = np.cumsum(x, axis=0)
+        return cs - (cs[start] - x[start])[who]
+
+    vel = along(seq) * dt - seq * dt  # the velocity at each sample, before its step
+    moved = vel * dt + seq * (0.5 * dt * dt)
+    pos = along(moved) - moved  # the position at each sample
+    acc = smooth_samples(pos, who, at, dt, sm["noise"], sm["jerk"])[2]
+    return acc[d["inner"]]
+
+
+def _smoothed_design(
+    tracks: pd.DataFrame,
+    base: SocialForce,
+    min_speed: float,
+    groups: Mapping[Hashable, Hashable] | None,
+    noise: float,
+    jerk: float | None = None,
+) -> dict[str, Any]:
+    """:func:`_acceleration_design`'s least squares from a smoothed state (same keys, one
+    node, and ``smooth``, what :func:`_smoothed_acceleration` needs).
+
+    Each track is smoothed by a constant-acceleration Kalman filter and RTS smoother
+    (:func:`~are_stats.behaviour._smoother.smooth_tracks`, observation noise ``noise``,
+    white jerk ``jerk``). The observed acceleration is the smoother's, at each sample
+    ``SMOOTH_EDGE`` s or more from its track's ends: a linear, nearly time-symmetric
+    filter ``K`` of the positions, so the walk's acceleration ``K * a`` (plus noise). The
+    model's is ``K`` applied to the model's acceleration: the velocity column is the
+    smoothed velocity (``K * v``, the derivative of the same smoother, and its noise odd
+    in time where the acceleration's is even, so independent of it at one sample), the
+    destination and repulsion columns their instantaneous values at the smoothed states,
+    integrated twice along the track and passed through the smoother
+    (:func:`_smoothed_acceleration`); the state those are evaluated at comes from a
+    smoother of less jerk (:data:`STATE_JERK`). ``v_var`` is the smoothed velocity's noise
+    variance per unit position noise (white noise through the smoother)."""
+
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    ids = tab["id"].to_numpy()
+    t = tab["t"].to_numpy(float)
+    raw = tab[["x", "y"]].to_numpy(float)
+    first = np.r_[True, ids[1:] != ids[:-1]]
+    last = np.r_[first[1:], True]
+    dt = _equal_step(t, first)
+    who = np.cumsum(first) - 1
+    start, stop = np.flatnonzero(first), np.flatnonzero(last)
+    k = np.arange(len(raw))
+    at = k - start[who]
+    length = stop - start + 1
+    n_tracks = length.size
+    jerk = JERK_DENSITY if jerk is None else jerk
+    check_memory(8 * len(raw) * 2 * 2 * 6, "the smoothed tracks")
+    sm = {"at": at, "who": who,
+          "noise": float(noise), "jerk": float(jerk)}  # fmt: skip
+    state = smooth_samples(raw, who, at, dt, noise, jerk)  # (3, n, 2)
+    pos, vel, acc = state
+    edge = max(2, int(np.ceil(SMOOTH_EDGE / dt - 1e-9)))
+    full = np.minimum(at, stop[who] - k) >= edge
+    dest = raw[stop][who]
+    to = dest - pos
+    e_all = to / np.maximum(np.hypot(*to.T), 1e-9)[:, None]
+    use = full & (np.hypot(*vel.T) >= min_speed) & (np.hypot(*to.T) > 0.5)
+    label = None if groups is None else _group_codes(ids, groups)
+    if label is not None:  # members head for their slot, not their destination
+        use &= label < 0
+    inner = np.flatnonzero(use)
+    m = inner.size
+    if m < 10:
+        raise ValueError(f"tracks: expected at least 10 walking samples, got {m}")
+    pos_g, vel_g, _ = smooth_samples(raw, who, at, dt, noise, STATE_JERK)
+    pi, pj = _neighbour_pairs(t, pos_g, dt, base.reach, label)
+    diff = _anticipated(pos_g[pi] - pos_g[pj], vel_g[pi] - vel_g[pj], base.horizon)[None]
+    dist = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), 1e-9)
+    d = {
+        "n": len(raw),
+        "inner": inner,
+        "pi": pi,
+        "pj": pj,
+        "dist": dist,
+        "n_hat": diff / dist[..., None],
+        "y": acc[inner].reshape(-1),
+        "person": np.repeat(who[inner], 2),
+        "minus_v": -vel[inner].reshape(-1),
+        "n_people": n_tracks,
+        "m": m,
+        "dt": dt,
+        "smooth": sm,
+    }
+    d["e_col"] = _smoothed_acceleration(d, e_all).reshape(-1)
+    # the smoothed velocity's noise per unit position noise: white noise through it
+    rng = np.random.default_rng(0)
+    v_noise = smooth_samples(rng.normal(0.0, 1.0, raw.shape), who, at, dt, noise, jerk)[1]
+    v_noise = v_noise[inner]
+    d["v_var"] = float(np.mean(v_noise**2))
+    return d
 
 
 def _profiled_least_squares(
@@ -1051,6 +1210,8 @@ def fit_social_force(
     noise: float | None = None,
     step: float = SIMULATION_STEP,
     simex: bool = True,
+    smooth: bool | None = None,
+    corrections: int = CORRECTIONS,
 ) -> tuple[SocialForce, dict[str, float]]:
     """Estimate ``A``, ``B`` and ``tau`` from observed tracks by least squares on the
     accelerations (as Johansson, Helbing and Shukla 2007 calibrated the model).
@@ -1064,28 +1225,43 @@ def fit_social_force(
     is chosen on a grid by the residual sum of squares. The samples must be equally spaced
     in time (one step for everybody).
 
-    Tracker noise: the accelerations are second differences and the state they are
-    regressed on (positions, velocities, anticipated separations) is estimated from the
-    neighbouring samples by weights orthogonal to them (:func:`_acceleration_design`), so
-    the noise in the two is independent (with the state from finite differences of the
-    same samples, 1 cm of noise at 10 Hz read the published 2.1 m/s^2 as 3.4 and
-    ``tau`` 0.5 s as 0.1 s). What noise remains in the regressors would still shrink
-    their coefficients: the velocities' share of the normal equations is corrected by
-    its expectation (method of moments, the noise's sd ``noise`` read from the tracks by
-    :func:`~are_stats.behaviour.tracker_noise`), and the repulsion's, which enters through
-    the exponential, by SIMEX (Cook and Stefanski 1994): the fit repeated with the noise
-    variance raised by 0.5-2 times its own (more noise added, seeded), its ``1/tau`` and
-    ``A`` extrapolated by a quadratic back to no noise. The model fitted is continuous in
-    time; its ``tau_c`` and ``A_c`` are returned as the parameters of the simulation's
-    semi-implicit Euler step ``h`` (:func:`social_force_tracks`), which to first order in
-    ``h`` is that continuous model with ``tau_c = tau - h/2`` and ``A_c = A tau / tau_c``.
+    Tracker noise: below :data:`SMOOTH_NOISE` (``noise``, read from the tracks by
+    :func:`~are_stats.behaviour.tracker_noise`), the accelerations are second differences
+    and the state they are regressed on (positions, velocities, anticipated separations)
+    is estimated from the neighbouring samples by weights orthogonal to them
+    (:func:`_acceleration_design`), so the noise in the two is independent (with the
+    state from finite differences of the same samples, 1 cm of noise at 10 Hz read the
+    published 2.1 m/s^2 as 3.4 and ``tau`` 0.5 s as 0.1 s); the velocities' noise is
+    subtracted from the normal equations (method of moments). From :data:`SMOOTH_NOISE`
+    on, second differences drown in the noise (5 cm at 10 Hz: 12 m/s^2 per sample), and
+    the accelerations and the state are read from a constant-acceleration Kalman
+    smoother of each track instead (:func:`_smoothed_design`: the model's acceleration
+    passed through the same smoother, so a push it flattens is flattened in both).
+
+    What noise remains in the regressors still shrinks their coefficients, and at 2.5 Hz
+    the force changes within a step. So the estimate is corrected by simulation
+    (``corrections`` times; indirect inference, Gourieroux, Monfort and Renault 1993:
+    :func:`_simulation_correction`): the tracks' people walked again by the model at the
+    estimate (straight to their last point at their own speed, :func:`social_force_tracks`
+    with the simulation's step ``step``), seen with the tracker's noise, fitted the same
+    way at the tracks' ``B``; ``A`` and ``tau`` are scaled by the ratio of the tracks'
+    estimate to the simulated tracks', until the simulated tracks give the tracks'
+    estimate (``B`` is kept: the smoothed state's is nearly unbiased, and correcting it
+    too walks along the ridge ``A exp(-d / B)`` of the distances seen). The
+    estimator it corrects need not be unbiased, only the same on both; the parameters it
+    returns are those of the simulation's semi-implicit Euler step (the least squares'
+    continuous ``tau_c``, ``A_c`` as ``tau = tau_c + h/2``, ``A = A_c tau_c / tau``, to
+    first order in ``h``). With ``corrections=0``, the least squares alone (with SIMEX on
+    the repulsion, ``simex``: the fit repeated with the noise variance raised by 0.5-2
+    times its own, ``1/tau`` and ``A`` extrapolated back to no noise by a quadratic).
 
     Recovery (crowds of 60 walked with the published 2.1 m/s^2, 0.3 m, 0.5 s; six seeds,
-    mean +- sd): at 10 Hz without noise 2.07 +- 0.01, 0.30, 0.505 +- 0.003 s; with 1 cm
-    of noise 1.92 +- 0.09, 0.31 +- 0.02, 0.53 +- 0.03 s (3.40, 0.65, 0.105 s before the
-    correction). Not yet recovered: 5 cm of noise at 10 Hz (0.88 +- 0.24, 0.43, 0.72 s)
-    and sampling at 2.5 Hz, where the relaxation time is barely longer than a step
-    (1.47 +- 0.15, 0.31, 0.64 s without noise; 0.79 +- 0.36, 0.41, 1.0 +- 0.5 s with 5 cm).
+    bias (sd)): at 10 Hz without noise A +0.03 (0.06), tau -0.01 (0.01) s; with 1 cm
+    -0.12 (0.12), -0.00 (0.02); with 5 cm -0.47 (0.33), +0.08 (0.09) (second differences
+    and SIMEX: -1.40 (0.16), +0.39); at 2.5 Hz without noise -0.25 (0.30), +0.05 (0.05)
+    (-0.71, +0.20); with 5 cm still -1.10 (0.20), +0.36 (0.10) (-1.28, +0.51). The
+    correction costs ``corrections`` simulations of the tracks' people and twice as many
+    fits.
 
     Parameters
     ----------
@@ -1094,7 +1270,7 @@ def fit_social_force(
     base : SocialForce, optional
         The parameters not estimated (``radius``, ``horizon``, ``reach``, the walls').
     ranges : array of float, optional
-        Candidate ``B`` (m); default 0.1 to 1.0 m.
+        Candidate ``B`` (m); default 0.1 to 1.0 m in steps of 0.025 m.
     min_speed : float
         Samples where the person moves slower (m/s) are left out (standing is not walking).
     groups : Mapping, optional
@@ -1113,7 +1289,13 @@ def fit_social_force(
     step : float
         Step (s) of the simulation the parameters are for (:data:`SIMULATION_STEP`).
     simex : bool
-        Correct the repulsion for the noise by SIMEX (with noise only).
+        Without ``corrections``, correct the repulsion for the noise by SIMEX (with noise
+        only).
+    smooth : bool, optional
+        Read the accelerations and the state from the smoothed tracks
+        (:func:`_smoothed_design`); default: from :data:`SMOOTH_NOISE` of noise on.
+    corrections : int
+        Corrections by simulation (:func:`_simulation_correction`; 0: none).
 
     Returns
     -------
@@ -1122,18 +1304,75 @@ def fit_social_force(
     dict
         ``rss`` (residual sum of squares), ``n`` (accelerations used), ``r2`` (share of the
         acceleration variance explained), ``dt`` (the sampling step), ``noise`` (the
-        position noise's sd corrected for), all of the fit to the tracks as they are.
+        position noise's sd corrected for), all of the fit to the tracks as they are;
+        ``strength_direct`` and ``relaxation_direct`` (the least squares' estimate, before
+        the correction) and ``corrections`` (made).
 
     Raises
     ------
     ValueError
-        With fewer than 10 walking samples, or unequal time steps.
+        With fewer than 10 walking samples, or unequal time steps; or when no parameters
+        of the model reproduce the tracks' estimate (the correction would scale one by
+        :data:`MAX_CORRECTION` or more, the range is at an end of ``ranges``, or the
+        relaxation time past :data:`MAX_RELAXATION`).
     """
     base = SocialForce() if base is None else base
-    ranges = np.linspace(0.1, 1.0, 19) if ranges is None else np.asarray(ranges, float)
+    ranges = np.linspace(0.1, 1.0, 37) if ranges is None else np.asarray(ranges, float)
     sd = tracker_noise(tracks) if noise is None else float(noise)
-    theta, info = _least_squares_fit(tracks, base, ranges, min_speed, groups, sd, sd)
-    if sd > 0 and simex:
+    smooth = sd >= SMOOTH_NOISE if smooth is None else bool(smooth)
+    # corrected by simulation, the estimator needs no SIMEX of its own (the simulated
+    # tracks' estimates carry the same attenuation as the tracks')
+    simex = simex and corrections <= 0
+    params, info = _direct_fit(tracks, base, ranges, min_speed, groups, sd, step, simex, smooth)
+    info = {**info, "noise": sd, "strength_direct": params.strength,
+            "relaxation_direct": params.relaxation, "corrections": 0.0}  # fmt: skip
+    if corrections > 0 and _in_range(params):
+        if params.relaxation > MAX_RELAXATION:
+            # nobody steers to a goal over this long: the model does not describe them
+            raise ValueError(
+                f"tracks: the social force's relaxation time reads {params.relaxation:.3g} s "
+                f"(strength {params.strength:.3g} m/s^2), past {MAX_RELAXATION:g} s: they do "
+                f"not walk as the model walks, or too little near each other to tell"
+            )
+        if ranges.size > 2 and params.range in (ranges.min(), ranges.max()):
+            # a range at the end of its grid is no estimate of it: nothing to correct at
+            raise ValueError(
+                f"tracks: the social force's range is at the end of its grid "
+                f"({params.range:.3g} m of {ranges.min():.3g}-{ranges.max():.3g}): too little "
+                f"walking near each other to estimate it, or no repulsion in them"
+            )
+        params, done = _simulation_correction(
+            tracks, params, (ranges, min_speed, groups, sd, step, simex, smooth), corrections
+        )
+        info["corrections"] = float(done)
+    return params, info
+
+
+def _in_range(params: SocialForce) -> bool:
+    """Whether a fitted force can be simulated (positive finite strength and relaxation)."""
+    return bool(
+        np.isfinite(params.strength)
+        and params.strength > 0
+        and np.isfinite(params.relaxation)
+        and params.relaxation > 0
+    )
+
+
+def _direct_fit(
+    tracks: pd.DataFrame,
+    base: SocialForce,
+    ranges: np.ndarray,
+    min_speed: float,
+    groups: Mapping[Hashable, Hashable] | None,
+    sd: float,
+    step: float,
+    simex: bool,
+    smooth: bool,
+) -> tuple[SocialForce, dict[str, float]]:
+    """:func:`fit_social_force` before its correction by simulation: the least squares (and
+    SIMEX, on the finite differences' design), as the simulation step's parameters."""
+    theta, info = _least_squares_fit(tracks, base, ranges, min_speed, groups, sd, sd, smooth)
+    if sd > 0 and simex and not smooth:
         # SIMEX (Cook and Stefanski 1994): the estimates with the noise's variance raised
         # by lambda s^2 (the tracks plus more noise of known sd), extrapolated back to no
         # noise at lambda = -1 by a quadratic in lambda; deterministic (seeded)
@@ -1163,7 +1402,112 @@ def fit_social_force(
         range=b_best,
         relaxation=tau,
     )
-    return params, {**info, "noise": sd}
+    return params, info
+
+
+def _walk_plans(
+    tracks: pd.DataFrame, sd: float, min_speed: float
+) -> tuple[pd.DataFrame, np.ndarray]:
+    """Plans that walk the people of ``tracks`` again (:func:`social_force_tracks`'s
+    ``tracks``): each track's rows (same ``id`` and ``t``) on the straight line from its
+    first smoothed position to its last one, at its median smoothed walking speed (samples
+    at ``min_speed`` or more), standing at the end; ``vx, vy`` its smoothed velocity at the
+    first row. And (n,) the rows' ids."""
+    tab = tracks.sort_values(["id", "t"], kind="stable").reset_index(drop=True)
+    ids = tab["id"].to_numpy()
+    t = tab["t"].to_numpy(float)
+    raw = tab[["x", "y"]].to_numpy(float)
+    first = np.r_[True, ids[1:] != ids[:-1]]
+    last = np.r_[first[1:], True]
+    dt = _equal_step(t, first)
+    who = np.cumsum(first) - 1
+    start, stop = np.flatnonzero(first), np.flatnonzero(last)
+    at = np.arange(len(raw)) - start[who]
+    check_memory(8 * len(raw) * 2 * 2 * 6, "the smoothed tracks")
+    pos, vel, _ = smooth_samples(raw, who, at, dt, sd, JERK_DENSITY)
+    speed = np.hypot(*vel.T)
+    moving = speed >= min_speed
+    v0 = pd.Series(np.where(moving, speed, np.nan)).groupby(who).median().to_numpy()
+    a, b = pos[start], pos[stop]
+    dur = np.hypot(*(b - a).T) / np.where(np.isfinite(v0) & (v0 > 0), v0, np.inf)
+    frac = np.clip((t - t[start][who]) / np.maximum(dur[who], 1e-9), 0.0, 1.0)
+    frac = np.where(np.isfinite(dur[who]) & (dur[who] > 0), frac, 0.0)
+    xy = a[who] + (b - a)[who] * frac[:, None]
+    plan = pd.DataFrame(
+        {"id": ids, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": 0.0,
+         "vx": vel[start][who][:, 0], "vy": vel[start][who][:, 1]}
+    )  # fmt: skip
+    return plan, ids
+
+
+def _simulation_correction(
+    tracks: pd.DataFrame,
+    params: SocialForce,
+    fit_args: tuple,
+    corrections: int,
+) -> tuple[SocialForce, int]:
+    """Indirect inference (Gourieroux, Monfort and Renault 1993) of the strength and the
+    relaxation time: the people of ``tracks`` walked again by the model at the current
+    parameters (:func:`_walk_plans`, :func:`social_force_tracks`, the simulation's own
+    step), seen with the tracker's noise (:data:`SIMULATION_NOISE_DRAWS` seeded draws),
+    fitted as the tracks were (:func:`_direct_fit`, ``fit_args``) at the tracks' range
+    ``B``; the strength and the relaxation time are then scaled by the ratio of the
+    tracks' estimate to the simulated tracks' mean estimate, ``corrections`` times (a
+    fixed point of the estimator's binding function, exact in one step where it is
+    proportional), and the iterates after the first averaged (geometrically: the
+    simulations' own noise). Returns the parameters and the corrections made.
+
+    Raises
+    ------
+    ValueError
+        When a correction would scale a parameter by :data:`MAX_CORRECTION` or more: no
+        parameters of the model reproduce the tracks' estimates (too few people near
+        each other, or no repulsion in them)."""
+    _, min_speed, groups, sd, step, simex, smooth = fit_args
+    plan, ids = _walk_plans(tracks, sd, min_speed)
+    labels = None
+    if groups is not None:
+        labels = np.array([groups.get(i) for i in ids], dtype=object)
+    target = np.array([params.strength, params.relaxation])
+    # B at the tracks' estimate (the smoothed state's is nearly unbiased), A and tau
+    # corrected at it: A and B trade off along a ridge (A exp(-d / B) at the distances
+    # seen), which correcting both at once walks along
+    fixed = np.array([params.range])
+    current = params
+    rng = np.random.default_rng(0)
+    iterates = []
+    for _ in range(corrections):
+        walked = social_force_tracks(plan, current, dt=step, groups=labels)
+        walked = walked[["id", "t", "x", "y"]]
+        got = []
+        for _ in range(SIMULATION_NOISE_DRAWS):
+            more = rng.normal(0.0, sd, (len(walked), 2))
+            seen = walked.assign(x=walked["x"] + more[:, 0], y=walked["y"] + more[:, 1])
+            fit, _ = _direct_fit(seen, current, fixed, min_speed, groups, sd, step, simex, smooth)
+            got.append((fit.strength, fit.relaxation))
+        mean = np.mean(got, axis=0)
+        ratio = target / mean
+        if not (
+            np.all(np.isfinite(ratio))
+            and np.all((ratio > 1.0 / MAX_CORRECTION) & (ratio < MAX_CORRECTION))
+        ):
+            raise ValueError(
+                f"tracks: the social force walked at strength {current.strength:.3g} m/s^2, "
+                f"range {current.range:.3g} m, relaxation {current.relaxation:.3g} s does not "
+                f"reproduce their estimates (strength {target[0]:.3g}, relaxation "
+                f"{target[1]:.3g} against {mean[0]:.3g}, {mean[1]:.3g}): no repulsion in "
+                f"them, or too little walking near each other to correct the fit"
+            )
+        current = current._replace(
+            strength=float(current.strength * ratio[0]),
+            relaxation=float(current.relaxation * ratio[1]),
+        )
+        iterates.append((current.strength, current.relaxation))
+    if len(iterates) > 1:  # the iterates past the first, averaged (simulation noise)
+        mean = np.exp(np.mean(np.log(iterates[1:]), axis=0))
+        current = current._replace(strength=float(mean[0]), relaxation=float(mean[1]))
+    done = len(iterates)
+    return current, done
 
 
 def _least_squares_fit(
@@ -1174,11 +1518,13 @@ def _least_squares_fit(
     groups: Mapping[Hashable, Hashable] | None,
     sd: float,
     design_sd: float,
+    smooth: bool = False,
 ) -> tuple[np.ndarray, dict[str, float]]:
     """:func:`fit_social_force`'s least squares of the continuous model (position noise of
     sd ``sd``; the second differences' span chosen for ``design_sd``): ``(1/tau_c, A_c,
     B)`` and ``rss``, ``n``, ``r2``, ``dt``."""
-    d = _acceleration_design(tracks, base, min_speed, groups, design_sd)
+    design = _smoothed_design if smooth else _acceleration_design
+    d = design(tracks, base, min_speed, groups, design_sd)
     y, person, e_col, minus_v = d["y"], d["person"], d["e_col"], d["minus_v"]
     n_people, m, dt = d["n_people"], d["m"], d["dt"]
     g_of = {float(b): _repulsion_column(d, base.radius, float(b)) for b in ranges}
@@ -1204,7 +1550,7 @@ def _least_squares_fit(
     # what the model leaves out (a speed at its cap, a track cut off) must not steer it
     rss, b_best, inv_tau, strength, res, _ = solve(np.ones(2 * m))
     norm = np.hypot(res[0::2], res[1::2])
-    keep = np.repeat(norm <= np.quantile(norm, 0.98), 2)
+    keep = np.repeat(norm <= np.quantile(norm, 1.0 - FIT_TRIM), 2)
     rss, b_best, inv_tau, strength, _, _ = solve(keep.astype(float))
     y = y[keep]
     r2 = 1.0 - rss / max(float(np.sum((y - y.mean()) ** 2)), 1e-300)
@@ -1221,6 +1567,8 @@ def repulsion_evidence(
     level: float = 0.01,
     min_close: int = 50,
     trim: float = 0.02,
+    smooth: bool | None = None,
+    calibrate: bool | None = None,
 ) -> dict[str, float | str]:
     """Whether observed accelerations show ``base``'s repulsion or none at all.
 
@@ -1236,10 +1584,17 @@ def repulsion_evidence(
     ``z = (A_pub / 2 - A_hat) / (s sqrt(k))``; the published repulsion fits worse than
     none at ``level`` when ``z`` exceeds the normal's upper ``level`` quantile, and none
     fits worse than it when ``-z`` does. (The residuals of one track are correlated,
-    second differences over overlapping samples, so the level is nominal; the accelerations
-    and the state they are regressed on are :func:`fit_social_force`'s, independent in
-    their noise, but no correction is made for the noise left in the regressors, which
-    shrinks ``A_hat`` towards 0: with 5 cm of noise the published force is read as none.)
+    second differences over overlapping samples, so the level is nominal.)
+
+    The accelerations and the state are :func:`fit_social_force`'s: from differences
+    below :data:`SMOOTH_NOISE` of tracker noise, from the smoothed tracks from it on. The
+    noise left in the regressors shrinks ``A_hat`` towards 0 (with 5 cm of noise at 10 Hz
+    the published 2.1 reads as about 0.9, at 2.5 Hz as 0.4), and would read the published
+    force as none. So, with ``calibrate``, ``A_pub`` is the published force as this least
+    squares sees it (``strength_seen``): the tracks' people walked again under it
+    (:func:`_walk_plans`, :func:`social_force_tracks`), with the tracker's noise (seeded),
+    fitted the same way. Under no repulsion ``A_hat`` is near 0 either way (the noise
+    shrinks it towards 0, not away), so the test's level against "published" holds.
 
     Parameters
     ----------
@@ -1255,6 +1610,12 @@ def repulsion_evidence(
         Fewest close samples (accelerations with a neighbour within reach) to decide.
     trim : float
         Share of the close samples left out as worst fitted (by the free fit's residual).
+    smooth : bool, optional
+        Accelerations and state from the smoothed tracks (default: from
+        :data:`SMOOTH_NOISE` of noise on).
+    calibrate : bool, optional
+        Test against the published force as seen through the noise (default: with
+        ``smooth``); else against ``base.strength``.
 
     Returns
     -------
@@ -1263,7 +1624,8 @@ def repulsion_evidence(
         none), ``"published"`` (none fits significantly worse than it) or ``"too little"``
         (neither is rejected, or fewer than ``min_close`` close samples); ``close`` (close
         samples used), ``strength_hat`` and its standard error ``se``, ``rss_published``,
-        ``rss_none``, ``z`` and ``p`` (one-sided, for "published fits worse than none").
+        ``rss_none``, ``z`` and ``p`` (one-sided, for "published fits worse than none"),
+        ``strength_seen`` (the ``A_pub`` tested against, where a decision was made).
 
     Raises
     ------
@@ -1273,16 +1635,76 @@ def repulsion_evidence(
     from scipy.stats import norm
 
     base = SocialForce() if base is None else base
-    d = _acceleration_design(tracks, base, min_speed, groups, tracker_noise(tracks))
+    sd = tracker_noise(tracks)
+    smooth = sd >= SMOOTH_NOISE if smooth is None else bool(smooth)
+    calibrate = smooth if calibrate is None else bool(calibrate)
+    out: dict[str, float | str] = {"verdict": "too little"}
+    for k in ("close", "strength_hat", "se", "rss_published", "rss_none", "z", "p"):
+        out[k] = float("nan")
+    args = (base, min_speed, groups, sd, smooth, trim, min_close)
+    got = _evidence_fit(tracks, *args)
+    out["close"] = got[0]
+    if got[1] is None:
+        return out
+    close, a_hat, se, rss, k = got
+    a_seen = float(base.strength)
+    if calibrate and a_seen > 0:
+        # the published force as this least squares sees it: the tracks' people walked
+        # again under it, with the tracker's noise (seeded), fitted the same way
+        plan, ids = _walk_plans(tracks, sd, min_speed)
+        labels = None if groups is None else np.array([groups.get(i) for i in ids], object)
+        walked = social_force_tracks(plan, base, dt=SIMULATION_STEP, groups=labels)
+        walked = walked[["id", "t", "x", "y"]]
+        more = np.random.default_rng(0).normal(0.0, sd, (len(walked), 2))
+        seen = walked.assign(x=walked["x"] + more[:, 0], y=walked["y"] + more[:, 1])
+        sim = _evidence_fit(seen, *args)
+        if sim[1] is not None and sim[1] > 0:
+            a_seen = float(sim[1])
+    z = (a_seen / 2 - a_hat) / se
+    p = float(norm.sf(z))
+    if p < level:  # the published repulsion fits worse than none
+        verdict = "none"
+    elif 1.0 - p < level:  # none fits worse than the published repulsion
+        verdict = "published"
+    else:  # neither is rejected: too few close samples (or too noisy) to tell
+        verdict = "too little"
+    out.update(
+        verdict=verdict,
+        close=close,
+        strength_hat=a_hat,
+        se=se,
+        rss_published=rss + (a_seen - a_hat) ** 2 / k,
+        rss_none=rss + a_hat**2 / k,
+        z=float(z),
+        p=p,
+        strength_seen=a_seen,
+    )
+    return out
+
+
+def _evidence_fit(
+    tracks: pd.DataFrame,
+    base: SocialForce,
+    min_speed: float,
+    groups: Mapping[Hashable, Hashable] | None,
+    sd: float,
+    smooth: bool,
+    trim: float,
+    min_close: int,
+) -> tuple[float, float | None, float, float, float]:
+    """:func:`repulsion_evidence`'s least squares on the close samples: their number and,
+    with at least ``min_close`` of them (else None and NaNs), the strength ``A_hat``, its
+    standard error, the residual sum of squares and ``k`` (the ``A, A`` entry of the
+    inverse normal matrix)."""
+    design = _smoothed_design if smooth else _acceleration_design
+    d = design(tracks, base, min_speed, groups, sd)
     y, person, e_col, minus_v = d["y"], d["person"], d["e_col"], d["minus_v"]
     near = np.zeros(d["n"], bool)
     near[d["pi"]] = True
     close = near[d["inner"]]
-    out: dict[str, float | str] = {"verdict": "too little", "close": float(close.sum())}
-    for k in ("strength_hat", "se", "rss_published", "rss_none", "z", "p"):
-        out[k] = float("nan")
+    nan = float("nan")
     if close.sum() < min_close:
-        return out
+        return float(close.sum()), None, nan, nan, nan
     cols = (minus_v, _repulsion_column(d, base.radius, base.range))
     n_people = d["n_people"]
 
@@ -1300,25 +1722,6 @@ def repulsion_evidence(
     k = float(inv[1, 1])
     dof = float(w.sum()) - n_per - 2
     if not (k > 0 and dof > 0):
-        return out
+        return float(close.sum()), None, nan, nan, nan
     se = float(np.sqrt(rss / dof * k))
-    a_hat, a_pub = float(beta[1]), float(base.strength)
-    z = (a_pub / 2 - a_hat) / se
-    p = float(norm.sf(z))
-    if p < level:  # the published repulsion fits worse than none
-        verdict = "none"
-    elif 1.0 - p < level:  # none fits worse than the published repulsion
-        verdict = "published"
-    else:  # neither is rejected: too few close samples (or too noisy) to tell
-        verdict = "too little"
-    out.update(
-        verdict=verdict,
-        close=float(kept.sum()),
-        strength_hat=a_hat,
-        se=se,
-        rss_published=rss + (a_pub - a_hat) ** 2 / k,
-        rss_none=rss + a_hat**2 / k,
-        z=float(z),
-        p=p,
-    )
-    return out
+    return float(kept.sum()), float(beta[1]), se, rss, k

@@ -204,7 +204,9 @@ def interaction_evidence(tracks: pd.DataFrame) -> dict[str, float | str]:
     The tracks are resampled and their groups left out as in :func:`fit_interaction`;
     :func:`~are_stats.behaviour.repulsion_evidence` then compares, on the accelerations of
     people with someone within the force's reach, the residual sums of squares under the
-    published repulsion (:class:`~are_stats.behaviour.SocialForce`'s strength and range)
+    published repulsion (:class:`~are_stats.behaviour.SocialForce`'s strength and range;
+    from 2 cm of tracker noise on, read from the smoothed tracks and as the least squares
+    sees it through the noise, ``strength_seen``: the log's people walked again under it)
     and under none, at the 1% level. :func:`learn_interaction` uses it when the fit's
     estimate is out of the model's range: ``"none"`` gives a force of strength 0, the rest
     keep the published one.
@@ -219,7 +221,8 @@ def interaction_evidence(tracks: pd.DataFrame) -> dict[str, float | str]:
     dict
         :func:`~are_stats.behaviour.repulsion_evidence`'s: ``verdict`` (``"none"``,
         ``"published"`` or ``"too little"``), ``close``, ``strength_hat``, ``se``,
-        ``rss_published``, ``rss_none``, ``z``, ``p``.
+        ``rss_published``, ``rss_none``, ``z``, ``p`` (and ``strength_seen`` where it
+        decided).
 
     Raises
     ------

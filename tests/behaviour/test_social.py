@@ -118,6 +118,36 @@ def test_the_parameters_are_recovered_through_tracker_noise():
     assert relaxation == pytest.approx(truth.relaxation, rel=0.2)
 
 
+@pytest.mark.slow
+def test_the_parameters_are_recovered_through_5_cm_of_tracker_noise():
+    """5 cm of tracker noise at 10 Hz on two crowds walked with the published A, B, tau:
+    the fit from the smoothed tracks, corrected by simulating the crowd again at its
+    estimate, gives them back. Before (second differences, SIMEX) these two read A 0.83
+    on average (six crowds: A -1.40 +- 0.16, tau +0.39 +- 0.11). The corrected fit keeps
+    a spread of 0.33 on A and 0.09 s on tau per crowd and a bias (six crowds, 201-206:
+    A -0.47, tau +0.08; these two 1.55 and 2.12, 0.63 and 0.49 s), so the bounds are on
+    the mean of the two: A within 30% and tau within 25%. Of the 15 pairs of the six
+    crowds, 4 fail these bounds (pair means of A 1.30-2.02; this pair's 1.84), so
+    the test checks that the correction works, not the size of the bias it leaves."""
+    truth = SocialForce()
+    est = []
+    for seed in (201, 202):
+        clean = social_force_tracks(_crowd(seed, 60), truth, dt=0.1)[["id", "t", "x", "y"]]
+        rng = np.random.default_rng(1000 + seed)
+        noisy = clean.assign(
+            x=clean["x"] + rng.normal(0, 0.05, len(clean)),
+            y=clean["y"] + rng.normal(0, 0.05, len(clean)),
+        )
+        params, info = fit_social_force(noisy)
+        assert info["noise"] == pytest.approx(0.05, rel=0.1)
+        est.append((params.strength, params.relaxation, params.range))
+    strength, relaxation, b_range = np.mean(est, axis=0)
+    assert strength == pytest.approx(truth.strength, rel=0.3)
+    assert relaxation == pytest.approx(truth.relaxation, rel=0.25)
+    assert b_range == pytest.approx(truth.range, abs=0.05)
+    assert info["corrections"] == _social.CORRECTIONS
+
+
 def test_the_state_weights_are_exact_for_quadratic_paths_and_blind_to_the_acceleration_noise():
     """Against a quadratic path: the weights give its position and velocity at any node;
     and they are orthogonal to the second difference over -lag, 0, lag, so white position

@@ -199,6 +199,23 @@ def test_a_log_walked_by_the_published_force_does_not_reject_it():
     assert note is None and params.strength > 1.0  # the fit is kept
 
 
+def test_the_evidence_sees_the_published_repulsion_through_5_cm_of_noise():
+    """60 people at 10 Hz with 5 cm of tracker noise, walked by the published force and
+    straight through each other: the evidence, from the smoothed tracks and against the
+    published force as its least squares sees it (the crowd walked again under it, with
+    the same noise), says "published" for the first and "none" for the second. Before,
+    it read the published force as none (differences of 5 cm noise attenuate the
+    strength to 0.33 here, against the threshold 1.05). False failure: z = -9.5 and +114 here
+    (six other crowds: -11 to -18 and +83 to +126), a miss needs |z| < 2.33."""
+    walked = social_force_tracks(_crowd(2, 60), SocialForce(), dt=0.1)
+    ev = interaction_evidence(_noisy(walked, 0.05, seed=2))
+    assert ev["verdict"] == "published" and ev["rss_none"] > ev["rss_published"]
+    assert 0 < ev["strength_seen"] < SocialForce().strength  # the published, as seen
+    straight = interaction_evidence(_noisy(_crowd(2, 60), 0.05, seed=2))
+    assert straight["verdict"] == "none"
+    assert abs(straight["strength_hat"]) < 3 * straight["se"]  # truth: no repulsion
+
+
 def test_two_people_are_too_little_to_tell_repulsion_from_none():
     """Two of the published force's walkers, with 3 cm of tracker noise at 10 Hz (about
     50 accelerations near each other): neither the published repulsion nor none is
