@@ -1,0 +1,129 @@
+"""fit_behaviour's within-person heading variation: the sd and correlation time of a
+walker's heading deviation from its route's direction, recovered from tracks seen through a
+noisy tracker, and walked by the social force.
+
+People of the model (a preferred speed drawn once per person from a lognormal law, the
+heading ``alpha_i + theta(t)`` with ``theta`` a stationary Ornstein-Uhlenbeck process of sd
+``SD`` (rad) and correlation time ``TIME``, simulated by its exact AR(1) on a 20 ms grid)
+walk along a fixed direction, sampled at 10 Hz with white position noise. Over 6
+replicates of 100 such tracks of 40 s (seeds 100-105) the estimates had Monte Carlo sd
+0.0022 rad (sd) and 0.11 s (time) with 0 or 5 cm of noise, means within 1 sd of the truth;
+the checks allow about 4.5 and 4 of them (``TOL_SD``, ``TOL_TIME``). Without the noise's
+moment taken out, the 5 cm logs read sd 0.134-0.136 rad and time 1.6 s: outside.
+"""
+
+from __future__ import annotations
+
+import math
+
+import arviz as az
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.behaviour import BehaviourFit
+from are_stats.fitting import attach_behaviour, fit_behaviour, tracker_noise
+from are_stats.fitting._behaviour import _crowded, _heading_variation, _track_speed
+
+SD, TIME = 0.12, 2.0
+TOL_SD, TOL_TIME = 0.01, 0.44
+ROOM = 80.0  # m, open
+
+
+def ou_heading_tracks(
+    seed: int, n: int, sd: float, time: float, noise: float, duration: float = 40.0
+) -> pd.DataFrame:
+    """``n`` walks of ``duration`` s at ``v_i`` (``log v_i ~ N(log 1.3, 0.15^2)``) heading
+    ``alpha_i + theta(t)`` (``alpha_i`` uniform, ``theta`` a stationary OU of sd ``sd`` and
+    correlation time ``time``), from the room's centre one after the other, sampled at
+    10 Hz with white position noise of sd ``noise`` (m)."""
+    rng = np.random.default_rng(seed)
+    fine = 0.02
+    v0 = np.exp(math.log(1.3) + 0.15 * rng.standard_normal(n))
+    k = round(duration / fine)
+    phi = math.exp(-fine / time)
+    z = rng.standard_normal((k, n))
+    theta = np.empty((k, n))
+    theta[0] = sd * z[0]
+    for j in range(1, k):
+        theta[j] = phi * theta[j - 1] + sd * math.sqrt(1.0 - phi**2) * z[j]
+    alpha = rng.uniform(0.0, 2.0 * np.pi, n)
+    ang = alpha + theta
+    step = (v0 * fine)[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # (k, n, 2)
+    walked = np.concatenate([np.zeros((1, n, 2)), np.cumsum(step, axis=0)])
+    t_fine = fine * np.arange(k + 1)
+    t = np.arange(0.0, duration + 1e-9, 0.1)
+    rows = []
+    for i in range(n):
+        xy = ROOM / 2 + np.column_stack(
+            [np.interp(t, t_fine, walked[:, i, 0]), np.interp(t, t_fine, walked[:, i, 1])]
+        )
+        xy = xy + rng.normal(0.0, noise, xy.shape)
+        t_i = i * (duration + 5.0) + t  # one after the other: nobody near anybody
+        rows.append(pd.DataFrame({"id": i, "t": t_i, "x": xy[:, 0], "y": xy[:, 1]}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def _variation(tracks: pd.DataFrame) -> dict[str, float]:
+    """The estimate as fit_behaviour makes it."""
+    noise = tracker_noise(tracks)
+    tracks = tracks.sort_values(["id", "t"]).reset_index(drop=True)
+    near = _crowded(tracks)
+    seen, crowded = [], []
+    for _, g in tracks.groupby("id"):
+        seen.append((g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)))
+        crowded.append(near[g.index.to_numpy()])
+    speeds = np.array([_track_speed(t, xy, noise) for t, xy in seen])
+    return _heading_variation(seen, speeds, noise, crowded)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+def test_heading_variation_recovered_through_tracker_noise(noise: float) -> None:
+    got = _variation(ou_heading_tracks(int(noise * 1000) + 7, 100, SD, TIME, noise))
+    assert abs(got["heading_within_sd"] - SD) < TOL_SD
+    assert abs(got["heading_within_time"] - TIME) < TOL_TIME
+
+
+def test_straight_walkers_show_no_heading_variation() -> None:
+    """Walkers straight along their route, seen through 10 cm noise: the noise's moment
+    is taken out, leaving (nearly) none."""
+    got = _variation(ou_heading_tracks(3, 100, 0.0, TIME, 0.1))
+    assert got["heading_within_sd"] < 0.02
+
+
+def test_a_route_corner_is_not_wander() -> None:
+    """Each walker turns a right angle half-way: the differences across the corner are
+    left out (HEADING_CLIP) and the windows cut by it barely move the median, so the
+    wander around the two legs reads within 15% of the straight walks' (10% here; the
+    semivariogram's mean instead of its median read 38% high)."""
+    tracks = ou_heading_tracks(9, 100, SD, TIME, 0.05)
+    straight = _variation(tracks)
+    turned = []
+    for _, g in tracks.groupby("id"):
+        xy = g[["x", "y"]].to_numpy() - g[["x", "y"]].to_numpy()[len(g) // 2]
+        after = np.arange(len(g)) > len(g) // 2
+        xy[after] = xy[after] @ np.array([[0.0, 1.0], [-1.0, 0.0]])  # a left turn of 90 deg
+        turned.append(g.assign(x=xy[:, 0], y=xy[:, 1]))
+    got = _variation(pd.concat(turned, ignore_index=True))
+    assert abs(got["heading_within_sd"] - straight["heading_within_sd"]) < 0.15 * SD
+
+
+def test_fit_behaviour_stores_the_heading_variation_and_old_files_read_without_it(
+    tmp_path,
+) -> None:
+    tracks = ou_heading_tracks(11, 100, SD, TIME, 0.05)
+    free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
+    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
+    assert abs(fit.heading_within_sd[0] - SD) < TOL_SD
+    assert abs(fit.heading_within_time[0] - TIME) < TOL_TIME
+    path = tmp_path / "b.nc"
+    attach_behaviour(az.InferenceData(), fit).to_netcdf(path)
+    back = BehaviourFit.from_dataset(az.from_netcdf(path).behaviour)
+    for name in ("heading_within_sd", "heading_within_time"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(fit, name))
+    old = BehaviourFit.from_dataset(
+        fit.to_dataset().drop_vars(["heading_within_sd", "heading_within_time"])
+    )
+    assert old.heading_within_sd.tolist() == [0.0]
+    assert np.isnan(old.heading_within_time).all()
+    np.testing.assert_array_equal(old.speed_within_sd, fit.speed_within_sd)
