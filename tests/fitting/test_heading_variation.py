@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from are_stats.behaviour import BehaviourFit
+from are_stats.behaviour import BehaviourFit, social_force_tracks
 from are_stats.fitting import attach_behaviour, fit_behaviour, tracker_noise
 from are_stats.fitting._behaviour import _crowded, _heading_variation, _track_speed
 
@@ -127,3 +127,80 @@ def test_fit_behaviour_stores_the_heading_variation_and_old_files_read_without_i
     assert old.heading_within_sd.tolist() == [0.0]
     assert np.isnan(old.heading_within_time).all()
     np.testing.assert_array_equal(old.speed_within_sd, fit.speed_within_sd)
+
+
+def _lanes(n: int, length: float = 100.0) -> pd.DataFrame:
+    """Planned straight walks at 1.3 m/s on parallel lanes 10 m apart (nobody near)."""
+    t = np.arange(0.0, length / 1.3 + 1e-9, 0.1)
+    return pd.concat(
+        [pd.DataFrame({"id": i, "t": t, "x": 1.3 * t, "y": 10.0 * i, "yaw": 0.0})
+         for i in range(n)],
+        ignore_index=True,
+    )  # fmt: skip
+
+
+def _inner(walked: pd.DataFrame) -> pd.DataFrame:
+    """The walks less their first and last 2 s (starting and stopping)."""
+    by = walked.groupby("id")
+    keep = (by.cumcount() >= 20) & (by.cumcount(ascending=False) >= 20)
+    return walked.loc[keep, ["id", "t", "x", "y"]]
+
+
+def test_zero_heading_variation_walks_exactly_as_without() -> None:
+    """sd 0 (or NaN: unknown) is today's motion, bit for bit, groups and a speed
+    variation included."""
+    plan = _lanes(4, 30.0)
+    groups = np.where(plan["id"] < 2, 1, -1)
+    plan.loc[plan["id"] == 1, "y"] = 0.75  # walks beside 0, in its group
+    pace = (1, 0.1, 3.0)
+    before = social_force_tracks(plan, dt=0.1, groups=groups, speed_variation=pace)
+    for sd, time in ((0.0, TIME), (np.full(len(plan), np.nan), np.full(len(plan), np.nan))):
+        after = social_force_tracks(
+            plan, dt=0.1, groups=groups, speed_variation=pace, heading_variation=(0, sd, time)
+        )
+        pd.testing.assert_frame_equal(after, before, check_exact=True)
+
+
+def test_walked_heading_has_the_given_variation_and_stays_on_route() -> None:
+    """The social force turns each walker's desired heading by the OU it is given: the
+    walked heading's sd and correlation time, read back by the fit's estimator from 60
+    walks of 77 s, are the given ones (seeds 5 and 6 read sd 0.123-0.124 and time
+    2.08 s), and the walkers keep about their lanes, straight (they aim at the
+    lane's end all the while)."""
+    walked = social_force_tracks(_lanes(60), dt=0.1, heading_variation=(5, SD, TIME))
+    got = _variation(_inner(walked))
+    assert abs(got["heading_within_sd"] - SD) < TOL_SD + 0.03 * SD
+    assert abs(got["heading_within_time"] - TIME) < TOL_TIME + 0.2 * TIME
+    off = np.abs(walked["y"].to_numpy() - 10.0 * walked["id"].to_numpy())
+    assert 0.2 < off.max() < 6.0  # they do wander, about their lanes
+    straight = []
+    for _, g in walked.groupby("id"):
+        xy = g[["x", "y"]].to_numpy()
+        straight.append(np.hypot(*(xy[-1] - xy[0])) / np.hypot(*np.diff(xy, axis=0).T).sum())
+    assert np.median(straight) > 0.98
+    steady = social_force_tracks(_lanes(60), dt=0.1)
+    assert _variation(_inner(steady))["heading_within_sd"] < 0.01
+
+
+def test_group_members_turn_with_their_leader() -> None:
+    """A pair walking abreast: the member keeps its slot beside the wandering leader."""
+    plan = _lanes(2, 60.0)
+    plan.loc[plan["id"] == 1, "y"] = 0.75
+    groups = np.ones(len(plan), np.int64)
+    walked = social_force_tracks(plan, dt=0.1, groups=groups, heading_variation=(2, 0.2, 2.0))
+    a = walked[walked["id"] == 0][["x", "y"]].to_numpy()
+    b = walked[walked["id"] == 1][["x", "y"]].to_numpy()
+    gap = np.hypot(*(a - b).T)[30:-30]
+    assert np.abs(np.diff(a[:, 1])).max() > 0  # the leader wanders
+    assert gap.max() < 1.5
+
+
+@pytest.mark.parametrize(
+    ("variation", "words"),
+    [((0, -0.1, 3.0), "sd >= 0 (rad)"), ((0, 0.1, 0.0), "time > 0"),
+     ((0, [0.1, 0.1], 3.0), "one per"), ((0, 0.1), "expected (key, sd, time)")],
+)  # fmt: skip
+def test_bad_heading_variation_is_named(variation, words) -> None:
+    with pytest.raises(ValueError, match="heading_variation") as err:
+        social_force_tracks(_lanes(2, 5.0), dt=0.1, heading_variation=variation)
+    assert words in str(err.value)
