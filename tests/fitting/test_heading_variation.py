@@ -244,3 +244,37 @@ def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before(
     # both end where they were going (each aims at its route's corners all the while)
     end_n, end_v = none.groupby("id")[["x", "y"]].last(), varied.groupby("id")[["x", "y"]].last()
     assert np.hypot(*(end_n - end_v).to_numpy().T).max() < 2.0
+
+
+def test_motion_checks_replicates_walk_the_fits_variation() -> None:
+    """The criticism's replicates walk people as generation does, with the fit's
+    within-person variation: an older fit (none) replicates exactly as a fit of sd 0, and
+    the fitted one's replicates show the fitted heading wander again (read back within
+    25%)."""
+    import dataclasses
+
+    import jax
+
+    from are_stats.fitting._motion_checks import _replicate_tracks
+
+    tracks = ou_heading_tracks(4, 40, SD, TIME, 0.0, duration=30.0)
+    free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
+    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
+    assert abs(fit.heading_within_sd[0] - SD) < 0.02
+
+    def replicate(f):
+        return _replicate_tracks(jax.random.key(2), f, tracks, 1)
+
+    older = BehaviourFit.from_dataset(
+        fit.to_dataset().drop_vars(
+            ["speed_within_sd", "speed_within_time", "heading_within_sd", "heading_within_time"]
+        )
+    )
+    none = replicate(
+        dataclasses.replace(fit, speed_within_sd=np.zeros(1), heading_within_sd=np.zeros(1))
+    )
+    pd.testing.assert_frame_equal(replicate(older), none, check_exact=True)
+    varied = replicate(fit)
+    got = _variation(_inner(varied))["heading_within_sd"]
+    assert abs(got - fit.heading_within_sd[0]) < 0.25 * fit.heading_within_sd[0]
+    assert _variation(_inner(none))["heading_within_sd"] < 0.02
