@@ -50,8 +50,13 @@ _PER_CLASS = (
     "fit_seconds",
 )
 #: Per-class values that fit files written before them lack, and their defaults there: no
-#: within-person variation of the walking speed.
-_WITHIN = {"speed_within_sd": 0.0, "speed_within_time": np.nan}
+#: within-person variation of the walking speed or heading.
+_WITHIN = {
+    "speed_within_sd": 0.0,
+    "speed_within_time": np.nan,
+    "heading_within_sd": 0.0,
+    "heading_within_time": np.nan,
+}
 
 
 def grid_geodesic(free: npt.ArrayLike, cells: npt.ArrayLike) -> np.ndarray:
@@ -137,6 +142,11 @@ class BehaviourFit:
         fit files written before it was fitted): sd 0 and time NaN, no within-person
         variation, each walker at its one preferred speed. NaN sd: not estimable (no
         track long enough); generation then walks without it.
+    heading_within_sd, heading_within_time : (C,) float
+        Within-person variation of the walking heading: a walker's heading deviates from
+        its route's direction by a stationary Ornstein-Uhlenbeck process of this sd (rad)
+        and correlation time (s). Defaults (older fit files) as for the speed: sd 0 and
+        time NaN, each walker straight at the next corner of its route.
     """
 
     classes: tuple
@@ -174,6 +184,8 @@ class BehaviourFit:
     weights_se: npt.ArrayLike | None = None
     speed_within_sd: npt.ArrayLike | None = None
     speed_within_time: npt.ArrayLike | None = None
+    heading_within_sd: npt.ArrayLike | None = None
+    heading_within_time: npt.ArrayLike | None = None
 
     def __post_init__(self) -> None:
         self.feature_names = tuple(str(n) for n in self.feature_names)

@@ -235,6 +235,7 @@ def _window(
     all_pairs,
     block,
     repel=True,
+    turn=None,
 ):
     """Integrate ``n_steps`` steps of ``dt`` from ``t0`` (semi-implicit Euler); returns the
     final state and the positions after every step (W, n, 2), ``W = plan.shape[0]`` (rows
@@ -254,6 +255,9 @@ def _window(
     positions, velocities, route indices and headings (unit vectors).
     ``all_pairs`` and ``block`` choose the neighbour search (:func:`_pair_forces`);
     ``repel`` False (a force of strength 0: every pair term is exactly zero) skips it.
+    ``turn`` (W, n), optional: each artefact's desired heading's deviation (rad) from
+    the line to its route's next corner at each step (None: none, and no term of it in
+    the program).
     """
     dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
     lead, prev, side, gid = form
@@ -297,7 +301,7 @@ def _window(
         return desired, speed, in_slot
 
     def step(carry, inputs):
-        s, planned, pace_s = inputs
+        s, planned, pace_s, turn_s = inputs
         x, v, k, hd = carry
         t = t0 + s * dt
         alive = (t >= t_on) & (t < t_off)
@@ -305,6 +309,9 @@ def _window(
         to = target - x
         dist = jnp.sqrt(jnp.sum(to**2, axis=1) + 1e-12)
         last = k >= n_vert - 1
+        if turn_s is not None:  # the heading's wander: aimed turn_s off the corner
+            c, sn = jnp.cos(turn_s), jnp.sin(turn_s)
+            to = jnp.stack([c * to[:, 0] - sn * to[:, 1], sn * to[:, 0] + c * to[:, 1]], axis=1)
         vd = v0 * pace_s  # the desired speed: the preferred one times the pace's drift
         speed = jnp.where(last, vd * jnp.minimum(1.0, dist / 0.5), vd)
         # members head for their slot beside (or behind) their leader
@@ -367,7 +374,8 @@ def _window(
 
     def body(s, carry):
         state, out = carry
-        state, x_out = step(state, ((s + 1).astype(jnp.float64), plan[s], pace[s]))
+        turn_s = None if turn is None else turn[s]
+        state, x_out = step(state, ((s + 1).astype(jnp.float64), plan[s], pace[s], turn_s))
         return state, out.at[s].set(x_out)
 
     out = jnp.zeros(plan.shape, state[0].dtype)
@@ -424,35 +432,43 @@ class _Pace(NamedTuple):
 
 
 def _pace(
-    speed_variation: tuple, n_rows: int, rows: np.ndarray, relaxation: float, dt: float
+    speed_variation: tuple,
+    n_rows: int,
+    rows: np.ndarray,
+    relaxation: float,
+    dt: float,
+    name: str = "speed_variation",
+    units: str = "log units",
 ) -> _Pace:
     """The stationary start of each artefact's log pace (``rows``: its first row in the
-    caller's table), from ``speed_variation = (key, sd, time)``."""
+    caller's table), from ``speed_variation = (key, sd, time)``; with ``name``
+    ``"heading_variation"`` (``units`` ``"rad"``), its heading's deviation from its
+    route's direction, an OU of the same kind (errors name ``name``)."""
     try:
         key, sd, time = speed_variation
     except (TypeError, ValueError):
         raise ValueError(
-            "speed_variation: expected (key, sd, time), got "
+            f"{name}: expected (key, sd, time), got "
             f"{type(speed_variation).__name__} {speed_variation!r:.60}"
         ) from None
     values = {}
-    for name, v in (("sd", sd), ("time", time)):
+    for what, v in (("sd", sd), ("time", time)):
         a = np.asarray(v, float)
         if a.ndim == 0:
             a = np.full(n_rows, float(a))
         if a.shape != (n_rows,):
             raise ValueError(
-                f"speed_variation: expected {name} a number or one per track row ({n_rows}), "
+                f"{name}: expected {what} a number or one per track row ({n_rows}), "
                 f"got shape {a.shape}"
             )
-        values[name] = a[rows]
+        values[what] = a[rows]
     sd, time = np.nan_to_num(values["sd"], nan=0.0), values["time"]
     varies = sd > 0
     bad = ~np.isfinite(sd) | (sd < 0) | (varies & ~(np.isfinite(time) & (time > 0)))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(
-            "speed_variation: expected sd >= 0 (log units) and, where sd > 0, a time > 0 (s), "
+            f"{name}: expected sd >= 0 ({units}) and, where sd > 0, a time > 0 (s), "
             f"got sd {sd[i]!r} and time {time[i]!r}"
         )
     time = np.where(varies, time, 1.0)
@@ -461,6 +477,13 @@ def _pace(
     # whose slow part (the one the fit reads at lags past its window) has variance sd^2
     # when sd_d = sd sqrt(1 - (tau/T)^2) (held at sd / 2 or more where T is near tau)
     sd_desired = sd * np.sqrt(np.clip(1.0 - (relaxation / time) ** 2, 0.25, 1.0))
+    if name == "heading_variation":
+        # the heading's fit reads the walked process's whole variance and its integral
+        # correlation time (tracks sampled finer than tau show its short lags); the lag
+        # makes them sd_d^2 / (1 + tau/T_d) and T_d + tau: matched by T_d = T - tau (at
+        # least T / 2) and sd_d = sd sqrt(1 + tau / T_d)
+        time = np.maximum(time - relaxation, 0.5 * time)
+        sd_desired = sd * np.sqrt(1.0 + relaxation / time)
     phi = np.where(varies, np.exp(-dt / time), 1.0)
     if isinstance(key, jax.Array):
         seed = np.asarray(jax.random.key_data(key)).ravel().tolist()
@@ -471,9 +494,10 @@ def _pace(
     return _Pace(rng, u, phi, sd_desired * np.sqrt(1.0 - phi**2))
 
 
-def _pace_window(pace: _Pace, act: np.ndarray, n_steps: int) -> np.ndarray:
+def _pace_window(pace: _Pace, act: np.ndarray, n_steps: int, log: bool = False) -> np.ndarray:
     """(n_steps, len(act)) desired speed over preferred speed of the artefacts ``act`` at
-    the steps of a window (the exact AR(1) of their OU log pace); advances ``pace.u``."""
+    the steps of a window (the exact AR(1) of their OU log pace); advances ``pace.u``.
+    ``log``: the process itself (a heading's deviation, rad), not its exponential."""
     eps = pace.rng.standard_normal((n_steps, act.size))
     u, phi, innovation = pace.u[act], pace.phi[act], pace.innovation[act]
     out = np.empty((n_steps, act.size))
@@ -481,7 +505,7 @@ def _pace_window(pace: _Pace, act: np.ndarray, n_steps: int) -> np.ndarray:
         u = phi * u + innovation * eps[s]
         out[s] = u
     pace.u[act] = u
-    return np.exp(out)
+    return out if log else np.exp(out)
 
 
 def social_force_tracks(
@@ -494,6 +518,7 @@ def social_force_tracks(
     groups: npt.ArrayLike | None = None,
     progress: Callable[[int, int], None] | None = None,
     speed_variation: tuple | None = None,
+    heading_variation: tuple | None = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again with the social force (people give way to each other).
 
@@ -545,6 +570,23 @@ def social_force_tracks(
         per track row (an artefact's first row counts; ``sd`` 0 or NaN: none). The members
         of a group keep their leader's pace. Default: each walker at its preferred speed
         throughout; ``sd = 0`` everywhere gives exactly the same tracks.
+    heading_variation : (key, sd, time), optional
+        Within-person variation of the walking heading
+        (``BehaviourFit.heading_within_sd``): each walker's desired velocity points
+        ``theta(t)`` (rad) off the straight line to its route's next corner, ``theta`` a
+        stationary OU process drawn with ``key`` (its own, independent of the pace's),
+        of sd ``sd`` (rad) and correlation time ``time`` (s) in the walked heading: the
+        walked heading follows the desired one with the relaxation time ``tau``, so the
+        desired one's correlation time is ``time - tau`` (at least ``time / 2``) and its
+        sd ``sd sqrt(1 + tau / (time - tau))``, which give the walked heading the variance
+        ``sd^2`` and the integral correlation time ``time`` that
+        :func:`~are_stats.fitting.fit_behaviour` reads from tracks. It aims at the
+        corner all the while, so the deviation stays bounded and the walker on its route
+        (a heading-rate noise would drift off it). Arguments as ``speed_variation``'s.
+        The members of a group turn with their leader (its ``theta``): in their slots
+        they follow its velocity anyway, and a wander of their own would only pull them
+        out of formation. Default (or ``sd = 0`` everywhere): straight at the corner,
+        exactly as without it.
 
     Returns
     -------
@@ -643,6 +685,14 @@ def social_force_tracks(
     pace = None
     if speed_variation is not None:
         pace = _pace(speed_variation, len(tracks), perm[start], p.relaxation, dt)
+    wander = None
+    if heading_variation is not None:
+        wander = _pace(
+            heading_variation, len(tracks), perm[start], p.relaxation, dt,
+            "heading_variation", "rad",
+        )  # fmt: skip
+        if not (wander.innovation > 0).any() and not (wander.u != 0).any():
+            wander = None  # nobody wanders: the program without the turn, bit for bit
     t0 = float(t_on.min())
     n_win = int(np.ceil(span / dt / WINDOW_STEPS)) + 1
     w_start = t0 + np.arange(n_win) * WINDOW_STEPS * dt
@@ -696,12 +746,19 @@ def social_force_tracks(
         n_run = int(np.searchsorted(tt, t_off[act].max(), side="left"))
         plan = np.zeros((WINDOW_STEPS, nb, 2))
         pace_w = np.ones((WINDOW_STEPS, nb))
+        # a member walks at its leader's pace and turns with it (when the leader is in the
+        # window): the column of each slot's leader
+        col = slot_of[leader[act]]
+        col = np.where(col >= 0, col, slot)
+        lead_col = np.argsort(slot)[np.searchsorted(np.sort(slot), col)]
         if pace is not None:
             drift = _pace_window(pace, act, WINDOW_STEPS)
-            # a member walks at its leader's pace (when the leader is in the window)
-            col = slot_of[leader[act]]
-            col = np.where(col >= 0, col, slot)
-            pace_w[:, slot] = drift[:, np.argsort(slot)[np.searchsorted(np.sort(slot), col)]]
+            pace_w[:, slot] = drift[:, lead_col]
+        turn_w = None
+        if wander is not None:
+            turn_w = np.zeros((WINDOW_STEPS, nb))
+            turn_w[:, slot] = _pace_window(wander, act, WINDOW_STEPS, log=True)[:, lead_col]
+            turn_w = jnp.asarray(turn_w)
         for c, i in zip(slot, act, strict=True):
             if kin[i]:
                 a, b = start[i], stop[i]
@@ -728,6 +785,7 @@ def social_force_tracks(
             nb <= ALL_PAIRS_MAX,
             block,
             bool(p.strength != 0.0),
+            turn=turn_w,
         )
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
         x[act], v[act], k[act] = xf[slot], vf[slot], kf[slot]

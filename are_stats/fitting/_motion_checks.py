@@ -290,21 +290,31 @@ def _walk(
     kinematic: np.ndarray | None = None,
     groups: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    variation: tuple | None = None,
 ) -> pd.DataFrame:
     """Planned tracks walked again as generation walks people: the social force
     (:func:`~are_stats.behaviour.social_force_tracks`) with ``params`` on ``grid``, the
     arrival groups in formation (``groups``, per row; their planned tracks already on the
-    leader's route, :func:`~are_stats.behaviour.group_tracks`). The one path by which the
+    leader's route, :func:`~are_stats.behaviour.group_tracks`), the fitted within-person
+    variation of the speed and heading as generation walks it (``variation``:
+    :func:`_variation`'s, per row). The one path by which the
     criticism moves the model's people: the replicates of :func:`motion_checks` and the
     continuations of :func:`displacement_errors`. ``progress(done, total)`` is told the
     social force's windows (those of the parts, one after the other, when walked in parts:
     the parts not yet begun counted as long as the current one)."""
     from are_stats.behaviour import social_force_tracks
 
+    pace = turn = None
+    if variation is not None:
+        key, sd, time, h_sd, h_time = variation
+        if (np.nan_to_num(sd) > 0).any():
+            pace = (jax.random.fold_in(key, 0), sd, time)
+        if (np.nan_to_num(h_sd) > 0).any():
+            turn = (jax.random.fold_in(key, 1), h_sd, h_time)
     try:
         return social_force_tracks(
             plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups,
-            progress=progress,
+            progress=progress, speed_variation=pace, heading_variation=turn,
         )  # fmt: skip
     except LimitError:
         # the replicates of a large log together exceed the work or memory limit that guards
@@ -336,9 +346,25 @@ def _walk(
                     kinematic=None if kinematic is None else kinematic[rows],
                     groups=None if groups is None else groups[rows],
                     progress=part_step,
+                    variation=None
+                    if variation is None
+                    else (  # each half its own processes
+                        jax.random.fold_in(variation[0], 2 + h),
+                        *(np.asarray(a)[rows] for a in variation[1:]),
+                    ),
                 )
             )
         return pd.concat(parts, ignore_index=True)
+
+
+def _variation(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> tuple | None:
+    """The fit's within-person variation for rows of classes ``cls`` (n,) as :func:`_walk`
+    takes it: ``(key, speed sd, speed time, heading sd, heading time)``, per row; None
+    when the fit has none (an older file: the walk as before)."""
+    sd, h_sd = fit.speed_within_sd[cls], fit.heading_within_sd[cls]
+    if not ((np.nan_to_num(sd) > 0).any() or (np.nan_to_num(h_sd) > 0).any()):
+        return None
+    return key, sd, fit.speed_within_time[cls], h_sd, fit.heading_within_time[cls]
 
 
 def _log_groups(tracks: pd.DataFrame) -> dict[Any, str]:
@@ -475,7 +501,9 @@ def _replicate_tracks(
     under the social force (:func:`~are_stats.behaviour.social_force_tracks`: the fit's
     interaction parameters, the members of a group on their leader's route, in formation).
     Each person (each group: one pace) walks at a **preferred speed** drawn from the
-    fitted between-person law (:func:`~are_stats.behaviour.preferred_speeds`) and leaves
+    fitted between-person law (:func:`~are_stats.behaviour.preferred_speeds`), varied
+    within the person as the fit says (its speed's and heading's OU processes,
+    ``speed_within_sd`` .. ``heading_within_time``, as generation walks them), and leaves
     when it reaches its exit (:data:`ARRIVED`); a person without a reachable exit stands
     through its stay. Generation instead times a path to end with its stay: there the
     stay is the traffic model's, a draw from the model; here it is the log's, and that
@@ -594,7 +622,11 @@ def _replicate_tracks(
     walked = _at_speed(plan, base["t_arrive"].to_numpy(float)[who], stay, speed, step)
     if params is not None:
         group = np.where(code >= 0, code, -1)[pd.Index(base["id"]).get_indexer(walked["id"])]
-        walked = _walk(walked, params, grid, groups=group, progress=walk_step)
+        # each walker's pace and heading vary as the fit says (its own processes: the key
+        # folded with 26, the routes and speeds drawn as before)
+        row_cls = cls[pd.Index(base["id"]).get_indexer(walked["id"])]
+        variation = _variation(jax.random.fold_in(_key(key), 26), fit, row_cls)
+        walked = _walk(walked, params, grid, groups=group, progress=walk_step, variation=variation)
     # each walker's exit (its route's end; a member's: its leader's), by (replicate,
     # person); NaN for one that stands
     end = np.full((n_rep * m, 2), np.nan)

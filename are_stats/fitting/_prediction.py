@@ -338,7 +338,7 @@ def _model_predictions(
         rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends
     )
     if k_all == k:
-        return out
+        return _paced(rng, fit, cls, out, timed, speeds, speeds, n_pred, rate)
     heading, sd = _observed_heading(observed)
     pick = np.empty((b, k), np.int64)
     for i in range(b):
@@ -367,6 +367,70 @@ def _model_predictions(
                 tv = tv * (speeds[i, c] / fresh[i, j])  # walked at constant speed
                 out[i, j, :, 0] = np.interp(ts, tv, pv[:, 0])
                 out[i, j, :, 1] = np.interp(ts, tv, pv[:, 1])
+    timed_k = timed[np.arange(b)[:, None], pick]
+    return _paced(rng, fit, cls, out, timed_k, speeds[np.arange(b)[:, None], pick], fresh,
+                  n_pred, rate)  # fmt: skip
+
+
+def _paced(
+    rng: np.random.Generator,
+    fit: BehaviourFit,
+    cls: np.ndarray,
+    out: np.ndarray,
+    timed: np.ndarray,
+    timed_speed: np.ndarray,
+    speed: np.ndarray,
+    n_pred: int,
+    rate: float,
+) -> np.ndarray:
+    """The continuations ``out (B, K, n_pred, 2)`` walked along their timed paths
+    (``timed (B, K)``, vertex times at ``timed_speed (B, K)`` m/s) at a pace that varies
+    as the fit's within-person variation says, from the window's drawn speed ``speed (B,
+    K)``; ``out`` itself where the window's class has none (an older fit: not a draw
+    more).
+
+    The drawn speed ``c`` is the person's speed now, ``log c = log v + u0``: its preferred
+    speed (between-person law ``N(mu, s^2)``) times its pace now (``u0``, the OU of sd
+    ``sigma``, ``speed_within_sd``). Given ``log c``, ``u0`` is normal with mean
+    ``sigma^2 / (s^2 + sigma^2) (log c - mu)`` and variance ``sigma^2 s^2 / (s^2 +
+    sigma^2)``: a person seen faster than its class is partly a fast walker and partly
+    in a fast spell, which passes (``u`` reverts to 0 with the correlation time ``T``,
+    its exact AR(1) at the samples). The speed at each sample is ``c exp(u(t) - u0)``;
+    the distance walked along the path by each sample, the trapezoid sum of those
+    speeds, places the continuation on its path."""
+    sd = np.nan_to_num(fit.speed_within_sd[cls])  # (B,)
+    varies = sd > 0
+    if not varies.any():
+        return out
+    b, k = speed.shape
+    s2 = np.nan_to_num(fit.speed_sigma[cls]) ** 2
+    mu = fit.speed_mu[cls]
+    var = np.where(varies, sd**2, 0.0)
+    gain = np.where(varies, var / np.maximum(s2 + var, 1e-300), 0.0)
+    log_c = np.log(speed)
+    u0 = gain[:, None] * (log_c - mu[:, None]) + np.sqrt(gain * s2)[:, None] * rng.standard_normal(
+        (b, k)
+    )
+    tau = np.where(varies, fit.speed_within_time[cls], 1.0)
+    phi = np.exp(-1.0 / (rate * tau))[:, None]
+    eps = rng.standard_normal((n_pred, b, k))
+    u = u0.copy()
+    pace = np.empty((n_pred + 1, b, k))
+    pace[0] = 1.0
+    for j in range(n_pred):
+        u = phi * u + (np.sqrt(var)[:, None] * np.sqrt(1.0 - phi**2)) * eps[j]
+        pace[j + 1] = np.exp(u - u0)
+    v = speed[None] * pace
+    walked = np.cumsum(0.5 * (v[1:] + v[:-1]) / rate, axis=0)  # (n_pred, B, K)
+    out = out.copy()
+    for i in np.flatnonzero(varies):
+        for j in range(k):
+            if timed[i, j] is None:
+                continue
+            tv, pv = timed[i, j]
+            along = tv * timed_speed[i, j]  # the path's length to each vertex
+            out[i, j, :, 0] = np.interp(walked[:, i, j], along, pv[:, 0])
+            out[i, j, :, 1] = np.interp(walked[:, i, j], along, pv[:, 1])
     return out
 
 

@@ -675,15 +675,24 @@ def _interact(
     if groups is not None:
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         rows = groups.reindex(at).fillna(-1).to_numpy(np.int64)
-    speed_variation = None
+    speed_variation = heading_variation = None
     if pace is not None:
+        import jax
+
         key, by_artefact = pace
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         per_row = by_artefact.reindex(at)
-        speed_variation = (key, per_row["sd"].to_numpy(float), per_row["time"].to_numpy(float))
+        if (np.nan_to_num(per_row["sd"].to_numpy(float)) > 0).any():
+            speed_variation = (key, per_row["sd"].to_numpy(float), per_row["time"].to_numpy(float))
+        if (np.nan_to_num(per_row["heading_sd"].to_numpy(float)) > 0).any():
+            heading_variation = (
+                jax.random.fold_in(key, 1),  # its own processes, the pace's drawn as before
+                per_row["heading_sd"].to_numpy(float),
+                per_row["heading_time"].to_numpy(float),
+            )
     walked = social_force_tracks(
         tracks, params, grid, kinematic=kinematic, groups=rows, progress=progress,
-        speed_variation=speed_variation,
+        speed_variation=speed_variation, heading_variation=heading_variation,
     )  # fmt: skip
     return _with_tracks(scenes, numbers, walked)
 
@@ -694,14 +703,23 @@ def _speed_variation(
     art: pd.DataFrame,
     labels: Sequence[str] | None,
 ) -> tuple | None:
-    """The fitted within-person variation of the walking speed of each artefact (its
-    class's ``speed_within_sd`` and ``speed_within_time``, the class as
-    :func:`~are_stats.behaviour.simulate_behaviour_tracks` takes it), indexed by
-    ``(scenario, id)``, with the key of its processes (``key`` folded with 26, so the
-    planned tracks draw as before); None when the fit has none (an older fit file)."""
+    """The fitted within-person variation of the walking speed and heading of each
+    artefact (its class's ``speed_within_sd`` and ``speed_within_time`` as ``sd`` and
+    ``time``, ``heading_within_sd`` and ``heading_within_time`` as ``heading_sd`` and
+    ``heading_time``; the class as :func:`~are_stats.behaviour.simulate_behaviour_tracks`
+    takes it), indexed by ``(scenario, id)``, with the key of its processes (``key``
+    folded with 26, so the planned tracks draw as before; the heading's folded once
+    more); None when the fit has neither (an older fit file)."""
     import jax
 
-    if fitted is None or not (np.nan_to_num(fitted.speed_within_sd) > 0).any() or not len(art):
+    if (
+        fitted is None
+        or not len(art)
+        or not (
+            (np.nan_to_num(fitted.speed_within_sd) > 0).any()
+            or (np.nan_to_num(fitted.heading_within_sd) > 0).any()
+        )
+    ):
         return None
     names = {c: i for i, c in enumerate(fitted.classes)}
     if "label" in art.columns:
@@ -715,7 +733,13 @@ def _speed_variation(
     ids = art["artefact" if "artefact" in art.columns else "id"].to_numpy()
     index = pd.MultiIndex.from_arrays([art["scenario"].to_numpy(), ids])
     table = pd.DataFrame(
-        {"sd": fitted.speed_within_sd[cls], "time": fitted.speed_within_time[cls]}, index=index
+        {
+            "sd": fitted.speed_within_sd[cls],
+            "time": fitted.speed_within_time[cls],
+            "heading_sd": fitted.heading_within_sd[cls],
+            "heading_time": fitted.heading_within_time[cls],
+        },
+        index=index,
     )
     k = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
     return jax.random.fold_in(k, 26), table
