@@ -1,0 +1,113 @@
+"""The social force's walks held to the bit (issues 26 and 29).
+
+The digests were taken from :func:`social_force_tracks` before its windows were padded to
+one compiled program per walk and its routes computed in one pass (commit f59a774, same
+inputs): every neighbour search (all pairs, blocks of small scenes, the grid of cells, no
+search at strength 0), with arrival groups, within-person speed variation, a kinematic
+artefact and a map with walls. A change that is pure engineering leaves them as they are.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.behaviour import SocialForce, _social, social_force_tracks
+from are_stats.environment import OccupancyGrid
+
+#: sha256 of the walked tracks (columns, dtypes, values), from the code before the change.
+WANT = {
+    "room": "1231464f626c004eeea15077ec57f61ad069548479210a2475cddbe26612b108",
+    "scenes": "edd1dcdaa4858ac8036fe9601ee7d8243cbb92a838f22cd93daaecdaace09437",
+    "scenes, strength 0": "fcc734b5441972716ebf38c2b53bfd5492c9f7412817e8b176e1b3d6a56a91f2",
+    "crowd": "9c1515943490168d7d3a79cf3a44ec5a251532524d9dcc13cf7eeb9126388e44",
+}
+
+
+def _digest(df: pd.DataFrame) -> str:
+    h = hashlib.sha256()
+    h.update(repr([(c, str(df[c].dtype)) for c in df.columns]).encode())
+    h.update(pd.util.hash_pandas_object(df, index=False).to_numpy().tobytes())
+    return h.hexdigest()
+
+
+def _walkers(rng: np.random.Generator, n: int, size: float, t_max: float) -> pd.DataFrame:
+    """``n`` planned crossings of a ``size`` m square, with a corner each, sampled at 0.5 s;
+    arrivals uniform on [0, t_max]."""
+    rows = []
+    for i in range(n):
+        t0 = np.round(rng.uniform(0.0, t_max), 1)
+        a, c, b = (rng.uniform(1.0, size - 1.0, 2) for _ in range(3))
+        v = rng.lognormal(np.log(1.3), 0.12)
+        legs = np.hypot(*(c - a)), np.hypot(*(b - c))
+        t = t0 + np.arange(0.0, np.ceil(sum(legs) / v / 0.5) + 1) * 0.5
+        s = np.minimum((t - t0) * v, sum(legs))
+        f1 = np.clip(s / max(legs[0], 1e-9), 0, 1)[:, None]
+        f2 = np.clip((s - legs[0]) / max(legs[1], 1e-9), 0, 1)[:, None]
+        xy = np.where(s[:, None] <= legs[0], a + (c - a) * f1, c + (b - c) * f2)
+        rows.append(pd.DataFrame({"id": i, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": 0.0}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def _pairs(plan: pd.DataFrame) -> np.ndarray:
+    """Group labels per row: walkers 0-1, 4-5, 8-9, ... walk in pairs."""
+    return np.where(plan["id"] % 4 < 2, plan["id"] // 4, -1)
+
+
+#: Within-person speed variation: seed, log-sd 0.15, correlation time 4 s.
+VARIATION = (7, 0.15, 4.0)
+
+
+def _room() -> OccupancyGrid:
+    """A 16 x 16 m room of 0.1 m cells with walls around and a pillar in the middle."""
+    data = np.zeros((160, 160))
+    data[:3, :] = data[-3:, :] = data[:, :3] = data[:, -3:] = 100
+    data[70:90, 70:90] = 100
+    return OccupancyGrid(data, 0.1)
+
+
+def _walk(name: str) -> pd.DataFrame:
+    rng = np.random.default_rng(sorted(WANT).index(name))
+    if name == "room":  # all pairs: windows of 16 and 32 people
+        plan = _walkers(rng, 40, 16.0, 60.0)
+        plan = plan[~((plan["x"].between(6.6, 9.4)) & (plan["y"].between(6.6, 9.4)))]
+        car = (plan["id"] == 3).to_numpy()
+        return social_force_tracks(
+            plan, grid=_room(), groups=_pairs(plan), kinematic=car,
+            speed_variation=VARIATION,
+        )  # fmt: skip
+    if name.startswith("scenes"):  # blocks: 80 scenes of 2-5 people
+        scenes = []
+        for s in range(80):
+            one = _walkers(rng, 2 + s % 4, 8.0, 20.0 + s)
+            scenes.append(one.assign(scenario=s))
+        plan = pd.concat(scenes, ignore_index=True)
+        params = SocialForce(strength=0.0) if name.endswith("0") else None
+        return social_force_tracks(plan, params, groups=_pairs(plan), speed_variation=VARIATION)
+    plan = _walkers(rng, 200, 30.0, 30.0)  # the grid of cells: over 128 at once
+    return social_force_tracks(plan, groups=_pairs(plan), speed_variation=VARIATION)
+
+
+@pytest.mark.parametrize("name", sorted(WANT))
+def test_the_walks_are_those_of_the_code_before_the_change(name):
+    assert _digest(_walk(name)) == WANT[name]
+
+
+def test_the_walks_cover_the_neighbour_searches(monkeypatch):
+    """The configurations above do run every neighbour search (else their digests would
+    hold nothing about it)."""
+    seen = set()
+    window = _social._window
+
+    def spy(*args):
+        seen.add((args[-3], args[-2] > 0, args[-1]))
+        return window(*args)
+
+    monkeypatch.setattr(_social, "_window", spy)
+    for name in WANT:
+        _walk(name)
+    assert {(True, False, True), (False, True, True), (False, False, True)} <= seen
+    assert any(not repel for *_, repel in seen)
