@@ -112,24 +112,53 @@ WINDOW_STEPS = 256
 def _route(t: np.ndarray, xy: np.ndarray, tol: float = 0.05) -> tuple[np.ndarray, float]:
     """Corners of a planned track (distinct positions, collinear runs merged) and the
     preferred speed (median speed over the planned moves, 0 for a standing artefact)."""
-    keep = np.r_[True, np.hypot(*np.diff(xy, axis=0).T) > 1e-9]
-    pts = xy[keep]
-    if len(pts) > 2:  # drop corners that lie on the segment between their neighbours
+    (pts,), v0 = _routes(t, xy, np.array([0]), np.array([len(t)]), tol)
+    return pts, float(v0[0])
+
+
+def _routes(
+    t: np.ndarray, xy: np.ndarray, start: np.ndarray, stop: np.ndarray, tol: float = 0.05
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """:func:`_route` of every artefact at once: rows ``start[i]:stop[i]`` of ``t`` (N,)
+    and ``xy`` (N, 2) are artefact ``i``'s planned track (consecutive, non-empty). Returns
+    its corners (a list of (m_i, 2) arrays) and preferred speeds (n,), the same numbers
+    as one :func:`_route` per artefact, in a few array passes instead of a Python loop."""
+    n = start.size
+    seg = np.repeat(np.arange(n), stop - start)
+    head = np.zeros(t.size, bool)
+    head[start] = True
+    step = np.r_[0.0, np.hypot(*np.diff(xy, axis=0).T)]  # from the row before (any artefact)
+    keep = head | (step > 1e-9)
+    pts, owner = xy[keep], seg[keep]
+    # drop corners that lie on the segment between their neighbours (on one artefact's
+    # track: a corner with a neighbour before and after it)
+    drop = np.zeros(pts.shape[0], bool)
+    if pts.shape[0] > 2:
         a, b, c = pts[:-2], pts[1:-1], pts[2:]
         ab, ac = b - a, c - a
         cross = np.abs(ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0])
         lac = np.hypot(*ac.T)
         dot = (ab * ac).sum(1)
         on = (cross <= tol * np.maximum(lac, 1e-12)) & (dot >= 0) & (dot <= lac**2)
-        pts = np.vstack([pts[:1], pts[1:-1][~on], pts[-1:]])
-    if len(t) < 2:
-        return pts, 0.0
-    step = np.hypot(*np.diff(xy, axis=0).T)
-    dt = np.diff(t)
-    moving = step > 1e-6
-    if not moving.any():
-        return pts, 0.0
-    return pts, float(np.median(step[moving] / np.maximum(dt[moving], 1e-9)))
+        drop[1:-1] = on & (owner[:-2] == owner[1:-1]) & (owner[1:-1] == owner[2:])
+    pts, owner = pts[~drop], owner[~drop]
+    corners = np.split(pts, np.searchsorted(owner, np.arange(1, n)))
+    # the median speed over the moves of each artefact's track
+    dt = np.r_[0.0, np.diff(t)]
+    moving = ~head & (step > 1e-6)
+    speed = step[moving] / np.maximum(dt[moving], 1e-9)
+    who = seg[moving]
+    order = np.lexsort((speed, who))
+    speed, who = speed[order], who[order]
+    count = np.bincount(who, minlength=n)
+    first = np.r_[0, np.cumsum(count)[:-1]]
+    mid = first + count // 2
+    v0 = np.zeros(n)
+    odd = (count % 2 == 1) & (count > 0)
+    v0[odd] = speed[mid[odd]]
+    even = (count % 2 == 0) & (count > 0)
+    v0[even] = (speed[mid[even] - 1] + speed[mid[even]]) / 2.0
+    return corners, v0
 
 
 def _anticipated(diff, dv, horizon):
@@ -377,6 +406,62 @@ def _bucket(n: int, lo: int = 8) -> int:
     return max(lo, 1 << (max(n, 1) - 1).bit_length())
 
 
+#: All-pairs windows of up to this many slots run in one program of the walk's largest
+#: such size: their pair sums over the padded, empty slots come out the same, bit for bit
+#: (XLA sums a row of up to 32 pairs in one order; past that in another, so the larger
+#: all-pairs windows share a program of their own).
+PAIRS_PAD_MAX = 32
+
+
+def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tuple]:
+    """The neighbour search and the number of slots of each window, ``(all_pairs, block,
+    nb)`` per window (None for an empty one), sized once for the whole walk so that its
+    windows share one compiled :func:`_window` per kind of search (issue 29: a cold fit
+    compiled one program per window size, 2 s each), not one per size.
+
+    Each window keeps its own kind of search (:func:`_pair_forces`): all pairs among a few
+    people, blocks of slots for many small scenarios (at most :data:`BLOCK_MAX` people in
+    any, past :data:`ALL_PAIRS_MAX` in the window), else the grid of cells; the windows of
+    one kind are padded (empty slots, never alive) to the largest of them: the same block
+    width and number of slots. Without repulsion (``repel`` False) nobody's step depends on
+    the slots of others but through the group indices, and every window runs the one
+    program without a search. ``active[w]`` (m,) the artefacts alive in window ``w``
+    (sorted by scenario), ``scen`` (n,) their scenarios (integer codes)."""
+    kind: list[tuple | None] = []
+    for act in active:
+        if act.size == 0:
+            kind.append(None)
+            continue
+        scenes = np.bincount(scen[act])
+        per_scene = int(scenes.max())
+        nb = _bucket(act.size, 16)
+        if not repel:
+            kind.append(("none", nb, 0))
+        elif act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX:
+            kind.append(
+                ("block", _bucket(int(np.count_nonzero(scenes)), 16), _bucket(per_scene, 4))
+            )
+        elif nb > ALL_PAIRS_MAX:
+            kind.append(("grid", nb, 0))
+        else:
+            kind.append(("pairs" if nb <= PAIRS_PAD_MAX else "pairs, large", nb, 0))
+    size: dict[str, list[int]] = {}
+    for k in kind:
+        if k is not None:
+            n_max, b_max = size.get(k[0], [0, 0])
+            size[k[0]] = [max(n_max, k[1]), max(b_max, k[2])]
+    out: list[tuple | None] = []
+    for k in kind:
+        if k is None:
+            out.append(None)
+            continue
+        n_max, b_max = size[k[0]]
+        # a block window's slots: blocks of the widest block, as many as the most scenes
+        nb = n_max * b_max if k[0] == "block" else n_max
+        out.append((k[0].startswith("pairs"), b_max, nb))
+    return out
+
+
 def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:
     """Distance to walls, its unit gradient, the free mask and the frames (JAX arrays)."""
     from scipy import ndimage
@@ -571,10 +656,7 @@ def social_force_tracks(
     steps_alive = float(np.sum(t_all[stop - 1] - t_all[start])) / dt + n
     check_memory(steps_alive * 24.0, f"social-force motion of {n} artefacts, dt {dt:g} s", "dt")
     check_work(steps_alive * 9.0 * CELL_CAPACITY * 30.0, f"social force of {n} artefacts", "dt")
-    routes, v0 = [], np.zeros(n)
-    for i, (a, b) in enumerate(zip(start, stop, strict=True)):
-        r, v0[i] = _route(t_all[a:b], xy_all[a:b])
-        routes.append(r)
+    routes, v0 = _routes(t_all, xy_all, start, stop)
     t_on, t_off = t_all[start], t_all[stop - 1] + 1e-9
     kin = v0 <= 0.0
     if kinematic is not None:
@@ -646,31 +728,28 @@ def social_force_tracks(
     n_win = int(np.ceil(span / dt / WINDOW_STEPS)) + 1
     w_start = t0 + np.arange(n_win) * WINDOW_STEPS * dt
     active = [np.flatnonzero((t_on < w0 + WINDOW_STEPS * dt) & (t_off > w0)) for w0 in w_start]
+    repel = bool(p.strength != 0.0)
+    layout = _layout(active, scen, repel)
     sim_t, sim_x, sim_i = [], [], []
     for w, (w0, act) in enumerate(zip(w_start, active, strict=True)):
         if progress is not None and w:
             progress(w, n_win)
         if act.size == 0:
             continue
-        # each artefact's slot (padded to a power of two: a few compiled programs); many
-        # small scenarios: a block of slots per scenario, all pairs within blocks
-        per_scene = int(np.bincount(scen[act]).max())
-        block = _bucket(per_scene, 4) if act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX else 0
-        if block:
+        all_pairs, block, nb = layout[w]
+        if block:  # many small scenarios: a block of slots per scenario
             first_in, rank = np.unique(scen[act], return_index=True, return_inverse=True)[1:]
             rank = rank.ravel()  # act is sorted by scenario: each scenario a run
             slot = rank * block + (np.arange(act.size) - first_in[rank])
-            nb = _bucket(first_in.size, 16) * block
         else:
             slot = np.arange(act.size)
-            nb = _bucket(act.size, 16)
         pad = np.full(nb, act[0])
         pad[slot] = act
         live_pad = np.zeros(nb, bool)
         live_pad[slot] = True
 
         def take(a, pad=pad):
-            return jnp.asarray(a[pad])
+            return a[pad]
 
         state = (take(x), take(v), take(k), take(hd))
         slot_of = np.full(n, -1)
@@ -681,13 +760,13 @@ def social_force_tracks(
             loc = np.arange(nb)
             there = slot_of[j[act]]
             loc[slot] = np.where(there >= 0, there, slot)
-            return jnp.asarray(loc.astype(np.int32))
+            return loc.astype(np.int32)
 
         form = (
             local(leader),
             local(ahead),
             take(side),
-            jnp.asarray(np.where(live_pad, gid[pad], -1)),
+            np.where(live_pad, gid[pad], -1),
         )
         t_on_w = np.where(live_pad, t_on[pad], np.inf)
         tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
@@ -711,11 +790,11 @@ def social_force_tracks(
             take(route),
             take(n_vert),
             take(v0),
-            jnp.asarray(t_on_w),
+            t_on_w,
             take(t_off),
             take(kin),
-            jnp.asarray(plan),
-            jnp.asarray(pace_w),
+            plan,
+            pace_w,
             take(shift),
             form,
             w0,
@@ -724,9 +803,9 @@ def social_force_tracks(
             walls,
             jnp.int32(n_run),
             jnp.int32(n_y),
-            nb <= ALL_PAIRS_MAX,
+            all_pairs,
             block,
-            bool(p.strength != 0.0),
+            repel,
         )
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)
         x[act], v[act], k[act] = xf[slot], vf[slot], kf[slot]

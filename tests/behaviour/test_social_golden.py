@@ -23,7 +23,7 @@ WANT = {
     "room": "1231464f626c004eeea15077ec57f61ad069548479210a2475cddbe26612b108",
     "scenes": "edd1dcdaa4858ac8036fe9601ee7d8243cbb92a838f22cd93daaecdaace09437",
     "scenes, strength 0": "fcc734b5441972716ebf38c2b53bfd5492c9f7412817e8b176e1b3d6a56a91f2",
-    "crowd": "9c1515943490168d7d3a79cf3a44ec5a251532524d9dcc13cf7eeb9126388e44",
+    "crowd": "ba1c635c1ce44d4911734e30d81bce326221a39c65a8af8a7c0c32a6338fe566",
 }
 
 
@@ -87,7 +87,7 @@ def _walk(name: str) -> pd.DataFrame:
         plan = pd.concat(scenes, ignore_index=True)
         params = SocialForce(strength=0.0) if name.endswith("0") else None
         return social_force_tracks(plan, params, groups=_pairs(plan), speed_variation=VARIATION)
-    plan = _walkers(rng, 200, 30.0, 30.0)  # the grid of cells: over 128 at once
+    plan = _walkers(rng, 450, 30.0, 50.0)  # the grid of cells: 256 and 512 slots
     return social_force_tracks(plan, groups=_pairs(plan), speed_variation=VARIATION)
 
 
@@ -96,18 +96,26 @@ def test_the_walks_are_those_of_the_code_before_the_change(name):
     assert _digest(_walk(name)) == WANT[name]
 
 
-def test_the_walks_cover_the_neighbour_searches(monkeypatch):
+def test_the_walks_cover_the_searches_and_run_one_program_per_kind_of_search(monkeypatch):
     """The configurations above do run every neighbour search (else their digests would
-    hold nothing about it)."""
-    seen = set()
+    hold nothing about it), and each walk compiles one program per kind of search it
+    uses, not one per window size (issue 29): the room's windows of 16 and 32 people run
+    one program (two before), the small scenes at strength 0 one (four before)."""
+    programs = {}
     window = _social._window
 
     def spy(*args):
-        seen.add((args[-3], args[-2] > 0, args[-1]))
+        nb = args[0][0].shape[0]
+        programs[name].add((nb, args[-3], args[-2], args[-1]))
         return window(*args)
 
     monkeypatch.setattr(_social, "_window", spy)
     for name in WANT:
+        programs[name] = set()
         _walk(name)
+    seen = {(pairs, block > 0, repel) for p in programs.values() for _, pairs, block, repel in p}
     assert {(True, False, True), (False, True, True), (False, False, True)} <= seen
-    assert any(not repel for *_, repel in seen)
+    assert (False, False, False) in seen  # strength 0: no search
+    kinds = {name: len(p) for name, p in programs.items()}
+    # scenes: blocks, all pairs of up to 32 and of 64-128; crowd: the grid, all pairs
+    assert kinds == {"room": 1, "scenes": 3, "scenes, strength 0": 1, "crowd": 2}
