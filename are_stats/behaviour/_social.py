@@ -50,8 +50,9 @@ grid of cells as wide as the interaction's ``reach`` (a sort and a binary search
 linear in the number of people, not all pairs), or, when the window holds many scenarios of
 at most :data:`BLOCK_MAX` people each (the displacement errors' continuations), by all pairs
 within each scenario's block of slots. A window runs only the steps somebody is alive in,
-and one compiled program serves every window of a size on a map. 1,000 artefacts arriving
-over an hour, walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores (``bench_social``).
+and one compiled program serves every window of a size and search on a map
+(:func:`_layout`). 1,000 artefacts arriving over an hour, walked at 10 Hz: about 1 s CPU
+warm, 6 s with compiling, on 2 loaded cores (``bench_social``).
 """
 
 from __future__ import annotations
@@ -406,59 +407,32 @@ def _bucket(n: int, lo: int = 8) -> int:
     return max(lo, 1 << (max(n, 1) - 1).bit_length())
 
 
-#: All-pairs windows of up to this many slots run in one program of the walk's largest
-#: such size: their pair sums over the padded, empty slots come out the same, bit for bit
-#: (XLA sums a row of up to 32 pairs in one order; past that in another, so the larger
-#: all-pairs windows share a program of their own).
-PAIRS_PAD_MAX = 32
-
-
-def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tuple]:
-    """The neighbour search and the number of slots of each window, ``(all_pairs, block,
-    nb)`` per window (None for an empty one), sized once for the whole walk so that its
-    windows share one compiled :func:`_window` per kind of search (issue 29: a cold fit
-    compiled one program per window size, 2 s each), not one per size.
-
-    Each window keeps its own kind of search (:func:`_pair_forces`): all pairs among a few
-    people, blocks of slots for many small scenarios (at most :data:`BLOCK_MAX` people in
-    any, past :data:`ALL_PAIRS_MAX` in the window), else the grid of cells; the windows of
-    one kind are padded (empty slots, never alive) to the largest of them: the same block
-    width and number of slots. Without repulsion (``repel`` False) nobody's step depends on
-    the slots of others but through the group indices, and every window runs the one
-    program without a search. ``active[w]`` (m,) the artefacts alive in window ``w``
-    (sorted by scenario), ``scen`` (n,) their scenarios (integer codes)."""
-    kind: list[tuple | None] = []
+def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tuple | None]:
+    """Each window's neighbour search and slots, ``(all_pairs, block, nb, width)`` (None
+    for an empty window): many small scenarios (past :data:`ALL_PAIRS_MAX` people, at
+    most :data:`BLOCK_MAX` in any) in blocks of ``width`` slots, one scenario each, else
+    one slot each, in order; ``nb`` slots in all (a power of two: a few compiled
+    programs). The search (:func:`_pair_forces`) is all pairs, blocks of ``block`` slots
+    or the grid of cells; without repulsion (``repel`` False) there is none, and the
+    windows of a size share one program whatever search they would have had (issue 29).
+    ``active[w]`` (m,) the artefacts alive in window ``w`` (sorted by scenario), ``scen``
+    (n,) their scenarios (integer codes)."""
+    out: list[tuple | None] = []
     for act in active:
         if act.size == 0:
-            kind.append(None)
+            out.append(None)
             continue
         scenes = np.bincount(scen[act])
         per_scene = int(scenes.max())
-        nb = _bucket(act.size, 16)
-        if not repel:
-            kind.append(("none", nb, 0))
-        elif act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX:
-            kind.append(
-                ("block", _bucket(int(np.count_nonzero(scenes)), 16), _bucket(per_scene, 4))
-            )
-        elif nb > ALL_PAIRS_MAX:
-            kind.append(("grid", nb, 0))
+        if act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX:
+            width = _bucket(per_scene, 4)
+            nb = _bucket(int(np.count_nonzero(scenes)), 16) * width
         else:
-            kind.append(("pairs" if nb <= PAIRS_PAD_MAX else "pairs, large", nb, 0))
-    size: dict[str, list[int]] = {}
-    for k in kind:
-        if k is not None:
-            n_max, b_max = size.get(k[0], [0, 0])
-            size[k[0]] = [max(n_max, k[1]), max(b_max, k[2])]
-    out: list[tuple | None] = []
-    for k in kind:
-        if k is None:
-            out.append(None)
-            continue
-        n_max, b_max = size[k[0]]
-        # a block window's slots: blocks of the widest block, as many as the most scenes
-        nb = n_max * b_max if k[0] == "block" else n_max
-        out.append((k[0].startswith("pairs"), b_max, nb))
+            width, nb = 0, _bucket(act.size, 16)
+        if not repel:
+            out.append((False, 0, nb, width))
+        else:
+            out.append((not width and nb <= ALL_PAIRS_MAX, width, nb, width))
     return out
 
 
@@ -736,11 +710,11 @@ def social_force_tracks(
             progress(w, n_win)
         if act.size == 0:
             continue
-        all_pairs, block, nb = layout[w]
-        if block:  # many small scenarios: a block of slots per scenario
+        all_pairs, block, nb, width = layout[w]
+        if width:  # many small scenarios: a block of slots per scenario
             first_in, rank = np.unique(scen[act], return_index=True, return_inverse=True)[1:]
             rank = rank.ravel()  # act is sorted by scenario: each scenario a run
-            slot = rank * block + (np.arange(act.size) - first_in[rank])
+            slot = rank * width + (np.arange(act.size) - first_in[rank])
         else:
             slot = np.arange(act.size)
         pad = np.full(nb, act[0])

@@ -1,10 +1,10 @@
 """The social force's walks held to the bit (issues 26 and 29).
 
-The digests were taken from :func:`social_force_tracks` before its windows were padded to
-one compiled program per walk and its routes computed in one pass (commit f59a774, same
-inputs): every neighbour search (all pairs, blocks of small scenes, the grid of cells, no
-search at strength 0), with arrival groups, within-person speed variation, a kinematic
-artefact and a map with walls. A change that is pure engineering leaves them as they are.
+The digests were taken from :func:`social_force_tracks` before its routes were computed
+in one pass and its windows laid out by one function (commit f59a774, same inputs):
+every neighbour search (all pairs, blocks of small scenes, the grid of cells, none at
+strength 0), with arrival groups, within-person speed variation, a kinematic artefact and
+a map with walls. A change that is pure engineering leaves them as they are.
 """
 
 from __future__ import annotations
@@ -96,11 +96,11 @@ def test_the_walks_are_those_of_the_code_before_the_change(name):
     assert _digest(_walk(name)) == WANT[name]
 
 
-def test_the_walks_cover_the_searches_and_run_one_program_per_kind_of_search(monkeypatch):
+def test_the_walks_cover_the_searches_and_share_programs_without_repulsion(monkeypatch):
     """The configurations above do run every neighbour search (else their digests would
-    hold nothing about it), and each walk compiles one program per kind of search it
-    uses, not one per window size (issue 29): the room's windows of 16 and 32 people run
-    one program (two before), the small scenes at strength 0 one (four before)."""
+    hold nothing about it), and without repulsion the windows of a size share one program
+    whatever search they would have had (the small scenes at strength 0: three, four
+    before)."""
     programs = {}
     window = _social._window
 
@@ -117,5 +117,6 @@ def test_the_walks_cover_the_searches_and_run_one_program_per_kind_of_search(mon
     assert {(True, False, True), (False, True, True), (False, False, True)} <= seen
     assert (False, False, False) in seen  # strength 0: no search
     kinds = {name: len(p) for name, p in programs.items()}
-    # scenes: blocks, all pairs of up to 32 and of 64-128; crowd: the grid, all pairs
-    assert kinds == {"room": 1, "scenes": 3, "scenes, strength 0": 1, "crowd": 2}
+    # room: all pairs of 16 and 32; scenes: blocks, all pairs of 16, 64 and 128; crowd:
+    # the grid of 256 and 512, all pairs of 32; strength 0: sizes 16, 64 and 512
+    assert kinds == {"room": 2, "scenes": 4, "scenes, strength 0": 3, "crowd": 3}
