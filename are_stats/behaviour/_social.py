@@ -50,8 +50,9 @@ grid of cells as wide as the interaction's ``reach`` (a sort and a binary search
 linear in the number of people, not all pairs), or, when the window holds many scenarios of
 at most :data:`BLOCK_MAX` people each (the displacement errors' continuations), by all pairs
 within each scenario's block of slots. A window runs only the steps somebody is alive in,
-and one compiled program serves every window of a size on a map. 1,000 artefacts arriving
-over an hour, walked at 10 Hz: 0.5-0.8 s warm, 2.3 s with compiling, on 2 cores (``bench_social``).
+and one compiled program serves every window of a size and search on a map
+(:func:`_layout`). 1,000 artefacts arriving over an hour, walked at 10 Hz: about 1 s CPU
+warm, 6 s with compiling, on 2 loaded cores (``bench_social``).
 """
 
 from __future__ import annotations
@@ -113,24 +114,53 @@ WINDOW_STEPS = 256
 def _route(t: np.ndarray, xy: np.ndarray, tol: float = 0.05) -> tuple[np.ndarray, float]:
     """Corners of a planned track (distinct positions, collinear runs merged) and the
     preferred speed (median speed over the planned moves, 0 for a standing artefact)."""
-    keep = np.r_[True, np.hypot(*np.diff(xy, axis=0).T) > 1e-9]
-    pts = xy[keep]
-    if len(pts) > 2:  # drop corners that lie on the segment between their neighbours
+    (pts,), v0 = _routes(t, xy, np.array([0]), np.array([len(t)]), tol)
+    return pts, float(v0[0])
+
+
+def _routes(
+    t: np.ndarray, xy: np.ndarray, start: np.ndarray, stop: np.ndarray, tol: float = 0.05
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """:func:`_route` of every artefact at once: rows ``start[i]:stop[i]`` of ``t`` (N,)
+    and ``xy`` (N, 2) are artefact ``i``'s planned track (consecutive, non-empty). Returns
+    its corners (a list of (m_i, 2) arrays) and preferred speeds (n,), the same numbers
+    as one :func:`_route` per artefact, in a few array passes instead of a Python loop."""
+    n = start.size
+    seg = np.repeat(np.arange(n), stop - start)
+    head = np.zeros(t.size, bool)
+    head[start] = True
+    step = np.r_[0.0, np.hypot(*np.diff(xy, axis=0).T)]  # from the row before (any artefact)
+    keep = head | (step > 1e-9)
+    pts, owner = xy[keep], seg[keep]
+    # drop corners that lie on the segment between their neighbours (on one artefact's
+    # track: a corner with a neighbour before and after it)
+    drop = np.zeros(pts.shape[0], bool)
+    if pts.shape[0] > 2:
         a, b, c = pts[:-2], pts[1:-1], pts[2:]
         ab, ac = b - a, c - a
         cross = np.abs(ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0])
         lac = np.hypot(*ac.T)
         dot = (ab * ac).sum(1)
         on = (cross <= tol * np.maximum(lac, 1e-12)) & (dot >= 0) & (dot <= lac**2)
-        pts = np.vstack([pts[:1], pts[1:-1][~on], pts[-1:]])
-    if len(t) < 2:
-        return pts, 0.0
-    step = np.hypot(*np.diff(xy, axis=0).T)
-    dt = np.diff(t)
-    moving = step > 1e-6
-    if not moving.any():
-        return pts, 0.0
-    return pts, float(np.median(step[moving] / np.maximum(dt[moving], 1e-9)))
+        drop[1:-1] = on & (owner[:-2] == owner[1:-1]) & (owner[1:-1] == owner[2:])
+    pts, owner = pts[~drop], owner[~drop]
+    corners = np.split(pts, np.searchsorted(owner, np.arange(1, n)))
+    # the median speed over the moves of each artefact's track
+    dt = np.r_[0.0, np.diff(t)]
+    moving = ~head & (step > 1e-6)
+    speed = step[moving] / np.maximum(dt[moving], 1e-9)
+    who = seg[moving]
+    order = np.lexsort((speed, who))
+    speed, who = speed[order], who[order]
+    count = np.bincount(who, minlength=n)
+    first = np.r_[0, np.cumsum(count)[:-1]]
+    mid = first + count // 2
+    v0 = np.zeros(n)
+    odd = (count % 2 == 1) & (count > 0)
+    v0[odd] = speed[mid[odd]]
+    even = (count % 2 == 0) & (count > 0)
+    v0[even] = (speed[mid[even] - 1] + speed[mid[even]]) / 2.0
+    return corners, v0
 
 
 def _anticipated(diff, dv, horizon):
@@ -386,6 +416,35 @@ def _bucket(n: int, lo: int = 8) -> int:
     return max(lo, 1 << (max(n, 1) - 1).bit_length())
 
 
+def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tuple | None]:
+    """Each window's neighbour search and slots, ``(all_pairs, block, nb, width)`` (None
+    for an empty window): many small scenarios (past :data:`ALL_PAIRS_MAX` people, at
+    most :data:`BLOCK_MAX` in any) in blocks of ``width`` slots, one scenario each, else
+    one slot each, in order; ``nb`` slots in all (a power of two: a few compiled
+    programs). The search (:func:`_pair_forces`) is all pairs, blocks of ``block`` slots
+    or the grid of cells; without repulsion (``repel`` False) there is none, and the
+    windows of a size share one program whatever search they would have had (issue 29).
+    ``active[w]`` (m,) the artefacts alive in window ``w`` (sorted by scenario), ``scen``
+    (n,) their scenarios (integer codes)."""
+    out: list[tuple | None] = []
+    for act in active:
+        if act.size == 0:
+            out.append(None)
+            continue
+        scenes = np.bincount(scen[act])
+        per_scene = int(scenes.max())
+        if act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX:
+            width = _bucket(per_scene, 4)
+            nb = _bucket(int(np.count_nonzero(scenes)), 16) * width
+        else:
+            width, nb = 0, _bucket(act.size, 16)
+        if not repel:
+            out.append((False, 0, nb, width))
+        else:
+            out.append((not width and nb <= ALL_PAIRS_MAX, width, nb, width))
+    return out
+
+
 def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:
     """Distance to walls, its unit gradient, the free mask and the frames (JAX arrays)."""
     from scipy import ndimage
@@ -614,10 +673,7 @@ def social_force_tracks(
     steps_alive = float(np.sum(t_all[stop - 1] - t_all[start])) / dt + n
     check_memory(steps_alive * 24.0, f"social-force motion of {n} artefacts, dt {dt:g} s", "dt")
     check_work(steps_alive * 9.0 * CELL_CAPACITY * 30.0, f"social force of {n} artefacts", "dt")
-    routes, v0 = [], np.zeros(n)
-    for i, (a, b) in enumerate(zip(start, stop, strict=True)):
-        r, v0[i] = _route(t_all[a:b], xy_all[a:b])
-        routes.append(r)
+    routes, v0 = _routes(t_all, xy_all, start, stop)
     t_on, t_off = t_all[start], t_all[stop - 1] + 1e-9
     kin = v0 <= 0.0
     if kinematic is not None:
@@ -697,31 +753,28 @@ def social_force_tracks(
     n_win = int(np.ceil(span / dt / WINDOW_STEPS)) + 1
     w_start = t0 + np.arange(n_win) * WINDOW_STEPS * dt
     active = [np.flatnonzero((t_on < w0 + WINDOW_STEPS * dt) & (t_off > w0)) for w0 in w_start]
+    repel = bool(p.strength != 0.0)
+    layout = _layout(active, scen, repel)
     sim_t, sim_x, sim_i = [], [], []
     for w, (w0, act) in enumerate(zip(w_start, active, strict=True)):
         if progress is not None and w:
             progress(w, n_win)
         if act.size == 0:
             continue
-        # each artefact's slot (padded to a power of two: a few compiled programs); many
-        # small scenarios: a block of slots per scenario, all pairs within blocks
-        per_scene = int(np.bincount(scen[act]).max())
-        block = _bucket(per_scene, 4) if act.size > ALL_PAIRS_MAX and per_scene <= BLOCK_MAX else 0
-        if block:
+        all_pairs, block, nb, width = layout[w]
+        if width:  # many small scenarios: a block of slots per scenario
             first_in, rank = np.unique(scen[act], return_index=True, return_inverse=True)[1:]
             rank = rank.ravel()  # act is sorted by scenario: each scenario a run
-            slot = rank * block + (np.arange(act.size) - first_in[rank])
-            nb = _bucket(first_in.size, 16) * block
+            slot = rank * width + (np.arange(act.size) - first_in[rank])
         else:
             slot = np.arange(act.size)
-            nb = _bucket(act.size, 16)
         pad = np.full(nb, act[0])
         pad[slot] = act
         live_pad = np.zeros(nb, bool)
         live_pad[slot] = True
 
         def take(a, pad=pad):
-            return jnp.asarray(a[pad])
+            return a[pad]
 
         state = (take(x), take(v), take(k), take(hd))
         slot_of = np.full(n, -1)
@@ -732,13 +785,13 @@ def social_force_tracks(
             loc = np.arange(nb)
             there = slot_of[j[act]]
             loc[slot] = np.where(there >= 0, there, slot)
-            return jnp.asarray(loc.astype(np.int32))
+            return loc.astype(np.int32)
 
         form = (
             local(leader),
             local(ahead),
             take(side),
-            jnp.asarray(np.where(live_pad, gid[pad], -1)),
+            np.where(live_pad, gid[pad], -1),
         )
         t_on_w = np.where(live_pad, t_on[pad], np.inf)
         tt = w0 + dt * np.arange(1, WINDOW_STEPS + 1)
@@ -769,11 +822,11 @@ def social_force_tracks(
             take(route),
             take(n_vert),
             take(v0),
-            jnp.asarray(t_on_w),
+            t_on_w,
             take(t_off),
             take(kin),
-            jnp.asarray(plan),
-            jnp.asarray(pace_w),
+            plan,
+            pace_w,
             take(shift),
             form,
             w0,
@@ -782,9 +835,9 @@ def social_force_tracks(
             walls,
             jnp.int32(n_run),
             jnp.int32(n_y),
-            nb <= ALL_PAIRS_MAX,
+            all_pairs,
             block,
-            bool(p.strength != 0.0),
+            repel,
             turn=turn_w,
         )
         xf, vf, kf, xs = np.asarray(xf), np.asarray(vf), np.asarray(kf), np.asarray(xs)

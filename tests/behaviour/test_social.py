@@ -299,3 +299,30 @@ def test_a_force_of_strength_zero_skips_the_pair_search_and_walks_the_same(monke
     pd.testing.assert_frame_equal(skipped, searched, check_exact=True)
     published = social_force_tracks(plan, SocialForce(), dt=0.1)
     assert not np.allclose(published[["x", "y"]], skipped[["x", "y"]])
+
+
+def test_routes_merge_collinear_corners_and_take_each_median_speed():
+    """All artefacts' routes in one pass (:func:`_social._routes`): an L walked with a
+    pause keeps its three corners and its median speed (even count: the mean of the two
+    middle ones); a standing and a one-row artefact keep their one point at speed 0; the
+    first row of an artefact is kept even where the artefact before ended, and corners
+    in line across two artefacts are not merged."""
+    tracks = [
+        (
+            [0, 1, 2, 3, 4, 5, 6, 7],
+            [(0, 0), (1, 0), (3, 0), (3, 0), (4, 0), (4, 2), (4, 3), (4, 6)],
+        ),
+        ([0, 1, 2], [(4, 6), (4, 6), (4, 6)]),  # standing where the first ended
+        ([5], [(7, 7)]),
+        ([0, 0.5], [(8, 8), (9, 9)]),  # in line with the one-row artefact
+    ]
+    t = np.concatenate([np.asarray(tt, float) for tt, _ in tracks])
+    xy = np.concatenate([np.asarray(p, float) for _, p in tracks])
+    sizes = np.array([len(tt) for tt, _ in tracks])
+    stop = np.cumsum(sizes)
+    corners, v0 = _social._routes(t, xy, stop - sizes, stop)
+    want = [[(0, 0), (4, 0), (4, 6)], [(4, 6)], [(7, 7)], [(8, 8), (9, 9)]]
+    assert len(corners) == len(want)
+    for got, expected in zip(corners, want, strict=True):
+        np.testing.assert_array_equal(got, np.asarray(expected, float))
+    np.testing.assert_array_equal(v0, [1.5, 0.0, 0.0, 2 * np.sqrt(2)])

@@ -1,0 +1,122 @@
+"""The social force's walks held to the bit (issues 26 and 29).
+
+The digests were taken from :func:`social_force_tracks` before its routes were computed
+in one pass and its windows laid out by one function (commit f59a774, same inputs):
+every neighbour search (all pairs, blocks of small scenes, the grid of cells, none at
+strength 0), with arrival groups, within-person speed variation, a kinematic artefact and
+a map with walls. A change that is pure engineering leaves them as they are.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from are_stats.behaviour import SocialForce, _social, social_force_tracks
+from are_stats.environment import OccupancyGrid
+
+#: sha256 of the walked tracks (columns, dtypes, values), from the code before the change.
+WANT = {
+    "room": "1231464f626c004eeea15077ec57f61ad069548479210a2475cddbe26612b108",
+    "scenes": "edd1dcdaa4858ac8036fe9601ee7d8243cbb92a838f22cd93daaecdaace09437",
+    "scenes, strength 0": "fcc734b5441972716ebf38c2b53bfd5492c9f7412817e8b176e1b3d6a56a91f2",
+    "crowd": "ba1c635c1ce44d4911734e30d81bce326221a39c65a8af8a7c0c32a6338fe566",
+}
+
+
+def _digest(df: pd.DataFrame) -> str:
+    h = hashlib.sha256()
+    h.update(repr([(c, str(df[c].dtype)) for c in df.columns]).encode())
+    h.update(pd.util.hash_pandas_object(df, index=False).to_numpy().tobytes())
+    return h.hexdigest()
+
+
+def _walkers(rng: np.random.Generator, n: int, size: float, t_max: float) -> pd.DataFrame:
+    """``n`` planned crossings of a ``size`` m square, with a corner each, sampled at 0.5 s;
+    arrivals uniform on [0, t_max]."""
+    rows = []
+    for i in range(n):
+        t0 = np.round(rng.uniform(0.0, t_max), 1)
+        a, c, b = (rng.uniform(1.0, size - 1.0, 2) for _ in range(3))
+        v = rng.lognormal(np.log(1.3), 0.12)
+        legs = np.hypot(*(c - a)), np.hypot(*(b - c))
+        t = t0 + np.arange(0.0, np.ceil(sum(legs) / v / 0.5) + 1) * 0.5
+        s = np.minimum((t - t0) * v, sum(legs))
+        f1 = np.clip(s / max(legs[0], 1e-9), 0, 1)[:, None]
+        f2 = np.clip((s - legs[0]) / max(legs[1], 1e-9), 0, 1)[:, None]
+        xy = np.where(s[:, None] <= legs[0], a + (c - a) * f1, c + (b - c) * f2)
+        rows.append(pd.DataFrame({"id": i, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": 0.0}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def _pairs(plan: pd.DataFrame) -> np.ndarray:
+    """Group labels per row: walkers 0-1, 4-5, 8-9, ... walk in pairs."""
+    return np.where(plan["id"] % 4 < 2, plan["id"] // 4, -1)
+
+
+#: Within-person speed variation: seed, log-sd 0.15, correlation time 4 s.
+VARIATION = (7, 0.15, 4.0)
+
+
+def _room() -> OccupancyGrid:
+    """A 16 x 16 m room of 0.1 m cells with walls around and a pillar in the middle."""
+    data = np.zeros((160, 160))
+    data[:3, :] = data[-3:, :] = data[:, :3] = data[:, -3:] = 100
+    data[70:90, 70:90] = 100
+    return OccupancyGrid(data, 0.1)
+
+
+def _walk(name: str) -> pd.DataFrame:
+    rng = np.random.default_rng(sorted(WANT).index(name))
+    if name == "room":  # all pairs: windows of 16 and 32 people
+        plan = _walkers(rng, 40, 16.0, 60.0)
+        plan = plan[~((plan["x"].between(6.6, 9.4)) & (plan["y"].between(6.6, 9.4)))]
+        car = (plan["id"] == 3).to_numpy()
+        return social_force_tracks(
+            plan, grid=_room(), groups=_pairs(plan), kinematic=car,
+            speed_variation=VARIATION,
+        )  # fmt: skip
+    if name.startswith("scenes"):  # blocks: 80 scenes of 2-5 people
+        scenes = []
+        for s in range(80):
+            one = _walkers(rng, 2 + s % 4, 8.0, 20.0 + s)
+            scenes.append(one.assign(scenario=s))
+        plan = pd.concat(scenes, ignore_index=True)
+        params = SocialForce(strength=0.0) if name.endswith("0") else None
+        return social_force_tracks(plan, params, groups=_pairs(plan), speed_variation=VARIATION)
+    plan = _walkers(rng, 450, 30.0, 50.0)  # the grid of cells: 256 and 512 slots
+    return social_force_tracks(plan, groups=_pairs(plan), speed_variation=VARIATION)
+
+
+@pytest.mark.parametrize("name", sorted(WANT))
+def test_the_walks_are_those_of_the_code_before_the_change(name):
+    assert _digest(_walk(name)) == WANT[name]
+
+
+def test_the_walks_cover_the_searches_and_share_programs_without_repulsion(monkeypatch):
+    """The configurations above do run every neighbour search (else their digests would
+    hold nothing about it), and without repulsion the windows of a size share one program
+    whatever search they would have had (the small scenes at strength 0: three, four
+    before)."""
+    programs = {}
+    window = _social._window
+
+    def spy(*args):
+        nb = args[0][0].shape[0]
+        programs[name].add((nb, args[-3], args[-2], args[-1]))
+        return window(*args)
+
+    monkeypatch.setattr(_social, "_window", spy)
+    for name in WANT:
+        programs[name] = set()
+        _walk(name)
+    seen = {(pairs, block > 0, repel) for p in programs.values() for _, pairs, block, repel in p}
+    assert {(True, False, True), (False, True, True), (False, False, True)} <= seen
+    assert (False, False, False) in seen  # strength 0: no search
+    kinds = {name: len(p) for name, p in programs.items()}
+    # room: all pairs of 16 and 32; scenes: blocks, all pairs of 16, 64 and 128; crowd:
+    # the grid of 256 and 512, all pairs of 32; strength 0: sizes 16, 64 and 512
+    assert kinds == {"room": 2, "scenes": 4, "scenes, strength 0": 3, "crowd": 3}
