@@ -522,14 +522,19 @@ def moves_log_likelihood(
     tm = jnp.where((move < 0)[..., None, None], eye, tm)
 
     def fwd(
-        carry: tuple[jax.Array, jax.Array], m: jax.Array
+        carry: tuple[jax.Array, jax.Array], step: tuple[jax.Array, jax.Array]
     ) -> tuple[tuple[jax.Array, jax.Array], None]:
         alpha, ll = carry
+        m, pad = step
         a = jnp.einsum("nh,nhk->nk", alpha, m)
         c = a.sum(axis=1)
-        return (a / c[:, None], ll + jnp.log(c)), None
+        # a padding step is a factor of exactly 1: the carry passes unchanged (renormalising
+        # alpha would add round-off, so a track's value would depend on the batch's longest)
+        alpha = jnp.where(pad[:, None], alpha, a / c[:, None])
+        return (alpha, jnp.where(pad, ll, ll + jnp.log(c))), None
 
     n = gi.shape[0]
     alpha0 = jnp.full((n, 4), 0.25, dtype)
-    (_, ll), _ = jax.lax.scan(fwd, (alpha0, jnp.zeros(n, dtype)), jnp.moveaxis(tm, 1, 0))
+    steps = (jnp.moveaxis(tm, 1, 0), jnp.moveaxis(move < 0, 1, 0))
+    (_, ll), _ = jax.lax.scan(fwd, (alpha0, jnp.zeros(n, dtype)), steps)
     return ll if per_track else ll.sum()
