@@ -49,6 +49,7 @@ from are_stats.behaviour._choice import (  # noqa: E402
 
 __all__ += ["TRACK_COLUMNS", "behaviour_tracks", "choose_behaviours"]
 from are_stats.behaviour._soft import (  # noqa: E402
+    GOAL_BUCKET,
     MoveObservations,
     SoftSolution,
     move_observations,
@@ -59,6 +60,7 @@ from are_stats.behaviour._soft import (  # noqa: E402
 )
 
 __all__ += [
+    "GOAL_BUCKET",
     "MoveObservations",
     "SoftSolution",
     "move_observations",

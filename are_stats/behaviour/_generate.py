@@ -45,7 +45,7 @@ from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
 from are_stats.behaviour._motion import string_pull_many, walk_times
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
-from are_stats.behaviour._soft import soft_policy
+from are_stats.behaviour._soft import GOAL_BUCKET, soft_policy
 
 __all__ = [
     "continuous_path",
@@ -358,7 +358,7 @@ def simulate_behaviour_tracks(
     *,
     dt_out: float | None = None,
     smooth: int = 0,
-    chunk: int = 16,
+    chunk: int = GOAL_BUCKET,
     class_labels: Any = None,
     horizon: float | None = None,
     within_sd: float = 0.05,
@@ -385,7 +385,8 @@ def simulate_behaviour_tracks(
         (:func:`continuous_path`); more: the grid path smoothed over that many cells and
         re-timed to end at ``t_leave`` (the motion before issue 26).
     chunk : int
-        Goals solved together.
+        Goals solved together (a last, smaller chunk is padded to it: one compiled soft
+        solve for every chunk; the default is :data:`GOAL_BUCKET`, the fit criticism's).
     class_labels : sequence of str, optional
         Label of each mixture component (the fit's ``class_labels``), for tables with a
         ``class`` column and no ``label``.
@@ -485,6 +486,7 @@ def simulate_behaviour_tracks(
                 time_cost=fit.time_cost,
                 cell_reward=fit.cell_reward(c),
                 tol=1e-2,
+                bucket=chunk,  # one compiled program for every chunk, cap and class
             )
             pol = np.asarray(sol.policy)
             v = np.asarray(sol.values)

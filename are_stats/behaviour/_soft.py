@@ -56,6 +56,7 @@ if TYPE_CHECKING:
     from are_stats.environment import OccupancyGrid
 
 __all__ = [
+    "GOAL_BUCKET",
     "SoftSolution",
     "MoveObservations",
     "soft_backward_induction",
@@ -185,8 +186,9 @@ def soft_backward_induction(
         Rationality (``> 0``); its dtype is the computation's.
     slip : scalar float
         Slip probability in ``[0, 1)``.
-    n_epochs : int
-        ``K >= 1`` (static).
+    n_epochs : int or traced int scalar
+        ``K >= 1`` (static without ``tol``; with it only the loop's bound, so it may be
+        traced: one compiled program for every cap).
     step_cost, time_cost : scalar float
         Cost of every move; cost of every epoch off the goal.
     cell_reward : scalar or (G or 1, H, W) float
@@ -202,9 +204,9 @@ def soft_backward_induction(
         per epoch, so for ``beta < log(A) / time_cost`` never reaching the goal is optimal and
         ``V`` does not converge with the horizon; the relative form has the same Boltzmann
         policy given ``Q`` and the same ``beta -> infinity`` limit.
-    tol : float or None
-        Stop once the values change by at most ``tol`` in an epoch (static; ``n_epochs`` is
-        then a cap).
+    tol : float, traced float scalar, or None
+        Stop once the values change by at most ``tol`` in an epoch (``n_epochs`` is then a
+        cap); ``None`` (static) runs all ``n_epochs``.
     tol_mask : (G, H, W) bool or None
         Cells on which that change is measured (default: all).
     axis_name : str or None
@@ -244,7 +246,7 @@ def soft_backward_induction(
     else:
 
         def cond(c: tuple[jax.Array, jax.Array, jax.Array]) -> jax.Array:
-            return (c[0] < n_epochs - 1) & (c[2] > tol)
+            return (c[0] < n_epochs - 1) & (c[2] > tol_v)
 
         def body(
             c: tuple[jax.Array, jax.Array, jax.Array],
@@ -259,6 +261,8 @@ def soft_backward_induction(
                 largest = jax.lax.pmax(largest, axis_name)
             return c[0] + 1, v_new, largest
 
+        # in the computation's dtype, as a number would be: a traced tol stops alike
+        tol_v = jnp.asarray(tol, dtype)
         start = (jnp.asarray(0), v0, jnp.asarray(jnp.inf, dtype))
         _, v_prev, _ = jax.lax.while_loop(cond, body, start)
         vs = None
@@ -309,6 +313,7 @@ def soft_policy(
     store_values: bool = False,
     relative: bool = True,
     tol: float | None = None,
+    bucket: int | None = None,
 ) -> SoftSolution:
     """Soft solution for goals on a grid (the convenience front of the soft solver).
 
@@ -330,6 +335,14 @@ def soft_policy(
         See :func:`soft_backward_induction`.
     tol : float or None
         Stop once the values change by at most ``tol`` (``n_epochs`` is then a cap).
+    bucket : int or None
+        With ``tol`` (and the defaults of ``use_run``, ``store_values``, ``relative``): pad
+        the goals to a multiple of ``bucket`` by repeating the last one, and pass the epoch
+        cap and ``tol`` as data, so that one compiled program serves every cap, tolerance
+        and number of goals up to ``bucket`` (:data:`GOAL_BUCKET`: generation's chunks, the
+        fit's criticism). The solution is the same, bit for bit: a copy of the last goal
+        changes by exactly as much per epoch, so the solve stops at the same epoch. Its
+        arrays are then NumPy arrays.
 
     Returns
     -------
@@ -358,6 +371,31 @@ def soft_policy(
         raise ValueError(f"beta: expected a positive float, got {beta!r}")
     if int(n_epochs) < 1:
         raise ValueError(f"n_epochs: expected an integer >= 1, got {n_epochs!r}")
+    if bucket is not None:
+        if tol is None or use_run or store_values or not relative:
+            raise ValueError(
+                "bucket: expected with tol and without use_run, store_values or relative=False"
+            )
+        if int(bucket) < 1:
+            raise ValueError(f"bucket: expected an integer >= 1, got {bucket!r}")
+        g = len(gl)
+        padded = gl[np.minimum(np.arange(-(-g // int(bucket)) * int(bucket)), g - 1)]
+        keep, bonus = _goal_arrays(occ, padded, goal_reward)
+        sol = _capped_jit(
+            jnp.asarray(path_free(occ)),
+            jnp.asarray(keep),
+            jnp.asarray(bonus),
+            jnp.asarray(float(beta)),
+            jnp.asarray(float(slip)),
+            jnp.asarray(int(n_epochs), jnp.int32),
+            step_cost,
+            time_cost,
+            jnp.asarray(cell_reward, float),
+            float(tol),
+        )
+        # cut on the host: slicing (or copying back) a device array compiles a program per
+        # goal count
+        return SoftSolution(*(np.asarray(x)[:g] for x in sol))
     keep, bonus = _goal_arrays(occ, gl, goal_reward)
     return _soft_jit(
         jnp.asarray(path_free(occ)),
@@ -380,6 +418,20 @@ _soft_jit = jax.jit(
     soft_backward_induction,
     static_argnames=("n_epochs", "use_run", "store_values", "relative", "tol"),
 )
+
+#: Goals per soft solve of :func:`soft_policy` with ``bucket``: generation solves its
+#: goals in chunks of this many, and the fit's criticism pads its solves to it.
+GOAL_BUCKET = 16
+
+
+@jax.jit
+def _capped_jit(ok, keep, bonus, beta, slip, n_epochs, step_cost, time_cost, cell_reward, tol):
+    """:func:`soft_backward_induction` with the epoch cap ``n_epochs`` and ``tol`` traced
+    (with ``tol`` the cap only bounds the loop, so neither need be compiled in)."""
+    return soft_backward_induction(
+        ok, keep, bonus, beta, slip, n_epochs=n_epochs, step_cost=step_cost,
+        time_cost=time_cost, cell_reward=cell_reward, tol=tol,
+    )  # fmt: skip
 
 
 def wall_distance_feature(occupied: npt.ArrayLike, scale: float = 1.0) -> np.ndarray:
@@ -522,14 +574,19 @@ def moves_log_likelihood(
     tm = jnp.where((move < 0)[..., None, None], eye, tm)
 
     def fwd(
-        carry: tuple[jax.Array, jax.Array], m: jax.Array
+        carry: tuple[jax.Array, jax.Array], step: tuple[jax.Array, jax.Array]
     ) -> tuple[tuple[jax.Array, jax.Array], None]:
         alpha, ll = carry
+        m, pad = step
         a = jnp.einsum("nh,nhk->nk", alpha, m)
         c = a.sum(axis=1)
-        return (a / c[:, None], ll + jnp.log(c)), None
+        # a padding step is a factor of exactly 1: the carry passes unchanged (renormalising
+        # alpha would add round-off, so a track's value would depend on the batch's longest)
+        alpha = jnp.where(pad[:, None], alpha, a / c[:, None])
+        return (alpha, jnp.where(pad, ll, ll + jnp.log(c))), None
 
     n = gi.shape[0]
     alpha0 = jnp.full((n, 4), 0.25, dtype)
-    (_, ll), _ = jax.lax.scan(fwd, (alpha0, jnp.zeros(n, dtype)), jnp.moveaxis(tm, 1, 0))
+    steps = (jnp.moveaxis(tm, 1, 0), jnp.moveaxis(move < 0, 1, 0))
+    (_, ll), _ = jax.lax.scan(fwd, (alpha0, jnp.zeros(n, dtype)), steps)
     return ll if per_track else ll.sum()

@@ -55,7 +55,7 @@ import math
 import time
 from collections.abc import Callable, Mapping
 from functools import partial
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -599,37 +599,78 @@ def _bandwidth(xy: np.ndarray, floor: float) -> float:
     return max(floor, float(np.median(kth)))
 
 
-def _loglik(
-    theta: jax.Array,
-    ok: jax.Array,
-    keep: jax.Array,
-    bonus: jax.Array,
-    obs: tuple[jax.Array, ...],
-    step_cost: float,
-    time_cost: float,
-    n_epochs: int,
-    tol: float | None,
-    tol_mask: jax.Array | None = None,
-    n_devices: int = 1,
-    phi: jax.Array | None = None,
-) -> jax.Array:
-    """Log-likelihood at ``theta = (log beta, logit slip, w_1, .., w_F)`` with features
-    ``phi (F, H, W)`` (``None``: ``theta`` has two entries and the cell reward is 0); with
-    ``n_devices > 1`` the goals are split across that many local devices (results identical
-    to one device)."""
+class _LikelihoodData(NamedTuple):
+    """The data of the fit's log-likelihood (:func:`_loglik`): arguments, not constants, of
+    its compiled programs (:func:`_value_and_gradient`, :func:`_second_derivative`), padded
+    to shape buckets (:func:`_bucket`) so that another fit on the same grid (the report's
+    held-out fit, a refit) runs the programs already compiled.
+
+    Attributes
+    ----------
+    ok : (4, 2, H, W) bool
+        Free paths of the grid (:func:`~are_stats.behaviour.path_free`).
+    keep : (G, H, W) bool
+        Non-absorbing cells per goal; the padding goals repeat the last goal.
+    bonus : (G, H, W) float
+        ``goal_reward`` on each goal's cell.
+    tol_mask : (G, H, W) bool
+        Cells on which the soft solve's convergence is measured.
+    goal_index : (N,) int
+        Each track's goal; the padding tracks have goal 0 and no move.
+    rows, cols, move : (N, T) int
+        :class:`~are_stats.behaviour.MoveObservations`' steps, padded with ``move = -1``
+        (no step: a factor of exactly 1 in the likelihood).
+    n_epochs : () int32
+        The soft solve's epoch cap (data: with ``tol`` it only bounds the loop).
+    step_cost, time_cost : () float
+        Rewards of the soft MDP.
+    phi : (F, H, W) float or None
+        Reward features (``None``: no cell reward).
+    """
+
+    ok: jax.Array
+    keep: jax.Array
+    bonus: jax.Array
+    tol_mask: jax.Array
+    goal_index: jax.Array
+    rows: jax.Array
+    cols: jax.Array
+    move: jax.Array
+    n_epochs: jax.Array
+    step_cost: jax.Array
+    time_cost: jax.Array
+    phi: jax.Array | None
+
+
+def _bucket(n: int, multiple: int = 1) -> int:
+    """The padded size of a dimension of ``n >= 1``: the next power of two, rounded up to a
+    multiple of ``multiple`` (few shapes, so few compiled programs; at most twice the
+    work)."""
+    size = 1 << max(0, int(n) - 1).bit_length()
+    return -(-size // multiple) * multiple
+
+
+def _loglik(theta: jax.Array, data: _LikelihoodData, tol: float, n_devices: int = 1) -> jax.Array:
+    """Log-likelihood at ``theta = (log beta, logit slip, w_1, .., w_F)`` of the moves in
+    ``data`` (``F`` features ``data.phi``; without them ``theta`` has two entries and the
+    cell reward is 0); the soft solve stops at ``tol``. With ``n_devices > 1`` the goals are
+    split across that many local devices (results identical to one device)."""
     beta = jnp.exp(theta[0])
     slip = jax.nn.sigmoid(theta[1])
-    reward = 0.0 if phi is None else jnp.tensordot(theta[2:], phi, axes=1)
-    opts = dict(n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost, tol=tol)
+    reward = 0.0 if data.phi is None else jnp.tensordot(theta[2:], data.phi, axes=1)
+    opts = dict(n_epochs=data.n_epochs, step_cost=data.step_cost, time_cost=data.time_cost, tol=tol)
     if n_devices < 2:
         policy = soft_backward_induction(
-            ok, keep, bonus, beta, slip, tol_mask=tol_mask, cell_reward=reward, **opts
-        ).policy
+            data.ok, data.keep, data.bonus, beta, slip, tol_mask=data.tol_mask,
+            cell_reward=reward, **opts,
+        ).policy  # fmt: skip
     else:
         policy = _sharded_policy(
-            ok, keep, bonus, beta, slip, tol_mask, n_devices, opts, jnp.asarray(reward, beta.dtype)
+            data.ok, data.keep, data.bonus, beta, slip, data.tol_mask, n_devices, opts,
+            jnp.asarray(reward, beta.dtype),
         )  # fmt: skip
-    return moves_log_likelihood(policy, ok, slip, obs)
+    obs = (data.goal_index, data.rows, data.cols, data.move)
+    return moves_log_likelihood(policy, data.ok, slip, obs)
 
 
 def _sharded_policy(
@@ -644,7 +685,9 @@ def _sharded_policy(
     reward: jax.Array,
 ) -> jax.Array:
     """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices``
-    (``reward``: the cell reward, a scalar or ``(H, W)``, the same for every goal).
+    (``reward``: the cell reward, a scalar or ``(H, W)``, the same for every goal; ``opts``:
+    :func:`~are_stats.behaviour.soft_backward_induction`'s ``n_epochs``, ``step_cost``,
+    ``time_cost`` (numbers or traced scalars) and ``tol``).
 
     The goals are padded to a multiple of ``n_devices`` by repeating the last one (a copy
     changes by exactly as much per epoch, so the shared stopping rule is unaffected); every
@@ -661,19 +704,23 @@ def _sharded_policy(
         return jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
 
     mesh = Mesh(np.array(jax.local_devices()[:n_devices]), ("g",))
+    tol = opts["tol"]
+    # the traced numbers enter as replicated arguments (not closed over by the shards)
+    numbers = tuple(jnp.asarray(opts[k]) for k in ("n_epochs", "step_cost", "time_cost"))
 
-    def solve(keep_s: jax.Array, bonus_s: jax.Array, mask_s: jax.Array, beta_: jax.Array,
-              slip_: jax.Array, reward_: jax.Array) -> jax.Array:  # fmt: skip
+    def solve(keep_s: jax.Array, bonus_s: jax.Array, mask_s: jax.Array, ok_: jax.Array,
+              beta_: jax.Array, slip_: jax.Array, reward_: jax.Array, k_: jax.Array,
+              sc_: jax.Array, tc_: jax.Array) -> jax.Array:  # fmt: skip
         return soft_backward_induction(
-            ok, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g",
-            cell_reward=reward_, **opts,
+            ok_, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g",
+            cell_reward=reward_, n_epochs=k_, step_cost=sc_, time_cost=tc_, tol=tol,
         ).policy  # fmt: skip
 
     split = jax.shard_map(
-        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g"), P(), P(), P()), out_specs=P("g"),
+        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g")) + (P(),) * 7, out_specs=P("g"),
         check_vma=False,
     )  # fmt: skip
-    return split(padded(keep), padded(bonus), padded(mask), beta, slip, reward)[:g]
+    return split(padded(keep), padded(bonus), padded(mask), ok, beta, slip, reward, *numbers)[:g]
 
 
 def behaviour_log_likelihood(
@@ -825,6 +872,82 @@ def _feature_maps(
     return tuple(names), np.stack(maps)
 
 
+def _likelihood_data(
+    paths: list[np.ndarray],
+    free: np.ndarray,
+    *,
+    goal_reward: float,
+    step_cost: float,
+    time_cost: float,
+    dtype: Any,
+    n_devices: int | None = None,
+    features: np.ndarray | None = None,
+) -> tuple[_LikelihoodData, Any, int, int]:
+    """The arguments of the fit's log-likelihood (:func:`_loglik`) for ``paths`` on the grid
+    ``free``, padded to shape buckets; their :class:`MoveObservations`, the epoch cap ``K``
+    and the number of local devices the goals are split across (default: all of them, at
+    most one per padded goal).
+
+    Padding: the goals to :func:`_bucket` of their number (a multiple of the devices),
+    repeating the last goal (its copies change by exactly as much per epoch, so the solve
+    stops at the same epoch and every real goal's policy is the same); the tracks and their
+    steps to :func:`_bucket` of their numbers with steps ``move = -1`` (factors of exactly
+    1). The likelihood is that of the unpadded data.
+
+    Raises
+    ------
+    LimitError
+        If the soft policies of the padded goals would pass the memory limit.
+    """
+    obs = move_observations(paths)
+    k = _n_epochs(free, paths, obs.goals, factor=10.0)
+    g, (n, t) = len(obs.goals), obs.move.shape
+    if n_devices is None:
+        n_devices = jax.local_device_count()
+    n_devices = max(1, min(int(n_devices), _bucket(g)))
+    gb, nb, tb = _bucket(g, n_devices), _bucket(n), _bucket(t)
+    n_theta = 2 + (0 if features is None else len(features))
+    check_memory(
+        float(gb) * 4 * 5 * free.size * jnp.dtype(dtype).itemsize * (2 + n_theta),
+        f"the soft policies of {gb} goals on the {free.shape[0]} x {free.shape[1]} grid and "
+        f"their derivatives",
+    )
+    pad_g = np.minimum(np.arange(gb), g - 1)  # the padding goals repeat the last one
+    keep, bonus = _goal_masks(free, obs.goals[pad_g], goal_reward)
+    # convergence is measured on the visited cells and their neighbours
+    from scipy import ndimage
+
+    seen = np.zeros((g,) + free.shape, bool)
+    valid = obs.move >= 0
+    seen[
+        np.broadcast_to(obs.goal_index[:, None], obs.move.shape)[valid],
+        obs.rows[valid],
+        obs.cols[valid],
+    ] = True
+    seen = ndimage.binary_dilation(seen, np.ones((1, 5, 5), bool))[pad_g]
+
+    def steps(x: np.ndarray, fill: int) -> jax.Array:
+        out = np.full((nb, tb), fill, np.int64)
+        out[:n, :t] = x
+        return jnp.asarray(out)
+
+    data = _LikelihoodData(
+        ok=jnp.asarray(path_free(~free)),
+        keep=keep,
+        bonus=jnp.asarray(bonus, dtype),
+        tol_mask=jnp.asarray(seen),
+        goal_index=jnp.asarray(np.r_[obs.goal_index, np.zeros(nb - n, np.int64)]),
+        rows=steps(obs.rows, 0),
+        cols=steps(obs.cols, 0),
+        move=steps(obs.move, -1),
+        n_epochs=jnp.asarray(k, jnp.int32),
+        step_cost=jnp.asarray(step_cost, dtype),
+        time_cost=jnp.asarray(time_cost, dtype),
+        phi=None if features is None else jnp.asarray(features, dtype),
+    )
+    return data, obs, k, n_devices
+
+
 def _likelihood(
     paths: list[np.ndarray],
     free: np.ndarray,
@@ -842,33 +965,56 @@ def _likelihood(
     ends with their ``F`` weights.
 
     The goals are split across ``n_devices`` local devices (default: all of them, at most
-    one per goal); results are identical for any split.
+    one per goal); results are identical for any split. ``f`` is :func:`_loglik` on the
+    padded data of :func:`_likelihood_data`.
     """
-    obs = move_observations(paths)
-    k = _n_epochs(free, paths, obs.goals, factor=10.0)
-    ok = jnp.asarray(path_free(~free))
-    keep, bonus = _goal_masks(free, obs.goals, goal_reward)
-    obs_j = tuple(jnp.asarray(x) for x in obs[:4])
-    # convergence is measured on the visited cells and their neighbours
-    from scipy import ndimage
-
-    seen = np.zeros((len(obs.goals),) + free.shape, bool)
-    valid = obs.move >= 0
-    seen[
-        np.broadcast_to(obs.goal_index[:, None], obs.move.shape)[valid],
-        obs.rows[valid],
-        obs.cols[valid],
-    ] = True
-    seen = ndimage.binary_dilation(seen, np.ones((1, 5, 5), bool))
-    if n_devices is None:
-        n_devices = jax.local_device_count()
-    f = partial(
-        _loglik, ok=ok, keep=keep, bonus=jnp.asarray(bonus, dtype), obs=obs_j,
-        step_cost=step_cost, time_cost=time_cost, n_epochs=k, tol=tol,
-        tol_mask=jnp.asarray(seen), n_devices=max(1, min(n_devices, len(obs.goals))),
-        phi=None if features is None else jnp.asarray(features, dtype),
+    data, obs, k, n_devices = _likelihood_data(
+        paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
+        dtype=dtype, n_devices=n_devices, features=features,
     )  # fmt: skip
-    return f, obs, k
+    return partial(_loglik, data=data, tol=_check_tol(tol), n_devices=n_devices), obs, k
+
+
+def _check_tol(tol: Any) -> float:
+    """The soft solve's stopping tolerance of the fit: a positive float (it makes the epoch
+    cap data rather than a compiled-in loop length)."""
+    try:
+        value = float(tol)
+    except (TypeError, ValueError):
+        value = math.nan
+    if isinstance(tol, bool) or not value > 0:
+        raise ValueError(f"tol: expected a positive float, got {tol!r}")
+    return value
+
+
+@partial(jax.jit, static_argnames=("tol", "n_devices"))
+def _value_and_gradient(
+    theta: jax.Array, data: _LikelihoodData, tol: float, n_devices: int
+) -> tuple[jax.Array, jax.Array]:
+    """``(gradient (n,), value ())`` of :func:`_loglik` at ``theta (n,)``, forward mode: one
+    compiled program per shape bucket of ``data`` (the data are arguments)."""
+
+    def twice(th: jax.Array) -> tuple[jax.Array, jax.Array]:
+        v = _loglik(th, data, tol, n_devices)
+        return v, v
+
+    return jax.jacfwd(twice, has_aux=True)(theta)
+
+
+@partial(jax.jit, static_argnames=("tol", "n_devices"))
+def _second_derivative(
+    theta: jax.Array, u: jax.Array, v: jax.Array, data: _LikelihoodData, tol: float,
+    n_devices: int,
+) -> jax.Array:  # fmt: skip
+    """``u' H v`` (scalar), ``H (n, n)`` the Hessian of :func:`_loglik` at ``theta (n,)``:
+    forward over forward mode with one tangent each (one small program run ``n (n + 1) / 2``
+    times compiles and runs faster than ``jacfwd(jacfwd)``: 500 tracks, 100 x 100, under
+    load, 19 + 3 x 4.3 s against 31 + 19 s)."""
+
+    def f(y: jax.Array) -> jax.Array:
+        return _loglik(y, data, tol, n_devices)
+
+    return jax.jvp(lambda y: jax.jvp(f, (y,), (u,))[1], (theta,), (v,))[1]
 
 
 def _mle(
@@ -885,24 +1031,21 @@ def _mle(
     features: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Maximum likelihood of ``(beta, slip[, weights])`` with inverse-Hessian standard
-    errors (the weights of ``features (F, H, W)`` start at 0)."""
+    errors (the weights of ``features (F, H, W)`` start at 0). The value, gradient and
+    Hessian are the programs :func:`_value_and_gradient` and :func:`_second_derivative`,
+    compiled once per shape bucket of the data."""
     from scipy.optimize import minimize
 
-    f, obs, k = _likelihood(
+    tol = _check_tol(tol)
+    data, obs, k, n_devices = _likelihood_data(
         paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
-        dtype=dtype, tol=tol, features=features,
+        dtype=dtype, features=features,
     )  # fmt: skip
     n_f = 0 if features is None else len(features)
     scale = 1.0 / max(obs.n_moves, 1)
 
-    def twice(th: jax.Array) -> tuple[jax.Array, jax.Array]:
-        v = f(th)
-        return v, v
-
-    grad = jax.jit(jax.jacfwd(twice, has_aux=True))
-
     def fun(th: np.ndarray) -> tuple[float, np.ndarray]:
-        g, v = grad(jnp.asarray(th, dtype))
+        g, v = _value_and_gradient(jnp.asarray(th, dtype), data, tol, n_devices)
         return -float(v) * scale, -np.asarray(g, float) * scale
 
     th0 = np.r_[math.log(beta0), math.log(slip0 / (1 - slip0)), np.zeros(n_f)]
@@ -921,19 +1064,14 @@ def _mle(
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
     th = jnp.asarray(res.x, dtype)
 
-    # The Hessian entry by entry (h11, h22, h12, ...), forward over forward mode with one
-    # tangent each: one small program run n (n + 1) / 2 times compiles and runs faster than
-    # jacfwd(jacfwd) (500 tracks, 100 x 100, under load: 19 + 3 x 4.3 s against 31 + 19 s).
-    def second(x: jax.Array, u: jax.Array, v: jax.Array) -> jax.Array:
-        return jax.jvp(lambda y: jax.jvp(f, (y,), (u,))[1], (x,), (v,))[1]
-
-    d2 = jax.jit(second)
+    # the Hessian entry by entry (h11, h22, h12, ...), one program for every entry
     n = 2 + n_f
     e = jnp.eye(n, dtype=dtype)
     hess = np.zeros((n, n))
     for i in range(n):
         for j in range(i, n):
-            hess[i, j] = hess[j, i] = float(d2(th, e[i], e[j]))
+            d2 = _second_derivative(th, e[i], e[j], data, tol, n_devices)
+            hess[i, j] = hess[j, i] = float(d2)
     try:
         cov = np.linalg.inv(-hess)
         se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))

@@ -34,7 +34,6 @@ import math
 import sys
 import warnings
 from collections.abc import Callable, Sequence
-from functools import partial
 from typing import Any
 
 import jax
@@ -43,10 +42,12 @@ import numpy as np
 import pandas as pd
 
 from are_stats.behaviour import (
+    GOAL_BUCKET,
     BehaviourFit,
     move_observations,
     moves_log_likelihood,
     path_free,
+    soft_policy,
     tracker_noise,
 )
 from are_stats.inputs import LimitError
@@ -731,52 +732,24 @@ def motion_checks(
 
 
 # ---------------------------------------------------------------------- held-out likelihood
-#: Goals per soft solve of :func:`_policies` are padded to a multiple of this (repeating the
-#: last goal; the displacement errors' chunks hold at most this many): with the epoch cap
-#: passed as data, a fit's many solves share one compiled program per class.
-GOAL_BUCKET = 16
-
-
-@partial(jax.jit, static_argnames=("tol",))
-def _capped_solve(ok, keep, bonus, beta, slip, n_epochs, step_cost, time_cost, cell_reward, tol):
-    """:func:`~are_stats.behaviour.soft_backward_induction` with the epoch cap ``n_epochs``
-    traced (with ``tol`` it only bounds the loop, so it need not be compiled in)."""
-    from are_stats.behaviour import soft_backward_induction
-
-    return soft_backward_induction(
-        ok, keep, bonus, beta, slip, n_epochs=n_epochs, step_cost=step_cost,
-        time_cost=time_cost, cell_reward=cell_reward, tol=tol,
-    )  # fmt: skip
-
-
 def _policies(fit: BehaviourFit, c: int, goals: np.ndarray, tol: float = 1e-3) -> np.ndarray:
     """Soft policies ``(G, 4, 5, H, W)`` of class ``c`` to the cells ``goals (G, 2)``: those
     of :func:`~are_stats.behaviour.soft_policy` (at most ``10 x`` the longest geodesic
-    distance plus 20 epochs, stopped at ``tol``), computed by one program for any cap and
-    any ``G`` up to :data:`GOAL_BUCKET` (the padding goals repeat the last one, so the
-    largest change that stops the solve, and every real goal's policy, are the same)."""
+    distance plus 20 epochs, stopped at ``tol``), computed by one program for any cap,
+    tolerance and ``G`` up to :data:`~are_stats.behaviour.GOAL_BUCKET`, the program of
+    generation's solves (``soft_policy``'s ``bucket``: the padding goals repeat the last
+    one, so the largest change that stops the solve, and every real goal's policy, are the
+    same)."""
     goals = np.asarray(goals, np.int64).reshape(-1, 2)
     dist = fit.geodesic(goals)
     finite = dist[np.isfinite(dist)]
     k = int(math.ceil(10 * (finite.max() if finite.size else 1.0))) + 20
-    g = len(goals)
-    padded = goals[np.minimum(np.arange(-(-g // GOAL_BUCKET) * GOAL_BUCKET), g - 1)]
-    occ = ~np.asarray(fit.free, bool)
-    mask = np.zeros((len(padded),) + occ.shape, bool)
-    mask[np.arange(len(padded)), padded[:, 0], padded[:, 1]] = True
-    sol = _capped_solve(
-        jnp.asarray(path_free(occ)),
-        jnp.asarray(~occ[None] & ~mask),
-        jnp.asarray(np.where(mask, fit.goal_reward, 0.0)),
-        jnp.asarray(float(fit.beta[c])),
-        jnp.asarray(float(fit.slip[c])),
-        jnp.asarray(k, jnp.int32),
-        fit.step_cost,
-        fit.time_cost,
-        jnp.asarray(fit.cell_reward(c), float),
-        tol=tol,
-    )
-    return np.asarray(sol.policy)[:g]
+    sol = soft_policy(
+        ~np.asarray(fit.free, bool), goals, float(fit.beta[c]), float(fit.slip[c]),
+        n_epochs=k, goal_reward=fit.goal_reward, step_cost=fit.step_cost,
+        time_cost=fit.time_cost, cell_reward=fit.cell_reward(c), tol=tol, bucket=GOAL_BUCKET,
+    )  # fmt: skip
+    return np.asarray(sol.policy)
 
 
 def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFrame:

@@ -191,3 +191,29 @@ def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> No
     assert_allclose(results["g"].policy, whole.policy, rtol=1e-12, atol=1e-12)
     # without the shared stopping rule the near goals' shard stops early
     assert np.abs(np.asarray(results[None].values - whole.values)).max() > 1e-6
+
+
+def test_bucketed_soft_policy_is_the_same_bit_for_bit_from_one_program() -> None:
+    """soft_policy's ``bucket`` (issue 29: generation's soft solves compiled one program per
+    epoch cap and goal count): the goals padded with copies of the last one, the cap and
+    the tolerance passed as data. Values and policies equal the unpadded solve's bit for
+    bit, and new caps, tolerances and goal counts up to the bucket compile nothing."""
+    from are_stats.behaviour._soft import _capped_jit
+
+    occ = _grid()
+    cells = np.argwhere(~occ)
+    rng = np.random.default_rng(1)
+    cr = -0.3 * np.asarray(rng.uniform(0, 1, occ.shape))
+    opts = dict(goal_reward=1.0, step_cost=1e-3, time_cost=1.0, cell_reward=cr)
+    soft_policy(occ, cells[:2], 2.0, 0.1, n_epochs=30, tol=1e-3, bucket=4, **opts)
+    size = _capped_jit._cache_size()
+    for g, k, tol in ((1, 40, 1e-3), (3, 25, 1e-2), (4, 200, 1e-6)):
+        goals = cells[rng.choice(len(cells), g, replace=False)]
+        got = soft_policy(occ, goals, 2.0, 0.1, n_epochs=k, tol=tol, bucket=4, **opts)
+        want = soft_policy(occ, goals, 2.0, 0.1, n_epochs=k, tol=tol, **opts)
+        assert got.policy.shape == want.policy.shape == (g, 4, 5) + occ.shape
+        np.testing.assert_array_equal(np.asarray(got.policy), np.asarray(want.policy))
+        np.testing.assert_array_equal(np.asarray(got.values), np.asarray(want.values))
+    assert _capped_jit._cache_size() == size
+    with pytest.raises(ValueError, match="bucket: expected with tol"):
+        soft_policy(occ, cells[:2], 2.0, 0.1, n_epochs=30, bucket=4)

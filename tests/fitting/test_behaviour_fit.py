@@ -288,6 +288,42 @@ def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
     assert_allclose(g2, g1, rtol=1e-10)
 
 
+@pytest.mark.parametrize("n_devices", [1, 2])
+def test_padded_likelihood_equals_the_unpadded_one(monkeypatch, n_devices: int) -> None:
+    """The fit's likelihood pads goals, tracks and steps to shape buckets (issue 29: one
+    compiled program for the fit and the held-out fit); its value and gradient are those
+    of the unpadded data. Float64; the padding steps are factors of exactly 1, the padding
+    goals copies of the last one."""
+    import are_stats.fitting._behaviour as fb
+
+    if jax.local_device_count() < n_devices:
+        pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
+    free, paths, phi = _small_world()
+    paths = [paths[1], paths[2][:6], paths[3]]  # 3 goals, 3 tracks, at most 7 steps
+    opts = dict(
+        goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
+        n_devices=n_devices, features=phi,
+    )  # fmt: skip
+    th = np.array([np.log(1.7), -2.0, -0.4, 0.3])
+    out = []
+    for pad in (True, False):
+        if not pad:  # every bucket the exact size (a multiple of the devices for the goals)
+            monkeypatch.setattr(fb, "_bucket", _bucket_exact)
+        data, obs, _, n_dev = fb._likelihood_data(paths, free, **opts)
+        shapes = (data.keep.shape[0], *data.move.shape)
+        assert shapes == ((4, 4, 8) if pad else (_bucket_exact(3, n_dev), 3, 7))
+        out.append(fb._value_and_gradient(th, data, 1e-3, n_dev))
+    (g_pad, v_pad), (g, v) = out
+    assert np.isfinite(float(v)) and np.abs(np.asarray(g)).min() > 1e-3
+    assert_allclose(v_pad, v, rtol=1e-13)
+    assert_allclose(g_pad, g, rtol=1e-11)
+
+
+def _bucket_exact(n: int, multiple: int = 1) -> int:
+    """No padding: the smallest multiple of ``multiple`` that holds ``n``."""
+    return -(-n // multiple) * multiple
+
+
 # ---------------------------------------------------------------------- reward features
 @pytest.mark.parametrize("wall_weight", [0.5, -0.5])
 def test_recovers_a_wall_weight_of_either_sign_from_model_tracks(wall_weight: float) -> None:
