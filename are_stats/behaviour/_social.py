@@ -1165,6 +1165,29 @@ def _smoothed_acceleration(d: Mapping[str, Any], seq: np.ndarray) -> np.ndarray:
     return acc[d["inner"]]
 
 
+def _smoothing_rows(
+    tracks: pd.DataFrame,
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float
+]:
+    """The rows of ``tracks`` in id and time order, as the smoother reads them: ids,
+    times, positions (n, 2), each row's track number and index in its track (n,), each
+    track's first and last row (T,), and the one time step (:func:`_equal_step`). Checks
+    the smoother's memory (six (n, 2) float arrays, twice) before it is spent."""
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    ids = tab["id"].to_numpy()
+    t = tab["t"].to_numpy(float)
+    raw = tab[["x", "y"]].to_numpy(float)
+    first = np.r_[True, ids[1:] != ids[:-1]]
+    last = np.r_[first[1:], True]
+    dt = _equal_step(t, first)
+    who = np.cumsum(first) - 1
+    start, stop = np.flatnonzero(first), np.flatnonzero(last)
+    at = np.arange(len(raw)) - start[who]
+    check_memory(8 * len(raw) * 2 * 2 * 6, "the smoothed tracks")
+    return ids, t, raw, who, at, start, stop, dt
+
+
 def _smoothed_design(
     tracks: pd.DataFrame,
     base: SocialForce,
@@ -1190,21 +1213,10 @@ def _smoothed_design(
     smoother of less jerk (:data:`STATE_JERK`). ``v_var`` is the smoothed velocity's noise
     variance per unit position noise (white noise through the smoother)."""
 
-    tab = tracks.sort_values(["id", "t"], kind="stable")
-    ids = tab["id"].to_numpy()
-    t = tab["t"].to_numpy(float)
-    raw = tab[["x", "y"]].to_numpy(float)
-    first = np.r_[True, ids[1:] != ids[:-1]]
-    last = np.r_[first[1:], True]
-    dt = _equal_step(t, first)
-    who = np.cumsum(first) - 1
-    start, stop = np.flatnonzero(first), np.flatnonzero(last)
+    ids, t, raw, who, at, start, stop, dt = _smoothing_rows(tracks)
     k = np.arange(len(raw))
-    at = k - start[who]
-    length = stop - start + 1
-    n_tracks = length.size
+    n_tracks = start.size
     jerk = JERK_DENSITY if jerk is None else jerk
-    check_memory(8 * len(raw) * 2 * 2 * 6, "the smoothed tracks")
     sm = {"at": at, "who": who,
           "noise": float(noise), "jerk": float(jerk)}  # fmt: skip
     state = smooth_samples(raw, who, at, dt, noise, jerk)  # (3, n, 2)
@@ -1524,17 +1536,7 @@ def _walk_plans(
     first smoothed position to its last one, at its median smoothed walking speed (samples
     at ``min_speed`` or more), standing at the end; ``vx, vy`` its smoothed velocity at the
     first row. And (n,) the rows' ids."""
-    tab = tracks.sort_values(["id", "t"], kind="stable").reset_index(drop=True)
-    ids = tab["id"].to_numpy()
-    t = tab["t"].to_numpy(float)
-    raw = tab[["x", "y"]].to_numpy(float)
-    first = np.r_[True, ids[1:] != ids[:-1]]
-    last = np.r_[first[1:], True]
-    dt = _equal_step(t, first)
-    who = np.cumsum(first) - 1
-    start, stop = np.flatnonzero(first), np.flatnonzero(last)
-    at = np.arange(len(raw)) - start[who]
-    check_memory(8 * len(raw) * 2 * 2 * 6, "the smoothed tracks")
+    ids, t, raw, who, at, start, stop, dt = _smoothing_rows(tracks)
     pos, vel, _ = smooth_samples(raw, who, at, dt, sd, JERK_DENSITY)
     speed = np.hypot(*vel.T)
     moving = speed >= min_speed

@@ -24,6 +24,7 @@ import pytest
 from are_stats.behaviour import BehaviourFit, social_force_tracks
 from are_stats.fitting import attach_behaviour, fit_behaviour, tracker_noise
 from are_stats.fitting._behaviour import _crowded, _heading_variation, _track_speed
+from tests.fitting.test_speed_variation import _inner, _lanes
 
 SD, TIME = 0.12, 2.0
 TOL_SD, TOL_TIME = 0.01, 0.44
@@ -127,23 +128,6 @@ def test_fit_behaviour_stores_the_heading_variation_and_old_files_read_without_i
     assert old.heading_within_sd.tolist() == [0.0]
     assert np.isnan(old.heading_within_time).all()
     np.testing.assert_array_equal(old.speed_within_sd, fit.speed_within_sd)
-
-
-def _lanes(n: int, length: float = 100.0) -> pd.DataFrame:
-    """Planned straight walks at 1.3 m/s on parallel lanes 10 m apart (nobody near)."""
-    t = np.arange(0.0, length / 1.3 + 1e-9, 0.1)
-    return pd.concat(
-        [pd.DataFrame({"id": i, "t": t, "x": 1.3 * t, "y": 10.0 * i, "yaw": 0.0})
-         for i in range(n)],
-        ignore_index=True,
-    )  # fmt: skip
-
-
-def _inner(walked: pd.DataFrame) -> pd.DataFrame:
-    """The walks less their first and last 2 s (starting and stopping)."""
-    by = walked.groupby("id")
-    keep = (by.cumcount() >= 20) & (by.cumcount(ascending=False) >= 20)
-    return walked.loc[keep, ["id", "t", "x", "y"]]
 
 
 def test_zero_heading_variation_walks_exactly_as_without() -> None:
