@@ -285,15 +285,15 @@ def test_a_force_of_strength_zero_skips_the_pair_search_and_walks_the_same(monke
     calls = []
     window = _social._window
 
-    def spy(*args):
+    def spy(*args, **kw):  # repel is the last positional argument
         calls.append(args[-1])
-        return window(*args)
+        return window(*args, **kw)
 
     monkeypatch.setattr(_social, "_window", spy)
     skipped = social_force_tracks(plan, none, dt=0.1)
     assert calls and not any(calls)  # repel False in every window
     calls.clear()
-    monkeypatch.setattr(_social, "_window", lambda *args: spy(*args[:-1], True))
+    monkeypatch.setattr(_social, "_window", lambda *args, **kw: spy(*args[:-1], True, **kw))
     searched = social_force_tracks(plan, none, dt=0.1)
     assert calls and all(calls)
     pd.testing.assert_frame_equal(skipped, searched, check_exact=True)

@@ -104,10 +104,10 @@ def test_the_walks_cover_the_searches_and_share_programs_without_repulsion(monke
     programs = {}
     window = _social._window
 
-    def spy(*args):
+    def spy(*args, **kw):  # all_pairs, block, repel: the last positional arguments
         nb = args[0][0].shape[0]
         programs[name].add((nb, args[-3], args[-2], args[-1]))
-        return window(*args)
+        return window(*args, **kw)
 
     monkeypatch.setattr(_social, "_window", spy)
     for name in WANT:
