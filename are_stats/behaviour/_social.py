@@ -1003,6 +1003,20 @@ def _equal_step(t: np.ndarray, first: np.ndarray) -> float:
     return dt
 
 
+def _sorted_rows(
+    tracks: pd.DataFrame,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """The rows of ``tracks`` in id and time order: ids, times, positions (n, 2), each
+    track's first and last rows as (n,) bool, and the one time step (:func:`_equal_step`)."""
+    tab = tracks.sort_values(["id", "t"], kind="stable")
+    ids = tab["id"].to_numpy()
+    t = tab["t"].to_numpy(float)
+    raw = tab[["x", "y"]].to_numpy(float)
+    first = np.r_[True, ids[1:] != ids[:-1]]
+    last = np.r_[first[1:], True]
+    return ids, t, raw, first, last, _equal_step(t, first)
+
+
 def _neighbour_pairs(
     t: np.ndarray, pos: np.ndarray, dt: float, reach: float, label: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -1060,13 +1074,7 @@ def _acceleration_design(
     regressors independently: no errors-in-variables correlation, which with the state
     from ``k - 1, k`` (a backward difference) read 1 cm of noise at 10 Hz as a strength of
     3.4 for 2.1. Only samples with ``d + 1`` neighbours on either side are used."""
-    tab = tracks.sort_values(["id", "t"], kind="stable")
-    ids = tab["id"].to_numpy()
-    t = tab["t"].to_numpy(float)
-    raw = tab[["x", "y"]].to_numpy(float)
-    first = np.r_[True, ids[1:] != ids[:-1]]
-    last = np.r_[first[1:], True]
-    dt = _equal_step(t, first)
+    ids, t, raw, first, last, dt = _sorted_rows(tracks)
     lag = 1  # the second difference's span, in steps
     acc_noise = np.sqrt(6) * noise / dt**2
     while lag < ACCELERATION_SPAN / dt and acc_noise > ACCELERATION_NOISE * lag**2:
@@ -1174,13 +1182,7 @@ def _smoothing_rows(
     times, positions (n, 2), each row's track number and index in its track (n,), each
     track's first and last row (T,), and the one time step (:func:`_equal_step`). Checks
     the smoother's memory (six (n, 2) float arrays, twice) before it is spent."""
-    tab = tracks.sort_values(["id", "t"], kind="stable")
-    ids = tab["id"].to_numpy()
-    t = tab["t"].to_numpy(float)
-    raw = tab[["x", "y"]].to_numpy(float)
-    first = np.r_[True, ids[1:] != ids[:-1]]
-    last = np.r_[first[1:], True]
-    dt = _equal_step(t, first)
+    ids, t, raw, first, last, dt = _sorted_rows(tracks)
     who = np.cumsum(first) - 1
     start, stop = np.flatnonzero(first), np.flatnonzero(last)
     at = np.arange(len(raw)) - start[who]

@@ -24,7 +24,7 @@ import pytest
 from are_stats.behaviour import BehaviourFit, social_force_tracks
 from are_stats.fitting import attach_behaviour, fit_behaviour, tracker_noise
 from are_stats.fitting._behaviour import _crowded, _heading_variation, _track_speed
-from tests.fitting.test_speed_variation import _inner, _lanes
+from tests.fitting.test_speed_variation import _inner, _lanes, walks_without_and_with
 
 SD, TIME = 0.12, 2.0
 TOL_SD, TOL_TIME = 0.01, 0.44
@@ -196,35 +196,11 @@ def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before(
     older file) walks exactly as a fit of sd 0."""
     import dataclasses
 
-    import jax
-
-    from are_stats.environment import load_catalogue
-    from are_stats.scenarios import scene_tracks
-
     tracks = ou_heading_tracks(21, 30, SD, TIME, 0.0, duration=20.0)
     free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
     fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
     fit = dataclasses.replace(fit, speed_within_sd=np.zeros(1))  # the heading's alone
-    n = 6
-    art = pd.DataFrame({
-        "scenario": 0, "artefact": np.arange(n), "t_arrive": 30.0 * np.arange(n),
-        "t_leave": 30.0 * np.arange(n) + 25.0, "x": 5.0, "y": 5.0 + 8.0 * np.arange(n),
-        "yaw": 0.0, "label": "all",
-    })  # fmt: skip
-    cat = load_catalogue()
-
-    def walk(f):
-        return scene_tracks(jax.random.key(3), art, None, cat, 400.0, behaviours="fitted",
-                            fitted=f)  # fmt: skip
-
-    older = BehaviourFit.from_dataset(
-        fit.to_dataset().drop_vars(["heading_within_sd", "heading_within_time"])
-    )
-    none = walk(dataclasses.replace(fit, heading_within_sd=np.zeros(1)))
-    pd.testing.assert_frame_equal(walk(older), none, check_exact=True)
-    varied = walk(dataclasses.replace(fit, heading_within_sd=np.array([0.2])))
-    assert varied[["id", "t"]].equals(none[["id", "t"]])
-    assert not np.allclose(varied[["x", "y"]], none[["x", "y"]])
+    none, varied = walks_without_and_with(fit, "heading")
     # both end where they were going (each aims at its route's corners all the while)
     end_n, end_v = none.groupby("id")[["x", "y"]].last(), varied.groupby("id")[["x", "y"]].last()
     assert np.hypot(*(end_n - end_v).to_numpy().T).max() < 2.0

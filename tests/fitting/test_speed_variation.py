@@ -164,10 +164,11 @@ def test_bad_speed_variation_is_named(variation, words) -> None:
     assert words in str(err.value)
 
 
-def test_generation_walks_the_fits_variation_and_an_older_fit_walks_as_before() -> None:
-    """scene_tracks (every command's assembly) hands the fit's per-class variation to the
-    social force: a fit with it walks its people at varying speeds on the same routes, a
-    fit without (an older file) exactly as a fit of sd 0."""
+def walks_without_and_with(fit: BehaviourFit, kind: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Six people walked by :func:`scene_tracks` (every command's assembly) under ``fit``
+    with its ``kind`` (``speed`` or ``heading``) within-person sd at 0 and at 0.2; checks
+    that an older fit (without the variation's fields) walks exactly as sd 0, and that
+    the varied walk has the same rows and other positions."""
     import dataclasses
 
     import jax
@@ -175,9 +176,6 @@ def test_generation_walks_the_fits_variation_and_an_older_fit_walks_as_before() 
     from are_stats.environment import load_catalogue
     from are_stats.scenarios import scene_tracks
 
-    tracks = ou_tracks(21, 30, SD, TIME, 0.0, duration=20.0)
-    free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
-    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
     n = 6
     art = pd.DataFrame({
         "scenario": 0, "artefact": np.arange(n), "t_arrive": 30.0 * np.arange(n),
@@ -190,14 +188,24 @@ def test_generation_walks_the_fits_variation_and_an_older_fit_walks_as_before() 
         return scene_tracks(jax.random.key(3), art, None, cat, 400.0, behaviours="fitted",
                             fitted=f)  # fmt: skip
 
-    older = BehaviourFit.from_dataset(
-        fit.to_dataset().drop_vars(["speed_within_sd", "speed_within_time"])
-    )
-    none = walk(dataclasses.replace(fit, speed_within_sd=np.zeros(1)))
+    sd, time = f"{kind}_within_sd", f"{kind}_within_time"
+    older = BehaviourFit.from_dataset(fit.to_dataset().drop_vars([sd, time]))
+    none = walk(dataclasses.replace(fit, **{sd: np.zeros(1)}))
     pd.testing.assert_frame_equal(walk(older), none, check_exact=True)
-    varied = walk(dataclasses.replace(fit, speed_within_sd=np.array([0.2])))
+    varied = walk(dataclasses.replace(fit, **{sd: np.array([0.2])}))
     assert varied[["id", "t"]].equals(none[["id", "t"]])
     assert not np.allclose(varied[["x", "y"]], none[["x", "y"]])
+    return none, varied
+
+
+def test_generation_walks_the_fits_variation_and_an_older_fit_walks_as_before() -> None:
+    """scene_tracks (every command's assembly) hands the fit's per-class variation to the
+    social force: a fit with it walks its people at varying speeds on the same routes, a
+    fit without (an older file) exactly as a fit of sd 0."""
+    tracks = ou_tracks(21, 30, SD, TIME, 0.0, duration=20.0)
+    free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
+    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
+    none, varied = walks_without_and_with(fit, "speed")
     # on the same routes: each walks its own, at its own pace
     for i, g in varied.groupby("id"):
         route = none.loc[none["id"] == i, ["x", "y"]].to_numpy()
