@@ -10,7 +10,7 @@ import pytest
 from are_stats._lazy import arviz as az
 from are_stats.behaviour import behaviour_tracks
 from are_stats.builder import ARBuilder
-from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
+from are_stats.environment import OccupancyGrid
 from are_stats.fitting import posterior_draws
 from are_stats.scenarios import (
     Scene,
@@ -21,16 +21,6 @@ from are_stats.scenarios import (
 )
 
 HORIZON = 120.0
-
-
-@pytest.fixture(scope="module")
-def grid() -> OccupancyGrid:
-    return OccupancyGrid.from_ros_yaml(shipped_path("courtyard", "map"))
-
-
-@pytest.fixture(scope="module")
-def catalogue():
-    return load_catalogue()
 
 
 def _idata(n_draws: int = 6) -> object:

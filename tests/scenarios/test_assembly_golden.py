@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 from are_stats._lazy import arviz as az
 from are_stats.behaviour import BehaviourFit
 from are_stats.cli import app
-from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
+from are_stats.environment import OccupancyGrid
 from are_stats.scenarios import (
     read_scenes,
     scene_tracks,
@@ -43,16 +43,6 @@ WANT = {
     "folder scenario": "9197338fded5486cc40a5eaa01fc9e2313f50d35b2228f5dcf58cda7c35500d9",
     "generate": "dcad3e1fe2e9659345f14e068ef34b0f03b755bc38ade4e9a06b2b188f2c90f9",
 }
-
-
-@pytest.fixture(scope="module")
-def grid() -> OccupancyGrid:
-    return OccupancyGrid.from_ros_yaml(shipped_path("courtyard", "map"))
-
-
-@pytest.fixture(scope="module")
-def catalogue():
-    return load_catalogue()
 
 
 def _digest(*tables: pd.DataFrame | None) -> str:

@@ -6,13 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from are_stats.environment import load_catalogue
 from are_stats.scenarios._scene import Scene
-
-
-@pytest.fixture(scope="module")
-def catalogue():
-    return load_catalogue()
 
 
 def table(n: int = 4) -> pd.DataFrame:
