@@ -580,9 +580,6 @@ def run_generate(
     if map_path is not None:
         map_path = resolve_shipped(map_path, "map", source="--map")  # or a shipped map's name
         grid = OccupancyGrid.from_ros_yaml(map_path)
-    fitted = fit.behaviour is not None
-    if behaviours and grid is None and not fitted:
-        raise ValueError("--behaviours: expected --map (trajectories need the grid)")
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
@@ -612,6 +609,8 @@ def run_generate(
             behaviour_dt=behaviour_dt,
             source=source,
             cell_source="--behaviour-cell",
+            behaviours_source="--behaviours",
+            map_source="--map",
             progress=StepsLeft(clock, stage),
         )
     df, tracks = scenes_tables(scenes)

@@ -488,6 +488,9 @@ def test_em_fit_without_marks_then_report_and_generate(tmp_path):
         (["--seed", "-3"], r"--seed: expected an integer >= 0"),
         (["--behaviours", "--behaviour-cell", "0"], r"--behaviour-cell: expected a finite number"),
         (["--behaviours", "--behaviour-dt", "inf"], r"--behaviour-dt: expected a finite number"),
+        # the assembly's behaviour rule, in the command's words: a fit without a behaviour
+        # walks the catalogue's MDP, which needs the map
+        (["--behaviours"], r"^error: --behaviours: expected --map \(trajectories need the grid\)$"),
     ],
 )
 def test_generate_options_are_checked_before_any_work(tmp_path, em_fit_file, extra, match):

@@ -3,7 +3,6 @@ Scene that turns one scenario into boxes over time, and the scenarios folder (on
 :func:`write_scenes`, and one validating reader, :func:`read_scenes`)."""
 
 from are_stats.scenarios._assembly import (
-    BEHAVIOUR_SOURCES,
     POSITION_CHOICES,
     check_tracks_size,
     move_scenes,
@@ -13,6 +12,7 @@ from are_stats.scenarios._assembly import (
     scenes_from_tables,
     scenes_tables,
 )
+from are_stats.scenarios._behaviour_rule import BEHAVIOUR_SOURCES, behaviour_source
 from are_stats.scenarios._folder import (
     FORMAT_VERSION,
     MAX_POSITION,
@@ -55,6 +55,7 @@ __all__ = [
     "REALISM_FEATURES",
     "SCENARIO_COLUMNS",
     "atomic_folder",
+    "behaviour_source",
     "check_folder",
     "check_origin_yaw",
     "check_positions",

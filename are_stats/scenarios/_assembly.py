@@ -63,6 +63,7 @@ import pandas as pd
 
 from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_free
 from are_stats.inputs import Described, InputError, check_memory, check_work, get_str
+from are_stats.scenarios._behaviour_rule import behaviour_source
 from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
 from are_stats.scenarios._scene import Scene
 
@@ -78,7 +79,6 @@ if TYPE_CHECKING:
 # scenarios without behaviours stay light.
 
 __all__ = [
-    "BEHAVIOUR_SOURCES",
     "POSITION_CHOICES",
     "check_tracks_size",
     "move_scenes",
@@ -91,9 +91,6 @@ __all__ = [
 
 #: Values of ``positions=`` (``generate --positions``, ``augment --positions``).
 POSITION_CHOICES = ("chosen", "uniform")
-
-#: Values of ``behaviours=`` (besides ``True`` = ``"auto"`` and ``False`` = ``"none"``).
-BEHAVIOUR_SOURCES = ("none", "auto", "fitted", "catalogue")
 
 #: ``progress(done, total, what)``: the assembly's steps done so far, of ``total``, and
 #: the last one done (``done`` grows by one a step and ends at ``total``).
@@ -112,25 +109,6 @@ class _Moves(TypedDict, total=False):
     cell_source: str
     interaction: bool | SocialForce
     progress: _Progress | None
-
-
-def _behaviour_source(behaviours: bool | str, fitted: BehaviourFit | None, source: str) -> str:
-    """The behaviour that moves the artefacts, by the module's one rule."""
-    if isinstance(behaviours, bool | np.bool_):
-        behaviours = "auto" if behaviours else "none"
-    if behaviours not in BEHAVIOUR_SOURCES:
-        raise ValueError(
-            f"{source}: behaviours: expected one of {list(BEHAVIOUR_SOURCES)} or a bool, "
-            f"got {behaviours!r}"
-        )
-    if behaviours == "auto":
-        return "fitted" if fitted is not None else "catalogue"
-    if behaviours == "fitted" and fitted is None:
-        raise ValueError(
-            f"{source}: behaviours 'fitted': the fit has no behaviour group (fit a tracks "
-            "table to learn one), use 'catalogue'"
-        )
-    return behaviours
 
 
 def check_tracks_size(artefacts: pd.DataFrame, shape: tuple[int, int], dt: float, source: str):
@@ -290,8 +268,8 @@ def scene_tracks(
         n = int(artefacts["scenario"].max()) + 1 if len(artefacts) else 1
     standing = scenes_from_tables(artefacts, None, catalogue, class_labels, range(n))
     moved = move_scenes(key, standing, grid, catalogue, horizon, **moves)
-    kind = _behaviour_source(
-        moves.get("behaviours", True), moves.get("fitted"), moves.get("source", "scenario")
+    kind = behaviour_source(
+        moves.get("behaviours", True), moves.get("fitted"), grid, moves.get("source", "scenario")
     )
     if kind == "none" or not len(artefacts):
         return None
@@ -360,9 +338,7 @@ def move_scenes(
     """
     from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
 
-    kind = _behaviour_source(behaviours, fitted, source)
-    if kind == "catalogue" and grid is None:
-        raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
+    kind = behaviour_source(behaviours, fitted, grid, source)
     scenes = list(scenes)
     numbers = _numbers(scenes)
     labels = next((s.class_labels for s in scenes if s.class_labels is not None), None)
@@ -512,9 +488,7 @@ def scenes_from_draws(
     """
     import jax
 
-    kind = _behaviour_source(behaviours, fitted, source)
-    if kind == "catalogue" and grid is None:
-        raise ValueError(f"{source}: catalogue behaviours need a map (the MDP moves on its cells)")
+    kind = behaviour_source(behaviours, fitted, grid, source)
     if isinstance(key, int | np.integer) and not isinstance(key, bool):
         seed, k_tracks = int(key), None
     else:
@@ -763,6 +737,8 @@ def scenes_from_fit(
     behaviour_dt: float = 2.0,
     source: str | None = None,
     cell_source: str = "behaviour_cell",
+    behaviours_source: str | None = None,
+    map_source: str | None = None,
     interaction: bool | SocialForce = True,
     progress: _Progress | None = None,
 ) -> list[Scene]:
@@ -800,6 +776,11 @@ def scenes_from_fit(
         else the published parameters.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
+    behaviours_source, map_source : str, optional
+        The options of ``behaviours`` and ``grid`` (e.g. ``"--behaviours"``, ``"--map"``),
+        named when the behaviours need a map and there is none
+        (:func:`behaviour_source`; default: ``source`` and the rule's own words). The rule
+        is checked first, before the fit's draws or sizes.
     progress : callable, optional
         ``progress(done, total, what)`` after each step (see :func:`scenes_from_draws`).
 
@@ -811,6 +792,8 @@ def scenes_from_fit(
     ------
     are_stats.inputs.InputError
         Naming ``--positions`` when ``positions`` is neither ``chosen`` nor ``uniform``.
+    ValueError
+        When the behaviour rule refuses ``behaviours`` (:func:`behaviour_source`).
     """
     from are_stats.fitting import as_fit
 
@@ -818,6 +801,9 @@ def scenes_from_fit(
     if source is None:
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
     fit = as_fit(fit, source)
+    behaviour_source(
+        behaviours, fit.behaviour, grid, behaviours_source or source, map_source=map_source
+    )
     draws, laws = fit.traffic(model)
     if positions == "uniform":  # the fit's arrivals and stays, the paper's positions
         laws = replace(laws, positions="uniform", entry=None, class_entry=None)

@@ -34,6 +34,7 @@ from are_stats._atomic import atomic_folder
 from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_cell
 from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
 from are_stats.logs import RawTable, read_raw_table
+from are_stats.scenarios._behaviour_rule import behaviour_source
 
 if TYPE_CHECKING:
     from are_stats.behaviour import BehaviourFit
@@ -302,15 +303,11 @@ def tracks_record(
     ...               OccupancyGrid(np.zeros((40, 40)), 0.1), behaviour_cell=0.5)
     {'source': 'catalogue behaviour', 'cell_m': 0.5, 'dt_s': 2.0, 'rows': 2}
     """
-    from are_stats.scenarios._assembly import _behaviour_source
-
-    kind = _behaviour_source(behaviours, fitted, "behaviours")
+    kind = behaviour_source(behaviours, fitted, grid)
     if kind == "none":
         return None
     if kind == "fitted":
         return {"source": "fitted behaviour", "rows": len(tracks)}
-    if grid is None:
-        raise ValueError(f"{cell_source}: catalogue behaviours need a map, got none")
     cell = coarse_cell(grid.shape, grid.resolution, behaviour_cell, source=cell_source)
     return {"source": "catalogue behaviour", "cell_m": cell, "dt_s": behaviour_dt,
             "rows": len(tracks)}  # fmt: skip
