@@ -129,10 +129,12 @@ def run_fit(
         LIFETIME_CHOICES,
         POSITION_CHOICES,
         FitSettings,
+        can_check_motion,
         fit_log,
         fit_summary,
         sampler_warnings,
         write_fit,
+        write_motion_report,
         write_report,
     )
     from are_stats.logs import read_count_panel, read_field_log
@@ -273,7 +275,7 @@ def run_fit(
             clock("posterior-predictive checks")
             written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
         _print_checks(written)
-        if lifecycle.tracks is not None and fit.behaviour is not None:
+        if can_check_motion(fit, lifecycle.tracks):
             stage = "motion checks (speeds, straightness, held-out moves)"
             with (
                 console.status(f"{stage} ...") as status,
@@ -282,8 +284,6 @@ def run_fit(
                 ) as clock,
             ):
                 clock(stage)
-                from are_stats.fitting import write_motion_report
-
                 motion = write_motion_report(
                     seed, fit, lifecycle.tracks, figures, force, catalogue, progress=clock.steps
                 )
@@ -772,7 +772,7 @@ def run_perceive(
         camera_mount,
         check_path_times,
         perceive_scenario,
-        poses_outside,
+        poses_outside_warning,
         read_robot_path,
     )
     from are_stats.scenarios import read_scenes, scenes_from_tables
@@ -791,7 +791,6 @@ def run_perceive(
     robot = read_robot_path(path)
     grid = folder.grid(missing_ok=mesh is not None, or_else="pass --mesh MESH")
     env = environment_mesh(grid, wall_height, mesh, source=folder.manifest_path)
-    bounds = None if mesh is None else np.asarray(env.bounds)[:, :2]
     window = None if folder.horizon is None else (0.0, folder.horizon)
     check_path_times(
         path,
@@ -801,17 +800,9 @@ def run_perceive(
         window,
         scenario,
     )
-    outside = poses_outside(robot[["x", "y"]].to_numpy(), grid=grid, bounds=bounds)
-    if outside.any():
-        area = (
-            f"the map {folder.map_file}"
-            if grid is not None
-            else f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
-        )
-        console.print(
-            f"[yellow]warning:[/] {int(outside.sum())} of {len(outside)} robot poses of {path} "
-            f"lie outside {area} (first: row {int(np.argmax(outside)) + 1})"
-        )
+    outside = poses_outside_warning(path, robot[["x", "y"]].to_numpy(), grid, env, folder.map_file)
+    if outside is not None:
+        console.print(f"[yellow]warning:[/] {outside}")
     cat = load_catalogue()
     unknown = folder.unknown_classes(cat)
     if unknown:

@@ -25,7 +25,7 @@ from are_stats.fitting._motion_checks import (
     plot_motion_checks,
 )
 
-__all__ = ["MotionReport", "write_motion_report", "write_motion_tables"]
+__all__ = ["MotionReport", "can_check_motion", "write_motion_report", "write_motion_tables"]
 
 
 class MotionReport(NamedTuple):
@@ -86,6 +86,25 @@ def write_motion_tables(tables: Mapping[str, pd.DataFrame], folder: Any, force: 
     return out
 
 
+def can_check_motion(fit: Fit, tracks: pd.DataFrame | None) -> bool:
+    """Whether :func:`write_motion_report` has what it checks: the log's tracks and a
+    behaviour fitted from them, with its map (:func:`~are_stats.fitting.fit_log` of a tracks
+    table, its behaviour not switched off and not refused for want of walkers).
+
+    Parameters
+    ----------
+    fit : Fit
+        The fit (:func:`~are_stats.fitting.fit_log`).
+    tracks : pandas.DataFrame or None
+        The log's tracks (``LifecycleLog.tracks``; None for a life-cycle table).
+
+    Returns
+    -------
+    bool
+    """
+    return tracks is not None and fit.behaviour is not None and fit.grid is not None
+
+
 def write_motion_report(
     seed: int,
     fit: Fit,
@@ -128,7 +147,7 @@ def write_motion_report(
     import matplotlib.pyplot as plt  # pyplot on first use: it costs every import otherwise
 
     bfit, grid, stored = fit.behaviour, fit.grid, fit.motion
-    if bfit is None or grid is None:
+    if not can_check_motion(fit, tracks):
         raise ValueError("fit: expected a fit from tracks with its behaviour and map (fit_log)")
     key = jax.random.key(seed)
     say = progress or (lambda done, total, what: None)

@@ -22,6 +22,7 @@ from are_stats.perception._scenario import (
     perceive_scene,
     perceived_grid,
     poses_outside,
+    poses_outside_warning,
     read_robot_path,
     yaw_rotations,
 )
@@ -44,6 +45,7 @@ __all__ = [
     "plot_camera_view",
     "plot_top_view",
     "poses_outside",
+    "poses_outside_warning",
     "read_robot_path",
     "sample_perceived",
     "save_figure",

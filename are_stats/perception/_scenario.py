@@ -34,6 +34,7 @@ __all__ = [
     "perceive_scene",
     "perceive_scenario",
     "poses_outside",
+    "poses_outside_warning",
     "perceived_grid",
     "read_robot_path",
     "yaw_rotations",
@@ -515,3 +516,53 @@ def poses_outside(
         lo, hi = np.asarray(bounds, float)
         return ((p < lo) | (p > hi)).any(axis=1)
     return np.zeros(p.shape[0], bool)
+
+
+def poses_outside_warning(
+    source: Source,
+    xy: npt.ArrayLike,
+    grid: OccupancyGrid | None,
+    env_mesh: trimesh.Trimesh,
+    map_source: Source = "",
+) -> str | None:
+    """The warning for robot poses outside the robot's area: the map's cells when there is
+    a map, else the x-y bounds of the environment mesh (:func:`poses_outside`).
+
+    Parameters
+    ----------
+    source : str or PathLike
+        The robot-path file (named in the warning).
+    xy : (n, 2) float
+        The robot's positions (m).
+    grid : OccupancyGrid or None
+        The map of the scenarios (None: a mesh alone).
+    env_mesh : trimesh.Trimesh
+        The environment mesh (its bounds, without a map).
+    map_source : str or PathLike
+        The map's file (named in the warning).
+
+    Returns
+    -------
+    str or None
+        ``"k of n robot poses of SOURCE lie outside AREA (first: row r)"`` (rows counted
+        from 1), None when every pose lies inside.
+
+    Examples
+    --------
+    >>> grid = OccupancyGrid(np.zeros((10, 10)), 1.0)
+    >>> poses_outside_warning("path.csv", [[1.0, 1.0], [12.0, 1.0]], grid, None, "map.yaml")
+    '1 of 2 robot poses of path.csv lie outside the map map.yaml (first: row 2)'
+    """
+    bounds = None if grid is not None else np.asarray(env_mesh.bounds, float)[:, :2]
+    outside = poses_outside(xy, grid=grid, bounds=bounds)
+    if not outside.any():
+        return None
+    area = (
+        f"the map {map_source}"
+        if grid is not None
+        else f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
+    )
+    return (
+        f"{int(outside.sum())} of {len(outside)} robot poses of {source} lie outside {area} "
+        f"(first: row {int(np.argmax(outside)) + 1})"
+    )

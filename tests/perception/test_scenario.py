@@ -279,3 +279,22 @@ def test_read_robot_path(tmp_path):
         read_robot_path(p)
     with pytest.raises(FileNotFoundError):
         read_robot_path(tmp_path / "none.csv")
+
+
+def test_poses_outside_warning_takes_the_map_else_the_mesh_bounds():
+    """The robot's area is the map's cells when there is a map (a mesh given too does not
+    widen it), else the mesh's x-y bounds; every pose inside gives no warning."""
+    from are_stats.perception import poses_outside_warning
+
+    grid = OccupancyGrid(np.zeros((10, 20)), 0.5)  # x in [0, 10), y in [0, 5) m
+    mesh = trimesh.creation.box(extents=(40.0, 40.0, 2.0))  # x, y in [-20, 20] m
+    xy = [[1.0, 1.0], [12.0, 1.0], [-3.0, 2.0], [30.0, 0.0]]
+    got = poses_outside_warning("path.csv", xy, grid, mesh, "map.yaml")
+    assert got == "3 of 4 robot poses of path.csv lie outside the map map.yaml (first: row 2)"
+    got = poses_outside_warning("path.csv", xy, None, mesh)
+    assert got == (
+        "1 of 4 robot poses of path.csv lie outside the mesh's x-y bounds [-20.0, -20.0] to "
+        "[20.0, 20.0] (first: row 4)"
+    )
+    assert poses_outside_warning("path.csv", xy[:3], None, mesh) is None
+    assert poses_outside_warning("path.csv", xy[:1], grid, mesh, "map.yaml") is None
