@@ -28,6 +28,7 @@ from are_stats.environment import (
     resolve_shipped,
     shipped_path,
 )
+from are_stats.export import AugmentResult, ServeInfo, augment_bag, robot_from_bag, serve_scenario
 from are_stats.inputs import (
     Described,
     InputError,
@@ -37,14 +38,24 @@ from are_stats.inputs import (
     get_seed,
     get_str,
 )
+from are_stats.logs import TrajectoryOptions, find_manifest, read_count_panel, read_field_log
+from are_stats.scenarios import (
+    POSITION_CHOICES,
+    check_folder,
+    read_scenes,
+    scenes_from_fit,
+    scenes_from_tables,
+    scenes_tables,
+    tracks_record,
+    write_scenes,
+)
 
 if TYPE_CHECKING:
-    from are_stats.export import AugmentResult, ServeInfo
     from are_stats.fitting import Fit, MotionReport
-    from are_stats.logs import TrajectoryOptions
 
-# Each job imports the rooms it runs when it runs (fitting: JAX and NumPyro; perception:
-# Warp; logs and scenarios: pyarrow): a command loads only what it uses.
+# Lazy in the jobs that use them (measured CPU of the import, on top of the rooms above,
+# which every job loads anyway): fitting (NumPyro, ArviZ: 0.65 s that perceive, augment and
+# serve do not use) and perception (Warp: 0.5 s that fit, report, generate and demo do not).
 
 console = Console(highlight=False, width=None if Console().is_terminal else 100)
 
@@ -130,14 +141,16 @@ def run_fit(
         POSITION_CHOICES,
         FitSettings,
         can_check_motion,
+        compare_panel,
         fit_log,
         fit_summary,
+        panel_estimates,
         sampler_warnings,
         write_fit,
         write_motion_report,
         write_report,
     )
-    from are_stats.logs import read_count_panel, read_field_log
+    from are_stats.traffic import clock_offset
 
     method = get_str(method, "--method", "", choices=("nuts", "em"))
     arrivals = get_str(arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES)
@@ -156,8 +169,6 @@ def run_fit(
             Described("--no-behaviour"),
         )
     if clock_start is not None:
-        from are_stats.traffic import clock_offset
-
         clock_start = get_str(clock_start, "--clock-start", "")
         try:
             clock_offset(clock_start)
@@ -258,8 +269,6 @@ def run_fit(
     _print_traffic(fit)
     _print_classes(fit)
     if panel is not None:
-        from are_stats.fitting import compare_panel, panel_estimates
-
         console.print(f"birth-death MLE of {counts}: {panel_estimates(fit)}")
         cmp = compare_panel(idata)
         if cmp.warning:
@@ -497,6 +506,7 @@ def run_report(
         fit_summary,
         read_fit,
         sampler_warnings,
+        write_motion_tables,
         write_report,
     )
 
@@ -514,8 +524,6 @@ def run_report(
     _print_traffic(fit)
     _print_checks(written)
     if fit.motion:  # the motion criticism the fit stored (issue 26)
-        from are_stats.fitting import write_motion_tables
-
         written.update(write_motion_tables(fit.motion, out, force))
         _print_motion_tables(fit.motion)
     console.print(f"wrote {len(written)} files to {out}/")
@@ -553,14 +561,6 @@ def run_generate(
     manifest and tracks) is written beside it and put in place as a whole.
     """
     from are_stats.fitting import read_fit
-    from are_stats.scenarios import (
-        POSITION_CHOICES,
-        check_folder,
-        scenes_from_fit,
-        scenes_tables,
-        tracks_record,
-        write_scenes,
-    )
 
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
     positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
@@ -648,6 +648,8 @@ def run_generate(
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
+    from are_stats.fitting import crowding_statistics
+
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "", "a folder for the demo's outputs (--out)", Described("a file"))
@@ -683,9 +685,6 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         force,
         model="paper",
     )
-
-    from are_stats.fitting import crowding_statistics
-    from are_stats.logs import find_manifest
 
     means = fit.posterior_means()
     desc = find_manifest(EXAMPLE_LOG)[0].get("description")
@@ -775,7 +774,6 @@ def run_perceive(
         poses_outside_warning,
         read_robot_path,
     )
-    from are_stats.scenarios import read_scenes, scenes_from_tables
 
     d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0)
@@ -860,8 +858,6 @@ def run_augment(
     (:func:`are_stats.export.augment_bag`); ``trajectory`` how the bag's robot is read,
     ``topics`` the comma-separated input topics passed through (default all); ``camera`` a
     camera YAML or a shipped camera's name, as ``perceive --camera``."""
-    from are_stats.export import augment_bag
-
     if camera is not None:
         camera = resolve_shipped(camera, "camera", source="--camera")
     t = time.perf_counter()
@@ -915,9 +911,6 @@ def run_serve(
     (:func:`are_stats.export.serve_scenario`), with the robot of a path or of a bag
     (:func:`are_stats.export.robot_from_bag`, read with ``trajectory``: the options of
     ``augment``); what was served, None when stopped by Ctrl-C."""
-    from are_stats.export import robot_from_bag, serve_scenario
-    from are_stats.logs import TrajectoryOptions
-
     trajectory = trajectory or TrajectoryOptions()
     if bag is None:
         for name in trajectory.given():

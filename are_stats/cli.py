@@ -5,6 +5,8 @@ from __future__ import annotations
 import functools
 import gc
 import os
+import sys
+import warnings
 from collections.abc import Callable
 from typing import Annotated, Any
 
@@ -21,6 +23,7 @@ from pathlib import Path  # noqa: E402
 import typer  # noqa: E402
 
 from are_stats import __version__, configure_jax  # noqa: E402
+from are_stats._lazy import hide_dask  # noqa: E402 (stdlib only)
 from are_stats._program_cache import prune_cache  # noqa: E402 (stdlib only; main runs it)
 
 # The commands import their rooms when they run (are_stats.inputs: NumPy and YAML, 0.24 s;
@@ -667,7 +670,6 @@ def _note_fit_formats(show: Callable[..., None]) -> Callable[..., None]:
     """``warnings.showwarning`` that shows a fit read under an older format
     (:class:`~are_stats.fitting.FitFormatWarning`) as one ``note:`` line, as the commands'
     other notes, and any other warning by ``show``."""
-    import sys
 
     def showwarning(message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
         fitting = sys.modules.get("are_stats.fitting")  # loaded when the fit was read
@@ -722,11 +724,6 @@ def main() -> None:
       at exit would walk them all once more only to free memory the exit frees anyway
       (1.1 s after a fit). Outputs are written and closed by then.
     """
-    import sys
-    import warnings
-
-    from are_stats._lazy import hide_dask
-
     if _command_of(sys.argv[1:]) in _WITHOUT_DASK:
         hide_dask()
     gc.set_threshold(*_GC_THRESHOLDS)
