@@ -815,8 +815,7 @@ def run_perceive(
     with console.status(
         f"perceiving {len(df)} artefacts{moving} over {len(robot)} robot poses ..."
     ):
-        labels = folder.manifest.get("class_labels")
-        scenes = scenes_from_tables(df, tracks, cat, labels, df["scenario"].unique())
+        scenes = scenes_from_tables(df, tracks, cat, folder.class_labels, df["scenario"].unique())
         res = perceive_scenario(
             scenes,
             robot,

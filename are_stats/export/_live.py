@@ -693,7 +693,7 @@ def _replay(d: Path, folder: ScenesFolder, scenario: int | None = None) -> _Repl
                 "--scenario", "", f"a scenario of {d / 'artefacts.parquet'} ({within})", scenario
             )
         k = int(scenario)
-    (scene,) = scenes_from_tables(df, tracks, load_catalogue(), manifest.get("class_labels"), [k])
+    (scene,) = scenes_from_tables(df, tracks, load_catalogue(), folder.class_labels, [k])
     grid = folder.grid()
     horizon = folder.horizon
     if horizon is not None:  # the replay needs a scene of some length

@@ -4,7 +4,8 @@ Every command that puts artefacts on a map (``generate``, the experiment sweeps,
 ``augment``) calls :func:`scenes_from_fit` (or :func:`scenes_from_draws` for hand-set
 rates), so a change to traffic, behaviour or motion reaches all of them at once.
 
-The behaviour rule (``behaviours=``), one for every command:
+The behaviour rule (``behaviours=``, :func:`~are_stats.scenarios.behaviour_source`), one for
+every command:
 
 * ``False`` / ``"none"``: artefacts stand at their arrival pose for their whole stay;
 * ``True`` / ``"auto"``: the fit's behaviour when the fit has one (speeds, exits and

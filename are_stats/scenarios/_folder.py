@@ -137,6 +137,13 @@ class ScenesFolder:
         return None if horizon is None else float(horizon)
 
     @property
+    def class_labels(self) -> list[str] | None:
+        """The label of each mixture component (``class`` indexes it): the manifest's
+        ``class_labels`` (strings, checked on reading), or None."""
+        labels = self.manifest.get("class_labels")
+        return None if labels is None else [str(x) for x in labels]
+
+    @property
     def scenario_numbers(self) -> list[int]:
         """The folder's scenarios: ``0 .. n_scenarios - 1`` as the manifest says (some may
         hold no artefact), else those of the artefacts table, in order."""
@@ -200,7 +207,7 @@ class ScenesFolder:
         list of str
             Empty without ``class_labels`` or when every class present is known.
         """
-        labels = self.manifest.get("class_labels")
+        labels = self.class_labels
         if not labels:
             return []
         present = np.unique(self.artefacts["class"]).tolist()

@@ -1,6 +1,6 @@
 """What a scenarios folder says about its scenes, read once for every reader (issue 25):
-ScenesFolder.grid, .horizon, .scenario_numbers, .n_moving and .unknown_classes, checked
-against tables written here by hand."""
+ScenesFolder.grid, .horizon, .class_labels, .scenario_numbers, .n_moving and
+.unknown_classes, checked against tables written here by hand."""
 
 from __future__ import annotations
 
@@ -78,6 +78,14 @@ def test_unknown_classes_are_the_present_labels_the_catalogue_lacks():
     assert folder.unknown_classes(cat) == ["forklift", "robot dog"]
     only_known = ScenesFolder(_table([0], [1]), {"class_labels": labels}, None)
     assert only_known.unknown_classes(cat) == []
+
+
+def test_class_labels_are_the_manifests_as_written_and_read_back(tmp_path):
+    labels = ["person", "car", "pallet"]
+    write_scenes(_table([0, 0], [2, 0]), tmp_path / "s", {"class_labels": labels})
+    assert read_scenes(tmp_path / "s").class_labels == labels
+    write_scenes(_table([0], [0]), tmp_path / "bare")
+    assert read_scenes(tmp_path / "bare").class_labels is None
 
 
 def test_the_tracks_record_follows_the_assemblys_behaviour_rule():
