@@ -30,6 +30,9 @@ HEAVY_FILES: tuple[str, ...] = (
     "tests/test_integrity.py",  # same-seed runs and kills: about 20 are-stats processes
     "tests/fuzz/test_fuzz_tracks_scale.py",  # 300-person tracks fits
     "tests/fitting/test_fit.py",  # three tracks fits (behaviour, realism)
+    # about 230 s of CPU (walks and motion checks by generation and criticism), with 15
+    # tests: by test count it started among the last files
+    "tests/fitting/test_heading_variation.py",
     "tests/test_wheel.py",  # builds the wheel; with ARE_STATS_FRESH_VENV=1 a fresh venv
     "tests/test_notebooks.py",  # a kernel per notebook
     "tests/test_cli_tracks.py",
@@ -37,6 +40,7 @@ HEAVY_FILES: tuple[str, ...] = (
     "tests/test_cli_jobs.py",
     "tests/test_docs.py",
     "tests/fitting/test_behaviour_fit.py",
+    "tests/fitting/test_speed_variation.py",  # about 70 s of CPU in 12 tests
     "tests/fitting/test_bursts_fit.py",
     "tests/fitting/test_em.py",
     "tests/fitting/test_class_traffic.py",
