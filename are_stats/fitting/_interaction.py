@@ -207,7 +207,9 @@ def interaction_evidence(tracks: pd.DataFrame) -> dict[str, float | str]:
     published repulsion (:class:`~are_stats.behaviour.SocialForce`'s strength and range;
     from 2 cm of tracker noise on, read from the smoothed tracks and as the least squares
     sees it through the noise, ``strength_seen``: the log's people walked again under it)
-    and under none, at the 1% level. :func:`learn_interaction` uses it when the fit's
+    and under none, at the 1% level; where that cannot tell, how close the log's people
+    come against the same people walked again under each (``passes``).
+    :func:`learn_interaction` uses it when the fit's
     estimate is out of the model's range: ``"none"`` gives a force of strength 0, the rest
     keep the published one.
 
@@ -222,7 +224,7 @@ def interaction_evidence(tracks: pd.DataFrame) -> dict[str, float | str]:
         :func:`~are_stats.behaviour.repulsion_evidence`'s: ``verdict`` (``"none"``,
         ``"published"`` or ``"too little"``), ``close``, ``strength_hat``, ``se``,
         ``rss_published``, ``rss_none``, ``z``, ``p`` (and ``strength_seen`` where it
-        decided).
+        decided), ``passes``, ``passes_published``, ``passes_none``.
 
     Raises
     ------
