@@ -282,7 +282,9 @@ def run_fit(
             StageClock(status, size=size, live=console.is_terminal) as clock,
         ):
             clock("posterior-predictive checks")
-            written = write_report(idata, figures, key=seed, n_replicates=n_replicates, force=force)
+            written = write_report(
+                idata, figures, key=seed, n_replicates=n_replicates, force=force, summary=summary
+            )
         _print_checks(written)
         if can_check_motion(fit, lifecycle.tracks):
             stage = "motion checks (speeds, straightness, held-out moves)"

@@ -624,6 +624,7 @@ def write_report(
     clock_offset: float | None = None,
     force: bool = False,
     source: Any = "fit",
+    summary: pd.DataFrame | None = None,
 ) -> dict[str, Path]:
     """Write the summary table (CSV) and every check figure (PNG) of a fit.
 
@@ -644,6 +645,9 @@ def write_report(
         Overwrite existing files.
     source : str
         The fit's name in errors (see :func:`check_report_size`, run first).
+    summary : pandas.DataFrame, optional
+        ``fit_summary(idata)`` when the caller has it already (``are-stats fit`` prints
+        it before the report): not computed a second time.
 
     Returns
     -------
@@ -664,7 +668,8 @@ def write_report(
     check_report_size(idata, n_replicates, source)
     out = Path(out_dir)
     written: dict[str, Path] = {}
-    summary = fit_summary(idata)
+    if summary is None:
+        summary = fit_summary(idata)
     with atomic_path(out / "summary.csv", force=force) as tmp:
         summary.to_csv(tmp)
     written["summary"] = out / "summary.csv"
