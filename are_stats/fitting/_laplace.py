@@ -26,7 +26,9 @@ share it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+import threading
+from collections.abc import Callable, Iterator
 from typing import Any, NamedTuple
 
 import jax
@@ -45,6 +47,11 @@ from numpyro.distributions.transforms import (
 from numpyro.infer.util import constrain_fn, potential_energy
 from scipy.optimize import minimize
 from scipy.special import gammaln, logsumexp
+
+try:  # optional (the bench extra brings it): without it BLAS keeps its threads
+    from threadpoolctl import threadpool_limits
+except ImportError:  # pragma: no cover - depends on the installation
+    threadpool_limits = None
 
 from are_stats._program_cache import TRACE_LOCK, compile_program, load_record, store_record
 from are_stats.fitting._nuts import (
@@ -105,6 +112,42 @@ class LaplaceRun(NamedTuple):
     converged: bool
     name: str
     redraw: Callable[[Any, int, float], LaplaceRun] | None = None
+
+
+_BLAS_LOCK = threading.Lock()
+#: Mode searches running, and the BLAS thread limit they hold (the first one sets it).
+_blas_users: list[Any] = [0, None]
+
+
+@contextlib.contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    """BLAS (OpenBLAS, MKL) on one thread inside the block, its limit restored after the
+    last of the blocks running in any thread (the limit is the process's).
+
+    SciPy's L-BFGS-B calls BLAS and LAPACK on ``d``-sized vectors and matrices a few times
+    an iteration; a multithreaded OpenBLAS wakes and syncs its threads for each, which
+    cost 37 ms of the caller's CPU per mode search of a 7-dimensional quadratic against
+    1.7 ms on one thread (``OPENBLAS_NUM_THREADS=1``; 30 searches, 14 iterations each,
+    SciPy 1.17 with its OpenBLAS 0.3.30, 2026-11-27 on the loaded 2-core machine), plus
+    what its spinning threads burn. The values are the same: these sizes are far below
+    OpenBLAS's threading thresholds, so one thread computes what one of several did.
+    Needs ``threadpoolctl``; without it nothing changes.
+    """
+    if threadpool_limits is None:
+        yield
+        return
+    with _BLAS_LOCK:
+        if _blas_users[0] == 0:
+            _blas_users[1] = threadpool_limits(limits=1, user_api="blas")
+        _blas_users[0] += 1
+    try:
+        yield
+    finally:
+        with _BLAS_LOCK:
+            _blas_users[0] -= 1
+            if _blas_users[0] == 0:
+                _blas_users[1].restore_original_limits()
+                _blas_users[1] = None
 
 
 def _batch_fn(model: Callable, treedef: Any, static: tuple, pointwise: Callable) -> Any:
@@ -456,11 +499,12 @@ def run_laplace(
     # shape's eta): beyond it a likelihood's numerics (and its cost: an incomplete gamma
     # of shape e^30 takes seconds a point), not the data, rule
     bounds = [(-Z_BOUND, Z_BOUND)] * d
-    res = minimize(fun, np.clip(x0, -Z_BOUND, Z_BOUND), jac=True, method="L-BFGS-B",
-                   bounds=bounds, options={"maxiter": MAX_ITER})  # fmt: skip
-    mode = res.x
-    hess = _hessian(lambda pts: evaluate(pts)[0], mode, steps(mode, 1e-4))
-    lam, vec = np.linalg.eigh(hess)
+    with _one_blas_thread():
+        res = minimize(fun, np.clip(x0, -Z_BOUND, Z_BOUND), jac=True, method="L-BFGS-B",
+                       bounds=bounds, options={"maxiter": MAX_ITER})  # fmt: skip
+        mode = res.x
+        hess = _hessian(lambda pts: evaluate(pts)[0], mode, steps(mode, 1e-4))
+        lam, vec = np.linalg.eigh(hess)
     # a flat or non-convex direction (a mode on a boundary of the data's support): a wide
     # unit variance there, so that the importance weights can still reach the posterior
     lam = np.where(np.isfinite(lam) & (lam > 1e-8), lam, 1.0)

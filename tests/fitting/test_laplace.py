@@ -121,3 +121,24 @@ def test_a_site_numpyro_must_invert_starts_at_its_init(new_process):
     np.testing.assert_allclose(z0["a"], want, rtol=1e-12)
     np.testing.assert_allclose(z0["b"], np.log(2.0), rtol=1e-12)
     assert not list(folder.glob("*.json"))  # a test's local model has no stable name
+
+
+def test_mode_searches_hold_blas_to_one_thread_until_the_last_ends():
+    """The BLAS limit of the mode search is the process's: the first search sets it, the
+    last one to end (in any thread) restores the original."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+
+    def blas_threads():
+        return [
+            i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"
+        ]
+
+    before = blas_threads()
+    if not before:
+        pytest.skip("no BLAS library that threadpoolctl can see")
+    with lap._one_blas_thread():
+        assert set(blas_threads()) == {1}
+        with lap._one_blas_thread():  # a second search (another thread) starts ...
+            assert set(blas_threads()) == {1}
+        assert set(blas_threads()) == {1}  # ... and ends first: the limit holds
+    assert blas_threads() == before
