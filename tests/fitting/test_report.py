@@ -7,6 +7,7 @@ import logging
 import arviz as az
 import jax
 import numpy as np
+import pandas as pd
 from PIL import Image
 
 from are_stats.fitting import FitSettings, fit_log, fit_summary, write_report
@@ -103,3 +104,21 @@ def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
         assert len(found) == 1, (name, found)
         corners.add(found[0])
     assert len(corners) == len(panels)
+
+
+def test_write_report_writes_the_summary_its_caller_passes(tmp_path):
+    """``summary=`` (are-stats fit has printed it already) is written as summary.csv
+    instead of being computed again; without it the report computes the same table."""
+    data = simulate_lifecycle(
+        jax.random.key(0), 1 / 30 / 200.0, 1 / 200, [0.5, 0.5], [2.0, 12.0], (0.0, 1800.0),
+        area=200.0,
+    )  # fmt: skip
+    paper = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
+    settings = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2,
+                           **paper)  # fmt: skip
+    idata = fit_log(jax.random.key(1), data, settings).idata
+    own = write_report(idata, tmp_path / "own", n_replicates=3)["summary"]
+    summary = fit_summary(idata)
+    pd.testing.assert_frame_equal(pd.read_csv(own, index_col=0), summary, check_dtype=False)
+    given = write_report(idata, tmp_path / "given", n_replicates=3, summary=summary.iloc[:1])
+    assert list(pd.read_csv(given["summary"], index_col=0).index) == list(summary.index[:1])
