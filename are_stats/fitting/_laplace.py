@@ -47,11 +47,7 @@ from numpyro.distributions.transforms import (
 from numpyro.infer.util import constrain_fn, potential_energy
 from scipy.optimize import minimize
 from scipy.special import gammaln, logsumexp
-
-try:  # optional (the bench extra brings it): without it BLAS keeps its threads
-    from threadpoolctl import threadpool_limits
-except ImportError:  # pragma: no cover - depends on the installation
-    threadpool_limits = None
+from threadpoolctl import threadpool_limits
 
 from are_stats._program_cache import TRACE_LOCK, compile_program, load_record, store_record
 from are_stats.fitting._nuts import (
@@ -131,11 +127,7 @@ def _one_blas_thread() -> Iterator[None]:
     SciPy 1.17 with its OpenBLAS 0.3.30, 2026-11-27 on the loaded 2-core machine), plus
     what its spinning threads burn. The values are the same: these sizes are far below
     OpenBLAS's threading thresholds, so one thread computes what one of several did.
-    Needs ``threadpoolctl``; without it nothing changes.
     """
-    if threadpool_limits is None:
-        yield
-        return
     with _BLAS_LOCK:
         if _blas_users[0] == 0:
             _blas_users[1] = threadpool_limits(limits=1, user_api="blas")

@@ -126,7 +126,7 @@ def test_a_site_numpyro_must_invert_starts_at_its_init(new_process):
 def test_mode_searches_hold_blas_to_one_thread_until_the_last_ends():
     """The BLAS limit of the mode search is the process's: the first search sets it, the
     last one to end (in any thread) restores the original."""
-    threadpoolctl = pytest.importorskip("threadpoolctl")
+    import threadpoolctl
 
     def blas_threads():
         return [
