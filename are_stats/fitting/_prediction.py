@@ -16,9 +16,9 @@ preferred speed drawn from the person's posterior given the window (the class's 
 between-person law as the prior, the window's least-squares speed as a conjugate
 lognormal likelihood: :func:`_speed_posterior`), timed as in the generator: the
 continuous (any-angle) path, then, with ``interaction``, walked again with the social
-force among the people around (the person's own group aside; everybody gives way), as
-generation walks people. It is scored as the mean of the samples and as the best of
-them.
+force among the people around (the person's own group aside; everybody gives way) and
+turned by the class's fitted heading wander, as generation walks people. It is scored as
+the mean of the samples and as the best of them.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import jax
 import numpy as np
 import pandas as pd
 
@@ -570,13 +571,15 @@ def _interacting(
     rate: float,
     params: Any,
     grid: Any,
+    turn: tuple | None = None,
 ) -> np.ndarray:
     """Continuations ``(B, K, n_pred, 2)`` walked again with the social force, as generation
     walks people: each from its last observed position at its observed velocity along its
-    sampled path, among the people present at that time who can come within the
-    interaction's reach over the horizon (planned at constant velocity from what was
-    observed of them: no future leaks), the members of its own group aside
-    (:func:`_walks_with`). The neighbours walk under the social force too, as in
+    sampled path (with ``turn``, ``(key, sd (B,), time (B,))``, turned by the fitted
+    heading wander of its window's class as generation turns it), among the people present
+    at that time who can come within the interaction's reach over the horizon (planned at
+    constant velocity from what was observed of them: no future leaks), the members of its
+    own group aside (:func:`_walks_with`). The neighbours walk under the social force too, as in
     generation, where everybody gives way: held to their plans (kinematic), they left
     the person to make the whole of each avoidance, twice the model's sidestep."""
     b, k, n_pred, _ = samples.shape
@@ -640,9 +643,35 @@ def _interacting(
             )
         )
     plan = pd.concat(frames, ignore_index=True)
-    walked = _walk(plan, params, grid)
+    variation = None
+    if turn is not None:
+        key, h_sd, h_time = turn
+        window = plan["scenario"].to_numpy() // k
+        me = plan["id"].to_numpy() == 0
+        none = np.zeros(len(plan))
+        variation = (
+            key, none, np.full(len(plan), np.nan),
+            np.where(me, np.asarray(h_sd, float)[window], 0.0),
+            np.where(me, np.asarray(h_time, float)[window], np.nan),
+        )  # fmt: skip
+    walked = _walk(plan, params, grid, variation=variation)
     me = walked[walked["id"] == 0].sort_values(["scenario", "t"], kind="stable")
     return me[["x", "y"]].to_numpy(float).reshape(b, k, n_pred + 1, 2)[:, :, 1:]
+
+
+def _heading_wander(
+    rng: np.random.Generator, fit: BehaviourFit, labels: np.ndarray
+) -> tuple | None:
+    """``(key, sd (B,), time (B,))`` of the fitted heading wander of each window's class
+    (labels as :func:`_model_predictions` takes them), for :func:`_interacting`, its key
+    drawn from ``rng``; None where no class has one (an older fit: not a draw more)."""
+    names = {c: i for i, c in enumerate(fit.classes)}
+    cls = np.array([names.get(str(v), 0) for v in labels], np.int64)
+    sd = np.nan_to_num(np.asarray(fit.heading_within_sd, float)[cls])
+    if not (sd > 0).any():
+        return None
+    key = jax.random.key(int(rng.integers(2**31)))
+    return key, sd, np.asarray(fit.heading_within_time, float)[cls]
 
 
 #: Windows predicted per progress step of :func:`displacement_errors` (a fit's 200 windows
@@ -703,8 +732,10 @@ def displacement_errors(
         Walk the model's continuations again with the social force, as generation does
         (``True``: the published parameters; a :class:`~are_stats.behaviour.SocialForce`:
         those, e.g. the fit's), among the people present at the window's last observed
-        time within its reach, who go on at their observed velocity. None: the sampled
-        paths as they are.
+        time within its reach, who go on at their observed velocity; each continuation
+        turned by the fitted heading wander of its window's class
+        (``BehaviourFit.heading_within_sd``, ``heading_within_time``), as generation turns
+        people. None: the sampled paths as they are.
     grid : OccupancyGrid, optional
         The map the interaction keeps off (None: open ground).
     progress : object, optional
@@ -761,7 +792,10 @@ def displacement_errors(
                 noise=noise,
             )  # fmt: skip
             if walked:
-                part = _interacting(part, obs[sl], tid[sl], t_last[sl], tracks, rate, params, grid)
+                part = _interacting(
+                    part, obs[sl], tid[sl], t_last[sl], tracks, rate, params, grid,
+                    _heading_wander(rng, behaviour_fit, lab[sl]),
+                )  # fmt: skip
             parts.append(part[:, :, : int(n_pred)])
             say(j + 1, len(starts), "displacement errors, windows")
         samples = np.concatenate(parts, axis=0)

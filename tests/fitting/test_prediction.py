@@ -349,3 +349,34 @@ def test_mean_of_k_beats_constant_velocity_on_the_models_own_tracks(own) -> None
     cv, mean = de.loc["constant velocity"], de.loc["model mean of K"]
     assert cv["n_windows"] > 200
     assert mean["ADE"] <= 0.8 * cv["ADE"] and mean["FDE"] <= 0.8 * cv["FDE"], de
+
+
+def test_continuations_walk_the_fitted_heading_wander() -> None:
+    """The social force re-walk turns each continuation by its window's fitted heading
+    wander, as generation turns people: 20 copies of one straight plan of a walker alone
+    spread sideways (an OU of 0.2 rad over 2 s, integrated over 4.8 s at 1.2 m/s, has a
+    sideways sd of about 0.8 m before the walker's aim at its route pulls it back; keys
+    4-6 read 0.58-0.64 m), while without a wander (None, or sd 0 or NaN: an older fit)
+    they are one path, bit for bit."""
+    from are_stats.behaviour import SocialForce
+    from are_stats.fitting._prediction import _interacting
+
+    t = np.arange(0.0, 2.8 + 1e-9, 0.4)
+    alone = pd.DataFrame({"id": 0, "t": t, "x": 2.0 + 1.2 * t, "y": 6.0})
+    obs = alone[["x", "y"]].to_numpy()[None]  # (1, 8, 2)
+    step = (obs[0, -1] - obs[0, 0]) / 7
+    plan = np.repeat((obs[0, -1] + np.arange(1, 25)[:, None] * step)[None, None], 20, 1)
+    args = (obs, np.array([0]), np.array([2.8]), alone, 2.5, SocialForce(), None)
+    plain = _interacting(plan, *args)
+    assert np.ptp(plain[0, :, -1], axis=0).max() < 1e-9  # one path
+    key = jax.random.key(4)
+    for none in (
+        (key, np.zeros(1), np.full(1, 2.0)),
+        (key, np.full(1, np.nan), np.full(1, np.nan)),
+    ):
+        np.testing.assert_array_equal(_interacting(plan, *args, none), plain)
+    wander = _interacting(plan, *args, (key, np.full(1, 0.2), np.full(1, 2.0)))
+    side = wander[0, :, 11, 1]  # sideways offset at the horizon (4.8 s)
+    assert 0.1 < side.std() < 1.5
+    ahead = wander[0, :, 11, 0] - obs[0, -1, 0]
+    assert np.all(ahead > 0.7 * 1.2 * 4.8)  # they walk on, not round
