@@ -318,10 +318,15 @@ class StageClock:
             steps = self._steps
         steps(done, total, what)
 
-    def close(self) -> None:
-        """End the last stage, stop the refresh and write the record (best effort)."""
+    def close(self, failed: bool = False) -> None:
+        """End the last stage, stop the refresh and write the record (best effort).
+
+        ``failed``: the last stage stopped on an error, so its time so far is not its
+        duration and stays out of the record (the stages before it are kept).
+        """
         with self._lock:
-            self._end()
+            if not failed:
+                self._end()
             self._stage = None
         self._done.set()
         if self._ticker is not None:
@@ -344,8 +349,8 @@ class StageClock:
     def __enter__(self) -> StageClock:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        self.close(failed=exc_type is not None)
 
 
 class StepsLeft:

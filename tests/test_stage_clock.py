@@ -85,6 +85,23 @@ def test_an_unreadable_record_is_no_record(tmp_path):
     assert "anything" in json.loads(path.read_text())
 
 
+def test_a_stage_stopped_by_an_error_stays_out_of_the_record(tmp_path):
+    """A refusal inside a stage (``generate --behaviours`` without ``--map`` is checked in
+    the assembly's first stage) would record its moment as the stage's duration, and the
+    next run would show that as the time left; the stages finished before it are kept."""
+    path, timer = tmp_path / "stage_times.json", _Timer()
+    try:
+        with StageClock(None, path=path, timer=timer) as clock:
+            clock("read the log")
+            timer.now += 3.0
+            clock("scenes")
+            timer.now += 0.01
+            raise ValueError("--behaviours: expected --map")
+    except ValueError:
+        pass
+    assert json.loads(path.read_text()) == {"read the log": 3.0}
+
+
 def test_a_stage_estimate_counts_down_and_ends_with_the_stage(tmp_path):
     """A stage's own estimate (NUTS between its chunks) replaces the record's, counts
     down between two estimates, and is gone at the next stage."""
