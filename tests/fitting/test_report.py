@@ -76,18 +76,23 @@ def _where(full: np.ndarray, img: np.ndarray) -> list[tuple[int, int]]:
     ]  # fmt: skip
 
 
-def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
-    """write_report renders the checks once: each ``ppc_<check>.png`` is the region of
-    ``criticism.png`` around that check's panel, cut where the overview is blank (the
-    panel's title, labels and legend whole), and the panels are different regions."""
+def _small_em_fit(horizon: float):
+    """The paper's model fitted by EM to a small seeded log of ``horizon`` seconds."""
     data = simulate_lifecycle(
-        jax.random.key(0), 1 / 30 / 200.0, 1 / 200, [0.5, 0.5], [2.0, 12.0], (0.0, 3600.0),
+        jax.random.key(0), 1 / 30 / 200.0, 1 / 200, [0.5, 0.5], [2.0, 12.0], (0.0, horizon),
         area=200.0,
     )  # fmt: skip
     paper = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
     settings = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2,
                            **paper)  # fmt: skip
-    idata = fit_log(jax.random.key(1), data, settings).idata
+    return fit_log(jax.random.key(1), data, settings).idata
+
+
+def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
+    """write_report renders the checks once: each ``ppc_<check>.png`` is the region of
+    ``criticism.png`` around that check's panel, cut where the overview is blank (the
+    panel's title, labels and legend whole), and the panels are different regions."""
+    idata = _small_em_fit(3600.0)
     written = write_report(idata, tmp_path / "report", n_replicates=3)
     full = np.asarray(Image.open(written["criticism"]).convert("RGB"))
     panels = sorted(n for n in written if n.startswith("ppc_"))
@@ -109,14 +114,7 @@ def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
 def test_write_report_writes_the_summary_its_caller_passes(tmp_path):
     """``summary=`` (are-stats fit has printed it already) is written as summary.csv
     instead of being computed again; without it the report computes the same table."""
-    data = simulate_lifecycle(
-        jax.random.key(0), 1 / 30 / 200.0, 1 / 200, [0.5, 0.5], [2.0, 12.0], (0.0, 1800.0),
-        area=200.0,
-    )  # fmt: skip
-    paper = {"arrivals": "poisson", "lifetimes": "exponential", "positions": "uniform"}
-    settings = FitSettings(method="em", num_samples=40, num_chains=2, n_bootstrap=8, k_max=2,
-                           **paper)  # fmt: skip
-    idata = fit_log(jax.random.key(1), data, settings).idata
+    idata = _small_em_fit(1800.0)
     own = write_report(idata, tmp_path / "own", n_replicates=3)["summary"]
     summary = fit_summary(idata)
     pd.testing.assert_frame_equal(pd.read_csv(own, index_col=0), summary, check_dtype=False)
