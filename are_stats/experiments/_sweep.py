@@ -132,6 +132,7 @@ from are_stats.inputs import (  # Described: a ``got`` already worded, shown as 
 )
 from are_stats.scenarios import (
     Scene,
+    ScenesFolder,
     move_scenes,
     read_scenes,
     scenes_from_draws,
@@ -606,10 +607,10 @@ def _fit(path: str) -> Fit:
 
 
 @_cached()
-def _scenario_folder(path: str) -> tuple[pd.DataFrame, dict[str, Any], pd.DataFrame | None]:
-    """Artefacts, manifest and behaviour tracks (None without) of a scenarios folder, all
-    checked (:func:`~are_stats.scenarios.read_scenes`)."""
-    return tuple(read_scenes(path))  # type: ignore[return-value]
+def _scenario_folder(path: str) -> ScenesFolder:
+    """A scenarios folder (artefacts, manifest and behaviour tracks), all checked
+    (:func:`~are_stats.scenarios.read_scenes`)."""
+    return read_scenes(path)
 
 
 @_cached()
@@ -642,10 +643,9 @@ def _scenario_size(
     sc, horizon = sections["scenario"], float(sections["mission"]["time_limit"])
     if "scenarios" in sc:
         p = _source_path(sc, "scenarios", src, pre)
-        df, meta, _ = _scenario_folder(str(p))
-        gen = meta.get("generation")
-        h = gen.get("horizon") if isinstance(gen, Mapping) else None
-        if isinstance(h, int | float) and horizon > float(h) * (1 + 1e-9):
+        folder = _scenario_folder(str(p))
+        df, h = folder.artefacts, folder.horizon
+        if h is not None and horizon > h * (1 + 1e-9):
             raise InputError(
                 src,
                 f"{pre}mission.time_limit",
@@ -776,7 +776,7 @@ def _rolls_out(scenario: Mapping[str, Any]) -> bool:
     not when a scenarios folder brings its own tracks, nor when a fit brings its fitted
     behaviour (which moves in the plane)."""
     if "scenarios" in scenario and Path(scenario["scenarios"]).is_dir():
-        return _scenario_folder(str(scenario["scenarios"]))[2] is None
+        return _scenario_folder(str(scenario["scenarios"])).tracks is None
     if "fit" in scenario and Path(scenario["fit"]).is_file():
         return _fit(str(scenario["fit"])).behaviour is None
     return True  # (a missing source is named by the checks of each task)
@@ -898,11 +898,12 @@ def _task_scenario(
         "cell_source": "mission.behaviour_cell",
     }
     if "scenarios" in sc:
-        table, meta, all_tracks = _scenario_folder(str(sc["scenarios"]))
+        folder = _scenario_folder(str(sc["scenarios"]))
+        table, all_tracks = folder.artefacts, folder.tracks
         n = int(table["scenario"].max()) + 1 if len(table) else 1
-        n = max(n, int(meta.get("n_scenarios", n) or n))
+        n = max(n, int(folder.manifest.get("n_scenarios", n) or n))
         draw = int(task["replicate"]) % n
-        labels = meta.get("class_labels")
+        labels = folder.class_labels
         art = table[table["scenario"] == draw].reset_index(drop=True)
         tracks = None
         if behave and all_tracks is not None:
