@@ -28,7 +28,7 @@ from are_stats.environment import (
     resolve_shipped,
     shipped_path,
 )
-from are_stats.export import AugmentResult, ServeInfo, augment_bag, robot_from_bag, serve_scenario
+from are_stats.export import AugmentResult, ServeInfo, augment_bag, serve_robot, serve_scenario
 from are_stats.inputs import (
     Described,
     InputError,
@@ -846,21 +846,14 @@ def run_augment(
     seed: int,
     trajectory: TrajectoryOptions,
     *,
-    camera: Path | None = None,
-    period: float = 0.5,
-    d_max: float = 10.0,
-    tau: float = 10.0,
-    force: bool = False,
-    model: str = "chosen",
-    positions: str = "chosen",
     topics: str | None = None,
+    **options: Any,
 ) -> AugmentResult:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
-    (:func:`are_stats.export.augment_bag`); ``trajectory`` how the bag's robot is read,
-    ``topics`` the comma-separated input topics passed through (default all); ``camera`` a
-    camera YAML or a shipped camera's name, as ``perceive --camera``."""
-    if camera is not None:
-        camera = resolve_shipped(camera, "camera", source="--camera")
+    (:func:`are_stats.export.augment_bag`, which ``options`` go to: ``camera``, ``period``,
+    ``d_max``, ``tau``, ``force``, ``model``, ``positions``); ``trajectory`` how the bag's
+    robot is read, ``topics`` the comma-separated input topics passed through (default
+    all)."""
     t = time.perf_counter()
     with console.status(f"augmenting {bag} ..."):
         res = augment_bag(
@@ -870,14 +863,8 @@ def run_augment(
             out,
             seed,
             **trajectory.checked().keywords(),
-            camera=camera,
-            period=period,
-            d_max=d_max,
-            tau=tau,
-            force=force,
-            model=model,
-            positions=positions,
             topics=None if topics is None else [t.strip() for t in topics.split(",") if t.strip()],
+            **options,
         )
     n_seen = int(res.perceived.any(axis=0).sum())
     console.print(
@@ -898,36 +885,26 @@ def run_augment(
 def run_serve(
     folder: Path,
     *,
-    scenario: int | None = None,
-    speed: float = 1.0,
-    host: str = "127.0.0.1",
-    port: int = 8765,
-    loop: bool = False,
-    duration: float | None = None,
     robot_path: Path | None = None,
     bag: Path | None = None,
     trajectory: TrajectoryOptions | None = None,
+    **options: Any,
 ) -> ServeInfo | None:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
-    (:func:`are_stats.export.serve_scenario`), with the robot of a path or of a bag
-    (:func:`are_stats.export.robot_from_bag`, read with ``trajectory``: the options of
+    (:func:`are_stats.export.serve_scenario`, which ``options`` go to: ``scenario``,
+    ``speed``, ``host``, ``port``, ``loop``, ``duration``), with the robot of a path or of
+    a bag (:func:`are_stats.export.serve_robot`, read with ``trajectory``: the options of
     ``augment``); what was served, None when stopped by Ctrl-C."""
-    trajectory = trajectory or TrajectoryOptions()
-    if bag is None:
-        for name in trajectory.given():
-            raise InputError(name, "", "--bag (the bag it reads)", Described("no --bag"))
-    if bag is not None and robot_path is not None:
-        raise InputError("--bag", "", "either --robot-path or --bag", "both")
-    robot = None
-    if bag is not None:
-        robot = robot_from_bag(bag, trajectory.checked())
+    robot = serve_robot(bag, trajectory, robot_path=robot_path)
 
     def ready(info: ServeInfo) -> None:
         moving = f" ({info['moving']} moving)" if info["moving"] else ""
+        duration, loop = info["duration"], info["loop"]
         until = f", for {duration:g} s" if duration is not None else ""
         console.print(
             f"serving scenario {info['scenario']} of {folder}: {info['artefacts']} artefacts"
-            f"{moving} over {info['horizon']:g} s at x{speed:g}{' (looping)' if loop else ''}"
+            f"{moving} over {info['horizon']:g} s at x{info['speed']:g}"
+            f"{' (looping)' if loop else ''}"
             f"{until} on {info['url']} (Foxglove: Open connection -> {info['url']}; "
             "Ctrl-C stops)"
         )
@@ -941,18 +918,7 @@ def run_serve(
                 console.print(f"note: {robot['frame_note']}")
 
     try:
-        info = serve_scenario(
-            folder,
-            scenario=scenario,
-            speed=speed,
-            host=host,
-            port=port,
-            loop=loop,
-            duration=duration,
-            on_ready=ready,
-            robot_path=robot_path,
-            robot=robot,
-        )
+        info = serve_scenario(folder, on_ready=ready, robot_path=robot_path, robot=robot, **options)
     except KeyboardInterrupt:
         console.print("stopped")
         return None

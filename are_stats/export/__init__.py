@@ -14,6 +14,7 @@ from are_stats.export._live import (
     ServeInfo,
     replay_messages,
     robot_from_bag,
+    serve_robot,
     serve_scenario,
 )
 from are_stats.export._mcap import MCAP_TOPICS, export_mcap
@@ -38,5 +39,6 @@ __all__ = [
     "read_view",
     "replay_messages",
     "robot_from_bag",
+    "serve_robot",
     "serve_scenario",
 ]

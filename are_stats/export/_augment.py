@@ -200,7 +200,8 @@ def augment_bag(
     base_frame, map_frame : str
         Frames of the ``/tf`` chain.
     camera : PinholeCamera or path, optional
-        Intrinsics (a camera YAML); with neither ``camera`` nor ``camera_info_topic`` the
+        Intrinsics: a camera YAML, or a shipped camera's name (``front_camera``, as
+        ``perceive --camera``); with neither ``camera`` nor ``camera_info_topic`` the
         shipped ``front_camera``.
     camera_info_topic : str, optional
         ``sensor_msgs/CameraInfo`` topic: intrinsics and frame times from the bag.
@@ -263,6 +264,8 @@ def augment_bag(
     from are_stats.fitting import read_fit
     from are_stats.perception import perceive_scene
 
+    if isinstance(camera, str | os.PathLike):  # a file, or a shipped camera's name
+        camera = resolve_shipped(camera, "camera", source="--camera")
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
     positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)

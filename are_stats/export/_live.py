@@ -91,6 +91,7 @@ __all__ = [
     "load_robot",
     "replay_messages",
     "robot_from_bag",
+    "serve_robot",
     "serve_scenario",
 ]
 
@@ -178,6 +179,11 @@ class ServeInfo(TypedDict):
     horizon: float
     #: The fixed frame.
     frame: str
+    #: The replay's settings: replay seconds per wall-clock second, whether it starts
+    #: again after the horizon, the wall-clock seconds it stops after (None: no limit).
+    speed: float
+    loop: bool
+    duration: float | None
     #: Frames and messages sent, wall seconds served.
     frames: int
     messages: int
@@ -628,6 +634,47 @@ def robot_from_bag(
     }
 
 
+def serve_robot(
+    bag: str | os.PathLike | None,
+    trajectory: TrajectoryOptions | None = None,
+    *,
+    robot_path: str | os.PathLike | None = None,
+) -> LiveRobot | None:
+    """The robot ``serve`` streams from a bag (:func:`robot_from_bag`), or None without one.
+
+    Parameters
+    ----------
+    bag : path or None
+        ROS 1 ``.bag``, ROS 2 bag folder or ``.mcap`` (``--bag``).
+    trajectory : TrajectoryOptions, optional
+        How the bag's robot is read (``--pose-topic`` ... ``--clock``); they need a bag.
+    robot_path : path, optional
+        A robot path given too (``--robot-path``): the two are exclusive.
+
+    Returns
+    -------
+    LiveRobot or None
+        The bag's robot; None when no bag is given (the replay then streams the robot of
+        ``robot_path``, if any, :func:`serve_scenario`).
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming the first of ``trajectory``'s options given without a bag, ``--bag`` when a
+        robot path is given too, ``--pose-topic`` with ``--base-frame``
+        (:meth:`~are_stats.logs.TrajectoryOptions.checked`), and the errors of
+        :func:`robot_from_bag`; all before anything is served.
+    """
+    trajectory = trajectory or TrajectoryOptions()
+    if bag is None:
+        for name in trajectory.given():
+            raise InputError(name, "", "--bag (the bag it reads)", Described("no --bag"))
+        return None
+    if robot_path is not None:
+        raise InputError("--bag", "", "either --robot-path or --bag", "both")
+    return robot_from_bag(bag, trajectory.checked())
+
+
 def _resolves(host: str) -> bool:
     """Whether ``host`` names an address (so that a failed bind is the port's fault)."""
     try:
@@ -774,7 +821,8 @@ def serve_scenario(
     -------
     ServeInfo
         ``host``, ``port``, ``url``, ``scenario``, ``artefacts``, ``moving``, ``horizon``,
-        ``frame``, ``frames`` and ``messages`` (counts sent), ``wall`` (seconds served).
+        ``frame``, ``speed``, ``loop``, ``duration`` (as checked), ``frames`` and
+        ``messages`` (counts sent), ``wall`` (seconds served).
 
     Raises
     ------
@@ -840,6 +888,9 @@ def serve_scenario(
         "moving": replay["moving"],
         "horizon": replay["horizon"],
         "frame": fixed,
+        "speed": speed,
+        "loop": bool(loop),
+        "duration": duration,
         "frames": 0,
         "messages": 0,
         "wall": 0.0,

@@ -1039,3 +1039,22 @@ def test_a_fit_of_the_older_format_is_read_with_a_note_line(capsys):
     err = capsys.readouterr().err
     assert err == f"note: {text}\n"
     assert [(str(m), c) for m, c in shown] == [("other", UserWarning)]
+
+
+def test_augment_bag_reads_a_shipped_cameras_name_as_the_command_does(tmp_path):
+    """``camera=`` takes a camera YAML or a shipped camera's name (``augment --camera``);
+    an unknown name is refused at once, naming ``--camera`` and the shipped cameras,
+    before the bag or the fit is read (neither exists here)."""
+    from are_stats.environment import shipped_names
+
+    with pytest.raises(ValueError, match="--camera: expected an existing camera YAML") as err:
+        augment_bag(
+            tmp_path / "no.bag",
+            tmp_path / "no.nc",
+            "courtyard",
+            tmp_path / "o.mcap",
+            1,
+            camera="no_such_camera",
+        )
+    assert all(name in str(err.value) for name in shipped_names("camera"))
+    assert not (tmp_path / "o.mcap").exists()
