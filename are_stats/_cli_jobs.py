@@ -42,11 +42,11 @@ from are_stats.logs import TrajectoryOptions, find_manifest, read_count_panel, r
 from are_stats.scenarios import (
     POSITION_CHOICES,
     check_folder,
+    generate_manifest,
     read_scenes,
     scenes_from_fit,
     scenes_from_tables,
     scenes_tables,
-    tracks_record,
     write_scenes,
 )
 
@@ -616,26 +616,22 @@ def run_generate(
             progress=StepsLeft(clock, stage),
         )
     df, tracks = scenes_tables(scenes)
-    df.attrs["generation"] = {**df.attrs.get("generation", {}), "positions": positions}
-    manifest = {
-        "fit": str(fit_path),
-        "model": model,
-        "map": None if map_path is None else str(map_path),
-        "seed": int(seed),
-        "class_labels": None if fit.class_labels is None else list(fit.class_labels),
-    }
-    section = tracks_record(
-        behaviours,
-        fit.behaviour,
+    manifest, tracks = generate_manifest(
+        df,
         tracks,
+        fit,
         grid,
+        fit_file=fit_path,
+        map_file=map_path,
+        seed=seed,
+        model=model,
+        positions=positions,
+        behaviours=behaviours,
         behaviour_cell=behaviour_cell,
         behaviour_dt=behaviour_dt,
         cell_source="--behaviour-cell",
     )
-    if section is not None:
-        manifest["tracks"] = section
-    write_scenes(df, out, manifest, tracks=None if section is None else tracks, force=force)
+    write_scenes(df, out, manifest, tracks=tracks, force=force)
     laws = df.attrs["generation"]["laws"]  # what the scenes were drawn from
     console.print(
         f"model: arrivals {laws['arrivals']}, stays {laws['lifetimes']}, "

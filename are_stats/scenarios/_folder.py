@@ -38,10 +38,9 @@ from are_stats.scenarios._behaviour_rule import behaviour_source
 
 if TYPE_CHECKING:
     from are_stats.behaviour import BehaviourFit
+    from are_stats.fitting import Fit
 
-# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read;
-# _assembly (the behaviour rule) in tracks_record (_assembly imports _generate, which
-# imports this module).
+# Lazy imports: pyarrow.parquet is imported when a scenarios folder is written or read.
 
 __all__ = [
     "FORMAT_VERSION",
@@ -49,6 +48,7 @@ __all__ = [
     "SCENARIO_COLUMNS",
     "ScenesFolder",
     "check_positions",
+    "generate_manifest",
     "read_scenes",
     "tracks_record",
     "write_scenes",
@@ -318,6 +318,76 @@ def tracks_record(
     cell = coarse_cell(grid.shape, grid.resolution, behaviour_cell, source=cell_source)
     return {"source": "catalogue behaviour", "cell_m": cell, "dt_s": behaviour_dt,
             "rows": len(tracks)}  # fmt: skip
+
+
+def generate_manifest(
+    df: pd.DataFrame,
+    tracks: pd.DataFrame,
+    fit: Fit,
+    grid: OccupancyGrid | None = None,
+    *,
+    fit_file: str | os.PathLike,
+    map_file: str | os.PathLike | None,
+    seed: int,
+    model: str,
+    positions: str,
+    behaviours: bool | str = False,
+    behaviour_cell: float = 1.0,
+    behaviour_dt: float = 2.0,
+    cell_source: str = "behaviour_cell",
+) -> tuple[dict[str, Any], pd.DataFrame | None]:
+    """What a folder of scenes drawn from a fit records (``are-stats generate``): the
+    ``manifest`` and ``tracks`` to give :func:`write_scenes`.
+
+    Parameters
+    ----------
+    df, tracks : pandas.DataFrame
+        The scenes' tables (:func:`~are_stats.scenarios.scenes_tables`), ``(n_artefacts,)``
+        and ``(n_poses,)`` rows.
+    fit : Fit
+        The fit they were drawn from (its class labels and behaviour).
+    grid : OccupancyGrid, optional
+        The map they were placed on.
+    fit_file, map_file : path
+        The fit's and the map's files, as the manifest names them (``map_file`` None
+        without a map).
+    seed : int
+        The seed of the scenes.
+    model, positions : str
+        The ``model=`` and ``positions=`` of :func:`~are_stats.scenarios.scenes_from_fit`.
+    behaviours, behaviour_cell, behaviour_dt, cell_source
+        As given to the assembly (:func:`tracks_record`).
+
+    Returns
+    -------
+    manifest : dict
+        ``fit``, ``model``, ``map``, ``seed``, ``class_labels``, ``generation`` (the
+        table's ``attrs["generation"]`` with ``positions``) and, when something moves,
+        ``tracks`` (:func:`tracks_record`).
+    tracks : pandas.DataFrame or None
+        The tracks to write; None when nothing moves (no tracks file).
+    """
+    manifest: dict[str, Any] = {
+        "fit": str(fit_file),
+        "model": model,
+        "map": None if map_file is None else str(map_file),
+        "seed": int(seed),
+        "class_labels": None if fit.class_labels is None else list(fit.class_labels),
+        "generation": {**df.attrs.get("generation", {}), "positions": positions},
+    }
+    section = tracks_record(
+        behaviours,
+        fit.behaviour,
+        tracks,
+        grid,
+        behaviour_cell=behaviour_cell,
+        behaviour_dt=behaviour_dt,
+        cell_source=cell_source,
+    )
+    if section is None:
+        return manifest, None
+    manifest["tracks"] = section
+    return manifest, tracks
 
 
 def write_scenes(

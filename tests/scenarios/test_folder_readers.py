@@ -104,3 +104,39 @@ def test_the_tracks_record_follows_the_assemblys_behaviour_rule():
     assert tracks_record("catalogue", fitted, tracks, grid)["cell_m"] == pytest.approx(1.0)
     with pytest.raises(ValueError, match="catalogue behaviours need a map"):
         tracks_record(True, None, tracks, None, cell_source="--behaviour-cell")
+
+
+def test_a_generated_manifest_records_the_fit_choices_and_the_movers(tmp_path):
+    from types import SimpleNamespace
+
+    from are_stats.scenarios import generate_manifest
+
+    df = _table([0, 1], [1, 0])
+    df.attrs["generation"] = {"n_scenarios": 2, "horizon": 60.0}
+    tracks = pd.DataFrame(
+        {"scenario": [0, 0], "id": [0, 0], "t": [10.0, 12.0], "x": [1.0, 2.0], "y": [2.0, 2.0],
+         "yaw": [0.0, 0.0]}
+    )  # fmt: skip
+    grid = OccupancyGrid(np.zeros((60, 80)), 0.1)
+    fit = SimpleNamespace(class_labels=("person", "car"), behaviour=object())
+    kw = {"fit_file": "f.nc", "map_file": "m.yaml", "seed": 3, "model": "paper"}
+    manifest, kept = generate_manifest(df, tracks, fit, grid, **kw, positions="uniform",
+                                       behaviours=True)  # fmt: skip
+    assert kept is tracks
+    assert manifest == {
+        "fit": "f.nc", "model": "paper", "map": "m.yaml", "seed": 3,
+        "class_labels": ["person", "car"],
+        "generation": {"n_scenarios": 2, "horizon": 60.0, "positions": "uniform"},
+        "tracks": {"source": "fitted behaviour", "rows": 2},
+    }  # fmt: skip
+    assert "positions" not in df.attrs["generation"]  # the table is left as it was
+    # written and read back: the generation holds the choice, the fit's labels are the folder's
+    write_scenes(df, tmp_path / "s", manifest, tracks=kept)
+    folder = read_scenes(tmp_path / "s")
+    assert folder.manifest["generation"]["positions"] == "uniform" and folder.horizon == 60.0
+    assert folder.class_labels == ["person", "car"] and folder.n_moving == 1
+    # nothing moves: no tracks section and no tracks file
+    bare = SimpleNamespace(class_labels=None, behaviour=None)
+    manifest, kept = generate_manifest(df, tracks[:0], bare, None, **kw, positions="chosen")
+    assert kept is None and "tracks" not in manifest and manifest["class_labels"] is None
+    assert manifest["map"] == "m.yaml" and manifest["generation"]["positions"] == "chosen"
