@@ -31,7 +31,7 @@ from are_stats.builder._geometry import (
     box_centres,
     box_corners,
     box_runs,
-    obb_overlap_3d,
+    obb_overlap,
     runs_to_cells,
     triangle_box_overlap,
 )
@@ -289,7 +289,7 @@ class ARBuilder:
         if pairs.size == 0:
             return pairs
         a, b = pairs[:, 0], pairs[:, 1]
-        hit = obb_overlap_3d(centre[a], half[a], yaw[a], centre[b], half[b], yaw[b], self.eps)
+        hit = obb_overlap(centre[a], half[a], yaw[a], centre[b], half[b], yaw[b], self.eps)
         return pairs[hit]
 
     def _hits_against(self, idx, centre, half, yaw, o_centre, o_half, o_yaw) -> np.ndarray:
@@ -303,7 +303,7 @@ class ARBuilder:
         qa, sb = h.query(qc.min(axis=1), qc.max(axis=1))
         keep = sb != idx[qa]
         qa, sb = qa[keep], sb[keep]
-        hit = obb_overlap_3d(
+        hit = obb_overlap(
             centre[qa], half[qa], yaw[qa], o_centre[sb], o_half[sb], o_yaw[sb], self.eps
         )
         out[qa[hit]] = True
@@ -965,7 +965,7 @@ class ARBuilder:
                         c_j, h_j, y_j = self._boxes_for(prop[j][None], half[i][None],
                                                         offset[i][None])  # fmt: skip
                         c_o, h_o, y_o = self._boxes_for(now[o], half[idx[o]], offset[idx[o]])
-                        bad = bool(obb_overlap_3d(
+                        bad = bool(obb_overlap(
                             np.repeat(c_j, o.size, 0), np.repeat(h_j, o.size, 0),
                             np.repeat(y_j, o.size), c_o, h_o, y_o, self.eps,
                         ).any())  # fmt: skip

@@ -31,6 +31,7 @@ __all__ = [
     "OrientedBox",
     "box_centres",
     "box_corners",
+    "obb_overlap",
     "obb_overlap_2d",
     "obb_overlap_3d",
     "point_box_distance",
@@ -80,7 +81,7 @@ class OrientedBox:
     def overlaps(self, other: OrientedBox, eps: float = 1e-9) -> bool:
         """Whether the two boxes share positive volume."""
         return bool(
-            obb_overlap_3d(
+            obb_overlap(
                 self.centre[None],
                 self.half[None],
                 np.array([self.yaw]),
@@ -185,7 +186,7 @@ def point_box_distance(
     return np.linalg.norm(np.maximum(q, 0.0), axis=1)
 
 
-def obb_overlap_2d(
+def obb_overlap(
     ca: npt.ArrayLike,
     ha: npt.ArrayLike,
     ya: npt.ArrayLike,
@@ -194,13 +195,17 @@ def obb_overlap_2d(
     yb: npt.ArrayLike,
     eps: float = 1e-9,
 ) -> np.ndarray:
-    """Separating-axis test of pairs of oriented rectangles.
+    """Separating-axis test of pairs of oriented rectangles, or of upright boxes: the one
+    box-versus-box test of the package.
+
+    Upright boxes (a z column in all four of ``ca``, ``ha``, ``cb``, ``hb``) separate
+    either in the plane (the test of their footprints) or along z.
 
     Parameters
     ----------
-    ca, cb : (n, 2) float
+    ca, cb : (n, 2) or (n, 3) float
         Centres.
-    ha, hb : (n, 2) float
+    ha, hb : (n, 2) or (n, 3) float
         Half sizes.
     ya, yb : (n,) float
         Yaws.
@@ -210,7 +215,14 @@ def obb_overlap_2d(
     Returns
     -------
     (n,) bool
-        Whether pair ``k`` shares positive area.
+        Whether pair ``k`` shares positive area (volume, for upright boxes).
+
+    Examples
+    --------
+    >>> obb_overlap([[0, 0]], [[1, 1]], [0], [[1.5, 0]], [[1, 1]], [0.3]).tolist()
+    [True]
+    >>> obb_overlap([[0, 0, 0]], [[1, 1, 1]], [0], [[1.5, 0, 2]], [[1, 1, 1]], [0.3]).tolist()
+    [False]
     """
     ca, cb = np.asarray(ca, float), np.asarray(cb, float)
     ha, hb = np.asarray(ha, float), np.asarray(hb, float)
@@ -228,26 +240,15 @@ def obb_overlap_2d(
     sep |= np.abs(np.einsum("ij,ij->i", d, va)) >= hay + s * hbx + c * hby - eps
     sep |= np.abs(np.einsum("ij,ij->i", d, ub)) >= hbx + c * hax + s * hay - eps
     sep |= np.abs(np.einsum("ij,ij->i", d, vb)) >= hby + s * hax + c * hay - eps
+    if min(ca.shape[1], cb.shape[1], ha.shape[1], hb.shape[1]) > 2:  # upright boxes: and z
+        sep |= ~(np.abs(cb[:, 2] - ca[:, 2]) < ha[:, 2] + hb[:, 2] - eps)
     return ~sep
 
 
-def obb_overlap_3d(
-    ca: npt.ArrayLike,
-    ha: npt.ArrayLike,
-    ya: npt.ArrayLike,
-    cb: npt.ArrayLike,
-    hb: npt.ArrayLike,
-    yb: npt.ArrayLike,
-    eps: float = 1e-9,
-) -> np.ndarray:
-    """Separating-axis test of pairs of upright boxes ``(n, 3)`` centres / half sizes.
-
-    Upright boxes separate either in the plane (the 2D test of the footprints) or in z.
-    """
-    ca, cb = np.asarray(ca, float), np.asarray(cb, float)
-    ha, hb = np.asarray(ha, float), np.asarray(hb, float)
-    z_ok = np.abs(cb[:, 2] - ca[:, 2]) < ha[:, 2] + hb[:, 2] - eps
-    return z_ok & obb_overlap_2d(ca[:, :2], ha[:, :2], ya, cb[:, :2], hb[:, :2], yb, eps)
+#: :func:`obb_overlap` under the names its callers know: rectangles (``(n, 2)`` halves) and
+#: upright boxes (``(n, 3)``).
+obb_overlap_2d = obb_overlap
+obb_overlap_3d = obb_overlap
 
 
 def footprint_runs(

@@ -13,6 +13,7 @@ from scipy.optimize import linprog
 from are_stats.builder import (
     OrientedBox,
     box_corners,
+    obb_overlap,
     obb_overlap_2d,
     obb_overlap_3d,
     point_box_distance,
@@ -99,6 +100,27 @@ def test_obb_3d_and_box_class():
         OrientedBox([0, 0, 0], [1, -1, 1], 0.0)
     r = obb_overlap_3d([[0, 0, 0]], [[1, 1, 1]], [0], [[0, 0, 2.0]], [[1, 1, 1]], [0])
     assert not r[0]  # faces touching in z
+
+
+@settings(max_examples=200, deadline=None)
+@given(coord, coord, size, size, angle, coord, coord, size, size, angle, coord, size, coord, size)
+def test_upright_boxes_overlap_where_footprints_and_heights_do(
+    x1, y1, a1, b1, t1, x2, y2, a2, b2, t2, z1, c1, z2, c2
+):
+    """The one box test on upright boxes against shapely's footprints and the z intervals
+    (an independent oracle: positive area in the plane and positive length along z)."""
+    p1 = shapely.Polygon(box_corners([[x1, y1]], [[a1, b1]], [t1])[0])
+    p2 = shapely.Polygon(box_corners([[x2, y2]], [[a2, b2]], [t2])[0])
+    hit = obb_overlap(
+        [[x1, y1, z1]], [[a1, b1, c1]], [t1], [[x2, y2, z2]], [[a2, b2, c2]], [t2], eps=0.0
+    )[0]
+    area = p1.intersection(p2).area
+    depth = min(z1 + c1, z2 + c2) - max(z1 - c1, z2 - c2)  # shared length along z
+    if area > TOL and depth > TOL:
+        assert hit
+    elif depth < -TOL or p1.distance(p2) > TOL or area == 0 and not p1.intersects(p2):
+        assert not hit
+    assert obb_overlap_3d is obb_overlap and obb_overlap_2d is obb_overlap  # one test
 
 
 def _lp_depth(tri, c, h, yaw):
