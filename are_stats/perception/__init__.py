@@ -8,6 +8,7 @@ from are_stats.perception._camera import (
 )
 from are_stats.perception._perceive import (
     PerceptionResult,
+    TraceOptions,
     box_rois,
     clear_mesh_cache,
     perceive_frames,
@@ -31,6 +32,7 @@ __all__ = [
     "PerceptionResult",
     "CameraModel",
     "PinholeCamera",
+    "TraceOptions",
     "box_rois",
     "camera_mount",
     "check_path_times",

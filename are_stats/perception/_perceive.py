@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import os
 import weakref
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -49,6 +49,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "PerceptionResult",
+    "TraceOptions",
     "perceived_counts",
     "perceived_counts_batch",
     "perceive_frames",
@@ -59,6 +60,29 @@ __all__ = [
 
 _ITEMS_PER_CHUNK = 1 << 24  # (artefact, pixel) items per launch group
 _PIXELS_PER_CHUNK = 1 << 23  # frame pixels per launch group (bounds the per-pixel buffers)
+
+
+class TraceOptions(TypedDict, total=False):
+    """How the rays are traced: the keywords that :func:`perceived_counts`,
+    :func:`perceived_counts_batch`, :func:`~are_stats.perception.perceive_scene` and
+    :func:`~are_stats.perception.perceive_scenario` pass on to :func:`perceive_frames`,
+    whose defaults they keep (no occlusion between artefacts, the CPU, the CPUs this
+    process may use, at most 8).
+
+    Attributes
+    ----------
+    occlusion_between_artefacts : bool
+        Beyond the paper: a pixel counts for a only if no other box is nearer (ties count
+        for both).
+    device : str
+        Warp device, ``"cpu"`` or ``"cuda"``.
+    threads : int or None
+        Host threads for CPU launches.
+    """
+
+    occlusion_between_artefacts: bool
+    device: str
+    threads: int | None
 
 
 class PerceptionResult(NamedTuple):
@@ -643,16 +667,15 @@ def perceived_counts_batch(
     tau: float,
     *,
     active: npt.ArrayLike | None = None,
-    occlusion_between_artefacts: bool = False,
-    device: str = "cpu",
-    threads: int | None = None,
+    **options: Unpack[TraceOptions],
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`perceived_counts` over a trajectory of camera poses (T, 4, 4).
 
     The boxes stand still (``centers (n, 3)``, ``rotations (n, 3, 3)``) or move, one pose
     per frame (``centers (T, n, 3)``, ``rotations (T, n, 3, 3)``); ``active (T, n)`` says
-    which exist in each frame. The boxes of a :class:`~are_stats.Scene` along a robot path
-    are perceived by :func:`~are_stats.perception.perceive_scene`.
+    which exist in each frame; ``options`` are :class:`TraceOptions`. The boxes of a
+    :class:`~are_stats.Scene` along a robot path are perceived by
+    :func:`~are_stats.perception.perceive_scene`.
 
     Returns
     -------
@@ -682,9 +705,7 @@ def perceived_counts_batch(
         d_max,
         tau,
         active=active,
-        occlusion_between_artefacts=occlusion_between_artefacts,
-        device=device,
-        threads=threads,
+        **options,
     )
     return res.counts, res.perceived
 
@@ -697,10 +718,7 @@ def perceived_counts(
     camera: CameraModel,
     d_max: float,
     tau: float,
-    *,
-    occlusion_between_artefacts: bool = False,
-    device: str = "cpu",
-    threads: int | None = None,
+    **options: Unpack[TraceOptions],
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-artefact pixel counts and the perceived set A_f for one frame (section 3.3).
 
@@ -724,12 +742,9 @@ def perceived_counts(
         Maximum ray length (> 0).
     tau : float
         Threshold for partial occlusions (>= 0).
-    occlusion_between_artefacts : bool
-        Beyond the paper: nearer boxes hide farther ones.
-    device : str
-        Warp device (``"cpu"`` default).
-    threads : int, optional
-        Host threads for CPU launches.
+    **options
+        :class:`TraceOptions`: ``occlusion_between_artefacts`` (beyond the paper: nearer
+        boxes hide farther ones), ``device``, ``threads``.
 
     Returns
     -------
@@ -755,17 +770,7 @@ def perceived_counts(
     [False, True]
     """
     res = perceive_frames(
-        env_mesh,
-        centers,
-        half_extents,
-        rotations,
-        camera,
-        None,
-        d_max,
-        tau,
-        occlusion_between_artefacts=occlusion_between_artefacts,
-        device=device,
-        threads=threads,
+        env_mesh, centers, half_extents, rotations, camera, None, d_max, tau, **options
     )
     return res.counts[0], res.perceived[0]
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -23,7 +23,7 @@ from are_stats.environment import OccupancyGrid
 from are_stats.inputs import Described, InputError, Source, check_memory, check_work
 from are_stats.logs import read_raw_table
 from are_stats.perception._camera import CameraModel, check_pose
-from are_stats.perception._perceive import perceived_counts_batch
+from are_stats.perception._perceive import TraceOptions, perceived_counts_batch
 from are_stats.scenarios import MAX_POSITION, Scene, check_positions
 
 if TYPE_CHECKING:
@@ -197,10 +197,7 @@ def perceive_scene(
     camera: CameraModel,
     d_max: float,
     tau: float,
-    *,
-    occlusion_between_artefacts: bool = False,
-    device: str = "cpu",
-    threads: int | None = None,
+    **options: Unpack[TraceOptions],
 ) -> tuple[np.ndarray, np.ndarray]:
     """A_f of a :class:`~are_stats.Scene`'s artefacts along a camera trajectory.
 
@@ -225,12 +222,9 @@ def perceive_scene(
         Intrinsics.
     d_max, tau : float
         Range and partial-occlusion threshold of A_f.
-    occlusion_between_artefacts : bool
-        Nearer artefacts hide farther ones (beyond the paper).
-    device : str
-        Warp device.
-    threads : int, optional
-        Host threads for the Warp CPU launches.
+    **options
+        :class:`~are_stats.perception.TraceOptions`: ``occlusion_between_artefacts``
+        (nearer artefacts hide farther ones, beyond the paper), ``device``, ``threads``.
 
     Returns
     -------
@@ -279,9 +273,7 @@ def perceive_scene(
         d_max,
         tau,
         active=active[:, cols],
-        occlusion_between_artefacts=occlusion_between_artefacts,
-        device=device,
-        threads=threads,
+        **options,
     )
     all_counts = np.zeros(active.shape, np.int64)
     all_seen = np.zeros(active.shape, bool)
@@ -298,8 +290,7 @@ def perceive_scenario(
     tau: float,
     *,
     mount: npt.ArrayLike | None = None,
-    occlusion_between_artefacts: bool = False,
-    threads: int | None = None,
+    **options: Unpack[TraceOptions],
 ) -> pd.DataFrame:
     """Perceived flags of the artefacts of one scene (or several), for a robot on a path.
 
@@ -325,10 +316,9 @@ def perceive_scenario(
         Range and partial-occlusion threshold of A_f.
     mount : (4, 4) float, optional
         ``T_base_optical`` (see :func:`optical_from_base`).
-    occlusion_between_artefacts : bool
-        Nearer artefacts hide farther ones (beyond the paper).
-    threads : int, optional
-        Host threads for the Warp CPU launches.
+    **options
+        :class:`~are_stats.perception.TraceOptions`: ``occlusion_between_artefacts``
+        (nearer artefacts hide farther ones, beyond the paper), ``device``, ``threads``.
 
     Returns
     -------
@@ -384,17 +374,7 @@ def perceive_scenario(
     max_count = np.zeros(n_out, np.int64)
     first = np.full(n_out, np.nan)
     for rows, scene in scenes_rows:
-        counts, seen = perceive_scene(
-            scene,
-            t,
-            poses,
-            env_mesh,
-            camera,
-            d_max,
-            tau,
-            occlusion_between_artefacts=occlusion_between_artefacts,
-            threads=threads,
-        )
+        counts, seen = perceive_scene(scene, t, poses, env_mesh, camera, d_max, tau, **options)
         perceived[rows] = seen.any(axis=0)
         n_frames[rows] = seen.sum(axis=0)
         max_count[rows] = counts.max(axis=0) if len(t) else 0
