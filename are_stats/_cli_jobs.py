@@ -585,6 +585,15 @@ def run_generate(
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
+    # what the scenes are drawn with, and what the folder records of them
+    choices = {
+        "model": model,
+        "positions": positions,
+        "behaviours": behaviours,
+        "behaviour_cell": behaviour_cell,
+        "behaviour_dt": behaviour_dt,
+        "cell_source": "--behaviour-cell",
+    }
     t = time.perf_counter()
     stage = "scenarios with their walks (rollouts)" if behaviours else "scenarios"
     with (
@@ -603,33 +612,16 @@ def run_generate(
             load_catalogue(),
             n_scenarios,
             horizon,
-            behaviours=behaviours,
-            model=model,
-            positions=positions,
             area=area,
-            behaviour_cell=behaviour_cell,
-            behaviour_dt=behaviour_dt,
             source=source,
-            cell_source="--behaviour-cell",
             behaviours_source="--behaviours",
             map_source="--map",
             progress=StepsLeft(clock, stage),
+            **choices,
         )
     df, tracks = scenes_tables(scenes)
     manifest, tracks = generate_manifest(
-        df,
-        tracks,
-        fit,
-        grid,
-        fit_file=fit_path,
-        map_file=map_path,
-        seed=seed,
-        model=model,
-        positions=positions,
-        behaviours=behaviours,
-        behaviour_cell=behaviour_cell,
-        behaviour_dt=behaviour_dt,
-        cell_source="--behaviour-cell",
+        df, tracks, fit, grid, fit_file=fit_path, map_file=map_path, seed=seed, **choices
     )
     write_scenes(df, out, manifest, tracks=tracks, force=force)
     laws = df.attrs["generation"]["laws"]  # what the scenes were drawn from
