@@ -21,6 +21,7 @@ from are_stats.inputs import Described, InputError
 from are_stats.logs._lifecycle_log import (
     TIME_UNITS,
     LifecycleLog,
+    _lifecycle_from_raw,
     _resolve_settings,
     _validate,
     find_manifest,
@@ -155,10 +156,7 @@ def read_field_log(
             raise InputError(
                 name, "", "a tracks table to apply to", Described(f"the life-cycle log {p}")
             )
-        win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area, clock_start)
-        scale = TIME_UNITS[resolved["source_time_unit"]]
-        tol = max(window_tolerance(win), float(resolved.get("time_step", 0.0)))
-        return _validate(raw, win, a, min_life, scale, str(p), resolved, tol)
+        return _lifecycle_from_raw(raw, p, meta, mpath, window, area, clock_start)
 
     tracks = _from_raw(raw)
     scale = TIME_UNITS[str(meta.get("time_unit", "s"))]

@@ -566,10 +566,26 @@ def read_lifecycle_log(
     p = Path(path)
     meta, mpath = find_manifest(p, manifest)
     raw = read_raw_table(p, "life-cycle log")
+    return _lifecycle_from_raw(raw, p, meta, mpath, window, area, clock_start)
+
+
+def _lifecycle_from_raw(
+    raw: RawTable,
+    path: Path,
+    meta: Mapping[str, Any],
+    mpath: str,
+    window: tuple[float, float] | None,
+    area: float | None,
+    clock_start: str | None,
+) -> LifecycleLog:
+    """A life-cycle log table already read (``raw``, from ``path``) with its manifest
+    (``meta`` at ``mpath``), its settings overridden by ``window``, ``area`` and
+    ``clock_start``, validated: :func:`read_lifecycle_log` and the life-cycle branch of
+    :func:`~are_stats.logs.read_field_log`."""
     win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area, clock_start)
     scale = TIME_UNITS[resolved["source_time_unit"]]
     tol = max(window_tolerance(win), float(resolved.get("time_step", 0.0)))
-    return _validate(raw, win, a, min_life, scale, str(p), resolved, tol)
+    return _validate(raw, win, a, min_life, scale, str(path), resolved, tol)
 
 
 def find_manifest(
