@@ -638,7 +638,7 @@ def run_generate(
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
-    from are_stats.fitting import crowding_statistics
+    from are_stats.fitting import crowding_statistics, read_traffic_checks
 
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -683,8 +683,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     def crowding(table: pd.DataFrame) -> dict[str, float]:
         return {k: round(v, 3) for k, v in crowding_statistics(table, (0.0, 3600.0), res).items()}
 
-    checks_file = out / "criticism" / "traffic_checks.csv"
-    checks = pd.read_csv(checks_file, index_col=0) if checks_file.exists() else None
+    checks = read_traffic_checks(out / "criticism")
     summary = {
         "are_stats_version": __version__,
         "log": f"{EXAMPLE_LOG_NAME} (shipped)",

@@ -150,6 +150,7 @@ from are_stats.fitting._report import (  # noqa: E402
     plot_checks,
     predictive_checks,
     predictive_windows,
+    read_traffic_checks,
     sampler_warnings,
     write_report,
 )
@@ -224,6 +225,7 @@ __all__ += [
     "plot_checks",
     "predictive_checks",
     "predictive_windows",
+    "read_traffic_checks",
     "write_report",
 ]
 

@@ -17,6 +17,7 @@ per replicate (:func:`are_stats.scenarios.generate_scenarios`). The checks compa
 from __future__ import annotations
 
 import contextlib
+import os
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -41,6 +42,7 @@ __all__ = [
     "PredictiveChecks",
     "predictive_checks",
     "plot_checks",
+    "read_traffic_checks",
     "write_report",
 ]
 
@@ -616,6 +618,31 @@ def _class_figures(
     return figures
 
 
+#: The file of :func:`write_report`'s traffic checks table (:func:`read_traffic_checks`).
+_TRAFFIC_CHECKS = "traffic_checks.csv"
+
+
+def read_traffic_checks(folder: str | os.PathLike) -> pd.DataFrame | None:
+    """The posterior-predictive traffic checks that :func:`write_report` wrote in ``folder``
+    (``traffic_checks.csv``: the table of :func:`~are_stats.fitting.traffic_checks`), or
+    None when it holds none.
+
+    Parameters
+    ----------
+    folder : str or PathLike
+        A criticism folder (``are-stats fit --figures``, ``are-stats report --out``).
+
+    Returns
+    -------
+    pandas.DataFrame or None
+        One row per statistic: ``observed`` and, per model (``paper``, ``chosen``), the
+        90% band ``<model>_5%``, ``<model>_95%`` and ``<model>_flag`` (observed outside
+        it).
+    """
+    path = Path(folder) / _TRAFFIC_CHECKS
+    return pd.read_csv(path, index_col=0) if path.exists() else None
+
+
 def write_report(
     idata: az.InferenceData,
     out_dir: str | Path,
@@ -677,9 +704,9 @@ def write_report(
     images = _overview_images(checks)
     figures: dict[str, Any] = {}
     table, reps = traffic_checks(key, idata, n_replicates)
-    with atomic_path(out / "traffic_checks.csv", force=force) as tmp:
+    with atomic_path(out / _TRAFFIC_CHECKS, force=force) as tmp:
         table.to_csv(tmp, float_format="%.6g")
-    written["traffic_checks_table"] = out / "traffic_checks.csv"
+    written["traffic_checks_table"] = out / _TRAFFIC_CHECKS
     figures["traffic_checks"] = plot_traffic_checks(table, reps)
     per_class = class_checks(key, idata, n_replicates)  # a labelled log's classes (issue 31)
     if per_class is not None:
