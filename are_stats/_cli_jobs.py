@@ -22,9 +22,9 @@ from are_stats import __version__
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
-    OccupancyGrid,
     environment_mesh,
     load_catalogue,
+    read_map,
     resolve_shipped,
     shipped_path,
 )
@@ -580,8 +580,7 @@ def run_generate(
     fit = read_fit(fit_path)
     grid = None
     if map_path is not None:
-        map_path = resolve_shipped(map_path, "map", source="--map")  # or a shipped map's name
-        grid = OccupancyGrid.from_ros_yaml(map_path)
+        map_path, grid = read_map(map_path)  # a map file, or a shipped map's name
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)

@@ -10,7 +10,7 @@ import numpy as np
 from are_stats._atomic import check_writable, save_figure
 from are_stats.builder._builder import ARBuilder
 from are_stats.builder._geometry import box_corners
-from are_stats.environment import OccupancyGrid, load_catalogue, resolve_shipped
+from are_stats.environment import OccupancyGrid, load_catalogue, read_map
 from are_stats.inputs import InputError, get_float, get_int, get_seed
 
 # Lazy imports: matplotlib (about 0.5 s) is imported when a map picture is drawn, not with the
@@ -143,8 +143,7 @@ def show_map(
         inflate = get_float(inflate, "--inflate", "", lo=0, hi=MAX_INFLATE)
     n_art = get_int(artefacts, "--artefacts", "", lo=0, hi=MAX_SHOW_ARTEFACTS)
     seed = get_seed(seed, "--seed")
-    p = resolve_shipped(map_path, "map", source="MAP")  # a map file, or a shipped map's name
-    grid = OccupancyGrid.from_ros_yaml(p)
+    p, grid = read_map(map_path, source="MAP")  # a map file, or a shipped map's name
     target = Path(out) if out is not None else Path(f"{p.stem}.png")
     check_writable(target, force)
     builder = None

@@ -22,6 +22,7 @@ from are_stats.environment._grid import (
     OccupancyGrid,
     coarse_cell,
     coarse_free,
+    read_map,
 )
 from are_stats.environment._mesh import (
     environment_mesh,
@@ -62,6 +63,7 @@ __all__ = [
     "occupied_polygons",
     "planar_pose_matrix",
     "pose_matrix",
+    "read_map",
     "resolve_shipped",
     "shipped_names",
     "shipped_path",

@@ -29,6 +29,7 @@ from PIL import Image, UnidentifiedImageError
 
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._checks import check_finite, check_in, describe
+from are_stats.environment._shipped import resolve_shipped
 from are_stats.inputs import (
     Described,
     InputError,
@@ -47,6 +48,7 @@ from are_stats.inputs import (
 
 __all__ = [
     "OccupancyGrid",
+    "read_map",
     "FREE",
     "OCCUPIED",
     "UNKNOWN",
@@ -541,6 +543,42 @@ class OccupancyGrid:
         if need_alpha:
             alpha = np.where(self.data == UNKNOWN, 0, 255).astype(np.uint8)
         return pixels, alpha
+
+
+def read_map(
+    name_or_path: str | os.PathLike, *, source: str = "--map"
+) -> tuple[Path, OccupancyGrid]:
+    """A map where a command or config takes one: a ROS map YAML, or the name of a shipped
+    map (``courtyard``; :func:`~are_stats.environment.resolve_shipped`), read by
+    :meth:`OccupancyGrid.from_ros_yaml`.
+
+    Parameters
+    ----------
+    name_or_path : str or PathLike
+        A map YAML (an existing file wins) or a shipped map's name.
+    source : str
+        The option or key it came from, named when it is neither (``"--map"``).
+
+    Returns
+    -------
+    path : Path
+        The map YAML read.
+    grid : OccupancyGrid
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming ``source`` and the shipped maps when ``name_or_path`` is neither a file nor
+        a shipped map's name; the errors of :meth:`OccupancyGrid.from_ros_yaml`.
+
+    Examples
+    --------
+    >>> path, grid = read_map("courtyard")
+    >>> path.name, grid.resolution
+    ('courtyard.yaml', 0.1)
+    """
+    path = resolve_shipped(name_or_path, "map", source=source)
+    return path, OccupancyGrid.from_ros_yaml(path)
 
 
 def _check_geometry(resolution: Any, origin: Any, source: Source) -> tuple[float, tuple]:

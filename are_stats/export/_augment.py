@@ -31,6 +31,7 @@ from are_stats.environment import (
     OccupancyGrid,
     extrude_grid,
     load_catalogue,
+    read_map,
     resolve_shipped,
 )
 from are_stats.export._live import bag_camera
@@ -276,8 +277,7 @@ def augment_bag(
     if camera is not None and camera_info_topic is not None:
         raise InputError("--camera", "", "either --camera or --camera-info-topic", "both")
     out = check_writable(out, force)
-    map_file = resolve_shipped(map_path, "map", source="--map")
-    grid = OccupancyGrid.from_ros_yaml(map_file)
+    _, grid = read_map(map_path)
     fitted = read_fit(fit)
 
     opts = TrajectoryOptions(pose_topic, base_frame, map_frame, camera_info_topic, clock)

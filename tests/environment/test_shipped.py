@@ -74,3 +74,21 @@ def test_an_unknown_name_lists_the_shipped_ones(tmp_path, monkeypatch):
         shipped_path("fig8", "experiment")
     with pytest.raises(InputError, match="one of map, catalogue, camera, log, experiment"):
         shipped_names("mesh")
+
+
+def test_read_map_takes_a_file_or_a_shipped_name_and_names_its_option(tmp_path):
+    import numpy as np
+
+    from are_stats.environment import OccupancyGrid, read_map
+
+    path, grid = read_map("courtyard")
+    assert path == shipped_path("courtyard", "map")
+    truth = OccupancyGrid.from_ros_yaml(path)
+    np.testing.assert_array_equal(grid.data, truth.data)
+    assert (grid.resolution, grid.origin) == (truth.resolution, truth.origin)
+    copy = tmp_path / "courtyard.yaml"  # a file of that name wins over the shipped map
+    truth.to_ros_yaml(copy)
+    assert read_map(copy)[0] == copy
+    with pytest.raises(InputError, match=r"^MAP: .*courtyard") as err:
+        read_map("no_such_map", source="MAP")
+    assert "no_such_map" in str(err.value)
