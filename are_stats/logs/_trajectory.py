@@ -179,7 +179,8 @@ class TrajectoryOptions(NamedTuple):
     The fields are :func:`read_trajectory`'s keywords, in the order the commands declare
     them, so a command builds one from its parsed options in one line and every layer below
     (``run_augment`` -> :func:`~are_stats.export.augment_bag`, ``run_serve`` ->
-    :func:`~are_stats.export.robot_from_bag` -> :func:`read_trajectory`) passes it on
+    :func:`~are_stats.export.serve_robot` -> :func:`~are_stats.export.robot_from_bag` ->
+    :func:`read_trajectory`) passes it on
     whole instead of repeating six keywords.
 
     Attributes
