@@ -519,3 +519,21 @@ def test_serve_sends_the_bag_robot_on_the_bags_clock(folder, tmp_path):
     assert not th.is_alive() and "error" not in box, box.get("error")
     start = stamp_ns(0.0, SIM_START)
     assert all(start <= lt < start + 60 * 10**9 for lt in log_times), (start, log_times)
+
+
+def test_serve_robot_refuses_bag_options_without_a_bag_and_two_robots(tmp_path):
+    """The bag-robot rules of ``serve`` (before any bag is opened: none exists here)."""
+    from are_stats.export import serve_robot
+    from are_stats.inputs import InputError
+    from are_stats.logs import TrajectoryOptions
+
+    assert serve_robot(None) is None and serve_robot(None, TrajectoryOptions()) is None
+    assert serve_robot(None, robot_path=tmp_path / "p.csv") is None  # the path's robot
+    given = TrajectoryOptions(pose_topic="/amcl_pose", clock="log")
+    with pytest.raises(InputError, match=r"^--pose-topic: expected --bag \(the bag it reads\)"):
+        serve_robot(None, given)
+    with pytest.raises(InputError, match=r"^--bag: expected either --robot-path or --bag"):
+        serve_robot(tmp_path / "no.bag", robot_path=tmp_path / "p.csv")
+    both = TrajectoryOptions(pose_topic="/amcl_pose", base_frame="base_link")
+    with pytest.raises(InputError, match=r"^--pose-topic: expected either --pose-topic or"):
+        serve_robot(tmp_path / "no.bag", both)
