@@ -37,16 +37,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from are_stats.environment._mesh import MAX_COORDINATE, MESH_BYTES_PER_BYTE, load_mesh
+from are_stats.environment._mesh import MAX_COORDINATE, _mesh_file_size, load_mesh
 from are_stats.environment._shipped import SHIPPED_DATA
 from are_stats.inputs import (
     Described,
     InputError,
     Source,
-    check_file,
     check_keys,
     check_memory,
-    format_bytes,
     get_float,
     get_int,
     get_list,
@@ -474,8 +472,7 @@ def _obj_bounds(path: Path) -> np.ndarray | None:
     -------
     (2, 3) float64 or None
     """
-    size = check_file(path, "a mesh file (OBJ, PLY, STL, GLB, ...)")
-    check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", path)
+    _mesh_file_size(path)
     vertices: list[tuple[float, float, float]] = []
     faces: list[int] = []
     try:

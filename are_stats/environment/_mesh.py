@@ -46,6 +46,15 @@ MESH_BYTES_PER_BYTE = 32
 _STEPS_PER_RECT = 2000
 
 
+def _mesh_file_size(path: str | os.PathLike) -> int:
+    """The size (bytes) of a mesh file, refused unless it is a regular file whose parse fits
+    the memory limit (:data:`MESH_BYTES_PER_BYTE`): the check of every mesh reader
+    (:func:`load_mesh`, the catalogue's plain-OBJ bounds)."""
+    size = check_file(path, "a mesh file (OBJ, PLY, STL, GLB, ...)")
+    check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", path)
+    return size
+
+
 def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     """Load any mesh trimesh reads (OBJ, PLY, STL, GLB, ...) as one ``Trimesh``.
 
@@ -66,10 +75,8 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     import trimesh
 
     p = Path(path)
-    size = check_file(p, "a mesh file (OBJ, PLY, STL, GLB, ...)")
-    if size == 0:
+    if _mesh_file_size(p) == 0:
         raise InputError(p, "", "a mesh with triangles", Described("an empty file"))
-    check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", p)
     try:
         obj = trimesh.load(p, force="mesh", process=False)
     except MemoryError:
