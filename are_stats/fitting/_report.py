@@ -411,11 +411,8 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
     return figs
 
 
-def _overview(checks: PredictiveChecks, dpi: float | None = None) -> tuple[Any, dict[str, Any]]:
+def _overview(checks: PredictiveChecks) -> tuple[Any, dict[str, Any]]:
     """The ``criticism`` figure: every check's panel on one page (laid out once).
-
-    ``dpi``: the figure's resolution from the start (default matplotlib's), so that the
-    layout measures its text with the renderer that will draw it (:func:`_overview_images`).
 
     Returns
     -------
@@ -430,7 +427,7 @@ def _overview(checks: PredictiveChecks, dpi: float | None = None) -> tuple[Any, 
         names.remove("hour_of_day")
     if c.marks_obs is not None and c.mix_rates is not None:
         names.append("marks")
-    overview, axes = plt.subplots(2, 3, figsize=(15, 8), dpi=dpi)
+    overview, axes = plt.subplots(2, 3, figsize=(15, 8))
     panels = dict(zip(names, axes.ravel(), strict=False))
     for name, ax in panels.items():
         _draw_panel(name, ax, c, c.window[0])
@@ -461,11 +458,9 @@ def _overview_images(checks: PredictiveChecks) -> dict[str, np.ndarray]:
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    # at the report's resolution from the start: laid out at matplotlib's 100 dpi and drawn
-    # at 110, the layout, the drawing and the cut-outs measured every text twice (0.1-0.2 s
-    # of a repeated fit's CPU); the layout's fractions move by a pixel or two
-    overview, panels = _overview(checks, dpi=REPORT_DPI)
+    overview, panels = _overview(checks)
     try:
+        overview.set_dpi(REPORT_DPI)
         canvas = FigureCanvasAgg(overview)  # Agg whatever the session's backend
         canvas.draw()
         full = np.asarray(canvas.buffer_rgba()).copy()
