@@ -444,6 +444,10 @@ def _overview(checks: PredictiveChecks) -> tuple[Any, dict[str, Any]]:
 
 #: Resolution of the report's figures (dots per inch).
 REPORT_DPI = 110
+#: zlib level of the report's PNGs: the same pixels as PIL's default 6 in 50-70% of the
+#: encoding time, files 7% larger (the shipped log's 8 figures: 0.24-0.33 s of CPU at 6,
+#: 0.17 s at 1; 470 kB against 502 kB).
+PNG_COMPRESS_LEVEL = 1
 #: Margin kept around a panel cut out of the overview (pixels).
 _PANEL_MARGIN = 6
 
@@ -726,12 +730,14 @@ def write_report(
     for name, image in images.items():
         path = out / f"{name}.png"
         with atomic_path(path, force=force) as tmp:
-            Image.fromarray(image).save(tmp, format="png")
+            Image.fromarray(image).save(tmp, format="png", compress_level=PNG_COMPRESS_LEVEL)
         written[name] = path
     for name, fig in figures.items():
         path = out / f"{name}.png"
         with atomic_path(path, force=force) as tmp:
-            fig.savefig(tmp, dpi=REPORT_DPI, format="png")
+            fig.savefig(
+                tmp, dpi=REPORT_DPI, format="png", pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}
+            )
         plt.close(fig)
         written[name] = path
     return written
