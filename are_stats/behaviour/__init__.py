@@ -56,6 +56,7 @@ from are_stats.behaviour._soft import (  # noqa: E402
     moves_log_likelihood,
     soft_backward_induction,
     soft_policy,
+    track_log_likelihoods,
     wall_distance_feature,
 )
 
@@ -67,6 +68,7 @@ __all__ += [
     "moves_log_likelihood",
     "soft_backward_induction",
     "soft_policy",
+    "track_log_likelihoods",
     "wall_distance_feature",
 ]
 

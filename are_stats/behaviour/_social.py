@@ -424,6 +424,16 @@ def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tup
     programs). The search (:func:`_pair_forces`) is all pairs, blocks of ``block`` slots
     or the grid of cells; without repulsion (``repel`` False) there is none, and the
     windows of a size share one program whatever search they would have had (issue 29).
+    The windows of blocks of one width and those without repulsion have ``nb`` of the
+    walk's largest of them: one program each per walk (issue 29: the motion checks'
+    50 replicates, walked without repulsion where the fit found none, compiled five
+    sizes, 64 to 1,024). A block's sums keep their width and a window without repulsion
+    has none, so the padding leaves the walks as they were, bit for bit
+    (tests/behaviour/test_social_golden.py). All pairs (up to :data:`ALL_PAIRS_MAX`) sum
+    over the slots, and keep their own sizes; so do the windows of the grid of cells:
+    padded, their sums keep their length but not their bits (a fitted scene of
+    tests/scenarios/test_assembly_golden.py, 1,024 people padded to 2,048, walked
+    otherwise by round-off).
     ``active[w]`` (m,) the artefacts alive in window ``w`` (sorted by scenario), ``scen``
     (n,) their scenarios (integer codes)."""
     out: list[tuple | None] = []
@@ -442,7 +452,16 @@ def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tup
             out.append((False, 0, nb, width))
         else:
             out.append((not width and nb <= ALL_PAIRS_MAX, width, nb, width))
-    return out
+
+    # the windows of a block width (or without repulsion) share one program: each is
+    # padded to the walk's largest of them (more blocks: the same sums)
+    def shared(lay: tuple | None) -> bool:
+        return lay is not None and not lay[0] and (lay[1] > 0 or not repel)
+
+    most: dict[tuple, int] = {}
+    for lay in filter(shared, out):
+        most[lay[:2]] = max(most.get(lay[:2], 0), lay[2])
+    return [(lay[0], lay[1], most[lay[:2]], lay[3]) if shared(lay) else lay for lay in out]
 
 
 def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:

@@ -38,6 +38,7 @@ turn, a move into an obstacle) from giving ``-inf``.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import TYPE_CHECKING, NamedTuple
 
 import jax
@@ -63,6 +64,7 @@ __all__ = [
     "soft_policy",
     "moves_log_likelihood",
     "move_observations",
+    "track_log_likelihoods",
     "wall_distance_feature",
 ]
 
@@ -590,3 +592,70 @@ def moves_log_likelihood(
     steps = (jnp.moveaxis(tm, 1, 0), jnp.moveaxis(move < 0, 1, 0))
     (_, ll), _ = jax.lax.scan(fwd, (alpha0, jnp.zeros(n, dtype)), steps)
     return ll if per_track else ll.sum()
+
+
+@partial(jax.jit, static_argnames=("eps",))
+def _per_track_jit(policy, ok, slip, gi, rows, cols, move, eps):
+    return moves_log_likelihood(policy, ok, slip, (gi, rows, cols, move), eps=eps, per_track=True)
+
+
+def _pow2(n: int, lo: int) -> int:
+    return max(lo, 1 << (max(int(n), 1) - 1).bit_length())
+
+
+def track_log_likelihoods(
+    policy: npt.ArrayLike,
+    ok: npt.ArrayLike,
+    slip: float,
+    obs: MoveObservations | tuple[np.ndarray, ...],
+    *,
+    eps: float = OUTLIER,
+) -> np.ndarray:
+    """Per-track log-likelihoods of :func:`moves_log_likelihood` (``per_track=True``) for
+    host arrays, by one compiled program per shape bucket (issue 29: called op by op, a
+    criticism's batches of changing sizes compiled some 40 one-operation programs each).
+
+    The tracks are padded to a power of two (at least 16) with tracks of no step, the
+    steps to a power of two (at least 8) with padding steps (a factor of exactly 1: a
+    track's value does not depend on the batch's longest) and the goals to a multiple of
+    :data:`GOAL_BUCKET` with zero policies that no track uses; the values are those of
+    :func:`moves_log_likelihood`.
+
+    Parameters
+    ----------
+    policy : (G, 4, 5, H, W) float
+        The soft policy per goal (:attr:`SoftSolution.policy`).
+    ok : (4, 2, H, W) bool
+        Free paths (:func:`~are_stats.behaviour.path_free`).
+    slip : float
+        Slip probability.
+    obs : MoveObservations or (goal_index (N,), rows (N, T), cols (N, T), move (N, T))
+        Observed steps (:func:`move_observations`).
+    eps : float
+        Outlier probability of a step.
+
+    Returns
+    -------
+    (N,) float64
+        ``log p(path_n)`` of each track.
+    """
+    pol = np.asarray(policy)
+    gi, rows, cols, move = (np.asarray(x) for x in obs[:4])
+    n, t = move.shape
+    g = pol.shape[0]
+    n_b, t_b, g_b = _pow2(n, 16), _pow2(t, 8), -(-g // GOAL_BUCKET) * GOAL_BUCKET
+
+    def padded(x: np.ndarray, fill: int) -> np.ndarray:
+        out = np.full((n_b, t_b), fill, np.int64)
+        out[:n, :t] = x
+        return out
+
+    gi_b = np.zeros(n_b, np.int64)
+    gi_b[:n] = gi
+    if g_b > g:
+        pol = np.concatenate([pol, np.zeros((g_b - g, *pol.shape[1:]), pol.dtype)])
+    ll = _per_track_jit(
+        pol, np.asarray(ok), np.asarray(slip, pol.dtype), gi_b, padded(rows, 0),
+        padded(cols, 0), padded(move, -1), float(eps),
+    )  # fmt: skip
+    return np.asarray(ll, np.float64)[:n]

@@ -37,7 +37,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
@@ -45,9 +44,9 @@ from are_stats.behaviour import (
     GOAL_BUCKET,
     BehaviourFit,
     move_observations,
-    moves_log_likelihood,
     path_free,
     soft_policy,
+    track_log_likelihoods,
     tracker_noise,
 )
 from are_stats.inputs import LimitError
@@ -781,7 +780,7 @@ def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFra
                                                                                 tracks.index)
     )  # fmt: skip
     cls = labels.map(lambda v: names.get(v, 0)).to_numpy()
-    ok = jnp.asarray(path_free(~fit.free))
+    ok = path_free(~fit.free)
     rows = []
     for c in np.unique(cls):
         tab = tracks[cls == c]
@@ -796,8 +795,8 @@ def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFra
         uniform = np.zeros_like(pol)
         uniform[:, :, [0, 1, 3, 4]] = 0.25
         slip = float(fit.slip[c])
-        ll_p = np.asarray(moves_log_likelihood(jnp.asarray(pol), ok, slip, obs, per_track=True))
-        ll_u = np.asarray(moves_log_likelihood(jnp.asarray(uniform), ok, slip, obs, per_track=True))
+        ll_p = track_log_likelihoods(pol, ok, slip, obs)
+        ll_u = track_log_likelihoods(uniform, ok, slip, obs)
         n_mv = (obs.move >= 0).sum(axis=1)
         rows.append(
             pd.DataFrame(

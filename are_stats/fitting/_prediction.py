@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_positive
-from are_stats.behaviour import BehaviourFit, move_observations, moves_log_likelihood, path_free
+from are_stats.behaviour import BehaviourFit, move_observations, path_free, track_log_likelihoods
 from are_stats.fitting._motion_checks import _policies, _rng, _social, _walk, tracker_noise
 
 __all__ = ["constant_velocity", "displacement_errors"]
@@ -93,8 +93,6 @@ def _goal_posterior(
     """Candidate exits ``(G, 2)`` of class ``c`` (the observed exit cells) and the log
     posterior ``(B, G)`` of each window's goal: the empirical exit frequencies times the soft
     policy's likelihood of the window's observed moves (discretised as in the fit)."""
-    import jax.numpy as jnp
-
     from are_stats.fitting._behaviour import discretise_tracks
 
     ends = fit.world_to_cell(fit.exit_xy[fit.track_class == c])
@@ -118,14 +116,16 @@ def _goal_posterior(
     rows_of = ids[moved].astype(np.int64)
     obs = move_observations([p for p, m in zip(paths, moved, strict=True) if m])
     n = len(rows_of)
-    ok = jnp.asarray(path_free(~fit.free))
+    ok = path_free(~fit.free)
     slip = float(fit.slip[c])
     for g0 in range(0, len(goals), chunk):
         gsel = np.arange(g0, min(g0 + chunk, len(goals)))
-        pol = jnp.asarray(_policies(fit, c, goals[gsel]))
+        pol = _policies(fit, c, goals[gsel])
         gi = np.repeat(np.arange(len(gsel)), n)
         tiled = (gi, *(np.tile(x, (len(gsel), 1)) for x in (obs.rows, obs.cols, obs.move)))
-        ll = np.asarray(moves_log_likelihood(pol, ok, slip, tiled, per_track=True), float)
+        # one compiled program per shape bucket (issue 29: op by op, each chunk's sizes
+        # compiled some 40 programs)
+        ll = track_log_likelihoods(pol, ok, slip, tiled)
         logp[rows_of[:, None], gsel[None, :]] += ll.reshape(len(gsel), n).T
     return goals, logp
 

@@ -4,7 +4,9 @@ The digests were taken from :func:`social_force_tracks` before its routes were c
 in one pass and its windows laid out by one function (commit f59a774, same inputs):
 every neighbour search (all pairs, blocks of small scenes, the grid of cells, none at
 strength 0), with arrival groups, within-person speed variation, a kinematic artefact and
-a map with walls. A change that is pure engineering leaves them as they are.
+a map with walls. A change that is pure engineering leaves them as they are: so did the
+padding of a walk's windows of blocks and without repulsion to the walk's largest (issue
+29; a block's sums keep their width, a walk without repulsion has none).
 """
 
 from __future__ import annotations
@@ -118,5 +120,7 @@ def test_the_walks_cover_the_searches_and_share_programs_without_repulsion(monke
     assert (False, False, False) in seen  # strength 0: no search
     kinds = {name: len(p) for name, p in programs.items()}
     # room: all pairs of 16 and 32; scenes: blocks, all pairs of 16, 64 and 128; crowd:
-    # the grid of 256 and 512, all pairs of 32; strength 0: sizes 16, 64 and 512
-    assert kinds == {"room": 2, "scenes": 4, "scenes, strength 0": 3, "crowd": 3}
+    # the grid of 256 and 512 (not padded: _layout), all pairs of 32; strength 0: every
+    # window padded to the walk's largest, 512 (issue 29; three programs before: 16, 64
+    # and 512)
+    assert kinds == {"room": 2, "scenes": 4, "scenes, strength 0": 1, "crowd": 3}

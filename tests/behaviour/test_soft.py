@@ -16,6 +16,7 @@ from are_stats.behaviour import (
     sample_soft_paths,
     smooth_path,
     soft_policy,
+    track_log_likelihoods,
 )
 from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._soft import soft_backward_induction
@@ -217,3 +218,21 @@ def test_bucketed_soft_policy_is_the_same_bit_for_bit_from_one_program() -> None
     assert _capped_jit._cache_size() == size
     with pytest.raises(ValueError, match="bucket: expected with tol"):
         soft_policy(occ, cells[:2], 2.0, 0.1, n_epochs=30, bucket=4)
+
+
+def test_track_log_likelihoods_are_the_per_track_values_from_one_program() -> None:
+    """track_log_likelihoods (issue 29: the criticism called moves_log_likelihood op by
+    op, some 40 one-operation programs per batch size): the tracks, steps and goals
+    padded to buckets give every track's value of the unpadded per-track likelihood (to
+    float64 round-off: one fused program against one program per operation)."""
+    occ = _grid()
+    paths = _paths(3, occ, 2.0, 0.15)
+    ok = path_free(occ)
+    for n in (len(paths), 5, 1):
+        obs = move_observations(paths[:n])
+        sol = soft_policy(occ, obs.goals, 2.0, 0.15, n_epochs=200, time_cost=1.0, tol=1e-8)
+        pol = np.asarray(sol.policy)
+        want = moves_log_likelihood(jnp.asarray(pol), jnp.asarray(ok), 0.15, obs, per_track=True)
+        got = track_log_likelihoods(pol, ok, 0.15, obs)
+        assert got.shape == (n,) and got.dtype == np.float64
+        assert_allclose(got, np.asarray(want), rtol=1e-13, atol=1e-13)

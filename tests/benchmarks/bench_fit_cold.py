@@ -97,6 +97,19 @@ now most of it), behaviour 24.0 vs 28.4 s, realism 24.0 vs 21.4 s, displacement 
 load). Every printed table is the same except the PPC's "chosen" bands (other posterior
 draws: the same flags) and ``r_hat`` of groups (no NUTS). Issue 29's 60 s is still far.
 
+The tracks part with the criticism's move likelihoods in one program per shape bucket
+(``track_log_likelihoods``) and a walk's windows without repulsion or of blocks padded to
+its largest (2026-11-27, main d81aad3 and wt-tracks started together, load 17 -> 14; the
+CLI's command in fresh processes with empty caches, CPU of the child by ``getrusage``):
+cold CPU 158.0 s main vs 135.8 s branch (1.16x; wall 1,232 vs 1,138 s), again at load
+11-12: 147.9 s vs 126.5 s (1.17x; wall 616 vs 581 s); XLA compilations 309 vs 64 (about
+240 one-operation programs of the displacement errors' goal posteriors and the held-out
+moves gone, ``_window`` 10 -> 5). All 17 criticism files and the fit file's behaviour and
+posterior groups byte for byte the same, in both rounds. The stage record (times less
+XLA compiling) shows the stages alike: the saving is compiling. Left: the behaviour
+likelihood's Hessian program (``_second_derivative``, 113 s wall to compile at that load
+against the gradient's 68 s). Issue 29's 60 s is still far.
+
 The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not
