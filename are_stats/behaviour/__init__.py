@@ -95,6 +95,7 @@ __all__ += [
 ]
 
 from are_stats.behaviour._motion import (  # noqa: E402
+    arrival_velocities,
     line_of_sight,
     preferred_speeds,
     string_pull,
@@ -102,7 +103,14 @@ from are_stats.behaviour._motion import (  # noqa: E402
     walk_times,
 )
 
-__all__ += ["line_of_sight", "preferred_speeds", "string_pull", "string_pull_many", "walk_times"]
+__all__ += [
+    "arrival_velocities",
+    "line_of_sight",
+    "preferred_speeds",
+    "string_pull",
+    "string_pull_many",
+    "walk_times",
+]
 
 from are_stats.behaviour._walk import walk_tracks  # noqa: E402
 

@@ -11,7 +11,10 @@ between decisions is continuous:
   its median (the between-person spread);
 - :func:`walk_times` times a path at that speed with a small, slowly varying within-person
   variation (a stationary AR(1) in log speed over the path's segments) instead of a speed
-  per epoch.
+  per epoch;
+- :func:`arrival_velocities` gives each planned track the velocity of its first planned
+  move, so that a person walks on arrival (people come into a map walking) instead of
+  setting off from rest.
 """
 
 from __future__ import annotations
@@ -22,10 +25,12 @@ from typing import Any
 import jax
 import numpy as np
 import numpy.typing as npt
+import pandas as pd
 
 from are_stats._checks import check_nonnegative, check_positive
 
 __all__ = [
+    "arrival_velocities",
     "line_of_sight",
     "preferred_speeds",
     "string_pull",
@@ -379,3 +384,48 @@ def walk_times(
         for k in range(1, seg.size):
             e[k] = rho[k] * e[k - 1] + np.sqrt(1.0 - rho[k] ** 2) * within_sd * z[k]
     return np.concatenate([[0.0], np.cumsum(seg / (speed * np.exp(e)))])
+
+
+def arrival_velocities(tracks: pd.DataFrame) -> pd.DataFrame:
+    """Planned tracks with the velocity each one arrives with: that of its first planned
+    move.
+
+    People come into a map walking (through a door, into a sensor's view), so a walker
+    whose plan moves from its first sample arrives at the velocity of that first move (its
+    preferred speed, along its route's first leg) rather than from rest; one whose plan
+    first stands (a stay, a turn in place) arrives standing. The social force
+    (:func:`~are_stats.behaviour.social_force_tracks`) reads these columns as the velocity
+    at each track's first row: without them every walker set off from rest and lagged its
+    plan by the relaxation time (0.5 s, 0.6 m at 1.2 m/s), so that a walker timed to reach
+    its exit at the end of its stay had not reached it by then.
+
+    Parameters
+    ----------
+    tracks : pandas.DataFrame
+        ``id, t, x, y`` (m, s), optionally ``scenario`` (tracks are ``(scenario, id)``);
+        each track's rows in time order (any track order).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``tracks`` with columns ``vx, vy`` (m/s): on every row of a track, the velocity of
+        its first move (its second position less its first over their time apart; 0 for a
+        track of one row or one whose first two rows are at one place or one time).
+    """
+    keys = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
+    code = tracks.groupby(keys, sort=False).ngroup().to_numpy()
+    t = tracks["t"].to_numpy(float)
+    xy = tracks[["x", "y"]].to_numpy(float)
+    n = int(code.max()) + 1 if code.size else 0
+    # each track's first two rows (the table's order within a track is its time order)
+    order = np.argsort(code, kind="stable")
+    start = np.searchsorted(code[order], np.arange(n))
+    two = np.bincount(code, minlength=n) > 1
+    a, b = order[start[two]], order[start[two] + 1]
+    span = t[b] - t[a]
+    v = np.zeros((a.size, 2))
+    ok = span > 0
+    v[ok] = (xy[b[ok]] - xy[a[ok]]) / span[ok, None]
+    vel = np.zeros((n, 2))
+    vel[two] = v
+    return tracks.assign(vx=vel[code, 0], vy=vel[code, 1])

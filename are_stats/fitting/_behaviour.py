@@ -237,7 +237,9 @@ def _speed_variation(
     windows only: its known moment is subtracted (a moment correction), and the windows
     keep it from dominating. ``sigma^2`` is then a weighted least-squares line through
     the pooled semivariogram (weights: the pairs at each lag) for each ``T`` of a grid
-    (``dt / 2`` to 300 s, 1% apart), and ``T`` the one of least residual. Lags run up to
+    (``dt / 2`` to 300 s, 1% apart), and ``T`` the one of least residual; where ``T`` is
+    not identified (shorter than half the window, longer than a third of the longest lag:
+    :func:`_ou_fit`) the variation reads 0. Lags run up to
     :data:`VARIATION_LAG` (s). Windows whose speed is not within a factor
     :data:`VARIATION_CLIP` of the track's are left out (stops and bursts are not the
     pace's drift), and so are windows with someone within :data:`VARIATION_ALONE` of the
@@ -306,9 +308,11 @@ def _heading_variation(
     two agree for the Gaussian differences of the model) instead of their mean, which
     the few windows that a corner cuts barely move. 100 walks of 40 s with a right-angle
     corner each (5 cm noise) read ``sigma`` 15% high (0.140 against 0.122 straight);
-    without the clip, 5 rad. Curves that are not steady turns remain variation to it:
-    a log of winding walks overstates ``sigma`` (the crossing crowd of the tests, which
-    bends round a pillar and has no heading noise of its own, reads 0.17 rad, 6 s).
+    without the clip, 5 rad. Curves that are not steady turns remain variation to it
+    where they are as quick as a wander; slower ones leave the variogram still rising at
+    its longest lag, where the correlation time is not identified (:func:`_ou_fit`) and
+    the variation reads 0 (the crossing crowd of the tests, which bends round a pillar and
+    has no heading noise of its own, read 0.17 rad, 6 s before that rule).
 
     Parameters
     ----------
@@ -330,6 +334,10 @@ MEDIAN_CHI2_1 = 0.454936423119572
 #: Heading differences (rad) larger than this are the route's corners, not the wander
 #: around it (:func:`_heading_variation`).
 HEADING_CLIP = 1.0
+#: A within-person correlation time is identified from at least this fraction of the
+#: window up to the longest lag over this factor (:func:`_ou_fit`); outside, the variation
+#: reads 0.
+IDENTIFIED = (0.5, 3.0)
 
 
 def _ou_fit(
@@ -344,7 +352,14 @@ def _ou_fit(
     ``gamma`` at the lags ``lag_s`` (s) by weighted least squares (weights ``w``):
     ``sigma^2`` in closed form for each ``T`` of a grid (``period / 2`` to 300 s, 1%
     apart), ``T`` the one of least residual. ``sigma^2`` is 0 where the variogram shows
-    no variation (``T`` then NaN). ``second``: ``gamma`` is that of second differences,
+    no variation (``T`` then NaN), and so it is where ``T`` is not identified
+    (:data:`IDENTIFIED`): shorter than half the window (the excess is independent between
+    windows, white: a variation that fast is averaged out within the window, and what is
+    read is noise or the interaction's jolts, not a pace that lasts) or longer than a
+    third of the longest lag (an OU's variogram is within 5% of its sill by ``3 T``: one
+    still rising at the longest lag is the route's own turning or speed changes, or the
+    interaction's, not a variation around the route). ``second``: ``gamma`` is that of
+    second differences,
     ``Var(y_{j+2L} - 2 y_{j+L} + y_j) / 6``, whose OU terms are ``(4 k(L) - k(2L)) / 3``
     (``k`` :func:`_ou_window_terms`; the covariances ``6 C(0) - 8 C(L) + 2 C(2L)``)."""
     best = (math.inf, 0.0, math.nan)
@@ -357,6 +372,9 @@ def _ou_fit(
         if sse < best[0]:
             best = (sse, var, float(tau))
     _, var, tau = best
+    lo, hi = IDENTIFIED
+    if not lo * window <= tau <= float(np.max(lag_s)) / hi:
+        return (0.0, math.nan)
     return (0.0, math.nan) if var <= 0.0 else (var, tau)
 
 

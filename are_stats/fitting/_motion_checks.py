@@ -535,7 +535,7 @@ def _replicate_tracks(
         ``scenario, id, t, x, y, yaw``, sorted by ``scenario, id, t``: ``scenario`` is the
         replicate.
     """
-    from are_stats.behaviour import formation, simulate_behaviour_tracks
+    from are_stats.behaviour import arrival_velocities, formation, simulate_behaviour_tracks
 
     fit = behaviour_fit
     n_rep = int(n_replicates)
@@ -626,7 +626,11 @@ def _replicate_tracks(
         # folded with 26, the routes and speeds drawn as before)
         row_cls = cls[pd.Index(base["id"]).get_indexer(walked["id"])]
         variation = _variation(jax.random.fold_in(_key(key), 26), fit, row_cls)
-        walked = _walk(walked, params, grid, groups=group, progress=walk_step, variation=variation)
+        # arriving walking, as generation's people do (arrival_velocities)
+        walked = _walk(
+            arrival_velocities(walked), params, grid, groups=group, progress=walk_step,
+            variation=variation,
+        ).drop(columns=["vx", "vy"])  # fmt: skip
     # each walker's exit (its route's end; a member's: its leader's), by (replicate,
     # person); NaN for one that stands
     end = np.full((n_rep * m, 2), np.nan)

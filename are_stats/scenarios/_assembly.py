@@ -638,7 +638,7 @@ def _interact(
     """The scenes walked again under the social force; non-pedestrians stay kinematic;
     arrival groups (labels by ``(scenario, id)``) walk together; ``progress(done, total)``
     after each window of its simulation; ``pace``: :func:`_speed_variation`'s."""
-    from are_stats.behaviour import SocialForce, social_force_tracks
+    from are_stats.behaviour import SocialForce, arrival_velocities, social_force_tracks
 
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
     tracks = _tracks_of(scenes, numbers)
@@ -665,10 +665,11 @@ def _interact(
                 per_row["heading_sd"].to_numpy(float),
                 per_row["heading_time"].to_numpy(float),
             )
+    # people arrive walking, at their plan's first velocity (arrival_velocities)
     walked = social_force_tracks(
-        tracks, params, grid, kinematic=kinematic, groups=rows, progress=progress,
-        speed_variation=speed_variation, heading_variation=heading_variation,
-    )  # fmt: skip
+        arrival_velocities(tracks), params, grid, kinematic=kinematic, groups=rows,
+        progress=progress, speed_variation=speed_variation, heading_variation=heading_variation,
+    ).drop(columns=["vx", "vy"])  # fmt: skip
     return _with_tracks(scenes, numbers, walked)
 
 

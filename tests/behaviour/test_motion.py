@@ -440,3 +440,25 @@ def test_fitted_planning_reports_each_batch_of_exits(monkeypatch) -> None:
         (total, total)
     ]
     pd.testing.assert_frame_equal(out, simulate_behaviour_tracks(key, fit, arts, chunk=2))
+
+
+def test_arrival_velocities_are_each_tracks_first_planned_move() -> None:
+    """The velocity of each track's first move, on every row of the track: tracks keyed by
+    (scenario, id) in any order, a track of one row and one whose first move takes no time
+    arrive standing."""
+    from are_stats.behaviour import arrival_velocities
+
+    tracks = pd.DataFrame({
+        "scenario": [0, 0, 1, 0, 0, 1, 2, 2],
+        "id": [5, 5, 5, 7, 7, 5, 3, 3],
+        "t": [0.0, 0.5, 2.0, 1.0, 3.0, 2.4, 1.0, 1.0],
+        "x": [0.0, 0.6, 1.0, 2.0, 2.0, 1.4, 0.0, 9.0],
+        "y": [0.0, 0.0, 1.0, 0.0, -1.0, 1.3, 0.0, 0.0],
+    })  # fmt: skip
+    got = arrival_velocities(tracks)
+    want = np.array([[1.2, 0], [1.2, 0], [1.0, 0.75], [0, -0.5], [0, -0.5], [1.0, 0.75],
+                     [0, 0], [0, 0]])  # fmt: skip
+    np.testing.assert_allclose(got[["vx", "vy"]].to_numpy(), want, atol=1e-12)
+    pd.testing.assert_frame_equal(got.drop(columns=["vx", "vy"]), tracks)
+    alone = arrival_velocities(pd.DataFrame({"id": [1], "t": [0.0], "x": [1.0], "y": [2.0]}))
+    assert alone[["vx", "vy"]].to_numpy().tolist() == [[0.0, 0.0]]
