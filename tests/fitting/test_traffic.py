@@ -205,6 +205,7 @@ def test_read_fit_names_a_missing_variable(rich_fit, rich_log, tmp_path):
         read_fit(tmp_path / "bad.nc")
 
 
+@pytest.mark.slow  # all-NUTS; make test keeps the Laplace twin below
 def test_paper_truth_keeps_the_paper_model():
     laws = TrafficLaws()
     draw = {"event_rate": 1e-3, "stay_mean": 60.0}
@@ -221,6 +222,7 @@ def test_paper_truth_keeps_the_paper_model():
     )
 
 
+@pytest.mark.slow  # two NUTS fits; make test fits gamma stays by NUTS (rich_fit)
 def test_stays_in_days_fit_like_stays_in_seconds():
     """Gamma stays of about 8 h: the same log in seconds and in days gives the same shape."""
     laws = TrafficLaws(lifetimes="gamma")
@@ -283,6 +285,7 @@ def test_time_of_day_needs_a_clock_and_two_days():
         _arrival_candidates("time-of-day", 1, None, 3 * 86400.0)
 
 
+@pytest.mark.slow  # a 3-day NUTS fit; make test checks the candidates above
 def test_diurnal_truth_picks_time_of_day():
     """Three days with a strong daily profile and a clock: auto picks the time of day."""
     hours = np.arange(24)
@@ -441,6 +444,7 @@ def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
         ("poisson", "lognormal", {"event_rate": 1e-3, "stay_mean": 60.0, "stay_shape": 1.2}),
     ],
 )
+@pytest.mark.slow  # 8 fits; make test: test_ranked_fit_agrees_with_all_nuts
 def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, lifetimes, draw):
     """Logs drawn from each candidate (the rich log covers groups and gamma): ranking by
     the Laplace approximation chooses what sampling every candidate by NUTS chooses, with
