@@ -205,13 +205,18 @@ def test_read_fit_names_a_missing_variable(rich_fit, rich_log, tmp_path):
         read_fit(tmp_path / "bad.nc")
 
 
-@pytest.mark.slow  # all-NUTS; make test keeps the Laplace twin below
-def test_paper_truth_keeps_the_paper_model():
-    laws = TrafficLaws()
+@pytest.fixture(scope="module")
+def paper_log():
+    """Truth: the paper's model (Poisson arrivals, exponential stays, uniform entries)."""
     draw = {"event_rate": 1e-3, "stay_mean": 60.0}
-    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
-                                free=uniform_position_density(FREE, RES, ORIGIN),
+    return simulate_traffic_log(np.random.default_rng(2), draw, TrafficLaws(), (0.0, 1800.0),
+                                AREA, free=uniform_position_density(FREE, RES, ORIGIN),
                                 resolution=0.4)  # fmt: skip
+
+
+@pytest.mark.slow  # all-NUTS; make test keeps the Laplace twin below
+def test_paper_truth_keeps_the_paper_model(paper_log):
+    data = paper_log
     fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(), **NUTS)
     assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
         "poisson", "exponential", "uniform",
@@ -337,12 +342,8 @@ def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit, rich_log):
         assert v.std() == pytest.approx(rich_fit.posterior[name].std(), rel=0.2), name
 
 
-def test_laplace_keeps_the_paper_model_on_paper_truth():
-    laws = TrafficLaws()
-    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
-    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
-                                free=uniform_position_density(FREE, RES, ORIGIN),
-                                resolution=0.4)  # fmt: skip
+def test_laplace_keeps_the_paper_model_on_paper_truth(paper_log):
+    data = paper_log
     fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(),
                       approximation="laplace")  # fmt: skip
     assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
@@ -515,16 +516,13 @@ def test_an_unreliable_loo_does_not_set_the_bar():
     assert chosen == "shaky"
 
 
-def test_laplace_candidates_in_threads_fit_as_one_at_a_time(monkeypatch):
+def test_laplace_candidates_in_threads_fit_as_one_at_a_time(monkeypatch, paper_log):
     """The candidates' Laplace approximations run LAPLACE_THREADS at a time and are taken
-    in order: the fit (draws, tables, notes, warnings) is the one a single thread gives."""
+    in order: the fit (draws, tables, notes, warnings) is the one a single thread gives.
+    On the paper-truth log: its candidates' programs are those the test above compiled."""
     import are_stats.fitting._traffic as traffic
 
-    laws = TrafficLaws()
-    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
-    data = simulate_traffic_log(np.random.default_rng(5), draw, laws, (0.0, 1800.0), AREA,
-                                free=uniform_position_density(FREE, RES, ORIGIN),
-                                resolution=0.4)  # fmt: skip
+    data = paper_log
     fits = {}
     for threads in (1, 2):
         monkeypatch.setattr(traffic, "LAPLACE_THREADS", threads)
