@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 export XLA_FLAGS ?= --xla_force_host_platform_device_count=2
 export PYTHONHASHSEED := 0
 
-.PHONY: venv venv-bench venv-docs demo test lint bench docs clean
+.PHONY: venv venv-bench venv-docs demo test test-slow lint bench docs clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -46,10 +46,17 @@ lint: venv
 
 # Two workers, each taking whole test files (module fixtures are built once), the longest
 # files first (tests/conftest.py: HEAVY_FILES); TEST_WORKERS=0 runs the suite serially.
+# `make test` leaves out the tests marked slow (longer statistical tests, each with a
+# cheaper check of its feature in the default run); `make test-slow` runs only those, the
+# same way. CI (.ci/run) runs both, so every test runs there.
 TEST_WORKERS ?= 2
+PYTEST = $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
 test: venv
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=15
+	$(PYTEST) -m "not slow"
+
+test-slow: venv
+	$(PYTEST) -m slow
 
 bench: venv-bench
 	$(BIN)/python -m tests.benchmarks

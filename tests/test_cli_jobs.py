@@ -211,6 +211,7 @@ def test_nuts_fit_matches_conjugate_posterior(tmp_path):
         assert abs(row["sd"] / law.sd - 1) < 0.10, (name, row["sd"], law.sd)
 
 
+@pytest.mark.slow  # 3,000 scenarios; make test: tests/scenarios/test_generate.py
 def test_scenarios_reproduce_fitted_stationary_law(tmp_path):
     log, _ = _write_log(tmp_path)
     fit = tmp_path / "f.nc"

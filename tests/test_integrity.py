@@ -31,11 +31,14 @@ LOG = shipped_path("courtyard_traffic", "log")
 MAP = str(shipped_path("courtyard", "map"))
 CAMERA = str(shipped_path("front_camera", "camera"))
 
-#: Kill moments per command (fractions of an uninterrupted run's time, seeded).
+# Kill moments per command (fractions of an uninterrupted run's time, seeded).
 N_KILLS = 2
 RNG_SEED = 20261123
 
-pytestmark = pytest.mark.slow
+# The runs in subprocesses are the slow tier (``make test-slow``, CI); ``make test`` keeps the
+# kill harness's own test, and tests/scenarios/test_generate.py (same seed, same bytes; an
+# interrupted folder write keeps the old folder) and tests/fitting/test_fit.py (the
+# command writes fit_log's bytes) check the same properties in-process.
 
 SWEEP = TINY_SWEEP
 
@@ -99,9 +102,9 @@ def delays(total: float, n: int = N_KILLS, salt: int = 0) -> list[float]:
     return sorted(float(u) * total for u in rng.uniform(0.3, 1.0, n))
 
 
-#: Where every run ended before its kill, the kill moments are tried again at these
-#: fractions of themselves: the uninterrupted run was timed while the machine was busier
-#: (the other test worker compiling, other users), so the later runs were quicker.
+# Where every run ended before its kill, the kill moments are tried again at these
+# fractions of themselves: the uninterrupted run was timed while the machine was busier
+# (the other test worker compiling, other users), so the later runs were quicker.
 RETRY_SCALES = (0.5, 0.25)
 
 
@@ -162,6 +165,7 @@ def _diff(a: dict[str, bytes], b: dict[str, bytes]) -> list[str]:
     return [n for n in names if a.get(n) != b.get(n)]
 
 
+@pytest.mark.slow
 def test_generate_same_seed_same_bytes(work) -> None:
     d = work["dir"]
     a, b = snapshot(d / "gen_a"), snapshot(d / "gen_b")
@@ -169,6 +173,7 @@ def test_generate_same_seed_same_bytes(work) -> None:
     assert not _diff(a, b), f"generate, same seed: files differ: {_diff(a, b)}"
 
 
+@pytest.mark.slow
 def test_fit_same_seed_same_bytes(work) -> None:
     d = work["dir"]
     a, b = (d / "a.nc").read_bytes(), (d / "b.nc").read_bytes()
@@ -191,8 +196,8 @@ def test_fit_same_seed_same_bytes(work) -> None:
         raise AssertionError(f"fit --method em, same seed: the .nc bytes differ; fields: {diffs}")
 
 
-#: Sweep result columns measured on the wall clock (the replanning time and the paper's
-#: rho, its share of the mission time): they differ between runs by nature.
+# Sweep result columns measured on the wall clock (the replanning time and the paper's
+# rho, its share of the mission time): they differ between runs by nature.
 WALL_CLOCK = {"rho_t", "rho", "rho_mean", "rho_t_mean"}
 
 
@@ -212,6 +217,7 @@ def _sweep_diff(a: Path, b: Path) -> list[str]:
     return out
 
 
+@pytest.mark.slow
 def test_experiment_same_seed_same_results(work) -> None:
     """Same config, same results: bytes of every file, values beyond wall-clock columns."""
     d = work["dir"]
@@ -220,6 +226,7 @@ def test_experiment_same_seed_same_results(work) -> None:
     assert not diff, f"experiment, same config: files differ: {diff}"
 
 
+@pytest.mark.slow
 def test_report_show_perceive_plot_same_bytes(work) -> None:
     """The other commands' outputs (figures, tables) are the same bytes for the same inputs."""
     import pandas as pd
@@ -268,6 +275,7 @@ def _complete_fit(path: Path) -> bool:
     return True
 
 
+@pytest.mark.slow
 def test_fit_killed(work, tmp_path: Path) -> None:
     """``fit --force`` killed over an existing fit: the old fit, or a complete new one."""
     d = work["dir"]
@@ -322,6 +330,7 @@ def _scenarios_whole(folder: Path, old: dict[str, bytes], seed: int) -> str | No
     return None
 
 
+@pytest.mark.slow
 def test_generate_killed(work, tmp_path: Path) -> None:
     """``generate --force`` killed over an existing scenario folder: replaced as a whole."""
     d = work["dir"]
@@ -369,6 +378,7 @@ def _readable(path: Path) -> bool:
     return True
 
 
+@pytest.mark.slow
 def test_experiment_killed(work, tmp_path: Path) -> None:
     """``experiment --force`` killed over existing results: each file old or complete."""
     d = work["dir"]
@@ -410,6 +420,7 @@ def _complete_mcap(path: Path) -> bool:
     return n > 0
 
 
+@pytest.mark.slow
 def test_augment_killed(tmp_path: Path) -> None:
     """``augment --force`` killed over an existing MCAP: the old file or a complete new one,
     never a partial file under the output's name; a fresh run killed leaves nothing or a

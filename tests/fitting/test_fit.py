@@ -141,6 +141,8 @@ def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
     assert f"posteriors: {line}" in " ".join(res.output.split())
 
 
+@pytest.mark.slow  # a second tracks fit on new grid shapes (68 s of CPU cold); make test:
+# tests/behaviour/test_fit_without_map.py's open-area grid
 def test_no_map_fits_the_open_area_with_a_note(tracks_log, tmp_path):
     log = tmp_path / "nomap.csv"
     shutil.copy(tracks_log, log)

@@ -206,6 +206,7 @@ def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before(
     assert np.hypot(*(end_n - end_v).to_numpy().T).max() < 2.0
 
 
+@pytest.mark.slow  # the criticism's replicate walks
 def test_motion_checks_replicates_walk_the_fits_variation() -> None:
     """The criticism's replicates walk people as generation does, with the fit's
     within-person variation: an older fit (none) replicates exactly as a fit of sd 0, and

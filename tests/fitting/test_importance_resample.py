@@ -126,6 +126,7 @@ def shipped_nuts(shipped):
 NAMES = ("event_rate", "group_size_probs", "stay_mean", "stay_shape")
 
 
+@pytest.mark.slow  # NUTS + ranked fits of the shipped log; make test: test_traffic's ranked fit
 def test_shipped_log_resampled_posterior_is_nuts_posterior(shipped, shipped_nuts):
     data, paper = shipped
     got = fit_traffic(
@@ -143,6 +144,7 @@ def test_shipped_log_resampled_posterior_is_nuts_posterior(shipped, shipped_nuts
         assert np.all(np.abs(a.std(axis=(0, 1)) / sd - 1.0) < 0.3), name
 
 
+@pytest.mark.slow  # the shipped log's NUTS fit (above)
 def test_a_refused_resampling_falls_back_to_nuts(shipped, shipped_nuts, monkeypatch):
     """Every k refused: the chosen models are sampled by NUTS (the same program and key as
     the all-NUTS fit of the same candidates: the same draws), and the fit says so."""

@@ -68,6 +68,7 @@ def test_weighted_waic_and_loo_equal_arviz_on_expanded_marks(one_component):
     assert_allclose(waic.deviance, -2 * waic.elpd)
 
 
+@pytest.mark.slow  # three NUTS fits; make test keeps the k = 1 checks
 def test_bic_waic_loo_select_the_true_number_of_components_and_nuts_recovers_truth():
     """Rates (3, 30), weights (.6, .4), 1000 marks: every criterion picks k = 2, and the
     k = 2 posterior covers the truth (posterior means within 4 sd)."""

@@ -333,6 +333,7 @@ def own():
     return own, fit, OccupancyGrid(np.where(free, 0, 100), 0.5)
 
 
+@pytest.mark.slow  # make test: the held-out worlds above
 def test_mean_of_k_beats_constant_velocity_on_the_models_own_tracks(own) -> None:
     """The right model predicts its own people better than constant velocity: 226 windows
     (8 observed / 12 predicted, stride 4), mean of 20 continuations walked with the social

@@ -208,12 +208,18 @@ def test_read_fit_names_a_missing_variable(rich_fit, rich_log, tmp_path):
         read_fit(tmp_path / "bad.nc")
 
 
-def test_paper_truth_keeps_the_paper_model():
-    laws = TrafficLaws()
+@pytest.fixture(scope="module")
+def paper_log():
+    """Truth: the paper's model (Poisson arrivals, exponential stays, uniform entries)."""
     draw = {"event_rate": 1e-3, "stay_mean": 60.0}
-    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
-                                free=uniform_position_density(FREE, RES, ORIGIN),
+    return simulate_traffic_log(np.random.default_rng(2), draw, TrafficLaws(), (0.0, 1800.0),
+                                AREA, free=uniform_position_density(FREE, RES, ORIGIN),
                                 resolution=0.4)  # fmt: skip
+
+
+@pytest.mark.slow  # all-NUTS; make test keeps the Laplace twin below
+def test_paper_truth_keeps_the_paper_model(paper_log):
+    data = paper_log
     fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(), **NUTS)
     assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
         "poisson", "exponential", "uniform",
@@ -224,6 +230,7 @@ def test_paper_truth_keeps_the_paper_model():
     )
 
 
+@pytest.mark.slow  # two NUTS fits; make test fits gamma stays by NUTS (rich_fit)
 def test_stays_in_days_fit_like_stays_in_seconds():
     """Gamma stays of about 8 h: the same log in seconds and in days gives the same shape."""
     laws = TrafficLaws(lifetimes="gamma")
@@ -286,6 +293,7 @@ def test_time_of_day_needs_a_clock_and_two_days():
         _arrival_candidates("time-of-day", 1, None, 3 * 86400.0)
 
 
+@pytest.mark.slow  # a 3-day NUTS fit; make test checks the candidates above
 def test_diurnal_truth_picks_time_of_day():
     """Three days with a strong daily profile and a clock: auto picks the time of day."""
     hours = np.arange(24)
@@ -337,12 +345,8 @@ def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit, rich_log):
         assert v.std() == pytest.approx(rich_fit.posterior[name].std(), rel=0.2), name
 
 
-def test_laplace_keeps_the_paper_model_on_paper_truth():
-    laws = TrafficLaws()
-    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
-    data = simulate_traffic_log(np.random.default_rng(2), draw, laws, (0.0, 1800.0), AREA,
-                                free=uniform_position_density(FREE, RES, ORIGIN),
-                                resolution=0.4)  # fmt: skip
+def test_laplace_keeps_the_paper_model_on_paper_truth(paper_log):
+    data = paper_log
     fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(),
                       approximation="laplace")  # fmt: skip
     assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
@@ -444,6 +448,7 @@ def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
         ("poisson", "lognormal", {"event_rate": 1e-3, "stay_mean": 60.0, "stay_shape": 1.2}),
     ],
 )
+@pytest.mark.slow  # 8 fits; make test: test_ranked_fit_agrees_with_all_nuts
 def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, lifetimes, draw):
     """Logs drawn from each candidate (the rich log covers groups and gamma): ranking by
     the Laplace approximation chooses what sampling every candidate by NUTS chooses, with
@@ -514,16 +519,13 @@ def test_an_unreliable_loo_does_not_set_the_bar():
     assert chosen == "shaky"
 
 
-def test_laplace_candidates_in_threads_fit_as_one_at_a_time(monkeypatch):
+def test_laplace_candidates_in_threads_fit_as_one_at_a_time(monkeypatch, paper_log):
     """The candidates' Laplace approximations run LAPLACE_THREADS at a time and are taken
-    in order: the fit (draws, tables, notes, warnings) is the one a single thread gives."""
+    in order: the fit (draws, tables, notes, warnings) is the one a single thread gives.
+    On the paper-truth log: its candidates' programs are those the test above compiled."""
     import are_stats.fitting._traffic as traffic
 
-    laws = TrafficLaws()
-    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
-    data = simulate_traffic_log(np.random.default_rng(5), draw, laws, (0.0, 1800.0), AREA,
-                                free=uniform_position_density(FREE, RES, ORIGIN),
-                                resolution=0.4)  # fmt: skip
+    data = paper_log
     fits = {}
     for threads in (1, 2):
         monkeypatch.setattr(traffic, "LAPLACE_THREADS", threads)

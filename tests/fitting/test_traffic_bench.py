@@ -11,6 +11,7 @@ from __future__ import annotations
 import pytest
 
 
+@pytest.mark.slow  # PyMC peer
 def test_pymc_peer_has_our_log_density():
     pytest.importorskip("pymc")
     from tests.benchmarks import bench_traffic_nuts as bench

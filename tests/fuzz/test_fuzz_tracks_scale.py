@@ -162,6 +162,7 @@ def _fit_crowd(case: dict, d: Path, models: list[str]) -> None:
     _outcome(case, run, path, seconds=1800.0, cpu_seconds=300.0)
 
 
+@pytest.mark.slow  # three 300-person fits; make test reads the crowds (above)
 @fuzz_settings(3)
 @given(case=crowd_case(sizes=(300,)))
 def test_fit_crowd_tracks_tables(case, case_dir) -> None:
