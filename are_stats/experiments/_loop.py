@@ -359,8 +359,9 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
     (:meth:`ARBuilder.augmented_grid` with ``perceived``): the boxes rasterised at the
     update are reused when the plan follows it; a plan at a later time (a camera tick
     between events, tracks having moved the boxes) brings the builder to ``s.t`` first. A
-    moving perceived artefact also covers its footprint at the next event (the AR-builder
-    knows where its artefacts go next).
+    moving perceived artefact also covers its footprint at the next event, or at the
+    mission's time limit after the last one (the AR-builder knows where its artefacts go
+    next).
     """
     from are_stats.builder import box_corners, rasterise_convex
 
@@ -383,8 +384,12 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
     on = s.seen[idx]
     aug = s.builder.augmented_grid(perceived=on)
     ahead = idx[on & s.scene.has_tracks[idx]]
-    if ahead.size and s.event < s.events.t.size:
-        xy, yaw = _footprints(s.scene, float(s.events.t[s.event]), ahead)
+    if ahead.size:
+        # where they are at the next event, or at the mission's end after the last one (an
+        # artefact that yields onto the plan after the last move tick waits there: the sixth
+        # robot collision of the one-hour A* benchmark mission)
+        t_ahead = float(s.events.t[s.event]) if s.event < s.events.t.size else m.T
+        xy, yaw = _footprints(s.scene, t_ahead, ahead)
         poly = box_corners(xy, s.scene.half_extents[ahead][:, :2], yaw)
         _, flat, _ = rasterise_convex(m.grid.world_to_local(poly), m.grid.shape)
         aug.data.ravel()[flat] = 100

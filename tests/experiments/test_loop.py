@@ -465,3 +465,29 @@ def test_events_after_an_avoidance_equal_a_rebuild_of_every_event(monkeypatch, m
     )  # fmt: skip
     assert len(checked) >= 3
     assert res.summary["n_detours"] + res.summary["n_yields"] >= len(checked)
+
+
+def test_an_artefact_moving_after_the_last_tick_is_on_the_last_maps():
+    """Moves on a 2 s clock and a 9 s mission: after the last tick (8 s) there is no next
+    event, and the planner's map shows a moving artefact where it will be at the mission's
+    end (before, only where it was: one that yielded onto the plan after the last tick was
+    not on the map, and the robot drove into it; the sixth collision of the A* hour)."""
+    from are_stats.builder import box_corners, rasterise_convex
+
+    t = np.arange(0.0, 20.0, 2.0)  # east along y = 15 at 0.5 m/s, epochs 2 s apart
+    tracks = pd.DataFrame({"id": 0, "t": t, "x": 2.0 + 0.5 * t, "y": 15.0, "yaw": 0.0})
+    art = _art([[0.0, 60.0, 2.0, 15.0, 0.0, 0]])
+    scene = _scene(art, tracks)
+    res = run_mission(GRID, scene, [[18.0, 2.0]], "astar", robot=ROBOT, start=[2.0, 2.0, 0.0],
+                      time_limit=9.0, move_period=2.0, avoid_robot=False,
+                      record=True)  # fmt: skip
+    by_t = {sc["t"]: sc["grid"] for sc in res.trace.scenes}
+
+    def cells(at):  # the box's cells at time ``at`` (its track interpolated by hand)
+        x = np.interp(at, tracks["t"], tracks["x"])
+        poly = box_corners(np.array([[x, 15.0]]), np.array([[1.0, 1.0]]), np.zeros(1))
+        return set(rasterise_convex(GRID.world_to_local(poly), GRID.shape)[1].tolist())
+
+    for now, ahead in ((6.0, 8.0), (8.0, 9.0)):
+        occupied = set(np.flatnonzero(~by_t[now].free).tolist())
+        assert cells(ahead) - cells(now) and cells(ahead) <= occupied
