@@ -130,8 +130,8 @@
    standing robot give way (``avoid_patience``), tried once each per standing spell and
    tested against the others up to their next check. A* hour: 6 -> 0 collisions, 81 -> 74
    goals, 113.6 -> 119.5 s of CPU (31.7x -> 30.1x, main in the same window). RRT hour: 0
-   collisions, 55 goals (main 61 that day), 198.3 s (18.2x; main 162-286 s that day; the
-   first 600 s 37.6 -> 32.5 s).
+   collisions both, 61 -> 55 goals, 195.3 -> 198.3 s (18.4x -> 18.2x, main right after;
+   the first 600 s 37.6 -> 32.5 s).
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
