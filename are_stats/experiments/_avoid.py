@@ -25,7 +25,20 @@ experiment loop puts into its scene with :meth:`~are_stats.Scene.with_track`:
   meets either, or takes more than ``lookahead`` epochs longer than the track, is refused;
 * **yield** (no detour): the artefact advances along its own track up to the last sample
   before the conflict and holds there until ``t_check``, where the loop checks it again;
-  the rest of its track is delayed by the wait.
+  the rest of its track is delayed by the wait;
+* **give way** (no detour, and ``give_way`` given: the loop's patience rule, the robot
+  standing and the artefact waiting for it for ``patience`` seconds already): instead of
+  waiting again, the artefact steps back, as people do, out of the robot's safety margin:
+  straight away from the robot (or up to 120 degrees off that direction) until its box is
+  ``give_way`` metres from the robot's centre, to the nearest such spot whose walk (and
+  stay until ``t_check``) keeps its box clear of the map's non-free cells and of the other
+  artefacts' boxes, sampled as a detour is (past ``t_check`` the others' motions are
+  decided again); it walks there at its track's speed, stands there until
+  ``give_way_stay`` seconds past ``t_check`` (so that the robot's next plan, which also
+  avoids where the artefacts will be at the next scene event, finds the way open), walks
+  back and goes on along its track, late by the time that took. Without it a robot ringed
+  by people waiting for it, its plans failing, waited for them as they waited for it
+  (the one-hour RRT-Connect benchmark mission stalled).
 
 Either way the artefact's life-cycle is unchanged: a delayed artefact still leaves at its
 leaving time, possibly before the end of its track. ``t`` need not be one of the artefact's
@@ -55,7 +68,7 @@ class Avoidance(NamedTuple):
 
     Attributes
     ----------
-    kind : {"detour", "yield"}
+    kind : {"detour", "yield", "give_way"}
     t : (m,) float
         The artefact's new track epochs (its whole track).
     pose : (m, 3) float
@@ -134,8 +147,11 @@ def plan_avoidance(
     robot_track: tuple[np.ndarray, np.ndarray] | None = None,
     lookahead: int = 4,
     ds: float | None = None,
+    give_way: float | None = None,
+    give_way_stay: float = 4.0,
 ) -> Avoidance | None:
-    """Detour or wait when artefact ``i``'s motion over ``[t, t_check]`` meets the robot.
+    """Detour, wait or give way when artefact ``i``'s motion over ``[t, t_check]`` meets
+    the robot.
 
     Parameters
     ----------
@@ -166,6 +182,13 @@ def plan_avoidance(
     ds : float, optional
         Spacing of the motion samples (m); default the smaller of the grid's resolution and
         a quarter of ``clearance``.
+    give_way : float, optional
+        The artefact has waited for a standing robot long enough (the loop's patience):
+        with no detour it steps back until its box is this far from the robot's centre (m,
+        more than ``clearance``) instead of waiting (kind ``"give_way"``); it waits when
+        no such spot is clear. Default: it waits.
+    give_way_stay : float
+        Seconds past ``t_check`` the artefact that gave way stands at its spot (s).
 
     Returns
     -------
@@ -197,6 +220,11 @@ def plan_avoidance(
                   head_t, head_p, (rt, rxy))  # fmt: skip
     if got is not None:
         return got
+    if give_way is not None:
+        got = _step_back(scene, i, t, t_check, q, float(give_way), float(give_way_stay),
+                         grid, ds, head_t, head_p)  # fmt: skip
+        if got is not None:
+            return got
     # wait on the track just short of the conflict, until the next check
     t_stop, p_stop = times[j0 - 1], pose[j0 - 1]
     mid, later = (tt > t) & (tt < t_stop), tt > t_stop
@@ -358,6 +386,63 @@ def _detour(
         if not _clear_of_others(scene, i, times, pose, centres):
             continue
         return Avoidance("detour", new_t, new_p, delay)
+    return None
+
+
+#: Directions the artefact may step back along (rad) off the one straight away from the
+#: robot, tried in this order for each distance.
+_STEP_BACK_TURNS = np.deg2rad([0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0, -120.0])
+
+
+def _step_back(
+    scene: Scene, i: int, t: float, t_check: float, q: np.ndarray, gap: float, stay: float,
+    grid: Any, ds: float, head_t: np.ndarray, head_p: np.ndarray,
+) -> Avoidance | None:  # fmt: skip
+    """The artefact steps back from a standing robot at ``q`` until its box is ``gap`` from
+    it, stays there until ``stay`` seconds past ``t_check``, walks back and goes on
+    (``plan_avoidance``'s give way); ``None`` when no spot within ``gap`` plus a metre past
+    the box is clear.
+
+    Its walk to the spot and its stay there up to ``t_check`` are tested, as a detour's
+    motion is, against the walls and the other artefacts' boxes; past ``t_check`` the
+    others' tracks are those of their own next checks, which the loop decides again (a
+    person ringing the robot with it walks on through the robot's position there), so
+    the stay is tested against the walls only (it stands where its walk ended)."""
+    tt, pp = scene.track(i)
+    v = np.linalg.norm(np.diff(pp[:, :2], axis=0), axis=1) / np.maximum(np.diff(tt), 1e-12)
+    v = v[v > 1e-9]
+    if not v.size:
+        return None
+    v = float(np.median(v))
+    half = scene.half_extents[i, :2]
+    p0 = head_p[-1]
+    r_art = float(np.hypot(*scene.offsets[i, :2]) + np.hypot(*half))
+    away = _centres(scene, i, p0[None])[0] - q
+    phi = float(np.arctan2(away[1], away[0])) if np.hypot(*away) > 1e-9 else p0[2]
+    # the distance each direction needs: the first of steps ds apart that is far enough
+    steps = ds * np.arange(1, int(np.ceil((gap + r_art + 1.0) / ds)) + 1)
+    found = []
+    for turn in _STEP_BACK_TURNS:
+        u = np.array([np.cos(phi + turn), np.sin(phi + turn)])
+        spots = np.column_stack([p0[:2] + steps[:, None] * u, np.full(steps.size, p0[2])])
+        d = point_box_distance(q, _centres(scene, i, spots), half, spots[:, 2])
+        far = np.flatnonzero(d >= gap)
+        if far.size:
+            found.append((float(steps[far[0]]), spots[far[0]]))
+    for r, spot in sorted(found, key=lambda f: f[0]):  # nearest first (stable: turns' order)
+        t_spot = t + r / v
+        t_hold = max(float(t_check), t_spot) + stay
+        later = tt > t
+        delay = t_hold + r / v - t
+        new_t = np.concatenate([head_t, [t_spot, t_hold, t_hold + r / v], tt[later] + delay])
+        new_p = np.vstack([head_p, spot[None], spot[None], p0[None], pp[later]])
+        t_end = max(float(t_check), t_spot)
+        times, pose, centres = _sample(scene, i, t, t_end, ds, track=(new_t, new_p))
+        if not _clear_of_walls(grid, centres, half + ds, pose[:, 2]):
+            continue
+        if not _clear_of_others(scene, i, times, pose, centres):
+            continue
+        return Avoidance("give_way", new_t, new_p, float(delay))
     return None
 
 

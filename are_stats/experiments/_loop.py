@@ -100,8 +100,9 @@ class MissionResult(NamedTuple):
         that walked into the robot: they closed the gap faster than the robot),
         ``n_detours``, ``n_yields`` (artefacts that detoured around the robot or waited for
         it, ``avoid_robot``), ``avoid_delay`` (s, the delays those added to their tracks),
-        ``n_replans``, ``n_failed_plans``, ``n_updates``, ``n_move_updates`` (updates with
-        moves),
+        ``n_give_ways`` (artefacts that stepped back from a robot standing too long,
+        ``avoid_patience``), ``n_replans``, ``n_failed_plans``, ``n_updates``,
+        ``n_move_updates`` (updates with moves),
         ``update_rate`` (scene updates per s), ``rho_mean``, ``rho_t_mean``, ``nu_mean``
         (time average), ``nu_max``, ``distance`` (m driven).
     replans : pandas.DataFrame
@@ -194,6 +195,7 @@ class _Mission:
     events: _Events  # the events of the scene as given (the state holds the coming ones)
     avoid: bool  # artefacts avoid the robot's footprint
     clearance: float  # robot radius + avoidance margin (m)
+    patience: float  # s an artefact waits for a standing robot before it gives way
     move_period: float | None
     wall_distance: np.ndarray | None  # grid.distance_to_occupied() when avoid
     art_radius: np.ndarray  # (N,) box reach from an artefact's pose (m)
@@ -240,6 +242,14 @@ class _State(NamedTuple):
     n_detours: int
     n_yields: int
     avoid_delay: float  # s, summed over the avoidances
+    n_give_ways: int
+    # the patience rule of _avoid: (N,) since when each artefact has been waiting for the
+    # robot (NaN: it is not), since when the robot has stood with its plans failing (NaN:
+    # it has a plan), and (N,) the standing spell (its start) in which each artefact last
+    # gave way (NaN: never): once a spell
+    waiting: np.ndarray
+    standing: float
+    gave_way: np.ndarray
     # (t, n): the robot planned again n times at time t because the artefacts' answers
     # to its plan blocked it (_check_after_avoidance)
     replans_at: tuple
@@ -359,8 +369,9 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
     (:meth:`ARBuilder.augmented_grid` with ``perceived``): the boxes rasterised at the
     update are reused when the plan follows it; a plan at a later time (a camera tick
     between events, tracks having moved the boxes) brings the builder to ``s.t`` first. A
-    moving perceived artefact also covers its footprint at the next event (the AR-builder
-    knows where its artefacts go next).
+    moving perceived artefact also covers its footprint at the next event, or at the
+    mission's time limit after the last one (the AR-builder knows where its artefacts go
+    next).
     """
     from are_stats.builder import box_corners, rasterise_convex
 
@@ -383,22 +394,43 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
     on = s.seen[idx]
     aug = s.builder.augmented_grid(perceived=on)
     ahead = idx[on & s.scene.has_tracks[idx]]
-    if ahead.size and s.event < s.events.t.size:
-        xy, yaw = _footprints(s.scene, float(s.events.t[s.event]), ahead)
-        poly = box_corners(xy, s.scene.half_extents[ahead][:, :2], yaw)
+    # the perceived boxes now, and the moving ones ahead: the cells released around the
+    # robot keep their distance to each (_free_cells)
+    xy, yaw = _footprints(s.scene, s.t, idx[on])
+    boxes = (xy, s.scene.half_extents[idx[on], :2], yaw)
+    if ahead.size:
+        # where they are at the next event, or at the mission's end after the last one (an
+        # artefact that yields onto the plan after the last move tick waits there: the sixth
+        # robot collision of the one-hour A* benchmark mission)
+        t_ahead = float(s.events.t[s.event]) if s.event < s.events.t.size else m.T
+        xy, yaw = _footprints(s.scene, t_ahead, ahead)
+        half = s.scene.half_extents[ahead, :2]
+        poly = box_corners(xy, half, yaw)
         _, flat, _ = rasterise_convex(m.grid.world_to_local(poly), m.grid.shape)
         aug.data.ravel()[flat] = 100
-    free = _free_cells(m, ~aug.free, s.pose)
+        boxes = tuple(np.concatenate(p) for p in zip(boxes, (xy, half, yaw), strict=True))
+    free = _free_cells(m, ~aug.free, s.pose, boxes)
     aug.data.flags.writeable = False
     free.flags.writeable = False
     at = (s.scene, s.t, s.events, s.event, s.seen.copy(), s.pose.copy(), aug, free)
     return s._replace(planning_at=at), aug, free
 
 
-def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
+def _free_cells(
+    m: _Mission, occ: np.ndarray, pose: np.ndarray, boxes: tuple | None = None
+) -> np.ndarray:
     """(H, W) bool: the cells where the robot's centre may go on the augmented grid whose
     occupied cells are ``occ``: farther than the robot radius plus half a cell diagonal
-    from every occupied cell, or free and within reach of the robot's own ``pose``."""
+    from every occupied cell, or free, within reach of the robot's own ``pose`` and no
+    nearer to any of the artefact ``boxes`` (centres (k, 2), half sizes (k, 2), headings
+    (k,): those on the grid) than the robot is, up to that clearance (the robot's own
+    cell, where its plans start, whatever its distance).
+
+    The released cells let a robot brushing an obstacle leave; without the boxes' test
+    they let a plan run along an artefact standing next to the robot, and into it (5 of the
+    6 robot collisions of the one-hour A* benchmark mission: the robot planned 0.33-0.38 m
+    from a waiting person's box, inside the inflation of its cells, and closed to
+    0.27-0.29 m). The map's own cells are not tested: the robot may brush a wall."""
     res, radius = m.grid.resolution, m.robot.radius
     # the cells farther than the clearance from the map's own occupied cells (once per
     # mission, m.static_clear), less those within it of an artefact's cell: the offsets
@@ -428,9 +460,28 @@ def _free_cells(m: _Mission, occ: np.ndarray, pose: np.ndarray) -> np.ndarray:
     hi = np.clip(r_c + pad + 1, 0, occ.shape)
     ij = np.indices(tuple(hi - lo)).reshape(2, -1).T + lo
     if ij.size:
-        near = np.linalg.norm(m.grid.cell_to_world(ij) - pose[:2], axis=1)
-        ij = ij[near <= reach]
-        free[ij[:, 0], ij[:, 1]] |= ~occ[ij[:, 0], ij[:, 1]]
+        xy = m.grid.cell_to_world(ij)
+        near = np.linalg.norm(xy - pose[:2], axis=1) <= reach
+        ij, xy = ij[near], xy[near]
+        ok = ~occ[ij[:, 0], ij[:, 1]]
+        if boxes is not None and len(boxes[0]) and ok.any():
+            c, half, yaw = (np.asarray(a, float) for a in boxes)
+            clear = radius + res * np.sqrt(0.5)
+            # only the boxes within the clearance of a cell within reach count
+            r_box = np.hypot(half[:, 0], half[:, 1])
+            j = np.flatnonzero(np.linalg.norm(c - pose[:2], axis=1) - r_box <= reach + clear)
+            if j.size:
+                d_robot = point_box_distance(pose[:2], c[j], half[j], yaw[j])  # (b,)
+                k = np.flatnonzero(ok)
+                d = point_box_distance(
+                    np.repeat(xy[k], j.size, axis=0), np.tile(c[j], (k.size, 1)),
+                    np.tile(half[j], (k.size, 1)), np.tile(yaw[j], k.size),
+                ).reshape(k.size, j.size)  # fmt: skip
+                ok[k] = (d >= np.minimum(d_robot, clear) - 1e-9).all(axis=1)
+            # the robot's own cell stays released: a plan starts there (its centre may be
+            # nearer to a box than the robot, but the path leaves from the robot's pose)
+            ok |= (ij == r_c).all(axis=1) & ~occ[ij[:, 0], ij[:, 1]]
+        free[ij[ok, 0], ij[ok, 1]] = True
     return free
 
 
@@ -538,7 +589,11 @@ def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
         "path_length": float(cum[-1]) if ok else np.nan, "n_live": int(s.live.sum()),
         "n_perceived": int(s.seen.sum()), "n_A": s.n_A, "nu": s.n_A / m.n_free,
     }  # fmt: skip
-    s = s._replace(path=path, cum=cum, s_along=0.0, need_plan=False, n_replans=s.n_replans + 1)
+    standing = np.nan if ok else (s.standing if np.isfinite(s.standing) else s.t)
+    s = s._replace(
+        path=path, cum=cum, s_along=0.0, need_plan=False, n_replans=s.n_replans + 1,
+        standing=standing,
+    )  # fmt: skip
     return s, row, plan
 
 
@@ -608,17 +663,36 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     return s, kinds
 
 
-def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str], np.ndarray]:
+def _avoid(
+    m: _Mission, s: _State, moved: np.ndarray, replan: bool = False
+) -> tuple[_State, list[str], np.ndarray]:
     """Artefacts ``moved`` (indices: those moving at this update, or every moving one after
-    a replan) whose motion until their next check meets the robot's footprint, along its
-    current plan, detour around it or wait
+    a replan, ``replan``) whose motion until their next check meets the robot's footprint,
+    along its current plan, detour around it or wait
     (:func:`~are_stats.experiments._avoid.plan_avoidance`, the distance filter first);
     their new tracks go into the state's scene and the rest of the event table is rebuilt
-    from it; also returns the indices (k,) of the artefacts whose tracks changed."""
-    scene, kinds, counts, delay = s.scene, [], {"detour": 0, "yield": 0}, 0.0
+    from it; also returns the indices (k,) of the artefacts whose tracks changed.
+
+    The patience rule: an artefact that has waited for the robot (``s.waiting``, from its
+    first wait; reset when it moves on at one of its own checks, detours or gives way)
+    while the robot has stood with its plans failing (``s.standing``), both for at least
+    ``m.patience`` seconds, gives way instead of waiting again, tried once in each of the
+    robot's standing spells (``s.gave_way``; a try finding no clear spot waits): it steps
+    back until its box is ``m.clearance + _GIVE_WAY_GAP`` from the robot's centre
+    (``plan_avoidance(give_way=...)``). Without it a robot ringed by people waiting for it
+    waited for them as they waited for it; once a spell, so that people who walk back to a
+    robot still standing wait again instead of stepping back and forth, and a crowd with
+    no room to step back tries once instead of at each of its checks."""
+    scene, kinds, delay = s.scene, [], 0.0
+    counts = {"detour": 0, "yield": 0, "give_way": 0}
     changed: list[int] = []
     if not moved.size:
         return s, kinds, np.zeros(0, np.int64)
+    waiting, gave_way = s.waiting, s.gave_way
+    if not replan and np.isfinite(waiting[moved]).any():
+        # at its own check an artefact that does not wait again moves on
+        waiting = waiting.copy()
+        waiting[moved] = np.nan
     t_check = scene.next_epoch(s.t, moved)
     if m.move_period is not None:
         # its next move is registered on the clock's tick; a wait ends just before it, so
@@ -644,13 +718,28 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
     cand, t_cand = cand[ok], t_cand[ok]
     if cand.size:  # only those that come within reach of the robot's disc by then
         cand, t_cand = _within_reach(m, s, cand, t_cand, track)
+    stood = s.t - s.standing if s.path is None and np.isfinite(s.standing) else -np.inf
     for i, tc in zip(cand.tolist(), t_cand.tolist(), strict=True):
+        since = s.waiting[i]
+        patient = (
+            np.isfinite(since)
+            and min(stood, s.t - since) >= m.patience - 1e-9
+            and gave_way[i] != s.standing
+        )
         got = plan_avoidance(
             scene, i, s.t, tc, s.pose[:2], m.clearance, m.grid, m.wall_distance,
-            robot_track=track,
+            robot_track=track, give_way=m.clearance + _GIVE_WAY_GAP if patient else None,
+            give_way_stay=_GIVE_WAY_STAY,
         )  # fmt: skip
+        if patient:  # its one try in this spell, whether a spot was clear or not
+            gave_way = gave_way.copy() if gave_way is s.gave_way else gave_way
+            gave_way[i] = s.standing
         if got is None:
             continue
+        now = (since if np.isfinite(since) else s.t) if got.kind == "yield" else np.nan
+        if not (now == waiting[i] or (np.isnan(now) and np.isnan(waiting[i]))):
+            waiting = waiting.copy() if waiting is s.waiting else waiting
+            waiting[i] = now
         scene = scene.with_track(i, got.t, got.pose)
         changed.append(i)
         counts[got.kind] += 1
@@ -658,16 +747,27 @@ def _avoid(m: _Mission, s: _State, moved: np.ndarray) -> tuple[_State, list[str]
         if got.kind not in kinds:
             kinds.append(got.kind)
     if not kinds:
-        return s, kinds, np.zeros(0, np.int64)
+        return s._replace(waiting=waiting, gave_way=gave_way), kinds, np.zeros(0, np.int64)
     # the tracks changed after s.t only: the coming events are rebuilt from there (the
     # changed artefacts' events; the others' are the coming ones of s.events)
     events = _events_after(s.events, scene, np.array(changed), m.T, m.move_period, s.t)
     s = s._replace(
         scene=scene, events=events, event=0,
         n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
-        avoid_delay=s.avoid_delay + delay,
+        avoid_delay=s.avoid_delay + delay, n_give_ways=s.n_give_ways + counts["give_way"],
+        waiting=waiting, gave_way=gave_way,
     )  # fmt: skip
     return s, sorted(kinds), np.array(changed, np.int64)
+
+
+#: How far past the clearance (m) an artefact that gives way to a standing robot steps
+#: back (its box from the robot's centre): room for the robot's plans between the people
+#: who ringed it.
+_GIVE_WAY_GAP = 0.5
+#: How long (s) past its next check it stands there: the robot's next plan avoids the
+#: artefacts where they are then and at the next scene event (two ticks of the benchmark's
+#: 2 s move clock).
+_GIVE_WAY_STAY = 4.0
 
 
 #: Common times at which :func:`_within_reach` compares the moving artefacts with the robot.
@@ -718,7 +818,9 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         event=0, next_percept=m.period if m.perception == "camera" else np.inf,
         n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
         artefact_contacts=0, distance=0.0, scene=m.scene, events=m.events, n_detours=0,
-        n_yields=0, avoid_delay=0.0, replans_at=(np.nan, 0), builder=ARBuilder(m.grid),
+        n_yields=0, avoid_delay=0.0, n_give_ways=0, waiting=np.full(n, np.nan),
+        standing=np.nan, gave_way=np.full(n, np.nan), replans_at=(np.nan, 0),
+        builder=ARBuilder(m.grid),
         builder_at=(None, np.nan), planning_at=(),
         percepts=MappingProxyType({}),
     )  # fmt: skip
@@ -742,7 +844,8 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
         if m.avoid:
             # the moving artefacts decided against the robot's old plan (or its standing):
             # those whose motion until their next check meets the new one decide again
-            s, avoided, changed = _avoid(m, s, np.flatnonzero(s.live & s.scene.has_tracks))
+            moving = np.flatnonzero(s.live & s.scene.has_tracks)
+            s, avoided, changed = _avoid(m, s, moving, replan=True)
             if avoided:  # a scene update of its own, at the replan's time
                 s = _check_after_avoidance(m, s, changed)
                 s, update, scene = _update(m, s, ["replan", *avoided])
@@ -939,6 +1042,7 @@ def run_mission(
     move_period: float | None = None,
     avoid_robot: bool = True,
     avoid_margin: float = 0.2,
+    avoid_patience: float = 2.0,
     seed: int = 0,
     record: bool = False,
 ) -> MissionResult:
@@ -997,6 +1101,14 @@ def run_mission(
         robot.
     avoid_margin : float
         Safety margin (m) added to the robot's radius for ``avoid_robot``.
+    avoid_patience : float
+        Seconds an artefact waits for a robot that stands, its plans failing, before it
+        gives way (``avoid_robot``), once in each spell the robot stands: it steps back
+        until its box is 0.5 m past the safety margin from the robot's centre
+        (``"move+give_way"``, ``"replan+give_way"``, counted in ``n_give_ways``), to a spot
+        clear of walls and of the other artefacts, then goes on along its track. With the
+        moves on a 2 s clock, the default gives way at the artefact's next check after a
+        wait.
     seed : int
         Passed to the planner as ``params["seed"]`` (plus the replan index).
     record : bool
@@ -1037,6 +1149,7 @@ def run_mission(
         raise ValueError(f"avoid_robot: expected true or false, got {avoid_robot!r}")
     avoid = bool(avoid_robot)
     margin = float(check_nonnegative("avoid_margin", avoid_margin))
+    patience = float(check_nonnegative("avoid_patience", avoid_patience))
     G = check_finite("goals", goals, ndim=2)
     if G.shape[1] != 2 or G.shape[0] < 1:
         raise ValueError(f"goals: expected shape (g, 2) with g >= 1, got {G.shape}")
@@ -1063,7 +1176,7 @@ def run_mission(
         n_free=grid.n_free, events=events, static_occ=static_occ, static_clear=static_clear,
         clear_offsets=clear_offsets,
         avoid=avoid,
-        clearance=robot.radius + margin, move_period=move_period,
+        clearance=robot.radius + margin, patience=patience, move_period=move_period,
         wall_distance=grid.distance_to_occupied() if avoid and scene.has_tracks.any() else None,
         art_radius=np.hypot(*scene.offsets[:, :2].T) + np.hypot(*scene.half_extents[:, :2].T),
         art_speed=_track_speeds(scene),
@@ -1131,6 +1244,7 @@ def run_mission(
         "n_detours": int(s.n_detours),
         "n_yields": int(s.n_yields),
         "avoid_delay": float(s.avoid_delay),
+        "n_give_ways": int(s.n_give_ways),
         "n_replans": len(rp),
         "n_failed_plans": int((~rp["success"]).sum()) if len(rp) else 0,
         "n_updates": s.n_updates,

@@ -124,6 +124,14 @@
    the planning grid reused at the same instant, detours too long in a straight line
    refused before their search: its first 600 s identical to main's, 29.1 -> 26.3 s of CPU
    (20.6x -> 22.8x); main's hour that day 180.6 s (19.9x).
+   The collisions fixed (2026-11-27, later; load 11-19, CPU time, the hour's scene pickled;
+   docs, experiments): the map after the last event holds the moving artefacts at the time
+   limit, the released cells keep their distance to each box, and people who waited for a
+   standing robot give way (``avoid_patience``), tried once each per standing spell and
+   tested against the others up to their next check. A* hour: 6 -> 0 collisions, 81 -> 74
+   goals, 113.6 -> 119.5 s of CPU (31.7x -> 30.1x, main in the same window). RRT hour: 0
+   collisions both, 61 -> 55 goals, 195.3 -> 198.3 s (18.4x -> 18.2x, main right after;
+   the first 600 s 37.6 -> 32.5 s).
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move

@@ -624,3 +624,74 @@ def test_robot_plans_again_when_an_artefact_waits_on_its_new_plan():
             pts = _box_points(sc["centres"][k[0], :2], sc["yaws"][k[0]])
             gap = np.linalg.norm(pts - _robot_xy(res.trace, sc["t"]), axis=1).min()
             assert gap > robot.radius
+
+
+def _ring():
+    """Three pedestrians 0.6 m from a robot at (5, 5) (their boxes' near edges), 120
+    degrees apart, each walking through the robot's position at 0.5 m/s (epochs 2 s
+    apart): they ring it."""
+    rows, tracks = [], []
+    t = np.arange(0.0, 41.0, 2.0)
+    for k, angle in enumerate(np.deg2rad([0.0, 120.0, 240.0])):
+        u = np.array([np.cos(angle), np.sin(angle)])
+        xy = 5.0 + 0.9 * u - (0.5 * t)[:, None] * u
+        yaw = float(np.arctan2(-u[1], -u[0]))
+        rows.append([0.0, 60.0, xy[0, 0], xy[0, 1], yaw, 0])
+        tracks.append(pd.DataFrame({"id": k, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": yaw}))
+    art = pd.DataFrame(rows, columns=COLS)
+    art["artefact"] = [0, 1, 2]
+    return _scene(pd.concat(tracks, ignore_index=True), art)
+
+
+def test_people_ringing_a_standing_robot_give_way_after_the_patience():
+    """Three people walking at a robot ring it, each waiting for it (its plans fail: no way
+    out between them); without the patience rule they wait for it as it waits for them and
+    the robot never leaves (the deadlock that stalled the one-hour RRT-Connect benchmark
+    mission). With it, after ``avoid_patience`` (2 s) of the robot standing and them
+    waiting, they step back out of its safety margin, once each, and the robot reaches its
+    goal, no box ever within its radius (sampled by hand)."""
+    grid = OccupancyGrid(np.zeros((100, 100)), 0.1)
+    robot = Robot(radius=0.3, speed=0.5)
+    kw = dict(robot=robot, start=[5.0, 5.0, 0.0], time_limit=30.0, move_period=2.0)
+    stuck = run_mission(grid, _ring(), [[5.0, 8.0]], "astar", avoid_patience=1e9, **kw)
+    s = stuck.summary
+    assert s["goals_reached"] == 0 and s["distance"] == 0.0 and s["n_give_ways"] == 0
+    assert s["n_yields"] >= 3 * 10 and s["n_failed_plans"] == s["n_replans"]
+    res = run_mission(grid, _ring(), [[5.0, 8.0]], "astar", record=True, **kw)
+    s = res.summary
+    assert s["goals_reached"] == 1 and s["n_give_ways"] == 3
+    assert s["collisions"] == s["artefact_contacts"] == s["arrival_contacts"] == 0
+    # they gave way at their first check at least 2 s after the robot stood (t = 0)
+    gave = res.timeline[res.timeline["kind"].str.contains("give_way")]
+    assert gave["t"].tolist() == [2.0]
+    assert not res.replans["success"].iloc[0] and res.replans["success"].iloc[-1]
+    # each stepped back until its box was 0.5 m past the clearance from the robot
+    for sc in res.trace.scenes:
+        robot_xy = _robot_xy(res.trace, sc["t"])
+        for k in range(len(sc["ids"])):
+            pts = _box_points(sc["centres"][k, :2], sc["yaws"][k])
+            gap = np.linalg.norm(pts - robot_xy, axis=1).min()
+            assert gap > robot.radius
+            if sc["t"] == 4.0:  # standing at their spots, the robot where it stood
+                gap = np.linalg.norm(pts - [5.0, 5.0], axis=1).min()
+                assert gap >= robot.radius + 0.2 + 0.5 - 1e-6
+
+
+def test_people_give_way_once_while_the_robot_stands():
+    """The ring of three, the robot's plans failing for the whole mission (a planner that
+    finds nothing): each person gives way once in that standing spell, walks back and then
+    waits for the robot again instead of stepping back and forth (each give way is a new
+    track and new scene events); without patience none gives way."""
+    kw = dict(robot=ROBOT, start=[5.0, 5.0, 0.0], time_limit=30.0, move_period=2.0)
+    grid = OccupancyGrid(np.zeros((100, 100)), 0.1)
+    res = run_mission(grid, _ring(), [[5.0, 8.0]], _never, **kw)
+    s = res.summary
+    assert s["n_give_ways"] == 3 and s["goals_reached"] == 0 and s["distance"] == 0.0
+    gave = res.timeline[res.timeline["kind"].str.contains("give_way")]
+    assert gave["t"].tolist() == [2.0]
+    # back from their spots they wait for it again, every check to the end
+    later = res.timeline[res.timeline["t"] > 12.0]
+    assert later["kind"].str.contains("yield").sum() >= 5
+    assert s["collisions"] == s["artefact_contacts"] == 0
+    none = run_mission(grid, _ring(), [[5.0, 8.0]], _never, avoid_patience=1e9, **kw).summary
+    assert none["n_give_ways"] == 0 and none["n_yields"] >= 3 * 10
