@@ -449,8 +449,10 @@ def simulate_behaviour_tracks(
     # the exit is drawn given the stay (people leave when they reach it): paths that a
     # walker of the class covers in the stay, up to its fast walkers (2 sd above); the
     # reach is a length (cells) and exits are counted in 4-connected moves, up to sqrt(2)
-    # times as many as the length of an any-angle path
-    reach = np.floor(stay * np.maximum(speed, fastest) / fit.cell) * math.sqrt(2.0)
+    # times as many as the length of an any-angle path; the smoothed grid path (smooth > 1)
+    # walks those moves, so there a move is a cell of length
+    moves_per_cell = math.sqrt(2.0) if int(smooth) <= 1 else 1.0
+    reach = np.floor(stay * np.maximum(speed, fastest) / fit.cell) * moves_per_cell
     horizon = np.floor(1.25 * reach).astype(np.int64) + 2
     exits = fit.draw_exits(
         rng, cls, entry, np.floor(0.9 * reach), stays=stay, speed_mu=mu, speed_sigma=sg
