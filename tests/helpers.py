@@ -85,9 +85,10 @@ TINY_SWEEP = {
 PAPER_MODELS = ["--arrivals", "poisson", "--lifetimes", "exponential", "--positions", "uniform"]
 
 
-def crossing_world(seed: int, n: int = 60):
+def crossing_world(seed: int, n: int = 60, *, speed_sd: float = 0.05, noise: float = 0.03):
     """A 20 m x 12 m room (0.5 m map cells) with a door in the west and the east wall;
-    people walk straight from door to door at about 1.2 m/s, sampled at 2.5 Hz (the
+    people walk straight from door to door at 1.2 m/s times a log-normal of sd ``speed_sd``,
+    one every 100 s, with ``noise`` (m) of tracker noise, sampled at 2.5 Hz (the
     synthetic pedestrians of the behaviour tests and of the docs' motion-checks figure).
 
     Returns
@@ -110,10 +111,12 @@ def crossing_world(seed: int, n: int = 60):
         a, b = np.array([0.3, y0]), np.array([19.7, y1])
         if i % 2:
             a, b = b, a
-        v = 1.2 * np.exp(0.05 * rng.standard_normal())
+        v = 1.2 * np.exp(speed_sd * rng.standard_normal())
         dist = np.hypot(*(b - a))
         t = np.arange(0.0, dist / v, 0.4)
         t = np.append(t, dist / v)
-        xy = a + np.outer(t / t[-1], b - a) + rng.normal(0, 0.03, (t.size, 2))
+        xy = a + np.outer(t / t[-1], b - a)
+        if noise > 0:
+            xy = xy + rng.normal(0, noise, (t.size, 2))
         rows.append(pd.DataFrame({"id": i, "t": 100.0 * i + t, "x": xy[:, 0], "y": xy[:, 1]}))
     return pd.concat(rows, ignore_index=True), free

@@ -25,6 +25,7 @@ from are_stats.behaviour import BehaviourFit
 from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.fitting import track_statistics
 from are_stats.scenarios import scene_tracks
+from tests.helpers import crossing_world
 
 MU, SIGMA = math.log(1.2), 0.08  # the between-person law (log m/s)
 
@@ -32,22 +33,7 @@ MU, SIGMA = math.log(1.2), 0.08  # the between-person law (log m/s)
 def _crossings(seed: int, n: int = 40) -> tuple[pd.DataFrame, np.ndarray]:
     """``n`` people crossing a 20 x 12 m room from door to door (0.5 m cells), one every
     100 s, straight at a speed of the law, sampled at 2.5 Hz, leaving at their exit."""
-    rng = np.random.default_rng(seed)
-    free = np.zeros((24, 40), bool)
-    free[1:-1, 1:-1] = True
-    free[9:15, 0] = free[9:15, -1] = True  # the doors, y in [4.5, 7.5]
-    rows = []
-    for i in range(n):
-        y0, y1 = rng.uniform(4.7, 7.3, 2)
-        a, b = np.array([0.3, y0]), np.array([19.7, y1])
-        if i % 2:
-            a, b = b, a
-        v = math.exp(MU + SIGMA * rng.standard_normal())
-        dist = float(np.hypot(*(b - a)))
-        t = np.append(np.arange(0.0, dist / v, 0.4), dist / v)
-        xy = a + np.outer(t / t[-1], b - a)
-        rows.append(pd.DataFrame({"id": i, "t": 100.0 * i + t, "x": xy[:, 0], "y": xy[:, 1]}))
-    return pd.concat(rows, ignore_index=True), free
+    return crossing_world(seed, n, speed_sd=SIGMA, noise=0.0)
 
 
 def _known_fit(log: pd.DataFrame, free: np.ndarray) -> BehaviourFit:
