@@ -181,139 +181,6 @@ def window_statistics(
     return out
 
 
-def _replicate_statistics(
-    t_arrive: np.ndarray,
-    t_leave: np.ndarray,
-    truncated: np.ndarray,
-    bounds: np.ndarray,
-    window: tuple[float, float],
-    resolution: float,
-) -> np.ndarray:
-    """:func:`window_statistics` of many windows at once, without entry points.
-
-    The same numbers as one call per window (bit for bit: the same operations on the same
-    values, the reductions along contiguous rows), in a few passes over all the windows'
-    rows: the checks' 400 replicated windows took most of a report's statistics time in
-    400 calls.
-
-    Parameters
-    ----------
-    t_arrive, t_leave : (n,) float
-        Every window's rows, window after window (as :func:`window_statistics`' arguments).
-    truncated : (n,) bool
-    bounds : (R + 1,) int
-        Window ``r`` holds rows ``bounds[r]:bounds[r + 1]`` (non-decreasing, from 0 to n).
-    window : (t0, t1)
-        The windows' common interval.
-    resolution : float
-        The log's time resolution.
-
-    Returns
-    -------
-    (R, S) float
-        Columns in :data:`TRAFFIC_STATISTICS` order; ``entry to boundary (m)`` is NaN.
-    """
-    t0, t1 = float(window[0]), float(window[1])
-    bounds = np.asarray(bounds, np.int64)
-    n_win = bounds.size - 1
-    sizes = np.diff(bounds)
-    row = np.repeat(np.arange(n_win), sizes)  # the window of each row
-    tr = np.asarray(truncated, bool)
-    ta = np.where(tr, t0, np.asarray(t_arrive, float))
-    tl = np.asarray(t_leave, float)
-    tl = np.where(np.isfinite(tl), tl, np.inf)
-    out = np.full((n_win, len(TRAFFIC_STATISTICS)), np.nan)
-    col = {s: i for i, s in enumerate(TRAFFIC_STATISTICS)}
-
-    # N(t) on count_path's grid: present at t when t_arrive <= t < t_leave
-    times = np.linspace(t0, t1, 241)[1:-1]
-    m = times.size
-    diff = np.zeros((n_win, m + 1), np.int64)
-    np.add.at(diff, (row, np.searchsorted(times, np.where(np.isnan(ta), -np.inf, ta))), 1)
-    np.add.at(diff, (row, np.searchsorted(times, tl)), -1)
-    n = np.cumsum(diff[:, :m], axis=1).astype(float)
-    mean = n.mean(axis=1)
-    pos = mean > 0
-    out[pos, col["N(t) var/mean"]] = n[pos].var(axis=1, ddof=1) / mean[pos]
-    out[:, col["N(t) peak"]] = n.max(axis=1)
-
-    # zero gaps: arrivals (not truncated, before t1) in time order, per window
-    keep = ~tr & (ta < t1)
-    order = np.lexsort((ta[keep], row[keep]))
-    arrived, r_arr = ta[keep][order], row[keep][order]
-    ticks = np.floor((arrived - t0) / max(resolution, 1e-12) + 1e-9)
-    same = (np.diff(ticks) == 0) & (r_arr[1:] == r_arr[:-1])
-    n_arr = np.bincount(r_arr, minlength=n_win)
-    zeros = np.bincount(r_arr[1:][same], minlength=n_win)
-    many = n_arr >= 2
-    out[many, col["zero gaps"]] = zeros[many] / (n_arr[many] - 1)
-
-    # stay cv: the stays seen from arrival to departure; the windows with as many stays
-    # as each other at once, one row each (a row's reductions are a window's own)
-    whole = ~tr & (tl < t1)
-    stays = (tl - ta)[whole]
-    edges = np.searchsorted(np.flatnonzero(whole), bounds)
-    count = np.diff(edges)
-    for k in np.unique(count[count >= 3]):
-        ks = np.flatnonzero(count == k)
-        s = stays[edges[ks][:, None] + np.arange(k)]
-        mean = s.mean(axis=1)
-        pos = mean > 0
-        out[ks[pos], col["stay cv"]] = s[pos].std(axis=1, ddof=1) / mean[pos]
-
-    # burst statistics (burst_statistics): arrivals strictly inside the window
-    inside = (ta > t0) & (ta < t1)
-    since, r_in = ta[inside] - t0, row[inside]
-    for w in DISPERSION_BINS:
-        n_bins = int((t1 - t0) // w)
-        if n_bins < 2:
-            continue
-        c = _binned(since, r_in, w, n_bins, n_win)
-        mean = c.mean(axis=1)
-        pos = mean > 0
-        out[pos, col[f"arrivals var/mean ({w:g} s)"]] = c[pos].var(axis=1, ddof=1) / mean[pos]
-    n_bins = int((t1 - t0) // AUTOCORR_BIN)
-    lag = int(round(AUTOCORR_LAG / AUTOCORR_BIN))
-    if n_bins >= lag + 3:
-        c = _binned(since, r_in, AUTOCORR_BIN, n_bins, n_win)
-        a, b = c[:, :-lag].astype(float), c[:, lag:].astype(float)
-        varied = (a.std(axis=1) > 0) & (b.std(axis=1) > 0)
-        for r in np.flatnonzero(varied):
-            out[r, col["arrivals autocorr (30 s)"]] = np.corrcoef(a[r], b[r])[0, 1]
-    # longest stretch with no one present: gaps in the union of [arrive, leave)
-    lo, hi = np.clip(ta, t0, t1), np.clip(tl, t0, t1)
-    order = np.lexsort((lo, row))  # by window, then (stable) by arrival
-    lo, hi = lo[order], hi[order]
-    # covered[i]: the latest leave before row i in its window (t0 at a window's first row),
-    # a running maximum that restarts with each window, on exact ranks of the leaves
-    rank = np.empty(hi.size, np.int64)
-    rank[np.argsort(hi, kind="stable")] = np.arange(hi.size)
-    run = np.maximum.accumulate(row * (hi.size + 1) + rank) if hi.size else rank
-    by_rank = np.sort(hi, kind="stable")
-    latest = by_rank[run % (hi.size + 1)] if hi.size else hi
-    first = np.zeros(hi.size, bool)
-    first[bounds[:-1][sizes > 0]] = True
-    covered = np.where(first, t0, np.concatenate([[t0], latest[:-1]]))
-    covered = np.maximum(covered, t0)
-    gap = np.full(n_win, t1 - t0)  # an empty window: one gap, the whole window
-    last = bounds[1:][sizes > 0] - 1
-    gap[sizes > 0] = t1 - np.maximum(latest[last], t0)
-    if hi.size:
-        np.maximum.at(gap, row, lo - covered)
-    out[:, col["longest N(t) = 0 (s)"]] = np.maximum(gap, 0.0)
-    return out
-
-
-def _binned(
-    since: np.ndarray, row: np.ndarray, width: float, n_bins: int, n_win: int
-) -> np.ndarray:
-    """``(n_win, n_bins)`` int: each window's arrivals (``since`` its start) in bins of
-    ``width`` (those past the last whole bin dropped), as ``burst_statistics`` counts them."""
-    b = (since // width).astype(np.int64)
-    ok = b < n_bins
-    return np.bincount(row[ok] * n_bins + b[ok], minlength=n_win * n_bins).reshape(n_win, n_bins)
-
-
 #: The statistics :func:`crowding_statistics` summarises: how crowded a window is.
 CROWDING_STATISTICS = ("N(t) var/mean", "N(t) peak", "zero gaps", "stay cv")
 
@@ -457,16 +324,17 @@ def traffic_checks(
             near = np.full(len(pts), np.nan)
             if keep.any():
                 near[keep] = boundary_distance(pts[keep], *free)
-        ta_q = np.ceil((ta - t0) / res - 1e-9) * res + t0  # the log's quantisation
-        rows = _replicate_statistics(ta_q, tl, tr, bounds, (t0, t1), res)
-        if entry:
-            j = TRAFFIC_STATISTICS.index("entry to boundary (m)")
-            for r in range(n_replicates):
-                a, b = bounds[r], bounds[r + 1]
+        rows = []
+        for r in range(n_replicates):
+            a, b = bounds[r], bounds[r + 1]
+            ta_r = np.ceil((ta[a:b] - t0) / res - 1e-9) * res + t0  # the log's quantisation
+            st = window_statistics(ta_r, tl[a:b], tr[a:b], (t0, t1), res)
+            if entry and (~tr[a:b]).any():
                 d = near[a:b][keep[a:b]]
-                if d.size:  # (rows kept are never truncated)
-                    rows[r, j] = float(np.mean(d))
-        reps[model] = rows
+                if d.size:
+                    st["entry to boundary (m)"] = float(np.mean(d))
+            rows.append([st[s] for s in TRAFFIC_STATISTICS])
+        reps[model] = np.asarray(rows, float)
     table = pd.DataFrame(index=pd.Index(TRAFFIC_STATISTICS, name="statistic"))
     table["observed"] = [observed[s] for s in TRAFFIC_STATISTICS]
     for model, r in reps.items():

@@ -165,8 +165,8 @@ def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
 
 def test_checks_entry_distance_is_each_windows_own(rich_fit, rich_log):
     """traffic_checks measures every replicate's entry distances in one call of
-    boundary_distance and the other statistics of all replicates at once; each window's
-    values are window_statistics' on that window alone, bit for bit."""
+    boundary_distance; each window's values are window_statistics' on that window alone,
+    bit for bit."""
     from are_stats.fitting import window_statistics
     from are_stats.fitting._traffic_checks import _free_of
     from are_stats.traffic import fold_in_key, key_from_seed
