@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Mapping, Sequence
+from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -22,7 +23,6 @@ from are_stats import __version__
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
-    environment_mesh,
     load_catalogue,
     read_map,
     resolve_shipped,
@@ -43,9 +43,7 @@ from are_stats.scenarios import (
     POSITION_CHOICES,
     check_folder,
     generate_manifest,
-    read_scenes,
     scenes_from_fit,
-    scenes_from_tables,
     scenes_tables,
     write_scenes,
 )
@@ -743,83 +741,46 @@ def run_perceive(
     out: Path | None = None,
     force: bool = False,
 ) -> pd.DataFrame:
-    """Add perceived flags (A_f, eq. 2) to a scenario folder for a robot path.
+    """``are-stats perceive``: perceived flags (A_f, eq. 2) added to a scenario folder for a
+    robot path (:func:`are_stats.perception.perceive_folder`, which checks every input
+    before any tracing); its warnings and progress shown, then what it wrote."""
+    from are_stats.perception import FolderPlan, perceive_folder
 
-    Every input is checked before any tracing: the options (``--d-max`` > 0, ``--tau``
-    >= 0, ``--camera-height`` and ``--wall-height`` within 1 km), the scenario folder
-    (:func:`are_stats.scenarios.read_scenes`, its behaviour tracks included), the
-    camera, the robot path (:func:`are_stats.perception.read_robot_path`: sorted times,
-    finite poses) and the mesh or map. A robot path whose times miss the scenario window
-    ``[0, horizon]`` or every artefact's presence is an error naming both time ranges;
-    poses outside the map are reported as a warning. With behaviour tracks the artefacts
-    move: each robot pose sees them where they are at its time.
-    """
-    from are_stats.perception import (
-        PinholeCamera,
-        camera_mount,
-        check_path_times,
-        perceive_scenario,
-        poses_outside_warning,
-        read_robot_path,
-    )
+    started: list[tuple[FolderPlan, float]] = []  # the plan, and when perceiving began
 
-    d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
-    tau = get_float(tau, "--tau", "", lo=0)
-    camera_height = get_float(camera_height, "--camera-height", "", lo=-1e3, hi=1e3)
-    wall_height = get_float(wall_height, "--wall-height", "", lo=0, lo_open=True, hi=1e3)
-    scenario = Path(scenario)
-    target = Path(out) if out is not None else scenario / "perceived.parquet"
-    check_writable(target, force)
-    folder = read_scenes(scenario)
-    df, tracks = folder.artefacts, folder.tracks
-    camera = PinholeCamera.from_yaml(resolve_shipped(camera_path, "camera", source="--camera"))
-    path = Path(robot_path)
-    robot = read_robot_path(path)
-    grid = folder.grid(missing_ok=mesh is not None, or_else="pass --mesh MESH")
-    env = environment_mesh(grid, wall_height, mesh, source=folder.manifest_path)
-    window = None if folder.horizon is None else (0.0, folder.horizon)
-    check_path_times(
-        path,
-        robot["t"].to_numpy(),
-        df["t_arrive"].to_numpy(),
-        df["t_leave"].to_numpy(),
-        window,
-        scenario,
-    )
-    outside = poses_outside_warning(path, robot[["x", "y"]].to_numpy(), grid, env, folder.map_file)
-    if outside is not None:
-        console.print(f"[yellow]warning:[/] {outside}")
-    cat = load_catalogue()
-    unknown = folder.unknown_classes(cat)
-    if unknown:
-        console.print(
-            f"[yellow]warning:[/] classes {unknown} of the scenarios are not in the "
-            f"catalogue ({', '.join(cat.labels)}): they are sized as the catalogue class "
-            "in their position"
-        )
-    mount = camera_mount(camera.pose, camera_height)
-    moving = f" ({folder.n_moving} moving)" if folder.n_moving else ""
-    t = time.perf_counter()
-    with console.status(
-        f"perceiving {len(df)} artefacts{moving} over {len(robot)} robot poses ..."
-    ):
-        scenes = scenes_from_tables(df, tracks, cat, folder.class_labels, df["scenario"].unique())
-        res = perceive_scenario(
-            scenes,
-            robot,
-            env,
-            camera,
-            d_max,
-            tau,
-            mount=mount,
+    with ExitStack() as progress:
+
+        def start(plan: FolderPlan) -> None:
+            for note in plan.warnings:
+                console.print(f"[yellow]warning:[/] {note}")
+            moving = f" ({plan.moving} moving)" if plan.moving else ""
+            started.append((plan, time.perf_counter()))
+            progress.enter_context(
+                console.status(
+                    f"perceiving {plan.artefacts} artefacts{moving} over {plan.poses} robot "
+                    "poses ..."
+                )
+            )
+
+        target, res = perceive_folder(
+            scenario,
+            camera_path,
+            robot_path,
+            mesh=mesh,
+            wall_height=wall_height,
+            d_max=d_max,
+            tau=tau,
+            camera_height=camera_height,
             occlusion_between_artefacts=occlusion_between_artefacts,
-        ).loc[df.index]  # the folder's row order
-    with atomic_path(target, force=force) as tmp:
-        res.to_parquet(tmp, index=False)
-    n_p = int(res["perceived"].sum())
+            out=out,
+            force=force,
+            on_start=start,
+        )
+    (plan, t), n_p = started[0], int(res["perceived"].sum())
+    moving = f" ({plan.moving} moving)" if plan.moving else ""
     console.print(
-        f"{n_p} of {len(res)} artefacts{moving} perceived (tau={tau}, d_max={d_max} m) in "
-        f"{time.perf_counter() - t:.1f} s; wrote {target}"
+        f"{n_p} of {len(res)} artefacts{moving} perceived (tau={float(tau)}, "
+        f"d_max={float(d_max)} m) in {time.perf_counter() - t:.1f} s; wrote {target}"
     )
     return res
 

@@ -32,7 +32,6 @@ from are_stats.environment import (
     extrude_grid,
     load_catalogue,
     read_map,
-    resolve_shipped,
 )
 from are_stats.export._live import bag_camera
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame
@@ -263,10 +262,10 @@ def augment_bag(
     """
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit
-    from are_stats.perception import perceive_scene
+    from are_stats.perception import perceive_scene, read_camera
 
     if isinstance(camera, str | os.PathLike):  # a file, or a shipped camera's name
-        camera = resolve_shipped(camera, "camera", source="--camera")
+        camera = read_camera(camera)
     seed = get_seed(seed)
     model = get_str(model, "--model", "", choices=("chosen", "paper"))
     positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)

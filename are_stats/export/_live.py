@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 import numpy as np
 
-from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, load_catalogue
+from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.export._ros import ROS_FRAMES, _quat, artefact_frame
 from are_stats.inputs import Described, InputError, get_float
 from are_stats.logs import BagTrajectory, TrajectoryOptions, interpolate_poses
@@ -537,11 +537,12 @@ def camera_and_mount(
     the robot's own tree (``tree_mount``, a bag's static chain from the base to the camera
     frame) wins, else the camera's pose, else ``height`` m above the base looking forward
     (:func:`are_stats.perception.camera_mount`)."""
-    from are_stats.perception import PinholeCamera, camera_mount
+    from are_stats.perception import PinholeCamera, camera_mount, read_camera
 
-    if camera is None:
-        camera = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
-    cam = camera if isinstance(camera, PinholeCamera) else PinholeCamera.from_yaml(camera)
+    if isinstance(camera, PinholeCamera):
+        cam = camera
+    else:  # a file, or a shipped camera's name
+        cam = read_camera("front_camera" if camera is None else camera, source="camera")
     return cam, camera_mount(cam.pose, height, tree_mount)
 
 

@@ -5,7 +5,9 @@ from are_stats.perception._camera import (
     PinholeCamera,
     camera_mount,
     optical_from_base,
+    read_camera,
 )
+from are_stats.perception._folder import FolderPlan, perceive_folder
 from are_stats.perception._perceive import (
     PerceptionResult,
     TraceOptions,
@@ -29,6 +31,7 @@ from are_stats.perception._scenario import (
 )
 
 __all__ = [
+    "FolderPlan",
     "PerceptionResult",
     "CameraModel",
     "PinholeCamera",
@@ -38,6 +41,7 @@ __all__ = [
     "check_path_times",
     "clear_mesh_cache",
     "optical_from_base",
+    "perceive_folder",
     "perceive_frames",
     "perceived_counts",
     "perceived_counts_batch",
@@ -48,6 +52,7 @@ __all__ = [
     "plot_top_view",
     "poses_outside",
     "poses_outside_warning",
+    "read_camera",
     "read_robot_path",
     "sample_perceived",
     "save_figure",

@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from are_stats._checks import check_finite, describe
+from are_stats.environment import resolve_shipped
 from are_stats.inputs import (
     Described,
     InputError,
@@ -35,6 +36,7 @@ __all__ = [
     "camera_mount",
     "check_pose",
     "optical_from_base",
+    "read_camera",
     "MIN_FOCAL",
     "MAX_FOCAL",
     "MAX_SIDE",
@@ -465,6 +467,38 @@ class PinholeCamera:
             "height": self.height,
             "pose": self.pose.tolist(),
         }
+
+
+def read_camera(name_or_path: str | os.PathLike, *, source: str = "--camera") -> PinholeCamera:
+    """A camera where a command or config takes one: a camera YAML (ROS ``camera_info``
+    fields, :meth:`PinholeCamera.from_dict`), or the name of a shipped camera
+    (``front_camera``; :func:`~are_stats.environment.resolve_shipped`), as
+    :func:`~are_stats.environment.read_map` reads a map.
+
+    Parameters
+    ----------
+    name_or_path : str or PathLike
+        A camera YAML (an existing file wins) or a shipped camera's name.
+    source : str
+        The option or key it came from, named when it is neither (``"--camera"``).
+
+    Returns
+    -------
+    PinholeCamera
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming ``source`` and the shipped cameras when ``name_or_path`` is neither a file
+        nor a shipped camera's name; the errors of :meth:`PinholeCamera.from_yaml`.
+
+    Examples
+    --------
+    >>> cam = read_camera("front_camera")
+    >>> cam.width, cam.height
+    (640, 480)
+    """
+    return PinholeCamera.from_yaml(resolve_shipped(name_or_path, "camera", source=source))
 
 
 _CAMERA_KEYS = (

@@ -7,8 +7,9 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
+from are_stats.environment import shipped_path
 from are_stats.inputs import InputError, LimitError, limits
-from are_stats.perception import PinholeCamera, optical_from_base
+from are_stats.perception import PinholeCamera, optical_from_base, read_camera
 from tests.helpers import assert_allclose
 
 
@@ -76,6 +77,20 @@ def test_from_yaml_plain_ros1_ros2_and_calibration(tmp_path):
     path = tmp_path / "rt.yaml"
     path.write_text(yaml.safe_dump(cam.to_dict()))
     assert_allclose(PinholeCamera.from_yaml(path).P, cam.P, rtol=1e-12)
+
+
+def test_read_camera_takes_a_file_or_a_shipped_name(tmp_path):
+    shipped = PinholeCamera.from_yaml(shipped_path("front_camera", "camera"))
+    assert read_camera("front_camera").to_dict() == shipped.to_dict()
+    path = tmp_path / "cam.yaml"
+    path.write_text(
+        yaml.safe_dump({"fx": 1.0, "fy": 1.0, "cx": 1.0, "cy": 1.0, "width": 2, "height": 2})
+    )
+    assert read_camera(path).fx == 1.0
+    with pytest.raises(FileNotFoundError, match="none.yaml: no such file"):
+        read_camera(tmp_path / "none.yaml")
+    with pytest.raises(InputError, match=r"--source: .*front_camera"):
+        read_camera("back_camera", source="--source")
 
 
 def test_bad_cameras(tmp_path):
