@@ -37,20 +37,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from are_stats import inputs
 from are_stats.environment._mesh import MAX_COORDINATE, _mesh_file_size, load_mesh
 from are_stats.environment._shipped import SHIPPED_DATA
-from are_stats.inputs import (
-    Described,
-    InputError,
-    Source,
-    check_keys,
-    check_memory,
-    get_float,
-    get_int,
-    get_list,
-    get_str,
-    load_yaml,
-)
+from are_stats.inputs import Described, InputError, Source
 
 if TYPE_CHECKING:
     import trimesh
@@ -346,16 +336,20 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
         (:class:`are_stats.inputs.LimitError`, :data:`ROW_BYTES` bytes per row).
     """
     p = Path(path) if path is not None else DEFAULT_MODELS / "artefacts" / "catalogue.yaml"
-    doc = check_keys(load_yaml(p, "catalogue YAML"), p, "", ("version", "classes"), ("classes",))
-    if "version" in doc and get_int(doc["version"], p, "version") != 1:
+    doc = inputs.check_keys(
+        inputs.load_yaml(p, "catalogue YAML"), p, "", ("version", "classes"), ("classes",)
+    )
+    if "version" in doc and inputs.get_int(doc["version"], p, "version") != 1:
         raise InputError(p, "version", "1", doc["version"])
-    entries = get_list(doc["classes"], p, "classes", min_len=1)
+    entries = inputs.get_list(doc["classes"], p, "classes", min_len=1)
     out: list[ArtefactClass] = []
     seen: dict[str, int] = {}
     for k, raw in enumerate(entries):
         where = f"classes[{k}]"
-        entry = check_keys(raw, p, where, _CLASS_KEYS, ("label", "mesh", "speeds", "behaviours"))
-        label = get_str(entry["label"], p, f"{where}.label")
+        entry = inputs.check_keys(
+            raw, p, where, _CLASS_KEYS, ("label", "mesh", "speeds", "behaviours")
+        )
+        label = inputs.get_str(entry["label"], p, f"{where}.label")
         if not label.strip():
             raise InputError(p, f"{where}.label", "a non-empty label", label)
         if label in seen:
@@ -366,18 +360,20 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
                 Described(f"{label!r}, a duplicate label of classes[{seen[label]}]"),
             )
         seen[label] = k
-        speeds = check_keys(entry["speeds"], p, f"{where}.speeds", ("walk", "run"), ("walk",))
+        speeds = inputs.check_keys(
+            entry["speeds"], p, f"{where}.speeds", ("walk", "run"), ("walk",)
+        )
         sp = {
-            name: get_float(v, p, f"{where}.speeds.{name}", lo=0, lo_open=True, hi=MAX_SPEED)
+            name: inputs.get_float(v, p, f"{where}.speeds.{name}", lo=0, lo_open=True, hi=MAX_SPEED)
             for name, v in speeds.items()
         }
         if "run" in sp and sp["run"] < sp["walk"]:
             raise InputError(
                 p, f"{where}.speeds.run", f"run >= walk ({sp['walk']:g} m/s)", speeds["run"]
             )
-        beh = get_list(entry["behaviours"], p, f"{where}.behaviours", min_len=1)
+        beh = inputs.get_list(entry["behaviours"], p, f"{where}.behaviours", min_len=1)
         for j, b in enumerate(beh):
-            get_str(b, p, f"{where}.behaviours[{j}]", choices=BEHAVIOURS)
+            inputs.get_str(b, p, f"{where}.behaviours[{j}]", choices=BEHAVIOURS)
             if b in beh[:j]:
                 raise InputError(p, f"{where}.behaviours[{j}]", "each behaviour once", b)
         if "run" in beh and "run" not in sp:
@@ -391,7 +387,7 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
         if not isinstance(feats, dict):
             raise InputError(p, f"{where}.features", "a mapping of features", feats)
         variants = _variants(p, where, entry.get("variants"))
-        mesh_name = get_str(entry["mesh"], p, f"{where}.mesh")
+        mesh_name = inputs.get_str(entry["mesh"], p, f"{where}.mesh")
         mesh_path = Path(mesh_name)
         if not mesh_path.is_absolute():
             mesh_path = p.parent / mesh_path
@@ -517,30 +513,30 @@ def _variants(source: Path, where: str, spec: Any) -> tuple[tuple[np.ndarray, di
 
     def scale_of(value: Any, at: str) -> np.ndarray:
         if isinstance(value, list | tuple):
-            vals = get_list(value, source, at, min_len=3, max_len=3)
+            vals = inputs.get_list(value, source, at, min_len=3, max_len=3)
             return np.array(
                 [
-                    get_float(v, source, f"{at}[{i}]", lo=0, lo_open=True, hi=MAX_SCALE)
+                    inputs.get_float(v, source, f"{at}[{i}]", lo=0, lo_open=True, hi=MAX_SCALE)
                     for i, v in enumerate(vals)
                 ]
             )
-        return np.full(3, get_float(value, source, at, lo=0, lo_open=True, hi=MAX_SCALE))
+        return np.full(3, inputs.get_float(value, source, at, lo=0, lo_open=True, hi=MAX_SCALE))
 
     if isinstance(spec, dict):
-        spec = check_keys(spec, source, key, ("rows", "scale"), ("rows", "scale"))
-        rows = get_int(spec["rows"], source, f"{key}.rows", lo=1)
-        check_memory(rows * ROW_BYTES, f"the {rows} rows of {key}", source)
-        ends = get_list(spec["scale"], source, f"{key}.scale", min_len=2, max_len=2)
+        spec = inputs.check_keys(spec, source, key, ("rows", "scale"), ("rows", "scale"))
+        rows = inputs.get_int(spec["rows"], source, f"{key}.rows", lo=1)
+        inputs.check_memory(rows * ROW_BYTES, f"the {rows} rows of {key}", source)
+        ends = inputs.get_list(spec["scale"], source, f"{key}.scale", min_len=2, max_len=2)
         a, b = (scale_of(v, f"{key}.scale[{i}]") for i, v in enumerate(ends))
         steps = np.linspace(0.0, 1.0, rows) if rows > 1 else np.zeros(1)
         return tuple((a + (b - a) * t, {}) for t in steps)
     if isinstance(spec, list):
-        items = get_list(spec, source, key, min_len=1)
-        check_memory(len(items) * ROW_BYTES, f"the {len(items)} rows of {key}", source)
+        items = inputs.get_list(spec, source, key, min_len=1)
+        inputs.check_memory(len(items) * ROW_BYTES, f"the {len(items)} rows of {key}", source)
         out = []
         for r, raw in enumerate(items):
             at = f"{key}[{r}]"
-            item = check_keys(raw, source, at, ("scale", "features"))
+            item = inputs.check_keys(raw, source, at, ("scale", "features"))
             feats = item.get("features") or {}
             if not isinstance(feats, dict):
                 raise InputError(source, f"{at}.features", "a mapping of features", feats)

@@ -27,21 +27,11 @@ import numpy.typing as npt
 import yaml
 from PIL import Image, UnidentifiedImageError
 
+from are_stats import inputs
 from are_stats._atomic import atomic_path, check_writable
 from are_stats._checks import check_finite, check_in, describe
 from are_stats.environment._shipped import resolve_shipped
-from are_stats.inputs import (
-    Described,
-    InputError,
-    Source,
-    check_keys,
-    check_memory,
-    get_float,
-    get_int,
-    get_list,
-    get_str,
-    load_yaml,
-)
+from are_stats.inputs import Described, InputError, Source
 
 # Lazy import: SciPy's ndimage (about 0.3 s CPU) loads when a distance map is asked, not with
 # the environment room (Pillow's Image costs about 15 ms).
@@ -413,21 +403,23 @@ class OccupancyGrid:
         CMYK and YCbCr images are read as their RGB.
         """
         p = Path(path)
-        meta = check_keys(
-            load_yaml(p, "ROS map YAML"), p, "", _MAP_KEYS, ("image", "resolution", "origin")
+        meta = inputs.check_keys(
+            inputs.load_yaml(p, "ROS map YAML"), p, "", _MAP_KEYS, ("image", "resolution", "origin")
         )
-        image = get_str(meta["image"], p, "image")
+        image = inputs.get_str(meta["image"], p, "image")
         if not image.strip():
             raise InputError(p, "image", "an image file name", image)
         res, origin = _check_geometry(meta["resolution"], meta["origin"], p)
         negate = meta.get("negate", 0)
         if not (isinstance(negate, bool) or (type(negate) is int and negate in (0, 1))):
             raise InputError(p, "negate", "0 or 1", negate)
-        occ_th = get_float(meta.get("occupied_thresh", 0.65), p, "occupied_thresh", lo=0, hi=1)
-        free_th = get_float(meta.get("free_thresh", 0.196), p, "free_thresh", lo=0, hi=1)
+        occ_th = inputs.get_float(
+            meta.get("occupied_thresh", 0.65), p, "occupied_thresh", lo=0, hi=1
+        )
+        free_th = inputs.get_float(meta.get("free_thresh", 0.196), p, "free_thresh", lo=0, hi=1)
         _check_thresholds(occ_th, free_th, str(p))
-        mode = get_str(meta.get("mode", "trinary"), p, "mode", choices=_MODES)
-        sizes = {k: get_int(meta[k], p, k, lo=1) for k in ("width", "height") if k in meta}
+        mode = inputs.get_str(meta.get("mode", "trinary"), p, "mode", choices=_MODES)
+        sizes = {k: inputs.get_int(meta[k], p, k, lo=1) for k in ("width", "height") if k in meta}
         img_path = Path(image)
         if not img_path.is_absolute():
             img_path = p.parent / img_path
@@ -583,13 +575,13 @@ def read_map(
 
 def _check_geometry(resolution: Any, origin: Any, source: Source) -> tuple[float, tuple]:
     """Resolution and origin of a map, checked strictly (see :meth:`from_ros_yaml`)."""
-    res = get_float(resolution, source, "resolution", lo=MIN_RESOLUTION, hi=MAX_RESOLUTION)
-    o = get_list(origin, source, "origin", min_len=3, max_len=3)
+    res = inputs.get_float(resolution, source, "resolution", lo=MIN_RESOLUTION, hi=MAX_RESOLUTION)
+    o = inputs.get_list(origin, source, "origin", min_len=3, max_len=3)
     x, y = (
-        get_float(v, source, f"origin[{k}]", lo=-MAX_ORIGIN, hi=MAX_ORIGIN)
+        inputs.get_float(v, source, f"origin[{k}]", lo=-MAX_ORIGIN, hi=MAX_ORIGIN)
         for k, v in enumerate(o[:2])
     )
-    yaw = get_float(o[2], source, "origin[2] (yaw)", lo=-2 * math.pi, hi=2 * math.pi)
+    yaw = inputs.get_float(o[2], source, "origin[2] (yaw)", lo=-2 * math.pi, hi=2 * math.pi)
     return res, (x, y, yaw)
 
 
@@ -666,7 +658,7 @@ def _read_image(
                 "an 8-bit greyscale or colour image (as map_server reads)",
                 Described(f"{path.name} in Pillow mode {im.mode!r}"),
             )
-        check_memory(
+        inputs.check_memory(
             float(width) * float(height) * _BYTES_PER_PIXEL,
             f"the {width} x {height} map image {path.name}",
             src,
@@ -820,7 +812,7 @@ def _coarse_factor(
 ) -> int | None:
     """Map cells per coarse cell side, or None when the coarse grid would be under 2 x 2."""
     if source is not None:
-        cell = get_float(cell, source, "", lo=0.0, lo_open=True)
+        cell = inputs.get_float(cell, source, "", lo=0.0, lo_open=True)
     f = max(1, int(round(min(float(cell) / res, 2.0**31))))
     if shape[0] // f < 2 or shape[1] // f < 2:
         if source is not None:

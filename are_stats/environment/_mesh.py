@@ -18,15 +18,9 @@ import numpy as np
 import shapely
 from shapely import affinity
 
+from are_stats import inputs
 from are_stats._checks import check_positive
-from are_stats.inputs import (
-    Described,
-    InputError,
-    check_file,
-    check_memory,
-    check_work,
-    format_bytes,
-)
+from are_stats.inputs import Described, InputError
 
 # Lazy import: trimesh (about 0.6 s CPU) is imported when a mesh is loaded or built, not with
 # the environment room (shapely costs about 20 ms).
@@ -50,8 +44,10 @@ def _mesh_file_size(path: str | os.PathLike) -> int:
     """The size (bytes) of a mesh file, refused unless it is a regular file whose parse fits
     the memory limit (:data:`MESH_BYTES_PER_BYTE`): the check of every mesh reader
     (:func:`load_mesh`, the catalogue's plain-OBJ bounds)."""
-    size = check_file(path, "a mesh file (OBJ, PLY, STL, GLB, ...)")
-    check_memory(size * MESH_BYTES_PER_BYTE, f"parsing the {format_bytes(size)} mesh", path)
+    size = inputs.check_file(path, "a mesh file (OBJ, PLY, STL, GLB, ...)")
+    inputs.check_memory(
+        size * MESH_BYTES_PER_BYTE, f"parsing the {inputs.format_bytes(size)} mesh", path
+    )
     return size
 
 
@@ -145,7 +141,7 @@ def _cell_polygons(mask: np.ndarray) -> list[shapely.Polygon]:
     rects = _row_runs_merged(mask)
     if len(rects) == 0:
         return []
-    check_work(
+    inputs.check_work(
         len(rects) * _STEPS_PER_RECT,
         f"merging {len(rects)} occupied rectangles of the map into wall polygons",
         "map",

@@ -27,16 +27,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from are_stats import inputs
 from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
-from are_stats.inputs import (
-    Described,
-    InputError,
-    check_file,
-    check_memory,
-    check_work,
-    format_bytes,
-)
+from are_stats.inputs import Described, InputError
 
 # Lazy imports: trimesh (about 0.5 s) is imported when a mesh is sampled, not with the
 # environment room.
@@ -206,10 +200,12 @@ class VoxelMap:
             If the header or the tree data are malformed.
         """
         p = Path(path)
-        size_b = check_file(p, "an OctoMap .bt file")
-        check_memory(size_b * 2, f"reading the {format_bytes(size_b)} OctoMap file", p)
+        size_b = inputs.check_file(p, "an OctoMap .bt file")
+        inputs.check_memory(
+            size_b * 2, f"reading the {inputs.format_bytes(size_b)} OctoMap file", p
+        )
         # the tree is walked one inner node (2 bytes) at a time
-        check_work(size_b * _BT_STEPS_PER_BYTE, "walking the OctoMap tree", p)
+        inputs.check_work(size_b * _BT_STEPS_PER_BYTE, "walking the OctoMap tree", p)
         raw = p.read_bytes()
         pos = 0
 
@@ -313,7 +309,7 @@ def _read_bt_tree(raw: bytes, pos: int, p: Path) -> np.ndarray:
             elif b == 2:  # bit 2i set, 2i+1 clear: occupied leaf
                 span = half
                 n_voxels += span**3
-                check_memory(
+                inputs.check_memory(
                     n_voxels * _BYTES_PER_VOXEL,
                     f"the {n_voxels} occupied voxels of the pruned OctoMap tree",
                     p,

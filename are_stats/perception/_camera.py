@@ -15,20 +15,10 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from are_stats import inputs
 from are_stats._checks import check_finite, describe
 from are_stats.environment import resolve_shipped
-from are_stats.inputs import (
-    Described,
-    InputError,
-    Source,
-    check_keys,
-    check_memory,
-    get_float,
-    get_int,
-    get_list,
-    get_str,
-    load_yaml,
-)
+from are_stats.inputs import Described, InputError, Source
 
 __all__ = [
     "CameraModel",
@@ -243,7 +233,7 @@ class PinholeCamera:
     def check_memory(self, source: Source = "") -> None:
         """Refuse a camera whose per-frame ray buffers (:data:`PIXEL_BYTES` bytes a pixel)
         exceed :func:`are_stats.inputs.memory_limit` (``LimitError``)."""
-        check_memory(
+        inputs.check_memory(
             float(self.width) * float(self.height) * PIXEL_BYTES,
             f"the rays of a {self.width} x {self.height} camera image",
             source or "camera",
@@ -369,7 +359,7 @@ class PinholeCamera:
             (a ``ValueError``) naming ``source`` and the key; ``LimitError`` if the image
             is too large for the memory limit (:meth:`check_memory`).
         """
-        d = check_keys(data, source, "", _CAMERA_KEYS)
+        d = inputs.check_keys(data, source, "", _CAMERA_KEYS)
         groups = (("fx", "fy", "cx", "cy"), ("K",), ("k",), ("camera_matrix",))
         given = [g for g in groups if any(k in d for k in g)]
         if len(given) != 1:
@@ -386,7 +376,7 @@ class PinholeCamera:
                 raise InputError(
                     source, missing[0], "this key to be present", Described("no such key")
                 )
-            fx, fy, cx, cy = (get_float(d[k], source, k) for k in group)
+            fx, fy, cx, cy = (inputs.get_float(d[k], source, k) for k in group)
         else:
             k = _matrix(d[group[0]], source, group[0], 3, 3)
             fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
@@ -416,12 +406,12 @@ class PinholeCamera:
                 )
             if len(present) > 1:
                 raise InputError(source, alts[1], f"only one of {alts[0]}, {alts[1]}", d[alts[1]])
-            size[name] = get_int(d[present[0]], source, present[0], lo=1, hi=MAX_SIDE)
+            size[name] = inputs.get_int(d[present[0]], source, present[0], lo=1, hi=MAX_SIDE)
         for key, lo, hi in (("fx", MIN_FOCAL, MAX_FOCAL), ("fy", MIN_FOCAL, MAX_FOCAL)):
             v = fx if key == "fx" else fy
-            get_float(float(v), source, f"{key} (focal length in pixels)", lo=lo, hi=hi)
-        get_float(float(cx), source, "cx (principal point)", lo=0, hi=size["width"])
-        get_float(float(cy), source, "cy (principal point)", lo=0, hi=size["height"])
+            inputs.get_float(float(v), source, f"{key} (focal length in pixels)", lo=lo, hi=hi)
+        inputs.get_float(float(cx), source, "cx (principal point)", lo=0, hi=size["width"])
+        inputs.get_float(float(cy), source, "cy (principal point)", lo=0, hi=size["height"])
         _check_ideal(d, source, np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]))
         pose = np.eye(4)
         if d.get("pose") is not None:
@@ -454,7 +444,7 @@ class PinholeCamera:
             unknown or invalid.
         """
         p = Path(path)
-        return cls.from_dict(load_yaml(p, "camera YAML"), source=str(p))
+        return cls.from_dict(inputs.load_yaml(p, "camera YAML"), source=str(p))
 
     def to_dict(self) -> dict:
         """Plain fields (the inverse of :meth:`from_dict`), suitable for YAML."""
@@ -470,21 +460,11 @@ class PinholeCamera:
 
 
 def read_camera(name_or_path: str | os.PathLike, *, source: str = "--camera") -> PinholeCamera:
-    """A camera where a command or config takes one: a camera YAML (ROS ``camera_info``
-    fields, :meth:`PinholeCamera.from_dict`), or the name of a shipped camera
-    (``front_camera``; :func:`~are_stats.environment.resolve_shipped`), as
-    :func:`~are_stats.environment.read_map` reads a map.
-
-    Parameters
-    ----------
-    name_or_path : str or PathLike
-        A camera YAML (an existing file wins) or a shipped camera's name.
-    source : str
-        The option or key it came from, named when it is neither (``"--camera"``).
-
-    Returns
-    -------
-    PinholeCamera
+    """A camera where a command or config takes one, as :func:`~are_stats.environment.read_map`
+    reads a map: ``name_or_path`` is a camera YAML (ROS ``camera_info`` fields,
+    :meth:`PinholeCamera.from_dict`; an existing file wins) or the name of a shipped camera
+    (``front_camera``; :func:`~are_stats.environment.resolve_shipped`), ``source`` the option
+    or key it came from, named when it is neither (``"--camera"``).
 
     Raises
     ------
@@ -546,21 +526,21 @@ def _matrix(value: Any, source: Source, key: str, rows: int, cols: int | None) -
     """A ``rows x cols`` matrix given flat, nested or as ``{rows, cols, data}``; ``cols``
     ``None`` means a vector of any length up to :data:`_MAX_VECTOR`."""
     if isinstance(value, dict):
-        m = check_keys(value, source, key, ("rows", "cols", "data"), ("data",))
+        m = inputs.check_keys(value, source, key, ("rows", "cols", "data"), ("data",))
         for name, want in (("rows", rows), ("cols", cols)):
             if name in m and want is not None:
-                if get_int(m[name], source, f"{key}.{name}") != want:
+                if inputs.get_int(m[name], source, f"{key}.{name}") != want:
                     raise InputError(source, f"{key}.{name}", str(want), m[name])
         value, key = m["data"], f"{key}.data"
     n = rows * cols if cols is not None else None
     if not isinstance(value, list | tuple):
         what = f"{n} numbers" if n is not None else f"a list of at most {_MAX_VECTOR} numbers"
         raise InputError(source, key, what, value)
-    items = get_list(value, source, key, max_len=_MAX_VECTOR if n is None else None)
+    items = inputs.get_list(value, source, key, max_len=_MAX_VECTOR if n is None else None)
     if n is not None and len(items) == rows and all(isinstance(r, list | tuple) for r in items):
         flat = []
         for i, r in enumerate(items):
-            flat += get_list(r, source, f"{key}[{i}]", min_len=cols, max_len=cols)
+            flat += inputs.get_list(r, source, f"{key}[{i}]", min_len=cols, max_len=cols)
         items = flat
     if n is not None and len(items) != n:
         raise InputError(
@@ -569,16 +549,16 @@ def _matrix(value: Any, source: Source, key: str, rows: int, cols: int | None) -
             f"{n} numbers ({rows} x {cols}, row-major or nested)",
             Described(f"{len(items)} values"),
         )
-    out = np.array([get_float(v, source, f"{key}[{i}]") for i, v in enumerate(items)])
+    out = np.array([inputs.get_float(v, source, f"{key}[{i}]") for i, v in enumerate(items)])
     return out if cols is None else out.reshape(rows, cols)
 
 
 def _check_ideal(d: dict, source: Source, k: np.ndarray) -> None:
     """The ROS calibration fields must describe the ideal pinhole camera ``k``."""
     if "camera_name" in d:
-        get_str(d["camera_name"], source, "camera_name")
+        inputs.get_str(d["camera_name"], source, "camera_name")
     if "distortion_model" in d:
-        get_str(d["distortion_model"], source, "distortion_model")
+        inputs.get_str(d["distortion_model"], source, "distortion_model")
     for key in ("distortion_coefficients", "D", "d"):
         if key in d:
             c = _matrix(d[key], source, key, 1, None)
@@ -610,5 +590,5 @@ def _check_ideal(d: dict, source: Source, k: np.ndarray) -> None:
                     pm.tolist(),
                 )
     for key in ("binning_x", "binning_y"):
-        if key in d and get_int(d[key], source, key, lo=0) > 1:
+        if key in d and inputs.get_int(d[key], source, key, lo=0) > 1:
             raise InputError(source, key, "0 or 1 (no binning)", d[key])
