@@ -371,26 +371,25 @@ def _expanded_size(root: yaml.Node, source: str) -> None:
 def parse_yaml(text: str, source: Source, what: str = "YAML document") -> Any:
     """Parse YAML text safely (see :func:`load_yaml`); ``source`` names it in errors."""
     src = str(source)
+
+    def invalid(err: yaml.YAMLError) -> InputError:
+        return InputError(src, "", f"a {what} in valid YAML", Described(_yaml_problem(err)))
+
+    def too_deep() -> InputError:
+        deeper = Described("deeper nesting")
+        return InputError(src, "", f"a {what} nested at most {MAX_YAML_DEPTH} levels deep", deeper)
+
     try:
         loader = _Loader(text)
     except yaml.YAMLError as err:  # e.g. NUL or control characters
-        raise InputError(
-            src, "", f"a {what} in valid YAML", Described(_yaml_problem(err))
-        ) from None
+        raise invalid(err) from None
     try:
         try:
             node = loader.get_single_node()
         except RecursionError:
-            raise InputError(
-                src,
-                "",
-                f"a {what} nested at most {MAX_YAML_DEPTH} levels deep",
-                Described("deeper nesting"),
-            ) from None
+            raise too_deep() from None
         except yaml.YAMLError as err:
-            raise InputError(
-                src, "", f"a {what} in valid YAML", Described(_yaml_problem(err))
-            ) from None
+            raise invalid(err) from None
         if node is None:
             return None
         _expanded_size(node, src)
@@ -404,16 +403,9 @@ def parse_yaml(text: str, source: Source, what: str = "YAML document") -> Any:
                 Described(f"{dup.key!r} again"),
             ) from None
         except yaml.YAMLError as err:
-            raise InputError(
-                src, "", f"a {what} in valid YAML", Described(_yaml_problem(err))
-            ) from None
+            raise invalid(err) from None
         except RecursionError:
-            raise InputError(
-                src,
-                "",
-                f"a {what} nested at most {MAX_YAML_DEPTH} levels deep",
-                Described("deeper nesting"),
-            ) from None
+            raise too_deep() from None
     finally:
         loader.dispose()
 
@@ -592,21 +584,34 @@ def get_float(
     hi_s = "" if hi is None else f"{'<' if hi_open else '<='} {hi:g}"
     bounds = " and ".join(s for s in (lo_s, hi_s) if s)
     expected = ("a finite number" if finite else "a number") + (f" {bounds}" if bounds else "")
-    if not _is_number(value):
-        raise InputError(source, where, expected, value)
-    try:
-        x = float(value)
-    except OverflowError:
-        raise InputError(source, where, expected, value) from None
-    if math.isnan(x) and (finite or lo is not None or hi is not None):
-        raise InputError(source, where, expected, value)
-    if finite and not math.isfinite(x):
-        raise InputError(source, where, expected, value)
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise InputError(source, where, expected, value)
-    if hi is not None and (x > hi or (hi_open and x == hi)):
+    x = _as_float(value)
+    if x is None or not _within(x, lo, hi, lo_open, hi_open, finite):
         raise InputError(source, where, expected, value)
     return x
+
+
+def _as_float(value: Any) -> float | None:
+    """``value`` as a float; None for a non-number (a bool, string, list) or an int too
+    large for a float."""
+    if not _is_number(value):
+        return None
+    try:
+        return float(value)
+    except OverflowError:
+        return None
+
+
+def _within(
+    x: float, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool, finite: bool
+) -> bool:
+    """Whether ``x`` passes :func:`get_float`'s checks (NaN only when neither finite nor
+    bounded)."""
+    if math.isnan(x):
+        return not (finite or lo is not None or hi is not None)
+    if finite and not math.isfinite(x):
+        return False
+    below = lo is not None and (x < lo or (lo_open and x == lo))
+    return not (below or (hi is not None and (x > hi or (hi_open and x == hi))))
 
 
 def get_int(
@@ -626,17 +631,22 @@ def get_int(
     if hi is not None:
         bounds.append(f"<= {hi}")
     expected = "an integer" + (f" {' and '.join(bounds)}" if bounds else " that fits int64")
-    if not _is_number(value):
-        raise InputError(source, where, expected, value)
-    if isinstance(value, float | np.floating):
-        if not math.isfinite(value) or value != math.floor(value):
-            raise InputError(source, where, expected, value)
-        if not (-(2.0**63) <= value < 2.0**63):
-            raise InputError(source, where, expected, value)
-    n = int(value)
-    if n < lo_ or n > hi_:
+    n = _as_int(value)
+    if n is None or n < lo_ or n > hi_:
         raise InputError(source, where, expected, value)
     return n
+
+
+def _as_int(value: Any) -> int | None:
+    """``value`` as an int; None for a non-number or a float that is not a whole number in
+    int64's range."""
+    if not _is_number(value):
+        return None
+    if isinstance(value, float | np.floating) and not (
+        math.isfinite(value) and value == math.floor(value) and -(2.0**63) <= value < 2.0**63
+    ):
+        return None
+    return int(value)
 
 
 def get_bool(value: Any, source: Source, where: str) -> bool:
