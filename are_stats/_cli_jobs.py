@@ -728,22 +728,13 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
 
 
 def run_perceive(
-    scenario: Path,
-    camera_path: Path,
-    robot_path: Path,
-    *,
-    mesh: Path | None = None,
-    wall_height: float = 2.5,
-    d_max: float = 30.0,
-    tau: float = 50.0,
-    camera_height: float = 1.0,
-    occlusion_between_artefacts: bool = False,
-    out: Path | None = None,
-    force: bool = False,
+    scenario: Path, camera_path: Path, robot_path: Path, **options: Any
 ) -> pd.DataFrame:
     """``are-stats perceive``: perceived flags (A_f, eq. 2) added to a scenario folder for a
-    robot path (:func:`are_stats.perception.perceive_folder`, which checks every input
-    before any tracing); its warnings and progress shown, then what it wrote."""
+    robot path (:func:`are_stats.perception.perceive_folder`, which ``options`` go to:
+    ``mesh``, ``wall_height``, ``d_max``, ``tau``, ``camera_height``,
+    ``occlusion_between_artefacts``, ``out``, ``force``; it checks every input before any
+    tracing); its warnings and progress shown, then what it wrote."""
     from are_stats.perception import FolderPlan, perceive_folder
 
     started: list[tuple[FolderPlan, float]] = []  # the plan, and when perceiving began
@@ -762,25 +753,12 @@ def run_perceive(
                 )
             )
 
-        target, res = perceive_folder(
-            scenario,
-            camera_path,
-            robot_path,
-            mesh=mesh,
-            wall_height=wall_height,
-            d_max=d_max,
-            tau=tau,
-            camera_height=camera_height,
-            occlusion_between_artefacts=occlusion_between_artefacts,
-            out=out,
-            force=force,
-            on_start=start,
-        )
+        target, res = perceive_folder(scenario, camera_path, robot_path, on_start=start, **options)
     (plan, t), n_p = started[0], int(res["perceived"].sum())
     moving = f" ({plan.moving} moving)" if plan.moving else ""
     console.print(
-        f"{n_p} of {len(res)} artefacts{moving} perceived (tau={float(tau)}, "
-        f"d_max={float(d_max)} m) in {time.perf_counter() - t:.1f} s; wrote {target}"
+        f"{n_p} of {len(res)} artefacts{moving} perceived (tau={plan.tau}, "
+        f"d_max={plan.d_max} m) in {time.perf_counter() - t:.1f} s; wrote {target}"
     )
     return res
 

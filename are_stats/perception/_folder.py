@@ -40,6 +40,9 @@ class FolderPlan(NamedTuple):
     moving: int
     #: Robot poses of the path.
     poses: int
+    #: The checked ``d_max`` (m) and ``tau`` (pixels).
+    d_max: float
+    tau: float
     #: Warnings about the inputs, in words: poses outside the map, classes not in the
     #: catalogue.
     warnings: tuple[str, ...]
@@ -145,7 +148,7 @@ def perceive_folder(
             f"({', '.join(cat.labels)}): they are sized as the catalogue class in their "
             "position"
         )
-    plan = FolderPlan(len(df), folder.n_moving, len(robot), tuple(notes))
+    plan = FolderPlan(len(df), folder.n_moving, len(robot), d_max, tau, tuple(notes))
     if on_start is not None:
         on_start(plan)
     else:
