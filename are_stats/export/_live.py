@@ -47,6 +47,7 @@ horizon); the server also advertises the ``time`` capability and broadcasts that
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import socket
@@ -332,8 +333,8 @@ def _robot_frame(
     for c in corners:
         pts.append(fm.Point3(x=float(c[0]), y=float(c[1]), z=float(c[2])))
     order = [0, 1, 0, 2, 0, 3, 0, 4, 1, 2, 2, 3, 3, 4, 4, 1]
-    frustum = fm.SceneEntity(
-        timestamp=stamp,
+    entity = functools.partial(fm.SceneEntity, timestamp=stamp)  # both drawn at t
+    frustum = entity(
         frame_id=optical,
         id="camera_frustum",
         lines=[
@@ -346,8 +347,7 @@ def _robot_frame(
             )
         ],
     )
-    body = fm.SceneEntity(
-        timestamp=stamp,
+    body = entity(
         frame_id=base,
         id="robot",
         cylinders=[
