@@ -765,15 +765,9 @@ def check_scenario_size(
 
     Parameters
     ----------
-    params : dict
-        Posterior draws as :func:`generate_scenarios` takes them (validated here).
-    n_scenarios : int
-    horizon : float
-        Seconds.
-    area : float
-        Free area ``nu`` (m^2).
-    start : {"stationary", "empty"}
-        Initial population.
+    params, n_scenarios, horizon, area, start
+        As :func:`expected_artefacts` takes them (the draws validated here; ``horizon`` in
+        seconds).
     source : str
         What the sizes came from (files, options), named in the error.
 
