@@ -140,7 +140,7 @@ def _sorted_uniforms(rng: np.random.Generator, sizes: np.ndarray) -> np.ndarray:
     return u[keep]
 
 
-def _draws(params: Mapping[str, Any]) -> dict[str, np.ndarray]:
+def _draws(params: Mapping[str, npt.ArrayLike]) -> dict[str, np.ndarray]:
     if not isinstance(params, Mapping):
         raise ValueError(f"params: expected a dict of posterior draws, got {type(params).__name__}")
     for name in ("arrival_rate", "leave_rate"):
@@ -196,7 +196,7 @@ def _draws(params: Mapping[str, Any]) -> dict[str, np.ndarray]:
     return out
 
 
-def _class_draws(params: Mapping[str, Any], s: int) -> dict[str, np.ndarray]:
+def _class_draws(params: Mapping[str, npt.ArrayLike], s: int) -> dict[str, np.ndarray]:
     """``class_weights`` (S, K) and optional ``class_stay_mean`` (S, K), checked."""
     w = check_nonnegative("params['class_weights']", np.asarray(params["class_weights"]) + 0.0)
     w = w[None, :] if w.ndim == 1 else w
@@ -374,7 +374,7 @@ def _grid(
 
 def generate_scenarios(
     key: int | jax.Array,
-    params: Mapping[str, Any],
+    params: Mapping[str, npt.ArrayLike],
     n_scenarios: int,
     horizon: float,
     free_mask: npt.ArrayLike | OccupancyGrid | None = None,
@@ -646,7 +646,7 @@ def _check_entries_on_map(entry: PositionDensity, free: PositionDensity) -> None
 
 def _rich_populations(
     rng: np.random.Generator,
-    params: Mapping[str, Any],
+    params: Mapping[str, npt.ArrayLike],
     laws: TrafficLaws,
     d: np.ndarray,
     h: float,
@@ -711,7 +711,7 @@ BYTES_PER_SCENARIO = 64
 
 
 def expected_artefacts(
-    params: Mapping[str, Any],
+    params: Mapping[str, npt.ArrayLike],
     n_scenarios: int,
     horizon: float,
     area: float,
@@ -751,7 +751,7 @@ def expected_artefacts(
 
 
 def check_scenario_size(
-    params: Mapping[str, Any],
+    params: Mapping[str, npt.ArrayLike],
     n_scenarios: int,
     horizon: float,
     area: float,
