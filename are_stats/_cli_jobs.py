@@ -24,7 +24,6 @@ from are_stats._atomic import atomic_path, check_writable
 from are_stats._stage_clock import StageClock, StepsLeft
 from are_stats.environment import (
     load_catalogue,
-    read_map,
     resolve_shipped,
     shipped_path,
 )
@@ -39,14 +38,7 @@ from are_stats.inputs import (
     get_str,
 )
 from are_stats.logs import TrajectoryOptions, find_manifest, read_count_panel, read_field_log
-from are_stats.scenarios import (
-    POSITION_CHOICES,
-    check_folder,
-    generate_manifest,
-    scenes_from_fit,
-    scenes_tables,
-    write_scenes,
-)
+from are_stats.scenarios import generate_folder
 
 if TYPE_CHECKING:
     from are_stats.fitting import Fit, MotionReport
@@ -537,97 +529,43 @@ def run_generate(
     seed: int,
     out: Path,
     map_path: Path | None = None,
-    area: float | None = None,
-    behaviours: bool = False,
-    force: bool = False,
-    behaviour_cell: float = 1.0,
-    behaviour_dt: float = 2.0,
-    model: str = "chosen",
-    positions: str = "chosen",
+    **options: Any,
 ) -> pd.DataFrame:
-    """Posterior-predictive scenarios from a saved fit (Parquet + YAML manifest).
+    """``are-stats generate``: posterior-predictive scenarios from a saved fit, written as
+    a folder (:func:`are_stats.scenarios.generate_folder`, which ``map_path`` and
+    ``options`` go to: ``area``, ``behaviours``, ``force``, ``behaviour_cell``,
+    ``behaviour_dt``, ``model``, ``positions``; it checks every option before anything is
+    drawn); the stage's progress shown, then the laws drawn from and what it wrote."""
+    stage = "scenarios with their walks (rollouts)" if options.get("behaviours") else "scenarios"
+    started: list[float] = []  # when drawing began
 
-    ``model="chosen"`` draws from the arrival, stay and position models the fit chose
-    (``arrival_model``, ``lifetime_model``, ``position_model``), ``"paper"`` from the
-    paper's Poisson / exponential / uniform model; ``positions="uniform"`` keeps the
-    arrivals and stays ``model`` gives and places artefacts uniformly on the free cells of
-    the map (:func:`are_stats.scenarios.scenes_from_fit`), recorded in the manifest's
-    ``generation`` section.
+    with ExitStack() as progress:
 
-    The options are checked first (``--scenarios`` an integer >= 1, ``--horizon``,
-    ``--area``, ``--behaviour-cell``, ``--behaviour-dt`` finite and > 0, ``--seed`` in
-    ``[0, 2**32 - 1]``), then the size of the output against the memory and work limits
-    (:mod:`are_stats.inputs`), before anything is drawn. The folder ``out`` (scenarios,
-    manifest and tracks) is written beside it and put in place as a whole.
-    """
-    from are_stats.fitting import read_fit
+        def start() -> StepsLeft:
+            started.append(time.perf_counter())
+            status = progress.enter_context(console.status(f"{stage} ..."))
+            clock = progress.enter_context(
+                StageClock(
+                    status,
+                    size=f"{n_scenarios} x {horizon:g} s, {Path(fit_path).name}",
+                    live=console.is_terminal,
+                )
+            )
+            clock(stage)
+            return StepsLeft(clock, stage)
 
-    model = get_str(model, "--model", "", choices=("chosen", "paper"))
-    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
-    n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
-    horizon = get_float(horizon, "--horizon", "", lo=0.0, lo_open=True)
-    seed = get_seed(seed)
-    if area is not None:
-        area = get_float(area, "--area", "", lo=0.0, lo_open=True)
-    if behaviours:
-        behaviour_cell = get_float(behaviour_cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
-        behaviour_dt = get_float(behaviour_dt, "--behaviour-dt", "", lo=0.0, lo_open=True)
-    area_given = area is not None
-    out = Path(out)
-    check_folder(out, force)
-    fit = read_fit(fit_path)
-    grid = None
-    if map_path is not None:
-        map_path, grid = read_map(map_path)  # a map file, or a shipped map's name
-    # the size follows from the options and from the fit's rates (and its area or the map's)
-    named = [str(fit_path), "--scenarios", "--horizon", "--area" if area_given else ""]
-    source = ", ".join(x for x in [*named, str(map_path or "")] if x)
-    # what the scenes are drawn with, and what the folder records of them
-    choices = {
-        "model": model,
-        "positions": positions,
-        "behaviours": behaviours,
-        "behaviour_cell": behaviour_cell,
-        "behaviour_dt": behaviour_dt,
-        "cell_source": "--behaviour-cell",
-    }
-    t = time.perf_counter()
-    stage = "scenarios with their walks (rollouts)" if behaviours else "scenarios"
-    with (
-        console.status(f"{stage} ...") as status,
-        StageClock(
-            status,
-            size=f"{n_scenarios} x {horizon:g} s, {Path(fit_path).name}",
-            live=console.is_terminal,
-        ) as clock,
-    ):
-        clock(stage)
-        scenes = scenes_from_fit(
-            seed,
-            fit,
-            grid,
-            load_catalogue(),
-            n_scenarios,
-            horizon,
-            area=area,
-            source=source,
-            behaviours_source="--behaviours",
-            map_source="--map",
-            progress=StepsLeft(clock, stage),
-            **choices,
+        df = generate_folder(
+            fit_path, n_scenarios, horizon, seed, out, map_path, on_start=start, **options
         )
-    df, tracks = scenes_tables(scenes)
-    manifest, tracks = generate_manifest(
-        df, tracks, fit, grid, fit_file=fit_path, map_file=map_path, seed=seed, **choices
-    )
-    write_scenes(df, out, manifest, tracks=tracks, force=force)
     laws = df.attrs["generation"]["laws"]  # what the scenes were drawn from
     console.print(
         f"model: arrivals {laws['arrivals']}, stays {laws['lifetimes']}, "
         f"positions {laws['positions']}"
     )
+    out = Path(out)
     console.print(
-        f"{n_scenarios} scenarios, {len(df)} artefacts in {time.perf_counter() - t:.2f} s; "
+        f"{n_scenarios} scenarios, "
+        f"{len(df)} artefacts in {time.perf_counter() - started[0]:.2f} s; "
         f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
     )
     return df
@@ -659,18 +597,9 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         n_replicates=50 if quick else 200,
     )
     # the same scenarios from the chosen models and from the paper's, side by side
-    df = run_generate(fit_file, 100, 3600.0, 1, out / "scenarios", EXAMPLE_MAP, None, False, force)
+    df = run_generate(fit_file, 100, 3600.0, 1, out / "scenarios", EXAMPLE_MAP, force=force)
     df_paper = run_generate(
-        fit_file,
-        100,
-        3600.0,
-        1,
-        out / "scenarios_paper",
-        EXAMPLE_MAP,
-        None,
-        False,
-        force,
-        model="paper",
+        fit_file, 100, 3600.0, 1, out / "scenarios_paper", EXAMPLE_MAP, force=force, model="paper"
     )
 
     means = fit.posterior_means()

@@ -34,6 +34,7 @@ from are_stats.scenarios._generate import (
     generate_scenarios,
     scenario_counts,
 )
+from are_stats.scenarios._generate_folder import generate_folder
 from are_stats.scenarios._realism import (
     REALISM_FEATURES,
     plot_realism,
@@ -63,6 +64,7 @@ __all__ = [
     "check_scenario_size",
     "check_tracks_size",
     "expected_artefacts",
+    "generate_folder",
     "generate_manifest",
     "generate_scenarios",
     "move_scenes",
