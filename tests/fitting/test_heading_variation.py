@@ -109,12 +109,19 @@ def test_a_route_corner_is_not_wander() -> None:
     assert abs(got["heading_within_sd"] - straight["heading_within_sd"]) < 0.25 * SD
 
 
-def test_fit_behaviour_stores_the_heading_variation_and_old_files_read_without_it(
-    tmp_path,
-) -> None:
+@pytest.fixture(scope="module")
+def fitted() -> tuple[pd.DataFrame, BehaviourFit]:
+    """100 wandering walkers seen through 5 cm of noise and the behaviour fitted on them:
+    one fit for every test of this module that needs one (each fit costs seconds)."""
     tracks = ou_heading_tracks(11, 100, SD, TIME, 0.05)
     free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
-    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
+    return tracks, fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
+
+
+def test_fit_behaviour_stores_the_heading_variation_and_old_files_read_without_it(
+    tmp_path, fitted: tuple[pd.DataFrame, BehaviourFit]
+) -> None:
+    _, fit = fitted
     assert abs(fit.heading_within_sd[0] - SD) < TOL_SD
     assert abs(fit.heading_within_time[0] - TIME) < TOL_TIME
     path = tmp_path / "b.nc"
@@ -190,16 +197,15 @@ def test_bad_heading_variation_is_named(variation, words) -> None:
     assert words in str(err.value)
 
 
-def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before() -> None:
+def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before(
+    fitted: tuple[pd.DataFrame, BehaviourFit],
+) -> None:
     """scene_tracks (every command's assembly) hands the fit's per-class heading variation
     to the social force: a fit with it wanders on the same routes, a fit without (an
     older file) walks exactly as a fit of sd 0."""
     import dataclasses
 
-    tracks = ou_heading_tracks(21, 30, SD, TIME, 0.0, duration=20.0)
-    free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
-    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
-    fit = dataclasses.replace(fit, speed_within_sd=np.zeros(1))  # the heading's alone
+    fit = dataclasses.replace(fitted[1], speed_within_sd=np.zeros(1))  # the heading's alone
     none, varied = walks_without_and_with(fit, "heading")
     # both end where they were going (each aims at its route's corners all the while)
     end_n, end_v = none.groupby("id")[["x", "y"]].last(), varied.groupby("id")[["x", "y"]].last()
