@@ -527,19 +527,24 @@ def _sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return s
 
 
+#: Chords tested in the first batch from a vertex (:func:`_string_pull`); a batch that finds
+#: none clear is followed by one twice as large.
+_PULL_BATCH = 8
+
+
 def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> np.ndarray:
     """Drop the path's vertices that a straight chord on ``ok`` cells can skip: from each
     kept vertex, on to the farthest vertex it sees (chords sampled every quarter cell).
 
     Each chord is sampled as ``np.linspace(0, 1, k)`` along it, ``k`` from its length
     (:func:`_chord_counts`), and the chords from a vertex are tested from the farthest
-    vertex back, in batches of 1, 2, 4... (one grid transform of a batch's samples), until
-    one is clear: the same vertices as testing every chord one at a time.
+    vertex back, in batches of ``_PULL_BATCH``, twice that... (one grid transform of a
+    batch's samples), until one is clear: the same vertices as testing every chord one at a time.
     """
     step = grid.resolution / 4.0
     out, a = [pts[0]], 0
     while a < len(pts) - 1:
-        b, hi, batch = a + 1, len(pts), 1
+        b, hi, batch = a + 1, len(pts), _PULL_BATCH
         while hi > a + 2:
             js = np.arange(max(a + 2, hi - batch), hi)
             seen = _chords_clear(pts[a], pts[js] - pts[a], ok, grid, lo, step)

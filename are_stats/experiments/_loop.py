@@ -269,6 +269,9 @@ class _State(NamedTuple):
     # changed) by each batch. An entry is used only when the robot is where it was
     # predicted to be at that tick, in the same scene.
     percepts: Mapping[float, tuple]
+    # (scene, live (N,), t): no footprint test in that scene with those live artefacts
+    # finds a contact up to t (_contacts); () when unknown
+    contact_clear: tuple
 
 
 class _Info(NamedTuple):
@@ -299,10 +302,10 @@ def _register(s: _State) -> _State:
     return s._replace(builder=builder, n_A=builder.n_artefact_cells, builder_at=(s.scene, s.t))
 
 
-def _perceive(m: _Mission, s: _State, idx: np.ndarray, boxes: Any, tick: bool = False) -> _State:
+def _perceive(m: _Mission, s: _State, idx: np.ndarray, tick: bool = False) -> _State:
     """The state with ``seen``, the artefacts on the planner's map after a perception at
-    ``s.pose`` (``tick``: at a camera tick, which perceives the ticks ahead in the same
-    batch and keeps them in ``percepts``)."""
+    ``s.pose``; ``idx`` (n,) the live artefacts at ``s.t`` (``tick``: at a camera tick,
+    which perceives the ticks ahead in the same batch and keeps them in ``percepts``)."""
     now = np.zeros(s.live.size, bool)
     if m.perception == "all":
         now[idx] = True
@@ -331,7 +334,8 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> tuple[np.ndarray, _St
     from are_stats.perception import perceive_scene
 
     hit = s.percepts.get(s.t)
-    if hit is not None and hit[2] is s.scene and np.allclose(hit[0], s.pose, rtol=0.0, atol=1e-9):
+    # (np.allclose(hit[0], s.pose, rtol=0, atol=1e-9) for finite poses, without its cost)
+    if hit is not None and hit[2] is s.scene and float(np.abs(hit[0] - s.pose).max()) <= 1e-9:
         return hit[1].copy(), s
     times, t = [s.t], s.t
     if tick and not s.need_plan:  # (an arrival, a leave or a replan changes the motion)
@@ -521,27 +525,47 @@ def _path_blocked(m: _Mission, s: _State, free: np.ndarray) -> bool:
 
 def _contacts(
     m: _Mission, pts: np.ndarray, times: np.ndarray, s: _State
-) -> tuple[np.ndarray, int, int]:
+) -> tuple[np.ndarray, int, int, tuple]:
     """Footprint tests at robot positions ``pts`` (k, 2) at ``times`` (k,) against the live
     boxes there, starting from ``s.pose`` at ``s.t``.
 
     Returns the contact flags (N,) after the last test and the new contacts, split by who
     closed the gap over the last step: the robot (it drove into the box: a collision) or
-    the artefact (it walked into the robot faster than the robot came).
+    the artefact (it walked into the robot faster than the robot came), and the state's
+    new ``contact_clear``.
+
+    With no contact after a test, ``contact_clear`` keeps until when none can begin: the
+    smallest gap between the robot's disc and a live box's reach from its pose
+    (``m.art_radius``), over the speeds at which both can close it (``m.art_speed``, the
+    robot's speed). Tests up to then, in the same scene with the same live artefacts,
+    find no contact and are skipped (in the camera missions most of the footprint tests,
+    one a 0.1 s tick, are far from every box).
     """
+    c = s.contact_clear
+    if (
+        c
+        and c[0] is s.scene
+        and float(times[-1]) <= c[2]
+        and np.array_equal(c[1], s.live)
+        and not s.in_contact.any()
+    ):
+        return s.in_contact, 0, 0, c
     idx = np.flatnonzero(s.live)
     k, n = len(pts), idx.size
     if not n:
-        return np.zeros(s.live.size, bool), 0, 0
+        return np.zeros(s.live.size, bool), 0, 0, ()
     half = s.scene.half_extents[idx, :2]
     # the boxes at s.t and at every test time: (k + 1, n) centres and headings
     if s.scene.has_tracks[idx].any():
         pose = s.scene.poses_at(np.r_[s.t, times], idx).reshape(-1, 3)
         xy = box_centres(pose, np.tile(s.scene.offsets[idx], (k + 1, 1)))[:, :2]
         xy, yaw = xy.reshape(k + 1, n, 2), pose[:, 2].reshape(k + 1, n)
+        last = pose[-n:, :2]
     else:
-        xy0, yaw0 = _footprints(s.scene, s.t, idx)
+        pose = s.scene.poses(s.t, idx)  # as _footprints
+        xy0, yaw0 = box_centres(pose, s.scene.offsets[idx])[:, :2], pose[:, 2]
         xy, yaw = np.broadcast_to(xy0, (k + 1, n, 2)), np.broadcast_to(yaw0, (k + 1, n))
+        last = pose[:, :2]
     q = np.repeat(pts, n, axis=0)
     hit = (
         point_box_distance(
@@ -563,7 +587,14 @@ def _contacts(
         by_robot = int(step.size) - by_artefact
     in_contact = np.zeros(s.live.size, bool)
     in_contact[idx] = hit[-1]
-    return in_contact, by_robot, by_artefact
+    clear: tuple = ()
+    if not hit[-1].any():
+        # the reach from the pose bounds the box (offset plus half diagonal, any heading);
+        # 1e-6 m for rounding
+        gap = np.linalg.norm(last - pts[-1], axis=1) - m.art_radius[idx] - m.robot.radius
+        v = np.maximum(m.art_speed[idx] + m.robot.speed, 1e-12)
+        clear = (s.scene, s.live, float(times[-1]) + float(((gap - 1e-6) / v).min()))
+    return in_contact, by_robot, by_artefact, clear
 
 
 def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
@@ -605,12 +636,12 @@ def _drive(m: _Mission, s: _State, s_new: float, t_new: float) -> tuple[_State, 
     frac = np.arange(1, k + 1) / k
     pts, hd = _point_at(s.path, s.cum, s.s_along + ds * frac)
     tt = s.t + (t_new - s.t) * frac
-    in_contact, by_robot, by_artefact = _contacts(m, pts, tt, s)
+    in_contact, by_robot, by_artefact, clear = _contacts(m, pts, tt, s)
     poses = np.column_stack([tt, pts, hd]).tolist() if m.record else []
     s = s._replace(
         t=t_new, pose=np.array([pts[-1, 0], pts[-1, 1], hd[-1]]), s_along=s_new,
         distance=s.distance + ds, in_contact=in_contact, collisions=s.collisions + by_robot,
-        artefact_contacts=s.artefact_contacts + by_artefact,
+        artefact_contacts=s.artefact_contacts + by_artefact, contact_clear=clear,
     )  # fmt: skip
     return s, poses
 
@@ -619,14 +650,14 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
     """Apply the scene's events at ``s.t`` (arrivals, leaves, moves); returns the update's
     kinds."""
     e = s.event
-    idx, boxes = _boxes(s.scene, s.t)
     live = s.scene.alive(s.t)
+    idx = np.flatnonzero(live)
     arrived, left = live & ~s.live, s.live & ~live
     s = _register(s._replace(live=live, seen=s.seen & live, event=e + 1))
     kinds = []
     if s.events.lifecycle[e]:
         old = s.seen
-        s = _perceive(m, s, idx, boxes)
+        s = _perceive(m, s, idx)
         if arrived.any():
             kinds.append("arrival")
         if left.any():
@@ -653,10 +684,11 @@ def _scene_update(m: _Mission, s: _State) -> tuple[_State, list[str]]:
                 s, _, free = _planning_grid(m, s, idx)
                 if _path_blocked(m, s, free):
                     s = s._replace(need_plan=True)
-    in_contact, _, _ = _contacts(m, s.pose[None, :2], np.array([s.t]), s)
+    in_contact, _, _, clear = _contacts(m, s.pose[None, :2], np.array([s.t]), s)
     fresh = in_contact & ~s.in_contact
     s = s._replace(
         in_contact=in_contact,
+        contact_clear=clear,
         arrival_contacts=s.arrival_contacts + int((fresh & arrived).sum()),
         artefact_contacts=s.artefact_contacts + int((fresh & ~arrived).sum()),
     )
@@ -809,8 +841,8 @@ def _within_reach(
 def _init(m: _Mission, pose: np.ndarray) -> _State:
     """The state at t = 0: the live artefacts registered and perceived from ``pose``."""
     n = len(m.scene)
-    idx, boxes = _boxes(m.scene, 0.0)
     live = m.scene.alive(0.0)
+    idx = np.flatnonzero(live)
     s = _State(
         t=0.0, pose=pose, goal=0, reached=np.full(m.goals.shape[0], np.nan), path=None,
         cum=np.zeros(1), s_along=0.0, need_plan=True, reason="goal", live=live,
@@ -822,11 +854,13 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
         standing=np.nan, gave_way=np.full(n, np.nan), replans_at=(np.nan, 0),
         builder=ARBuilder(m.grid),
         builder_at=(None, np.nan), planning_at=(),
-        percepts=MappingProxyType({}),
+        percepts=MappingProxyType({}), contact_clear=(),
     )  # fmt: skip
-    s = _perceive(m, _register(s), idx, boxes)
-    in_contact, _, _ = _contacts(m, pose[None, :2], np.array([0.0]), s)
-    return s._replace(in_contact=in_contact, arrival_contacts=int(in_contact.sum()))
+    s = _perceive(m, _register(s), idx)
+    in_contact, _, _, clear = _contacts(m, pose[None, :2], np.array([0.0]), s)
+    return s._replace(
+        in_contact=in_contact, arrival_contacts=int(in_contact.sum()), contact_clear=clear
+    )
 
 
 def _done(m: _Mission, s: _State) -> bool:
@@ -872,8 +906,9 @@ def _step(m: _Mission, s: _State) -> tuple[_State, _Info]:
         s, kinds = _scene_update(m, s)
     if t_next == s.next_percept:
         old = s.seen
-        idx, boxes = _boxes(s.scene, s.t)
-        s = _perceive(m, s, idx, boxes, tick=True)._replace(next_percept=t_next + m.period)
+        # (the live artefacts only: a tick perceived in its batch needs no boxes)
+        idx = np.flatnonzero(s.scene.alive(s.t))
+        s = _perceive(m, s, idx, tick=True)._replace(next_percept=t_next + m.period)
         if not np.array_equal(old, s.seen):
             s = s._replace(need_plan=True)
             if not kinds:

@@ -132,6 +132,15 @@
    goals, 113.6 -> 119.5 s of CPU (31.7x -> 30.1x, main in the same window). RRT hour: 0
    collisions both, 61 -> 55 goals, 195.3 -> 198.3 s (18.4x -> 18.2x, main right after;
    the first 600 s 37.6 -> 32.5 s).
+   Then (2026-11-28, load 12-23, CPU time, the hour's scene rebuilt from that day's code and
+   pickled, main and this branch at the same time): the A* hour has 0 collisions, 81 goals,
+   0 arrival contacts and no standing spell past 8.8 s on that scene. A camera mission's
+   footprint tests (one each 0.1 s tick, 10% of the loop) are skipped while no contact can
+   begin (kept in the state: the smallest gap between the robot's disc and a live box's
+   reach over both their fastest speeds), the ticks no longer build every live box (6%),
+   the string-pulling's first batch is 8 chords. Missions identical to main's: RRT hour
+   200.5 -> 170.5 s of CPU (18.0x -> 21.1x; 60 goals, 0 collisions, 1 arrival contact; the
+   rest 41.7 -> 18.3 s), A* hour 106.8 -> 104.1 s (33.7x -> 34.6x).
 4. The same walkers with ``avoid_robot`` on and off (A*, every artefact perceived):
    mission wall time, the avoidance stage, and the detours, yields and contacts. Measured
    on the 2 shared cores under load from other jobs (180 s mission, 77 artefacts, 89 move
