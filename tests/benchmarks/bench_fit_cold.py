@@ -114,6 +114,29 @@ The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weigh
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not
 simulate").
+
+With the report's overview on a fixed grid (no ``tight_layout``, panels cut along the drawn
+texts; 2026-11-28, main 9488233 and the branch started together in 3 pairs with figures and
+2 without, each a cold fit then 3 repeated ones in fresh processes on one fresh cache, child
+CPU by ``getrusage``, load 18-22: read the ratios): with figures cold CPU median 24.2 s vs
+25.1 s (ratio 0.964-0.974 in the 3 pairs), repeated 12.2 s vs 12.7 s (0.956-0.965);
+without figures (the change is not on that path) cold 1.00-1.01, repeated 1.02-1.03 (noise:
+the runs span 9.2-10.7 s of CPU on the branch, 9.5-10.2 s on main). The fit file (every
+variable bit for bit, every attribute), the CSVs, the printed tables and
+``traffic_checks.png`` are the same; the overview and its panels differ in layout only.
+Where the repeated fit's CPU goes (load 12-20, ``time.process_time`` around the parts):
+imports 2.3-2.5 s to ``are_stats.fitting`` plus ArviZ 1.5 s in the InferenceData thread
+(its largest part numba compiling ``arviz.stats.ecdf_utils._binom_pmf``, a ``vectorize`` with a
+signature, at import); the nine Laplace programs read from the caches 0.7-1.1 s (XLA's
+executable deserialisation itself, 0.05-0.14 s each: keeping the compiled executables by
+``jax.experimental.serialize_executable`` instead was no faster, 0.14-0.18 s for gamma's),
+their 79-140 batches each, 1.7 s in all (0.5-5 ms a batch), the mode searches and Hessians in
+Python 0.2-0.3 s, PSIS-LOO 0.5 s, the NetCDF 0.6 s; the report 2.7 s (traffic checks 0.8 s,
+overview 0.9 s, traffic-checks figure and PNG 0.6-0.8 s). Cold adds the nine programs'
+trace, export and compile, about 10 s of CPU (XLA alone, measured apart: gamma's 2.3 s at
+XLA's default optimisation, groups+mmpp 1.0 s, hawkes 0.3 s; a candidate's log-likelihood,
+in its potential and again in its pointwise terms, is compiled once: leaving either out
+saved nothing), traced one at a time under ``TRACE_LOCK``.
 """
 
 from __future__ import annotations

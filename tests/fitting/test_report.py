@@ -120,3 +120,47 @@ def test_write_report_writes_the_summary_its_caller_passes(tmp_path):
     pd.testing.assert_frame_equal(pd.read_csv(own, index_col=0), summary, check_dtype=False)
     given = write_report(idata, tmp_path / "given", n_replicates=3, summary=summary.iloc[:1])
     assert list(pd.read_csv(given["summary"], index_col=0).index) == list(summary.index[:1])
+
+
+def test_panel_extents_from_the_drawing_contain_matplotlibs_tight_boxes():
+    """The overview's panel extents, read off the drawn texts without laying the ticks out
+    again, hold each panel's ``Axes.get_tightbbox`` (matplotlib's own extent: its axes,
+    title, labels and tick labels) with at most the margin around it, and do not meet."""
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from are_stats.fitting import predictive_checks
+    from are_stats.fitting._report import _PANEL_MARGIN, _overview, _panel_boxes
+
+    overview, panels = _overview(predictive_checks(0, _small_em_fit(3600.0), 3))
+    try:
+        canvas = FigureCanvasAgg(overview)
+        canvas.draw()
+        renderer = canvas.get_renderer()
+        boxes = _panel_boxes(overview, panels, renderer)
+        assert boxes is not None and set(boxes) == set(panels)
+        for name, ax in panels.items():
+            tight = ax.get_tightbbox(renderer).extents
+            box = np.asarray(boxes[name])
+            inner = box + np.array([1, 1, -1, -1]) * _PANEL_MARGIN
+            assert np.all(inner[:2] <= tight[:2] + 1e-6) and np.all(inner[2:] >= tight[2:] - 1e-6)
+            np.testing.assert_allclose(inner, tight, atol=1.0, err_msg=name)
+    finally:
+        plt.close(overview)
+
+
+def test_report_panels_stay_whole_where_the_fixed_grid_is_too_small(tmp_path, monkeypatch):
+    """A grid with no room for the labels (no left margin, panels abutting) is found out
+    from the drawing and laid out by ``tight_layout``: the panels are whole cut-outs still."""
+    from are_stats.fitting import _report
+
+    tiny = {"left": 0.0, "right": 1.0, "bottom": 0.0, "top": 0.95, "wspace": 0.0, "hspace": 0.0}
+    monkeypatch.setattr(_report, "_OVERVIEW_GRID", tiny)
+    idata = _small_em_fit(3600.0)
+    written = write_report(idata, tmp_path / "report", n_replicates=3)
+    full = np.asarray(Image.open(written["criticism"]).convert("RGB"))
+    for name in (n for n in written if n.startswith("ppc_")):
+        img = np.asarray(Image.open(written[name]).convert("RGB"))
+        edges = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
+        assert np.all(edges == 255), name
+        assert len(_where(full, img)) == 1, name
