@@ -457,9 +457,12 @@ def test_feature_weights_round_trip_and_old_files_load_without_them(tmp_path) ->
                        "y": p[:, 0] + 0.5}) for i, p in enumerate(paths)],
         ignore_index=True,
     )  # fmt: skip
+    # float64: the fit's value-and-gradient program is then the padded test's (the same
+    # shape buckets and two features), compiled once
     fit = fit_behaviour(
-        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, features={"walls": "walls", "r": phi[1]}
-    )
+        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, features={"walls": "walls", "r": phi[1]},
+        dtype="float64",
+    )  # fmt: skip
     assert fit.weights.shape == fit.weights_se.shape == (1, 2)
     assert np.isfinite(fit.weights).all()
     path = tmp_path / "b.nc"
