@@ -23,29 +23,31 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 #: The test files that take longest, roughly longest first, for both tiers (``make test``:
 #: ``-m "not slow"``; ``make test-slow``: ``-m slow``; a file with nothing selected drops
 #: out). From the per-test durations of the cold full run of 2026-11-27 (an empty JAX
-#: cache) and per-test CPU times of 2026-11-28. ``make test`` hands whole
+#: cache) and per-test CPU times of 2026-11-28 (cold, file by file). ``make test`` hands whole
 #: files to two workers (``--dist loadfile``); a long file handed out last runs alone at the
 #: end, so these go first and the many short files fill in behind them (longest processing
 #: time first). xdist's own order (most tests first) would put them last: it is switched
 #: off in :func:`pytest_configure`. A file missing here only runs later; nothing is skipped.
 HEAVY_FILES: tuple[str, ...] = (
-    # default: the rich log's all-NUTS (120 s of the cold run), Laplace and ranked fits;
-    # slow: a log per candidate, the paper's truth, stays in days, diurnal (about 560 s)
+    "tests/fitting/test_behaviour_fit.py",  # default: about 230 s of CPU cold in 19 tests
+    # default: the rich log's true models against the paper's by NUTS (55 s of CPU cold),
+    # Laplace and ranked fits (about 90 s in all); slow: every candidate by NUTS (140 s), a
+    # log per candidate, the paper's truth, stays in days, diurnal (about 700 s)
     "tests/fitting/test_traffic.py",
     "tests/test_integrity.py",  # slow: same-seed runs and kills, about 20 are-stats processes
     # slow: builds the wheel; in CI (ARE_STATS_FRESH_VENV=1) a fresh venv, about 3.5 min
     "tests/test_wheel.py",
-    # default: 40 edited fit files drawn from (102 s cold), thousands of file cases
+    # default: 40 edited fit files drawn from (34 s of CPU cold), thousands of file cases
+    # (about 115 s of CPU cold in all)
     "tests/fuzz/test_fuzz_package.py",
     "tests/fuzz/test_fuzz_tracks_scale.py",  # slow: three 300-person tracks fits
-    "tests/fitting/test_behaviour_fit.py",  # default: 220 s of CPU cold in 15 tests
     "tests/test_cli_tracks.py",  # slow: the tracks fit, report and generation by the CLI
     "tests/fitting/test_fit.py",  # default: two tracks fits (about 100 s of CPU cold)
     # walks and motion checks by generation and criticism (about 100 s of CPU cold without
     # the slow one), with 15 tests: by test count it started among the last files
     "tests/fitting/test_heading_variation.py",
-    "tests/scenarios/test_assembly.py",
-    "tests/scenarios/test_assembly_golden.py",
+    "tests/scenarios/test_assembly_golden.py",  # about 120 s of CPU cold
+    "tests/scenarios/test_assembly.py",  # about 90 s of CPU cold
     "tests/fitting/test_nuts.py",
     "tests/test_cli_jobs.py",  # default: about 90 s of CPU cold
     "tests/fitting/test_lifecycle_mcmc.py",

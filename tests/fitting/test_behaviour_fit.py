@@ -268,24 +268,34 @@ def test_path_points_against_a_point_by_point_reference() -> None:
 def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
     """The fit's likelihood and forward-mode gradient with three goals (padded to four) on
     two XLA host devices are those of one device."""
-    from are_stats.fitting._behaviour import _likelihood
-
     if jax.local_device_count() < 2:
         pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
     free, paths, _ = _small_world()
+    th = np.array([np.log(1.7), -2.0])
     out = []
     for n_devices in (1, 2):
-        f, obs, _ = _likelihood(
-            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
-            tol=1e-3, n_devices=n_devices,
-        )  # fmt: skip
+        obs, (g, v) = _fit_value_and_gradient(paths, free, th, n_devices)
         assert len(obs.goals) == 3
-        th = np.array([np.log(1.7), -2.0])
-        out.append(jax.jit(jax.jacfwd(lambda t, f=f: (f(t), f(t)), has_aux=True))(th))
+        out.append((g, v))
     (g1, v1), (g2, v2) = out
     assert np.isfinite(float(v1)) and np.abs(np.asarray(g1)).min() > 1e-3
     assert_allclose(v2, v1, rtol=1e-12)
     assert_allclose(g2, g1, rtol=1e-10)
+
+
+def _fit_value_and_gradient(paths, free, theta, n_devices, features=None):
+    """The fit's compiled ``(gradient, value)`` program (float64, ``tol = 1e-3``) on the
+    padded data of ``paths``: one program per shape bucket, so the likelihood tests on
+    :func:`_small_world` (three goals, four tracks, eight steps: buckets (4, 4, 8)) share
+    it. Returns the data's move observations and ``(gradient, value)``."""
+    import are_stats.fitting._behaviour as fb
+
+    data, obs, _, n_dev = fb._likelihood_data(
+        paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
+        n_devices=n_devices, features=features,
+    )  # fmt: skip
+    assert n_dev == n_devices
+    return obs, fb._value_and_gradient(np.asarray(theta, np.float64), data, 1e-3, n_dev)
 
 
 @pytest.mark.parametrize("n_devices", [1, 2])
@@ -361,25 +371,30 @@ def _small_world():
     return free, paths, phi
 
 
-def test_log_likelihood_gradient_in_the_weights_matches_finite_differences() -> None:
+@jax.jit
+def _weighted_log_likelihood(beta, weights):
+    """behaviour_log_likelihood of :func:`_small_world`'s paths (60 epochs, slip 0.1) with
+    its two features weighted by ``weights``: one program for the tests below."""
     free, paths, phi = _small_world()
+    return behaviour_log_likelihood(paths, free, beta, 0.1, n_epochs=60, features=phi,
+                                    weights=weights)[0]  # fmt: skip
+
+
+def test_log_likelihood_gradient_in_the_weights_matches_finite_differences() -> None:
     w0 = np.array([-0.4, 0.3])
-
-    def ll(w):
-        return behaviour_log_likelihood(
-            paths, free, 1.5, 0.1, n_epochs=60, features=phi, weights=w
-        )[0]  # fmt: skip
-
-    grad = np.asarray(jax.jit(jax.grad(ll))(jax.numpy.asarray(w0)))
-    llj, h = jax.jit(ll), 1e-5
-    fd = [(float(llj(w0 + h * e)) - float(llj(w0 - h * e))) / (2 * h) for e in np.eye(2)]
+    beta = np.float64(1.5)
+    grad = np.asarray(jax.jit(jax.grad(_weighted_log_likelihood, argnums=1))(beta, w0))
+    h = 1e-5
+    fd = [
+        (float(_weighted_log_likelihood(beta, w0 + h * e))
+         - float(_weighted_log_likelihood(beta, w0 - h * e))) / (2 * h)
+        for e in np.eye(2)
+    ]  # fmt: skip
     assert np.abs(grad).min() > 1e-2  # the weights do move the likelihood
     assert_allclose(grad, fd, rtol=1e-6, atol=1e-8)
 
 
 def test_zero_weights_give_exactly_the_likelihood_without_features() -> None:
-    from are_stats.fitting._behaviour import _likelihood
-
     free, paths, phi = _small_world()
     beta = np.float64(1.5)
 
@@ -387,36 +402,26 @@ def test_zero_weights_give_exactly_the_likelihood_without_features() -> None:
     def plain(b):
         return behaviour_log_likelihood(paths, free, b, 0.1, n_epochs=60)[0]
 
-    @jax.jit
-    def weighted(b, w):
-        return behaviour_log_likelihood(paths, free, b, 0.1, n_epochs=60, features=phi,
-                                        weights=w)[0]  # fmt: skip
-
-    np.testing.assert_array_equal(weighted(beta, np.zeros(2)), plain(beta))
-    assert float(weighted(beta, np.array([-0.5, 0.0]))) != float(plain(beta))
+    np.testing.assert_array_equal(_weighted_log_likelihood(beta, np.zeros(2)), plain(beta))
+    assert float(_weighted_log_likelihood(beta, np.array([-0.5, 0.0]))) != float(plain(beta))
     # the fit's own likelihood (early stop, goals split over the devices there are)
-    opts = dict(goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64, tol=1e-3)
-    f0 = jax.jit(_likelihood(paths, free, **opts)[0])
-    f2 = jax.jit(_likelihood(paths, free, features=phi, **opts)[0])
+    n_dev = min(jax.local_device_count(), 2)
     th = np.array([np.log(1.7), -2.0])
-    np.testing.assert_array_equal(f2(np.r_[th, 0.0, 0.0]), f0(th))
-    assert float(f2(np.r_[th, -0.5, 0.0])) != float(f0(th))
+    v0 = _fit_value_and_gradient(paths, free, th, n_dev)[1][1]
+    v2 = _fit_value_and_gradient(paths, free, np.r_[th, 0.0, 0.0], n_dev, phi)[1][1]
+    np.testing.assert_array_equal(v2, v0)
+    v2w = _fit_value_and_gradient(paths, free, np.r_[th, -0.5, 0.0], n_dev, phi)[1][1]
+    assert float(v2w) != float(v0)
 
 
 def test_likelihood_with_features_split_across_devices_equals_one_device() -> None:
-    from are_stats.fitting._behaviour import _likelihood
-
+    """As with three goals above, with two reward features: the program of the padded test
+    (the same shape buckets)."""
     if jax.local_device_count() < 2:
         pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
     free, paths, phi = _small_world()
     th = np.array([np.log(1.7), -2.0, -0.4, 0.3])
-    out = []
-    for n_devices in (1, 2):
-        f, _, _ = _likelihood(
-            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
-            tol=1e-3, n_devices=n_devices, features=phi,
-        )  # fmt: skip
-        out.append(jax.jit(jax.jacfwd(lambda t, f=f: (f(t), f(t)), has_aux=True))(th))
+    out = [_fit_value_and_gradient(paths, free, th, n, phi)[1] for n in (1, 2)]
     (g1, v1), (g2, v2) = out
     assert_allclose(v2, v1, rtol=1e-12)
     assert_allclose(g2, g1, rtol=1e-10)
@@ -452,9 +457,12 @@ def test_feature_weights_round_trip_and_old_files_load_without_them(tmp_path) ->
                        "y": p[:, 0] + 0.5}) for i, p in enumerate(paths)],
         ignore_index=True,
     )  # fmt: skip
+    # float64: the fit's value-and-gradient program is then the padded test's (the same
+    # shape buckets and two features), compiled once
     fit = fit_behaviour(
-        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, features={"walls": "walls", "r": phi[1]}
-    )
+        tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, features={"walls": "walls", "r": phi[1]},
+        dtype="float64",
+    )  # fmt: skip
     assert fit.weights.shape == fit.weights_se.shape == (1, 2)
     assert np.isfinite(fit.weights).all()
     path = tmp_path / "b.nc"

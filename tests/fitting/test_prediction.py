@@ -89,9 +89,11 @@ def _polyline_walk(rng: np.random.Generator, i: int, pts: np.ndarray) -> pd.Data
 def _corner_world(seed: int, n: int = 40) -> tuple[pd.DataFrame, np.ndarray]:
     """An L-shaped corridor (0.5 m cells): in at the west door, along y in [2, 4] m, round
     the corner and up x in [8, 10] m to the north door (or the other way), turning at a
-    right angle at a point drawn in the corner square, 1.2 m/s, 2.5 Hz, 3 cm noise."""
+    right angle at a point drawn in the corner square, 1.2 m/s, 2.5 Hz, 3 cm noise. The
+    map is the crossing room's 24 x 40 cells (walls east of x = 10 m): the worlds here
+    share one grid shape, so their behaviour programs are compiled once."""
     rng = np.random.default_rng(seed)
-    free = np.zeros((24, 24), bool)
+    free = np.zeros((24, 40), bool)
     free[4:8, 1:20] = True  # west-east corridor
     free[4:23, 16:20] = True  # south-north corridor
     free[4:8, 0] = True  # west door

@@ -82,10 +82,22 @@ def rich_log():
 
 @pytest.fixture(scope="module")
 def rich_fit(rich_log):
+    """Every candidate sampled by NUTS (about 140 s of CPU cold): the slow tier's reference."""
     data, _ = rich_log
     return fit_traffic(jax.random.key(0), data, paper=_paper(data), grid=_Grid(), **NUTS)
 
 
+@pytest.fixture(scope="module")
+def nuts_fit(rich_log):
+    """The true models named, each against the paper's, sampled by NUTS: the NUTS + PSIS-LOO
+    path of ``rich_fit`` with two candidates a factor instead of all of them (make test)."""
+    data, _ = rich_log
+    return fit_traffic(jax.random.key(0), data, paper=_paper(data), grid=_Grid(),
+                       arrivals="groups", lifetimes="gamma", positions="learned",
+                       **NUTS)  # fmt: skip
+
+
+@pytest.mark.slow  # every candidate by NUTS; make test: the true models against the paper's
 def test_auto_picks_the_true_models(rich_fit):
     assert rich_fit.arrival_model == "groups"
     assert rich_fit.lifetime_model == "gamma"
@@ -95,22 +107,35 @@ def test_auto_picks_the_true_models(rich_fit):
         assert "weight" not in table.columns  # no stacking weights posing as probabilities
 
 
-def test_parameters_are_recovered(rich_fit, rich_log):
+def test_nuts_picks_the_true_models_over_the_papers(nuts_fit):
+    """NUTS + PSIS-LOO between each true model and the paper's: the truth (the auto choice
+    among every candidate by NUTS is the slow test above; by Laplace, the tests below)."""
+    assert (nuts_fit.arrival_model, nuts_fit.lifetime_model, nuts_fit.position_model) == (
+        "groups", "gamma", "learned",
+    )  # fmt: skip
+    assert list(nuts_fit.tables["arrivals"].index) == ["poisson", "groups"]
+    assert "NUTS" in nuts_fit.attrs["model_choice"]
+    for table in nuts_fit.tables.values():
+        assert table["chosen"].sum() == 1
+        assert "weight" not in table.columns  # no stacking weights posing as probabilities
+
+
+def test_parameters_are_recovered(nuts_fit, rich_log):
     _, truth = rich_log
-    post = rich_fit.posterior
+    post = nuts_fit.posterior
     for name in ("event_rate", "stay_mean", "stay_shape"):
         v = post[name].ravel()
         assert abs(v.mean() - truth[name]) < 5 * v.std(), name
     p = post["group_size_probs"].reshape(-1, post["group_size_probs"].shape[-1])
     k = truth["group_size_probs"].size
     assert np.all(np.abs(p[:, :k].mean(0) - truth["group_size_probs"]) < 5 * p[:, :k].std(0))
-    assert rich_fit.attrs["group_stay_sd"] == pytest.approx(0.1, abs=0.05)
+    assert nuts_fit.attrs["group_stay_sd"] == pytest.approx(0.1, abs=0.05)
 
 
-def test_generated_scenarios_reproduce_the_crowding(rich_fit, rich_log):
+def test_generated_scenarios_reproduce_the_crowding(rich_idata, rich_log):
     """N(t) variance/mean of the truth (closed form) inside the fit's predictive interval."""
-    data, truth = rich_log
-    idata = _idata_with(rich_fit, data)
+    _, truth = rich_log
+    idata = rich_idata
     draws, laws = traffic_draws(idata, "chosen")
     df = generate_scenarios(1, draws, 200, 1800.0, area=AREA, laws=laws, draw="random")
     n = scenario_counts(df, np.linspace(100.0, 1700.0, 30))
@@ -137,9 +162,15 @@ def _idata_with(traffic, data):
     return attach_traffic(idata, traffic)
 
 
-def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
-    data, _ = rich_log
-    idata = _idata_with(rich_fit, data)
+@pytest.fixture(scope="module")
+def rich_idata(nuts_fit, rich_log):
+    """The fit file of the rich log with the NUTS fit of its true models (one per module:
+    the tests that edit it edit a copy)."""
+    return _idata_with(nuts_fit, rich_log[0])
+
+
+def test_fit_file_round_trip_and_checks(rich_idata, tmp_path):
+    idata = rich_idata
     write_fit(idata, tmp_path / "f.nc")
     back = read_fit(tmp_path / "f.nc").idata
     assert back.posterior.attrs["arrival_model"] == "groups"
@@ -163,7 +194,7 @@ def test_fit_file_round_trip_and_checks(rich_fit, rich_log, tmp_path):
     assert reps["chosen"].shape == (100, len(table))
 
 
-def test_checks_entry_distance_is_each_windows_own(rich_fit, rich_log):
+def test_checks_entry_distance_is_each_windows_own(rich_idata):
     """traffic_checks measures every replicate's entry distances in one call of
     boundary_distance; each window's values are window_statistics' on that window alone,
     bit for bit."""
@@ -171,8 +202,7 @@ def test_checks_entry_distance_is_each_windows_own(rich_fit, rich_log):
     from are_stats.fitting._traffic_checks import _free_of
     from are_stats.traffic import fold_in_key, key_from_seed
 
-    data, _ = rich_log
-    idata = _idata_with(rich_fit, data)
+    idata = rich_idata
     n_rep = 12
     table, reps = traffic_checks(0, idata, n_rep)
     free = _free_of(idata)
@@ -199,9 +229,8 @@ def test_checks_entry_distance_is_each_windows_own(rich_fit, rich_log):
         np.testing.assert_array_equal(reps[model], want)
 
 
-def test_read_fit_names_a_missing_variable(rich_fit, rich_log, tmp_path):
-    data, _ = rich_log
-    idata = _idata_with(rich_fit, data)
+def test_read_fit_names_a_missing_variable(rich_idata, tmp_path):
+    idata = rich_idata.copy()
     del idata.posterior["group_size_probs"]
     write_fit(idata, tmp_path / "bad.nc")
     with pytest.raises(InputError, match="group_size_probs"):
@@ -230,7 +259,7 @@ def test_paper_truth_keeps_the_paper_model(paper_log):
     )
 
 
-@pytest.mark.slow  # two NUTS fits; make test fits gamma stays by NUTS (rich_fit)
+@pytest.mark.slow  # two NUTS fits; make test fits gamma stays by NUTS (nuts_fit)
 def test_stays_in_days_fit_like_stays_in_seconds():
     """Gamma stays of about 8 h: the same log in seconds and in days gives the same shape."""
     laws = TrafficLaws(lifetimes="gamma")
@@ -320,15 +349,29 @@ def laplace_fit(rich_log):
                        approximation="laplace")  # fmt: skip
 
 
-def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit, rich_log):
-    """On the rich log (groups, gamma stays, door entries: none the paper's) the Laplace
-    + importance-sampled PSIS-LOO comparison picks what NUTS + PSIS-LOO picks, the truth,
-    with elpd within a few nats of NUTS's for every candidate."""
+def test_laplace_picks_the_true_models(laplace_fit, nuts_fit, rich_log):
+    """On the rich log (groups, gamma stays, door entries: none the paper's) the Laplace +
+    importance-sampled PSIS-LOO comparison of every candidate picks the truth; the chosen
+    models' Gaussians recover the truth and have the spread of their NUTS posteriors."""
     _, truth = rich_log
     got = (laplace_fit.arrival_model, laplace_fit.lifetime_model, laplace_fit.position_model)
-    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
     assert got == ("groups", "gamma", "learned")
     assert "Laplace" in laplace_fit.attrs["model_choice"]
+    post = laplace_fit.posterior
+    for name in ("event_rate", "stay_mean", "stay_shape"):
+        v = post[name].ravel()
+        assert v.shape == nuts_fit.posterior[name].ravel().shape
+        assert abs(v.mean() - truth[name]) < 5 * v.std(), name
+        # the Gaussian's spread is the posterior's (NUTS) within 20%
+        assert v.std() == pytest.approx(nuts_fit.posterior[name].std(), rel=0.2), name
+
+
+@pytest.mark.slow  # every candidate by NUTS; make test: test_laplace_picks_the_true_models
+def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit):
+    """The Laplace comparison picks what NUTS + PSIS-LOO of every candidate picks, with
+    elpd within a few nats of NUTS's for every candidate."""
+    got = (laplace_fit.arrival_model, laplace_fit.lifetime_model, laplace_fit.position_model)
+    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
     assert "NUTS" in rich_fit.attrs["model_choice"]
     for factor in ("arrivals", "lifetimes"):
         a, b = laplace_fit.tables[factor], rich_fit.tables[factor]
@@ -336,13 +379,6 @@ def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit, rich_log):
         # MC error of PSIS-LOO and the Gaussian's fit: a few nats, against differences of
         # hundreds between the candidates
         assert np.all(np.abs(a["elpd"] - b["elpd"]) < 5.0 + 0.02 * b["se"]), (a, b)
-    post = laplace_fit.posterior
-    for name in ("event_rate", "stay_mean", "stay_shape"):
-        v = post[name].ravel()
-        assert v.shape == rich_fit.posterior[name].ravel().shape
-        assert abs(v.mean() - truth[name]) < 5 * v.std(), name
-        # the Gaussian's spread is the posterior's (NUTS) within 20%
-        assert v.std() == pytest.approx(rich_fit.posterior[name].std(), rel=0.2), name
 
 
 def test_laplace_keeps_the_paper_model_on_paper_truth(paper_log):
@@ -419,17 +455,17 @@ def ranked_fit(rich_log):
                        approximation="ranked", **NUTS)  # fmt: skip
 
 
-def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
+def test_ranked_fit_agrees_with_nuts(ranked_fit, nuts_fit):
     """Ranked by Laplace + importance-sampled PSIS-LOO, then the chosen model's Laplace
-    draws importance-resampled (Pareto k below 0.7 here): the choices of the all-NUTS
-    comparison, and the chosen posterior is the NUTS posterior within Monte Carlo error."""
+    draws importance-resampled (Pareto k below 0.7 here): the true models, as NUTS chooses
+    them, and the chosen posterior is the NUTS posterior within Monte Carlo error."""
     got = (ranked_fit.arrival_model, ranked_fit.lifetime_model, ranked_fit.position_model)
-    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
+    assert got == (nuts_fit.arrival_model, nuts_fit.lifetime_model, nuts_fit.position_model)
     assert "importance resampling" in ranked_fit.attrs["model_choice"]
     for attr in ("arrival_posterior", "lifetime_posterior"):
         assert ranked_fit.attrs[attr].startswith("importance-resampled Laplace"), attr
     for name in ("event_rate", "stay_mean", "stay_shape", "group_size_probs"):
-        a, b = ranked_fit.posterior[name], rich_fit.posterior[name]
+        a, b = ranked_fit.posterior[name], nuts_fit.posterior[name]
         assert a.shape == b.shape
         mc = 4.0 * b.std(axis=(0, 1)) / np.sqrt(b.shape[0] * b.shape[1] / 10.0)
         assert np.all(np.abs(a.mean(axis=(0, 1)) - b.mean(axis=(0, 1))) <= mc + 1e-12), name
@@ -437,6 +473,13 @@ def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
     # no NUTS ran: no row carries NUTS diagnostics
     for factor in ("arrivals", "lifetimes"):
         assert not np.isfinite(ranked_fit.tables[factor]["r_hat"]).any()
+
+
+@pytest.mark.slow  # every candidate by NUTS; make test: test_ranked_fit_agrees_with_nuts
+def test_ranked_choice_is_the_all_nuts_choice_on_the_rich_log(ranked_fit, rich_fit):
+    """The ranked fit's choices are those of sampling every candidate by NUTS."""
+    got = (ranked_fit.arrival_model, ranked_fit.lifetime_model, ranked_fit.position_model)
+    assert got == (rich_fit.arrival_model, rich_fit.lifetime_model, rich_fit.position_model)
 
 
 @pytest.mark.parametrize(
@@ -448,7 +491,7 @@ def test_ranked_fit_agrees_with_all_nuts(ranked_fit, rich_fit, rich_log):
         ("poisson", "lognormal", {"event_rate": 1e-3, "stay_mean": 60.0, "stay_shape": 1.2}),
     ],
 )
-@pytest.mark.slow  # 8 fits; make test: test_ranked_fit_agrees_with_all_nuts
+@pytest.mark.slow  # 8 fits; make test: test_ranked_fit_agrees_with_nuts
 def test_ranked_choice_is_the_all_nuts_choice_on_each_candidates_logs(arrivals, lifetimes, draw):
     """Logs drawn from each candidate (the rich log covers groups and gamma): ranking by
     the Laplace approximation chooses what sampling every candidate by NUTS chooses, with

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import csv
+import functools
 import io
 import os
 import resource
@@ -511,6 +512,19 @@ def fit_case(draw: st.DrawFn) -> tuple[str, tuple]:
     return "semantic", tuple(draw(st.lists(st.sampled_from(_FIT_EDITS), min_size=1, max_size=2)))
 
 
+@functools.lru_cache(maxsize=4)
+def _loaded_fit(src: str, mtime_ns: int) -> Any:
+    """The fit file ``src`` read whole into memory once (``mtime_ns``: a rewritten file is
+    read again): each case edits a deep copy, sparing a read of every group (about 0.4 s
+    of CPU a case)."""
+    import arviz as az
+
+    idata = az.from_netcdf(src)
+    for group in idata.groups():
+        getattr(idata, group).load()
+    return idata
+
+
 def write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
     """Write ``src`` with the edit ``case`` (from :func:`fit_case`) applied to ``dst``."""
     kind, spec = case
@@ -520,9 +534,7 @@ def write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
         at = at % len(data)
         dst.write_bytes(data[:at] + junk if junk else data[:at])
         return
-    import arviz as az
-
-    idata = az.from_netcdf(str(src))
+    idata = copy.deepcopy(_loaded_fit(str(src), src.stat().st_mtime_ns))
     post = idata.posterior
     for what, name, value in spec:
         if what == "attr":

@@ -56,7 +56,27 @@ def test_scenes_are_the_generated_scenarios_split_by_scenario(grid, catalogue):
         assert not s.has_tracks.any()  # behaviours off: everyone stands
 
 
-def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(grid, catalogue):
+@pytest.fixture(scope="module")
+def catalogue_plan(grid, catalogue) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Two scenarios of :func:`_idata` (seed 11) and the catalogue behaviour's plans of
+    their artefacts (key 11): what the assembly's scenes are compared against below."""
+    art = generate_scenarios(11, posterior_draws(_idata()), 2, HORIZON, free_mask=grid)
+    classes = np.concatenate(
+        [Scene.from_scenarios(art[art["scenario"] == k], catalogue).classes for k in range(2)]
+    )
+    plan = behaviour_tracks(jax.random.key(11), art, classes, grid, catalogue, horizon=HORIZON)
+    return art, plan
+
+
+@pytest.fixture(scope="module")
+def walked(grid, catalogue) -> list[Scene]:
+    """The same two scenes assembled with the catalogue behaviour and the interaction."""
+    return scenes_from_fit(11, _idata(), grid, catalogue, 2, HORIZON, behaviours=True)
+
+
+def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(
+    grid, catalogue, catalogue_plan
+):
     """Without the interaction, the scenes' tracks are the catalogue behaviour's, cut at
     the horizon, with every mover's collisions resolved by the AR-builder's rule
     (DECISIONS 9) on open ground (the routes keep to free cells)."""
@@ -64,11 +84,7 @@ def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(grid, catalo
     scenes = scenes_from_fit(
         11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False
     )
-    art = generate_scenarios(11, posterior_draws(idata), 2, HORIZON, free_mask=grid)
-    classes = np.concatenate(
-        [Scene.from_scenarios(art[art["scenario"] == k], catalogue).classes for k in range(2)]
-    )
-    plan = behaviour_tracks(jax.random.key(11), art, classes, grid, catalogue, horizon=HORIZON)
+    art, plan = catalogue_plan
     ground = OccupancyGrid(np.zeros((160, 160), np.int8), 0.5, (-40.0, -40.0, 0.0))
     builder = ARBuilder(ground)
     want, waited = [], 0
@@ -129,9 +145,9 @@ def test_empty_scenarios_are_scenes_without_artefacts(grid, catalogue):
     assert [len(s) for s in scenes] == [0, 0, 0]
 
 
-def test_with_tracks_and_tracks_table_round_trip(grid, catalogue):
-    scenes = scenes_from_fit(3, _idata(), grid, catalogue, 1, HORIZON, behaviours=True)
-    (scene,) = scenes
+def test_with_tracks_and_tracks_table_round_trip(walked):
+    scene = walked[0]
+    assert scene.has_tracks.any()
     table = scene.tracks_table()
     again = scene.with_tracks(None).with_tracks(table)
     pd.testing.assert_frame_equal(again.tracks_table(), table)
@@ -152,17 +168,13 @@ def _off_route(xy: np.ndarray, route: np.ndarray) -> float:
     return float(np.hypot(*(xy[:, None, :] - near).transpose(2, 0, 1)).min(axis=1).max())
 
 
-def test_the_interaction_walks_pedestrians_again_and_keeps_vehicles_on_their_plan(grid, catalogue):
+def test_the_interaction_walks_pedestrians_again_and_keeps_vehicles_on_their_plan(
+    grid, catalogue, catalogue_plan, walked
+):
     """Against the catalogue behaviour's plans: people keep their life-cycles (the same
     rows) and are walked again (off their plans, on free cells); cars, carts and pallets
     keep to their planned routes (the AR-builder may only make them wait on them)."""
-    idata = _idata()
-    art = generate_scenarios(11, posterior_draws(idata), 2, HORIZON, free_mask=grid)
-    classes = np.concatenate(
-        [Scene.from_scenarios(art[art["scenario"] == k], catalogue).classes for k in range(2)]
-    )
-    plan = behaviour_tracks(jax.random.key(11), art, classes, grid, catalogue, horizon=HORIZON)
-    walked = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
+    _, plan = catalogue_plan
     moved_people = 0
     for k, scene in enumerate(walked):
         a = plan[plan["scenario"] == k].sort_values(["id", "t"]).reset_index(drop=True)
@@ -228,7 +240,7 @@ def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
     assert np.quantile(apart, 0.9) > 4 * np.quantile(near, 0.9)
 
 
-def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue):
+def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked):
     idata = _idata()
     calls = []
     scenes = scenes_from_fit(
@@ -248,8 +260,7 @@ def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue):
         f"walked with the social force (1 of {windows} windows)",
     ]  # fmt: skip
     # the same scenes as without a progress
-    again = scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True)
-    for a, b in zip(scenes, again, strict=True):
+    for a, b in zip(scenes, walked, strict=True):
         pd.testing.assert_frame_equal(a.tracks_table(), b.tracks_table())
     calls.clear()
     scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, progress=lambda *c: calls.append(c))
