@@ -84,10 +84,16 @@ class SoftSolution(NamedTuple):
     policy : (G, 4, A, H, W)
         ``pi_K(a | s)`` with ``A = 5`` actions (``stay, forward, run, left, right``); run has
         probability 0 when not allowed.
+    epochs : () int or None
+        With ``tol`` and ``with_epochs`` (:func:`soft_backward_induction`), the epochs the
+        values were iterated before the solve stopped (the same solve with ``n_epochs =
+        epochs + 1`` and no early stop, ``tol < 0``, repeats it epoch for epoch); else
+        ``None``.
     """
 
     values: jax.Array
     policy: jax.Array
+    epochs: jax.Array | None = None
 
 
 def _shift(x: jax.Array, dr: int, dc: int) -> jax.Array:
@@ -173,6 +179,7 @@ def soft_backward_induction(
     tol: float | None = None,
     tol_mask: jax.Array | None = None,
     axis_name: str | None = None,
+    with_epochs: bool = False,
 ) -> SoftSolution:
     """Soft backward induction over ``K = n_epochs`` epochs (pure; the caller jits).
 
@@ -208,18 +215,23 @@ def soft_backward_induction(
         policy given ``Q`` and the same ``beta -> infinity`` limit.
     tol : float, traced float scalar, or None
         Stop once the values change by at most ``tol`` in an epoch (``n_epochs`` is then a
-        cap); ``None`` (static) runs all ``n_epochs``.
+        cap; a negative ``tol`` never stops early, so the cap is the epoch count as data);
+        ``None`` (static) runs all ``n_epochs``.
     tol_mask : (G, H, W) bool or None
         Cells on which that change is measured (default: all).
     axis_name : str or None
         Name of a mapped axis that splits the goals (``jax.shard_map`` over devices): the
         change is then the largest over every shard, so that all stop at the same epoch,
         the epoch of the unsplit batch (identical results).
+    with_epochs : bool
+        With ``tol``: return the epochs iterated before the stop (static; the behaviour
+        fit holds the solve there to difference its gradient, :mod:`are_stats.fitting`).
 
     Returns
     -------
     SoftSolution
-        ``values`` and the policy ``pi_K``.
+        ``values``, the policy ``pi_K`` and, with ``tol`` and ``with_epochs``, the epochs
+        iterated.
     """
     dtype = jnp.result_type(beta)
     beta = jnp.asarray(beta, dtype)
@@ -243,6 +255,7 @@ def soft_backward_induction(
         return v_new, (v_new if store_values else None)
 
     v0 = jnp.zeros((4, g, h, w), dtype)  # heading-major inside the scan
+    epochs = None
     if tol is None:
         v_prev, vs = jax.lax.scan(step, v0, None, length=n_epochs - 1)
     else:
@@ -266,7 +279,8 @@ def soft_backward_induction(
         # in the computation's dtype, as a number would be: a traced tol stops alike
         tol_v = jnp.asarray(tol, dtype)
         start = (jnp.asarray(0), v0, jnp.asarray(jnp.inf, dtype))
-        _, v_prev, _ = jax.lax.while_loop(cond, body, start)
+        count, v_prev, _ = jax.lax.while_loop(cond, body, start)
+        epochs = count if with_epochs else None
         vs = None
     pol, v_last = [], []
     for q in q_of(v_prev):
@@ -287,7 +301,7 @@ def soft_backward_induction(
         )
     else:
         values = v_k
-    return SoftSolution(values, policy)
+    return SoftSolution(values, policy, epochs)
 
 
 def _goal_arrays(
@@ -397,7 +411,7 @@ def soft_policy(
         )
         # cut on the host: slicing (or copying back) a device array compiles a program per
         # goal count
-        return SoftSolution(*(np.asarray(x)[:g] for x in sol))
+        return SoftSolution(np.asarray(sol.values)[:g], np.asarray(sol.policy)[:g])
     keep, bonus = _goal_arrays(occ, gl, goal_reward)
     return _soft_jit(
         jnp.asarray(path_free(occ)),

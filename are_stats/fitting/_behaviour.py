@@ -668,27 +668,37 @@ def _bucket(n: int, multiple: int = 1) -> int:
     return -(-size // multiple) * multiple
 
 
-def _loglik(theta: jax.Array, data: _LikelihoodData, tol: float, n_devices: int = 1) -> jax.Array:
+def _loglik(theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int = 1) -> jax.Array:
     """Log-likelihood at ``theta = (log beta, logit slip, w_1, .., w_F)`` of the moves in
     ``data`` (``F`` features ``data.phi``; without them ``theta`` has two entries and the
-    cell reward is 0); the soft solve stops at ``tol``. With ``n_devices > 1`` the goals are
-    split across that many local devices (results identical to one device)."""
+    cell reward is 0); the soft solve stops at ``tol`` (a float or a traced scalar; a
+    negative ``tol`` runs ``data.n_epochs - 1`` epochs). With ``n_devices > 1`` the goals
+    are split across that many local devices (results identical to one device)."""
+    return _loglik_epochs(theta, data, tol, n_devices)[0]
+
+
+def _loglik_epochs(
+    theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int = 1
+) -> tuple[jax.Array, jax.Array]:
+    """:func:`_loglik` and the epochs its soft solve iterated (``()`` int; the solve with
+    ``n_epochs = epochs + 1`` and ``tol < 0`` is the same, epoch for epoch)."""
     beta = jnp.exp(theta[0])
     slip = jax.nn.sigmoid(theta[1])
     reward = 0.0 if data.phi is None else jnp.tensordot(theta[2:], data.phi, axes=1)
     opts = dict(n_epochs=data.n_epochs, step_cost=data.step_cost, time_cost=data.time_cost, tol=tol)
     if n_devices < 2:
-        policy = soft_backward_induction(
+        sol = soft_backward_induction(
             data.ok, data.keep, data.bonus, beta, slip, tol_mask=data.tol_mask,
-            cell_reward=reward, **opts,
-        ).policy  # fmt: skip
+            cell_reward=reward, with_epochs=True, **opts,
+        )  # fmt: skip
+        policy, epochs = sol.policy, sol.epochs
     else:
-        policy = _sharded_policy(
+        policy, epochs = _sharded_policy(
             data.ok, data.keep, data.bonus, beta, slip, data.tol_mask, n_devices, opts,
             jnp.asarray(reward, beta.dtype),
         )  # fmt: skip
     obs = (data.goal_index, data.rows, data.cols, data.move)
-    return moves_log_likelihood(policy, data.ok, slip, obs)
+    return moves_log_likelihood(policy, data.ok, slip, obs), epochs
 
 
 def _sharded_policy(
@@ -701,11 +711,12 @@ def _sharded_policy(
     n_devices: int,
     opts: dict[str, Any],
     reward: jax.Array,
-) -> jax.Array:
-    """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices``
-    (``reward``: the cell reward, a scalar or ``(H, W)``, the same for every goal; ``opts``:
+) -> tuple[jax.Array, jax.Array]:
+    """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices`` and the
+    epochs the solve iterated (``()`` int) (``reward``: the cell reward, a scalar or
+    ``(H, W)``, the same for every goal; ``opts``:
     :func:`~are_stats.behaviour.soft_backward_induction`'s ``n_epochs``, ``step_cost``,
-    ``time_cost`` (numbers or traced scalars) and ``tol``).
+    ``time_cost`` and ``tol``, numbers or traced scalars).
 
     The goals are padded to a multiple of ``n_devices`` by repeating the last one (a copy
     changes by exactly as much per epoch, so the shared stopping rule is unaffected); every
@@ -722,23 +733,28 @@ def _sharded_policy(
         return jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
 
     mesh = Mesh(np.array(jax.local_devices()[:n_devices]), ("g",))
-    tol = opts["tol"]
     # the traced numbers enter as replicated arguments (not closed over by the shards)
-    numbers = tuple(jnp.asarray(opts[k]) for k in ("n_epochs", "step_cost", "time_cost"))
+    numbers = tuple(jnp.asarray(opts[k]) for k in ("n_epochs", "step_cost", "time_cost", "tol"))
 
     def solve(keep_s: jax.Array, bonus_s: jax.Array, mask_s: jax.Array, ok_: jax.Array,
               beta_: jax.Array, slip_: jax.Array, reward_: jax.Array, k_: jax.Array,
-              sc_: jax.Array, tc_: jax.Array) -> jax.Array:  # fmt: skip
-        return soft_backward_induction(
+              sc_: jax.Array, tc_: jax.Array, tol_: jax.Array,
+              ) -> tuple[jax.Array, jax.Array]:  # fmt: skip
+        sol = soft_backward_induction(
             ok_, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g",
-            cell_reward=reward_, n_epochs=k_, step_cost=sc_, time_cost=tc_, tol=tol,
-        ).policy  # fmt: skip
+            cell_reward=reward_, n_epochs=k_, step_cost=sc_, time_cost=tc_, tol=tol_,
+            with_epochs=True,
+        )  # fmt: skip
+        return sol.policy, sol.epochs  # every shard stops at the same epoch
 
     split = jax.shard_map(
-        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g")) + (P(),) * 7, out_specs=P("g"),
-        check_vma=False,
+        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g")) + (P(),) * 8,
+        out_specs=(P("g"), P()), check_vma=False,
     )  # fmt: skip
-    return split(padded(keep), padded(bonus), padded(mask), ok, beta, slip, reward, *numbers)[:g]
+    policy, epochs = split(
+        padded(keep), padded(bonus), padded(mask), ok, beta, slip, reward, *numbers
+    )
+    return policy[:g], epochs
 
 
 def behaviour_log_likelihood(
@@ -1005,34 +1021,61 @@ def _check_tol(tol: Any) -> float:
     return value
 
 
-@partial(jax.jit, static_argnames=("tol", "n_devices"))
+@partial(jax.jit, static_argnames=("n_devices",))
+def _gradient_value_epochs(
+    theta: jax.Array, data: _LikelihoodData, tol: jax.Array, n_devices: int
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """``(gradient (n,), value (), epochs ())`` of :func:`_loglik_epochs` at ``theta (n,)``,
+    forward mode: one compiled program per shape bucket of ``data`` (the data and the
+    solve's ``tol`` are arguments), which also gives the Hessian (:func:`_hessian`)."""
+
+    def twice(th: jax.Array) -> tuple[jax.Array, tuple[jax.Array, jax.Array]]:
+        v, epochs = _loglik_epochs(th, data, tol, n_devices)
+        return v, (v, epochs)
+
+    g, (v, epochs) = jax.jacfwd(twice, has_aux=True)(theta)
+    return g, v, epochs
+
+
 def _value_and_gradient(
-    theta: jax.Array, data: _LikelihoodData, tol: float, n_devices: int
+    theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int
 ) -> tuple[jax.Array, jax.Array]:
-    """``(gradient (n,), value ())`` of :func:`_loglik` at ``theta (n,)``, forward mode: one
-    compiled program per shape bucket of ``data`` (the data are arguments)."""
-
-    def twice(th: jax.Array) -> tuple[jax.Array, jax.Array]:
-        v = _loglik(th, data, tol, n_devices)
-        return v, v
-
-    return jax.jacfwd(twice, has_aux=True)(theta)
+    """``(gradient (n,), value ())`` of :func:`_loglik` at ``theta (n,)``
+    (:func:`_gradient_value_epochs`' program)."""
+    return _gradient_value_epochs(theta, data, tol, n_devices)[:2]
 
 
-@partial(jax.jit, static_argnames=("tol", "n_devices"))
-def _second_derivative(
-    theta: jax.Array, u: jax.Array, v: jax.Array, data: _LikelihoodData, tol: float,
-    n_devices: int,
-) -> jax.Array:  # fmt: skip
-    """``u' H v`` (scalar), ``H (n, n)`` the Hessian of :func:`_loglik` at ``theta (n,)``:
-    forward over forward mode with one tangent each (one small program run ``n (n + 1) / 2``
-    times compiles and runs faster than ``jacfwd(jacfwd)``: 500 tracks, 100 x 100, under
-    load, 19 + 3 x 4.3 s against 31 + 19 s)."""
+#: Difference step of :func:`_hessian` on ``theta`` (log beta, logit slip, weights per
+#: ``time_cost``), per dtype: the five-point stencil's error is ``O(h^4)`` against float32's
+#: round-off over ``h``.
+HESSIAN_STEP = {"float32": 1e-2, "float64": 1e-3}
 
-    def f(y: jax.Array) -> jax.Array:
-        return _loglik(y, data, tol, n_devices)
 
-    return jax.jvp(lambda y: jax.jvp(f, (y,), (u,))[1], (theta,), (v,))[1]
+def _hessian(theta: jax.Array, data: _LikelihoodData, epochs: int, n_devices: int) -> np.ndarray:
+    """The Hessian ``(n, n)`` of :func:`_loglik` at ``theta (n,)``, whose soft solve iterated
+    ``epochs``: five-point differences of the gradient (:func:`_gradient_value_epochs`'
+    program: no program of its own to compile) with the solve held at those epochs
+    (``tol < 0``, cap ``epochs + 1``), so that the differenced function is the smooth one
+    whose second derivatives forward mode through the stopped solve gives (with the early
+    stop free to move between the difference points they jumped); symmetrised."""
+    dtype = jnp.result_type(theta)
+    fixed = data._replace(n_epochs=jnp.asarray(int(epochs) + 1, jnp.int32))
+    never = jnp.asarray(-1.0, dtype)
+    h = HESSIAN_STEP[jnp.dtype(dtype).name]
+    th = np.asarray(theta, np.float64)
+    n = len(th)
+    cols = []
+    for j in range(n):
+
+        def grad(s: float, j: int = j) -> np.ndarray:
+            x = th.copy()
+            x[j] += s * h
+            g = _gradient_value_epochs(jnp.asarray(x, dtype), fixed, never, n_devices)[0]
+            return np.asarray(g, np.float64)
+
+        cols.append((8.0 * (grad(1) - grad(-1)) - (grad(2) - grad(-2))) / (12.0 * h))
+    hess = np.stack(cols, axis=1)
+    return 0.5 * (hess + hess.T)
 
 
 def _mle(
@@ -1050,8 +1093,8 @@ def _mle(
 ) -> dict[str, Any]:
     """Maximum likelihood of ``(beta, slip[, weights])`` with inverse-Hessian standard
     errors (the weights of ``features (F, H, W)`` start at 0). The value, gradient and
-    Hessian are the programs :func:`_value_and_gradient` and :func:`_second_derivative`,
-    compiled once per shape bucket of the data."""
+    Hessian (:func:`_hessian`) are one program, :func:`_gradient_value_epochs`, compiled
+    once per shape bucket of the data."""
     from scipy.optimize import minimize
 
     tol = _check_tol(tol)
@@ -1061,9 +1104,12 @@ def _mle(
     )  # fmt: skip
     n_f = 0 if features is None else len(features)
     scale = 1.0 / max(obs.n_moves, 1)
+    tol_a = jnp.asarray(tol, dtype)
+    epochs_at: dict[bytes, int] = {}  # the solve's epochs at each point evaluated
 
     def fun(th: np.ndarray) -> tuple[float, np.ndarray]:
-        g, v = _value_and_gradient(jnp.asarray(th, dtype), data, tol, n_devices)
+        g, v, epochs = _gradient_value_epochs(jnp.asarray(th, dtype), data, tol_a, n_devices)
+        epochs_at[np.asarray(th, float).tobytes()] = int(epochs)
         return -float(v) * scale, -np.asarray(g, float) * scale
 
     th0 = np.r_[math.log(beta0), math.log(slip0 / (1 - slip0)), np.zeros(n_f)]
@@ -1081,15 +1127,11 @@ def _mle(
     )  # fmt: skip
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
     th = jnp.asarray(res.x, dtype)
-
-    # the Hessian entry by entry (h11, h22, h12, ...), one program for every entry
+    epochs = epochs_at.get(np.asarray(res.x, float).tobytes())
+    if epochs is None:  # the optimum is a point evaluated (L-BFGS-B): never, to be safe
+        epochs = int(_gradient_value_epochs(th, data, tol_a, n_devices)[2])
+    hess = _hessian(th, data, epochs, n_devices)
     n = 2 + n_f
-    e = jnp.eye(n, dtype=dtype)
-    hess = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i, n):
-            d2 = _second_derivative(th, e[i], e[j], data, tol, n_devices)
-            hess[i, j] = hess[j, i] = float(d2)
     try:
         cov = np.linalg.inv(-hess)
         se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))

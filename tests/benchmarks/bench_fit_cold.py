@@ -110,6 +110,23 @@ XLA compiling) shows the stages alike: the saving is compiling. Left: the behavi
 likelihood's Hessian program (``_second_derivative``, 113 s wall to compile at that load
 against the gradient's 68 s). Issue 29's 60 s is still far.
 
+The tracks part with the behaviour likelihood's Hessian from five-point differences of its
+gradient program (the soft solve held at the epochs it stopped at; no ``_second_derivative``
+program; 2026-11-28, main 9488233 and wt-tracks started together, load 17 -> 22, the
+CLI's command in fresh processes with empty caches, CPU of the child by ``getrusage``):
+cold CPU 129.0 s main vs 112.9 s branch (1.14x; wall 1,156 vs 1,064 s); again at load
+19 -> 11: 130.5 s vs 115.0 s (1.13x; wall 710 vs 696 s); XLA compilations 64 (424 and 305
+s of compile wall) vs 55 (298 and 251 s): the Hessian's program (114 and 85 s wall to
+compile) and six one-operation programs of its loop gone. All 17 criticism files byte for
+byte the same, in both rounds; the fit file identical except the behaviour group's
+``beta_se`` 0.167445 -> 0.167425 and ``slip_se`` 0.0107430 -> 0.0107440 (float32
+differences, 1e-4 relative; the branch's two runs identical). The stage record (wall less
+compiling) shows the behaviour stage at 49.9 vs 33.0 s, then 32.6 vs 31.7 s (its 4n
+gradient runs cost no more than the n(n + 1) / 2 second-derivative runs), the others
+alike. The largest compiles left (round 1): the social force's five ``_window`` programs
+(82 s wall), the nine Laplace ``call`` programs (74 s) and the gradient (54 s). Issue 29's
+60 s is still far.
+
 The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not

@@ -113,26 +113,26 @@ def test_policies_share_one_program_and_equal_soft_policy(crossing, caplog) -> N
 
 
 def test_held_out_fit_runs_the_fits_compiled_likelihood(crossing, caplog) -> None:
-    """The behaviour fit's value-and-gradient and Hessian programs take the tracks as data
-    padded to shape buckets (issue 29: the report's held-out fit compiled them again, with
-    its own tracks closed over): the held-out fit after a fit on the same grid compiles
-    neither, and its split is scored as before."""
+    """The behaviour fit's program (value, gradient, and the Hessian by its differences)
+    takes the tracks as data padded to shape buckets (issue 29: the report's held-out fit
+    compiled it again, with its own tracks closed over): the held-out fit after a fit on
+    the same grid compiles nothing of it, and its split is scored as before."""
     import logging
 
     from are_stats.fitting import fit_behaviour
-    from are_stats.fitting._behaviour import _second_derivative, _value_and_gradient
+    from are_stats.fitting._behaviour import _gradient_value_epochs
 
     tracks, free, res, _ = crossing
     # a fit of other tracks, of another count (9 of all 40; the held-out fit: 10 of another
     # split than the fixture's): the same buckets, so the padding, too, spares a compile
     fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=9)
-    sizes = (_value_and_gradient._cache_size(), _second_derivative._cache_size())
-    assert min(sizes) >= 1
+    size = _gradient_value_epochs._cache_size()
+    assert size >= 1
     with caplog.at_level(logging.WARNING), jax.log_compiles():
         again, fit = heldout_log_likelihood(5, tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
-    assert (_value_and_gradient._cache_size(), _second_derivative._cache_size()) == sizes
+    assert _gradient_value_epochs._cache_size() == size
     compiled = [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
-    assert not [m for m in compiled if "_value_and_gradient" in m or "_second_derivative" in m]
+    assert not [m for m in compiled if "_gradient_value_epochs" in m]
     assert again["n_tracks"] == res["n_tracks"] and fit.n_fit_tracks[0] == 10
     assert again["difference_per_move"] > 5 * again["difference_se"] > 0
 
