@@ -619,7 +619,8 @@ def _bandwidth(xy: np.ndarray, floor: float) -> float:
 
 class _LikelihoodData(NamedTuple):
     """The data of the fit's log-likelihood (:func:`_loglik`): arguments, not constants, of
-    its compiled programs (:func:`_value_and_gradient`, :func:`_second_derivative`), padded
+    its compiled program (:func:`_gradient_value_epochs`: gradient, value and the soft
+    solve's epochs; the Hessian differences it at fixed epochs), padded
     to shape buckets (:func:`_bucket`) so that another fit on the same grid (the report's
     held-out fit, a refit) runs the programs already compiled.
 
