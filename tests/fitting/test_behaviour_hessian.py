@@ -74,7 +74,9 @@ def test_a_solve_held_at_its_epochs_repeats_the_stopped_solve() -> None:
     assert without.epochs is None  # only when asked (shard_map callers keep their outputs)
 
 
-@pytest.mark.parametrize("n_devices", [1, 2])
+# two devices: the slow tier (a second forward-over-forward reference compile, ~26 s cold);
+# make test splits the same program across devices in test_behaviour_fit's split tests
+@pytest.mark.parametrize("n_devices", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_hessian_by_differences_is_forward_mode_through_the_stopped_solve(n_devices) -> None:
     """Float64: the five-point differences of the gradient program equal ``jacfwd(jacfwd)``
     of the log-likelihood whose solve stops at ``tol`` (the previous Hessian's definition),
