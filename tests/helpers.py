@@ -8,6 +8,7 @@ the test for a random seed.
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 
 ALPHA = 1e-3  # false-failure rate of every seeded goodness-of-fit test
@@ -120,3 +121,21 @@ def crossing_world(seed: int, n: int = 60, *, speed_sd: float = 0.05, noise: flo
             xy = xy + rng.normal(0, noise, (t.size, 2))
         rows.append(pd.DataFrame({"id": i, "t": 100.0 * i + t, "x": xy[:, 0], "y": xy[:, 1]}))
     return pd.concat(rows, ignore_index=True), free
+
+
+def courtyard_artefacts(**over) -> pd.DataFrame:
+    """Three artefacts of two scenarios in the courtyard map's free space (a scenarios
+    folder's ``artefacts.parquet``), with any column replaced by ``over``."""
+    cols = {
+        "scenario": np.array([0, 0, 1], np.int32),
+        "artefact": np.array([0, 1, 0], np.int32),
+        "class": np.array([0, 1, 0], np.int32),
+        "mark": np.array([0, 3, 1], np.int64),
+        "t_arrive": [0.0, 50.0, 10.0],
+        "t_leave": [150.0, 250.0, 120.0],
+        "x": [-12.0, -8.0, -11.0],
+        "y": [-8.0, -4.0, -6.0],
+        "yaw": [0.0, 1.0, 2.0],
+    }
+    cols.update(over)
+    return pd.DataFrame(cols)

@@ -13,26 +13,11 @@ from typer.testing import CliRunner
 
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS
+from tests.helpers import courtyard_artefacts as _artefacts
 
 runner = CliRunner()
 CAMERA = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
 ROBOT = "t,x,y,yaw\n0,-15,-10,0.6\n100,-10,-5,0.6\n200,-5,0,0.6\n"
-
-
-def _artefacts(**over):
-    cols = {
-        "scenario": np.array([0, 0, 1], np.int32),
-        "artefact": np.array([0, 1, 0], np.int32),
-        "class": np.array([0, 1, 0], np.int32),
-        "mark": np.array([0, 3, 1], np.int64),
-        "t_arrive": [0.0, 50.0, 10.0],
-        "t_leave": [150.0, 250.0, 120.0],
-        "x": [-12.0, -8.0, -11.0],
-        "y": [-8.0, -4.0, -6.0],
-        "yaw": [0.0, 1.0, 2.0],
-    }
-    cols.update(over)
-    return pd.DataFrame(cols)
 
 
 def _folder(tmp_path, df=None, manifest=None, robot=ROBOT):

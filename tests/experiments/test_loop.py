@@ -39,6 +39,20 @@ def _scene(art, tracks=None):
     return Scene.from_scenarios(art, _BoxCatalogue(), tracks)
 
 
+def _crossing_walkers():
+    """Six walkers (seed 4) crossing the way from (4, 10) to (18, 10) northwards."""
+    rng = np.random.default_rng(4)
+    rows, tracks = [], []
+    for i in range(6):
+        t0, x = float(rng.uniform(0, 10)), float(rng.uniform(6, 16))
+        t = t0 + np.arange(0.0, 25.0)
+        y = 1.5 + (t - t0) * rng.uniform(0.4, 0.8)
+        keep = y <= 18.5
+        rows.append([t0, float(t[keep][-1]), x, 1.5, np.pi / 2, 0])
+        tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
+    return _scene(_art(rows), pd.concat(tracks, ignore_index=True))
+
+
 def test_toy_rho_nu_by_hand():
     # one 2x2 box at (10, 5) from t=2 to t=4: off the straight path y = 10
     art = _art([[2.0, 4.0, 10.0, 5.0, 0.0, 0]])
@@ -398,16 +412,7 @@ def test_steps_never_change_a_state_in_place(monkeypatch):
 
     pillar = trimesh.creation.box([2.0, 2.0, 2.0])
     pillar.apply_translation([10.0, 12.0, 1.0])
-    rng = np.random.default_rng(4)
-    rows, tracks = [], []
-    for i in range(6):  # walkers crossing the robot's way (some avoid it)
-        t0, x = float(rng.uniform(0, 10)), float(rng.uniform(6, 16))
-        t = t0 + np.arange(0.0, 25.0)
-        y = 1.5 + (t - t0) * rng.uniform(0.4, 0.8)
-        keep = y <= 18.5
-        rows.append([t0, float(t[keep][-1]), x, 1.5, np.pi / 2, 0])
-        tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
-    scene = _scene(_art(rows), pd.concat(tracks, ignore_index=True))
+    scene = _crossing_walkers()  # (some avoid the robot)
     states, step = [], loop._step
 
     def record(m, s):
@@ -582,16 +587,7 @@ def test_footprint_tests_are_skipped_only_where_no_contact_can_begin(monkeypatch
         avoid_robot=False,
     )  # fmt: skip
     assert res.summary["artefact_contacts"] == 1
-    rng = np.random.default_rng(4)
-    rows, tracks = [], []
-    for i in range(6):  # walkers crossing the robot's way
-        t0, x = float(rng.uniform(0, 10)), float(rng.uniform(6, 16))
-        t = t0 + np.arange(0.0, 25.0)
-        y = 1.5 + (t - t0) * rng.uniform(0.4, 0.8)
-        keep = y <= 18.5
-        rows.append([t0, float(t[keep][-1]), x, 1.5, np.pi / 2, 0])
-        tracks.append(pd.DataFrame({"id": i, "t": t[keep], "x": x, "y": y[keep], "yaw": 1.57}))
-    scene = _scene(_art(rows), pd.concat(tracks, ignore_index=True))
+    scene = _crossing_walkers()
     pillar = trimesh.creation.box([2.0, 2.0, 2.0])
     pillar.apply_translation([10.0, 12.0, 1.0])
     goals = [[18.0, 10.0], [3.0, 17.0], [17.0, 3.0]]

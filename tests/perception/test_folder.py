@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import warnings
 
-import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -20,6 +19,7 @@ from are_stats.perception import (
     read_robot_path,
 )
 from are_stats.scenarios import read_scenes, scenes_from_tables
+from tests.helpers import courtyard_artefacts
 
 CAMERA = DEFAULT_MODELS / "cameras" / "front_camera.yaml"
 # the last pose lies outside the courtyard map: a warning, not an error
@@ -29,19 +29,7 @@ ROBOT = "t,x,y,yaw\n0,-15,-10,0.6\n100,-10,-5,0.6\n200,500,0,0.6\n"
 def _folder(tmp_path):
     scen = tmp_path / "scen"
     scen.mkdir()
-    pd.DataFrame(
-        {
-            "scenario": np.array([0, 0, 1], np.int32),
-            "artefact": np.array([0, 1, 0], np.int32),
-            "class": np.array([0, 1, 0], np.int32),
-            "mark": np.array([0, 3, 1], np.int64),
-            "t_arrive": [0.0, 50.0, 10.0],
-            "t_leave": [150.0, 250.0, 120.0],
-            "x": [-12.0, -8.0, -11.0],
-            "y": [-8.0, -4.0, -6.0],
-            "yaw": [0.0, 1.0, 2.0],
-        }
-    ).to_parquet(scen / "artefacts.parquet", index=False)
+    courtyard_artefacts().to_parquet(scen / "artefacts.parquet", index=False)
     (scen / "manifest.yaml").write_text(
         yaml.safe_dump({"map": str(DEFAULT_MODELS / "courtyard.yaml")})
     )
