@@ -134,13 +134,26 @@ def bounded(
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
 
 
+#: The work one fuzz case may do (s of CPU time of the process, all threads), and the
+#: wall-clock bound for a case that hangs without using CPU (:func:`expect_clean`).
+CASE_CPU_SECONDS = 20.0
+CASE_WALL_SECONDS = 120.0
+
+
 def expect_clean(fn: Callable[[], Any], names: Sequence[str], **limits: Any) -> Any:
     """Run ``fn`` under :func:`bounded`; a refusal must name one of ``names``.
 
     Returns ``fn()``'s result, or ``None`` when it refused cleanly. Any exception other than
     :data:`ACCEPTED` propagates (the case fails); an accepted one whose message names none of
     ``names`` fails with an ``AssertionError``.
+
+    Unless ``limits`` say otherwise a case may take :data:`CASE_CPU_SECONDS` of CPU time and
+    :data:`CASE_WALL_SECONDS` of wall-clock time: the work bound is CPU time, which does not
+    grow when other processes share the cores (a 20 s wall bound failed cases of a second's
+    work on a machine at load 11-20); the wall bound is for hangs that use no CPU.
     """
+    limits.setdefault("cpu_seconds", CASE_CPU_SECONDS)
+    limits.setdefault("seconds", CASE_WALL_SECONDS)
     try:
         with bounded(**limits):
             return fn()

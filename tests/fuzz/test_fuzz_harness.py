@@ -51,3 +51,18 @@ def test_expect_clean_contract() -> None:
         expect_clean(lambda: _raise(ValueError("row 2: bad")), ["x.csv"])
     with pytest.raises(KeyError):
         expect_clean(lambda: {}["k"], ["x.csv"])
+
+
+def test_expect_clean_bounds_a_case_by_cpu_time(monkeypatch) -> None:
+    """By default a case's work is bounded by CPU time (load-proof), wall time only far off."""
+    import tests.fuzz.strategies as strategies
+
+    monkeypatch.setattr(strategies, "CASE_CPU_SECONDS", 0.2)
+    assert strategies.CASE_WALL_SECONDS > 100 * strategies.CASE_CPU_SECONDS  # cannot trip first
+
+    def spin() -> None:
+        while True:
+            pass
+
+    with pytest.raises(CaseTimeout, match="CPU time"):
+        expect_clean(spin, ["x.csv"])
