@@ -1038,14 +1038,6 @@ def _gradient_value_epochs(
     return g, v, epochs
 
 
-def _value_and_gradient(
-    theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int
-) -> tuple[jax.Array, jax.Array]:
-    """``(gradient (n,), value ())`` of :func:`_loglik` at ``theta (n,)``
-    (:func:`_gradient_value_epochs`' program)."""
-    return _gradient_value_epochs(theta, data, tol, n_devices)[:2]
-
-
 #: Difference step of :func:`_hessian` on ``theta`` (log beta, logit slip, weights per
 #: ``time_cost``), per dtype: the five-point stencil's error is ``O(h^4)`` against float32's
 #: round-off over ``h``.

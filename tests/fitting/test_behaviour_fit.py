@@ -295,7 +295,8 @@ def _fit_value_and_gradient(paths, free, theta, n_devices, features=None):
         n_devices=n_devices, features=features,
     )  # fmt: skip
     assert n_dev == n_devices
-    return obs, fb._value_and_gradient(np.asarray(theta, np.float64), data, 1e-3, n_dev)
+    th = np.asarray(theta, np.float64)
+    return obs, fb._gradient_value_epochs(th, data, 1e-3, n_dev)[:2]
 
 
 @pytest.mark.parametrize("n_devices", [1, 2])
@@ -322,7 +323,7 @@ def test_padded_likelihood_equals_the_unpadded_one(monkeypatch, n_devices: int) 
         data, obs, _, n_dev = fb._likelihood_data(paths, free, **opts)
         shapes = (data.keep.shape[0], *data.move.shape)
         assert shapes == ((4, 4, 8) if pad else (_bucket_exact(3, n_dev), 3, 7))
-        out.append(fb._value_and_gradient(th, data, 1e-3, n_dev))
+        out.append(fb._gradient_value_epochs(th, data, 1e-3, n_dev)[:2])
     (g_pad, v_pad), (g, v) = out
     assert np.isfinite(float(v)) and np.abs(np.asarray(g)).min() > 1e-3
     assert_allclose(v_pad, v, rtol=1e-13)
