@@ -131,6 +131,7 @@ from are_stats.inputs import (  # Described: a ``got`` already worded, shown as 
     load_yaml,
 )
 from are_stats.scenarios import (
+    AssemblyOptions,
     Scene,
     ScenesFolder,
     move_scenes,
@@ -891,12 +892,14 @@ def _task_scenario(
 
     sc, ms = task["scenario"], task["mission"]
     seed, horizon = int(task["seed"]), float(ms["time_limit"])
-    behave = bool(task.get("behaviours"))
-    moves = {
-        "behaviour_cell": float(ms.get("behaviour_cell", 1.0)),
-        "behaviour_dt": float(ms.get("behaviour_dt", 2.0)),
-        "cell_source": "mission.behaviour_cell",
-    }
+    options = AssemblyOptions(
+        behaviours=bool(task.get("behaviours")),
+        start=sc.get("start", "stationary"),
+        behaviour_cell=float(ms.get("behaviour_cell", 1.0)),
+        behaviour_dt=float(ms.get("behaviour_dt", 2.0)),
+        cell_source="mission.behaviour_cell",
+    )
+    behave = options.behaviours
     if "scenarios" in sc:
         folder = _scenario_folder(str(sc["scenarios"]))
         table, all_tracks = folder.artefacts, folder.tracks
@@ -916,13 +919,12 @@ def _task_scenario(
                 grid,
                 catalogue,
                 horizon,
-                behaviours="catalogue",
+                options,
                 source=str(sc["scenarios"]),
-                **moves,
+                behaviours="catalogue",
             )
         rate = float("nan")
     else:
-        start = sc.get("start", "stationary")
         if "fit" in sc:
             fit = _fit(str(sc["fit"]))
             # one posterior draw per replicate, chosen by the replicate's seed alone
@@ -935,11 +937,9 @@ def _task_scenario(
                 catalogue,
                 1,
                 horizon,
-                behaviours=behave,
+                options,
                 posterior_draw=draw,
-                start=start,
                 source=str(sc["fit"]),
-                **moves,
             )
             rate = float(rates[draw])
         else:
@@ -957,10 +957,8 @@ def _task_scenario(
                 catalogue,
                 1,
                 horizon,
-                behaviours=behave,
-                start=start,
+                options,
                 source="scenario",
-                **moves,
             )
     t_arr = scene.t_arrive
     info = {

@@ -53,7 +53,7 @@ from are_stats.logs import (
     bag_passthrough,
     interpolate_poses,
 )
-from are_stats.scenarios import POSITION_CHOICES, Scene, scenes_from_fit
+from are_stats.scenarios import AssemblyOptions, Scene, scenes_from_fit
 
 if TYPE_CHECKING:
     from are_stats.perception import CameraModel, PinholeCamera
@@ -251,7 +251,10 @@ def augment_bag(
     Raises
     ------
     are_stats.inputs.InputError
-        A bag without poses, an unknown topic, a bad pose or stamp (see
+        ``model``, ``positions``, ``behaviour_cell`` or ``behaviour_dt`` out of range,
+        named as ``--model``, ``--positions``, ``--behaviour-cell``, ``--behaviour-dt``
+        (:meth:`~are_stats.scenarios.AssemblyOptions.from_command`, before any file is
+        read), a bag without poses, an unknown topic, a bad pose or stamp (see
         :func:`~are_stats.logs.read_trajectory`), a trajectory outside the map, a fit
         without area, no artefact alive in any camera frame (with why and what to try),
         an existing ``out`` without ``force`` (``OutputExistsError``), a bag without
@@ -267,8 +270,9 @@ def augment_bag(
     if isinstance(camera, str | os.PathLike):  # a file, or a shipped camera's name
         camera = read_camera(camera)
     seed = get_seed(seed)
-    model = get_str(model, "--model", "", choices=("chosen", "paper"))
-    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
+    # the one assembly's options (as generate's): the fit's behaviour when it learned one
+    # from tracks, else the catalogue's, then the social force
+    options = AssemblyOptions.from_command(True, model, positions, behaviour_cell, behaviour_dt)
     period = get_float(period, "--period", "", lo=0.0, lo_open=True)
     d_max = get_float(d_max, "--d-max", "", lo=0.0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0.0)
@@ -334,23 +338,8 @@ def augment_bag(
     horizon = max(traj.end - start, float(times[-1]), 1e-3)
     # the scenario over the bag's time span, with behaviour tracks
     catalogue = load_catalogue() if catalogue is None else catalogue
-    # the one assembly (as generate and the sweeps): the fit's behaviour when it learned
-    # one from tracks, else the catalogue's, then the social force
-    (scene,) = scenes_from_fit(
-        seed,
-        fitted,
-        grid,
-        catalogue,
-        1,
-        horizon,
-        behaviours=True,
-        model=model,
-        positions=positions,
-        behaviour_cell=behaviour_cell,
-        behaviour_dt=behaviour_dt,
-        source=str(fit),
-        cell_source="--behaviour-cell",
-    )
+    # the one assembly (as generate and the sweeps)
+    (scene,) = scenes_from_fit(seed, fitted, grid, catalogue, 1, horizon, options, source=str(fit))
     _check_alive(scene, times, horizon, traj, bag, seed)
     # refuse runaway sizes before tracing: a ray per pixel of every frame, and the output
     # held in memory (a grid per frame at most, markers and a pose per artefact and frame)

@@ -3,7 +3,6 @@ Scene that turns one scenario into boxes over time, and the scenarios folder (on
 :func:`write_scenes`, and one validating reader, :func:`read_scenes`)."""
 
 from are_stats.scenarios._assembly import (
-    POSITION_CHOICES,
     check_tracks_size,
     move_scenes,
     scene_tracks,
@@ -35,6 +34,12 @@ from are_stats.scenarios._generate import (
     scenario_counts,
 )
 from are_stats.scenarios._generate_folder import generate_folder
+from are_stats.scenarios._options import (
+    MODEL_CHOICES,
+    POSITION_CHOICES,
+    AssemblyOptions,
+    AssemblySettings,
+)
 from are_stats.scenarios._realism import (
     REALISM_FEATURES,
     plot_realism,
@@ -46,10 +51,13 @@ from are_stats.scenarios._realism import (
 from are_stats.scenarios._scene import Boxes, Scene
 
 __all__ = [
+    "AssemblyOptions",
+    "AssemblySettings",
     "BEHAVIOUR_SOURCES",
     "Boxes",
     "FORMAT_VERSION",
     "MAX_POSITION",
+    "MODEL_CHOICES",
     "ORIGIN_YAW_TOLERANCE",
     "POSITION_CHOICES",
     "Scene",

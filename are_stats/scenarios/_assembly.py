@@ -56,7 +56,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, TypedDict, Unpack
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -66,6 +66,7 @@ from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_free
 from are_stats.inputs import Described, InputError, check_memory, check_work, get_str
 from are_stats.scenarios._behaviour_rule import behaviour_source
 from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
+from are_stats.scenarios._options import POSITION_CHOICES, AssemblyOptions, AssemblySettings
 from are_stats.scenarios._scene import Scene
 
 if TYPE_CHECKING:
@@ -80,7 +81,6 @@ if TYPE_CHECKING:
 # scenarios without behaviours stay light.
 
 __all__ = [
-    "POSITION_CHOICES",
     "check_tracks_size",
     "move_scenes",
     "scene_tracks",
@@ -90,25 +90,23 @@ __all__ = [
     "scenes_tables",
 ]
 
-#: Values of ``positions=`` (``generate --positions``, ``augment --positions``).
-POSITION_CHOICES = ("chosen", "uniform")
 
 #: ``progress(done, total, what)``: the assembly's steps done so far, of ``total``, and
 #: the last one done (``done`` grows by one a step and ends at ``total``).
 _Progress = Callable[[int, int, str], object]
 
+#: :func:`move_scenes`' default options: the scenes move by the rule's ``True``.
+_MOVING = AssemblyOptions(behaviours=True)
+#: :func:`scenes_from_draws`' and :func:`scenes_from_fit`'s: the scenes stand.
+_STANDING = AssemblyOptions()
 
-class _Moves(TypedDict, total=False):
+
+class _Moves(AssemblySettings, total=False):
     """The keywords of :func:`move_scenes` after its positional arguments (what
     :func:`scene_tracks` forwards)."""
 
-    behaviours: bool | str
     fitted: BehaviourFit | None
-    behaviour_cell: float
-    behaviour_dt: float
     source: str
-    cell_source: str
-    interaction: bool | SocialForce
     progress: _Progress | None
 
 
@@ -283,15 +281,12 @@ def move_scenes(
     grid: OccupancyGrid | None,
     catalogue: ArtefactCatalogue,
     horizon: float,
+    options: AssemblyOptions | None = None,
     *,
-    behaviours: bool | str = True,
     fitted: BehaviourFit | None = None,
-    behaviour_cell: float = 1.0,
-    behaviour_dt: float = 2.0,
     source: str = "scenario",
-    cell_source: str = "behaviour_cell",
-    interaction: bool | SocialForce = True,
     progress: _Progress | None = None,
+    **settings: Unpack[AssemblySettings],
 ) -> list[Scene]:
     """Standing scenes moved by the module's one behaviour rule, then the AR-builder's
     resolution and the interaction (the module's collision story): behaviour is
@@ -314,9 +309,13 @@ def move_scenes(
         The standing scenes (:func:`scenes_from_tables`); a scene's scenario number is its
         table's ``scenario`` value, else its position in ``scenes``. Their tracks, if any,
         are replaced.
-    grid, catalogue, horizon, behaviours, fitted, behaviour_cell, behaviour_dt, source,
-    cell_source, interaction
+    grid, catalogue, horizon
         See :func:`scenes_from_draws`. Class labels are the scenes' own.
+    options : AssemblyOptions, optional
+        Its ``behaviours``, ``behaviour_cell``, ``behaviour_dt``, ``cell_source`` and
+        ``interaction`` (default: ``AssemblyOptions(behaviours=True)``).
+    fitted, source
+        See :func:`scenes_from_draws`.
     progress : callable, optional
         ``progress(done, total, what)`` after each step: the tracks planned (the
         catalogue's behaviour one step per scenario, the fitted one per chunk of exits
@@ -325,6 +324,8 @@ def move_scenes(
         simulation (:func:`~are_stats.behaviour.social_force_tracks`); ``done == total`` at
         the end. ``total`` is known once the first step of the planning is done, and grows
         when the social force starts (counted as one step until then).
+    **settings
+        Fields of :class:`AssemblyOptions` that replace those of ``options``.
 
     Returns
     -------
@@ -339,7 +340,9 @@ def move_scenes(
     """
     from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
 
-    kind = behaviour_source(behaviours, fitted, grid, source)
+    opts = (options or _MOVING).with_settings(settings)
+    interaction, cell_source = opts.interaction, opts.cell_source
+    kind = behaviour_source(opts.behaviours, fitted, grid, source)
     scenes = list(scenes)
     numbers = _numbers(scenes)
     labels = next((s.class_labels for s in scenes if s.class_labels is not None), None)
@@ -375,9 +378,9 @@ def move_scenes(
             )
         )
     elif kind == "catalogue" and len(art):
-        free, _ = coarse_free(grid.free, grid.resolution, behaviour_cell, source=cell_source)
+        free, _ = coarse_free(grid.free, grid.resolution, opts.behaviour_cell, source=cell_source)
         cut = art.assign(t_leave=np.minimum(art["t_leave"].to_numpy(float), horizon))
-        check_tracks_size(cut, free.shape, behaviour_dt, f"{source}, {cell_source}")
+        check_tracks_size(cut, free.shape, opts.behaviour_dt, f"{source}, {cell_source}")
         tracks = pd.DataFrame(
             behaviour_tracks(
                 key,
@@ -385,8 +388,8 @@ def move_scenes(
                 np.concatenate([s.classes for s in scenes]),
                 grid,
                 catalogue,
-                cell=behaviour_cell,
-                dt=behaviour_dt,
+                cell=opts.behaviour_cell,
+                dt=opts.behaviour_dt,
                 horizon=horizon,
                 source=cell_source,
                 progress=plan_step,
@@ -417,19 +420,15 @@ def scenes_from_draws(
     catalogue: ArtefactCatalogue,
     n: int,
     horizon: float,
+    options: AssemblyOptions | None = None,
     *,
     laws: TrafficLaws | None = None,
-    behaviours: bool | str = False,
     fitted: BehaviourFit | None = None,
     class_labels: Sequence[str] | None = None,
     area: float | None = None,
-    start: str = "stationary",
-    behaviour_cell: float = 1.0,
-    behaviour_dt: float = 2.0,
     source: str = "scenario",
-    cell_source: str = "behaviour_cell",
-    interaction: bool | SocialForce = True,
     progress: _Progress | None = None,
+    **settings: Unpack[AssemblySettings],
 ) -> list[Scene]:
     """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
 
@@ -450,36 +449,34 @@ def scenes_from_draws(
         Number of scenarios.
     horizon : float
         Length of each scenario (s).
+    options : AssemblyOptions, optional
+        The behaviour rule (``behaviours``: see the module docstring; default ``False``,
+        standing scenes), ``start``, the catalogue behaviours' ``behaviour_cell`` (m),
+        ``behaviour_dt`` (s per decision epoch) and ``cell_source`` (named in errors),
+        and ``interaction``: walk the tracks again with the social force (see the module
+        docstring), ``True`` with the published parameters, a
+        :class:`~are_stats.behaviour.SocialForce` with those, ``False`` keeps the planned
+        tracks, every mover's collisions resolved by the AR-builder's rule. Its
+        ``model`` and ``positions`` have no say here (the draws are given).
     laws : TrafficLaws, optional
         Arrival, stay and position laws (None: the paper's).
-    behaviours : bool or str
-        See the module docstring: ``False``/``"none"``, ``True``/``"auto"``, ``"fitted"``,
-        ``"catalogue"``.
     fitted : BehaviourFit, optional
         The fit's behaviour (``"auto"`` uses it when given).
     class_labels : sequence of str, optional
         Label of each mixture component (the fit's ``class_labels``).
     area : float, optional
         ``nu(M2D)`` (m^2) when it differs from the map's free area, or without a map.
-    start : {"stationary", "empty"}
-        Initial population.
-    behaviour_cell, behaviour_dt : float
-        Catalogue behaviours: the coarse grid's cell (m) and seconds per decision epoch.
     source : str
         What errors name (the fit file, the options).
-    cell_source : str
-        The option or key of ``behaviour_cell``, named in errors.
-    interaction : bool or SocialForce
-        Walk the tracks again with the social force (see the module docstring): ``True``
-        with the published parameters, a :class:`~are_stats.behaviour.SocialForce` with
-        those, ``False`` keeps the planned tracks, every mover's collisions resolved by the
-        AR-builder's rule (see the module docstring).
     progress : callable, optional
         ``progress(done, total, what)`` after each step of the
         assembly: the scenarios drawn, then with behaviours the tracks planned and walked
         (:func:`scene_tracks`: the catalogue's planning one step per scenario, the fitted
         behaviour's per chunk of exits, the social force per window); the last call has
         ``done == total``.
+    **settings
+        Fields of :class:`AssemblyOptions` that replace those of ``options`` (e.g.
+        ``behaviours=True``).
 
     Returns
     -------
@@ -489,20 +486,21 @@ def scenes_from_draws(
     """
     import jax
 
-    kind = behaviour_source(behaviours, fitted, grid, source)
+    opts = (options or _STANDING).with_settings(settings)
+    kind = behaviour_source(opts.behaviours, fitted, grid, source)
     if isinstance(key, int | np.integer) and not isinstance(key, bool):
         seed, k_tracks = int(key), None
     else:
         seed, k_tracks = jax.random.split(key)
     art = generate_scenarios(
-        seed, draws, n, horizon, free_mask=grid, area=area, start=start, laws=laws
+        seed, draws, n, horizon, free_mask=grid, area=area, start=opts.start, laws=laws
     )
     standing = scenes_from_tables(art, None, catalogue, class_labels, range(n))
     say = progress or (lambda done, total, what: None)
     if kind == "none":
         say(1, 1, "scenarios drawn")
         return standing
-    moves = 1 if interaction is False else 2
+    moves = 1 if opts.interaction is False else 2
     say(1, 1 + moves, "scenarios drawn")
     if k_tracks is None:
         k_tracks = jax.random.key(seed)
@@ -512,13 +510,9 @@ def scenes_from_draws(
         grid,
         catalogue,
         horizon,
-        behaviours=kind,
+        replace(opts, behaviours=kind),
         fitted=fitted,
-        behaviour_cell=behaviour_cell,
-        behaviour_dt=behaviour_dt,
         source=source,
-        cell_source=cell_source,
-        interaction=interaction,
         progress=lambda done, total, what: say(1 + done, 1 + total, what),
     )
 
@@ -728,21 +722,15 @@ def scenes_from_fit(
     catalogue: ArtefactCatalogue,
     n: int,
     horizon: float,
+    options: AssemblyOptions | None = None,
     *,
-    behaviours: bool | str = False,
-    model: str = "chosen",
-    positions: str = "chosen",
     posterior_draw: int | None = None,
     area: float | None = None,
-    start: str = "stationary",
-    behaviour_cell: float = 1.0,
-    behaviour_dt: float = 2.0,
     source: str | None = None,
-    cell_source: str = "behaviour_cell",
     behaviours_source: str | None = None,
     map_source: str | None = None,
-    interaction: bool | SocialForce = True,
     progress: _Progress | None = None,
+    **settings: Unpack[AssemblySettings],
 ) -> list[Scene]:
     """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
 
@@ -755,27 +743,24 @@ def scenes_from_fit(
         :func:`~are_stats.fitting.fit_log` is decoded by :func:`~are_stats.fitting.as_fit`).
     grid, catalogue, n, horizon
         See :func:`scenes_from_draws`.
-    behaviours : bool or str
-        The module's behaviour rule.
-    model : {"chosen", "paper"}
-        Generate from the models the fit chose, or the paper's Poisson / exponential /
-        uniform model (:meth:`~are_stats.fitting.Fit.traffic`).
-    positions : {"chosen", "uniform"}
-        Where artefacts enter: as ``model`` says (the entry density the fit learned, when
-        it chose ``learned`` positions), or ``uniform`` over the free cells of ``grid``
-        (the paper's positions; per-class entry densities dropped too) while the arrivals
-        and stays stay the ones ``model`` gives: for a fit whose learned entries belong to
-        another map. Uniform positions with the paper's arrivals and stays are the paper's
-        model, drawn as ``model="paper"`` draws it.
+    options : AssemblyOptions, optional
+        As for :func:`scenes_from_draws` (the behaviour rule, ``start``, the catalogue
+        behaviours' settings), and: ``model``, ``"chosen"`` generates from the models the
+        fit chose, ``"paper"`` from the paper's Poisson / exponential / uniform model
+        (:meth:`~are_stats.fitting.Fit.traffic`); ``positions``, where artefacts enter:
+        ``"chosen"`` as ``model`` says (the entry density the fit learned, when it chose
+        ``learned`` positions), or ``"uniform"`` over the free cells of ``grid`` (the
+        paper's positions; per-class entry densities dropped too) while the arrivals and
+        stays stay the ones ``model`` gives: for a fit whose learned entries belong to
+        another map (uniform positions with the paper's arrivals and stays are the
+        paper's model, drawn as ``model="paper"`` draws it); ``interaction=True`` uses
+        the social force the fit estimated from the log's tracks when it has one
+        (:func:`~are_stats.fitting.fit_interaction`), else the published parameters.
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
-    area, start, behaviour_cell, behaviour_dt, cell_source
+    area
         See :func:`scenes_from_draws`.
-    interaction : bool or SocialForce
-        See :func:`scenes_from_draws`; ``True`` uses the social force the fit estimated
-        from the log's tracks when it has one (:func:`~are_stats.fitting.fit_interaction`),
-        else the published parameters.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
     behaviours_source, map_source : str, optional
@@ -785,6 +770,9 @@ def scenes_from_fit(
         is checked first, before the fit's draws or sizes.
     progress : callable, optional
         ``progress(done, total, what)`` after each step (see :func:`scenes_from_draws`).
+    **settings
+        Fields of :class:`AssemblyOptions` that replace those of ``options`` (e.g.
+        ``behaviours=True``).
 
     Returns
     -------
@@ -799,14 +787,15 @@ def scenes_from_fit(
     """
     from are_stats.fitting import as_fit
 
-    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
+    opts = (options or _STANDING).with_settings(settings)
+    positions = get_str(opts.positions, "--positions", "", choices=POSITION_CHOICES)
     if source is None:
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
     fit = as_fit(fit, source)
     behaviour_source(
-        behaviours, fit.behaviour, grid, behaviours_source or source, map_source=map_source
+        opts.behaviours, fit.behaviour, grid, behaviours_source or source, map_source=map_source
     )
-    draws, laws = fit.traffic(model)
+    draws, laws = fit.traffic(opts.model)
     if positions == "uniform":  # the fit's arrivals and stays, the paper's positions
         laws = replace(laws, positions="uniform", entry=None, class_entry=None)
     if "class_weights" in draws:  # a labelled log's classes: catalogue rows by name
@@ -816,8 +805,8 @@ def scenes_from_fit(
     if posterior_draw is not None:
         s = int(posterior_draw)
         draws = {k: np.asarray(v)[s : s + 1] for k, v in draws.items()}
-    if interaction is True and fit.interaction is not None:
-        interaction = fit.interaction  # the log's own interaction
+    if opts.interaction is True and fit.interaction is not None:
+        opts = replace(opts, interaction=fit.interaction)  # the log's own interaction
     nu = area
     if nu is None:
         if grid is not None:
@@ -831,7 +820,7 @@ def scenes_from_fit(
             )
         else:
             nu = fit.area
-    check_scenario_size(draws, n, horizon, nu, start, source)
+    check_scenario_size(draws, n, horizon, nu, opts.start, source)
     labels = None if fit.class_labels is None else list(fit.class_labels)
     return scenes_from_draws(
         key,
@@ -840,16 +829,11 @@ def scenes_from_fit(
         catalogue,
         n,
         horizon,
+        opts,
         laws=laws,
-        behaviours=behaviours,
         fitted=fit.behaviour,
         class_labels=labels,
         area=nu if grid is None else area,
-        start=start,
-        behaviour_cell=behaviour_cell,
-        behaviour_dt=behaviour_dt,
         source=source,
-        cell_source=cell_source,
-        interaction=interaction,
         progress=progress,
     )

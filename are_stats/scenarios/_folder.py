@@ -22,7 +22,7 @@ import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 import pandas as pd
@@ -35,6 +35,7 @@ from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_cell
 from are_stats.inputs import Described, InputError, get_float, get_int, get_list, get_str, load_yaml
 from are_stats.logs import RawTable, read_raw_table
 from are_stats.scenarios._behaviour_rule import behaviour_source
+from are_stats.scenarios._options import AssemblyOptions, AssemblySettings
 
 if TYPE_CHECKING:
     from are_stats.behaviour import BehaviourFit
@@ -325,16 +326,12 @@ def generate_manifest(
     tracks: pd.DataFrame,
     fit: Fit,
     grid: OccupancyGrid | None = None,
+    options: AssemblyOptions | None = None,
     *,
     fit_file: str | os.PathLike,
     map_file: str | os.PathLike | None,
     seed: int,
-    model: str,
-    positions: str,
-    behaviours: bool | str = False,
-    behaviour_cell: float = 1.0,
-    behaviour_dt: float = 2.0,
-    cell_source: str = "behaviour_cell",
+    **settings: Unpack[AssemblySettings],
 ) -> tuple[dict[str, Any], pd.DataFrame | None]:
     """What a folder of scenes drawn from a fit records (``are-stats generate``): the
     ``manifest`` and ``tracks`` to give :func:`write_scenes`.
@@ -351,12 +348,15 @@ def generate_manifest(
     fit_file, map_file : path
         The fit's and the map's files, as the manifest names them (``map_file`` None
         without a map).
+    options : AssemblyOptions, optional
+        The options the scenes were drawn with
+        (:func:`~are_stats.scenarios.scenes_from_fit`): the manifest records its
+        ``model`` and ``positions``, and its behaviour settings (:func:`tracks_record`).
     seed : int
         The seed of the scenes.
-    model, positions : str
-        The ``model=`` and ``positions=`` of :func:`~are_stats.scenarios.scenes_from_fit`.
-    behaviours, behaviour_cell, behaviour_dt, cell_source
-        As given to the assembly (:func:`tracks_record`).
+    **settings
+        Fields of :class:`~are_stats.scenarios.AssemblyOptions` that replace those of
+        ``options``.
 
     Returns
     -------
@@ -367,22 +367,23 @@ def generate_manifest(
     tracks : pandas.DataFrame or None
         The tracks to write; None when nothing moves (no tracks file).
     """
+    opts = (options or AssemblyOptions()).with_settings(settings)
     manifest: dict[str, Any] = {
         "fit": str(fit_file),
-        "model": model,
+        "model": opts.model,
         "map": None if map_file is None else str(map_file),
         "seed": int(seed),
         "class_labels": None if fit.class_labels is None else list(fit.class_labels),
-        "generation": {**df.attrs.get("generation", {}), "positions": positions},
+        "generation": {**df.attrs.get("generation", {}), "positions": opts.positions},
     }
     section = tracks_record(
-        behaviours,
+        opts.behaviours,
         fit.behaviour,
         tracks,
         grid,
-        behaviour_cell=behaviour_cell,
-        behaviour_dt=behaviour_dt,
-        cell_source=cell_source,
+        behaviour_cell=opts.behaviour_cell,
+        behaviour_dt=opts.behaviour_dt,
+        cell_source=opts.cell_source,
     )
     if section is None:
         return manifest, None

@@ -16,10 +16,11 @@ from pathlib import Path
 import pandas as pd
 
 from are_stats.environment import load_catalogue, read_map
-from are_stats.inputs import get_float, get_int, get_seed, get_str
-from are_stats.scenarios._assembly import POSITION_CHOICES, scenes_from_fit, scenes_tables
+from are_stats.inputs import get_float, get_int, get_seed
+from are_stats.scenarios._assembly import scenes_from_fit, scenes_tables
 from are_stats.scenarios._folder import generate_manifest, write_scenes
 from are_stats.scenarios._generate import check_folder
+from are_stats.scenarios._options import AssemblyOptions
 
 __all__ = ["generate_folder"]
 
@@ -52,9 +53,10 @@ def generate_folder(
     ``behaviours`` the artefacts move (the module's behaviour rule, on the map coarsened to
     ``behaviour_cell`` m, ``behaviour_dt`` s per epoch).
 
-    The options are checked first, named as the command's (``--scenarios`` an integer >= 1,
-    ``--horizon``, ``--area``, ``--behaviour-cell``, ``--behaviour-dt`` finite and > 0,
-    ``--seed`` in ``[0, 2**32 - 1]``), then ``out`` (refused if it exists, unless
+    The options are checked first, named as the command's (the assembly's,
+    :meth:`~are_stats.scenarios.AssemblyOptions.from_command`, then ``--scenarios`` an
+    integer >= 1, ``--horizon``, ``--area`` finite and > 0, ``--seed`` in
+    ``[0, 2**32 - 1]``), then ``out`` (refused if it exists, unless
     ``force``), the fit and the map; the size of the output is checked against the memory
     and work limits before anything is drawn. The folder (scenarios, manifest and tracks)
     is written beside ``out`` and put in place as a whole.
@@ -86,16 +88,15 @@ def generate_folder(
     """
     from are_stats.fitting import read_fit
 
-    model = get_str(model, "--model", "", choices=("chosen", "paper"))
-    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
+    # what the scenes are drawn with, and what the folder records of them
+    options = AssemblyOptions.from_command(
+        behaviours, model, positions, behaviour_cell, behaviour_dt
+    )
     n_scenarios = get_int(n_scenarios, "--scenarios", "", lo=1)
     horizon = get_float(horizon, "--horizon", "", lo=0.0, lo_open=True)
     seed = get_seed(seed)
     if area is not None:
         area = get_float(area, "--area", "", lo=0.0, lo_open=True)
-    if behaviours:
-        behaviour_cell = get_float(behaviour_cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
-        behaviour_dt = get_float(behaviour_dt, "--behaviour-dt", "", lo=0.0, lo_open=True)
     out = Path(out)
     check_folder(out, force)
     fitted = read_fit(fit)
@@ -105,15 +106,6 @@ def generate_folder(
     # the size follows from the options and from the fit's rates (and its area or the map's)
     named = [str(fit), "--scenarios", "--horizon", "--area" if area is not None else ""]
     source = ", ".join(x for x in [*named, str(map_path or "")] if x)
-    # what the scenes are drawn with, and what the folder records of them
-    choices = {
-        "model": model,
-        "positions": positions,
-        "behaviours": behaviours,
-        "behaviour_cell": behaviour_cell,
-        "behaviour_dt": behaviour_dt,
-        "cell_source": "--behaviour-cell",
-    }
     progress = on_start() if on_start is not None else None
     scenes = scenes_from_fit(
         seed,
@@ -122,16 +114,16 @@ def generate_folder(
         load_catalogue(),
         n_scenarios,
         horizon,
+        options,
         area=area,
         source=source,
         behaviours_source="--behaviours",
         map_source="--map",
         progress=progress,
-        **choices,
     )
     df, tracks = scenes_tables(scenes)
     manifest, tracks = generate_manifest(
-        df, tracks, fitted, grid, fit_file=fit, map_file=map_path, seed=seed, **choices
+        df, tracks, fitted, grid, options, fit_file=fit, map_file=map_path, seed=seed
     )
     write_scenes(df, out, manifest, tracks=tracks, force=force)
     return df
