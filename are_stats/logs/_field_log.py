@@ -13,7 +13,7 @@ import dataclasses
 import os
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Unpack, cast
 
 import pandas as pd
 
@@ -21,6 +21,7 @@ from are_stats.inputs import Described, InputError
 from are_stats.logs._lifecycle_log import (
     TIME_UNITS,
     LifecycleLog,
+    ManifestOverrides,
     _lifecycle_from_raw,
     _resolve_settings,
     _validate,
@@ -31,6 +32,7 @@ from are_stats.logs._table import RawTable, frame_table, read_raw_table
 from are_stats.logs._tracks import _from_raw, tracks_to_lifecycle
 
 __all__ = [
+    "FieldLogOptions",
     "LIFECYCLE_KIND_COLUMNS",
     "TRACK_OPTIONS",
     "TRACKS_KIND_COLUMNS",
@@ -63,15 +65,21 @@ def _open(
     return (meta, mpath, raw, set(LIFECYCLE_KIND_COLUMNS) <= cols, set(TRACKS_KIND_COLUMNS) <= cols)
 
 
-def read_field_log(
-    path: str | os.PathLike,
-    *,
-    manifest: str | os.PathLike | None = None,
-    window: tuple[float, float] | None = None,
-    area: float | None = None,
-    clock_start: str | None = None,
-    **track_options: float | None,
-) -> LifecycleLog:
+class FieldLogOptions(ManifestOverrides, total=False):
+    """The keywords of :func:`read_field_log`: the manifest's overrides
+    (:class:`~are_stats.logs.ManifestOverrides`) and, for a tracks table, the options of
+    :func:`~are_stats.logs.tracks_to_lifecycle` (:data:`TRACK_OPTIONS`; None: the
+    default)."""
+
+    gap_tolerance: float | None
+    edge_tolerance: float | None
+    min_sightings: float | None
+    group_time: float | None
+    group_distance: float | None
+    time_step: float | None
+
+
+def read_field_log(path: str | os.PathLike, **options: Unpack[FieldLogOptions]) -> LifecycleLog:
     """Read a field log, a life-cycle log or a tracks table, detected from its columns.
 
     Parameters
@@ -97,9 +105,8 @@ def read_field_log(
         Free area in m^2; overrides the manifest's ``area`` / ``map``.
     clock_start : str, optional
         Wall-clock time of ``t = 0`` (ISO 8601); overrides the manifest's ``clock_start``.
-    **track_options
-        For a tracks table only: ``gap_tolerance``, ``edge_tolerance``, ``min_sightings``,
-        ``group_time``, ``group_distance``, ``time_step`` of
+    gap_tolerance, edge_tolerance, min_sightings, group_time, group_distance, time_step
+        Floats, optional. For a tracks table only (:class:`FieldLogOptions`): the options of
         :func:`are_stats.logs.tracks_to_lifecycle` (times in seconds). ``None`` means the
         default. ``time_step`` defaults to the manifest's ``time_step``, else the
         tracker's median step.
@@ -132,6 +139,9 @@ def read_field_log(
     >>> log.report()["groups"]  # doctest: +SKIP
     """
     p = Path(path)
+    keys = ManifestOverrides.__optional_keys__
+    overrides = cast(ManifestOverrides, {k: v for k, v in options.items() if k in keys})
+    track_options = {k: v for k, v in options.items() if k not in overrides}
     unknown = sorted(k for k in track_options if k not in TRACK_OPTIONS)
     if unknown:
         raise InputError(
@@ -140,8 +150,8 @@ def read_field_log(
             f"one of {', '.join(TRACK_OPTIONS)}",
             Described("an unknown option"),
         )
-    options = {k: v for k, v in track_options.items() if v is not None}
-    meta, mpath, raw, is_life, is_tracks = _open(p, manifest)
+    given = {k: v for k, v in track_options.items() if v is not None}
+    meta, mpath, raw, is_life, is_tracks = _open(p, overrides.get("manifest"))
     kinds = (
         f"a life-cycle log (columns {', '.join(LIFECYCLE_KIND_COLUMNS)}, ...) or a tracks "
         f"table (columns {', '.join(TRACKS_KIND_COLUMNS)} [, label])"
@@ -151,15 +161,16 @@ def read_field_log(
         what = "both" if is_life else "neither"
         raise InputError(p, "columns", kinds, Described(f"columns {got} ({what})"))
     if is_life:
-        if options:
-            name = next(iter(options))
+        if given:
+            name = next(iter(given))
             raise InputError(
                 name, "", "a tracks table to apply to", Described(f"the life-cycle log {p}")
             )
-        return _lifecycle_from_raw(raw, p, meta, mpath, window, area, clock_start)
+        return _lifecycle_from_raw(raw, p, meta, mpath, overrides)
 
     tracks = _from_raw(raw)
     scale = TIME_UNITS[str(meta.get("time_unit", "s"))]
+    window = overrides.get("window")
     if window is None and "window" not in meta:
         t = tracks["t"].to_numpy()
         window = (float(t.min()), float(t.max()))
@@ -171,13 +182,13 @@ def read_field_log(
                 "(a tracks table seen at one time only has no window of its own)",
                 Described("nothing"),
             )
-    win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area, clock_start)
+    win, a, min_life, resolved = _resolve_settings(meta, mpath, {**overrides, "window": window})
     tracks["t"] = tracks["t"] * scale
     if "time_step" in resolved:
-        options.setdefault("time_step", resolved["time_step"])
+        given.setdefault("time_step", resolved["time_step"])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        out = tracks_to_lifecycle(tracks, window=win, **options)
+        out = tracks_to_lifecycle(tracks, window=win, **given)
     for w in caught:  # said again naming the file, at the caller
         warnings.warn(f"{p}: {w.message}", w.category, stacklevel=2)
     info = dict(out.attrs["tracks"])

@@ -16,7 +16,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 import numpy as np
 import pandas as pd
@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 __all__ = [
     "LIFECYCLE_COLUMNS",
     "LifecycleLog",
+    "ManifestOverrides",
     "find_manifest",
     "lifecycle_log_from_frame",
     "read_lifecycle_log",
@@ -453,12 +454,10 @@ def _window(source: Source, where: str, value: Any, scale: float) -> tuple[float
 
 
 def _resolve_settings(
-    manifest: Mapping[str, Any],
-    mpath: str,
-    window: tuple[float, float] | None,
-    area: float | None,
-    clock_start: str | None = None,
+    manifest: Mapping[str, Any], mpath: str, overrides: ManifestOverrides
 ) -> tuple[tuple[float, float], float | None, float, dict[str, Any]]:
+    window, area = overrides.get("window"), overrides.get("area")
+    clock_start = overrides.get("clock_start")
     tu = str(manifest.get("time_unit", "s"))
     au = str(manifest.get("area_unit", "m^2"))
     scale = TIME_UNITS[tu]
@@ -519,12 +518,31 @@ def _resolve_settings(
     return win, a, min_life, resolved
 
 
+class ManifestOverrides(TypedDict, total=False):
+    """What a caller gives of a log's settings instead of its manifest's: the keywords of
+    :func:`read_lifecycle_log` and :func:`~are_stats.logs.read_field_log` (None: as the
+    manifest says).
+
+    Attributes
+    ----------
+    manifest : str or PathLike or None
+        The YAML manifest (default ``<stem>.yaml`` or ``.yml`` beside the table, if any).
+    window : (float, float) or None
+        Observation window ``(t0, t1)`` in the table's time unit.
+    area : float or None
+        Free area in m^2 (instead of the manifest's ``area`` / ``map``).
+    clock_start : str or None
+        Wall-clock time of ``t = 0`` (ISO 8601).
+    """
+
+    manifest: str | os.PathLike | None
+    window: tuple[float, float] | None
+    area: float | None
+    clock_start: str | None
+
+
 def read_lifecycle_log(
-    path: str | os.PathLike,
-    manifest: str | os.PathLike | None = None,
-    window: tuple[float, float] | None = None,
-    area: float | None = None,
-    clock_start: str | None = None,
+    path: str | os.PathLike, **overrides: Unpack[ManifestOverrides]
 ) -> LifecycleLog:
     """Read and validate a life-cycle log (CSV or Parquet) and its manifest.
 
@@ -536,9 +554,10 @@ def read_lifecycle_log(
         ``mark``, ``x``, ``y``, ``yaw``, ``group`` (an id shared by artefacts that arrived
         together; empty = alone), ``x_exit``, ``y_exit`` (leaving position; empty =
         unknown; both or neither).
-    manifest, window, area, clock_start
-        As :func:`~are_stats.logs.read_field_log` (the manifest by default ``<stem>.yaml``
-        or ``.yml`` beside the table; the other three override it).
+    **overrides
+        ``manifest``, ``window``, ``area``, ``clock_start`` (:class:`ManifestOverrides`), as
+        :func:`~are_stats.logs.read_field_log` takes them (the manifest by default
+        ``<stem>.yaml`` or ``.yml`` beside the table; the other three override it).
 
     Returns
     -------
@@ -563,10 +582,13 @@ def read_lifecycle_log(
     ... # doctest: +SKIP
     >>> arrays = log.to_arrays()  # doctest: +SKIP
     """
+    unknown = sorted(set(overrides) - ManifestOverrides.__optional_keys__)
+    if unknown:
+        raise TypeError(f"read_lifecycle_log() got an unexpected keyword argument {unknown[0]!r}")
     p = Path(path)
-    meta, mpath = find_manifest(p, manifest)
+    meta, mpath = find_manifest(p, overrides.get("manifest"))
     raw = read_raw_table(p, "life-cycle log")
-    return _lifecycle_from_raw(raw, p, meta, mpath, window, area, clock_start)
+    return _lifecycle_from_raw(raw, p, meta, mpath, overrides)
 
 
 def _lifecycle_from_raw(
@@ -574,15 +596,13 @@ def _lifecycle_from_raw(
     path: Path,
     meta: Mapping[str, Any],
     mpath: str,
-    window: tuple[float, float] | None,
-    area: float | None,
-    clock_start: str | None,
+    overrides: ManifestOverrides,
 ) -> LifecycleLog:
     """A life-cycle log table already read (``raw``, from ``path``) with its manifest
-    (``meta`` at ``mpath``), its settings overridden by ``window``, ``area`` and
-    ``clock_start``, validated: :func:`read_lifecycle_log` and the life-cycle branch of
+    (``meta`` at ``mpath``), its settings overridden by ``overrides``, validated:
+    :func:`read_lifecycle_log` and the life-cycle branch of
     :func:`~are_stats.logs.read_field_log`."""
-    win, a, min_life, resolved = _resolve_settings(meta, mpath, window, area, clock_start)
+    win, a, min_life, resolved = _resolve_settings(meta, mpath, overrides)
     scale = TIME_UNITS[resolved["source_time_unit"]]
     tol = max(window_tolerance(win), float(resolved.get("time_step", 0.0)))
     return _validate(raw, win, a, min_life, scale, str(path), resolved, tol)

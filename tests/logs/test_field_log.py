@@ -138,3 +138,31 @@ def test_split_tracks_warn_naming_the_file(tmp_path):
         log = read_field_log(p, area=1.0)
     assert log.report()["tracks"]["artefacts"] == 5
     assert log.report()["tracks"]["split_track_ids"] == 1
+
+
+def test_both_readers_take_the_same_manifest_overrides(tmp_path):
+    """ManifestOverrides is one definition of the readers' keywords: the same overrides
+    give the same log through either reader; an unknown one is refused by each."""
+    import typing
+
+    from are_stats.logs import TRACK_OPTIONS, FieldLogOptions, ManifestOverrides
+
+    assert ManifestOverrides.__optional_keys__ == {"manifest", "window", "area", "clock_start"}
+    assert ManifestOverrides.__optional_keys__ < FieldLogOptions.__optional_keys__
+    assert set(typing.get_type_hints(FieldLogOptions)) == {
+        *ManifestOverrides.__optional_keys__,
+        *TRACK_OPTIONS,
+    }
+    p = write(tmp_path, "id,t_arrive,t_leave\na,1,2\nb,3,9\n", manifest="window: [0, 10]\n")
+    other = tmp_path / "other.yaml"
+    other.write_text("window: [0, 20]\narea: 5\n", encoding="utf-8")
+    given = {"manifest": other, "window": (0.5, 12.0), "area": 7.5,
+             "clock_start": "2024-05-02T07:30:00"}  # fmt: skip
+    by_field, by_lifecycle = read_field_log(p, **given), read_lifecycle_log(p, **given)
+    pd.testing.assert_frame_equal(by_field.table, by_lifecycle.table)
+    assert by_field.window == by_lifecycle.window == (0.5, 12.0)
+    assert by_field.area == by_lifecycle.area == 7.5
+    assert by_field.report() == by_lifecycle.report()
+    assert read_lifecycle_log(p, manifest=other).window == (0.0, 20.0)  # the manifest given
+    with pytest.raises(TypeError, match=r"read_lifecycle_log\(\) got an unexpected keyword "):
+        read_lifecycle_log(p, windw=(0, 1))
