@@ -31,6 +31,7 @@ import warp as wp
 from are_stats.perception._frustum_bvh import BRANCH, LEAF, FrustumBVH
 
 __all__ = [
+    "Depths",
     "Segments",
     "View",
     "block_stride",
@@ -117,6 +118,17 @@ class Segments:
     row_seg: wp.array(dtype=wp.int32)
     row_y: wp.array(dtype=wp.int32)
     n: int
+
+
+@wp.struct
+class Depths:
+    """The box depths of a pair launch (:func:`make_depths`): Z_a per pair item
+    (``pair_z``) and, per pixel of the launch's frames, the largest finite Z_a (``z_max``,
+    -1 where no box covers it) and the smallest (``z_min``, +inf)."""
+
+    pair_z: wp.array(dtype=wp.float32)
+    z_max: wp.array(dtype=wp.float32)
+    z_min: wp.array(dtype=wp.float32)
 
 
 @wp.func
@@ -250,11 +262,10 @@ def pair_depth_kernel(
     d_max: float,
     rows: int,
     base: wp.int64,
-    pair_z: wp.array(dtype=wp.float32),
-    z_max: wp.array(dtype=wp.float32),
-    z_min: wp.array(dtype=wp.float32),
+    out: Depths,
 ):
-    """Z_a of every (artefact, pixel-in-rectangle) item; scatter its max and min per pixel.
+    """Z_a of every (artefact, pixel-in-rectangle) item into ``out.pair_z``; scatter its
+    max and min per pixel into ``out.z_max`` and ``out.z_min``.
 
     ``seg`` holds the segments (:class:`Segments`). Per segment,
     ``origin`` is the camera centre in the box frame, ``rot`` the rotation from the
@@ -272,10 +283,10 @@ def pair_depth_kernel(
     for j in range(run[3]):
         px = run[1] + j
         z = _slab(o, m * _pixel_ray_cam(px, run[2], view), h, d_max)
-        pair_z[i0 + wp.int64(j)] = z
+        out.pair_z[i0 + wp.int64(j)] = z
         if z < _INF:
-            wp.atomic_max(z_max, g0 + px, z)
-            wp.atomic_min(z_min, g0 + px, z)
+            wp.atomic_max(out.z_max, g0 + px, z)
+            wp.atomic_min(out.z_min, g0 + px, z)
 
 
 @wp.func
@@ -789,17 +800,17 @@ def pair_count_kernel(
     use_min: int,
     rows: int,
     base: wp.int64,
-    pair_z: wp.array(dtype=wp.float32),
+    depths: Depths,
     z_env: wp.array(dtype=wp.float32),
-    z_min: wp.array(dtype=wp.float32),
     counts: wp.array(dtype=wp.int32),
 ):
     """count((Z_a - Z_env)_ij <= 0) per (frame, artefact): the left side of A_f.
 
-    Work items as in :func:`pair_depth_kernel`; ``box[s]`` is the artefact of segment
-    ``s``, in ``[0, n_box)``.
+    Work items as in :func:`pair_depth_kernel`, whose ``depths`` they read (``pair_z``
+    and ``z_min``); ``box[s]`` is the artefact of segment ``s``, in ``[0, n_box)``.
     """
     t = wp.int64(wp.tid()) + base
+    pair_z = depths.pair_z
     if rows == 0 and pair_z[t] == _INF:
         return  # a single item that no box covers: no segment search
     run = _run_of(seg, rows, t)
@@ -812,7 +823,7 @@ def pair_count_kernel(
         z = pair_z[i0 + wp.int64(j)]
         if z < _INF:
             g = g0 + j
-            n += _counts_for(z, z_env[g], z_min[g], use_min)
+            n += _counts_for(z, z_env[g], depths.z_min[g], use_min)
     if n > 0:
         wp.atomic_add(counts, f * n_box + box[s], n)
 
@@ -1004,18 +1015,17 @@ def make_boxes(origin: np.ndarray, rot: np.ndarray, half: np.ndarray, device: st
     ]
 
 
-def make_depths(n_items: int, n_pixels: int, device: str) -> dict[str, wp.array]:
-    """Fresh buffers of the box depths: Z_a per pair item (``pair_z``, unset) and, per
-    pixel of the launch's frames, the largest finite Z_a (``z_max``, -1 where no box covers
-    it) and the smallest (``z_min``, +inf)."""
-    return {
-        "pair_z": wp.empty(max(n_items, 1), dtype=wp.float32, device=device),
-        "z_max": wp.full(n_pixels, -1.0, dtype=wp.float32, device=device),
-        "z_min": wp.full(n_pixels, np.inf, dtype=wp.float32, device=device),
-    }
+def make_depths(n_items: int, n_pixels: int, device: str) -> Depths:
+    """Fresh buffers of the box depths (:class:`Depths`): ``pair_z`` (``n_items``,) unset,
+    ``z_max`` (``n_pixels``,) -1 and ``z_min`` (``n_pixels``,) +inf."""
+    out = Depths()
+    out.pair_z = wp.empty(max(n_items, 1), dtype=wp.float32, device=device)
+    out.z_max = wp.full(n_pixels, -1.0, dtype=wp.float32, device=device)
+    out.z_min = wp.full(n_pixels, np.inf, dtype=wp.float32, device=device)
+    return out
 
 
-def launch_pair_depths(seg: dict, view: View, d_max: float, out: dict, bounds, device: str):
+def launch_pair_depths(seg: dict, view: View, d_max: float, out: Depths, bounds, device: str):
     """Host side of :func:`pair_depth_kernel`, writing ``out``'s ``pair_z``, ``z_max``
     and ``z_min`` (:func:`make_depths`).
 
@@ -1029,8 +1039,7 @@ def launch_pair_depths(seg: dict, view: View, d_max: float, out: dict, bounds, d
     rows = 1 if _is_cpu(device) else 0
 
     def inputs(base, j):
-        outs = [out["pair_z"], out["z_max"], out["z_min"]]
-        return [seg["segments"], *seg["boxes"], view, float(d_max), rows, base, *outs]
+        return [seg["segments"], *seg["boxes"], view, float(d_max), rows, base, out]
 
     if rows:
         workers = len(bounds) if seg["n_items"] >= _MIN_SPLIT_ITEMS else 1
@@ -1090,7 +1099,7 @@ def launch_env_blocks(
     all_pixels: int,
     t_all: float,
     any_hit: int,
-    out: dict,
+    out: Depths,
     z_env: wp.array,
     status: wp.array,
     device: str,
@@ -1134,8 +1143,8 @@ def launch_env_blocks(
             cand,
             cand_z,
             base,
-            out["z_max"],
-            out["z_min"],
+            out.z_max,
+            out.z_min,
             z_env,
             status,
         ]
@@ -1148,7 +1157,7 @@ def launch_pair_counts(
     view: View,
     n_box: int,
     use_min: int,
-    out: dict,
+    out: Depths,
     z_env: wp.array,
     counts: list,
     bounds,
@@ -1164,7 +1173,7 @@ def launch_pair_counts(
 
     def inputs(base, j):
         args = [seg["segments"], seg["box"], view, n_box, use_min, rows, base]
-        return [*args, out["pair_z"], z_env, out["z_min"], counts[j]]
+        return [*args, out, z_env, counts[j]]
 
     if rows:
         launch_dynamic(pair_count_kernel, seg["n_rows"], 1, inputs, device)

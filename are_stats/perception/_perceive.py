@@ -540,7 +540,7 @@ def _run(
         if return_depth:
             ze = z_env.numpy().reshape(tc, height, width)
             depth_env[g0:g1] = ze
-            depth[g0:g1] = np.minimum(ze, out["z_min"].numpy().reshape(tc, height, width))
+            depth[g0:g1] = np.minimum(ze, out.z_min.numpy().reshape(tc, height, width))
     return counts, depth_env, depth
 
 
