@@ -609,13 +609,20 @@ def _on_schedule(
     slowly, except in the last correlation time or so). Only ``varies`` (n,) walkers (a
     pace of sd > 0) are scaled: the others keep the pace 1, bit for bit. Returns the
     scaled drift and ``done`` at the window's end."""
-    out = np.empty_like(drift)
-    plan = due - t_on
+    walking = varies & (tt[:, None] >= t_on) & (tt[:, None] < due)  # (W, n)
+    cols = np.flatnonzero(walking.any(axis=0))
+    out, done = drift.copy(), done.copy()
+    if cols.size == 0:
+        return out, done
+    # only the columns walking in this window, each step's arithmetic as one (n,) pass
+    walk = walking[:, cols]
+    left = np.maximum(due[cols] - tt[:, None], relaxation)
+    plan, d, sub = due[cols] - t_on[cols], done[cols], drift[:, cols]
     for s in range(drift.shape[0]):
-        walking = varies & (tt[s] >= t_on) & (tt[s] < due)
-        factor = (plan - done) / np.maximum(due - tt[s], relaxation)
-        out[s] = np.where(walking, drift[s] * np.maximum(factor, 1.0 / max_speed), drift[s])
-        done = done + np.where(walking, out[s] * dt, 0.0)
+        factor = (plan - d) / left[s]
+        sub[s] = np.where(walk[s], sub[s] * np.maximum(factor, 1.0 / max_speed), sub[s])
+        d = d + np.where(walk[s], sub[s] * dt, 0.0)
+    out[:, cols], done[cols] = sub, d
     return out, done
 
 
