@@ -274,9 +274,12 @@ class BehaviourFit:
         """Exit cells given entry cells (and stays), reachable within ``reach`` cells.
 
         A track of the class is drawn with weight ``N(entry_m - entry; 0, h_entry^2)``, its
-        exit jittered by ``N(0, h_exit^2)``; a draw that is not free or not reachable within
-        ``reach`` moves (4-connected) is retried; after ``tries`` the reachable cell nearest
-        to the last drawn exit is taken.
+        exit jittered by ``N(0, h_exit^2)``; a jitter past the map's edge takes the cell
+        nearest to it among those connected to the entry (the kernel's mass past the edge
+        goes to the edge, where the log's exits are, instead of being redrawn inside: the
+        redraw moved exits at a door in the map's edge inward and shortened walks); a draw
+        that is not free or not reachable within ``reach`` moves (4-connected) is retried;
+        after ``tries`` the reachable cell nearest to the last drawn exit is taken.
 
         With ``stays``, the exit is drawn given the entry **and** the stay: people leave when
         they reach their exit, so a stay ``s`` and a path of length ``L`` mean a walking
@@ -284,7 +287,12 @@ class BehaviourFit:
         weight ``p_v(L / s)``, the class's lognormal speed density (sampling importance
         resampling of ``p(exit | entry, s) ~ p(exit | entry) p_v(L(exit) / s)``). ``L`` is the
         straight-line distance stretched by the grid's detour (4-connected geodesic over
-        Manhattan distance).
+        Manhattan distance). Where none of the ``tries`` is within reach (a stay too short
+        for any exit of the density: an exit at the edge of the reach), each is replaced
+        by the reachable cell nearest to it and one of those is kept with the same weight:
+        the person walks towards the exit the stay makes likeliest as far as its stay
+        allows, instead of towards the last draw's nearest cell (often beside its entry,
+        where it then stood).
 
         Parameters
         ----------
@@ -348,7 +356,9 @@ class BehaviourFit:
                     m = m_of[int(cdf.searchsorted(rng.random(), side="right"))]
                     xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
                     c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
-                    if 0 <= c[0] < h and 0 <= c[1] < w and 1 <= d_i[c[0], c[1]] <= reach[i]:
+                    if not (0 <= c[0] < h and 0 <= c[1] < w):
+                        c = self._nearest_open(d_i, xy[None, :])[0]
+                    if 1 <= d_i[c[0], c[1]] <= reach[i]:
                         cands.append(c)
                         break
             else:  # every try: the draws in the generator's order, then checked together
@@ -359,10 +369,16 @@ class BehaviourFit:
                 all_xy = self.exit_xy[m_of[cdf.searchsorted(u, side="right")]] + jitter
                 cc = np.floor((all_xy - self.origin) / self.cell).astype(int)[:, ::-1]
                 inside = (cc[:, 0] >= 0) & (cc[:, 0] < h) & (cc[:, 1] >= 0) & (cc[:, 1] < w)
-                d_c = np.full(tries, np.inf)
-                d_c[inside] = d_i[cc[inside, 0], cc[inside, 1]]
+                if not inside.all():  # jittered past the map's edge: its nearest open cell
+                    cc[~inside] = self._nearest_open(d_i, all_xy[~inside])
+                d_c = d_i[cc[:, 0], cc[:, 1]]
                 cands = list(cc[(d_c >= 1) & (d_c <= reach[i])])
                 xy = all_xy[-1]
+                if not cands:  # no exit within reach: each draw as far towards it as it can
+                    within = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
+                    cxy = self.cell_to_world(within)
+                    d2 = ((all_xy[:, None, :] - cxy[None, :, :]) ** 2).sum(axis=2)
+                    cands = list(within[np.argmin(d2, axis=1)])
             if cands and stays is not None:
                 cc = np.asarray(cands)
                 geo = d_i[cc[:, 0], cc[:, 1]]
@@ -381,6 +397,25 @@ class BehaviourFit:
                 cxy = self.cell_to_world(cand)
                 out[i] = cand[np.argmin(((cxy - xy) ** 2).sum(axis=1))]
         return out
+
+    def _nearest_open(self, dist: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """The cells ``(row, col)`` (m, 2) nearest to the points ``xy`` (m, 2) (m) among
+        those reachable from the entry whose geodesic is ``dist`` (H, W) (the entry itself
+        if no cell is)."""
+        h, w = dist.shape
+        # the map's cell nearest to a point past its edge is the one it clips to; where
+        # that one is open it is the answer (a door in the edge), else the nearest open one
+        c = np.floor((xy - self.origin) / self.cell).astype(np.int64)[:, ::-1]
+        c = np.clip(c, 0, [h - 1, w - 1])
+        shut = ~np.isfinite(dist[c[:, 0], c[:, 1]])
+        if shut.any():
+            open_ = np.argwhere(np.isfinite(dist))
+            if not len(open_):
+                return c
+            centre = self.cell_to_world(open_)
+            d2 = ((xy[shut, None, :] - centre[None, :, :]) ** 2).sum(axis=2)
+            c[shut] = open_[np.argmin(d2, axis=1)]
+        return c
 
     # ------------------------------------------------------------------ xarray
     def to_dataset(self) -> xr.Dataset:

@@ -586,6 +586,46 @@ def _pace_window(pace: _Pace, act: np.ndarray, n_steps: int, log: bool = False) 
     return out if log else np.exp(out)
 
 
+def _on_schedule(
+    drift: np.ndarray,
+    tt: np.ndarray,
+    t_on: np.ndarray,
+    due: np.ndarray,
+    done: np.ndarray,
+    varies: np.ndarray,
+    relaxation: float,
+    max_speed: float,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pace ``drift`` (W, n) of a window made neutral over each walk: the walker keeps
+    its plan's schedule. ``done`` (n,) is the plan's time (s) each walker has walked at its
+    pace so far (the pace's integral since its arrival ``t_on``); at the step at ``tt[s]``
+    its pace is multiplied by ``(due - t_on - done) / (due - tt[s])``, the speed that walks
+    the rest of the plan by ``due`` (the plan's arrival at its last corner) at the rest of
+    the pace (the time left at least ``relaxation``, the factor at least
+    ``1 / max_speed``). So a fast spell is given back over the rest of the walk, and a slow
+    one made up, instead of ending the walk early (and standing at the exit until the stay
+    ends) or late; within the walk the log pace moves as before (the factor changes
+    slowly, except in the last correlation time or so). Only ``varies`` (n,) walkers (a
+    pace of sd > 0) are scaled: the others keep the pace 1, bit for bit. Returns the
+    scaled drift and ``done`` at the window's end."""
+    walking = varies & (tt[:, None] >= t_on) & (tt[:, None] < due)  # (W, n)
+    cols = np.flatnonzero(walking.any(axis=0))
+    out, done = drift.copy(), done.copy()
+    if cols.size == 0:
+        return out, done
+    # only the columns walking in this window, each step's arithmetic as one (n,) pass
+    walk = walking[:, cols]
+    left = np.maximum(due[cols] - tt[:, None], relaxation)
+    plan, d, sub = due[cols] - t_on[cols], done[cols], drift[:, cols]
+    for s in range(drift.shape[0]):
+        factor = (plan - d) / left[s]
+        sub[s] = np.where(walk[s], sub[s] * np.maximum(factor, 1.0 / max_speed), sub[s])
+        d = d + np.where(walk[s], sub[s] * dt, 0.0)
+    out[:, cols], done[cols] = sub, d
+    return out, done
+
+
 def social_force_tracks(
     tracks: pd.DataFrame,
     params: SocialForce | None = None,
@@ -694,6 +734,12 @@ def social_force_tracks(
     check_work(steps_alive * 9.0 * CELL_CAPACITY * 30.0, f"social force of {n} artefacts", "dt")
     routes, v0 = _routes(t_all, xy_all, start, stop)
     t_on, t_off = t_all[start], t_all[stop - 1] + 1e-9
+    # when each plan reaches its last corner (its last move; its arrival if it never
+    # moves): a walker's pace keeps to that schedule (_on_schedule)
+    moved = ~first & (np.r_[0.0, np.hypot(*np.diff(xy_all, axis=0).T)] > 1e-9)
+    due = t_on.copy()
+    np.maximum.at(due, np.repeat(np.arange(n), stop - start)[moved], t_all[moved])
+    done = np.zeros(n)
     kin = v0 <= 0.0
     if kinematic is not None:
         rows = np.asarray(kinematic, bool)
@@ -825,6 +871,10 @@ def social_force_tracks(
         lead_col = np.argsort(slot)[np.searchsorted(np.sort(slot), col)]
         if pace is not None:
             drift = _pace_window(pace, act, WINDOW_STEPS)
+            drift, done[act] = _on_schedule(
+                drift, tt, t_on[act], due[act], done[act], pace.phi[act] < 1.0,
+                p.relaxation, p.max_speed, dt,
+            )  # fmt: skip
             pace_w[:, slot] = drift[:, lead_col]
         turn_w = None
         if wander is not None:

@@ -565,10 +565,21 @@ def discretise_tracks(
 
 
 def _lognormal(v: np.ndarray) -> tuple[float, float]:
+    """A lognormal law ``(mu, sigma)`` (log units) of the positive speeds ``v``: ``mu`` the
+    log of their median, ``sigma`` the sd of their logs.
+
+    The law's median ``exp(mu)`` is the generated crowd's median speed, so ``mu`` is the
+    sample median of the log speeds (the log of the median speed) rather than their mean:
+    both estimate ``mu`` when the speeds are lognormal (the median with Monte Carlo sd
+    ``sqrt(pi / 2) sigma / sqrt(n)``, 1.25 times the mean's), but walking speeds are
+    often closer to normal (Weidmann's ``N(1.34, 0.26)`` m/s), and for normal speeds
+    ``N(m, s^2)`` the mean log is ``log m - s^2 / (2 m^2) - 3 s^4 / (4 m^4) - ..``: 1.2%
+    below the median at ``m = 1.3``, ``s = 0.2``, a crowd generated that much too slow.
+    The median of the logs is ``log m`` for any law (the log keeps the order)."""
     lv = np.log(v[v > 0])
     if lv.size == 0:
         return math.nan, math.nan
-    return float(lv.mean()), float(lv.std()) if lv.size > 1 else 0.0
+    return float(np.median(lv)), float(lv.std()) if lv.size > 1 else 0.0
 
 
 def _speed_law(speeds: np.ndarray, run_speed: float, name: str) -> dict[str, float]:
@@ -586,9 +597,10 @@ def _speed_law(speeds: np.ndarray, run_speed: float, name: str) -> dict[str, flo
     Returns
     -------
     dict
-        ``speed_mu, speed_sigma``: the lognormal law (maximum likelihood, log m/s) of the
-        walkers' speeds; ``run_fraction`` (runners over tracks); ``run_mu, run_sigma``: the
-        runners' law (NaN with fewer than two runners).
+        ``speed_mu, speed_sigma``: the lognormal law (log m/s) of the walkers' speeds,
+        ``mu`` the log of their median (:func:`_lognormal`); ``run_fraction`` (runners
+        over tracks); ``run_mu, run_sigma``: the runners' law (NaN with fewer than two
+        runners).
 
     Raises
     ------

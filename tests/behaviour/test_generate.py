@@ -38,9 +38,9 @@ def _crossings(seed: int, n: int = 40) -> tuple[pd.DataFrame, np.ndarray]:
 
 def _known_fit(log: pd.DataFrame, free: np.ndarray) -> BehaviourFit:
     """The behaviour that made ``log``: the law, its entries and exits. The exit kernel is
-    narrow (5 cm) so that the check sees the timing; with 0.5 m the exits drawn near the
-    map's edge fall inside it (a jitter past the edge is redrawn) and the walkers read
-    about 1% slow (:meth:`BehaviourFit.draw_exits`)."""
+    narrow (5 cm) so that the check sees the timing, not the kernel (a jitter past the
+    map's edge takes the edge cell, :meth:`BehaviourFit.draw_exits`; it used to be
+    redrawn, and the walkers read about 1% slow with 0.5 m)."""
     g = log.groupby("id", sort=True)
     first, last = g.first(), g.last()
     n, one = len(first), np.ones(1)

@@ -6,7 +6,10 @@ every neighbour search (all pairs, blocks of small scenes, the grid of cells, no
 strength 0), with arrival groups, within-person speed variation, a kinematic artefact and
 a map with walls. A change that is pure engineering leaves them as they are: so did the
 padding of a walk's windows of blocks and without repulsion to the walk's largest (issue
-29; a block's sums keep their width, a walk without repulsion has none).
+29; a block's sums keep their width, a walk without repulsion has none). Retaken on
+2026-11-28 (issue 26), a change of behaviour: every walk here has a pace (``VARIATION``),
+which now keeps to its plan's schedule (``_on_schedule``); without a pace the walks are
+as before, bit for bit.
 """
 
 from __future__ import annotations
@@ -22,10 +25,10 @@ from are_stats.environment import OccupancyGrid
 
 #: sha256 of the walked tracks (columns, dtypes, values), from the code before the change.
 WANT = {
-    "room": "1231464f626c004eeea15077ec57f61ad069548479210a2475cddbe26612b108",
-    "scenes": "edd1dcdaa4858ac8036fe9601ee7d8243cbb92a838f22cd93daaecdaace09437",
-    "scenes, strength 0": "fcc734b5441972716ebf38c2b53bfd5492c9f7412817e8b176e1b3d6a56a91f2",
-    "crowd": "ba1c635c1ce44d4911734e30d81bce326221a39c65a8af8a7c0c32a6338fe566",
+    "room": "aef856b0c39d08e806b87d910e721e3e250683ab1afd2d8192fc042b80de73d8",
+    "scenes": "4527c464a16aae0f23868aea9da61d4ee3e018637b3de6f3430430b5c85676bd",
+    "scenes, strength 0": "1f41f865ef90a229e871874809c57d816d4485f053e672bbeefb47af1c3a5a7d",
+    "crowd": "21ccedccd10268021f26515d1cec0654dc4b812c346aa3a00bd92b1f5e032aa1",
 }
 
 

@@ -40,12 +40,15 @@ from are_stats.traffic import TrafficLaws
 HORIZON = 120.0
 
 #: sha256 of the scenarios and tracks tables (columns, dtypes, values), computed from
-#: the assembly before the Scene -> Scene change.
+#: the assembly before the Scene -> Scene change ("fitted" retaken on 2026-11-28, issue 26:
+#: BehaviourFit.draw_exits keeps one of the draws moved into reach by a weighted draw
+#: where none is within reach, which moves the generator's later draws; the exits' law
+#: in this room is as before, 2,000 draws of it side by side).
 WANT = {
     "catalogue": "fd18934ae32c04d9d9888d520f3f0c778a83356a77f2b2591798c948221783a0",
     "catalogue, no interaction": "8416bbc7aaac2ba6f3a737f0a73f2235b861344d2efb36c205ed9452dee3ad75",
     "groups": "41fec679add6f7397f6bace52d3c46cde77fd0d96b60e064c570c985152e927f",
-    "fitted": "6a88a169cb1dac02d617050bcb25d4d22f8f7eaa131fba2f2d2cedf3a952fa02",
+    "fitted": "27be90ecb20c7411f25283fb214e9e55b124ccbdc02f1928e2812c13be4c8f5a",
     "folder scenario": "2c19eed14ffe6eb31c12391ccb21868960fe285c40fc0ca26903fae6d78ec6ae",
     "generate": "2c7fa3eb7519807bca76e83140a9bc0b45aafbb2d2712f678c7c846c097a5cc2",
 }
