@@ -123,6 +123,59 @@ def test_tracks_fit_and_generated_people_walk(tmp_path):
     assert np.mean(np.asarray(net) < 1.0) < 0.1  # almost nobody stands still
     artefacts = pd.read_parquet(out / "artefacts.parquet")
     assert artefacts.groupby(["scenario", "group"]).size().max() > 1
+    _experiment_walks_the_fitted_people(tmp_path, fit, room)
+
+
+def _straightness_and_speeds(tracks: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Net over walked distance, and walked distance over time, of each track that moves."""
+    straight, speeds = [], []
+    for _, g in tracks.groupby("id"):
+        g = g.sort_values("t")
+        xy = g[["x", "y"]].to_numpy()
+        walked = np.hypot(*np.diff(xy, axis=0).T).sum()
+        if len(g) < 3 or walked < 2.0:
+            continue
+        straight.append(np.hypot(*(xy[-1] - xy[0])) / walked)
+        speeds.append(walked / (g["t"].iloc[-1] - g["t"].iloc[0]))
+    return np.asarray(straight), np.asarray(speeds)
+
+
+def _experiment_walks_the_fitted_people(tmp_path: Path, fit: Path, room: Path) -> None:
+    """``experiment`` with ``behaviours: true`` walks the fit's people with the motion that
+    ``generate --behaviours`` gives them (issue 26: one motion in every command): the
+    mission's scene is the one assembly's (``scenes_from_fit`` with the task's options),
+    its people walk smoothly at about the log's 1.2 m/s (net over walked distance near 1,
+    where grid headings zig-zag at about 0.74), and the sweep moves them."""
+    from are_stats.environment import load_catalogue, read_map
+    from are_stats.experiments import expand_tasks, load_results
+    from are_stats.experiments._sweep import _task_scenario
+    from are_stats.fitting import read_fit
+    from are_stats.scenarios import AssemblyOptions, scenes_from_fit
+
+    cfg = {"name": "walkers", "map": str(room), "seed": 4, "replicates": 1,
+           "scenario": {"fit": str(fit)}, "behaviours": True,
+           "robot": {"radius": 0.3, "speed": 1.0},
+           "mission": {"n_goals": 2, "time_limit": 120.0, "min_goal_separation": 3.0},
+           "planner": {"algorithm": "astar"}}  # fmt: skip
+    (tmp_path / "walkers.yaml").write_text(yaml.safe_dump(cfg))
+    res = runner.invoke(app, ["experiment", str(tmp_path / "walkers.yaml"), "--out",
+                              str(tmp_path / "results")])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    runs = load_results(tmp_path / "results")["runs"]
+    assert len(runs) == 1 and runs["n_move_updates"].iloc[0] > 0
+    (task,) = expand_tasks(cfg)
+    (_, grid), catalogue = read_map(str(room)), load_catalogue()
+    scene, cols = _task_scenario(task, grid, catalogue)
+    options = AssemblyOptions(behaviours=True, cell_source="mission.behaviour_cell")
+    (alone,) = scenes_from_fit(
+        int(task["seed"]), read_fit(fit), grid, catalogue, 1, 120.0, options,
+        posterior_draw=int(cols["draw"]),
+    )  # fmt: skip
+    pd.testing.assert_frame_equal(scene.tracks_table(), alone.tracks_table())
+    straight, speeds = _straightness_and_speeds(scene.tracks_table())
+    assert len(speeds) >= 5, len(speeds)
+    assert np.median(straight) > 0.9, np.median(straight)
+    assert 0.9 < np.median(speeds) < 1.5, np.median(speeds)
 
 
 def test_fit_names_an_unknown_behaviour_feature(tmp_path):
