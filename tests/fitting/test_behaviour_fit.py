@@ -84,9 +84,13 @@ def test_discretise_fills_gaps_and_cuts_at_the_goal() -> None:
 
 @pytest.fixture(scope="module")
 def crossing() -> tuple[pd.DataFrame, BehaviourFit]:
+    """The crossing room's walkers and their behaviour fitted on 10 of them: the padded
+    shapes (8 goals, 16 tracks, 64 steps) of the held-out fits of the same walkers in
+    test_motion_checks, test_prediction and scenarios/test_realism, so that the suite
+    compiles the fit's programs once for all four files."""
     tracks, free = crossing_world(3, n=40)
     tracks["label"] = "person"
-    return tracks, fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=20)
+    return tracks, fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
 
 
 def test_generated_pedestrians_cross_at_the_fitted_speed(crossing) -> None:
@@ -186,7 +190,8 @@ def test_exits_drawn_given_the_stay_keep_the_walking_speed() -> None:
     from are_stats.fitting import track_statistics
 
     tracks, free = _three_door_world(1)
-    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=20)
+    # 10 fitted tracks: the crossing fixture's padded shapes (its programs, compiled once)
+    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
     g = tracks.groupby("id", sort=True)
     first, last = g.first(), g.last()
     arts = pd.DataFrame({

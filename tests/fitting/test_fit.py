@@ -12,6 +12,8 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from are_stats import _cli_jobs as cli_jobs
+from are_stats._stage_clock import StageClock
 from are_stats.behaviour import SocialForce
 from are_stats.cli import app
 from are_stats.fitting import (
@@ -101,9 +103,24 @@ def test_read_fit_gives_the_same_fit_back(fitted, tmp_path):
     assert as_fit(path).provenance == back.provenance
 
 
-def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
-    """``are-stats fit`` writes what fit_log returns for the same seed: the same bytes."""
-    out = tmp_path / "cli.nc"
+@pytest.fixture(scope="module")
+def command(tracks_log, tmp_path_factory):
+    """``are-stats fit`` of the log with ``fitted``'s seed and settings: its output, the
+    file it wrote and what its stage clock was told (a :class:`StageClock` that records
+    the stages and steps and then does what it does). The second and last tracks fit of
+    this file: it is the fit with a clock of the stage test too."""
+    calls = []
+
+    class Recording(StageClock):
+        def __call__(self, stage):
+            calls.append(stage)
+            super().__call__(stage)
+
+        def steps(self, done, total, what=""):
+            calls.append((done, total, what))
+            super().steps(done, total, what)
+
+    out = tmp_path_factory.mktemp("cli") / "cli.nc"
     args = [
         "fit",
         str(tracks_log),
@@ -121,7 +138,15 @@ def test_the_command_only_writes_fit_log(fitted, tracks_log, tmp_path):
         "uniform",
         "--no-figures",
     ]
-    res = CliRunner().invoke(app, args)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(cli_jobs, "StageClock", Recording)
+        res = CliRunner().invoke(app, args)
+    return res, out, calls
+
+
+def test_the_command_only_writes_fit_log(fitted, command, tmp_path):
+    """``are-stats fit`` writes what fit_log returns for the same seed: the same bytes."""
+    res, out, _ = command
     assert res.exit_code == 0, res.output
     mine = write_fit(fitted, tmp_path / "api.nc")
     assert out.read_bytes() == mine.read_bytes()
@@ -181,22 +206,15 @@ def test_fit_is_frozen(fitted):
         fitted.area = 1.0  # type: ignore[misc]
 
 
-def test_the_long_stages_tell_their_steps_to_the_clock(tracks_log, fitted):
+def test_the_long_stages_tell_their_steps_to_the_clock(command, fitted):
     """A ``progress`` with a ``steps`` method (the CLI's stage clock) is told the steps of
     the behaviour (its classes) and of the motion criticism (the realism replicates, then
     the displacement errors, with their chunks of windows as a phase of their own, and the
     motion checks' routes and social force windows), each under its stage; the fit is the
-    one without it."""
-    calls = []
-
-    class Clock:
-        def __call__(self, stage):
-            calls.append(stage)
-
-        def steps(self, done, total, what):
-            calls.append((done, total, what))
-
-    fit = fit_log(5, read_field_log(tracks_log), EM, progress=Clock())
+    one without it (``fitted``: the command wrote its bytes, test above)."""
+    res, out, calls = command
+    assert res.exit_code == 0, res.output
+    fit = read_fit(out)
     behaviour = calls.index("behaviour from the tracks (speeds, exits, rationality)")
     assert calls[behaviour + 1] == (1, 1, "classes")
     realism = calls.index("realism and displacement errors against the tracks")

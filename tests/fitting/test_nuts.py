@@ -67,12 +67,23 @@ def _data(seed: int, n: int = 40, shift: float = 0.0) -> np.ndarray:
     return np.random.default_rng(seed).normal(3.0 + shift, S, n)
 
 
+#: Two vectorised chains with their tree sizes and step sizes kept: the program of the
+#: conjugate test and of the vectorised chunk test, compiled once
+TWO = {
+    "num_warmup": 300,
+    "num_samples": 600,
+    "num_chains": 2,
+    "chain_method": "vectorized",
+    "extra_fields": ("num_steps", "step_size"),
+}
+
+
 def test_matches_conjugate_posterior_and_reuses_its_program():
     """Closed-form posterior; a second call on other data of the same shape compiles
     nothing and still samples the NEW data's posterior (data are program arguments)."""
     nuts_module._CACHE.clear()
     y1, y2 = _data(0), _data(1, shift=-6.0)
-    kw = {"num_warmup": 300, "num_samples": 600, "num_chains": 2, "chain_method": "vectorized"}
+    kw = {k: v for k, v in TWO.items() if k != "extra_fields"}
     runs = []
     for i, y in enumerate((y1, y2)):
         run = run_nuts(
@@ -83,8 +94,7 @@ def test_matches_conjugate_posterior_and_reuses_its_program():
             pointwise=normal_pointwise,
             pointwise_kwargs=True,
             name="normal",
-            extra_fields=("num_steps", "step_size"),
-            **kw,
+            **TWO,
         )
         runs.append(run)
         mean, sd = _posterior(y)
@@ -107,38 +117,43 @@ def test_matches_conjugate_posterior_and_reuses_its_program():
     _check(run.samples["mu"].ravel(), *_posterior(y1, 0.5))
 
 
-def test_parallel_chains_and_random_start():
+#: Four chains from numpyro's uniform start, 300 warm-up iterations (chunks of 40): the
+#: one program of the parallel-start, default-method and prefetch tests below, compiled
+#: once (traced without the program cache, so that the prefetch test, which traces, finds
+#: it in the persistent XLA cache; the other tests here read their programs from disk)
+FOUR = {"num_warmup": 300, "num_chains": 4}
+
+
+def test_parallel_chains_and_random_start(monkeypatch):
     """No ``init``: numpyro's uniform start; ``parallel`` with more chains than devices
     vectorises chains on each device (sequential: the one-chain test)."""
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")  # the program FOUR's tests share
+    assert jax.local_device_count() * 2 == FOUR["num_chains"]
     y = _data(2)
     run = run_nuts(
-        jax.random.key(3),
-        normal_model,
-        {"y": y},
-        None,
-        num_warmup=300,
-        num_samples=500,
-        num_chains=jax.local_device_count() * 2,
-        chain_method="parallel",
-    )
+        jax.random.key(3), normal_model, {"y": y}, None, num_samples=500, chain_method="parallel",
+        **FOUR,
+    )  # fmt: skip
     assert run.chain_method == "parallel"
     assert run.samples["mu"].shape == (jax.local_device_count() * 2, 500)
     _check(run.samples["mu"].ravel(), *_posterior(y))
 
 
+#: One chain from a stated unconstrained start, its step sizes kept: the program of the
+#: one-chain test and of the sequential chunk test, compiled once
+ONE = {
+    "num_warmup": 200,
+    "num_samples": 200,
+    "num_chains": 1,
+    "init_params": {"mu": np.asarray(1.0)},
+    "extra_fields": ("step_size",),
+}
+
+
 def test_unconstrained_start_per_chain_and_one_chain():
     """``init_params`` on the unconstrained scale (a chain axis; none with one chain)."""
     y = _data(3)
-    run = run_nuts(
-        jax.random.key(4),
-        normal_model,
-        {"y": y},
-        None,
-        num_warmup=200,
-        num_samples=200,
-        num_chains=1,
-        init_params={"mu": np.asarray(1.0)},
-    )
+    run = run_nuts(jax.random.key(4), normal_model, {"y": y}, None, **ONE)
     assert run.chain_method == "sequential" and run.samples["mu"].shape == (1, 200)
     assert np.isnan(run.max_r_hat)
     mean, sd = _posterior(y)
@@ -172,15 +187,25 @@ def test_warnings_word_divergences_and_r_hat():
     assert nuts_warnings(clean) == []
 
 
+#: Four chains of the exponential stay model, cheap XLA optimisation: the program cache
+#: test's and (its cache-off program, parallel) the prefetch test's
+STAY = {"num_warmup": 60, "num_samples": 40, "num_chains": 4, "cheap_compile": True}
+
+
+def _stays() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """40 gamma stays (s), those over 900 s censored, the first five truncated."""
+    stay = np.random.default_rng(7).gamma(4.0, 150.0, 40)
+    return stay, stay > 900.0, np.arange(40) < 5
+
+
 @pytest.mark.parametrize("method", ["parallel", "vectorized"])
 def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, method):
     """The traced programs are kept on disk (``are_stats._program_cache``): a fresh process
     (here: the in-process cache cleared, tracing forbidden) reads them and samples the same
     bits, which are also those of the cache turned off."""
-    rng = np.random.default_rng(7)
-    stay = rng.gamma(4.0, 150.0, 40)
+    stay, censored, truncated = _stays()
     kwargs = {
-        "units": stay_units(stay, stay > 900.0, np.arange(40) < 5),
+        "units": stay_units(stay, censored, truncated),
         "law": "exponential",
         "mean_centre": np.asarray(stay.mean()),
         "resolution": 0.4,
@@ -194,13 +219,10 @@ def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, me
             stay_model,
             kwargs,
             init,
-            num_warmup=60,
-            num_samples=40,
-            num_chains=4,
             chain_method=method,
             pointwise=_stay_draw_loglik,
             pointwise_kwargs=True,
-            cheap_compile=True,
+            **STAY,
         )
 
     monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", str(tmp_path))
@@ -223,9 +245,10 @@ def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, me
         np.testing.assert_array_equal(other.diverging, traced.diverging)
 
 
-def test_default_spreads_chains_over_devices():
+def test_default_spreads_chains_over_devices(monkeypatch):
     """Without a stated method, chains that split evenly over two or more devices run
     "parallel" (each device vectorising its share), otherwise vectorised on one."""
+    monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")  # FOUR's program as traced above
     n_dev = jax.local_device_count()
     assert n_dev == 2  # tests/conftest.py asks for 2 host devices
     assert chains_per_device(4) == (2, 2) and chains_per_device(2) == (2, 1)
@@ -235,18 +258,13 @@ def test_default_spreads_chains_over_devices():
     assert resolve_chain_method(None, 1) == "sequential"
     assert resolve_chain_method("vectorized", 4) == "vectorized"
     # the same draws up to rounding either way, and the loglik of each of them (odd
-    # draw count: the post-processing on one device; even: split over both)
+    # draw count: the post-processing on one device; even: split over both); 499 draws
+    # a chain: chunks of 40 iterations, as in FOUR's other tests
     y = _data(5)
-    kw = {
-        "num_warmup": 100,
-        "num_samples": 51,
-        "num_chains": 4,
-        "pointwise": normal_pointwise,
-        "pointwise_kwargs": True,
-    }
-    start = {"mu": 0.0}
+    kw = {**FOUR, "num_samples": 499, "pointwise": normal_pointwise, "pointwise_kwargs": True}
+    assert chunk_length(300, 499) == chunk_length(300, 500) == 40
     runs = {
-        m: run_nuts(jax.random.key(8), normal_model, {"y": y}, start, chain_method=m, **kw)
+        m: run_nuts(jax.random.key(8), normal_model, {"y": y}, None, chain_method=m, **kw)
         for m in ("parallel", "vectorized", None)
     }
     assert runs[None].chain_method == "parallel"
@@ -254,9 +272,8 @@ def test_default_spreads_chains_over_devices():
     np.testing.assert_allclose(
         runs["vectorized"].samples["mu"], runs["parallel"].samples["mu"], rtol=1e-9
     )
-    odd = run_nuts(
-        jax.random.key(8), normal_model, {"y": y}, {"mu": 0.0}, **{**kw, "num_chains": 3}
-    )
+    odd = run_nuts(jax.random.key(8), normal_model, {"y": y}, None, **{**kw, "num_chains": 3})
+    assert odd.chain_method == "vectorized" and odd.samples["mu"].size % 2 == 1
     for run in (*runs.values(), odd):
         expect = stats.norm.logpdf(y[None, None, :], run.samples["mu"][..., None], S)
         np.testing.assert_allclose(run.loglik, expect, rtol=1e-10)
@@ -273,27 +290,33 @@ def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
     bits as programs compiled by ``run_nuts`` itself. A model that fails to compile fails
     in ``run_nuts``, not in the prefetch."""
     monkeypatch.setenv("ARE_STATS_PROGRAM_CACHE", "")  # trace in the workers, not read
-    rng = np.random.default_rng(11)
-    stay = rng.gamma(4.0, 150.0, 30)
+    # the programs of test_default_spreads_chains_over_devices (FOUR) and of the program
+    # cache test (its cache-off run): traced here again, compiled by XLA once in the file
+    stay, censored, truncated = _stays()
     calls = [
-        (jax.random.key(2), normal_model, {"y": _data(6)}, {"mu": 0.0}, normal_pointwise),
+        (
+            jax.random.key(2),
+            normal_model,
+            {"y": _data(6)},
+            None,
+            {**FOUR, "num_samples": 499, "pointwise": normal_pointwise},
+        ),
         (
             jax.random.key(3),
             stay_model,
             {
-                "units": stay_units(stay, stay > 900.0, np.arange(30) < 4),
+                "units": stay_units(stay, censored, truncated),
                 "law": "exponential",  # gamma's incomplete-gamma program adds ~40 s cold
                 "mean_centre": np.asarray(stay.mean()),
                 "resolution": 0.4,
             },
             {"stay_mean_z": 0.0},
-            _stay_draw_loglik,
+            {**STAY, "pointwise": _stay_draw_loglik},
         ),
     ]
-    kw = {"num_warmup": 80, "num_samples": 40, "num_chains": 4, "pointwise_kwargs": True}
 
     def runs():
-        return [run_nuts(k, m, a, i, pointwise=p, **kw) for k, m, a, i, p in calls]
+        return [run_nuts(k, m, a, i, pointwise_kwargs=True, **kw) for k, m, a, i, kw in calls]
 
     nuts_module._CACHE.clear()
     alone = runs()
@@ -304,8 +327,8 @@ def test_prefetch_compiles_ahead_and_changes_no_draw(monkeypatch):
         nuts_module, "_compile", lambda *a, **k: compiled.append(a[2]) or original(*a, **k)
     )
     with NutsPrefetch() as ahead:
-        for k, m, a, i, _ in calls:
-            ahead.add(k, m, a, i, name="ignored", **kw)
+        for k, m, a, i, kw in calls:
+            ahead.add(k, m, a, i, name="ignored", pointwise_kwargs=True, **kw)
     assert len(nuts_module._CACHE) == 2 and len(compiled) == 2  # both sampling programs
     ahead_runs = runs()
     assert len(compiled) == 4  # run_nuts compiled only the two post-processing programs
@@ -332,24 +355,20 @@ def test_time_left_from_the_measured_rates():
 def test_chunks_report_progress_and_change_no_draw(monkeypatch, method):
     """Warm-up and sampling run as chunks of one compiled program; every chunk tells the
     phase, the iterations done and an estimate of the time left; the draws are those of
-    the whole run in one chunk (the sampler's state goes on exactly from chunk to chunk)."""
+    the whole run in one chunk (the sampler's state goes on exactly from chunk to chunk).
+    The chunked programs are those of the tests above (TWO: vectorised, ONE: sequential)."""
     y = _data(9)
-    chains = 2 if method == "vectorized" else 1
-    kw = {
-        "num_warmup": 45,
-        "num_samples": 30,
-        "num_chains": chains,
-        "chain_method": method,
-        "extra_fields": ("step_size",),
-    }
+    kw = TWO if method == "vectorized" else {**ONE, "chain_method": "sequential"}
+    warmup, samples, chains = kw["num_warmup"], kw["num_samples"], kw["num_chains"]
+    init = None if "init_params" in kw else {"mu": 0.0}
     assert chunk_length(45, 30) == 4  # 75 iterations in about 20 chunks
+    chunk = chunk_length(warmup, samples)
+    assert chunk == {"vectorized": 45, "sequential": 20}[method]  # 900 and 400 iterations
     told = []
-    run = run_nuts(
-        jax.random.key(6), normal_model, {"y": y}, {"mu": 0.0}, progress=told.append, **kw
-    )
+    run = run_nuts(jax.random.key(6), normal_model, {"y": y}, init, progress=told.append, **kw)
     one = [(p.phase, p.done, p.total) for p in told if p.phase in ("warm-up", "sampling")]
-    per_chain = [("warm-up", d, 45) for d in [*range(4, 45, 4), 45]] + [
-        ("sampling", d, 30) for d in [*range(4, 30, 4), 30]
+    per_chain = [("warm-up", d, warmup) for d in [*range(chunk, warmup, chunk), warmup]] + [
+        ("sampling", d, samples) for d in [*range(chunk, samples, chunk), samples]
     ]
     assert one == per_chain * (1 if method == "vectorized" else chains)
     assert told[0] == ("compile", 0, 0, None) and told[-1] == ("postprocess", 0, 0, None)
@@ -357,7 +376,7 @@ def test_chunks_report_progress_and_change_no_draw(monkeypatch, method):
     assert all(x is not None and x >= 0 for x in lefts) and lefts[-1] == 0.0
     assert run.timing["sampling"] >= run.timing["warmup"] > 0.0
     monkeypatch.setattr(nuts_module, "TARGET_CHUNKS", 1)  # the whole run in one chunk
-    whole = run_nuts(jax.random.key(6), normal_model, {"y": y}, {"mu": 0.0}, **kw)
+    whole = run_nuts(jax.random.key(6), normal_model, {"y": y}, init, **kw)
     np.testing.assert_allclose(run.samples["mu"], whole.samples["mu"], rtol=1e-9)
     np.testing.assert_allclose(run.extra["step_size"], whole.extra["step_size"], rtol=1e-9)
-    assert run.samples["mu"].shape == (chains, 30)
+    assert run.samples["mu"].shape == (chains, samples)

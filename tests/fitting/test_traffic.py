@@ -239,8 +239,13 @@ def test_read_fit_names_a_missing_variable(rich_idata, tmp_path):
 
 @pytest.fixture(scope="module")
 def paper_log():
-    """Truth: the paper's model (Poisson arrivals, exponential stays, uniform entries)."""
-    draw = {"event_rate": 1e-3, "stay_mean": 60.0}
+    """Truth: the paper's model (Poisson arrivals, exponential stays, uniform entries).
+
+    Stays of 90 s on average: the arrivals' units are then in bins of a median stay
+    (about 60 s, 30 bins) as on the rich log, so that its Laplace programs of the
+    arrival candidates are the rich log's (the same padded shapes: compiled once).
+    """
+    draw = {"event_rate": 1e-3, "stay_mean": 90.0}
     return simulate_traffic_log(np.random.default_rng(2), draw, TrafficLaws(), (0.0, 1800.0),
                                 AREA, free=uniform_position_density(FREE, RES, ORIGIN),
                                 resolution=0.4)  # fmt: skip
