@@ -154,6 +154,25 @@ trace, export and compile, about 10 s of CPU (XLA alone, measured apart: gamma's
 XLA's default optimisation, groups+mmpp 1.0 s, hawkes 0.3 s; a candidate's log-likelihood,
 in its potential and again in its pointwise terms, is compiled once: leaving either out
 saved nothing), traced one at a time under ``TRACE_LOCK``.
+
+The Laplace calls of at least 32 points (``MIN_BATCH``; 2026-11-28, main 0724dee against
+the branch alternated in 3 pairs, each a cold fit then 2 repeated with figures and 1
+without on one fresh cache, a user's virtual environment without numba, load 16-22): child
+CPU medians cold 20.3 s main / 20.9 s branch, repeated 10.3 / 10.4 s, without figures
+7.9 / 7.6 s (branch/main per pair 0.92-1.13: no difference within the noise; in the
+``bench`` environment, with numba, 3 pairs at load 10-18: cold 21.4 / 22.0 s, repeated
+11.1 / 11.1 s, per pair 0.95-1.09); the nine
+Laplace runs alone, serialised in a fresh process, 4.44-5.27 s on main, 4.31-4.36 s on the
+branch; every output the same to the byte. In a repeated fit, loading a program (read the
+export 0.01 s, lower it 0.07 s, JAX's cache key, read and load 0.09 s each, load 12) is
+most of what a program per model family would save; an executable kept by
+``jax.experimental.serialize_executable`` and loaded with ``deserialize_and_load`` fails
+at its first call for these programs (``NOT_FOUND: Function broadcast_multiply_fusion not
+found``): it is loaded without the compile options (fusion emitters off) that JAX's own
+cache passes to ``deserialize_executable``. A first fit shows the Laplace stages' elapsed
+seconds only (no record yet: "every stage over 2 s shows the time left" does not hold on a
+machine's first fit, e.g. gamma's 17 s at load 18); no XLA or Warp banner reached the
+terminal, first fit or repeated.
 """
 
 from __future__ import annotations

@@ -142,3 +142,32 @@ def test_mode_searches_hold_blas_to_one_thread_until_the_last_ends():
             assert set(blas_threads()) == {1}
         assert set(blas_threads()) == {1}  # ... and ends first: the limit holds
     assert blas_threads() == before
+
+
+@pytest.mark.parametrize("law", ["weibull", "lognormal"])
+def test_a_run_is_the_same_whatever_points_a_call_holds(new_process, monkeypatch, law):
+    """Each point's values are computed alone (``vmap``): a run with calls of 8 points (the
+    2-parameter stencil's size) and one with calls of :data:`MIN_BATCH` give the same
+    mode, draws, log-likelihoods and weights, to the bit."""
+    import jax
+
+    from are_stats.fitting._traffic import _stay_draw_loglik
+
+    kwargs = _stay_kwargs(law)
+    init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
+    runs = []
+    for size in (8, lap.MIN_BATCH):
+        monkeypatch.setattr(lap, "MIN_BATCH", size)
+        assert lap._batch_size(2) == size
+        run = lap.run_laplace(
+            jax.random.key(5), stay_model, kwargs, init, num_draws=203, pointwise=_stay_draw_loglik
+        )
+        runs.append(run)
+    small, large = runs
+    assert lap.MIN_BATCH > 8 and small.converged and large.converged
+    for name in small.mode:
+        np.testing.assert_array_equal(small.mode[name], large.mode[name])
+    for name in small.samples:
+        np.testing.assert_array_equal(small.samples[name], large.samples[name])
+    np.testing.assert_array_equal(small.loglik, large.loglik)
+    np.testing.assert_array_equal(small.log_ratio, large.log_ratio)
