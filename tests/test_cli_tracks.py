@@ -155,7 +155,7 @@ def _experiment_walks_the_fitted_people(tmp_path: Path, fit: Path, room: Path) -
     cfg = {"name": "walkers", "map": str(room), "seed": 4, "replicates": 1,
            "scenario": {"fit": str(fit)}, "behaviours": True,
            "robot": {"radius": 0.3, "speed": 1.0},
-           "mission": {"n_goals": 2, "time_limit": 120.0, "min_goal_separation": 3.0},
+           "mission": {"n_goals": 10, "time_limit": 120.0, "min_goal_separation": 3.0},
            "planner": {"algorithm": "astar"}}  # fmt: skip
     (tmp_path / "walkers.yaml").write_text(yaml.safe_dump(cfg))
     res = runner.invoke(app, ["experiment", str(tmp_path / "walkers.yaml"), "--out",
