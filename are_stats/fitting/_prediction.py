@@ -87,12 +87,37 @@ def constant_velocity(observed: np.ndarray, n_pred: int) -> np.ndarray:
     return obs[:, -1:, :] + k * v[:, None, :]
 
 
+def _solved(
+    policies: dict | None, fit: BehaviourFit, c: int, goals: np.ndarray, tol: float = 1e-3
+) -> np.ndarray:
+    """:func:`~are_stats.fitting._motion_checks._policies` of class ``c`` to ``goals (G,
+    2)``, the last solve of each class and tolerance kept in ``policies`` (a dict; None:
+    solved afresh) and handed out again while the same goals come (issue 29: the
+    displacement errors' chunks of windows solved the same exits' policies once each, 16
+    solves where 2 give the same arrays: one program, the same inputs)."""
+    goals = np.asarray(goals, np.int64).reshape(-1, 2)
+    if policies is None:
+        return _policies(fit, c, goals, tol)
+    last = policies.get((c, tol))
+    if last is not None and np.array_equal(last[0], goals):
+        return last[1]
+    pol = _policies(fit, c, goals, tol)
+    policies[(c, tol)] = (goals.copy(), pol)
+    return pol
+
+
 def _goal_posterior(
-    fit: BehaviourFit, c: int, observed: np.ndarray, rate: float, chunk: int
+    fit: BehaviourFit,
+    c: int,
+    observed: np.ndarray,
+    rate: float,
+    chunk: int,
+    policies: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Candidate exits ``(G, 2)`` of class ``c`` (the observed exit cells) and the log
     posterior ``(B, G)`` of each window's goal: the empirical exit frequencies times the soft
-    policy's likelihood of the window's observed moves (discretised as in the fit)."""
+    policy's likelihood of the window's observed moves (discretised as in the fit); the
+    policies kept in ``policies`` (:func:`_solved`)."""
     from are_stats.fitting._behaviour import discretise_tracks
 
     ends = fit.world_to_cell(fit.exit_xy[fit.track_class == c])
@@ -120,7 +145,7 @@ def _goal_posterior(
     slip = float(fit.slip[c])
     for g0 in range(0, len(goals), chunk):
         gsel = np.arange(g0, min(g0 + chunk, len(goals)))
-        pol = _policies(fit, c, goals[gsel])
+        pol = _solved(policies, fit, c, goals[gsel])
         gi = np.repeat(np.arange(len(gsel)), n)
         tiled = (gi, *(np.tile(x, (len(gsel), 1)) for x in (obs.rows, obs.cols, obs.move)))
         # one compiled program per shape bucket (issue 29: op by op, each chunk's sizes
@@ -309,8 +334,10 @@ def _model_predictions(
     chunk: int = 16,
     oversample: int = 8,
     noise: float = 0.0,
+    policies: dict | None = None,
 ) -> np.ndarray:
-    """``(B, K, n_pred, 2)`` continuations sampled from the soft policy given the window.
+    """``(B, K, n_pred, 2)`` continuations sampled from the soft policy given the window
+    (the soft policies kept in ``policies`` for the next call, :func:`_solved`).
 
     Each continuation, its goal and its route, is drawn from the posterior given the whole
     window by importance resampling: ``oversample * K`` candidates are drawn given the
@@ -332,11 +359,11 @@ def _model_predictions(
     k = int(n_samples)
     k_all = k * max(int(oversample), 1)
     speeds = _draw_window_speeds(rng, fit, observed, cls, rate, noise, k_all)
-    cand = _draw_goals(rng, fit, observed, cls, rate, k_all, chunk)  # (B, K', 2)
+    cand = _draw_goals(rng, fit, observed, cls, rate, k_all, chunk, policies)  # (B, K', 2)
     ends = fit.cell_to_world(cand.reshape(-1, 2)).reshape(b, k_all, 2)
     ends += (rng.random((b, k_all, 2)) - 0.5) * fit.cell
     out, first, timed = _rollouts(
-        rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends
+        rng, fit, observed, cls, cand, speeds, n_pred, rate, smooth, chunk, ends, policies
     )
     if k_all == k:
         return _paced(rng, fit, cls, out, timed, speeds, speeds, n_pred, rate)
@@ -443,14 +470,16 @@ def _draw_goals(
     rate: float,
     n_samples: int,
     chunk: int,
+    policies: dict | None = None,
 ) -> np.ndarray:
     """``(B, K, 2)`` goal cells per window from the posterior over the class's observed
-    exits given the window's moves (:func:`_goal_posterior`)."""
+    exits given the window's moves (:func:`_goal_posterior`, its policies kept in
+    ``policies``)."""
     b = observed.shape[0]
     exits = np.zeros((b, n_samples, 2), np.int64)
     for c in np.unique(cls):
         w = np.flatnonzero(cls == c)
-        goals, logp = _goal_posterior(fit, int(c), observed[w], rate, chunk)
+        goals, logp = _goal_posterior(fit, int(c), observed[w], rate, chunk, policies)
         u = rng.gumbel(size=(len(w), n_samples, len(goals)))
         exits[w] = goals[np.argmax(logp[:, None, :] + u, axis=2)]
     return exits
@@ -468,6 +497,7 @@ def _rollouts(
     smooth: int,
     chunk: int = 16,
     ends: np.ndarray | None = None,
+    policies: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Continuations ``(B, K, n_pred, 2)`` to the goal cells ``goals_of (B, K, 2)``: the
     soft policy walked from the last observed cell with the observed heading, the
@@ -475,7 +505,7 @@ def _rollouts(
     (world; default the goal cell's centre) where the route reaches its goal; the
     direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands); and
     each one's timed path ``(B, K)`` object (vertex times and positions, None for one
-    that stands)."""
+    that stands). The soft policies are kept in ``policies`` (:func:`_solved`)."""
     from are_stats.behaviour import continuous_paths, sample_soft_paths
 
     b, n_obs, _ = observed.shape
@@ -502,7 +532,7 @@ def _rollouts(
             gsel = np.arange(g0, min(g0 + chunk, len(goals)))
             sel = np.isin(ginv, gsel)
             members, local = idx[sel], ginv[sel] - g0
-            pol = _policies(fit, int(c), goals[gsel], tol=1e-2)
+            pol = _solved(policies, fit, int(c), goals[gsel], tol=1e-2)
             w = rep[members]
             starts = np.column_stack([cur[w], head[w]])
             # the whole route to the goal, as generation walks it: the any-angle path of
@@ -784,12 +814,13 @@ def displacement_errors(
         t_last = t0 + (int(n_obs) - 1) / rate
         say = _progress_of(progress)
         parts = []
+        policies: dict = {}  # the chunks' soft policies, solved once per goal set
         starts = range(0, len(obs), PROGRESS_WINDOWS)
         for j, a in enumerate(starts):
             sl = slice(a, a + PROGRESS_WINDOWS)
             part = _model_predictions(
                 rng, behaviour_fit, obs[sl], lab[sl], n_plan, rate, int(n_samples), smooth,
-                noise=noise,
+                noise=noise, policies=policies,
             )  # fmt: skip
             if walked:
                 part = _interacting(

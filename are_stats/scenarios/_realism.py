@@ -97,26 +97,53 @@ _GROUP_MIN_SPEED = 0.2
 
 
 def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
-    """Each track at the times ``k dt`` within its span (linear interpolation)."""
+    """Each track at the times ``k dt`` within its span (linear interpolation).
+
+    The tracks are runs of one sorted table, interpolated from its arrays and gathered
+    into one table at the end (issue 29: a table per track, then their concatenation, cost
+    the realism stage several seconds; the values and dtypes are those of that way, rows
+    with a missing key left out as ``groupby`` leaves them)."""
     cols = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
-    out = []
-    for key, g in tracks.sort_values([*cols, "t"], kind="stable").groupby(cols, sort=False):
-        t = g["t"].to_numpy(float)
+    tab = tracks.sort_values([*cols, "t"], kind="stable")
+    tab = tab[tab[cols].notna().all(axis=1).to_numpy()]
+    keys = [tab[c].to_numpy() for c in cols]
+    new = np.ones(len(tab), bool)
+    if len(tab):
+        new[1:] = np.logical_or.reduce([k[1:] != k[:-1] for k in keys])
+    first = np.flatnonzero(new)
+    stop = np.r_[first[1:], len(tab)][: first.size]
+    t_all = tab["t"].to_numpy(float)
+    x_all, y_all = tab["x"].to_numpy(float), tab["y"].to_numpy(float)
+    ts, xs, ys, sizes = [], [], [], np.zeros(first.size, np.int64)
+    for g, (a, b) in enumerate(zip(first, stop, strict=True)):
+        t = t_all[a:b]
         grid_t = np.arange(np.ceil(t[0] / dt - 1e-9), np.floor(t[-1] / dt + 1e-9) + 1) * dt
-        if grid_t.size == 0:
-            continue
-        key = key if isinstance(key, tuple) else (key,)
-        part = {c: np.full(grid_t.size, k) for c, k in zip(cols, key, strict=True)}
-        part["t"] = grid_t
-        part["x"] = np.interp(grid_t, t, g["x"].to_numpy(float))
-        part["y"] = np.interp(grid_t, t, g["y"].to_numpy(float))
-        out.append(pd.DataFrame(part))
-    if not out:
+        sizes[g] = grid_t.size
+        ts.append(grid_t)
+        xs.append(np.interp(grid_t, t, x_all[a:b]))
+        ys.append(np.interp(grid_t, t, y_all[a:b]))
+    if not sizes.sum():
         return pd.DataFrame(columns=[*cols, "t", "x", "y"])
-    res = pd.concat(out, ignore_index=True)
+    # each key as groupby hands it out (Python scalars), repeated: the old np.full's dtypes
+    part = {
+        c: np.repeat(np.array(k[first].tolist()), sizes) for c, k in zip(cols, keys, strict=True)
+    }
+    part["t"], part["x"], part["y"] = np.concatenate(ts), np.concatenate(xs), np.concatenate(ys)
+    res = pd.DataFrame(part)
     if "scenario" not in res.columns:
         res["scenario"] = 0
     return res
+
+
+def _runs(tab: pd.DataFrame) -> list[tuple[int, int]]:
+    """``(start, stop)`` rows of each track of a :func:`_resample` table (runs of one
+    ``scenario, id``, in table order)."""
+    keys = [tab[c].to_numpy() for c in ("scenario", "id")]
+    new = np.ones(len(tab), bool)
+    if len(tab):
+        new[1:] = (keys[0][1:] != keys[0][:-1]) | (keys[1][1:] != keys[1][:-1])
+    first = np.flatnonzero(new)
+    return list(zip(first.tolist(), np.r_[first[1:], len(tab)][: first.size].tolist(), strict=True))
 
 
 def _observation_noise(tracks: pd.DataFrame, dt: float) -> float:
@@ -176,9 +203,12 @@ def realism_features(
     tab = _resample(tracks, dt)
     feats: dict[str, list[np.ndarray]] = {k: [] for k in REALISM_FEATURES}
     vel_all = np.full((len(tab), 2), np.nan)
-    for (_, _), g in tab.groupby(["scenario", "id"], sort=False):
-        idx = g.index.to_numpy()
-        xy = g[["x", "y"]].to_numpy(float)
+    # each track is a run of rows of the resampled table (sorted by scenario and id, index
+    # 0 .. n - 1): array slices, not a groupby's tables (issue 29)
+    xy_tab = tab[["x", "y"]].to_numpy(float)
+    for a, b in _runs(tab):
+        idx = np.arange(a, b)
+        xy = xy_tab[a:b]
         if len(xy) < 2:
             continue
         v = np.diff(xy, axis=0) / dt
@@ -411,15 +441,17 @@ def _weighted(scores: dict[str, float]) -> float:
 def _constant_velocity(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
     """Each observed person keeping the mean velocity of its first second, for its stay."""
     tab = _resample(tracks, dt)
-    out = []
-    for _, g in tab.groupby(["scenario", "id"], sort=False):
-        xy = g[["x", "y"]].to_numpy(float)
-        t = g["t"].to_numpy(float)
+    runs = _runs(tab)
+    if not runs:
+        return tab
+    xy_all, t_all = tab[["x", "y"]].to_numpy(float), tab["t"].to_numpy(float)
+    out = np.empty_like(xy_all)
+    for a, b in runs:
+        xy, t = xy_all[a:b], t_all[a:b]
         k = max(1, min(len(xy) - 1, int(round(1.0 / dt))))
         v = (xy[k] - xy[0]) / max(t[k] - t[0], 1e-9) if len(xy) > 1 else np.zeros(2)
-        moved = xy[0] + (t - t[0])[:, None] * v
-        out.append(g.assign(x=moved[:, 0], y=moved[:, 1]))
-    return pd.concat(out, ignore_index=True) if out else tab
+        out[a:b] = xy[0] + (t - t[0])[:, None] * v
+    return tab.assign(x=out[:, 0], y=out[:, 1])
 
 
 def realism_table(

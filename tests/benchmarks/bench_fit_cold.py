@@ -127,6 +127,26 @@ alike. The largest compiles left (round 1): the social force's five ``_window`` 
 (82 s wall), the nine Laplace ``call`` programs (74 s) and the gradient (54 s). Issue 29's
 60 s is still far.
 
+The tracks part with the realism stage's resampling from array slices (no table per track),
+the displacement errors' soft policies solved once per goal set (not once per chunk of 25
+windows) and walks without repulsion in a slot per person (no blocks per scenario: the
+displacement errors' chunks 2,048 and 4,096 slots instead of 4,096 and 8,192) (2026-11-28,
+main 0724dee and wt-tracks started together, load 20 -> 12; the CLI's command in fresh
+processes with empty caches, CPU of the child by ``getrusage``): cold CPU 111.2 s main vs
+102.4 s branch (0.92x; wall 735 vs 709 s); again at load 11 -> 7: 102.8 vs 94.4 s (0.92x;
+wall 335 vs 327 s); at load 2-5, one after the other: 93.8 vs 89.1 s (0.95x; wall 106.5 vs
+92.2 s, the stage record's realism stage 54.4 vs 40.1 s). XLA compilations 55 both
+(``_window`` 5: 16, 32, 1,024 and the two chunk sizes). The fit file's every group
+(``xarray`` ``identical``, attributes included) and all 17 criticism files byte for byte
+the same, in all three rounds. The stage alone in-process (``fit_behaviour``,
+``learn_interaction``, then the stage's own function, fresh cache, process CPU, main and
+branch side by side at load 12-21): 76.8 vs 58.9 s and 75.1 vs 66.4 s (realism 18.4 -> 13.4
+and 19.0 -> 13.3 s, displacement errors 33.0 -> 22.2 and 30.4 -> 25.3 s, the motion checks'
+50 replicates alike, 21-25 s). Left in the stage (cProfile of main, process time): the
+any-angle string pulling of the displacement errors' 32,000 continuations and the scenes'
+routes (``string_pull_many``, about a fifth), the social force's walks and its five
+``_window`` compilations, the scenes' route planning; issue 29's 60 s is still far.
+
 The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not

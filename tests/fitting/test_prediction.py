@@ -383,3 +383,37 @@ def test_continuations_walk_the_fitted_heading_wander() -> None:
     assert 0.1 < side.std() < 1.5
     ahead = wander[0, :, 11, 0] - obs[0, -1, 0]
     assert np.all(ahead > 0.7 * 1.2 * 4.8)  # they walk on, not round
+
+
+def test_policies_kept_between_chunks_are_those_solved_afresh(crossing, monkeypatch) -> None:
+    """The displacement errors' chunks of windows solve a goal set's soft policies once
+    (issue 29): what is handed out again is the fresh solve's array exactly, another goal
+    set or tolerance is solved anew, and the errors are those without the keeping."""
+    from are_stats.fitting import _prediction
+
+    tracks, _, _, fit = crossing
+    goals = np.unique(fit.world_to_cell(fit.exit_xy), axis=0)[:3]
+    solved = []
+    fresh = _prediction._policies
+
+    def counted(*args, **kw):
+        solved.append(args[2].tobytes())
+        return fresh(*args, **kw)
+
+    monkeypatch.setattr(_prediction, "_policies", counted)
+    kept: dict = {}
+    first = _prediction._solved(kept, fit, 0, goals)
+    again = _prediction._solved(kept, fit, 0, goals.copy())
+    assert again is first and len(solved) == 1
+    np.testing.assert_array_equal(first, fresh(fit, 0, goals))
+    other = _prediction._solved(kept, fit, 0, goals[:2])
+    loose = _prediction._solved(kept, fit, 0, goals[:2], tol=1e-2)
+    assert len(solved) == 3 and other.shape[0] == loose.shape[0] == 2
+    np.testing.assert_array_equal(other, fresh(fit, 0, goals[:2]))
+    # the errors of three chunks of windows, kept against solved every time
+    kw = {"n_samples": 4, "max_windows": 60, "stride": 5}
+    with_kept = displacement_errors(5, fit, tracks, **kw)
+    n_kept = len(solved)
+    monkeypatch.setattr(_prediction, "_solved", lambda _k, *a, **k: counted(*a, **k))
+    pd.testing.assert_frame_equal(displacement_errors(5, fit, tracks, **kw), with_kept)
+    assert len(solved) - n_kept > n_kept - 3  # more solves without the keeping

@@ -417,3 +417,52 @@ def test_a_log_whose_feature_never_varies_still_tells_the_right_value_from_a_wro
     wrong = realism_score(obs, {"group spacing (m)": np.full(400, 0.5)})
     assert right["group spacing (m)"] == pytest.approx(401 / 420)
     assert wrong["group spacing (m)"] == pytest.approx(1 / 420)
+
+
+def _resample_by_groups(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
+    """The independent reference: a table per ``groupby`` track, interpolated, concatenated."""
+    cols = ["scenario", "id"] if "scenario" in tracks.columns else ["id"]
+    out = []
+    for key, g in tracks.sort_values([*cols, "t"], kind="stable").groupby(cols, sort=False):
+        t = g["t"].to_numpy(float)
+        grid_t = np.arange(np.ceil(t[0] / dt - 1e-9), np.floor(t[-1] / dt + 1e-9) + 1) * dt
+        if grid_t.size:
+            key = key if isinstance(key, tuple) else (key,)
+            part = {c: np.full(grid_t.size, k) for c, k in zip(cols, key, strict=True)}
+            part["t"] = grid_t
+            part["x"] = np.interp(grid_t, t, g["x"].to_numpy(float))
+            part["y"] = np.interp(grid_t, t, g["y"].to_numpy(float))
+            out.append(pd.DataFrame(part))
+    if not out:
+        return pd.DataFrame(columns=[*cols, "t", "x", "y"])
+    res = pd.concat(out, ignore_index=True)
+    return res if "scenario" in res.columns else res.assign(scenario=0)
+
+
+@pytest.mark.parametrize("kind", ["names", "scenarios", "missing ids", "one row", "empty"])
+def test_resampling_from_arrays_is_the_groupby_tables_exactly(kind: str) -> None:
+    """The resampled table (issue 29: runs of one sorted table, not a table per track) is
+    the per-track tables' concatenation bit for bit, dtypes included: shuffled rows,
+    string or integer ids, scenarios, ids missing (left out), tracks shorter than a step."""
+    from are_stats.scenarios._realism import _resample
+
+    rng = np.random.default_rng(11)
+    ids = [f"p{k}" for k in range(25)] if kind != "scenarios" else list(range(15))
+    rows = []
+    for s in (2, 0, 1) if kind == "scenarios" else (None,):
+        for i in ids:
+            n = int(rng.integers(1, 30))
+            t = np.sort(rng.uniform(0, 20, n)).round(1)
+            part = {"id": i, "t": t, "x": rng.normal(size=n), "y": rng.normal(size=n)}
+            rows.append(pd.DataFrame(part if s is None else {"scenario": s, **part}))
+    tracks = pd.concat(rows, ignore_index=True).sample(frac=1, random_state=0)
+    if kind == "missing ids":
+        tracks.loc[tracks.index[:7], "id"] = np.nan
+    elif kind == "one row":
+        tracks = tracks.iloc[:1]
+    elif kind == "empty":
+        tracks = tracks.iloc[:0]
+    for dt in (0.1, 0.4, 1.0):
+        want = _resample_by_groups(tracks, dt)
+        pd.testing.assert_frame_equal(_resample(tracks, dt), want, check_exact=True)
+        assert kind in ("empty", "one row") or len(want) > 0
