@@ -76,9 +76,20 @@ def _quick_em_fit(log: Path, fit: Path, *extra, samples: int = 50):
 
 @pytest.fixture(scope="module")
 def em_fit_file(tmp_path_factory):
-    """A small EM fit shared by the option and damaged-fit tests."""
+    """A small EM fit shared by the perceive, option and damaged-fit tests."""
     folder = tmp_path_factory.mktemp("emfit")
     log, _ = _write_log(folder)
+    fit = folder / "small.nc"
+    _quick_em_fit(log, fit, samples=20)
+    return fit
+
+
+@pytest.fixture(scope="module")
+def em_labels_fit_file(tmp_path_factory):
+    """A small EM fit of the labelled log (two classes), shared by the augment and the
+    behaviours tests: one fit and one set of programs for its 20 draws instead of one each."""
+    folder = tmp_path_factory.mktemp("emlabels")
+    log, _ = _write_log(folder, labels=True)
     fit = folder / "small.nc"
     _quick_em_fit(log, fit, samples=20)
     return fit
@@ -302,13 +313,11 @@ def test_demo_quick(tmp_path):
         assert (tmp_path / "demo" / "criticism" / name).exists()
 
 
-def test_augment_camera_takes_a_shipped_name_as_perceive_does(tmp_path):
+def test_augment_camera_takes_a_shipped_name_as_perceive_does(tmp_path, em_labels_fit_file):
     from are_stats.environment import SHIPPED_DATA
     from tests.export.rosbag_fixtures import write_bag
 
-    log, _ = _write_log(tmp_path, labels=True)
-    fit = tmp_path / "small.nc"
-    _quick_em_fit(log, fit, samples=20)
+    fit = em_labels_fit_file
     bag = write_bag(tmp_path / "robot.bag", "ros1")
     base = ["augment", bag, "--fit", fit, "--map", "courtyard", "--seed", "2",
             "--pose-topic", "/amcl_pose", "--period", "2.0"]  # fmt: skip
@@ -322,10 +331,8 @@ def test_augment_camera_takes_a_shipped_name_as_perceive_does(tmp_path):
     assert by_name.read_bytes() == by_path.read_bytes()
 
 
-def test_perceive_adds_flags(tmp_path):
-    log, _ = _write_log(tmp_path)
-    fit = tmp_path / "f.nc"
-    _quick_em_fit(log, fit)
+def test_perceive_adds_flags(tmp_path, em_fit_file):
+    fit = em_fit_file
     scen = tmp_path / "scen"
     res = _invoke(
         [
@@ -385,10 +392,8 @@ class _SlowClock(StageClock):
         self.lines.append(text)
 
 
-def test_generate_with_behaviours(tmp_path, monkeypatch):
-    log, _ = _write_log(tmp_path, labels=True)
-    fit = tmp_path / "f.nc"
-    _quick_em_fit(log, fit)
+def test_generate_with_behaviours(tmp_path, monkeypatch, em_labels_fit_file):
+    fit = em_labels_fit_file
     out = tmp_path / "s"
     monkeypatch.setattr(cli_jobs, "StageClock", _SlowClock)
     _SlowClock.lines = []

@@ -74,16 +74,26 @@ def walked(grid, catalogue) -> list[Scene]:
     return scenes_from_fit(11, _idata(), grid, catalogue, 2, HORIZON, behaviours=True)
 
 
+@pytest.fixture(scope="module")
+def unwalked(grid, catalogue) -> tuple[list[Scene], list[tuple]]:
+    """The same two scenes assembled with the catalogue behaviour without the interaction,
+    and the progress calls of that assembly (one assembly for both tests that need it;
+    test_assembly_golden pins these scenes as assembled without a progress)."""
+    calls: list[tuple] = []
+    scenes = scenes_from_fit(
+        11, _idata(), grid, catalogue, 2, HORIZON, behaviours=True, interaction=False,
+        progress=lambda *c: calls.append(c),
+    )  # fmt: skip
+    return scenes, calls
+
+
 def test_catalogue_behaviour_is_behaviour_tracks_cut_at_the_horizon(
-    grid, catalogue, catalogue_plan
+    grid, catalogue, catalogue_plan, unwalked
 ):
     """Without the interaction, the scenes' tracks are the catalogue behaviour's, cut at
     the horizon, with every mover's collisions resolved by the AR-builder's rule
     (DECISIONS 9) on open ground (the routes keep to free cells)."""
-    idata = _idata()
-    scenes = scenes_from_fit(
-        11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False
-    )
+    scenes, _ = unwalked
     art, plan = catalogue_plan
     ground = OccupancyGrid(np.zeros((160, 160), np.int8), 0.5, (-40.0, -40.0, 0.0))
     builder = ARBuilder(ground)
@@ -240,7 +250,7 @@ def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
     assert np.quantile(apart, 0.9) > 4 * np.quantile(near, 0.9)
 
 
-def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked):
+def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked, unwalked):
     idata = _idata()
     calls = []
     scenes = scenes_from_fit(
@@ -265,10 +275,8 @@ def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked):
     calls.clear()
     scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, progress=lambda *c: calls.append(c))
     assert calls == [(1, 1, "scenarios drawn")]  # no behaviours: one step
-    calls.clear()
-    scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, behaviours=True, interaction=False,
-                    progress=lambda *c: calls.append(c))  # fmt: skip
-    assert [c[:2] for c in calls] == [(1, 2), (2, 3), (3, 3)]
+    # without the interaction: the scenarios drawn, then each scenario's tracks planned
+    assert [c[:2] for c in unwalked[1]] == [(1, 2), (2, 3), (3, 3)]
 
 
 def test_one_collision_story_recount():
