@@ -21,7 +21,7 @@ from are_stats.scenarios import (
 )
 
 DRAWS = {
-    "arrival_rate": np.array([0.02]),
+    "arrival_rate": np.array([0.002]),
     "leave_rate": np.array([1 / 30]),
     "mix_weights": np.array([[0.5, 0.5]]),
     "mix_rates": np.array([[1.0, 3.0]]),
