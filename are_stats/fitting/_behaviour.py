@@ -6,8 +6,9 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   net displacement per second over windows long enough that the noise
   (:func:`~are_stats.fitting.tracker_noise`) adds at most 1% (:func:`_track_speed`; a
   noise-free log's windows are single steps: the median step speed); tracks faster than
-  ``run_speed`` are runners. Walking (and running) speeds get a lognormal law fitted by
-  maximum likelihood: the between-person law of preferred speeds.
+  ``run_speed`` are runners. Walking (and running) speeds get a lognormal law, ``mu`` the
+  log of their median and ``sigma`` the sd of their logs (:func:`_lognormal`): the
+  between-person law of preferred speeds.
 * **Within-person variation** (:func:`_speed_variation`). Around its own preferred speed a
   walker's log speed drifts as a stationary Ornstein-Uhlenbeck process: its sd
   (``speed_within_sd``, log units) and correlation time (``speed_within_time``, s) are
