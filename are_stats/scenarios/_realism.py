@@ -107,11 +107,7 @@ def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
     tab = tracks.sort_values([*cols, "t"], kind="stable")
     tab = tab[tab[cols].notna().all(axis=1).to_numpy()]
     keys = [tab[c].to_numpy() for c in cols]
-    new = np.ones(len(tab), bool)
-    if len(tab):
-        new[1:] = np.logical_or.reduce([k[1:] != k[:-1] for k in keys])
-    first = np.flatnonzero(new)
-    stop = np.r_[first[1:], len(tab)][: first.size]
+    first, stop = _run_bounds(keys)
     t_all = tab["t"].to_numpy(float)
     x_all, y_all = tab["x"].to_numpy(float), tab["y"].to_numpy(float)
     ts, xs, ys, sizes = [], [], [], np.zeros(first.size, np.int64)
@@ -135,15 +131,22 @@ def _resample(tracks: pd.DataFrame, dt: float) -> pd.DataFrame:
     return res
 
 
+def _run_bounds(keys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """First and stop rows ``(R,)`` of each run of equal ``keys`` (arrays of one length,
+    rows sorted by them)."""
+    n = len(keys[0])
+    new = np.ones(n, bool)
+    if n:
+        new[1:] = np.logical_or.reduce([k[1:] != k[:-1] for k in keys])
+    first = np.flatnonzero(new)
+    return first, np.r_[first[1:], n][: first.size].astype(np.int64)
+
+
 def _runs(tab: pd.DataFrame) -> list[tuple[int, int]]:
     """``(start, stop)`` rows of each track of a :func:`_resample` table (runs of one
     ``scenario, id``, in table order)."""
-    keys = [tab[c].to_numpy() for c in ("scenario", "id")]
-    new = np.ones(len(tab), bool)
-    if len(tab):
-        new[1:] = (keys[0][1:] != keys[0][:-1]) | (keys[1][1:] != keys[1][:-1])
-    first = np.flatnonzero(new)
-    return list(zip(first.tolist(), np.r_[first[1:], len(tab)][: first.size].tolist(), strict=True))
+    first, stop = _run_bounds([tab[c].to_numpy() for c in ("scenario", "id")])
+    return list(zip(first.tolist(), stop.tolist(), strict=True))
 
 
 def _observation_noise(tracks: pd.DataFrame, dt: float) -> float:
