@@ -10,8 +10,9 @@ import time
 import warnings
 from collections.abc import Mapping, Sequence
 from contextlib import ExitStack
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 import numpy as np
 import pandas as pd
@@ -41,7 +42,7 @@ from are_stats.logs import TrajectoryOptions, find_manifest, read_count_panel, r
 from are_stats.scenarios import generate_folder
 
 if TYPE_CHECKING:
-    from are_stats.fitting import Fit, MotionReport
+    from are_stats.fitting import Fit, FitSettings, MotionReport
 
 # Lazy in the jobs that use them (measured CPU of the import, on top of the rooms above,
 # which every job loads anyway): fitting (NumPyro, ArviZ: 0.65 s that perceive, augment and
@@ -79,57 +80,213 @@ def _summary_table(summary: pd.DataFrame, title: str) -> Table:
     return table
 
 
+@dataclass(frozen=True)
+class FitOptions:
+    """The options of ``are-stats fit``, one frozen record: the command builds it from its
+    command line and passes it whole to :func:`run_fit` (as ``generate`` passes
+    :class:`~are_stats.scenarios.AssemblyOptions`); ``demo`` builds its own.
+
+    Attributes
+    ----------
+    method : {"nuts", "em"}
+        ``--method``: the joint posterior by NUTS, or conjugate rates + EM.
+    seed : int
+        ``--seed``, in ``[0, 2**32 - 1]``.
+    window : (t0, t1) or None
+        ``--window``: the observation window (the log's time unit), ``t0 < t1``.
+    area : float or None
+        ``--area``: the free area (m^2), overriding the manifest's.
+    manifest, counts : Path or None
+        ``--manifest`` (default: beside the log), ``--counts`` (a count panel).
+    components : int or None
+        ``--components``: mixture components (default: the labels, else BIC).
+    warmup, samples, chains : int
+        ``--warmup``, ``--samples``, ``--chains``: NUTS draws per chain and chains.
+    figures : Path or None
+        Folder for the criticism figures; None draws none.
+    n_replicates : int
+        Replicated windows of the posterior-predictive checks (``--replicates``).
+    stationary_start, exact : bool
+        ``--stationary-start``, ``--exact``.
+    arrivals, lifetimes, positions, compare : str
+        ``--arrivals``, ``--lifetimes``, ``--positions``, ``--compare``.
+    clock_start : str or None
+        ``--clock-start``: ISO 8601 time of t = 0.
+    behaviour : bool
+        ``--behaviour``: also fit the behaviour of a tracks table.
+    behaviour_features : str or tuple of str
+        ``--behaviour-features``: comma-separated reward features (a tuple once
+        :meth:`checked`).
+
+    Examples
+    --------
+    >>> FitOptions(method="em", samples=20, behaviour_features="walls").checked().samples
+    20
+    """
+
+    method: str = "nuts"
+    seed: int = 0
+    window: Sequence[float] | None = None
+    area: float | None = None
+    manifest: Path | None = None
+    counts: Path | None = None
+    components: int | None = None
+    warmup: int = 1000
+    samples: int = 1000
+    chains: int = 4
+    figures: Path | None = None
+    n_replicates: int = 200
+    stationary_start: bool = True
+    arrivals: str = "auto"
+    lifetimes: str = "auto"
+    positions: str = "auto"
+    compare: str = "laplace"
+    exact: bool = True
+    clock_start: str | None = None
+    behaviour: bool = True
+    behaviour_features: str | tuple[str, ...] = ""
+
+    def checked(self) -> FitOptions:
+        """These options checked and named as on the command line (``--method``,
+        ``--arrivals``, ``--lifetimes``, ``--positions``, ``--behaviour-features``,
+        ``--clock-start``, ``--seed``, ``--warmup``, ``--samples``, ``--chains``,
+        ``--replicates``, ``--components``, ``--window``, ``--area``, in that order);
+        ``behaviour_features`` becomes the tuple of feature names.
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            Naming the first option that is out of range.
+        """
+        from are_stats.fitting import (
+            ARRIVAL_CHOICES,
+            BEHAVIOUR_FEATURES,
+            LIFETIME_CHOICES,
+            POSITION_CHOICES,
+        )
+        from are_stats.traffic import clock_offset
+
+        checked: dict[str, Any] = {
+            "method": get_str(self.method, "--method", "", choices=("nuts", "em")),
+            "arrivals": get_str(self.arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES),
+            "lifetimes": get_str(self.lifetimes, "--lifetimes", "", choices=LIFETIME_CHOICES),
+            "positions": get_str(self.positions, "--positions", "", choices=POSITION_CHOICES),
+        }
+        names = self.behaviour_features
+        if isinstance(names, str):
+            names = get_str(names, "--behaviour-features", "").split(",")
+        features = tuple(
+            get_str(f.strip(), "--behaviour-features", "", choices=sorted(BEHAVIOUR_FEATURES))
+            for f in names
+            if f.strip()
+        )
+        checked["behaviour_features"] = features
+        if features and not self.behaviour:
+            raise InputError(
+                "--behaviour-features",
+                "",
+                "the behaviour to be fitted (drop one of the two)",
+                Described("--no-behaviour"),
+            )
+        if self.clock_start is not None:
+            checked["clock_start"] = get_str(self.clock_start, "--clock-start", "")
+            try:
+                clock_offset(checked["clock_start"])
+            except ValueError:
+                raise ValueError(
+                    f"--clock-start: expected an ISO 8601 time such as 2024-05-02T07:30:00, "
+                    f"got {checked['clock_start']!r}"
+                ) from None
+        checked["seed"] = get_seed(self.seed)
+        checked["warmup"] = get_int(self.warmup, "--warmup", "", lo=0)
+        checked["samples"] = get_int(self.samples, "--samples", "", lo=1)
+        checked["chains"] = get_int(self.chains, "--chains", "", lo=1)
+        checked["n_replicates"] = get_int(self.n_replicates, "--replicates", "", lo=1)
+        if self.components is not None:
+            checked["components"] = get_int(self.components, "--components", "", lo=1, hi=1000)
+        if self.window is not None:
+            window = get_list(list(self.window), "--window", "", min_len=2, max_len=2)
+            w0 = get_float(window[0], "--window", "t0")
+            checked["window"] = (w0, get_float(window[1], "--window", "t1", lo=w0, lo_open=True))
+        if self.area is not None:
+            checked["area"] = get_float(self.area, "--area", "", lo=0.0, lo_open=True)
+        return replace(self, **checked)
+
+    def settings(self) -> FitSettings:
+        """The :class:`~are_stats.fitting.FitSettings` of :func:`~are_stats.fitting.fit_log`
+        (the sampler's and the traffic models' fields)."""
+        from are_stats.fitting import FitSettings
+
+        return FitSettings(
+            method=self.method,
+            n_components=self.components,
+            num_warmup=self.warmup,
+            num_samples=self.samples,
+            num_chains=self.chains,
+            stationary_start=self.stationary_start,
+            arrivals=self.arrivals,
+            lifetimes=self.lifetimes,
+            positions=self.positions,
+            compare=self.compare,
+            exact=self.exact,
+        )
+
+
+class FitFields(TypedDict, total=False):
+    """The fields of :class:`FitOptions` as keywords of :func:`run_fit` (see the record for
+    their meaning)."""
+
+    method: str
+    seed: int
+    window: Sequence[float] | None
+    area: float | None
+    manifest: Path | None
+    counts: Path | None
+    components: int | None
+    warmup: int
+    samples: int
+    chains: int
+    figures: Path | None
+    n_replicates: int
+    stationary_start: bool
+    arrivals: str
+    lifetimes: str
+    positions: str
+    compare: str
+    exact: bool
+    clock_start: str | None
+    behaviour: bool
+    behaviour_features: str | tuple[str, ...]
+
+
 def run_fit(
     log: Path,
     out: Path,
+    options: FitOptions | None = None,
     *,
-    method: str = "nuts",
-    seed: int = 0,
     force: bool = False,
-    window: Sequence[float] | None = None,
-    area: float | None = None,
-    manifest: Path | None = None,
-    counts: Path | None = None,
-    components: int | None = None,
-    warmup: int = 1000,
-    samples: int = 1000,
-    chains: int = 4,
-    figures: Path | None = None,
-    n_replicates: int = 200,
-    stationary_start: bool = True,
-    arrivals: str = "auto",
-    lifetimes: str = "auto",
-    positions: str = "auto",
-    compare: str = "laplace",
-    exact: bool = True,
-    clock_start: str | None = None,
-    behaviour: bool = True,
-    behaviour_features: str = "",
+    **fields: Unpack[FitFields],
 ) -> Fit:
     """Read a log, fit it, write the NetCDF fit and (optionally) its criticism figures.
 
-    A tracks table with a map also gets its behaviour fitted (speeds, exits, rationality:
+    ``options`` (:class:`FitOptions`, the command's options; default: its defaults) with the
+    fields named as keywords replaced (``fields``, :class:`FitFields`). A tracks table with a
+    map also gets its behaviour fitted (speeds, exits, rationality:
     :func:`are_stats.fitting.fit_behaviour`, stored as the ``behaviour`` group) unless
     ``behaviour`` is false; ``behaviour_features`` (``--behaviour-features``, comma-separated
     names of :data:`are_stats.fitting.BEHAVIOUR_FEATURES`) adds fitted reward weights.
 
-    The options are checked first, named as on the command line (``--samples``,
-    ``--chains``, ``--warmup``, ``--components``, ``--replicates`` integers in range,
-    ``--seed`` in ``[0, 2**32 - 1]``, ``--window`` two finite times ``t0 < t1``, ``--area``
-    finite and > 0); :func:`~are_stats.fitting.fit_log` checks the draws and the sampler's
-    work against the limits of :mod:`are_stats.inputs` (naming these options) before it
-    samples.
+    The options are checked first, named as on the command line
+    (:meth:`FitOptions.checked`), then ``out`` (a ``.nc`` name, written only with
+    ``force`` where it exists); :func:`~are_stats.fitting.fit_log` checks the draws and the
+    sampler's work against the limits of :mod:`are_stats.inputs` (naming these options)
+    before it samples.
 
     The fit's posterior attributes name the log by its file name (``log``) and the
     SHA-256 of its bytes (``log_sha256``), never by its folder; ``log_report`` holds the
     reading counts (its ``source`` is the file name too).
     """
     from are_stats.fitting import (
-        ARRIVAL_CHOICES,
-        BEHAVIOUR_FEATURES,
-        LIFETIME_CHOICES,
-        POSITION_CHOICES,
-        FitSettings,
         can_check_motion,
         compare_panel,
         fit_log,
@@ -140,72 +297,22 @@ def run_fit(
         write_motion_report,
         write_report,
     )
-    from are_stats.traffic import clock_offset
 
-    method = get_str(method, "--method", "", choices=("nuts", "em"))
-    arrivals = get_str(arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES)
-    lifetimes = get_str(lifetimes, "--lifetimes", "", choices=LIFETIME_CHOICES)
-    positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
-    features = tuple(
-        get_str(f.strip(), "--behaviour-features", "", choices=sorted(BEHAVIOUR_FEATURES))
-        for f in get_str(behaviour_features, "--behaviour-features", "").split(",")
-        if f.strip()
-    )
-    if features and not behaviour:
-        raise InputError(
-            "--behaviour-features",
-            "",
-            "the behaviour to be fitted (drop one of the two)",
-            Described("--no-behaviour"),
-        )
-    if clock_start is not None:
-        clock_start = get_str(clock_start, "--clock-start", "")
-        try:
-            clock_offset(clock_start)
-        except ValueError:
-            raise ValueError(
-                f"--clock-start: expected an ISO 8601 time such as 2024-05-02T07:30:00, "
-                f"got {clock_start!r}"
-            ) from None
-    seed = get_seed(seed)
-    warmup = get_int(warmup, "--warmup", "", lo=0)
-    samples = get_int(samples, "--samples", "", lo=1)
-    chains = get_int(chains, "--chains", "", lo=1)
-    n_replicates = get_int(n_replicates, "--replicates", "", lo=1)
-    if components is not None:
-        components = get_int(components, "--components", "", lo=1, hi=1000)
-    if window is not None:
-        window = get_list(list(window), "--window", "", min_len=2, max_len=2)
-        w0 = get_float(window[0], "--window", "t0")
-        window = [w0, get_float(window[1], "--window", "t1", lo=w0, lo_open=True)]
-    if area is not None:
-        area = get_float(area, "--area", "", lo=0.0, lo_open=True)
+    opts = replace(options or FitOptions(), **fields).checked()
     out = Path(out)
     if out.suffix != ".nc":
         raise ValueError(f"--out: expected a .nc file name, got {str(out)!r}")
     check_writable(out, force)
-    settings = FitSettings(
-        method=method,
-        n_components=components,
-        num_warmup=warmup,
-        num_samples=samples,
-        num_chains=chains,
-        stationary_start=stationary_start,
-        arrivals=arrivals,
-        lifetimes=lifetimes,
-        positions=positions,
-        compare=compare,
-        exact=exact,
-    )
+    settings = opts.settings()
     log = resolve_shipped(log, "log", source="LOG")  # a file, or a shipped log's name
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         lifecycle = read_field_log(
             log,
-            manifest=manifest,
-            window=tuple(window) if window else None,
-            area=area,
-            clock_start=clock_start,
+            manifest=opts.manifest,
+            window=opts.window,
+            area=opts.area,
+            clock_start=opts.clock_start,
         )
     for w in caught:
         console.print(f"[yellow]warning:[/] {w.message}")
@@ -218,24 +325,24 @@ def run_fit(
     )
     if rep.get("groups"):
         console.print(f"{rep['artefacts_in_groups']} artefacts arrived in {rep['groups']} groups")
-    panel = read_count_panel(counts) if counts is not None else None
+    panel = read_count_panel(opts.counts) if opts.counts is not None else None
 
     catalogue = load_catalogue()  # read once: the labels' rows and the classes' run speeds
     t_start = time.perf_counter()
     with (
         console.status("fitting ...") as status,
         StageClock(
-            status, "fitting: ", size=f"{method}, {data.n} rows", live=console.is_terminal
+            status, "fitting: ", size=f"{opts.method}, {data.n} rows", live=console.is_terminal
         ) as clock,
     ):
         fit = fit_log(
-            seed,
+            opts.seed,
             lifecycle,
             settings,
             counts_panel=panel,
             progress=clock,
-            behaviour=behaviour,
-            features=features,
+            behaviour=opts.behaviour,
+            features=opts.behaviour_features,
             catalogue=catalogue,
             setting_names=SETTING_OPTIONS,
         )
@@ -259,21 +366,22 @@ def run_fit(
     _print_traffic(fit)
     _print_classes(fit)
     if panel is not None:
-        console.print(f"birth-death MLE of {counts}: {panel_estimates(fit)}")
+        console.print(f"birth-death MLE of {opts.counts}: {panel_estimates(fit)}")
         cmp = compare_panel(idata)
         if cmp.warning:
             console.print(f"[yellow]warning:[/] {cmp.warning}")
     console.print(f"wrote {out}")
-    if figures is not None:
+    if opts.figures is not None:
         # stages over 2 s: the time left from the last run (StageClock)
-        size = f"{n_replicates} replicates, {data.n} rows"
+        figures, replicates, seed = opts.figures, opts.n_replicates, opts.seed
+        size = f"{replicates} replicates, {data.n} rows"
         with (
             console.status("posterior-predictive checks ...") as status,
             StageClock(status, size=size, live=console.is_terminal) as clock,
         ):
             clock("posterior-predictive checks")
             written = write_report(
-                idata, figures, key=seed, n_replicates=n_replicates, force=force, summary=summary
+                idata, figures, key=seed, n_replicates=replicates, force=force, summary=summary
             )
         _print_checks(written)
         if can_check_motion(fit, lifecycle.tracks):
@@ -584,18 +692,15 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
     check_writable(fit_file, force)
     t0 = time.perf_counter()
     console.rule("[bold]are_stats demo: from a field log to scenarios")
-    fit = run_fit(
-        EXAMPLE_LOG,
-        fit_file,
-        method="nuts",
-        seed=0,
-        force=force,
-        warmup=200 if quick else 500,
-        samples=200 if quick else 500,
+    draws = 200 if quick else 500
+    options = FitOptions(
+        warmup=draws,
+        samples=draws,
         chains=2 if quick else 4,
         figures=out / "criticism",
         n_replicates=50 if quick else 200,
     )
+    fit = run_fit(EXAMPLE_LOG, fit_file, options, force=force)
     # the same scenarios from the chosen models and from the paper's, side by side
     df = run_generate(fit_file, 100, 3600.0, 1, out / "scenarios", EXAMPLE_MAP, force=force)
     df_paper = run_generate(

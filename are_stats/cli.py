@@ -350,14 +350,11 @@ def fit(
 
     Writes the NetCDF fit (posteriors, chosen models, comparison tables) and its figures.
     """
-    from are_stats._cli_jobs import run_fit
+    from are_stats._cli_jobs import FitOptions, run_fit
 
-    run_fit(
-        log,
-        out,
+    options = FitOptions(
         method=method,
         seed=_seed(seed),
-        force=force,
         window=window,
         area=area,
         manifest=manifest,
@@ -377,6 +374,7 @@ def fit(
         behaviour=behaviour,
         behaviour_features=behaviour_features,
     )
+    run_fit(log, out, options, force=force)
 
 
 @app.command()
