@@ -169,6 +169,11 @@ def _cli_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+def _command(func: Callable[..., Any]) -> Callable[..., Any]:
+    """A command of :data:`app` whose errors users see as one line (:func:`_cli_errors`)."""
+    return app.command()(_cli_errors(func))
+
+
 def _seed(seed: int) -> int:
     from are_stats.inputs import get_seed
 
@@ -230,8 +235,7 @@ def version() -> None:
     typer.echo(__version__)
 
 
-@app.command()
-@_cli_errors
+@_command
 def show(
     map_path: str = typer.Argument(
         ...,
@@ -264,8 +268,7 @@ def show(
     typer.echo(str(path))
 
 
-@app.command()
-@_cli_errors
+@_command
 def fit(
     log: Path = typer.Argument(
         ...,
@@ -377,8 +380,7 @@ def fit(
     run_fit(log, out, options, force=force)
 
 
-@app.command()
-@_cli_errors
+@_command
 def report(
     fit_path: _Fit,
     out: Path = typer.Option(None, "--out", help="Folder for figures (default: FIT without .nc)."),
@@ -392,8 +394,7 @@ def report(
     run_report(fit_path, out or fit_path.with_suffix(""), _seed(seed), replicates, force)
 
 
-@app.command()
-@_cli_errors
+@_command
 def generate(
     fit_path: _Fit,
     scenarios: int = typer.Option(..., "--scenarios", help="Number of scenarios."),
@@ -435,8 +436,7 @@ def generate(
     )
 
 
-@app.command()
-@_cli_errors
+@_command
 def demo(
     out: Path = typer.Option(
         Path("demo-output"), "--out", help="Folder for the demo outputs, the fit included."
@@ -450,8 +450,7 @@ def demo(
     run_demo(out, force=force, quick=quick)
 
 
-@app.command()
-@_cli_errors
+@_command
 def perceive(
     scenario: Path = typer.Argument(
         ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
@@ -489,8 +488,7 @@ def perceive(
     )
 
 
-@app.command()
-@_cli_errors
+@_command
 def experiment(
     config: str = typer.Argument(
         ..., metavar="CONFIG.yaml", help="Sweep config (YAML), or a shipped one (fig7, fig7_fit)."
@@ -531,8 +529,7 @@ def experiment(
     typer.echo(str(path))
 
 
-@app.command()
-@_cli_errors
+@_command
 def plot(
     results: str = typer.Argument(..., metavar="RESULTS", help="Sweep results folder."),
     out: str = typer.Option(None, "--out", help="Folder for the PNGs (default: RESULTS)."),
@@ -546,8 +543,7 @@ def plot(
         typer.echo(str(p))
 
 
-@app.command()
-@_cli_errors
+@_command
 def augment(
     bag: Path = typer.Argument(
         ..., metavar="BAG", help="Robot bag: ROS 1 .bag, ROS 2 bag folder or .mcap."
@@ -603,8 +599,7 @@ def augment(
     )
 
 
-@app.command()
-@_cli_errors
+@_command
 def serve(
     scenarios: Path = typer.Argument(
         ..., metavar="SCENARIOS_DIR", help="Scenarios folder written by are-stats generate."
