@@ -166,7 +166,7 @@ class FitOptions:
         )
         from are_stats.traffic import clock_offset
 
-        checked: dict[str, Any] = {
+        checked: dict[str, object] = {
             "method": get_str(self.method, "--method", "", choices=("nuts", "em")),
             "arrivals": get_str(self.arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES),
             "lifetimes": get_str(self.lifetimes, "--lifetimes", "", choices=LIFETIME_CHOICES),
@@ -189,13 +189,13 @@ class FitOptions:
                 Described("--no-behaviour"),
             )
         if self.clock_start is not None:
-            checked["clock_start"] = get_str(self.clock_start, "--clock-start", "")
+            clock = checked["clock_start"] = get_str(self.clock_start, "--clock-start", "")
             try:
-                clock_offset(checked["clock_start"])
+                clock_offset(clock)
             except ValueError:
                 raise ValueError(
                     f"--clock-start: expected an ISO 8601 time such as 2024-05-02T07:30:00, "
-                    f"got {checked['clock_start']!r}"
+                    f"got {clock!r}"
                 ) from None
         checked["seed"] = get_seed(self.seed)
         checked["warmup"] = get_int(self.warmup, "--warmup", "", lo=0)
@@ -679,7 +679,7 @@ def run_generate(
     return df
 
 
-def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, Any]:
+def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, object]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
     from are_stats.fitting import crowding_statistics, read_traffic_checks
 
@@ -715,7 +715,7 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, A
         return {k: round(v, 3) for k, v in crowding_statistics(table, (0.0, 3600.0), res).items()}
 
     checks = read_traffic_checks(out / "criticism")
-    summary = {
+    summary: dict[str, object] = {
         "are_stats_version": __version__,
         "log": f"{EXAMPLE_LOG_NAME} (shipped)",
         "truth": desc,

@@ -8,7 +8,7 @@ import os
 import sys
 import warnings
 from collections.abc import Callable
-from typing import Annotated, Any
+from typing import Annotated, ParamSpec, TextIO, TypeVar
 
 # Two XLA host devices so that NUTS chains run in parallel on the two cores; must be set
 # before JAX is imported (by are_stats).
@@ -128,12 +128,18 @@ _Clock = Annotated[
 _USER_ERRORS = (ValueError, OSError)
 
 
+#: The parameters and result of a command function (the decorators keep its signature, which
+#: typer reads for the options).
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
 def _fail(err: BaseException) -> typer.Exit:
     typer.echo(f"error: {err}", err=True)
     return typer.Exit(2)
 
 
-def _cli_errors(func: Callable[..., Any]) -> Callable[..., Any]:
+def _cli_errors(func: Callable[_P, _R]) -> Callable[_P, _R]:
     """Run a command so that users see one clear line, never a traceback.
 
     Bad input exits with status 2 and ``error: <file>: <where>: expected ..., got ...``.
@@ -142,7 +148,7 @@ def _cli_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     """
 
     @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         try:
             return func(*args, **kwargs)
         except (typer.Exit, typer.Abort, KeyboardInterrupt):
@@ -169,7 +175,7 @@ def _cli_errors(func: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
-def _command(func: Callable[..., Any]) -> Callable[..., Any]:
+def _command(func: Callable[_P, _R]) -> Callable[_P, _R]:
     """A command of :data:`app` whose errors users see as one line (:func:`_cli_errors`)."""
     return app.command()(_cli_errors(func))
 
@@ -659,17 +665,28 @@ def serve(
 _GC_THRESHOLDS = (10_000, 20, 20)
 
 
-def _note_fit_formats(show: Callable[..., None]) -> Callable[..., None]:
+#: The signature of :func:`warnings.showwarning`.
+_ShowWarning = Callable[[Warning | str, type[Warning], str, int, TextIO | None, str | None], None]
+
+
+def _note_fit_formats(show: _ShowWarning) -> _ShowWarning:
     """``warnings.showwarning`` that shows a fit read under an older format
     (:class:`~are_stats.fitting.FitFormatWarning`) as one ``note:`` line, as the commands'
     other notes, and any other warning by ``show``."""
 
-    def showwarning(message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
+    def showwarning(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
         fitting = sys.modules.get("are_stats.fitting")  # loaded when the fit was read
         if fitting is not None and issubclass(category, fitting.FitFormatWarning):
             typer.echo(f"note: {message}", err=True)
         else:
-            show(message, category, *args, **kw)
+            show(message, category, filename, lineno, file, line)
 
     return showwarning
 
