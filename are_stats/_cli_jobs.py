@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -42,6 +42,7 @@ from are_stats.logs import TrajectoryOptions, find_manifest, read_count_panel, r
 from are_stats.scenarios import generate_folder
 
 if TYPE_CHECKING:
+    from are_stats.behaviour import BehaviourFit
     from are_stats.fitting import Fit, FitSettings, MotionReport
 
 # Lazy in the jobs that use them (measured CPU of the import, on top of the rooms above,
@@ -114,9 +115,8 @@ class FitOptions:
         ``--clock-start``: ISO 8601 time of t = 0.
     behaviour : bool
         ``--behaviour``: also fit the behaviour of a tracks table.
-    behaviour_features : str or tuple of str
-        ``--behaviour-features``: comma-separated reward features (a tuple once
-        :meth:`checked`).
+    behaviour_features : str
+        ``--behaviour-features``: comma-separated reward features (:meth:`features`).
 
     Examples
     --------
@@ -126,7 +126,7 @@ class FitOptions:
 
     method: str = "nuts"
     seed: int = 0
-    window: Sequence[float] | None = None
+    window: tuple[float, float] | None = None
     area: float | None = None
     manifest: Path | None = None
     counts: Path | None = None
@@ -144,44 +144,29 @@ class FitOptions:
     exact: bool = True
     clock_start: str | None = None
     behaviour: bool = True
-    behaviour_features: str | tuple[str, ...] = ""
+    behaviour_features: str = ""
 
     def checked(self) -> FitOptions:
         """These options checked and named as on the command line (``--method``,
         ``--arrivals``, ``--lifetimes``, ``--positions``, ``--behaviour-features``,
         ``--clock-start``, ``--seed``, ``--warmup``, ``--samples``, ``--chains``,
-        ``--replicates``, ``--components``, ``--window``, ``--area``, in that order);
-        ``behaviour_features`` becomes the tuple of feature names.
+        ``--replicates``, ``--components``, ``--window``, ``--area``, in that order).
 
         Raises
         ------
         are_stats.inputs.InputError
             Naming the first option that is out of range.
         """
-        from are_stats.fitting import (
-            ARRIVAL_CHOICES,
-            BEHAVIOUR_FEATURES,
-            LIFETIME_CHOICES,
-            POSITION_CHOICES,
-        )
+        from are_stats.fitting import ARRIVAL_CHOICES, LIFETIME_CHOICES, POSITION_CHOICES
         from are_stats.traffic import clock_offset
 
-        checked: dict[str, object] = {
+        checked: FitFields = {
             "method": get_str(self.method, "--method", "", choices=("nuts", "em")),
             "arrivals": get_str(self.arrivals, "--arrivals", "", choices=ARRIVAL_CHOICES),
             "lifetimes": get_str(self.lifetimes, "--lifetimes", "", choices=LIFETIME_CHOICES),
             "positions": get_str(self.positions, "--positions", "", choices=POSITION_CHOICES),
         }
-        names = self.behaviour_features
-        if isinstance(names, str):
-            names = get_str(names, "--behaviour-features", "").split(",")
-        features = tuple(
-            get_str(f.strip(), "--behaviour-features", "", choices=sorted(BEHAVIOUR_FEATURES))
-            for f in names
-            if f.strip()
-        )
-        checked["behaviour_features"] = features
-        if features and not self.behaviour:
+        if self.features() and not self.behaviour:
             raise InputError(
                 "--behaviour-features",
                 "",
@@ -212,6 +197,23 @@ class FitOptions:
             checked["area"] = get_float(self.area, "--area", "", lo=0.0, lo_open=True)
         return replace(self, **checked)
 
+    def features(self) -> tuple[str, ...]:
+        """The reward features of ``behaviour_features``, each one of
+        :data:`~are_stats.fitting.BEHAVIOUR_FEATURES` (named as ``--behaviour-features``).
+
+        Raises
+        ------
+        are_stats.inputs.InputError
+            For a name that is not a feature.
+        """
+        from are_stats.fitting import BEHAVIOUR_FEATURES
+
+        return tuple(
+            get_str(f.strip(), "--behaviour-features", "", choices=sorted(BEHAVIOUR_FEATURES))
+            for f in get_str(self.behaviour_features, "--behaviour-features", "").split(",")
+            if f.strip()
+        )
+
     def settings(self) -> FitSettings:
         """The :class:`~are_stats.fitting.FitSettings` of :func:`~are_stats.fitting.fit_log`
         (the sampler's and the traffic models' fields)."""
@@ -238,7 +240,7 @@ class FitFields(TypedDict, total=False):
 
     method: str
     seed: int
-    window: Sequence[float] | None
+    window: tuple[float, float] | None
     area: float | None
     manifest: Path | None
     counts: Path | None
@@ -256,7 +258,7 @@ class FitFields(TypedDict, total=False):
     exact: bool
     clock_start: str | None
     behaviour: bool
-    behaviour_features: str | tuple[str, ...]
+    behaviour_features: str
 
 
 def run_fit(
@@ -342,7 +344,7 @@ def run_fit(
             counts_panel=panel,
             progress=clock,
             behaviour=opts.behaviour,
-            features=opts.behaviour_features,
+            features=opts.features(),
             catalogue=catalogue,
             setting_names=SETTING_OPTIONS,
         )
@@ -443,7 +445,7 @@ def _print_interaction(fit: Fit) -> None:
         )
 
 
-def _behaviour_lines(fit: Fit) -> list[str]:
+def _behaviour_lines(fit: BehaviourFit) -> list[str]:
     """One line per class: the fitted rationality, slip and reward weights with their
     standard errors."""
     out = []

@@ -665,11 +665,7 @@ def serve(
 _GC_THRESHOLDS = (10_000, 20, 20)
 
 
-#: The signature of :func:`warnings.showwarning`.
-_ShowWarning = Callable[[Warning | str, type[Warning], str, int, TextIO | None, str | None], None]
-
-
-def _note_fit_formats(show: _ShowWarning) -> _ShowWarning:
+def _note_fit_formats(show: Callable[..., None]) -> Callable[..., None]:
     """``warnings.showwarning`` that shows a fit read under an older format
     (:class:`~are_stats.fitting.FitFormatWarning`) as one ``note:`` line, as the commands'
     other notes, and any other warning by ``show``."""
