@@ -154,8 +154,9 @@ class FitOptions:
 
         Raises
         ------
-        are_stats.inputs.InputError
-            Naming the first option that is out of range.
+        ValueError
+            Naming the first option that is out of range (an
+            :class:`~are_stats.inputs.InputError`, or ``--clock-start`` that is not ISO 8601).
         """
         from are_stats.fitting import ARRIVAL_CHOICES, LIFETIME_CHOICES, POSITION_CHOICES
         from are_stats.traffic import clock_offset
