@@ -239,7 +239,7 @@ def _speed_variation(
     keep it from dominating. ``sigma^2`` is then a weighted least-squares line through
     the pooled semivariogram (weights: the pairs at each lag) for each ``T`` of a grid
     (``dt / 2`` to 300 s, 1% apart), and ``T`` the one of least residual; where ``T`` is
-    not identified (shorter than half the window, longer than a third of the longest lag:
+    not identified (shorter than half the window, longer than half the longest lag:
     :func:`_ou_fit`) the variation reads 0. Lags run up to
     :data:`VARIATION_LAG` (s). Windows whose speed is not within a factor
     :data:`VARIATION_CLIP` of the track's are left out (stops and bursts are not the
@@ -338,7 +338,7 @@ HEADING_CLIP = 1.0
 #: A within-person correlation time is identified from at least this fraction of the
 #: window up to the longest lag over this factor (:func:`_ou_fit`); outside, the variation
 #: reads 0.
-IDENTIFIED = (0.5, 3.0)
+IDENTIFIED = (0.5, 2.0)
 
 
 def _ou_fit(
@@ -356,11 +356,12 @@ def _ou_fit(
     no variation (``T`` then NaN), and so it is where ``T`` is not identified
     (:data:`IDENTIFIED`): shorter than half the window (the excess is independent between
     windows, white: a variation that fast is averaged out within the window, and what is
-    read is noise or the interaction's jolts, not a pace that lasts) or longer than a
-    third of the longest lag (an OU's variogram is within 5% of its sill by ``3 T``: one
-    still rising at the longest lag is the route's own turning or speed changes, or the
-    interaction's, not a variation around the route). ``second``: ``gamma`` is that of
-    second differences,
+    read is noise or the interaction's jolts, not a pace that lasts) or longer than half
+    the longest lag (an OU's variogram is within 14% of its sill by ``2 T``, 17% for
+    second differences: one still rising at the longest lag is the route's own turning or
+    speed changes, or the interaction's, not a variation around the route; a third, the
+    limit before, threw away a wander of 2 s read as 2.94 s against a limit of 2.93 s on
+    16-20 s walks: docs/src/behaviour.md). ``second``: ``gamma`` is that of second differences,
     ``Var(y_{j+2L} - 2 y_{j+L} + y_j) / 6``, whose OU terms are ``(4 k(L) - k(2L)) / 3``
     (``k`` :func:`_ou_window_terms`; the covariances ``6 C(0) - 8 C(L) + 2 C(2L)``)."""
     best = (math.inf, 0.0, math.nan)

@@ -308,3 +308,33 @@ def test_a_crowd_without_wander_reads_none(seed: int) -> None:
     tracks, _ = crowd_tracks(seed, 300.0)
     assert _variation(tracks)["heading_within_sd"] < 0.1
     assert _pace(tracks)["speed_within_sd"] < 0.02
+
+
+@pytest.mark.parametrize("second", [False, True], ids=["pace", "wander"])
+def test_a_variation_read_past_a_third_of_the_longest_lag_is_kept_a_rise_without_sill_is_not(
+    second: bool,
+) -> None:
+    """Issue 26: on walks of 16-20 s (lags up to 8.8 s at 2.5 Hz) a 2 s wander read 2.94 s,
+    past a third of the longest lag (the limit before), and so read 0 on about half the
+    crossing logs. The OU's own semivariogram (:func:`_ou_window_terms`, first or second
+    differences) with that correlation time is now read back exactly (the grid's 1%), one
+    whose time is past half the longest lag (its variogram more than 17% under its sill
+    there) and a rise without a sill (a straight line in the lag: the route's slow turn)
+    still read 0."""
+    from are_stats.fitting._behaviour import _ou_fit, _ou_window_terms
+
+    period = window = 0.4
+    lag_s = period * np.unique(np.geomspace(2, 22, 18).round())
+    w = np.linspace(400.0, 40.0, lag_s.size)  # pairs: fewer at the long lags
+
+    def ou(tau: float) -> np.ndarray:
+        k = _ou_window_terms(tau, window, lag_s)
+        if second:
+            k = (4.0 * k - _ou_window_terms(tau, window, 2.0 * lag_s)) / 3.0
+        return 0.12**2 * k
+
+    var, tau = _ou_fit(ou(2.94), w, lag_s, period, window, second)
+    assert lag_s.max() / 3.0 < 2.94 < lag_s.max() / 2.0
+    assert var == pytest.approx(0.12**2, rel=0.02) and tau == pytest.approx(2.94, rel=0.01)
+    assert _ou_fit(ou(6.0), w, lag_s, period, window, second)[0] == 0.0
+    assert _ou_fit(0.003 * lag_s, w, lag_s, period, window, second)[0] == 0.0
