@@ -19,6 +19,7 @@ between decisions is continuous:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -432,11 +433,17 @@ def walk_times(
         Times from 0 (a zero-length segment takes no time).
     """
     p = np.asarray(points, float).reshape(-1, 2)
-    speed = float(check_positive("speed", speed))
-    within_sd = float(check_nonnegative("within_sd", within_sd))
-    seg = np.hypot(*np.diff(p, axis=0).T) if len(p) > 1 else np.zeros(0)
+    # a plain number checked as such: continuous_paths times tens of thousands of paths
+    # (issue 29), the array checks cost more than the timing
+    if not (type(speed) is float and 0.0 < speed < math.inf):
+        speed = float(check_positive("speed", speed))
+    if not (type(within_sd) is float and 0.0 <= within_sd < math.inf):
+        within_sd = float(check_nonnegative("within_sd", within_sd))
+    seg = np.hypot(p[1:, 0] - p[:-1, 0], p[1:, 1] - p[:-1, 1])
+    if within_sd == 0.0:  # speed * exp(0) is speed: the same times
+        return np.concatenate(([0.0], np.cumsum(seg / speed)))
     e = np.zeros(seg.size)
-    if within_sd > 0.0 and seg.size:
+    if seg.size:
         if rng is None:
             raise ValueError("rng: expected a numpy Generator with within_sd > 0, got None")
         z = rng.standard_normal(seg.size)
