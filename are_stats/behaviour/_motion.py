@@ -19,6 +19,7 @@ between decisions is continuous:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -40,33 +41,86 @@ __all__ = [
 
 
 def _crossed(
-    free: np.ndarray, p0: np.ndarray, p1: np.ndarray, grid: np.ndarray | None = None
+    free: np.ndarray,
+    p0: np.ndarray,
+    p1: np.ndarray,
+    grid: np.ndarray | None = None,
+    table: np.ndarray | None = None,
 ) -> np.ndarray:
     """Whether each segment ``p0[k] -> p1[k]`` (``(row, col)`` in cell units) crosses only
     free cells: the cells between successive crossings of grid lines, and both end cells.
 
     ``p0, p1 : (m, 2)``; ``free : (H, W)`` bool, or ``(G, H, W)`` with ``grid : (m,)`` int
-    naming each segment's grid; returns ``(m,)`` bool (exact, vectorised over the segments;
+    naming each segment's grid; ``table``, optional: ``free``'s :func:`_blocked_table`
+    (made here without it); returns ``(m,)`` bool (exact, vectorised over the segments;
     a segment's answer does not depend on the others it is tested with).
 
-    Segments are tested in blocks of similar length (the grid lines each crosses, within a
-    factor of 2): a block pads every segment to its longest, so one long segment among many
-    short ones no longer makes all of them as wide."""
+    A segment whose bounding box of cells (widened by 1e-9 of a cell, more than the
+    round-off of the cells' coordinates) lies on the map with no blocked cell in it
+    crosses only free cells: it is answered by four look-ups in the summed table of
+    blocked cells, and only the others are traced cell by cell (issue 29: in an open
+    room most of string pulling's tests are long segments through free space, each
+    traced over every cell it crosses). Segments are traced in blocks of similar length
+    (the grid lines each crosses, within a factor of 2): a block pads every segment to
+    its longest, so one long segment among many short ones no longer makes all of them
+    as wide."""
     p0 = np.atleast_2d(p0)
     p1 = np.atleast_2d(p1)
+    if table is None:
+        table = _blocked_table(free)
+    clear = _box_clear(table, p0, p1, grid)
+    out = clear.copy()
+    rest = np.flatnonzero(~clear)
+    if rest.size == 0:
+        return out
+    p0, p1 = p0[rest], p1[rest]
+    grid = None if grid is None else np.asarray(grid)[rest]
     if len(p0) > _CROSS_BLOCK:
         lo, hi = np.minimum(p0, p1), np.maximum(p0, p1)
         lines = np.maximum(np.ceil(hi) - np.floor(lo) - 1.0, 0.0).sum(axis=1)
         band = np.ceil(np.log2(lines + 1.0)).astype(np.int64)
         if np.unique(band).size > 1:
-            out = np.empty(len(p0), bool)
             for b in np.unique(band):
                 sel = np.flatnonzero(band == b)
-                out[sel] = _crossed_block(
-                    free, p0[sel], p1[sel], None if grid is None else np.asarray(grid)[sel]
+                out[rest[sel]] = _crossed_block(
+                    free, p0[sel], p1[sel], None if grid is None else grid[sel]
                 )
             return out
-    return _crossed_block(free, p0, p1, grid)
+    out[rest] = _crossed_block(free, p0, p1, grid)
+    return out
+
+
+def _blocked_table(free: np.ndarray) -> np.ndarray:
+    """Summed-area table of the blocked (not free) cells: ``(..., H + 1, W + 1)`` int, the
+    blocked cells of ``free[..., :r, :c]`` at ``[..., r, c]``."""
+    blocked = (~np.asarray(free, bool)).astype(np.int32)
+    pad = [(0, 0)] * (blocked.ndim - 2) + [(1, 0), (1, 0)]
+    return np.pad(blocked, pad).cumsum(axis=-2).cumsum(axis=-1)
+
+
+def _box_clear(
+    table: np.ndarray, p0: np.ndarray, p1: np.ndarray, grid: np.ndarray | None
+) -> np.ndarray:
+    """``(m,)`` bool: the segments whose box of cells (:func:`_crossed`) is on the map and
+    free of blocked cells (``table``: :func:`_blocked_table`; ``grid`` as :func:`_crossed`'s).
+    False says nothing: such a segment must be traced."""
+    h, w = table.shape[-2] - 1, table.shape[-1] - 1
+    lo = np.floor(np.minimum(p0, p1) - _BOX_EPS)
+    hi = np.floor(np.maximum(p0, p1) + _BOX_EPS)
+    on = (lo[:, 0] >= 0) & (lo[:, 1] >= 0) & (hi[:, 0] < h) & (hi[:, 1] < w)
+    on &= np.isfinite(lo).all(axis=1) & np.isfinite(hi).all(axis=1)
+    r0 = np.where(on, lo[:, 0], 0).astype(np.int64)
+    c0 = np.where(on, lo[:, 1], 0).astype(np.int64)
+    r1 = np.where(on, hi[:, 0], 0).astype(np.int64) + 1
+    c1 = np.where(on, hi[:, 1], 0).astype(np.int64) + 1
+    g = () if grid is None else (np.asarray(grid, np.int64),)  # each segment's own grid
+    n = table[(*g, r1, c1)] - table[(*g, r0, c1)] - table[(*g, r1, c0)] + table[(*g, r0, c0)]
+    return on & (n == 0)
+
+
+#: Widening (cells) of a segment's box in :func:`_box_clear`: far above the round-off of
+#: the traced points ``p0 + s (p1 - p0)`` (about 1e-13 of a cell on maps of 1,000 cells).
+_BOX_EPS = 1e-9
 
 
 #: Segments above which :func:`_crossed` tests them in blocks of similar length.
@@ -115,11 +169,14 @@ def _sight(
     p1: np.ndarray,
     clearance: float,
     grid: np.ndarray | None = None,
+    table: np.ndarray | None = None,
 ) -> np.ndarray:
     """:func:`line_of_sight` from ``p0 (2,)`` (or one ``(m, 2)`` per segment) to each of
-    ``p1 (m, 2)``; ``grid`` as in :func:`_crossed`."""
+    ``p1 (m, 2)``; ``grid`` and ``table`` as in :func:`_crossed`."""
     p0 = np.broadcast_to(np.asarray(p0, float), np.shape(p1))
-    ok = _crossed(free, p0, p1, grid)
+    if table is None:
+        table = _blocked_table(free)
+    ok = _crossed(free, p0, p1, grid, table)
     if clearance <= 0.0:
         return ok
     d = p1 - p0
@@ -127,7 +184,11 @@ def _sight(
     safe = np.where(length > 0, length, 1.0)
     n = np.column_stack([-d[:, 1], d[:, 0]]) / safe[:, None] * float(clearance)
     n[length == 0] = 0.0
-    return ok & _crossed(free, p0 + n, p1 + n, grid) & _crossed(free, p0 - n, p1 - n, grid)
+    return (
+        ok
+        & _crossed(free, p0 + n, p1 + n, grid, table)
+        & _crossed(free, p0 - n, p1 - n, grid, table)
+    )
 
 
 def line_of_sight(free: Any, p0: Any, p1: Any, clearance: float = 0.2) -> bool:
@@ -282,6 +343,7 @@ def _pull_block(
     j = np.ones(len(n), np.int64)  # farthest point seen from it so far (its next point)
     kept_route, kept_point = [np.arange(len(n))], [np.zeros(len(n), np.int64)]
     active = np.ones(len(n), bool)
+    table = _blocked_table(free)
     while active.any():
         idx = np.flatnonzero(active)
         cnt = np.minimum(_AHEAD, n[idx] - 1 - j[idx])  # >= 1: j + 1 < n for the active
@@ -290,7 +352,7 @@ def _pull_block(
         local = np.arange(int(cnt.sum())) - np.repeat(start, cnt)
         p0 = rc[off[route] + a[route]]
         p1 = rc[off[route] + j[route] + 1 + local]
-        ok = _sight(free, p0, p1, clearance, None if free.ndim == 2 else route)
+        ok = _sight(free, p0, p1, clearance, None if free.ndim == 2 else route, table)
         # the points seen before the first one that is not, in each window
         run = np.minimum.reduceat(np.where(ok, _AHEAD, local), start)
         run = np.minimum(run, cnt)
@@ -371,11 +433,17 @@ def walk_times(
         Times from 0 (a zero-length segment takes no time).
     """
     p = np.asarray(points, float).reshape(-1, 2)
-    speed = float(check_positive("speed", speed))
-    within_sd = float(check_nonnegative("within_sd", within_sd))
-    seg = np.hypot(*np.diff(p, axis=0).T) if len(p) > 1 else np.zeros(0)
+    # a plain number checked as such: continuous_paths times tens of thousands of paths
+    # (issue 29), the array checks cost more than the timing
+    if not (type(speed) is float and 0.0 < speed < math.inf):
+        speed = float(check_positive("speed", speed))
+    if not (type(within_sd) is float and 0.0 <= within_sd < math.inf):
+        within_sd = float(check_nonnegative("within_sd", within_sd))
+    seg = np.hypot(p[1:, 0] - p[:-1, 0], p[1:, 1] - p[:-1, 1])
+    if within_sd == 0.0:  # speed * exp(0) is speed: the same times
+        return np.concatenate(([0.0], np.cumsum(seg / speed)))
     e = np.zeros(seg.size)
-    if within_sd > 0.0 and seg.size:
+    if seg.size:
         if rng is None:
             raise ValueError("rng: expected a numpy Generator with within_sd > 0, got None")
         z = rng.standard_normal(seg.size)

@@ -936,12 +936,13 @@ def social_force_tracks(
             out_xy[a:b] = xy_all[a:b]
             continue
         lo, hi = bounds[i], bounds[i + 1]
-        ts = np.r_[t_on[i], st[lo:hi]]
-        xs_i = np.vstack([xy_all[a : a + 1], sx[lo:hi]])
+        # concatenate, not np.r_ / vstack: per artefact, their overhead was most of it
+        ts = np.concatenate((t_on[i : i + 1], st[lo:hi]))
+        xs_i = np.concatenate((xy_all[a : a + 1], sx[lo:hi]))
         out_xy[a:b, 0] = np.interp(t_all[a:b], ts, xs_i[:, 0])
         out_xy[a:b, 1] = np.interp(t_all[a:b], ts, xs_i[:, 1])
         if b - a > 1:
-            d = np.diff(out_xy[a:b], axis=0)
+            d = out_xy[a + 1 : b] - out_xy[a : b - 1]
             moving = np.hypot(*d.T) > 1e-3
             heading = np.arctan2(d[:, 1], d[:, 0])
             yy = yaw[a:b].copy()

@@ -26,6 +26,7 @@ from are_stats.behaviour import (
     walk_times,
     walk_tracks,
 )
+from are_stats.behaviour._motion import _blocked_table, _box_clear, _crossed, _crossed_block
 from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
 
 K_SIGMA = 4.0
@@ -462,3 +463,31 @@ def test_arrival_velocities_are_each_tracks_first_planned_move() -> None:
     pd.testing.assert_frame_equal(got.drop(columns=["vx", "vy"]), tracks)
     alone = arrival_velocities(pd.DataFrame({"id": [1], "t": [0.0], "x": [1.0], "y": [2.0]}))
     assert alone[["vx", "vy"]].to_numpy().tolist() == [[0.0, 0.0]]
+
+
+def test_clear_boxes_answer_as_the_traced_cells() -> None:
+    """The summed-table shortcut of the segment test (a box of free cells) answers every
+    segment as tracing its cells does: on open maps with walls and scattered blocks, with
+    segments from and to cell corners and edges (coordinates on the grid lines), along
+    rows and columns, off the map, with one grid and with one grid per segment."""
+    rng = np.random.default_rng(3)
+    shortcut = 0
+    for _ in range(6):
+        free = ~_room(24, 40)
+        free[rng.integers(1, 23, 6), rng.integers(1, 39, 6)] = False
+        m = 3000
+        p0 = rng.uniform(-1.0, 41.0, (m, 2)) * [24 / 40, 1.0]
+        p1 = rng.uniform(-1.0, 41.0, (m, 2)) * [24 / 40, 1.0]
+        lines = rng.random((m, 2)) < 0.3  # on grid lines, corners included
+        p0 = np.where(lines, np.round(p0), p0)
+        p1 = np.where(rng.random((m, 2)) < 0.3, np.round(p1), p1)
+        p1[::7, 0] = p0[::7, 0]  # along a row
+        p1[1::7, 1] = p0[1::7, 1]  # along a column
+        for grids, g in ((free, None), (np.stack([free, free & ~np.eye(24, 40, 3, bool)]),
+                                        rng.integers(0, 2, m))):  # fmt: skip
+            table = _blocked_table(grids)
+            shortcut += int(_box_clear(table, p0, p1, g).sum())
+            want = _crossed_block(grids, p0, p1, g)
+            np.testing.assert_array_equal(_crossed(grids, p0, p1, g, table), want)
+            np.testing.assert_array_equal(_crossed(grids, p0, p1, g), want)
+    assert shortcut > 1000  # the shortcut answered many of them

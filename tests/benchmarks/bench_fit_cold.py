@@ -147,6 +147,30 @@ any-angle string pulling of the displacement errors' 32,000 continuations and th
 routes (``string_pull_many``, about a fifth), the social force's walks and its five
 ``_window`` compilations, the scenes' route planning; issue 29's 60 s is still far.
 
+The tracks part with string pulling's segment test answered by a summed table of blocked
+cells where a segment's box of cells is free (only the others traced cell by cell), and
+``walk_times`` and ``social_force_tracks``' per-path overheads cut (2026-11-28, main
+1e277c1 and wt-tracks started together in fresh processes with empty caches, the CLI's
+command, child CPU by ``getrusage``, ``JAX_LOG_COMPILES=1``): with the string pulling
+alone, load 15 -> 25: cold CPU 116.4 s main vs 102.3 s branch (0.88x; wall 1,430 vs 1,222
+s); with all three, load 19 -> 21: 127.7 vs 110.3 s (0.86x; wall 1,156 vs 1,102 s).
+XLA compilations 55 both, the same programs (``_window`` 5: 16, 32, 1,024, 2,048 and
+4,096 slots). The stage record's realism and displacement errors (wall less compiling,
+at that load) 717 vs 475 s, then 423 vs 338 s. The fit file's every group (``xarray``
+``identical``) and all 17 criticism files byte for byte the same, in both rounds. Where
+main's CPU went (cProfile, ``time.process_time``, 182 s profiled): string pulling 17.8 s
+(``_crossed_block`` 12.5 s; 3,000 door-to-door routes: 7.5 -> 0.24 s after), XLA
+compiling 27.8 s (``_window`` five, the behaviour's gradient, the nine Laplace programs),
+the imports 12.5 s, ``social_force_tracks`` 34 s (its programs' runs 8.3 s, compiling
+13.7 s), ``walk_times`` 5.8 s (40,000 paths: 2.08 -> 0.43 s after), ``draw_exits`` 7.7 s
+and ``continuous_paths``' 41,000 ``cell_to_world`` calls 1.7 s (``behaviour._model`` and
+``_generate``, left alone). Tried and left: ``_window`` at XLA's optimisation level 0
+(other bits, and its runs 3x slower); ``xla_llvm_disable_expensive_passes`` (no change).
+The motion checks' 50 replicates stay: with a 5-95% band of R replicates an observed
+value from the model's own law falls outside it 13.3% of the time at R = 50, 18.3% at
+20, 24% at 10 (before the tolerances), so fewer replicates flag more. Issue 29's 60 s
+is still far.
+
 The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not
