@@ -907,13 +907,16 @@ def _queue_left(now: float, start: float, finished: list[float], ahead: int) -> 
     Returns
     -------
     float or None
-        Seconds left, at least 0; None before a run has finished (no rate yet).
+        Seconds left; None before a run has finished (no rate yet) and once the runs are
+        overdue at that rate (the candidates' programs compile in 0.5-3 s of CPU each, so
+        a rate is rough: an overdue run is not "about 1 s" from its end).
     """
     if not finished:
         return None
     last = max(finished)
     rate = (last - start) / len(finished)  # seconds per run
-    return max(last + ahead * rate - now, 0.0)
+    left = last + ahead * rate - now
+    return left if left > 0 else None
 
 
 def _wait_laplace(which: tuple[str, str], runs: dict, say: Any, queue: tuple) -> Any:

@@ -3,6 +3,7 @@ progress with the time left): the candidates' throughput so far, told to the sta
 
 from __future__ import annotations
 
+import time
 from concurrent.futures import Future
 
 import pytest
@@ -15,7 +16,7 @@ def test_queue_left_is_the_runs_ahead_at_the_measured_rate():
     # started at 0, two runs finished at 2 and 4 s: 2 s a run; two more from 4 s is 8 s
     assert _queue_left(5.0, 0.0, [2.0, 4.0], 2) == pytest.approx(3.0)
     assert _queue_left(5.0, 0.0, [4.0, 2.0], 1) == pytest.approx(1.0)  # order does not matter
-    assert _queue_left(9.0, 0.0, [2.0, 4.0], 1) == 0.0  # overdue: nothing left, not negative
+    assert _queue_left(9.0, 0.0, [2.0, 4.0], 1) is None  # overdue: the rate says nothing
     assert _queue_left(1.0, 0.0, [], 3) is None  # no run finished: no rate yet
 
 
@@ -52,10 +53,14 @@ def test_a_waiting_laplace_stage_tells_the_clock_its_time_left(monkeypatch):
     start, finished = -1e9, [-1e9 + 2.0]  # one run in 2 s, long ago: overdue
     got = _wait_laplace(("arrivals", "b"), runs, clock, (start, finished))
     assert got == "run"
-    assert len(clock.calls) == 2
-    for seconds, words in clock.calls:
-        assert words == "1/3 Laplace candidates done"
-        assert seconds == 0.0
+    assert clock.calls == [(None, "1/3 Laplace candidates done")] * 2
+    # a rate that still says something: one run in 1e6 s, just now; one run ahead
+    runs, pending = _runs()
+    clock = _Clock(pending, finish_after=1)
+    now = time.perf_counter()
+    assert _wait_laplace(("arrivals", "b"), runs, clock, (now - 1e6, [now])) == "run"
+    [(seconds, words)] = clock.calls
+    assert 1e6 - 60.0 < seconds <= 1e6 and words == "1/3 Laplace candidates done"
     # before any run finished: the time left is not known yet
     runs, pending = _runs()
     runs[("arrivals", "a")] = Future()
