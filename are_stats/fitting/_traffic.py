@@ -65,6 +65,7 @@ A candidate named by ``--arrivals`` is sampled by NUTS.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -549,9 +550,14 @@ def fit_traffic(
                     prefetch.submit(laplace_program, model, kwargs, init, pw,
                                     _optimise((factor, name)))  # fmt: skip
             prefetch.shutdown(wait=False)
+        # when the runs started and finished: the Laplace stages' time left on a first fit
+        lap_queue: tuple[float, list[float]] = (time.perf_counter(), [])
         for which in calls:
             if which in approx:
                 lap_runs[which] = lap_pool.submit(_run_candidate, calls, which, n_lap)
+                lap_runs[which].add_done_callback(
+                    lambda _f: lap_queue[1].append(time.perf_counter())
+                )
         for which, call in calls.items():
             if which not in approx:
                 ahead.add(*call, **nuts)
@@ -561,7 +567,7 @@ def fit_traffic(
                 ll = poisson_unit_loglik(lam.ravel(), plain, log_area).reshape(shape + (-1,))
                 run = None
             elif ("arrivals", name) in approx:
-                lap = _laplace_candidate(("arrivals", name), lap_runs, say, out)
+                lap = _laplace_candidate(("arrivals", name), lap_runs, say, out, lap_queue)
                 draws["arrivals"][name] = {k: v[None] for k, v in lap.samples.items()}
                 runs["arrivals"][name] = None
                 laps["arrivals", name] = lap
@@ -579,7 +585,7 @@ def fit_traffic(
                 ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
                 run = None
             elif ("stays", law) in approx:
-                lap = _laplace_candidate(("stays", law), lap_runs, say, out)
+                lap = _laplace_candidate(("stays", law), lap_runs, say, out, lap_queue)
                 draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
                 runs["stays"][law] = None
                 laps["stays", law] = lap
@@ -876,13 +882,76 @@ def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> Any:
                        name=f"{factor} {name}", optimise=_optimise(which))  # fmt: skip
 
 
-def _laplace_candidate(which: tuple[str, str], runs: dict, say: Any, out: TrafficFit) -> Any:
+#: Seconds between two updates of a Laplace stage's time left while it waits on its run.
+LAPLACE_POLL = 0.5
+
+
+def _queue_left(now: float, start: float, finished: list[float], ahead: int) -> float | None:
+    """Seconds until ``ahead`` more runs of a queue finish, at the rate measured so far.
+
+    The candidates' Laplace approximations run :data:`LAPLACE_THREADS` at a time, in
+    order; their throughput is the runs finished per second since the queue started
+    (compiling included: on a first fit each run compiles its program). The time left
+    of the ``ahead``-th run still to finish is ``ahead`` runs at that rate from the last
+    one finished, less the time since.
+
+    Parameters
+    ----------
+    now, start : float
+        Seconds now and when the queue started (:func:`time.perf_counter`).
+    finished : list of float
+        When each finished run finished.
+    ahead : int
+        Runs still to finish, the one waited for included (at least 1).
+
+    Returns
+    -------
+    float or None
+        Seconds left; None before a run has finished (no rate yet) and once the runs are
+        overdue at that rate (the candidates' programs compile in 0.5-3 s of CPU each, so
+        a rate is rough: an overdue run is not "about 1 s" from its end).
+    """
+    if not finished:
+        return None
+    last = max(finished)
+    rate = (last - start) / len(finished)  # seconds per run
+    left = last + ahead * rate - now
+    return left if left > 0 else None
+
+
+def _wait_laplace(which: tuple[str, str], runs: dict, say: Any, queue: tuple) -> Any:
+    """``runs[which].result()``, telling a stage clock (``say.left``) the time left while
+    the fit waits on it, from the runs' throughput so far (:func:`_queue_left`), where the
+    clock has no record of the stage (a first fit; a later one shows the record's)."""
+    future = runs[which]
+    left = getattr(say, "left", None)
+    last = getattr(say, "last", None)
+    factor, name = which
+    if left is None or (last is not None and last(f"{factor}: Laplace approximation of {name}")
+                        is not None):  # fmt: skip
+        return future.result()
+    start, finished = queue
+    order = list(runs)
+    while True:
+        try:
+            return future.result(timeout=LAPLACE_POLL)
+        except TimeoutError:
+            done = sum(f.done() for f in runs.values())
+            ahead = sum(not runs[w].done() for w in order[: order.index(which) + 1])
+            words = f"{done}/{len(runs)} Laplace candidates done"
+            left(_queue_left(time.perf_counter(), start, list(finished), max(ahead, 1)), words)
+
+
+def _laplace_candidate(
+    which: tuple[str, str], runs: dict, say: Any, out: TrafficFit, queue: tuple = (0.0, [])
+) -> Any:
     """The Laplace approximation of one candidate model from its run (``runs[which]``, a
-    future of :func:`_run_candidate`), with a word in ``out`` if its mode search did not
-    converge."""
+    future of :func:`_run_candidate`; ``queue``: when the runs started and when each
+    finished, for the time left, :func:`_wait_laplace`), with a word in ``out`` if its
+    mode search did not converge."""
     factor, name = which
     say(f"{factor}: Laplace approximation of {name}")
-    run = runs[which].result()
+    run = _wait_laplace(which, runs, say, queue)
     if not run.converged:
         out.warnings.append(
             f"{factor} {name}: the mode search of the Laplace approximation did not converge "

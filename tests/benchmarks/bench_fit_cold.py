@@ -217,6 +217,23 @@ cache passes to ``deserialize_executable``. A first fit shows the Laplace stages
 seconds only (no record yet: "every stage over 2 s shows the time left" does not hold on a
 machine's first fit, e.g. gamma's 17 s at load 18); no XLA or Warp banner reached the
 terminal, first fit or repeated.
+
+One Laplace program per model family (four ``lax.switch`` programs for the shipped log's
+nine candidates, the candidate an index, the points padded with ignored columns) was
+measured and not adopted (docs: "Choosing the traffic models"): compiled one after the
+other in a fresh process 13.9-14.3 s of CPU against 10.1-10.9 s for the nine programs,
+loaded from the caches 1.18 s against 0.75 s (2026-11-28, load 10-12); XLA compiles every
+branch as it compiles the candidate's own program. Kept: a first fit's Laplace stages show
+the candidates done and the time left at their measured rate. ``are-stats fit
+courtyard_traffic --force`` with figures, main 1e277c1 and the branch alternated in 3 pairs
+(fresh cache cold, then repeated on it; child CPU by ``getrusage``, load 20-27): cold CPU
+22.6, 29.6, 29.0 s main against 23.4, 25.7, 25.8 s branch (wall 104-162 s against
+78-138 s), repeated 12.8, 13.8, 16.1 s against 13.1, 12.7, 12.1 s; 9 XLA compilations in
+every cold and repeated run, the same choices, the fit files' groups identical. A cold
+tracks fit compiles ten one-shape random programs (``_normal`` 3, ``_uniform`` 3,
+``_threefry_split`` 2, ``fold_in``, ``seed``; 18 s of wall at load 20): a draw of a shape
+is, bit for bit, the prefix of a larger draw (``jax_threefry_partitionable``, checked for
+1-3 dimensions, float32 and float64), so one padded program per dtype could serve them.
 """
 
 from __future__ import annotations
