@@ -64,3 +64,31 @@ def test_replicate_statistics_by_hand():
     assert got[1, col["N(t) peak"]] == 0.0
     assert got[1, col["longest N(t) = 0 (s)"]] == 120.0
     assert np.isnan(got[1, col["N(t) var/mean"]]) and np.isnan(got[1, col["zero gaps"]])
+
+
+def test_crowding_statistics_are_the_median_of_each_scenarios_statistics():
+    """crowding_statistics summarises all scenarios in one pass; the medians must be those
+    of window_statistics scenario by scenario (rows of a scenario interleaved with
+    others', ids out of order and with gaps), and NaN for an empty table."""
+    import pandas as pd
+
+    from are_stats.fitting import CROWDING_STATISTICS, crowding_statistics
+
+    ta, tl, tr, bounds, window, res = _windows(5, 3600.0, 60)
+    sid = np.repeat(np.arange(len(bounds) - 1) * 3 + 7, np.diff(bounds))
+    rows = np.random.default_rng(0).permutation(sid.size)
+    table = pd.DataFrame(
+        {"scenario": sid[rows], "t_arrive": ta[rows], "t_leave": tl[rows], "truncated": tr[rows]}
+    )
+    got = crowding_statistics(table, window, res)
+    per = [
+        window_statistics(sc["t_arrive"].to_numpy(), sc["t_leave"].to_numpy(),
+                          sc["truncated"].to_numpy(), window, res)
+        for _, sc in table.groupby("scenario")
+    ]  # fmt: skip
+    want = {k: float(np.nanmedian([p[k] for p in per])) for k in CROWDING_STATISTICS}
+    assert got.keys() == want.keys()
+    for k in CROWDING_STATISTICS:
+        assert got[k] == want[k] or (np.isnan(got[k]) and np.isnan(want[k])), k
+    empty = crowding_statistics(table.iloc[:0], window, res)
+    assert all(np.isnan(v) for v in empty.values())
