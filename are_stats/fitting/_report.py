@@ -380,7 +380,11 @@ def _no_data(ax: Any, why: str) -> None:
 
 
 def _band(ax, x, reps, color, label, step=False):
-    q = np.nanquantile(reps, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
+    # np.nanquantile goes column by column (apply_along_axis: 0.05-0.1 s of CPU for the
+    # overview's four bands); without NaN np.quantile gives the same values in one call
+    reps = np.asarray(reps)
+    quantile = np.nanquantile if np.isnan(reps).any() else np.quantile
+    q = quantile(reps, [0.05, 0.25, 0.5, 0.75, 0.95], axis=0)
     kw = {"step": "post"} if step else {}
     ax.fill_between(x, q[0], q[4], color=color, alpha=0.18, lw=0, label=f"{label} 90%", **kw)
     ax.fill_between(x, q[1], q[3], color=color, alpha=0.35, lw=0, label=f"{label} 50%", **kw)
@@ -510,10 +514,21 @@ def _overview_images(checks: PredictiveChecks) -> dict[str, np.ndarray]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     overview, panels = _overview(checks)
+    # each title at its place above its axes, given (y = 1), not found by matplotlib at
+    # every drawing: it lays the y ticks out again to see whether an offset text ("1e6")
+    # is in the way (0.1-0.2 s of CPU for the six panels); the same pixels where none is
+    for ax in panels.values():
+        ax.set_title(ax.get_title(), y=1.0)
     try:
         overview.set_dpi(REPORT_DPI)
         canvas = FigureCanvasAgg(overview)  # Agg whatever the session's backend
         canvas.draw()
+        if any(ax.yaxis.offsetText.get_text() for ax in panels.values()):
+            plt.close(overview)  # an offset text: drawn again with matplotlib's titles
+            overview, panels = _overview(checks)
+            overview.set_dpi(REPORT_DPI)
+            canvas = FigureCanvasAgg(overview)
+            canvas.draw()
         renderer = canvas.get_renderer()
         boxes = _panel_boxes(overview, panels, renderer)
         if boxes is None:  # labels past the fixed grid: laid out to fit, drawn again

@@ -234,6 +234,22 @@ tracks fit compiles ten one-shape random programs (``_normal`` 3, ``_uniform`` 3
 ``_threefry_split`` 2, ``fold_in``, ``seed``; 18 s of wall at load 20): a draw of a shape
 is, bit for bit, the prefix of a larger draw (``jax_threefry_partitionable``, checked for
 1-3 dimensions, float32 and float64), so one padded program per dtype could serve them.
+
+The report's traffic checks in one pass over the 400 replicated windows
+(``_replicate_statistics``, every value ``window_statistics``' bit for bit) and the
+overview's titles placed at y = 1 with its bands by ``np.quantile`` (2026-11-28, main
+1e277c1 against the branch at load 15-28, the shared machine at its busiest: read the
+parts). In-process CPU on the shipped fit, fresh processes alternated: ``traffic_checks``
+0.70-0.85 s -> 0.57-0.66 s (the rest is ``generate_scenarios``), the overview and its
+panels 0.96-1.14 -> 0.85-0.91 s, ``write_report`` as a whole 2.96, 3.36, 3.35 s -> 2.75,
+2.72, 3.34 s. The full command, a cold fit then 3 repeated in fresh processes on one fresh
+cache, main and branch alternated, 2 pairs (a third stopped for time), user environment
+(no numba) and ``bench`` one side by side, main / branch: child CPU cold 24.4 / 21.8 s
+and 22.1 / 28.1 s (user), 24.9 / 22.6 s and 27.6 / 28.8 s (bench); repeated medians
+11.3 / 11.7 s and 13.9 / 14.0 s (user), 11.7 / 12.8 s and 16.5 / 14.9 s (bench), wall
+80-110 s a run: one side's runs spread 10.3-18.2 s, so no difference is resolved end to
+end. The fit file (every group ``xarray``-identical), the 13 criticism files byte for
+byte, and the printed tables the same; no XLA or Warp banner.
 """
 
 from __future__ import annotations
