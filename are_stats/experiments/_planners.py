@@ -29,10 +29,11 @@ import heapq
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any, NamedTuple, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_finite, check_in, check_positive, describe
 from are_stats.inputs import get_bool, get_float, get_int, get_str
@@ -50,6 +51,10 @@ __all__ = [
 #: OMPL geometric planners offered by :class:`OMPLPlanner`.
 OMPL_ALGORITHMS = ("RRT", "RRTConnect", "RRTstar", "PRM")
 
+# Lazy imports: OMPL's bindings (+25 ms CPU on `import are_stats.experiments`, measured
+# 2026-11-28) load when an OMPLPlanner plans, not with A*; their states stay `Any` (the
+# bindings ship no type stubs).
+
 
 class Planner(Protocol):
     """A path planner: ``(free, start, goal, params) -> (k, 2) path | None`` (see module)."""
@@ -59,7 +64,7 @@ class Planner(Protocol):
     ) -> np.ndarray | None: ...
 
 
-def check_free_mask(free: Any) -> np.ndarray:
+def check_free_mask(free: npt.ArrayLike) -> np.ndarray:
     """Validate a ``(H, W)`` bool free mask."""
     m = np.asarray(free)
     if m.dtype != bool or m.ndim != 2 or 0 in m.shape:
@@ -67,7 +72,7 @@ def check_free_mask(free: Any) -> np.ndarray:
     return m
 
 
-def _point(name: str, p: Any) -> np.ndarray:
+def _point(name: str, p: npt.ArrayLike) -> np.ndarray:
     a = check_finite(name, p, ndim=1)
     if a.shape != (2,):
         raise ValueError(f"{name}: expected (x, y), got {a.tolist()}")
@@ -113,10 +118,10 @@ def _query(
 
 
 def timed_plan(
-    planner: Callable[..., Any],
-    free: Any,
-    start: Any,
-    goal: Any,
+    planner: Planner,
+    free: npt.ArrayLike,
+    start: npt.ArrayLike,
+    goal: npt.ArrayLike,
     params: Mapping[str, Any],
 ) -> tuple[np.ndarray | None, float]:
     """Call ``planner`` and measure its wall-clock time ``rho_t`` (eq. 3).
@@ -341,9 +346,10 @@ class OMPLPlanner(_GridPlanner):
         self.goal_bias = goal_bias
         self.time_limit = get_float(time_limit, src, "time_limit", lo=0.0, lo_open=True, hi=3600.0)
         self.max_iterations = (
-            None if max_iterations is None
+            None
+            if max_iterations is None
             else get_int(max_iterations, src, "max_iterations", lo=1, hi=2**62)
-        )  # fmt: skip
+        )
         if self.max_iterations is not None and self.algorithm == "PRM":
             raise ValueError("max_iterations: OMPL's PRM runs on a time budget only")
         self.simplify = get_bool(simplify, src, "simplify")
@@ -532,7 +538,7 @@ def _grid_motion_validator() -> type:
     return GridMotionValidator
 
 
-def make_planner(spec: Mapping[str, Any] | Callable[..., Any]) -> Callable[..., Any]:
+def make_planner(spec: Mapping[str, Any] | Planner) -> Planner:
     """A planner from a spec dict (as in a sweep YAML) or a callable (returned unchanged).
 
     ``{"algorithm": "astar"}`` gives :class:`AStarPlanner`; any of :data:`OMPL_ALGORITHMS`

@@ -29,7 +29,8 @@ from are_stats.logs._rosbag import (
 )
 from are_stats.logs._tf import TF_TYPES, TfBuffer, transform_matrix
 
-# Lazy imports: rosbags (about 0.2 s) is imported when a bag trajectory is read.
+# Lazy imports: rosbags (+0.3 s CPU on `import are_stats.logs`, measured 2026-11-28) is
+# imported when a bag trajectory is read.
 
 __all__ = [
     "CLOCKS",

@@ -31,6 +31,7 @@ import os
 import weakref
 from typing import TYPE_CHECKING, NamedTuple, TypedDict, Unpack
 
+import jax
 import numpy as np
 import numpy.typing as npt
 import warp as wp
@@ -41,11 +42,7 @@ from are_stats.perception._camera import CameraModel
 from are_stats.perception._frustum_bvh import FrustumBVH, build_frustum_bvh
 
 if TYPE_CHECKING:
-    import jax
     import trimesh
-
-# Lazy imports: JAX is imported by sample_perceived only (a perception run needs Warp, not
-# JAX).
 
 __all__ = [
     "PerceptionResult",
@@ -804,8 +801,6 @@ def sample_perceived(
     (T, n) or (n,) bool
         ``perceived & exists & detected``.
     """
-    import jax
-
     per = np.asarray(perceived)
     if per.dtype != bool or per.ndim not in (1, 2):
         raise ValueError(f"perceived: expected a (T, n) or (n,) bool array, got {describe(per)}")

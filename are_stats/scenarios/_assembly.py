@@ -58,10 +58,21 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Unpack
 
+import jax
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
+from are_stats.behaviour import (
+    BehaviourFit,
+    SocialForce,
+    arrival_velocities,
+    behaviour_tracks,
+    group_tracks,
+    simulate_behaviour_tracks,
+    social_force_tracks,
+)
+from are_stats.builder import ARBuilder
 from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_free
 from are_stats.inputs import Described, InputError, check_memory, check_work, get_str
 from are_stats.scenarios._behaviour_rule import behaviour_source
@@ -71,14 +82,12 @@ from are_stats.scenarios._scene import Scene
 
 if TYPE_CHECKING:
     import arviz as az
-    import jax
 
-    from are_stats.behaviour import BehaviourFit, SocialForce
     from are_stats.fitting import Fit
     from are_stats.traffic import TrafficLaws
 
-# Lazy imports: behaviour and fitting (JAX, NumPyro) load when a scene moves or a fit is read:
-# scenarios without behaviours stay light.
+# Lazy import: fitting (NumPyro, ArviZ: +0.9 s CPU on `import are_stats.scenarios`, measured
+# 2026-11-28) loads when a fit is read; behaviour and JAX come with the room anyway.
 
 __all__ = [
     "check_tracks_size",
@@ -338,8 +347,6 @@ def move_scenes(
     ValueError
         For catalogue behaviours without a map, or two scenes of one scenario number.
     """
-    from are_stats.behaviour import behaviour_tracks, simulate_behaviour_tracks
-
     opts = (options or _MOVING).with_settings(settings)
     interaction, cell_source = opts.interaction, opts.cell_source
     kind = behaviour_source(opts.behaviours, fitted, grid, source)
@@ -484,8 +491,6 @@ def scenes_from_draws(
         Scene ``i`` is scenario ``i``; ``scene.artefacts`` its table and
         :meth:`Scene.tracks_table` its tracks.
     """
-    import jax
-
     opts = (options or _STANDING).with_settings(settings)
     kind = behaviour_source(opts.behaviours, fitted, grid, source)
     if isinstance(key, int | np.integer) and not isinstance(key, bool):
@@ -568,8 +573,6 @@ def _groups(
     (:func:`~are_stats.behaviour.group_tracks`; pedestrians only) and each artefact's
     group label, indexed by ``(scenario, id)`` (None without a ``group`` column);
     ``art`` is the scenes' tables, scene after scene."""
-    from are_stats.behaviour import SocialForce, group_tracks
-
     if "group" not in art.columns:
         return scenes, None
     spacing = (interaction if isinstance(interaction, SocialForce) else SocialForce()).group_spacing
@@ -594,8 +597,6 @@ def _resolve(
     against each other and against everything standing (walking people give way to them
     afterwards); without it, every mover against everybody. The environment is the
     route planner's (routes keep to free cells), so the builder's map is open ground."""
-    from are_stats.builder import ARBuilder
-
     xy = np.concatenate([s.tracks_table()[["x", "y"]].to_numpy(float) for s in scenes])
     lo = xy.min(axis=0) - 10.0
     shape = np.ceil((xy.max(axis=0) + 10.0 - lo) / 0.5).astype(int) + 1
@@ -604,9 +605,14 @@ def _resolve(
     out = []
     for scene, walking in zip(scenes, walks, strict=True):
         moving = np.array(
-            [np.ptp(scene.track(i)[1][:, :2], axis=0).max(initial=0.0) > 1e-9
-             if scene.has_tracks[i] else False for i in range(len(scene))], bool,
-        )  # fmt: skip
+            [
+                np.ptp(scene.track(i)[1][:, :2], axis=0).max(initial=0.0) > 1e-9
+                if scene.has_tracks[i]
+                else False
+                for i in range(len(scene))
+            ],
+            bool,
+        )
         movers = moving & ~walking if interaction is not False else moving
         if movers.any():
             resolved = builder.resolve_scene(scene, movers, others=~(moving & ~movers))
@@ -632,22 +638,20 @@ def _interact(
     """The scenes walked again under the social force; non-pedestrians stay kinematic;
     arrival groups (labels by ``(scenario, id)``) walk together; ``progress(done, total)``
     after each window of its simulation; ``pace``: :func:`_speed_variation`'s."""
-    from are_stats.behaviour import SocialForce, arrival_velocities, social_force_tracks
-
     params = interaction if isinstance(interaction, SocialForce) else SocialForce()
     tracks = _tracks_of(scenes, numbers)
     kinematic = np.concatenate(
-        [~w[pd.Index(s.ids).get_indexer(s.tracks_table()["id"])]
-         for s, w in zip(scenes, walks, strict=True)]
-    )  # fmt: skip
+        [
+            ~w[pd.Index(s.ids).get_indexer(s.tracks_table()["id"])]
+            for s, w in zip(scenes, walks, strict=True)
+        ]
+    )
     rows = None
     if groups is not None:
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         rows = groups.reindex(at).fillna(-1).to_numpy(np.int64)
     speed_variation = heading_variation = None
     if pace is not None:
-        import jax
-
         key, by_artefact = pace
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         per_row = by_artefact.reindex(at)
@@ -661,9 +665,15 @@ def _interact(
             )
     # people arrive walking, at their plan's first velocity (arrival_velocities)
     walked = social_force_tracks(
-        arrival_velocities(tracks), params, grid, kinematic=kinematic, groups=rows,
-        progress=progress, speed_variation=speed_variation, heading_variation=heading_variation,
-    ).drop(columns=["vx", "vy"])  # fmt: skip
+        arrival_velocities(tracks),
+        params,
+        grid,
+        kinematic=kinematic,
+        groups=rows,
+        progress=progress,
+        speed_variation=speed_variation,
+        heading_variation=heading_variation,
+    ).drop(columns=["vx", "vy"])
     return _with_tracks(scenes, numbers, walked)
 
 
@@ -680,8 +690,6 @@ def _speed_variation(
     takes it), indexed by ``(scenario, id)``, with the key of its processes (``key``
     folded with 26, so the planned tracks draw as before; the heading's folded once
     more); None when the fit has neither (an older fit file)."""
-    import jax
-
     if (
         fitted is None
         or not len(art)
