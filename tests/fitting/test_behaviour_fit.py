@@ -310,23 +310,7 @@ def _fit_value_and_gradient(paths, free, theta, n_devices, features=None):
     return obs, fb._gradient_value_epochs(th, data, 1e-3, n_dev)[:2]
 
 
-def _padded_test_paths():
-    """:func:`_small_world` with three of its paths, one cut (3 goals, 3 tracks, at most 7
-    steps): data that the shape buckets (4, 4, 8) pad in goals, tracks and steps."""
-    free, paths, phi = _small_world()
-    return free, [paths[1], paths[2][:6], paths[3]], phi
-
-
-@pytest.mark.parametrize(
-    "n_devices",
-    [
-        1,
-        # make test: [1] (padded = unpadded on one device) and
-        # test_likelihood_with_features_split_across_devices_equals_one_device (the padded
-        # program on two devices = on one, on these data) keep the claim on two devices
-        pytest.param(2, marks=pytest.mark.slow),
-    ],
-)
+@pytest.mark.parametrize("n_devices", [1, 2])
 def test_padded_likelihood_equals_the_unpadded_one(monkeypatch, n_devices: int) -> None:
     """The fit's likelihood pads goals, tracks and steps to shape buckets (issue 29: one
     compiled program for the fit and the held-out fit); its value and gradient are those
@@ -336,7 +320,8 @@ def test_padded_likelihood_equals_the_unpadded_one(monkeypatch, n_devices: int) 
 
     if jax.local_device_count() < n_devices:
         pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
-    free, paths, phi = _padded_test_paths()
+    free, paths, phi = _small_world()
+    paths = [paths[1], paths[2][:6], paths[3]]  # 3 goals, 3 tracks, at most 7 steps
     opts = dict(
         goal_reward=1.0, step_cost=1e-3, time_cost=1.0, dtype=np.float64,
         n_devices=n_devices, features=phi,
@@ -442,12 +427,11 @@ def test_zero_weights_give_exactly_the_likelihood_without_features() -> None:
 
 
 def test_likelihood_with_features_split_across_devices_equals_one_device() -> None:
-    """As with three goals above, with two reward features, on the padded test's data: its
-    padded program (the same shape buckets) gives on two devices what it gives on one,
-    which there equals the unpadded likelihood."""
+    """As with three goals above, with two reward features: the program of the padded test
+    (the same shape buckets)."""
     if jax.local_device_count() < 2:
         pytest.skip("needs two XLA host devices (tests/conftest.py asks for them)")
-    free, paths, phi = _padded_test_paths()
+    free, paths, phi = _small_world()
     th = np.array([np.log(1.7), -2.0, -0.4, 0.3])
     out = [_fit_value_and_gradient(paths, free, th, n, phi)[1] for n in (1, 2)]
     (g1, v1), (g2, v2) = out
