@@ -198,7 +198,17 @@ def _stays() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return stay, stay > 900.0, np.arange(40) < 5
 
 
-@pytest.mark.parametrize("method", ["parallel", "vectorized"])
+@pytest.mark.parametrize(
+    "method",
+    [
+        "parallel",
+        # make test: [parallel] keeps run_nuts's claim (its sampler and post-processing
+        # programs kept, read without tracing, the same bits as traced and as cache off),
+        # and tests/test_program_cache.py::test_a_kept_program_is_read_not_traced the
+        # reading of a program without shardings, as the vectorised chains' are
+        pytest.param("vectorized", marks=pytest.mark.slow),
+    ],
+)
 def test_a_program_read_from_disk_gives_the_same_draws(tmp_path, monkeypatch, method):
     """The traced programs are kept on disk (``are_stats._program_cache``): a fresh process
     (here: the in-process cache cleared, tracing forbidden) reads them and samples the same

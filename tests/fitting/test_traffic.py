@@ -386,10 +386,20 @@ def test_laplace_choice_agrees_with_nuts_loo(laplace_fit, rich_fit):
         assert np.all(np.abs(a["elpd"] - b["elpd"]) < 5.0 + 0.02 * b["se"]), (a, b)
 
 
-def test_laplace_keeps_the_paper_model_on_paper_truth(paper_log):
+@pytest.fixture(scope="module")
+def paper_laplace_fit(paper_log):
+    """The Laplace comparison of the paper-truth log's candidates, run LAPLACE_THREADS (two)
+    at a time: the fit of the two tests below."""
+    import are_stats.fitting._traffic as traffic
+
+    assert traffic.LAPLACE_THREADS == 2
     data = paper_log
-    fit = fit_traffic(jax.random.key(1), data, paper=_paper(data), grid=_Grid(),
-                      approximation="laplace")  # fmt: skip
+    return fit_traffic(jax.random.key(3), data, paper=_paper(data), grid=_Grid(),
+                       approximation="laplace")  # fmt: skip
+
+
+def test_laplace_keeps_the_paper_model_on_paper_truth(paper_laplace_fit):
+    fit = paper_laplace_fit
     assert (fit.arrival_model, fit.lifetime_model, fit.position_model) == (
         "poisson", "exponential", "uniform",
     )  # fmt: skip
@@ -567,19 +577,20 @@ def test_an_unreliable_loo_does_not_set_the_bar():
     assert chosen == "shaky"
 
 
-def test_laplace_candidates_in_threads_fit_as_one_at_a_time(monkeypatch, paper_log):
+def test_laplace_candidates_in_threads_fit_as_one_at_a_time(
+    monkeypatch, paper_log, paper_laplace_fit
+):
     """The candidates' Laplace approximations run LAPLACE_THREADS at a time and are taken
     in order: the fit (draws, tables, notes, warnings) is the one a single thread gives.
-    On the paper-truth log: its candidates' programs are those the test above compiled."""
+    On the paper-truth log: two threads are the fixture's fit, whose candidates' programs
+    this one-thread fit reuses."""
     import are_stats.fitting._traffic as traffic
 
     data = paper_log
-    fits = {}
-    for threads in (1, 2):
-        monkeypatch.setattr(traffic, "LAPLACE_THREADS", threads)
-        fits[threads] = fit_traffic(jax.random.key(3), data, paper=_paper(data), grid=_Grid(),
-                                    approximation="laplace")  # fmt: skip
-    one, two = fits[1], fits[2]
+    monkeypatch.setattr(traffic, "LAPLACE_THREADS", 1)
+    one = fit_traffic(jax.random.key(3), data, paper=_paper(data), grid=_Grid(),
+                      approximation="laplace")  # fmt: skip
+    two = paper_laplace_fit
     assert sorted(one.posterior) == sorted(two.posterior)
     for name in one.posterior:
         np.testing.assert_array_equal(np.asarray(one.posterior[name]),

@@ -7,7 +7,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from are_stats._lazy import arviz as az
 from are_stats.behaviour import behaviour_tracks
 from are_stats.builder import ARBuilder
 from are_stats.environment import OccupancyGrid
@@ -19,26 +18,9 @@ from are_stats.scenarios import (
     scenes_from_draws,
     scenes_from_fit,
 )
+from tests.scenarios.test_assembly_golden import WANT, _idata, _scenes_digest
 
 HORIZON = 120.0
-
-
-def _idata(n_draws: int = 6) -> object:
-    """A small paper-model fit: 2 chains of posterior draws, five classes (eq. 1)."""
-    rng = np.random.default_rng(3)
-    shape = (2, n_draws // 2)
-    w = rng.dirichlet(np.ones(5), size=shape)
-    idata = az.from_dict(
-        posterior={
-            "arrival_rate": rng.uniform(2e-4, 4e-4, shape),
-            "leave_rate": rng.uniform(1 / 200, 1 / 100, shape),
-            "mix_weights": w,
-            "mix_rates": np.broadcast_to([15.0, 7, 3, 21, 5], (*shape, 5)).copy(),
-        },
-        dims={"mix_weights": ["component"], "mix_rates": ["component"]},
-    )
-    idata.posterior.attrs.update({"area": 800.0, "window": [0.0, 3600.0]})
-    return idata
 
 
 def _table(scenes: list[Scene]) -> pd.DataFrame:
@@ -69,9 +51,22 @@ def catalogue_plan(grid, catalogue) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 
 @pytest.fixture(scope="module")
-def walked(grid, catalogue) -> list[Scene]:
-    """The same two scenes assembled with the catalogue behaviour and the interaction."""
-    return scenes_from_fit(11, _idata(), grid, catalogue, 2, HORIZON, behaviours=True)
+def walked_progress(grid, catalogue) -> tuple[list[Scene], list[tuple]]:
+    """The same two scenes assembled with the catalogue behaviour and the interaction, and
+    the progress calls of that assembly (test_assembly_golden pins these scenes as
+    assembled without a progress)."""
+    calls: list[tuple] = []
+    scenes = scenes_from_fit(
+        11, _idata(), grid, catalogue, 2, HORIZON, behaviours=True,
+        progress=lambda done, total, what: calls.append((done, total, what)),
+    )  # fmt: skip
+    return scenes, calls
+
+
+@pytest.fixture(scope="module")
+def walked(walked_progress) -> list[Scene]:
+    """The scenes of :func:`walked_progress`."""
+    return walked_progress[0]
 
 
 @pytest.fixture(scope="module")
@@ -155,6 +150,17 @@ def test_empty_scenarios_are_scenes_without_artefacts(grid, catalogue):
     assert [len(s) for s in scenes] == [0, 0, 0]
 
 
+def test_the_catalogue_scenes_are_the_pinned_ones(walked, unwalked):
+    """The catalogue behaviour's two scenes with and without the interaction are those
+    test_assembly_golden pins (its own tests of these digests assemble the same scenes
+    again, in the slow tier); both were assembled with a progress and are pinned as
+    assembled without one: the progress changes nothing."""
+    assert any(s.has_tracks.any() for s in walked)
+    assert _scenes_digest(walked) == WANT["catalogue"]
+    assert any(s.has_tracks.any() for s in unwalked[0])
+    assert _scenes_digest(unwalked[0]) == WANT["catalogue, no interaction"]
+
+
 def test_with_tracks_and_tracks_table_round_trip(walked):
     scene = walked[0]
     assert scene.has_tracks.any()
@@ -224,6 +230,9 @@ def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
     }  # fmt: skip
     laws = TrafficLaws(arrivals="groups")
     scene = scenes_from_draws(3, draws, grid, catalogue, 1, HORIZON, laws=laws, behaviours=True)[0]
+    # the scene test_assembly_golden pins (its own test of the digest is in the slow tier)
+    assert scene.has_tracks.any()
+    assert _scenes_digest([scene]) == WANT["groups"]
     art, tracks = scene.artefacts, scene.tracks_table()
 
     def nearest(art: pd.DataFrame, tracks: pd.DataFrame) -> np.ndarray:
@@ -250,13 +259,10 @@ def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
     assert np.quantile(apart, 0.9) > 4 * np.quantile(near, 0.9)
 
 
-def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked, unwalked):
+def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked_progress, unwalked):
     idata = _idata()
-    calls = []
-    scenes = scenes_from_fit(
-        11, idata, grid, catalogue, 2, HORIZON, behaviours=True,
-        progress=lambda done, total, what: calls.append((done, total, what)),
-    )  # fmt: skip
+    scenes, calls = walked_progress
+    calls = list(calls)
     # the catalogue's planning reports each scenario (the time left on a first run comes
     # from the scenarios timed so far), the social force each window of its simulation
     # (25.6 s of the scenarios each): the total grows when it starts
@@ -269,9 +275,8 @@ def test_progress_counts_the_assembly_steps_to_the_end(grid, catalogue, walked, 
         "scenarios drawn", "tracks planned (1 of 2 scenarios)", "tracks planned (2 of 2 scenarios)",
         f"walked with the social force (1 of {windows} windows)",
     ]  # fmt: skip
-    # the same scenes as without a progress
-    for a, b in zip(scenes, walked, strict=True):
-        pd.testing.assert_frame_equal(a.tracks_table(), b.tracks_table())
+    # the same scenes as without a progress (pinned so by test_assembly_golden)
+    assert _scenes_digest(scenes) == WANT["catalogue"]
     calls.clear()
     scenes_from_fit(11, idata, grid, catalogue, 2, HORIZON, progress=lambda *c: calls.append(c))
     assert calls == [(1, 1, "scenarios drawn")]  # no behaviours: one step

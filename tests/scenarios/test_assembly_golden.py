@@ -106,6 +106,9 @@ def _scenes_digest(scenes) -> str:
     return _digest(*scenes_tables(scenes))
 
 
+# make test: tests/scenarios/test_assembly.py::test_the_catalogue_scenes_are_the_pinned_ones
+# checks both digests on the same scenes (its fixtures walked and unwalked)
+@pytest.mark.slow
 @pytest.mark.parametrize("interaction", [True, False], ids=["catalogue", "no interaction"])
 def test_catalogue_scenes_are_unchanged(grid, catalogue, interaction):
     scenes = scenes_from_fit(
@@ -116,6 +119,9 @@ def test_catalogue_scenes_are_unchanged(grid, catalogue, interaction):
     assert _scenes_digest(scenes) == WANT[name]
 
 
+# make test: tests/scenarios/test_assembly.py::test_arrival_groups_walk_together_in_every_assembly
+# checks this digest on the same scene
+@pytest.mark.slow
 def test_group_scenes_are_unchanged(grid, catalogue):
     draws = {
         "arrival_rate": np.array([3e-4]), "leave_rate": np.array([1 / 60]),
