@@ -331,6 +331,12 @@ class BehaviourFit:
         ent_xy = self.cell_to_world(ent)
         h, w = self.free.shape
         of_class = {c: np.flatnonzero(self.track_class == c) for c in np.unique(cls)}
+        if stays is not None:
+            self._draw_exits_given_stays(
+                rng, out, cls, ent, inv, dist, near, ent_xy, reach, of_class, tries,
+                stays, speed_mu, speed_sigma,
+            )  # fmt: skip
+            return out
         for i in range(len(ent)):
             d_i = dist[inv[i]]
             if not near[inv[i]] <= reach[i]:
@@ -350,53 +356,135 @@ class BehaviourFit:
             # draws from the same generator
             cdf = p.cumsum()
             cdf /= cdf[-1]
-            xy, cands = None, []
-            if stays is None:  # the first exit that is free and reachable
-                for _ in range(tries):
-                    m = m_of[int(cdf.searchsorted(rng.random(), side="right"))]
-                    xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
-                    c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
-                    if not (0 <= c[0] < h and 0 <= c[1] < w):
-                        c = self._nearest_open(d_i, xy[None, :])[0]
-                    if 1 <= d_i[c[0], c[1]] <= reach[i]:
-                        cands.append(c)
-                        break
-            else:  # every try: the draws in the generator's order, then checked together
-                u, jitter = np.empty(tries), np.empty((tries, 2))
-                for t in range(tries):
-                    u[t] = rng.random()
-                    jitter[t] = rng.normal(0.0, hx, 2)
-                all_xy = self.exit_xy[m_of[cdf.searchsorted(u, side="right")]] + jitter
-                cc = np.floor((all_xy - self.origin) / self.cell).astype(int)[:, ::-1]
-                inside = (cc[:, 0] >= 0) & (cc[:, 0] < h) & (cc[:, 1] >= 0) & (cc[:, 1] < w)
-                if not inside.all():  # jittered past the map's edge: its nearest open cell
-                    cc[~inside] = self._nearest_open(d_i, all_xy[~inside])
-                d_c = d_i[cc[:, 0], cc[:, 1]]
-                cands = list(cc[(d_c >= 1) & (d_c <= reach[i])])
-                xy = all_xy[-1]
-                if not cands:  # no exit within reach: each draw as far towards it as it can
-                    within = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
-                    cxy = self.cell_to_world(within)
-                    d2 = ((all_xy[:, None, :] - cxy[None, :, :]) ** 2).sum(axis=2)
-                    cands = list(within[np.argmin(d2, axis=1)])
-            if cands and stays is not None:
-                cc = np.asarray(cands)
-                geo = d_i[cc[:, 0], cc[:, 1]]
-                manhattan = np.maximum(np.abs(cc - ent[i]).sum(axis=1), 1)
-                length = np.hypot(*(self.cell_to_world(cc) - ent_xy[i]).T) * geo / manhattan
-                v = np.maximum(length / max(float(stays[i]), 1e-9), 1e-9)
-                sd = float(speed_sigma[i]) if np.isfinite(speed_sigma[i]) else 0.1
-                sd = max(sd, 0.02)
-                logw = -np.log(v) - 0.5 * ((np.log(v) - float(speed_mu[i])) / sd) ** 2
-                q = np.exp(logw - logw.max())
-                out[i] = cc[rng.choice(len(cc), p=q / q.sum())]
-            elif cands:
-                out[i] = cands[0]
+            xy, c = None, None  # the first exit that is free and reachable
+            for _ in range(tries):
+                m = m_of[int(cdf.searchsorted(rng.random(), side="right"))]
+                xy = self.exit_xy[m] + rng.normal(0.0, hx, 2)
+                c = np.floor((xy - self.origin) / self.cell).astype(int)[::-1]
+                if not (0 <= c[0] < h and 0 <= c[1] < w):
+                    c = self._nearest_open(d_i, xy[None, :])[0]
+                if 1 <= d_i[c[0], c[1]] <= reach[i]:
+                    break
+                c = None
+            if c is not None:
+                out[i] = c
             else:
                 cand = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
                 cxy = self.cell_to_world(cand)
                 out[i] = cand[np.argmin(((cxy - xy) ** 2).sum(axis=1))]
         return out
+
+    def _draw_exits_given_stays(
+        self,
+        rng: np.random.Generator,
+        out: np.ndarray,
+        cls: np.ndarray,
+        ent: np.ndarray,
+        inv: np.ndarray,
+        dist: np.ndarray,
+        near: np.ndarray,
+        ent_xy: np.ndarray,
+        reach: np.ndarray,
+        of_class: dict,
+        tries: int,
+        stays: np.ndarray,
+        speed_mu: np.ndarray,
+        speed_sigma: np.ndarray,
+    ) -> None:
+        """:meth:`draw_exits` with ``stays``, into ``out`` (n, 2).
+
+        Each artefact draws from ``rng`` in a fixed order, whatever the draws are: ``tries``
+        times a uniform (the track) and two standard normals (its exit's jitter), then one
+        uniform (the kept try: ``rng.choice`` with weights draws one uniform against their
+        normalised cumulative sum). So the draws are made first, artefact after artefact
+        (the same draws from the same generator as checking each in turn), and everything
+        else at once: the tracks' kernel weights once per entry cell, the checks of every
+        try together, the speed weights of artefacts with as many exits within reach
+        together (row sums over the same number of terms: the same sums as one by one).
+        """
+        n = len(ent)
+        active = near[inv] <= reach
+        has = np.array([of_class[c].size > 0 for c in cls]) if n else np.zeros(0, bool)
+        u, z, u_keep = np.empty((n, tries)), np.empty((n, tries, 2)), np.empty(n)
+        random, normal = rng.random, rng.standard_normal
+        for i in np.flatnonzero(active):
+            if not has[i]:  # a class without tracks: any cell within reach
+                d_i = dist[inv[i]]
+                cand = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
+                out[i] = cand[rng.integers(len(cand))]
+                continue
+            u_i, z_i = u[i], z[i]
+            for t in range(tries):
+                u_i[t] = random()
+                z_i[t] = normal(2)  # rng.normal(0, hx, 2) is 0 + hx * these, bit for bit
+            u_keep[i] = random()
+        sel = np.flatnonzero(active & has)
+        if not sel.size:
+            return
+        # the track of each try: inverse cdf of the kernel weights of the entry's cell
+        track = np.empty((sel.size, tries), np.int64)
+        keys = inv[sel] * (int(cls.max()) + 1) + cls[sel]
+        for key in np.unique(keys):
+            rows = np.flatnonzero(keys == key)
+            i0 = sel[rows[0]]
+            m_of, he = of_class[cls[i0]], self.bandwidth_entry[cls[i0]]
+            d2 = ((self.entry_xy[m_of] - ent_xy[i0]) ** 2).sum(axis=1)
+            logw = -0.5 * d2 / he**2
+            p = np.exp(logw - logw.max())
+            p /= p.sum()
+            cdf = p.cumsum()
+            cdf /= cdf[-1]
+            track[rows] = m_of[cdf.searchsorted(u[sel[rows]], side="right")]
+        hx = self.bandwidth_exit[cls[sel]]
+        all_xy = self.exit_xy[track] + (0.0 + hx[:, None, None] * z[sel])
+        cc = np.floor((all_xy - self.origin) / self.cell).astype(int)[..., ::-1]
+        h, w = self.free.shape
+        inside = (cc[..., 0] >= 0) & (cc[..., 0] < h) & (cc[..., 1] >= 0) & (cc[..., 1] < w)
+        if not inside.all():  # jittered past the map's edge: its nearest open cell
+            row_of = np.broadcast_to(inv[sel][:, None], inside.shape)
+            for j in np.unique(row_of[~inside]):
+                past = ~inside & (row_of == j)
+                cc[past] = self._nearest_open(dist[j], all_xy[past])
+        d_c = dist[inv[sel][:, None], cc[..., 0], cc[..., 1]]
+        ok = (d_c >= 1) & (d_c <= reach[sel][:, None])
+        for r in np.flatnonzero(~ok.any(axis=1)):
+            # no exit within reach: each draw as far towards it as it can
+            i = sel[r]
+            d_i = dist[inv[i]]
+            within = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
+            cxy = self.cell_to_world(within)
+            d2 = ((all_xy[r][:, None, :] - cxy[None, :, :]) ** 2).sum(axis=2)
+            cc[r] = within[np.argmin(d2, axis=1)]
+            ok[r] = True
+        # the exits within reach first, in the order drawn; one kept with weight p_v(L / s)
+        k = ok.sum(axis=1)
+        first = np.argsort(~ok, axis=1, kind="stable")
+        cc = np.take_along_axis(cc, first[..., None], axis=1)
+        sd = np.where(np.isfinite(speed_sigma[sel]), speed_sigma[sel], 0.1)
+        sd = np.maximum(sd, 0.02)
+        per_s = np.maximum(stays[sel], 1e-9)
+        for k_g in np.unique(k):
+            rows = np.flatnonzero(k == k_g)
+            i_g = sel[rows]
+            c_g = cc[rows, :k_g]  # (g, k, 2)
+            geo = dist[inv[i_g][:, None], c_g[..., 0], c_g[..., 1]]
+            manhattan = np.maximum(np.abs(c_g - ent[i_g][:, None, :]).sum(axis=2), 1)
+            xy = self.cell_to_world(c_g).reshape(*c_g.shape) - ent_xy[i_g][:, None, :]
+            length = np.hypot(xy[..., 0], xy[..., 1]) * geo / manhattan
+            v = np.maximum(length / per_s[rows][:, None], 1e-9)
+            logw = (
+                -np.log(v) - 0.5 * ((np.log(v) - speed_mu[i_g][:, None]) / sd[rows][:, None]) ** 2
+            )
+            q = np.exp(logw - logw.max(axis=1, keepdims=True))
+            p = q / q.sum(axis=1, keepdims=True)
+            if not np.isfinite(p).all():
+                raise ValueError("draw_exits: the speed weights of some exits are not finite")
+            cdf = p.cumsum(axis=1)
+            cdf /= cdf[:, -1:]
+            # numpy's rng.choice(k, p=p): cdf.searchsorted(u, side="right"), the number of
+            # cumulative weights at most u (nondecreasing)
+            pick = (cdf <= u_keep[i_g][:, None]).sum(axis=1)
+            out[i_g] = c_g[np.arange(len(rows)), pick]
 
     def _nearest_open(self, dist: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """The cells ``(row, col)`` (m, 2) nearest to the points ``xy`` (m, 2) (m) among

@@ -67,3 +67,85 @@ def test_a_stay_too_short_for_every_exit_walks_towards_the_likeliest() -> None:
     moves = fit.geodesic(entries[:1])[0][exits[:, 0], exits[:, 1]]
     assert (moves <= reach).all()
     assert (moves >= 10).all()  # at the reach's far end, towards the east door
+
+
+def _one_by_one(fit, rng, cls, ent, reach, stays, mu, sigma, tries=20):
+    """draw_exits with stays as it was written before issue 29: artefact after artefact,
+    each try's draws and checks, then ``rng.choice`` of the speed weights."""
+    out = np.full((len(ent), 2), -1, np.int64)
+    h, w = fit.free.shape
+    dist = fit.geodesic(ent)
+    for i in range(len(ent)):
+        d_i = dist[i]
+        if not d_i[d_i >= 1].min(initial=np.inf) <= reach[i]:
+            continue
+        m_of = np.flatnonzero(fit.track_class == cls[i])
+        if not m_of.size:
+            cand = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
+            out[i] = cand[rng.integers(len(cand))]
+            continue
+        e_xy = fit.cell_to_world(ent[i])[0]
+        logw = (
+            -0.5 * ((fit.entry_xy[m_of] - e_xy) ** 2).sum(axis=1) / fit.bandwidth_entry[cls[i]] ** 2
+        )
+        p = np.exp(logw - logw.max())
+        p /= p.sum()
+        all_xy = np.empty((tries, 2))
+        for t in range(tries):
+            all_xy[t] = fit.exit_xy[m_of[rng.choice(len(m_of), p=p)]]
+            all_xy[t] += rng.normal(0.0, fit.bandwidth_exit[cls[i]], 2)
+        cc = np.floor((all_xy - fit.origin) / fit.cell).astype(int)[:, ::-1]
+        inside = (cc[:, 0] >= 0) & (cc[:, 0] < h) & (cc[:, 1] >= 0) & (cc[:, 1] < w)
+        for t in np.flatnonzero(~inside):  # past the edge: the clipped cell, else the nearest open
+            cc[t] = np.clip(cc[t], 0, [h - 1, w - 1])
+            if not np.isfinite(d_i[cc[t, 0], cc[t, 1]]):
+                open_ = np.argwhere(np.isfinite(d_i))
+                d2 = ((fit.cell_to_world(open_) - all_xy[t]) ** 2).sum(axis=1)
+                cc[t] = open_[np.argmin(d2)]
+        d_c = d_i[cc[:, 0], cc[:, 1]]
+        cands = list(cc[(d_c >= 1) & (d_c <= reach[i])])
+        if not cands:
+            within = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
+            d2 = ((all_xy[:, None, :] - fit.cell_to_world(within)[None]) ** 2).sum(axis=2)
+            cands = list(within[np.argmin(d2, axis=1)])
+        cc = np.asarray(cands)
+        geo = d_i[cc[:, 0], cc[:, 1]]
+        manhattan = np.maximum(np.abs(cc - ent[i]).sum(axis=1), 1)
+        length = np.hypot(*(fit.cell_to_world(cc) - e_xy).T) * geo / manhattan
+        v = np.maximum(length / max(float(stays[i]), 1e-9), 1e-9)
+        sd = max(float(sigma[i]) if np.isfinite(sigma[i]) else 0.1, 0.02)
+        logw = -np.log(v) - 0.5 * ((np.log(v) - float(mu[i])) / sd) ** 2
+        q = np.exp(logw - logw.max())
+        out[i] = cc[rng.choice(len(cc), p=q / q.sum())]
+    return out
+
+
+def test_exits_given_stays_are_drawn_as_one_by_one() -> None:
+    """draw_exits with stays makes every artefact's draws first, then checks and weighs
+    them all at once (issue 29): the exits and the generator's state after are those of
+    drawing artefact after artefact. 3,000 artefacts at both doors and in the room, two
+    classes (the second without tracks: any cell within reach), stays from 0.1 s (no
+    exit within reach, or no move at all) to a minute, a NaN speed sd; tracks leaving by
+    both doors and jittered past the map's edge."""
+    r = np.random.default_rng(5)
+    k = 40
+    xy = np.column_stack([r.choice([0.1, 19.9, 10.0], k), r.uniform(4, 8, k)])
+    fit = _door_fit([tuple(p) for p in xy], 0.5)
+    fit.entry_xy = np.column_stack([r.choice([0.25, 19.75], k), r.uniform(4.5, 7.5, k)])
+    for name in ("bandwidth_entry", "bandwidth_exit", "speed_mu", "speed_sigma"):
+        setattr(fit, name, np.r_[getattr(fit, name), getattr(fit, name)])
+    n = 3000
+    cls = (r.random(n) < 0.1).astype(int)
+    free = np.argwhere(fit.free)
+    ent = np.where(r.random((n, 1)) < 0.7, [[12, 0]], free[r.integers(len(free), size=n)])
+    ent[r.random(n) < 0.3] = [10, 39]
+    stays = np.exp(r.uniform(np.log(0.1), np.log(60.0), n))
+    reach = np.floor(0.9 * np.floor(stays * 1.5 / fit.cell) * math.sqrt(2))
+    mu = np.full(n, math.log(1.2))
+    sigma = np.where(r.random(n) < 0.05, np.nan, 0.1)
+    got_rng, want_rng = np.random.default_rng(11), np.random.default_rng(11)
+    got = fit.draw_exits(got_rng, cls, ent, reach, stays=stays, speed_mu=mu, speed_sigma=sigma)
+    want = _one_by_one(fit, want_rng, cls, ent, reach, stays, mu, sigma)
+    assert (got >= 0).any(axis=1).sum() > 2000 and (got < 0).all(axis=1).any()
+    np.testing.assert_array_equal(got, want)
+    assert got_rng.bit_generator.state == want_rng.bit_generator.state
