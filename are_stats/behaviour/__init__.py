@@ -101,6 +101,7 @@ from are_stats.behaviour._motion import (  # noqa: E402
     string_pull,
     string_pull_many,
     walk_times,
+    walk_times_many,
 )
 
 __all__ += [
@@ -110,6 +111,7 @@ __all__ += [
     "string_pull",
     "string_pull_many",
     "walk_times",
+    "walk_times_many",
 ]
 
 from are_stats.behaviour._walk import walk_tracks  # noqa: E402

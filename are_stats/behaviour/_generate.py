@@ -43,7 +43,7 @@ import pandas as pd
 from are_stats._checks import check_positive
 from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
-from are_stats.behaviour._motion import string_pull_many, walk_times
+from are_stats.behaviour._motion import string_pull_many, walk_times_many
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._soft import GOAL_BUCKET, soft_policy
 
@@ -273,16 +273,25 @@ def continuous_paths(
             _grid_path(st, ac, fit, float(v), p0, end, int(smooth))
             for (st, ac), v, p0, end in zip(paths, speeds, starts, ends, strict=True)
         ]
-    routes, cells = [], []
-    for (st, ac), p0, end in zip(paths, starts, ends, strict=True):
-        done = np.flatnonzero(np.asarray(ac) < 0)
-        n_act = int(done[0]) if done.size else len(ac)
-        c = np.asarray(st)[: n_act + 1, :2]
-        pts = np.concatenate([p0[None, :], fit.cell_to_world(c[1:])])
+    # each route: its start, then the centres of the cells it moves through (one
+    # cell_to_world for all of them)
+    cells = []
+    for st, ac in paths:
+        ac = np.asarray(ac)
+        done = np.flatnonzero(ac < 0)
+        cells.append(np.asarray(st)[: (int(done[0]) if done.size else len(ac)) + 1, :2])
+    count = np.array([len(c) for c in cells], np.int64)
+    flat = np.empty((int(count.sum()), 2))
+    first = np.cumsum(count) - count
+    flat[first] = starts
+    later = np.ones(len(flat), bool)
+    later[first] = False
+    if later.any():
+        flat[later] = fit.cell_to_world(np.concatenate([c[1:] for c in cells]))
+    routes = np.split(flat, first[1:])
+    for pts, end in zip(routes, ends, strict=True):
         if end is not None and len(pts) > 1:
             pts[-1] = end
-        routes.append(pts)
-        cells.append(c)
     origin = (float(fit.origin[0]), float(fit.origin[1]))
     free = np.asarray(fit.free, bool)
     pulled: list[np.ndarray] = []
@@ -291,9 +300,8 @@ def continuous_paths(
         block = slice(b0, b0 + (_ROUTE_BLOCK if weighted else len(routes)))
         grids = _route_grids(free, cells[block]) if weighted else free
         pulled += string_pull_many(routes[block], grids, origin, fit.cell)
-    return [
-        (walk_times(p, float(v), rng, within_sd), p) for p, v in zip(pulled, speeds, strict=True)
-    ]
+    times = walk_times_many(pulled, speeds, rng, within_sd)
+    return list(zip(times, pulled, strict=True))
 
 
 #: Routes whose own grids (:func:`_route_grids`) are made at once.

@@ -416,7 +416,7 @@ class BehaviourFit:
             u_i, z_i = u[i], z[i]
             for t in range(tries):
                 u_i[t] = random()
-                z_i[t] = normal(2)  # rng.normal(0, hx, 2) is 0 + hx * these, bit for bit
+                normal(out=z_i[t])  # rng.normal(0, hx, 2) is 0 + hx * these, bit for bit
             u_keep[i] = random()
         sel = np.flatnonzero(active & has)
         if not sel.size:

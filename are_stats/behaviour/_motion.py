@@ -37,6 +37,7 @@ __all__ = [
     "string_pull",
     "string_pull_many",
     "walk_times",
+    "walk_times_many",
 ]
 
 
@@ -309,13 +310,17 @@ def string_pull_many(
             f"free: expected one (H, W) grid or one per route ({len(routes)}), got "
             f"{free.shape[0]} grids"
         )
-    pts = []
-    for r in routes:
-        p = np.asarray(r, float).reshape(-1, 2)
-        if len(p) > 1:
-            p = p[np.concatenate([[True], (np.diff(p, axis=0) != 0).any(axis=1)])]
-        pts.append(p)
-    out = [p.copy() for p in pts]
+    # every route less its repeated points, in one pass over all of them
+    routes = [np.asarray(r, float).reshape(-1, 2) for r in routes]
+    count = np.array([len(r) for r in routes], np.int64)
+    flat = np.concatenate(routes) if routes else np.zeros((0, 2))
+    keep = np.ones(len(flat), bool)
+    keep[1:] = (np.diff(flat, axis=0) != 0).any(axis=1)
+    keep[(np.cumsum(count) - count)[count > 0]] = True  # a route's first point
+    owner = np.repeat(np.arange(len(routes)), count)
+    kept = np.cumsum(np.bincount(owner[keep], minlength=len(routes)))
+    pts = np.split(flat[keep], kept[:-1]) if routes else []
+    out = list(pts)
     todo = np.flatnonzero([len(p) >= 3 for p in pts])
     for b0 in range(0, todo.size, _BLOCK):
         block = todo[b0 : b0 + _BLOCK]
@@ -452,6 +457,92 @@ def walk_times(
         for k in range(1, seg.size):
             e[k] = rho[k] * e[k - 1] + np.sqrt(1.0 - rho[k] ** 2) * within_sd * z[k]
     return np.concatenate([[0.0], np.cumsum(seg / (speed * np.exp(e)))])
+
+
+def walk_times_many(
+    paths: Sequence[npt.ArrayLike],
+    speeds: npt.ArrayLike,
+    rng: np.random.Generator | None = None,
+    within_sd: float = 0.0,
+    correlation: float = 10.0,
+) -> list[np.ndarray]:
+    """:func:`walk_times` of many paths, the same as one after another.
+
+    The paths' normals are one draw from ``rng`` (successive draws of a generator are the
+    prefixes of one larger draw), and each step of the AR(1) is taken for every path with
+    as many segments at once, with the same operations, so the times are those of
+    :func:`walk_times` path after path, to the bit, and ``rng`` ends in the same state.
+
+    Parameters
+    ----------
+    paths : sequence of (m_i, 2) float
+        Vertices (m).
+    speeds : (P,) float
+        Preferred speeds (m/s, > 0).
+    rng, within_sd, correlation
+        As :func:`walk_times`.
+
+    Returns
+    -------
+    list of (max(m_i, 1),) float
+        Each path's vertex times from 0.
+    """
+    pts = [np.asarray(p, float).reshape(-1, 2) for p in paths]
+    speeds = np.asarray(speeds, float).reshape(-1)
+    if len(speeds) != len(pts):
+        raise ValueError(f"speeds: expected one per path ({len(pts)}), got {len(speeds)}")
+    bad = ~((speeds > 0.0) & (speeds < math.inf))
+    if bad.any():  # as walk_times checks one: an error, or its value
+        speeds = speeds.copy()
+        speeds[bad] = [float(check_positive("speed", v)) for v in speeds[bad]]
+    if not (type(within_sd) is float and 0.0 <= within_sd < math.inf):
+        within_sd = float(check_nonnegative("within_sd", within_sd))
+    count = np.array([len(p) for p in pts], np.int64)
+    n_seg = np.maximum(count - 1, 0)
+    if not pts:
+        return []
+    flat = np.concatenate(pts)
+    # segment j of path i: from flat vertex first[i] + j, at flat segment seg0[i] + j
+    first = np.cumsum(count) - count
+    seg0 = np.cumsum(n_seg) - n_seg
+    owner = np.repeat(np.arange(len(pts)), n_seg)
+    at = first[owner] + np.arange(owner.size) - seg0[owner]
+    seg = np.hypot(flat[at + 1, 0] - flat[at, 0], flat[at + 1, 1] - flat[at, 1])
+    z = None
+    if within_sd != 0.0 and seg.size:
+        if rng is None:
+            raise ValueError("rng: expected a numpy Generator with within_sd > 0, got None")
+        z = rng.standard_normal(seg.size)
+    out: list[np.ndarray] = [np.zeros(1)] * len(pts)
+    for k in np.unique(n_seg):
+        rows = np.flatnonzero(n_seg == k)
+        if k == 0:
+            for r in rows:
+                out[r] = np.zeros(1)
+            continue
+        cols = seg0[rows][:, None] + np.arange(k)
+        s = seg[cols]
+        v = speeds[rows][:, None]
+        if z is None:  # speed * exp(0) is speed: the same times
+            step = s / v
+        else:
+            zz = z[cols]
+            prev = np.zeros_like(s)
+            prev[:, 1:] = s[:, :-1]
+            rho = np.exp(-prev / float(correlation))
+            # walk_times' rho[k] ** 2 is a scalar power (libm's pow): not always x * x
+            rho2 = np.array([math.pow(r, 2.0) for r in rho[:, 1:].ravel().tolist()])
+            scale = np.sqrt(1.0 - rho2.reshape(len(rows), k - 1)) * within_sd
+            e = np.empty_like(s)
+            e[:, 0] = within_sd * zz[:, 0]
+            for j in range(1, k):
+                e[:, j] = rho[:, j] * e[:, j - 1] + scale[:, j - 1] * zz[:, j]
+            step = s / (v * np.exp(e))
+        t = np.zeros((len(rows), k + 1))
+        t[:, 1:] = np.cumsum(step, axis=1)
+        for r, tr in zip(rows, t, strict=True):
+            out[r] = tr
+    return out
 
 
 def arrival_velocities(tracks: pd.DataFrame) -> pd.DataFrame:
