@@ -171,6 +171,31 @@ value from the model's own law falls outside it 13.3% of the time at R = 50, 18.
 20, 24% at 10 (before the tolerances), so fewer replicates flag more. Issue 29's 60 s
 is still far.
 
+The tracks part with ``BehaviourFit.draw_exits`` given stays drawing every artefact's
+uniforms and normals first (its draws are the same whatever they are) and checking and
+weighing all tries at once, and ``continuous_paths`` turning the routes' cells to world
+points in one call, dropping repeated points in one pass and timing the paths with
+``walk_times_many`` (the AR(1) step by step for all paths of a length; libm's ``pow`` for
+``rho ** 2``, as the scalar code) (2026-11-28, wt-int 2f1a8fd and wt-tracks2 started
+together, the CLI's command in fresh processes with empty caches, child CPU by
+``getrusage``): load 7 -> 6: cold CPU 118.9 s wt-int vs 110.6 s branch (0.93x; wall 464
+vs 447 s; the stage record's realism and displacement errors 198.8 vs 163.8 s);
+again, load 6 -> 8: 123.0 vs 116.1 s (0.94x; wall 524 vs 508 s; realism and
+displacement errors 203.9 vs 164.9 s). XLA compilations 55 both, in both rounds. The fit
+file's every group (``xarray`` ``identical``) and all 17 criticism files (CSVs and PNGs)
+byte for byte the same, in both rounds. In-process CPU, wt-int and
+branch alternated at load 5-9 (md5 of every output and the generator's state equal):
+``draw_exits`` on the inputs of a generation from the tracks fit's behaviour (6,000
+artefacts, 3 runs) 13.9 and 11.2 s -> 3.2 and 3.4 s; 20,000 artefacts of a door-to-door
+room with stays 14.4 and 14.1 s -> 3.0 and 2.8 s (without stays, unchanged code: 4.8 and
+4.8 vs 4.7 and 3.3 s); ``continuous_paths`` on that generation's 6,000 paths (6 runs)
+9.16 -> 6.03 s, of it ``string_pull_many`` 7.12 -> 5.34 s and the rest (routes, timing)
+2.04 -> 0.69 s. Not done: the ten one-shape random programs (padding the draws to
+power-of-two buckets); left in ``draw_exits``: the generator calls (41 an artefact,
+about a third), the rest not broken down (grouping the no-exit-within-reach artefacts'
+nearest cells by entry and reach gave no measurable change and was left out). Issue 29's
+60 s is still far.
+
 The crowd part (2026-11-27, load 11): cold CPU 102 s (wall 336 s); realism weighted fitted
 0.352, constant velocity 0.334, catalogue 0.316; ADE / FDE mean of 20 0.394 / 0.604 m
 against constant velocity's 0.357 / 0.642 m (docs: "Realism on a crowd the package did not
