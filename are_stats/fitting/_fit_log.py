@@ -36,8 +36,8 @@ import numpyro
 from are_stats import __version__
 from are_stats._atomic import atomic_path
 from are_stats._checks import check_in, check_nonneg_int, describe
+from are_stats._lazy import LazyModule, import_xarray_dask
 from are_stats._lazy import arviz as az
-from are_stats._lazy import import_xarray_dask
 from are_stats.environment import coarse_free
 from are_stats.fitting._class_traffic import (
     attach_class_positions,
@@ -817,6 +817,58 @@ def _stable(idata: az.InferenceData) -> az.InferenceData:
     return az.InferenceData(**groups)
 
 
+#: The NetCDF layer under xarray (with h5py, 0.13-0.21 s of CPU to import; ``import
+#: are_stats.fitting`` has no xarray yet): imported when a fit is written or read.
+_h5netcdf = LazyModule("h5netcdf")
+_xr_backends = LazyModule("xarray.backends")
+
+
+def _compressible(dtype: np.dtype) -> bool:
+    """Whether a variable of ``dtype`` is stored zlib-compressed: ArviZ's rule in
+    ``InferenceData.to_netcdf(compress=True)`` (booleans, numbers, byte strings)."""
+    if dtype.kind == "V":
+        return all(_compressible(field) for field, _ in dtype.fields.values())
+    return dtype.kind in {"b", "i", "u", "f", "c", "S"}
+
+
+def _write_groups(idata: az.InferenceData, path: Path) -> None:
+    """Write ``idata``'s groups to the NetCDF file ``path`` through one open file.
+
+    The file is what ``idata.to_netcdf(path)`` writes (one NetCDF group per
+    InferenceData group, in order, compressed by ArviZ's rule, no root attributes when
+    ``idata`` has none): ArviZ reopens the file for each group, and h5netcdf walks it at
+    every open.
+    """
+    import xarray as xr
+
+    with _h5netcdf.File(str(path), "w", decode_vlen_strings=True) as f:
+        if idata.attrs:  # the InferenceData's own attributes, on the root group
+            xr.Dataset(attrs=idata.attrs).dump_to_store(_xr_backends.H5NetCDFStore(f, mode="a"))
+        for name in idata.groups():
+            ds = getattr(idata, name)
+            encoding = {
+                k: {"zlib": True} for k, v in ds.variables.items() if _compressible(v.dtype)
+            }
+            ds.dump_to_store(_xr_backends.H5NetCDFStore(f, group=name, mode="a"), encoding=encoding)
+
+
+def _read_groups(path: Path) -> az.InferenceData:
+    """Read every group of the NetCDF fit ``path`` through one open file, into memory.
+
+    The same InferenceData as ``arviz.from_netcdf(path)`` (groups in the file's order,
+    the root group's attributes as its ``attrs``), loaded: the file is closed on return.
+    """
+    import xarray as xr
+
+    with _h5netcdf.File(str(path), "r", decode_vlen_strings=True) as f:
+        attrs = xr.open_dataset(_xr_backends.H5NetCDFStore(f, mode="r")).attrs
+        groups = {
+            name: xr.open_dataset(_xr_backends.H5NetCDFStore(f, group=name, mode="r")).load()
+            for name in f.groups
+        }
+    return az.InferenceData(attrs=attrs, **groups)
+
+
 #: Format of the fits this version writes (the posterior attribute ``format_version``).
 #: :func:`read_fit` refuses a newer one and reads a fit without one as format 1, with a
 #: :class:`FitFormatWarning`.
@@ -854,7 +906,7 @@ def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False
     stable = _stable(idata.idata if isinstance(idata, Fit) else idata)
     stable.posterior.attrs["format_version"] = FIT_FORMAT_VERSION
     with atomic_path(path, force=force) as tmp:
-        stable.to_netcdf(str(tmp))
+        _write_groups(stable, tmp)
     return path
 
 
@@ -1308,7 +1360,7 @@ def read_fit(path: str | Any) -> Fit:
     if not p.is_file():  # a FIFO or a device would block the NetCDF reader
         raise InputError(p, "", "an ArviZ NetCDF fit in a regular file, not a special file")
     try:
-        idata = az.from_netcdf(str(p))
+        idata = _read_groups(p)
     except Exception as err:  # netCDF/HDF5 raise many types for a non-NetCDF file
         raise InputError(
             p, "", f"an ArviZ NetCDF fit written by are-stats fit (could not read it: {err})"

@@ -563,6 +563,31 @@ def _widen_for_labels(fig: Any, axes: np.ndarray) -> None:
     axes[0, 0].get_gridspec().update(left=left, right=right, wspace=gap / panel)
 
 
+def _add_outline(ax: Any, values: np.ndarray, bins: np.ndarray, colour: str, label: str) -> None:
+    """Draw the histogram of ``values`` over ``bins`` on ``ax`` as one filled outline: the
+    polygon, colours and limits of ``ax.hist(values, bins, histtype="stepfilled",
+    alpha=0.55)``.
+
+    The data limits come from the polygon's vertices at once; ``Axes.add_patch`` (which
+    ``hist`` calls) walks the outline as Bezier segments in Python, 9 ms a panel.
+    """
+    from matplotlib.patches import Polygon
+
+    counts = np.histogram(values, bins)[0].astype(np.float64)
+    n = len(bins)
+    x = np.zeros(4 * n - 3)  # the outline hist draws: up and across the bins, back on y = 0
+    y = np.zeros(4 * n - 3)
+    x[0 : 2 * n - 1 : 2], x[1 : 2 * n - 1 : 2] = bins, bins[:-1]
+    x[2 * n - 1 :] = x[1 : 2 * n - 1][::-1]
+    y[1 : 2 * n - 1 : 2] = y[2 : 2 * n : 2] = counts
+    y[0] = y[-1]
+    patch = Polygon(np.column_stack([x[:-1], y[:-1]]), closed=True, facecolor=colour)
+    patch.set(alpha=0.55, label=label)
+    patch.sticky_edges.y.append(0)  # the bars stand on the axis, as hist's do
+    ax.add_artist(patch)
+    ax.update_datalim(patch.get_xy())
+
+
 def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any:
     """One panel per statistic: each model's replicated distribution and the observed value.
 
@@ -609,16 +634,10 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         for model, v in zip(reps, values, strict=True):
             if v.size:  # one filled outline per model, not a rectangle per bin (the same
                 # picture: the figure's 580 bars took 0.4 s of a repeated fit's CPU)
-                ax.hist(
-                    v,
-                    bins=bins,
-                    color=colours.get(model, "tab:orange"),
-                    alpha=0.55,
-                    label=model,
-                    histtype="stepfilled",
-                )
+                _add_outline(ax, v, bins, colours.get(model, "tab:orange"), model)
         if np.isfinite(o):
             ax.axvline(o, color="black", lw=2, label="observed")
+        ax.autoscale_view()
         misfit = [m for m in reps if bool(table.loc[stat, f"{m}_flag"])]
         if misfit:
             ax.text(
@@ -633,8 +652,16 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
             )
         ax.set_title(stat, fontsize=10)
         ax.set_yticks([])
-        if j == 0:
-            ax.legend(fontsize=8, frameon=False)
+    # one row in the title band, left of the title: a fixed place (no search for the
+    # emptiest corner of a panel at every draw), clear of every panel's data
+    entries: dict[str, Any] = {}  # label -> handle, in the panels' order
+    for ax in axes.flat[:n]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    if entries:
+        fig.legend(list(entries.values()), list(entries), loc="upper left",
+                   bbox_to_anchor=(0.0, 1.0), ncols=len(entries), fontsize=8, frameon=False,
+                   borderaxespad=0.2)  # fmt: skip
     fig.suptitle(
         "Posterior-predictive checks: replicated windows of each model vs the log", y=0.994
     )

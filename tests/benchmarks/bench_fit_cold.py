@@ -275,6 +275,31 @@ and 22.1 / 28.1 s (user), 24.9 / 22.6 s and 27.6 / 28.8 s (bench); repeated medi
 80-110 s a run: one side's runs spread 10.3-18.2 s, so no difference is resolved end to
 end. The fit file (every group ``xarray``-identical), the 13 criticism files byte for
 byte, and the printed tables the same; no XLA or Warp banner.
+
+The fit file written and read through one open file (``write_fit``: one ``h5netcdf.File``,
+each group's ``Dataset.dump_to_store``; ``read_fit``: each group opened on the same handle
+and loaded; ArviZ opened it once per group: 8 opens to write, 10 to read) and the traffic checks'
+histograms as ``hist``'s polygons with their limits from the vertices, the legend one row in
+the title band (no ``loc="best"`` search) (2026-11-28, wt-int 2f1a8fd against the branch,
+load 6-12; the counts are exact, the seconds the machine's noise). h5py group lookups
+8,524 -> 8,220 (write) and 2,972 -> 2,685 (read): they are h5netcdf's per-variable
+dimension lookups, not the opens, so the saving is small. In-process CPU on the shipped
+fit, 5 fresh processes alternated, with dask hidden as the CLI hides it, median of the
+first call / of the least of 4 more: ``write_fit`` 0.84 / 0.68 s -> 0.74 / 0.55 s,
+``read_fit`` (all groups loaded) 0.79 / 0.67 s -> 0.82 / 0.55 s, the figure and its PNG
+0.94 / 0.81 s -> 0.82 / 0.76 s (cProfile: 597,560 -> 526,793 calls; what is left is
+matplotlib's 10 axes and about 100 ticks, 0.3 s each profiled). ``are-stats fit
+courtyard_traffic`` with figures, repeated on a warm cache, 4 pairs alternated, child CPU
+(user + sys): the branch's first run recompiled after the source change (26.8 s, left
+out); then 16.1 / 13.8, 14.7 / 13.9, 15.4 / 14.7 s wt-int / branch (wall 19-43 s a run
+at this load): below the noise of a run. The fit file (every group ``xarray``-identical,
+attributes and their types included), the 5 CSVs byte for byte, 7 of the 8 PNGs byte for
+byte and the printed tables the same; ``traffic_checks.png`` differs in 2,569 pixels, all
+at the legend's old and new places. The file is 3,122,191 bytes against 3,148,526 (less
+HDF5 free space), the same bytes run to run; ``read_fit`` now returns the fit in memory
+with the file closed. Issue 29's 5 s is still far: ``write_report``'s overview drawing is
+its largest part, and ``import arviz`` compiles numba functions (``arviz.stats.ecdf_utils``)
+where numba is installed.
 """
 
 from __future__ import annotations
