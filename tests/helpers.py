@@ -123,6 +123,29 @@ def crossing_world(seed: int, n: int = 60, *, speed_sd: float = 0.05, noise: flo
     return pd.concat(rows, ignore_index=True), free
 
 
+def crossing_artefacts(walkers: pd.DataFrame, every: float = 6.0) -> tuple[pd.DataFrame, float]:
+    """The people of a tracks table (``id, t, x, y``, e.g. :func:`crossing_world`'s) as one
+    scenario's ``person`` artefacts: each enters where its track starts and stays as long
+    as its track lasts, one arriving every ``every`` s (so that they meet on the way).
+
+    Returns
+    -------
+    artefacts : pandas.DataFrame
+        A scenarios folder's ``artefacts.parquet`` rows, scenario 0.
+    horizon : float
+        One second past the last leave (s).
+    """
+    g = walkers.groupby("id", sort=True)
+    first, last = g.first(), g.last()
+    t_arr = every * np.arange(len(first))
+    art = pd.DataFrame({
+        "scenario": 0, "artefact": np.arange(len(first)), "class": 0, "mark": 0,
+        "t_arrive": t_arr, "t_leave": t_arr + (last["t"] - first["t"]).to_numpy(),
+        "x": first["x"].to_numpy(), "y": first["y"].to_numpy(), "yaw": 0.0, "label": "person",
+    })  # fmt: skip
+    return art, float(art["t_leave"].max()) + 1.0
+
+
 def courtyard_artefacts(**over) -> pd.DataFrame:
     """Three artefacts of two scenarios in the courtyard map's free space (a scenarios
     folder's ``artefacts.parquet``), with any column replaced by ``over``."""

@@ -39,6 +39,7 @@ from are_stats.behaviour import BehaviourFit
 from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.fitting import fit_behaviour
 from are_stats.scenarios import realism_features, scene_tracks
+from tests.helpers import crossing_artefacts
 
 ACCELERATION, TURNING = "acceleration (m/s^2)", "turning rate (rad/s)"
 SAME = 0.15  # largest D of a model with the log's own variation
@@ -49,15 +50,7 @@ STEP = 0.4  # s, the log's sampling (2.5 Hz)
 def _walk(key: int, fit: BehaviourFit, walkers: pd.DataFrame, grid: OccupancyGrid) -> pd.DataFrame:
     """The crossings' people walked by ``fit`` (MDP route, social force, the fit's
     variation), one every 6 s (they meet on the way), seen every :data:`STEP` s."""
-    g = walkers.groupby("id", sort=True)
-    first, last = g.first(), g.last()
-    t_arr = 6.0 * np.arange(len(first))
-    art = pd.DataFrame({
-        "scenario": 0, "artefact": np.arange(len(first)), "class": 0, "mark": 0,
-        "t_arrive": t_arr, "t_leave": t_arr + (last["t"] - first["t"]).to_numpy(),
-        "x": first["x"].to_numpy(), "y": first["y"].to_numpy(), "yaw": 0.0, "label": "person",
-    })  # fmt: skip
-    horizon = float(art["t_leave"].max()) + 1.0
+    art, horizon = crossing_artefacts(walkers)
     walked = scene_tracks(
         jax.random.key(key), art, grid, load_catalogue(), horizon, behaviours="fitted", fitted=fit
     ).drop(columns="scenario")

@@ -18,6 +18,7 @@ from are_stats.scenarios import (
     realism_table,
     scene_tracks,
 )
+from tests.helpers import crossing_artefacts
 
 
 def _line(i, t0, a, b, v, dt=0.1):
@@ -112,15 +113,7 @@ def _own_tracks_table(walkers, grid, fit, seed, noise=0.0):
     arriving every 6 s (they meet on the way), seen at 2.5 Hz with ``noise`` (m) of
     position noise, and the realism table of that log with the same fit."""
     cat = load_catalogue()
-    g = walkers.groupby("id", sort=True)
-    first, last = g.first(), g.last()
-    t_arr = 6.0 * np.arange(len(first))
-    art = pd.DataFrame({
-        "scenario": 0, "artefact": np.arange(len(first)), "class": 0, "mark": 0,
-        "t_arrive": t_arr, "t_leave": t_arr + (last["t"] - first["t"]).to_numpy(),
-        "x": first["x"].to_numpy(), "y": first["y"].to_numpy(), "yaw": 0.0, "label": "person",
-    })  # fmt: skip
-    horizon = float(art["t_leave"].max()) + 1.0
+    art, horizon = crossing_artefacts(walkers)
     log = scene_tracks(
         jax.random.key(11 + seed), art, grid, cat, horizon, behaviours="fitted", fitted=fit
     )
