@@ -346,16 +346,8 @@ class BehaviourFit:
                 cand = np.argwhere((d_i <= reach[i]) & (d_i >= 1))
                 out[i] = cand[rng.integers(len(cand))]
                 continue
-            he, hx = self.bandwidth_entry[cls[i]], self.bandwidth_exit[cls[i]]
-            d2 = ((self.entry_xy[m_of] - ent_xy[i]) ** 2).sum(axis=1)
-            logw = -0.5 * d2 / he**2
-            p = np.exp(logw - logw.max())
-            p /= p.sum()
-            # rng.choice(len(m_of), p=p) as numpy draws it (one uniform against the
-            # normalised cumulative weights), without re-checking p on each try: the same
-            # draws from the same generator
-            cdf = p.cumsum()
-            cdf /= cdf[-1]
+            hx = self.bandwidth_exit[cls[i]]
+            cdf = self._track_cdf(int(cls[i]), m_of, ent_xy[i])
             xy, c = None, None  # the first exit that is free and reachable
             for _ in range(tries):
                 m = m_of[int(cdf.searchsorted(rng.random(), side="right"))]
@@ -427,13 +419,8 @@ class BehaviourFit:
         for key in np.unique(keys):
             rows = np.flatnonzero(keys == key)
             i0 = sel[rows[0]]
-            m_of, he = of_class[cls[i0]], self.bandwidth_entry[cls[i0]]
-            d2 = ((self.entry_xy[m_of] - ent_xy[i0]) ** 2).sum(axis=1)
-            logw = -0.5 * d2 / he**2
-            p = np.exp(logw - logw.max())
-            p /= p.sum()
-            cdf = p.cumsum()
-            cdf /= cdf[-1]
+            m_of = of_class[cls[i0]]
+            cdf = self._track_cdf(int(cls[i0]), m_of, ent_xy[i0])
             track[rows] = m_of[cdf.searchsorted(u[sel[rows]], side="right")]
         hx = self.bandwidth_exit[cls[sel]]
         all_xy = self.exit_xy[track] + (0.0 + hx[:, None, None] * z[sel])
@@ -485,6 +472,23 @@ class BehaviourFit:
             # cumulative weights at most u (nondecreasing)
             pick = (cdf <= u_keep[i_g][:, None]).sum(axis=1)
             out[i_g] = c_g[np.arange(len(rows)), pick]
+
+    def _track_cdf(self, c: int, m_of: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """(len(m_of),) float: the normalised cumulative kernel weights of class ``c``'s
+        tracks ``m_of`` for an entry at ``xy`` (2,) (m), Gaussian in the distance to each
+        track's entry (bandwidth :attr:`bandwidth_entry`).
+
+        ``cdf.searchsorted(u, side="right")`` of a uniform ``u`` is ``rng.choice(len(m_of),
+        p=p)`` as numpy draws it (one uniform against the normalised cumulative weights),
+        without re-checking ``p`` on each try: the same draws from the same generator.
+        """
+        d2 = ((self.entry_xy[m_of] - xy) ** 2).sum(axis=1)
+        logw = -0.5 * d2 / self.bandwidth_entry[c] ** 2
+        p = np.exp(logw - logw.max())
+        p /= p.sum()
+        cdf = p.cumsum()
+        cdf /= cdf[-1]
+        return cdf
 
     def _nearest_open(self, dist: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """The cells ``(row, col)`` (m, 2) nearest to the points ``xy`` (m, 2) (m) among
