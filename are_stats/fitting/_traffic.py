@@ -927,8 +927,8 @@ def _wait_laplace(which: tuple[str, str], runs: dict, say: Any, queue: tuple) ->
     left = getattr(say, "left", None)
     last = getattr(say, "last", None)
     factor, name = which
-    if left is None or (last is not None and last(f"{factor}: Laplace approximation of {name}")
-                        is not None):  # fmt: skip
+    recorded = last is not None and last(f"{factor}: Laplace approximation of {name}") is not None
+    if left is None or recorded:
         return future.result()
     start, finished = queue
     order = list(runs)
