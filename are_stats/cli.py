@@ -45,10 +45,41 @@ app = typer.Typer(
     rich_markup_mode=None,
 )
 
-# Options that several commands share: the same flag, help text and meaning (each command
-# gives its own default).
+# The commands' positional arguments (FIT and SCENARIOS_DIR serve two commands each): a
+# command's signature lists them without a default, before its options.
 _FIT_HELP = "A fit written by are-stats fit."
 _Fit = Annotated[Path, typer.Argument(metavar="FIT", help=_FIT_HELP)]
+_ScenariosDir = Annotated[
+    Path,
+    typer.Argument(metavar="SCENARIOS_DIR", help="Scenarios folder written by are-stats generate."),
+]
+_MapOrBag = Annotated[
+    str,
+    typer.Argument(
+        metavar="MAP",
+        help="ROS map YAML, the name of a shipped map (courtyard), or an MCAP/bag written "
+        "by augment or experiment --mcap.",
+    ),
+]
+_Log = Annotated[
+    Path,
+    typer.Argument(
+        metavar="LOG", help="Life-cycle log (CSV or Parquet) or a shipped one (courtyard_traffic)."
+    ),
+]
+_SweepConfig = Annotated[
+    str,
+    typer.Argument(
+        metavar="CONFIG.yaml", help="Sweep config (YAML), or a shipped one (fig7, fig7_fit)."
+    ),
+]
+_Results = Annotated[str, typer.Argument(metavar="RESULTS", help="Sweep results folder.")]
+_Bag = Annotated[
+    Path, typer.Argument(metavar="BAG", help="Robot bag: ROS 1 .bag, ROS 2 bag folder or .mcap.")
+]
+
+# Options that several commands share: the same flag, help text and meaning (each command
+# gives its own default).
 _DMax = Annotated[float, typer.Option("--d-max", help="Maximum viewing distance d_max (m).")]
 _Tau = Annotated[float, typer.Option("--tau", help="Pixels needed to perceive (count > tau).")]
 _ForceOutputs = Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")]
@@ -243,12 +274,7 @@ def version() -> None:
 
 @_command
 def show(
-    map_path: str = typer.Argument(
-        ...,
-        metavar="MAP",
-        help="ROS map YAML, the name of a shipped map (courtyard), or an MCAP/bag written "
-        "by augment or experiment --mcap.",
-    ),
+    map_path: _MapOrBag,
     out: str = typer.Option(None, "--out", help="PNG to write (default: <map name>.png)."),
     inflate: float = typer.Option(None, "--inflate", help="Inflation radius to draw (m)."),
     artefacts: int = typer.Option(0, "--artefacts", help="Random catalogue artefacts to place."),
@@ -276,11 +302,7 @@ def show(
 
 @_command
 def fit(
-    log: Path = typer.Argument(
-        ...,
-        metavar="LOG",
-        help="Life-cycle log (CSV or Parquet) or a shipped one (courtyard_traffic).",
-    ),
+    log: _Log,
     out: Path = typer.Option(..., "--out", help="Fit to write, e.g. fits/NAME.nc (NetCDF)."),
     method: str = typer.Option(
         "nuts", "--method", help="nuts: joint posterior by NUTS; em: conjugate rates + EM."
@@ -325,9 +347,7 @@ def fit(
         help="ISO 8601 wall-clock time of t = 0 (overrides the manifest's clock_start).",
     ),
     behaviour: bool = typer.Option(
-        True,
-        "--behaviour/--no-behaviour",
-        help="Tracks tables: also fit the behaviour (speeds, exits, rationality).",
+        True, help="Tracks tables: also fit the behaviour (speeds, exits, rationality)."
     ),
     behaviour_features: str = typer.Option(
         "",
@@ -343,13 +363,10 @@ def fit(
         "where their Pareto k is 0.7 or more) | nuts (all sampled).",
     ),
     stationary_start: bool = typer.Option(
-        True,
-        "--stationary-start/--no-stationary-start",
-        help="NUTS: use the Poisson(lambda*area/mu) count present at T0 (couples the rates).",
+        True, help="NUTS: use the Poisson(lambda*area/mu) count present at T0 (couples the rates)."
     ),
     exact: bool = typer.Option(
         True,
-        "--exact/--no-exact",
         help="--method nuts: the paper's model by exact posterior draws where it has them "
         "(no NUTS; a mixture of several classes without labels is sampled by NUTS); "
         "--no-exact: always NUTS.",
@@ -458,9 +475,7 @@ def demo(
 
 @_command
 def perceive(
-    scenario: Path = typer.Argument(
-        ..., metavar="SCENARIO", help="Scenario folder written by are-stats generate."
-    ),
+    scenario: _ScenariosDir,
     camera: _Camera = ...,
     robot_path: Path = typer.Option(
         ..., "--robot-path", help="Robot base poses over time: CSV/Parquet with t, x, y, yaw."
@@ -496,9 +511,7 @@ def perceive(
 
 @_command
 def experiment(
-    config: str = typer.Argument(
-        ..., metavar="CONFIG.yaml", help="Sweep config (YAML), or a shipped one (fig7, fig7_fit)."
-    ),
+    config: _SweepConfig,
     out: str = typer.Option(None, "--out", help="Results folder (default: results/<name>)."),
     workers: int = typer.Option(1, "--workers", min=1, max=64, help="Local Dask workers."),
     scheduler: str = typer.Option(
@@ -537,7 +550,7 @@ def experiment(
 
 @_command
 def plot(
-    results: str = typer.Argument(..., metavar="RESULTS", help="Sweep results folder."),
+    results: _Results,
     out: str = typer.Option(None, "--out", help="Folder for the PNGs (default: RESULTS)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing PNGs."),
 ) -> None:
@@ -551,9 +564,7 @@ def plot(
 
 @_command
 def augment(
-    bag: Path = typer.Argument(
-        ..., metavar="BAG", help="Robot bag: ROS 1 .bag, ROS 2 bag folder or .mcap."
-    ),
+    bag: _Bag,
     fit_path: Path = typer.Option(..., "--fit", help=_FIT_HELP),
     map_path: str = typer.Option(
         ..., "--map", help="ROS map YAML of the run (or a shipped map name: courtyard)."
@@ -607,9 +618,7 @@ def augment(
 
 @_command
 def serve(
-    scenarios: Path = typer.Argument(
-        ..., metavar="SCENARIOS_DIR", help="Scenarios folder written by are-stats generate."
-    ),
+    scenarios: _ScenariosDir,
     scenario: int = typer.Option(
         None, "--scenario", help="Which scenario of the folder (default: the first)."
     ),
