@@ -341,7 +341,8 @@ class ARBuilder:
         artefact_id: int | None = None,
         check: bool = True,
     ) -> int:
-        """Register an artefact at ``pose = (x, y, yaw)`` of F_A in F_E.
+        """Register one artefact at ``pose = (x, y, yaw)`` of F_A in F_E and return its id
+        (:meth:`register_many` registers a batch in one vectorised pass).
 
         Parameters
         ----------
