@@ -46,7 +46,8 @@ __all__ = [
 
 @dataclass(frozen=True)
 class OrientedBox:
-    """An upright oriented box.
+    """An upright oriented box, one at a time: its footprint corners and a strict overlap
+    test with another box (the functions below take arrays of boxes).
 
     Attributes
     ----------
