@@ -239,7 +239,8 @@ def tracks_to_lifecycle(
     group_distance: float | None = None,
     time_step: float | None = None,
 ) -> pd.DataFrame:
-    """Convert sightings to a life-cycle log (first/last sighting per artefact, groups).
+    """Convert sightings to a life-cycle log (first/last sighting per artefact, groups):
+    the tracker's ids split at long gaps, sightings outside the window left out.
 
     Parameters
     ----------
