@@ -190,7 +190,8 @@ class VoxelMap:
     # ---------------------------------------------------------------- OctoMap
     @classmethod
     def from_octomap_bt(cls, path: str | os.PathLike) -> VoxelMap:
-        """Read the occupied leaves of an OctoMap ``.bt`` file (see the module docstring).
+        """Read the occupied leaves of an OctoMap ``.bt`` file (see the module docstring)
+        into a map of the file's resolution (its ``res`` header line).
 
         Raises
         ------
