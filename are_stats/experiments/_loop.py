@@ -1121,7 +1121,8 @@ def run_mission(
     seed: int = 0,
     record: bool = False,
 ) -> MissionResult:
-    """Drive a robot through ``goals`` on the augmented map of one scenario (Sect. 4).
+    """Drive a robot through ``goals`` on the augmented map of one scenario (Sect. 4),
+    replanning as the artefacts arrive, move and leave.
 
     Parameters
     ----------
