@@ -371,7 +371,7 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
             raise InputError(
                 p, f"{where}.speeds.run", f"run >= walk ({sp['walk']:g} m/s)", speeds["run"]
             )
-        beh = inputs.get_list(entry["behaviours"], p, f"{where}.behaviours", min_len=1)
+        beh = tuple(inputs.get_list(entry["behaviours"], p, f"{where}.behaviours", min_len=1))
         for j, b in enumerate(beh):
             inputs.get_str(b, p, f"{where}.behaviours[{j}]", choices=BEHAVIOURS)
             if b in beh[:j]:
@@ -386,6 +386,7 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
         feats = entry.get("features") or {}
         if not isinstance(feats, dict):
             raise InputError(p, f"{where}.features", "a mapping of features", feats)
+        feats = dict(feats)  # the class's own copy
         variants = _variants(p, where, entry.get("variants"))
         mesh_name = inputs.get_str(entry["mesh"], p, f"{where}.mesh")
         mesh_path = Path(mesh_name)
@@ -416,8 +417,8 @@ def load_catalogue(path: str | os.PathLike | None = None) -> ArtefactCatalogue:
                 mesh_path=mesh_path,
                 bounds=bounds,
                 speeds=sp,
-                behaviours=tuple(beh),
-                features=dict(feats),
+                behaviours=beh,
+                features=feats,
                 variants=variants,
             )
         )
