@@ -110,8 +110,9 @@ class AssemblyOptions:
         """
         model = get_str(model, "--model", "", choices=MODEL_CHOICES)
         positions = get_str(positions, "--positions", "", choices=POSITION_CHOICES)
+        cell_source = "--behaviour-cell"  # the option its check and the behaviours' errors name
         if behaviours:
-            behaviour_cell = get_float(behaviour_cell, "--behaviour-cell", "", lo=0.0, lo_open=True)
+            behaviour_cell = get_float(behaviour_cell, cell_source, "", lo=0.0, lo_open=True)
             behaviour_dt = get_float(behaviour_dt, "--behaviour-dt", "", lo=0.0, lo_open=True)
         return cls(
             behaviours=behaviours,
@@ -119,7 +120,7 @@ class AssemblyOptions:
             positions=positions,
             behaviour_cell=behaviour_cell,
             behaviour_dt=behaviour_dt,
-            cell_source="--behaviour-cell",
+            cell_source=cell_source,
         )
 
     def with_settings(self, settings: Mapping[str, object]) -> AssemblyOptions:
