@@ -603,12 +603,8 @@ def _artefacts(d: Path, n_sc: int | None) -> pd.DataFrame:
     early = num["t_leave"] < num["t_arrive"]
     if early.any():
         i = int(np.argmax(early))
-        raise table.error(
-            i,
-            "t_leave",
-            f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})",
-            repr(float(num["t_leave"][i])),
-        )
+        expected = f"t_leave >= t_arrive ({float(num['t_arrive'][i])!r})"
+        raise table.error(i, "t_leave", expected, repr(float(num["t_leave"][i])))
     hi_sc = _INT32 if n_sc is None else n_sc - 1
     scen = table.nonneg_ints("scenario", allow_empty=False, hi=max(hi_sc, 0))[0]
     if n_sc is not None and n_sc == 0:
@@ -683,12 +679,8 @@ def _tracks(d: Path, meta: Mapping[str, Any], artefacts: pd.DataFrame) -> pd.Dat
     dup = pd.DataFrame({"s": scen, "a": ids, "t": num["t"]}).duplicated().to_numpy()
     if dup.any():
         i = int(np.argmax(dup))
-        raise table.error(
-            i,
-            "t",
-            f"one pose per artefact and time (artefact {int(ids[i])} has two)",
-            repr(float(num["t"][i])),
-        )
+        expected = f"one pose per artefact and time (artefact {int(ids[i])} has two)"
+        raise table.error(i, "t", expected, repr(float(num["t"][i])))
     return pd.DataFrame({"scenario": scen, "id": ids, **num})
 
 
