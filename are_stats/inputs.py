@@ -615,12 +615,7 @@ def _within(
 
 
 def get_int(
-    value: Any,
-    source: Source,
-    where: str,
-    *,
-    lo: int | None = None,
-    hi: int | None = None,
+    value: Any, source: Source, where: str, *, lo: int | None = None, hi: int | None = None
 ) -> int:
     """An integer that fits int64 (integral floats such as ``1.0e3`` accepted; no bools)."""
     lo_ = _INT64[0] if lo is None else lo
