@@ -39,11 +39,12 @@ from are_stats.inputs import (
     get_str,
 )
 from are_stats.logs import TrajectoryOptions, find_manifest, read_count_panel, read_field_log
-from are_stats.scenarios import generate_folder
+from are_stats.scenarios import GenerateFolderOptions, generate_folder
 
 if TYPE_CHECKING:
     from are_stats.behaviour import BehaviourFit
     from are_stats.fitting import Fit, FitSettings, MotionReport
+    from are_stats.perception import PerceiveFolderOptions
 
 # Lazy in the jobs that use them (measured CPU of the import, on top of the rooms above,
 # which every job loads anyway): fitting (NumPyro, ArviZ: 0.65 s that perceive, augment and
@@ -640,13 +641,12 @@ def run_generate(
     seed: int,
     out: Path,
     map_path: Path | None = None,
-    **options: Any,
+    **options: Unpack[GenerateFolderOptions],
 ) -> pd.DataFrame:
     """``are-stats generate``: posterior-predictive scenarios from a saved fit, written as
     a folder (:func:`are_stats.scenarios.generate_folder`, which ``map_path`` and
-    ``options`` go to: ``area``, ``behaviours``, ``force``, ``behaviour_cell``,
-    ``behaviour_dt``, ``model``, ``positions``; it checks every option before anything is
-    drawn); the stage's progress shown, then the laws drawn from and what it wrote."""
+    ``options`` go to; it checks every option before anything is drawn); the stage's
+    progress shown, then the laws drawn from and what it wrote."""
     stage = "scenarios with their walks (rollouts)" if options.get("behaviours") else "scenarios"
     started: list[float] = []  # when drawing began
 
@@ -765,13 +765,12 @@ def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, o
 
 
 def run_perceive(
-    scenario: Path, camera_path: Path, robot_path: Path, **options: Any
+    scenario: Path, camera_path: Path, robot_path: Path, **options: Unpack[PerceiveFolderOptions]
 ) -> pd.DataFrame:
     """``are-stats perceive``: perceived flags (A_f, eq. 2) added to a scenario folder for a
-    robot path (:func:`are_stats.perception.perceive_folder`, which ``options`` go to:
-    ``mesh``, ``wall_height``, ``d_max``, ``tau``, ``camera_height``,
-    ``occlusion_between_artefacts``, ``out``, ``force``; it checks every input before any
-    tracing); its warnings and progress shown, then what it wrote."""
+    robot path (:func:`are_stats.perception.perceive_folder`, which ``options`` go to; it
+    checks every input before any tracing); its warnings and progress shown, then what it
+    wrote."""
     from are_stats.perception import FolderPlan, perceive_folder
 
     started: list[tuple[FolderPlan, float]] = []  # the plan, and when perceiving began

@@ -7,7 +7,7 @@ from are_stats.perception._camera import (
     optical_from_base,
     read_camera,
 )
-from are_stats.perception._folder import FolderPlan, perceive_folder
+from are_stats.perception._folder import FolderPlan, PerceiveFolderOptions, perceive_folder
 from are_stats.perception._perceive import (
     PerceptionResult,
     TraceOptions,
@@ -32,6 +32,7 @@ from are_stats.perception._scenario import (
 
 __all__ = [
     "FolderPlan",
+    "PerceiveFolderOptions",
     "PerceptionResult",
     "CameraModel",
     "PinholeCamera",

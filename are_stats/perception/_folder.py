@@ -12,7 +12,7 @@ import os
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, TypedDict
 
 import pandas as pd
 
@@ -28,7 +28,7 @@ from are_stats.perception._scenario import (
 )
 from are_stats.scenarios import read_scenes, scenes_from_tables
 
-__all__ = ["FolderPlan", "perceive_folder"]
+__all__ = ["FolderPlan", "PerceiveFolderOptions", "perceive_folder"]
 
 
 class FolderPlan(NamedTuple):
@@ -46,6 +46,21 @@ class FolderPlan(NamedTuple):
     #: Warnings about the inputs, in words: poses outside the map, classes not in the
     #: catalogue.
     warnings: tuple[str, ...]
+
+
+class PerceiveFolderOptions(TypedDict, total=False):
+    """The options of :func:`perceive_folder` (its keywords, but ``on_start``), as a caller
+    passes them on: ``are-stats perceive``'s job. See :func:`perceive_folder` for their
+    meaning and defaults."""
+
+    mesh: str | os.PathLike | None
+    wall_height: float
+    d_max: float
+    tau: float
+    camera_height: float
+    occlusion_between_artefacts: bool
+    out: str | os.PathLike | None
+    force: bool
 
 
 def perceive_folder(

@@ -33,7 +33,7 @@ from are_stats.scenarios._generate import (
     generate_scenarios,
     scenario_counts,
 )
-from are_stats.scenarios._generate_folder import generate_folder
+from are_stats.scenarios._generate_folder import GenerateFolderOptions, generate_folder
 from are_stats.scenarios._options import (
     MODEL_CHOICES,
     POSITION_CHOICES,
@@ -72,6 +72,7 @@ __all__ = [
     "check_scenario_size",
     "check_tracks_size",
     "expected_artefacts",
+    "GenerateFolderOptions",
     "generate_folder",
     "generate_manifest",
     "generate_scenarios",

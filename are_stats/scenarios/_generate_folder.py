@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import TypedDict
 
 import pandas as pd
 
@@ -22,10 +23,24 @@ from are_stats.scenarios._folder import generate_manifest, write_scenes
 from are_stats.scenarios._generate import check_folder
 from are_stats.scenarios._options import AssemblyOptions
 
-__all__ = ["generate_folder"]
+__all__ = ["GenerateFolderOptions", "generate_folder"]
 
 #: ``progress(done, total, what)`` of the assembly's steps (see :func:`scenes_from_fit`).
 Progress = Callable[[int, int, str], object]
+
+
+class GenerateFolderOptions(TypedDict, total=False):
+    """The options of :func:`generate_folder` (its keywords after ``map_path``, but
+    ``on_start``), as a caller passes them on: ``are-stats generate``'s job. See
+    :func:`generate_folder` for their meaning and defaults."""
+
+    area: float | None
+    behaviours: bool
+    force: bool
+    behaviour_cell: float
+    behaviour_dt: float
+    model: str
+    positions: str
 
 
 def generate_folder(

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import inspect
 import warnings
+from typing import get_type_hints
 
 import pandas as pd
 import pytest
@@ -12,6 +14,7 @@ from are_stats.environment import DEFAULT_MODELS, environment_mesh, load_catalog
 from are_stats.inputs import InputError
 from are_stats.perception import (
     FolderPlan,
+    PerceiveFolderOptions,
     camera_mount,
     perceive_folder,
     perceive_scenario,
@@ -73,3 +76,13 @@ def test_perceive_folder_warns_without_on_start_and_keeps_an_existing_output(tmp
     assert (scen / "perceived.parquet").read_bytes() == before
     with pytest.raises(InputError, match="--tau: expected a finite number >= 0"):
         perceive_folder(scen, CAMERA, robot, tau=-1.0, force=True)
+
+
+def test_perceive_folder_options_are_its_keywords():
+    """PerceiveFolderOptions (the job's ``**options``) names perceive_folder's keywords, but
+    on_start, with their types: a keyword added to one is added to the other."""
+    hints = get_type_hints(perceive_folder)
+    params = inspect.signature(perceive_folder).parameters.values()
+    keywords = [p.name for p in params if p.kind is p.KEYWORD_ONLY and p.name != "on_start"]
+    assert list(PerceiveFolderOptions.__annotations__) == keywords
+    assert get_type_hints(PerceiveFolderOptions) == {k: hints[k] for k in keywords}

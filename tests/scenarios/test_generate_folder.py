@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import inspect
+from typing import get_type_hints
+
 import jax
 import numpy as np
 import pandas as pd
@@ -13,7 +16,13 @@ from are_stats.cli import app
 from are_stats.environment import load_catalogue, read_map
 from are_stats.fitting import read_fit
 from are_stats.inputs import InputError
-from are_stats.scenarios import generate_folder, read_scenes, scenes_from_fit, scenes_tables
+from are_stats.scenarios import (
+    GenerateFolderOptions,
+    generate_folder,
+    read_scenes,
+    scenes_from_fit,
+    scenes_tables,
+)
 from are_stats.traffic import simulate_lifecycle
 from tests.helpers import PAPER_MODELS
 
@@ -72,3 +81,13 @@ def test_generate_folder_checks_options_before_reading_or_writing(tmp_path):
             behaviour_cell=0.0,
         )  # fmt: skip
     assert not (tmp_path / "out").exists()
+
+
+def test_generate_folder_options_are_its_keywords():
+    """GenerateFolderOptions (the job's ``**options``) names generate_folder's keywords after
+    map_path, but on_start, with their types: a keyword added to one is added to the other."""
+    hints = get_type_hints(generate_folder)
+    names = list(inspect.signature(generate_folder).parameters)
+    keywords = names[names.index("map_path") + 1 : names.index("on_start")]
+    assert list(GenerateFolderOptions.__annotations__) == keywords
+    assert get_type_hints(GenerateFolderOptions) == {k: hints[k] for k in keywords}
