@@ -17,8 +17,8 @@ Run with ``python -m tests.benchmarks imports`` (``--quick``: one repeated run, 
 Benchmarks never assert on time.
 
 Measured 2026-11-28 (main 2f397d6, a user's virtual environment without numba, bytecode
-written, load 8-18 on the shared 2-core machine; three repeated runs): process CPU
-13.0-15.1 s, import CPU 4.35, 5.12, 5.48 s (main thread 2.7-3.3 s, the InferenceData
+written, load 17-18 where recorded, on the shared 2-core machine; three repeated runs):
+process CPU 13.0-15.1 s, import CPU 4.35, 5.12, 5.48 s (main thread 2.7-3.3 s, the InferenceData
 thread's ArviZ 1.6-2.2 s). Own import CPU per package over the three: scipy 1.24-1.67
 (stats 0.44-0.63, signal 0.23-0.25: ArviZ imports both, the traffic positions' smoothing
 scipy.signal too; scipy 1.17 rewrites the docstrings of its array-API functions at import),
