@@ -300,6 +300,25 @@ HDF5 free space), the same bytes run to run; ``read_fit`` now returns the fit in
 with the file closed. Issue 29's 5 s is still far: ``write_report``'s overview drawing is
 its largest part, and ``import arviz`` compiles numba functions (``arviz.stats.ecdf_utils``)
 where numba is installed.
+
+What the repeated fit imports, by thread CPU per module
+(:mod:`tests.benchmarks.bench_imports`; 2026-11-28, main 2f397d6, a user's virtual
+environment without numba, bytecode written, load 17-18 where recorded, 3 repeated runs
+with figures): import CPU 4.35, 5.12, 5.48 s of 13.0-15.1 s (main thread 2.7-3.3 s, ArviZ
+in the InferenceData thread 1.6-2.2 s); by package scipy 1.24-1.67 s (stats 0.44-0.63,
+signal 0.23-0.25), jax + jaxlib 0.85-1.04, matplotlib with its 3-D axes and pyparsing
+0.7-0.9, pandas + pyarrow 0.4-0.5, numpy 0.18-0.24, xarray 0.15-0.19, numpyro 0.08-0.10,
+typer's pydantic 0.06-0.08, our own modules 0.14-0.17. The 1.65 s that a profile charged to
+``are_stats.export`` in the CLI's job module is JAX, the behaviours and the scenarios
+imported there first: ``are_stats.fitting`` imports them too, and export on top of the
+fit's imports is 6 modules and 8 ms. Every package above is one the fit or its report calls
+(ArviZ brings scipy.stats, scipy.signal and ``matplotlib.pyplot``; the report draws with
+pyplot, the position densities smooth with scipy.signal), so moving imports does not reach
+issue 29's 1.8 s of import CPU. In one process (3 runs, load 19-22), on top of the fit's
+other imports (4.3-4.4 s there): scipy.signal and scipy.stats 1.09-1.12 s (189 modules;
+scipy 1.17 rewrites the docstring of every array-API function at import), then ArviZ
+0.07-0.08 s (91 modules). Only a fit without ArviZ (its ``from_dict``, ``loo``, ``ess`` and
+``summary``) and without scipy.signal and scipy.stats of its own would save that second.
 """
 
 from __future__ import annotations
