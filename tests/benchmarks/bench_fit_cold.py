@@ -314,7 +314,8 @@ repeated fit, three alternated pairs, ``write_report`` 3.47, 2.70, 2.80 s main v
 Left (cProfile, process time): the figures' axes and ticks (16 axes, each tick about 2 ms
 to make), text drawing, ``generate_scenarios``' 200 chosen-model replicates one by one
 (about 0.5 s of ``traffic_checks``' 0.76 s) and h5netcdf's per-variable overhead in
-``write_fit`` (0.6-0.9 s; compression is not the cost: the same CPU without it).
+``write_fit`` (0.6-0.9 s, 55 variables; compression's share not isolated: a fit read back
+keeps its variables' compression encoding whatever ``write_fit`` asks).
 """
 
 from __future__ import annotations
