@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from are_stats.fitting._criticism import count_path
-from are_stats.fitting._fit import traffic_draws
+from are_stats.fitting._fit import as_fit, traffic_draws
 from are_stats.fitting._traffic import time_resolution
 from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import boundary_distance, fold_in_key, key_from_seed
@@ -445,8 +445,9 @@ def traffic_checks(
     )
     base_key = key_from_seed(int(key)) if isinstance(key, int | np.integer) else key
     reps: dict[str, np.ndarray] = {}
-    sources = {"paper": traffic_draws(idata, "paper")}
-    chosen = traffic_draws(idata, "chosen")
+    fit = as_fit(idata)  # decoded once for both models
+    sources = {"paper": traffic_draws(fit, "paper")}
+    chosen = traffic_draws(fit, "chosen")
     if not chosen[1].is_paper:
         sources["chosen"] = chosen
     for i, (model, (draws, laws)) in enumerate(sources.items()):
@@ -601,6 +602,8 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)
     import matplotlib.pyplot as plt
 
+    from are_stats.fitting._ticks import ticks_in_view  # matplotlib's ticker: on first use
+
     colours = {"paper": "tab:grey", "chosen": "tab:blue"}
     n = len(TRAFFIC_STATISTICS)
     cols = (n + 1) // 2
@@ -626,7 +629,7 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
                 color="0.4",
             )
             ax.set_title(stat, fontsize=10)
-            ax.set_yticks([])
+            ax.yaxis.set_visible(False)
             continue
         lo, hi = float(allv.min()), float(allv.max())
         pad = 0.05 * (hi - lo) if hi > lo else 0.5
@@ -651,7 +654,7 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
                 color="tab:red",
             )
         ax.set_title(stat, fontsize=10)
-        ax.set_yticks([])
+        ax.yaxis.set_visible(False)  # no y ticks: the axis is not drawn at all
     # one row in the title band, left of the title: a fixed place (no search for the
     # emptiest corner of a panel at every draw), clear of every panel's data
     entries: dict[str, Any] = {}  # label -> handle, in the panels' order
@@ -665,5 +668,6 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
     fig.suptitle(
         "Posterior-predictive checks: replicated windows of each model vs the log", y=0.994
     )
+    ticks_in_view(axes.flat)  # no tick made beyond a panel's limits: the same pixels
     _widen_for_labels(fig, axes)
     return fig
