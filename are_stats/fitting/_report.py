@@ -445,10 +445,6 @@ def _overview(checks: PredictiveChecks) -> tuple[Any, dict[str, Any]]:
         _draw_panel(name, ax, c, c.window[0])
     for a in axes.ravel()[len(panels) :]:
         a.set_axis_off()
-    # no tick made beyond a panel's limits: the same pixels (matplotlib on first use)
-    from are_stats.fitting._ticks import ticks_in_view
-
-    ticks_in_view(panels.values())
     overview.suptitle(
         "Posterior-predictive checks of the paper's model (the chosen models: traffic_checks.png)"
     )

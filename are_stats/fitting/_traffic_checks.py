@@ -602,8 +602,6 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)
     import matplotlib.pyplot as plt
 
-    from are_stats.fitting._ticks import ticks_in_view  # matplotlib's ticker: on first use
-
     colours = {"paper": "tab:grey", "chosen": "tab:blue"}
     n = len(TRAFFIC_STATISTICS)
     cols = (n + 1) // 2
@@ -668,6 +666,5 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
     fig.suptitle(
         "Posterior-predictive checks: replicated windows of each model vs the log", y=0.994
     )
-    ticks_in_view(axes.flat)  # no tick made beyond a panel's limits: the same pixels
     _widen_for_labels(fig, axes)
     return fig

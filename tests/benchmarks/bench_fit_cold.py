@@ -321,20 +321,22 @@ scipy 1.17 rewrites the docstring of every array-API function at import), then A
 ``summary``) and without scipy.signal and scipy.stats of its own would save that second.
 
 The report's PNGs written from the rendered pixels as unfiltered RGB rows at zlib level 3
-(Pillow tried all five PNG filters on every row), ticks made only inside each panel's view,
-the traffic checks' empty y axes not drawn (2026-11-28, main 2f397d6 and wt-report, the
-shipped log's saved fit, process CPU, load 15-26): the 8 PNGs' encoding 0.11 s against
-0.24 s for Pillow's 7 overview images alone (plus ``savefig``'s), 466 kB against 500 kB;
-ticks made 186 -> 148; every PNG the same pixels, every CSV ``cmp``-identical, the fit file
-byte for byte. ``write_report`` + ``write_fit`` stayed about 3.4 s of CPU: in the CLI's
-repeated fit, three alternated pairs, ``write_report`` 3.47, 2.70, 2.80 s main vs 2.38,
-2.78, 3.35 s branch (repeated wall 51.7, 42.7, 41.3 vs 64.6, 43.0, 48.6 s; user 13.9, 12.1,
-11.5 vs 18.0, 11.8, 13.1 s): the saving (about 0.2 s) is below the noise of that load.
-Left (cProfile, process time): the figures' axes and ticks (16 axes, each tick about 2 ms
-to make), text drawing, ``generate_scenarios``' 200 chosen-model replicates one by one
-(about 0.5 s of ``traffic_checks``' 0.76 s) and h5netcdf's per-variable overhead in
-``write_fit`` (0.6-0.9 s, 55 variables; compression's share not isolated: a fit read back
-keeps its variables' compression encoding whatever ``write_fit`` asks).
+(Pillow tried all five PNG filters on every row), the traffic checks' empty y axes not drawn
+(2026-11-28, main 2f397d6 and wt-report, the shipped log's saved fit, process CPU, load
+15-26): the 8 PNGs' encoding 0.11 s against 0.24 s for Pillow's 7 overview images alone
+(plus ``savefig``'s), 466 kB against 500 kB; every PNG the same pixels, every CSV
+``cmp``-identical, the fit file byte for byte. ``write_report`` + ``write_fit`` stayed about
+3.4 s of CPU: in the CLI's repeated fit, three alternated pairs, ``write_report`` 3.47,
+2.70, 2.80 s main vs 2.38, 2.78, 3.35 s branch (repeated wall 51.7, 42.7, 41.3 vs 64.6,
+43.0, 48.6 s; user 13.9, 12.1, 11.5 vs 18.0, 11.8, 13.1 s): the saving (about 0.2 s) is
+below the noise of that load. A wrapper of each axis' locator that made ticks only inside
+the view (186 -> 148 ticks, about 0.08 s, the same pixels) was not kept: 96 lines around
+matplotlib's locator and formatter protocol for under a tenth of a second. Left (cProfile,
+process time): the figures' axes and ticks (16 axes, each tick about 2 ms to make), text
+drawing, ``generate_scenarios``' 200 chosen-model replicates one by one (about 0.5 s of
+``traffic_checks``' 0.76 s) and h5netcdf's per-variable overhead in ``write_fit`` (0.6-0.9
+s, 55 variables; compression's share not isolated: a fit read back keeps its variables'
+compression encoding whatever ``write_fit`` asks).
 """
 
 from __future__ import annotations
