@@ -46,8 +46,8 @@ from are_stats.inputs import check_memory, check_work
 from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import STAY_LAWS, LifecycleData, numpy_rng
 
-# Lazy import, measured (CPU): xarray (+0.16 s on ``import are_stats.fitting``) comes with
-# ArviZ when a fit is built.
+# Lazy imports, measured (CPU on ``import are_stats.fitting``): xarray (+0.16 s) comes with
+# ArviZ (+3.0 s, the type only here) when a fit is built.
 
 if TYPE_CHECKING:
     import arviz as az
