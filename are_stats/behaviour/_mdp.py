@@ -47,7 +47,7 @@ import functools
 import threading
 import weakref
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import NamedTuple, TypedDict, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -67,9 +67,7 @@ from are_stats.behaviour._rewards import (
     STAY,
     allowed_actions,
 )
-
-if TYPE_CHECKING:
-    from are_stats.environment import OccupancyGrid
+from are_stats.environment import OccupancyGrid
 
 __all__ = ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
 
@@ -384,7 +382,11 @@ def backward_induction(
     return v0, crop(policy), crop(values)
 
 
-def _unpack_policy(packed: Any) -> tuple[Any, ...]:
+#: A policy plane: a NumPy array, or a JAX one inside the compiled solver.
+_Plane = TypeVar("_Plane", np.ndarray, jax.Array)
+
+
+def _unpack_policy(packed: Sequence[_Plane]) -> tuple[_Plane, ...]:
     """Per heading action planes from the two packed ones (low nibble: heading 0 or 2)."""
     return tuple((packed[h // 2] >> (4 * (h % 2))) & 15 for h in range(4))
 
@@ -397,9 +399,9 @@ class _Outputs(NamedTuple):
     or None; ``values`` four ``(B, D + 1, H, W + 4)`` planes (one per heading) or None.
     """
 
-    v0: Any
-    policy: Any
-    values: Any
+    v0: jax.Array | np.ndarray
+    policy: tuple[jax.Array, ...] | tuple[_Batch, ...] | None
+    values: tuple[jax.Array, ...] | tuple[_Batch, ...] | None
 
 
 def _output_shapes(
@@ -479,6 +481,23 @@ _backward_induction_jit = jax.jit(
     donate_argnames=("out",),
     compiler_options=_COMPILER_OPTIONS,
 )
+
+
+class _SolverInputs(TypedDict):
+    """What ``GridMDP.solve`` hands the compiled solver (NumPy: the call transfers them)."""
+
+    ok: np.ndarray
+    occupied: np.ndarray
+    goals: np.ndarray
+    allow: np.ndarray
+    horizons: np.ndarray
+    follow: np.ndarray | None
+    slip: np.ndarray
+    step_cost: np.ndarray
+    goal_reward: np.ndarray
+    tie_tol: np.ndarray
+    n_epochs: int
+    use_run: bool
 
 
 _BATCHED = ("goals", "allow", "horizons", "follow")
@@ -605,7 +624,7 @@ def _joined(batches: tuple[_Batch, ...], fn: Callable[..., np.ndarray]) -> np.nd
 
 
 def _run_solver(
-    inputs: dict[str, Any], *, store_values: bool, with_policy: bool
+    inputs: _SolverInputs, *, store_values: bool, with_policy: bool
 ) -> tuple[_Outputs, Callable[[], None]]:
     """Run the compiled solver on ``inputs`` (NumPy arrays, as built by ``GridMDP.solve``).
 
@@ -659,7 +678,7 @@ def _run_solver(
         for key, buf in zip(keys, leaves, strict=True):
             _POOL.give(key, buf)
 
-    def planes(xs: Any) -> tuple[_Batch, ...] | None:
+    def planes(xs: tuple[jax.Array, ...] | None) -> tuple[_Batch, ...] | None:
         return None if xs is None else tuple(_Batch(parts(x), b).crop() for x in xs)
 
     v0 = np.concatenate(parts(out.v0))[:b, ..., 2:-2]  # a copy: the buffer goes back to the pool
@@ -697,7 +716,7 @@ class MDPSolution:
         v0: np.ndarray,
         policy: tuple[_Batch, ...] | None,
         values: tuple[_Batch, ...] | None,
-        inputs: dict[str, Any],
+        inputs: _SolverInputs,
         release: Callable[[], None] | None = None,
     ) -> None:
         self.mdp = mdp
@@ -980,7 +999,7 @@ class GridMDP:
         if store_values is None:
             store_values = n * (d + 1) * h * w * 4 * dt.itemsize <= _VALUES_BYTES
         # NumPy inputs: the jitted call transfers them (jnp.asarray would cost ~0.1 ms each)
-        inputs = dict(
+        inputs = _SolverInputs(
             ok=self._ok,
             occupied=self.occupied,
             goals=goal_masks,
@@ -1130,7 +1149,10 @@ def _goal_rows(
     return goals
 
 
-def _broadcast(name: str, items: list[Any], n: int) -> list[Any]:
+_Item = TypeVar("_Item")
+
+
+def _broadcast(name: str, items: list[_Item], n: int) -> list[_Item]:
     if len(items) == n:
         return items
     if len(items) == 1:

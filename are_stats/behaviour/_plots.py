@@ -13,7 +13,8 @@ from are_stats._checks import check_positive, describe
 from are_stats.behaviour._mdp import MDPSolution
 from are_stats.behaviour._rewards import FORWARD, LEFT, RIGHT, RUN
 
-# Lazy imports: matplotlib (about 1 s) is imported by the plotting functions only.
+# Lazy imports, measured (CPU): matplotlib.pyplot (+0.58 s on ``import are_stats.behaviour``)
+# is imported by the plotting functions only.
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

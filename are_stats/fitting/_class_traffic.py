@@ -39,6 +39,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import jax
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
@@ -48,11 +49,11 @@ from are_stats.fitting._traffic import choose_simplest, loo_pointwise
 from are_stats.inputs import check_memory
 from are_stats.traffic import DAY, PositionDensity, fit_position_density, numpy_rng, period_of
 
-# Lazy imports: xarray (0.4 s) comes with ArviZ when a fit is built (the attach_ functions).
+# Lazy imports, measured (CPU on ``import are_stats.fitting``): xarray (+0.16 s) comes with
+# ArviZ (+3.0 s, the type only here) when a fit is built (the attach_ functions).
 
 if TYPE_CHECKING:
     import arviz as az
-    import jax
 
 __all__ = [
     "CLASS_POSITION_MODELS",

@@ -24,7 +24,8 @@ import numpy.typing as npt
 import pandas as pd
 import yaml
 
-from are_stats.environment import OccupancyGrid, load_catalogue
+from are_stats.behaviour import BehaviourFit, SocialForce
+from are_stats.environment import ArtefactCatalogue, OccupancyGrid, load_catalogue
 from are_stats.fitting._behaviour import NoWalkersError, fit_behaviour, open_area_grid
 from are_stats.fitting._classes import class_motion_checks
 from are_stats.fitting._fit import Fit, fit_from_idata
@@ -38,16 +39,11 @@ from are_stats.fitting._motion_checks import motion_checks
 from are_stats.fitting._motion_store import motion_attrs
 from are_stats.fitting._prediction import displacement_errors
 from are_stats.logs import LifecycleLog
+from are_stats.scenarios import realism_features, realism_summary, realism_table
 from are_stats.traffic import LifecycleData, LifecyclePriors, key_from_seed
 
-# Lazy imports: scenarios, downstream of fitting (the realism table generates through its
-# one assembly), in _attach_motion_tables only.
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the type only: ArviZ (+3.0 s CPU on import are_stats.fitting) loads later
     import arviz as az
-
-    from are_stats.behaviour import BehaviourFit, SocialForce
-    from are_stats.environment import ArtefactCatalogue
 
 __all__ = ["FIT_WINDOWS", "fit_log", "log_sha256"]
 
@@ -101,9 +97,15 @@ def _behaviour(
     run_speed = None if catalogue is None else catalogue.run_thresholds()
     try:
         bfit = fit_behaviour(
-            tracks, free, res, origin, seed=seed, features=features or None,
-            run_speed=run_speed, progress=lambda done, total: steps(done, total, "classes"),
-        )  # fmt: skip
+            tracks,
+            free,
+            res,
+            origin,
+            seed=seed,
+            features=features or None,
+            run_speed=run_speed,
+            progress=lambda done, total: steps(done, total, "classes"),
+        )
     except NoWalkersError as err:  # people who only stand: no walking to learn
         notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
         return idata, grid, None
@@ -145,8 +147,6 @@ def _attach_motion_tables(
     chunks and social force windows, :func:`motion_checks`). The realism runs first
     so that the count is known at the first step (its own total); each part draws with its
     own key, so the order changes no number."""
-    from are_stats.scenarios import realism_features, realism_summary, realism_table
-
     say = steps or (lambda done, total, what: None)
     after = 1 + int("label" in tracks.columns)  # displacement errors, motion checks
     key = jax.random.key(seed)
@@ -195,10 +195,14 @@ def _attach_motion_tables(
         say(walked[0] + 1 + done, walked[0] + 1 + total, f"motion checks, {what}")
 
     table, reps = motion_checks(
-        jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
-        interaction=learned if learned is not None else True, grid=grid,
+        jax.random.fold_in(key, 1),
+        bfit,
+        tracks,
+        n_replicates=50,
+        interaction=learned if learned is not None else True,
+        grid=grid,
         progress=check_step,
-    )  # fmt: skip
+    )
     per_class = class_motion_checks(tracks, reps)
     if per_class is not None:
         idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
@@ -332,7 +336,7 @@ def fit_log(
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep = log.report()
     rep["source"] = Path(str(rep.get("source") or log.source)).name
-    stamp: dict[str, Any] = {} if seed is None else {"seed": int(seed)}
+    stamp: dict[str, int | str] = {} if seed is None else {"seed": int(seed)}
     stamp["log"] = Path(log.source).name
     if Path(log.source).is_file():
         stamp["log_sha256"] = log_sha256(log.source)

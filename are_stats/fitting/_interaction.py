@@ -13,8 +13,7 @@ generated from the fit walks with the log's interaction and groups
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Hashable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -38,8 +37,8 @@ _LEVEL = 0.01
 
 
 def _on_one_step(
-    tracks: pd.DataFrame, labels: Mapping[str, Any]
-) -> tuple[pd.DataFrame, dict[Any, Any]]:
+    tracks: pd.DataFrame, labels: Mapping[str, str]
+) -> tuple[pd.DataFrame, dict[Hashable, str]]:
     """The tracks resampled to one step (the median), and the group of each track id
     (``labels``: :func:`~are_stats.logs.track_groups`'s)."""
     tab = tracks.sort_values(["id", "t"], kind="stable")
@@ -276,7 +275,7 @@ def interaction_attrs(params: SocialForce, info: Mapping[str, float]) -> dict[st
     return out
 
 
-def interaction_info(attrs: Mapping[str, Any]) -> dict[str, float]:
+def interaction_info(attrs: Mapping[str, object]) -> dict[str, float]:
     """How a stored social force was estimated (:func:`interaction_attrs`): ``r2``, ``n``
     (accelerations), ``group_samples``."""
     keys = {"r2": "r2", "n": "samples", "group_samples": "group_samples"}
@@ -285,7 +284,7 @@ def interaction_info(attrs: Mapping[str, Any]) -> dict[str, float]:
     }
 
 
-def interaction_from_attrs(attrs: Mapping[str, Any]) -> SocialForce | None:
+def interaction_from_attrs(attrs: Mapping[str, object]) -> SocialForce | None:
     """The :class:`SocialForce` a fit stored (:func:`interaction_attrs`), or None.
 
     Raises

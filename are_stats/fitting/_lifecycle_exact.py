@@ -34,8 +34,7 @@ sampler where the mixture of eq. (1) is conjugate too:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+import jax
 import numpy as np
 from scipy.optimize import brentq
 
@@ -48,9 +47,6 @@ from are_stats.traffic import (
     conjugate_mixture,
     numpy_rng,
 )
-
-if TYPE_CHECKING:
-    import jax
 
 __all__ = ["exact_lifecycle_draws", "has_exact_posterior", "sample_coupled_rates"]
 

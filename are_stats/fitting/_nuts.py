@@ -36,8 +36,8 @@ import operator
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
-from typing import Any, NamedTuple
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any, NamedTuple, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -196,13 +196,19 @@ class NutsRun(NamedTuple):
 
 # ------------------------------------------------------------------- compiled programs
 
-_CACHE: dict[tuple, Any] = {}  # compiled programs, keyed by model, settings and shapes
+# compiled programs (with their blank states), keyed by model, settings and shapes: each
+# entry has its own key's type, what that key's build returned
+_CACHE: dict[tuple, Any] = {}
 _CACHE_SIZE = 32
 _LOCKS: dict[tuple, threading.Lock] = {}  # one per key: a program is compiled once
 _LOCKS_GUARD = threading.Lock()
 
 
-def _cached(key: tuple | None, build: Callable[[], Any], timing: dict[str, float]) -> Any:
+#: What a build returns, and its cache entry holds (a program, or one with its blank state).
+_Built = TypeVar("_Built")
+
+
+def _cached(key: tuple | None, build: Callable[[], _Built], timing: dict[str, float]) -> _Built:
     """The compiled program for ``key``, compiling it with ``build()`` on a miss.
 
     Thread-safe: a caller that finds the program being compiled by another thread (a
@@ -233,7 +239,7 @@ def _cached(key: tuple | None, build: Callable[[], Any], timing: dict[str, float
     return program
 
 
-def _timed_build(build: Callable[[], Any], timing: dict[str, float]) -> Any:
+def _timed_build(build: Callable[[], _Built], timing: dict[str, float]) -> _Built:
     tic = time.perf_counter()
     program = build()
     timing["compile"] = timing.get("compile", 0.0) + time.perf_counter() - tic
@@ -241,8 +247,12 @@ def _timed_build(build: Callable[[], Any], timing: dict[str, float]) -> Any:
 
 
 def _compile(
-    fn: Any, args: tuple, cheap: bool, key: tuple | None, in_shardings: tuple | None = None
-) -> Any:
+    fn: Callable[..., Any],
+    args: tuple,
+    cheap: bool,
+    key: tuple | None,
+    in_shardings: tuple | None = None,
+) -> Callable[..., Any]:
     """Compile ``fn`` for ``args``: cheap XLA optimisation (fast to compile, slower to run:
     for small models) or XLA's default (4-5x faster sampling of the traffic models for
     about twice the compile time, which the persistent cache pays once).
@@ -282,7 +292,7 @@ def _join_kwargs(arrays: list, treedef: PyTreeDef, static: tuple) -> dict:
     return jax.tree.unflatten(treedef, [next(it) if s is None else s for s in static])
 
 
-def _fn_key(fn: Any) -> Any:
+def _fn_key(fn: Callable[..., object]) -> Callable[..., object] | tuple:
     """A cache key of a callable: ``functools.partial`` by its function and arguments."""
     if isinstance(fn, functools.partial):
         return (_fn_key(fn.func), fn.args, tuple(sorted(fn.keywords.items())))
@@ -547,7 +557,7 @@ def _blank_state(plan: _Plan, chains: int | None) -> tuple:
     return tuple(blank(s) for s in jax.tree.leaves(shape))
 
 
-def _sampling_program(plan: _Plan, timing: dict[str, float]) -> tuple[Any, tuple]:
+def _sampling_program(plan: _Plan, timing: dict[str, float]) -> tuple[Callable[..., Any], tuple]:
     """The compiled chunk program of ``plan`` (cached) and its arguments (the first
     chunk's: a blank state, ``first`` true, ``limit`` a whole chunk)."""
     step, start, init, arrays = plan.step, plan.start, plan.init, plan.arrays
@@ -684,7 +694,9 @@ def clock_progress(clock: object) -> Callable[[NutsProgress], None] | None:
     return tell
 
 
-def _sample(plan: _Plan, timing: dict[str, float], progress: Callable[..., Any] | None) -> Any:
+def _sample(
+    plan: _Plan, timing: dict[str, float], progress: Callable[[NutsProgress], object] | None
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Run the chains by the plan's method, chunk after chunk; arrays by chain first."""
     say = progress or (lambda _p: None)
     say(NutsProgress("compile", 0, 0, None))
@@ -702,13 +714,13 @@ def _sample(plan: _Plan, timing: dict[str, float], progress: Callable[..., Any] 
 
 
 def _run_chunks(
-    program: Any,
+    program: Callable[..., Any],
     args: tuple,
     plan: _Plan,
     timing: dict[str, float],
-    say: Callable[..., Any],
+    say: Callable[[NutsProgress], object],
     chain: tuple[int, int],
-) -> Any:
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Warm-up then sampling, a chunk of ``plan.chunk`` iterations a call, the state
     carried from call to call; returns the draws, (draws, ...) per chain or with a chain
     axis first, as the program gives them. ``chain``: (this run's chains before it, runs
@@ -790,7 +802,7 @@ class NutsPrefetch:
 
     def __init__(self, workers: int = 2) -> None:
         self._pool = ThreadPoolExecutor(max(1, int(workers)), "are-stats-compile")
-        self._futures: list[Any] = []
+        self._futures: list[Future[object]] = []
 
     def add(
         self,
@@ -836,7 +848,7 @@ def run_nuts(
     num_warmup: int = 1000,
     num_samples: int = 1000,
     num_chains: int = 4,
-    pointwise: Callable[..., Any] | None = None,
+    pointwise: Callable[..., jax.Array | dict[str, jax.Array]] | None = None,
     name: str = "",
     target_accept_prob: float = 0.85,
     init_params: dict | None = None,
@@ -844,7 +856,7 @@ def run_nuts(
     extra_fields: tuple[str, ...] = (),
     pointwise_kwargs: bool = False,
     cheap_compile: bool = False,
-    progress: Callable[[NutsProgress], Any] | None = None,
+    progress: Callable[[NutsProgress], object] | None = None,
 ) -> NutsRun:
     """Sample ``model(**model_kwargs)`` by NUTS from ``init``.
 
@@ -933,7 +945,7 @@ def _post_process(
     model: Callable[..., None],
     plan: _Plan,
     zs: dict[str, np.ndarray],
-    pointwise: Callable[..., Any] | None,
+    pointwise: Callable[..., jax.Array | dict[str, jax.Array]] | None,
     pointwise_kwargs: bool,
     timing: dict[str, float],
 ) -> tuple[dict, np.ndarray | dict[str, np.ndarray] | None]:

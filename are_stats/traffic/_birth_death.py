@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Literal
+from typing import Literal
 
 import jax
 import numpy as np
@@ -87,7 +87,7 @@ def _check_counts_arg(name: str, x: npt.ArrayLike) -> np.ndarray:
     return check_nonneg_int(name, x)
 
 
-def _check_key(key: jax.Array) -> Any:
+def _check_key(key: jax.Array) -> jax.Array:
     """A single JAX PRNG key: typed (``jax.random.key``) or raw (``jax.random.PRNGKey``)."""
     if isinstance(key, jax.Array):
         if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) and key.ndim == 0:

@@ -21,13 +21,16 @@ with ``n_c`` the artefacts of class ``c`` and ``S_c`` the sum of their marks.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from are_stats._checks import check_nonneg_int
 from are_stats._lazy import scipy_stats as stats
 from are_stats.traffic._lifecycle import LifecycleData, LifecyclePriors
+
+if TYPE_CHECKING:  # scipy.stats stays lazy (test_import): its frozen law's class, for the type
+    from scipy.stats._distn_infrastructure import rv_continuous_frozen
 
 __all__ = [
     "GammaPosterior",
@@ -62,7 +65,7 @@ class GammaPosterior(NamedTuple):
         """Posterior standard deviation ``sqrt(shape) / rate``."""
         return float(np.sqrt(self.shape)) / self.rate
 
-    def frozen(self) -> Any:
+    def frozen(self) -> rv_continuous_frozen:
         """The law as a frozen ``scipy.stats.gamma`` (``scale = 1 / rate``)."""
         return stats.gamma(self.shape, scale=1.0 / self.rate)
 
@@ -83,7 +86,7 @@ class MixturePosterior(NamedTuple):
     rate: np.ndarray
 
 
-def _check_inputs(data: Any, priors: Any) -> None:
+def _check_inputs(data: object, priors: object) -> None:
     if not isinstance(data, LifecycleData):
         raise ValueError(f"data: expected a LifecycleData, got {type(data).__name__}")
     if not isinstance(priors, LifecyclePriors):

@@ -12,8 +12,6 @@ derivation, goes to ``jax.random`` itself.
 
 from __future__ import annotations
 
-from typing import Any
-
 import jax
 import numpy as np
 
@@ -40,7 +38,7 @@ def _threefry2x32(k1: np.uint32, k2: np.uint32, x1: np.ndarray, x2: np.ndarray) 
     return x[0], x[1]
 
 
-def _numpy_ok(key: Any) -> bool:
+def _numpy_ok(key: jax.Array) -> bool:
     """Whether ``key`` is a threefry2x32 key derived the partitionable way (JAX's default)."""
     if not bool(jax.config.jax_threefry_partitionable):
         return False
@@ -50,12 +48,12 @@ def _numpy_ok(key: Any) -> bool:
         return False
 
 
-def _data(key: Any) -> tuple[np.uint32, np.uint32]:
+def _data(key: jax.Array) -> tuple[np.uint32, np.uint32]:
     k = np.asarray(jax.random.key_data(key), np.uint32).ravel()
     return k[0], k[1]
 
 
-def _wrap(k1: Any, k2: Any) -> jax.Array:
+def _wrap(k1: int | np.uint32, k2: int | np.uint32) -> jax.Array:
     return jax.random.wrap_key_data(np.array([k1, k2], np.uint32), impl="threefry2x32")
 
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from functools import cached_property
 from typing import Any, NamedTuple
 
@@ -149,8 +150,8 @@ _COMPILER_OPTIONS = {
 
 
 def aot_compile(
-    fn: Any, *args: Any, key: jax.Array | None = None, in_shardings: tuple | None = None
-) -> Any:
+    fn: Callable[..., Any], *args: Any, key: tuple | None = None, in_shardings: tuple | None = None
+) -> Callable[..., Any]:
     """Compile a jitted/pmapped ``fn`` ahead of time for ``args`` with cheap XLA optimisation
     (small programs whose compile time outweighs their run time).
 
@@ -158,9 +159,9 @@ def aot_compile(
     ----------
     fn : jax.stages.Wrapped
         A ``jax.jit`` or ``jax.pmap`` function.
-    *args
+    *args : pytrees of arrays
         Example arguments (their shapes and dtypes fix the program).
-    key : Any, optional
+    key : tuple, optional
         What shapes ``fn``'s trace besides ``args`` (its function by name, static
         arguments): with one, the traced program is kept on disk for later processes
         (:func:`are_stats._program_cache.compile_program`).
@@ -609,7 +610,7 @@ def simulate_lifecycle(
 # --------------------------------------------------------------------------------------
 
 
-def check_components(n_components: Any, data: LifecycleData | None) -> int | None:
+def check_components(n_components: int | None, data: LifecycleData | None) -> int | None:
     """The number of mixture components (classes) of the model for ``data``.
 
     ``None`` with a log that has labels gives their number; ``None`` without marks gives

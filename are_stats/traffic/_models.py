@@ -52,7 +52,7 @@ for the gamma and Weibull laws); the negative-binomial concentration is
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -61,6 +61,7 @@ import numpy.typing as npt
 import numpyro
 import numpyro.distributions as dist
 from jax.scipy.special import gammaln, logsumexp
+from jax.typing import ArrayLike
 from scipy.special import gammaln as _np_gammaln
 
 from are_stats._checks import check_in
@@ -505,7 +506,7 @@ def arrival_model(
         A time scale of the bursts (the LOO bin width): the centre of the priors of the
         switching rates and the Hawkes decay, ``exp(Normal(0, 1.5)) / time_centre``.
     """
-    params: dict[str, Any] = {"log_area": log_area}
+    params: dict[str, ArrayLike] = {"log_area": log_area}
     params["event_rate"] = _positive("event_rate", rate_centre)
     if spec.negbin:
         params["arrival_phi"] = numpyro.sample("arrival_phi", dist.LogNormal(np.log(5.0), 2.0))

@@ -31,9 +31,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from are_stats._checks import check_in
 from are_stats.traffic._arrivals import DAY, ArrivalDraw, period_of, sample_arrivals
@@ -42,8 +43,11 @@ from are_stats.traffic._models import ARRIVAL_SPECS, ArrivalSpec
 from are_stats.traffic._positions import POSITION_MODELS, PositionDensity
 from are_stats.traffic._stays import STAY_LAWS, stay_draws
 
-# Lazy imports: _lifecycle imports this module, so simulate_traffic_log imports LifecycleData
-# when it runs.
+# Lazy import, a cycle (not a cost): _lifecycle imports this module (simulate_lifecycle draws
+# through sample_population), so simulate_traffic_log imports LifecycleData when it runs.
+
+if TYPE_CHECKING:
+    from are_stats.traffic._lifecycle import LifecycleData
 
 __all__ = ["TrafficLaws", "sample_population", "simulate_traffic_log"]
 
@@ -119,7 +123,9 @@ class TrafficLaws:
         )
 
 
-def _one(draw: Mapping[str, Any], name: str, default: Any = None) -> Any:
+def _one(
+    draw: Mapping[str, npt.ArrayLike], name: str, default: float | None = None
+) -> npt.NDArray[np.float64] | float:
     if name in draw:
         return np.asarray(draw[name], float)
     if default is None:
@@ -129,7 +135,7 @@ def _one(draw: Mapping[str, Any], name: str, default: Any = None) -> Any:
 
 def sample_population(
     rng: np.random.Generator,
-    draw: Mapping[str, Any],
+    draw: Mapping[str, npt.ArrayLike],
     laws: TrafficLaws,
     horizon: float,
     area: float,
@@ -214,7 +220,7 @@ def sample_population(
 
 def _burst_groups(
     rng: np.random.Generator,
-    draw: Mapping[str, Any],
+    draw: Mapping[str, npt.ArrayLike],
     laws: TrafficLaws,
     horizon: float,
     area: float,
@@ -317,14 +323,14 @@ def _finish(
 
 def simulate_traffic_log(
     rng: np.random.Generator,
-    draw: Mapping[str, Any],
+    draw: Mapping[str, npt.ArrayLike],
     laws: TrafficLaws,
     window: tuple[float, float],
     area: float,
     *,
     free: PositionDensity | None = None,
     resolution: float = 0.0,
-) -> Any:
+) -> LifecycleData:
     """A synthetic field log of one window, drawn by :func:`sample_population`.
 
     Parameters
