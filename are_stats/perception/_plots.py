@@ -88,7 +88,7 @@ def plot_camera_view(
     Parameters
     ----------
     camera : CameraModel
-        The camera (its ``pose`` is the frame's pose).
+        Projects the boxes' edges onto the image (its ``pose`` is the frame's pose).
     depth : (height, width) float
         A depth image, e.g. ``PerceptionResult.depth[t]`` (+inf where nothing is hit).
     boxes : FrameBoxes
@@ -176,7 +176,7 @@ def plot_top_view(
     Parameters
     ----------
     camera : CameraModel
-        The camera (its ``pose`` is the frame's pose).
+        Its view cone W and centre are drawn (its ``pose`` is the frame's pose).
     d_max : float
         Range of the view cone.
     boxes : FrameBoxes
