@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict, Unpack
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 import pandas as pd
@@ -28,7 +28,15 @@ from are_stats.environment import (
     resolve_shipped,
     shipped_path,
 )
-from are_stats.export import AugmentResult, ServeInfo, augment_bag, serve_robot, serve_scenario
+from are_stats.export import (
+    AugmentOptions,
+    AugmentResult,
+    ServeInfo,
+    ServeOptions,
+    augment_bag,
+    serve_robot,
+    serve_scenario,
+)
 from are_stats.inputs import (
     Described,
     InputError,
@@ -808,13 +816,12 @@ def run_augment(
     trajectory: TrajectoryOptions,
     *,
     topics: str | None = None,
-    **options: Any,
+    **options: Unpack[AugmentOptions],
 ) -> AugmentResult:
     """``are-stats augment``: a robot's bag plus generated artefacts -> an augmented MCAP
-    (:func:`are_stats.export.augment_bag`, which ``options`` go to: ``camera``, ``period``,
-    ``d_max``, ``tau``, ``force``, ``model``, ``positions``); ``trajectory`` how the bag's
-    robot is read, ``topics`` the comma-separated input topics passed through (default
-    all)."""
+    (:func:`are_stats.export.augment_bag`, which ``options`` go to); ``trajectory`` how the
+    bag's robot is read, ``topics`` the comma-separated input topics passed through
+    (default all)."""
     t = time.perf_counter()
     with console.status(f"augmenting {bag} ..."):
         res = augment_bag(
@@ -849,12 +856,11 @@ def run_serve(
     robot_path: Path | None = None,
     bag: Path | None = None,
     trajectory: TrajectoryOptions | None = None,
-    **options: Any,
+    **options: Unpack[ServeOptions],
 ) -> ServeInfo | None:
     """``are-stats serve``: stream a scenario replay over Foxglove's WebSocket protocol
-    (:func:`are_stats.export.serve_scenario`, which ``options`` go to: ``scenario``,
-    ``speed``, ``host``, ``port``, ``loop``, ``duration``), with the robot of a path or of
-    a bag (:func:`are_stats.export.serve_robot`, read with ``trajectory``: the options of
+    (:func:`are_stats.export.serve_scenario`, which ``options`` go to), with the robot of a
+    path or of a bag (:func:`are_stats.export.serve_robot`, read with ``trajectory``: the options of
     ``augment``); what was served, None when stopped by Ctrl-C."""
     robot = serve_robot(bag, trajectory, robot_path=robot_path)
 

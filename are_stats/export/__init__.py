@@ -6,12 +6,13 @@ The last room of the one-way flow fit -> scenes -> mission -> export: it reads s
 mission traces and writes them out; nothing upstream imports it (the sweep writes a task's
 MCAP through :func:`export_mcap`, imported where it is used)."""
 
-from are_stats.export._augment import AUGMENT_TOPICS, AugmentResult, augment_bag
+from are_stats.export._augment import AUGMENT_TOPICS, AugmentOptions, AugmentResult, augment_bag
 from are_stats.export._live import (
     LIVE_TOPICS,
     LiveMessage,
     LiveRobot,
     ServeInfo,
+    ServeOptions,
     replay_messages,
     robot_from_bag,
     serve_robot,
@@ -26,11 +27,13 @@ __all__ = [
     "LIVE_TOPICS",
     "MCAP_TOPICS",
     "ROS_FRAMES",
+    "AugmentOptions",
     "AugmentResult",
     "BagView",
     "LiveMessage",
     "LiveRobot",
     "ServeInfo",
+    "ServeOptions",
     "artefact_frame",
     "augment_bag",
     "export_mcap",

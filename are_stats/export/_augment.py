@@ -19,7 +19,7 @@ import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -64,6 +64,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AUGMENT_TOPICS",
+    "AugmentOptions",
     "AugmentResult",
     "augment_bag",
 ]
@@ -137,6 +138,26 @@ class AugmentResult(NamedTuple):
     frame_note: str = ""
     passed: dict = {}  # noqa: RUF012 (a NamedTuple default, never mutated)
     camera_note: str = ""
+
+
+class AugmentOptions(TypedDict, total=False):
+    """The options of :func:`augment_bag` (its keywords but how the bag's robot is read,
+    :class:`~are_stats.logs.TrajectoryOptions`, and ``topics``), as a caller passes them on:
+    ``are-stats augment``'s job. See :func:`augment_bag` for their meaning and defaults."""
+
+    camera: PinholeCamera | str | os.PathLike[str] | None
+    mount: npt.ArrayLike | None
+    period: float
+    d_max: float
+    tau: float
+    robot_radius: float
+    behaviour_cell: float
+    behaviour_dt: float
+    wall_height: float
+    catalogue: ArtefactCatalogue | None
+    force: bool
+    model: str
+    positions: str
 
 
 # ---- the loop -----------------------------------------------------------------------------

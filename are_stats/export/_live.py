@@ -88,6 +88,7 @@ __all__ = [
     "LiveMessage",
     "LiveRobot",
     "ServeInfo",
+    "ServeOptions",
     "load_robot",
     "replay_messages",
     "robot_from_bag",
@@ -188,6 +189,21 @@ class ServeInfo(TypedDict):
     frames: int
     messages: int
     wall: float
+
+
+class ServeOptions(TypedDict, total=False):
+    """The options of :func:`serve_scenario` (its keywords but ``on_ready`` and ``stop``,
+    the caller's hooks, and the robot, ``robot_path`` or ``robot``), as a caller passes them
+    on: ``are-stats serve``'s job. See :func:`serve_scenario` for their meaning and
+    defaults."""
+
+    scenario: int | None
+    speed: float
+    host: str
+    port: int
+    loop: bool
+    duration: float | None
+    fps: float
 
 
 class _Replay(TypedDict):

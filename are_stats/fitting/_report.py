@@ -174,13 +174,13 @@ def check_report_size(idata: az.InferenceData, n_replicates: int, source: Any = 
         If the report would need more memory or work than the limits.
     """
     from are_stats.inputs import check_memory, get_int
-    from are_stats.scenarios import check_scenario_size
+    from are_stats.scenarios import ScenarioSize, check_scenario_size
 
     n_replicates = get_int(n_replicates, "n_replicates", "", lo=1)
     obs = _observed(idata)
     t0, t1 = obs["window"]
     draws = posterior_draws(idata)
-    check_scenario_size(draws, n_replicates, t1 - t0, obs["area"], "stationary", str(source))
+    check_scenario_size(draws, ScenarioSize(n_replicates, t1 - t0, obs["area"]), str(source))
     n_draws = draws["leave_rate"].shape[0]
     check_memory(n_draws * 200 * 8.0 * 3, f"the dwell panel of {n_draws} draws", source)
     check_memory(n_replicates * 201 * 8.0 * 4, "the N(t) replicates", source)

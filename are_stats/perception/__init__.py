@@ -18,7 +18,7 @@ from are_stats.perception._perceive import (
     perceived_counts_batch,
     sample_perceived,
 )
-from are_stats.perception._plots import plot_camera_view, plot_top_view, save_figure
+from are_stats.perception._plots import FrameBoxes, plot_camera_view, plot_top_view, save_figure
 from are_stats.perception._scenario import (
     check_path_times,
     perceive_scenario,
@@ -32,6 +32,7 @@ from are_stats.perception._scenario import (
 
 __all__ = [
     "FolderPlan",
+    "FrameBoxes",
     "PerceiveFolderOptions",
     "PerceptionResult",
     "CameraModel",

@@ -3,7 +3,7 @@ depth image, and the top view with the view cone W (paper section 3.3, Fig. 4)."
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -20,9 +20,35 @@ if TYPE_CHECKING:
     import matplotlib.axes
     import matplotlib.figure
 
-__all__ = ["plot_camera_view", "plot_top_view", "save_figure"]
+__all__ = ["FrameBoxes", "plot_camera_view", "plot_top_view", "save_figure"]
 
 _COLOURS = {"perceived": "#1a9850", "occluded": "#d73027", "outside": "#969696"}
+
+
+class FrameBoxes(NamedTuple):
+    """One frame's boxes and what the camera made of them: what :func:`plot_camera_view`
+    and :func:`plot_top_view` draw.
+
+    Attributes
+    ----------
+    centers : (n, 3) float
+        Box centres (m, world frame).
+    half_extents : (n, 3) float
+        Half sizes (m).
+    rotations : (n, 3, 3) float
+        Box-to-world rotations (:func:`~are_stats.perception.yaw_rotations` for upright
+        boxes; the top view turns each footprint by the upper-left 2 x 2 block).
+    counts : (n,) int
+        Pixel counts of the frame, e.g. ``PerceptionResult.counts[t]``.
+    perceived : (n,) bool
+        Membership in A_f, e.g. ``PerceptionResult.perceived[t]``.
+    """
+
+    centers: npt.ArrayLike
+    half_extents: npt.ArrayLike
+    rotations: npt.ArrayLike
+    counts: npt.ArrayLike
+    perceived: npt.ArrayLike
 
 
 def _status(counts: np.ndarray, perceived: np.ndarray) -> list[str]:
@@ -52,11 +78,7 @@ def _legend(ax, used: set[str]) -> None:
 def plot_camera_view(
     camera: CameraModel,
     depth: npt.ArrayLike,
-    centers: npt.ArrayLike,
-    half_extents: npt.ArrayLike,
-    rotations: npt.ArrayLike,
-    counts: npt.ArrayLike,
-    perceived: npt.ArrayLike,
+    boxes: FrameBoxes,
     *,
     d_max: float | None = None,
     ax: matplotlib.axes.Axes | None = None,
@@ -65,16 +87,12 @@ def plot_camera_view(
 
     Parameters
     ----------
-    camera : PinholeCamera
-        The camera (its ``pose`` is the frame's pose).
+    camera : CameraModel
+        Projects the boxes' edges onto the image (its ``pose`` is the frame's pose).
     depth : (height, width) float
         A depth image, e.g. ``PerceptionResult.depth[t]`` (+inf where nothing is hit).
-    centers, half_extents : (n, 3) float
-    rotations : (n, 3, 3) float
-    counts : (n,) int
-        Pixel counts of the frame.
-    perceived : (n,) bool
-        Membership in A_f.
+    boxes : FrameBoxes
+        The frame's boxes, their pixel counts and A_f membership.
     d_max : float, optional
         Upper end of the colour scale (default: the largest finite depth).
     ax : matplotlib Axes, optional
@@ -104,10 +122,10 @@ def plot_camera_view(
     ax.figure.colorbar(
         im, ax=ax, fraction=0.035, pad=0.02, label="depth (m); blank: nothing within d_max"
     )
-    c = np.asarray(centers, float)
-    h = np.asarray(half_extents, float)
-    r = np.asarray(rotations, float)
-    status = _status(np.asarray(counts), np.asarray(perceived, bool))
+    c = np.asarray(boxes.centers, float)
+    h = np.asarray(boxes.half_extents, float)
+    r = np.asarray(boxes.rotations, float)
+    status = _status(np.asarray(boxes.counts), np.asarray(boxes.perceived, bool))
     used = set()
     r_cam, c_cam = camera.pose[:3, :3], camera.pose[:3, 3]
     z_near = 1e-3
@@ -139,7 +157,7 @@ def plot_camera_view(
     ax.set_ylim(camera.height, 0)
     ax.set_xlabel("u (pixels)")
     ax.set_ylabel("v (pixels)")
-    n_p = int(np.sum(np.asarray(perceived, bool)))
+    n_p = int(np.sum(np.asarray(boxes.perceived, bool)))
     ax.set_title(f"Camera view: {n_p} of {len(c)} artefacts perceived")
     _legend(ax, used)
     return ax.figure
@@ -148,11 +166,7 @@ def plot_camera_view(
 def plot_top_view(
     camera: CameraModel,
     d_max: float,
-    centers: npt.ArrayLike,
-    half_extents: npt.ArrayLike,
-    yaws: npt.ArrayLike,
-    counts: npt.ArrayLike,
-    perceived: npt.ArrayLike,
+    boxes: FrameBoxes,
     *,
     grid: OccupancyGrid | None = None,
     ax: matplotlib.axes.Axes | None = None,
@@ -161,13 +175,13 @@ def plot_top_view(
 
     Parameters
     ----------
-    camera : PinholeCamera
+    camera : CameraModel
+        Its view cone W and centre are drawn (its ``pose`` is the frame's pose).
     d_max : float
         Range of the view cone.
-    centers, half_extents : (n, 2|3) float
-    yaws : (n,) float
-    counts : (n,) int
-    perceived : (n,) bool
+    boxes : FrameBoxes
+        The frame's boxes (footprints turned by their rotations' upper-left 2 x 2 block),
+        their pixel counts and A_f membership.
     grid : OccupancyGrid, optional
         Drawn underneath (free white, occupied black, unknown grey).
     ax : matplotlib Axes, optional
@@ -216,15 +230,14 @@ def plot_top_view(
         )
     )
     ax.plot(*camera.center[:2], marker="o", color="#f46d43", ms=6)
-    c = np.asarray(centers, float)
-    h = np.asarray(half_extents, float)
-    y = np.asarray(yaws, float)
-    status = _status(np.asarray(counts), np.asarray(perceived, bool))
+    c = np.asarray(boxes.centers, float)
+    h = np.asarray(boxes.half_extents, float)
+    r = np.asarray(boxes.rotations, float)
+    status = _status(np.asarray(boxes.counts), np.asarray(boxes.perceived, bool))
     used = set()
     for a in range(len(c)):
-        cs, sn = np.cos(y[a]), np.sin(y[a])
         loc = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * h[a, :2]
-        xy = c[a, :2] + loc @ np.array([[cs, sn], [-sn, cs]])
+        xy = c[a, :2] + loc @ r[a, :2, :2].T
         ax.add_patch(Polygon(xy, closed=True, fc=_COLOURS[status[a]], ec="k", lw=0.5, alpha=0.9))
         used.add(status[a])
     lim = np.vstack([hull, c[:, :2]]) if len(c) else hull

@@ -25,6 +25,7 @@ from are_stats.scenarios._folder import (
 from are_stats.scenarios._generate import (
     ORIGIN_YAW_TOLERANCE,
     SCENARIO_COLUMNS,
+    ScenarioSize,
     atomic_folder,
     check_folder,
     check_origin_yaw,
@@ -64,6 +65,7 @@ __all__ = [
     "ScenesFolder",
     "REALISM_FEATURES",
     "SCENARIO_COLUMNS",
+    "ScenarioSize",
     "atomic_folder",
     "behaviour_source",
     "check_folder",

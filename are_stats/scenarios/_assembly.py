@@ -76,7 +76,7 @@ from are_stats.builder import ARBuilder
 from are_stats.environment import ArtefactCatalogue, OccupancyGrid, coarse_free
 from are_stats.inputs import Described, InputError, check_memory, check_work, get_str
 from are_stats.scenarios._behaviour_rule import behaviour_source
-from are_stats.scenarios._generate import check_scenario_size, generate_scenarios
+from are_stats.scenarios._generate import ScenarioSize, check_scenario_size, generate_scenarios
 from are_stats.scenarios._options import POSITION_CHOICES, AssemblyOptions, AssemblySettings
 from are_stats.scenarios._scene import Scene
 
@@ -828,7 +828,7 @@ def scenes_from_fit(
             )
         else:
             nu = fit.area
-    check_scenario_size(draws, n, horizon, nu, opts.start, source)
+    check_scenario_size(draws, ScenarioSize(n, horizon, nu, opts.start), source)
     labels = None if fit.class_labels is None else list(fit.class_labels)
     return scenes_from_draws(
         key,

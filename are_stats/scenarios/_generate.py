@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,6 +50,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ORIGIN_YAW_TOLERANCE",
     "SCENARIO_COLUMNS",
+    "ScenarioSize",
     "atomic_folder",
     "check_folder",
     "check_origin_yaw",
@@ -473,7 +475,7 @@ def generate_scenarios(
         nu = float(check_positive("area", area))
     if area is not None:
         nu = float(check_positive("area", area))
-    _check_size(p, n_sc, h, nu, start)
+    _check_size(p, ScenarioSize(n_sc, h, nu, start))
     rng = np.random.Generator(np.random.PCG64(seq))
     s = p["arrival_rate"].shape[0]
     d = np.arange(n_sc) % s if draw == "cycle" else rng.integers(0, s, size=n_sc)
@@ -710,13 +712,31 @@ BYTES_PER_ARTEFACT = 256
 BYTES_PER_SCENARIO = 64
 
 
-def expected_artefacts(
-    params: Mapping[str, npt.ArrayLike],
-    n_scenarios: int,
-    horizon: float,
-    area: float,
-    start: str = "stationary",
-) -> float:
+@dataclass(frozen=True)
+class ScenarioSize:
+    """How many scenarios of what length over what area: what the size of a scenario table
+    follows from, with the draws' rates (:func:`expected_artefacts`,
+    :func:`check_scenario_size`).
+
+    Attributes
+    ----------
+    n_scenarios : int
+        Number of scenarios.
+    horizon : float
+        Length of each scenario, in the time unit of the rates (s for a fit).
+    area : float
+        Free area ``nu`` in m^2.
+    start : {"stationary", "empty"}
+        Initial population (as :func:`generate_scenarios` takes it).
+    """
+
+    n_scenarios: int
+    horizon: float
+    area: float
+    start: str = "stationary"
+
+
+def expected_artefacts(params: Mapping[str, npt.ArrayLike], size: ScenarioSize) -> float:
     """Expected number of artefacts of :func:`generate_scenarios` (before drawing anything).
 
     Each scenario holds ``Poisson(lambda nu / mu)`` initial artefacts (stationary start) and
@@ -726,14 +746,8 @@ def expected_artefacts(
     ----------
     params : dict
         Posterior draws (``arrival_rate``, ``leave_rate``; see :func:`generate_scenarios`).
-    n_scenarios : int
-        Number of scenarios.
-    horizon : float
-        Scenario length.
-    area : float
-        Free area ``nu`` in m^2.
-    start : {"stationary", "empty"}
-        Initial population.
+    size : ScenarioSize
+        The scenarios' number, horizon, free area ``nu`` (m^2) and initial population.
 
     Returns
     -------
@@ -741,22 +755,17 @@ def expected_artefacts(
         Expected total artefacts (may be ``inf`` for absurd inputs).
     """
     p = _draws(params)
-    lam_nu = p["arrival_rate"] * float(area)
-    per = lam_nu * float(horizon)
-    if start == "stationary":
+    lam_nu = p["arrival_rate"] * float(size.area)
+    per = lam_nu * float(size.horizon)
+    if size.start == "stationary":
         per = per + lam_nu / p["leave_rate"]
     with np.errstate(over="ignore", invalid="ignore"):
         mean = float(np.mean(per)) if np.all(np.isfinite(per)) else math.inf
-        return mean * float(n_scenarios)
+        return mean * float(size.n_scenarios)
 
 
 def check_scenario_size(
-    params: Mapping[str, npt.ArrayLike],
-    n_scenarios: int,
-    horizon: float,
-    area: float,
-    start: str = "stationary",
-    source: str = "n_scenarios, horizon",
+    params: Mapping[str, npt.ArrayLike], size: ScenarioSize, source: str = "n_scenarios, horizon"
 ) -> None:
     """Refuse, before drawing, scenario tables past the memory or work limit.
 
@@ -765,9 +774,10 @@ def check_scenario_size(
 
     Parameters
     ----------
-    params, n_scenarios, horizon, area, start
-        As :func:`expected_artefacts` takes them (the draws validated here; ``horizon`` in
-        seconds).
+    params : dict
+        Posterior draws (validated here; see :func:`generate_scenarios`).
+    size : ScenarioSize
+        The scenarios asked for (``horizon`` in seconds).
     source : str
         What the sizes came from (files, options), named in the error.
 
@@ -778,20 +788,16 @@ def check_scenario_size(
     are_stats.inputs.LimitError
         When the table would pass the memory or work limit.
     """
-    _check_size(_draws(params), n_scenarios, horizon, area, start, source)
+    _check_size(_draws(params), size, source)
 
 
 def _check_size(
-    p: Mapping[str, np.ndarray],
-    n_sc: int,
-    h: float,
-    nu: float,
-    start: str,
-    source: str = "n_scenarios, horizon",
+    p: Mapping[str, np.ndarray], size: ScenarioSize, source: str = "n_scenarios, horizon"
 ) -> None:
     """:func:`check_scenario_size` on validated draws."""
+    n_sc, h, nu = size.n_scenarios, size.horizon, size.area
     check_memory(float(n_sc) * BYTES_PER_SCENARIO, f"{n_sc} scenarios", source)
-    expected = expected_artefacts(p, n_sc, h, nu, start)
+    expected = expected_artefacts(p, size)
     # the count is Poisson around its mean: allow 6 standard deviations
     high = expected + 6.0 * math.sqrt(expected) + 64.0 if math.isfinite(expected) else math.inf
     what = (

@@ -4,9 +4,11 @@ with the ``mcap`` reader and rosbags; exports of ``experiment --mcap`` follow RE
 
 from __future__ import annotations
 
+import inspect
 import json
 from collections import Counter, defaultdict
 from pathlib import Path
+from typing import get_type_hints
 
 import numpy as np
 import pytest
@@ -15,8 +17,14 @@ from typer.testing import CliRunner
 
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, extrude_grid
-from are_stats.export import AUGMENT_TOPICS, MCAP_TOPICS, augment_bag, parse_start_time
-from are_stats.logs import BagTrajectory, read_trajectory
+from are_stats.export import (
+    AUGMENT_TOPICS,
+    MCAP_TOPICS,
+    AugmentOptions,
+    augment_bag,
+    parse_start_time,
+)
+from are_stats.logs import BagTrajectory, TrajectoryOptions, read_trajectory
 from are_stats.perception import PinholeCamera, optical_from_base, perceive_scene
 from tests.export.rosbag_fixtures import (
     CAMERA,
@@ -1058,3 +1066,16 @@ def test_augment_bag_reads_a_shipped_cameras_name_as_the_command_does(tmp_path):
         )
     assert all(name in str(err.value) for name in shipped_names("camera"))
     assert not (tmp_path / "o.mcap").exists()
+
+
+def test_augment_options_are_its_keywords():
+    """AugmentOptions (the job's ``**options``) names augment_bag's keywords, but the
+    trajectory's (TrajectoryOptions) and ``topics``, with their types: a keyword added to one
+    is added to the other."""
+    names = {"PinholeCamera": PinholeCamera}  # imported for type checkers only there
+    hints = get_type_hints(augment_bag, localns=names)
+    params = inspect.signature(augment_bag).parameters.values()
+    left = {*TrajectoryOptions._fields, "topics"}
+    keywords = [p.name for p in params if p.kind is p.KEYWORD_ONLY and p.name not in left]
+    assert list(AugmentOptions.__annotations__) == keywords
+    assert get_type_hints(AugmentOptions, localns=names) == {k: hints[k] for k in keywords}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import inspect
 import json
 import math
 import os
@@ -11,6 +12,7 @@ import socket
 import struct
 import threading
 import time
+from typing import get_type_hints
 
 import numpy as np
 import pandas as pd
@@ -24,6 +26,7 @@ pytest.importorskip("google.protobuf")
 from are_stats import Scene, load_catalogue  # noqa: E402
 from are_stats.cli import app  # noqa: E402
 from are_stats.environment import DEFAULT_MODELS  # noqa: E402
+from are_stats.export import ServeOptions  # noqa: E402
 from are_stats.export._live import (  # noqa: E402
     LIVE_TOPICS,
     replay_messages,
@@ -537,3 +540,15 @@ def test_serve_robot_refuses_bag_options_without_a_bag_and_two_robots(tmp_path):
     both = TrajectoryOptions(pose_topic="/amcl_pose", base_frame="base_link")
     with pytest.raises(InputError, match=r"^--pose-topic: expected either --pose-topic or"):
         serve_robot(tmp_path / "no.bag", both)
+
+
+def test_serve_options_are_its_keywords():
+    """ServeOptions (the job's ``**options``) names serve_scenario's keywords, but the hooks
+    (on_ready, stop) and the robot (robot_path, robot), with their types: a keyword added to
+    one is added to the other."""
+    hints = get_type_hints(serve_scenario)
+    params = inspect.signature(serve_scenario).parameters.values()
+    left = {"on_ready", "stop", "robot_path", "robot"}
+    keywords = [p.name for p in params if p.kind is p.KEYWORD_ONLY and p.name not in left]
+    assert list(ServeOptions.__annotations__) == keywords
+    assert get_type_hints(ServeOptions) == {k: hints[k] for k in keywords}

@@ -14,6 +14,7 @@ from scipy import stats
 from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.inputs import InputError, LimitError, limits
 from are_stats.perception import (
+    FrameBoxes,
     PinholeCamera,
     optical_from_base,
     perceive_frames,
@@ -234,17 +235,17 @@ def test_pictures(tmp_path):
     h = np.full((3, 3), 0.3)
     r = yaw_rotations([0.0, 0.5, 0.0])
     res = perceive_frames(wall, c, h, r, cam, None, 20.0, 5, return_depth=True)
-    fig = plot_camera_view(cam, res.depth[0], c, h, r, res.counts[0], res.perceived[0])
+    boxes = FrameBoxes(c, h, r, res.counts[0], res.perceived[0])
+    fig = plot_camera_view(cam, res.depth[0], boxes)
     save_figure(fig, tmp_path / "cam.png")
     grid = OccupancyGrid(np.zeros((40, 100)), 0.1, (-1.0, -2.0, 0.0))
-    fig2 = plot_top_view(cam, 8.0, c, h, [0.0, 0.5, 0.0], res.counts[0], res.perceived[0],
-                         grid=grid)  # fmt: skip
+    fig2 = plot_top_view(cam, 8.0, boxes, grid=grid)
     save_figure(fig2, tmp_path / "top.png")
     assert (tmp_path / "cam.png").stat().st_size > 1000
     with pytest.raises(FileExistsError):
         save_figure(fig2, tmp_path / "top.png")
     with pytest.raises(ValueError, match="depth: expected shape"):
-        plot_camera_view(cam, res.depth[0][:5], c, h, r, res.counts[0], res.perceived[0])
+        plot_camera_view(cam, res.depth[0][:5], boxes)
 
 
 def test_perceive_scenario_refuses_unsorted_paths_and_runaway_work():

@@ -16,7 +16,9 @@ from are_stats.fitting import posterior_draws
 from are_stats.inputs import InputError, LimitError, limits
 from are_stats.scenarios import (
     SCENARIO_COLUMNS,
+    ScenarioSize,
     atomic_folder,
+    check_scenario_size,
     expected_artefacts,
     generate_scenarios,
     read_scenes,
@@ -211,9 +213,13 @@ def test_refuses_tables_past_the_limits_before_drawing():
     # 1e12 s at 12 artefacts per 10 min: about 2e10 artefacts, terabytes
     with pytest.raises(LimitError, match=r"n_scenarios, horizon: expected about 2e\+10 artefacts"):
         generate_scenarios(0, params(), 1, 1e12, area=AREA)
+    with pytest.raises(LimitError, match=r"--n: expected about 2e\+10 artefacts \(1 scenarios of"):
+        check_scenario_size(params(), ScenarioSize(1, 1e12, AREA), "--n")
     with pytest.raises(LimitError, match=r"expected 1000000000000 scenarios to fit in the memo"):
         generate_scenarios(0, params(), 10**12, 1.0, area=AREA)
-    assert expected_artefacts(params(), 10, 3600.0, AREA) == pytest.approx(10 * (12 + 72))
+    assert expected_artefacts(params(), ScenarioSize(10, 3600.0, AREA)) == pytest.approx(
+        10 * (12 + 72)
+    )
     with limits(memory="1M"):  # the limit can be lowered (and raised) by the user
         with pytest.raises(LimitError, match=r"memory limit of 1\.0 MiB .*--max-memory"):
             generate_scenarios(0, params(), 100, 3600.0, area=AREA)
