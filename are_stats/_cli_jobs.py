@@ -364,6 +364,7 @@ def run_fit(
     if fit.behaviour is not None:
         for line in _behaviour_lines(fit.behaviour):
             console.print(line)
+        _print_variation(fit.behaviour)
         _print_interaction(fit)
     write_fit(idata, out, force=force)
     summary = fit_summary(idata)
@@ -470,6 +471,20 @@ def _behaviour_lines(fit: BehaviourFit) -> list[str]:
         ]
         out.append(f"behaviour {name!r}: " + ", ".join(parts))
     return out
+
+
+def _print_variation(fit: BehaviourFit) -> None:
+    """The within-person pace and wander per class, +- their standard errors (issue 26)."""
+    from are_stats.fitting import variation_table
+
+    table = variation_table(fit)
+    rich = Table(title="within-person variation (+- standard error)", title_justify="left")
+    rich.add_column("class", justify="left")
+    for col in table.columns:
+        rich.add_column(str(col), justify="right")
+    for name, row in table.iterrows():
+        rich.add_row(str(name), *(str(v) for v in row))
+    console.print(rich)
 
 
 def _print_motion_tables(tables: Mapping[str, pd.DataFrame]) -> None:
@@ -635,6 +650,8 @@ def run_report(
         written = write_report(idata, out, key=seed, n_replicates=replicates, force=force)
     _print_traffic(fit)
     _print_checks(written)
+    if fit.behaviour is not None:
+        _print_variation(fit.behaviour)
     if fit.motion:  # the motion criticism the fit stored (issue 26)
         written.update(write_motion_tables(fit.motion, out, force))
         _print_motion_tables(fit.motion)

@@ -56,6 +56,10 @@ _WITHIN = {
     "speed_within_time": np.nan,
     "heading_within_sd": 0.0,
     "heading_within_time": np.nan,
+    "speed_within_sd_se": np.nan,
+    "speed_within_time_se": np.nan,
+    "heading_within_sd_se": np.nan,
+    "heading_within_time_se": np.nan,
 }
 
 
@@ -140,13 +144,21 @@ class BehaviourFit:
         Ornstein-Uhlenbeck process around its preferred speed's, of this sd (log units)
         and correlation time (s) (:func:`~are_stats.fitting.fit_behaviour`). Default (and
         fit files written before it was fitted): sd 0 and time NaN, no within-person
-        variation, each walker at its one preferred speed. NaN sd: not estimable (no
-        track long enough); generation then walks without it.
+        variation, each walker at its one preferred speed. NaN sd: not identified (below);
+        generation then walks without it.
     heading_within_sd, heading_within_time : (C,) float
         Within-person variation of the walking heading: a walker's heading deviates from
         its route's direction by a stationary Ornstein-Uhlenbeck process of this sd (rad)
         and correlation time (s). Defaults (older fit files) as for the speed: sd 0 and
-        time NaN, each walker straight at the next corner of its route.
+        time NaN, each walker straight at the next corner of its route. For both, an sd
+        of 0 is no variation and NaN a variation the tracks do not identify (its
+        correlation time past half the longest lag, or no track long enough): generation
+        walks neither (issue 26; files before 2026-11-28 stored 0 for both).
+    speed_within_sd_se, speed_within_time_se : (C,) float
+        Bootstrap standard errors over the tracks of the speed's sd and time (NaN: not
+        identified, or a file written before they were stored).
+    heading_within_sd_se, heading_within_time_se : (C,) float
+        The same for the heading's.
     """
 
     classes: tuple
@@ -186,6 +198,10 @@ class BehaviourFit:
     speed_within_time: npt.ArrayLike | None = None
     heading_within_sd: npt.ArrayLike | None = None
     heading_within_time: npt.ArrayLike | None = None
+    speed_within_sd_se: npt.ArrayLike | None = None
+    speed_within_time_se: npt.ArrayLike | None = None
+    heading_within_sd_se: npt.ArrayLike | None = None
+    heading_within_time_se: npt.ArrayLike | None = None
 
     def __post_init__(self) -> None:
         self.feature_names = tuple(str(n) for n in self.feature_names)

@@ -89,11 +89,18 @@ __all__ += ["fit_log", "log_sha256"]
 from are_stats.fitting._motion_report import (  # noqa: E402
     MotionReport,
     can_check_motion,
+    variation_table,
     write_motion_report,
     write_motion_tables,
 )
 
-__all__ += ["MotionReport", "can_check_motion", "write_motion_report", "write_motion_tables"]
+__all__ += [
+    "MotionReport",
+    "can_check_motion",
+    "variation_table",
+    "write_motion_report",
+    "write_motion_tables",
+]
 
 # --- life-cycle posterior by exact draws (closed forms, no MCMC) ---
 from are_stats.fitting._lifecycle_exact import (  # noqa: E402

@@ -15,11 +15,14 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   fitted to the semivariogram of the walkers' windowed log speeds within tracks, with the
   tracker's noise subtracted as a known moment. Generation walks it
   (:func:`~are_stats.behaviour.social_force_tracks`' ``speed_variation``). Likewise the
-  heading (:func:`_heading_variation`): a walker's heading wanders around its route's
-  direction as a stationary OU process (``heading_within_sd``, rad;
+  heading (:func:`_heading_variation`): a walker's heading wanders around the bearing to
+  its route's next corner as a stationary OU process (``heading_within_sd``, rad;
   ``heading_within_time``, s), fitted to the semivariogram of its windows' chord
-  directions with the tracker's noise subtracted (``heading_variation``). The
-  accelerations and turning rates that follow are checked, not fitted (the realism table).
+  directions off that bearing (the route string-pulled from the track over the map)
+  with the tracker's noise subtracted (``heading_variation``). Each comes with bootstrap
+  standard errors over the tracks (``*_se``); NaN is a variation the tracks do not
+  identify, 0 none. The accelerations and turning rates that follow are checked, not
+  fitted (the realism table).
 * **Scale.** The MDP cell is ``cell`` (default: about 0.5 m, coarser when the map would
   exceed ``max_side`` cells a side); the decision epoch is ``dt = cell / median walking
   speed``, so that an artefact at walking speed moves one cell per epoch.
@@ -52,6 +55,7 @@ Per class (the ``label`` column; one class ``"all"`` without it):
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -71,6 +75,7 @@ from are_stats.behaviour import (
     moves_log_likelihood,
     path_free,
     soft_backward_induction,
+    string_pull_many,
     wall_distance_feature,
 )
 from are_stats.environment import coarse_free
@@ -239,8 +244,8 @@ def _speed_variation(
     keep it from dominating. ``sigma^2`` is then a weighted least-squares line through
     the pooled semivariogram (weights: the pairs at each lag) for each ``T`` of a grid
     (``dt / 2`` to 300 s, 1% apart), and ``T`` the one of least residual; where ``T`` is
-    not identified (shorter than half the window, longer than half the longest lag:
-    :func:`_ou_fit`) the variation reads 0. Lags run up to
+    not identified (longer than half the longest lag: :func:`_ou_fit`) the variation
+    reads NaN, and 0 where it is shorter than half the window (white). Lags run up to
     :data:`VARIATION_LAG` (s). Windows whose speed is not within a factor
     :data:`VARIATION_CLIP` of the track's are left out (stops and bursts are not the
     pace's drift), and so are windows with someone within :data:`VARIATION_ALONE` of the
@@ -263,9 +268,11 @@ def _speed_variation(
     Returns
     -------
     dict
-        ``speed_within_sd`` (``sigma``, log units; 0 when the variogram shows no
-        variation, NaN when no track is long enough), ``speed_within_time`` (``T``, s; NaN
-        with ``sigma = 0`` or unknown).
+        ``speed_within_sd`` (``sigma``, log units; 0 when the variogram shows no lasting
+        variation, NaN when it is not identified: ``T`` past half the longest lag, or no
+        track long enough), ``speed_within_time`` (``T``, s; NaN with ``sigma`` 0 or NaN),
+        and their bootstrap standard errors over the tracks, ``speed_within_sd_se`` and
+        ``speed_within_time_se`` (:func:`_within_variation`).
     """
     return _within_variation(tracks, speeds, noise, crowded)["speed"]
 
@@ -275,6 +282,8 @@ def _heading_variation(
     speeds: np.ndarray,
     noise: float,
     crowded: list[np.ndarray] | None = None,
+    route_map: tuple[np.ndarray, Any, float] | None = None,
+    seed: Any = 0,
 ) -> dict[str, float]:
     """The within-person variation of the walking heading: a stationary Ornstein-Uhlenbeck
     process of the heading's deviation from the route's direction (sd and correlation
@@ -288,57 +297,125 @@ def _heading_variation(
     *rate* noise, a random walk of the heading, would carry them ever further off their
     routes, and a log's straightness (about 0.97 on real crossings) says they are not.
 
-    Estimator, the one of :func:`_speed_variation` on the heading instead of the log
-    speed (same resampling, windows, crowded and stopped windows left out): the heading
-    of each window is the direction of its chord (its two end samples, so windows that
-    share no sample have independent noise), ``y_j = alpha_j + (average of theta over
-    the window) + noise``, ``alpha`` the route's direction. A route is not straight
-    everywhere (it bends round a pillar), so the variogram is that of **second**
-    differences, ``Var(y_{j+2L} - 2 y_{j+L} + y_j) / 6``, in which a steady turn of
-    ``alpha`` cancels as a constant one does; for the OU it is ``n0 + sigma^2 (4 k(L) -
-    k(2L)) / 3`` (``k`` :func:`_ou_window_terms`, lags ``L > W``), with the same noise
-    moment ``n0 = 2 s^2 / (W v_i)^2``: a chord of length ``W v_i`` whose two ends are
-    moved sideways by the tracker's noise (``s`` per coordinate) turns by ``(e_2 - e_1)
-    / (W v_i)`` to first order, the across-walk half of the noise where the speed had
-    the along-walk half. The moment is subtracted and ``sigma``, ``T`` fitted as there.
-
-    A corner of the route is kept out of the wander twice: first or second differences
-    over :data:`HEADING_CLIP` are left out (the Gaussian difference's tail past it is
-    well under 1% of its variance while its sd is under 0.25 rad), and the variogram at
-    each lag is the median of the squared differences over :data:`MEDIAN_CHI2_1` (the
-    two agree for the Gaussian differences of the model) instead of their mean, which
-    the few windows that a corner cuts barely move. 100 walks of 40 s with a right-angle
-    corner each (5 cm noise) read ``sigma`` 15% high (0.140 against 0.122 straight);
-    without the clip, 5 rad. Curves that are not steady turns remain variation to it
-    where they are as quick as a wander; slower ones leave the variogram still rising at
-    its longest lag, where the correlation time is not identified (:func:`_ou_fit`) and
-    the variation reads 0 (the crossing crowd of the tests, which bends round a pillar and
-    has no heading noise of its own, read 0.17 rad, 6 s before that rule).
+    Estimator (issue 26: detrended by the route). Each track's route is rebuilt from the
+    track itself (:func:`_route_corners`): its positions string-pulled over the map
+    (``route_map``; the corners that walls force), plus the corners of its own path that
+    stand more than :data:`ROUTE_TOLERANCE` off a straight line (turns in the open, which
+    no map explains). With the same resampling and windows as :func:`_speed_variation`
+    (crowded and stopped windows left out), each window's residual is the direction of its
+    chord (its two end samples) minus the bearing from its first sample to the route's
+    next corner: ``r_j = (average of theta over the window) + noise``, the wander itself,
+    where the route's direction is gone (the heading's variogram used to keep rising at
+    the walks' long lags, where the route bends, and a 2 s wander was identified on 4 of
+    8 crossing logs; now 8 of 8: docs/src/behaviour.md). Windows within
+    :data:`ROUTE_NEAR` of the next corner (where the bearing turns fast) and residuals
+    over :data:`HEADING_CLIP` (a corner missed) are left out. The semivariogram of the
+    residuals within tracks is that of the speed's, ``n0 + sigma^2 (g0 - h(L))``
+    (:func:`_ou_window_terms`), with the noise moment ``n0 = 2 s^2 / (W v_i)^2``: a chord
+    of length ``W v_i`` whose ends are moved sideways by the tracker's noise (``s`` per
+    coordinate) turns by ``(e_2 - e_1) / (W v_i)`` to first order. Each lag's
+    semivariogram is the median of the squared differences over ``2`` :data:`MEDIAN_CHI2_1`
+    (robust to the few windows a missed corner turns); the moment is subtracted and
+    ``sigma``, ``T`` fitted as for the speed (:func:`_ou_fit`), with bootstrap standard
+    errors (:func:`_within_variation`).
 
     Parameters
     ----------
     tracks, speeds, noise, crowded
         As :func:`_speed_variation`.
+    route_map : ((H, W) bool, (2,) float, float), optional
+        The map's free cells, origin (m) and resolution (m) the routes are string-pulled
+        over; default none (an open area: only the tracks' own corners).
+    seed
+        Seed of the bootstrap (:func:`numpy.random.default_rng`).
 
     Returns
     -------
     dict
-        ``heading_within_sd`` (``sigma``, rad; 0 when the variogram shows no variation, NaN
-        when no track is long enough), ``heading_within_time`` (``T``, s; NaN with
-        ``sigma = 0`` or unknown).
+        ``heading_within_sd`` (``sigma``, rad; 0 when the variogram shows no lasting
+        variation, NaN when it is not identified), ``heading_within_time`` (``T``, s; NaN
+        with ``sigma`` 0 or NaN), and their bootstrap standard errors
+        ``heading_within_sd_se``, ``heading_within_time_se`` (NaN where not identified).
     """
-    return _within_variation(tracks, speeds, noise, crowded)["heading"]
+    return _within_variation(tracks, speeds, noise, crowded, route_map, seed)["heading"]
 
 
 #: The median of a chi-square of one degree of freedom (of a standard normal's square).
 MEDIAN_CHI2_1 = 0.454936423119572
-#: Heading differences (rad) larger than this are the route's corners, not the wander
-#: around it (:func:`_heading_variation`).
+#: Heading residuals (rad) off the route's next corner larger than this are a corner the
+#: route missed, not the wander around it (:func:`_heading_variation`).
 HEADING_CLIP = 1.0
+#: A track's own corner (m): a point of its path this far off the straight line between
+#: its neighbouring corners is one (:func:`_route_corners`). An aiming walker with the
+#: crossings' wander (0.12 rad over 2 s at 1.2 m/s) strays about 0.3 m (sd) off its line.
+ROUTE_TOLERANCE = 3.0
+#: Windows that start within this distance (m) of their route's next corner are left out
+#: of the heading's wander (the bearing to the corner turns fast there).
+ROUTE_NEAR = 2.0
+#: Bootstrap replicates (over tracks) of the within-person variations' standard errors.
+VARIATION_BOOTSTRAP = 100
 #: A within-person correlation time is identified from at least this fraction of the
-#: window up to the longest lag over this factor (:func:`_ou_fit`); outside, the variation
-#: reads 0.
+#: window up to the longest lag over this factor (:func:`_ou_fit`): shorter, the
+#: variation reads 0 (no lasting variation); longer, NaN (not identified).
 IDENTIFIED = (0.5, 2.0)
+
+
+def _route_corners(
+    points: list[np.ndarray], route_map: tuple[np.ndarray, Any, float] | None
+) -> list[np.ndarray]:
+    """Per track ``(n_k, 2)`` positions (m), the indices of its route's corners, first and
+    last sample included, sorted: the track string-pulled over the map
+    (:func:`~are_stats.behaviour.string_pull_many`, where ``route_map = (free, origin,
+    resolution)`` is given; one point per :data:`ROUTE_NEAR` / 4 of its path) and the
+    points of its own path that a Douglas-Peucker simplification with
+    :data:`ROUTE_TOLERANCE` keeps."""
+    pulled: list[np.ndarray | None] = [None] * len(points)
+    # the points pulled: one per ROUTE_NEAR / 4 of the path (a corner is placed to that)
+    thin = []
+    for p in points:
+        walked = np.r_[0.0, np.cumsum(np.hypot(*np.diff(p, axis=0).T))]
+        step = np.floor(walked / (ROUTE_NEAR / 4.0))
+        thin.append(np.flatnonzero(np.r_[True, step[1:] > step[:-1]] | (walked == walked[-1])))
+    if route_map is not None:
+        free, origin, res = route_map
+        o = np.asarray(origin, float)[:2]
+        pulled = string_pull_many(
+            [p[k] for p, k in zip(points, thin, strict=True)], free, (float(o[0]), float(o[1])),
+            float(res),
+        )  # fmt: skip
+    out = []
+    for p, v, k in zip(points, pulled, thin, strict=True):
+        keep = {0, len(p) - 1}
+        if v is not None:
+            at = 0
+            for corner in v:  # the kept vertices are points of the thinned track, in order
+                at += int(np.argmin(np.hypot(*(p[k[at:]] - corner).T)))
+                keep.add(int(k[at]))
+        stack = [(0, len(p) - 1)]
+        while stack:
+            a, b = stack.pop()
+            if b <= a + 1:
+                continue
+            d = p[b] - p[a]
+            q = p[a + 1 : b] - p[a]
+            span = math.hypot(*d)
+            off = np.abs(q[:, 0] * d[1] - q[:, 1] * d[0]) / span if span > 0 else np.hypot(*q.T)
+            k = int(np.argmax(off))
+            if off[k] > ROUTE_TOLERANCE:
+                keep.add(a + 1 + k)
+                stack += [(a, a + 1 + k), (a + 1 + k, b)]
+        out.append(np.array(sorted(keep), np.int64))
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _ou_terms_grid(period: float, window: float, lag_s: tuple[float, ...]) -> tuple:
+    """The correlation-time grid of :func:`_ou_fit` (``period / 2`` to 300 s, 1% apart)
+    and the OU window terms (:func:`_ou_window_terms`) at ``lag_s`` for each: ``(taus,
+    (n_tau, n_lag) terms)``."""
+    taus = np.geomspace(period / 2.0, 300.0, 1 + math.ceil(math.log(600.0 / period) / 0.01))
+    lags = np.asarray(lag_s, float)
+    return taus, np.stack([_ou_window_terms(float(tau), window, lags) for tau in taus])
 
 
 def _ou_fit(
@@ -347,37 +424,31 @@ def _ou_fit(
     lag_s: np.ndarray,
     period: float,
     window: float,
-    second: bool = False,
 ) -> tuple[float, float]:
     """``(sigma^2, T)`` of the OU window semivariogram :func:`_ou_window_terms` fitted to
     ``gamma`` at the lags ``lag_s`` (s) by weighted least squares (weights ``w``):
     ``sigma^2`` in closed form for each ``T`` of a grid (``period / 2`` to 300 s, 1%
     apart), ``T`` the one of least residual. ``sigma^2`` is 0 where the variogram shows
-    no variation (``T`` then NaN), and so it is where ``T`` is not identified
-    (:data:`IDENTIFIED`): shorter than half the window (the excess is independent between
-    windows, white: a variation that fast is averaged out within the window, and what is
-    read is noise or the interaction's jolts, not a pace that lasts) or longer than half
-    the longest lag (an OU's variogram is within 14% of its sill by ``2 T``, 17% for
-    second differences: one still rising at the longest lag is the route's own turning or
-    speed changes, or the interaction's, not a variation around the route; a third, the
-    limit before, threw away a wander of 2 s read as 2.94 s against a limit of 2.93 s on
-    16-20 s walks: docs/src/behaviour.md). ``second``: ``gamma`` is that of second differences,
-    ``Var(y_{j+2L} - 2 y_{j+L} + y_j) / 6``, whose OU terms are ``(4 k(L) - k(2L)) / 3``
-    (``k`` :func:`_ou_window_terms`; the covariances ``6 C(0) - 8 C(L) + 2 C(2L)``)."""
-    best = (math.inf, 0.0, math.nan)
-    for tau in np.geomspace(period / 2.0, 300.0, 1 + math.ceil(math.log(600.0 / period) / 0.01)):
-        k = _ou_window_terms(float(tau), window, lag_s)
-        if second:
-            k = (4.0 * k - _ou_window_terms(float(tau), window, 2.0 * lag_s)) / 3.0
-        var = max(0.0, float(np.sum(w * k * gamma) / np.sum(w * k * k)))
-        sse = float(np.sum(w * (gamma - var * k) ** 2))
-        if sse < best[0]:
-            best = (sse, var, float(tau))
-    _, var, tau = best
+    no variation (``T`` then NaN), and so it is where ``T`` is shorter than half the
+    window (:data:`IDENTIFIED`: the excess is independent between windows, white: a
+    variation that fast is averaged out within the window, and what is read is noise or
+    the interaction's jolts, not a pace that lasts). Where ``T`` is longer than half the
+    longest lag (an OU's variogram is within 14% of its sill by ``2 T``: one still rising
+    at the longest lag is the route's own turning or speed changes, or the
+    interaction's, not a variation around the route) the variation is not identified:
+    ``(NaN, NaN)``, told apart from none (issue 26)."""
+    taus, k = _ou_terms_grid(float(period), float(window), tuple(np.asarray(lag_s, float)))
+    gamma, w = np.asarray(gamma, float), np.asarray(w, float)
+    var = np.maximum(0.0, (k * (w * gamma)).sum(axis=1) / (k * (w * k)).sum(axis=1))
+    sse = ((gamma - var[:, None] * k) ** 2 * w).sum(axis=1)
+    best = int(np.argmin(sse))
+    v, tau = float(var[best]), float(taus[best])
     lo, hi = IDENTIFIED
-    if not lo * window <= tau <= float(np.max(lag_s)) / hi:
+    if tau > float(np.max(lag_s)) / hi:
+        return (math.nan, math.nan)
+    if tau < lo * window or v <= 0.0:
         return (0.0, math.nan)
-    return (0.0, math.nan) if var <= 0.0 else (var, tau)
+    return (v, tau)
 
 
 def _within_variation(
@@ -385,12 +456,24 @@ def _within_variation(
     speeds: np.ndarray,
     noise: float,
     crowded: list[np.ndarray] | None = None,
+    route_map: tuple[np.ndarray, Any, float] | None = None,
+    seed: Any = 0,
+    n_boot: int = VARIATION_BOOTSTRAP,
 ) -> dict[str, dict[str, float]]:
     """Both within-person variations in one pass over the tracks: ``{"speed": ..,
     "heading": ..}`` as :func:`_speed_variation` and :func:`_heading_variation` return
-    them (the windows, their noise moment and the OU fit are shared)."""
+    them (the windows, their noise moment and the OU fit are shared).
+
+    Standard errors: ``n_boot`` bootstrap replicates over the tracks (drawn with
+    ``seed``; each replicate the whole estimator, its noise moment and median included,
+    on tracks drawn with replacement), the sd of the replicates' ``sigma`` and ``T``
+    over those that identify it (a ``sigma`` of 0 counts, a NaN does not); NaN where the
+    estimate itself is not identified or fewer than 10 replicates are."""
     names = {"speed": "speed_within", "heading": "heading_within"}
-    nan = {k: {f"{v}_sd": math.nan, f"{v}_time": math.nan} for k, v in names.items()}
+    nan = {
+        k: {f"{v}{s}": math.nan for s in ("_sd", "_time", "_sd_se", "_time_se")}
+        for k, v in names.items()
+    }
     steps = [np.diff(t) for t, _ in tracks]
     steps = np.concatenate(steps) if steps else np.zeros(0)
     steps = steps[steps > 0]
@@ -405,22 +488,34 @@ def _within_variation(
         int((t[-1] - t[0]) / period) + 1 for t, _ in tracks if t.size
     )  # resampled, each track once
     lags = np.unique(np.geomspace(m + 1, max(m + 1, max_lag), 40).round().astype(np.int64))
-    # the series, and the heading's squared differences at every lag (for their median)
     check_memory(
-        8.0 * (6.0 + lags.size) * n_samples, f"the within-person paces of {len(tracks)} tracks"
+        8.0 * (8.0 + 2.0 * lags.size) * n_samples,
+        f"the within-person paces of {len(tracks)} tracks",
     )
-    sq = {k: np.zeros(lags.size) for k in names}
-    pairs = {k: np.zeros(lags.size) for k in names}
-    noise_pairs = {k: np.zeros(lags.size) for k in names}
-    turns: list[list[np.ndarray]] = [[] for _ in lags]  # squared heading differences
     near_of = [None] * len(tracks) if crowded is None else crowded
-    for (t, xy), v, near in zip(tracks, speeds, near_of, strict=True):
-        if not (np.isfinite(v) and v > 0) or t.size < 2:
-            continue
+    used = [
+        i
+        for i, ((t, _), v) in enumerate(zip(tracks, speeds, strict=True))
+        if np.isfinite(v) and v > 0 and t.size >= 2
+        and int((t[-1] - t[0]) / period + 1e-9) + 1 > m + lags[0]
+    ]  # fmt: skip
+    resampled = []
+    for i in used:
+        t, xy = tracks[i]
         tt = t[0] + period * np.arange(int((t[-1] - t[0]) / period + 1e-9) + 1)
-        if tt.size <= m + lags[0]:
-            continue
         p = np.column_stack([np.interp(tt, t, xy[:, 0]), np.interp(tt, t, xy[:, 1])])
+        resampled.append((tt, p))
+    corners = _route_corners([p for _, p in resampled], route_map)
+    n_tr = len(used)
+    # per track and lag: the pace's half squared differences, pairs and noise moments;
+    # the heading's squared differences (for their median), their track, pairs and moments
+    sq = np.zeros((n_tr, lags.size))
+    cnt = {k: np.zeros((n_tr, lags.size)) for k in names}
+    n0s = np.zeros(n_tr)
+    turns: list[list[np.ndarray]] = [[] for _ in lags]
+    owner: list[list[np.ndarray]] = [[] for _ in lags]
+    for j, (i, (tt, p), corner) in enumerate(zip(used, resampled, corners, strict=True)):
+        t, v, near = tracks[i][0], float(speeds[i]), near_of[i]
         if half:
             chord = np.hypot(*(p[half : -m + half or None] - p[:-m]).T) + np.hypot(
                 *(p[m:] - p[half : -m + half or None]).T
@@ -436,47 +531,107 @@ def _within_variation(
             busy = np.interp(tt, t, np.asarray(near, float)) > 0
             c = np.r_[0, np.cumsum(busy)]
             y[(c[m + 1 :] - c[: -m - 1]) > 0] = np.nan
-        # the heading of the same windows (their chord's), where their speed is read
+        # the heading of the same windows (their chord's) off the bearing to the route's
+        # next corner (after the window's first sample), where their speed is read
+        nxt = corner[np.minimum(np.searchsorted(corner, np.arange(y.size), "right"),
+                                corner.size - 1)]  # fmt: skip
+        to = p[nxt] - p[:-m]
         d_xy = p[m:] - p[:-m]
-        heading = np.where(np.isfinite(y), np.arctan2(d_xy[:, 1], d_xy[:, 0]), np.nan)
-        n0 = 2.0 * noise**2 / (window * v) ** 2
+        r = np.arctan2(d_xy[:, 1], d_xy[:, 0]) - np.arctan2(to[:, 1], to[:, 0])
+        r = np.mod(r + math.pi, 2.0 * math.pi) - math.pi
+        keep = np.isfinite(y) & (np.hypot(*to.T) >= ROUTE_NEAR) & (np.abs(r) <= HEADING_CLIP)
+        r = np.where(keep, r, np.nan)
+        n0s[j] = 2.0 * noise**2 / (window * v) ** 2
         for k, lag in enumerate(lags):
             if lag >= y.size:
                 break
             d = y[lag:] - y[:-lag]
             d = d[np.isfinite(d)]
-            sq["speed"][k] += 0.5 * float(d @ d)
-            pairs["speed"][k] += d.size
-            noise_pairs["speed"][k] += d.size * n0
-            if 2 * lag >= heading.size:
-                continue
-            # second differences: a steady turn of the route (round a pillar) cancels
-            d = np.mod(heading[lag:] - heading[:-lag] + math.pi, 2.0 * math.pi) - math.pi
-            ok = np.abs(d) <= HEADING_CLIP  # the route's corners are left out
-            ok = ok[lag:] & ok[:-lag]
-            d = (d[lag:] - d[:-lag])[ok]
-            d = d[np.abs(d) <= HEADING_CLIP]  # (so are windows that a corner cuts)
+            sq[j, k] = 0.5 * float(d @ d)
+            cnt["speed"][j, k] = d.size
+            d = r[lag:] - r[:-lag]
+            d = d[np.isfinite(d)]
             turns[k].append(d * d)
-            pairs["heading"][k] += d.size
-            noise_pairs["heading"][k] += d.size * n0
-    for k, d2 in enumerate(turns):
-        if pairs["heading"][k]:
-            # the median of a Gaussian's square is 0.4549 times its variance: robust to
-            # the few windows per track that a corner of the route turns
-            sq["heading"][k] = (
-                pairs["heading"][k] * float(np.median(np.concatenate(d2))) / (6.0 * MEDIAN_CHI2_1)
-            )
+            owner[k].append(np.full(d.size, j))
+            cnt["heading"][j, k] = d.size
+    # each lag's squared heading differences sorted once, with their tracks: a
+    # replicate's median is then a weighted one (weights: how often it drew each track)
+    turn, whose = [], []
+    for d2, w in zip(turns, owner, strict=True):
+        v, o = (np.concatenate(d2), np.concatenate(w)) if d2 else (np.zeros(0), np.zeros(0, int))
+        order = np.argsort(v, kind="stable")
+        turn.append(v[order])
+        whose.append(o[order])
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, n_tr, (n_boot if n_tr > 1 else 0, n_tr))
+    counts = np.stack([np.bincount(d, minlength=n_tr) for d in draws]) if len(draws) else None
+
+    def medians(k: int) -> np.ndarray:
+        """(n_boot,) the medians of lag ``k``'s squared differences, each replicate's
+        values repeated as often as it drew their track (numpy's median of them). The
+        cumulative counts run over the central 40% of the values only (a replicate's
+        median falls there unless the tracks are very few; those run over all)."""
+        v, who = turn[k], whose[k]
+        a, b = int(0.3 * v.size), max(int(0.7 * v.size), int(0.3 * v.size) + 1)
+        below = np.bincount(who[:a], minlength=n_tr).astype(float)
+        out = np.empty(len(counts))
+        for rows in np.array_split(np.arange(len(counts)), max(1, len(counts) // 10)):
+            block = counts[rows]
+            ranks = [(n - 1) // 2 for n in [block @ cnt["heading"][:, k]]]
+            ranks.append(ranks[0] + (block @ cnt["heading"][:, k] + 1) % 2)  # n // 2
+            for lo_, hi_ in ((a, b), (0, v.size)):  # the central values, else all
+                first = block @ below if lo_ else np.zeros(len(rows))  # counts before
+                cw = first[:, None] + np.cumsum(block[:, who[lo_:hi_]], axis=1)
+                if lo_ == 0 or all(((first <= r) & (cw[:, -1] > r)).all() for r in ranks):
+                    at = [lo_ + np.minimum((cw <= r[:, None]).sum(axis=1), hi_ - lo_ - 1)
+                          for r in ranks]  # fmt: skip
+                    out[rows] = 0.5 * (v[at[0]] + v[at[1]])
+                    break
+        return out
+
+    def estimate(c: np.ndarray, meds: dict[int, np.ndarray] | None) -> dict:
+        """``(sigma^2, T)`` of both with track weights ``c``, the heading's medians
+        ``meds`` (None: each track once, numpy's median)."""
+        est = {}
+        for what in names:
+            pairs = c @ cnt[what]
+            use = pairs > 0
+            if not use.any():
+                est[what] = (math.nan, math.nan)
+                continue
+            if what == "speed":
+                raw = (c @ sq)[use] / pairs[use]
+            else:
+                # the median of a Gaussian's square is 0.4549 times its variance: robust
+                # to the few windows per track that a missed corner turns
+                raw = np.array([
+                    float(np.median(turn[k])) if meds is None else float(meds[k])
+                    for k in np.flatnonzero(use)
+                ]) / (2.0 * MEDIAN_CHI2_1)  # fmt: skip
+            gamma = raw - (c @ (cnt[what] * n0s[:, None]))[use] / pairs[use]
+            est[what] = _ou_fit(gamma, pairs[use], lags[use] * period, period, window)
+        return est
+
+    point = estimate(np.ones(n_tr), None)
+    reps = []
+    if counts is not None:
+        meds = {k: medians(k) for k in range(lags.size) if turn[k].size}
+        for b, c in enumerate(counts):
+            reps.append(estimate(c.astype(float), {k: v[b] for k, v in meds.items()}))
     out = {}
     for what, name in names.items():
-        use = pairs[what] > 0
-        if not use.any():
-            out[what] = nan[what]
-            continue
-        gamma = sq[what][use] / pairs[what][use] - noise_pairs[what][use] / pairs[what][use]
-        var, tau = _ou_fit(
-            gamma, pairs[what][use], lags[use] * period, period, window, what == "heading"
-        )
-        out[what] = {f"{name}_sd": math.sqrt(var), f"{name}_time": tau}
+        var, tau = point[what]
+        boot = np.array([r[what] for r in reps]).reshape(-1, 2)
+        ok = np.isfinite(boot[:, 0])
+        sd_se = time_se = math.nan
+        if math.isfinite(var) and ok.sum() >= 10:
+            sd_se = float(np.std(np.sqrt(boot[ok, 0]), ddof=1))
+            times = boot[np.isfinite(boot[:, 1]), 1]
+            time_se = float(np.std(times, ddof=1)) if times.size >= 10 else math.nan
+        out[what] = {
+            f"{name}_sd": math.sqrt(var), f"{name}_time": tau,
+            f"{name}_sd_se": sd_se, f"{name}_time_se": time_se if var > 0 else math.nan,
+        }  # fmt: skip
     return out
 
 
@@ -1324,7 +1479,8 @@ def fit_behaviour(
     classes = tuple(sorted(labels.unique()))
     per: dict[str, list[float]] = {k: [] for k in (
         "dt", "speed_mu", "speed_sigma", "speed_within_sd", "speed_within_time",
-        "heading_within_sd", "heading_within_time",
+        "heading_within_sd", "heading_within_time", "speed_within_sd_se",
+        "speed_within_time_se", "heading_within_sd_se", "heading_within_time_se",
         "run_fraction", "run_mu", "run_sigma", "beta",
         "beta_se", "slip", "slip_se", "loglik", "n_moves", "n_tracks", "n_fit_tracks",
         "n_epochs", "bandwidth_entry", "bandwidth_exit", "fit_seconds",
@@ -1354,8 +1510,9 @@ def fit_behaviour(
         # the within-person variation of the walkers' pace (runners left out)
         walkers = np.flatnonzero(np.isfinite(sp) & (sp > 0) & (sp <= float(threshold)))
         within = _within_variation(
-            [seen[i] for i in walkers], sp[walkers], noise, [near[i] for i in walkers]
-        )
+            [seen[i] for i in walkers], sp[walkers], noise, [near[i] for i in walkers],
+            route_map=(free_fine, origin_a, res), seed=(seed, 26, ci),
+        )  # fmt: skip
         law |= within["speed"] | within["heading"]
         # one cell per epoch at the (noise-free) median walking speed
         dt_c = float(dt) if dt is not None else cell / math.exp(law["speed_mu"])

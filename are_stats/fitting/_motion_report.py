@@ -14,9 +14,11 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import jax
+import numpy as np
 import pandas as pd
 
 from are_stats._atomic import atomic_path
+from are_stats.behaviour import BehaviourFit
 from are_stats.fitting._classes import class_motion_checks
 from are_stats.fitting._fit import Fit
 from are_stats.fitting._motion_checks import (
@@ -25,7 +27,13 @@ from are_stats.fitting._motion_checks import (
     plot_motion_checks,
 )
 
-__all__ = ["MotionReport", "can_check_motion", "write_motion_report", "write_motion_tables"]
+__all__ = [
+    "MotionReport",
+    "can_check_motion",
+    "variation_table",
+    "write_motion_report",
+    "write_motion_tables",
+]
 
 
 class MotionReport(NamedTuple):
@@ -194,3 +202,41 @@ def write_motion_report(
     out.update(write_motion_tables(stored, folder, force))
     say(checked[0] + after, checked[0] + after, "figure")
     return MotionReport(out, table, per_class, dict(held))
+
+
+def variation_table(fit: BehaviourFit) -> pd.DataFrame:
+    """The within-person variations of a behaviour fit as the report prints them: per
+    class, the pace (log-sd) and the heading wander (rad) with their correlation times
+    (s), each ``value +- standard error``; ``none`` where the tracks show no variation,
+    ``not identified`` where they do not identify it (generation walks neither: issue 26),
+    the value alone where the file holds no standard error (written before 2026-11-28).
+
+    Parameters
+    ----------
+    fit : BehaviourFit
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index: the classes; columns ``pace (log-sd)``, ``pace time (s)``, ``wander (rad)``,
+        ``wander time (s)``; str cells.
+    """
+
+    def cell(value: float, se: float, sd: float) -> str:
+        if not np.isfinite(sd):
+            return "not identified"
+        if sd <= 0.0:
+            return "none"
+        return f"{value:.3g} +- {se:.2g}" if np.isfinite(se) else f"{value:.3g}"
+
+    rows = {}
+    for c, name in enumerate(fit.classes):
+        row = {}
+        for label, what in (("pace (log-sd)", "speed"), ("wander (rad)", "heading")):
+            sd = float(getattr(fit, f"{what}_within_sd")[c])
+            for part, unit in (("sd", label), ("time", f"{label.split()[0]} time (s)")):
+                value = float(getattr(fit, f"{what}_within_{part}")[c])
+                se = float(getattr(fit, f"{what}_within_{part}_se")[c])
+                row[unit] = cell(value, se, sd)
+        rows[str(name)] = row
+    return pd.DataFrame.from_dict(rows, orient="index")

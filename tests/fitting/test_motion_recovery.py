@@ -22,7 +22,9 @@ without its wander / pace (measured 0.443-0.468 and 0.112-0.549). Key 12's wande
 2.94 s, past a third of the longest lag (8.8 s), the identification limit until
 2026-11-28: the fit read no wander there and its turning rates missed (``D`` 0.468). With
 the limit at half the longest lag it reads 0.137 rad and ``D`` is 0.049
-(docs/src/behaviour.md).
+(docs/src/behaviour.md). Since the wander is read off the bearing to the route's next
+corner (2026-11-28) keys 11-13 read 0.125, 0.116 and 0.131 rad (2.24, 1.89, 2.41 s); the
+``D`` values quoted are from before, and the checks pass with these readings.
 """
 
 from __future__ import annotations
