@@ -379,6 +379,27 @@ def _pull_block(
     return np.split(k, np.cumsum(np.bincount(r, minlength=len(n)))[:-1])
 
 
+#: :func:`preferred_speeds` draws at least this many normals, else the next power of two:
+#: one XLA program for the few hundred people of a scene and the 15,100 of the motion
+#: checks' 50 replicates alike (issue 29: each shape compiled its own, 1-3 s on a busy
+#: core); a draw is the prefix of a longer one (threefry's counters, partitionable).
+_NORMAL_BUCKET = 16384
+
+
+def _normals32(key: jax.Array, n: int) -> np.ndarray:
+    """``jax.random.normal(key, (n,), float32)`` as float64, drawn in a bucket's shape
+    where the prefix is the same draw (threefry keys, partitionable; else as asked)."""
+    try:
+        prefix = bool(jax.config.jax_threefry_partitionable) and (
+            str(jax.random.key_impl(key)) == "threefry2x32"
+        )
+    except (TypeError, ValueError):  # a raw key: drawn as asked
+        prefix = False
+    m = max(_NORMAL_BUCKET, 1 << max(n - 1, 0).bit_length()) if prefix else n
+    # (to NumPy before the cut: slicing the JAX array would be a program of its own)
+    return np.asarray(jax.random.normal(key, (m,), dtype=np.float32))[:n].astype(float)
+
+
 def preferred_speeds(key: jax.Array, median: Any, sd_log: Any) -> np.ndarray:
     """Each artefact's preferred speed, drawn once: ``median * exp(sd_log * z)``.
 
@@ -401,7 +422,7 @@ def preferred_speeds(key: jax.Array, median: Any, sd_log: Any) -> np.ndarray:
     sd = np.broadcast_to(np.asarray(sd_log, float), med.shape)
     if (~np.isfinite(sd) | (sd < 0)).any():
         raise ValueError(f"sd_log: expected values >= 0, got {sd[~(sd >= 0)][:3].tolist()}")
-    z = np.asarray(jax.random.normal(key, med.shape, dtype=np.float32), float)
+    z = _normals32(key, med.size)
     return med * np.exp(sd * z)
 
 

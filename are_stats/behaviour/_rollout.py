@@ -152,6 +152,9 @@ def rollout(
     ValueError
         On malformed starts (shape, off-grid, obstacle, heading) or arrivals.
     """
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.behaviour`)
+    from are_stats.traffic import key_uniform
+
     sols = _groups(solution)
     mdp = sols[0].mdp
     if isinstance(resolve, str):
@@ -188,7 +191,7 @@ def rollout(
         raise ValueError(f"n_steps: expected an integer >= 0, got {n_steps!r}")
     n_steps = int(n_steps)
 
-    u = np.asarray(jax.random.uniform(key, (max(n_steps, 1), b), dtype=np.float64))
+    u = key_uniform(key, (max(n_steps, 1), b))
     slip = mdp.slip
     ok = mdp._ok
     drow = np.array([0, 1, 0, -1])
@@ -395,6 +398,9 @@ def scenario_tracks(
     """
     from scipy import ndimage
 
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.behaviour`)
+    from are_stats.traffic import key_uniform, split_key
+
     if not isinstance(artefacts, pd.DataFrame):
         raise ValueError(f"artefacts: expected a pandas DataFrame, got {type(artefacts).__name__}")
     missing = [c for c in _SCENARIO_COLUMNS if c not in artefacts.columns]
@@ -418,7 +424,7 @@ def scenario_tracks(
     for s_label, table in artefacts.groupby("scenario", sort=True):
         table = table.reset_index(drop=True)
         n = len(table)
-        key, k_goal, k_pre, k_roll = jax.random.split(key, 4)
+        key, k_goal, k_pre, k_roll = split_key(key, 4)
         t_arr = table["t_arrive"].to_numpy(float)
         t_leave = table["t_leave"].to_numpy(float)
         if (t_leave < t_arr).any() or not np.isfinite(t_arr).all():
@@ -442,7 +448,7 @@ def scenario_tracks(
         horizons = np.maximum(np.round((t_leave - t_arr) / dt).astype(np.int64), 0)
         behaviours = _behaviour_column(table, behaviour_of)
         comp = labels[rows, cols]
-        u = np.asarray(jax.random.uniform(k_goal, (n,), dtype=np.float64))
+        u = key_uniform(k_goal, (n,))
         goals = np.full((n, 2), -1, np.int64)
         for i in range(n):
             if behaviours[i] in ("walk", "run", "follow"):

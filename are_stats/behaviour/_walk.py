@@ -100,6 +100,9 @@ def _legs(
     chain for the round. ``cur`` (n, 2) holds every artefact's cell and is updated;
     ``fixed`` gives some artefacts the goal of their first leg (with ``max_rounds=1``,
     that leg alone: a follower's approach)."""
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.behaviour`)
+    from are_stats.traffic import split_key
+
     occ, cell, origin, within = mdp.occupied, geo["cell"], geo["origin"], geo["within_sd"]
     free = ~occ
     cache: dict[tuple[int, int], np.ndarray] = geo.setdefault("cache", {})
@@ -151,7 +154,7 @@ def _legs(
             )
             heads = np.zeros(b, np.int64)
             heads[: len(part)] = [walkers.heads[it[0]] for it in part]
-            key, k_roll = jax.random.split(key)
+            key, k_roll = split_key(key)
             states = rollout(k_roll, sol, np.column_stack([cells, heads]), n_ep, resolve=None)
             for j, (i, c, g, h) in enumerate(part):
                 if i in stopped or (cur[i] != c).any() or walkers.times[i][-1] >= stay[i]:
@@ -247,6 +250,9 @@ def walk_tracks(
     if missing:
         raise ValueError(f"artefacts: expected columns {list(_NEED)}, missing {missing}")
     dt = float(check_positive("dt", dt))
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.behaviour`)
+    from are_stats.traffic import split_key
+
     cell = float(check_positive("resolution", resolution))
     speed_sd = float(check_nonnegative("speed_sd", speed_sd))
     within_sd = float(check_nonnegative("within_sd", within_sd))
@@ -276,7 +282,7 @@ def walk_tracks(
         unknown = sorted(set(modes) - set(BEHAVIOURS))
         if unknown:
             raise ValueError(f"behaviour: expected one of {list(BEHAVIOURS)}, got {unknown}")
-        key, k_speed, k_lead, k_rng = jax.random.split(key, 4)
+        key, k_speed, k_lead, k_rng = split_key(key, 4)
         speed = preferred_speeds(k_speed, table["speed"].to_numpy(float), speed_sd)
         rng = np.random.default_rng(np.asarray(jax.random.key_data(k_rng)).ravel().tolist())
         yaw = table["yaw"].to_numpy(float)
@@ -317,7 +323,7 @@ def walk_tracks(
             if (g != cur[i]).any():
                 fixed[i] = g
         if fixed:
-            key, k_app = jax.random.split(key)
+            key, k_app = split_key(key)
             _legs(
                 rng,
                 k_app,
@@ -339,7 +345,7 @@ def walk_tracks(
             path = path[np.concatenate([[True], (np.diff(path, axis=0) != 0).any(axis=1)])]
             walkers.extend(i, path, walk_times(path, float(speed[i]), rng, within_sd))
             cur[i] = np.floor((tail[-1][::-1] - np.array([oy, ox])) / cell).astype(np.int64)
-        key, k_on = jax.random.split(key)
+        key, k_on = split_key(key)
         _legs(rng, k_on, mdp, walkers, followers, cur, stay, speed, modes, geo)
         curves = [walkers.curve(i) for i in range(n)]
         out.extend(

@@ -40,7 +40,7 @@ from are_stats.fitting._motion_store import motion_attrs
 from are_stats.fitting._prediction import displacement_errors
 from are_stats.logs import LifecycleLog
 from are_stats.scenarios import realism_features, realism_summary, realism_table
-from are_stats.traffic import LifecycleData, LifecyclePriors, key_from_seed
+from are_stats.traffic import LifecycleData, LifecyclePriors, fold_in_key, key_from_seed
 
 if TYPE_CHECKING:  # the type only: ArviZ (+3.0 s CPU on import are_stats.fitting) loads later
     import arviz as az
@@ -149,7 +149,7 @@ def _attach_motion_tables(
     own key, so the order changes no number."""
     say = steps or (lambda done, total, what: None)
     after = 1 + int("label" in tracks.columns)  # displacement errors, motion checks
-    key = jax.random.key(seed)
+    key = key_from_seed(seed)
     # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
     # (each through the one assembly, social force included) against the log
     xy = tracks[["id", "t", "x", "y"]]
@@ -160,7 +160,7 @@ def _attach_motion_tables(
         say(done, total + after, f"realism, replicate {done} of {total}")
 
     real = realism_table(
-        jax.random.fold_in(key, 4),
+        fold_in_key(key, 4),
         xy,
         grid,
         behaviour=bfit,
@@ -172,7 +172,7 @@ def _attach_motion_tables(
     # at most FIT_WINDOWS windows: each rolls out a path per candidate goal (the table
     # keeps n_windows and the standard errors)
     errors = displacement_errors(
-        jax.random.fold_in(key, 3),
+        fold_in_key(key, 3),
         bfit,
         tracks,
         n_samples=20,
@@ -195,7 +195,7 @@ def _attach_motion_tables(
         say(walked[0] + 1 + done, walked[0] + 1 + total, f"motion checks, {what}")
 
     table, reps = motion_checks(
-        jax.random.fold_in(key, 1),
+        fold_in_key(key, 1),
         bfit,
         tracks,
         n_replicates=50,

@@ -50,6 +50,7 @@ from are_stats.behaviour import (
     tracker_noise,
 )
 from are_stats.inputs import LimitError
+from are_stats.traffic import fold_in_key, key_from_seed, key_uniform, split_key
 
 __all__ = [
     "MOTION_STATISTICS",
@@ -120,7 +121,7 @@ def _rng(key: Any) -> np.random.Generator:
 
 
 def _key(key: Any) -> jax.Array:
-    return jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
+    return key_from_seed(int(key)) if isinstance(key, int | np.integer) else key
 
 
 def track_statistics(
@@ -308,9 +309,9 @@ def _walk(
     if variation is not None:
         key, sd, time, h_sd, h_time = variation
         if (np.nan_to_num(sd) > 0).any():
-            pace = (jax.random.fold_in(key, 0), sd, time)
+            pace = (fold_in_key(key, 0), sd, time)
         if (np.nan_to_num(h_sd) > 0).any():
-            turn = (jax.random.fold_in(key, 1), h_sd, h_time)
+            turn = (fold_in_key(key, 1), h_sd, h_time)
     try:
         return social_force_tracks(
             plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups,
@@ -349,7 +350,7 @@ def _walk(
                     variation=None
                     if variation is None
                     else (  # each half its own processes
-                        jax.random.fold_in(variation[0], 2 + h),
+                        fold_in_key(variation[0], 2 + h),
                         *(np.asarray(a)[rows] for a in variation[1:]),
                     ),
                 )
@@ -381,8 +382,8 @@ def _draw_speeds(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> np.ndarr
     sigma``; :func:`~are_stats.behaviour.preferred_speeds`)."""
     from are_stats.behaviour import preferred_speeds
 
-    k_run, k_speed = jax.random.split(key)
-    u = np.asarray(jax.random.uniform(k_run, cls.shape), float)
+    k_run, k_speed = split_key(key)
+    u = key_uniform(k_run, cls.shape)
     run = u < np.nan_to_num(np.asarray(fit.run_fraction, float)[cls])
     mu = np.where(run, fit.run_mu[cls], fit.speed_mu[cls])
     sd = np.nan_to_num(np.where(run, fit.run_sigma[cls], fit.speed_sigma[cls]))
@@ -569,7 +570,7 @@ def _replicate_tracks(
     leader = formation(np.zeros(m), np.where(code >= 0, code, None), base["t_arrive"])[0]
     leads = leader == np.arange(m)
     step = float(dt_out) if dt_out is not None else _sampling_period(observed_tracks)
-    k_plan, k_speed = jax.random.split(_key(key))
+    k_plan, k_speed = split_key(_key(key))
     arts = pd.concat([base[leads].assign(scenario=r) for r in range(n_rep)], ignore_index=True)
     # the routes: the plan's timing (its path ending at the stay's end) is replaced, so it
     # is sampled coarsely (its rows keep every vertex whatever the period)
@@ -625,7 +626,7 @@ def _replicate_tracks(
         # each walker's pace and heading vary as the fit says (its own processes: the key
         # folded with 26, the routes and speeds drawn as before)
         row_cls = cls[pd.Index(base["id"]).get_indexer(walked["id"])]
-        variation = _variation(jax.random.fold_in(_key(key), 26), fit, row_cls)
+        variation = _variation(fold_in_key(_key(key), 26), fit, row_cls)
         # arriving walking, as generation's people do (arrival_velocities)
         walked = _walk(
             arrival_velocities(walked), params, grid, groups=group, progress=walk_step,
@@ -716,7 +717,7 @@ def motion_checks(
     noise = tracker_noise(observed_tracks)
     if noise > 0:
         jitter = noise * np.asarray(
-            jax.random.normal(jax.random.fold_in(_key(key), 7), (len(sim), 2)), float
+            jax.random.normal(fold_in_key(_key(key), 7), (len(sim), 2)), float
         )
         sim = sim.assign(
             x=sim["x"].to_numpy(float) + jitter[:, 0], y=sim["y"].to_numpy(float) + jitter[:, 1]

@@ -13,7 +13,6 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
-import jax
 import numpy as np
 import pandas as pd
 
@@ -26,6 +25,7 @@ from are_stats.fitting._motion_checks import (
     motion_checks,
     plot_motion_checks,
 )
+from are_stats.traffic import fold_in_key, key_from_seed
 
 __all__ = [
     "MotionReport",
@@ -157,7 +157,7 @@ def write_motion_report(
     bfit, grid, stored = fit.behaviour, fit.grid, fit.motion
     if not can_check_motion(fit, tracks):
         raise ValueError("fit: expected a fit from tracks with its behaviour and map (fit_log)")
-    key = jax.random.key(seed)
+    key = key_from_seed(seed)
     say = progress or (lambda done, total, what: None)
     after = 2  # the held-out fit, the figure
     checked = [0]  # the motion checks' steps
@@ -172,12 +172,12 @@ def write_motion_report(
         table, reps = fit.motion_checks
     else:
         table, reps = motion_checks(
-            jax.random.fold_in(key, 1), bfit, tracks, n_replicates=50,
+            fold_in_key(key, 1), bfit, tracks, n_replicates=50,
             interaction=fit.interaction if fit.interaction is not None else True, grid=grid,
             progress=check_step,
         )  # fmt: skip
     held, _ = heldout_log_likelihood(
-        jax.random.fold_in(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
+        fold_in_key(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
         max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
         run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
     )  # fmt: skip

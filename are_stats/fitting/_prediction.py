@@ -26,13 +26,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import jax
 import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_positive
 from are_stats.behaviour import BehaviourFit, move_observations, path_free, track_log_likelihoods
 from are_stats.fitting._motion_checks import _policies, _rng, _social, _walk, tracker_noise
+from are_stats.traffic import key_from_seed
 
 __all__ = ["constant_velocity", "displacement_errors"]
 
@@ -700,7 +700,7 @@ def _heading_wander(
     sd = np.nan_to_num(np.asarray(fit.heading_within_sd, float)[cls])
     if not (sd > 0).any():
         return None
-    key = jax.random.key(int(rng.integers(2**31)))
+    key = key_from_seed(int(rng.integers(2**31)))
     return key, sd, np.asarray(fit.heading_within_time, float)[cls]
 
 

@@ -491,12 +491,15 @@ def scenes_from_draws(
         Scene ``i`` is scenario ``i``; ``scene.artefacts`` its table and
         :meth:`Scene.tracks_table` its tracks.
     """
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
+    from are_stats.traffic import key_from_seed, split_key
+
     opts = (options or _STANDING).with_settings(settings)
     kind = behaviour_source(opts.behaviours, fitted, grid, source)
     if isinstance(key, int | np.integer) and not isinstance(key, bool):
         seed, k_tracks = int(key), None
     else:
-        seed, k_tracks = jax.random.split(key)
+        seed, k_tracks = split_key(key)
     art = generate_scenarios(
         seed, draws, n, horizon, free_mask=grid, area=area, start=opts.start, laws=laws
     )
@@ -508,7 +511,7 @@ def scenes_from_draws(
     moves = 1 if opts.interaction is False else 2
     say(1, 1 + moves, "scenarios drawn")
     if k_tracks is None:
-        k_tracks = jax.random.key(seed)
+        k_tracks = key_from_seed(seed)
     return move_scenes(
         k_tracks,
         standing,
@@ -652,6 +655,8 @@ def _interact(
         rows = groups.reindex(at).fillna(-1).to_numpy(np.int64)
     speed_variation = heading_variation = None
     if pace is not None:
+        from are_stats.traffic import fold_in_key  # lazy: NumPyro (+0.75 s on the import)
+
         key, by_artefact = pace
         at = pd.MultiIndex.from_arrays([tracks["scenario"].to_numpy(), tracks["id"].to_numpy()])
         per_row = by_artefact.reindex(at)
@@ -659,7 +664,7 @@ def _interact(
             speed_variation = (key, per_row["sd"].to_numpy(float), per_row["time"].to_numpy(float))
         if (np.nan_to_num(per_row["heading_sd"].to_numpy(float)) > 0).any():
             heading_variation = (
-                jax.random.fold_in(key, 1),  # its own processes, the pace's drawn as before
+                fold_in_key(key, 1),  # its own processes, the pace's drawn as before
                 per_row["heading_sd"].to_numpy(float),
                 per_row["heading_time"].to_numpy(float),
             )
@@ -690,6 +695,9 @@ def _speed_variation(
     takes it), indexed by ``(scenario, id)``, with the key of its processes (``key``
     folded with 26, so the planned tracks draw as before; the heading's folded once
     more); None when the fit has neither (an older fit file)."""
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
+    from are_stats.traffic import fold_in_key, key_from_seed
+
     if (
         fitted is None
         or not len(art)
@@ -719,8 +727,8 @@ def _speed_variation(
         },
         index=index,
     )
-    k = jax.random.key(int(key)) if isinstance(key, int | np.integer) else key
-    return jax.random.fold_in(k, 26), table
+    k = key_from_seed(int(key)) if isinstance(key, int | np.integer) else key
+    return fold_in_key(k, 26), table
 
 
 def scenes_from_fit(

@@ -13,9 +13,15 @@ from are_stats.traffic._mixture import PoissonMixture  # noqa: E402
 __all__ += ["PoissonMixture"]
 
 # --- JAX's threefry key operations in NumPy (no XLA program per operation) ---
-from are_stats.traffic._keys import fold_in_key, key_bits, key_from_seed, split_key  # noqa: E402
+from are_stats.traffic._keys import (  # noqa: E402
+    fold_in_key,
+    key_bits,
+    key_from_seed,
+    key_uniform,
+    split_key,
+)
 
-__all__ += ["fold_in_key", "key_bits", "key_from_seed", "split_key"]
+__all__ += ["fold_in_key", "key_bits", "key_from_seed", "key_uniform", "split_key"]
 
 # --- marked Poisson process (life-cycle) ---
 from are_stats.traffic._lifecycle import (  # noqa: E402

@@ -1,13 +1,13 @@
-"""JAX's threefry key operations (seed, split, fold-in, bits) computed in NumPy.
+"""JAX's threefry key operations (seed, split, fold-in, bits, uniforms) computed in NumPy.
 
 Each ``jax.random`` operation on a key outside a compiled program is an XLA program of
 its own, compiled in every fresh process that has no persistent cache: a fit on a new
 machine compiled about a dozen of them (0.7 s of CPU) before any model. These functions
-give the same keys and bits, bit for bit, as ``jax.random.key``, ``split``, ``fold_in``
-and ``bits`` with JAX's default threefry2x32 keys (the partitionable derivation, JAX's
-default), computed in NumPy and wrapped as JAX keys (:func:`jax.random.wrap_key_data`
-compiles nothing). Another key implementation, or the original (non-partitionable)
-derivation, goes to ``jax.random`` itself.
+give the same keys and bits, bit for bit, as ``jax.random.key``, ``split``, ``fold_in``,
+``bits`` and float64 ``uniform`` with JAX's default threefry2x32 keys (the partitionable
+derivation, JAX's default), computed in NumPy and wrapped as JAX keys
+(:func:`jax.random.wrap_key_data` compiles nothing). Another key implementation, or the
+original (non-partitionable) derivation, goes to ``jax.random`` itself.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-__all__ = ["fold_in_key", "key_bits", "key_from_seed", "split_key"]
+__all__ = ["fold_in_key", "key_bits", "key_from_seed", "key_uniform", "split_key"]
 
 #: Rotations of the threefry2x32 rounds (Salmon et al. 2011), four per group, alternating.
 _ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))
@@ -137,3 +137,32 @@ def key_bits(key: jax.Array, num: int) -> np.ndarray:
     k1, k2 = _data(key)
     b1, b2 = _threefry2x32(k1, k2, np.zeros(num, np.uint32), np.arange(num, dtype=np.uint32))
     return b1 ^ b2
+
+
+def key_uniform(key: jax.Array, shape: tuple[int, ...]) -> np.ndarray:
+    """``jax.random.uniform(key, shape, dtype=float64)`` without an XLA program.
+
+    Element ``j`` of the flattened shape takes the 64 bits ``threefry(key, (j >> 32, j &
+    0xffffffff))``, high word first, keeps their top 52 as the mantissa of a number in
+    ``[1, 2)`` and subtracts 1, as ``jax.random.uniform`` does (its ``* (1 - 0) + 0`` and
+    ``max(0, .)`` change no bit).
+
+    Parameters
+    ----------
+    key : jax.Array
+        A scalar key.
+    shape : tuple of int
+
+    Returns
+    -------
+    float64 array of ``shape``, in ``[0, 1)``
+    """
+    shape = tuple(int(s) for s in shape)
+    if not _numpy_ok(key) or not jax.config.jax_enable_x64:
+        return np.asarray(jax.random.uniform(key, shape, dtype=np.float64))
+    k1, k2 = _data(key)
+    j = np.arange(int(np.prod(shape, dtype=np.int64)), dtype=np.uint64)
+    hi, lo = _threefry2x32(k1, k2, (j >> np.uint64(32)).astype(np.uint32), j.astype(np.uint32))
+    bits = (hi.astype(np.uint64) << np.uint64(32)) | lo.astype(np.uint64)
+    one = np.uint64(0x3FF0000000000000)  # the bits of 1.0
+    return (((bits >> np.uint64(12)) | one).view(np.float64) - 1.0).reshape(shape)

@@ -183,6 +183,19 @@ def test_preferred_speeds_between_person_sd_is_the_configured_one() -> None:
         preferred_speeds(jax.random.key(0), [1.0, 0.0], sd)
 
 
+def test_preferred_speeds_are_the_draw_of_their_own_shape() -> None:
+    """The normals come from a bucket's longer draw (one program for many sizes): its
+    prefix is exactly the draw of the asked shape, for typed and raw keys, at sizes below,
+    at and past the bucket (a longer draw would otherwise shift every speed)."""
+    med = 1.3
+    for key in (jax.random.key(5), jax.random.fold_in(jax.random.key(1), 3), jax.random.PRNGKey(2)):
+        for n in (0, 1, 302, 16384, 16385):
+            z = np.asarray(jax.random.normal(key, (n,), dtype=np.float32), float)
+            np.testing.assert_array_equal(
+                preferred_speeds(key, np.full(n, med), 0.2), med * np.exp(0.2 * z)
+            )
+
+
 def _walkers(n: int, occ: np.ndarray, stay: float, behaviour="walk", speed=1.2, seed=0):
     rng = np.random.default_rng(seed)
     free = np.argwhere(~occ)

@@ -337,6 +337,26 @@ drawing, ``generate_scenarios``' 200 chosen-model replicates one by one (about 0
 ``traffic_checks``' 0.76 s) and h5netcdf's per-variable overhead in ``write_fit`` (0.6-0.9
 s, 55 variables; compression's share not isolated: a fit read back keeps its variables'
 compression encoding whatever ``write_fit`` asks).
+
+The tracks part with the behaviour's eager key operations and float64 uniforms in NumPy
+(``traffic.split_key``, ``fold_in_key``, ``key_from_seed`` and the new ``key_uniform``: the
+walks, rollouts, realism scenes, assembly, motion checks and field fit) and
+``preferred_speeds``' normals drawn in one shape up to 16,384 people (a draw is the prefix
+of a longer one) (2026-11-28, main 2f397d6 and wt-tracks started together in fresh processes
+with empty caches, the CLI's command, child CPU by ``getrusage``, ``JAX_LOG_COMPILES=1``):
+load 18 -> 20: cold CPU 111.8 s main vs 109.2 s branch (wall 1,198 vs 1,199 s, a load of 20
+on 2 cores); again, load 18 -> 10: 109.8 vs 107.5 s (0.98x; wall 882 vs 871 s; the random
+programs' compile wall 30.6 vs 6.4 s); XLA compilations 55 vs 43 in both:
+``_threefry_seed``, ``_threefry_fold_in``, two ``_threefry_split``, two ``unstack``, three
+``_uniform``, one of the three ``_normal`` and two one-operation programs gone (their
+compile wall 39.5 vs 12.5 s in the first round, the two normals left: float32 speeds and the
+motion checks' float64 jitter). In a fresh process, the same draws (one of each shape the
+fit makes) 4.64 and 4.26 s -> 2.17 and 1.60 s CPU, md5 of all draws equal. The fit file's
+every group (``xarray`` ``identical``) and all 17 criticism files byte for byte the same, in
+both rounds. Not done: ``_window``'s two displacement-error sizes (2,048 and 4,096 slots:
+padding the five smaller walks to 4,096 doubles their runs, not measured against the compile
+saved; smaller chunks draw otherwise) and the 16- and 32-slot windows (all pairs: their sums
+over the slots keep their sizes).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ import jax
 import numpy as np
 import pytest
 
-from are_stats.traffic import fold_in_key, key_bits, key_from_seed, split_key
+from are_stats.traffic import fold_in_key, key_bits, key_from_seed, key_uniform, split_key
 
 SEEDS = [0, 1, 7, 123456789, 2**32 - 1, 2**32, 2**40 + 5, 2**63 - 1]
 
@@ -63,10 +63,12 @@ def test_no_xla_program_is_compiled_for_them():
     """In a fresh process without a persistent cache, JAX logs no compilation."""
     code = (
         "import are_stats, numpy as np\n"
-        "from are_stats.traffic import fold_in_key, key_bits, key_from_seed, split_key\n"
+        "from are_stats.traffic import fold_in_key, key_bits, key_from_seed, key_uniform\n"
+        "from are_stats.traffic import split_key\n"
         "k = key_from_seed(5)\n"
         "a, b, c = split_key(k, 3)\n"
         "print(*key_bits(fold_in_key(b, 14), 4))\n"
+        "print(*key_uniform(c, (2, 2)).ravel().tolist())\n"
     )
     env = {"JAX_LOG_COMPILES": "1", "ARE_STATS_NO_CACHE": "1", "JAX_PLATFORMS": "cpu"}
     proc = subprocess.run(
@@ -76,4 +78,27 @@ def test_no_xla_program_is_compiled_for_them():
     assert "Finished XLA compilation" not in proc.stderr, proc.stderr[-2000:]
     want = jax.random.bits(jax.random.fold_in(jax.random.split(jax.random.key(5), 3)[1], 14),
                            (4,), np.uint32)  # fmt: skip
-    assert proc.stdout.split() == [str(x) for x in np.asarray(want)]
+    bits, unif = proc.stdout.splitlines()
+    assert bits.split() == [str(x) for x in np.asarray(want)]
+    u = jax.random.uniform(jax.random.split(jax.random.key(5), 3)[2], (4,), dtype=np.float64)
+    assert unif.split() == [str(x) for x in np.asarray(u).tolist()]
+
+
+@pytest.mark.parametrize("seed", [0, 7, 2**32 + 3])
+def test_numpy_uniforms_are_jax_random_bit_for_bit(seed):
+    """float64 uniforms of empty, flat and two-dimensional shapes, a derived key's too."""
+    want, got = jax.random.key(seed), key_from_seed(seed)
+    for shape in [(0,), (1,), (5,), (3, 7), (64, 33), (1, 0)]:
+        u = key_uniform(got, shape)
+        assert u.dtype == np.float64 and u.shape == shape
+        np.testing.assert_array_equal(
+            u, np.asarray(jax.random.uniform(want, shape, dtype=np.float64))
+        )
+    np.testing.assert_array_equal(
+        key_uniform(fold_in_key(got, 26), (9,)),
+        np.asarray(jax.random.uniform(jax.random.fold_in(want, 26), (9,), dtype=np.float64)),
+    )
+    key = jax.random.key(seed, impl="rbg")  # another implementation: jax.random's own
+    np.testing.assert_array_equal(
+        key_uniform(key, (4,)), np.asarray(jax.random.uniform(key, (4,), dtype=np.float64))
+    )
