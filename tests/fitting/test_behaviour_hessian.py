@@ -117,18 +117,26 @@ def test_hessian_by_differences_is_forward_mode_through_the_stopped_solve(n_devi
     assert float(v2) == float(v) and int(e2) == int(epochs)
 
 
-def test_float32_standard_errors_by_differences_match_float64_forward_mode() -> None:
-    """Float32 (the fit's default): the standard errors from the differenced Hessian are
-    within 2e-4 relative of float64's forward-mode ones (float32 round-off over the step
-    against the stencil's error; the Hessian's own forward mode in float32 was 5e-6 off)."""
+def test_float32_differenced_hessian_matches_float64_forward_mode() -> None:
+    """Float32 (the fit's default): the differenced Hessian is within 2e-4 of float64's
+    forward-mode one in the spectral norm, relative (measured 1.2e-4: float32 round-off
+    over the step against the stencil's error; the Hessian's own forward mode in float32
+    was 5e-6 off), so the covariance ``inv(-H)`` is within ``cond(H) * 2e-4`` of its
+    float64 value, to first order.
+
+    Before, the test compared standard errors ``sqrt(diag(inv(-H)))`` at ``TH``. ``TH`` is
+    not the likelihood's maximum: ``-H`` is indefinite there, two of the three "variances"
+    were negative, and their NaN square roots on both sides passed ``assert_allclose``
+    unchecked (one of them, a small variance after cancellation, differs by 4.7e-3
+    relative, within the bound above: ``cond(H)`` is 11.5 here)."""
     want = _forward_hessian(1)
     data32, n_dev = _data(np.float32)
     tol = jnp.asarray(1e-3, np.float32)
     epochs = fb._gradient_value_epochs(jnp.asarray(TH, np.float32), data32, tol, n_dev)[2]
-    got = fb._hessian(jnp.asarray(TH, np.float32), data32, int(epochs), n_dev)
-    se = np.sqrt(np.diag(np.linalg.inv(-got)))
-    se_want = np.sqrt(np.diag(np.linalg.inv(-want)))
-    assert_allclose(se, se_want, rtol=2e-4)
+    got = np.asarray(fb._hessian(jnp.asarray(TH, np.float32), data32, int(epochs), n_dev))
+    assert np.isfinite(got).all()
+    rel = np.linalg.norm(got.astype(np.float64) - want, 2) / np.linalg.norm(want, 2)
+    assert rel < 2e-4, rel
 
 
 def test_the_fit_compiles_one_program_for_value_gradient_and_hessian() -> None:
