@@ -150,7 +150,6 @@ _LAZY.update(
             "generate_scenarios",
             "read_scenes",
             "scenario_counts",
-            "scenes_from_draws",
             "scenes_from_fit",
             "write_scenes",
             "Boxes",
@@ -326,7 +325,6 @@ if TYPE_CHECKING:
         generate_scenarios,
         read_scenes,
         scenario_counts,
-        scenes_from_draws,
         scenes_from_fit,
         write_scenes,
     )

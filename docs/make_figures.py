@@ -214,7 +214,7 @@ def _perception(out: Path) -> None:
 
     import are_stats as ar
     from are_stats.perception import (
-        FrameBoxes,
+        PerceivedFrame,
         optical_from_base,
         perceive_frames,
         plot_camera_view,
@@ -243,11 +243,11 @@ def _perception(out: Path) -> None:
     yaws = rng.uniform(0, np.pi, n)
     rots = yaw_rotations(yaws)
     res = perceive_frames(env, centers, half, rots, cam, None, 30.0, 50.0, return_depth=True)
-    boxes = FrameBoxes(centers, half, rots, res.counts[0], res.perceived[0])
-    fig = plot_camera_view(cam, res.depth[0], boxes, d_max=30.0)
+    frame = PerceivedFrame.from_result(res, 0, cam, centers, half, rots, 30.0)
+    fig = plot_camera_view(frame)
     fig.savefig(out / "camera_view.png", dpi=DPI, bbox_inches="tight")
     plt.close(fig)
-    fig = plot_top_view(cam, 30.0, boxes, grid=grid)
+    fig = plot_top_view(frame, grid=grid)
     fig.savefig(out / "top_view.png", dpi=DPI, bbox_inches="tight")
     plt.close(fig)
 

@@ -137,7 +137,6 @@ from are_stats.scenarios import (
     ScenesFolder,
     move_scenes,
     read_scenes,
-    scenes_from_draws,
     scenes_from_fit,
     scenes_from_tables,
 )
@@ -885,7 +884,7 @@ def _task_scenario(
 
     The scene comes from the one assembly that ``generate`` and ``augment`` use
     (:func:`~are_stats.scenarios.scenes_from_fit` at one posterior draw; hand-set rates
-    go through :func:`~are_stats.scenarios.scenes_from_draws`, which it calls), moved by
+    as a fit of one draw, :meth:`~are_stats.fitting.Fit.from_draws`), moved by
     the fit's behaviour when it has one, else the catalogue's, then the social force. A
     scenarios folder brings its own scenes (and tracks; without them, the same behaviour
     rule moves its artefacts).
@@ -942,7 +941,9 @@ def _task_scenario(
                 source=str(sc["fit"]),
             )
             rate = float(rates[draw])
-        else:
+        else:  # hand-set rates: a fit of one draw
+            from are_stats.fitting import Fit
+
             params = {
                 "arrival_rate": np.atleast_1d(float(sc["arrival_rate"])),
                 "leave_rate": np.atleast_1d(float(sc["leave_rate"])),
@@ -950,9 +951,9 @@ def _task_scenario(
                 "mix_rates": np.asarray(sc["mix_rates"], float)[None, :],
             }
             draw, rate = -1, float(params["arrival_rate"][0])
-            (scene,) = scenes_from_draws(
+            (scene,) = scenes_from_fit(
                 seed,
-                params,
+                Fit.from_draws(params, source="scenario"),
                 grid,
                 catalogue,
                 1,

@@ -13,16 +13,18 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 import yaml
 
+from are_stats import _lazy
 from are_stats._checks import check_in
 from are_stats.behaviour import BehaviourFit, SocialForce
 from are_stats.fitting._class_traffic import class_position_densities
@@ -31,7 +33,8 @@ from are_stats.fitting._motion_store import motion_tables
 from are_stats.inputs import Described, InputError
 from are_stats.traffic import PositionDensity, TrafficLaws, clock_offset
 
-# Lazy imports: _fit_log (it imports this module) in as_fit.
+# Lazy imports: _fit_log (it imports this module) in as_fit and Fit.from_draws; ArviZ
+# (_lazy.arviz) when a fit is made from draws.
 
 if TYPE_CHECKING:
     import arviz as az
@@ -276,6 +279,98 @@ class Fit:
     posterior_sources: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     grid: OccupancyGrid | None = None
     motion_checks: tuple[pd.DataFrame, dict[str, Any]] | None = None
+
+    @classmethod
+    def from_draws(
+        cls,
+        draws: Mapping[str, npt.ArrayLike],
+        *,
+        laws: TrafficLaws | None = None,
+        behaviour: BehaviourFit | None = None,
+        interaction: SocialForce | None = None,
+        class_labels: Sequence[str] | None = None,
+        area: float | None = None,
+        source: str = "draws",
+    ) -> Fit:
+        """A fit of hand-set traffic parameters (or draws from elsewhere), so that every
+        assembly starts from a :class:`Fit` (:func:`~are_stats.scenarios.scenes_from_fit`).
+
+        Its posterior holds ``draws`` as one chain, its :meth:`traffic` gives them back
+        (``model="chosen"``: all of them with ``laws``; ``"paper"``: those of
+        :data:`PARAMETER_NAMES` with the paper's laws). A ``class_stay_mean`` makes the
+        stays per class (:attr:`class_stay_model` ``"per-class"``), a ``class_tod_weights``
+        the class shares by time of day, as a fit that chose them.
+
+        Parameters
+        ----------
+        draws : dict of str to array
+            ``arrival_rate`` (S,) (lambda, per m^2 per second), ``leave_rate`` (S,) (mu, per
+            second), optional ``mix_weights`` (S, K), ``mix_rates`` (S, K) (eq. 1) and the
+            variables of the laws' models (:data:`TRAFFIC_NAMES`), ``S`` draws each; when
+            ``arrival_rate`` is a scalar, every value is one draw (no draw axis).
+        laws : TrafficLaws, optional
+            The arrival, stay and position laws (default: the paper's).
+        behaviour : BehaviourFit, optional
+            A behaviour (``behaviours="auto"`` uses it).
+        interaction : SocialForce, optional
+            A social force (``interaction=True`` uses it; default: the published one).
+        class_labels : sequence of str, optional
+            The class of each mixture component (catalogue rows by name).
+        area : float, optional
+            ``area(M_2D)`` (m^2) the rates are per, used where there is no map.
+        source : str
+            What errors name.
+
+        Returns
+        -------
+        Fit
+            ``method`` ``"draws"``; no log, window, provenance or checks.
+
+        Raises
+        ------
+        ValueError
+            Without ``arrival_rate`` or ``leave_rate``, or for a variable that is neither in
+            :data:`PARAMETER_NAMES` nor in :data:`TRAFFIC_NAMES`.
+
+        Examples
+        --------
+        >>> fit = Fit.from_draws({"arrival_rate": [2e-3], "leave_rate": [0.05]}, area=100.0)
+        >>> draws, laws = fit.traffic()
+        >>> draws["arrival_rate"].tolist(), laws.is_paper, fit.posterior_means().mean_stay_s
+        ([0.002], True, 20.0)
+        """
+        from are_stats.fitting._fit_log import FIT_FORMAT_VERSION
+
+        known = PARAMETER_NAMES + TRAFFIC_NAMES
+        for name in ("arrival_rate", "leave_rate"):
+            if name not in draws:
+                raise ValueError(
+                    f"{source}: expected a variable {name!r} in the draws, got {sorted(draws)}"
+                )
+        unknown = sorted(set(draws) - set(known))
+        if unknown:
+            raise ValueError(
+                f"{source}: expected draws of {', '.join(known)}, got unknown {unknown}"
+            )
+        one = np.ndim(draws["arrival_rate"]) == 0
+        arrays = {k: np.asarray(v)[None] if one else np.asarray(v) for k, v in draws.items()}
+        idata = _lazy.arviz.from_dict(posterior={k: a[None] for k, a in arrays.items()})
+        weights = arrays.get("mix_weights", arrays.get("class_weights"))
+        return cls(
+            idata=idata,
+            source=source,
+            method="draws",
+            format_version=FIT_FORMAT_VERSION,
+            area=None if area is None else float(area),
+            window=None,
+            n_components=0 if weights is None else int(np.shape(weights)[-1]),
+            class_labels=None if class_labels is None else tuple(str(c) for c in class_labels),
+            laws=TrafficLaws() if laws is None else laws,
+            behaviour=behaviour,
+            interaction=interaction,
+            class_stay_model="per-class" if "class_stay_mean" in arrays else None,
+            class_share_model="time-of-day" if "class_tod_weights" in arrays else None,
+        )
 
     def draws(self, names: tuple[str, ...] = PARAMETER_NAMES) -> dict[str, np.ndarray]:
         """``(chain * draw, ...)`` posterior draws of ``names`` (those present)."""

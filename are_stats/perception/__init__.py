@@ -18,7 +18,12 @@ from are_stats.perception._perceive import (
     perceived_counts_batch,
     sample_perceived,
 )
-from are_stats.perception._plots import FrameBoxes, plot_camera_view, plot_top_view, save_figure
+from are_stats.perception._plots import (
+    PerceivedFrame,
+    plot_camera_view,
+    plot_top_view,
+    save_figure,
+)
 from are_stats.perception._scenario import (
     check_path_times,
     perceive_scenario,
@@ -32,8 +37,8 @@ from are_stats.perception._scenario import (
 
 __all__ = [
     "FolderPlan",
-    "FrameBoxes",
     "PerceiveFolderOptions",
+    "PerceivedFrame",
     "PerceptionResult",
     "CameraModel",
     "PinholeCamera",

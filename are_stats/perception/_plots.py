@@ -11,7 +11,7 @@ import numpy.typing as npt
 from are_stats._atomic import save_figure
 from are_stats.environment import OccupancyGrid
 from are_stats.perception._camera import CameraModel
-from are_stats.perception._perceive import _EDGES, _SIGNS
+from are_stats.perception._perceive import _EDGES, _SIGNS, PerceptionResult
 
 # Lazy imports: matplotlib and SciPy's ConvexHull load when a figure is drawn, not with the
 # perception room.
@@ -20,17 +20,26 @@ if TYPE_CHECKING:
     import matplotlib.axes
     import matplotlib.figure
 
-__all__ = ["FrameBoxes", "plot_camera_view", "plot_top_view", "save_figure"]
+__all__ = ["PerceivedFrame", "plot_camera_view", "plot_top_view", "save_figure"]
 
 _COLOURS = {"perceived": "#1a9850", "occluded": "#d73027", "outside": "#969696"}
 
 
-class FrameBoxes(NamedTuple):
-    """One frame's boxes and what the camera made of them: what :func:`plot_camera_view`
-    and :func:`plot_top_view` draw.
+class PerceivedFrame(NamedTuple):
+    """One perceived frame, whole: the camera, its depth image, the boxes and what the
+    camera made of them; what :func:`plot_camera_view` and :func:`plot_top_view` draw.
+
+    Build it from a :func:`~are_stats.perception.perceive_frames` result with
+    :meth:`from_result`.
 
     Attributes
     ----------
+    camera : CameraModel
+        The camera at the frame's pose (``fx``, ``fy``, ``cx``, ``cy``, ``width``,
+        ``height``, ``pose``, ``center``, ``fov_cone``: a
+        :class:`~are_stats.perception.PinholeCamera`).
+    depth : (height, width) float
+        The augmented depth image (m; +inf where nothing is hit within ``d_max``).
     centers : (n, 3) float
         Box centres (m, world frame).
     half_extents : (n, 3) float
@@ -39,16 +48,79 @@ class FrameBoxes(NamedTuple):
         Box-to-world rotations (:func:`~are_stats.perception.yaw_rotations` for upright
         boxes; the top view turns each footprint by the upper-left 2 x 2 block).
     counts : (n,) int
-        Pixel counts of the frame, e.g. ``PerceptionResult.counts[t]``.
+        Pixel counts of the frame.
     perceived : (n,) bool
-        Membership in A_f, e.g. ``PerceptionResult.perceived[t]``.
+        Membership in A_f.
+    d_max : float
+        The range the frame was traced to (m): the depth colour scale's upper end and the
+        view cone's length.
     """
 
-    centers: npt.ArrayLike
-    half_extents: npt.ArrayLike
-    rotations: npt.ArrayLike
-    counts: npt.ArrayLike
-    perceived: npt.ArrayLike
+    camera: CameraModel
+    depth: np.ndarray
+    centers: np.ndarray
+    half_extents: np.ndarray
+    rotations: np.ndarray
+    counts: np.ndarray
+    perceived: np.ndarray
+    d_max: float
+
+    @classmethod
+    def from_result(
+        cls,
+        result: PerceptionResult,
+        t: int,
+        camera: CameraModel,
+        centers: npt.ArrayLike,
+        half_extents: npt.ArrayLike,
+        rotations: npt.ArrayLike,
+        d_max: float,
+    ) -> PerceivedFrame:
+        """Frame ``t`` of a :func:`~are_stats.perception.perceive_frames` result, with the
+        arguments that call was given.
+
+        Parameters
+        ----------
+        result : PerceptionResult
+            Traced with ``return_depth=True``.
+        t : int
+            The frame.
+        camera : CameraModel
+            The camera at frame ``t``'s pose (for a trajectory of ``poses``,
+            ``camera.with_pose(poses[t])``).
+        centers : (n, 3) or (T, n, 3) float
+            Box centres (per frame for boxes that move: frame ``t``'s are taken).
+        half_extents : (n, 3) float
+        rotations : (n, 3, 3) or (T, n, 3, 3) float
+        d_max : float
+            The range the frame was traced to (m).
+
+        Returns
+        -------
+        PerceivedFrame
+
+        Raises
+        ------
+        ValueError
+            For a result without depth images or a frame out of range.
+        """
+        if result.depth is None:
+            raise ValueError("result: expected depth images (perceive_frames(return_depth=True))")
+        n_frames = result.depth.shape[0]
+        if not 0 <= t < n_frames:
+            raise ValueError(f"t: expected a frame in [0, {n_frames}), got {t}")
+        c = np.asarray(centers, float)
+        r = np.asarray(rotations, float)
+        return cls(
+            camera=camera,
+            depth=np.asarray(result.depth[t], float),
+            centers=c[t] if c.ndim == 3 else c,
+            half_extents=np.asarray(half_extents, float),
+            rotations=r[t] if r.ndim == 4 else r,
+            counts=np.asarray(result.counts[t]),
+            perceived=np.asarray(result.perceived[t], bool),
+            d_max=float(d_max),
+        )
 
 
 def _status(counts: np.ndarray, perceived: np.ndarray) -> list[str]:
@@ -76,45 +148,38 @@ def _legend(ax, used: set[str]) -> None:
 
 
 def plot_camera_view(
-    camera: CameraModel,
-    depth: npt.ArrayLike,
-    boxes: FrameBoxes,
-    *,
-    d_max: float | None = None,
-    ax: matplotlib.axes.Axes | None = None,
+    frame: PerceivedFrame, *, ax: matplotlib.axes.Axes | None = None
 ) -> matplotlib.figure.Figure:
-    """Camera view: depth image with every box's wireframe coloured by its A_f status.
+    """Camera view: the depth image (colour scale ``[0, d_max]``) with every box's
+    wireframe, projected by the frame's camera, coloured by its A_f status.
 
     Parameters
     ----------
-    camera : CameraModel
-        Projects the boxes' edges onto the image (its ``pose`` is the frame's pose).
-    depth : (height, width) float
-        A depth image, e.g. ``PerceptionResult.depth[t]`` (+inf where nothing is hit).
-    boxes : FrameBoxes
-        The frame's boxes, their pixel counts and A_f membership.
-    d_max : float, optional
-        Upper end of the colour scale (default: the largest finite depth).
+    frame : PerceivedFrame
     ax : matplotlib Axes, optional
 
     Returns
     -------
     matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        When the depth image's shape is not the camera's.
     """
     import matplotlib.pyplot as plt
 
-    z = np.asarray(depth, float)
+    camera, z = frame.camera, np.asarray(frame.depth, float)
     if z.shape != (camera.height, camera.width):
         raise ValueError(f"depth: expected shape ({camera.height}, {camera.width}), got {z.shape}")
     if ax is None:
         _, ax = plt.subplots(figsize=(7.5, 7.5 * camera.height / camera.width + 0.6))
     fin = np.isfinite(z)
-    vmax = float(d_max) if d_max is not None else (float(z[fin].max()) if fin.any() else 1.0)
     im = ax.imshow(
         np.where(fin, z, np.nan),
         cmap="viridis",
         vmin=0.0,
-        vmax=vmax,
+        vmax=float(frame.d_max),
         extent=(0, camera.width, camera.height, 0),
         interpolation="nearest",
     )
@@ -122,10 +187,8 @@ def plot_camera_view(
     ax.figure.colorbar(
         im, ax=ax, fraction=0.035, pad=0.02, label="depth (m); blank: nothing within d_max"
     )
-    c = np.asarray(boxes.centers, float)
-    h = np.asarray(boxes.half_extents, float)
-    r = np.asarray(boxes.rotations, float)
-    status = _status(np.asarray(boxes.counts), np.asarray(boxes.perceived, bool))
+    c, h, r = frame.centers, frame.half_extents, frame.rotations
+    status = _status(frame.counts, frame.perceived)
     used = set()
     r_cam, c_cam = camera.pose[:3, :3], camera.pose[:3, 3]
     z_near = 1e-3
@@ -157,31 +220,25 @@ def plot_camera_view(
     ax.set_ylim(camera.height, 0)
     ax.set_xlabel("u (pixels)")
     ax.set_ylabel("v (pixels)")
-    n_p = int(np.sum(np.asarray(boxes.perceived, bool)))
+    n_p = int(np.sum(frame.perceived))
     ax.set_title(f"Camera view: {n_p} of {len(c)} artefacts perceived")
     _legend(ax, used)
     return ax.figure
 
 
 def plot_top_view(
-    camera: CameraModel,
-    d_max: float,
-    boxes: FrameBoxes,
+    frame: PerceivedFrame,
     *,
     grid: OccupancyGrid | None = None,
     ax: matplotlib.axes.Axes | None = None,
 ) -> matplotlib.figure.Figure:
-    """Top view: the occupancy grid, the view cone W cut at ``d_max`` and the footprints.
+    """Top view: the occupancy grid, the camera's centre and view cone W cut at ``d_max``,
+    and the boxes' footprints (turned by their rotations' upper-left 2 x 2 block) coloured
+    by their A_f status.
 
     Parameters
     ----------
-    camera : CameraModel
-        Its view cone W and centre are drawn (its ``pose`` is the frame's pose).
-    d_max : float
-        Range of the view cone.
-    boxes : FrameBoxes
-        The frame's boxes (footprints turned by their rotations' upper-left 2 x 2 block),
-        their pixel counts and A_f membership.
+    frame : PerceivedFrame
     grid : OccupancyGrid, optional
         Drawn underneath (free white, occupied black, unknown grey).
     ax : matplotlib Axes, optional
@@ -209,6 +266,7 @@ def plot_top_view(
             interpolation="nearest",
             extent=(ox, ox + grid.width * grid.resolution, oy, oy + grid.height * grid.resolution),
         )
+    camera, d_max = frame.camera, frame.d_max
     cone = camera.fov_cone(d_max)
     # horizontal footprint of the cone: hull of the apex and the far corners
     from scipy.spatial import ConvexHull
@@ -230,10 +288,8 @@ def plot_top_view(
         )
     )
     ax.plot(*camera.center[:2], marker="o", color="#f46d43", ms=6)
-    c = np.asarray(boxes.centers, float)
-    h = np.asarray(boxes.half_extents, float)
-    r = np.asarray(boxes.rotations, float)
-    status = _status(np.asarray(boxes.counts), np.asarray(boxes.perceived, bool))
+    c, h, r = frame.centers, frame.half_extents, frame.rotations
+    status = _status(frame.counts, frame.perceived)
     used = set()
     for a in range(len(c)):
         loc = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * h[a, :2]

@@ -1,8 +1,9 @@
 """The one assembly from a fit to moving scenes (issue 25): ``Fit in, Scenes out``.
 
 Every command that puts artefacts on a map (``generate``, the experiment sweeps,
-``augment``) calls :func:`scenes_from_fit` (or :func:`scenes_from_draws` for hand-set
-rates), so a change to traffic, behaviour or motion reaches all of them at once.
+``augment``) calls :func:`scenes_from_fit` (hand-set rates as a fit too:
+:meth:`~are_stats.fitting.Fit.from_draws`), so a change to traffic, behaviour or motion
+reaches all of them at once.
 
 The behaviour rule (``behaviours=``, :func:`~are_stats.scenarios.behaviour_source`), one for
 every command:
@@ -54,13 +55,12 @@ In a mission the robot's own footprint is avoided by the moving artefacts
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, Unpack
 
 import jax
 import numpy as np
-import numpy.typing as npt
 import pandas as pd
 
 from are_stats.behaviour import (
@@ -84,7 +84,6 @@ if TYPE_CHECKING:
     import arviz as az
 
     from are_stats.fitting import Fit
-    from are_stats.traffic import TrafficLaws
 
 # Lazy import: fitting (NumPyro, ArviZ: +0.9 s CPU on `import are_stats.scenarios`, measured
 # 2026-11-28) loads when a fit is read; behaviour and JAX come with the room anyway.
@@ -93,7 +92,6 @@ __all__ = [
     "check_tracks_size",
     "move_scenes",
     "scene_tracks",
-    "scenes_from_draws",
     "scenes_from_fit",
     "scenes_from_tables",
     "scenes_tables",
@@ -106,7 +104,7 @@ _Progress = Callable[[int, int, str], object]
 
 #: :func:`move_scenes`' default options: the scenes move by the rule's ``True``.
 _MOVING = AssemblyOptions(behaviours=True)
-#: :func:`scenes_from_draws`' and :func:`scenes_from_fit`'s: the scenes stand.
+#: :func:`scenes_from_fit`'s default options: the scenes stand.
 _STANDING = AssemblyOptions()
 
 
@@ -319,12 +317,14 @@ def move_scenes(
         table's ``scenario`` value, else its position in ``scenes``. Their tracks, if any,
         are replaced.
     grid, catalogue, horizon
-        See :func:`scenes_from_draws`. Class labels are the scenes' own.
+        See :func:`scenes_from_fit`. Class labels are the scenes' own.
     options : AssemblyOptions, optional
         Its ``behaviours``, ``behaviour_cell``, ``behaviour_dt``, ``cell_source`` and
         ``interaction`` (default: ``AssemblyOptions(behaviours=True)``).
-    fitted, source
-        See :func:`scenes_from_draws`.
+    fitted : BehaviourFit, optional
+        The fit's behaviour (``"auto"`` uses it when given).
+    source : str
+        What errors name (the fit file, the options).
     progress : callable, optional
         ``progress(done, total, what)`` after each step: the tracks planned (the
         catalogue's behaviour one step per scenario, the fitted one per chunk of exits
@@ -418,111 +418,6 @@ def move_scenes(
     if social and not (walked[1] and walked[0] == walked[1]):
         say(steps, steps, "walked with the social force")
     return scenes
-
-
-def scenes_from_draws(
-    key: int | jax.Array,
-    draws: Mapping[str, npt.ArrayLike],
-    grid: OccupancyGrid | None,
-    catalogue: ArtefactCatalogue,
-    n: int,
-    horizon: float,
-    options: AssemblyOptions | None = None,
-    *,
-    laws: TrafficLaws | None = None,
-    fitted: BehaviourFit | None = None,
-    class_labels: Sequence[str] | None = None,
-    area: float | None = None,
-    source: str = "scenario",
-    progress: _Progress | None = None,
-    **settings: Unpack[AssemblySettings],
-) -> list[Scene]:
-    """``n`` scenes drawn from traffic parameters, moved by the module's behaviour rule.
-
-    Parameters
-    ----------
-    key : int or jax.Array
-        An int seed >= 0 (the scenarios use it, the tracks ``jax.random.key(seed)``: the
-        command line's ``--seed``) or a JAX PRNG key (split in two).
-    draws : dict of str to array
-        Posterior draws (:func:`~are_stats.fitting.traffic_draws`) or one hand-set draw:
-        ``arrival_rate`` (S,), ``leave_rate`` (S,), optional ``mix_weights`` (S, K),
-        ``mix_rates`` (S, K) (eq. 1) and the chosen models' variables.
-    grid : OccupancyGrid or None
-        The map (``M2D``); None places artefacts on a square of ``area`` (no behaviours).
-    catalogue : ArtefactCatalogue
-        The property table ``Q``.
-    n : int
-        Number of scenarios.
-    horizon : float
-        Length of each scenario (s).
-    options : AssemblyOptions, optional
-        The behaviour rule (``behaviours``: see the module docstring; default ``False``,
-        standing scenes), ``start``, the catalogue behaviours' ``behaviour_cell`` (m),
-        ``behaviour_dt`` (s per decision epoch) and ``cell_source`` (named in errors),
-        and ``interaction``: walk the tracks again with the social force (see the module
-        docstring), ``True`` with the published parameters, a
-        :class:`~are_stats.behaviour.SocialForce` with those, ``False`` keeps the planned
-        tracks, every mover's collisions resolved by the AR-builder's rule. Its
-        ``model`` and ``positions`` have no say here (the draws are given).
-    laws : TrafficLaws, optional
-        Arrival, stay and position laws (None: the paper's).
-    fitted : BehaviourFit, optional
-        The fit's behaviour (``"auto"`` uses it when given).
-    class_labels : sequence of str, optional
-        Label of each mixture component (the fit's ``class_labels``).
-    area : float, optional
-        ``nu(M2D)`` (m^2) when it differs from the map's free area, or without a map.
-    source : str
-        What errors name (the fit file, the options).
-    progress : callable, optional
-        ``progress(done, total, what)`` after each step of the
-        assembly: the scenarios drawn, then with behaviours the tracks planned and walked
-        (:func:`scene_tracks`: the catalogue's planning one step per scenario, the fitted
-        behaviour's per chunk of exits, the social force per window); the last call has
-        ``done == total``.
-    **settings
-        Fields of :class:`AssemblyOptions` that replace those of ``options`` (e.g.
-        ``behaviours=True``).
-
-    Returns
-    -------
-    list of Scene
-        Scene ``i`` is scenario ``i``; ``scene.artefacts`` its table and
-        :meth:`Scene.tracks_table` its tracks.
-    """
-    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
-    from are_stats.traffic import key_from_seed, split_key
-
-    opts = (options or _STANDING).with_settings(settings)
-    kind = behaviour_source(opts.behaviours, fitted, grid, source)
-    if isinstance(key, int | np.integer) and not isinstance(key, bool):
-        seed, k_tracks = int(key), None
-    else:
-        seed, k_tracks = split_key(key)
-    art = generate_scenarios(
-        seed, draws, n, horizon, free_mask=grid, area=area, start=opts.start, laws=laws
-    )
-    standing = scenes_from_tables(art, None, catalogue, class_labels, range(n))
-    say = progress or (lambda done, total, what: None)
-    if kind == "none":
-        say(1, 1, "scenarios drawn")
-        return standing
-    moves = 1 if opts.interaction is False else 2
-    say(1, 1 + moves, "scenarios drawn")
-    if k_tracks is None:
-        k_tracks = key_from_seed(seed)
-    return move_scenes(
-        k_tracks,
-        standing,
-        grid,
-        catalogue,
-        horizon,
-        replace(opts, behaviours=kind),
-        fitted=fitted,
-        source=source,
-        progress=lambda done, total, what: say(1 + done, 1 + total, what),
-    )
 
 
 def _numbers(scenes: Sequence[Scene]) -> list[int]:
@@ -748,35 +643,51 @@ def scenes_from_fit(
     progress: _Progress | None = None,
     **settings: Unpack[AssemblySettings],
 ) -> list[Scene]:
-    """The one assembly: ``n`` posterior-predictive scenes of a fit, with behaviours.
+    """The one assembly: ``n`` posterior-predictive scenes of a fit, moved by the module's
+    behaviour rule.
+
+    Hand-set rates come as a fit too (:meth:`~are_stats.fitting.Fit.from_draws`).
 
     Parameters
     ----------
     key : int or jax.Array
-        Seed or PRNG key (see :func:`scenes_from_draws`).
+        An int seed >= 0 (the scenarios use it, the tracks ``jax.random.key(seed)``: the
+        command line's ``--seed``) or a JAX PRNG key (split in two).
     fit : Fit or str or PathLike
         A fit (:func:`~are_stats.fitting.read_fit`, or its path; an InferenceData of
-        :func:`~are_stats.fitting.fit_log` is decoded by :func:`~are_stats.fitting.as_fit`).
-    grid, catalogue, n, horizon
-        See :func:`scenes_from_draws`.
+        :func:`~are_stats.fitting.fit_log` is decoded by :func:`~are_stats.fitting.as_fit`;
+        hand-set rates: :meth:`~are_stats.fitting.Fit.from_draws`).
+    grid : OccupancyGrid or None
+        The map (``M2D``); None places artefacts on a square of ``area`` (no behaviours).
+    catalogue : ArtefactCatalogue
+        The property table ``Q``.
+    n : int
+        Number of scenarios.
+    horizon : float
+        Length of each scenario (s).
     options : AssemblyOptions, optional
-        As for :func:`scenes_from_draws` (the behaviour rule, ``start``, the catalogue
-        behaviours' settings), and: ``model``, ``"chosen"`` generates from the models the
-        fit chose, ``"paper"`` from the paper's Poisson / exponential / uniform model
-        (:meth:`~are_stats.fitting.Fit.traffic`); ``positions``, where artefacts enter:
-        ``"chosen"`` as ``model`` says (the entry density the fit learned, when it chose
-        ``learned`` positions), or ``"uniform"`` over the free cells of ``grid`` (the
-        paper's positions; per-class entry densities dropped too) while the arrivals and
-        stays stay the ones ``model`` gives: for a fit whose learned entries belong to
-        another map (uniform positions with the paper's arrivals and stays are the
-        paper's model, drawn as ``model="paper"`` draws it); ``interaction=True`` uses
-        the social force the fit estimated from the log's tracks when it has one
-        (:func:`~are_stats.fitting.fit_interaction`), else the published parameters.
+        The behaviour rule (``behaviours``: see the module docstring; default ``False``,
+        standing scenes), ``start``, the catalogue behaviours' ``behaviour_cell`` (m),
+        ``behaviour_dt`` (s per decision epoch) and ``cell_source`` (named in errors);
+        ``interaction``: walk the tracks again with the social force (see the module
+        docstring), ``True`` with the fit's parameters when it estimated them from the
+        log's tracks (:func:`~are_stats.fitting.fit_interaction`), else the published ones,
+        a :class:`~are_stats.behaviour.SocialForce` with those, ``False`` keeps the planned
+        tracks, every mover's collisions resolved by the AR-builder's rule; ``model``,
+        ``"chosen"`` generates from the models the fit chose, ``"paper"`` from the paper's
+        Poisson / exponential / uniform model (:meth:`~are_stats.fitting.Fit.traffic`);
+        ``positions``, where artefacts enter: ``"chosen"`` as ``model`` says (the entry
+        density the fit learned, when it chose ``learned`` positions), or ``"uniform"``
+        over the free cells of ``grid`` (the paper's positions; per-class entry densities
+        dropped too) while the arrivals and stays stay the ones ``model`` gives: for a fit
+        whose learned entries belong to another map (uniform positions with the paper's
+        arrivals and stays are the paper's model, drawn as ``model="paper"`` draws it).
     posterior_draw : int, optional
         Use this one posterior draw for every scenario (the sweeps draw one per
         replicate); default: scenario ``i`` uses draw ``i mod S``.
-    area
-        See :func:`scenes_from_draws`.
+    area : float, optional
+        ``nu(M2D)`` (m^2) when it differs from the map's free area; without a map, default
+        the fit's area.
     source : str, optional
         What errors name (default: the fit's path, or ``"fit"``).
     behaviours_source, map_source : str, optional
@@ -785,7 +696,10 @@ def scenes_from_fit(
         (:func:`behaviour_source`; default: ``source`` and the rule's own words). The rule
         is checked first, before the fit's draws or sizes.
     progress : callable, optional
-        ``progress(done, total, what)`` after each step (see :func:`scenes_from_draws`).
+        ``progress(done, total, what)`` after each step of the assembly: the scenarios
+        drawn, then with behaviours the tracks planned and walked (:func:`move_scenes`: the
+        catalogue's planning one step per scenario, the fitted behaviour's per chunk of
+        exits, the social force per window); the last call has ``done == total``.
     **settings
         Fields of :class:`AssemblyOptions` that replace those of ``options`` (e.g.
         ``behaviours=True``).
@@ -793,6 +707,8 @@ def scenes_from_fit(
     Returns
     -------
     list of Scene
+        Scene ``i`` is scenario ``i``; ``scene.artefacts`` its table and
+        :meth:`Scene.tracks_table` its tracks.
 
     Raises
     ------
@@ -808,7 +724,7 @@ def scenes_from_fit(
     if source is None:
         source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
     fit = as_fit(fit, source)
-    behaviour_source(
+    kind = behaviour_source(
         opts.behaviours, fit.behaviour, grid, behaviours_source or source, map_source=map_source
     )
     draws, laws = fit.traffic(opts.model)
@@ -838,18 +754,40 @@ def scenes_from_fit(
             nu = fit.area
     check_scenario_size(draws, ScenarioSize(n, horizon, nu, opts.start), source)
     labels = None if fit.class_labels is None else list(fit.class_labels)
-    return scenes_from_draws(
-        key,
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
+    from are_stats.traffic import key_from_seed, split_key
+
+    if isinstance(key, int | np.integer) and not isinstance(key, bool):
+        seed, k_tracks = int(key), None
+    else:
+        seed, k_tracks = split_key(key)
+    art = generate_scenarios(
+        seed,
         draws,
-        grid,
-        catalogue,
         n,
         horizon,
-        opts,
-        laws=laws,
-        fitted=fit.behaviour,
-        class_labels=labels,
+        free_mask=grid,
         area=nu if grid is None else area,
+        start=opts.start,
+        laws=laws,
+    )
+    standing = scenes_from_tables(art, None, catalogue, labels, range(n))
+    say = progress or (lambda done, total, what: None)
+    if kind == "none":
+        say(1, 1, "scenarios drawn")
+        return standing
+    moves = 1 if opts.interaction is False else 2
+    say(1, 1 + moves, "scenarios drawn")
+    if k_tracks is None:
+        k_tracks = key_from_seed(seed)
+    return move_scenes(
+        k_tracks,
+        standing,
+        grid,
+        catalogue,
+        horizon,
+        replace(opts, behaviours=kind),
+        fitted=fit.behaviour,
         source=source,
-        progress=progress,
+        progress=lambda done, total, what: say(1 + done, 1 + total, what),
     )

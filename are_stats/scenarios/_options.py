@@ -3,9 +3,9 @@
 A command reads its options once (``generate``'s command line, an experiment's
 ``mission``, ``augment``'s command line), builds one :class:`AssemblyOptions` and passes it
 whole to :func:`~are_stats.scenarios.scenes_from_fit` (or
-:func:`~are_stats.scenarios.scenes_from_draws`, :func:`~are_stats.scenarios.move_scenes`)
-and to the folder's manifest (:func:`~are_stats.scenarios.generate_manifest`), so the
-scenes drawn and the manifest that describes them cannot disagree. The assembly's
+:func:`~are_stats.scenarios.move_scenes`) and to the folder's manifest
+(:func:`~are_stats.scenarios.generate_manifest`), so the scenes drawn and the manifest that
+describes them cannot disagree. The assembly's
 functions also take the record's fields as keywords (:class:`AssemblySettings`): they
 replace the fields of ``options`` (:meth:`AssemblyOptions.with_settings`).
 """

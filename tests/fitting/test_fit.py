@@ -235,3 +235,44 @@ def test_the_long_stages_tell_their_steps_to_the_clock(command, fitted):
     assert checks[0][0] == 4 and checks[-1][0] == checks[-1][1], checks
     for name in ("realism", "displacement"):
         pd.testing.assert_frame_equal(fit.motion[name], fitted.motion[name])
+
+
+def test_hand_set_draws_are_a_fit_that_gives_them_back():
+    """Fit.from_draws holds hand-set rates as a posterior of one chain: traffic() returns
+    them bit for bit (values, dtypes, shapes) with the laws given, else the paper's."""
+    from are_stats.traffic import TrafficLaws
+
+    draws = {
+        "arrival_rate": np.array([3e-4, 1e-4]), "leave_rate": np.array([1 / 60, 0.1]),
+        "mix_weights": np.array([[1.0, 0.0], [0.25, 0.75]]),
+        "mix_rates": np.array([[15.0, 7.0], [3.0, 21.0]]),
+        "group_size_probs": np.array([[0.0, 1.0], [0.5, 0.5]]),
+    }  # fmt: skip
+    laws = TrafficLaws(arrivals="groups")
+    fit = Fit.from_draws(draws, laws=laws, class_labels=["person", "cart"], area=50.0)
+    got, got_laws = fit.traffic()
+    assert got_laws == laws and fit.area == 50.0 and fit.n_components == 2
+    assert fit.class_labels == ("person", "cart") and fit.behaviour is None
+    assert sorted(got) == sorted(draws)
+    for name, want in draws.items():
+        assert got[name].dtype == want.dtype and got[name].shape == want.shape
+        np.testing.assert_array_equal(got[name], want)
+    paper, paper_laws = fit.traffic("paper")
+    assert paper_laws.is_paper and "group_size_probs" not in paper
+    assert Fit.from_draws(draws).laws.is_paper
+    one = Fit.from_draws({"arrival_rate": 2e-3, "leave_rate": 0.05, "class_stay_mean": [9.0]})
+    got = one.traffic()[0]
+    assert got["arrival_rate"].tolist() == [2e-3] and got["class_stay_mean"].tolist() == [[9.0]]
+    assert one.class_stay_model == "per-class"  # the per-class stays are used, not dropped
+
+
+@pytest.mark.parametrize(
+    ("draws", "match"),
+    [
+        ({"leave_rate": [0.1]}, "rates: expected a variable 'arrival_rate'"),
+        ({"arrival_rate": [1.0], "leave_rate": [0.1], "arival": [1.0]}, r"unknown \['arival'\]"),
+    ],
+)
+def test_hand_set_draws_name_what_is_missing_or_unknown(draws, match):
+    with pytest.raises(ValueError, match=match):
+        Fit.from_draws(draws, source="rates")

@@ -14,7 +14,7 @@ from scipy import stats
 from are_stats.environment import OccupancyGrid, load_catalogue
 from are_stats.inputs import InputError, LimitError, limits
 from are_stats.perception import (
-    FrameBoxes,
+    PerceivedFrame,
     PinholeCamera,
     optical_from_base,
     perceive_frames,
@@ -235,17 +235,22 @@ def test_pictures(tmp_path):
     h = np.full((3, 3), 0.3)
     r = yaw_rotations([0.0, 0.5, 0.0])
     res = perceive_frames(wall, c, h, r, cam, None, 20.0, 5, return_depth=True)
-    boxes = FrameBoxes(c, h, r, res.counts[0], res.perceived[0])
-    fig = plot_camera_view(cam, res.depth[0], boxes)
+    frame = PerceivedFrame.from_result(res, 0, cam, c, h, r, 20.0)
+    assert frame.perceived.tolist() == res.perceived[0].tolist()
+    fig = plot_camera_view(frame)
     save_figure(fig, tmp_path / "cam.png")
     grid = OccupancyGrid(np.zeros((40, 100)), 0.1, (-1.0, -2.0, 0.0))
-    fig2 = plot_top_view(cam, 8.0, boxes, grid=grid)
+    fig2 = plot_top_view(frame, grid=grid)
     save_figure(fig2, tmp_path / "top.png")
     assert (tmp_path / "cam.png").stat().st_size > 1000
     with pytest.raises(FileExistsError):
         save_figure(fig2, tmp_path / "top.png")
     with pytest.raises(ValueError, match="depth: expected shape"):
-        plot_camera_view(cam, res.depth[0][:5], boxes)
+        plot_camera_view(frame._replace(depth=frame.depth[:5]))
+    with pytest.raises(ValueError, match="return_depth=True"):
+        PerceivedFrame.from_result(res._replace(depth=None), 0, cam, c, h, r, 20.0)
+    with pytest.raises(ValueError, match=r"t: expected a frame in \[0, 1\), got 1"):
+        PerceivedFrame.from_result(res, 1, cam, c, h, r, 20.0)
 
 
 def test_perceive_scenario_refuses_unsorted_paths_and_runaway_work():

@@ -10,12 +10,11 @@ import pytest
 from are_stats.behaviour import behaviour_tracks
 from are_stats.builder import ARBuilder
 from are_stats.environment import OccupancyGrid
-from are_stats.fitting import posterior_draws
+from are_stats.fitting import Fit, posterior_draws
 from are_stats.scenarios import (
     Scene,
     generate_scenarios,
     scene_tracks,
-    scenes_from_draws,
     scenes_from_fit,
 )
 from tests.scenarios.test_assembly_golden import WANT, _idata, _scenes_digest
@@ -139,8 +138,8 @@ def test_the_behaviour_rule_refuses_what_it_cannot_do(grid, catalogue):
     with pytest.raises(ValueError, match="expected one of"):
         scenes_from_fit(0, idata, grid, catalogue, 1, HORIZON, behaviours="dance")
     with pytest.raises(ValueError, match="need a map"):
-        scenes_from_draws(0, posterior_draws(idata), None, catalogue, 1, HORIZON,
-                          area=800.0, behaviours="catalogue")  # fmt: skip
+        scenes_from_fit(0, Fit.from_draws(posterior_draws(idata)), None, catalogue, 1, HORIZON,
+                        area=800.0, behaviours="catalogue")  # fmt: skip
 
 
 def test_empty_scenarios_are_scenes_without_artefacts(grid, catalogue):
@@ -229,7 +228,8 @@ def test_arrival_groups_walk_together_in_every_assembly(grid, catalogue):
         "mix_rates": np.array([[15.0, 7, 3, 21, 5]]),
     }  # fmt: skip
     laws = TrafficLaws(arrivals="groups")
-    scene = scenes_from_draws(3, draws, grid, catalogue, 1, HORIZON, laws=laws, behaviours=True)[0]
+    fit = Fit.from_draws(draws, laws=laws)
+    scene = scenes_from_fit(3, fit, grid, catalogue, 1, HORIZON, behaviours=True)[0]
     # the scene test_assembly_golden pins (its own test of the digest is in the slow tier)
     assert scene.has_tracks.any()
     assert _scenes_digest([scene]) == WANT["groups"]

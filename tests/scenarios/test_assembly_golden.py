@@ -28,10 +28,10 @@ from are_stats._lazy import arviz as az
 from are_stats.behaviour import BehaviourFit
 from are_stats.cli import app
 from are_stats.environment import OccupancyGrid
+from are_stats.fitting import Fit
 from are_stats.scenarios import (
     read_scenes,
     scene_tracks,
-    scenes_from_draws,
     scenes_from_fit,
     scenes_tables,
 )
@@ -131,7 +131,9 @@ def test_group_scenes_are_unchanged(grid, catalogue):
         "mix_rates": np.array([[15.0, 7, 3, 21, 5]]),
     }  # fmt: skip
     laws = TrafficLaws(arrivals="groups")
-    scenes = scenes_from_draws(3, draws, grid, catalogue, 1, HORIZON, laws=laws, behaviours=True)
+    scenes = scenes_from_fit(
+        3, Fit.from_draws(draws, laws=laws), grid, catalogue, 1, HORIZON, behaviours=True
+    )
     assert scenes[0].has_tracks.any()
     assert _scenes_digest(scenes) == WANT["groups"]
 
@@ -142,10 +144,9 @@ def test_fitted_scenes_are_unchanged(catalogue):
         "arrival_rate": np.array([0.05]), "leave_rate": np.array([1 / 20]),
         "mix_weights": np.array([[1.0]]), "mix_rates": np.array([[1.0]]),
     }  # fmt: skip
-    scenes = scenes_from_draws(
-        jax.random.key(4), draws, room, catalogue, 2, 60.0, behaviours="fitted", fitted=fit,
-        class_labels=["person"],
-    )  # fmt: skip
+    rates = Fit.from_draws(draws, behaviour=fit, class_labels=["person"])
+    scenes = scenes_from_fit(jax.random.key(4), rates, room, catalogue, 2, 60.0,
+                             behaviours="fitted")  # fmt: skip
     assert any(s.has_tracks.any() for s in scenes)
     assert _scenes_digest(scenes) == WANT["fitted"]
 

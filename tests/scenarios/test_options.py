@@ -11,21 +11,24 @@ import pandas as pd
 import pytest
 
 from are_stats.environment import OccupancyGrid, load_catalogue
+from are_stats.fitting import Fit
 from are_stats.inputs import InputError
 from are_stats.scenarios import (
     AssemblyOptions,
     AssemblySettings,
     generate_manifest,
-    scenes_from_draws,
+    scenes_from_fit,
     scenes_tables,
 )
 
-DRAWS = {
-    "arrival_rate": np.array([0.002]),
-    "leave_rate": np.array([1 / 30]),
-    "mix_weights": np.array([[0.5, 0.5]]),
-    "mix_rates": np.array([[1.0, 3.0]]),
-}
+RATES = Fit.from_draws(
+    {
+        "arrival_rate": np.array([0.002]),
+        "leave_rate": np.array([1 / 30]),
+        "mix_weights": np.array([[0.5, 0.5]]),
+        "mix_rates": np.array([[1.0, 3.0]]),
+    }
+)
 
 
 def test_the_keywords_are_the_records_fields():
@@ -78,17 +81,17 @@ def test_the_record_and_the_keywords_draw_the_same_moving_scenes():
     catalogue = load_catalogue()
     kw = {"behaviours": "catalogue", "behaviour_cell": 1.0, "behaviour_dt": 2.0,
           "interaction": False, "start": "empty"}  # fmt: skip
-    by_words = scenes_from_draws(5, DRAWS, grid, catalogue, 2, 40.0, **kw)
-    by_record = scenes_from_draws(5, DRAWS, grid, catalogue, 2, 40.0, AssemblyOptions(**kw))
+    by_words = scenes_from_fit(5, RATES, grid, catalogue, 2, 40.0, **kw)
+    by_record = scenes_from_fit(5, RATES, grid, catalogue, 2, 40.0, AssemblyOptions(**kw))
     over = AssemblyOptions(**{**kw, "behaviours": False})
-    overridden = scenes_from_draws(5, DRAWS, grid, catalogue, 2, 40.0, over, behaviours="catalogue")
+    overridden = scenes_from_fit(5, RATES, grid, catalogue, 2, 40.0, over, behaviours="catalogue")
     art, tracks = scenes_tables(by_words)
     assert len(art) and len(tracks)  # something moved
     for other in (by_record, overridden):
         got_art, got_tracks = scenes_tables(other)
         pd.testing.assert_frame_equal(got_art, art)
         pd.testing.assert_frame_equal(got_tracks, tracks)
-    standing = scenes_from_draws(5, DRAWS, grid, catalogue, 2, 40.0, over)
+    standing = scenes_from_fit(5, RATES, grid, catalogue, 2, 40.0, over)
     assert not any(s.has_tracks.any() for s in standing)
 
 
