@@ -388,8 +388,9 @@ left. The idle wall is about what wt-tracks estimated, less about a second (the 
 compile wall at idle): roughly 61 s. Left, by compile wall at load 7 (one in-process cold
 fit): the Laplace ``call`` programs, ``_window`` at 2,048, 1,024 and 4,096 slots, the
 behaviour's gradient (about 9 s each at that load), the two ``_per_track_jit`` programs
-(displacement errors' 512 tracks, held-out moves' 128: one program if the latter were padded
-to 512, bits not checked), the motion checks' float64 jitter ``_normal`` (about 3 s).
+(the displacement errors' 512 windows of 16 steps, the held-out moves' 128 whole tracks:
+one program only by padding both ways, not tried), the motion checks' float64 jitter
+``_normal`` (about 3 s).
 """
 
 from __future__ import annotations
