@@ -490,13 +490,14 @@ def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0
     hi = xy.max(0) + reach + np.array([x_shift, 0.0])
     cell = reach
     n_y = int(np.ceil((hi[1] - lo[1]) / cell)) + 3
+    # placed as they are (jax.device_put): jnp.asarray compiled a program per array (issue 29)
     return (
-        jnp.asarray(dist),
-        jnp.asarray(grad),
-        jnp.asarray(free),
-        jnp.asarray(org),
+        jax.device_put(np.asarray(dist)),
+        jax.device_put(grad),
+        jax.device_put(free),
+        jax.device_put(org),
         float(res),
-        jnp.asarray(lo - cell),
+        jax.device_put(np.asarray(lo - cell)),
         float(cell),
     ), n_y
 
@@ -884,7 +885,7 @@ def social_force_tracks(
         if wander is not None:
             turn_w = np.zeros((WINDOW_STEPS, nb))
             turn_w[:, slot] = _pace_window(wander, act, WINDOW_STEPS, log=True)[:, lead_col]
-            turn_w = jnp.asarray(turn_w)
+            turn_w = jax.device_put(turn_w)
         for c, i in zip(slot, act, strict=True):
             if kin[i]:
                 a, b = start[i], stop[i]
@@ -906,8 +907,8 @@ def social_force_tracks(
             dt,
             p_j,
             walls,
-            jnp.int32(n_run),
-            jnp.int32(n_y),
+            np.int32(n_run),
+            np.int32(n_y),
             all_pairs,
             block,
             repel,

@@ -395,16 +395,18 @@ def soft_policy(
         g = len(gl)
         padded = gl[np.minimum(np.arange(-(-g // int(bucket)) * int(bucket)), g - 1)]
         keep, bonus = _goal_arrays(occ, padded, goal_reward)
+        # the arrays placed as they are (jax.device_put) and the numbers as Python's:
+        # jnp.asarray of each compiled a program of its own (issue 29; the same values)
         sol = _capped_jit(
-            jnp.asarray(path_free(occ)),
-            jnp.asarray(keep),
-            jnp.asarray(bonus),
-            jnp.asarray(float(beta)),
-            jnp.asarray(float(slip)),
-            jnp.asarray(int(n_epochs), jnp.int32),
+            jax.device_put(np.asarray(path_free(occ))),
+            jax.device_put(keep),
+            jax.device_put(bonus),
+            float(beta),
+            float(slip),
+            jax.device_put(np.asarray(int(n_epochs), np.int32)),
             step_cost,
             time_cost,
-            jnp.asarray(cell_reward, float),
+            jax.device_put(np.asarray(cell_reward, float)),
             float(tol),
         )
         # cut on the host: slicing (or copying back) a device array compiles a program per

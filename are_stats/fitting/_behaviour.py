@@ -814,20 +814,27 @@ class _LikelihoodData(NamedTuple):
         Rewards of the soft MDP.
     phi : (F, H, W) float or None
         Reward features (``None``: no cell reward).
+
+    The arrays are NumPy's, of the computation's dtypes, and stay on the host: the
+    compiled program takes them as arguments, each call placing them (split by goals
+    across the devices where there are several) as it needs. JAX arrays here would each
+    have compiled a program to be made (``jnp.asarray`` of a float64 table to float32:
+    ``convert_element_type``) and two more to be split across the devices
+    (``_multi_slice``; issue 29).
     """
 
-    ok: jax.Array
-    keep: jax.Array
-    bonus: jax.Array
-    tol_mask: jax.Array
-    goal_index: jax.Array
-    rows: jax.Array
-    cols: jax.Array
-    move: jax.Array
-    n_epochs: jax.Array
-    step_cost: jax.Array
-    time_cost: jax.Array
-    phi: jax.Array | None
+    ok: np.ndarray
+    keep: np.ndarray
+    bonus: np.ndarray
+    tol_mask: np.ndarray
+    goal_index: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    move: np.ndarray
+    n_epochs: np.ndarray
+    step_cost: np.ndarray
+    time_cost: np.ndarray
+    phi: np.ndarray | None
 
 
 def _bucket(n: int, multiple: int = 1) -> int:
@@ -978,6 +985,7 @@ def behaviour_log_likelihood(
         n_epochs = _n_epochs(free, paths, obs.goals)
     ok = jnp.asarray(path_free(~free))
     keep, bonus = _goal_masks(free, obs.goals, goal_reward)
+    keep = jnp.asarray(keep)
     dtype = jnp.result_type(beta)
     reward: Any = 0.0
     if features is not None:
@@ -1000,11 +1008,15 @@ def behaviour_log_likelihood(
     return moves_log_likelihood(sol.policy, ok, slip, obs), n_epochs
 
 
-def _goal_masks(free: np.ndarray, goals: np.ndarray, goal_reward: float):
+def _goal_masks(
+    free: np.ndarray, goals: np.ndarray, goal_reward: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(keep (G, H, W) bool, bonus (G, H, W) float64)``: each goal's non-absorbing cells
+    and ``goal_reward`` on its cell (NumPy arrays)."""
     g = len(goals)
     mask = np.zeros((g,) + free.shape, bool)
     mask[np.arange(g), goals[:, 0], goals[:, 1]] = True
-    return jnp.asarray(free[None] & ~mask), np.where(mask, goal_reward, 0.0)
+    return free[None] & ~mask, np.where(mask, goal_reward, 0.0)
 
 
 def _n_epochs(
@@ -1130,24 +1142,26 @@ def _likelihood_data(
     ] = True
     seen = ndimage.binary_dilation(seen, np.ones((1, 5, 5), bool))[pad_g]
 
-    def steps(x: np.ndarray, fill: int) -> jax.Array:
+    def steps(x: np.ndarray, fill: int) -> np.ndarray:
         out = np.full((nb, tb), fill, np.int64)
         out[:n, :t] = x
-        return jnp.asarray(out)
+        return out
 
+    # NumPy arrays (host): see _LikelihoodData (the casts as jnp.asarray's, to nearest)
+    real = np.dtype(dtype)
     data = _LikelihoodData(
-        ok=jnp.asarray(path_free(~free)),
+        ok=np.asarray(path_free(~free)),
         keep=keep,
-        bonus=jnp.asarray(bonus, dtype),
-        tol_mask=jnp.asarray(seen),
-        goal_index=jnp.asarray(np.r_[obs.goal_index, np.zeros(nb - n, np.int64)]),
+        bonus=np.asarray(bonus, real),
+        tol_mask=seen,
+        goal_index=np.r_[obs.goal_index, np.zeros(nb - n, np.int64)].astype(np.int64),
         rows=steps(obs.rows, 0),
         cols=steps(obs.cols, 0),
         move=steps(obs.move, -1),
-        n_epochs=jnp.asarray(k, jnp.int32),
-        step_cost=jnp.asarray(step_cost, dtype),
-        time_cost=jnp.asarray(time_cost, dtype),
-        phi=None if features is None else jnp.asarray(features, dtype),
+        n_epochs=np.asarray(k, np.int32),
+        step_cost=np.asarray(step_cost, real),
+        time_cost=np.asarray(time_cost, real),
+        phi=None if features is None else np.asarray(features, real),
     )
     return data, obs, k, n_devices
 
@@ -1221,8 +1235,8 @@ def _hessian(theta: jax.Array, data: _LikelihoodData, epochs: int, n_devices: in
     whose second derivatives forward mode through the stopped solve gives (with the early
     stop free to move between the difference points they jumped); symmetrised."""
     dtype = jnp.result_type(theta)
-    fixed = data._replace(n_epochs=jnp.asarray(int(epochs) + 1, jnp.int32))
-    never = jnp.asarray(-1.0, dtype)
+    fixed = data._replace(n_epochs=np.asarray(int(epochs) + 1, np.int32))
+    never = np.asarray(-1.0, dtype)
     h = HESSIAN_STEP[jnp.dtype(dtype).name]
     th = np.asarray(theta, np.float64)
     n = len(th)
@@ -1232,7 +1246,7 @@ def _hessian(theta: jax.Array, data: _LikelihoodData, epochs: int, n_devices: in
         def grad(s: float, j: int = j) -> np.ndarray:
             x = th.copy()
             x[j] += s * h
-            g = _gradient_value_epochs(jnp.asarray(x, dtype), fixed, never, n_devices)[0]
+            g = _gradient_value_epochs(np.asarray(x, dtype), fixed, never, n_devices)[0]
             return np.asarray(g, np.float64)
 
         cols.append((8.0 * (grad(1) - grad(-1)) - (grad(2) - grad(-2))) / (12.0 * h))
@@ -1266,11 +1280,11 @@ def _mle(
     )  # fmt: skip
     n_f = 0 if features is None else len(features)
     scale = 1.0 / max(obs.n_moves, 1)
-    tol_a = jnp.asarray(tol, dtype)
+    tol_a = np.asarray(tol, dtype)
     epochs_at: dict[bytes, int] = {}  # the solve's epochs at each point evaluated
 
     def fun(th: np.ndarray) -> tuple[float, np.ndarray]:
-        g, v, epochs = _gradient_value_epochs(jnp.asarray(th, dtype), data, tol_a, n_devices)
+        g, v, epochs = _gradient_value_epochs(np.asarray(th, dtype), data, tol_a, n_devices)
         epochs_at[np.asarray(th, float).tobytes()] = int(epochs)
         return -float(v) * scale, -np.asarray(g, float) * scale
 
@@ -1288,7 +1302,7 @@ def _mle(
         },
     )  # fmt: skip
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
-    th = jnp.asarray(res.x, dtype)
+    th = np.asarray(res.x, dtype)
     epochs = epochs_at.get(np.asarray(res.x, float).tobytes())
     if epochs is None:  # the optimum is a point evaluated (L-BFGS-B): never, to be safe
         epochs = int(_gradient_value_epochs(th, data, tol_a, n_devices)[2])

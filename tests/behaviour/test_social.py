@@ -3,6 +3,7 @@ simulated with known values."""
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 import pandas as pd
 import pytest
@@ -200,6 +201,21 @@ def test_scenarios_do_not_meet_and_kinematic_artefacts_keep_their_plan():
     walker = out[out["id"] == 0]
     assert _pair(out, 0, 1).min() > 2 * SocialForce().radius  # the walker alone gave way
     assert np.abs(walker["y"]).max() > 0.3
+
+
+def test_a_walk_compiles_nothing_but_its_window(caplog):
+    """The walls' tables (distance, its gradient, the free mask, the frames) are placed as
+    they are (issue 29: jnp.asarray of each compiled a one-operation program, four per
+    map): on a map of its own (130 x 170 cells) the walk's window is the only program."""
+    import logging
+
+    grid = OccupancyGrid(np.zeros((130, 170)), 0.1)
+    plan = _plan([(0, 0.0, (1, 1), (14, 1), 1.3), (1, 0.0, (14, 1.05), (1, 1.05), 1.3)], 0.1, 3)
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        out = social_force_tracks(plan, grid=grid, dt=0.1)
+    compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
+    assert {m.split()[1] for m in compiled} == {"jit(_window)"}
+    assert np.isfinite(out[["x", "y"]].to_numpy()).all()
 
 
 def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():

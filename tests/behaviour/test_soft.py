@@ -194,6 +194,22 @@ def test_goals_split_across_devices_stop_at_the_epoch_of_the_whole_batch() -> No
     assert np.abs(np.asarray(results[None].values - whole.values)).max() > 1e-6
 
 
+def test_bucketed_soft_policy_compiles_nothing_but_its_program(caplog) -> None:
+    """soft_policy's ``bucket`` hands its arrays and numbers to the solve as they are (issue
+    29: jnp.asarray of each compiled a one-operation program, four per grid and goal
+    bucket): on a grid of its own (7 x 11) the solve's program is the only one."""
+    import logging
+
+    occ = np.zeros((7, 11), bool)
+    occ[3, 2:8] = True
+    cells = np.argwhere(~occ)
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        sol = soft_policy(occ, cells[:3], 2.0, 0.1, n_epochs=30, tol=1e-3, bucket=4)
+    compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
+    assert [m.split()[1] for m in compiled] == ["jit(_capped_jit)"]
+    assert np.isfinite(np.asarray(sol.policy)).all()
+
+
 def test_bucketed_soft_policy_is_the_same_bit_for_bit_from_one_program() -> None:
     """soft_policy's ``bucket`` (issue 29: generation's soft solves compiled one program per
     epoch cap and goal count): the goals padded with copies of the last one, the cap and

@@ -357,6 +357,40 @@ both rounds. Not done: ``_window``'s two displacement-error sizes (2,048 and 4,0
 padding the five smaller walks to 4,096 doubles their runs, not measured against the compile
 saved; smaller chunks draw otherwise) and the 16- and 32-slot windows (all pairs: their sums
 over the slots keep their sizes).
+
+The tracks part without one-operation programs (wt-tracks2; 2026-11-28, wt-int 1ef3373 and
+the branch started together in fresh processes with empty caches, the CLI's command, child
+CPU by ``getrusage``, ``JAX_LOG_COMPILES=1``): in JAX 0.10 ``jnp.asarray`` of a NumPy array
+compiles a ``stage`` program per shape and dtype (a cast a ``convert_element_type`` one), and
+a device array handed to a program split across the two devices two ``_multi_slice`` ones
+(bool and float32 ``[8, 20, 40]``: the behaviour likelihood's goal-sharded arguments, not an
+iteration). Found by a logging handler on the compilations with a traceback per
+compilation: ten from the behaviour fit (its data, ``theta``, the solve's numbers), four from
+``soft_policy``'s buckets (the assembly's goals), four per map from the social force's walls
+(two maps), one from the window's ``jnp.int32`` counts. Now the likelihood's data stay NumPy
+(the program places them), the others go by ``jax.device_put`` or as NumPy / Python numbers:
+the same argument types, programs and bits. XLA compilations 43 -> 23 (the window's counts
+still ``jnp.int32``), load 7.8 -> 10: cold CPU 104.5 vs 104.4 s (wall 414 vs 406 s); then
+43 -> 22, load 9.4 -> 10.7: 98.3 vs 99.5 s (wall 441 vs 448 s): no CPU change above the
+noise of a run at that load (20 such programs cost 0.49-0.52 s of CPU to make in a fresh
+process, 0.03 s by ``device_put``; at idle about 0.05 s of wall each). The fit file's every
+group and root (``xarray`` ``identical``) and all 17 criticism files byte for byte the same,
+in both rounds. ``_window``'s displacement-error sizes: all eight walks at 4,096 slots
+(instead of five at 2,048) keep the table's bits (md5 equal) and save the 2,048 program's
+compile, but double the five walks: ``displacement_errors`` alone in a fresh process (the
+fit's behaviour and interaction, 200 windows, process CPU, load 8-12, two rounds) cold 19.64
+-> 18.02 and 14.93 -> 13.47 s, warm (second call) 7.36 -> 8.35 and 6.64 -> 7.42 s: 1.5 s
+won cold, 0.8-1.0 s lost in every repeated fit (the compile is then read from the cache);
+not kept. The variations' bootstrap (100 replicates) is 0.17 s of CPU on the 302-person
+table (0.35 s with, 0.18 s without): left as it is. ``string_pull_many`` on a generation's
+6,000 paths is now 1.28 s of ``continuous_paths``' 1.64 s (``_crossed_block`` 0.70 s):
+left. The idle wall is about what wt-tracks estimated, less about a second (the programs'
+compile wall at idle): roughly 61 s. Left, by compile wall at load 7 (one in-process cold
+fit): the Laplace ``call`` programs, ``_window`` at 2,048, 1,024 and 4,096 slots, the
+behaviour's gradient (about 9 s each at that load), the two ``_per_track_jit`` programs
+(the displacement errors' 512 windows of 16 steps, the held-out moves' 128 whole tracks:
+one program only by padding both ways, not tried), the motion checks' float64 jitter
+``_normal`` (about 3 s).
 """
 
 from __future__ import annotations

@@ -149,3 +149,23 @@ def test_the_fit_compiles_one_program_for_value_gradient_and_hessian() -> None:
     )  # fmt: skip
     assert fb._gradient_value_epochs._cache_size() == 1
     assert np.isfinite([out["beta_se"], out["slip_se"], *out["weights_se"]]).all()
+
+
+def test_the_fit_compiles_nothing_but_its_program(caplog) -> None:
+    """_mle's data stay NumPy arrays on the host (issue 29): no program compiled to make
+    them (``jnp.asarray``'s ``stage``, ``convert_element_type``), to cast ``theta``, or to
+    split the goals across the devices (``_multi_slice``); the gradient program is the
+    only one. A grid of its own (11 x 13) so that no other test compiled its shapes."""
+    import logging
+
+    free, paths, _ = _world()
+    free = np.pad(free, ((0, 1), (0, 1)), constant_values=True)
+    phi = wall_distance_feature(~free, 1.0)[None]
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        out = fb._mle(
+            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, beta0=2.0,
+            slip0=0.1, dtype=jnp.dtype("float32"), tol=1e-3, features=phi,
+        )  # fmt: skip
+    compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
+    assert [m.split()[1] for m in compiled] == ["jit(_gradient_value_epochs)"]
+    assert np.isfinite([out["beta_se"], out["slip_se"], *out["weights_se"]]).all()
