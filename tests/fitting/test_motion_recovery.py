@@ -18,13 +18,13 @@ and the new log's (its p-value is not used: the values of a track are correlated
 time, so it is far too small). A second draw of the generating model reads ``D`` 0.039-0.072
 against the log (keys 11-13); the checks allow ``D < 0.15`` (about twice that) for the
 fitted model and require ``D > 0.25`` (turning rate) / ``0.1`` (acceleration) for it
-without its wander / pace (measured 0.443-0.468 and 0.112-0.549). Key 12's wander reads
-2.94 s, past a third of the longest lag (8.8 s), the identification limit until
-2026-11-28: the fit read no wander there and its turning rates missed (``D`` 0.468). With
-the limit at half the longest lag it reads 0.137 rad and ``D`` is 0.049
-(docs/src/behaviour.md). Since the wander is read off the bearing to the route's next
-corner (2026-11-28) keys 11-13 read 0.125, 0.116 and 0.131 rad (2.24, 1.89, 2.41 s); the
-``D`` values quoted are from before, and the checks pass with these readings.
+without its wander / pace (measured 0.443-0.468 and 0.127-0.166). Key 12's wander read
+2.94 s with the second-difference estimator, past a third of the longest lag (8.8 s), the
+identification limit until 2026-11-28: the fit read no wander there and its turning rates
+missed (``D`` 0.468). The wander is now read off the bearing from each window's middle
+to its route's next corner (docs/src/behaviour.md): keys 11-13 read 0.130, 0.121 and
+0.136 rad (2.27, 2.09, 2.46 s), the generating model's walked heading reading above its
+0.12 past the relaxation time.
 """
 
 from __future__ import annotations
@@ -89,13 +89,14 @@ def crossings() -> tuple[pd.DataFrame, np.ndarray, OccupancyGrid, BehaviourFit]:
 @pytest.mark.slow  # a behaviour fit and four walks of 40 people per log
 @pytest.mark.parametrize("key", [11, 12, 13])
 def test_acceleration_and_turning_rate_walked_by_the_fit_are_the_logs(key: int, crossings) -> None:
-    """Keys 11 and 13: the fit reads a wander of 0.126 / 0.153 rad and a pace of 0.102 /
-    0.099 (truth 0.12, 0.1); the new log's ``D`` against the log 0.042 / 0.057 (turning
-    rate) and 0.031 / 0.067 (acceleration), a second draw of the generating model 0.040 /
-    0.043 and 0.039 / 0.054; without the wander the turning rate's 0.443, without the pace
-    the acceleration's 0.177 / 0.112. Key 12: the fit reads 0.137 rad over 2.94 s and a
-    pace of 0.128 over 5.0 s; ``D`` 0.049 (turning rate) and 0.060 (acceleration), the
-    generating model's 0.072 / 0.058, without the wander 0.468."""
+    """Measured 2026-11-28 (the wander read from each window's middle). Keys 11 and 13: the
+    fit reads a wander of 0.130 / 0.136 rad and a pace of 0.102 / 0.099 (truth 0.12, 0.1);
+    the new log's ``D`` against the log 0.035 / 0.035 (turning rate) and 0.032 / 0.048
+    (acceleration), a second draw of the generating model 0.040 / 0.043 and 0.039 / 0.054;
+    without the wander the turning rate's 0.443 / 0.443, without the pace the
+    acceleration's 0.166 / 0.137. Key 12: the fit reads 0.121 rad over 2.09 s and a pace of
+    0.128 over 5.0 s; ``D`` 0.063 (turning rate) and 0.072 (acceleration), the generating
+    model's 0.072 / 0.058, without the wander 0.468, without the pace 0.127."""
     walkers, free, grid, truth = crossings
     log = _walk(key, truth, walkers, grid)
     refit = fit_behaviour(log, free, 0.5, (0.0, 0.0), max_fit_tracks=10)

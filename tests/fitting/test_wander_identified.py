@@ -8,9 +8,12 @@ every 6 s, so they meet; seen at 2.5 Hz, without noise and with 5 cm) and the sa
 without within-person variation. The wander is read off each window's bearing to its
 route's next corner (:func:`~are_stats.fitting._behaviour._heading_variation`). Measured
 on keys 11-18 (docs/src/behaviour.md): identified on 16 of 16 varying logs (before: 7 of
-16), 0.100-0.149 rad without noise and 0.106-0.127 with 5 cm, each within 2.5 of its
-bootstrap standard errors of the truth (those 0.008-0.05); the no-variation logs read
-0.005 rad or less (before: 3 of 16 read 0.037-0.044).
+16), 0.104-0.156 rad without noise and 0.120-0.153 with 5 cm since the bearing is read
+from each window's middle (from its start: 0.100-0.149 and 0.106-0.127), each within 2.5
+of its bootstrap standard errors of 0.12 (those 0.01-0.05). The generating model's
+walked heading itself reads above 0.12 once the window is past the social force's
+relaxation time (docs/src/behaviour.md); the no-variation logs read 0.0054 rad or less
+without noise and at most 0.027 with 5 cm (within two standard errors of none).
 """
 
 from __future__ import annotations
@@ -90,10 +93,11 @@ def wander(tracks: pd.DataFrame, free: np.ndarray | None, res: float = 0.5) -> d
 @pytest.mark.parametrize("noise", [0.0, 0.05])
 def test_the_wander_is_read_on_every_varying_crossing_log_within_its_standard_error(noise):
     """Keys 11-18: every log identifies the wander, each within 3 of its standard errors
-    of the truth (measured: at most 2.5; for an unbiased Gaussian estimate 3 standard
-    errors fail one log in 370, 2% of 8 logs), and the standard error is the spread over
-    the logs (their sd against the median standard error: 1.3 without noise, 0.75 with;
-    checked within 0.5-2, about 2.5 sd of an sd over 8 logs)."""
+    of the truth (measured: at most 2.42 without noise, 2.28 with; for an unbiased
+    Gaussian estimate 3 standard errors fail one log in 370, 2% of 8 logs), and the
+    standard error is the spread over the logs (their sd against the median standard
+    error: 1.28 without noise, 0.94 with; checked within 0.5-2, about 2.5 sd of an sd over
+    8 logs)."""
     _, free, _, truth = varying_model()
     got = [wander(crossing_log(truth, seed, noise), free) for seed in range(8)]
     sd = np.array([g["heading_within_sd"] for g in got])
@@ -106,9 +110,14 @@ def test_the_wander_is_read_on_every_varying_crossing_log_within_its_standard_er
 @pytest.mark.slow  # 8 walks of 40 people
 def test_logs_without_variation_read_no_wander():
     """The same model without within-person variation, keys 11-14, without noise and with
-    5 cm: none reads a wander of 0.02 rad (a sixth of the varying logs'); measured at
-    most 0.005 on keys 11-18, where the second-difference estimator before read
-    0.037-0.044 on 3 of 16 logs."""
+    5 cm: none reads a wander of 0.03 rad (a quarter of the varying logs'). Measured on
+    keys 11-18: at most 0.0054 without noise; with 5 cm 0 (four logs), not identified
+    (two) and 0.022 and 0.0265 rad (keys 14 and 17, bootstrap standard errors 0.013 and
+    0.011: within two of none; with the noise level 5% higher they read 0.012 and not
+    identified), where the second-difference estimator read 0.037-0.044 on 3 of 16 logs.
+    The bearing read off the window's start (until 2026-11-28) read 0 on all eight noisy
+    logs because the first sample's noise turned both the chord and the bearing, so the
+    noise moment was over-subtracted (docs/src/behaviour.md)."""
     _, free, _, truth = varying_model()
     zero, nan = np.zeros(1), np.full(1, math.nan)
     flat = dataclasses.replace(
@@ -118,16 +127,17 @@ def test_logs_without_variation_read_no_wander():
     for seed in range(4):
         for noise in (0.0, 0.05):
             got = wander(crossing_log(flat, seed, noise), free)["heading_within_sd"]
-            assert not got >= 0.02, (seed, noise, got)
+            assert not got >= 0.03, (seed, noise, got)
 
 
 def test_the_standard_error_is_the_spread_over_simulated_logs():
     """Six logs of 40 OU wanderers (0.12 rad over 2 s, aiming at their goals) of 20 s (the
     crossings' walk length), seen at 2.5 Hz with 5 cm noise: the bootstrap standard errors
-    (0.0050-0.0062 rad) against the sd of the six estimates (0.0034; 0.0045 without noise
-    against 0.0048-0.0078): within a factor 2 (an sd over six logs is within 0.45-1.55 of
-    its own sd 95% of the time). The estimates themselves read low on walks this short
-    (0.102-0.111 rad; 0.107-0.120 without noise): docs/src/behaviour.md."""
+    (0.0054-0.0072 rad) against the sd of the six estimates (0.0036; 0.0048 without noise
+    against 0.0049-0.0081): within a factor 2 (an sd over six logs is within 0.45-1.55 of
+    its own sd 95% of the time). The estimates read 0.114-0.124 rad (0.110-0.124 without
+    noise); with the bearing read from each window's start (until 2026-11-28) they read
+    low, 0.102-0.111 (0.107-0.120): docs/src/behaviour.md."""
     from tests.fitting.test_heading_variation import ou_heading_tracks
 
     got = []
