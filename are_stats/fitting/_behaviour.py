@@ -398,9 +398,11 @@ def _route_corners(
         free, origin, res = route_map
         o = np.asarray(origin, float)[:2]
         pulled = string_pull_many(
-            [p[k] for p, k in zip(points, thin, strict=True)], free, (float(o[0]), float(o[1])),
+            [p[k] for p, k in zip(points, thin, strict=True)],
+            free,
+            (float(o[0]), float(o[1])),
             float(res),
-        )  # fmt: skip
+        )
     out = []
     for p, v, k in zip(points, pulled, thin, strict=True):
         keep = {0, len(p) - 1}
@@ -514,9 +516,11 @@ def _within_variation(
     used = [
         i
         for i, ((t, _), v) in enumerate(zip(tracks, speeds, strict=True))
-        if np.isfinite(v) and v > 0 and t.size >= 2
+        if np.isfinite(v)
+        and v > 0
+        and t.size >= 2
         and int((t[-1] - t[0]) / period + 1e-9) + 1 > m + lags[0]
-    ]  # fmt: skip
+    ]
     resampled = []
     for i in used:
         t, xy = tracks[i]
@@ -552,8 +556,9 @@ def _within_variation(
         # the heading of the same windows (their chord's) off the bearing from the chord's
         # middle to the route's next corner (after the window's first sample), where their
         # speed is read: from the middle, the bearing's sweep over the window cancels
-        nxt = corner[np.minimum(np.searchsorted(corner, np.arange(y.size), "right"),
-                                corner.size - 1)]  # fmt: skip
+        nxt = corner[
+            np.minimum(np.searchsorted(corner, np.arange(y.size), "right"), corner.size - 1)
+        ]
         to = p[nxt] - 0.5 * (p[:-m] + p[m:])
         d_xy = p[m:] - p[:-m]
         r = np.arctan2(d_xy[:, 1], d_xy[:, 0]) - np.arctan2(to[:, 1], to[:, 0])
@@ -602,8 +607,10 @@ def _within_variation(
                 first = block @ below if lo_ else np.zeros(len(rows))  # counts before
                 cw = first[:, None] + np.cumsum(block[:, who[lo_:hi_]], axis=1)
                 if lo_ == 0 or all(((first <= r) & (cw[:, -1] > r)).all() for r in ranks):
-                    at = [lo_ + np.minimum((cw <= r[:, None]).sum(axis=1), hi_ - lo_ - 1)
-                          for r in ranks]  # fmt: skip
+                    at = [
+                        lo_ + np.minimum((cw <= r[:, None]).sum(axis=1), hi_ - lo_ - 1)
+                        for r in ranks
+                    ]
                     out[rows] = 0.5 * (v[at[0]] + v[at[1]])
                     break
         return out
@@ -623,10 +630,12 @@ def _within_variation(
             else:
                 # the median of a Gaussian's square is 0.4549 times its variance: robust
                 # to the few windows per track that a missed corner turns
-                raw = np.array([
-                    float(np.median(turn[k])) if meds is None else float(meds[k])
-                    for k in np.flatnonzero(use)
-                ]) / (2.0 * MEDIAN_CHI2_1)  # fmt: skip
+                raw = np.array(
+                    [
+                        float(np.median(turn[k])) if meds is None else float(meds[k])
+                        for k in np.flatnonzero(use)
+                    ]
+                ) / (2.0 * MEDIAN_CHI2_1)
             gamma = raw - (c @ (cnt[what] * n0s[:, None]))[use] / pairs[use]
             est[what] = _ou_fit(gamma, pairs[use], lags[use] * period, period, window)
         return est
@@ -648,9 +657,11 @@ def _within_variation(
             times = boot[np.isfinite(boot[:, 1]), 1]
             time_se = float(np.std(times, ddof=1)) if times.size >= 10 else math.nan
         out[what] = {
-            f"{name}_sd": math.sqrt(var), f"{name}_time": tau,
-            f"{name}_sd_se": sd_se, f"{name}_time_se": time_se if var > 0 else math.nan,
-        }  # fmt: skip
+            f"{name}_sd": math.sqrt(var),
+            f"{name}_time": tau,
+            f"{name}_sd_se": sd_se,
+            f"{name}_time_se": time_se if var > 0 else math.nan,
+        }
     return out
 
 
@@ -1543,9 +1554,13 @@ def fit_behaviour(
         # the within-person variation of the walkers' pace (runners left out)
         walkers = np.flatnonzero(np.isfinite(sp) & (sp > 0) & (sp <= float(threshold)))
         within = _within_variation(
-            [seen[i] for i in walkers], sp[walkers], noise, [near[i] for i in walkers],
-            route_map=(free_fine, origin_a, res), seed=(seed, 26, ci),
-        )  # fmt: skip
+            [seen[i] for i in walkers],
+            sp[walkers],
+            noise,
+            [near[i] for i in walkers],
+            route_map=(free_fine, origin_a, res),
+            seed=(seed, 26, ci),
+        )
         law |= within["speed"] | within["heading"]
         # one cell per epoch at the (noise-free) median walking speed
         dt_c = float(dt) if dt is not None else cell / math.exp(law["speed_mu"])
