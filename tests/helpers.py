@@ -162,3 +162,22 @@ def courtyard_artefacts(**over) -> pd.DataFrame:
     }
     cols.update(over)
     return pd.DataFrame(cols)
+
+
+def variation_inputs(tracks: pd.DataFrame) -> tuple[list, np.ndarray, float, list]:
+    """What ``fit_behaviour`` hands its within-person variation estimators
+    (``_speed_variation``, ``_heading_variation``): each track's ``(t, xy)`` in id order,
+    its speed, the log's tracker noise and each sample's crowded flag."""
+    # lazy: are_stats.fitting costs about 3 s to import, and most tests here do not need it
+    from are_stats.fitting import tracker_noise
+    from are_stats.fitting._behaviour import _crowded, _track_speed
+
+    noise = tracker_noise(tracks)
+    tracks = tracks.sort_values(["id", "t"]).reset_index(drop=True)
+    near = _crowded(tracks)
+    seen, crowded = [], []
+    for _, g in tracks.groupby("id"):
+        seen.append((g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)))
+        crowded.append(near[g.index.to_numpy()])
+    speeds = np.array([_track_speed(t, xy, noise) for t, xy in seen])
+    return seen, speeds, noise, crowded

@@ -27,9 +27,10 @@ import pandas as pd
 import pytest
 
 from are_stats.behaviour import BehaviourFit, social_force_tracks
-from are_stats.fitting import attach_behaviour, fit_behaviour, tracker_noise
-from are_stats.fitting._behaviour import _crowded, _heading_variation, _track_speed
+from are_stats.fitting import attach_behaviour, fit_behaviour
+from are_stats.fitting._behaviour import _heading_variation
 from tests.fitting.test_speed_variation import _inner, _lanes, walks_without_and_with
+from tests.helpers import variation_inputs
 
 SD, TIME = 0.12, 2.0
 TOL_SD, TOL_TIME = 0.012, 0.44
@@ -79,14 +80,7 @@ def ou_heading_tracks(
 def _variation(tracks: pd.DataFrame, route_map: tuple | None = None) -> dict[str, float]:
     """The estimate as fit_behaviour makes it (``route_map``: the map's free cells, origin
     and resolution, which fit_behaviour passes; default an open area)."""
-    noise = tracker_noise(tracks)
-    tracks = tracks.sort_values(["id", "t"]).reset_index(drop=True)
-    near = _crowded(tracks)
-    seen, crowded = [], []
-    for _, g in tracks.groupby("id"):
-        seen.append((g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)))
-        crowded.append(near[g.index.to_numpy()])
-    speeds = np.array([_track_speed(t, xy, noise) for t, xy in seen])
+    seen, speeds, noise, crowded = variation_inputs(tracks)
     return _heading_variation(seen, speeds, noise, crowded, route_map)
 
 

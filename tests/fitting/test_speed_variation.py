@@ -21,8 +21,9 @@ import pandas as pd
 import pytest
 
 from are_stats.behaviour import BehaviourFit, social_force_tracks
-from are_stats.fitting import attach_behaviour, fit_behaviour, tracker_noise
-from are_stats.fitting._behaviour import _crowded, _speed_variation, _track_speed
+from are_stats.fitting import attach_behaviour, fit_behaviour
+from are_stats.fitting._behaviour import _speed_variation
+from tests.helpers import variation_inputs
 
 SD, TIME = 0.1, 3.0
 TOL_SD, TOL_TIME = 4 * 0.0025, 4 * 0.31
@@ -64,14 +65,7 @@ def ou_tracks(
 def _variation(tracks: pd.DataFrame) -> dict[str, float]:
     """The estimate as fit_behaviour makes it: the log's noise, each track's speed, then
     the pooled variogram."""
-    noise = tracker_noise(tracks)
-    tracks = tracks.sort_values(["id", "t"]).reset_index(drop=True)
-    near = _crowded(tracks)
-    seen, crowded = [], []
-    for _, g in tracks.groupby("id"):
-        seen.append((g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)))
-        crowded.append(near[g.index.to_numpy()])
-    speeds = np.array([_track_speed(t, xy, noise) for t, xy in seen])
+    seen, speeds, noise, crowded = variation_inputs(tracks)
     return _speed_variation(seen, speeds, noise, crowded)
 
 

@@ -29,10 +29,10 @@ import pytest
 
 from are_stats.behaviour import BehaviourFit
 from are_stats.environment import OccupancyGrid, load_catalogue
-from are_stats.fitting import fit_behaviour, tracker_noise, variation_table
-from are_stats.fitting._behaviour import _crowded, _heading_variation, _track_speed
+from are_stats.fitting import fit_behaviour, variation_table
+from are_stats.fitting._behaviour import _heading_variation
 from are_stats.scenarios import scene_tracks
-from tests.helpers import crossing_artefacts
+from tests.helpers import crossing_artefacts, variation_inputs
 
 SD, TIME = 0.12, 2.0
 STEP = 0.4  # s, the logs' sampling (2.5 Hz)
@@ -77,14 +77,7 @@ def crossing_log(fit: BehaviourFit, seed: int, noise: float) -> pd.DataFrame:
 
 def wander(tracks: pd.DataFrame, free: np.ndarray | None, res: float = 0.5) -> dict:
     """The wander as fit_behaviour reads it (``free``: the map the routes are pulled on)."""
-    noise = tracker_noise(tracks)
-    tracks = tracks.sort_values(["id", "t"]).reset_index(drop=True)
-    near = _crowded(tracks)
-    seen, crowded = [], []
-    for _, g in tracks.groupby("id"):
-        seen.append((g["t"].to_numpy(float), g[["x", "y"]].to_numpy(float)))
-        crowded.append(near[g.index.to_numpy()])
-    speeds = np.array([_track_speed(t, xy, noise) for t, xy in seen])
+    seen, speeds, noise, crowded = variation_inputs(tracks)
     route_map = None if free is None else (free, (0.0, 0.0), res)
     return _heading_variation(seen, speeds, noise, crowded, route_map)
 
