@@ -150,6 +150,9 @@ def _attach_motion_tables(
     say = steps or (lambda done, total, what: None)
     after = 1 + int("label" in tracks.columns)  # displacement errors, motion checks
     key = key_from_seed(seed)
+    # every walk below (realism, displacement errors, motion checks) with the log's own
+    # social force, else the published one
+    interaction = learned if learned is not None else True
     # realism, the sim-agents way: constant velocity, the catalogue and the fitted behaviour
     # (each through the one assembly, social force included) against the log
     xy = tracks[["id", "t", "x", "y"]]
@@ -165,7 +168,7 @@ def _attach_motion_tables(
         grid,
         behaviour=bfit,
         n_replicates=1,
-        interaction=learned if learned is not None else True,
+        interaction=interaction,
         progress=realism_step,
     )
     # predicted as generation walks people: continuous paths, then the fit's social force
@@ -176,7 +179,7 @@ def _attach_motion_tables(
         bfit,
         tracks,
         n_samples=20,
-        interaction=learned if learned is not None else True,
+        interaction=interaction,
         grid=grid,
         max_windows=FIT_WINDOWS,
         progress=say,
@@ -199,7 +202,7 @@ def _attach_motion_tables(
         bfit,
         tracks,
         n_replicates=50,
-        interaction=learned if learned is not None else True,
+        interaction=interaction,
         grid=grid,
         progress=check_step,
     )
