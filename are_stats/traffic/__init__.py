@@ -34,6 +34,7 @@ from are_stats.traffic._lifecycle import (  # noqa: E402
     numpy_rng,
     prior_predictive,
     simulate_lifecycle,
+    simulate_traffic_log,
 )
 
 __all__ += [
@@ -46,6 +47,7 @@ __all__ += [
     "numpy_rng",
     "prior_predictive",
     "simulate_lifecycle",
+    "simulate_traffic_log",
 ]
 
 # --- conjugate closed forms (life-cycle) ---
@@ -197,11 +199,7 @@ from are_stats.traffic._models import (  # noqa: E402
     stay_unit_loglik,
     stay_units,
 )
-from are_stats.traffic._sampler import (  # noqa: E402
-    TrafficLaws,
-    sample_population,
-    simulate_traffic_log,
-)
+from are_stats.traffic._sampler import TrafficLaws, sample_population  # noqa: E402
 from are_stats.traffic._stays import stay_draws  # noqa: E402
 
 __all__ += [
@@ -216,7 +214,6 @@ __all__ += [
     "exponential_unit_loglik",
     "poisson_unit_loglik",
     "sample_population",
-    "simulate_traffic_log",
     "stay_draws",
     "stay_model",
     "stay_unit_loglik",

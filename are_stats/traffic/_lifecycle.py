@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from functools import cached_property
 from typing import Any, NamedTuple
 
@@ -49,7 +49,7 @@ from are_stats._checks import (
 from are_stats._program_cache import compile_program
 from are_stats.traffic._keys import key_bits
 from are_stats.traffic._mixture import PoissonMixture
-from are_stats.traffic._positions import uniform_position_density
+from are_stats.traffic._positions import PositionDensity, uniform_position_density
 from are_stats.traffic._sampler import TrafficLaws, sample_population
 
 __all__ = [
@@ -60,6 +60,7 @@ __all__ = [
     "LifecyclePriors",
     "LifecycleData",
     "simulate_lifecycle",
+    "simulate_traffic_log",
     "lifecycle_model",
     "prior_predictive",
 ]
@@ -602,6 +603,55 @@ def simulate_lifecycle(
         x=x,
         y=y,
         yaw=yaw,
+    )
+
+
+def simulate_traffic_log(
+    rng: np.random.Generator,
+    draw: Mapping[str, npt.ArrayLike],
+    laws: TrafficLaws,
+    window: tuple[float, float],
+    area: float,
+    *,
+    free: PositionDensity | None = None,
+    resolution: float = 0.0,
+) -> LifecycleData:
+    """A synthetic field log of one window, drawn by :func:`~are_stats.traffic.sample_population`.
+
+    Parameters
+    ----------
+    rng, draw, laws, area, free
+        As :func:`~are_stats.traffic.sample_population`.
+    window : (t0, t1)
+        The log's window; the population starts stationary at ``t0``.
+    resolution : float
+        Times are rounded up to multiples of it (a tracker's frame period); 0: exact.
+
+    Returns
+    -------
+    LifecycleData
+        Left-truncated rows (present at ``t0``) first; ``group`` always; ``x``, ``y`` with
+        positions.
+    """
+    t0, t1 = float(window[0]), float(window[1])
+    pop = sample_population(rng, draw, laws, t1 - t0, area, free=free)
+    ta = pop["t_arrive"] + t0
+    tl = pop["t_leave"] + t0
+    if resolution > 0:
+        ta = t0 + np.ceil((ta - t0) / resolution - 1e-9) * resolution
+        tl = t0 + np.ceil((tl - t0) / resolution - 1e-9) * resolution
+        tl = np.maximum(tl, ta)
+    ta = np.where(pop["truncated"], np.nan, np.minimum(ta, t1))
+    tl = np.where(tl >= t1, np.nan, tl)
+    kept = ~(np.isfinite(ta) & (ta >= t1))
+    return LifecycleData(
+        t_arrive=ta[kept],
+        t_leave=tl[kept],
+        window=(t0, t1),
+        area=float(area),
+        group=pop["group"][kept],
+        x=pop["x"][kept] if "x" in pop else None,
+        y=pop["y"][kept] if "y" in pop else None,
     )
 
 

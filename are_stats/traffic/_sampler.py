@@ -4,7 +4,7 @@
 posterior draw: the population present at ``t = 0`` (stationary start) and the arrivals,
 each with its group, stay and entry point. Scenario generation
 (:func:`are_stats.scenarios.generate_scenarios`), the posterior-predictive checks and the
-synthetic logs of the tests (:func:`simulate_traffic_log`) all draw through it.
+synthetic logs of the tests (:func:`are_stats.traffic.simulate_traffic_log`) all draw through it.
 
 * **Arrivals**: :func:`~are_stats.traffic.sample_arrivals` (events at ``event_rate * area``,
   times of day, negative-binomial frailty, group sizes); the bursty models (``mmpp``,
@@ -31,7 +31,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -43,13 +42,7 @@ from are_stats.traffic._models import ARRIVAL_SPECS, ArrivalSpec
 from are_stats.traffic._positions import POSITION_MODELS, PositionDensity
 from are_stats.traffic._stays import STAY_LAWS, stay_draws
 
-# Lazy import, a cycle (not a cost): _lifecycle imports this module (simulate_lifecycle draws
-# through sample_population), so simulate_traffic_log imports LifecycleData when it runs.
-
-if TYPE_CHECKING:
-    from are_stats.traffic._lifecycle import LifecycleData
-
-__all__ = ["TrafficLaws", "sample_population", "simulate_traffic_log"]
+__all__ = ["TrafficLaws", "sample_population"]
 
 #: Burn-in of the bursty arrival models before ``t = 0``: mean stays ...
 BURN_STAYS = 20.0
@@ -319,55 +312,3 @@ def _finish(
             xy = np.where(((sizes > 1) & good)[:, None], moved, xy)
         out["x"], out["y"] = xy[:, 0], xy[:, 1]
     return out
-
-
-def simulate_traffic_log(
-    rng: np.random.Generator,
-    draw: Mapping[str, npt.ArrayLike],
-    laws: TrafficLaws,
-    window: tuple[float, float],
-    area: float,
-    *,
-    free: PositionDensity | None = None,
-    resolution: float = 0.0,
-) -> LifecycleData:
-    """A synthetic field log of one window, drawn by :func:`sample_population`.
-
-    Parameters
-    ----------
-    rng, draw, laws, area, free
-        As :func:`sample_population`.
-    window : (t0, t1)
-        The log's window; the population starts stationary at ``t0``.
-    resolution : float
-        Times are rounded up to multiples of it (a tracker's frame period); 0: exact.
-
-    Returns
-    -------
-    LifecycleData
-        Left-truncated rows (present at ``t0``) first; ``group`` always; ``x``, ``y`` with
-        positions.
-    """
-    # (lazy: a cycle, _lifecycle imports this module)
-    from are_stats.traffic._lifecycle import LifecycleData
-
-    t0, t1 = float(window[0]), float(window[1])
-    pop = sample_population(rng, draw, laws, t1 - t0, area, free=free)
-    ta = pop["t_arrive"] + t0
-    tl = pop["t_leave"] + t0
-    if resolution > 0:
-        ta = t0 + np.ceil((ta - t0) / resolution - 1e-9) * resolution
-        tl = t0 + np.ceil((tl - t0) / resolution - 1e-9) * resolution
-        tl = np.maximum(tl, ta)
-    ta = np.where(pop["truncated"], np.nan, np.minimum(ta, t1))
-    tl = np.where(tl >= t1, np.nan, tl)
-    kept = ~(np.isfinite(ta) & (ta >= t1))
-    return LifecycleData(
-        t_arrive=ta[kept],
-        t_leave=tl[kept],
-        window=(t0, t1),
-        area=float(area),
-        group=pop["group"][kept],
-        x=pop["x"][kept] if "x" in pop else None,
-        y=pop["y"][kept] if "y" in pop else None,
-    )

@@ -15,9 +15,11 @@ from scipy import special, stats
 from are_stats.traffic import (
     LifecycleData,
     LifecyclePriors,
+    TrafficLaws,
     lifecycle_model,
     prior_predictive,
     simulate_lifecycle,
+    simulate_traffic_log,
 )
 from tests.helpers import ALPHA, assert_allclose, chisquare_gof
 
@@ -287,3 +289,15 @@ def test_bad_priors_and_predictive_arguments():
         lifecycle_model(d)
     with pytest.raises(ValueError, match="labels: expected classes below n_components=2"):
         lifecycle_model(_data(labels=[0, 2, 1]), n_components=2)
+
+
+def test_simulated_log_is_quantised_and_windowed():
+    laws = TrafficLaws(arrivals="groups", lifetimes="gamma")
+    draw = {"event_rate": 0.002, "stay_mean": 40.0, "stay_shape": 4.0,
+            "group_size_probs": np.array([0.6, 0.4])}  # fmt: skip
+    d = simulate_traffic_log(np.random.default_rng(6), draw, laws, (0.0, 600.0), 80.0,
+                             resolution=0.4)  # fmt: skip
+    ta = d.t_arrive[~d.truncated]
+    assert np.allclose(ta / 0.4, np.round(ta / 0.4))
+    assert d.group is not None and d.truncated.any() and d.censored.any()
+    assert np.all(np.nan_to_num(d.t_leave, nan=600.0) <= 600.0)

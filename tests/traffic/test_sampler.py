@@ -14,7 +14,6 @@ from are_stats.traffic import (
     TrafficLaws,
     fit_position_density,
     sample_population,
-    simulate_traffic_log,
     stationary_count_moments,
     stay_draws,
     stay_logsf,
@@ -119,15 +118,3 @@ def test_learned_entries_follow_the_density():
     obs = np.append(counts[keep], counts[~keep].sum())
     exp = np.append(expected[keep], expected[~keep].sum())
     assert stats.chisquare(obs, exp).pvalue > ALPHA
-
-
-def test_simulated_log_is_quantised_and_windowed():
-    laws = TrafficLaws(arrivals="groups", lifetimes="gamma")
-    draw = {"event_rate": 0.002, "stay_mean": 40.0, "stay_shape": 4.0,
-            "group_size_probs": np.array([0.6, 0.4])}  # fmt: skip
-    d = simulate_traffic_log(np.random.default_rng(6), draw, laws, (0.0, 600.0), 80.0,
-                             resolution=0.4)  # fmt: skip
-    ta = d.t_arrive[~d.truncated]
-    assert np.allclose(ta / 0.4, np.round(ta / 0.4))
-    assert d.group is not None and d.truncated.any() and d.censored.any()
-    assert np.all(np.nan_to_num(d.t_leave, nan=600.0) <= 600.0)
