@@ -25,6 +25,7 @@ __all__ = [
     "PinholeCamera",
     "camera_mount",
     "check_pose",
+    "fov_cone",
     "optical_from_base",
     "read_camera",
     "MIN_FOCAL",
@@ -163,6 +164,41 @@ class CameraModel(Protocol):
     def pose(self) -> np.ndarray:
         """(4, 4) float: camera-to-world transform of the optical frame."""
         ...
+
+
+def fov_cone(camera: CameraModel, d_max: float) -> np.ndarray:
+    """Corners of the field-of-view pyramid W of a camera cut at range ``d_max`` (world
+    frame), from its intrinsic matrix ``K``, image size and ``pose``.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    d_max : float
+        The range (m, > 0).
+
+    Returns
+    -------
+    (5, 3) float64
+        The camera centre followed by the four far corners (image corners at Euclidean
+        distance ``d_max`` along their rays), in the order top-left, top-right,
+        bottom-right, bottom-left.
+
+    Raises
+    ------
+    ValueError
+        If ``d_max`` is not a finite range > 0.
+    """
+    d_max = float(check_finite("d_max", d_max, ndim=0))
+    if d_max <= 0:
+        raise ValueError(f"d_max: expected a range > 0, got {d_max!r}")
+    k, pose = camera.K, camera.pose
+    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
+    w, h = camera.width, camera.height
+    corners = np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
+    d = np.column_stack([(corners[:, 0] - cx) / fx, (corners[:, 1] - cy) / fy, np.ones(4)])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    far = pose[:3, 3] + d_max * (d @ pose[:3, :3].T)
+    return np.vstack([pose[:3, 3], far])
 
 
 @dataclass(frozen=True, eq=False)
@@ -313,27 +349,9 @@ class PinholeCamera:
         return uv, z
 
     def fov_cone(self, d_max: float) -> np.ndarray:
-        """Corners of the field-of-view pyramid W cut at range ``d_max`` (world frame).
-
-        Returns
-        -------
-        (5, 3) float64
-            The camera centre followed by the four far corners (image corners at
-            Euclidean distance ``d_max`` along their rays), in the order top-left,
-            top-right, bottom-right, bottom-left.
-        """
-        d_max = float(check_finite("d_max", d_max, ndim=0))
-        if d_max <= 0:
-            raise ValueError(f"d_max: expected a range > 0, got {d_max!r}")
-        corners = np.array(
-            [[0.0, 0.0], [self.width, 0.0], [self.width, self.height], [0.0, self.height]]
-        )
-        d = np.column_stack(
-            [(corners[:, 0] - self.cx) / self.fx, (corners[:, 1] - self.cy) / self.fy, np.ones(4)]
-        )
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        far = self.pose[:3, 3] + d_max * (d @ self.pose[:3, :3].T)
-        return np.vstack([self.pose[:3, 3], far])
+        """Corners of the field-of-view pyramid W cut at range ``d_max`` (world frame):
+        :func:`fov_cone` of this camera."""
+        return fov_cone(self, d_max)
 
     # ------------------------------------------------------------------ YAML
     @classmethod

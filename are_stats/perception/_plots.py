@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from are_stats._atomic import save_figure
 from are_stats.environment import OccupancyGrid
-from are_stats.perception._camera import CameraModel
+from are_stats.perception._camera import CameraModel, fov_cone
 from are_stats.perception._perceive import _EDGES, _SIGNS, PerceptionResult
 
 # Lazy imports: matplotlib and SciPy's ConvexHull load when a figure is drawn, not with the
@@ -35,9 +35,8 @@ class PerceivedFrame(NamedTuple):
     Attributes
     ----------
     camera : CameraModel
-        The camera at the frame's pose (``fx``, ``fy``, ``cx``, ``cy``, ``width``,
-        ``height``, ``pose``, ``center``, ``fov_cone``: a
-        :class:`~are_stats.perception.PinholeCamera`).
+        The camera at the frame's pose (its ``K``, ``width``, ``height`` and ``pose`` are
+        drawn; e.g. a :class:`~are_stats.perception.PinholeCamera`).
     depth : (height, width) float
         The augmented depth image (m; +inf where nothing is hit within ``d_max``).
     centers : (n, 3) float
@@ -191,6 +190,8 @@ def plot_camera_view(
     status = _status(frame.counts, frame.perceived)
     used = set()
     r_cam, c_cam = camera.pose[:3, :3], camera.pose[:3, 3]
+    k = camera.K
+    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
     z_near = 1e-3
     for a in range(len(c)):
         corners = c[a] + (_SIGNS * h[a]) @ r[a].T
@@ -208,8 +209,8 @@ def plot_camera_view(
             e = np.stack([p, q])
             uv = np.column_stack(
                 [
-                    camera.fx * e[:, 0] / e[:, 2] + camera.cx,
-                    camera.fy * e[:, 1] / e[:, 2] + camera.cy,
+                    fx * e[:, 0] / e[:, 2] + cx,
+                    fy * e[:, 1] / e[:, 2] + cy,
                 ]
             )
             ax.plot(uv[:, 0], uv[:, 1], color=colour, lw=1.4)
@@ -267,7 +268,7 @@ def plot_top_view(
             extent=(ox, ox + grid.width * grid.resolution, oy, oy + grid.height * grid.resolution),
         )
     camera, d_max = frame.camera, frame.d_max
-    cone = camera.fov_cone(d_max)
+    cone = fov_cone(camera, d_max)
     # horizontal footprint of the cone: hull of the apex and the far corners
     from scipy.spatial import ConvexHull
 
@@ -287,7 +288,7 @@ def plot_top_view(
             label=f"view cone W (d_max = {d_max:g} m)",
         )
     )
-    ax.plot(*camera.center[:2], marker="o", color="#f46d43", ms=6)
+    ax.plot(*camera.pose[:2, 3], marker="o", color="#f46d43", ms=6)
     c, h, r = frame.centers, frame.half_extents, frame.rotations
     status = _status(frame.counts, frame.perceived)
     used = set()

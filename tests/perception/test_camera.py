@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import yaml
@@ -10,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from are_stats.environment import shipped_path
 from are_stats.inputs import InputError, LimitError, limits
 from are_stats.perception import PinholeCamera, optical_from_base, read_camera
+from are_stats.perception._camera import fov_cone
 from tests.helpers import assert_allclose
 
 
@@ -47,9 +50,12 @@ def test_principal_axis_and_mount():
     assert tilted.principal_axis[2] < 0  # positive pitch looks down
 
 
-def test_fov_cone_corners_are_on_the_image_boundary():
-    cam = PinholeCamera(200.0, 200.0, 40.0, 30.0, 80, 60, _pose(3))
-    cone = cam.fov_cone(5.0)
+@pytest.mark.parametrize("declared", [False, True])
+def test_fov_cone_corners_are_on_the_image_boundary(declared):
+    """The method, and fov_cone of a camera with only CameraModel's attributes."""
+    cam = PinholeCamera(200.0, 210.0, 40.0, 30.0, 80, 60, _pose(3))
+    bare = SimpleNamespace(K=cam.K, width=cam.width, height=cam.height, pose=cam.pose)
+    cone = fov_cone(bare, 5.0) if declared else cam.fov_cone(5.0)
     assert cone.shape == (5, 3)
     assert_allclose(np.linalg.norm(cone[1:] - cam.center, axis=1), 5.0, rtol=1e-12)
     uv, _ = cam.project(cone[1:])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+from types import SimpleNamespace
 
 import jax
 import numpy as np
@@ -243,6 +244,15 @@ def test_pictures(tmp_path):
     fig2 = plot_top_view(frame, grid=grid)
     save_figure(fig2, tmp_path / "top.png")
     assert (tmp_path / "cam.png").stat().st_size > 1000
+    # the pictures read only what CameraModel declares (K, width, height, pose): the same
+    # bytes from a camera that has nothing else
+    bare = SimpleNamespace(K=cam.K, width=cam.width, height=cam.height, pose=cam.pose)
+    declared = frame._replace(camera=bare)
+    save_figure(plot_camera_view(declared), tmp_path / "cam_declared.png")
+    save_figure(plot_top_view(declared, grid=grid), tmp_path / "top_declared.png")
+    for name in ("cam", "top"):
+        want = (tmp_path / f"{name}.png").read_bytes()
+        assert (tmp_path / f"{name}_declared.png").read_bytes() == want, name
     with pytest.raises(FileExistsError):
         save_figure(fig2, tmp_path / "top.png")
     with pytest.raises(ValueError, match="depth: expected shape"):
