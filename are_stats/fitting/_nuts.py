@@ -37,7 +37,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any, NamedTuple, TypeVar
+from typing import Any, NamedTuple, TypedDict, TypeVar, Unpack, cast
 
 import jax
 import jax.numpy as jnp
@@ -59,6 +59,7 @@ __all__ = [
     "NutsPrefetch",
     "NutsProgress",
     "NutsRun",
+    "NutsSettings",
     "chains_per_device",
     "chunk_length",
     "clock_progress",
@@ -467,14 +468,14 @@ def _plan(
     model: Callable[..., None],
     model_kwargs: dict,
     init: dict | None,
-    settings: dict[str, Any],
+    settings: NutsSettings,
 ) -> _Plan:
     """Check the settings and set up the chains' functions, arguments and cache key.
 
-    ``settings``: :func:`run_nuts`'s keywords, those left out at its defaults.
+    ``settings``: :func:`run_nuts`'s keywords, those left out at its defaults (those that
+    do not shape the sampling program are not read).
     """
-    given = {k: v for k, v in settings.items() if k in _RUN_NUTS_DEFAULTS}
-    opts = {**_RUN_NUTS_DEFAULTS, **given}
+    opts: NutsSettings = {**_RUN_NUTS_DEFAULTS, **settings}
     num_warmup, num_samples, num_chains = (
         int(opts["num_warmup"]),
         int(opts["num_samples"]),
@@ -774,6 +775,25 @@ def _run_chunks(
     return jax.tree.map(lambda *xs: np.concatenate(xs, axis=axis), *keep)
 
 
+class NutsSettings(TypedDict, total=False):
+    """The keywords of :func:`run_nuts` (after ``init``), as a caller passes them on
+    (:meth:`NutsPrefetch.add`, the traffic fit's candidates). See :func:`run_nuts` for
+    their meaning and defaults."""
+
+    num_warmup: int
+    num_samples: int
+    num_chains: int
+    pointwise: Callable[..., jax.Array | dict[str, jax.Array]] | None
+    name: str
+    target_accept_prob: float
+    init_params: dict | None
+    chain_method: str | None
+    extra_fields: tuple[str, ...]
+    pointwise_kwargs: bool
+    cheap_compile: bool
+    progress: Callable[[NutsProgress], object] | None
+
+
 class NutsPrefetch:
     """Compile the sampling programs of coming :func:`run_nuts` calls in the background.
 
@@ -810,7 +830,7 @@ class NutsPrefetch:
         model: Callable[..., None],
         model_kwargs: dict,
         init: dict | None,
-        **settings: Any,
+        **settings: Unpack[NutsSettings],
     ) -> None:
         """Start compiling the program of ``run_nuts(key, model, model_kwargs, init, **settings)``.
 
@@ -920,7 +940,16 @@ def run_nuts(
     ValueError
         On an unknown ``chain_method`` or non-positive sizes.
     """
-    settings = dict(locals())  # the keywords, for _plan
+    settings = NutsSettings(
+        num_warmup=num_warmup,
+        num_samples=num_samples,
+        num_chains=num_chains,
+        target_accept_prob=target_accept_prob,
+        init_params=init_params,
+        chain_method=chain_method,
+        extra_fields=extra_fields,
+        cheap_compile=cheap_compile,
+    )
     plan = _plan(key, model, model_kwargs, init, settings)
     timing: dict[str, float] = {"compile": 0.0}
     zs, stats = _sample(plan, timing, progress)
@@ -1009,18 +1038,21 @@ def nuts_warnings(run: NutsRun, r_hat_limit: float = 1.01) -> list[str]:
 
 
 #: run_nuts's keywords that shape the sampling program, at their defaults (for _plan).
-_RUN_NUTS_DEFAULTS = {
-    name: p.default
-    for name, p in inspect.signature(run_nuts).parameters.items()
-    if name
-    in (
-        "num_warmup",
-        "num_samples",
-        "num_chains",
-        "target_accept_prob",
-        "init_params",
-        "chain_method",
-        "extra_fields",
-        "cheap_compile",
-    )
-}
+_RUN_NUTS_DEFAULTS = cast(
+    NutsSettings,
+    {
+        name: p.default
+        for name, p in inspect.signature(run_nuts).parameters.items()
+        if name
+        in (
+            "num_warmup",
+            "num_samples",
+            "num_chains",
+            "target_accept_prob",
+            "init_params",
+            "chain_method",
+            "extra_fields",
+            "cheap_compile",
+        )
+    },
+)

@@ -8,7 +8,9 @@ errors and the sd within 10 %.
 
 from __future__ import annotations
 
+import inspect
 import warnings
+from typing import Unpack, get_type_hints
 
 import jax
 import numpy as np
@@ -21,6 +23,7 @@ from scipy import stats
 from are_stats.fitting import (
     NutsPrefetch,
     NutsRun,
+    NutsSettings,
     chains_per_device,
     nuts_warnings,
     resolve_chain_method,
@@ -165,6 +168,17 @@ def test_bad_sizes_name_the_arguments():
         run_nuts(jax.random.key(0), normal_model, {"y": _data(0)}, None, num_samples=0)
     with pytest.raises(ValueError, match="chain_method: expected one of"):
         run_nuts(jax.random.key(0), normal_model, {"y": _data(0)}, None, chain_method="x")
+
+
+def test_nuts_settings_are_its_keywords():
+    """NutsSettings (what NutsPrefetch.add and the traffic fit pass on) names run_nuts's
+    keywords after ``init``, with their types: a keyword added to one is added to the other."""
+    hints = get_type_hints(run_nuts)
+    names = list(inspect.signature(run_nuts).parameters)
+    keywords = names[names.index("init") + 1 :]
+    assert list(NutsSettings.__annotations__) == keywords
+    assert get_type_hints(NutsSettings) == {k: hints[k] for k in keywords}
+    assert get_type_hints(NutsPrefetch.add)["settings"] == Unpack[NutsSettings]
 
 
 def test_warnings_word_divergences_and_r_hat():
