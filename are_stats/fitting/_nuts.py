@@ -940,17 +940,17 @@ def run_nuts(
     ValueError
         On an unknown ``chain_method`` or non-positive sizes.
     """
-    settings = NutsSettings(
-        num_warmup=num_warmup,
-        num_samples=num_samples,
-        num_chains=num_chains,
-        target_accept_prob=target_accept_prob,
-        init_params=init_params,
-        chain_method=chain_method,
-        extra_fields=extra_fields,
-        cheap_compile=cheap_compile,
-    )
-    plan = _plan(key, model, model_kwargs, init, settings)
+    shaping: NutsSettings = {  # the keywords that shape the sampling program
+        "num_warmup": num_warmup,
+        "num_samples": num_samples,
+        "num_chains": num_chains,
+        "target_accept_prob": target_accept_prob,
+        "init_params": init_params,
+        "chain_method": chain_method,
+        "extra_fields": extra_fields,
+        "cheap_compile": cheap_compile,
+    }
+    plan = _plan(key, model, model_kwargs, init, shaping)
     timing: dict[str, float] = {"compile": 0.0}
     zs, stats = _sample(plan, timing, progress)
     if progress is not None:
