@@ -689,7 +689,10 @@ def scenes_from_fit(
         ``nu(M2D)`` (m^2) when it differs from the map's free area; without a map, default
         the fit's area.
     source : str, optional
-        What errors name (default: the fit's path, or ``"fit"``).
+        What errors name (default: where the fit came from,
+        :attr:`~are_stats.fitting.Fit.source`: the file :func:`~are_stats.fitting.read_fit`
+        read, the ``source`` given to :meth:`~are_stats.fitting.Fit.from_draws`; ``"fit"``
+        for an InferenceData).
     behaviours_source, map_source : str, optional
         The options of ``behaviours`` and ``grid`` (e.g. ``"--behaviours"``, ``"--map"``),
         named when the behaviours need a map and there is none
@@ -721,9 +724,8 @@ def scenes_from_fit(
 
     opts = (options or _STANDING).with_settings(settings)
     positions = get_str(opts.positions, "--positions", "", choices=POSITION_CHOICES)
-    if source is None:
-        source = str(fit) if isinstance(fit, str | bytes) or hasattr(fit, "__fspath__") else "fit"
     fit = as_fit(fit, source)
+    source = fit.source if source is None else source
     kind = behaviour_source(
         opts.behaviours, fit.behaviour, grid, behaviours_source or source, map_source=map_source
     )

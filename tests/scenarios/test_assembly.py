@@ -142,6 +142,23 @@ def test_the_behaviour_rule_refuses_what_it_cannot_do(grid, catalogue):
                         area=800.0, behaviours="catalogue")  # fmt: skip
 
 
+def test_errors_name_where_the_fit_came_from(catalogue):
+    """A Fit passed without ``source`` is named by its own (the file read_fit read, the
+    ``source`` given to Fit.from_draws), not "fit"; a ``source`` given wins."""
+    from are_stats.inputs import InputError
+
+    draws = posterior_draws(_idata())
+    read = Fit.from_draws(draws, source="courtyard_fit.nc")  # read_fit's: source=str(path)
+    with pytest.raises(InputError, match=r"^courtyard_fit\.nc: posterior\.attrs\.area: "):
+        scenes_from_fit(0, read, None, catalogue, 1, HORIZON)
+    with pytest.raises(ValueError, match=r"^courtyard_fit\.nc: catalogue behaviours need a map"):
+        scenes_from_fit(0, read, None, catalogue, 1, HORIZON, area=800.0, behaviours="catalogue")
+    with pytest.raises(InputError, match=r"^draws: posterior\.attrs\.area: "):
+        scenes_from_fit(0, Fit.from_draws(draws), None, catalogue, 1, HORIZON)
+    with pytest.raises(InputError, match=r"^--fit: posterior\.attrs\.area: "):
+        scenes_from_fit(0, read, None, catalogue, 1, HORIZON, source="--fit")
+
+
 def test_empty_scenarios_are_scenes_without_artefacts(grid, catalogue):
     idata = _idata()
     idata.posterior["arrival_rate"] = idata.posterior["arrival_rate"] * 1e-9
