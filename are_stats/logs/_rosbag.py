@@ -234,7 +234,7 @@ def _bag_errors() -> tuple[type[BaseException], ...]:
     from rosbags.typesys import TypesysError
 
     extra: tuple[type[BaseException], ...] = ()
-    try:  # rosbags reads ROS 2 sqlite3 bags with apsw when it is installed
+    try:  # optional: rosbags reads ROS 2 sqlite3 bags with apsw when it is installed
         import apsw
 
         extra = (apsw.Error,)
