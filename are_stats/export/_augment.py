@@ -281,7 +281,7 @@ def augment_bag(
         Camera frames (``period``), tracing or messages past the memory or work limits,
         checked before anything of that size is allocated.
     """
-    # lazy: experiments +0.10 s (a cycle), fitting (NumPyro) +1.1 s, perception (Warp) +0.85 s
+    # lazy: experiments +0.10 s, fitting (NumPyro) +1.1 s, perception (Warp) +0.85 s
     # CPU on `import are_stats.export`, which every CLI job imports
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit

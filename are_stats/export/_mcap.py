@@ -102,7 +102,7 @@ def export_mcap(
     ValueError
         If ``trace`` is not a recorded trace or ``start_time`` is not a time.
     """
-    # lazy: experiments +0.10 s (its sweep imports export: a cycle), perception (Warp) +0.85 s
+    # lazy: experiments +0.10 s (whose sweep imports export lazily), perception (Warp) +0.85 s
     # CPU on `import are_stats.export`
     from are_stats.experiments import MissionTrace, Robot
     from are_stats.perception import optical_from_base, perceived_grid
