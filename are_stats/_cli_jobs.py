@@ -54,9 +54,8 @@ if TYPE_CHECKING:
     from are_stats.fitting import Fit, FitSettings, MotionReport
     from are_stats.perception import PerceiveFolderOptions
 
-# Lazy in the jobs that use them (measured CPU of the import, on top of the rooms above,
-# which every job loads anyway): fitting (NumPyro, ArviZ: 0.65 s that perceive, augment and
-# serve do not use) and perception (Warp: 0.5 s that fit, report, generate and demo do not).
+# fitting and perception are imported in the jobs that use them (each import says the CPU it
+# would add on top of the rooms above, which every job loads anyway; measured 2026-11-28).
 
 console = Console(highlight=False, width=None if Console().is_terminal else 100)
 
@@ -167,6 +166,7 @@ class FitOptions:
             Naming the first option that is out of range (an
             :class:`~are_stats.inputs.InputError`, or ``--clock-start`` that is not ISO 8601).
         """
+        # lazy: fitting +1.05 s, traffic alone +0.91 s CPU on every job's start (NumPyro)
         from are_stats.fitting import ARRIVAL_CHOICES, LIFETIME_CHOICES, POSITION_CHOICES
         from are_stats.traffic import clock_offset
 
@@ -216,6 +216,7 @@ class FitOptions:
         are_stats.inputs.InputError
             For a name that is not a feature.
         """
+        # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
         from are_stats.fitting import BEHAVIOUR_FEATURES
 
         return tuple(
@@ -227,6 +228,7 @@ class FitOptions:
     def settings(self) -> FitSettings:
         """The :class:`~are_stats.fitting.FitSettings` of :func:`~are_stats.fitting.fit_log`
         (the sampler's and the traffic models' fields)."""
+        # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
         from are_stats.fitting import FitSettings
 
         return FitSettings(
@@ -298,6 +300,7 @@ def run_fit(
     SHA-256 of its bytes (``log_sha256``), never by its folder; ``log_report`` holds the
     reading counts (its ``source`` is the file name too).
     """
+    # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
     from are_stats.fitting import (
         can_check_motion,
         compare_panel,
@@ -475,6 +478,7 @@ def _behaviour_lines(fit: BehaviourFit) -> list[str]:
 
 def _print_variation(fit: BehaviourFit) -> None:
     """The within-person pace and wander per class, +- their standard errors (issue 26)."""
+    # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
     from are_stats.fitting import variation_table
 
     table = variation_table(fit)
@@ -628,6 +632,7 @@ def run_report(
     (:func:`are_stats.fitting.read_fit`) and the size of the replicates against the limits
     of :mod:`are_stats.inputs`, before anything is drawn.
     """
+    # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
     from are_stats.fitting import (
         check_report_size,
         fit_summary,
@@ -709,6 +714,7 @@ def run_generate(
 
 def run_demo(out: Path, force: bool = False, quick: bool = False) -> dict[str, object]:
     """log -> fit -> criticism figures -> 100 scenarios -> summary, on the shipped defaults."""
+    # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
     from are_stats.fitting import crowding_statistics, read_traffic_checks
 
     out = Path(out)
@@ -796,6 +802,7 @@ def run_perceive(
     robot path (:func:`are_stats.perception.perceive_folder`, which ``options`` go to; it
     checks every input before any tracing); its warnings and progress shown, then what it
     wrote."""
+    # lazy: +0.93 s CPU on every job's start (Warp), which only perceive uses
     from are_stats.perception import FolderPlan, perceive_folder
 
     started: list[tuple[FolderPlan, float]] = []  # the plan, and when perceiving began

@@ -51,6 +51,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import jax.monitoring
+
 __all__ = [
     "StageClock",
     "StepsLeft",
@@ -102,12 +104,8 @@ def _on_span(event: str, start_time: float, end_time: float, **kwargs: object) -
 
 
 def watch_xla_compiles() -> bool:
-    """Start recording when XLA compiles (JAX's events; imports JAX). False without JAX."""
+    """Start recording when XLA compiles (JAX's events); True once recording."""
     if not _watch:
-        try:
-            import jax.monitoring
-        except ImportError:  # pragma: no cover - JAX is a dependency
-            return False
         _watch.append(time.time() - time.perf_counter())
         jax.monitoring.register_event_duration_secs_listener(_on_load)
         jax.monitoring.register_event_time_span_listener(_on_span)
@@ -122,7 +120,7 @@ def xla_compiling(t0: float, t1: float) -> float:
     The union of the compiles' spans, not the sum of their durations: the fit compiles its
     candidates in two threads while a stage runs, and the stage waits on them at most the
     once. A compile still running is counted when it ends. Records from the first call of
-    :func:`watch_xla_compiles` on (this calls it); 0.0 before and without JAX.
+    :func:`watch_xla_compiles` on (this calls it); 0.0 before it is on.
     """
     watch_xla_compiles()
     with _spans_lock:

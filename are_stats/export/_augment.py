@@ -58,10 +58,6 @@ from are_stats.scenarios import AssemblyOptions, Scene, scenes_from_fit
 if TYPE_CHECKING:
     from are_stats.perception import CameraModel, PinholeCamera
 
-# Lazy imports, measured as CPU added to `import are_stats.export` (2026-11-28): fitting
-# (NumPyro, ArviZ: +0.9 s), perception (Warp: +0.5 s) and experiments (+0.06 s) load when a
-# bag is augmented: every CLI command imports this room for lighter functions.
-
 __all__ = [
     "AUGMENT_TOPICS",
     "AugmentOptions",
@@ -285,6 +281,8 @@ def augment_bag(
         Camera frames (``period``), tracing or messages past the memory or work limits,
         checked before anything of that size is allocated.
     """
+    # lazy: experiments +0.10 s, fitting (NumPyro) +1.1 s, perception (Warp) +0.85 s
+    # CPU on `import are_stats.export`, which every CLI job imports
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit
     from are_stats.perception import perceive_scene, read_camera

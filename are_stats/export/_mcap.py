@@ -42,10 +42,6 @@ import numpy.typing as npt
 from are_stats.environment import OccupancyGrid
 from are_stats.export._ros import ROS_FRAMES, RosMessages, artefact_frame, parse_start_time
 
-# Lazy imports, measured as CPU added to `import are_stats.export` (2026-11-28): perception
-# (Warp, +0.5 s) and experiments (+0.06 s, every CLI command imports export) load when an
-# MCAP is written.
-
 if TYPE_CHECKING:
     from are_stats.experiments import MissionTrace
 
@@ -106,7 +102,9 @@ def export_mcap(
     ValueError
         If ``trace`` is not a recorded trace or ``start_time`` is not a time.
     """
-    from are_stats.experiments import MissionTrace
+    # lazy: experiments +0.10 s (whose sweep imports export lazily), perception (Warp) +0.85 s
+    # CPU on `import are_stats.export`
+    from are_stats.experiments import MissionTrace, Robot
     from are_stats.perception import optical_from_base, perceived_grid
 
     if not isinstance(trace, MissionTrace):
@@ -115,7 +113,6 @@ def export_mcap(
             f"got {type(trace).__name__}"
         )
     base, cam = ROS_FRAMES["F_R"], ROS_FRAMES["F_C"]
-    from are_stats.experiments import Robot
 
     if mount is None:
         mount = optical_from_base(Robot().camera_xyz, Robot().camera_rpy)

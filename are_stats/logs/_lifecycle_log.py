@@ -34,9 +34,6 @@ from are_stats.inputs import (
 )
 from are_stats.logs._table import RawTable, frame_table, read_raw_table
 
-# Lazy imports: the traffic room (JAX, NumPyro) loads when a log becomes LifecycleData, not
-# with the logs room.
-
 if TYPE_CHECKING:
     from are_stats.traffic import LifecycleData
 
@@ -245,6 +242,7 @@ class LifecycleLog:
             If the log has no area, marks or labels are given on some rows only, or a label
             is not in ``label_names``.
         """
+        # lazy: traffic (JAX, NumPyro) adds 2.0 s CPU to `import are_stats.logs`
         from are_stats.traffic import LifecycleData
 
         a = self.to_arrays()
