@@ -276,6 +276,11 @@ def test_path_points_against_a_point_by_point_reference() -> None:
     assert_allclose(one, [[2.0, 3.0], [2.0, 3.0]])  # a path that never moves: no normal
 
 
+# make test: test_likelihood_with_features_split_across_devices_equals_one_device keeps the
+# claim (the same three goals padded to four on one and two devices, with two reward
+# features: programs the padded test compiles anyway); this one compiles a program of its
+# own (no features, one device) that no other test uses
+@pytest.mark.slow
 def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
     """The fit's likelihood and forward-mode gradient with three goals (padded to four) on
     two XLA host devices are those of one device."""
