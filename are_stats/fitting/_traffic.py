@@ -857,14 +857,18 @@ def _optimise(which: tuple[str, str]) -> bool:
     a likelihood whose loop runs several times longer at the cheap level (every run pays
     that; the compile is paid once per machine). The MMPP arrival models' forward pass over
     every tick (the shipped log: 7.6 ms a batch of 16 points instead of 1.2 ms, for about
-    110 batches; the compile 0.3-0.9 s longer) and the gamma stays' incomplete gammas (138
+    110 batches; the compile 0.3-0.9 s longer), the gamma stays' incomplete gammas (138
     batches: 0.22-0.29 s of CPU instead of 0.71-0.85 s; the compile 1.5-2 s longer, as long
-    as the cheap one's with XLA's fusion emitters). The Hawkes models' recursion gains less
-    than its compile costs (groups+hawkes: 0.3 s a run for 0.5 s more compile)."""
+    as the cheap one's with XLA's fusion emitters) and the Hawkes recursion with group sizes
+    (groups+hawkes: 3.7-5.9 ms a batch of 32 points instead of 9.0-14.1 ms, 51 batches, so
+    0.3-0.4 s of CPU less in every fit; the compile 0.5-1.0 s longer). The Hawkes recursion
+    alone gains 0.03-0.16 s a fit for 0.5-0.8 s more compile, the group sizes alone 0.04 s
+    (2026-11-28, the shipped log, the loaded 2-core machine)."""
     factor, name = which
     if factor == "stays":
         return name == "gamma"
-    return ArrivalSpec.from_name(name).mmpp
+    spec = ArrivalSpec.from_name(name)
+    return spec.mmpp or (spec.hawkes and spec.groups)
 
 
 #: Laplace approximations of the candidates run at once (threads): each waits mostly on

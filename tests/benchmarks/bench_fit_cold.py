@@ -391,6 +391,27 @@ behaviour's gradient (about 9 s each at that load), the two ``_per_track_jit`` p
 (the displacement errors' 512 windows of 16 steps, the held-out moves' 128 whole tracks:
 one program only by padding both ways, not tried), the motion checks' float64 jitter
 ``_normal`` (about 3 s).
+
+The Laplace stage of a repeated fit, per candidate (2026-11-28, main 01ee85a and the branch
+alternating, load 11-25; nine candidates one after another in a fresh process on a warm
+cache, process CPU per phase): loading the programs 0.96-1.07 s, the mode searches 0.96-1.14
+s, the Hessians 0.10 s, the 1,000 ranking draws 1.44-1.68 s, PSIS-LOO 0.32-0.37 s (the three
+stay laws' 485 units 0.1 s each). groups+hawkes, the slowest (0.87-0.88 s: 13 ms a call of
+32 points at the cheap XLA level), is now compiled at XLA's default optimisation: 0.32-0.50
+s, the stage 3.79/4.37 -> 3.16/3.90 s, its compile 0.5-1.0 s longer; the chosen models and
+draws unchanged, its ``loo_arrivals`` row moves in the 5th digit, the printed tables
+identical. The whole command (``/usr/bin/time``, fresh caches, load 16-21, 3 alternated
+pairs) does not resolve that: repeated CPU main 10.9, 14.4, 13.4 s vs branch 11.6, 10.9,
+13.4 s (wall 35-42 s both), cold 23.4 vs 22.7 s CPU. Measured and not done: a mode-search
+program sized to the stencil (``2d + 1`` points instead of ``MIN_BATCH`` = 32: 0.4-3.9 ms a
+call at 5 points instead of 1.4-13.1 ms at 32) would save about 0.45 s of CPU a repeated fit
+and cost a second program per candidate, 0.45-4.8 s of compile each (about 15 s cold); the
+draws in calls of 5-16 points cost more than in 32. Thread CPU in the CLI's own run: each
+candidate's thread 0.07-0.17 s of Python (its XLA work runs on XLA's threads), the
+InferenceData thread 2.4-2.6 s. A busy Python thread (an import) beside a 10 ms XLA call
+doubles the call's wall at that load whether Python's switch interval is 5 ms or 0.1 ms
+(20.4 vs 20.8 ms), so what it takes is CPU, not a GIL hand-off; the hand-off costs about
+0.17 ms on a call of 0.1 ms (about 0.1 s a fit).
 """
 
 from __future__ import annotations
