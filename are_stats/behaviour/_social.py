@@ -561,12 +561,20 @@ def _pace(
     # when sd_d = sd sqrt(1 - (tau/T)^2) (held at sd / 2 or more where T is near tau)
     sd_desired = sd * np.sqrt(np.clip(1.0 - (relaxation / time) ** 2, 0.25, 1.0))
     if name == "heading_variation":
-        # the heading's fit reads the walked process's whole variance and its integral
-        # correlation time (tracks sampled finer than tau show its short lags); the lag
-        # makes them sd_d^2 / (1 + tau/T_d) and T_d + tau: matched by T_d = T - tau (at
-        # least T / 2) and sd_d = sd sqrt(1 + tau / T_d)
+        # the walked heading is the desired OU (sd_d, T_d) through the lag tau: its
+        # autocovariance sd_d^2 T_d (T_d e^{-L/T_d} - tau e^{-L/tau}) / (T_d^2 - tau^2)
+        # is, past a few tau, its whole variance C0 = sd_d^2 T_d / (T_d + tau) less the
+        # slow part's sd_d^2 T_d^2 / (T_d^2 - tau^2) e^{-L/T_d}: an OU's variogram
+        # delayed by about tau, which no one OU matches. The fit's OU (least squares over
+        # lags from its window W to 8-19 s) reads about T_d + tau as the time and
+        # C0 / (1 - tau / (2 T)) as the variance (the exact window variogram through the
+        # fit: docs/src/behaviour.md), so T_d = T - tau (at least T / 2) and
+        # sd_d = sd sqrt(1 + tau / (2 T_d)) read sd within -3..+1% at T = 2-4 s and
+        # W = 0.4-2 s. The slow part's variance sd^2 (the pace's rule) reads 8-12% low
+        # at T = 2 s and T 13-50% long; the whole variance sd^2 (sd_d = sd sqrt(1 + tau /
+        # T_d), until 2026-11-28) 2-8% high at T = 2-4 s.
         time = np.maximum(time - relaxation, 0.5 * time)
-        sd_desired = sd * np.sqrt(1.0 + relaxation / time)
+        sd_desired = sd * np.sqrt(1.0 + 0.5 * relaxation / time)
     phi = np.where(varies, np.exp(-dt / time), 1.0)
     if isinstance(key, jax.Array):
         seed = np.asarray(jax.random.key_data(key)).ravel().tolist()
@@ -701,9 +709,11 @@ def social_force_tracks(
         of sd ``sd`` (rad) and correlation time ``time`` (s) in the walked heading: the
         walked heading follows the desired one with the relaxation time ``tau``, so the
         desired one's correlation time is ``time - tau`` (at least ``time / 2``) and its
-        sd ``sd sqrt(1 + tau / (time - tau))``, which give the walked heading the variance
-        ``sd^2`` and the integral correlation time ``time`` that
-        :func:`~are_stats.fitting.fit_behaviour` reads from tracks. It aims at the
+        sd ``sd sqrt(1 + tau / (2 (time - tau)))``: the walked heading is then read by
+        :func:`~are_stats.fitting.fit_behaviour` as ``sd`` and ``time`` (its variance is
+        ``sd^2 (1 - tau / (2 time))``, its integral correlation time ``time``; the fit's
+        one OU reads the lagged process's variance over ``1 - tau / (2 time)``:
+        docs/src/behaviour.md). It aims at the
         corner all the while, so the deviation stays bounded and the walker on its route
         (a heading-rate noise would drift off it). Arguments as ``speed_variation``'s.
         The members of a group turn with their leader (its ``theta``): in their slots

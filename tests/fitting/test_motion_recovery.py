@@ -15,16 +15,16 @@ constant velocity alike on seed 0).
 
 The statistic is the two-sample Kolmogorov-Smirnov distance ``D`` between the log's values
 and the new log's (its p-value is not used: the values of a track are correlated over
-time, so it is far too small). A second draw of the generating model reads ``D`` 0.039-0.072
+time, so it is far too small). A second draw of the generating model reads ``D`` 0.034-0.073
 against the log (keys 11-13); the checks allow ``D < 0.15`` (about twice that) for the
 fitted model and require ``D > 0.25`` (turning rate) / ``0.1`` (acceleration) for it
-without its wander / pace (measured 0.443-0.468 and 0.127-0.166). Key 12's wander read
+without its wander / pace (measured 0.432-0.475 and 0.152-0.225). Key 12's wander read
 2.94 s with the second-difference estimator, past a third of the longest lag (8.8 s), the
 identification limit until 2026-11-28: the fit read no wander there and its turning rates
 missed (``D`` 0.468). The wander is now read off the bearing from each window's middle
-to its route's next corner (docs/src/behaviour.md): keys 11-13 read 0.130, 0.121 and
-0.136 rad (2.27, 2.09, 2.46 s), the generating model's walked heading reading above its
-0.12 past the relaxation time.
+to its route's next corner (docs/src/behaviour.md): keys 11-13 read 0.121, 0.113 and
+0.127 rad (2.24, 2.07, 2.46 s; before generation's compensation of the lag was the one
+the fit reads, 2026-11-28: 0.130, 0.121, 0.136).
 """
 
 from __future__ import annotations
@@ -89,14 +89,15 @@ def crossings() -> tuple[pd.DataFrame, np.ndarray, OccupancyGrid, BehaviourFit]:
 @pytest.mark.slow  # a behaviour fit and four walks of 40 people per log
 @pytest.mark.parametrize("key", [11, 12, 13])
 def test_acceleration_and_turning_rate_walked_by_the_fit_are_the_logs(key: int, crossings) -> None:
-    """Measured 2026-11-28 (the wander read from each window's middle). Keys 11 and 13: the
-    fit reads a wander of 0.130 / 0.136 rad and a pace of 0.102 / 0.099 (truth 0.12, 0.1);
-    the new log's ``D`` against the log 0.035 / 0.035 (turning rate) and 0.032 / 0.048
-    (acceleration), a second draw of the generating model 0.040 / 0.043 and 0.039 / 0.054;
-    without the wander the turning rate's 0.443 / 0.443, without the pace the
-    acceleration's 0.166 / 0.137. Key 12: the fit reads 0.121 rad over 2.09 s and a pace of
-    0.128 over 5.0 s; ``D`` 0.063 (turning rate) and 0.072 (acceleration), the generating
-    model's 0.072 / 0.058, without the wander 0.468, without the pace 0.127."""
+    """Measured 2026-11-28 (the wander read from each window's middle, generation's lag
+    compensated as the fit reads it). Keys 11 and 13: the fit reads a wander of 0.121 /
+    0.127 rad and a pace of 0.102 / 0.100 (truth 0.12, 0.1); the new log's ``D`` against
+    the log 0.057 / 0.027 (turning rate) and 0.043 / 0.050 (acceleration), a second draw
+    of the generating model 0.034 / 0.050 and 0.037 / 0.056; without the wander the
+    turning rate's 0.432 / 0.436, without the pace the acceleration's 0.225 / 0.152. Key
+    12: the fit reads 0.113 rad over 2.07 s and a pace of 0.129 over 5.0 s; ``D`` 0.050
+    (turning rate) and 0.062 (acceleration), the generating model's 0.073 / 0.054,
+    without the wander 0.475, without the pace 0.152."""
     walkers, free, grid, truth = crossings
     log = _walk(key, truth, walkers, grid)
     refit = fit_behaviour(log, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
