@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import logging
 import os
 import warnings
 from collections.abc import Iterator
@@ -29,11 +30,21 @@ import pandas as pd
 
 from are_stats._atomic import atomic_path
 from are_stats._lazy import arviz as az
+from are_stats.fitting._class_report import (
+    class_share_checks,
+    plot_class_checks,
+    plot_class_entries,
+    plot_class_shares_by_hour,
+)
 from are_stats.fitting._classes import class_checks
 from are_stats.fitting._criticism import count_path, hour_of_day_counts, kaplan_meier
 from are_stats.fitting._fit import posterior_draws
+from are_stats.fitting._motion_store import motion_tables
 from are_stats.fitting._png import write_png
 from are_stats.fitting._traffic_checks import plot_traffic_checks, traffic_checks
+from are_stats.inputs import check_memory, get_int
+from are_stats.scenarios import ScenarioSize, check_scenario_size, generate_scenarios
+from are_stats.traffic import clock_offset
 
 __all__ = [
     "PARAMETERS",
@@ -98,8 +109,6 @@ def fit_summary(idata: az.InferenceData) -> pd.DataFrame:
         ArviZ's summary, one row per scalar parameter. For single-chain fits (the ``em``
         method) r_hat is undefined (NaN).
     """
-    import logging
-
     names = [n for n in PARAMETERS if n in idata.posterior]
     # r_hat of a single chain / bootstrap draws: ArviZ warns through both warnings and its
     # logger ("Shape validation failed" for one chain), which printed on every em fit; the
@@ -173,9 +182,6 @@ def check_report_size(idata: az.InferenceData, n_replicates: int, source: Any = 
     are_stats.inputs.LimitError
         If the report would need more memory or work than the limits.
     """
-    from are_stats.inputs import check_memory, get_int
-    from are_stats.scenarios import ScenarioSize, check_scenario_size
-
     n_replicates = get_int(n_replicates, "n_replicates", "", lo=1)
     obs = _observed(idata)
     t0, t1 = obs["window"]
@@ -214,10 +220,6 @@ def predictive_windows(key: Any, idata: az.InferenceData, n_replicates: int = 20
         The scenario table of :func:`are_stats.scenarios.generate_scenarios` with times
         shifted to the fit's window ``[t0, t1]``.
     """
-    # the scenario generator (a room downstream, imported when used: the criticism's one
-    # exception to the one-way imports)
-    from are_stats.scenarios import generate_scenarios
-
     obs = _observed(idata)
     t0, t1 = obs["window"]
     df = generate_scenarios(
@@ -278,8 +280,6 @@ class PredictiveChecks:
 
 def fit_clock_offset(idata: az.InferenceData) -> float | None:
     """Time of day (s) of ``t = 0`` from the fit's ``traffic_clock_start``; None without."""
-    from are_stats.traffic import clock_offset
-
     clock = idata.posterior.attrs.get("traffic_clock_start")
     return None if clock is None else clock_offset(str(clock))
 
@@ -658,14 +658,6 @@ def _class_figures(
 ) -> dict[str, Any]:  # fmt: skip
     """The per-class figures of a labelled log's fit (issue 31): the checks (with the
     motion rows the fit stored), the shares by hour (with a clock), the entry densities."""
-    from are_stats.fitting._class_report import (
-        class_share_checks,
-        plot_class_checks,
-        plot_class_entries,
-        plot_class_shares_by_hour,
-    )
-    from are_stats.fitting._motion_store import motion_tables
-
     motion = None
     if "behaviour" in idata.groups():
         with contextlib.suppress(ValueError):  # a damaged table: the CLI names it
