@@ -45,12 +45,14 @@ from are_stats.behaviour._mdp import path_free
 from are_stats.behaviour._model import BehaviourFit
 from are_stats.behaviour._motion import string_pull_many, walk_times_many
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
+from are_stats.behaviour._social import _interp_runs
 from are_stats.behaviour._soft import GOAL_BUCKET, soft_policy
 
 __all__ = [
     "continuous_path",
     "continuous_paths",
     "path_points",
+    "positions_at",
     "sample_soft_paths",
     "simulate_behaviour_tracks",
     "smooth_path",
@@ -302,6 +304,35 @@ def continuous_paths(
         pulled += string_pull_many(routes[block], grids, origin, fit.cell)
     times = walk_times_many(pulled, speeds, rng, within_sd)
     return list(zip(times, pulled, strict=True))
+
+
+def positions_at(paths: Sequence[tuple[np.ndarray, np.ndarray]], t: npt.ArrayLike) -> np.ndarray:
+    """Each timed path's position at the times ``t``, all paths at once.
+
+    Parameters
+    ----------
+    paths : sequence of ((m_i,) float, (m_i, 2) float)
+        Vertex times (s, increasing, ``m_i >= 1``) and positions (m) of each path
+        (:func:`continuous_paths`).
+    t : (T,) float
+        Times (s).
+
+    Returns
+    -------
+    (P, T, 2) float
+        ``np.interp(t, times_i, positions_i[:, k])`` of each path ``i`` and coordinate
+        ``k``, bit for bit (a path's first or last vertex before or after its times);
+        one pass over all paths instead of a call per path and coordinate (issue 29).
+    """
+    t = np.asarray(t, float).reshape(-1)
+    if not len(paths):
+        return np.zeros((0, t.size, 2))
+    count = np.array([len(tv) for tv, _ in paths], np.int64)
+    bounds = np.r_[0, np.cumsum(count)]
+    times = np.concatenate([np.asarray(tv, float) for tv, _ in paths])
+    points = np.concatenate([np.asarray(pv, float).reshape(-1, 2) for _, pv in paths])
+    run = np.repeat(np.arange(len(paths)), t.size)
+    return _interp_runs(np.tile(t, len(paths)), run, times, points, bounds).reshape(-1, t.size, 2)
 
 
 #: Routes whose own grids (:func:`_route_grids`) are made at once.

@@ -412,6 +412,50 @@ def _window(
     return jax.lax.fori_loop(0, n_steps, body, (state, out))
 
 
+def _interp_runs(
+    x: np.ndarray, run: np.ndarray, xp: np.ndarray, fp: np.ndarray, bounds: np.ndarray
+) -> np.ndarray:
+    """``np.interp(x[i], xp[a:b], fp[a:b, k])`` for every ``i`` and column ``k``, with
+    ``a, b = bounds[run[i]], bounds[run[i] + 1]``: many piecewise-linear functions (the
+    runs of ``xp`` (N,), each sorted and non-empty, their values ``fp`` (N, K)) evaluated
+    at once, bit for bit as NumPy's ``interp`` evaluates each (the same interval, slope
+    and arithmetic, the same ends and exact hits; issue 29: a call per run and column was
+    most of a walk's tail). ``x`` (M,) float, ``run`` (M,) int; returns (M, K) float."""
+    # each x's place in its run: the last xp <= x (NumPy's interval; bounds[run] - 1: none),
+    # by a bisection of all runs at once
+    lo, top = bounds[run].astype(np.int64), bounds[run + 1].astype(np.int64)
+    while True:
+        left = lo < top
+        if not left.any():
+            break
+        mid = (lo + top) // 2
+        after = left & (xp[np.minimum(mid, xp.size - 1)] <= x)
+        lo = np.where(after, mid + 1, lo)
+        top = np.where(left & ~after, mid, top)
+    j = lo - 1
+    lo, hi = bounds[run], bounds[run + 1] - 1
+    a = np.clip(j, lo, np.maximum(hi - 1, lo))
+    b = np.minimum(a + 1, hi)
+    xc = x[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = (fp[b] - fp[a]) / (xp[b] - xp[a])[:, None]
+        out = slope * (xc - xp[a][:, None]) + fp[a]
+        # NumPy's other cases, where they arise: NaN (from the right end, else the flat
+        # value), an x on a vertex or before or after the run (its value), a NaN x
+        nan = np.isnan(out)
+        if nan.any():
+            out = np.where(nan, slope * (xc - xp[b][:, None]) + fp[b], out)
+            out = np.where(nan & np.isnan(out) & (fp[a] == fp[b]), fp[a], out)
+    at = np.maximum(j, 0)
+    end = np.where(j < lo, lo, np.where((j >= hi) | (x == xp[at]), at, -1))
+    hit = np.flatnonzero(end >= 0)
+    out[hit] = fp[end[hit]]
+    # a NaN x gives NaN, except on a run of one point (its value)
+    odd = np.flatnonzero(np.isnan(x) & (hi > lo))
+    out[odd] = x[odd, None]
+    return out
+
+
 def _bucket(n: int, lo: int = 8) -> int:
     return max(lo, 1 << (max(n, 1) - 1).bit_length())
 
@@ -896,11 +940,11 @@ def social_force_tracks(
             turn_w = np.zeros((WINDOW_STEPS, nb))
             turn_w[:, slot] = _pace_window(wander, act, WINDOW_STEPS, log=True)[:, lead_col]
             turn_w = jax.device_put(turn_w)
-        for c, i in zip(slot, act, strict=True):
-            if kin[i]:
-                a, b = start[i], stop[i]
-                plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
-                plan[:, c, 1] = np.interp(tt, t_all[a:b], xy_all[a:b, 1]) + shift[i, 1]
+        moves_plan = kin[act]  # only the kinematic artefacts follow a plan
+        for c, i in zip(slot[moves_plan], act[moves_plan], strict=True):
+            a, b = start[i], stop[i]
+            plan[:, c, 0] = np.interp(tt, t_all[a:b], xy_all[a:b, 0]) + shift[i, 0]
+            plan[:, c, 1] = np.interp(tt, t_all[a:b], xy_all[a:b, 1]) + shift[i, 1]
         (xf, vf, kf, hf), xs = _window(
             state,
             take(route),
@@ -939,26 +983,24 @@ def social_force_tracks(
     si = np.concatenate(sim_i) if sim_i else np.zeros(0, np.int64)
     order = np.lexsort((st, si))
     st, sx, si = st[order], sx[order], si[order]
-    bounds = np.searchsorted(si, np.arange(n + 1))
-    out_xy = np.empty_like(xy_all)
+    # each walker's samples after its arrival point, interpolated at its rows (all walkers
+    # at once: _interp_runs); a kinematic artefact keeps its plan, row for row
+    bounds = np.searchsorted(si, np.arange(n + 1)) + np.arange(n + 1)
+    t_walk = np.empty(st.size + n)
+    x_walk = np.empty((st.size + n, 2))
+    t_walk[bounds[:-1]], x_walk[bounds[:-1]] = t_on, xy_all[start]
+    later = np.ones(t_walk.size, bool)
+    later[bounds[:-1]] = False
+    t_walk[later], x_walk[later] = st, sx
+    owner = np.repeat(np.arange(n), stop - start)
+    rows = np.flatnonzero(~kin[owner])
+    out_xy = xy_all.copy()
+    out_xy[rows] = _interp_runs(t_all[rows], owner[rows], t_walk, x_walk, bounds)
     yaw = tab["yaw"].to_numpy(float).copy() if "yaw" in tab.columns else np.zeros(len(tab))
-    for i, (a, b) in enumerate(zip(start, stop, strict=True)):
-        if kin[i]:  # its plan, row for row
-            out_xy[a:b] = xy_all[a:b]
-            continue
-        lo, hi = bounds[i], bounds[i + 1]
-        # concatenate, not np.r_ / vstack: per artefact, their overhead was most of it
-        ts = np.concatenate((t_on[i : i + 1], st[lo:hi]))
-        xs_i = np.concatenate((xy_all[a : a + 1], sx[lo:hi]))
-        out_xy[a:b, 0] = np.interp(t_all[a:b], ts, xs_i[:, 0])
-        out_xy[a:b, 1] = np.interp(t_all[a:b], ts, xs_i[:, 1])
-        if b - a > 1:
-            d = out_xy[a + 1 : b] - out_xy[a : b - 1]
-            moving = np.hypot(*d.T) > 1e-3
-            heading = np.arctan2(d[:, 1], d[:, 0])
-            yy = yaw[a:b].copy()
-            yy[1:][moving] = heading[moving]
-            yaw[a:b] = yy
+    # the yaw along each walker's moves of over 1 mm (the row before's otherwise)
+    d = out_xy[1:] - out_xy[:-1]
+    moving = (np.hypot(*d.T) > 1e-3) & ~first[1:] & ~kin[owner[1:]]
+    yaw[1:][moving] = np.arctan2(d[moving, 1], d[moving, 0])
     out = tab.copy()
     out["x"], out["y"], out["yaw"] = out_xy[:, 0], out_xy[:, 1], yaw
     return out

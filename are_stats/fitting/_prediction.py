@@ -506,7 +506,7 @@ def _rollouts(
     direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands); and
     each one's timed path ``(B, K)`` object (vertex times and positions, None for one
     that stands). The soft policies are kept in ``policies`` (:func:`_solved`)."""
-    from are_stats.behaviour import continuous_paths, sample_soft_paths
+    from are_stats.behaviour import continuous_paths, positions_at, sample_soft_paths
 
     b, n_obs, _ = observed.shape
     n_samples = goals_of.shape[1]
@@ -554,15 +554,17 @@ def _rollouts(
             walked = continuous_paths(
                 list(zip(st, ac, strict=True)), fit, speeds[i_of, k_of], last[i_of], end_of, smooth
             )
-            for j, (tv, pv) in enumerate(walked):
-                i, k = i_of[j], k_of[j]
-                timed[i, k] = (tv, pv)
-                out[i, k, :, 0] = np.interp(ts, tv, pv[:, 0])
-                out[i, k, :, 1] = np.interp(ts, tv, pv[:, 1])
-                away = np.flatnonzero(np.hypot(*(pv - pv[0]).T) > 1e-9)
-                if away.size:
-                    dx, dy = pv[away[0]] - pv[0]
-                    first[i, k] = np.arctan2(dy, dx)
+            for j, path in enumerate(walked):
+                timed[i_of[j], k_of[j]] = path
+            out[i_of, k_of] = positions_at(walked, ts)
+            # each one's first segment: to its first vertex more than 1 nm from its start
+            count = np.array([len(pv) for _, pv in walked], np.int64)
+            owner = np.repeat(np.arange(len(walked)), count)
+            pv = np.concatenate([pv for _, pv in walked])
+            d = pv - pv[np.cumsum(count)[owner] - count[owner]]
+            far = np.flatnonzero(np.hypot(*d.T) > 1e-9)
+            j, at = np.unique(owner[far], return_index=True)
+            first[i_of[j], k_of[j]] = np.arctan2(d[far[at], 1], d[far[at], 0])
     return out, first, timed
 
 

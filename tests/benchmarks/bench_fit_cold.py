@@ -412,6 +412,33 @@ InferenceData thread 2.4-2.6 s. A busy Python thread (an import) beside a 10 ms 
 doubles the call's wall at that load whether Python's switch interval is 5 ms or 0.1 ms
 (20.4 vs 20.8 ms), so what it takes is CPU, not a GIL hand-off; the hand-off costs about
 0.17 ms on a call of 0.1 ms (about 0.1 s a fit).
+
+The tracks part with a walk's tail (``social_force_tracks``' per-artefact ``np.interp``,
+yaw and copies) and the displacement errors' 32,000 continuations (``_rollouts``: their
+positions at the 12 predicted times and first headings) evaluated for all paths at once
+(``_interp_runs``, NumPy's ``interp`` bit for bit; ``behaviour.positions_at``) (wt-tracks,
+2026-11-28, main 01ee85a and the branch started together in fresh processes with empty
+caches, the CLI's command, child CPU by ``getrusage``): load 18 -> 6.5: cold CPU 104.3 s
+main vs 102.3 s branch (0.98x; wall 623 vs 619 s); load 4.5 -> 3.9: 95.8 vs 94.7 s
+(0.99x; wall 187.2 vs 184.7 s); 22 XLA compilations each. The fit file's root and 9
+groups (``xarray`` ``identical``) and all 17 criticism files byte for byte the same, in
+both rounds. In-process CPU (load 15-24): the continuations' loop 0.79-1.15 s -> 0.19-0.29
+s, a walk's tail on 4,000 people of small scenes 0.10-0.14 -> 0.03-0.04 s and on 15,100
+(the motion checks') 0.46-0.59 -> 0.37-0.43 s (a search by ``lexsort`` was slower
+there: 1.1 s). The idle wall, scaled from the roughly 61 s above by the CPU ratio: about
+60 s, within the estimate's noise. Where main's CPU went (cProfile, ``time.process_time``,
+in-process cold fit, 173 s profiled at load 10-15): XLA compiling in the main thread 31 s
+(13 programs; of the 22 programs' 208 s of compile wall the behaviour's gradient 44.6 s,
+``_window`` five 60.6 s, ``_capped_jit`` 10.1 s, the MDP ``body`` two 9.3 s,
+``_per_track_jit`` two 8.6 s, ``_normal`` two 8.7 s) and the Laplace candidates' thread
+awaited 20.8 s; ``social_force_tracks`` 39.9 s (its windows' runs 11.0 s), the realism
+table 22.2 s, displacement errors 28.6 s, motion checks 28.9 s, ``learn_interaction``
+12.2 s, the two ``fit_behaviour`` (the fit's and the report's held-out one) 27.7 s
+(``_mle`` 18.6 s), the report 12.7 s. Measured and not kept: the behaviour gradient's
+program without XLA's CPU fusion emitters (as the Laplace programs): ``fit_behaviour`` on
+the 302 tracks in a fresh process 11.8 -> 8.6 s of CPU cold, 2.60 -> 2.43 s warm, but
+other float32 bits (beta 1.89825845 -> 1.89825579, its se 0.16416075 -> 0.16415785): a
+change of outputs for the lead to weigh (the criticism's draws would follow it).
 """
 
 from __future__ import annotations
