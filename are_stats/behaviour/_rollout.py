@@ -396,7 +396,7 @@ def scenario_tracks(
         On missing columns, artefacts outside the grid or on an obstacle, ``t_leave <
         t_arrive``, or unknown behaviours.
     """
-    from scipy import ndimage
+    from scipy import ndimage  # lazy: +0.2 s CPU on `import are_stats.behaviour`
 
     # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.behaviour`)
     from are_stats.traffic import key_uniform, split_key

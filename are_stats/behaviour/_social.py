@@ -73,9 +73,6 @@ from are_stats.behaviour._noise import tracker_noise
 from are_stats.behaviour._smoother import smooth_samples
 from are_stats.inputs import check_memory, check_work
 
-# Lazy imports: scipy.ndimage and scipy.spatial (0.4 s each, not loaded by the behaviour
-# package) in the functions that use them.
-
 if TYPE_CHECKING:
     from collections.abc import Callable
 
@@ -514,7 +511,7 @@ def _layout(active: list[np.ndarray], scen: np.ndarray, repel: bool) -> list[tup
 
 def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0.0) -> tuple:
     """Distance to walls, its unit gradient, the free mask and the frames (JAX arrays)."""
-    from scipy import ndimage
+    from scipy import ndimage  # lazy: +0.2 s CPU on `import are_stats.behaviour`
 
     if grid is not None:
         free = np.asarray(grid.free, bool)
@@ -1150,7 +1147,7 @@ def _neighbour_pairs(
     """The ordered pairs (i, j) (P,) int of samples at one time within ``reach`` of each
     other (positions ``pos`` (n, 2)), pairs of one group (``label`` (n,), ``-1`` alone) left
     out."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # lazy: +0.25 s CPU on `import are_stats.behaviour`
 
     order = np.argsort(t, kind="stable")
     ts = t[order]
@@ -1928,7 +1925,7 @@ def repulsion_evidence(
     ValueError
         As :func:`fit_social_force`.
     """
-    from scipy.stats import norm
+    from scipy.stats import norm  # lazy: +1.0 s CPU on `import are_stats.behaviour`
 
     base = SocialForce() if base is None else base
     sd = tracker_noise(tracks)

@@ -66,6 +66,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
+from jax.sharding import Mesh
+from jax.sharding import PartitionSpec as P
+from scipy import ndimage
+from scipy.optimize import minimize
+from scipy.spatial import cKDTree
 
 from are_stats._checks import check_finite, check_positive, describe
 from are_stats.behaviour import (
@@ -76,10 +81,10 @@ from are_stats.behaviour import (
     path_free,
     soft_backward_induction,
     string_pull_many,
+    tracker_noise,
     wall_distance_feature,
 )
 from are_stats.environment import coarse_free
-from are_stats.fitting._motion_checks import tracker_noise
 from are_stats.inputs import check_memory
 
 __all__ = [
@@ -188,8 +193,6 @@ def _crowded(tracks: pd.DataFrame, radius: float = VARIATION_ALONE) -> np.ndarra
     """(n_rows,) bool: whether another track is within ``radius`` (m) of the row's position
     at its time (the same step of the log's median sampling step), per row of ``tracks``
     (``id, t, x, y``, any order)."""
-    from scipy.spatial import cKDTree
-
     ids = tracks["id"].to_numpy()
     t = tracks["t"].to_numpy(float)
     xy = tracks[["x", "y"]].to_numpy(float)
@@ -716,8 +719,6 @@ def discretise_tracks(
     ids : (N,) array
         Track ids in the order of ``paths``.
     """
-    from scipy import ndimage
-
     free = np.asarray(free, bool)
     h, w = free.shape
     cell = float(check_positive("cell", cell))
@@ -929,9 +930,6 @@ def _sharded_policy(
     changes by exactly as much per epoch, so the shared stopping rule is unaffected); every
     shard stops at the epoch the whole batch would (``axis_name``).
     """
-    from jax.sharding import Mesh
-    from jax.sharding import PartitionSpec as P
-
     g = keep.shape[0]
     pad = -g % n_devices
     mask = jnp.ones(keep.shape, bool) if tol_mask is None else tol_mask
@@ -1161,8 +1159,6 @@ def _likelihood_data(
     pad_g = np.minimum(np.arange(gb), g - 1)  # the padding goals repeat the last one
     keep, bonus = _goal_masks(free, obs.goals[pad_g], goal_reward)
     # convergence is measured on the visited cells and their neighbours
-    from scipy import ndimage
-
     seen = np.zeros((g,) + free.shape, bool)
     valid = obs.move >= 0
     seen[
@@ -1301,8 +1297,6 @@ def _mle(
     errors (the weights of ``features (F, H, W)`` start at 0). The value, gradient and
     Hessian (:func:`_hessian`) are one program, :func:`_gradient_value_epochs`, compiled
     once per shape bucket of the data."""
-    from scipy.optimize import minimize
-
     tol = _check_tol(tol)
     data, obs, k, n_devices = _likelihood_data(
         paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
@@ -1393,8 +1387,6 @@ def open_area_grid(
     LimitError
         If the grid would pass the memory limit (checked before allocating).
     """
-    from are_stats.inputs import check_memory
-
     resolution = float(check_positive("resolution", resolution))
     margin = float(margin)
     if not (np.isfinite(margin) and margin >= 0.0):

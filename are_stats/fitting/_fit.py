@@ -339,6 +339,7 @@ class Fit:
         >>> draws["arrival_rate"].tolist(), laws.is_paper, fit.posterior_means().mean_stay_s
         ([0.002], True, 20.0)
         """
+        # lazy: a cycle, _fit_log imports this module
         from are_stats.fitting._fit_log import FIT_FORMAT_VERSION
 
         known = PARAMETER_NAMES + TRAFFIC_NAMES
@@ -553,6 +554,7 @@ def as_fit(fit: Fit | az.InferenceData | str | os.PathLike, source: str | None =
     if isinstance(fit, Fit):
         return fit
     if isinstance(fit, str | os.PathLike):
+        # lazy: a cycle, _fit_log imports this module
         from are_stats.fitting._fit_log import read_fit
 
         return read_fit(fit)

@@ -33,9 +33,6 @@ from are_stats.traffic import (
     prior_predictive,
 )
 
-# Lazy import, measured (CPU): xarray (+0.16 s on ``import are_stats.fitting``) comes with
-# ArviZ when a fit is built.
-
 __all__ = ["fit_lifecycle_nuts"]
 
 _LATENT = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
@@ -362,7 +359,7 @@ def _inference_data(
     prior: dict,
     timing: dict[str, float],
 ) -> az.InferenceData:
-    import xarray as xr
+    import xarray as xr  # lazy: +0.16 s CPU on `import are_stats.fitting`
 
     counts = ("n_arrivals", "n_present") if stationary_start else ("n_arrivals",)
     observed: dict[str, np.ndarray] = {"n_arrivals": np.asarray(int((~data.truncated).sum()))}

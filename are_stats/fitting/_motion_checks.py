@@ -43,13 +43,22 @@ import pandas as pd
 from are_stats.behaviour import (
     GOAL_BUCKET,
     BehaviourFit,
+    SocialForce,
+    arrival_velocities,
+    formation,
     move_observations,
     path_free,
+    preferred_speeds,
+    simulate_behaviour_tracks,
+    social_force_tracks,
     soft_policy,
     track_log_likelihoods,
     tracker_noise,
 )
-from are_stats.inputs import LimitError
+from are_stats.environment import OccupancyGrid
+from are_stats.fitting._behaviour import discretise_tracks, fit_behaviour
+from are_stats.inputs import LimitError, check_memory
+from are_stats.logs import track_groups
 from are_stats.traffic import fold_in_key, key_from_seed, key_uniform, split_key
 
 __all__ = [
@@ -276,8 +285,6 @@ WALK_DT = 0.1
 def _social(interaction: Any) -> Any:
     """The social force's parameters of ``interaction`` (``True``: the published ones; a
     :class:`~are_stats.behaviour.SocialForce`: itself), None for no interaction."""
-    from are_stats.behaviour import SocialForce
-
     if interaction is None or interaction is False:
         return None
     return interaction if isinstance(interaction, SocialForce) else SocialForce()
@@ -303,8 +310,6 @@ def _walk(
     continuations of :func:`displacement_errors`. ``progress(done, total)`` is told the
     social force's windows (those of the parts, one after the other, when walked in parts:
     the parts not yet begun counted as long as the current one)."""
-    from are_stats.behaviour import social_force_tracks
-
     pace = turn = None
     if variation is not None:
         key, sd, time, h_sd, h_time = variation
@@ -370,8 +375,6 @@ def _variation(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> tuple | No
 
 def _log_groups(tracks: pd.DataFrame) -> dict[Any, str]:
     """:func:`~are_stats.logs.track_groups` keyed by the log's own ids (not their text)."""
-    from are_stats.logs import track_groups
-
     by_text = {str(i): i for i in pd.unique(tracks["id"])}
     return {by_text[i]: g for i, g in track_groups(tracks).items() if i in by_text}
 
@@ -380,8 +383,6 @@ def _draw_speeds(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> np.ndarr
     """Each artefact's preferred speed ``(n,)`` from its class's fitted between-person law:
     running with probability ``run_fraction``, then lognormal (walking or running ``mu,
     sigma``; :func:`~are_stats.behaviour.preferred_speeds`)."""
-    from are_stats.behaviour import preferred_speeds
-
     k_run, k_speed = split_key(key)
     u = key_uniform(k_run, cls.shape)
     run = u < np.nan_to_num(np.asarray(fit.run_fraction, float)[cls])
@@ -411,8 +412,6 @@ def _at_speed(
     pandas.DataFrame
         ``scenario, id, t, x, y, yaw`` (``yaw`` 0: the walk sets the heading).
     """
-    from are_stats.inputs import check_memory
-
     sc, ids = plan["scenario"].to_numpy(), plan["id"].to_numpy()
     new = np.r_[True, (sc[1:] != sc[:-1]) | (ids[1:] != ids[:-1])]
     start = np.flatnonzero(new)
@@ -536,16 +535,12 @@ def _replicate_tracks(
         ``scenario, id, t, x, y, yaw``, sorted by ``scenario, id, t``: ``scenario`` is the
         replicate.
     """
-    from are_stats.behaviour import arrival_velocities, formation, simulate_behaviour_tracks
-
     fit = behaviour_fit
     n_rep = int(n_replicates)
     if n_rep < 1:
         raise ValueError(f"n_replicates: expected an integer >= 1, got {n_replicates!r}")
     params = _social(interaction)
     if grid is None:
-        from are_stats.environment import OccupancyGrid
-
         origin = np.asarray(fit.origin, float)
         grid = OccupancyGrid(np.where(fit.free, 0, 100), fit.cell, (origin[0], origin[1], 0.0))
     g = observed_tracks.sort_values(["id", "t"], kind="stable").groupby("id", sort=True)
@@ -776,8 +771,6 @@ def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFra
         One row per track with at least one move: ``id``, ``label``, ``n_moves``,
         ``loglik_policy``, ``loglik_random_walk``.
     """
-    from are_stats.fitting._behaviour import discretise_tracks
-
     fit = behaviour_fit
     names = {c: i for i, c in enumerate(fit.classes)}
     labels = (
@@ -878,8 +871,6 @@ def heldout_log_likelihood(
     fit : BehaviourFit
         The fit of the training tracks.
     """
-    from are_stats.fitting._behaviour import fit_behaviour
-
     if not 0.0 < train_fraction < 1.0:
         raise ValueError(f"train_fraction: expected a float in (0, 1), got {train_fraction!r}")
     ids = np.unique(tracks["id"].to_numpy())
@@ -918,7 +909,7 @@ def plot_motion_checks(
         (observed histogram vs the pooled replicates), the replicated still fraction and
         median speed with the observed value, and the numbers.
     """
-    import matplotlib
+    import matplotlib  # lazy: figures only (pyplot +0.7 s CPU on `import are_stats.fitting`)
 
     if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)

@@ -30,8 +30,18 @@ import numpy as np
 import pandas as pd
 
 from are_stats._checks import check_positive
-from are_stats.behaviour import BehaviourFit, move_observations, path_free, track_log_likelihoods
+from are_stats.behaviour import (
+    BehaviourFit,
+    continuous_paths,
+    move_observations,
+    path_free,
+    positions_at,
+    sample_soft_paths,
+    track_log_likelihoods,
+)
+from are_stats.fitting._behaviour import discretise_tracks
 from are_stats.fitting._motion_checks import _policies, _rng, _social, _walk, tracker_noise
+from are_stats.logs import GROUP_DISTANCE
 from are_stats.traffic import key_from_seed
 
 __all__ = ["constant_velocity", "displacement_errors"]
@@ -118,8 +128,6 @@ def _goal_posterior(
     posterior ``(B, G)`` of each window's goal: the empirical exit frequencies times the soft
     policy's likelihood of the window's observed moves (discretised as in the fit); the
     policies kept in ``policies`` (:func:`_solved`)."""
-    from are_stats.fitting._behaviour import discretise_tracks
-
     ends = fit.world_to_cell(fit.exit_xy[fit.track_class == c])
     if not len(ends):
         ends = fit.world_to_cell(fit.exit_xy)
@@ -506,8 +514,6 @@ def _rollouts(
     direction ``(B, K)`` (rad) of each one's first segment (NaN for one that stands); and
     each one's timed path ``(B, K)`` object (vertex times and positions, None for one
     that stands). The soft policies are kept in ``policies`` (:func:`_solved`)."""
-    from are_stats.behaviour import continuous_paths, positions_at, sample_soft_paths
-
     b, n_obs, _ = observed.shape
     n_samples = goals_of.shape[1]
     last = observed[:, -1]
@@ -587,8 +593,6 @@ def _walks_with(
     together), and walking at the person's velocity (within
     :data:`GROUP_RELATIVE_SPEED`). Members of a group repel each other only on contact
     (:func:`~are_stats.behaviour.social_force_tracks`), which their formation avoids."""
-    from are_stats.logs import GROUP_DISTANCE
-
     near_now = np.hypot(*(p_now - observed[-1])) <= GROUP_DISTANCE
     near_then = seen_then and np.hypot(*(p_then - observed[0])) <= 2.0 * GROUP_DISTANCE
     return bool(near_now and near_then and np.hypot(*(vel - v_obs)) <= GROUP_RELATIVE_SPEED)

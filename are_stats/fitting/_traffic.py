@@ -73,6 +73,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
+from numpyro.diagnostics import effective_sample_size
+from scipy.special import logsumexp
 
 from are_stats._checks import check_in
 from are_stats.environment import coarse_free
@@ -219,8 +221,6 @@ def time_resolution(*times: Any) -> float:
 
 def loo_pointwise(loglik: np.ndarray, reff: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """PSIS-LOO pointwise ``elpd_i`` and Pareto ``k_i`` of a ``(chains, draws, n)`` log-lik."""
-    from scipy.special import logsumexp
-
     c, d, n = loglik.shape
     if n == 0:
         return np.zeros(0), np.zeros(0)
@@ -240,8 +240,6 @@ def _reff(run: NutsRun | None) -> float:
     """Relative efficiency for PSIS (mean bulk ESS of the latent scalars over the draws)."""
     if run is None:
         return 1.0
-    from numpyro.diagnostics import effective_sample_size
-
     c, d = run.diverging.shape
     if c < 2:
         return 1.0

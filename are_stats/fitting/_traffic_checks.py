@@ -517,6 +517,7 @@ def _overhangs(fig: Any, ax: Any, renderer: Any) -> tuple[float, float]:
     The labels' positions and texts come from the axis' locator and formatter, their
     widths from ``renderer``'s font metrics: no tick objects, nothing drawn.
     """
+    # lazy: matplotlib.pyplot +0.7 s CPU on `import are_stats.fitting` (figures only)
     from matplotlib.font_manager import FontProperties
     from matplotlib.pyplot import rcParams
 
@@ -542,7 +543,7 @@ def _widen_for_labels(fig: Any, axes: np.ndarray) -> None:
     """Widen the sides and the gaps of ``fig``'s grid of ``axes`` (rows x columns) where
     x tick labels reach past their panels, so that no two panels' labels meet and none
     leaves the page (a layout engine's guarantee, for the figure's only variable text)."""
-    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.backends.backend_agg import RendererAgg  # lazy: as in plot_traffic_checks
 
     renderer = RendererAgg(1, 1, fig.dpi)
     rows, cols = axes.shape
@@ -572,7 +573,7 @@ def _add_outline(ax: Any, values: np.ndarray, bins: np.ndarray, colour: str, lab
     The data limits come from the polygon's vertices at once; ``Axes.add_patch`` (which
     ``hist`` calls) walks the outline as Bezier segments in Python, 9 ms a panel.
     """
-    from matplotlib.patches import Polygon
+    from matplotlib.patches import Polygon  # lazy: as in plot_traffic_checks
 
     counts = np.histogram(values, bins)[0].astype(np.float64)
     n = len(bins)
@@ -596,7 +597,7 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib
+    import matplotlib  # lazy: figures only (pyplot +0.7 s CPU on `import are_stats.fitting`)
 
     if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)

@@ -85,9 +85,6 @@ if TYPE_CHECKING:
 
     from are_stats.fitting import Fit
 
-# Lazy import: fitting (NumPyro, ArviZ: +0.9 s CPU on `import are_stats.scenarios`, measured
-# 2026-11-28) loads when a fit is read; behaviour and JAX come with the room anyway.
-
 __all__ = [
     "check_tracks_size",
     "move_scenes",
@@ -720,6 +717,7 @@ def scenes_from_fit(
     ValueError
         When the behaviour rule refuses ``behaviours`` (:func:`behaviour_source`).
     """
+    # lazy: a cycle (fitting imports scenarios) and +1.0 s CPU on `import are_stats.scenarios`
     from are_stats.fitting import as_fit
 
     opts = (options or _STANDING).with_settings(settings)

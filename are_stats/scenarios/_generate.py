@@ -29,6 +29,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import jax
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
@@ -38,12 +39,7 @@ from are_stats._checks import check_in, check_nonnegative, check_positive, descr
 from are_stats.inputs import check_memory, check_work, get_float, get_int
 from are_stats.scenarios._folder import SCENARIO_COLUMNS
 
-# Lazy imports: the traffic room (JAX, NumPyro) loads when its samplers are needed: the paper's
-# scenarios are NumPy only.
-
 if TYPE_CHECKING:
-    import jax
-
     from are_stats.environment import OccupancyGrid
     from are_stats.traffic import PositionDensity, TrafficLaws
 
@@ -109,8 +105,6 @@ def _seed_sequence(key: int | jax.Array) -> tuple[np.random.SeedSequence, int | 
             raise ValueError(f"key: expected an int seed >= 0 or a JAX PRNG key, got {key!r}")
         return np.random.SeedSequence(int(key)), int(key)
     try:
-        import jax
-
         if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
             key = jax.random.key_data(key)
         words = np.asarray(key)
@@ -274,6 +268,7 @@ def _draw_classes(
     g_scen = scen[first]
     probs = w[g_scen]
     if "class_tod_weights" in p and clock is not None:
+        # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
         from are_stats.traffic import period_of
 
         tw = p["class_tod_weights"][d]  # (n_sc, P, K)
@@ -290,6 +285,7 @@ def _draw_classes(
     cls_g = np.sum(u[:, None] >= cum[:, :-1], axis=1).astype(np.int32)
     cls = cls_g[inv]
     if per_class:
+        # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
         from are_stats.traffic import stay_draws
 
         m_g = p["class_stay_mean"][d][g_scen, cls_g]
@@ -533,6 +529,7 @@ def generate_scenarios(
     if laws is not None and laws.class_entry is not None and "class_weights" in p:
         check_origin_yaw(oyaw, "per-class entry densities")
         if free_mask is not None:  # the map the fit learned its classes' entries on
+            # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
             from are_stats.traffic import uniform_position_density
 
             on_map = uniform_position_density(mask, res, (ox, oy))
@@ -658,6 +655,7 @@ def _rich_populations(
     origin: tuple[float, float, float],
 ) -> tuple:
     """Each scenario by :func:`are_stats.traffic.sample_population` (positions in the map)."""
+    # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
     from are_stats.traffic import sample_population, uniform_position_density
 
     ox, oy, oyaw = origin

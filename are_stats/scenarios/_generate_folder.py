@@ -101,6 +101,7 @@ def generate_folder(
     pandas.DataFrame
         The scenarios table written (``attrs["generation"]``: what it was drawn from).
     """
+    # lazy: a cycle (fitting imports scenarios) and +1.0 s CPU on `import are_stats.scenarios`
     from are_stats.fitting import read_fit
 
     # what the scenes are drawn with, and what the folder records of them

@@ -48,14 +48,16 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Mapping
 from typing import TYPE_CHECKING
 
+import jax
 import numpy as np
 import pandas as pd
 
 from are_stats.behaviour import tracker_noise
+from are_stats.environment import load_catalogue
 from are_stats.logs import track_groups
+from are_stats.scenarios._assembly import scene_tracks
 
 if TYPE_CHECKING:
-    import jax
     from matplotlib.figure import Figure
 
     from are_stats.behaviour import BehaviourFit, SocialForce
@@ -264,7 +266,7 @@ def _interactive(
     from the next than any two people of one frame are apart, so one k-d tree answers
     every frame's queries (a tree per frame cost about a millisecond each).
     """
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # lazy: +0.3 s CPU on `import are_stats.scenarios`
 
     if len(tab) < 2:
         return np.zeros(0), np.zeros(0), np.zeros(0)
@@ -318,7 +320,7 @@ def _group_label(groups: Groups, scenario: Hashable, track: Hashable) -> str | N
 def _group_spacing(tab: pd.DataFrame, vel: np.ndarray, groups: Groups) -> np.ndarray:
     """Distance ``(k,)`` from each walking group member to its nearest walking co-member
     at the same time (resampled rows ``tab``, velocities ``vel (n, 2)``)."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # lazy: +0.3 s CPU on `import are_stats.scenarios`
 
     keys = tab[["scenario", "id"]].drop_duplicates()
     label = {
@@ -513,10 +515,6 @@ def realism_table(
         score per model (``constant velocity``, ``catalogue``, ``fitted``);
         ``attrs["observation_noise"]`` the noise (m) the models were seen with.
     """
-    import jax
-
-    from are_stats.environment import load_catalogue
-    from are_stats.scenarios._assembly import scene_tracks
     from are_stats.traffic import fold_in_key  # lazy: NumPyro (+0.75 s on the import)
 
     tab = tracks.sort_values(["id", "t"], kind="stable")
@@ -610,7 +608,7 @@ def plot_realism(table: pd.DataFrame) -> Figure:
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: +0.55 s CPU on `import are_stats.scenarios`
 
     models = [c for c in table.columns if c not in ("kind", "weight")]
     rows = ["realism (weighted)", *[r for r in table.index if r != "realism (weighted)"]]
