@@ -4,9 +4,8 @@ unless a measured start-up cost needs them lazy).
 An import in a function body passes when a comment on it, on the comment lines right above
 its block of imports (adjacent, or apart by blank lines only), or on the line that opens that
 block (``try:  # ...``) says
-``lazy`` (with the cost measured), ``cycle`` or ``optional``. Checked: the top-level modules
-(the CLI, its jobs, the caches) and the robot half's rooms; fitting, behaviour, scenarios
-and traffic join :data:`ROOMS` when theirs say so too.
+``lazy`` (with the cost measured), ``cycle`` or ``optional``. Checked: every module of the
+package (the top-level modules and every room in :data:`ROOMS`).
 """
 
 from __future__ import annotations
@@ -18,7 +17,18 @@ from pathlib import Path
 import are_stats
 
 #: The rooms whose modules are checked, besides the top-level modules.
-ROOMS = ("environment", "logs", "builder", "perception", "experiments", "export")
+ROOMS = (
+    "traffic",
+    "fitting",
+    "behaviour",
+    "scenarios",
+    "environment",
+    "logs",
+    "builder",
+    "perception",
+    "experiments",
+    "export",
+)
 
 _REASON = re.compile(r"\b(lazy|cycle|optional)\b", re.IGNORECASE)
 
@@ -82,6 +92,8 @@ def test_the_check_finds_an_import_without_a_reason():
 
 def test_imports_in_functions_say_why_they_are_lazy():
     root = Path(are_stats.__file__).parent
+    rooms = {p.parent.name for p in root.glob("*/__init__.py")}
+    assert rooms == set(ROOMS), f"rooms not checked: {sorted(rooms - set(ROOMS))}"
     files = [*root.glob("*.py"), *(f for room in ROOMS for f in (root / room).rglob("*.py"))]
     bad = [
         f"{f.relative_to(root.parent)}:{n}"

@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import numpy.typing as npt
+from numpyro import handlers
 from numpyro.distributions.transforms import (
     ExpTransform,
     IdentityTransform,
@@ -284,7 +285,6 @@ _SITES: dict[tuple, dict[str, tuple[Any, tuple]]] = {}
 def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Any, tuple]]:
     """``name -> (support, shape)`` of the latent sample sites of ``model(**kwargs)``, read
     off an abstract trace (``jax.eval_shape``: shapes only), kept per model and shapes."""
-    from numpyro import handlers
 
     arrays, treedef, static = _split_kwargs(kwargs)
     key = _hashable((_fn_key(model), treedef, static, _shapes(arrays)))

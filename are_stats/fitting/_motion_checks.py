@@ -913,7 +913,7 @@ def plot_motion_checks(
 
     if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: pyplot adds 0.6-0.9 s CPU to import are_stats.fitting
 
     obs, rep = replicates["observed"], replicates["tracks"]
     summary = replicates["summary"]

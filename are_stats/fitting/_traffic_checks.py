@@ -601,7 +601,7 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
 
     if "matplotlib.pyplot" not in sys.modules:  # headless default; never switch a live
         matplotlib.use("Agg")  # session's backend (a notebook's inline one)
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: pyplot adds 0.6-0.9 s CPU to import are_stats.fitting
 
     colours = {"paper": "tab:grey", "chosen": "tab:blue"}
     n = len(TRAFFIC_STATISTICS)
