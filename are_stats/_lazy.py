@@ -11,8 +11,13 @@ from types import ModuleType
 from typing import Any
 
 __all__ = [
-    "LazyModule", "arviz", "hide_dask", "import_xarray_dask", "scipy_signal", "scipy_stats",
-]  # fmt: skip
+    "LazyModule",
+    "arviz",
+    "hide_dask",
+    "import_xarray_dask",
+    "scipy_signal",
+    "scipy_stats",
+]
 
 
 class LazyModule:

@@ -404,9 +404,11 @@ def _compile_lowered(lowered: Any, options: dict | None) -> Any:
     """``lowered.compile(options)``, leaving out the options this jaxlib does not know."""
 
     def known() -> dict | None:
-        return None if options is None else {
-            k: v for k, v in options.items() if k not in _UNKNOWN_OPTIONS
-        }  # fmt: skip
+        return (
+            None
+            if options is None
+            else {k: v for k, v in options.items() if k not in _UNKNOWN_OPTIONS}
+        )
 
     try:
         return lowered.compile(known())

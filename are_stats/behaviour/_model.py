@@ -346,9 +346,21 @@ class BehaviourFit:
         of_class = {c: np.flatnonzero(self.track_class == c) for c in np.unique(cls)}
         if stays is not None:
             self._draw_exits_given_stays(
-                rng, out, cls, ent, inv, dist, near, ent_xy, reach, of_class, tries,
-                stays, speed_mu, speed_sigma,
-            )  # fmt: skip
+                rng,
+                out,
+                cls,
+                ent,
+                inv,
+                dist,
+                near,
+                ent_xy,
+                reach,
+                of_class,
+                tries,
+                stays,
+                speed_mu,
+                speed_sigma,
+            )
             return out
         for i in range(len(ent)):
             d_i = dist[inv[i]]

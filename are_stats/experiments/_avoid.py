@@ -133,9 +133,13 @@ def _clear_of_others(
     cj = _centres(scene, cols[js], pj)
     n = ks.size
     hit = obb_overlap_2d(
-        centres[ks], np.tile(scene.half_extents[i, :2], (n, 1)), pose[ks, 2],
-        cj, scene.half_extents[cols[js], :2], pj[:, 2],
-    )  # fmt: skip
+        centres[ks],
+        np.tile(scene.half_extents[i, :2], (n, 1)),
+        pose[ks, 2],
+        cj,
+        scene.half_extents[cols[js], :2],
+        pj[:, 2],
+    )
     return not hit.any()
 
 
@@ -534,9 +538,13 @@ def _clear_of_walls(
     if not n:
         return True
     hit = obb_overlap_2d(
-        centres[box], np.tile(half, (n, 1)), yaws[box], grid.cell_to_world(ij),
-        np.full((n, 2), res / 2.0), np.full(n, float(grid.origin[2])),
-    )  # fmt: skip
+        centres[box],
+        np.tile(half, (n, 1)),
+        yaws[box],
+        grid.cell_to_world(ij),
+        np.full((n, 2), res / 2.0),
+        np.full(n, float(grid.origin[2])),
+    )
     return not hit.any()
 
 

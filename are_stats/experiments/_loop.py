@@ -640,11 +640,19 @@ def _plan(m: _Mission, s: _State) -> tuple[_State, dict, tuple | None]:
         plan = (s.t, path.copy()) if m.record else None
     ok = p_local is not None
     row = {
-        "t": s.t, "goal": s.goal, "reason": s.reason, "rho_t": rho_t, "g_t": g_t,
-        "rho": float(replanning_ratio([rho_t], [g_t])[0]) if ok else np.nan, "success": ok,
-        "path_length": float(cum[-1]) if ok else np.nan, "n_live": int(s.live.sum()),
-        "n_perceived": int(s.seen.sum()), "n_A": s.n_A, "nu": s.n_A / m.n_free,
-    }  # fmt: skip
+        "t": s.t,
+        "goal": s.goal,
+        "reason": s.reason,
+        "rho_t": rho_t,
+        "g_t": g_t,
+        "rho": float(replanning_ratio([rho_t], [g_t])[0]) if ok else np.nan,
+        "success": ok,
+        "path_length": float(cum[-1]) if ok else np.nan,
+        "n_live": int(s.live.sum()),
+        "n_perceived": int(s.seen.sum()),
+        "n_A": s.n_A,
+        "nu": s.n_A / m.n_free,
+    }
     standing = np.nan if ok else (s.standing if np.isfinite(s.standing) else s.t)
     s = s._replace(
         path=path,
@@ -668,10 +676,15 @@ def _drive(m: _Mission, s: _State, s_new: float, t_new: float) -> tuple[_State, 
     in_contact, by_robot, by_artefact, clear = _contacts(m, pts, tt, s)
     poses = np.column_stack([tt, pts, hd]).tolist() if m.record else []
     s = s._replace(
-        t=t_new, pose=np.array([pts[-1, 0], pts[-1, 1], hd[-1]]), s_along=s_new,
-        distance=s.distance + ds, in_contact=in_contact, collisions=s.collisions + by_robot,
-        artefact_contacts=s.artefact_contacts + by_artefact, contact_clear=clear,
-    )  # fmt: skip
+        t=t_new,
+        pose=np.array([pts[-1, 0], pts[-1, 1], hd[-1]]),
+        s_along=s_new,
+        distance=s.distance + ds,
+        in_contact=in_contact,
+        collisions=s.collisions + by_robot,
+        artefact_contacts=s.artefact_contacts + by_artefact,
+        contact_clear=clear,
+    )
     return s, poses
 
 
@@ -821,11 +834,16 @@ def _avoid(
     # changed artefacts' events; the others' are the coming ones of s.events)
     events = _events_after(s.events, scene, np.array(changed), m.T, m.move_period, s.t)
     s = s._replace(
-        scene=scene, events=events, event=0,
-        n_detours=s.n_detours + counts["detour"], n_yields=s.n_yields + counts["yield"],
-        avoid_delay=s.avoid_delay + delay, n_give_ways=s.n_give_ways + counts["give_way"],
-        waiting=waiting, gave_way=gave_way,
-    )  # fmt: skip
+        scene=scene,
+        events=events,
+        event=0,
+        n_detours=s.n_detours + counts["detour"],
+        n_yields=s.n_yields + counts["yield"],
+        avoid_delay=s.avoid_delay + delay,
+        n_give_ways=s.n_give_ways + counts["give_way"],
+        waiting=waiting,
+        gave_way=gave_way,
+    )
     return s, sorted(kinds), np.array(changed, np.int64)
 
 
@@ -880,18 +898,44 @@ def _init(m: _Mission, pose: np.ndarray) -> _State:
     live = m.scene.alive(0.0)
     idx = np.flatnonzero(live)
     s = _State(
-        t=0.0, pose=pose, goal=0, reached=np.full(m.goals.shape[0], np.nan), path=None,
-        cum=np.zeros(1), s_along=0.0, need_plan=True, reason="goal", live=live,
-        seen=np.zeros(n, bool), in_contact=np.zeros(n, bool), n_A=0,
-        event=0, next_percept=m.period if m.perception == "camera" else np.inf,
-        n_replans=0, n_updates=0, n_moves=0, collisions=0, arrival_contacts=0,
-        artefact_contacts=0, distance=0.0, scene=m.scene, events=m.events, n_detours=0,
-        n_yields=0, avoid_delay=0.0, n_give_ways=0, waiting=np.full(n, np.nan),
-        standing=np.nan, gave_way=np.full(n, np.nan), replans_at=(np.nan, 0),
+        t=0.0,
+        pose=pose,
+        goal=0,
+        reached=np.full(m.goals.shape[0], np.nan),
+        path=None,
+        cum=np.zeros(1),
+        s_along=0.0,
+        need_plan=True,
+        reason="goal",
+        live=live,
+        seen=np.zeros(n, bool),
+        in_contact=np.zeros(n, bool),
+        n_A=0,
+        event=0,
+        next_percept=m.period if m.perception == "camera" else np.inf,
+        n_replans=0,
+        n_updates=0,
+        n_moves=0,
+        collisions=0,
+        arrival_contacts=0,
+        artefact_contacts=0,
+        distance=0.0,
+        scene=m.scene,
+        events=m.events,
+        n_detours=0,
+        n_yields=0,
+        avoid_delay=0.0,
+        n_give_ways=0,
+        waiting=np.full(n, np.nan),
+        standing=np.nan,
+        gave_way=np.full(n, np.nan),
+        replans_at=(np.nan, 0),
         builder=ARBuilder(m.grid),
-        builder_at=(None, np.nan), planning_at=(),
-        percepts=MappingProxyType({}), contact_clear=(),
-    )  # fmt: skip
+        builder_at=(None, np.nan),
+        planning_at=(),
+        percepts=MappingProxyType({}),
+        contact_clear=(),
+    )
     s = _perceive(m, _register(s), idx)
     in_contact, _, _, clear = _contacts(m, pose[None, :2], np.array([0.0]), s)
     return s._replace(
@@ -994,19 +1038,28 @@ def _update(m: _Mission, s: _State, kinds: list[str]) -> tuple[_State, dict, dic
 
 def _timeline_row(m: _Mission, s: _State, kind: str) -> dict:
     return {
-        "t": s.t, "kind": kind, "n_live": int(s.live.sum()), "n_perceived": int(s.seen.sum()),
-        "n_A": s.n_A, "nu": s.n_A / m.n_free,
-    }  # fmt: skip
+        "t": s.t,
+        "kind": kind,
+        "n_live": int(s.live.sum()),
+        "n_perceived": int(s.seen.sum()),
+        "n_A": s.n_A,
+        "nu": s.n_A / m.n_free,
+    }
 
 
 def _scene_record(m: _Mission, s: _State) -> tuple[_State, dict]:
     idx, boxes = _boxes(s.scene, s.t)
     s, grid, _ = _planning_grid(m, s, idx)
     return s, {
-        "t": s.t, "ids": boxes.ids, "centres": boxes.centres, "half": boxes.half_extents,
-        "yaws": boxes.yaws, "labels": list(boxes.labels), "perceived": s.seen[idx],
+        "t": s.t,
+        "ids": boxes.ids,
+        "centres": boxes.centres,
+        "half": boxes.half_extents,
+        "yaws": boxes.yaws,
+        "labels": list(boxes.labels),
+        "perceived": s.seen[idx],
         "grid": grid,
-    }  # fmt: skip
+    }
 
 
 def _track_speeds(scene: Scene) -> np.ndarray:
@@ -1243,18 +1296,34 @@ def run_mission(
     events = _event_table(scene, T, move_period)
     static_occ, static_clear, clear_offsets = _static_clearance(grid, robot.radius)
     m = _Mission(
-        grid=grid, scene=scene, robot=robot,
-        plan_fn=plan_fn, goals=G, T=T, perception=perception, env_mesh=env_mesh,
-        period=period, d_max=d_max, tau=tau, memory=bool(perception_memory), seed=int(seed),
-        record=bool(record), step=min(grid.resolution, robot.radius / 2.0),
-        n_free=grid.n_free, events=events, static_occ=static_occ, static_clear=static_clear,
+        grid=grid,
+        scene=scene,
+        robot=robot,
+        plan_fn=plan_fn,
+        goals=G,
+        T=T,
+        perception=perception,
+        env_mesh=env_mesh,
+        period=period,
+        d_max=d_max,
+        tau=tau,
+        memory=bool(perception_memory),
+        seed=int(seed),
+        record=bool(record),
+        step=min(grid.resolution, robot.radius / 2.0),
+        n_free=grid.n_free,
+        events=events,
+        static_occ=static_occ,
+        static_clear=static_clear,
         clear_offsets=clear_offsets,
         avoid=avoid,
-        clearance=robot.radius + margin, patience=patience, move_period=move_period,
+        clearance=robot.radius + margin,
+        patience=patience,
+        move_period=move_period,
         wall_distance=grid.distance_to_occupied() if avoid and scene.has_tracks.any() else None,
         art_radius=np.hypot(*scene.offsets[:, :2].T) + np.hypot(*scene.half_extents[:, :2].T),
         art_speed=_track_speeds(scene),
-    )  # fmt: skip
+    )
     # refuse before looping: footprint tests along the path, and grid passes per replan
     n_motion = robot.speed * T / m.step + 1.0
     # a camera tick casts the image's rays; it replans only when A_f changes, which each

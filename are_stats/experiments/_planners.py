@@ -240,10 +240,16 @@ def astar_cells(
     # (offset, step, the two orthogonal neighbours a diagonal needs free, dr, dc) in the
     # order of _MOVES (the order ties are pushed in)
     moves = [
-        (dr * wp + dc, sq2 if dr and dc else 1.0, dr * wp if dr and dc else 0,
-         dc if dr and dc else 0, dr, dc)
+        (
+            dr * wp + dc,
+            sq2 if dr and dc else 1.0,
+            dr * wp if dr and dc else 0,
+            dc if dr and dc else 0,
+            dr,
+            dc,
+        )
         for dr, dc in _MOVES
-    ]  # fmt: skip
+    ]
     pop, push, get = heapq.heappop, heapq.heappush, cost.get
     while heap:
         _, g_cost, u = pop(heap)

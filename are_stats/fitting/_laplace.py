@@ -62,9 +62,15 @@ from are_stats.fitting._nuts import (
 from are_stats.fitting._psis import psislw
 
 __all__ = [
-    "RESAMPLE_MAX_K", "LaplaceRun", "Resampled", "importance_resample", "laplace_dimension",
-    "laplace_loo", "laplace_program", "run_laplace",
-]  # fmt: skip
+    "RESAMPLE_MAX_K",
+    "LaplaceRun",
+    "Resampled",
+    "importance_resample",
+    "laplace_dimension",
+    "laplace_loo",
+    "laplace_program",
+    "run_laplace",
+]
 
 
 #: The mode is searched within ``[-Z_BOUND, Z_BOUND]`` on the unconstrained scale (the
@@ -502,8 +508,14 @@ def run_laplace(
     # of shape e^30 takes seconds a point), not the data, rule
     bounds = [(-Z_BOUND, Z_BOUND)] * d
     with _one_blas_thread():
-        res = minimize(fun, np.clip(x0, -Z_BOUND, Z_BOUND), jac=True, method="L-BFGS-B",
-                       bounds=bounds, options={"maxiter": MAX_ITER})  # fmt: skip
+        res = minimize(
+            fun,
+            np.clip(x0, -Z_BOUND, Z_BOUND),
+            jac=True,
+            method="L-BFGS-B",
+            bounds=bounds,
+            options={"maxiter": MAX_ITER},
+        )
         mode = res.x
         hess = _hessian(lambda pts: evaluate(pts)[0], mode, steps(mode, 1e-4))
         lam, vec = np.linalg.eigh(hess)
@@ -526,10 +538,12 @@ def run_laplace(
         eps_t *= np.sqrt(df / rng.chisquare(df, int(n_t)))[:, None]
         zs_t = mode + (eps_t / np.sqrt(lam)) @ vec.T
         log_q_t = (
-            gammaln(0.5 * (df + d)) - gammaln(0.5 * df) - 0.5 * d * np.log(df * np.pi)
+            gammaln(0.5 * (df + d))
+            - gammaln(0.5 * df)
+            - 0.5 * d * np.log(df * np.pi)
             + 0.5 * np.sum(np.log(lam))
             - 0.5 * (df + d) * np.log1p(np.sum(eps_t**2, axis=1) / df)
-        )  # fmt: skip
+        )
         pe_t, samples_t, ll_t = evaluate(zs_t)
         ratio_t = np.where(np.isfinite(pe_t), -pe_t - log_q_t, -np.inf)
         return LaplaceRun(samples_t, ll_t, ratio_t, mode_d, converged, name)

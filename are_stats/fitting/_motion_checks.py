@@ -319,9 +319,16 @@ def _walk(
             turn = (fold_in_key(key, 1), h_sd, h_time)
     try:
         return social_force_tracks(
-            plan, params, grid, dt=WALK_DT, kinematic=kinematic, groups=groups,
-            progress=progress, speed_variation=pace, heading_variation=turn,
-        )  # fmt: skip
+            plan,
+            params,
+            grid,
+            dt=WALK_DT,
+            kinematic=kinematic,
+            groups=groups,
+            progress=progress,
+            speed_variation=pace,
+            heading_variation=turn,
+        )
     except LimitError:
         # the replicates of a large log together exceed the work or memory limit that guards
         # one user-sized call: walk them in halves (scenarios never meet, so each half walks
@@ -586,8 +593,9 @@ def _replicate_tracks(
     plan = plan[["scenario", "id", "x", "y"]]
     if not leads.all():  # a member: from its own entry along its leader's planned path
         mem = np.flatnonzero(~leads)
-        pairs = pd.DataFrame({"lead": base["id"].to_numpy()[leader[mem]],
-                              "member": base["id"].to_numpy()[mem]})  # fmt: skip
+        pairs = pd.DataFrame(
+            {"lead": base["id"].to_numpy()[leader[mem]], "member": base["id"].to_numpy()[mem]}
+        )
         follow = plan.merge(pairs, left_on="id", right_on="lead").drop(columns=["id", "lead"])
         entry = base.iloc[mem][["id", "x", "y"]].rename(columns={"id": "member"})
         entry = pd.concat([entry.assign(scenario=r) for r in range(n_rep)], ignore_index=True)
@@ -624,9 +632,13 @@ def _replicate_tracks(
         variation = _variation(fold_in_key(_key(key), 26), fit, row_cls)
         # arriving walking, as generation's people do (arrival_velocities)
         walked = _walk(
-            arrival_velocities(walked), params, grid, groups=group, progress=walk_step,
+            arrival_velocities(walked),
+            params,
+            grid,
+            groups=group,
+            progress=walk_step,
             variation=variation,
-        ).drop(columns=["vx", "vy"])  # fmt: skip
+        ).drop(columns=["vx", "vy"])
     # each walker's exit (its route's end; a member's: its leader's), by (replicate,
     # person); NaN for one that stands
     end = np.full((n_rep * m, 2), np.nan)
@@ -703,9 +715,15 @@ def motion_checks(
     obs_st = track_statistics(observed_tracks, **kw)
     observed = _summary(obs_st)
     sim = _replicate_tracks(
-        key, behaviour_fit, observed_tracks, n_replicates, dt_out=dt_out,
-        interaction=interaction, grid=grid, progress=progress,
-    )  # fmt: skip
+        key,
+        behaviour_fit,
+        observed_tracks,
+        n_replicates,
+        dt_out=dt_out,
+        interaction=interaction,
+        grid=grid,
+        progress=progress,
+    )
     # the replicates as the tracker would measure them: with the log's position noise,
     # which lengthens an observed path (straighter and slower people than the log's
     # otherwise); the fitted preferred speeds are free of that noise (fit_behaviour)
@@ -744,10 +762,18 @@ def _policies(fit: BehaviourFit, c: int, goals: np.ndarray, tol: float = 1e-3) -
     finite = dist[np.isfinite(dist)]
     k = int(math.ceil(10 * (finite.max() if finite.size else 1.0))) + 20
     sol = soft_policy(
-        ~np.asarray(fit.free, bool), goals, float(fit.beta[c]), float(fit.slip[c]),
-        n_epochs=k, goal_reward=fit.goal_reward, step_cost=fit.step_cost,
-        time_cost=fit.time_cost, cell_reward=fit.cell_reward(c), tol=tol, bucket=GOAL_BUCKET,
-    )  # fmt: skip
+        ~np.asarray(fit.free, bool),
+        goals,
+        float(fit.beta[c]),
+        float(fit.slip[c]),
+        n_epochs=k,
+        goal_reward=fit.goal_reward,
+        step_cost=fit.step_cost,
+        time_cost=fit.time_cost,
+        cell_reward=fit.cell_reward(c),
+        tol=tol,
+        bucket=GOAL_BUCKET,
+    )
     return np.asarray(sol.policy)
 
 
@@ -774,9 +800,10 @@ def score_moves(behaviour_fit: BehaviourFit, tracks: pd.DataFrame) -> pd.DataFra
     fit = behaviour_fit
     names = {c: i for i, c in enumerate(fit.classes)}
     labels = (
-        tracks["label"].astype(str) if "label" in tracks.columns else pd.Series(fit.classes[0],
-                                                                                tracks.index)
-    )  # fmt: skip
+        tracks["label"].astype(str)
+        if "label" in tracks.columns
+        else pd.Series(fit.classes[0], tracks.index)
+    )
     cls = labels.map(lambda v: names.get(v, 0)).to_numpy()
     ok = path_free(~fit.free)
     rows = []
@@ -921,8 +948,9 @@ def plot_motion_checks(
 
     def flag(ax: Any, stat: str) -> None:
         if bool(table.loc[stat, "model_flag"]):
-            ax.set_title(ax.get_title() + "\nobserved outside the 90% band", fontsize=10,
-                         color="tab:red")  # fmt: skip
+            ax.set_title(
+                ax.get_title() + "\nobserved outside the 90% band", fontsize=10, color="tab:red"
+            )
 
     def dist(ax: Any, col: str, title: str, stat: str, moving_only: bool) -> None:
         o, r = obs, rep
@@ -941,21 +969,35 @@ def plot_motion_checks(
         pad = 0.05 * (hi - lo) if hi > lo else 0.5
         bins = np.linspace(lo - pad, hi + pad, 30)
         ax.hist(rv, bins=bins, density=True, color="tab:blue", alpha=0.5, label="model (pooled)")
-        ax.hist(ov, bins=bins, density=True, histtype="step", color="black", lw=2,
-                label="observed")  # fmt: skip
+        ax.hist(ov, bins=bins, density=True, histtype="step", color="black", lw=2, label="observed")
         ax.axvline(table.loc[stat, "observed"], color="black", ls="--", lw=1)
-        ax.axvspan(table.loc[stat, "model_5%"], table.loc[stat, "model_95%"], color="tab:blue",
-                   alpha=0.12, label="90% band of median")  # fmt: skip
+        ax.axvspan(
+            table.loc[stat, "model_5%"],
+            table.loc[stat, "model_95%"],
+            color="tab:blue",
+            alpha=0.12,
+            label="90% band of median",
+        )
         ax.set_title(title, fontsize=10)
         ax.set_yticks([])
         flag(ax, stat)
 
     dist(axes[0, 0], "speed", "walking speed per track (m/s)", MOTION_STATISTICS[0], False)
     axes[0, 0].legend(fontsize=7, frameon=False, loc="upper left")
-    dist(axes[0, 1], "straightness", "straightness (net / path), moving tracks",
-         MOTION_STATISTICS[2], True)  # fmt: skip
-    dist(axes[0, 2], "exit_fraction", "time from entry to exit / stay, moving tracks",
-         MOTION_STATISTICS[4], True)  # fmt: skip
+    dist(
+        axes[0, 1],
+        "straightness",
+        "straightness (net / path), moving tracks",
+        MOTION_STATISTICS[2],
+        True,
+    )
+    dist(
+        axes[0, 2],
+        "exit_fraction",
+        "time from entry to exit / stay, moving tracks",
+        MOTION_STATISTICS[4],
+        True,
+    )
     for ax, j, title in (
         (axes[1, 0], 3, "fraction still (net < 1 m) per replicate"),
         (axes[1, 1], 1, "speed spread (IQR, m/s) per replicate"),
@@ -966,8 +1008,13 @@ def plot_motion_checks(
         if v.size:
             lo, hi = min(v.min(), o), max(v.max(), o)
             pad = 0.05 * (hi - lo) if hi > lo else 0.05
-            ax.hist(v, bins=np.linspace(lo - pad, hi + pad, 25), color="tab:blue", alpha=0.55,
-                    label="model")  # fmt: skip
+            ax.hist(
+                v,
+                bins=np.linspace(lo - pad, hi + pad, 25),
+                color="tab:blue",
+                alpha=0.55,
+                label="model",
+            )
         if np.isfinite(o):
             ax.axvline(o, color="black", lw=2, label="observed")
         ax.set_title(title, fontsize=10)
@@ -995,8 +1042,16 @@ def plot_motion_checks(
         for m, r in displacement.iterrows():
             k = f" (K={int(r['K'])})" if r["K"] > 1 else ""
             lines.append(f"  {m}{k}: {r['ADE']:.2f} / {r['FDE']:.2f}")
-    ax.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=7.5, family="monospace",
-            transform=ax.transAxes)  # fmt: skip
+    ax.text(
+        0.0,
+        1.0,
+        "\n".join(lines),
+        ha="left",
+        va="top",
+        fontsize=7.5,
+        family="monospace",
+        transform=ax.transAxes,
+    )
     n_rep = len(summary)
     fig.suptitle(f"Motion checks: observed tracks vs {n_rep} replicates of the fitted behaviour")
     return fig

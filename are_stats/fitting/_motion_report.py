@@ -172,15 +172,24 @@ def write_motion_report(
         table, reps = fit.motion_checks
     else:
         table, reps = motion_checks(
-            fold_in_key(key, 1), bfit, tracks, n_replicates=50,
-            interaction=fit.interaction if fit.interaction is not None else True, grid=grid,
+            fold_in_key(key, 1),
+            bfit,
+            tracks,
+            n_replicates=50,
+            interaction=fit.interaction if fit.interaction is not None else True,
+            grid=grid,
             progress=check_step,
-        )  # fmt: skip
+        )
     held, _ = heldout_log_likelihood(
-        fold_in_key(key, 2), tracks, grid.free, grid.resolution, grid.origin[:2],
-        max_fit_tracks=16, features=bfit.feature_names or None,  # the CLI's: built-in names
+        fold_in_key(key, 2),
+        tracks,
+        grid.free,
+        grid.resolution,
+        grid.origin[:2],
+        max_fit_tracks=16,
+        features=bfit.feature_names or None,  # the CLI's: built-in names
         run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
-    )  # fmt: skip
+    )
     say(checked[0] + 1, checked[0] + after, "held-out moves")
     fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
     out = {}

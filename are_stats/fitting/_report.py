@@ -459,8 +459,14 @@ def _overview(checks: PredictiveChecks) -> tuple[Any, dict[str, Any]]:
 #: (2026-11-28, the shipped log's overview, load 12). A log whose labels do not fit is
 #: laid out by ``tight_layout`` after all (:func:`_panel_boxes` finds it out from the
 #: drawing).
-_OVERVIEW_GRID = {"left": 0.055, "right": 0.985, "bottom": 0.075, "top": 0.91, "wspace": 0.2,
-                  "hspace": 0.3}  # fmt: skip
+_OVERVIEW_GRID = {
+    "left": 0.055,
+    "right": 0.985,
+    "bottom": 0.075,
+    "top": 0.91,
+    "wspace": 0.2,
+    "hspace": 0.3,
+}
 
 
 def _panel_boxes(overview: Any, panels: dict[str, Any], renderer: Any) -> dict | None:
@@ -482,11 +488,16 @@ def _panel_boxes(overview: Any, panels: dict[str, Any], renderer: Any) -> dict |
                 if lo <= tick.get_loc() <= hi:  # the ticks drawn (Axis._update_ticks)
                     texts += [tick.label1, tick.label2]
         ext = [ax.bbox.extents]
-        ext += [t.get_window_extent(renderer).extents for t in texts
-                if t.get_visible() and t.get_text()]  # fmt: skip
+        ext += [
+            t.get_window_extent(renderer).extents for t in texts if t.get_visible() and t.get_text()
+        ]
         e = np.asarray(ext)
-        box = (e[:, 0].min() - _PANEL_MARGIN, e[:, 1].min() - _PANEL_MARGIN,
-               e[:, 2].max() + _PANEL_MARGIN, e[:, 3].max() + _PANEL_MARGIN)  # fmt: skip
+        box = (
+            e[:, 0].min() - _PANEL_MARGIN,
+            e[:, 1].min() - _PANEL_MARGIN,
+            e[:, 2].max() + _PANEL_MARGIN,
+            e[:, 3].max() + _PANEL_MARGIN,
+        )
         if box[0] < 0 or box[1] < 0 or box[2] > width or box[3] > height:
             return None
         boxes[name] = box
@@ -532,8 +543,15 @@ def _overview_images(checks: PredictiveChecks) -> dict[str, np.ndarray]:
             overview.tight_layout()
             canvas.draw()
             boxes = {n: ax.get_tightbbox(renderer).extents for n, ax in panels.items()}
-            boxes = {n: (b[0] - _PANEL_MARGIN, b[1] - _PANEL_MARGIN, b[2] + _PANEL_MARGIN,
-                         b[3] + _PANEL_MARGIN) for n, b in boxes.items()}  # fmt: skip
+            boxes = {
+                n: (
+                    b[0] - _PANEL_MARGIN,
+                    b[1] - _PANEL_MARGIN,
+                    b[2] + _PANEL_MARGIN,
+                    b[3] + _PANEL_MARGIN,
+                )
+                for n, b in boxes.items()
+            }
         full = np.asarray(canvas.buffer_rgba()).copy()
         height, width = full.shape[:2]
         images = {}
@@ -653,9 +671,14 @@ def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
 
 
 def _class_figures(
-    key: Any, idata: az.InferenceData, per_class: pd.DataFrame, n_replicates: int, out: Path,
-    force: bool, written: dict[str, Path],
-) -> dict[str, Any]:  # fmt: skip
+    key: Any,
+    idata: az.InferenceData,
+    per_class: pd.DataFrame,
+    n_replicates: int,
+    out: Path,
+    force: bool,
+    written: dict[str, Path],
+) -> dict[str, Any]:
     """The per-class figures of a labelled log's fit (issue 31): the checks (with the
     motion rows the fit stored), the shares by hour (with a clock), the entry densities."""
     motion = None
@@ -778,8 +801,13 @@ def write_report(
         written["class_checks"] = out / "class_checks.csv"
         figures.update(_class_figures(key, idata, per_class, n_replicates, out, force, written))
     for factor in (
-        "arrivals", "lifetimes", "positions", "class_stays", "class_positions", "class_shares",
-    ):  # fmt: skip
+        "arrivals",
+        "lifetimes",
+        "positions",
+        "class_stays",
+        "class_positions",
+        "class_shares",
+    ):
         text = idata.posterior.attrs.get(f"loo_{factor}")
         if text:
             path = out / f"loo_{factor}.csv"

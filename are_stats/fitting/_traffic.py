@@ -499,17 +499,19 @@ def fit_traffic(
     approx = set(setup.calls) if laplace else set()
     if ranked:
         approx = {
-            c for c, (_, model, kwargs, init) in setup.calls.items()
+            c
+            for c, (_, model, kwargs, init) in setup.calls.items()
             if laplace_dimension(model, kwargs, init) <= LAPLACE_MAX_PARAMETERS
-        }  # fmt: skip
+        }
     # all-NUTS comparison: the bursty candidates (but one named by --arrivals) are ranked
     # by Laplace too, and sampled by NUTS only when chosen (then the choice is made again)
     bursty = set()
     if approximation == "nuts":
         bursty = {
-            c for c in setup.calls
+            c
+            for c in setup.calls
             if c[0] == "arrivals" and c[1] != arrivals and ArrivalSpec.from_name(c[1]).bursts
-        }  # fmt: skip
+        }
         approx = set(bursty)
     calls, cands, laws = setup.calls, setup.cands, setup.laws
     plain, units, res = setup.plain, setup.units, setup.res
@@ -545,8 +547,9 @@ def fit_traffic(
             for (factor, name), (_, model, kwargs, init) in calls.items():
                 if (factor, name) in approx:
                     pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
-                    prefetch.submit(laplace_program, model, kwargs, init, pw,
-                                    _optimise((factor, name)))  # fmt: skip
+                    prefetch.submit(
+                        laplace_program, model, kwargs, init, pw, _optimise((factor, name))
+                    )
             prefetch.shutdown(wait=False)
         # when the runs started and finished: the Laplace stages' time left on a first fit
         lap_queue: tuple[float, list[float]] = (time.perf_counter(), [])
@@ -573,8 +576,9 @@ def fit_traffic(
                 loo["arrivals"][name] = psis.submit(laplace_loo, lap)
                 continue
             else:
-                run = _sample_candidate(calls, ("arrivals", name), _arrival_draw_loglik, nuts,
-                                        say, out)  # fmt: skip
+                run = _sample_candidate(
+                    calls, ("arrivals", name), _arrival_draw_loglik, nuts, say, out
+                )
                 ll, draws["arrivals"][name] = run.loglik, run.samples
             runs["arrivals"][name] = run
             loo["arrivals"][name] = psis.submit(loo_pointwise, ll[..., :n_real_bins], _reff(run))
@@ -626,10 +630,11 @@ def fit_traffic(
         chosen_calls = [c for c in chosen_calls if c in approx]
         _posterior_words(out, chosen, law, runs)
         resampled = {
-            which: importance_resample(fold_in_key(key, 101 + i), laps[which], n_draws,
-                                       max_k=RESAMPLE_MAX_K)
+            which: importance_resample(
+                fold_in_key(key, 101 + i), laps[which], n_draws, max_k=RESAMPLE_MAX_K
+            )
             for i, which in enumerate(chosen_calls)
-        }  # fmt: skip
+        }
         for i, ((factor, name), r) in enumerate(resampled.items()):
             words = f"Pareto k {r.k_hat:.2f}, effective sample size {r.ess:.0f} of {n_lap}"
             how = "importance-resampled Laplace"
@@ -724,9 +729,13 @@ class _Setup(NamedTuple):
 
 
 def _setup(
-    key: Any, data: LifecycleData, arrivals: str, lifetimes: str, clock_start: str | None,
+    key: Any,
+    data: LifecycleData,
+    arrivals: str,
+    lifetimes: str,
+    clock_start: str | None,
     out: TrafficFit,
-) -> _Setup:  # fmt: skip
+) -> _Setup:
     """The data and NUTS calls of every candidate (attributes and warnings into ``out``)."""
     t0, t1 = data.window
     res = time_resolution(data.t_arrive, data.t_leave, [t0, t1])
@@ -747,8 +756,9 @@ def _setup(
     log_area = float(np.log(data.area))
     by_clock = None  # the same ticks with their periods of the day, for time-of-day models
     if any(ArrivalSpec.from_name(n).tod for n in cands):
-        by_clock = arrival_units(data.t_arrive, data.window, data.area, res, width,
-                                 group=data.group, clock_offset=clock)  # fmt: skip
+        by_clock = arrival_units(
+            data.t_arrive, data.window, data.area, res, width, group=data.group, clock_offset=clock
+        )
     calls: dict[tuple[str, str], tuple] = {}
     for i, name in enumerate(cands):
         spec = ArrivalSpec.from_name(name)
@@ -785,15 +795,22 @@ def _setup(
     departed = int(np.sum(~data.censored))
     mean_centre = float(np.sum(data.dwell)) / max(departed, 1) if n else 1.0
     mean_centre = mean_centre if mean_centre > 0 else res
-    laws = list(STAY_LAWS) if lifetimes == "auto" else sorted({"exponential", lifetimes},
-                                                              key=STAY_LAWS.index)  # fmt: skip
+    laws = (
+        list(STAY_LAWS)
+        if lifetimes == "auto"
+        else sorted({"exponential", lifetimes}, key=STAY_LAWS.index)
+    )
     if n == 0 or departed == 0:
         out.warnings.append("lifetimes: no departure seen; the exponential law is kept")
         laws = ["exponential"]
     for i, law in enumerate(laws):
         if law != "exponential":
-            kwargs = {"units": units, "law": law, "mean_centre": np.asarray(mean_centre, float),
-                      "resolution": res}  # fmt: skip
+            kwargs = {
+                "units": units,
+                "law": law,
+                "mean_centre": np.asarray(mean_centre, float),
+                "resolution": res,
+            }
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
             calls["stays", law] = (fold_in_key(k_life, i), stay_model, kwargs, init)
     return _Setup(calls, cands, laws, plain, units, res)
@@ -817,8 +834,14 @@ def _sample_candidate(
     """NUTS for one candidate model (its warnings added to ``out``)."""
     factor, name = which
     say(f"{factor}: NUTS for {name}")
-    run = run_nuts(*calls[which], pointwise=pointwise, pointwise_kwargs=True,
-                   name=f"{factor} {name}", progress=clock_progress(say), **nuts)  # fmt: skip
+    run = run_nuts(
+        *calls[which],
+        pointwise=pointwise,
+        pointwise_kwargs=True,
+        name=f"{factor} {name}",
+        progress=clock_progress(say),
+        **nuts,
+    )
     out.warnings.extend(nuts_warnings(run))
     return run
 
@@ -880,8 +903,16 @@ def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> Any:
     factor, name = which
     key, model, kwargs, init = calls[which]
     pointwise = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
-    return run_laplace(key, model, kwargs, init, num_draws=n_draws, pointwise=pointwise,
-                       name=f"{factor} {name}", optimise=_optimise(which))  # fmt: skip
+    return run_laplace(
+        key,
+        model,
+        kwargs,
+        init,
+        num_draws=n_draws,
+        pointwise=pointwise,
+        name=f"{factor} {name}",
+        optimise=_optimise(which),
+    )
 
 
 #: Seconds between two updates of a Laplace stage's time left while it waits on its run.

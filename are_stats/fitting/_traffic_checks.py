@@ -505,8 +505,14 @@ def traffic_checks(
 #: Subplot parameters of :func:`plot_traffic_checks`'s 2 x 5 panels (figure fractions):
 #: what constrained layout found for the shipped log; the sides and the gaps between
 #: panels widen where an x tick label reaches past its panel (:func:`_widen_for_labels`).
-_GRID = {"left": 0.003, "right": 0.997, "bottom": 0.044, "top": 0.925, "wspace": 0.045,
-         "hspace": 0.2}  # fmt: skip
+_GRID = {
+    "left": 0.003,
+    "right": 0.997,
+    "bottom": 0.044,
+    "top": 0.925,
+    "wspace": 0.045,
+    "hspace": 0.2,
+}
 #: Pixels kept between two panels' tick labels, and between a label and the page's edge.
 _LABEL_GAP = 4.0
 
@@ -661,9 +667,16 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             entries.setdefault(label, handle)
     if entries:
-        fig.legend(list(entries.values()), list(entries), loc="upper left",
-                   bbox_to_anchor=(0.0, 1.0), ncols=len(entries), fontsize=8, frameon=False,
-                   borderaxespad=0.2)  # fmt: skip
+        fig.legend(
+            list(entries.values()),
+            list(entries),
+            loc="upper left",
+            bbox_to_anchor=(0.0, 1.0),
+            ncols=len(entries),
+            fontsize=8,
+            frameon=False,
+            borderaxespad=0.2,
+        )
     fig.suptitle(
         "Posterior-predictive checks: replicated windows of each model vs the log", y=0.994
     )

@@ -315,8 +315,12 @@ def tracks_record(
     if kind == "fitted":
         return {"source": "fitted behaviour", "rows": len(tracks)}
     cell = coarse_cell(grid.shape, grid.resolution, behaviour_cell, source=cell_source)
-    return {"source": "catalogue behaviour", "cell_m": cell, "dt_s": behaviour_dt,
-            "rows": len(tracks)}  # fmt: skip
+    return {
+        "source": "catalogue behaviour",
+        "cell_m": cell,
+        "dt_s": behaviour_dt,
+        "rows": len(tracks),
+    }
 
 
 def generate_manifest(
