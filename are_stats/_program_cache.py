@@ -44,10 +44,12 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any  # Any: a program's pytree of results; a JSON value
 
 # JAX is imported by the functions that trace or compile, not with the module (the CLI
 # imports it for prune_cache; each import says the cost, measured 2026-11-28).
+if TYPE_CHECKING:
+    import jax
 
 __all__ = [
     "TRACE_LOCK",
@@ -115,13 +117,13 @@ class _Unstable(TypeError):
     """A key part without a stable text form."""
 
 
-def _function_name(fn: Any) -> str:
+def _function_name(fn: object) -> str:
     module = getattr(fn, "__module__", None) or ""
     qual = getattr(fn, "__qualname__", None) or ""
     if not qual or "<" in qual or not module.startswith(_KNOWN_MODULES):
         raise _Unstable(f"no stable name for {fn!r}")
     # the name must find the same object (not a decorated or shadowed one)
-    obj: Any = sys.modules.get(module)
+    obj: object = sys.modules.get(module)
     for part in qual.split("."):
         obj = getattr(obj, part, None)
     if obj is not fn and getattr(obj, "__wrapped__", None) is not fn:
@@ -129,7 +131,7 @@ def _function_name(fn: Any) -> str:
     return f"{module}.{qual}"
 
 
-def _repr(x: Any) -> str:
+def _repr(x: object) -> str:
     if x is None or isinstance(x, (bool, int, float, complex, str, bytes)):
         return repr(x)
     if isinstance(x, enum.Enum):
@@ -160,7 +162,7 @@ def _repr(x: Any) -> str:
     raise _Unstable(f"no stable text for {type(x).__name__}")
 
 
-def stable_repr(key: Any) -> str | None:
+def stable_repr(key: object) -> str | None:
     """A text of ``key`` that is the same in every process, or None when there is none.
 
     Python scalars, strings, enums, tuples, lists, dicts, sets, named tuples and
@@ -170,7 +172,7 @@ def stable_repr(key: Any) -> str | None:
 
     Parameters
     ----------
-    key : Any
+    key : object
 
     Returns
     -------
@@ -218,7 +220,7 @@ def _file_name(key_text: str, args: tuple, options: dict | None, suffix: str = S
     return hashlib.sha256(text.encode()).hexdigest()[:40] + suffix
 
 
-def _read(path: Path, leaves: list) -> Any | None:
+def _read(path: Path, leaves: list) -> jax.export.Exported | None:
     """The exported program in ``path`` when it is there, whole and fits ``leaves``."""
     # lazy: JAX adds 1.06 s CPU to `are-stats --help` (which imports prune_cache)
     import jax
@@ -257,7 +259,7 @@ def _write(path: Path, blob: bytes) -> None:
                 pass
 
 
-def _record_path(key: Any, args: tuple) -> Path | None:
+def _record_path(key: object, args: tuple) -> Path | None:
     folder = program_folder()
     key_text = None if key is None else stable_repr(key)
     if folder is None or key_text is None:
@@ -265,7 +267,7 @@ def _record_path(key: Any, args: tuple) -> Path | None:
     return folder / _file_name(key_text, args, None, RECORD_SUFFIX)
 
 
-def load_record(key: Any, args: tuple) -> Any | None:
+def load_record(key: object, args: tuple) -> Any | None:
     """The JSON value kept by :func:`store_record` for ``key`` and ``args``, or None.
 
     None when the cache is off, the key has no :func:`stable_repr`, or the file is
@@ -274,7 +276,7 @@ def load_record(key: Any, args: tuple) -> Any | None:
 
     Parameters
     ----------
-    key : Any
+    key : object
         What the value depends on besides the arguments' shapes (as for
         :func:`compile_program`).
     args : tuple
@@ -283,7 +285,7 @@ def load_record(key: Any, args: tuple) -> Any | None:
 
     Returns
     -------
-    Any or None
+    object or None
         The decoded JSON value (lists where tuples were stored).
     """
     path = _record_path(key, args)
@@ -300,7 +302,7 @@ def load_record(key: Any, args: tuple) -> Any | None:
     return value
 
 
-def store_record(key: Any, args: tuple, value: Any) -> None:
+def store_record(key: object, args: tuple, value: object) -> None:
     """Keep the JSON value ``value`` for ``key`` and ``args`` (see :func:`load_record`).
 
     Written through a temporary file and renamed into place; nothing is kept when the
@@ -308,7 +310,7 @@ def store_record(key: Any, args: tuple, value: Any) -> None:
 
     Parameters
     ----------
-    key : Any
+    key : object
     args : tuple
     value : JSON-serialisable
     """
@@ -320,7 +322,7 @@ def store_record(key: Any, args: tuple, value: Any) -> None:
 def compile_program(
     fn: Callable[..., Any],
     args: tuple,
-    key: Any,
+    key: object,
     compiler_options: dict | None = None,
     in_shardings: tuple | None = None,
 ) -> Callable[..., Any]:
@@ -332,7 +334,7 @@ def compile_program(
         A ``jax.jit`` function (``jax.pmap`` ones are compiled as before, not exported).
     args : tuple
         Example arguments (a pytree: their tree, shapes and dtypes fix the program).
-    key : Any
+    key : object
         What else shapes ``fn``'s trace: the traced function (by name), its static
         arguments and settings. None, or a key without a :func:`stable_repr`, keeps the
         program off the disk.
@@ -384,7 +386,7 @@ def compile_program(
 
 
 def _compile_exported(
-    exported: Any, leaves: list, shardings: tuple | None, options: dict | None
+    exported: jax.export.Exported, leaves: list, shardings: tuple | None, options: dict | None
 ) -> Callable[..., Any]:
     """Compile ``exported`` (the same program whether just traced or read from disk)."""
     # lazy: JAX adds 1.06 s CPU to `are-stats --help` (which imports prune_cache)
@@ -394,13 +396,13 @@ def _compile_exported(
         jax.jit(exported.call, in_shardings=shardings).lower(*leaves), options
     )
 
-    def call(*args: Any) -> Any:
+    def call(*args: object) -> Any:
         return compiled(*jax.tree.leaves(args))
 
     return call
 
 
-def _compile_lowered(lowered: Any, options: dict | None) -> Any:
+def _compile_lowered(lowered: jax.stages.Lowered, options: dict | None) -> jax.stages.Compiled:
     """``lowered.compile(options)``, leaving out the options this jaxlib does not know."""
 
     def known() -> dict | None:

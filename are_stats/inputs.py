@@ -34,9 +34,9 @@ import contextlib
 import math
 import os
 import re
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Hashable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any  # a parsed YAML document (parse_yaml, load_yaml): any value
 
 import numpy as np
 import yaml
@@ -92,7 +92,7 @@ _MISSING = object()
 _INT64 = (-(2**63), 2**63 - 1)
 
 
-def _show(got: Any, limit: int = 80) -> str:
+def _show(got: object, limit: int = 80) -> str:
     """A short description of a bad value, with its type where the repr hides it."""
     if isinstance(got, bool | np.bool_):
         return f"{bool(got)!r} (a bool)"
@@ -132,7 +132,7 @@ class InputError(ValueError):
         What was found; described briefly (type shown for bools and strings).
     """
 
-    def __init__(self, source: Source, where: str, expected: str, got: Any = _MISSING) -> None:
+    def __init__(self, source: Source, where: str, expected: str, got: object = _MISSING) -> None:
         self.source = str(source)
         self.where = where
         self.expected = expected
@@ -296,12 +296,12 @@ _Loader.add_implicit_resolver(
 
 
 class _DuplicateKey(Exception):
-    def __init__(self, key: Any, line: int) -> None:
+    def __init__(self, key: Hashable, line: int) -> None:
         self.key, self.line = key, line
 
 
 def _construct_mapping(loader: _Loader, node: yaml.MappingNode, deep: bool = False) -> dict:
-    seen: set[Any] = set()
+    seen: set[Hashable] = set()
     for key_node, _ in node.value:
         if key_node.tag == "tag:yaml.org,2002:merge":
             continue
@@ -502,17 +502,17 @@ def load_yaml(path: str | os.PathLike, what: str = "YAML file") -> Any:
 # ---- mappings and scalars ---------------------------------------------------------------
 
 
-def _join(where: str, key: Any) -> str:
+def _join(where: str, key: object) -> str:
     return f"{where}.{key}" if where else str(key)
 
 
 def check_keys(
-    mapping: Any,
+    mapping: object,
     source: Source,
     where: str,
     known: Iterable[str],
     required: Iterable[str] = (),
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """A mapping whose keys are all known and include the required ones.
 
     Parameters
@@ -550,14 +550,14 @@ def check_keys(
     return dict(mapping)
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: object) -> bool:
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
         value, bool | np.bool_
     )
 
 
 def get_float(
-    value: Any,
+    value: object,
     source: Source,
     where: str,
     *,
@@ -590,7 +590,7 @@ def get_float(
     return x
 
 
-def _as_float(value: Any) -> float | None:
+def _as_float(value: object) -> float | None:
     """``value`` as a float; None for a non-number (a bool, string, list) or an int too
     large for a float."""
     if not _is_number(value):
@@ -615,7 +615,7 @@ def _within(
 
 
 def get_int(
-    value: Any, source: Source, where: str, *, lo: int | None = None, hi: int | None = None
+    value: object, source: Source, where: str, *, lo: int | None = None, hi: int | None = None
 ) -> int:
     """An integer that fits int64 (integral floats such as ``1.0e3`` accepted; no bools)."""
     lo_ = _INT64[0] if lo is None else lo
@@ -632,7 +632,7 @@ def get_int(
     return n
 
 
-def _as_int(value: Any) -> int | None:
+def _as_int(value: object) -> int | None:
     """``value`` as an int; None for a non-number or a float that is not a whole number in
     int64's range."""
     if not _is_number(value):
@@ -644,14 +644,16 @@ def _as_int(value: Any) -> int | None:
     return int(value)
 
 
-def get_bool(value: Any, source: Source, where: str) -> bool:
+def get_bool(value: object, source: Source, where: str) -> bool:
     """``true`` or ``false`` (not 0/1, not strings)."""
     if not isinstance(value, bool | np.bool_):
         raise InputError(source, where, "true or false", value)
     return bool(value)
 
 
-def get_str(value: Any, source: Source, where: str, *, choices: Iterable[str] | None = None) -> str:
+def get_str(
+    value: object, source: Source, where: str, *, choices: Iterable[str] | None = None
+) -> str:
     """A string, optionally one of ``choices``."""
     opts = None if choices is None else list(choices)
     expected = "a string" if opts is None else "one of " + ", ".join(repr(c) for c in opts)
@@ -661,13 +663,13 @@ def get_str(value: Any, source: Source, where: str, *, choices: Iterable[str] | 
 
 
 def get_list(
-    value: Any,
+    value: object,
     source: Source,
     where: str,
     *,
     min_len: int = 0,
     max_len: int | None = None,
-) -> list[Any]:
+) -> list[object]:
     """A list (or tuple) with a length in ``[min_len, max_len]``."""
     size = (
         f"at least {min_len}"
@@ -688,6 +690,6 @@ def get_list(
 MAX_SEED = 2**32 - 1
 
 
-def get_seed(value: Any, source: str = "--seed") -> int:
+def get_seed(value: object, source: str = "--seed") -> int:
     """A seed for :func:`jax.random.key` and NumPy: an integer in ``[0, 2**32 - 1]``."""
     return get_int(value, source, "", lo=0, hi=MAX_SEED)
