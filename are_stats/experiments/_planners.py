@@ -59,7 +59,7 @@ class Planner(Protocol):
     """A path planner: ``(free, start, goal, params) -> (k, 2) path | None`` (see module)."""
 
     def __call__(
-        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, float]
     ) -> np.ndarray | None: ...
 
 
@@ -78,7 +78,7 @@ def _point(name: str, p: npt.ArrayLike) -> np.ndarray:
     return a
 
 
-def _resolution(params: Mapping[str, Any]) -> float:
+def _resolution(params: Mapping[str, float]) -> float:
     if "resolution" not in params:
         raise ValueError(f"params: expected a 'resolution' key (m per cell), got {sorted(params)}")
     return float(check_positive("params['resolution']", params["resolution"]))
@@ -103,7 +103,7 @@ class _Query(NamedTuple):
 
 
 def _query(
-    free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+    free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, float]
 ) -> _Query | None:
     """A planner's validated arguments; ``None`` (no path) when ``start`` or ``goal`` lies
     off the grid or on a blocked cell."""
@@ -121,7 +121,7 @@ def timed_plan(
     free: npt.ArrayLike,
     start: npt.ArrayLike,
     goal: npt.ArrayLike,
-    params: Mapping[str, Any],
+    params: Mapping[str, float],
 ) -> tuple[np.ndarray | None, float]:
     """Call ``planner`` and measure its wall-clock time ``rho_t`` (eq. 3).
 
@@ -157,13 +157,13 @@ class _GridPlanner(abc.ABC):
     """What the two planners share: the checks of :func:`_query` before ``_plan``."""
 
     def __call__(
-        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, Any]
+        self, free: np.ndarray, start: np.ndarray, goal: np.ndarray, params: Mapping[str, float]
     ) -> np.ndarray | None:
         q = _query(free, start, goal, params)
         return None if q is None else self._plan(q, params)
 
     @abc.abstractmethod
-    def _plan(self, q: _Query, params: Mapping[str, Any]) -> np.ndarray | None:
+    def _plan(self, q: _Query, params: Mapping[str, float]) -> np.ndarray | None:
         """The path of a checked query, or None."""
 
 
@@ -186,7 +186,7 @@ class AStarPlanner(_GridPlanner):
 
     name = "astar"
 
-    def _plan(self, q: _Query, params: Mapping[str, Any]) -> np.ndarray | None:
+    def _plan(self, q: _Query, params: Mapping[str, float]) -> np.ndarray | None:
         cells = astar_cells(q.free, q.start_cell, q.goal_cell)
         if cells is None:
             return None
@@ -374,7 +374,7 @@ class OMPLPlanner(_GridPlanner):
     def __repr__(self) -> str:
         return f"OMPLPlanner({self.name}, time_limit={self.time_limit:g})"
 
-    def _plan(self, q: _Query, params: Mapping[str, Any]) -> np.ndarray | None:
+    def _plan(self, q: _Query, params: Mapping[str, float]) -> np.ndarray | None:
         # lazy: OMPL's bindings add 0.04 s CPU to `import are_stats.experiments`
         from ompl import base as ob
         from ompl import geometric as og
@@ -546,7 +546,7 @@ def _grid_motion_validator() -> type:
     return GridMotionValidator
 
 
-def make_planner(spec: Mapping[str, Any] | Planner) -> Planner:
+def make_planner(spec: Mapping[str, object] | Planner) -> Planner:
     """A planner from a spec dict (as in a sweep YAML) or a callable (returned unchanged).
 
     ``{"algorithm": "astar"}`` gives :class:`AStarPlanner`; any of :data:`OMPL_ALGORITHMS`

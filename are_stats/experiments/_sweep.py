@@ -95,7 +95,7 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any  # Any: config and task records, their values typed by key
 
 import jax
 import numpy as np
@@ -206,10 +206,10 @@ MAX_COMPONENTS = 64
 
 # ---- the schema: one checker per key ------------------------------------------------------
 
-_Checker = Callable[[Any, str, str], Any]
+_Checker = Callable[[object, str, str], object]
 
 
-def _number(**bounds: Any) -> _Checker:
+def _number(**bounds: float | bool | None) -> _Checker:
     return lambda v, s, w: get_float(v, s, w, **bounds)
 
 
@@ -222,7 +222,7 @@ def _choice(*choices: str) -> _Checker:
 
 
 def _numbers(n_min: int, n_max: int, item: _Checker) -> _Checker:
-    def check(v: Any, s: str, w: str) -> list:
+    def check(v: object, s: str, w: str) -> list:
         return [
             item(x, s, f"{w}[{i}]")
             for i, x in enumerate(get_list(v, s, w, min_len=n_min, max_len=n_max))
@@ -289,7 +289,7 @@ _PLANNER_OPTIONS = {
 }  # fmt: skip
 
 
-def _path_string(value: Any, src: str, where: str) -> str:
+def _path_string(value: object, src: str, where: str) -> str:
     v = get_str(value, src, where)
     if not v or "\x00" in v:
         raise InputError(src, where, "a file or folder path", v)
@@ -345,7 +345,7 @@ def _scenario(given: Mapping[str, Any], src: str, base: Path) -> dict[str, Any]:
     return out
 
 
-def _section(sec: str, value: Any, src: str, where: str) -> dict[str, Any]:
+def _section(sec: str, value: object, src: str, where: str) -> dict[str, Any]:
     """Check every key of one section (a mapping); values normalised to plain types."""
     schema = _SCHEMA[sec]
     raw = check_keys(value, src, where, schema)
@@ -380,7 +380,7 @@ def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> N
             )
 
 
-def _factor_checker(key: Any, src: str) -> tuple[str, str, _Checker | None]:
+def _factor_checker(key: object, src: str) -> tuple[str, str, _Checker | None]:
     """``(section, option, checker)`` of a factor key; ``checker`` None for ``planner``."""
     where = f"factors.{key}"
     expected = (
@@ -404,7 +404,7 @@ def _factor_checker(key: Any, src: str) -> tuple[str, str, _Checker | None]:
     return sec, sub, _SCHEMA[sec][sub]
 
 
-def _label(level: Any) -> str:
+def _label(level: object) -> str:
     if isinstance(level, Mapping):
         if "name" in level:
             return str(level["name"])
@@ -412,7 +412,7 @@ def _label(level: Any) -> str:
     return str(level)
 
 
-def _validate(raw: Any, src: str, base: Path | None = None) -> dict[str, Any]:
+def _validate(raw: object, src: str, base: Path | None = None) -> dict[str, Any]:
     """The schema check of a whole config (no file other than the config is read); relative
     paths (map, catalogue, scenario.fit, scenario.scenarios) are made absolute from the
     folder ``base`` (default: the working directory)."""
@@ -570,17 +570,19 @@ def _stamp(path: str | os.PathLike | None) -> tuple[tuple[str, int, int], ...] |
         return None
 
 
-def _cached(locate: Callable[[Any], Any] = lambda a: a) -> Callable[[Callable], Callable]:
+def _cached(
+    locate: Callable[[str | None], str | os.PathLike | None] = lambda a: a,
+) -> Callable[[Callable], Callable]:
     """``functools.lru_cache`` (4 entries) of a one-argument reader, keyed by the argument
     and the :func:`_stamp` of the file it names (``locate`` finds that file)."""
 
     def wrap(fn: Callable) -> Callable:
         @functools.lru_cache(maxsize=4)
-        def by_content(arg: Any, stamp: Any) -> Any:
+        def by_content(arg: str | None, stamp: tuple | None) -> object:
             return fn(arg)
 
         @functools.wraps(fn)
-        def read(arg: Any) -> Any:
+        def read(arg: str | None) -> object:
             return by_content(arg, _stamp(locate(arg)))
 
         read.cache_clear = by_content.cache_clear  # type: ignore[attr-defined]
@@ -819,7 +821,7 @@ def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str
     return cfg
 
 
-def _digest(obj: Any) -> str:
+def _digest(obj: object) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:10]
 
 
@@ -1078,12 +1080,12 @@ def _folder_state(out: Path) -> str:
     )
 
 
-def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, Any]:
+def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, int | bool | str]:
     """Keyword arguments of the local Dask cluster: the scheduler and workers (processes)
     and the dashboard all listen on ``host`` (loopback by default), never on every
     interface; thread workers talk in-process and listen on no network interface."""
     address = f"[{host}]:0" if ":" in host else f"{host}:0"
-    kwargs: dict[str, Any] = {
+    kwargs: dict[str, int | bool | str] = {
         "n_workers": int(workers),
         "threads_per_worker": 1,
         "processes": processes,
