@@ -16,7 +16,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict, Unpack
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack  # Any: manifest and report records
 
 import numpy as np
 import pandas as pd
@@ -331,7 +331,7 @@ class LifecycleLog:
         return np.asarray(a["label_codes"], np.int64), list(a["label_names"])
 
 
-def _label_names(value: Any) -> list[str]:
+def _label_names(value: object) -> list[str]:
     """``label_names``: a list of distinct strings."""
     if isinstance(value, np.ndarray):
         value = value.tolist()
@@ -410,7 +410,7 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     return out
 
 
-def _clock_start(source: Source, where: str, value: Any) -> str:
+def _clock_start(source: Source, where: str, value: object) -> str:
     """``clock_start``: ISO 8601 date-time text (:meth:`datetime.datetime.fromisoformat`).
 
     YAML reads an unquoted ``2024-05-02T07:30:00`` as a timestamp: it is accepted and
@@ -429,7 +429,7 @@ def _clock_start(source: Source, where: str, value: Any) -> str:
     return text
 
 
-def _window(source: Source, where: str, value: Any, scale: float) -> tuple[float, float]:
+def _window(source: Source, where: str, value: object, scale: float) -> tuple[float, float]:
     """A window ``[t0, t1]`` of two finite numbers with ``t0 < t1``, times ``scale``."""
     if isinstance(value, np.ndarray):
         value = value.tolist()

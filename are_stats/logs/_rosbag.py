@@ -34,7 +34,7 @@ import sqlite3
 import struct
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar  # Any: duck-typed ROS messages
 
 import numpy as np
 import numpy.typing as npt
@@ -190,7 +190,7 @@ def _markers(
             state.delete_all(str(m.ns))
 
 
-def _class_id(result: Any) -> str:
+def _class_id(result: object) -> str:
     hyp = getattr(result, "hypothesis", None)
     if hyp is not None:
         return str(hyp.class_id)
