@@ -22,7 +22,7 @@ import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Unpack
+from typing import TYPE_CHECKING, Any, Unpack  # Any: manifest records
 
 import numpy as np
 import pandas as pd
@@ -111,7 +111,7 @@ class ScenesFolder:
     #: The folder it was read from (named in errors); None for one made in memory.
     folder: Path | None = None
 
-    def __iter__(self) -> Iterator[Any]:
+    def __iter__(self) -> Iterator[pd.DataFrame | dict[str, Any] | None]:
         """``artefacts, manifest, tracks``: the folder unpacks as the tuple it once was."""
         return iter((self.artefacts, self.manifest, self.tracks))
 
@@ -217,7 +217,7 @@ class ScenesFolder:
 # ---- writing ---------------------------------------------------------------------------
 
 
-def _plain(x: Any) -> Any:
+def _plain(x: object) -> object:
     """YAML-safe plain Python values."""
     if isinstance(x, Mapping):
         return {str(k): _plain(v) for k, v in x.items()}
@@ -485,7 +485,7 @@ def write_scenes(
 # ---- reading ---------------------------------------------------------------------------
 
 
-def _error(path: Path, where: str, expected: str, got: Any) -> InputError:
+def _error(path: Path, where: str, expected: str, got: object) -> InputError:
     return InputError(path, where, expected, got)
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
@@ -237,7 +237,7 @@ def _class_draws(params: Mapping[str, npt.ArrayLike], s: int) -> dict[str, np.nd
 
 def _draw_classes(
     rng: np.random.Generator,
-    p: Mapping[str, Any],
+    p: Mapping[str, np.ndarray],
     law: str,
     d: np.ndarray,
     scen: np.ndarray,
@@ -580,7 +580,7 @@ def generate_scenarios(
     return df
 
 
-def _laws_record(laws: TrafficLaws) -> dict[str, Any]:
+def _laws_record(laws: TrafficLaws) -> dict[str, str | float | None]:
     """The laws of a generation, for the manifest."""
     return {
         "arrivals": laws.arrivals,
@@ -806,8 +806,8 @@ def _check_size(
     check_work(high * 20.0, what, source)
 
 
-def _summary(p: Mapping[str, np.ndarray]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
+def _summary(p: Mapping[str, np.ndarray]) -> dict[str, dict[str, list[float]]]:
+    out: dict[str, dict[str, list[float]]] = {}
     for name, a in p.items():
         a = np.asarray(a, dtype=float)
         out[name] = {
