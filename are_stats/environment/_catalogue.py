@@ -33,7 +33,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -125,8 +125,8 @@ class ArtefactClass(_Box):
     """
 
     mesh_path: Path
-    features: dict[str, Any] = field(default_factory=dict)
-    variants: tuple[tuple[np.ndarray, dict[str, Any]], ...] = ((np.ones(3), {}),)
+    features: dict[str, object] = field(default_factory=dict)
+    variants: tuple[tuple[np.ndarray, dict[str, object]], ...] = ((np.ones(3), {}),)
 
     @property
     def n_rows(self) -> int:
@@ -174,7 +174,7 @@ class PropertyRow(_Box):
     """
 
     class_row: int
-    features: dict[str, Any]
+    features: dict[str, object]
 
 
 class ArtefactCatalogue:
@@ -295,7 +295,7 @@ class ArtefactCatalogue:
             )
         return self.classes[c].property_row(mark)
 
-    def table(self) -> list[dict[str, Any]]:
+    def table(self) -> list[dict[str, object]]:
         """Q as a list of plain dicts (label, row, box size, speeds, behaviours, features)."""
         return [
             {
@@ -506,13 +506,15 @@ def _obj_bounds(path: Path) -> np.ndarray | None:
     return np.stack([used.min(axis=0), used.max(axis=0)])
 
 
-def _variants(source: Path, where: str, spec: Any) -> tuple[tuple[np.ndarray, dict[str, Any]], ...]:
+def _variants(
+    source: Path, where: str, spec: object
+) -> tuple[tuple[np.ndarray, dict[str, object]], ...]:
     """Parse a class's ``variants`` field (see the module docstring)."""
     if spec is None:
         return ((np.ones(3), {}),)
     key = f"{where}.variants"
 
-    def scale_of(value: Any, at: str) -> np.ndarray:
+    def scale_of(value: object, at: str) -> np.ndarray:
         if isinstance(value, list | tuple):
             vals = inputs.get_list(value, source, at, min_len=3, max_len=3)
             return np.array(
