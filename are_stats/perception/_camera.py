@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -355,7 +355,7 @@ class PinholeCamera:
 
     # ------------------------------------------------------------------ YAML
     @classmethod
-    def from_dict(cls, data: Any, source: str = "camera") -> PinholeCamera:
+    def from_dict(cls, data: object, source: str = "camera") -> PinholeCamera:
         """Build a camera from a mapping (plain fields or ROS ``camera_info`` fields).
 
         Accepted keys: exactly one of ``fx, fy, cx, cy`` / ``K`` / ``k`` (9 numbers,
@@ -528,7 +528,7 @@ _CAMERA_KEYS = (
 )
 
 
-def _is_real(v: Any) -> bool:
+def _is_real(v: object) -> bool:
     return (
         isinstance(v, int | float | np.integer | np.floating)
         and not isinstance(v, bool | np.bool_)
@@ -536,11 +536,11 @@ def _is_real(v: Any) -> bool:
     )
 
 
-def _show(v: Any) -> str:
+def _show(v: object) -> str:
     return f"{v!r} (a {type(v).__name__})" if isinstance(v, bool | str) else describe(v)
 
 
-def _matrix(value: Any, source: Source, key: str, rows: int, cols: int | None) -> np.ndarray:
+def _matrix(value: object, source: Source, key: str, rows: int, cols: int | None) -> np.ndarray:
     """A ``rows x cols`` matrix given flat, nested or as ``{rows, cols, data}``; ``cols``
     ``None`` means a vector of any length up to :data:`_MAX_VECTOR`."""
     if isinstance(value, dict):
