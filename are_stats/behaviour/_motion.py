@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import jax
 import numpy as np
@@ -192,7 +191,9 @@ def _sight(
     )
 
 
-def line_of_sight(free: Any, p0: Any, p1: Any, clearance: float = 0.2) -> bool:
+def line_of_sight(
+    free: npt.ArrayLike, p0: npt.ArrayLike, p1: npt.ArrayLike, clearance: float = 0.2
+) -> bool:
     """Whether a walker of half-width ``clearance`` goes straight from ``p0`` to ``p1``.
 
     The segment and its two copies shifted sideways by ``+-clearance`` must cross only
@@ -219,8 +220,8 @@ def line_of_sight(free: Any, p0: Any, p1: Any, clearance: float = 0.2) -> bool:
 
 
 def string_pull(
-    points: Any,
-    free: Any,
+    points: npt.ArrayLike,
+    free: npt.ArrayLike,
     origin: tuple[float, float] = (0.0, 0.0),
     cell: float = 1.0,
     clearance: float = 0.2,
@@ -400,7 +401,7 @@ def _normals32(key: jax.Array, n: int) -> np.ndarray:
     return np.asarray(jax.random.normal(key, (m,), dtype=np.float32))[:n].astype(float)
 
 
-def preferred_speeds(key: jax.Array, median: Any, sd_log: Any) -> np.ndarray:
+def preferred_speeds(key: jax.Array, median: npt.ArrayLike, sd_log: npt.ArrayLike) -> np.ndarray:
     """Each artefact's preferred speed, drawn once: ``median * exp(sd_log * z)``.
 
     Parameters
@@ -427,7 +428,7 @@ def preferred_speeds(key: jax.Array, median: Any, sd_log: Any) -> np.ndarray:
 
 
 def walk_times(
-    points: Any,
+    points: npt.ArrayLike,
     speed: float,
     rng: np.random.Generator | None = None,
     within_sd: float = 0.0,
