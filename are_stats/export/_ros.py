@@ -27,7 +27,7 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -88,7 +88,7 @@ def artefact_frame(artefact_id: int) -> str:
     return f"artefact_{int(artefact_id)}"
 
 
-def parse_start_time(value: Any, source: str = "--start-time") -> float:
+def parse_start_time(value: object, source: str = "--start-time") -> float:
     """A start time in seconds since the Unix epoch, from seconds or ISO 8601.
 
     Parameters
@@ -176,7 +176,7 @@ class RosMessages:
         self.T = self.ts.types
         self.topics: dict[str, str] = {}
         self.latched: set[str] = set()
-        self._msgs: list[tuple[int, int, str, Any]] = []
+        self._msgs: list[tuple[int, int, str, object]] = []
 
     # ---- building blocks --------------------------------------------------------------
     def ns(self, t: float) -> int:
@@ -358,7 +358,9 @@ class RosMessages:
         return self.T["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
     # ---- collecting and writing -------------------------------------------------------
-    def add(self, t: float, topic: str, msgtype: str, msg: Any, *, latched: bool = False) -> None:
+    def add(
+        self, t: float, topic: str, msgtype: str, msg: object, *, latched: bool = False
+    ) -> None:
         """Queue ``msg`` on ``topic`` at scenario time ``t`` (log time ``start + t`` plus
         the log offset)."""
         if self.topics.setdefault(topic, msgtype) != msgtype:
