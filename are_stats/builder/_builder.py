@@ -52,6 +52,9 @@ if TYPE_CHECKING:
 __all__ = ["ARBuilder", "Resolution", "Placement"]
 
 _HEADINGS = np.array([0.0, np.pi / 2, np.pi, 3 * np.pi / 2])
+#: Open ground: a box whose footprint corners keep this many cells inside the map's
+#: border is inside the map (its rasterised runs are off by far less than a cell).
+_BORDER_CELLS = 2.0
 
 
 class Resolution(NamedTuple):
@@ -744,8 +747,7 @@ class ARBuilder:
     def _env_bad(self, idx: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         c, h, y = self._boxes_for(P[idx], self._half[idx], self._offset[idx])
         env, outside, mesh, _ = self._env_hits(c, h, y)
-        causes = np.where(outside, "bounds", np.where(env, "environment", "mesh"))
-        return env | outside | mesh, causes
+        return env | outside | mesh, np.where(env | outside | mesh, _causes(env, outside, mesh), "")
 
     def _exchanges(self, movers: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
         """``(m, 2)`` pairs ``a < b`` of ``movers`` that would exchange places: the box of
@@ -808,6 +810,37 @@ class ARBuilder:
         with np.errstate(divide="ignore", invalid="ignore"):
             back = np.where(dist > 0, self.safe_distance / dist, 1.0)
         return np.clip(lo - back, 0.0, 1.0)
+
+    def _revert_one(
+        self,
+        at: np.ndarray,
+        k: int,
+        now: np.ndarray,
+        move: np.ndarray,
+        half: np.ndarray,
+        offset: np.ndarray,
+        cause: str | None,
+    ) -> tuple[str, int] | None:
+        """What :meth:`step` with ``rule="revert"`` does to boxes ``at`` (rows of ``now``
+        (N, 3), ``half`` and ``offset`` (N, 3)) when only row ``at[k]`` moves, to ``move``
+        (3,), and the others stay: ``None`` when it takes the move, else the cause and the
+        row of ``now`` it hit (``-1`` for the environment) that its log entry names (the
+        first colliding pair's partner: the lowest row). ``cause`` is what the move finds
+        against the environment when known already (``""``: nothing); ``None``: test it.
+        """
+        i = at[k]
+        if cause is None:
+            c, h, y = self._boxes_for(move[None], half[i][None], offset[i][None])
+            env, outside, mesh, _ = self._env_hits(c, h, y)
+            cause = str(_causes(env, outside, mesh)[0]) if (env | outside | mesh)[0] else ""
+        if cause:
+            return cause, -1
+        P = now[at]
+        P[k] = move
+        hit = _hits_of_one(k, *self._boxes_for(P, half[at], offset[at]), self.eps)
+        if hit.any():
+            return "artefact", int(at[np.argmax(hit)])
+        return None
 
     # ------------------------------------------------------------ moving scenes
     def resolve_scene(
@@ -934,6 +967,10 @@ class ARBuilder:
             # the environment (map, border, mesh) for every mover's proposal at once; on
             # open ground (nothing blocked, no mesh) only the border
             env_bad = np.zeros(j_mv.size, bool)
+            # what step() finds against the environment (a cause, or "" for nothing), for
+            # the one-mover step of rule "revert" below; None: not known yet (open ground,
+            # near the border: the exact rasterised test decides)
+            env_cause: list[str | None] = [""] * j_mv.size
             go = (prop[j_mv] != now[j_mv]).any(axis=1)
             if go.any():
                 c, h, y = self._boxes_for(prop[j_mv[go]], half[m_idx[go]], offset[m_idx[go]])
@@ -943,10 +980,19 @@ class ARBuilder:
                     env_bad[go] = ((uv < 0.0) | (uv > [self.grid.width, self.grid.height])).any(
                         axis=(1, 2)
                     )
+                    # two cells inside the border, a box's rasterised runs (box_runs) are
+                    # inside the map too (their rounding is far below a cell)
+                    wh = np.array([self.grid.width, self.grid.height]) - _BORDER_CELLS
+                    inner = ((uv >= _BORDER_CELLS) & (uv <= wh)).all(axis=(1, 2))
+                    for g, ok in zip(np.flatnonzero(go), inner, strict=True):
+                        env_cause[g] = "" if ok else None
                 else:
                     env, outside, mesh, _ = self._env_hits(c, h, y)
                     env_bad[go] = env | outside | mesh
-            for j, i, row, bad in zip(j_mv, m_idx, near, env_bad, strict=True):
+                    causes = _causes(env, outside, mesh)
+                    for g, cause in zip(np.flatnonzero(go), causes, strict=True):
+                        env_cause[g] = str(cause)
+            for j, i, row, bad, cause in zip(j_mv, m_idx, near, env_bad, env_cause, strict=True):
                 moves = bool((prop[j] != now[j]).any())
                 sub = np.zeros(idx.size, bool)
                 if moves and row.any():
@@ -955,11 +1001,9 @@ class ARBuilder:
                     sub[np.flatnonzero(row) % idx.size] = True
                     sub[j] = True
                     at = np.flatnonzero(sub)
-                    pairs = at[
-                        self._pair_hits(*self._boxes_for(now[at], half[idx[at]], offset[idx[at]]))
-                    ]
-                    touching = pairs[(pairs == j).any(axis=1)]
-                    sub[touching[touching != j]] = False
+                    boxes = self._boxes_for(now[at], half[idx[at]], offset[idx[at]])
+                    touching = _hits_of_one(int(np.searchsorted(at, j)), *boxes, self.eps)
+                    sub[at[touching]] = False
                     o = np.flatnonzero(sub)
                     o = o[o != j]
                     if o.size and not bad:
@@ -978,7 +1022,23 @@ class ARBuilder:
                                 self.eps,
                             ).any()
                         )
-                if moves and bad:  # the builder's step: this mover's move alone
+                if moves and bad and self.rule == "revert":  # step() of this move alone
+                    sub[j] = True
+                    at = np.flatnonzero(sub)
+                    res = self._revert_one(
+                        at, int(np.searchsorted(at, j)), now, prop[j], half[idx], offset[idx],
+                        cause,
+                    )  # fmt: skip
+                    if res is not None:
+                        cause, o = res
+                        oid = int(scene.ids[idx[o]]) if o >= 0 else -1
+                        self.log.append(
+                            Resolution(float(t), int(scene.ids[i]), "revert", cause, oid, 0.0)
+                        )
+                        delay[i] += dt  # a revert keeps none of the move
+                    else:
+                        now[j] = prop[j]
+                elif moves and bad:  # the builder's step: this mover's move alone
                     sub[j] = True
                     self.ids = scene.ids[idx[sub]].astype(np.int64)
                     self.labels = [str(lab) for lab in scene.labels[idx[sub]]]
@@ -1114,6 +1174,31 @@ class ARBuilder:
         if not self.log:
             return {c: np.zeros(0) for c in cols}
         return {c: np.array([getattr(r, c) for r in self.log]) for c in cols}
+
+
+def _causes(env: np.ndarray, outside: np.ndarray, mesh: np.ndarray) -> np.ndarray:
+    """The cause logged for boxes that hit the environment (``(n,)`` each): ``"bounds"``
+    before ``"environment"`` before ``"mesh"``."""
+    return np.where(outside, "bounds", np.where(env, "environment", "mesh"))
+
+
+def _hits_of_one(
+    k: int, centre: np.ndarray, half: np.ndarray, yaw: np.ndarray, eps: float
+) -> np.ndarray:
+    """``(n,)`` bool: the boxes (centres, half sizes ``(n, 3)``, yaws ``(n,)``) that box
+    ``k`` collides with, as :meth:`ARBuilder._pair_hits` finds them (footprint AABBs that
+    overlap or touch, then the strict separating-axis test of the pair, lower index
+    first); box ``k`` itself is not."""
+    corners = box_corners(centre[:, :2], half[:, :2], yaw)
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    cand = (lo <= hi[k]).all(axis=1) & (lo[k] <= hi).all(axis=1)
+    cand[k] = False
+    out = np.zeros(centre.shape[0], bool)
+    o = np.flatnonzero(cand)
+    if o.size:
+        a, b = np.where(o < k, o, k), np.where(o < k, k, o)
+        out[o] = obb_overlap(centre[a], half[a], yaw[a], centre[b], half[b], yaw[b], eps)
+    return out
 
 
 def _track_pose(tv: np.ndarray, pv: np.ndarray, u: float) -> np.ndarray:
