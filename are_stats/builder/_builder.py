@@ -147,6 +147,11 @@ class ARBuilder:
     ('artefact', 0)
     """
 
+    #: :meth:`resolve_scene` with ``rule="revert"`` holds a colliding move itself, as
+    #: :meth:`step` of that one move would (False: through :meth:`step`, the reference
+    #: tests/builder compares it with)
+    _direct_revert: bool = True
+
     def __init__(
         self,
         grid: OccupancyGrid,
@@ -811,36 +816,12 @@ class ARBuilder:
             back = np.where(dist > 0, self.safe_distance / dist, 1.0)
         return np.clip(lo - back, 0.0, 1.0)
 
-    def _revert_one(
-        self,
-        at: np.ndarray,
-        k: int,
-        now: np.ndarray,
-        move: np.ndarray,
-        half: np.ndarray,
-        offset: np.ndarray,
-        cause: str | None,
-    ) -> tuple[str, int] | None:
-        """What :meth:`step` with ``rule="revert"`` does to boxes ``at`` (rows of ``now``
-        (N, 3), ``half`` and ``offset`` (N, 3)) when only row ``at[k]`` moves, to ``move``
-        (3,), and the others stay: ``None`` when it takes the move, else the cause and the
-        row of ``now`` it hit (``-1`` for the environment) that its log entry names (the
-        first colliding pair's partner: the lowest row). ``cause`` is what the move finds
-        against the environment when known already (``""``: nothing); ``None``: test it.
-        """
-        i = at[k]
-        if cause is None:
-            c, h, y = self._boxes_for(move[None], half[i][None], offset[i][None])
-            env, outside, mesh, _ = self._env_hits(c, h, y)
-            cause = str(_causes(env, outside, mesh)[0]) if (env | outside | mesh)[0] else ""
-        if cause:
-            return cause, -1
-        P = now[at]
-        P[k] = move
-        hit = _hits_of_one(k, *self._boxes_for(P, half[at], offset[at]), self.eps)
-        if hit.any():
-            return "artefact", int(at[np.argmax(hit)])
-        return None
+    def _env_cause(self, pose: np.ndarray, half: np.ndarray, offset: np.ndarray) -> str:
+        """What :meth:`step` logs for one box (half sizes, centre in F_A ``(3,)``) moved
+        to ``pose`` (3,) against the environment: its cause, ``""`` for nothing."""
+        c, h, y = self._boxes_for(pose[None], half[None], offset[None])
+        env, outside, mesh, _ = self._env_hits(c, h, y)
+        return str(_causes(env, outside, mesh)[0]) if (env | outside | mesh)[0] else ""
 
     # ------------------------------------------------------------ moving scenes
     def resolve_scene(
@@ -989,49 +970,55 @@ class ARBuilder:
                 else:
                     env, outside, mesh, _ = self._env_hits(c, h, y)
                     env_bad[go] = env | outside | mesh
-                    causes = _causes(env, outside, mesh)
+                    causes = np.where(env | outside | mesh, _causes(env, outside, mesh), "")
                     for g, cause in zip(np.flatnonzero(go), causes, strict=True):
                         env_cause[g] = str(cause)
-            for j, i, row, bad, cause in zip(j_mv, m_idx, near, env_bad, env_cause, strict=True):
-                moves = bool((prop[j] != now[j]).any())
-                sub = np.zeros(idx.size, bool)
+            # the boxes where everyone stands and where the movers would go (kept up to
+            # date as movers move; a box's geometry does not depend on the boxes computed
+            # with it, bit for bit)
+            h_idx = half[idx]
+            c_now = box_centres(now, offset[idx])
+            lo_now, hi_now = _aabbs(c_now, h_idx, now[:, 2])
+            c_mv = box_centres(prop[j_mv], offset[m_idx])
+            lo_mv, hi_mv = _aabbs(c_mv, half[m_idx], prop[j_mv, 2])
+            direct = self.rule == "revert" and self._direct_revert
+            for q, (j, i, row, bad, cause) in enumerate(
+                zip(j_mv, m_idx, near, env_bad, env_cause, strict=True)
+            ):
+                moves = bool(go[q])
+                stood = now[j].copy()
+                o, hit = np.zeros(0, np.int64), np.zeros(0, bool)
                 if moves and row.any():
                     # the boxes it could touch; those it already touches where it stands
                     # (placed on each other) do not hold it: it may walk out of them
-                    sub[np.flatnonzero(row) % idx.size] = True
-                    sub[j] = True
-                    at = np.flatnonzero(sub)
-                    boxes = self._boxes_for(now[at], half[idx[at]], offset[idx[at]])
-                    touching = _hits_of_one(int(np.searchsorted(at, j)), *boxes, self.eps)
-                    sub[at[touching]] = False
-                    o = np.flatnonzero(sub)
-                    o = o[o != j]
-                    if o.size and not bad:
-                        c_j, h_j, y_j = self._boxes_for(
-                            prop[j][None], half[i][None], offset[i][None]
-                        )
-                        c_o, h_o, y_o = self._boxes_for(now[o], half[idx[o]], offset[idx[o]])
-                        bad = bool(
-                            obb_overlap(
-                                np.repeat(c_j, o.size, 0),
-                                np.repeat(h_j, o.size, 0),
-                                np.repeat(y_j, o.size),
-                                c_o,
-                                h_o,
-                                y_o,
-                                self.eps,
-                            ).any()
-                        )
-                if moves and bad and self.rule == "revert":  # step() of this move alone
-                    sub[j] = True
-                    at = np.flatnonzero(sub)
-                    res = self._revert_one(
-                        at, int(np.searchsorted(at, j)), now, prop[j], half[idx], offset[idx],
-                        cause,
+                    close = np.zeros(idx.size, bool)
+                    close[np.flatnonzero(row) % idx.size] = True
+                    close[j] = False
+                    o = np.flatnonzero(close)
+                    m = o.size
+                    # one separating-axis test (symmetric in its two boxes, bit for bit):
+                    # the mover where it stands, then where it would go, against each of o
+                    ov = obb_overlap(
+                        np.repeat(np.stack([c_now[j], c_mv[q]]), m, axis=0),
+                        np.repeat(half[i][None], 2 * m, 0),
+                        np.concatenate([np.full(m, now[j, 2]), np.full(m, prop[j, 2])]),
+                        np.concatenate([c_now[o], c_now[o]]),
+                        np.concatenate([h_idx[o], h_idx[o]]),
+                        np.concatenate([now[o, 2], now[o, 2]]),
+                        self.eps,
                     )  # fmt: skip
-                    if res is not None:
-                        cause, o = res
-                        oid = int(scene.ids[idx[o]]) if o >= 0 else -1
+                    touching = ov[:m] & _aabb_touch(lo_now[j], hi_now[j], lo_now[o], hi_now[o])
+                    o, hit = o[~touching], ov[m:][~touching]
+                    if o.size and not bad:
+                        bad = bool(hit.any())
+                if moves and bad and direct:  # what step() does to this move alone
+                    if cause is None:
+                        cause = self._env_cause(prop[j], half[i], offset[i])
+                    if not cause:  # its pairs: footprint AABBs that touch and overlap boxes
+                        hit &= _aabb_touch(lo_mv[q], hi_mv[q], lo_now[o], hi_now[o])
+                        cause = "artefact" if hit.any() else ""
+                    if cause:  # held; the log names the first pair's partner: the lowest
+                        oid = int(scene.ids[idx[o[np.argmax(hit)]]]) if cause == "artefact" else -1
                         self.log.append(
                             Resolution(float(t), int(scene.ids[i]), "revert", cause, oid, 0.0)
                         )
@@ -1039,6 +1026,8 @@ class ARBuilder:
                     else:
                         now[j] = prop[j]
                 elif moves and bad:  # the builder's step: this mover's move alone
+                    sub = np.zeros(idx.size, bool)
+                    sub[o] = True
                     sub[j] = True
                     self.ids = scene.ids[idx[sub]].astype(np.int64)
                     self.labels = [str(lab) for lab in scene.labels[idx[sub]]]
@@ -1055,6 +1044,12 @@ class ARBuilder:
                         delay[i] += (1.0 - min(kept)) * dt
                 else:  # nothing in the way: the step would take it as it is
                     now[j] = prop[j]
+                if (now[j] != stood).any() and (now[j] == prop[j]).all():
+                    c_now[j], lo_now[j], hi_now[j] = c_mv[q], lo_mv[q], hi_mv[q]
+                elif (now[j] != stood).any():  # advanced part of the way
+                    c_now[j] = box_centres(now[j][None], offset[i][None])[0]
+                    lo, hi = _aabbs(c_now[j][None], half[i][None], now[j, 2][None])
+                    lo_now[j], hi_now[j] = lo[0], hi[0]
                 safe[i] = now[j]
                 ts, us, ps = rec.setdefault(int(i), ([], [], []))
                 ts.append(float(t))
@@ -1182,23 +1177,18 @@ def _causes(env: np.ndarray, outside: np.ndarray, mesh: np.ndarray) -> np.ndarra
     return np.where(outside, "bounds", np.where(env, "environment", "mesh"))
 
 
-def _hits_of_one(
-    k: int, centre: np.ndarray, half: np.ndarray, yaw: np.ndarray, eps: float
-) -> np.ndarray:
-    """``(n,)`` bool: the boxes (centres, half sizes ``(n, 3)``, yaws ``(n,)``) that box
-    ``k`` collides with, as :meth:`ARBuilder._pair_hits` finds them (footprint AABBs that
-    overlap or touch, then the strict separating-axis test of the pair, lower index
-    first); box ``k`` itself is not."""
+def _aabbs(centre: np.ndarray, half: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower-left and upper-right corners ``(n, 2)`` of the footprints' axis-aligned
+    bounding boxes (centres, half sizes ``(n, 3)``, yaws ``(n,)``): those of
+    :meth:`ARBuilder._pair_hits`'s broad phase."""
     corners = box_corners(centre[:, :2], half[:, :2], yaw)
-    lo, hi = corners.min(axis=1), corners.max(axis=1)
-    cand = (lo <= hi[k]).all(axis=1) & (lo[k] <= hi).all(axis=1)
-    cand[k] = False
-    out = np.zeros(centre.shape[0], bool)
-    o = np.flatnonzero(cand)
-    if o.size:
-        a, b = np.where(o < k, o, k), np.where(o < k, k, o)
-        out[o] = obb_overlap(centre[a], half[a], yaw[a], centre[b], half[b], yaw[b], eps)
-    return out
+    return corners.min(axis=1), corners.max(axis=1)
+
+
+def _aabb_touch(lo: np.ndarray, hi: np.ndarray, los: np.ndarray, his: np.ndarray) -> np.ndarray:
+    """``(m,)`` bool: whether the AABB ``lo, hi`` (2,) overlaps or touches each of
+    ``los, his`` (m, 2), as :func:`~are_stats.builder.aabb_pairs` tests a pair."""
+    return (los <= hi).all(axis=1) & (lo <= his).all(axis=1)
 
 
 def _track_pose(tv: np.ndarray, pv: np.ndarray, u: float) -> np.ndarray:
