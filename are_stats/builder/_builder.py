@@ -1194,9 +1194,10 @@ def _aabb_touch(lo: np.ndarray, hi: np.ndarray, los: np.ndarray, his: np.ndarray
 def _track_pose(tv: np.ndarray, pv: np.ndarray, u: float) -> np.ndarray:
     """Pose ``(3,)`` of a track (times ``tv`` (m,), poses ``pv`` (m, 3)) at time ``u``
     (clamped to its ends; yaw the short way round)."""
-    k = int(np.clip(np.searchsorted(tv, u, side="right") - 1, 0, len(tv) - 1))
+    # (Python min / max: np.clip on scalars costs more than the rest of the function)
+    k = min(max(int(np.searchsorted(tv, u, side="right")) - 1, 0), len(tv) - 1)
     k1 = min(k + 1, len(tv) - 1)
-    f = float(np.clip((u - tv[k]) / (tv[k1] - tv[k]), 0.0, 1.0)) if tv[k1] > tv[k] else 0.0
+    f = min(max(float((u - tv[k]) / (tv[k1] - tv[k])), 0.0), 1.0) if tv[k1] > tv[k] else 0.0
     out = pv[k] + f * (pv[k1] - pv[k])
     out[2] = pv[k, 2] + f * _wrap(np.array(pv[k1, 2] - pv[k, 2]))
     return out
