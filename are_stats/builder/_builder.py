@@ -52,6 +52,9 @@ if TYPE_CHECKING:
 __all__ = ["ARBuilder", "Resolution", "Placement"]
 
 _HEADINGS = np.array([0.0, np.pi / 2, np.pi, 3 * np.pi / 2])
+#: Open ground: a box whose footprint corners keep this many cells inside the map's
+#: border is inside the map (its rasterised runs are off by far less than a cell).
+_BORDER_CELLS = 2.0
 
 
 class Resolution(NamedTuple):
@@ -143,6 +146,11 @@ class ARBuilder:
     >>> b.log[0].cause, b.log[0].other
     ('artefact', 0)
     """
+
+    #: :meth:`resolve_scene` with ``rule="revert"`` holds a colliding move itself, as
+    #: :meth:`step` of that one move would (False: through :meth:`step`, the reference
+    #: tests/builder compares it with)
+    _direct_revert: bool = True
 
     def __init__(
         self,
@@ -744,8 +752,7 @@ class ARBuilder:
     def _env_bad(self, idx: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         c, h, y = self._boxes_for(P[idx], self._half[idx], self._offset[idx])
         env, outside, mesh, _ = self._env_hits(c, h, y)
-        causes = np.where(outside, "bounds", np.where(env, "environment", "mesh"))
-        return env | outside | mesh, causes
+        return env | outside | mesh, np.where(env | outside | mesh, _causes(env, outside, mesh), "")
 
     def _exchanges(self, movers: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
         """``(m, 2)`` pairs ``a < b`` of ``movers`` that would exchange places: the box of
@@ -808,6 +815,13 @@ class ARBuilder:
         with np.errstate(divide="ignore", invalid="ignore"):
             back = np.where(dist > 0, self.safe_distance / dist, 1.0)
         return np.clip(lo - back, 0.0, 1.0)
+
+    def _env_cause(self, pose: np.ndarray, half: np.ndarray, offset: np.ndarray) -> str:
+        """What :meth:`step` logs for one box (half sizes, centre in F_A ``(3,)``) moved
+        to ``pose`` (3,) against the environment: its cause, ``""`` for nothing."""
+        c, h, y = self._boxes_for(pose[None], half[None], offset[None])
+        env, outside, mesh, _ = self._env_hits(c, h, y)
+        return str(_causes(env, outside, mesh)[0]) if (env | outside | mesh)[0] else ""
 
     # ------------------------------------------------------------ moving scenes
     def resolve_scene(
@@ -934,6 +948,10 @@ class ARBuilder:
             # the environment (map, border, mesh) for every mover's proposal at once; on
             # open ground (nothing blocked, no mesh) only the border
             env_bad = np.zeros(j_mv.size, bool)
+            # what step() finds against the environment (a cause, or "" for nothing), for
+            # the one-mover step of rule "revert" below; None: not known yet (open ground,
+            # near the border: the exact rasterised test decides)
+            env_cause: list[str | None] = [""] * j_mv.size
             go = (prop[j_mv] != now[j_mv]).any(axis=1)
             if go.any():
                 c, h, y = self._boxes_for(prop[j_mv[go]], half[m_idx[go]], offset[m_idx[go]])
@@ -943,42 +961,73 @@ class ARBuilder:
                     env_bad[go] = ((uv < 0.0) | (uv > [self.grid.width, self.grid.height])).any(
                         axis=(1, 2)
                     )
+                    # two cells inside the border, a box's rasterised runs (box_runs) are
+                    # inside the map too (their rounding is far below a cell)
+                    wh = np.array([self.grid.width, self.grid.height]) - _BORDER_CELLS
+                    inner = ((uv >= _BORDER_CELLS) & (uv <= wh)).all(axis=(1, 2))
+                    for g, ok in zip(np.flatnonzero(go), inner, strict=True):
+                        env_cause[g] = "" if ok else None
                 else:
                     env, outside, mesh, _ = self._env_hits(c, h, y)
                     env_bad[go] = env | outside | mesh
-            for j, i, row, bad in zip(j_mv, m_idx, near, env_bad, strict=True):
-                moves = bool((prop[j] != now[j]).any())
-                sub = np.zeros(idx.size, bool)
+                    causes = np.where(env | outside | mesh, _causes(env, outside, mesh), "")
+                    for g, cause in zip(np.flatnonzero(go), causes, strict=True):
+                        env_cause[g] = str(cause)
+            # the boxes where everyone stands and where the movers would go (kept up to
+            # date as movers move; a box's geometry does not depend on the boxes computed
+            # with it, bit for bit)
+            h_idx = half[idx]
+            c_now = box_centres(now, offset[idx])
+            lo_now, hi_now = _aabbs(c_now, h_idx, now[:, 2])
+            c_mv = box_centres(prop[j_mv], offset[m_idx])
+            lo_mv, hi_mv = _aabbs(c_mv, half[m_idx], prop[j_mv, 2])
+            direct = self.rule == "revert" and self._direct_revert
+            for q, (j, i, row, bad, cause) in enumerate(
+                zip(j_mv, m_idx, near, env_bad, env_cause, strict=True)
+            ):
+                moves = bool(go[q])
+                stood = now[j].copy()
+                o, hit = np.zeros(0, np.int64), np.zeros(0, bool)
                 if moves and row.any():
                     # the boxes it could touch; those it already touches where it stands
                     # (placed on each other) do not hold it: it may walk out of them
-                    sub[np.flatnonzero(row) % idx.size] = True
-                    sub[j] = True
-                    at = np.flatnonzero(sub)
-                    pairs = at[
-                        self._pair_hits(*self._boxes_for(now[at], half[idx[at]], offset[idx[at]]))
-                    ]
-                    touching = pairs[(pairs == j).any(axis=1)]
-                    sub[touching[touching != j]] = False
-                    o = np.flatnonzero(sub)
-                    o = o[o != j]
+                    close = np.zeros(idx.size, bool)
+                    close[np.flatnonzero(row) % idx.size] = True
+                    close[j] = False
+                    o = np.flatnonzero(close)
+                    m = o.size
+                    # one separating-axis test (symmetric in its two boxes, bit for bit):
+                    # the mover where it stands, then where it would go, against each of o
+                    ov = obb_overlap(
+                        np.repeat(np.stack([c_now[j], c_mv[q]]), m, axis=0),
+                        np.repeat(half[i][None], 2 * m, 0),
+                        np.concatenate([np.full(m, now[j, 2]), np.full(m, prop[j, 2])]),
+                        np.concatenate([c_now[o], c_now[o]]),
+                        np.concatenate([h_idx[o], h_idx[o]]),
+                        np.concatenate([now[o, 2], now[o, 2]]),
+                        self.eps,
+                    )  # fmt: skip
+                    touching = ov[:m] & _aabb_touch(lo_now[j], hi_now[j], lo_now[o], hi_now[o])
+                    o, hit = o[~touching], ov[m:][~touching]
                     if o.size and not bad:
-                        c_j, h_j, y_j = self._boxes_for(
-                            prop[j][None], half[i][None], offset[i][None]
+                        bad = bool(hit.any())
+                if moves and bad and direct:  # what step() does to this move alone
+                    if cause is None:
+                        cause = self._env_cause(prop[j], half[i], offset[i])
+                    if not cause:  # its pairs: footprint AABBs that touch and overlap boxes
+                        hit &= _aabb_touch(lo_mv[q], hi_mv[q], lo_now[o], hi_now[o])
+                        cause = "artefact" if hit.any() else ""
+                    if cause:  # held; the log names the first pair's partner: the lowest
+                        oid = int(scene.ids[idx[o[np.argmax(hit)]]]) if cause == "artefact" else -1
+                        self.log.append(
+                            Resolution(float(t), int(scene.ids[i]), "revert", cause, oid, 0.0)
                         )
-                        c_o, h_o, y_o = self._boxes_for(now[o], half[idx[o]], offset[idx[o]])
-                        bad = bool(
-                            obb_overlap(
-                                np.repeat(c_j, o.size, 0),
-                                np.repeat(h_j, o.size, 0),
-                                np.repeat(y_j, o.size),
-                                c_o,
-                                h_o,
-                                y_o,
-                                self.eps,
-                            ).any()
-                        )
-                if moves and bad:  # the builder's step: this mover's move alone
+                        delay[i] += dt  # a revert keeps none of the move
+                    else:
+                        now[j] = prop[j]
+                elif moves and bad:  # the builder's step: this mover's move alone
+                    sub = np.zeros(idx.size, bool)
+                    sub[o] = True
                     sub[j] = True
                     self.ids = scene.ids[idx[sub]].astype(np.int64)
                     self.labels = [str(lab) for lab in scene.labels[idx[sub]]]
@@ -995,6 +1044,12 @@ class ARBuilder:
                         delay[i] += (1.0 - min(kept)) * dt
                 else:  # nothing in the way: the step would take it as it is
                     now[j] = prop[j]
+                if (now[j] != stood).any() and (now[j] == prop[j]).all():
+                    c_now[j], lo_now[j], hi_now[j] = c_mv[q], lo_mv[q], hi_mv[q]
+                elif (now[j] != stood).any():  # advanced part of the way
+                    c_now[j] = box_centres(now[j][None], offset[i][None])[0]
+                    lo, hi = _aabbs(c_now[j][None], half[i][None], now[j, 2][None])
+                    lo_now[j], hi_now[j] = lo[0], hi[0]
                 safe[i] = now[j]
                 ts, us, ps = rec.setdefault(int(i), ([], [], []))
                 ts.append(float(t))
@@ -1116,12 +1171,33 @@ class ARBuilder:
         return {c: np.array([getattr(r, c) for r in self.log]) for c in cols}
 
 
+def _causes(env: np.ndarray, outside: np.ndarray, mesh: np.ndarray) -> np.ndarray:
+    """The cause logged for boxes that hit the environment (``(n,)`` each): ``"bounds"``
+    before ``"environment"`` before ``"mesh"``."""
+    return np.where(outside, "bounds", np.where(env, "environment", "mesh"))
+
+
+def _aabbs(centre: np.ndarray, half: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower-left and upper-right corners ``(n, 2)`` of the footprints' axis-aligned
+    bounding boxes (centres, half sizes ``(n, 3)``, yaws ``(n,)``): those of
+    :meth:`ARBuilder._pair_hits`'s broad phase."""
+    corners = box_corners(centre[:, :2], half[:, :2], yaw)
+    return corners.min(axis=1), corners.max(axis=1)
+
+
+def _aabb_touch(lo: np.ndarray, hi: np.ndarray, los: np.ndarray, his: np.ndarray) -> np.ndarray:
+    """``(m,)`` bool: whether the AABB ``lo, hi`` (2,) overlaps or touches each of
+    ``los, his`` (m, 2), as :func:`~are_stats.builder.aabb_pairs` tests a pair."""
+    return (los <= hi).all(axis=1) & (lo <= his).all(axis=1)
+
+
 def _track_pose(tv: np.ndarray, pv: np.ndarray, u: float) -> np.ndarray:
     """Pose ``(3,)`` of a track (times ``tv`` (m,), poses ``pv`` (m, 3)) at time ``u``
     (clamped to its ends; yaw the short way round)."""
-    k = int(np.clip(np.searchsorted(tv, u, side="right") - 1, 0, len(tv) - 1))
+    # (Python min / max: np.clip on scalars costs more than the rest of the function)
+    k = min(max(int(np.searchsorted(tv, u, side="right")) - 1, 0), len(tv) - 1)
     k1 = min(k + 1, len(tv) - 1)
-    f = float(np.clip((u - tv[k]) / (tv[k1] - tv[k]), 0.0, 1.0)) if tv[k1] > tv[k] else 0.0
+    f = min(max(float((u - tv[k]) / (tv[k1] - tv[k])), 0.0), 1.0) if tv[k1] > tv[k] else 0.0
     out = pv[k] + f * (pv[k1] - pv[k])
     out[2] = pv[k, 2] + f * _wrap(np.array(pv[k1, 2] - pv[k, 2]))
     return out

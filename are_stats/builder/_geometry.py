@@ -115,11 +115,15 @@ def box_centres(pose: npt.ArrayLike, offset: npt.ArrayLike) -> np.ndarray:
     (n, 3) float
     """
     p = np.asarray(pose, float).reshape(-1, 3)
-    o = np.broadcast_to(np.asarray(offset, float), (p.shape[0], 3))
+    o = np.asarray(offset, float)
+    if o.shape != p.shape:
+        o = np.broadcast_to(o, p.shape)
     c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-    return np.column_stack(
-        [p[:, 0] + c * o[:, 0] - s * o[:, 1], p[:, 1] + s * o[:, 0] + c * o[:, 1], o[:, 2]]
-    )
+    out = np.empty(p.shape)
+    out[:, 0] = p[:, 0] + c * o[:, 0] - s * o[:, 1]
+    out[:, 1] = p[:, 1] + s * o[:, 0] + c * o[:, 1]
+    out[:, 2] = o[:, 2]
+    return out
 
 
 def box_corners(centre: npt.ArrayLike, half: npt.ArrayLike, yaw: npt.ArrayLike) -> np.ndarray:
@@ -228,19 +232,18 @@ def obb_overlap(
     ca, cb = np.asarray(ca, float), np.asarray(cb, float)
     ha, hb = np.asarray(ha, float), np.asarray(hb, float)
     ya, yb = np.asarray(ya, float), np.asarray(yb, float)
-    d = cb[:, :2] - ca[:, :2]
-    ua = np.stack([np.cos(ya), np.sin(ya)], -1)
-    va = np.stack([-ua[:, 1], ua[:, 0]], -1)
-    ub = np.stack([np.cos(yb), np.sin(yb)], -1)
-    vb = np.stack([-ub[:, 1], ub[:, 0]], -1)
-    # |cos| / |sin| of the relative rotation
-    c = np.abs(np.einsum("ij,ij->i", ua, ub))
-    s = np.abs(np.einsum("ij,ij->i", ua, vb))
+    # the axes u = (cos, sin), v = (-sin, cos) of each box, component by component
+    d0, d1 = cb[:, 0] - ca[:, 0], cb[:, 1] - ca[:, 1]
+    ua0, ua1 = np.cos(ya), np.sin(ya)
+    ub0, ub1 = np.cos(yb), np.sin(yb)
+    # |cos| / |sin| of the relative rotation: |u_a . u_b|, |u_a . v_b|
+    c = np.abs(ua0 * ub0 + ua1 * ub1)
+    s = np.abs(ua0 * -ub1 + ua1 * ub0)
     hax, hay, hbx, hby = ha[:, 0], ha[:, 1], hb[:, 0], hb[:, 1]
-    sep = np.abs(np.einsum("ij,ij->i", d, ua)) >= hax + c * hbx + s * hby - eps
-    sep |= np.abs(np.einsum("ij,ij->i", d, va)) >= hay + s * hbx + c * hby - eps
-    sep |= np.abs(np.einsum("ij,ij->i", d, ub)) >= hbx + c * hax + s * hay - eps
-    sep |= np.abs(np.einsum("ij,ij->i", d, vb)) >= hby + s * hax + c * hay - eps
+    sep = np.abs(d0 * ua0 + d1 * ua1) >= hax + c * hbx + s * hby - eps
+    sep |= np.abs(d0 * -ua1 + d1 * ua0) >= hay + s * hbx + c * hby - eps
+    sep |= np.abs(d0 * ub0 + d1 * ub1) >= hbx + c * hax + s * hay - eps
+    sep |= np.abs(d0 * -ub1 + d1 * ub0) >= hby + s * hax + c * hay - eps
     if min(ca.shape[1], cb.shape[1], ha.shape[1], hb.shape[1]) > 2:  # upright boxes: and z
         sep |= ~(np.abs(cb[:, 2] - ca[:, 2]) < ha[:, 2] + hb[:, 2] - eps)
     return ~sep
