@@ -27,9 +27,9 @@ the simplest within two standard errors of the best).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
@@ -562,7 +562,7 @@ def class_checks(
 
 
 def class_motion_checks(
-    observed_tracks: pd.DataFrame, replicates: dict[str, Any]
+    observed_tracks: pd.DataFrame, replicates: Mapping[str, np.ndarray | pd.DataFrame]
 ) -> pd.DataFrame | None:
     """Per-class rows of the motion checks: median speed and fraction still.
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from functools import partial
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -463,7 +463,7 @@ def _bucket(m: int, minimum: int) -> int:
     return max(minimum, 1 << (m - 1).bit_length())
 
 
-def _check_positive_int(name: str, x: Any) -> int:
+def _check_positive_int(name: str, x: object) -> int:
     if isinstance(x, bool) or not isinstance(x, int | np.integer) or x < 1:
         raise ValueError(f"{name}: expected an integer >= 1, got {x!r}")
     return int(x)

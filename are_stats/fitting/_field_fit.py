@@ -16,7 +16,7 @@ import dataclasses
 import hashlib
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
@@ -76,7 +76,11 @@ def _behaviour(
     catalogue: ArtefactCatalogue | None,
     say: Callable[[str], None],
     notes: list[str],
-) -> tuple[az.InferenceData, OccupancyGrid, tuple[pd.DataFrame, dict[str, Any]] | None]:
+) -> tuple[
+    az.InferenceData,
+    OccupancyGrid,
+    tuple[pd.DataFrame, dict[str, np.ndarray | pd.DataFrame]] | None,
+]:
     """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``;
     the map used and the motion checks of a labelled table (None without labels). The
     long stages report their steps to ``say.steps(done, total, what)`` when it has one."""
@@ -136,7 +140,7 @@ def _attach_motion_tables(
     tracks: pd.DataFrame,
     grid: OccupancyGrid,
     steps: Callable[[int, int, str], None] | None = None,
-) -> tuple[pd.DataFrame, dict[str, Any]] | None:
+) -> tuple[pd.DataFrame, dict[str, np.ndarray | pd.DataFrame]] | None:
     """Realism and displacement errors against the log's tracks, stored in the fit so that
     ``report`` shows them (the tracks are not stored): issue 26. Tracks with labels also
     store the per-class motion rows (median speed, fraction still: issue 31); their motion

@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -94,11 +94,11 @@ _POSTERIOR_SOURCES = (
 )
 
 
-def _text(attrs: Mapping[str, Any], name: str) -> str | None:
+def _text(attrs: Mapping[str, object], name: str) -> str | None:
     return None if attrs.get(name) is None else str(attrs[name])
 
 
-def _num(attrs: Mapping[str, Any], name: str, default: float) -> float:
+def _num(attrs: Mapping[str, object], name: str, default: float) -> float:
     return float(np.asarray(attrs.get(name, default)).ravel()[0])
 
 
@@ -268,7 +268,7 @@ class Fit:
     interaction_info: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     motion: Mapping[str, pd.DataFrame] = field(default_factory=lambda: MappingProxyType({}))
     provenance: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
-    log_report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    log_report: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
     notes: tuple[str, ...] = ()
     comparisons: Mapping[str, pd.DataFrame] = field(default_factory=lambda: MappingProxyType({}))
     traffic_notes: tuple[tuple[str, str], ...] = ()
@@ -278,7 +278,7 @@ class Fit:
     time_resolution: float = 0.1
     posterior_sources: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     grid: OccupancyGrid | None = None
-    motion_checks: tuple[pd.DataFrame, dict[str, Any]] | None = None
+    motion_checks: tuple[pd.DataFrame, dict[str, np.ndarray | pd.DataFrame]] | None = None
 
     @classmethod
     def from_draws(

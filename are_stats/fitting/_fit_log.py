@@ -23,11 +23,11 @@ from __future__ import annotations
 import dataclasses
 import logging
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
@@ -91,6 +91,16 @@ from are_stats.traffic import (
     prior_predictive,
     split_key,
 )
+
+if TYPE_CHECKING:
+    import os
+
+    import numpy.typing as npt
+    import xarray as xr
+
+    from are_stats.behaviour import BehaviourFit
+    from are_stats.environment import OccupancyGrid
+    from are_stats.fitting._traffic import TrafficFit
 
 __all__ = [
     "FitSettings",
@@ -243,7 +253,7 @@ def check_fit_size(
         )
 
 
-def choose_n_components(key: Any, marks: np.ndarray, k_max: int) -> tuple[int, list[float]]:
+def choose_n_components(key: jax.Array, marks: np.ndarray, k_max: int) -> tuple[int, list[float]]:
     """Number of mixture components with the smallest BIC among ``1..k_max`` (EM fits).
 
     Parameters
@@ -268,7 +278,7 @@ def choose_n_components(key: Any, marks: np.ndarray, k_max: int) -> tuple[int, l
 
 
 def _em_posterior(
-    key: Any, data: LifecycleData, priors: LifecyclePriors, k: int | None, s: FitSettings
+    key: jax.Array, data: LifecycleData, priors: LifecyclePriors, k: int | None, s: FitSettings
 ) -> tuple[dict, dict, dict]:
     """Conjugate rate draws and bootstrap (or conjugate) mixture draws, shaped (1, S, ...)."""
     n_draws = s.num_samples * s.num_chains
@@ -281,7 +291,7 @@ def _em_posterior(
         "leave_rate": rng.gamma(lea.shape, 1.0 / lea.rate, n_draws),
     }
     stats: dict[str, np.ndarray] = {}
-    attrs: dict[str, Any] = {}
+    attrs: dict[str, object] = {}
     if k is not None and data.marks is not None:
         if data.labels is not None:
             mix = conjugate_mixture(data, priors, n_components=k)
@@ -371,13 +381,13 @@ def _stays_total(data: LifecycleData, leave_rate: np.ndarray) -> np.ndarray:
 
 
 def _em_inference_data(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
     priors: LifecyclePriors,
     k: int | None,
     post: dict[str, np.ndarray],
     stats: dict[str, np.ndarray],
-    mix_attrs: dict[str, Any],
+    mix_attrs: Mapping[str, object],
     stationary_start: bool = False,
     label: str = "em",
 ) -> az.InferenceData:
@@ -427,16 +437,16 @@ def _em_inference_data(
 
 
 def fit_lifecycle_data(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
     settings: FitSettings = FitSettings(),  # noqa: B008 (frozen, immutable)
     priors: LifecyclePriors = LifecyclePriors(),  # noqa: B008 (frozen, immutable)
     counts_panel: tuple[np.ndarray, np.ndarray] | None = None,
-    progress: Any = None,
-    class_labels: Any = None,
-    grid: Any = None,
+    progress: Callable[[str], object] | None = None,
+    class_labels: Sequence[str] | None = None,
+    grid: OccupancyGrid | None = None,
     clock_start: str | None = None,
-    classes: Any = None,
+    classes: npt.ArrayLike | None = None,
     *,
     setting_names: Mapping[str, str] | None = None,
 ) -> az.InferenceData:
@@ -659,7 +669,12 @@ def fit_lifecycle_data(
 
 
 def _fit_classes(
-    key: Any, idata: az.InferenceData, data: LifecycleData, classes: Any, labels: Any, say: Any
+    key: jax.Array,
+    idata: az.InferenceData,
+    data: LifecycleData,
+    classes: npt.ArrayLike,
+    labels: Sequence[str] | None,
+    say: Callable[[str], object],
 ) -> az.InferenceData:
     """The class shares and per-class stays of a labelled log, under the pooled stay law."""
     if labels is None:
@@ -686,14 +701,14 @@ def _fit_classes(
 
 
 def _fit_class_traffic(
-    key: Any,
+    key: jax.Array,
     idata: az.InferenceData,
     data: LifecycleData,
     classes: np.ndarray,
-    labels: Any,
-    grid: Any,
+    labels: Sequence[str],
+    grid: OccupancyGrid | None,
     clock_start: str | None,
-    say: Any,
+    say: Callable[[str], object],
 ) -> az.InferenceData:
     """Where (entry/exit densities per class, with a map and positions) and when (shares by
     time of day, with a clock) each class of a labelled log comes (issue 31)."""
@@ -735,7 +750,7 @@ def _fit_class_traffic(
     return idata
 
 
-def attach_behaviour(idata: az.InferenceData, behaviour: Any) -> az.InferenceData:
+def attach_behaviour(idata: az.InferenceData, behaviour: BehaviourFit) -> az.InferenceData:
     """Store a :class:`~are_stats.behaviour.BehaviourFit` as the fit's ``behaviour`` group.
 
     ``are-stats generate --behaviours`` reads it back
@@ -750,7 +765,7 @@ def attach_behaviour(idata: az.InferenceData, behaviour: Any) -> az.InferenceDat
     return idata
 
 
-def attach_traffic(idata: az.InferenceData, traffic: Any) -> az.InferenceData:
+def attach_traffic(idata: az.InferenceData, traffic: TrafficFit) -> az.InferenceData:
     """Store a :class:`~are_stats.fitting.TrafficFit` in a fit.
 
     ``posterior`` gains the chosen models' variables (``event_rate``, ``arrival_phi``,
@@ -878,7 +893,9 @@ class FitFormatWarning(FutureWarning):
     """A fit file without a format version (written before fits carried one)."""
 
 
-def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False) -> Any:
+def write_fit(
+    idata: az.InferenceData | Fit, out: str | os.PathLike[str], force: bool = False
+) -> Path:
     """Write a fit as NetCDF atomically (temporary file + rename); refuse to overwrite.
 
     The posterior carries ``format_version`` (:data:`FIT_FORMAT_VERSION`).
@@ -909,7 +926,7 @@ def write_fit(idata: az.InferenceData | Fit, out: str | Any, force: bool = False
     return path
 
 
-def _check_format(attrs: Any, source: str) -> None:
+def _check_format(attrs: Mapping[str, object], source: str) -> None:
     """Refuse a fit of a newer format; warn about a fit written before formats had numbers."""
     if "format_version" not in attrs:
         warnings.warn(
@@ -937,7 +954,9 @@ def _check_format(attrs: Any, source: str) -> None:
         )
 
 
-def _var(ds: Any, name: str, source: str, group: str, dims: tuple[str, ...] | None) -> np.ndarray:
+def _var(
+    ds: xr.Dataset, name: str, source: str, group: str, dims: tuple[str, ...] | None
+) -> np.ndarray:
     """Variable ``name`` of ``ds`` as an array, checked for presence and dimensions."""
     if name not in ds.data_vars:
         raise InputError(
@@ -1305,7 +1324,9 @@ def _check_classes(idata: az.InferenceData, source: str) -> None:
         )
 
 
-def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior") -> float:
+def get_float_attr(
+    attrs: Mapping[str, object], name: str, source: str, group: str = "posterior"
+) -> float:
     """A finite attribute > 0 of a fit group, named in the error when missing or bad."""
     if name not in attrs:
         raise InputError(
@@ -1319,7 +1340,7 @@ def get_float_attr(attrs: Any, name: str, source: str, group: str = "posterior")
     return get_float(v, source, f"{group}.attrs.{name}", lo=0.0, lo_open=True)
 
 
-def read_fit(path: str | Any) -> Fit:
+def read_fit(path: str | os.PathLike[str]) -> Fit:
     """Read and validate a fit written by :func:`write_fit` / ``are-stats fit``: the one
     way a fit file enters.
 
@@ -1416,7 +1437,7 @@ def _distinct_loglik(
     raise ValueError(f"var_name: expected 'stays' or 'marks', got {var_name!r}")
 
 
-def pointwise_log_likelihood(idata: az.InferenceData, var_name: str = "stays") -> Any:
+def pointwise_log_likelihood(idata: az.InferenceData, var_name: str = "stays") -> xr.DataArray:
     """The per-artefact log-likelihood of a fit, recomputed from its posterior and its log.
 
     Fits store only what scales with the distinct data; this expands one term to
@@ -1448,7 +1469,7 @@ def pointwise_log_likelihood(idata: az.InferenceData, var_name: str = "stays") -
 _LOO_BLOCK = 2**24
 
 
-def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> Any:
+def fit_loo(idata: az.InferenceData, var_name: str = "stays") -> InformationCriterion:
     """PSIS-LOO of one likelihood term of a fit, over artefacts, without expanding it.
 
     Artefacts with the same observation (same dwell and departure flag; same mark) have the

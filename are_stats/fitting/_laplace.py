@@ -29,7 +29,7 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Callable, Iterator
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -60,6 +60,14 @@ from are_stats.fitting._nuts import (
     _split_kwargs,
 )
 from are_stats.fitting._psis import psislw
+
+if TYPE_CHECKING:
+    from jax.tree_util import PyTreeDef
+    from numpyro.distributions.constraints import Constraint
+
+    #: What a batch program gives for each point: its potential energy, its sites
+    #: (constrained, deterministic ones included) and the pointwise log-likelihood.
+    _Batch = tuple[jax.Array, dict[str, jax.Array], jax.Array | dict[str, jax.Array]]
 
 __all__ = [
     "RESAMPLE_MAX_K",
@@ -114,7 +122,7 @@ class LaplaceRun(NamedTuple):
     mode: dict
     converged: bool
     name: str
-    redraw: Callable[[Any, int, float], LaplaceRun] | None = None
+    redraw: Callable[[jax.Array, int, float], LaplaceRun] | None = None
 
 
 _BLAS_LOCK = threading.Lock()
@@ -149,13 +157,15 @@ def _one_blas_thread() -> Iterator[None]:
                 _blas_users[1] = None
 
 
-def _batch_fn(model: Callable, treedef: Any, static: tuple, pointwise: Callable) -> Any:
+def _batch_fn(
+    model: Callable, treedef: PyTreeDef, static: tuple, pointwise: Callable
+) -> Callable[[list, dict], _Batch]:
     """``(arrays, zs) -> (potential, sites, pointwise)`` of each point of a batch, jitted."""
 
-    def batch(arrays: list, zs: dict) -> Any:
+    def batch(arrays: list, zs: dict) -> _Batch:
         kwargs = _join_kwargs(arrays, treedef, static)
 
-        def one(u: dict) -> Any:
+        def one(u: dict) -> _Batch:
             pe = potential_energy(model, (), kwargs, u)
             s = constrain_fn(model, (), kwargs, u, return_deterministic=True)
             return pe, s, pointwise(s, **kwargs)
@@ -178,7 +188,9 @@ _CHEAP_OPTIONS = {
 _DEFAULT_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
-def _program(name: str, fn: Any, args: tuple, key_parts: tuple, optimise: bool = False) -> Any:
+def _program(
+    name: str, fn: Callable[..., Any], args: tuple, key_parts: tuple, optimise: bool = False
+) -> Callable[..., Any]:
     """``fn`` compiled for ``args`` with cheap XLA optimisation (small programs run a few
     times; ``optimise``: XLA's default optimisation), kept in the process and, traced, on
     disk (as the NUTS programs)."""
@@ -285,10 +297,10 @@ def _inverse(kind: str, value: npt.ArrayLike) -> np.ndarray:
 #: The latent sites of a model by (model, static arguments, array shapes): tracing the
 #: model abstractly takes a few tenths of a second (:func:`_site_layout` asks once a
 #: process, and not at all when its record is on disk).
-_SITES: dict[tuple, dict[str, tuple[Any, tuple]]] = {}
+_SITES: dict[tuple, dict[str, tuple[Constraint, tuple]]] = {}
 
 
-def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Any, tuple]]:
+def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Constraint, tuple]]:
     """``name -> (support, shape)`` of the latent sample sites of ``model(**kwargs)``, read
     off an abstract trace (``jax.eval_shape``: shapes only), kept per model and shapes."""
 
@@ -296,7 +308,7 @@ def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Any, tuple]]
     key = _hashable((_fn_key(model), treedef, static, _shapes(arrays)))
     if key is not None and key in _SITES:
         return _SITES[key]
-    found: dict[str, tuple[Any, tuple]] = {}
+    found: dict[str, tuple[Constraint, tuple]] = {}
 
     def trace() -> int:
         with handlers.trace() as tr, handlers.seed(rng_seed=0):
@@ -348,7 +360,7 @@ def _site_layout(model: Callable, kwargs: dict) -> dict[str, tuple[str | None, t
     return layout
 
 
-def _parse_layout(record: Any) -> dict[str, tuple[str | None, tuple]] | None:
+def _parse_layout(record: object) -> dict[str, tuple[str | None, tuple]] | None:
     """A layout from its record (``[[name, kind, shape], ...]``), or None when the record
     is missing or not of that form (then the model is traced again)."""
     if not isinstance(record, list):
@@ -392,7 +404,7 @@ def laplace_program(
     init: dict | None,
     pointwise: Callable,
     optimise: bool = False,
-) -> tuple[Any, list, np.ndarray, list[str], list[tuple]]:
+) -> tuple[Callable[..., Any], list, np.ndarray, list[str], list[tuple]]:
     """The compiled batch program of :func:`run_laplace` (cached: calling this ahead, in
     another thread, compiles it while other work goes on).
 
@@ -423,13 +435,13 @@ def laplace_program(
 
 
 def run_laplace(
-    key: Any,
+    key: jax.Array,
     model: Callable[..., None],
     model_kwargs: dict,
     init: dict | None,
     *,
     num_draws: int,
-    pointwise: Callable[..., Any],
+    pointwise: Callable[..., jax.Array],
     name: str = "",
     optimise: bool = False,
 ) -> LaplaceRun:
@@ -531,7 +543,7 @@ def run_laplace(
     converged = bool(res.success) and bool(np.isfinite(res.fun)) and not on_bound
     mode_d = {n: v[0] for n, v in _unflat_batch(mode[None], names, shapes).items()}
 
-    def redraw(key_t: Any, n_t: int, df: float) -> LaplaceRun:
+    def redraw(key_t: jax.Array, n_t: int, df: float) -> LaplaceRun:
         """Draws of the multivariate Student-t at the mode with the Gaussian's scale."""
         rng = _numpy_rng(key_t)
         eps_t = rng.standard_normal((int(n_t), d))
@@ -551,7 +563,7 @@ def run_laplace(
     return LaplaceRun(samples, ll, log_ratio, mode_d, converged, name, redraw)
 
 
-def _numpy_rng(key: Any) -> np.random.Generator:
+def _numpy_rng(key: jax.Array) -> np.random.Generator:
     """A NumPy generator seeded by a JAX key's bits: the draws' randomness without a
     compiled JAX sampler per shape (each a small XLA compilation in a fresh process)."""
     return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel().tolist())
@@ -634,7 +646,7 @@ class Resampled(NamedTuple):
 
 
 def importance_resample(
-    key: Any, run: LaplaceRun, num_draws: int, max_k: float = RESAMPLE_MAX_K
+    key: jax.Array, run: LaplaceRun, num_draws: int, max_k: float = RESAMPLE_MAX_K
 ) -> Resampled:
     """Draws of the posterior from a Laplace approximation's draws, by PSIS resampling.
 

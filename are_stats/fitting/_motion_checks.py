@@ -33,8 +33,8 @@ from __future__ import annotations
 import math
 import sys
 import warnings
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Hashable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import jax
 import numpy as np
@@ -60,6 +60,11 @@ from are_stats.fitting._behaviour import discretise_tracks, fit_behaviour
 from are_stats.inputs import LimitError, check_memory
 from are_stats.logs import track_groups
 from are_stats.traffic import fold_in_key, key_from_seed, key_uniform, split_key
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = [
     "MOTION_STATISTICS",
@@ -123,13 +128,13 @@ def band_flags(
         return np.isfinite(o) & ((o < np.asarray(lo) - tol) | (o > np.asarray(hi) + tol))
 
 
-def _rng(key: Any) -> np.random.Generator:
+def _rng(key: int | jax.Array) -> np.random.Generator:
     if isinstance(key, int | np.integer):
         return np.random.default_rng(int(key))
     return np.random.default_rng(np.asarray(jax.random.key_data(key)).ravel().tolist())
 
 
-def _key(key: Any) -> jax.Array:
+def _key(key: int | jax.Array) -> jax.Array:
     return key_from_seed(int(key)) if isinstance(key, int | np.integer) else key
 
 
@@ -282,7 +287,7 @@ SLACK = 2.0
 WALK_DT = 0.1
 
 
-def _social(interaction: Any) -> Any:
+def _social(interaction: bool | SocialForce | None) -> SocialForce | None:
     """The social force's parameters of ``interaction`` (``True``: the published ones; a
     :class:`~are_stats.behaviour.SocialForce`: itself), None for no interaction."""
     if interaction is None or interaction is False:
@@ -292,8 +297,8 @@ def _social(interaction: Any) -> Any:
 
 def _walk(
     plan: pd.DataFrame,
-    params: Any,
-    grid: Any,
+    params: SocialForce | None,
+    grid: OccupancyGrid | None,
     *,
     kinematic: np.ndarray | None = None,
     groups: np.ndarray | None = None,
@@ -380,7 +385,7 @@ def _variation(key: jax.Array, fit: BehaviourFit, cls: np.ndarray) -> tuple | No
     return key, sd, fit.speed_within_time[cls], h_sd, fit.heading_within_time[cls]
 
 
-def _log_groups(tracks: pd.DataFrame) -> dict[Any, str]:
+def _log_groups(tracks: pd.DataFrame) -> dict[Hashable, str]:
     """:func:`~are_stats.logs.track_groups` keyed by the log's own ids (not their text)."""
     by_text = {str(i): i for i in pd.unique(tracks["id"])}
     return {by_text[i]: g for i, g in track_groups(tracks).items() if i in by_text}
@@ -487,14 +492,14 @@ def _until_arrived(tracks: pd.DataFrame, end: np.ndarray, tol: float) -> pd.Data
 
 
 def _replicate_tracks(
-    key: Any,
+    key: int | jax.Array,
     behaviour_fit: BehaviourFit,
     observed_tracks: pd.DataFrame,
     n_replicates: int,
     *,
     dt_out: float | None = None,
-    interaction: Any = True,
-    grid: Any = None,
+    interaction: bool | SocialForce = True,
+    grid: OccupancyGrid | None = None,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> pd.DataFrame:
     """The observed people walked again ``n_replicates`` times by the fitted model.
@@ -651,7 +656,7 @@ def _replicate_tracks(
 
 
 def motion_checks(
-    key: Any,
+    key: int | jax.Array,
     behaviour_fit: BehaviourFit,
     observed_tracks: pd.DataFrame,
     n_replicates: int = 50,
@@ -659,10 +664,10 @@ def motion_checks(
     dt_out: float | None = None,
     still_distance: float = 1.0,
     exit_radius: float = 0.5,
-    interaction: Any = True,
-    grid: Any = None,
+    interaction: bool | SocialForce = True,
+    grid: OccupancyGrid | None = None,
     progress: Callable[[int, int, str], None] | None = None,
-) -> tuple[pd.DataFrame, dict[str, Any]]:
+) -> tuple[pd.DataFrame, dict[str, np.ndarray | pd.DataFrame]]:
     """Observed motion statistics against their posterior-predictive bands.
 
     The observed people are walked again ``n_replicates`` times by the model as generation
@@ -861,11 +866,11 @@ def _per_move(scores: pd.DataFrame) -> dict[str, float]:
 
 
 def heldout_log_likelihood(
-    key: Any,
+    key: int | jax.Array,
     tracks: pd.DataFrame,
-    free_mask: Any,
+    free_mask: npt.ArrayLike,
     resolution: float,
-    origin: Any,
+    origin: npt.ArrayLike,
     *,
     train_fraction: float = 0.7,
     **fit_kwargs: Any,
@@ -913,11 +918,11 @@ def heldout_log_likelihood(
 # ---------------------------------------------------------------------- figure
 def plot_motion_checks(
     table: pd.DataFrame,
-    replicates: dict[str, Any],
+    replicates: Mapping[str, np.ndarray | pd.DataFrame],
     *,
     heldout: dict[str, float] | None = None,
     displacement: pd.DataFrame | None = None,
-) -> Any:
+) -> Figure:
     """Observed vs replicated motion: speeds, straightness, still fraction, time to exit.
 
     Parameters
@@ -946,13 +951,13 @@ def plot_motion_checks(
     summary = replicates["summary"]
     fig, axes = plt.subplots(2, 3, figsize=(12.5, 7.0), constrained_layout=True)
 
-    def flag(ax: Any, stat: str) -> None:
+    def flag(ax: Axes, stat: str) -> None:
         if bool(table.loc[stat, "model_flag"]):
             ax.set_title(
                 ax.get_title() + "\nobserved outside the 90% band", fontsize=10, color="tab:red"
             )
 
-    def dist(ax: Any, col: str, title: str, stat: str, moving_only: bool) -> None:
+    def dist(ax: Axes, col: str, title: str, stat: str, moving_only: bool) -> None:
         o, r = obs, rep
         if moving_only:
             o, r = o[~o["still"]], r[~r["still"]]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -26,6 +26,11 @@ from are_stats.fitting._motion_checks import (
     plot_motion_checks,
 )
 from are_stats.traffic import fold_in_key, key_from_seed
+
+if TYPE_CHECKING:
+    import os
+
+    from are_stats.environment import ArtefactCatalogue
 
 __all__ = [
     "MotionReport",
@@ -57,7 +62,9 @@ class MotionReport(NamedTuple):
     heldout: dict[str, float]
 
 
-def write_motion_tables(tables: Mapping[str, pd.DataFrame], folder: Any, force: bool) -> dict:
+def write_motion_tables(
+    tables: Mapping[str, pd.DataFrame], folder: str | os.PathLike[str], force: bool
+) -> dict:
     """realism.csv / .png, realism_observed.csv and displacement_errors.csv of the motion
     tables a fit stored (:attr:`Fit.motion`), written atomically into ``folder``.
 
@@ -117,9 +124,9 @@ def write_motion_report(
     seed: int,
     fit: Fit,
     tracks: pd.DataFrame,
-    folder: Any,
+    folder: str | os.PathLike[str],
     force: bool,
-    catalogue: Any,
+    catalogue: ArtefactCatalogue,
     *,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> MotionReport:

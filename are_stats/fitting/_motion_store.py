@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import io
 from collections.abc import Mapping
-from typing import Any
 
 import pandas as pd
 
@@ -49,7 +48,7 @@ def motion_attrs(**tables: pd.DataFrame) -> dict[str, str]:
     return {MOTION_TABLES[k]: t.to_csv(float_format="%.6g") for k, t in tables.items()}
 
 
-def motion_tables(attrs: Mapping[str, Any]) -> dict[str, pd.DataFrame]:
+def motion_tables(attrs: Mapping[str, object]) -> dict[str, pd.DataFrame]:
     """The stored tables of a fit's ``behaviour`` attributes, by name (those present).
 
     Raises

@@ -23,7 +23,7 @@ import os
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import pandas as pd
@@ -46,6 +46,26 @@ from are_stats.inputs import check_memory, get_int
 from are_stats.scenarios import ScenarioSize, check_scenario_size, generate_scenarios
 from are_stats.traffic import clock_offset
 
+if TYPE_CHECKING:
+    import jax
+    from matplotlib.axes import Axes
+    from matplotlib.backend_bases import RendererBase
+    from matplotlib.figure import Figure
+
+    from are_stats.inputs import Source
+
+    class _Observed(TypedDict):
+        """The observed log of a fit as the checks read it (:func:`_observed`)."""
+
+        t_arrive: np.ndarray
+        t_leave: np.ndarray
+        censored: np.ndarray
+        truncated: np.ndarray
+        marks: np.ndarray | None
+        window: tuple[float, float]
+        area: float
+
+
 __all__ = [
     "PARAMETERS",
     "sampler_warnings",
@@ -62,7 +82,7 @@ __all__ = [
 PARAMETERS = ("arrival_rate", "leave_rate", "mix_weights", "mix_rates")
 
 
-def sampler_warnings(idata: Any, summary: pd.DataFrame) -> list[str]:
+def sampler_warnings(idata: az.InferenceData, summary: pd.DataFrame) -> list[str]:
     """What a user must know about the sampler of a fit: divergences and r_hat.
 
     The NUTS driver's own words when the fit stored them (``nuts_warnings``:
@@ -146,7 +166,7 @@ def _numpy_paths() -> Iterator[None]:
             flags.numba_flag = True
 
 
-def _observed(idata: az.InferenceData) -> dict[str, Any]:
+def _observed(idata: az.InferenceData) -> _Observed:
     obs = idata.observed_data
     out = {n: np.asarray(obs[n].values) for n in ("t_arrive", "t_leave", "censored", "truncated")}
     out["marks"] = np.asarray(obs["marks"].values) if "marks" in obs else None
@@ -160,7 +180,7 @@ def _observed(idata: az.InferenceData) -> dict[str, Any]:
 _MARK_PANEL_DRAWS = 200
 
 
-def check_report_size(idata: az.InferenceData, n_replicates: int, source: Any = "fit") -> None:
+def check_report_size(idata: az.InferenceData, n_replicates: int, source: Source = "fit") -> None:
     """Refuse, before drawing anything, a report past the memory or work limit.
 
     The replicated windows hold about ``n_replicates x lambda x area x (t1 - t0 + 1/mu)``
@@ -202,7 +222,9 @@ def check_report_size(idata: az.InferenceData, n_replicates: int, source: Any = 
         )
 
 
-def predictive_windows(key: Any, idata: az.InferenceData, n_replicates: int = 200) -> pd.DataFrame:
+def predictive_windows(
+    key: int | jax.Array, idata: az.InferenceData, n_replicates: int = 200
+) -> pd.DataFrame:
     """Replicated observation windows from the posterior (stationary start).
 
     Parameters
@@ -291,7 +313,7 @@ def _dispersion(t: np.ndarray, t0: float, t1: float, width: float) -> float:
 
 
 def predictive_checks(
-    key: Any,
+    key: int | jax.Array,
     idata: az.InferenceData,
     n_replicates: int = 200,
     clock_offset: float | None = None,
@@ -375,7 +397,7 @@ def predictive_checks(
     )
 
 
-def _no_data(ax: Any, why: str) -> None:
+def _no_data(ax: Axes, why: str) -> None:
     ax.text(0.5, 0.5, why, ha="center", va="center", transform=ax.transAxes, color="0.4")
     ax.plot([], [], " ", label="no data")
 
@@ -391,7 +413,7 @@ def _band(ax, x, reps, color, label, step=False):
     ax.fill_between(x, q[1], q[3], color=color, alpha=0.35, lw=0, label=f"{label} 50%", **kw)
 
 
-def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
+def plot_checks(checks: PredictiveChecks) -> dict[str, Figure]:
     """Draw the six posterior-predictive checks, one matplotlib figure each.
 
     Parameters
@@ -410,7 +432,7 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
 
     overview, panels = _overview(checks)
     overview.tight_layout()  # a figure to show: laid out to its labels, whatever they are
-    figs: dict[str, Any] = {}
+    figs: dict[str, Figure] = {}
     for name in panels:
         fig, ax = plt.subplots(figsize=(6, 4))
         _draw_panel(name, ax, checks, checks.window[0])
@@ -420,7 +442,7 @@ def plot_checks(checks: PredictiveChecks) -> dict[str, Any]:
     return figs
 
 
-def _overview(checks: PredictiveChecks) -> tuple[Any, dict[str, Any]]:
+def _overview(checks: PredictiveChecks) -> tuple[Figure, dict[str, Axes]]:
     """The ``criticism`` figure: every check's panel on one page, on a fixed grid
     (:data:`_OVERVIEW_GRID`; :func:`plot_checks` and, where labels do not fit,
     :func:`_overview_images` lay it out to its labels).
@@ -469,7 +491,7 @@ _OVERVIEW_GRID = {
 }
 
 
-def _panel_boxes(overview: Any, panels: dict[str, Any], renderer: Any) -> dict | None:
+def _panel_boxes(overview: Figure, panels: dict[str, Axes], renderer: RendererBase) -> dict | None:
     """Each panel's extent in pixels of the drawn ``overview`` (``(x0, y0, x1, y1)``, origin
     at the bottom left): its axes, title, axis labels and the tick labels drawn, with
     :data:`_PANEL_MARGIN` around them; None when two extents meet or one leaves the page.
@@ -567,7 +589,7 @@ def _overview_images(checks: PredictiveChecks) -> dict[str, np.ndarray]:
     return images
 
 
-def _draw_panel(name: str, ax: Any, c: PredictiveChecks, t0: float) -> None:
+def _draw_panel(name: str, ax: Axes, c: PredictiveChecks, t0: float) -> None:
     from scipy import stats  # lazy: scipy.stats adds 0.46 s CPU to import are_stats.fitting
 
     if name == "counts":
@@ -732,11 +754,11 @@ def read_traffic_checks(folder: str | os.PathLike) -> pd.DataFrame | None:
 def write_report(
     idata: az.InferenceData,
     out_dir: str | Path,
-    key: Any = 0,
+    key: int | jax.Array = 0,
     n_replicates: int = 200,
     clock_offset: float | None = None,
     force: bool = False,
-    source: Any = "fit",
+    source: Source = "fit",
     summary: pd.DataFrame | None = None,
 ) -> dict[str, Path]:
     """Write the summary table (CSV) and every check figure (PNG) of a fit.
@@ -788,7 +810,7 @@ def write_report(
     written["summary"] = out / "summary.csv"
     checks = predictive_checks(key, idata, n_replicates, clock_offset)
     images = _overview_images(checks)
-    figures: dict[str, Any] = {}
+    figures: dict[str, Figure] = {}
     table, reps = traffic_checks(key, idata, n_replicates)
     with atomic_path(out / _TRAFFIC_CHECKS, force=force) as tmp:
         table.to_csv(tmp, float_format="%.6g")

@@ -10,7 +10,7 @@ their counts, and the standard errors use the count-weighted variance over obser
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -27,6 +27,10 @@ from are_stats.fitting._em import (
 )
 from are_stats.fitting._mixture_mcmc import fit_mixture_nuts
 from are_stats.fitting._psis import psislw
+
+if TYPE_CHECKING:
+    import jax
+    import numpy.typing as npt
 
 __all__ = ["InformationCriterion", "mixture_waic", "mixture_loo", "select_n_components"]
 
@@ -165,19 +169,19 @@ def _parsimonious_choice(ks: list[int], ics: dict[int, InformationCriterion]) ->
 
 
 def select_n_components(
-    key: Any,
-    marks: Any,
+    key: jax.Array,
+    marks: npt.ArrayLike,
     k_max: int,
     method: Sequence[str] = ("bic", "waic", "loo"),
     *,
-    counts: Any = None,
+    counts: npt.ArrayLike | None = None,
     n_restarts: int = 16,
     num_warmup: int = 500,
     num_samples: int = 500,
     num_chains: int = 2,
     chain_method: str = "parallel",
     return_fits: bool = False,
-) -> pd.DataFrame | tuple[pd.DataFrame, dict[int, tuple[MixtureEMResult, Any]]]:
+) -> pd.DataFrame | tuple[pd.DataFrame, dict[int, tuple[MixtureEMResult, az.InferenceData | None]]]:
     """Choose the number of components of eq. (1) by BIC (EM) and WAIC / PSIS-LOO (NUTS).
 
     Parameters
@@ -246,7 +250,7 @@ def select_n_components(
     rows: dict[int, dict[str, float]] = {k: {} for k in ks}
     waics: dict[int, InformationCriterion] = {}
     loos: dict[int, InformationCriterion] = {}
-    fits: dict[int, tuple[MixtureEMResult, Any]] = {}
+    fits: dict[int, tuple[MixtureEMResult, az.InferenceData | None]] = {}
     key_em, key_nuts = random.split(key)
     for k in ks:
         em = fit_mixture_em(

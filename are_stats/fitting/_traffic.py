@@ -66,10 +66,10 @@ A candidate named by ``--arrivals`` is sampled by NUTS.
 from __future__ import annotations
 
 import time
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -115,6 +115,15 @@ from are_stats.traffic import (
     stay_units,
     uniform_position_density,
 )
+
+if TYPE_CHECKING:
+    import jax
+    import numpy.typing as npt
+
+    from are_stats.environment import OccupancyGrid
+    from are_stats.fitting._laplace import LaplaceRun
+    from are_stats.fitting._nuts import NutsSettings
+    from are_stats.traffic import ArrivalUnits, StayUnits
 
 __all__ = [
     "APPROXIMATIONS",
@@ -206,7 +215,7 @@ class TrafficFit:
     warnings: list = field(default_factory=list)
 
 
-def time_resolution(*times: Any) -> float:
+def time_resolution(*times: npt.ArrayLike) -> float:
     """Smallest positive gap between distinct recorded times (NaN ignored); 0 if none."""
     allt = np.concatenate([np.asarray(t, float).ravel() for t in times] or [np.zeros(0)])
     u = np.unique(allt[np.isfinite(allt)])
@@ -321,14 +330,14 @@ def _diag_cols(table: pd.DataFrame, runs: dict[str, NutsRun | None]) -> None:
     table["r_hat"] = [runs[n].max_r_hat if runs.get(n) is not None else np.nan for n in table.index]
 
 
-def _arrival_draw_loglik(p: dict, **model_kwargs: Any) -> Any:
+def _arrival_draw_loglik(p: dict, **model_kwargs: Any) -> jax.Array:
     """``(B,)`` pointwise arrival log-likelihood of one draw, given ``arrival_model``'s
     arguments (module level: :func:`run_nuts` reuses its compiled program)."""
     kw = model_kwargs
     return arrival_unit_loglik({**p, "log_area": kw["log_area"]}, kw["units"], kw["spec"])
 
 
-def _stay_draw_loglik(p: dict, **model_kwargs: Any) -> Any:
+def _stay_draw_loglik(p: dict, **model_kwargs: Any) -> jax.Array:
     """``(n,)`` pointwise stay log-likelihood of one draw, given ``stay_model``'s arguments."""
     kw = model_kwargs
     return stay_unit_loglik(p, kw["units"], kw["law"], kw["resolution"])
@@ -428,19 +437,19 @@ def _empirical_rate(units_count: float, data: LifecycleData, groups: bool, n_eve
 
 
 def fit_traffic(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
     *,
     paper: dict[str, np.ndarray],
     arrivals: str = "auto",
     lifetimes: str = "auto",
     positions: str = "auto",
-    grid: Any = None,
+    grid: OccupancyGrid | None = None,
     clock_start: str | None = None,
     num_warmup: int = 500,
     num_samples: int = 1000,
     num_chains: int = 4,
-    progress: Any = None,
+    progress: Callable[[str], object] | None = None,
     approximation: str = "nuts",
 ) -> TrafficFit:
     """Fit the candidate traffic models of a log and choose one per factor by PSIS-LOO.
@@ -519,7 +528,7 @@ def fit_traffic(
     log_area, n = float(np.log(data.area)), data.n
     runs: dict[str, dict] = {"arrivals": {}, "stays": {}}
     draws: dict[str, dict] = {"arrivals": {}, "stays": {}}
-    laps: dict[tuple[str, str], Any] = {}  # the Laplace runs (ranked: resampled if chosen)
+    laps: dict[tuple[str, str], LaplaceRun] = {}  # the Laplace runs (ranked: resampled if chosen)
     loo: dict[str, dict] = {"arrivals": {}, "stays": {}}  # PSIS-LOO futures
 
     def reshape(v: np.ndarray) -> np.ndarray:
@@ -538,7 +547,7 @@ def fit_traffic(
         ThreadPoolExecutor(1, "are-stats-loo") as psis,
         ThreadPoolExecutor(LAPLACE_THREADS, "are-stats-laplace-run") as lap_pool,
     ):
-        lap_runs: dict[tuple[str, str], Future] = {}
+        lap_runs: dict[tuple[str, str], Future[LaplaceRun]] = {}
         # with one run thread, two more compile the candidates' programs ahead of it; with
         # two, each run loads (or compiles) its own program: more threads only contended
         # for the GIL (a repeated fit of the shipped log: 0.9 s more CPU at load 15-20)
@@ -723,8 +732,8 @@ class _Setup(NamedTuple):
     calls: dict  # ("arrivals" | "stays", name) -> (key, model, model_kwargs, init)
     cands: list  # arrival candidates
     laws: list  # stay candidates
-    plain: Any  # the arrival ticks (ArrivalUnits) without periods of the day
-    units: Any  # the stays (StayUnits)
+    plain: ArrivalUnits  # the arrival ticks without periods of the day
+    units: StayUnits  # the stays
     res: float  # the log's time resolution
 
 
@@ -765,7 +774,7 @@ def _setup(
         if name != "poisson":
             units = by_clock if spec.tod else plain
             centre = _empirical_rate(np.sum(units.tick_count), data, spec.groups, n_ticks)
-            init: dict[str, Any] = {"event_rate_z": 0.0}
+            init: dict[str, float | np.ndarray] = {"event_rate_z": 0.0}
             if spec.negbin:
                 init["arrival_phi"] = 5.0
             if spec.tod:
@@ -829,7 +838,12 @@ def _mixed(run: NutsRun) -> bool:
 
 
 def _sample_candidate(
-    calls: dict, which: tuple[str, str], pointwise: Any, nuts: dict, say: Any, out: TrafficFit
+    calls: dict,
+    which: tuple[str, str],
+    pointwise: Callable[..., jax.Array] | None,
+    nuts: NutsSettings,
+    say: Callable[[str], object],
+    out: TrafficFit,
 ) -> NutsRun:
     """NUTS for one candidate model (its warnings added to ``out``)."""
     factor, name = which
@@ -897,7 +911,7 @@ def _optimise(which: tuple[str, str]) -> bool:
 LAPLACE_THREADS = 2
 
 
-def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> Any:
+def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> LaplaceRun:
     """Laplace approximation of one candidate model (:func:`run_laplace`), ``n_draws``
     draws; a pure function of the candidate's call, so candidates may run in threads."""
     factor, name = which
@@ -952,7 +966,12 @@ def _queue_left(now: float, start: float, finished: list[float], ahead: int) -> 
     return left if left > 0 else None
 
 
-def _wait_laplace(which: tuple[str, str], runs: dict, say: Any, queue: tuple) -> Any:
+def _wait_laplace(
+    which: tuple[str, str],
+    runs: Mapping[tuple[str, str], Future[LaplaceRun]],
+    say: Callable[[str], object],
+    queue: tuple,
+) -> LaplaceRun:
     """``runs[which].result()``, telling a stage clock (``say.left``) the time left while
     the fit waits on it, from the runs' throughput so far (:func:`_queue_left`), where the
     clock has no record of the stage (a first fit; a later one shows the record's)."""
@@ -976,8 +995,12 @@ def _wait_laplace(which: tuple[str, str], runs: dict, say: Any, queue: tuple) ->
 
 
 def _laplace_candidate(
-    which: tuple[str, str], runs: dict, say: Any, out: TrafficFit, queue: tuple = (0.0, [])
-) -> Any:
+    which: tuple[str, str],
+    runs: Mapping[tuple[str, str], Future[LaplaceRun]],
+    say: Callable[[str], object],
+    out: TrafficFit,
+    queue: tuple = (0.0, []),
+) -> LaplaceRun:
     """The Laplace approximation of one candidate model from its run (``runs[which]``, a
     future of :func:`_run_candidate`; ``queue``: when the runs started and when each
     finished, for the time left, :func:`_wait_laplace`), with a word in ``out`` if its
@@ -1024,7 +1047,9 @@ def _choose_arrivals(
     return chosen
 
 
-def _store_arrival_draws(out: TrafficFit, chosen: str, s: dict, reshape: Any) -> None:
+def _store_arrival_draws(
+    out: TrafficFit, chosen: str, s: dict, reshape: Callable[[np.ndarray], np.ndarray]
+) -> None:
     """The chosen arrival model's draws into ``out.posterior`` (not the paper's Poisson)."""
     spec = ArrivalSpec.from_name(chosen)
     out.posterior["event_rate"] = reshape(s["event_rate"])
@@ -1046,7 +1071,7 @@ def _store_arrival_draws(out: TrafficFit, chosen: str, s: dict, reshape: Any) ->
 
 
 def _fit_positions(
-    data: LifecycleData, positions: str, grid: Any
+    data: LifecycleData, positions: str, grid: OccupancyGrid | None
 ) -> tuple[str, PositionDensity | None, PositionDensity | None, pd.DataFrame | None]:
     """Uniform or learned entry density (LOO over entry points), and the exit density."""
     if grid is None:

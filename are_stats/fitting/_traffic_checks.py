@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import sys
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -40,6 +40,14 @@ from are_stats.fitting._fit import as_fit, traffic_draws
 from are_stats.fitting._traffic import time_resolution
 from are_stats.scenarios import generate_scenarios
 from are_stats.traffic import boundary_distance, fold_in_key, key_from_seed
+
+if TYPE_CHECKING:
+    import arviz as az
+    import jax
+    from matplotlib.artist import Artist
+    from matplotlib.axes import Axes
+    from matplotlib.backend_bases import RendererBase
+    from matplotlib.figure import Figure
 
 __all__ = [
     "CROWDING_STATISTICS",
@@ -127,7 +135,7 @@ def window_statistics(
     window: tuple[float, float],
     resolution: float,
     entry_xy: np.ndarray | None = None,
-    free: Any = None,
+    free: tuple[np.ndarray, float, tuple[float, float]] | None = None,
 ) -> dict[str, float]:
     """The statistics of the module docstring for one window.
 
@@ -389,7 +397,7 @@ def crowding_statistics(
     return {k: float(frame[k].median()) for k in CROWDING_STATISTICS}
 
 
-def _free_of(idata: Any) -> tuple[np.ndarray, float, tuple[float, float]] | None:
+def _free_of(idata: az.InferenceData) -> tuple[np.ndarray, float, tuple[float, float]] | None:
     """The free cells the fit's position densities live on (None without a map)."""
     if "constant_data" not in idata.groups() or "entry_density" not in idata.constant_data:
         return None
@@ -401,7 +409,7 @@ def _free_of(idata: Any) -> tuple[np.ndarray, float, tuple[float, float]] | None
 
 
 def traffic_checks(
-    key: Any, idata: Any, n_replicates: int = 200
+    key: int | jax.Array, idata: az.InferenceData, n_replicates: int = 200
 ) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
     """Observed statistics against the chosen and the paper's predictive bands.
 
@@ -517,7 +525,7 @@ _GRID = {
 _LABEL_GAP = 4.0
 
 
-def _overhangs(fig: Any, ax: Any, renderer: Any) -> tuple[float, float]:
+def _overhangs(fig: Figure, ax: Axes, renderer: RendererBase) -> tuple[float, float]:
     """Pixels by which ``ax``'s x tick labels reach past its left and right edges.
 
     The labels' positions and texts come from the axis' locator and formatter, their
@@ -545,7 +553,7 @@ def _overhangs(fig: Any, ax: Any, renderer: Any) -> tuple[float, float]:
     return left, right
 
 
-def _widen_for_labels(fig: Any, axes: np.ndarray) -> None:
+def _widen_for_labels(fig: Figure, axes: np.ndarray) -> None:
     """Widen the sides and the gaps of ``fig``'s grid of ``axes`` (rows x columns) where
     x tick labels reach past their panels, so that no two panels' labels meet and none
     leaves the page (a layout engine's guarantee, for the figure's only variable text)."""
@@ -571,7 +579,7 @@ def _widen_for_labels(fig: Any, axes: np.ndarray) -> None:
     axes[0, 0].get_gridspec().update(left=left, right=right, wspace=gap / panel)
 
 
-def _add_outline(ax: Any, values: np.ndarray, bins: np.ndarray, colour: str, label: str) -> None:
+def _add_outline(ax: Axes, values: np.ndarray, bins: np.ndarray, colour: str, label: str) -> None:
     """Draw the histogram of ``values`` over ``bins`` on ``ax`` as one filled outline: the
     polygon, colours and limits of ``ax.hist(values, bins, histtype="stepfilled",
     alpha=0.55)``.
@@ -596,7 +604,7 @@ def _add_outline(ax: Any, values: np.ndarray, bins: np.ndarray, colour: str, lab
     ax.update_datalim(patch.get_xy())
 
 
-def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any:
+def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Figure:
     """One panel per statistic: each model's replicated distribution and the observed value.
 
     Returns
@@ -662,7 +670,7 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Any
         ax.yaxis.set_visible(False)  # no y ticks: the axis is not drawn at all
     # one row in the title band, left of the title: a fixed place (no search for the
     # emptiest corner of a panel at every draw), clear of every panel's data
-    entries: dict[str, Any] = {}  # label -> handle, in the panels' order
+    entries: dict[str, Artist] = {}  # label -> handle, in the panels' order
     for ax in axes.flat[:n]:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             entries.setdefault(label, handle)
