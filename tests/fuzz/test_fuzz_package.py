@@ -18,6 +18,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.fuzz.strategies import (
+    CASE_CPU_SECONDS,
+    CASE_WALL_SECONDS,
     LOG_HEADER,
     LOG_ROWS,
     MANIFEST,
@@ -301,7 +303,8 @@ def test_yaml_bombs_are_refused(case_dir) -> None:
             (d / "log.csv").write_text(_csv_text(LOG_HEADER, LOG_ROWS))
             path = d / name
             path.write_text(text)
-            with bounded(seconds=20.0), pytest.raises(ValueError) as info:
+            limits = {"seconds": CASE_WALL_SECONDS, "cpu_seconds": CASE_CPU_SECONDS}
+            with bounded(**limits), pytest.raises(ValueError) as info:
                 load(path)
             assert name in str(info.value), f"{name}: the refusal does not name it: {info.value}"
 
