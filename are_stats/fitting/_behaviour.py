@@ -1235,7 +1235,16 @@ def _check_tol(tol: Any) -> float:
     return value
 
 
-@partial(jax.jit, static_argnames=("n_devices",))
+#: XLA options of :func:`_gradient_value_epochs`: XLA's CPU fusion emitters off (as the
+#: Laplace programs'; its compile is most of a first fit). ``fit_behaviour`` on the
+#: 302-person tracks table of ``bench_fit_cold`` (process CPU, fresh process and cache,
+#: issue 29): the first call 15.8 -> 10.9 s, the next ones alike (3.3, 3.2 -> 3.5, 3.1 s);
+#: float32 results move in the 6th digit (beta 1.89825845 -> 1.89825579, its se
+#: 0.16416075 -> 0.16415785).
+_GRADIENT_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+@partial(jax.jit, static_argnames=("n_devices",), compiler_options=_GRADIENT_OPTIONS)
 def _gradient_value_epochs(
     theta: jax.Array, data: _LikelihoodData, tol: jax.Array, n_devices: int
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
