@@ -452,7 +452,10 @@ vs 75.8 s (0.87x; wall 371 vs 344 s), 22 XLA compilations each, their compile wa
 on the 302 tracks in a fresh process 15.8 -> 10.9 s for the first call, 3.3 and 3.2 ->
 3.5 and 3.1 s for the next; the golden social walks cold 19.8, 6.6, 14.1, 3.5 -> 14.2, 4.6,
 9.6, 2.2 s, repeated alike, every digest kept; ``discretise_tracks`` 0.52 -> 0.014 s a call,
-the same paths. ``_window``'s five programs, by a spy in a cold in-process fit: 16 slots (all
+the same paths. On a warm cache (a second fresh process, load 9-12, wt-int then the branch):
+``fit_behaviour``'s first call 4.98 -> 3.89 s, the golden walks 9.4, 1.0, 3.4, 0.9 -> 8.1,
+1.0, 3.2, 0.8 s (cold on that round: 14.8 -> 10.4 s and 17.0, 5.4, 12.4, 3.2 -> 14.8, 4.4,
+9.1, 1.9 s). ``_window``'s five programs, by a spy in a cold in-process fit: 16 slots (all
 pairs, the learned interaction's rewalks on their own 49 x 119 grid, 66 windows), 32 (no
 repulsion, the realism scenes, 132), 1,024 (the motion checks' replicates, 66 windows,
 9.5 s of runs), 2,048 and 4,096 (the displacement errors' chunks, 5 and 3). Measured and
