@@ -240,7 +240,15 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid, block=0):
     return _pair_term(now, v[:, None, None, :] - v[cand], ok, p, mates).sum(axis=(1, 2))
 
 
-@partial(jax.jit, static_argnames=("all_pairs", "block", "repel"))
+#: XLA options of :func:`_window`: XLA's CPU fusion emitters off (as the Laplace programs'
+#: and the behaviour gradient's). The walks keep their bits (tests/behaviour/
+#: test_social_golden.py; a window of 4,096 slots alike) and compile in about two thirds
+#: of the CPU (issue 29: the golden walks in fresh processes 19.8, 6.6, 14.1 and 3.5 s ->
+#: 14.2, 4.6, 9.6 and 2.2 s of CPU, their repeated runs alike).
+_WINDOW_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+@partial(jax.jit, static_argnames=("all_pairs", "block", "repel"), compiler_options=_WINDOW_OPTIONS)
 def _window(
     state,
     route,

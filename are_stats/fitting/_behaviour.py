@@ -668,24 +668,31 @@ def _within_variation(
     return out
 
 
-def _line_cells(a: np.ndarray, b: np.ndarray) -> list[tuple[int, int]]:
-    """4-connected cells from ``a`` (excluded) to ``b`` (included) along the straight line."""
-    out = []
-    r, c = int(a[0]), int(a[1])
-    dr, dc = int(b[0]) - r, int(b[1]) - c
-    nr, nc = abs(dr), abs(dc)
-    sr, sc = int(np.sign(dr)), int(np.sign(dc))
-    i = j = 0
-    while i < nr or j < nc:
-        # step along the axis that lags the line most
-        if j >= nc or (i < nr and (i + 0.5) / nr <= (j + 0.5) / nc):
-            r += sr
-            i += 1
-        else:
-            c += sc
-            j += 1
-        out.append((r, c))
-    return out
+def _line_steps(r0: np.ndarray, c0: np.ndarray, r1: np.ndarray, c1: np.ndarray) -> tuple:
+    """The 4-connected cells of every straight move ``(r0, c0) -> (r1, c1)`` ((K,) int):
+    the start excluded, the end included (a move of none: its end once), each step along
+    the axis that lags the line most (a row step first on a tie). Returns the cells
+    ``(rows, cols)`` of all moves in order and the number ``(K,)`` of each."""
+    dr, dc = r1 - r0, c1 - c0
+    nr, nc = np.abs(dr), np.abs(dc)
+    count = np.maximum(nr + nc, 1)
+    first = np.r_[0, np.cumsum(count)[:-1]]
+    move = np.repeat(np.arange(r0.size), count)
+    at = np.arange(move.size) - first[move]  # the step's place in its move
+    # step i of the rows lands at (i + 0.5) / nr of the line, step j of the columns at
+    # (j + 0.5) / nc: a move's steps in that order, the rows' first on a tie
+    is_row = at < nr[move]
+    i = np.where(is_row, at, at - nr[move])
+    key = (i + 0.5) / np.where(is_row, nr[move], np.maximum(nc[move], 1))
+    order = np.lexsort((~is_row, key, move))
+    is_row = is_row[order]
+    done = np.cumsum(is_row)
+    rows_done = done - np.r_[0, done][first][move]
+    cols_done = (at + 1) - rows_done
+    none = (nr + nc == 0)[move]  # a stay: its one cell, the end
+    rows = np.where(none, r1[move], r0[move] + np.sign(dr)[move] * rows_done)
+    cols = np.where(none, c1[move], c0[move] + np.sign(dc)[move] * cols_done)
+    return rows, cols, count
 
 
 def discretise_tracks(
@@ -725,31 +732,56 @@ def discretise_tracks(
     dt = float(check_positive("dt", dt))
     o = np.asarray(origin, float)
     _, (ri, ci) = ndimage.distance_transform_edt(~free, return_indices=True)
-    paths, ids = [], []
-    for tid, g in tracks.groupby("id", sort=True):
-        g = g.sort_values("t", kind="stable")
-        t = g["t"].to_numpy(float)
-        xy = g[["x", "y"]].to_numpy(float)
-        n_ep = int(np.floor((t[-1] - t[0]) / dt + 1e-9))
-        te = t[0] + dt * np.arange(n_ep + 1)
-        if t[-1] - te[-1] > 1e-9 * max(1.0, abs(t[-1])):
-            te = np.append(te, t[-1])
-        x = np.interp(te, t, xy[:, 0])
-        y = np.interp(te, t, xy[:, 1])
-        col = np.clip(np.floor((x - o[0]) / cell), 0, w - 1).astype(np.int64)
-        row = np.clip(np.floor((y - o[1]) / cell), 0, h - 1).astype(np.int64)
-        row, col = ri[row, col], ci[row, col]
-        path = [(int(row[0]), int(col[0]))]
-        for r, c in zip(row[1:].tolist(), col[1:].tolist(), strict=True):
-            if (r, c) == path[-1]:
-                path.append((r, c))
-            else:
-                path.extend(_line_cells(np.array(path[-1]), np.array((r, c))))
-        p = np.asarray(path, np.int64)
-        first = int(np.flatnonzero((p == p[-1]).all(axis=1))[0])
-        paths.append(p[: first + 1])
-        ids.append(tid)
-    return paths, np.asarray(ids)
+    # every track's rows at once (issue 29: a table and a sort per track were most of
+    # the time): grouped by id in groupby's order, each by time, stable
+    codes, uniques = pd.factorize(tracks["id"].to_numpy(), sort=True)
+    t_all = tracks["t"].to_numpy(float)
+    xy_all = tracks[["x", "y"]].to_numpy(float)
+    order = np.lexsort((t_all, codes))
+    order = order[codes[order] >= 0]  # no id: no track (as groupby)
+    if order.size == 0:
+        return [], np.asarray([])
+    codes, t_all, xy_all = codes[order], t_all[order], xy_all[order]
+    n = len(uniques)
+    start = np.searchsorted(codes, np.arange(n))
+    stop = np.r_[start[1:], codes.size]
+    t0, t1 = t_all[start], t_all[stop - 1]
+    # the epochs t0 + k dt of each track, and its end where that falls between epochs
+    n_ep = np.floor((t1 - t0) / dt + 1e-9).astype(np.int64)
+    tail = t1 - (t0 + dt * n_ep) > 1e-9 * np.maximum(1.0, np.abs(t1))
+    size = n_ep + 1 + tail
+    owner = np.repeat(np.arange(n), size)
+    bound = np.r_[0, np.cumsum(size)]
+    k = np.arange(owner.size) - bound[owner]
+    te = t0[owner] + dt * k
+    te[bound[1:][tail] - 1] = t1[tail]
+    x, y = np.empty(te.size), np.empty(te.size)
+    for j in range(n):  # np.interp per track: a few microseconds each
+        e, a, b = slice(bound[j], bound[j + 1]), start[j], stop[j]
+        x[e] = np.interp(te[e], t_all[a:b], xy_all[a:b, 0])
+        y[e] = np.interp(te[e], t_all[a:b], xy_all[a:b, 1])
+    col = np.clip(np.floor((x - o[0]) / cell), 0, w - 1).astype(np.int64)
+    row = np.clip(np.floor((y - o[1]) / cell), 0, h - 1).astype(np.int64)
+    row, col = ri[row, col], ci[row, col]
+    # after a track's first cell, the cells of the straight move from each epoch's cell to
+    # the next's (_line_steps)
+    later = k > 0
+    prev = np.flatnonzero(later) - 1
+    rows, cols, count = _line_steps(row[prev], col[prev], row[later], col[later])
+    per_track = np.bincount(owner[later], weights=count, minlength=n).astype(np.int64)
+    begin = np.r_[0, np.cumsum(per_track + 1)[:-1]]
+    end = begin + per_track + 1
+    cells = np.empty((int(end[-1]), 2), np.int64)
+    cells[begin] = np.column_stack([row[bound[:-1]], col[bound[:-1]]])
+    body = np.ones(cells.shape[0], bool)
+    body[begin] = False
+    cells[body] = np.column_stack([rows, cols])
+    # each path up to its first visit of its last cell (the goal)
+    track = np.repeat(np.arange(n), end - begin)
+    goal = (cells == cells[end - 1][track]).all(axis=1)
+    first_goal = np.minimum.reduceat(np.where(goal, np.arange(track.size), track.size), begin)
+    paths = [cells[a : g + 1] for a, g in zip(begin.tolist(), first_goal.tolist(), strict=True)]
+    return paths, np.asarray(list(uniques))
 
 
 def _lognormal(v: np.ndarray) -> tuple[float, float]:
@@ -1231,7 +1263,16 @@ def _check_tol(tol: Any) -> float:
     return value
 
 
-@partial(jax.jit, static_argnames=("n_devices",))
+#: XLA options of :func:`_gradient_value_epochs`: XLA's CPU fusion emitters off (as the
+#: Laplace programs'; its compile is most of a first fit). ``fit_behaviour`` on the
+#: 302-person tracks table of ``bench_fit_cold`` (process CPU, fresh process and cache,
+#: issue 29): the first call 15.8 -> 10.9 s, the next ones alike (3.3, 3.2 -> 3.5, 3.1 s);
+#: float32 results move in the 6th digit (beta 1.89825845 -> 1.89825579, its se
+#: 0.16416075 -> 0.16415785).
+_GRADIENT_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+@partial(jax.jit, static_argnames=("n_devices",), compiler_options=_GRADIENT_OPTIONS)
 def _gradient_value_epochs(
     theta: jax.Array, data: _LikelihoodData, tol: jax.Array, n_devices: int
 ) -> tuple[jax.Array, jax.Array, jax.Array]:

@@ -439,6 +439,34 @@ program without XLA's CPU fusion emitters (as the Laplace programs): ``fit_behav
 the 302 tracks in a fresh process 11.8 -> 8.6 s of CPU cold, 2.60 -> 2.43 s warm, but
 other float32 bits (beta 1.89825845 -> 1.89825579, its se 0.16416075 -> 0.16415785): a
 change of outputs for the lead to weigh (the criticism's draws would follow it).
+
+The tracks part with the behaviour gradient and the social force's ``_window`` compiled
+without XLA's CPU fusion emitters and ``discretise_tracks`` for all tracks at once (wt-tracks2,
+2026-11-28, wt-int 81043a8 and the branch started together in fresh processes with empty
+caches, the CLI's command, child CPU by ``getrusage``, load 12.4 -> 11-13): cold CPU 87.6 s
+vs 75.8 s (0.87x; wall 371 vs 344 s), 22 XLA compilations each, their compile wall 186.9 vs
+147.9 s. All 17 criticism files byte for byte the same; the fit file's root and groups
+(``xarray`` ``identical``) the same but the behaviour group's ``beta``, ``beta_se``,
+``slip``, ``slip_se`` and ``loglik`` (the gradient's float32 bits: beta 1.89825845 ->
+1.89825579, its se 0.16416075 -> 0.16415785; adopted). In-process CPU: ``fit_behaviour``
+on the 302 tracks in a fresh process 15.8 -> 10.9 s for the first call, 3.3 and 3.2 ->
+3.5 and 3.1 s for the next; the golden social walks cold 19.8, 6.6, 14.1, 3.5 -> 14.2, 4.6,
+9.6, 2.2 s, repeated alike, every digest kept; ``discretise_tracks`` 0.52 -> 0.014 s a call,
+the same paths. On a warm cache (a second fresh process, load 9-12, wt-int then the branch):
+``fit_behaviour``'s first call 4.98 -> 3.89 s, the golden walks 9.4, 1.0, 3.4, 0.9 -> 8.1,
+1.0, 3.2, 0.8 s (cold on that round: 14.8 -> 10.4 s and 17.0, 5.4, 12.4, 3.2 -> 14.8, 4.4,
+9.1, 1.9 s). ``_window``'s five programs, by a spy in a cold in-process fit: 16 slots (all
+pairs, the learned interaction's rewalks on their own 49 x 119 grid, 66 windows), 32 (no
+repulsion, the realism scenes, 132), 1,024 (the motion checks' replicates, 66 windows,
+9.5 s of runs), 2,048 and 4,096 (the displacement errors' chunks, 5 and 3). Measured and
+not kept: windows without repulsion walked in pieces of at most 1,024 slots (cut between
+groups only): 22 -> 20 compilations and 121.5 -> 103.0 s of CPU cold (load 8 -> 18, with
+the gradient and the emitters), every output of that fit the same, but a 4,096-slot window
+of 700 small scenes at strength 0 walks to another digest whole, in pieces of 2,048 and in
+pieces of 1,024 or fewer (those three agree): above 1,024 slots the program's size moves the
+walk's bits, so pieces are not bit-safe. Left: the motion checks' 1,024-slot runs, the
+Laplace ``call`` programs, ``_capped_jit``; issue 29's 60 s not shown met (idle wall,
+scaled by the CPU ratio from about 60 s: about 52 s, not measured on idle cores).
 """
 
 from __future__ import annotations
