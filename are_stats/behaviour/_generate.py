@@ -46,7 +46,7 @@ from are_stats.behaviour._model import BehaviourFit
 from are_stats.behaviour._motion import string_pull_many, walk_times_many
 from are_stats.behaviour._rewards import FORWARD, HEADINGS, LEFT, RIGHT, RUN, STAY
 from are_stats.behaviour._social import _interp_runs
-from are_stats.behaviour._soft import GOAL_BUCKET, soft_policy
+from are_stats.behaviour._soft import GOAL_BUCKET
 
 __all__ = [
     "continuous_path",
@@ -518,16 +518,11 @@ def simulate_behaviour_tracks(
                 for m, gl in zip(members, local, strict=True)
             )
             k = int(math.ceil(10 * longest)) + 20
-            sol = soft_policy(
+            sol = fit.soft_policy(
+                c,
                 occ,
                 goals[gsel],
-                float(fit.beta[c]),
-                float(fit.slip[c]),
                 n_epochs=k,
-                goal_reward=fit.goal_reward,
-                step_cost=fit.step_cost,
-                time_cost=fit.time_cost,
-                cell_reward=fit.cell_reward(c),
                 tol=1e-2,
                 bucket=chunk,  # one compiled program for every chunk, cap and class
             )

@@ -20,8 +20,12 @@ import numpy as np
 import numpy.typing as npt
 from scipy.sparse import csr_array
 
+from are_stats.behaviour._soft import SoftSolution, soft_policy
+
 if TYPE_CHECKING:
     import xarray as xr
+
+    from are_stats.environment import OccupancyGrid
 
 __all__ = ["BehaviourFit", "grid_geodesic"]
 
@@ -244,6 +248,36 @@ class BehaviourFit:
         if not self.feature_names:
             return 0.0
         return np.tensordot(self.weights[int(class_index)], self.features, axes=1)
+
+    def soft_policy(
+        self,
+        class_index: int,
+        occupied: npt.ArrayLike | OccupancyGrid,
+        goals: npt.ArrayLike,
+        *,
+        n_epochs: int,
+        tol: float | None,
+        bucket: int | None,
+    ) -> SoftSolution:
+        """A class's soft policy toward ``goals``: :func:`~are_stats.behaviour.soft_policy`
+        with the fitted ``beta``, ``slip``, goal reward, step and time costs and cell reward
+        of class ``class_index`` (the one place generation and the motion checks take them
+        from the fit). ``occupied``, ``goals``, ``n_epochs``, ``tol`` and ``bucket`` as
+        :func:`~are_stats.behaviour.soft_policy`'s."""
+        c = int(class_index)
+        return soft_policy(
+            occupied,
+            goals,
+            float(self.beta[c]),
+            float(self.slip[c]),
+            n_epochs=n_epochs,
+            goal_reward=self.goal_reward,
+            step_cost=self.step_cost,
+            time_cost=self.time_cost,
+            cell_reward=self.cell_reward(c),
+            tol=tol,
+            bucket=bucket,
+        )
 
     # ------------------------------------------------------------------ grid helpers
     def world_to_cell(self, xy: npt.ArrayLike) -> np.ndarray:

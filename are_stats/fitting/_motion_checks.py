@@ -51,7 +51,6 @@ from are_stats.behaviour import (
     preferred_speeds,
     simulate_behaviour_tracks,
     social_force_tracks,
-    soft_policy,
     track_log_likelihoods,
     tracker_noise,
 )
@@ -766,16 +765,11 @@ def _policies(fit: BehaviourFit, c: int, goals: np.ndarray, tol: float = 1e-3) -
     dist = fit.geodesic(goals)
     finite = dist[np.isfinite(dist)]
     k = int(math.ceil(10 * (finite.max() if finite.size else 1.0))) + 20
-    sol = soft_policy(
+    sol = fit.soft_policy(
+        c,
         ~np.asarray(fit.free, bool),
         goals,
-        float(fit.beta[c]),
-        float(fit.slip[c]),
         n_epochs=k,
-        goal_reward=fit.goal_reward,
-        step_cost=fit.step_cost,
-        time_cost=fit.time_cost,
-        cell_reward=fit.cell_reward(c),
         tol=tol,
         bucket=GOAL_BUCKET,
     )
