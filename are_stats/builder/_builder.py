@@ -289,8 +289,7 @@ class ARBuilder:
         """``(m, 2)`` index pairs of colliding boxes."""
         if centre.shape[0] < 2:
             return np.zeros((0, 2), np.int64)
-        corners = box_corners(centre[:, :2], half[:, :2], yaw)
-        pairs = aabb_pairs(corners.min(axis=1), corners.max(axis=1))
+        pairs = aabb_pairs(*_aabbs(centre, half, yaw))
         if pairs.size == 0:
             return pairs
         a, b = pairs[:, 0], pairs[:, 1]
@@ -302,10 +301,9 @@ class ARBuilder:
         out = np.zeros(idx.size, bool)
         if idx.size == 0 or o_centre.shape[0] == 0:
             return out
-        oc = box_corners(o_centre[:, :2], o_half[:, :2], o_yaw)
-        qc = box_corners(centre[:, :2], half[:, :2], yaw)
-        h = SpatialHash(oc.min(axis=1), oc.max(axis=1), float((oc.max(1) - oc.min(1)).max()))
-        qa, sb = h.query(qc.min(axis=1), qc.max(axis=1))
+        o_lo, o_hi = _aabbs(o_centre, o_half, o_yaw)
+        h = SpatialHash(o_lo, o_hi, float((o_hi - o_lo).max()))
+        qa, sb = h.query(*_aabbs(centre, half, yaw))
         keep = sb != idx[qa]
         qa, sb = qa[keep], sb[keep]
         hit = obb_overlap(
@@ -1006,7 +1004,7 @@ class ARBuilder:
                         np.concatenate([h_idx[o], h_idx[o]]),
                         np.concatenate([now[o, 2], now[o, 2]]),
                         self.eps,
-                    )  # fmt: skip
+                    )
                     touching = ov[:m] & _aabb_touch(lo_now[j], hi_now[j], lo_now[o], hi_now[o])
                     o, hit = o[~touching], ov[m:][~touching]
                     if o.size and not bad:
