@@ -458,7 +458,7 @@ def test_fitted_planning_reports_each_batch_of_exits(monkeypatch) -> None:
     """``progress(done, total)`` after each chunk of exits solved (a soft solve each), then
     once for the paths: ``done`` counts up to ``total`` = solves + 1, and the tracks are the
     same as without it."""
-    from are_stats.behaviour import _generate
+    from are_stats.behaviour import _model
 
     fit = _open_fit()
     n = 30
@@ -469,13 +469,13 @@ def test_fitted_planning_reports_each_batch_of_exits(monkeypatch) -> None:
         "t_leave": 40.0, "x": 1.5, "y": row + 0.5,
     })  # fmt: skip
     events = []
-    solve = _generate.soft_policy
+    solve = _model.soft_policy  # what BehaviourFit.soft_policy calls
 
     def counted(*args, **kwargs):
         events.append("solve")
         return solve(*args, **kwargs)
 
-    monkeypatch.setattr(_generate, "soft_policy", counted)
+    monkeypatch.setattr(_model, "soft_policy", counted)
     key = jax.random.key(2)
     out = simulate_behaviour_tracks(key, fit, arts, chunk=2, progress=lambda *c: events.append(c))
     solves = events.count("solve")
