@@ -873,9 +873,14 @@ def social_force_tracks(
     wander = None
     if heading_variation is not None:
         wander = _pace(
-            heading_variation, len(tracks), perm[start], p.relaxation, dt,
-            "heading_variation", "rad",
-        )  # fmt: skip
+            heading_variation,
+            len(tracks),
+            perm[start],
+            p.relaxation,
+            dt,
+            "heading_variation",
+            "rad",
+        )
         if not (wander.innovation > 0).any() and not (wander.u != 0).any():
             wander = None  # nobody wanders: the program without the turn, bit for bit
     t0 = float(t_on.min())
@@ -936,9 +941,16 @@ def social_force_tracks(
         if pace is not None:
             drift = _pace_window(pace, act, WINDOW_STEPS)
             drift, done[act] = _on_schedule(
-                drift, tt, t_on[act], due[act], done[act], pace.phi[act] < 1.0,
-                p.relaxation, p.max_speed, dt,
-            )  # fmt: skip
+                drift,
+                tt,
+                t_on[act],
+                due[act],
+                done[act],
+                pace.phi[act] < 1.0,
+                p.relaxation,
+                p.max_speed,
+                dt,
+            )
             pace_w[:, slot] = drift[:, lead_col]
         turn_w = None
         if wander is not None:
@@ -1361,8 +1373,7 @@ def _smoothed_design(
     k = np.arange(len(raw))
     n_tracks = start.size
     jerk = JERK_DENSITY if jerk is None else jerk
-    sm = {"at": at, "who": who,
-          "noise": float(noise), "jerk": float(jerk)}  # fmt: skip
+    sm = {"at": at, "who": who, "noise": float(noise), "jerk": float(jerk)}
     state = smooth_samples(raw, who, at, dt, noise, jerk)  # (3, n, 2)
     pos, vel, acc = state
     edge = max(2, int(np.ceil(SMOOTH_EDGE / dt - 1e-9)))
@@ -1591,8 +1602,13 @@ def fit_social_force(
     # tracks' estimates carry the same attenuation as the tracks')
     simex = simex and corrections <= 0
     params, info = _direct_fit(tracks, base, ranges, min_speed, groups, sd, step, simex, smooth)
-    info = {**info, "noise": sd, "strength_direct": params.strength,
-            "relaxation_direct": params.relaxation, "corrections": 0.0}  # fmt: skip
+    info = {
+        **info,
+        "noise": sd,
+        "strength_direct": params.strength,
+        "relaxation_direct": params.relaxation,
+        "corrections": 0.0,
+    }
     if corrections > 0 and _in_range(params):
         if params.relaxation > MAX_RELAXATION:
             # nobody steers to a goal over this long: the model does not describe them
@@ -1691,9 +1707,16 @@ def _walk_plans(
     frac = np.where(np.isfinite(dur[who]) & (dur[who] > 0), frac, 0.0)
     xy = a[who] + (b - a)[who] * frac[:, None]
     plan = pd.DataFrame(
-        {"id": ids, "t": t, "x": xy[:, 0], "y": xy[:, 1], "yaw": 0.0,
-         "vx": vel[start][who][:, 0], "vy": vel[start][who][:, 1]}
-    )  # fmt: skip
+        {
+            "id": ids,
+            "t": t,
+            "x": xy[:, 0],
+            "y": xy[:, 1],
+            "yaw": 0.0,
+            "vx": vel[start][who][:, 0],
+            "vy": vel[start][who][:, 1],
+        }
+    )
     return plan, ids
 
 
@@ -1940,8 +1963,18 @@ def repulsion_evidence(
     smooth = sd >= SMOOTH_NOISE if smooth is None else bool(smooth)
     calibrate = smooth if calibrate is None else bool(calibrate)
     out: dict[str, float | str] = {"verdict": "too little"}
-    for k in ("close", "strength_hat", "se", "rss_published", "rss_none", "z", "p", "passes",
-              "passes_published", "passes_none"):  # fmt: skip
+    for k in (
+        "close",
+        "strength_hat",
+        "se",
+        "rss_published",
+        "rss_none",
+        "z",
+        "p",
+        "passes",
+        "passes_published",
+        "passes_none",
+    ):
         out[k] = float("nan")
     args = (base, min_speed, groups, sd, smooth, trim, min_close)
     got = _evidence_fit(tracks, *args)

@@ -549,8 +549,11 @@ def _within_variation(
             chord = np.hypot(*(p[m:] - p[:-m]).T)
         speed = chord / window
         # stops and bursts are not the pace's drift: their windows are left out
-        y = np.where(np.abs(np.log(np.maximum(speed, 1e-12) / v)) <= math.log(VARIATION_CLIP),
-                     np.log(np.maximum(speed, 1e-12)), np.nan)  # fmt: skip
+        y = np.where(
+            np.abs(np.log(np.maximum(speed, 1e-12) / v)) <= math.log(VARIATION_CLIP),
+            np.log(np.maximum(speed, 1e-12)),
+            np.nan,
+        )
         if near is not None and np.any(near):
             # a window with somebody near at any of its samples (the log's nearest)
             busy = np.interp(tt, t, np.asarray(near, float)) > 0
@@ -833,8 +836,13 @@ def _speed_law(speeds: np.ndarray, run_speed: float, name: str) -> dict[str, flo
         raise NoWalkersError(f"tracks: expected moving walkers in class {name!r}, got none")
     mu, sigma = _lognormal(speeds[walk])
     rmu, rsig = _lognormal(speeds[runner]) if runner.sum() >= 2 else (math.nan, math.nan)
-    return {"speed_mu": mu, "speed_sigma": sigma, "run_fraction": float(runner.mean()),
-            "run_mu": rmu, "run_sigma": rsig}  # fmt: skip
+    return {
+        "speed_mu": mu,
+        "speed_sigma": sigma,
+        "run_fraction": float(runner.mean()),
+        "run_mu": rmu,
+        "run_sigma": rsig,
+    }
 
 
 def _bandwidth(xy: np.ndarray, floor: float) -> float:
@@ -928,15 +936,29 @@ def _loglik_epochs(
     opts = dict(n_epochs=data.n_epochs, step_cost=data.step_cost, time_cost=data.time_cost, tol=tol)
     if n_devices < 2:
         sol = soft_backward_induction(
-            data.ok, data.keep, data.bonus, beta, slip, tol_mask=data.tol_mask,
-            cell_reward=reward, with_epochs=True, **opts,
-        )  # fmt: skip
+            data.ok,
+            data.keep,
+            data.bonus,
+            beta,
+            slip,
+            tol_mask=data.tol_mask,
+            cell_reward=reward,
+            with_epochs=True,
+            **opts,
+        )
         policy, epochs = sol.policy, sol.epochs
     else:
         policy, epochs = _sharded_policy(
-            data.ok, data.keep, data.bonus, beta, slip, data.tol_mask, n_devices, opts,
+            data.ok,
+            data.keep,
+            data.bonus,
+            beta,
+            slip,
+            data.tol_mask,
+            n_devices,
+            opts,
             jnp.asarray(reward, beta.dtype),
-        )  # fmt: skip
+        )
     obs = (data.goal_index, data.rows, data.cols, data.move)
     return moves_log_likelihood(policy, data.ok, slip, obs), epochs
 
@@ -973,21 +995,43 @@ def _sharded_policy(
     # the traced numbers enter as replicated arguments (not closed over by the shards)
     numbers = tuple(jnp.asarray(opts[k]) for k in ("n_epochs", "step_cost", "time_cost", "tol"))
 
-    def solve(keep_s: jax.Array, bonus_s: jax.Array, mask_s: jax.Array, ok_: jax.Array,
-              beta_: jax.Array, slip_: jax.Array, reward_: jax.Array, k_: jax.Array,
-              sc_: jax.Array, tc_: jax.Array, tol_: jax.Array,
-              ) -> tuple[jax.Array, jax.Array]:  # fmt: skip
+    def solve(
+        keep_s: jax.Array,
+        bonus_s: jax.Array,
+        mask_s: jax.Array,
+        ok_: jax.Array,
+        beta_: jax.Array,
+        slip_: jax.Array,
+        reward_: jax.Array,
+        k_: jax.Array,
+        sc_: jax.Array,
+        tc_: jax.Array,
+        tol_: jax.Array,
+    ) -> tuple[jax.Array, jax.Array]:
         sol = soft_backward_induction(
-            ok_, keep_s, bonus_s, beta_, slip_, tol_mask=mask_s, axis_name="g",
-            cell_reward=reward_, n_epochs=k_, step_cost=sc_, time_cost=tc_, tol=tol_,
+            ok_,
+            keep_s,
+            bonus_s,
+            beta_,
+            slip_,
+            tol_mask=mask_s,
+            axis_name="g",
+            cell_reward=reward_,
+            n_epochs=k_,
+            step_cost=sc_,
+            time_cost=tc_,
+            tol=tol_,
             with_epochs=True,
-        )  # fmt: skip
+        )
         return sol.policy, sol.epochs  # every shard stops at the same epoch
 
     split = jax.shard_map(
-        solve, mesh=mesh, in_specs=(P("g"), P("g"), P("g")) + (P(),) * 8,
-        out_specs=(P("g"), P()), check_vma=False,
-    )  # fmt: skip
+        solve,
+        mesh=mesh,
+        in_specs=(P("g"), P("g"), P("g")) + (P(),) * 8,
+        out_specs=(P("g"), P()),
+        check_vma=False,
+    )
     policy, epochs = split(
         padded(keep), padded(bonus), padded(mask), ok, beta, slip, reward, *numbers
     )
@@ -1062,9 +1106,16 @@ def behaviour_log_likelihood(
             )
         reward = jnp.tensordot(jnp.asarray(weights, dtype), jnp.asarray(phi, dtype), axes=1)
     sol = soft_backward_induction(
-        ok, keep, jnp.asarray(bonus, dtype), beta, jnp.asarray(slip, dtype),
-        n_epochs=n_epochs, step_cost=step_cost, time_cost=time_cost, cell_reward=reward,
-    )  # fmt: skip
+        ok,
+        keep,
+        jnp.asarray(bonus, dtype),
+        beta,
+        jnp.asarray(slip, dtype),
+        n_epochs=n_epochs,
+        step_cost=step_cost,
+        time_cost=time_cost,
+        cell_reward=reward,
+    )
     return moves_log_likelihood(sol.policy, ok, slip, obs), n_epochs
 
 
@@ -1245,9 +1296,15 @@ def _likelihood(
     padded data of :func:`_likelihood_data`.
     """
     data, obs, k, n_devices = _likelihood_data(
-        paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
-        dtype=dtype, n_devices=n_devices, features=features,
-    )  # fmt: skip
+        paths,
+        free,
+        goal_reward=goal_reward,
+        step_cost=step_cost,
+        time_cost=time_cost,
+        dtype=dtype,
+        n_devices=n_devices,
+        features=features,
+    )
     return partial(_loglik, data=data, tol=_check_tol(tol), n_devices=n_devices), obs, k
 
 
@@ -1340,9 +1397,14 @@ def _mle(
     once per shape bucket of the data."""
     tol = _check_tol(tol)
     data, obs, k, n_devices = _likelihood_data(
-        paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
-        dtype=dtype, features=features,
-    )  # fmt: skip
+        paths,
+        free,
+        goal_reward=goal_reward,
+        step_cost=step_cost,
+        time_cost=time_cost,
+        dtype=dtype,
+        features=features,
+    )
     n_f = 0 if features is None else len(features)
     scale = 1.0 / max(obs.n_moves, 1)
     tol_a = np.asarray(tol, dtype)
@@ -1359,13 +1421,18 @@ def _mle(
     # tolerances below that make the line search fail
     single = jnp.dtype(dtype) == jnp.float32
     res = minimize(
-        fun, th0, jac=True, method="L-BFGS-B",
+        fun,
+        th0,
+        jac=True,
+        method="L-BFGS-B",
         bounds=[(-6.0, 8.0), (-10.0, 6.0)] + [(-wb, wb)] * n_f,
         options={
-            "maxiter": 60, "maxfun": 80, "ftol": 1e-6 if single else 1e-10,
+            "maxiter": 60,
+            "maxfun": 80,
+            "ftol": 1e-6 if single else 1e-10,
             "gtol": 1e-4 if single else 1e-7,
         },
-    )  # fmt: skip
+    )
     converged = bool(res.success) or bool(np.max(np.abs(res.jac)) < (1e-3 if single else 1e-5))
     th = np.asarray(res.x, dtype)
     epochs = epochs_at.get(np.asarray(res.x, float).tobytes())
@@ -1554,14 +1621,37 @@ def fit_behaviour(
         tracks["label"].astype(str) if "label" in tracks.columns else pd.Series("all", tracks.index)
     )
     classes = tuple(sorted(labels.unique()))
-    per: dict[str, list[float]] = {k: [] for k in (
-        "dt", "speed_mu", "speed_sigma", "speed_within_sd", "speed_within_time",
-        "heading_within_sd", "heading_within_time", "speed_within_sd_se",
-        "speed_within_time_se", "heading_within_sd_se", "heading_within_time_se",
-        "run_fraction", "run_mu", "run_sigma", "beta",
-        "beta_se", "slip", "slip_se", "loglik", "n_moves", "n_tracks", "n_fit_tracks",
-        "n_epochs", "bandwidth_entry", "bandwidth_exit", "fit_seconds",
-    )}  # fmt: skip
+    per: dict[str, list[float]] = {
+        k: []
+        for k in (
+            "dt",
+            "speed_mu",
+            "speed_sigma",
+            "speed_within_sd",
+            "speed_within_time",
+            "heading_within_sd",
+            "heading_within_time",
+            "speed_within_sd_se",
+            "speed_within_time_se",
+            "heading_within_sd_se",
+            "heading_within_time_se",
+            "run_fraction",
+            "run_mu",
+            "run_sigma",
+            "beta",
+            "beta_se",
+            "slip",
+            "slip_se",
+            "loglik",
+            "n_moves",
+            "n_tracks",
+            "n_fit_tracks",
+            "n_epochs",
+            "bandwidth_entry",
+            "bandwidth_exit",
+            "fit_seconds",
+        )
+    }
     track_class, entry_xy, exit_xy = [], [], []
     warnings: list[str] = []
     # the speeds, measured through the log's tracker noise (one tracker for every class)
@@ -1607,9 +1697,17 @@ def fit_behaviour(
             paths = [paths[i] for i in np.sort(pick)]
         t0 = time.perf_counter()
         mle = _mle(
-            paths, free, goal_reward=goal_reward, step_cost=step_cost, time_cost=time_cost,
-            beta0=beta0, slip0=slip0, dtype=jnp.dtype(dtype), tol=tol, features=phi,
-        )  # fmt: skip
+            paths,
+            free,
+            goal_reward=goal_reward,
+            step_cost=step_cost,
+            time_cost=time_cost,
+            beta0=beta0,
+            slip0=slip0,
+            dtype=jnp.dtype(dtype),
+            tol=tol,
+            features=phi,
+        )
         weights.append(mle["weights"])
         weights_se.append(mle["weights_se"])
         if not mle["converged"]:
@@ -1617,14 +1715,21 @@ def fit_behaviour(
             warnings.append(f"class {name!r}: the {what} optimiser did not report convergence")
         ent_a, ext_a = np.asarray(ent), np.asarray(ext)
         vals = {
-            "dt": dt_c, **law,
-            "beta": mle["beta"], "beta_se": mle["beta_se"], "slip": mle["slip"],
-            "slip_se": mle["slip_se"], "loglik": mle["loglik"], "n_moves": mle["n_moves"],
-            "n_tracks": n_all, "n_fit_tracks": len(paths), "n_epochs": mle["n_epochs"],
+            "dt": dt_c,
+            **law,
+            "beta": mle["beta"],
+            "beta_se": mle["beta_se"],
+            "slip": mle["slip"],
+            "slip_se": mle["slip_se"],
+            "loglik": mle["loglik"],
+            "n_moves": mle["n_moves"],
+            "n_tracks": n_all,
+            "n_fit_tracks": len(paths),
+            "n_epochs": mle["n_epochs"],
             "bandwidth_entry": _bandwidth(ent_a, 2 * cell),
             "bandwidth_exit": _bandwidth(ext_a, cell),
             "fit_seconds": time.perf_counter() - t0,
-        }  # fmt: skip
+        }
         for k, v in vals.items():
             per[k].append(v)
         track_class.extend([ci] * len(ent_a))

@@ -320,9 +320,15 @@ def _draw_window_speeds(
     """``(B, K)`` preferred speeds (m/s) drawn from each window's posterior
     (:func:`_speed_posterior`, with its class's fitted laws as the prior)."""
     weight, mean, sd, _ = _speed_posterior(
-        observed, rate, noise, fit.speed_mu[cls], fit.speed_sigma[cls],
-        fit.run_fraction[cls], fit.run_mu[cls], fit.run_sigma[cls],
-    )  # fmt: skip
+        observed,
+        rate,
+        noise,
+        fit.speed_mu[cls],
+        fit.speed_sigma[cls],
+        fit.run_fraction[cls],
+        fit.run_mu[cls],
+        fit.run_sigma[cls],
+    )
     b = len(observed)
     comp = (rng.random((b, n_samples)) < weight[:, 1:2]).astype(np.int64)
     rows = np.arange(b)[:, None]
@@ -404,8 +410,9 @@ def _model_predictions(
                 out[i, j, :, 0] = np.interp(ts, tv, pv[:, 0])
                 out[i, j, :, 1] = np.interp(ts, tv, pv[:, 1])
     timed_k = timed[np.arange(b)[:, None], pick]
-    return _paced(rng, fit, cls, out, timed_k, speeds[np.arange(b)[:, None], pick], fresh,
-                  n_pred, rate)  # fmt: skip
+    return _paced(
+        rng, fit, cls, out, timed_k, speeds[np.arange(b)[:, None], pick], fresh, n_pred, rate
+    )
 
 
 def _paced(
@@ -686,10 +693,12 @@ def _interacting(
         me = plan["id"].to_numpy() == 0
         none = np.zeros(len(plan))
         variation = (
-            key, none, np.full(len(plan), np.nan),
+            key,
+            none,
+            np.full(len(plan), np.nan),
             np.where(me, np.asarray(h_sd, float)[window], 0.0),
             np.where(me, np.asarray(h_time, float)[window], np.nan),
-        )  # fmt: skip
+        )
     walked = _walk(plan, params, grid, variation=variation)
     me = walked[walked["id"] == 0].sort_values(["scenario", "t"], kind="stable")
     return me[["x", "y"]].to_numpy(float).reshape(b, k, n_pred + 1, 2)[:, :, 1:]
@@ -825,14 +834,29 @@ def displacement_errors(
         for j, a in enumerate(starts):
             sl = slice(a, a + PROGRESS_WINDOWS)
             part = _model_predictions(
-                rng, behaviour_fit, obs[sl], lab[sl], n_plan, rate, int(n_samples), smooth,
-                noise=noise, policies=policies,
-            )  # fmt: skip
+                rng,
+                behaviour_fit,
+                obs[sl],
+                lab[sl],
+                n_plan,
+                rate,
+                int(n_samples),
+                smooth,
+                noise=noise,
+                policies=policies,
+            )
             if walked:
                 part = _interacting(
-                    part, obs[sl], tid[sl], t_last[sl], tracks, rate, params, grid,
+                    part,
+                    obs[sl],
+                    tid[sl],
+                    t_last[sl],
+                    tracks,
+                    rate,
+                    params,
+                    grid,
                     _heading_wander(rng, behaviour_fit, lab[sl]),
-                )  # fmt: skip
+                )
             parts.append(part[:, :, : int(n_pred)])
             say(j + 1, len(starts), "displacement errors, windows")
         samples = np.concatenate(parts, axis=0)

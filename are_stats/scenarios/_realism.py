@@ -245,9 +245,11 @@ def realism_features(
         xy = tab[["x", "y"]].to_numpy(float)
         ij = np.asarray(grid.world_to_cell(xy))
         inside = (
-            (ij[:, 0] >= 0) & (ij[:, 0] < grid.free.shape[0])
-            & (ij[:, 1] >= 0) & (ij[:, 1] < grid.free.shape[1])
-        )  # fmt: skip
+            (ij[:, 0] >= 0)
+            & (ij[:, 0] < grid.free.shape[0])
+            & (ij[:, 1] >= 0)
+            & (ij[:, 1] < grid.free.shape[1])
+        )
         r = np.clip(ij[:, 0], 0, grid.free.shape[0] - 1)
         c = np.clip(ij[:, 1], 0, grid.free.shape[1] - 1)
         feats["wall distance (m)"].append(np.where(inside, np.minimum(dist[r, c], 10.0), 0.0))
@@ -375,8 +377,14 @@ def realism_summary(features: dict[str, np.ndarray]) -> pd.DataFrame:
         v = np.asarray(features.get(f, np.zeros(0)), float)
         v = v[np.isfinite(v)]
         q = np.quantile(v, [0.05, 0.5, 0.95]) if v.size else np.full(3, np.nan)
-        rows[f] = {"kind": kind, "n": int(v.size), "mean": float(v.mean()) if v.size else np.nan,
-                   "5%": q[0], "50%": q[1], "95%": q[2]}  # fmt: skip
+        rows[f] = {
+            "kind": kind,
+            "n": int(v.size),
+            "mean": float(v.mean()) if v.size else np.nan,
+            "5%": q[0],
+            "50%": q[1],
+            "95%": q[2],
+        }
     out = pd.DataFrame(rows).T
     out.index.name = "feature"
     return out
@@ -524,12 +532,20 @@ def realism_table(
     dt = float(np.median(steps))
     first = tab.groupby("id", sort=False).first()
     last = tab.groupby("id", sort=False).last()
-    art = pd.DataFrame({
-        "scenario": 0, "artefact": np.arange(len(first)), "class": 0, "mark": 0,
-        "t_arrive": first["t"].to_numpy(float), "t_leave": last["t"].to_numpy(float),
-        "x": first["x"].to_numpy(float), "y": first["y"].to_numpy(float), "yaw": 0.0,
-        "label": "person",
-    })  # fmt: skip
+    art = pd.DataFrame(
+        {
+            "scenario": 0,
+            "artefact": np.arange(len(first)),
+            "class": 0,
+            "mark": 0,
+            "t_arrive": first["t"].to_numpy(float),
+            "t_leave": last["t"].to_numpy(float),
+            "x": first["x"].to_numpy(float),
+            "y": first["y"].to_numpy(float),
+            "yaw": 0.0,
+            "label": "person",
+        }
+    )
     # the log's groups (as the life-cycle conversion infers them); the models walk the
     # same artefacts in the same groups (a lone artefact is a group of its own)
     label = track_groups(tab)
@@ -565,9 +581,16 @@ def realism_table(
         for r in range(n_replicates):
             k_run = fold_in_key(fold_in_key(key, m), r)
             moved = scene_tracks(
-                k_run, art, grid, cat, horizon,
-                behaviours=rule, fitted=behaviour, source="realism", interaction=interaction,
-            )  # fmt: skip
+                k_run,
+                art,
+                grid,
+                cat,
+                horizon,
+                behaviours=rule,
+                fitted=behaviour,
+                source="realism",
+                interaction=interaction,
+            )
             if moved is not None and len(moved):
                 moved = seen(fold_in_key(k_run, 7), moved)
                 runs.append(realism_features(moved, dt, grid, radius, groups=by_artefact))
@@ -619,9 +642,12 @@ def plot_realism(table: pd.DataFrame) -> Figure:
     for m, name in enumerate(models):
         vals = pd.to_numeric(table.loc[rows, name], errors="coerce").to_numpy(float)
         ax.barh(
-            y + (m - (len(models) - 1) / 2) * height, np.nan_to_num(vals), height,
-            color=colours.get(name, f"C{m}"), label=name,
-        )  # fmt: skip
+            y + (m - (len(models) - 1) / 2) * height,
+            np.nan_to_num(vals),
+            height,
+            color=colours.get(name, f"C{m}"),
+            label=name,
+        )
     labels = [f"{r}  [{table.loc[r, 'kind']}]" if r != rows[0] else r for r in rows]
     ax.set_yticks(y, labels)
     ax.invert_yaxis()
