@@ -48,7 +48,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -1156,7 +1156,7 @@ def run_mission(
     grid: OccupancyGrid,
     scene: Scene,
     goals: npt.ArrayLike,
-    planner: Mapping[str, Any] | Planner | str = "astar",
+    planner: Mapping[str, object] | Planner | str = "astar",
     *,
     robot: Robot | None = None,
     start: npt.ArrayLike | None = None,

@@ -510,7 +510,13 @@ def _grid_motion_validator() -> type:
     from ompl import base as ob
 
     class GridMotionValidator(ob.MotionValidator):
-        def __init__(self, si: Any, space: Any, free: np.ndarray, inv: float) -> None:
+        def __init__(
+            self,
+            si: ob.SpaceInformation,
+            space: ob.RealVectorStateSpace,
+            free: np.ndarray,
+            inv: float,
+        ) -> None:
             super().__init__(si)
             self._space = space  # OMPL's validSegmentCount: its exact rounding
             self._cells = free.tobytes()

@@ -9,7 +9,7 @@ convention, DECISIONS 8). :meth:`Robot.frames` builds the :class:`TransformTree`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -144,7 +144,7 @@ class Robot:
         return PinholeCamera(*self.intrinsics(), self.camera_poses(p)[0])
 
 
-def _items(value: Any, source: str, where: str, n: int) -> list:
+def _items(value: object, source: str, where: str, n: int) -> list:
     """``n`` values of a list, tuple or 1-d array."""
     if isinstance(value, np.ndarray):
         if value.ndim != 1:

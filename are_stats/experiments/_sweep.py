@@ -95,7 +95,7 @@ import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any  # Any: config and task records, their values typed by key
+from typing import TYPE_CHECKING, Literal, NotRequired, TypedDict
 
 import jax
 import numpy as np
@@ -145,6 +145,7 @@ if TYPE_CHECKING:
     import trimesh
     from distributed import Client
 
+    from are_stats.experiments._loop import MissionTrace
     from are_stats.fitting import Fit
 
 __all__ = [
@@ -155,7 +156,136 @@ __all__ = [
     "run_task",
 ]
 
-_DEFAULTS: dict[str, Any] = {
+
+class ScenarioSection(TypedDict, total=False):
+    """A sweep's ``scenario`` section, checked: hand-set rates (``arrival_rate`` ..
+    ``start``), or a source, ``fit`` (with ``start``) or ``scenarios``, as an absolute
+    path. See the module docstring for their ranges."""
+
+    #: Arrivals per m^2 per s, and leaves per s.
+    arrival_rate: float
+    leave_rate: float
+    #: The mixture's weights (summing to 1) and rates, as many of each (1 to 64).
+    mix_weights: list[float]
+    mix_rates: list[float]
+    #: ``stationary`` or ``empty``.
+    start: str
+    #: A fit file of ``are-stats fit``, or a scenarios folder of ``are-stats generate``.
+    fit: str
+    scenarios: str
+
+
+class RobotSection(TypedDict, total=False):
+    """A sweep's ``robot`` section: the keywords of :class:`~are_stats.experiments.Robot`."""
+
+    radius: float
+    speed: float
+    camera_xyz: list[float]
+    camera_rpy: list[float]
+    camera_fov: float
+    image_size: list[int]
+
+
+class MissionSection(TypedDict, total=False):
+    """A sweep's ``mission`` section (times in s, distances in m)."""
+
+    n_goals: int
+    time_limit: float
+    #: ``all`` or ``camera``.
+    perception: str
+    perception_period: float
+    d_max: float
+    tau: float
+    min_goal_separation: float
+    behaviour_cell: float
+    behaviour_dt: float
+
+
+class PlannerSection(TypedDict, total=False):
+    """A sweep's ``planner`` section: a label, the algorithm and the options it takes."""
+
+    name: str
+    #: ``astar`` or one of :data:`~are_stats.experiments.OMPL_ALGORITHMS`.
+    algorithm: str
+    range: float
+    goal_bias: float
+    time_limit: float
+    max_iterations: int
+    simplify: bool
+    motion_resolution: float
+
+
+class Sections(TypedDict):
+    """The four sections of a config or of one point of its factor grid."""
+
+    scenario: ScenarioSection
+    robot: RobotSection
+    mission: MissionSection
+    planner: PlannerSection
+
+
+class SweepConfig(TypedDict):
+    """A checked sweep config (:func:`load_sweep_config`): defaults filled in, paths
+    absolute (a shipped map's name kept), values plain Python types."""
+
+    name: str
+    map: str
+    #: An artefact catalogue YAML, or None for the shipped one.
+    catalogue: str | None
+    behaviours: bool
+    avoid_robot: bool
+    seed: int
+    replicates: int
+    scenario: ScenarioSection
+    robot: RobotSection
+    mission: MissionSection
+    planner: PlannerSection
+    #: Factor key -> its checked levels (numbers, lists, strings, planner sections).
+    factors: dict[str, list[object]]
+
+
+class SweepTask(TypedDict):
+    """One task of a sweep (:func:`expand_tasks`): self-contained, one point of the factor
+    grid and one replicate."""
+
+    map: str
+    catalogue: str | None
+    behaviours: bool
+    avoid_robot: bool
+    replicate: int
+    #: The replicate's integer seed, from ``SeedSequence([config seed, replicate])``.
+    seed: int
+    #: Factor key -> the label of its level.
+    levels: dict[str, str]
+    scenario: ScenarioSection
+    robot: RobotSection
+    mission: MissionSection
+    planner: PlannerSection
+    #: A file-name stem (index and a digest of the settings), and the config's digest.
+    task: str
+    sweep: str
+
+
+class TaskResult(TypedDict):
+    """The tables of one task (:func:`run_task`)."""
+
+    runs: pd.DataFrame
+    replans: pd.DataFrame
+    goals: pd.DataFrame
+    #: The mission's trace, when recorded.
+    trace: NotRequired[MissionTrace]
+
+
+class _TaskSource(TypedDict):
+    """Where a task's scene came from (:func:`_task_scenario`)."""
+
+    draw: int
+    arrival_rate: float
+    n_artefacts: int
+    n_arrivals: int
+
+
+_DEFAULTS: SweepConfig = {
     "name": "sweep",
     "map": "courtyard",
     "catalogue": None,
@@ -315,7 +445,7 @@ def _resolve_catalogue(value: str, base: Path, src: str) -> str:
     return str(resolve_shipped(value, "catalogue", base=base, source=src, where="catalogue"))
 
 
-def _scenario(given: Mapping[str, Any], src: str, base: Path) -> dict[str, Any]:
+def _scenario(given: Mapping[str, object], src: str, base: Path) -> ScenarioSection:
     """The scenario section: hand-set rates merged over the defaults, or one source (a fit
     or a scenarios folder, its path resolved against ``base``) with nothing it replaces."""
     sources = [k for k in _SOURCES if k in given]
@@ -345,14 +475,14 @@ def _scenario(given: Mapping[str, Any], src: str, base: Path) -> dict[str, Any]:
     return out
 
 
-def _section(sec: str, value: object, src: str, where: str) -> dict[str, Any]:
+def _section(sec: str, value: object, src: str, where: str) -> dict[str, object]:
     """Check every key of one section (a mapping); values normalised to plain types."""
     schema = _SCHEMA[sec]
     raw = check_keys(value, src, where, schema)
     return {k: schema[k](v, src, f"{where}.{k}") for k, v in raw.items()}
 
 
-def _cross(sections: Mapping[str, Mapping[str, Any]], src: str, where: str) -> None:
+def _cross(sections: Sections, src: str, where: str) -> None:
     """Constraints between keys of the resolved sections (``where`` names the task)."""
     pre = f"{where}: " if where else ""
     sc = sections["scenario"]
@@ -412,13 +542,13 @@ def _label(level: object) -> str:
     return str(level)
 
 
-def _validate(raw: object, src: str, base: Path | None = None) -> dict[str, Any]:
+def _validate(raw: object, src: str, base: Path | None = None) -> SweepConfig:
     """The schema check of a whole config (no file other than the config is read); relative
     paths (map, catalogue, scenario.fit, scenario.scenarios) are made absolute from the
     folder ``base`` (default: the working directory)."""
     base = Path.cwd() if base is None else Path(base)
     top = check_keys(raw, src, "", _TOP)
-    cfg: dict[str, Any] = {}
+    cfg: SweepConfig = {}  # filled in key by key below
     name = top.get("name", _DEFAULTS["name"])
     if not isinstance(name, str) or not _NAME.match(name):
         raise InputError(
@@ -499,7 +629,7 @@ def _validate(raw: object, src: str, base: Path | None = None) -> dict[str, Any]
     return cfg
 
 
-def _combos(cfg: Mapping[str, Any]) -> Iterator[tuple[dict[str, Any], dict[str, str]]]:
+def _combos(cfg: SweepConfig) -> Iterator[tuple[Sections, dict[str, str]]]:
     """Sections and level labels of each point of the factor grid (replicates aside)."""
     factors = cfg["factors"]
     keys = list(factors)
@@ -516,7 +646,7 @@ def _combos(cfg: Mapping[str, Any]) -> Iterator[tuple[dict[str, Any], dict[str, 
         yield base, levels
 
 
-def _n_combos(cfg: Mapping[str, Any]) -> int:
+def _n_combos(cfg: SweepConfig) -> int:
     return math.prod(len(v) for v in cfg["factors"].values())
 
 
@@ -624,7 +754,7 @@ _SOURCES = {
 }
 
 
-def _source_path(sc: Mapping[str, Any], key: str, src: str, pre: str) -> Path:
+def _source_path(sc: ScenarioSection, key: Literal["scenarios", "fit"], src: str, pre: str) -> Path:
     """The scenario section's source ``key`` (``scenarios`` or ``fit``), which must exist."""
     p = Path(sc[key])
     folder, expected = _SOURCES[key]
@@ -635,7 +765,7 @@ def _source_path(sc: Mapping[str, Any], key: str, src: str, pre: str) -> Path:
 
 
 def _scenario_size(
-    sections: Mapping[str, Mapping[str, Any]], grid: OccupancyGrid, src: str, pre: str
+    sections: Sections, grid: OccupancyGrid, src: str, pre: str
 ) -> tuple[float, float, float]:
     """``(artefacts, live at once, arrivals and leaves)`` expected in one task; reads (and
     so checks) the scenario source, naming its key in errors."""
@@ -667,7 +797,7 @@ def _scenario_size(
 
 
 def _task_cost(
-    sections: Mapping[str, Mapping[str, Any]],
+    sections: Sections,
     grid: OccupancyGrid,
     size: tuple[float, float, float],
     behaviours: bool,
@@ -714,7 +844,7 @@ def _task_cost(
     return n_bytes, steps, what
 
 
-def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
+def _check_cost(cfg: SweepConfig, src: str, concurrent: int = 1) -> None:
     """Refuse a sweep whose task list, largest task (times ``concurrent`` tasks at once) or
     total work is past the limits; also checks every grid point's cross-key constraints."""
     n_combos = _n_combos(cfg)
@@ -770,7 +900,7 @@ def _check_cost(cfg: Mapping[str, Any], src: str, concurrent: int = 1) -> None:
     check_work(total, f"the {n_tasks} tasks of the sweep", src)
 
 
-def _rolls_out(scenario: Mapping[str, Any]) -> bool:
+def _rolls_out(scenario: ScenarioSection) -> bool:
     """Whether ``behaviours`` roll tracks out on the map's cells for this scenario source:
     not when a scenarios folder brings its own tracks, nor when a fit brings its fitted
     behaviour (which moves in the plane)."""
@@ -781,7 +911,7 @@ def _rolls_out(scenario: Mapping[str, Any]) -> bool:
     return True  # (a missing source is named by the checks of each task)
 
 
-def load_sweep_config(config: str | os.PathLike | Mapping[str, Any]) -> dict[str, Any]:
+def load_sweep_config(config: str | os.PathLike | Mapping[str, object]) -> SweepConfig:
     """Read and validate a sweep config (a YAML path, a shipped config's name such as
     ``fig7``, or a dict), with defaults filled in.
 
@@ -825,14 +955,14 @@ def _digest(obj: object) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:10]
 
 
-def _expand(cfg: Mapping[str, Any]) -> list[dict[str, Any]]:
+def _expand(cfg: SweepConfig) -> list[SweepTask]:
     sweep = _digest(cfg)
     tasks = []
     idx = 0
     for base, levels in _combos(cfg):
         for r in range(cfg["replicates"]):
             seed = int(np.random.SeedSequence([cfg["seed"], r]).generate_state(1)[0])
-            task = {
+            task: SweepTask = {  # task and sweep added below
                 "map": cfg["map"],
                 "catalogue": cfg["catalogue"],
                 "behaviours": cfg["behaviours"],
@@ -849,7 +979,7 @@ def _expand(cfg: Mapping[str, Any]) -> list[dict[str, Any]]:
     return tasks
 
 
-def expand_tasks(config: str | os.PathLike | Mapping[str, Any]) -> list[dict[str, Any]]:
+def expand_tasks(config: str | os.PathLike | Mapping[str, object]) -> list[SweepTask]:
     """The tasks of a sweep: factor grid x replicates, each a self-contained dict.
 
     Each task has ``task`` (a file-name stem: index and a digest of its settings),
@@ -873,8 +1003,8 @@ def _load_map(name: str) -> tuple[OccupancyGrid, trimesh.Trimesh | None]:
 
 
 def _task_scenario(
-    task: Mapping[str, Any], grid: OccupancyGrid, catalogue: ArtefactCatalogue
-) -> tuple[Scene, dict[str, Any]]:
+    task: SweepTask, grid: OccupancyGrid, catalogue: ArtefactCatalogue
+) -> tuple[Scene, _TaskSource]:
     """The task's Scene (with behaviour tracks when asked) and the columns that describe
     where it came from: ``draw`` (posterior draw, scenario of the folder, or -1),
     ``arrival_rate``, ``n_artefacts`` and ``n_arrivals`` (arrivals in ``(0, time_limit]``).
@@ -960,7 +1090,7 @@ def _task_scenario(
                 source="scenario",
             )
     t_arr = scene.t_arrive
-    info = {
+    info: _TaskSource = {
         "draw": draw,
         "arrival_rate": rate,
         "n_artefacts": len(scene),
@@ -969,7 +1099,7 @@ def _task_scenario(
     return scene, info
 
 
-def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
+def run_task(task: SweepTask, record: bool = False) -> TaskResult:
     """Run one task of :func:`expand_tasks`: build its scenario, run the mission.
 
     The scenario is drawn from the hand-set rates, or from one posterior draw of the fit
@@ -1039,7 +1169,7 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
             }
         ]
     )
-    out: dict[str, Any] = {"runs": runs}
+    out: TaskResult = {"runs": runs}  # tables added below
     for name, df in (("replans", res.replans), ("goals", res.goals)):
         df = df.copy()
         for k, v in reversed(list(ident.items())):
@@ -1053,7 +1183,7 @@ def run_task(task: Mapping[str, Any], record: bool = False) -> dict[str, Any]:
 _TABLES = ("replans", "goals", "runs")  # runs last: it marks the task as done
 
 
-def _write(out: Path, name: str, tables: Mapping[str, pd.DataFrame], force: bool) -> None:
+def _write(out: Path, name: str, tables: TaskResult, force: bool) -> None:
     for t in _TABLES:
         with atomic_path(out / t / f"{name}.parquet", force=True if t != "runs" else force) as tmp:
             tables[t].to_parquet(tmp, index=False)
@@ -1099,7 +1229,7 @@ def _cluster_kwargs(workers: int, processes: bool, host: str) -> dict[str, int |
 
 
 def run_sweep(
-    config: str | os.PathLike | Mapping[str, Any],
+    config: str | os.PathLike | Mapping[str, object],
     out: str | os.PathLike,
     *,
     workers: int = 1,
@@ -1236,7 +1366,7 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
 
 def _run(
     client: Client,
-    todo: list[dict[str, Any]],
+    todo: list[SweepTask],
     target: Path,
     n_tasks: int,
     progress: bool,
