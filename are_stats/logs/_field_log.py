@@ -13,7 +13,7 @@ import dataclasses
 import os
 import warnings
 from pathlib import Path
-from typing import Any, Unpack, cast
+from typing import TYPE_CHECKING, Unpack, cast
 
 import pandas as pd
 
@@ -30,6 +30,9 @@ from are_stats.logs._lifecycle_log import (
 )
 from are_stats.logs._table import RawTable, frame_table, read_raw_table
 from are_stats.logs._tracks import _from_raw, tracks_to_lifecycle
+
+if TYPE_CHECKING:
+    from are_stats.logs._lifecycle_log import LifecycleManifest
 
 __all__ = [
     "FieldLogOptions",
@@ -57,7 +60,7 @@ TRACK_OPTIONS = (
 
 def _open(
     p: Path, manifest: str | os.PathLike | None
-) -> tuple[dict[str, Any], str, RawTable, bool, bool]:
+) -> tuple[LifecycleManifest, str, RawTable, bool, bool]:
     """Manifest (and its path), raw table, and which kind of field log the columns say."""
     meta, mpath = find_manifest(p, manifest)
     raw = read_raw_table(p, "field log (life-cycle log or tracks table)")

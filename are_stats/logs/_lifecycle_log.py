@@ -16,7 +16,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict, Unpack  # Any: manifest and report records
+from typing import TYPE_CHECKING, NotRequired, TypedDict, Unpack
 
 import numpy as np
 import pandas as pd
@@ -80,6 +80,130 @@ _MANIFEST_KEYS = (
 )
 
 
+class LifecycleManifest(TypedDict, total=False):
+    """A life-cycle log's manifest as :func:`read_manifest` checks it: the keys the file
+    has, in its own units (see :func:`read_manifest` for their meaning)."""
+
+    #: ``[t0, t1]`` in ``time_unit``.
+    window: list[float]
+    #: In ``area_unit``; or ``map``, a ROS map YAML's path (resolved against the manifest's
+    #: folder) whose free area is taken.
+    area: float
+    map: str
+    #: A key of :data:`TIME_UNITS` and of :data:`AREA_UNITS`.
+    time_unit: str
+    area_unit: str
+    #: In ``time_unit``.
+    min_lifetime: float
+    time_step: float
+    #: ISO 8601 text.
+    clock_start: str
+    description: str
+
+
+class ResolvedManifest(TypedDict, total=False):
+    """A log's settings once the caller's overrides are applied and the units converted
+    (:attr:`LifecycleLog.manifest`): the manifest's keys in seconds and m^2, and where they
+    came from. A log read by :func:`read_lifecycle_log`, :func:`~are_stats.logs.read_field_log`
+    or :func:`lifecycle_log_from_frame` has ``window``, ``area``, ``time_unit``,
+    ``area_unit`` and ``min_lifetime``."""
+
+    #: ``[t0, t1]`` in s.
+    window: list[float]
+    #: m^2, None when neither the manifest nor the caller gave one.
+    area: float | None
+    map: str
+    #: ``s`` and ``m^2``; the manifest's own units were ``source_time_unit`` and
+    #: ``source_area_unit``.
+    time_unit: str
+    area_unit: str
+    source_time_unit: str
+    source_area_unit: str
+    #: s.
+    min_lifetime: float
+    time_step: float
+    #: ISO 8601 text.
+    clock_start: str
+    description: str
+    #: The manifest's path, where an area would have come from (set when there is none).
+    area_missing_in: str
+    #: ``tracks table`` for a log converted from tracks.
+    input: str
+
+
+class TrackConversion(TypedDict, total=False):
+    """How a log was made from a tracks table (:attr:`LifecycleLog.conversion`, empty for a
+    life-cycle log read as such): the counts and settings of
+    :func:`~are_stats.logs.tracks_to_lifecycle` (times in s)."""
+
+    sightings: int
+    track_ids: int
+    artefacts: int
+    split_track_ids: int
+    groups: int
+    artefacts_in_groups: int
+    sampling_step: float
+    gap_tolerance: float
+    group_time: float
+    group_distance: float
+    #: Left out, by reason (``outside_window`` sightings, ``too_few_sightings`` segments).
+    excluded: dict[str, int]
+
+
+class LifecycleReport(TypedDict):
+    """A log's counts for a fit report (:meth:`LifecycleLog.report`)."""
+
+    source: str
+    #: ``[t0, t1]`` in s; the area in m^2 (or None); the wall-clock time of ``t = 0``.
+    window: list[float]
+    area: float | None
+    clock_start: str | None
+    rows_read: int
+    rows_used: int
+    #: Rows left out, by reason.
+    excluded: dict[str, int]
+    left_truncated: int
+    right_censored: int
+    with_mark: int
+    with_label: int
+    groups: int
+    artefacts_in_groups: int
+    #: The conversion, for a log made from tracks.
+    tracks: NotRequired[TrackConversion]
+
+
+class LifecycleArrays(TypedDict):
+    """A log's columns as arrays for the life-cycle likelihoods (:meth:`LifecycleLog.to_arrays`;
+    its docstring gives their meaning)."""
+
+    #: (n,) object str.
+    ids: np.ndarray
+    #: (n,) float64 s, NaN when truncated / censored.
+    t_arrive: np.ndarray
+    t_leave: np.ndarray
+    #: (n,) bool.
+    truncated: np.ndarray
+    censored: np.ndarray
+    #: (n,) int64, -1 when missing.
+    marks: np.ndarray
+    #: (n,) object str; (n,) int64 indices into ``label_names`` (sorted), -1 when missing.
+    labels: np.ndarray
+    label_codes: np.ndarray
+    label_names: list[str]
+    #: (n,) float64.
+    x: np.ndarray
+    y: np.ndarray
+    yaw: np.ndarray
+    #: (n,) int64 group codes.
+    group: np.ndarray
+    #: (n,) float64, NaN when unknown.
+    x_exit: np.ndarray
+    y_exit: np.ndarray
+    window: tuple[float, float]
+    area: float | None
+    clock_start: str | None
+
+
 @dataclass(frozen=True, eq=False)
 class LifecycleLog:
     """A validated life-cycle log.
@@ -119,9 +243,9 @@ class LifecycleLog:
     area: float | None
     source: str
     excluded: dict[str, int] = field(default_factory=dict)
-    manifest: dict[str, Any] = field(default_factory=dict)
+    manifest: ResolvedManifest = field(default_factory=dict)
     columns: tuple[str, ...] = ()
-    conversion: dict[str, Any] = field(default_factory=dict)
+    conversion: TrackConversion = field(default_factory=dict)
     tracks: pd.DataFrame | None = None
 
     @property
@@ -135,7 +259,7 @@ class LifecycleLog:
         value = self.manifest.get("clock_start")
         return None if value is None else str(value)
 
-    def report(self) -> dict[str, Any]:
+    def report(self) -> LifecycleReport:
         """Counts for a fit report.
 
         Rows kept, excluded by reason, truncated, censored, with mark / label, ``groups``
@@ -144,7 +268,7 @@ class LifecycleLog:
         """
         t = self.table
         sizes = self._group_sizes()
-        out = {
+        out: LifecycleReport = {
             "source": self.source,
             "window": list(self.window),
             "area": self.area,
@@ -176,7 +300,7 @@ class LifecycleLog:
         codes, _ = pd.factorize(pd.Series(keys, dtype=object), sort=False)
         return np.asarray(codes, dtype=np.int64)
 
-    def to_arrays(self) -> dict[str, Any]:
+    def to_arrays(self) -> LifecycleArrays:
         """Arrays for the life-cycle likelihoods.
 
         Returns
@@ -345,7 +469,7 @@ def _label_names(value: object) -> list[str]:
     return names
 
 
-def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
+def read_manifest(path: str | os.PathLike) -> LifecycleManifest:
     """Read and check a life-cycle-log manifest (YAML).
 
     Keys: ``window: [t0, t1]`` (in ``time_unit``), ``area`` (in ``area_unit``) or ``map``
@@ -387,7 +511,7 @@ def read_manifest(path: str | os.PathLike) -> dict[str, Any]:
     meta = check_keys(meta, p, "", _MANIFEST_KEYS)
     if "area" in meta and "map" in meta:
         raise InputError(p, "keys 'area' and 'map'", "one of them", Described("both"))
-    out: dict[str, Any] = {}
+    out: LifecycleManifest = {}
     if "window" in meta:
         out["window"] = list(_window(p, "window", meta["window"], 1.0))
     if "area" in meta:
@@ -452,8 +576,8 @@ def _window(source: Source, where: str, value: object, scale: float) -> tuple[fl
 
 
 def _resolve_settings(
-    manifest: Mapping[str, Any], mpath: str, overrides: ManifestOverrides
-) -> tuple[tuple[float, float], float | None, float, dict[str, Any]]:
+    manifest: LifecycleManifest, mpath: str, overrides: ManifestOverrides
+) -> tuple[tuple[float, float], float | None, float, ResolvedManifest]:
     window, area = overrides.get("window"), overrides.get("area")
     clock_start = overrides.get("clock_start")
     tu = str(manifest.get("time_unit", "s"))
@@ -592,7 +716,7 @@ def read_lifecycle_log(
 def _lifecycle_from_raw(
     raw: RawTable,
     path: Path,
-    meta: Mapping[str, Any],
+    meta: LifecycleManifest,
     mpath: str,
     overrides: ManifestOverrides,
 ) -> LifecycleLog:
@@ -608,7 +732,7 @@ def _lifecycle_from_raw(
 
 def find_manifest(
     path: str | os.PathLike, manifest: str | os.PathLike | None = None
-) -> tuple[dict[str, Any], str]:
+) -> tuple[LifecycleManifest, str]:
     """The manifest of a log table: ``manifest`` if given, else the table's neighbour
     ``<stem>.yaml`` (or ``<stem>.yml``), read and checked by :func:`read_manifest`.
 
@@ -683,7 +807,7 @@ def lifecycle_log_from_frame(
     win = _window("window", "", window, 1.0)
     a = None if area is None else get_float(area, "area", "", lo=0.0, lo_open=True)
     min_life = get_float(min_lifetime, "min_lifetime", "", lo=0.0)
-    resolved: dict[str, Any] = {
+    resolved: ResolvedManifest = {
         "window": list(win),
         "area": a,
         "time_unit": "s",
@@ -729,7 +853,7 @@ def _validate(
     min_life: float,
     scale: float,
     source: str,
-    manifest: dict[str, Any],
+    manifest: ResolvedManifest,
     tol: float,
 ) -> LifecycleLog:
     raw.require(_REQUIRED, "life-cycle log")

@@ -12,7 +12,7 @@ anything else is an :class:`~are_stats.inputs.InputError` naming the message.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any  # Any: a TFMessage of a bag, a class rosbags builds at run time
 
 import numpy as np
 import numpy.typing as npt
