@@ -22,7 +22,7 @@ import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Unpack  # Any: manifest records
+from typing import TYPE_CHECKING, NotRequired, TypedDict, Unpack
 
 import numpy as np
 import pandas as pd
@@ -86,6 +86,51 @@ _INT32 = np.iinfo(np.int32).max
 _ARTEFACTS, _MANIFEST, _TRACKS = "artefacts.parquet", "manifest.yaml", "tracks.parquet"
 
 
+class TracksRecord(TypedDict):
+    """A manifest's ``tracks`` section (:func:`tracks_record`): which behaviour made the
+    tracks, on what, and their file."""
+
+    #: ``fitted behaviour`` or ``catalogue behaviour``.
+    source: str
+    #: Poses in the tracks file.
+    rows: int
+    #: A catalogue behaviour's MDP cell side (m) and seconds per decision epoch.
+    cell_m: NotRequired[float]
+    dt_s: NotRequired[float]
+    #: The tracks file's name in the folder (:func:`write_scenes` adds it).
+    file: NotRequired[str]
+
+
+class ScenesManifest(TypedDict, total=False):
+    """A scenarios folder's ``manifest.yaml`` (module docstring): the keys
+    :func:`write_scenes` and :func:`generate_manifest` write. :func:`read_scenes` checks
+    ``format_version``, ``generation`` (and its ``horizon``), ``n_scenarios``, ``map``,
+    ``class_labels`` and ``tracks`` (a mapping naming a file of the folder); the other
+    values are as the file has them, and a folder made by hand may have more keys."""
+
+    #: ``are_stats scenarios <FORMAT_VERSION>``, :data:`FORMAT_VERSION`, the are_stats
+    #: version that wrote the folder.
+    format: str
+    format_version: int
+    version: str
+    n_scenarios: int
+    n_artefacts: int
+    #: ``{"artefacts": "artefacts.parquet"}``; the columns and their meaning
+    #: (:data:`SCENARIO_COLUMNS`).
+    files: dict[str, str]
+    columns: dict[str, str]
+    #: The scenes table's ``attrs["generation"]`` (seed, horizon, parameters, ...).
+    generation: dict[str, object]
+    #: The fit file, its traffic model, the map file (or None), the scenes' seed, the
+    #: classes' labels (or None).
+    fit: str
+    model: str
+    map: str | None
+    seed: int
+    class_labels: list[str] | None
+    tracks: TracksRecord
+
+
 @dataclass(frozen=True, eq=False)
 class ScenesFolder:
     """What :func:`read_scenes` returns: the folder's tables and manifest, and what the
@@ -104,14 +149,14 @@ class ScenesFolder:
     #: that order, then any other column of the file as it was.
     artefacts: pd.DataFrame
     #: The manifest (a mapping, checked).
-    manifest: dict[str, Any]
+    manifest: ScenesManifest
     #: Behaviour tracks: ``scenario, id`` (int64), ``t, x, y, yaw`` (float64); None when
     #: the manifest names none.
     tracks: pd.DataFrame | None
     #: The folder it was read from (named in errors); None for one made in memory.
     folder: Path | None = None
 
-    def __iter__(self) -> Iterator[pd.DataFrame | dict[str, Any] | None]:
+    def __iter__(self) -> Iterator[pd.DataFrame | ScenesManifest | None]:
         """``artefacts, manifest, tracks``: the folder unpacks as the tuple it once was."""
         return iter((self.artefacts, self.manifest, self.tracks))
 
@@ -270,7 +315,7 @@ def tracks_record(
     behaviour_cell: float = 1.0,
     behaviour_dt: float = 2.0,
     cell_source: str = "behaviour_cell",
-) -> dict[str, str | float] | None:
+) -> TracksRecord | None:
     """The manifest's ``tracks`` section for scenes moved by the assembly's behaviour rule
     (:func:`~are_stats.scenarios.scenes_from_fit`'s ``behaviours=``): which behaviour made
     the tracks and on what; None when nothing moves (no tracks file is written then).
@@ -334,7 +379,7 @@ def generate_manifest(
     map_file: str | os.PathLike | None,
     seed: int,
     **settings: Unpack[AssemblySettings],
-) -> tuple[dict[str, Any], pd.DataFrame | None]:
+) -> tuple[ScenesManifest, pd.DataFrame | None]:
     """What a folder of scenes drawn from a fit records (``are-stats generate``): the
     ``manifest`` and ``tracks`` to give :func:`write_scenes`.
 
@@ -370,7 +415,7 @@ def generate_manifest(
         The tracks to write; None when nothing moves (no tracks file).
     """
     opts = (options or AssemblyOptions()).with_settings(settings)
-    manifest: dict[str, Any] = {
+    manifest: ScenesManifest = {
         "fit": str(fit_file),
         "model": opts.model,
         "map": None if map_file is None else str(map_file),
@@ -396,7 +441,7 @@ def generate_manifest(
 def write_scenes(
     df: pd.DataFrame,
     out_dir: str | os.PathLike,
-    manifest: Mapping[str, Any] | None = None,
+    manifest: Mapping[str, object] | None = None,
     *,
     tracks: pd.DataFrame | None = None,
     force: bool = False,
@@ -452,7 +497,7 @@ def write_scenes(
     plain = pd.DataFrame({c: df[c].to_numpy() for c in SCENARIO_COLUMNS})
     generation = df.attrs.get("generation", {})
     n_sc = int(generation.get("n_scenarios", int(df["scenario"].max()) + 1 if len(df) else 0))
-    meta: dict[str, Any] = {
+    meta: ScenesManifest = {
         "format": f"are_stats scenarios {FORMAT_VERSION}",
         "format_version": FORMAT_VERSION,
         "version": __version__,
@@ -565,7 +610,7 @@ def _bools(table: RawTable, column: str) -> np.ndarray:
     return s == "True"
 
 
-def _manifest(d: Path) -> dict[str, Any]:
+def _manifest(d: Path) -> ScenesManifest:
     mpath = d / _MANIFEST
     meta = load_yaml(mpath, "scenarios manifest")
     if not isinstance(meta, Mapping):
@@ -644,7 +689,7 @@ def _artefacts(d: Path, n_sc: int | None) -> pd.DataFrame:
     return df
 
 
-def _tracks(d: Path, meta: Mapping[str, Any], artefacts: pd.DataFrame) -> pd.DataFrame | None:
+def _tracks(d: Path, meta: ScenesManifest, artefacts: pd.DataFrame) -> pd.DataFrame | None:
     spec = meta.get("tracks")
     if spec is None:
         return None
