@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import jax
 import numpy as np
@@ -398,7 +397,7 @@ def simulate_behaviour_tracks(
     dt_out: float | None = None,
     smooth: int = 0,
     chunk: int = GOAL_BUCKET,
-    class_labels: Any = None,
+    class_labels: Sequence[str] | None = None,
     horizon: float | None = None,
     within_sd: float = 0.05,
     progress: Callable[[int, int], object] | None = None,
@@ -684,7 +683,9 @@ def _track_rows(
     return [table]
 
 
-def path_points(tv: np.ndarray, pv: np.ndarray, tau: Any, side: Any) -> np.ndarray:
+def path_points(
+    tv: np.ndarray, pv: np.ndarray, tau: npt.ArrayLike, side: npt.ArrayLike
+) -> np.ndarray:
     """Points of a timed path, side-stepped along its left normal.
 
     Parameters

@@ -14,7 +14,7 @@ its exit gives the exit cell.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -613,7 +613,7 @@ class BehaviourFit:
         # files from before the within-person variation was fitted: none (_WITHIN)
         kw |= {k: np.asarray(ds[k].values, float) for k in _WITHIN if k in ds}
         w = str(a.get("warnings", ""))
-        feats: dict[str, Any] = {}
+        feats: dict[str, tuple[str, ...] | np.ndarray] = {}
         if "feature_weight" in ds:
             feats = {
                 "feature_names": tuple(str(n) for n in ds["feature"].values),

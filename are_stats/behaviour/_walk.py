@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 import jax
 import numpy as np
@@ -46,10 +46,29 @@ from are_stats.behaviour._motion import preferred_speeds, string_pull, walk_time
 from are_stats.behaviour._rewards import BEHAVIOURS
 from are_stats.behaviour._rollout import check_on_free_cells, rollout
 
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from are_stats.environment import OccupancyGrid
+
 __all__ = ["walk_tracks"]
 
 _NEED = ("scenario", "id", "t_arrive", "t_leave", "x", "y", "yaw", "behaviour", "speed")
 _COLUMNS = ("scenario", "id", "t", "x", "y", "yaw")
+
+
+class _Geo(TypedDict):
+    """What :func:`_legs` needs of the map besides the MDP."""
+
+    #: Cell side (m), the grid's origin (m), the within-walk sd of the log walking speed
+    #: (:func:`~are_stats.behaviour.walk_times`).
+    cell: float
+    origin: tuple[float, float]
+    within_sd: float
+    #: :func:`~are_stats.behaviour._model.grid_geodesic`.
+    geodesic: Callable[[npt.ArrayLike, npt.ArrayLike], np.ndarray]
+    #: Path lengths from each start cell, filled by :func:`_legs` as it goes.
+    cache: NotRequired[dict[tuple[int, int], np.ndarray]]
 
 
 class _Walkers:
@@ -76,14 +95,14 @@ def _pow2(n: int) -> int:
 def _legs(
     rng: np.random.Generator,
     key: jax.Array,
-    mdp: Any,
+    mdp: GridMDP,
     walkers: _Walkers,
     idx: np.ndarray,
     cur: np.ndarray,
     stay: np.ndarray,
     speed: np.ndarray,
     modes: list[str],
-    geo: dict[str, Any],
+    geo: _Geo,
     fixed: dict[int, np.ndarray] | None = None,
     max_rounds: int = 50,
     chunk: int = 256,
@@ -194,7 +213,7 @@ def _position(curve: tuple[np.ndarray, np.ndarray], tau: float) -> tuple[np.ndar
 def walk_tracks(
     key: jax.Array,
     artefacts: pd.DataFrame,
-    occupied: Any,
+    occupied: npt.ArrayLike | OccupancyGrid,
     *,
     resolution: float = 1.0,
     origin: tuple[float, float] = (0.0, 0.0),
@@ -295,7 +314,12 @@ def walk_tracks(
         route_occ[rows[stand], cols[stand]] = True
         route_occ[rows[~stand], cols[~stand]] = False
         mdp = GridMDP(route_occ, slip=slip, step_cost=step_cost)
-        geo = {"cell": cell, "origin": (ox, oy), "within_sd": within_sd, "geodesic": grid_geodesic}
+        geo: _Geo = {
+            "cell": cell,
+            "origin": (ox, oy),
+            "within_sd": within_sd,
+            "geodesic": grid_geodesic,
+        }
         leads = np.flatnonzero([m in ("walk", "run") for m in modes])
         _legs(rng, k_lead, mdp, walkers, leads, cur, stay, speed, modes, geo)
         # followers: an approach leg to the cell their target is heading to, then the
