@@ -38,7 +38,7 @@ def configure_jax(cache: bool | None = None) -> None:
     """
     if cache is None:
         cache = os.environ.get("ARE_STATS_NO_CACHE", "") in ("", "0")
-    settings: dict[str, Any] = {"jax_enable_x64": True}
+    settings: dict[str, bool | float | str | None] = {"jax_enable_x64": True}
     # the cache directory is ours to manage unless the user chose one
     ours = os.environ.get("ARE_STATS_JAX_CACHE", "") == os.environ.get(
         "JAX_COMPILATION_CACHE_DIR", ""
@@ -351,7 +351,7 @@ if TYPE_CHECKING:
     )
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> Any:  # any of the names in _LAZY: functions, classes, data
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'are_stats' has no attribute {name!r}")

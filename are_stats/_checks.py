@@ -10,7 +10,7 @@ value as a NumPy array (or Python scalar) so that callers can write
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -32,7 +32,7 @@ __all__ = [
 ]
 
 
-def describe(x: Any, limit: int = 60) -> str:
+def describe(x: object, limit: int = 60) -> str:
     """Short printable description of a value for error messages."""
     try:
         a = np.asarray(x)

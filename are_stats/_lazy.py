@@ -51,7 +51,7 @@ class LazyModule:
                 self._module = importlib.import_module(self._name)
         return self._module
 
-    def __getattr__(self, attr: str) -> Any:
+    def __getattr__(self, attr: str) -> Any:  # whatever the module holds
         if attr.startswith("__") and attr.endswith("__"):  # copy, pickle, inspect probes
             raise AttributeError(attr)
         return getattr(self._load(), attr)

@@ -49,9 +49,18 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Protocol
 
 import jax.monitoring
+
+if TYPE_CHECKING:
+
+    class _Status(Protocol):
+        """Where a :class:`StageClock`'s words go: a ``rich.status.Status``, or anything
+        with its ``update``."""
+
+        def update(self, status: str) -> object: ...
+
 
 __all__ = [
     "StageClock",
@@ -183,7 +192,7 @@ class StageClock:
 
     def __init__(
         self,
-        status: Any,
+        status: _Status | None,
         prefix: str = "",
         size: str = "",
         live: bool = False,
