@@ -20,7 +20,6 @@ import struct
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -573,7 +572,7 @@ def read_map(
     return path, OccupancyGrid.from_ros_yaml(path)
 
 
-def _check_geometry(resolution: Any, origin: Any, source: Source) -> tuple[float, tuple]:
+def _check_geometry(resolution: object, origin: object, source: Source) -> tuple[float, tuple]:
     """Resolution and origin of a map, checked strictly (see :meth:`from_ros_yaml`)."""
     res = inputs.get_float(resolution, source, "resolution", lo=MIN_RESOLUTION, hi=MAX_RESOLUTION)
     o = inputs.get_list(origin, source, "origin", min_len=3, max_len=3)
