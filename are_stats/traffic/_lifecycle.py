@@ -26,7 +26,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Mapping
 from functools import cached_property
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple  # Any: aot_compile's pytrees, in and out
 
 import jax
 import jax.numpy as jnp
