@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any
+from typing import Any  # Any: lifecycle_model's keywords (arrays, sizes, flags)
 
 import jax
 import numpy as np
