@@ -1400,14 +1400,21 @@ def read_fit(path: str | os.PathLike[str]) -> Fit:
     if not p.is_file():  # a FIFO or a device would block the NetCDF reader
         raise InputError(p, "", "an ArviZ NetCDF fit in a regular file, not a special file")
     source = str(p)
-    # the checked groups first (_CHECKED_GROUPS): opening a group's variables is most of a
-    # read (h5netcdf's per-variable dimension lookups), so a refused fit (a newer format, a
-    # bad posterior) costs its posterior's, not the whole file's
+    # the checked groups first (_CHECKED_GROUPS), the posterior's format before them all:
+    # opening a group's variables is most of a read (h5netcdf's per-variable dimension
+    # lookups), so a refused fit (a newer format, a bad posterior) is refused without the
+    # groups it does not need (an unversioned posterior warns once, in _check_fit)
     with _open_fit(p) as f:
         with _unreadable(p):
             attrs = _root_attrs(f)
             names = list(f.groups)
-            groups = {n: _load_group(f, n) for n in names if n in _CHECKED_GROUPS}
+            groups = {"posterior": _load_group(f, "posterior")} if "posterior" in names else {}
+        post_attrs = groups["posterior"].attrs if groups else {}
+        if "format_version" in post_attrs:  # a newer format is refused before the rest
+            _check_format(post_attrs, source)
+        with _unreadable(p):
+            groups |= {n: _load_group(f, n) for n in names if n in _CHECKED_GROUPS[1:]}
+        groups = {n: groups[n] for n in names if n in groups}  # the file's order
         _check_fit(az.InferenceData(attrs=attrs, **groups), source, names)
         with _unreadable(p):
             groups = {n: groups[n] if n in groups else _load_group(f, n) for n in names}

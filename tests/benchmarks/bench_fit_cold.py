@@ -499,19 +499,20 @@ file's 8 groups (``xarray`` ``identical``), the 13 criticism files (``cmp``) and
 tables the same. ``read_fit`` now reads and checks the posterior, observed_data and
 constant_data groups before it opens the others (opening a group's variables is most of a
 read: h5netcdf's per-variable dimension lookups, 0.40 of 0.54 s opened lazily, 0.10 s for
-the posterior alone): a newer-format refusal of the shipped fit 0.51-0.53 -> 0.27-0.28 s of
-CPU (4 calls each), an accepted read unchanged (0.51-0.58 s) and the same InferenceData.
-Measured and not kept: ``gc.freeze()`` after the fit's imports (the collector 0.42-0.46 ->
-0.31-0.36 s: about 0.1 s, below a run's noise, and it would freeze a library caller's
-objects); ``write_fit`` on a thread beside ``write_report`` (h5netcdf and matplotlib are
-both Python under the GIL: the same 3.1 s of process CPU, walls 19-25 s at load 30 that
-resolve nothing). Left toward 5 s: every import above is used by the fit or its report
-(numpyro's distributions define the traffic models' classes at import; ArviZ and pyplot are
-the report's), so the import CPU (3.6 s at load 17, about 2.7 s at lower load) goes only
-with a fit that drops a library; the report's matplotlib axes and ticks (about 1 s); the
-nine program loads (lowering each export to reach JAX's cache key); h5netcdf's per-variable
-overhead in ``write_fit`` (0.6 s for 55 variables). Toward 15 s cold: the nine XLA compiles
-(about 12 s of CPU) and their tracing (5 s).
+the posterior alone): a newer-format refusal of the shipped fit 0.51-0.53 -> 0.12-0.13 s of
+CPU (4 calls each; 0.27-0.28 s with the three groups read before the check, the posterior's
+format is now checked before the other two), an accepted read unchanged (0.51-0.58 s) and
+the same InferenceData. Measured and not kept: ``gc.freeze()`` after the fit's imports (the
+collector 0.42-0.46 -> 0.31-0.36 s: about 0.1 s, below a run's noise, and it would freeze a
+library caller's objects); ``write_fit`` on a thread beside ``write_report`` (h5netcdf and
+matplotlib are both Python under the GIL: the same 3.1 s of process CPU, walls 19-25 s at
+load 30 that resolve nothing). Left toward 5 s: every import above is used by the fit or its
+report (numpyro's distributions define the traffic models' classes at import; ArviZ and
+pyplot are the report's), so the import CPU (3.6 s at load 17, about 2.7 s at lower load)
+goes only with a fit that drops a library; the report's matplotlib axes and ticks (about 1
+s); the nine program loads (lowering each export to reach JAX's cache key); h5netcdf's
+per-variable overhead in ``write_fit`` (0.6 s for 55 variables). Toward 15 s cold: the nine
+XLA compiles (about 12 s of CPU) and their tracing (5 s).
 """
 
 from __future__ import annotations

@@ -46,27 +46,27 @@ def fit_file(tmp_path_factory):
     return path
 
 
-def _with_unreadable_group(src, dst, format_version=None):
-    """A copy of the fit ``src`` with one more group that no NetCDF reader opens (a variable
-    without dimension scales), optionally stamped with ``format_version``."""
+def _with_unreadable_group(src, dst, format_version=None, group="unreadable"):
+    """A copy of the fit ``src`` with the group ``group`` (added, or in place of the fit's)
+    one that no NetCDF reader opens (a variable without dimension scales), optionally
+    stamped with ``format_version``."""
     shutil.copy(src, dst)
     with h5py.File(dst, "a") as f:
-        f.create_group("unreadable").create_dataset("x", data=np.zeros((3, 2)))
+        if group in f:
+            del f[group]
+        f.create_group(group).create_dataset("x", data=np.zeros((3, 2)))
         if format_version is not None:
             f["posterior"].attrs["format_version"] = np.int64(format_version)
     return dst
 
 
-def test_the_extra_group_is_unreadable(fit_file, tmp_path):
-    """The premise of the next test: that group alone makes the file unreadable."""
-    path = _with_unreadable_group(fit_file, tmp_path / "bad.nc")
-    with pytest.raises(InputError, match="could not read it"):
-        read_fit(path)
-
-
-def test_a_newer_format_is_refused_before_the_other_groups_are_read(fit_file, tmp_path):
-    path = _with_unreadable_group(fit_file, tmp_path / "newer.nc", format_version=99)
+@pytest.mark.parametrize("group", ["unreadable", "observed_data"])
+def test_a_newer_format_is_refused_before_the_other_groups_are_read(fit_file, tmp_path, group):
+    path = _with_unreadable_group(fit_file, tmp_path / "newer.nc", 99, group)
     with pytest.raises(InputError, match=r"posterior\.attrs\.format_version.*got 99"):
+        read_fit(path)
+    path = _with_unreadable_group(fit_file, tmp_path / "current.nc", group=group)
+    with pytest.raises(InputError, match="could not read it"):  # the group alone refuses it
         read_fit(path)
 
 
