@@ -508,9 +508,9 @@ library caller's objects); ``write_fit`` on a thread beside ``write_report`` (h5
 matplotlib are both Python under the GIL: the same 3.1 s of process CPU, walls 19-25 s at
 load 30 that resolve nothing). Left toward 5 s: every import above is used by the fit or its
 report (numpyro's distributions define the traffic models' classes at import; ArviZ and
-pyplot are the report's), so the import CPU (3.6 s at load 17, about 2.7 s at lower load)
-goes only with a fit that drops a library; the report's matplotlib axes and ticks (about 1
-s); the nine program loads (lowering each export to reach JAX's cache key); h5netcdf's
+pyplot are the report's), so the import CPU (3.6 s in that run, 2.8 s in the cold one) goes
+only with a fit that drops a library; the report's matplotlib axes and ticks (about 1 s);
+the nine program loads (lowering each export to reach JAX's cache key); h5netcdf's
 per-variable overhead in ``write_fit`` (0.6 s for 55 variables). Toward 15 s cold: the nine
 XLA compiles (about 12 s of CPU) and their tracing (5 s).
 """
