@@ -23,8 +23,9 @@ from __future__ import annotations
 import dataclasses
 import logging
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -866,20 +867,34 @@ def _write_groups(idata: az.InferenceData, path: Path) -> None:
             ds.dump_to_store(_xr_backends.H5NetCDFStore(f, group=name, mode="a"), encoding=encoding)
 
 
+#: The groups :func:`read_fit` checks (:func:`_check_fit`): read before the others, so
+#: that a fit it refuses (a newer format, a bad posterior) is refused without them.
+_CHECKED_GROUPS = ("posterior", "observed_data", "constant_data")
+
+
+def _root_attrs(f: object) -> dict[str, object]:
+    """The root group's attributes of the open NetCDF file ``f`` (InferenceData's own)."""
+    import xarray as xr  # lazy: +0.16 s CPU on `import are_stats.fitting`
+
+    return dict(xr.open_dataset(_xr_backends.H5NetCDFStore(f, mode="r")).attrs)
+
+
+def _load_group(f: object, name: str) -> xr.Dataset:
+    """Group ``name`` of the open NetCDF file ``f``, loaded into memory."""
+    import xarray as xr  # lazy: +0.16 s CPU on `import are_stats.fitting`
+
+    return xr.open_dataset(_xr_backends.H5NetCDFStore(f, group=name, mode="r")).load()
+
+
 def _read_groups(path: Path) -> az.InferenceData:
     """Read every group of the NetCDF fit ``path`` through one open file, into memory.
 
     The same InferenceData as ``arviz.from_netcdf(path)`` (groups in the file's order,
     the root group's attributes as its ``attrs``), loaded: the file is closed on return.
     """
-    import xarray as xr  # lazy: +0.16 s CPU on `import are_stats.fitting`
-
     with _h5netcdf.File(str(path), "r", decode_vlen_strings=True) as f:
-        attrs = xr.open_dataset(_xr_backends.H5NetCDFStore(f, mode="r")).attrs
-        groups = {
-            name: xr.open_dataset(_xr_backends.H5NetCDFStore(f, group=name, mode="r")).load()
-            for name in f.groups
-        }
+        attrs = _root_attrs(f)
+        groups = {name: _load_group(f, name) for name in f.groups}
     return az.InferenceData(attrs=attrs, **groups)
 
 
@@ -1001,15 +1016,20 @@ def _check_real(
         )
 
 
-def _check_fit(idata: az.InferenceData, source: str) -> None:
-    """Validate a fit read from ``source`` (groups, variables, attributes)."""
+def _check_fit(idata: az.InferenceData, source: str, groups: Sequence[str] | None = None) -> None:
+    """Validate a fit read from ``source`` (groups, variables, attributes).
+
+    ``idata`` needs only the groups of :data:`_CHECKED_GROUPS`; ``groups`` names all the
+    file's groups (for the error of a missing one; default: ``idata``'s).
+    """
+    groups = list(idata.groups()) if groups is None else list(groups)
     for group in ("posterior", "observed_data"):
-        if group not in idata.groups():
+        if group not in groups:
             raise InputError(
                 source,
                 group,
                 "this group (a fit written by are-stats fit)",
-                Described(f"groups {list(idata.groups())}"),
+                Described(f"groups {groups}"),
             )
     post = idata.posterior
     _check_format(post.attrs, source)
@@ -1379,14 +1399,47 @@ def read_fit(path: str | os.PathLike[str]) -> Fit:
         raise InputError(p, "", "an ArviZ NetCDF fit file, not a directory")
     if not p.is_file():  # a FIFO or a device would block the NetCDF reader
         raise InputError(p, "", "an ArviZ NetCDF fit in a regular file, not a special file")
+    source = str(p)
+    # the checked groups first (_CHECKED_GROUPS), the posterior's format before them all:
+    # opening a group's variables is most of a read (h5netcdf's per-variable dimension
+    # lookups), so a refused fit (a newer format, a bad posterior) is refused without the
+    # groups it does not need (an unversioned posterior warns once, in _check_fit)
+    with _open_fit(p) as f:
+        with _unreadable(p):
+            attrs = _root_attrs(f)
+            names = list(f.groups)
+            groups = {"posterior": _load_group(f, "posterior")} if "posterior" in names else {}
+        post_attrs = groups["posterior"].attrs if groups else {}
+        if "format_version" in post_attrs:  # a newer format is refused before the rest
+            _check_format(post_attrs, source)
+        with _unreadable(p):
+            groups |= {n: _load_group(f, n) for n in names if n in _CHECKED_GROUPS[1:]}
+        groups = {n: groups[n] for n in names if n in groups}  # the file's order
+        _check_fit(az.InferenceData(attrs=attrs, **groups), source, names)
+        with _unreadable(p):
+            groups = {n: groups[n] if n in groups else _load_group(f, n) for n in names}
+    return fit_from_idata(az.InferenceData(attrs=attrs, **groups), source)
+
+
+@contextmanager
+def _unreadable(path: Path) -> Iterator[None]:
+    """An error reading the fit file ``path`` (netCDF/HDF5 raise many types for a file that
+    is not a NetCDF fit) as the :class:`~are_stats.inputs.InputError` that names it."""
     try:
-        idata = _read_groups(p)
-    except Exception as err:  # netCDF/HDF5 raise many types for a non-NetCDF file
+        yield
+    except Exception as err:
         raise InputError(
-            p, "", f"an ArviZ NetCDF fit written by are-stats fit (could not read it: {err})"
+            path, "", f"an ArviZ NetCDF fit written by are-stats fit (could not read it: {err})"
         ) from err
-    _check_fit(idata, str(p))
-    return fit_from_idata(idata, str(p))
+
+
+@contextmanager
+def _open_fit(path: Path) -> Iterator[object]:
+    """The fit file ``path`` open for reading (an ``h5netcdf.File``), closed on exit."""
+    with _unreadable(path):
+        f = _h5netcdf.File(str(path), "r", decode_vlen_strings=True)
+    with f:
+        yield f
 
 
 def _stays_columns(idata: az.InferenceData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

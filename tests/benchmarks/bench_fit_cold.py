@@ -467,6 +467,52 @@ pieces of 1,024 or fewer (those three agree): above 1,024 slots the program's si
 walk's bits, so pieces are not bit-safe. Left: the motion checks' 1,024-slot runs, the
 Laplace ``call`` programs, ``_capped_jit``; issue 29's 60 s not shown met (idle wall,
 scaled by the CPU ratio from about 60 s: about 52 s, not measured on idle cores).
+
+Where a repeated ``are-stats fit courtyard_traffic`` (figures on) spends its CPU, and
+``read_fit`` checking before it reads (wt-repeat29; 2026-11-28, main 8fc9593 and the branch
+side by side, the bench environment: numba installed, so ``import arviz`` compiles
+``ecdf_utils._binom_pmf``; load 10-32, the machine at its busiest: read the shares). Thread
+and process CPU around the job's parts (one repeated run, load 17, process 15.6 s, main
+thread 8.8 s): imports before the fit 3.6 s in the main thread (``are_stats.cli`` 0.12,
+``_cli_jobs`` 2.39: JAX with its scan of every installed distribution's metadata for a ROCm
+plugin, pandas + pyarrow, numpyro, scipy.sparse / linalg / optimize / special;
+``are_stats.fitting`` 1.10); the log and the catalogue 0.10 s; ``fit_log`` 7.1 s of process
+CPU with 0.3 s in the main thread: the InferenceData thread 2.9 s (ArviZ's import, most of
+it numba compiling, 1.2-1.5 s, absent in a user's environment without numba; the groups
+themselves about 0.3 s), the two Laplace run threads' Python 1.0 s, the PSIS-LOO thread 0.55
+s and XLA's own threads about 2.3 s (the nine programs read from the persistent cache,
+"Persistent compilation cache hit" nine times, 0.12-1.43 s of wall each at that load, the
+mode searches and the ranking draws); ``write_fit`` 0.57 s; ``fit_summary`` 0.18 s;
+``write_report`` 3.6 s (the overview 1.3, ``traffic_checks`` 1.06 with its 200
+``generate_scenarios`` replicates about half, ``plot_traffic_checks`` 0.30, the predictive
+checks 0.13, the PNGs 0.15, the traffic-checks figure's drawing and the CSVs the rest); the
+collector 0.42-0.46 s in about 100 collections, spread over the parts; ``prune_cache`` 0.00
+s. A cold run (fresh cache, same load class, process 28.0 s): imports 2.8 s, ``fit_log``
+21.8 s (the Laplace threads' tracing and export 5.0 s of Python, the nine XLA compiles about
+12 s, 3.0-16.4 s of wall each at load 24, the InferenceData thread 3.3 s), ``write_fit`` 0.7
+s, the report 2.2 s; a fresh ``XDG_CACHE_HOME`` also rebuilds matplotlib's font list
+(0.53-0.59 s of CPU against 0.29-0.31 s warm). The CLI's command, repeated on one warm cache
+per tree, alternated main / branch in 3 rounds at load 27-32 (user + sys,
+``/usr/bin/time``): main 13.66, 11.48, 12.07 s, branch 12.40, 13.31, 11.16 s (wall 36-71 s):
+the branch does not touch the fit's path, and a run's spread at this load is 2 s; the fit
+file's 8 groups (``xarray`` ``identical``), the 13 criticism files (``cmp``) and the printed
+tables the same. ``read_fit`` now reads and checks the posterior, observed_data and
+constant_data groups before it opens the others (opening a group's variables is most of a
+read: h5netcdf's per-variable dimension lookups, 0.40 of 0.54 s opened lazily, 0.10 s for
+the posterior alone): a newer-format refusal of the shipped fit 0.51-0.53 -> 0.12-0.13 s of
+CPU (4 calls each; 0.27-0.28 s with the three groups read before the check, the posterior's
+format is now checked before the other two), an accepted read unchanged (0.51-0.58 s) and
+the same InferenceData. Measured and not kept: ``gc.freeze()`` after the fit's imports (the
+collector 0.42-0.46 -> 0.31-0.36 s: about 0.1 s, below a run's noise, and it would freeze a
+library caller's objects); ``write_fit`` on a thread beside ``write_report`` (h5netcdf and
+matplotlib are both Python under the GIL: the same 3.1 s of process CPU, walls 19-25 s at
+load 30 that resolve nothing). Left toward 5 s: every import above is used by the fit or its
+report (numpyro's distributions define the traffic models' classes at import; ArviZ and
+pyplot are the report's), so the import CPU (3.6 s in that run, 2.8 s in the cold one) goes
+only with a fit that drops a library; the report's matplotlib axes and ticks (about 1 s);
+the nine program loads (lowering each export to reach JAX's cache key); h5netcdf's
+per-variable overhead in ``write_fit`` (0.6 s for 55 variables). Toward 15 s cold: the nine
+XLA compiles (about 12 s of CPU) and their tracing (5 s).
 """
 
 from __future__ import annotations
