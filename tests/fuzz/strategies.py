@@ -557,6 +557,8 @@ def write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
         at = at % len(data)
         dst.write_bytes(data[:at] + junk if junk else data[:at])
         return
+    from are_stats.fitting import write_fit  # lazy like arviz in _loaded_fit: JAX comes too
+
     idata = copy.deepcopy(_loaded_fit(str(src), src.stat().st_mtime_ns))
     post = idata.posterior
     for what, name, value in spec:
@@ -567,7 +569,9 @@ def write_fit_case(src: Path, dst: Path, case: tuple[str, tuple]) -> None:
         elif what == "drop" and name in post:
             post = post.drop_vars(name)
     idata.posterior = post
-    idata.to_netcdf(str(dst))
+    # the writer of ``are-stats fit`` (one open file; the file InferenceData.to_netcdf
+    # writes, which reopens it for every group: 0.51 -> 0.43 s of CPU a case)
+    write_fit(idata, dst)
 
 
 # ----------------------------------------------------------------------------- writing cases
