@@ -704,10 +704,14 @@ def run_generate(
         f"positions {laws['positions']}"
     )
     out = Path(out)
+    # the files generate_folder wrote: the tracks too with --behaviours (when any artefact)
+    names = ["artefacts.parquet", "tracks.parquet", "manifest.yaml"]
+    names = [name for name in names if (out / name).is_file()]
+    wrote = ", ".join(str(out / name) for name in names[:-1])
     console.print(
         f"{n_scenarios} scenarios, "
         f"{len(df)} artefacts in {time.perf_counter() - started[0]:.2f} s; "
-        f"wrote {out / 'artefacts.parquet'} and {out / 'manifest.yaml'}"
+        f"wrote {wrote} and {out / names[-1]}"
     )
     return df
 

@@ -64,7 +64,10 @@ _MapOrBag = Annotated[
 _Log = Annotated[
     Path,
     typer.Argument(
-        metavar="LOG", help="Life-cycle log (CSV or Parquet) or a shipped one (courtyard_traffic)."
+        metavar="LOG",
+        help="Field log (CSV or Parquet): a life-cycle log (id, t_arrive, t_leave, ...) or a "
+        "tracks table (id, t, x, y [, label]), told apart by its columns; or a shipped log "
+        "(courtyard_traffic).",
     ),
 ]
 _SweepConfig = Annotated[
@@ -429,13 +432,21 @@ def generate(
     scenarios: int = typer.Option(..., "--scenarios", help="Number of scenarios."),
     horizon: float = typer.Option(..., "--horizon", help="Scenario length (fit's time unit, s)."),
     seed: int = typer.Option(..., "--seed", help="Seed (same seed, same bytes)."),
-    out: Path = typer.Option(..., "--out", help="Output folder (artefacts.parquet + manifest)."),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        help="Output folder (artefacts.parquet, manifest.yaml; tracks.parquet with --behaviours).",
+    ),
     map_path: Path = typer.Option(
         None, "--map", help="ROS map YAML or a shipped map (courtyard): positions on free cells."
     ),
     area: float = typer.Option(None, "--area", help="Area in m^2 (default: the fit's or map's)."),
     behaviours: bool = typer.Option(
-        False, "--behaviours", help="Add MDP trajectories (tracks.parquet); needs --map."
+        False,
+        "--behaviours",
+        help="Move the artefacts (tracks.parquet): the fit's behaviour when it learned one "
+        "from a tracks table, else the catalogue's MDP behaviours, then the social force; "
+        "needs --map.",
     ),
     behaviour_cell: float = typer.Option(
         1.0, "--behaviour-cell", help="MDP grid cell (m): the map is coarsened to it."

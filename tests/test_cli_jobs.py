@@ -426,6 +426,9 @@ def test_generate_with_behaviours(tmp_path, monkeypatch, em_labels_fit_file):
     assert tracks["x"].between(-20, 20).all() and tracks["y"].between(-15, 15).all()
     manifest = yaml.safe_load((out / "manifest.yaml").read_text())
     assert manifest["tracks"]["file"] == "tracks.parquet"
+    # the summary names every file written, the tracks too
+    said = " ".join(res.output.split())
+    assert f"wrote {out / 'artefacts.parquet'}, {out / 'tracks.parquet'} and " in said, said
     # the stage's line says where the assembly stands and, once a long step is timed, the
     # time left (issue 27): on a first run too, with no record of the stage
     stage = "scenarios with their walks (rollouts) ... "
