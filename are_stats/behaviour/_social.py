@@ -740,11 +740,12 @@ def social_force_tracks(
         (``BehaviourFit.speed_within_sd``): each walker's desired
         speed is its preferred speed times ``exp(u(t))``, ``u`` a stationary
         Ornstein-Uhlenbeck process, drawn with ``key`` (a JAX PRNG key or an int seed),
-        whose walked speed has log-sd ``sd`` and correlation time ``time`` (s) at lags
-        past the relaxation time (as :func:`~are_stats.fitting.fit_behaviour` reads them
-        from tracks): the walked speed follows the desired one with the relaxation time
-        ``tau``, so the desired speed's own sd is ``sd sqrt(1 - (tau / time)^2)`` (at
-        least ``sd / 2``). ``sd`` and ``time`` are numbers or one
+        whose walked speed :func:`~are_stats.fitting.fit_behaviour` reads back as log-sd
+        ``sd`` and correlation time ``time`` (s): the walked speed follows the desired
+        one with the relaxation time ``tau``, so the desired process has correlation
+        time ``time - tau`` (at least ``time / 2``) and sd ``sd sqrt(1 + tau / (2 (time -
+        tau)))``, as the heading's (docs/src/behaviour.md). ``sd`` and ``time`` are
+        numbers or one
         per track row (an artefact's first row counts; ``sd`` 0 or NaN: none). The members
         of a group keep their leader's pace. Default: each walker at its preferred speed
         throughout; ``sd = 0`` everywhere gives exactly the same tracks.
