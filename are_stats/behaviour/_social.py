@@ -604,26 +604,24 @@ def _pace(
             f"got sd {sd[i]!r} and time {time[i]!r}"
         )
     time = np.where(varies, time, 1.0)
-    # the walked speed follows the desired one with the relaxation time tau (a first-order
-    # lag): its autocovariance is sd_d^2 (e^{-L/T} - (tau/T) e^{-L/tau}) / (1 - (tau/T)^2),
-    # whose slow part (the one the fit reads at lags past its window) has variance sd^2
-    # when sd_d = sd sqrt(1 - (tau/T)^2) (held at sd / 2 or more where T is near tau)
-    sd_desired = sd * np.sqrt(np.clip(1.0 - (relaxation / time) ** 2, 0.25, 1.0))
-    if name == "heading_variation":
-        # the walked heading is the desired OU (sd_d, T_d) through the lag tau: its
-        # autocovariance sd_d^2 T_d (T_d e^{-L/T_d} - tau e^{-L/tau}) / (T_d^2 - tau^2)
-        # is, past a few tau, its whole variance C0 = sd_d^2 T_d / (T_d + tau) less the
-        # slow part's sd_d^2 T_d^2 / (T_d^2 - tau^2) e^{-L/T_d}: an OU's variogram
-        # delayed by about tau, which no one OU matches. The fit's OU (least squares over
-        # lags from its window W to 8-19 s) reads about T_d + tau as the time and
-        # C0 / (1 - tau / (2 T)) as the variance (the exact window variogram through the
-        # fit: docs/src/behaviour.md), so T_d = T - tau (at least T / 2) and
-        # sd_d = sd sqrt(1 + tau / (2 T_d)) read sd within -3..+1% at T = 2-4 s and
-        # W = 0.4-2 s. The slow part's variance sd^2 (the pace's rule) reads 8-12% low
-        # at T = 2 s and T 13-50% long; the whole variance sd^2 (sd_d = sd sqrt(1 + tau /
-        # T_d), until 2026-11-28) 2-8% high at T = 2-4 s.
-        time = np.maximum(time - relaxation, 0.5 * time)
-        sd_desired = sd * np.sqrt(1.0 + 0.5 * relaxation / time)
+    # the walked process (speed's log, or heading) is the desired OU (sd_d, T_d) through
+    # the social force's first-order lag tau: its autocovariance sd_d^2 T_d (T_d e^{-L/T_d}
+    # - tau e^{-L/tau}) / (T_d^2 - tau^2) is, past a few tau, its whole variance
+    # C0 = sd_d^2 T_d / (T_d + tau) less the slow part's sd_d^2 T_d^2 / (T_d^2 - tau^2)
+    # e^{-L/T_d}: an OU's variogram delayed by about tau, which no one OU matches. The
+    # fit's OU (least squares over lags from its window W to 8-19 s) reads about T_d + tau
+    # as the time and C0 / (1 - tau / (2 T)) as the variance (the exact window variogram
+    # through the fit: docs/src/behaviour.md), so T_d = T - tau (at least T / 2) and
+    # sd_d = sd sqrt(1 + tau / (2 T_d)) read sd within -3..+1% at T = 2-4 s and
+    # W = 0.4-2 s. The heading's rule since 2026-11-28; the pace's too since then (its
+    # walk, with _on_schedule's rescaling linearised, reads sd 0.98-1.02 and T 0.87-0.98
+    # of the truth at T = 2-4 s, W 1.2 s and walks of 77 s, where the rule until then,
+    # the slow part's variance sd^2, sd_d = sd sqrt(1 - (tau / T)^2) with T_d = T, read
+    # 0.83-0.99 and 1.10-1.30; docs/src/behaviour.md, *The generated pace read back*).
+    # The whole variance sd^2 (sd_d = sd sqrt(1 + tau / T_d), the heading's until
+    # 2026-11-28) reads 2-8% high at T = 2-4 s.
+    time = np.maximum(time - relaxation, 0.5 * time)
+    sd_desired = sd * np.sqrt(1.0 + 0.5 * relaxation / time)
     phi = np.where(varies, np.exp(-dt / time), 1.0)
     if isinstance(key, jax.Array):
         seed = np.asarray(jax.random.key_data(key)).ravel().tolist()
@@ -742,11 +740,12 @@ def social_force_tracks(
         (``BehaviourFit.speed_within_sd``): each walker's desired
         speed is its preferred speed times ``exp(u(t))``, ``u`` a stationary
         Ornstein-Uhlenbeck process, drawn with ``key`` (a JAX PRNG key or an int seed),
-        whose walked speed has log-sd ``sd`` and correlation time ``time`` (s) at lags
-        past the relaxation time (as :func:`~are_stats.fitting.fit_behaviour` reads them
-        from tracks): the walked speed follows the desired one with the relaxation time
-        ``tau``, so the desired speed's own sd is ``sd sqrt(1 - (tau / time)^2)`` (at
-        least ``sd / 2``). ``sd`` and ``time`` are numbers or one
+        whose walked speed :func:`~are_stats.fitting.fit_behaviour` reads back as log-sd
+        ``sd`` and correlation time ``time`` (s): the walked speed follows the desired
+        one with the relaxation time ``tau``, so the desired process has correlation
+        time ``time - tau`` (at least ``time / 2``) and sd ``sd sqrt(1 + tau / (2 (time -
+        tau)))``, as the heading's (docs/src/behaviour.md). ``sd`` and ``time`` are
+        numbers or one
         per track row (an artefact's first row counts; ``sd`` 0 or NaN: none). The members
         of a group keep their leader's pace. Default: each walker at its preferred speed
         throughout; ``sd = 0`` everywhere gives exactly the same tracks.

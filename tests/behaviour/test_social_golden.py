@@ -9,7 +9,10 @@ padding of a walk's windows of blocks and without repulsion to the walk's larges
 29; a block's sums keep their width, a walk without repulsion has none). Retaken on
 2026-11-28 (issue 26), a change of behaviour: every walk here has a pace (``VARIATION``),
 which now keeps to its plan's schedule (``_on_schedule``); without a pace the walks are
-as before, bit for bit.
+as before, bit for bit. Retaken again on 2026-11-28 (issue 26 follow-up): the pace's
+desired OU compensates the relaxation time's lag as the heading's does (``_pace``:
+``T_d = T - tau``, ``sd_d = sd sqrt(1 + tau / (2 T_d))``), so that the fit reads it back
+as its truth (``tests/fitting/test_speed_recovery.py``); nothing else changed.
 """
 
 from __future__ import annotations
@@ -25,10 +28,10 @@ from are_stats.environment import OccupancyGrid
 
 #: sha256 of the walked tracks (columns, dtypes, values), from the code before the change.
 WANT = {
-    "room": "aef856b0c39d08e806b87d910e721e3e250683ab1afd2d8192fc042b80de73d8",
-    "scenes": "4527c464a16aae0f23868aea9da61d4ee3e018637b3de6f3430430b5c85676bd",
-    "scenes, strength 0": "1f41f865ef90a229e871874809c57d816d4485f053e672bbeefb47af1c3a5a7d",
-    "crowd": "21ccedccd10268021f26515d1cec0654dc4b812c346aa3a00bd92b1f5e032aa1",
+    "room": "ddc25e79994a3ab5a6d6a77d9a43e10a7321ba9783822b9569088b1e9d76de5a",
+    "scenes": "c54c3759181d8df23ceb07fd24169461beab48aa5dce8554d7c9052e29873c8c",
+    "scenes, strength 0": "e043dc9a200604056fd22a7fa7441f2d4805b2852d3a5a718067a9a336db9868",
+    "crowd": "ec6c7a4b3ab5b7e1dcf5d3b447fe8d681b687ce92227ecee165377f9c6c08087",
 }
 
 
