@@ -76,6 +76,7 @@ from are_stats._checks import check_finite, check_positive, describe
 from are_stats.behaviour import (
     BehaviourFit,
     grid_geodesic,
+    jit_with_options,
     move_observations,
     moves_log_likelihood,
     path_free,
@@ -1329,7 +1330,7 @@ def _check_tol(tol: Any) -> float:
 _GRADIENT_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
-@partial(jax.jit, static_argnames=("n_devices",), compiler_options=_GRADIENT_OPTIONS)
+@jit_with_options(static_argnames=("n_devices",), compiler_options=_GRADIENT_OPTIONS)
 def _gradient_value_epochs(
     theta: jax.Array, data: _LikelihoodData, tol: jax.Array, n_devices: int
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
