@@ -74,10 +74,19 @@ def formation(
         return leader, slot
     frame = pd.DataFrame({"s": sc, "g": gr.astype(str), "t": t, "i": np.arange(n)})[~lone]
     frame = frame.sort_values(["t", "i"], kind="stable")
-    for _, part in frame.groupby(["s", "g"], sort=False):
-        idx = part["i"].to_numpy()
-        leader[idx] = idx[0]
-        slot[idx] = np.arange(idx.size)
+    # every group at once (issue 29: a loop over the groups was most of this function's
+    # CPU, thousands of groups in a criticism's walks): each group's rows in arrival
+    # order, the first its leader, the rank its slot; a group key left out (NaN) none
+    code = frame.groupby(["s", "g"], sort=False).ngroup().to_numpy()
+    code = np.nan_to_num(code, nan=-1.0).astype(np.int64)
+    idx = frame["i"].to_numpy()[code >= 0]
+    code = code[code >= 0]
+    order = np.argsort(code, kind="stable")  # by group, arrival order within each
+    idx, code = idx[order], code[order]
+    first = np.flatnonzero(np.diff(code, prepend=-1))
+    size = np.diff(np.r_[first, code.size])
+    leader[idx] = np.repeat(idx[first], size)
+    slot[idx] = np.arange(code.size) - np.repeat(first, size)
     return leader, slot
 
 

@@ -4,7 +4,7 @@ frame (issue 29: the frames are now one k-d tree; the values must be the same bi
 import numpy as np
 import pandas as pd
 
-from are_stats.behaviour import group_spacing
+from are_stats.behaviour import formation, group_spacing
 
 
 def _reference(tracks, groups, min_speed=0.2):
@@ -78,3 +78,35 @@ def test_group_spacing_without_two_walking_members_at_a_time_is_nan():
     spacing, samples = group_spacing(tracks, {"a": "g", "b": "g"})
     assert np.isnan(spacing) and samples == 0
     assert np.isnan(group_spacing(tracks, {})[0])
+
+
+def _formation_reference(scenario, group, t):
+    """The leader and slot of each artefact by a loop over the groups (first to arrive
+    leads, ties in order)."""
+    n = len(t)
+    leader, slot = np.arange(n), np.zeros(n, np.int64)
+    members: dict[tuple, list[int]] = {}
+    for i in sorted(range(n), key=lambda i: (t[i], i)):
+        g = group[i]
+        if g is None or (isinstance(g, float) and not g >= 0) or str(g) in ("", "nan", "None"):
+            continue
+        if isinstance(g, int | float) and g < 0:
+            continue
+        members.setdefault((scenario[i], str(g)), []).append(i)
+    for idx in members.values():
+        leader[idx] = idx[0]
+        slot[idx] = np.arange(len(idx))
+    return leader, slot
+
+
+def test_formation_leaders_and_slots_are_those_of_a_loop_over_the_groups():
+    rng = np.random.default_rng(5)
+    n = 400
+    scenario = rng.integers(0, 4, n)
+    choices = ["a", "b", 3, 7, -1, "", None, float("nan"), "c"]
+    group = [choices[k] for k in rng.integers(0, len(choices), n)]
+    t = np.round(rng.uniform(0, 20, n), 0)  # ties in arrival
+    leader, slot = formation(scenario, np.asarray(group, dtype=object), t)
+    want_leader, want_slot = _formation_reference(scenario, group, t)
+    assert np.array_equal(leader, want_leader) and np.array_equal(slot, want_slot)
+    assert slot.max() >= 5 and (leader != np.arange(n)).sum() > 100
