@@ -23,6 +23,10 @@ from are_stats.behaviour._mdp import (  # noqa: E402
 
 __all__ += ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
 
+from are_stats.behaviour._xla import jit_with_options  # noqa: E402
+
+__all__ += ["jit_with_options"]
+
 from are_stats.behaviour._rollout import (  # noqa: E402
     builder_resolver,
     cells_to_tracks,

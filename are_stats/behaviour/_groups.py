@@ -74,10 +74,19 @@ def formation(
         return leader, slot
     frame = pd.DataFrame({"s": sc, "g": gr.astype(str), "t": t, "i": np.arange(n)})[~lone]
     frame = frame.sort_values(["t", "i"], kind="stable")
-    for _, part in frame.groupby(["s", "g"], sort=False):
-        idx = part["i"].to_numpy()
-        leader[idx] = idx[0]
-        slot[idx] = np.arange(idx.size)
+    # every group at once (issue 29: a loop over the groups was most of this function's
+    # CPU, thousands of groups in a criticism's walks): each group's rows in arrival
+    # order, the first its leader, the rank its slot; a group key left out (NaN) none
+    code = frame.groupby(["s", "g"], sort=False).ngroup().to_numpy()
+    code = np.nan_to_num(code, nan=-1.0).astype(np.int64)
+    idx = frame["i"].to_numpy()[code >= 0]
+    code = code[code >= 0]
+    order = np.argsort(code, kind="stable")  # by group, arrival order within each
+    idx, code = idx[order], code[order]
+    first = np.flatnonzero(np.diff(code, prepend=-1))
+    size = np.diff(np.r_[first, code.size])
+    leader[idx] = np.repeat(idx[first], size)
+    slot[idx] = np.arange(code.size) - np.repeat(first, size)
     return leader, slot
 
 
@@ -278,14 +287,19 @@ def group_spacing(
     frame = pd.DataFrame(
         {"s": sc, "g": label.astype(str).to_numpy(), "t": np.round(t, 6), "r": np.arange(len(tab))}
     )[walking]
-    near = []
-    for _, part in frame.groupby(["s", "g", "t"], sort=False):
-        if len(part) < 2:
-            continue
-        pts = xy[part["r"].to_numpy()]
-        d, _ = cKDTree(pts).query(pts, k=2)
-        near.append(d[:, 1])
-    if not near:
+    # every (scenario, group, time) of two members or more at once: one k-d tree, each on
+    # its own stretch of a third axis, farther from the next than any two of its members
+    # are apart (the third coordinate's difference is exactly 0 within one, so each
+    # distance is the plane's, bit for bit; issue 29: a tree per (scenario, group, time)
+    # was most of learn_interaction's CPU). The median takes the values in any order.
+    part = frame.groupby(["s", "g", "t"], sort=False).ngroup().to_numpy()
+    part = np.nan_to_num(part, nan=-1.0).astype(np.int64)  # a key left out (NaN): no frame
+    size = np.bincount(part[part >= 0], minlength=1)
+    shared = (part >= 0) & (size[np.maximum(part, 0)] >= 2)
+    if not shared.any():
         return float("nan"), 0
-    vals = np.concatenate(near)
+    pts = xy[frame["r"].to_numpy()[shared]]
+    gap = 2.0 * (float(np.ptp(pts[:, 0]) + np.ptp(pts[:, 1])) + 1.0)
+    pts = np.column_stack([pts, part[shared] * gap])
+    vals = cKDTree(pts).query(pts, k=2)[0][:, 1]
     return float(np.median(vals)), int(vals.size)

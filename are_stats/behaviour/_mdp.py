@@ -67,6 +67,7 @@ from are_stats.behaviour._rewards import (
     STAY,
     allowed_actions,
 )
+from are_stats.behaviour._xla import jit_with_options
 from are_stats.environment import OccupancyGrid
 
 __all__ = ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
@@ -475,7 +476,7 @@ def _backward_induction_wide(
 #: no fast-math). Elsewhere LLVM keeps the widest width the CPU has.
 _COMPILER_OPTIONS = {"xla_cpu_prefer_vector_width": 512}
 
-_backward_induction_jit = jax.jit(
+_backward_induction_jit = jit_with_options(
     _backward_induction_wide,
     static_argnames=("n_epochs", "use_run"),
     donate_argnames=("out",),
@@ -535,7 +536,7 @@ def _sharded_jit(n_dev: int, n_epochs: int, use_run: bool, follow: bool) -> jax.
     batch, shared = PartitionSpec("b"), PartitionSpec()
     specs = (batch, batch, batch, batch if follow else shared, batch) + (shared,) * len(_SHARED)
     fn = jax.shard_map(body, mesh=_mesh(n_dev), in_specs=specs, out_specs=batch, check_vma=False)
-    return jax.jit(fn, donate_argnums=(4,), compiler_options=_COMPILER_OPTIONS)
+    return jit_with_options(fn, donate_argnums=(4,), compiler_options=_COMPILER_OPTIONS)
 
 
 class _BufferPool:

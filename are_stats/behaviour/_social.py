@@ -58,7 +58,6 @@ warm, 6 s with compiling, on 2 loaded cores (``bench_social``).
 from __future__ import annotations
 
 from collections.abc import Hashable, Mapping
-from functools import partial
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
@@ -71,6 +70,7 @@ from are_stats._checks import check_positive
 from are_stats.behaviour._groups import formation, slot_offsets
 from are_stats.behaviour._noise import tracker_noise
 from are_stats.behaviour._smoother import smooth_samples
+from are_stats.behaviour._xla import jit_with_options
 from are_stats.inputs import check_memory, check_work
 
 if TYPE_CHECKING:
@@ -248,7 +248,7 @@ def _pair_forces(x, v, alive, p, cell, n_y, origin, all_pairs, gid, block=0):
 _WINDOW_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
-@partial(jax.jit, static_argnames=("all_pairs", "block", "repel"), compiler_options=_WINDOW_OPTIONS)
+@jit_with_options(static_argnames=("all_pairs", "block", "repel"), compiler_options=_WINDOW_OPTIONS)
 def _window(
     state,
     route,

@@ -76,6 +76,7 @@ from are_stats._checks import check_finite, check_positive, describe
 from are_stats.behaviour import (
     BehaviourFit,
     grid_geodesic,
+    jit_with_options,
     move_observations,
     moves_log_likelihood,
     path_free,
@@ -1329,7 +1330,7 @@ def _check_tol(tol: Any) -> float:
 _GRADIENT_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 
 
-@partial(jax.jit, static_argnames=("n_devices",), compiler_options=_GRADIENT_OPTIONS)
+@jit_with_options(static_argnames=("n_devices",), compiler_options=_GRADIENT_OPTIONS)
 def _gradient_value_epochs(
     theta: jax.Array, data: _LikelihoodData, tol: jax.Array, n_devices: int
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -1663,11 +1664,19 @@ def fit_behaviour(
         tab = tracks[in_class]
         near_class = near_all[in_class]
         speeds, ent, ext, seen, near = [], [], [], [], []
-        for _, g in tab.reset_index(drop=True).groupby("id", sort=True):
-            g = g.sort_values("t", kind="stable")
-            xy = g[["x", "y"]].to_numpy(float)
-            seen.append((g["t"].to_numpy(float), xy))
-            near.append(near_class[g.index.to_numpy()])
+        # each track (ids in sorted order, a missing id none) its rows by time, ties in
+        # the table's order: the groups and stable sorts of pandas, from one sort of the
+        # columns (issue 29: a table per track was most of this loop's CPU)
+        codes, _ = pd.factorize(tab["id"], sort=True)
+        t_c, xy_c = tab["t"].to_numpy(float), tab[["x", "y"]].to_numpy(float)
+        order = np.lexsort((t_c, codes))
+        order = order[codes[order] >= 0]
+        bounds = np.r_[np.flatnonzero(np.diff(codes[order], prepend=-1)), order.size]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            rows = order[a:b]
+            xy = xy_c[rows]
+            seen.append((t_c[rows], xy))
+            near.append(near_class[rows])
             speeds.append(_track_speed(seen[-1][0], xy, noise))
             ent.append(xy[0])
             ext.append(xy[-1])

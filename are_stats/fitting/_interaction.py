@@ -49,27 +49,34 @@ def _on_one_step(
     if steps.size == 0:
         raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
     dt = float(np.median(steps))
-    parts = []
-    for i, g in tab.groupby("id", sort=False):
-        tt = g["t"].to_numpy(float)
+    # each track's times, x and y from the sorted columns (a slice per run of ids), its
+    # grid interpolated by np.interp as before; one table at the end (issue 29: a table per
+    # track was most of this function's CPU)
+    xs, ys = tab["x"].to_numpy(float), tab["y"].to_numpy(float)
+    codes, uniq = pd.factorize(ids)
+    # runs in order of first appearance, as groupby(sort=False) visits them
+    order = np.argsort(codes, kind="stable")
+    bounds = np.searchsorted(codes[order], np.arange(len(uniq) + 1))
+    kept, parts = [], {"t": [], "x": [], "y": []}
+    for j, i in enumerate(uniq):
+        rows = order[bounds[j] : bounds[j + 1]]
+        tt = t[rows]
         grid_t = np.arange(np.ceil(tt[0] / dt - 1e-9), np.floor(tt[-1] / dt + 1e-9) + 1) * dt
         if grid_t.size >= 3:
-            parts.append(
-                pd.DataFrame(
-                    {
-                        "id": i,
-                        "t": grid_t,
-                        "x": np.interp(grid_t, tt, g["x"].to_numpy(float)),
-                        "y": np.interp(grid_t, tt, g["y"].to_numpy(float)),
-                    }
-                )
-            )
-    if not parts:
+            kept.append(i)
+            parts["t"].append(grid_t)
+            parts["x"].append(np.interp(grid_t, tt, xs[rows]))
+            parts["y"].append(np.interp(grid_t, tt, ys[rows]))
+    if not parts["t"]:
         raise ValueError("tracks: expected tracks of at least three samples to fit interaction")
     # the log's groups walk in formation: their members are left out of the repulsion's
     # least squares (fit_social_force's ``groups``)
     groups = {i: labels[str(i)] for i in pd.unique(ids) if str(i) in labels}
-    return pd.concat(parts, ignore_index=True), groups
+    # the ids typed as a table made of each id alone types them (pandas infers from values)
+    n_rows = [len(v) for v in parts["t"]]
+    out = {"id": pd.Series(kept).repeat(n_rows).reset_index(drop=True)}
+    out |= {k: np.concatenate(v) for k, v in parts.items()}
+    return pd.DataFrame(out), groups
 
 
 def _check_range(params: SocialForce) -> None:

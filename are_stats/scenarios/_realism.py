@@ -307,9 +307,9 @@ def _interactive(
     return near, hit, ttc
 
 
-def _group_label(groups: Groups, scenario: Hashable, track: Hashable) -> str | None:
-    """A track's group label as text (None: alone)."""
-    lab = groups.get((scenario, track), groups.get(track))
+def _label_text(lab: Hashable) -> str | None:
+    """A group label as text (None: alone: None, a negative or non-finite number, or text
+    ``""``, ``"nan"`` or ``"None"``)."""
     if lab is None:
         return None
     num = pd.to_numeric(pd.Series([lab]), errors="coerce").iloc[0]
@@ -325,8 +325,22 @@ def _group_spacing(tab: pd.DataFrame, vel: np.ndarray, groups: Groups) -> np.nda
     from scipy.spatial import cKDTree  # lazy: +0.3 s CPU on `import are_stats.scenarios`
 
     keys = tab[["scenario", "id"]].drop_duplicates()
+    # each distinct text or integer label read once (issue 29: a pandas parse per track was
+    # most of this function's CPU); other labels (floats: -0.0 == 0.0 but not as text) each
+    # time
+    texts: dict[tuple[type, Hashable], str | None] = {}
+
+    def text(s: Hashable, i: Hashable) -> str | None:
+        lab = groups.get((s, i), groups.get(i))
+        if not isinstance(lab, str | int | np.integer):
+            return _label_text(lab)
+        key = (type(lab), lab)
+        if key not in texts:
+            texts[key] = _label_text(lab)
+        return texts[key]
+
     label = {
-        (s, i): _group_label(groups, s, i)
+        (s, i): text(s, i)
         for s, i in zip(keys["scenario"].to_numpy(), keys["id"].to_numpy(), strict=True)
     }
     lab = pd.Series(

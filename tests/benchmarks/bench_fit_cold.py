@@ -513,6 +513,50 @@ only with a fit that drops a library; the report's matplotlib axes and ticks (ab
 the nine program loads (lowering each export to reach JAX's cache key); h5netcdf's
 per-variable overhead in ``write_fit`` (0.6 s for 55 variables). Toward 15 s cold: the nine
 XLA compiles (about 12 s of CPU) and their tracing (5 s).
+
+The tracks part with the host loops of the interaction learner and of the walks' groups cut
+(wt-tracks29, 2026-11-28): ``group_spacing`` in one k-d tree, every (scenario, group, time)
+frame on its own stretch of a third axis (0.844 -> 0.045 s a call on the 302-person table),
+``_on_one_step`` built from arrays (0.390 -> 0.014 s), ``formation`` without a loop over
+the groups (15,100 artefacts: 0.310 -> 0.036 s), ``fit_behaviour``'s tracks from one
+``lexsort`` (its second and third calls in a process 3.42 -> 2.66 s and 3.31 -> 2.49 s),
+the realism's group labels read once per distinct label (``realism_features`` 0.213 ->
+0.120 s); and ``behaviour.jit_with_options`` for the four jits that passed XLA options
+straight to ``jax.jit`` (an option a later jaxlib does not know is left out; the same
+programs today). Where main's CPU went before (8fc9593; cProfile, process time, an
+in-process cold fit at load 10-14, 130.4 s profiled, 424 s wall): the traffic fit 26.7 s
+(21.0 s of it while the main thread awaits the Laplace threads: their compiles' CPU),
+``fit_behaviour`` 17.3 s (the gradient's compile 20.4 s wall), ``learn_interaction`` 11.7 s
+(``repulsion_evidence`` 4.3, ``group_spacing`` 3.6, ``fit_social_force`` 2.1,
+``_on_one_step`` 1.3), the realism table 18.1 s (the catalogue's ``walk_tracks`` 7.4 s: its
+MDP solves 3.6 s and 1,248 one-path ``string_pull`` calls 2.0 s; the fitted scenes' soft
+policies and paths 3.7 s, their social force 3.2 s), the displacement errors 15.7 s
+(rollouts 5.7 s, string pulling 3.6 s of it; walks 7.3 s), the motion checks 17.5 s (walks
+10.1 s, generation 4.6 s), the report 12.8 s (the held-out fit 3.9 s: its likelihood runs
+the fit's gradient program, no compile of its own), imports 6.9 s; ``formation`` 1.6 s over
+the walks. XLA compilations 22 (138 s of compile wall at that load: the nine Laplace
+``call`` 73.5 s, the gradient 20.4 s, ``_window`` five 19.1 s, ``_capped_jit`` 8.3 s, the
+MDP ``body`` two 7.0 s, ``_per_track_jit`` two 5.7 s, ``_normal`` two 3.8 s). The
+benchmark's tracks part (``_bench_tracks``, fresh processes and caches, child CPU by
+``getrusage``), main 8fc9593 against the branch (c9962eb in round 1, without ``formation``;
+a6a9290 after): started together, load 25.4 -> 20.5: cold CPU 79.2 vs 77.1 s (0.97x; wall
+764 vs 756 s); started together, load 14.5 -> 12.4: 68.8 vs 66.9 s (0.97x; wall 320.5 vs
+312.1 s); one after the other, load 8.5 -> 7.9: 65.1 vs 62.3 s (0.96x; wall 119.9 vs 110.1
+s); the branch first, load 8.6 -> 5.4: 71.4 vs 63.5 s (wall 73.8 vs 78.8 s); main first,
+load 4.3 -> 6.2: 74.7 vs 78.7 s (wall 109.1 vs 166.3 s, the branch's compile wall 86 vs 37
+s): one after the other the runs spread 62-79 s of CPU, so the saving (about 2 s) is
+resolved only in the rounds started together. 22 XLA compilations each, every round. The
+fit file's root and 9 groups (``xarray`` ``identical``, attributes included) and all 17
+criticism files byte for byte the same, in every round; the social goldens' digests kept
+(tests/behaviour/test_social_golden.py). Issue 29's 60 s wall on 2 idle cores is not shown:
+at the lowest loads found (4-9) the walls were 74-166 s on 62-79 s of CPU; at idle the wall
+is below the CPU (the Laplace programs compile in threads), by their overlap, not measured
+here (the last estimate, about 52 s, scaled by 0.96: about 50 s; on 62-79 s of CPU the goal
+needs that overlap). Left: the main thread's wait for the Laplace threads (the behaviour
+stage does not need the traffic fit and could run beside them), and the realism table,
+displacement errors and motion checks, which draw with their own keys, in threads (both in
+``_field_fit``); the catalogue walk's one-path string pulling (``_walk._legs``);
+``group_tracks``' loop over members (1.3 s profiled).
 """
 
 from __future__ import annotations
