@@ -44,7 +44,7 @@ _CLASS_XLABELS = {
     "stay median": "median stay (s)",
     "stay cv": "sd / mean of the stays",
     "median speed (m/s)": "median walking speed (m/s)",
-    "fraction still": "share of tracks with net displacement < 1 m",
+    "fraction still": "share of tracks with net < 1 m",
 }
 #: What a panel says where every class's log value and model band are one value (nothing to
 #: compare), where that value has a plain reading.

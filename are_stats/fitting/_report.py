@@ -786,6 +786,13 @@ def check_report_outputs(out_dir: str | os.PathLike, force: bool) -> None:
     """Refuse a report folder that holds any of :func:`write_report`'s files, unless
     ``force``: before anything is computed or written (no half-replaced report).
 
+    Parameters
+    ----------
+    out_dir : str or PathLike
+        The report's folder (need not exist).
+    force : bool
+        Overwrite: nothing is refused.
+
     Raises
     ------
     OutputExistsError
