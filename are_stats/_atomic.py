@@ -35,14 +35,46 @@ __all__ = [
 
 
 class OutputExistsError(FileExistsError):
-    """Raised when an output exists and ``force`` was not given."""
+    """Raised when an output exists and ``force`` was not given.
+
+    ``str(err)`` says how to overwrite from Python (``force=True``); :attr:`cli_message`
+    says it as the command line does (``--force``), and the CLI prints that one: neither
+    mixes the two.
+
+    Parameters
+    ----------
+    where : str
+        The output and what is in the way (``"fits/f.nc: already exists"``).
+    remedy : str
+        What forcing does (``"to overwrite it"``); empty where forcing does not help.
+
+    Examples
+    --------
+    >>> err = OutputExistsError("f.nc: already exists", "to overwrite it")
+    >>> str(err)
+    'f.nc: already exists; pass force=True to overwrite it'
+    >>> err.cli_message
+    'f.nc: already exists; pass --force to overwrite it'
+    """
+
+    def __init__(self, where: str, remedy: str = "") -> None:
+        self.where, self.remedy = where, remedy
+        super().__init__(self._say("force=True"))
+
+    def _say(self, flag: str) -> str:
+        return f"{self.where}; pass {flag} {self.remedy}" if self.remedy else self.where
+
+    @property
+    def cli_message(self) -> str:
+        """The message in the command line's words (``--force``)."""
+        return self._say("--force")
 
 
 def check_writable(path: str | os.PathLike, force: bool) -> Path:
     """Raise :class:`OutputExistsError` if ``path`` exists and ``force`` is false."""
     p = Path(path)
     if p.exists() and not force:
-        raise OutputExistsError(f"{p}: already exists; pass --force (force=True) to overwrite it")
+        raise OutputExistsError(f"{p}: already exists", "to overwrite it")
     return p
 
 
@@ -146,9 +178,7 @@ def check_folder(path: str | os.PathLike, force: bool) -> Path:
     if target.exists() and not target.is_dir():
         raise OutputExistsError(f"{target}: exists and is not a folder")
     if target.exists() and not force and any(target.iterdir()):
-        raise OutputExistsError(
-            f"{target}: already exists; pass --force (force=True) to replace the folder"
-        )
+        raise OutputExistsError(f"{target}: already exists", "to replace the folder")
     return target
 
 

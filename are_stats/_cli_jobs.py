@@ -424,7 +424,7 @@ def _print_classes(fit: Fit) -> None:
     if classes is None:
         return
     parts = [
-        f"{name} {wi:.0%} ({hi:.3g}/h, mean stay {mi:.3g})"
+        f"{name} {wi:.0%} ({hi:.3g}/h, mean stay {mi:.3g} s)"
         for name, wi, hi, mi in zip(*classes, strict=True)
     ]
     console.print(f"classes (stays {fit.class_stay_model} by PSIS-LOO): " + ", ".join(parts))
@@ -634,6 +634,7 @@ def run_report(
     """
     # lazy: +1.05 s CPU on every job's start (NumPyro), which perceive and serve do not use
     from are_stats.fitting import (
+        check_report_outputs,
         check_report_size,
         fit_summary,
         read_fit,
@@ -647,12 +648,15 @@ def run_report(
     fit = read_fit(fit_path)
     idata = fit.idata
     check_report_size(idata, replicates, f"{fit_path} with --replicates {replicates}")
+    check_report_outputs(out, force)  # before the summary's work, not after it
     summary = fit_summary(idata)
     console.print(_summary_table(summary, f"{fit_path} ({fit.method})"))
     for w in sampler_warnings(idata, summary):
         console.print(f"[yellow]warning:[/] {w}")
     with console.status("posterior-predictive checks ..."):
-        written = write_report(idata, out, key=seed, n_replicates=replicates, force=force)
+        written = write_report(
+            idata, out, key=seed, n_replicates=replicates, force=force, summary=summary
+        )
     _print_traffic(fit)
     _print_checks(written)
     if fit.behaviour is not None:

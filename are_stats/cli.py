@@ -23,6 +23,7 @@ from pathlib import Path  # noqa: E402
 import typer  # noqa: E402
 
 from are_stats import __version__, configure_jax  # noqa: E402
+from are_stats._atomic import OutputExistsError  # noqa: E402 (stdlib only)
 from are_stats._lazy import hide_dask  # noqa: E402 (stdlib only)
 from are_stats._program_cache import prune_cache  # noqa: E402 (stdlib only; main runs it)
 
@@ -169,7 +170,9 @@ _R = TypeVar("_R")
 
 
 def _fail(err: BaseException) -> typer.Exit:
-    typer.echo(f"error: {err}", err=True)
+    # an existing output: the remedy in the command line's words (--force, not force=True)
+    text = err.cli_message if isinstance(err, OutputExistsError) else str(err)
+    typer.echo(f"error: {text}", err=True)
     return typer.Exit(2)
 
 

@@ -1301,8 +1301,8 @@ def run_sweep(
     resume = state == "sweep" and not force
     if resume and (out / "sweep.yaml").read_bytes() != text:
         raise OutputExistsError(
-            f"{out}: holds results of a different sweep config; pass --force (force=True) "
-            "to replace them, or choose another folder"
+            f"{out}: holds results of a different sweep config",
+            "to replace them, or choose another folder",
         )
     todo = [t for t in tasks if not (resume and (out / "runs" / f"{t['task']}.parquet").exists())]
     if not todo:

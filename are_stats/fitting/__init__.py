@@ -153,6 +153,7 @@ from are_stats.fitting._nuts import (  # noqa: E402
 from are_stats.fitting._psis import psislw  # noqa: E402
 from are_stats.fitting._report import (  # noqa: E402
     PredictiveChecks,
+    check_report_outputs,
     check_report_size,
     fit_summary,
     plot_checks,
@@ -228,6 +229,7 @@ __all__ += [
     "read_fit",
     "write_fit",
     "PredictiveChecks",
+    "check_report_outputs",
     "check_report_size",
     "fit_summary",
     "sampler_warnings",

@@ -37,6 +37,22 @@ __all__ = [
 ]
 
 
+#: Each per-class statistic's x axis: what it measures, in which unit (times in seconds,
+#: the log's unit).
+_CLASS_XLABELS = {
+    "share": "share of the arrivals",
+    "stay median": "median stay (s)",
+    "stay cv": "sd / mean of the stays",
+    "median speed (m/s)": "median walking speed (m/s)",
+    "fraction still": "share of tracks with net < 1 m",
+}
+#: What a panel says where every class's log value and model band are one value (nothing to
+#: compare), where that value has a plain reading.
+_CLASS_ALL_EQUAL = {
+    ("fraction still", 0.0): "no track stands still\n(net < 1 m) in the log\nor in the model",
+}
+
+
 def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None) -> Figure:
     """Per-class posterior-predictive bands beside the log's values.
 
@@ -70,10 +86,25 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
     )
     y = np.arange(len(classes))
     for ax, stat in zip(axes[0], stats, strict=True):
-        for i, cls in enumerate(classes):
-            if (cls, stat) not in table.index:
-                continue
-            row = table.loc[(cls, stat)]
+        rows = [
+            (i, table.loc[(cls, stat)])
+            for i, cls in enumerate(classes)
+            if (cls, stat) in table.index
+        ]
+        ax.set_title(stat, fontsize=9)
+        ax.set_xlabel(_CLASS_XLABELS.get(stat, stat), fontsize=8)
+        ax.tick_params(labelsize=8)
+        values = np.array(
+            [float(r[c]) for _, r in rows for c in ("observed", "model_5%", "model_95%")]
+        )
+        values = values[np.isfinite(values)]
+        if values.size and values.min() == values.max():  # every class, log and model agree
+            v = float(values[0])
+            text = _CLASS_ALL_EQUAL.get((stat, v), f"every class, the log and\nthe model: {v:g}")
+            ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.35")
+            ax.set_xticks([])
+            continue
+        for i, row in rows:
             lo, mid, hi = (float(row[f"model_{q}"]) for q in ("5%", "50%", "95%"))
             ax.plot(
                 [lo, hi],
@@ -82,11 +113,9 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
                 lw=5,
                 alpha=0.35,
                 solid_capstyle="butt",
-                label="model 90%" if i == 0 else None,
+                label="model 90%",
             )
-            ax.plot(
-                [mid], [i], "|", color="C0", ms=12, mew=2, label="model median" if i == 0 else None
-            )
+            ax.plot([mid], [i], "|", color="C0", ms=12, mew=2, label="model median")
             obs = float(row["observed"])
             if np.isfinite(obs):
                 flag = bool(row["model_flag"])
@@ -96,16 +125,21 @@ def plot_class_checks(traffic: pd.DataFrame, motion: pd.DataFrame | None = None)
                     "x" if flag else "o",
                     color="C3" if flag else "k",
                     ms=7,
-                    label=None if i else "log",
+                    zorder=3,
+                    label="log, outside the 90% band" if flag else "log",
                 )
-        ax.set_title(stat, fontsize=9)
         ax.grid(axis="x", alpha=0.3)
-        ax.tick_params(labelsize=8)
     axes[0, 0].set_yticks(y, classes)
     axes[0, 0].set_ylim(-0.6, len(classes) - 0.4)
     axes[0, 0].invert_yaxis()
-    handles, names = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, names, fontsize=8, loc="lower center", ncol=3, frameon=False)
+    axes[0, 0].set_ylabel("class", fontsize=8)
+    entries: dict[str, object] = {}  # label -> handle, over every panel: only what is drawn
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    handles, names = list(entries.values()), list(entries)
+    if entries:
+        fig.legend(handles, names, fontsize=8, loc="lower center", ncol=len(entries), frameon=False)
     fig.suptitle(
         "Per class: the log against posterior-predictive replicates (red x: outside)", fontsize=10
     )
@@ -177,6 +211,10 @@ def plot_class_shares_by_hour(table: pd.DataFrame, model: str = "time-of-day") -
     """Each class's share of the arrivals by hour: the log's (dots, sized by the hour's
     arrivals) in the model's 90% band (:func:`class_share_checks`).
 
+    Each hour with arrivals gets one bar per class (side by side inside the hour), so a
+    log of one hour shows its bands too; the x axis spans the hours the log covers (the
+    whole day only for a log of 12 hours or more).
+
     Returns
     -------
     matplotlib.figure.Figure
@@ -185,41 +223,67 @@ def plot_class_shares_by_hour(table: pd.DataFrame, model: str = "time-of-day") -
 
     classes = list(dict.fromkeys(table.index.get_level_values(0)))
     fig, ax = plt.subplots(figsize=(8.0, 3.8))
+    slot = 0.8 / max(len(classes), 1)  # each class's part of an hour
+    seen = []  # hours with arrivals
     for c, name in enumerate(classes):
         sub = table.loc[name]
-        h = sub.index.to_numpy(float) + 0.5
-        color = f"C{c % 10}"
-        ax.fill_between(
-            h,
-            sub["model_5%"],
-            sub["model_95%"],
-            color=color,
-            alpha=0.2,
-            lw=0,
-            step="mid",
-            label=f"{name}: model 90%",
-        )
         n = sub["arrivals"].to_numpy(float)
-        size = 8 + 40 * n / max(float(n.max()), 1.0)
-        flag = sub["model_flag"].to_numpy(bool)
-        ax.scatter(
-            h[~flag],
-            sub["observed"][~flag],
-            s=size[~flag],
-            color=color,
-            zorder=3,
-            label=f"{name}: log",
-        )
-        if flag.any():
-            ax.scatter(
-                h[flag], sub["observed"][flag], s=size[flag], color=color, marker="x", zorder=3
+        has = n > 0
+        hours = sub.index.to_numpy(float)
+        seen.append(hours[has])
+        x = hours + 0.1 + (c + 0.5) * slot
+        lo, hi = sub["model_5%"].to_numpy(float), sub["model_95%"].to_numpy(float)
+        band = has & np.isfinite(lo) & np.isfinite(hi)
+        color = f"C{c % 10}"
+        if band.any():
+            ax.bar(
+                x[band],
+                np.maximum(hi[band] - lo[band], 0.004),  # a band of one value: a visible line
+                bottom=lo[band],
+                width=slot * 0.9,
+                color=color,
+                alpha=0.3,
+                lw=0,
+                label=f"{name}: model 90%",
             )
-    ax.set(
-        xlim=(0, 24), ylim=(-0.02, 1.02), xlabel="hour of the day", ylabel="share of the arrivals"
-    )
-    ax.set_xticks(range(0, 25, 3))
+        size = 16 + 44 * n / max(float(n.max()), 1.0)
+        obs = sub["observed"].to_numpy(float)
+        flag = sub["model_flag"].to_numpy(bool)
+        for mark, sel, what in (("o", has & ~flag, "log"), ("x", has & flag, "log, outside")):
+            if sel.any():
+                ax.scatter(
+                    x[sel],
+                    obs[sel],
+                    s=size[sel],
+                    color=color,
+                    marker=mark,
+                    edgecolors="k" if mark == "o" else None,
+                    linewidths=0.5 if mark == "o" else 1.5,
+                    zorder=3,
+                    label=f"{name}: {what}",
+                )
+    hours = np.concatenate(seen) if seen else np.zeros(0)
+    if hours.size and hours.max() - hours.min() < 12:  # a short log: its hours, not the day
+        first, last = int(hours.min()), int(hours.max()) + 1
+        ax.set_xlim(first, last)
+        ax.set_xticks(range(first, last + 1))
+    else:
+        ax.set_xlim(0, 24)
+        ax.set_xticks(range(0, 25, 3))
+    ax.set(ylim=(-0.02, 1.02), xlabel="hour of the day (h)", ylabel="share of the arrivals")
     ax.set_title(f"Class shares by hour ({model} shares; x: outside the band)", fontsize=10)
-    ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    if not hours.size:
+        ax.text(
+            0.5,
+            0.5,
+            "no arrivals in the log",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            color="0.35",
+        )
+    else:
+        ax.legend(fontsize=7, ncol=1, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.tight_layout()
     return fig
 
@@ -264,22 +328,36 @@ def plot_class_entries(idata: az.InferenceData) -> Figure | None:
             ax.axis("off")
             continue
         im = ax.imshow(dens[c] / res**2, origin="lower", extent=extent, cmap="magma")
-        fig.colorbar(im, ax=ax, shrink=0.8).ax.tick_params(labelsize=7)
+        bar = fig.colorbar(im, ax=ax, shrink=0.8)
+        bar.ax.tick_params(labelsize=7)
+        bar.set_label("entry density (1/m^2)", fontsize=8)
+        n_in = 0
         if have_xy:
             entered = np.isfinite(np.asarray(obs["t_arrive"].values, float))
             sel = entered & (np.asarray(obs["classes"].values) == c)
+            n_in = int(sel.sum())
+            # open rings over the image: seen on its dark and its bright cells alike, and
+            # the density under them still shows
             ax.scatter(
                 np.asarray(obs["x"].values)[sel],
                 np.asarray(obs["y"].values)[sel],
-                s=2,
-                color="c",
-                alpha=0.3,
-                lw=0,
+                s=30,
+                facecolors="none",
+                edgecolors="cyan",
+                linewidths=1.0,
+                alpha=0.9,
+                zorder=3,
+                label="the log's entries",
             )
-        ax.set_title(f"{labels[c]} (entry density, per m^2)", fontsize=9)
+        ax.set_xlim(extent[0], extent[1])  # the rings do not widen the map's frame
+        ax.set_ylim(extent[2], extent[3])
+        what = f"{n_in} entr{'y' if n_in == 1 else 'ies'} in the log" if have_xy else "entries"
+        ax.set_title(f"{labels[c]} ({what})", fontsize=9)
+        ax.set_xlabel("x (m)", fontsize=8)
+        ax.set_ylabel("y (m)", fontsize=8)
         ax.tick_params(labelsize=7)
     fig.suptitle(
-        f"Entry densities per class ({model} by LOO; dots: the log's entries)", fontsize=10
+        f"Entry densities per class ({model} by LOO; rings: the log's entries)", fontsize=10
     )
     fig.tight_layout()
     return fig

@@ -62,6 +62,7 @@ from are_stats.traffic import fold_in_key, key_from_seed, key_uniform, split_key
 
 if TYPE_CHECKING:
     import numpy.typing as npt
+    from matplotlib.artist import Artist
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
@@ -943,7 +944,7 @@ def plot_motion_checks(
 
     obs, rep = replicates["observed"], replicates["tracks"]
     summary = replicates["summary"]
-    fig, axes = plt.subplots(2, 3, figsize=(12.5, 7.0), constrained_layout=True)
+    fig, axes = plt.subplots(2, 3, figsize=(12.5, 7.5), constrained_layout=True)
 
     def flag(ax: Axes, stat: str) -> None:
         if bool(table.loc[stat, "model_flag"]):
@@ -951,7 +952,11 @@ def plot_motion_checks(
                 ax.get_title() + "\nobserved outside the 90% band", fontsize=10, color="tab:red"
             )
 
-    def dist(ax: Axes, col: str, title: str, stat: str, moving_only: bool) -> None:
+    def say(ax: Axes, text: str) -> None:  # a panel with nothing to draw says why
+        ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.35")
+        ax.set_xticks([])
+
+    def dist(ax: Axes, col: str, title: str, xlabel: str, stat: str, moving_only: bool) -> None:
         o, r = obs, rep
         if moving_only:
             o, r = o[~o["still"]], r[~r["still"]]
@@ -959,34 +964,55 @@ def plot_motion_checks(
         rv = r[col].to_numpy(float)
         ov, rv = ov[np.isfinite(ov)], rv[np.isfinite(rv)]
         allv = np.concatenate([ov, rv])
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel(xlabel, fontsize=9)
+        ax.set_yticks([])
         if not allv.size:
-            ax.text(0.5, 0.5, "not defined", ha="center", va="center", transform=ax.transAxes)
-            ax.set_title(title, fontsize=10)
+            say(ax, "not defined: no moving tracks" if moving_only else "not defined")
             return
+        ax.set_ylabel("density of tracks", fontsize=9)
         lo, hi = np.quantile(allv, [0.002, 0.998])
         lo, hi = min(lo, ov.min(initial=lo)), max(hi, ov.max(initial=hi))
         pad = 0.05 * (hi - lo) if hi > lo else 0.5
         bins = np.linspace(lo - pad, hi + pad, 30)
-        ax.hist(rv, bins=bins, density=True, color="tab:blue", alpha=0.5, label="model (pooled)")
-        ax.hist(ov, bins=bins, density=True, histtype="step", color="black", lw=2, label="observed")
-        ax.axvline(table.loc[stat, "observed"], color="black", ls="--", lw=1)
+        ax.hist(
+            rv, bins=bins, density=True, color="tab:blue", alpha=0.5, label="model: tracks pooled"
+        )
+        ax.hist(
+            ov,
+            bins=bins,
+            density=True,
+            histtype="step",
+            color="black",
+            lw=2,
+            label="observed tracks",
+        )
+        ax.axvline(
+            table.loc[stat, "observed"], color="black", ls="--", lw=1, label="observed median"
+        )
         ax.axvspan(
             table.loc[stat, "model_5%"],
             table.loc[stat, "model_95%"],
             color="tab:blue",
             alpha=0.12,
-            label="90% band of median",
+            label="model: 90% band of the median",
         )
-        ax.set_title(title, fontsize=10)
-        ax.set_yticks([])
         flag(ax, stat)
 
-    dist(axes[0, 0], "speed", "walking speed per track (m/s)", MOTION_STATISTICS[0], False)
-    axes[0, 0].legend(fontsize=7, frameon=False, loc="upper left")
+    n_rep = len(summary)
+    dist(
+        axes[0, 0],
+        "speed",
+        "walking speed per track (m/s)",
+        "walking speed (m/s)",
+        MOTION_STATISTICS[0],
+        False,
+    )
     dist(
         axes[0, 1],
         "straightness",
         "straightness (net / path), moving tracks",
+        "net displacement / path length",
         MOTION_STATISTICS[2],
         True,
     )
@@ -994,16 +1020,42 @@ def plot_motion_checks(
         axes[0, 2],
         "exit_fraction",
         "time from entry to exit / stay, moving tracks",
+        "time to exit / stay (fraction of the stay)",
         MOTION_STATISTICS[4],
         True,
     )
-    for ax, j, title in (
-        (axes[1, 0], 3, "fraction still (net < 1 m) per replicate"),
-        (axes[1, 1], 1, "speed spread (IQR, m/s) per replicate"),
+    for ax, j, title, xlabel in (
+        (
+            axes[1, 0],
+            3,
+            "fraction still (net < 1 m) per replicate",
+            "share of tracks with net displacement < 1 m",
+        ),
+        (
+            axes[1, 1],
+            1,
+            "speed spread (IQR, m/s) per replicate",
+            "IQR of the tracks' walking speeds (m/s)",
+        ),
     ):
         stat = MOTION_STATISTICS[j]
         v = summary[:, j][np.isfinite(summary[:, j])]
         o = table.loc[stat, "observed"]
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel(xlabel, fontsize=9)
+        ax.set_yticks([])
+        if not v.size and not np.isfinite(o):
+            say(ax, "not defined")
+            continue
+        if v.size and np.isfinite(o) and v.min() == v.max() == o:  # a lone bar says nothing
+            what = (
+                f"no track still (net < 1 m)\nin the log or in any\nof the {n_rep} replicates"
+                if j == 3 and o == 0
+                else f"the log and all {n_rep} replicates:\n{o:.3g}"
+            )
+            say(ax, what)
+            continue
+        ax.set_ylabel("replicates", fontsize=9)
         if v.size:
             lo, hi = min(v.min(), o), max(v.max(), o)
             pad = 0.05 * (hi - lo) if hi > lo else 0.05
@@ -1012,15 +1064,25 @@ def plot_motion_checks(
                 bins=np.linspace(lo - pad, hi + pad, 25),
                 color="tab:blue",
                 alpha=0.55,
-                label="model",
+                label="model: one value per replicate",
             )
         if np.isfinite(o):
-            ax.axvline(o, color="black", lw=2, label="observed")
-        ax.set_title(title, fontsize=10)
-        ax.set_yticks([])
+            ax.axvline(o, color="black", lw=2, label="observed value")
         flag(ax, stat)
-    axes[1, 0].legend(fontsize=7, frameon=False)
     ax = axes[1, 2]
+    entries: dict[str, Artist] = {}  # one legend for every panel, under them
+    for a in axes.flat[:5]:
+        for handle, label in zip(*a.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    if entries:
+        fig.legend(
+            list(entries.values()),
+            list(entries),
+            fontsize=8,
+            frameon=False,
+            loc="outside lower center",
+            ncols=3,
+        )
     ax.axis("off")
     lines = ["statistic: observed [model 5%, 95%]"]
     for stat, r in table.iterrows():
@@ -1051,6 +1113,5 @@ def plot_motion_checks(
         family="monospace",
         transform=ax.transAxes,
     )
-    n_rep = len(summary)
     fig.suptitle(f"Motion checks: observed tracks vs {n_rep} replicates of the fitted behaviour")
     return fig

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 import numpy as np
 import pandas as pd
 
-from are_stats._atomic import atomic_path
+from are_stats._atomic import atomic_path, check_writable
 from are_stats._lazy import arviz as az
 from are_stats.fitting._class_report import (
     class_share_checks,
@@ -69,6 +69,7 @@ if TYPE_CHECKING:
 __all__ = [
     "PARAMETERS",
     "sampler_warnings",
+    "check_report_outputs",
     "check_report_size",
     "fit_summary",
     "predictive_windows",
@@ -751,6 +752,59 @@ def read_traffic_checks(folder: str | os.PathLike) -> pd.DataFrame | None:
     return pd.read_csv(path, index_col=0) if path.exists() else None
 
 
+#: Every file :func:`write_report` may write (which of them depends on the fit).
+_REPORT_FILES = (
+    "summary.csv",
+    "criticism.png",
+    *(
+        f"ppc_{name}.png"
+        for name in ("counts", "interarrival", "dwell", "hour_of_day", "dispersion", "marks")
+    ),
+    _TRAFFIC_CHECKS,
+    "traffic_checks.png",
+    "class_checks.csv",
+    "ppc_classes.png",
+    "class_motion_checks.csv",
+    "class_shares_by_hour.csv",
+    "ppc_class_shares_by_hour.png",
+    "class_entries.png",
+    *(
+        f"loo_{factor}.csv"
+        for factor in (
+            "arrivals",
+            "lifetimes",
+            "positions",
+            "class_stays",
+            "class_positions",
+            "class_shares",
+        )
+    ),
+)
+
+
+def check_report_outputs(out_dir: str | os.PathLike, force: bool) -> None:
+    """Refuse a report folder that holds any of :func:`write_report`'s files, unless
+    ``force``: before anything is computed or written (no half-replaced report).
+
+    Parameters
+    ----------
+    out_dir : str or PathLike
+        The report's folder (need not exist).
+    force : bool
+        Overwrite: nothing is refused.
+
+    Raises
+    ------
+    OutputExistsError
+        Naming the first such file.
+    """
+    if force:
+        return
+    out = Path(out_dir)
+    for name in _REPORT_FILES:
+        check_writable(out / name, force)
+
+
 def write_report(
     idata: az.InferenceData,
     out_dir: str | Path,
@@ -801,6 +855,7 @@ def write_report(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     check_report_size(idata, n_replicates, source)
+    check_report_outputs(out_dir, force)
     out = Path(out_dir)
     written: dict[str, Path] = {}
     if summary is None:

@@ -516,13 +516,37 @@ def traffic_checks(
 _GRID = {
     "left": 0.003,
     "right": 0.997,
-    "bottom": 0.044,
+    "bottom": 0.078,
     "top": 0.925,
     "wspace": 0.045,
-    "hspace": 0.2,
+    "hspace": 0.32,
 }
 #: Pixels kept between two panels' tick labels, and between a label and the page's edge.
 _LABEL_GAP = 4.0
+#: Each statistic's x axis: what is counted, in which unit (the panel titles are the
+#: table's row names, kept short).
+_XLABELS = {
+    "N(t) var/mean": "variance / mean of N(t) over the window",
+    "N(t) peak": "most artefacts present at once",
+    "zero gaps": "share of arrival gaps of 0 s (same frame)",
+    "stay cv": "sd / mean of the stays seen whole",
+    "entry to boundary (m)": "mean distance of entries to a wall (m)",
+    "arrivals var/mean (1 s)": "variance / mean of arrivals per 1 s",
+    "arrivals var/mean (10 s)": "variance / mean of arrivals per 10 s",
+    "arrivals var/mean (60 s)": "variance / mean of arrivals per 60 s",
+    "longest N(t) = 0 (s)": "longest time with no one present (s)",
+    "arrivals autocorr (30 s)": "corr. of arrivals per 10 s, 30 s apart",
+}
+#: What a panel says when the log and every replicate have one value (nothing to compare),
+#: where that value has a plain reading; others say the value.
+_ALL_EQUAL = {
+    ("longest N(t) = 0 (s)", 0.0): "never empty: someone is present\nthroughout the log and "
+    "every\nreplicated window (nothing to compare)",
+    ("zero gaps", 0.0): "no two arrivals in one frame\nin the log or any replicate\n"
+    "(nothing to compare)",
+}
+#: The y axis of the first panel of each row (the panels' bars count replicated windows).
+_YLABEL = "replicated windows"
 
 
 def _overhangs(fig: Figure, ax: Axes, renderer: RendererBase) -> tuple[float, float]:
@@ -553,6 +577,25 @@ def _overhangs(fig: Figure, ax: Axes, renderer: RendererBase) -> tuple[float, fl
     return left, right
 
 
+def _ylabel_room(ax: Axes, renderer: RendererBase) -> float:
+    """Pixels that ``ax``'s y label (the panels have no y ticks) takes left of the panel:
+    its rotated text's height and its pad; 0 without a label."""
+    from matplotlib.font_manager import FontProperties  # lazy: as in _overhangs
+
+    label = ax.yaxis.label
+    if not label.get_text():
+        return 0.0
+    prop = FontProperties(size=label.get_fontsize())
+    height = renderer.get_text_width_height_descent(label.get_text(), prop, ismath=False)[1]
+    return height + renderer.points_to_pixels(ax.yaxis.labelpad)
+
+
+def _say(ax: Axes, text: str) -> None:
+    """Write ``text`` in the middle of a panel that has nothing to draw (and no x ticks)."""
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.35")
+    ax.set_xticks([])
+
+
 def _widen_for_labels(fig: Figure, axes: np.ndarray) -> None:
     """Widen the sides and the gaps of ``fig``'s grid of ``axes`` (rows x columns) where
     x tick labels reach past their panels, so that no two panels' labels meet and none
@@ -567,7 +610,8 @@ def _widen_for_labels(fig: Figure, axes: np.ndarray) -> None:
             if axes[r, c].get_visible():
                 hang[r, c] = _overhangs(fig, axes[r, c], renderer)
     width = fig.bbox.width
-    left = max(_GRID["left"], (hang[:, 0, 0].max() + _LABEL_GAP) / width)
+    ylabel = max((_ylabel_room(ax, renderer) for ax in axes[:, 0] if ax.get_visible()), default=0.0)
+    left = max(_GRID["left"], (max(hang[:, 0, 0].max(), ylabel) + _LABEL_GAP) / width)
     right = min(_GRID["right"], 1.0 - (hang[:, -1, 1].max() + _LABEL_GAP) / width)
     plain = (
         _GRID["wspace"] * (_GRID["right"] - _GRID["left"]) / (cols + _GRID["wspace"] * (cols - 1))
@@ -620,8 +664,9 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Fig
     colours = {"paper": "tab:grey", "chosen": "tab:blue"}
     n = len(TRAFFIC_STATISTICS)
     cols = (n + 1) // 2
-    # a fixed grid: the panels carry no y ticks and their titles and x tick labels have
-    # one height, so only the x tick labels' widths vary (_widen_for_labels); constrained
+    # a fixed grid: the panels carry no y ticks and their titles, x tick labels and x
+    # labels have one height, so only the x tick labels' widths (and the first column's y
+    # labels) vary (_widen_for_labels); constrained
     # layout's solver cost a repeated fit 0.2-0.4 s of CPU for the same picture
     fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 6.4), gridspec_kw=_GRID)
     for ax in axes.ravel()[n:]:
@@ -631,21 +676,18 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Fig
         values = [r[:, j][np.isfinite(r[:, j])] for r in reps.values()]
         allv = np.concatenate([v for v in values if v.size] + [np.array([o])])
         allv = allv[np.isfinite(allv)]
+        ax.set_title(stat, fontsize=10)
+        ax.set_xlabel(_XLABELS.get(stat, stat), fontsize=8, labelpad=2)
+        ax.set_yticks([])  # bar heights are counts of replicates: the label says so
         if allv.size == 0:
-            ax.text(
-                0.5,
-                0.5,
-                "not defined\nfor this log",
-                ha="center",
-                va="center",
-                transform=ax.transAxes,
-                color="0.4",
-            )
-            ax.set_title(stat, fontsize=10)
-            ax.yaxis.set_visible(False)
+            _say(ax, "not defined\nfor this log")
             continue
         lo, hi = float(allv.min()), float(allv.max())
-        pad = 0.05 * (hi - lo) if hi > lo else 0.5
+        if lo == hi:  # the log and every replicate agree: a lone bar would say nothing
+            value = f"{lo:g}"
+            _say(ax, _ALL_EQUAL.get((stat, lo), f"the log and every replicate:\n{value}"))
+            continue
+        pad = 0.05 * (hi - lo)
         bins = np.linspace(lo - pad, hi + pad, 30)
         for model, v in zip(reps, values, strict=True):
             if v.size:  # one filled outline per model, not a rectangle per bin (the same
@@ -666,8 +708,8 @@ def plot_traffic_checks(table: pd.DataFrame, reps: dict[str, np.ndarray]) -> Fig
                 fontsize=8,
                 color="tab:red",
             )
-        ax.set_title(stat, fontsize=10)
-        ax.yaxis.set_visible(False)  # no y ticks: the axis is not drawn at all
+        if j % cols == 0:
+            ax.set_ylabel(_YLABEL, fontsize=8, labelpad=2)
     # one row in the title band, left of the title: a fixed place (no search for the
     # emptiest corner of a panel at every draw), clear of every panel's data
     entries: dict[str, Artist] = {}  # label -> handle, in the panels' order

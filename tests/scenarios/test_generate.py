@@ -167,7 +167,7 @@ def test_refuses_overwrite_and_replaces_the_folder_as_a_whole(tmp_path):
     write_scenes(df, out, {})
     (out / "perceived.parquet").write_text("from an earlier run")
     before = sorted(p.name for p in out.iterdir())
-    with pytest.raises(OutputExistsError, match=r"sc: already exists; pass --force"):
+    with pytest.raises(OutputExistsError, match=r"sc: already exists; pass force=True"):
         write_scenes(df, out, {})
     assert sorted(p.name for p in out.iterdir()) == before  # nothing touched
     write_scenes(generate_scenarios(2, params(), 5, 100.0, area=AREA), out, {}, force=True)
