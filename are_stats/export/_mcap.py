@@ -308,7 +308,12 @@ def _artefact_frames(trace: MissionTrace, rate: float) -> Iterator[tuple[float, 
     poses = np.asarray(trace.poses, float).reshape(-1, 4)
     t_end = max(float(t_up[-1]), float(poses[:, 0].max()) if poses.size else 0.0)
     ticks = np.arange(int(np.floor(t_end * rate + 1e-9)) + 1) / rate
-    near = np.abs(ticks[:, None] - t_up[None, :]).min(axis=1) < 1e-6
+    i = np.searchsorted(t_up, ticks)  # the updates are in time order
+    gap = np.minimum(
+        np.abs(ticks - t_up[np.maximum(i - 1, 0)]),
+        np.abs(t_up[np.minimum(i, t_up.size - 1)] - ticks),
+    )
+    near = gap < 1e-6
     ticks = ticks[~near & (ticks >= t_up[0])]
     times = np.concatenate([t_up, ticks])
     is_update = np.r_[np.ones(t_up.size, bool), np.zeros(ticks.size, bool)]
