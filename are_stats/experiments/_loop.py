@@ -90,12 +90,19 @@ class MissionTrace(NamedTuple):
         ``yaws`` (n,), ``labels`` (list), ``perceived`` (n,) bool and ``grid`` (the planner's
         augmented :class:`~are_stats.environment.OccupancyGrid`).
     goals : (g, 2) float
+    scene : Scene or None
+        The mission's artefacts over the whole mission: the scene it ran on with every
+        avoidance's track in it (:meth:`~are_stats.Scene.with_track` keeps the epochs
+        before the decision, so ``scene.at(t)`` is where the artefacts were at every ``t``
+        of the mission); the MCAP export samples the artefacts' poses from it between
+        scene updates. None in a trace built without it.
     """
 
     poses: np.ndarray
     plans: list
     scenes: list
     goals: np.ndarray
+    scene: Scene | None = None
 
 
 class MissionResult(NamedTuple):
@@ -1413,5 +1420,9 @@ def run_mission(
         "nu_max": float(tl["nu"].max()),
         "distance": float(s.distance),
     }
-    trace = MissionTrace(np.array(poses_log), plans_log, scenes_log, G.copy()) if record else None
+    trace = (
+        MissionTrace(np.array(poses_log), plans_log, scenes_log, G.copy(), s.scene)
+        if record
+        else None
+    )
     return MissionResult(summary, rp, gl, tl, trace)
