@@ -338,7 +338,9 @@ def augment_bag(
             f"input topics other than the ones augment writes ({new})",
             Described(f"{', '.join(clash)} in the bag; leave them out with --topics"),
         )
-    if "/map" in passed_topics:  # a Nav2 bag's map passes through: it must be --map's
+    # a Nav2 bag's map passes through (an empty channel gives no map): it must be --map's
+    bag_map = any(c.topic == "/map" and c.count > 0 for c in passthrough.channels)
+    if "/map" in passed_topics:
         _check_bag_map(bag, passthrough.channels, grid, map_path)
     fixed = traj.frame
     xy = traj.poses[:, :2, 3]
@@ -416,7 +418,7 @@ def augment_bag(
         start_ns=start_ns + (off if traj.clock == "log" else 0),
         log_offset_ns=-off,
     )
-    if "/map" not in passed_topics:  # none in the bag, or --topics leaves it out
+    if not bag_map:  # none in the bag, or --topics leaves it out
         R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
     if "/tf" not in passthrough.topics:  # no robot tree in the input: publish the pose
         base, camf = base_frame, traj.camera_frame or ROS_FRAMES["F_C"]

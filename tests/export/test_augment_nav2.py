@@ -59,13 +59,16 @@ def _edited(grid: OccupancyGrid) -> OccupancyGrid:
     return OccupancyGrid(data, grid.resolution, grid.origin)
 
 
-def write_nav2_bag(path: Path, kind: str, maps: list[OccupancyGrid] | None = None) -> Path:
+def write_nav2_bag(
+    path: Path, kind: str, maps: list[OccupancyGrid] | None = None, empty_map: bool = False
+) -> Path:
     """A Nav2-like ROS 2 bag of the fixtures' 12 s drive (``kind`` ``"ros2"``: sqlite3,
     Humble's default; ``"mcap"``: Jazzy's, the ``.mcap`` returned): ``/map`` (one message
     per grid of ``maps``, a second apart from t = 0; none when ``maps`` is None),
     ``/tf_static`` ``base_footprint -> base_link -> base_scan``, ``/tf`` ``odom ->
     base_footprint`` at 10 Hz and ``map -> odom`` at 1 Hz, ``/odom`` at 10 Hz and ``/scan``
-    at 5 Hz; header stamps and recording times ``START + t``."""
+    at 5 Hz; header stamps and recording times ``START + t``. ``empty_map``: a ``/map``
+    channel without messages (a recorder subscribed, no map was published)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -156,6 +159,8 @@ def write_nav2_bag(path: Path, kind: str, maps: list[OccupancyGrid] | None = Non
     plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as w:
         conns = {}
+        if empty_map:
+            w.add_connection("/map", "nav_msgs/msg/OccupancyGrid", typestore=ts)
         for t, topic, typ, msg in msgs:
             if topic not in conns:
                 conns[topic] = w.add_connection(topic, typ, typestore=ts)
@@ -241,6 +246,18 @@ def test_topics_that_leave_out_the_map_still_give_the_output_a_map(fit_and_camer
     got = _channels(out)
     assert [k for k in got if k.startswith("/map")] == ["/map"] and len(got["/map"]) == 1
     assert got["/odom"] == _channels(bag)["/odom"]
+    np.testing.assert_array_equal(read_view(out).grid.data, _grid().data)
+
+
+def test_an_empty_bag_map_still_gives_the_output_a_map(fit_and_camera, tmp_path):
+    """A ``/map`` channel without messages passes through (empty) and the output's ``/map``
+    message is ``--map``'s."""
+    bag = write_nav2_bag(tmp_path / "nav2", "ros2", empty_map=True)
+    out = tmp_path / "o.mcap"
+    res = _augment(fit_and_camera, bag, out)
+    assert res.exit_code == 0, res.output
+    got = _channels(out)
+    assert sum(len(v) for k, v in got.items() if k.startswith("/map")) == 1
     np.testing.assert_array_equal(read_view(out).grid.data, _grid().data)
 
 
