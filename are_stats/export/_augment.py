@@ -49,9 +49,14 @@ from are_stats.logs import (
     CLOCKS,
     STAMP_GAP,
     BagTrajectory,
+    PassChannel,
     TrajectoryOptions,
+    bag_messages,
     bag_passthrough,
+    bag_read_errors,
+    check_bag_path,
     interpolate_poses,
+    vision_msgs_typestore,
 )
 from are_stats.scenarios import AssemblyOptions, Scene, scenes_from_fit
 
@@ -79,6 +84,18 @@ AUGMENT_TOPICS = {
     "/tf": _TF,
     "/tf_static": _TF,
 }
+
+#: Topics of :data:`AUGMENT_TOPICS` that an input may hold: ``/tf`` and ``/tf_static`` get
+#: channels of their own beside the input's, ``/map`` is written only when the input passes
+#: none through (a Nav2 bag's ``/map`` passes through, checked against ``--map``).
+_BESIDE_THE_INPUTS = frozenset({"/tf", "/tf_static", "/map"})
+
+#: How far the input's ``/map`` may be from ``--map`` and still be the same map: the
+#: resolution relatively (``nav_msgs`` spells it as a float32), the origin as a share of a
+#: cell, and its yaw (rad).
+MAP_RESOLUTION_RTOL = 1e-6
+MAP_ORIGIN_CELLS = 0.01
+MAP_YAW_TOL = 1e-4
 
 
 class AugmentResult(NamedTuple):
@@ -193,7 +210,9 @@ def augment_bag(
     same schemas, bytes, counts and log times; a ROS 1 bag converted to
     ROS 2 CDR) plus only what is new: ``map -> artefact_<id>`` on ``/tf``, the markers of
     ``/artefacts`` (living until the next camera frame and a bit), ``/augmented_map``,
-    ``/perceived`` and ``/map`` when the input has none. The robot's tree is the input's;
+    ``/perceived`` and ``/map`` (``map_path``'s) when none passes through (the input has
+    none, or ``topics`` leaves it out); an input ``/map`` passes through, checked against
+    ``map_path`` (same width, height, resolution and origin). The robot's tree is the input's;
     only a bag without ``/tf`` (a pose topic) gets ``map -> base_link`` and the static
     camera mount published, so that the output can still be viewed; when the bag's
     ``/tf_static`` gives the base a parent (``base_footprint -> base_link``),
@@ -276,7 +295,10 @@ def augment_bag(
         :func:`~are_stats.logs.read_trajectory`), a trajectory outside the map, a fit
         without area, no artefact alive in any camera frame (with why and what to try),
         an existing ``out`` without ``force`` (``OutputExistsError``), a bag without
-        ``/tf`` whose ``/tf_static`` chain above the base holds the map frame.
+        ``/tf`` whose ``/tf_static`` chain above the base holds the map frame, an input
+        ``/map`` passed through that is not ``map_path``'s map (its type, or its last
+        message's width, height, resolution or origin: both named). Times are given as
+        seconds into the bag, with the stamp read in brackets.
     are_stats.inputs.LimitError
         Camera frames (``period``), tracing or messages past the memory or work limits,
         checked before anything of that size is allocated.
@@ -306,16 +328,20 @@ def augment_bag(
     opts = TrajectoryOptions(pose_topic, base_frame, map_frame, camera_info_topic, clock)
     traj = opts._replace(camera_frame=camera_frame).read(bag)
     passthrough = bag_passthrough(bag, None if topics is None else list(topics))
-    clash = sorted(
-        {c.topic for c in passthrough.channels} & (set(AUGMENT_TOPICS) - {"/tf", "/tf_static"})
-    )
+    passed_topics = {c.topic for c in passthrough.channels}
+    clash = sorted(passed_topics & (set(AUGMENT_TOPICS) - _BESIDE_THE_INPUTS))
     if clash:
+        new = ", ".join(t for t in AUGMENT_TOPICS if t not in _BESIDE_THE_INPUTS)
         raise InputError(
             bag,
             f"topic {clash[0]}",
-            f"input topics other than the ones augment writes ({', '.join(AUGMENT_TOPICS)})",
+            f"input topics other than the ones augment writes ({new})",
             Described(f"{', '.join(clash)} in the bag; leave them out with --topics"),
         )
+    # a Nav2 bag's map passes through (an empty channel gives no map): it must be --map's
+    bag_map = any(c.topic == "/map" and c.count > 0 for c in passthrough.channels)
+    if "/map" in passed_topics:
+        _check_bag_map(bag, passthrough.channels, grid, map_path)
     fixed = traj.frame
     xy = traj.poses[:, :2, 3]
     outside = ~grid.in_bounds(grid.world_to_cell(xy))
@@ -323,7 +349,7 @@ def augment_bag(
         i = int(np.argmax(outside))
         raise InputError(
             bag,
-            f"{traj.source}, pose at {traj.t[i]:.3f} s",
+            f"{traj.source}, pose at {_into_bag(bag, traj, _pose_ns(traj, i))}",
             f"robot poses inside the map {map_path} (corners "
             f"{np.round(grid.corners_world[[0, 2]], 3).tolist()})",
             Described(
@@ -351,8 +377,9 @@ def augment_bag(
         raise InputError(
             bag,
             camera_info_topic or "--period",
-            f"camera frames within the trajectory's times {traj.t[0]:.3f} to "
-            f"{traj.t[-1]:.3f} s ({traj.clock_note})",
+            f"camera frames within the trajectory's times "
+            f"{_into_bag(bag, traj, _pose_ns(traj, 0), _pose_ns(traj, -1))} "
+            f"({traj.clock_note})",
             Described(f"none of {frames.size} (try --clock header or --clock log)"),
         )
     horizon = max(traj.end - start, float(times[-1]), 1e-3)
@@ -391,7 +418,7 @@ def augment_bag(
         start_ns=start_ns + (off if traj.clock == "log" else 0),
         log_offset_ns=-off,
     )
-    if "/map" not in passthrough.topics:
+    if not bag_map:  # none in the bag, or --topics leaves it out
         R.add(0.0, "/map", AUGMENT_TOPICS["/map"], R.occupancy_grid(0.0, grid), latched=True)
     if "/tf" not in passthrough.topics:  # no robot tree in the input: publish the pose
         base, camf = base_frame, traj.camera_frame or ROS_FRAMES["F_C"]
@@ -494,6 +521,116 @@ def augment_bag(
     )
 
 
+def _pose_ns(traj: BagTrajectory, i: int) -> int:
+    """The exact stamp (ns, on the trajectory's clock) of pose ``i``."""
+    if traj.t_ns is not None:
+        return int(traj.t_ns[i])
+    return int(round(float(traj.t[i]) * 1e9))
+
+
+def _bag_start_ns(bag: Source) -> int | None:
+    """The bag's first recording time (ns), as ``ros2 bag info`` and a player count from;
+    None when the bag cannot tell."""
+    # lazy: rosbags' reader adds 0.60 s CPU to `import are_stats.export` (an error path)
+    from rosbags.highlevel import AnyReader
+
+    try:
+        with AnyReader([check_bag_path(bag)]) as reader:
+            return int(reader.start_time)
+    except (*bag_read_errors(), ValueError, OSError):  # gone since, or not a bag's name
+        return None
+
+
+def _into_bag(bag: Source, traj: BagTrajectory, *stamps_ns: int) -> str:
+    """``"24.000 s into the bag (header stamp 1764300024.000 s)"``: stamps on the
+    trajectory's clock as seconds after the bag's first recording time (moved onto the
+    recording clock by :attr:`~are_stats.logs.BagTrajectory.offset_ns` for header stamps),
+    then as read. One stamp, or a range ``"a to b s ..."``."""
+    header = traj.clock == "header"
+    shift = traj.offset_ns if header else 0
+    start = _bag_start_ns(bag)
+    raw = " to ".join(f"{n * 1e-9:.3f}" for n in stamps_ns)
+    what = ("header stamp" if header else "recording time") + ("s" if len(stamps_ns) > 1 else "")
+    if start is None:  # an unreadable start: from the trajectory's first stamp instead
+        start, into = traj.start_ns - shift, "after the trajectory's start"
+    else:
+        into = "into the bag"
+    rel = " to ".join(f"{(n - shift - start) * 1e-9:.3f}" for n in stamps_ns)
+    return f"{rel} s {into} ({what} {raw} s)"
+
+
+def _grid_text(width: int, height: int, resolution: float, origin: Sequence[float]) -> str:
+    x, y, yaw = (float(v) for v in origin)
+    return (
+        f"{width} x {height} cells of {resolution:.6g} m, origin ({x:.6g}, {y:.6g}, yaw {yaw:.6g})"
+    )
+
+
+def _check_bag_map(
+    bag: Source, channels: Sequence[PassChannel], grid: OccupancyGrid, map_path: Source
+) -> None:
+    """Refuse an input ``/map`` that passes through but cannot be ``--map`` (``grid``):
+    a type other than ``nav_msgs/msg/OccupancyGrid``, or a last message (a SLAM run's final
+    map, the one ``map_saver`` writes) of another width, height, resolution or origin. Its
+    cells are not compared: an edited map (keep-out areas) or a SLAM update is the same map.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Naming the bag's ``/map`` and ``--map`` with both geometries, and what to do.
+    """
+    # lazy: rosbags' reader adds 0.60 s CPU to `import are_stats.export`
+    from rosbags.highlevel import AnyReader
+
+    want = AUGMENT_TOPICS["/map"]
+    types = sorted({c.msgtype for c in channels if c.topic == "/map"})
+    if types != [want]:
+        raise InputError(
+            bag,
+            "topic /map",
+            f"a {want} (passed through as the output's /map, the map of --map {map_path})",
+            Described(
+                f"{', '.join(types)}; leave /map out with --topics and the output's /map is --map's"
+            ),
+        )
+    p = check_bag_path(bag)
+    last, count = None, 0
+    with AnyReader(
+        [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
+    ) as reader:
+        conns = [c for c in reader.connections if c.topic == "/map"]
+        for _, _, msg in bag_messages(reader, conns, p):
+            last, count = msg, count + 1
+    if last is None:  # a channel without messages: nothing passes through to disagree
+        return
+    info, o = last.info, last.info.origin
+    q = o.orientation
+    yaw = float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
+    theirs = (int(info.width), int(info.height), float(info.resolution))
+    origin = (float(o.position.x), float(o.position.y), yaw)
+    res = float(grid.resolution)
+    turn = float(np.angle(np.exp(1j * (yaw - float(grid.origin[2])))))
+    same = (
+        theirs[:2] == (grid.width, grid.height)
+        and abs(theirs[2] - res) <= MAP_RESOLUTION_RTOL * res
+        and bool(np.all(np.abs(np.subtract(origin[:2], grid.origin[:2])) <= MAP_ORIGIN_CELLS * res))
+        and abs(turn) <= MAP_YAW_TOL
+    )
+    if not same:
+        which = "its one message" if count == 1 else f"the last of its {count} messages"
+        raise InputError(
+            bag,
+            f"topic /map ({which})",
+            f"the map of --map {map_path} "
+            f"({_grid_text(grid.width, grid.height, res, grid.origin)}): the input's /map "
+            "passes through beside the /augmented_map drawn on --map",
+            Described(
+                f"{_grid_text(*theirs, origin)}; pass the bag's map as --map, or leave /map "
+                "out with --topics (the output's /map is then --map's)"
+            ),
+        )
+
+
 def _robot_child(
     traj: BagTrajectory, base_frame: str, static_out: bool, bag: Source
 ) -> tuple[str, np.ndarray]:
@@ -590,7 +727,8 @@ def _check_alive(
             Described(
                 f"none: the {n} artefacts live between {arrive.min():.3f} and "
                 f"{leave.max():.3f} s of the scenario, the {times.size} camera frames lie at "
-                f"{times[0]:.3f} to {times[-1]:.3f} s and meet none of them; try --clock "
-                "header or --clock log, another --seed, or more camera frames"
+                f"{times[0]:.3f} to {times[-1]:.3f} s and meet none of them (scenario time 0 "
+                f"is the trajectory's start, {_into_bag(bag, traj, traj.start_ns)}); try "
+                "--clock header or --clock log, another --seed, or more camera frames"
             ),
         )
