@@ -557,6 +557,35 @@ stage does not need the traffic fit and could run beside them), and the realism 
 displacement errors and motion checks, which draw with their own keys, in threads (both in
 ``_field_fit``); the catalogue walk's one-path string pulling (``_walk._legs``);
 ``group_tracks``' loop over members (1.3 s profiled).
+
+Where a user's 80-person tracks fit on the shipped courtyard goes (issue 29's qa tour:
+324 s of CPU against about 76 s for the 302-person room; 2026-11-28, wt-int 4c33474, the
+tour's ``people_tracks.csv``, two classes, 2.5 Hz, ``are-stats fit --method em`` with
+figures, in-process cProfile by process time, a fresh cache, load 14-20): 372.6 s of
+profiled CPU, maxrss 1.37 GB. Not the number of people: the behaviour's MDP grid, 60 x 80
+cells on the courtyard (0.5 m) against 20 x 40 on the room, each soft solve iterating 186-318
+epochs to its tolerance (one gradient evaluation about 1 s of CPU on 8 goals), run per
+class and twice (the fit, then the report's held-out fit on 70% of the ids). Per part:
+``fit_behaviour`` 153 s in 2 calls, 4 maximum likelihoods (the child's: L-BFGS-B 7
+evaluations, then the Hessian's 8 gradient runs, about half), the fit's 53.4 s and the
+report's held-out fit 99.6 s (plus 7.7 s scoring its moves): its person class's 16 tracks
+end on more goal cells, padded to 16 goals instead of 8, twice the soft-solve work per
+evaluation; ``fit_behaviour`` alone out of the profiler 41.3 s cold, 34.2 s on a warm
+cache (child 16.7 s, person 16.6 s); the fit's motion tables 151 s
+(displacement errors 66 s, motion checks' replicates 56 s, realism 28.6 s; string pulling's
+``_crossed_block`` 23.3 s of own time); the traffic models 22 s. XLA: 33 compilations,
+39.5 s of main-thread backend compile; ``_gradient_value_epochs`` four times (one per
+class and fit: goals 8 or 16, tracks 8 or 16, steps 128 or 256: the child class, slower,
+has longer paths and lands in the 256-step bucket), the catalogue walk's ``GridMDP`` solve
+(``jit(body)``) four times (legs 8, 64, 256 at 64 or 128 epochs), ``_window`` six,
+``_per_track_jit`` seven. No O(n^2) loop or runaway epoch count was found: the cost is
+grid cells x epochs x classes x 2 fits. Not changed (no output-preserving fix found in the
+time): a common step bucket across classes (one gradient program, about 3.5 s of CPU each
+spared; the person class padded from 128 to 256 steps, warm cache, gave beta, slip, their
+standard errors and the log-likelihood bit for bit, 18.0 s of CPU either way; it needs the
+classes' paths before the first class is fitted, a change of ``fit_behaviour``'s class
+loop), the held-out fit reusing the main fit's programs, and the memory (not broken
+down). Issue 29's 60 s is far for a map of this size.
 """
 
 from __future__ import annotations
