@@ -44,7 +44,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any  # Any: a program's pytree of results; a JSON value
+from typing import TYPE_CHECKING, Any  # Any: a program's pytree of results
 
 # JAX is imported by the functions that trace or compile, not with the module (the CLI
 # imports it for prune_cache; each import says the cost, measured 2026-11-28).
@@ -267,7 +267,7 @@ def _record_path(key: object, args: tuple) -> Path | None:
     return folder / _file_name(key_text, args, None, RECORD_SUFFIX)
 
 
-def load_record(key: object, args: tuple) -> Any | None:
+def load_record(key: object, args: tuple) -> object:
     """The JSON value kept by :func:`store_record` for ``key`` and ``args``, or None.
 
     None when the cache is off, the key has no :func:`stable_repr`, or the file is

@@ -58,7 +58,7 @@ warm, 6 s with compiling, on 2 loaded cores (``bench_social``).
 from __future__ import annotations
 
 from collections.abc import Hashable, Mapping
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 
 import jax
 import jax.numpy as jnp
@@ -1191,13 +1191,47 @@ def _neighbour_pairs(
     return pi, pj
 
 
+class _Smoothing(TypedDict):
+    """What :func:`_smoothed_acceleration` needs of the smoother: each row's track number
+    ``who`` and index in its track ``at`` (n,), and the smoother's position noise sd (m)
+    and white jerk (m^2/s^5)."""
+
+    at: np.ndarray
+    who: np.ndarray
+    noise: float
+    jerk: float
+
+
+class _Design(TypedDict):
+    """The least squares of :func:`fit_social_force` before ``B`` is chosen
+    (:func:`_acceleration_design`, :func:`_smoothed_design`; the keys are said there): the
+    arrays are NumPy's, ``n``, ``n_people`` and ``m`` counts, ``dt`` (s) and ``v_var``
+    floats; ``smooth`` only from the smoothed state."""
+
+    n: int
+    inner: np.ndarray
+    pi: np.ndarray
+    pj: np.ndarray
+    dist: np.ndarray
+    n_hat: np.ndarray
+    y: np.ndarray
+    person: np.ndarray
+    e_col: np.ndarray
+    minus_v: np.ndarray
+    n_people: int
+    m: int
+    dt: float
+    v_var: float
+    smooth: NotRequired[_Smoothing]
+
+
 def _acceleration_design(
     tracks: pd.DataFrame,
     base: SocialForce,
     min_speed: float,
     groups: Mapping[Hashable, Hashable] | None,
     noise: float,
-) -> dict[str, Any]:
+) -> _Design:
     """The least squares of :func:`fit_social_force` before ``B`` is chosen: the observed
     accelerations ``y`` (2m,) (x, y interleaved), the columns of ``1/tau`` (``minus_v``) and
     of the ``v0_i / tau`` (``e_col`` in row ``person``), the samples used (``inner``), the
@@ -1265,7 +1299,7 @@ def _acceleration_design(
     }
 
 
-def _repulsion_column(d: Mapping[str, Any], radius: float, b_range: float) -> np.ndarray:
+def _repulsion_column(d: _Design, radius: float, b_range: float) -> np.ndarray:
     """(2m,) the column of ``A`` in :func:`_acceleration_design`'s least squares for the
     range ``b_range``: each used sample's summed unit repulsions, averaged over the nodes
     (or, for :func:`_smoothed_design`, through the smoother)."""
@@ -1304,7 +1338,7 @@ PASS_MIN_PAIRS = 20
 PASS_BAND = 1.0 / 3.0
 
 
-def _smoothed_acceleration(d: Mapping[str, Any], seq: np.ndarray) -> np.ndarray:
+def _smoothed_acceleration(d: _Design, seq: np.ndarray) -> np.ndarray:
     """(m, c) the smoother's acceleration at the used samples of the path whose
     acceleration is ``seq`` (n, c), one value per sample (constant over the step after it),
     integrated twice along each track from rest at its first sample: the smoother's own
@@ -1350,7 +1384,7 @@ def _smoothed_design(
     groups: Mapping[Hashable, Hashable] | None,
     noise: float,
     jerk: float | None = None,
-) -> dict[str, Any]:
+) -> _Design:
     """:func:`_acceleration_design`'s least squares from a smoothed state (same keys, one
     node, and ``smooth``, what :func:`_smoothed_acceleration` needs).
 

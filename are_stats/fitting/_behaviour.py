@@ -58,13 +58,14 @@ from __future__ import annotations
 import functools
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from functools import partial
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, TypedDict
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 from jax.sharding import Mesh
 from jax.sharding import PartitionSpec as P
@@ -87,6 +88,10 @@ from are_stats.behaviour import (
 )
 from are_stats.environment import coarse_free
 from are_stats.inputs import check_memory
+
+if TYPE_CHECKING:
+    from are_stats.behaviour import MoveObservations
+    from are_stats.inputs import Source
 
 __all__ = [
     "BEHAVIOUR_FEATURES",
@@ -286,8 +291,8 @@ def _heading_variation(
     speeds: np.ndarray,
     noise: float,
     crowded: list[np.ndarray] | None = None,
-    route_map: tuple[np.ndarray, Any, float] | None = None,
-    seed: Any = 0,
+    route_map: tuple[np.ndarray, npt.ArrayLike, float] | None = None,
+    seed: int | Sequence[int] = 0,
 ) -> dict[str, float]:
     """The within-person variation of the walking heading: a stationary Ornstein-Uhlenbeck
     process of the heading's deviation from the route's direction (sd and correlation
@@ -383,7 +388,7 @@ IDENTIFIED = (0.5, 2.0)
 
 
 def _route_corners(
-    points: list[np.ndarray], route_map: tuple[np.ndarray, Any, float] | None
+    points: list[np.ndarray], route_map: tuple[np.ndarray, npt.ArrayLike, float] | None
 ) -> list[np.ndarray]:
     """Per track ``(n_k, 2)`` positions (m), the indices of its route's corners, first and
     last sample included, sorted: the track string-pulled over the map
@@ -480,8 +485,8 @@ def _within_variation(
     speeds: np.ndarray,
     noise: float,
     crowded: list[np.ndarray] | None = None,
-    route_map: tuple[np.ndarray, Any, float] | None = None,
-    seed: Any = 0,
+    route_map: tuple[np.ndarray, npt.ArrayLike, float] | None = None,
+    seed: int | Sequence[int] = 0,
     n_boot: int = VARIATION_BOOTSTRAP,
 ) -> dict[str, dict[str, float]]:
     """Both within-person variations in one pass over the tracks: ``{"speed": ..,
@@ -701,9 +706,9 @@ def _line_steps(r0: np.ndarray, c0: np.ndarray, r1: np.ndarray, c1: np.ndarray) 
 
 def discretise_tracks(
     tracks: pd.DataFrame,
-    free: Any,
+    free: npt.ArrayLike,
     cell: float,
-    origin: Any,
+    origin: npt.ArrayLike,
     dt: float,
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """Continuous tracks -> cell paths with one move (or none) per epoch.
@@ -917,7 +922,9 @@ def _bucket(n: int, multiple: int = 1) -> int:
     return -(-size // multiple) * multiple
 
 
-def _loglik(theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int = 1) -> jax.Array:
+def _loglik(
+    theta: jax.Array, data: _LikelihoodData, tol: float | jax.Array, n_devices: int = 1
+) -> jax.Array:
     """Log-likelihood at ``theta = (log beta, logit slip, w_1, .., w_F)`` of the moves in
     ``data`` (``F`` features ``data.phi``; without them ``theta`` has two entries and the
     cell reward is 0); the soft solve stops at ``tol`` (a float or a traced scalar; a
@@ -927,14 +934,16 @@ def _loglik(theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int = 
 
 
 def _loglik_epochs(
-    theta: jax.Array, data: _LikelihoodData, tol: Any, n_devices: int = 1
+    theta: jax.Array, data: _LikelihoodData, tol: float | jax.Array, n_devices: int = 1
 ) -> tuple[jax.Array, jax.Array]:
     """:func:`_loglik` and the epochs its soft solve iterated (``()`` int; the solve with
     ``n_epochs = epochs + 1`` and ``tol < 0`` is the same, epoch for epoch)."""
     beta = jnp.exp(theta[0])
     slip = jax.nn.sigmoid(theta[1])
     reward = 0.0 if data.phi is None else jnp.tensordot(theta[2:], data.phi, axes=1)
-    opts = dict(n_epochs=data.n_epochs, step_cost=data.step_cost, time_cost=data.time_cost, tol=tol)
+    opts: _SolveOptions = dict(
+        n_epochs=data.n_epochs, step_cost=data.step_cost, time_cost=data.time_cost, tol=tol
+    )
     if n_devices < 2:
         sol = soft_backward_induction(
             data.ok,
@@ -964,6 +973,18 @@ def _loglik_epochs(
     return moves_log_likelihood(policy, data.ok, slip, obs), epochs
 
 
+class _SolveOptions(TypedDict):
+    """The numbers :func:`_loglik_epochs` passes to
+    :func:`~are_stats.behaviour.soft_backward_induction`: ``()`` arrays of
+    :class:`_LikelihoodData` (NumPy's, or traced inside the compiled program) and the
+    stopping tolerance (a float or a traced scalar)."""
+
+    n_epochs: np.ndarray | jax.Array
+    step_cost: np.ndarray | jax.Array
+    time_cost: np.ndarray | jax.Array
+    tol: float | jax.Array
+
+
 def _sharded_policy(
     ok: jax.Array,
     keep: jax.Array,
@@ -972,7 +993,7 @@ def _sharded_policy(
     slip: jax.Array,
     tol_mask: jax.Array | None,
     n_devices: int,
-    opts: dict[str, Any],
+    opts: _SolveOptions,
     reward: jax.Array,
 ) -> tuple[jax.Array, jax.Array]:
     """The soft policy ``(G, 4, 5, H, W)`` with the goals split across ``n_devices`` and the
@@ -1041,17 +1062,17 @@ def _sharded_policy(
 
 def behaviour_log_likelihood(
     paths: list[np.ndarray],
-    free: Any,
-    beta: Any,
-    slip: Any,
+    free: npt.ArrayLike,
+    beta: float | jax.Array,
+    slip: float | jax.Array,
     *,
     n_epochs: int | None = None,
     goal_reward: float = 1.0,
     step_cost: float = 1e-3,
     time_cost: float = 1.0,
-    features: Any = None,
-    weights: Any = None,
-) -> tuple[Any, int]:
+    features: npt.ArrayLike | None = None,
+    weights: npt.ArrayLike | None = None,
+) -> tuple[jax.Array, int]:
     """Log-likelihood of cell paths under the stationary soft policy (differentiable).
 
     Parameters
@@ -1092,7 +1113,7 @@ def behaviour_log_likelihood(
     keep, bonus = _goal_masks(free, obs.goals, goal_reward)
     keep = jnp.asarray(keep)
     dtype = jnp.result_type(beta)
-    reward: Any = 0.0
+    reward: float | jax.Array = 0.0
     if features is not None:
         phi = np.asarray(features, float)
         if phi.ndim != 3 or phi.shape[1:] != free.shape:
@@ -1146,7 +1167,10 @@ def _n_epochs(
 
 
 def _feature_maps(
-    features: Any, free: np.ndarray, free_fine: np.ndarray, factor: int
+    features: str | Sequence[str] | Mapping[str, str | npt.ArrayLike] | None,
+    free: np.ndarray,
+    free_fine: np.ndarray,
+    factor: int,
 ) -> tuple[tuple[str, ...], np.ndarray | None]:
     """Names and ``(F, H, W)`` maps on the MDP grid ``free`` of :func:`fit_behaviour`'s
     ``features`` (``None`` without features). ``factor``: map cells per MDP cell side."""
@@ -1207,10 +1231,10 @@ def _likelihood_data(
     goal_reward: float,
     step_cost: float,
     time_cost: float,
-    dtype: Any,
+    dtype: npt.DTypeLike,
     n_devices: int | None = None,
     features: np.ndarray | None = None,
-) -> tuple[_LikelihoodData, Any, int, int]:
+) -> tuple[_LikelihoodData, MoveObservations, int, int]:
     """The arguments of the fit's log-likelihood (:func:`_loglik`) for ``paths`` on the grid
     ``free``, padded to shape buckets; their :class:`MoveObservations`, the epoch cap ``K``
     and the number of local devices the goals are split across (default: all of them, at
@@ -1283,11 +1307,11 @@ def _likelihood(
     goal_reward: float,
     step_cost: float,
     time_cost: float,
-    dtype: Any,
+    dtype: npt.DTypeLike,
     tol: float,
     n_devices: int | None = None,
     features: np.ndarray | None = None,
-) -> tuple[Any, Any, int]:
+) -> tuple[Callable[[jax.Array], jax.Array], MoveObservations, int]:
     """The fit's log-likelihood ``f(theta)`` of ``paths`` (pure JAX, not jitted), their
     :class:`MoveObservations` and the epoch cap ``K``; with ``features (F, H, W)``, ``theta``
     ends with their ``F`` weights.
@@ -1309,7 +1333,7 @@ def _likelihood(
     return partial(_loglik, data=data, tol=_check_tol(tol), n_devices=n_devices), obs, k
 
 
-def _check_tol(tol: Any) -> float:
+def _check_tol(tol: object) -> float:
     """The soft solve's stopping tolerance of the fit: a positive float (it makes the epoch
     cap data rather than a compiled-in loop length)."""
     try:
@@ -1379,6 +1403,23 @@ def _hessian(theta: jax.Array, data: _LikelihoodData, epochs: int, n_devices: in
     return 0.5 * (hess + hess.T)
 
 
+class _MaximumLikelihood(TypedDict):
+    """:func:`_mle`'s estimates: ``beta``, ``slip`` and their standard errors, the
+    ``(F,)`` feature ``weights`` and theirs, the maximised log-likelihood, the moves and
+    epoch cap ``K`` it is of, and whether the optimiser converged."""
+
+    beta: float
+    beta_se: float
+    slip: float
+    slip_se: float
+    weights: np.ndarray
+    weights_se: np.ndarray
+    loglik: float
+    n_moves: int
+    n_epochs: int
+    converged: bool
+
+
 def _mle(
     paths: list[np.ndarray],
     free: np.ndarray,
@@ -1388,10 +1429,10 @@ def _mle(
     time_cost: float,
     beta0: float,
     slip0: float,
-    dtype: Any,
+    dtype: npt.DTypeLike,
     tol: float,
     features: np.ndarray | None = None,
-) -> dict[str, Any]:
+) -> _MaximumLikelihood:
     """Maximum likelihood of ``(beta, slip[, weights])`` with inverse-Hessian standard
     errors (the weights of ``features (F, H, W)`` start at 0). The value, gradient and
     Hessian (:func:`_hessian`) are one program, :func:`_gradient_value_epochs`, compiled
@@ -1463,7 +1504,7 @@ def _mle(
 
 
 def open_area_grid(
-    tracks: pd.DataFrame, resolution: float = 0.1, margin: float = 1.0, source: Any = "tracks"
+    tracks: pd.DataFrame, resolution: float = 0.1, margin: float = 1.0, source: Source = "tracks"
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """The open area tracks cover, as a map for :func:`fit_behaviour` without one (issue 26).
 
@@ -1512,9 +1553,9 @@ def open_area_grid(
 
 def fit_behaviour(
     tracks: pd.DataFrame,
-    free_mask: Any,
+    free_mask: npt.ArrayLike,
     resolution: float,
-    origin: Any,
+    origin: npt.ArrayLike,
     *,
     cell: float | None = None,
     dt: float | None = None,
@@ -1529,7 +1570,7 @@ def fit_behaviour(
     seed: int = 0,
     dtype: str = "float32",
     tol: float = 1e-3,
-    features: Any = None,
+    features: str | Sequence[str] | Mapping[str, str | npt.ArrayLike] | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> BehaviourFit:
     """Fit speeds, exits, rationality, slip (and reward weights) per class from tracks.

@@ -34,7 +34,7 @@ import math
 import sys
 import warnings
 from collections.abc import Callable, Hashable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any  # Any: fit_behaviour's keyword arguments, passed on
 
 import jax
 import numpy as np

@@ -37,7 +37,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any, NamedTuple, TypedDict, TypeVar, Unpack, cast
+from typing import TYPE_CHECKING, Any, NamedTuple, TypedDict, TypeVar, Unpack, cast
 
 import jax
 import jax.numpy as jnp
@@ -54,6 +54,9 @@ from numpyro.infer.util import constrain_fn, potential_energy
 from are_stats._checks import check_in
 from are_stats._program_cache import TRACE_LOCK, compile_program
 from are_stats.traffic import aot_compile
+
+if TYPE_CHECKING:
+    from numpyro.infer.hmc import HMCState
 
 __all__ = [
     "NutsPrefetch",
@@ -416,7 +419,7 @@ def _chain_fn(
 
     def step(chain_key, start, init, arrays, leaves, first, limit):
         kwargs = _join_kwargs(arrays, treedef, static)
-        made: dict[str, Any] = {}
+        made: _Made = {}
 
         def fresh():  # the start, computed only in the first chunk
             state, made["sample"] = kernels(chain_key, start, init, kwargs)
@@ -441,6 +444,14 @@ def _chain_fn(
         return tuple(jax.tree.leaves(state)), out
 
     return first_state, step
+
+
+class _Made(TypedDict, total=False):
+    """What the first chunk's start (traced inside :func:`_chain_fn`'s ``step``) hands
+    back to the chunk: the sample kernel and the tree of the sampler's state."""
+
+    sample: Callable[[HMCState], HMCState]
+    tree: PyTreeDef
 
 
 class _Plan(NamedTuple):

@@ -24,7 +24,8 @@ the mean of the samples and as the best of them.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -43,6 +44,12 @@ from are_stats.fitting._behaviour import discretise_tracks
 from are_stats.fitting._motion_checks import _policies, _rng, _social, _walk, tracker_noise
 from are_stats.logs import GROUP_DISTANCE
 from are_stats.traffic import key_from_seed
+
+if TYPE_CHECKING:
+    import jax
+
+    from are_stats.behaviour import SocialForce
+    from are_stats.environment import OccupancyGrid
 
 __all__ = ["constant_velocity", "displacement_errors"]
 
@@ -612,8 +619,8 @@ def _interacting(
     t_last: np.ndarray,
     tracks: pd.DataFrame,
     rate: float,
-    params: Any,
-    grid: Any,
+    params: SocialForce,
+    grid: OccupancyGrid | None,
     turn: tuple | None = None,
 ) -> np.ndarray:
     """Continuations ``(B, K, n_pred, 2)`` walked again with the social force, as generation
@@ -724,7 +731,7 @@ def _heading_wander(
 PROGRESS_WINDOWS = 25
 
 
-def _progress_of(progress: Any) -> Any:
+def _progress_of(progress: object) -> Callable[[int, int, str], object]:
     """``progress.steps`` where it has one (a stage clock), else ``progress`` itself, else a
     no-op: a callable ``(done, total, what)``."""
     steps = getattr(progress, "steps", None)
@@ -734,7 +741,7 @@ def _progress_of(progress: Any) -> Any:
 
 
 def displacement_errors(
-    key: Any,
+    key: int | jax.Array,
     behaviour_fit: BehaviourFit | None,
     tracks: pd.DataFrame,
     *,
@@ -745,9 +752,9 @@ def displacement_errors(
     stride: int | None = None,
     smooth: int = 0,
     max_windows: int | None = 500,
-    interaction: Any = None,
-    grid: Any = None,
-    progress: Any = None,
+    interaction: bool | SocialForce | None = None,
+    grid: OccupancyGrid | None = None,
+    progress: object = None,  # duck-typed: a stage clock (.steps) or a callable
 ) -> pd.DataFrame:
     """Average and final displacement errors of the fitted model and of constant velocity.
 

@@ -23,7 +23,7 @@ import os
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 import pandas as pd
@@ -297,7 +297,7 @@ class PredictiveChecks:
         Posterior draws of the mixture.
     """
 
-    def __init__(self, **kw: Any) -> None:
+    def __init__(self, **kw: object) -> None:
         self.__dict__.update(kw)
 
 
@@ -694,14 +694,14 @@ def _draw_panel(name: str, ax: Axes, c: PredictiveChecks, t0: float) -> None:
 
 
 def _class_figures(
-    key: Any,
+    key: int | jax.Array,
     idata: az.InferenceData,
     per_class: pd.DataFrame,
     n_replicates: int,
     out: Path,
     force: bool,
     written: dict[str, Path],
-) -> dict[str, Any]:
+) -> dict[str, Figure]:
     """The per-class figures of a labelled log's fit (issue 31): the checks (with the
     motion rows the fit stored), the shares by hour (with a clock), the entry densities."""
     motion = None

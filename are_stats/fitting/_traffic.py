@@ -69,7 +69,7 @@ import time
 from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple  # Any: a NumPyro model's keyword arguments
 
 import numpy as np
 import pandas as pd
@@ -738,7 +738,7 @@ class _Setup(NamedTuple):
 
 
 def _setup(
-    key: Any,
+    key: jax.Array,
     data: LifecycleData,
     arrivals: str,
     lifetimes: str,
