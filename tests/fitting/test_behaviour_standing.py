@@ -97,6 +97,22 @@ def test_a_log_in_which_nobody_walks_has_no_behaviour() -> None:
         fit_behaviour(tracks[tracks["label"] == "pallet"], free, 0.5, (0.0, 0.0))
 
 
+def test_a_class_that_creeps_within_its_cell_stands() -> None:
+    # carts nudged 0.1 m in a minute: a walking speed (no tracker noise) but no track
+    # leaves its MDP cell, which used to end the whole fit with a ValueError
+    people, free = crossing_world(3, n=12, noise=0.0)
+    t = np.arange(0.0, 60.0, 0.4)
+    carts = pd.concat(
+        pd.DataFrame({"id": 500 + i, "t": t, "x": 5.2 + 4 * i + t / 600, "y": 3.2, "label": "cart"})
+        for i in range(3)
+    )
+    tracks = pd.concat([people.assign(label="person"), carts], ignore_index=True)
+    fit = fit_behaviour(tracks, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
+    assert fit.classes == ("person",) and fit.standing == ("cart",)
+    with pytest.raises(NoWalkersError, match=r"in class 'cart', got none"):
+        fit_behaviour(carts, free, 0.5, (0.0, 0.0), max_fit_tracks=10)
+
+
 def test_standing_and_fitted_classes_are_apart(site) -> None:
     _, fit = site
     with pytest.raises(ValueError, match=r"BehaviourFit.standing: .*\['person'\]"):
