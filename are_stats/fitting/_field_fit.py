@@ -114,11 +114,13 @@ def _behaviour(
         notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
         return idata, grid, None
     if bfit.standing:  # classes that only stand: the others' behaviour is fitted
+        one = len(bfit.standing) == 1
         notes.append(
-            f"behaviour fitted for class(es) {', '.join(map(repr, bfit.classes))}; "
-            f"{', '.join(map(repr, bfit.standing))} stand(s) (no moving walkers in the "
-            "tracks): it stands in the scenes, and the realism and displacement errors "
-            "score the walking classes' tracks"
+            f"behaviour fitted for {', '.join(map(repr, bfit.classes))}; "
+            f"{'class' if one else 'classes'} {', '.join(map(repr, bfit.standing))} "
+            f"{'has' if one else 'have'} no moving walkers in the tracks and "
+            f"{'stands' if one else 'stand'} in the scenes (the realism and displacement "
+            "errors score the walking classes' tracks)"
         )
     idata = attach_behaviour(idata, bfit)
     say("interaction (social force) from the tracks")
