@@ -1,7 +1,9 @@
 """Tracks of artefacts that walk like the people in the log (issue 16).
 
 :func:`simulate_behaviour_tracks` is the generator behind ``are-stats generate --behaviours``
-with a fitted :class:`~are_stats.behaviour.BehaviourFit`. Each artefact
+with a fitted :class:`~are_stats.behaviour.BehaviourFit`. An artefact of a class the log
+showed standing (:attr:`BehaviourFit.standing <are_stats.behaviour.BehaviourFit.standing>`:
+none of its tracks walked) stands at its entry for its whole stay. Each other artefact
 
 1. gets its class's walking (or, with probability ``run_fraction``, running) speed law,
    lognormal ``(mu, sigma)``, and a reach: the path length its fast walkers
@@ -412,10 +414,11 @@ def simulate_behaviour_tracks(
         The fitted behaviour.
     artefacts : pandas.DataFrame
         One row per artefact: ``scenario, id, t_arrive, t_leave, x, y`` (entry, world m),
-        optionally ``label`` (a class of ``fit``; other labels and a missing column use the
-        first class). A scenarios table (:func:`~are_stats.generate_scenarios`) is taken as
-        it is: ``artefact`` serves as ``id``, and with ``class_labels`` its ``class``
-        column gives the labels.
+        optionally ``label`` (a class of ``fit``; a class of ``fit.standing`` stands at its
+        entry for its whole stay; other labels and a missing column use the first
+        class). A scenarios table (:func:`~are_stats.generate_scenarios`) is taken as it
+        is: ``artefact`` serves as ``id``, and with ``class_labels`` its ``class`` column
+        gives the labels.
     dt_out : float or None
         Sampling period of the output (default: the artefact's class epoch ``fit.dt``).
     smooth : int
@@ -473,8 +476,11 @@ def simulate_behaviour_tracks(
     names = {c: i for i, c in enumerate(fit.classes)}
     if "label" in artefacts.columns:
         cls = np.array([names.get(str(v), 0) for v in artefacts["label"]], np.int64)
+        # the classes the log showed standing stand (they draw as before: other draws keep)
+        stands = artefacts["label"].astype(str).isin(fit.standing).to_numpy()
     else:
         cls = np.zeros(n, np.int64)
+        stands = np.zeros(n, bool)
     run = rng.random(n) < np.nan_to_num(fit.run_fraction[cls])
     mu = np.where(run, fit.run_mu[cls], fit.speed_mu[cls])
     sg = np.where(run, fit.run_sigma[cls], fit.speed_sigma[cls])
@@ -495,7 +501,7 @@ def simulate_behaviour_tracks(
     exits = fit.draw_exits(
         rng, cls, entry, np.floor(0.9 * reach), stays=stay, speed_mu=mu, speed_sigma=sg
     )
-    moving = exits[:, 0] >= 0
+    moving = (exits[:, 0] >= 0) & ~stands
     occ = ~fit.free
     paths: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n
     # one soft solve per (class, exit); chunks of goals keep the policies small

@@ -160,6 +160,11 @@ class BehaviourFit:
         identified, or a file written before they were stored).
     heading_within_sd_se, heading_within_time_se : (C,) float
         The same for the heading's.
+    standing : tuple of str
+        Classes of the log none of whose tracks walked (pallets parked): not among
+        ``classes`` (nothing to fit), and standing at their entry for their whole stay in
+        generated scenes (:func:`~are_stats.behaviour.simulate_behaviour_tracks`). Default
+        (and fit files written before it was recorded): ``()``.
     """
 
     classes: tuple
@@ -203,9 +208,16 @@ class BehaviourFit:
     speed_within_time_se: npt.ArrayLike | None = None
     heading_within_sd_se: npt.ArrayLike | None = None
     heading_within_time_se: npt.ArrayLike | None = None
+    standing: tuple = ()
 
     def __post_init__(self) -> None:
         self.feature_names = tuple(str(n) for n in self.feature_names)
+        self.standing = tuple(str(n) for n in self.standing)
+        both = sorted(set(self.standing) & {str(c) for c in self.classes})
+        if both:
+            raise ValueError(
+                f"BehaviourFit.standing: expected classes not among the fitted ones, got {both}"
+            )
         n_f, n_c = len(self.feature_names), len(self.classes)
         for name, default in _WITHIN.items():
             v = getattr(self, name)
@@ -594,6 +606,8 @@ class BehaviourFit:
             "step_cost": float(self.step_cost),
             "warnings": "\n".join(self.warnings),
         }
+        if self.standing:  # absent without standing classes: such files are as before
+            attrs["standing"] = "\n".join(self.standing)
         coords = {"class": list(self.classes), "xy": ["x", "y"]}
         if self.feature_names:  # absent without features: such files are as before
             data["feature_weight"] = (("class", "feature"), np.asarray(self.weights, float))
@@ -613,6 +627,7 @@ class BehaviourFit:
         # files from before the within-person variation was fitted: none (_WITHIN)
         kw |= {k: np.asarray(ds[k].values, float) for k in _WITHIN if k in ds}
         w = str(a.get("warnings", ""))
+        standing = str(a.get("standing", ""))  # files before it: none
         feats: dict[str, tuple[str, ...] | np.ndarray] = {}
         if "feature_weight" in ds:
             feats = {
@@ -633,6 +648,7 @@ class BehaviourFit:
             goal_reward=float(a["goal_reward"]),
             step_cost=float(a["step_cost"]),
             warnings=w.split("\n") if w else [],
+            standing=tuple(standing.split("\n")) if standing else (),
             **feats,
             **kw,
         )

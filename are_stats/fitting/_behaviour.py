@@ -49,6 +49,10 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   gradients and Hessian. The reward scale is fixed by ``time_cost``: a weight is a reward
   per epoch in those units (``w = -0.5`` next to a wall costs half an epoch lost per epoch
   spent there), and ``beta`` the rationality in them.
+* **Standing classes.** A class none of whose tracks walks (pallets parked in the log) has
+  no walking to fit: it is left out of the fitted classes and named in
+  :attr:`~are_stats.behaviour.BehaviourFit.standing`, and stands in generated scenes; only
+  when no class walks does the fit raise :class:`NoWalkersError`.
 * **Exits.** Each track's first and last positions: the exit density given an entry is a
   kernel mixture over them (:meth:`~are_stats.behaviour.BehaviourFit.draw_exits`).
 """
@@ -1634,12 +1638,17 @@ def fit_behaviour(
     Returns
     -------
     BehaviourFit
+        The classes that walk, fitted; a class none of whose tracks walks (no walking
+        speed: every track stands, or runs, or none leaves its MDP cell) is left out of
+        ``classes`` and named in ``standing`` (it stands in generated scenes:
+        :func:`~are_stats.behaviour.simulate_behaviour_tracks`).
 
     Raises
     ------
+    NoWalkersError
+        When no class walks: there is no walking to fit.
     ValueError
-        On missing columns, a class without a track of two distinct positions, or unknown
-        or misshapen ``features``.
+        On missing columns, or unknown or misshapen ``features``.
     """
     if not isinstance(tracks, pd.DataFrame):
         raise ValueError(f"tracks: expected a pandas DataFrame, got {type(tracks).__name__}")
@@ -1696,6 +1705,7 @@ def fit_behaviour(
     }
     track_class, entry_xy, exit_xy = [], [], []
     warnings: list[str] = []
+    standing: list[str] = []  # classes none of whose tracks walk (BehaviourFit.standing)
     # the speeds, measured through the log's tracker noise (one tracker for every class)
     noise = tracker_noise(tracks[["id", "t", "x", "y"]])
     # where each walker has somebody near (any class): its own pace is read elsewhere
@@ -1723,7 +1733,22 @@ def fit_behaviour(
             ext.append(xy[-1])
         threshold = run_speed.get(name, 2.5) if isinstance(run_speed, Mapping) else run_speed
         sp = np.asarray(speeds, float)
-        law = _speed_law(sp, float(threshold), name)
+        try:
+            law = _speed_law(sp, float(threshold), name)
+        except NoWalkersError:  # nobody of the class walks: it stands in the scenes
+            standing.append(name)
+            if progress is not None:
+                progress(ci + 1, len(classes))
+            continue
+        # one cell per epoch at the (noise-free) median walking speed
+        dt_c = float(dt) if dt is not None else cell / math.exp(law["speed_mu"])
+        paths, _ = discretise_tracks(tab, free, cell, origin_a, dt_c)
+        paths = [p for p in paths if len(p) >= 2]
+        if not paths:  # its walkers never leave their cell: it stands too
+            standing.append(name)
+            if progress is not None:
+                progress(ci + 1, len(classes))
+            continue
         # the within-person variation of the walkers' pace (runners left out)
         walkers = np.flatnonzero(np.isfinite(sp) & (sp > 0) & (sp <= float(threshold)))
         within = _within_variation(
@@ -1735,12 +1760,6 @@ def fit_behaviour(
             seed=(seed, 26, ci),
         )
         law |= within["speed"] | within["heading"]
-        # one cell per epoch at the (noise-free) median walking speed
-        dt_c = float(dt) if dt is not None else cell / math.exp(law["speed_mu"])
-        paths, _ = discretise_tracks(tab, free, cell, origin_a, dt_c)
-        paths = [p for p in paths if len(p) >= 2]
-        if not paths:
-            raise ValueError(f"tracks: expected tracks that move in class {name!r}, got none")
         n_all = len(paths)
         if max_fit_tracks is not None and len(paths) > max_fit_tracks:
             pick = rng.choice(len(paths), max_fit_tracks, replace=False)
@@ -1782,16 +1801,25 @@ def fit_behaviour(
         }
         for k, v in vals.items():
             per[k].append(v)
-        track_class.extend([ci] * len(ent_a))
+        track_class.extend([len(per["dt"]) - 1] * len(ent_a))  # its place among the walking
         entry_xy.append(ent_a)
         exit_xy.append(ext_a)
         if progress is not None:
             progress(ci + 1, len(classes))
+    if len(standing) == len(classes):
+        which = ", ".join(repr(c) for c in classes)
+        raise NoWalkersError(
+            f"tracks: expected moving walkers in class {which}, got none"
+            if len(classes) == 1
+            else f"tracks: expected moving walkers in one of the classes {which}, got none"
+        )
+    walking = tuple(c for c in classes if c not in standing)
     arrays = {k: np.asarray(v) for k, v in per.items()}
     for k in ("n_moves", "n_tracks", "n_fit_tracks", "n_epochs"):
         arrays[k] = arrays[k].astype(np.int64)
     return BehaviourFit(
-        classes=classes,
+        classes=walking,
+        standing=tuple(standing),
         cell=float(cell),
         origin=origin_a,
         free=free,
@@ -1804,7 +1832,7 @@ def fit_behaviour(
         warnings=warnings,
         feature_names=feature_names,
         features=phi,
-        weights=np.asarray(weights, float).reshape(len(classes), len(feature_names)),
-        weights_se=np.asarray(weights_se, float).reshape(len(classes), len(feature_names)),
+        weights=np.asarray(weights, float).reshape(len(walking), len(feature_names)),
+        weights_se=np.asarray(weights_se, float).reshape(len(walking), len(feature_names)),
         **arrays,
     )

@@ -110,9 +110,18 @@ def _behaviour(
             run_speed=run_speed,
             progress=lambda done, total: steps(done, total, "classes"),
         )
-    except NoWalkersError as err:  # people who only stand: no walking to learn
+    except NoWalkersError as err:  # nobody walks: no walking to learn
         notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
         return idata, grid, None
+    if bfit.standing:  # classes that only stand: the others' behaviour is fitted
+        one = len(bfit.standing) == 1
+        notes.append(
+            f"behaviour fitted for {', '.join(map(repr, bfit.classes))}; "
+            f"{'class' if one else 'classes'} {', '.join(map(repr, bfit.standing))} "
+            f"{'has' if one else 'have'} no moving walkers in the tracks and "
+            f"{'stands' if one else 'stand'} in the scenes (the realism and displacement "
+            "errors score the walking classes' tracks)"
+        )
     idata = attach_behaviour(idata, bfit)
     say("interaction (social force) from the tracks")
     learned, info, note = learn_interaction(tracks)
@@ -121,7 +130,10 @@ def _behaviour(
     if learned is not None:
         idata.behaviour.attrs.update(interaction_attrs(learned, info))
     say("realism and displacement errors against the tracks")
-    checks = _attach_motion_tables(seed, idata, bfit, learned, tracks, grid, steps)
+    walking = tracks
+    if bfit.standing:  # the criticism scores the behaviour fitted: the walking classes
+        walking = tracks[~tracks["label"].astype(str).isin(bfit.standing).to_numpy()]
+    checks = _attach_motion_tables(seed, idata, bfit, learned, walking, grid, steps)
     return idata, grid, checks
 
 

@@ -11,7 +11,8 @@ every command:
 * ``False`` / ``"none"``: artefacts stand at their arrival pose for their whole stay;
 * ``True`` / ``"auto"``: the fit's behaviour when the fit has one (speeds, exits and
   rationality learned from the log's tracks:
-  :func:`~are_stats.behaviour.simulate_behaviour_tracks`), otherwise the catalogue's
+  :func:`~are_stats.behaviour.simulate_behaviour_tracks`; the classes that only stood in
+  them, ``BehaviourFit.standing``, stand), otherwise the catalogue's
   (each class's behaviours, walk / run / follow / stop, solved as the finite-horizon MDP
   of the paper on the map coarsened to ``behaviour_cell``:
   :func:`~are_stats.behaviour.behaviour_tracks`);

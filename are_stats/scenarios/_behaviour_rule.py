@@ -3,7 +3,10 @@ every command.
 
 * ``False`` / ``"none"``: artefacts stand at their arrival pose for their whole stay;
 * ``True`` / ``"auto"``: the fit's behaviour when the fit has one, otherwise the
-  catalogue's (the finite-horizon MDP of the paper on the map's coarsened cells);
+  catalogue's (the finite-horizon MDP of the paper on the map's coarsened cells). A fit's
+  behaviour moves every class: the classes that walked in the log's tracks by their fitted
+  behaviour, those that only stood there (``BehaviourFit.standing``) standing; a fit from
+  tracks has none only when nobody in them walked;
 * ``"fitted"`` or ``"catalogue"``: that one (``"fitted"`` without a fitted behaviour is an
   error, and the catalogue's needs a map).
 
