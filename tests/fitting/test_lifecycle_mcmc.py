@@ -125,6 +125,11 @@ def _grid_posterior_moments(data: LifecycleData):
     return moments
 
 
+# make test: tests/fitting/test_lifecycle_exact.py checks this posterior on the same log:
+# test_fit_log_draws_the_paper_model_exactly_and_agrees_with_nuts (NUTS of the stationary-start
+# model, 4 x 500, against the exact draws) and test_coupled_rates_match_quadrature_of_the_
+# joint_density (the exact draws against a 2-d quadrature of the joint density)
+@pytest.mark.slow
 def test_nuts_with_stationary_start_matches_grid_posterior(data):
     """stationary_start=True couples lambda and mu: compare with 2-d integration."""
     unlabelled = LifecycleData(

@@ -1,4 +1,10 @@
-"""Fuzz fixtures: a tiny valid fit and scenario folder (made once), fresh case folders."""
+"""Fuzz fixtures: a tiny valid fit and scenario folder (made once), fresh case folders.
+
+Each fuzz test runs as two tests (:func:`tests.fuzz.strategies.fuzz_tiers`): ``test_x[default]``
+in ``make test`` (``-m "not slow"``) draws about half of its examples, ``test_x[slow]`` in
+``make test-slow`` (``-m slow``) about three quarters, other cases from a second seed; CI runs
+both tiers, at least as many distinct cases per test as one stream of all its examples did.
+"""
 
 from __future__ import annotations
 

@@ -20,6 +20,7 @@ import contextlib
 import copy
 import csv
 import functools
+import inspect
 import io
 import os
 import resource
@@ -28,8 +29,9 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+import pytest
 import yaml
-from hypothesis import HealthCheck, Phase, settings
+from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 
 from are_stats.environment import SHIPPED_DATA
@@ -70,6 +72,55 @@ def fuzz_settings(default: int) -> settings:
         suppress_health_check=list(HealthCheck),
         print_blob=False,
     )
+
+
+#: The tiers a fuzz test's examples are split between: ``make test`` runs the first stream
+#: (``-m "not slow"``), ``make test-slow`` the second (``-m slow``); CI runs both.
+TIERS = ("default", "slow")
+
+
+def fuzz_tiers(
+    default: int, **strategies: st.SearchStrategy[Any]
+) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """``@given(**strategies)`` with ``default`` examples split between the two test tiers.
+
+    In place of ``@fuzz_settings(default)`` and ``@given(**strategies)``. The test becomes
+    one pytest test per tier, each a hypothesis test with :func:`fuzz_settings` and its own
+    reproducible stream (:func:`hypothesis.seed` of the test's name and tier; with
+    ``derandomize`` alone both would draw the same cases, for hypothesis derives that seed
+    from the test function): ``test_x[default]`` in ``make test`` runs ``default // 2 + 1``
+    examples, ``test_x[slow]`` (marked slow) in ``make test-slow`` runs
+    ``default // 2 + default // 4 + 2``, both times ``ARE_STATS_FUZZ_EXAMPLES``.
+
+    The slow stream is the longer one so that CI (both tiers) runs at least as many
+    distinct cases as one stream of ``default`` examples did: a stream repeats cases
+    (small spaces such as the directory case, and hypothesis draws simple cases more often
+    early in a run), and the two streams share a few, the simplest first. Counted per test
+    on 2026-11-28 (``repr`` of the drawn case, or of the files a ``data()`` test wrote).
+    """
+    counts = {TIERS[0]: default // 2 + 1, TIERS[1]: default // 2 + default // 4 + 2}
+
+    def decorate(body: Callable[..., None]) -> Callable[..., None]:
+        tests = {
+            tier: seed(f"{body.__name__}/{tier}")(fuzz_settings(n)(given(**strategies)(body)))
+            for tier, n in counts.items()
+        }
+        # the fixtures: hypothesis leaves out the arguments it draws
+        signature = inspect.signature(tests[TIERS[0]])
+
+        def run(tier: str, **fixtures: Any) -> None:
+            tests[tier](**fixtures)
+
+        for name in ("__name__", "__qualname__", "__doc__", "__module__"):
+            setattr(run, name, getattr(body, name))
+        tier_parameter = inspect.Parameter("tier", inspect.Parameter.POSITIONAL_OR_KEYWORD)
+        run.__signature__ = signature.replace(  # type: ignore[attr-defined]
+            parameters=[tier_parameter, *signature.parameters.values()]
+        )
+        tiers = [pytest.param(TIERS[0]), pytest.param(TIERS[1], marks=pytest.mark.slow)]
+        return pytest.mark.parametrize("tier", tiers)(run)
+
+    return decorate
 
 
 # ----------------------------------------------------------------------------- the guard

@@ -22,7 +22,6 @@ import os
 from pathlib import Path
 
 import pytest
-from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.export.rosbag_fixtures import (
@@ -32,7 +31,7 @@ from tests.export.rosbag_fixtures import (
     robot_pose,
     write_bag,
 )
-from tests.fuzz.strategies import fuzz_settings
+from tests.fuzz.strategies import fuzz_tiers
 from tests.fuzz.test_fuzz_cli import invoke
 
 pytestmark = pytest.mark.fuzz
@@ -109,12 +108,12 @@ def _bag(d: Path, kind: str, source: str, mutation: tuple) -> tuple[Path, bool]:
     return write_bag(path, kind, **which), valid
 
 
-@given(
+@fuzz_tiers(
+    16,
     kind=st.sampled_from(["ros1", "ros2", "mcap"]),
     source=st.sampled_from(["tf", "pose"]),
     mutation=_mutation(),
 )
-@fuzz_settings(16)
 def test_augment_bag_door(kind, source, mutation, busy_fit, case_dir) -> None:
     """Clean error or live artefacts; garbage never accepted, valid bags never refused."""
     from mcap.reader import make_reader

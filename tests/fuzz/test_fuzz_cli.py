@@ -19,7 +19,6 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from hypothesis import given
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
@@ -40,7 +39,7 @@ from tests.fuzz.strategies import (
     csv_case,
     file_cases,
     fit_case,
-    fuzz_settings,
+    fuzz_tiers,
     load_base_yaml,
     write_case,
     write_fit_case,
@@ -269,8 +268,7 @@ def _em_fit(log, out, *extra: str) -> list[str]:
             *PAPER_MODELS]  # fmt: skip
 
 
-@fuzz_settings(10)
-@given(case=file_cases(csv_case(LOG_HEADER, LOG_ROWS)))
+@fuzz_tiers(10, case=file_cases(csv_case(LOG_HEADER, LOG_ROWS)))
 def test_fit_damaged_log(case, case_dir) -> None:
     d = case_dir()
     (d / "log.yaml").write_text(_dump(MANIFEST))
@@ -278,16 +276,14 @@ def test_fit_damaged_log(case, case_dir) -> None:
     invoke(_em_fit(path, d / "f.nc"), [path.name], seconds=60.0)
 
 
-@fuzz_settings(25)
-@given(case=file_cases(yaml_case(MANIFEST)))
+@fuzz_tiers(25, case=file_cases(yaml_case(MANIFEST)))
 def test_fit_damaged_manifest(case, case_dir, tiny_log) -> None:
     d = case_dir()
     path = write_case(d / "manifest.yaml", case)
     invoke(_em_fit(tiny_log, d / "f.nc", "--manifest", str(path)), [path.name], seconds=60.0)
 
 
-@fuzz_settings(8)
-@given(case=fit_case())
+@fuzz_tiers(8, case=fit_case())
 def test_report_damaged_fit(case, case_dir, tiny_fit) -> None:
     d = case_dir()
     path = d / "fit.nc"
@@ -295,8 +291,7 @@ def test_report_damaged_fit(case, case_dir, tiny_fit) -> None:
     invoke(["report", str(path), "--out", str(d / "r"), "--replicates", "5"], [path.name])
 
 
-@fuzz_settings(25)
-@given(case=file_cases(yaml_case(load_base_yaml(MODELS / "courtyard.yaml"))))
+@fuzz_tiers(25, case=file_cases(yaml_case(load_base_yaml(MODELS / "courtyard.yaml"))))
 def test_show_damaged_map(case, case_dir) -> None:
     d = case_dir()
     shutil.copy(MODELS / "courtyard.pgm", d / "courtyard.pgm")
@@ -304,8 +299,7 @@ def test_show_damaged_map(case, case_dir) -> None:
     invoke(["show", str(path), "--out", str(d / "m.png"), "--artefacts", "2"], [path.name])
 
 
-@fuzz_settings(25)
-@given(case=file_cases(yaml_case(load_base_yaml(MODELS / "courtyard.yaml"))))
+@fuzz_tiers(25, case=file_cases(yaml_case(load_base_yaml(MODELS / "courtyard.yaml"))))
 def test_generate_damaged_map(case, case_dir, tiny_fit) -> None:
     d = case_dir()
     shutil.copy(MODELS / "courtyard.pgm", d / "courtyard.pgm")
@@ -327,8 +321,9 @@ def test_generate_damaged_map(case, case_dir, tiny_fit) -> None:
     invoke(args, [path.name])
 
 
-@fuzz_settings(15)
-@given(case=file_cases(yaml_case(load_base_yaml(MODELS / "cameras" / "front_camera.yaml"))))
+@fuzz_tiers(
+    15, case=file_cases(yaml_case(load_base_yaml(MODELS / "cameras" / "front_camera.yaml")))
+)
 def test_perceive_damaged_camera(case, case_dir, tiny_scenarios, files) -> None:
     d = case_dir()
     path = write_case(d / "camera.yaml", case)
@@ -345,8 +340,7 @@ def test_perceive_damaged_camera(case, case_dir, tiny_scenarios, files) -> None:
     invoke(args, [path.name], seconds=120.0)
 
 
-@fuzz_settings(10)
-@given(case=file_cases(yaml_case(TINY_SWEEP)))
+@fuzz_tiers(10, case=file_cases(yaml_case(TINY_SWEEP)))
 def test_experiment_damaged_config(case, case_dir) -> None:
     d = case_dir()
     path = write_case(d / "sweep.yaml", case)
@@ -385,8 +379,7 @@ def _results_case(draw: st.DrawFn, folder: Path) -> tuple[str, bytes | str]:
     return name, buf.getvalue()
 
 
-@fuzz_settings(15)
-@given(data=st.data())
+@fuzz_tiers(15, data=st.data())
 def test_plot_damaged_results(data, case_dir, tiny_results) -> None:
     d = case_dir() / "results"
     shutil.copytree(tiny_results, d)

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.fuzz.strategies import (
@@ -40,7 +39,7 @@ from tests.fuzz.strategies import (
     expect_clean,
     file_cases,
     fit_case,
-    fuzz_settings,
+    fuzz_tiers,
     load_base_yaml,
     obj_case,
     pgm_case,
@@ -81,8 +80,7 @@ def _check_lifecycle(log) -> None:
         assert (np.asarray(data.marks) >= 0).all()
 
 
-@fuzz_settings(400)
-@given(case=file_cases(csv_case(LOG_HEADER, LOG_ROWS)))
+@fuzz_tiers(400, case=file_cases(csv_case(LOG_HEADER, LOG_ROWS)))
 def test_lifecycle_log_csv(case, case_dir) -> None:
     from are_stats import read_lifecycle_log
 
@@ -136,8 +134,7 @@ def _parquet_log(draw) -> bytes:
     return draw(st.one_of(st.just(buf.getvalue()), _byte_edit(buf.getvalue())))
 
 
-@fuzz_settings(150)
-@given(case=_parquet_log())
+@fuzz_tiers(150, case=_parquet_log())
 def test_lifecycle_log_parquet(case, case_dir) -> None:
     from are_stats import read_lifecycle_log
 
@@ -149,8 +146,7 @@ def test_lifecycle_log_parquet(case, case_dir) -> None:
         expect_clean(lambda: _check_lifecycle(log), _names(path))
 
 
-@fuzz_settings(300)
-@given(case=file_cases(yaml_case(MANIFEST)))
+@fuzz_tiers(300, case=file_cases(yaml_case(MANIFEST)))
 def test_lifecycle_manifest(case, case_dir, tiny_log) -> None:
     from are_stats import read_lifecycle_log
 
@@ -165,8 +161,7 @@ def test_lifecycle_manifest(case, case_dir, tiny_log) -> None:
         expect_clean(lambda: _check_lifecycle(log), names)
 
 
-@fuzz_settings(250)
-@given(case=file_cases(csv_case(PANEL_HEADER, PANEL_ROWS)))
+@fuzz_tiers(250, case=file_cases(csv_case(PANEL_HEADER, PANEL_ROWS)))
 def test_count_panel(case, case_dir) -> None:
     from are_stats import read_count_panel
 
@@ -178,8 +173,7 @@ def test_count_panel(case, case_dir) -> None:
         assert n.dtype == np.int64 and (n >= 0).all()
 
 
-@fuzz_settings(250)
-@given(case=file_cases(csv_case(TRACK_HEADER, TRACK_ROWS)))
+@fuzz_tiers(250, case=file_cases(csv_case(TRACK_HEADER, TRACK_ROWS)))
 def test_tracks(case, case_dir) -> None:
     from are_stats import read_tracks, tracks_to_lifecycle
 
@@ -203,8 +197,7 @@ def _check_grid(grid) -> None:
     assert np.isfinite(grid.free_area) and grid.free_area >= 0
 
 
-@fuzz_settings(200)
-@given(case=file_cases(yaml_case(MAP_YAML)))
+@fuzz_tiers(200, case=file_cases(yaml_case(MAP_YAML)))
 def test_map_yaml(case, case_dir) -> None:
     from are_stats import OccupancyGrid
 
@@ -216,8 +209,7 @@ def test_map_yaml(case, case_dir) -> None:
         _check_grid(grid)
 
 
-@fuzz_settings(100)
-@given(case=file_cases(pgm_case((MODELS / "courtyard.pgm").read_bytes())))
+@fuzz_tiers(100, case=file_cases(pgm_case((MODELS / "courtyard.pgm").read_bytes())))
 def test_map_image(case, case_dir) -> None:
     from are_stats import OccupancyGrid
 
@@ -231,8 +223,7 @@ def test_map_image(case, case_dir) -> None:
         _check_grid(grid)
 
 
-@fuzz_settings(150)
-@given(case=file_cases(yaml_case(CATALOGUE_YAML)))
+@fuzz_tiers(150, case=file_cases(yaml_case(CATALOGUE_YAML)))
 def test_catalogue(case, case_dir) -> None:
     from are_stats import load_catalogue
 
@@ -247,8 +238,7 @@ def test_catalogue(case, case_dir) -> None:
             assert np.isfinite(ext).all() and (ext > 0).all(), (cls, ext)
 
 
-@fuzz_settings(100)
-@given(case=file_cases(obj_case((MODELS / "artefacts" / "cart.obj").read_text())))
+@fuzz_tiers(100, case=file_cases(obj_case((MODELS / "artefacts" / "cart.obj").read_text())))
 def test_mesh(case, case_dir) -> None:
     from are_stats import load_mesh
 
@@ -260,8 +250,7 @@ def test_mesh(case, case_dir) -> None:
         assert faces.size == 0 or (faces.min() >= 0 and faces.max() < len(mesh.vertices))
 
 
-@fuzz_settings(250)
-@given(case=file_cases(yaml_case(CAMERA_YAML)))
+@fuzz_tiers(250, case=file_cases(yaml_case(CAMERA_YAML)))
 def test_camera(case, case_dir) -> None:
     from are_stats import PinholeCamera
 
@@ -276,8 +265,7 @@ def test_camera(case, case_dir) -> None:
 # ----------------------------------------------------------------------------- experiments
 
 
-@fuzz_settings(300)
-@given(case=file_cases(yaml_case(SWEEP_YAML)))
+@fuzz_tiers(300, case=file_cases(yaml_case(SWEEP_YAML)))
 def test_sweep_config(case, case_dir) -> None:
     from are_stats.experiments import load_sweep_config
 
@@ -312,8 +300,7 @@ def test_yaml_bombs_are_refused(case_dir) -> None:
 # ----------------------------------------------------------------------------- fits, scenarios
 
 
-@fuzz_settings(40)
-@given(case=fit_case())
+@fuzz_tiers(40, case=fit_case())
 def test_fit_file_to_scenarios(case, case_dir, tiny_fit) -> None:
     """``are-stats generate``'s path: read the fit, draw scenarios from it."""
     from are_stats._cli_jobs import run_generate
@@ -327,8 +314,7 @@ def test_fit_file_to_scenarios(case, case_dir, tiny_fit) -> None:
         assert np.isfinite(df[cols].to_numpy(float)).all(), "non-finite scenario values"
 
 
-@fuzz_settings(120)
-@given(data=st.data())
+@fuzz_tiers(120, data=st.data())
 def test_scenario_folder(data, case_dir, tiny_scenarios) -> None:
     from are_stats import read_scenes
 
@@ -371,8 +357,7 @@ def test_scenario_folder(data, case_dir, tiny_scenarios) -> None:
             assert np.isfinite(df[c].to_numpy()).all(), f"read_scenes: non-finite {c!r}"
 
 
-@fuzz_settings(12)
-@given(case=file_cases(csv_case(ROBOT_HEADER, ROBOT_ROWS, max_edits=2)))
+@fuzz_tiers(12, case=file_cases(csv_case(ROBOT_HEADER, ROBOT_ROWS, max_edits=2)))
 def test_robot_path(case, case_dir, tiny_scenarios) -> None:
     """``are-stats perceive``'s path with a damaged robot path (few cases: it ray-traces)."""
     from are_stats._cli_jobs import run_perceive

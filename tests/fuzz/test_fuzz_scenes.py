@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.fuzz.strategies import (
@@ -22,7 +21,7 @@ from tests.fuzz.strategies import (
     _byte_edit,
     expect_clean,
     file_cases,
-    fuzz_settings,
+    fuzz_tiers,
     load_base_yaml,
     write_case,
     yaml_case,
@@ -105,8 +104,7 @@ def _check(folder) -> None:
         assert set(zip(tracks["scenario"], tracks["id"], strict=True)) <= known
 
 
-@fuzz_settings(60)
-@given(data=st.data())
+@fuzz_tiers(60, data=st.data())
 def test_scenes_folder(data, case_dir, scenes) -> None:
     """read_scenes, then serve's replay of the folder (Scene, catalogue, horizon)."""
     from are_stats.export._live import _replay
@@ -137,8 +135,7 @@ def _sweep(folder: Path, catalogue: Path | None = None) -> dict:
     return cfg
 
 
-@fuzz_settings(40)
-@given(data=st.data())
+@fuzz_tiers(40, data=st.data())
 def test_sweep_scenario_folder(data, case_dir, scenes) -> None:
     """A damaged scenarios folder in a sweep config is refused by the parent exactly when
     the folder's reader refuses it (nothing reaches a worker unchecked)."""
@@ -155,8 +152,7 @@ def test_sweep_scenario_folder(data, case_dir, scenes) -> None:
         assert cfg is None, "a sweep accepted a scenarios folder its reader refuses"
 
 
-@fuzz_settings(40)
-@given(case=file_cases(yaml_case(CATALOGUE_YAML)))
+@fuzz_tiers(40, case=file_cases(yaml_case(CATALOGUE_YAML)))
 def test_sweep_catalogue(case, case_dir, scenes) -> None:
     """A damaged catalogue in a sweep config: refused by the parent exactly when
     :func:`~are_stats.load_catalogue` refuses it."""

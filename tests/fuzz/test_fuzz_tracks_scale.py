@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.fuzz.strategies import ACCEPTED, bounded, fuzz_settings, write_case
+from tests.fuzz.strategies import ACCEPTED, bounded, fuzz_settings, fuzz_tiers, write_case
 from tests.helpers import PAPER_MODELS
 
 pytestmark = pytest.mark.fuzz
@@ -114,8 +114,7 @@ def _outcome(case: dict, run, path: Path, seconds: float = 25.0, cpu_seconds: fl
     return out
 
 
-@fuzz_settings(10)
-@given(case=crowd_case())
+@fuzz_tiers(10, case=crowd_case())
 def test_crowd_tracks_tables(case, case_dir) -> None:
     from are_stats.logs import read_field_log
 
