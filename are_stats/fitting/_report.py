@@ -752,6 +752,17 @@ def read_traffic_checks(folder: str | os.PathLike) -> pd.DataFrame | None:
     return pd.read_csv(path, index_col=0) if path.exists() else None
 
 
+#: The factors whose PSIS-LOO comparison a fit may hold (``loo_<factor>`` attributes), each
+#: written as ``loo_<factor>.csv``.
+_LOO_FACTORS = (
+    "arrivals",
+    "lifetimes",
+    "positions",
+    "class_stays",
+    "class_positions",
+    "class_shares",
+)
+
 #: Every file :func:`write_report` may write (which of them depends on the fit).
 _REPORT_FILES = (
     "summary.csv",
@@ -768,17 +779,7 @@ _REPORT_FILES = (
     "class_shares_by_hour.csv",
     "ppc_class_shares_by_hour.png",
     "class_entries.png",
-    *(
-        f"loo_{factor}.csv"
-        for factor in (
-            "arrivals",
-            "lifetimes",
-            "positions",
-            "class_stays",
-            "class_positions",
-            "class_shares",
-        )
-    ),
+    *(f"loo_{factor}.csv" for factor in _LOO_FACTORS),
 )
 
 
@@ -877,14 +878,7 @@ def write_report(
             per_class.to_csv(tmp, float_format="%.6g")
         written["class_checks"] = out / "class_checks.csv"
         figures.update(_class_figures(key, idata, per_class, n_replicates, out, force, written))
-    for factor in (
-        "arrivals",
-        "lifetimes",
-        "positions",
-        "class_stays",
-        "class_positions",
-        "class_shares",
-    ):
+    for factor in _LOO_FACTORS:
         text = idata.posterior.attrs.get(f"loo_{factor}")
         if text:
             path = out / f"loo_{factor}.csv"

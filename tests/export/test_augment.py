@@ -42,12 +42,11 @@ MAP = DEFAULT_MODELS / "courtyard.yaml"
 START_NS = int(START * 1e9)
 
 
-@pytest.fixture(scope="module")
-def files(tmp_path_factory):
-    """A small EM fit (labelled classes), the bags in three formats and a small camera."""
+def write_fit_and_camera(d: Path) -> tuple[Path, Path]:
+    """A small EM fit of a labelled log (``small.nc``) and a small camera (``cam.yaml``,
+    :data:`CAMERA`) written in ``d``: the augment tests' inputs besides the bags."""
     from tests.test_cli_jobs import _quick_em_fit, _write_log
 
-    d = tmp_path_factory.mktemp("augment")
     log, _ = _write_log(d, labels=True)
     fit = d / "small.nc"
     _quick_em_fit(log, fit, samples=20)
@@ -57,6 +56,14 @@ def files(tmp_path_factory):
             {"image_width": CAMERA["width"], "image_height": CAMERA["height"], "K": CAMERA["k"]}
         )
     )
+    return fit, cam
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A small EM fit (labelled classes), the bags in three formats and a small camera."""
+    d = tmp_path_factory.mktemp("augment")
+    fit, cam = write_fit_and_camera(d)
     return {
         "dir": d,
         "fit": fit,

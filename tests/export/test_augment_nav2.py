@@ -14,13 +14,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from typer.testing import CliRunner
 
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, read_map
 from are_stats.export import read_view
-from tests.export.rosbag_fixtures import CAMERA, DURATION, START, robot_pose, stamp_ns
+from tests.export.rosbag_fixtures import DURATION, START, robot_pose, stamp_ns
 
 runner = CliRunner()
 MAP = DEFAULT_MODELS / "courtyard.yaml"
@@ -34,19 +33,9 @@ KEEPOUT = (slice(20, 24), slice(300, 310))
 @pytest.fixture(scope="module")
 def fit_and_camera(tmp_path_factory):
     """A small EM fit (labelled classes) and a small camera (80 x 60 pixels)."""
-    from tests.test_cli_jobs import _quick_em_fit, _write_log
+    from tests.export.test_augment import write_fit_and_camera
 
-    d = tmp_path_factory.mktemp("nav2")
-    log, _ = _write_log(d, labels=True)
-    fit = d / "small.nc"
-    _quick_em_fit(log, fit, samples=20)
-    cam = d / "cam.yaml"
-    cam.write_text(
-        yaml.safe_dump(
-            {"image_width": CAMERA["width"], "image_height": CAMERA["height"], "K": CAMERA["k"]}
-        )
-    )
-    return fit, cam
+    return write_fit_and_camera(tmp_path_factory.mktemp("nav2"))
 
 
 def _grid() -> OccupancyGrid:
