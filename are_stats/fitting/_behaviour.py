@@ -62,6 +62,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections import defaultdict
 from collections.abc import Callable, Mapping, Sequence
 from functools import partial
 from typing import TYPE_CHECKING, NamedTuple, TypedDict
@@ -1672,37 +1673,8 @@ def fit_behaviour(
         tracks["label"].astype(str) if "label" in tracks.columns else pd.Series("all", tracks.index)
     )
     classes = tuple(sorted(labels.unique()))
-    per: dict[str, list[float]] = {
-        k: []
-        for k in (
-            "dt",
-            "speed_mu",
-            "speed_sigma",
-            "speed_within_sd",
-            "speed_within_time",
-            "heading_within_sd",
-            "heading_within_time",
-            "speed_within_sd_se",
-            "speed_within_time_se",
-            "heading_within_sd_se",
-            "heading_within_time_se",
-            "run_fraction",
-            "run_mu",
-            "run_sigma",
-            "beta",
-            "beta_se",
-            "slip",
-            "slip_se",
-            "loglik",
-            "n_moves",
-            "n_tracks",
-            "n_fit_tracks",
-            "n_epochs",
-            "bandwidth_entry",
-            "bandwidth_exit",
-            "fit_seconds",
-        )
-    }
+    # per-class values, one list per field of the class fits (the keys of ``vals`` below)
+    per: defaultdict[str, list[float]] = defaultdict(list)
     track_class, entry_xy, exit_xy = [], [], []
     warnings: list[str] = []
     standing: list[str] = []  # classes none of whose tracks walk (BehaviourFit.standing)
