@@ -24,7 +24,7 @@ import typer  # noqa: E402
 
 from are_stats import __version__, configure_jax  # noqa: E402
 from are_stats._atomic import OutputExistsError  # noqa: E402 (stdlib only)
-from are_stats._lazy import hide_dask  # noqa: E402 (stdlib only)
+from are_stats._lazy import hide_dask, hide_numba  # noqa: E402 (stdlib only)
 from are_stats._program_cache import prune_cache  # noqa: E402 (stdlib only; main runs it)
 
 # The commands import their rooms when they run: `are-stats --help` and each command load
@@ -724,7 +724,8 @@ def _note_fit_formats(show: Callable[..., None]) -> Callable[..., None]:
 
 
 #: Commands whose process hides dask from xarray (:func:`are_stats._lazy.hide_dask`: 0.6 s
-#: of imports a fit does not use); ``experiment`` runs its sweeps on Dask.
+#: of imports a fit does not use) and numba from ArviZ (:func:`are_stats._lazy.hide_numba`:
+#: 1.5 s of CPU at load 16 where numba is installed); ``experiment`` runs its sweeps on Dask.
 _WITHOUT_DASK = frozenset({"fit", "report", "demo"})
 
 #: The options before a command that take a value (``--max-memory 16G fit ...``).
@@ -761,13 +762,15 @@ def main() -> None:
     * After the command, the compiled programs it added are pruned so that the cache
       folders stay under their cap (:func:`are_stats._program_cache.prune_cache`).
     * The commands of :data:`_WITHOUT_DASK` hide dask from xarray (its imports cost 0.6 s
-      of a repeated fit of the shipped log; :func:`are_stats._lazy.hide_dask`).
+      of a repeated fit of the shipped log; :func:`are_stats._lazy.hide_dask`) and numba
+      from ArviZ (its import and one eager kernel compile, :func:`are_stats._lazy.hide_numba`).
     * Last, every object is frozen (:func:`gc.freeze`): the interpreter's final collection
       at exit would walk them all once more only to free memory the exit frees anyway
       (1.1 s after a fit). Outputs are written and closed by then.
     """
     if _command_of(sys.argv[1:]) in _WITHOUT_DASK:
         hide_dask()
+        hide_numba()
     gc.set_threshold(*_GC_THRESHOLDS)
     warnings.showwarning = _note_fit_formats(warnings.showwarning)
     try:

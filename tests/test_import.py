@@ -270,12 +270,12 @@ def test_hide_dask_leaves_xarray_writing_and_reading_netcdf(tmp_path):
     assert not {m for m in loaded if m.split(".")[0] in ("dask", "distributed")}
 
 
-def _dask_after_main(argv: list[str]) -> str:
-    """``repr(sys.modules.get('dask'))`` after are_stats.cli.main ran ``argv``."""
+def _dask_after_main(argv: list[str], name: str = "dask") -> str:
+    """``repr(sys.modules.get(name))`` after are_stats.cli.main ran ``argv``."""
     code = (
         f"import sys\nsys.argv = ['are-stats', *{argv!r}]\nfrom are_stats import cli\n"
         "try:\n    cli.main()\nexcept SystemExit:\n    pass\n"
-        "print(repr(sys.modules.get('dask', 'absent')))"
+        f"print(repr(sys.modules.get({name!r}, 'absent')))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return out.stdout.strip().splitlines()[-1]
@@ -287,6 +287,29 @@ def test_cli_main_hides_dask_from_a_fit_only():
     assert _dask_after_main(["fit", "no_such_log.csv", "--out", "x.nc"]) == "None"
     assert _dask_after_main(["--max-memory", "4G", "report", "no_such_fit.nc"]) == "None"
     assert _dask_after_main(["experiment", "--help"]) == "'absent'"
+
+
+def test_cli_main_hides_numba_from_a_fit_only():
+    """numba (imported and compiled by ``import arviz`` where installed) is hidden for
+    `fit` and `report`, as dask is, and not for `experiment`."""
+    assert _dask_after_main(["fit", "no_such_log.csv", "--out", "x.nc"], "numba") == "None"
+    assert _dask_after_main(["report", "no_such_fit.nc"], "numba") == "None"
+    assert _dask_after_main(["experiment", "--help"], "numba") == "'absent'"
+
+
+def test_hide_numba_leaves_arviz_on_its_numpy_paths():
+    """Without numba (are_stats._lazy.hide_numba) ArviZ imports, says it has no numba and
+    summarises a posterior; nothing of numba or llvmlite is loaded on the way."""
+    loaded = _loaded_after(
+        "from are_stats._lazy import hide_numba\n"
+        "assert hide_numba()\n"
+        "import numpy as np, arviz as az\n"
+        "assert not az.Numba.numba_flag\n"
+        "draws = np.random.default_rng(0).normal(size=(2, 50))\n"
+        "assert az.summary(az.from_dict(posterior={'a': draws})).shape[0] == 1\n"
+        "import sys\nassert sys.modules['numba'] is None\ndel sys.modules['numba']"
+    )
+    assert not {m for m in loaded if m.split(".")[0] in ("numba", "llvmlite")}
     assert "dask" in _loaded_after("import are_stats.cli\nimport dask")
 
 
