@@ -122,13 +122,14 @@ NUMBA_PACKAGES = ("numba",)
 def hide_numba() -> bool:
     """Make ``numba`` unimportable in this process, so that ArviZ runs without it.
 
-    Where numba is installed (PyMC brings it), ``import arviz`` imports it through
-    ``arviz.plots`` (its ECDF bands) and compiles one ``@vectorize`` kernel with an eager
-    signature at import: 1.5-1.9 s of CPU of an ``import arviz`` that takes 4.2-4.5 s
-    without it (measured 2026-11-28 at load 16), in an ``are-stats fit`` that calls no
-    numba code (its ArviZ summary runs ArviZ's NumPy paths already,
-    ``fitting._report._numpy_paths``). ArviZ asks ``importlib.util.find_spec("numba")``,
-    which returns None after this call, and takes its NumPy paths.
+    Where numba is installed (the ``bench`` extra's PyMC and PySocialForce bring it),
+    ``import arviz`` imports it through ``arviz.plots`` (its ECDF bands) and compiles one
+    ``@vectorize`` kernel with an eager signature at import: ``import arviz`` took
+    5.7-5.9 s of user CPU with numba, 3.8-4.2 s without (measured 2026-11-28 at load 16),
+    in an ``are-stats fit`` that calls no numba code (its ArviZ summary runs ArviZ's NumPy
+    paths already, ``fitting._report._numpy_paths``). ArviZ asks
+    ``importlib.util.find_spec("numba")``, which returns None after this call, and takes
+    its NumPy paths.
 
     For a command's own process only (as :func:`hide_dask`); a library user's process keeps
     numba.
