@@ -855,7 +855,8 @@ def run_augment(
     bag's robot is read, ``topics`` the comma-separated input topics passed through
     (default all)."""
     t = time.perf_counter()
-    with console.status(f"augmenting {bag} ..."):
+    with console.status(f"augmenting {bag} ..."), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
         res = augment_bag(
             bag,
             fit_path,
@@ -866,6 +867,11 @@ def run_augment(
             topics=None if topics is None else [t.strip() for t in topics.split(",") if t.strip()],
             **options,
         )
+    for w in caught:
+        if issubclass(w.category, UserWarning):  # a trajectory partly outside the map
+            console.print(f"[yellow]warning:[/] {w.message}")
+        else:  # shown as they would have been (a fit's older format: a note)
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     n_seen = int(res.perceived.any(axis=0).sum())
     console.print(
         f"{len(res.scene)} artefacts over {res.times[-1] - res.times[0]:.1f} s of the bag, "

@@ -97,6 +97,7 @@ def test_poses_outside_the_map_are_reported(tmp_path):
     assert res.exit_code == 0, res.output
     text = " ".join(res.output.split())  # rich wraps long paths (a tmp folder under xdist)
     assert "warning: 1 of 2 robot poses" in text and "outside the map" in text
+    assert "(corners [[-20.0, -15.0], [20.0, 15.0]]), at t = 100 s (row 2)" in text, text
 
 
 @pytest.mark.parametrize(

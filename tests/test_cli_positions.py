@@ -72,6 +72,9 @@ def test_learned_entries_on_another_map_are_refused_naming_positions(learned):
     errors = [line for line in res.output.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and "--positions uniform" in errors[0], res.output
     assert "--model paper" in errors[0] and "Traceback" not in res.output
+    # the map's file, not "map:" (the check only had the grid)
+    want = f"error: {learned['room']}: expected the map the fit learned its entry points on"
+    assert " ".join(res.output.split()).startswith(want), res.output
     assert not out.exists()
 
 
@@ -178,11 +181,13 @@ def test_a_turned_map_is_refused_for_learned_entries_by_the_one_yaw_check(learne
     """One check (scenarios.check_origin_yaw, 1e-12 rad) decides, whatever the yaw: the
     CLI no longer pre-checks with its own tolerance and message."""
     out = learned["dir"] / f"turned_{yaw:g}"
-    res = _generate(learned, out, _courtyard_turned(learned["dir"], yaw), n=2)
+    turned = _courtyard_turned(learned["dir"], yaw)
+    res = _generate(learned, out, turned, n=2)
     assert res.exit_code == 2, res.output
     errors = [line for line in res.output.splitlines() if line.startswith("error:")]
     assert len(errors) == 1, res.output
-    assert f"map: expected an origin yaw of 0 for learned positions, got {yaw}" in errors[0]
+    want = f"{turned}: expected an origin yaw of 0 for learned positions, got {yaw}"
+    assert want in " ".join(res.output.split()), res.output
     assert "--positions uniform" in errors[0] and not out.exists()
 
 

@@ -107,7 +107,10 @@ def behaviour_tracks(
     from scipy import ndimage  # lazy: +0.2 s CPU on `import are_stats.behaviour`
 
     if abs(float(grid.origin[2])) > 1e-9:
-        raise ValueError(f"map: expected an origin yaw of 0 for behaviours, got {grid.origin[2]}")
+        raise ValueError(
+            f"{grid.source or 'map'}: expected an origin yaw of 0 for "
+            f"behaviours, got {grid.origin[2]}"
+        )
     free, res = coarse_free(grid.free, grid.resolution, cell, source=source)
     occ = ~free
     if occ.all():

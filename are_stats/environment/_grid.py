@@ -136,6 +136,10 @@ class OccupancyGrid:
         Pose ``(x, y, yaw)`` of the lower-left corner of cell ``(0, 0)`` in F_E.
     negate, occupied_thresh, free_thresh, mode
         The ``map_server`` metadata, kept for writing the map back.
+    source : str, optional
+        The file the map was read from (:meth:`from_ros_yaml` sets it), named by the
+        errors of those that use the grid (a map that is not the fit's); a copy keeps it,
+        a grid built in memory has none.
 
     Notes
     -----
@@ -165,6 +169,7 @@ class OccupancyGrid:
         occupied_thresh: float = 0.65,
         free_thresh: float = 0.196,
         mode: str = "trinary",
+        source: str | os.PathLike | None = None,
     ) -> None:
         a = check_finite("data", data, ndim=2)
         if a.shape[0] == 0 or a.shape[1] == 0:
@@ -185,6 +190,7 @@ class OccupancyGrid:
         _check_thresholds(occupied_thresh, free_thresh, "OccupancyGrid")
         self.occupied_thresh = float(occupied_thresh)
         self.free_thresh = float(free_thresh)
+        self.source = None if source is None else str(source)
 
     # ------------------------------------------------------------------ basic views
     @property
@@ -436,6 +442,7 @@ class OccupancyGrid:
         grid.occupied_thresh = occ_th
         grid.free_thresh = free_th
         grid.mode = mode
+        grid.source = str(p)
         return grid
 
     def to_ros_yaml(

@@ -82,6 +82,7 @@ than at a first solution or ``max_iterations`` (PRM, or RRT* without ``max_itera
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import copy
 import functools
@@ -143,7 +144,7 @@ from are_stats.scenarios import (
 
 if TYPE_CHECKING:
     import trimesh
-    from distributed import Client
+    from distributed import Client, LocalCluster
 
     from are_stats.experiments._loop import MissionTrace
     from are_stats.fitting import Fit
@@ -1333,6 +1334,20 @@ def run_sweep(
     return out
 
 
+#: Seconds a local worker process is given to exit once asked to (then it is killed). A
+#: nanny's own close gives it 4 s, which the interpreter teardown of a process that ran a
+#: task (JAX, XLA, Warp and the rest of its modules) overran on a loaded machine: the
+#: worker was killed and "Worker process still alive after 4.0 seconds, killing" logged
+#: after every sweep.
+_WORKER_EXIT_GRACE = 60.0
+
+
+async def _close_workers(cluster: LocalCluster, grace: float) -> None:
+    """Close ``cluster``'s workers, giving each ``grace`` seconds to exit (80 % of it to
+    its process before the nanny kills it); the cluster's own close then finds them closed."""
+    await asyncio.gather(*(w.close(timeout=grace) for w in cluster.workers.values()))
+
+
 @contextlib.contextmanager
 def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> Iterator[Client]:
     """A Dask client of the given scheduler, or of a local cluster listening on ``host``."""
@@ -1361,6 +1376,7 @@ def _client(workers: int, scheduler: str | None, processes: bool, host: str) -> 
     finally:
         client.close()
         if cluster is not None:
+            cluster.sync(_close_workers, cluster, _WORKER_EXIT_GRACE)
             cluster.close()
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple, TypedDict
@@ -292,7 +293,9 @@ def augment_bag(
         named as ``--model``, ``--positions``, ``--behaviour-cell``, ``--behaviour-dt``
         (:meth:`~are_stats.scenarios.AssemblyOptions.from_command`, before any file is
         read), a bag without poses, an unknown topic, a bad pose or stamp (see
-        :func:`~are_stats.logs.read_trajectory`), a trajectory outside the map, a fit
+        :func:`~are_stats.logs.read_trajectory`), a trajectory wholly outside the map
+        (partly outside: a ``UserWarning`` naming the bag, how many poses and their times
+        into the bag; :func:`~are_stats.perception.check_poses_inside`, perceive's rule), a fit
         without area, no artefact alive in any camera frame (with why and what to try),
         an existing ``out`` without ``force`` (``OutputExistsError``), a bag without
         ``/tf`` whose ``/tf_static`` chain above the base holds the map frame, an input
@@ -307,7 +310,7 @@ def augment_bag(
     # CPU on `import are_stats.export`, which every CLI job imports
     from are_stats.experiments import circle_box_overlap
     from are_stats.fitting import read_fit
-    from are_stats.perception import perceive_scene, read_camera
+    from are_stats.perception import check_poses_inside, perceive_scene, read_camera
 
     if isinstance(camera, str | os.PathLike):  # a file, or a shipped camera's name
         camera = read_camera(camera)
@@ -322,7 +325,7 @@ def augment_bag(
     if camera is not None and camera_info_topic is not None:
         raise InputError("--camera", "", "either --camera or --camera-info-topic", "both")
     out = check_writable(out, force)
-    _, grid = read_map(map_path)
+    map_file, grid = read_map(map_path)
     fitted = read_fit(fit)
 
     opts = TrajectoryOptions(pose_topic, base_frame, map_frame, camera_info_topic, clock)
@@ -344,18 +347,15 @@ def augment_bag(
         _check_bag_map(bag, passthrough.channels, grid, map_path)
     fixed = traj.frame
     xy = traj.poses[:, :2, 3]
-    outside = ~grid.in_bounds(grid.world_to_cell(xy))
-    if outside.any():
-        i = int(np.argmax(outside))
-        raise InputError(
-            bag,
-            f"{traj.source}, pose at {_into_bag(bag, traj, _pose_ns(traj, i))}",
-            f"robot poses inside the map {map_path} (corners "
-            f"{np.round(grid.corners_world[[0, 2]], 3).tolist()})",
-            Described(
-                f"({xy[i, 0]:.3f}, {xy[i, 1]:.3f}); {int(outside.sum())} of {len(xy)} poses outside"
-            ),
-        )
+
+    def when(i: int, j: int) -> str:
+        at = (_pose_ns(traj, i),) if i == j else (_pose_ns(traj, i), _pose_ns(traj, j))
+        return ("at " if i == j else "from ") + _into_bag(bag, traj, *at)
+
+    # perceive's rule: refused wholly outside, a warning partly outside (a map's edge)
+    outside = check_poses_inside(bag, xy, grid, None, map_file, field=traj.source, when=when)
+    if outside is not None:
+        warnings.warn(outside, UserWarning, stacklevel=2)
     # times on the scenario clock: seconds after the trajectory's start, from exact stamps
     start, start_ns = traj.start, traj.start_ns
     pose_t = traj.since_start

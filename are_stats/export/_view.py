@@ -3,9 +3,10 @@
 :func:`plot_mcap` reads what a viewer subscribes to (``/map``, ``/augmented_map``, the
 ``/artefacts`` markers and the robot's ``/tf`` tree) from an MCAP file or ROS bag written by
 :func:`~are_stats.export.augment_bag` or :func:`~are_stats.export.export_mcap` and draws
-the scene at one time: the map, the augmented cells, each artefact's box (green perceived,
-grey occluded, as the markers are coloured) with its label, the robot's path and pose and
-its camera's optical axis. It needs no ROS install, so a user can check an augmented bag
+the scene at one time: the map (the last ``/map``, a SLAM run's finished map), the
+augmented cells, each artefact's box (green perceived, grey occluded, as the markers are
+coloured) with its label, the robot's path and pose and its camera's optical axis. It
+needs no ROS install, so a user can check an augmented bag
 before replaying it (``are-stats show OUT.mcap``).
 """
 
@@ -50,7 +51,8 @@ class BagView(NamedTuple):
     t : float
         Seconds after the bag's first message (recording clock).
     grid : OccupancyGrid
-        ``/map`` (the first message).
+        ``/map``: its last message, the finished map of a SLAM run (the one ``map_saver``
+        writes and ``augment`` checks ``--map`` against), whatever ``t``.
     augmented : OccupancyGrid or None
         The last ``/augmented_map`` at or before ``t``.
     boxes : (n, 5) float
@@ -72,6 +74,10 @@ class BagView(NamedTuple):
         Boxes in each ``/artefacts`` message (its length is the number of messages).
     frame : str
         The fixed frame of the picture.
+    map_t : float
+        Seconds after the bag's first message of the ``/map`` message drawn.
+    n_maps : int
+        ``/map`` messages in the bag (more than one: a map built as the robot went).
     """
 
     t: float
@@ -85,6 +91,8 @@ class BagView(NamedTuple):
     camera: np.ndarray | None
     n_boxes: np.ndarray
     frame: str
+    map_t: float = 0.0
+    n_maps: int = 1
 
 
 #: A bag's message (any ROS 1 or ROS 2 type store's class: read by duck typing).
@@ -173,7 +181,8 @@ def read_view(
     from rosbags.highlevel import AnyReader
 
     p = check_bag_path(path)
-    grid = None
+    last_map: tuple[int, _Msg] | None = None  # the finished map: only the last is decoded
+    n_maps = 0
     augmented: list[tuple[int, _Msg]] = []
     markers: list[tuple[int, _Boxes]] = []
     reach: list[tuple[int, float | None]] = []  # the range of A_f, from /perceived
@@ -192,7 +201,7 @@ def read_view(
             # (rosbags reads every connection when given none)
             for conn, ts, msg in bag_messages(reader, conns, p) if conns else ():
                 if conn.topic == "/map":
-                    grid = grid if grid is not None else _grid(msg)
+                    last_map, n_maps = (int(ts), msg), n_maps + 1
                 elif conn.topic == "/augmented_map":
                     augmented.append((int(ts), msg))
                 elif conn.topic == "/perceived":
@@ -204,8 +213,9 @@ def read_view(
             f"{p}: expected a readable ROS 1 / ROS 2 bag or MCAP file, got: "
             f"{type(err).__name__}: {err}"
         ) from None
-    if grid is None:
+    if last_map is None:
         raise InputError(p, "topic /map", "a nav_msgs/OccupancyGrid message", Described("none"))
+    grid = _grid(last_map[1])
     span = (t1 - t0) * 1e-9
     n_boxes = np.array([len(b[0]) for _, b in markers], np.int64)
     if at is None:  # the most perceived artefacts, then the most artefacts
@@ -259,6 +269,8 @@ def read_view(
         camera,
         n_boxes,
         frame,
+        (last_map[0] - t0) * 1e-9,
+        n_maps,
     )
 
 
@@ -357,8 +369,10 @@ def plot_mcap(
     ax.set_xlabel(f"x in {v.frame} (m)")
     ax.set_ylabel(f"y in {v.frame} (m)")
     n_seen = int(v.perceived.sum())
+    which = f"\n/map: the last of {v.n_maps}, at {v.map_t:.1f} s" if v.n_maps > 1 else ""
     ax.set_title(
-        f"{Path(path).name} at {v.t:.1f} s: {v.boxes.shape[0]} artefacts, {n_seen} perceived",
+        f"{Path(path).name} at {v.t:.1f} s: {v.boxes.shape[0]} artefacts, {n_seen} perceived"
+        + which,
         fontsize=10,
     )
     handles = [

@@ -124,7 +124,8 @@ def _behaviour(
         )
     idata = attach_behaviour(idata, bfit)
     say("interaction (social force) from the tracks")
-    learned, info, note = learn_interaction(tracks)
+    # the walking classes' accelerations (the standing ones still push them)
+    learned, info, note = learn_interaction(tracks, bfit.standing)
     if note:
         notes.append(note)
     if learned is not None:

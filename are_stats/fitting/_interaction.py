@@ -13,7 +13,7 @@ generated from the fit walks with the log's interaction and groups
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Mapping
+from collections.abc import Collection, Hashable, Mapping
 
 import numpy as np
 import pandas as pd
@@ -79,6 +79,16 @@ def _on_one_step(
     return pd.DataFrame(out), groups
 
 
+def _standing_alone(tracks: pd.DataFrame, standing: Collection[str]) -> dict[Hashable, tuple]:
+    """Each track id of a ``standing`` class in a group of its own: left out of the social
+    force's least squares (:func:`~are_stats.behaviour.fit_social_force` leaves out group
+    members' accelerations) while it still repels everybody (no pair of its group)."""
+    if not standing or "label" not in tracks.columns:
+        return {}
+    still = tracks["label"].astype(str).isin([str(c) for c in standing]).to_numpy()
+    return {i: ("standing", str(i)) for i in pd.unique(tracks["id"].to_numpy()[still])}
+
+
 def _check_range(params: SocialForce) -> None:
     """Refuse a fitted force outside the model's range (a non-positive or infinite
     relaxation, a non-positive strength: no interaction in the data), as
@@ -124,6 +134,7 @@ def fit_interaction(tracks: pd.DataFrame) -> tuple[SocialForce, dict[str, float]
 
 def learn_interaction(
     tracks: pd.DataFrame,
+    standing: Collection[str] = (),
 ) -> tuple[SocialForce | None, dict[str, float], str | None]:
     """What a fit keeps of a log's interaction: the fitted social force, else no repulsion
     when the log shows none, else the published one; with the log's group spacing.
@@ -138,10 +149,17 @@ def learn_interaction(
     each other (no repulsion to fit) can still show how close its groups walk, and the
     scenes keep that spacing instead of the published 0.75 m.
 
+    Only walkers are fitted: the people of ``standing`` classes (a vendor swaying at a
+    stall, a guard stepping about) do not head for a destination, so their own
+    accelerations are left out of the least squares and of the evidence, as a group
+    member's are; they still push the walkers who pass them.
+
     Parameters
     ----------
     tracks : pandas.DataFrame
-        ``id, t, x, y`` of one scene.
+        ``id, t, x, y`` of one scene (and ``label``, the class, with ``standing``).
+    standing : collection of str
+        The classes that only stand (:attr:`~are_stats.behaviour.BehaviourFit.standing`).
 
     Returns
     -------
@@ -161,13 +179,14 @@ def learn_interaction(
     step = None
     try:
         step = _on_one_step(tracks, labels)
-        params, info = fit_social_force(step[0], groups=step[1])
+        groups = {**step[1], **_standing_alone(tracks, standing)}
+        params, info = fit_social_force(step[0], groups=groups)
         _check_range(params)
     except ValueError as err:  # too little walking together, or no interaction in the data
         try:
             if step is None:  # too little walking to resample
                 raise ValueError(str(err)) from err
-            evidence = repulsion_evidence(step[0], groups=step[1], level=_LEVEL)
+            evidence = repulsion_evidence(step[0], groups=groups, level=_LEVEL)
         except ValueError:  # too little walking to test either
             evidence = {"verdict": "too little", "close": 0.0}
         info = {"group_samples": float(samples)} if samples else {}

@@ -409,6 +409,7 @@ def check_stamps(
     *,
     gap: float = STAMP_GAP,
     item: str = "message",
+    recorded: npt.ArrayLike | None = None,
 ) -> None:
     """Refuse a topic's stamps when a few lie far from the rest (a clear outlier).
 
@@ -433,11 +434,25 @@ def check_stamps(
         Stamps further apart than this (s) are separate stretches.
     item : str
         What ``index`` counts, for messages (``"message"``, ``"sighting"``).
+    recorded : (m,) float, optional
+        Each message's recording time as seconds into the bag (after its first recording
+        time): the error then places the message and the recording's stretch in the bag,
+        as ``augment``'s errors give times, with the stamps' dates in brackets.
 
     Raises
     ------
     are_stats.inputs.InputError
-        Naming the topic, the message, its stamp (and date) and the recording's stretch.
+        Naming the topic, the message, its stamp (and date) and the recording's stretch
+        (and where they were recorded in the bag, with ``recorded``).
+
+    Examples
+    --------
+    >>> t = [1782000000.0 + k for k in range(200)] + [5.25]
+    >>> check_stamps(t, "b.bag", "topic /odom", recorded=[*range(200), 3.5])
+    Traceback (most recent call last):
+    are_stats.inputs.InputError: b.bag: topic /odom, message 201 (recorded 3.500 s into the
+    bag), stamp 5.250000000 s (1970-01-01T00:00:05Z): expected stamps on the clock of the
+    other 200 messages (recorded 0.000 to 199.000 s into the bag, stamped ...), got ...
     """
     t = np.asarray(t, float)
     if t.size < 2:
@@ -465,11 +480,19 @@ def check_stamps(
         if min(abs(a - hi), abs(lo - b)) <= far:
             continue
         j = int(order[bounds[k]])
+        at = stretch = ""
+        if recorded is not None:
+            rec = np.asarray(recorded, float)
+            main_rec = rec[order[bounds[main] : bounds[main + 1]]]
+            at = f" (recorded {rec[j]:.3f} s into the bag)"
+            stretch = (
+                f"recorded {main_rec.min():.3f} to {main_rec.max():.3f} s into the bag, stamped "
+            )
         raise InputError(
             source,
-            f"{what}, {item} {int(idx[j])}, stamp {t[j]:.9f} s ({_iso(t[j])})",
+            f"{what}, {item} {int(idx[j])}{at}, stamp {t[j]:.9f} s ({_iso(t[j])})",
             f"stamps on the clock of the other {int(sizes[main])} {item}s "
-            f"({_iso(lo)} to {_iso(hi)})",
+            f"({stretch}{_iso(lo)} to {_iso(hi)})",
             Described(
                 f"{int(sizes[k])} {item}(s) {abs(t[j] - (lo if t[j] < lo else hi)):.6g} s away "
                 "from them (a stamp of another clock or a damaged one)"

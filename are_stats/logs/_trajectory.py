@@ -301,7 +301,9 @@ def read_trajectory(
         ``/tf`` chain from ``map_frame`` to ``base_frame``), a camera-info topic without
         messages, a non-finite pose or transform, a quaternion that is not a unit one
         (:data:`~are_stats.logs.QUATERNION_TOLERANCE`), a stamp far off the others of its
-        topic (:func:`~are_stats.logs.check_stamps`), more messages than the memory limit.
+        topic (:func:`~are_stats.logs.check_stamps`: a header stamp's message placed by its
+        recording time into the bag, the stamps with their dates), more messages than the
+        memory limit.
     """
     # lazy: rosbags' reader adds 0.35 s CPU to `import are_stats.logs`
     from rosbags.highlevel import AnyReader
@@ -322,6 +324,7 @@ def read_trajectory(
         with AnyReader(
             [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
         ) as reader:
+            bag_start = int(reader.start_time)  # recording times into the bag in errors
             by_topic: dict[str, str] = {}
             for c in reader.connections:
                 by_topic.setdefault(c.topic, c.msgtype)
@@ -426,12 +429,23 @@ def read_trajectory(
     tf = TfBuffer()
     link_ns: dict[tuple[str, str], list[int]] = {}
     link_msg: dict[tuple[str, str], list[int]] = {}
+    link_log: dict[tuple[str, str], list[int]] = {}
     for parent, child, h, lg, m, static, n in tfs:
         t_ns = on_clock(h, lg)
         tf.add(parent, child, t_ns * 1e-9, m, static)
         if tf.parents.get(child) == parent:
             link_ns.setdefault((parent, child), []).append(t_ns)
             link_msg.setdefault((parent, child), []).append(n)
+            link_log.setdefault((parent, child), []).append(lg)
+
+    def into_bag(log_ns: list[int] | np.ndarray) -> np.ndarray | None:
+        """Recording times (ns) as seconds into the bag, to place a header stamp refused by
+        :func:`check_stamps`; None on the recording clock, where the recording time is the
+        stamp refused (a bag whose start is then an outlier's: its date says more)."""
+        if clock == "log":
+            return None
+        return (np.asarray(log_ns, np.int64) - bag_start) * 1e-9
+
     del tfs, moving_tf
     if pose_topic is not None:
         if map_frame == "map" and "odom" in pose_frames:  # odometry: an odometry-only bag
@@ -453,7 +467,8 @@ def read_trajectory(
                 "artefacts in 'odom' (odometry only; pass --map-frame to name another fixed frame)"
             )
         ns = np.array([on_clock(h, lg) for h, lg in pose_hl], np.int64)
-        check_stamps(ns * 1e-9, p, f"topic {pose_topic}")
+        rec = into_bag([lg for _, lg in pose_hl])
+        check_stamps(ns * 1e-9, p, f"topic {pose_topic}", recorded=rec)
         order = np.argsort(ns, kind="stable")
         t_ns = ns[order]
         poses = np.stack(pose_m)[order]
@@ -479,7 +494,11 @@ def read_trajectory(
         moving = [k for k in links if k not in tf.static]
         for k in moving:
             check_stamps(
-                np.asarray(link_ns[k]) * 1e-9, p, f"topic /tf, {k[0]} -> {k[1]}", link_msg[k]
+                np.asarray(link_ns[k]) * 1e-9,
+                p,
+                f"topic /tf, {k[0]} -> {k[1]}",
+                link_msg[k],
+                recorded=into_bag(link_log[k]),
             )
         # the stamps of the moving link nearest the base (odom -> base_link, usually)
         t_ns = np.unique(np.asarray(link_ns[moving[-1] if moving else links[-1]], np.int64))
@@ -490,7 +509,8 @@ def read_trajectory(
     cam_ns = None
     if cam_hl:
         cam_ns = np.array([on_clock(h, lg) for h, lg in cam_hl], np.int64)
-        check_stamps(cam_ns * 1e-9, p, f"topic {camera_info_topic}")
+        rec = into_bag([lg for _, lg in cam_hl])
+        check_stamps(cam_ns * 1e-9, p, f"topic {camera_info_topic}", recorded=rec)
         cam_ns = np.sort(cam_ns)
     ends = [t_ns[[0, -1]]] + ([cam_ns[[0, -1]]] if cam_ns is not None else [])
     start_ns, end_ns = int(min(e[0] for e in ends)), int(max(e[1] for e in ends))

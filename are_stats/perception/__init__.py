@@ -26,11 +26,11 @@ from are_stats.perception._plots import (
 )
 from are_stats.perception._scenario import (
     check_path_times,
+    check_poses_inside,
     perceive_scenario,
     perceive_scene,
     perceived_grid,
     poses_outside,
-    poses_outside_warning,
     read_robot_path,
     yaw_rotations,
 )
@@ -46,6 +46,7 @@ __all__ = [
     "box_rois",
     "camera_mount",
     "check_path_times",
+    "check_poses_inside",
     "clear_mesh_cache",
     "optical_from_base",
     "perceive_folder",
@@ -58,7 +59,6 @@ __all__ = [
     "plot_camera_view",
     "plot_top_view",
     "poses_outside",
-    "poses_outside_warning",
     "read_camera",
     "read_robot_path",
     "sample_perceived",

@@ -12,26 +12,21 @@ import os
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple, TypedDict
+from typing import NamedTuple, TypedDict
 
-import numpy as np
 import pandas as pd
 
 from are_stats._atomic import atomic_path, check_writable
-from are_stats.environment import OccupancyGrid, environment_mesh, load_catalogue
-from are_stats.inputs import Described, InputError, get_float
+from are_stats.environment import environment_mesh, load_catalogue
+from are_stats.inputs import get_float
 from are_stats.perception._camera import camera_mount, read_camera
 from are_stats.perception._scenario import (
     check_path_times,
+    check_poses_inside,
     perceive_scenario,
-    poses_outside,
-    poses_outside_warning,
     read_robot_path,
 )
 from are_stats.scenarios import read_scenes, scenes_from_tables
-
-if TYPE_CHECKING:
-    import trimesh
 
 __all__ = ["FolderPlan", "PerceiveFolderOptions", "perceive_folder"]
 
@@ -131,9 +126,9 @@ def perceive_folder(
     are_stats.inputs.InputError
         A bad option, folder, camera, robot path or mesh; a robot path whose times miss the
         scenario window ``[0, horizon]`` or every artefact's presence (naming both time
-        ranges); a robot path wholly outside the map (or the mesh's x-y bounds), as
-        ``augment`` refuses a trajectory outside its map (some poses outside are a
-        warning); an existing ``out`` without ``force``.
+        ranges); a robot path wholly outside the map (or the mesh's x-y bounds): the rule
+        ``augment`` shares (:func:`~are_stats.perception.check_poses_inside`: some poses
+        outside are a warning, with their times); an existing ``out`` without ``force``.
     """
     d_max = get_float(d_max, "--d-max", "", lo=0, lo_open=True, hi=1e6)
     tau = get_float(tau, "--tau", "", lo=0)
@@ -158,10 +153,15 @@ def perceive_folder(
         window,
         scenario,
     )
+    t = robot["t"].to_numpy()
+
+    def when(i: int, j: int) -> str:
+        rows = f"row {i + 1}" if i == j else f"rows {i + 1} to {j + 1}"
+        return f"at t = {t[i]:g}" + ("" if i == j else f" to {t[j]:g}") + f" s ({rows})"
+
     xy = robot[["x", "y"]].to_numpy()
-    _check_some_pose_inside(path, xy, grid, env, folder.map_file)
     notes = []
-    outside = poses_outside_warning(path, xy, grid, env, folder.map_file)
+    outside = check_poses_inside(path, xy, grid, env, folder.map_file, when=when)
     if outside is not None:
         notes.append(outside)
     cat = load_catalogue()
@@ -194,28 +194,3 @@ def perceive_folder(
     with atomic_path(target, force=force) as tmp:
         res.to_parquet(tmp, index=False)
     return target, res
-
-
-def _check_some_pose_inside(
-    source: Path, xy: np.ndarray, grid: OccupancyGrid | None, env: trimesh.Trimesh, map_file: object
-) -> None:
-    """Refuse a robot path none of whose poses ``xy (n, 2)`` lies on the map ``grid`` (else
-    within the mesh's x-y bounds): nothing along it could be seen, whatever the scenes."""
-    bounds = None if grid is not None else np.asarray(env.bounds, float)[:, :2]
-    outside = poses_outside(xy, grid=grid, bounds=bounds)
-    if not outside.size or not outside.all():
-        return
-    if grid is not None:
-        corners = np.round(grid.corners_world[[0, 2]], 3).tolist()
-        area = f"the map {map_file} (corners {corners})"
-    else:
-        area = f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
-    raise InputError(
-        source,
-        "columns 'x', 'y'",
-        f"robot poses inside {area}",
-        Described(
-            f"all {len(xy)} outside, the first at ({xy[0, 0]:.3f}, {xy[0, 1]:.3f}): is the "
-            "path in the map's frame and metres?"
-        ),
-    )

@@ -10,7 +10,7 @@ scenes') along the robot's path (the library side of ``are-stats perceive``).
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
@@ -31,10 +31,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "check_path_times",
+    "check_poses_inside",
     "perceive_scene",
     "perceive_scenario",
     "poses_outside",
-    "poses_outside_warning",
     "perceived_grid",
     "read_robot_path",
     "yaw_rotations",
@@ -498,51 +498,84 @@ def poses_outside(
     return np.zeros(p.shape[0], bool)
 
 
-def poses_outside_warning(
+def check_poses_inside(
     source: Source,
     xy: npt.ArrayLike,
     grid: OccupancyGrid | None,
-    env_mesh: trimesh.Trimesh,
+    env_mesh: trimesh.Trimesh | None = None,
     map_source: Source = "",
+    *,
+    field: str = "columns 'x', 'y'",
+    when: Callable[[int, int], str] | None = None,
 ) -> str | None:
-    """The warning for robot poses outside the robot's area: the map's cells when there is
-    a map, else the x-y bounds of the environment mesh (:func:`poses_outside`).
+    """The one rule of ``perceive`` and ``augment`` for a robot path and its map: a path
+    wholly outside the robot's area is refused (nothing along it could be seen, whatever
+    the scenes: a path in another frame or unit), a path partly outside is a warning (the
+    robot at a map's edge) and goes on. The area is the map's cells when there is a map,
+    else the x-y bounds of the environment mesh (:func:`poses_outside`).
 
     Parameters
     ----------
     source : str or PathLike
-        The robot-path file (named in the warning).
+        The robot-path file or bag (named in the error and the warning).
     xy : (n, 2) float
-        The robot's positions (m).
+        The robot's positions (m), in time order.
     grid : OccupancyGrid or None
-        The map of the scenarios (None: a mesh alone).
-    env_mesh : trimesh.Trimesh
-        The environment mesh (its bounds, without a map).
+        The map (None: the mesh alone).
+    env_mesh : trimesh.Trimesh, optional
+        The environment mesh (its x-y bounds are the area without a map).
     map_source : str or PathLike
-        The map's file (named in the warning).
+        The map's file (named in the error and the warning).
+    field : str
+        Where in ``source`` the positions are (named in the error).
+    when : callable, optional
+        ``when(i, j)``: the times of poses ``i`` to ``j`` in words (``"at t = 1 to 3 s"``);
+        default their rows, counted from 1 (``"row 2"``, ``"rows 2 to 5"``).
 
     Returns
     -------
     str or None
-        ``"k of n robot poses of SOURCE lie outside AREA (first: row r)"`` (rows counted
-        from 1), None when every pose lies inside.
+        ``"k of n robot poses of SOURCE lie outside AREA, WHEN"`` (the first to the last
+        pose outside), None when every pose lies inside.
+
+    Raises
+    ------
+    are_stats.inputs.InputError
+        Every pose outside (naming ``source``, ``field``, the area and the first pose).
 
     Examples
     --------
     >>> grid = OccupancyGrid(np.zeros((10, 10)), 1.0)
-    >>> poses_outside_warning("path.csv", [[1.0, 1.0], [12.0, 1.0]], grid, None, "map.yaml")
-    '1 of 2 robot poses of path.csv lie outside the map map.yaml (first: row 2)'
-    """
-    bounds = None if grid is not None else np.asarray(env_mesh.bounds, float)[:, :2]
-    outside = poses_outside(xy, grid=grid, bounds=bounds)
+    >>> check_poses_inside("path.csv", [[1.0, 1.0], [12.0, 1.0]], grid, None, "map.yaml")
+    '1 of 2 robot poses of path.csv lie outside the map map.yaml (corners [[0.0, 0.0], [10.0, 10.0]]), row 2'
+    """  # noqa: E501
+    p = check_finite("xy", xy, ndim=2)
+    bounds = None if grid is not None or env_mesh is None else np.asarray(env_mesh.bounds)[:, :2]
+    outside = poses_outside(p, grid=grid, bounds=bounds)
     if not outside.any():
         return None
-    area = (
-        f"the map {map_source}"
-        if grid is not None
-        else f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
-    )
+    if grid is not None:
+        corners = np.round(grid.corners_world[[0, 2]], 3).tolist()
+        area = f"the map {map_source} (corners {corners})"
+    else:
+        area = f"the mesh's x-y bounds {bounds[0].tolist()} to {bounds[1].tolist()}"
+    if when is None:
+
+        def when(i: int, j: int) -> str:
+            return f"row {i + 1}" if i == j else f"rows {i + 1} to {j + 1}"
+
+    rows = np.flatnonzero(outside)
+    first, last = int(rows[0]), int(rows[-1])
+    if outside.all():
+        raise InputError(
+            source,
+            field,
+            f"robot poses inside {area}",
+            Described(
+                f"all {len(p)} outside, the first at ({p[0, 0]:.3f}, {p[0, 1]:.3f}), "
+                f"{when(first, last)}: is the path in the map's frame and metres?"
+            ),
+        )
     return (
-        f"{int(outside.sum())} of {len(outside)} robot poses of {source} lie outside {area} "
-        f"(first: row {int(np.argmax(outside)) + 1})"
+        f"{len(rows)} of {len(p)} robot poses of {source} lie outside {area}, {when(first, last)}"
     )

@@ -66,7 +66,7 @@ __all__ = [
 ORIGIN_YAW_TOLERANCE = 1e-12
 
 
-def check_origin_yaw(yaw: float, what: str) -> None:
+def check_origin_yaw(yaw: float, what: str, source: str | None = None) -> None:
     """Refuse a rotated map for positions learned on an axis-aligned grid.
 
     Parameters
@@ -75,11 +75,14 @@ def check_origin_yaw(yaw: float, what: str) -> None:
         The map's origin yaw (rad; ``OccupancyGrid.origin[2]``).
     what : str
         What needs the unrotated map, named in the error (``"learned positions"``).
+    source : str, optional
+        The map's file (``OccupancyGrid.source``), named in the error; ``map`` without
+        one.
 
     Raises
     ------
     ValueError
-        ``map: expected an origin yaw of 0 for <what>, got <yaw> (or use --positions
+        ``<source>: expected an origin yaw of 0 for <what>, got <yaw> (or use --positions
         uniform, or --model paper)`` when ``|yaw|`` exceeds :data:`ORIGIN_YAW_TOLERANCE`.
 
     Examples
@@ -91,8 +94,8 @@ def check_origin_yaw(yaw: float, what: str) -> None:
     """
     if abs(float(yaw)) > ORIGIN_YAW_TOLERANCE:
         raise ValueError(
-            f"map: expected an origin yaw of 0 for {what}, got {yaw} (or use --positions "
-            "uniform, or --model paper)"
+            f"{source or 'map'}: expected an origin yaw of 0 for {what}, got {yaw} (or use "
+            "--positions uniform, or --model paper)"
         )
 
 
@@ -456,6 +459,7 @@ def generate_scenarios(
     check_in("start", start, ("stationary", "empty"))
     check_in("draw", draw, ("cycle", "random"))
     check_in("headings", headings, (0, 4))
+    map_source = getattr(free_mask, "source", None)  # an OccupancyGrid read from a file
     if free_mask is not None:
         mask, res, (ox, oy, oyaw) = _grid(free_mask, resolution, origin)
         iy_free, ix_free = np.nonzero(mask)
@@ -487,6 +491,7 @@ def generate_scenarios(
             start,
             (mask, res, (ox, oy, oyaw)) if free_mask is not None else None,
             (ox, oy, oyaw),
+            map_source,
         )
         total = scen.size
     else:
@@ -527,14 +532,14 @@ def generate_scenarios(
         x = ox + c * q_u - sn * q_v
         y = oy + sn * q_u + c * q_v
     if laws is not None and laws.class_entry is not None and "class_weights" in p:
-        check_origin_yaw(oyaw, "per-class entry densities")
+        check_origin_yaw(oyaw, "per-class entry densities", map_source)
         if free_mask is not None:  # the map the fit learned its classes' entries on
             # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
             from are_stats.traffic import uniform_position_density
 
             on_map = uniform_position_density(mask, res, (ox, oy))
             for density in laws.class_entry:
-                _check_entries_on_map(density, on_map)
+                _check_entries_on_map(density, on_map, map_source)
         x, y = _place_by_class(rng, laws.class_entry, cls, scen, group, initial, x, y)
     if headings == 4:
         yaw = np.mod(rng.integers(0, 4, size=total) * (np.pi / 2) + oyaw, 2 * np.pi)
@@ -619,8 +624,11 @@ def _paper_populations(
     return scen, j, t_arr, t_leave, initial, total
 
 
-def _check_entries_on_map(entry: PositionDensity, free: PositionDensity) -> None:
-    """Refuse a learned entry density that mostly lies off the given map's free cells."""
+def _check_entries_on_map(
+    entry: PositionDensity, free: PositionDensity, source: str | None = None
+) -> None:
+    """Refuse a learned entry density that mostly lies off the given map's free cells
+    (``source``: the map's file, named in the error; ``map`` without one)."""
     h, w = entry.prob.shape
     yy, xx = np.mgrid[0:h, 0:w]
     centres = np.column_stack(
@@ -636,8 +644,8 @@ def _check_entries_on_map(entry: PositionDensity, free: PositionDensity) -> None
     mass = float(entry.prob.ravel()[ok].sum())
     if mass < 0.5:
         raise ValueError(
-            f"map: expected the map the fit learned its entry points on, got one whose free "
-            f"cells hold {mass:.0%} of the entry density (use the fit's map, or uniform "
+            f"{source or 'map'}: expected the map the fit learned its entry points on, got one "
+            f"whose free cells hold {mass:.0%} of the entry density (use the fit's map, or uniform "
             "positions on this map with the fit's arrivals and stays: --positions uniform; or "
             "the paper's whole model: --model paper)"
         )
@@ -653,20 +661,22 @@ def _rich_populations(
     start: str,
     grid: tuple | None,
     origin: tuple[float, float, float],
+    map_source: str | None = None,
 ) -> tuple:
-    """Each scenario by :func:`are_stats.traffic.sample_population` (positions in the map)."""
+    """Each scenario by :func:`are_stats.traffic.sample_population` (positions in the map;
+    ``map_source``: its file, named in errors)."""
     # lazy: are_stats.traffic brings NumPyro (+0.75 s CPU on `import are_stats.scenarios`)
     from are_stats.traffic import sample_population, uniform_position_density
 
     ox, oy, oyaw = origin
     rotated = abs(oyaw) > ORIGIN_YAW_TOLERANCE
     if laws.positions == "learned":
-        check_origin_yaw(oyaw, "learned positions")
+        check_origin_yaw(oyaw, "learned positions", map_source)
     if grid is not None:
         mask, res, _ = grid
         free = uniform_position_density(mask, res, (0.0, 0.0) if rotated else (ox, oy))
         if laws.positions == "learned":
-            _check_entries_on_map(laws.entry, free)
+            _check_entries_on_map(laws.entry, free, map_source)
     else:
         side = math.sqrt(nu)
         free = uniform_position_density(np.ones((1, 1), bool), side, (ox, oy))

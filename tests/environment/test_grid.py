@@ -143,6 +143,15 @@ def test_masks_and_free_area():
     assert g.free_area == pytest.approx(3 * 0.04)
 
 
+def test_a_grid_read_from_a_file_knows_it():
+    """Errors about a map (not the fit's, turned) name its file: the grid carries it."""
+    path = DEFAULT_MODELS / "courtyard.yaml"
+    grid = OccupancyGrid.from_ros_yaml(path)
+    assert grid.source == str(path) and grid.copy().source == str(path)
+    assert OccupancyGrid(np.zeros((2, 3)), 0.5).source is None
+    assert OccupancyGrid(np.zeros((2, 3)), 0.5, source=path).source == str(path)
+
+
 def test_inflation_against_brute_force(rng):
     data = np.where(rng.random((30, 40)) < 0.05, 100, 0)
     g = OccupancyGrid(data, 0.1)

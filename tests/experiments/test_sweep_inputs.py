@@ -3,8 +3,12 @@ address, whole-folder replacement with --force and results folders holding one s
 
 from __future__ import annotations
 
+import atexit
+import logging
+import pathlib
 import re
 import shutil
+import time
 
 import numpy as np
 import pandas as pd
@@ -199,6 +203,28 @@ def test_local_cluster_listens_on_loopback_only():
         servers += [w.http_server for w in cluster.workers.values()]
         hosts = {a[0] for s in servers for a in get_tcp_server_addresses(s)}
         assert hosts == {"127.0.0.1"}
+
+
+def test_local_worker_processes_exit_on_their_own(tmp_path):
+    """A worker process whose interpreter teardown is slow (5 s here, as a worker that ran
+    JAX and Warp takes on a loaded machine) is let finish, not killed: the nanny's own 4 s
+    killed it and logged "Worker process still alive after 4.0 seconds, killing" after
+    every `are-stats experiment`. The marker is written by the worker's last exit handler."""
+    marker = tmp_path / "exited"
+    seen = []
+    handler = logging.Handler(logging.WARNING)
+    handler.emit = lambda record: seen.append(record.getMessage())
+    nanny_log = logging.getLogger("distributed.nanny")
+    nanny_log.addHandler(handler)
+    try:
+        with _sweep._client(1, None, True, "127.0.0.1") as client:
+            # exit handlers run last-registered first: the sleep, then the marker
+            client.run(atexit.register, pathlib.Path.touch, marker)
+            client.run(atexit.register, time.sleep, 5.0)
+    finally:
+        nanny_log.removeHandler(handler)
+    assert not [m for m in seen if "still alive" in m], seen
+    assert marker.is_file()
 
 
 @pytest.fixture(scope="module")

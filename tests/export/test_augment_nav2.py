@@ -311,21 +311,52 @@ def _moved_map(tmp_path: Path, x0: float, name: str = "moved.yaml") -> Path:
     return far
 
 
-def test_a_pose_outside_the_map_is_named_by_its_time_into_the_bag(fit_and_camera, tmp_path):
+def test_a_trajectory_partly_outside_the_map_is_a_warning_with_its_times_into_the_bag(
+    fit_and_camera, tmp_path
+):
     """The map's east edge at x = -10.5 m: the robot (x = -15 + 0.5 t) leaves it 9 s into
-    the bag; the error says so, with the header stamp (s since the epoch) in brackets."""
+    the bag. A robot at a map's edge: augment warns, as perceive does, naming the bag, how
+    many poses and their times into the bag (the header stamps, s since the epoch, in
+    brackets), and goes on. Fails before this change: it refused the bag."""
     bag = write_nav2_bag(tmp_path / "nav2", "ros2")
     moved = _moved_map(tmp_path, -50.5)
     grid = read_map(moved)[1]
     ts = np.arange(int(DURATION * 10) + 1) / 10.0
     xy = np.array([robot_pose(t)[:2] for t in ts])
-    first = ts[np.argmax(~grid.in_bounds(grid.world_to_cell(xy)))]
+    outside = ~grid.in_bounds(grid.world_to_cell(xy))
+    first = ts[np.argmax(outside)]
     assert 0.0 < first < DURATION  # a pose inside the bag, not its first
-    res = _augment(fit_and_camera, bag, tmp_path / "o.mcap", map_path=moved)
+    out = tmp_path / "o.mcap"
+    res = _augment(fit_and_camera, bag, out, map_path=moved)
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    want = (
+        f"warning: {int(outside.sum())} of {len(ts)} robot poses of {bag} lie outside the map "
+        f"{moved} (corners [[-50.5, -15.0], [-10.5, 15.0]]), from {first:.3f} to "
+        f"{DURATION:.3f} s into the bag (header stamps {START + first:.3f} to "
+        f"{START + DURATION:.3f} s)"
+    )
+    assert want in text, text
+    assert out.is_file()
+
+
+def test_a_trajectory_wholly_outside_the_map_is_refused(fit_and_camera, tmp_path):
+    """The map moved 85 m west of the drive: nothing along it could be seen; refused, as
+    perceive refuses a path wholly outside its map, with the first pose and the times."""
+    bag = write_nav2_bag(tmp_path / "nav2", "ros2")
+    far = _moved_map(tmp_path, -100.0)
+    out = tmp_path / "o.mcap"
+    res = _augment(fit_and_camera, bag, out, map_path=far)
     assert res.exit_code == 2, res.output
     text = " ".join(res.output.split())
-    want = f"pose at {first:.3f} s into the bag (header stamp {START + first:.3f} s)"
+    assert f"expected robot poses inside the map {far} (corners [[-100.0, -15.0]" in text, text
+    n = int(DURATION * 10) + 1
+    want = (
+        f"got all {n} outside, the first at (-15.000, -10.000), from 0.000 to {DURATION:.3f} "
+        f"s into the bag (header stamps {START:.3f} to {START + DURATION:.3f} s)"
+    )
     assert want in text, text
+    assert not out.exists()
 
 
 def test_times_into_the_bag_are_on_the_recording_clock_with_the_stamp_read(tmp_path):

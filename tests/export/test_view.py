@@ -78,3 +78,18 @@ def test_a_bag_without_a_map_is_refused(tmp_path):
     bag = write_bag(tmp_path / "robot", "mcap")
     with pytest.raises(InputError, match="/map"):
         read_view(bag)
+
+
+def test_a_slam_bag_is_drawn_on_its_last_map(tmp_path):
+    """A SLAM bag publishes its map as it grows: the view draws the last ``/map`` (the
+    finished map, the one ``augment`` checks ``--map`` against) and says which. Fails
+    before this change: it drew the first."""
+    from tests.export.test_augment_nav2 import _edited, _grid, write_nav2_bag
+
+    first, last = _grid(), _edited(_grid())
+    bag = write_nav2_bag(tmp_path / "slam", "mcap", maps=[first, last])
+    v = read_view(bag)
+    np.testing.assert_array_equal(v.grid.data, last.data)
+    assert (v.n_maps, v.map_t) == (2, pytest.approx(1.0))  # a second apart from t = 0
+    out = plot_mcap(bag, tmp_path / "slam.png")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -345,7 +345,11 @@ def test_per_class_entries_on_another_map_are_refused(rng):
     dens = tuple(PositionDensity(p, RES, (0.0, 0.0), 0.0, np.nan) for p in f.entry)
     far = OccupancyGrid(np.zeros(FREE.shape, np.int8), RES, (100.0, 100.0, 0.0))
     params = {"arrival_rate": 0.002, "leave_rate": 0.1, "class_weights": [0.5, 0.5]}
-    with pytest.raises(ValueError, match="the map the fit learned its entry points on"):
+    with pytest.raises(ValueError, match="^map: expected the map the fit learned its entry"):
+        generate_scenarios(1, params, 2, 600.0, free_mask=far, laws=TrafficLaws(class_entry=dens))
+    # a map read from a file is named by it (the check only had the grid: "map:")
+    far = OccupancyGrid(far.data, RES, (100.0, 100.0, 0.0), source="far.yaml")
+    with pytest.raises(ValueError, match="^far.yaml: expected the map the fit learned its entry"):
         generate_scenarios(1, params, 2, 600.0, free_mask=far, laws=TrafficLaws(class_entry=dens))
 
 

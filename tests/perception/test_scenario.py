@@ -297,20 +297,33 @@ def test_read_robot_path(tmp_path):
         read_robot_path(tmp_path / "none.csv")
 
 
-def test_poses_outside_warning_takes_the_map_else_the_mesh_bounds():
+def test_check_poses_inside_takes_the_map_else_the_mesh_bounds():
     """The robot's area is the map's cells when there is a map (a mesh given too does not
-    widen it), else the mesh's x-y bounds; every pose inside gives no warning."""
-    from are_stats.perception import poses_outside_warning
+    widen it), else the mesh's x-y bounds; every pose inside gives no warning, some outside
+    a warning naming the first to the last outside, all outside an error."""
+    from are_stats.perception import check_poses_inside
 
     grid = OccupancyGrid(np.zeros((10, 20)), 0.5)  # x in [0, 10), y in [0, 5) m
     mesh = trimesh.creation.box(extents=(40.0, 40.0, 2.0))  # x, y in [-20, 20] m
     xy = [[1.0, 1.0], [12.0, 1.0], [-3.0, 2.0], [30.0, 0.0]]
-    got = poses_outside_warning("path.csv", xy, grid, mesh, "map.yaml")
-    assert got == "3 of 4 robot poses of path.csv lie outside the map map.yaml (first: row 2)"
-    got = poses_outside_warning("path.csv", xy, None, mesh)
+    got = check_poses_inside("path.csv", xy, grid, mesh, "map.yaml")
+    assert got == (
+        "3 of 4 robot poses of path.csv lie outside the map map.yaml "
+        "(corners [[0.0, 0.0], [10.0, 5.0]]), rows 2 to 4"
+    )
+    got = check_poses_inside("path.csv", xy, None, mesh)
     assert got == (
         "1 of 4 robot poses of path.csv lie outside the mesh's x-y bounds [-20.0, -20.0] to "
-        "[20.0, 20.0] (first: row 4)"
+        "[20.0, 20.0], row 4"
     )
-    assert poses_outside_warning("path.csv", xy[:3], None, mesh) is None
-    assert poses_outside_warning("path.csv", xy[:1], grid, mesh, "map.yaml") is None
+    got = check_poses_inside("p.csv", xy, grid, when=lambda i, j: f"at t = {i} to {j} s")
+    assert got.endswith("[10.0, 5.0]]), at t = 1 to 3 s")
+    assert check_poses_inside("path.csv", xy[:3], None, mesh) is None
+    assert check_poses_inside("path.csv", xy[:1], grid, mesh, "map.yaml") is None
+    with pytest.raises(InputError) as err:
+        check_poses_inside("path.csv", xy[1:], grid, mesh, "map.yaml", field="columns 'x', 'y'")
+    assert str(err.value) == (
+        "path.csv: columns 'x', 'y': expected robot poses inside the map map.yaml "
+        "(corners [[0.0, 0.0], [10.0, 5.0]]), got all 3 outside, the first at "
+        "(12.000, 1.000), rows 1 to 3: is the path in the map's frame and metres?"
+    )
