@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import jax
 import numpy as np
 import pytest
@@ -79,3 +81,54 @@ def test_a_log_the_fit_refuses_starts_nothing():
         ahead.wait()
     with pytest.raises(ValueError, match="expected the log's clock"):
         fit_traffic(key, data, paper=_paper(), arrivals="time-of-day", approximation="laplace")
+
+
+_TRACES: list[int] = []
+
+
+def _counted_model(y):
+    import numpyro
+    import numpyro.distributions as dist
+
+    _TRACES.append(1)
+    mu = numpyro.sample("mu", dist.Normal(0.0, 1.0))
+    numpyro.sample("y", dist.Normal(mu, 1.0), obs=y)
+
+
+class _CountingLock:
+    """The trace lock, counting the threads that came to it."""
+
+    def __init__(self) -> None:
+        self.lock = threading.RLock()
+        self.came = 0
+
+    def __enter__(self) -> None:
+        self.came += 1
+        self.lock.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.lock.release()
+
+
+def test_a_model_waited_for_is_traced_once(monkeypatch):
+    """Two threads that ask for the same model's sites (the fit's thread and an ahead
+    thread) while the trace lock is held: the second to get it finds the first's sites
+    instead of tracing the model again."""
+    lock = _CountingLock()
+    monkeypatch.setattr(laplace, "TRACE_LOCK", lock)
+    kwargs = {"y": np.zeros(13)}  # a shape of this test alone
+    _TRACES.clear()
+    threads = [
+        threading.Thread(target=laplace._latent_sites, args=(_counted_model, kwargs))
+        for _ in range(2)
+    ]
+    with lock.lock:
+        for t in threads:
+            t.start()
+        while lock.came < 2:  # both past the cache's first look, at the lock
+            pass
+    for t in threads:
+        t.join()
+    assert len(_TRACES) == 1
+    assert list(laplace._latent_sites(_counted_model, kwargs)) == ["mu"]
+    assert len(_TRACES) == 1
