@@ -65,6 +65,8 @@ A candidate named by ``--arrivals`` is sampled by NUTS.
 
 from __future__ import annotations
 
+import functools
+import threading
 import time
 from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -562,14 +564,31 @@ def fit_traffic(
             prefetch.shutdown(wait=False)
         # when the runs started and finished: the Laplace stages' time left on a first fit
         lap_queue: tuple[float, list[float]] = (time.perf_counter(), [])
+        # each finished run's PSIS-LOO starts at once, in the PSIS thread, not when the fit
+        # comes to the candidate (the runs finish longest-compile first, not in order)
+        lap_loo: dict[tuple[str, str], Future[tuple[np.ndarray, np.ndarray]]] = {}
+        loo_lock = threading.Lock()
+
+        def loo_of(which: tuple[str, str], lap: LaplaceRun) -> Future:
+            with loo_lock:  # once a candidate: from its run's thread or the fit's
+                if which not in lap_loo:
+                    cut = n_real_bins if which[0] == "arrivals" else n
+                    lap_loo[which] = psis.submit(
+                        laplace_loo, lap._replace(loglik=lap.loglik[:, :cut])
+                    )
+                return lap_loo[which]
+
+        def finished(which: tuple[str, str], f: Future[LaplaceRun]) -> None:
+            lap_queue[1].append(time.perf_counter())
+            if f.exception() is None:  # a failed run raises where the fit waits on it
+                loo_of(which, f.result())
+
         # the longest compiles first (as compile_laplace_ahead compiles them): the runs are
         # pure functions of their calls, so their order does not change the fit
         for which in _laplace_order(calls):
             if which in approx:
                 lap_runs[which] = lap_pool.submit(_run_candidate, calls, which, n_lap)
-                lap_runs[which].add_done_callback(
-                    lambda _f: lap_queue[1].append(time.perf_counter())
-                )
+                lap_runs[which].add_done_callback(functools.partial(finished, which))
         for which, call in calls.items():
             if which not in approx:
                 ahead.add(*call, **nuts)
@@ -583,8 +602,7 @@ def fit_traffic(
                 draws["arrivals"][name] = {k: v[None] for k, v in lap.samples.items()}
                 runs["arrivals"][name] = None
                 laps["arrivals", name] = lap
-                lap = lap._replace(loglik=lap.loglik[:, :n_real_bins])
-                loo["arrivals"][name] = psis.submit(laplace_loo, lap)
+                loo["arrivals"][name] = loo_of(("arrivals", name), lap)
                 continue
             else:
                 run = _sample_candidate(
@@ -602,7 +620,7 @@ def fit_traffic(
                 draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
                 runs["stays"][law] = None
                 laps["stays", law] = lap
-                loo["stays"][law] = psis.submit(laplace_loo, lap._replace(loglik=lap.loglik[:, :n]))
+                loo["stays"][law] = loo_of(("stays", law), lap)
                 continue
             else:
                 run = _sample_candidate(calls, ("stays", law), _stay_draw_loglik, nuts, say, out)
