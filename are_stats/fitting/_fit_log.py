@@ -63,6 +63,8 @@ from are_stats.fitting._traffic import (
     LIFETIME_CHOICES,
     POSITION_CELL,
     POSITION_CHOICES,
+    LaplaceAhead,
+    compile_laplace_ahead,
     fit_traffic,
     time_resolution,
 )
@@ -508,164 +510,177 @@ def fit_lifecycle_data(
         raise ValueError(f"data: expected a LifecycleData, got {describe(data)}")
     check_fit_size(settings, data.n, setting_names)
     say = progress or (lambda _msg: None)
-    k_choice, k_fit, k_post = split_key(key, 3)
-    k: int | None = None
-    bics: list[float] = []
-    if data.marks is not None and data.n:
-        if settings.n_components is not None:
-            k = settings.n_components
-        elif data.labels is not None:
-            k = int(np.max(data.labels)) + 1
-        else:
-            say(f"choosing the number of mixture components by BIC (1..{settings.k_max})")
-            k, bics = choose_n_components(k_choice, data.marks, settings.k_max)
-    em_draws = None  # closed-form draws whose InferenceData is built later (a thread)
-    exact = settings.method == "nuts" and settings.exact and has_exact_posterior(data, k)
-    if exact:
-        say("the paper's model: exact posterior draws (closed form, no NUTS)")
-        post = exact_lifecycle_draws(
-            k_fit,
-            data,
-            priors,
-            n_components=k,
-            num_samples=settings.num_samples,
-            num_chains=settings.num_chains,
-            stationary_start=settings.stationary_start,
-        )
-        words = "exact: Gamma conditionals, leave_rate by rejection from a log-concave envelope"
-        em_draws = (
-            k_post,
-            data,
-            priors,
-            k,
-            post,
-            {},
-            {} if k is None else {"mixture_method": "conjugate posterior (closed form)"},
-            settings.stationary_start,
-            "exact",
-        )
-    elif settings.method == "nuts":
-        words = "nuts"
-        say(
-            f"NUTS: {settings.num_chains} chains x ({settings.num_warmup} warm-up + "
-            f"{settings.num_samples} draws)"
-        )
-        idata = fit_lifecycle_nuts(
-            k_fit,
-            data,
-            priors,
-            n_components=k,
-            num_warmup=settings.num_warmup,
-            num_samples=settings.num_samples,
-            num_chains=settings.num_chains,
-            stationary_start=settings.stationary_start,
-        )
-    else:
-        say("conjugate rate posteriors and EM mixture with bootstrap")
-        post, stats, mix_attrs = _em_posterior(k_fit, data, priors, k, settings)
-        em_draws = (k_post, data, priors, k, post, stats, mix_attrs)
-    attrs = {
-        "method": settings.method,
-        "paper_posterior": words if settings.method == "nuts" else "conjugate + EM",
-        "window": np.asarray(data.window, dtype=float),
-        "area": float(data.area),
-        "are_stats_version": __version__,
-        "numpyro_version": numpyro.__version__,
-        "n_components": -1 if k is None else int(k),
-        **{
-            f"setting_{n}": (-1 if v is None else v)
-            for n, v in dataclasses.asdict(settings).items()
-        },
-    }
-    attrs = {n: (int(v) if isinstance(v, bool) else v) for n, v in attrs.items()}
-    if bics:
-        attrs["bic_by_k"] = np.asarray(bics)
-    if class_labels is not None:
-        labels = [str(v) for v in class_labels]
-        if any("," in v for v in labels):
-            raise ValueError(f"class_labels: expected names without commas, got {labels}")
-        attrs["class_labels"] = ",".join(labels)
-    if counts_panel is not None:
-        say("exact birth-death MLE of the count panel")
-        times, counts = counts_panel
-        bd = fit_birth_death(times, counts)
-        attrs.update(
-            birth_death_birth_rate=bd.birth_rate,
-            birth_death_death_rate=bd.death_rate,
-            birth_death_stderr=np.asarray(bd.stderr, dtype=float),
-            # robust (HAC) errors and the log-rate covariance: see compare_panel
-            birth_death_stderr_robust=np.asarray(bd.stderr_robust, dtype=float),
-            birth_death_log_cov_robust=np.asarray(bd.log_cov_robust, dtype=float).ravel(),
-            birth_death_stderr_method=f"{bd.stderr_method}, {bd.bandwidth} lags",
-            birth_death_loglik=bd.loglik,
-            birth_death_n_obs=int(bd.n_obs),
-        )
     paper_only = (settings.arrivals, settings.lifetimes, settings.positions) == (
         "poisson",
         "exponential",
         "uniform",
     )
-    traffic = None
-    if paper_only and em_draws is not None:
-        idata = _em_inference_data(*em_draws)
-    elif not paper_only:
-        # the em fit's InferenceData (ArviZ's import, its groups) is built in a thread while
-        # the traffic models sample: the devices wait on neither. xarray's dask support is
-        # imported first, in this thread alone (two threads importing it race)
-        import_xarray_dask()
-        with ThreadPoolExecutor(1, "are-stats-idata") as pool:
-            pending = None
-            if em_draws is not None:
-                paper = em_draws[4]
-                pending = pool.submit(_em_inference_data, *em_draws)
+    # em compiles no NUTS program: the candidates by the Laplace approximation; nuts ranks
+    # them so too (unless told otherwise) and samples the chosen
+    approximation = (
+        "laplace"
+        if settings.method == "em"
+        else "ranked"
+        if settings.compare == "laplace"
+        else "nuts"
+    )
+    # the candidates' Laplace programs compile in two threads from here, while the paper's
+    # model is drawn (a first fit of the shipped log: most of its CPU is those compiles)
+    ahead = LaplaceAhead(None)
+    if not paper_only and approximation != "nuts":
+        ahead = compile_laplace_ahead(
+            fold_in_key(key, 14),
+            data,
+            arrivals=settings.arrivals,
+            lifetimes=settings.lifetimes,
+            clock_start=clock_start,
+        )
+    with ahead:
+        k_choice, k_fit, k_post = split_key(key, 3)
+        k: int | None = None
+        bics: list[float] = []
+        if data.marks is not None and data.n:
+            if settings.n_components is not None:
+                k = settings.n_components
+            elif data.labels is not None:
+                k = int(np.max(data.labels)) + 1
             else:
-                paper = idata.posterior
-            traffic = fit_traffic(
-                fold_in_key(key, 14),
+                say(f"choosing the number of mixture components by BIC (1..{settings.k_max})")
+                k, bics = choose_n_components(k_choice, data.marks, settings.k_max)
+        em_draws = None  # closed-form draws whose InferenceData is built later (a thread)
+        exact = settings.method == "nuts" and settings.exact and has_exact_posterior(data, k)
+        if exact:
+            say("the paper's model: exact posterior draws (closed form, no NUTS)")
+            post = exact_lifecycle_draws(
+                k_fit,
                 data,
-                paper={n: np.asarray(paper[n]) for n in ("arrival_rate", "leave_rate")},
-                arrivals=settings.arrivals,
-                lifetimes=settings.lifetimes,
-                positions=settings.positions,
-                grid=grid,
-                clock_start=clock_start,
+                priors,
+                n_components=k,
+                num_samples=settings.num_samples,
+                num_chains=settings.num_chains,
+                stationary_start=settings.stationary_start,
+            )
+            words = "exact: Gamma conditionals, leave_rate by rejection from a log-concave envelope"
+            em_draws = (
+                k_post,
+                data,
+                priors,
+                k,
+                post,
+                {},
+                {} if k is None else {"mixture_method": "conjugate posterior (closed form)"},
+                settings.stationary_start,
+                "exact",
+            )
+        elif settings.method == "nuts":
+            words = "nuts"
+            say(
+                f"NUTS: {settings.num_chains} chains x ({settings.num_warmup} warm-up + "
+                f"{settings.num_samples} draws)"
+            )
+            idata = fit_lifecycle_nuts(
+                k_fit,
+                data,
+                priors,
+                n_components=k,
                 num_warmup=settings.num_warmup,
                 num_samples=settings.num_samples,
                 num_chains=settings.num_chains,
-                progress=say,
-                # em compiles no NUTS program: the candidates by the Laplace approximation;
-                # nuts ranks them so too (unless told otherwise) and samples the chosen
-                approximation=(
-                    "laplace"
-                    if settings.method == "em"
-                    else "ranked"
-                    if settings.compare == "laplace"
-                    else "nuts"
-                ),
+                stationary_start=settings.stationary_start,
             )
-            if pending is not None:
-                idata = pending.result()
-    idata.posterior.attrs.update(attrs)
-    if clock_start is not None:
-        idata.posterior.attrs["traffic_clock_start"] = str(clock_start)
-    if traffic is None:
-        idata.posterior.attrs.update(
-            arrival_model="poisson", lifetime_model="exponential", position_model="uniform"
-        )
-    else:
-        idata = attach_traffic(idata, traffic)
-    if classes is not None:
-        idata = _fit_classes(fold_in_key(key, 31), idata, data, classes, class_labels, say)
-        idata = _fit_class_traffic(
-            fold_in_key(key, 32),
-            idata,
-            data,
-            np.asarray(classes, np.int64),
-            class_labels,
-            grid,
-            clock_start,
-            say,
-        )
+        else:
+            say("conjugate rate posteriors and EM mixture with bootstrap")
+            post, stats, mix_attrs = _em_posterior(k_fit, data, priors, k, settings)
+            em_draws = (k_post, data, priors, k, post, stats, mix_attrs)
+        attrs = {
+            "method": settings.method,
+            "paper_posterior": words if settings.method == "nuts" else "conjugate + EM",
+            "window": np.asarray(data.window, dtype=float),
+            "area": float(data.area),
+            "are_stats_version": __version__,
+            "numpyro_version": numpyro.__version__,
+            "n_components": -1 if k is None else int(k),
+            **{
+                f"setting_{n}": (-1 if v is None else v)
+                for n, v in dataclasses.asdict(settings).items()
+            },
+        }
+        attrs = {n: (int(v) if isinstance(v, bool) else v) for n, v in attrs.items()}
+        if bics:
+            attrs["bic_by_k"] = np.asarray(bics)
+        if class_labels is not None:
+            labels = [str(v) for v in class_labels]
+            if any("," in v for v in labels):
+                raise ValueError(f"class_labels: expected names without commas, got {labels}")
+            attrs["class_labels"] = ",".join(labels)
+        if counts_panel is not None:
+            say("exact birth-death MLE of the count panel")
+            times, counts = counts_panel
+            bd = fit_birth_death(times, counts)
+            attrs.update(
+                birth_death_birth_rate=bd.birth_rate,
+                birth_death_death_rate=bd.death_rate,
+                birth_death_stderr=np.asarray(bd.stderr, dtype=float),
+                # robust (HAC) errors and the log-rate covariance: see compare_panel
+                birth_death_stderr_robust=np.asarray(bd.stderr_robust, dtype=float),
+                birth_death_log_cov_robust=np.asarray(bd.log_cov_robust, dtype=float).ravel(),
+                birth_death_stderr_method=f"{bd.stderr_method}, {bd.bandwidth} lags",
+                birth_death_loglik=bd.loglik,
+                birth_death_n_obs=int(bd.n_obs),
+            )
+        traffic = None
+        if paper_only and em_draws is not None:
+            idata = _em_inference_data(*em_draws)
+        elif not paper_only:
+            # the em fit's InferenceData (ArviZ's import, its groups) is built in a thread while
+            # the traffic models sample: the devices wait on neither. xarray's dask support is
+            # imported first, in this thread alone (two threads importing it race)
+            import_xarray_dask()
+            with ThreadPoolExecutor(1, "are-stats-idata") as pool:
+                pending = None
+                if em_draws is not None:
+                    paper = em_draws[4]
+                    pending = pool.submit(_em_inference_data, *em_draws)
+                else:
+                    paper = idata.posterior
+                traffic = fit_traffic(
+                    fold_in_key(key, 14),
+                    data,
+                    paper={n: np.asarray(paper[n]) for n in ("arrival_rate", "leave_rate")},
+                    arrivals=settings.arrivals,
+                    lifetimes=settings.lifetimes,
+                    positions=settings.positions,
+                    grid=grid,
+                    clock_start=clock_start,
+                    num_warmup=settings.num_warmup,
+                    num_samples=settings.num_samples,
+                    num_chains=settings.num_chains,
+                    progress=say,
+                    approximation=approximation,
+                )
+                if pending is not None:
+                    idata = pending.result()
+        idata.posterior.attrs.update(attrs)
+        if clock_start is not None:
+            idata.posterior.attrs["traffic_clock_start"] = str(clock_start)
+        if traffic is None:
+            idata.posterior.attrs.update(
+                arrival_model="poisson", lifetime_model="exponential", position_model="uniform"
+            )
+        else:
+            idata = attach_traffic(idata, traffic)
+        if classes is not None:
+            idata = _fit_classes(fold_in_key(key, 31), idata, data, classes, class_labels, say)
+            idata = _fit_class_traffic(
+                fold_in_key(key, 32),
+                idata,
+                data,
+                np.asarray(classes, np.int64),
+                class_labels,
+                grid,
+                clock_start,
+                say,
+            )
     return idata
 
 

@@ -319,9 +319,11 @@ def _latent_sites(model: Callable, kwargs: dict) -> dict[str, tuple[Constraint, 
         return 0
 
     with TRACE_LOCK:  # numpyro's handlers are one global stack: one trace at a time
+        if key is not None and key in _SITES:  # traced by another thread while this waited
+            return _SITES[key]
         jax.eval_shape(trace)
-    if key is not None:
-        _SITES[key] = found
+        if key is not None:
+            _SITES[key] = found
     return found
 
 

@@ -65,6 +65,8 @@ A candidate named by ``--arrivals`` is sampled by NUTS.
 
 from __future__ import annotations
 
+import functools
+import threading
 import time
 from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -131,7 +133,9 @@ __all__ = [
     "LIFETIME_CHOICES",
     "POSITION_CHOICES",
     "TrafficFit",
+    "LaplaceAhead",
     "choose_simplest",
+    "compile_laplace_ahead",
     "fit_traffic",
     "loo_pointwise",
     "time_resolution",
@@ -553,21 +557,38 @@ def fit_traffic(
         # for the GIL (a repeated fit of the shipped log: 0.9 s more CPU at load 15-20)
         if approx and LAPLACE_THREADS < 2:
             prefetch = ThreadPoolExecutor(2, "are-stats-laplace")
-            for (factor, name), (_, model, kwargs, init) in calls.items():
-                if (factor, name) in approx:
-                    pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
-                    prefetch.submit(
-                        laplace_program, model, kwargs, init, pw, _optimise((factor, name))
-                    )
+            for factor, name in _laplace_order(approx):
+                _, model, kwargs, init = calls[factor, name]
+                pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
+                prefetch.submit(laplace_program, model, kwargs, init, pw, _optimise((factor, name)))
             prefetch.shutdown(wait=False)
         # when the runs started and finished: the Laplace stages' time left on a first fit
         lap_queue: tuple[float, list[float]] = (time.perf_counter(), [])
-        for which in calls:
+        # each finished run's PSIS-LOO starts at once, in the PSIS thread, not when the fit
+        # comes to the candidate (the runs finish longest-compile first, not in order)
+        lap_loo: dict[tuple[str, str], Future[tuple[np.ndarray, np.ndarray]]] = {}
+        loo_lock = threading.Lock()
+
+        def loo_of(which: tuple[str, str], lap: LaplaceRun) -> Future:
+            with loo_lock:  # once a candidate: from its run's thread or the fit's
+                if which not in lap_loo:
+                    cut = n_real_bins if which[0] == "arrivals" else n
+                    lap_loo[which] = psis.submit(
+                        laplace_loo, lap._replace(loglik=lap.loglik[:, :cut])
+                    )
+                return lap_loo[which]
+
+        def finished(which: tuple[str, str], f: Future[LaplaceRun]) -> None:
+            lap_queue[1].append(time.perf_counter())
+            if f.exception() is None:  # a failed run raises where the fit waits on it
+                loo_of(which, f.result())
+
+        # the longest compiles first (as compile_laplace_ahead compiles them): the runs are
+        # pure functions of their calls, so their order does not change the fit
+        for which in _laplace_order(calls):
             if which in approx:
                 lap_runs[which] = lap_pool.submit(_run_candidate, calls, which, n_lap)
-                lap_runs[which].add_done_callback(
-                    lambda _f: lap_queue[1].append(time.perf_counter())
-                )
+                lap_runs[which].add_done_callback(functools.partial(finished, which))
         for which, call in calls.items():
             if which not in approx:
                 ahead.add(*call, **nuts)
@@ -581,8 +602,7 @@ def fit_traffic(
                 draws["arrivals"][name] = {k: v[None] for k, v in lap.samples.items()}
                 runs["arrivals"][name] = None
                 laps["arrivals", name] = lap
-                lap = lap._replace(loglik=lap.loglik[:, :n_real_bins])
-                loo["arrivals"][name] = psis.submit(laplace_loo, lap)
+                loo["arrivals"][name] = loo_of(("arrivals", name), lap)
                 continue
             else:
                 run = _sample_candidate(
@@ -600,7 +620,7 @@ def fit_traffic(
                 draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
                 runs["stays"][law] = None
                 laps["stays", law] = lap
-                loo["stays"][law] = psis.submit(laplace_loo, lap._replace(loglik=lap.loglik[:, :n]))
+                loo["stays"][law] = loo_of(("stays", law), lap)
                 continue
             else:
                 run = _sample_candidate(calls, ("stays", law), _stay_draw_loglik, nuts, say, out)
@@ -909,6 +929,108 @@ def _optimise(which: tuple[str, str]) -> bool:
 #: Laplace approximations of the candidates run at once (threads): each waits mostly on
 #: its program's XLA calls, which release the GIL, so two keep the two cores busy.
 LAPLACE_THREADS = 2
+
+
+def _laplace_order(whiches: Collection[tuple[str, str]]) -> list[tuple[str, str]]:
+    """The candidates in the order their Laplace programs are compiled and run: those at
+    XLA's default optimisation first (:func:`_optimise`), the stay laws before the arrival
+    models, otherwise as given.
+
+    The longest compiles first, so that the two threads that compile them finish together
+    instead of one compiling the gamma law's incomplete gammas alone at the end (the
+    shipped log's nine programs, CPU seconds one after the other: gamma 5.2; groups+mmpp,
+    groups+hawkes, mmpp 1.6-2.0; lognormal, weibull 0.9-1.0; hawkes, negbin, groups
+    0.45-0.55; each with 0.3-0.8 s of tracing).
+    """
+    return sorted(whiches, key=lambda w: (not _optimise(w), w[0] != "stays"))
+
+
+#: Threads of :func:`compile_laplace_ahead`: XLA compiles outside the GIL, so two keep
+#: two cores busy while the fit's own thread goes on.
+AHEAD_THREADS = 2
+
+
+class LaplaceAhead:
+    """The candidates' Laplace programs compiling in the background
+    (:func:`compile_laplace_ahead`); a context manager that, on leaving, drops the
+    programs not started yet (those compiling finish)."""
+
+    def __init__(self, pool: ThreadPoolExecutor | None) -> None:
+        self._pool = pool
+
+    def cancel(self) -> None:
+        """Drop the programs whose compile has not started."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+
+    def wait(self) -> None:
+        """Wait until every program is compiled (or failed: ``fit_traffic`` compiles it
+        again and raises the error)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+
+    def __enter__(self) -> LaplaceAhead:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.cancel()
+
+
+def compile_laplace_ahead(
+    key: jax.Array,
+    data: LifecycleData,
+    *,
+    arrivals: str = "auto",
+    lifetimes: str = "auto",
+    clock_start: str | None = None,
+) -> LaplaceAhead:
+    """Start compiling the Laplace programs of :func:`fit_traffic`'s candidates, so that
+    a fit's first run compiles them while the fit does its other work.
+
+    ``fit_traffic(key, data, arrivals=..., lifetimes=..., clock_start=...,
+    approximation="laplace" | "ranked")`` then finds each program compiled, or waits for
+    the thread compiling it (the programs are kept in the process, as the NUTS programs of
+    :class:`~are_stats.fitting.NutsPrefetch`). :data:`AHEAD_THREADS` threads compile
+    them, the longest first (:func:`_laplace_order`), each with its model's abstract trace
+    for its sites (which a fit would otherwise make on its own thread). Nothing is
+    computed that the fit would not compute: the same candidates, programs and keys, so
+    the fit is the same bit for bit. A candidate too large for the approximation is left
+    out; an error (a log the fit refuses) is left to ``fit_traffic`` to raise.
+
+    Parameters
+    ----------
+    key : jax PRNG key
+        ``fit_traffic``'s key.
+    data : LifecycleData
+    arrivals, lifetimes : str
+        As for ``fit_traffic``.
+    clock_start : str, optional
+
+    Returns
+    -------
+    LaplaceAhead
+        Leaving it (``with``) drops the programs not started (a fit that failed).
+    """
+    out = TrafficFit("poisson", "exponential", "uniform")  # _setup's notes: not kept
+    try:
+        calls = _setup(key, data, arrivals, lifetimes, clock_start, out).calls
+    except Exception:  # noqa: BLE001 - fit_traffic raises it, with its context
+        return LaplaceAhead(None)
+    pool = ThreadPoolExecutor(AHEAD_THREADS, "are-stats-laplace-ahead")
+    for which in _laplace_order(calls):
+        pool.submit(_ahead_program, calls[which], which)
+    pool.shutdown(wait=False)
+    return LaplaceAhead(pool)
+
+
+def _ahead_program(call: tuple, which: tuple[str, str]) -> None:
+    """Compile (or load) one candidate's Laplace program, as :func:`_run_candidate` will
+    ask for it; a candidate past :data:`LAPLACE_MAX_PARAMETERS` is skipped."""
+    _, model, kwargs, init = call
+    if laplace_dimension(model, kwargs, init) > LAPLACE_MAX_PARAMETERS:
+        return
+    pointwise = _arrival_draw_loglik if which[0] == "arrivals" else _stay_draw_loglik
+    laplace_program(model, kwargs, init, pointwise, _optimise(which))
 
 
 def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> LaplaceRun:
