@@ -33,7 +33,8 @@ INSTALL = sh -c '{ $(BIN)/python -c "import uv" 2>/dev/null \
 # leaves it to Python (issue 29, measurements in the commit).
 # uv compiles only what it installs: what the run-only install left without bytecode
 # (.uncompiled) is compiled when the dev extra comes (compileall: 13.6 s CPU even where
-# every file is compiled, so only then).
+# every file is compiled, so only then). Bytecode only saves time: a file some package ships
+# that does not compile (compileall's exit 1) must not stop the install.
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(INSTALL) -e .
 	touch $(VENV)/.uncompiled $@
@@ -41,7 +42,8 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 	UV_COMPILE_BYTECODE=1 $(INSTALL) -e '.[dev]'
 	if [ -e $(VENV)/.uncompiled ]; then \
-		$(BIN)/python -m compileall -q -j 0 $(VENV)/lib > /dev/null && rm $(VENV)/.uncompiled; fi
+		$(BIN)/python -m compileall -q -j 0 $(VENV)/lib > /dev/null || true; \
+		rm $(VENV)/.uncompiled; fi
 	touch $(VENV)/.installed $@
 
 $(VENV)/.installed-bench: pyproject.toml $(VENV)/.installed-dev
