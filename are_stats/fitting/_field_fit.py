@@ -296,21 +296,23 @@ class _Relay:
     def __init__(self, say: Callable[[int, int, str], None]) -> None:
         self._say, self._live = say, False
         self._held: list[tuple[int, int, str]] = []
-        self._lock = threading.Lock()
+        # re-entrant: a step told while go_live tells the held ones (from another thread,
+        # or from ``say`` itself) comes after them
+        self._lock = threading.RLock()
 
     def __call__(self, done: int, total: int, what: str) -> None:
         with self._lock:
-            if not self._live:
+            if self._live:
+                self._say(done, total, what)
+            else:
                 self._held.append((done, total, what))
-                return
-        self._say(done, total, what)
 
     def go_live(self) -> None:
         """Tell the steps held so far, then pass the next ones straight on."""
         with self._lock:
-            held, self._held, self._live = self._held, [], True
-        for step in held:
-            self._say(*step)
+            for step in self._held:
+                self._say(*step)
+            self._held, self._live = [], True
 
 
 def fit_log(
