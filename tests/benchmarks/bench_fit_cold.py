@@ -576,7 +576,13 @@ traffic stages 214 / 273 s, the main thread's wait for the behaviour 112.2 / 0.0
 the interaction 64.0 / 0.0 s, realism and displacement errors 420.6 / 271.4 s, the
 posterior-predictive checks 28.6 / 26.7 s, the motion checks 44.9 / 44.4 s. The fit file's 9
 groups (``xarray`` ``identical``), the 17 criticism files (``cmp``) and the printed output
-the same. An earlier pair (the behaviour thread alone, started 2 min apart, load 15-17):
+the same. Again with the relay's fix (4e2f9f8), started together at load 10.7 -> 8-9: wall
+304.3 s on main against 279.1 s (0.92x), CPU 101.4 s against 102.3 s, maxrss 1.44 against
+1.57 GB; stage walls: traffic 83.8 / 115.8 s, the waits for the behaviour and interaction
+41.0 + 20.2 / 1.3 + 0.0 s, realism and displacement errors 126.7 / 115.0 s (the two threads
+of that stage win little: most of it is Python under the GIL), the posterior-predictive
+checks 4.9 / 7.0 s, the motion checks 6.4 / 11.3 s; every file and the printed output the
+same again. An earlier pair (the behaviour thread alone, started 2 min apart, load 15-17):
 wall 987.5 vs 968.2 s, CPU 104.5 vs 107.1 s, the behaviour and interaction waits 73.0 + 46.9
 s vs 0.1 s. At these loads a process with two runnable threads also gets more of the machine
 than one with one, so the wall ratio overstates what 2 idle cores give: there the saving is
