@@ -42,7 +42,12 @@ from are_stats._checks import check_nonnegative, check_positive
 from are_stats.behaviour._generate import _track_rows
 from are_stats.behaviour._mdp import GridMDP
 from are_stats.behaviour._model import grid_geodesic
-from are_stats.behaviour._motion import preferred_speeds, string_pull, walk_times
+from are_stats.behaviour._motion import (
+    preferred_speeds,
+    string_pull,
+    string_pull_many,
+    walk_times,
+)
 from are_stats.behaviour._rewards import BEHAVIOURS
 from are_stats.behaviour._rollout import check_on_free_cells, rollout
 
@@ -90,6 +95,59 @@ class _Walkers:
 
 def _pow2(n: int) -> int:
     return max(4, 1 << (int(n) - 1).bit_length())
+
+
+def _leg_route(st: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, int, bool]:
+    """A leg's rolled-out states ``st`` ``(h + 1, 3)`` up to its goal's first visit (the
+    whole roll-out when it misses it): the route's cells ``(m, 2)``, the index of its last
+    state and whether it reached the goal."""
+    at_goal = np.flatnonzero((st[:, :2] == goal).all(axis=1))
+    end = int(at_goal[0]) if at_goal.size else len(st) - 1
+    return st[: end + 1, :2], end, bool(at_goal.size)
+
+
+def _route_xy(route: np.ndarray, origin: tuple[float, float], cell: float) -> np.ndarray:
+    """The cells' centres ``(m, 2)`` of a route of ``(row, col)`` cells, world ``(x, y)``."""
+    return np.column_stack(
+        [origin[0] + (route[:, 1] + 0.5) * cell, origin[1] + (route[:, 0] + 0.5) * cell]
+    )
+
+
+def _pulled_legs(
+    part: list[tuple[int, np.ndarray, np.ndarray, int]],
+    states: np.ndarray,
+    walkers: _Walkers,
+    cur: np.ndarray,
+    stay: np.ndarray,
+    stopped: set[int],
+    free: np.ndarray,
+    geo: _Geo,
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The any-angle paths of a chunk's legs, string-pulled together
+    (:func:`string_pull_many`, each exactly as :func:`string_pull` alone): ``{j: (xy,
+    path)}`` for the legs that :func:`_legs` will walk unless an earlier leg of the same
+    artefact uses up its stay (the one thing that needs the earlier legs' times, drawn
+    after the pulling; such a leg's path is not used). A leg starts where the artefact's
+    previous one ended, its route's last point (``string_pull`` keeps it), so every route
+    is known before any is pulled; ``_legs`` uses a path only for the very route it pulls
+    (issue 29: 1,248 one-route calls on a realism table of 302 people)."""
+    at: dict[int, np.ndarray] = {}  # each artefact's cell after its legs so far
+    last: dict[int, np.ndarray] = {}  # and its last point
+    halted: set[int] = set(stopped)
+    legs: dict[int, np.ndarray] = {}
+    for j, (i, c, g, h) in enumerate(part):
+        if i in halted or (at.get(i, cur[i]) != c).any() or walkers.times[i][-1] >= stay[i]:
+            halted.add(i)
+            continue
+        route, _, at_goal = _leg_route(states[j, : h + 1], g)
+        xy = _route_xy(route, geo["origin"], geo["cell"])
+        xy[0] = last.get(i, walkers.pts[i][-1])
+        legs[j] = xy
+        at[i], last[i] = route[-1], xy[-1]
+        if not at_goal:
+            halted.add(i)
+    paths = string_pull_many(list(legs.values()), free, geo["origin"], geo["cell"])
+    return {j: (xy, path) for (j, xy), path in zip(legs.items(), paths, strict=True)}
 
 
 def _legs(
@@ -175,24 +233,24 @@ def _legs(
             heads[: len(part)] = [walkers.heads[it[0]] for it in part]
             key, k_roll = split_key(key)
             states = rollout(k_roll, sol, np.column_stack([cells, heads]), n_ep, resolve=None)
+            pulled = _pulled_legs(part, states, walkers, cur, stay, stopped, free, geo)
             for j, (i, c, g, h) in enumerate(part):
                 if i in stopped or (cur[i] != c).any() or walkers.times[i][-1] >= stay[i]:
                     stopped.add(i)
                     continue
                 # heading of the previous leg's end (the chain planned heading 0 after it)
                 st = states[j, : h + 1]
-                at_goal = np.flatnonzero((st[:, :2] == g).all(axis=1))
-                end = int(at_goal[0]) if at_goal.size else len(st) - 1
-                route = st[: end + 1, :2]
-                xy = np.column_stack(
-                    [origin[0] + (route[:, 1] + 0.5) * cell, origin[1] + (route[:, 0] + 0.5) * cell]
-                )
+                route, end, at_goal = _leg_route(st, g)
+                xy = _route_xy(route, origin, cell)
                 xy[0] = walkers.pts[i][-1]
-                path = string_pull(xy, free, origin, cell)
+                ahead = pulled.get(j)
+                path = ahead[1] if ahead is not None and np.array_equal(ahead[0], xy) else None
+                if path is None:  # not foreseen (_pulled_legs): pulled alone, the same way
+                    path = string_pull(xy, free, origin, cell)
                 walkers.extend(i, path, walk_times(path, float(speed[i]), rng, within))
                 cur[i] = route[-1]
                 walkers.heads[i] = st[end, 2]
-                if not at_goal.size:
+                if not at_goal:
                     stopped.add(i)  # missed its goal: the next round plans from here
         progressed = {it[0] for it in items}
         active = [i for i in active if i in progressed and walkers.times[i][-1] < stay[i]]

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import threading
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import jax
 import numpy as np
@@ -67,24 +69,36 @@ def _seed_of(key: int | jax.Array) -> tuple[jax.Array, int | None]:
     return key, None
 
 
-def _behaviour(
+class _Walkers(NamedTuple):
+    """What a tracks table's behaviour needs of the tracks alone (:func:`_fit_walkers`)."""
+
+    grid: OccupancyGrid  # the map, or the open area the tracks cover
+    bfit: BehaviourFit | None  # None: nobody walks (a note says why)
+    learned: SocialForce | None  # learn_interaction's (None also when nobody walks)
+    info: dict[str, float]
+    notes: list[str]  # in the order the fit tells them
+    classes_done: list[tuple[int, int]]  # fit_behaviour's progress (done, total), in order
+
+
+def _fit_walkers(
     seed: int,
-    idata: az.InferenceData,
     log: LifecycleLog,
     grid: OccupancyGrid | None,
     features: tuple[str, ...],
     catalogue: ArtefactCatalogue | None,
-    say: Callable[[str], None],
-    notes: list[str],
-) -> tuple[
-    az.InferenceData,
-    OccupancyGrid,
-    tuple[pd.DataFrame, dict[str, np.ndarray | pd.DataFrame]] | None,
-]:
-    """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``;
-    the map used and the motion checks of a labelled table (None without labels). The
-    long stages report their steps to ``say.steps(done, total, what)`` when it has one."""
-    steps = _steps_of(say)
+) -> _Walkers:
+    """The behaviour (:func:`~are_stats.fitting.fit_behaviour`) and the interaction
+    (:func:`~are_stats.fitting.learn_interaction`) of a tracks table, with the map they use.
+
+    Neither depends on the traffic fit, so :func:`fit_log` runs this in a thread beside it
+    (issue 29: on a first fit the traffic stage mostly waits on XLA compiling its
+    candidates' programs, and the behaviour fit's own compile and solves fill that wait).
+    Nothing here draws from the traffic fit's key; only the behaviour's soft solves run a
+    program across the devices with a collective (``pmax``), and nothing else in the fit
+    does, so no two such programs are ever in flight at once.
+    """
+    notes: list[str] = []
+    done: list[tuple[int, int]] = []  # told to the stage clock after the thread (_behaviour)
     tracks = log.tracks
     if grid is not None:
         free, res, origin = grid.free, grid.resolution, grid.origin[:2]
@@ -97,7 +111,6 @@ def _behaviour(
             f"({free.shape[1] * res:.1f} x {free.shape[0] * res:.1f} m, their bounding box "
             "plus 1 m, all free)"
         )
-    say("behaviour from the tracks (speeds, exits, rationality)")
     run_speed = None if catalogue is None else catalogue.run_thresholds()
     try:
         bfit = fit_behaviour(
@@ -108,11 +121,11 @@ def _behaviour(
             seed=seed,
             features=features or None,
             run_speed=run_speed,
-            progress=lambda done, total: steps(done, total, "classes"),
+            progress=lambda d, total: done.append((d, total)),
         )
     except NoWalkersError as err:  # nobody walks: no walking to learn
         notes.append(f"behaviour not fitted ({err}); scenes use the catalogue's")
-        return idata, grid, None
+        return _Walkers(grid, None, None, {}, notes, done)
     if bfit.standing:  # classes that only stand: the others' behaviour is fitted
         one = len(bfit.standing) == 1
         notes.append(
@@ -122,15 +135,45 @@ def _behaviour(
             f"{'stands' if one else 'stand'} in the scenes (the realism and displacement "
             "errors score the walking classes' tracks)"
         )
-    idata = attach_behaviour(idata, bfit)
-    say("interaction (social force) from the tracks")
     # the walking classes' accelerations (the standing ones still push them)
     learned, info, note = learn_interaction(tracks, bfit.standing)
     if note:
         notes.append(note)
+    return _Walkers(grid, bfit, learned, info, notes, done)
+
+
+def _behaviour(
+    seed: int,
+    idata: az.InferenceData,
+    log: LifecycleLog,
+    walkers: Future[_Walkers],
+    say: Callable[[str], None],
+    notes: list[str],
+) -> tuple[
+    az.InferenceData,
+    OccupancyGrid,
+    tuple[pd.DataFrame, dict[str, np.ndarray | pd.DataFrame]] | None,
+]:
+    """The behaviour, interaction and motion tables of a tracks table, attached to ``idata``;
+    the map used and the motion checks of a labelled table (None without labels). The
+    behaviour and interaction come from ``walkers`` (:func:`_fit_walkers`, running in a
+    thread); the long stages report their steps to ``say.steps(done, total, what)`` when it
+    has one."""
+    steps = _steps_of(say)
+    say("behaviour from the tracks (speeds, exits, rationality)")
+    w = walkers.result()
+    for done, total in w.classes_done:  # the classes fitted in the thread, told now
+        steps(done, total, "classes")
+    notes.extend(w.notes)
+    if w.bfit is None:
+        return idata, w.grid, None
+    bfit, learned, grid = w.bfit, w.learned, w.grid
+    idata = attach_behaviour(idata, bfit)
+    say("interaction (social force) from the tracks")
     if learned is not None:
-        idata.behaviour.attrs.update(interaction_attrs(learned, info))
+        idata.behaviour.attrs.update(interaction_attrs(learned, w.info))
     say("realism and displacement errors against the tracks")
+    tracks = log.tracks
     walking = tracks
     if bfit.standing:  # the criticism scores the behaviour fitted: the walking classes
         walking = tracks[~tracks["label"].astype(str).isin(bfit.standing).to_numpy()]
@@ -179,54 +222,98 @@ def _attach_motion_tables(
         walked[0] = total
         say(done, total + after, f"realism, replicate {done} of {total}")
 
-    real = realism_table(
-        fold_in_key(key, 4),
-        xy,
-        grid,
-        behaviour=bfit,
-        n_replicates=1,
-        interaction=interaction,
-        progress=realism_step,
-    )
-    # predicted as generation walks people: continuous paths, then the fit's social force
-    # at most FIT_WINDOWS windows: each rolls out a path per candidate goal (the table
-    # keeps n_windows and the standard errors)
-    errors = displacement_errors(
-        fold_in_key(key, 3),
-        bfit,
-        tracks,
-        n_samples=20,
-        interaction=interaction,
-        grid=grid,
-        max_windows=FIT_WINDOWS,
-        progress=say,
-    )
-    say(walked[0] + 1, walked[0] + after, "displacement errors")
-    same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
-    dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
-    observed = realism_summary(realism_features(xy, dt, grid))
-    idata.behaviour.attrs.update(motion_attrs(realism=real, observed=observed, displacement=errors))
-    if "label" not in tracks.columns:
-        return None
-
-    # the report's motion checks (write_motion_report) draw with the same key: computed
-    # once here and handed on with the fit
+    # the three parts draw with their own keys and share nothing they change, so the
+    # displacement errors and the motion checks run in threads beside the realism (issue
+    # 29: on idle cores one part's compiles and Python fill another's waits; none runs a
+    # program with a collective across the devices); their steps are held back and told
+    # in the order of one part after the other (_Relay), so the clock sees the same steps
     def check_step(done: int, total: int, what: str) -> None:
         say(walked[0] + 1 + done, walked[0] + 1 + total, f"motion checks, {what}")
 
-    table, reps = motion_checks(
-        fold_in_key(key, 1),
-        bfit,
-        tracks,
-        n_replicates=50,
-        interaction=interaction,
-        grid=grid,
-        progress=check_step,
-    )
+    labelled = "label" in tracks.columns
+    errors_say, checks_say = _Relay(say), _Relay(check_step)
+    with ThreadPoolExecutor(1 + int(labelled), "are-stats-criticism") as pool:
+        # predicted as generation walks people: continuous paths, then the fit's social
+        # force at most FIT_WINDOWS windows: each rolls out a path per candidate goal (the
+        # table keeps n_windows and the standard errors)
+        pending_errors = pool.submit(
+            displacement_errors,
+            fold_in_key(key, 3),
+            bfit,
+            tracks.copy(),  # a table of its own: pandas' caches are not for two threads
+            n_samples=20,
+            interaction=interaction,
+            grid=grid,
+            max_windows=FIT_WINDOWS,
+            progress=errors_say,
+        )
+        # the report's motion checks (write_motion_report) draw with the same key: computed
+        # once here and handed on with the fit
+        pending_checks = None
+        if labelled:
+            pending_checks = pool.submit(
+                motion_checks,
+                fold_in_key(key, 1),
+                bfit,
+                tracks.copy(),
+                n_replicates=50,
+                interaction=interaction,
+                grid=grid,
+                progress=checks_say,
+            )
+        real = realism_table(
+            fold_in_key(key, 4),
+            xy,
+            grid,
+            behaviour=bfit,
+            n_replicates=1,
+            interaction=interaction,
+            progress=realism_step,
+        )
+        errors_say.go_live()
+        errors = pending_errors.result()
+        say(walked[0] + 1, walked[0] + after, "displacement errors")
+        checks_say.go_live()
+        same = xy["id"].to_numpy()[1:] == xy["id"].to_numpy()[:-1]
+        dt = float(np.median(np.diff(xy.sort_values(["id", "t"])["t"].to_numpy(float))[same]))
+        observed = realism_summary(realism_features(xy, dt, grid))
+        idata.behaviour.attrs.update(
+            motion_attrs(realism=real, observed=observed, displacement=errors)
+        )
+        if pending_checks is None:
+            return None
+        table, reps = pending_checks.result()
     per_class = class_motion_checks(tracks, reps)
     if per_class is not None:
         idata.behaviour.attrs.update(motion_attrs(class_motion=per_class.reset_index()))
     return table, reps
+
+
+class _Relay:
+    """``progress(done, total, what)`` called from a thread, held back until
+    :meth:`go_live` (then told in order), and passed straight on after it: a part run
+    beside another tells its steps when it would have run alone."""
+
+    def __init__(self, say: Callable[[int, int, str], None]) -> None:
+        self._say, self._live = say, False
+        self._held: list[tuple[int, int, str]] = []
+        # re-entrant: a step told while go_live tells the held ones (from another thread,
+        # or from ``say`` itself) comes after them
+        self._lock = threading.RLock()
+
+    def __call__(self, done: int, total: int, what: str) -> None:
+        with self._lock:
+            if self._live:
+                self._say(done, total, what)
+            else:
+                self._held.append((done, total, what))
+
+    def go_live(self) -> None:
+        """Tell the steps held so far, then pass the next ones straight on."""
+        with self._lock:
+            for step in self._held:
+                self._say(*step)
+            self._held, self._live = [], True
 
 
 def fit_log(
@@ -329,29 +416,36 @@ def fit_log(
     tracks = log.tracks if behaviour else None
     if (settings.positions != "uniform" or tracks is not None) and log.manifest.get("map"):
         grid = OccupancyGrid.from_ros_yaml(log.manifest["map"])
-    idata = fit_lifecycle_data(
-        key,
-        data,
-        settings,
-        priors,
-        counts_panel,
-        progress,
-        class_labels=(
-            log.to_arrays()["label_names"]
-            if data.labels is not None or labelled is not None
-            else None
-        ),
-        grid=None if settings.positions == "uniform" else grid,
-        clock_start=log.clock_start,
-        classes=None if labelled is None else labelled[0],
-        setting_names=setting_names,
-    )
-    notes: list[str] = []
-    checks = None
+    # the behaviour and interaction need the tracks alone: fitted in a thread beside the
+    # traffic models (_fit_walkers), whose first fit mostly waits on XLA compiling
+    pool = ThreadPoolExecutor(1, "are-stats-walkers")
+    walkers = None
     if tracks is not None:
         if seed is None:
             seed = int(np.asarray(jax.random.key_data(key)).ravel()[-1])
-        idata, grid, checks = _behaviour(seed, idata, log, grid, features, catalogue, say, notes)
+        walkers = pool.submit(_fit_walkers, seed, log, grid, features, catalogue)
+    with pool:  # an error in the traffic fit waits for the thread, then is raised
+        idata = fit_lifecycle_data(
+            key,
+            data,
+            settings,
+            priors,
+            counts_panel,
+            progress,
+            class_labels=(
+                log.to_arrays()["label_names"]
+                if data.labels is not None or labelled is not None
+                else None
+            ),
+            grid=None if settings.positions == "uniform" else grid,
+            clock_start=log.clock_start,
+            classes=None if labelled is None else labelled[0],
+            setting_names=setting_names,
+        )
+        notes: list[str] = []
+        checks = None
+        if walkers is not None:
+            idata, grid, checks = _behaviour(seed, idata, log, walkers, say, notes)
     # the log's file name and content hash, never its folder (a shared fit must not carry
     # the user's folder layout): the hash identifies the bytes that were fitted
     rep = log.report()

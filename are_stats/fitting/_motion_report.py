@@ -10,6 +10,7 @@ tracks and so run at fit time only. The command line prints what they return.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -173,30 +174,36 @@ def write_motion_report(
         checked[0] = total
         say(done, total + after, f"motion checks, {what}")
 
-    # the same draws as fit_log's per-class motion rows (the same key): the fit's own when
-    # fit_log computed them (a labelled table), else drawn here
-    if fit.motion_checks is not None:
-        table, reps = fit.motion_checks
-    else:
-        table, reps = motion_checks(
-            fold_in_key(key, 1),
-            bfit,
+    # the held-out fit (its own key, the tracks alone) runs in a thread beside the motion
+    # checks (issue 29): its soft solves are the one program here with a collective across
+    # the devices, the checks' walks have none, so the two cannot wait on each other
+    with ThreadPoolExecutor(1, "are-stats-heldout") as pool:
+        heldout = pool.submit(
+            heldout_log_likelihood,
+            fold_in_key(key, 2),
             tracks,
-            n_replicates=50,
-            interaction=fit.interaction if fit.interaction is not None else True,
-            grid=grid,
-            progress=check_step,
+            grid.free,
+            grid.resolution,
+            grid.origin[:2],
+            max_fit_tracks=16,
+            features=bfit.feature_names or None,  # the CLI's: built-in names
+            run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
         )
-    held, _ = heldout_log_likelihood(
-        fold_in_key(key, 2),
-        tracks,
-        grid.free,
-        grid.resolution,
-        grid.origin[:2],
-        max_fit_tracks=16,
-        features=bfit.feature_names or None,  # the CLI's: built-in names
-        run_speed=catalogue.run_thresholds(),  # as the fit's (cyclists ride)
-    )
+        # the same draws as fit_log's per-class motion rows (the same key): the fit's own
+        # when fit_log computed them (a labelled table), else drawn here
+        if fit.motion_checks is not None:
+            table, reps = fit.motion_checks
+        else:
+            table, reps = motion_checks(
+                fold_in_key(key, 1),
+                bfit,
+                tracks,
+                n_replicates=50,
+                interaction=fit.interaction if fit.interaction is not None else True,
+                grid=grid,
+                progress=check_step,
+            )
+        held, _ = heldout.result()
     say(checked[0] + 1, checked[0] + after, "held-out moves")
     fig = plot_motion_checks(table, reps, heldout=held, displacement=stored.get("displacement"))
     out = {}

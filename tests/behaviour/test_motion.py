@@ -535,3 +535,28 @@ def test_clear_boxes_answer_as_the_traced_cells() -> None:
             np.testing.assert_array_equal(_crossed(grids, p0, p1, g, table), want)
             np.testing.assert_array_equal(_crossed(grids, p0, p1, g), want)
     assert shortcut > 1000  # the shortcut answered many of them
+
+
+def test_walkers_legs_pulled_together_are_the_legs_pulled_alone(monkeypatch) -> None:
+    """The legs of a round are string-pulled together (``_pulled_legs``: each route
+    foreseen from the rolled-out states, the next leg starting at the previous route's
+    end) and walked exactly as when each leg is pulled on its own (issue 29): the same
+    tracks, bit for bit; and every walked leg was foreseen (no leg pulled alone)."""
+    from are_stats.behaviour import _walk
+
+    occ = _room(20, 30)
+    occ[10, 1:22] = True  # an inner wall: corners to keep
+    arts = _walkers(12, occ, 240.0, seed=3)
+    alone = []
+
+    def counted(*args, **kwargs):
+        alone.append(1)
+        return string_pull(*args, **kwargs)
+
+    monkeypatch.setattr(_walk, "string_pull", counted)
+    together = walk_tracks(jax.random.key(9), arts, occ, dt=2.0)
+    assert not alone
+    monkeypatch.setattr(_walk, "_pulled_legs", lambda *args: {})  # every leg alone
+    one_by_one = walk_tracks(jax.random.key(9), arts, occ, dt=2.0)
+    assert alone  # the fallback did the pulling
+    pd.testing.assert_frame_equal(together, one_by_one, check_exact=True)

@@ -558,6 +558,41 @@ displacement errors and motion checks, which draw with their own keys, in thread
 ``_field_fit``); the catalogue walk's one-path string pulling (``_walk._legs``);
 ``group_tracks``' loop over members (1.3 s profiled).
 
+The tracks part with the fit's independent parts in threads (wt-tracks, 2026-11-28):
+``fit_log`` fits the behaviour and the interaction (``_field_fit._fit_walkers``: the tracks
+and the map alone) in a thread started before the traffic fit, whose cold run mostly waits
+on XLA compiling the Laplace candidates; the displacement errors (and a labelled table's
+motion checks) run in threads beside the realism table; ``write_motion_report``'s held-out
+fit beside the motion checks; and the catalogue walk's legs of a round string-pulled
+together (``_walk._pulled_legs``, ``string_pull_many``: the same paths as one by one,
+tested; ``walk_tracks`` of 150 walkers over 300 s, warm, 25.1-25.9 -> 20.3-20.7 s of CPU a
+call at load 17-19, the same tracks). Each part draws with its own key; the stage clock is
+told the same steps in the same order. Only the behaviour's soft solves run a program with a
+collective across the devices, so no two such programs are ever in flight together. Main
+1662149 and the branch started together in fresh processes with empty caches (the CLI's
+command, ``/usr/bin/time``, load 19.6 -> 18-20): **wall 944.7 s on main against 672.7 s
+(0.71x), CPU (user + sys) 104.7 s against 105.8 s**; stage walls (main / branch): the
+traffic stages 214 / 273 s, the main thread's wait for the behaviour 112.2 / 0.0 s and for
+the interaction 64.0 / 0.0 s, realism and displacement errors 420.6 / 271.4 s, the
+posterior-predictive checks 28.6 / 26.7 s, the motion checks 44.9 / 44.4 s. The fit file's 9
+groups (``xarray`` ``identical``), the 17 criticism files (``cmp``) and the printed output
+the same. Again with the relay's fix (4e2f9f8), started together at load 10.7 -> 8-9: wall
+304.3 s on main against 279.1 s (0.92x), CPU 101.4 s against 102.3 s, maxrss 1.44 against
+1.57 GB; stage walls: traffic 83.8 / 115.8 s, the waits for the behaviour and interaction
+41.0 + 20.2 / 1.3 + 0.0 s, realism and displacement errors 126.7 / 115.0 s (the two threads
+of that stage win little: most of it is Python under the GIL), the posterior-predictive
+checks 4.9 / 7.0 s, the motion checks 6.4 / 11.3 s; every file and the printed output the
+same again. An earlier pair (the behaviour thread alone, started 2 min apart, load 15-17):
+wall 987.5 vs 968.2 s, CPU 104.5 vs 107.1 s, the behaviour and interaction waits 73.0 + 46.9
+s vs 0.1 s. At these loads a process with two runnable threads also gets more of the machine
+than one with one, so the wall ratio overstates what 2 idle cores give: there the saving is
+the overlap itself, at most the behaviour and interaction (about 11 s of the idle run of
+2026-11-27) and the shorter of the realism table and the displacement errors. Issue 29's 60
+s on idle cores is still not shown (the CPU of a cold run here, 104-106 s at load 18-20, is
+inflated by XLA's spinning threads; 62-79 s at load 4-9 before). Left: the traffic stage's
+compiles (the nine Laplace programs, about half of its CPU), the realism table and
+displacement errors' own work (45 s of CPU at load 18), ``_window``'s programs.
+
 Where a user's 80-person tracks fit on the shipped courtyard goes (issue 29's qa tour:
 324 s of CPU against about 76 s for the 302-person room; 2026-11-28, wt-int 4c33474, the
 tour's ``people_tracks.csv``, two classes, 2.5 Hz, ``are-stats fit --method em`` with

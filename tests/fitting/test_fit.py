@@ -276,3 +276,27 @@ def test_hand_set_draws_are_a_fit_that_gives_them_back():
 def test_hand_set_draws_name_what_is_missing_or_unknown(draws, match):
     with pytest.raises(ValueError, match=match):
         Fit.from_draws(draws, source="rates")
+
+
+def test_a_part_run_beside_another_tells_its_steps_in_order():
+    """``_Relay`` (the criticism's threads): steps told before ``go_live`` are held and told
+    then, in order; later ones pass straight on; a step told while the held ones are being
+    told (here by the clock itself, as another thread could) comes after them, not between
+    them."""
+    from are_stats.fitting._field_fit import _Relay
+
+    told = []
+
+    def say(done, total, what):
+        told.append((done, total, what))
+        if what == "held" and done == 0:  # a step arrives while the held ones are told
+            relay(9, 9, "meanwhile")
+
+    relay = _Relay(say)
+    for j in range(3):
+        relay(j, 3, "held")
+    assert told == []
+    relay.go_live()
+    relay(3, 3, "live")
+    assert told == [(0, 3, "held"), (1, 3, "held"), (2, 3, "held"), (9, 9, "meanwhile"),
+                    (3, 3, "live")]  # fmt: skip
