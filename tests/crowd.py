@@ -166,6 +166,9 @@ def crowd_tracks(
     groups : dict of str to str
         Group of each track id that walked in a group of two or more.
     """
+    sd, corr = float(wander[0]), float(wander[1])
+    if sd < 0.0 or not corr > 0.0:
+        raise ValueError(f"wander: expected (sd >= 0 rad, time > 0 s), got {wander}")
     rng = np.random.default_rng(seed)
     people = []  # (t0, x0, goal, speed, group, leader, offset)
     t, g = 0.0, 0
@@ -196,9 +199,6 @@ def crowd_tracks(
     # people walk in through the door (a tracker sees them walking): at their speed
     v = _desired_heading(x, goal) * speed[:, None]
     gone = np.zeros(n, bool)
-    sd, corr = float(wander[0]), float(wander[1])
-    if sd < 0.0 or not corr > 0.0:
-        raise ValueError(f"wander: expected (sd >= 0 rad, time > 0 s), got {wander}")
     turn_rng = np.random.default_rng([seed, 1])  # its own stream: none leaves the crowd as is
     phi = np.exp(-SIM_DT / corr)
     theta = sd * turn_rng.standard_normal(n) if sd > 0.0 else None
