@@ -19,7 +19,12 @@ and a round pillar (radius 0.6 m) in its middle. People arrive at one door in gr
   0.05)`` m per neighbour, left then right), heading for their slot beside the leader;
 * people come in through the door already walking (at their speed, towards the exit) and
   leave within 0.4 m of their exit point;
-* tracks are seen at 2.5 Hz with 5 cm Gaussian position noise.
+* tracks are seen at 2.5 Hz with 5 cm Gaussian position noise;
+* with ``wander = (sd, time)`` (default none) each person's desired heading is turned by
+  its own stationary Ornstein-Uhlenbeck deviation of sd ``sd`` (rad) and correlation time
+  ``time`` (s), the within-person wander of the package's model (group members keep
+  heading for their slot); its draws come from a stream of their own, so the crowd
+  without it is the same draw for draw.
 
 :func:`crowd_tracks` returns the table and each track's group; :func:`write_crowd`
 writes the map, the tracks table and its manifest as ``are-stats fit`` reads them;
@@ -136,7 +141,10 @@ def _choose(x, v, desired, group, alive):
 
 
 def crowd_tracks(
-    seed: int = 0, horizon: float = 300.0, mean_gap: float = 5.0
+    seed: int = 0,
+    horizon: float = 300.0,
+    mean_gap: float = 5.0,
+    wander: tuple[float, float] = (0.0, 2.0),
 ) -> tuple[pd.DataFrame, dict[str, str]]:
     """Seeded tracks of the crowd (see the module docstring).
 
@@ -148,6 +156,8 @@ def crowd_tracks(
         Seconds of the log (arrivals stop 30 s before it; tracks are cut at it).
     mean_gap : float
         Mean time (s) between group arrivals.
+    wander : (float, float)
+        Sd (rad) and correlation time (s) of each person's heading wander; sd 0: none.
 
     Returns
     -------
@@ -156,6 +166,9 @@ def crowd_tracks(
     groups : dict of str to str
         Group of each track id that walked in a group of two or more.
     """
+    sd, corr = float(wander[0]), float(wander[1])
+    if sd < 0.0 or not corr > 0.0:
+        raise ValueError(f"wander: expected (sd >= 0 rad, time > 0 s), got {wander}")
     rng = np.random.default_rng(seed)
     people = []  # (t0, x0, goal, speed, group, leader, offset)
     t, g = 0.0, 0
@@ -186,6 +199,9 @@ def crowd_tracks(
     # people walk in through the door (a tracker sees them walking): at their speed
     v = _desired_heading(x, goal) * speed[:, None]
     gone = np.zeros(n, bool)
+    turn_rng = np.random.default_rng([seed, 1])  # its own stream: none leaves the crowd as is
+    phi = np.exp(-SIM_DT / corr)
+    theta = sd * turn_rng.standard_normal(n) if sd > 0.0 else None
     every = round(SAMPLE_DT / SIM_DT)
     rows = []
     steps = int(horizon / SIM_DT)
@@ -198,6 +214,12 @@ def crowd_tracks(
         if not alive.any():
             continue
         desired = _desired_heading(x, goal) * speed[:, None]
+        if theta is not None:
+            c, s_ = np.cos(theta), np.sin(theta)
+            desired = np.column_stack(
+                [c * desired[:, 0] - s_ * desired[:, 1], s_ * desired[:, 0] + c * desired[:, 1]]
+            )
+            theta = phi * theta + sd * np.sqrt(1.0 - phi**2) * turn_rng.standard_normal(n)
         is_member = leader != np.arange(n)
         with_lead = is_member & alive & alive[leader]
         if with_lead.any():
