@@ -4,10 +4,40 @@ from __future__ import annotations
 
 import gc
 import os
+import platform
+import sys
 
 os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+#: The tests that pin results to the bit (the goldens' digests) or read a chaotic
+#: simulation (``tests/crowd.py``: one ulp in a sine moves people by metres) hold on one
+#: x86-64 instruction set: AVX2. On a host with AVX-512, NumPy's float64 trigonometry
+#: (``sin``, ``cos``, ``arctan2``, ``arcsin``), OpenBLAS's kernels and XLA's code are other
+#: kernels, correct to the last bit or two but not the same bits (seen 2026-11-28: every
+#: digest taken on an AVX-512 host differed on an AVX2 AMD EPYC, with the same packages).
+#: The tests therefore ask all three for their AVX2 kernels; on an AVX2 host these settings
+#: change nothing. They are read when NumPy, OpenBLAS and XLA load, so they are set here,
+#: before anything imports them (the workers of ``-n 2`` inherit them). The product itself
+#: keeps each host's fastest kernels: a run is reproducible from its seed on one host.
+PINNED_ISA = {
+    "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
+    "OPENBLAS_CORETYPE": "Haswell",
+}
+if platform.machine().lower() in ("x86_64", "amd64"):
+    for name, value in PINNED_ISA.items():
+        os.environ.setdefault(name, value)
+    if "xla_cpu_max_isa" not in os.environ["XLA_FLAGS"]:
+        os.environ["XLA_FLAGS"] += " --xla_cpu_max_isa=AVX2"
+    if "numpy" in sys.modules:  # a plugin imported NumPy first: its kernels are chosen
+        import warnings
+
+        warnings.warn(
+            "NumPy was imported before tests/conftest.py: NPY_DISABLE_CPU_FEATURES has no "
+            "effect, and bit-pinned tests may differ on an AVX-512 host",
+            stacklevel=1,
+        )
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
