@@ -195,7 +195,11 @@ def test_window_likelihood_recovers_the_truth(law):
     res = optimize.minimize(
         lambda p: float(nll(p)), x0, jac=lambda p: np.asarray(grad(p)), method="BFGS"
     )
-    assert res.success, res.message
+    # BFGS's "precision loss" (status 2) is its line search finding no lower value in the
+    # last bits: at the optimum of a likelihood with incomplete gammas it depends on the
+    # host's kernels (seen on an AVX2 host for the gamma law, gradient 7e-6). The optimum
+    # is what the gradient says it is; the test's claim is the 4 standard errors below.
+    assert res.success or (res.status == 2 and np.abs(res.jac).max() < 1e-3), res
     free = slice(0, 1) if law == "exponential" else slice(0, 2)
     se = np.sqrt(np.diag(np.linalg.inv(hessian(res.x)[free, free])))
     truth = np.log([m, k])[free]
