@@ -330,7 +330,8 @@ def test_augment_errors(files, tmp_path, monkeypatch):
         "1",
     ]
     res = runner.invoke(app, [str(a) for a in args])
-    assert res.exit_code == 2 and "inside the map" in res.output and "121 poses" in res.output
+    # the one rule perceive shares (perception.check_poses_inside): wholly outside refuses
+    assert res.exit_code == 2 and "inside the map" in res.output and "all 121 outside" in res.output
     idata = az.from_netcdf(files["fit"])
     del idata.posterior.attrs["area"]
     nofit = tmp_path / "noarea.nc"
