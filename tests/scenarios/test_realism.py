@@ -134,16 +134,11 @@ def test_the_fitted_model_beats_constant_velocity_and_the_catalogue_on_its_own_t
     """Issue 26's claim on synthetic tracks simulated by the model: door-to-door walkers,
     the behaviour fitted on them, then tracks of that fitted model (MDP route, continuous
     motion, social force) scored as the log: the fitted model's realism score is above both
-    baselines (0.437 against 0.386 and 0.409 with these seeds, until 2026-11-28). Since a
-    walker arriving between two of the social force's steps walks from its arrival (its
-    first step had jumped up to 0.12 m ahead, past the speed cap), the fitted model reads
-    0.441 against constant velocity's 0.411: the jump at every arrival had cost constant
-    velocity, which extrapolates the first steps, most. The margin over it is 0.02 (was
-    0.03, which 0.0299 now misses)."""
+    baselines (0.437 against 0.386 and 0.409 with these seeds)."""
     walkers, grid, fit = crossings_fit
     table = _own_tracks_table(walkers, grid, fit, 0)
     realism = table.loc["realism (weighted)"]
-    assert realism["fitted"] > realism["constant velocity"] + 0.02
+    assert realism["fitted"] > realism["constant velocity"] + 0.03
     assert realism["fitted"] > realism["catalogue"] + 0.015
     assert table.loc["straightness", "fitted"] > table.loc["straightness", "catalogue"]
 
