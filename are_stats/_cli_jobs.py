@@ -461,7 +461,8 @@ def _print_interaction(fit: Fit) -> None:
 
 def _behaviour_lines(fit: BehaviourFit) -> list[str]:
     """One line per class: the fitted rationality, slip and reward weights with their
-    standard errors."""
+    standard errors; then the fit's warnings (a standard error NaN and why, an optimiser
+    that did not converge), which the fit file keeps too."""
     out = []
     for c, name in enumerate(fit.classes):
         parts = [
@@ -473,6 +474,7 @@ def _behaviour_lines(fit: BehaviourFit) -> list[str]:
             for k, f in enumerate(fit.feature_names)
         ]
         out.append(f"behaviour {name!r}: " + ", ".join(parts))
+    out += [f"warning: behaviour {w}" for w in fit.warnings]
     return out
 
 

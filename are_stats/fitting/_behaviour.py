@@ -34,8 +34,11 @@ Per class (the ``label`` column; one class ``"all"`` without it):
   soft policy (:func:`~are_stats.behaviour.moves_log_likelihood`, headings marginalised),
   with rewards ``time_cost = 1`` per epoch off the goal (so ``beta`` is per epoch lost), by
   L-BFGS-B on ``(log beta, logit slip)`` with forward-mode JAX gradients; standard errors
-  from the inverse Hessian (delta method). At most ``max_fit_tracks`` tracks per class enter
-  this likelihood (a random subset; each track's goal costs one soft solve per evaluation).
+  from the inverse Hessian (delta method), NaN with a warning (:func:`_standard_errors`)
+  where the information along a direction is within the Hessian's error (in float32,
+  round-off: tracks that do not identify beta or a weight). At most ``max_fit_tracks``
+  tracks per class enter this likelihood (a random subset; each track's goal costs one soft
+  solve per evaluation).
   With several local XLA devices (``XLA_FLAGS=--xla_force_host_platform_device_count=N``,
   which the CLI sets: one per core) the goals are split across them; every split stops at
   the epoch of the whole batch, so value and gradient are those of one device (500 tracks,
@@ -1381,37 +1384,141 @@ def _gradient_value_epochs(
 HESSIAN_STEP = {"float32": 1e-2, "float64": 1e-3}
 
 
-def _hessian(theta: jax.Array, data: _LikelihoodData, epochs: int, n_devices: int) -> np.ndarray:
+class _DifferencedHessian(NamedTuple):
+    """:func:`_hessian`'s result with its error: the Hessian and the standard deviation of
+    the error in each of its entries (:func:`_standard_errors` reads them together)."""
+
+    hessian: np.ndarray
+    error: float
+
+
+def _hessian(
+    theta: jax.Array,
+    data: _LikelihoodData,
+    epochs: int,
+    n_devices: int,
+    *,
+    with_error: bool = False,
+) -> np.ndarray | _DifferencedHessian:
     """The Hessian ``(n, n)`` of :func:`_loglik` at ``theta (n,)``, whose soft solve iterated
     ``epochs``: five-point differences of the gradient (:func:`_gradient_value_epochs`'
     program: no program of its own to compile) with the solve held at those epochs
     (``tol < 0``, cap ``epochs + 1``), so that the differenced function is the smooth one
     whose second derivatives forward mode through the stopped solve gives (with the early
-    stop free to move between the difference points they jumped); symmetrised."""
+    stop free to move between the difference points they jumped); symmetrised.
+
+    With ``with_error``, a :class:`_DifferencedHessian` that also holds the standard
+    deviation of the error in each entry, from the gradient's own round-off: the fourth
+    differences ``g(2h) - 4 g(h) + 6 g(0) - 4 g(-h) + g(-2h)`` of the points the stencil
+    evaluates (and the gradient at ``theta``, one evaluation more) are round-off of variance
+    ``70 sigma^2`` for a gradient round-off of sd ``sigma``, plus ``h^4`` times a fifth
+    derivative; the stencil's entries then have sd ``sqrt(130) sigma / (12 h)``. On
+    smooth likelihoods the fifth derivatives are far below the round-off; where one is not
+    (a nearly hard soft-max at a large beta bends the likelihood over about ``1 / beta``),
+    the stencil's own error is of that order too and the estimate takes it in. Measured:
+    1.8e-3 (float32) and 3e-8 (float64) on the 28 moves of
+    ``tests/fitting/test_behaviour_hessian.py``'s world at float32's optimum, whose two
+    smaller eigenvalues of ``-H`` are 8.2e-4 and 7.0e-3; 0.028 and 1.4e-7 on the 130
+    tracks of ``test_behaviour_fit``'s model world, eigenvalues 315 and 872.
+    """
     dtype = jnp.result_type(theta)
     fixed = data._replace(n_epochs=np.asarray(int(epochs) + 1, np.int32))
     never = np.asarray(-1.0, dtype)
     h = HESSIAN_STEP[jnp.dtype(dtype).name]
     th = np.asarray(theta, np.float64)
     n = len(th)
-    cols = []
-    for j in range(n):
 
-        def grad(s: float, j: int = j) -> np.ndarray:
-            x = th.copy()
+    def grad(j: int, s: float) -> np.ndarray:
+        x = th.copy()
+        if s:
             x[j] += s * h
-            g = _gradient_value_epochs(np.asarray(x, dtype), fixed, never, n_devices)[0]
-            return np.asarray(g, np.float64)
+        g = _gradient_value_epochs(np.asarray(x, dtype), fixed, never, n_devices)[0]
+        return np.asarray(g, np.float64)
 
-        cols.append((8.0 * (grad(1) - grad(-1)) - (grad(2) - grad(-2))) / (12.0 * h))
+    cols, fourth = [], []
+    g0 = grad(0, 0) if with_error else None
+    for j in range(n):
+        gj = {s: grad(j, s) for s in (1, -1, 2, -2)}
+        cols.append((8.0 * (gj[1] - gj[-1]) - (gj[2] - gj[-2])) / (12.0 * h))
+        if with_error:
+            fourth.append(gj[2] - 4.0 * gj[1] + 6.0 * g0 - 4.0 * gj[-1] + gj[-2])
     hess = np.stack(cols, axis=1)
-    return 0.5 * (hess + hess.T)
+    hess = 0.5 * (hess + hess.T)
+    if not with_error:
+        return hess
+    sigma = math.sqrt(float(np.mean(np.square(fourth))) / 70.0)
+    return _DifferencedHessian(hess, sigma * math.sqrt(130.0) / (12.0 * h))
+
+
+#: :func:`_standard_errors`: an eigenvalue of the information ``-H`` is resolved when it
+#: exceeds this many times the sd of the Hessian's error per entry (an eigenvalue moves
+#: by about that sd: a resolved one is then within 10% at 1 sd, its variance too).
+RESOLVED_EIGENVALUE = 10.0
+#: :func:`_standard_errors`: a standard error is reported when the unresolved directions, at
+#: the most information the error leaves them, add at most this share of its variance.
+UNRESOLVED_SHARE = 0.01
+
+
+class _StandardErrors(NamedTuple):
+    """:func:`_standard_errors`' result.
+
+    Attributes
+    ----------
+    se : (n,) float
+        Standard errors of ``theta``; NaN where the information does not determine them.
+    eigenvalues : (n,) float
+        Eigenvalues of ``-H``, ascending.
+    resolved : (n,) bool
+        Which of them exceed the error (:data:`RESOLVED_EIGENVALUE`).
+    error : float
+        The sd of the Hessian's error per entry.
+    """
+
+    se: np.ndarray
+    eigenvalues: np.ndarray
+    resolved: np.ndarray
+    error: float
+
+
+def _standard_errors(hess: np.ndarray, error: float) -> _StandardErrors:
+    """Standard errors ``sqrt(diag(inv(-H)))`` of the Hessian ``hess (n, n)`` whose entries
+    carry errors of sd ``error`` (:func:`_hessian`), NaN where those errors decide them.
+
+    An eigenvalue ``lambda_k`` of the information ``-H`` is resolved when it exceeds
+    :data:`RESOLVED_EIGENVALUE` ``* error``; one below (near 0, or negative: no maximum
+    along it, or error) is information the Hessian cannot tell from none. When every one
+    is resolved the standard errors are those of ``inv(-H)``. Otherwise parameter ``i``'s
+    variance is ``sum_k v_ik^2 / lambda_k`` over the resolved directions, reported only where
+    the unresolved ones, at the most information the error leaves them (the threshold),
+    would add at most :data:`UNRESOLVED_SHARE` of it; elsewhere NaN (a parameter the
+    tracks do not identify at this precision: beta running to infinity, a flat weight).
+
+    Returns
+    -------
+    _StandardErrors
+    """
+    hess = np.asarray(hess, np.float64)
+    n = len(hess)
+    lam, vec = np.linalg.eigh(-hess) if np.isfinite(hess).all() else (np.full(n, np.nan), None)
+    tau = RESOLVED_EIGENVALUE * float(error)
+    resolved = lam > tau
+    if resolved.all():
+        se = np.sqrt(np.diag(np.linalg.inv(-hess)))
+    elif vec is None:
+        se = np.full(n, np.nan)
+    else:
+        var = (vec[:, resolved] ** 2 / lam[resolved]).sum(axis=1)
+        least = (vec[:, ~resolved] ** 2).sum(axis=1) / tau
+        ok = (var > 0) & (least <= UNRESOLVED_SHARE * var)
+        se = np.where(ok, np.sqrt(np.where(ok, var, 1.0)), np.nan)
+    return _StandardErrors(se, lam, resolved, float(error))
 
 
 class _MaximumLikelihood(TypedDict):
     """:func:`_mle`'s estimates: ``beta``, ``slip`` and their standard errors, the
     ``(F,)`` feature ``weights`` and theirs, the maximised log-likelihood, the moves and
-    epoch cap ``K`` it is of, and whether the optimiser converged."""
+    epoch cap ``K`` it is of, whether the optimiser converged, and why standard errors are
+    NaN (``se_unresolved``, :func:`_unresolved_note`; "" when none is)."""
 
     beta: float
     beta_se: float
@@ -1423,6 +1530,7 @@ class _MaximumLikelihood(TypedDict):
     n_moves: int
     n_epochs: int
     converged: bool
+    se_unresolved: str
 
 
 def _mle(
@@ -1485,13 +1593,9 @@ def _mle(
     epochs = epochs_at.get(np.asarray(res.x, float).tobytes())
     if epochs is None:  # the optimum is a point evaluated (L-BFGS-B): never, to be safe
         epochs = int(_gradient_value_epochs(th, data, tol_a, n_devices)[2])
-    hess = _hessian(th, data, epochs, n_devices)
-    n = 2 + n_f
-    try:
-        cov = np.linalg.inv(-hess)
-        se = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
-    except np.linalg.LinAlgError:
-        se = np.full(n, np.nan)
+    hess = _hessian(th, data, epochs, n_devices, with_error=True)
+    errors = _standard_errors(hess.hessian, hess.error)
+    se = errors.se
     beta = math.exp(res.x[0])
     slip = 1.0 / (1.0 + math.exp(-res.x[1]))
     return {
@@ -1505,7 +1609,27 @@ def _mle(
         "n_moves": obs.n_moves,
         "n_epochs": k,
         "converged": converged,
+        "se_unresolved": _unresolved_note(errors, jnp.dtype(dtype).name),
     }
+
+
+def _unresolved_note(errors: _StandardErrors, dtype: str) -> str:
+    """Why some of :func:`_standard_errors`' are NaN, for the fit's warnings ("" when none
+    is): the eigenvalues of the information it could not resolve against the Hessian's
+    error in ``dtype``."""
+    if np.isfinite(errors.se).all():
+        return ""
+    low = errors.eigenvalues[~errors.resolved]
+    lam = ", ".join(f"{v:.2g}" for v in low)
+    if not np.isfinite(errors.error) or not np.isfinite(low).all():
+        return "the Hessian is not finite"
+    hint = " (float64's round-off is about 1e-6 of float32's)" if dtype == "float32" else ""
+    return (
+        f"the information's eigenvalues {lam} are below {RESOLVED_EIGENVALUE:g} times the "
+        f"{dtype} Hessian's error per entry ({errors.error:.2g}){hint}: the tracks do not "
+        "identify these directions at this precision (the likelihood flat, or not at a "
+        "maximum, along them; e.g. beta rising without bound)"
+    )
 
 
 def open_area_grid(
@@ -1754,6 +1878,13 @@ def fit_behaviour(
         if not mle["converged"]:
             what = "beta/slip/weights" if feature_names else "beta/slip"
             warnings.append(f"class {name!r}: the {what} optimiser did not report convergence")
+        if mle["se_unresolved"]:
+            ses = {"beta": mle["beta_se"], "slip": mle["slip_se"]}
+            ses |= {f"{f} weight": v for f, v in zip(feature_names, mle["weights_se"], strict=True)}
+            nan = ", ".join(k for k, v in ses.items() if not np.isfinite(v))
+            warnings.append(
+                f"class {name!r}: standard errors of {nan} are NaN: {mle['se_unresolved']}"
+            )
         ent_a, ext_a = np.asarray(ent), np.asarray(ext)
         vals = {
             "dt": dt_c,

@@ -10,6 +10,7 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pandas as pd
 import pytest
 
 import are_stats.fitting._behaviour as fb
@@ -139,11 +140,20 @@ def test_float32_differenced_hessian_matches_float64_forward_mode() -> None:
     assert rel < 2e-4, rel
 
 
-def test_the_fit_compiles_one_program_for_value_gradient_and_hessian() -> None:
-    """_mle's optimisation and its Hessian run the one program per shape bucket. (The
-    standard errors' finiteness is checked by the next test, on its own grid: on this
-    5-goal world in float32, an AVX2 host's Hessian leaves beta's and the weights' NaN, not
-    positive definite there, where an AVX-512 host's did not; seen 2026-11-28 on main too.)"""
+def test_the_fit_compiles_one_program_and_its_standard_errors_are_float64s_or_nan() -> None:
+    """_mle's optimisation and its Hessian run the one program per shape bucket; its
+    float32 standard errors are float64's where float32 resolves them and NaN, with the
+    reason, where not.
+
+    This world does not identify beta or the wall weight: slip is near 0.5 and the
+    likelihood rises towards beta -> inf (float32 stops at beta 39, float64 at 73). At
+    float32's optimum the information's two small eigenvalues are 8.2e-4 and 7.0e-3 in
+    float64, below float32's Hessian round-off (1.8e-3 per entry, measured by the
+    stencil's fourth differences): float32's Hessian there had eigenvalues -9.8e-4 and
+    5.8e-3 on this AVX2 host, ``inv(-H)`` two negative variances and beta's and the
+    weight's standard errors NaN, silently (on an AVX-512 host other round-off, other
+    numbers). Slip's direction (eigenvalue 7.0) is resolved: its standard error, from the
+    resolved directions, is float64's at the same point to 2e-3 (measured 1e-3)."""
     free, paths, phi = _world()
     fb._gradient_value_epochs.clear_cache()
     out = fb._mle(
@@ -152,13 +162,65 @@ def test_the_fit_compiles_one_program_for_value_gradient_and_hessian() -> None:
     )  # fmt: skip
     assert fb._gradient_value_epochs._cache_size() == 1
     assert np.isfinite([out["beta"], out["slip"]]).all()
+    assert np.isnan([out["beta_se"], *out["weights_se"]]).all()
+    assert "below 10 times the float32 Hessian's error" in out["se_unresolved"]
+    # float64 at float32's optimum: every direction resolved, the small ones below
+    # float32's round-off
+    th = np.r_[np.log(out["beta"]), np.log(out["slip"] / (1 - out["slip"])), out["weights"]]
+    data64, n_dev = _data(np.float64)
+    epochs = fb._gradient_value_epochs(th, data64, np.asarray(1e-3), n_dev)[2]
+    h64 = fb._hessian(jnp.asarray(th), data64, int(epochs), n_dev, with_error=True)
+    ref = fb._standard_errors(h64.hessian, h64.error)
+    assert ref.resolved.all() and np.isfinite(ref.se).all()
+    assert ref.eigenvalues[1] < fb.RESOLVED_EIGENVALUE * 1e-3  # float32's error: 1.8e-3
+    slip = out["slip"]
+    assert_allclose(out["slip_se"], slip * (1 - slip) * ref.se[1], rtol=2e-3)
+
+
+def test_standard_errors_leave_out_only_what_the_round_off_decides() -> None:
+    """:func:`_standard_errors` against closed forms, with a round-off of 1e-3 per entry (an
+    eigenvalue of ``-H`` is resolved above 1e-2): all resolved, ``inv(-H)``'s; one
+    direction unresolved (information 5e-3), NaN along it and the other parameter's
+    ``1 / sqrt(4)`` when the two are uncoupled or nearly (rotated by 1e-3: the weak
+    direction would add at least ``sin^2 / 1e-2 = 1e-4`` to a variance of 0.25, 0.04%),
+    NaN for both when coupled (rotated by 0.1: 1.0 against 0.25); a maximum it is not
+    (eigenvalue -1) is unresolved too; a non-finite Hessian, all NaN."""
+    err = 1e-3
+    got = fb._standard_errors(-np.diag([4.0, 0.25]), err)
+    assert_allclose(got.se, [0.5, 2.0], rtol=1e-15)
+    assert got.resolved.all()
+
+    def rotated(angle, weak):
+        c, s = np.cos(angle), np.sin(angle)
+        r = np.array([[c, -s], [s, c]])
+        return -(r @ np.diag([4.0, weak]) @ r.T)
+
+    got = fb._standard_errors(rotated(0.0, 5e-3), err)
+    assert got.se[0] == 0.5 and np.isnan(got.se[1])
+    assert list(got.resolved) == [False, True]  # eigenvalues ascending
+    got = fb._standard_errors(rotated(1e-3, 5e-3), err)
+    assert_allclose(got.se[0], np.cos(1e-3) / 2, rtol=1e-12)
+    assert np.isnan(got.se[1])
+    assert np.isnan(fb._standard_errors(rotated(0.1, 5e-3), err).se).all()
+    got = fb._standard_errors(rotated(0.0, -1.0), err)
+    assert got.se[0] == 0.5 and np.isnan(got.se[1])
+    assert np.isnan(fb._standard_errors(np.full((2, 2), np.nan), err).se).all()
+    assert "not finite" in fb._unresolved_note(
+        fb._standard_errors(np.full((2, 2), np.nan), err), "float32"
+    )
 
 
 def test_the_fit_compiles_nothing_but_its_program(caplog) -> None:
     """_mle's data stay NumPy arrays on the host (issue 29): no program compiled to make
     them (``jnp.asarray``'s ``stage``, ``convert_element_type``), to cast ``theta``, or to
     split the goals across the devices (``_multi_slice``); the gradient program is the
-    only one. A grid of its own (11 x 13) so that no other test compiled its shapes."""
+    only one. A grid of its own (11 x 13) so that no other test compiled its shapes.
+
+    Its standard errors: slip's finite, beta's and the wall weight's NaN with the reason.
+    The world identifies neither (as the previous test's); float32's Hessian there happened
+    to be positive definite, and gave beta 823 and the weight 11.1 where float64's at the
+    same point gives 1,600 and 13.0: its two small eigenvalues (2.3e-3 and 9.8e-3) are
+    float32's round-off (2.7e-3 per entry)."""
     import logging
 
     free, paths, _ = _world()
@@ -171,4 +233,36 @@ def test_the_fit_compiles_nothing_but_its_program(caplog) -> None:
         )  # fmt: skip
     compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
     assert [m.split()[1] for m in compiled] == ["jit(_gradient_value_epochs)"]
-    assert np.isfinite([out["beta_se"], out["slip_se"], *out["weights_se"]]).all()
+    assert np.isfinite(out["slip_se"]) and np.isnan([out["beta_se"], *out["weights_se"]]).all()
+    assert "float32 Hessian's error" in out["se_unresolved"]
+
+
+def test_nan_standard_errors_are_named_with_their_reason_in_the_fit_and_the_cli(
+    monkeypatch,
+) -> None:
+    """fit_behaviour turns _mle's reason into a warning that names the NaN standard errors
+    (the fit file keeps the warnings), and ``are-stats fit`` prints it under the class's
+    line: before, a float32 fit's NaN standard errors came with no word of why. (_mle is
+    replaced by its result on this file's world: no program to compile here.)"""
+    from are_stats._cli_jobs import _behaviour_lines
+
+    def mle(paths, free, **kwargs):
+        return {
+            "beta": 39.3, "beta_se": np.nan, "slip": 0.4996, "slip_se": 0.0945,
+            "weights": np.array([-0.09]), "weights_se": np.array([np.nan]), "loglik": -34.7,
+            "n_moves": 28, "n_epochs": 100, "converged": True, "se_unresolved": "WHY",
+        }  # fmt: skip
+
+    monkeypatch.setattr(fb, "_mle", mle)
+    free = np.ones((10, 12), bool)
+    t = np.arange(10.0)
+    tracks = pd.concat(
+        [pd.DataFrame({"id": i, "t": t, "x": 0.5 + t, "y": 1.5 + i}) for i in range(6)]
+    )
+    fit = fb.fit_behaviour(tracks, free, 1.0, (0.0, 0.0), cell=1.0, features=("walls",))
+    want = "class 'all': standard errors of beta, walls weight are NaN: WHY"
+    assert fit.warnings == [want]
+    assert _behaviour_lines(fit) == [
+        "behaviour 'all': beta 39.3 +- nan, slip 0.5 +- 0.095, walls weight -0.09 +- nan",
+        f"warning: behaviour {want}",
+    ]
