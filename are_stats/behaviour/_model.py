@@ -116,7 +116,9 @@ class BehaviourFit:
     run_fraction, run_mu, run_sigma : (C,) float
         Fraction of runners and the lognormal law of their speeds (NaN without runners).
     beta, beta_se, slip, slip_se : (C,) float
-        Maximum-likelihood rationality and slip with standard errors (inverse Hessian).
+        Maximum-likelihood rationality and slip with standard errors (inverse Hessian; NaN
+        where the tracks do not identify the parameter at the fit's precision, with a
+        ``warnings`` entry saying so).
     loglik, n_moves : (C,) float, (C,) int
         Log-likelihood at the optimum and the number of observed steps it covers.
     n_tracks, n_fit_tracks : (C,) int
@@ -139,7 +141,8 @@ class BehaviourFit:
         The features ``phi_k`` on the MDP grid.
     weights, weights_se : (C, F) float
         Maximum-likelihood weights ``w_k`` per class (reward per epoch spent on a cell with
-        ``phi_k = 1``, in the units of ``time_cost``) and their standard errors.
+        ``phi_k = 1``, in the units of ``time_cost``) and their standard errors (NaN as
+        ``beta_se``'s).
     speed_within_sd, speed_within_time : (C,) float
         Within-person variation of the walking speed: a walker's log speed is a stationary
         Ornstein-Uhlenbeck process around its preferred speed's, of this sd (log units)
