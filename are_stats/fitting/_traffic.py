@@ -956,7 +956,8 @@ def _laplace_order(whiches: Collection[tuple[str, str]]) -> list[tuple[str, str]
 
     The longest compiles first, so that the two threads that compile them finish together
     instead of one compiling the gamma law's incomplete gammas alone at the end (the
-    shipped log's nine programs, CPU seconds one after the other: gamma 5.2; groups+mmpp,
+    shipped log's nine programs, CPU seconds one after the other: gamma 5.2, of it XLA
+    4.3-4.7, now 2.0-2.3 since its incomplete gammas are one loop; groups+mmpp,
     groups+hawkes, mmpp 1.6-2.0; lognormal, weibull 0.9-1.0; hawkes, negbin, groups
     0.45-0.55; each with 0.3-0.8 s of tracing).
     """
