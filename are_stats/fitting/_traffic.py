@@ -347,6 +347,22 @@ def _stay_draw_loglik(p: dict, **model_kwargs: Any) -> jax.Array:
     return stay_unit_loglik(p, kw["units"], kw["law"], kw["resolution"])
 
 
+def _likelihood(factor: str) -> tuple[Callable[..., jax.Array], str | None]:
+    """A factor's pointwise log-likelihood of one draw, and the model's factor site whose
+    value is its sum where the Laplace program computes the likelihood once
+    (:func:`run_laplace`'s ``likelihood``): ``stay_model``'s ``stays`` (its last site).
+
+    The arrival models keep their own factor: XLA's common-subexpression pass already
+    merges the model's and the pointwise recursions (the same loops in the compiled MMPP
+    and Hawkes programs either way, the compile CPU within noise), and the smaller
+    program rounded the MMPP candidates' values differently by 1-2e-16 (2026-11-28). The
+    gamma law's program, the same bits either way, compiled in about 0.3 s less CPU.
+    """
+    if factor == "arrivals":
+        return _arrival_draw_loglik, None
+    return _stay_draw_loglik, "stays"
+
+
 def _bin_width(data: LifecycleData) -> float:
     """Pointwise units of the arrivals: bins about a median stay long, 10 to 500 per window."""
     t0, t1 = data.window
@@ -559,8 +575,10 @@ def fit_traffic(
             prefetch = ThreadPoolExecutor(2, "are-stats-laplace")
             for factor, name in _laplace_order(approx):
                 _, model, kwargs, init = calls[factor, name]
-                pw = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
-                prefetch.submit(laplace_program, model, kwargs, init, pw, _optimise((factor, name)))
+                pw, site = _likelihood(factor)
+                prefetch.submit(
+                    laplace_program, model, kwargs, init, pw, _optimise((factor, name)), site
+                )
             prefetch.shutdown(wait=False)
         # when the runs started and finished: the Laplace stages' time left on a first fit
         lap_queue: tuple[float, list[float]] = (time.perf_counter(), [])
@@ -938,7 +956,8 @@ def _laplace_order(whiches: Collection[tuple[str, str]]) -> list[tuple[str, str]
 
     The longest compiles first, so that the two threads that compile them finish together
     instead of one compiling the gamma law's incomplete gammas alone at the end (the
-    shipped log's nine programs, CPU seconds one after the other: gamma 5.2; groups+mmpp,
+    shipped log's nine programs, CPU seconds one after the other: gamma 5.2, of it XLA
+    4.3-4.7, now 2.0-2.3 since its incomplete gammas are one loop; groups+mmpp,
     groups+hawkes, mmpp 1.6-2.0; lognormal, weibull 0.9-1.0; hawkes, negbin, groups
     0.45-0.55; each with 0.3-0.8 s of tracing).
     """
@@ -1029,8 +1048,8 @@ def _ahead_program(call: tuple, which: tuple[str, str]) -> None:
     _, model, kwargs, init = call
     if laplace_dimension(model, kwargs, init) > LAPLACE_MAX_PARAMETERS:
         return
-    pointwise = _arrival_draw_loglik if which[0] == "arrivals" else _stay_draw_loglik
-    laplace_program(model, kwargs, init, pointwise, _optimise(which))
+    pointwise, site = _likelihood(which[0])
+    laplace_program(model, kwargs, init, pointwise, _optimise(which), site)
 
 
 def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> LaplaceRun:
@@ -1038,7 +1057,7 @@ def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> Laplace
     draws; a pure function of the candidate's call, so candidates may run in threads."""
     factor, name = which
     key, model, kwargs, init = calls[which]
-    pointwise = _arrival_draw_loglik if factor == "arrivals" else _stay_draw_loglik
+    pointwise, site = _likelihood(factor)
     return run_laplace(
         key,
         model,
@@ -1048,6 +1067,7 @@ def _run_candidate(calls: dict, which: tuple[str, str], n_draws: int) -> Laplace
         pointwise=pointwise,
         name=f"{factor} {name}",
         optimise=_optimise(which),
+        likelihood=site,
     )
 
 

@@ -75,6 +75,7 @@ from are_stats.traffic._bursts import (
 )
 from are_stats.traffic._stays import (
     STAY_LAWS,
+    gamma_window_terms,
     stay_log_excess,
     stay_logcdf,
     stay_logpdf,
@@ -602,14 +603,19 @@ def stay_unit_loglik(
     log_m = jnp.log(mean)
     floor = 1e-12 * mean  # survival terms at a zero stay: NaN gradients at exactly 0
     sa = stay[units.idx_full]
+    ss = jnp.maximum(stay[units.idx_surv], floor)
+    se = jnp.maximum(stay[units.idx_excess], floor)
     la = stay_logpdf(law, jnp.maximum(sa, _TINY), mean, shape)
+    if law == "gamma":  # its incomplete gammas in one loop (one for XLA to compile)
+        ls, le, cdf = gamma_window_terms(ss, se, resolution, mean, shape)
+    else:
+        ls = stay_logsf(law, ss, mean, shape)
+        le = stay_log_excess(law, se, mean, shape)
+        cdf = stay_logcdf(law, resolution, mean, shape) if resolution > 0 else None
     if resolution > 0:
-        la = jnp.where(sa < resolution, stay_logcdf(law, resolution, mean, shape), la)
-    ss = stay[units.idx_surv]
-    ls = stay_logsf(law, jnp.maximum(ss, floor), mean, shape)
+        la = jnp.where(sa < resolution, cdf, la)
     ls = ls - jnp.where(trunc[units.idx_surv], log_m, 0.0)
-    se = stay[units.idx_excess]
-    le = stay_log_excess(law, jnp.maximum(se, floor), mean, shape) - log_m
+    le = le - log_m
     out = (
         jnp.zeros(m + 1)
         .at[units.idx_full]

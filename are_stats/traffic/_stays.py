@@ -39,7 +39,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import numpy.typing as npt
-from jax.scipy import special
 from jax.scipy.special import gammaln, log_ndtr, ndtr, xlogy
 from scipy.special import gammaln as sgammaln
 
@@ -76,17 +75,115 @@ def _log(x: npt.ArrayLike) -> jnp.ndarray:
 #: Relative step of the central difference that gives the incomplete gammas' derivative in
 #: their first argument (float64: truncation and rounding errors both near 1e-10).
 _SHAPE_STEP = 1e-5
+#: Most continued-fraction steps of an incomplete gamma (as JAX's).
+_MAX_FRACTION_STEPS = 2000
 
 
-def _and_d_da(
-    f: npt.ArrayLike, a: npt.ArrayLike, x: npt.ArrayLike
-) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """``f(a, x)`` and ``d f / d a`` by a central difference: one vectorised evaluation of
-    ``f`` at ``a - h, a, a + h`` (one loop in the compiled program, not three)."""
-    a, x = jnp.broadcast_arrays(jnp.asarray(a, float), jnp.asarray(x, float))
-    h = _SHAPE_STEP * jnp.maximum(a, 1.0)
-    v = f(jnp.stack([a - h, a, a + h]), jnp.stack([x, x, x]))
-    return v[1], (v[2] - v[0]) / (2.0 * h)
+def _incomplete_gamma(a: npt.ArrayLike, x: npt.ArrayLike, lower: npt.ArrayLike) -> jnp.ndarray:
+    """``P(a, x)`` where ``lower``, else ``Q(a, x)``: JAX's algorithms in ONE loop.
+
+    :func:`jax.scipy.special.gammainc` and ``gammaincc`` each compile two loops (a power
+    series for ``P`` and a continued fraction for ``Q``, the one not needed masked off),
+    and each loop carries the derivative's terms too; XLA's default optimisation of the
+    gamma stay law's Laplace program spent most of its 4-5 s of CPU on six such loops.
+    Here each element runs the series or the continued fraction in one shared loop, by
+    the same recurrences, tests and limits as JAX (the series where ``x < 1`` or
+    ``x < a`` for ``Q``, where not ``x >= 1`` and ``x > a`` for ``P``; the other tail
+    as ``1 -`` the computed one; at most :data:`_MAX_FRACTION_STEPS` fraction steps), so
+    the values are JAX's to the last bit or one rounding (tested against JAX and SciPy).
+
+    Parameters
+    ----------
+    a, x : (...) float
+        Shape (>= 0) and argument (>= 0), broadcast together.
+    lower : (...) bool
+        Where to return ``P`` (else ``Q``).
+
+    Returns
+    -------
+    (...) float
+        NaN outside the domain (``a < 0``, ``x < 0``, ``a = x = 0``, NaN).
+    """
+    a, x, lower = jnp.broadcast_arrays(
+        jnp.asarray(a, float), jnp.asarray(x, float), jnp.asarray(lower, bool)
+    )
+    eps = float(jnp.finfo(a.dtype).eps)
+    a_zero, x_zero, x_inf = a == 0, x == 0, x == jnp.inf
+    domain = (x < 0) | (a < 0) | (a_zero & x_zero) | jnp.isnan(a) | jnp.isnan(x)
+    series = jnp.where(lower, ~((x >= 1) & (x > a)), (x < 1) | (x < a))
+    ax = a * jnp.log(x) - x - gammaln(a)
+    underflow = ax < -float(np.log(jnp.finfo(a.dtype).max))
+    ax = jnp.exp(ax)
+    enabled = ~(domain | underflow | x_inf | jnp.where(lower, x_zero, a_zero))
+    y = 1.0 - a  # the continued fraction's start (Cephes' igamc, as JAX)
+    z = x + y + 1.0
+    one = jnp.ones_like(a)
+    state = (
+        jnp.zeros((), a.dtype),  # continued-fraction steps taken
+        enabled & series,  # series running
+        a,  # its r
+        one,  # its term c
+        one,  # its sum
+        enabled & ~series,  # fraction running
+        (x + 1.0) / (z * x),  # its value
+        y,
+        z,
+        x + 1.0,  # p_{k-1}
+        z * x,  # q_{k-1}
+        one,  # p_{k-2}
+        x,  # q_{k-2}
+    )
+
+    def more(v: tuple) -> jnp.ndarray:
+        return jnp.any(v[1]) | (jnp.any(v[5]) & (v[0] < _MAX_FRACTION_STEPS))
+
+    def step(v: tuple) -> tuple:
+        c, s_on, r, term, total, f_on, ans, y, z, pkm1, qkm1, pkm2, qkm2 = v
+        r1 = r + 1.0
+        term1 = term * (x / r1)
+        total1 = total + term1
+        s_next = s_on & (term1 / total1 > eps)
+        f_on = f_on & (c < _MAX_FRACTION_STEPS)
+        c = c + 1.0
+        y1, z1 = y + 1.0, z + 2.0
+        yc = y1 * c
+        pk = pkm1 * z1 - pkm2 * yc
+        qk = qkm1 * z1 - qkm2 * yc
+        nonzero = qk != 0
+        ratio = pk / qk
+        t = jnp.where(nonzero, jnp.abs((ans - ratio) / ratio), 1.0)
+        rescale = jnp.abs(pk) > 1.0 / eps
+        f_next = f_on & (t > eps)
+
+        def keep(on: jnp.ndarray, new: jnp.ndarray, old: jnp.ndarray) -> jnp.ndarray:
+            return jnp.where(on, new, old)
+
+        return (
+            c,
+            s_next,
+            keep(s_on, r1, r),
+            keep(s_on, term1, term),
+            keep(s_on, total1, total),
+            f_next,
+            keep(f_on & nonzero, ratio, ans),
+            keep(f_on, y1, y),
+            keep(f_on, z1, z),
+            keep(f_on, jnp.where(rescale, pk * eps, pk), pkm1),
+            keep(f_on, jnp.where(rescale, qk * eps, qk), qkm1),
+            keep(f_on, jnp.where(rescale, pkm1 * eps, pkm1), pkm2),
+            keep(f_on, jnp.where(rescale, qkm1 * eps, qkm1), qkm2),
+        )
+
+    v = jax.lax.while_loop(more, step, state)
+    p = (v[4] * ax) / a
+    q = v[6] * ax
+    out = jnp.where(series, jnp.where(lower, p, 1.0 - p), jnp.where(lower, 1.0 - q, q))
+    out = jnp.where(
+        lower,
+        jnp.where(x_zero, 0.0, jnp.where(x_inf, 1.0, out)),
+        jnp.where(x_inf | a_zero, 0.0, out),
+    )
+    return jnp.where(domain, jnp.nan, out)
 
 
 def _dq_dx(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
@@ -95,37 +192,55 @@ def _dq_dx(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
 
 
 @jax.custom_jvp
-def gammaincc(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
-    """Regularised upper incomplete gamma ``Q(a, x)``, as :func:`jax.scipy.special.gammaincc`.
+def incomplete_gamma(a: npt.ArrayLike, x: npt.ArrayLike, lower: npt.ArrayLike) -> jnp.ndarray:
+    """Regularised incomplete gamma: ``P(a, x)`` where ``lower``, else ``Q(a, x)``.
 
-    Its derivative in ``a`` is a central difference of ``Q`` instead of JAX's own, whose
-    series XLA compiles for a minute or more (it was most of a NUTS fit's compile time, and
-    XLA's "very slow compile" alarm pointed at it). NUTS stays exact with it: the leapfrog
-    is reversible and keeps volume whatever the force, and the accept step uses ``Q``.
+    The values of :func:`jax.scipy.special.gammainc` / ``gammaincc`` in one loop (see
+    :func:`_incomplete_gamma`); several tails of one likelihood in one call are one loop
+    for XLA to compile. Its derivative in ``a`` is a central difference (one evaluation
+    at ``a - h, a, a + h``) instead of JAX's own, whose series XLA compiles for a minute
+    or more (it was most of a NUTS fit's compile time, and XLA's "very slow compile" alarm
+    pointed at it). NUTS stays exact with it: the leapfrog is reversible and keeps volume
+    whatever the force, and the accept step uses the values. In ``x`` it is closed form.
+
+    Parameters
+    ----------
+    a, x : (...) float
+    lower : (...) bool
+
+    Returns
+    -------
+    (...) float
     """
-    return special.gammaincc(a, x)
+    return _incomplete_gamma(a, x, lower)
 
 
-@gammaincc.defjvp
-def _gammaincc_jvp(primals: tuple, tangents: tuple) -> tuple:
-    a, x = primals
-    da, dx = tangents
-    q, dq_da = _and_d_da(special.gammaincc, a, x)
-    return q, dq_da * da + _dq_dx(a, x) * dx
+@incomplete_gamma.defjvp
+def _incomplete_gamma_jvp(primals: tuple, tangents: tuple) -> tuple:
+    a, x, lower = primals
+    da, dx, _ = tangents
+    a, x, lower = jnp.broadcast_arrays(
+        jnp.asarray(a, float), jnp.asarray(x, float), jnp.asarray(lower, bool)
+    )
+    h = _SHAPE_STEP * jnp.maximum(a, 1.0)
+    v = _incomplete_gamma(
+        jnp.stack([a - h, a, a + h]), jnp.stack([x, x, x]), jnp.stack([lower, lower, lower])
+    )
+    dv_da = (v[2] - v[0]) / (2.0 * h)
+    dq_dx = _dq_dx(a, x)
+    return v[1], dv_da * da + jnp.where(lower, -dq_dx, dq_dx) * dx
 
 
-@jax.custom_jvp
+def gammaincc(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
+    """Regularised upper incomplete gamma ``Q(a, x)``, as :func:`jax.scipy.special.gammaincc`
+    (:func:`incomplete_gamma`: one loop, a central difference in ``a``)."""
+    return incomplete_gamma(a, x, False)
+
+
 def gammainc(a: npt.ArrayLike, x: npt.ArrayLike) -> jnp.ndarray:
-    """Regularised lower incomplete gamma ``P(a, x) = 1 - Q(a, x)`` (see :func:`gammaincc`)."""
-    return special.gammainc(a, x)
-
-
-@gammainc.defjvp
-def _gammainc_jvp(primals: tuple, tangents: tuple) -> tuple:
-    a, x = primals
-    da, dx = tangents
-    p, dp_da = _and_d_da(special.gammainc, a, x)  # P itself: precise where it is tiny
-    return p, dp_da * da - _dq_dx(a, x) * dx
+    """Regularised lower incomplete gamma ``P(a, x) = 1 - Q(a, x)``, computed as ``P`` where
+    it is tiny (see :func:`incomplete_gamma`)."""
+    return incomplete_gamma(a, x, True)
 
 
 def _weibull_scale(mean: npt.ArrayLike, k: npt.ArrayLike) -> jnp.ndarray:
@@ -148,6 +263,50 @@ def _gamma_tails(
     x = shape / mean * r
     q = gammaincc(jnp.stack([shape, shape + 1.0]), jnp.stack([x, x]))
     return _log(q[0]), _log_excess(mean * q[1], r * q[0])
+
+
+def gamma_window_terms(
+    surv: npt.ArrayLike,
+    excess: npt.ArrayLike,
+    resolution: float,
+    mean: npt.ArrayLike,
+    shape: npt.ArrayLike,
+) -> tuple[jnp.ndarray, jnp.ndarray, jnp.ndarray | None]:
+    """The gamma law's censored terms from ONE incomplete-gamma loop: ``log S`` of the
+    stays ``surv``, ``log E[(T - r)^+]`` of the stays ``excess`` and ``log F(resolution)``
+    (as :func:`stay_logsf`, :func:`stay_log_excess` and :func:`stay_logcdf`, the same
+    arithmetic; one loop for XLA to compile instead of three).
+
+    Parameters
+    ----------
+    surv : (ns,) float
+    excess : (ne,) float
+    resolution : float
+        None is returned for it when not positive.
+    mean, shape : float
+        Scalars (one draw).
+
+    Returns
+    -------
+    log_sf : (ns,) float
+    log_excess : (ne,) float
+    log_cdf : float or None
+    """
+    t = jnp.maximum(jnp.asarray(surv, float), 0.0)
+    r = jnp.maximum(jnp.asarray(excess, float), 0.0)
+    ns, ne = t.shape[0], r.shape[0]
+    rate = shape / mean
+    a = [jnp.full(ns + ne, shape), jnp.full(ne, shape + 1.0)]
+    x = [rate * t, rate * r, rate * r]
+    lower = np.zeros(ns + 2 * ne + (resolution > 0), bool)
+    if resolution > 0:
+        a.append(jnp.reshape(shape, (1,)))
+        x.append(jnp.reshape(rate * jnp.maximum(jnp.asarray(resolution, float), 0.0), (1,)))
+        lower[-1] = True
+    q = incomplete_gamma(jnp.concatenate(a), jnp.concatenate(x), lower)
+    log_sf = _log(q[:ns])
+    log_excess = _log_excess(mean * q[ns + ne : ns + 2 * ne], r * q[ns : ns + ne])
+    return log_sf, log_excess, (_log(q[-1]) if resolution > 0 else None)
 
 
 def _log_excess(a: npt.ArrayLike, b: npt.ArrayLike) -> jnp.ndarray:

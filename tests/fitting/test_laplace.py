@@ -171,3 +171,67 @@ def test_a_run_is_the_same_whatever_points_a_call_holds(new_process, monkeypatch
         np.testing.assert_array_equal(small.samples[name], large.samples[name])
     np.testing.assert_array_equal(small.loglik, large.loglik)
     np.testing.assert_array_equal(small.log_ratio, large.log_ratio)
+
+
+@pytest.mark.parametrize("law", ["gamma", "weibull"])
+def test_the_likelihood_computed_once_is_the_same_run(new_process, law):
+    """With ``likelihood`` naming the model's last factor, the program takes the potential's
+    likelihood from the pointwise terms (computed once a point, the model's own factor
+    dropped): the same mode, draws, log-likelihoods and weights, to the bit, and a program
+    with one copy of the incomplete-gamma loop instead of two."""
+    import jax
+
+    from are_stats.fitting._nuts import _split_kwargs
+    from are_stats.fitting._traffic import _stay_draw_loglik
+
+    kwargs = {**_stay_kwargs(law), "resolution": 1.0}
+    init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
+    runs = [
+        lap.run_laplace(
+            jax.random.key(5),
+            stay_model,
+            kwargs,
+            init,
+            num_draws=203,
+            pointwise=_stay_draw_loglik,
+            likelihood=site,
+        )
+        for site in (None, "stays")
+    ]
+    whole, once = runs
+    assert whole.converged and once.converged
+    for name in whole.mode:
+        np.testing.assert_array_equal(whole.mode[name], once.mode[name])
+    for name in whole.samples:
+        np.testing.assert_array_equal(whole.samples[name], once.samples[name])
+    np.testing.assert_array_equal(whole.loglik, once.loglik)
+    np.testing.assert_array_equal(whole.log_ratio, once.log_ratio)
+    arrays, treedef, static = _split_kwargs(kwargs)
+    zs = {"stay_mean_z": np.zeros(4), "stay_shape_eta": np.zeros(4)}
+    loops = [
+        lap._batch_fn(stay_model, treedef, static, _stay_draw_loglik, site)
+        .lower(arrays, zs)
+        .as_text()
+        .count("stablehlo.while")
+        for site in (None, "stays")
+    ]
+    assert loops == [2, 1]  # gamma: its censored terms; weibull: its mean excess
+
+
+def test_a_likelihood_that_is_no_factor_is_an_error(new_process):
+    import jax
+
+    from are_stats.fitting._traffic import _stay_draw_loglik
+
+    init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
+    for site in ("stay_mean", "stays_typo"):
+        with pytest.raises(ValueError, match=r"likelihood: expected .*\['stays'\].*" + site):
+            lap.run_laplace(
+                jax.random.key(5),
+                stay_model,
+                _stay_kwargs("weibull"),
+                init,
+                num_draws=10,
+                pointwise=_stay_draw_loglik,
+                likelihood=site,
+            )
