@@ -1947,15 +1947,17 @@ def repulsion_evidence(
 
     Where that test cannot tell (neither is rejected) and the published force was walked
     again (``calibrate``), how close people come decides: at 2.5 Hz with 5 cm the
-    published force reads as 0.2-0.5 and two crowds of six walked by it read "too
-    little", where their positions still show it (5 cm against distances of 0.5-2 m).
+    published force reads as 0.25-0.52 and one crowd of six walked by it reads "too
+    little" (z -1.4), where its positions still show it (5 cm against distances of
+    0.5-2 m).
     The tracks' :func:`_close_passes` (from :data:`PASS_MIN_PAIRS` pairs within
     :data:`PASS_REACH` on) are placed on the way, in logs, from those of the crowd walked
     again under the published force to those of the same crowd walked under none (one
     more simulation, the same noise): within its first :data:`PASS_BAND` the verdict is
-    "published", within its last "none". Six crowds of 60 of each kind at 2.5 Hz with
-    5 cm lay 0.03-0.16 and 0.89-1.06 of the way (sd about 0.05). This verdict has no
-    level of its own (``z`` and ``p`` stay the least squares').
+    "published", within its last "none". Six crowds of 60 walked by the published force
+    and twelve walked straight through each other, at 2.5 Hz with 5 cm, lay 0.01-0.12
+    and 0.90-1.09 of the way. This verdict has no level of its own (``z`` and ``p`` stay
+    the least squares').
 
     Parameters
     ----------
