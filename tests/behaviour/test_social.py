@@ -203,6 +203,28 @@ def test_scenarios_do_not_meet_and_kinematic_artefacts_keep_their_plan():
     assert np.abs(walker["y"]).max() > 0.3
 
 
+@pytest.mark.parametrize("t_arrive", [0.05, 0.1, 0.3, 0.999])
+def test_a_walker_arriving_between_steps_walks_its_plan_from_its_arrival_point(t_arrive):
+    """A walker alone on a straight plan, arriving walking (``arrival_velocities``) at a
+    time off the integration grid (or on it, 0.1), walks its plan exactly: it stands on its
+    arrival point at its arrival and its speed never exceeds the cap ``max_speed * v0``.
+    Its first step covered the whole step ``dt`` instead of the time since its arrival:
+    the track ran up to ``v0 dt`` ahead (0.12 m), 1.8 v0 over its first 0.2 s row gap,
+    and a generated person's first frames went past the physical bound."""
+    from are_stats.behaviour import arrival_velocities
+
+    far = _plan([(0, 0.0, (0, 0), (8, 0), 1.2)], 0.2)  # the first arrival sets the grid
+    walker = _plan([(1, t_arrive, (0, 20), (8, 20), 1.2)], 0.2)
+    plan = pd.concat([far, walker], ignore_index=True)
+    out = social_force_tracks(arrival_velocities(plan), dt=0.1)
+    got = out[out["id"] == 1].sort_values("t")
+    want = walker.sort_values("t")
+    early = (want["t"] <= t_arrive + 5.0).to_numpy()  # before it slows for its last corner
+    np.testing.assert_allclose(got[["x", "y"]][early], want[["x", "y"]][early], atol=1e-9)
+    speed = np.hypot(np.diff(got["x"]), np.diff(got["y"])) / np.diff(got["t"])
+    assert speed.max() <= SocialForce().max_speed * 1.2 + 1e-9
+
+
 def test_a_walk_compiles_nothing_but_its_window(caplog):
     """The walls' tables (distance, its gradient, the free mask, the frames) are placed as
     they are (issue 29: jnp.asarray of each compiled a one-operation program, four per

@@ -17,6 +17,10 @@ Retaken on 2026-11-28: the digests had been taken on an AVX-512 host, whose NumP
 trigonometry and XLA kernels give other last bits than the AVX2 kernels the suite now pins
 on every x86-64 host (``tests/conftest.py``: ``PINNED_ISA``; these walks differed on an
 AVX2 AMD EPYC with the same code and packages); nothing else changed.
+Retaken on 2026-11-28, a change of behaviour: a walker's first integration step covers
+only the time since its arrival (``_window``'s ``h = clip(t - t_on, 0, dt)``), not a whole
+``dt`` that put it up to ``v0 dt`` ahead of its plan; every walk here changes from each
+walker's first step (all four digests); nothing else changed.
 """
 
 from __future__ import annotations
@@ -32,10 +36,10 @@ from are_stats.environment import OccupancyGrid
 
 #: sha256 of the walked tracks (columns, dtypes, values), from the code before the change.
 WANT = {
-    "room": "4ec12633bcf0a326dfc2dc5508bba7196b15cb2cbcf1bdb85d783fef8892a828",
-    "scenes": "85c11b5343ecda7700425e25046c40ed6a1a0b838d28933526186c9d55a1e39e",
-    "scenes, strength 0": "b7dcf86f6e7e9835876b21142a6b1756f9c34313177ca0b61be7161626a16745",
-    "crowd": "c6ae815a3bd5e8b25004a07862cec8baf5dd9bbe7aa659caa50e31e5294bcae8",
+    "room": "cd1bf546c9044ba92f68814ffa27d7e36c1dff32deaeb722e39d98490a949d44",
+    "scenes": "d8a20babdf102bc743e991e01b70b66113f619003fd21a722a1424271dbc5d2b",
+    "scenes, strength 0": "edfff839907ee70d0cf1b35df787ab6143ac643a9dc30dd24d20a6406349d5a2",
+    "crowd": "9f5f778726e513dc07fbcbf2806a030667ba6946889e7ff82a396bb7f4a2abe1",
 }
 
 

@@ -134,11 +134,21 @@ def test_the_fitted_model_beats_constant_velocity_and_the_catalogue_on_its_own_t
     """Issue 26's claim on synthetic tracks simulated by the model: door-to-door walkers,
     the behaviour fitted on them, then tracks of that fitted model (MDP route, continuous
     motion, social force) scored as the log: the fitted model's realism score is above both
-    baselines (0.437 against 0.386 and 0.409 with these seeds)."""
+    baselines (0.441 against 0.411 and 0.412 with these seeds).
+
+    The margins' spread over seeds 0-5 of the log and the table: 0.027-0.034 above
+    constant velocity (mean 0.031, sd 0.003) and 0.028-0.035 above the catalogue (mean
+    0.031, sd 0.003); the bounds asserted, 0.02 and 0.015, lie 3.5 and 5.7 sd below the
+    means. Above constant velocity it was 0.033-0.046 (mean 0.039) while every walker's
+    first step ran a whole ``dt`` ahead of its plan (fixed 2026-11-28): constant
+    velocity keeps each person's velocity of the first second, which then held the
+    first step's extra ``v0 dt`` (up to 10% too fast), and it scored lower for it (on free
+    cells 0.955 against 0.992 now, time to exit 0.161 against 0.225, seed 0); the fitted
+    model's own score moved by -0.005 to +0.001."""
     walkers, grid, fit = crossings_fit
     table = _own_tracks_table(walkers, grid, fit, 0)
     realism = table.loc["realism (weighted)"]
-    assert realism["fitted"] > realism["constant velocity"] + 0.03
+    assert realism["fitted"] > realism["constant velocity"] + 0.02
     assert realism["fitted"] > realism["catalogue"] + 0.015
     assert table.loc["straightness", "fitted"] > table.loc["straightness", "catalogue"]
 
