@@ -299,11 +299,19 @@ def test_likelihood_with_goals_split_across_devices_equals_one_device() -> None:
     assert_allclose(g2, g1, rtol=1e-10)
 
 
+#: The soft solve's tolerance as :func:`~are_stats.fitting._behaviour._mle` hands it to the
+#: fit's program: a float64 array. A Python float is a weakly typed argument, whose program
+#: is another one than the fit's: the round-trip test's fit compiled its own (about 10 s of
+#: CPU cold) until 2026-11-28.
+TOL = np.asarray(1e-3, np.float64)
+
+
 def _fit_value_and_gradient(paths, free, theta, n_devices, features=None):
     """The fit's compiled ``(gradient, value)`` program (float64, ``tol = 1e-3``) on the
     padded data of ``paths``: one program per shape bucket, so the likelihood tests on
-    :func:`_small_world` (three goals, four tracks, eight steps: buckets (4, 4, 8)) share
-    it. Returns the data's move observations and ``(gradient, value)``."""
+    :func:`_small_world` (three goals, four tracks, eight steps: buckets (4, 4, 8)) and the
+    float64 fit of :func:`test_feature_weights_round_trip_and_old_files_load_without_them`
+    share it. Returns the data's move observations and ``(gradient, value)``."""
     import are_stats.fitting._behaviour as fb
 
     data, obs, _, n_dev = fb._likelihood_data(
@@ -312,7 +320,7 @@ def _fit_value_and_gradient(paths, free, theta, n_devices, features=None):
     )  # fmt: skip
     assert n_dev == n_devices
     th = np.asarray(theta, np.float64)
-    return obs, fb._gradient_value_epochs(th, data, 1e-3, n_dev)[:2]
+    return obs, fb._gradient_value_epochs(th, data, TOL, n_dev)[:2]
 
 
 @pytest.mark.parametrize("n_devices", [1, 2])
@@ -339,7 +347,7 @@ def test_padded_likelihood_equals_the_unpadded_one(monkeypatch, n_devices: int) 
         data, obs, _, n_dev = fb._likelihood_data(paths, free, **opts)
         shapes = (data.keep.shape[0], *data.move.shape)
         assert shapes == ((4, 4, 8) if pad else (_bucket_exact(3, n_dev), 3, 7))
-        out.append(fb._gradient_value_epochs(th, data, 1e-3, n_dev)[:2])
+        out.append(fb._gradient_value_epochs(th, data, TOL, n_dev)[:2])
     (g_pad, v_pad), (g, v) = out
     assert np.isfinite(float(v)) and np.abs(np.asarray(g)).min() > 1e-3
     assert_allclose(v_pad, v, rtol=1e-13)
@@ -475,11 +483,18 @@ def test_feature_weights_round_trip_and_old_files_load_without_them(tmp_path) ->
         ignore_index=True,
     )  # fmt: skip
     # float64: the fit's value-and-gradient program is then the padded test's (the same
-    # shape buckets and two features), compiled once
+    # shape buckets and two features, the goals split over the devices there are),
+    # compiled once: the fit compiles none of its own
+    import are_stats.fitting._behaviour as fb
+
+    th = np.array([np.log(1.7), -2.0, -0.4, 0.3])
+    _fit_value_and_gradient(paths, free, th, jax.local_device_count(), phi)
+    programs = fb._gradient_value_epochs._cache_size()
     fit = fit_behaviour(
         tracks, free, 1.0, (0.0, 0.0), cell=1.0, dt=0.8, features={"walls": "walls", "r": phi[1]},
         dtype="float64",
     )  # fmt: skip
+    assert fb._gradient_value_epochs._cache_size() == programs
     assert fit.weights.shape == fit.weights_se.shape == (1, 2)
     assert np.isfinite(fit.weights).all()
     path = tmp_path / "b.nc"

@@ -96,14 +96,20 @@ def test_gradients_are_finite_and_match_finite_differences(law):
     cens = np.array([False, False, True, False, True])
     trunc = np.array([False, True, False, True, True])
 
-    @jax.jit
     def total(p):
         return stay_loglik(law, stay, cens, trunc, p[0], p[1], 0.25).sum()
 
+    # one program gives the values and the gradient (a jitted ``total`` and ``jax.grad``
+    # of it were two, each compiling the incomplete gammas' loops)
+    value_and_grad = jax.jit(jax.value_and_grad(total))
     p = np.array([6.0, 1.7])
-    g = np.asarray(jax.grad(total)(p))
+    g = np.asarray(value_and_grad(p)[1])
     eps = 1e-6
-    fd = [(total(p + eps * e) - total(p - eps * e)) / (2 * eps) for e in np.eye(2)]
+
+    def value(q):
+        return float(value_and_grad(q)[0])
+
+    fd = [(value(p + eps * e) - value(p - eps * e)) / (2 * eps) for e in np.eye(2)]
     assert np.all(np.isfinite(g))
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-7)
 
@@ -117,10 +123,12 @@ def test_incomplete_gamma_derivatives_match_jax_own():
     a = np.array([0.3, 0.9, 2.5, 7.0, 40.0])[:, None]
     x = np.array([1e-3, 0.2, 1.0, 3.0, 12.0, 60.0])[None, :]
     for ours, theirs in ((gammaincc, special.gammaincc), (gammainc, special.gammainc)):
+        # both derivatives from one compiled program per function (op by op, one argument
+        # at a time: 15.0 s of CPU cold against 12.5 s, 2026-11-28)
+        g = jax.jit(jax.vmap(jax.vmap(jax.grad(ours, (0, 1)))))(*np.broadcast_arrays(a, x))
+        want = jax.jit(jax.vmap(jax.vmap(jax.grad(theirs, (0, 1)))))(*np.broadcast_arrays(a, x))
         for arg in (0, 1):
-            g = jax.vmap(jax.vmap(jax.grad(ours, arg)))(*np.broadcast_arrays(a, x))
-            want = jax.vmap(jax.vmap(jax.grad(theirs, arg)))(*np.broadcast_arrays(a, x))
-            np.testing.assert_allclose(g, want, rtol=1e-5, atol=1e-10)
+            np.testing.assert_allclose(g[arg], want[arg], rtol=1e-5, atol=1e-10)
         # one loop of JAX's recurrences, not JAX's primitive: one program's rounding
         a2, x2 = np.broadcast_arrays(a, x)
         np.testing.assert_allclose(jax.jit(ours)(a2, x2), jax.jit(theirs)(a2, x2), rtol=1e-14)
