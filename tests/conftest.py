@@ -77,8 +77,9 @@ HEAVY_FILES: tuple[str, ...] = (
     "tests/test_integrity.py",  # slow: same-seed runs and kills, about 20 are-stats processes
     # slow: builds the wheel; in CI (ARE_STATS_FRESH_VENV=1) a fresh venv, about 3.5 min
     "tests/test_wheel.py",
-    # default: the first stream of each fuzz test (fuzz_tiers), 21 edited fit files drawn
-    # from and some 1,300 file cases (about 58 s of CPU cold); slow: the second stream
+    # default: the first stream of each fuzz test (fuzz_tiers, a quarter of its cases), 11
+    # edited fit files drawn from and some 670 file cases (51 s of CPU cold alone, against
+    # 78 s for the half, 1,300 cases, before 2026-11-29); slow: the second stream
     "tests/fuzz/test_fuzz_package.py",
     "tests/fuzz/test_fuzz_tracks_scale.py",  # slow: three 300-person tracks fits
     "tests/test_cli_tracks.py",  # slow: the tracks fit, report and generation by the CLI

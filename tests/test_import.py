@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
@@ -270,31 +271,42 @@ def test_hide_dask_leaves_xarray_writing_and_reading_netcdf(tmp_path):
     assert not {m for m in loaded if m.split(".")[0] in ("dask", "distributed")}
 
 
-def _dask_after_main(argv: list[str], name: str = "dask") -> str:
-    """``repr(sys.modules.get(name))`` after are_stats.cli.main ran ``argv``."""
+@functools.cache
+def _hidden_after_main(argv: tuple[str, ...]) -> dict[str, str]:
+    """``repr(sys.modules.get(name))`` of dask and numba after are_stats.cli.main ran
+    ``argv``: one process per command line, read by both tests below (each process costs
+    seconds of CPU: the fit and report imports)."""
     code = (
-        f"import sys\nsys.argv = ['are-stats', *{argv!r}]\nfrom are_stats import cli\n"
+        f"import sys\nsys.argv = ['are-stats', *{list(argv)!r}]\nfrom are_stats import cli\n"
         "try:\n    cli.main()\nexcept SystemExit:\n    pass\n"
-        f"print(repr(sys.modules.get({name!r}, 'absent')))"
+        "print(repr(sys.modules.get('dask', 'absent')))\n"
+        "print(repr(sys.modules.get('numba', 'absent')))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return out.stdout.strip().splitlines()[-1]
+    dask, numba = out.stdout.strip().splitlines()[-2:]
+    return {"dask": dask, "numba": numba}
+
+
+#: fit, report after a global option, experiment: the command lines both tests run.
+_FIT = ("fit", "no_such_log.csv", "--out", "x.nc")
+_REPORT = ("--max-memory", "4G", "report", "no_such_fit.nc")
+_EXPERIMENT = ("experiment", "--help")
 
 
 def test_cli_main_hides_dask_from_a_fit_only():
     """The console script hides dask for `fit` (also after global options), not for
     `experiment` (its sweeps run on Dask), and importing the CLI hides nothing."""
-    assert _dask_after_main(["fit", "no_such_log.csv", "--out", "x.nc"]) == "None"
-    assert _dask_after_main(["--max-memory", "4G", "report", "no_such_fit.nc"]) == "None"
-    assert _dask_after_main(["experiment", "--help"]) == "'absent'"
+    assert _hidden_after_main(_FIT)["dask"] == "None"
+    assert _hidden_after_main(_REPORT)["dask"] == "None"
+    assert _hidden_after_main(_EXPERIMENT)["dask"] == "'absent'"
 
 
 def test_cli_main_hides_numba_from_a_fit_only():
     """numba (imported and compiled by ``import arviz`` where installed) is hidden for
-    `fit` and `report`, as dask is, and not for `experiment`."""
-    assert _dask_after_main(["fit", "no_such_log.csv", "--out", "x.nc"], "numba") == "None"
-    assert _dask_after_main(["report", "no_such_fit.nc"], "numba") == "None"
-    assert _dask_after_main(["experiment", "--help"], "numba") == "'absent'"
+    `fit` and `report` (also after global options), as dask is, and not for `experiment`."""
+    assert _hidden_after_main(_FIT)["numba"] == "None"
+    assert _hidden_after_main(_REPORT)["numba"] == "None"
+    assert _hidden_after_main(_EXPERIMENT)["numba"] == "'absent'"
 
 
 def test_hide_numba_leaves_arviz_on_its_numpy_paths():

@@ -1,8 +1,8 @@
 """Fuzz fixtures: a tiny valid fit and scenario folder (made once), fresh case folders.
 
 Each fuzz test runs as two tests (:func:`tests.fuzz.strategies.fuzz_tiers`): ``test_x[default]``
-in ``make test`` (``-m "not slow"``) draws about half of its examples, ``test_x[slow]`` in
-``make test-slow`` (``-m slow``) about three quarters, other cases from a second seed; CI runs
+in ``make test`` (``-m "not slow"``) draws about a quarter of its examples, ``test_x[slow]`` in
+``make test-slow`` (``-m slow``) all of them, other cases from a second seed; CI runs
 both tiers, at least as many distinct cases per test as one stream of all its examples did.
 """
 
