@@ -592,6 +592,12 @@ def fit_traffic(
         for which, call in calls.items():
             if which not in approx:
                 ahead.add(*call, **nuts)
+        if "exponential" in laws:
+            # the paper's stay law in closed form (NumPy): its PSIS-LOO queued now, not
+            # behind the arrival candidates' (it was the last thing a repeated fit of the
+            # shipped log waited on)
+            ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
+            loo["stays"]["exponential"] = psis.submit(loo_pointwise, ll[..., :n], _reff(None))
         for name in cands:
             if name == "poisson":
                 # the paper's draws in closed form (NumPy: no program to compile)
@@ -613,9 +619,9 @@ def fit_traffic(
             loo["arrivals"][name] = psis.submit(loo_pointwise, ll[..., :n_real_bins], _reff(run))
         for law in laws:
             if law == "exponential":
-                ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
-                run = None
-            elif ("stays", law) in approx:
+                runs["stays"][law] = None
+                continue
+            if ("stays", law) in approx:
                 lap = _laplace_candidate(("stays", law), lap_runs, say, out, lap_queue)
                 draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
                 runs["stays"][law] = None
