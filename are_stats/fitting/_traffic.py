@@ -598,6 +598,10 @@ def fit_traffic(
             # shipped log waited on)
             ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
             loo["stays"]["exponential"] = psis.submit(loo_pointwise, ll[..., :n], _reff(None))
+        # the entry and exit densities need the log and the map alone: fitted in the PSIS
+        # thread while the candidates run, not after them (an error is raised where the fit
+        # takes the result, as before)
+        fitted_positions = psis.submit(_fit_positions, data, positions, grid)
         for name in cands:
             if name == "poisson":
                 # the paper's draws in closed form (NumPy: no program to compile)
@@ -728,7 +732,7 @@ def fit_traffic(
         out.posterior["stay_shape"] = reshape(draws[chosen]["stay_shape"])
 
     # ---------------- positions ----------------
-    out.position_model, out.entry, out.exit, table = _fit_positions(data, positions, grid)
+    out.position_model, out.entry, out.exit, table = fitted_positions.result()
     out.tables["positions"] = table
     if table is None:
         out.tables.pop("positions")
