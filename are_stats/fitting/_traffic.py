@@ -550,6 +550,7 @@ def fit_traffic(
         NutsPrefetch() as ahead,
         ThreadPoolExecutor(1, "are-stats-loo") as psis,
         ThreadPoolExecutor(LAPLACE_THREADS, "are-stats-laplace-run") as lap_pool,
+        ThreadPoolExecutor(1, "are-stats-positions") as positions_pool,
     ):
         lap_runs: dict[tuple[str, str], Future[LaplaceRun]] = {}
         # with one run thread, two more compile the candidates' programs ahead of it; with
@@ -598,10 +599,11 @@ def fit_traffic(
             # shipped log waited on)
             ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
             loo["stays"]["exponential"] = psis.submit(loo_pointwise, ll[..., :n], _reff(None))
-        # the entry and exit densities need the log and the map alone: fitted in the PSIS
-        # thread while the candidates run, not after them (an error is raised where the fit
-        # takes the result, as before)
-        fitted_positions = psis.submit(_fit_positions, data, positions, grid)
+        # the entry and exit densities need the log and the map alone: fitted in a thread
+        # of their own while the candidates run, not after them (an error is raised where
+        # the fit takes the result, as before); not in the PSIS thread, whose queue would
+        # wait behind them while they wait on scipy.signal's import beside ArviZ's
+        fitted_positions = positions_pool.submit(_fit_positions, data, positions, grid)
         for name in cands:
             if name == "poisson":
                 # the paper's draws in closed form (NumPy: no program to compile)
