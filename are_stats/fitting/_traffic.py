@@ -566,6 +566,7 @@ def fit_traffic(
         NutsPrefetch() as ahead,
         ThreadPoolExecutor(1, "are-stats-loo") as psis,
         ThreadPoolExecutor(LAPLACE_THREADS, "are-stats-laplace-run") as lap_pool,
+        ThreadPoolExecutor(1, "are-stats-positions") as positions_pool,
     ):
         lap_runs: dict[tuple[str, str], Future[LaplaceRun]] = {}
         # with one run thread, two more compile the candidates' programs ahead of it; with
@@ -610,6 +611,17 @@ def fit_traffic(
         for which, call in calls.items():
             if which not in approx:
                 ahead.add(*call, **nuts)
+        if "exponential" in laws:
+            # the paper's stay law in closed form (NumPy): its PSIS-LOO queued now, not
+            # behind the arrival candidates' (it was the last thing a repeated fit of the
+            # shipped log waited on)
+            ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
+            loo["stays"]["exponential"] = psis.submit(loo_pointwise, ll[..., :n], _reff(None))
+        # the entry and exit densities need the log and the map alone: fitted in a thread
+        # of their own while the candidates run, not after them (an error is raised where
+        # the fit takes the result, as before); not in the PSIS thread, whose queue would
+        # wait behind them while they wait on scipy.signal's import beside ArviZ's
+        fitted_positions = positions_pool.submit(_fit_positions, data, positions, grid)
         for name in cands:
             if name == "poisson":
                 # the paper's draws in closed form (NumPy: no program to compile)
@@ -631,9 +643,9 @@ def fit_traffic(
             loo["arrivals"][name] = psis.submit(loo_pointwise, ll[..., :n_real_bins], _reff(run))
         for law in laws:
             if law == "exponential":
-                ll = exponential_unit_loglik(1.0 / mu.ravel(), units, res).reshape(shape + (-1,))
-                run = None
-            elif ("stays", law) in approx:
+                runs["stays"][law] = None
+                continue
+            if ("stays", law) in approx:
                 lap = _laplace_candidate(("stays", law), lap_runs, say, out, lap_queue)
                 draws["stays"][law] = {k: v[None] for k, v in lap.samples.items()}
                 runs["stays"][law] = None
@@ -740,7 +752,7 @@ def fit_traffic(
         out.posterior["stay_shape"] = reshape(draws[chosen]["stay_shape"])
 
     # ---------------- positions ----------------
-    out.position_model, out.entry, out.exit, table = _fit_positions(data, positions, grid)
+    out.position_model, out.entry, out.exit, table = fitted_positions.result()
     out.tables["positions"] = table
     if table is None:
         out.tables.pop("positions")
