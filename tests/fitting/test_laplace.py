@@ -165,12 +165,17 @@ def test_a_run_is_the_same_whatever_points_a_call_holds(new_process, monkeypatch
         runs.append(run)
     small, large = runs
     assert lap.MIN_BATCH > 8 and small.converged and large.converged
-    for name in small.mode:
-        np.testing.assert_array_equal(small.mode[name], large.mode[name])
-    for name in small.samples:
-        np.testing.assert_array_equal(small.samples[name], large.samples[name])
-    np.testing.assert_array_equal(small.loglik, large.loglik)
-    np.testing.assert_array_equal(small.log_ratio, large.log_ratio)
+    _assert_same_run(small, large)
+
+
+def _assert_same_run(a: lap.LaplaceRun, b: lap.LaplaceRun) -> None:
+    """Two Laplace runs with the same mode, draws, log-likelihoods and weights, to the bit."""
+    for name in a.mode:
+        np.testing.assert_array_equal(a.mode[name], b.mode[name])
+    for name in a.samples:
+        np.testing.assert_array_equal(a.samples[name], b.samples[name])
+    np.testing.assert_array_equal(a.loglik, b.loglik)
+    np.testing.assert_array_equal(a.log_ratio, b.log_ratio)
 
 
 @pytest.mark.parametrize("law", ["gamma", "weibull"])
@@ -200,12 +205,7 @@ def test_the_likelihood_computed_once_is_the_same_run(new_process, law):
     ]
     whole, once = runs
     assert whole.converged and once.converged
-    for name in whole.mode:
-        np.testing.assert_array_equal(whole.mode[name], once.mode[name])
-    for name in whole.samples:
-        np.testing.assert_array_equal(whole.samples[name], once.samples[name])
-    np.testing.assert_array_equal(whole.loglik, once.loglik)
-    np.testing.assert_array_equal(whole.log_ratio, once.log_ratio)
+    _assert_same_run(whole, once)
     arrays, treedef, static = _split_kwargs(kwargs)
     zs = {"stay_mean_z": np.zeros(4), "stay_shape_eta": np.zeros(4)}
     loops = [
