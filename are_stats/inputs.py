@@ -273,8 +273,42 @@ def check_work(n_ops: float, what: str, source: Source = "") -> None:
 # ---- YAML -------------------------------------------------------------------------------
 
 
+class _TooDeep(Exception):
+    """Collections nested past :data:`MAX_YAML_DEPTH` while composing."""
+
+
 class _Loader(yaml.SafeLoader):
-    """SafeLoader with YAML 1.2 floats and duplicate keys rejected."""
+    """SafeLoader with YAML 1.2 floats, duplicate keys rejected and nesting bounded.
+
+    Nesting is counted as the collections are composed, and flow collections (``[``, ``{``)
+    as they are scanned, and refused at the first level past :data:`MAX_YAML_DEPTH`: PyYAML's
+    scanner costs time quadratic in the open flow levels (each token walks the possible
+    simple keys of all of them) and reads up to 1,024 characters ahead of the composer, so a
+    deep document read to Python's recursion limit took about 1.8 s; stopped at the limit it
+    takes milliseconds.
+    """
+
+    _depth = 0
+
+    def fetch_flow_collection_start(self, token_class: type) -> None:
+        if self.flow_level >= MAX_YAML_DEPTH:
+            raise _TooDeep
+        yaml.SafeLoader.fetch_flow_collection_start(self, token_class)
+
+    def _nested(self, compose: Any, anchor: str | None) -> yaml.Node:
+        if self._depth >= MAX_YAML_DEPTH:
+            raise _TooDeep
+        self._depth += 1
+        try:
+            return compose(self, anchor)
+        finally:
+            self._depth -= 1
+
+    def compose_sequence_node(self, anchor: str | None) -> yaml.SequenceNode:
+        return self._nested(yaml.SafeLoader.compose_sequence_node, anchor)
+
+    def compose_mapping_node(self, anchor: str | None) -> yaml.MappingNode:
+        return self._nested(yaml.SafeLoader.compose_mapping_node, anchor)
 
 
 _Loader.yaml_implicit_resolvers = {
@@ -386,7 +420,7 @@ def parse_yaml(text: str, source: Source, what: str = "YAML document") -> Any:
     try:
         try:
             node = loader.get_single_node()
-        except RecursionError:
+        except (_TooDeep, RecursionError):
             raise too_deep() from None
         except yaml.YAMLError as err:
             raise invalid(err) from None

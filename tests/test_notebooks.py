@@ -30,14 +30,30 @@ def test_notebooks_are_committed_with_their_outputs(path):
     assert any("image/png" in o.get("data", {}) for o in outputs), f"{path.name}: no figure"
 
 
+@pytest.fixture(scope="module")
+def kernel(tmp_path_factory):
+    """One kernel runs the notebooks one after the other (started once: each kernel's start
+    and imports of the package, JAX and Matplotlib cost some 4 s of CPU); before each, its
+    namespace is emptied (``%reset -f``), so a notebook that uses a name it does not define
+    or import still fails, and the working directory is the notebook's own folder."""
+    from jupyter_client.manager import AsyncKernelManager
+    from jupyter_core.utils import run_sync
+
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv("ARE_STATS_NOTEBOOK_QUICK", "1")
+        env.setenv("MPLBACKEND", "Agg")
+        km = AsyncKernelManager(kernel_name="python3")
+        run_sync(km.start_kernel)(cwd=str(tmp_path_factory.mktemp("kernel")))
+    yield km
+    run_sync(km.shutdown_kernel)(now=True)
+
+
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
-def test_notebook_runs(path, tmp_path, monkeypatch):
-    monkeypatch.setenv("ARE_STATS_NOTEBOOK_QUICK", "1")
-    monkeypatch.setenv("MPLBACKEND", "Agg")
+def test_notebook_runs(path, tmp_path, kernel):
     nb = nbformat.read(path, as_version=4)
-    client = NotebookClient(
-        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
-    )
+    fresh = f"%reset -f\nimport os\nos.chdir({str(tmp_path)!r})\ndel os"
+    nb.cells.insert(0, nbformat.v4.new_code_cell(fresh))
+    client = NotebookClient(nb, km=kernel, timeout=600)
     client.execute()
     errors = [
         o

@@ -159,8 +159,8 @@ def fit_mixture_nuts(
     --------
     >>> import jax, numpy as np
     >>> from are_stats import fit_mixture_nuts
-    >>> marks = np.random.default_rng(0).poisson(4.0, 500)
-    >>> idata = fit_mixture_nuts(jax.random.key(0), marks, 1, num_warmup=200, num_samples=200)
+    >>> marks = np.random.default_rng(21).poisson(4.0, 2000)
+    >>> idata = fit_mixture_nuts(jax.random.key(0), marks, 1, num_warmup=400, num_samples=1000)
     >>> round(float(idata.posterior["mix_rates"].mean()), 0)
     4.0
     """
