@@ -272,22 +272,52 @@ def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():
     )
 
 
-def test_many_small_scenarios_walk_as_they_do_with_all_pairs(monkeypatch):
-    """Past ALL_PAIRS_MAX people in small scenarios, each scenario gets a block of slots
-    and all pairs within it: the same tracks as all pairs over everybody (group members
-    included, whose leaders sit in their own block)."""
+def _blocks_against_all_pairs(monkeypatch, n_scenes: int) -> list:
+    """Walk ``n_scenes`` scenarios of 2-5 people (the first two of each a group) in blocks
+    and by all pairs; the tracks agree, people gave way; the windows' layouts."""
     scenes = []
-    for s in range(100):  # 100 scenarios of 2-5 people: 350, over 128 in a window
+    for s in range(n_scenes):
         crowd = _crowd(100 + s, 2 + s % 4)
         scenes.append(crowd.assign(scenario=s, x=crowd["x"] / 3, y=crowd["y"] / 3))
     plan = pd.concat(scenes, ignore_index=True)
     groups = np.where(plan["id"] < 2, plan["scenario"], -1)  # the first two walk together
+    layouts = []
+    layout = _social._layout
+
+    def kept(*args, **kwargs):
+        out = layout(*args, **kwargs)
+        layouts.extend(out)
+        return out
+
+    monkeypatch.setattr(_social, "_layout", kept)
     blocks = social_force_tracks(plan, dt=0.1, groups=groups)
+    monkeypatch.setattr(_social, "_layout", layout)
     monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 10**6)
     pairs = social_force_tracks(plan, dt=0.1, groups=groups)
     np.testing.assert_allclose(blocks[["x", "y"]], pairs[["x", "y"]], atol=1e-9)
     moved = np.hypot(*(blocks[["x", "y"]].to_numpy() - plan[["x", "y"]].to_numpy()).T)
     assert moved.max() > 0.1  # they did give way to each other
+    return layouts
+
+
+def test_many_small_scenarios_walk_as_they_do_with_all_pairs(monkeypatch):
+    """Past ALL_PAIRS_MAX people in small scenarios, each scenario gets a block of slots
+    and all pairs within it: the same tracks as all pairs over everybody (group members
+    included, whose leaders sit in their own block). The threshold lowered to 16 people:
+    24 scenarios, 84 people, in blocks of 8 slots (the shipped threshold's 100 scenarios,
+    350 people, 1,024 slots against 512 by all pairs: the slow test below)."""
+    monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 16)
+    layouts = _blocks_against_all_pairs(monkeypatch, 24)
+    assert any(lay is not None and lay[1] == 8 for lay in layouts)  # blocks were walked
+
+
+@pytest.mark.slow
+def test_many_small_scenarios_at_the_shipped_threshold_walk_as_with_all_pairs(monkeypatch):
+    """test_many_small_scenarios_walk_as_they_do_with_all_pairs (the default tier's cheaper
+    check) at the shipped ALL_PAIRS_MAX: 100 scenarios of 2-5 people, 350, over 128 in a
+    window."""
+    layouts = _blocks_against_all_pairs(monkeypatch, 100)
+    assert any(lay is not None and lay[1] == 8 for lay in layouts)
 
 
 def test_progress_reports_each_window_up_to_the_last(monkeypatch):

@@ -107,28 +107,37 @@ def _walk(name: str) -> pd.DataFrame:
     return social_force_tracks(plan, groups=_pairs(plan), speed_variation=VARIATION)
 
 
+@pytest.fixture(scope="module")
+def walks() -> dict[str, tuple[pd.DataFrame, set]]:
+    """Each configuration walked once for both tests below (the coverage test walked all
+    four again: 7 s of CPU cold), with the programs its windows ran: ``(slots, all_pairs,
+    block, repel)`` (the spy only records; the walk is the same call)."""
+    out = {}
+    window = _social._window
+    for name in sorted(WANT):
+        programs: set = set()
+
+        def spy(*args, programs=programs, **kw):  # all_pairs, block, repel: the last three
+            programs.add((args[0][0].shape[0], args[-3], args[-2], args[-1]))
+            return window(*args, **kw)
+
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(_social, "_window", spy)
+            out[name] = (_walk(name), programs)
+    return out
+
+
 @pytest.mark.parametrize("name", sorted(WANT))
-def test_the_walks_are_those_of_the_code_before_the_change(name):
-    assert _digest(_walk(name)) == WANT[name]
+def test_the_walks_are_those_of_the_code_before_the_change(name, walks):
+    assert _digest(walks[name][0]) == WANT[name]
 
 
-def test_the_walks_cover_the_searches_and_share_programs_without_repulsion(monkeypatch):
+def test_the_walks_cover_the_searches_and_share_programs_without_repulsion(walks):
     """The configurations above do run every neighbour search (else their digests would
     hold nothing about it), and without repulsion the windows of a size share one program
     whatever search they would have had (the small scenes at strength 0: three, four
     before)."""
-    programs = {}
-    window = _social._window
-
-    def spy(*args, **kw):  # all_pairs, block, repel: the last positional arguments
-        nb = args[0][0].shape[0]
-        programs[name].add((nb, args[-3], args[-2], args[-1]))
-        return window(*args, **kw)
-
-    monkeypatch.setattr(_social, "_window", spy)
-    for name in WANT:
-        programs[name] = set()
-        _walk(name)
+    programs = {name: p for name, (_, p) in walks.items()}
     seen = {(pairs, block > 0, repel) for p in programs.values() for _, pairs, block, repel in p}
     assert {(True, False, True), (False, True, True), (False, False, True)} <= seen
     assert (False, False, False) in seen  # strength 0: no search

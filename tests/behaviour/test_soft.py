@@ -99,14 +99,20 @@ def test_log_likelihood_gradient_matches_finite_differences() -> None:
     occ = _grid()
     paths = _paths(1, occ, 2.0, 0.15)
 
-    @jax.jit
     def ll(theta: jax.Array) -> jax.Array:
         return behaviour_log_likelihood(paths, ~occ, theta[0], theta[1], n_epochs=40)[0]
 
+    # the gradient and the differences' values from one compiled program (a jitted ``ll``
+    # and ``jax.grad`` of it were two, each compiling the 40-epoch solve)
+    value_and_grad = jax.jit(jax.value_and_grad(ll))
     th = jnp.array([1.7, 0.12])
-    grad = np.asarray(jax.jit(jax.grad(ll))(th))
+    grad = np.asarray(value_and_grad(th)[1])
     h = 1e-5
-    fd = [(float(ll(th + h * e)) - float(ll(th - h * e))) / (2 * h) for e in np.eye(2, dtype=float)]
+
+    def value(q: jax.Array) -> float:
+        return float(value_and_grad(q)[0])
+
+    fd = [(value(th + h * e) - value(th - h * e)) / (2 * h) for e in np.eye(2, dtype=float)]
     assert_allclose(grad, fd, rtol=1e-6, atol=1e-6)
     assert np.abs(grad).min() > 1e-3  # not a trivially flat point
 
@@ -116,8 +122,7 @@ def test_forward_mode_gradient_of_the_stationary_policy() -> None:
     occ = _grid()
     paths = _paths(2, occ, 2.0, 0.15)
 
-    @jax.jit
-    def ll(theta: jax.Array) -> jax.Array:
+    def ll(theta: jax.Array) -> tuple[jax.Array, jax.Array]:
         obs = move_observations(paths)
         g = len(obs.goals)
         mask = np.zeros((g,) + occ.shape, bool)
@@ -133,12 +138,20 @@ def test_forward_mode_gradient_of_the_stationary_policy() -> None:
             time_cost=1.0,
             tol=1e-12,
         )
-        return moves_log_likelihood(sol.policy, ok, theta[1], obs)
+        value = moves_log_likelihood(sol.policy, ok, theta[1], obs)
+        return value, value  # the value again as aux: jacfwd's program gives both
 
+    # the Jacobian and the differences' values from one compiled program (a jitted ``ll``
+    # and jacfwd of it were two, each compiling the 500-epoch solve)
+    jac_and_value = jax.jit(jax.jacfwd(ll, has_aux=True))
     th = jnp.array([2.1, 0.1])
-    grad = np.asarray(jax.jit(jax.jacfwd(ll))(th))
+    grad = np.asarray(jac_and_value(th)[0])
     h = 1e-5
-    fd = [(float(ll(th + h * e)) - float(ll(th - h * e))) / (2 * h) for e in np.eye(2, dtype=float)]
+
+    def value(q: jax.Array) -> float:
+        return float(jac_and_value(q)[1])
+
+    fd = [(value(th + h * e) - value(th - h * e)) / (2 * h) for e in np.eye(2, dtype=float)]
     assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
 
 
@@ -244,11 +257,16 @@ def test_track_log_likelihoods_are_the_per_track_values_from_one_program() -> No
     occ = _grid()
     paths = _paths(3, occ, 2.0, 0.15)
     ok = path_free(occ)
+    # one solve and one op-by-op reference for all tracks: a track's value depends only on
+    # its own steps and its goal's policy, so the first n tracks' values are the first n
+    # of the whole batch's (a solve and a reference per batch size compiled each again)
+    every = move_observations(paths)
+    sol = soft_policy(occ, every.goals, 2.0, 0.15, n_epochs=200, time_cost=1.0, tol=1e-8)
+    policy = np.asarray(sol.policy)
+    want = moves_log_likelihood(jnp.asarray(policy), jnp.asarray(ok), 0.15, every, per_track=True)
     for n in (len(paths), 5, 1):
         obs = move_observations(paths[:n])
-        sol = soft_policy(occ, obs.goals, 2.0, 0.15, n_epochs=200, time_cost=1.0, tol=1e-8)
-        pol = np.asarray(sol.policy)
-        want = moves_log_likelihood(jnp.asarray(pol), jnp.asarray(ok), 0.15, obs, per_track=True)
-        got = track_log_likelihoods(pol, ok, 0.15, obs)
+        rows = [np.flatnonzero((every.goals == g).all(axis=1))[0] for g in obs.goals]
+        got = track_log_likelihoods(policy[rows], ok, 0.15, obs)
         assert got.shape == (n,) and got.dtype == np.float64
-        assert_allclose(got, np.asarray(want), rtol=1e-13, atol=1e-13)
+        assert_allclose(got, np.asarray(want)[:n], rtol=1e-13, atol=1e-13)

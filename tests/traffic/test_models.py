@@ -154,8 +154,16 @@ def test_stay_units_match_stay_loglik():
     cen = rng.random(37) < 0.2
     tru = rng.random(37) < 0.2
     u = stay_units(stay, cen, tru)
-    got = np.asarray(stay_unit_loglik({"stay_mean": 9.0, "stay_shape": 2.0}, u, "gamma", 0.1))
-    want = np.asarray(stay_loglik("gamma", stay, cen, tru, 9.0, 2.0, resolution=0.1))
+    # each a compiled program: op by op, the incomplete gamma's loops compiled every
+    # primitive on its own (8 s of CPU cold, 2026-11-28)
+    p = {"stay_mean": 9.0, "stay_shape": 2.0}
+    got = np.asarray(jax.jit(lambda p: stay_unit_loglik(p, u, "gamma", 0.1))(p))
+
+    @jax.jit
+    def per_term(p):
+        return stay_loglik("gamma", stay, cen, tru, p["stay_mean"], p["stay_shape"], 0.1)
+
+    want = np.asarray(per_term(p))
     np.testing.assert_allclose(got[:37], want, rtol=1e-12)
     assert np.all(got[37:] == 0)
 

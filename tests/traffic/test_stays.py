@@ -122,16 +122,26 @@ def test_incomplete_gamma_derivatives_match_jax_own():
 
     a = np.array([0.3, 0.9, 2.5, 7.0, 40.0])[:, None]
     x = np.array([1e-3, 0.2, 1.0, 3.0, 12.0, 60.0])[None, :]
-    for ours, theirs in ((gammaincc, special.gammaincc), (gammainc, special.gammainc)):
-        # both derivatives from one compiled program per function (op by op, one argument
-        # at a time: 15.0 s of CPU cold against 12.5 s, 2026-11-28)
-        g = jax.jit(jax.vmap(jax.vmap(jax.grad(ours, (0, 1)))))(*np.broadcast_arrays(a, x))
-        want = jax.jit(jax.vmap(jax.vmap(jax.grad(theirs, (0, 1)))))(*np.broadcast_arrays(a, x))
+    pairs = ((gammaincc, special.gammaincc), (gammainc, special.gammainc))
+
+    @jax.jit
+    def everything(a, x):
+        """Both functions' derivatives and values, ours and JAX's, from one compiled
+        program (op by op, one argument at a time: 15.0 s of CPU cold against 12.5 s for
+        one program per function and kind, 2026-11-28; eight programs then)."""
+        out = []
+        for ours, theirs in pairs:
+            for f in (ours, theirs):
+                out.append((jax.vmap(jax.vmap(jax.grad(f, (0, 1))))(a, x), f(a, x)))
+        return out
+
+    results = everything(*np.broadcast_arrays(a, x))
+    for i in range(len(pairs)):
+        (g, value), (want, want_value) = results[2 * i], results[2 * i + 1]
         for arg in (0, 1):
             np.testing.assert_allclose(g[arg], want[arg], rtol=1e-5, atol=1e-10)
         # one loop of JAX's recurrences, not JAX's primitive: one program's rounding
-        a2, x2 = np.broadcast_arrays(a, x)
-        np.testing.assert_allclose(jax.jit(ours)(a2, x2), jax.jit(theirs)(a2, x2), rtol=1e-14)
+        np.testing.assert_allclose(value, want_value, rtol=1e-14)
 
 
 def test_gamma_likelihood_gradient_has_one_incomplete_gamma_loop_per_function():
@@ -274,23 +284,36 @@ def test_gamma_unit_likelihood_is_one_incomplete_gamma_loop():
     stay = rng.gamma(3.0, 4.0, 37)
     units = stay_units(stay, rng.random(37) < 0.3, rng.random(37) < 0.3)
 
+    def terms(p):
+        return stay_unit_loglik({"stay_mean": p[0], "stay_shape": p[1]}, units, "gamma", 0.25)
+
     def total(p):
-        params = {"stay_mean": p[0], "stay_shape": p[1]}
-        return stay_unit_loglik(params, units, "gamma", 0.25).sum()
+        return terms(p).sum()
 
     for fn in (total, jax.value_and_grad(total)):
         text = jax.jit(fn).lower(np.array([9.0, 2.0])).as_text()
         assert text.count("stablehlo.while") == 1
+
+    # the values, the gradient and the differences from one compiled program, the per-term
+    # functions from another (op by op, the same checks compiled some hundred one-operation
+    # programs: 26 s of CPU cold on 2026-11-28)
+    def total_and_terms(p):
+        t = terms(p)
+        return t.sum(), t
+
+    value_and_grad = jax.jit(jax.value_and_grad(total_and_terms, has_aux=True))
     p = np.array([9.0, 2.0])
-    want = stay_loglik("gamma", stay, units.censored[:37], units.truncated[:37], *p, 0.25)
-    np.testing.assert_allclose(
-        np.asarray(stay_unit_loglik({"stay_mean": 9.0, "stay_shape": 2.0}, units, "gamma", 0.25))[
-            :37
-        ],
-        want,
-        rtol=1e-13,
-    )
+    (_, got), g = value_and_grad(p)
+
+    @jax.jit
+    def per_term(p):
+        return stay_loglik("gamma", stay, units.censored[:37], units.truncated[:37], *p, 0.25)
+
+    np.testing.assert_allclose(np.asarray(got)[:37], per_term(p), rtol=1e-13)
     eps = 1e-6
-    g = np.asarray(jax.grad(total)(p))
-    fd = [(total(p + eps * e) - total(p - eps * e)) / (2 * eps) for e in np.eye(2)]
-    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-7)
+
+    def value(q):
+        return float(value_and_grad(q)[0][0])
+
+    fd = [(value(p + eps * e) - value(p - eps * e)) / (2 * eps) for e in np.eye(2)]
+    np.testing.assert_allclose(np.asarray(g), fd, rtol=1e-5, atol=1e-7)
