@@ -358,6 +358,12 @@ def test_parse_start_time():
 
 
 def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
+    """``experiment --mcap`` writes REP-105 frames and text markers; its mission runs on
+    ``--scheduler``, a cluster of threads in this process (the mission is the same;
+    ``tests/experiments/test_sweep.py::test_cli_experiment_and_plot`` runs the command's
+    own local worker processes), so the test does not start and import a worker process."""
+    from distributed import LocalCluster
+
     cfg = {
         "name": "tiny",
         "map": "courtyard",
@@ -374,19 +380,24 @@ def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
     }
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(cfg))
-    res = runner.invoke(
-        app,
-        [
-            "experiment",
-            str(config),
-            "--out",
-            str(tmp_path / "res"),
-            "--mcap",
-            str(tmp_path / "mcap"),
-            "--start-time",
-            "2024-11-24T20:26:40Z",
-        ],
-    )
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as cluster:
+        res = runner.invoke(
+            app,
+            [
+                "experiment",
+                str(config),
+                "--out",
+                str(tmp_path / "res"),
+                "--mcap",
+                str(tmp_path / "mcap"),
+                "--start-time",
+                "2024-11-24T20:26:40Z",
+                "--scheduler",
+                cluster.scheduler_address,
+            ],
+        )
     assert res.exit_code == 0, res.output
     (path,) = sorted((tmp_path / "mcap").glob("*.mcap"))
     msgs, types, _ = _read_mcap(path)
