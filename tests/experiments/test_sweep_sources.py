@@ -37,6 +37,7 @@ SIDE = 20  # a 20 m x 20 m free square at 1 m cells
 AREA = float(SIDE * SIDE)
 HORIZON = 20.0
 LAMBDA, MU = 1.5 / AREA, 0.1  # 1.5 arrivals per s on the map, mean stay 10 s
+QUIET = {"workers": 1, "processes": False, "progress": False}
 
 
 @pytest.fixture(scope="module")
@@ -77,16 +78,13 @@ def _config(root, **over):
 
 def test_sweep_from_a_fit_matches_its_posterior_and_resumes(files, tmp_path):
     root, grid, draws, _ = files
+    # the arrivals' law on one level of 24 replicates (it needs them: the 4 standard errors
+    # below), common random numbers, Fig. 7's grouping and resume on two levels of 4
+    # (a sweep of both levels of 24 replicates ran twice the missions the law needs)
     n_rep = 24
-    cfg = _config(root, replicates=n_rep, factors={"robot.speed": [0.5, 1.0]})
-    out = tmp_path / "res"
-    run_sweep(cfg, out, workers=1, processes=False, progress=False)
-    runs = load_results(out)["runs"]
-    assert len(runs) == 2 * n_rep
-    # common random numbers: a replicate has the same draw and artefacts at every level
-    per = runs.groupby("replicate")[["draw", "n_arrivals", "n_artefacts", "arrival_rate"]]
-    assert (per.nunique() == 1).all().all()
-    one = runs[runs["level:robot.speed"] == "1.0"]
+    run_sweep(_config(root, replicates=n_rep), tmp_path / "one", **QUIET)
+    one = load_results(tmp_path / "one")["runs"]
+    assert len(one) == n_rep
     # the draw's rate is the posterior's
     lam = draws["arrival_rate"]
     np.testing.assert_array_equal(one["arrival_rate"], lam[one["draw"].to_numpy()])
@@ -98,8 +96,18 @@ def test_sweep_from_a_fit_matches_its_posterior_and_resumes(files, tmp_path):
     se = np.sqrt((expected + lam.var() * at**2) / n_rep)
     got = one["n_arrivals"].mean()
     assert abs(got - expected) < 4 * se, (got, expected, se)
+    n_rep = 4
+    cfg = _config(root, replicates=n_rep, factors={"robot.speed": [0.5, 1.0]})
+    out = tmp_path / "res"
+    run_sweep(cfg, out, **QUIET)
+    runs = load_results(out)["runs"]
+    assert len(runs) == 2 * n_rep
+    # common random numbers: a replicate has the same draw and artefacts at every level
+    per = runs.groupby("replicate")[["draw", "n_arrivals", "n_artefacts", "arrival_rate"]]
+    assert (per.nunique() == 1).all().all()
+    level = runs[runs["level:robot.speed"] == "1.0"]
+    np.testing.assert_array_equal(level["arrival_rate"], lam[level["draw"].to_numpy()])
     # Fig. 7: every run has its own drawn rate, so the plots group by the speed factor
-
     fig = plot_goals(runs, load_results(out)["goals"])
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert len(labels) == 2 and all("clutter" in t for t in labels)
@@ -107,7 +115,7 @@ def test_sweep_from_a_fit_matches_its_posterior_and_resumes(files, tmp_path):
     lost = sorted((out / "runs").glob("*.parquet"))[:3]
     for p in lost:
         p.unlink()
-    run_sweep(cfg, out, workers=1, processes=False, progress=False)
+    run_sweep(cfg, out, **QUIET)
     again = load_results(out)["runs"]
     volatile = ["rho_mean", "rho_t_mean"]
     pd.testing.assert_frame_equal(again.drop(columns=volatile), runs.drop(columns=volatile))

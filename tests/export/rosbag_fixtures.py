@@ -9,9 +9,12 @@ stay on the wall clock (as Nav2's simulation tutorials record), one message stam
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 #: Wall-clock time of the bags' first message (s since the epoch).
 START = 1_732_480_000.0
@@ -32,6 +35,39 @@ SIM_START = 1234.5
 #: changes, and the 1970 stamp (s) an outlier gets.
 ODD_K = 37
 OUTLIER_STAMP = 5.25
+
+
+@contextmanager
+def fit_read_once(fit: Path) -> Iterator[None]:
+    """While open, ``are_stats.fitting.read_fit`` reads the file ``fit`` once and then
+    returns that same (frozen) :class:`~are_stats.fitting.Fit` while the file is unchanged
+    (same size and modification time); any other path is read as always.
+
+    The augment tests run ``augment`` some 70 times on one fixture fit, most of them to see
+    a bag refused: each run read the fit again (0.6 s CPU, most of such a run). What is
+    tested of reading fits is tested in ``tests/fitting``; a test here that reads another fit
+    (an older format, no area) still reads it.
+    """
+    import are_stats.fitting as fitting
+
+    real = fitting.read_fit
+    target = fit.resolve()
+    cache: dict[tuple[int, int], object] = {}
+
+    def read_fit(path):
+        p = Path(path)
+        if not (p.is_file() and p.resolve() == target):
+            return real(path)
+        st = p.stat()
+        key = (st.st_mtime_ns, st.st_size)
+        if key not in cache:
+            cache.clear()
+            cache[key] = real(path)
+        return cache[key]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(fitting, "read_fit", read_fit)
+        yield
 
 
 def robot_pose(t: float) -> tuple[float, float, float]:

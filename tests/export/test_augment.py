@@ -32,6 +32,7 @@ from tests.export.rosbag_fixtures import (
     DURATION,
     ODD_K,
     START,
+    fit_read_once,
     robot_pose,
     write_bag,
 )
@@ -64,14 +65,15 @@ def files(tmp_path_factory):
     """A small EM fit (labelled classes), the bags in three formats and a small camera."""
     d = tmp_path_factory.mktemp("augment")
     fit, cam = write_fit_and_camera(d)
-    return {
-        "dir": d,
-        "fit": fit,
-        "camera": cam,
-        "ros1": write_bag(d / "robot.bag", "ros1"),
-        "ros2": write_bag(d / "robot_ros2", "ros2"),
-        "mcap": write_bag(d / "robot_mcap", "mcap"),
-    }
+    with fit_read_once(fit):  # the module's augment runs read this fit once, not 70 times
+        yield {
+            "dir": d,
+            "fit": fit,
+            "camera": cam,
+            "ros1": write_bag(d / "robot.bag", "ros1"),
+            "ros2": write_bag(d / "robot_ros2", "ros2"),
+            "mcap": write_bag(d / "robot_mcap", "mcap"),
+        }
 
 
 def _read_mcap(path: Path) -> tuple[dict, dict, list]:
@@ -356,6 +358,12 @@ def test_parse_start_time():
 
 
 def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
+    """``experiment --mcap`` writes REP-105 frames and text markers; its mission runs on
+    ``--scheduler``, a cluster of threads in this process (the mission is the same;
+    ``tests/experiments/test_sweep.py::test_cli_experiment_and_plot`` runs the command's
+    own local worker processes), so the test does not start and import a worker process."""
+    from distributed import LocalCluster
+
     cfg = {
         "name": "tiny",
         "map": "courtyard",
@@ -372,19 +380,24 @@ def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
     }
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(cfg))
-    res = runner.invoke(
-        app,
-        [
-            "experiment",
-            str(config),
-            "--out",
-            str(tmp_path / "res"),
-            "--mcap",
-            str(tmp_path / "mcap"),
-            "--start-time",
-            "2024-11-24T20:26:40Z",
-        ],
-    )
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as cluster:
+        res = runner.invoke(
+            app,
+            [
+                "experiment",
+                str(config),
+                "--out",
+                str(tmp_path / "res"),
+                "--mcap",
+                str(tmp_path / "mcap"),
+                "--start-time",
+                "2024-11-24T20:26:40Z",
+                "--scheduler",
+                cluster.scheduler_address,
+            ],
+        )
     assert res.exit_code == 0, res.output
     (path,) = sorted((tmp_path / "mcap").glob("*.mcap"))
     msgs, types, _ = _read_mcap(path)
@@ -403,6 +416,24 @@ def test_experiment_mcap_has_tf_and_text_markers(tmp_path):
 def _augment(files, bag, out, *extra, seed=1):
     args = ["augment", bag, "--fit", files["fit"], "--map", MAP, "--out", out]
     return runner.invoke(app, [str(a) for a in [*args, "--seed", str(seed), *extra]])
+
+
+@pytest.fixture(scope="module")
+def augmented(files, tmp_path_factory):
+    """``augmented(bag, *extra, seed=1)``: the CLI result and output ``.mcap`` of
+    :func:`_augment` with those arguments, run once per module: tests that only read the
+    same run's output share it (each had run it again)."""
+    runs: dict = {}
+    folder = tmp_path_factory.mktemp("shared_runs")
+
+    def run(bag, *extra, seed=1):
+        key = (str(bag), tuple(str(e) for e in extra), seed)
+        if key not in runs:
+            out = folder / f"run{len(runs)}.mcap"
+            runs[key] = (_augment(files, bag, out, *extra, seed=seed), out)
+        return runs[key]
+
+    return run
 
 
 def _in_thread(fn, seconds=60.0):
@@ -698,10 +729,9 @@ def _tf_links(msgs: dict) -> set[tuple[str, str]]:
 
 
 @pytest.mark.parametrize("kind", ["mcap", "ros2"])
-def test_augment_passes_every_input_channel_through_unchanged(files, tmp_path, kind):
-    out = tmp_path / "aug.mcap"
+def test_augment_passes_every_input_channel_through_unchanged(files, augmented, kind):
     topic = "/camera/camera_info"
-    res = _augment(files, files[kind], out, "--camera-info-topic", topic, "--d-max", "15", seed=5)
+    res, out = augmented(files[kind], "--camera-info-topic", topic, "--d-max", "15", seed=5)
     assert res.exit_code == 0, res.output
     assert "passed through: /tf_static 1, /tf 121" in res.output
     ins = _input_raw(files[kind])
@@ -815,13 +845,13 @@ def test_augment_odom_only_bag_from_its_odometry_topic(files, tmp_path, tf):
     np.testing.assert_allclose(tr.poses, _truth(tr.t - START), atol=1e-9)
 
 
-def test_augment_qos_in_the_input_bags_form(files, tmp_path):
+def test_augment_qos_in_the_input_bags_form(files, augmented, tmp_path):
     from tests.export.rosbag_fixtures import jazzy_mcap
 
     src = next(Path(files["mcap"]).parent.glob("*.mcap"))
+    assert src == Path(files["mcap"])  # the run the camera-mount test reads too
     for bag, form in ((src, "int"), (jazzy_mcap(src, tmp_path / "jazzy.mcap"), "string")):
-        out = tmp_path / f"{form}.mcap"
-        res = _augment(files, bag, out, "--camera", files["camera"])
+        res, out = augmented(bag, "--camera", files["camera"])
         assert res.exit_code == 0, res.output
         n_in = len(_raw_channels(bag))
         for topic, meta, _ in _raw_channels(out)[n_in:]:
@@ -951,13 +981,13 @@ def test_augment_refuses_a_ros1_topic_it_cannot_convert(files, tmp_path):
     assert "/note" not in {c[0] for c in _raw_channels(out)}
 
 
-def test_augment_says_when_the_camera_mount_is_not_the_bags_tree(files, tmp_path):
+def test_augment_says_when_the_camera_mount_is_not_the_bags_tree(files, augmented, tmp_path):
     """The mount is the bag's tree (the CameraInfo's frame) or a note says what it is and
     how to use the bag's camera: never a silent shortcut."""
     cam = "/camera/camera_info"
     res = _augment(files, files["mcap"], tmp_path / "a.mcap", "--camera-info-topic", cam)
     assert res.exit_code == 0 and "note:" not in res.output, res.output
-    res = _augment(files, files["mcap"], tmp_path / "b.mcap", "--camera", files["camera"])
+    res, _ = augmented(files["mcap"], "--camera", files["camera"])
     said = " ".join(res.output.split())
     assert res.exit_code == 0, res.output
     assert "note: camera: the --camera file, mounted by default, 1 m above the base" in said
@@ -1016,15 +1046,14 @@ def test_augment_moves_the_artefacts_as_generate_does(files, tmp_path):
     assert sum(d > 0.5 for d in moved) >= len(moved) // 2, moved  # most of them walk
 
 
-def test_show_draws_the_camera_view_to_the_range_augment_perceived_with(files, tmp_path):
+def test_show_draws_the_camera_view_to_the_range_augment_perceived_with(files, augmented):
     """``are-stats show`` of an augmented bag draws the camera's field of view out to the
     ``d_max`` of A_f (said by ``/perceived``), so that a perceived box is never drawn
     beyond it; the half-angle is the CameraInfo's ``atan(width / 2 / fx)``."""
     from are_stats.export import read_view
 
-    out = tmp_path / "aug.mcap"
     cam = "/camera/camera_info"
-    res = _augment(files, files["mcap"], out, "--camera-info-topic", cam, "--d-max", "15", seed=5)
+    res, out = augmented(files["mcap"], "--camera-info-topic", cam, "--d-max", "15", seed=5)
     assert res.exit_code == 0, res.output
     msgs, _, _ = _read_mcap(out)
     assert {json.loads(m.data)["d_max"] for _, m in msgs["/perceived"]} == {15.0}

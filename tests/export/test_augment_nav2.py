@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from are_stats.cli import app
 from are_stats.environment import DEFAULT_MODELS, OccupancyGrid, read_map
 from are_stats.export import read_view
-from tests.export.rosbag_fixtures import DURATION, START, robot_pose, stamp_ns
+from tests.export.rosbag_fixtures import DURATION, START, fit_read_once, robot_pose, stamp_ns
 
 runner = CliRunner()
 MAP = DEFAULT_MODELS / "courtyard.yaml"
@@ -35,7 +35,9 @@ def fit_and_camera(tmp_path_factory):
     """A small EM fit (labelled classes) and a small camera (80 x 60 pixels)."""
     from tests.export.test_augment import write_fit_and_camera
 
-    return write_fit_and_camera(tmp_path_factory.mktemp("nav2"))
+    fit, cam = write_fit_and_camera(tmp_path_factory.mktemp("nav2"))
+    with fit_read_once(fit):  # the module's augment runs read the fit once
+        yield fit, cam
 
 
 def _grid() -> OccupancyGrid:
