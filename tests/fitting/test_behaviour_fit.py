@@ -323,7 +323,12 @@ def _fit_value_and_gradient(paths, free, theta, n_devices, features=None):
     return obs, fb._gradient_value_epochs(th, data, TOL, n_dev)[:2]
 
 
-@pytest.mark.parametrize("n_devices", [1, 2])
+# two devices: the slow tier (its unpadded program, compiled for this case alone: about
+# 10 s of CPU cold); make test keeps the claim by two steps, on programs other tests compile
+# anyway: the padded likelihood on two devices equals one device's
+# (test_likelihood_with_features_split_across_devices_equals_one_device, rtol 1e-12), and
+# one device's padded equals its unpadded (the case [1] here)
+@pytest.mark.parametrize("n_devices", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_padded_likelihood_equals_the_unpadded_one(monkeypatch, n_devices: int) -> None:
     """The fit's likelihood pads goals, tracks and steps to shape buckets (issue 29: one
     compiled program for the fit and the held-out fit); its value and gradient are those
@@ -360,7 +365,11 @@ def _bucket_exact(n: int, multiple: int = 1) -> int:
 
 
 # ---------------------------------------------------------------------- reward features
-@pytest.mark.parametrize("wall_weight", [0.5, -0.5])
+# -0.5: the slow tier (a third fit of the model's tracks on the 30 x 30 grid, about 10 s of
+# CPU of solves with the program compiled); make test recovers the weight of +0.5 (case
+# [0.5], the same program and checks) and walks a negative one
+# (test_generated_walkers_keep_off_walls_with_a_negative_wall_weight)
+@pytest.mark.parametrize("wall_weight", [0.5, pytest.param(-0.5, marks=pytest.mark.slow)])
 def test_recovers_a_wall_weight_of_either_sign_from_model_tracks(wall_weight: float) -> None:
     """+0.5: walkers hug walls, -0.5: they avoid them (reward per epoch, time cost 1). Each of
     the k-sigma checks fails with probability about 6e-5 at a random seed; at these fixed
