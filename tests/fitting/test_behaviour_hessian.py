@@ -85,11 +85,21 @@ def test_a_solve_held_at_its_epochs_repeats_the_stopped_solve() -> None:
     assert int(held.epochs) == epochs
     short = run(jnp.asarray(epochs), jnp.asarray(-1.0))
     assert np.abs(np.asarray(short.values - stopped.values)).max() > 0
-    assert solve(10, None).epochs is None  # without tol: no count
-    without = soft_backward_induction(
-        ok, keep, bonus, jnp.asarray(1.5), jnp.asarray(0.1), n_epochs=400, time_cost=1.0,
-        tol=1e-4,
-    )  # fmt: skip
+    # what is returned is the claim, not its values: traced, not compiled and run (eagerly,
+    # each call compiled its own solve: about 3 s of CPU for the two)
+    assert jax.eval_shape(lambda: solve(10, None)).epochs is None  # without tol: no count
+    without = jax.eval_shape(
+        lambda: soft_backward_induction(
+            ok,
+            keep,
+            bonus,
+            jnp.asarray(1.5),
+            jnp.asarray(0.1),
+            n_epochs=400,
+            time_cost=1.0,
+            tol=1e-4,
+        )
+    )
     assert without.epochs is None  # only when asked (shard_map callers keep their outputs)
 
 
@@ -131,7 +141,10 @@ def test_float32_differenced_hessian_matches_float64_forward_mode() -> None:
     unchecked (one of them, a small variance after cancellation, differs by 4.7e-3
     relative, within the bound above: ``cond(H)`` is 11.5 here)."""
     want = _forward_hessian(1)
-    data32, n_dev = _data(np.float32)
+    # the goals split over the devices there are, as _mle splits them: the fit's float32
+    # program of the test below, compiled once for both (results are identical for any
+    # split: test_behaviour_fit's split tests)
+    data32, n_dev = _data(np.float32, None)
     tol = jnp.asarray(1e-3, np.float32)
     epochs = fb._gradient_value_epochs(jnp.asarray(TH, np.float32), data32, tol, n_dev)[2]
     got = np.asarray(fb._hessian(jnp.asarray(TH, np.float32), data32, int(epochs), n_dev))
@@ -140,28 +153,43 @@ def test_float32_differenced_hessian_matches_float64_forward_mode() -> None:
     assert rel < 2e-4, rel
 
 
-def test_the_fit_compiles_one_program_and_its_standard_errors_are_float64s_or_nan() -> None:
-    """_mle's optimisation and its Hessian run the one program per shape bucket; its
-    float32 standard errors are float64's where float32 resolves them and NaN, with the
-    reason, where not.
+def test_the_fit_compiles_one_program_and_its_standard_errors_are_float64s_or_nan(
+    caplog,
+) -> None:
+    """_mle's optimisation and its Hessian run the one program per shape bucket, and
+    nothing else is compiled: its data stay NumPy arrays on the host (issue 29), so no
+    program is compiled to make them (``jnp.asarray``'s ``stage``,
+    ``convert_element_type``), to cast ``theta``, or to split the goals across the devices
+    (``_multi_slice``). Every in-memory cache is cleared first (:func:`jax.clear_caches`),
+    so that what any earlier test compiled is lowered, and logged, again (until
+    2026-11-29 a second fit on a grid of its own, 11 x 13, made that sure: a program of
+    its own, about 8 s of CPU cold).
 
-    This world does not identify beta or the wall weight: slip is near 0.5 and the
-    likelihood rises towards beta -> inf (float32 stops at beta 39, float64 at 73). At
-    float32's optimum the information's two small eigenvalues are 8.2e-4 and 7.0e-3 in
-    float64, below float32's Hessian round-off (1.8e-3 per entry, measured by the
-    stencil's fourth differences): float32's Hessian there had eigenvalues -9.8e-4 and
-    5.8e-3 on this AVX2 host, ``inv(-H)`` two negative variances and beta's and the
-    weight's standard errors NaN, silently (on an AVX-512 host other round-off, other
-    numbers). Slip's direction (eigenvalue 7.0) is resolved: its standard error, from the
-    resolved directions, is float64's at the same point to 2e-3 (measured 1e-3)."""
+    Its float32 standard errors are float64's where float32 resolves them and NaN, with
+    the reason, where not. This world does not identify beta or the wall weight: slip is
+    near 0.5 and the likelihood rises towards beta -> inf (float32 stops at beta 39,
+    float64 at 73). At float32's optimum the information's two small eigenvalues are
+    8.2e-4 and 7.0e-3 in float64, below float32's Hessian round-off (1.8e-3 per entry,
+    measured by the stencil's fourth differences): float32's Hessian there had eigenvalues
+    -9.8e-4 and 5.8e-3 on this AVX2 host, ``inv(-H)`` two negative variances and beta's
+    and the weight's standard errors NaN, silently (on an AVX-512 host other round-off,
+    other numbers; on the 11 x 13 grid float32's Hessian happened to be positive definite
+    and gave beta 823 and the weight 11.1 where float64's gives 1,600 and 13.0). Slip's
+    direction (eigenvalue 7.0) is resolved: its standard error, from the resolved
+    directions, is float64's at the same point to 2e-3 (measured 1e-3)."""
+    import logging
+
     free, paths, phi = _world()
-    fb._gradient_value_epochs.clear_cache()
-    out = fb._mle(
-        paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, beta0=2.0, slip0=0.1,
-        dtype=jnp.dtype("float32"), tol=1e-3, features=phi,
-    )  # fmt: skip
+    jax.clear_caches()
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        out = fb._mle(
+            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, beta0=2.0,
+            slip0=0.1, dtype=jnp.dtype("float32"), tol=1e-3, features=phi,
+        )  # fmt: skip
+    compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
+    assert [m.split()[1] for m in compiled] == ["jit(_gradient_value_epochs)"]
     assert fb._gradient_value_epochs._cache_size() == 1
-    assert np.isfinite([out["beta"], out["slip"]]).all()
+    assert np.isfinite([out["beta"], out["slip"], out["slip_se"]]).all()
     assert np.isnan([out["beta_se"], *out["weights_se"]]).all()
     assert "below 10 times the float32 Hessian's error" in out["se_unresolved"]
     # float64 at float32's optimum: every direction resolved, the small ones below
@@ -208,33 +236,6 @@ def test_standard_errors_leave_out_only_what_the_round_off_decides() -> None:
     assert "not finite" in fb._unresolved_note(
         fb._standard_errors(np.full((2, 2), np.nan), err), "float32"
     )
-
-
-def test_the_fit_compiles_nothing_but_its_program(caplog) -> None:
-    """_mle's data stay NumPy arrays on the host (issue 29): no program compiled to make
-    them (``jnp.asarray``'s ``stage``, ``convert_element_type``), to cast ``theta``, or to
-    split the goals across the devices (``_multi_slice``); the gradient program is the
-    only one. A grid of its own (11 x 13) so that no other test compiled its shapes.
-
-    Its standard errors: slip's finite, beta's and the wall weight's NaN with the reason.
-    The world identifies neither (as the previous test's); float32's Hessian there happened
-    to be positive definite, and gave beta 823 and the weight 11.1 where float64's at the
-    same point gives 1,600 and 13.0: its two small eigenvalues (2.3e-3 and 9.8e-3) are
-    float32's round-off (2.7e-3 per entry)."""
-    import logging
-
-    free, paths, _ = _world()
-    free = np.pad(free, ((0, 1), (0, 1)), constant_values=True)
-    phi = wall_distance_feature(~free, 1.0)[None]
-    with caplog.at_level(logging.WARNING), jax.log_compiles():
-        out = fb._mle(
-            paths, free, goal_reward=1.0, step_cost=1e-3, time_cost=1.0, beta0=2.0,
-            slip0=0.1, dtype=jnp.dtype("float32"), tol=1e-3, features=phi,
-        )  # fmt: skip
-    compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
-    assert [m.split()[1] for m in compiled] == ["jit(_gradient_value_epochs)"]
-    assert np.isfinite(out["slip_se"]) and np.isnan([out["beta_se"], *out["weights_se"]]).all()
-    assert "float32 Hessian's error" in out["se_unresolved"]
 
 
 def test_nan_standard_errors_are_named_with_their_reason_in_the_fit_and_the_cli(
