@@ -62,16 +62,14 @@ gc.set_threshold(*GC_THRESHOLDS)
 
 #: The test files that take longest, roughly longest first, for both tiers (``make test``:
 #: ``-m "not slow"``; ``make test-slow``: ``-m slow``; a file with nothing selected drops
-#: out). From the per-test durations of a cold full run of 2026-11-29 (an empty JAX
-#: cache). ``make test`` hands whole
+#: out). From the per-test durations of the cold full run of 2026-11-27 (an empty JAX
+#: cache) and per-test CPU times of 2026-11-28 (cold, file by file). ``make test`` hands whole
 #: files to two workers (``--dist loadfile``); a long file handed out last runs alone at the
 #: end, so these go first and the many short files fill in behind them (longest processing
 #: time first). xdist's own order (most tests first) would put them last: it is switched
 #: off in :func:`pytest_configure`. A file missing here only runs later; nothing is skipped.
 HEAVY_FILES: tuple[str, ...] = (
-    # default tier, by the seconds of one worker in a full run of 2026-11-29 (at a load
-    # of 3, so proportions only), the slow-only files where the slow tier needs them
-    "tests/fitting/test_behaviour_fit.py",  # default: about 135 s of CPU cold in 16 tests
+    "tests/fitting/test_behaviour_fit.py",  # default: about 230 s of CPU cold in 19 tests
     # default: the rich log's true models against the paper's by NUTS (55 s of CPU cold),
     # Laplace and ranked fits (about 90 s in all); slow: every candidate by NUTS (140 s), a
     # log per candidate, the paper's truth, stays in days, diurnal (about 700 s)
@@ -79,46 +77,30 @@ HEAVY_FILES: tuple[str, ...] = (
     "tests/test_integrity.py",  # slow: same-seed runs and kills, about 20 are-stats processes
     # slow: builds the wheel; in CI (ARE_STATS_FRESH_VENV=1) a fresh venv, about 3.5 min
     "tests/test_wheel.py",
-    "tests/fitting/test_nuts.py",
-    "tests/test_cli_jobs.py",  # default: about 75 s of CPU cold
     # default: the first stream of each fuzz test (fuzz_tiers, a quarter of its cases), 11
-    # edited fit files drawn from and some 670 file cases; slow: the second stream
+    # edited fit files drawn from and some 670 file cases (51 s of CPU cold alone, against
+    # 78 s for the half, 1,300 cases, before 2026-11-29); slow: the second stream
     "tests/fuzz/test_fuzz_package.py",
     "tests/fuzz/test_fuzz_tracks_scale.py",  # slow: three 300-person tracks fits
     "tests/test_cli_tracks.py",  # slow: the tracks fit, report and generation by the CLI
+    "tests/fitting/test_fit.py",  # default: two tracks fits (about 100 s of CPU cold)
+    # walks and motion checks by generation and criticism (about 100 s of CPU cold without
+    # the slow one), with 15 tests: by test count it started among the last files
     "tests/fitting/test_heading_variation.py",
-    "tests/fitting/test_behaviour_hessian.py",
-    "tests/export/test_augment.py",
-    "tests/behaviour/test_soft.py",
-    "tests/test_import.py",
-    "tests/traffic/test_stays.py",
-    "tests/fitting/test_motion_checks.py",
-    "tests/fitting/test_interaction.py",
-    "tests/scenarios/test_assembly_golden.py",
-    "tests/behaviour/test_motion.py",
-    "tests/behaviour/test_mdp.py",
-    "tests/fuzz/test_fuzz_cli.py",
-    "tests/fitting/test_fit.py",  # default: two tracks fits
-    "tests/behaviour/test_social.py",
-    "tests/fitting/test_speed_variation.py",
+    "tests/scenarios/test_assembly_golden.py",  # about 120 s of CPU cold
+    "tests/scenarios/test_assembly.py",  # about 90 s of CPU cold
+    "tests/fitting/test_nuts.py",
+    "tests/test_cli_jobs.py",  # default: about 90 s of CPU cold
+    "tests/fitting/test_lifecycle_mcmc.py",
+    "tests/fitting/test_mixture_mcmc.py",
+    "tests/fitting/test_speed_variation.py",  # about 70 s of CPU in 12 tests
+    "tests/test_notebooks.py",  # a kernel per notebook, about 70 s of CPU
     "tests/fitting/test_importance_resample.py",  # slow: NUTS and ranked fits of the shipped log
     "tests/behaviour/test_fit_without_map.py",  # slow: a no-map tracks fit by the CLI (66 s)
-    "tests/traffic/test_birth_death.py",
-    "tests/experiments/test_sweep_sources.py",
-    "tests/traffic/test_mixture.py",
-    "tests/fitting/test_fit_log.py",
+    "tests/fuzz/test_fuzz_cli.py",
     "tests/fitting/test_prediction.py",
-    "tests/test_notebooks.py",  # the three notebooks in one kernel
-    "tests/fitting/test_lifecycle_mcmc.py",
-    "tests/test_docstrings.py",
-    "tests/traffic/test_bursts.py",
-    "tests/behaviour/test_social_golden.py",
-    "tests/fitting/test_lifecycle_exact.py",
-    "tests/traffic/test_lifecycle.py",
-    "tests/scenarios/test_assembly.py",
-    "tests/fitting/test_mixture_mcmc.py",
-    "tests/fitting/test_bursts_fit.py",
     "tests/fuzz/test_fuzz_bags.py",
+    "tests/fitting/test_bursts_fit.py",
     "tests/test_docs.py",
     "tests/fitting/test_em.py",
     "tests/fitting/test_class_traffic.py",
