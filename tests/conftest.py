@@ -68,6 +68,11 @@ gc.set_threshold(*GC_THRESHOLDS)
 #: end, so these go first and the many short files fill in behind them (longest processing
 #: time first). xdist's own order (most tests first) would put them last: it is switched
 #: off in :func:`pytest_configure`. A file missing here only runs later; nothing is skipped.
+#: Change the order only with a measured full run: on 2026-11-29 the same code took 20:52
+#: (2,376 s user) with these files reordered by their seconds, test_nuts and test_cli_jobs
+#: moved up, against 16:03 (1,821 s user) in this order, both on idle cores from an empty
+#: cache. Not analysed; likely the two workers then compiled the same programs at once
+#: (both missing the shared persistent cache) and ran their multi-device parts together.
 HEAVY_FILES: tuple[str, ...] = (
     "tests/fitting/test_behaviour_fit.py",  # default: about 230 s of CPU cold in 19 tests
     # default: the rich log's true models against the paper's by NUTS (55 s of CPU cold),
