@@ -68,11 +68,10 @@ gc.set_threshold(*GC_THRESHOLDS)
 #: end, so these go first and the many short files fill in behind them (longest processing
 #: time first). xdist's own order (most tests first) would put them last: it is switched
 #: off in :func:`pytest_configure`. A file missing here only runs later; nothing is skipped.
-#: Change the order only with a measured full run: on 2026-11-29 the same code took 20:52
-#: (2,376 s user) with these files reordered by their seconds, test_nuts and test_cli_jobs
-#: moved up, against 16:03 (1,821 s user) in this order, both on idle cores from an empty
-#: cache. Not analysed; likely the two workers then compiled the same programs at once
-#: (both missing the shared persistent cache) and ran their multi-device parts together.
+#: Change the order only with repeated measured full runs: on 2026-11-29 this order ran
+#: the same code in 16:03 and in 12:19 on idle cores (every file 0.6-0.9x in the second
+#: run: the host's speed changed), and a reorder by per-file seconds ran 20:52 once, which
+#: that variance alone could explain.
 HEAVY_FILES: tuple[str, ...] = (
     "tests/fitting/test_behaviour_fit.py",  # default: about 230 s of CPU cold in 19 tests
     # default: the rich log's true models against the paper's by NUTS (55 s of CPU cold),
