@@ -72,9 +72,12 @@ def fig2():
 
 def test_fig2_reaches_global_optimum(fig2):
     marks, fit = fig2
-    ref = reference_optimum(marks, 5, n_starts=30, seed=1)
+    # five starts: the first five of the thirty this test ran until 2026-11-29, when all
+    # thirty ended within 1e-14 relative of their best (the quantile start among them), so
+    # the reference is the same value at a sixth of the cost (about 10 s of CPU less)
+    ref = reference_optimum(marks, 5, n_starts=5, seed=1)
     # the likelihood is very flat along a ridge: EM stops (tol 1e-8 per mark) within
-    # 1e-6 relative of the best of 30 independent quasi-Newton runs
+    # 1e-6 relative of the best of five independent quasi-Newton runs
     assert fit.loglik >= ref - 1e-6 * abs(ref), (fit.loglik, ref)
     assert fit.converged
 
