@@ -257,20 +257,31 @@ def test_incomplete_gamma_in_one_loop_is_scipys_and_jaxs():
     from are_stats.traffic._stays import incomplete_gamma
 
     a, x, lower = _fit_range(20000, 4)
-    got = np.asarray(jax.jit(incomplete_gamma)(a, x, lower))
+    edge_a = np.array([0.0, 1.0, 2.0, 0.0, -1.0, 3.0, np.nan, 2.0, 1e-300])
+    edge_x = np.array([0.0, 0.0, np.inf, 1.0, 1.0, -1.0, 1.0, 2.0, 5.0])
+
+    @jax.jit
+    def ours_and_jaxs(a, x, lower, edge_a, edge_x):
+        """Ours and JAX's, on the range and at the edges, from one compiled program (JAX's
+        op by op and ours at the edges eagerly were 6.0 s of CPU cold, this 3.7 s, with
+        the same bits, 2026-11-29)."""
+        jaxs = jnp.where(lower, special.gammainc(a, x), special.gammaincc(a, x))
+        edges = [
+            (incomplete_gamma(edge_a, edge_x, jnp.full(edge_a.size, lo)), theirs(edge_a, edge_x))
+            for lo, theirs in ((False, special.gammaincc), (True, special.gammainc))
+        ]
+        return incomplete_gamma(a, x, lower), jaxs, edges
+
+    got, jaxs, edges = ours_and_jaxs(a, x, lower, edge_a, edge_x)
+    got, jaxs = np.asarray(got), np.asarray(jaxs)
     want = np.where(lower, sc.gammainc(a, x), sc.gammaincc(a, x))
     ok = want > 1e-300
     assert ok.mean() > 0.9
     np.testing.assert_allclose(got[ok], want[ok], rtol=1e-10)
-    jaxs = np.where(lower, special.gammainc(a, x), special.gammaincc(a, x))
     np.testing.assert_allclose(got, jaxs, rtol=4e-16, atol=2e-16)
     assert np.mean(got == jaxs) > 0.99
-    edge_a = np.array([0.0, 1.0, 2.0, 0.0, -1.0, 3.0, np.nan, 2.0, 1e-300])
-    edge_x = np.array([0.0, 0.0, np.inf, 1.0, 1.0, -1.0, 1.0, 2.0, 5.0])
-    for lo, theirs in ((False, special.gammaincc), (True, special.gammainc)):
-        np.testing.assert_array_equal(
-            incomplete_gamma(edge_a, edge_x, np.full(edge_a.size, lo)), theirs(edge_a, edge_x)
-        )
+    for ours, theirs in edges:
+        np.testing.assert_array_equal(ours, theirs)
 
 
 def test_gamma_unit_likelihood_is_one_incomplete_gamma_loop():
