@@ -123,8 +123,11 @@ def test_matches_conjugate_posterior_and_reuses_its_program():
 #: Four chains from numpyro's uniform start, 300 warm-up iterations (chunks of 40): the
 #: one program of the parallel-start, default-method and prefetch tests below, compiled
 #: once (traced without the program cache, so that the prefetch test, which traces, finds
-#: it in the persistent XLA cache; the other tests here read their programs from disk)
-FOUR = {"num_warmup": 300, "num_chains": 4}
+#: it in the persistent XLA cache; the other tests here read their programs from disk).
+#: Cheap XLA optimisation: this model's programs compile in 5.4-5.9 s of CPU instead of
+#: 8.7-8.8 s (2026-11-29, loaded host) and sample in under a second either way; TWO's
+#: programs are compiled at XLA's default level, the product's for most models
+FOUR = {"num_warmup": 300, "num_chains": 4, "cheap_compile": True}
 
 
 def test_parallel_chains_and_random_start(monkeypatch):
@@ -143,13 +146,14 @@ def test_parallel_chains_and_random_start(monkeypatch):
 
 
 #: One chain from a stated unconstrained start, its step sizes kept: the program of the
-#: one-chain test and of the sequential chunk test, compiled once
+#: one-chain test and of the sequential chunk test, compiled once (cheap, as FOUR's)
 ONE = {
     "num_warmup": 200,
     "num_samples": 200,
     "num_chains": 1,
     "init_params": {"mu": np.asarray(1.0)},
     "extra_fields": ("step_size",),
+    "cheap_compile": True,
 }
 
 
