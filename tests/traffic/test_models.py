@@ -6,6 +6,8 @@ is a direct computation over every tick of the window (empty ones included) with
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import numpy as np
 import pytest
@@ -48,7 +50,18 @@ def times() -> np.ndarray:
 
 def _total(params, units, spec) -> float:
     p = {**params, "log_area": np.log(AREA)}
-    return float(np.sum(arrival_unit_loglik(p, units, spec)))
+    return float(_total_program(p, units, spec))
+
+
+@functools.partial(jax.jit, static_argnames="spec")
+def _total_program(p, units, spec):
+    """The summed unit log-likelihood as one compiled program per spec and shapes (op by
+    op, every primitive of the likelihood was compiled on its own)."""
+    return jax.numpy.sum(arrival_unit_loglik(p, units, spec))
+
+
+#: The unit log-likelihood as one compiled program per spec and shapes
+_unit_program = jax.jit(arrival_unit_loglik, static_argnames="spec")
 
 
 def test_poisson_is_the_product_of_tick_poissons(times):
@@ -186,7 +199,7 @@ def test_poisson_draws_in_numpy_are_the_tick_poissons_and_the_jax_units(times):
         truth = stats.poisson.logpmf(c, rate * AREA * DELTA).sum(axis=1)
         np.testing.assert_allclose(row[:n_bins], truth, rtol=1e-10)
         p = {"event_rate": rate, "log_area": np.log(AREA)}
-        jax_row = np.asarray(arrival_unit_loglik(p, units, ArrivalSpec()))
+        jax_row = np.asarray(_unit_program(p, units, ArrivalSpec()))
         np.testing.assert_allclose(row, jax_row, rtol=1e-11, atol=1e-11)
 
 
