@@ -14,21 +14,25 @@ def _reference(tracks, groups, min_speed=0.2):
     tab = tracks.sort_values([*keys, "t"], kind="stable").reset_index(drop=True)
     vals = []
     frames: dict[tuple, list[int]] = {}
+    # the columns as arrays, row r of each read as tab.loc[r, ...] read it (a .loc per
+    # value was most of the test's 4 s)
+    who = list(zip(*(tab[c].tolist() for c in keys), strict=True))
+    t = tab["t"].to_numpy(float)
+    xy = tab[["x", "y"]].to_numpy(float)
     for r in range(len(tab)):
-        k = tuple(tab.loc[r, keys])
+        k = who[r]
         lab = groups.get(k if len(k) > 1 else k[0])
         if lab is None or str(lab) in ("", "nan", "None"):
             continue
-        if r == 0 or tuple(tab.loc[r - 1, keys]) != k:
+        if r == 0 or who[r - 1] != k:
             continue  # no step into the first sample
-        dt = tab.loc[r, "t"] - tab.loc[r - 1, "t"]
-        dx, dy = tab.loc[r, ["x", "y"]].to_numpy(float) - tab.loc[r - 1, ["x", "y"]].to_numpy(float)
+        dt = t[r] - t[r - 1]
+        dx, dy = xy[r] - xy[r - 1]
         step = np.hypot(dx, dy)
         if not (dt > 0 and step / dt >= min_speed):
             continue
-        s = tab.loc[r, "scenario"] if "scenario" in tab.columns else 0
-        frames.setdefault((s, str(lab), round(float(tab.loc[r, "t"]), 6)), []).append(r)
-    xy = tab[["x", "y"]].to_numpy(float)
+        s = k[0] if "scenario" in tab.columns else 0
+        frames.setdefault((s, str(lab), round(float(t[r]), 6)), []).append(r)
     for rows in frames.values():
         if len(rows) < 2:
             continue

@@ -123,7 +123,7 @@ def _one_by_one(fit, rng, cls, ent, reach, stays, mu, sigma, tries=20):
 def test_exits_given_stays_are_drawn_as_one_by_one() -> None:
     """draw_exits with stays makes every artefact's draws first, then checks and weighs
     them all at once (issue 29): the exits and the generator's state after are those of
-    drawing artefact after artefact. 3,000 artefacts at both doors and in the room, two
+    drawing artefact after artefact. 1,000 artefacts at both doors and in the room, two
     classes (the second without tracks: any cell within reach), stays from 0.1 s (no
     exit within reach, or no move at all) to a minute, a NaN speed sd; tracks leaving by
     both doors and jittered past the map's edge."""
@@ -134,7 +134,7 @@ def test_exits_given_stays_are_drawn_as_one_by_one() -> None:
     fit.entry_xy = np.column_stack([r.choice([0.25, 19.75], k), r.uniform(4.5, 7.5, k)])
     for name in ("bandwidth_entry", "bandwidth_exit", "speed_mu", "speed_sigma"):
         setattr(fit, name, np.r_[getattr(fit, name), getattr(fit, name)])
-    n = 3000
+    n = 1000
     cls = (r.random(n) < 0.1).astype(int)
     free = np.argwhere(fit.free)
     ent = np.where(r.random((n, 1)) < 0.7, [[12, 0]], free[r.integers(len(free), size=n)])
@@ -146,6 +146,6 @@ def test_exits_given_stays_are_drawn_as_one_by_one() -> None:
     got_rng, want_rng = np.random.default_rng(11), np.random.default_rng(11)
     got = fit.draw_exits(got_rng, cls, ent, reach, stays=stays, speed_mu=mu, speed_sigma=sigma)
     want = _one_by_one(fit, want_rng, cls, ent, reach, stays, mu, sigma)
-    assert (got >= 0).any(axis=1).sum() > 2000 and (got < 0).all(axis=1).any()
+    assert (got >= 0).any(axis=1).sum() > 2 * n // 3 and (got < 0).all(axis=1).any()
     np.testing.assert_array_equal(got, want)
     assert got_rng.bit_generator.state == want_rng.bit_generator.state

@@ -175,11 +175,19 @@ def test_fit_refuses_uneven_sampling_and_too_little_walking():
         fit_social_force(plan.iloc[:6])
 
 
-def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch):
+@pytest.fixture(scope="module")
+def crowd_walk() -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``_crowd(3, 40)`` and its walk under the published force (all pairs): for the two
+    tests below (the strength-0 test walked a crowd of its own, whose all-pairs programs,
+    at its own shapes, compiled again)."""
+    crowd = _crowd(3, 40)
+    return crowd, social_force_tracks(crowd, dt=0.1)
+
+
+def test_the_grid_of_cells_finds_the_same_neighbours_as_all_pairs(monkeypatch, crowd_walk):
     """Past ALL_PAIRS_MAX people the neighbours come from the grid of cells; on a crowd
     whose cells stay under their capacity the two give the same tracks."""
-    crowd = _crowd(3, 40)
-    pairs = social_force_tracks(crowd, dt=0.1)
+    crowd, pairs = crowd_walk
     monkeypatch.setattr(_social, "ALL_PAIRS_MAX", 0)
     monkeypatch.setattr(_social, "BLOCK_MAX", 0)  # one scene: no blocks either
     cells = social_force_tracks(crowd, dt=0.1)
@@ -344,11 +352,11 @@ def test_progress_reports_each_window_up_to_the_last(monkeypatch):
     pd.testing.assert_frame_equal(out, social_force_tracks(plan, dt=0.1))
 
 
-def test_a_force_of_strength_zero_skips_the_pair_search_and_walks_the_same(monkeypatch):
+def test_a_force_of_strength_zero_skips_the_pair_search_and_walks_the_same(monkeypatch, crowd_walk):
     """Strength 0 (the fit's "no repulsion" verdict) makes every pair term exactly zero:
     the walk skips the neighbour search and gives the tracks, bit for bit, that the walk
     with the search gives."""
-    plan = _crowd(2, 40)
+    plan, published = crowd_walk  # the walk under the published force
     none = SocialForce(strength=0.0)
     calls = []
     window = _social._window
@@ -365,7 +373,6 @@ def test_a_force_of_strength_zero_skips_the_pair_search_and_walks_the_same(monke
     searched = social_force_tracks(plan, none, dt=0.1)
     assert calls and all(calls)
     pd.testing.assert_frame_equal(skipped, searched, check_exact=True)
-    published = social_force_tracks(plan, SocialForce(), dt=0.1)
     assert not np.allclose(published[["x", "y"]], skipped[["x", "y"]])
 
 

@@ -8,6 +8,7 @@ import arviz as az
 import jax
 import numpy as np
 import pandas as pd
+import pytest
 from PIL import Image
 
 from are_stats.fitting import FitSettings, fit_log, fit_summary, write_report
@@ -88,12 +89,25 @@ def _small_em_fit(horizon: float):
     return fit_log(jax.random.key(1), data, settings).idata
 
 
-def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
+@pytest.fixture(scope="module")
+def em_fit():
+    """``_small_em_fit(3600.0)``, fitted once for the module (each of four tests fitted it,
+    one at 1800 s, which compiled the EM's programs for a second data size)."""
+    return _small_em_fit(3600.0)
+
+
+@pytest.fixture(scope="module")
+def report(em_fit, tmp_path_factory):
+    """``write_report`` of ``em_fit`` as a caller without a summary calls it: read by the
+    two tests below (each rendered the report of its own)."""
+    return write_report(em_fit, tmp_path_factory.mktemp("report") / "report", n_replicates=3)
+
+
+def test_report_panels_are_whole_cut_outs_of_the_overview(report):
     """write_report renders the checks once: each ``ppc_<check>.png`` is the region of
     ``criticism.png`` around that check's panel, cut where the overview is blank (the
     panel's title, labels and legend whole), and the panels are different regions."""
-    idata = _small_em_fit(3600.0)
-    written = write_report(idata, tmp_path / "report", n_replicates=3)
+    written = report
     full = np.asarray(Image.open(written["criticism"]).convert("RGB"))
     panels = sorted(n for n in written if n.startswith("ppc_"))
     assert len(panels) >= 5
@@ -111,18 +125,18 @@ def test_report_panels_are_whole_cut_outs_of_the_overview(tmp_path):
     assert len(corners) == len(panels)
 
 
-def test_write_report_writes_the_summary_its_caller_passes(tmp_path):
+def test_write_report_writes_the_summary_its_caller_passes(tmp_path, em_fit, report):
     """``summary=`` (are-stats fit has printed it already) is written as summary.csv
     instead of being computed again; without it the report computes the same table."""
-    idata = _small_em_fit(1800.0)
-    own = write_report(idata, tmp_path / "own", n_replicates=3)["summary"]
+    idata = em_fit
+    own = report["summary"]  # written without summary=
     summary = fit_summary(idata)
     pd.testing.assert_frame_equal(pd.read_csv(own, index_col=0), summary, check_dtype=False)
     given = write_report(idata, tmp_path / "given", n_replicates=3, summary=summary.iloc[:1])
     assert list(pd.read_csv(given["summary"], index_col=0).index) == list(summary.index[:1])
 
 
-def test_panel_extents_from_the_drawing_contain_matplotlibs_tight_boxes():
+def test_panel_extents_from_the_drawing_contain_matplotlibs_tight_boxes(em_fit):
     """The overview's panel extents, read off the drawn texts without laying the ticks out
     again, hold each panel's ``Axes.get_tightbbox`` (matplotlib's own extent: its axes,
     title, labels and tick labels) with at most the margin around it, and do not meet."""
@@ -132,7 +146,7 @@ def test_panel_extents_from_the_drawing_contain_matplotlibs_tight_boxes():
     from are_stats.fitting import predictive_checks
     from are_stats.fitting._report import _PANEL_MARGIN, _overview, _panel_boxes
 
-    overview, panels = _overview(predictive_checks(0, _small_em_fit(3600.0), 3))
+    overview, panels = _overview(predictive_checks(0, em_fit, 3))
     try:
         canvas = FigureCanvasAgg(overview)
         canvas.draw()
@@ -149,15 +163,14 @@ def test_panel_extents_from_the_drawing_contain_matplotlibs_tight_boxes():
         plt.close(overview)
 
 
-def test_report_panels_stay_whole_where_the_fixed_grid_is_too_small(tmp_path, monkeypatch):
+def test_report_panels_stay_whole_where_the_fixed_grid_is_too_small(tmp_path, monkeypatch, em_fit):
     """A grid with no room for the labels (no left margin, panels abutting) is found out
     from the drawing and laid out by ``tight_layout``: the panels are whole cut-outs still."""
     from are_stats.fitting import _report
 
     tiny = {"left": 0.0, "right": 1.0, "bottom": 0.0, "top": 0.95, "wspace": 0.0, "hspace": 0.0}
     monkeypatch.setattr(_report, "_OVERVIEW_GRID", tiny)
-    idata = _small_em_fit(3600.0)
-    written = write_report(idata, tmp_path / "report", n_replicates=3)
+    written = write_report(em_fit, tmp_path / "report", n_replicates=3)
     full = np.asarray(Image.open(written["criticism"]).convert("RGB"))
     for name in (n for n in written if n.startswith("ppc_")):
         img = np.asarray(Image.open(written[name]).convert("RGB"))
