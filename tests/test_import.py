@@ -13,10 +13,19 @@ import are_stats
 HEAVY = ["jax", "warp", "arviz", "numpyro", "pandas", "matplotlib", "scipy", "trimesh", "dask"]
 
 
-def _loaded_after(code: str) -> set[str]:
-    probe = f"{code}\nimport sys\nprint(' '.join(sorted(sys.modules)))"
+def _loaded_at_each(*steps: str) -> list[set[str]]:
+    """The modules loaded after each of ``steps``, run one after the other in one fresh
+    process (each process costs seconds of CPU for its imports: one process answers for
+    several steps)."""
+    show = "print(' '.join(sorted(__import__('sys').modules)))"
+    probe = "\n".join(f"{step}\n{show}" for step in steps)
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
-    return set(out.stdout.split())
+    lines = out.stdout.splitlines()[-len(steps) :]
+    return [set(line.split()) for line in lines]
+
+
+def _loaded_after(code: str) -> set[str]:
+    return _loaded_at_each(code)[-1]
 
 
 def test_import_loads_no_heavy_library():
@@ -24,12 +33,19 @@ def test_import_loads_no_heavy_library():
     assert not loaded & set(HEAVY)
 
 
-def test_cli_help_loads_no_heavy_library():
-    loaded = _loaded_after(
+@functools.cache
+def _cli_help_then_dask() -> list[set[str]]:
+    """The modules after ``are-stats --help`` (in process), then after ``import dask``: one
+    process, read by two tests."""
+    return _loaded_at_each(
         "from typer.testing import CliRunner\nfrom are_stats.cli import app\n"
-        "assert CliRunner().invoke(app, ['--help']).exit_code == 0"
+        "assert CliRunner().invoke(app, ['--help']).exit_code == 0",
+        "import dask",
     )
-    assert not loaded & set(HEAVY)
+
+
+def test_cli_help_loads_no_heavy_library():
+    assert not _cli_help_then_dask()[0] & set(HEAVY)
 
 
 #: What the modules of ``are-stats fit`` (the CLI, its jobs, the fitting package) leave out
@@ -58,35 +74,48 @@ _NOT_BEFORE_THE_FIT = frozenset(
 )
 
 
+@functools.cache
+def _first_uses() -> list[set[str]]:
+    """The modules after each step of one process, read by the three tests below: [0] the
+    traffic and fitting packages imported; [1] the fit command's modules too; [2] a
+    traffic function that needs scipy.stats ran; [3] ArviZ used for the first time by the
+    fitting package (three processes before 2026-11-29, about 8 s of CPU more)."""
+    return _loaded_at_each(
+        "import are_stats.traffic, are_stats.fitting",
+        "import are_stats.cli, are_stats._cli_jobs",
+        "import are_stats.traffic as t\n"
+        "assert abs(t.BirthDeath(2.0, 0.1).stationary_pmf(20) - 0.0888) < 1e-3",
+        "from are_stats.fitting import _fit_log as f\nassert 'not imported' in repr(f.az)\n"
+        "assert f.az.InferenceData.__name__ == 'InferenceData'\n"
+        "assert 'not imported' not in repr(f.az)",
+    )
+
+
 def test_the_fit_commands_modules_leave_figures_and_other_rooms_out():
-    loaded = _loaded_after("import are_stats.cli, are_stats._cli_jobs, are_stats.fitting")
+    loaded = _first_uses()[1]
     assert not loaded & _NOT_BEFORE_THE_FIT, sorted(loaded & _NOT_BEFORE_THE_FIT)
 
 
 def test_the_fitting_package_imports_arviz_on_first_use():
     """ArviZ (2 s of imports) comes in when a fit is built or read, not with the package."""
-    assert "arviz" not in _loaded_after("import are_stats.fitting")
-    loaded = _loaded_after(
-        "from are_stats.fitting import _fit_log as f\nassert 'not imported' in repr(f.az)\n"
-        "assert f.az.InferenceData.__name__ == 'InferenceData'\n"
-        "assert 'not imported' not in repr(f.az)"
-    )
-    assert "arviz" in loaded
+    before, with_cli, _, used = _first_uses()
+    assert "arviz" not in before and "arviz" not in with_cli
+    assert "arviz" in used
 
 
 def test_traffic_and_fitting_import_scipy_stats_on_first_use():
     """scipy.stats (0.3-0.4 s of imports, scipy.signal brings it too) comes in when a
     function that needs it runs, not with the traffic and fitting packages."""
-    loaded = _loaded_after("import are_stats.traffic, are_stats.fitting")
-    assert "scipy.stats" not in loaded and "scipy.signal" not in loaded
-    loaded = _loaded_after(
-        "import are_stats.traffic as t\n"
-        "assert abs(t.BirthDeath(2.0, 0.1).stationary_pmf(20) - 0.0888) < 1e-3"
-    )
-    assert "scipy.stats" in loaded
+    before, with_cli, used, _ = _first_uses()
+    for loaded in (before, with_cli):
+        assert "scipy.stats" not in loaded and "scipy.signal" not in loaded
+    assert "scipy.stats" in used
 
 
-def test_public_names_resolve_and_jax_runs_in_64_bits():
+@functools.cache
+def _public_names_then_warp() -> subprocess.CompletedProcess:
+    """One process, read by two tests: every public name resolves (the perception package,
+    and with it Warp, among them), then Warp lists its devices."""
     code = (
         "import are_stats as ar\n"
         "missing = [n for n in ar.__all__ if not hasattr(ar, n)]\n"
@@ -94,8 +123,14 @@ def test_public_names_resolve_and_jax_runs_in_64_bits():
         "import jax.numpy as jnp\n"
         "assert jnp.zeros(1).dtype == jnp.float64\n"
         "assert 'GridMDP' in dir(ar)\n"
+        "import are_stats.perception\nimport warp as wp\nprint(wp.get_devices())"
     )
-    subprocess.run([sys.executable, "-c", code], check=True)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+
+
+def test_public_names_resolve_and_jax_runs_in_64_bits():
+    out = _public_names_then_warp()
+    assert out.returncode == 0, out.stderr
 
 
 def test_x64_is_switched_on_when_jax_came_first():
@@ -158,8 +193,8 @@ def test_a_cli_run_keeps_the_cache_under_its_cap(tmp_path):
 def test_warp_starts_without_the_cuda_probe_warning():
     """Warp's native start-up warns on stderr about a missing NVIDIA driver on every
     CPU-only machine; the perception package starts Warp with that line filtered out."""
-    code = "import are_stats.perception\nimport warp as wp\nprint(wp.get_devices())"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = _public_names_then_warp()
+    assert out.returncode == 0, out.stderr
     assert "cpu" in out.stdout
     assert "NVIDIA CUDA driver" not in out.stderr
 
@@ -353,7 +388,8 @@ def test_hide_numba_leaves_arviz_on_its_numpy_paths():
         "import sys\nassert sys.modules['numba'] is None\ndel sys.modules['numba']"
     )
     assert not {m for m in loaded if m.split(".")[0] in ("numba", "llvmlite")}
-    assert "dask" in _loaded_after("import are_stats.cli\nimport dask")
+    # importing the CLI hides nothing: dask still imports after it
+    assert "dask" in _cli_help_then_dask()[1]
 
 
 def test_command_of_skips_the_global_options():

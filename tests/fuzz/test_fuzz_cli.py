@@ -349,9 +349,27 @@ def test_experiment_damaged_config(case, case_dir) -> None:
 
 @pytest.fixture(scope="session")
 def tiny_results(fuzz_root: Path, tiny_sweep: str) -> Path:
-    """The results folder of the tiny sweep (``are-stats experiment``)."""
+    """The results folder of the tiny sweep (``are-stats experiment``), run on a Dask cluster
+    of this process (``--scheduler``, as tests/export/test_augment.py's experiment does): the
+    default's worker process imports the package and loads every program again, some 10 s
+    of the default tier for a folder these tests only damage and plot.
+    tests/experiments/test_sweep.py::test_cli_experiment_and_plot runs the command with its
+    own worker process."""
+    from distributed import LocalCluster
+
     out = fuzz_root / "results"
-    assert invoke(["experiment", tiny_sweep, "--out", str(out)], [], seconds=300.0) == 0
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as cluster:
+        args = [
+            "experiment",
+            tiny_sweep,
+            "--out",
+            str(out),
+            "--scheduler",
+            cluster.scheduler_address,
+        ]
+        assert invoke(args, [], seconds=300.0) == 0
     return out
 
 
