@@ -46,7 +46,7 @@ from numpyro.distributions.transforms import (
     Transform,
     biject_to,
 )
-from numpyro.infer.util import constrain_fn, potential_energy
+from numpyro.infer.util import potential_energy
 from scipy.optimize import minimize
 from scipy.special import gammaln, logsumexp
 from threadpoolctl import threadpool_limits
@@ -173,22 +173,32 @@ def _batch_fn(
     pointwise terms, and the model's own computation of the factor is dead code that the
     compiler drops. Where the factor is the model's last sample site this is the same
     arithmetic, in the same order, as the whole model's potential: the same bits.
+
+    The model runs once a point: the constrained and deterministic sites are read off
+    the potential's own run (a trace inside its substitution), not off a second run of
+    the model (:func:`numpyro.infer.util.constrain_fn`), which computed the same values
+    again and doubled what is traced, lowered and handed to XLA.
     """
-    if likelihood is None:
-        prior_model = model
-    else:
-        prior_model = handlers.block(model, hide=[likelihood])
 
     def batch(arrays: list, zs: dict) -> _Batch:
         kwargs = _join_kwargs(arrays, treedef, static)
 
         def one(u: dict) -> _Batch:
-            with handlers.trace() as tr:
-                s = constrain_fn(model, (), kwargs, u, return_deterministic=True)
+            # one run of the model gives both the potential and the sites: the trace
+            # inside the block (and the substitution) sees the constrained values, the
+            # deterministic sites and the factor the potential leaves out
+            seen = handlers.trace(model)
+            pe = potential_energy(
+                seen if likelihood is None else handlers.block(seen, hide=[likelihood]),
+                (),
+                kwargs,
+                u,
+            )
+            tr = seen.trace
             if likelihood is not None:
                 _check_factor(tr, likelihood)
+            s = {n: v["value"] for n, v in tr.items() if n in u or v["type"] == "deterministic"}
             ll = pointwise(s, **kwargs)
-            pe = potential_energy(prior_model, (), kwargs, u)
             if likelihood is not None:
                 # -(log prior + log Jacobian + sum ll): negation is exact, so the same
                 # rounding as numpyro's sum over the sites with the factor last
