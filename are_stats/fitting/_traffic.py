@@ -868,7 +868,9 @@ def _setup(
                 "units": units,
                 "law": law,
                 "mean_centre": np.asarray(mean_centre, float),
-                "resolution": res,
+                # an argument, not a constant: logs whose measured resolutions differ
+                # in the last digits share the program
+                "resolution": np.asarray(res, float),
             }
             init = {"stay_mean_z": 0.0, "stay_shape_eta": 0.0}
             calls["stays", law] = (fold_in_key(k_life, i), stay_model, kwargs, init)
