@@ -76,6 +76,7 @@ from are_stats.traffic._bursts import (
 from are_stats.traffic._stays import (
     STAY_LAWS,
     gamma_window_terms,
+    has_resolution,
     stay_log_excess,
     stay_logcdf,
     stay_logpdf,
@@ -201,8 +202,10 @@ class ArrivalUnits(NamedTuple):
         Artefacts arriving in each bin.
     bin_weight : (B,) float
         1 for real bins, 0 for padding.
-    log_delta : float
-        ``log`` of the tick width (the log's time resolution).
+    log_delta : () float array
+        ``log`` of the tick width (the log's time resolution): an array, so an argument
+        of the compiled programs, not a constant of them (logs whose measured
+        resolutions differ in the last digits share their programs).
     steps : BurstSteps, optional
         The ticks and the ends of the bins in time order (the MMPP and Hawkes models).
     """
@@ -310,7 +313,7 @@ def arrival_units(
         bin_exposure=pad(expo, bb, float),
         bin_count=pad(bin_count, bb, float),
         bin_weight=pad(np.ones(n_bins), bb, float),
-        log_delta=float(np.log(delta)),
+        log_delta=np.asarray(np.log(delta), float),
         steps=steps,
     )
 
@@ -589,11 +592,14 @@ def stay_units(stay: npt.ArrayLike, censored: npt.ArrayLike, truncated: npt.Arra
 
 
 def stay_unit_loglik(
-    params: dict, units: StayUnits, law: str, resolution: float = 0.0
+    params: dict, units: StayUnits, law: str, resolution: npt.ArrayLike = 0.0
 ) -> jnp.ndarray:
     """Pointwise log-likelihood of each artefact's stay under ``law`` (zero on padding).
 
     Equal to :func:`~are_stats.traffic.stay_loglik`, each term computed on its own rows.
+    ``resolution`` (float or () array): stays shorter are interval-censored; an array is
+    an argument of a compiled program, not a constant (see
+    :func:`~are_stats.traffic._stays.has_resolution`).
     """
     mean = params["stay_mean"]
     shape = params.get("stay_shape", 1.0)
@@ -606,13 +612,14 @@ def stay_unit_loglik(
     ss = jnp.maximum(stay[units.idx_surv], floor)
     se = jnp.maximum(stay[units.idx_excess], floor)
     la = stay_logpdf(law, jnp.maximum(sa, _TINY), mean, shape)
+    interval = has_resolution(resolution)
     if law == "gamma":  # its incomplete gammas in one loop (one for XLA to compile)
         ls, le, cdf = gamma_window_terms(ss, se, resolution, mean, shape)
     else:
         ls = stay_logsf(law, ss, mean, shape)
         le = stay_log_excess(law, se, mean, shape)
-        cdf = stay_logcdf(law, resolution, mean, shape) if resolution > 0 else None
-    if resolution > 0:
+        cdf = stay_logcdf(law, resolution, mean, shape) if interval else None
+    if interval:
         la = jnp.where(sa < resolution, cdf, la)
     ls = ls - jnp.where(trunc[units.idx_surv], log_m, 0.0)
     le = le - log_m
@@ -673,7 +680,9 @@ def exponential_unit_loglik(
     return np.where(np.asarray(units.weight)[None, :] > 0, out[:, :n], 0.0)
 
 
-def stay_model(units: StayUnits, law: str, mean_centre: float, resolution: float = 0.0) -> None:
+def stay_model(
+    units: StayUnits, law: str, mean_centre: float, resolution: npt.ArrayLike = 0.0
+) -> None:
     """numpyro model of the stays under ``law`` (mean and shape parameterisation).
 
     Latent sites: ``stay_mean_z`` (deterministic ``stay_mean``) and, except for the

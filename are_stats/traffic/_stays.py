@@ -288,8 +288,8 @@ def gamma_window_terms(
     ----------
     surv : (ns,) float
     excess : (ne,) float
-    resolution : float
-        None is returned for it when not positive.
+    resolution : float or () array
+        None is returned for it when not positive (:func:`has_resolution`).
     mean, shape : float
         Scalars (one draw).
 
@@ -305,15 +305,35 @@ def gamma_window_terms(
     rate = shape / mean
     a = [jnp.full(ns + ne, shape), jnp.full(ne, shape + 1.0)]
     x = [rate * t, rate * r, rate * r]
-    lower = np.zeros(ns + 2 * ne + (resolution > 0), bool)
-    if resolution > 0:
+    interval = has_resolution(resolution)
+    lower = np.zeros(ns + 2 * ne + interval, bool)
+    if interval:
         a.append(jnp.reshape(shape, (1,)))
         x.append(jnp.reshape(rate * jnp.maximum(jnp.asarray(resolution, float), 0.0), (1,)))
         lower[-1] = True
     q = incomplete_gamma(jnp.concatenate(a), jnp.concatenate(x), lower)
     log_sf = _log(q[:ns])
     log_excess = _log_excess(mean * q[ns + ne : ns + 2 * ne], r * q[ns : ns + ne])
-    return log_sf, log_excess, (_log(q[-1]) if resolution > 0 else None)
+    return log_sf, log_excess, (_log(q[-1]) if interval else None)
+
+
+def has_resolution(resolution: npt.ArrayLike) -> bool:
+    """Whether the stays' terms include the interval below ``resolution``: a positive
+    number, or any array (a program argument, whose value is not known when the program
+    is traced; at 0 its interval term is computed and never selected, as no stay is
+    shorter than 0).
+
+    Parameters
+    ----------
+    resolution : float or () array
+
+    Returns
+    -------
+    bool
+    """
+    if isinstance(resolution, (int, float)):
+        return resolution > 0
+    return True
 
 
 def _log_excess(a: npt.ArrayLike, b: npt.ArrayLike) -> jnp.ndarray:
