@@ -74,9 +74,10 @@ gc.set_threshold(*GC_THRESHOLDS)
 #: that variance alone could explain.
 HEAVY_FILES: tuple[str, ...] = (
     "tests/fitting/test_behaviour_fit.py",  # default: about 230 s of CPU cold in 19 tests
-    # default: the rich log's true models against the paper's by NUTS (55 s of CPU cold),
-    # Laplace and ranked fits (about 90 s in all); slow: every candidate by NUTS (140 s), a
-    # log per candidate, the paper's truth, stays in days, diurnal (about 700 s)
+    # default: the rich log's true stay law against the paper's by NUTS, Laplace and
+    # ranked fits (about 50 s of CPU, 2026-11-29); slow: the groups arrivals by NUTS, every
+    # candidate by NUTS (140 s), a log per candidate, the paper's truth, stays in days,
+    # diurnal (about 700 s)
     "tests/fitting/test_traffic.py",
     "tests/test_integrity.py",  # slow: same-seed runs and kills, about 20 are-stats processes
     # slow: builds the wheel; in CI (ARE_STATS_FRESH_VENV=1) a fresh venv, about 3.5 min
