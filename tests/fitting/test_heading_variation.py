@@ -148,7 +148,9 @@ def test_a_route_corner_is_not_wander() -> None:
 @pytest.fixture(scope="module")
 def fitted() -> tuple[pd.DataFrame, BehaviourFit]:
     """100 wandering walkers seen through 5 cm of noise and the behaviour fitted on them:
-    one fit for every test of this module that needs one (each fit costs seconds)."""
+    one fit for every test of this module that needs one (each fit costs seconds), on
+    the grid and padded shapes of test_speed_variation's fit (its ``FIT_ROOM``): one
+    program for both files."""
     tracks = ou_heading_tracks(11, 100, SD, TIME, 0.05)
     free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
     return tracks, fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)

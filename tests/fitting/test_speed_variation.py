@@ -84,13 +84,23 @@ def test_people_at_a_constant_speed_show_no_within_person_variation() -> None:
     assert got["speed_within_sd"] < 0.02
 
 
+#: The open room (m) of the module's fit: that of test_heading_variation's fit, the walks
+#: starting at its centre. The same grid (80 x 80 cells of 1 m) and the same padded tracks
+#: (2 goals, 2 tracks, 128 steps) make the two files' fits one program, compiled once in a
+#: run and loaded from the persistent cache by the other (about 9 s of CPU; on ``ROOM``'s
+#: 60 x 60 grid the fit was a program of its own).
+FIT_ROOM = 80.0
+
+
 @pytest.fixture(scope="module")
 def fitted() -> BehaviourFit:
     """The behaviour fitted on 100 walkers of the pace seen through 5 cm of noise: one fit
-    for every test of this module that needs one (each fit costs seconds)."""
+    for every test of this module that needs one (each fit costs seconds), on
+    :data:`FIT_ROOM`'s grid."""
     tracks = ou_tracks(11, 100, SD, TIME, 0.05)
-    free = np.ones((int(ROOM / 0.5), int(ROOM / 0.5)), bool)
-    return fit_behaviour(tracks, free, 0.5, (0.0, 0.0), cell=1.0, max_fit_tracks=2)
+    free = np.ones((int(FIT_ROOM / 0.5), int(FIT_ROOM / 0.5)), bool)
+    corner = (ROOM - FIT_ROOM) / 2.0  # the walks start at the room's centre
+    return fit_behaviour(tracks, free, 0.5, (corner, corner), cell=1.0, max_fit_tracks=2)
 
 
 def test_fit_behaviour_stores_the_variation_and_old_files_read_without_it(
