@@ -106,38 +106,46 @@ def _desired_heading(x: np.ndarray, goal: np.ndarray) -> np.ndarray:
     return np.where(inside[:, None], -rel / d_c[:, None], out)
 
 
+#: The candidate headings (rad, off the desired one) and speeds (of the desired one).
+_ANGLES = np.deg2rad(np.linspace(-70, 70, 15))
+_FRACS = np.array([1.0, 0.6, 0.25])
+
+
 def _choose(x, v, desired, group, alive):
-    """The velocity-obstacle choice of every alive walker (n, 2)."""
-    n = x.shape[0]
-    angles = np.deg2rad(np.linspace(-70, 70, 15))
-    fracs = np.array([1.0, 0.6, 0.25])
-    h = np.arctan2(desired[:, 1], desired[:, 0])
-    ang = h[:, None, None] + angles[None, :, None]  # (n, 15, 1)
-    mag = np.hypot(*desired.T)[:, None, None] * fracs[None, None, :]
-    cand = np.stack([np.cos(ang) * mag, np.sin(ang) * mag], axis=-1).reshape(n, -1, 2)
-    cand = np.concatenate([cand, np.zeros((n, 1, 2))], axis=1)  # standing still too
-    cost = np.hypot(*(cand - desired[:, None, :]).transpose(2, 0, 1))
+    """The velocity-obstacle choice of every alive walker (n, 2); walkers not alive: 0
+    (not moved)."""
     idx = np.flatnonzero(alive)
+    angles, fracs = _ANGLES, _FRACS
+    want = desired[idx]
+    h = np.arctan2(want[:, 1], want[:, 0])
+    ang = h[:, None, None] + angles[None, :, None]  # (alive, 15, 1)
+    mag = np.hypot(*want.T)[:, None, None] * fracs[None, None, :]
+    cand = np.stack([np.cos(ang) * mag, np.sin(ang) * mag], axis=-1).reshape(idx.size, 45, 2)
+    cand = np.concatenate([cand, np.zeros((idx.size, 1, 2))], axis=1)  # standing still too
+    cost = np.hypot(*(cand - want[:, None, :]).transpose(2, 0, 1))
     p = x[idx][:, None, :] - x[idx][None, :, :]  # i minus j
     near = (np.hypot(*p.transpose(2, 0, 1)) < 4.0) & ~np.eye(idx.size, dtype=bool)
     near &= group[idx][:, None] != group[idx][None, :]
-    for a, i in enumerate(idx):
-        js = np.flatnonzero(near[a])
-        if js.size == 0:
-            continue
-        rel_p = -p[a, js]  # j minus i: (m, 2)
-        w = cand[i][:, None, :] - v[idx[js]][None, :, :]  # relative velocity i to j (k, m, 2)
-        qa = (w * w).sum(-1)
-        qb = -2 * (w * rel_p[None]).sum(-1)
-        qc = (rel_p * rel_p).sum(-1)[None] - (2 * RADIUS) ** 2
-        disc = qb * qb - 4 * qa * qc
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_hit = (-qb - np.sqrt(np.maximum(disc, 0))) / (2 * qa)
-        t_hit = np.where((disc >= 0) & (qa > 1e-12) & (t_hit >= 0), t_hit, 3.0)
-        t_hit = np.where(qc <= 0, 0.0, np.minimum(t_hit, 3.0)).min(axis=1)
-        cost[i] = cost[i] + np.where(t_hit < 3.0, 2.0 / np.maximum(t_hit, 0.1), 0.0)
+    # every near pair (a, b) at once, elementwise as walker by walker; a pair not near is
+    # no collision (3 s), so the min over b is the min over a's neighbours
+    a, b = np.nonzero(near)
+    rel_p = -p[a, b]  # j minus i: (P, 2)
+    w = cand[a] - v[idx[b]][:, None, :]  # relative velocity i to j (P, k, 2)
+    qa = (w * w).sum(-1)
+    qb = -2 * (w * rel_p[:, None]).sum(-1)
+    qc = (rel_p * rel_p).sum(-1)[:, None] - (2 * RADIUS) ** 2
+    disc = qb * qb - 4 * qa * qc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_hit = (-qb - np.sqrt(np.maximum(disc, 0))) / (2 * qa)
+    t_hit = np.where((disc >= 0) & (qa > 1e-12) & (t_hit >= 0), t_hit, 3.0)
+    t_pair = np.full((idx.size, idx.size, cand.shape[1]), 3.0)
+    t_pair[a, b] = np.where(qc <= 0, 0.0, np.minimum(t_hit, 3.0))
+    t_min = t_pair.min(axis=1, initial=3.0)  # (alive, k); none alive: none
+    cost = cost + np.where(t_min < 3.0, 2.0 / np.maximum(t_min, 0.1), 0.0)
     best = cost.argmin(axis=1)  # ties: the first candidate
-    return cand[np.arange(n), best]
+    chosen = np.zeros_like(desired)
+    chosen[idx] = cand[np.arange(idx.size), best]
+    return chosen
 
 
 def crowd_tracks(
