@@ -30,7 +30,7 @@ from are_stats.behaviour import BehaviourFit, social_force_tracks
 from are_stats.behaviour._social import _pace
 from are_stats.fitting import attach_behaviour, fit_behaviour
 from are_stats.fitting._behaviour import _heading_variation, _ou_fit, _ou_window_terms
-from tests.fitting.test_speed_variation import _inner, _lanes, walks_without_and_with
+from tests.fitting.test_speed_variation import _inner, _lanes
 from tests.helpers import variation_inputs
 
 SD, TIME = 0.12, 2.0
@@ -283,19 +283,8 @@ def test_bad_heading_variation_is_named(variation, words) -> None:
     assert words in str(err.value)
 
 
-def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before(
-    fitted: tuple[pd.DataFrame, BehaviourFit],
-) -> None:
-    """scene_tracks (every command's assembly) hands the fit's per-class heading variation
-    to the social force: a fit with it wanders on the same routes, a fit without (an
-    older file) walks exactly as a fit of sd 0."""
-    import dataclasses
-
-    fit = dataclasses.replace(fitted[1], speed_within_sd=np.zeros(1))  # the heading's alone
-    none, varied = walks_without_and_with(fit, "heading")
-    # both end where they were going (each aims at its route's corners all the while)
-    end_n, end_v = none.groupby("id")[["x", "y"]].last(), varied.groupby("id")[["x", "y"]].last()
-    assert np.hypot(*(end_n - end_v).to_numpy().T).max() < 2.0
+# test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before is in
+# test_speed_variation: it shares that file's walks (the older fit's and sd 0's).
 
 
 @pytest.mark.slow  # the criticism's replicate walks

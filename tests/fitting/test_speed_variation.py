@@ -177,11 +177,19 @@ def test_bad_speed_variation_is_named(variation, words) -> None:
     assert words in str(err.value)
 
 
-def walks_without_and_with(fit: BehaviourFit, kind: str) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Six people walked by :func:`scene_tracks` (every command's assembly) under ``fit``
-    with its ``kind`` (``speed`` or ``heading``) within-person sd at 0 and at 0.2; checks
-    that an older fit (without the variation's fields) walks exactly as sd 0, and that
-    the varied walk has the same rows and other positions."""
+#: The heading wander's correlation time (s) the walks of :func:`walks` give the speed
+#: fit (whose walkers walk straight: no time read), test_heading_variation's ``TIME``.
+HEADING_TIME = 2.0
+
+
+@pytest.fixture(scope="module")
+def walks(fitted: BehaviourFit) -> dict[str, pd.DataFrame]:
+    """Six people walked by :func:`scene_tracks` (every command's assembly) under the fit
+    with both within-person sds at 0 (``none``) and with its speed or heading sd alone at
+    0.2 (``speed``, ``heading``; the heading's correlation time :data:`HEADING_TIME`);
+    checks that an older fit (without either variation's fields) walks exactly as sd 0,
+    and that each varied walk has the same rows and other positions. One set of walks for
+    both generation tests (four calls, not six)."""
     import dataclasses
 
     import jax
@@ -201,26 +209,28 @@ def walks_without_and_with(fit: BehaviourFit, kind: str) -> tuple[pd.DataFrame, 
         return scene_tracks(jax.random.key(3), art, None, cat, 400.0, behaviours="fitted",
                             fitted=f)  # fmt: skip
 
-    sd, time = f"{kind}_within_sd", f"{kind}_within_time"
-    older = BehaviourFit.from_dataset(fit.to_dataset().drop_vars([sd, time]))
-    none = walk(dataclasses.replace(fit, **{sd: np.zeros(1)}))
+    fit = dataclasses.replace(fitted, heading_within_time=np.array([HEADING_TIME]))
+    fields = [f"{k}_within_{p}" for k in ("speed", "heading") for p in ("sd", "time")]
+    older = BehaviourFit.from_dataset(fit.to_dataset().drop_vars(fields))
+    zero = dataclasses.replace(fit, speed_within_sd=np.zeros(1), heading_within_sd=np.zeros(1))
+    none = walk(zero)
     pd.testing.assert_frame_equal(walk(older), none, check_exact=True)
-    varied = walk(dataclasses.replace(fit, **{sd: np.array([0.2])}))
-    assert varied[["id", "t"]].equals(none[["id", "t"]])
-    assert not np.allclose(varied[["x", "y"]], none[["x", "y"]])
-    return none, varied
+    out = {"none": none}
+    for kind in ("speed", "heading"):
+        varied = walk(dataclasses.replace(zero, **{f"{kind}_within_sd": np.array([0.2])}))
+        assert varied[["id", "t"]].equals(none[["id", "t"]])
+        assert not np.allclose(varied[["x", "y"]], none[["x", "y"]])
+        out[kind] = varied
+    return out
 
 
 def test_generation_walks_the_fits_variation_and_an_older_fit_walks_as_before(
-    fitted: BehaviourFit,
+    walks: dict[str, pd.DataFrame],
 ) -> None:
     """scene_tracks (every command's assembly) hands the fit's per-class variation to the
     social force: a fit with it walks its people at varying speeds on the same routes, a
     fit without (an older file) exactly as a fit of sd 0."""
-    import dataclasses
-
-    fit = dataclasses.replace(fitted, heading_within_sd=np.zeros(1))  # the pace's alone
-    none, varied = walks_without_and_with(fit, "speed")
+    none, varied = walks["none"], walks["speed"]
     # on the same routes: each walks its own, at its own pace
     for i, g in varied.groupby("id"):
         route = none.loc[none["id"] == i, ["x", "y"]].to_numpy()
@@ -233,6 +243,19 @@ def test_generation_walks_the_fits_variation_and_an_older_fit_walks_as_before(
         on = ~((dist.argmin(axis=1) == len(ab) - 1) & (f[:, -1] > 1.0))
         off = dist.min(axis=1)[on]
         assert off.max() < 0.3, f"artefact {i} left its route by {off.max():.2f} m"
+
+
+def test_generation_walks_the_fits_heading_variation_and_an_older_fit_as_before(
+    walks: dict[str, pd.DataFrame],
+) -> None:
+    """scene_tracks (every command's assembly) hands the fit's per-class heading variation
+    to the social force: a fit with it wanders on the same routes, a fit without (an
+    older file) walks exactly as a fit of sd 0 (test_heading_variation's claim, here to
+    share the walks)."""
+    none, varied = walks["none"], walks["heading"]
+    # both end where they were going (each aims at its route's corners all the while)
+    end_n, end_v = none.groupby("id")[["x", "y"]].last(), varied.groupby("id")[["x", "y"]].last()
+    assert np.hypot(*(end_n - end_v).to_numpy().T).max() < 2.0
 
 
 def _timed_crossings(seed: int, n: int = 30, length: float = 20.0) -> pd.DataFrame:
