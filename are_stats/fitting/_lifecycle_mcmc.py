@@ -14,6 +14,7 @@ import time
 from typing import Any  # Any: lifecycle_model's keywords (arrays, sizes, flags)
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import numpyro
 from numpyro.distributions import biject_to
@@ -63,14 +64,26 @@ def _start_values(data: LifecycleData, k: int | None) -> dict[str, np.ndarray]:
 
 
 def _latent_sites(model_kwargs: dict, start: dict[str, np.ndarray]) -> dict[str, Transform]:
-    """Support transforms of the latent sites, from one trace at the start values."""
-    model = numpyro.handlers.substitute(lifecycle_model, data=start)
-    trace = numpyro.handlers.trace(model).get_trace(**model_kwargs)
-    return {
-        name: biject_to(site["fn"].support)
-        for name, site in trace.items()
-        if site["type"] == "sample" and not site["is_observed"]
-    }
+    """Support transforms of the latent sites, from one abstract trace at the start values.
+
+    The model is traced under :func:`jax.eval_shape` (issue 29: run eagerly, each of its
+    operations compiled a program of its own, about 35 per fit); only the sites' supports
+    are kept, which hold no array.
+    """
+    supports: dict[str, Any] = {}
+
+    def trace_supports() -> None:
+        values = {name: jnp.asarray(v) for name, v in start.items()}
+        model = numpyro.handlers.substitute(lifecycle_model, data=values)
+        trace = numpyro.handlers.trace(model).get_trace(**model_kwargs)
+        supports.update(
+            (name, site["fn"].support)
+            for name, site in trace.items()
+            if site["type"] == "sample" and not site["is_observed"]
+        )
+
+    jax.eval_shape(trace_supports)
+    return {name: biject_to(support) for name, support in supports.items()}
 
 
 def _bucket(n: int) -> int:
@@ -278,7 +291,11 @@ def fit_lifecycle_nuts(
         name: rng.uniform(-0.5, 0.5, size=(chains,) + t.inverse_shape(np.shape(start[name])))
         for name, t in transforms.items()
     }
-    start_u = {name: np.asarray(transforms[name].inv(start[name])) for name in transforms}
+    # one program for the inverse transforms (op by op, each operation compiled its own)
+    start_u = jax.jit(lambda v: {name: t.inv(v[name]) for name, t in transforms.items()})(
+        {name: start[name] for name in transforms}
+    )
+    start_u = {name: np.asarray(v) for name, v in start_u.items()}
     init_params = {name: start_u[name] + noise[name] for name in transforms}
     if chains == 1:  # numpyro's convention: no chain axis for one chain
         init_params = {name: v[0] for name, v in init_params.items()}

@@ -556,13 +556,20 @@ def _plan(
 def _blank_state(plan: _Plan, chains: int | None) -> tuple:
     """Leaves of a sampler state of the right shapes (zeros, the chains' keys), for the
     first chunk, which ignores them; ``chains`` None: one chain, no chain axis."""
-    first = None if plan.start is None else jax.tree.map(lambda x: x[0], plan.start)
+
+    # one chain's start and key as shapes: slicing the arrays compiled a program a leaf
+    def one(x: jax.Array) -> jax.ShapeDtypeStruct:
+        return jax.ShapeDtypeStruct(x.shape[1:], x.dtype)
+
+    first = None if plan.start is None else jax.tree.map(one, plan.start)
     with TRACE_LOCK:  # numpyro's handler stack is global: one model traced at a time
-        shape = jax.eval_shape(plan.first_state, plan.keys[0], first, plan.init, plan.arrays)
+        shape = jax.eval_shape(plan.first_state, one(plan.keys), first, plan.init, plan.arrays)
     lead = () if chains is None else (chains,)
 
     def blank(s):
         if jax.dtypes.issubdtype(s.dtype, jax.dtypes.prng_key):
+            if lead + s.shape == plan.keys.shape:  # any keys do: the chains' own
+                return plan.keys
             return jnp.broadcast_to(plan.keys[0], lead + s.shape)
         return np.zeros(lead + s.shape, s.dtype)
 

@@ -8,6 +8,8 @@ artefact's class (DECISIONS.md item 5).
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -50,6 +52,22 @@ def _validate_parameters(weights: npt.ArrayLike, rates: npt.ArrayLike) -> None:
     if np.any(bad):
         s = float(np.asarray(sums)[np.unravel_index(int(np.argmax(bad)), np.shape(sums))])
         raise ValueError(f"weights: expected weights summing to 1 (within 1e-6), got sum {s!r}")
+
+
+@partial(jax.jit, static_argnums=3)
+def _sample_with_class(
+    key: jax.Array, weights: jax.Array, rates: jax.Array, shape: tuple[int, ...]
+) -> tuple[jax.Array, jax.Array]:
+    """Classes (categorical on ``log weights``), then marks (Poisson of the class's rate),
+    of shape ``shape``, as one compiled program per shape (issue 29: op by op, each of its
+    nine operations was compiled on its own for every sample shape)."""
+    key_class, key_mark = random.split(key)
+    log_w = jnp.log(weights)
+    classes = random.categorical(key_class, log_w, axis=-1, shape=shape)
+    rates = jnp.broadcast_to(rates, shape + (rates.shape[-1],))
+    lam = jnp.take_along_axis(rates, classes[..., None], axis=-1)[..., 0]
+    marks = random.poisson(key_mark, lam, shape=shape)
+    return marks, classes
 
 
 class PoissonMixture(Distribution):
@@ -185,14 +203,8 @@ class PoissonMixture(Distribution):
         classes : (*sample_shape, *batch_shape) int
             Index of the component that produced each mark.
         """
-        key_class, key_mark = random.split(key)
-        shape = tuple(sample_shape) + self.batch_shape
-        log_w = jnp.log(self.weights)
-        classes = random.categorical(key_class, log_w, axis=-1, shape=shape)
-        rates = jnp.broadcast_to(self.rates, shape + (self.n_components,))
-        lam = jnp.take_along_axis(rates, classes[..., None], axis=-1)[..., 0]
-        marks = random.poisson(key_mark, lam, shape=shape)
-        return marks, classes
+        shape = tuple(int(d) for d in sample_shape) + tuple(self.batch_shape)
+        return _sample_with_class(key, self.weights, self.rates, shape)
 
     def sample(self, key: jax.Array, sample_shape: tuple[int, ...] = ()) -> jax.Array:
         """Draw marks: a class from the weights, then a Poisson count with its rate.

@@ -169,18 +169,29 @@ def test_chain_method_resolution():
     assert resolve_chain_method("sequential", 4) == "sequential"
 
 
-def test_sequential_chains_run():
+def test_sequential_chains_run(caplog):
+    import logging
+
     d = simulate_lifecycle(jax.random.key(4), 2.0, 0.05, [1.0], [5.0], (0.0, 100.0), area=1.0)
     small = LifecycleData(d.t_arrive, d.t_leave, d.window, d.area)
-    idata = fit_lifecycle_nuts(
-        jax.random.key(3),
-        small,
-        num_warmup=100,
-        num_samples=100,
-        num_chains=2,
-        chain_method="sequential",
-        num_prior_draws=0,
-    )
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        idata = fit_lifecycle_nuts(
+            jax.random.key(3),
+            small,
+            num_warmup=100,
+            num_samples=100,
+            num_chains=2,
+            chain_method="sequential",
+            num_prior_draws=0,
+        )
+    # issue 29: the sites' supports come from an abstract trace and the start values'
+    # inverse transforms are one program (run eagerly, every operation of the model and of
+    # the transforms compiled a program of its own, about 45 of them)
+    messages = [r.getMessage() for r in caplog.records]
+    compiled = {m.split()[1] for m in messages if m.startswith("Compiling")}
+    allowed = {"jit(<lambda>)", "jit(call)", "jit(_threefry_split)", "jit(unstack)"}
+    allowed |= {"jit(dynamic_slice)", "jit(squeeze)"}  # one chain's key, sequential chains
+    assert compiled <= allowed, compiled - allowed
     assert idata.posterior["arrival_rate"].shape == (2, 100)
     assert set(idata.posterior.data_vars) == {"arrival_rate", "leave_rate"}
     # the one NUTS driver's diagnostics: divergences and split-r_hat of every site

@@ -119,6 +119,22 @@ def test_sample_with_class_and_batch_shapes():
     assert mix.log_prob(jnp.zeros((7, 3), dtype=int)).shape == (7, 3)
 
 
+def test_a_draw_at_a_new_size_compiles_one_program(caplog):
+    """Sampling is one compiled program per sample shape (issue 29: op by op, a draw of a
+    new size compiled nine programs, the categorical's Gumbel and the Poisson sampler
+    among them)."""
+    import logging
+
+    mix = PoissonMixture(np.full(5, 0.2), FIG2_RATES)
+    key = jax.random.key(5)
+    with caplog.at_level(logging.WARNING), jax.log_compiles():
+        marks, classes = mix.sample_with_class(key, (7, 3))
+    compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
+    assert [m.split()[1] for m in compiled] == ["jit(_sample_with_class)"]
+    assert marks.shape == classes.shape == (7, 3)
+    np.testing.assert_array_equal(np.asarray(mix.sample(key, (7, 3))), np.asarray(marks))
+
+
 def test_negative_marks_have_zero_probability():
     mix = PoissonMixture(np.array([0.5, 0.5]), np.array([1.0, 2.0]), validate_args=False)
     assert float(mix.log_prob(-1)) == -np.inf
