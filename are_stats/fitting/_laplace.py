@@ -246,7 +246,7 @@ def _options(optimise: bool | str) -> dict:
     ``"light"`` (see :data:`_LIGHT_OPTIONS`)."""
     if optimise == "light":
         return _LIGHT_OPTIONS
-    if optimise is True or optimise is False:
+    if isinstance(optimise, bool):
         return _DEFAULT_OPTIONS if optimise else _CHEAP_OPTIONS
     raise ValueError(f"optimise: expected True, False or 'light', got {optimise!r}")
 

@@ -331,8 +331,8 @@ def has_resolution(resolution: npt.ArrayLike) -> bool:
     -------
     bool
     """
-    if isinstance(resolution, (int, float)):
-        return resolution > 0
+    if isinstance(resolution, (int, float, np.number)):  # a number: known when traced
+        return bool(resolution > 0)
     return True
 
 
