@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -122,17 +124,16 @@ def test_sample_with_class_and_batch_shapes():
 def test_a_draw_at_a_new_size_compiles_one_program(caplog):
     """Sampling is one compiled program per sample shape (issue 29: op by op, a draw of a
     new size compiled nine programs, the categorical's Gumbel and the Poisson sampler
-    among them)."""
-    import logging
-
+    among them). The shape is one no other test draws, so the process has not compiled
+    it yet."""
     mix = PoissonMixture(np.full(5, 0.2), FIG2_RATES)
     key = jax.random.key(5)
     with caplog.at_level(logging.WARNING), jax.log_compiles():
-        marks, classes = mix.sample_with_class(key, (7, 3))
+        marks, classes = mix.sample_with_class(key, (13, 7))
     compiled = [r.getMessage() for r in caplog.records if r.getMessage().startswith("Compiling")]
     assert [m.split()[1] for m in compiled] == ["jit(_sample_with_class)"]
-    assert marks.shape == classes.shape == (7, 3)
-    np.testing.assert_array_equal(np.asarray(mix.sample(key, (7, 3))), np.asarray(marks))
+    assert marks.shape == classes.shape == (13, 7)
+    np.testing.assert_array_equal(np.asarray(mix.sample(key, (13, 7))), np.asarray(marks))
 
 
 def test_negative_marks_have_zero_probability():
