@@ -428,8 +428,10 @@ def augment_bag(
         # one parent per frame: a base with a static parent in the output's /tf_static
         # (base_footprint -> base_link) is placed through the root of that chain
         child, below = _robot_child(traj, base_frame, "/tf_static" in passthrough.topics, bag)
-        for tk, m in zip(pose_t, traj.poses, strict=True):
-            R.add(float(tk), "/tf", _TF, R.tf([R.transform(float(tk), fixed, child, m @ below)]))
+        placed = np.stack([m @ below for m in traj.poses])  # one product per pose, as read
+        tfs = R.transforms(0.0, fixed, [child] * len(placed), placed, times=pose_t)
+        for tk, tf in zip(pose_t.tolist(), tfs, strict=True):
+            R.add(tk, "/tf", _TF, R.tf([tf]))
     # markers live until the next camera frame and a bit: a replay stopped half-way (or
     # started) shows no artefact that is not alive then
     gaps = np.diff(times)
@@ -480,10 +482,9 @@ def augment_bag(
                 "/tf",
                 _TF,
                 R.tf(
-                    [
-                        R.planar(t, fixed, artefact_frame(a), c[0], c[1], y, c[2])
-                        for a, c, y in zip(boxes.ids, boxes.centres, boxes.yaws, strict=True)
-                    ]
+                    R.planars(
+                        t, fixed, [artefact_frame(a) for a in boxes.ids], boxes.centres, boxes.yaws
+                    )
                 ),
             )
         doc = {

@@ -39,7 +39,6 @@ topic                  type                                  when
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -187,12 +186,12 @@ def export_mcap(
                 )
         R.add(t, "/artefacts", MCAP_TOPICS["/artefacts"], markers)
         if len(ids):
-            tfs = _planar(R, t, frame, [artefact_frame(a) for a in ids], centres, yaws)
+            tfs = R.planars(t, frame, [artefact_frame(a) for a in ids], centres, yaws)
             R.add(t, "/tf", MCAP_TOPICS["/tf"], R.tf(tfs))
     PoseStamped = T["geometry_msgs/msg/PoseStamped"]
     poses = np.asarray(trace.poses, float).reshape(-1, 4)
     xyz = np.column_stack([poses[:, 1:3], np.zeros(len(poses))])
-    base_tfs = _planar(R, 0.0, frame, [base] * len(poses), xyz, poses[:, 3], poses[:, 0])
+    base_tfs = R.planars(0.0, frame, [base] * len(poses), xyz, poses[:, 3], poses[:, 0])
     for (t, x, y, yaw), tf in zip(trace.poses, base_tfs, strict=True):
         R.add(
             float(t),
@@ -214,52 +213,6 @@ def export_mcap(
             T["nav_msgs/msg/Path"](header=R.header(t), poses=poses),
         )
     return R.write(path, force=force)
-
-
-def _planar(
-    R: RosMessages,
-    t: float,
-    parent: str,
-    children: list[str],
-    xyz: npt.ArrayLike,
-    yaws: npt.ArrayLike,
-    times: npt.ArrayLike | None = None,
-) -> list:
-    """``R.planar(t, parent, child, x, y, yaw, z)`` of every child (``xyz`` (n, 3) m,
-    ``yaws`` (n,) rad; ``times`` (n,) s, one per child, instead of ``t``), bit for bit,
-    with the rotations of all in one vectorised ``Rotation.from_matrix`` (the same
-    quaternions, a tenth of the CPU of n calls)."""
-    # lazy: SciPy's Rotation adds 0.35 s CPU to `import are_stats.export` (as in _ros)
-    from scipy.spatial.transform import Rotation
-
-    T = R.T
-    p = np.asarray(xyz, float).reshape(-1, 3)
-    yaw = np.asarray(yaws, float).reshape(-1)
-    if not yaw.size:
-        return []
-    # math.cos/sin, as RosMessages.planar (NumPy's may differ in the last bit)
-    c = np.array([math.cos(a) for a in yaw.tolist()])
-    s = np.array([math.sin(a) for a in yaw.tolist()])
-    m = np.zeros((yaw.size, 3, 3))
-    m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1], m[:, 2, 2] = c, -s, s, c, 1.0
-    q = Rotation.from_matrix(m).as_quat().tolist()
-    if times is None:  # one header for all
-        hdrs = [R.header(t, parent)] * yaw.size
-    else:
-        hdrs = [R.header(tk, parent) for tk in np.asarray(times, float).tolist()]
-    return [
-        T["geometry_msgs/msg/TransformStamped"](
-            header=hdr,
-            child_frame_id=child,
-            transform=T["geometry_msgs/msg/Transform"](
-                translation=T["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
-                rotation=T["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
-            ),
-        )
-        for hdr, child, (x, y, z), (qx, qy, qz, qw) in zip(
-            hdrs, children, p.tolist(), q, strict=True
-        )
-    ]
 
 
 def _moved(

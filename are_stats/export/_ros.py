@@ -22,6 +22,7 @@ late subscribers such as rviz still get them).
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import heapq
 import math
 import os
@@ -40,8 +41,16 @@ from are_stats.logs import PassThrough
 if TYPE_CHECKING:
     # the message classes of the type store the writer builds from (ROS 2 Humble)
     import rosbags.typesys.stores.ros2_humble as humble
+    from rosbags.typesys.store import Typestore
 
-__all__ = ["ROS_FRAMES", "RosMessages", "artefact_frame", "parse_start_time", "qos_profile"]
+__all__ = [
+    "ROS_FRAMES",
+    "RosMessages",
+    "artefact_frame",
+    "parse_start_time",
+    "qos_profile",
+    "quaternions",
+]
 
 #: Paper frame -> REP-105 frame name used in exports (``F_A/<id>`` -> :func:`artefact_frame`).
 ROS_FRAMES: dict[str, str] = {
@@ -132,12 +141,82 @@ def parse_start_time(value: object, source: str = "--start-time") -> float:
     return t
 
 
-def _quat(rot: np.ndarray) -> tuple[float, float, float, float]:
-    # lazy: SciPy's Rotation adds 0.35 s CPU to `import are_stats.export`
-    from scipy.spatial.transform import Rotation
+def quaternions(rot: npt.ArrayLike) -> np.ndarray:
+    """Unit quaternions ``(x, y, z, w)`` of rotation matrices, bit for bit SciPy's
+    ``Rotation.from_matrix(rot).as_quat()`` (Markley's method, its branch and its order
+    of operations) without its per-call overhead (a SciPy call per message was most of an
+    export's CPU).
 
-    x, y, z, w = Rotation.from_matrix(np.asarray(rot, float)).as_quat()
+    Matrices that are not rotations to SciPy's tolerance (Gramian within ``1e-12`` of the
+    identity, positive determinant) go to SciPy itself, which orthogonalises them (or
+    refuses a left-handed one), as do those near its tolerance, so every input gives what
+    SciPy gives.
+
+    Parameters
+    ----------
+    rot : (..., 3, 3) float
+        Rotation matrices.
+
+    Returns
+    -------
+    (..., 4) float
+        ``(x, y, z, w)``, scalar last.
+    """
+    m = np.array(rot, dtype=float)
+    if m.shape[-2:] != (3, 3):
+        raise ValueError(f"rotation matrices: expected shape (..., 3, 3), got {m.shape}")
+    lead = m.shape[:-2]
+    m = m.reshape(-1, 3, 3)
+    gram = m @ np.transpose(m, (0, 2, 1))
+    # SciPy orthogonalises unless isclose(gram, I, atol=1e-12) (rtol 1e-5): a tenth of its
+    # tolerances here, so that no rounding of the Gramian makes the two disagree
+    valid = np.all(np.isclose(gram, np.eye(3), rtol=1e-6, atol=1e-13), axis=(1, 2))
+    valid &= np.linalg.det(m) > 0 if m.shape[0] else valid
+    d = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]], 1)
+    choice = np.argmax(d, axis=1)
+    trace = d[:, 3]
+    q = np.empty((m.shape[0], 4))
+    for i in range(3):  # the largest diagonal entry leads
+        j, k = (i + 1) % 3, (i + 2) % 3
+        r = choice == i
+        mr = m[r]
+        q[r, i] = 1 - trace[r] + 2 * mr[:, i, i]
+        q[r, j] = mr[:, j, i] + mr[:, i, j]
+        q[r, k] = mr[:, k, i] + mr[:, i, k]
+        q[r, 3] = mr[:, k, j] - mr[:, j, k]
+    r = choice == 3  # the trace leads
+    mr = m[r]
+    q[r, 0] = mr[:, 2, 1] - mr[:, 1, 2]
+    q[r, 1] = mr[:, 0, 2] - mr[:, 2, 0]
+    q[r, 2] = mr[:, 1, 0] - mr[:, 0, 1]
+    q[r, 3] = 1 + trace[r]
+    # SciPy's norm: the squares summed in order from 0, then one division per entry
+    sq = q * q
+    norm = np.sqrt(0.0 + sq[:, 0] + sq[:, 1] + sq[:, 2] + sq[:, 3])
+    q /= norm[:, None]
+    if not valid.all():
+        # lazy: SciPy's Rotation adds 0.35 s CPU to `import are_stats.export`
+        from scipy.spatial.transform import Rotation
+
+        q[~valid] = Rotation.from_matrix(m[~valid]).as_quat()
+    return q.reshape(*lead, 4)
+
+
+def _quat(rot: np.ndarray) -> tuple[float, float, float, float]:
+    x, y, z, w = quaternions(rot)
     return float(x), float(y), float(z), float(w)
+
+
+@functools.cache
+def _humble() -> Typestore:
+    """The ROS 2 Humble type store of every :class:`RosMessages`, one per process: rosbags
+    generates a type's (de)serialiser code on its first use in a store (some 0.3 s CPU for an
+    export's types), so a store per export paid it again every time. Only read (messages
+    built from its classes, serialised); nothing registers types in it."""
+    # lazy: rosbags' type store adds 0.07 s CPU to `import are_stats.export`
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
 
 
 class RosMessages:
@@ -165,14 +244,11 @@ class RosMessages:
         start_ns: int | None = None,
         log_offset_ns: int = 0,
     ) -> None:
-        # lazy: rosbags' type store adds 0.07 s CPU to `import are_stats.export`
-        from rosbags.typesys import Stores, get_typestore
-
         self.start = float(start)
         self.start_ns = int(round(self.start * 1e9)) if start_ns is None else int(start_ns)
         self.frame = frame
         self.log_offset_ns = int(log_offset_ns)
-        self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        self.ts = _humble()
         self.T = self.ts.types
         self.topics: dict[str, str] = {}
         self.latched: set[str] = set()
@@ -207,29 +283,78 @@ class RosMessages:
         self, t: float, parent: str, child: str, matrix: npt.ArrayLike
     ) -> humble.geometry_msgs__msg__TransformStamped:
         """``geometry_msgs/TransformStamped`` of a (4, 4) parent-from-child transform."""
+        return self.transforms(t, parent, [child], np.asarray(matrix, float)[None])[0]
+
+    def transforms(
+        self,
+        t: float,
+        parent: str,
+        children: Sequence[str],
+        matrices: npt.ArrayLike,
+        times: npt.ArrayLike | None = None,
+    ) -> list[humble.geometry_msgs__msg__TransformStamped]:
+        """:meth:`transform` of every child, bit for bit, with the rotations of all
+        converted at once (:func:`quaternions`).
+
+        Parameters
+        ----------
+        t : float
+            Stamp of all of them (scenario time), unless ``times`` is given.
+        parent : str
+        children : (n,) str
+        matrices : (n, 4, 4) float
+            Parent-from-child transforms.
+        times : (n,) float, optional
+            One stamp per child instead of ``t``.
+        """
         T = self.T
-        m = np.asarray(matrix, float)
-        qx, qy, qz, qw = _quat(m[:3, :3])
-        return T["geometry_msgs/msg/TransformStamped"](
-            header=self.header(t, parent),
-            child_frame_id=child,
-            transform=T["geometry_msgs/msg/Transform"](
-                translation=T["geometry_msgs/msg/Vector3"](
-                    x=float(m[0, 3]), y=float(m[1, 3]), z=float(m[2, 3])
-                ),
-                rotation=T["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
-            ),
-        )
+        m = np.asarray(matrices, float).reshape(-1, 4, 4)
+        if not m.shape[0]:
+            return []
+        q = quaternions(m[:, :3, :3]).tolist()
+        xyz = m[:, :3, 3].tolist()
+        if times is None:  # one header for all
+            hdrs = [self.header(t, parent)] * m.shape[0]
+        else:
+            hdrs = [self.header(tk, parent) for tk in np.asarray(times, float).tolist()]
+        TS, Tr = T["geometry_msgs/msg/TransformStamped"], T["geometry_msgs/msg/Transform"]
+        V, Q = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+        return [
+            TS(
+                header=hdr,
+                child_frame_id=child,
+                transform=Tr(translation=V(x=x, y=y, z=z), rotation=Q(x=qx, y=qy, z=qz, w=qw)),
+            )
+            for hdr, child, (x, y, z), (qx, qy, qz, qw) in zip(hdrs, children, xyz, q, strict=True)
+        ]
 
     def planar(
         self, t: float, parent: str, child: str, x: float, y: float, yaw: float, z: float = 0.0
     ) -> humble.geometry_msgs__msg__TransformStamped:
         """``TransformStamped`` of a planar pose ``(x, y, yaw)`` at height ``z``."""
-        m = np.eye(4)
-        c, s = math.cos(yaw), math.sin(yaw)
-        m[:2, :2] = [[c, -s], [s, c]]
-        m[:3, 3] = [x, y, z]
-        return self.transform(t, parent, child, m)
+        return self.planars(t, parent, [child], [[x, y, z]], [yaw])[0]
+
+    def planars(
+        self,
+        t: float,
+        parent: str,
+        children: Sequence[str],
+        xyz: npt.ArrayLike,
+        yaws: npt.ArrayLike,
+        times: npt.ArrayLike | None = None,
+    ) -> list[humble.geometry_msgs__msg__TransformStamped]:
+        """:meth:`planar` of every child (``xyz`` (n, 3) m, ``yaws`` (n,) rad; ``times``
+        (n,) s, one per child, instead of ``t``), bit for bit (:meth:`transforms`)."""
+        p = np.asarray(xyz, float).reshape(-1, 3)
+        yaw = np.asarray(yaws, float).reshape(-1)
+        # math.cos/sin, as before (NumPy's may differ in the last bit)
+        c = np.array([math.cos(a) for a in yaw.tolist()])
+        s = np.array([math.sin(a) for a in yaw.tolist()])
+        m = np.zeros((yaw.size, 4, 4))
+        m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1] = c, -s, s, c
+        m[:, 2, 2] = m[:, 3, 3] = 1.0
+        m[:, :3, 3] = p
+        return self.transforms(t, parent, children, m, times)
 
     def occupancy_grid(self, t: float, grid: OccupancyGrid) -> humble.nav_msgs__msg__OccupancyGrid:
         T = self.T
