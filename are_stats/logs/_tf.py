@@ -88,16 +88,42 @@ def transform_matrix(
         Naming ``source`` and ``where``, if the translation is not finite or the
         quaternion is not a unit one (:func:`unit_quaternion`).
     """
-    # lazy: SciPy's Rotation adds 0.54 s CPU to `import are_stats.logs`
-    from scipy.spatial.transform import Rotation
-
     xyz = np.array([translation.x, translation.y, translation.z], float)
     if not np.isfinite(xyz).all():
         raise InputError(source, where, "a finite position", Described(f"{xyz.tolist()}"))
     m = np.eye(4)
-    m[:3, :3] = Rotation.from_quat(unit_quaternion(rotation, source, where)).as_matrix()
+    m[:3, :3] = _quaternion_matrix(unit_quaternion(rotation, source, where))
     m[:3, 3] = xyz
     return m
+
+
+def _quaternion_matrix(q: npt.ArrayLike) -> list[list[float]]:
+    """Rotation matrix of a nonzero quaternion ``(x, y, z, w)``, bit for bit SciPy's
+    ``Rotation.from_quat(q).as_matrix()`` (normalised as it does, then its formula and
+    order of operations) in Python floats: a bag's reader calls it per transform, where
+    SciPy's per-call overhead was most of the reading.
+
+    Parameters
+    ----------
+    q : (4,) float
+        Finite, nonzero.
+
+    Returns
+    -------
+    (3, 3) list of float
+    """
+    x, y, z, w = (float(v) for v in np.asarray(q, float).reshape(4))
+    n = math.sqrt(0.0 + x * x + y * y + z * z + w * w)
+    if not (n > 0.0 and math.isfinite(n)):
+        raise ValueError(f"quaternion: expected finite and nonzero, got {[x, y, z, w]}")
+    x, y, z, w = x / n, y / n, z / n, w / n
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    return [
+        [x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw)],
+        [2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw)],
+        [2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2],
+    ]
 
 
 def interpolate_poses(t: npt.ArrayLike, poses: npt.ArrayLike, times: npt.ArrayLike) -> np.ndarray:
