@@ -55,6 +55,7 @@ from are_stats.logs import (
     bag_messages,
     bag_passthrough,
     bag_read_errors,
+    bag_reader,
     check_bag_path,
     interpolate_poses,
     vision_msgs_typestore,
@@ -532,11 +533,8 @@ def _pose_ns(traj: BagTrajectory, i: int) -> int:
 def _bag_start_ns(bag: Source) -> int | None:
     """The bag's first recording time (ns), as ``ros2 bag info`` and a player count from;
     None when the bag cannot tell."""
-    # lazy: rosbags' reader adds 0.60 s CPU to `import are_stats.export` (an error path)
-    from rosbags.highlevel import AnyReader
-
     try:
-        with AnyReader([check_bag_path(bag)]) as reader:
+        with bag_reader([check_bag_path(bag)]) as reader:
             return int(reader.start_time)
     except (*bag_read_errors(), ValueError, OSError):  # gone since, or not a bag's name
         return None
@@ -580,9 +578,6 @@ def _check_bag_map(
     are_stats.inputs.InputError
         Naming the bag's ``/map`` and ``--map`` with both geometries, and what to do.
     """
-    # lazy: rosbags' reader adds 0.60 s CPU to `import are_stats.export`
-    from rosbags.highlevel import AnyReader
-
     want = AUGMENT_TOPICS["/map"]
     types = sorted({c.msgtype for c in channels if c.topic == "/map"})
     if types != [want]:
@@ -596,7 +591,7 @@ def _check_bag_map(
         )
     p = check_bag_path(bag)
     last, count = None, 0
-    with AnyReader(
+    with bag_reader(
         [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
     ) as reader:
         conns = [c for c in reader.connections if c.topic == "/map"]

@@ -27,6 +27,7 @@ from are_stats.inputs import Described, InputError, get_float
 from are_stats.logs import (
     bag_messages,
     bag_read_errors,
+    bag_reader,
     check_bag_path,
     read_trajectory,
     vision_msgs_typestore,
@@ -177,9 +178,6 @@ def read_view(
     are_stats.inputs.InputError
         Naming the file: not a bag, no ``/map`` message, ``at`` outside the bag.
     """
-    # lazy: rosbags' reader adds 0.60 s CPU to `import are_stats.export`
-    from rosbags.highlevel import AnyReader
-
     p = check_bag_path(path)
     last_map: tuple[int, _Msg] | None = None  # the finished map: only the last is decoded
     n_maps = 0
@@ -187,7 +185,7 @@ def read_view(
     markers: list[tuple[int, _Boxes]] = []
     reach: list[tuple[int, float | None]] = []  # the range of A_f, from /perceived
     try:
-        with AnyReader([p], default_typestore=vision_msgs_typestore(2)) as reader:
+        with bag_reader([p], default_typestore=vision_msgs_typestore(2)) as reader:
             t0 = int(reader.start_time)
             t1 = int(reader.end_time)
             info = sorted(c.topic for c in reader.connections if c.msgtype in _CAMERA_INFO)

@@ -6,6 +6,7 @@ Every reader validates cell by cell and raises ``ValueError("<file>: row <r>, co
 '<col>': expected ..., got ...")``; nothing is dropped silently (see ``docs/src/logs.md``).
 """
 
+from are_stats.logs._bag_reader import STORES_KEPT, bag_reader
 from are_stats.logs._field_log import (
     LIFECYCLE_KIND_COLUMNS,
     TRACK_OPTIONS,
@@ -72,6 +73,8 @@ from are_stats.logs._trajectory import (
 )
 
 __all__ = [
+    "STORES_KEPT",
+    "bag_reader",
     "BAG_SUFFIXES",
     "is_bag_path",
     "CLOCKS",

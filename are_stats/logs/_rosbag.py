@@ -42,6 +42,7 @@ import pandas as pd
 import yaml
 
 from are_stats.inputs import Described, InputError, Source, get_str
+from are_stats.logs._bag_reader import bag_reader
 from are_stats.logs._tf import TF_TYPES, TfBuffer, unit_quaternion
 
 if TYPE_CHECKING:
@@ -538,8 +539,6 @@ def read_tracks_bag(
     >>> tracks = read_tracks_bag("field/courtyard.mcap", topics=["/people"])  # doctest: +SKIP
     >>> log = tracks_to_lifecycle(tracks, gap_tolerance=1.0)  # doctest: +SKIP
     """
-    # lazy: rosbags' reader adds 0.35 s CPU to `import are_stats.logs`
-    from rosbags.highlevel import AnyReader
 
     p = check_bag_path(path)
     if topics is not None:
@@ -551,7 +550,7 @@ def read_tracks_bag(
     rows: list[tuple] = []
     bag_errors = _bag_errors()
     try:
-        with AnyReader([p], default_typestore=vision_msgs_typestore(1 if ros1 else 2)) as reader:
+        with bag_reader([p], default_typestore=vision_msgs_typestore(1 if ros1 else 2)) as reader:
             by_topic: dict[str, str] = {}
             for c in reader.connections:
                 by_topic.setdefault(c.topic, c.msgtype)
@@ -802,7 +801,6 @@ def _folder_metadata(p: Path) -> dict[str, dict]:
 def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
     # lazy: rosbags' converter adds 0.48 s CPU to `import are_stats.logs` (the four imports)
     from rosbags.convert.converter import STATIC_MSGTYPE_RENAMES, generate_message_converter
-    from rosbags.highlevel import AnyReader
     from rosbags.interfaces import MessageDefinitionFormat
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -814,7 +812,7 @@ def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
     channels: list[PassChannel] = []
     convert: dict[str, Callable[[bytes | memoryview], memoryview]] = {}
     try:
-        with AnyReader([p], default_typestore=store) as reader:
+        with bag_reader([p], default_typestore=store) as reader:
             by_topic: dict[str, str] = {}
             for c in reader.connections:
                 by_topic.setdefault(c.topic, c.msgtype)
@@ -890,7 +888,7 @@ def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
     hashed = any(tm.get("type_description_hash") for tm in meta.values())
 
     def messages() -> Iterator[tuple[int, int, int, int, bytes]]:
-        with AnyReader([p], default_typestore=store) as reader:
+        with bag_reader([p], default_typestore=store) as reader:
             conns = [c for c in reader.connections if c.topic in sel]
             it = reader.messages(connections=conns)
             n = 0

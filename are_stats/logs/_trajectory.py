@@ -20,6 +20,7 @@ from typing import Any, NamedTuple  # Any: a bag message's header (rosbags build
 import numpy as np
 
 from are_stats.inputs import Described, InputError, check_memory, get_str
+from are_stats.logs._bag_reader import bag_reader
 from are_stats.logs._rosbag import (
     bag_messages,
     bag_read_errors,
@@ -305,9 +306,6 @@ def read_trajectory(
         recording time into the bag, the stamps with their dates), more messages than the
         memory limit.
     """
-    # lazy: rosbags' reader adds 0.35 s CPU to `import are_stats.logs`
-    from rosbags.highlevel import AnyReader
-
     clock = get_str(clock, "--clock", "", choices=CLOCKS)
     p = check_bag_path(bag)
     errors = bag_read_errors()
@@ -321,7 +319,7 @@ def read_trajectory(
     cam_frame: str | None = None
     pose_frames: set[str] = set()  # the pose topic's frames: the map's, or odom's
     try:
-        with AnyReader(
+        with bag_reader(
             [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
         ) as reader:
             bag_start = int(reader.start_time)  # recording times into the bag in errors
