@@ -443,39 +443,73 @@ class RosMessages:
         labels : (n,) str
         perceived : (n,) bool
         """
+        # built as :meth:`marker` builds each (the same fields, values and bytes), with what
+        # every marker of the array shares made once: the header (stamp and frame), the
+        # empty texture and mesh, the lifetime, the labels' size and colour
+        T = self.T
         ms = [self.marker(t, "", 0, 0, self.pose(0, 0, 0), (1, 1, 1), (0, 0, 0, 0), action=3)]
-        for k in range(len(ids)):
-            c, h = np.asarray(centres[k], float), np.asarray(half[k], float)
+        n = len(ids)
+        if not n:
+            return T["visualization_msgs/msg/MarkerArray"](markers=ms)
+        Marker, Pose = T["visualization_msgs/msg/Marker"], T["geometry_msgs/msg/Pose"]
+        Point, Quat = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
+        Vector3, Color = T["geometry_msgs/msg/Vector3"], T["std_msgs/msg/ColorRGBA"]
+        hdr = self.header(t)
+        empty = np.zeros(0, np.uint8)
+        texture = T["sensor_msgs/msg/CompressedImage"](header=hdr, format="", data=empty)
+        mesh = T["visualization_msgs/msg/MeshFile"](filename="", data=empty)
+        life = int(round(max(float(lifetime), 0.0) * 1e9))
+        duration = T["builtin_interfaces/msg/Duration"](sec=life // 10**9, nanosec=life % 10**9)
+        colours = {
+            seen: Color(r=float(c[0]), g=float(c[1]), b=float(c[2]), a=float(c[3]))
+            for seen, c in ((True, PERCEIVED_RGBA), (False, OCCLUDED_RGBA))
+        }
+        text_scale = Vector3(x=0.0, y=0.0, z=0.4)
+        white = Color(r=1.0, g=1.0, b=1.0, a=1.0)
+        upright = Quat(x=0.0, y=0.0, z=math.sin(0.0 / 2), w=math.cos(0.0 / 2))
+
+        def marker(
+            ns: str, mid: int, mtype: int, pose: object, scale: object, colour: object, text: str
+        ) -> object:
+            return Marker(
+                header=hdr,
+                ns=ns,
+                id=mid,
+                type=mtype,
+                action=0,
+                pose=pose,
+                scale=scale,
+                color=colour,
+                lifetime=duration,
+                frame_locked=False,
+                points=[],
+                colors=[],
+                texture_resource="",
+                texture=texture,
+                uv_coordinates=[],
+                text=text,
+                mesh_resource="",
+                mesh_file=mesh,
+                mesh_use_embedded_materials=False,
+            )
+
+        c_all = np.asarray(centres, float).reshape(n, 3).tolist()
+        h_all = np.asarray(half, float).reshape(n, 3).tolist()
+        for k in range(n):
+            (cx, cy, cz), (hx, hy, hz) = c_all[k], h_all[k]
+            yaw = yaws[k]  # as given: a float32 yaw is halved in float32, as pose() did
             seen = bool(perceived[k])
-            rgba = PERCEIVED_RGBA if seen else OCCLUDED_RGBA
             aid = int(ids[k])
-            ms.append(
-                self.marker(
-                    t,
-                    "artefacts",
-                    aid,
-                    1,
-                    self.pose(c[0], c[1], yaws[k], c[2]),
-                    2 * h,
-                    rgba,
-                    lifetime=lifetime,
-                )
+            cube = Pose(
+                position=Point(x=cx, y=cy, z=cz),
+                orientation=Quat(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
             )
+            size = Vector3(x=2 * hx, y=2 * hy, z=2 * hz)
+            ms.append(marker("artefacts", aid, 1, cube, size, colours[seen], ""))
             label = f"{labels[k]} {aid}" + ("" if seen else " (occluded)")
-            ms.append(
-                self.marker(
-                    t,
-                    "labels",
-                    aid,
-                    9,
-                    self.pose(c[0], c[1], 0.0, c[2] + h[2] + 0.3),
-                    (0.0, 0.0, 0.4),
-                    (1.0, 1.0, 1.0, 1.0),
-                    text=label,
-                    lifetime=lifetime,
-                )
-            )
-        return self.T["visualization_msgs/msg/MarkerArray"](markers=ms)
+            above = Pose(position=Point(x=cx, y=cy, z=cz + hz + 0.3), orientation=upright)
+            ms.append(marker("labels", aid, 9, above, text_scale, white, label))
+        return T["visualization_msgs/msg/MarkerArray"](markers=ms)
 
     def tf(
         self, transforms: list[humble.geometry_msgs__msg__TransformStamped]

@@ -106,3 +106,50 @@ def test_transforms_and_planars_serialise_as_the_per_message_builders():
         R, [_old_transform(R, 1.0, "a", "b", mats[3])]
     )
     assert R.planars(0.0, "map", [], np.zeros((0, 3)), []) == []
+
+
+def _old_artefact_markers(R: RosMessages, t, ids, centres, half, yaws, labels, perceived, life):
+    """``RosMessages.artefact_markers`` as it was: every marker built by ``marker``."""
+    from are_stats.export._ros import OCCLUDED_RGBA, PERCEIVED_RGBA
+
+    ms = [R.marker(t, "", 0, 0, R.pose(0, 0, 0), (1, 1, 1), (0, 0, 0, 0), action=3)]
+    for k in range(len(ids)):
+        c, h = np.asarray(centres[k], float), np.asarray(half[k], float)
+        seen = bool(perceived[k])
+        rgba = PERCEIVED_RGBA if seen else OCCLUDED_RGBA
+        aid = int(ids[k])
+        pose = R.pose(c[0], c[1], yaws[k], c[2])
+        ms.append(R.marker(t, "artefacts", aid, 1, pose, 2 * h, rgba, lifetime=life))
+        label = f"{labels[k]} {aid}" + ("" if seen else " (occluded)")
+        ms.append(
+            R.marker(
+                t,
+                "labels",
+                aid,
+                9,
+                R.pose(c[0], c[1], 0.0, c[2] + h[2] + 0.3),
+                (0.0, 0.0, 0.4),
+                (1.0, 1.0, 1.0, 1.0),
+                text=label,
+                lifetime=life,
+            )
+        )
+    return R.T["visualization_msgs/msg/MarkerArray"](markers=ms)
+
+
+@pytest.mark.parametrize("n", [0, 1, 9])
+def test_artefact_markers_serialise_as_marker_by_marker(n):
+    R = RosMessages(START, frame="odom")
+    rng = np.random.default_rng(n)
+    ids = rng.permutation(100)[:n]
+    centres = rng.uniform(-30, 30, (n, 3))
+    half = rng.uniform(0.1, 2, (n, 3))
+    labels = [f"class{k % 3}" for k in range(n)]
+    seen = rng.random(n) < 0.5
+    for yaws in (rng.uniform(-4, 4, n), rng.uniform(-4, 4, n).astype(np.float32)):
+        for t, life in ((0.0, 0.0), (12.345678901, 1.25)):
+            args = (t, ids, centres, half, yaws, labels, seen)
+            got = R.artefact_markers(*args, lifetime=life)
+            want = _old_artefact_markers(R, *args, life)
+            typ = "visualization_msgs/msg/MarkerArray"
+            assert bytes(R.ts.serialize_cdr(got, typ)) == bytes(R.ts.serialize_cdr(want, typ))
