@@ -19,6 +19,7 @@ import json
 import os
 import warnings
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple, TypedDict
 
@@ -592,7 +593,7 @@ def _check_bag_map(
     p = check_bag_path(bag)
     last, count = None, 0
     with bag_reader(
-        [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
+        [p], default_typestore=partial(vision_msgs_typestore, 1 if p.suffix == ".bag" else 2)
     ) as reader:
         conns = [c for c in reader.connections if c.topic == "/map"]
         for _, _, msg in bag_messages(reader, conns, p):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+from functools import partial
 from pathlib import Path
 from typing import Any, NamedTuple, TypeVar
 
@@ -185,7 +186,7 @@ def read_view(
     markers: list[tuple[int, _Boxes]] = []
     reach: list[tuple[int, float | None]] = []  # the range of A_f, from /perceived
     try:
-        with bag_reader([p], default_typestore=vision_msgs_typestore(2)) as reader:
+        with bag_reader([p], default_typestore=partial(vision_msgs_typestore, 2)) as reader:
             t0 = int(reader.start_time)
             t1 = int(reader.end_time)
             info = sorted(c.topic for c in reader.connections if c.msgtype in _CAMERA_INFO)

@@ -18,7 +18,7 @@ import functools
 import os
 import threading
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -82,7 +82,10 @@ def _reader_class() -> type[AnyReader]:
             connections = [c for r in self.readers for c in r.connections]
             defined = [c for c in connections if c.msgdef.format != MessageDefinitionFormat.NONE]
             if connections and not defined:  # rosbags' own path: the default store's types
-                if self.default_typestore is None:
+                default = self.default_typestore
+                if callable(default):  # made only for such a bag
+                    default = default()
+                if default is None:
                     from rosbags.highlevel import AnyReaderError
 
                     raise AnyReaderError(
@@ -92,7 +95,7 @@ def _reader_class() -> type[AnyReader]:
                 from rosbags.typesys import Stores, get_typestore
 
                 store = get_typestore(Stores.EMPTY)
-                store.register(self.default_typestore.fielddefs)
+                store.register(default.fielddefs)
             else:
                 key = (
                     self.is2,
@@ -118,7 +121,7 @@ def _reader_class() -> type[AnyReader]:
 
 def bag_reader(
     paths: str | os.PathLike | Sequence[str | os.PathLike],
-    default_typestore: Typestore | None = None,
+    default_typestore: Typestore | Callable[[], Typestore] | None = None,
 ) -> AnyReader:
     """A rosbags ``AnyReader`` of ``paths`` (one bag, or rosbags' list of paths) whose
     type store is shared with every reader of the same message definitions (module
@@ -127,8 +130,10 @@ def bag_reader(
     Parameters
     ----------
     paths : path or sequence of paths
-    default_typestore : Typestore, optional
-        The types of a bag that carries no definitions (as ``AnyReader``'s).
+    default_typestore : Typestore or callable, optional
+        The types of a bag that carries no definitions (as ``AnyReader``'s), or a function
+        returning them, called only when the bag is such a one (building a store costs
+        some 0.03 s CPU, paid for nothing by a bag that carries its definitions).
 
     Returns
     -------

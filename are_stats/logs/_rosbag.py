@@ -33,6 +33,7 @@ import re
 import sqlite3
 import struct
 from collections.abc import Callable, Iterator, Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar  # Any: duck-typed ROS messages
 
@@ -550,7 +551,8 @@ def read_tracks_bag(
     rows: list[tuple] = []
     bag_errors = _bag_errors()
     try:
-        with bag_reader([p], default_typestore=vision_msgs_typestore(1 if ros1 else 2)) as reader:
+        default = partial(vision_msgs_typestore, 1 if ros1 else 2)  # built if the bag needs it
+        with bag_reader([p], default_typestore=default) as reader:
             by_topic: dict[str, str] = {}
             for c in reader.connections:
                 by_topic.setdefault(c.topic, c.msgtype)
@@ -806,7 +808,7 @@ def _rosbags_passthrough(p: Path, topics: Sequence[str] | None) -> PassThrough:
 
     errors = _bag_errors()
     ros1 = p.suffix == ".bag"
-    store = vision_msgs_typestore(1 if ros1 else 2)
+    store = partial(vision_msgs_typestore, 1 if ros1 else 2)  # built if a bag needs it
     meta = {} if ros1 or not p.is_dir() else _folder_metadata(p)
     keys: dict[tuple[str, str], int] = {}
     channels: list[PassChannel] = []

@@ -14,6 +14,7 @@ Header stamps and recording times are put on one clock (:data:`CLOCKS`).
 from __future__ import annotations
 
 import os
+from functools import partial
 from pathlib import Path
 from typing import Any, NamedTuple  # Any: a bag message's header (rosbags builds its class)
 
@@ -320,7 +321,7 @@ def read_trajectory(
     pose_frames: set[str] = set()  # the pose topic's frames: the map's, or odom's
     try:
         with bag_reader(
-            [p], default_typestore=vision_msgs_typestore(1 if p.suffix == ".bag" else 2)
+            [p], default_typestore=partial(vision_msgs_typestore, 1 if p.suffix == ".bag" else 2)
         ) as reader:
             bag_start = int(reader.start_time)  # recording times into the bag in errors
             by_topic: dict[str, str] = {}

@@ -65,6 +65,16 @@ def test_bag_reader_refuses_what_anyreader_refuses(tmp_path):
         db.execute("DELETE FROM message_definitions")
     db.close()
     assert _read(bag_reader(old, ts2)) == _read(AnyReader([old], default_typestore=ts2))
+    made = []  # a function making the default store: called for such a bag only
+
+    def default():
+        made.append(1)
+        return ts2
+
+    assert _read(bag_reader(old, default)) == _read(AnyReader([old], default_typestore=ts2))
+    assert made == [1]
+    _read(bag_reader(write_bag(tmp_path / "d.bag", "ros1"), default))  # carries its own
+    assert made == [1]
     for reader in (AnyReader([old]), bag_reader(old)):
         with pytest.raises(AnyReaderError, match="no type definitions"), reader:
             pass
