@@ -167,29 +167,29 @@ def quaternions(rot: npt.ArrayLike) -> np.ndarray:
         raise ValueError(f"rotation matrices: expected shape (..., 3, 3), got {m.shape}")
     lead = m.shape[:-2]
     m = m.reshape(-1, 3, 3)
+    if m.shape[0] <= _FEW:  # NumPy's per-call overhead would be most of it
+        return np.array([_quaternion(r) for r in m.tolist()], float).reshape(*lead, 4)
     gram = m @ np.transpose(m, (0, 2, 1))
     # SciPy orthogonalises unless isclose(gram, I, atol=1e-12) (rtol 1e-5): a tenth of its
     # tolerances here, so that no rounding of the Gramian makes the two disagree
-    valid = np.all(np.isclose(gram, np.eye(3), rtol=1e-6, atol=1e-13), axis=(1, 2))
-    valid &= np.linalg.det(m) > 0 if m.shape[0] else valid
-    d = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]], 1)
-    choice = np.argmax(d, axis=1)
-    trace = d[:, 3]
-    q = np.empty((m.shape[0], 4))
-    for i in range(3):  # the largest diagonal entry leads
+    eye = np.eye(3)
+    valid = (np.abs(gram - eye) <= 1e-13 + 1e-6 * eye).all(axis=(1, 2))
+    valid &= np.linalg.det(m) > 0
+    trace = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
+    d = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], trace], 1)
+    choice = np.argmax(d, axis=1)  # the first largest of the diagonal and the trace
+    cand = np.empty((m.shape[0], 4, 4))  # each choice's quaternion
+    for i in range(3):  # a diagonal entry leads
         j, k = (i + 1) % 3, (i + 2) % 3
-        r = choice == i
-        mr = m[r]
-        q[r, i] = 1 - trace[r] + 2 * mr[:, i, i]
-        q[r, j] = mr[:, j, i] + mr[:, i, j]
-        q[r, k] = mr[:, k, i] + mr[:, i, k]
-        q[r, 3] = mr[:, k, j] - mr[:, j, k]
-    r = choice == 3  # the trace leads
-    mr = m[r]
-    q[r, 0] = mr[:, 2, 1] - mr[:, 1, 2]
-    q[r, 1] = mr[:, 0, 2] - mr[:, 2, 0]
-    q[r, 2] = mr[:, 1, 0] - mr[:, 0, 1]
-    q[r, 3] = 1 + trace[r]
+        cand[:, i, i] = 1 - trace + 2 * m[:, i, i]
+        cand[:, i, j] = m[:, j, i] + m[:, i, j]
+        cand[:, i, k] = m[:, k, i] + m[:, i, k]
+        cand[:, i, 3] = m[:, k, j] - m[:, j, k]
+    cand[:, 3, 0] = m[:, 2, 1] - m[:, 1, 2]  # the trace leads
+    cand[:, 3, 1] = m[:, 0, 2] - m[:, 2, 0]
+    cand[:, 3, 2] = m[:, 1, 0] - m[:, 0, 1]
+    cand[:, 3, 3] = 1 + trace
+    q = cand[np.arange(m.shape[0]), choice]
     # SciPy's norm: the squares summed in order from 0, then one division per entry
     sq = q * q
     norm = np.sqrt(0.0 + sq[:, 0] + sq[:, 1] + sq[:, 2] + sq[:, 3])
@@ -200,6 +200,49 @@ def quaternions(rot: npt.ArrayLike) -> np.ndarray:
 
         q[~valid] = Rotation.from_matrix(m[~valid]).as_quat()
     return q.reshape(*lead, 4)
+
+
+#: Up to this many matrices, :func:`quaternions` converts one at a time in Python floats.
+_FEW = 8
+
+
+def _quaternion(m: list[list[float]]) -> tuple[float, float, float, float]:
+    """:func:`quaternions` of one matrix in Python floats (the same operations in the same
+    order, so the same bits); SciPy for one that is not a rotation to a tenth of its
+    tolerance."""
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = m
+    rows = ((a00, a01, a02), (a10, a11, a12), (a20, a21, a22))
+    valid = True
+    for i in range(3):
+        for j in range(3):
+            g = rows[i][0] * rows[j][0] + rows[i][1] * rows[j][1] + rows[i][2] * rows[j][2]
+            eye = 1.0 if i == j else 0.0
+            valid = valid and abs(g - eye) <= 1e-13 + 1e-6 * eye
+    det = a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20)
+    det += a02 * (a10 * a21 - a11 * a20)
+    if not (valid and det > 0):
+        # lazy: SciPy's Rotation adds 0.35 s CPU to `import are_stats.export`
+        from scipy.spatial.transform import Rotation
+
+        x, y, z, w = Rotation.from_matrix(np.array(m, float)).as_quat().tolist()
+        return x, y, z, w
+    trace = a00 + a11 + a22
+    choice, top = 0, a00  # the first largest of the diagonal and the trace, as argmax
+    for c, v in ((1, a11), (2, a22), (3, trace)):
+        if v > top:
+            choice, top = c, v
+    q = [0.0, 0.0, 0.0, 0.0]
+    if choice == 3:
+        q = [a21 - a12, a02 - a20, a10 - a01, 1 + trace]
+    else:
+        i = choice
+        j, k = (i + 1) % 3, (i + 2) % 3
+        q[i] = 1 - trace + 2 * rows[i][i]
+        q[j] = rows[j][i] + rows[i][j]
+        q[k] = rows[k][i] + rows[i][k]
+        q[3] = rows[k][j] - rows[j][k]
+    norm = math.sqrt(0.0 + q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm
 
 
 def _quat(rot: np.ndarray) -> tuple[float, float, float, float]:

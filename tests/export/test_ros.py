@@ -40,8 +40,10 @@ def test_quaternions_are_scipys_bit_for_bit():
     ]
     for m in cases:
         assert _same_bits(quaternions(m), Rotation.from_matrix(m).as_quat())
-        for k in range(0, len(m), 37):  # one at a time, as a message's
+        for k in range(0, len(m), 37):  # one at a time (Python floats), as a message's
             assert _same_bits(quaternions(m[k]), Rotation.from_matrix(m[k]).as_quat())
+            few = m[k : k + 5]  # a few at once: one at a time too
+            assert _same_bits(quaternions(few), Rotation.from_matrix(few).as_quat())
     assert quaternions(np.zeros((0, 3, 3))).shape == (0, 4)
     with pytest.raises(ValueError, match="determinant"):  # SciPy's refusal of a mirror
         quaternions(np.diag([1.0, 1.0, -1.0]))
