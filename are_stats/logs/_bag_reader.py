@@ -19,6 +19,7 @@ import os
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -36,6 +37,8 @@ _LOCK = threading.Lock()  # the live view reads bags from threads
 
 def _build_store(is2: bool, connections: Sequence) -> Typestore:
     """rosbags' ``AnyReader._open`` type store of bags with these definitions (0.11.9)."""
+    # lazy: rosbags' type system adds 0.07 s CPU to `import are_stats.logs`
+    from rosbags.highlevel import AnyReaderError
     from rosbags.interfaces import MessageDefinitionFormat
     from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
@@ -61,8 +64,6 @@ def _build_store(is2: bool, connections: Sequence) -> Typestore:
     for msgtype, digest in digests.items():
         have = typestore.hash_rihs01(msgtype) if is2 else typestore.generate_msgdef(msgtype)[1]
         if have != digest:
-            from rosbags.highlevel import AnyReaderError
-
             raise AnyReaderError(f"Message type {msgtype!r} hash mismatch {have} != {digest}")
     return typestore
 
@@ -70,8 +71,9 @@ def _build_store(is2: bool, connections: Sequence) -> Typestore:
 @functools.cache
 def _reader_class() -> type[AnyReader]:
     # lazy: rosbags' reader adds 0.35 s CPU to `import are_stats.logs`
-    from rosbags.highlevel import AnyReader
+    from rosbags.highlevel import AnyReader, AnyReaderError
     from rosbags.interfaces import MessageDefinitionFormat
+    from rosbags.typesys import Stores, get_typestore
 
     class SharedTypesReader(AnyReader):
         """``AnyReader`` whose type store is the shared one of its bag's definitions."""
@@ -86,14 +88,10 @@ def _reader_class() -> type[AnyReader]:
                 if callable(default):  # made only for such a bag
                     default = default()
                 if default is None:
-                    from rosbags.highlevel import AnyReaderError
-
                     raise AnyReaderError(
                         "Bag contains no type definitions. "
                         "Instantiate AnyReader with a default_typestore argument."
                     )
-                from rosbags.typesys import Stores, get_typestore
-
                 store = get_typestore(Stores.EMPTY)
                 store.register(default.fielddefs)
             else:
@@ -140,8 +138,6 @@ def bag_reader(
     rosbags.highlevel.AnyReader
         Not open: use it as a context manager.
     """
-    from pathlib import Path
-
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
     return _reader_class()([Path(p) for p in paths], default_typestore=default_typestore)
