@@ -19,6 +19,7 @@ import os
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
+from importlib.metadata import version
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -66,6 +67,22 @@ def _build_store(is2: bool, connections: Sequence) -> Typestore:
         if have != digest:
             raise AnyReaderError(f"Message type {msgtype!r} hash mismatch {have} != {digest}")
     return typestore
+
+
+#: The rosbags releases whose ``AnyReader._open`` the shared-store reader replaces (it
+#: rewrites that private method); with any other release :func:`bag_reader` is rosbags'
+#: own ``AnyReader``, slower to open and otherwise the same.
+TESTED_ROSBAGS = ("0.11.",)
+
+
+@functools.cache
+def _rosbags_version() -> str:
+    return version("rosbags")
+
+
+def _shared_stores_supported() -> bool:
+    """Whether the installed rosbags is one whose ``AnyReader._open`` was rewritten here."""
+    return _rosbags_version().startswith(TESTED_ROSBAGS)
 
 
 @functools.cache
@@ -140,4 +157,11 @@ def bag_reader(
     """
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
-    return _reader_class()([Path(p) for p in paths], default_typestore=default_typestore)
+    paths = [Path(p) for p in paths]
+    if not _shared_stores_supported():
+        from rosbags.highlevel import AnyReader  # lazy: rosbags' reader adds 0.35 s CPU
+
+        if callable(default_typestore):
+            default_typestore = default_typestore()
+        return AnyReader(paths, default_typestore=default_typestore)
+    return _reader_class()(paths, default_typestore=default_typestore)

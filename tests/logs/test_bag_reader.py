@@ -78,3 +78,22 @@ def test_bag_reader_refuses_what_anyreader_refuses(tmp_path):
     for reader in (AnyReader([old]), bag_reader(old)):
         with pytest.raises(AnyReaderError, match="no type definitions"), reader:
             pass
+
+
+def test_another_rosbags_release_gets_rosbags_own_reader(tmp_path, monkeypatch):
+    """The shared-store reader rewrites ``AnyReader._open``, a private method of the tested
+    releases (``TESTED_ROSBAGS``): with another release the reader is rosbags' own, with the
+    default store's function called, and reads the same."""
+    from rosbags.highlevel import AnyReader
+
+    import are_stats.logs._bag_reader as module
+
+    bag = write_bag(tmp_path / "robot", "ros2")
+    store = vision_msgs_typestore(2)
+    assert module._shared_stores_supported()  # the installed release is a tested one
+    shared = bag_reader(bag, lambda: store)
+    assert type(shared) is not AnyReader
+    monkeypatch.setattr(module, "TESTED_ROSBAGS", ("0.0.",))
+    plain = bag_reader(bag, lambda: store)
+    assert type(plain) is AnyReader
+    assert _read(plain) == _read(shared) == _read(AnyReader([bag], default_typestore=store))
