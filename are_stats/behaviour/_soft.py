@@ -113,35 +113,43 @@ def _q_values(
     cost: jax.Array,
     cell_reward: jax.Array,
     use_run: bool,
-) -> list[list[jax.Array]]:
-    """Per heading, the list of action values ``(G, H, W)`` from ``w = V_{k-1} + bonus``.
+) -> list[jax.Array]:
+    """The action values ``(4, G, H, W)`` (all headings at once) from ``w = V_{k-1} + bonus``
+    ``(4, G, H, W)``, heading-major.
 
-    ``w`` is a list of 4 heading planes ``(G, H, W)``; the actions are ``stay, forward,
-    [run,] left, right``. The grid is padded once per epoch; a shift is a static slice, and
-    a blocked outcome keeps ``w`` of the current state (``w + ok (shifted - w)``).
+    The list holds one array per action: ``stay, forward, [run,] left, right``. The grid is
+    padded once per epoch; a shift is a static slice, and a blocked outcome keeps ``w`` of
+    the current state (``w + ok (shifted - w)``). Each element is computed by the same
+    operations, in the same order, as one heading at a time; a quarter of the operations
+    to trace (the behaviour fit's gradient program: StableHLO 281 -> 133 kB, tracing and
+    lowering 2.1 -> 1.1 s of CPU; XLA's compile, nearly all LLVM, unchanged). XLA fuses
+    the arrays otherwise, so a value may move by an ulp (tests/behaviour/test_soft.py pins
+    the formulas).
     """
-    g, h_, w_ = w[0].shape
+    h_, w_ = w.shape[-2:]
     p_main, p_side = 1 - slip, slip / 2
-    wp = [jnp.pad(x, ((0, 0), (2, 2), (2, 2))) for x in w]
-    okf = ok.astype(w[0].dtype)
+    wp = jnp.pad(w, ((0, 0), (0, 0), (2, 2), (2, 2)))
+    okf = ok.astype(w.dtype)
 
-    def moved(h: int, k: int) -> jax.Array:
-        out = w[h]
-        for j, p in ((h, p_main), ((h + 1) % 4, p_side), ((h - 1) % 4, p_side)):
-            dr, dc = k * int(_DROW[j]), k * int(_DCOL[j])
-            sh = wp[h][:, 2 + dr : 2 + dr + h_, 2 + dc : 2 + dc + w_]
-            out = out + p * okf[j, k - 1] * (sh - w[h])
+    def moved(k: int) -> jax.Array:
+        out = w
+        # outcome m of heading h goes along direction (h + d) % 4: main, then the sides
+        for d, p in ((0, p_main), (1, p_side), (-1, p_side)):
+            sh = []
+            for h in range(4):
+                j = (h + d) % 4
+                dr, dc = k * int(_DROW[j]), k * int(_DCOL[j])
+                sh.append(wp[h, :, 2 + dr : 2 + dr + h_, 2 + dc : 2 + dc + w_])
+            ok_d = jnp.roll(okf[:, k - 1], -d, axis=0)[:, None]  # (4, 1, H, W): okf[(h + d) % 4]
+            out = out + p * ok_d * (jnp.stack(sh) - w)
         return out
 
-    qs = []
-    for h in range(4):
-        q = [w[h] - cost[0] + cell_reward, moved(h, 1) - cost[1] + cell_reward]
-        if use_run:
-            q.append(moved(h, 2) - cost[2] + cell_reward)
-        q.append(w[(h + 1) % 4] - cost[3] + cell_reward)  # left: heading h -> h + 1
-        q.append(w[(h - 1) % 4] - cost[4] + cell_reward)  # right: h -> h - 1
-        qs.append(q)
-    return qs
+    q = [w - cost[0] + cell_reward, moved(1) - cost[1] + cell_reward]
+    if use_run:
+        q.append(moved(2) - cost[2] + cell_reward)
+    q.append(jnp.roll(w, -1, axis=0) - cost[3] + cell_reward)  # left: heading h -> h + 1
+    q.append(jnp.roll(w, 1, axis=0) - cost[4] + cell_reward)  # right: h -> h - 1
+    return q
 
 
 def _soft_max(beta: jax.Array, q: list[jax.Array], relative: bool) -> tuple[jax.Array, jax.Array]:
@@ -242,11 +250,11 @@ def soft_backward_induction(
     bonus = bonus[:, 0]
     cr = cr[:, 0] if cr.ndim == 4 else cr
 
-    def q_of(v: jax.Array) -> list[list[jax.Array]]:
-        return _q_values([v[i] + bonus for i in range(4)], ok, slip, cost, cr, use_run)
+    def q_of(v: jax.Array) -> list[jax.Array]:
+        return _q_values(v + bonus, ok, slip, cost, cr, use_run)
 
     def step(v: jax.Array, _: None) -> tuple[jax.Array, jax.Array | None]:
-        v_new = jnp.stack([_soft_max(beta, q, relative)[0] * keep_f for q in q_of(v)])
+        v_new = _soft_max(beta, q_of(v), relative)[0] * keep_f
         return v_new, (v_new if store_values else None)
 
     v0 = jnp.zeros((4, g, h, w), dtype)  # heading-major inside the scan
@@ -277,18 +285,15 @@ def soft_backward_induction(
         count, v_prev, _ = jax.lax.while_loop(cond, body, start)
         epochs = count if with_epochs else None
         vs = None
-    pol, v_last = [], []
-    for q in q_of(v_prev):
-        v_h, off = _soft_max(beta, q, relative)
-        v_last.append(v_h * keep_f)
-        # pi = exp(beta (Q - V)) (over A with a uniform prior), unmasked V on absorbing cells
-        lse = v_h + off if relative else v_h
-        p = [jnp.exp(beta * (x - lse)) for x in q]
-        if not use_run:  # run has probability 0
-            p.insert(2, jnp.zeros_like(p[0]))
-        pol.append(jnp.stack(p, axis=1))
-    policy = jnp.stack(pol, axis=1)  # (G, 4, 5, H, W)
-    v_k = jnp.stack(v_last, axis=1)
+    q = q_of(v_prev)
+    v_h, off = _soft_max(beta, q, relative)  # (4, G, H, W)
+    # pi = exp(beta (Q - V)) (over A with a uniform prior), unmasked V on absorbing cells
+    lse = v_h + off if relative else v_h
+    p = [jnp.exp(beta * (x - lse)) for x in q]
+    if not use_run:  # run has probability 0
+        p.insert(2, jnp.zeros_like(p[0]))
+    policy = jnp.moveaxis(jnp.stack(p, axis=2), 0, 1)  # (G, 4, 5, H, W)
+    v_k = jnp.moveaxis(v_h * keep_f, 0, 1)
     if store_values and vs is not None:
         values = jnp.concatenate(
             [jnp.zeros((g, 1, 4, h, w), dtype), jnp.moveaxis(vs, (0, 1), (1, 2)), v_k[:, None]],

@@ -278,3 +278,63 @@ def test_track_log_likelihoods_are_the_per_track_values_from_one_program() -> No
         got = track_log_likelihoods(policy[rows], ok, 0.15, obs)
         assert got.shape == (n,) and got.dtype == np.float64
         assert_allclose(got, np.asarray(want)[:n], rtol=1e-13, atol=1e-13)
+
+
+def _reference_soft_solve(occ, goals, beta, slip, k, sc, tc, cr, use_run, relative):
+    """One heading and one action at a time, in NumPy: ``(values (G, 4, H, W), policy
+    (G, 4, 5, H, W))`` of :func:`soft_backward_induction` after ``k`` epochs (the
+    module's formulas written out, independent of its heading-major arrays)."""
+    from are_stats.behaviour._rewards import HEADINGS
+
+    h_, w_ = occ.shape
+    ok = np.asarray(path_free(occ), float)  # (4, 2, H, W)
+    g = len(goals)
+    at_goal = np.zeros((g, h_, w_), bool)
+    at_goal[np.arange(g), goals[:, 0], goals[:, 1]] = True
+    keep, bonus = (~occ[None] & ~at_goal).astype(float), np.where(at_goal, 1.0, 0.0)
+    acts = (0, 1, 2, 3, 4) if use_run else (0, 1, 3, 4)
+
+    def shifted(x, j, n):
+        xp = np.pad(x, ((0, 0), (2, 2), (2, 2)))
+        dr, dc = n * HEADINGS[j][0], n * HEADINGS[j][1]
+        return xp[:, 2 + dr : 2 + dr + h_, 2 + dc : 2 + dc + w_]
+
+    def q_values(v):
+        q = np.zeros((g, 4, 5, h_, w_))
+        for h in range(4):
+            wh = v[:, h] + bonus
+            q[:, h, 0] = wh - tc
+            for n in (1, 2):
+                out = wh
+                for j, p in ((h, 1 - slip), ((h + 1) % 4, slip / 2), ((h - 1) % 4, slip / 2)):
+                    out = out + p * ok[j, n - 1] * (shifted(wh, j, n) - wh)
+                q[:, h, n] = out - sc - tc
+            q[:, h, 3] = v[:, (h + 1) % 4] + bonus - sc - tc
+            q[:, h, 4] = v[:, (h - 1) % 4] + bonus - sc - tc
+        return q[:, :, acts] + cr
+
+    v = np.zeros((g, 4, h_, w_))
+    for _ in range(k):
+        q = q_values(v)
+        lse = np.log(np.exp(beta * q).sum(axis=2)) / beta
+        v = (lse - (np.log(len(acts)) / beta if relative else 0.0)) * keep[:, None]
+    pol = np.zeros((g, 4, 5, h_, w_))
+    pol[:, :, acts] = np.exp(beta * (q - lse[:, :, None]))
+    return v, pol
+
+
+@pytest.mark.parametrize("use_run, relative", [(False, True), (True, False)])
+def test_soft_solve_is_the_per_heading_formula(use_run: bool, relative: bool) -> None:
+    """The solver's heading-major arrays (all four headings in one array: a program half
+    the size) hold the per-heading, per-action values of the formulas, slips, runs and
+    a cell reward included (float64, to round-off)."""
+    occ = _grid()
+    goals = np.array([[0, 0], [7, 8], [2, 4]])
+    cr = np.linspace(-0.2, 0.3, occ.size).reshape(occ.shape) * ~occ
+    sol = soft_policy(
+        occ, goals, 1.7, 0.2, n_epochs=12, step_cost=0.01, time_cost=0.5, cell_reward=cr,
+        use_run=use_run, relative=relative,
+    )  # fmt: skip
+    v, pol = _reference_soft_solve(occ, goals, 1.7, 0.2, 12, 0.01, 0.5, cr, use_run, relative)
+    assert_allclose(np.asarray(sol.values), v, rtol=1e-12, atol=1e-12)
+    assert_allclose(np.asarray(sol.policy), pol, rtol=1e-11, atol=1e-14)
