@@ -25,7 +25,7 @@ import logging
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -847,9 +847,11 @@ def _stable(idata: az.InferenceData) -> az.InferenceData:
     return az.InferenceData(**groups)
 
 
-#: The NetCDF layer under xarray (with h5py, 0.13-0.21 s of CPU to import; ``import
-#: are_stats.fitting`` has no xarray yet): imported when a fit is written or read.
-_h5netcdf = LazyModule("h5netcdf")
+#: The NetCDF layer under xarray (h5netcdf with h5py, 0.13-0.21 s of CPU to import; ``import
+#: are_stats.fitting`` has no xarray yet), opened with its HDF5 look-ups memoised
+#: (:func:`~are_stats.fitting._netcdf_file.open_netcdf`): imported when a fit is written or
+#: read.
+_netcdf_file = LazyModule("are_stats.fitting._netcdf_file")
 _xr_backends = LazyModule("xarray.backends")
 
 
@@ -871,7 +873,7 @@ def _write_groups(idata: az.InferenceData, path: Path) -> None:
     """
     import xarray as xr  # lazy: +0.16 s CPU on `import are_stats.fitting`
 
-    with _h5netcdf.File(str(path), "w", decode_vlen_strings=True) as f:
+    with _netcdf_file.open_netcdf(path, "w") as f:
         if idata.attrs:  # the InferenceData's own attributes, on the root group
             xr.Dataset(attrs=idata.attrs).dump_to_store(_xr_backends.H5NetCDFStore(f, mode="a"))
         for name in idata.groups():
@@ -907,7 +909,7 @@ def _read_groups(path: Path) -> az.InferenceData:
     The same InferenceData as ``arviz.from_netcdf(path)`` (groups in the file's order,
     the root group's attributes as its ``attrs``), loaded: the file is closed on return.
     """
-    with _h5netcdf.File(str(path), "r", decode_vlen_strings=True) as f:
+    with _netcdf_file.open_netcdf(path) as f:
         attrs = _root_attrs(f)
         groups = {name: _load_group(f, name) for name in f.groups}
     return az.InferenceData(attrs=attrs, **groups)
@@ -1451,9 +1453,9 @@ def _unreadable(path: Path) -> Iterator[None]:
 @contextmanager
 def _open_fit(path: Path) -> Iterator[object]:
     """The fit file ``path`` open for reading (an ``h5netcdf.File``), closed on exit."""
-    with _unreadable(path):
-        f = _h5netcdf.File(str(path), "r", decode_vlen_strings=True)
-    with f:
+    with ExitStack() as stack:
+        with _unreadable(path):
+            f = stack.enter_context(_netcdf_file.open_netcdf(path))
         yield f
 
 

@@ -88,3 +88,74 @@ def test_read_fit_loads_the_fit_and_closes_the_file(fit_file, tmp_path):
     before = rate.values.copy()
     write_fit(read_fit(copy), copy, force=True)  # the file read from is replaced
     np.testing.assert_array_equal(read_fit(copy).idata.posterior["arrival_rate"], before)
+
+
+def test_the_memoised_reader_reads_what_h5netcdf_reads(fit_file):
+    """open_netcdf (HDF5 look-ups memoised, for read_fit's speed) reads every group as a
+    plain ``h5netcdf.File`` does: values, coordinates, attributes and their types, and the
+    whole encoding (storage, source, original shapes)."""
+    import h5netcdf
+    from xarray.backends import H5NetCDFStore
+
+    from are_stats.fitting._netcdf_file import open_netcdf
+
+    def groups(f):
+        out = {"/": xr.open_dataset(H5NetCDFStore(f, mode="r")).load()}
+        for name in f.groups:
+            out[name] = xr.open_dataset(H5NetCDFStore(f, group=name, mode="r")).load()
+        return out
+
+    with h5netcdf.File(str(fit_file), "r", decode_vlen_strings=True) as f:
+        want = groups(f)
+    with open_netcdf(fit_file) as f:
+        got = groups(f)
+    assert list(got) == list(want) and len(want) > 3
+    for name, ds in want.items():
+        xr.testing.assert_identical(got[name], ds)
+        assert {k: type(v) for k, v in got[name].attrs.items()} == {
+            k: type(v) for k, v in ds.attrs.items()
+        }
+        for var in ds.variables:
+            np.testing.assert_equal(got[name][var].encoding, ds[var].encoding)  # NaN == NaN
+
+
+def _write_plainly(idata: az.InferenceData, path) -> None:
+    """_write_groups through a plain ``h5netcdf.File`` (before open_netcdf memoised the
+    look-ups): the reference for the bytes."""
+    import h5netcdf
+    from xarray.backends import H5NetCDFStore
+
+    with h5netcdf.File(str(path), "w", decode_vlen_strings=True) as f:
+        if idata.attrs:
+            xr.Dataset(attrs=idata.attrs).dump_to_store(H5NetCDFStore(f, mode="a"))
+        for name in idata.groups():
+            ds = getattr(idata, name)
+            encoding = {k: {"zlib": True} for k, v in ds.variables.items()
+                        if _fit_log._compressible(v.dtype)}  # fmt: skip
+            ds.dump_to_store(H5NetCDFStore(f, group=name, mode="a"), encoding=encoding)
+
+
+def test_the_memoised_writer_writes_the_same_bytes(fit_file, tmp_path):
+    """_write_groups (open_netcdf: look-ups memoised, no chunk cache) writes the bytes a
+    plain h5netcdf.File writes: for a fit, and for groups of many chunks (128 in one
+    variable), integers, booleans, strings, coordinates and root attributes."""
+    fit = az.from_netcdf(str(fit_file))
+    fit.load()
+    rng = np.random.default_rng(0)
+    many = xr.Dataset(
+        {
+            "x": (("chain", "draw", "k"), rng.normal(size=(4, 1000, 71))),
+            "n": (("chain", "draw"), rng.integers(0, 9, size=(4, 1000))),
+            "flag": (("chain", "draw"), rng.random((4, 1000)) < 0.5),
+            "label": (("k",), np.array([f"c{i}" for i in range(71)])),
+        },
+        coords={"chain": np.arange(4), "draw": np.arange(1000), "k": np.arange(71) * 0.5},
+        attrs={"note": "text", "window": np.array([0.0, 3600.0]), "n": 3},
+    )
+    other = az.InferenceData(posterior=many, observed_data=fit.observed_data)
+    other.attrs["root"] = "on the root group"
+    for i, idata in enumerate((fit, other)):
+        _fit_log._write_groups(idata, tmp_path / f"ours{i}.nc")
+        _write_plainly(idata, tmp_path / f"plain{i}.nc")
+        assert (tmp_path / f"ours{i}.nc").read_bytes() == (tmp_path / f"plain{i}.nc").read_bytes()
+    assert h5py.File(tmp_path / "ours1.nc")["posterior/x"].chunks != (4, 1000, 71)
