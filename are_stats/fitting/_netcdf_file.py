@@ -31,6 +31,10 @@ import h5py
 
 __all__ = ["open_netcdf"]
 
+#: h5netcdf's (private, 1.8) choice of the order tracking it gives h5py; without it (another
+#: release) :func:`open_netcdf` writes with h5netcdf's own file, without the memo.
+_TRACK_ORDER = getattr(h5netcdf.core, "_get_track_order", None)
+
 
 class _Group(h5py.Group):
     """An h5py group whose deletions clear its file's memo of look-ups."""
@@ -98,8 +102,11 @@ def open_netcdf(path: str | os.PathLike[str], mode: str = "r") -> Iterator[h5net
     if mode == "r":
         h5 = _MemoFile(str(path), "r")
     elif mode == "w":  # the track_order h5netcdf gives h5py; no chunk cache (see above)
-        order = h5netcdf.core._get_track_order("h5py")
-        h5 = _MemoFile(str(path), "w", track_order=order, rdcc_nbytes=0)
+        if _TRACK_ORDER is None:  # another h5netcdf release: its own file, memo-less
+            with h5netcdf.File(str(path), "w", decode_vlen_strings=True) as f:
+                yield f
+            return
+        h5 = _MemoFile(str(path), "w", track_order=_TRACK_ORDER("h5py"), rdcc_nbytes=0)
     else:
         raise ValueError(f"mode: expected 'r' or 'w', got {mode!r}")
     try:

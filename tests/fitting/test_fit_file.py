@@ -159,3 +159,18 @@ def test_the_memoised_writer_writes_the_same_bytes(fit_file, tmp_path):
         _write_plainly(idata, tmp_path / f"plain{i}.nc")
         assert (tmp_path / f"ours{i}.nc").read_bytes() == (tmp_path / f"plain{i}.nc").read_bytes()
     assert h5py.File(tmp_path / "ours1.nc")["posterior/x"].chunks != (4, 1000, 71)
+
+
+def test_without_h5netcdfs_private_track_order_the_writer_is_h5netcdfs_own(
+    fit_file, tmp_path, monkeypatch
+):
+    """open_netcdf asks h5netcdf 1.8's private ``_get_track_order`` for the file's order
+    tracking; a release without it gets h5netcdf's own writer (the same bytes here)."""
+    import are_stats.fitting._netcdf_file as netcdf_file
+
+    fit = az.from_netcdf(str(fit_file))
+    fit.load()
+    monkeypatch.setattr(netcdf_file, "_TRACK_ORDER", None)
+    _fit_log._write_groups(fit, tmp_path / "ours.nc")
+    _write_plainly(fit, tmp_path / "plain.nc")
+    assert (tmp_path / "ours.nc").read_bytes() == (tmp_path / "plain.nc").read_bytes()
