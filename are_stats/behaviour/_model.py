@@ -13,6 +13,7 @@ its exit gives the exit cell.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -70,6 +71,7 @@ _WITHIN = {
 #: about two thirds of a call.
 _GRAPHS: dict[tuple[tuple[int, int], bytes], csr_array] = {}
 _GRAPHS_MAX = 8
+_GRAPHS_LOCK = threading.Lock()  # the eviction iterates the dict: one thread at a time
 
 
 def _grid_graph(free: np.ndarray) -> csr_array:
@@ -92,9 +94,10 @@ def _grid_graph(free: np.ndarray) -> csr_array:
             (np.ones(2 * s.size), (np.concatenate([s, d]), np.concatenate([d, s]))),
             shape=(h * w, h * w),
         )
-        if len(_GRAPHS) >= _GRAPHS_MAX:
-            del _GRAPHS[next(iter(_GRAPHS))]
-        _GRAPHS[key] = graph
+        with _GRAPHS_LOCK:
+            if len(_GRAPHS) >= _GRAPHS_MAX:
+                del _GRAPHS[next(iter(_GRAPHS))]
+            _GRAPHS[key] = graph
     return graph
 
 

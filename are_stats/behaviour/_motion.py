@@ -20,6 +20,7 @@ between decisions is continuous:
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 
 import jax
@@ -102,6 +103,7 @@ def _blocked_table(free: np.ndarray) -> np.ndarray:
 #: ``(shape, packed mask)``: one segment a call, the table cost a quarter of a call.
 _TABLES: dict[tuple[tuple[int, ...], bytes], np.ndarray] = {}
 _TABLES_MAX = 8
+_TABLES_LOCK = threading.Lock()  # the eviction iterates the dict: one thread at a time
 
 
 def _blocked_table_of(free: np.ndarray) -> np.ndarray:
@@ -112,9 +114,10 @@ def _blocked_table_of(free: np.ndarray) -> np.ndarray:
     if table is None:
         table = _blocked_table(free)
         table.flags.writeable = False
-        if len(_TABLES) >= _TABLES_MAX:
-            del _TABLES[next(iter(_TABLES))]
-        _TABLES[key] = table
+        with _TABLES_LOCK:
+            if len(_TABLES) >= _TABLES_MAX:
+                del _TABLES[next(iter(_TABLES))]
+            _TABLES[key] = table
     return table
 
 
