@@ -775,10 +775,19 @@ class MDPSolution:
         items, t = np.asarray(items), np.asarray(t)
         states = np.asarray(states)
         out = np.zeros(len(items), np.int8)
-        for h in range(4):
-            sel = states[:, 2] == h
-            packed = planes[h // 2].take(items[sel], t[sel], states[sel, 0], states[sel, 1])
-            out[sel] = (packed >> (4 * (h % 2))) & 15
+        # (the two planes are split into the same parts: look each item's part up once,
+        # then each plane's bytes; a rollout asks once per epoch)
+        starts = planes[0].starts
+        part = np.searchsorted(starts, items, side="right") - 1
+        high = states[:, 2] >= 2  # headings 2, 3: plane 1
+        for k in np.unique(part).tolist():
+            sel = part == k
+            local, tk, hk = items[sel] - starts[k], t[sel], high[sel]
+            rk, ck = states[sel, 0], states[sel, 1]
+            packed = np.empty(len(local), planes[0].parts[k].dtype)
+            for plane, on in ((0, ~hk), (1, hk)):
+                packed[on] = planes[plane].parts[k][local[on], tk[on], rk[on], ck[on]]
+            out[sel] = (packed >> (4 * (states[sel, 2] % 2))) & 15
         return out
 
     @property

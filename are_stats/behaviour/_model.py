@@ -13,6 +13,7 @@ its exit gives the exit cell.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -64,6 +65,42 @@ _WITHIN = {
 }
 
 
+#: The 4-connected graphs of the last free masks :func:`grid_geodesic` saw, by
+#: ``(shape, packed mask)``: a caller asks for one source cell at a time (the walkers'
+#: legs, 597 calls on three moves of a courtyard scenario), and building the graph cost
+#: about two thirds of a call.
+_GRAPHS: dict[tuple[tuple[int, int], bytes], csr_array] = {}
+_GRAPHS_MAX = 8
+_GRAPHS_LOCK = threading.Lock()  # the eviction iterates the dict: one thread at a time
+
+
+def _grid_graph(free: np.ndarray) -> csr_array:
+    """The ``(H W, H W)`` graph of 4-connected moves between the free cells of ``free``
+    (H, W) bool, both directions of every move stored (``dijkstra(..., directed=True)``
+    finds the path lengths of ``directed=False`` on one direction, without transposing
+    the graph on every call: 0.63 against 0.93 ms a source on a 60 x 80 grid)."""
+    key = (free.shape, np.packbits(free).tobytes())
+    graph = _GRAPHS.get(key)
+    if graph is None:
+        h, w = free.shape
+        idx = np.arange(h * w).reshape(h, w)
+        src, dst = [], []
+        for a, b in ((idx[:, :-1], idx[:, 1:]), (idx[:-1], idx[1:])):
+            both = free.ravel()[a.ravel()] & free.ravel()[b.ravel()]
+            src.append(a.ravel()[both])
+            dst.append(b.ravel()[both])
+        s, d = np.concatenate(src), np.concatenate(dst)
+        graph = csr_array(
+            (np.ones(2 * s.size), (np.concatenate([s, d]), np.concatenate([d, s]))),
+            shape=(h * w, h * w),
+        )
+        with _GRAPHS_LOCK:
+            if len(_GRAPHS) >= _GRAPHS_MAX:
+                del _GRAPHS[next(iter(_GRAPHS))]
+            _GRAPHS[key] = graph
+    return graph
+
+
 def grid_geodesic(free: npt.ArrayLike, cells: npt.ArrayLike) -> np.ndarray:
     """4-connected path lengths (in cells) over free cells from each of ``cells``.
 
@@ -82,16 +119,9 @@ def grid_geodesic(free: npt.ArrayLike, cells: npt.ArrayLike) -> np.ndarray:
 
     free = np.asarray(free, bool)
     h, w = free.shape
-    idx = np.arange(h * w).reshape(h, w)
-    src, dst = [], []
-    for a, b in ((idx[:, :-1], idx[:, 1:]), (idx[:-1], idx[1:])):
-        both = free.ravel()[a.ravel()] & free.ravel()[b.ravel()]
-        src.append(a.ravel()[both])
-        dst.append(b.ravel()[both])
-    s, d = np.concatenate(src), np.concatenate(dst)
-    graph = csr_array((np.ones(s.size), (s, d)), shape=(h * w, h * w))
+    graph = _grid_graph(free)
     c = np.asarray(cells, np.int64).reshape(-1, 2)
-    out = dijkstra(graph, directed=False, indices=c[:, 0] * w + c[:, 1], unweighted=True)
+    out = dijkstra(graph, directed=True, indices=c[:, 0] * w + c[:, 1], unweighted=True)
     return np.asarray(out).reshape(len(c), h, w)
 
 

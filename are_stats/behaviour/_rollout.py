@@ -201,7 +201,9 @@ def rollout(
     cur = st.copy()
     present0 = arr == 0
     out[present0, 0] = cur[present0]
-    for e in range(n_steps):
+    # past the last leaving epoch nobody is present: the rest of ``out`` stays -1 (the
+    # uniforms are drawn for every epoch all the same: the draws do not depend on it)
+    for e in range(min(n_steps, int(leave.max()) if b else 0)):
         t_local = e - arr
         moving = (t_local >= 0) & (t_local < horizons)
         action = np.zeros(b, np.int64)

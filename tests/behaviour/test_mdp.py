@@ -288,6 +288,27 @@ def test_values_without_slip_equal_shortest_paths(behaviour, moves):
     assert np.all(sol.v0[0][dist < 0] == 0)
 
 
+def test_action_looks_up_the_policy_in_every_part():
+    """``MDPSolution.action`` (what a rollout asks once per epoch) is ``policy[b, t, row,
+    col, h]`` for items of every part the devices wrote (a batch split across the local
+    devices, padded to a multiple of them), every heading, and a single item."""
+    rng = np.random.default_rng(21)
+    occ = random_grid(rng, 7, 8, 0.2)
+    free = np.argwhere(~occ)
+    mdp = GridMDP(occ)
+    for n in (1, 5):
+        sol = mdp.solve(free[:n], ["walk", "run", "walk", "walk", "run"][:n], 6, n_epochs=6)
+        m = 300
+        items, t = rng.integers(0, n, m), rng.integers(0, 6, m)
+        cells = free[rng.integers(0, len(free), m)]
+        states = np.column_stack([cells, rng.integers(0, 4, m)])
+        want = sol.policy[items, t, states[:, 0], states[:, 1], states[:, 2]]
+        got = sol.action(items, t, states)
+        assert got.dtype == np.int8
+        np.testing.assert_array_equal(got, want)
+        assert sol.action(items[:0], t[:0], states[:0]).shape == (0,)
+
+
 def test_lazy_policy_matches_eager():
     rng = np.random.default_rng(9)
     occ = random_grid(rng, 8, 9, 0.2)

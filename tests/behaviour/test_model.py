@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from are_stats.behaviour import BehaviourFit
+from are_stats.behaviour import BehaviourFit, grid_geodesic
 
 
 def _door_fit(exits: list[tuple[float, float]], bandwidth: float) -> BehaviourFit:
@@ -149,3 +149,32 @@ def test_exits_given_stays_are_drawn_as_one_by_one() -> None:
     assert (got >= 0).any(axis=1).sum() > 2 * n // 3 and (got < 0).all(axis=1).any()
     np.testing.assert_array_equal(got, want)
     assert got_rng.bit_generator.state == want_rng.bit_generator.state
+
+
+def _bfs_lengths(free, cell):
+    """4-connected path lengths from ``cell`` by breadth-first search (reference)."""
+    h, w = free.shape
+    out = np.full((h, w), np.inf)
+    out[cell] = 0.0
+    todo = [cell]
+    for r, c in todo:
+        for rr, cc in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+            if 0 <= rr < h and 0 <= cc < w and free[rr, cc] and out[rr, cc] == np.inf:
+                out[rr, cc] = out[r, c] + 1.0
+                todo.append((rr, cc))
+    return out
+
+
+def test_grid_geodesic_equals_breadth_first_search_as_the_mask_changes():
+    """The graph of a free mask is kept between calls (one source at a time is the walkers'
+    use): path lengths equal a breadth-first search's, also when the same array is edited
+    in place between calls or another mask of the same shape comes."""
+    rng = np.random.default_rng(7)
+    free = rng.random((9, 13)) > 0.3
+    for _ in range(4):
+        cells = np.argwhere(free)[rng.integers(0, free.sum(), 3)]
+        got = grid_geodesic(free, cells)
+        assert got.dtype == np.float64 and got.shape == (3, *free.shape)
+        for k, cell in enumerate(cells):
+            np.testing.assert_array_equal(got[k], _bfs_lengths(free, tuple(cell)))
+        free[rng.integers(9), rng.integers(13)] ^= True  # the same array, another mask

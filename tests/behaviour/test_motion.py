@@ -27,7 +27,13 @@ from are_stats.behaviour import (
     walk_times_many,
     walk_tracks,
 )
-from are_stats.behaviour._motion import _blocked_table, _box_clear, _crossed, _crossed_block
+from are_stats.behaviour._motion import (
+    _blocked_table,
+    _box_clear,
+    _crossed,
+    _crossed_block,
+    _sight,
+)
 from are_stats.environment import OccupancyGrid, load_catalogue, shipped_path
 
 K_SIGMA = 4.0
@@ -538,6 +544,45 @@ def test_clear_boxes_answer_as_the_traced_cells() -> None:
             np.testing.assert_array_equal(_crossed(grids, p0, p1, g, table), want)
             np.testing.assert_array_equal(_crossed(grids, p0, p1, g), want)
     assert shortcut > 1000  # the shortcut answered many of them
+
+
+def _sight_three_calls(free, p0, p1, clearance, grid=None):
+    """Line of sight as it was tested before the segment and its shifted copies went
+    through one :func:`_crossed` call: three calls, and'ed."""
+    p0 = np.broadcast_to(np.asarray(p0, float), np.shape(p1))
+    ok = _crossed(free, p0, p1, grid)
+    if clearance <= 0.0:
+        return ok
+    d = p1 - p0
+    length = np.hypot(d[:, 0], d[:, 1])
+    n = np.column_stack([-d[:, 1], d[:, 0]]) / np.where(length > 0, length, 1.0)[:, None]
+    n = n * float(clearance)
+    n[length == 0] = 0.0
+    return ok & _crossed(free, p0 + n, p1 + n, grid) & _crossed(free, p0 - n, p1 - n, grid)
+
+
+def test_line_of_sight_is_the_three_segment_tests_as_the_mask_changes() -> None:
+    """One segment test for a segment and its two shifted copies answers as three did, with
+    one grid and one grid per segment; ``line_of_sight`` keeps a grid's summed table
+    between calls, and a mask edited in place (the same array) is a new grid."""
+    rng = np.random.default_rng(11)
+    free = ~_room(16, 22)
+    for _ in range(5):
+        free[rng.integers(1, 15, 4), rng.integers(1, 21, 4)] ^= True  # in place
+        m = 400
+        p0 = rng.uniform(-0.5, 22.5, (m, 2)) * [16 / 22, 1.0]
+        p1 = rng.uniform(-0.5, 22.5, (m, 2)) * [16 / 22, 1.0]
+        p1[::9] = p0[::9]  # zero length
+        grids = np.stack([free, free & ~np.eye(16, 22, 2, bool)])
+        g = rng.integers(0, 2, m)
+        for c in (0.0, 0.2, 0.45):
+            want = _sight_three_calls(free, p0, p1, c)
+            np.testing.assert_array_equal(_sight(free, p0, p1, c), want)
+            got = [line_of_sight(free, a, b, c) for a, b in zip(p0[:60], p1[:60], strict=True)]
+            np.testing.assert_array_equal(got, want[:60])
+            np.testing.assert_array_equal(
+                _sight(grids, p0, p1, c, g), _sight_three_calls(grids, p0, p1, c, g)
+            )
 
 
 def test_walkers_legs_pulled_together_are_the_legs_pulled_alone(monkeypatch) -> None:

@@ -161,3 +161,23 @@ def test_builder_resolver_and_occupancy_grid():
     assert tracks.x.iloc[0] == pytest.approx(1.25) and tracks.y.iloc[0] == pytest.approx(2.25)
     with pytest.raises(ValueError, match="builder"):
         builder_resolver(object())
+
+
+def test_epochs_after_everyone_left_are_absent_and_change_no_draw():
+    """A rollout longer than the artefacts' stays (the walkers' legs pad it to a multiple
+    of 64 epochs) is the rollout up to the last leaving epoch, then absent rows: the
+    slip draws of the earlier epochs do not depend on how many epochs are asked for."""
+    rng = np.random.default_rng(5)
+    occ = np.zeros((6, 9), bool)
+    occ[2, 2:6] = True
+    mdp = GridMDP(occ, slip=0.4)
+    sol = mdp.solve([[5, 8], [0, 8], [5, 0]], ["walk", "run", "walk"], [7, 12, 4], n_epochs=64)
+    starts = np.array([[0, 0, 0], [5, 0, 1], [0, 8, 2]])
+    arrive = np.array([0, 3, 9])
+    key = jax.random.key(int(rng.integers(1 << 30)))
+    short = rollout(key, sol, starts, 15, arrive=arrive, resolve=None)
+    for n in (15, 40, 64):
+        long = rollout(key, sol, starts, n, arrive=arrive, resolve=None)
+        assert long.shape == (3, n + 1, 3)
+        np.testing.assert_array_equal(long[:, :16], short)
+        assert (long[:, 16:] == -1).all()
