@@ -31,9 +31,12 @@ are_stats.inputs.InputError: run.yaml: robot.speed: expected a finite number, go
 from __future__ import annotations
 
 import contextlib
+import copy
 import math
 import os
 import re
+import threading
+from collections import OrderedDict
 from collections.abc import Hashable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any  # a parsed YAML document (parse_yaml, load_yaml): any value
@@ -402,8 +405,40 @@ def _expanded_size(root: yaml.Node, source: str) -> None:
     visit(root)
 
 
+#: Documents parsed from texts of at most :data:`PARSED_MAX_CHARS` characters, by their
+#: text (the last :data:`PARSED_KEPT`): PyYAML's pure-Python loader takes some 12 ms for the
+#: shipped catalogue, which every command and many functions read again. Only successful
+#: parses are kept (a document depends on its text alone; ``source`` and ``what`` only name
+#: it in errors), and each caller gets its own deep copy, free to change.
+PARSED_KEPT = 32
+PARSED_MAX_CHARS = 1 << 20
+_PARSED: OrderedDict[str, Any] = OrderedDict()
+_PARSED_LOCK = threading.Lock()  # the live view reads inputs from threads
+
+
 def parse_yaml(text: str, source: Source, what: str = "YAML document") -> Any:
-    """Parse YAML text safely (see :func:`load_yaml`); ``source`` names it in errors."""
+    """Parse YAML text safely (see :func:`load_yaml`); ``source`` names it in errors.
+
+    A text parsed before (one of the last :data:`PARSED_KEPT`) is not parsed again: its
+    document is handed out as a deep copy.
+    """
+    kept = len(text) <= PARSED_MAX_CHARS
+    if kept:
+        with _PARSED_LOCK:
+            if text in _PARSED:
+                _PARSED.move_to_end(text)
+                return copy.deepcopy(_PARSED[text])
+    doc = _parse_yaml(text, source, what)
+    if kept:
+        with _PARSED_LOCK:
+            _PARSED[text] = copy.deepcopy(doc)
+            while len(_PARSED) > PARSED_KEPT:
+                _PARSED.popitem(last=False)
+    return doc
+
+
+def _parse_yaml(text: str, source: Source, what: str) -> Any:
+    """:func:`parse_yaml` without its memo."""
     src = str(source)
 
     def invalid(err: yaml.YAMLError) -> InputError:

@@ -242,3 +242,26 @@ def test_yaml_control_characters_and_fifos_are_errors(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(InputError, match="pipe.yaml: expected a map in a regular file"):
         load_yaml(fifo, "map")  # would block forever if opened
+
+
+def test_a_text_parsed_again_is_not_parsed_and_its_copy_is_the_callers(monkeypatch):
+    """parse_yaml keeps the documents of texts it parsed: the same text again gives an equal
+    document without running the loader, as a deep copy (a caller changing it changes no
+    later caller's, anchors still shared within it); a bad text is refused every time."""
+    text = "a: &x [1, 2.5e-3, {b: yes}]\nc: *x\nd: 2026-11-29\n"
+    first = inputs.parse_yaml(text, "one.yaml")
+    want = yaml.safe_load(text) | {"a": [1, 0.0025, {"b": True}], "c": [1, 0.0025, {"b": True}]}
+    assert first == want
+    first["a"].append("changed")  # the caller's own object
+
+    def no_loader(*args, **kwargs):
+        raise AssertionError("parsed again")
+
+    monkeypatch.setattr(inputs, "_Loader", no_loader)
+    second = inputs.parse_yaml(text, "two.yaml", "catalogue YAML")
+    assert second == want and second is not first
+    assert second["a"] is second["c"]  # the alias, as the loader gives it
+    monkeypatch.undo()
+    for _ in range(2):
+        with pytest.raises(inputs.InputError, match="bad.yaml.*each key once per mapping"):
+            inputs.parse_yaml("k: 1\nk: 2\n", "bad.yaml")
