@@ -294,10 +294,10 @@ def _window(
     the line to its route's next corner at each step (None: none, and no term of it in
     the program).
     """
-    dist_w, grad_w, free, w_origin, w_res, origin, cell = walls
+    dist_w, grad_w, free, w_origin, w_res, origin, cell, hw = walls
     lead, prev, side, gid = form
     has_lead = lead != jnp.arange(lead.shape[0])
-    h, w = free.shape
+    h, w = hw[0], hw[1]  # the map's size; the grids are padded past it (:func:`_walls`)
 
     def lookup(grid, xy):
         """``grid`` at the points ``xy`` (..., 2), and whether they lie on the map."""
@@ -545,16 +545,38 @@ def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0
     hi = xy.max(0) + reach + np.array([x_shift, 0.0])
     cell = reach
     n_y = int(np.ceil((hi[1] - lo[1]) / cell)) + 3
+    # the three grids padded to a size of few values, the map's own size passed beside them:
+    # maps a few cells apart (a room's extent read from each log's tracks) share one
+    # compiled walk; the lookups clip to the map's size, so no padded cell is ever read
+    h, w = free.shape
+    size = (_grid_bucket(h), _grid_bucket(w))
     # placed as they are (jax.device_put): jnp.asarray compiled a program per array (issue 29)
     return (
-        jax.device_put(np.asarray(dist)),
-        jax.device_put(grad),
-        jax.device_put(free),
+        jax.device_put(_padded(np.asarray(dist, float), size)),
+        jax.device_put(_padded(grad, size)),
+        jax.device_put(_padded(free, size)),
         jax.device_put(org),
         float(res),
         jax.device_put(np.asarray(lo - cell)),
         float(cell),
+        jax.device_put(np.array([h, w], np.int32)),
     ), n_y
+
+
+def _grid_bucket(n: int) -> int:
+    """The padded length of a wall grid's side of ``n`` cells: the next of 32, 48, 64, 96,
+    128, 192, ... (a power of two or one and a half times one), at most 1.5x ``n``."""
+    size = 32
+    while size < n:
+        size = size * 3 // 2 if size & (size - 1) == 0 else size * 4 // 3
+    return size
+
+
+def _padded(a: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``a`` (h, w, ...) in the corner of zeros (size[0], size[1], ...)."""
+    out = np.zeros(size + a.shape[2:], a.dtype)
+    out[: a.shape[0], : a.shape[1]] = a
+    return out
 
 
 class _Pace(NamedTuple):

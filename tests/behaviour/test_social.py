@@ -280,6 +280,42 @@ def test_walks_of_any_extent_length_and_grouping_share_one_compiled_program():
     )
 
 
+def test_maps_a_few_cells_apart_share_one_program_and_walk_as_unpadded(monkeypatch):
+    """The wall grids are padded to a few sizes (:func:`_social._grid_bucket`), the map's
+    own size passed as data: maps a few cells apart (each log's extent) share one compiled
+    walk, and every position is bit for bit the walk on the unpadded grids (the lookups
+    clip to the map's size, so no padded cell is read), walls near the far edges
+    included."""
+    assert [_social._grid_bucket(n) for n in (1, 32, 33, 48, 49, 65, 97, 120, 130, 961)] == [
+        32, 32, 48, 48, 64, 96, 128, 128, 192, 1024
+    ]  # fmt: skip
+    for n in range(1, 3000):
+        assert n <= _social._grid_bucket(n) <= max(32, 1.5 * n)
+
+    def room(h: int, w: int) -> OccupancyGrid:
+        occ = np.zeros((h, w))
+        occ[[0, -1], :] = occ[:, [0, -1]] = 100  # walls on all four sides
+        occ[h // 2, w // 3 : 2 * w // 3] = 100  # and a bar across the middle
+        return OccupancyGrid(occ, 0.1)
+
+    def walk(grid: OccupancyGrid) -> np.ndarray:
+        h, w = grid.free.shape
+        far_x, far_y = 0.1 * w - 0.45, 0.1 * h - 0.45  # next to the far walls
+        plan = _plan(
+            [(0, 0.0, (0.5, 0.5), (far_x, far_y), 1.3), (1, 0.0, (far_x, 0.5), (0.5, far_y), 1.3)],
+            0.1,
+            2,
+        )
+        return social_force_tracks(plan, grid=grid, dt=0.1)[["x", "y"]].to_numpy()
+
+    before = _social._window._cache_size()
+    padded = [walk(room(h, w)) for h, w in ((118, 120), (121, 119), (122, 121))]
+    assert _social._window._cache_size() == before + 1  # one program for the three maps
+    monkeypatch.setattr(_social, "_grid_bucket", lambda n: n)  # the grids as they are
+    for (h, w), got in zip(((118, 120), (121, 119), (122, 121)), padded, strict=True):
+        np.testing.assert_array_equal(got, walk(room(h, w)))
+
+
 def _blocks_against_all_pairs(monkeypatch, n_scenes: int) -> list:
     """Walk ``n_scenes`` scenarios of 2-5 people (the first two of each a group) in blocks
     and by all pairs; the tracks agree, people gave way; the windows' layouts."""
