@@ -219,7 +219,43 @@ def incomplete_gamma(a: npt.ArrayLike, x: npt.ArrayLike, lower: npt.ArrayLike) -
     -------
     (...) float
     """
-    return _incomplete_gamma(a, x, lower)
+    return _incomplete_gamma_padded(a, x, lower)
+
+
+def _incomplete_gamma_padded(
+    a: npt.ArrayLike, x: npt.ArrayLike, lower: npt.ArrayLike
+) -> jnp.ndarray:
+    """:func:`_incomplete_gamma`; on concrete inputs of one shape (scalars aside), the
+    arrays flattened and padded to a power of two (at least 8) so that calls of nearby
+    sizes share one compiled program (issue 25).
+
+    Scalars stay scalars (broadcast in the program, as before: broadcasting them first
+    moved some values by one rounding). The padding is ``NaN`` (``a``, ``x``: outside the
+    domain, their loop is off) or ``False``; each entry's loop stops on its own tests and
+    then keeps its values, so the real entries' values are those of an unpadded call, bit
+    for bit. Inside a trace, with partly broadcast shapes or one entry (XLA compiles a
+    one-entry call as scalar code: one rounding apart from the vector loop), the call is as
+    before.
+    """
+    if any(isinstance(v, jax.core.Tracer) for v in (a, x, lower)):
+        return _incomplete_gamma(a, x, lower)
+    args = (np.asarray(a, float), np.asarray(x, float), np.asarray(lower, bool))
+    shape = np.broadcast_shapes(*(v.shape for v in args))
+    n = int(np.prod(shape))
+    if n < 2 or any(v.ndim and v.shape != shape for v in args):
+        return _incomplete_gamma(a, x, lower)
+    size = max(8, 1 << (n - 1).bit_length())
+
+    def pad(v: np.ndarray, fill: float | bool) -> np.ndarray:
+        if not v.ndim:
+            return v
+        out = np.full(size, fill, v.dtype)
+        out[:n] = v.ravel()
+        return out
+
+    a_pad, x_pad = pad(args[0], np.nan), pad(args[1], np.nan)
+    out = np.asarray(_incomplete_gamma(a_pad, x_pad, pad(args[2], False)))[:n]
+    return jnp.asarray(out.reshape(shape))
 
 
 @incomplete_gamma.defjvp
@@ -563,7 +599,8 @@ def stay_sample_residual(
     size = tuple(np.broadcast_shapes(tuple(size), np.shape(mean), np.shape(shape)))
     k_len, k_u = jax.random.split(key)
     if law == "exponential":
-        biased = jax.random.gamma(k_len, 2.0, size) * mean
+        # a broadcast ``a``: the program of the gamma and Weibull laws' draws of this size
+        biased = jax.random.gamma(k_len, jnp.broadcast_to(2.0, size)) * mean
     elif law == "gamma":
         biased = jax.random.gamma(k_len, jnp.broadcast_to(shape + 1.0, size)) * (mean / shape)
     elif law == "weibull":
