@@ -255,7 +255,7 @@ def _incomplete_gamma_padded(
 
     a_pad, x_pad = pad(args[0], np.nan), pad(args[1], np.nan)
     out = np.asarray(_incomplete_gamma(a_pad, x_pad, pad(args[2], False)))[:n]
-    return jnp.asarray(out.reshape(shape))
+    return jax.device_put(out.reshape(shape))  # jnp.asarray compiled a "stage" per shape
 
 
 @incomplete_gamma.defjvp

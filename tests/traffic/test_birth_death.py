@@ -184,7 +184,7 @@ def test_padded_counts_are_the_unpadded_run(linear):
     times touch nothing)."""
     key = jax.random.key(11)
     n0 = np.array([0, 1, 4, 2, 7])
-    times = np.array([0.5, 1.0, 2.0, 2.0, 4.5, 5.0])  # padded to 8, as a 3-path panel test
+    times = np.array([0.5, 1.0, 2.0, 2.0, 4.5, 5.0])  # padded to 64, as a 3-path panel test
     padded = _gillespie.simulate_counts(key, 1.5, 0.4, n0, 5.0, times, linear)
     exact, _ = _gillespie._counts_loop(
         _gillespie._stream_key(key), 1.5, 0.4, n0, np.int64(5), 5.0, times, np.bool_(linear), False
