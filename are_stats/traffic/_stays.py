@@ -533,6 +533,16 @@ def stay_loglik(
     )
 
 
+def _gamma_draws(key: jax.Array, a: npt.ArrayLike, size: tuple[int, ...]) -> jnp.ndarray:
+    """``jax.random.gamma`` of shape ``size``: a scalar ``a`` goes in as a scalar (JAX
+    broadcasts it in the program, to the same draws), so the laws' draws of one size share
+    one program whatever their ``a`` (issue 25: ``gamma(key, 2.0, size)`` and
+    ``gamma(key, broadcast_to(a, size))`` were two programs, 5-6 s of compile each)."""
+    if np.ndim(a) == 0:
+        return jax.random.gamma(key, a, size)
+    return jax.random.gamma(key, jnp.broadcast_to(a, size))
+
+
 def stay_sample(
     key: jax.Array,
     law: str,
@@ -560,7 +570,7 @@ def stay_sample(
     if law == "exponential":
         return jax.random.exponential(key, size) * mean
     if law == "gamma":
-        return jax.random.gamma(key, jnp.broadcast_to(shape, size)) * (mean / shape)
+        return _gamma_draws(key, shape, size) * (mean / shape)
     if law == "weibull":
         e = jax.random.exponential(key, size)
         return _weibull_scale(mean, shape) * e ** (1.0 / shape)
@@ -599,12 +609,11 @@ def stay_sample_residual(
     size = tuple(np.broadcast_shapes(tuple(size), np.shape(mean), np.shape(shape)))
     k_len, k_u = jax.random.split(key)
     if law == "exponential":
-        # a broadcast ``a``: the program of the gamma and Weibull laws' draws of this size
-        biased = jax.random.gamma(k_len, jnp.broadcast_to(2.0, size)) * mean
+        biased = _gamma_draws(k_len, 2.0, size) * mean
     elif law == "gamma":
-        biased = jax.random.gamma(k_len, jnp.broadcast_to(shape + 1.0, size)) * (mean / shape)
+        biased = _gamma_draws(k_len, shape + 1.0, size) * (mean / shape)
     elif law == "weibull":
-        y = jax.random.gamma(k_len, jnp.broadcast_to(1.0 + 1.0 / shape, size))
+        y = _gamma_draws(k_len, 1.0 + 1.0 / shape, size)
         biased = _weibull_scale(mean, shape) * y ** (1.0 / shape)
     else:
         z = jax.random.normal(k_len, size)
