@@ -219,7 +219,43 @@ def incomplete_gamma(a: npt.ArrayLike, x: npt.ArrayLike, lower: npt.ArrayLike) -
     -------
     (...) float
     """
-    return _incomplete_gamma(a, x, lower)
+    return _incomplete_gamma_padded(a, x, lower)
+
+
+def _incomplete_gamma_padded(
+    a: npt.ArrayLike, x: npt.ArrayLike, lower: npt.ArrayLike
+) -> jnp.ndarray:
+    """:func:`_incomplete_gamma`; on concrete inputs of one shape (scalars aside), the
+    arrays flattened and padded to a power of two (at least 8) so that calls of nearby
+    sizes share one compiled program (issue 25).
+
+    Scalars stay scalars (broadcast in the program, as before: broadcasting them first
+    moved some values by one rounding). The padding is ``NaN`` (``a``, ``x``: outside the
+    domain, their loop is off) or ``False``; each entry's loop stops on its own tests and
+    then keeps its values, so the real entries' values are those of an unpadded call, bit
+    for bit. Inside a trace, with partly broadcast shapes or one entry (XLA compiles a
+    one-entry call as scalar code: one rounding apart from the vector loop), the call is as
+    before.
+    """
+    if any(isinstance(v, jax.core.Tracer) for v in (a, x, lower)):
+        return _incomplete_gamma(a, x, lower)
+    args = (np.asarray(a, float), np.asarray(x, float), np.asarray(lower, bool))
+    shape = np.broadcast_shapes(*(v.shape for v in args))
+    n = int(np.prod(shape))
+    if n < 2 or any(v.ndim and v.shape != shape for v in args):
+        return _incomplete_gamma(a, x, lower)
+    size = max(8, 1 << (n - 1).bit_length())
+
+    def pad(v: np.ndarray, fill: float | bool) -> np.ndarray:
+        if not v.ndim:
+            return v
+        out = np.full(size, fill, v.dtype)
+        out[:n] = v.ravel()
+        return out
+
+    a_pad, x_pad = pad(args[0], np.nan), pad(args[1], np.nan)
+    out = np.asarray(_incomplete_gamma(a_pad, x_pad, pad(args[2], False)))[:n]
+    return jax.device_put(out.reshape(shape))  # jnp.asarray compiled a "stage" per shape
 
 
 @incomplete_gamma.defjvp
@@ -497,6 +533,16 @@ def stay_loglik(
     )
 
 
+def _gamma_draws(key: jax.Array, a: npt.ArrayLike, size: tuple[int, ...]) -> jnp.ndarray:
+    """``jax.random.gamma`` of shape ``size``: a scalar ``a`` goes in as a scalar (JAX
+    broadcasts it in the program, to the same draws), so the laws' draws of one size share
+    one program whatever their ``a`` (issue 25: ``gamma(key, 2.0, size)`` and
+    ``gamma(key, broadcast_to(a, size))`` were two programs, 5-6 s of compile each)."""
+    if np.ndim(a) == 0:
+        return jax.random.gamma(key, a, size)
+    return jax.random.gamma(key, jnp.broadcast_to(a, size))
+
+
 def stay_sample(
     key: jax.Array,
     law: str,
@@ -524,7 +570,7 @@ def stay_sample(
     if law == "exponential":
         return jax.random.exponential(key, size) * mean
     if law == "gamma":
-        return jax.random.gamma(key, jnp.broadcast_to(shape, size)) * (mean / shape)
+        return _gamma_draws(key, shape, size) * (mean / shape)
     if law == "weibull":
         e = jax.random.exponential(key, size)
         return _weibull_scale(mean, shape) * e ** (1.0 / shape)
@@ -563,11 +609,11 @@ def stay_sample_residual(
     size = tuple(np.broadcast_shapes(tuple(size), np.shape(mean), np.shape(shape)))
     k_len, k_u = jax.random.split(key)
     if law == "exponential":
-        biased = jax.random.gamma(k_len, 2.0, size) * mean
+        biased = _gamma_draws(k_len, 2.0, size) * mean
     elif law == "gamma":
-        biased = jax.random.gamma(k_len, jnp.broadcast_to(shape + 1.0, size)) * (mean / shape)
+        biased = _gamma_draws(k_len, shape + 1.0, size) * (mean / shape)
     elif law == "weibull":
-        y = jax.random.gamma(k_len, jnp.broadcast_to(1.0 + 1.0 / shape, size))
+        y = _gamma_draws(k_len, 1.0 + 1.0 / shape, size)
         biased = _weibull_scale(mean, shape) * y ** (1.0 / shape)
     else:
         z = jax.random.normal(k_len, size)

@@ -176,6 +176,23 @@ def test_simulate_events_consistent_and_never_truncated():
         assert np.array_equal(at, counts[i])
 
 
+@pytest.mark.parametrize("linear", [True, False])
+def test_padded_counts_are_the_unpadded_run(linear):
+    """simulate_counts pads paths and times to shared program sizes: the counts are those of
+    the same loop run at the exact sizes, bit for bit (the draws of the real paths are the
+    unpadded ones, ``uniform(k, (2, n_paths))`` as in simulate_events; the padded paths and
+    times touch nothing)."""
+    key = jax.random.key(11)
+    n0 = np.array([0, 1, 4, 2, 7])
+    times = np.array([0.5, 1.0, 2.0, 2.0, 4.5, 5.0])  # padded to 64, as a 3-path panel test
+    padded = _gillespie.simulate_counts(key, 1.5, 0.4, n0, 5.0, times, linear)
+    exact, _ = _gillespie._counts_loop(
+        _gillespie._stream_key(key), 1.5, 0.4, n0, np.int64(5), 5.0, times, np.bool_(linear), False
+    )
+    assert padded.shape == (5, 6) and padded.dtype == np.int64
+    assert np.array_equal(padded, np.asarray(exact))
+
+
 # ---------------------------------------------------------------------------------------
 # panel likelihood and MLE
 # ---------------------------------------------------------------------------------------

@@ -342,3 +342,16 @@ def test_gamma_unit_likelihood_is_one_incomplete_gamma_loop():
 
     fd = [(value(p + eps * e) - value(p - eps * e)) / (2 * eps) for e in np.eye(2)]
     np.testing.assert_allclose(np.asarray(g), fd, rtol=1e-5, atol=1e-7)
+
+
+def test_padded_incomplete_gamma_is_the_unpadded_call():
+    """On concrete inputs the arrays are flattened and padded to a shared program size (here
+    the 8 entries of other tests' calls): the values are those of the loop called at the
+    exact shape, bit for bit, series and continued fraction, at the domain's edges too."""
+    from are_stats.traffic._stays import _incomplete_gamma, incomplete_gamma
+
+    a = np.array([[0.0, 0.5, 3.0], [12.0, np.nan, 2.0]])
+    x = np.array([[1.0, 0.2, 40.0], [11.0, 1.0, np.inf]])
+    got = incomplete_gamma(a, x, False)
+    assert got.shape == (2, 3) and got.dtype == np.float64
+    np.testing.assert_array_equal(np.asarray(got), np.asarray(_incomplete_gamma(a, x, False)))
