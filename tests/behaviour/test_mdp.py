@@ -335,6 +335,37 @@ def test_backward_induction_pure_function_under_jit():
     assert_allclose(np.moveaxis(np.asarray(v0), 1, -1), sol.v0, atol=0)
 
 
+def same_bits(a, b):
+    """``a`` and ``b`` hold the same values bit for bit (signed zeros included)."""
+    a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_padded_solve_equals_unpadded_program_bit_for_bit(dtype):
+    # solve() pads the grid (with occupied cells), each device's items and the epochs of its
+    # buffers to shared sizes; the pure function run at the true shapes is the reference
+    rng = np.random.default_rng(12)
+    h, w = (17, 9) if dtype == "float32" else (6, 13)
+    occ = random_grid(rng, h, w, 0.2)
+    free = np.argwhere(~occ)
+    mdp = GridMDP(occ, slip=0.15, step_cost=0.01, dtype=dtype)
+    reward = rng.normal(size=(14, h, w)) * 0.1  # negative rewards: signed zeros on obstacles
+    sol = mdp.solve(
+        free[:3],
+        ["run", "follow", "walk"],
+        [13, 11, 5],
+        follow=[None, reward, None],
+        store_values=True,
+    )
+    ref = jax.jit(functools.partial(backward_induction, **{**sol._inputs, "store_values": True}))
+    v0, policy, values = (np.asarray(x) for x in ref())
+    assert sol.values.shape == (3, 14, h, w, 4)
+    assert same_bits(sol.values, np.moveaxis(values, 2, -1))
+    assert same_bits(sol.policy, np.moveaxis(policy, 2, -1))
+    assert same_bits(sol.v0, np.moveaxis(v0, 1, -1))
+
+
 @pytest.mark.parametrize(
     "dtype",
     [
