@@ -587,19 +587,30 @@ def _epoch_size(n: int) -> int:
     return 3 * p // 4 if 3 * p // 4 >= n else p
 
 
-#: A solve whose padded outputs take at most this many bytes on ``_MIN_SLOTS`` items a device
-#: runs on every local device with at least that many slots each (one program for 1 to
-#: ``_MIN_SLOTS * n_devices`` items; a device with no items runs an empty loop).
+#: Items a device solves per call: the smallest of these that holds its share (a device
+#: with fewer items runs fewer loop iterations; the slots past them cost buffer memory only).
+#: A larger batch is solved in several calls of the largest.
+_SLOTS = (1, 4, 16, 64)
+#: A solve whose padded outputs take at most this many bytes on ``_SLOTS[1]`` items a device
+#: runs on every local device (one program for 1 to ``_SLOTS[1] * n_devices`` items; a device
+#: with no items runs an empty loop).
 _SMALL_BYTES = 8 * 2**20
-_MIN_SLOTS = 4
+#: At most this many bytes of output buffers per call (fewer slots, more calls, beyond).
+_CALL_BYTES = 128 * 2**20
 
 
-def _padded_shapes(b: int, n_dev: int, n_epochs: int, shape: tuple[int, int]) -> tuple:
-    """``(slots, D', (H', W'))``: per-device batch slots (a power of two), buffer epochs and
-    grid of a solve of ``b`` items, ``n_epochs`` epochs on an ``(H, W)`` grid."""
+def _padded_shapes(b: int, n_all: int, item_bytes: int) -> tuple[int, int]:
+    """``(n_dev, slots)``: the devices and items per device of each call solving ``b`` items
+    whose padded outputs take ``item_bytes`` each, on ``n_all`` local devices."""
+    small = n_all * _SLOTS[1] * item_bytes <= _SMALL_BYTES
+    n_dev = n_all if small else max(1, min(n_all, b))
     per = -(-b // n_dev)
-    slots = 1 << (per - 1).bit_length() if per else 1
-    return slots, _epoch_size(n_epochs), (_grid_size(shape[0]), _grid_size(shape[1]))
+    slots = next((k for k in _SLOTS if k >= per), _SLOTS[-1])
+    if small:
+        slots = max(slots, _SLOTS[1])
+    while slots > 1 and n_dev * slots * item_bytes > _CALL_BYTES:
+        slots = _SLOTS[_SLOTS.index(slots) - 1]
+    return n_dev, slots
 
 
 class _BufferPool:
@@ -689,41 +700,30 @@ def _run_solver(
     """Run the compiled solver on ``inputs`` (NumPy arrays, as built by ``GridMDP.solve``).
 
     With several local devices (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, which
-    the CLI sets; one per core) a batch is split across them: device ``k`` solves items
-    ``k q .. (k + 1) q - 1``, ``q = ceil(B / N)``, one at a time, in parallel.
+    the CLI sets; one per core) a batch is split across them: each device solves its share
+    one item at a time, in parallel. Results are identical to a single-device solve.
 
-    One compiled program serves many sizes (:func:`_padded_shapes`): the grid is padded
-    with occupied cells (rows below, columns to the right) to a few sizes, each device's
-    share of the batch to a power of two of slots, and the buffers' epochs to a few sizes;
-    the number of epochs and of items per device are traced, so padded items and epochs
-    are never computed. A padded cell is blocked exactly as the outside of the map is (the
-    stencil reads +0 there either way, and every cell's arithmetic is elementwise), so the
-    real cells' values and policy are bit for bit those of an unpadded solve.
+    One compiled program serves many sizes: the grid is padded with occupied cells (rows
+    below, columns to the right; :func:`_grid_size`), the buffers' epochs to a few sizes
+    (:func:`_epoch_size`) and each device's items to a few slot counts (:data:`_SLOTS`,
+    :func:`_padded_shapes`; a larger batch runs as several calls). The number of epochs and
+    each device's number of items are traced, so padded items and epochs are never
+    computed. A padded cell is blocked exactly as the outside of the map is (the stencil
+    reads +0 there either way, and every cell's arithmetic is elementwise), so the real
+    cells' values and policy are bit for bit those of an unpadded solve.
 
     Returns the outputs (``v0`` a NumPy copy, the policy and value planes :class:`_Batch`
     views of the device buffers, cropped to the items, epochs and grid) and ``release()``,
     which hands the buffers back to the pool once nothing refers to those views any more.
     """
     b = inputs["goals"].shape[0]
-    n_all = jax.local_device_count()
-    n_dev = max(1, min(n_all, b))
     dtype = np.dtype(inputs["slip"].dtype)
     h, w = inputs["occupied"].shape
     n_epochs, use_run = int(inputs["n_epochs"]), bool(inputs["use_run"])
-    slots, d_pad, (hp, wp) = _padded_shapes(b, n_dev, n_epochs, (h, w))
-    shapes = _output_shapes(1, d_pad, (hp, wp), dtype, store_values, with_policy)
-    item_bytes = sum(
-        math.prod(x.shape) * np.dtype(x.dtype).itemsize for x in jax.tree.leaves(shapes)
-    )
-    if n_all * max(slots, _MIN_SLOTS) * item_bytes <= _SMALL_BYTES:
-        # small outputs: every batch of up to _MIN_SLOTS items a device runs one program
-        n_dev = n_all
-        slots = max(_padded_shapes(b, n_dev, n_epochs, (h, w))[0], _MIN_SLOTS)
-    per = -(-b // n_dev)
-    counts = np.clip(b - per * np.arange(n_dev), 0, per).astype(np.int32)
-    # padded batch position -> item (slots past a device's count repeat a valid item, unused)
-    k, j = np.divmod(np.arange(n_dev * slots), slots)
-    src = np.minimum(k * per + j, b - 1)
+    d_pad, hp, wp = _epoch_size(n_epochs), _grid_size(h), _grid_size(w)
+    one = _output_shapes(1, d_pad, (hp, wp), dtype, store_values, with_policy)
+    item_bytes = sum(math.prod(x.shape) * x.dtype.itemsize for x in jax.tree.leaves(one))
+    n_dev, slots = _padded_shapes(b, jax.local_device_count(), item_bytes)
 
     def grid(x: np.ndarray, fill: bool | float, epochs: int | None = None) -> np.ndarray:
         """``x`` with its trailing ``(H, W)`` axes padded to ``(H', W')`` with ``fill`` (and
@@ -736,17 +736,6 @@ def _run_solver(
         return y
 
     follow = inputs["follow"] is not None
-    if follow:
-        f = grid(inputs["follow"][src], 0.0, d_pad)
-    else:
-        f = np.zeros(n_dev * slots, np.int8)  # placeholder, unused
-    batched = [
-        grid(inputs["goals"][src], False),
-        inputs["allow"][src],
-        inputs["horizons"][src],
-        f,
-        counts,
-    ]
     shared = [
         grid(inputs["ok"], False),
         grid(inputs["occupied"], True),
@@ -755,30 +744,62 @@ def _run_solver(
     ]
     sharding = NamedSharding(_mesh(n_dev), PartitionSpec("b"))
     shapes = _output_shapes(n_dev * slots, d_pad, (hp, wp), dtype, store_values, with_policy)
-    bufs, keys = _outputs(shapes, sharding)
-    out = _sharded_jit(n_dev, use_run, follow)(*batched, bufs, *shared)
+    fn = _sharded_jit(n_dev, use_run, follow)
+    outs, counts, keys = [], [], []
+    for first in range(0, b, n_dev * slots):
+        n = min(b - first, n_dev * slots)
+        per = -(-n // n_dev)
+        count = np.clip(n - per * np.arange(n_dev), 0, per).astype(np.int32)
+        # padded position -> item (slots past a device's count repeat a valid item, unused)
+        k, j = np.divmod(np.arange(n_dev * slots), slots)
+        src = first + np.minimum(k * per + j, n - 1)
+        if follow:
+            f = grid(inputs["follow"][src], 0.0, d_pad)
+        else:
+            f = np.zeros(n_dev * slots, np.int8)  # placeholder, unused
+        batched = [
+            grid(inputs["goals"][src], False),
+            inputs["allow"][src],
+            inputs["horizons"][src],
+            f,
+            count,
+        ]
+        bufs, call_keys = _outputs(shapes, sharding)
+        outs.append(fn(*batched, bufs, *shared))
+        counts += count.tolist()
+        keys += call_keys
 
-    def parts(x: jax.Array, epochs: int | None = None) -> list[np.ndarray]:
-        """The devices' items of ``x`` (views), cropped to ``epochs`` and the grid."""
-        shards = sorted(x.addressable_shards, key=lambda sh: sh.index[0].start or 0)
+    def parts(xs: list[jax.Array], epochs: int | None = None) -> list[np.ndarray]:
+        """The devices' items of the calls' ``xs`` (views), cropped to ``epochs`` and the grid."""
         crop = (slice(None),) if epochs is None else (slice(None), slice(epochs))
+        shards = [
+            sh
+            for x in xs
+            for sh in sorted(x.addressable_shards, key=lambda sh: sh.index[0].start or 0)
+        ]
         return [
             np.asarray(sh.data)[:c][(*crop, Ellipsis, slice(h), slice(2, w + 2))]
-            for sh, c in zip(shards, counts.tolist(), strict=True)
+            for sh, c in zip(shards, counts, strict=True)
             if c
         ]
 
-    leaves = jax.tree.leaves(out)
+    leaves = [leaf for out in outs for leaf in jax.tree.leaves(out)]
 
     def release() -> None:
         for key, buf in zip(keys, leaves, strict=True):
             _POOL.give(key, buf)
 
-    def planes(xs: tuple[jax.Array, ...] | None, epochs: int) -> tuple[_Batch, ...] | None:
-        return None if xs is None else tuple(_Batch(parts(x, epochs), b) for x in xs)
+    def planes(name: str, epochs: int) -> tuple[_Batch, ...] | None:
+        if getattr(outs[0], name) is None:
+            return None
+        n_planes = len(getattr(outs[0], name))
+        return tuple(
+            _Batch(parts([getattr(out, name)[p] for out in outs], epochs), b)
+            for p in range(n_planes)
+        )
 
-    v0 = np.concatenate(parts(out.v0))  # a copy: the buffer goes back to the pool
-    return _Outputs(v0, planes(out.policy, n_epochs), planes(out.values, n_epochs + 1)), release
+    v0 = np.concatenate(parts([out.v0 for out in outs]))  # a copy: the buffers go back
+    return _Outputs(v0, planes("policy", n_epochs), planes("values", n_epochs + 1)), release
 
 
 class MDPSolution:
