@@ -570,12 +570,12 @@ def _round_up(n: int, step: int) -> int:
 
 def _grid_size(n: int) -> int:
     """The padded size of a grid side of ``n`` cells: 8 or 16 cells up to 16, then a multiple
-    of 4 up to 63 cells, of 8 up to 127, of 16 up to 255... (``2^(bits(n) - 4)``): at most
-    3/17 more cells per side beyond 16 cells, 1/8 from 64 on (each padded cell costs a cell's
+    of 4 up to 127 cells, of 8 up to 255, of 16 up to 511... (``2^(bits(n) - 5)``): at most
+    3/17 more cells per side beyond 16 cells, 1/16 from 64 on (each padded cell costs a cell's
     work every epoch; on small grids the call's overhead dominates)."""
     if n <= 16:
         return 8 if n <= 8 else 16
-    return _round_up(n, max(4, 2 ** (n.bit_length() - 4)))
+    return _round_up(n, max(4, 2 ** (n.bit_length() - 5)))
 
 
 def _epoch_size(n: int) -> int:
@@ -591,9 +591,10 @@ def _epoch_size(n: int) -> int:
 #: with fewer items runs fewer loop iterations; the slots past them cost buffer memory only).
 #: A larger batch is solved in several calls of the largest.
 _SLOTS = (1, 4, 16, 64)
-#: A solve whose padded outputs take at most this many bytes on ``_SLOTS[1]`` items a device
-#: runs on every local device (one program for 1 to ``_SLOTS[1] * n_devices`` items; a device
-#: with no items runs an empty loop).
+#: A solve of several items whose padded outputs take at most this many bytes on
+#: ``_SLOTS[1]`` items a device runs on every local device with at least that many slots
+#: (one program for 2 to ``_SLOTS[1] * n_devices`` items; a device with no items runs an
+#: empty loop).
 _SMALL_BYTES = 8 * 2**20
 #: At most this many bytes of output buffers per call (fewer slots, more calls, beyond).
 _CALL_BYTES = 128 * 2**20
@@ -603,7 +604,8 @@ def _padded_shapes(b: int, n_all: int, item_bytes: int) -> tuple[int, int]:
     """``(n_dev, slots)``: the devices and items per device of each call solving ``b`` items
     whose padded outputs take ``item_bytes`` each, on ``n_all`` local devices."""
     small = n_all * _SLOTS[1] * item_bytes <= _SMALL_BYTES
-    n_dev = n_all if small else max(1, min(n_all, b))
+    # a lone item runs on one device: a call on several costs ~1 ms more to dispatch
+    n_dev = n_all if small and b > 1 else max(1, min(n_all, b))
     per = -(-b // n_dev)
     slots = next((k for k in _SLOTS if k >= per), _SLOTS[-1])
     if small:
@@ -1029,7 +1031,11 @@ class GridMDP:
         n_epochs: int | None = None,
         with_policy: bool = True,
     ) -> MDPSolution:
-        """Backward induction for a batch of artefacts (one ``jit`` per grid shape and ``D``).
+        """Backward induction for a batch of artefacts.
+
+        The compiled program is shared by nearby sizes: grids, horizons and batch sizes are
+        padded to a few sizes inside (padded cells, epochs and items are blocked or never
+        computed; the results are those of an unpadded solve, bit for bit).
 
         Parameters
         ----------
@@ -1048,7 +1054,7 @@ class GridMDP:
             when they take at most 64 MiB (``None``).
         n_epochs : int or None
             Pad the epochs to ``D = n_epochs >= max(horizons)`` (default ``max(horizons)``);
-            one compilation serves every call with the same grid shape, batch size and ``D``.
+            the result then has ``D`` epochs.
         with_policy : bool
             Compute the policy now (default) or on first access to ``.policy`` (the values
             alone take about two thirds of the time).
