@@ -366,6 +366,24 @@ def test_padded_solve_equals_unpadded_program_bit_for_bit(dtype):
     assert same_bits(sol.v0, np.moveaxis(v0, 1, -1))
 
 
+def test_padded_sizes_cover_and_bound_the_waste():
+    from are_stats.behaviour._mdp import _CALL_BYTES, _epoch_size, _grid_size, _padded_shapes
+
+    for n in range(1, 700):
+        g, e = _grid_size(n), _epoch_size(n)
+        assert n <= g <= max(16, n + 3 * n / 17) and (n < 64 or g <= n + n / 16)
+        assert n <= e <= max(16, 1.5 * n)
+    for b in (1, 2, 3, 8, 9, 100, 129, 4096):
+        for item_bytes in (10**3, 10**6, 10**8):
+            n_dev, slots = _padded_shapes(b, 2, item_bytes)
+            per = -(-b // n_dev)  # items a device solves, in calls of ``slots``
+            assert n_dev == (1 if b == 1 else 2)
+            # the share fits in one call unless the next level would pass the call's bytes
+            assert slots >= min(per, 64) or n_dev * 4 * slots * item_bytes > _CALL_BYTES
+            assert slots <= max(4, 4 * per)
+            assert slots == 1 or n_dev * slots * item_bytes <= _CALL_BYTES
+
+
 @pytest.mark.parametrize(
     "dtype",
     [
