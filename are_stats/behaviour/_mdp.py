@@ -44,6 +44,7 @@ beyond an item's horizon keep the terminal value and the policy ``stay``).
 from __future__ import annotations
 
 import functools
+import math
 import threading
 import weakref
 from collections.abc import Callable, Sequence
@@ -138,7 +139,7 @@ def _solve_one(
     tie_tol: jax.Array,
     item: jax.Array,
     out: _Outputs,
-    n_epochs: int,
+    n_epochs: int | jax.Array,
     use_run: bool,
 ) -> _Outputs:
     """Backward induction for batch item ``item``, written into its rows of ``out``.
@@ -156,6 +157,11 @@ def _solve_one(
     (``+ penalty``, ``* keep``), which XLA's CPU backend vectorises better than selects.
     Policy and values are stored "wide", ``(..., H, W + 4)`` with the grid in columns
     ``2 .. W + 1``, so that the caller can crop them without a copy.
+
+    ``n_epochs`` (``D``) may be a traced scalar: the loop then runs ``D`` epochs into buffers
+    of any ``D' >= D`` epochs (their epochs past ``D`` are left as they were), so that one
+    program serves every ``D`` up to ``D'`` with the same bits (each epoch's arithmetic does
+    not depend on ``D``; the padding epochs are never run).
     """
     with_policy, store_values = out.policy is not None, out.values is not None
     dtype = slip.dtype
@@ -290,7 +296,10 @@ def _solve_one(
         last = jnp.zeros(n - 2 * m, dtype)
         val = tuple(put(b, last, jnp.asarray(n_epochs)) for b in val)
     v0, pol, val = jax.lax.fori_loop(0, n_epochs, epoch, (v_terminal, out.policy, val))
-    v0_all = jax.lax.dynamic_update_slice(out.v0, unflat(jnp.stack(v0))[None], (item, 0, 0, 0))
+    zero = jnp.zeros((), item.dtype)
+    v0_all = jax.lax.dynamic_update_slice(
+        out.v0, unflat(jnp.stack(v0))[None], (item, zero, zero, zero)
+    )
     return _Outputs(v0_all, pol, val)
 
 
@@ -442,11 +451,15 @@ def _backward_induction_wide(
     tie_tol: jax.Array,
     out: _Outputs,
     *,
-    n_epochs: int,
+    n_epochs: int | jax.Array,
     use_run: bool = True,
+    n_items: jax.Array | None = None,
 ) -> _Outputs:
     """:func:`backward_induction` into the output buffers ``out`` (:class:`_Outputs`, batch-major
     and wide), one item after the other, every epoch written in place.
+
+    ``n_epochs`` may be traced (see :func:`_solve_one`); ``n_items`` (traced, default all)
+    solves only the first ``n_items`` items, leaving the other rows of ``out`` as they were.
     """
     fn = functools.partial(_solve_one, n_epochs=n_epochs, use_run=use_run)
 
@@ -468,20 +481,14 @@ def _backward_induction_wide(
             acc,
         )
 
-    return jax.lax.fori_loop(0, goals.shape[0], one, out)
+    stop = goals.shape[0] if n_items is None else n_items
+    return jax.lax.fori_loop(0, stop, one, out)
 
 
 #: XLA's CPU backend vectorises for 256-bit registers by default; where the CPU has 512-bit
 #: ones (AVX-512) the stencil loops run about 1.5x faster with them (results are identical:
 #: no fast-math). Elsewhere LLVM keeps the widest width the CPU has.
 _COMPILER_OPTIONS = {"xla_cpu_prefer_vector_width": 512}
-
-_backward_induction_jit = jit_with_options(
-    _backward_induction_wide,
-    static_argnames=("n_epochs", "use_run"),
-    donate_argnames=("out",),
-    compiler_options=_COMPILER_OPTIONS,
-)
 
 
 class _SolverInputs(TypedDict):
@@ -501,7 +508,6 @@ class _SolverInputs(TypedDict):
     use_run: bool
 
 
-_BATCHED = ("goals", "allow", "horizons", "follow")
 _SHARED = ("ok", "occupied", "slip", "step_cost", "goal_reward", "tie_tol")
 
 
@@ -511,11 +517,28 @@ def _mesh(n_dev: int) -> Mesh:
 
 
 @functools.lru_cache(maxsize=32)
-def _sharded_jit(n_dev: int, n_epochs: int, use_run: bool, follow: bool) -> jax.stages.Wrapped:
-    """:func:`_backward_induction_wide` with the batch split across ``n_dev`` local devices."""
+def _sharded_jit(n_dev: int, use_run: bool, follow: bool) -> jax.stages.Wrapped:
+    """:func:`_backward_induction_wide` with the batch split across ``n_dev`` local devices.
+
+    The epochs ``n_epochs`` (a shared ``()`` int32) and each device's number of items
+    ``counts`` (``(n_dev,)`` int32, split with the batch) are traced: one program serves
+    every call whose padded shapes (:func:`_padded_shapes`) agree.
+    """
 
     def body(
-        goals, allow, horizons, follow_, out, ok, occupied, slip, step_cost, goal_reward, tie_tol
+        goals,
+        allow,
+        horizons,
+        follow_,
+        counts,
+        out,
+        ok,
+        occupied,
+        slip,
+        step_cost,
+        goal_reward,
+        tie_tol,
+        n_epochs,
     ):
         return _backward_induction_wide(
             ok,
@@ -531,12 +554,65 @@ def _sharded_jit(n_dev: int, n_epochs: int, use_run: bool, follow: bool) -> jax.
             out,
             n_epochs=n_epochs,
             use_run=use_run,
+            n_items=counts[0],
         )
 
     batch, shared = PartitionSpec("b"), PartitionSpec()
-    specs = (batch, batch, batch, batch if follow else shared, batch) + (shared,) * len(_SHARED)
+    specs = (batch, batch, batch, batch if follow else shared, batch, batch)
+    specs += (shared,) * (len(_SHARED) + 1)
     fn = jax.shard_map(body, mesh=_mesh(n_dev), in_specs=specs, out_specs=batch, check_vma=False)
-    return jit_with_options(fn, donate_argnums=(4,), compiler_options=_COMPILER_OPTIONS)
+    return jit_with_options(fn, donate_argnums=(5,), compiler_options=_COMPILER_OPTIONS)
+
+
+def _round_up(n: int, step: int) -> int:
+    return -(-n // step) * step
+
+
+def _grid_size(n: int) -> int:
+    """The padded size of a grid side of ``n`` cells: 8 or 16 cells up to 16, then a multiple
+    of 4 up to 127 cells, of 8 up to 255, of 16 up to 511... (``2^(bits(n) - 5)``): at most
+    3/17 more cells per side beyond 16 cells, 1/16 from 64 on (each padded cell costs a cell's
+    work every epoch; on small grids the call's overhead dominates)."""
+    if n <= 16:
+        return 8 if n <= 8 else 16
+    return _round_up(n, max(4, 2 ** (n.bit_length() - 5)))
+
+
+def _epoch_size(n: int) -> int:
+    """The padded number of epochs of the buffers: 16, then ``2^k`` or ``3 * 2^(k - 1)`` (24,
+    32, 48, 64, 96...); padded epochs cost buffer memory only (they are never run)."""
+    if n <= 16:
+        return 16
+    p = 1 << (n - 1).bit_length()  # the power of two >= n
+    return 3 * p // 4 if 3 * p // 4 >= n else p
+
+
+#: Items a device solves per call: the smallest of these that holds its share (a device
+#: with fewer items runs fewer loop iterations; the slots past them cost buffer memory only).
+#: A larger batch is solved in several calls of the largest.
+_SLOTS = (1, 4, 16, 64)
+#: A solve of several items whose padded outputs take at most this many bytes on
+#: ``_SLOTS[1]`` items a device runs on every local device with at least that many slots
+#: (one program for 2 to ``_SLOTS[1] * n_devices`` items; a device with no items runs an
+#: empty loop).
+_SMALL_BYTES = 8 * 2**20
+#: At most this many bytes of output buffers per call (fewer slots, more calls, beyond).
+_CALL_BYTES = 128 * 2**20
+
+
+def _padded_shapes(b: int, n_all: int, item_bytes: int) -> tuple[int, int]:
+    """``(n_dev, slots)``: the devices and items per device of each call solving ``b`` items
+    whose padded outputs take ``item_bytes`` each, on ``n_all`` local devices."""
+    small = n_all * _SLOTS[1] * item_bytes <= _SMALL_BYTES
+    # a lone item runs on one device: a call on several costs ~1 ms more to dispatch
+    n_dev = n_all if small and b > 1 else max(1, min(n_all, b))
+    per = -(-b // n_dev)
+    slots = next((k for k in _SLOTS if k >= per), _SLOTS[-1])
+    if small:
+        slots = max(slots, _SLOTS[1])
+    while slots > 1 and n_dev * slots * item_bytes > _CALL_BYTES:
+        slots = _SLOTS[_SLOTS.index(slots) - 1]
+    return n_dev, slots
 
 
 class _BufferPool:
@@ -603,10 +679,6 @@ class _Batch:
         self.n = n
         self.starts = np.cumsum([0] + [len(x) for x in parts])
 
-    def crop(self) -> _Batch:
-        """The grid columns of wide ``(..., H, W + 4)`` parts."""
-        return _Batch([x[..., 2:-2] for x in self.parts], self.n)
-
     def take(self, items: np.ndarray, *index: np.ndarray) -> np.ndarray:
         """``a[items, *index]`` for 1-d integer arrays of equal length."""
         part = np.searchsorted(self.starts, items, side="right") - 1
@@ -630,60 +702,106 @@ def _run_solver(
     """Run the compiled solver on ``inputs`` (NumPy arrays, as built by ``GridMDP.solve``).
 
     With several local devices (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, which
-    the CLI sets; one per core) a batch is split across them, padded by repeating its last
-    item to a multiple of the device count: each device solves its share one item at a time,
-    in parallel. Results are identical to a single-device solve.
+    the CLI sets; one per core) a batch is split across them: each device solves its share
+    one item at a time, in parallel. Results are identical to a single-device solve.
+
+    One compiled program serves many sizes: the grid is padded with occupied cells (rows
+    below, columns to the right; :func:`_grid_size`), the buffers' epochs to a few sizes
+    (:func:`_epoch_size`) and each device's items to a few slot counts (:data:`_SLOTS`,
+    :func:`_padded_shapes`; a larger batch runs as several calls). The number of epochs and
+    each device's number of items are traced, so padded items and epochs are never
+    computed. A padded cell is blocked exactly as the outside of the map is (the stencil
+    reads +0 there either way, and every cell's arithmetic is elementwise), so the real
+    cells' values and policy are bit for bit those of an unpadded solve.
 
     Returns the outputs (``v0`` a NumPy copy, the policy and value planes :class:`_Batch`
-    views of the device buffers, cropped to the grid) and ``release()``, which hands the
-    buffers back to the pool once nothing refers to those views any more.
+    views of the device buffers, cropped to the items, epochs and grid) and ``release()``,
+    which hands the buffers back to the pool once nothing refers to those views any more.
     """
     b = inputs["goals"].shape[0]
-    n_dev = min(jax.local_device_count(), b)
     dtype = np.dtype(inputs["slip"].dtype)
-    shape = inputs["occupied"].shape
+    h, w = inputs["occupied"].shape
     n_epochs, use_run = int(inputs["n_epochs"]), bool(inputs["use_run"])
-    args = {k: inputs[k] for k in _BATCHED + _SHARED}
-    if n_dev < 2:
-        sharding = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
-        shapes = _output_shapes(b, n_epochs, shape, dtype, store_values, with_policy)
-        bufs, keys = _outputs(shapes, sharding)
-        out = _backward_induction_jit(**args, out=bufs, n_epochs=n_epochs, use_run=use_run)
+    d_pad, hp, wp = _epoch_size(n_epochs), _grid_size(h), _grid_size(w)
+    one = _output_shapes(1, d_pad, (hp, wp), dtype, store_values, with_policy)
+    item_bytes = sum(math.prod(x.shape) * x.dtype.itemsize for x in jax.tree.leaves(one))
+    n_dev, slots = _padded_shapes(b, jax.local_device_count(), item_bytes)
 
-        def parts(x: jax.Array) -> list[np.ndarray]:
-            return [np.asarray(x)]
-    else:
-        pad = -b % n_dev
-        follow = inputs["follow"] is not None
-        batched = []
-        for name in _BATCHED:
-            x = inputs[name]
-            if x is None:
-                x = np.zeros(b, np.int8)  # placeholder, unused
-            if pad:
-                x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
-            batched.append(x)
-        sharding = NamedSharding(_mesh(n_dev), PartitionSpec("b"))
-        shapes = _output_shapes(b + pad, n_epochs, shape, dtype, store_values, with_policy)
-        bufs, keys = _outputs(shapes, sharding)
-        fn = _sharded_jit(n_dev, n_epochs, use_run, follow)
-        out = fn(*batched, bufs, *(inputs[name] for name in _SHARED))
+    def grid(x: np.ndarray, fill: bool | float, epochs: int | None = None) -> np.ndarray:
+        """``x`` with its trailing ``(H, W)`` axes padded to ``(H', W')`` with ``fill`` (and
+        its axis 1 to ``epochs``); zeros and a copy (``np.pad`` costs ~0.1 ms a call)."""
+        shape = (*x.shape[:-2], hp, wp) if epochs is None else (x.shape[0], epochs, hp, wp)
+        if shape == x.shape:
+            return x
+        y = np.full(shape, fill, x.dtype)
+        y[tuple(slice(k) for k in x.shape)] = x
+        return y
 
-        def parts(x: jax.Array) -> list[np.ndarray]:
-            shards = sorted(x.addressable_shards, key=lambda sh: sh.index[0].start or 0)
-            return [np.asarray(sh.data) for sh in shards]
+    follow = inputs["follow"] is not None
+    shared = [
+        grid(inputs["ok"], False),
+        grid(inputs["occupied"], True),
+        *(inputs[name] for name in _SHARED[2:]),
+        np.asarray(n_epochs, np.int32),
+    ]
+    sharding = NamedSharding(_mesh(n_dev), PartitionSpec("b"))
+    shapes = _output_shapes(n_dev * slots, d_pad, (hp, wp), dtype, store_values, with_policy)
+    fn = _sharded_jit(n_dev, use_run, follow)
+    outs, counts, keys = [], [], []
+    for first in range(0, b, n_dev * slots):
+        n = min(b - first, n_dev * slots)
+        per = -(-n // n_dev)
+        count = np.clip(n - per * np.arange(n_dev), 0, per).astype(np.int32)
+        # padded position -> item (slots past a device's count repeat a valid item, unused)
+        k, j = np.divmod(np.arange(n_dev * slots), slots)
+        src = first + np.minimum(k * per + j, n - 1)
+        if follow:
+            f = grid(inputs["follow"][src], 0.0, d_pad)
+        else:
+            f = np.zeros(n_dev * slots, np.int8)  # placeholder, unused
+        batched = [
+            grid(inputs["goals"][src], False),
+            inputs["allow"][src],
+            inputs["horizons"][src],
+            f,
+            count,
+        ]
+        bufs, call_keys = _outputs(shapes, sharding)
+        outs.append(fn(*batched, bufs, *shared))
+        counts += count.tolist()
+        keys += call_keys
 
-    leaves = jax.tree.leaves(out)
+    def parts(xs: list[jax.Array], epochs: int | None = None) -> list[np.ndarray]:
+        """The devices' items of the calls' ``xs`` (views), cropped to ``epochs`` and the grid."""
+        crop = (slice(None),) if epochs is None else (slice(None), slice(epochs))
+        shards = [
+            sh
+            for x in xs
+            for sh in sorted(x.addressable_shards, key=lambda sh: sh.index[0].start or 0)
+        ]
+        return [
+            np.asarray(sh.data)[:c][(*crop, Ellipsis, slice(h), slice(2, w + 2))]
+            for sh, c in zip(shards, counts, strict=True)
+            if c
+        ]
+
+    leaves = [leaf for out in outs for leaf in jax.tree.leaves(out)]
 
     def release() -> None:
         for key, buf in zip(keys, leaves, strict=True):
             _POOL.give(key, buf)
 
-    def planes(xs: tuple[jax.Array, ...] | None) -> tuple[_Batch, ...] | None:
-        return None if xs is None else tuple(_Batch(parts(x), b).crop() for x in xs)
+    def planes(name: str, epochs: int) -> tuple[_Batch, ...] | None:
+        if getattr(outs[0], name) is None:
+            return None
+        n_planes = len(getattr(outs[0], name))
+        return tuple(
+            _Batch(parts([getattr(out, name)[p] for out in outs], epochs), b)
+            for p in range(n_planes)
+        )
 
-    v0 = np.concatenate(parts(out.v0))[:b, ..., 2:-2]  # a copy: the buffer goes back to the pool
-    return _Outputs(v0, planes(out.policy), planes(out.values)), release
+    v0 = np.concatenate(parts([out.v0 for out in outs]))  # a copy: the buffers go back
+    return _Outputs(v0, planes("policy", n_epochs), planes("values", n_epochs + 1)), release
 
 
 class MDPSolution:
@@ -913,7 +1031,11 @@ class GridMDP:
         n_epochs: int | None = None,
         with_policy: bool = True,
     ) -> MDPSolution:
-        """Backward induction for a batch of artefacts (one ``jit`` per grid shape and ``D``).
+        """Backward induction for a batch of artefacts.
+
+        The compiled program is shared by nearby sizes: grids, horizons and batch sizes are
+        padded to a few sizes inside (padded cells, epochs and items are blocked or never
+        computed; the results are those of an unpadded solve, bit for bit).
 
         Parameters
         ----------
@@ -932,7 +1054,7 @@ class GridMDP:
             when they take at most 64 MiB (``None``).
         n_epochs : int or None
             Pad the epochs to ``D = n_epochs >= max(horizons)`` (default ``max(horizons)``);
-            one compilation serves every call with the same grid shape, batch size and ``D``.
+            the result then has ``D`` epochs.
         with_policy : bool
             Compute the policy now (default) or on first access to ``.policy`` (the values
             alone take about two thirds of the time).

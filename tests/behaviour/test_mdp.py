@@ -335,6 +335,55 @@ def test_backward_induction_pure_function_under_jit():
     assert_allclose(np.moveaxis(np.asarray(v0), 1, -1), sol.v0, atol=0)
 
 
+def same_bits(a, b):
+    """``a`` and ``b`` hold the same values bit for bit (signed zeros included)."""
+    a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_padded_solve_equals_unpadded_program_bit_for_bit(dtype):
+    # solve() pads the grid (with occupied cells), each device's items and the epochs of its
+    # buffers to shared sizes; the pure function run at the true shapes is the reference
+    rng = np.random.default_rng(12)
+    h, w = (17, 9) if dtype == "float32" else (6, 13)
+    occ = random_grid(rng, h, w, 0.2)
+    free = np.argwhere(~occ)
+    mdp = GridMDP(occ, slip=0.15, step_cost=0.01, dtype=dtype)
+    reward = rng.normal(size=(14, h, w)) * 0.1  # negative rewards: signed zeros on obstacles
+    sol = mdp.solve(
+        free[:3],
+        ["run", "follow", "walk"],
+        [13, 11, 5],
+        follow=[None, reward, None],
+        store_values=True,
+    )
+    ref = jax.jit(functools.partial(backward_induction, **{**sol._inputs, "store_values": True}))
+    v0, policy, values = (np.asarray(x) for x in ref())
+    assert sol.values.shape == (3, 14, h, w, 4)
+    assert same_bits(sol.values, np.moveaxis(values, 2, -1))
+    assert same_bits(sol.policy, np.moveaxis(policy, 2, -1))
+    assert same_bits(sol.v0, np.moveaxis(v0, 1, -1))
+
+
+def test_padded_sizes_cover_and_bound_the_waste():
+    from are_stats.behaviour._mdp import _CALL_BYTES, _epoch_size, _grid_size, _padded_shapes
+
+    for n in range(1, 700):
+        g, e = _grid_size(n), _epoch_size(n)
+        assert n <= g <= max(16, n + 3 * n / 17) and (n < 64 or g <= n + n / 16)
+        assert n <= e <= max(16, 1.5 * n)
+    for b in (1, 2, 3, 8, 9, 100, 129, 4096):
+        for item_bytes in (10**3, 10**6, 10**8):
+            n_dev, slots = _padded_shapes(b, 2, item_bytes)
+            per = -(-b // n_dev)  # items a device solves, in calls of ``slots``
+            assert n_dev == (1 if b == 1 else 2)
+            # the share fits in one call unless the next level would pass the call's bytes
+            assert slots >= min(per, 64) or n_dev * 4 * slots * item_bytes > _CALL_BYTES
+            assert slots <= max(4, 4 * per)
+            assert slots == 1 or n_dev * slots * item_bytes <= _CALL_BYTES
+
+
 @pytest.mark.parametrize(
     "dtype",
     [
