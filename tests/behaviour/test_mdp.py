@@ -366,6 +366,20 @@ def test_padded_solve_equals_unpadded_program_bit_for_bit(dtype):
     assert same_bits(sol.v0, np.moveaxis(v0, 1, -1))
 
 
+def test_a_horizon_of_zero_is_the_terminal_value_and_an_empty_policy():
+    """No epoch to go: ``V_0`` is the terminal value (``V_1`` of a one-epoch solve) and the
+    policy has no epoch (the solver's buffers hold at least 16 epochs; before they were
+    padded, a policy of 0 epochs failed to trace)."""
+    rng = np.random.default_rng(5)
+    occ = random_grid(rng, 5, 7, 0.2)
+    mdp = GridMDP(occ, slip=0.1, step_cost=0.01)
+    goal = np.argwhere(~occ)[:1]
+    none = mdp.solve(goal, "walk", 0)
+    one = mdp.solve(goal, "walk", 1, store_values=True)
+    assert none.policy.shape == (1, 0, 5, 7, 4)
+    assert same_bits(none.v0, one.values[:, 1])
+
+
 def test_padded_sizes_cover_and_bound_the_waste():
     from are_stats.behaviour._mdp import _CALL_BYTES, _epoch_size, _grid_size, _padded_shapes
 
