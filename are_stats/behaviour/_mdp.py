@@ -68,7 +68,7 @@ from are_stats.behaviour._rewards import (
     STAY,
     allowed_actions,
 )
-from are_stats.behaviour._xla import jit_with_options
+from are_stats.behaviour._xla import jit_with_options, padded_size
 from are_stats.environment import OccupancyGrid
 
 __all__ = ["GridMDP", "MDPSolution", "backward_induction", "path_free"]
@@ -579,12 +579,9 @@ def _grid_size(n: int) -> int:
 
 
 def _epoch_size(n: int) -> int:
-    """The padded number of epochs of the buffers: 16, then ``2^k`` or ``3 * 2^(k - 1)`` (24,
-    32, 48, 64, 96...); padded epochs cost buffer memory only (they are never run)."""
-    if n <= 16:
-        return 16
-    p = 1 << (n - 1).bit_length()  # the power of two >= n
-    return 3 * p // 4 if 3 * p // 4 >= n else p
+    """The padded number of epochs of the buffers: 16, 24, 32, 48, 64, 96... (:func:`padded_size`);
+    padded epochs cost buffer memory only (they are never run)."""
+    return padded_size(n, 16)
 
 
 #: Items a device solves per call: the smallest of these that holds its share (a device

@@ -70,7 +70,7 @@ from are_stats._checks import check_positive
 from are_stats.behaviour._groups import formation, slot_offsets
 from are_stats.behaviour._noise import tracker_noise
 from are_stats.behaviour._smoother import smooth_samples
-from are_stats.behaviour._xla import jit_with_options
+from are_stats.behaviour._xla import jit_with_options, padded_size
 from are_stats.inputs import check_memory, check_work
 
 if TYPE_CHECKING:
@@ -564,12 +564,9 @@ def _walls(grid: OccupancyGrid, xy: np.ndarray, reach: float, x_shift: float = 0
 
 
 def _grid_bucket(n: int) -> int:
-    """The padded length of a wall grid's side of ``n`` cells: the next of 32, 48, 64, 96,
-    128, 192, ... (a power of two or one and a half times one), at most 1.5x ``n``."""
-    size = 32
-    while size < n:
-        size = size * 3 // 2 if size & (size - 1) == 0 else size * 4 // 3
-    return size
+    """The padded length of a wall grid's side of ``n`` cells: 32, 48, 64, 96, 128, 192, ...
+    (:func:`padded_size`), at most 1.5x ``n``."""
+    return padded_size(n, 32)
 
 
 def _padded(a: np.ndarray, size: tuple[int, int]) -> np.ndarray:

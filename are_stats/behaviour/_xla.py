@@ -8,6 +8,9 @@ and, where XLA names an option it does not know, leaves that option out (from th
 every program made here) and compiles again: the same programs and bits where every option
 is known, a program without the option (as the Laplace programs'
 ``_program_cache._compile_lowered`` does) where one is not.
+
+:func:`padded_size` is the one sequence of sizes those programs pad a length to (the MDP's
+epochs, the walls' grid sides), so that calls of nearby sizes share one program.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from typing import Any
 
 import jax
 
-__all__ = ["jit_with_options"]
+__all__ = ["jit_with_options", "padded_size"]
 
 #: Options this jaxlib refused (``No such compile option``): left out from then on.
 UNKNOWN_OPTIONS: set[str] = set()
@@ -87,3 +90,13 @@ def jit_with_options(
     if fn is None:
         return lambda f: _OptionsJit(f, compiler_options, jit_kwargs)
     return _OptionsJit(fn, compiler_options, jit_kwargs)
+
+
+def padded_size(n: int, least: int) -> int:
+    """The padded length of ``n``: the next of ``least``, then powers of two and one and a half
+    times them (``least`` 16: 16, 24, 32, 48, 64, 96, ...), so at most 1.5x ``n`` past
+    ``least`` (a power of two)."""
+    if n <= least:
+        return least
+    p = 1 << (n - 1).bit_length()  # the power of two >= n
+    return 3 * p // 4 if 3 * p // 4 >= n else p
